@@ -24,14 +24,14 @@ NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 MODES = frozenset({"APP", "SPC", "TAC", "DIAG"})
 
 MEMBER_KEYS = frozenset(
-    {"name", "type", "array", "bits", "enum", "values", "units", "min", "max", "seed_line",
+    {"name", "type", "array", "bits", "enum", "values", "units", "min", "max", "seed_line", "seed_form",
      "reconstruction", "description"}
 )
 VARIANT_KEYS = frozenset({"seed_line", "members", "crc", "reconstruction", "description"})
 STRUCT_KEYS = frozenset({"section", "description", "variants", "reconstruction"})
 SIGNAL_KEYS = frozenset(
     {"name", "start", "length", "signed", "factor", "offset", "min", "max", "initial", "units",
-     "seed_line", "reconstruction", "description", "float", "enum", "values"}
+     "seed_line", "reconstruction", "description", "float", "enum", "values", "seed_form"}
 )
 
 
@@ -177,10 +177,12 @@ def validate_tree(root: Path) -> list[str]:  # noqa: C901 - one linear walk over
                     prev_hi = bits[1]
                 else:
                     prev_hi = None
-            crc = var.get("crc")
-            if crc is not None:
+            crcs = var.get("crc")
+            if crcs is None:
+                continue
+            for crc in crcs if isinstance(crcs, list) else [crcs]:
                 if not isinstance(crc, dict):
-                    problems.append(f"{vwhere}: crc must be a mapping")
+                    problems.append(f"{vwhere}: crc must be a mapping or a list of mappings")
                     continue
                 if crc.get("field") not in names:
                     problems.append(f"{vwhere}: crc field {crc.get('field')!r} not a member")

@@ -1,0 +1,332 @@
+"""Sans-IO link connection, one per side (seed 004 §6, decisions L4-L8).
+
+Theory of operation
+-------------------
+``receive_data(transfer, now)`` judges one 128-byte transfer, in this order:
+
+1. length (L8): not 128 bytes -> dropped, ``formatErrorCounter``, no NAK;
+2. CRC (L3): mismatch -> ``dataCRCErrorCounter``; a DATA (or unknown-kind) frame is NAKed 0x002,
+   a broken ACK/NAK is never answered;
+3. D and R (L2): invalid -> ``formatErrorCounter``, NAK 0x011 (not for ACK/NAK);
+4. ACK/NAK frames settle the sender's in-flight frames;
+5. DATA frames go through the receive window (L6): duplicate -> ACK again, out of window -> NAK
+   0x001 (resynchronise after 3 in a row), else the payload check of the layer above (transport
+   header, NAK 0x011), then accept: ACK, ``DataReceived``.
+
+``send(data, tag, now)`` queues one DATA frame. ``data_to_send(now)`` releases transfers: control
+frames (ACK/NAK) first, then DATA frames while fewer than W are in flight (L7), never closer than
+``frame_gap`` apart. ``handle_timer(now)`` expires frames not ACKed within ``ack_timeout`` and
+frames not sent within ``transmit_timeout``; a lost frame is never resent, its tag fails once
+(``sendFailedErrorCounter``) and the tag's remaining queued frames are dropped.
+
+The connection never reads a clock: every call takes ``now`` (seconds, any epoch).
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict, deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Literal
+
+from eyeq_spi.errors import FrameError, LocalProtocolError
+from eyeq_spi.link.counters import SpiDiagnosticInfo
+from eyeq_spi.link.events import (
+    DataReceived,
+    DuplicateReceived,
+    FrameRejected,
+    FramesSkipped,
+    LinkEvent,
+    Resynchronised,
+    Sent,
+    SendFailed,
+    UnexpectedAck,
+)
+from eyeq_spi.link.frame import DATA_SIZE, SEQ_MODULO, FrameCodec, FrameKind, NakReason
+from eyeq_spi.spec.link import link_spec
+
+Role = Literal["host", "eyeq"]
+PayloadCheck = Callable[[int, bytes], "NakReason | None"]
+
+_SPEC = link_spec()
+
+
+@dataclass
+class LinkConfig:
+    """Every timing and the window size, with the seed's values as defaults (§6 table)."""
+
+    role: Role = "host"
+    window: int = _SPEC["window"]["size"]
+    resync_after_naks: int = _SPEC["window"]["resync_after_naks"]
+    ack_timeout: float = _SPEC["timing"]["ackTimeout"]
+    transmit_timeout: float = _SPEC["timing"]["transmitTimeout"]
+    frame_gap: float | None = None  # None: frameFlowControl of the role
+    codec: FrameCodec = field(default_factory=FrameCodec)
+
+    def __post_init__(self) -> None:
+        if self.role not in ("host", "eyeq"):
+            raise LocalProtocolError(f"role must be 'host' or 'eyeq', not {self.role!r}")
+        if not 1 <= self.window < SEQ_MODULO // 2:
+            raise LocalProtocolError(f"window {self.window} out of range")
+        if self.frame_gap is None:
+            self.frame_gap = float(_SPEC["timing"]["frameFlowControl"][self.role])
+        for name in ("ack_timeout", "transmit_timeout", "frame_gap"):
+            if getattr(self, name) < 0:
+                raise LocalProtocolError(f"{name} must not be negative")
+
+
+@dataclass
+class _Queued:
+    tag: int
+    data: bytes
+    deadline: float
+    waited: bool = False
+
+
+@dataclass
+class _InFlight:
+    tag: int
+    deadline: float
+
+
+class LinkConnection:
+    def __init__(
+        self, config: LinkConfig | None = None, *, payload_check: PayloadCheck | None = None
+    ) -> None:
+        self.config = config or LinkConfig()
+        self.codec = self.config.codec
+        self.payload_check = payload_check
+        self.counters = SpiDiagnosticInfo()
+        self._events: deque[LinkEvent] = deque()
+        self._control: deque[bytes] = deque()
+        self._queue: deque[_Queued] = deque()
+        self._inflight: OrderedDict[int, _InFlight] = OrderedDict()
+        self._tags: dict[int, list[int]] = {}  # tag -> [frames not yet settled, failed flag]
+        self.reset()
+
+    # -- state ------------------------------------------------------------------------------
+    def reset(self, *, tx_num: int = 0, expected: int = 0) -> None:
+        """Power-up state: NUM and E back to 0 (L4). Queues and in-flight frames are lost.
+
+        ``tx_num``/``expected`` start elsewhere, for conformance tests of the 4095 -> 0 wrap.
+        """
+        if not (0 <= tx_num < SEQ_MODULO and 0 <= expected < SEQ_MODULO):
+            raise LocalProtocolError("start NUMs must be 0..4095")
+        self._tx_num = tx_num
+        self._expected = expected
+        self._last_accepted = 0
+        self._naks_in_row = 0
+        self._next_tx = float("-inf")
+        self._control.clear()
+        for tag, entry in self._tags.items():
+            if not entry[1]:  # frames still queued or in flight are lost with the reset
+                self.counters.sendFailedErrorCounter += 1
+                self._events.append(SendFailed(tag, None, "reset"))
+        self._tags.clear()
+        self._queue.clear()
+        self._inflight.clear()
+        self.counters.busyFrames = 0
+
+    @property
+    def expected_num(self) -> int:
+        return self._expected
+
+    @property
+    def next_num(self) -> int:
+        return self._tx_num
+
+    @property
+    def in_flight(self) -> int:
+        return len(self._inflight)
+
+    @property
+    def queued(self) -> int:
+        return len(self._queue)
+
+    # -- events -----------------------------------------------------------------------------
+    def next_event(self) -> LinkEvent | None:
+        return self._events.popleft() if self._events else None
+
+    # -- send path --------------------------------------------------------------------------
+    def send(self, data: bytes, tag: int, now: float) -> None:
+        """Queue one DATA frame whose data field is ``data`` (zero-padded to 122 bytes)."""
+        if len(data) > DATA_SIZE:
+            raise LocalProtocolError(f"a frame carries at most {DATA_SIZE} bytes")
+        entry = self._tags.setdefault(tag, [0, 0])
+        if entry[1]:
+            return  # the tag already failed: its later frames are pointless (L7)
+        entry[0] += 1
+        self._queue.append(_Queued(tag, bytes(data), now + self.config.transmit_timeout))
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        out: list[bytes] = []
+        gap = float(self.config.frame_gap or 0.0)
+        while now >= self._next_tx:
+            if self._control:
+                out.append(self._control.popleft())
+            elif self._queue and len(self._inflight) < self.config.window:
+                q = self._queue.popleft()
+                num = self._tx_num
+                self._tx_num = (num + 1) % SEQ_MODULO
+                out.append(self.codec.data_frame(self._last_accepted, num, q.data))
+                self._inflight[num] = _InFlight(q.tag, now + self.config.ack_timeout)
+                self.counters.busyFrames = len(self._inflight)
+            else:
+                if self._queue and not self._queue[0].waited:
+                    # A frame is ready but W frames are still in transit (§9.2 fifoNonEmpty).
+                    self._queue[0].waited = True
+                    self.counters.fifoNonEmptyCounter += 1
+                break
+            self._next_tx = now + gap
+            if gap > 0:
+                break
+        return out
+
+    # -- timers -----------------------------------------------------------------------------
+    def get_timer(self) -> float | None:
+        deadlines: list[float] = []
+        if self._control or (self._queue and len(self._inflight) < self.config.window):
+            deadlines.append(self._next_tx)
+        if self._inflight:
+            deadlines.append(min(f.deadline for f in self._inflight.values()))
+        if self._queue:
+            deadlines.append(self._queue[0].deadline)
+        return min(deadlines) if deadlines else None
+
+    def handle_timer(self, now: float) -> None:
+        for num in [n for n, f in self._inflight.items() if f.deadline <= now]:
+            f = self._inflight.pop(num)
+            self._fail(f.tag, num, "ack_timeout")
+            self._settle(f.tag)
+        self.counters.busyFrames = len(self._inflight)
+        while self._queue and self._queue[0].deadline <= now:
+            q = self._queue.popleft()
+            self._fail(q.tag, None, "transmit_timeout")
+            self._settle(q.tag)
+
+    # -- receive path -----------------------------------------------------------------------
+    def receive_data(self, transfer: bytes, now: float) -> None:
+        c = self.counters
+        try:
+            frame = self.codec.decode(transfer)
+        except FrameError as exc:  # L8: the header cannot be trusted, so no NAK
+            c.formatErrorCounter += 1
+            c.badLengthTransfers += 1
+            self._events.append(FrameRejected(None, None, str(exc)))
+            return
+        is_control = frame.d in (FrameKind.ACK, FrameKind.NAK)
+        if not self.codec.crc_ok(transfer, frame):
+            c.dataCRCErrorCounter += 1
+            if is_control:
+                self._events.append(FrameRejected(None, frame.rsp, "CRC mismatch in ACK/NAK"))
+            else:
+                self._reject(frame.num, NakReason.CRC_MISMATCH, "CRC mismatch")
+            return
+        if frame.kind is None or frame.r != 0:
+            c.formatErrorCounter += 1
+            detail = f"invalid header D=0x{frame.d:X} R=0x{frame.r:X}"
+            if is_control:
+                self._events.append(FrameRejected(None, frame.rsp, detail))
+            else:
+                self._reject(frame.num, NakReason.FORMAT_ERROR, detail)
+            return
+        if frame.kind is FrameKind.ACK:
+            self._on_ack(frame.rsp)
+        elif frame.kind is FrameKind.NAK:
+            self._on_nak(frame.rsp, frame.num)
+        else:
+            self._on_data(frame.num, frame.data)
+
+    def _on_data(self, num: int, data: bytes) -> None:
+        c, w, m = self.counters, self.config.window, SEQ_MODULO
+        ahead = (num - self._expected) % m
+        behind = (self._expected - num) % m
+        if self._naks_in_row >= self.config.resync_after_naks:
+            self._events.append(Resynchronised(num))
+            ahead = 0  # L6: take this frame's NUM as the new E
+            self._expected = num
+        elif ahead >= w:
+            if 1 <= behind <= w:
+                c.duplicateFrames += 1
+                self._naks_in_row = 0
+                self._control.append(self.codec.ack(num))
+                self._events.append(DuplicateReceived(num))
+                return
+            c.sequenceErrorCounter += 1
+            self._naks_in_row += 1
+            self._reject(num, NakReason.OUT_OF_WINDOW, f"NUM {num} outside window at E={self._expected}")
+            return
+        if self.payload_check is not None:
+            reason = self.payload_check(num, data)
+            if reason is not None:
+                if reason is NakReason.FORMAT_ERROR:
+                    c.formatErrorCounter += 1
+                self._reject(num, reason, "payload header rejected by the transport")
+                return
+        if ahead:
+            c.skippedFrames += ahead
+            self._events.append(FramesSkipped(self._expected, num, ahead))
+        self._naks_in_row = 0
+        self._expected = (num + 1) % m
+        self._last_accepted = num
+        c.framesReceived += 1
+        self._control.append(self.codec.ack(num))
+        self._events.append(DataReceived(num, data))
+
+    def _on_ack(self, rsp: int) -> None:
+        f = self._inflight.pop(rsp, None)
+        if f is None:
+            self.counters.unexpectedAckCounter += 1
+            self._events.append(UnexpectedAck("ACK", rsp))
+            return
+        self.counters.busyFrames = len(self._inflight)
+        self.counters.framesAcked += 1
+        self._settle(f.tag)
+
+    def _on_nak(self, rsp: int, reason_code: int) -> None:
+        try:
+            reason: NakReason | None = NakReason(reason_code)
+        except ValueError:
+            reason = None
+        self.counters.naksReceived[reason_code] = self.counters.naksReceived.get(reason_code, 0) + 1
+        f = self._inflight.pop(rsp, None)
+        if f is None:
+            self.counters.unexpectedAckCounter += 1
+            self._events.append(UnexpectedAck("NAK", rsp))
+            return
+        self.counters.busyFrames = len(self._inflight)
+        self._fail(f.tag, rsp, "nak", reason)
+        self._settle(f.tag)
+
+    def _reject(self, num: int, reason: NakReason, detail: str) -> None:
+        self.counters.naksSent[int(reason)] = self.counters.naksSent.get(int(reason), 0) + 1
+        self._control.append(self.codec.nak(num, reason))
+        self._events.append(FrameRejected(reason, num, detail))
+
+    # -- tag bookkeeping --------------------------------------------------------------------
+    def _fail(self, tag: int, num: int | None, why: str, nak: NakReason | None = None) -> None:
+        entry = self._tags.get(tag)
+        if entry is None or entry[1]:
+            return
+        entry[1] = 1
+        self.counters.sendFailedErrorCounter += 1
+        self._events.append(SendFailed(tag, num, why, nak))
+        kept: deque[_Queued] = deque()
+        for q in self._queue:
+            if q.tag == tag:
+                entry[0] -= 1
+            else:
+                kept.append(q)
+        self._queue = kept
+        if entry[0] <= 0:
+            del self._tags[tag]
+
+    def _settle(self, tag: int) -> None:
+        entry = self._tags.get(tag)
+        if entry is None:
+            return
+        entry[0] -= 1
+        if entry[0] <= 0:
+            del self._tags[tag]
+            if not entry[1]:
+                self._events.append(Sent(tag))

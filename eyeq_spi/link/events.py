@@ -1,0 +1,93 @@
+"""Events the link layer reports. Small frozen dataclasses that check themselves (STYLE.md §4)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from eyeq_spi.link.frame import DATA_SIZE, SEQ_MODULO, NakReason
+
+
+def _check_num(num: int) -> None:
+    if not 0 <= num < SEQ_MODULO:
+        raise ValueError(f"NUM {num} outside 0..{SEQ_MODULO - 1}")
+
+
+@dataclass(frozen=True, slots=True)
+class DataReceived:
+    """An accepted DATA frame (L6): its NUM and its 122-byte data field."""
+
+    num: int
+    data: bytes
+
+    def __post_init__(self) -> None:
+        _check_num(self.num)
+        if len(self.data) != DATA_SIZE:
+            raise ValueError("data field must be 122 bytes")
+
+
+@dataclass(frozen=True, slots=True)
+class Sent:
+    """Every frame handed to :meth:`LinkConnection.send` under ``tag`` was ACKed."""
+
+    tag: int
+
+
+@dataclass(frozen=True, slots=True)
+class SendFailed:
+    """A frame under ``tag`` was lost (L7); the rest of the tag's queued frames were dropped."""
+
+    tag: int
+    num: int | None
+    reason: str  # "ack_timeout" | "nak" | "transmit_timeout" | "reset"
+    nak_reason: NakReason | None = None
+
+    def __post_init__(self) -> None:
+        if self.reason not in ("ack_timeout", "nak", "transmit_timeout", "reset"):
+            raise ValueError(f"bad SendFailed reason {self.reason!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class FrameRejected:
+    """A received transfer was rejected. ``nak_reason`` is None when no NAK was sent (L8, or a
+    broken ACK/NAK, which is never answered)."""
+
+    nak_reason: NakReason | None
+    num: int | None
+    detail: str
+
+
+@dataclass(frozen=True, slots=True)
+class DuplicateReceived:
+    """A DATA frame with NUM in [E-W, E): ACKed again, payload dropped (L6)."""
+
+    num: int
+
+
+@dataclass(frozen=True, slots=True)
+class Resynchronised:
+    """After ``resync_after_naks`` out-of-window NAKs the receiver took ``num`` as new E (L6)."""
+
+    num: int
+
+
+@dataclass(frozen=True, slots=True)
+class FramesSkipped:
+    """An accepted NUM jumped over ``count`` frames; they are lost, nothing is resent (L6)."""
+
+    expected: int
+    num: int
+    count: int
+
+
+@dataclass(frozen=True, slots=True)
+class UnexpectedAck:
+    """An ACK or NAK for a NUM that is not in flight (late, duplicated or bogus)."""
+
+    kind: str
+    rsp: int
+
+
+LinkEvent = (
+    DataReceived | Sent | SendFailed | FrameRejected | DuplicateReceived | Resynchronised
+    | FramesSkipped | UnexpectedAck
+)

@@ -1,0 +1,165 @@
+"""Link frame codec (seed 004 §6, decisions L1-L3).
+
+A frame is exactly 128 bytes: a uint32 LE header word (D/R/RSP/NUM), a CRC-16 LE, and 122 data
+bytes. The byte layout is a compiled construct Struct; the header word is split by shifts whose
+positions come from ``specs/link.yaml`` (LSB-first by default, MSB-first configurable).
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import NewType
+
+from construct import Bytes, Int16ul, Int32ul, Struct
+
+from eyeq_spi.crc import CCITT_FALSE, CrcFunction, CrcVariant, make_crc
+from eyeq_spi.errors import FrameError, LocalProtocolError
+from eyeq_spi.spec.link import link_spec
+
+_SPEC = link_spec()
+FRAME_SIZE: int = _SPEC["frame"]["size"]
+DATA_SIZE: int = _SPEC["frame"]["data_size"]
+SEQ_MODULO: int = _SPEC["sequence"]["modulo"]
+
+Num = NewType("Num", int)
+"""A 12-bit frame sequence number (L4)."""
+
+
+class FrameKind(enum.IntEnum):
+    """Values of the D field (L2)."""
+
+    DATA = _SPEC["kinds"]["DATA"]
+    ACK = _SPEC["kinds"]["ACK"]
+    NAK = _SPEC["kinds"]["NAK"]
+
+
+class NakReason(enum.IntEnum):
+    """NAK reasons (L5), carried in the NUM field of a NAK."""
+
+    OUT_OF_WINDOW = 0x001
+    CRC_MISMATCH = 0x002
+    FORMAT_ERROR = 0x011
+
+
+class BitOrder(enum.Enum):
+    LSB_FIRST = "lsb_first"
+    MSB_FIRST = "msb_first"
+
+
+FRAME_LAYOUT = Struct(
+    "header" / Int32ul,
+    "crc" / Int16ul,
+    "data" / Bytes(DATA_SIZE),
+).compile()
+
+
+def _field_shifts(order: BitOrder) -> dict[str, tuple[int, int]]:
+    """name -> (shift, mask) for the header fields, in the seed's table order."""
+    fields = [(str(n), int(w)) for n, w in _SPEC["frame"]["header"]["fields"]]
+    if order is BitOrder.MSB_FIRST:
+        fields = fields[::-1]
+    out: dict[str, tuple[int, int]] = {}
+    pos = 0
+    for name, width in fields:
+        out[name] = (pos, (1 << width) - 1)
+        pos += width
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """A decoded frame. ``d`` is kept as an int so that invalid kinds can be represented."""
+
+    d: int
+    r: int
+    rsp: int
+    num: int
+    data: bytes = bytes(DATA_SIZE)
+    crc: int = 0
+
+    def __post_init__(self) -> None:
+        if not (0 <= self.d <= 0xF and 0 <= self.r <= 0xF):
+            raise LocalProtocolError(f"D/R out of 4-bit range: {self.d}, {self.r}")
+        if not (0 <= self.rsp < SEQ_MODULO and 0 <= self.num < SEQ_MODULO):
+            raise LocalProtocolError(f"RSP/NUM out of 12-bit range: {self.rsp}, {self.num}")
+        if len(self.data) != DATA_SIZE:
+            raise LocalProtocolError(f"frame data must be {DATA_SIZE} bytes, got {len(self.data)}")
+
+    @property
+    def kind(self) -> FrameKind | None:
+        try:
+            return FrameKind(self.d)
+        except ValueError:
+            return None
+
+
+class FrameCodec:
+    """Encode and decode frames for one configuration (CRC variant, header bit order)."""
+
+    def __init__(
+        self,
+        *,
+        crc: CrcVariant | CrcFunction = CCITT_FALSE,
+        bit_order: BitOrder | str = BitOrder(_SPEC["frame"]["header"]["bit_order"]),
+    ) -> None:
+        self.crc: CrcFunction = make_crc(crc) if isinstance(crc, CrcVariant) else crc
+        self.bit_order = BitOrder(bit_order)
+        s = _field_shifts(self.bit_order)
+        self._d, self._r, self._rsp, self._num = s["D"], s["R"], s["RSP"], s["NUM"]
+
+    # -- header word -------------------------------------------------------------------------
+    def pack_header(self, d: int, r: int, rsp: int, num: int) -> int:
+        return (
+            (d << self._d[0]) | (r << self._r[0]) | (rsp << self._rsp[0]) | (num << self._num[0])
+        )
+
+    def unpack_header(self, word: int) -> tuple[int, int, int, int]:
+        return (
+            (word >> self._d[0]) & self._d[1],
+            (word >> self._r[0]) & self._r[1],
+            (word >> self._rsp[0]) & self._rsp[1],
+            (word >> self._num[0]) & self._num[1],
+        )
+
+    # -- CRC coverage (L3) --------------------------------------------------------------------
+    def compute_crc(self, d: int, header: bytes, data: bytes) -> int:
+        if d in (FrameKind.ACK, FrameKind.NAK):
+            return self.crc(header)
+        return self.crc(header + data)
+
+    # -- encode / decode ----------------------------------------------------------------------
+    def encode(self, frame: Frame) -> bytes:
+        word = self.pack_header(frame.d, frame.r, frame.rsp, frame.num)
+        header = word.to_bytes(4, "little")
+        data = frame.data if frame.d not in (FrameKind.ACK, FrameKind.NAK) else bytes(DATA_SIZE)
+        crc = self.compute_crc(frame.d, header, data)
+        return FRAME_LAYOUT.build({"header": word, "crc": crc, "data": data})
+
+    def data_frame(self, rsp: int, num: int, data: bytes) -> bytes:
+        """Encode a DATA frame, zero-padding ``data`` to 122 bytes (§6 pad bytes)."""
+        if len(data) > DATA_SIZE:
+            raise LocalProtocolError(f"data field holds {DATA_SIZE} bytes, got {len(data)}")
+        return self.encode(Frame(FrameKind.DATA, 0, rsp, num, data.ljust(DATA_SIZE, b"\0")))
+
+    def ack(self, num: int) -> bytes:
+        """L5: an ACK's RSP is the accepted frame's NUM, its NUM is 0."""
+        return self.encode(Frame(FrameKind.ACK, 0, num, 0))
+
+    def nak(self, num: int, reason: NakReason) -> bytes:
+        """L5: a NAK's RSP is the rejected frame's NUM, its NUM holds the reason."""
+        return self.encode(Frame(FrameKind.NAK, 0, num, int(reason)))
+
+    def decode(self, transfer: bytes) -> Frame:
+        """Decode without judging: returns the frame with the CRC found in it.
+
+        Raises ``FrameError`` only for a wrong length (L8); use :meth:`crc_ok` for the CRC.
+        """
+        if len(transfer) != FRAME_SIZE:
+            raise FrameError(f"transfer is {len(transfer)} bytes, not {FRAME_SIZE}")
+        parsed = FRAME_LAYOUT.parse(transfer)
+        d, r, rsp, num = self.unpack_header(parsed.header)
+        return Frame(d, r, rsp, num, parsed.data, parsed.crc)
+
+    def crc_ok(self, transfer: bytes, frame: Frame) -> bool:
+        return self.compute_crc(frame.d, transfer[:4], transfer[6:]) == frame.crc

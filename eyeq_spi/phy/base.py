@@ -1,0 +1,126 @@
+"""Physical adapters: something that carries whole SPI transfers to and from the peer.
+
+python-can's pattern: a registry of name -> (module, class), imported only when asked for and
+extensible through the ``eyeq_spi.adapters`` entry-point group. The base class does the shared
+work (statistics, closed-state checks, argument checks) in :meth:`send` / :meth:`recv`; an
+implementation provides ``_send_internal`` and ``_recv_internal``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from types import TracebackType
+
+from eyeq_spi.errors import AdapterError
+
+
+@dataclass
+class AdapterStats:
+    transfers_sent: int = 0
+    transfers_received: int = 0
+    bytes_sent: int = 0
+    bytes_received: int = 0
+    decode_errors: int = 0  # stream framing that could not be decoded (dropped, counted)
+
+
+class Adapter(ABC):
+    """One side of one duplex SPI link: ``send`` puts a transfer on our channel, ``recv`` takes
+    the next transfer from the peer's channel."""
+
+    def __init__(self) -> None:
+        self.stats = AdapterStats()
+        self.closed = False
+
+    def send(self, transfer: bytes) -> None:
+        if self.closed:
+            raise AdapterError("adapter is closed")
+        if not transfer:
+            raise AdapterError("cannot send an empty transfer")
+        self._send_internal(bytes(transfer))
+        self.stats.transfers_sent += 1
+        self.stats.bytes_sent += len(transfer)
+
+    def recv(self, timeout: float | None = 0.0) -> bytes | None:
+        """The next transfer, or None if none arrives within ``timeout`` seconds (0 = poll)."""
+        if self.closed:
+            raise AdapterError("adapter is closed")
+        t = self._recv_internal(timeout)
+        if t is not None:
+            self.stats.transfers_received += 1
+            self.stats.bytes_received += len(t)
+        return t
+
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self._close_internal()
+
+    def __enter__(self) -> Adapter:
+        return self
+
+    def __exit__(
+        self, et: type[BaseException] | None, ev: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    @abstractmethod
+    def _send_internal(self, transfer: bytes) -> None: ...
+
+    @abstractmethod
+    def _recv_internal(self, timeout: float | None) -> bytes | None: ...
+
+    def _close_internal(self) -> None:  # noqa: B027 - optional hook
+        pass
+
+
+# name -> (module, class). Extend with entry points in group "eyeq_spi.adapters".
+ADAPTERS: dict[str, tuple[str, str]] = {
+    "memory": ("eyeq_spi.phy.memory", "MemoryAdapter"),
+    "serial": ("eyeq_spi.phy.serial", "SerialAdapter"),
+    "tcp-listen": ("eyeq_spi.phy.tcp", "TcpListenAdapter"),
+}
+
+
+def adapter_class(name: str) -> type[Adapter]:
+    """Import the adapter class registered as ``name`` (only now)."""
+    target = ADAPTERS.get(name)
+    if target is None:
+        for ep in entry_points(group="eyeq_spi.adapters"):
+            if ep.name == name:
+                cls = ep.load()
+                if not (isinstance(cls, type) and issubclass(cls, Adapter)):
+                    raise AdapterError(f"entry point {name!r} is not an Adapter")
+                return cls
+        known = ", ".join(sorted(ADAPTERS))
+        raise AdapterError(f"unknown adapter {name!r} (known: {known})")
+    module = importlib.import_module(target[0])
+    cls = getattr(module, target[1])
+    assert isinstance(cls, type) and issubclass(cls, Adapter)
+    return cls
+
+
+def open_url(url: str, *, timeout: float = 5.0) -> Adapter:
+    """Open an adapter from a URL.
+
+    - ``tcp://HOST:PORT`` with ``listen=True`` semantics is ``listen://HOST:PORT`` here: a TCP
+      listener that serves the other end of a ``socket://`` URL;
+    - anything else is a pyserial URL or device (``socket://``, ``loop://``, ``rfc2217://``,
+      ``/dev/ttyUSB0``, a pty path).
+    """
+    if url.startswith("listen://"):
+        host, _, port = url[len("listen://") :].rpartition(":")
+        return adapter_class("tcp-listen")(host or "127.0.0.1", _port(port, url), timeout=timeout)  # type: ignore[call-arg]
+    return adapter_class("serial")(url)  # type: ignore[call-arg]
+
+
+def _port(text: str, url: str) -> int:
+    try:
+        port = int(text)
+    except ValueError:
+        raise AdapterError(f"bad port in {url!r}") from None
+    if not 0 <= port <= 65535:
+        raise AdapterError(f"port out of range in {url!r}")
+    return port

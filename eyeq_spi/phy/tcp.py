@@ -1,0 +1,78 @@
+"""TCP listener adapter: serves the other end of a pyserial ``socket://HOST:PORT`` URL.
+
+It accepts one connection (waiting up to ``timeout`` seconds for it on the first send/recv, or in
+:meth:`accept`), then carries COBS-framed transfers like the serial adapter. A new connection
+replaces a closed one, so a peer may reconnect.
+"""
+
+from __future__ import annotations
+
+import select
+import socket
+
+from eyeq_spi.errors import AdapterError
+from eyeq_spi.phy.stream import CobsDecoder, StreamAdapter
+
+
+class TcpListenAdapter(StreamAdapter):
+    def __init__(self, host: str = "127.0.0.1", port: int = 0, *, timeout: float = 5.0) -> None:
+        super().__init__()
+        self.timeout = timeout
+        try:
+            self.server = socket.create_server((host, port))
+        except OSError as exc:
+            raise AdapterError(f"cannot listen on {host}:{port}: {exc}") from exc
+        self.address: tuple[str, int] = self.server.getsockname()[:2]
+        self.conn: socket.socket | None = None
+
+    @property
+    def url(self) -> str:
+        """The pyserial URL a peer uses to reach us."""
+        return f"socket://{self.address[0]}:{self.address[1]}"
+
+    def accept(self, timeout: float | None = None) -> bool:
+        if self.conn is not None:
+            return True
+        wait = self.timeout if timeout is None else timeout
+        ready, _, _ = select.select([self.server], [], [], wait)
+        if not ready:
+            return False
+        conn, _ = self.server.accept()
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.conn = conn
+        self._decoder = CobsDecoder()
+        return True
+
+    def _write(self, data: bytes) -> None:
+        if self.conn is None and not self.accept():
+            raise AdapterError(f"no peer connected to {self.url} within {self.timeout} s")
+        assert self.conn is not None
+        try:
+            self.conn.sendall(data)
+        except OSError as exc:
+            self._drop()
+            raise AdapterError(f"peer of {self.url} went away: {exc}") from exc
+
+    def _read(self, timeout: float | None) -> bytes:
+        if self.conn is None and not self.accept(timeout if timeout is not None else None):
+            return b""
+        assert self.conn is not None
+        ready, _, _ = select.select([self.conn], [], [], timeout)
+        if not ready:
+            return b""
+        try:
+            data = self.conn.recv(65536)
+        except OSError:
+            data = b""
+        if not data:  # orderly close: wait for a new peer
+            self._drop()
+        return data
+
+    def _drop(self) -> None:
+        if self.conn is not None:
+            self.conn.close()
+            self.conn = None
+
+    def _close_internal(self) -> None:
+        self._drop()
+        self.server.close()

@@ -1,0 +1,212 @@
+"""Sans-IO transport connection: segmentation and reassembly over one link connection.
+
+Theory of operation
+-------------------
+``send(message, now)`` splits a message (T1-T4) and queues all its frames on the link under one
+tag, back to back, so that one sender's transfers never interleave (T5). The link reports the tag
+as ``Sent`` or ``SendFailed``; they become ``MessageSent`` / ``MessageSendFailed``.
+
+On receive, the link asks :meth:`_check_header` about every in-window DATA frame before it ACKs it.
+Static header faults (unknown transport type, single size 0 or > 120, first-frame total outside
+117..limit, a consecutive frame whose ID differs from the open transfer's) are NAKed 0x011; a
+total above the receive limit also counts ``rcvOverflowErrors``. Accepted frames then drive the
+reassembly; a NUM gap, a consecutive frame with no open transfer, 25 ms of silence or a new first
+frame abort the open transfer (T6) — reported as ``TransferAborted`` and counted, never raised.
+A single frame arriving inside an open transfer breaks T5; it is delivered and the open transfer
+is aborted as ``interleaved``.
+
+Link events that are not about messages (rejected frames, duplicates, resynchronisation) are
+passed through unchanged, so one ``next_event()`` loop sees everything.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, deque
+from dataclasses import dataclass, field
+
+from eyeq_spi.link.connection import LinkConfig, LinkConnection, Role
+from eyeq_spi.link.events import DataReceived, LinkEvent, Sent, SendFailed
+from eyeq_spi.link.frame import SEQ_MODULO, NakReason
+from eyeq_spi.spec.link import link_spec
+from eyeq_spi.transport import segment as seg
+from eyeq_spi.transport.events import (
+    MessageReceived,
+    MessageSendFailed,
+    MessageSent,
+    TransferAborted,
+    TransportEvent,
+)
+
+_T = link_spec()["transport"]
+
+Event = TransportEvent | LinkEvent
+
+
+@dataclass
+class TransportConfig:
+    receive_limit: int | None = None  # None: the role's limit (8191 host, 512 EyeQ)
+    reassembly_timeout: float = _T["reassembly_timeout"]
+
+    def resolve(self, role: Role) -> None:
+        if self.receive_limit is None:
+            self.receive_limit = int(_T["receive_limit"][role])
+
+
+@dataclass
+class _Open:
+    transfer_id: int
+    total: int
+    buf: bytearray
+    last_num: int
+    deadline: float
+    nums: list[int] = field(default_factory=list)
+
+
+@dataclass
+class TransportCounters:
+    messagesSent: int = 0
+    messagesReceived: int = 0
+    messagesFailed: int = 0
+    transferAborts: Counter[str] = field(default_factory=Counter)
+
+
+class TransportConnection:
+    def __init__(
+        self, link_config: LinkConfig | None = None, config: TransportConfig | None = None
+    ) -> None:
+        self.link = LinkConnection(link_config, payload_check=self._check_header)
+        self.config = config or TransportConfig()
+        self.config.resolve(self.link.config.role)
+        self.counters = TransportCounters()
+        self._events: deque[Event] = deque()
+        self._open: _Open | None = None
+        self._next_message_id = 0
+        self._next_transfer_id = 0
+
+    @property
+    def role(self) -> Role:
+        return self.link.config.role
+
+    def reset(self, *, tx_num: int = 0, expected: int = 0, transfer_id: int = 0) -> None:
+        """Power-up state of both layers (the link's pending messages fail). The start values
+        exist for conformance tests of the wraps."""
+        if not 0 <= transfer_id < seg.ID_MODULO:
+            raise ValueError("transfer_id must be 0..255")
+        self._abort("reset")
+        self.link.reset(tx_num=tx_num, expected=expected)
+        self._next_transfer_id = transfer_id
+        self._drain_link(0.0)
+
+    # -- send -------------------------------------------------------------------------------
+    def send(self, message: bytes, now: float) -> int:
+        """Queue ``message``; returns the id that ``MessageSent``/``MessageSendFailed`` carry."""
+        tid = self._next_transfer_id
+        payloads = seg.segment(message, tid)
+        if len(payloads) > 1:
+            self._next_transfer_id = (tid + 1) % seg.ID_MODULO
+        mid = self._next_message_id
+        self._next_message_id += 1
+        for p in payloads:
+            self.link.send(p, mid, now)
+        return mid
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        return self.link.data_to_send(now)
+
+    # -- timers -----------------------------------------------------------------------------
+    def get_timer(self) -> float | None:
+        t = self.link.get_timer()
+        if self._open is not None and (t is None or self._open.deadline < t):
+            t = self._open.deadline
+        return t
+
+    def handle_timer(self, now: float) -> None:
+        self.link.handle_timer(now)
+        if self._open is not None and self._open.deadline <= now:
+            self._abort("timeout")
+        self._drain_link(now)
+
+    # -- receive ----------------------------------------------------------------------------
+    def receive_data(self, transfer: bytes, now: float) -> None:
+        self.link.receive_data(transfer, now)
+        self._drain_link(now)
+
+    def next_event(self) -> Event | None:
+        return self._events.popleft() if self._events else None
+
+    def _check_header(self, num: int, data: bytes) -> NakReason | None:
+        ttype = data[0]
+        limit = self.config.receive_limit or seg.MAX_TOTAL
+        if ttype == seg.SINGLE:
+            return None if 1 <= data[1] <= seg.SINGLE_MAX else NakReason.FORMAT_ERROR
+        if ttype == seg.FIRST:
+            total = int.from_bytes(data[2:6], "little")
+            if total > limit and total >= seg.FIRST_TOTAL_MIN:
+                self.link.counters.rcvOverflowErrors += 1
+                return NakReason.FORMAT_ERROR
+            return None if seg.FIRST_TOTAL_MIN <= total <= limit else NakReason.FORMAT_ERROR
+        if ttype == seg.CONSECUTIVE:
+            if self._open is not None and data[1] != self._open.transfer_id:
+                self._abort("wrong_id")
+                return NakReason.FORMAT_ERROR
+            return None
+        return NakReason.FORMAT_ERROR
+
+    def _drain_link(self, now: float) -> None:
+        while (ev := self.link.next_event()) is not None:
+            if isinstance(ev, DataReceived):
+                self._on_payload(ev.num, ev.data, now)
+            elif isinstance(ev, Sent):
+                self.counters.messagesSent += 1
+                self._events.append(MessageSent(ev.tag))
+            elif isinstance(ev, SendFailed):
+                self.counters.messagesFailed += 1
+                self._events.append(MessageSendFailed(ev.tag, ev.reason))
+            else:
+                self._events.append(ev)
+
+    def _on_payload(self, num: int, data: bytes, now: float) -> None:
+        ttype = data[0]
+        if ttype == seg.SINGLE:
+            if self._open is not None:
+                self._abort("interleaved")
+            self._deliver(data[2 : 2 + data[1]], (num,), None)
+            return
+        if ttype == seg.FIRST:
+            if self._open is not None:
+                self._abort("new_first_frame")
+            total = int.from_bytes(data[2:6], "little")
+            self._open = _Open(
+                data[1], total, bytearray(data[6 : 6 + seg.FIRST_CHUNK]), num,
+                now + self.config.reassembly_timeout, [num],
+            )
+            return
+        # consecutive (the header check let only these through)
+        o = self._open
+        if o is None:
+            self.counters.transferAborts["no_open_transfer"] += 1
+            self._events.append(TransferAborted("no_open_transfer", data[1], 0, None))
+            return
+        if num != (o.last_num + 1) % SEQ_MODULO:
+            self._abort("num_gap")
+            return
+        take = min(seg.CONSECUTIVE_CHUNK, o.total - len(o.buf))
+        o.buf += data[2 : 2 + take]
+        o.last_num = num
+        o.nums.append(num)
+        o.deadline = now + self.config.reassembly_timeout
+        if len(o.buf) >= o.total:
+            self._open = None
+            self._deliver(bytes(o.buf), tuple(o.nums), o.transfer_id)
+
+    def _deliver(self, message: bytes, nums: tuple[int, ...], tid: int | None) -> None:
+        self.counters.messagesReceived += 1
+        self._events.append(MessageReceived(message, nums, tid))
+
+    def _abort(self, reason: str) -> None:
+        o = self._open
+        if o is None:
+            return
+        self._open = None
+        self.counters.transferAborts[reason] += 1
+        self._events.append(TransferAborted(reason, o.transfer_id, len(o.buf), o.total))

@@ -1,0 +1,49 @@
+"""Events the transport layer reports (decisions T5, T6)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+ABORT_REASONS = frozenset(
+    {"num_gap", "wrong_id", "no_open_transfer", "timeout", "new_first_frame", "interleaved",
+     "reset"}
+)
+
+
+@dataclass(frozen=True, slots=True)
+class MessageReceived:
+    data: bytes
+    frames: tuple[int, ...]  # the NUMs of the frames that carried it
+    transfer_id: int | None  # None for a single frame
+
+    def __post_init__(self) -> None:
+        if not self.data:
+            raise ValueError("a message has at least one byte")
+
+
+@dataclass(frozen=True, slots=True)
+class MessageSent:
+    message_id: int
+
+
+@dataclass(frozen=True, slots=True)
+class MessageSendFailed:
+    message_id: int
+    reason: str  # the link's SendFailed reason
+
+
+@dataclass(frozen=True, slots=True)
+class TransferAborted:
+    """A multi-frame reception was abandoned (T6). Counted, never raised."""
+
+    reason: str
+    transfer_id: int | None
+    received: int  # message bytes received before the abort
+    total: int | None
+
+    def __post_init__(self) -> None:
+        if self.reason not in ABORT_REASONS:
+            raise ValueError(f"unknown abort reason {self.reason!r}")
+
+
+TransportEvent = MessageReceived | MessageSent | MessageSendFailed | TransferAborted

@@ -1,0 +1,47 @@
+"""Segmentation of a message into transport payloads (seed 004 §6.1-6.2, decisions T1-T4).
+
+Each returned payload is the data field of one link frame (at most 122 bytes; the link pads).
+"""
+
+from __future__ import annotations
+
+from typing import NewType
+
+from eyeq_spi.errors import LocalProtocolError
+from eyeq_spi.spec.link import link_spec
+
+_T = link_spec()["transport"]
+SINGLE: int = _T["types"]["single"]
+FIRST: int = _T["types"]["first"]
+CONSECUTIVE: int = _T["types"]["consecutive"]
+SINGLE_MAX: int = _T["single_max"]
+FIRST_CHUNK: int = _T["first_chunk"]
+CONSECUTIVE_CHUNK: int = _T["consecutive_chunk"]
+FIRST_TOTAL_MIN: int = _T["first_total_min"]
+MAX_TOTAL: int = _T["max_total"]
+ID_MODULO: int = _T["transfer_id_modulo"]
+
+TransferId = NewType("TransferId", int)
+
+
+def segment(message: bytes, transfer_id: int) -> list[bytes]:
+    """Split ``message`` (1..8191 bytes) into single or first+consecutive payloads."""
+    n = len(message)
+    if not 1 <= n <= MAX_TOTAL:
+        raise LocalProtocolError(f"a message is 1..{MAX_TOTAL} bytes, got {n}")
+    if n <= SINGLE_MAX:  # §6.1 / T2
+        return [bytes((SINGLE, n)) + message]
+    if not 0 <= transfer_id < ID_MODULO:
+        raise LocalProtocolError(f"transfer ID {transfer_id} outside 0..{ID_MODULO - 1}")
+    # §6.2.1 / T3: type, ID, total (uint32 LE), first 116 bytes
+    out = [bytes((FIRST, transfer_id)) + n.to_bytes(4, "little") + message[:FIRST_CHUNK]]
+    # §6.2.2 / T4: type, ID, next min(120, remaining) bytes
+    for pos in range(FIRST_CHUNK, n, CONSECUTIVE_CHUNK):
+        out.append(bytes((CONSECUTIVE, transfer_id)) + message[pos : pos + CONSECUTIVE_CHUNK])
+    return out
+
+
+def frames_needed(length: int) -> int:
+    if length <= SINGLE_MAX:
+        return 1
+    return 1 + -(-(length - FIRST_CHUNK) // CONSECUTIVE_CHUNK)

@@ -1,0 +1,85 @@
+from __future__ import annotations
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from eyeq_spi.crc import VARIANTS
+from eyeq_spi.errors import FrameError, LocalProtocolError
+from eyeq_spi.link.frame import FRAME_SIZE, BitOrder, Frame, FrameCodec, FrameKind, NakReason
+
+codec = FrameCodec()
+nibble = st.integers(0, 15)
+twelve = st.integers(0, 4095)
+
+
+@given(d=nibble, r=nibble, rsp=twelve, num=twelve, data=st.binary(min_size=122, max_size=122),
+       order=st.sampled_from(list(BitOrder)))
+def test_any_header_round_trips(d: int, r: int, rsp: int, num: int, data: bytes,
+                                order: BitOrder) -> None:
+    c = FrameCodec(bit_order=order)
+    wire = c.encode(Frame(d, r, rsp, num, data))
+    assert len(wire) == FRAME_SIZE
+    f = c.decode(wire)
+    assert (f.d, f.r, f.rsp, f.num) == (d, r, rsp, num)
+    assert c.crc_ok(wire, f)
+    if d not in (FrameKind.ACK, FrameKind.NAK):
+        assert f.data == data
+    assert c.encode(f) == wire
+
+
+def test_header_word_is_lsb_first_little_endian() -> None:
+    # L1: D in bits 0-3, so a DATA frame with R = 0 starts with byte 0x08.
+    wire = codec.data_frame(rsp=0x123, num=0xABC, data=b"\x00\x01z")
+    word = int.from_bytes(wire[:4], "little")
+    assert wire[0] == 0x08
+    assert word == 0x8 | (0 << 4) | (0x123 << 8) | (0xABC << 20)
+    assert wire[6:9] == b"\x00\x01z" and wire[9:] == bytes(119)  # zero padding
+
+
+def test_msb_first_order_is_configurable() -> None:
+    c = FrameCodec(bit_order="msb_first")
+    word = int.from_bytes(c.data_frame(0, 1, b"")[:4], "little")
+    assert word >> 28 == 0x8 and word & 0xFFF == 1
+
+
+def test_crc_covers_header_and_data_of_a_data_frame() -> None:
+    wire = codec.data_frame(0, 5, b"abc")
+    crc = int.from_bytes(wire[4:6], "little")
+    from eyeq_spi.crc import crc16
+    assert crc == crc16(wire[:4] + wire[6:])
+
+
+def test_ack_and_nak_crc_cover_the_header_only() -> None:
+    from eyeq_spi.crc import crc16
+    ack = codec.ack(77)
+    nak = codec.nak(78, NakReason.CRC_MISMATCH)
+    for wire in (ack, nak):
+        assert int.from_bytes(wire[4:6], "little") == crc16(wire[:4])
+        assert wire[6:] == bytes(122)
+        padded = wire[:6] + b"\xff" * 122  # a receiver ignores ACK/NAK pad bytes (L3)
+        f = codec.decode(padded)
+        assert codec.crc_ok(padded, f)
+    a, n = codec.decode(ack), codec.decode(nak)
+    assert (a.kind, a.rsp, a.num) == (FrameKind.ACK, 77, 0)
+    assert (n.kind, n.rsp, n.num) == (FrameKind.NAK, 78, 0x002)
+
+
+@pytest.mark.parametrize("length", [0, 1, 127, 129, 256])
+def test_wrong_length_is_a_frame_error(length: int) -> None:
+    with pytest.raises(FrameError):
+        codec.decode(bytes(length))
+
+
+def test_building_out_of_range_fields_is_refused() -> None:
+    with pytest.raises(LocalProtocolError):
+        Frame(0x8, 0, 4096, 0)
+    with pytest.raises(LocalProtocolError):
+        codec.data_frame(0, 0, bytes(123))
+
+
+def test_other_crc_variant_is_configurable() -> None:
+    c = FrameCodec(crc=VARIANTS["CRC-16/KERMIT"])
+    wire = c.data_frame(0, 1, b"x")
+    assert c.crc_ok(wire, c.decode(wire))
+    assert not codec.crc_ok(wire, codec.decode(wire))
