@@ -15,7 +15,9 @@ Theory of operation
 
 ``send(data, tag, now)`` queues one DATA frame. ``data_to_send(now)`` releases transfers: control
 frames (ACK/NAK) first, then DATA frames while fewer than W are in flight (L7), never closer than
-``frame_gap`` apart. ``handle_timer(now)`` expires frames not ACKed within ``ack_timeout`` and
+``frame_gap`` (frameFlowControl) apart. The gap paces DATA frames only: pacing ACKs at 500 µs too
+would cap the EyeQ's throughput at one frame per 500 µs, and an 8191-byte (70-frame) message could
+then never finish within ``transmit_timeout``. ACK/NAK frames have their own ``control_gap``. ``handle_timer(now)`` expires frames not ACKed within ``ack_timeout`` and
 frames not sent within ``transmit_timeout``; a lost frame is never resent, its tag fails once
 (``sendFailedErrorCounter``) and the tag's remaining queued frames are dropped.
 
@@ -60,7 +62,8 @@ class LinkConfig:
     resync_after_naks: int = _SPEC["window"]["resync_after_naks"]
     ack_timeout: float = _SPEC["timing"]["ackTimeout"]
     transmit_timeout: float = _SPEC["timing"]["transmitTimeout"]
-    frame_gap: float | None = None  # None: frameFlowControl of the role
+    frame_gap: float | None = None  # None: frameFlowControl of the role, between DATA frames
+    control_gap: float = _SPEC["timing"]["control_gap"]  # between ACK/NAK frames
     codec: FrameCodec = field(default_factory=FrameCodec)
 
     def __post_init__(self) -> None:
@@ -70,7 +73,7 @@ class LinkConfig:
             raise LocalProtocolError(f"window {self.window} out of range")
         if self.frame_gap is None:
             self.frame_gap = float(_SPEC["timing"]["frameFlowControl"][self.role])
-        for name in ("ack_timeout", "transmit_timeout", "frame_gap"):
+        for name in ("ack_timeout", "transmit_timeout", "frame_gap", "control_gap"):
             if getattr(self, name) < 0:
                 raise LocalProtocolError(f"{name} must not be negative")
 
@@ -117,6 +120,7 @@ class LinkConnection:
         self._last_accepted = 0
         self._naks_in_row = 0
         self._next_tx = float("-inf")
+        self._next_ctl = float("-inf")
         self._control.clear()
         for tag, entry in self._tags.items():
             if not entry[1]:  # frames still queued or in flight are lost with the reset
@@ -159,24 +163,29 @@ class LinkConnection:
         self._queue.append(_Queued(tag, bytes(data), now + self.config.transmit_timeout))
 
     def data_to_send(self, now: float) -> list[bytes]:
+        """Transfers due at ``now``: ACK/NAK first (``control_gap`` apart), then DATA frames
+        (``frame_gap`` apart, at most W in flight)."""
         out: list[bytes] = []
-        gap = float(self.config.frame_gap or 0.0)
-        while now >= self._next_tx:
-            if self._control:
-                out.append(self._control.popleft())
-            elif self._queue and len(self._inflight) < self.config.window:
-                q = self._queue.popleft()
-                num = self._tx_num
-                self._tx_num = (num + 1) % SEQ_MODULO
-                out.append(self.codec.data_frame(self._last_accepted, num, q.data))
-                self._inflight[num] = _InFlight(q.tag, now + self.config.ack_timeout)
-                self.counters.busyFrames = len(self._inflight)
-            else:
-                if self._queue and not self._queue[0].waited:
+        cfg = self.config
+        while self._control and now >= self._next_ctl:
+            out.append(self._control.popleft())
+            self._next_ctl = now + cfg.control_gap
+            if cfg.control_gap > 0:
+                break
+        gap = float(cfg.frame_gap or 0.0)
+        while self._queue and now >= self._next_tx:
+            if len(self._inflight) >= cfg.window:
+                if not self._queue[0].waited:
                     # A frame is ready but W frames are still in transit (§9.2 fifoNonEmpty).
                     self._queue[0].waited = True
                     self.counters.fifoNonEmptyCounter += 1
                 break
+            q = self._queue.popleft()
+            num = self._tx_num
+            self._tx_num = (num + 1) % SEQ_MODULO
+            out.append(self.codec.data_frame(self._last_accepted, num, q.data))
+            self._inflight[num] = _InFlight(q.tag, now + cfg.ack_timeout)
+            self.counters.busyFrames = len(self._inflight)
             self._next_tx = now + gap
             if gap > 0:
                 break
@@ -185,7 +194,9 @@ class LinkConnection:
     # -- timers -----------------------------------------------------------------------------
     def get_timer(self) -> float | None:
         deadlines: list[float] = []
-        if self._control or (self._queue and len(self._inflight) < self.config.window):
+        if self._control:
+            deadlines.append(self._next_ctl)
+        if self._queue and len(self._inflight) < self.config.window:
             deadlines.append(self._next_tx)
         if self._inflight:
             deadlines.append(min(f.deadline for f in self._inflight.values()))

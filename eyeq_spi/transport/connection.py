@@ -12,6 +12,8 @@ Static header faults (unknown transport type, single size 0 or > 120, first-fram
 total above the receive limit also counts ``rcvOverflowErrors``. Accepted frames then drive the
 reassembly; a NUM gap, a consecutive frame with no open transfer, 25 ms of silence or a new first
 frame abort the open transfer (T6) — reported as ``TransferAborted`` and counted, never raised.
+The remaining consecutive frames of an aborted transfer are discarded quietly (``framesDiscarded``)
+so that one lost frame gives one abort, not one per straggler.
 A single frame arriving inside an open transfer breaks T5; it is delivered and the open transfer
 is aborted as ``interleaved``.
 
@@ -67,6 +69,7 @@ class TransportCounters:
     messagesSent: int = 0
     messagesReceived: int = 0
     messagesFailed: int = 0
+    framesDiscarded: int = 0  # consecutive frames of a transfer that was already aborted
     transferAborts: Counter[str] = field(default_factory=Counter)
 
 
@@ -80,6 +83,7 @@ class TransportConnection:
         self.counters = TransportCounters()
         self._events: deque[Event] = deque()
         self._open: _Open | None = None
+        self._dead_id: int | None = None  # the last aborted transfer: its stragglers are dropped
         self._next_message_id = 0
         self._next_transfer_id = 0
 
@@ -175,6 +179,7 @@ class TransportConnection:
         if ttype == seg.FIRST:
             if self._open is not None:
                 self._abort("new_first_frame")
+            self._dead_id = None
             total = int.from_bytes(data[2:6], "little")
             self._open = _Open(
                 data[1], total, bytearray(data[6 : 6 + seg.FIRST_CHUNK]), num,
@@ -184,6 +189,9 @@ class TransportConnection:
         # consecutive (the header check let only these through)
         o = self._open
         if o is None:
+            if data[1] == self._dead_id:
+                self.counters.framesDiscarded += 1
+                return
             self.counters.transferAborts["no_open_transfer"] += 1
             self._events.append(TransferAborted("no_open_transfer", data[1], 0, None))
             return
@@ -208,5 +216,6 @@ class TransportConnection:
         if o is None:
             return
         self._open = None
+        self._dead_id = o.transfer_id
         self.counters.transferAborts[reason] += 1
         self._events.append(TransferAborted(reason, o.transfer_id, len(o.buf), o.total))
