@@ -14,8 +14,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import crcmod  # type: ignore[import-untyped]
-import crcmod.crcmod  # type: ignore[import-untyped]
+import crcmod
+import crcmod.crcmod
 
 CrcFunction = Callable[[bytes], int]
 

@@ -15,8 +15,8 @@ from eyeq_spi.link.events import (
     FrameRejected,
     FramesSkipped,
     Resynchronised,
-    Sent,
     SendFailed,
+    Sent,
     UnexpectedAck,
 )
 from eyeq_spi.link.frame import FrameCodec, FrameKind
@@ -84,7 +84,7 @@ def test_flipped_bit_is_naked_as_crc_mismatch(link_pair: Pair, where: str, byte_
 
 
 def test_flipped_bit_in_an_ack_is_counted_but_never_answered(link_pair: Pair) -> None:
-    host, eyeq = link_pair.sides["host"], link_pair.sides["eyeq"]
+    host = link_pair.sides["host"]
     link_pair.mangle["eyeq"] = flip(5, 1)  # the CRC of the first ACK
     host.send(payload(1), tag=1, now=0.0)
     link_pair.run(0.1)

@@ -17,7 +17,8 @@ Theory of operation
 frames (ACK/NAK) first, then DATA frames while fewer than W are in flight (L7), never closer than
 ``frame_gap`` (frameFlowControl) apart. The gap paces DATA frames only: pacing ACKs at 500 µs too
 would cap the EyeQ's throughput at one frame per 500 µs, and an 8191-byte (70-frame) message could
-then never finish within ``transmit_timeout``. ACK/NAK frames have their own ``control_gap``. ``handle_timer(now)`` expires frames not ACKed within ``ack_timeout`` and
+then never finish within ``transmit_timeout``. ACK/NAK frames have their own ``control_gap``.
+``handle_timer(now)`` expires frames not ACKed within ``ack_timeout`` and
 frames not sent within ``transmit_timeout``; a lost frame is never resent, its tag fails once
 (``sendFailedErrorCounter``) and the tag's remaining queued frames are dropped.
 
@@ -40,8 +41,8 @@ from eyeq_spi.link.events import (
     FramesSkipped,
     LinkEvent,
     Resynchronised,
-    Sent,
     SendFailed,
+    Sent,
     UnexpectedAck,
 )
 from eyeq_spi.link.frame import DATA_SIZE, SEQ_MODULO, FrameCodec, FrameKind, NakReason
@@ -265,7 +266,8 @@ class LinkConnection:
                 return
             c.sequenceErrorCounter += 1
             self._naks_in_row += 1
-            self._reject(num, NakReason.OUT_OF_WINDOW, f"NUM {num} outside window at E={self._expected}")
+            detail = f"NUM {num} outside window at E={self._expected}"
+            self._reject(num, NakReason.OUT_OF_WINDOW, detail)
             return
         if self.payload_check is not None:
             reason = self.payload_check(num, data)

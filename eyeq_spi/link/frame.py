@@ -101,7 +101,7 @@ class FrameCodec:
         self,
         *,
         crc: CrcVariant | CrcFunction = CCITT_FALSE,
-        bit_order: BitOrder | str = BitOrder(_SPEC["frame"]["header"]["bit_order"]),
+        bit_order: BitOrder | str = _SPEC["frame"]["header"]["bit_order"],
     ) -> None:
         self.crc: CrcFunction = make_crc(crc) if isinstance(crc, CrcVariant) else crc
         self.bit_order = BitOrder(bit_order)
@@ -134,7 +134,7 @@ class FrameCodec:
         header = word.to_bytes(4, "little")
         data = frame.data if frame.d not in (FrameKind.ACK, FrameKind.NAK) else bytes(DATA_SIZE)
         crc = self.compute_crc(frame.d, header, data)
-        return FRAME_LAYOUT.build({"header": word, "crc": crc, "data": data})
+        return bytes(FRAME_LAYOUT.build({"header": word, "crc": crc, "data": data}))
 
     def data_frame(self, rsp: int, num: int, data: bytes) -> bytes:
         """Encode a DATA frame, zero-padding ``data`` to 122 bytes (§6 pad bytes)."""

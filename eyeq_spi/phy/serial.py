@@ -3,7 +3,10 @@ carries transfers COBS-framed (decision S)."""
 
 from __future__ import annotations
 
-import serial  # type: ignore[import-untyped]
+import contextlib
+import socket
+
+import serial
 
 from eyeq_spi.errors import AdapterError
 from eyeq_spi.phy.stream import StreamAdapter
@@ -17,6 +20,11 @@ class SerialAdapter(StreamAdapter):
             self.port = serial.serial_for_url(url, baudrate=baudrate, timeout=0)
         except (serial.SerialException, ValueError, OSError) as exc:
             raise AdapterError(f"cannot open {url!r}: {exc}") from exc
+        sock = getattr(self.port, "_socket", None)
+        if isinstance(sock, socket.socket):
+            # Without this, Nagle + delayed ACK hold small writes for ~40 ms: far beyond the
+            # link's 10 ms ackTimeout. pyserial's socket:// does not set it.
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
     def _write(self, data: bytes) -> None:
         try:
@@ -37,7 +45,5 @@ class SerialAdapter(StreamAdapter):
             raise AdapterError(f"{self.url}: read failed: {exc}") from exc
 
     def _close_internal(self) -> None:
-        try:
+        with contextlib.suppress(serial.SerialException, OSError):
             self.port.close()
-        except (serial.SerialException, OSError):
-            pass

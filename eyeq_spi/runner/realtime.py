@@ -34,12 +34,14 @@ class RealTimeRunner:
         timer = self.node.get_timer()
         if timer is not None and timer <= now:
             self.node.handle_timer(now)
-        for t in self.node.data_to_send(now):
+        for out in self.node.data_to_send(now):
             if self.tap is not None:
-                self.tap("tx", now, t)
-            self.adapter.send(t)
+                self.tap("tx", now, out)
+            self.adapter.send(out)
         timer = self.node.get_timer()
-        wait = self.max_wait if timer is None else min(self.max_wait, max(0.0, timer - self.clock()))
+        wait = self.max_wait
+        if timer is not None:
+            wait = min(self.max_wait, max(0.0, timer - self.clock()))
         t = self.adapter.recv(wait)
         while t is not None:
             now = self.clock()

@@ -51,11 +51,11 @@ class VirtualRunner:
         for _ in range(self._max_steps):
             progress = False
             for i, (node, adapter) in enumerate(self.nodes):
-                for t in node.data_to_send(self.now):
+                for out in node.data_to_send(self.now):
                     progress = True
                     if self.tap is not None:
-                        self.tap(i, self.now, t)
-                    adapter.send(t)
+                        self.tap(i, self.now, out)
+                    adapter.send(out)
                 for j, (_, other) in enumerate(self.nodes):
                     if j == i:
                         continue
@@ -63,7 +63,8 @@ class VirtualRunner:
                         # `other` received it from its peer `i` only if they are a pair; a
                         # memory pair delivers to exactly one peer, so attribute it to `j`.
                         self._seq += 1
-                        heapq.heappush(self._transit, _InTransit(self.now + self.latency, self._seq, j, t))
+                        item = _InTransit(self.now + self.latency, self._seq, j, t)
+                        heapq.heappush(self._transit, item)
                         progress = True
             while self._transit and self._transit[0].at <= self.now:
                 item = heapq.heappop(self._transit)

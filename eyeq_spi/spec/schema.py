@@ -14,9 +14,10 @@ from typing import Any
 import yaml
 
 PRIMITIVES = frozenset(
-    "uint8 uint16 uint32 uint64 int8 int16 int32 int64 real32 real64 bool".split()
+    ["uint8", "uint16", "uint32", "uint64", "int8", "int16", "int32", "int64", "real32", "real64",
+     "bool"]
 )
-BITFIELD_CONTAINERS = frozenset("uint8 uint16 uint32 uint64 int8 int16 int32".split())
+BITFIELD_CONTAINERS = frozenset(["uint8", "uint16", "uint32", "uint64", "int8", "int16", "int32"])
 CONTAINER_BITS = {"uint8": 8, "int8": 8, "uint16": 16, "int16": 16, "uint32": 32,
                   "int32": 32, "uint64": 64}
 VARIANT_RE = re.compile(r"^sw\d+(_\d+)?$")
@@ -24,8 +25,8 @@ NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 MODES = frozenset({"APP", "SPC", "TAC", "DIAG"})
 
 MEMBER_KEYS = frozenset(
-    {"name", "type", "array", "bits", "enum", "values", "units", "min", "max", "seed_line", "seed_form",
-     "reconstruction", "description"}
+    {"name", "type", "array", "bits", "enum", "values", "units", "min", "max", "seed_line",
+     "seed_form", "reconstruction", "description"}
 )
 VARIANT_KEYS = frozenset({"seed_line", "members", "crc", "reconstruction", "description"})
 STRUCT_KEYS = frozenset({"section", "description", "variants", "reconstruction"})
@@ -54,7 +55,7 @@ def load_yaml_tree(root: Path) -> dict[str, Any]:
     return out
 
 
-def validate_tree(root: Path) -> list[str]:  # noqa: C901 - one linear walk over the schema
+def validate_tree(root: Path) -> list[str]:
     problems: list[str] = []
     docs = load_yaml_tree(root)
     constants: dict[str, Any] = {}
@@ -131,7 +132,6 @@ def validate_tree(root: Path) -> list[str]:  # noqa: C901 - one linear walk over
                 problems.append(f"{vwhere}: needs a non-empty members list")
                 continue
             names: set[str] = set()
-            prev_hi: int | None = None
             for m in members:
                 if not isinstance(m, dict):
                     problems.append(f"{vwhere}: member {m!r} is not a mapping")
@@ -166,7 +166,6 @@ def validate_tree(root: Path) -> list[str]:  # noqa: C901 - one linear walk over
                     if (not isinstance(bits, list) or len(bits) != 2
                             or not all(isinstance(b, int) for b in bits) or bits[0] > bits[1]):
                         problems.append(f"{mwhere}: bits must be [lo, hi]")
-                        prev_hi = None
                         continue
                     if mtype not in BITFIELD_CONTAINERS:
                         problems.append(f"{mwhere}: bitfield container {mtype!r}")
@@ -174,9 +173,6 @@ def validate_tree(root: Path) -> list[str]:  # noqa: C901 - one linear walk over
                         problems.append(f"{mwhere}: bits {bits} exceed {mtype}")
                     if arr is not None:
                         problems.append(f"{mwhere}: bitfield arrays are not supported")
-                    prev_hi = bits[1]
-                else:
-                    prev_hi = None
             crcs = var.get("crc")
             if crcs is None:
                 continue

@@ -27,7 +27,7 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 
 from eyeq_spi.link.connection import LinkConfig, LinkConnection, Role
-from eyeq_spi.link.events import DataReceived, LinkEvent, Sent, SendFailed
+from eyeq_spi.link.events import DataReceived, LinkEvent, SendFailed, Sent
 from eyeq_spi.link.frame import SEQ_MODULO, NakReason
 from eyeq_spi.spec.link import link_spec
 from eyeq_spi.transport import segment as seg

@@ -1,0 +1,127 @@
+"""One adapter contract suite, run against every adapter (python-can's pattern)."""
+
+from __future__ import annotations
+
+import socket
+from collections.abc import Iterator
+
+import pytest
+
+from eyeq_spi.errors import AdapterError
+from eyeq_spi.phy.base import ADAPTERS, Adapter, adapter_class, open_url
+from eyeq_spi.phy.memory import memory_pair
+from eyeq_spi.phy.stream import CobsDecoder, encode_transfer
+from eyeq_spi.phy.tcp import TcpListenAdapter
+
+Ends = tuple[Adapter, Adapter]
+
+
+def _memory() -> Iterator[Ends]:
+    a, b = memory_pair()
+    yield a, b
+    a.close(), b.close()
+
+
+def _loop() -> Iterator[Ends]:
+    a = open_url("loop://")
+    yield a, a  # loop:// is its own peer
+    a.close()
+
+
+def _tcp() -> Iterator[Ends]:
+    server = TcpListenAdapter("127.0.0.1", 0, timeout=5.0)
+    client = open_url(server.url)
+    assert server.accept(5.0)
+    yield client, server
+    client.close(), server.close()
+
+
+@pytest.fixture(params=["memory", "loop", "tcp"])
+def ends(request: pytest.FixtureRequest) -> Iterator[Ends]:
+    yield from {"memory": _memory, "loop": _loop, "tcp": _tcp}[request.param]()
+
+
+def recv_wait(a: Adapter, timeout: float = 2.0) -> bytes | None:
+    return a.recv(timeout)
+
+
+TRANSFERS = [
+    bytes(128),  # all zeros: the COBS worst case for delimiters
+    bytes(range(128)),
+    b"\xff" * 128,
+    bytes(127),  # chip select rose early (L8): must arrive as it was
+    bytes(129),
+    b"\x00\x01",
+]
+
+
+def test_transfers_arrive_intact_and_in_order(ends: Ends) -> None:
+    a, b = ends
+    for t in TRANSFERS:
+        a.send(t)
+    got = [recv_wait(b) for _ in TRANSFERS]
+    assert got == TRANSFERS
+    assert a.stats.transfers_sent >= len(TRANSFERS)
+    assert b.recv(0) is None
+
+
+def test_poll_without_data_returns_none(ends: Ends) -> None:
+    _, b = ends
+    assert b.recv(0) is None
+
+
+def test_closed_adapter_raises_adapter_error(ends: Ends) -> None:
+    a, _ = ends
+    a.close()
+    with pytest.raises(AdapterError):
+        a.send(bytes(128))
+    with pytest.raises(AdapterError):
+        a.recv(0)
+
+
+def test_empty_transfer_is_refused(ends: Ends) -> None:
+    a, _ = ends
+    with pytest.raises(AdapterError):
+        a.send(b"")
+
+
+def test_registry_imports_on_demand_and_rejects_unknown_names() -> None:
+    assert set(ADAPTERS) >= {"memory", "serial", "tcp-listen"}
+    assert adapter_class("memory").__name__ == "MemoryAdapter"
+    with pytest.raises(AdapterError):
+        adapter_class("nope")
+
+
+def test_bad_urls_are_adapter_errors() -> None:
+    with pytest.raises(AdapterError):
+        open_url("/dev/does-not-exist-eyeq")
+    with pytest.raises(AdapterError):
+        open_url("listen://127.0.0.1:notaport")
+    with pytest.raises(AdapterError):
+        open_url("bogus://x")
+
+
+def test_cobs_framing_counts_garbage_and_recovers() -> None:
+    dec = CobsDecoder()
+    good = encode_transfer(bytes(128))
+    assert dec.feed(b"\x05\x01\x00" + good) == [bytes(128)]  # \x05 claims 4 bytes, only 1 follows
+    assert dec.errors == 1
+    assert dec.feed(good[:10]) == [] and dec.feed(good[10:]) == [bytes(128)]
+    assert dec.feed(b"\x00\x00") == []  # idle delimiters
+
+
+def test_memory_pair_models_chip_select_faults() -> None:
+    a, b = memory_pair()
+    a.mangle = lambda t: [t[:127], t + b"\0", t, t]
+    a.send(bytes(128))
+    assert [len(t) for t in iter(lambda: b.recv(0), None)] == [127, 129, 128, 128]
+
+
+def test_tcp_peer_going_away_is_an_adapter_error_not_a_crash() -> None:
+    server = TcpListenAdapter("127.0.0.1", 0, timeout=2.0)
+    host, port = server.address
+    s = socket.create_connection((host, port))
+    assert server.accept(2.0)
+    s.close()
+    assert server.recv(0.5) is None  # orderly close: the listener waits for a new peer
+    server.close()

@@ -1,0 +1,41 @@
+#!/usr/bin/env python3
+"""Run every check CI runs: ruff, mypy --strict, the import-layer contract, the specs schema,
+then pytest. Exits non-zero on the first failure; pytest's exit code 5 (no tests collected) is
+a failure too."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run(name: str, cmd: list[str]) -> int:
+    print(f"==> {name}: {' '.join(cmd)}", flush=True)
+    return subprocess.call(cmd, cwd=ROOT)
+
+
+def main() -> int:
+    py = sys.executable
+    steps: list[tuple[str, list[str]]] = [
+        ("ruff", [py, "-m", "ruff", "check", "eyeq_spi", "tests", "tools"]),
+        ("mypy", [py, "-m", "mypy"]),
+        ("import layers", [shutil.which("lint-imports") or "lint-imports"]),
+        ("specs schema", [py, "-m", "eyeq_spi.spec.schema", "specs"]),
+    ]
+    for name, cmd in steps:
+        if run(name, cmd) != 0:
+            print(f"FAILED: {name}", file=sys.stderr)
+            return 1
+    rc = run("pytest", [py, "-m", "pytest", *sys.argv[1:]])
+    if rc == 5:
+        print("FAILED: pytest collected no tests", file=sys.stderr)
+        return 1
+    return rc
+
+
+if __name__ == "__main__":
+    sys.exit(main())
