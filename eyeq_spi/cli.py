@@ -32,7 +32,25 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     demo.add_argument("--rate", type=float, default=50.0, help="messages/s each way (default 50)")
     demo.add_argument("--json", action="store_true", help="print one JSON object at the end")
+    spec = sub.add_parser("spec", help="browse the message catalogue built from specs/")
+    spec_sub = spec.add_subparsers(dest="spec_command", required=True, parser_class=_Parser)
+    sl = spec_sub.add_parser("list", help="list messages, MESP functions, init messages, structs")
+    sl.add_argument("--sw", help="SW version for sizes (default: newest)")
+    ss = spec_sub.add_parser("show", help="offsets, sizes, types and CRC coverage of one entry")
+    ss.add_argument("name", help="message, struct, init message, MESP function or enum name")
+    ss.add_argument("--sw", help="SW version, e.g. 9.0, 8.1 or sw5 (default: newest)")
     return p
+
+
+def _spec(args: argparse.Namespace) -> int:
+    from eyeq_spi.codec.describe import spec_list, spec_show
+    from eyeq_spi.spec.catalog import catalog
+
+    cat = catalog()
+    sw = cat.sw(args.sw)
+    text = spec_list(cat, sw) if args.spec_command == "list" else spec_show(cat, args.name, sw)
+    print(text)
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -53,6 +71,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                           f"failed {r['failed']:4d}  intact {r['intact']}")
                 print(f"virtual time {result['virtual_s']:.3f} s, wall {result['wall_s']:.3f} s")
             return 0 if result["ok"] else 1
+        if args.command == "spec":
+            return _spec(args)
         raise UsageError(f"unknown command {args.command}")
     except UsageError as exc:
         print(f"eyeq-spi: usage error: {exc}", file=sys.stderr)

@@ -26,7 +26,7 @@ MODES = frozenset({"APP", "SPC", "TAC", "DIAG"})
 
 MEMBER_KEYS = frozenset(
     {"name", "type", "array", "bits", "enum", "values", "units", "min", "max", "seed_line",
-     "seed_form", "reconstruction", "description"}
+     "seed_form", "invented", "reconstruction", "description"}
 )
 VARIANT_KEYS = frozenset({"seed_line", "members", "crc", "reconstruction", "description"})
 STRUCT_KEYS = frozenset({"section", "description", "variants", "reconstruction"})

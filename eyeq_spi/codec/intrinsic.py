@@ -1,0 +1,86 @@
+"""Intrinsic calibration (seed 004 §7.1.3, Appendix E, decision I2): the EEPROM image, its CRC,
+and the 0x84 parameters the host derives from it."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from eyeq_spi.codec.bits import BitSignalCodec
+from eyeq_spi.crc import crc16
+from eyeq_spi.errors import CodecError
+
+CAL_BLOCK_END = 0x4C  # bytes 0x00..0x4B are the calibration block (I2)
+CRC_SLICE = slice(0x4C, 0x4E)  # its CRC-16, little-endian
+
+
+def eeprom_crc(image: bytes) -> int:
+    if len(image) < CRC_SLICE.stop:
+        raise CodecError(f"EEPROM image of {len(image)} bytes has no CRC at 0x4C")
+    return crc16(image[:CAL_BLOCK_END])
+
+
+def eeprom_crc_ok(image: bytes) -> bool:
+    """True when the CRC-16 at 0x4C matches the calibration block (§7.1.3 step 5)."""
+    if len(image) < CRC_SLICE.stop:
+        return False
+    return int.from_bytes(image[CRC_SLICE], "little") == crc16(image[:CAL_BLOCK_END])
+
+
+def seal_eeprom(image: bytes) -> bytes:
+    """Write the correct CRC-16 at 0x4C."""
+    b = bytearray(image)
+    b[CRC_SLICE] = eeprom_crc(image).to_bytes(2, "little")
+    return bytes(b)
+
+
+def normalise_num_distor_params(n: int) -> int:
+    """§7.1.3: 3 or 7 read from EEPROM is stored and sent as 7; 11 or 15 as 15."""
+    if n in (3, 7):
+        return 7
+    if n in (11, 15):
+        return 15
+    raise CodecError(f"CCAM_Num_Of_distorParams_m = {n}: the seed defines only 3, 7, 11 and 15")
+
+
+def eeprom_codec() -> BitSignalCodec:
+    return BitSignalCodec.for_message("EEPROM_DATA")
+
+
+def default_eeprom_image() -> bytes:
+    """Appendix E's example EEPROM, with its CRC."""
+    return seal_eeprom(eeprom_codec().encode())
+
+
+def intrinsic_params_from_eeprom(image: bytes, sw: str | None = None) -> dict[str, Any]:
+    """The 0x84 signal values (physical) for an EEPROM image, normalised per §7.1.3."""
+    ee = eeprom_codec().decode(image[: eeprom_codec().length])
+    target = BitSignalCodec.for_message("Init_Intrinsic_Calibration", sw)
+    out: dict[str, Any] = {}
+    for name in target.signals:
+        if name in ee and not name.startswith("Reserved"):
+            out[name] = ee[name]
+    n = int(out.get("CCAM_Num_Of_distorParams_m", 0))
+    out["CCAM_Num_Of_distorParams_m"] = normalise_num_distor_params(n)
+    if "CRC_from_EEPROM" in target.signals:
+        out["CRC_from_EEPROM"] = int.from_bytes(image[CRC_SLICE], "little")
+    return out
+
+
+def version_bytes(version: str) -> bytes:
+    """§7.1.5.3: "Boot version 7.1.23 -> 0x07 0x01 0x17 0x00" (byte 3 reserved)."""
+    parts = version.split(".")
+    if len(parts) != 3:
+        raise CodecError(f"version {version!r} is not MAJOR.MINOR.PATCH")
+    try:
+        nums = [int(p) for p in parts]
+    except ValueError:
+        raise CodecError(f"version {version!r} is not numeric") from None
+    if not all(0 <= n <= 255 for n in nums):
+        raise CodecError(f"version {version!r}: each number must be 0..255")
+    return bytes([*nums, 0])
+
+
+def version_text(data: bytes) -> str:
+    if len(data) != 4:
+        raise CodecError("a version field is 4 bytes")
+    return f"{data[0]}.{data[1]}.{data[2]}"

@@ -1,0 +1,329 @@
+"""Construct layouts compiled from ``specs/`` struct variants (decisions D2, D5).
+
+A :class:`Layout` is one struct at one SW version:
+
+- a compiled construct ``Struct`` for the byte layout. Bitfield members that share a container
+  (D2) appear in it as one integer field; splitting and joining them is plain shifting done by
+  precomputed operation lists, so no ``BitStruct`` (uncompilable, slow) is on the hot path;
+- the offset and size of every member, used for CRC coverage and for ``spec show``;
+- an E2E plan: every ``crc_16`` in the struct and its children, inner first, with the absolute
+  byte ranges it covers and where its rolling counter lives.
+
+Decoded values are plain dicts (nested structs) and lists (arrays), keyed by the seed's member
+names; bitfield members appear as ints under their own names.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from construct import (
+    Array,
+    Float32l,
+    Float64l,
+    Int8sl,
+    Int8ul,
+    Int16sl,
+    Int16ul,
+    Int32sl,
+    Int32ul,
+    Int64sl,
+    Int64ul,
+    Struct,
+)
+from construct.core import ConstructError
+
+from eyeq_spi.crc import crc16
+from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.spec.catalog import Catalog, Member, SwKey
+
+PRIMITIVE = {
+    "uint8": (Int8ul, 1), "uint16": (Int16ul, 2), "uint32": (Int32ul, 4), "uint64": (Int64ul, 8),
+    "int8": (Int8sl, 1), "int16": (Int16sl, 2), "int32": (Int32sl, 4), "int64": (Int64sl, 8),
+    "real32": (Float32l, 4), "real64": (Float64l, 8), "bool": (Int8ul, 1),
+}
+INT_RANGE = {
+    "uint8": (0, 0xFF), "uint16": (0, 0xFFFF), "uint32": (0, 0xFFFFFFFF),
+    "uint64": (0, 0xFFFFFFFFFFFFFFFF), "int8": (-0x80, 0x7F), "int16": (-0x8000, 0x7FFF),
+    "int32": (-0x80000000, 0x7FFFFFFF), "int64": (-0x8000000000000000, 0x7FFFFFFFFFFFFFFF),
+    "bool": (0, 0xFF),
+}
+
+
+@dataclass(frozen=True)
+class FieldInfo:
+    """One member as laid out: for ``spec show`` and the dissector."""
+
+    name: str
+    offset: int
+    size: int  # bytes of the whole member (all array elements); container size for bitfields
+    type: str
+    count: int | None  # array length, None if scalar
+    bits: tuple[int, int] | None
+    member: Member
+
+
+@dataclass(frozen=True)
+class CrcPlan:
+    path: str  # e.g. "visObs[3]" or "" for this struct
+    field: str
+    crc_offset: int
+    counter_offset: int | None
+    counter_size: int
+    ranges: tuple[tuple[int, int], ...]  # (offset, size) serialised in order
+
+
+@dataclass
+class Layout:
+    name: str
+    sw: SwKey
+    variant: SwKey
+    size: int
+    struct: Any  # compiled construct
+    fields: list[FieldInfo]
+    children: dict[str, Layout]
+    crc_plan: list[CrcPlan] = field(default_factory=list)
+    _decode_ops: list[tuple[Any, ...]] = field(default_factory=list)
+    _encode_ops: list[tuple[Any, ...]] = field(default_factory=list)
+    _by_name: dict[str, FieldInfo] = field(default_factory=dict)
+
+    # -- values ----------------------------------------------------------------------------
+    def post(self, c: Any) -> dict[str, Any]:
+        """construct Container -> plain dict with bitfields split."""
+        out: dict[str, Any] = {}
+        for op in self._decode_ops:
+            kind = op[0]
+            if kind == 0:
+                out[op[1]] = c[op[1]]
+            elif kind == 1:
+                out[op[1]] = list(c[op[1]])
+            elif kind == 2:
+                out[op[1]] = op[2].post(c[op[1]])
+            elif kind == 3:
+                child = op[2]
+                out[op[1]] = [child.post(x) for x in c[op[1]]]
+            else:
+                v = c[op[1]]
+                for name, lo, mask in op[2]:
+                    out[name] = (v >> lo) & mask
+        return out
+
+    def pre(self, values: dict[str, Any]) -> dict[str, Any]:
+        """plain dict -> construct input, joining bitfields (unused bits = 1, D2)."""
+        out: dict[str, Any] = {}
+        try:
+            for op in self._encode_ops:
+                kind = op[0]
+                if kind in (0, 1):
+                    out[op[1]] = values[op[1]]
+                elif kind == 2:
+                    out[op[1]] = op[2].pre(values[op[1]])
+                elif kind == 3:
+                    child = op[2]
+                    items = values[op[1]]
+                    if len(items) != op[3]:
+                        raise CodecError(
+                            f"{self.name}.{op[1]} needs {op[3]} elements, got {len(items)}"
+                        )
+                    out[op[1]] = [child.pre(x) for x in items]
+                else:
+                    v = op[3]  # unused bits set
+                    for name, lo, mask in op[2]:
+                        x = values[name]
+                        if not isinstance(x, int) or not 0 <= x <= mask:
+                            raise CodecError(
+                                f"{self.name}.{name}: {x!r} does not fit {mask.bit_length()} bit(s)"
+                            )
+                        v |= x << lo
+                    out[op[1]] = v
+        except KeyError as exc:
+            raise CodecError(f"{self.name}: missing member {exc.args[0]}") from None
+        except TypeError as exc:
+            raise CodecError(f"{self.name}: {exc}") from None
+        return out
+
+    def build(self, values: dict[str, Any]) -> bytes:
+        try:
+            return bytes(self.struct.build(self.pre(values)))
+        except (ConstructError, ValueError, OverflowError) as exc:
+            raise CodecError(f"{self.name}: cannot encode: {exc}") from None
+
+    def parse(self, data: bytes) -> dict[str, Any]:
+        if len(data) != self.size:
+            raise CodecError(f"{self.name} ({self.sw}) is {self.size} bytes, got {len(data)}")
+        return self.post(self.struct.parse(data))
+
+    def field(self, name: str) -> FieldInfo:
+        return self._by_name[name]
+
+    # -- E2E ---------------------------------------------------------------------------------
+    def resolve(self, path: str, base: int = 0) -> list[tuple[int, int]]:
+        """Byte ranges of a covered signal: a member, a dotted path, a whole struct or array."""
+        head, _, rest = path.partition(".")
+        f = self._by_name.get(head)
+        if f is None:
+            raise SpecError(f"{self.name}: CRC covers unknown signal {path!r}")
+        start = base + f.offset
+        if not rest:
+            return [(start, f.size)]
+        child = self.children.get(head)
+        if child is None:
+            raise SpecError(f"{self.name}: {head} is not a struct, cannot resolve {path!r}")
+        out: list[tuple[int, int]] = []
+        for i in range(f.count or 1):
+            out += child.resolve(rest, start + i * child.size)
+        return out
+
+    def iter_leaves(self) -> list[FieldInfo]:
+        return list(self.fields)
+
+
+def _merge(ranges: list[tuple[int, int]]) -> tuple[tuple[int, int], ...]:
+    out: list[tuple[int, int]] = []
+    for off, size in ranges:
+        if out and out[-1][0] + out[-1][1] == off:
+            out[-1] = (out[-1][0], out[-1][1] + size)
+        else:
+            out.append((off, size))
+    return tuple(out)
+
+
+class LayoutCache:
+    """Compiles layouts on demand, one per (struct, SW version)."""
+
+    def __init__(self, cat: Catalog) -> None:
+        self.cat = cat
+        self._cache: dict[tuple[str, SwKey], Layout] = {}
+
+    def get(self, name: str, sw: SwKey) -> Layout:
+        key = (name, sw)
+        lay = self._cache.get(key)
+        if lay is None:
+            lay = self._compile(name, sw, ())
+            self._cache[key] = lay
+        return lay
+
+    def _count(self, m: Member, sw: SwKey) -> int | None:
+        if m.array is None:
+            return None
+        if isinstance(m.array, int):
+            return m.array
+        return self.cat.constant(m.array, sw)
+
+    def _compile(self, name: str, sw: SwKey, stack: tuple[str, ...]) -> Layout:
+        if name in stack:
+            raise SpecError(f"struct {name} contains itself: {' -> '.join(stack)}")
+        sdef = self.cat.structs.get(name)
+        if sdef is None:
+            raise SpecError(f"unknown struct {name}")
+        var = sdef.variant_for(sw)
+        if var is None:
+            raise SpecError(f"struct {name} has no layout for {sw}")
+        subcons: list[Any] = []
+        fields: list[FieldInfo] = []
+        children: dict[str, Layout] = {}
+        dec: list[tuple[Any, ...]] = []
+        enc: list[tuple[Any, ...]] = []
+        offset = 0
+        members = list(var.members)
+        i = 0
+        ngroup = 0
+        while i < len(members):
+            m = members[i]
+            if m.bits is not None:
+                ctype = m.type if m.type in PRIMITIVE else "uint8"
+                con, csize = PRIMITIVE[ctype]
+                group = [m]
+                j = i + 1
+                while (
+                    j < len(members)
+                    and members[j].bits is not None
+                    and (members[j].type if members[j].type in PRIMITIVE else "uint8") == ctype
+                    and members[j].bits[0] > group[-1].bits[1]  # type: ignore[index]
+                ):
+                    group.append(members[j])
+                    j += 1
+                key = f"_bits{ngroup}"
+                ngroup += 1
+                subcons.append(key / con)
+                used = 0
+                parts = []
+                for g in group:
+                    lo, hi = g.bits  # type: ignore[misc]
+                    mask = (1 << (hi - lo + 1)) - 1
+                    used |= mask << lo
+                    parts.append((g.name, lo, mask))
+                    fields.append(FieldInfo(g.name, offset, csize, ctype, None, g.bits, g))
+                full = (1 << (8 * csize)) - 1
+                dec.append((4, key, tuple(parts)))
+                enc.append((4, key, tuple(parts), full & ~used))
+                offset += csize
+                i = j
+                continue
+            count = self._count(m, sw)
+            if m.type in PRIMITIVE:
+                con, size = PRIMITIVE[m.type]
+                if count is None:
+                    subcons.append(m.name / con)
+                    dec.append((0, m.name))
+                    enc.append((0, m.name))
+                else:
+                    subcons.append(m.name / Array(count, con))
+                    dec.append((1, m.name))
+                    enc.append((1, m.name))
+                    size *= count
+            else:
+                child = self._compile(m.type, sw, (*stack, name))
+                children[m.name] = child
+                if count is None:
+                    subcons.append(m.name / child.struct)
+                    dec.append((2, m.name, child))
+                    enc.append((2, m.name, child))
+                    size = child.size
+                else:
+                    subcons.append(m.name / Array(count, child.struct))
+                    dec.append((3, m.name, child))
+                    enc.append((3, m.name, child, count))
+                    size = child.size * count
+            fields.append(FieldInfo(m.name, offset, size, m.type, count, None, m))
+            offset += size
+            i += 1
+        struct = Struct(*subcons)
+        try:
+            struct = struct.compile()
+        except Exception:
+            pass
+        lay = Layout(name, sw, var.key, offset, struct, fields, children)
+        lay._decode_ops, lay._encode_ops = dec, enc
+        lay._by_name = {f.name: f for f in fields}
+        # E2E plan: children first (their CRCs are inside ours), then our own.
+        for f in fields:
+            child = children.get(f.name)
+            if child is None or not child.crc_plan:
+                continue
+            for k in range(f.count or 1):
+                base = f.offset + k * child.size
+                label = f.name if f.count is None else f"{f.name}[{k}]"
+                for p in child.crc_plan:
+                    lay.crc_plan.append(CrcPlan(
+                        f"{label}.{p.path}" if p.path else label, p.field,
+                        base + p.crc_offset,
+                        None if p.counter_offset is None else base + p.counter_offset,
+                        p.counter_size, tuple((base + o, s) for o, s in p.ranges),
+                    ))
+        for crc in var.crcs:
+            ranges: list[tuple[int, int]] = []
+            for sig in crc.covers:
+                ranges += lay.resolve(sig)
+            cf = lay.field(crc.field)
+            counter = lay.field(crc.counter) if crc.counter else None
+            lay.crc_plan.append(CrcPlan(
+                "", crc.field, cf.offset, counter.offset if counter else None,
+                counter.size if counter else 0, _merge(ranges),
+            ))
+        return lay
+
+
+def compute_crc(buf: bytes | bytearray, plan: CrcPlan) -> int:
+    return crc16(b"".join(bytes(buf[o : o + s]) for o, s in plan.ranges))

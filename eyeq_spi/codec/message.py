@@ -1,0 +1,158 @@
+"""One entry point for a reassembled message (decision A): MESP, DASP, 0x41, 0x10 or unknown.
+
+Every problem — wrong length, unknown ID, E2E mismatch, value out of its enum — is reported in
+``DecodedMessage.errors``; nothing here raises for a peer's bytes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from construct import Const, Int8ul, Struct
+
+from eyeq_spi.codec.e2e import E2EState, protect, verify
+from eyeq_spi.codec.layout import Layout, LayoutCache
+from eyeq_spi.codec.mesp import MespCodec
+from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.spec.catalog import Catalog, MessageDef, SwKey, catalog
+
+DASP_PROTOCOL = 0x65
+DIAG_ID = 0x41
+BOOT_ID = 0x10
+
+DASP_HEADER = Struct(
+    "protocol" / Const(DASP_PROTOCOL, Int8ul),
+    "data_id" / Int8ul,
+    "counter" / Int8ul,
+    "reserved" / Int8ul,
+).compile()
+
+
+@dataclass
+class DecodedMessage:
+    protocol: str  # MESP | DASP | DIAG | BOOT | UNKNOWN
+    name: str | None
+    length: int
+    header: dict[str, Any] = field(default_factory=dict)
+    fields: dict[str, Any] = field(default_factory=dict)
+    errors: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.errors
+
+
+def classify(data: bytes) -> str:
+    """Rule A on the first bytes of a reassembled message."""
+    if len(data) >= 3 and data[1] == 0x5E and data[0] == data[2]:
+        return "MESP"
+    if data[:1] == bytes([DASP_PROTOCOL]):
+        return "DASP"
+    if data[:1] == bytes([DIAG_ID]):
+        return "DIAG"
+    if data[:1] == bytes([BOOT_ID]):
+        return "BOOT"
+    return "UNKNOWN"
+
+
+class MessageCodec:
+    """Encodes and decodes every application message for one SW version."""
+
+    def __init__(self, sw: str | None = None, cat: Catalog | None = None) -> None:
+        self.cat = cat or catalog()
+        self.sw: SwKey = self.cat.sw(sw)
+        self.layouts = LayoutCache(self.cat)
+        self.mesp = MespCodec(self.cat)
+        self._other = {m.protocol: m for m in self.cat.messages if m.protocol in ("DIAG", "BOOT")}
+
+    # -- layouts -----------------------------------------------------------------------------
+    def layout(self, msg: MessageDef) -> Layout:
+        return self.layouts.get(msg.payload, self.sw)
+
+    def message(self, name: str) -> MessageDef:
+        msg = self.cat.message(name)
+        if msg.protocol == "DASP" and not msg.exists_in(self.sw):
+            raise SpecError(f"{name} does not exist in {self.sw}")
+        return msg
+
+    # -- encode ------------------------------------------------------------------------------
+    def encode_payload(
+        self, msg: MessageDef, fields: dict[str, Any], e2e: E2EState | None = None
+    ) -> bytes:
+        lay = self.layout(msg)
+        buf = bytearray(lay.build(fields))
+        protect(buf, lay, e2e)
+        return bytes(buf)
+
+    def encode_dasp(
+        self, name: str, fields: dict[str, Any], counter: int, e2e: E2EState | None = None
+    ) -> bytes:
+        msg = self.message(name)
+        if msg.protocol != "DASP":
+            raise CodecError(f"{name} is not a DASP message")
+        if not 0 <= counter <= 255:
+            raise CodecError(f"DASP counter {counter} outside 0..255")
+        header = DASP_HEADER.build(
+            {"protocol": DASP_PROTOCOL, "data_id": msg.data_id, "counter": counter, "reserved": 0}
+        )
+        return bytes(header) + self.encode_payload(msg, fields, e2e)
+
+    def encode_other(self, protocol: str, fields: dict[str, Any]) -> bytes:
+        """0x41 (``DIAG``) or 0x10 (``BOOT``): the ID byte, then the seed's table (rule A)."""
+        msg = self._other[protocol]
+        return bytes([msg.data_id]) + self.encode_payload(msg, fields)
+
+    # -- decode ------------------------------------------------------------------------------
+    def decode(self, data: bytes, e2e: E2EState | None = None) -> DecodedMessage:
+        proto = classify(data)
+        if proto == "MESP":
+            return self.mesp.decode(data)
+        if proto == "DASP":
+            return self._decode_dasp(data, e2e)
+        if proto in ("DIAG", "BOOT"):
+            msg = self._other[proto]
+            out = DecodedMessage(proto, msg.name, len(data), {"id": data[0]})
+            self._decode_payload(out, msg, data[1:], e2e)
+            return out
+        out = DecodedMessage("UNKNOWN", None, len(data))
+        out.errors.append(
+            f"unknown message: first byte 0x{data[0]:02X}" if data else "empty message"
+        )
+        return out
+
+    def _decode_dasp(self, data: bytes, e2e: E2EState | None) -> DecodedMessage:
+        out = DecodedMessage("DASP", None, len(data))
+        if len(data) < 4:
+            out.errors.append(f"BadHdr: DASP message of {len(data)} bytes has no full header")
+            return out
+        h = DASP_HEADER.parse(data[:4])
+        out.header = {"data_id": h.data_id, "counter": h.counter}
+        if h.reserved != 0:
+            out.errors.append(f"DASP reserved byte is 0x{h.reserved:02X}, not 0")
+        msg = self.cat.dasp_by_id(h.data_id, self.sw)
+        if msg is None:
+            out.errors.append(f"BadHdr: unknown DASP data ID 0x{h.data_id:02X} in {self.sw}")
+            return out
+        out.name = msg.name
+        self._decode_payload(out, msg, data[4:], e2e)
+        return out
+
+    def _decode_payload(
+        self, out: DecodedMessage, msg: MessageDef, payload: bytes, e2e: E2EState | None
+    ) -> None:
+        out.name = msg.name
+        try:
+            lay = self.layout(msg)
+        except SpecError as exc:
+            out.errors.append(str(exc))
+            return
+        if len(payload) != lay.size:
+            what = "BadHdr: " if msg.protocol == "DASP" else ""
+            out.errors.append(
+                f"{what}{msg.name} payload is {len(payload)} bytes, expected {lay.size} "
+                f"({self.sw})"
+            )
+            return
+        out.fields = lay.parse(payload)
+        out.errors += verify(payload, lay, e2e)

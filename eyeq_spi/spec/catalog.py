@@ -1,0 +1,324 @@
+"""The message catalogue of ``specs/`` as typed, immutable objects.
+
+Load once with :func:`catalog`; everything that builds a wire format (DASP/0x41/0x10 structs, MESP,
+init bit tables) reads it from here, never from a layout written by hand (STYLE.md §6).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.errors import SpecError
+from eyeq_spi.spec.link import specs_dir
+from eyeq_spi.spec.schema import load_yaml_tree, sw_key, validate_tree
+
+SwKey = str
+"""A variant key such as ``sw8_1``."""
+
+_SW_INPUT = re.compile(r"^(?:sw)?(\d+)(?:[._](\d+))?$", re.IGNORECASE)
+
+
+def normalise_sw(text: str | None, default: SwKey) -> SwKey:
+    """``"8.1"``, ``"SW8.1"``, ``"sw8_1"`` -> ``"sw8_1"``; ``"9"``/``"9.0"`` -> ``"sw9"``."""
+    if text is None:
+        return default
+    m = _SW_INPUT.match(text.strip())
+    if not m:
+        raise SpecError(f"not a SW version: {text!r} (try 9.0, 8.1 or sw8_1)")
+    major, minor = int(m.group(1)), int(m.group(2) or 0)
+    return f"sw{major}" if minor == 0 else f"sw{major}_{minor}"
+
+
+@dataclass(frozen=True)
+class Member:
+    name: str
+    type: str
+    array: int | str | None = None
+    bits: tuple[int, int] | None = None
+    enum: str | None = None
+    values: dict[int, str] | None = None
+    units: str | None = None
+    min: float | None = None
+    max: float | None = None
+    seed_line: int = 0
+    description: str | None = None
+
+
+@dataclass(frozen=True)
+class Crc:
+    field: str
+    counter: str | None
+    covers: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class StructVariant:
+    key: SwKey
+    seed_line: int
+    members: tuple[Member, ...]
+    crcs: tuple[Crc, ...] = ()
+
+
+@dataclass(frozen=True)
+class StructDef:
+    name: str
+    section: str | None
+    description: str | None
+    variants: dict[SwKey, StructVariant]
+
+    def variant_for(self, sw: SwKey) -> StructVariant | None:
+        """The newest variant whose key is <= ``sw`` (decision D4)."""
+        best: StructVariant | None = None
+        for key, var in self.variants.items():
+            if sw_key(key) <= sw_key(sw) and (best is None or sw_key(key) > sw_key(best.key)):
+                best = var
+        return best
+
+
+@dataclass(frozen=True)
+class EnumValue:
+    value: int
+    name: str
+    family: str | None = None
+    semantic: str | None = None
+    seed_line: int | None = None
+
+
+@dataclass(frozen=True)
+class EnumDef:
+    name: str
+    kind: str  # "values" | "flags"
+    values: dict[int, EnumValue]
+
+    def label(self, value: int) -> str | None:
+        if self.kind == "flags":
+            names = [v.name for bit, v in sorted(self.values.items()) if value >> bit & 1]
+            return "|".join(names) if names else None
+        v = self.values.get(value)
+        return v.name if v else None
+
+
+@dataclass(frozen=True)
+class MessageDef:
+    name: str
+    data_id: int
+    direction: str
+    rate_hz: float | None
+    tolerance_ms: tuple[float, float] | None
+    modes: tuple[str, ...]
+    since: SwKey
+    until: SwKey | None
+    payload: str
+    section: str | None
+    protocol: str  # "DASP" | "DIAG" | "BOOT"
+
+    def exists_in(self, sw: SwKey) -> bool:
+        if sw_key(sw) < sw_key(self.since):
+            return False
+        return self.until is None or sw_key(sw) <= sw_key(self.until)
+
+
+@dataclass(frozen=True)
+class InitSignal:
+    name: str
+    start: int
+    length: int
+    signed: bool
+    factor: float
+    offset: float
+    min: float
+    max: float
+    initial: float
+    units: str | None = None
+    is_float: bool = False
+    seed_line: int = 0
+
+
+@dataclass(frozen=True)
+class InitVariant:
+    key: SwKey
+    signals: tuple[InitSignal, ...]
+    length_bytes: int
+
+
+@dataclass(frozen=True)
+class InitMessageDef:
+    name: str
+    id: int
+    ct_type: int | None
+    rounding: str  # "round" (I1) or "truncate" (Appendix E, EEPROM)
+    variants: dict[SwKey, InitVariant]
+
+    def variant_for(self, sw: SwKey) -> InitVariant | None:
+        keys = sorted((k for k in self.variants if sw_key(k) <= sw_key(sw)), key=sw_key)
+        return self.variants[keys[-1]] if keys else None
+
+
+@dataclass(frozen=True)
+class MespParam:
+    name: str
+    type: str  # u8 | u16 | u32 | string | bytes
+
+
+@dataclass(frozen=True)
+class MespFunction:
+    name: str
+    service: int
+    function: int
+    request: tuple[MespParam, ...]
+    reply: tuple[MespParam, ...]
+
+
+@dataclass
+class Catalog:
+    root: Path
+    sw_versions: tuple[SwKey, ...]
+    default_sw: SwKey
+    constants: dict[str, dict[SwKey, int]]
+    structs: dict[str, StructDef]
+    enums: dict[str, EnumDef]
+    messages: tuple[MessageDef, ...]
+    init_messages: dict[str, InitMessageDef]
+    mesp: tuple[MespFunction, ...]
+    mesp_ret: dict[int, str] = field(default_factory=dict)
+    raw: dict[str, Any] = field(default_factory=dict)
+
+    def constant(self, name: str, sw: SwKey) -> int:
+        table = self.constants.get(name)
+        if table is None:
+            raise SpecError(f"unknown constant {name}")
+        keys = sorted((k for k in table if sw_key(k) <= sw_key(sw)), key=sw_key)
+        if not keys:
+            raise SpecError(f"constant {name} is not defined for {sw}")
+        return table[keys[-1]]
+
+    def message(self, name: str) -> MessageDef:
+        for m in self.messages:
+            if m.name == name:
+                return m
+        raise SpecError(f"unknown message {name}")
+
+    def dasp_by_id(self, data_id: int, sw: SwKey) -> MessageDef | None:
+        for m in self.messages:
+            if m.protocol == "DASP" and m.data_id == data_id and m.exists_in(sw):
+                return m
+        return None
+
+    def sw(self, text: str | None) -> SwKey:
+        key = normalise_sw(text, self.default_sw)
+        if sw_key(key) < sw_key(self.sw_versions[0]):
+            raise SpecError(f"{text} is older than the first release the seed describes")
+        return key
+
+
+def _member(m: dict[str, Any]) -> Member:
+    bits = m.get("bits")
+    values = m.get("values")
+    return Member(
+        name=m["name"],
+        type=m.get("type", "uint8"),
+        array=m.get("array"),
+        bits=(int(bits[0]), int(bits[1])) if bits else None,
+        enum=m.get("enum"),
+        values={int(k): str(v) for k, v in values.items()} if isinstance(values, dict) else None,
+        units=m.get("units"),
+        min=m.get("min"),
+        max=m.get("max"),
+        seed_line=int(m.get("seed_line", 0)),
+        description=m.get("description"),
+    )
+
+
+def _crcs(raw: Any) -> tuple[Crc, ...]:
+    if raw is None:
+        return ()
+    items = raw if isinstance(raw, list) else [raw]
+    return tuple(Crc(c["field"], c.get("counter"), tuple(c["covers"])) for c in items)
+
+
+def _signal(s: dict[str, Any]) -> InitSignal:
+    return InitSignal(
+        name=str(s["name"]), start=int(s["start"]), length=int(s["length"]),
+        signed=bool(s.get("signed", False)), factor=float(s["factor"]),
+        offset=float(s["offset"]), min=float(s["min"]), max=float(s["max"]),
+        initial=float(s.get("initial", 0)), units=s.get("units"),
+        is_float=bool(s.get("float", False)), seed_line=int(s.get("seed_line", 0)),
+    )
+
+
+def load_catalog(root: Path) -> Catalog:
+    problems = validate_tree(root)
+    if problems:
+        raise SpecError(f"{root}: {len(problems)} schema problem(s), first: {problems[0]}")
+    docs = load_yaml_tree(root)
+    sw_doc = docs["sw_versions.yaml"]
+    versions = tuple(v["key"] for v in sw_doc["sw_versions"])
+    constants: dict[str, dict[SwKey, int]] = {}
+    structs: dict[str, StructDef] = {}
+    enums: dict[str, EnumDef] = {}
+    messages: list[MessageDef] = []
+    inits: dict[str, InitMessageDef] = {}
+    mesp: list[MespFunction] = []
+    mesp_ret: dict[int, str] = {}
+    for doc in docs.values():
+        for name, table in (doc.get("constants") or {}).items():
+            constants[name] = {k: int(v) for k, v in table.items() if k.startswith("sw")}
+        for name, s in (doc.get("structs") or {}).items():
+            variants = {
+                str(k): StructVariant(
+                    str(k), int(v["seed_line"]), tuple(_member(m) for m in v["members"]),
+                    _crcs(v.get("crc")),
+                )
+                for k, v in s["variants"].items()
+            }
+            structs[name] = StructDef(name, s.get("section"), s.get("description"), variants)
+        for name, e in (doc.get("enums") or {}).items():
+            flags = e.get("kind") == "flags"
+            vals = {
+                int(v["bit" if flags else "value"]): EnumValue(
+                    int(v["bit" if flags else "value"]), str(v["name"]), v.get("family"),
+                    v.get("semantic"), v.get("seed_line"),
+                )
+                for v in e["values"]
+            }
+            enums[name] = EnumDef(name, "flags" if flags else "values", vals)
+        for group, protocol in (("dasp", "DASP"), ("other", None)):
+            for m in doc.get(group) or []:
+                proto = protocol or ("DIAG" if m["data_id"] == 0x41 else "BOOT")
+                tol = m.get("tolerance_ms")
+                messages.append(MessageDef(
+                    m["name"], int(m["data_id"]), m.get("direction", "e2h"), m.get("rate_hz"),
+                    (float(tol[0]), float(tol[1])) if tol else None, tuple(m.get("modes") or ()),
+                    m.get("since") or versions[0], m.get("until"), m["payload"],
+                    m.get("section"), proto,
+                ))
+        for name, im in (doc.get("init_messages") or {}).items():
+            variants_i: dict[SwKey, InitVariant] = {}
+            for k, v in (im.get("variants") or {}).items():
+                sigs = tuple(sorted((_signal(s) for s in v["signals"]), key=lambda s: s.start))
+                nbytes = v.get("length_bytes") or -(-max(s.start + s.length for s in sigs) // 8)
+                variants_i[str(k)] = InitVariant(str(k), sigs, int(nbytes))
+            inits[name] = InitMessageDef(
+                name, int(im["id"]), im.get("ct_type"), im.get("rounding", "round"), variants_i
+            )
+        for f in doc.get("mesp_functions") or []:
+            mesp.append(MespFunction(
+                f["name"], int(f["service"]), int(f["function"]),
+                tuple(MespParam(p["name"], p["type"]) for p in f.get("request") or []),
+                tuple(MespParam(p["name"], p["type"]) for p in f.get("reply") or []),
+            ))
+        for code, name in (doc.get("mesp_ret") or {}).items():
+            mesp_ret[int(code)] = str(name)
+    return Catalog(
+        root, versions, sw_doc.get("default", versions[-1]), constants, structs, enums,
+        tuple(messages), inits, tuple(mesp), mesp_ret, docs,
+    )
+
+
+@cache
+def catalog() -> Catalog:
+    return load_catalog(specs_dir())
