@@ -107,11 +107,11 @@ def spec_show(cat: Catalog, name: str, sw: SwKey) -> str:
                 f"({sw}, table {codec.variant.key}), raw = {im.rounding}((phys - offset)/factor)",
                 f"  {'start':>5s} {'len':>4s} {'sign':4s} {'factor':>10s} {'offset':>8s} "
                 f"{'range':22s} {'initial':>10s} name"]
-        for s in codec.variant.signals:
-            kind = "f32" if s.is_float else ("s" if s.signed else "u")
-            rows.append(f"  {s.start:5d} {s.length:4d} {kind:4s} {s.factor:10g} {s.offset:8g} "
-                        f"{_rng(s.min, s.max):22s} {s.initial:10g} {s.name} {s.units or ''}"
-                        .rstrip())
+        for sig in codec.variant.signals:
+            kind = "f32" if sig.is_float else ("s" if sig.signed else "u")
+            rows.append(f"  {sig.start:5d} {sig.length:4d} {kind:4s} {sig.factor:10g} "
+                        f"{sig.offset:8g} {_rng(sig.min, sig.max):22s} {sig.initial:10g} "
+                        f"{sig.name} {sig.units or ''}".rstrip())
         return "\n".join(rows)
     for f in cat.mesp:
         if f.name == name:

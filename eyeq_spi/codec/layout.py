@@ -15,6 +15,7 @@ names; bitfield members appear as ints under their own names.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -290,22 +291,20 @@ class LayoutCache:
             offset += size
             i += 1
         struct = Struct(*subcons)
-        try:
+        with contextlib.suppress(Exception):  # construct cannot compile it: run uncompiled
             struct = struct.compile()
-        except Exception:
-            pass
         lay = Layout(name, sw, var.key, offset, struct, fields, children)
         lay._decode_ops, lay._encode_ops = dec, enc
         lay._by_name = {f.name: f for f in fields}
         # E2E plan: children first (their CRCs are inside ours), then our own.
         for f in fields:
-            child = children.get(f.name)
-            if child is None or not child.crc_plan:
+            sub = children.get(f.name)
+            if sub is None or not sub.crc_plan:
                 continue
             for k in range(f.count or 1):
-                base = f.offset + k * child.size
+                base = f.offset + k * sub.size
                 label = f.name if f.count is None else f"{f.name}[{k}]"
-                for p in child.crc_plan:
+                for p in sub.crc_plan:
                     lay.crc_plan.append(CrcPlan(
                         f"{label}.{p.path}" if p.path else label, p.field,
                         base + p.crc_offset,
