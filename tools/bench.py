@@ -51,8 +51,39 @@ def frame_bench(seconds: float) -> dict[str, float]:
 # Hand-written decoder of the SW9 EYEQ_VIS_OBSTACLES_MSG for comparison: what a careful engineer
 # would write for this one layout — struct.unpack_from, the same nested-dict output shape (struct
 # members by name), bitfields split — but no spec, no E2E check, no other SW version.
-_PHYS_NAMES = ["width", "widthStd", "length", "lengthStd", "height", "heightStd", "absoluteLongVelocity", "absoluteLongVelocityStd", "absoluteLatVelocity", "absoluteLatVelocityStd", "absoluteLongAcc", "absoluteLongAccStd", "absoluteLatAcc", "absoluteLatAccStd", "longDistance", "longDistanceStd", "latDistance", "latDistanceStd", "heading"]
-_ANG_NAMES = ["angleRight", "angleRightStd", "angleLeft", "angleLeftStd", "angleSide", "angleSideStd", "angleMid", "angleMidStd", "angularSpeed", "angularSpeedStd"]
+_PHYS_NAMES = [
+    "width",
+    "widthStd",
+    "length",
+    "lengthStd",
+    "height",
+    "heightStd",
+    "absoluteLongVelocity",
+    "absoluteLongVelocityStd",
+    "absoluteLatVelocity",
+    "absoluteLatVelocityStd",
+    "absoluteLongAcc",
+    "absoluteLongAccStd",
+    "absoluteLatAcc",
+    "absoluteLatAccStd",
+    "longDistance",
+    "longDistanceStd",
+    "latDistance",
+    "latDistanceStd",
+    "heading",
+]
+_ANG_NAMES = [
+    "angleRight",
+    "angleRightStd",
+    "angleLeft",
+    "angleLeftStd",
+    "angleSide",
+    "angleSideStd",
+    "angleMid",
+    "angleMidStd",
+    "angularSpeed",
+    "angularSpeedStd",
+]
 _PHYS = struct.Struct("<19f")
 _ANG = struct.Struct("<10f")
 _BOX = struct.Struct("<hhbb" + "hhhB" * 4 + "BB")
@@ -67,29 +98,74 @@ def hand_decode_obstacles(buf: bytes, off: int = 4) -> dict[str, Any]:
         phys = dict(zip(_PHYS_NAMES, _PHYS.unpack_from(buf, pos), strict=True))
         ang = dict(zip(_ANG_NAMES, _ANG.unpack_from(buf, pos + 76), strict=True))
         b = _BOX.unpack_from(buf, pos + 116)
-        edges = [{"xCoord": b[4 + 4 * i], "yTopCoord": b[5 + 4 * i], "yBottomCoord": b[6 + 4 * i],
-                  "isOccluded": b[7 + 4 * i] & 1, "valid": b[7 + 4 * i] >> 1 & 1}
-                 for i in range(4)]
-        box = {"rect": {"xLeftCoord": b[0], "xRightCoord": b[1], "yTopCoord": b[2],
-                        "yBottomCoord": b[3]}, "verticalEdges": edges,
-               "visibleRect": b[20], "visibleSide": b[21]}
-        (ms, mc, mo, conf, ttc, age, oid, ocrc, orfc, cls, cipv, lane, light,
-         bits) = _TAIL.unpack_from(buf, pos + 152)
-        objs.append({"physicalState": phys, "angularState": ang, "imageBox": box,
-                     "mobilityState": {"motionStatus": ms, "motionCategory": mc,
-                                       "motionOrientation": mo},
-                     "confidence": conf, "ttc_const_vel": ttc, "age": age, "id": oid,
-                     "crc_16": ocrc, "rollingFrameCount": orfc, "classification": cls,
-                     "isCipv": cipv, "laneAssignment": lane,
-                     "lightIndicators": {"valid": light & 1, "brake": light >> 1 & 1,
-                                         "turnRight": light >> 2 & 1, "turnLeft": light >> 3 & 1},
-                     "isPredicted": bits & 1, "isInDrivableArea": bits >> 1 & 1,
-                     "isVeryClose": bits >> 2 & 1})
+        edges = [
+            {
+                "xCoord": b[4 + 4 * i],
+                "yTopCoord": b[5 + 4 * i],
+                "yBottomCoord": b[6 + 4 * i],
+                "isOccluded": b[7 + 4 * i] & 1,
+                "valid": b[7 + 4 * i] >> 1 & 1,
+            }
+            for i in range(4)
+        ]
+        box = {
+            "rect": {
+                "xLeftCoord": b[0],
+                "xRightCoord": b[1],
+                "yTopCoord": b[2],
+                "yBottomCoord": b[3],
+            },
+            "verticalEdges": edges,
+            "visibleRect": b[20],
+            "visibleSide": b[21],
+        }
+        (ms, mc, mo, conf, ttc, age, oid, ocrc, orfc, cls, cipv, lane, light, bits) = (
+            _TAIL.unpack_from(buf, pos + 152)
+        )
+        objs.append(
+            {
+                "physicalState": phys,
+                "angularState": ang,
+                "imageBox": box,
+                "mobilityState": {
+                    "motionStatus": ms,
+                    "motionCategory": mc,
+                    "motionOrientation": mo,
+                },
+                "confidence": conf,
+                "ttc_const_vel": ttc,
+                "age": age,
+                "id": oid,
+                "crc_16": ocrc,
+                "rollingFrameCount": orfc,
+                "classification": cls,
+                "isCipv": cipv,
+                "laneAssignment": lane,
+                "lightIndicators": {
+                    "valid": light & 1,
+                    "brake": light >> 1 & 1,
+                    "turnRight": light >> 2 & 1,
+                    "turnLeft": light >> 3 & 1,
+                },
+                "isPredicted": bits & 1,
+                "isInDrivableArea": bits >> 1 & 1,
+                "isVeryClose": bits >> 2 & 1,
+            }
+        )
         pos += 177
     image_index, rfc = struct.unpack_from("<HB", buf, pos)
-    return {"timestamp_ms": ts_ms, "visObjects": {
-        "timestamp_us": ts_us, "frameIndex": frame, "vehIndexUsed": veh, "crc_16": crc,
-        "visObs": objs, "imageIndex": image_index, "rollingFrameCount": rfc}}
+    return {
+        "timestamp_ms": ts_ms,
+        "visObjects": {
+            "timestamp_us": ts_us,
+            "frameIndex": frame,
+            "vehIndexUsed": veh,
+            "crc_16": crc,
+            "visObs": objs,
+            "imageIndex": image_index,
+            "rollingFrameCount": rfc,
+        },
+    }
 
 
 def obstacles_bench(seconds: float) -> dict[str, float]:
