@@ -71,6 +71,8 @@ def signal_value(sig: InitSignal) -> st.SearchStrategy[float]:
         hi_raw = min(hi_raw, (1 << (sig.length - 1)) - 1)
     else:
         lo_raw, hi_raw = max(lo_raw, 0), min(hi_raw, (1 << sig.length) - 1)
+    if sig.factor == 1 and float(sig.offset).is_integer():
+        return st.integers(lo_raw, max(lo_raw, hi_raw)).map(lambda r: r + int(sig.offset))
     return st.integers(lo_raw, max(lo_raw, hi_raw)).map(
         lambda r: round(r * sig.factor + sig.offset, 9)
     )

@@ -58,9 +58,14 @@ class BitSignalCodec:
             )
         if sig.is_float:
             return int.from_bytes(struct.pack("<f", physical), "little")
-        q = (physical - sig.offset) / sig.factor
-        raw = math.trunc(q + (_EPS if q >= 0 else -_EPS)) if self.message.rounding == "truncate" \
-            else round(q)
+        if _exact(sig) and isinstance(physical, int):
+            raw = physical - int(sig.offset)  # integer signal: no float on the way (128-bit IDs)
+        else:
+            q = (physical - sig.offset) / sig.factor
+            if self.message.rounding == "truncate":
+                raw = math.trunc(q + (_EPS if q >= 0 else -_EPS))
+            else:
+                raw = round(q)
         bits = sig.length
         if sig.signed:
             rmin, rmax = -(1 << (bits - 1)), (1 << (bits - 1)) - 1
@@ -78,6 +83,8 @@ class BitSignalCodec:
             return float(struct.unpack("<f", raw.to_bytes(4, "little"))[0])
         if sig.signed and raw >> (sig.length - 1):
             raw -= 1 << sig.length
+        if _exact(sig):
+            return raw + int(sig.offset)
         value = raw * sig.factor + sig.offset
         return float(round(value, 9))
 
@@ -114,9 +121,14 @@ class BitSignalCodec:
         for s in self.variant.signals:
             v = values[s.name]
             tol = max(abs(s.factor) / 2, _EPS)
-            if math.isnan(v) or v < s.min - tol or v > s.max + tol:
+            if (isinstance(v, float) and math.isnan(v)) or v < s.min - tol or v > s.max + tol:
                 out.append(f"{self.message.name}.{s.name} = {v:g} outside [{s.min:g}, {s.max:g}]")
         return out
+
+
+def _exact(sig: InitSignal) -> bool:
+    """Factor 1 and an integer offset: raw and physical are the same integers."""
+    return (not sig.is_float and sig.factor == 1 and float(sig.offset).is_integer())
 
 
 def _as_int(text: str) -> int | None:

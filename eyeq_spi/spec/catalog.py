@@ -240,12 +240,19 @@ def _crcs(raw: Any) -> tuple[Crc, ...]:
     return tuple(Crc(c["field"], c.get("counter"), tuple(c["covers"])) for c in items)
 
 
+def _num(x: Any) -> float:
+    """Keep ints exact (a 128-bit fuse ID does not survive a float); floats stay floats."""
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise SpecError(f"not a number: {x!r}")
+    return x
+
+
 def _signal(s: dict[str, Any]) -> InitSignal:
     return InitSignal(
         name=str(s["name"]), start=int(s["start"]), length=int(s["length"]),
-        signed=bool(s.get("signed", False)), factor=float(s["factor"]),
-        offset=float(s["offset"]), min=float(s["min"]), max=float(s["max"]),
-        initial=float(s.get("initial", 0)), units=s.get("units"),
+        signed=bool(s.get("signed", False)), factor=_num(s["factor"]),
+        offset=_num(s["offset"]), min=_num(s["min"]), max=_num(s["max"]),
+        initial=_num(s.get("initial", 0)), units=s.get("units"),
         is_float=bool(s.get("float", False)), seed_line=int(s.get("seed_line", 0)),
     )
 
