@@ -176,8 +176,20 @@ class Layout:
             out += child.resolve(rest, start + i * child.size)
         return out
 
-    def iter_leaves(self) -> list[FieldInfo]:
-        return list(self.fields)
+    def zero_values(self) -> dict[str, Any]:
+        """A complete value dict of zeros (0.0 for floats) in this layout's shape."""
+        out: dict[str, Any] = {}
+        for f in self.fields:
+            child = self.children.get(f.name)
+            if child is not None:
+                out[f.name] = (
+                    [child.zero_values() for _ in range(f.count)] if f.count
+                    else child.zero_values()
+                )
+                continue
+            zero: Any = 0.0 if f.type in ("real32", "real64") else 0
+            out[f.name] = [zero] * f.count if f.count else zero
+        return out
 
 
 def _merge(ranges: list[tuple[int, int]]) -> tuple[tuple[int, int], ...]:
