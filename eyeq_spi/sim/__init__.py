@@ -1,0 +1,1 @@
+"""The simulated EyeQ: the device side of the SPI interface."""
