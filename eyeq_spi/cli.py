@@ -4,7 +4,6 @@ user never sees a traceback for bad input."""
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Sequence
 
@@ -21,17 +20,36 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="eyeq-spi", description=__doc__)
     p.add_argument("--version", action="version", version=f"eyeq-spi {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    from eyeq_spi.cli_run import add_shared_options
+
     demo = sub.add_parser(
         "demo",
-        help="host stack against the embedded simulated EyeQ, in virtual time",
-        description="Run the host and EyeQ protocol stacks against each other over an in-memory "
-        "SPI link. (Until the host emulator lands this exercises link and transport: both sides "
-        "exchange messages of random sizes up to each side's receive limit.)",
+        help="host emulator against the embedded simulated EyeQ",
+        description="Bring a simulated EyeQ4 up to Running Vision with the host emulator, in "
+        "one process, over the real link and transport. Exit 0 only if Running Vision was "
+        "reached and held.",
     )
-    demo.add_argument("--duration", type=float, default=10.0, help="virtual seconds (default 10)")
-    demo.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
-    demo.add_argument("--rate", type=float, default=50.0, help="messages/s each way (default 50)")
-    demo.add_argument("--json", action="store_true", help="print one JSON object at the end")
+    demo.add_argument("--duration", type=float, default=10.0, help="seconds (default 10)")
+    demo.add_argument("--virtual-time", action="store_true",
+                      help="run as fast as the CPU allows instead of in real time")
+    demo.add_argument("--json", action="store_true", help="end with one JSON object")
+    add_shared_options(demo)
+    sim = sub.add_parser("sim", help="the simulated EyeQ on a TCP listener or a pty")
+    sim.add_argument("--listen", metavar="tcp://HOST:PORT", help="serve a socket:// URL")
+    sim.add_argument("--pty", action="store_true", help="open a pty and print its path")
+    sim.add_argument("--duration", type=float, help="stop after S seconds (default: never)")
+    sim.add_argument("--accept-timeout", type=float, default=60.0, help="wait for the host")
+    sim.add_argument("--json", action="store_true", help="end with one JSON object")
+    add_shared_options(sim)
+    host = sub.add_parser("host", help="the host emulator against an EyeQ at a pyserial URL")
+    host.add_argument("--port", required=True, metavar="URL",
+                      help="socket://HOST:PORT, a tty or pty path, rfc2217://..., loop://")
+    host.add_argument("--nvm", metavar="FILE", help="NVM file (default: in memory)")
+    host.add_argument("--duration", type=float, default=10.0, help="seconds (default 10)")
+    host.add_argument("--exit-when-running", action="store_true",
+                      help="stop as soon as Running Vision is reached")
+    host.add_argument("--json", action="store_true", help="end with one JSON object")
+    add_shared_options(host)
     spec = sub.add_parser("spec", help="browse the message catalogue built from specs/")
     spec_sub = spec.add_subparsers(dest="spec_command", required=True, parser_class=_Parser)
     sl = spec_sub.add_parser("list", help="list messages, MESP functions, init messages, structs")
@@ -56,21 +74,11 @@ def _spec(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
-        if args.command == "demo":
-            from eyeq_spi.demo import run_link_demo
+        if args.command in ("demo", "sim", "host"):
+            from eyeq_spi import cli_run
 
-            if args.duration <= 0 or args.rate <= 0:
-                raise UsageError("--duration and --rate must be positive")
-            result = run_link_demo(args.duration, seed=args.seed, rate=args.rate)
-            if args.json:
-                print(json.dumps(result, sort_keys=True))
-            else:
-                for side in ("host", "eyeq"):
-                    r = result[side]
-                    print(f"{side:5s} sent {r['sent']:6d}  received {r['received']:6d}  "
-                          f"failed {r['failed']:4d}  intact {r['intact']}")
-                print(f"virtual time {result['virtual_s']:.3f} s, wall {result['wall_s']:.3f} s")
-            return 0 if result["ok"] else 1
+            run = {"demo": cli_run.run_demo, "sim": cli_run.run_sim, "host": cli_run.run_host}
+            return run[args.command](args)
         if args.command == "spec":
             return _spec(args)
         raise UsageError(f"unknown command {args.command}")

@@ -9,16 +9,29 @@ import pytest
 from eyeq_spi.cli import main
 
 
-def test_demo_json_reports_an_intact_exchange(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["demo", "--duration", "2", "--json"]) == 0
+def test_demo_json_reaches_running_vision(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo", "--virtual-time", "--duration", "4", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["ok"] and out["host"]["intact"] and out["eyeq"]["intact"]
-    assert out["host"]["sent"] >= 99 and out["eyeq"]["received"] >= 99
-    assert out["virtual_s"] == pytest.approx(2.0)
+    assert out["ok"] and out["state"] == "RUNNING_VISION"
+    assert out["virtual_s"] == pytest.approx(4.0)
+    msgs = out["messages"]
+    assert msgs["HOST_VEH_STATE_MSG"] > 100 and msgs["EYEQ_DIAGNOSTIC_MSG"] > 100
+    assert msgs["EYEQ_VIS_OBSTACLES_MSG"] > 20 and out["e2e_errors"] == 0
+    assert set(out["link"]) >= {"sequenceErrorCounter", "dataCRCErrorCounter"}
+
+
+def test_demo_with_a_corrupt_eeprom_exits_1(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo", "--virtual-time", "--duration", "3", "--json", "--corrupt-eeprom"]) == 1
+    out = json.loads(capsys.readouterr().out)
+    assert out["state"] == "FAILED" and "repair or replace" in out["problem"]
 
 
 @pytest.mark.parametrize(
-    "argv", [[], ["nope"], ["demo", "--duration", "x"], ["demo", "--duration", "-1"]]
+    "argv",
+    [[], ["nope"], ["demo", "--duration", "x"], ["demo", "--duration", "-1"],
+     ["demo", "--objects", "16"], ["demo", "--drop-reply", "GetEyeQVersions:x"],
+     ["sim"], ["sim", "--listen", "udp://x:1"], ["host", "--port", "/dev/nonexistent-eyeq"],
+     ["demo", "--scenario", "/nonexistent.csv"], ["spec", "show", "nope"]],
 )
 def test_bad_arguments_exit_2_with_one_line_and_no_traceback(
     argv: list[str], capsys: pytest.CaptureFixture[str]

@@ -81,6 +81,7 @@ ADAPTERS: dict[str, tuple[str, str]] = {
     "memory": ("eyeq_spi.phy.memory", "MemoryAdapter"),
     "serial": ("eyeq_spi.phy.serial", "SerialAdapter"),
     "tcp-listen": ("eyeq_spi.phy.tcp", "TcpListenAdapter"),
+    "pty": ("eyeq_spi.phy.pty", "PtyAdapter"),
 }
 
 

@@ -4,6 +4,7 @@ however long the CPU needs. Used by the tests and the simulation."""
 from __future__ import annotations
 
 import heapq
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -45,6 +46,8 @@ class VirtualRunner:
         self._transit: list[_InTransit] = []
         self._seq = 0
         self._max_steps = max_steps_per_instant
+        self.wall_s = 0.0  # wall-clock and CPU time spent in run_until
+        self.cpu_s = 0.0
 
     def _pump(self) -> None:
         """Move transfers until nothing more happens at ``now``."""
@@ -85,8 +88,24 @@ class VirtualRunner:
             times.append(self._transit[0].at)
         return min(times) if times else None
 
-    def run_until(self, t_end: float, *, stop: Callable[[], bool] | None = None) -> float:
-        """Advance to ``t_end`` (or until ``stop()`` is true). Returns the time reached."""
+    def run_until(
+        self, t_end: float, *, stop: Callable[[], bool] | None = None, realtime: bool = False
+    ) -> float:
+        """Advance to ``t_end`` (or until ``stop()`` is true). Returns the time reached.
+
+        ``realtime`` paces virtual time to the wall clock (sleeping ahead of each event), so an
+        in-process emulation runs at the speed of a real bench.
+        """
+        w0, c0 = time.perf_counter(), time.process_time()
+        try:
+            return self._run(t_end, stop, (w0, self.now) if realtime else None)
+        finally:
+            self.wall_s += time.perf_counter() - w0
+            self.cpu_s += time.process_time() - c0
+
+    def _run(
+        self, t_end: float, stop: Callable[[], bool] | None, pace: tuple[float, float] | None
+    ) -> float:
         self._pump()
         while stop is None or not stop():
             nxt = self.next_time()
@@ -94,6 +113,10 @@ class VirtualRunner:
                 self.now = max(self.now, t_end)
                 self._pump()
                 break
+            if pace is not None:
+                ahead = (nxt - pace[1]) - (time.perf_counter() - pace[0])
+                if ahead > 0:
+                    time.sleep(ahead)
             self.now = max(self.now, nxt)
             self._pump()
         return self.now

@@ -1,0 +1,1 @@
+"""The Aurix host emulator: bring-up state machine, NVM, scenario sources."""

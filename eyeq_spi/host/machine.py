@@ -1,0 +1,120 @@
+"""The host's bring-up and mode state machine, as data (STYLE.md §3).
+
+Theory of operation (seed 004 §6 message flow, §7.1.3, §7.1.1.1.4)
+---------------------------------------------------------------
+POWER_UP waits for EYEQ_BOOT_STATUS_MSG and checks its test bits; a failure resets the EyeQ and
+is retried, and the third failure in a row ends in BOOT_FAILED. WAIT_PENDING polls Get Extended
+State until Pending Vision. INIT sends the init messages in order — 0x84 from NVM, 0x78/0x79 when
+the configuration is camera-only AEB, then 0x92 — each answered by EventCalibrationTool. A 0x41
+Fatal_Error 22 before vision leads to READ_EEPROM: the EEPROM's CRC decides between FAILED
+("repair or replace") and a new NVM plus an EyeQ reset. WAIT_RUNNING sends HOST_VEH_STATE_MSG,
+asks Get Versions once per ignition cycle and polls until Running Vision. RUNNING_VISION receives
+the DASP stream. A new boot status or a 0x41 state that goes back is an EyeQ reset: the bring-up
+runs again. A mode switch stops DASP, switches the application and, for TAC/SPC, sends the mode's
+init message and waits for the results.
+
+``TRANSITIONS`` maps (state, event) to the next state. The host runs the entry action of the new
+state; a pair that is not in the table is ignored and counted.
+"""
+
+from __future__ import annotations
+
+import enum
+
+
+class HostState(enum.Enum):
+    POWER_UP = "POWER_UP"
+    BOOT_FAILED = "BOOT_FAILED"
+    WAIT_PENDING = "WAIT_PENDING"
+    INIT = "INIT"
+    READ_EEPROM = "READ_EEPROM"
+    FAILED = "FAILED"
+    WAIT_RUNNING = "WAIT_RUNNING"
+    RUNNING_VISION = "RUNNING_VISION"
+    FATAL = "FATAL"
+    SWITCHING = "SWITCHING"
+    WAIT_MODE_PENDING = "WAIT_MODE_PENDING"
+    MODE_INIT = "MODE_INIT"
+    WAIT_MODE_RUNNING = "WAIT_MODE_RUNNING"
+    RUNNING_TAC = "RUNNING_TAC"
+    RUNNING_SPC = "RUNNING_SPC"
+    DV = "DV"
+
+
+class HostEvent(enum.Enum):
+    BOOT_OK = "BOOT_OK"
+    BOOT_BAD = "BOOT_BAD"  # test bits set, or no boot status in time: reset and retry
+    BOOT_STRIKE_OUT = "BOOT_STRIKE_OUT"  # the third failure in a row
+    PENDING_VISION = "PENDING_VISION"
+    INIT_DONE = "INIT_DONE"
+    INIT_REJECTED = "INIT_REJECTED"
+    FATAL_22 = "FATAL_22"
+    EEPROM_OK = "EEPROM_OK"  # NVM rewritten; the EyeQ is reset
+    EEPROM_BAD = "EEPROM_BAD"
+    RUNNING_VISION = "RUNNING_VISION"
+    FATAL = "FATAL"
+    EYEQ_RESET = "EYEQ_RESET"
+    SWITCH = "SWITCH"  # the API asked for another mode
+    SWITCH_ACCEPTED = "SWITCH_ACCEPTED"
+    SWITCH_REJECTED = "SWITCH_REJECTED"
+    MODE_PENDING = "MODE_PENDING"  # pending TAC/SPC reached
+    MODE_VISION_PENDING = "MODE_VISION_PENDING"  # back to Pending Vision
+    MODE_DV = "MODE_DV"
+    MODE_PARAMS_ACCEPTED = "MODE_PARAMS_ACCEPTED"
+    RUNNING_TAC = "RUNNING_TAC"
+    RUNNING_SPC = "RUNNING_SPC"
+
+
+S, E = HostState, HostEvent
+
+TRANSITIONS: dict[tuple[HostState, HostEvent], HostState] = {
+    (S.POWER_UP, E.BOOT_OK): S.WAIT_PENDING,
+    (S.POWER_UP, E.BOOT_BAD): S.POWER_UP,
+    (S.POWER_UP, E.BOOT_STRIKE_OUT): S.BOOT_FAILED,
+    (S.WAIT_PENDING, E.PENDING_VISION): S.INIT,
+    (S.INIT, E.INIT_DONE): S.WAIT_RUNNING,
+    (S.INIT, E.INIT_REJECTED): S.FAILED,
+    (S.INIT, E.FATAL_22): S.READ_EEPROM,
+    (S.WAIT_RUNNING, E.FATAL_22): S.READ_EEPROM,
+    (S.WAIT_PENDING, E.FATAL_22): S.READ_EEPROM,
+    (S.READ_EEPROM, E.EEPROM_OK): S.POWER_UP,
+    (S.READ_EEPROM, E.EEPROM_BAD): S.FAILED,
+    (S.WAIT_RUNNING, E.RUNNING_VISION): S.RUNNING_VISION,
+    (S.WAIT_RUNNING, E.FATAL): S.FATAL,
+    (S.RUNNING_VISION, E.FATAL): S.FATAL,
+    (S.RUNNING_VISION, E.SWITCH): S.SWITCHING,
+    (S.RUNNING_TAC, E.SWITCH): S.SWITCHING,
+    (S.RUNNING_SPC, E.SWITCH): S.SWITCHING,
+    (S.DV, E.SWITCH): S.SWITCHING,
+    (S.SWITCHING, E.SWITCH_ACCEPTED): S.WAIT_MODE_PENDING,
+    (S.SWITCHING, E.SWITCH_REJECTED): S.FAILED,
+    (S.WAIT_MODE_PENDING, E.MODE_PENDING): S.MODE_INIT,
+    (S.WAIT_MODE_PENDING, E.MODE_VISION_PENDING): S.INIT,
+    (S.WAIT_MODE_PENDING, E.MODE_DV): S.DV,
+    (S.MODE_INIT, E.MODE_PARAMS_ACCEPTED): S.WAIT_MODE_RUNNING,
+    (S.MODE_INIT, E.INIT_REJECTED): S.FAILED,
+    (S.WAIT_MODE_RUNNING, E.RUNNING_TAC): S.RUNNING_TAC,
+    (S.WAIT_MODE_RUNNING, E.RUNNING_SPC): S.RUNNING_SPC,
+}
+# An EyeQ reset re-runs the bring-up from every state except the terminal ones.
+TERMINAL = frozenset({S.BOOT_FAILED, S.FAILED})
+for _state in HostState:
+    if _state not in TERMINAL:
+        TRANSITIONS[(_state, E.EYEQ_RESET)] = S.POWER_UP
+    if _state not in TERMINAL and _state is not S.READ_EEPROM:
+        TRANSITIONS.setdefault((_state, E.FATAL), S.FATAL)
+
+
+def next_state(state: HostState, event: HostEvent) -> HostState | None:
+    return TRANSITIONS.get((state, event))
+
+
+def diagram() -> str:
+    """The transition table as a Mermaid state diagram (README, docs)."""
+    lines = ["stateDiagram-v2", "    [*] --> POWER_UP"]
+    for (src, ev), dst in TRANSITIONS.items():
+        if ev in (E.EYEQ_RESET, E.FATAL) and src not in (S.RUNNING_VISION, S.WAIT_RUNNING):
+            continue  # drawn once below
+        lines.append(f"    {src.value} --> {dst.value}: {ev.value}")
+    lines.append("    note right of POWER_UP: EYEQ_RESET from any non-terminal state")
+    return "\n".join(lines)

@@ -1,0 +1,93 @@
+"""The host's non-volatile memory, as a JSON file written atomically (temp file, fsync, rename,
+fsync of the directory), so a crash at any point leaves either the old or the new file."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.errors import EyeqError
+
+
+class NvmError(EyeqError):
+    """The NVM file cannot be read or written."""
+
+
+@dataclass
+class Alignment:
+    """§21 Alignment NVM table."""
+
+    horizonKA: float = 0.0
+    yawKA: float = 0.0
+    rollAngleKA: float = 0.0
+    cameraAlignmentValidKA: int = 0
+
+
+@dataclass
+class NvmData:
+    intrinsic: dict[str, float] = field(default_factory=dict)  # 0x84 signals; empty = zeros
+    alignment: Alignment = field(default_factory=Alignment)
+    ignition_cycles: int = 0
+    versions: dict[str, int] = field(default_factory=dict)
+
+
+class Nvm:
+    """``path=None`` keeps the NVM in memory (tests, the demo without ``--nvm``)."""
+
+    def __init__(self, path: str | os.PathLike[str] | None = None) -> None:
+        self.path = Path(path) if path is not None else None
+        self.data = NvmData()
+        self.writes = 0
+        self.load_problem: str | None = None
+
+    def load(self) -> NvmData:
+        """Read the file; a missing file is a first power-up. A corrupt file is reported in
+        ``load_problem`` and treated as empty, which the §7.1.3 flow repairs."""
+        self.data = NvmData()
+        if self.path is None or not self.path.exists():
+            return self.data
+        try:
+            raw = json.loads(self.path.read_text(encoding="utf-8"))
+            if not isinstance(raw, dict):
+                raise ValueError("top level is not an object")
+            self.data = NvmData(
+                intrinsic={str(k): float(v) for k, v in raw.get("intrinsic", {}).items()},
+                alignment=Alignment(**raw.get("alignment", {})),
+                ignition_cycles=int(raw.get("ignition_cycles", 0)),
+                versions={str(k): int(v) for k, v in raw.get("versions", {}).items()},
+            )
+        except (OSError, ValueError, TypeError) as exc:
+            self.load_problem = f"{self.path}: unreadable NVM ({exc}); starting from empty"
+            self.data = NvmData()
+        return self.data
+
+    def save(self) -> None:
+        self.writes += 1
+        if self.path is None:
+            return
+        doc: dict[str, Any] = asdict(self.data)
+        text = json.dumps(doc, indent=2, sort_keys=True)
+        directory = self.path.parent if str(self.path.parent) else Path(".")
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", dir=directory)
+            try:
+                with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                    fh.write(text)
+                    fh.flush()
+                    os.fsync(fh.fileno())
+                os.replace(tmp, self.path)
+            except BaseException:
+                Path(tmp).unlink(missing_ok=True)
+                raise
+            dfd = os.open(directory, os.O_RDONLY)
+            try:
+                os.fsync(dfd)
+            finally:
+                os.close(dfd)
+        except OSError as exc:
+            raise NvmError(f"cannot write NVM {self.path}: {exc}") from exc

@@ -1,0 +1,76 @@
+"""Vehicle signals for HOST_VEH_STATE_MSG: a constant-speed drive, or a CSV of signals.
+
+CSV format: a header row with ``time`` (seconds) and any ``host_vehicle_state_t`` member names
+(``vehicleVelocity``, ``vehicleYawRate``, ...). Values hold until the next row (zero-order hold);
+the last row holds forever.
+"""
+
+from __future__ import annotations
+
+import bisect
+import csv
+import math
+from pathlib import Path
+from typing import Protocol
+
+from eyeq_spi.errors import EyeqError
+
+
+class ScenarioError(EyeqError):
+    """A scenario file is malformed."""
+
+
+class Scenario(Protocol):
+    def signals(self, t: float) -> dict[str, float]: ...
+
+
+class ConstantDrive:
+    def __init__(self, speed: float = 25.0, yaw_rate: float = 0.0) -> None:
+        if not math.isfinite(speed) or not math.isfinite(yaw_rate):
+            raise ScenarioError("speed and yaw rate must be finite")
+        self.speed = speed
+        self.yaw_rate = yaw_rate
+
+    def signals(self, t: float) -> dict[str, float]:
+        return {"vehicleVelocity": self.speed, "vehicleYawRate": self.yaw_rate}
+
+
+class CsvScenario:
+    def __init__(self, path: str | Path, allowed: set[str] | None = None) -> None:
+        self.path = Path(path)
+        try:
+            text = self.path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ScenarioError(f"{self.path}: cannot read scenario: {exc}") from exc
+        rows = list(csv.reader(text.splitlines()))
+        if not rows or "time" not in rows[0]:
+            raise ScenarioError(f"{self.path}: first row must be a header with a 'time' column")
+        header = [h.strip() for h in rows[0]]
+        unknown = [h for h in header if h != "time" and allowed is not None and h not in allowed]
+        if unknown:
+            raise ScenarioError(f"{self.path}: unknown signal column(s) {unknown}")
+        self.times: list[float] = []
+        self.rows: list[dict[str, float]] = []
+        for lineno, row in enumerate(rows[1:], start=2):
+            if not row or all(not c.strip() for c in row):
+                continue
+            if len(row) != len(header):
+                raise ScenarioError(f"{self.path}:{lineno}: {len(row)} fields, header has "
+                                    f"{len(header)}")
+            try:
+                values = {h: float(c) for h, c in zip(header, row, strict=True)}
+            except ValueError as exc:
+                raise ScenarioError(f"{self.path}:{lineno}: {exc}") from None
+            if not all(math.isfinite(v) for v in values.values()):
+                raise ScenarioError(f"{self.path}:{lineno}: values must be finite")
+            t = values.pop("time")
+            if self.times and t < self.times[-1]:
+                raise ScenarioError(f"{self.path}:{lineno}: time goes backwards")
+            self.times.append(t)
+            self.rows.append(values)
+        if not self.rows:
+            raise ScenarioError(f"{self.path}: no data rows")
+
+    def signals(self, t: float) -> dict[str, float]:
+        i = bisect.bisect_right(self.times, t) - 1
+        return dict(self.rows[max(i, 0)])

@@ -1,0 +1,40 @@
+"""Configuration and fault hooks of the simulated EyeQ."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class SimConfig:
+    sw: str | None = None  # SW version the EyeQ runs (default: newest in specs/)
+    seed: int = 1
+    # power-up (§7.1.5.3)
+    boot_delay: float = 0.150  # power-up -> EYEQ_BOOT_STATUS_MSG
+    app_start_delay: float = 0.100  # boot status -> first 0x41
+    boot_version: str = "7.1.23"
+    application_version: str = "9.0.0"
+    eyeq_id: int = 0x4E51_0001
+    eyeq_type: int = 4
+    api_version: tuple[int, int] = (9, 0)
+    sw_version: tuple[int, int] = (9, 0)
+    # rates (§7.1.4, §7.1.5)
+    dasp_rate: float = 18.0
+    diag_rate: float = 37.0
+    # scene (numpy model)
+    objects: int = 8
+    signs: int = 4
+    light_spots: int = 4
+    flash_mb: int = 64
+    tac_duration: float = 2.0  # seconds of TAC/SPC "progress" before results
+    # -- fault hooks ------------------------------------------------------------------------
+    boot_test_failures: int = 0  # TestResults bits reported at boot...
+    boot_failures: int = 0  # ...for this many power-ups (then the boot passes)
+    corrupt_eeprom_crc: bool = False  # FFS read returns an image whose CRC does not match
+    fatal_error: int | None = None  # force this Fatal_Error in 0x41 (22 = intrinsic mismatch)
+    reply_delay: float = 0.0  # every MESP reply leaves this late
+    delay_replies: dict[str, float] = field(default_factory=dict)  # per function: extra delay
+    drop_replies: dict[str, int] = field(default_factory=dict)  # per function: drop first N
+    reset_at: float | None = None  # the EyeQ resets itself at this time (seconds)
+    stop_dasp: dict[str, float] = field(default_factory=dict)  # message -> time it stops
+    tac_error: int | None = None  # TAC finishes with this tac_error instead of NO_ERROR

@@ -1,0 +1,482 @@
+"""Simulated EyeQ4: boot status, 0x41 at 37 Hz, the application modes, the seven MESP functions,
+periodic DASP at 18 Hz filled from a seeded numpy scene, and fault hooks. Sans-IO: a runner feeds
+it transfers and ``now``.
+
+Theory of operation
+-------------------
+``power_up(now)`` (or a reset) starts the boot: after ``boot_delay`` the EyeQ sends
+EYEQ_BOOT_STATUS_MSG (0x10). A boot with failure bits stays there; otherwise the application
+starts ``app_start_delay`` later in Pending Vision (Main_State PENDING, Sub_State
+PENDING_VISION) and sends EYEQ_DIAGNOSTIC_MSG (0x41) at 37 Hz.
+
+Modes (§7.1.1.1.1, §7.1.1.1.4, the 0x41 enums):
+
+=================  =====================  ======================================================
+mode               Main_State/Sub_State   leaves on
+=================  =====================  ======================================================
+Pending Vision     PENDING/PENDING_VISION 0x92 accepted + a HOST_VEH_STATE_MSG -> Running Vision
+Running Vision     RUNNING_VISION         Switch Application
+Pending TAC        PENDING/PENDING_TAC    0x85 accepted -> Running TAC
+Running TAC        RUNNING_TAC            results after ``tac_duration``; Switch Application
+Pending SPC        PENDING/PENDING_SPC    0x82 accepted -> Running SPC
+Running SPC        RUNNING_SPC            results after ``tac_duration``; Switch Application
+DV                 DV                     Switch Application
+=================  =====================  ======================================================
+
+Intrinsic calibration (§7.1.3, I2): the EyeQ compares the 0x84 it receives with its camera
+EEPROM; on a mismatch it reports Fatal_Error 22 in 0x41 and will not enter vision.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections import Counter, deque
+from dataclasses import dataclass, field
+from typing import Any
+
+from eyeq_spi.codec.bits import BitSignalCodec
+from eyeq_spi.codec.e2e import E2EState
+from eyeq_spi.codec.init_params import init_message
+from eyeq_spi.codec.intrinsic import (
+    default_eeprom_image,
+    intrinsic_params_from_eeprom,
+    version_bytes,
+)
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.errors import CodecError, EyeqError
+from eyeq_spi.link.connection import LinkConfig
+from eyeq_spi.mesp.server import (
+    RET_BAD_PARAMETERS,
+    RET_FILE_NOT_FOUND,
+    RET_NOT_ALLOWED,
+    MespServer,
+)
+from eyeq_spi.sim.config import SimConfig
+from eyeq_spi.sim.flash import FlashImage, hash_request
+from eyeq_spi.sim.scene import Scene, SceneConfig
+from eyeq_spi.transport.connection import TransportConnection
+from eyeq_spi.transport.events import MessageReceived
+
+PENDING, RUNNING_VISION, BOOT, DV = 0x01, 0x02, 0x03, 0x05
+PENDING_VISION, PENDING_TAC, PENDING_SPC = 0x92, 0x85, 0x82
+RUNNING_TAC, RUNNING_SPC = 0xAC, 0x22
+APP_VISION, APP_TAC, APP_SPC, APP_DV = 0x01, 0x03, 0x04, 0x05
+EEPROM_FILE = "/mesp/eeprom.data1"
+FATAL_INTRINSIC = 22
+MODE_OF_STATE = {RUNNING_VISION: "APP", RUNNING_TAC: "TAC", RUNNING_SPC: "SPC"}
+
+
+@dataclass
+class SimCounters:
+    """What the simulator really received (reported in 0xA0)."""
+
+    msg20_rx: int = 0
+    bad_hdr: int = 0
+    bad_seq: int = 0
+    msg_tx: int = 0
+    rolling_count_echo: int = 0
+    edr_triggers: list[dict[str, Any]] = field(default_factory=list)
+    calibration_events: list[tuple[int, int]] = field(default_factory=list)  # (stage, ret)
+    boots: int = 0
+    sent: Counter[str] = field(default_factory=Counter)
+
+
+class SimulatedEyeQ:
+    def __init__(self, config: SimConfig | None = None) -> None:
+        self.config = config or SimConfig()
+        cfg = self.config
+        self.codec = MessageCodec(cfg.sw)
+        self.sw = self.codec.sw
+        self.conn = TransportConnection(LinkConfig(role="eyeq"))
+        self.eeprom = bytearray(default_eeprom_image())
+        if cfg.corrupt_eeprom_crc:
+            self.eeprom[0x4C] ^= 0xFF
+        self.flash = FlashImage(cfg.flash_mb, cfg.seed)
+        self.scene = Scene(SceneConfig(seed=cfg.seed, objects=cfg.objects, signs=cfg.signs,
+                                       light_spots=cfg.light_spots))
+        self.counters = SimCounters()
+        self.e2e = E2EState()
+        self.server = MespServer({
+            "GetEyeQExtendedState": self._get_state,
+            "GetEyeQVersions": self._get_versions,
+            "SwitchEyeQApplication": self._switch_app,
+            "FFSReadFile": self._ffs_read,
+            "ComputeHash": self._compute_hash,
+            "SendParamsToCalibrationTool": self._edr,
+            "EventCalibrationTool": self._calibration,
+        }, self.codec.cat)
+        expected = init_message(0x84, self.sw)
+        assert expected.codec is not None
+        self._expected_0x84 = expected.codec.encode(
+            intrinsic_params_from_eeprom(bytes(self.eeprom), self.sw))
+        self._expected_0x84_no_crc = self._strip_crc(expected.codec, self._expected_0x84)
+        self._replies: deque[tuple[float, bytes]] = deque()
+        self._dropped: Counter[str] = Counter()
+        self._dasp_counter: Counter[int] = Counter()
+        self._rx_counter: dict[int, int] = {}
+        self._templates: dict[str, dict[str, Any]] = {}
+        self.powered = False
+        self.app_running = False
+        self.now = 0.0
+        self._reset_done = False
+        self._boot_at: float | None = None
+        self._app_at: float | None = None
+        self.main_state = 0
+        self.sub_state = 0
+        self.fatal_error = 0
+        self._boot_number = 0
+        self._init_ok = False
+        self._veh_state_seen = False
+        self._cal_started: float | None = None
+        self._next_diag = 0.0
+        self._next_dasp: dict[str, float] = {}
+        self._process_index = 0
+        self._ego: tuple[float | None, float | None] = (None, None)
+
+    # -- power ------------------------------------------------------------------------------
+    def power_up(self, now: float) -> None:
+        """Power-on or hardware reset: link, transport and application start over."""
+        self.powered = True
+        self.conn.reset()
+        while self.conn.next_event() is not None:
+            pass
+        self._replies.clear()
+        self._boot_at = now + self.config.boot_delay
+        self._app_at = None
+        self.app_running = False
+        self.main_state = self.sub_state = 0
+        self.fatal_error = 0
+        self._init_ok = self._veh_state_seen = False
+        self._cal_started = None
+        self._rx_counter.clear()
+        self._next_dasp.clear()
+
+    reset = power_up
+
+    def _start_app(self, now: float) -> None:
+        self._app_at = None
+        self.app_running = True
+        self.main_state, self.sub_state = PENDING, PENDING_VISION
+        self._init_ok = self._veh_state_seen = False
+        self._next_diag = now
+
+    # -- node interface ---------------------------------------------------------------------
+    def receive_data(self, transfer: bytes, now: float) -> None:
+        if not self.powered:
+            return
+        self.now = now
+        self.conn.receive_data(transfer, now)
+        self._drain(now)
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        return self.conn.data_to_send(now) if self.powered else []
+
+    def get_timer(self) -> float | None:
+        if not self.powered:
+            return None
+        times = [t for t in (self.conn.get_timer(), self._boot_at, self._app_at) if t is not None]
+        if self.config.reset_at is not None and not self._reset_done:
+            times.append(self.config.reset_at)
+        if self._replies:
+            times.append(self._replies[0][0])
+        if self.app_running:
+            times.append(self._next_diag)
+            if self._dasp_mode() is not None:
+                times.append(min(self._next_dasp.values(), default=self.now))
+        return min(times) if times else None
+
+    def handle_timer(self, now: float) -> None:
+        if not self.powered:
+            return
+        self.now = now
+        cfg = self.config
+        if cfg.reset_at is not None and not self._reset_done and now >= cfg.reset_at:
+            self._reset_done = True
+            self.power_up(now)
+        self.conn.handle_timer(now)
+        if self._boot_at is not None and now >= self._boot_at:
+            self._boot_at = None
+            self._send_boot_status(now)
+        if self._app_at is not None and now >= self._app_at:
+            self._start_app(now)
+        while self._replies and self._replies[0][0] <= now:
+            self._send(self._replies.popleft()[1], now)
+        if self.app_running:
+            if now >= self._next_diag:
+                self._send_diag(now)
+                self._next_diag = max(self._next_diag + 1.0 / cfg.diag_rate, now)
+            self._send_due_dasp(now)
+        self._drain(now)
+
+    # -- receive ----------------------------------------------------------------------------
+    def _drain(self, now: float) -> None:
+        while (ev := self.conn.next_event()) is not None:
+            if isinstance(ev, MessageReceived):
+                self._on_message(ev.data, now)
+
+    def _on_message(self, data: bytes, now: float) -> None:
+        if self.main_state == 0:
+            return  # still booting: nobody listens yet
+        if data[:1] == b"\x65":
+            self._on_dasp(data, now)
+            return
+        reply = self.server.handle(data)
+        if reply is None:
+            self.counters.bad_hdr = (self.counters.bad_hdr + 1) & 0xFF
+            return
+        fn = self.codec.mesp.functions.get((data[0], data[3]))
+        name = fn.name if fn else ""
+        if self._dropped[name] < self.config.drop_replies.get(name, 0):
+            self._dropped[name] += 1
+            return
+        delay = self.config.reply_delay + self.config.delay_replies.get(name, 0.0)
+        if delay > 0:
+            self._replies.append((now + delay, reply))
+        else:
+            self._send(reply, now)
+
+    def _on_dasp(self, data: bytes, now: float) -> None:
+        out = self.codec.decode(data)
+        data_id = out.header.get("data_id")
+        if out.name is None or any(e.startswith("BadHdr") for e in out.errors):
+            self.counters.bad_hdr = (self.counters.bad_hdr + 1) & 0xFF
+            return
+        counter = out.header["counter"]
+        last = self._rx_counter.get(data_id)  # type: ignore[arg-type]
+        if last is not None and counter != (last + 1) & 0xFF:
+            self.counters.bad_seq = (self.counters.bad_seq + 1) & 0xFF
+        self._rx_counter[data_id] = counter  # type: ignore[index]  # relearn (D1)
+        if out.name == "HOST_VEH_STATE_MSG":
+            self.counters.msg20_rx = (self.counters.msg20_rx + 1) & 0xFFFF
+            self.counters.rolling_count_echo = int(out.fields.get("SPI_Rolling_Count", 0))
+            self._veh_state_seen = True
+            vs = out.fields.get("vehStateInfo", {})
+            self._ego = (vs.get("vehicleVelocity"), vs.get("vehicleYawRate"))
+            if self.main_state == PENDING and self.sub_state == PENDING_VISION \
+                    and self._init_ok and self.fatal_error == 0:
+                self.main_state, self.sub_state = RUNNING_VISION, 0
+                self._next_dasp.clear()
+
+    # -- MESP handlers ----------------------------------------------------------------------
+    def _get_state(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        return 0, {"mainState": self.main_state, "subState": self.sub_state}
+
+    def _get_versions(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        c = self.config
+        return 0, {"apiVersionMajor": c.api_version[0], "apiVersionMinor": c.api_version[1],
+                   "eyeqSwVersionMajor": c.sw_version[0], "eyeqSwVersionMinor": c.sw_version[1]}
+
+    def _switch_app(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        app = p["applicationId"]
+        target = {APP_VISION: (PENDING, PENDING_VISION), APP_TAC: (PENDING, PENDING_TAC),
+                  APP_SPC: (PENDING, PENDING_SPC), APP_DV: (DV, 0)}.get(app)
+        if target is None:
+            return RET_BAD_PARAMETERS, {}
+        if self.fatal_error and app != APP_VISION:
+            return RET_NOT_ALLOWED, {}
+        if app == APP_VISION:
+            self.fatal_error = 0  # a restart of the vision application (the host's soft reset)
+        self.main_state, self.sub_state = target
+        self._init_ok = self._veh_state_seen = False
+        self._cal_started = None
+        self._next_dasp.clear()
+        return 0, {"applicationId": app}
+
+    def _ffs_read(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        if p["filename"] != EEPROM_FILE:
+            return RET_FILE_NOT_FOUND, {}
+        return 0, {"lastModified": 0, "flags": 0, "desc": "camera EEPROM",
+                   "data": bytes(self.eeprom)}
+
+    def _compute_hash(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        ret, result = hash_request(self.flash, p["hashType"], p["datasetType"], p["start"],
+                                   p["size"])
+        if ret:
+            return ret, {}
+        return 0, {"hashType": p["hashType"], "datasetType": p["datasetType"], "result": result}
+
+    def _edr(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        if p["edr_type"] != 6 or p["edr_params_num"] != len(p["params"]):
+            return RET_BAD_PARAMETERS, {}
+        self.counters.edr_triggers.append({**p, "time": self.now})
+        return 0, {k: p[k] for k in ("edr_type", "edr_policy", "edr_function")}
+
+    def _calibration(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        stage, params = p["ct_stage"], p["params"]
+        try:
+            msg = init_message(stage, self.sw)
+        except (CodecError, EyeqError):
+            return self._cal_result(stage, RET_BAD_PARAMETERS, p)
+        if p["ct_type"] != msg.ct_type:
+            return self._cal_result(stage, RET_BAD_PARAMETERS, p)
+        if msg.codec is not None and (len(params) != msg.codec.length or msg.check(params)):
+            return self._cal_result(stage, RET_BAD_PARAMETERS, p)
+        allowed = {0x84: PENDING_VISION, 0x78: PENDING_VISION, 0x79: PENDING_VISION,
+                   0x92: PENDING_VISION, 0x85: PENDING_TAC, 0x82: PENDING_SPC}
+        if self.main_state != PENDING or self.sub_state != allowed.get(stage):
+            return self._cal_result(stage, RET_NOT_ALLOWED, p)
+        if stage == 0x84:
+            assert msg.codec is not None
+            if self._strip_crc(msg.codec, params) != self._expected_0x84_no_crc:
+                self.fatal_error = FATAL_INTRINSIC  # §7.1.3: NVM does not match the EEPROM
+        elif stage == 0x92:
+            self._init_ok = True
+        elif stage in (0x85, 0x82):
+            self.main_state, self.sub_state = (RUNNING_TAC if stage == 0x85 else RUNNING_SPC), 0
+            self._cal_started = self.now
+            self._next_dasp.clear()
+        return self._cal_result(stage, 0, p)
+
+    def _cal_result(self, stage: int, ret: int, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        self.counters.calibration_events.append((stage, ret))
+        return ret, {k: p[k] for k in ("ct_type", "ct_stage", "ct_version")}
+
+    @staticmethod
+    def _strip_crc(codec: BitSignalCodec, params: bytes) -> bytes:
+        if "CRC_from_EEPROM" not in codec.signals or len(params) != codec.length:
+            return params
+        raw = codec.decode_raw(params)
+        raw["CRC_from_EEPROM"] = 0
+        word = 0
+        for s in codec.variant.signals:
+            word |= raw[s.name] << s.start
+        return word.to_bytes(codec.length, "little")
+
+    # -- transmit ---------------------------------------------------------------------------
+    def _send(self, message: bytes, now: float) -> None:
+        self.conn.send(message, now)
+        self.counters.msg_tx = (self.counters.msg_tx + 1) & 0xFFFF
+
+    def _send_boot_status(self, now: float) -> None:
+        cfg = self.config
+        self._boot_number += 1
+        self.counters.boots += 1
+        failing = self._boot_number <= cfg.boot_failures
+        values = self.codec.layout(self.codec.cat.message("EYEQ_BOOT_STATUS_MSG")).zero_values()
+        values.update({
+            "ProtocolVersion": 1,
+            "TestResults": cfg.boot_test_failures if failing else 0,
+            "BootVersion": list(version_bytes(cfg.boot_version)),
+            "ApplicationVersion": list(version_bytes(cfg.application_version)),
+            "EyeQType": cfg.eyeq_type, "EyeQID": cfg.eyeq_id,
+            "BootStageCompleted": 5 if not failing else 1,
+            "EyeQTemperatureSensor1": 45, "EyeQTemperatureSensor2": 46,
+        })
+        self._send(self.codec.encode_other("BOOT", values), now)
+        self.counters.sent["EYEQ_BOOT_STATUS_MSG"] += 1
+        if not failing:
+            self.main_state, self.sub_state = BOOT, 0  # MESP answers while the app starts
+            self._app_at = now + cfg.app_start_delay
+
+    def _send_diag(self, now: float) -> None:
+        cfg = self.config
+        self._process_index += 1
+        msg = self.codec.cat.message("EYEQ_DIAGNOSTIC_MSG")
+        values = self._template(msg.name, msg.payload)
+        fatal = cfg.fatal_error if cfg.fatal_error is not None else self.fatal_error
+        ms = int(now * 1000) & 0xFFFFFFFF
+        values.update({
+            "Application_Message_Version": 1, "Main_State": self.main_state,
+            "Sub_State": self.sub_state, "EyeQ_Process_Index": self._process_index,
+            "EyeQ_Timestamp": ms, "EyeQ_Current_Timestamp": ms, "Fatal_Error": fatal,
+            "Temperature_MIPS": 55, "Temperature_VMP": 57, "CameraInformation": 1,
+            "Camera1_temperature": 40,
+        })
+        self._send(self.codec.encode_other("DIAG", values), now)
+        self.counters.sent[msg.name] += 1
+
+    def _dasp_mode(self) -> str | None:
+        return MODE_OF_STATE.get(self.main_state)
+
+    def _template(self, name: str, payload: str) -> dict[str, Any]:
+        t = self._templates.get(name)
+        if t is None:
+            t = self.codec.layouts.get(payload, self.sw).zero_values()
+            self._templates[name] = t
+        return t
+
+    def _send_due_dasp(self, now: float) -> None:
+        mode = self._dasp_mode()
+        if mode is None:
+            return
+        msgs = [m for m in self.codec.cat.messages
+                if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw)
+                and mode in m.modes]
+        period = 1.0 / self.config.dasp_rate
+        if not self._next_dasp:
+            # stagger the messages over one period so that no message waits behind the others
+            # for longer than transmitTimeout
+            for i, m in enumerate(msgs):
+                self._next_dasp[m.name] = now + i * period / max(1, len(msgs))
+        stepped = False
+        for m in msgs:
+            due = self._next_dasp.get(m.name, now)
+            if now < due:
+                continue
+            if not stepped:
+                self.scene.step(now, *self._ego)
+                stepped = True
+            self._next_dasp[m.name] = max(due + period, now)
+            stop = self.config.stop_dasp.get(m.name)
+            if stop is not None and now >= stop:
+                continue
+            values = self._template(m.name, m.payload)
+            self._fill(m.name, values, now)
+            counter = self._dasp_counter[m.data_id]
+            self._dasp_counter[m.data_id] = (counter + 1) & 0xFF
+            self._send(self.codec.encode_dasp(m.name, values, counter, self.e2e), now)
+            self.counters.sent[m.name] += 1
+
+    def _fill(self, name: str, values: dict[str, Any], now: float) -> None:
+        if "timestamp_ms" in values:
+            values["timestamp_ms"] = int(now * 1000) & 0xFFFFFFFF
+        if name == "EYEQ_BASE_DIAG_STATUS_MSG":
+            c, cfg = self.counters, self.config
+            values.update({"apiVersionMajor": cfg.api_version[0],
+                           "apiVersionMinor": cfg.api_version[1],
+                           "eyeqSwVersionMajor": cfg.sw_version[0],
+                           "eyeqSwVersionMinor": cfg.sw_version[1],
+                           "SPI_Rolling_Count_Echo": c.rolling_count_echo & 0xFFFF,
+                           "eyeqSPIMsgTxCtr": c.msg_tx & 0xFFFF,
+                           "eyeqSPIMsgRxBadHdrCtr": c.bad_hdr & 0xFF,
+                           "eyeqSPIMsgRxBadSeqCtr": c.bad_seq & 0xFF})
+            for key in ("eyeqSPIMsg20RxCtr", "eyeqSPIMsg10RxCtr"):
+                if key in values:
+                    values[key] = c.msg20_rx & 0xFFFF
+            if "spiDiagnosticInfo" in values:
+                values["spiDiagnosticInfo"] = self.conn.link.counters.seed_view()
+            return
+        if name in ("EYEQ_TAC_CAL_MSG", "EYEQ_DYNAMIC_CAL_MSG") and self._cal_started is not None:
+            self._fill_calibration(name, values, now)
+            return
+        self.scene.fill(name, values, now)
+
+    def calibration_done(self, now: float) -> bool:
+        return self._cal_started is not None and now - self._cal_started >= self.config.tac_duration
+
+    def _fill_calibration(self, name: str, values: dict[str, Any], now: float) -> None:
+        assert self._cal_started is not None
+        done = self.calibration_done(now)
+        frac = min(1.0, (now - self._cal_started) / max(self.config.tac_duration, 1e-9))
+        if name == "EYEQ_TAC_CAL_MSG":
+            cal = values["tacCalParams"]
+            cal["runMode"] = 1
+            cal["progress"] = 4 if done else 1
+            cal["error"] = (self.config.tac_error or 1) if done else 0
+        else:
+            cal = values["dynamicCalParams"]
+            cal["runMode"] = 5
+            cal["status"] = 1 if done else 0
+            cal["error"] = 0
+            cal["overallProgress"] = int(frac * 100)
+        # deterministic "measured" alignment from the seed
+        h = zlib.crc32(f"{self.config.seed}-{name}".encode())
+        cal["distYaw"] = (h & 0x3F) - 32 if done else 0
+        cal["distPitch"] = ((h >> 6) & 0x3F) - 32 if done else 0
+        cal["roll"] = ((h >> 12) & 0xFF) / 1000.0 - 0.128 if done else 0.0
+        cal["phYaw"] = cal["distYaw"] * 0.05
+        cal["phPitch"] = cal["distPitch"] * 0.05
+        if "camHeight" in cal:
+            cal["camHeight"] = 1.25
+        cal["timestamp_us"] = int(now * 1e6)
+

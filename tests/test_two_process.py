@@ -1,0 +1,40 @@
+"""Host emulator and simulated EyeQ as two processes over TCP reach Running Vision (bounded)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.realtime
+def test_host_and_sim_processes_reach_running_vision_over_tcp(tmp_path: Path) -> None:
+    sim = subprocess.Popen(
+        [sys.executable, "-m", "eyeq_spi.cli", "sim", "--listen", "tcp://127.0.0.1:0",
+         "--duration", "40", "--accept-timeout", "30"],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        assert sim.stdout is not None
+        line = sim.stdout.readline().split()
+        assert line and line[0] == "LISTEN", (line, sim.stderr.read() if sim.stderr else "")
+        host = subprocess.run(
+            [sys.executable, "-m", "eyeq_spi.cli", "host", "--port", line[1], "--nvm",
+             str(tmp_path / "nvm.json"), "--duration", "30", "--exit-when-running", "--json"],
+            cwd=ROOT, capture_output=True, text=True, timeout=60,
+        )
+    finally:
+        sim.kill()
+        sim.wait(timeout=10)
+    assert host.returncode == 0, host.stderr[-2000:] + host.stdout[-2000:]
+    out = json.loads(host.stdout.strip().splitlines()[-1])
+    assert out["state"] == "RUNNING_VISION" and out["ok"]
+    assert out["messages"]["EYEQ_BOOT_STATUS_MSG"] >= 1
+    # first ignition with an empty NVM went through the EEPROM read and wrote the NVM
+    nvm = json.loads((tmp_path / "nvm.json").read_text())
+    assert nvm["intrinsic"]["CCAM_Num_Of_distorParams_m"] == 15
