@@ -50,6 +50,9 @@ def build_parser() -> argparse.ArgumentParser:
                       help="stop as soon as Running Vision is reached")
     host.add_argument("--json", action="store_true", help="end with one JSON object")
     add_shared_options(host)
+    from eyeq_spi.cli_dissect import add_dissect_parser
+
+    add_dissect_parser(sub)
     spec = sub.add_parser("spec", help="browse the message catalogue built from specs/")
     spec_sub = spec.add_subparsers(dest="spec_command", required=True, parser_class=_Parser)
     sl = spec_sub.add_parser("list", help="list messages, MESP functions, init messages, structs")
@@ -81,6 +84,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run[args.command](args)
         if args.command == "spec":
             return _spec(args)
+        if args.command in ("dissect", "wireshark"):
+            from eyeq_spi import cli_dissect
+
+            return (cli_dissect.run_dissect if args.command == "dissect"
+                    else cli_dissect.run_wireshark)(args)
         raise UsageError(f"unknown command {args.command}")
     except UsageError as exc:
         print(f"eyeq-spi: usage error: {exc}", file=sys.stderr)
@@ -95,6 +103,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except Exception as exc:
+        print(f"eyeq-spi: internal error: {type(exc).__name__}: {exc} (please report this)",
+              file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

@@ -23,6 +23,8 @@ def add_shared_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--signs", type=int, default=4, help="traffic signs, 0..20 (default 4)")
     g.add_argument("--light-spots", type=int, default=4, help="light spots, 0..15 (default 4)")
     g.add_argument("--camera-only-aeb", action="store_true", help="send IPB/PCW (0x78/0x79)")
+    g.add_argument("--capture", metavar="FILE.pcapng",
+                   help="write every SPI transfer of both channels to a pcapng capture")
     f = p.add_argument_group("faults (simulated EyeQ)")
     f.add_argument("--boot-fail", type=int, default=0, metavar="N",
                    help="the first N boots report failing test bits")
@@ -109,6 +111,24 @@ class LiveView:
             self.last_counts, self.last_t = counts, now
 
 
+def _capture(args: argparse.Namespace) -> Any:
+    if not args.capture:
+        return None
+    from eyeq_spi.capture.pcapng_io import CaptureWriter
+
+    return CaptureWriter(args.capture)
+
+
+def _realtime_tap(writer: Any, start: float, tx: str, rx: str) -> Any:
+    if writer is None:
+        return None
+
+    def tap(kind: str, t: float, transfer: bytes) -> None:
+        writer.write(tx if kind == "tx" else rx, t - start, transfer)
+
+    return tap
+
+
 def run_demo(args: argparse.Namespace) -> int:
     from eyeq_spi.emulator import build, summary
     from eyeq_spi.host.machine import HostState
@@ -116,8 +136,13 @@ def run_demo(args: argparse.Namespace) -> int:
     if args.duration <= 0:
         raise UsageError("--duration must be positive")
     host_cfg, nvm, scenario = host_parts(args)
+    writer = _capture(args)
+    tap = None
+    if writer is not None:
+        def tap(node: int, t: float, transfer: bytes) -> None:
+            writer.write("h2e" if node == 0 else "e2h", t, transfer)
     emu = build(sim_config=sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario,
-                keep_rx_times=False)
+                keep_rx_times=False, tap=tap)
     view = LiveView(sys.stderr.isatty() and not args.json)
     t = 0.0
     while t < args.duration:
@@ -125,6 +150,8 @@ def run_demo(args: argparse.Namespace) -> int:
         emu.run_for(step, realtime=not args.virtual_time)
         t += step
         view.update(emu.host, emu.runner.now)
+    if writer is not None:
+        writer.close()
     out = summary(emu)
     held = emu.host.state is HostState.RUNNING_VISION and emu.running_since is not None
     out["ok"] = held and not emu.left_running
@@ -164,12 +191,16 @@ def run_sim(args: argparse.Namespace) -> int:
         print(f"LISTEN {adapter.url}", flush=True)
         if not adapter.accept(args.accept_timeout):
             raise UsageError(f"no host connected within {args.accept_timeout} s")
+    writer = _capture(args)
     runner = RealTimeRunner(sim, adapter)
+    runner.tap = _realtime_tap(writer, runner.clock(), "e2h", "h2e")
     sim.power_up(runner.clock())
     try:
         runner.run(args.duration)
     finally:
         adapter.close()
+        if writer is not None:
+            writer.close()
     if args.json:
         print(json.dumps({"boots": sim.counters.boots, "sent": dict(sim.counters.sent),
                           "main_state": sim.main_state}, sort_keys=True))
@@ -185,7 +216,9 @@ def run_host(args: argparse.Namespace) -> int:
     host_cfg, nvm, scenario = host_parts(args)
     host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
     adapter = open_url(args.port)
+    writer = _capture(args)
     runner = RealTimeRunner(host, adapter)
+    runner.tap = _realtime_tap(writer, runner.clock(), "h2e", "e2h")
     view = LiveView(sys.stderr.isatty() and not args.json)
     host.start(runner.clock())
     start = runner.clock()
@@ -207,6 +240,8 @@ def run_host(args: argparse.Namespace) -> int:
     finally:
         adapter.close()
         nvm.save()
+        if writer is not None:
+            writer.close()
         time.sleep(0)  # let the OS flush the socket
     received = dict(host.counters.received)
     out: dict[str, Any] = {"state": host.state.value, "messages": received,

@@ -192,11 +192,33 @@ def obstacles_bench(seconds: float) -> dict[str, float]:
     }
 
 
+def emulator_bench(seconds: float) -> dict[str, float]:
+    """Demo wall time for 60 s of virtual time, and CPU per simulated second at full load."""
+    from eyeq_spi.emulator import build
+    from eyeq_spi.host.machine import HostState
+    from eyeq_spi.sim.config import SimConfig
+
+    out: dict[str, float] = {}
+    for label, cfg in (
+        ("default", SimConfig()),
+        ("full", SimConfig(objects=15, signs=20, light_spots=15)),
+    ):
+        emu = build(sim_config=cfg, keep_rx_times=False)
+        emu.run_for(60.0)
+        assert emu.host.state is HostState.RUNNING_VISION
+        out[f"emulator_{label}_wall_s_per_60s_virtual"] = emu.runner.wall_s
+        out[f"emulator_{label}_cpu_ms_per_simulated_s"] = 1000 * emu.runner.cpu_s / 60.0
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seconds", type=float, default=1.0, help="time per measurement")
+    ap.add_argument("--no-emulator", action="store_true", help="skip the 2 x 60 s emulator runs")
     args = ap.parse_args()
     out = {**frame_bench(args.seconds), **obstacles_bench(args.seconds)}
+    if not args.no_emulator:
+        out.update(emulator_bench(args.seconds))
     for k, v in out.items():
         print(f"{k:45s} {v:14,.1f}")
     print(json.dumps({k: round(v, 1) for k, v in out.items()}))

@@ -1,0 +1,173 @@
+"""``eyeq-spi dissect`` and ``eyeq-spi wireshark``."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import re
+import sys
+from collections.abc import Callable, Iterator
+from typing import IO, Any
+
+from eyeq_spi.errors import UsageError
+
+
+def add_dissect_parser(sub: Any) -> None:
+    d = sub.add_parser("dissect", help="decode captured SPI traffic (raw, hex text, pcapng)",
+                       description="Decode SPI transfers: frames, reassembled messages with "
+                       "their fields, link events. Exit 0 clean, 1 protocol errors found, "
+                       "2 bad input or usage.")
+    d.add_argument("files", nargs="+", metavar="FILE", help="capture files, or - for stdin")
+    d.add_argument("--format", choices=("raw", "hex", "pcapng"), help="skip detection")
+    d.add_argument("--direction", choices=("h2e", "e2h"),
+                   help="channel of a raw or hex file without directions")
+    d.add_argument("--sw", help="SW version of the traffic (default newest)")
+    d.add_argument("--json", action="store_true", help="JSON Lines, one object per line")
+    d.add_argument("--csv", metavar="DIR", help="one CSV table per message type")
+    d.add_argument("--parquet", metavar="DIR", help="one Parquet table per message type")
+    d.add_argument("--stats", action="store_true",
+                   help="print only summary statistics (one JSON object with --json)")
+    d.add_argument("--protocol", choices=("MESP", "DASP", "DIAG", "BOOT", "UNKNOWN"),
+                   help="only messages of this protocol")
+    d.add_argument("--id", type=lambda s: int(s, 0), metavar="ID",
+                   help="only DASP messages with this data ID (0x41 and 0x10 work too)")
+    d.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
+    d.add_argument("--errors-only", action="store_true",
+                   help="only bad frames, link events and messages with errors")
+    d.add_argument("--no-tree", action="store_true", help="no field tree in the human view")
+    w = sub.add_parser("wireshark", help="generate the Wireshark Lua dissector from specs/")
+    w.add_argument("--output", "-o", required=True, metavar="FILE.lua")
+
+
+def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
+    try:
+        name_re = re.compile(args.name) if args.name else None
+    except re.error as exc:
+        raise UsageError(f"--name: bad regular expression: {exc}") from None
+    message_filter = bool(args.protocol or args.id is not None or name_re)
+
+    def keep(r: dict[str, Any]) -> bool:
+        kind = r["kind"]
+        if kind == "frame":
+            if args.errors_only:
+                return bool(not r["crc_ok"] or r["frame_type"] in ("NAK", "INVALID"))
+            return not message_filter
+        if kind == "event":
+            return not message_filter or args.errors_only
+        if args.protocol and r["protocol"] != args.protocol:
+            return False
+        if args.id is not None:
+            ident = r["header"].get("data_id", r["header"].get("id"))
+            if ident != args.id:
+                return False
+        if name_re and not name_re.search(r["name"] or ""):
+            return False
+        return not args.errors_only or bool(r["errors"])
+
+    return keep
+
+
+def run_dissect(args: argparse.Namespace) -> int:
+    from eyeq_spi.codec.message import MessageCodec
+    from eyeq_spi.dissect.engine import Dissector
+    from eyeq_spi.dissect.inputs import open_records
+    from eyeq_spi.dissect.output import HumanWriter, JsonWriter, TableWriter
+    from eyeq_spi.dissect.stats import Stats
+
+    if args.csv and args.parquet:
+        raise UsageError("give --csv or --parquet, not both")
+    if args.files.count("-") > 1:
+        raise UsageError("stdin (-) can be given once")
+    codec = MessageCodec(args.sw)
+    keep = _filter(args)
+    stats = Stats(codec.cat)
+    writers: list[Any] = []
+    table = None
+    if args.csv or args.parquet:
+        table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet")
+        writers.append(table)
+    out = sys.stdout
+    if args.stats:
+        pass  # statistics only (as text, or one JSON object with --json)
+    elif args.json:
+        writers.append(JsonWriter(out))
+    elif not table:
+        writers.append(HumanWriter(out, codec, color=out.isatty(), tree=not args.no_tree))
+    try:
+        for path in args.files:
+            fh = _open(path)
+            try:
+                _, records = open_records(fh, args.format, args.direction)
+                dis = Dissector(args.sw)
+                for r in _with_progress(_all(dis, records), fh, path):
+                    stats.add(r)
+                    if keep(r):
+                        for w in writers:
+                            w.write(r)
+            finally:
+                if fh is not sys.stdin.buffer:
+                    fh.close()
+    finally:
+        if table is not None:
+            table.close()
+    stats.finish()
+    if args.stats:
+        if args.json:
+            JsonWriter(out).write(stats.as_dict())
+        else:
+            out.write(stats.render() + "\n")
+    return 1 if stats.protocol_errors else 0
+
+
+def _all(dis: Any, records: Iterator[Any]) -> Iterator[dict[str, Any]]:
+    for rec in records:
+        yield from dis.feed(rec)
+    yield from dis.finish()
+
+
+def _open(path: str) -> IO[bytes]:
+    from eyeq_spi.dissect.inputs import InputError
+
+    if path == "-":
+        return sys.stdin.buffer
+    try:
+        return open(path, "rb")
+    except OSError as exc:
+        raise InputError(f"{path}: {exc.strerror or exc}") from None
+
+
+def _with_progress(it: Iterator[dict[str, Any]], fh: IO[bytes], path: str
+                   ) -> Iterator[dict[str, Any]]:
+    """A progress bar on stderr for files, only when stderr is a terminal."""
+    if not sys.stderr.isatty() or path == "-":
+        yield from it
+        return
+    import os
+
+    try:
+        total = os.fstat(fh.fileno()).st_size
+        from rich.progress import Progress
+    except (OSError, ImportError, ValueError):
+        yield from it
+        return
+    with Progress(transient=True) as progress:
+        task = progress.add_task(path, total=total)
+        for n, r in enumerate(it):
+            if n % 4096 == 0:
+                with contextlib.suppress(OSError, ValueError):
+                    progress.update(task, completed=fh.tell())
+            yield r
+
+
+def run_wireshark(args: argparse.Namespace) -> int:
+    from eyeq_spi.wireshark.lua_gen import generate_lua
+
+    text = generate_lua()
+    try:
+        with open(args.output, "w", encoding="utf-8") as fh:
+            fh.write(text)
+    except OSError as exc:
+        raise UsageError(f"cannot write {args.output}: {exc.strerror or exc}") from None
+    print(f"wrote {args.output} ({len(text.splitlines())} lines); use it with "
+          f"wireshark -X lua_script:{args.output} or copy it to your Lua plugins folder")
+    return 0

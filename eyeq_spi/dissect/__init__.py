@@ -1,0 +1,1 @@
+"""Capture dissection: inputs (raw, hex, pcapng), the record engine, outputs and statistics."""

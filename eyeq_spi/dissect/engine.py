@@ -1,0 +1,225 @@
+"""The dissector engine: transfers in, JSON-ready records out (the ``--json`` contract).
+
+Each direction has a passive receiver: a :class:`TransportConnection` in the role of the side that
+received that channel, fed with the channel's DATA frames, so duplicates, window errors, NUM gaps
+and aborted transfers are judged exactly as the real receiver judges them. Its own ACK/NAK output
+is discarded. Frame records come out in capture order; a message record follows the frame that
+completed it. Memory stays bounded: only the current transfer of each direction and the last
+index of each NUM are kept.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.codec.e2e import E2EState
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.errors import FrameError
+from eyeq_spi.link.connection import LinkConfig
+from eyeq_spi.link.events import (
+    DuplicateReceived,
+    FrameRejected,
+    FramesSkipped,
+    Resynchronised,
+)
+from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
+from eyeq_spi.transport.connection import TransportConnection
+from eyeq_spi.transport.events import MessageReceived, TransferAborted
+
+TRANSPORT_NAMES = {0x00: "single", 0x01: "first", 0x02: "consecutive"}
+RECEIVER = {"h2e": "eyeq", "e2h": "host", None: "host"}
+
+
+def jsonable(v: Any) -> Any:
+    if isinstance(v, bytes | bytearray):
+        return v.hex()
+    if isinstance(v, dict):
+        return {k: jsonable(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [jsonable(x) for x in v]
+    return v
+
+
+@dataclass
+class _Direction:
+    conn: TransportConnection
+    index_of_num: dict[int, int] = field(default_factory=dict)
+    e2e: E2EState = field(default_factory=E2EState)
+    dasp_counters: dict[int, int] = field(default_factory=dict)
+
+
+class Dissector:
+    def __init__(self, sw: str | None = None) -> None:
+        self.codec = MessageCodec(sw)
+        self.frames = FrameCodec()
+        self._dirs: dict[str | None, _Direction] = {}
+        self.index = 0
+        self.last_time: float | None = None
+
+    def _dir(self, direction: str | None) -> _Direction:
+        d = self._dirs.get(direction)
+        if d is None:
+            role = RECEIVER[direction]
+            d = _Direction(TransportConnection(LinkConfig(role=role)))  # type: ignore[arg-type]
+            self._dirs[direction] = d
+        return d
+
+    def feed(self, rec: Record) -> Iterator[dict[str, Any]]:
+        idx = self.index
+        self.index += 1
+        t = rec.time
+        d = self._dir(rec.direction)
+        if t is not None:
+            yield from self._timers(t)
+            self.last_time = t
+        frame_rec: dict[str, Any] = {
+            "kind": "frame", "index": idx, "time": t, "direction": rec.direction,
+            "frame_type": "INVALID", "num": None, "rsp": None, "crc_ok": False,
+            "transport": None, "transfer_id": None, "nak_reason": None,
+        }
+        data = rec.data
+        if len(data) != FRAME_SIZE:
+            frame_rec["length"] = len(data)
+        else:
+            try:
+                f = self.frames.decode(data)
+            except FrameError:
+                f = None
+            if f is not None:
+                frame_rec["num"], frame_rec["rsp"] = f.num, f.rsp
+                frame_rec["crc_ok"] = self.frames.crc_ok(data, f)
+                kind = f.kind
+                if kind is not None and f.r == 0:
+                    frame_rec["frame_type"] = kind.name
+                if kind is FrameKind.NAK:
+                    frame_rec["nak_reason"] = f.num
+                elif kind is FrameKind.DATA or kind is None:
+                    tname = TRANSPORT_NAMES.get(data[6])
+                    frame_rec["transport"] = tname
+                    if tname in ("first", "consecutive"):
+                        frame_rec["transfer_id"] = data[7]
+                if kind is FrameKind.DATA:
+                    d.index_of_num[f.num] = idx
+        yield frame_rec
+        if frame_rec["frame_type"] in ("ACK", "NAK"):
+            return  # acknowledgements of the other channel's frames: nothing to reassemble
+        if (frame_rec["frame_type"] == "DATA" and frame_rec["num"] == 0 and frame_rec["rsp"] == 0
+                and frame_rec["crc_ok"] and d.conn.link.expected_num != 0):
+            # L4: NUM is 0 after a reset. The real receiver was reset with its peer (both SPI
+            # drivers restart together), so the passive one must start over too, or it would
+            # NAK frames the real one accepted.
+            d = self._reset_direction(rec.direction)
+            yield {"kind": "event", "type": "driver_reset", "direction": rec.direction,
+                   "index": idx}
+        conn = d.conn
+        conn.receive_data(data, t if t is not None else 0.0)
+        conn.data_to_send(float("inf"))  # our passive receiver's ACK/NAKs go nowhere
+        yield from self._events(rec.direction, d)
+
+    def _reset_direction(self, direction: str | None) -> _Direction:
+        old = self._dirs.pop(direction)
+        d = self._dir(direction)
+        d.index_of_num = old.index_of_num
+        return d
+
+    def _timers(self, t: float) -> Iterator[dict[str, Any]]:
+        for direction, d in self._dirs.items():
+            timer = d.conn.get_timer()
+            while timer is not None and timer <= t:
+                d.conn.handle_timer(timer)
+                d.conn.data_to_send(float("inf"))
+                yield from self._events(direction, d)
+                nxt = d.conn.get_timer()
+                if nxt == timer:
+                    break
+                timer = nxt
+
+    def finish(self) -> Iterator[dict[str, Any]]:
+        """End of capture: a transfer still open is reported as aborted (timeout)."""
+        for direction, d in self._dirs.items():
+            timer = d.conn.get_timer()
+            if timer is not None:
+                d.conn.handle_timer(max(timer, (self.last_time or 0.0) + 1.0))
+                d.conn.data_to_send(float("inf"))
+                yield from self._events(direction, d)
+
+    def _events(self, direction: str | None, d: _Direction) -> Iterator[dict[str, Any]]:
+        while (ev := d.conn.next_event()) is not None:
+            if isinstance(ev, MessageReceived):
+                yield self._message(direction, d, ev)
+            elif isinstance(ev, TransferAborted):
+                yield {"kind": "event", "type": "transfer_aborted", "direction": direction,
+                       "reason": ev.reason, "transfer_id": ev.transfer_id,
+                       "received": ev.received, "total": ev.total, "index": self.index - 1}
+            elif isinstance(ev, FrameRejected):
+                yield {"kind": "event", "type": "frame_rejected", "direction": direction,
+                       "nak_reason": None if ev.nak_reason is None else int(ev.nak_reason),
+                       "num": ev.num, "detail": ev.detail, "index": self.index - 1}
+            elif isinstance(ev, DuplicateReceived | Resynchronised | FramesSkipped):
+                body: dict[str, Any] = {"kind": "event", "direction": direction,
+                                        "index": self.index - 1}
+                if isinstance(ev, DuplicateReceived):
+                    body.update(type="duplicate", num=ev.num)
+                elif isinstance(ev, Resynchronised):
+                    body.update(type="resynchronised", num=ev.num)
+                else:
+                    body.update(type="frames_skipped", expected=ev.expected, num=ev.num,
+                                count=ev.count)
+                yield body
+
+    def _message(self, direction: str | None, d: _Direction, ev: MessageReceived) -> dict[str, Any]:
+        out = self.codec.decode(ev.data, d.e2e if ev.data[:1] == b"\x65" else None)
+        errors = list(out.errors)
+        data_id = out.header.get("data_id") if out.protocol == "DASP" else None
+        if data_id is not None:
+            last = d.dasp_counters.get(data_id)
+            counter = out.header["counter"]
+            if last is not None and counter != (last + 1) & 0xFF:
+                errors.append(f"DASP counter gap: expected {(last + 1) & 0xFF}, got {counter}")
+            d.dasp_counters[data_id] = counter
+        errors += self._enum_errors(out)
+        return {
+            "kind": "message", "protocol": out.protocol, "name": out.name,
+            "length": len(ev.data), "direction": direction, "time": self.last_time,
+            "frames": [d.index_of_num.get(n) for n in ev.frames],
+            "header": out.header, "fields": jsonable(out.fields), "errors": errors,
+        }
+
+    def _enum_errors(self, out: Any) -> list[str]:
+        if out.protocol not in ("DASP", "DIAG", "BOOT") or not out.fields or out.errors:
+            return []
+        msg = self.codec.cat.message(out.name)
+        lay = self.codec.layout(msg)
+        errs: list[str] = []
+        _check_enums(self.codec, lay, out.fields, out.name, errs)
+        return errs[:10]
+
+
+def _check_enums(codec: MessageCodec, lay: Any, values: dict[str, Any], path: str,
+                 errs: list[str]) -> None:
+    for f in lay.fields:
+        child = lay.children.get(f.name)
+        v = values.get(f.name)
+        if child is not None:
+            if f.count:
+                for i, item in enumerate(v or []):
+                    _check_enums(codec, child, item, f"{path}.{f.name}[{i}]", errs)
+            else:
+                _check_enums(codec, child, v or {}, f"{path}.{f.name}", errs)
+            continue
+        e = codec.cat.enums.get(f.member.enum or "")
+        if e is None or e.kind == "flags" or f.count or not isinstance(v, int):
+            continue
+        if v not in e.values:
+            errs.append(f"bad enum value {v} for {path}.{f.name} ({e.name})")
+
+
+def iter_records(records: Iterable[Record], *, sw: str | None = None) -> Iterator[dict[str, Any]]:
+    """All records of a capture, in order, ending with the end-of-capture aborts."""
+    dis = Dissector(sw)
+    for rec in records:
+        yield from dis.feed(rec)
+    yield from dis.finish()

@@ -1,0 +1,164 @@
+"""Dissector inputs, streamed with bounded memory:
+
+- ``pcapng``: our captures (``specs/capture.yaml``);
+- ``hex``: one transfer per line, optionally ``TIME`` and ``h2e``/``e2h`` before the hex bytes
+  (``#`` starts a comment);
+- ``raw``: concatenated 128-byte transfers of one channel.
+
+Detection looks at the first bytes; ``--format`` forces one. A file that is none of them, is
+empty or ends in the middle of a transfer raises :class:`InputError` (exit code 2).
+"""
+
+from __future__ import annotations
+
+import binascii
+import re
+from collections.abc import Iterator
+from typing import IO
+
+from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Record, read_pcapng
+from eyeq_spi.errors import EyeqError
+from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec
+
+FORMATS = ("raw", "hex", "pcapng")
+_HEX_LINE = re.compile(
+    rb"^\s*(?:[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?\s+)?(?:(?:h2e|e2h)\s+)?[0-9A-Fa-f:\s]*$"
+)
+
+
+class InputError(EyeqError):
+    """The input is not a capture we can read."""
+
+
+class PeekStream:
+    """A binary stream with the first bytes already read (stdin cannot seek)."""
+
+    def __init__(self, fh: IO[bytes], n: int = 4096) -> None:
+        self.fh = fh
+        self.head = fh.read(n)
+        self.pos = 0
+
+    def tell(self) -> int:
+        return self.pos
+
+    def read(self, n: int = -1) -> bytes:
+        out = self._read(n)
+        self.pos += len(out)
+        return out
+
+    def _read(self, n: int) -> bytes:
+        if self.head:
+            if n < 0:
+                out, self.head = self.head + self.fh.read(), b""
+                return out
+            out, self.head = self.head[:n], self.head[n:]
+            if len(out) < n:
+                out += self.fh.read(n - len(out))
+            return out
+        return self.fh.read(n)
+
+
+def detect(head: bytes) -> str:
+    if not head:
+        raise InputError("empty input")
+    if head[:4] == PCAPNG_MAGIC:
+        return "pcapng"
+    sample = head[:2048]
+    lines = sample.split(b"\n")
+    if len(lines) > 1:
+        lines = lines[:-1]  # the last line of the sample may be cut
+    body = [line.split(b"#", 1)[0] for line in lines]
+    if all(_HEX_LINE.match(line) for line in body) and re.search(rb"[0-9A-Fa-f]{16}", sample):
+        return "hex"
+    if head[:4] in (b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4"):
+        raise InputError("classic pcap is not supported: convert with editcap -F pcapng")
+    codec = FrameCodec()
+    n = min(len(head) // FRAME_SIZE, 8)
+    for i in range(n):
+        t = head[i * FRAME_SIZE:(i + 1) * FRAME_SIZE]
+        if codec.crc_ok(t, codec.decode(t)):
+            return "raw"
+    if n == 0:
+        raise InputError(f"input of {len(head)} bytes is shorter than one 128-byte transfer")
+    raise InputError("not an EyeQ SPI capture: no valid frame in the first transfers "
+                     "(formats: raw, hex, pcapng)")
+
+
+def open_records(stream: IO[bytes], fmt: str | None = None,
+                 direction: str | None = None) -> tuple[str, Iterator[Record]]:
+    peek = PeekStream(stream)
+    kind = fmt or detect(peek.head)
+    if kind not in FORMATS:
+        raise InputError(f"unknown format {kind!r}")
+    if kind == "pcapng":
+        if peek.head[:4] != PCAPNG_MAGIC:
+            raise InputError("not a pcapng file")
+        return kind, _pcapng(peek)
+    if kind == "hex":
+        return kind, _hex(peek, direction)
+    if not peek.head:
+        raise InputError("empty input")
+    return kind, _raw(peek, direction)
+
+
+def _pcapng(peek: PeekStream) -> Iterator[Record]:
+    try:
+        yield from read_pcapng(peek)  # type: ignore[arg-type]
+    except CaptureError as exc:
+        raise InputError(str(exc)) from None
+
+
+def _raw(peek: PeekStream, direction: str | None) -> Iterator[Record]:
+    while True:
+        chunk = peek.read(FRAME_SIZE * 512)
+        if not chunk:
+            return
+        full = len(chunk) - len(chunk) % FRAME_SIZE
+        for i in range(0, full, FRAME_SIZE):
+            yield Record(None, direction, chunk[i:i + FRAME_SIZE])
+        if full != len(chunk):
+            rest = chunk[full:] + peek.read(FRAME_SIZE - (len(chunk) - full))
+            if len(rest) == FRAME_SIZE:
+                yield Record(None, direction, rest)
+                continue
+            raise InputError(f"truncated raw capture: {len(rest)} bytes left over after the "
+                             "last whole 128-byte transfer")
+
+
+def _hex(peek: PeekStream, direction: str | None) -> Iterator[Record]:
+    buf = b""
+    lineno = 0
+    while True:
+        chunk = peek.read(1 << 16)
+        buf += chunk
+        lines = buf.split(b"\n")
+        buf = lines.pop() if chunk else b""
+        for raw_line in lines:
+            lineno += 1
+            rec = _hex_line(raw_line, lineno, direction)
+            if rec is not None:
+                yield rec
+        if not chunk:
+            return
+
+
+def _hex_line(raw_line: bytes, lineno: int, direction: str | None) -> Record | None:
+    line = raw_line.split(b"#", 1)[0].strip()
+    if not line:
+        return None
+    tokens = line.decode("ascii", "replace").split()
+    t: float | None = None
+    dirn = direction
+    if len(tokens) > 1 and re.fullmatch(r"[+-]?\d+(\.\d*)?([eE][+-]?\d+)?", tokens[0]) and \
+            not re.fullmatch(r"[0-9A-Fa-f]{16,}", tokens[0]):
+        t = float(tokens.pop(0))
+    if tokens and tokens[0] in ("h2e", "e2h"):
+        dirn = tokens.pop(0)
+    text = "".join(tokens).replace(":", "")
+    try:
+        data = binascii.unhexlify(text)
+    except (binascii.Error, ValueError):
+        raise InputError(f"line {lineno}: not hex bytes: {text[:40]!r}") from None
+    if not data:
+        raise InputError(f"line {lineno}: no bytes")
+    return Record(t, dirn, data)

@@ -1,0 +1,193 @@
+"""Human, JSON Lines, CSV and Parquet views of dissector records."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import IO, Any
+
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.errors import EyeqError
+
+RESET, DIM, RED, GREEN, CYAN, YELLOW = "\x1b[0m", "\x1b[2m", "\x1b[31m", "\x1b[32m", "\x1b[36m", \
+    "\x1b[33m"
+
+
+class OutputError(EyeqError):
+    """An output directory or file cannot be written."""
+
+
+def flatten(values: Any, prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    if isinstance(values, dict):
+        for k, v in values.items():
+            out.update(flatten(v, f"{prefix}.{k}" if prefix else k))
+    elif isinstance(values, list):
+        for i, v in enumerate(values):
+            out.update(flatten(v, f"{prefix}[{i}]"))
+    else:
+        out[prefix] = values
+    return out
+
+
+class HumanWriter:
+    def __init__(self, fh: IO[str], codec: MessageCodec, color: bool, tree: bool = True) -> None:
+        self.fh = fh
+        self.codec = codec
+        self.color = color
+        self.tree = tree
+
+    def _c(self, code: str, text: str) -> str:
+        return f"{code}{text}{RESET}" if self.color else text
+
+    def write(self, r: dict[str, Any]) -> None:
+        kind = r["kind"]
+        if kind == "frame":
+            t = "-" if r["time"] is None else f"{r['time']:.6f}"
+            ok = self._c(GREEN, "crc ok") if r["crc_ok"] else self._c(RED, "CRC BAD")
+            if "length" in r:
+                ok = self._c(RED, f"bad length {r['length']}")
+            ft = r["frame_type"]
+            tr = ""
+            if r["transport"]:
+                tid = r["transfer_id"]
+                tr = r["transport"] + ("" if tid is None else f" id={tid}")
+            nak = f" reason=0x{r['nak_reason']:03X}" if r["nak_reason"] is not None else ""
+            num = "-" if r["num"] is None else r["num"]
+            rsp = "-" if r["rsp"] is None else r["rsp"]
+            self.fh.write(f"{r['index']:8d} {t:>14s} {r['direction'] or '-':3s} {ft:7s} "
+                          f"NUM={num!s:>4s} RSP={rsp!s:>4s} {ok} {tr}{nak}\n")
+        elif kind == "message":
+            name = r["name"] or "?"
+            head = " ".join(f"{k}={v}" for k, v in r["header"].items())
+            errs = "" if not r["errors"] else " " + self._c(RED, "; ".join(r["errors"][:3]))
+            self.fh.write(f"  {self._c(CYAN, r['protocol'])} {self._c(CYAN, name)} "
+                          f"{r['length']} bytes {head}{errs}\n")
+            if self.tree and r["fields"]:
+                self._tree(r)
+        elif kind == "event":
+            rest = " ".join(f"{k}={v}" for k, v in r.items() if k not in ("kind", "type"))
+            self.fh.write("  " + self._c(YELLOW, f"event {r['type']}") + f" {rest}\n")
+        elif kind == "stats":
+            pass
+
+    def _tree(self, r: dict[str, Any]) -> None:
+        lay = None
+        if r["protocol"] in ("DASP", "DIAG", "BOOT") and r["name"]:
+            try:
+                lay = self.codec.layout(self.codec.cat.message(r["name"]))
+            except EyeqError:
+                lay = None
+        self._walk(r["fields"], lay, 2)
+
+    def _walk(self, values: Any, lay: Any, depth: int) -> None:
+        pad = "  " * depth
+        for k, v in values.items():
+            f = lay.field(k) if lay is not None and k in lay._by_name else None
+            child = lay.children.get(k) if lay is not None else None
+            if isinstance(v, dict):
+                self.fh.write(f"{pad}{k}\n")
+                self._walk(v, child, depth + 1)
+            elif isinstance(v, list) and v and isinstance(v[0], dict):
+                for i, item in enumerate(v):
+                    self.fh.write(f"{pad}{k}[{i}]\n")
+                    self._walk(item, child, depth + 1)
+            else:
+                extra = ""
+                if f is not None:
+                    m = f.member
+                    enum = self.codec.cat.enums.get(m.enum or "")
+                    if enum is not None and isinstance(v, int):
+                        label = enum.label(v)
+                        extra = f" ({label})" if label else self._c(RED, " (undefined)")
+                    elif m.values and isinstance(v, int) and v in m.values:
+                        extra = f" ({m.values[v]})"
+                    if m.units and m.units not in ("n/a", "NA"):
+                        extra += f" {m.units}"
+                if isinstance(v, float):
+                    v = f"{v:.6g}"
+                self.fh.write(f"{pad}{k} = {v}{extra}\n")
+
+
+class JsonWriter:
+    def __init__(self, fh: IO[str]) -> None:
+        self.fh = fh
+
+    def write(self, r: dict[str, Any]) -> None:
+        self.fh.write(json.dumps(r, separators=(",", ":")) + "\n")
+
+
+class TableWriter:
+    """One table per message type, flattened field names: CSV files or Parquet files."""
+
+    def __init__(self, directory: str, fmt: str, batch: int = 2000) -> None:
+        self.dir = Path(directory)
+        try:
+            self.dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"cannot create {self.dir}: {exc}") from exc
+        self.fmt = fmt
+        self.batch = batch
+        self._csv: dict[str, tuple[IO[str], Any, list[str]]] = {}
+        self._rows: dict[str, list[dict[str, Any]]] = {}
+        self._pq: dict[str, Any] = {}
+        if fmt == "parquet":
+            try:
+                import pyarrow  # noqa: F401
+            except ImportError as exc:
+                raise OutputError("--parquet needs pyarrow: pip install 'eyeq-spi[dissect]'") \
+                    from exc
+
+    def write(self, r: dict[str, Any]) -> None:
+        if r["kind"] != "message" or not r["fields"]:
+            return
+        name = r["name"] or r["protocol"]
+        row = {"frame_index": r["frames"][-1] if r["frames"] else None, "time": r.get("time"),
+               "direction": r.get("direction"), **{f"header.{k}": v for k, v in
+                                                    r["header"].items()},
+               **flatten(r["fields"])}
+        if self.fmt == "csv":
+            self._write_csv(name, row)
+        else:
+            rows = self._rows.setdefault(name, [])
+            rows.append(row)
+            if len(rows) >= self.batch:
+                self._flush(name)
+
+    def _write_csv(self, name: str, row: dict[str, Any]) -> None:
+        entry = self._csv.get(name)
+        if entry is None:
+            try:
+                fh = open(self.dir / f"{name}.csv", "w", newline="", encoding="utf-8")  # noqa: SIM115
+            except OSError as exc:
+                raise OutputError(f"cannot write {self.dir / name}.csv: {exc}") from exc
+            cols = list(row)
+            w = csv.DictWriter(fh, fieldnames=cols, extrasaction="ignore")
+            w.writeheader()
+            entry = (fh, w, cols)
+            self._csv[name] = entry
+        entry[1].writerow(row)
+
+    def _flush(self, name: str) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        rows = self._rows.get(name)
+        if not rows:
+            return
+        table = pa.Table.from_pylist(rows)
+        w = self._pq.get(name)
+        if w is None:
+            w = pq.ParquetWriter(str(self.dir / f"{name}.parquet"), table.schema)
+            self._pq[name] = w
+        w.write_table(table.cast(w.schema))
+        rows.clear()
+
+    def close(self) -> None:
+        for fh, _, _ in self._csv.values():
+            fh.close()
+        for name in list(self._rows):
+            self._flush(name)
+        for w in self._pq.values():
+            w.close()

@@ -1,0 +1,152 @@
+"""``eyeq-spi dissect --stats``: what a capture contains and what went wrong in it."""
+
+from __future__ import annotations
+
+import statistics
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+from eyeq_spi.spec.catalog import Catalog
+
+MESP_DEADLINE = 0.5  # M6
+
+
+@dataclass
+class Stats:
+    cat: Catalog
+    frames: Counter[str] = field(default_factory=Counter)
+    bad_length: int = 0
+    crc_errors: int = 0
+    nak_reasons: Counter[str] = field(default_factory=Counter)
+    aborts: Counter[str] = field(default_factory=Counter)
+    events: Counter[str] = field(default_factory=Counter)
+    messages: Counter[str] = field(default_factory=Counter)
+    first: dict[str, float] = field(default_factory=dict)
+    last: dict[str, float] = field(default_factory=dict)
+    counter_gaps: Counter[str] = field(default_factory=Counter)
+    e2e_errors: Counter[str] = field(default_factory=Counter)
+    message_errors: int = 0
+    mesp_pending: dict[tuple[Any, ...], tuple[float, str]] = field(default_factory=dict)
+    mesp_latency: dict[str, list[float]] = field(default_factory=dict)
+    mesp_timeouts: Counter[str] = field(default_factory=Counter)
+    mesp_unmatched: int = 0
+
+    def add(self, r: dict[str, Any]) -> None:
+        kind = r["kind"]
+        if kind == "frame":
+            ft = r["frame_type"]
+            self.frames[ft] += 1
+            if "length" in r:
+                self.bad_length += 1
+            elif not r["crc_ok"]:
+                self.crc_errors += 1
+            if ft == "NAK" and r["crc_ok"]:
+                self.nak_reasons[f"0x{r['nak_reason']:03X}"] += 1
+        elif kind == "event":
+            self.events[r["type"]] += 1
+            if r["type"] == "transfer_aborted":
+                self.aborts[r["reason"]] += 1
+        elif kind == "message":
+            self._message(r)
+
+    def _message(self, r: dict[str, Any]) -> None:
+        name = r["name"] or r["protocol"]
+        self.messages[name] += 1
+        t = r.get("time")
+        if t is not None:
+            self.first.setdefault(name, t)
+            self.last[name] = t
+        for e in r["errors"]:
+            if e.startswith("DASP counter gap"):
+                self.counter_gaps[name] += 1
+            elif e.startswith("E2E"):
+                self.e2e_errors[name] += 1
+            else:
+                self.message_errors += 1
+        if r["protocol"] == "MESP" and r["header"] and t is not None:
+            h = r["header"]
+            key = (h["service"], h["function"], h["counter"])
+            if not h["reply"]:
+                self._expire(t)
+                self.mesp_pending[key] = (t, name)
+            else:
+                sent = self.mesp_pending.pop(key, None)
+                if sent is None:
+                    self.mesp_unmatched += 1
+                elif t - sent[0] > MESP_DEADLINE:
+                    self.mesp_timeouts[name] += 1
+                else:
+                    self.mesp_latency.setdefault(name, []).append(t - sent[0])
+
+    def _expire(self, now: float) -> None:
+        for key, (t, name) in list(self.mesp_pending.items()):
+            if now - t > MESP_DEADLINE:
+                del self.mesp_pending[key]
+                self.mesp_timeouts[name] += 1
+
+    def finish(self) -> None:
+        self._expire(float("inf"))
+
+    @property
+    def protocol_errors(self) -> int:
+        return (self.crc_errors + self.bad_length + sum(self.nak_reasons.values())
+                + self.frames.get("INVALID", 0) + sum(self.aborts.values())
+                + sum(self.counter_gaps.values()) + sum(self.e2e_errors.values())
+                + self.message_errors + self.events.get("frame_rejected", 0))
+
+    def as_dict(self) -> dict[str, Any]:
+        rates: dict[str, Any] = {}
+        for name, n in sorted(self.messages.items()):
+            span = self.last.get(name, 0.0) - self.first.get(name, 0.0)
+            nominal = None
+            try:
+                nominal = self.cat.message(name).rate_hz
+            except Exception:
+                nominal = None
+            periodic = nominal is not None and span > 0 and n > 1
+            rates[name] = {"count": n, "mean_hz": round((n - 1) / span, 3) if periodic else None,
+                           "nominal_hz": nominal}
+        lat = {
+            name: {"count": len(v), "min_ms": round(min(v) * 1e3, 3),
+                   "median_ms": round(statistics.median(v) * 1e3, 3),
+                   "max_ms": round(max(v) * 1e3, 3), "timeouts": self.mesp_timeouts.get(name, 0)}
+            for name, v in sorted(self.mesp_latency.items())
+        }
+        for name, n in self.mesp_timeouts.items():
+            lat.setdefault(name, {"count": 0, "timeouts": n})
+        return {
+            "kind": "stats",
+            "frames": dict(self.frames), "bad_length": self.bad_length,
+            "crc_errors": self.crc_errors, "nak_reasons": dict(self.nak_reasons),
+            "aborted_transfers": dict(self.aborts), "events": dict(self.events),
+            "messages": rates, "dasp_counter_gaps": dict(self.counter_gaps),
+            "e2e_errors": dict(self.e2e_errors), "message_errors": self.message_errors,
+            "mesp_latency": lat, "mesp_unmatched_replies": self.mesp_unmatched,
+            "protocol_errors": self.protocol_errors,
+        }
+
+    def render(self) -> str:
+        d = self.as_dict()
+        out = ["== frames", "  " + "  ".join(f"{k} {v}" for k, v in sorted(d["frames"].items())),
+               f"  CRC errors {d['crc_errors']}, wrong length {d['bad_length']}, NAK reasons "
+               f"{d['nak_reasons'] or 'none'}, "
+               f"aborted transfers {d['aborted_transfers'] or 'none'}",
+               "== messages (count, mean rate / nominal)"]
+        for name, r in d["messages"].items():
+            mean = "-" if r["mean_hz"] is None else f"{r['mean_hz']:.2f} Hz"
+            nom = "" if r["nominal_hz"] is None else f" / {r['nominal_hz']:g} Hz"
+            out.append(f"  {name:34s} {r['count']:8d}  {mean}{nom}")
+        out.append(f"== DASP counter gaps {d['dasp_counter_gaps'] or 'none'}; "
+                   f"E2E errors {d['e2e_errors'] or 'none'}; other message errors "
+                   f"{d['message_errors']}")
+        out.append("== MESP request -> reply latency")
+        for name, r in d["mesp_latency"].items():
+            if r.get("count"):
+                out.append(f"  {name:30s} n={r['count']:5d} min {r['min_ms']:.3f} ms  median "
+                           f"{r['median_ms']:.3f} ms  max {r['max_ms']:.3f} ms  "
+                           f"timeouts {r['timeouts']}")
+            else:
+                out.append(f"  {name:30s} timeouts {r['timeouts']}")
+        out.append(f"== protocol errors: {d['protocol_errors']}")
+        return "\n".join(out)

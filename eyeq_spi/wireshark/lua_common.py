@@ -1,0 +1,130 @@
+"""Helpers shared by the Lua generators: literals, the ProtoField and value_string registries.
+
+Everything emitted here is Lua 5.2 as Wireshark 4.0 embeds it: no integer division, no bitwise
+operators (the generated code uses Wireshark's ``bit`` library instead).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+PROTO = "eyeq_spi"
+"""The protocol's filter name; every field is ``eyeq_spi.<something>``."""
+
+_ABBREV_OK = re.compile(r"^[A-Za-z0-9_.-]+$")
+_NAME_BAD = re.compile(r"[^A-Za-z0-9_-]")
+
+INT_FIELD = {
+    "uint8": "uint8", "uint16": "uint16", "uint32": "uint32", "uint64": "uint64",
+    "int8": "int8", "int16": "int16", "int32": "int32", "int64": "int64",
+    "bool": "uint8",  # D2: bool is one byte; shown as its value so 2..255 stay visible
+}
+FLOAT_FIELD = {"real32": ("float", 4), "real64": ("double", 8)}
+INT_SIZE = {
+    "uint8": 1, "uint16": 2, "uint32": 4, "uint64": 8,
+    "int8": 1, "int16": 2, "int32": 4, "int64": 8, "bool": 1,
+}
+
+
+def lua_str(text: str) -> str:
+    """A double-quoted Lua string literal; anything outside printable ASCII as ``\\ddd``."""
+    out = ['"']
+    for b in text.encode("utf-8"):
+        if b == 0x22:
+            out.append('\\"')
+        elif b == 0x5C:
+            out.append("\\\\")
+        elif 0x20 <= b < 0x7F:
+            out.append(chr(b))
+        else:
+            out.append(f"\\{b:03d}")
+    out.append('"')
+    return "".join(out)
+
+
+def lua_int(value: int) -> str:
+    """An integer literal; hexadecimal above 9 keeps masks and IDs readable."""
+    if value < 0:
+        return str(value)
+    return f"0x{value:X}" if value > 9 else str(value)
+
+
+def name_part(text: str) -> str:
+    """One component of a filter name: characters Wireshark rejects become ``_``."""
+    return _NAME_BAD.sub("_", text) or "_"
+
+
+def value_table(values: dict[int, str]) -> str:
+    """A Lua value_string table ``{[0]="A", [1]="B"}``, sorted by value."""
+    items = [f"[{lua_int(k)}]={lua_str(v)}" for k, v in sorted(values.items())]
+    return "{" + ", ".join(items) + "}"
+
+
+@dataclass
+class FieldRegistry:
+    """Every ProtoField of the dissector, in registration order, keyed by filter name.
+
+    A field is referenced from generated Lua as ``F["<abbrev without eyeq_spi.>"]``.
+    """
+
+    lines: list[str] = field(default_factory=list)
+    abbrevs: dict[str, str] = field(default_factory=dict)  # key -> constructor call
+
+    def add(self, key: str, ctor: str, *args: str) -> str:
+        """Define ``eyeq_spi.<key>`` with ``ProtoField.<ctor>(abbrev, args...)``.
+
+        Defining the same key twice with the same arguments returns the existing reference; with
+        different arguments it is an error in the generator.
+        """
+        abbrev = f"{PROTO}.{key}"
+        if not _ABBREV_OK.match(abbrev):
+            raise ValueError(f"not a valid Wireshark filter name: {abbrev!r}")
+        call = f"ProtoField.{ctor}({', '.join([lua_str(abbrev), *args])})"
+        old = self.abbrevs.get(key)
+        if old is not None:
+            if old != call:
+                raise ValueError(f"field {abbrev} defined twice differently:\n{old}\n{call}")
+            return self.ref(key)
+        self.abbrevs[key] = call
+        self.lines.append(f"F[{lua_str(key)}] = pf({call})")
+        return self.ref(key)
+
+    @staticmethod
+    def ref(key: str) -> str:
+        return f"F[{lua_str(key)}]"
+
+    def render(self) -> str:
+        return "\n".join(self.lines)
+
+
+@dataclass
+class ValueStrings:
+    """value_string tables, emitted once each as ``E["<name>"]``."""
+
+    lines: list[str] = field(default_factory=list)
+    known: dict[str, str] = field(default_factory=dict)
+
+    def add(self, name: str, values: dict[int, str]) -> str:
+        table = value_table(values)
+        old = self.known.get(name)
+        if old is not None and old != table:
+            raise ValueError(f"value_string {name} defined twice differently")
+        if old is None:
+            self.known[name] = table
+            self.lines.append(f"E[{lua_str(name)}] = {table}")
+        return f"E[{lua_str(name)}]"
+
+    def render(self) -> str:
+        return "\n".join(self.lines)
+
+
+def int_field_args(label: str, base: str, vs: str | None, mask: int | None,
+                   desc: str | None) -> list[str]:
+    """Arguments after the abbreviation for ``ProtoField.uintN``/``intN``."""
+    args = [lua_str(label), base, vs or "nil", lua_int(mask) if mask else "nil"]
+    if desc:
+        args.append(lua_str(desc))
+    while args[-1] == "nil":
+        args.pop()
+    return args
