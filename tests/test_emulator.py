@@ -261,3 +261,55 @@ def test_bad_init_parameters_get_nonzero_ret(running) -> None:  # type: ignore[n
     ret, _ = running.sim._calibration({"ct_type": 3, "ct_stage": 0x92, "ct_version": 1,
                                        "params": bytes(bad)})
     assert ret == 3
+
+
+def test_readme_state_diagram_is_generated_from_the_table() -> None:
+    from eyeq_spi.host.machine import diagram
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    assert "```mermaid\n" + diagram() + "\n```" in readme
+
+
+def _mesp(emu, function: str, params: dict):  # type: ignore[no-untyped-def]
+    results: list = []
+    emu.host.mesp.request(function, params, now=emu.runner.now, callback=results.append)
+    emu.run_for(0.2, stop=lambda: bool(results))
+    assert results, f"no result for {function}"
+    return results[0]
+
+
+def test_compute_hash_over_the_link_on_the_appendix_f_examples(running) -> None:  # type: ignore[no-untyped-def]
+    import yaml
+
+    from eyeq_spi.mesp.replies import MespError, MespReply
+    from eyeq_spi.spec.link import specs_dir
+
+    examples = yaml.safe_load((specs_dir() / "flash_map.yaml").read_text())["flash_map"]["examples"]
+    flash = running.sim.flash  # 64 MB
+    for ex in examples:
+        r = _mesp(running, "ComputeHash", {"hashType": ex["hash_type"],
+                                           "datasetType": ex["dataset_type"],
+                                           "start": ex["start"], "size": ex["size"]})
+        if "64" in ex["applies_to"]:
+            assert isinstance(r, MespReply), r
+            assert r.value.result == flash.hash(ex["hash_type"], ex["start"], ex["size"])
+        else:
+            assert isinstance(r, MespError) and r.ret == 3  # the 128 MB range on a 64 MB flash
+    r = _mesp(running, "ComputeHash", {"hashType": 0, "datasetType": 0, "start": 0x1000,
+                                       "size": 4096})
+    import hashlib
+    assert r.value.result == hashlib.sha256(flash.read(0x1000, 4096)).digest()
+
+
+def test_edr_trigger_is_recorded_and_ffs_errors_are_typed(running) -> None:  # type: ignore[no-untyped-def]
+    from eyeq_spi.mesp.replies import MespError, MespReply
+
+    r = _mesp(running, "SendParamsToCalibrationTool", {
+        "edr_type": 6, "edr_policy": 1, "edr_function": 4, "edr_params_num": 1,
+        "params": b"\x01"})
+    assert isinstance(r, MespReply) and r.value.edr_function == 4
+    assert running.sim.counters.edr_triggers[-1]["params"] == b"\x01"
+    r = _mesp(running, "FFSReadFile", {"filename": "/mesp/nope"})
+    assert isinstance(r, MespError) and r.ret == 5 and r.ret_name == "FILE_NOT_FOUND"
+    r = _mesp(running, "SwitchEyeQApplication", {"applicationId": 9})
+    assert isinstance(r, MespError) and r.ret == 3
