@@ -4,6 +4,7 @@ and the three ways of running the emulator."""
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import sys
 import time
@@ -23,6 +24,10 @@ def add_shared_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--signs", type=int, default=4, help="traffic signs, 0..20 (default 4)")
     g.add_argument("--light-spots", type=int, default=4, help="light spots, 0..15 (default 4)")
     g.add_argument("--camera-only-aeb", action="store_true", help="send IPB/PCW (0x78/0x79)")
+    g.add_argument("--ack-timeout", type=float, metavar="MS",
+                   help="link ackTimeout in ms (default 10, seed §6); raise it for slow bridges")
+    g.add_argument("--transmit-timeout", type=float, metavar="MS",
+                   help="link transmitTimeout in ms (default 25, seed §6)")
     g.add_argument("--capture", metavar="FILE.pcapng",
                    help="write every SPI transfer of both channels to a pcapng capture")
     f = p.add_argument_group("faults (simulated EyeQ)")
@@ -39,6 +44,14 @@ def add_shared_options(p: argparse.ArgumentParser) -> None:
     f.add_argument("--reset-at", type=float, metavar="T", help="the EyeQ resets at time T")
     f.add_argument("--stop-dasp", action="append", default=[], metavar="MESSAGE@T",
                    help="stop sending a DASP message at time T")
+
+
+def _ms(value: float | None, name: str) -> float | None:
+    if value is None:
+        return None
+    if not 0 < value <= 60_000:
+        raise UsageError(f"--{name} must be in (0, 60000] ms")
+    return value / 1000.0
 
 
 def _check_counts(args: argparse.Namespace) -> None:
@@ -72,6 +85,8 @@ def sim_config(args: argparse.Namespace) -> Any:
         boot_test_failures=args.boot_test_bits, corrupt_eeprom_crc=args.corrupt_eeprom,
         fatal_error=args.fatal, reply_delay=args.reply_delay, drop_replies=drops,
         reset_at=args.reset_at, stop_dasp=stops,
+        ack_timeout=_ms(args.ack_timeout, "ack-timeout"),
+        transmit_timeout=_ms(args.transmit_timeout, "transmit-timeout"),
     )
 
 
@@ -82,7 +97,10 @@ def host_parts(args: argparse.Namespace) -> tuple[Any, Any, Any]:
 
     scenario = CsvScenario(args.scenario) if args.scenario else ConstantDrive(args.speed)
     nvm = Nvm(getattr(args, "nvm", None))
-    return HostConfig(sw=args.sw, camera_only_aeb=args.camera_only_aeb), nvm, scenario
+    cfg = HostConfig(sw=args.sw, camera_only_aeb=args.camera_only_aeb,
+                     ack_timeout=_ms(args.ack_timeout, "ack-timeout"),
+                     transmit_timeout=_ms(args.transmit_timeout, "transmit-timeout"))
+    return cfg, nvm, scenario
 
 
 class LiveView:
@@ -183,6 +201,8 @@ def run_sim(args: argparse.Namespace) -> int:
 
         adapter: Any = PtyAdapter()
         print(f"PTY {adapter.path}", flush=True)
+        if not adapter.accept(args.accept_timeout):
+            raise UsageError(f"nobody opened {adapter.path} within {args.accept_timeout} s")
     else:
         url = args.listen
         if not url.startswith("tcp://"):
@@ -194,6 +214,7 @@ def run_sim(args: argparse.Namespace) -> int:
     writer = _capture(args)
     runner = RealTimeRunner(sim, adapter)
     runner.tap = _realtime_tap(writer, runner.clock(), "e2h", "h2e")
+    gc.freeze()  # the catalogue and layouts live forever: keep collections short
     sim.power_up(runner.clock())
     try:
         runner.run(args.duration)
@@ -219,6 +240,7 @@ def run_host(args: argparse.Namespace) -> int:
     writer = _capture(args)
     runner = RealTimeRunner(host, adapter)
     runner.tap = _realtime_tap(writer, runner.clock(), "h2e", "e2h")
+    gc.freeze()
     view = LiveView(sys.stderr.isatty() and not args.json)
     host.start(runner.clock())
     start = runner.clock()

@@ -52,6 +52,8 @@ class HostConfig:
     boot_strikes: int = 3
     stale_periods: float = 3.0  # a DASP stream is stale after this many periods of silence
     max_resets: int = 5  # bring-ups in a row before giving up (a reset that never ends)
+    ack_timeout: float | None = None  # link timings; None: the seed's defaults (§6)
+    transmit_timeout: float | None = None
 
 
 @dataclass
@@ -78,6 +80,15 @@ class Transition:
     detail: str = ""
 
 
+def _link_config(role: str, ack: float | None, transmit: float | None) -> LinkConfig:
+    cfg = LinkConfig(role=role)  # type: ignore[arg-type]
+    if ack is not None:
+        cfg.ack_timeout = ack
+    if transmit is not None:
+        cfg.transmit_timeout = transmit
+    return cfg
+
+
 ResetLine = Callable[[float], None]
 Subscriber = Callable[[DecodedMessage], None]
 
@@ -95,7 +106,8 @@ class HostEmulator:
         self.config = config or HostConfig()
         self.codec = MessageCodec(self.config.sw)
         self.sw = self.codec.sw
-        self.conn = TransportConnection(LinkConfig(role="host"))
+        self.conn = TransportConnection(_link_config("host", self.config.ack_timeout,
+                                                     self.config.transmit_timeout))
         self.mesp = MespClient(self.codec.cat)
         self.nvm = nvm or Nvm()
         self.nvm.load()

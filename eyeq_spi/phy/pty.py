@@ -7,6 +7,7 @@ import contextlib
 import os
 import select
 import termios
+import time
 import tty
 
 from eyeq_spi.errors import AdapterError
@@ -22,6 +23,27 @@ class PtyAdapter(StreamAdapter):
         except OSError as exc:
             raise AdapterError(f"cannot open a pty: {exc}") from exc
         self.path = os.ttyname(self.slave)
+        self._slave_open = True
+
+    def accept(self, timeout: float | None = None) -> bool:
+        """Wait until a peer opens the slave side (True), or ``timeout`` seconds (False).
+
+        We close our own slave descriptor; from then on the master reports POLLHUP until
+        somebody else holds the slave open.
+        """
+        if self._slave_open:
+            os.close(self.slave)
+            self._slave_open = False
+        poller = select.poll()
+        poller.register(self.master, select.POLLIN | select.POLLHUP)
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            events = poller.poll(50)
+            if not any(ev & select.POLLHUP for _, ev in events):
+                return True
+            if deadline is not None and time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
 
     def _write(self, data: bytes) -> None:
         view = memoryview(data)
@@ -39,9 +61,10 @@ class PtyAdapter(StreamAdapter):
         try:
             return os.read(self.master, 65536)
         except OSError:
-            return b""  # the peer closed the slave side
+            time.sleep(min(timeout or 0.0, 0.02))  # EIO: no peer holds the slave open
+            return b""
 
     def _close_internal(self) -> None:
-        for fd in (self.master, self.slave):
+        for fd in (self.master, self.slave) if self._slave_open else (self.master,):
             with contextlib.suppress(OSError):
                 os.close(fd)

@@ -29,15 +29,18 @@ class RealTimeRunner:
         self.tap = tap
         self.start = clock()
 
+    def _flush(self, now: float) -> None:
+        for out in self.node.data_to_send(now):
+            if self.tap is not None:
+                self.tap("tx", now, out)
+            self.adapter.send(out)
+
     def step(self) -> None:
         now = self.clock()
         timer = self.node.get_timer()
         if timer is not None and timer <= now:
             self.node.handle_timer(now)
-        for out in self.node.data_to_send(now):
-            if self.tap is not None:
-                self.tap("tx", now, out)
-            self.adapter.send(out)
+        self._flush(now)
         timer = self.node.get_timer()
         wait = self.max_wait
         if timer is not None:
@@ -48,6 +51,9 @@ class RealTimeRunner:
             if self.tap is not None:
                 self.tap("rx", now, t)
             self.node.receive_data(t, now)
+            # send the ACK (and anything else due) at once: the peer's ackTimeout is 10 ms,
+            # and decoding the rest of a burst could take longer than that
+            self._flush(self.clock())
             t = self.adapter.recv(0)
 
     def run(self, duration: float | None = None, *, stop: Callable[[], bool] | None = None) -> None:

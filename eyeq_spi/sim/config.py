@@ -27,6 +27,8 @@ class SimConfig:
     light_spots: int = 4
     flash_mb: int = 64
     tac_duration: float = 2.0  # seconds of TAC/SPC "progress" before results
+    ack_timeout: float | None = None  # link timings; None: the seed's defaults (§6)
+    transmit_timeout: float | None = None
     # -- fault hooks ------------------------------------------------------------------------
     boot_test_failures: int = 0  # TestResults bits reported at boot...
     boot_failures: int = 0  # ...for this many power-ups (then the boot passes)

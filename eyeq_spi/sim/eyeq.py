@@ -87,7 +87,12 @@ class SimulatedEyeQ:
         cfg = self.config
         self.codec = MessageCodec(cfg.sw)
         self.sw = self.codec.sw
-        self.conn = TransportConnection(LinkConfig(role="eyeq"))
+        link = LinkConfig(role="eyeq")
+        if cfg.ack_timeout is not None:
+            link.ack_timeout = cfg.ack_timeout
+        if cfg.transmit_timeout is not None:
+            link.transmit_timeout = cfg.transmit_timeout
+        self.conn = TransportConnection(link)
         self.eeprom = bytearray(default_eeprom_image())
         if cfg.corrupt_eeprom_crc:
             self.eeprom[0x4C] ^= 0xFF

@@ -239,15 +239,19 @@ end
 -- =============================================================================================
 -- Transport (decisions T1-T6) and reassembly across frames
 -- =============================================================================================
--- First pass only (not pinfo.visited): rx[direction] holds the open transfer of that direction.
--- done[frame number] keeps the reassembled bytes of the frame that completed a message, notes[]
--- the reassembly events of a frame, reasm_in[] the completing frame of every fragment. Later
--- passes only read these tables.
+-- Each frame is fed to the reassembly once, in capture order, the first time it is dissected
+-- with its direction known: on the first pass normally (not pinfo.visited). A pass that builds
+-- no protocol tree (tshark -2's first pass) cannot read frame.interface_id; its frames are fed
+-- on the next pass, which runs in capture order too. rx[direction] holds the open transfer of
+-- that direction; done[frame number] keeps the reassembled bytes of the frame that completed a
+-- message, notes[] the reassembly events of a frame, reasm_in[] the completing frame of every
+-- fragment. Later passes only read these tables.
 local f_iface = Field.new("frame.interface_id")
-local rx, done, notes, reasm_in
+local f_number = Field.new("frame.number")
+local rx, done, notes, reasm_in, last_fed
 
 local function reset_state()
-  rx, done, notes, reasm_in = {}, {}, {}, {}
+  rx, done, notes, reasm_in, last_fed = {}, {}, {}, {}, 0
 end
 reset_state()
 
@@ -255,11 +259,18 @@ function p.init()
   reset_state()
 end
 
+-- "h2e"/"e2h" from the pcapng interface; "?" when the capture has no interfaces; nil when this
+-- pass builds no tree, so no field can be read.
 local function direction()
   local fi = f_iface()
-  if fi == nil then return nil end
-  return DIRS[fi.value]
+  if fi then return DIRS[fi.value] or ("interface " .. fi.value) end
+  if f_number() then return "?" end
+  return nil
 end
+
+-- A filtering tap makes Wireshark build a tree on its first pass, so frames get their direction
+-- (and are fed to the reassembly) in capture order.
+local direction_tap = Listener.new(nil, "eyeq_spi")
 
 local function note(pinfo, text)
   local t = notes[pinfo.number]
@@ -280,13 +291,13 @@ local function abort(st, pinfo, reason)
 end
 
 -- Returns the Info text and, for a trusted single frame, the message as a Tvb.
-local function dissect_transport(tvb, pinfo, root, dir, num, trusted)
+local function dissect_transport(tvb, pinfo, root, dir, num, trusted, feed)
   local ttype = tvb(C.T_TYPE, 1):uint()
   local tname = TTYPE[ttype]
   local tt = root:add(F["transport"], tvb(C.T_TYPE, 1), tname or "invalid")
   tt:add(F["transport_type"], tvb(C.T_TYPE, 1))
   local st
-  if trusted and not pinfo.visited then
+  if trusted and feed then
     st = rx[dir]
     if not st then
       st = {}
@@ -373,9 +384,12 @@ function p.dissector(tvb, pinfo, tree)
   local root = tree:add(p, tvb())
   local dir = direction()
   local info = ""
+  local feed = false
   if dir then
-    root:add(F["dir"], dir)
+    if dir ~= "?" then root:add(F["dir"], dir) end
     info = dir .. " "
+    feed = pinfo.number > last_fed
+    if feed then last_fed = pinfo.number end
   end
   if n ~= C.FRAME_SIZE then
     root:add(F["bad_length"], true)
@@ -428,7 +442,7 @@ function p.dissector(tvb, pinfo, tree)
   if crc ~= got then info = info .. " [bad CRC]" end
   if kind == "DATA" then
     local trusted = crc == got and r == 0
-    local tinfo, mtvb = dissect_transport(tvb, pinfo, root, dir or "?", num, trusted)
+    local tinfo, mtvb = dissect_transport(tvb, pinfo, root, dir, num, trusted, feed)
     info = info .. " " .. tinfo
     local nt = notes[pinfo.number]
     if nt then
