@@ -37,6 +37,7 @@ def add_dissect_parser(sub: Any) -> None:
     d.add_argument("--no-tree", action="store_true", help="no field tree in the human view")
     w = sub.add_parser("wireshark", help="generate the Wireshark Lua dissector from specs/")
     w.add_argument("--output", "-o", required=True, metavar="FILE.lua")
+    w.add_argument("--sw", help="SW version whose layouts the dissector decodes (default newest)")
 
 
 def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
@@ -162,7 +163,7 @@ def _with_progress(it: Iterator[dict[str, Any]], fh: IO[bytes], path: str
 def run_wireshark(args: argparse.Namespace) -> int:
     from eyeq_spi.wireshark.lua_gen import generate_lua
 
-    text = generate_lua()
+    text = generate_lua(args.sw)
     try:
         with open(args.output, "w", encoding="utf-8") as fh:
             fh.write(text)

@@ -48,7 +48,7 @@ LINK_FIELDS = [
 TRANSPORT_NAMES = {SINGLE: "single", FIRST: "first", CONSECUTIVE: "consecutive"}
 
 
-# -- Lua source checks -----------------------------------------------------------------------------
+# -- Lua source checks ----------------------------------------------------------------------------
 def strip_lua_strings(code: str) -> str:
     """The code with every comment and string literal (short and long) removed."""
     out: list[str] = []
@@ -104,7 +104,7 @@ def test_generated_lua_is_lua52(tmp_path: Path) -> None:
     assert 'Field.new("frame.interface_id")' in lua
 
 
-# -- tshark ------------------------------------------------------------------------------------------
+# -- tshark ---------------------------------------------------------------------------------------
 def tshark(capture: Path, lua: Path, fields: list[str], home: Path,
            two_pass: bool = False) -> list[list[str]]:
     assert TSHARK is not None
@@ -130,7 +130,7 @@ def write_lua(tmp_path: Path) -> Path:
     return path
 
 
-# -- the Python reference ------------------------------------------------------------------------------
+# -- the Python reference -------------------------------------------------------------------------
 def expected_link(records: list[Record]) -> list[dict[str, str]]:
     """Per frame, what tshark must print for LINK_FIELDS[1:12]."""
     fc = FrameCodec()
@@ -260,7 +260,7 @@ def compare_values(where: str, printed: str, values: Iterable[Any]) -> None:
         assert same(p, v), f"{where}[{i}]: tshark {p!r}, Python {v!r}"
 
 
-# -- test: the demo's capture -----------------------------------------------------------------------
+# -- test: the demo's capture ---------------------------------------------------------------------
 @needs_tshark
 def test_demo_capture_matches_python(tmp_path: Path) -> None:
     capture = tmp_path / "c.pcapng"
@@ -364,7 +364,7 @@ def check_application_fields(capture: Path, lua: Path, home: Path, codec: Messag
     assert checked["EYEQ_DIAGNOSTIC_MSG"] > 0
 
 
-# -- test: a tiny capture with every link-layer case ---------------------------------------------------
+# -- test: a tiny capture with every link-layer case ----------------------------------------------
 @needs_tshark
 @pytest.mark.parametrize("two_pass", [False, True])
 def test_link_cases(tmp_path: Path, two_pass: bool) -> None:
@@ -379,6 +379,9 @@ def test_link_cases(tmp_path: Path, two_pass: bool) -> None:
     broken = segment(dasp, 3)
     whole = segment(dasp, 4)
     assert len(broken) == 2
+    aeb_lay = codec.layout(codec.cat.message("EYEQ_VIS_AEB_INFO_MSG"))
+    aeb_msg = codec.encode_dasp("EYEQ_VIS_AEB_INFO_MSG",
+                                {**aeb_lay.zero_values(), "timestamp_ms": 4242}, counter=9)
     frames: list[tuple[str, bytes]] = [
         ("h2e", good),                                                # 1
         ("e2h", fc.ack(0)),                                           # 2
@@ -390,6 +393,9 @@ def test_link_cases(tmp_path: Path, two_pass: bool) -> None:
         ("e2h", fc.data_frame(0, 2, broken[1])),                      # 8: NUM gap
         ("e2h", fc.data_frame(0, 3, whole[0])),                       # 9
         ("e2h", fc.data_frame(0, 4, whole[1])),                       # 10: complete
+        ("e2h", fc.data_frame(0, 5, segment(aeb_msg, 0)[0])),        # 11
+        ("e2h", fc.data_frame(0, 6, segment(aeb_msg[:-1], 0)[0])),   # 12: payload too short
+        ("e2h", fc.data_frame(0, 7, segment(b"\xee\x01\x02", 0)[0])),  # 13: unknown
     ]
     capture = tmp_path / "tiny.pcapng"
     with CaptureWriter(capture) as w:
@@ -413,6 +419,11 @@ def test_link_cases(tmp_path: Path, two_pass: bool) -> None:
         ["e2h", "DATA", "3", "0", "1", "", "first", "4", str(len(dasp)), "", "", "", ""],
         ["e2h", "DATA", "4", "0", "1", "", "consecutive", "4", "", "", "", "DASP",
          "EYEQ_BASE_DIAG_STATUS_MSG"],
+        ["e2h", "DATA", "5", "0", "1", "", "single", "", "", str(len(aeb_msg)), "", "DASP",
+         "EYEQ_VIS_AEB_INFO_MSG"],
+        ["e2h", "DATA", "6", "0", "1", "", "single", "", "", str(len(aeb_msg) - 1), "", "DASP",
+         "EYEQ_VIS_AEB_INFO_MSG"],
+        ["e2h", "DATA", "7", "0", "1", "", "single", "", "", "3", "", "UNKNOWN", ""],
     ]
     experts = [g["_ws.expert.message"] for g in got]
     assert "CRC" in experts[3]
@@ -420,7 +431,16 @@ def test_link_cases(tmp_path: Path, two_pass: bool) -> None:
     assert "not a frame kind" in experts[5]
     assert "num_gap" in experts[7]
     assert "NAK" in experts[2] and "CRC_MISMATCH" in experts[2]
-    assert experts[0] == "" and experts[9] == ""
+    assert "length mismatch" in experts[11]
+    assert "unknown message" in experts[12]
+    assert experts[0] == experts[9] == experts[10] == ""
+    # a payload of the wrong length: header only
+    payload = ["frame.number", "eyeq_spi.dasp.data_id", "eyeq_spi.dasp.counter",
+               "eyeq_spi.EYEQ_VIS_AEB_INFO_MSG.timestamp_ms"]
+    rows = tshark(capture, tmp_path / "eyeq_spi.lua", payload, tmp_path, two_pass=two_pass)
+    data_id = f"0x{codec.cat.message('EYEQ_VIS_AEB_INFO_MSG').data_id:02x}"
+    assert rows[10][1:] == [data_id, "9", "4242"]
+    assert rows[11][1:] == [data_id, "9", ""]
     # the Python view of the same capture agrees
     with capture.open("rb") as fh:
         records = list(read_pcapng(fh))
@@ -428,7 +448,7 @@ def test_link_cases(tmp_path: Path, two_pass: bool) -> None:
     for g, exp in zip(got, expect, strict=True):
         assert {k: g[k] for k in exp if k != "eyeq_spi.nak_reason"} == {
             k: v for k, v in exp.items() if k != "eyeq_spi.nak_reason"}
-    assert set(reassemble(records)) == {1, 10}
+    assert set(reassemble(records)) == {1, 10, 11, 12, 13}
 
 
 @needs_tshark

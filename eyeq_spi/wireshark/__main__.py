@@ -17,7 +17,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     try:
         text = generate_lua(args.sw)
-    except EyeqError as exc:
+    except (EyeqError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if args.output:

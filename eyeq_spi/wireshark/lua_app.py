@@ -47,7 +47,6 @@ class AppTables:
 
     structs: list[str] = field(default_factory=list)
     messages: list[str] = field(default_factory=list)
-    struct_names: list[str] = field(default_factory=list)
 
 
 class AppGenerator:
@@ -78,7 +77,6 @@ class AppGenerator:
             f"-- {lay.name}: {lay.size} bytes (layout {lay.variant})\n"
             f"S[{lua_str(lay.name)}] = {{\n  {body},\n}}"
         )
-        self.out.struct_names.append(lay.name)
 
     def _row(self, lay: Layout, f: FieldInfo, child: Layout | None) -> str:
         count = f.count or 0

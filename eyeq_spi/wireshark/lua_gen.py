@@ -23,7 +23,7 @@ from typing import Any
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import DASP_PROTOCOL, MessageCodec
 from eyeq_spi.spec.link import link_spec
-from eyeq_spi.wireshark.lua_app import AppGenerator
+from eyeq_spi.wireshark.lua_app import MESP_PARAM_FIELD, AppGenerator
 from eyeq_spi.wireshark.lua_common import (
     FieldRegistry,
     ValueStrings,
@@ -123,7 +123,7 @@ class LuaGenerator:
         if c["NEXT_DATA"] + c["CONSECUTIVE_CHUNK"] > c["FRAME_SIZE"]:
             raise ValueError("consecutive_chunk does not fit the frame")
         lines = ["local C = {"]
-        lines += [f"  {k} = {lua_int(v)}," for k, v in c.items()]
+        lines += [f"  {k} = {lua_int(v) if k.startswith('CRC_') else v}," for k, v in c.items()]
         lines.append(f"  REASSEMBLY_TIMEOUT = {float(tr['reassembly_timeout'])!r},")
         lines.append("}")
         hdr = _header_fields(frame)
@@ -148,8 +148,12 @@ class LuaGenerator:
         lines.append(f"local RX_LIMIT = {{{limits}}}")
         lines.append(f"local SW = {lua_str(self.codec.sw)}")
         lines.append(f"local DASP_PROTOCOL = {lua_int(DASP_PROTOCOL)}")
-        lines.append(f"local MESP_PROTOCOL = {lua_int(MESP_PROTOCOL)}")
-        lines.append('local MESP_WIDTH = {u8 = 1, u16 = 2, u32 = 4}')
+        mesp_protocol = int(self.codec.cat.raw["mesp.yaml"]["mesp"]["protocol"])
+        if mesp_protocol != MESP_PROTOCOL:
+            raise ValueError("specs/mesp.yaml protocol disagrees with eyeq_spi.codec.mesp")
+        lines.append(f"local MESP_PROTOCOL = {lua_int(mesp_protocol)}")
+        widths = ", ".join(f"{k} = {w}" for k, (_, w) in MESP_PARAM_FIELD.items())
+        lines.append(f"local MESP_WIDTH = {{{widths}}}")
         return lines
 
     # -- fixed fields --------------------------------------------------------------------------
@@ -165,7 +169,7 @@ class LuaGenerator:
         add("length", "uint32", lua_str("Transfer length"), "base.DEC")
         add("frame_type", "string", lua_str("Frame type"))
         add("header", "uint32", lua_str("Header word"), "base.HEX")
-        labels = {"D": ("d", "D (kind)", "base.HEX", self.vs.add("frame_kind", kinds)),
+        labels = {"D": ("d", "D (kind)", "base.HEX", self.vs.add("link.frame_kind", kinds)),
                   "R": ("r", "R (reserved)", "base.DEC", None),
                   "RSP": ("rsp", "RSP", "base.DEC", None),
                   "NUM": ("num", "NUM", "base.DEC", None)}
@@ -176,10 +180,10 @@ class LuaGenerator:
         add("crc_computed", "uint16", lua_str("Computed CRC"), "base.HEX")
         add("crc_ok", "bool", lua_str("CRC OK"))
         add("nak_reason", "uint16", lua_str("NAK reason"), "base.HEX",
-            self.vs.add("nak_reason", naks))
+            self.vs.add("link.nak_reason", naks))
         add("transport", "string", lua_str("Transport"))
         add("transport_type", "uint8", lua_str("Transport type"), "base.HEX",
-            self.vs.add("transport_type", types))
+            self.vs.add("link.transport_type", types))
         add("size", "uint8", lua_str("Size"), "base.DEC")
         add("transfer_id", "uint8", lua_str("Transfer ID"), "base.DEC")
         add("total", "uint32", lua_str("Total"), "base.DEC")
@@ -234,7 +238,7 @@ class LuaGenerator:
             "-- constants from specs/link.yaml, specs/capture.yaml and the codec",
             *self.constants(),
             "",
-            "-- value_strings from specs/enums, specs/link.yaml, specs/mesp.yaml, specs/messages.yaml",
+            "-- value_strings: specs/enums, link.yaml, mesp.yaml, messages.yaml",
             "local E = {}",
             self.vs.render(),
             "",

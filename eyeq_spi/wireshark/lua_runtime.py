@@ -1,9 +1,9 @@
 """The fixed part of the generated Lua: CRC, struct walker, application and link dissectors.
 
-It holds no protocol numbers: every constant it uses (``C``, ``HDR``, ``KIND``, ``COVER``, ``TTYPE``,
-``DIRS``, ``RX_LIMIT``, ``S``, ``DASP``, ``OTHER``, ``MESP`` ...) is emitted from ``specs/`` by
-:mod:`eyeq_spi.wireshark.lua_gen` before this text. Lua 5.2 only: bit operations go through
-Wireshark's ``bit`` library (``band``, ``bxor``, ``lshift``, ``rshift`` are its locals).
+It holds no protocol numbers: every constant it uses (``C``, ``HDR``, ``KIND``, ``COVER``,
+``TTYPE``, ``DIRS``, ``RX_LIMIT``, ``S``, ``DASP``, ``OTHER``, ``MESP`` ...) is emitted from
+``specs/`` by :mod:`eyeq_spi.wireshark.lua_gen` before this text. Lua 5.2 only: bit operations
+go through Wireshark's ``bit`` library (``band``, ``bxor``, ``lshift``, ``rshift`` are locals).
 """
 
 from __future__ import annotations
@@ -95,7 +95,8 @@ local function dissect_payload(tvb, mt, off, entry)
   local n = tvb:len() - off
   if n ~= entry.size then
     mt:add_proto_expert_info(X.length_mismatch, string.format(
-      "length mismatch: %s payload is %d bytes, the %s layout is %d", entry.name, n, SW, entry.size))
+      "length mismatch: %s payload is %d bytes, the %s layout is %d",
+      entry.name, n, SW, entry.size))
     return false
   end
   walk(tvb, mt:add(entry.field, tvb(off, n)), off, S[entry.struct])
@@ -198,7 +199,8 @@ local function dissect_dasp(tvb, mt)
   local id = tvb(1, 1):uint()
   local entry = DASP[id]
   if not entry then
-    mt:add_proto_expert_info(X.unknown, string.format("BadHdr: unknown DASP data ID 0x%02X in %s", id, SW))
+    mt:add_proto_expert_info(X.unknown, string.format(
+      "BadHdr: unknown DASP data ID 0x%02X in %s", id, SW))
     return string.format("DASP 0x%02X", id)
   end
   mt:add(F["message"], tvb(1, 1), entry.name)
