@@ -185,7 +185,10 @@ class Dissector:
             "kind": "message", "protocol": out.protocol, "name": out.name,
             "length": len(ev.data), "direction": direction, "time": self.last_time,
             "frames": [d.index_of_num.get(n) for n in ev.frames],
-            "header": out.header, "fields": jsonable(out.fields), "errors": errors,
+            # only MESP carries bytes (byte[] and string parameters); struct fields never do
+            "header": out.header,
+            "fields": jsonable(out.fields) if out.protocol == "MESP" else out.fields,
+            "errors": errors,
         }
 
     def _enum_errors(self, out: Any) -> list[str]:
@@ -198,23 +201,41 @@ class Dissector:
         return errs[:10]
 
 
+_ENUM_PLANS: dict[int, list[tuple[str, Any, Any, bool]]] = {}
+
+
+def _enum_plan(codec: MessageCodec, lay: Any) -> list[tuple[str, Any, Any, bool]]:
+    """(member, enum or None, child layout or None, is_array) for the members worth visiting:
+    enum-typed scalars and structs that contain one."""
+    key = id(lay)
+    plan = _ENUM_PLANS.get(key)
+    if plan is None:
+        plan = []
+        for f in lay.fields:
+            child = lay.children.get(f.name)
+            if child is not None:
+                if _enum_plan(codec, child):
+                    plan.append((f.name, None, child, bool(f.count)))
+                continue
+            e = codec.cat.enums.get(f.member.enum or "")
+            if e is not None and e.kind != "flags" and not f.count:
+                plan.append((f.name, e, None, False))
+        _ENUM_PLANS[key] = plan
+    return plan
+
+
 def _check_enums(codec: MessageCodec, lay: Any, values: dict[str, Any], path: str,
                  errs: list[str]) -> None:
-    for f in lay.fields:
-        child = lay.children.get(f.name)
-        v = values.get(f.name)
+    for name, enum, child, is_array in _enum_plan(codec, lay):
+        v = values.get(name)
         if child is not None:
-            if f.count:
+            if is_array:
                 for i, item in enumerate(v or []):
-                    _check_enums(codec, child, item, f"{path}.{f.name}[{i}]", errs)
+                    _check_enums(codec, child, item, f"{path}.{name}[{i}]", errs)
             else:
-                _check_enums(codec, child, v or {}, f"{path}.{f.name}", errs)
-            continue
-        e = codec.cat.enums.get(f.member.enum or "")
-        if e is None or e.kind == "flags" or f.count or not isinstance(v, int):
-            continue
-        if v not in e.values:
-            errs.append(f"bad enum value {v} for {path}.{f.name} ({e.name})")
+                _check_enums(codec, child, v or {}, f"{path}.{name}", errs)
+        elif isinstance(v, int) and v not in enum.values:
+            errs.append(f"bad enum value {v} for {path}.{name} ({enum.name})")
 
 
 def iter_records(records: Iterable[Record], *, sw: str | None = None) -> Iterator[dict[str, Any]]:
