@@ -46,10 +46,8 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, Final
 
-import yaml
-
 from eyeq_spi.errors import CodecError, SpecError
-from eyeq_spi.spec.link import specs_dir
+from eyeq_spi.spec.link import spec_file
 
 # §7.1.1.3 request "Hash type" enum
 HASH_SHA256: Final = 0
@@ -98,17 +96,10 @@ class FlashRegion:
         return self.name.split(" (", 1)[0]
 
 
-@cache
 def _flash_map() -> dict[str, Any]:
-    path = specs_dir() / "flash_map.yaml"
-    try:
-        with path.open(encoding="utf-8") as fh:
-            doc = yaml.safe_load(fh)
-    except (OSError, yaml.YAMLError) as exc:
-        raise SpecError(f"{path}: {exc}") from exc
-    fmap = doc.get("flash_map") if isinstance(doc, dict) else None
+    fmap = spec_file("flash_map.yaml").get("flash_map")
     if not isinstance(fmap, dict):
-        raise SpecError(f"{path}: no `flash_map` mapping")
+        raise SpecError("specs/flash_map.yaml: no `flash_map` mapping")
     return fmap
 
 

@@ -1,4 +1,5 @@
-"""``specs/link.yaml`` as typed defaults for the link, transport and stream layers."""
+"""Loading single files of ``specs/``: ``link.yaml`` gives the defaults of the link, transport
+and stream layers; other files (``flash_map.yaml``) are read the same way."""
 
 from __future__ import annotations
 
@@ -20,9 +21,14 @@ def specs_dir() -> Path:
     raise SpecError("cannot find specs/ (looked beside the package and in the repository)")
 
 
-@cache
 def link_spec() -> dict[str, Any]:
-    path = specs_dir() / "link.yaml"
+    return spec_file("link.yaml")
+
+
+@cache
+def spec_file(name: str) -> dict[str, Any]:
+    """One YAML file of ``specs/`` as a mapping (cached)."""
+    path = specs_dir() / name
     try:
         with path.open(encoding="utf-8") as fh:
             doc = yaml.safe_load(fh)
