@@ -155,7 +155,7 @@ def test_every_filled_message_encodes_and_decodes(sw: str) -> None:
 @pytest.mark.parametrize("sw", CAT.sw_versions)
 def test_every_layout_is_recognised_by_its_shape(sw: str) -> None:
     """fill() is told no SW version: it must find the ranges of exactly this layout."""
-    from eyeq_spi.sim.scene import _candidates, _shape
+    from eyeq_spi.sim.scene_layout import _candidates, _shape
 
     for name in MESSAGES:
         if exists(name, sw):

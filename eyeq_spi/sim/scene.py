@@ -27,51 +27,54 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from functools import cache
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from eyeq_spi.errors import SpecError
-from eyeq_spi.spec.catalog import Catalog, Member, SwKey, catalog
-
-FArr = npt.NDArray[np.float64]
-IArr = npt.NDArray[np.int64]
-
-FRAME_RATE = 18.0  # §7.1.4: every vision message runs at 18 Hz
-LANE_WIDTH = 3.6
-HALF_LANE = LANE_WIDTH / 2
-CAM_HEIGHT = 1.3  # m above the road
-FOCAL_PX = 1000.0
-IMAGE_W, IMAGE_H = 1824, 960  # pixel ranges of eyeq_traffic_sign_t
-MAX_SUBSTEP = 0.1  # s; longer steps are integrated in pieces
-MAX_GAP = 30.0  # s; of a longer pause between steps only the last 30 s are simulated
-TTC_NONE = 7.0  # §13.2.2 ttc_const_vel: "Set to 7 seconds if no valid TTC value"
-EGO_LENGTH = 4.5
-MAX_OBJECTS = 15  # E_EYEQ_MAX_VISION_OBJECTS
-MAX_SIGNS = 20  # eyeq_traffic_sign_info_t.trafficSigns
-MAX_SPOTS = 15  # eyeq_active_light_sensor_info_t.activeLightSpots
-
-VEHICLE, ONCOMING, CYCLIST, PEDESTRIAN = 0, 1, 2, 3
-# object_classification name, spawn weight, width, length, height, kind
-CLASSES: tuple[tuple[str, float, float, float, float, int], ...] = (
-    ("car", 0.58, 1.82, 4.6, 1.50, VEHICLE),
-    ("truck", 0.14, 2.50, 12.0, 3.60, VEHICLE),
-    ("bike", 0.04, 0.80, 2.2, 1.40, VEHICLE),
-    ("uncertain_vehicle", 0.03, 1.90, 4.8, 1.60, VEHICLE),
-    ("bicycle", 0.08, 0.60, 1.8, 1.70, CYCLIST),
-    ("pedestrian", 0.13, 0.60, 0.6, 1.75, PEDESTRIAN),
-)
-_CLASS_DEFAULT = {"car": 0, "truck": 1, "bike": 2, "bicycle": 3, "pedestrian": 4,
-                  "uncertain_vehicle": 7}
-# traffic_sign names and weights: mostly speed limits (§ traffic_sign enum, SLI_Explicit)
-SIGNS: tuple[tuple[str, float], ...] = (
-    ("e_std_60", 0.05), ("e_std_80", 0.16), ("e_std_100", 0.17), ("e_std_120", 0.14),
-    ("e_std_130", 0.08), ("e_lgt_80", 0.03), ("e_lgt_100", 0.04), ("e_lgt_120", 0.03),
-    ("e_std_end_general", 0.04), ("e_std_np_start", 0.05), ("e_std_np_end", 0.04),
-    ("e_roadWork", 0.03), ("e_curveLeft", 0.03), ("e_curveRight", 0.03),
-    ("e_priorityRoad", 0.02), ("e_std_motorWay", 0.02), ("e_exitRight", 0.04),
+from eyeq_spi.sim.scene_layout import (
+    _AGE_ROW,
+    _CLASS_DEFAULT,
+    _CLASS_P,
+    _FILLERS,
+    _PINV,
+    _REFLECT_KEYS,
+    _SIGN_KEYS,
+    _SPOT_KEYS,
+    _XS,
+    CAM_HEIGHT,
+    CLASSES,
+    CYCLIST,
+    EGO_LENGTH,
+    FOCAL_PX,
+    HALF_LANE,
+    IMAGE_H,
+    IMAGE_W,
+    LANE_WIDTH,
+    MAX_GAP,
+    MAX_OBJECTS,
+    MAX_SIGNS,
+    MAX_SPOTS,
+    MAX_SUBSTEP,
+    ONCOMING,
+    PEDESTRIAN,
+    TTC_NONE,
+    VEHICLE,
+    FArr,
+    IArr,
+    _child,
+    _choose,
+    _code,
+    _cumtrapz,
+    _elements,
+    _frame,
+    _Node,
+    _node_for,
+    _obj_plan,
+    _ObjPlan,
+    _puts,
+    _sign_table,
+    _write_rows,
 )
 
 
@@ -85,300 +88,6 @@ class SceneConfig:
 
 
 # -- member ranges, recognised from the shape of a value dict ------------------------------------
-_F32_MAX = 3.4028234663852886e38
-_INT64 = (-(1 << 63), (1 << 63) - 1)
-_WIRE = {
-    "uint8": (0, 0xFF), "uint16": (0, 0xFFFF), "uint32": (0, 0xFFFFFFFF),
-    "uint64": (0, 0xFFFFFFFFFFFFFFFF), "int8": (-0x80, 0x7F), "int16": (-0x8000, 0x7FFF),
-    "int32": (-0x80000000, 0x7FFFFFFF), "int64": _INT64, "bool": (0, 1),
-}
-_REAL = ("real32", "real64")
-
-
-@dataclass(frozen=True)
-class _Leaf:
-    lo: float
-    hi: float
-    real: bool
-
-    def clamp(self, x: float) -> float | int:
-        if self.real:
-            return float(min(max(x, self.lo), self.hi))
-        return int(min(max(round(x), self.lo), self.hi))
-
-    @property
-    def zero(self) -> float | int:
-        return 0.0 if self.real else 0
-
-
-@dataclass
-class _Node:
-    members: dict[str, _Node | _Leaf]
-    count: int | None = None  # element count when the member is an array of structs
-
-
-def _leaf(m: Member) -> _Leaf:
-    if m.type in _REAL and m.bits is None:
-        lo = -_F32_MAX if m.min is None else float(m.min)
-        hi = _F32_MAX if m.max is None else float(m.max)
-        return _Leaf(lo, hi, True) if lo <= hi else _Leaf(-_F32_MAX, _F32_MAX, True)
-    if m.bits is not None:
-        wlo, whi = 0, (1 << (m.bits[1] - m.bits[0] + 1)) - 1
-    else:
-        wlo, whi = _WIRE.get(m.type, (0, 0xFF))
-    lo = wlo if m.min is None else max(wlo, math.ceil(m.min))
-    hi = whi if m.max is None else min(whi, math.floor(m.max))
-    return _Leaf(lo, hi, False) if lo <= hi else _Leaf(wlo, whi, False)
-
-
-def _build(cat: Catalog, name: str, sw: SwKey) -> tuple[_Node, Any]:
-    """The range tree of struct ``name`` at ``sw`` and its shape (as :func:`_shape` gives it)."""
-    sdef = cat.structs.get(name)
-    var = sdef.variant_for(sw) if sdef else None
-    if var is None:
-        raise SpecError(f"struct {name} has no layout for {sw}")
-    members: dict[str, _Node | _Leaf] = {}
-    shape: list[tuple[str, Any]] = []
-    for m in var.members:
-        count = None if m.array is None else (
-            m.array if isinstance(m.array, int) else cat.constant(m.array, sw))
-        sub: Any = ""
-        if m.bits is None and m.type not in _WIRE and m.type not in _REAL:
-            child, sub = _build(cat, m.type, sw)
-            members[m.name] = _Node(child.members, count)
-        else:
-            members[m.name] = _leaf(m)
-        shape.append((m.name, sub if count is None else ("L", count, sub if count else "")))
-    return _Node(members), tuple(shape)
-
-
-def _shape(v: Any) -> Any:
-    if isinstance(v, dict):
-        return tuple((k, _shape(x)) for k, x in v.items())
-    if isinstance(v, list):
-        return ("L", len(v), _shape(v[0]) if v else "")
-    return ""
-
-
-def _merge(a: _Node | _Leaf, b: _Node | _Leaf) -> _Node | _Leaf:
-    """Ranges valid for both: intersection of leaves, union of members."""
-    if isinstance(a, _Leaf) and isinstance(b, _Leaf):
-        real = a.real and b.real
-        lo, hi = max(a.lo, b.lo), min(a.hi, b.hi)
-        if not real:
-            lo, hi = math.ceil(lo), math.floor(hi)
-        return _Leaf(lo, hi, real) if lo <= hi else a
-    if isinstance(a, _Node) and isinstance(b, _Node):
-        members = dict(a.members)
-        for k, v in b.members.items():
-            members[k] = _merge(members[k], v) if k in members else v
-        return _Node(members, a.count if a.count is not None else b.count)
-    return a
-
-
-@cache
-def _candidates(name: str) -> tuple[dict[Any, _Node], _Node] | None:
-    """Range trees of DASP message ``name`` per distinct shape over all releases, and all merged."""
-    cat = catalog()
-    try:
-        msg = cat.message(name)
-    except SpecError:
-        return None
-    by_shape: dict[Any, _Node] = {}
-    for sw in cat.sw_versions:
-        if msg.protocol != "DASP" or not msg.exists_in(sw):
-            continue
-        try:
-            node, shape = _build(cat, msg.payload, sw)
-        except SpecError:
-            continue
-        old = by_shape.get(shape)
-        merged = node if old is None else _merge(old, node)
-        assert isinstance(merged, _Node)
-        by_shape[shape] = merged
-    if not by_shape:
-        return None
-    everything: _Node | _Leaf = _Node({})
-    for node in by_shape.values():
-        everything = _merge(everything, node)
-    assert isinstance(everything, _Node)
-    return by_shape, everything
-
-
-def _node_for(name: str, values: dict[str, Any]) -> _Node | None:
-    cands = _candidates(name)
-    if cands is None:
-        return None
-    by_shape, everything = cands
-    if len(by_shape) == 1:
-        return everything
-    return by_shape.get(_shape(values), everything)
-
-
-def _put(d: dict[str, Any], n: _Node, key: str, x: float) -> None:
-    leaf = n.members.get(key)
-    if isinstance(leaf, _Leaf) and key in d:
-        d[key] = leaf.clamp(x)
-
-
-def _puts(d: dict[str, Any], n: _Node, vals: dict[str, float]) -> None:
-    for key, x in vals.items():
-        _put(d, n, key, x)
-
-
-def _child(d: dict[str, Any], n: _Node, key: str) -> tuple[dict[str, Any], _Node] | None:
-    sub, v = n.members.get(key), d.get(key)
-    if isinstance(sub, _Node) and isinstance(v, dict):
-        return v, sub
-    return None
-
-
-def _elements(d: dict[str, Any], n: _Node, key: str) -> tuple[list[dict[str, Any]], _Node]:
-    sub, v = n.members.get(key), d.get(key)
-    if isinstance(sub, _Node) and isinstance(v, list):
-        return [x for x in v if isinstance(x, dict)], sub
-    return [], _Node({})
-
-
-def _write_rows(elems: list[dict[str, Any]], n: _Node, rows: list[dict[str, float]],
-                keys: tuple[str, ...]) -> None:
-    """Rows into the first elements of an array of structs; ``keys`` of the rest zeroed."""
-    for j, e in enumerate(elems):
-        if j < len(rows):
-            _puts(e, n, rows[j])
-            continue
-        for k in keys:
-            leaf = n.members.get(k)
-            if isinstance(leaf, _Leaf) and k in e:
-                e[k] = leaf.zero
-
-
-@cache
-def _code(enum: str, name: str, default: int) -> int:
-    """Value of ``name`` in enum ``enum`` of specs/, ``default`` if the catalogue lacks it."""
-    e = catalog().enums.get(enum)
-    if e is not None:
-        for v in e.values.values():
-            if v.name == name:
-                return v.value
-    return default
-
-
-# -- obstacle columns: (path inside eyeq_vision_object_t, member, real) --------------------------
-_PS, _AS, _RECT = ("physicalState",), ("angularState",), ("imageBox", "rect")
-_OBJ_F: tuple[tuple[tuple[str | int, ...], str], ...] = tuple(
-    [(_PS, k) for k in (
-        "width", "widthStd", "length", "lengthStd", "height", "heightStd",
-        "absoluteLongVelocity", "absoluteLongVelocityStd", "absoluteLatVelocity",
-        "absoluteLatVelocityStd", "absoluteLongAcc", "absoluteLongAccStd", "absoluteLatAcc",
-        "absoluteLatAccStd", "longDistance", "longDistanceStd", "latDistance", "latDistanceStd",
-        "heading")]
-    + [(_AS, k) for k in (
-        "angleRight", "angleRightStd", "angleLeft", "angleLeftStd", "angleSide", "angleSideStd",
-        "angleMid", "angleMidStd", "angularSpeed", "angularSpeedStd")]
-    + [((), "confidence"), ((), "ttc_const_vel")])
-_EDGE_KEYS = ("xCoord", "yTopCoord", "yBottomCoord", "isOccluded", "valid")
-_OBJ_I: tuple[tuple[tuple[str | int, ...], str], ...] = tuple(
-    [(_RECT, k) for k in ("xLeftCoord", "xRightCoord", "yTopCoord", "yBottomCoord")]
-    + [(("imageBox", "verticalEdges", e), k) for e in range(4) for k in _EDGE_KEYS]
-    + [(("imageBox",), "visibleRect"), (("imageBox",), "visibleSide")]
-    + [(("mobilityState",), k) for k in ("motionStatus", "motionCategory", "motionOrientation")]
-    + [((), k) for k in ("age", "id", "classification", "isCipv", "laneAssignment")]
-    + [(("lightIndicators",), k) for k in ("valid", "brake", "turnRight", "turnLeft")]
-    + [((), k) for k in ("isPredicted", "isInDrivableArea", "isVeryClose")])
-_AGE_ROW = _OBJ_I.index(((), "age"))
-
-Group = tuple[tuple[str | int, ...], list[tuple[str, bool, int]]]
-
-
-@dataclass
-class _ObjPlan:
-    flo: FArr
-    fhi: FArr
-    ilo: IArr
-    ihi: IArr
-    groups: list[Group]
-
-
-def _resolve(node: _Node, path: tuple[str | int, ...], key: str) -> _Leaf | None:
-    for p in path:
-        if isinstance(p, int):
-            if node.count is None or p >= node.count:
-                return None
-            continue
-        sub = node.members.get(p)
-        if not isinstance(sub, _Node):
-            return None
-        node = sub
-    leaf = node.members.get(key)
-    return leaf if isinstance(leaf, _Leaf) else None
-
-
-def _obj_plan(elem: _Node) -> _ObjPlan:
-    flo, fhi = np.full(len(_OBJ_F), -np.inf), np.full(len(_OBJ_F), np.inf)
-    ilo, ihi = np.full(len(_OBJ_I), _INT64[0]), np.full(len(_OBJ_I), _INT64[1])
-    groups: dict[tuple[str | int, ...], list[tuple[str, bool, int]]] = {}
-    for real, spec in ((True, _OBJ_F), (False, _OBJ_I)):
-        for row, (path, key) in enumerate(spec):
-            leaf = _resolve(elem, path, key)
-            if leaf is None:
-                continue
-            if real:
-                flo[row], fhi[row] = leaf.lo, leaf.hi
-            else:
-                ilo[row] = max(math.ceil(leaf.lo), _INT64[0])
-                ihi[row] = min(math.floor(leaf.hi), _INT64[1])
-            groups.setdefault(path, []).append((key, real, row))
-    return _ObjPlan(flo, fhi, ilo.astype(np.int64), ihi.astype(np.int64), list(groups.items()))
-
-
-def _choose(conds: list[npt.NDArray[np.bool_]], codes: list[int], default: int) -> IArr:
-    """``np.select`` for small arrays: the first true condition picks the code."""
-    out = np.full(conds[0].shape, default, dtype=np.int64)
-    for cond, code in zip(reversed(conds), reversed(codes), strict=True):
-        out[cond] = code
-    return out
-
-
-def _frame(t: float) -> int:
-    return max(0, math.floor(t * FRAME_RATE + 1e-6))
-
-
-_CLASS_P = np.array([c[1] for c in CLASSES]) / sum(c[1] for c in CLASSES)
-_XS = np.linspace(0.0, 100.0, 21)  # road-fit sample points ahead
-_PINV = np.linalg.pinv(np.stack([_XS**2, _XS**3], axis=1))
-_SIGN_KEYS = (
-    "signLongPosition", "signLatPosition", "signHeight", "signConfidence", "signSuppConfidence1",
-    "signSuppConfidence2", "relevancyConfidence", "signPositionBottom", "signPositionLeft",
-    "signPositionRight", "signPositionTop", "signType", "signSupplementalType1",
-    "signSupplementalType2", "signID", "signRelevantDecision", "signFilterType")
-_SPOT_KEYS = (
-    "leftAngle", "rightAngle", "topAngle", "bottomAngle", "id", "vdID", "longPos", "pixelTop",
-    "pixelBottom", "pixelLeft", "pixelRight", "classification", "isTruck")
-_REFLECT_KEYS = (
-    "lightSignLeftAngle", "lightSignRightAngle", "lightSignBottomAngle", "lightSignTopAngle",
-    "lightSignID", "lightSignDistance", "lightSignGlareLevelMax", "lightSignGlareLevelCurrent")
-_FILLERS = {
-    "EYEQ_VIS_OBSTACLES_MSG": "_fill_obstacles", "EYEQ_VIS_ROAD_DATA_MSG": "_fill_road",
-    "EYEQ_VIS_TRAFFIC_SIGNS_MSG": "_fill_signs", "EYEQ_VIS_LIGHT_SENSOR_DATA_MSG": "_fill_lights",
-    "EYEQ_VIS_AEB_INFO_MSG": "_fill_aeb", "EYEQ_VIS_FAILSAFE_MSG": "_fill_failsafe",
-    "EYEQ_VIS_SRP_MSG": "_fill_srp", "EYEQ_TIMESYNC_MSG": "_fill_timesync",
-    "EYEQ_SAFETY_MSG": "_fill_nothing", "EYEQ_DYNAMIC_CAL_MSG": "_fill_dynamic_cal",
-}
-
-
-@cache
-def _sign_table() -> tuple[tuple[str, ...], tuple[int, ...], FArr]:
-    rows = [(n, _code("traffic_sign", n, -1), w) for n, w in SIGNS]
-    rows = [r for r in rows if r[1] >= 0] or [("e_std_80", 7, 1.0)]
-    p = np.array([r[2] for r in rows])
-    return tuple(r[0] for r in rows), tuple(r[1] for r in rows), p / p.sum()
-
-
-def _cumtrapz(y: FArr, x: FArr) -> FArr:
-    return np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))))
-
-
 class Scene:
     """The world (objects, road, signs) and the writer of its DASP payloads."""
 
