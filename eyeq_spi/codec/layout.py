@@ -5,6 +5,9 @@ A :class:`Layout` is one struct at one SW version:
 - a compiled construct ``Struct`` for the byte layout. Bitfield members that share a container
   (D2) appear in it as one integer field; splitting and joining them is plain shifting done by
   precomputed operation lists, so no ``BitStruct`` (uncompilable, slow) is on the hot path;
+- a ``struct``-based fast path generated from the same fields (:mod:`.fastpath`), used by
+  ``parse``/``build``; the construct codec (``parse_construct``/``build_construct``) is the
+  reference the tests hold it to;
 - the offset and size of every member, used for CRC coverage and for ``spec show``;
 - an E2E plan: every ``crc_16`` in the struct and its children, inner first, with the absolute
   byte ranges it covers and where its rolling counter lives.
@@ -35,6 +38,7 @@ from construct import (
 )
 from construct.core import ConstructError
 
+from eyeq_spi.codec.fastpath import FastCodec
 from eyeq_spi.crc import crc16
 from eyeq_spi.errors import CodecError, SpecError
 from eyeq_spi.spec.catalog import Catalog, Member, SwKey
@@ -88,6 +92,7 @@ class Layout:
     _decode_ops: list[tuple[Any, ...]] = field(default_factory=list)
     _encode_ops: list[tuple[Any, ...]] = field(default_factory=list)
     _by_name: dict[str, FieldInfo] = field(default_factory=dict)
+    _fast: FastCodec | None = None
 
     # -- values ----------------------------------------------------------------------------
     def post(self, c: Any) -> dict[str, Any]:
@@ -144,13 +149,32 @@ class Layout:
             raise CodecError(f"{self.name}: {exc}") from None
         return out
 
+    @property
+    def fast(self) -> FastCodec:
+        """The ``struct``-based path generated from this layout (built on first use)."""
+        if self._fast is None:
+            self._fast = FastCodec(self)
+        return self._fast
+
     def build(self, values: dict[str, Any]) -> bytes:
+        try:
+            return self.fast.encode(values)
+        except CodecError as exc:
+            raise CodecError(f"{self.name}: {exc}") from None
+
+    def parse(self, data: bytes) -> dict[str, Any]:
+        if len(data) != self.size:
+            raise CodecError(f"{self.name} ({self.sw}) is {self.size} bytes, got {len(data)}")
+        return self.fast.decode(data)
+
+    # The construct codec: the reference the fast path is tested against.
+    def build_construct(self, values: dict[str, Any]) -> bytes:
         try:
             return bytes(self.struct.build(self.pre(values)))
         except (ConstructError, ValueError, OverflowError) as exc:
             raise CodecError(f"{self.name}: cannot encode: {exc}") from None
 
-    def parse(self, data: bytes) -> dict[str, Any]:
+    def parse_construct(self, data: bytes) -> dict[str, Any]:
         if len(data) != self.size:
             raise CodecError(f"{self.name} ({self.sw}) is {self.size} bytes, got {len(data)}")
         return self.post(self.struct.parse(data))

@@ -1,0 +1,125 @@
+"""A fast path generated from the same layouts as the construct codec.
+
+For one :class:`~eyeq_spi.codec.layout.Layout` it builds a single ``struct.Struct`` over every
+primitive leaf (bitfield containers as one integer each) and generates, with ``exec``, a Python
+function per struct that turns the flat tuple into the nested dict (and one that flattens a dict
+back). Nothing here is written by hand per message: the format string and the functions come from
+``Layout.fields``, which come from ``specs/``. The construct codec stays the reference; the tests
+require both to give the same values and bytes for every struct variant.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import TYPE_CHECKING, Any
+
+from eyeq_spi.errors import CodecError
+
+if TYPE_CHECKING:
+    from eyeq_spi.codec.layout import Layout
+
+FMT = {"uint8": "B", "uint16": "H", "uint32": "I", "uint64": "Q", "int8": "b", "int16": "h",
+       "int32": "i", "int64": "q", "real32": "f", "real64": "d", "bool": "B"}
+
+
+class FastCodec:
+    def __init__(self, layout: Layout) -> None:
+        self._fmt: list[str] = []
+        self._src: list[str] = []
+        self._names: dict[int, str] = {}
+        self._env: dict[str, Any] = {"CodecError": CodecError}
+        top = self._gen(layout)
+        self.struct = struct.Struct("<" + "".join(self._fmt))
+        if self.struct.size != layout.size:
+            raise CodecError(f"fast path of {layout.name}: {self.struct.size} != {layout.size}")
+        exec("\n".join(self._src), self._env)
+        self._decode = self._env[f"d_{top}"]
+        self._encode = self._env[f"e_{top}"]
+
+    def decode(self, data: bytes) -> dict[str, Any]:
+        t = self.struct.unpack(data)
+        out: dict[str, Any] = self._decode(t, 0)
+        return out
+
+    def encode(self, values: dict[str, Any]) -> bytes:
+        out: list[Any] = []
+        try:
+            self._encode(values, out)
+            return self.struct.pack(*out)
+        except KeyError as exc:
+            raise CodecError(f"missing member {exc.args[0]}") from None
+        except (struct.error, TypeError) as exc:
+            raise CodecError(f"cannot encode: {exc}") from None
+
+    # -- generation --------------------------------------------------------------------------
+    def _gen(self, lay: Layout) -> str:
+        """Generate d_<n>(t, o) and e_<n>(v, out) for ``lay``; returns <n>. Leaves are appended
+        to the format in byte order, so a struct's leaves are one contiguous run."""
+        n = str(len(self._names))
+        self._names[id(lay)] = n
+        first = len(self._fmt)
+        dec: list[str] = []
+        enc: list[str] = []
+        seen_groups: set[int] = set()
+        for f in lay.fields:
+            if f.bits is not None:
+                key = f.offset
+                if key not in seen_groups:
+                    seen_groups.add(key)
+                    idx = len(self._fmt) - first
+                    self._fmt.append(FMT[f.type])
+                    group = [g for g in lay.fields if g.bits is not None and g.offset == key]
+                    used = 0
+                    parts = []
+                    for g in group:
+                        assert g.bits is not None
+                        lo, hi = g.bits
+                        mask = (1 << (hi - lo + 1)) - 1
+                        used |= mask << lo
+                        dec.append(f"{g.name!r}: (t[o+{idx}] >> {lo}) & {mask}")
+                        parts.append(f"_b(v[{g.name!r}], {mask}, {g.name!r}) << {lo}")
+                    unused = ((1 << (8 * f.size)) - 1) & ~used
+                    enc.append(f"out.append({unused} | " + " | ".join(parts) + ")")
+                continue
+            child = lay.children.get(f.name)
+            idx = len(self._fmt) - first
+            if child is None:
+                count = f.count or 1
+                self._fmt.extend(FMT[f.type] * count)  # one entry per tuple item
+                if f.count:
+                    dec.append(f"{f.name!r}: list(t[o+{idx}:o+{idx + count}])")
+                    enc.append(f"_n(v[{f.name!r}], {count}, {f.name!r}); "
+                               f"out.extend(v[{f.name!r}])")
+                else:
+                    dec.append(f"{f.name!r}: t[o+{idx}]")
+                    enc.append(f"out.append(v[{f.name!r}])")
+                continue
+            before = len(self._fmt)
+            cn = self._gen(child)
+            per = len(self._fmt) - before  # tuple items of one element
+            if f.count:
+                # the child generated one element; repeat its formats for the others
+                self._fmt.extend(self._fmt[before:] * (f.count - 1))
+                dec.append(f"{f.name!r}: [d_{cn}(t, o+{idx}+i*{per}) for i in range({f.count})]")
+                enc.append(f"_n(v[{f.name!r}], {f.count}, {f.name!r})")
+                enc.append(f"for x in v[{f.name!r}]: e_{cn}(x, out)")
+            else:
+                dec.append(f"{f.name!r}: d_{cn}(t, o+{idx})")
+                enc.append(f"e_{cn}(v[{f.name!r}], out)")
+        self._src.append(f"def d_{n}(t, o):\n    return {{" + ", ".join(dec) + "}")
+        self._src.append(f"def e_{n}(v, out):\n" + "".join(f"    {e}\n" for e in enc)
+                         + "    return None")
+        self._env.setdefault("_b", _bits)
+        self._env.setdefault("_n", _count)
+        return n
+
+
+def _bits(x: Any, mask: int, name: str) -> int:
+    if not isinstance(x, int) or not 0 <= x <= mask:
+        raise CodecError(f"{name}: {x!r} does not fit {mask.bit_length()} bit(s)")
+    return x
+
+
+def _count(items: Any, n: int, name: str) -> None:
+    if len(items) != n:
+        raise CodecError(f"{name} needs {n} elements, got {len(items)}")
