@@ -95,7 +95,14 @@ def host_parts(args: argparse.Namespace) -> tuple[Any, Any, Any]:
     from eyeq_spi.host.nvm import Nvm
     from eyeq_spi.host.scenario import ConstantDrive, CsvScenario
 
-    scenario = CsvScenario(args.scenario) if args.scenario else ConstantDrive(args.speed)
+    if args.scenario:
+        from eyeq_spi.codec.message import MessageCodec
+
+        codec = MessageCodec(args.sw)
+        members = {f.name for f in codec.layouts.get("host_vehicle_state_t", codec.sw).fields}
+        scenario: Any = CsvScenario(args.scenario, allowed=members)
+    else:
+        scenario = ConstantDrive(args.speed)
     nvm = Nvm(getattr(args, "nvm", None))
     cfg = HostConfig(sw=args.sw, camera_only_aeb=args.camera_only_aeb,
                      ack_timeout=_ms(args.ack_timeout, "ack-timeout"),
