@@ -313,3 +313,11 @@ def test_edr_trigger_is_recorded_and_ffs_errors_are_typed(running) -> None:  # t
     assert isinstance(r, MespError) and r.ret == 5 and r.ret_name == "FILE_NOT_FOUND"
     r = _mesp(running, "SwitchEyeQApplication", {"applicationId": 9})
     assert isinstance(r, MespError) and r.ret == 3
+
+
+def test_fatal_22_that_never_clears_ends_in_failed_not_a_loop() -> None:
+    emu = build(sim_config=SimConfig(fatal_error=22))  # the EyeQ reports 22 whatever it gets
+    emu.run_for(10.0)
+    assert emu.host.state is S.FAILED
+    assert "still mismatched" in (emu.host.problem or "")
+    assert emu.sim.counters.boots == 4  # the first boot and three resets

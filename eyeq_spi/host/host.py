@@ -51,7 +51,7 @@ class HostConfig:
     boot_timeout: float = 2.0  # no boot status within this -> reset and retry
     boot_strikes: int = 3
     stale_periods: float = 3.0  # a DASP stream is stale after this many periods of silence
-    max_resets: int = 5  # bring-ups in a row before giving up (a reset that never ends)
+    max_resets: int = 3  # EEPROM-driven resets before giving up (Fatal 22 that never clears)
     ack_timeout: float | None = None  # link timings; None: the seed's defaults (§6)
     transmit_timeout: float | None = None
 
@@ -358,6 +358,11 @@ class HostEmulator:
             self.problem = f"EEPROM content unusable: {exc}"
             self._fire(E.EEPROM_BAD, now, self.problem)
             return
+        if self._bringups >= self.config.max_resets:
+            self.problem = (f"intrinsic calibration still mismatched after {self._bringups} "
+                            "EyeQ resets: repair or replace the camera")
+            self._fire(E.EEPROM_BAD, now, self.problem)
+            return
         self.nvm.data.intrinsic = {k: float(v) for k, v in params.items()}
         self.nvm.save()
         self._fire(E.EEPROM_OK, now, "NVM updated from EEPROM; resetting the EyeQ")
@@ -540,14 +545,12 @@ class HostEmulator:
         self.calibration_result = {"mode": mode, "ok": ok, "time": now, **{
             k: cal[k] for k in ("distYaw", "distPitch", "roll", "phYaw", "phPitch") if k in cal}}
         if ok:
-            a = self.nvm.data.alignment
             # §21: TAC updates all four; SPC sets rollAngleKA to 0
             self.nvm.data.alignment = Alignment(
                 horizonKA=float(cal["distPitch"]), yawKA=float(cal["distYaw"]),
                 rollAngleKA=float(cal["roll"]) if mode == "TAC" else 0.0,
                 cameraAlignmentValidKA=1,
             )
-            del a
             self.nvm.save()
 
     def _deliver(self, out: DecodedMessage) -> None:
