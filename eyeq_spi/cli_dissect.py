@@ -99,7 +99,7 @@ def run_dissect(args: argparse.Namespace) -> int:
             fh = _open(path)
             try:
                 _, records = open_records(fh, args.format, args.direction)
-                dis = Dissector(args.sw)
+                dis = Dissector(codec=codec)
                 for r in _with_progress(_all(dis, records), fh, path):
                     stats.add(r)
                     if keep(r):

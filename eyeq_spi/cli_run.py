@@ -96,10 +96,11 @@ def host_parts(args: argparse.Namespace) -> tuple[Any, Any, Any]:
     from eyeq_spi.host.scenario import ConstantDrive, CsvScenario
 
     if args.scenario:
-        from eyeq_spi.codec.message import MessageCodec
+        from eyeq_spi.spec.catalog import catalog
 
-        codec = MessageCodec(args.sw)
-        members = {f.name for f in codec.layouts.get("host_vehicle_state_t", codec.sw).fields}
+        cat = catalog()
+        variant = cat.structs["host_vehicle_state_t"].variant_for(cat.sw(args.sw))
+        members = {m.name for m in variant.members} if variant else set()
         scenario: Any = CsvScenario(args.scenario, allowed=members)
     else:
         scenario = ConstantDrive(args.speed)

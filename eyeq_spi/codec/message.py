@@ -13,7 +13,7 @@ from construct import Const, Int8ul, Struct
 
 from eyeq_spi.codec.e2e import E2EState, protect, verify
 from eyeq_spi.codec.layout import Layout, LayoutCache
-from eyeq_spi.codec.mesp import MespCodec
+from eyeq_spi.codec.mesp import MESP_PROTOCOL, MespCodec
 from eyeq_spi.errors import CodecError, SpecError
 from eyeq_spi.spec.catalog import Catalog, MessageDef, SwKey, catalog
 
@@ -43,9 +43,33 @@ class DecodedMessage:
         return not self.errors
 
 
+class DaspCounters:
+    """Decision D1 on the receive side: the counter of each data ID should step +1 mod 256; an
+    unexpected one is reported (BadSeq) and the expected value is relearned from it."""
+
+    def __init__(self) -> None:
+        self._last: dict[int, int] = {}
+
+    def check(self, data_id: int, counter: int) -> int | None:
+        """The counter that was expected if ``counter`` is not it, else None."""
+        last = self._last.get(data_id)
+        self._last[data_id] = counter
+        if last is not None and counter != (last + 1) & 0xFF:
+            return (last + 1) & 0xFF
+        return None
+
+    def clear(self) -> None:
+        self._last.clear()
+
+
+def is_mesp(data: bytes) -> bool:
+    """Rule A for MESP, with room for the whole 5-byte header (M1)."""
+    return len(data) >= 5 and classify(data) == "MESP"
+
+
 def classify(data: bytes) -> str:
     """Rule A on the first bytes of a reassembled message."""
-    if len(data) >= 3 and data[1] == 0x5E and data[0] == data[2]:
+    if len(data) >= 3 and data[1] == MESP_PROTOCOL and data[0] == data[2]:
         return "MESP"
     if data[:1] == bytes([DASP_PROTOCOL]):
         return "DASP"

@@ -16,7 +16,7 @@ from typing import Any
 
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.codec.e2e import E2EState
-from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.codec.message import DaspCounters, MessageCodec
 from eyeq_spi.errors import FrameError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.events import (
@@ -48,12 +48,12 @@ class _Direction:
     conn: TransportConnection
     index_of_num: dict[int, int] = field(default_factory=dict)
     e2e: E2EState = field(default_factory=E2EState)
-    dasp_counters: dict[int, int] = field(default_factory=dict)
+    dasp_counters: DaspCounters = field(default_factory=DaspCounters)
 
 
 class Dissector:
-    def __init__(self, sw: str | None = None) -> None:
-        self.codec = MessageCodec(sw)
+    def __init__(self, sw: str | None = None, codec: MessageCodec | None = None) -> None:
+        self.codec = codec or MessageCodec(sw)
         self.frames = FrameCodec()
         self._dirs: dict[str | None, _Direction] = {}
         self.index = 0
@@ -175,11 +175,10 @@ class Dissector:
         errors = list(out.errors)
         data_id = out.header.get("data_id") if out.protocol == "DASP" else None
         if data_id is not None:
-            last = d.dasp_counters.get(data_id)
             counter = out.header["counter"]
-            if last is not None and counter != (last + 1) & 0xFF:
-                errors.append(f"DASP counter gap: expected {(last + 1) & 0xFF}, got {counter}")
-            d.dasp_counters[data_id] = counter
+            expected = d.dasp_counters.check(data_id, counter)
+            if expected is not None:
+                errors.append(f"DASP counter gap: expected {expected}, got {counter}")
         errors += self._enum_errors(out)
         return {
             "kind": "message", "protocol": out.protocol, "name": out.name,

@@ -17,7 +17,7 @@ from eyeq_spi.codec.intrinsic import (
     intrinsic_params_from_eeprom,
     version_text,
 )
-from eyeq_spi.codec.message import DecodedMessage, MessageCodec
+from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
 from eyeq_spi.errors import CodecError, LocalProtocolError
 from eyeq_spi.host.machine import HostEvent, HostState, next_state
 from eyeq_spi.host.nvm import Alignment, Nvm
@@ -125,7 +125,7 @@ class HostEmulator:
         self._subscribers: list[Subscriber] = []
         self._queues: list[asyncio.Queue[DecodedMessage]] = []
         self._e2e = E2EState()
-        self._rx_counters: dict[int, int] = {}
+        self._rx_counters = DaspCounters()
         self._last_rx: dict[str, float] = {}
         self._stale: set[str] = set()
         self._strikes = 0
@@ -508,12 +508,9 @@ class HostEmulator:
 
     def _on_dasp(self, out: DecodedMessage, data: bytes, now: float) -> None:
         data_id = out.header.get("data_id")
-        if data_id is not None:
-            counter = out.header["counter"]
-            last = self._rx_counters.get(data_id)
-            if last is not None and counter != (last + 1) & 0xFF:
-                self.counters.dasp_counter_gaps += 1
-            self._rx_counters[data_id] = counter
+        if data_id is not None and self._rx_counters.check(data_id, out.header["counter"]) \
+                is not None:
+            self.counters.dasp_counter_gaps += 1
         e2e = [e for e in out.errors if e.startswith("E2E")]
         if e2e:
             self.counters.e2e_errors += len(e2e)

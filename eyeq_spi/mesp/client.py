@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.codec.mesp import REPLY_BIT, TAG_MASK, MespCodec
+from eyeq_spi.codec.message import is_mesp
 from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.mesp.replies import MespError, MespReply, typed
 from eyeq_spi.spec.catalog import Catalog, catalog
@@ -136,7 +137,7 @@ class MespClient:
     # -- receive ----------------------------------------------------------------------------
     def receive_message(self, data: bytes, now: float) -> bool:
         """Feed a reassembled MESP message. Returns False if it is not a MESP reply."""
-        if len(data) < 5 or data[1] != 0x5E or data[0] != data[2] or not data[4] & REPLY_BIT:
+        if not is_mesp(data) or not data[4] & REPLY_BIT:
             return False
         key = (data[0], data[3], data[4] & TAG_MASK)
         p = self._pending.pop(key, None)

@@ -10,7 +10,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from eyeq_spi.codec.mesp import REPLY_BIT, TAG_MASK, MespCodec
+from eyeq_spi.codec.mesp import MESP_PROTOCOL, REPLY_BIT, TAG_MASK, MespCodec
+from eyeq_spi.codec.message import is_mesp
 from eyeq_spi.errors import CodecError
 from eyeq_spi.spec.catalog import Catalog, catalog
 
@@ -35,13 +36,13 @@ class MespServer:
 
     def handle(self, data: bytes) -> bytes | None:
         """Reply bytes for a request, or None if ``data`` is not a MESP request."""
-        if len(data) < 5 or data[1] != 0x5E or data[0] != data[2] or data[4] & REPLY_BIT:
+        if not is_mesp(data) or data[4] & REPLY_BIT:
             return None
         self.requests += 1
         service, function, counter = data[0], data[3], data[4] & TAG_MASK
         f = self.codec.functions.get((service, function))
         if f is None or f.name not in self.handlers:
-            return bytes((service, 0x5E, service, function, REPLY_BIT | counter)) + \
+            return bytes((service, MESP_PROTOCOL, service, function, REPLY_BIT | counter)) + \
                 RET_UNKNOWN_FUNCTION.to_bytes(4, "little")
         decoded = self.codec.decode(data)
         if decoded.errors:

@@ -42,7 +42,7 @@ from eyeq_spi.codec.intrinsic import (
     intrinsic_params_from_eeprom,
     version_bytes,
 )
-from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.codec.message import DaspCounters, MessageCodec
 from eyeq_spi.errors import CodecError, EyeqError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.mesp.server import (
@@ -118,7 +118,7 @@ class SimulatedEyeQ:
         self._replies: deque[tuple[float, bytes]] = deque()
         self._dropped: Counter[str] = Counter()
         self._dasp_counter: Counter[int] = Counter()
-        self._rx_counter: dict[int, int] = {}
+        self._rx_counter = DaspCounters()
         self._templates: dict[str, dict[str, Any]] = {}
         self.powered = False
         self.app_running = False
@@ -242,15 +242,11 @@ class SimulatedEyeQ:
 
     def _on_dasp(self, data: bytes, now: float) -> None:
         out = self.codec.decode(data)
-        data_id = out.header.get("data_id")
         if out.name is None or any(e.startswith("BadHdr") for e in out.errors):
             self.counters.bad_hdr = (self.counters.bad_hdr + 1) & 0xFF
             return
-        counter = out.header["counter"]
-        last = self._rx_counter.get(data_id)  # type: ignore[arg-type]
-        if last is not None and counter != (last + 1) & 0xFF:
+        if self._rx_counter.check(int(out.header["data_id"]), out.header["counter"]) is not None:
             self.counters.bad_seq = (self.counters.bad_seq + 1) & 0xFF
-        self._rx_counter[data_id] = counter  # type: ignore[index]  # relearn (D1)
         if out.name == "HOST_VEH_STATE_MSG":
             self.counters.msg20_rx = (self.counters.msg20_rx + 1) & 0xFFFF
             self.counters.rolling_count_echo = int(out.fields.get("SPI_Rolling_Count", 0))
