@@ -139,9 +139,10 @@ def test_duplicated_frame_is_acked_again_and_dropped(link_pair: Pair) -> None:
     assert eyeq.counters.sequenceErrorCounter == 0
 
 
-def test_reordered_frames_follow_the_window_rules(link_pair: Pair) -> None:
-    """L6 consequence: frame 2 ahead of frame 1 is accepted (1 skipped), then 1 is in [E-W, E)
-    and is ACKed as a duplicate and dropped. Both are ACKed, so the sender sees success."""
+def test_reordered_frame_is_a_late_frame_and_is_naked(link_pair: Pair) -> None:
+    """L6a: frame 2 ahead of frame 1 is accepted (1 skipped); 1 then arrives in [E-W, E) but was
+    never accepted, so it is a late frame: NAK 0x001 and dropped, and its sender learns that it
+    was lost (before L6a it was ACKed as a duplicate although it was never delivered)."""
     host, eyeq = link_pair.sides["host"], link_pair.sides["eyeq"]
     held: list[bytes] = []
 
@@ -159,9 +160,46 @@ def test_reordered_frames_follow_the_window_rules(link_pair: Pair) -> None:
     link_pair.run(0.1)
     ev = link_pair.events("eyeq")
     assert [e.num for e in of(ev, DataReceived)] == [0, 2]
-    assert [e.num for e in of(ev, DuplicateReceived)] == [1]
-    assert (eyeq.counters.skippedFrames, eyeq.counters.duplicateFrames) == (1, 1)
-    assert sorted(e.tag for e in of(link_pair.events("host"), Sent)) == [0, 1, 2]
+    assert of(ev, DuplicateReceived) == []
+    c = eyeq.counters
+    assert (c.skippedFrames, c.lateFrames, c.duplicateFrames, c.sequenceErrorCounter) == (1, 1, 0, 1)
+    assert nak_frames(link_pair, "eyeq") == [(1, NakReason.OUT_OF_WINDOW)]
+    hev = link_pair.events("host")
+    assert sorted(e.tag for e in of(hev, Sent)) == [0, 2]
+    assert [(f.tag, f.reason) for f in of(hev, SendFailed)] == [(1, "nak")]
+
+
+def test_true_duplicate_is_acked_and_dropped_but_same_num_other_bytes_is_a_reset() -> None:
+    """L6a: byte-identical repeat -> duplicate; same NUM with other bytes -> the peer reset:
+    resynchronise and accept."""
+    rx = LinkConnection(LinkConfig(role="eyeq"))
+    frames = [codec.data_frame(0, n, payload(n)) for n in range(4)]
+    for f in frames:
+        rx.receive_data(f, 0.0)
+    rx.receive_data(frames[2], 0.0)
+    other = codec.data_frame(0, 2, payload(99))
+    rx.receive_data(other, 0.0)
+    evs = []
+    while (e := rx.next_event()) is not None:
+        evs.append(e)
+    assert [e.num for e in of(evs, DuplicateReceived)] == [2]
+    assert [(e.num, e.cause) for e in of(evs, Resynchronised)] == [(2, "peer_reset")]
+    assert [e.data[:5] for e in of(evs, DataReceived)] == [payload(n) for n in (0, 1, 2, 3, 99)]
+    assert rx.expected_num == 3 and rx.counters.resynchronisations == 1
+
+
+@pytest.mark.parametrize("start", [0, 1, 500, *range(4088, 4096)])
+def test_passive_receiver_starts_at_the_first_data_frame(start: int) -> None:
+    """L9: a passive receiver takes the first DATA frame's NUM as E: nothing is lost."""
+    rx = LinkConnection(LinkConfig(role="host", passive=True))
+    for k in range(20):
+        n = (start + k) % 4096
+        rx.receive_data(codec.data_frame(0, n, payload(k)), 0.0)
+    evs = []
+    while (e := rx.next_event()) is not None:
+        evs.append(e)
+    assert [e.data[:5] for e in of(evs, DataReceived)] == [payload(k) for k in range(20)]
+    assert rx.counters.sequenceErrorCounter == 0 and rx.counters.duplicateFrames == 0
 
 
 @pytest.mark.parametrize("length", [127, 129])

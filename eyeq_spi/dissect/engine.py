@@ -3,7 +3,9 @@
 Each direction has a passive receiver: a :class:`TransportConnection` in the role of the side that
 received that channel, fed with the channel's DATA frames, so duplicates, window errors, NUM gaps
 and aborted transfers are judged exactly as the real receiver judges them. Its own ACK/NAK output
-is discarded. Frame records come out in capture order; a message record follows the frame that
+is discarded. The receivers are passive (decision L9): each direction's first DATA frame sets the
+expected NUM, consecutive frames before any first frame are ``incomplete_at_start`` and a
+transfer still open at the end of the input is ``incomplete_at_end``; neither is an error. Frame records come out in capture order; a message record follows the frame that
 completed it. Memory stays bounded: only the current transfer of each direction and the last
 index of each NUM are kept.
 """
@@ -27,7 +29,7 @@ from eyeq_spi.link.events import (
 )
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 from eyeq_spi.transport.connection import TransportConnection
-from eyeq_spi.transport.events import MessageReceived, TransferAborted
+from eyeq_spi.transport.events import MessageReceived, TransferAborted, TransferIncomplete
 
 TRANSPORT_NAMES = {0x00: "single", 0x01: "first", 0x02: "consecutive"}
 RECEIVER = {"h2e": "eyeq", "e2h": "host", None: "host"}
@@ -63,7 +65,8 @@ class Dissector:
         d = self._dirs.get(direction)
         if d is None:
             role = RECEIVER[direction]
-            d = _Direction(TransportConnection(LinkConfig(role=role)))  # type: ignore[arg-type]
+            d = _Direction(TransportConnection(
+                LinkConfig(role=role, passive=True)))  # type: ignore[arg-type]
             self._dirs[direction] = d
         return d
 
@@ -138,13 +141,10 @@ class Dissector:
                 timer = nxt
 
     def finish(self) -> Iterator[dict[str, Any]]:
-        """End of capture: a transfer still open is reported as aborted (timeout)."""
+        """End of capture: a transfer still open is incomplete, not timed out (L9)."""
         for direction, d in self._dirs.items():
-            timer = d.conn.get_timer()
-            if timer is not None:
-                d.conn.handle_timer(max(timer, (self.last_time or 0.0) + 1.0))
-                d.conn.data_to_send(float("inf"))
-                yield from self._events(direction, d)
+            d.conn.finish()
+            yield from self._events(direction, d)
 
     def _events(self, direction: str | None, d: _Direction) -> Iterator[dict[str, Any]]:
         while (ev := d.conn.next_event()) is not None:
@@ -153,6 +153,10 @@ class Dissector:
             elif isinstance(ev, TransferAborted):
                 yield {"kind": "event", "type": "transfer_aborted", "direction": direction,
                        "reason": ev.reason, "transfer_id": ev.transfer_id,
+                       "received": ev.received, "total": ev.total, "index": self.index - 1}
+            elif isinstance(ev, TransferIncomplete):
+                yield {"kind": "event", "type": f"incomplete_at_{ev.where}",
+                       "direction": direction, "transfer_id": ev.transfer_id,
                        "received": ev.received, "total": ev.total, "index": self.index - 1}
             elif isinstance(ev, FrameRejected):
                 yield {"kind": "event", "type": "frame_rejected", "direction": direction,
@@ -164,7 +168,7 @@ class Dissector:
                 if isinstance(ev, DuplicateReceived):
                     body.update(type="duplicate", num=ev.num)
                 elif isinstance(ev, Resynchronised):
-                    body.update(type="resynchronised", num=ev.num)
+                    body.update(type="resynchronised", num=ev.num, cause=ev.cause)
                 else:
                     body.update(type="frames_skipped", expected=ev.expected, num=ev.num,
                                 count=ev.count)

@@ -132,6 +132,9 @@ class Stats:
                f"  CRC errors {d['crc_errors']}, wrong length {d['bad_length']}, NAK reasons "
                f"{d['nak_reasons'] or 'none'}, "
                f"aborted transfers {d['aborted_transfers'] or 'none'}",
+               # L9: cut by the capture's start or end, not a protocol error
+               f"  incomplete transfers: at start {d['events'].get('incomplete_at_start', 0)}, "
+               f"at end {d['events'].get('incomplete_at_end', 0)}",
                "== messages (count, mean rate / nominal)"]
         for name, r in d["messages"].items():
             mean = "-" if r["mean_hz"] is None else f"{r['mean_hz']:.2f} Hz"

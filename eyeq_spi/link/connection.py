@@ -9,9 +9,19 @@ Theory of operation
    a broken ACK/NAK is never answered;
 3. D and R (L2): invalid -> ``formatErrorCounter``, NAK 0x011 (not for ACK/NAK);
 4. ACK/NAK frames settle the sender's in-flight frames;
-5. DATA frames go through the receive window (L6): duplicate -> ACK again, out of window -> NAK
+5. DATA frames go through the receive window (L6, refined by L6a): a NUM in ``[E-W, E)`` is
+   - a duplicate if that NUM was accepted and this transfer is byte-identical: ACK again, drop;
+   - a peer reset if that NUM was accepted and this transfer differs: resynchronise (E = NUM+1,
+     ``Resynchronised(cause="peer_reset")``, which makes the transport abort any open transfer)
+     and accept it;
+   - a late frame if that NUM was skipped (never accepted): NAK 0x001 and drop, so its sender
+     learns that it was lost instead of believing that it arrived.
+   To tell these apart the receiver keeps the last W accepted transfers. Out of window -> NAK
    0x001 (resynchronise after 3 in a row), else the payload check of the layer above (transport
    header, NAK 0x011), then accept: ACK, ``DataReceived``.
+
+A passive receiver (``LinkConfig.passive``, decision L9: a dissector that did not see the link
+start) takes the NUM of the first DATA frame it sees as E.
 
 ``send(data, tag, now)`` queues one DATA frame. ``data_to_send(now)`` releases transfers: control
 frames (ACK/NAK) first, then DATA frames while fewer than W are in flight (L7), never closer than
@@ -66,6 +76,7 @@ class LinkConfig:
     frame_gap: float | None = None  # None: frameFlowControl of the role, between DATA frames
     control_gap: float = _SPEC["timing"]["control_gap"]  # between ACK/NAK frames
     codec: FrameCodec = field(default_factory=FrameCodec)
+    passive: bool = False  # L9: E is the first DATA frame's NUM, not 0
 
     def __post_init__(self) -> None:
         if self.role not in ("host", "eyeq"):
@@ -118,6 +129,8 @@ class LinkConnection:
             raise LocalProtocolError("start NUMs must be 0..4095")
         self._tx_num = tx_num
         self._expected = expected
+        self._started = not self.config.passive  # L9: a passive receiver learns E
+        self._accepted: OrderedDict[int, bytes] = OrderedDict()  # L6a: last W accepted
         self._last_accepted = 0
         self._naks_in_row = 0
         self._next_tx = float("-inf")
@@ -247,28 +260,48 @@ class LinkConnection:
         elif frame.kind is FrameKind.NAK:
             self._on_nak(frame.rsp, frame.num)
         else:
-            self._on_data(frame.num, frame.data)
+            self._on_data(frame.num, frame.data, transfer)
 
-    def _on_data(self, num: int, data: bytes) -> None:
+    def _on_data(self, num: int, data: bytes, transfer: bytes) -> None:
         c, w, m = self.counters, self.config.window, SEQ_MODULO
+        if not self._started:  # L9: the first DATA frame a passive receiver sees sets E
+            self._started = True
+            self._expected = num
         ahead = (num - self._expected) % m
         behind = (self._expected - num) % m
+        resync: str | None = None
         if self._naks_in_row >= self.config.resync_after_naks:
-            self._events.append(Resynchronised(num))
-            ahead = 0  # L6: take this frame's NUM as the new E
-            self._expected = num
+            resync = "nak_limit"  # L6: take this frame's NUM as the new E
         elif ahead >= w:
             if 1 <= behind <= w:
-                c.duplicateFrames += 1
-                self._naks_in_row = 0
-                self._control.append(self.codec.ack(num))
-                self._events.append(DuplicateReceived(num))
+                seen = self._accepted.get(num)
+                if seen is None:  # L6a: a late frame, skipped over earlier
+                    c.sequenceErrorCounter += 1
+                    c.lateFrames += 1
+                    self._reject(num, NakReason.OUT_OF_WINDOW,
+                                 f"late frame NUM {num}: skipped at E={self._expected}")
+                    return
+                if seen == transfer:  # L6a: a true duplicate
+                    c.duplicateFrames += 1
+                    self._naks_in_row = 0
+                    self._control.append(self.codec.ack(num))
+                    self._events.append(DuplicateReceived(num))
+                    return
+                resync = "peer_reset"  # L6a: same NUM, other bytes: the peer started over
+            else:
+                c.sequenceErrorCounter += 1
+                self._naks_in_row += 1
+                detail = f"NUM {num} outside window at E={self._expected}"
+                self._reject(num, NakReason.OUT_OF_WINDOW, detail)
                 return
-            c.sequenceErrorCounter += 1
-            self._naks_in_row += 1
-            detail = f"NUM {num} outside window at E={self._expected}"
-            self._reject(num, NakReason.OUT_OF_WINDOW, detail)
-            return
+        if resync is not None:
+            # Nothing received before this frame may be joined with it (L6a): the transport
+            # aborts its open transfer on this event before it sees the frame.
+            c.resynchronisations += 1
+            self._accepted.clear()
+            self._expected = num
+            ahead = 0
+            self._events.append(Resynchronised(num, resync))
         if self.payload_check is not None:
             reason = self.payload_check(num, data)
             if reason is not None:
@@ -282,6 +315,11 @@ class LinkConnection:
         self._naks_in_row = 0
         self._expected = (num + 1) % m
         self._last_accepted = num
+        acc = self._accepted
+        acc.pop(num, None)
+        acc[num] = bytes(transfer)
+        while acc and (self._expected - next(iter(acc))) % m > w:
+            acc.popitem(last=False)  # only [E-W, E) can be a duplicate
         c.framesReceived += 1
         self._control.append(self.codec.ack(num))
         self._events.append(DataReceived(num, data))

@@ -31,6 +31,8 @@ class SpiDiagnosticInfo:
     badLengthTransfers: int = 0
     duplicateFrames: int = 0
     skippedFrames: int = 0
+    lateFrames: int = 0  # L6a: a NUM in [E-W, E) that was skipped, NAKed 0x001
+    resynchronisations: int = 0  # L6/L6a: E taken from a frame after NAKs or a peer reset
     framesReceived: int = 0
     framesAcked: int = 0
     unexpectedAckCounter: int = 0

@@ -65,9 +65,17 @@ class DuplicateReceived:
 
 @dataclass(frozen=True, slots=True)
 class Resynchronised:
-    """After ``resync_after_naks`` out-of-window NAKs the receiver took ``num`` as new E (L6)."""
+    """The receiver took ``num`` as the new E: after ``resync_after_naks`` out-of-window NAKs
+    (L6, ``cause="nak_limit"``) or because a frame repeated an accepted NUM with other bytes
+    (L6a, ``cause="peer_reset"``). Nothing received before it may join what follows."""
 
     num: int
+    cause: str = "nak_limit"
+
+    def __post_init__(self) -> None:
+        _check_num(self.num)
+        if self.cause not in ("nak_limit", "peer_reset"):
+            raise ValueError(f"bad Resynchronised cause {self.cause!r}")
 
 
 @dataclass(frozen=True, slots=True)

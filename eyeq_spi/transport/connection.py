@@ -17,6 +17,14 @@ so that one lost frame gives one abort, not one per straggler.
 A single frame arriving inside an open transfer breaks T5; it is delivered and the open transfer
 is aborted as ``interleaved``.
 
+A ``Resynchronised`` link event (3 out-of-window NAKs, or a peer reset recognised by L6a) aborts
+the open transfer as ``resynchronised`` before the frame that caused it is reassembled, so no
+message ever joins frames from both sides of a reset.
+
+A passive receiver (``LinkConfig.passive``, L9) reports consecutive frames seen before any first
+frame as ``TransferIncomplete("start")``, and :meth:`finish` reports a transfer still open at
+the end of the input as ``TransferIncomplete("end")``; neither is an error.
+
 Link events that are not about messages (rejected frames, duplicates, resynchronisation) are
 passed through unchanged, so one ``next_event()`` loop sees everything.
 """
@@ -27,7 +35,7 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 
 from eyeq_spi.link.connection import LinkConfig, LinkConnection, Role
-from eyeq_spi.link.events import DataReceived, LinkEvent, SendFailed, Sent
+from eyeq_spi.link.events import DataReceived, LinkEvent, Resynchronised, SendFailed, Sent
 from eyeq_spi.link.frame import SEQ_MODULO, NakReason
 from eyeq_spi.spec.link import link_spec
 from eyeq_spi.transport import segment as seg
@@ -36,6 +44,7 @@ from eyeq_spi.transport.events import (
     MessageSendFailed,
     MessageSent,
     TransferAborted,
+    TransferIncomplete,
     TransportEvent,
 )
 
@@ -70,6 +79,7 @@ class TransportCounters:
     messagesReceived: int = 0
     messagesFailed: int = 0
     framesDiscarded: int = 0  # consecutive frames of a transfer that was already aborted
+    incompleteTransfers: int = 0  # L9: cut by the start or end of a passive receiver's input
     transferAborts: Counter[str] = field(default_factory=Counter)
 
 
@@ -84,6 +94,7 @@ class TransportConnection:
         self._events: deque[Event] = deque()
         self._open: _Open | None = None
         self._dead_id: int | None = None  # the last aborted transfer: its stragglers are dropped
+        self._seen_first = False  # L9: orphans before any first frame began before the capture
         self._next_message_id = 0
         self._next_transfer_id = 0
 
@@ -166,6 +177,10 @@ class TransportConnection:
             elif isinstance(ev, SendFailed):
                 self.counters.messagesFailed += 1
                 self._events.append(MessageSendFailed(ev.tag, ev.reason))
+            elif isinstance(ev, Resynchronised):
+                self._events.append(ev)
+                self._abort("resynchronised")
+                self._dead_id = None  # the peer started over: no straggler to expect
             else:
                 self._events.append(ev)
 
@@ -180,6 +195,7 @@ class TransportConnection:
             if self._open is not None:
                 self._abort("new_first_frame")
             self._dead_id = None
+            self._seen_first = True
             total = int.from_bytes(data[2:6], "little")
             self._open = _Open(
                 data[1], total, bytearray(data[6 : 6 + seg.FIRST_CHUNK]), num,
@@ -191,6 +207,11 @@ class TransportConnection:
         if o is None:
             if data[1] == self._dead_id:
                 self.counters.framesDiscarded += 1
+                return
+            if self.link.config.passive and not self._seen_first:
+                self._dead_id = data[1]  # L9: the rest of this transfer is quietly dropped
+                self.counters.incompleteTransfers += 1
+                self._events.append(TransferIncomplete("start", data[1], 0, None))
                 return
             self.counters.transferAborts["no_open_transfer"] += 1
             self._events.append(TransferAborted("no_open_transfer", data[1], 0, None))
@@ -206,6 +227,16 @@ class TransportConnection:
         if len(o.buf) >= o.total:
             self._open = None
             self._deliver(bytes(o.buf), tuple(o.nums), o.transfer_id)
+
+    def finish(self) -> None:
+        """End of a passive receiver's input (L9): an open transfer is incomplete, not timed
+        out."""
+        o = self._open
+        if o is None:
+            return
+        self._open = None
+        self.counters.incompleteTransfers += 1
+        self._events.append(TransferIncomplete("end", o.transfer_id, len(o.buf), o.total))
 
     def _deliver(self, message: bytes, nums: tuple[int, ...], tid: int | None) -> None:
         self.counters.messagesReceived += 1

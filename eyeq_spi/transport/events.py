@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 ABORT_REASONS = frozenset(
     {"num_gap", "wrong_id", "no_open_transfer", "timeout", "new_first_frame", "interleaved",
-     "reset"}
+     "reset", "resynchronised"}
 )
 
 
@@ -46,4 +46,22 @@ class TransferAborted:
             raise ValueError(f"unknown abort reason {self.reason!r}")
 
 
-TransportEvent = MessageReceived | MessageSent | MessageSendFailed | TransferAborted
+@dataclass(frozen=True, slots=True)
+class TransferIncomplete:
+    """A passive receiver (L9) saw only part of a transfer because the capture began or ended
+    inside it: ``where`` is ``"start"`` (consecutive frames before any first frame) or
+    ``"end"`` (still open when the input ended). Not a protocol error."""
+
+    where: str
+    transfer_id: int | None
+    received: int  # message bytes seen
+    total: int | None
+
+    def __post_init__(self) -> None:
+        if self.where not in ("start", "end"):
+            raise ValueError(f"bad TransferIncomplete where {self.where!r}")
+
+
+TransportEvent = (
+    MessageReceived | MessageSent | MessageSendFailed | TransferAborted | TransferIncomplete
+)
