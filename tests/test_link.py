@@ -162,7 +162,8 @@ def test_reordered_frame_is_a_late_frame_and_is_naked(link_pair: Pair) -> None:
     assert [e.num for e in of(ev, DataReceived)] == [0, 2]
     assert of(ev, DuplicateReceived) == []
     c = eyeq.counters
-    assert (c.skippedFrames, c.lateFrames, c.duplicateFrames, c.sequenceErrorCounter) == (1, 1, 0, 1)
+    counts = (c.skippedFrames, c.lateFrames, c.duplicateFrames, c.sequenceErrorCounter)
+    assert counts == (1, 1, 0, 1)
     assert nak_frames(link_pair, "eyeq") == [(1, NakReason.OUT_OF_WINDOW)]
     hev = link_pair.events("host")
     assert sorted(e.tag for e in of(hev, Sent)) == [0, 2]

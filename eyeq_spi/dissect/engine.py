@@ -5,7 +5,8 @@ received that channel, fed with the channel's DATA frames, so duplicates, window
 and aborted transfers are judged exactly as the real receiver judges them. Its own ACK/NAK output
 is discarded. The receivers are passive (decision L9): each direction's first DATA frame sets the
 expected NUM, consecutive frames before any first frame are ``incomplete_at_start`` and a
-transfer still open at the end of the input is ``incomplete_at_end``; neither is an error. Frame records come out in capture order; a message record follows the frame that
+transfer still open at the end of the input is ``incomplete_at_end``; neither is an error.
+Frame records come out in capture order; a message record follows the frame that
 completed it. Memory stays bounded: only the current transfer of each direction and the last
 index of each NUM are kept.
 """
