@@ -12,6 +12,8 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from eyeq_spi.errors import SpecError
 from eyeq_spi.spec.link import specs_dir
 from eyeq_spi.spec.schema import load_yaml_tree, sw_key, validate_tree
@@ -258,10 +260,13 @@ def _signal(s: dict[str, Any]) -> InitSignal:
 
 
 def load_catalog(root: Path) -> Catalog:
-    problems = validate_tree(root)
+    try:
+        docs = load_yaml_tree(root)
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise SpecError(f"{root}: {exc}") from exc
+    problems = validate_tree(root, docs)
     if problems:
         raise SpecError(f"{root}: {len(problems)} schema problem(s), first: {problems[0]}")
-    docs = load_yaml_tree(root)
     sw_doc = docs["sw_versions.yaml"]
     versions = tuple(v["key"] for v in sw_doc["sw_versions"])
     constants: dict[str, dict[SwKey, int]] = {}
@@ -328,4 +333,7 @@ def load_catalog(root: Path) -> Catalog:
 
 @cache
 def catalog() -> Catalog:
-    return load_catalog(specs_dir())
+    """The catalogue of the shipped ``specs/``, from the start-up cache when it is current."""
+    from eyeq_spi.spec.cache import cached_catalog
+
+    return cached_catalog(specs_dir(), load_catalog)

@@ -31,7 +31,7 @@ def spec_file(name: str) -> dict[str, Any]:
     path = specs_dir() / name
     try:
         with path.open(encoding="utf-8") as fh:
-            doc = yaml.safe_load(fh)
+            doc = yaml.load(fh, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     except (OSError, yaml.YAMLError) as exc:
         raise SpecError(f"{path}: {exc}") from exc
     if not isinstance(doc, dict):

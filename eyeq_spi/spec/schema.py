@@ -46,18 +46,24 @@ def _is_num(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
+# libyaml parses specs/ about 8x faster than the pure-Python loader; same safe subset.
+SafeLoader: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
 def load_yaml_tree(root: Path) -> dict[str, Any]:
     """Load every YAML file of ``root`` into one dict keyed by relative path."""
     out: dict[str, Any] = {}
     for path in sorted(root.rglob("*.yaml")):
         with path.open(encoding="utf-8") as fh:
-            out[str(path.relative_to(root))] = yaml.safe_load(fh)
+            out[str(path.relative_to(root))] = yaml.load(fh, Loader=SafeLoader)
     return out
 
 
-def validate_tree(root: Path) -> list[str]:
+def validate_tree(root: Path, docs: dict[str, Any] | None = None) -> list[str]:
+    """Every schema problem of ``root`` (``docs``: the tree already loaded, to parse it once)."""
     problems: list[str] = []
-    docs = load_yaml_tree(root)
+    if docs is None:
+        docs = load_yaml_tree(root)
     constants: dict[str, Any] = {}
     structs: dict[str, tuple[str, dict[str, Any]]] = {}
     enums: dict[str, Any] = {}

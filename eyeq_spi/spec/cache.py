@@ -1,0 +1,104 @@
+"""Start-up cache of the validated catalogue.
+
+Parsing and validating ``specs/`` costs ~0.2 s even with libyaml; every CLI start needs the
+catalogue (argument checks name messages, MESP functions and faults). The validated
+:class:`~eyeq_spi.spec.catalog.Catalog` is pickled into the user's cache directory under a key
+that hashes every byte of ``specs/`` and its path, the source of the loader modules and the Python
+version, so an edited YAML file, an edited loader or another interpreter never sees a stale one.
+
+The cache is an optimisation only: an unwritable, missing, corrupt or foreign cache file falls back
+to parsing ``specs/`` (and silently tries to write a fresh one). ``EYEQ_SPI_CACHE_DIR`` moves it;
+``EYEQ_SPI_NO_CACHE=1`` turns it off. The pickle is read only from a directory of the current user,
+written atomically (temporary file + rename) and mode 0600.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import pickle
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import TypeVar, cast
+
+T = TypeVar("T")
+
+_FORMAT = b"eyeq-spi catalogue cache 1"
+
+
+def cache_dir() -> Path:
+    """``$EYEQ_SPI_CACHE_DIR``, else the platform's user cache directory + ``eyeq-spi``."""
+    env = os.environ.get("EYEQ_SPI_CACHE_DIR")
+    if env:
+        return Path(env)
+    from platformdirs import user_cache_dir
+
+    return Path(user_cache_dir("eyeq-spi", appauthor=False))
+
+
+def specs_digest(root: Path) -> str:
+    """SHA-256 over every file of ``root`` (path and bytes), the loader sources and Python."""
+    h = hashlib.sha256(_FORMAT)
+    h.update(sys.version.encode() + b"\0" + str(root.resolve()).encode() + b"\0")
+    here = Path(__file__).resolve().parent
+    for src in sorted(here.glob("*.py")):
+        h.update(src.name.encode() + b"\0" + src.read_bytes() + b"\0")
+    for path in sorted(p for p in root.rglob("*") if p.is_file()):
+        h.update(str(path.relative_to(root)).encode() + b"\0")
+        h.update(path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def cached_catalog(root: Path, load: Callable[[Path], T]) -> T:
+    """``load(root)``, or the pickled result of an earlier call with the same ``specs/``."""
+    if os.environ.get("EYEQ_SPI_NO_CACHE"):
+        return load(root)
+    try:
+        digest = specs_digest(root)
+        path = cache_dir() / f"catalog-{digest[:32]}.pickle"
+    except (OSError, ImportError):
+        return load(root)
+    cached = _read(path)
+    if cached is not None:
+        return cast(T, cached)
+    value = load(root)  # a SpecError propagates: nothing is cached for a broken specs/
+    _write(path, value)
+    return value
+
+
+def _read(path: Path) -> object | None:
+    try:
+        st = path.stat()
+        if hasattr(os, "getuid") and st.st_uid != os.getuid():
+            return None  # only trust a file this user wrote
+        with path.open("rb") as fh:
+            value: object = pickle.load(fh)
+            return value
+    except FileNotFoundError:
+        return None
+    except Exception:  # a corrupt, foreign or unpicklable cache is never fatal
+        with contextlib.suppress(OSError):
+            path.unlink()
+        return None
+
+
+def _write(path: Path, value: object) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".catalog-", suffix=".tmp")
+    except OSError:
+        return  # read-only home, full disk...: run without a cache
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(tmp, path)
+        for old in path.parent.glob("catalog-*.pickle"):  # keep only the current key
+            if old != path:
+                with contextlib.suppress(OSError):
+                    old.unlink()
+    except Exception:  # a corrupt, foreign or unpicklable cache is never fatal
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
