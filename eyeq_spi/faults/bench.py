@@ -1,0 +1,63 @@
+"""The bench the campaigns run on: host emulator and simulated EyeQ over a memory pair (the
+in-process emulator), started from an NVM that already matches the camera, so that every run
+begins with the second ignition (no Fatal 22 detour) unless asked otherwise."""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from functools import lru_cache
+
+from eyeq_spi.emulator import Emulation, build
+from eyeq_spi.host.host import HostConfig
+from eyeq_spi.host.machine import HostState
+from eyeq_spi.host.nvm import Nvm, NvmData
+from eyeq_spi.phy.memory import MemoryAdapter
+from eyeq_spi.sim.config import SimConfig
+
+FIRST_IGNITION_LIMIT = 5.0  # virtual seconds a clean first ignition may take to reach vision
+
+
+@dataclass(frozen=True)
+class Scene:
+    """How busy the simulated EyeQ's scene is (DASP payload work per message)."""
+
+    objects: int = 8
+    signs: int = 4
+    light_spots: int = 4
+
+
+@lru_cache(maxsize=8)
+def _matched_nvm(sw: str | None) -> NvmData:
+    emu = build(sim_config=SimConfig(sw=sw), host_config=HostConfig(sw=sw), nvm=Nvm(),
+                keep_rx_times=False)
+    emu.run_for(FIRST_IGNITION_LIMIT, stop=lambda: emu.host.state is HostState.RUNNING_VISION)
+    if emu.host.state is not HostState.RUNNING_VISION:
+        raise RuntimeError(f"a clean first ignition did not reach vision: {emu.host.problem}")
+    return copy.deepcopy(emu.host.nvm.data)
+
+
+def matched_nvm(sw: str | None = None) -> Nvm:
+    """An in-memory NVM as a clean first ignition leaves it (intrinsics from the EEPROM)."""
+    nvm = Nvm()
+    nvm.data = copy.deepcopy(_matched_nvm(sw))
+    return nvm
+
+
+def bench(*, seed: int = 1, sw: str | None = None, scene: Scene | None = None,
+          fresh_nvm: bool = False, sim_config: SimConfig | None = None) -> Emulation:
+    sc = scene or Scene()
+    cfg = sim_config or SimConfig(sw=sw, seed=seed, objects=sc.objects, signs=sc.signs,
+                                  light_spots=sc.light_spots)
+    nvm = Nvm() if fresh_nvm else matched_nvm(sw)
+    return build(sim_config=cfg, host_config=HostConfig(sw=sw), nvm=nvm, keep_rx_times=False)
+
+
+def adapters(emu: Emulation) -> tuple[MemoryAdapter, MemoryAdapter]:
+    """The host's and the EyeQ's end of the memory pair (their ``mangle`` is the fault hook)."""
+    ends = [a for _, a in emu.runner.nodes]
+    if len(ends) != 2 or not all(isinstance(a, MemoryAdapter) for a in ends):
+        raise TypeError("the emulation does not run over a memory pair")
+    host_end, sim_end = ends
+    assert isinstance(host_end, MemoryAdapter) and isinstance(sim_end, MemoryAdapter)
+    return host_end, sim_end

@@ -1,0 +1,199 @@
+"""A seeded lossy SPI channel for the memory pair's fault hook (``MemoryAdapter.mangle``).
+
+Theory of operation
+-------------------
+Every transfer one side puts on the wire passes through :meth:`FaultyChannel.__call__`, which
+returns what the peer receives. Per transfer, one fault class is drawn (they are exclusive, so
+that each injected fault maps to exactly one receiver reaction):
+
+- ``drop`` (probability ``profile.drop``): the peer receives nothing;
+- ``duplicate``: the peer receives the transfer twice, back to back;
+- ``reorder``: the transfer is held and delivered right after the next one (which passes clean);
+- ``truncate``: the peer receives the first 1..127 bytes (chip select rose early, L8);
+- otherwise the bits are flipped independently with probability ``profile.ber`` per bit (a
+  geometric gap between flips, so the process is exactly Bernoulli per bit over the run).
+
+Each injection is recorded as an :class:`Injected` with what the receiver must make of it under
+L3/L5/L6/L8, so that a soak can compare the record with the receiver's counters.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections import Counter
+from dataclasses import dataclass, field
+
+from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
+
+CRC_COVERED_CONTROL = 6  # L3: an ACK/NAK's CRC covers bytes 0..3; bytes 4..5 are the CRC itself
+KINDS = ("flip", "drop", "duplicate", "reorder", "truncate")
+
+
+@dataclass(frozen=True)
+class FaultProfile:
+    """Per-transfer probabilities of each fault class, and the bit error rate."""
+
+    ber: float = 1e-5
+    drop: float = 0.01
+    duplicate: float = 0.01
+    reorder: float = 0.01
+    truncate: float = 0.01
+
+    def __post_init__(self) -> None:
+        for name in ("ber", "drop", "duplicate", "reorder", "truncate"):
+            if not 0.0 <= getattr(self, name) < 1.0:
+                raise ValueError(f"{name} must be in [0, 1)")
+        if self.drop + self.duplicate + self.reorder + self.truncate >= 1.0:
+            raise ValueError("the exclusive fault classes must sum to less than 1")
+
+    @classmethod
+    def with_loss(cls, loss: float) -> FaultProfile:
+        """The issue's profile with ``drop`` raised so that about ``loss`` of the frames never
+        arrive intact: BER 1e-5 (≈1% of 128-byte frames) + 1% truncation + the rest dropped."""
+        ber_frames = 1.0 - (1.0 - 1e-5) ** (FRAME_SIZE * 8)
+        drop = loss - 0.01 - ber_frames
+        if drop < 0:
+            raise ValueError(f"loss {loss} is below the profile's own {0.01 + ber_frames:.3f}")
+        return cls(drop=drop)
+
+    @property
+    def expected_frame_loss(self) -> float:
+        ber_frames = (1.0 - (1.0 - self.ber) ** (FRAME_SIZE * 8))
+        clean = 1.0 - self.drop - self.duplicate - self.reorder - self.truncate
+        return self.drop + self.truncate + clean * ber_frames
+
+
+@dataclass(frozen=True)
+class Injected:
+    """One injected fault. ``frame`` is D of the original transfer (``DATA``/``ACK``/``NAK``/
+    ``?``); ``crc_covered``: a flip that the L3 CRC must catch; ``after`` (reorder): D of the
+    transfer that overtook it."""
+
+    index: int
+    kind: str
+    frame: str
+    num: int
+    rsp: int
+    bits: tuple[int, ...] = ()
+    length: int = FRAME_SIZE
+    crc_covered: bool = False
+    after: str | None = None
+
+
+@dataclass
+class ChannelStats:
+    transfers: int = 0  # transfers offered by the sender
+    delivered: int = 0  # transfers handed to the receiver
+    bits: int = 0
+    injected: Counter[str] = field(default_factory=Counter)
+
+
+class FaultyChannel:
+    """A ``Mangle`` for one direction of a memory pair. ``enabled = False`` passes transfers
+    through (and releases a held one)."""
+
+    def __init__(self, profile: FaultProfile, seed: int, *, codec: FrameCodec | None = None
+                 ) -> None:
+        self.profile = profile
+        self.rng = random.Random(seed)
+        self.codec = codec or FrameCodec()
+        self.enabled = True
+        self.stats = ChannelStats()
+        self.record: list[Injected] = []
+        self._held: tuple[int, bytes] | None = None
+        self._to_flip = self._gap()
+
+    # -- the hook ---------------------------------------------------------------------------
+    def __call__(self, transfer: bytes) -> list[bytes]:
+        index = self.stats.transfers
+        self.stats.transfers += 1
+        out = self._mangle(index, transfer)
+        self.stats.delivered += len(out)
+        return out
+
+    def _mangle(self, index: int, transfer: bytes) -> list[bytes]:
+        if self._held is not None:
+            held_index, held = self._held
+            self._held = None
+            self._note(held_index, "reorder", held, after=self._kind(transfer))
+            return [transfer, held]
+        if not self.enabled:
+            return [transfer]
+        p = self.profile
+        u = self.rng.random()
+        if u < p.drop:
+            self._note(index, "drop", transfer)
+            return []
+        u -= p.drop
+        if u < p.duplicate:
+            self._note(index, "duplicate", transfer)
+            return [transfer, transfer]
+        u -= p.duplicate
+        if u < p.reorder:
+            self._held = (index, transfer)
+            return []
+        u -= p.reorder
+        if u < p.truncate:
+            length = self.rng.randrange(1, len(transfer))
+            self._note(index, "truncate", transfer, length=length)
+            return [transfer[:length]]
+        return [self._flip(index, transfer)]
+
+    # -- bit errors -------------------------------------------------------------------------
+    def _gap(self) -> int:
+        """Bits until the next flip: geometric with parameter ``ber`` (inf when 0)."""
+        if self.profile.ber <= 0:
+            return 1 << 62
+        u = 1.0 - self.rng.random()  # (0, 1]
+        return int(math.log(u) / math.log1p(-self.profile.ber))
+
+    def _flip(self, index: int, transfer: bytes) -> bytes:
+        nbits = len(transfer) * 8
+        self.stats.bits += nbits
+        if self._to_flip >= nbits:
+            self._to_flip -= nbits
+            return transfer
+        flipped: list[int] = []
+        pos = self._to_flip
+        while pos < nbits:
+            flipped.append(pos)
+            pos += 1 + self._gap()
+        self._to_flip = pos - nbits
+        buf = bytearray(transfer)
+        for bit in flipped:
+            buf[bit // 8] ^= 1 << (bit % 8)
+        kind = self._kind(transfer)
+        covered = kind not in ("ACK", "NAK") or min(flipped) < CRC_COVERED_CONTROL * 8
+        self._note(index, "flip", transfer, bits=tuple(flipped), crc_covered=covered)
+        return bytes(buf)
+
+    # -- bookkeeping ------------------------------------------------------------------------
+    def _kind(self, transfer: bytes) -> str:
+        if len(transfer) != FRAME_SIZE:
+            return "?"
+        d = self.codec.unpack_header(int.from_bytes(transfer[:4], "little"))[0]
+        try:
+            return FrameKind(d).name
+        except ValueError:
+            return "?"
+
+    def _note(self, index: int, kind: str, transfer: bytes, *, bits: tuple[int, ...] = (),
+              length: int = FRAME_SIZE, crc_covered: bool = False, after: str | None = None
+              ) -> None:
+        d, _, rsp, num = self.codec.unpack_header(int.from_bytes(transfer[:4], "little"))
+        try:
+            frame = FrameKind(d).name
+        except ValueError:
+            frame = "?"
+        self.record.append(Injected(index, kind, frame, num, rsp, bits, length, crc_covered,
+                                    after))
+        self.stats.injected[kind] += 1
+
+    def count(self, kind: str, frame: str | None = None, *, after: str | None = None,
+              crc_covered: bool | None = None) -> int:
+        """How many injections of ``kind`` match the filters."""
+        return sum(1 for r in self.record if r.kind == kind
+                   and (frame is None or r.frame == frame)
+                   and (after is None or r.after == after)
+                   and (crc_covered is None or r.crc_covered == crc_covered))

@@ -1,0 +1,188 @@
+"""Lossy-channel soak: the host emulator and the simulated EyeQ over a memory pair whose fault
+hook is a :class:`FaultyChannel` in each direction, in virtual time.
+
+Accounting (every fault on the channel X -> Y is seen by Y's link counters; deltas are taken
+from the moment the faults are switched on, and the channels run clean for ``settle`` seconds at
+the end so that every held or skipped frame is followed by a clean one):
+
+=====================  =====================================================================
+counter of Y           must equal (rule)
+=====================  =====================================================================
+badLengthTransfers     truncated transfers (L8)
+dataCRCErrorCounter    flipped transfers whose flips the L3 CRC covers: any flip in a DATA
+                       frame, a flip in bytes 0..5 of an ACK/NAK (their pad is not covered)
+duplicateFrames        duplicated DATA frames (L6, L6a: byte-identical and accepted before)
+sequenceErrorCounter   reordered DATA frames overtaken by a DATA frame: late, NAKed 0x001 (L6a)
+lateFrames             the same (L6a's own counter)
+resynchronisations     0: no fault of this channel looks like a peer reset
+skippedFrames          DATA frames dropped, truncated, flipped, or overtaken by a DATA frame
+unexpectedAckCounter   at least the duplicated ACK/NAKs into Y; at most that plus the reordered
+                       ACK/NAKs into Y plus the DATA frames of Y that were duplicated on the way
+                       out (the peer ACKs the copy again). Not exact: a held ACK is late only
+                       if the next transfer came after ``ackTimeout``, and a second ACK can
+                       itself be lost on the way back.
+=====================  =====================================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from eyeq_spi.emulator import Emulation
+from eyeq_spi.faults.bench import Scene, adapters, bench
+from eyeq_spi.faults.channel import FaultProfile, FaultyChannel
+from eyeq_spi.faults.taps import MessageLedger, tap
+from eyeq_spi.host.machine import HostState
+from eyeq_spi.link.counters import SpiDiagnosticInfo
+
+COUNTERS = ("badLengthTransfers", "dataCRCErrorCounter", "duplicateFrames",
+            "sequenceErrorCounter", "lateFrames", "skippedFrames", "resynchronisations",
+            "unexpectedAckCounter", "framesReceived")
+EXACT = ("badLengthTransfers", "dataCRCErrorCounter", "duplicateFrames", "sequenceErrorCounter",
+         "lateFrames", "skippedFrames", "resynchronisations")
+
+
+@dataclass(frozen=True)
+class SoakConfig:
+    profile: FaultProfile = field(default_factory=FaultProfile)
+    seed: int = 1
+    duration: float = 10.0  # virtual seconds with faults on
+    settle: float = 0.1  # clean seconds at the end
+    faults_from_start: bool = False  # False: switch faults on once Running Vision is reached
+    bring_up_limit: float = 10.0  # virtual seconds allowed to reach Running Vision
+    sw: str | None = None
+    scene: Scene = field(default_factory=Scene)
+
+
+@dataclass
+class Accounting:
+    """One receiving side: what the channel into it injected, what its counters say."""
+
+    injected: dict[str, int]
+    expected: dict[str, int]
+    observed: dict[str, int]
+    unexpected_ack_bounds: tuple[int, int]
+
+    def mismatches(self, names: tuple[str, ...]) -> dict[str, tuple[int, int]]:
+        return {n: (self.expected[n], self.observed[n]) for n in names
+                if self.expected[n] != self.observed[n]}
+
+    @property
+    def unexpected_ack_ok(self) -> bool:
+        lo, hi = self.unexpected_ack_bounds
+        return lo <= self.observed["unexpectedAckCounter"] <= hi
+
+
+@dataclass
+class SoakReport:
+    config: dict[str, Any]
+    virtual_s: float
+    wall_s: float
+    reached_vision_at: float | None
+    held: bool  # reached Running Vision and never left it
+    final_state: str
+    frames: dict[str, int]  # transfers offered per direction
+    messages: dict[str, dict[str, int]]
+    accounting: dict[str, Accounting]  # by receiving side: "eyeq", "host"
+    host: dict[str, Any]
+
+    @property
+    def corrupted(self) -> int:
+        return sum(m["corrupted"] for m in self.messages.values())
+
+    @property
+    def injected_total(self) -> int:
+        return sum(sum(a.injected.values()) for a in self.accounting.values())
+
+    def as_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["corrupted"] = self.corrupted
+        out["injected_total"] = self.injected_total
+        return out
+
+
+def _counts(c: SpiDiagnosticInfo) -> dict[str, int]:
+    return {n: int(getattr(c, n)) for n in COUNTERS}
+
+
+def account(into: FaultyChannel, out_of: FaultyChannel, before: dict[str, int],
+            after: dict[str, int]) -> Accounting:
+    """The table of the module docstring, for the side fed by ``into`` that sends through
+    ``out_of``."""
+    ch = into
+    late = ch.count("reorder", "DATA", after="DATA")
+    control_dups = ch.count("duplicate", "ACK") + ch.count("duplicate", "NAK")
+    control_late = (ch.count("reorder", "ACK") + ch.count("reorder", "NAK")
+                    + out_of.count("duplicate", "DATA"))
+    expected = {
+        "badLengthTransfers": ch.count("truncate"),
+        "dataCRCErrorCounter": ch.count("flip", crc_covered=True),
+        "duplicateFrames": ch.count("duplicate", "DATA"),
+        "sequenceErrorCounter": late,
+        "lateFrames": late,
+        "resynchronisations": 0,
+        "skippedFrames": (ch.count("drop", "DATA") + ch.count("truncate", "DATA")
+                          + ch.count("flip", "DATA") + late),
+    }
+    observed = {n: after[n] - before[n] for n in COUNTERS}
+    expected["unexpectedAckCounter"] = control_dups
+    expected["framesReceived"] = observed["framesReceived"]
+    return Accounting(dict(ch.stats.injected), expected, observed,
+                      (control_dups, control_dups + control_late))
+
+
+def run_soak(config: SoakConfig | None = None) -> SoakReport:
+    cfg = config or SoakConfig()
+    emu = bench(seed=cfg.seed, sw=cfg.sw, scene=cfg.scene)
+    host_end, sim_end = adapters(emu)
+    h2e = FaultyChannel(cfg.profile, cfg.seed * 2 + 0)
+    e2h = FaultyChannel(cfg.profile, cfg.seed * 2 + 1)
+    ledgers = {"host_to_eyeq": tap(emu.host.conn, emu.sim.conn),
+               "eyeq_to_host": tap(emu.sim.conn, emu.host.conn)}
+    host_end.mangle, sim_end.mangle = h2e, e2h
+
+    def in_vision() -> bool:
+        return emu.host.state is HostState.RUNNING_VISION
+
+    h2e.enabled = e2h.enabled = cfg.faults_from_start
+    emu.run_for(cfg.bring_up_limit, stop=in_vision)
+    reached = emu.runner.now if in_vision() else None
+    if not cfg.faults_from_start:
+        h2e.enabled = e2h.enabled = True
+    before = {"eyeq": _counts(emu.sim.conn.link.counters),
+              "host": _counts(emu.host.conn.link.counters)}
+    if reached is not None:
+        emu.run_for(cfg.duration)
+    h2e.enabled = e2h.enabled = False
+    emu.run_for(cfg.settle)
+    after = {"eyeq": _counts(emu.sim.conn.link.counters),
+             "host": _counts(emu.host.conn.link.counters)}
+    return SoakReport(
+        config={"profile": asdict(cfg.profile), "seed": cfg.seed, "duration": cfg.duration,
+                "faults_from_start": cfg.faults_from_start, "sw": emu.host.sw},
+        virtual_s=round(emu.runner.now, 6), wall_s=round(emu.runner.wall_s, 3),
+        reached_vision_at=reached,
+        held=reached is not None and not emu.left_running and in_vision(),
+        final_state=emu.host.state.value,
+        frames={"host_to_eyeq": h2e.stats.transfers, "eyeq_to_host": e2h.stats.transfers},
+        messages={k: _ledger_figures(v) for k, v in ledgers.items()},
+        accounting={"eyeq": account(h2e, e2h, before["eyeq"], after["eyeq"]),
+                    "host": account(e2h, h2e, before["host"], after["host"])},
+        host=_host_figures(emu),
+    )
+
+
+def _ledger_figures(book: MessageLedger) -> dict[str, int]:
+    return {"sent": book.messages_sent, "delivered": book.messages_delivered,
+            "corrupted": book.bad_deliveries}
+
+
+def _host_figures(emu: Emulation) -> dict[str, Any]:
+    h = emu.host
+    return {"eyeq_resets": h.counters.eyeq_resets, "boot_failures": h.counters.boot_failures,
+            "mesp_retries": h.mesp.counters.retries, "mesp_failures": h.mesp.counters.failures,
+            "e2e_errors": h.counters.e2e_errors, "dasp_counter_gaps": h.counters.dasp_counter_gaps,
+            "stale_events": sum(h.counters.stale_events.values()),
+            "transport_aborts": sum(h.conn.counters.transferAborts.values()),
+            "problem": h.problem, "transitions": [t.dst.value for t in h.transitions]}
