@@ -16,8 +16,9 @@ from eyeq_spi.codec.layout import Layout, LayoutCache
 from eyeq_spi.codec.mesp import MESP_PROTOCOL, MespCodec
 from eyeq_spi.errors import CodecError, SpecError
 from eyeq_spi.spec.catalog import Catalog, MessageDef, SwKey, catalog
+from eyeq_spi.spec.tables import dasp_header
 
-DASP_PROTOCOL = 0x65
+DASP_PROTOCOL = dasp_header().protocol  # §7.1.2: 0x65, specs/dasp_header.yaml
 DIAG_ID = 0x41
 BOOT_ID = 0x10
 

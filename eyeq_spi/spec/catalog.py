@@ -88,6 +88,8 @@ class EnumValue:
     family: str | None = None
     semantic: str | None = None
     seed_line: int | None = None
+    width: int = 1  # flags: bits of a multi-bit field starting at bit ``value``
+    fields: dict[int, str] | None = None  # flags: names of a multi-bit field's values
 
 
 @dataclass(frozen=True)
@@ -95,10 +97,17 @@ class EnumDef:
     name: str
     kind: str  # "values" | "flags"
     values: dict[int, EnumValue]
+    complete: bool = True  # False: the seed has values we could not read; others are no error
 
     def label(self, value: int) -> str | None:
         if self.kind == "flags":
-            names = [v.name for bit, v in sorted(self.values.items()) if value >> bit & 1]
+            names = []
+            for bit, f in sorted(self.values.items()):
+                part = value >> bit & ((1 << f.width) - 1)
+                if part and f.width == 1:
+                    names.append(f.name)
+                elif part:
+                    names.append(f"{f.name}={(f.fields or {}).get(part, part)}")
             return "|".join(names) if names else None
         v = self.values.get(value)
         return v.name if v else None
@@ -290,14 +299,17 @@ def load_catalog(root: Path) -> Catalog:
             structs[name] = StructDef(name, s.get("section"), s.get("description"), variants)
         for name, e in (doc.get("enums") or {}).items():
             flags = e.get("kind") == "flags"
-            vals = {
-                int(v["bit" if flags else "value"]): EnumValue(
-                    int(v["bit" if flags else "value"]), str(v["name"]), v.get("family"),
-                    v.get("semantic"), v.get("seed_line"),
+            vals: dict[int, EnumValue] = {}
+            for v in e["values"]:
+                key = "bit" if flags else "value"
+                lo, hi = v["bits"] if flags and "bits" in v else [v[key], v[key]]
+                vals[int(lo)] = EnumValue(
+                    int(lo), str(v["name"]), v.get("family"), v.get("semantic"),
+                    v.get("seed_line"), int(hi) - int(lo) + 1,
+                    {int(k): str(n) for k, n in v["values"].items()} if "values" in v else None,
                 )
-                for v in e["values"]
-            }
-            enums[name] = EnumDef(name, "flags" if flags else "values", vals)
+            enums[name] = EnumDef(name, "flags" if flags else "values", vals,
+                                  bool(e.get("complete", True)))
         for group, protocol in (("dasp", "DASP"), ("other", None)):
             for m in doc.get(group) or []:
                 proto = protocol or ("DIAG" if m["data_id"] == 0x41 else "BOOT")
@@ -323,8 +335,8 @@ def load_catalog(root: Path) -> Catalog:
                 tuple(MespParam(p["name"], p["type"]) for p in f.get("request") or []),
                 tuple(MespParam(p["name"], p["type"]) for p in f.get("reply") or []),
             ))
-        for code, name in (doc.get("mesp_ret") or {}).items():
-            mesp_ret[int(code)] = str(name)
+        for code, ret in (doc.get("mesp_ret") or {}).items():
+            mesp_ret[int(code)] = str(ret["name"] if isinstance(ret, dict) else ret)
     return Catalog(
         root, versions, sw_doc.get("default", versions[-1]), constants, structs, enums,
         tuple(messages), inits, tuple(mesp), mesp_ret, docs,

@@ -26,10 +26,11 @@ MODES = frozenset({"APP", "SPC", "TAC", "DIAG"})
 
 MEMBER_KEYS = frozenset(
     {"name", "type", "array", "bits", "enum", "values", "units", "min", "max", "seed_line",
-     "seed_form", "invented", "reconstruction", "description"}
+     "seed_form", "invented", "reconstruction", "description", "decision"}
 )
-VARIANT_KEYS = frozenset({"seed_line", "members", "crc", "reconstruction", "description"})
-STRUCT_KEYS = frozenset({"section", "description", "variants", "reconstruction"})
+VARIANT_KEYS = frozenset({"seed_line", "members", "crc", "reconstruction", "description",
+                          "decision"})
+STRUCT_KEYS = frozenset({"section", "description", "variants", "reconstruction", "decision"})
 SIGNAL_KEYS = frozenset(
     {"name", "start", "length", "signed", "factor", "offset", "min", "max", "initial", "units",
      "seed_line", "reconstruction", "description", "float", "enum", "values", "seed_form"}
@@ -99,9 +100,16 @@ def validate_tree(root: Path, docs: dict[str, Any] | None = None) -> list[str]:
             problems.append(f"{where}: needs a 'values' list")
             continue
         flags = e.get("kind") == "flags"
+        if "complete" in e and not isinstance(e["complete"], bool):
+            problems.append(f"{where}: complete must be true or false")
         seen: set[int] = set()
         for v in e["values"]:
             key = "bit" if flags else "value"
+            if flags and isinstance(v, dict) and "bits" in v:  # a multi-bit field of a flag word
+                from eyeq_spi.spec.tables import flag_field_problems
+
+                problems += [f"{where}: {p}" for p in flag_field_problems(v, seen)]
+                continue
             if not isinstance(v, dict) or not isinstance(v.get(key), int):
                 problems.append(f"{where}: entry without int {key}: {v!r}")
                 continue
@@ -255,6 +263,9 @@ def validate_tree(root: Path, docs: dict[str, Any] | None = None) -> list[str]:
                             problems.append(f"{swhere}: bit {b} overlaps {used[b]}")
                             break
                         used[b] = sig["name"]
+    from eyeq_spi.spec.tables import validate_tables  # GPIO, NVM, DASP header, decisions, MESP
+
+    problems += validate_tables(docs)
     return problems
 
 

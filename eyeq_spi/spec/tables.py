@@ -1,0 +1,500 @@
+"""Tables of ``specs/`` that are not messages: the DASP header (§7.1.2, ``dasp_header.yaml``), the
+GPIO definitions (Appendix D, ``gpio.yaml``), the Alignment NVM table (§21, ``nvm.yaml``) and the
+decisions restated in ``decisions.yaml``; plus the schema checks of these files, of the MESP
+annotations in ``mesp.yaml`` and of ``decision:`` references anywhere in ``specs/``.
+
+Loaders return frozen, typed objects and raise :class:`~eyeq_spi.errors.SpecError` for a file
+that does not follow ``specs/SCHEMA.md``; :func:`validate_tables` lists the problems instead.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+from eyeq_spi.errors import SpecError
+from eyeq_spi.spec.link import spec_file
+
+DECISION_ID = re.compile(r"^[A-Z]\d+[a-z]?$")
+"""A ``decision:`` value that names a decision (``D6``, ``L6a``); longer values are prose notes."""
+MESP_TYPES = frozenset({"u8", "u16", "u32", "string", "bytes"})
+MESP_PARAM_KEYS = frozenset({"name", "type", "seed_line", "decision", "reconstruction",
+                             "description"})
+GPIO_DIRECTIONS = frozenset({"eyeq_to_host", "host_to_eyeq"})
+NVM_ACTIONS = frozenset({"update", "set_zero", "keep"})
+UINT8_TYPES = frozenset({"uint8"})
+
+
+# -- typed views ---------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Decision:
+    id: str
+    title: str
+    section: str | None
+    text: str
+
+
+@dataclass(frozen=True)
+class DaspHeaderField:
+    name: str
+    offset: int
+    value: int | None  # a constant byte (Protocol 0x65, RESERVED 0), else None
+    seed_line: int
+
+
+@dataclass(frozen=True)
+class DaspHeader:
+    """§7.1.2 / D1: ``Protocol, DataID, Counter, RESERVED`` then the DASP data."""
+
+    size: int
+    fields: tuple[DaspHeaderField, ...]
+    reserved_data_ids: frozenset[int]
+    counter_modulo: int
+    unused_bits: int
+    bad_sequence_counter: str
+    bad_length_counter: str
+
+    def field(self, name: str) -> DaspHeaderField:
+        for f in self.fields:
+            if f.name == name:
+                return f
+        raise SpecError(f"dasp_header.yaml has no field {name}")
+
+    @property
+    def protocol(self) -> int:
+        value = self.field("Protocol").value
+        if value is None:
+            raise SpecError("dasp_header.yaml: Protocol has no value")
+        return value
+
+
+@dataclass(frozen=True)
+class GpioPin:
+    label: str
+    gpio: str | None  # None where the OCR left it unreadable (see the reconstruction note)
+    ball: str
+    seed_line: int
+
+
+@dataclass(frozen=True)
+class GpioGroup:
+    name: str
+    direction: str  # eyeq_to_host | host_to_eyeq
+    encoding: tuple[str, ...]  # pin labels, most significant bit first
+    pins: tuple[GpioPin, ...]
+    values: Mapping[int, str]
+
+    def code(self, levels: Mapping[str, int]) -> int:
+        """The group's value from the level (0/1) of each pin, keyed by schematic label."""
+        out = 0
+        for label in self.encoding:
+            level = levels.get(label)
+            if level not in (0, 1):
+                raise SpecError(f"GPIO {self.name}: pin {label} needs level 0 or 1, not {level!r}")
+            out = out << 1 | level
+        return out
+
+    def levels(self, code: int) -> dict[str, int]:
+        """The pin levels that encode ``code`` (inverse of :meth:`code`)."""
+        n = len(self.encoding)
+        if not 0 <= code < 1 << n:
+            raise SpecError(f"GPIO {self.name}: {code} does not fit {n} pin(s)")
+        return {label: code >> (n - 1 - i) & 1 for i, label in enumerate(self.encoding)}
+
+
+@dataclass(frozen=True)
+class NvmParameter:
+    name: str
+    type: str
+    default: float
+    source: str | None  # member of the calibration result, None when not measured
+    init_signal: str  # Init_Params_Vision (0x92) signal the stored value is sent as
+    init_factor: float = 1.0  # init value = stored value * init_factor
+    value_on_update: float | None = None  # written on "update" when there is no source
+
+
+@dataclass(frozen=True)
+class NvmSource:
+    name: str  # TAC | SPC | Autofix
+    mode: str  # APP | SPC | TAC
+    message: str
+    result: str  # the struct holding the run's result
+    run_mode: str | None  # dynamic_cal_run_mode value that names this source in 0xA2
+    success: Mapping[str, str]  # member -> enum value name, all must hold
+    actions: Mapping[str, str]  # parameter -> update | set_zero | keep
+
+
+@dataclass(frozen=True)
+class AlignmentNvm:
+    """§21 Alignment NVM table."""
+
+    parameters: tuple[NvmParameter, ...]
+    sources: tuple[NvmSource, ...]
+
+    def source(self, name: str) -> NvmSource:
+        for s in self.sources:
+            if s.name.lower() == name.lower():
+                return s
+        raise SpecError(f"§21 has no calibration source {name!r} "
+                        f"(known: {', '.join(s.name for s in self.sources)})")
+
+    def defaults(self) -> dict[str, float]:
+        return {p.name: p.default for p in self.parameters}
+
+    def apply(self, source: str, stored: Mapping[str, float],
+              measured: Mapping[str, Any]) -> dict[str, float]:
+        """The NVM after a *successful* run of ``source``: each cell of its row applied to
+        ``stored`` with the run's ``measured`` result members."""
+        row = self.source(source)
+        out = {p.name: float(stored.get(p.name, p.default)) for p in self.parameters}
+        for p in self.parameters:
+            action = row.actions[p.name]
+            if action == "set_zero":
+                out[p.name] = 0.0
+            elif action == "update":
+                if p.source is None:
+                    out[p.name] = float(p.value_on_update if p.value_on_update is not None else 1)
+                elif p.source not in measured:
+                    raise SpecError(f"{row.name} result lacks {p.source} (for {p.name})")
+                else:
+                    out[p.name] = float(measured[p.source])
+        return out
+
+    def init_values(self, stored: Mapping[str, float]) -> dict[str, float]:
+        """Init_Params_Vision signal values for the stored alignment."""
+        return {p.init_signal: float(stored.get(p.name, p.default)) * p.init_factor
+                for p in self.parameters}
+
+
+# -- loaders -------------------------------------------------------------------------------------
+def _checked(name: str, key: str) -> Any:
+    doc = spec_file(name)
+    problems = _CHECKS[name]({name: doc}, {})
+    if problems:
+        raise SpecError(f"specs/{name}: {len(problems)} problem(s), first: {problems[0]}")
+    return doc[key]
+
+
+@cache
+def decisions() -> dict[str, Decision]:
+    return {d["id"]: Decision(str(d["id"]), str(d["title"]), d.get("section"),
+                              " ".join(str(d["text"]).split()))
+            for d in _checked("decisions.yaml", "decisions")}
+
+
+@cache
+def dasp_header() -> DaspHeader:
+    h = _checked("dasp_header.yaml", "dasp_header")
+    return DaspHeader(
+        int(h["size"]),
+        tuple(DaspHeaderField(str(f["name"]), int(f["offset"]), f.get("value"),
+                              int(f["seed_line"])) for f in h["fields"]),
+        frozenset(int(x) for x in h.get("reserved_data_ids") or ()),
+        int(h["counter"]["modulo"]), int(h["unused_bits"]),
+        str(h["counter"]["diag_counter"]), str(h["bad_length"]["diag_counter"]),
+    )
+
+
+@cache
+def gpio_groups() -> dict[str, GpioGroup]:
+    return {
+        g["name"]: GpioGroup(
+            str(g["name"]), str(g["direction"]), tuple(g["encoding"]),
+            tuple(GpioPin(str(p["label"]), p.get("gpio"), str(p["ball"]), int(p["seed_line"]))
+                  for p in g["pins"]),
+            {int(v["value"]): str(v["name"]) for v in g["values"]},
+        )
+        for g in _checked("gpio.yaml", "gpio")["groups"]
+    }
+
+
+@cache
+def alignment_nvm() -> AlignmentNvm:
+    """The §21 Alignment NVM table of ``specs/nvm.yaml`` (cross-checked against the catalogue
+    by :func:`validate_tables` when the whole tree is validated)."""
+    t = _checked("nvm.yaml", "alignment_nvm")
+    params = tuple(
+        NvmParameter(str(p["name"]), str(p["type"]), float(p["default"]), p.get("source"),
+                     str(p["init_signal"]), float(p.get("init_factor", 1.0)),
+                     p.get("value_on_update"))
+        for p in t["parameters"]
+    )
+    sources = tuple(
+        NvmSource(str(s["name"]), str(s["mode"]), str(s["message"]), str(s["result"]),
+                  s.get("run_mode"), dict(s.get("success") or {}), dict(s["actions"]))
+        for s in t["sources"]
+    )
+    return AlignmentNvm(params, sources)
+
+
+# -- validation ----------------------------------------------------------------------------------
+def _is_int(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def flag_field_problems(v: dict[str, Any], seen: set[int]) -> list[str]:
+    """A multi-bit field of a ``kind: flags`` enum: ``{bits: [lo, hi], name, values: {0: ..}}``."""
+    bits = v.get("bits")
+    if (not isinstance(bits, list) or len(bits) != 2 or not all(_is_int(b) for b in bits)
+            or not 0 <= bits[0] <= bits[1] < 64):
+        return [f"flag field {v.get('name')!r}: bits must be [lo, hi] within 0..63"]
+    problems = []
+    if not isinstance(v.get("name"), str) or not v["name"]:
+        problems.append(f"flag field bits {bits} without a name")
+    values = v.get("values")
+    if values is not None and (not isinstance(values, dict) or not all(
+            _is_int(k) and 0 <= k < 1 << (bits[1] - bits[0] + 1) and isinstance(n, str)
+            for k, n in values.items())):
+        problems.append(f"flag field {v.get('name')}: values must map field values to names")
+    for b in range(bits[0], bits[1] + 1):
+        if b in seen:
+            problems.append(f"flag field {v.get('name')}: bit {b} repeated")
+        seen.add(b)
+    return problems
+
+
+def _walk_decisions(node: Any, where: str, out: list[tuple[str, str]]) -> None:
+    if isinstance(node, dict):
+        d = node.get("decision")
+        if isinstance(d, str) and DECISION_ID.match(d):
+            out.append((where, d))
+        for k, v in node.items():
+            _walk_decisions(v, f"{where}/{node.get('name', k) if k == 'values' else k}", out)
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            label = v.get("name", v.get("id", i)) if isinstance(v, dict) else i
+            _walk_decisions(v, f"{where}[{label}]", out)
+
+
+def _check_decisions(docs: dict[str, Any], _ctx: dict[str, Any]) -> list[str]:
+    problems: list[str] = []
+    items = (docs.get("decisions.yaml") or {}).get("decisions")
+    if not isinstance(items, list):
+        return ["decisions.yaml: needs a 'decisions' list"]
+    ids: set[str] = set()
+    for d in items:
+        if not isinstance(d, dict) or not isinstance(d.get("id"), str) \
+                or not DECISION_ID.match(d["id"]):
+            problems.append(f"decisions.yaml: entry without a decision id: {d!r}")
+            continue
+        if d["id"] in ids:
+            problems.append(f"decisions.yaml: {d['id']} listed twice")
+        ids.add(d["id"])
+        for k in ("title", "text"):
+            if not isinstance(d.get(k), str) or not d[k].strip():
+                problems.append(f"decisions.yaml: {d['id']} needs a {k}")
+    return problems
+
+
+def _check_dasp_header(docs: dict[str, Any], _ctx: dict[str, Any]) -> list[str]:
+    h = (docs.get("dasp_header.yaml") or {}).get("dasp_header")
+    if not isinstance(h, dict):
+        return ["dasp_header.yaml: needs a 'dasp_header' mapping"]
+    problems = []
+    size = h.get("size")
+    fields = h.get("fields")
+    if not isinstance(size, int) or not isinstance(fields, list):
+        return ["dasp_header.yaml: needs an int size and a fields list"]
+    offsets = []
+    for f in fields:
+        if not isinstance(f, dict) or not isinstance(f.get("name"), str) \
+                or not _is_int(f.get("offset")) or not _is_int(f.get("seed_line")):
+            problems.append(f"dasp_header.yaml: field needs name, int offset, seed_line: {f!r}")
+            continue
+        if f.get("type") not in UINT8_TYPES:
+            problems.append(f"dasp_header.yaml: {f['name']}: header fields are uint8")
+        if "value" in f and not (_is_int(f["value"]) and 0 <= f["value"] <= 255):
+            problems.append(f"dasp_header.yaml: {f['name']}: value must be 0..255")
+        offsets.append(f["offset"])
+    if sorted(offsets) != list(range(size)):
+        problems.append(f"dasp_header.yaml: field offsets {offsets} do not cover 0..{size - 1}")
+    names = {f.get("name") for f in fields if isinstance(f, dict)}
+    if "Protocol" not in names:
+        problems.append("dasp_header.yaml: needs a Protocol field")
+    for k, sub in (("counter", ("modulo", "diag_counter")), ("bad_length", ("diag_counter",))):
+        if not isinstance(h.get(k), dict) or any(s not in h[k] for s in sub):
+            problems.append(f"dasp_header.yaml: {k} needs {', '.join(sub)}")
+    if not all(_is_int(x) for x in h.get("reserved_data_ids") or []):
+        problems.append("dasp_header.yaml: reserved_data_ids must be ints")
+    if h.get("unused_bits") not in (0, 1):
+        problems.append("dasp_header.yaml: unused_bits must be 0 or 1")
+    return problems
+
+
+def _check_gpio(docs: dict[str, Any], _ctx: dict[str, Any]) -> list[str]:
+    g = (docs.get("gpio.yaml") or {}).get("gpio")
+    if not isinstance(g, dict) or not isinstance(g.get("groups"), list):
+        return ["gpio.yaml: needs gpio.groups"]
+    problems: list[str] = []
+    names: set[str] = set()
+    for grp in g["groups"]:
+        where = f"gpio.yaml: group {grp.get('name') if isinstance(grp, dict) else grp!r}"
+        if not isinstance(grp, dict) or not isinstance(grp.get("name"), str):
+            problems.append(f"{where}: needs a name")
+            continue
+        if grp["name"] in names:
+            problems.append(f"{where}: defined twice")
+        names.add(grp["name"])
+        if grp.get("direction") not in GPIO_DIRECTIONS:
+            problems.append(f"{where}: direction must be one of {sorted(GPIO_DIRECTIONS)}")
+        labels = set()
+        for p in grp.get("pins") or []:
+            if not isinstance(p, dict) or not isinstance(p.get("label"), str) \
+                    or not isinstance(p.get("ball"), str) or not _is_int(p.get("seed_line")):
+                problems.append(f"{where}: pin needs label, ball and seed_line: {p!r}")
+                continue
+            if p.get("gpio") is None and not p.get("reconstruction"):
+                problems.append(f"{where}: pin {p['label']} without gpio needs a reconstruction")
+            labels.add(p["label"])
+        enc = grp.get("encoding")
+        if not isinstance(enc, list) or not enc or not set(enc) <= labels:
+            problems.append(f"{where}: encoding must list pins of the group")
+            continue
+        for v in grp.get("values") or []:
+            if not isinstance(v, dict) or not _is_int(v.get("value")) \
+                    or not isinstance(v.get("name"), str) or not _is_int(v.get("seed_line")):
+                problems.append(f"{where}: value needs int value, name, seed_line: {v!r}")
+            elif not 0 <= v["value"] < 1 << len(enc):
+                problems.append(f"{where}: value {v['value']} does not fit {len(enc)} pin(s)")
+    return problems
+
+
+def _members(structs: dict[str, Any], name: str) -> dict[str, dict[str, Any]]:
+    """Members of every variant of struct ``name`` (newest wins), by name."""
+    out: dict[str, dict[str, Any]] = {}
+    variants = (structs.get(name) or {}).get("variants") or {}
+    for key in sorted(variants, key=lambda k: tuple(int(x) for x in k[2:].split("_"))):
+        for m in variants[key].get("members") or []:
+            if isinstance(m, dict) and "name" in m:
+                out[m["name"]] = m
+    return out
+
+
+def _check_nvm(docs: dict[str, Any], ctx: dict[str, Any]) -> list[str]:
+    t = (docs.get("nvm.yaml") or {}).get("alignment_nvm")
+    if not isinstance(t, dict) or not isinstance(t.get("parameters"), list) \
+            or not isinstance(t.get("sources"), list):
+        return ["nvm.yaml: needs alignment_nvm.parameters and .sources"]
+    problems: list[str] = []
+    params: dict[str, dict[str, Any]] = {}
+    for p in t["parameters"]:
+        if not isinstance(p, dict) or not isinstance(p.get("name"), str):
+            problems.append(f"nvm.yaml: parameter without a name: {p!r}")
+            continue
+        where = f"nvm.yaml: parameter {p['name']}"
+        if p["name"] in params:
+            problems.append(f"{where}: listed twice")
+        params[p["name"]] = p
+        if not isinstance(p.get("default"), (int, float)) or not isinstance(
+                p.get("init_signal"), str) or not _is_int(p.get("seed_line")):
+            problems.append(f"{where}: needs default, init_signal and seed_line")
+        factor = p.get("init_factor", 1.0)
+        if not isinstance(factor, (int, float)) or not math.isfinite(factor) or factor == 0:
+            problems.append(f"{where}: init_factor must be a non-zero number")
+        init = ctx.get("init_signals")
+        if init is not None and p.get("init_signal") not in init:
+            problems.append(f"{where}: {p.get('init_signal')!r} is no Init_Params_Vision signal")
+    for s in t["sources"]:
+        if not isinstance(s, dict) or not isinstance(s.get("name"), str):
+            problems.append(f"nvm.yaml: source without a name: {s!r}")
+            continue
+        where = f"nvm.yaml: source {s['name']}"
+        actions = s.get("actions")
+        if not isinstance(actions, dict) or set(actions) != set(params):
+            problems.append(f"{where}: actions must name every parameter once")
+        elif not set(actions.values()) <= NVM_ACTIONS:
+            problems.append(f"{where}: actions must be among {sorted(NVM_ACTIONS)}")
+        structs, enums = ctx.get("structs"), ctx.get("enums")
+        if structs is None or enums is None:
+            continue
+        if s.get("message") not in ctx["messages"]:
+            problems.append(f"{where}: unknown message {s.get('message')!r}")
+        members = _members(structs, str(s.get("result")))
+        if not members:
+            problems.append(f"{where}: unknown result struct {s.get('result')!r}")
+            continue
+        for pname, p in params.items():
+            if p.get("source") is not None and p["source"] not in members:
+                problems.append(f"{where}: {s['result']} has no {p['source']} (for {pname})")
+        checks = dict(s.get("success") or {})
+        if s.get("run_mode") is not None:
+            checks["runMode"] = s["run_mode"]
+        for member, value in checks.items():
+            enum = enums.get(str((members.get(member) or {}).get("enum")))
+            names = {v.get("name") for v in (enum or {}).get("values") or []}
+            if value not in names:
+                problems.append(f"{where}: {member} = {value!r} is not a value of its enum")
+    return problems
+
+
+def _check_mesp(docs: dict[str, Any], _ctx: dict[str, Any]) -> list[str]:
+    doc = docs.get("mesp.yaml")
+    if not isinstance(doc, dict):
+        return []
+    problems = []
+    for code, ret in (doc.get("mesp_ret") or {}).items():
+        if not _is_int(code):
+            problems.append(f"mesp.yaml: ret code {code!r} is not an int")
+        if isinstance(ret, dict) and not (isinstance(ret.get("name"), str) and (
+                "seed_line" in ret or "decision" in ret)):
+            problems.append(f"mesp.yaml: ret {code} needs a name and a seed_line or decision")
+        elif not isinstance(ret, (dict, str)):
+            problems.append(f"mesp.yaml: ret {code} must be a name or a mapping")
+    for f in doc.get("mesp_functions") or []:
+        fname = f.get("name") if isinstance(f, dict) else f
+        for side in ("request", "reply"):
+            for p in (f.get(side) if isinstance(f, dict) else None) or []:
+                where = f"mesp.yaml: {fname} {side} {p.get('name') if isinstance(p, dict) else p}"
+                if not isinstance(p, dict) or p.get("type") not in MESP_TYPES:
+                    problems.append(f"{where}: type must be one of {sorted(MESP_TYPES)}")
+                    continue
+                for k in set(p) - MESP_PARAM_KEYS:
+                    problems.append(f"{where}: unknown key {k!r}")
+                if "seed_line" not in p and "decision" not in p:
+                    problems.append(f"{where}: needs a seed_line or a decision")
+    return problems
+
+
+_CHECKS = {
+    "decisions.yaml": _check_decisions,
+    "dasp_header.yaml": _check_dasp_header,
+    "gpio.yaml": _check_gpio,
+    "nvm.yaml": _check_nvm,
+    "mesp.yaml": _check_mesp,
+}
+
+
+def validate_tables(docs: dict[str, Any]) -> list[str]:
+    """Schema problems of the files above, and ``decision:`` ids that decisions.yaml lacks.
+    ``docs`` is the whole tree (relative path -> parsed YAML), as ``validate_tree`` loads it."""
+    structs: dict[str, Any] = {}
+    enums: dict[str, Any] = {}
+    messages: set[str] = set()
+    init_signals: set[str] = set()
+    for doc in docs.values():
+        if not isinstance(doc, dict):
+            continue
+        structs.update(doc.get("structs") or {})
+        enums.update(doc.get("enums") or {})
+        messages |= {str(m.get("name")) for m in doc.get("dasp") or [] if isinstance(m, dict)}
+        vision = (doc.get("init_messages") or {}).get("Init_Params_Vision") or {}
+        for var in (vision.get("variants") or {}).values():
+            init_signals |= {s.get("name") for s in var.get("signals") or []}
+    ctx = {"structs": structs, "enums": enums, "messages": messages,
+           "init_signals": init_signals or None}
+    problems: list[str] = []
+    for name, check in _CHECKS.items():
+        if name in docs:
+            problems += check(docs, ctx)
+    known = {d.get("id") for d in ((docs.get("decisions.yaml") or {}).get("decisions") or [])
+             if isinstance(d, dict)}
+    for rel, doc in docs.items():
+        refs: list[tuple[str, str]] = []
+        _walk_decisions(doc, rel, refs)
+        problems += [f"{where}: decision {d} is not in decisions.yaml"
+                     for where, d in refs if d not in known]
+    return problems
