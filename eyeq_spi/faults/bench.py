@@ -37,11 +37,9 @@ def _matched_nvm(sw: str | None) -> NvmData:
     return copy.deepcopy(emu.host.nvm.data)
 
 
-def matched_nvm(sw: str | None = None) -> Nvm:
-    """An in-memory NVM as a clean first ignition leaves it (intrinsics from the EEPROM)."""
-    nvm = Nvm()
-    nvm.data = copy.deepcopy(_matched_nvm(sw))
-    return nvm
+def matched_nvm(sw: str | None = None) -> NvmData:
+    """The NVM content a clean first ignition leaves (intrinsics from the camera EEPROM)."""
+    return copy.deepcopy(_matched_nvm(sw))
 
 
 def bench(*, seed: int = 1, sw: str | None = None, scene: Scene | None = None,
@@ -49,8 +47,12 @@ def bench(*, seed: int = 1, sw: str | None = None, scene: Scene | None = None,
     sc = scene or Scene()
     cfg = sim_config or SimConfig(sw=sw, seed=seed, objects=sc.objects, signs=sc.signs,
                                   light_spots=sc.light_spots)
-    nvm = Nvm() if fresh_nvm else matched_nvm(sw)
-    return build(sim_config=cfg, host_config=HostConfig(sw=sw), nvm=nvm, keep_rx_times=False)
+    emu = build(sim_config=cfg, host_config=HostConfig(sw=sw), nvm=Nvm(), keep_rx_times=False)
+    if not fresh_nvm:
+        # An in-memory NVM is empty when the host loads it at construction; its content is
+        # first read for 0x84 in INIT, so filling it now is the second ignition.
+        emu.host.nvm.data = matched_nvm(sw)
+    return emu
 
 
 def adapters(emu: Emulation) -> tuple[MemoryAdapter, MemoryAdapter]:

@@ -190,6 +190,10 @@ class FaultyChannel:
                                     after))
         self.stats.injected[kind] += 1
 
+    def header_flips(self) -> int:
+        """Flipped transfers with a flip in the header word (bytes 0..3, L1)."""
+        return sum(1 for r in self.record if r.kind == "flip" and min(r.bits) < 32)
+
     def count(self, kind: str, frame: str | None = None, *, after: str | None = None,
               crc_covered: bool | None = None) -> int:
         """How many injections of ``kind`` match the filters."""

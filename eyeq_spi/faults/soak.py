@@ -17,10 +17,12 @@ lateFrames             the same (L6a's own counter)
 resynchronisations     0: no fault of this channel looks like a peer reset
 skippedFrames          DATA frames dropped, truncated, flipped, or overtaken by a DATA frame
 unexpectedAckCounter   at least the duplicated ACK/NAKs into Y; at most that plus the reordered
-                       ACK/NAKs into Y plus the DATA frames of Y that were duplicated on the way
-                       out (the peer ACKs the copy again). Not exact: a held ACK is late only
-                       if the next transfer came after ``ackTimeout``, and a second ACK can
-                       itself be lost on the way back.
+                       ACK/NAKs into Y plus the DATA frames of Y duplicated or reordered on the
+                       way out (the peer ACKs a copy again; a held frame's ACK or NAK comes
+                       after Y gave up on it; a flip in the header of Y's frame makes the
+                       peer NAK the NUM it read, L5, or NAK an ACK whose D it no longer sees).
+                       Not exact: a held transfer is late only if the next one came after
+                       ``ackTimeout``, and a second ACK can itself be lost.
 =====================  =====================================================================
 """
 
@@ -114,7 +116,8 @@ def account(into: FaultyChannel, out_of: FaultyChannel, before: dict[str, int],
     late = ch.count("reorder", "DATA", after="DATA")
     control_dups = ch.count("duplicate", "ACK") + ch.count("duplicate", "NAK")
     control_late = (ch.count("reorder", "ACK") + ch.count("reorder", "NAK")
-                    + out_of.count("duplicate", "DATA"))
+                    + out_of.count("duplicate", "DATA") + out_of.count("reorder", "DATA")
+                    + out_of.header_flips())
     expected = {
         "badLengthTransfers": ch.count("truncate"),
         "dataCRCErrorCounter": ch.count("flip", crc_covered=True),
