@@ -4,6 +4,7 @@ user never sees a traceback for bad input."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from collections.abc import Sequence
 
@@ -20,7 +21,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="eyeq-spi", description=__doc__)
     p.add_argument("--version", action="version", version=f"eyeq-spi {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    from eyeq_spi import cli_args as ca
     from eyeq_spi.cli_run import add_shared_options
+
+    seconds = ca.number(0, 86_400, lo_open=True, unit="s")
 
     demo = sub.add_parser(
         "demo",
@@ -29,37 +33,54 @@ def build_parser() -> argparse.ArgumentParser:
         "one process, over the real link and transport. Exit 0 only if Running Vision was "
         "reached and held.",
     )
-    demo.add_argument("--duration", type=float, default=10.0, help="seconds (default 10)")
+    demo.add_argument("--duration", type=seconds, default=10.0,
+                      help="seconds, (0, 86400] (default 10)")
     demo.add_argument("--virtual-time", action="store_true",
                       help="run as fast as the CPU allows instead of in real time")
     demo.add_argument("--json", action="store_true", help="end with one JSON object")
-    add_shared_options(demo)
-    sim = sub.add_parser("sim", help="the simulated EyeQ on a TCP listener or a pty")
-    sim.add_argument("--listen", metavar="tcp://HOST:PORT", help="serve a socket:// URL")
-    sim.add_argument("--pty", action="store_true", help="open a pty and print its path")
-    sim.add_argument("--duration", type=float, help="stop after S seconds (default: never)")
-    sim.add_argument("--accept-timeout", type=float, default=60.0, help="wait for the host")
+    add_shared_options(demo, side="demo")
+    sim = sub.add_parser(
+        "sim", help="the simulated EyeQ on a TCP listener or a pty",
+        description="The simulated EyeQ in real time. It prints LISTEN URL (or PTY PATH) on its "
+        "first line: hand exactly that URL to eyeq-spi host --port.")
+    ep = sim.add_mutually_exclusive_group(required=True)
+    ep.add_argument("--port", dest="endpoint", type=ca.sim_endpoint, action=ca.SimEndpoint,
+                    metavar="URL", help="socket://HOST:PORT to listen on (port 0: any free "
+                    "port), or pty; the same URL form host --port takes")
+    ep.add_argument("--listen", dest="endpoint", type=ca.sim_endpoint, action=ca.SimEndpoint,
+                    metavar="URL", help="same as --port (tcp://HOST:PORT is accepted too)")
+    ep.add_argument("--pty", dest="endpoint", nargs=0, action=ca.SimEndpoint,
+                    help="same as --port pty: open a pty and print its path")
+    sim.set_defaults(listen=None, pty=False)
+    sim.add_argument("--duration", type=seconds, help="stop after S seconds (default: never)")
+    sim.add_argument("--accept-timeout", type=seconds, default=60.0,
+                     help="seconds to wait for the host, (0, 86400] (default 60)")
     sim.add_argument("--json", action="store_true", help="end with one JSON object")
-    add_shared_options(sim)
+    add_shared_options(sim, side="sim")
     host = sub.add_parser("host", help="the host emulator against an EyeQ at a pyserial URL")
-    host.add_argument("--port", required=True, metavar="URL",
-                      help="socket://HOST:PORT, a tty or pty path, rfc2217://..., loop://")
-    host.add_argument("--nvm", metavar="FILE", help="NVM file (default: in memory)")
-    host.add_argument("--duration", type=float, default=10.0, help="seconds (default 10)")
+    host.add_argument("--port", required=True, metavar="URL", type=ca.host_endpoint,
+                      help="the EyeQ: socket://HOST:PORT as eyeq-spi sim prints it, a tty or "
+                      "pty path, or rfc2217://HOST:PORT")
+    host.add_argument("--nvm", metavar="FILE", type=ca.output_file,
+                      help="NVM file, JSON, written atomically (default: in memory)")
+    host.add_argument("--duration", type=seconds, default=10.0,
+                      help="seconds, (0, 86400] (default 10)")
     host.add_argument("--exit-when-running", action="store_true",
                       help="stop as soon as Running Vision is reached")
     host.add_argument("--json", action="store_true", help="end with one JSON object")
-    add_shared_options(host)
+    add_shared_options(host, side="host")
     from eyeq_spi.cli_dissect import add_dissect_parser
 
     add_dissect_parser(sub)
     spec = sub.add_parser("spec", help="browse the message catalogue built from specs/")
     spec_sub = spec.add_subparsers(dest="spec_command", required=True, parser_class=_Parser)
     sl = spec_sub.add_parser("list", help="list messages, MESP functions, init messages, structs")
-    sl.add_argument("--sw", help="SW version for sizes (default: newest)")
+    sl.add_argument("--sw", type=ca.sw_release, help="SW release for sizes (default: newest)")
     ss = spec_sub.add_parser("show", help="offsets, sizes, types and CRC coverage of one entry")
-    ss.add_argument("name", help="message, struct, init message, MESP function or enum name")
-    ss.add_argument("--sw", help="SW version, e.g. 9.0, 8.1 or sw5 (default: newest)")
+    ss.add_argument("name", help="message, struct, init message, MESP function or enum: name "
+                    "(any case, or part of one) or data ID such as 0xE4")
+    ss.add_argument("--sw", type=ca.sw_release,
+                    help="SW release, e.g. 9.0, 8.1 or sw5 (default: newest)")
     return p
 
 
@@ -69,7 +90,16 @@ def _spec(args: argparse.Namespace) -> int:
 
     cat = catalog()
     sw = cat.sw(args.sw)
-    text = spec_list(cat, sw) if args.spec_command == "list" else spec_show(cat, args.name, sw)
+    if args.spec_command == "list":
+        text = spec_list(cat, sw)
+    else:
+        from eyeq_spi.cli_args import spec_entry
+
+        try:
+            name = spec_entry(args.name)
+        except argparse.ArgumentTypeError as exc:
+            raise UsageError(f"argument NAME: {exc}") from None
+        text = spec_show(cat, name, sw)
     print(text)
     return 0
 
@@ -91,22 +121,37 @@ def main(argv: Sequence[str] | None = None) -> int:
                     else cli_dissect.run_wireshark)(args)
         raise UsageError(f"unknown command {args.command}")
     except UsageError as exc:
-        print(f"eyeq-spi: usage error: {exc}", file=sys.stderr)
-        return 2
+        return _fail(f"usage error: {exc}")
     except EyeqError as exc:
-        print(f"eyeq-spi: error: {exc}", file=sys.stderr)
-        return 2
+        return _fail(f"error: {exc}")
     except KeyboardInterrupt:
         return 130
-    except BrokenPipeError:  # output piped into head & co.
-        import os
-
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
+    except BrokenPipeError:  # output piped into head & co.: stop quietly
+        return _quiet_pipe()
+    except OSError as exc:  # a file or device the user named (disk full, vanished, ...)
+        where = f" {exc.filename}" if exc.filename else ""
+        return _fail(f"error:{where}: {exc.strerror or exc}")
     except Exception as exc:
-        print(f"eyeq-spi: internal error: {type(exc).__name__}: {exc} (please report this)",
-              file=sys.stderr)
-        return 3
+        return _fail(f"internal error: {type(exc).__name__}: {exc} (please report this)", 3)
+
+
+def _fail(message: str, code: int = 2) -> int:
+    """One line on stderr, whatever the message holds."""
+    from eyeq_spi.cli_args import one_line
+
+    with contextlib.suppress(OSError):  # stderr is gone too
+        print(f"eyeq-spi: {one_line(message)}", file=sys.stderr, flush=True)
+    return code
+
+
+def _quiet_pipe() -> int:
+    """The reader of stdout went away: point stdout at /dev/null so the interpreter's final
+    flush does not print a second error, and exit 0 as head(1)'s writers do."""
+    import os
+
+    with contextlib.suppress(OSError, ValueError):
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 0
 
 
 if __name__ == "__main__":

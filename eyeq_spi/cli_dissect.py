@@ -13,31 +13,42 @@ from eyeq_spi.errors import UsageError
 
 
 def add_dissect_parser(sub: Any) -> None:
+    from eyeq_spi import cli_args as ca
+
     d = sub.add_parser("dissect", help="decode captured SPI traffic (raw, hex text, pcapng)",
                        description="Decode SPI transfers: frames, reassembled messages with "
                        "their fields, link events. Exit 0 clean, 1 protocol errors found, "
                        "2 bad input or usage.")
-    d.add_argument("files", nargs="+", metavar="FILE", help="capture files, or - for stdin")
-    d.add_argument("--format", choices=("raw", "hex", "pcapng"), help="skip detection")
+    d.add_argument("files", nargs="+", metavar="FILE", type=ca.input_file,
+                   help="capture files, or - for stdin")
+    d.add_argument("--format", choices=("raw", "hex", "pcapng", "saleae2", "saleae1", "vcd"),
+                   help="skip detection")
     d.add_argument("--direction", choices=("h2e", "e2h"),
                    help="channel of a raw or hex file without directions")
-    d.add_argument("--sw", help="SW version of the traffic (default newest)")
+    d.add_argument("--sw", type=ca.sw_release, help="SW release of the traffic (default newest)")
     d.add_argument("--json", action="store_true", help="JSON Lines, one object per line")
-    d.add_argument("--csv", metavar="DIR", help="one CSV table per message type")
-    d.add_argument("--parquet", metavar="DIR", help="one Parquet table per message type")
+    d.add_argument("--csv", metavar="DIR", type=ca.output_dir,
+                   help="one CSV table per message type")
+    d.add_argument("--parquet", metavar="DIR", type=ca.output_dir,
+                   help="one Parquet table per message type (needs the [parquet] extra)")
     d.add_argument("--stats", action="store_true",
-                   help="print only summary statistics (one JSON object with --json)")
-    d.add_argument("--protocol", choices=("MESP", "DASP", "DIAG", "BOOT", "UNKNOWN"),
-                   help="only messages of this protocol")
-    d.add_argument("--id", type=lambda s: int(s, 0), metavar="ID",
-                   help="only DASP messages with this data ID (0x41 and 0x10 work too)")
-    d.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
+                   help="print only summary statistics of the records the filters keep "
+                   "(one JSON object with --json)")
+    d.add_argument("--protocol", type=str.upper, choices=("MESP", "DASP", "DIAG", "BOOT",
+                   "UNKNOWN"), help="only messages of this protocol (any case)")
+    d.add_argument("--id", type=ca.message_id, metavar="ID",
+                   help="only messages with this data ID, 0..255 (0xE4; 0x41 and 0x10 work "
+                   "too) or message name")
+    d.add_argument("--name", metavar="REGEX", type=ca.regex,
+                   help="only messages whose name matches")
     d.add_argument("--errors-only", action="store_true",
                    help="only bad frames, link events and messages with errors")
     d.add_argument("--no-tree", action="store_true", help="no field tree in the human view")
     w = sub.add_parser("wireshark", help="generate the Wireshark Lua dissector from specs/")
-    w.add_argument("--output", "-o", required=True, metavar="FILE.lua")
-    w.add_argument("--sw", help="SW version whose layouts the dissector decodes (default newest)")
+    w.add_argument("--output", "-o", metavar="FILE.lua", type=ca.output_file,
+                   help="write the dissector here (default: standard output)")
+    w.add_argument("--sw", type=ca.sw_release,
+                   help="SW release whose layouts the dissector decodes (default newest)")
 
 
 def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
@@ -100,9 +111,10 @@ def run_dissect(args: argparse.Namespace) -> int:
             try:
                 _, records = open_records(fh, args.format, args.direction)
                 dis = Dissector(codec=codec)
-                for r in _with_progress(_all(dis, records), fh, path):
-                    stats.add(r)
-                    if keep(r):
+                for r in _with_progress(_all(dis, records), fh, path,
+                                        stdout_busy=bool(writers) and table is None):
+                    if keep(r):  # --stats describes exactly what the filters keep
+                        stats.add(r)
                         for w in writers:
                             w.write(r)
             finally:
@@ -137,21 +149,25 @@ def _open(path: str) -> IO[bytes]:
         raise InputError(f"{path}: {exc.strerror or exc}") from None
 
 
-def _with_progress(it: Iterator[dict[str, Any]], fh: IO[bytes], path: str
-                   ) -> Iterator[dict[str, Any]]:
-    """A progress bar on stderr for files, only when stderr is a terminal."""
-    if not sys.stderr.isatty() or path == "-":
+def _with_progress(it: Iterator[dict[str, Any]], fh: IO[bytes], path: str,
+                   stdout_busy: bool = False) -> Iterator[dict[str, Any]]:
+    """A progress bar on stderr for files, only when stderr is a terminal, and not while the
+    records themselves scroll on that same terminal (stdout a TTY too)."""
+    if not sys.stderr.isatty() or path == "-" or (stdout_busy and sys.stdout.isatty()):
         yield from it
         return
     import os
 
     try:
         total = os.fstat(fh.fileno()).st_size
+        from rich.console import Console
         from rich.progress import Progress
     except (OSError, ImportError, ValueError):
         yield from it
         return
-    with Progress(transient=True) as progress:
+    console = Console(file=sys.stderr, stderr=True)
+    with Progress(console=console, transient=True, redirect_stdout=False,
+                  redirect_stderr=False) as progress:
         task = progress.add_task(path, total=total)
         for n, r in enumerate(it):
             if n % 4096 == 0:
@@ -164,6 +180,10 @@ def run_wireshark(args: argparse.Namespace) -> int:
     from eyeq_spi.wireshark.lua_gen import generate_lua
 
     text = generate_lua(args.sw)
+    if args.output in (None, "-"):
+        sys.stdout.write(text)
+        sys.stdout.flush()
+        return 0
     try:
         with open(args.output, "w", encoding="utf-8") as fh:
             fh.write(text)

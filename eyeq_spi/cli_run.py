@@ -13,37 +13,79 @@ from typing import Any
 
 from eyeq_spi.errors import UsageError
 
+SIDES = ("demo", "sim", "host")
+_NOT_HOST = "applies to the simulated EyeQ (demo, sim), not to host: the EyeQ at --port decides"
+_NOT_SIM = "applies to the host emulator (demo, host), not to sim"
 
-def add_shared_options(p: argparse.ArgumentParser) -> None:
+
+def add_shared_options(p: argparse.ArgumentParser, side: str = "demo") -> None:
+    """Scenario, link and fault options of ``demo`` (both sides), ``sim`` (the simulated EyeQ)
+    and ``host`` (the host emulator). An option of the other side is refused, not ignored."""
+    from eyeq_spi import cli_args as ca
+
+    if side not in SIDES:
+        raise ValueError(f"side must be one of {SIDES}")
+    eyeq, host = side != "host", side != "sim"
     g = p.add_argument_group("scenario")
-    g.add_argument("--seed", type=int, default=1, help="random seed of the scene (default 1)")
-    g.add_argument("--sw", help="SW version both sides speak, e.g. 9.0 or 8.1 (default newest)")
-    g.add_argument("--speed", type=float, default=25.0, help="constant drive speed, m/s")
-    g.add_argument("--scenario", metavar="CSV", help="vehicle signals from a CSV (time,...)")
-    g.add_argument("--objects", type=int, default=8, help="tracked objects, 0..15 (default 8)")
-    g.add_argument("--signs", type=int, default=4, help="traffic signs, 0..20 (default 4)")
-    g.add_argument("--light-spots", type=int, default=4, help="light spots, 0..15 (default 4)")
-    g.add_argument("--camera-only-aeb", action="store_true", help="send IPB/PCW (0x78/0x79)")
-    g.add_argument("--ack-timeout", type=float, metavar="MS",
-                   help="link ackTimeout in ms (default 10, seed §6); raise it for slow bridges")
-    g.add_argument("--transmit-timeout", type=float, metavar="MS",
-                   help="link transmitTimeout in ms (default 25, seed §6)")
-    g.add_argument("--capture", metavar="FILE.pcapng",
+    ca.add_option(g, eyeq, _NOT_HOST, "--seed", type=ca.integer(0, 2**32 - 1), default=1,
+                  help="random seed of the scene, 0..2^32-1 (default 1)")
+    g.add_argument("--sw", type=ca.sw_release,
+                   help="SW release both sides speak, e.g. 9.0 or 8.1 (default: newest in specs/)")
+    ca.add_option(g, host, _NOT_SIM, "--speed", type=_speed, default=25.0, metavar="M_S",
+                  help="constant drive speed, m/s, in vehicleVelocity's range (default 25)")
+    ca.add_option(g, host, _NOT_SIM, "--scenario", metavar="CSV", type=ca.input_file,
+                  help="vehicle signals from a CSV: time and host_vehicle_state_t members")
+    ca.add_option(g, eyeq, _NOT_HOST, "--objects", type=ca.integer(0, 15), default=8,
+                  help="tracked objects, 0..15 (default 8)")
+    ca.add_option(g, eyeq, _NOT_HOST, "--signs", type=ca.integer(0, 20), default=4,
+                  help="traffic signs, 0..20 (default 4)")
+    ca.add_option(g, eyeq, _NOT_HOST, "--light-spots", type=ca.integer(0, 15), default=4,
+                  help="light spots, 0..15 (default 4)")
+    ca.add_option(g, host, _NOT_SIM, "--camera-only-aeb", action="store_true",
+                  help="send IPB/PCW (0x78/0x79)")
+    g.add_argument("--ack-timeout", type=ca.number(0, 60_000, lo_open=True, unit="ms"),
+                   metavar="MS", help="link ackTimeout in ms, (0, 60000] (default 10, seed §6); "
+                   "raise it for slow bridges")
+    g.add_argument("--transmit-timeout", type=ca.number(0, 60_000, lo_open=True, unit="ms"),
+                   metavar="MS", help="link transmitTimeout in ms, (0, 60000] (default 25, §6)")
+    g.add_argument("--capture", metavar="FILE.pcapng", type=ca.output_file,
                    help="write every SPI transfer of both channels to a pcapng capture")
-    f = p.add_argument_group("faults (simulated EyeQ)")
-    f.add_argument("--boot-fail", type=int, default=0, metavar="N",
-                   help="the first N boots report failing test bits")
-    f.add_argument("--boot-test-bits", type=lambda s: int(s, 0), default=0x0002,
-                   metavar="BITS", help="TestResults bits of a failing boot (default 0x0002)")
-    f.add_argument("--corrupt-eeprom", action="store_true", help="EEPROM CRC does not match")
-    f.add_argument("--fatal", type=int, metavar="CODE", help="force Fatal_Error CODE in 0x41")
-    f.add_argument("--reply-delay", type=float, default=0.0, metavar="S",
-                   help="delay every MESP reply by S seconds")
-    f.add_argument("--drop-reply", action="append", default=[], metavar="FUNCTION[:N]",
-                   help="drop the first N (default 1) replies to a MESP function")
-    f.add_argument("--reset-at", type=float, metavar="T", help="the EyeQ resets at time T")
-    f.add_argument("--stop-dasp", action="append", default=[], metavar="MESSAGE@T",
-                   help="stop sending a DASP message at time T")
+    f = p.add_argument_group("faults (simulated EyeQ)") if eyeq else g
+    ca.add_option(f, eyeq, _NOT_HOST, "--boot-fail", type=ca.integer(0, 1000), default=0,
+                  metavar="N", help="the first N boots (0..1000) report failing test bits")
+    ca.add_option(f, eyeq, _NOT_HOST, "--boot-test-bits", type=ca.boot_test_bits, default=0x0002,
+                  metavar="BITS", help="TestResults of a failing boot: 0x0001..0xFFFF or bit "
+                  "names joined with | (default 0x0002)")
+    ca.add_option(f, eyeq, _NOT_HOST, "--corrupt-eeprom", action="store_true",
+                  help="EEPROM CRC does not match")
+    ca.add_option(f, eyeq, _NOT_HOST, "--fatal", type=ca.fatal_code, metavar="CODE",
+                  help="force Fatal_Error CODE in 0x41: a number or name of enum fatal_error "
+                  "(22 = INTRINSIC_CALIBRATION_MISMATCH)")
+    ca.add_option(f, eyeq, _NOT_HOST, "--reply-delay", type=ca.number(0, 3600, unit="s"),
+                  default=0.0, metavar="S", help="delay every MESP reply by S seconds, 0..3600")
+    ca.add_option(f, eyeq, _NOT_HOST, "--drop-reply", action="append", default=[],
+                  type=ca.drop_reply, metavar="FUNCTION[:N]",
+                  help="drop the first N (default 1) replies to a MESP function (name, any case, "
+                  "or SERVICE/FUNCTION such as 0x05/0x04)")
+    ca.add_option(f, eyeq, _NOT_HOST, "--reset-at", type=ca.number(0, 86_400, lo_open=True,
+                  unit="s"), metavar="T", help="the EyeQ resets at time T s, (0, 86400]")
+    ca.add_option(f, eyeq, _NOT_HOST, "--stop-dasp", action="append", default=[],
+                  type=ca.stop_dasp, metavar="MESSAGE[@T]",
+                  help="stop sending a DASP message (name, any case, or data ID such as 0xE4) "
+                  "at T s (default 0)")
+
+
+def _speed(text: str) -> float:
+    """``--speed``: within host_vehicle_state_t.vehicleVelocity's range in specs/."""
+    from eyeq_spi import cli_args as ca
+
+    cat = ca._cat()
+    var = cat.structs["host_vehicle_state_t"].variant_for(cat.default_sw)
+    lo, hi = -20.0, 100.0
+    for m in var.members if var else ():
+        if m.name == "vehicleVelocity" and m.min is not None and m.max is not None:
+            lo, hi = float(m.min), float(m.max)
+    return float(ca.number(lo, hi, unit="m/s")(text))
 
 
 def _ms(value: float | None, name: str) -> float | None:
@@ -66,19 +108,9 @@ def sim_config(args: argparse.Namespace) -> Any:
 
     _check_counts(args)
     drops: dict[str, int] = {}
-    for item in args.drop_reply:
-        fn, _, n = item.partition(":")
-        try:
-            drops[fn] = int(n or 1)
-        except ValueError:
-            raise UsageError(f"--drop-reply {item!r}: N must be an integer") from None
-    stops: dict[str, float] = {}
-    for item in args.stop_dasp:
-        name, sep, t = item.partition("@")
-        try:
-            stops[name] = float(t) if sep else 0.0
-        except ValueError:
-            raise UsageError(f"--stop-dasp {item!r}: T must be seconds") from None
+    for fn, n in args.drop_reply:  # (name, N) from cli_args.drop_reply
+        drops[fn] = drops.get(fn, 0) + n
+    stops: dict[str, float] = dict(args.stop_dasp)  # (name, T) from cli_args.stop_dasp
     return SimConfig(
         sw=args.sw, seed=args.seed, objects=args.objects, signs=args.signs,
         light_spots=args.light_spots, boot_failures=args.boot_fail,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 from typing import IO, Any
 
@@ -115,7 +116,22 @@ class JsonWriter:
         self.fh = fh
 
     def write(self, r: dict[str, Any]) -> None:
-        self.fh.write(json.dumps(r, separators=(",", ":")) + "\n")
+        try:
+            text = json.dumps(r, separators=(",", ":"), allow_nan=False)
+        except ValueError:  # NaN/Infinity are not JSON: they become null (README contract)
+            text = json.dumps(_finite(r), separators=(",", ":"), allow_nan=False)
+        self.fh.write(text + "\n")
+
+
+def _finite(v: Any) -> Any:
+    """``v`` with every non-finite float replaced by None."""
+    if isinstance(v, float):
+        return v if math.isfinite(v) else None
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_finite(x) for x in v]
+    return v
 
 
 class TableWriter:
@@ -136,7 +152,7 @@ class TableWriter:
             try:
                 import pyarrow  # noqa: F401
             except ImportError as exc:
-                raise OutputError("--parquet needs pyarrow: pip install 'eyeq-spi[dissect]'") \
+                raise OutputError("--parquet needs pyarrow: pip install 'eyeq-spi[parquet]'") \
                     from exc
 
     def write(self, r: dict[str, Any]) -> None:

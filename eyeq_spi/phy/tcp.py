@@ -27,8 +27,11 @@ class TcpListenAdapter(StreamAdapter):
 
     @property
     def url(self) -> str:
-        """The pyserial URL a peer uses to reach us."""
-        return f"socket://{self.address[0]}:{self.address[1]}"
+        """The pyserial URL a peer uses to reach us (a wildcard address becomes loopback, so
+        the URL can be handed to ``eyeq-spi host --port`` as printed)."""
+        host = {"0.0.0.0": "127.0.0.1", "": "127.0.0.1", "::": "::1"}.get(self.address[0],
+                                                                        self.address[0])
+        return f"socket://{f'[{host}]' if ':' in host else host}:{self.address[1]}"
 
     def accept(self, timeout: float | None = None) -> bool:
         if self.conn is not None:

@@ -1,0 +1,417 @@
+"""Argument types and checks shared by every subcommand.
+
+Each function here is an ``argparse`` ``type=`` (or builds one): it turns the text of one option
+into a checked value or raises :class:`argparse.ArgumentTypeError` with the accepted range or
+values, so argparse reports ``argument --fatal: ...`` and the CLI exits 2 before any work starts.
+Names (messages, MESP functions, fault codes, SW releases) are matched case-insensitively and by
+hex ID, with "did you mean" from :mod:`difflib`. Everything named comes from ``specs/`` through
+the catalogue; nothing here loads it until an option that needs it is given, so ``--help`` and
+most usage errors never pay for it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any, NoReturn
+
+from eyeq_spi.errors import EyeqError
+
+Type = Callable[[str], Any]
+
+
+def _bad(message: str) -> NoReturn:
+    raise argparse.ArgumentTypeError(message)
+
+
+def _cat() -> Any:
+    from eyeq_spi.spec.catalog import catalog
+
+    try:
+        return catalog()
+    except EyeqError as exc:  # a broken specs/ is not the user's argument: say so plainly
+        _bad(f"cannot check it: {exc}")
+
+
+def did_you_mean(word: str, candidates: Iterable[str]) -> str:
+    """`` (did you mean X?)`` for the closest candidates, case-insensitively, or ``""``."""
+    import difflib
+
+    by_upper = {c.upper(): c for c in candidates}
+    w = word.strip().upper()
+    close = [c for c in by_upper if w and w in c][:3] if len(w) >= 3 else []
+    if not close:
+        close = difflib.get_close_matches(w, list(by_upper), n=3, cutoff=0.6)
+    if not close:
+        return ""
+    return f" (did you mean {' or '.join(by_upper[c] for c in close)}?)"
+
+
+def _int(text: str) -> int:
+    """Decimal, ``0x`` hex, ``0b`` or ``0o``; ``_`` separators allowed as in Python."""
+    return int(text.strip(), 0)
+
+
+# -- numbers -------------------------------------------------------------------------------------
+
+def number(lo: float, hi: float, *, lo_open: bool = False, unit: str = "") -> Type:
+    """A finite float in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``)."""
+    span = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]{' ' + unit if unit else ''}"
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            _bad(f"must be a number in {span}, got {text!r}")
+        if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
+            _bad(f"must be a number in {span}, got {text!r}")
+        return v
+
+    parse.__name__ = "number"
+    return parse
+
+
+def integer(lo: int, hi: int, *, what: str = "an integer") -> Type:
+    """An integer in ``lo..hi`` (decimal or ``0x`` hex)."""
+
+    def parse(text: str) -> int:
+        try:
+            v = _int(text)
+        except ValueError:
+            _bad(f"must be {what} in {lo}..{hi}, got {text!r}")
+        if not lo <= v <= hi:
+            _bad(f"must be {what} in {lo}..{hi}, got {text!r}")
+        return v
+
+    parse.__name__ = "integer"
+    return parse
+
+
+# -- names from specs/ ---------------------------------------------------------------------------
+
+def sw_release(text: str) -> str:
+    """A SW release that ``specs/`` describes (``9.0``, ``8.1``, ``SW8_1``) -> its key."""
+    from eyeq_spi.spec.catalog import normalise_sw
+
+    cat = _cat()
+    releases = {k: k[2:].replace("_", ".") if "_" in k else f"{k[2:]}.0"
+                for k in cat.sw_versions}
+    try:
+        key = normalise_sw(text, cat.default_sw)
+    except EyeqError:
+        key = ""
+    if key not in releases:
+        _bad(f"unknown SW release {text!r}; specs/ has {', '.join(releases.values())}")
+    return str(key)
+
+
+def _named(text: str, entries: dict[str, Any], ids: dict[int, str], what: str,
+           listing: str) -> str:
+    """The entry named ``text`` (any case) or with the numeric ID ``text``."""
+    t = text.strip()
+    by_upper = {n.upper(): n for n in entries}
+    if t.upper() in by_upper:
+        return by_upper[t.upper()]
+    try:
+        ident = _int(t)
+    except ValueError:
+        ident = None
+    if ident is not None:
+        if ident in ids:
+            return ids[ident]
+        _bad(f"no {what} with ID {t}; {listing}")
+    _bad(f"unknown {what} {t!r}{did_you_mean(t, entries)}; {listing}")
+
+
+def _messages(pred: Callable[[Any], bool]) -> tuple[dict[str, Any], dict[int, str]]:
+    msgs = [m for m in _cat().messages if pred(m)]
+    return {m.name: m for m in msgs}, {m.data_id: m.name for m in msgs}
+
+
+def eyeq_dasp_message(text: str) -> str:
+    """A DASP message the EyeQ sends: name (any case) or data ID (``0xE4``) -> name."""
+    names, ids = _messages(lambda m: m.protocol == "DASP" and m.direction == "e2h")
+    return _named(text, names, ids, "DASP message of the EyeQ",
+                  "eyeq-spi spec list shows them")
+
+
+def message_id(text: str) -> int:
+    """A data ID (0..255, ``0xE4``) or a message name (any case) -> its data ID."""
+    names, ids = _messages(lambda m: True)
+    try:
+        v = _int(text)
+    except ValueError:
+        return int(names[_named(text, names, ids, "message", "eyeq-spi spec list shows them")]
+                   .data_id)
+    if not 0 <= v <= 0xFF:
+        _bad(f"must be a data ID in 0..255 (0x00..0xFF) or a message name, got {text!r}")
+    return v
+
+
+def mesp_function(text: str) -> str:
+    """A MESP function: name (any case), ``SERVICE/FUNCTION`` (``0x05/0x04``) or a function
+    number that only one service uses -> its name."""
+    fns = {f.name: f for f in _cat().mesp}
+    listing = "functions: " + ", ".join(fns)
+    pair = re.fullmatch(r"\s*(\w+)\s*/\s*(\w+)\s*", text)
+    if pair:
+        try:
+            key = (_int(pair.group(1)), _int(pair.group(2)))
+        except ValueError:
+            key = None
+        for f in fns.values():
+            if (f.service, f.function) == key:
+                return str(f.name)
+        _bad(f"no MESP function {text.strip()}; {listing}")
+    by_fn: dict[int, list[str]] = {}
+    for f in fns.values():
+        by_fn.setdefault(f.function, []).append(f.name)
+    unique = {k: v[0] for k, v in by_fn.items() if len(v) == 1}
+    return _named(text, fns, unique, "MESP function", listing)
+
+
+def count_suffix(base: Type, sep: str, what: str, default: str, suffix: Type) -> Type:
+    """``NAME[{sep}VALUE]`` -> ``(base(NAME), suffix(VALUE))``."""
+
+    def parse(text: str) -> tuple[Any, Any]:
+        name, found, rest = text.partition(sep)
+        if found and not rest:
+            _bad(f"{text!r}: nothing after {sep!r} (expected {what})")
+        try:
+            value = suffix(rest if found else default)
+        except argparse.ArgumentTypeError as exc:
+            _bad(f"{what} of {text!r} {exc}")
+        return base(name), value
+
+    parse.__name__ = "pair"
+    return parse
+
+
+drop_reply = count_suffix(mesp_function, ":", "N", "1", integer(1, 1_000_000))
+drop_reply.__doc__ = "``FUNCTION[:N]``: drop the first N (1..1000000) replies."
+stop_dasp = count_suffix(eyeq_dasp_message, "@", "T", "0",
+                         number(0, 86_400, unit="s"))
+stop_dasp.__doc__ = "``MESSAGE[@T]``: stop sending the message at T s (default 0)."
+
+
+def fatal_code(text: str) -> int:
+    """A Fatal_Error of 0x41 (§7.1.5.2, enum ``fatal_error``): name (any case) or number."""
+    enum = _cat().enums["fatal_error"]
+    names = {v.name: v for v in enum.values.values() if v.value != 0}
+    ids = {v.value: v.name for v in names.values()}
+    codes = ", ".join(f"{k}" for k in sorted(ids))
+    name = _named(text, names, ids, "Fatal_Error code",
+                  f"codes: {codes} (eyeq-spi spec show fatal_error names them)")
+    return int(names[name].value)
+
+
+def boot_test_bits(text: str) -> int:
+    """TestResults of a failing boot (§7.1.5.3): an integer 1..0xFFFF or bit names joined with
+    ``|`` or ``,`` (enum ``boot_test_result``)."""
+    enum = _cat().enums["boot_test_result"]
+    bits = {v.name: 1 << k for k, v in enum.values.items()}
+    try:
+        v = _int(text)
+    except ValueError:
+        v = 0
+        for part in re.split(r"[|,+]", text):
+            name = _named(part, bits, {}, "TestResults bit", "bits: " + ", ".join(bits))
+            v |= bits[name]
+    if not 1 <= v <= 0xFFFF:
+        _bad(f"must be TestResults bits in 0x0001..0xFFFF or bit names, got {text!r}")
+    return v
+
+
+def regex(text: str) -> str:
+    try:
+        re.compile(text)
+    except re.error as exc:
+        _bad(f"bad regular expression {text!r}: {exc}")
+    return text
+
+
+def upper_choice(choices: Sequence[str]) -> Type:
+    """One of ``choices``, any case."""
+
+    def parse(text: str) -> str:
+        if text.upper() in choices:
+            return text.upper()
+        _bad(f"must be one of {', '.join(choices)}, got {text!r}{did_you_mean(text, choices)}")
+
+    parse.__name__ = "choice"
+    return parse
+
+
+# -- files and endpoints -------------------------------------------------------------------------
+
+def input_file(text: str) -> str:
+    """An existing readable file, or ``-`` for stdin."""
+    if text == "-":
+        return text
+    if not os.path.exists(text):
+        _bad(f"no such file: {text}")
+    if os.path.isdir(text):
+        _bad(f"{text} is a directory, not a file")
+    if not os.access(text, os.R_OK):
+        _bad(f"cannot read {text}: permission denied")
+    return text
+
+
+def output_file(text: str) -> str:
+    """A file we can create or overwrite (its directory must exist)."""
+    if not text:
+        _bad("empty file name")
+    if os.path.isdir(text):
+        _bad(f"{text} is a directory, not a file")
+    parent = os.path.dirname(os.path.abspath(text))
+    if not os.path.isdir(parent):
+        _bad(f"directory {parent} does not exist")
+    if not os.access(parent, os.W_OK) or (os.path.exists(text) and not os.access(text, os.W_OK)):
+        _bad(f"cannot write {text}: permission denied")
+    return text
+
+
+def output_dir(text: str) -> str:
+    """A directory that exists or can be created in an existing directory."""
+    if os.path.exists(text) and not os.path.isdir(text):
+        _bad(f"{text} exists and is not a directory")
+    parent = os.path.dirname(os.path.abspath(text))
+    if not os.path.isdir(text) and not os.path.isdir(parent):
+        _bad(f"directory {parent} does not exist")
+    return text
+
+
+_TCP = re.compile(r"^(socket|tcp|rfc2217)://(\[[0-9A-Fa-f:.]+\]|[^:/\[\]\s]*):([^/?#]*)(.*)$")
+
+
+def _tcp(text: str, lo_port: int) -> tuple[str, str, int]:
+    m = _TCP.match(text)
+    if not m:
+        _bad(f"{text!r} is not SCHEME://HOST:PORT")
+    scheme, host, port_text, rest = m.groups()
+    if rest and not rest.startswith("?"):
+        _bad(f"{text!r}: nothing may follow :PORT")
+    try:
+        port = int(port_text)
+    except ValueError:
+        _bad(f"{text!r}: the port must be an integer in {lo_port}..65535, got {port_text!r}")
+    if not lo_port <= port <= 65535:
+        _bad(f"{text!r}: the port must be in {lo_port}..65535")
+    return scheme, host or "127.0.0.1", port
+
+
+def host_endpoint(text: str) -> str:
+    """Where the host finds its EyeQ: ``socket://HOST:PORT`` (what ``sim`` prints),
+    ``rfc2217://HOST:PORT``, or a tty/pty path. ``loop://`` has no EyeQ on it: refused."""
+    if text.startswith("loop://"):
+        _bad("loop:// echoes the host's own transfers back and has no EyeQ on it; use "
+             "eyeq-spi demo, or socket://HOST:PORT from eyeq-spi sim")
+    if "://" in text:
+        scheme = text.split("://", 1)[0]
+        if scheme not in ("socket", "rfc2217"):
+            _bad(f"unsupported scheme {scheme}://; give socket://HOST:PORT, "
+                 "rfc2217://HOST:PORT or a tty/pty path")
+        _tcp(text, 1)
+        return text
+    if not os.path.exists(text):
+        _bad(f"no such device {text!r}; give socket://HOST:PORT, rfc2217://HOST:PORT or a "
+             "tty/pty path")
+    return text
+
+
+def sim_endpoint(text: str) -> tuple[str, str | None]:
+    """Where the simulated EyeQ serves: ``socket://HOST:PORT`` (``tcp://`` too; port 0 = any
+    free port) -> ``("tcp", "tcp://HOST:PORT")``, or ``pty`` -> ``("pty", None)``."""
+    if text.lower() == "pty":
+        return "pty", None
+    if text.startswith(("socket://", "tcp://")):
+        _, host, port = _tcp(text, 0)
+        return "tcp", f"tcp://{host}:{port}"
+    _bad(f"{text!r}: give socket://HOST:PORT (port 0 = any free port) or pty")
+
+
+class SimEndpoint(argparse.Action):
+    """``sim --port URL`` / ``--listen URL`` / ``--pty``: all set ``listen`` and ``pty``, which
+    is what ``run_sim`` reads."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        kind, url = values if isinstance(values, tuple) else ("pty", None)
+        namespace.listen = url
+        namespace.pty = kind == "pty"
+
+
+class NotForThisSide(argparse.Action):
+    """An option that exists on another command but means nothing here: refused, not ignored."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, reason: str = "",
+                 **kwargs: Any) -> None:
+        self.reason = reason
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        raise argparse.ArgumentError(self, self.reason)
+
+
+def add_option(group: Any, applies: bool, reason: str, *flags: str, **kw: Any) -> None:
+    """``group.add_argument(*flags, **kw)`` when the option ``applies``; otherwise the option is
+    still known (hidden, its default in the namespace) but giving it is a usage error."""
+    if applies:
+        group.add_argument(*flags, **kw)
+        return
+    flag_like = kw.get("action") in ("store_true", "store_false")
+    group.add_argument(*flags, action=NotForThisSide, reason=reason,
+                       nargs=0 if flag_like else "?",
+                       default=kw.get("default", False if flag_like else None),
+                       dest=kw.get("dest"), help=argparse.SUPPRESS)
+
+
+def spec_entry(query: str) -> str:
+    """``spec show``'s NAME: an exact name in any case, a data ID (``0xE4``: DASP, 0x41, 0x10;
+    init messages by ID too), ``SERVICE/FUNCTION`` of a MESP function, or a unique part of a
+    name (messages first, then init messages, MESP functions, structs, enums)."""
+    cat = _cat()
+    kinds: list[list[str]] = [list(dict.fromkeys(names)) for names in (
+        [m.name for m in cat.messages], list(cat.init_messages), [f.name for f in cat.mesp],
+        list(cat.structs), list(cat.enums),
+    )]
+    q = query.strip()
+    every = [n for names in kinds for n in names]
+    exact = [n for n in every if n.upper() == q.upper()]
+    if exact:
+        return exact[0]
+    pair = re.fullmatch(r"(\w+)\s*/\s*(\w+)", q)
+    try:
+        if pair:
+            key = (_int(pair.group(1)), _int(pair.group(2)))
+            for f in cat.mesp:
+                if (f.service, f.function) == key:
+                    return str(f.name)
+            _bad(f"no MESP function {q}; eyeq-spi spec list shows them")
+        ident = _int(q)
+    except ValueError:
+        ident = None
+    if ident is not None:
+        hits = [m.name for m in cat.messages if m.data_id == ident]
+        hits += [n for n, im in cat.init_messages.items() if im.id == ident]
+        if hits:
+            return str(hits[0])
+        _bad(f"no message or init message with ID {q}; eyeq-spi spec list shows them")
+    for names in kinds:
+        part = [n for n in names if q.upper() in n.upper()]
+        if len(part) == 1:
+            return part[0]
+        if part:
+            more = "" if len(part) <= 8 else f" and {len(part) - 8} more"
+            _bad(f"{q!r} matches {', '.join(part[:8])}{more}: give more of the name")
+    _bad(f"no message, struct, init message, MESP function or enum named {q!r}"
+         f"{did_you_mean(q, every)}; eyeq-spi spec list shows them")
+
+
+def one_line(message: str) -> str:
+    """Collapse a message onto one line (argparse and OS messages can span several)."""
+    return " ".join(message.split())
