@@ -72,6 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
     from eyeq_spi.cli_dissect import add_dissect_parser
 
     add_dissect_parser(sub)
+    from eyeq_spi.cli_plot import add_plot_parser
+
+    add_plot_parser(sub)
     spec = sub.add_parser("spec", help="browse the message catalogue built from specs/")
     spec_sub = spec.add_subparsers(dest="spec_command", required=True, parser_class=_Parser)
     sl = spec_sub.add_parser("list", help="list messages, MESP functions, init messages, structs")
@@ -114,6 +117,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run[args.command](args)
         if args.command == "spec":
             return _spec(args)
+        if args.command in ("plot", "monitor"):
+            from eyeq_spi import cli_plot
+
+            return (cli_plot.run_plot if args.command == "plot" else cli_plot.run_monitor)(args)
         if args.command in ("dissect", "wireshark"):
             from eyeq_spi import cli_dissect
 

@@ -1,0 +1,205 @@
+"""``eyeq-spi plot`` (pictures of a capture) and ``eyeq-spi monitor`` (a live terminal view)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.errors import UsageError
+
+
+def add_plot_parser(sub: Any) -> None:
+    p = sub.add_parser(
+        "plot", help="bird's-eye scene, stream timing or link behaviour of a capture",
+        description="Draw a capture (read through the dissector) as PNG, SVG or a "
+        "self-contained HTML file; --animate writes a GIF or an HTML player. Needs the plot "
+        "extra: pip install 'eyeq-spi[plot]'.")
+    p.add_argument("capture", metavar="CAPTURE", help="pcapng, hex or raw capture")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--birdseye", action="store_true",
+                      help="objects, lanes and signs seen from above")
+    what.add_argument("--timing", action="store_true",
+                      help="inter-arrival time of each message against its nominal rate")
+    what.add_argument("--link", action="store_true",
+                      help="frames/s by kind, NAKs by reason, CRC errors and aborts over time")
+    p.add_argument("-o", "--output", metavar="FILE",
+                   help="FILE.png, .svg or .html (--animate: .gif or .html); default: "
+                   "CAPTURE_<kind>.png (.gif when animated) beside the capture")
+    p.add_argument("--at", type=float, metavar="T",
+                   help="--birdseye: the scene at T s from the capture start (default: the end)")
+    p.add_argument("--animate", action="store_true", help="--birdseye over the whole window")
+    p.add_argument("--fps", type=float, default=5.0, help="--animate: frames per capture second")
+    p.add_argument("--max-frames", type=int, default=600, help="--animate: at most N frames")
+    p.add_argument("--range", dest="range_m", type=float, metavar="M",
+                   help="--birdseye: metres ahead (default: fitted)")
+    p.add_argument("--lateral", dest="lateral_m", type=float, metavar="M",
+                   help="--birdseye: metres to each side (default: fitted)")
+    p.add_argument("--bin", dest="bin_ms", type=float, default=100.0, metavar="MS",
+                   help="--link: time bin (default 100 ms)")
+    p.add_argument("--start", type=float, default=0.0, metavar="S", help="window start, s")
+    p.add_argument("--end", type=float, default=math.inf, metavar="S", help="window end, s")
+    p.add_argument("--format", choices=("raw", "hex", "pcapng"), help="skip detection")
+    p.add_argument("--direction", choices=("h2e", "e2h"),
+                   help="channel of a raw or hex file without directions")
+    p.add_argument("--sw", help="SW version of the traffic (default newest)")
+
+    from eyeq_spi.cli_run import add_shared_options
+
+    m = sub.add_parser(
+        "monitor", help="live terminal view of demo, host or a replayed capture",
+        description="A live view (rich, plain ANSI, works over SSH): host state and "
+        "transitions, message rates against nominal, link counters, E2E and counter errors, "
+        "the current objects, lanes and signs. Ctrl-C stops it. Needs rich: "
+        "pip install 'eyeq-spi[monitor]'.")
+    src = m.add_mutually_exclusive_group(required=True)
+    src.add_argument("--demo", action="store_true",
+                     help="host emulator against the embedded simulated EyeQ (as demo)")
+    src.add_argument("--port", metavar="URL", help="host emulator against an EyeQ (as host)")
+    src.add_argument("--replay", metavar="FILE",
+                     help="a capture fed through the dissector at its own pace")
+    m.add_argument("--duration", type=float, help="seconds (default: 10 for --demo, no limit "
+                   "for --port, the whole capture for --replay)")
+    m.add_argument("--virtual-time", action="store_true", help="--demo as fast as the CPU allows")
+    m.add_argument("--pace", type=float, default=1.0, metavar="X",
+                   help="--replay: X times real time (default 1; 0 = as fast as possible)")
+    m.add_argument("--refresh", type=float, default=5.0, metavar="HZ",
+                   help="screen redraws per second, 5..30 (default 5)")
+    m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
+    m.add_argument("--format", choices=("raw", "hex", "pcapng"), help="--replay: skip detection")
+    add_shared_options(m)
+
+
+def _default_output(args: argparse.Namespace, kind: str) -> str:
+    cap = Path(args.capture)
+    suffix = ".gif" if args.animate else ".png"
+    return str(cap.with_name(f"{cap.stem}_{kind}{suffix}"))
+
+
+def run_plot(args: argparse.Namespace) -> int:
+    from eyeq_spi.codec.message import MessageCodec
+    from eyeq_spi.plot.collect import Collector, Window, collect
+    from eyeq_spi.plot.output import check_output, mpl, save_animation, save_figure
+
+    kind = "birdseye" if args.birdseye else "timing" if args.timing else "link"
+    if (args.at is not None or args.animate) and not args.birdseye:
+        raise UsageError("--at and --animate go with --birdseye")
+    if args.at is not None and args.animate:
+        raise UsageError("give --at or --animate, not both")
+    for name in ("fps", "bin_ms", "range_m", "lateral_m"):
+        v = getattr(args, name)
+        if v is not None and not (0 < v < 1e6):
+            raise UsageError(f"--{name.split('_')[0]} must be positive")
+    if args.max_frames < 1 or args.start < 0 or not args.end > args.start:
+        raise UsageError("need --max-frames >= 1 and 0 <= --start < --end")
+    out = args.output or _default_output(args, kind)
+    check_output(out, animated=args.animate)
+    mpl()  # fail before reading a large capture when matplotlib is missing
+    codec = MessageCodec(args.sw)
+    window = Window(args.start, args.end)
+    col = Collector(codec, window, timing=args.timing, link=args.link,
+                    link_bin=args.bin_ms / 1000.0,
+                    at=(args.at if args.at is not None else math.inf) if args.birdseye
+                    and not args.animate else None,
+                    fps=args.fps if args.animate else None, max_frames=args.max_frames)
+    data = collect(args.capture, col, fmt=args.format, direction=args.direction)
+    title = f"{Path(args.capture).name}: {kind}"
+    if args.birdseye:
+        from eyeq_spi.plot.birdseye import animation, birdseye
+
+        if args.animate:
+            anim = animation(data.frames, args.fps, args.range_m, args.lateral_m)
+            save_animation(anim, out, args.fps, title)
+        else:
+            assert data.scene is not None
+            save_figure(birdseye(data.scene, args.range_m, args.lateral_m), out, title)
+    else:
+        from eyeq_spi.plot.charts import link_figure, timing_figure
+
+        fig = timing_figure(data)[0] if args.timing else link_figure(data)
+        save_figure(fig, out, title)
+    print(f"wrote {out}")
+    return 0
+
+
+def run_monitor(args: argparse.Namespace) -> int:
+    from eyeq_spi.monitor.app import run
+
+    if args.duration is not None and args.duration <= 0:
+        raise UsageError("--duration must be positive")
+    if not 0 <= args.pace <= 1e6:
+        raise UsageError("--pace must be >= 0")
+    if args.replay:
+        from eyeq_spi.codec.message import MessageCodec
+        from eyeq_spi.monitor.sources import ReplaySource
+
+        source: Any = ReplaySource(args.replay, MessageCodec(args.sw), speed=args.pace,
+                                   fmt=args.format)
+    elif args.demo:
+        source = _demo_source(args)
+    else:
+        source = _host_source(args)
+    run(source, refresh=args.refresh)
+    return 0
+
+
+def _demo_source(args: argparse.Namespace) -> Any:
+    from eyeq_spi.cli_run import host_parts, sim_config
+    from eyeq_spi.emulator import build
+    from eyeq_spi.monitor.sources import DemoSource
+
+    host_cfg, nvm, scenario = host_parts(args)
+    writer = _writer(args)
+    tap = None
+    if writer is not None:
+        def tap(node: int, t: float, transfer: bytes) -> None:
+            writer.write("h2e" if node == 0 else "e2h", t, transfer)
+    emu = build(sim_config=sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario,
+                keep_rx_times=False, tap=tap)
+    source = DemoSource(emu, 10.0 if args.duration is None else args.duration,
+                        realtime=not args.virtual_time)
+    if writer is not None:
+        source.close = writer.close  # type: ignore[method-assign]
+    return source
+
+
+def _writer(args: argparse.Namespace) -> Any:
+    if not args.capture:
+        return None
+    from eyeq_spi.capture.pcapng_io import CaptureWriter
+
+    return CaptureWriter(args.capture)
+
+
+def _host_source(args: argparse.Namespace) -> Any:
+    import gc
+
+    from eyeq_spi.cli_run import host_parts
+    from eyeq_spi.host.host import HostEmulator
+    from eyeq_spi.monitor.sources import HostSource
+    from eyeq_spi.phy.base import open_url
+    from eyeq_spi.runner.realtime import RealTimeRunner
+
+    host_cfg, nvm, scenario = host_parts(args)
+    host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
+    adapter = open_url(args.port)
+    writer = _writer(args)
+    runner = RealTimeRunner(host, adapter, max_wait=0.01)
+    if writer is not None:
+        start = runner.clock()
+
+        def tap(kind: str, t: float, transfer: bytes) -> None:
+            writer.write("h2e" if kind == "tx" else "e2h", t - start, transfer)
+
+        runner.tap = tap
+    gc.freeze()  # as `host` does: the catalogue and layouts live forever
+
+    def close() -> None:
+        adapter.close()
+        nvm.save()
+        if writer is not None:
+            writer.close()
+
+    return HostSource(host, runner, args.duration, on_close=close)
+

@@ -1,0 +1,80 @@
+"""The monitor's loop: advance the source until the next redraw, draw, repeat.
+
+Drawing happens between protocol slices, never inside them. With ``refresh`` Hz the source gets
+the wall time up to each redraw; the demo source keeps its virtual clock on the wall clock and
+catches up whatever the drawing took, the host source's runner never waits past a redraw.
+On a terminal the screen is redrawn in place (rich ``Live``, plain ANSI: it works over SSH);
+without one (a pipe) only the final screen is printed.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from eyeq_spi.monitor.model import Snapshot
+from eyeq_spi.monitor.view import MonitorError, render, rich_modules
+
+MIN_REFRESH, MAX_REFRESH = 5.0, 30.0
+
+
+class Source(Protocol):
+    @property
+    def done(self) -> bool: ...
+
+    def advance(self, deadline: float) -> None: ...
+
+    def snapshot(self) -> Snapshot: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass
+class RunStats:
+    redraws: int = 0
+    draw_s: float = 0.0  # wall time spent building and writing screens
+    wall_s: float = 0.0
+
+
+def run(source: Source, *, refresh: float = 5.0, console: Any = None,
+        clock: Callable[[], float] = time.perf_counter,
+        on_draw: Callable[[Snapshot], None] | None = None) -> RunStats:
+    """Run until the source is done (or Ctrl-C); returns how long drawing took."""
+    if not MIN_REFRESH <= refresh <= MAX_REFRESH:
+        raise MonitorError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
+    r = rich_modules()
+    console = console or r.Console()
+    period = 1.0 / refresh
+    stats = RunStats()
+    start = clock()
+    live_screen = console.is_terminal
+    live = r.Live(console=console, auto_refresh=False, transient=False,
+                  vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
+    snap: Snapshot | None = None
+    try:
+        if live_screen:
+            live.start()
+        next_draw = clock()
+        while True:
+            source.advance(next_draw)
+            t0 = clock()
+            snap = source.snapshot()
+            if on_draw is not None:
+                on_draw(snap)
+            if live_screen:
+                live.update(render(snap), refresh=True)
+            stats.redraws += 1
+            stats.draw_s += clock() - t0
+            if source.done:
+                break
+            next_draw = max(next_draw + period, clock())
+    finally:
+        if live_screen:
+            live.stop()
+        source.close()
+        stats.wall_s = clock() - start
+    if not live_screen and snap is not None:
+        console.print(render(snap))
+    return stats

@@ -1,0 +1,104 @@
+"""What the monitor shows, independent of where it comes from: rates against nominal over a
+sliding window, link counters, errors, state transitions and the current scene."""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from eyeq_spi.plot.collect import GAP_PERIODS
+from eyeq_spi.plot.scene import Scene
+from eyeq_spi.spec.catalog import Catalog
+
+RATE_WINDOW = 2.0  # seconds of history behind each rate
+
+
+@dataclass(frozen=True)
+class RateRow:
+    name: str
+    count: int
+    hz: float | None  # None until the window has two snapshots
+    nominal_hz: float | None
+    band_hz: tuple[float, float] | None  # the rates the period tolerance allows
+    status: str  # "ok" | "low" | "high" | "stopped" | "-"
+
+
+@dataclass
+class Snapshot:
+    source: str
+    now: float  # source time: virtual, real or capture seconds
+    state_label: str  # "host state" or "EyeQ Main_State (0x41)"
+    state: str
+    transitions: list[tuple[float, str, str, str]] = field(default_factory=list)
+    rates: list[RateRow] = field(default_factory=list)
+    link: dict[str, int] = field(default_factory=dict)
+    errors: dict[str, int] = field(default_factory=dict)
+    stale: list[str] = field(default_factory=list)
+    scene: Scene = field(default_factory=Scene)
+    problem: str | None = None
+    done: bool = False
+
+
+def band(rate_hz: float | None, tolerance_ms: tuple[float, float] | None
+         ) -> tuple[float, float] | None:
+    """Rates whose period is within the tolerance of the nominal period (§7.1.4 tables)."""
+    if not rate_hz or tolerance_ms is None:
+        return None
+    p_ms = 1000.0 / rate_hz
+    lo, hi = p_ms + tolerance_ms[0], p_ms + tolerance_ms[1]
+    return (1000.0 / hi, 1000.0 / lo if lo > 0 else float("inf"))
+
+
+class RateMeter:
+    """Message rates from cumulative counts sampled at each tick (no per-message cost)."""
+
+    def __init__(self, cat: Catalog, window: float = RATE_WINDOW) -> None:
+        self.cat = cat
+        self.window = window
+        self._hist: deque[tuple[float, dict[str, int]]] = deque()
+        self._last_change: dict[str, float] = {}
+        self._nominal: dict[str, tuple[float | None, tuple[float, float] | None]] = {}
+
+    def _nominal_of(self, name: str) -> tuple[float | None, tuple[float, float] | None]:
+        if name not in self._nominal:
+            try:
+                m = self.cat.message(name)
+                self._nominal[name] = (m.rate_hz, m.tolerance_ms)
+            except Exception:
+                self._nominal[name] = (None, None)
+        return self._nominal[name]
+
+    def tick(self, now: float, counts: Mapping[str, int]) -> None:
+        snap = dict(counts)
+        prev = self._hist[-1][1] if self._hist else {}
+        for k, v in snap.items():
+            if v != prev.get(k, 0) or k not in self._last_change:
+                self._last_change[k] = now
+        self._hist.append((now, snap))
+        while len(self._hist) > 2 and now - self._hist[1][0] >= self.window:
+            self._hist.popleft()
+
+    def rows(self) -> list[RateRow]:
+        if not self._hist:
+            return []
+        t1, c1 = self._hist[-1]
+        t0, c0 = self._hist[0]
+        out = []
+        for name in sorted(c1):
+            nominal, tol = self._nominal_of(name)
+            hz = (c1[name] - c0.get(name, 0)) / (t1 - t0) if t1 > t0 else None
+            b = band(nominal, tol)
+            status = "-"
+            if nominal and hz is not None:
+                silent = t1 - self._last_change.get(name, t1)
+                if silent > GAP_PERIODS / nominal:
+                    status = "stopped"
+                elif b is not None and hz < b[0]:
+                    status = "low"
+                elif b is not None and hz > b[1]:
+                    status = "high"
+                else:
+                    status = "ok"
+            out.append(RateRow(name, c1[name], hz, nominal, b, status))
+        return out

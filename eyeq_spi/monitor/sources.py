@@ -1,0 +1,234 @@
+"""Where the monitor's data comes from. Each source advances its protocol until a wall-clock
+deadline (the next redraw) and then describes itself as a :class:`Snapshot`.
+
+- :class:`DemoSource`: the in-process emulation (host + simulated EyeQ), in real time or
+  virtual time. Real time is kept against the wall clock from the start, so the time spent
+  drawing is caught up and never slows the emulated link.
+- :class:`HostSource`: the host emulator against an EyeQ at a pyserial URL, on the real-time
+  runner; the runner never waits longer than ``max_wait`` so a redraw is never late.
+- :class:`ReplaySource`: a capture file fed through the dissector engine at the capture's pace
+  (``speed`` times real time; 0 = as fast as possible).
+
+Demo and host read the host only through its public face: ``subscribe`` (decoded DASP messages,
+delivered as the host delivers them), ``state``/``transitions`` and its counters.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator
+from typing import Any
+
+from eyeq_spi.codec.message import DecodedMessage, MessageCodec
+from eyeq_spi.monitor.model import RateMeter, Snapshot
+from eyeq_spi.plot.collect import dissect_file
+from eyeq_spi.plot.scene import SCENE_MESSAGES, Labels, SceneTracker
+
+Clock = Callable[[], float]
+MAIN_STATE_MSG = "EYEQ_DIAGNOSTIC_MSG"  # 0x41
+
+
+class _HostView:
+    """Snapshot of a HostEmulator through its public face."""
+
+    def __init__(self, host: Any, source: str) -> None:
+        self.host = host
+        self.source = source
+        self.rates = RateMeter(host.codec.cat)
+        self.tracker = SceneTracker(Labels(host.codec))
+        self._latest: dict[str, DecodedMessage] = {}
+        self._now = 0.0
+        host.subscribe(self._on_message)
+
+    def _on_message(self, out: DecodedMessage) -> None:
+        # keep only the latest scene message of each kind; decoding it into a scene waits for
+        # the next redraw, so the link path pays one dict store per message
+        if out.name in SCENE_MESSAGES:
+            self._latest[out.name] = out
+
+    def snapshot(self, now: float, done: bool) -> Snapshot:
+        host = self.host
+        counts: Counter[str] = Counter(host.counters.received)
+        counts["HOST_VEH_STATE_MSG"] = host.counters.sent.get("HOST_VEH_STATE_MSG", 0)
+        self.rates.tick(now, counts)
+        for name, out in self._latest.items():
+            self.tracker.update(name, out.fields, now, out.errors)
+        self._latest.clear()
+        link = dict(host.conn.link.counters.seed_view())
+        for reason, n in dict(host.conn.counters.transferAborts).items():
+            link[f"abort: {reason}"] = int(n)
+        c = host.counters
+        errors = {"E2E errors": c.e2e_errors, "DASP counter gaps": c.dasp_counter_gaps,
+                  "decode errors": c.decode_errors, "EyeQ resets": c.eyeq_resets,
+                  "MESP timeouts": host.mesp.counters.timeouts}
+        trans = [(t.time, t.src.value, t.event.value, t.dst.value)
+                 for t in host.transitions[-8:]]
+        return Snapshot(self.source, now, "host state", host.state.value, trans,
+                        self.rates.rows(), link, errors, sorted(host.stale_streams),
+                        self.tracker.snapshot(), host.problem, done)
+
+
+class DemoSource:
+    def __init__(self, emu: Any, duration: float, *, realtime: bool = True,
+                 clock: Clock = time.perf_counter, sleep: Callable[[float], None] = time.sleep
+                 ) -> None:
+        self.emu = emu
+        self.duration = duration
+        self.realtime = realtime
+        self.clock, self.sleep = clock, sleep
+        self.view = _HostView(emu.host, "demo" + ("" if realtime else " (virtual time)"))
+        self.start = clock()
+
+    @property
+    def done(self) -> bool:
+        return bool(self.emu.runner.now >= self.duration - 1e-9)
+
+    def advance(self, deadline: float) -> None:
+        emu = self.emu
+        while not self.done and self.clock() < deadline:
+            if self.realtime:
+                target = min(self.duration, self.clock() - self.start)
+                if target > emu.runner.now:
+                    emu.run_for(target - emu.runner.now)  # virtual time catches up the wall
+                else:
+                    self.sleep(min(0.002, max(0.0, deadline - self.clock())))
+            else:
+                emu.run_for(min(0.01, self.duration - emu.runner.now))
+
+    def snapshot(self) -> Snapshot:
+        return self.view.snapshot(self.emu.runner.now, self.done)
+
+    def close(self) -> None:
+        pass
+
+
+class HostSource:
+    def __init__(self, host: Any, runner: Any, duration: float | None, *,
+                 on_close: Callable[[], None] | None = None) -> None:
+        self.host = host
+        self.runner = runner
+        self.duration = duration
+        self.on_close = on_close
+        self.view = _HostView(host, "host")
+        self.start = runner.clock()
+        host.start(self.start)
+
+    @property
+    def now(self) -> float:
+        return float(self.runner.clock() - self.start)
+
+    @property
+    def done(self) -> bool:
+        from eyeq_spi.host.machine import HostState
+
+        over = self.duration is not None and self.now >= self.duration
+        return over or self.host.state in (HostState.FAILED, HostState.BOOT_FAILED)
+
+    def advance(self, deadline: float) -> None:
+        while not self.done and time.perf_counter() < deadline:
+            self.runner.step()
+
+    def snapshot(self) -> Snapshot:
+        return self.view.snapshot(self.now, self.done)
+
+    def close(self) -> None:
+        if self.on_close is not None:
+            self.on_close()
+
+
+class ReplaySource:
+    """A capture at its own pace: record times (from the first one) against the wall clock
+    times ``speed``. Records without times (raw, hex without times) are fed as fast as
+    possible."""
+
+    def __init__(self, path: str, codec: MessageCodec, *, speed: float = 1.0,
+                 fmt: str | None = None, clock: Clock = time.perf_counter) -> None:
+        self.path = path
+        self.codec = codec
+        self.speed = speed
+        self.clock = clock
+        self._records: Iterator[dict[str, Any]] = dissect_file(path, codec, fmt)
+        self._pending: dict[str, Any] | None = None
+        self._t0: float | None = None
+        self.start = clock()
+        self.now = 0.0
+        self.done = False
+        self.rates = RateMeter(codec.cat)
+        self.tracker = SceneTracker(Labels(codec))
+        self.counts: Counter[str] = Counter()
+        self.link: Counter[str] = Counter()
+        self.errors: Counter[str] = Counter()
+        self.state = "-"
+        self.transitions: list[tuple[float, str, str, str]] = []
+        self._main = Labels(codec)
+
+    def _next(self) -> dict[str, Any] | None:
+        if self._pending is None:
+            self._pending = next(self._records, None)
+            if self._pending is None:
+                self.done = True
+        return self._pending
+
+    def advance(self, deadline: float) -> None:
+        while not self.done and self.clock() < deadline:
+            r = self._next()
+            if r is None:
+                return
+            t = r.get("time")
+            if t is not None:
+                if self._t0 is None:
+                    self._t0 = t
+                rel = t - self._t0
+                if self.speed > 0 and rel > (self.clock() - self.start) * self.speed:
+                    wait = self.start + rel / self.speed - self.clock()
+                    time.sleep(max(0.0, min(wait, deadline - self.clock(), 0.01)))
+                    continue
+                self.now = rel
+            self._pending = None
+            self._add(r)
+
+    def _add(self, r: dict[str, Any]) -> None:
+        kind = r["kind"]
+        if kind == "frame":
+            self.link[f"{r['direction'] or '?'} {r['frame_type']}"] += 1
+            if "length" in r:
+                self.link["wrong length"] += 1
+            elif not r["crc_ok"]:
+                self.link["CRC errors"] += 1
+            elif r["frame_type"] == "NAK":
+                self.link[f"NAK 0x{r['nak_reason']:03X}"] += 1
+        elif kind == "event":
+            key = f"abort: {r['reason']}" if r["type"] == "transfer_aborted" else r["type"]
+            self.link[key] += 1
+        else:
+            name = r["name"] or r["protocol"]
+            self.counts[name] += 1
+            for e in r["errors"]:
+                key = ("E2E errors" if e.startswith("E2E") else "DASP counter gaps"
+                       if e.startswith("DASP counter") else "decode errors")
+                self.errors[key] += 1
+            self.tracker.update(r["name"], r["fields"], self.now, r["errors"])
+            if r["name"] == MAIN_STATE_MSG and not r["errors"]:
+                self._main_state(r["fields"])
+
+    def _main_state(self, fields: dict[str, Any]) -> None:
+        v = fields.get("Main_State")
+        label = self._main.label(MAIN_STATE_MSG, ("Main_State",), v)
+        if label != self.state:
+            self.transitions.append((self.now, self.state, "0x41", label))
+            self.transitions = self.transitions[-8:]
+            self.state = label
+
+    def snapshot(self) -> Snapshot:
+        self.rates.tick(self.now, self.counts)
+        errors = {"E2E errors": 0, "DASP counter gaps": 0, "decode errors": 0, **self.errors}
+        return Snapshot(f"replay {self.path}" + ("" if self.speed == 1 else f" x{self.speed:g}"),
+                        self.now, "EyeQ Main_State (0x41)", self.state, list(self.transitions),
+                        self.rates.rows(), dict(self.link), errors, [],
+                        self.tracker.snapshot(), None, self.done)
+
+    def close(self) -> None:
+        close = getattr(self._records, "close", None)
+        if close is not None:
+            close()

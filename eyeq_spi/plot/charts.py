@@ -1,0 +1,142 @@
+"""Stream timing (``--timing``) and link behaviour (``--link``) over a capture."""
+
+from __future__ import annotations
+
+import itertools
+from collections import Counter
+from typing import Any
+
+from eyeq_spi.plot import PlotError
+from eyeq_spi.plot.collect import GAP_PERIODS, Collected, Stream
+from eyeq_spi.plot.output import new_figure
+
+GAP_COLOUR = "#d62728"
+BAND_COLOUR = "#2ca02c"
+ROW_IN = 1.25  # inches per stream in the timing plot
+WIDTH_IN = 11.0
+DPI = 100
+MAX_BINS = 2000
+
+
+def short(name: str) -> str:
+    return name.removeprefix("EYEQ_").removesuffix("_MSG")
+
+
+def timing_rows(col: Collected) -> list[Stream]:
+    """Streams with a nominal rate, host -> EyeQ first, then by name."""
+    rows = [s for s in col.streams.values() if s.period is not None]
+    return sorted(rows, key=lambda s: (s.direction != "h2e", s.name))
+
+
+def timing_figure(col: Collected) -> tuple[Any, dict[str, Any]]:
+    """The figure and its axes by message name."""
+    rows = timing_rows(col)
+    if not rows:
+        raise PlotError("no periodic messages (DASP or 0x41) in the capture window")
+    fig = new_figure(WIDTH_IN, 0.9 + ROW_IN * len(rows), DPI)
+    axes = fig.subplots(len(rows), 1, sharex=True, squeeze=False)[:, 0]
+    fig.subplots_adjust(left=0.2, right=0.97, top=1 - 0.75 / fig.get_figheight(),
+                        bottom=0.45 / fig.get_figheight(), hspace=0.35)
+    end = col.end
+    by_name: dict[str, Any] = {}
+    for ax, s in zip(axes, rows, strict=True):
+        by_name[s.name] = ax
+        _timing_row(ax, s, end)
+    axes[-1].set_xlabel("capture time (s)")
+    axes[0].set_xlim(col.window.start, max(end, col.window.start + 1e-3))
+    fig.suptitle(f"inter-arrival time per message: nominal period (line), tolerance (band), "
+                 f"stopped > {GAP_PERIODS:g} periods (red span), counter jumps (x)", fontsize=9)
+    return fig, by_name
+
+
+def _timing_row(ax: Any, s: Stream, end: float) -> None:
+    period = s.period
+    assert period is not None
+    p_ms = period * 1e3
+    lo, hi = s.tolerance_ms or (0.0, 0.0)
+    top = p_ms * (GAP_PERIODS + 1.0)
+    ax.axhspan(p_ms + lo, p_ms + hi, color=BAND_COLOUR, alpha=0.25, linewidth=0, zorder=1)
+    ax.axhline(p_ms, color=BAND_COLOUR, linewidth=1.0, zorder=2)
+    gaps = s.gaps(end)
+    for a, b in gaps:
+        ax.axvspan(a, b, color=GAP_COLOUR, alpha=0.35, linewidth=0, zorder=0)
+    t = list(s.times)
+    dts = [(b - a) * 1e3 for a, b in itertools.pairwise(t)]
+    xs = t[1:]
+    inside = [(x, d) for x, d in zip(xs, dts, strict=True) if d <= top]
+    above = [x for x, d in zip(xs, dts, strict=True) if d > top]
+    if inside:
+        ax.plot([x for x, _ in inside], [d for _, d in inside], ".", markersize=2.5,
+                color="#1f77b4", zorder=3)
+    if above:
+        ax.plot(above, [top * 0.97] * len(above), "^", markersize=4, color=GAP_COLOUR, zorder=3)
+    if s.counter_jumps:
+        ax.plot(s.counter_jumps, [top * 0.85] * len(s.counter_jumps), "x", markersize=6,
+                color=GAP_COLOUR, zorder=4)
+    ax.set_ylim(0, top)
+    late = sum(1 for d in dts if not p_ms + lo <= d <= p_ms + hi)
+    ax.set_ylabel(f"{short(s.name)}\n{s.rate_hz:g} Hz · ms", fontsize=7)
+    ax.tick_params(labelsize=7)
+    ax.text(1.0, 1.0, f"{len(t)} msgs, {late} outside tolerance, {len(gaps)} gaps, "
+            f"{len(s.counter_jumps)} counter jumps", transform=ax.transAxes, fontsize=7,
+            ha="right", va="bottom")
+
+
+def _rebinned(col: Collected) -> tuple[float, dict[int, Counter[str]]]:
+    width = col.link_bin
+    bins = col.link
+    if not bins:
+        return width, bins
+    factor = max(1, -(-(max(bins) - min(bins) + 1) // MAX_BINS))
+    if factor == 1:
+        return width, bins
+    out: dict[int, Counter[str]] = {}
+    for b, c in bins.items():
+        out.setdefault(b // factor, Counter()).update(c)
+    return width * factor, out
+
+
+def link_figure(col: Collected) -> Any:
+    width, bins = _rebinned(col)
+    if not bins:
+        raise PlotError("no timestamped frames in the capture window")
+    first, last = min(bins), max(bins)
+    xs = [(b + 0.5) * width for b in range(first, last + 1)]
+    keys: set[str] = set()
+    for c in bins.values():
+        keys.update(c)
+
+    def series(key: str) -> list[float]:
+        return [bins.get(b, Counter()).get(key, 0) / width for b in range(first, last + 1)]
+
+    fig = new_figure(WIDTH_IN, 8.0, DPI)
+    axes = fig.subplots(3, 1, sharex=True)
+    fig.subplots_adjust(left=0.08, right=0.8, top=0.94, bottom=0.07, hspace=0.25)
+    frames = sorted(k for k in keys if k.split(" ")[-1] in ("DATA", "ACK", "NAK", "INVALID"))
+    naks = sorted(k for k in keys if k.startswith("NAK 0x"))
+    errors = sorted(k for k in keys if k in ("CRC errors", "wrong length", "E2E errors")
+                    or k.startswith("abort: "))
+    panels = ((axes[0], frames, "frames/s by kind"), (axes[1], naks, "NAKs/s by reason"),
+              (axes[2], errors, "errors/s"))
+    for ax, ks, label in panels:
+        for k in ks:
+            ax.plot(xs, series(k), drawstyle="steps-mid", linewidth=1.0, label=k,
+                    linestyle="--" if k.endswith(" ACK") else "-")
+        if not ks:
+            ax.text(0.5, 0.5, "none", transform=ax.transAxes, ha="center", va="center",
+                    color="#808080")
+        else:
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+        ax.set_ylabel(label, fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.set_ylim(bottom=0)
+        ax.grid(True, color="#e0e0e0", linewidth=0.5)
+    axes[-1].set_xlabel(f"capture time (s), bins of {width * 1e3:g} ms")
+    totals = Counter[str]()
+    for c in bins.values():
+        totals.update(c)
+    n_nak = sum(totals[k] for k in naks)
+    n_err = sum(totals[k] for k in errors)
+    fig.suptitle(f"link: {sum(totals[k] for k in frames)} frames, {n_nak} NAKs, "
+                 f"{n_err} errors (CRC, length, aborts, E2E)", fontsize=10)
+    return fig

@@ -1,0 +1,213 @@
+"""One pass over a capture through the dissector engine, collecting what the plots draw.
+
+Times are seconds from the capture's first timestamped transfer. Memory is bounded by what is
+drawn: one float per periodic message for the timing plot, one counter per time bin for the link
+plot, one scene per animation frame (and at most ``max_frames`` of them).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from array import array
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import IO, Any
+
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.dissect.engine import Dissector
+from eyeq_spi.dissect.inputs import InputError, open_records
+from eyeq_spi.plot import PlotError
+from eyeq_spi.plot.scene import Labels, Scene, SceneTracker
+
+GAP_PERIODS = 3.0  # a stream is stopped after 3 nominal periods of silence, the host's stale rule
+
+
+def open_capture(path: str) -> IO[bytes]:
+    try:
+        return open(path, "rb")
+    except OSError as exc:
+        raise InputError(f"{path}: {exc.strerror or exc}") from None
+
+
+def dissect_file(path: str, codec: MessageCodec, fmt: str | None = None,
+                 direction: str | None = None) -> Iterator[dict[str, Any]]:
+    """The dissector's records (README JSON contract) of one capture file, streamed."""
+    with open_capture(path) as fh:
+        _, records = open_records(fh, fmt, direction)
+        dis = Dissector(codec=codec)
+        for rec in records:
+            yield from dis.feed(rec)
+        yield from dis.finish()
+
+
+@dataclass
+class Window:
+    """The part of the capture to draw, in seconds from its start (``--start``/``--end``)."""
+
+    start: float = 0.0
+    end: float = math.inf
+    t0: float | None = None  # absolute time of the capture's first timestamp
+
+    def rel(self, t: float | None) -> float | None:
+        if t is None:
+            return None
+        if self.t0 is None:
+            self.t0 = t
+        return t - self.t0
+
+
+@dataclass
+class Stream:
+    name: str
+    direction: str | None
+    rate_hz: float | None
+    tolerance_ms: tuple[float, float] | None
+    times: array[float] = field(default_factory=lambda: array("d"))
+    counter_jumps: list[float] = field(default_factory=list)
+    e2e_errors: list[float] = field(default_factory=list)
+
+    @property
+    def period(self) -> float | None:
+        return 1.0 / self.rate_hz if self.rate_hz else None
+
+    def gaps(self, end: float) -> list[tuple[float, float]]:
+        """Silences longer than GAP_PERIODS periods, the one before ``end`` included."""
+        p = self.period
+        if p is None or not self.times:
+            return []
+        limit = GAP_PERIODS * p
+        out = [(a, b) for a, b in itertools.pairwise(self.times) if b - a > limit]
+        if end - self.times[-1] > limit:
+            out.append((self.times[-1], end))
+        return out
+
+
+@dataclass
+class Collected:
+    window: Window
+    end: float = 0.0  # last time seen (relative)
+    streams: dict[str, Stream] = field(default_factory=dict)
+    link_bin: float = 0.1
+    link: dict[int, Counter[str]] = field(default_factory=dict)
+    frames: list[Scene] = field(default_factory=list)
+    scene: Scene | None = None
+    has_time: bool = False
+
+
+class Collector:
+    """Feed it dissector records; ask for what you need at construction."""
+
+    def __init__(self, codec: MessageCodec, window: Window, *, timing: bool = False,
+                 link: bool = False, link_bin: float = 0.1, at: float | None = None,
+                 fps: float | None = None, max_frames: int = 600) -> None:
+        self.codec = codec
+        self.cat = codec.cat
+        self.w = window
+        self.timing, self.link = timing, link
+        self.at, self.fps, self.max_frames = at, fps, max_frames
+        self.tracker = SceneTracker(Labels(codec)) if (at is not None or fps) else None
+        self.out = Collected(window, link_bin=link_bin)
+        self._next_frame = window.start
+        self.done = False
+
+    def add(self, r: dict[str, Any]) -> None:
+        t = self.w.rel(r.get("time"))
+        if t is not None:
+            self.out.has_time = True
+            if self.tracker is not None:
+                self._frames(t)
+            if t > self.w.end:
+                self.done = True
+                return
+            self.out.end = max(self.out.end, t)
+            if t < self.w.start:
+                if self.tracker is not None and r["kind"] == "message":
+                    self.tracker.update(r["name"], r["fields"], t, r["errors"])
+                return
+        kind = r["kind"]
+        if kind == "message":
+            self._message(r, t)
+        elif self.link and t is not None:
+            self._link(r, t)
+
+    def _frames(self, t: float) -> None:
+        assert self.tracker is not None
+        if self.at is not None:
+            if t > self.at and self.out.scene is None:
+                self.out.scene = self.tracker.snapshot()
+                self.done = not (self.timing or self.link)
+            return
+        assert self.fps
+        while t >= self._next_frame and self._next_frame <= self.w.end:
+            if len(self.out.frames) >= self.max_frames:
+                raise PlotError(f"more than {self.max_frames} animation frames: lower --fps, "
+                                "narrow --start/--end or raise --max-frames")
+            snap = self.tracker.snapshot()
+            snap.time = self._next_frame
+            self.out.frames.append(snap)
+            self._next_frame += 1.0 / self.fps
+
+    def _message(self, r: dict[str, Any], t: float | None) -> None:
+        name = r["name"]
+        if self.tracker is not None:
+            self.tracker.update(name, r["fields"], t, r["errors"])
+        if not self.timing or t is None or r["protocol"] not in ("DASP", "DIAG"):
+            return
+        s = self.out.streams.get(name)
+        if s is None:
+            try:
+                m = self.cat.message(name)
+            except Exception:
+                return
+            s = Stream(name, r["direction"], m.rate_hz, m.tolerance_ms)
+            self.out.streams[name] = s
+        s.times.append(t)
+        for e in r["errors"]:
+            if e.startswith("DASP counter gap"):
+                s.counter_jumps.append(t)
+            elif e.startswith("E2E"):
+                s.e2e_errors.append(t)
+        if self.link:
+            self._count(t, "E2E errors", sum(e.startswith("E2E") for e in r["errors"]))
+
+    def _count(self, t: float, key: str, n: int = 1) -> None:
+        if n:
+            b = int(t // self.out.link_bin)
+            self.out.link.setdefault(b, Counter())[key] += n
+
+    def _link(self, r: dict[str, Any], t: float) -> None:
+        if r["kind"] == "frame":
+            d = r["direction"] or "?"
+            self._count(t, f"{d} {r['frame_type']}")
+            if "length" in r:
+                self._count(t, "wrong length")
+            elif not r["crc_ok"]:
+                self._count(t, "CRC errors")
+            elif r["frame_type"] == "NAK":
+                self._count(t, f"NAK 0x{r['nak_reason']:03X}")
+        elif r["type"] == "transfer_aborted":
+            self._count(t, f"abort: {r['reason']}")
+
+    def finish(self) -> Collected:
+        if self.tracker is not None:
+            if self.at is not None and self.out.scene is None:
+                self.out.scene = self.tracker.snapshot()  # --at past the end: the last scene
+            elif self.fps and not self.out.frames:
+                self.out.frames.append(self.tracker.snapshot())
+        return self.out
+
+
+def collect(path: str, collector: Collector, *, fmt: str | None = None,
+            direction: str | None = None) -> Collected:
+    for r in dissect_file(path, collector.codec, fmt, direction):
+        collector.add(r)
+        if collector.done:
+            break
+    out = collector.finish()
+    at_time = collector.at is not None and math.isfinite(collector.at)
+    if not out.has_time and (collector.timing or collector.link or collector.fps or at_time):
+        raise PlotError(f"{path}: the capture has no timestamps (a raw file, or hex without "
+                        "times); this plot needs them")
+    return out

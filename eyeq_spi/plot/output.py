@@ -1,0 +1,86 @@
+"""matplotlib loading and writing figures: PNG, SVG, or a self-contained HTML file; animations
+as GIF (Pillow, a matplotlib dependency) or an HTML player (``Animation.to_jshtml``)."""
+
+from __future__ import annotations
+
+import html
+import io
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.plot import PlotError
+
+STILL = (".png", ".svg", ".html")
+MOVING = (".gif", ".html")
+HINT = "pip install 'eyeq-spi[plot]'"
+
+
+def mpl() -> Any:
+    """matplotlib with the Agg backend (no display needed), or a typed error with the hint."""
+    try:
+        import matplotlib
+    except ImportError:
+        raise PlotError(f"plots need matplotlib: {HINT}") from None
+    matplotlib.use("Agg", force=True)
+    return matplotlib
+
+
+def new_figure(width_in: float, height_in: float, dpi: int) -> Any:
+    mpl()
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, height_in), dpi=dpi)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def check_output(path: str, animated: bool) -> str:
+    suffix = Path(path).suffix.lower()
+    allowed = MOVING if animated else STILL
+    if suffix not in allowed:
+        raise PlotError(f"{path}: output must end in {', '.join(allowed)}")
+    return suffix
+
+
+def _page(title: str, body: str) -> str:
+    return ("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>"
+            f"{html.escape(title)}</title></head>\n<body style=\"margin:0\">\n{body}\n"
+            "</body></html>\n")
+
+
+def _write(path: str, data: bytes | str) -> None:
+    try:
+        if isinstance(data, str):
+            Path(path).write_text(data, encoding="utf-8")
+        else:
+            Path(path).write_bytes(data)
+    except OSError as exc:
+        raise PlotError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def save_figure(fig: Any, path: str, title: str) -> None:
+    suffix = check_output(path, animated=False)
+    buf = io.BytesIO()
+    # no bbox_inches="tight": pixel positions stay where the fixed layout puts them
+    fig.savefig(buf, format="svg" if suffix != ".png" else "png", dpi=fig.dpi,
+                metadata=None if suffix != ".png" else {"Software": "eyeq-spi"})
+    if suffix == ".html":
+        svg = buf.getvalue().decode("utf-8")
+        svg = svg[svg.find("<svg"):]  # inline: drop the XML prolog and doctype
+        _write(path, _page(title, svg))
+    else:
+        _write(path, buf.getvalue())
+
+
+def save_animation(anim: Any, path: str, fps: float, title: str) -> None:
+    suffix = check_output(path, animated=True)
+    if suffix == ".gif":
+        from matplotlib.animation import PillowWriter
+
+        try:
+            anim.save(path, writer=PillowWriter(fps=max(1, round(fps))))
+        except OSError as exc:
+            raise PlotError(f"cannot write {path}: {exc.strerror or exc}") from None
+    else:
+        _write(path, _page(title, anim.to_jshtml(fps=fps, default_mode="once")))

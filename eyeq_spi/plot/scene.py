@@ -1,0 +1,254 @@
+"""Decoded DASP fields -> the scene: objects, lane/border polynomials and traffic signs.
+
+Pure data, no plotting library: the bird's-eye plot and the live monitor both read the scene
+from here, and both get their fields from the same decoder as ``eyeq-spi dissect``.
+
+Coordinates are the seed's vehicle frame: ``long`` forward, ``lat`` to the left (the host's left
+lane marker has a positive ``a0``, §10). Structures are found by their members, not by a path
+written per SW version, so every release's variant of a message works:
+
+- an object is an element of an array of structs with ``physicalState`` (§13.2.5); it is valid
+  when ``id`` is in 1..E_EYEQ_MAX_VISION_OBJECTS ("any other value means invalid object");
+- a line is any ``eyeq_polynomial_model_t`` (members ``a0..a3``, ``startRange``, ``endRange``,
+  ``y = a0 + a1*x + a2*x^2 + a3*x^3``, §10.4); it is drawn over ``[startRange, endRange]`` and
+  skipped when that range is empty (the sim and the seed's defaults send zeros for "none") or
+  its type is INVALID;
+- signs are the first ``numberTrafficSigns`` elements of ``trafficSigns`` (§11).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+from eyeq_spi.codec.layout import Layout
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.spec.catalog import EnumDef
+
+OBSTACLES = "EYEQ_VIS_OBSTACLES_MSG"
+ROAD = "EYEQ_VIS_ROAD_DATA_MSG"
+SIGNS = "EYEQ_VIS_TRAFFIC_SIGNS_MSG"
+SCENE_MESSAGES = (OBSTACLES, ROAD, SIGNS)
+POLY_KEYS = frozenset(("a0", "a1", "a2", "a3", "startRange", "endRange"))
+CIPV = "CIPV"  # object_is_cipv value name (§13.2.5)
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    id: int
+    cls: int
+    cls_name: str
+    long: float  # to the middle of the rear corners (§13.2.5.3)
+    lat: float
+    width: float
+    length: float
+    heading: float  # radians, relative to the host's heading
+    v_long: float  # absolute velocity, m/s
+    v_lat: float
+    cipv: bool
+    ttc: float | None  # ttc_const_vel (SW5 and later)
+
+
+@dataclass(frozen=True)
+class SceneLine:
+    name: str  # hostLeftMarker, leftRoadBorder, laneCenter, ...
+    kind: str  # "marker" | "border" | "centre"
+    coeffs: tuple[float, float, float, float]
+    start: float
+    end: float
+    type_name: str | None
+
+    def lateral(self, x: float) -> float:
+        a0, a1, a2, a3 = self.coeffs
+        return a0 + a1 * x + a2 * x * x + a3 * x * x * x
+
+
+@dataclass(frozen=True)
+class SceneSign:
+    long: float
+    lat: float
+    height: float
+    type: int
+    name: str
+
+
+@dataclass
+class Scene:
+    time: float | None = None
+    objects: list[SceneObject] = field(default_factory=list)
+    lines: list[SceneLine] = field(default_factory=list)
+    signs: list[SceneSign] = field(default_factory=list)
+    times: dict[str, float | None] = field(default_factory=dict)  # message -> its time
+
+
+class Labels:
+    """Enum value names of decoded members, looked up through the message's layout (specs/)."""
+
+    def __init__(self, codec: MessageCodec) -> None:
+        self.codec = codec
+        self._enums: dict[tuple[str, tuple[str, ...]], EnumDef | None] = {}
+        self.max_objects = _constant(codec, "E_EYEQ_MAX_VISION_OBJECTS", 15)
+
+    def enum(self, message: str, path: tuple[str, ...]) -> EnumDef | None:
+        key = (message, path)
+        if key not in self._enums:
+            self._enums[key] = self._find(message, path)
+        return self._enums[key]
+
+    def _find(self, message: str, path: tuple[str, ...]) -> EnumDef | None:
+        try:
+            lay: Layout = self.codec.layout(self.codec.message(message))
+        except Exception:
+            return None
+        for name in path[:-1]:
+            child = lay.children.get(name)
+            if child is None:
+                return None
+            lay = child
+        try:
+            member = lay.field(path[-1]).member
+        except Exception:
+            return None
+        return self.codec.cat.enums.get(member.enum or "")
+
+    def label(self, message: str, path: tuple[str, ...], value: Any) -> str:
+        e = self.enum(message, path)
+        if e is None or not isinstance(value, int):
+            return str(value)
+        v = e.values.get(value)
+        if v is None:
+            return f"{value}?"
+        return v.semantic or v.name
+
+
+def _constant(codec: MessageCodec, name: str, default: int) -> int:
+    try:
+        return int(codec.cat.constant(name, codec.sw))
+    except Exception:
+        return default
+
+
+def _walk(v: Any, path: tuple[str, ...] = ()) -> Iterator[tuple[tuple[str, ...], dict[str, Any]]]:
+    """Every dict in a decoded value with its path of member names (array indices dropped)."""
+    if isinstance(v, dict):
+        yield path, v
+        for k, x in v.items():
+            if isinstance(x, dict | list):
+                yield from _walk(x, (*path, k))
+    elif isinstance(v, list):
+        for x in v:
+            if isinstance(x, dict):
+                yield from _walk(x, path)
+
+
+def _f(d: dict[str, Any], key: str, default: float = 0.0) -> float:
+    v = d.get(key, default)
+    return float(v) if isinstance(v, int | float) else default
+
+
+def objects(fields: dict[str, Any], labels: Labels) -> list[SceneObject]:
+    out: list[SceneObject] = []
+    for path, d in _walk(fields):
+        ps = d.get("physicalState")
+        if not isinstance(ps, dict) or "id" not in d:
+            continue
+        oid = d["id"]
+        if not isinstance(oid, int) or not 1 <= oid <= labels.max_objects:
+            continue
+        cls = int(d.get("classification", 0))
+        cipv = labels.label(OBSTACLES, (*path, "isCipv"), d.get("isCipv", 0)) == CIPV
+        ttc = d.get("ttc_const_vel")
+        out.append(SceneObject(
+            id=oid, cls=cls, cls_name=labels.label(OBSTACLES, (*path, "classification"), cls),
+            long=_f(ps, "longDistance"), lat=_f(ps, "latDistance"), width=_f(ps, "width"),
+            length=_f(ps, "length"), heading=_f(ps, "heading"),
+            v_long=_f(ps, "absoluteLongVelocity"), v_lat=_f(ps, "absoluteLatVelocity"),
+            cipv=cipv, ttc=float(ttc) if isinstance(ttc, int | float) else None))
+    return out
+
+
+def _line_kind(name: str) -> str:
+    if "Border" in name:
+        return "border"
+    if "Center" in name or "Centre" in name:
+        return "centre"
+    return "marker"
+
+
+def lines(fields: dict[str, Any], labels: Labels) -> list[SceneLine]:
+    out: list[SceneLine] = []
+    parents: dict[tuple[str, ...], dict[str, Any]] = {}
+    for path, d in _walk(fields):
+        parents[path] = d
+        if not d.keys() >= POLY_KEYS:
+            continue
+        start, end = _f(d, "startRange"), _f(d, "endRange")
+        if not end > start:
+            continue
+        parent = parents.get(path[:-1], {})
+        own = path[-1] if path else "line"
+        # hostLeftMarker.laneMarker -> hostLeftMarker; roadHppFusionInfo.laneCenter -> laneCenter
+        name = path[-2] if len(path) >= 2 and own in ("laneMarker", "roadBorder") else own
+        type_name = None
+        for k, v in parent.items():
+            if k.endswith(("MarkerType", "BorderType")) and isinstance(v, int):
+                type_name = labels.label(ROAD, (*path[:-1], k), v)
+                break
+        if type_name in ("INVALID", "Invalid"):
+            continue  # lane_marker_type 6, road_border_type 1 (SW7+)
+        out.append(SceneLine(
+            name=name, kind=_line_kind(name),
+            coeffs=(_f(d, "a0"), _f(d, "a1"), _f(d, "a2"), _f(d, "a3")),
+            start=start, end=end, type_name=type_name))
+    return out
+
+
+def signs(fields: dict[str, Any], labels: Labels) -> list[SceneSign]:
+    out: list[SceneSign] = []
+    for path, d in _walk(fields):
+        elems = d.get("trafficSigns")
+        if not isinstance(elems, list):
+            continue
+        n = d.get("numberTrafficSigns")
+        count = int(n) if isinstance(n, int) else len(elems)
+        for s in elems[:max(0, count)]:
+            if not isinstance(s, dict):
+                continue
+            st = int(s.get("signType", 0))
+            out.append(SceneSign(
+                long=_f(s, "signLongPosition"), lat=_f(s, "signLatPosition"),
+                height=_f(s, "signHeight"), type=st,
+                name=labels.label(SIGNS, (*path, "trafficSigns", "signType"), st)))
+    return out
+
+
+class SceneTracker:
+    """The latest scene: feed it decoded messages (name, fields, time) in any order."""
+
+    def __init__(self, labels: Labels) -> None:
+        self.labels = labels
+        self.scene = Scene()
+
+    def update(self, name: str | None, fields: dict[str, Any] | None, t: float | None,
+               errors: list[str] | tuple[str, ...] = ()) -> bool:
+        """True when the message changed the scene. A message with decode errors is skipped,
+        as the host skips it (D5); E2E and counter errors alone do not hide it from a view."""
+        if name not in SCENE_MESSAGES or not fields:
+            return False
+        if any(not (e.startswith("E2E") or e.startswith("DASP counter")) for e in errors):
+            return False
+        sc = self.scene
+        if name == OBSTACLES:
+            sc.objects = objects(fields, self.labels)
+        elif name == ROAD:
+            sc.lines = lines(fields, self.labels)
+        else:
+            sc.signs = signs(fields, self.labels)
+        sc.times[name] = t
+        sc.time = t
+        return True
+
+    def snapshot(self) -> Scene:
+        sc = self.scene
+        return Scene(sc.time, list(sc.objects), list(sc.lines), list(sc.signs), dict(sc.times))
