@@ -1,0 +1,87 @@
+"""One pass over a capture feeding every export asked for: VCD waveforms (raw transfers, no
+decoding), MDF4 and MCAP (through the dissector engine, so they hold exactly what ``eyeq-spi
+dissect`` decodes)."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterable
+from typing import IO, Any
+
+from eyeq_spi.bench.mdf import ExportError
+from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.logic.options import SpiOptions
+
+
+def _open(path: str, mode: str) -> IO[Any]:
+    try:
+        if "b" in mode:
+            return open(path, mode)
+        return open(path, mode, encoding="utf-8", newline="\n")
+    except OSError as exc:
+        raise ExportError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def export(records: Iterable[Record], *, source: str, sw: str | None = None,
+           vcd: str | None = None, mdf: str | None = None, mcap: str | None = None,
+           spi: SpiOptions | None = None) -> dict[str, Any]:
+    from eyeq_spi.codec.message import MessageCodec
+    from eyeq_spi.dissect.engine import Dissector
+
+    codec = MessageCodec(sw)
+    with contextlib.ExitStack() as stack:
+        vcd_w = mdf_w = mcap_w = None
+        if vcd:
+            from eyeq_spi.logic.vcd_write import VcdWriter
+
+            vcd_w = VcdWriter(stack.enter_context(_open(vcd, "w")), spi)
+        if mdf:
+            from eyeq_spi.bench.mdf import MdfWriter
+
+            mdf_w = MdfWriter(mdf, codec, source=source)
+        if mcap:
+            from eyeq_spi.bench.mcap_out import McapWriter
+
+            mcap_w = McapWriter(stack.enter_context(_open(mcap, "wb")), sw=codec.sw,
+                                source=source)
+        dis = Dissector(codec=codec) if (mdf_w or mcap_w) else None
+        transfers = 0
+        for rec in records:
+            transfers += 1
+            if vcd_w is not None:
+                vcd_w.write(rec)
+            if dis is None:
+                continue
+            for r in dis.feed(rec):
+                if mcap_w is not None:
+                    if r["kind"] == "frame" and r["index"] == transfers - 1:
+                        mcap_w.transfer(rec, r)
+                    else:
+                        mcap_w.record(r)
+                if mdf_w is not None:
+                    mdf_w.write(r)
+        if dis is not None:
+            for r in dis.finish():
+                if mcap_w is not None:
+                    mcap_w.record(r)
+        written = []
+        summary: dict[str, Any] = {"transfers": transfers, "sw": codec.sw}
+        if vcd_w is not None:
+            vcd_w.close()
+            written.append(f"{vcd} ({vcd_w.count} transfers, {vcd_w.delayed} moved to keep "
+                           "their channel's gap)")
+            summary["vcd"] = {"path": vcd, "transfers": vcd_w.count, "delayed": vcd_w.delayed}
+        if mdf_w is not None:
+            mdf_w.close()
+            written.append(f"{mdf} ({len(mdf_w.groups)} channel groups, {mdf_w.messages} "
+                           "messages)")
+            summary["mdf"] = {"path": mdf, "groups": len(mdf_w.groups),
+                              "messages": mdf_w.messages}
+        if mcap_w is not None:
+            mcap_w.close()
+            written.append(f"{mcap} ({len(mcap_w.channels)} topics, {mcap_w.messages} "
+                           "decoded messages)")
+            summary["mcap"] = {"path": mcap, "topics": len(mcap_w.channels),
+                               "messages": mcap_w.messages}
+        summary["written"] = written
+        return summary

@@ -1,0 +1,117 @@
+"""Capture -> MCAP (the mcap library, zstd chunks), for Foxglove.
+
+Topics, all JSON with a JSON Schema (Foxglove's ``jsonschema`` encoding):
+- ``/spi/<direction>/transfers``: every transfer, raw bytes base64 (``contentEncoding``) with
+  the dissector's frame record (kind, NUM, RSP, CRC, transport);
+- ``/eyeq/<direction>/<MESSAGE_NAME>``: each decoded message (header, fields, errors) with a
+  schema built from its first instance;
+- ``/spi/events``: link and transport events (aborts, duplicates, resynchronisation...).
+Log times are the capture's, in nanoseconds (the frame index in µs for inputs without times).
+A metadata record ``eyeq-spi`` carries the SW release used to decode, the capture source and
+the tool version.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+from typing import IO, Any
+
+from eyeq_spi import __version__
+from eyeq_spi.bench.mdf import ExportError, need
+from eyeq_spi.capture.pcapng_io import Record
+
+_TRANSFER_SCHEMA: dict[str, Any] = {
+    "type": "object", "title": "eyeq_spi.Transfer",
+    "properties": {
+        "index": {"type": "integer"}, "time": {"type": ["number", "null"]},
+        "direction": {"type": ["string", "null"]},
+        "data": {"type": "string", "contentEncoding": "base64",
+                 "description": "the SPI transfer as on the wire (normally 128 bytes, L1)"},
+        "length": {"type": "integer"}, "frame_type": {"type": "string"},
+        "num": {"type": ["integer", "null"]}, "rsp": {"type": ["integer", "null"]},
+        "crc_ok": {"type": "boolean"}, "transport": {"type": ["string", "null"]},
+        "transfer_id": {"type": ["integer", "null"]}, "nak_reason": {"type": ["integer", "null"]},
+    },
+}
+_EVENT_SCHEMA: dict[str, Any] = {"type": "object", "title": "eyeq_spi.Event",
+                                 "properties": {"type": {"type": "string"},
+                                                "direction": {"type": ["string", "null"]},
+                                                "index": {"type": "integer"}}}
+
+
+def json_schema(value: Any) -> dict[str, Any]:
+    if isinstance(value, dict):
+        return {"type": "object", "properties": {k: json_schema(v) for k, v in value.items()}}
+    if isinstance(value, list):
+        return {"type": "array", "items": json_schema(value[0]) if value else {}}
+    if isinstance(value, bool):
+        return {"type": "boolean"}
+    if isinstance(value, int):
+        return {"type": "integer"}
+    if isinstance(value, float):
+        return {"type": "number"}
+    if isinstance(value, str):
+        return {"type": "string"}
+    return {}
+
+
+class McapWriter:
+    def __init__(self, fh: IO[bytes], *, sw: str, source: str) -> None:
+        writer_mod = need("mcap.writer", "--mcap")
+        need("zstandard", "--mcap")
+        self.w = writer_mod.Writer(fh, compression=writer_mod.CompressionType.ZSTD)
+        self.w.start(profile="", library=f"eyeq-spi {__version__}")
+        self.meta = {"sw_release": sw, "capture_source": source,
+                     "eyeq_spi_version": __version__}
+        self.channels: dict[str, int] = {}
+        self.seq = 0
+        self.messages = 0
+        self.last_time: float | None = None
+
+    def _channel(self, topic: str, schema: dict[str, Any], title: str) -> int:
+        cid = self.channels.get(topic)
+        if cid is None:
+            sid = self.w.register_schema(name=title, encoding="jsonschema",
+                                         data=json.dumps({**schema, "title": title}).encode())
+            cid = self.w.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+            self.channels[topic] = cid
+        return int(cid)
+
+    def _put(self, cid: int, time: float | None, index: int, body: dict[str, Any]) -> None:
+        ns = round(time * 1e9) if time is not None else index * 1000
+        self.seq += 1
+        self.w.add_message(channel_id=cid, log_time=max(0, ns), publish_time=max(0, ns),
+                           sequence=self.seq,
+                           data=json.dumps(body, separators=(",", ":")).encode())
+
+    def transfer(self, rec: Record, frame: dict[str, Any]) -> None:
+        topic = f"/spi/{rec.direction or 'unknown'}/transfers"
+        cid = self._channel(topic, _TRANSFER_SCHEMA, "eyeq_spi.Transfer")
+        body = {k: frame[k] for k in ("index", "time", "direction", "frame_type", "num", "rsp",
+                                      "crc_ok", "transport", "transfer_id", "nak_reason")}
+        body["length"] = len(rec.data)
+        body["data"] = base64.b64encode(rec.data).decode("ascii")
+        self._put(cid, rec.time, frame["index"], body)
+        self.last_time = rec.time if rec.time is not None else self.last_time
+
+    def record(self, r: dict[str, Any]) -> None:
+        if r["kind"] == "message":
+            name = r["name"] or r["protocol"]
+            body = {k: r[k] for k in ("time", "direction", "protocol", "name", "length", "frames",
+                                      "header", "fields", "errors")}
+            topic = f"/eyeq/{r['direction'] or 'unknown'}/{name}"
+            cid = self._channel(topic, json_schema(body), f"eyeq_spi.{name}")
+            last = next((f for f in reversed(r["frames"]) if f is not None), 0)
+            self._put(cid, r["time"], last, body)
+            self.messages += 1
+        elif r["kind"] == "event":
+            cid = self._channel("/spi/events", _EVENT_SCHEMA, "eyeq_spi.Event")
+            self._put(cid, self.last_time, r["index"], r)
+
+    def close(self) -> None:
+        try:
+            self.w.add_metadata(name="eyeq-spi", data={k: str(v) for k, v in self.meta.items()})
+            self.w.finish()
+        except OSError as exc:
+            raise ExportError(f"cannot write the MCAP file: {exc}") from None

@@ -1,0 +1,135 @@
+"""``eyeq-spi export``, ``eyeq-spi replay`` and ``eyeq-spi sigrok-decoder`` (issue 14)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Iterator
+from typing import IO, Any
+
+from eyeq_spi.errors import UsageError
+
+_FORMATS = ("raw", "hex", "pcapng", "saleae2", "saleae1", "vcd")
+
+
+def _input_options(p: Any) -> None:
+    from eyeq_spi.logic.options import add_spi_arguments
+
+    p.add_argument("capture", metavar="CAPTURE",
+                   help="a capture in any format dissect reads (pcapng, raw, hex, Saleae, VCD)")
+    p.add_argument("--format", choices=_FORMATS, help="skip detection")
+    p.add_argument("--direction", choices=("h2e", "e2h"),
+                   help="channel of an input without directions")
+    p.add_argument("--sw", help="SW release of the traffic (default newest)")
+    add_spi_arguments(p)
+
+
+def add_bench_parser(sub: Any) -> None:
+    e = sub.add_parser("export", help="a capture as VCD waveforms, MDF4 or MCAP",
+                       description="Turn a capture into SPI waveforms for PulseView (--vcd), "
+                       "decoded signals for asammdf/CANape (--mdf) or raw transfers and decoded "
+                       "messages for Foxglove (--mcap). Several outputs may be given at once.")
+    _input_options(e)
+    e.add_argument("--vcd", metavar="OUT.vcd", help="SPI waveforms, 10 MHz, mode 1")
+    e.add_argument("--mdf", metavar="OUT.mf4", help="decoded signals (needs the [bench] extra)")
+    e.add_argument("--mcap", metavar="OUT.mcap",
+                   help="raw transfers and decoded messages (needs the [bench] extra)")
+    e.add_argument("--json", action="store_true", help="end with one JSON summary object")
+    r = sub.add_parser("replay", help="play a capture's EyeQ channel to a host",
+                       description="Play the EyeQ channel (e2h) of a capture to a host under "
+                       "test at --port in real time, keeping the capture's timing and ACKing "
+                       "the host's frames, or (--into-host) to the built-in host emulator in "
+                       "virtual time. Exit 0 when played to the end (--into-host: and the "
+                       "host reached Running Vision).")
+    _input_options(r)
+    where = r.add_mutually_exclusive_group(required=True)
+    where.add_argument("--port", metavar="URL",
+                       help="the host under test: socket://HOST:PORT, listen://HOST:PORT, a "
+                       "tty or pty path, rfc2217://HOST:PORT")
+    where.add_argument("--into-host", action="store_true",
+                       help="feed the built-in host emulator in virtual time")
+    r.add_argument("--duration", type=float, help="stop after S seconds of capture time")
+    r.add_argument("--json", action="store_true", help="end with one JSON object")
+    s = sub.add_parser("sigrok-decoder", help="install the eyeq_spi decoder for sigrok/PulseView",
+                       description="Write the eyeq_spi protocol decoder (stacked on sigrok's "
+                       "spi) where libsigrokdecode looks for decoders.")
+    s.add_argument("--install", metavar="DIR", nargs="?", const="",
+                   help="decoders folder (default ~/.local/share/libsigrokdecode/decoders; "
+                   "any other needs SIGROKDECODE_DIR=DIR)")
+
+
+def _records(args: argparse.Namespace) -> tuple[IO[bytes], Iterator[Any]]:
+    from eyeq_spi.dissect.inputs import InputError, open_records
+    from eyeq_spi.logic.options import spi_options_from
+
+    if args.capture == "-":
+        fh: IO[bytes] = sys.stdin.buffer
+    else:
+        try:
+            fh = open(args.capture, "rb")  # noqa: SIM115 - closed by the caller
+        except OSError as exc:
+            raise InputError(f"{args.capture}: {exc.strerror or exc}") from None
+    _, records = open_records(fh, args.format, args.direction, spi_options_from(args))
+    return fh, records
+
+
+def run_export(args: argparse.Namespace) -> int:
+    from eyeq_spi.bench.export import export
+
+    if not (args.vcd or args.mdf or args.mcap):
+        raise UsageError("give at least one of --vcd, --mdf, --mcap")
+    fh, records = _records(args)
+    try:
+        summary = export(records, source=args.capture, sw=args.sw, vcd=args.vcd, mdf=args.mdf,
+                         mcap=args.mcap, spi=_spi(args))
+    finally:
+        if fh is not sys.stdin.buffer:
+            fh.close()
+    if args.json:
+        print(json.dumps(summary, separators=(",", ":")))
+    else:
+        for line in summary["written"]:
+            print(f"wrote {line}")
+    return 0
+
+
+def _spi(args: argparse.Namespace) -> Any:
+    from eyeq_spi.logic.options import spi_options_from
+
+    return spi_options_from(args)
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    from eyeq_spi.bench.replay import replay_into_host, replay_to_port
+
+    if args.duration is not None and args.duration <= 0:
+        raise UsageError("--duration must be positive")
+    fh, records = _records(args)
+    try:
+        if args.into_host:
+            summary = replay_into_host(records, sw=args.sw, duration=args.duration)
+        else:
+            summary = replay_to_port(records, args.port, duration=args.duration)
+    finally:
+        if fh is not sys.stdin.buffer:
+            fh.close()
+    if args.json:
+        print(json.dumps(summary, separators=(",", ":")))
+    else:
+        for k, v in summary.items():
+            print(f"{k}: {v}")
+    return 0 if summary.get("ok") else 1
+
+
+def run_sigrok_decoder(args: argparse.Namespace) -> int:
+    from eyeq_spi.bench.sigrok_install import default_dir, install
+
+    if args.install is None:
+        raise UsageError("give --install [DIR]")
+    target = install(args.install or None)
+    hint = "" if not args.install or target.parent == default_dir() else \
+        f" (run sigrok with SIGROKDECODE_DIR={target.parent})"
+    print(f"installed the eyeq_spi decoder in {target}{hint}; use it as "
+          "-P spi:cpol=0:cpha=1:...,eyeq_spi:direction=h2e")
+    return 0

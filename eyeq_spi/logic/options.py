@@ -1,0 +1,139 @@
+"""How a logic-analyzer capture maps onto the two SPI channels: SPI mode, bit order, signal
+names and which channel (and data line) carries ``h2e`` and ``e2h``. Defaults come from
+``specs/bench.yaml``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cache
+from typing import Any
+
+from eyeq_spi.errors import EyeqError, UsageError
+from eyeq_spi.spec.link import spec_file
+
+DIRECTIONS = ("h2e", "e2h")
+LINES = ("mosi", "miso")
+SIGNALS = ("cs", "clk", "mosi", "miso")
+MAX_TRANSFER = 65536  # bytes kept per transfer: a chip select that never rises is an error
+
+
+class LogicInputError(EyeqError):
+    """A logic-analyzer capture cannot be read (foreign, truncated, no chip select...)."""
+
+
+@cache
+def bench_spec() -> dict[str, Any]:
+    return spec_file("bench.yaml")
+
+
+def sample_on_rising(mode: int) -> bool:
+    """SPI modes 0 and 3 sample on the rising clock edge, 1 and 2 on the falling one."""
+    return mode in (0, 3)
+
+
+@dataclass(frozen=True)
+class Route:
+    direction: str | None
+    line: str
+
+
+@dataclass
+class SpiOptions:
+    """``mode`` 0..3 (CPOL*2 + CPHA), ``bit_order`` msb_first|lsb_first, ``channel_map``:
+    direction -> (channel name or "" for the only channel, line); ``signals``: channel ->
+    (cs, clk, mosi, miso or None) VCD signal names; ``direction`` for a single unnamed channel."""
+
+    mode: int = field(default_factory=lambda: int(bench_spec()["spi"]["mode"]))
+    bit_order: str = field(default_factory=lambda: str(bench_spec()["spi"]["bit_order"]))
+    channel_map: dict[str, tuple[str, str]] = field(default_factory=dict)
+    signals: dict[str, tuple[str, str, str, str | None]] = field(default_factory=dict)
+    direction: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.mode not in (0, 1, 2, 3):
+            raise UsageError(f"SPI mode must be 0..3, not {self.mode}")
+        if self.bit_order not in ("msb_first", "lsb_first"):
+            raise UsageError(f"bit order must be msb_first or lsb_first, not {self.bit_order!r}")
+
+    def routes(self, channel: str, n_channels_hint: int = 1) -> list[Route]:
+        """Where the transfers of ``channel`` go. An explicit map wins; otherwise a channel
+        named after a direction takes its master's line (MOSI, ``specs/bench.yaml``); a single
+        unnamed channel goes to ``direction``."""
+        if self.channel_map:
+            return [Route(d, line) for d, (name, line) in self.channel_map.items()
+                    if name.lower() == channel.lower() or (name == "" and n_channels_hint == 1)]
+        low = channel.lower()
+        chans = bench_spec()["channels"]
+        for d in DIRECTIONS:
+            if d in low:
+                return [Route(d, str(chans[d]["line"]))]
+        if n_channels_hint == 1:
+            line = str(chans[self.direction or "h2e"]["line"])
+            return [Route(self.direction, line)]
+        raise LogicInputError(
+            f"channel {channel!r}: its name says neither h2e nor e2h; give --channel-map "
+            f"h2e=NAME[:LINE],e2h=NAME[:LINE]")
+
+
+def parse_channel_map(text: str) -> dict[str, tuple[str, str]]:
+    """``h2e=SPI 1:mosi,e2h=SPI 2`` -> {"h2e": ("SPI 1", "mosi"), "e2h": ("SPI 2", "mosi")}.
+    An empty NAME means the capture's only channel (``h2e=:mosi,e2h=:miso`` for one
+    full-duplex bus)."""
+    out: dict[str, tuple[str, str]] = {}
+    for part in text.split(","):
+        d, eq, rest = part.partition("=")
+        d = d.strip()
+        if not eq or d not in DIRECTIONS:
+            raise UsageError(f"--channel-map: {part!r} is not h2e=NAME[:LINE] or e2h=NAME[:LINE]")
+        name, _, line = rest.rpartition(":") if ":" in rest else (rest, "", "")
+        line = line.strip().lower() or str(bench_spec()["channels"][d]["line"])
+        if line not in LINES:
+            raise UsageError(f"--channel-map: line {line!r} is not mosi or miso")
+        if d in out:
+            raise UsageError(f"--channel-map: {d} given twice")
+        out[d] = (name.strip(), line)
+    return out
+
+
+def parse_signals(items: list[str]) -> dict[str, tuple[str, str, str, str | None]]:
+    """``h2e=CS0,CLK0,MOSI0[,MISO0]`` (repeatable) -> channel -> signal names."""
+    out: dict[str, tuple[str, str, str, str | None]] = {}
+    for item in items:
+        chan, eq, rest = item.partition("=")
+        names = [n.strip() for n in rest.split(",")]
+        if not eq or not chan.strip() or len(names) not in (3, 4) or not all(names):
+            raise UsageError(f"--signals: {item!r} is not CHANNEL=CS,CLK,MOSI[,MISO]")
+        out[chan.strip()] = (names[0], names[1], names[2], names[3] if len(names) == 4 else None)
+    return out
+
+
+def signal_name(channel: str, signal: str) -> str:
+    return str(bench_spec()["vcd"]["name_format"]).format(channel=channel, signal=signal)
+
+
+def add_spi_arguments(parser: Any) -> None:
+    """The logic-analyzer options shared by ``dissect`` and ``export`` (argparse)."""
+    g = parser.add_argument_group("logic-analyzer inputs (saleae2, saleae1, vcd)")
+    g.add_argument("--spi-mode", type=int, choices=(0, 1, 2, 3),
+                   help="SPI mode (default 1: §6 POLARITY_0_PHASE_1)")
+    g.add_argument("--bit-order", choices=("msb_first", "lsb_first"),
+                   help="bit order of each byte on the wire (default msb_first)")
+    g.add_argument("--channel-map", metavar="MAP",
+                   help="which capture channel carries each direction: h2e=NAME[:LINE],"
+                   "e2h=NAME[:LINE] (NAME: Saleae analyzer name or VCD channel prefix, empty "
+                   "for the only one; LINE mosi|miso). Default: channels named h2e/e2h, MOSI")
+    g.add_argument("--signals", action="append", default=[], metavar="CHANNEL=CS,CLK,MOSI[,MISO]",
+                   help="VCD signal names of a channel (repeatable; default <channel>_cs ...)")
+
+
+def spi_options_from(args: Any) -> SpiOptions:
+    kw: dict[str, Any] = {"direction": getattr(args, "direction", None)}
+    if getattr(args, "spi_mode", None) is not None:
+        kw["mode"] = args.spi_mode
+    if getattr(args, "bit_order", None):
+        kw["bit_order"] = args.bit_order
+    if getattr(args, "channel_map", None):
+        kw["channel_map"] = parse_channel_map(args.channel_map)
+    if getattr(args, "signals", None):
+        kw["signals"] = parse_signals(args.signals)
+    return SpiOptions(**kw)
