@@ -44,5 +44,9 @@ class AdapterError(EyeqError):
     """A physical adapter failed (port will not open, peer went away...)."""
 
 
+class LinkLostError(AdapterError):
+    """The peer went away: its end of the byte stream closed, reset or stopped reading."""
+
+
 class UsageError(EyeqError):
     """A command-line argument is wrong."""

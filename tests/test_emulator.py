@@ -114,7 +114,7 @@ def test_tac_and_spc_round_trips_update_nvm(running, mode: str, state: HostState
 def test_dv_mode(running) -> None:  # type: ignore[no-untyped-def]
     running.host.switch_mode("DV", running.runner.now)
     running.run_for(1.0)
-    assert running.host.state is S.DV and running.sim.main_state == 0x05
+    assert running.host.state is S.DV and running.sim.main_state == 0xAA  # M7: RUNNING_DV
 
 
 def test_eyeq_reset_in_running_vision_recovers_without_stale_delivery(tmp_path: Path) -> None:

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from eyeq_spi.errors import AdapterError
+from eyeq_spi.errors import AdapterError, LinkLostError
 from eyeq_spi.phy.base import ADAPTERS, Adapter, adapter_class, open_url
 from eyeq_spi.phy.memory import memory_pair
 from eyeq_spi.phy.stream import CobsDecoder, encode_transfer
@@ -123,5 +123,33 @@ def test_tcp_peer_going_away_is_an_adapter_error_not_a_crash() -> None:
     s = socket.create_connection((host, port))
     assert server.accept(2.0)
     s.close()
-    assert server.recv(0.5) is None  # orderly close: the listener waits for a new peer
+    with pytest.raises(LinkLostError):  # reported once, as a typed adapter error
+        server.recv(0.5)
+    assert server.recv(0.1) is None  # then the listener waits for a new peer
+    s2 = socket.create_connection((host, port))
+    assert server.accept(2.0)
+    s2.sendall(encode_transfer(bytes(128)))
+    assert server.recv(1.0) == bytes(128)
+    s2.close()
     server.close()
+
+
+def test_pty_peer_leaving_is_link_lost_and_writes_never_block() -> None:
+    """A host that exits (closes the slave) or stops reading ends in LinkLostError within the
+    write timeout, never a write that blocks forever."""
+    import os
+    import time
+
+    from eyeq_spi.phy.pty import PtyAdapter
+
+    a = PtyAdapter()
+    fd = os.open(a.path, os.O_RDWR | os.O_NOCTTY)
+    assert a.accept(1.0)
+    a.write_timeout = 0.3
+    t0 = time.monotonic()
+    with pytest.raises(LinkLostError):
+        for _ in range(10_000):  # the peer never reads: the pty buffer fills up
+            a.send(bytes(128))
+    assert time.monotonic() - t0 < 3.0
+    os.close(fd)
+    a.close()

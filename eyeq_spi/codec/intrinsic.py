@@ -61,6 +61,13 @@ def intrinsic_params_from_eeprom(image: bytes, sw: str | None = None) -> dict[st
             out[name] = ee[name]
     n = int(out.get("CCAM_Num_Of_distorParams_m", 0))
     out["CCAM_Num_Of_distorParams_m"] = normalise_num_distor_params(n)
+    for name, v in out.items():
+        # §7.1.3: a CRC-valid EEPROM can still hold values the 0x84 message cannot carry
+        # (NaN, infinity, out of range): a camera fault that names the field
+        try:
+            target.to_raw(target.signals[name], v)
+        except CodecError as exc:
+            raise CodecError(f"EEPROM field {name}: {exc}") from None
     if "CRC_from_EEPROM" in target.signals:
         out["CRC_from_EEPROM"] = int.from_bytes(image[CRC_SLICE], "little")
     return out

@@ -5,6 +5,7 @@ the real link and transport. Sans-IO; the state machine is the table in ``machin
 from __future__ import annotations
 
 import asyncio
+import math
 from collections import Counter, deque
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass, field
@@ -18,18 +19,20 @@ from eyeq_spi.codec.intrinsic import (
     version_text,
 )
 from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
-from eyeq_spi.errors import CodecError, LocalProtocolError
+from eyeq_spi.errors import CodecError, LocalProtocolError, SpecError
 from eyeq_spi.host.machine import HostEvent, HostState, next_state
 from eyeq_spi.host.nvm import Alignment, Nvm
 from eyeq_spi.host.scenario import ConstantDrive, Scenario
 from eyeq_spi.link.connection import LinkConfig
+from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.mesp.client import MespClient, MespCompleted, MespFailed
 from eyeq_spi.mesp.replies import MespError, MespReply
+from eyeq_spi.spec.catalog import sw_release
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
 S, E = HostState, HostEvent
-PENDING, RUNNING_VISION, DV_STATE = 0x01, 0x02, 0x05
+PENDING, RUNNING_VISION, DV_STATE = 0x01, 0x02, 0xAA  # M7: RUNNING_DV is 0xAA
 PENDING_VISION, PENDING_TAC, PENDING_SPC = 0x92, 0x85, 0x82
 RUNNING_TAC, RUNNING_SPC = 0xAC, 0x22
 APP_IDS = {"VISION": 0x01, "TAC": 0x03, "SPC": 0x04, "DV": 0x05}
@@ -173,8 +176,40 @@ class HostEmulator:
             raise LocalProtocolError(f"unknown mode {mode!r}: use VISION, TAC, SPC or DV")
         if self.state not in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC, S.DV):
             raise LocalProtocolError(f"cannot switch mode in state {self.state.value}")
+        stage = STAGE_OF.get(mode)
+        if stage is not None:
+            try:
+                init_message(stage, self.sw, self.codec.cat)
+            except (SpecError, CodecError) as exc:
+                # §7.1.1.7: the mode needs its init message; this release has no table for it
+                raise LocalProtocolError(
+                    f"{mode} is not available for SW {self.sw}: {exc}") from None
         self._target_mode = mode
         self._fire(E.SWITCH, now, mode)
+
+    def link_restarted(self, now: float) -> None:
+        """The byte stream to the EyeQ was re-established (a new connection is a power-up):
+        restart our SPI driver and run the bring-up again."""
+        self.mesp.cancel_all()
+        self.conn.reset()
+        while self.conn.next_event() is not None:
+            pass
+        if next_state(self.state, E.EYEQ_RESET) is not None:
+            self._fire(E.EYEQ_RESET, now, "link re-established")
+        else:
+            self._enter(S.POWER_UP, now)
+
+    def warm_up(self) -> None:
+        """Decode one message of each kind the EyeQ sends and encode HOST_VEH_STATE once, so
+        that no first-time codec build delays an ACK in real time (issue 8 finding)."""
+        e2e = E2EState()
+        for m in self.codec.cat.messages:
+            if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw):
+                lay = self.codec.layout(m)
+                self.codec.decode(self.codec.encode_dasp(m.name, lay.zero_values(), 0, e2e),
+                                  E2EState())
+        msg = self.codec.message("HOST_VEH_STATE_MSG")
+        self.codec.encode_dasp(msg.name, self.codec.layout(msg).zero_values(), 0, E2EState())
 
     # -- node interface ---------------------------------------------------------------------
     def receive_data(self, transfer: bytes, now: float) -> None:
@@ -245,7 +280,7 @@ class HostEmulator:
         self._next_poll = now
 
     def _on_init(self, now: float) -> None:
-        stages = [0x84]
+        stages = [0x84] if self._has_init_table(0x84) else []  # §7.1.3 from SW6
         if self.config.camera_only_aeb:
             stages += [0x78, 0x79]
         stages.append(0x92)
@@ -354,7 +389,7 @@ class HostEmulator:
             return
         try:
             params = intrinsic_params_from_eeprom(image, self.sw)
-        except CodecError as exc:
+        except (CodecError, SpecError) as exc:
             self.problem = f"EEPROM content unusable: {exc}"
             self._fire(E.EEPROM_BAD, now, self.problem)
             return
@@ -371,12 +406,23 @@ class HostEmulator:
     # -- init messages ----------------------------------------------------------------------
     def _init_values(self, stage: int) -> dict[str, float]:
         if stage == 0x84:
-            return dict(self.nvm.data.intrinsic)  # empty on first power-up: initial (zero) values
+            # empty on first power-up: initial (zero) values. A value that is not a finite
+            # number cannot have come from a good EEPROM: leave it out, so the EyeQ reports the
+            # mismatch (Fatal 22) and the EEPROM is read again (§7.1.3).
+            return {k: v for k, v in self.nvm.data.intrinsic.items()
+                    if isinstance(v, int | float) and math.isfinite(v)}
         if stage == 0x92:
             a = self.nvm.data.alignment
             values = {"horizonFull": a.horizonKA, "yawFull": a.yawKA, "rollAngle": a.rollAngleKA}
             return values
         return {}
+
+    def _has_init_table(self, stage: int) -> bool:
+        try:
+            init_message(stage, self.sw, self.codec.cat)
+        except (SpecError, CodecError):
+            return False
+        return True
 
     def _send_next_init(self, now: float) -> None:
         if self._init_busy:
@@ -387,17 +433,22 @@ class HostEmulator:
         self._send_init(self._init_queue.popleft(), now, mode_init=False)
 
     def _send_init(self, stage: int, now: float, *, mode_init: bool) -> None:
-        msg = init_message(stage, self.sw, self.codec.cat)
-        if msg.codec is None:
-            params = self.config.ipb_params
-        else:
-            values = self._init_values(stage)
-            clamped = {}
-            for k, v in values.items():
-                sig = msg.codec.signals.get(k)
-                if sig is not None:
-                    clamped[k] = min(max(v, sig.min), sig.max)
-            params = msg.codec.encode(clamped)
+        try:
+            msg = init_message(stage, self.sw, self.codec.cat)
+            if msg.codec is None:
+                params = self.config.ipb_params
+            else:
+                values = self._init_values(stage)
+                clamped = {}
+                for k, v in values.items():
+                    sig = msg.codec.signals.get(k)
+                    if sig is not None and math.isfinite(v):
+                        clamped[k] = min(max(v, sig.min), sig.max)
+                params = msg.codec.encode(clamped)
+        except (CodecError, SpecError) as exc:
+            self.problem = f"init message 0x{stage:02X} cannot be built: {exc}"
+            self._fire(E.INIT_REJECTED, now, self.problem)
+            return
         self._init_busy = True
         req = {"ct_type": msg.ct_type, "ct_stage": stage, "ct_version": msg.ct_version(params),
                "params": params}
@@ -419,6 +470,8 @@ class HostEmulator:
         while (ev := self.conn.next_event()) is not None:
             if isinstance(ev, MessageReceived):
                 self._on_message(ev.data, now)
+            elif isinstance(ev, Resynchronised):
+                self._on_link_resync(ev, now)
         while (mev := self.mesp.next_event()) is not None:
             if isinstance(mev, MespCompleted) and mev.reply.function == "GetEyeQExtendedState":
                 self._poll_busy = False
@@ -493,11 +546,35 @@ class HostEmulator:
             self.problem = f"EyeQ fatal error {fatal}"
             self._fire(E.FATAL, now, self.problem)
             return
+        # A running EyeQ never reports boot or pending again without a reset. Compare with the
+        # mode, not with the previous 0x41: the host can reach Running Vision by a Get State
+        # reply before any 0x41 has reported it (fault campaign defect 5).
         went_back = (self.state in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC)
-                     and prev is not None and main != prev and main in (0, PENDING))
+                     and main in (0, PENDING) and prev is not None)
         if went_back:
             self.counters.eyeq_resets += 1
             self._fire(E.EYEQ_RESET, now, f"0x41 Main_State went back to {main}")
+            self._enter_after_app_restart(now)
+
+    def _on_link_resync(self, ev: Resynchronised, now: float) -> None:
+        """The EyeQ's link started over (L6/L6a): NUM went back, so the EyeQ reset by itself.
+        Its boot status was probably lost to out-of-window NAKs, so do not wait for it."""
+        if self.state in (S.POWER_UP, S.FAILED, S.BOOT_FAILED):
+            return  # a boot status is awaited anyway (with its timeout), or we gave up
+        self.counters.eyeq_resets += 1
+        if next_state(self.state, E.EYEQ_RESET) is None:
+            return
+        self._fire(E.EYEQ_RESET, now, f"EyeQ link restarted at NUM {ev.num} ({ev.cause})")
+        if self.reset_line is not None:
+            # a clean power-up: both SPI drivers start over, the boot status arrives in window
+            self.mesp.cancel_all()
+            self._enter(S.POWER_UP, now)
+            self.conn.reset()
+            while self.conn.next_event() is not None:
+                pass
+            self.reset_line(now)
+        else:
+            self.mesp.cancel_all()
             self._enter_after_app_restart(now)
 
     def _enter_after_app_restart(self, now: float) -> None:
@@ -587,7 +664,7 @@ class HostEmulator:
         if "timestamp_us" in vs:
             vs["timestamp_us"] = int(now * 1e6)
         if "apiVersionMajor" in vs:
-            vs["apiVersionMajor"], vs["apiVersionMinor"] = 9, 0
+            vs["apiVersionMajor"], vs["apiVersionMinor"] = sw_release(self.sw)
         self._rolling = (self._rolling + 1) & 0xFFFF
         values["SPI_Rolling_Count"] = self._rolling
         if "host_sync_timestamp_us_valid" in values:

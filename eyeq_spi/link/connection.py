@@ -37,7 +37,7 @@ The connection never reads a clock: every call takes ``now`` (seconds, any epoch
 
 from __future__ import annotations
 
-from collections import OrderedDict, deque
+from collections import Counter, OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
@@ -102,6 +102,7 @@ class _Queued:
 class _InFlight:
     tag: int
     deadline: float
+    sent: float = 0.0
 
 
 class LinkConnection:
@@ -112,6 +113,7 @@ class LinkConnection:
         self.codec = self.config.codec
         self.payload_check = payload_check
         self.counters = SpiDiagnosticInfo()
+        self.ack_latency: Counter[int] = Counter()  # 10 µs bin -> frames ACKed
         self._events: deque[LinkEvent] = deque()
         self._control: deque[bytes] = deque()
         self._queue: deque[_Queued] = deque()
@@ -198,7 +200,7 @@ class LinkConnection:
             num = self._tx_num
             self._tx_num = (num + 1) % SEQ_MODULO
             out.append(self.codec.data_frame(self._last_accepted, num, q.data))
-            self._inflight[num] = _InFlight(q.tag, now + cfg.ack_timeout)
+            self._inflight[num] = _InFlight(q.tag, now + cfg.ack_timeout, now)
             self.counters.busyFrames = len(self._inflight)
             self._next_tx = now + gap
             if gap > 0:
@@ -256,7 +258,7 @@ class LinkConnection:
                 self._reject(frame.num, NakReason.FORMAT_ERROR, detail)
             return
         if frame.kind is FrameKind.ACK:
-            self._on_ack(frame.rsp)
+            self._on_ack(frame.rsp, now)
         elif frame.kind is FrameKind.NAK:
             self._on_nak(frame.rsp, frame.num)
         else:
@@ -324,12 +326,14 @@ class LinkConnection:
         self._control.append(self.codec.ack(num))
         self._events.append(DataReceived(num, data))
 
-    def _on_ack(self, rsp: int) -> None:
+    def _on_ack(self, rsp: int, now: float) -> None:
         f = self._inflight.pop(rsp, None)
         if f is None:
             self.counters.unexpectedAckCounter += 1
             self._events.append(UnexpectedAck("ACK", rsp))
             return
+        # send -> ACK latency in 10 µs bins (bounded memory for any run length)
+        self.ack_latency[int((now - f.sent) * 1e5)] += 1
         self.counters.busyFrames = len(self._inflight)
         self.counters.framesAcked += 1
         self._settle(f.tag)

@@ -94,6 +94,9 @@ class Frame:
             return None
 
 
+_ZERO_DATA = bytes(DATA_SIZE)
+
+
 class FrameCodec:
     """Encode and decode frames for one configuration (CRC variant, header bit order)."""
 
@@ -107,6 +110,7 @@ class FrameCodec:
         self.bit_order = BitOrder(bit_order)
         s = _field_shifts(self.bit_order)
         self._d, self._r, self._rsp, self._num = s["D"], s["R"], s["RSP"], s["NUM"]
+        self._acks: dict[int, bytes] = {}  # NUM -> ACK frame: built once (hot path)
 
     # -- header word -------------------------------------------------------------------------
     def pack_header(self, d: int, r: int, rsp: int, num: int) -> int:
@@ -130,11 +134,13 @@ class FrameCodec:
 
     # -- encode / decode ----------------------------------------------------------------------
     def encode(self, frame: Frame) -> bytes:
+        # FRAME_LAYOUT (construct) is the reference layout; this is its hot-path equivalent,
+        # and tests/test_frame.py checks that both give the same bytes.
         word = self.pack_header(frame.d, frame.r, frame.rsp, frame.num)
         header = word.to_bytes(4, "little")
-        data = frame.data if frame.d not in (FrameKind.ACK, FrameKind.NAK) else bytes(DATA_SIZE)
+        data = frame.data if frame.d not in (FrameKind.ACK, FrameKind.NAK) else _ZERO_DATA
         crc = self.compute_crc(frame.d, header, data)
-        return bytes(FRAME_LAYOUT.build({"header": word, "crc": crc, "data": data}))
+        return header + crc.to_bytes(2, "little") + data
 
     def data_frame(self, rsp: int, num: int, data: bytes) -> bytes:
         """Encode a DATA frame, zero-padding ``data`` to 122 bytes (§6 pad bytes)."""
@@ -144,7 +150,10 @@ class FrameCodec:
 
     def ack(self, num: int) -> bytes:
         """L5: an ACK's RSP is the accepted frame's NUM, its NUM is 0."""
-        return self.encode(Frame(FrameKind.ACK, 0, num, 0))
+        frame = self._acks.get(num)
+        if frame is None:
+            frame = self._acks[num] = self.encode(Frame(FrameKind.ACK, 0, num, 0))
+        return frame
 
     def nak(self, num: int, reason: NakReason) -> bytes:
         """L5: a NAK's RSP is the rejected frame's NUM, its NUM holds the reason."""
@@ -157,9 +166,9 @@ class FrameCodec:
         """
         if len(transfer) != FRAME_SIZE:
             raise FrameError(f"transfer is {len(transfer)} bytes, not {FRAME_SIZE}")
-        parsed = FRAME_LAYOUT.parse(transfer)
-        d, r, rsp, num = self.unpack_header(parsed.header)
-        return Frame(d, r, rsp, num, parsed.data, parsed.crc)
+        d, r, rsp, num = self.unpack_header(int.from_bytes(transfer[:4], "little"))
+        return Frame(d, r, rsp, num, bytes(transfer[6:]),
+                     int.from_bytes(transfer[4:6], "little"))
 
     def crc_ok(self, transfer: bytes, frame: Frame) -> bool:
         return self.compute_crc(frame.d, transfer[:4], transfer[6:]) == frame.crc

@@ -8,7 +8,7 @@ import socket
 
 import serial
 
-from eyeq_spi.errors import AdapterError
+from eyeq_spi.errors import AdapterError, LinkLostError
 from eyeq_spi.phy.stream import StreamAdapter
 
 
@@ -17,7 +17,9 @@ class SerialAdapter(StreamAdapter):
         super().__init__()
         self.url = url
         try:
-            self.port = serial.serial_for_url(url, baudrate=baudrate, timeout=0)
+            # write_timeout: no write blocks past a second (a peer that reads nothing is gone)
+            self.port = serial.serial_for_url(url, baudrate=baudrate, timeout=0,
+                                              write_timeout=1.0)
         except (serial.SerialException, ValueError, OSError) as exc:
             raise AdapterError(f"cannot open {url!r}: {exc}") from exc
         sock = getattr(self.port, "_socket", None)
@@ -30,7 +32,7 @@ class SerialAdapter(StreamAdapter):
         try:
             self.port.write(data)
         except (serial.SerialException, OSError) as exc:
-            raise AdapterError(f"{self.url}: write failed: {exc}") from exc
+            raise LinkLostError(f"{self.url}: write failed: {exc}") from exc
 
     def _read(self, timeout: float | None) -> bytes:
         try:
@@ -42,7 +44,7 @@ class SerialAdapter(StreamAdapter):
             rest: bytes = self.port.read(65536)
             return first + rest
         except (serial.SerialException, OSError) as exc:
-            raise AdapterError(f"{self.url}: read failed: {exc}") from exc
+            raise LinkLostError(f"{self.url}: read failed: {exc}") from exc
 
     def _close_internal(self) -> None:
         with contextlib.suppress(serial.SerialException, OSError):

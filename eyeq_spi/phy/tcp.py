@@ -2,7 +2,9 @@
 
 It accepts one connection (waiting up to ``timeout`` seconds for it on the first send/recv, or in
 :meth:`accept`), then carries COBS-framed transfers like the serial adapter. A new connection
-replaces a closed one, so a peer may reconnect.
+replaces a closed one, so a peer may reconnect. A peer that leaves raises
+:class:`LinkLostError` once;
+the next call waits for a new peer. No write blocks longer than ``write_timeout``.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ from __future__ import annotations
 import select
 import socket
 
-from eyeq_spi.errors import AdapterError
+from eyeq_spi.errors import AdapterError, LinkLostError
 from eyeq_spi.phy.stream import CobsDecoder, StreamAdapter
 
 
@@ -24,6 +26,7 @@ class TcpListenAdapter(StreamAdapter):
             raise AdapterError(f"cannot listen on {host}:{port}: {exc}") from exc
         self.address: tuple[str, int] = self.server.getsockname()[:2]
         self.conn: socket.socket | None = None
+        self.write_timeout = 1.0
 
     @property
     def url(self) -> str:
@@ -42,6 +45,7 @@ class TcpListenAdapter(StreamAdapter):
             return False
         conn, _ = self.server.accept()
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        conn.settimeout(self.write_timeout)
         self.conn = conn
         self._decoder = CobsDecoder()
         return True
@@ -52,9 +56,9 @@ class TcpListenAdapter(StreamAdapter):
         assert self.conn is not None
         try:
             self.conn.sendall(data)
-        except OSError as exc:
+        except OSError as exc:  # reset, broken pipe, or a peer that reads nothing (timeout)
             self._drop()
-            raise AdapterError(f"peer of {self.url} went away: {exc}") from exc
+            raise LinkLostError(f"peer of {self.url} went away: {exc}") from exc
 
     def _read(self, timeout: float | None) -> bytes:
         if self.conn is None and not self.accept(timeout if timeout is not None else None):
@@ -67,8 +71,9 @@ class TcpListenAdapter(StreamAdapter):
             data = self.conn.recv(65536)
         except OSError:
             data = b""
-        if not data:  # orderly close: wait for a new peer
+        if not data:  # the peer closed or reset: report it; the next call waits for a new one
             self._drop()
+            raise LinkLostError(f"peer of {self.url} went away")
         return data
 
     def _drop(self) -> None:

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import gc
 import time
 from collections.abc import Callable
 
 from eyeq_spi.phy.base import Adapter
 from eyeq_spi.runner.node import Node
+
+IDLE_GC = 0.003  # s with nothing due: time to collect
+GC_EVERY = 0.5  # s between collections
 
 Tap = Callable[[str, float, bytes], None]
 """Called for every transfer: ("tx" | "rx", time, transfer)."""
@@ -21,6 +25,7 @@ class RealTimeRunner:
         clock: Callable[[], float] = time.monotonic,
         max_wait: float = 0.05,
         tap: Tap | None = None,
+        idle_gc: bool = True,
     ) -> None:
         self.node = node
         self.adapter = adapter
@@ -28,6 +33,13 @@ class RealTimeRunner:
         self.max_wait = max_wait
         self.tap = tap
         self.start = clock()
+        # Python's cyclic GC can pause for ~10 ms, as long as the peer's ackTimeout. Collect
+        # only when idle (nothing due for IDLE_GC seconds), never in the middle of a burst.
+        self.idle_gc = idle_gc
+        self._last_gc = clock()
+        self._gcs = 0
+        if idle_gc:
+            gc.disable()
 
     def _flush(self, now: float) -> None:
         for out in self.node.data_to_send(now):
@@ -45,6 +57,12 @@ class RealTimeRunner:
         wait = self.max_wait
         if timer is not None:
             wait = min(self.max_wait, max(0.0, timer - self.clock()))
+        if self.idle_gc and wait >= IDLE_GC and self.clock() - self._last_gc > GC_EVERY:
+            self._gcs += 1
+            # young generations (well under a millisecond); everything once a minute
+            gc.collect(2 if self._gcs % 120 == 0 else 1)
+            self._last_gc = self.clock()
+            wait = 0.0 if timer is None else min(wait, max(0.0, timer - self.clock()))
         t = self.adapter.recv(wait)
         while t is not None:
             now = self.clock()
@@ -55,6 +73,11 @@ class RealTimeRunner:
             # and decoding the rest of a burst could take longer than that
             self._flush(self.clock())
             t = self.adapter.recv(0)
+
+    def close(self) -> None:
+        """Give the cyclic GC back to the process."""
+        if self.idle_gc:
+            gc.enable()
 
     def run(self, duration: float | None = None, *, stop: Callable[[], bool] | None = None) -> None:
         end = None if duration is None else self.clock() + duration

@@ -13,11 +13,11 @@ class SimConfig:
     boot_delay: float = 0.150  # power-up -> EYEQ_BOOT_STATUS_MSG
     app_start_delay: float = 0.100  # boot status -> first 0x41
     boot_version: str = "7.1.23"
-    application_version: str = "9.0.0"
+    application_version: str | None = None  # None: the release of ``sw``, e.g. "6.0.0"
     eyeq_id: int = 0x4E51_0001
     eyeq_type: int = 4
-    api_version: tuple[int, int] = (9, 0)
-    sw_version: tuple[int, int] = (9, 0)
+    api_version: tuple[int, int] | None = None  # None: the release of ``sw``
+    sw_version: tuple[int, int] | None = None  # None: the release of ``sw``
     # rates (§7.1.4, §7.1.5)
     dasp_rate: float = 18.0
     diag_rate: float = 37.0

@@ -29,6 +29,7 @@ EEPROM; on a mismatch it reports Fatal_Error 22 in 0x41 and will not enter visio
 
 from __future__ import annotations
 
+import math
 import zlib
 from collections import Counter, deque
 from dataclasses import dataclass, field
@@ -54,10 +55,13 @@ from eyeq_spi.mesp.server import (
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.flash import FlashImage, hash_request
 from eyeq_spi.sim.scene import Scene, SceneConfig
+from eyeq_spi.spec.catalog import sw_release
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
-PENDING, RUNNING_VISION, BOOT, DV = 0x01, 0x02, 0x03, 0x05
+VEH_STATE_STALE = 3 / 66.67  # three HOST_VEH_STATE periods (§7.1.2.2: 66.67 Hz)
+# M7: in DV the EyeQ reports mainState 0xAA (RUNNING_DV); 0x05 is DV's application ID
+PENDING, RUNNING_VISION, BOOT, DV = 0x01, 0x02, 0x03, 0xAA
 PENDING_VISION, PENDING_TAC, PENDING_SPC = 0x92, 0x85, 0x82
 RUNNING_TAC, RUNNING_SPC = 0xAC, 0x22
 APP_VISION, APP_TAC, APP_SPC, APP_DV = 0x01, 0x03, 0x04, 0x05
@@ -75,6 +79,13 @@ class SimCounters:
     bad_seq: int = 0
     msg_tx: int = 0
     rolling_count_echo: int = 0
+    e2e_errors: int = 0  # HOST_VEH_STATE structures rejected by their CRC or counter (D5)
+    counter_gaps: int = 0  # DASP counter steps other than +1 (D1), not wrapped like bad_seq
+    bad_hdr_total: int = 0  # bad_hdr, not wrapped
+    veh_state_stale: int = 0  # HOST_VEH_STATE silent > 3 periods in Running Vision (§7.1.2.2)
+    mesp_requests: int = 0
+    received: Counter[str] = field(default_factory=Counter)
+    rejected_values: int = 0  # vehicle signals not valid, not finite or outside the seed range
     edr_triggers: list[dict[str, Any]] = field(default_factory=list)
     calibration_events: list[tuple[int, int]] = field(default_factory=list)  # (stage, ret)
     boots: int = 0
@@ -87,6 +98,11 @@ class SimulatedEyeQ:
         cfg = self.config
         self.codec = MessageCodec(cfg.sw)
         self.sw = self.codec.sw
+        # The chosen release everywhere it appears on the wire: Get Versions, boot status, 0xA1.
+        release = sw_release(self.sw)
+        self.sw_version = cfg.sw_version or release
+        self.api_version = cfg.api_version or release
+        self.application_version = cfg.application_version or f"{release[0]}.{release[1]}.0"
         link = LinkConfig(role="eyeq")
         if cfg.ack_timeout is not None:
             link.ack_timeout = cfg.ack_timeout
@@ -110,11 +126,14 @@ class SimulatedEyeQ:
             "SendParamsToCalibrationTool": self._edr,
             "EventCalibrationTool": self._calibration,
         }, self.codec.cat)
-        expected = init_message(0x84, self.sw)
-        assert expected.codec is not None
-        self._expected_0x84 = expected.codec.encode(
-            intrinsic_params_from_eeprom(bytes(self.eeprom), self.sw))
-        self._expected_0x84_no_crc = self._strip_crc(expected.codec, self._expected_0x84)
+        self._expected_0x84_no_crc: bytes | None = None
+        try:
+            expected = init_message(0x84, self.sw)
+        except EyeqError:
+            expected = None  # §7.1.3 intrinsic calibration: no 0x84 table in this release
+        if expected is not None and expected.codec is not None:
+            self._expected_0x84_no_crc = self._strip_crc(expected.codec, expected.codec.encode(
+                intrinsic_params_from_eeprom(bytes(self.eeprom), self.sw)))
         self._replies: deque[tuple[float, bytes]] = deque()
         self._dropped: Counter[str] = Counter()
         self._dasp_counter: Counter[int] = Counter()
@@ -137,6 +156,31 @@ class SimulatedEyeQ:
         self._next_dasp: dict[str, float] = {}
         self._process_index = 0
         self._ego: tuple[float | None, float | None] = (None, None)
+        self._rx_e2e = E2EState()  # D5: verify the host's CRCs and rolling counters
+        self._last_veh: float | None = None
+        self.running_since: float | None = None  # first Running Vision of this power-up
+        host_struct = self.codec.cat.structs.get("host_vehicle_state_t")
+        self._veh_ranges: dict[str, tuple[float, float]] = {}
+        if host_struct is not None:
+            var = host_struct.variant_for(self.sw)
+            for m in (var.members if var is not None else ()):
+                if m.min is not None and m.max is not None:
+                    self._veh_ranges[m.name] = (float(m.min), float(m.max))
+
+    def warm_up(self) -> None:
+        """Build every template, fill plan and codec path once, before real time starts: the
+        first message of each kind costs several milliseconds, enough for the peer's 10 ms
+        ackTimeout to expire on frames we have not ACKed yet (live-run finding, issue 8)."""
+        e2e = E2EState()
+        for m in self.codec.cat.messages:
+            if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw):
+                values = dict(self._template(m.name, m.payload))
+                self.scene.step(0.0, *self._ego)
+                self._fill(m.name, values, 0.0)
+                self.codec.decode(self.codec.encode_dasp(m.name, values, 0, e2e))
+        self._templates.clear()
+        self.counters.sent.clear()
+        self.scene.unanchor()  # the first real step anchors the scene in time again
 
     # -- power ------------------------------------------------------------------------------
     def power_up(self, now: float) -> None:
@@ -154,6 +198,9 @@ class SimulatedEyeQ:
         self._init_ok = self._veh_state_seen = False
         self._cal_started = None
         self._rx_counter.clear()
+        self._rx_e2e = E2EState()
+        self._last_veh = None
+        self.running_since = None
         self._next_dasp.clear()
 
     reset = power_up
@@ -228,7 +275,10 @@ class SimulatedEyeQ:
         reply = self.server.handle(data)
         if reply is None:
             self.counters.bad_hdr = (self.counters.bad_hdr + 1) & 0xFF
+            self.counters.bad_hdr_total += 1
             return
+        self.counters.mesp_requests += 1
+        self.counters.received["MESP"] += 1
         fn = self.codec.mesp.functions.get((data[0], data[3]))
         name = fn.name if fn else ""
         if self._dropped[name] < self.config.drop_replies.get(name, 0):
@@ -241,31 +291,59 @@ class SimulatedEyeQ:
             self._send(reply, now)
 
     def _on_dasp(self, data: bytes, now: float) -> None:
-        out = self.codec.decode(data)
+        out = self.codec.decode(data, self._rx_e2e)
         if out.name is None or any(e.startswith("BadHdr") for e in out.errors):
             self.counters.bad_hdr = (self.counters.bad_hdr + 1) & 0xFF
+            self.counters.bad_hdr_total += 1
             return
+        self.counters.received[out.name] += 1
         if self._rx_counter.check(int(out.header["data_id"]), out.header["counter"]) is not None:
             self.counters.bad_seq = (self.counters.bad_seq + 1) & 0xFF
+            self.counters.counter_gaps += 1
         if out.name == "HOST_VEH_STATE_MSG":
             self.counters.msg20_rx = (self.counters.msg20_rx + 1) & 0xFFFF
             self.counters.rolling_count_echo = int(out.fields.get("SPI_Rolling_Count", 0))
             self._veh_state_seen = True
+            if self.main_state == RUNNING_VISION and self._last_veh is not None \
+                    and now - self._last_veh > VEH_STATE_STALE:
+                self.counters.veh_state_stale += 1
+            self._last_veh = now
+            if out.errors:  # D5: a rejected structure never drives the scene
+                self.counters.e2e_errors += 1
+                return
             vs = out.fields.get("vehStateInfo", {})
-            self._ego = (vs.get("vehicleVelocity"), vs.get("vehicleYawRate"))
+            self._ego = (self._vehicle_signal(vs, "vehicleVelocity"),
+                         self._vehicle_signal(vs, "vehicleYawRate"))
             if self.main_state == PENDING and self.sub_state == PENDING_VISION \
                     and self._init_ok and self.fatal_error == 0:
                 self.main_state, self.sub_state = RUNNING_VISION, 0
+                if self.running_since is None:
+                    self.running_since = round(now, 4)
                 self._next_dasp.clear()
+
+    def _vehicle_signal(self, vs: dict[str, Any], name: str) -> float | None:
+        """A host signal the scene may use: flagged valid, finite and inside the seed's range
+        (§7.1.2.2 host_vehicle_state_t); otherwise None (the scene keeps its last value)."""
+        v = vs.get(name)
+        valid = vs.get(f"{name}Validity", 1)
+        lo, hi = self._veh_ranges.get(name, (-math.inf, math.inf))
+        if v is None:
+            return None
+        if valid != 1 or not isinstance(v, int | float) or not math.isfinite(v) \
+                or not lo <= v <= hi:
+            self.counters.rejected_values += 1
+            return None
+        return float(v)
 
     # -- MESP handlers ----------------------------------------------------------------------
     def _get_state(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         return 0, {"mainState": self.main_state, "subState": self.sub_state}
 
     def _get_versions(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-        c = self.config
-        return 0, {"apiVersionMajor": c.api_version[0], "apiVersionMinor": c.api_version[1],
-                   "eyeqSwVersionMajor": c.sw_version[0], "eyeqSwVersionMinor": c.sw_version[1]}
+        return 0, {"apiVersionMajor": self.api_version[0],
+                   "apiVersionMinor": self.api_version[1],
+                   "eyeqSwVersionMajor": self.sw_version[0],
+                   "eyeqSwVersionMinor": self.sw_version[1]}
 
     def _switch_app(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         app = p["applicationId"]
@@ -275,6 +353,12 @@ class SimulatedEyeQ:
             return RET_BAD_PARAMETERS, {}
         if self.fatal_error and app != APP_VISION:
             return RET_NOT_ALLOWED, {}
+        stage = {APP_TAC: 0x85, APP_SPC: 0x82}.get(app)
+        if stage is not None:
+            try:
+                init_message(stage, self.sw)
+            except EyeqError:  # this release has no init table for the mode (§7.1.1.7)
+                return RET_NOT_ALLOWED, {}
         if app == APP_VISION:
             self.fatal_error = 0  # a restart of the vision application (the host's soft reset)
         self.main_state, self.sub_state = target
@@ -318,7 +402,8 @@ class SimulatedEyeQ:
             return self._cal_result(stage, RET_NOT_ALLOWED, p)
         if stage == 0x84:
             assert msg.codec is not None
-            if self._strip_crc(msg.codec, params) != self._expected_0x84_no_crc:
+            if (self._expected_0x84_no_crc is not None
+                    and self._strip_crc(msg.codec, params) != self._expected_0x84_no_crc):
                 self.fatal_error = FATAL_INTRINSIC  # §7.1.3: NVM does not match the EEPROM
         elif stage == 0x92:
             self._init_ok = True
@@ -358,7 +443,7 @@ class SimulatedEyeQ:
             "ProtocolVersion": 1,
             "TestResults": cfg.boot_test_failures if failing else 0,
             "BootVersion": list(version_bytes(cfg.boot_version)),
-            "ApplicationVersion": list(version_bytes(cfg.application_version)),
+            "ApplicationVersion": list(version_bytes(self.application_version)),
             "EyeQType": cfg.eyeq_type, "EyeQID": cfg.eyeq_id,
             "BootStageCompleted": 5 if not failing else 1,
             "EyeQTemperatureSensor1": 45, "EyeQTemperatureSensor2": 46,
@@ -432,11 +517,11 @@ class SimulatedEyeQ:
         if "timestamp_ms" in values:
             values["timestamp_ms"] = int(now * 1000) & 0xFFFFFFFF
         if name == "EYEQ_BASE_DIAG_STATUS_MSG":
-            c, cfg = self.counters, self.config
-            values.update({"apiVersionMajor": cfg.api_version[0],
-                           "apiVersionMinor": cfg.api_version[1],
-                           "eyeqSwVersionMajor": cfg.sw_version[0],
-                           "eyeqSwVersionMinor": cfg.sw_version[1],
+            c = self.counters
+            values.update({"apiVersionMajor": self.api_version[0],
+                           "apiVersionMinor": self.api_version[1],
+                           "eyeqSwVersionMajor": self.sw_version[0],
+                           "eyeqSwVersionMinor": self.sw_version[1],
                            "SPI_Rolling_Count_Echo": c.rolling_count_echo & 0xFFFF,
                            "eyeqSPIMsgTxCtr": c.msg_tx & 0xFFFF,
                            "eyeqSPIMsgRxBadHdrCtr": c.bad_hdr & 0xFF,

@@ -46,6 +46,8 @@ from eyeq_spi.sim.scene_layout import (
     CLASSES,
     CYCLIST,
     EGO_LENGTH,
+    EGO_SPEED_MAX,
+    EGO_SPEED_MIN,
     FOCAL_PX,
     HALF_LANE,
     IMAGE_H,
@@ -132,16 +134,24 @@ class Scene:
         self._plans: dict[int, _ObjPlan] = {}
         self._nodes: dict[str, tuple[dict[str, Any], _Node | None]] = {}
 
+    def unanchor(self) -> None:
+        """Forget the time of the last step (after a warm-up): the next step anchors the scene
+        in time as the first one does."""
+        self._t = None
+
     # -- time --------------------------------------------------------------------------------
     def step(self, t: float, ego_speed: float | None = None, yaw_rate: float | None = None) -> None:
         """Advance the world to virtual time ``t`` (s, monotonic); ego state from the host's
         HOST_VEH_STATE_MSG when known, else the last known speed (or ``config.ego_speed``)."""
         t = float(t)
-        if ego_speed is not None:
+        if not math.isfinite(t):
+            return
+        if ego_speed is not None and math.isfinite(ego_speed):
             self._veh_index += 1
-            self._v_host = float(ego_speed)
+            # §7.1.2.2 vehicleVelocity range: no input may make a step unbounded
+            self._v_host = min(max(float(ego_speed), EGO_SPEED_MIN), EGO_SPEED_MAX)
         v_target = self._v_host if self._v_host is not None else float(self.config.ego_speed)
-        yaw = None if yaw_rate is None else float(yaw_rate)
+        yaw = None if yaw_rate is None or not math.isfinite(yaw_rate) else float(yaw_rate)
         if self._t is None:  # the first step anchors the scene in time
             self._t, self._frame_now, self._v = t, _frame(t), v_target
             self._birth[self._alive] += self._frame_now
@@ -191,6 +201,11 @@ class Scene:
     def _extend_road(self) -> None:
         """§7.2 clothoids: curvature linear in arc length between straights and gentle arcs."""
         rng = self._rng
+        if self._knot_s[-1] < self._s_e - 1000.0:
+            # far behind (a jump in time or distance): restart the road at the ego instead of
+            # generating every kilometre in between; keeps each step bounded
+            self._knot_s = [self._s_e - 300.0, self._s_e - 100.0]
+            self._knot_k = [self._knot_k[-1], self._knot_k[-1]]
         while self._knot_s[-1] < self._s_e + 400.0:
             straight = rng.random() < 0.4
             target = 0.0 if straight else float(np.clip(rng.normal(0.0, 0.001), -0.003, 0.003))
@@ -388,6 +403,8 @@ class Scene:
         for i in np.flatnonzero(gone):
             self._sg_alive[i] = False
             self._free_sign_ids.append(int(self._sg_id[i]))
+        if self._s_e - self._next_sign > 1000.0:
+            self._next_sign = self._s_e  # bounded: one sign, not one per 100 m skipped
         while self._s_e >= self._next_sign:  # a new sign every ~100 m: every 4 s at 25 m/s
             self._next_sign += float(self._rng.exponential(60.0)) + 40.0
             self._spawn_signs()

@@ -28,6 +28,7 @@ MAX_SUBSTEP = 0.1  # s; longer steps are integrated in pieces
 MAX_GAP = 30.0  # s; of a longer pause between steps only the last 30 s are simulated
 TTC_NONE = 7.0  # §13.2.2 ttc_const_vel: "Set to 7 seconds if no valid TTC value"
 EGO_LENGTH = 4.5
+EGO_SPEED_MIN, EGO_SPEED_MAX = -20.0, 100.0  # m/s, §7.1.2.2 vehicleVelocity range
 MAX_OBJECTS = 15  # E_EYEQ_MAX_VISION_OBJECTS
 MAX_SIGNS = 20  # eyeq_traffic_sign_info_t.trafficSigns
 MAX_SPOTS = 15  # eyeq_active_light_sensor_info_t.activeLightSpots
