@@ -72,6 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
     from eyeq_spi.cli_dissect import add_dissect_parser
 
     add_dissect_parser(sub)
+    from eyeq_spi.cli_can import add_can_parser
+
+    add_can_parser(sub)
     from eyeq_spi.cli_plot import add_plot_parser
 
     add_plot_parser(sub)
@@ -121,6 +124,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             from eyeq_spi import cli_plot
 
             return (cli_plot.run_plot if args.command == "plot" else cli_plot.run_monitor)(args)
+        if args.command == "can":
+            from eyeq_spi import cli_can
+
+            return cli_can.run_can(args)
         if args.command in ("dissect", "wireshark"):
             from eyeq_spi import cli_dissect
 

@@ -50,6 +50,11 @@ def add_shared_options(p: argparse.ArgumentParser, side: str = "demo") -> None:
                    metavar="MS", help="link transmitTimeout in ms, (0, 60000] (default 25, §6)")
     g.add_argument("--capture", metavar="FILE.pcapng", type=ca.output_file,
                    help="write every SPI transfer of both channels to a pcapng capture")
+    ca.add_option(g, host, _NOT_SIM, "--can-out", metavar="TARGET",
+                  help="Mobileye CAN output from the decoded DASP data: virtual, "
+                  "INTERFACE:CHANNEL (socketcan:vcan0) or a .blf/.asc/.mf4/.log/.trc file")
+    ca.add_option(g, host, _NOT_SIM, "--can-protocol", choices=("extlog2", "me8"),
+                  default="extlog2", help="CAN protocol of --can-out (default extlog2)")
     f = p.add_argument_group("faults (simulated EyeQ)") if eyeq else g
     ca.add_option(f, eyeq, _NOT_HOST, "--boot-fail", type=ca.integer(0, 1000), default=0,
                   metavar="N", help="the first N boots (0..1000) report failing test bits")
@@ -201,6 +206,9 @@ def run_demo(args: argparse.Namespace) -> int:
             writer.write("h2e" if node == 0 else "e2h", t, transfer)
     emu = build(sim_config=sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario,
                 keep_rx_times=False, tap=tap)
+    from eyeq_spi.can.sinks import attach_from_args
+
+    attach_from_args(args, emu.host, emu.runner)  # --can-out: CAN gateway (issue 13)
     view = LiveView(sys.stderr.isatty() and not args.json)
     t = 0.0
     while t < args.duration:
@@ -280,6 +288,9 @@ def run_host(args: argparse.Namespace) -> int:
     writer = _capture(args)
     runner = RealTimeRunner(host, adapter)
     runner.tap = _realtime_tap(writer, runner.clock(), "h2e", "e2h")
+    from eyeq_spi.can.sinks import attach_from_args
+
+    attach_from_args(args, host, runner)  # --can-out: CAN gateway (issue 13)
     gc.freeze()
     view = LiveView(sys.stderr.isatty() and not args.json)
     host.start(runner.clock())

@@ -266,6 +266,9 @@ def validate_tree(root: Path, docs: dict[str, Any] | None = None) -> list[str]:
     from eyeq_spi.spec.tables import validate_tables  # GPIO, NVM, DASP header, decisions, MESP
 
     problems += validate_tables(docs)
+    from eyeq_spi.spec.can import validate_can_docs  # specs/can/ (seeds 000, 001, 003)
+
+    problems += validate_can_docs(docs)
     return problems
 
 

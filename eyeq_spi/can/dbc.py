@@ -1,0 +1,101 @@
+"""DBC databases built with cantools from ``specs/can/`` (never hand-written DBC text).
+
+One DBC message per repeated slot (``Obstacle_Data_A_0`` .. ``_14`` at 0x739 + 3*i), value
+tables for enums, ``GenMsgCycleTime`` from the spec's cycle, the invalid value as cantools'
+``raw_invalid`` and in the signal comment with its seed line.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.errors import EyeqError, SpecError
+from eyeq_spi.spec.can import CanMessage, CanProtocol, CanSignal, protocol
+
+
+class CanExtraMissingError(EyeqError):
+    """cantools / python-can are not installed."""
+
+
+def require_cantools() -> Any:
+    try:
+        import cantools
+    except ImportError as exc:
+        raise CanExtraMissingError("CAN output needs cantools and python-can: "
+                              "pip install 'eyeq-spi[can]'") from exc
+    return cantools
+
+
+def _signal(s: CanSignal, enums: dict[str, dict[int, str]], seed: str) -> Any:
+    from collections import OrderedDict
+
+    from cantools.database.can import Signal
+    from cantools.database.conversion import BaseConversion
+
+    choices: Any = OrderedDict(sorted(enums[s.enum].items())) if s.enum else None
+    notes = [f"seed {seed} line {s.seed_line}"]
+    if s.description:
+        notes.append(s.description)
+    if s.invalid is not None:
+        notes.append(f"invalid raw 0x{s.invalid:X}")
+    return Signal(
+        name=s.name, start=s.start, length=s.length,
+        byte_order="big_endian" if s.byte_order == "big_endian" else "little_endian",
+        is_signed=s.signed, raw_invalid=s.raw_invalid,
+        conversion=BaseConversion.factory(scale=s.scale, offset=s.offset, choices=choices,
+                                          is_float=s.is_float),
+        minimum=s.min, maximum=s.max, unit=s.unit, comment="; ".join(notes),
+    )
+
+
+def _message(m: CanMessage, slot: int | None, fid: int, name: str, proto: CanProtocol) -> Any:
+    from cantools.database.can import Message
+
+    seed = next(iter(proto.seeds), "?")
+    where = f"seed {seed} section {m.section} line {m.seed_line}"
+    if slot is not None and m.slots is not None:
+        where += f"; slot {slot} of {m.slots.rule}"
+    return Message(frame_id=fid, name=name, length=m.dlc,
+                   signals=[_signal(s, proto.enums, seed) for s in m.signals],
+                   cycle_time=round(m.cycle_ms), comment=where, senders=["EyeQ_Gateway"],
+                   strict=True)
+
+
+def build_database(proto: CanProtocol | str) -> Any:
+    """A cantools ``Database`` of every message instance of ``proto``."""
+    cantools = require_cantools()
+    p = protocol(proto) if isinstance(proto, str) else proto
+    from cantools.database.can import Node
+
+    msgs = [_message(m, slot, fid, name, p) for m in p.messages
+            for slot, fid, name in m.instances()]
+    try:
+        db = cantools.database.can.Database(messages=msgs, nodes=[Node("EyeQ_Gateway")],
+                                            version=f"eyeq-spi {p.name}")
+        db.refresh()
+    except Exception as exc:  # cantools rejects an inconsistent layout: a spec error
+        raise SpecError(f"specs/can/{p.name}.yaml does not build a DBC: {exc}") from exc
+    return db
+
+
+@cache
+def database(name: str) -> Any:
+    """The cached database of a protocol (the gateway and the decoder share it)."""
+    return build_database(name)
+
+
+def dbc_text(name: str) -> str:
+    """The DBC file text of protocol ``name``, as cantools writes it."""
+    return str(database(name).as_dbc_string())
+
+
+def write_dbc(name: str, directory: Path) -> Path:
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        path = directory / f"{name}.dbc"
+        path.write_text(dbc_text(name), encoding="utf-8")
+    except OSError as exc:
+        raise EyeqError(f"cannot write {directory}: {exc}") from exc
+    return path

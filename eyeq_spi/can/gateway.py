@@ -1,0 +1,252 @@
+"""The live CAN gateway: decoded EyeQ4 DASP messages in, Mobileye CAN frames out (C3, C4).
+
+Theory of operation
+-------------------
+:class:`CanGateway` is sans-IO. ``on_message`` is a host subscriber: it keeps the newest decoded
+fields of every DASP message. The gateway has a timer like every other node: each CAN message of
+the protocol is due every ``cycle_ms`` (decision C3) from the first DASP message on, on the
+injected clock, so it runs in virtual time as in real time. ``handle_timer(now)`` evaluates the
+mapping of ``specs/can/mapping.yaml`` (C4) for every message due, turns physical values into raw
+values as the signal's spec says (range -> clamp or invalid value; uncomputable -> invalid value),
+packs them with the cantools database built from ``specs/can/`` and queues :class:`CanFrame`.
+``frames()`` hands them out. A repeated message (0x739 + 3*i) sends one frame per slot item.
+
+:class:`GatewayNode` wraps the host node for a runner: the runner sees one node whose timer is
+the earlier of the host's and the gateway's, and every frame goes to a sink (``sinks.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from eyeq_spi.can.dbc import database
+from eyeq_spi.spec.can import (
+    BASE_NAMES,
+    CanMessage,
+    CanProtocol,
+    CanSignal,
+    can_specs,
+    protocol,
+)
+from eyeq_spi.spec.can_expr import MISSING, compile_expr
+
+Vehicle = Callable[[float], dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class CanFrame:
+    time: float
+    arbitration_id: int
+    data: bytes
+    name: str
+
+
+@dataclass
+class GatewayCounters:
+    frames: Counter[str] = field(default_factory=Counter)  # per DBC message name
+    clamped: Counter[str] = field(default_factory=Counter)  # per signal name
+    invalid: Counter[str] = field(default_factory=Counter)  # sent as invalid: out of range
+    missing: Counter[str] = field(default_factory=Counter)  # no value: invalid or 0 sent
+    dasp_messages: int = 0
+
+
+@dataclass
+class _Plan:
+    message: CanMessage
+    period: float
+    slots: Callable[[dict[str, Any]], Any] | None
+    signals: list[tuple[CanSignal, Callable[[dict[str, Any]], Any] | None]]
+    db_messages: list[Any]  # cantools Message per instance
+    due: float = 0.0
+    sent: int = 0
+
+
+def physical_to_raw(sig: CanSignal, value: Any, counters: GatewayCounters | None = None,
+                    ) -> int | float:
+    """The raw value a signal sends for ``value`` (MISSING: its invalid value, or 0)."""
+    def note(kind: str) -> None:
+        if counters is not None:
+            getattr(counters, kind)[sig.name] += 1
+
+    if value is MISSING or value is None:
+        note("missing")
+        if sig.raw_invalid is not None:
+            return sig.raw_invalid
+        value = 0.0
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        note("missing")
+        return sig.raw_invalid if sig.raw_invalid is not None else 0
+    if not math.isfinite(v):
+        note("missing")
+        return sig.raw_invalid if sig.raw_invalid is not None else 0
+    lo = sig.min if sig.min is not None else -math.inf
+    hi = sig.max if sig.max is not None else math.inf
+    if not lo <= v <= hi:
+        if sig.out_of_range == "invalid" and sig.raw_invalid is not None:
+            note("invalid")
+            return sig.raw_invalid
+        note("clamped")
+        v = min(max(v, lo), hi)
+    if sig.is_float:
+        return v
+    raw = round((v - sig.offset) / sig.scale)
+    rlo, rhi = sig.raw_limits
+    if not rlo <= raw <= rhi:
+        note("clamped")
+        raw = min(max(raw, rlo), rhi)
+    return raw
+
+
+class CanGateway:
+    """Sans-IO: ``on_message`` (subscriber), ``get_timer``, ``handle_timer(now)``, ``frames()``."""
+
+    def __init__(self, proto: CanProtocol | str, *, vehicle: Vehicle | None = None,
+                 epoch: float = 0.0) -> None:
+        self.protocol = protocol(proto) if isinstance(proto, str) else proto
+        self.vehicle = vehicle
+        self.epoch = epoch  # frame times and ``t`` count from here
+        self.counters = GatewayCounters()
+        _, mapping = can_specs()
+        self._tables = mapping.tables
+        self._sources: dict[str, tuple[str, tuple[str, ...]]] = {}
+        for alias, text in mapping.sources.items():
+            msg, *path = text.split(".")
+            self._sources[alias] = (msg, tuple(path))
+        names = set(BASE_NAMES) | set(self._sources)
+        tables = set(self._tables)
+        self._derived: list[tuple[str, Callable[[dict[str, Any]], Any]]] = []
+        for dname, dm in mapping.derived:
+            self._derived.append((dname, compile_expr(dm.expr, names, tables)))
+            names.add(dname)
+        db = database(self.protocol.name)
+        pm = mapping.protocols.get(self.protocol.name, {})
+        self._plans: list[_Plan] = []
+        for m in self.protocol.messages:
+            mm = pm.get(m.name)
+            sigs = [(s, compile_expr(mm.signals[s.name].expr, names, tables)
+                     if mm is not None and s.name in mm.signals else None) for s in m.signals]
+            slots = compile_expr(mm.slots.expr, names, tables) \
+                if mm is not None and mm.slots is not None else None
+            self._plans.append(_Plan(m, m.cycle_ms / 1000.0, slots, sigs,
+                                     [db.get_message_by_frame_id(fid)
+                                      for _, fid, _ in m.instances()]))
+        self._latest: dict[str, dict[str, Any]] = {}
+        self._queue: list[CanFrame] = []
+        self._started = False
+
+    # -- input ------------------------------------------------------------------------------
+    def on_message(self, msg: Any) -> None:
+        """Host subscriber: keep the newest fields of each decoded DASP message."""
+        name = getattr(msg, "name", None)
+        if name is None or getattr(msg, "errors", None):
+            return
+        self._latest[name] = msg.fields
+        self.counters.dasp_messages += 1
+
+    def start(self, now: float) -> None:
+        """Start the cycles (done by the first ``handle_timer`` after a DASP message)."""
+        self._started = True
+        for p in self._plans:
+            p.due = now
+
+    # -- timer ------------------------------------------------------------------------------
+    def get_timer(self) -> float | None:
+        if not self._started:
+            return None
+        return min(p.due for p in self._plans)
+
+    def poll(self, now: float) -> None:
+        """Called by the node wrapper after each input: starts the clock on the first data."""
+        if not self._started and self._latest:
+            self.start(now)
+
+    def handle_timer(self, now: float) -> None:
+        if not self._started:
+            self.poll(now)
+            if not self._started:
+                return
+        due = [p for p in self._plans if p.due <= now + 1e-12]
+        if not due:
+            return
+        env = self._environment(now)
+        for p in due:
+            self._emit(p, env, now)
+            p.sent += 1
+            p.due += p.period
+            if p.due <= now:  # fell behind (a stalled real-time loop): skip, never burst
+                p.due = now + p.period
+
+    def frames(self) -> list[CanFrame]:
+        out, self._queue = self._queue, []
+        return out
+
+    # -- evaluation -------------------------------------------------------------------------
+    def _environment(self, now: float) -> dict[str, Any]:
+        t = now - self.epoch
+        env: dict[str, Any] = {"t": t, "__tables__": self._tables}
+        env["veh"] = dict(self.vehicle(now)) if self.vehicle is not None else {}
+        for alias, (msg, path) in self._sources.items():
+            v: Any = self._latest.get(msg)
+            for part in path:
+                v = v.get(part) if isinstance(v, dict) else None
+            env[alias] = v
+        for dname, fn in self._derived:
+            env[dname] = fn(env)
+        return env
+
+    def _emit(self, p: _Plan, env: dict[str, Any], now: float) -> None:
+        env["n"] = p.sent
+        if p.slots is None:
+            items: list[Any] = [None]
+        else:
+            got = p.slots(env)
+            items = list(got) if isinstance(got, list) else []
+            items = items[: len(p.db_messages)]
+        for i, item in enumerate(items):
+            env["i"], env["o"] = i, item
+            raw = {s.name: physical_to_raw(s, fn(env) if fn is not None else MISSING,
+                                           self.counters)
+                   for s, fn in p.signals}
+            dbm = p.db_messages[i]
+            data = dbm.encode(raw, scaling=False, padding=False, strict=False)
+            self._queue.append(CanFrame(now - self.epoch, dbm.frame_id, bytes(data), dbm.name))
+            self.counters.frames[dbm.name] += 1
+
+
+class GatewayNode:
+    """A runner node: the host (or any node) plus the gateway's timer; frames go to ``sink``."""
+
+    def __init__(self, inner: Any, gateway: CanGateway,
+                 sink: Callable[[CanFrame], None]) -> None:
+        self.inner = inner
+        self.gateway = gateway
+        self.sink = sink
+
+    def receive_data(self, transfer: bytes, now: float) -> None:
+        self.inner.receive_data(transfer, now)
+        self.gateway.poll(now)
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        out: list[bytes] = self.inner.data_to_send(now)
+        return out
+
+    def get_timer(self) -> float | None:
+        times = [t for t in (self.inner.get_timer(), self.gateway.get_timer()) if t is not None]
+        return min(times) if times else None
+
+    def handle_timer(self, now: float) -> None:
+        t = self.inner.get_timer()
+        if t is not None and t <= now:
+            self.inner.handle_timer(now)
+        self.gateway.poll(now)
+        g = self.gateway.get_timer()
+        if g is not None and g <= now:
+            self.gateway.handle_timer(now)
+            for f in self.gateway.frames():
+                self.sink(f)

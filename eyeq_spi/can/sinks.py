@@ -1,0 +1,153 @@
+"""Where gateway frames go: a python-can bus or a python-can log writer (the only I/O of the
+CAN package). ``--can-out`` targets:
+
+- ``virtual`` or ``virtual:CHANNEL``: python-can's in-process virtual bus;
+- ``INTERFACE:CHANNEL`` for any python-can interface, e.g. ``socketcan:vcan0``;
+- a file whose suffix names the log format: ``.blf``, ``.asc``, ``.mf4`` (needs asammdf),
+  ``.log`` (candump -L), ``.trc``, ``.csv``.
+"""
+
+from __future__ import annotations
+
+import atexit
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.can.dbc import CanExtraMissingError
+from eyeq_spi.can.gateway import CanFrame, CanGateway, GatewayNode
+from eyeq_spi.errors import AdapterError, UsageError
+
+LOG_SUFFIXES = (".blf", ".asc", ".mf4", ".log", ".trc", ".csv")
+
+
+class CanOutputError(AdapterError):
+    """A CAN bus or log file cannot be opened or written."""
+
+
+def _can() -> Any:
+    try:
+        import can
+    except ImportError as exc:
+        raise CanExtraMissingError("CAN output needs python-can: pip install 'eyeq-spi[can]'") \
+            from exc
+    return can
+
+
+@dataclass
+class CanSink:
+    """Callable sink for :class:`CanFrame`; counts send errors instead of raising."""
+
+    target: str
+    kind: str  # "bus" | "log"
+    handle: Any
+    sent: int = 0
+    errors: int = 0
+    last_error: str | None = None
+    closed: bool = field(default=False)
+
+    def __call__(self, frame: CanFrame) -> None:
+        can = _can()
+        msg = can.Message(timestamp=frame.time, arbitration_id=frame.arbitration_id,
+                          data=frame.data, is_extended_id=False, dlc=len(frame.data))
+        try:
+            if self.kind == "bus":
+                self.handle.send(msg, timeout=0.0)
+            else:
+                self.handle.on_message_received(msg)
+            self.sent += 1
+        except (can.CanError, OSError, ValueError) as exc:  # a full queue, a gone interface
+            self.errors += 1
+            self.last_error = str(exc)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            if self.kind == "bus":
+                self.handle.shutdown()
+            else:
+                self.handle.stop()
+        except Exception as exc:  # closing must never raise at exit
+            self.last_error = str(exc)
+
+
+def open_target(target: str) -> CanSink:
+    """Open a ``--can-out`` target (see the module docstring)."""
+    can = _can()
+    if not target:
+        raise UsageError("--can-out needs a target: virtual, socketcan:vcan0 or a log file")
+    suffix = Path(target).suffix.lower()
+    if suffix in LOG_SUFFIXES:
+        try:
+            writer = can.Logger(target)
+        except ImportError as exc:
+            raise CanExtraMissingError(f"{target}: {suffix} logs need {exc.name or exc}: "
+                                  "pip install 'eyeq-spi[can]' asammdf") from exc
+        except (OSError, ValueError) as exc:
+            raise CanOutputError(f"cannot write CAN log {target}: {exc}") from exc
+        return CanSink(target, "log", writer)
+    interface, _, channel = target.partition(":")
+    if "." in interface or "/" in interface:
+        raise UsageError(f"--can-out {target!r}: a log file needs one of the suffixes "
+                         f"{', '.join(LOG_SUFFIXES)}; a bus is INTERFACE[:CHANNEL]")
+    try:
+        bus = can.Bus(interface=interface, channel=channel or "eyeq-spi",
+                      receive_own_messages=False)
+    except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:
+        raise CanOutputError(f"cannot open CAN bus {target!r}: {exc}") from exc
+    return CanSink(target, "bus", bus)
+
+
+@dataclass
+class CanOutput:
+    gateway: CanGateway
+    sink: CanSink
+    node: GatewayNode
+
+    def close(self) -> None:
+        self.sink.close()
+
+    def summary(self) -> dict[str, Any]:
+        c = self.gateway.counters
+        return {"target": self.sink.target, "protocol": self.gateway.protocol.name,
+                "frames": sum(c.frames.values()), "send_errors": self.sink.errors,
+                "clamped": sum(c.clamped.values()), "invalid": sum(c.invalid.values())}
+
+
+def attach(host: Any, runner: Any, *, target: str, protocol: str) -> CanOutput:
+    """Subscribe a gateway to ``host``'s decoded DASP messages and put it on ``runner``'s clock.
+
+    ``runner`` is a :class:`~eyeq_spi.runner.VirtualRunner` (whose node list holds the host) or
+    a :class:`~eyeq_spi.runner.RealTimeRunner` (whose ``node`` is the host): the host's entry is
+    replaced by a :class:`GatewayNode` wrapping it. The sink is closed at exit (log files are
+    finalised) or by ``close()``.
+    """
+    clock = getattr(runner, "clock", None)
+    epoch = float(clock()) if callable(clock) else float(getattr(runner, "now", 0.0))
+    scenario = getattr(host, "scenario", None)
+    vehicle = scenario.signals if scenario is not None else None
+    gateway = CanGateway(protocol, vehicle=vehicle, epoch=epoch)
+    sink = open_target(target)
+    node = GatewayNode(host, gateway, sink)
+    host.subscribe(gateway.on_message)
+    if hasattr(runner, "nodes"):
+        runner.nodes = [(node, a) if n is host else (n, a) for n, a in runner.nodes]
+    elif getattr(runner, "node", None) is host:
+        runner.node = node
+    else:
+        sink.close()
+        raise UsageError("--can-out: this runner has no host node to attach the gateway to")
+    out = CanOutput(gateway, sink, node)
+    atexit.register(out.close)
+    return out
+
+
+def attach_from_args(args: Any, host: Any, runner: Any) -> CanOutput | None:
+    """``demo``/``host --can-out TARGET [--can-protocol P]``: attach a gateway, or do nothing."""
+    target = getattr(args, "can_out", None)
+    if not target:
+        return None
+    return attach(host, runner, target=target,
+                  protocol=getattr(args, "can_protocol", None) or "extlog2")

@@ -1,0 +1,119 @@
+"""``eyeq-spi can dbc`` and ``eyeq-spi can decode``: the Mobileye CAN output protocols of
+``specs/can/`` (seeds 000, 001, 003) as generated DBC files, and a CAN log decoder whose outputs
+follow ``eyeq-spi dissect`` (human, ``--json`` lines, ``--csv``/``--parquet`` tables, ``--stats``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.errors import UsageError
+
+PROTOCOLS = ("extlog2", "me8")
+
+
+def add_can_parser(sub: Any) -> None:
+    c = sub.add_parser("can", help="Mobileye CAN output: generated DBCs, CAN log decoder",
+                       description="The Mobileye CAN protocols of specs/can/: ExtLogData2/AWS/"
+                       "LKA (extlog2, seeds 000/001) and Mobileye 8 Connect (me8, seed 003).")
+    cs = c.add_subparsers(dest="can_command", required=True, parser_class=sub._parser_class)
+    d = cs.add_parser("dbc", help="write DBC files built with cantools from specs/can/")
+    d.add_argument("--protocol", choices=(*PROTOCOLS, "all"), default="all",
+                   help="which protocol (default all)")
+    d.add_argument("--output", "-o", metavar="DIR", default=".",
+                   help="directory for PROTOCOL.dbc (default .); - prints one protocol")
+    x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs",
+                      description="Decode CAN logs with the generated DBCs. Exit 0 clean, 1 "
+                      "frames with errors (unknown ID, wrong DLC, value out of range), 2 bad "
+                      "input or usage.")
+    x.add_argument("logs", nargs="+", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
+                   ".mf4 .csv)")
+    x.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
+                   help="protocol of the log (default extlog2)")
+    x.add_argument("--json", action="store_true", help="JSON Lines, one object per frame")
+    x.add_argument("--csv", metavar="DIR", help="one CSV table per message")
+    x.add_argument("--parquet", metavar="DIR", help="one Parquet table per message")
+    x.add_argument("--stats", action="store_true",
+                   help="only statistics: cycle time per ID against the spec, invalid and "
+                   "out-of-range values (one JSON object with --json)")
+    x.add_argument("--id", metavar="ID", type=lambda s: int(s, 0),
+                   help="only frames with this arbitration ID (0x739)")
+    x.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
+    x.add_argument("--errors-only", action="store_true", help="only frames with errors")
+
+
+def _dbc(args: argparse.Namespace) -> int:
+    from eyeq_spi.can.dbc import dbc_text, write_dbc
+
+    names = PROTOCOLS if args.protocol == "all" else (args.protocol,)
+    if args.output == "-":
+        if len(names) != 1:
+            raise UsageError("--output - prints one protocol: add --protocol extlog2 or me8")
+        sys.stdout.write(dbc_text(names[0]))
+        return 0
+    for n in names:
+        path = write_dbc(n, Path(args.output))
+        print(path)
+    return 0
+
+
+def _decode(args: argparse.Namespace) -> int:
+    from eyeq_spi.can.decode import CanDecoder, CanStats, human_record, human_stats, read_log
+    from eyeq_spi.dissect.output import JsonWriter, TableWriter
+
+    if args.csv and args.parquet:
+        raise UsageError("give --csv or --parquet, not both")
+    try:
+        name_re = re.compile(args.name) if args.name else None
+    except re.error as exc:
+        raise UsageError(f"--name: bad regular expression: {exc}") from None
+    decoder = CanDecoder(args.protocol)
+    stats = CanStats(decoder) if args.stats else None
+    table = None
+    if not args.stats and (args.csv or args.parquet):
+        table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet")
+    json_out = JsonWriter(sys.stdout) if args.json and not args.stats else None
+    bad = 0
+    index = 0
+    try:
+        for path in args.logs:
+            for msg in read_log(path):
+                rec = decoder.decode(msg, index)
+                index += 1
+                if args.id is not None and rec["header"]["id"] != args.id:
+                    continue
+                if name_re is not None and not name_re.search(rec["name"] or ""):
+                    continue
+                if args.errors_only and not rec["errors"]:
+                    continue
+                bad += bool(rec["errors"])
+                if stats is not None:
+                    stats.add(rec)
+                elif table is not None:
+                    table.write(rec)
+                elif json_out is not None:
+                    json_out.write(rec)
+                else:
+                    print(human_record(rec))
+    finally:
+        if table is not None:
+            table.close()
+    if stats is not None:
+        result = stats.result()
+        if args.json:
+            JsonWriter(sys.stdout).write(result)
+        else:
+            print(human_stats(result))
+    if index == 0:
+        from eyeq_spi.can.decode import CanLogError
+
+        raise CanLogError("no CAN frames in the input")
+    return 1 if bad else 0
+
+
+def run_can(args: argparse.Namespace) -> int:
+    return _dbc(args) if args.can_command == "dbc" else _decode(args)

@@ -1,0 +1,415 @@
+"""The Mobileye CAN output protocols of ``specs/can/`` (seeds 000, 001, 003) as typed objects,
+and their schema check (``specs/SCHEMA.md`` "specs/can/").
+
+One ``can_protocol`` document per protocol (``extlog2.yaml``, ``me8.yaml``) and one
+``can_mapping`` document (``mapping.yaml``: EyeQ4 DASP fields -> CAN signals, decision C4).
+Everything that builds a DBC, encodes a frame or decodes a log reads it from here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cache
+from typing import Any
+
+from eyeq_spi.errors import SpecError
+from eyeq_spi.spec.can_expr import ExprError, compile_expr
+from eyeq_spi.spec.link import specs_dir
+
+PROTOCOL_KEYS = frozenset({"name", "title", "seeds", "bitrate", "seed", "seed_line", "enums",
+                           "messages"})
+MESSAGE_KEYS = frozenset({"name", "id", "dlc", "cycle_ms", "slots", "section", "seed",
+                          "seed_line", "signals", "reconstruction", "differences", "description"})
+SIGNAL_KEYS = frozenset({"name", "start", "length", "byte_order", "signed", "scale", "offset",
+                         "unit", "min", "max", "invalid", "out_of_range", "enum", "float", "seed",
+                         "seed_line", "seed_form", "description", "reconstruction", "invented"})
+SLOT_KEYS = frozenset({"count", "stride", "seed_line", "rule"})
+MAPPING_KEYS = frozenset({"expr", "reason", "seed_line"})
+
+
+@dataclass(frozen=True)
+class CanSignal:
+    name: str
+    start: int
+    length: int
+    byte_order: str = "little_endian"
+    signed: bool = False
+    scale: float = 1.0
+    offset: float = 0.0
+    unit: str | None = None
+    min: float | None = None
+    max: float | None = None
+    invalid: int | None = None  # raw bit pattern as printed (0x800), see raw_invalid
+    out_of_range: str = "clamp"  # "clamp" | "invalid"
+    enum: str | None = None
+    is_float: bool = False
+    seed_line: int = 0
+    description: str | None = None
+
+    @property
+    def raw_invalid(self) -> int | None:
+        """The invalid value as the raw integer a codec packs (two's complement if signed)."""
+        if self.invalid is None:
+            return None
+        if self.signed and self.invalid >= 1 << (self.length - 1):
+            return self.invalid - (1 << self.length)
+        return self.invalid
+
+    @property
+    def raw_limits(self) -> tuple[int, int]:
+        if self.signed:
+            return -(1 << (self.length - 1)), (1 << (self.length - 1)) - 1
+        return 0, (1 << self.length) - 1
+
+    def bits(self) -> set[int]:
+        """Bit positions (bit 0 = LSB of byte 0) the signal occupies."""
+        if self.byte_order == "little_endian":
+            return set(range(self.start, self.start + self.length))
+        out, pos = set(), self.start  # Motorola: start is the MSB, walk towards the LSB
+        for _ in range(self.length):
+            out.add(pos)
+            pos = pos - 1 if pos % 8 else pos + 15
+        return out
+
+
+@dataclass(frozen=True)
+class SlotRule:
+    count: int
+    stride: int
+    rule: str = ""
+
+
+@dataclass(frozen=True)
+class CanMessage:
+    name: str
+    id: int
+    dlc: int
+    cycle_ms: float
+    signals: tuple[CanSignal, ...]
+    slots: SlotRule | None = None
+    section: str | None = None
+    seed_line: int = 0
+
+    def instances(self) -> list[tuple[int | None, int, str]]:
+        """(slot, frame ID, DBC message name): one per repeated slot, else one."""
+        if self.slots is None:
+            return [(None, self.id, self.name)]
+        return [(i, self.id + i * self.slots.stride, f"{self.name}_{i}")
+                for i in range(self.slots.count)]
+
+    def signal(self, name: str) -> CanSignal:
+        for s in self.signals:
+            if s.name == name:
+                return s
+        raise SpecError(f"{self.name} has no signal {name}")
+
+
+@dataclass(frozen=True)
+class CanProtocol:
+    name: str
+    title: str
+    bitrate: int
+    enums: dict[str, dict[int, str]]
+    messages: tuple[CanMessage, ...]
+    seeds: dict[str, str] = field(default_factory=dict)
+
+    def message(self, name: str) -> CanMessage:
+        for m in self.messages:
+            if m.name == name:
+                return m
+        raise SpecError(f"protocol {self.name} has no message {name}")
+
+
+@dataclass(frozen=True)
+class SignalMapping:
+    expr: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class MessageMapping:
+    signals: dict[str, SignalMapping]
+    slots: SignalMapping | None = None  # expression giving the list of slot items
+
+
+@dataclass(frozen=True)
+class CanMapping:
+    sources: dict[str, str]  # alias -> "DASP_MESSAGE_NAME[.path.to.struct]"
+    tables: dict[str, dict[Any, int]]  # int -> int, plus an optional "default"
+    protocols: dict[str, dict[str, MessageMapping]]
+    derived: tuple[tuple[str, SignalMapping], ...] = ()
+    vehicle_reason: str = ""
+
+
+BASE_NAMES = frozenset({"t", "veh", "n", "i", "o"})
+MAPPING_DOC_KEYS = frozenset({"vehicle", "sources", "tables", "derived", "protocols"})
+
+
+def _table(raw: Any) -> dict[Any, int]:
+    out: dict[Any, int] = {}
+    for k, v in (raw or {}).items():
+        if k == "identity":
+            out.update({int(x): int(x) for x in v})
+        elif k == "default":
+            out["default"] = int(v)
+        else:
+            out[int(k)] = int(v)
+    return out
+
+
+def _num(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _check_signal(where: str, s: Any, dlc: int, enums: dict[str, Any]) -> list[str]:
+    if not isinstance(s, dict):
+        return [f"{where}: signal must be a mapping"]
+    out = [f"{where}: unknown key {k!r}" for k in sorted(set(s) - SIGNAL_KEYS)]
+    if not isinstance(s.get("name"), str) or not s["name"].isidentifier():
+        out.append(f"{where}: bad name {s.get('name')!r}")
+    if not isinstance(s.get("start"), int) or not isinstance(s.get("length"), int) \
+            or not 1 <= s["length"] <= 64 or s["start"] < 0:
+        return [*out, f"{where}: needs int start >= 0 and length 1..64"]
+    if not isinstance(s.get("seed_line"), int):
+        out.append(f"{where}: needs an int seed_line")
+    for k in ("scale", "offset", "min", "max"):
+        if k in s and not _num(s[k]):
+            out.append(f"{where}: {k} must be a number")
+    if s.get("scale") == 0:
+        out.append(f"{where}: scale 0")
+    if s.get("byte_order", "little_endian") not in ("little_endian", "big_endian"):
+        out.append(f"{where}: byte_order must be little_endian or big_endian")
+    if s.get("out_of_range", "clamp") not in ("clamp", "invalid"):
+        out.append(f"{where}: out_of_range must be clamp or invalid")
+    if s.get("out_of_range") == "invalid" and "invalid" not in s:
+        out.append(f"{where}: out_of_range invalid needs an invalid value")
+    if "invalid" in s and (not isinstance(s["invalid"], int) or
+                           not 0 <= s["invalid"] < 1 << s["length"]):
+        out.append(f"{where}: invalid must be a raw value that fits {s['length']} bits")
+    if "enum" in s and s["enum"] not in enums:
+        out.append(f"{where}: unknown enum {s['enum']!r}")
+    if s.get("float") and s["length"] != 32:
+        out.append(f"{where}: a float signal is 32 bits")
+    if (s.get("invented") or "seed_form" in s) and not s.get("reconstruction"):
+        out.append(f"{where}: invented/seed_form needs a reconstruction note")
+    sig = _signal(s)
+    if max(sig.bits()) >= dlc * 8 or min(sig.bits()) < 0:
+        out.append(f"{where}: bits {min(sig.bits())}..{max(sig.bits())} exceed DLC {dlc}")
+    return out
+
+
+def validate_protocol(rel: str, doc: Any) -> list[str]:
+    if not isinstance(doc, dict):
+        return [f"{rel}: can_protocol must be a mapping"]
+    out = [f"{rel}: unknown key {k!r}" for k in sorted(set(doc) - PROTOCOL_KEYS)]
+    if not isinstance(doc.get("name"), str):
+        out.append(f"{rel}: needs a name")
+    enums = doc.get("enums") or {}
+    for ename, e in enums.items():
+        vals = e.get("values") if isinstance(e, dict) else None
+        if not isinstance(vals, dict) or not all(isinstance(k, int) and isinstance(v, str)
+                                                 for k, v in vals.items()):
+            out.append(f"{rel}: enum {ename}: values must map ints to names")
+    ids: dict[int, str] = {}
+    names: set[str] = set()
+    msgs = doc.get("messages")
+    if not isinstance(msgs, list) or not msgs:
+        return [*out, f"{rel}: needs a messages list"]
+    for m in msgs:
+        where = f"{rel}: message {m.get('name') if isinstance(m, dict) else m!r}"
+        if not isinstance(m, dict):
+            out.append(f"{where}: must be a mapping")
+            continue
+        out += [f"{where}: unknown key {k!r}" for k in sorted(set(m) - MESSAGE_KEYS)]
+        if not isinstance(m.get("id"), int) or not 0 <= m["id"] <= 0x7FF:
+            out.append(f"{where}: id must be an 11-bit int")
+            continue
+        if not isinstance(m.get("dlc"), int) or not 1 <= m["dlc"] <= 8:
+            out.append(f"{where}: dlc must be 1..8")
+            continue
+        if not _num(m.get("cycle_ms")) or m["cycle_ms"] <= 0:
+            out.append(f"{where}: cycle_ms must be positive")
+        if not isinstance(m.get("seed_line"), int):
+            out.append(f"{where}: needs an int seed_line")
+        slots = m.get("slots")
+        if slots is not None and (not isinstance(slots, dict) or set(slots) - SLOT_KEYS
+                                  or not isinstance(slots.get("count"), int)
+                                  or not isinstance(slots.get("stride"), int)
+                                  or slots["count"] < 1 or slots["stride"] < 1):
+            out.append(f"{where}: slots needs int count and stride >= 1")
+            continue
+        count, stride = (slots["count"], slots["stride"]) if slots else (1, 1)
+        for i in range(count):
+            fid = m["id"] + i * stride
+            if fid in ids:
+                out.append(f"{where}: ID 0x{fid:03X} also used by {ids[fid]}")
+            ids[fid] = str(m.get("name"))
+        if m.get("name") in names:
+            out.append(f"{where}: duplicate name")
+        names.add(str(m.get("name")))
+        used: dict[int, str] = {}
+        snames: set[str] = set()
+        for s in m.get("signals") or []:
+            swhere = f"{where} signal {s.get('name') if isinstance(s, dict) else s!r}"
+            problems = _check_signal(swhere, s, m["dlc"], enums)
+            out += problems
+            if problems:
+                continue
+            if s["name"] in snames:
+                out.append(f"{swhere}: duplicate name")
+            snames.add(s["name"])
+            for b in _signal(s).bits():
+                if b in used:
+                    out.append(f"{swhere}: bit {b} overlaps {used[b]}")
+                    break
+                used[b] = s["name"]
+        if not snames:
+            out.append(f"{where}: needs signals")
+    return out
+
+
+def validate_mapping(rel: str, doc: Any, protocols: dict[str, Any]) -> list[str]:
+    if not isinstance(doc, dict):
+        return [f"{rel}: can_mapping must be a mapping"]
+    out = [f"{rel}: unknown key {k!r}" for k in sorted(set(doc) - MAPPING_DOC_KEYS)]
+    names = set(BASE_NAMES) | set(doc.get("sources") or {})
+    tables = doc.get("tables") or {}
+    for tname, t in tables.items():
+        try:
+            _table(t)
+        except (TypeError, ValueError, AttributeError):
+            out.append(f"{rel}: table {tname}: int -> int, identity: [ints], default: int")
+    for dname, dm in (doc.get("derived") or {}).items():
+        if not isinstance(dm, dict) or not isinstance(dm.get("reason"), str):
+            out.append(f"{rel}: derived {dname}: needs expr and reason")
+            continue
+        try:
+            compile_expr(str(dm.get("expr")), names, set(tables))
+        except ExprError as exc:
+            out.append(f"{rel}: derived {dname}: {exc}")
+        names.add(str(dname))
+    for pname, msgs in (doc.get("protocols") or {}).items():
+        proto = protocols.get(pname)
+        if proto is None:
+            out.append(f"{rel}: unknown protocol {pname!r}")
+            continue
+        pmsgs = {m.get("name"): m for m in proto.get("messages") or [] if isinstance(m, dict)}
+        for mname, mm in (msgs or {}).items():
+            where = f"{rel}: {pname}.{mname}"
+            if mname not in pmsgs:
+                out.append(f"{where}: no such message")
+                continue
+            sig_names = {s.get("name") for s in pmsgs[mname].get("signals") or []}
+            entries = dict((mm or {}).get("signals") or {})
+            if "slots" in (mm or {}):
+                entries["<slots>"] = mm["slots"]
+            for sname, sm in entries.items():
+                swhere = f"{where}.{sname}"
+                if sname != "<slots>" and sname not in sig_names:
+                    out.append(f"{swhere}: no such signal")
+                if not isinstance(sm, dict) or set(sm) - MAPPING_KEYS:
+                    out.append(f"{swhere}: needs expr and reason only")
+                    continue
+                if not isinstance(sm.get("reason"), str) or not sm["reason"].strip():
+                    out.append(f"{swhere}: every mapping explains its choice (C4): add reason")
+                try:
+                    compile_expr(str(sm.get("expr")), names, set(tables))
+                except ExprError as exc:
+                    out.append(f"{swhere}: {exc}")
+    return out
+
+
+def validate_can_docs(docs: dict[str, Any]) -> list[str]:
+    """Schema problems of every ``can_protocol`` / ``can_mapping`` document in ``docs``."""
+    out: list[str] = []
+    protocols: dict[str, Any] = {}
+    for rel, doc in docs.items():
+        if isinstance(doc, dict) and "can_protocol" in doc:
+            out += validate_protocol(rel, doc["can_protocol"])
+            if isinstance(doc["can_protocol"], dict):
+                protocols[str(doc["can_protocol"].get("name"))] = doc["can_protocol"]
+    for rel, doc in docs.items():
+        if isinstance(doc, dict) and "can_mapping" in doc:
+            out += validate_mapping(rel, doc["can_mapping"], protocols)
+    return out
+
+
+def _signal(s: dict[str, Any]) -> CanSignal:
+    return CanSignal(
+        name=s["name"], start=int(s["start"]), length=int(s["length"]),
+        byte_order=s.get("byte_order", "little_endian"), signed=bool(s.get("signed", False)),
+        scale=s.get("scale", 1), offset=s.get("offset", 0), unit=s.get("unit"),
+        min=s.get("min"), max=s.get("max"), invalid=s.get("invalid"),
+        out_of_range=s.get("out_of_range", "clamp"), enum=s.get("enum"),
+        is_float=bool(s.get("float", False)), seed_line=int(s.get("seed_line", 0)),
+        description=s.get("description"),
+    )
+
+
+def _protocol(doc: dict[str, Any]) -> CanProtocol:
+    msgs = []
+    for m in doc["messages"]:
+        sl = m.get("slots")
+        msgs.append(CanMessage(
+            name=m["name"], id=int(m["id"]), dlc=int(m["dlc"]), cycle_ms=m["cycle_ms"],
+            signals=tuple(_signal(s) for s in m["signals"]),
+            slots=SlotRule(int(sl["count"]), int(sl["stride"]), str(sl.get("rule", "")))
+            if sl else None, section=m.get("section"), seed_line=int(m["seed_line"]),
+        ))
+    enums = {k: {int(v): str(n) for v, n in e["values"].items()}
+             for k, e in (doc.get("enums") or {}).items()}
+    return CanProtocol(doc["name"], str(doc.get("title", doc["name"])),
+                       int(doc.get("bitrate", 500000)), enums, tuple(msgs),
+                       dict(doc.get("seeds") or {}))
+
+
+def _load_docs() -> dict[str, Any]:
+    import yaml
+
+    out: dict[str, Any] = {}
+    root = specs_dir() / "can"
+    for path in sorted(root.glob("*.yaml")):
+        try:
+            out[f"can/{path.name}"] = yaml.safe_load(path.read_text(encoding="utf-8"))
+        except (OSError, yaml.YAMLError) as exc:
+            raise SpecError(f"{path}: {exc}") from exc
+    return out
+
+
+@cache
+def can_specs() -> tuple[dict[str, CanProtocol], CanMapping]:
+    """Every protocol of ``specs/can/`` and the DASP -> CAN mapping, validated."""
+    docs = _load_docs()
+    problems = validate_can_docs(docs)
+    if problems:
+        raise SpecError(f"specs/can: {len(problems)} schema problem(s), first: {problems[0]}")
+    protocols = {p.name: p for p in (_protocol(d["can_protocol"]) for d in docs.values()
+                                     if isinstance(d, dict) and "can_protocol" in d)}
+    mapping = CanMapping({}, {}, {})
+    for d in docs.values():
+        if isinstance(d, dict) and "can_mapping" in d:
+            mp = d["can_mapping"]
+            prot: dict[str, dict[str, MessageMapping]] = {}
+            for pname, msgs in (mp.get("protocols") or {}).items():
+                prot[pname] = {}
+                for mname, mm in (msgs or {}).items():
+                    sl = mm.get("slots")
+                    prot[pname][mname] = MessageMapping(
+                        {k: SignalMapping(str(v["expr"]), str(v["reason"]))
+                         for k, v in (mm.get("signals") or {}).items()},
+                        SignalMapping(str(sl["expr"]), str(sl["reason"])) if sl else None)
+            mapping = CanMapping(
+                dict(mp.get("sources") or {}),
+                {k: _table(v) for k, v in (mp.get("tables") or {}).items()},
+                prot,
+                tuple((str(k), SignalMapping(str(v["expr"]), str(v["reason"])))
+                      for k, v in (mp.get("derived") or {}).items()),
+                str(mp.get("vehicle", "")))
+    return protocols, mapping
+
+
+def protocol(name: str) -> CanProtocol:
+    protocols, _ = can_specs()
+    if name not in protocols:
+        raise SpecError(f"unknown CAN protocol {name!r}: choose {', '.join(sorted(protocols))}")
+    return protocols[name]

@@ -1,0 +1,229 @@
+"""The small expression language of ``specs/can/mapping.yaml`` (decision C4).
+
+A mapping says how one CAN signal is computed from decoded EyeQ4 DASP fields, for example
+``-o.physicalState.latDistance`` or ``table('obstacle_type', o.classification)``. Expressions
+are parsed with :mod:`ast` and only a whitelist of nodes is accepted: names of the mapping's
+sources, attribute access into decoded dicts, numbers, strings, tuples/lists, arithmetic,
+comparisons, ``and``/``or``/``not``, ``x if c else y``, one-generator list comprehensions and
+the functions of :data:`FUNCTIONS`. Nothing else (no imports, no dunder attributes, no calls of
+arbitrary objects) can be written, so the data stays data.
+
+A name whose DASP message has not arrived yet, a missing field or a division by zero makes the
+whole expression :data:`MISSING`: the gateway then sends the signal's invalid value.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+from collections.abc import Callable
+from typing import Any
+
+from eyeq_spi.errors import SpecError
+
+
+class ExprError(SpecError):
+    """A mapping expression uses something the language does not have."""
+
+
+class _Missing:
+    def __repr__(self) -> str:
+        return "MISSING"
+
+
+MISSING: Any = _Missing()
+
+
+class _AbsentError(Exception):
+    pass
+
+
+def _deg(x: float) -> float:
+    return math.degrees(x)
+
+
+def _count(items: list[Any]) -> int:
+    return len(items)
+
+
+def _first(items: list[Any]) -> Any:
+    if not items:
+        raise _AbsentError
+    return items[0]
+
+
+def _div(a: float, b: float) -> float:
+    if b == 0:
+        raise _AbsentError
+    return a / b
+
+
+def _take(items: list[Any], n: int) -> list[Any]:
+    return list(items[: max(int(n), 0)])
+
+
+def _atan(x: float) -> float:
+    return math.atan(x)
+
+
+FUNCTIONS: dict[str, Callable[..., Any]] = {
+    "deg": _deg,            # radians -> degrees
+    "rad": math.radians,    # degrees -> radians
+    "atan": _atan,
+    "kmh": lambda v: v * 3.6,  # m/s -> km/h
+    "count": _count,        # length of a list
+    "first": _first,        # first item of a list (MISSING when empty)
+    "take": _take,          # the first n items of a list
+    "div": _div,            # a / b, MISSING when b == 0
+    "min": min, "max": max, "abs": abs, "int": int, "round": round,
+    "any": any, "all": all, "bit": lambda cond, n: (1 << int(n)) if cond else 0,
+}
+_BINOPS: dict[type, Callable[[Any, Any], Any]] = {
+    ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b, ast.Mult: lambda a, b: a * b,
+    ast.Div: lambda a, b: a / b, ast.Mod: lambda a, b: a % b, ast.FloorDiv: lambda a, b: a // b,
+    ast.BitOr: lambda a, b: a | b, ast.BitAnd: lambda a, b: a & b,
+}
+_CMPOPS: dict[type, Callable[[Any, Any], bool]] = {
+    ast.Eq: lambda a, b: a == b, ast.NotEq: lambda a, b: a != b, ast.Lt: lambda a, b: a < b,
+    ast.LtE: lambda a, b: a <= b, ast.Gt: lambda a, b: a > b, ast.GtE: lambda a, b: a >= b,
+    ast.In: lambda a, b: a in b, ast.NotIn: lambda a, b: a not in b,
+}
+Env = dict[str, Any]
+Fn = Callable[[Env], Any]
+
+
+def _build(node: ast.AST, names: set[str], tables: set[str]) -> Fn:
+    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float, str)):
+        value = node.value
+        return lambda env: value
+    if isinstance(node, ast.Name):
+        if node.id not in names:
+            raise ExprError(f"unknown name {node.id!r} (known: {', '.join(sorted(names))})")
+        key = node.id
+
+        def name(env: Env) -> Any:
+            v = env.get(key)
+            if v is None or v is MISSING:
+                raise _AbsentError
+            return v
+        return name
+    if isinstance(node, ast.Attribute):
+        if node.attr.startswith("_"):
+            raise ExprError(f"attribute {node.attr!r} is not allowed")
+        base, attr = _build(node.value, names, tables), node.attr
+
+        def get(env: Env) -> Any:
+            obj = base(env)
+            if not isinstance(obj, dict) or attr not in obj:
+                raise _AbsentError
+            return obj[attr]
+        return get
+    if isinstance(node, ast.Subscript):
+        base, index = _build(node.value, names, tables), _build(node.slice, names, tables)
+
+        def sub(env: Env) -> Any:
+            try:
+                return base(env)[index(env)]
+            except (IndexError, KeyError, TypeError):
+                raise _AbsentError from None
+        return sub
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.Not, ast.UAdd)):
+        operand, op = _build(node.operand, names, tables), node.op
+        if isinstance(op, ast.USub):
+            return lambda env: -operand(env)
+        if isinstance(op, ast.Not):
+            return lambda env: not operand(env)
+        return operand
+    if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
+        left, right, fn = (_build(node.left, names, tables), _build(node.right, names, tables),
+                           _BINOPS[type(node.op)])
+
+        def binop(env: Env) -> Any:
+            try:
+                return fn(left(env), right(env))
+            except ZeroDivisionError:
+                raise _AbsentError from None
+        return binop
+    if isinstance(node, ast.BoolOp):
+        parts = [_build(v, names, tables) for v in node.values]
+        if isinstance(node.op, ast.And):
+            return lambda env: all(p(env) for p in parts)
+        return lambda env: any(p(env) for p in parts)
+    if isinstance(node, ast.Compare) and all(type(o) in _CMPOPS for o in node.ops):
+        first = _build(node.left, names, tables)
+        rest = [(_CMPOPS[type(o)], _build(c, names, tables))
+                for o, c in zip(node.ops, node.comparators, strict=True)]
+
+        def compare(env: Env) -> bool:
+            a = first(env)
+            for fn, c in rest:
+                b = c(env)
+                if not fn(a, b):
+                    return False
+                a = b
+            return True
+        return compare
+    if isinstance(node, ast.IfExp):
+        test, body, orelse = (_build(node.test, names, tables), _build(node.body, names, tables),
+                              _build(node.orelse, names, tables))
+        return lambda env: body(env) if test(env) else orelse(env)
+    if isinstance(node, (ast.Tuple, ast.List)):
+        items = [_build(e, names, tables) for e in node.elts]
+        return lambda env: [i(env) for i in items]
+    if isinstance(node, ast.ListComp) and len(node.generators) == 1:
+        gen = node.generators[0]
+        if not isinstance(gen.target, ast.Name) or gen.is_async:
+            raise ExprError("a comprehension binds one plain name")
+        var = gen.target.id
+        inner = names | {var}
+        it = _build(gen.iter, names, tables)
+        conds = [_build(c, inner, tables) for c in gen.ifs]
+        elt = _build(node.elt, inner, tables)
+
+        def comp(env: Env) -> list[Any]:
+            out = []
+            for item in it(env):
+                local = {**env, var: item}
+                if all(c(local) for c in conds):
+                    out.append(elt(local))
+            return out
+        return comp
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and not node.keywords:
+        fname = node.func.id
+        if fname == "table":
+            if (len(node.args) != 2 or not isinstance(node.args[0], ast.Constant)
+                    or node.args[0].value not in tables):
+                raise ExprError(f"table() takes a table name of {sorted(tables)} and a value")
+            tname = str(node.args[0].value)
+            arg = _build(node.args[1], names, tables)
+
+            def lookup(env: Env) -> Any:
+                t = env["__tables__"][tname]
+                v = arg(env)
+                return t[v] if v in t else t.get("default", MISSING)
+            return lookup
+        if fname not in FUNCTIONS:
+            raise ExprError(f"unknown function {fname!r} (known: table, "
+                            f"{', '.join(sorted(FUNCTIONS))})")
+        fn, args = FUNCTIONS[fname], [_build(a, names, tables) for a in node.args]
+        return lambda env: fn(*(a(env) for a in args))
+    raise ExprError(f"{type(node).__name__} is not part of the mapping language")
+
+
+def compile_expr(text: str, names: set[str], tables: set[str]) -> Callable[[Env], Any]:
+    """Compile ``text``; the result maps an environment to a value or :data:`MISSING`."""
+    try:
+        tree = ast.parse(text, mode="eval")
+    except SyntaxError as exc:
+        raise ExprError(f"{text!r}: {exc.msg}") from None
+    fn = _build(tree.body, names, tables)
+
+    def run(env: Env) -> Any:
+        try:
+            v = fn(env)
+        except _AbsentError:
+            return MISSING
+        except (TypeError, ValueError, OverflowError):
+            return MISSING
+        return v
+    return run
