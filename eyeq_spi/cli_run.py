@@ -148,30 +148,71 @@ def host_parts(args: argparse.Namespace) -> tuple[Any, Any, Any]:
     return cfg, nvm, scenario
 
 
-class LiveView:
-    """On a TTY: state transitions as they happen and message rates once a second."""
+FATAL_22_NOTE = (
+    "          Fatal_Error 22 = the EyeQ's EEPROM does not match the intrinsic calibration (0x84)",
+    "          the host sent from its NVM. Expected on a first run: the NVM is empty, so the host",
+    "          reads the EEPROM into the NVM and resets the EyeQ (§7.1.3, decision I2). --nvm FILE",
+    "          keeps the NVM for the next run.",
+)
 
-    def __init__(self, enabled: bool) -> None:
+
+class LiveView:
+    """On a TTY: state transitions as they happen and message rates once a second.
+
+    One time base: every time printed is seconds since the run started, the same clock the
+    transitions carry (a host on the wall clock has its start subtracted, inferred from the
+    host's own ``now`` on the first update). Every line fits ``width`` (100) columns; the first
+    FATAL_22 gets an explanation (an empty NVM on a first run)."""
+
+    def __init__(self, enabled: bool, out: Any = None, width: int = 100) -> None:
         self.enabled = enabled
+        self.out = out
+        self.width = width
         self.shown = 0
         self.last_counts: Counter[str] = Counter()
         self.last_t = 0.0
+        self.origin: float | None = None
+        self.explained = False
+        self.last_live: set[str] = set()
+
+    def _print(self, line: str) -> None:
+        if len(line) > self.width:
+            line = line[:self.width - 1] + "…"
+        print(line, file=self.out or sys.stderr)
 
     def update(self, host: Any, now: float) -> None:
         if not self.enabled:
             return
+        host_now = float(getattr(host, "now", 0.0) or 0.0)
+        if self.origin is None and host_now:  # the host has seen its first event
+            self.origin = host_now - now if abs(host_now - now) > 1.0 else 0.0
+        origin = self.origin or 0.0
         for t in host.transitions[self.shown:]:
-            print(f"[{t.time:8.3f}] {t.src.value:>18s} --{t.event.value}--> {t.dst.value}",
-                  file=sys.stderr)
+            detail = f"  {t.detail}" if getattr(t, "detail", "") else ""
+            self._print(f"[{t.time - origin:8.3f}] {t.src.value:>17s} --{t.event.value}--> "
+                        f"{t.dst.value}{detail}")
+            if t.event.value == "FATAL_22" and not self.explained:
+                self.explained = True
+                for line in FATAL_22_NOTE:
+                    self._print(line)
         self.shown = len(host.transitions)
         if now - self.last_t >= 1.0:
             counts = Counter(host.counters.received)
             dt = now - self.last_t
             rates = {k: (v - self.last_counts.get(k, 0)) / dt for k, v in counts.items()}
-            line = "  ".join(f"{k.replace('EYEQ_', '').replace('_MSG', '')}:{r:4.1f}"
-                             for k, r in sorted(rates.items()) if r > 0)
-            print(f"[{now:8.3f}] {host.state.value:14s} Hz {line}", file=sys.stderr)
+            live = {k: r for k, r in rates.items() if r > 0}
+            line = f"[{now:8.3f}] {host.state.value:14s} rx {sum(live.values()):6.1f} msg/s"
+            if live:
+                slow = min(live, key=lambda k: live[k])
+                name = slow.replace("EYEQ_", "").replace("_MSG", "")
+                line += f" in {len(live)} streams, slowest {name} {live[slow]:.1f} Hz"
+            stopped = sorted(k.replace("EYEQ_", "").replace("_MSG", "")
+                             for k in self.last_live if k not in live)
+            if stopped:
+                line += f"; stopped: {', '.join(stopped)}"
+            self._print(line)
             self.last_counts, self.last_t = counts, now
+            self.last_live = {k for k, r in live.items() if r >= 2.0}  # periodic streams
 
 
 def _capture(args: argparse.Namespace) -> Any:
