@@ -3,8 +3,11 @@ fsync of the directory), so a crash at any point leaves either the old or the ne
 
 from __future__ import annotations
 
+import contextlib
+import glob
 import json
 import os
+import re
 import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -35,6 +38,46 @@ class NvmData:
     versions: dict[str, int] = field(default_factory=dict)
 
 
+TEMP_SUFFIX = ".nvm-tmp"
+_OLD_TEMP = re.compile(r"[a-z0-9_]{8}")  # mkstemp's suffix in files written before 0.2
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return False  # our own leftovers: we are not writing now
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True  # exists, not ours to signal
+    return True
+
+
+def remove_stale_temp_files(path: Path) -> int:
+    """Delete the temporary files of NVM writes that were killed before their rename (a
+    crash mid-write). A temp file is never read as the NVM; one whose writer is still alive
+    is left alone. Returns how many were removed."""
+    removed = 0
+    prefix = f".{path.name}."
+    try:
+        candidates = list(path.parent.glob(f"{glob.escape(prefix)}*"))
+    except OSError:
+        return 0
+    for f in candidates:
+        rest = f.name[len(prefix):]
+        if rest.endswith(TEMP_SUFFIX):
+            pid_text = rest.split(".", 1)[0]
+            if pid_text.isdigit() and _alive(int(pid_text)):
+                continue
+        elif not _OLD_TEMP.fullmatch(rest):
+            continue
+        with contextlib.suppress(OSError):
+            f.unlink()
+            removed += 1
+    return removed
+
+
 class Nvm:
     """``path=None`` keeps the NVM in memory (tests, the demo without ``--nvm``)."""
 
@@ -43,11 +86,14 @@ class Nvm:
         self.data = NvmData()
         self.writes = 0
         self.load_problem: str | None = None
+        self.removed_temp_files = 0
 
     def load(self) -> NvmData:
         """Read the file; a missing file is a first power-up. A corrupt file is reported in
         ``load_problem`` and treated as empty, which the §7.1.3 flow repairs."""
         self.data = NvmData()
+        if self.path is not None:
+            self.removed_temp_files = remove_stale_temp_files(self.path)
         if self.path is None or not self.path.exists():
             return self.data
         try:
@@ -74,7 +120,8 @@ class Nvm:
         directory = self.path.parent if str(self.path.parent) else Path(".")
         try:
             directory.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", dir=directory)
+            fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.{os.getpid()}.",
+                                       suffix=TEMP_SUFFIX, dir=directory)
             try:
                 with os.fdopen(fd, "w", encoding="utf-8") as fh:
                     fh.write(text)

@@ -1,0 +1,130 @@
+"""Regression tests for the defects the fault campaign found (issue 9, item 1). Each failed
+before its fix; defect 1 (splice across a peer reset) is in tests/test_passive.py."""
+
+from __future__ import annotations
+
+import os
+import struct
+import time
+from pathlib import Path
+
+import pytest
+
+from eyeq_spi.codec.e2e import E2EState
+from eyeq_spi.codec.intrinsic import eeprom_codec, seal_eeprom
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.emulator import build
+from eyeq_spi.errors import LocalProtocolError
+from eyeq_spi.host.host import HostConfig
+from eyeq_spi.host.machine import HostState
+from eyeq_spi.host.nvm import Nvm
+from eyeq_spi.link import LinkConfig
+from eyeq_spi.sim.config import SimConfig
+from eyeq_spi.sim.eyeq import SimulatedEyeQ
+from eyeq_spi.transport import TransportConnection
+
+S = HostState
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), 1e6])
+def test_crc_valid_eeprom_with_unusable_value_is_a_camera_fault(value: float) -> None:
+    """Defect 2: a CRC-valid EEPROM whose CCAM_distorParams_m_0 cannot be encoded sent the host
+    into a CodecError crash in _send_init. Now: FAILED, with a problem naming the field."""
+    emu = build()
+    sig = eeprom_codec().signals["CCAM_distorParams_m_0"]
+    image = bytearray(emu.sim.eeprom)
+    image[sig.start // 8: sig.start // 8 + 4] = struct.pack("<f", value)
+    emu.sim.eeprom[:] = seal_eeprom(bytes(image))
+    emu.run_for(3.0)
+    assert emu.host.state is S.FAILED
+    assert emu.host.problem is not None and "CCAM_distorParams_m_0" in emu.host.problem
+
+
+def _veh_state_transfers(velocity: float, *, break_crc: bool) -> list[bytes]:
+    mc = MessageCodec()
+    msg = mc.message("HOST_VEH_STATE_MSG")
+    values = mc.layout(msg).zero_values()
+    vs = values["vehStateInfo"]
+    vs["vehicleVelocity"] = velocity
+    for k in vs:
+        if k.endswith("Validity"):
+            vs[k] = 1
+    wire = bytearray(mc.encode_dasp(msg.name, values, 0, E2EState()))
+    if break_crc:  # D5: vehicleVelocity is covered by crc_16; change it, keep the CRC
+        i = bytes(wire).index(struct.pack("<f", velocity))
+        wire[i:i + 4] = struct.pack("<f", velocity + 1.0)
+    tx = TransportConnection(LinkConfig(role="host"))
+    tx.send(bytes(wire), 0.0)
+    out: list[bytes] = []
+    for i in range(50):
+        out += tx.data_to_send(i * 0.001)
+    return out
+
+
+def _running_sim() -> SimulatedEyeQ:
+    sim = SimulatedEyeQ(SimConfig(objects=15, signs=20, light_spots=15))
+    sim.power_up(0.0)
+    sim.handle_timer(0.3)
+    sim.main_state, sim.sub_state = 0x02, 0  # Running Vision: DASP and the scene run
+    return sim
+
+
+@pytest.mark.parametrize("velocity", [3.4e38, 1e30, float("inf"), -1e9])
+def test_huge_vehicle_velocity_never_makes_a_step_unbounded(velocity: float) -> None:
+    """Defect 3: the scene looped forever in _extend_road/_update_road on a huge velocity."""
+    sim = _running_sim()
+    for t in _veh_state_transfers(velocity, break_crc=False):
+        sim.receive_data(t, 0.31)
+    t0 = time.process_time()
+    for i in range(40):
+        sim.handle_timer(0.32 + i * 0.01)
+    assert time.process_time() - t0 < 10.0  # bounded (it never returned before the fix)
+    assert sim.counters.rejected_values == 1  # outside the seed's -20..100 m/s: not used
+
+
+def test_rejected_veh_state_structure_never_drives_the_scene() -> None:
+    """Defect 3: the values of a HOST_VEH_STATE_MSG whose E2E CRC failed were used."""
+    sim = _running_sim()
+    for t in _veh_state_transfers(12.5, break_crc=True):
+        sim.receive_data(t, 0.31)
+    assert sim.counters.e2e_errors == 1
+    assert sim._ego == (None, None)
+
+
+def test_switching_to_tac_on_a_release_without_its_table_is_refused_not_a_crash() -> None:
+    """Defect 4: with SW 6, switching to TAC crashed the host with a SpecError."""
+    emu = build(sim_config=SimConfig(sw="6"), host_config=HostConfig(sw="6"))
+    emu.run_for(3.0)
+    assert emu.host.state is S.RUNNING_VISION
+    with pytest.raises(LocalProtocolError, match="TAC is not available for SW"):
+        emu.host.switch_mode("TAC", emu.runner.now)
+    emu.run_for(0.5)
+    assert emu.host.state is S.RUNNING_VISION
+
+
+@pytest.mark.parametrize("reset_at", [0.531, 0.533, 0.537, 0.542])
+def test_reset_right_after_entering_running_vision_recovers(reset_at: float) -> None:
+    """Defect 5: a reset 1-7 ms after Running Vision, before any 0x41 said Main_State 2, lost
+    the boot status to out-of-window NAKs and the host stayed in RUNNING_VISION with no DASP."""
+    emu = build(sim_config=SimConfig(reset_at=reset_at))
+    emu.run_for(6.0)
+    assert emu.host.counters.eyeq_resets >= 1
+    assert emu.host.state is S.RUNNING_VISION and not emu.host.stale_streams
+    assert emu.sim.main_state == 0x02
+
+
+def test_stale_nvm_temp_files_are_removed_and_never_read(tmp_path: Path) -> None:
+    """Defect 6: killed writes left temp files behind."""
+    path = tmp_path / "nvm.json"
+    nvm = Nvm(path)
+    nvm.save()
+    dead = tmp_path / f".nvm.json.{2**22 + 12345}.abc123.nvm-tmp"  # a PID that cannot exist
+    old = tmp_path / ".nvm.json.k3j4h5g6"  # the pre-0.2 mkstemp name
+    live = tmp_path / f".nvm.json.{os.getppid()}.zz.nvm-tmp"  # a live writer's file
+    other = tmp_path / ".nvm.json.notes"
+    for f in (dead, old, live, other):
+        f.write_text("{not json")
+    again = Nvm(path)
+    again.load()
+    assert again.load_problem is None and again.removed_temp_files == 2
+    assert not dead.exists() and not old.exists() and live.exists() and other.exists()
