@@ -1,0 +1,315 @@
+"""Captures read into arrays, many transfers at a time (the batch dissector's input).
+
+A :class:`Chunk` holds up to ``chunk`` transfers: an ``(n, 128)`` byte array, their lengths, times
+(NaN when a transfer has none) and direction codes. A transfer that is not 128 bytes (a chip-select
+fault, L8) keeps its bytes in ``Chunk.odd`` and a zero row in ``data``.
+
+- pcapng (``specs/capture.yaml``): a block walker of our own for little-endian sections. A run of
+  Enhanced Packet Blocks of one size (what our writer produces: 160 bytes each for a 128-byte
+  transfer) is checked and sliced as one ``(k, 160)`` array view with no per-block Python work;
+  anything else (other block types, other sizes, options) is walked block by block. A big-endian
+  section falls back to python-pcapng (:func:`read_pcapng`), which stays the reference: the tests
+  hold both to the same records. Interface numbering, names and ``if_tsresol`` follow
+  :func:`read_pcapng` exactly.
+- raw: concatenated 128-byte transfers, one ``np.frombuffer`` per chunk.
+- any other stream of :class:`Record`: :func:`chunks_from_records`.
+
+Memory stays bounded by ``chunk``. A malformed or truncated file raises :class:`CaptureError` after
+every complete transfer before the fault has been returned.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from eyeq_spi.capture.pcapng_io import DIRECTIONS, PCAPNG_MAGIC, CaptureError, Record, read_pcapng
+from eyeq_spi.link.frame import FRAME_SIZE
+
+DIR_CODE: dict[str | None, int] = {"h2e": 0, "e2h": 1, None: -1}
+DIR_NAME: dict[int, str | None] = {v: k for k, v in DIR_CODE.items()}
+CHUNK = 1 << 15
+_EPB, _IDB = 6, 1
+_SHB = int.from_bytes(PCAPNG_MAGIC, "little")
+_BOM = 0x1A2B3C4D
+
+
+class Readable(Protocol):
+    def read(self, n: int = -1, /) -> bytes: ...
+
+
+@dataclass
+class Chunk:
+    data: np.ndarray  # (n, 128) uint8
+    length: np.ndarray  # (n,) int64
+    time: np.ndarray  # (n,) float64, NaN for "no time"
+    direction: np.ndarray  # (n,) int8, DIR_CODE
+    odd: dict[int, bytes] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.length.shape[0])
+
+    def record(self, i: int) -> Record:
+        """Row ``i`` as the exact engine's input."""
+        t = float(self.time[i])
+        data = self.odd.get(i)
+        if data is None:
+            data = self.data[i].tobytes()
+        return Record(None if t != t else t, DIR_NAME[int(self.direction[i])], data)
+
+
+def _chunk(rows: list[np.ndarray], lengths: list[int], times: list[float], dirs: list[int],
+           odd: dict[int, bytes]) -> Chunk:
+    data = np.concatenate(rows) if rows else np.zeros((0, FRAME_SIZE), np.uint8)
+    return Chunk(data, np.asarray(lengths, np.int64), np.asarray(times, np.float64),
+                 np.asarray(dirs, np.int8), odd)
+
+
+def chunks_from_records(records: Iterable[Record], chunk: int = CHUNK) -> Iterator[Chunk]:
+    """The general path: any :class:`Record` stream (hex text, python-pcapng) as chunks."""
+    buf = bytearray()
+    lengths: list[int] = []
+    times: list[float] = []
+    dirs: list[int] = []
+    odd: dict[int, bytes] = {}
+    zero = bytes(FRAME_SIZE)
+    for rec in records:
+        n = len(rec.data)
+        if n == FRAME_SIZE:
+            buf += rec.data
+        else:
+            odd[len(lengths)] = rec.data
+            buf += zero
+        lengths.append(n)
+        times.append(float("nan") if rec.time is None else rec.time)
+        dirs.append(DIR_CODE[rec.direction])
+        if len(lengths) >= chunk:
+            yield _chunk([np.frombuffer(bytes(buf), np.uint8).reshape(-1, FRAME_SIZE)], lengths,
+                         times, dirs, odd)
+            buf, lengths, times, dirs, odd = bytearray(), [], [], [], {}
+    if lengths:
+        yield _chunk([np.frombuffer(bytes(buf), np.uint8).reshape(-1, FRAME_SIZE)], lengths,
+                     times, dirs, odd)
+
+
+def raw_chunks(stream: Readable, direction: str | None, chunk: int = CHUNK) -> Iterator[Chunk]:
+    """Concatenated 128-byte transfers of one channel."""
+    code = DIR_CODE[direction]
+    while True:
+        blob = _read_exact(stream, FRAME_SIZE * chunk)
+        n = len(blob) // FRAME_SIZE
+        if n:
+            yield Chunk(np.frombuffer(blob[: n * FRAME_SIZE], np.uint8).reshape(n, FRAME_SIZE),
+                        np.full(n, FRAME_SIZE, np.int64), np.full(n, np.nan),
+                        np.full(n, code, np.int8))
+        if len(blob) % FRAME_SIZE:
+            raise CaptureError(f"truncated raw capture: {len(blob) % FRAME_SIZE} bytes left over "
+                               "after the last whole 128-byte transfer")
+        if len(blob) < FRAME_SIZE * chunk:
+            return
+
+
+def _read_exact(stream: Readable, n: int) -> bytes:
+    parts: list[bytes] = []
+    got = 0
+    while got < n:
+        b = stream.read(n - got)
+        if not b:
+            break
+        parts.append(b)
+        got += len(b)
+    return b"".join(parts)
+
+
+class _Interfaces:
+    """Interface names and tick lengths, numbered over the whole file as read_pcapng does."""
+
+    def __init__(self) -> None:
+        self.names: list[str | None] = []
+        self.scales: list[float] = []
+
+    def add(self, body: bytes) -> None:
+        name: str | None = None
+        scale = 1e-6
+        pos = 8  # link type, reserved, snaplen
+        while pos + 4 <= len(body):
+            code, size = struct.unpack_from("<HH", body, pos)
+            value = body[pos + 4 : pos + 4 + size]
+            pos += 4 + ((size + 3) & ~3)
+            if code == 0:
+                break
+            if code == 2:
+                name = value.decode("utf-8", "replace")
+            elif code == 9 and size == 1:
+                base = 2 if value[0] & 0x80 else 10
+                scale = float(base ** -(value[0] & 0x7F))
+        self.names.append(name if name in DIRECTIONS else None)
+        self.scales.append(scale)
+
+
+def pcapng_chunks(stream: Readable, chunk: int = CHUNK) -> Iterator[Chunk]:
+    """Stream a pcapng capture as chunks; see the module docstring."""
+    head = _read_exact(stream, 12)
+    if head[:4] != PCAPNG_MAGIC:
+        raise CaptureError("not a pcapng file")
+    if len(head) < 12 or struct.unpack_from("<I", head, 8)[0] != _BOM:
+        # big-endian (or too short to tell): the reference reader handles it
+        yield from chunks_from_records(read_pcapng(_Prefixed(head, stream)), chunk)  # type: ignore[arg-type]
+        return
+    yield from _Walker(stream, head, chunk).run()
+
+
+class _Prefixed:
+    def __init__(self, head: bytes, stream: Readable) -> None:
+        self.head = head
+        self.stream = stream
+
+    def read(self, n: int = -1) -> bytes:
+        if self.head:
+            if n < 0:
+                out, self.head = self.head + self.stream.read(), b""
+                return out
+            out, self.head = self.head[:n], self.head[n:]
+            if len(out) < n:
+                out += self.stream.read(n - len(out))
+            return out
+        return self.stream.read(n)
+
+
+class _Walker:
+    def __init__(self, stream: Readable, head: bytes, chunk: int) -> None:
+        self.stream = stream
+        self.buf = head
+        self.pos = 0
+        self.chunk = chunk
+        self.ifaces = _Interfaces()
+        self.eof = False
+        self._reset()
+
+    def _reset(self) -> None:
+        self.rows: list[np.ndarray] = []
+        self.lengths: list[int] = []
+        self.times: list[float] = []
+        self.dirs: list[int] = []
+        self.odd: dict[int, bytes] = {}
+        self.n = 0
+
+    def _fill(self, need: int) -> bool:
+        """At least ``need`` bytes after ``pos`` in ``buf``; False at end of file."""
+        while len(self.buf) - self.pos < need and not self.eof:
+            more = self.stream.read(max(1 << 20, need))
+            if not more:
+                self.eof = True
+                break
+            self.buf = self.buf[self.pos :] + more
+            self.pos = 0
+        return len(self.buf) - self.pos >= need
+
+    def _flush(self) -> Chunk:
+        c = _chunk(self.rows, self.lengths, self.times, self.dirs, self.odd)
+        self._reset()
+        return c
+
+    def run(self) -> Iterator[Chunk]:
+        try:
+            yield from self._run()
+        except CaptureError:
+            if self.n:  # every complete transfer before the fault, then the error
+                yield self._flush()
+            raise
+
+    def _run(self) -> Iterator[Chunk]:
+        while True:
+            if not self._fill(8):
+                if len(self.buf) - self.pos:
+                    raise CaptureError(f"malformed pcapng: {len(self.buf) - self.pos} bytes "
+                                       "after the last block")
+                break
+            btype, blen = struct.unpack_from("<II", self.buf, self.pos)
+            if blen < 12 or blen % 4:
+                raise CaptureError(f"malformed pcapng: block length {blen}")
+            if btype == _EPB and self.n < self.chunk:
+                self._fast_run(blen)
+                if self.n >= self.chunk:
+                    yield self._flush()
+                continue
+            if not self._fill(blen):
+                raise CaptureError("malformed pcapng: truncated block")
+            body = self.buf[self.pos + 8 : self.pos + blen - 4]
+            if struct.unpack_from("<I", self.buf, self.pos + blen - 4)[0] != blen:
+                raise CaptureError("malformed pcapng: block lengths differ")
+            if btype == _SHB:
+                if struct.unpack_from("<I", body, 0)[0] != _BOM:
+                    raise CaptureError("malformed pcapng: a big-endian section after a "
+                                       "little-endian one")
+            elif btype == _IDB:
+                self.ifaces.add(body)
+            elif btype == _EPB:
+                self._one_epb(body)
+            self.pos += blen
+            if self.n >= self.chunk:
+                yield self._flush()
+        if self.n:
+            yield self._flush()
+
+    def _one_epb(self, body: bytes) -> None:
+        iid, hi, lo, cap = struct.unpack_from("<IIII", body, 0)
+        data = body[20 : 20 + cap]
+        if len(data) != cap:
+            raise CaptureError("malformed pcapng: packet longer than its block")
+        self._add_meta(iid, (hi << 32) | lo)
+        if cap == FRAME_SIZE:
+            self.rows.append(np.frombuffer(data, np.uint8).reshape(1, FRAME_SIZE))
+        else:
+            self.odd[self.n] = data
+            self.rows.append(np.zeros((1, FRAME_SIZE), np.uint8))
+        self.lengths.append(cap)
+        self.n += 1
+
+    def _add_meta(self, iid: int, ticks: int) -> None:
+        names, scales = self.ifaces.names, self.ifaces.scales
+        self.times.append(ticks * (scales[iid] if iid < len(scales) else 1e-6))
+        name = names[iid] if iid < len(names) else None
+        self.dirs.append(DIR_CODE[name])
+
+    def _fast_run(self, blen: int) -> None:
+        """A run of EPBs of ``blen`` bytes carrying 128 bytes each, as one array view."""
+        want = self.chunk - self.n
+        self._fill(min(want, 4096) * blen)
+        avail = (len(self.buf) - self.pos) // blen
+        k = min(avail, want)
+        if blen != FRAME_SIZE + 32 or k == 0:
+            k = 0
+        if k:
+            blocks = np.frombuffer(self.buf, np.uint8, k * blen, self.pos).reshape(k, blen)
+            words = blocks[:, :28].copy().view("<u4")  # type, len, iid, ts hi, ts lo, cap, orig
+            good = ((words[:, 0] == _EPB) & (words[:, 1] == blen) & (words[:, 5] == FRAME_SIZE)
+                    & (blocks[:, -4:].copy().view("<u4")[:, 0] == blen)
+                    & (words[:, 2] < len(self.ifaces.names)))
+            k = int(np.argmin(good)) if not good.all() else k
+        if k == 0:  # not a plain block: one at a time
+            if not self._fill(blen):
+                raise CaptureError("malformed pcapng: truncated block")
+            body = self.buf[self.pos + 8 : self.pos + blen - 4]
+            if struct.unpack_from("<I", self.buf, self.pos + blen - 4)[0] != blen:
+                raise CaptureError("malformed pcapng: block lengths differ")
+            self._one_epb(body)
+            self.pos += blen
+            return
+        w = words[:k]
+        iid = w[:, 2].astype(np.int64)
+        ticks = (w[:, 3].astype(np.uint64) << np.uint64(32)) | w[:, 4].astype(np.uint64)
+        scales = np.asarray(self.ifaces.scales, np.float64)[iid]
+        # int * float in Python rounds the int to a double first: do the same
+        times = ticks.astype(np.float64) * scales
+        codes = np.asarray([DIR_CODE[nm] for nm in self.ifaces.names], np.int8)[iid]
+        self.rows.append(blocks[:k, 28 : 28 + FRAME_SIZE])
+        self.lengths.extend([FRAME_SIZE] * k)
+        self.times.extend(times.tolist())
+        self.dirs.extend(codes.tolist())
+        self.n += k
+        self.pos += k * blen

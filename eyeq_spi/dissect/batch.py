@@ -1,0 +1,479 @@
+"""The batch dissector: numpy over whole chunks, the exact engine wherever anything is unusual.
+
+Theory of operation
+-------------------
+:func:`~.vframes.frame_arrays` judges a chunk of transfers at once (header fields, CRC, frame
+type). Frame records depend on nothing but the transfer, so every frame record comes from these
+arrays. What the passive receivers do with the DATA frames is stateful; per direction the pass is
+in one of two modes:
+
+- **exact**: each transfer goes through the exact sans-IO engine
+  (:class:`~.engine.Dissector.feed`), which is the reference for everything;
+- **batch**: a *span* of clean frames, taken without the engine: every frame is 128 bytes, has
+  a good CRC, D = DATA, R = 0, a valid transport header, and NUM = the previous NUM + 1; the
+  frames form whole transfers (single frames, or a first frame and all its consecutive frames with
+  its transfer ID, each within the reassembly timeout of the one before, counting every record
+  of the capture in between), except that the last transfer may still be open.
+
+A direction enters batch mode only where the exact engine's state is known without looking inside
+it: the engine has just delivered a message with the previous DATA frame of that direction (so no
+transfer is open, E = that NUM + 1, and no NAKs are counted), and the span starting at E has at
+least ``MIN_SPAN`` frames. Messages of a span are reassembled from the arrays and decoded by the
+engine's own ``_message`` (same decoder, same E2E and DASP counter state), so message records are
+the engine's by construction.
+
+A span ends at the first frame that is not clean (or at the first record at or past the open
+transfer's reassembly deadline). There the direction goes back to exact mode: its receiver is
+reset to E = the NUM of a frame some transfers back and the last transfers of the span are fed to
+it again, output discarded (at least W frames, so the L6a window history is the real one; the
+span's last first frame, so the transport's straggler and L9 state are the real ones; and the
+open transfer, with its deadline). From then on the engine judges the fault itself.
+
+Timers of exact directions (an open transfer's reassembly deadline) are honoured: the first record
+at or past the earliest deadline runs the engine's timers before it, as ``feed`` would.
+"""
+
+from __future__ import annotations
+
+import bisect
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from eyeq_spi.capture.fastread import DIR_NAME, Chunk
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.dissect.engine import Dissector
+from eyeq_spi.dissect.vframes import DATA, FrameArrays, FrameBlock, frame_arrays
+from eyeq_spi.link.connection import LinkConfig
+from eyeq_spi.link.frame import SEQ_MODULO
+from eyeq_spi.spec.link import link_spec
+from eyeq_spi.transport.events import MessageReceived
+from eyeq_spi.transport.segment import (
+    CONSECUTIVE,
+    CONSECUTIVE_CHUNK,
+    FIRST,
+    FIRST_CHUNK,
+    FIRST_TOTAL_MIN,
+    SINGLE,
+    SINGLE_MAX,
+)
+
+_T = link_spec()["transport"]
+W: int = LinkConfig().window
+MIN_SPAN = 2 * W
+REASSEMBLY_TIMEOUT: float = _T["reassembly_timeout"]
+RECEIVE_LIMIT = {"h2e": int(_T["receive_limit"]["eyeq"]), "e2h": int(_T["receive_limit"]["host"]),
+                 None: int(_T["receive_limit"]["host"])}
+
+Item = dict[str, Any] | FrameBlock
+Frame = tuple[bytes, float | None, int, int]  # transfer, time, NUM, capture index
+
+
+@dataclass
+class _Plan:
+    """One direction's fed rows in the current chunk and their per-row checks (as lists)."""
+
+    P: list[int]
+    okf: list[bool]
+    ttype: list[int]
+    tid: list[int]
+    need: list[int]  # consecutive frames a first frame needs
+    cont: list[bool]
+    gap: list[bool]
+    B: list[int]  # B[i] = rows among [0, i) that cannot continue a transfer
+    ip: int = 0  # next row (index into P) for the exact engine
+
+
+@dataclass
+class _Unit:
+    ks: int  # first index into P, -1: the open transfer carried in from the previous chunk
+    ke: int  # one past the last
+    first: bool
+
+
+@dataclass
+class _Dir:
+    name: str | None
+    code: int
+    batch: bool = False
+    canonical: bool = False  # exact mode: the last fed frame completed a message
+    # the span in the current chunk
+    units: list[_Unit] = field(default_factory=list)
+    ui: int = 0  # next unit to emit
+    stop_k: int = 0  # index into P of the first frame not in the span
+    open_ks: int = -1  # index into P of the open transfer's first frame, -1: none or carried
+    switch_row: int = 0
+    # carried across chunks in batch mode
+    last_num: int = -1
+    hist: list[list[Frame]] = field(default_factory=list)  # last complete units, oldest first
+    last_first: list[Frame] | None = None  # the span's last complete multi-frame transfer
+    carried: list[Frame] | None = None  # the open transfer at the start of the chunk
+    carried_tid: int = 0
+    carried_need: int = 0  # consecutive frames it still needs
+
+
+class BatchDissector:
+    """Chunks in, records (dicts) and :class:`FrameBlock` items out, in capture order."""
+
+    def __init__(self, sw: str | None = None, codec: MessageCodec | None = None) -> None:
+        self.dis = Dissector(sw, codec)
+        self.base = 0
+        self.dirs: dict[int, _Dir] = {}
+        self.deadline: float | None = None
+        self._rows: dict[int, list[int]] = {}
+
+    # -- driving -----------------------------------------------------------------------------
+    def feed(self, chunk: Chunk) -> Iterator[Item]:
+        if not len(chunk):
+            return
+        fa = frame_arrays(chunk, self.dis.frames, self.base, self.dis.last_time)
+        yield from self._chunk(fa)
+        self.base += len(chunk)
+        self.dis.index = self.base
+
+    def finish(self) -> Iterator[Item]:
+        for st in self.dirs.values():
+            if st.batch:
+                self._to_exact(st, None)
+        self.dis.index = self.base
+        yield from self.dis.finish()
+
+    # -- one chunk -----------------------------------------------------------------------------
+    def _chunk(self, fa: FrameArrays) -> Iterator[Item]:
+        n = len(fa)
+        codes, first = np.unique(fa.chunk.direction, return_index=True)
+        plans: dict[int, _Plan] = {}
+        self._rows = {}
+        for code in [int(c) for c in codes[np.argsort(first)]]:
+            name = DIR_NAME[code]
+            self.dis._dir(name)  # directions exist in the order the engine would create them
+            st = self.dirs.setdefault(code, _Dir(name, code))
+            plans[code] = self._plan(fa, st)
+        for code, st in self.dirs.items():
+            pl = plans.setdefault(code, _empty_plan())
+            self._rows[code] = pl.P
+            if st.batch:
+                self._walk(fa, st, pl, 0, fresh=False)
+        times = fa.chunk.time
+        pos = 0
+        while pos < n:
+            nxt, why, which = n, 0, -1
+            for code, st in self.dirs.items():
+                pl = plans[code]
+                if st.batch:
+                    if st.switch_row < nxt:
+                        nxt, why, which = st.switch_row, 1, code
+                elif pl.ip < len(pl.P) and pl.P[pl.ip] < nxt:
+                    nxt, why, which = pl.P[pl.ip], 2, code
+            if self.deadline is not None and nxt > pos:
+                late = np.flatnonzero(times[pos:nxt] >= self.deadline)
+                if late.size:
+                    nxt, why = pos + int(late[0]), 3
+            if nxt > pos:
+                yield self._emit(fa, pos, nxt)
+            if nxt >= n:
+                break
+            if why == 3:  # the engine's timers first, as feed() would run them
+                self.dis.index = fa.base + nxt + 1
+                yield from self.dis._timers(float(times[nxt]))
+                self._update_deadline()
+                yield self._emit(fa, nxt, nxt + 1)
+                pos = nxt + 1
+                continue
+            st, pl = self.dirs[which], plans[which]
+            if why == 1:
+                self._to_exact(st, fa)
+                pl.ip = st.stop_k
+                pos = nxt
+                continue
+            if st.canonical and self._try_span(fa, st, pl, pl.ip):
+                pos = nxt
+                continue
+            self.dis.index = fa.base + nxt
+            out = list(self.dis.feed(fa.chunk.record(nxt)))
+            yield from out
+            idx = fa.base + nxt
+            st.canonical = any(r["kind"] == "message" and r["direction"] == st.name
+                               and r["frames"] and r["frames"][-1] == idx for r in out)
+            pl.ip += 1
+            self._update_deadline()
+            pos = nxt + 1
+        self.dis.index = fa.base + n
+        t_end = fa.tfill[n - 1]
+        self.dis.last_time = None if t_end != t_end else float(t_end)
+        for st in self.dirs.values():
+            if st.batch:
+                self._carry(fa, st, plans[st.code])
+
+    def _update_deadline(self) -> None:
+        ts = [t for d in self.dis._dirs.values() if (t := d.conn.get_timer()) is not None]
+        self.deadline = min(ts) if ts else None
+
+    # -- planning ------------------------------------------------------------------------------
+    def _plan(self, fa: FrameArrays, st: _Dir) -> _Plan:
+        sel = np.flatnonzero(fa.fed & (fa.chunk.direction == st.code))
+        if not sel.size:
+            return _empty_plan()
+        data = fa.chunk.data
+        tt = data[sel, 6].astype(np.int64)
+        size = data[sel, 7].astype(np.int64)
+        total = data[sel, 8:12].copy().view("<u4")[:, 0].astype(np.int64)
+        limit = RECEIVE_LIMIT[st.name]
+        clean = fa.crc_ok[sel] & (fa.ftype[sel] == DATA)
+        hdr = (((tt == SINGLE) & (size >= 1) & (size <= SINGLE_MAX))
+               | ((tt == FIRST) & (total >= FIRST_TOTAL_MIN) & (total <= limit))
+               | (tt == CONSECUTIVE))
+        okf = clean & hdr
+        num = fa.num[sel]
+        prev = np.empty_like(num)
+        prev[1:] = num[:-1]
+        prev[0] = st.last_num if st.batch else -2
+        cont = num == (prev + 1) % SEQ_MODULO
+        # the reassembly deadline each fed frame sets, against the latest time of any record
+        # after it up to and including the next fed frame (the engine runs its timers first)
+        t = fa.chunk.time
+        t_sel = t[sel]
+        dl = np.where(np.isnan(t_sel), 0.0, t_sel) + REASSEMBLY_TIMEOUT
+        tm = np.where(np.isnan(t), -np.inf, t)
+        seg_max = np.maximum.reduceat(np.append(tm, -np.inf), np.append(0, sel + 1))
+        gap = np.empty(sel.size, bool)
+        gap[1:] = seg_max[1:-1] < dl[:-1]
+        carried = st.carried if st.batch else None
+        first_dl = np.inf if not carried else (carried[-1][1] or 0.0) + REASSEMBLY_TIMEOUT
+        gap[0] = seg_max[0] < first_dl
+        tid = data[sel, 7].astype(np.int64)
+        link = okf & (tt == CONSECUTIVE) & cont & gap
+        link[1:] &= tid[1:] == tid[:-1]
+        link[0] &= bool(carried) and int(tid[0]) == st.carried_tid
+        bad = np.concatenate([[0], np.cumsum(~link)])
+        need = np.where(tt == FIRST,
+                        -(-(np.maximum(total, FIRST_TOTAL_MIN) - FIRST_CHUNK)
+                          // CONSECUTIVE_CHUNK), 0)
+        return _Plan(sel.tolist(), okf.tolist(), tt.tolist(), tid.tolist(), need.tolist(),
+                     cont.tolist(), gap.tolist(), bad.tolist())
+
+    def _walk(self, fa: FrameArrays, st: _Dir, pl: _Plan, k0: int, *, fresh: bool) -> int:
+        """The span from P[k0]: complete units, open transfer, stop index and switch row.
+        ``fresh``: a new span (its first NUM was checked against E), else one carried in.
+        Returns the number of this chunk's frames it covers."""
+        P, okf, tt, need, cont, B = pl.P, pl.okf, pl.ttype, pl.need, pl.cont, pl.B
+        n = len(P)
+        units: list[_Unit] = []
+        k = k0
+        st.open_ks = -1
+        open_carried = False
+        if st.carried is not None and not fresh:
+            rest = st.carried_need
+            e = min(rest, n)
+            if B[e] - B[0] == 0:
+                if rest <= n:
+                    units.append(_Unit(-1, rest, True))
+                    k = rest
+                else:
+                    k, open_carried = n, True
+            else:
+                k, open_carried = bisect.bisect_left(B, 1) - 1, True
+        if not open_carried:
+            while k < n and okf[k] and ((fresh and k == k0) or cont[k]):
+                t = tt[k]
+                if t == SINGLE:
+                    units.append(_Unit(k, k + 1, False))
+                    k += 1
+                elif t == FIRST:
+                    m = need[k]
+                    e = min(k + m, n - 1)
+                    nbad = B[e + 1] - B[k + 1]
+                    if nbad == 0 and k + m < n:
+                        units.append(_Unit(k, k + m + 1, True))
+                        k += m + 1
+                        continue
+                    st.open_ks = k
+                    k = n if nbad == 0 else bisect.bisect_left(B, B[k + 1] + 1) - 1
+                    break
+                else:
+                    break
+        st.units, st.ui, st.stop_k = units, 0, k
+        # switch at the first frame outside the span, or before it at the first record at or
+        # past the open transfer's reassembly deadline
+        row = P[k] if k < n else len(fa)
+        last: tuple[int, float] | None = None
+        if st.open_ks >= 0 or (open_carried and k > 0):
+            r = P[k - 1]
+            tr = float(fa.chunk.time[r])
+            last = (r, (0.0 if tr != tr else tr) + REASSEMBLY_TIMEOUT)
+        elif open_carried and st.carried:
+            last = (-1, (st.carried[-1][1] or 0.0) + REASSEMBLY_TIMEOUT)
+        if last is not None:
+            late = np.flatnonzero(fa.chunk.time[last[0] + 1 : row] >= last[1])
+            if late.size:
+                row = last[0] + 1 + int(late[0])
+        st.switch_row = row
+        return k - k0
+
+    def _try_span(self, fa: FrameArrays, st: _Dir, pl: _Plan, k: int) -> bool:
+        conn = self.dis._dirs[st.name].conn
+        if int(fa.num[pl.P[k]]) != conn.link.expected_num:
+            return False
+        st.carried, st.hist, st.last_first = None, [], None
+        if self._walk(fa, st, pl, k, fresh=True) < MIN_SPAN:
+            return False
+        st.batch = True
+        return True
+
+    # -- output ------------------------------------------------------------------------------
+    def _emit(self, fa: FrameArrays, lo: int, hi: int) -> FrameBlock:
+        block = FrameBlock(fa, lo, hi)
+        done: list[tuple[int, _Dir, _Unit]] = []
+        for st in self.dirs.values():
+            if not st.batch:
+                continue
+            P = self._rows[st.code]
+            while st.ui < len(st.units):
+                u = st.units[st.ui]
+                row = P[u.ke - 1]
+                if row >= hi:
+                    break
+                done.append((row, st, u))
+                st.ui += 1
+        if len(done) > 1:
+            done.sort(key=lambda x: x[0])
+        for row, st, u in done:
+            block.messages.append((row, self._message(fa, st, u, row)))
+        t = fa.tfill[hi - 1]
+        self.dis.last_time = None if t != t else float(t)
+        return block
+
+    def _frames(self, fa: FrameArrays, st: _Dir, ks: int, ke: int) -> list[Frame]:
+        """Frames P[ks:ke] of this chunk (ks = -1: after the carried open transfer)."""
+        P = self._rows[st.code]
+        times, nums = fa.lst("time"), fa.lst("num")
+        out: list[Frame] = list(st.carried or []) if ks == -1 else []
+        data = fa.chunk.data
+        for k in range(max(ks, 0), ke):
+            r = P[k]
+            t = times[r]
+            out.append((data[r].tobytes(), None if t != t else t, nums[r], fa.base + r))
+        return out
+
+    def _message(self, fa: FrameArrays, st: _Dir, u: _Unit, row: int) -> dict[str, Any]:
+        tid: int | None = None
+        if u.first:
+            frames = self._frames(fa, st, u.ks, u.ke)
+            head = frames[0][0]
+            total = int.from_bytes(head[8:12], "little")
+            msg = (head[12:] + b"".join(f[0][8:] for f in frames[1:]))[:total]
+            nums = tuple(f[2] for f in frames)
+            idxs = [f[3] for f in frames]
+            tid = head[7]
+        else:
+            r = self._rows[st.code][u.ks]
+            size = int(fa.chunk.data[r, 7])
+            msg = fa.chunk.data[r, 8 : 8 + size].tobytes()
+            nums, idxs = (int(fa.num[r]),), [fa.base + r]
+        dobj = self.dis._dirs[st.name]
+        dobj.index_of_num.update(zip(nums, idxs, strict=True))
+        t = fa.tfill[row]
+        self.dis.last_time = None if t != t else float(t)
+        return self.dis._message(st.name, dobj, MessageReceived(msg, nums, tid))
+
+    # -- span state: what the receiver would hold --------------------------------------------
+    def _state(self, st: _Dir, fa: FrameArrays | None
+               ) -> tuple[list[list[Frame]], list[Frame] | None, list[Frame] | None]:
+        """(last complete units with at least W frames, oldest first; the last complete
+        multi-frame transfer; the open transfer) of the span so far."""
+        opened: list[Frame] | None = None
+        units: list[list[Frame]] = []
+        last_first = st.last_first
+        if fa is None:  # between chunks: _carry already saved it
+            return list(st.hist), last_first, st.carried
+        if st.open_ks >= 0:
+            opened = self._frames(fa, st, st.open_ks, st.stop_k)
+        elif st.carried is not None and not (st.units and st.units[0].ks == -1):
+            opened = st.carried + self._frames(fa, st, 0, st.stop_k)
+        count = 0
+        found_first = False
+        for u in reversed(st.units):
+            if count >= W and found_first:
+                break
+            if count < W or u.first:
+                fr = self._frames(fa, st, u.ks, u.ke)
+                if count < W:
+                    units.append(fr)
+                    count += len(fr)
+                if u.first and not found_first:
+                    found_first, last_first = True, fr
+        for fr in reversed(st.hist):
+            if count >= W:
+                break
+            units.append(fr)
+            count += len(fr)
+        units.reverse()
+        return units, last_first, opened
+
+    def _to_exact(self, st: _Dir, fa: FrameArrays | None) -> None:
+        """Reset the direction's receiver and feed it the span's tail again (output dropped)."""
+        units, last_first, opened = self._state(st, fa)
+        st.batch = st.canonical = False
+        dobj = self.dis._dirs[st.name]
+        conn = dobj.conn
+        tail = units + ([opened] if opened else [])
+        if last_first is not None and not any(_is_first(u[0][0]) for u in tail):
+            self._replay(conn, [last_first])
+        if tail:
+            self._replay(conn, tail)
+        if opened:
+            dobj.index_of_num.update((f[2], f[3]) for f in opened)
+        st.carried, st.hist, st.last_first = None, [], None
+        self._update_deadline()
+
+    @staticmethod
+    def _replay(conn: Any, units: list[list[Frame]]) -> None:
+        conn.reset(expected=units[0][0][2])
+        for u in units:
+            for data, t, _, _ in u:
+                conn.receive_data(data, 0.0 if t is None else t)
+                conn.data_to_send(float("inf"))
+        while conn.next_event() is not None:
+            pass
+
+    def _carry(self, fa: FrameArrays, st: _Dir, pl: _Plan) -> None:
+        """End of a chunk in batch mode: keep the open transfer, the last units and the NUM."""
+        units, last_first, opened = self._state(st, fa)
+        if opened is not None:
+            head = opened[0][0]
+            total = int.from_bytes(head[8:12], "little")
+            st.carried_tid = head[7]
+            st.carried_need = -(-(total - FIRST_CHUNK) // CONSECUTIVE_CHUNK) - (
+                len(opened) - 1)
+        st.carried, st.hist, st.last_first = opened, units, last_first
+        st.units, st.ui = [], 0
+        if pl.P and st.stop_k > 0:
+            st.last_num = int(fa.num[pl.P[st.stop_k - 1]])
+
+
+def _empty_plan() -> _Plan:
+    return _Plan([], [], [], [], [], [], [], [0])
+
+
+def _is_first(transfer: bytes) -> bool:
+    return transfer[6] == FIRST
+
+
+def iter_items(chunks: Iterable[Chunk], *, sw: str | None = None,
+               codec: MessageCodec | None = None) -> Iterator[Item]:
+    bd = BatchDissector(sw, codec)
+    for c in chunks:
+        yield from bd.feed(c)
+    yield from bd.finish()
+
+
+def iter_records(chunks: Iterable[Chunk], *, sw: str | None = None,
+                 codec: MessageCodec | None = None) -> Iterator[dict[str, Any]]:
+    """Every record, as :func:`.engine.iter_records` gives them."""
+    for item in iter_items(chunks, sw=sw, codec=codec):
+        if isinstance(item, FrameBlock):
+            yield from item.records()
+        else:
+            yield item

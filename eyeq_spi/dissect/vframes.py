@@ -1,0 +1,247 @@
+"""Frames judged many at a time: header fields, CRC and frame records from ``(N, 128)`` arrays.
+
+The header word is split with the :class:`FrameCodec`'s own shifts (L1, bit order configurable)
+and the CRC (L3) runs two bytes per step through a 65536-entry table built from the codec's CRC
+function, so both follow the codec's configuration. Everything a frame record of the exact engine
+holds (``engine.Dissector.feed``) comes out as arrays; :class:`FrameBlock` turns a range of them
+into records, JSON Lines or ``--stats`` counts.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from eyeq_spi.capture.fastread import DIR_NAME, Chunk
+from eyeq_spi.dissect.engine import TRANSPORT_NAMES
+from eyeq_spi.errors import EyeqError
+from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
+
+
+class BatchUnsupportedError(EyeqError):
+    """The batch path cannot judge these frames (an unusual CRC variant): use the exact one."""
+
+
+# frame_type codes
+DATA, ACK, NAK, INVALID = 0, 1, 2, 3
+TYPE_NAMES = ("DATA", "ACK", "NAK", "INVALID")
+_TABLES: dict[int, np.ndarray | None] = {}
+
+
+def crc_table(codec: FrameCodec) -> np.ndarray | None:
+    """T[v] = the CRC register after two more bytes, for every 16-bit value ``v`` of (register
+    XOR the two bytes), built from the codec's own CRC function (so it is the codec's variant).
+    Only a non-reflected CRC-16 with xorout 0 has this form (L3's CCITT-FALSE does); for any other
+    the table fails its check and None is returned: the batch path then is not used."""
+    key = id(codec.crc)
+    if key in _TABLES:
+        return _TABLES[key]
+    init = codec.crc(b"")
+    table = np.fromiter((codec.crc((v ^ init).to_bytes(2, "big")) for v in range(65536)),
+                        np.uint16, 65536)
+    rng = np.random.default_rng(11)
+    for n in (2, 4, 126):
+        msg = rng.integers(0, 256, n, np.uint8).tobytes()
+        words = np.frombuffer(msg, ">u2").reshape(-1, 1)
+        if int(batch_crc(words, init, table, n // 2)[0]) != codec.crc(msg):
+            _TABLES[key] = None
+            return None
+    _TABLES[key] = table
+    return table
+
+
+def batch_crc(words: np.ndarray, init: int, table: np.ndarray, steps: int) -> np.ndarray:
+    """CRC of the first ``steps`` big-endian 16-bit words of every row of ``words`` (k, n)."""
+    crc = np.full(words.shape[1], init, np.uint16)
+    for j in range(steps):
+        crc = table[crc ^ words[j]]
+    return crc
+
+
+@dataclass
+class FrameArrays:
+    """One chunk of transfers, judged."""
+
+    chunk: Chunk
+    base: int  # index of row 0 in the capture
+    ftype: np.ndarray  # int8, DATA/ACK/NAK/INVALID
+    num: np.ndarray  # int64
+    rsp: np.ndarray
+    crc_ok: np.ndarray  # bool
+    d: np.ndarray  # D field
+    fed: np.ndarray  # bool: goes to the passive receiver (everything but ACK/NAK frame types)
+    tfill: np.ndarray  # float64: time of the last record with a time at or before each row
+    _lists: dict[str, list[Any]] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.chunk)
+
+    def lst(self, name: str) -> list[Any]:
+        """A column as a Python list (cached): per-row Python work reads lists, not arrays."""
+        out = self._lists.get(name)
+        if out is None:
+            arr = self.chunk.length if name == "length" else (
+                self.chunk.data[:, 6] if name == "ttype" else
+                self.chunk.data[:, 7] if name == "tid" else
+                self.chunk.time if name == "time" else
+                self.chunk.direction if name == "direction" else getattr(self, name))
+            out = arr.tolist()
+            self._lists[name] = out
+        return out
+
+
+def frame_arrays(chunk: Chunk, codec: FrameCodec, base: int, last_time: float | None
+                 ) -> FrameArrays:
+    data = chunk.data
+    n = len(chunk)
+    word = data[:, 0:4].copy().view("<u4")[:, 0].astype(np.int64)
+    d, r, rsp, num = (np.asarray(x) for x in codec.unpack_header(word))  # type: ignore[arg-type]
+    got = data[:, 4:6].copy().view("<u2")[:, 0]
+    if n:
+        words = np.ascontiguousarray(
+            np.concatenate([data[:, 0:4], data[:, 6:]], axis=1).view(">u2").T)
+    else:
+        words = np.zeros((63, 0), ">u2")
+    table = crc_table(codec)
+    if table is None:
+        raise BatchUnsupportedError("the link CRC variant has no 16-bit table form")
+    init = codec.crc(b"")
+    hdr = batch_crc(words, init, table, 2)
+    crc = hdr
+    for j in range(2, words.shape[0]):
+        crc = table[crc ^ words[j]]
+    control = (d == FrameKind.ACK) | (d == FrameKind.NAK)
+    ok128 = chunk.length == FRAME_SIZE
+    crc_ok = np.where(control, hdr == got, crc == got) & ok128
+    ftype = np.full(n, INVALID, np.int8)
+    valid = ok128 & (r == 0)
+    ftype[valid & (d == FrameKind.DATA)] = DATA
+    ftype[valid & (d == FrameKind.ACK)] = ACK
+    ftype[valid & (d == FrameKind.NAK)] = NAK
+    fed = (ftype != ACK) & (ftype != NAK)
+    t = chunk.time
+    has = ~np.isnan(t)
+    pos = np.where(has, np.arange(n), -1)
+    np.maximum.accumulate(pos, out=pos)
+    first = np.nan if last_time is None else last_time
+    tfill = np.where(pos >= 0, t[np.maximum(pos, 0)], first)
+    return FrameArrays(chunk, base, ftype, num, rsp, crc_ok, d, fed, tfill)
+
+
+def _num(v: Any) -> str:
+    return "null" if v is None else str(v)
+
+
+@dataclass
+class FrameBlock:
+    """Frame records of rows ``[lo, hi)`` of one chunk, with the messages that complete inside
+    it: ``messages[i] = (row, record)`` comes right after the frame record of ``row``."""
+
+    fa: FrameArrays
+    lo: int
+    hi: int
+    messages: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
+
+    def frame(self, i: int) -> dict[str, Any]:
+        fa = self.fa
+        L = fa.lst
+        t = L("time")[i]
+        length = L("length")[i]
+        rec: dict[str, Any] = {
+            "kind": "frame", "index": fa.base + i, "time": None if t != t else t,
+            "direction": DIR_NAME[L("direction")[i]], "frame_type": "INVALID", "num": None,
+            "rsp": None, "crc_ok": False, "transport": None, "transfer_id": None,
+            "nak_reason": None,
+        }
+        if length != FRAME_SIZE:
+            rec["length"] = length
+            return rec
+        d = L("d")[i]
+        rec["num"], rec["rsp"] = L("num")[i], L("rsp")[i]
+        rec["crc_ok"] = bool(L("crc_ok")[i])
+        rec["frame_type"] = TYPE_NAMES[L("ftype")[i]]
+        if d == FrameKind.NAK:
+            rec["nak_reason"] = rec["num"]
+        elif d == FrameKind.DATA or d not in (FrameKind.ACK, FrameKind.NAK):
+            tname = TRANSPORT_NAMES.get(L("ttype")[i])
+            rec["transport"] = tname
+            if tname in ("first", "consecutive"):
+                rec["transfer_id"] = L("tid")[i]
+        return rec
+
+    def records(self) -> list[dict[str, Any]]:
+        out: list[dict[str, Any]] = []
+        msgs = iter(self.messages)
+        nxt = next(msgs, None)
+        for i in range(self.lo, self.hi):
+            out.append(self.frame(i))
+            while nxt is not None and nxt[0] == i:
+                out.append(nxt[1])
+                nxt = next(msgs, None)
+        return out
+
+    def json_lines(self, dumps: Any = None) -> str:
+        """The JSON Lines of :meth:`records`, frames formatted straight from the arrays."""
+        dumps = dumps or (lambda r: json.dumps(r, separators=(",", ":")))
+        fa = self.fa
+        L = fa.lst
+        times, dirs, lengths = L("time"), L("direction"), L("length")
+        ds, nums, rsps, oks = L("d"), L("num"), L("rsp"), L("crc_ok")
+        ftypes, ttypes, tids = L("ftype"), L("ttype"), L("tid")
+        dname = {0: '"h2e"', 1: '"e2h"', -1: "null"}
+        tnames = {0: '"single"', 1: '"first"', 2: '"consecutive"'}
+        base = fa.base
+        parts: list[str] = []
+        msgs = self.messages
+        mi = 0
+        for i in range(self.lo, self.hi):
+            t = times[i]
+            ts = "null" if t != t else repr(t)
+            if lengths[i] != FRAME_SIZE:
+                parts.append(f'{{"kind":"frame","index":{base + i},"time":{ts},"direction":'
+                             f'{dname[dirs[i]]},"frame_type":"INVALID","num":null,"rsp":null,'
+                             f'"crc_ok":false,"transport":null,"transfer_id":null,'
+                             f'"nak_reason":null,"length":{lengths[i]}}}\n')
+            else:
+                d = ds[i]
+                tr = tid = nak = "null"
+                if d == 2:
+                    nak = str(nums[i])
+                elif d == 8 or d != 4:
+                    tt = ttypes[i]
+                    tr = tnames.get(tt, "null")
+                    if tt == 1 or tt == 2:
+                        tid = str(tids[i])
+                parts.append(f'{{"kind":"frame","index":{base + i},"time":{ts},"direction":'
+                             f'{dname[dirs[i]]},"frame_type":"{TYPE_NAMES[ftypes[i]]}",'
+                             f'"num":{nums[i]},"rsp":{rsps[i]},'
+                             f'"crc_ok":{"true" if oks[i] else "false"},"transport":{tr},'
+                             f'"transfer_id":{tid},"nak_reason":{nak}}}\n')
+            while mi < len(msgs) and msgs[mi][0] == i:
+                parts.append(dumps(msgs[mi][1]) + "\n")
+                mi += 1
+        return "".join(parts)
+
+    def add_to(self, stats: Any) -> None:
+        """Count this block's frames and messages into a :class:`~.stats.Stats`."""
+        fa = self.fa
+        lo, hi = self.lo, self.hi
+        ft = fa.ftype[lo:hi]
+        counts = np.bincount(ft, minlength=4)
+        for code, c in enumerate(counts.tolist()):
+            if c:
+                stats.frames[TYPE_NAMES[code]] += c
+        bad_len = fa.chunk.length[lo:hi] != FRAME_SIZE
+        stats.bad_length += int(bad_len.sum())
+        ok = fa.crc_ok[lo:hi]
+        stats.crc_errors += int((~ok & ~bad_len).sum())
+        naks = (ft == NAK) & ok
+        if naks.any():
+            vals, cnt = np.unique(fa.num[lo:hi][naks], return_counts=True)
+            for v, c in zip(vals.tolist(), cnt.tolist(), strict=True):
+                stats.nak_reasons[f"0x{v:03X}"] += c
+        for _, rec in self.messages:
+            stats.add(rec)
