@@ -64,8 +64,8 @@ def add_plot_parser(sub: Any) -> None:
     m.add_argument("--virtual-time", action="store_true", help="--demo as fast as the CPU allows")
     m.add_argument("--pace", type=float, default=1.0, metavar="X",
                    help="--replay: X times real time (default 1; 0 = as fast as possible)")
-    m.add_argument("--refresh", type=float, default=5.0, metavar="HZ",
-                   help="screen redraws per second, 5..30 (default 5)")
+    m.add_argument("--refresh", type=float, default=6.0, metavar="HZ",
+                   help="screen redraws per second, 5..30 (default 6)")
     m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
     m.add_argument("--format", choices=("raw", "hex", "pcapng"), help="--replay: skip detection")
     add_shared_options(m)

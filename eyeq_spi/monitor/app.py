@@ -18,6 +18,7 @@ from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.monitor.view import MonitorError, render, rich_modules
 
 MIN_REFRESH, MAX_REFRESH = 5.0, 30.0
+DEFAULT_REFRESH = 6.0  # a margin over the 5 Hz the monitor promises
 
 
 class Source(Protocol):
@@ -38,7 +39,7 @@ class RunStats:
     wall_s: float = 0.0
 
 
-def run(source: Source, *, refresh: float = 5.0, console: Any = None,
+def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None,
         clock: Callable[[], float] = time.perf_counter,
         on_draw: Callable[[Snapshot], None] | None = None) -> RunStats:
     """Run until the source is done (or Ctrl-C); returns how long drawing took."""
@@ -69,7 +70,11 @@ def run(source: Source, *, refresh: float = 5.0, console: Any = None,
             stats.draw_s += clock() - t0
             if source.done:
                 break
-            next_draw = max(next_draw + period, clock())
+            # keep the redraw grid: a slightly late draw is caught up, a whole missed period
+            # is skipped (never a burst of draws)
+            next_draw += period
+            if clock() - next_draw > period:
+                next_draw = clock()
     finally:
         if live_screen:
             live.stop()

@@ -53,15 +53,37 @@ def _rich() -> RichModules:
     return rich_modules()
 
 
+Col = tuple[str, int, str]  # header, width, justify
+
+
+def _table(title: str, cols: list[Col]) -> Any:
+    """Fixed column widths: rich then never measures cells, which keeps a redraw cheap."""
+    r = _rich()
+    t = r.Table(title=title, title_justify="left", box=r.box.SIMPLE_HEAD, pad_edge=False)
+    for head, width, just in cols:
+        t.add_column(head, width=width + 1, justify=just, no_wrap=True, overflow="ellipsis")
+    return t
+
+
+def _width(cols: list[Col]) -> int:
+    return sum(w + 1 for _, w, _ in cols) + 2 * (len(cols) - 1)
+
+
+RATE_COLS: list[Col] = [("message", 22, "left"), ("count", 7, "right"), ("Hz", 6, "right"),
+                        ("nominal", 7, "right"), ("", 7, "left")]
+LINK_COLS: list[Col] = [("counter", 24, "left"), ("value", 10, "right")]
+OBJECT_COLS: list[Col] = [("ID", 3, "right"), ("class", 22, "left"), ("long m", 7, "right"),
+                          ("lat m", 6, "right"), ("vlong m/s", 9, "right"),
+                          ("vlat", 5, "right"), ("TTC s", 5, "right")]
+ROAD_COLS: list[Col] = [("line / sign", 20, "left"), ("type", 16, "left"),
+                        ("lat m", 6, "right"), ("range m", 7, "right")]
+TRANSITION_COLS: list[Col] = [("t s", 9, "right"), ("from", 18, "left"), ("event", 22, "left"),
+                              ("to", 18, "left")]
+
+
 def _rates(snap: Snapshot) -> Any:
     r = _rich()
-    t = r.Table(title="messages (Hz over 2 s)", title_justify="left", box=r.box.SIMPLE_HEAD,
-                pad_edge=False, expand=False)
-    t.add_column("message")
-    t.add_column("count", justify="right")
-    t.add_column("Hz", justify="right")
-    t.add_column("nominal", justify="right")
-    t.add_column("")
+    t = _table("messages (Hz over 2 s)", RATE_COLS)
     for row in snap.rates:
         hz = "-" if row.hz is None else f"{row.hz:5.1f}"
         nom = "" if row.nominal_hz is None else f"{row.nominal_hz:g}"
@@ -72,9 +94,7 @@ def _rates(snap: Snapshot) -> Any:
 
 def _link(snap: Snapshot) -> Any:
     r = _rich()
-    t = r.Table(title="link", title_justify="left", box=r.box.SIMPLE_HEAD, pad_edge=False)
-    t.add_column("counter")
-    t.add_column("value", justify="right")
+    t = _table("link", LINK_COLS)
     for k, v in sorted(snap.link.items()):
         t.add_row(k, r.Text(str(v), style="red" if v and _is_error(k) else ""))
     for k, v in snap.errors.items():
@@ -93,13 +113,7 @@ def _fmt(v: float | None, spec: str = "6.1f") -> str:
 
 
 def _objects(snap: Snapshot) -> Any:
-    r = _rich()
-    t = r.Table(title=f"objects ({len(snap.scene.objects)})", title_justify="left",
-                box=r.box.SIMPLE_HEAD, pad_edge=False)
-    for col, just in (("ID", "right"), ("class", "left"), ("long m", "right"),
-                      ("lat m", "right"), ("vlong m/s", "right"), ("vlat", "right"),
-                      ("TTC s", "right")):
-        t.add_column(col, justify=just)
+    t = _table(f"objects ({len(snap.scene.objects)})", OBJECT_COLS)
     for o in sorted(snap.scene.objects, key=lambda o: o.long):
         style = "bold reverse" if o.cipv else ""
         t.add_row(str(o.id), o.cls_name + (" CIPV" if o.cipv else ""), _fmt(o.long),
@@ -110,12 +124,8 @@ def _objects(snap: Snapshot) -> Any:
 
 def _road(snap: Snapshot) -> Any:
     r = _rich()
-    t = r.Table(title=f"lanes ({len(snap.scene.lines)}) and signs ({len(snap.scene.signs)})",
-                title_justify="left", box=r.box.SIMPLE_HEAD, pad_edge=False)
-    t.add_column("line / sign")
-    t.add_column("type")
-    t.add_column("lat m", justify="right")
-    t.add_column("range m", justify="right")
+    t = _table(f"lanes ({len(snap.scene.lines)}) and signs ({len(snap.scene.signs)})",
+               ROAD_COLS)
     for ln in snap.scene.lines:
         t.add_row(ln.name, ln.type_name or ln.kind, _fmt(ln.coeffs[0], "5.2f"),
                   f"{ln.start:.0f}-{ln.end:.0f}")
@@ -125,16 +135,18 @@ def _road(snap: Snapshot) -> Any:
 
 
 def _transitions(snap: Snapshot) -> Any:
-    r = _rich()
-    t = r.Table(title="transitions", title_justify="left", box=r.box.SIMPLE_HEAD,
-                pad_edge=False)
-    t.add_column("t s", justify="right")
-    t.add_column("from")
-    t.add_column("event")
-    t.add_column("to")
+    t = _table("transitions", TRANSITION_COLS)
     for tt, a, ev, b in snap.transitions[-6:]:
         t.add_row(f"{tt:8.3f}", a, ev, b)
     return t
+
+
+def _side_by_side(left: Any, lw: int, right: Any, rw: int) -> Any:
+    g = _rich().Table.grid(padding=(0, 3))
+    g.add_column(width=lw + 1)
+    g.add_column(width=rw + 1)
+    g.add_row(left, right)
+    return g
 
 
 def render(snap: Snapshot) -> Any:
@@ -147,9 +159,8 @@ def render(snap: Snapshot) -> Any:
     parts: list[Any] = [head]
     if snap.problem:
         parts.append(r.Text(f"problem: {snap.problem}", style="bold red"))
-    top = r.Table.grid(padding=(0, 3))
-    top.add_row(_rates(snap), _link(snap))
-    mid = r.Table.grid(padding=(0, 3))
-    mid.add_row(_objects(snap), _road(snap))
-    parts += [top, mid, _transitions(snap)]
+    parts += [_side_by_side(_rates(snap), _width(RATE_COLS), _link(snap), _width(LINK_COLS)),
+              _side_by_side(_objects(snap), _width(OBJECT_COLS), _road(snap),
+                            _width(ROAD_COLS)),
+              _transitions(snap)]
     return r.Group(*parts)
