@@ -122,9 +122,14 @@ def spec_show(cat: Catalog, name: str, sw: SwKey) -> str:
             return "\n".join(rows)
     if name in cat.enums:
         e = cat.enums[name]
-        rows = [f"{name}: {e.kind}, {len(e.values)} entries"]
+        rows = [f"{name}: {e.kind}, {len(e.values)} entries"
+                + ("" if e.complete else " (incomplete: other values are not errors)")]
         for k, v in sorted(e.values.items()):
             more = " ".join(x for x in (v.family or "", v.semantic or "") if x)
+            if v.width > 1:  # a multi-bit field of a flag word
+                more = ", ".join(f"{n}={label}" for n, label in sorted((v.fields or {}).items()))
+                rows.append(f"  bits {k}-{k + v.width - 1}  {v.name}  {more}".rstrip())
+                continue
             rows.append(f"  {'bit ' if e.kind == 'flags' else ''}{k:5d}  {v.name}  {more}".rstrip())
         return "\n".join(rows)
     raise SpecError(f"no message, struct, init message, MESP function or enum named {name!r}")

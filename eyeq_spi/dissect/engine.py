@@ -222,7 +222,9 @@ def _enum_plan(codec: MessageCodec, lay: Any) -> list[tuple[str, Any, Any, bool]
                     plan.append((f.name, None, child, bool(f.count)))
                 continue
             e = codec.cat.enums.get(f.member.enum or "")
-            if e is not None and e.kind != "flags" and not f.count:
+            # an incomplete enum (complete: false in specs/) lists only the values the seed
+            # lets us read: any other value is not an error
+            if e is not None and e.kind != "flags" and e.complete and not f.count:
                 plan.append((f.name, e, None, False))
         _ENUM_PLANS[key] = plan
     return plan

@@ -148,7 +148,7 @@ class AppGenerator:
         refs: list[str] = []
         used: set[str] = set()
         for bit, v in sorted(enum.values.items()):
-            if bit >= width:
+            if bit + v.width > width:
                 continue
             sub = name_part(v.name)
             while sub in used:
@@ -156,7 +156,7 @@ class AppGenerator:
             used.add(sub)
             refs.append(self.fields.add(
                 f"{key}.{sub}", "bool", lua_str(v.name), str(container_bits), "nil",
-                lua_int(1 << (lo + bit)),
+                lua_int(((1 << v.width) - 1) << (lo + bit)),  # a multi-bit field: any bit set
             ))
         return "{" + ", ".join(refs) + "}" if refs else "nil"
 
