@@ -3,6 +3,7 @@ against the seed text (OCR'd seed 004) and PROTOCOL_DECISIONS.md like tests/test
 
 from __future__ import annotations
 
+import io
 import re
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,7 @@ from eyeq_spi.codec.describe import spec_show
 from eyeq_spi.codec.layout import LayoutCache
 from eyeq_spi.codec.message import DASP_PROTOCOL, MessageCodec
 from eyeq_spi.dissect.engine import _enum_plan
+from eyeq_spi.dissect.output import HumanWriter
 from eyeq_spi.errors import SpecError
 from eyeq_spi.spec.catalog import catalog
 from eyeq_spi.spec.link import spec_file, specs_dir
@@ -196,6 +198,26 @@ def test_video_error_flags_type_camera1_and_name_set_bits() -> None:
         assert enums["Camera1_VideoErrorFlags"] == "video_error_flags", key
         assert enums["Camera2_VideoErrorFlags"] is None, key  # "TBD" in the seed
 
+
+
+def test_dissect_tree_names_the_set_bits_of_0x41() -> None:
+    codec = MessageCodec("8.3")
+    msg = codec.cat.message("EYEQ_DIAGNOSTIC_MSG")
+    fields = codec.layout(msg).zero_values()
+    fields.update(Main_State=0xAA, Camera1_VideoErrorFlags=0x2000 | 0x4,
+                  Application_Diagnostics_part_2=1 << 6 | 2 << 3)
+    out = codec.decode(codec.encode_other("DIAG", fields))
+    assert out.ok, out.errors
+    fh = io.StringIO()
+    HumanWriter(fh, codec, color=False).write(
+        {"kind": "message", "protocol": out.protocol, "name": out.name, "length": out.length,
+         "header": out.header, "errors": out.errors, "fields": out.fields})
+    text = fh.getvalue()
+    assert "Main_State = 170 (RUNNING_DV)" in text
+    assert "Camera1_VideoErrorFlags = 8196 (LOGICAL_VIDEO_ERROR|VDI_ERR_TIMEOUT)" in text
+    assert ("Application_Diagnostics_part_2 = 80 "
+            "(DDR_CLOCK_DRIFT_WARNINGS=DRIFT_TOO_LATE|INTERNAL_INIT)") in text
+    assert "Camera2_VideoErrorFlags = 0\n" in text and "undefined" not in text
 
 @needs_seed
 def test_video_error_flags_are_read_from_their_seed_lines() -> None:

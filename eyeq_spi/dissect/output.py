@@ -101,7 +101,10 @@ class HumanWriter:
                     enum = self.codec.cat.enums.get(m.enum or "")
                     if enum is not None and isinstance(v, int):
                         label = enum.label(v)
-                        extra = f" ({label})" if label else self._c(RED, " (undefined)")
+                        if label:
+                            extra = f" ({label})"
+                        elif enum.kind != "flags" and enum.complete:  # flags 0: no bit set
+                            extra = self._c(RED, " (undefined)")
                     elif m.values and isinstance(v, int) and v in m.values:
                         extra = f" ({m.values[v]})"
                     if m.units and m.units not in ("n/a", "NA"):
