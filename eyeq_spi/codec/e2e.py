@@ -24,6 +24,12 @@ class E2EState:
         return value
 
 
+def _key(layout: Layout, plan: CrcPlan) -> tuple[str, str]:
+    # one rolling counter per CRC: eyeq_road_info_t (SW8.1+) has two CRCs, each with its own
+    # counter, at the same path (found by the conformance suite: both stepped +2)
+    return (layout.name, f"{plan.path}#{plan.field}")
+
+
 def _label(layout: Layout, plan: CrcPlan) -> str:
     return f"{layout.name}.{plan.path}" if plan.path else layout.name
 
@@ -32,7 +38,7 @@ def protect(buf: bytearray, layout: Layout, state: E2EState | None, base: int = 
     """Fill every rolling counter (when ``state`` is given) and every CRC, inner first."""
     for plan in layout.crc_plan:
         if state is not None and plan.counter_offset is not None:
-            value = state.next_counter((layout.name, plan.path), plan.counter_size)
+            value = state.next_counter(_key(layout, plan), plan.counter_size)
             o = base + plan.counter_offset
             buf[o : o + plan.counter_size] = value.to_bytes(plan.counter_size, "little")
         shifted = plan if base == 0 else CrcPlan(
@@ -60,7 +66,7 @@ def verify(data: bytes, layout: Layout, state: E2EState | None) -> list[str]:
         if state is not None and plan.counter_offset is not None:
             c = plan.counter_offset
             value = int.from_bytes(data[c : c + plan.counter_size], "little")
-            key = (layout.name, plan.path)
+            key = _key(layout, plan)
             last = state.seen.get(key)
             modulo = 1 << (8 * plan.counter_size)
             if last is not None and value != (last + 1) % modulo:
