@@ -67,6 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
                       help="seconds, (0, 86400] (default 10)")
     host.add_argument("--exit-when-running", action="store_true",
                       help="stop as soon as Running Vision is reached")
+    host.add_argument("--reconnect", action="store_true",
+                      help="when the link is lost, wait for the EyeQ and run the bring-up again")
     host.add_argument("--json", action="store_true", help="end with one JSON object")
     add_shared_options(host, side="host")
     from eyeq_spi.cli_dissect import add_dissect_parser
@@ -78,6 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
     from eyeq_spi.cli_plot import add_plot_parser
 
     add_plot_parser(sub)
+    from eyeq_spi.cli_bench import add_bench_parser
+
+    add_bench_parser(sub)
     spec = sub.add_parser("spec", help="browse the message catalogue built from specs/")
     spec_sub = spec.add_subparsers(dest="spec_command", required=True, parser_class=_Parser)
     sl = spec_sub.add_parser("list", help="list messages, MESP functions, init messages, structs")
@@ -128,6 +133,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             from eyeq_spi import cli_can
 
             return cli_can.run_can(args)
+        if args.command in ("export", "replay", "sigrok-decoder"):
+            from eyeq_spi import cli_bench
+
+            return {"export": cli_bench.run_export, "replay": cli_bench.run_replay,
+                    "sigrok-decoder": cli_bench.run_sigrok_decoder}[args.command](args)
         if args.command in ("dissect", "wireshark"):
             from eyeq_spi import cli_dissect
 

@@ -4,6 +4,7 @@ and the three ways of running the emulator."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import json
 import sys
@@ -233,9 +234,44 @@ def _realtime_tap(writer: Any, start: float, tx: str, rx: str) -> Any:
     return tap
 
 
+def _on_sigterm() -> None:
+    """SIGTERM ends ``demo``, ``host`` and ``sim`` like Ctrl-C: cleanly, with the summary."""
+    import signal
+
+    def raise_interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    with contextlib.suppress(ValueError):  # not the main thread (tests)
+        signal.signal(signal.SIGTERM, raise_interrupt)
+
+
+def print_summary(out: dict[str, Any], as_json: bool) -> None:
+    """The JSON object (``--json``) or a readable text block: same content."""
+    if as_json:
+        print(json.dumps(out, sort_keys=True), flush=True)
+        return
+    lines = [f"{out['side']}: {'OK' if out['ok'] else 'NOT OK'} - state {out['state']}, "
+             f"SW {out['sw']}, {out['elapsed_s']:.2f} s (wall {out['wall_s']:.2f} s, "
+             f"CPU {out['cpu_s']:.2f} s), connections {out['connections']}"]
+    if out["problem"]:
+        lines.append(f"  problem: {out['problem']}")
+    link = out["link"]
+    lines.append("  link: " + ", ".join(f"{k} {v}" for k, v in link.items() if v)
+                 if any(link.values()) else "  link: no errors")
+    lines.append(f"  E2E errors {out['e2e_errors']}, DASP counter gaps "
+                 f"{out['dasp_counter_gaps']}, transport aborts "
+                 f"{out['transport_aborts'] or 'none'}, stale "
+                 f"{', '.join(out['stale_streams']) or 'none'}, MESP timeouts "
+                 f"{out['mesp']['timeouts']}")
+    lines.append("  received: " + ", ".join(
+        f"{k.replace('EYEQ_', '').replace('_MSG', '')} {v}"
+        for k, v in sorted(out["messages"].items()) if v))
+    print("\n".join(lines), flush=True)
+
+
 def run_demo(args: argparse.Namespace) -> int:
-    from eyeq_spi.emulator import build, summary
-    from eyeq_spi.host.machine import HostState
+    from eyeq_spi.emulator import build
+    from eyeq_spi.report import host_summary
 
     if args.duration <= 0:
         raise UsageError("--duration must be positive")
@@ -250,82 +286,129 @@ def run_demo(args: argparse.Namespace) -> int:
     from eyeq_spi.can.sinks import attach_from_args
 
     attach_from_args(args, emu.host, emu.runner)  # --can-out: CAN gateway (issue 13)
+    _on_sigterm()
     view = LiveView(sys.stderr.isatty() and not args.json)
     t = 0.0
-    while t < args.duration:
-        step = min(0.25, args.duration - t)
-        emu.run_for(step, realtime=not args.virtual_time)
-        t += step
-        view.update(emu.host, emu.runner.now)
-    if writer is not None:
-        writer.close()
-    out = summary(emu)
-    held = emu.host.state is HostState.RUNNING_VISION and emu.running_since is not None
-    out["ok"] = held and not emu.left_running
-    if args.json:
-        print(json.dumps(out, sort_keys=True))
-    else:
-        print(f"state {out['state']} after {out['virtual_s']:.2f} s "
-              f"({'virtual' if args.virtual_time else 'real'} time, wall {out['wall_s']:.2f} s)")
-        for name, n in sorted(out["messages"].items()):
-            print(f"  {name:34s} {n:7d}")
-        print(f"  link {out['link']}")
-        print(f"  e2e errors {out['e2e_errors']}, counter gaps {out['dasp_counter_gaps']}, "
-              f"stale {out['stale_streams'] or 'none'}")
-        if out["problem"]:
-            print(f"  problem: {out['problem']}")
+    interrupted = False
+    try:
+        while t < args.duration:
+            step = min(0.25, args.duration - t)
+            emu.run_for(step, realtime=not args.virtual_time)
+            t += step
+            view.update(emu.host, emu.runner.now)
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        if writer is not None:
+            writer.close()
+    out = host_summary(emu.host, side="demo", elapsed=emu.runner.now, wall=emu.runner.wall_s,
+                       cpu=emu.runner.cpu_s, running_since=emu.running_since,
+                       left_running=emu.left_running, interrupted=interrupted)
+    print_summary(out, args.json)
     return 0 if out["ok"] else 1
 
 
 def run_sim(args: argparse.Namespace) -> int:
+    """Serve one host after another until ``--duration`` ends or we are interrupted; every new
+    connection is a power-up (boot status first)."""
+    from eyeq_spi.errors import LinkLostError
     from eyeq_spi.phy.base import open_url
+    from eyeq_spi.report import sim_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
 
     if bool(args.listen) == bool(args.pty):
         raise UsageError("give exactly one of --listen tcp://HOST:PORT or --pty")
-    sim = SimulatedEyeQ(sim_config(args))
+    cfg = sim_config(args)
+    SimulatedEyeQ(cfg).warm_up()  # bad options fail here, before anybody connects
     if args.pty:
         from eyeq_spi.phy.pty import PtyAdapter
 
         adapter: Any = PtyAdapter()
         print(f"PTY {adapter.path}", flush=True)
-        if not adapter.accept(args.accept_timeout):
-            raise UsageError(f"nobody opened {adapter.path} within {args.accept_timeout} s")
     else:
         url = args.listen
         if not url.startswith("tcp://"):
             raise UsageError("--listen takes tcp://HOST:PORT")
         adapter = open_url("listen://" + url[len("tcp://"):], timeout=args.accept_timeout)
         print(f"LISTEN {adapter.url}", flush=True)
-        if not adapter.accept(args.accept_timeout):
-            raise UsageError(f"no host connected within {args.accept_timeout} s")
+    _on_sigterm()
     writer = _capture(args)
-    runner = RealTimeRunner(sim, adapter)
-    runner.tap = _realtime_tap(writer, runner.clock(), "e2h", "h2e")
+    clock = time.monotonic
+    t0, cpu0 = clock(), time.process_time()
+    end = None if args.duration is None else t0 + args.duration
+    sim: Any = None
+    sessions: list[dict[str, Any]] = []
+    interrupted = False
     gc.freeze()  # the catalogue and layouts live forever: keep collections short
-    sim.power_up(runner.clock())
     try:
-        runner.run(args.duration)
+        while end is None or clock() < end:
+            if sim is None and clock() - t0 > args.accept_timeout:
+                break
+            wait = 0.5 if end is None else max(0.0, min(0.5, end - clock()))
+            if not adapter.accept(wait):
+                continue
+            sim = SimulatedEyeQ(cfg)
+            sim.warm_up()
+            gc.collect()
+            gc.freeze()
+            runner = RealTimeRunner(sim, adapter)
+            runner.tap = _realtime_tap(writer, t0, "e2h", "h2e")
+            sim.power_up(runner.clock())
+            began = clock()
+            lost = None
+            try:
+                runner.run(None if end is None else max(0.0, end - clock()))
+            except LinkLostError as exc:
+                lost = str(exc)
+            sessions.append({"began_s": round(began - t0, 3), "ended_s": round(clock() - t0, 3),
+                             "link_lost": lost})
+    except KeyboardInterrupt:
+        interrupted = True
     finally:
         adapter.close()
         if writer is not None:
             writer.close()
-    if args.json:
-        print(json.dumps({"boots": sim.counters.boots, "sent": dict(sim.counters.sent),
-                          "main_state": sim.main_state}, sort_keys=True))
-    return 0
+    if sim is None:
+        sim = SimulatedEyeQ(cfg)
+    out = sim_summary(sim, elapsed=clock() - t0, wall=clock() - t0,
+                      cpu=time.process_time() - cpu0, connections=len(sessions),
+                      interrupted=interrupted)
+    out["sessions"] = sessions
+    if not sessions and out["problem"] is None:
+        out["problem"], out["ok"] = (f"no host connected within {args.accept_timeout} s"
+                                     if not interrupted else "interrupted before any host"), False
+    print_summary(out, args.json)
+    return 0 if out["ok"] else 1
+
+
+def _reopen(url: str, until: float) -> Any:
+    """Open ``url`` again, retrying until ``until`` (monotonic); None if it never came back."""
+    from eyeq_spi.errors import AdapterError
+    from eyeq_spi.phy.base import open_url
+
+    while time.monotonic() < until:
+        try:
+            return open_url(url)
+        except AdapterError:
+            time.sleep(min(0.2, max(0.0, until - time.monotonic())))
+    return None
 
 
 def run_host(args: argparse.Namespace) -> int:
+    from eyeq_spi.errors import LinkLostError
     from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.host.machine import HostState
     from eyeq_spi.phy.base import open_url
+    from eyeq_spi.report import host_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
 
     host_cfg, nvm, scenario = host_parts(args)
     host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
-    adapter = open_url(args.port)
+    host.warm_up()
+    gc.collect()
+    adapter: Any = open_url(args.port)
+    _on_sigterm()
     writer = _capture(args)
     runner = RealTimeRunner(host, adapter)
     runner.tap = _realtime_tap(writer, runner.clock(), "h2e", "e2h")
@@ -334,38 +417,57 @@ def run_host(args: argparse.Namespace) -> int:
     attach_from_args(args, host, runner)  # --can-out: CAN gateway (issue 13)
     gc.freeze()
     view = LiveView(sys.stderr.isatty() and not args.json)
-    host.start(runner.clock())
-    start = runner.clock()
+    start, cpu0 = runner.clock(), time.process_time()
+    end = start + args.duration
+    host.start(start)
     running_since: float | None = None
-    left = False
+    left: list[float] = []
+    link_lost: str | None = None
+    connections = 1
+    interrupted = False
     try:
-        while runner.clock() - start < args.duration:
-            runner.step()
+        while runner.clock() < end:
+            try:
+                runner.step()
+            except LinkLostError as exc:
+                link_lost = str(exc)
+                adapter.close()
+                if not args.reconnect:
+                    break
+                adapter = _reopen(args.port, end)
+                if adapter is None:
+                    break
+                link_lost = None
+                connections += 1
+                runner.adapter = adapter
+                host.link_restarted(runner.clock())
+                running_since, left = None, []  # judged again on the new connection
+                continue
             now = runner.clock()
             view.update(host, now - start)
             if host.state is HostState.RUNNING_VISION and running_since is None:
-                running_since = now
+                running_since = now - start
             elif host.state is not HostState.RUNNING_VISION and running_since is not None:
-                left = True
+                left.append(now - start)
+                running_since = None
             if host.state in (HostState.FAILED, HostState.BOOT_FAILED):
                 break
             if args.exit_when_running and running_since is not None:
                 break
+    except KeyboardInterrupt:
+        interrupted = True
     finally:
-        adapter.close()
+        if adapter is not None:
+            adapter.close()
         nvm.save()
         if writer is not None:
             writer.close()
-        time.sleep(0)  # let the OS flush the socket
-    received = dict(host.counters.received)
-    out: dict[str, Any] = {"state": host.state.value, "messages": received,
-           "link": host.conn.link.counters.seed_view(), "e2e_errors": host.counters.e2e_errors,
-           "problem": host.problem, "versions": host.versions}
-    ok = running_since is not None and not left
-    out["ok"] = ok
-    if args.json:
-        print(json.dumps(out, sort_keys=True))
-    else:
-        print(f"state {out['state']}; messages {sum(received.values())}; "
-              f"problem {out['problem']}")
-    return 0 if ok else 1
+    now = runner.clock()
+    out = host_summary(host, side="host", elapsed=now - start, wall=now - start,
+                       cpu=time.process_time() - cpu0, running_since=running_since,
+                       left_running=left, link_lost=link_lost, connections=connections,
+                       interrupted=interrupted)
+    if link_lost:
+        out["link_lost"] = link_lost
+    print_summary(out, args.json)
+    return 0 if out["ok"] else 1

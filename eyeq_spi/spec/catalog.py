@@ -35,6 +35,17 @@ def normalise_sw(text: str | None, default: SwKey) -> SwKey:
     return f"sw{major}" if minor == 0 else f"sw{major}_{minor}"
 
 
+def sw_release(key: SwKey) -> tuple[int, int]:
+    """``"sw8_1"`` -> ``(8, 1)``, ``"sw9"`` -> ``(9, 0)``: the numbers the EyeQ reports."""
+    body = key[2:].split("_")
+    return int(body[0]), int(body[1]) if len(body) > 1 else 0
+
+
+def sw_release_text(key: SwKey) -> str:
+    major, minor = sw_release(key)
+    return f"{major}.{minor}"
+
+
 @dataclass(frozen=True)
 class Member:
     name: str
@@ -221,8 +232,9 @@ class Catalog:
 
     def sw(self, text: str | None) -> SwKey:
         key = normalise_sw(text, self.default_sw)
-        if sw_key(key) < sw_key(self.sw_versions[0]):
-            raise SpecError(f"{text} is older than the first release the seed describes")
+        if key not in self.sw_versions:
+            known = ", ".join(sw_release_text(k) for k in self.sw_versions)
+            raise SpecError(f"SW {text} is not a release in specs/ (known: {known})")
         return key
 
 
