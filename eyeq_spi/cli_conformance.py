@@ -1,0 +1,117 @@
+"""``eyeq-spi conformance``: the protocol conformance suite against an EyeQ or a host under test
+(or, with ``--builtin``, against our own in virtual time). Exit 0 when no case fails, 1 when one
+does, 2 for usage or connection errors."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from eyeq_spi import cli_args as ca
+from eyeq_spi.errors import UsageError
+
+
+def add_conformance_parser(sub: Any) -> None:
+    p = sub.add_parser(
+        "conformance", help="protocol conformance suite: verdict per requirement",
+        description="Play the host against an EyeQ under test (--dut eyeq --port URL) or the "
+        "EyeQ against a host under test (--dut host --listen tcp://HOST:PORT or --pty), judge "
+        "one case per requirement of seed 004 and the protocol decisions, and report verdicts "
+        "with evidence. --builtin runs the suite against our own simulated EyeQ or host in "
+        "virtual time. Exit 0 when no case fails, 1 when one fails, 2 for usage or connection "
+        "errors.")
+    p.add_argument("--dut", choices=("eyeq", "host"), help="the implementation under test")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--port", metavar="URL", type=ca.host_endpoint,
+                       help="--dut eyeq: the EyeQ (socket://HOST:PORT, a tty or pty, rfc2217://)")
+    where.add_argument("--listen", metavar="tcp://HOST:PORT",
+                       help="--dut host: listen here; the host connects (once per session)")
+    where.add_argument("--pty", action="store_true",
+                       help="--dut host: open a pty, print its path; the host opens it")
+    where.add_argument("--builtin", action="store_true",
+                       help="test our own simulated EyeQ / host emulator, in virtual time")
+    p.add_argument("--list", action="store_true",
+                   help="print every case (ID, DUT, seed section, requirement, decision, title)")
+    p.add_argument("-k", dest="select", metavar="EXPR",
+                   help="select cases: words matched in ID/title/group/section, with and/or/not")
+    p.add_argument("--sw", type=ca.sw_release, help="SW release (default: newest)")
+    p.add_argument("--json", action="store_true",
+                   help="JSON Lines: one object per case, then a summary object")
+    p.add_argument("--junit", metavar="FILE", type=ca.output_file, help="write JUnit XML")
+    p.add_argument("--report", metavar="FILE.md|FILE.html", type=ca.output_file,
+                   help="write a Markdown or HTML report")
+    p.add_argument("--accept-timeout", type=ca.number(0, 3600, lo_open=True, unit="s"),
+                   default=30.0, help="seconds to wait for the host under test (default 30)")
+    p.add_argument("--mode-timeout", type=ca.number(0, 3600, lo_open=True, unit="s"),
+                   default=None, help="seconds to wait for TAC/SPC results and mode changes")
+    p.add_argument("--mutant", help=argparse.SUPPRESS)  # test-only: a broken built-in variant
+
+
+def _progress(args: argparse.Namespace) -> Any:
+    if args.json or not sys.stderr.isatty():
+        return None
+    return lambda text: print(text, file=sys.stderr, flush=True)
+
+
+def run_conformance(args: argparse.Namespace) -> int:
+    from eyeq_spi.conformance import report
+    from eyeq_spi.conformance.cases import all_cases, cases_for
+    from eyeq_spi.conformance.suite import Options, run, selector
+
+    if args.list:
+        keep = selector(args.select)
+        cases = cases_for(args.dut, args.sw) if args.dut else all_cases(args.sw)
+        print(report.listing([c for c in cases if keep(c)]))
+        return 0
+    if args.dut is None:
+        raise UsageError("--dut eyeq or --dut host is required (or --list)")
+    if args.mutant and not args.builtin:
+        raise UsageError("--mutant works with --builtin only")
+    opts = Options(dut=args.dut, sw=args.sw, builtin=args.builtin, select=args.select,
+                   accept_timeout=args.accept_timeout, mutant=args.mutant,
+                   progress=_progress(args))
+    if args.mode_timeout is not None:
+        opts.host_plan.mode_timeout = args.mode_timeout
+    if args.builtin:
+        opts.host_plan.bring_up_timeout = opts.host_plan.mode_timeout = 10.0
+    elif args.dut == "eyeq":
+        if not args.port:
+            raise UsageError("--dut eyeq needs --port URL (or --builtin)")
+        opts.port = args.port
+    else:
+        opts.adapter = _listener(args)
+    try:
+        results = run(opts)
+    finally:
+        if opts.adapter is not None:
+            opts.adapter.close()
+    title = f"eyeq-spi conformance --dut {args.dut}" + (" --builtin" if args.builtin else "")
+    if args.junit:
+        report.write(args.junit, report.junit(results, f"eyeq-spi.conformance.{args.dut}"))
+    if args.report:
+        report.write_report(args.report, results, title)
+    print(report.json_lines(results) if args.json else report.console(results))
+    return report.exit_code(results)
+
+
+def _listener(args: argparse.Namespace) -> Any:
+    if args.pty:
+        from eyeq_spi.phy.pty import PtyAdapter
+
+        adapter: Any = PtyAdapter()
+        print(f"PTY {adapter.path}", file=sys.stderr if args.json else sys.stdout, flush=True)
+        return adapter
+    if not args.listen:
+        raise UsageError("--dut host needs --listen tcp://HOST:PORT or --pty (or --builtin)")
+    try:
+        kind, url = ca.sim_endpoint(args.listen)
+    except argparse.ArgumentTypeError as exc:
+        raise UsageError(f"argument --listen: {exc}") from None
+    if kind != "tcp" or url is None:
+        raise UsageError("--listen takes tcp://HOST:PORT")
+    from eyeq_spi.phy.base import open_url
+
+    adapter = open_url("listen://" + url[len("tcp://"):], timeout=args.accept_timeout)
+    print(f"LISTEN {adapter.url}", file=sys.stderr if args.json else sys.stdout, flush=True)
+    return adapter

@@ -1,0 +1,412 @@
+"""Judges of the MESP (§7.1.1, M1-M6) and DASP (§7.1.2, §7.1.4-7.1.5, D1-D5) cases."""
+
+from __future__ import annotations
+
+import bisect
+from collections.abc import Callable
+from dataclasses import dataclass
+from itertools import pairwise
+from typing import Any
+
+from eyeq_spi.codec.intrinsic import eeprom_crc_ok
+from eyeq_spi.codec.layout import Layout
+from eyeq_spi.conformance.judge_link import answers
+from eyeq_spi.conformance.trace import Msg, Trace
+from eyeq_spi.conformance.verdict import Context, Outcome, at, bad, ok, skip, unsure
+from eyeq_spi.spec.catalog import MessageDef, catalog
+
+_M = catalog().raw["mesp.yaml"]["mesp"]
+DEADLINE = float(_M["reply_deadline"])
+RET_UNKNOWN = 2
+MODE_OF_MAIN = {0x02: "APP", 0xAC: "TAC", 0x22: "SPC"}
+RATE_MEAN_TOLERANCE = 0.05  # our reading: the tolerance bounds each period, the rate the mean
+
+
+def ret_of(m: Msg) -> int | None:
+    return int.from_bytes(m.data[5:9], "little") if len(m.data) >= 9 else None
+
+
+def is_request(m: Msg) -> bool:
+    return m.decoded.protocol == "MESP" and not m.header.get("reply")
+
+
+def is_reply(m: Msg) -> bool:
+    return m.decoded.protocol == "MESP" and bool(m.header.get("reply"))
+
+
+@dataclass
+class Pair:
+    request: Msg
+    reply: Msg | None
+
+
+def mesp_pairs(tr: Trace) -> list[Pair]:
+    """Requests we sent paired with the DUT's replies by service and function, in order, so
+    that a reply with a wrong tag is still found (and judged by the tag case alone)."""
+    pairs = [Pair(m, None) for m in tr.our_msgs() if is_request(m)]
+    for rep in tr.dut_msgs():
+        if not is_reply(rep):
+            continue
+        key = (rep.header["service"], rep.header["function"])
+        for p in pairs:
+            if p.reply is None and (p.request.header["service"],
+                                    p.request.header["function"]) == key \
+                    and p.request.time <= rep.time:
+                p.reply = rep
+                break
+    return pairs
+
+
+def delivered(tr: Trace, ctx: Context) -> set[int]:
+    """Trace indices of our frames the DUT ACKed."""
+    return {a.frame.index for a in answers(tr, ctx.slack)
+            if a.reply is not None and a.reply.kind == "ACK"}
+
+
+def _probe_tags() -> set[int]:
+    from eyeq_spi.conformance import play_host as p
+
+    return {p.TAG_EARLY_INIT, p.TAG_GAP, p.TAG_SILENCE, p.TAG_LIMIT}
+
+
+# -- MESP, the EyeQ as server -----------------------------------------------------------------
+def _reply_ok(fn: str, req: dict[str, Any], rep: dict[str, Any]) -> str | None:
+    """None if the reply parameters are right for the request (M3), else what is wrong."""
+    echo = {"SwitchEyeQApplication": ("applicationId",),
+            "SendParamsToCalibrationTool": ("edr_type", "edr_policy", "edr_function"),
+            "EventCalibrationTool": ("ct_type", "ct_stage", "ct_version"),
+            "ComputeHash": ("hashType", "datasetType")}.get(fn, ())
+    for k in echo:
+        if rep.get(k) != req.get(k):
+            return f"{k} {rep.get(k)!r}, request had {req.get(k)!r}"
+    if fn == "ComputeHash":
+        want = 4 if req.get("hashType") == 1 else 32
+        if len(rep.get("result", b"")) != want:
+            return f"result is {len(rep.get('result', b''))} bytes, expected {want}"
+    if fn == "FFSReadFile" and req.get("filename") == "/mesp/eeprom.data1" \
+            and not eeprom_crc_ok(bytes(rep.get("data", b""))):
+        return "the EEPROM image's CRC-16 (bytes 0x4C..0x4D, I2) does not match"
+    return None
+
+
+def mesp_function(fn: str) -> Callable[[Context, Trace], Outcome]:
+    def judge(ctx: Context, tr: Trace) -> Outcome:
+        pairs = [p for p in mesp_pairs(tr) if p.request.name == fn]
+        if not pairs:
+            return unsure(f"no {fn} request was made in this run")
+        good = []
+        for p in pairs:
+            r = p.reply
+            if r is None or ret_of(r) != 0:
+                continue
+            if r.decoded.errors:
+                return bad(f"reply #{r.indices[-1]} at {at(r.time)}: {r.decoded.errors[0]}")
+            wrong = _reply_ok(fn, p.request.fields, r.fields)
+            if wrong is not None:
+                return bad(f"reply #{r.indices[-1]} at {at(r.time)}: {wrong}")
+            good.append(r)
+        if not good:
+            rets = [ret_of(p.reply) if p.reply else None for p in pairs]
+            return bad(f"{len(pairs)} request(s), no successful reply (ret seen: {rets})")
+        return ok(f"{len(good)} of {len(pairs)} request(s) answered with ret 0 and correct "
+                  f"parameters; first reply #{good[0].indices[-1]} at {at(good[0].time)}")
+    return judge
+
+
+def mesp_tag(ctx: Context, tr: Trace) -> Outcome:
+    n = 0
+    for p in mesp_pairs(tr):
+        if p.reply is None:
+            continue
+        n += 1
+        want = 0x80 | (p.request.header["tag"] & 0x3F)
+        got = p.reply.header["tag"]
+        if got != want:
+            return bad(f"{p.request.name} request tag 0x{p.request.header['tag']:02X} "
+                       f"(#{p.request.indices[0]}): reply #{p.reply.indices[-1]} tag 0x{got:02X},"
+                       f" expected 0x{want:02X} (M1)")
+    return ok(f"{n} replies echo service, function and tag counter with bit 7 set") if n else \
+        unsure("no replies")
+
+
+def mesp_deadline(ctx: Context, tr: Trace) -> Outcome:
+    acked = delivered(tr, ctx)
+    skip_tags = _probe_tags()
+    worst = 0.0
+    n = 0
+    for p in mesp_pairs(tr):
+        req = p.request
+        if req.header["counter"] in skip_tags and req.name in (
+                "GetEyeQVersions", "EventCalibrationTool"):
+            continue
+        if not all(i in acked for i in req.indices) or tr.end - req.time < DEADLINE:
+            continue
+        n += 1
+        if p.reply is None:
+            return bad(f"{req.name} request #{req.indices[0]} at {at(req.time)} never answered")
+        dt = p.reply.time - req.time
+        worst = max(worst, dt)
+        if dt > DEADLINE + ctx.slack:
+            return bad(f"{req.name} request #{req.indices[0]} at {at(req.time)}: reply "
+                       f"#{p.reply.indices[-1]} after {1e3 * dt:.1f} ms (> 500 ms, §7.1.1, M6)")
+    return ok(f"{n} delivered requests answered, slowest in {1e3 * worst:.2f} ms") if n else \
+        unsure("no delivered requests")
+
+
+def _probe_replies(tr: Trace, label: str) -> list[tuple[Any, int | None]]:
+    out: list[tuple[Any, int | None]] = []
+    for mark in tr.marks_of(label):
+        rets = [ret_of(m) for m in tr.dut_msgs() if is_reply(m)
+                and mark.time <= m.time <= mark.time + 2 * DEADLINE
+                and m.header["counter"] == mark.info["tag"]
+                and m.header["function"] == mark.info["function"]]
+        out.append((mark, rets[0] if rets else None))
+    return out
+
+
+def mesp_bad_params(ctx: Context, tr: Trace) -> Outcome:
+    res = _probe_replies(tr, "bad_params")
+    if not res:
+        return skip("not probed")
+    for mark, ret in res:
+        if ret is None or ret == 0:
+            return bad(f"request with bad parameters at {at(mark.time)} (function "
+                       f"0x{mark.info['function']:02X}): {'no reply' if ret is None else 'ret 0'}"
+                       ", expected ret != 0 (M2)")
+    return ok("; ".join(f"function 0x{m.info['function']:02X} -> ret {r}" for m, r in res))
+
+
+def mesp_unknown(ctx: Context, tr: Trace) -> Outcome:
+    res = _probe_replies(tr, "unknown_function") + _probe_replies(tr, "unknown_service")
+    if not res:
+        return skip("not probed")
+    for mark, ret in res:
+        if ret != RET_UNKNOWN:
+            return bad(f"unknown 0x{mark.info['service']:02X}/0x{mark.info['function']:02X} at "
+                       f"{at(mark.time)}: {'no reply' if ret is None else f'ret {ret}'}, "
+                       "expected ret 2 (M2)")
+    return ok("; ".join(f"0x{m.info['service']:02X}/0x{m.info['function']:02X} -> ret {r}"
+                        for m, r in res))
+
+
+# -- MESP, the host as client -----------------------------------------------------------------
+def mesp_request_tags(ctx: Context, tr: Trace) -> Outcome:
+    last: int | None = None
+    reqs = [m for m in tr.dut_msgs() if is_request(m)]
+    for m in reqs:
+        tag = m.header["tag"]
+        if tag & 0xC0:
+            return bad(f"request #{m.indices[0]} tag 0x{tag:02X}: bits 6 and 7 must be 0 (M1)")
+        if last is not None and tag != (last + 1) & 0x3F:
+            return bad(f"request #{m.indices[0]} at {at(m.time)}: tag counter {tag}, expected "
+                       f"{(last + 1) & 0x3F} (+1 per request, M1)")
+        last = tag
+    return ok(f"{len(reqs)} requests, tag counter +1 each") if reqs else unsure("no requests")
+
+
+def mesp_unmatched(ctx: Context, tr: Trace) -> Outcome:
+    mark = tr.first_mark("unmatched_reply")
+    if mark is None:
+        return skip("no unmatched reply was sent")
+    pending = [m for m in tr.our_msgs("EYEQ_DIAGNOSTIC_MSG") if m.fields.get("Main_State") == 1]
+    t_pending = pending[0].time if pending else tr.end
+    early = [m for m in tr.dut_msgs("EventCalibrationTool") if is_request(m)
+             and mark.time <= m.time < t_pending]
+    if early:
+        return bad(f"an unmatched reply (tag {mark.info['tag']}) claiming Pending Vision at "
+                   f"{at(mark.time)} was taken: init request #{early[0].indices[0]} at "
+                   f"{at(early[0].time)} before we reported Pending at {at(t_pending)}")
+    return ok(f"unmatched reply at {at(mark.time)} ignored; first init request only after "
+              f"Pending Vision at {at(t_pending)}")
+
+
+# -- DASP --------------------------------------------------------------------------------------
+def _mode_at(tr: Trace) -> Callable[[float], str | None]:
+    """The DUT's mode at a time, from its 0x41 Main_State: only where the report before and the
+    report after agree (a message sent during a switch belongs to neither mode)."""
+    if tr.dut == "host":
+        return lambda t: "APP"
+    diag = [(m.time, MODE_OF_MAIN.get(int(m.fields.get("Main_State", -1))))
+            for m in tr.dut_msgs("EYEQ_DIAGNOSTIC_MSG") if m.fields]
+    times = [t for t, _ in diag]
+
+    def mode(t: float) -> str | None:
+        i = bisect.bisect_right(times, t)
+        if i == 0 or i == len(diag):
+            return None
+        before, after = diag[i - 1][1], diag[i][1]
+        return before if before == after else None
+    return mode
+
+
+def dasp_msgs(tr: Trace) -> list[Msg]:
+    return [m for m in tr.dut_msgs() if m.decoded.protocol == "DASP"]
+
+
+def _defs(tr: Trace) -> dict[int, MessageDef]:
+    return {m.data_id: m for m in tr.codec.cat.messages if m.protocol == "DASP"
+            and m.exists_in(tr.codec.sw)}
+
+
+def segments(tr: Trace, msgs: list[Msg], period: float) -> list[list[Msg]]:
+    """Runs of one stream without a gap of 3 periods, a fault window, a reset or a mode
+    change in between: the spans in which counters and rates must hold."""
+    mode = _mode_at(tr)
+    resets = tr.resets()
+    out: list[list[Msg]] = []
+    cur: list[Msg] = []
+    for m in msgs:
+        if cur:
+            a = cur[-1]
+            if (m.t_first - a.t_first > 3 * period or tr.disturbed(a.t_first, m.time)
+                    or any(a.t_first <= r <= m.t_first for r in resets)
+                    or mode(a.t_first) != mode(m.t_first)):
+                out.append(cur)
+                cur = []
+        cur.append(m)
+    if cur:
+        out.append(cur)
+    return out
+
+
+def dasp_counter(ctx: Context, tr: Trace) -> Outcome:
+    msgs = dasp_msgs(tr)
+    by_id: dict[int, list[Msg]] = {}
+    for m in msgs:
+        by_id.setdefault(int(m.header["data_id"]), []).append(m)
+    for did, ms in by_id.items():
+        for seg in segments(tr, ms, 1.0):
+            for a, b in pairwise(seg):
+                if b.header["counter"] != (a.header["counter"] + 1) & 0xFF:
+                    return bad(f"data ID 0x{did:02X}: counter {a.header['counter']} "
+                               f"(#{a.indices[0]}) then {b.header['counter']} (#{b.indices[0]}, "
+                               f"{at(b.time)}), expected +1 (D1)")
+    return ok(f"{len(msgs)} DASP messages, {len(by_id)} data IDs, counters +1") if msgs else \
+        unsure("no DASP messages")
+
+
+def dasp_length(ctx: Context, tr: Trace) -> Outcome:
+    msgs = dasp_msgs(tr)
+    for m in msgs:
+        hdr = [e for e in m.decoded.errors if e.startswith("BadHdr")]
+        if hdr:
+            return bad(f"message #{m.indices[0]} at {at(m.time)}: {hdr[0]} (D3)")
+    return ok(f"{len(msgs)} DASP messages, payload lengths of {tr.codec.sw}") if msgs else \
+        unsure("no DASP messages")
+
+
+def dasp_e2e(ctx: Context, tr: Trace) -> Outcome:
+    msgs = dasp_msgs(tr)
+    checked = 0
+    streams: dict[str, list[Msg]] = {}
+    for m in msgs:
+        crc = [e for e in m.decoded.errors if e.startswith("E2E")]
+        if crc:
+            return bad(f"{m.name} #{m.indices[0]} at {at(m.time)}: {crc[0]} (D5)")
+        streams.setdefault(m.name, []).append(m)
+    defs = {d.name: d for d in _defs(tr).values()}
+    for name, ms in streams.items():
+        d = defs.get(name)
+        if d is None:
+            continue
+        lay = tr.codec.layout(d)
+        plans = [p for p in lay.crc_plan if p.counter_offset is not None]
+        if not plans:
+            continue
+        for seg in segments(tr, ms, 1.0):
+            for a, b in pairwise(seg):
+                for p in plans:
+                    o, size = 4 + int(p.counter_offset or 0), p.counter_size
+                    va = int.from_bytes(a.data[o:o + size], "little")
+                    vb = int.from_bytes(b.data[o:o + size], "little")
+                    checked += 1
+                    if vb != (va + 1) % (1 << (8 * size)):
+                        return bad(f"{name}.{p.path or p.field}: rollingFrameCount {va} "
+                                   f"(#{a.indices[0]}) then {vb} (#{b.indices[0]}, {at(b.time)})"
+                                   ", expected +1 (D5)")
+    if not msgs:
+        return unsure("no DASP messages")
+    return ok(f"{len(msgs)} DASP messages: every crc_16 right, {checked} rollingFrameCount steps")
+
+
+def unused_masks(lay: Layout, base: int = 0) -> list[tuple[int, int, int]]:
+    """(absolute offset, size, mask of unused bits) of every bitfield container (D2)."""
+    out: list[tuple[int, int, int]] = []
+    used: dict[int, tuple[int, int]] = {}
+    for f in lay.fields:
+        if f.bits is not None:
+            lo, hi = f.bits
+            mask = ((1 << (hi - lo + 1)) - 1) << lo
+            size, prev = used.get(f.offset, (f.size, 0))
+            used[f.offset] = (size, prev | mask)
+        child = lay.children.get(f.name)
+        if child is not None:
+            for k in range(f.count or 1):
+                out += unused_masks(child, base + f.offset + k * child.size)
+    for off, (size, mask) in used.items():
+        unused = ((1 << (8 * size)) - 1) & ~mask
+        if unused:
+            out.append((base + off, size, unused))
+    return out
+
+
+def dasp_unused(ctx: Context, tr: Trace) -> Outcome:
+    defs = {d.name: d for d in _defs(tr).values()}
+    sampled: dict[str, int] = {}
+    containers = 0
+    for m in dasp_msgs(tr):
+        d = defs.get(m.name)
+        if d is None or sampled.get(m.name, 0) >= 3 or m.decoded.errors:
+            continue
+        sampled[m.name] = sampled.get(m.name, 0) + 1
+        for off, size, mask in unused_masks(tr.codec.layout(d)):
+            containers += 1
+            value = int.from_bytes(m.data[4 + off:4 + off + size], "little")
+            if value & mask != mask:
+                return bad(f"{m.name} #{m.indices[0]}: container at payload byte {off} is "
+                           f"0x{value:0{2 * size}X}, unused bits 0x{mask:0{2 * size}X} must be 1 "
+                           "(§7.1.2, D2)")
+    if not sampled:
+        return unsure("no DASP messages")
+    return ok(f"{containers} bitfield containers in {sum(sampled.values())} messages of "
+              f"{len(sampled)} kinds: unused bits all 1")
+
+
+def _rate(ctx: Context, tr: Trace, msgs: list[Msg], hz: float, tol: tuple[float, float],
+          what: str) -> Outcome:
+    period = 1.0 / hz
+    lo, hi = period + tol[0] / 1e3, period + tol[1] / 1e3
+    slack = 0.002 if ctx.realtime else 1e-9
+    periods: list[tuple[float, Msg]] = []
+    for seg in segments(tr, msgs, period):
+        for a, b in pairwise(seg):
+            periods.append((b.t_first - a.t_first, b))
+    if len(periods) < 5:
+        return unsure(f"{len(periods)} periods of {what} observed (need 5)")
+    for p, m in periods:
+        if not lo - slack <= p <= hi + slack:
+            return bad(f"{what}: period {1e3 * p:.2f} ms before #{m.indices[0]} at "
+                       f"{at(m.t_first)} outside {1e3 * lo:.1f}..{1e3 * hi:.1f} ms")
+    mean = sum(p for p, _ in periods) / len(periods)
+    if abs(1.0 / mean - hz) > RATE_MEAN_TOLERANCE * hz:
+        return bad(f"{what}: mean rate {1 / mean:.2f} Hz over {len(periods)} periods, "
+                   f"nominal {hz} Hz (±{100 * RATE_MEAN_TOLERANCE:.0f} %)")
+    return ok(f"{what}: {len(periods)} periods {1e3 * min(p for p, _ in periods):.2f}.."
+              f"{1e3 * max(p for p, _ in periods):.2f} ms, mean {1 / mean:.2f} Hz")
+
+
+def dasp_rate(name: str, mode: str) -> Callable[[Context, Trace], Outcome]:
+    def judge(ctx: Context, tr: Trace) -> Outcome:
+        d = tr.codec.cat.message(name)
+        if d.rate_hz is None or d.tolerance_ms is None:
+            return skip(f"{name} has no periodic rate")
+        at_mode = _mode_at(tr)
+        msgs = [m for m in tr.dut_msgs(name) if at_mode(m.t_first) == mode]
+        return _rate(ctx, tr, msgs, float(d.rate_hz), d.tolerance_ms, f"{name} in {mode}")
+    return judge
+
+
+def diag_rate(ctx: Context, tr: Trace) -> Outcome:
+    d = tr.codec.cat.message("EYEQ_DIAGNOSTIC_MSG")
+    assert d.rate_hz is not None and d.tolerance_ms is not None
+    return _rate(ctx, tr, tr.dut_msgs(d.name), float(d.rate_hz), d.tolerance_ms, d.name)

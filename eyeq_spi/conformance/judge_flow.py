@@ -1,0 +1,260 @@
+"""Judges of the flow cases (MAPC-67299 message flow, §7.1.3 intrinsic calibration, mode
+switches) and of the host-under-test reactions to the faults we inject."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from eyeq_spi.conformance.judge_app import is_reply, is_request, mesp_pairs, ret_of
+from eyeq_spi.conformance.trace import Msg, Trace
+from eyeq_spi.conformance.verdict import Context, Outcome, at, bad, ok, skip, unsure
+
+PENDING, RUNNING_VISION, PENDING_VISION = 0x01, 0x02, 0x92
+FATAL_INTRINSIC = 22
+EEPROM_FILE = "/mesp/eeprom.data1"
+
+
+def _state_reports(tr: Trace, msgs: list[Msg]) -> list[tuple[float, int, int, int, Msg]]:
+    """(time, mainState, subState, Fatal_Error) from 0x41 and Get Extended State replies."""
+    out = []
+    for m in msgs:
+        if m.name == "EYEQ_DIAGNOSTIC_MSG" and m.fields:
+            f = m.fields
+            out.append((m.time, int(f["Main_State"]), int(f["Sub_State"]),
+                        int(f["Fatal_Error"]), m))
+        elif m.name == "GetEyeQExtendedState" and is_reply(m) and ret_of(m) == 0 and m.fields:
+            out.append((m.time, int(m.fields["mainState"]), int(m.fields["subState"]), 0, m))
+    return out
+
+
+def _ect_replies(tr: Trace, stage: int | None = None) -> list[tuple[Msg, Msg]]:
+    out = []
+    for p in mesp_pairs(tr):
+        if p.request.name == "EventCalibrationTool" and p.reply is not None \
+                and (stage is None or p.request.fields.get("ct_stage") == stage):
+            out.append((p.request, p.reply))
+    return out
+
+
+# -- the EyeQ under test ----------------------------------------------------------------------
+def boot_first(ctx: Context, tr: Trace) -> Outcome:
+    msgs = tr.dut_msgs()
+    if not msgs:
+        return bad("the DUT sent no message")
+    first = msgs[0]
+    if first.name != "EYEQ_BOOT_STATUS_MSG":
+        return bad(f"first message #{first.indices[0]} at {at(first.time)} is {first.name}, "
+                   "expected EYEQ_BOOT_STATUS_MSG (0x10)")
+    return ok(f"EYEQ_BOOT_STATUS_MSG first, #{first.indices[0]} at {at(first.time)}")
+
+
+def pending_before_init(ctx: Context, tr: Trace) -> Outcome:
+    reports = _state_reports(tr, tr.dut_msgs())
+    pending = [r for r in reports if r[1] == PENDING and r[2] == PENDING_VISION]
+    t_pending = pending[0][0] if pending else None
+    for req, rep in _ect_replies(tr):
+        if ret_of(rep) != 0:
+            continue
+        if t_pending is None or rep.time < t_pending:
+            stage = req.fields.get("ct_stage", 0)
+            when = "never" if t_pending is None else at(t_pending)
+            return bad(f"init 0x{stage:02X} (request #{req.indices[0]}) accepted with ret 0 at "
+                       f"{at(rep.time)}, but Pending Vision was reported {when}")
+    if t_pending is None:
+        return unsure("the DUT never reported Pending Vision")
+    early = tr.first_mark("early_init")
+    extra = f"; the 0x92 sent at {at(early.time)} while booting was refused" if early else ""
+    return ok(f"Pending Vision reported at {at(t_pending)}, no init accepted before{extra}")
+
+
+def running_after_init(ctx: Context, tr: Trace) -> Outcome:
+    reports = _state_reports(tr, tr.dut_msgs())
+    running = [r for r in reports if r[1] == RUNNING_VISION]
+    if not running:
+        return unsure("the DUT never reported Running Vision")
+    t_run, src = running[0][0], running[0][4]
+    accepted = [rep for _, rep in _ect_replies(tr, 0x92) if ret_of(rep) == 0
+                and rep.time <= t_run]
+    if not accepted:
+        return bad(f"Running Vision at {at(t_run)} (#{src.indices[0]}) without an accepted "
+                   "Init_Params_Vision (0x92)")
+    t92 = accepted[-1].time
+    veh = [m for m in tr.our_msgs("HOST_VEH_STATE_MSG") if t92 <= m.time <= t_run]
+    if not veh:
+        return bad(f"Running Vision at {at(t_run)} (#{src.indices[0]}): 0x92 accepted at "
+                   f"{at(t92)} but no HOST_VEH_STATE_MSG was sent in between (MAPC-67299 "
+                   "step 11)")
+    return ok(f"0x92 accepted at {at(t92)}, HOST_VEH_STATE_MSG #{veh[0].indices[0]} at "
+              f"{at(veh[0].time)}, Running Vision at {at(t_run)}")
+
+
+def mode_round_trip(mode: str) -> Callable[[Context, Trace], Outcome]:
+    def judge(ctx: Context, tr: Trace) -> Outcome:
+        done = [m for m in tr.marks_of("mode_done") if m.info["mode"] == mode]
+        if not done:
+            return skip(f"{mode} was not tried (an earlier flow stopped the script)")
+        d = done[0].info
+        if not d["ok"]:
+            if d.get("problem"):
+                return bad(f"{mode}: {d['problem']} (state {d['state']} at "
+                           f"{at(done[0].time)})")
+            return unsure(f"{mode} not reached or no result within the timeout (state "
+                          f"{d['state']})")
+        back = [m for m in tr.marks_of("mode_back") if m.info["mode"] == mode]
+        if not back or not back[0].info["ok"]:
+            return bad(f"{mode} reached at {at(d['entered'])} but Running Vision did not come "
+                       "back after Switch EyeQ Application (vision)")
+        res = d.get("result") or {}
+        if mode != "DV" and not res.get("ok"):
+            return bad(f"{mode} finished with an error: {res}")
+        detail = "" if mode == "DV" else f", result {res.get('mode')} ok"
+        return ok(f"{mode} entered at {at(d['entered'])}{detail}, back in Running Vision at "
+                  f"{at(back[0].time)}")
+    return judge
+
+
+def fatal22_flow(ctx: Context, tr: Trace) -> Outcome:
+    reports = _state_reports(tr, tr.dut_msgs())
+    fatal = [r for r in reports if r[3] == FATAL_INTRINSIC]
+    if not fatal:
+        return unsure("no Fatal_Error 22 was reported for the 0x84 of an empty NVM")
+    t_fatal = fatal[0][0]
+    reads = [p for p in mesp_pairs(tr) if p.request.name == "FFSReadFile"
+             and p.request.time >= t_fatal and p.reply is not None]
+    if not reads or ret_of(reads[0].reply) != 0:  # type: ignore[arg-type]
+        return bad(f"Fatal 22 at {at(t_fatal)}, but FFS Read File of {EEPROM_FILE} failed")
+    running = [r for r in reports if r[1] == RUNNING_VISION and r[0] > t_fatal and r[3] == 0]
+    if not running:
+        return bad(f"Fatal 22 at {at(t_fatal)}: after the NVM update and restart Running "
+                   "Vision was not reached")
+    return ok(f"Fatal 22 at {at(t_fatal)}, EEPROM read (reply #{reads[0].reply.indices[-1]}), "  # type: ignore[union-attr]
+              f"Running Vision with the new 0x84 at {at(running[0][0])}")
+
+
+# -- the host under test ----------------------------------------------------------------------
+def host_versions(ctx: Context, tr: Trace) -> Outcome:
+    reqs = [p for p in mesp_pairs(_swap(tr)) if p.request.name == "GetEyeQVersions"]
+    if not reqs:
+        return bad("the host never asked Get EyeQ Versions in this ignition cycle")
+    answered = [p for p in reqs if p.reply is not None and ret_of(p.reply) == 0]
+    if answered:
+        after = [p for p in reqs if p.request.time > answered[0].reply.time]  # type: ignore[union-attr]
+        if after:
+            return bad(f"Get EyeQ Versions asked again at {at(after[0].request.time)} after a "
+                       f"positive reply at {at(answered[0].reply.time)} "  # type: ignore[union-attr]
+                       f"({len(reqs)} requests in one ignition cycle, MAPC-67299 step 12)")
+    return ok(f"{len(reqs)} request(s) in the ignition cycle, none after the positive reply "
+              "(an EyeQ reset in between)")
+
+
+def host_fatal22(ctx: Context, trs: dict[str, Trace]) -> Outcome:
+    judged = []
+    for name, tr in trs.items():
+        fatal = [m for m in tr.our_msgs("EYEQ_DIAGNOSTIC_MSG")
+                 if m.fields.get("Fatal_Error") == FATAL_INTRINSIC]
+        if not fatal:
+            continue
+        t = fatal[0].time
+        reads = [m for m in tr.dut_msgs("FFSReadFile") if is_request(m) and m.time >= t
+                 and m.fields.get("filename") == EEPROM_FILE]
+        if not reads or reads[0].time - t > 1.0:
+            return bad(f"session {name}: Fatal_Error 22 reported at {at(t)}, no FFS Read File "
+                       f"of {EEPROM_FILE} within 1 s (§7.1.3 step 4)")
+        judged.append(f"{name}: Fatal 22 at {at(t)} -> FFS read at {at(reads[0].time)}")
+    if not judged:
+        return unsure("Fatal 22 was never reported")
+    return ok("; ".join(judged))
+
+
+def host_eeprom_bad(ctx: Context, tr: Trace) -> Outcome:
+    served = [m for m in tr.our_msgs("FFSReadFile") if is_reply(m)]
+    if not served:
+        return unsure("the host did not read the EEPROM, so its reaction to a bad CRC is unknown")
+    t = served[0].time
+    later = [m for m in tr.dut_msgs() if m.time > t and (
+        m.name in ("EventCalibrationTool", "SwitchEyeQApplication", "HOST_VEH_STATE_MSG"))]
+    resets = [r.time for r in tr.marks_of("reset_line") if r.time > t]
+    if later:
+        return bad(f"EEPROM with a bad CRC-16 served at {at(t)}, yet the host sent {later[0].name}"
+                   f" at {at(later[0].time)} (§7.1.3 step 6: the unit is failed)")
+    if resets:
+        return bad(f"EEPROM with a bad CRC-16 served at {at(t)}, yet the host reset us at "
+                   f"{at(resets[0])}")
+    return ok(f"EEPROM with a bad CRC-16 served at {at(t)}; the host stopped (no init, switch, "
+              f"reset or HOST_VEH_STATE_MSG for {tr.end - t:.2f} s)")
+
+
+def host_boot_resets(ctx: Context, tr: Trace) -> Outcome:
+    mark = tr.first_mark("resets")
+    if mark is None:
+        return skip("the boot-failure session did not run")
+    times = list(mark.info["times"])
+    boots = len(tr.our_msgs("EYEQ_BOOT_STATUS_MSG"))
+    if len(times) > 3:
+        return bad(f"{len(times)} resets after failing boots ({', '.join(at(t) for t in times)})"
+                   "; at most 3")
+    return ok(f"{boots} failing boot status message(s), {len(times)} reset(s), then the host "
+              f"stopped (watched until {at(tr.end)})")
+
+
+def host_eyeq_reset(ctx: Context, tr: Trace) -> Outcome:
+    mark = tr.first_mark("our_reset")
+    if mark is None:
+        return skip("we did not reset")
+    t = mark.time
+    inits = [m for m in tr.dut_msgs("EventCalibrationTool") if is_request(m) and m.time > t]
+    stages = [m.fields.get("ct_stage") for m in inits]
+    if 0x92 not in stages:
+        return bad(f"we reset at {at(t)}; the host sent no Init_Params_Vision (0x92) afterwards "
+                   f"(init stages seen: {stages})")
+    t92 = inits[stages.index(0x92)].time
+    veh = [m for m in tr.dut_msgs("HOST_VEH_STATE_MSG") if m.time > t92]
+    if not veh:
+        return bad(f"after our reset at {at(t)} and 0x92 at {at(t92)}, no HOST_VEH_STATE_MSG")
+    return ok(f"we reset at {at(t)}; init {', '.join(f'0x{s:02X}' for s in stages)} again, "
+              f"HOST_VEH_STATE_MSG from {at(veh[0].time)}")
+
+
+def host_stale(ctx: Context, tr: Trace) -> Outcome:
+    mark = tr.first_mark("stale_end")
+    if mark is None:
+        return skip("no DASP stream was stopped")
+    detected = mark.info["detected"]
+    stream = mark.info["stream"]
+    if detected is None:
+        return unsure(f"{stream} stopped at {at(tr.first_mark('stale_start').time)}: a host "  # type: ignore[union-attr]
+                      "under test reports stale streams off the SPI link, so this is not "
+                      "observable here")
+    if not detected:
+        return bad(f"{stream} silent for {mark.time - tr.first_mark('stale_start').time:.2f} s "  # type: ignore[union-attr]
+                   "and the host did not flag it as stale")
+    return ok(f"{stream} stopped; flagged stale by {at(mark.time)}")
+
+
+def host_init_order(ctx: Context, tr: Trace) -> Outcome:
+    pending = [m for m in tr.our_msgs("EYEQ_DIAGNOSTIC_MSG") if m.fields.get("Main_State") == 1]
+    reqs = [m for m in tr.dut_msgs("EventCalibrationTool") if is_request(m)]
+    if not reqs:
+        return unsure("the host sent no init message")
+    if not pending or reqs[0].time < pending[0].time:
+        return bad(f"init request #{reqs[0].indices[0]} at {at(reqs[0].time)} before we "
+                   "reported Pending Vision (MAPC-67299 step 8)")
+    stages = [m.fields.get("ct_stage") for m in reqs]
+    if 0x84 in stages and 0x92 in stages and stages.index(0x92) < stages.index(0x84):
+        return bad(f"0x92 sent before 0x84 (order {stages}; §7.1.3 steps 1-2)")
+    accepted = [rep.time for req, rep in _ect_replies(_swap(tr), 0x92) if ret_of(rep) == 0]
+    veh = tr.dut_msgs("HOST_VEH_STATE_MSG")
+    if veh and (not accepted or veh[0].time < accepted[0]):
+        return bad(f"HOST_VEH_STATE_MSG #{veh[0].indices[0]} at {at(veh[0].time)} before 0x92 "
+                   "was accepted (MAPC-67299 step 11)")
+    return ok(f"init after Pending Vision, order {[f'0x{s:02X}' for s in stages[:4]]}, "
+              "HOST_VEH_STATE_MSG only after 0x92 was accepted")
+
+
+def _swap(tr: Trace) -> Trace:
+    """The same trace seen from the other side (requests from the DUT, replies from us), for
+    the MESP pairing helpers."""
+    view = Trace.__new__(Trace)
+    view.__dict__.update(tr.__dict__)
+    view.dut_dir, view.our_dir = tr.our_dir, tr.dut_dir
+    return view

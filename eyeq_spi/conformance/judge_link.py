@@ -1,0 +1,394 @@
+"""Judges of the link (§6, L1-L8, L6a) and transport (§6.1-6.2, T1-T6) cases. Each reads the
+trace of one session and returns a verdict with evidence: frame indices, times, expected and seen
+values."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import pairwise
+
+from eyeq_spi.conformance.trace import Trace, Xfer
+from eyeq_spi.conformance.verdict import Context, Outcome, at, bad, ok, skip, unsure
+from eyeq_spi.link.frame import SEQ_MODULO, NakReason
+from eyeq_spi.spec.link import link_spec
+
+_L = link_spec()
+_T = _L["transport"]
+W = int(_L["window"]["size"])
+ACK_TIMEOUT = float(_L["timing"]["ackTimeout"])
+TX_TIMEOUT = float(_L["timing"]["transmitTimeout"])
+RESYNC_NAKS = int(_L["window"]["resync_after_naks"])
+SINGLE, FIRST, CONSECUTIVE = (int(_T["types"][k]) for k in ("single", "first", "consecutive"))
+RESET_SETTLE = 0.3  # seconds after a reset in which frames may be lost or NAKed 0x001
+
+
+def _frame(x: Xfer) -> str:
+    return f"frame #{x.index} ({x.direction}, {at(x.time)}, NUM {x.num})"
+
+
+@dataclass
+class Answer:
+    frame: Xfer
+    reply: Xfer | None
+
+
+def answers(tr: Trace, slack: float) -> list[Answer]:
+    """Pair each 128-byte non-control frame we sent with the DUT's ACK/NAK naming its NUM."""
+    pending: dict[int, list[Xfer]] = {}
+    out: dict[int, Answer] = {}
+    limit = 5 * ACK_TIMEOUT + slack
+    for x in tr.xfers:
+        if x.direction == tr.our_dir and x.kind in ("DATA", "BAD"):
+            pending.setdefault(x.num, []).append(x)
+            out[x.index] = Answer(x, None)
+        elif x.direction == tr.dut_dir and x.kind in ("ACK", "NAK"):
+            queue = pending.get(x.rsp)
+            while queue and x.time - queue[0].time > limit:
+                queue.pop(0)
+            if queue:
+                out[queue.pop(0).index].reply = x
+    return list(out.values())
+
+
+def _near_reset(tr: Trace, t: float) -> bool:
+    return any(r - 0.05 <= t <= r + RESET_SETTLE for r in tr.resets())
+
+
+def _nak_reason(x: Xfer | None) -> int | None:
+    return x.num if x is not None and x.kind == "NAK" else None
+
+
+# -- link -------------------------------------------------------------------------------------
+def link_size(ctx: Context, tr: Trace) -> Outcome:
+    dut = [x for x in tr.xfers if x.direction == tr.dut_dir]
+    badlen = [x for x in dut if x.kind == "LEN"]
+    if badlen:
+        x = badlen[0]
+        return bad(f"{len(badlen)} of {len(dut)} transfers are not 128 bytes; first: "
+                   f"#{x.index} at {at(x.time)} is {len(x.data)} bytes")
+    if not dut:
+        return unsure("the DUT sent nothing")
+    return ok(f"all {len(dut)} transfers from the DUT are 128 bytes")
+
+
+def link_crc(ctx: Context, tr: Trace) -> Outcome:
+    dut = [x for x in tr.xfers if x.direction == tr.dut_dir and x.kind != "LEN"]
+    broken = [x for x in dut if not x.crc_ok or x.kind == "BAD"]
+    if broken:
+        x = broken[0]
+        f = tr.frames.decode(x.data)
+        want = tr.frames.compute_crc(f.d, x.data[:4], x.data[6:])
+        return bad(f"{len(broken)} of {len(dut)} frames invalid; first: {_frame(x)} D=0x{f.d:X} "
+                   f"R=0x{f.r:X} CRC 0x{f.crc:04X}, expected 0x{want:04X}")
+    return ok(f"{len(dut)} frames: CRC (L3 coverage), D and R valid")
+
+
+def link_num(ctx: Context, tr: Trace) -> Outcome:
+    last: int | None = None
+    n = 0
+    for x in tr.xfers:
+        if x.direction != tr.dut_dir or x.kind != "DATA":
+            continue
+        n += 1
+        if last is not None and x.num not in ((last + 1) % SEQ_MODULO, 0):
+            return bad(f"{_frame(x)}: expected NUM {(last + 1) % SEQ_MODULO} (or 0 after a "
+                       f"reset), saw {x.num}")
+        last = x.num
+    return ok(f"{n} DATA frames numbered +1 mod 4096") if n else unsure("no DATA frames")
+
+
+def link_ack(ctx: Context, tr: Trace) -> Outcome:
+    """After a reset, frames may be NAKed 0x001 (or lost) until the first ACK: LINK-RESYNC
+    judges that stretch."""
+    n = 0
+    resets = sorted(tr.resets())
+    resyncing_since: float | None = None
+    for a in answers(tr, ctx.slack):
+        x, r = a.frame, a.reply
+        while resets and resets[0] <= x.time:
+            resyncing_since = resets.pop(0)
+        if x.probe is not None or _near_reset(tr, x.time):
+            continue
+        if resyncing_since is not None:
+            if r is None or _nak_reason(r) == NakReason.OUT_OF_WINDOW:
+                continue
+            resyncing_since = None
+        n += 1
+        if r is None:
+            return bad(f"{_frame(x)} was never answered (no ACK with RSP {x.num})")
+        if r.kind != "ACK" or r.num != 0:
+            return bad(f"{_frame(x)} answered by {r.kind} #{r.index} NUM/reason {r.num}, "
+                       "expected an ACK with NUM 0")
+        if r.time - x.time > ACK_TIMEOUT + ctx.slack:
+            return bad(f"{_frame(x)}: ACK #{r.index} came {1e3 * (r.time - x.time):.2f} ms "
+                       f"later, after ackTimeout {1e3 * ACK_TIMEOUT:.0f} ms")
+    return ok(f"{n} DATA frames ACKed with RSP = NUM within ackTimeout") if n else \
+        unsure("none of our frames could be judged")
+
+
+def _probe_nak(ctx: Context, tr: Trace, labels: tuple[str, ...], reason: NakReason) -> Outcome:
+    found = [a for a in answers(tr, ctx.slack) if a.frame.probe in labels]
+    if not found:
+        return skip("the probe was not sent (its step did not run)")
+    parts = []
+    for a in found:
+        got = _nak_reason(a.reply)
+        if got != int(reason) or a.reply is None:
+            seen = "nothing" if a.reply is None else \
+                f"{a.reply.kind} #{a.reply.index} RSP {a.reply.rsp} NUM/reason 0x{a.reply.num:03X}"
+            return bad(f"probe {a.frame.probe} {_frame(a.frame)}: expected NAK 0x{reason:03X} "
+                       f"with RSP {a.frame.num}, saw {seen}")
+        parts.append(f"{a.frame.probe} #{a.frame.index} -> NAK #{a.reply.index}")
+    return ok("; ".join(parts))
+
+
+def nak_crc(ctx: Context, tr: Trace) -> Outcome:
+    return _probe_nak(ctx, tr, ("nak_crc",), NakReason.CRC_MISMATCH)
+
+
+def nak_format(ctx: Context, tr: Trace) -> Outcome:
+    return _probe_nak(ctx, tr, ("nak_format_d", "nak_format_r"), NakReason.FORMAT_ERROR)
+
+
+def nak_window(ctx: Context, tr: Trace) -> Outcome:
+    return _probe_nak(ctx, tr, ("nak_window",), NakReason.OUT_OF_WINDOW)
+
+
+def link_dup(ctx: Context, tr: Trace) -> Outcome:
+    pair = [a for a in answers(tr, ctx.slack) if a.frame.probe == "dup"]
+    if not pair:
+        return skip("the duplicate was not sent")
+    a = pair[0]
+    if a.reply is None or a.reply.kind != "ACK":
+        seen = "nothing" if a.reply is None else f"{a.reply.kind} #{a.reply.index}"
+        return bad(f"duplicate {_frame(a.frame)}: expected an ACK with RSP {a.frame.num} (L6), "
+                   f"saw {seen}")
+    mark = tr.first_mark("dup_request")
+    if tr.dut == "host" or mark is None:
+        return ok(f"duplicate {_frame(a.frame)} ACKed again by #{a.reply.index}; whether the "
+                  "host dropped its payload is not observable on the link")
+    tag = int(mark.info["tag"])
+    replies = [m for m in tr.dut_msgs() if m.decoded.protocol == "MESP"
+               and m.header.get("reply") and m.header.get("counter") == tag
+               and m.header.get("function") == mark.info["function"]
+               and mark.time <= m.time <= mark.time + 1.0]
+    if len(replies) != 1:
+        return bad(f"duplicate {_frame(a.frame)} ACKed, but the request was answered "
+                   f"{len(replies)} times (expected once: the duplicate is dropped)")
+    return ok(f"duplicate {_frame(a.frame)} ACKed again by #{a.reply.index} and dropped "
+              f"(one reply, #{replies[0].indices[-1]})")
+
+
+def link_resync(ctx: Context, tr: Trace) -> Outcome:
+    mark = tr.first_mark("our_reset")
+    if mark is None:
+        return skip("our reset was not simulated")
+    naks = 0
+    first_ack: Xfer | None = None
+    for a in answers(tr, ctx.slack):
+        if a.frame.time < mark.time or a.frame.probe is not None:
+            continue
+        if a.reply is None:
+            continue
+        if a.reply.kind == "ACK":
+            first_ack = a.reply
+            break
+        if _nak_reason(a.reply) == NakReason.OUT_OF_WINDOW:
+            naks += 1
+        else:
+            return bad(f"after our reset at {at(mark.time)}, {_frame(a.frame)} got "
+                       f"NAK 0x{a.reply.num:03X} (only 0x001 is expected before resync)")
+    if first_ack is None:
+        return bad(f"after our reset at {at(mark.time)} none of our frames was ACKed again")
+    if naks > RESYNC_NAKS:
+        return bad(f"{naks} NAKs 0x001 before resynchronising (L6: at most {RESYNC_NAKS})")
+    return ok(f"our reset at {at(mark.time)}: {naks} NAK(s) 0x001, then ACK #{first_ack.index} "
+              f"at {at(first_ack.time)}")
+
+
+def link_noresend(ctx: Context, tr: Trace) -> Outcome:
+    seen: dict[int, tuple[float, bytes, int]] = {}
+    n = 0
+    for x in tr.xfers:
+        if x.direction != tr.dut_dir or x.kind != "DATA":
+            continue
+        n += 1
+        prev = seen.get(x.num)
+        if prev is not None and prev[1] == x.data and x.time - prev[0] < 1.0:
+            return bad(f"{_frame(x)} repeats frame #{prev[2]} byte for byte "
+                       f"{1e3 * (x.time - prev[0]):.1f} ms later: a resend (§6, L7)")
+        seen[x.num] = (x.time, x.data, x.index)
+    return ok(f"{n} DATA frames, none resent") if n else unsure("no DATA frames")
+
+
+def link_window(ctx: Context, tr: Trace) -> Outcome:
+    """L7: at most W DATA frames unacknowledged, counting only frames younger than ackTimeout
+    (older ones are lost to the sender). Our answers are what the DUT sees."""
+    outstanding: dict[int, float] = {}
+    worst = 0
+    for x in tr.xfers:
+        if x.direction == tr.our_dir and x.kind in ("ACK", "NAK"):
+            outstanding.pop(x.rsp, None)
+        elif x.direction == tr.dut_dir and x.kind == "DATA":
+            horizon = x.time - (ACK_TIMEOUT - 0.0005) + (0.0 if not ctx.realtime else 0.005)
+            for num in [n for n, t in outstanding.items() if t <= horizon]:
+                del outstanding[num]
+            outstanding[x.num] = x.time
+            worst = max(worst, len(outstanding))
+            if len(outstanding) > W:
+                return bad(f"{_frame(x)}: {len(outstanding)} DATA frames unacknowledged within "
+                           f"ackTimeout (L7: at most {W})")
+    blackout = tr.first_mark("ack_blackout")
+    note = f" (ACK blackout at {at(blackout.time)})" if blackout else ""
+    return ok(f"at most {worst} DATA frames unacknowledged{note}")
+
+
+def _transfers(tr: Trace) -> list[tuple[Xfer, Xfer, int]]:
+    """(first frame, last frame seen, frames) of each multi-frame transfer the DUT sent."""
+    out: list[tuple[Xfer, Xfer, int]] = []
+    cur: list[Xfer] = []
+    for x in tr.xfers:
+        if x.direction != tr.dut_dir or x.kind != "DATA":
+            continue
+        t = x.ttype
+        if t == FIRST:
+            if cur:
+                out.append((cur[0], cur[-1], len(cur)))
+            cur = [x]
+        elif t == CONSECUTIVE and cur and x.data[7] == cur[0].data[7]:
+            cur.append(x)
+    if cur:
+        out.append((cur[0], cur[-1], len(cur)))
+    return out
+
+
+def link_txtimeout(ctx: Context, tr: Trace) -> Outcome:
+    slack = 0.001 if not ctx.realtime else 0.010
+    ts = _transfers(tr)
+    for first, last, n in ts:
+        if last.time - first.time > TX_TIMEOUT + slack:
+            return bad(f"transfer ID {first.data[7]}: first frame #{first.index} at "
+                       f"{at(first.time)}, frame {n} #{last.index} at {at(last.time)}: "
+                       f"{1e3 * (last.time - first.time):.1f} ms > transmitTimeout "
+                       f"{1e3 * TX_TIMEOUT:.0f} ms")
+    if not ts:
+        return ok("no multi-frame transfers: every message fitted one frame")
+    worst = max(last.time - first.time for first, last, _ in ts)
+    return ok(f"{len(ts)} multi-frame transfers, longest {1e3 * worst:.2f} ms "
+              f"(transmitTimeout {1e3 * TX_TIMEOUT:.0f} ms)")
+
+
+def link_gap(ctx: Context, tr: Trace) -> Outcome:
+    if not ctx.realtime:
+        return skip("judged on real time only (virtual time proves nothing about the wire)")
+    gap = float(_L["timing"]["frameFlowControl"][tr.dut])
+    data = [x for x in tr.xfers if x.direction == tr.dut_dir and x.kind == "DATA"]
+    span = 10  # a byte stream may deliver frames in bursts: judge the spacing of 10 frames
+    if len(data) <= span:
+        return unsure(f"only {len(data)} DATA frames")
+    worst = min(range(len(data) - span), key=lambda i: data[i + span].time - data[i].time)
+    mean = (data[worst + span].time - data[worst].time) / span
+    if mean < 0.8 * gap:
+        return bad(f"frames #{data[worst].index}..#{data[worst + span].index}: mean gap "
+                   f"{1e6 * mean:.0f} µs < frameFlowControl {1e6 * gap:.0f} µs")
+    return ok(f"{len(data)} DATA frames; tightest 10-frame mean gap {1e6 * mean:.0f} µs "
+              f">= {1e6 * gap:.0f} µs (less 20 % for stream jitter)")
+
+
+# -- transport --------------------------------------------------------------------------------
+def tp_format(ctx: Context, tr: Trace) -> Outcome:
+    limit = int(_T["receive_limit"]["host" if tr.dut == "eyeq" else "eyeq"])
+    open_id: int | None = None
+    interloper: Xfer | None = None
+    n = 0
+    for x in tr.xfers:
+        if x.direction != tr.dut_dir or x.kind != "DATA":
+            continue
+        n += 1
+        d, t = x.data, x.ttype
+        if t == SINGLE:
+            size = d[7]
+            if not 1 <= size <= _T["single_max"] or any(d[8 + size:]):
+                return bad(f"{_frame(x)}: single frame size {size}, pad not zero or size out "
+                           "of 1..120 (T2)")
+            if open_id is not None:
+                interloper = x
+        elif t == FIRST:
+            total = int.from_bytes(d[8:12], "little")
+            if not _T["first_total_min"] <= total <= limit:
+                return bad(f"{_frame(x)}: first frame total {total} outside "
+                           f"{_T['first_total_min']}..{limit} (T3)")
+            open_id, interloper = d[7], None
+        elif t == CONSECUTIVE:
+            if open_id is None or d[7] != open_id:
+                return bad(f"{_frame(x)}: consecutive frame ID {d[7]}, open transfer "
+                           f"{open_id} (T4)")
+            if interloper is not None:
+                return bad(f"{_frame(x)} continues transfer {open_id} after "
+                           f"frame #{interloper.index} interleaved (T5)")
+        else:
+            return bad(f"{_frame(x)}: transport type 0x{t:02X} (T1)")
+    return ok(f"{n} DATA frames with valid single/first/consecutive headers") if n else \
+        unsure("no DATA frames")
+
+
+def tp_tid(ctx: Context, tr: Trace) -> Outcome:
+    firsts = [x for x in tr.xfers if x.direction == tr.dut_dir and x.kind == "DATA"
+              and x.ttype == FIRST]
+    if len(firsts) < 2:
+        return unsure(f"{len(firsts)} multi-frame transfers: nothing to compare")
+    restarts = {x.index for x in tr.xfers if x.direction == tr.dut_dir and x.kind == "DATA"
+                and x.num == 0}
+    for a, b in pairwise(firsts):
+        if any(a.index < r <= b.index for r in restarts):
+            continue
+        if b.data[7] != (a.data[7] + 1) % _T["transfer_id_modulo"]:
+            return bad(f"transfer ID {a.data[7]} (#{a.index}) then {b.data[7]} (#{b.index}): "
+                       "expected +1 (T3)")
+    return ok(f"{len(firsts)} transfer IDs, each +1 mod 256")
+
+
+def _reply_to(tr: Trace, tag: int, since: float, function: int = 0x04) -> list[int]:
+    """``ret`` of every DUT reply to (0x05, ``function``) with counter ``tag`` within 1 s after
+    ``since`` (our probes use Get EyeQ Versions unless told otherwise)."""
+    out = []
+    for m in tr.dut_msgs():
+        h = m.header
+        if m.decoded.protocol == "MESP" and h.get("reply") and h.get("counter") == tag \
+                and h.get("function") == function and since <= m.time <= since + 1.0 \
+                and len(m.data) >= 9:
+            out.append(int.from_bytes(m.data[5:9], "little"))
+    return out
+
+
+def tp_limit(ctx: Context, tr: Trace) -> Outcome:
+    base = _probe_nak(ctx, tr, ("limit_over#0",), NakReason.FORMAT_ERROR)
+    if base.verdict != "pass" or tr.dut == "host":
+        return base
+    at_limit = tr.first_mark("limit_at")
+    if at_limit is None:
+        return base
+    from eyeq_spi.conformance.play_host import TAG_LIMIT
+
+    if not _reply_to(tr, TAG_LIMIT, at_limit.time):
+        return bad(f"{base.evidence}; but the {_T['receive_limit']['eyeq']}-byte request sent "
+                   f"at {at(at_limit.time)} was never answered (the limit itself must pass)")
+    return ok(f"{base.evidence}; a message of exactly the limit was reassembled and answered")
+
+
+def tp_abort(ctx: Context, tr: Trace) -> Outcome:
+    from eyeq_spi.conformance.play_host import TAG_CONTROL, TAG_GAP, TAG_SILENCE
+
+    marks = {m.label: m for m in tr.marks if m.label.startswith("abort_")}
+    if "abort_control" not in marks:
+        return skip("the transport probes were not sent")
+    if not _reply_to(tr, TAG_CONTROL, marks["abort_control"].time):
+        return unsure("the complete 300-byte control request got no reply either")
+    for label, tag in (("abort_gap", TAG_GAP), ("abort_silence", TAG_SILENCE)):
+        m = marks.get(label)
+        if m is not None and _reply_to(tr, tag, m.time):
+            why = "a NUM gap" if label == "abort_gap" else "25 ms of silence"
+            return bad(f"the request broken by {why} at {at(m.time)} was answered: the "
+                       "transfer was not aborted (T6)")
+    return ok("control request answered; the one with a NUM gap and the one with 40 ms of "
+              "silence were aborted (no reply)")

@@ -1,0 +1,288 @@
+"""Deliberately broken variants of our own simulated EyeQ and host: the proof that the suite
+can fail. Test-only (``--builtin --mutant NAME``). Each is a subclass, a wrapper of the link's
+output or of one message, or a configuration value: host and simulator internals are not
+edited. ``expected`` names the cases its bug violates; the CI matrix checks that exactly those
+fail and every other case still passes or stays as it is for the correct implementation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from eyeq_spi.host.host import HostConfig, HostEmulator
+from eyeq_spi.host.machine import HostEvent
+from eyeq_spi.host.nvm import Nvm
+from eyeq_spi.link.frame import DATA_SIZE, FrameCodec, FrameKind
+from eyeq_spi.sim.config import SimConfig
+from eyeq_spi.sim.eyeq import SimulatedEyeQ
+
+_FRAMES = FrameCodec()
+BOOT, RUNNING_VISION = 0x03, 0x02
+
+
+def builtin_eyeq_config(sw: str | None) -> SimConfig:
+    """Our simulated EyeQ as ``--builtin`` runs it: a light scene, 0.3 s calibrations."""
+    return SimConfig(sw=sw, objects=1, signs=1, light_spots=1, tac_duration=0.3)
+
+
+def _header(t: bytes) -> tuple[int, int, int, int]:
+    return _FRAMES.unpack_header(int.from_bytes(t[:4], "little"))
+
+
+# -- EyeQ mutants -----------------------------------------------------------------------------
+class _LinkOutput(SimulatedEyeQ):
+    """Rewrites the link's output transfers (ACK/NAK here) without touching the link."""
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        out = []
+        for t in super().data_to_send(now):
+            d, _, rsp, num = _header(t)
+            if d in (FrameKind.ACK, FrameKind.NAK):
+                t = self.control(t, d, rsp, num)
+            if t:
+                out.append(t)
+        return out
+
+    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
+        return t
+
+
+class NoAck(_LinkOutput):
+    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
+        return b"" if d == FrameKind.ACK and rsp % 4 == 3 else t  # every 4th ACK is lost
+
+
+class WrongRsp(_LinkOutput):
+    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
+        return _FRAMES.ack((rsp + 1) % 4096) if d == FrameKind.ACK else t
+
+
+class AckCrcRange(_LinkOutput):
+    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
+        crc = _FRAMES.crc(t[:4] + bytes(DATA_SIZE))  # pad included: L3 says header only
+        return t[:4] + crc.to_bytes(2, "little") + t[6:]
+
+
+class Resends(SimulatedEyeQ):
+    """Resends a DATA frame once when its ACK is late (the seed forbids it, §6)."""
+
+    def __init__(self, config: SimConfig | None = None) -> None:
+        super().__init__(config)
+        self._unacked: dict[int, tuple[float, bytes]] = {}
+
+    def receive_data(self, transfer: bytes, now: float) -> None:
+        if len(transfer) == 128:
+            d, _, rsp, _ = _header(transfer)
+            if d in (FrameKind.ACK, FrameKind.NAK):
+                self._unacked.pop(rsp, None)
+        super().receive_data(transfer, now)
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        out = super().data_to_send(now)
+        for t in out:
+            if _header(t)[0] == FrameKind.DATA:
+                self._unacked[_header(t)[3]] = (now, t)
+        for num, (sent, t) in list(self._unacked.items()):
+            if now - sent >= 0.011:
+                del self._unacked[num]
+                out.append(t)
+        return out
+
+    def get_timer(self) -> float | None:
+        t = super().get_timer()
+        if self._unacked:
+            due = min(s for s, _ in self._unacked.values()) + 0.011
+            t = due if t is None else min(t, due)
+        return t
+
+
+class _MessageOutput(SimulatedEyeQ):
+    """Rewrites whole application messages before the transport segments them."""
+
+    def _send(self, message: bytes, now: float) -> None:
+        super()._send(self.rewrite(message), now)
+
+    def rewrite(self, message: bytes) -> bytes:
+        return message
+
+
+class DaspCounterStuck(_MessageOutput):
+    def rewrite(self, message: bytes) -> bytes:
+        if message[:2] == b"\x65\xa0":
+            return message[:2] + b"\x00" + message[3:]  # 0xA0's counter never moves
+        return message
+
+
+class E2eWrong(_MessageOutput):
+    def rewrite(self, message: bytes) -> bytes:
+        if message[:2] != b"\x65\xe3":
+            return message
+        lay = self.codec.layout(self.codec.cat.message("EYEQ_VIS_AEB_INFO_MSG"))
+        o = 4 + lay.crc_plan[0].crc_offset
+        return message[:o] + bytes((message[o] ^ 0xFF,)) + message[o + 1:]
+
+
+class TagNotEchoed(SimulatedEyeQ):
+    def __init__(self, config: SimConfig | None = None) -> None:
+        super().__init__(config)
+        handle = self.server.handle
+
+        def wrapped(data: bytes) -> bytes | None:
+            reply = handle(data)
+            if reply is not None and reply[0] == 0x05 and reply[3] == 0x04:
+                reply = reply[:4] + bytes((0x80 | ((reply[4] + 1) & 0x3F),)) + reply[5:]
+            return reply
+        self.server.handle = wrapped  # type: ignore[method-assign]
+
+
+class InitBeforePending(SimulatedEyeQ):
+    def _calibration(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        if self.main_state == BOOT and p["ct_stage"] == 0x92:
+            return self._cal_result(0x92, 0, p)  # accepted while still booting
+        return super()._calibration(p)
+
+
+class RunningWithoutVehState(SimulatedEyeQ):
+    def _calibration(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        ret, out = super()._calibration(p)
+        if p["ct_stage"] == 0x92 and ret == 0 and not self.fatal_error:
+            self.main_state, self.sub_state = RUNNING_VISION, 0  # no HOST_VEH_STATE_MSG needed
+            self._next_dasp.clear()
+        return ret, out
+
+
+class ReceiveLimit(SimulatedEyeQ):
+    def __init__(self, config: SimConfig | None = None) -> None:
+        super().__init__(config)
+        self.conn.config.receive_limit = 8191  # the host's limit instead of 512
+
+
+# -- host mutants -----------------------------------------------------------------------------
+class NoEepromReread(HostEmulator):
+    def _on_read_eeprom(self, now: float) -> None:
+        if self.nvm.data.intrinsic:  # "the NVM already holds a calibration": gives up unread
+            self.problem = "Fatal 22 with a calibration in NVM"
+            self._fire(HostEvent.EEPROM_BAD, now, self.problem)
+            return
+        super()._on_read_eeprom(now)
+
+
+class VersionsEveryBringUp(HostEmulator):
+    def _on_wait_running(self, now: float) -> None:
+        self._versions_asked = False
+        super()._on_wait_running(now)
+
+
+class HostE2eWrong(HostEmulator):
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        send = self.conn.send
+        lay = self.codec.layout(self.codec.message("HOST_VEH_STATE_MSG"))
+        o = 4 + lay.crc_plan[0].crc_offset
+
+        def wrapped(message: bytes, now: float) -> int:
+            if message[:2] == b"\x65\x20":
+                message = message[:o] + bytes((message[o] ^ 0x01,)) + message[o + 1:]
+            return send(message, now)
+        self.conn.send = wrapped  # type: ignore[method-assign]
+
+
+@dataclass(frozen=True)
+class Mutant:
+    name: str
+    dut: str
+    bug: str
+    expected: frozenset[str]  # the cases this bug violates
+    eyeq: Callable[[SimConfig], SimulatedEyeQ] | None = None
+    host: Callable[[HostConfig, Nvm | None, Callable[[float], None]], HostEmulator] | None = None
+    sim_config: Callable[[SimConfig], None] | None = None
+    host_config: Callable[[HostConfig], None] | None = None
+
+
+def _m(name: str, dut: str, bug: str, expected: set[str], **kw: Any) -> Mutant:
+    return Mutant(name, dut, bug, frozenset(expected), **kw)
+
+
+def _set(**values: Any) -> Callable[[Any], None]:
+    def apply(cfg: Any) -> None:
+        for k, v in values.items():
+            setattr(cfg, k, v)
+    return apply
+
+
+def _host(cls: type[HostEmulator]) -> Callable[..., HostEmulator]:
+    return lambda cfg, nvm, line: cls(cfg, nvm=nvm, reset_line=line, keep_rx_times=False)
+
+
+MUTANTS: dict[str, Mutant] = {m.name: m for m in (
+    _m("eyeq-no-ack", "eyeq", "every 4th ACK is never sent", {"LINK-ACK"}, eyeq=NoAck),
+    _m("eyeq-wrong-rsp", "eyeq", "ACK RSP is the frame's NUM + 1",
+       {"LINK-ACK", "LINK-DUP", "LINK-RESYNC"}, eyeq=WrongRsp),
+    _m("eyeq-ack-crc-range", "eyeq", "ACK/NAK CRC computed over the pad bytes too",
+       {"LINK-CRC"}, eyeq=AckCrcRange),
+    _m("eyeq-resends", "eyeq", "a DATA frame not ACKed in time is sent again",
+       {"LINK-NORESEND"}, eyeq=Resends),
+    _m("eyeq-no-transmit-timeout", "eyeq", "queued frames wait 5 s instead of transmitTimeout",
+       {"LINK-TXTIMEOUT"}, sim_config=_set(transmit_timeout=5.0)),
+    _m("eyeq-receive-limit", "eyeq", "accepts 8191-byte messages (limit 512)", {"TP-LIMIT"},
+       eyeq=ReceiveLimit),
+    _m("eyeq-tag-not-echoed", "eyeq", "Get Versions replies carry counter + 1",
+       {"MESP-TAG"}, eyeq=TagNotEchoed),
+    _m("eyeq-reply-600ms", "eyeq", "Get Versions replies leave after 600 ms",
+       {"MESP-DEADLINE"}, sim_config=_set(delay_replies={"GetEyeQVersions": 0.6})),
+    _m("eyeq-dasp-counter-stuck", "eyeq", "the counter of 0xA0 stays 0", {"DASP-COUNTER"},
+       eyeq=DaspCounterStuck),
+    _m("eyeq-e2e-wrong", "eyeq", "crc_16 of EYEQ_VIS_AEB_INFO_MSG is wrong", {"DASP-E2E"},
+       eyeq=E2eWrong),
+    _m("eyeq-diag-30hz", "eyeq", "0x41 at 30 Hz", {"DIAG-RATE"}, sim_config=_set(diag_rate=30)),
+    _m("eyeq-init-before-pending", "eyeq", "0x92 accepted while still booting",
+       {"FLOW-PENDING"}, eyeq=InitBeforePending),
+    _m("eyeq-running-without-veh-state", "eyeq",
+       "Running Vision right after 0x92, before any HOST_VEH_STATE_MSG", {"FLOW-RUNNING"},
+       eyeq=RunningWithoutVehState),
+    _m("host-veh-50hz", "host", "HOST_VEH_STATE_MSG at 50 Hz",
+       {"DASP-RATE-APP-HOST_VEH_STATE_MSG"}, host_config=_set(veh_state_rate=50.0)),
+    _m("host-no-eeprom-reread", "host", "on Fatal 22 with a calibration in NVM it gives up "
+       "without reading the EEPROM", {"HOST-FATAL22"}, host=_host(NoEepromReread)),
+    _m("host-versions-every-bring-up", "host", "asks Get Versions at every bring-up",
+       {"HOST-VERSIONS"}, host=_host(VersionsEveryBringUp)),
+    _m("host-e2e-wrong", "host", "crc_16 of host_vehicle_state_t is wrong", {"DASP-E2E"},
+       host=_host(HostE2eWrong)),
+    _m("host-endless-boot-resets", "host", "resets a failing EyeQ 10 times",
+       {"HOST-BOOT-RESETS"}, host_config=_set(boot_strikes=10)),
+)}
+
+
+def _mutant(name: str | None, dut: str) -> Mutant | None:
+    if name is None:
+        return None
+    m = MUTANTS.get(name)
+    if m is None or m.dut != dut:
+        from eyeq_spi.errors import UsageError
+
+        known = ", ".join(k for k, v in MUTANTS.items() if v.dut == dut)
+        raise UsageError(f"no {dut} mutant {name!r} (known: {known})")
+    return m
+
+
+def build_eyeq(name: str | None, sw: str | None) -> SimulatedEyeQ:
+    m = _mutant(name, "eyeq")
+    cfg = builtin_eyeq_config(sw)
+    if m is not None and m.sim_config is not None:
+        m.sim_config(cfg)
+    if m is not None and m.eyeq is not None:
+        return m.eyeq(cfg)
+    return SimulatedEyeQ(cfg)
+
+
+def build_host(name: str | None, sw: str | None, reset_line: Callable[[float], None],
+               nvm: Nvm | None) -> HostEmulator:
+    m = _mutant(name, "host")
+    cfg = HostConfig(sw=sw)
+    if m is not None and m.host_config is not None:
+        m.host_config(cfg)
+    if m is not None and m.host is not None:
+        return m.host(cfg, nvm, reset_line)
+    return HostEmulator(cfg, nvm=nvm, reset_line=reset_line, keep_rx_times=False)

@@ -1,0 +1,191 @@
+"""We play the EyeQ against a host under test: our :class:`SimulatedEyeQ` with the faults each
+session needs. A host session is one ignition cycle; a host behind a port reconnects for each.
+
+Sessions:
+
+- ``normal``: the host brings us up (an empty NVM meets our EEPROM: Fatal 22 and the §7.1.3
+  flow); while we boot, an unsolicited Get Extended State reply claiming Pending Vision is sent
+  (M1: it must be ignored); in Running Vision we probe the host's link, stop one DASP stream for
+  a while (stale detection) and finally reset ourselves (the host must bring us up again);
+- ``eeprom_bad``: Fatal 22 is reported and the EEPROM we serve has a bad CRC-16: the host must
+  read it and stop (§7.1.3 step 6);
+- ``boot_fail``: every boot reports failing test bits: at most 3 resets, then the host stops.
+
+A reset is either a pulse on the reset line (``--builtin`` wires it) or, for a host without one,
+Switch EyeQ Application to vision (the project's soft reset, README "Readings").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from eyeq_spi.codec.message import is_mesp
+from eyeq_spi.conformance.session import Session
+from eyeq_spi.conformance.trace import Trace
+from eyeq_spi.sim.config import SimConfig
+from eyeq_spi.sim.eyeq import SimulatedEyeQ
+from eyeq_spi.spec.link import link_spec
+from eyeq_spi.transport.segment import segment
+
+_T = link_spec()["transport"]
+SWITCH = (0x05, 0x05)
+APP_VISION = 0x01
+STALE_STREAM = "EYEQ_VIS_SRP_MSG"
+PROBE_LINK_TAG = 1 << 40
+
+
+@dataclass
+class EyeqPlan:
+    accept_timeout: float = 30.0
+    bring_up_timeout: float = 15.0
+    steady: float = 1.5
+    stale_for: float = 0.6
+    after_reset: float = 4.0
+    boot_fail_watch: float = 6.0
+    eeprom_watch: float = 1.5
+
+
+class TesterEyeQ(SimulatedEyeQ):
+    """Our simulated EyeQ, counting reset requests: reset-line pulses and soft resets."""
+
+    def __init__(self, config: SimConfig | None = None, trace: Trace | None = None) -> None:
+        super().__init__(config)
+        self.trace = trace
+        self.reset_times: list[float] = []
+        self.app_started: list[float] = []
+
+    def reset_line(self, now: float) -> None:
+        """The host pulled our reset line: it restarts its own SPI driver too (README)."""
+        self.reset_times.append(now)
+        if self.trace is not None:
+            self.trace.mark(now, "reset_line")
+            self.trace.restart_passive(self.trace.our_dir)
+            self.trace.restart_passive(self.trace.dut_dir)
+        self.power_up(now)
+
+    def _start_app(self, now: float) -> None:
+        self.app_started.append(now)
+        super()._start_app(now)
+
+    def _on_message(self, data: bytes, now: float) -> None:
+        if is_mesp(data) and (data[0], data[3]) == SWITCH and not data[4] & 0x80 \
+                and data[5:6] == bytes([APP_VISION]):
+            self.reset_times.append(now)
+            if not self.app_running:
+                if self.trace is not None:
+                    self.trace.mark(now, "soft_reset")
+                    self.trace.restart_passive(self.trace.our_dir)
+                self.power_up(now)  # a soft reset while booting: boot again
+                return
+        super()._on_message(data, now)
+
+
+def tester_config(session: str, sw: str | None, fast: bool) -> SimConfig:
+    cfg = SimConfig(sw=sw, objects=1, signs=1, light_spots=1, app_start_delay=0.3)
+    if fast:
+        cfg.tac_duration = 0.3
+    if session == "eeprom_bad":
+        cfg.corrupt_eeprom_crc = True
+        cfg.fatal_error = 22
+    elif session == "boot_fail":
+        cfg.boot_failures = 1_000_000
+        cfg.boot_test_failures = 0x0002
+    return cfg
+
+
+class EyeqScript:
+    def __init__(self, s: Session, eyeq: TesterEyeQ, plan: EyeqPlan, session: str,
+                 wanted: set[str]) -> None:
+        self.s, self.eyeq, self.plan, self.session, self.wanted = s, eyeq, plan, session, wanted
+        self.trace = s.trace
+
+    def host_running(self) -> bool:
+        return self.eyeq.main_state == 0x02
+
+    def run(self) -> None:
+        s, eyeq, trace = self.s, self.eyeq, self.trace
+        trace.mark(s.now, "start", session=self.session)
+        eyeq.power_up(s.now)
+        if self.session == "normal":
+            self.normal()
+        elif self.session == "eeprom_bad":
+            s.run(0.3)
+            trace.mark(s.now, "fatal22", forced=True)
+            s.wait(lambda: any(m.name == "FFSReadFile" and m.header.get("reply")
+                               for m in trace.msgs if m.direction == trace.our_dir), 5.0)
+            trace.mark(s.now, "eeprom_served")
+            s.run(self.plan.eeprom_watch)
+        else:
+            s.run(self.plan.boot_fail_watch)
+        trace.mark(s.now, "resets", times=list(eyeq.reset_times))
+
+    def normal(self) -> None:
+        s, eyeq, trace, plan = self.s, self.eyeq, self.trace, self.plan
+        # an unmatched reply while we boot (M1): claims Pending Vision with a tag never used
+        if s.wait(lambda: eyeq.main_state == 0x03 and bool(trace.our_msgs()), 5.0):
+            polls = [m for m in trace.dut_msgs() if m.name == "GetEyeQExtendedState"]
+            tag = ((polls[-1].header["counter"] + 32) & 0x3F) if polls else 0x2A
+            bogus = eyeq.server.codec.encode_reply("GetEyeQExtendedState", tag, 0,
+                                                   {"mainState": 0x01, "subState": 0x92})
+            eyeq.conn.send(bogus, s.now)
+            trace.mark(s.now, "unmatched_reply", tag=tag)
+        if not s.wait(self.host_running, plan.bring_up_timeout):
+            trace.mark(s.now, "bring_up_failed")
+            return
+        trace.mark(s.now, "running")
+        s.run(plan.steady)
+        trace.mark(s.now, "steady_end")
+        if "link" in self.wanted:
+            self.link_probes()
+        t = s.now
+        eyeq.config.stop_dasp[STALE_STREAM] = t
+        trace.mark(t, "stale_start", stream=STALE_STREAM)
+        s.run(plan.stale_for)
+        detected = None
+        if self.s.dut is not None:  # --builtin: our host's public view
+            detected = STALE_STREAM in self.s.dut.stale_streams
+        trace.mark(s.now, "stale_end", stream=STALE_STREAM, detected=detected)
+        del eyeq.config.stop_dasp[STALE_STREAM]
+        s.run(0.3)
+        t = s.now
+        trace.mark(t, "our_reset")
+        eyeq.power_up(t)
+        trace.restart_passive(trace.our_dir)
+        s.run(plan.after_reset)
+        trace.mark(s.now, "after_reset_end")
+
+    def link_probes(self) -> None:
+        s, shim, trace, link = self.s, self.s.shim, self.trace, self.eyeq.conn.link
+        t0 = s.now
+        shim.probe("nak_crc", num=link.next_num, bad_crc=True)
+        s.run(0.03)
+        shim.probe("nak_format_d", num=link.next_num, d=0x1)
+        s.run(0.03)
+        shim.probe("nak_format_r", num=link.next_num, r=0x1)
+        s.run(0.03)
+        shim.probe("nak_window", num=link.next_num + 2048)
+        s.run(0.03)
+        # a stale MESP reply (tag never used): harmless to a host, single frame, duplicated
+        stale = self.eyeq.server.codec.encode_reply("GetEyeQVersions", 0x3F, 0, {
+            "apiVersionMajor": 0, "apiVersionMinor": 0, "eyeqSwVersionMajor": 0,
+            "eyeqSwVersionMinor": 0})
+        first = segment(stale, 0)[0]
+        shim.watch(first, "dup", "duplicate")
+        link.send(first, PROBE_LINK_TAG, s.now)
+        trace.mark(s.now, "dup_request")
+        s.run(0.05)
+        limit = int(_T["receive_limit"][trace.dut])
+        # a first frame announcing one byte more than the host may receive (T6: NAK 0x011)
+        over = bytes([_T["types"]["first"], 0xC1]) + (limit + 1).to_bytes(4, "little") \
+            + bytes(_T["first_chunk"])
+        shim.watch(over, "limit_over#0")
+        link.send(over, PROBE_LINK_TAG + 1, s.now)
+        trace.mark(s.now, "limit_over")
+        s.run(0.05)
+        trace.fault(t0, s.now, "probes")
+        t1 = s.now
+        shim.hold_acks_until = t1 + 0.06
+        trace.mark(t1, "ack_blackout", until=t1 + 0.06)
+        s.run(0.2)
+        trace.fault(t1, t1 + 0.06, "ack_blackout")
+

@@ -1,0 +1,243 @@
+"""We play the host against an EyeQ under test: our :class:`HostEmulator` brings it up, and the
+script below adds the probes the cases judge. Every probe leaves a mark in the trace.
+
+Script (each step only when the cases that need it are selected):
+
+1. bring-up: ignition on with an empty NVM, so a conformant EyeQ reports Fatal 22 for the
+   zero 0x84 and the §7.1.3 flow runs; an EventCalibrationTool 0x92 is sent as soon as the boot
+   status arrives (before Pending Vision: it must be refused); HOST_VEH_STATE_MSG is held back for
+   ``hold_veh`` after init, so Running Vision must wait for it (MAPC-67299 step 11);
+2. steady Running Vision (rates, counters, E2E);
+3. MESP: every M3 function, bad parameters, an unknown function and service;
+4. link and transport: bad CRC, invalid D and R, a NUM outside the window, a duplicate, a first
+   frame above the receive limit and one at it, a multi-frame request with a NUM gap and one with
+   25 ms of silence, an ACK blackout, our own driver reset;
+5. flows: TAC, SPC and DV round trips (holding each mode for its DASP rates).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from eyeq_spi.codec.init_params import init_message
+from eyeq_spi.conformance.session import Session
+from eyeq_spi.host.host import HostConfig, HostEmulator
+from eyeq_spi.host.machine import HostState
+from eyeq_spi.link.frame import FrameKind
+from eyeq_spi.spec.link import link_spec
+from eyeq_spi.transport.segment import segment
+
+S = HostState
+_T = link_spec()["transport"]
+
+# MESP tag counters reserved for raw probes (M1: 0..63); our host's own client never has a
+# request of the same service/function outstanding while one of these is in flight.
+TAG_EARLY_INIT, TAG_BAD_SWITCH, TAG_BAD_HASH, TAG_UNKNOWN_FN, TAG_UNKNOWN_SVC = 63, 62, 61, 60, 59
+TAG_LIMIT, TAG_CONTROL, TAG_GAP, TAG_SILENCE, TAG_DUP = 58, 57, 56, 55, 54
+PROBE_LINK_TAG = 1 << 40  # link tags of raw probe frames: far above any transport message id
+EDR_EXAMPLE = {"edr_type": 6, "edr_policy": 1, "edr_function": 4, "edr_params_num": 1,
+               "params": b"\x01"}  # M4, the seed's "Trigger LB1" example
+
+
+@dataclass
+class HostPlan:
+    """Timings of the script. The defaults suit a real EyeQ; ``--builtin`` shortens them."""
+
+    bring_up_timeout: float = 15.0
+    hold_veh: float = 0.3  # HOST_VEH_STATE_MSG held back after 0x92 (Running Vision must wait)
+    steady: float = 1.5  # seconds of Running Vision watched for rates
+    mode_timeout: float = 10.0  # TAC/SPC results, DV entry, back to vision
+    mode_hold: float = 0.8  # seconds in TAC/SPC watched for their rates
+
+
+class TesterHost(HostEmulator):
+    """Our host emulator with one change for the tester: HOST_VEH_STATE_MSG starts ``hold``
+    seconds after the init messages instead of at once."""
+
+    def __init__(self, *args: Any, hold: float = 0.0, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        self.hold = hold
+        self._hold_until = float("-inf")
+
+    def _on_wait_running(self, now: float) -> None:
+        self._hold_until = now + self.hold
+        super()._on_wait_running(now)
+
+    def _send_veh_state(self, now: float) -> None:
+        if now >= self._hold_until:
+            super()._send_veh_state(now)
+
+
+def make_tester(sw: str | None, plan: HostPlan) -> TesterHost:
+    return TesterHost(HostConfig(sw=sw), hold=plan.hold_veh)
+
+
+class HostScript:
+    def __init__(self, s: Session, host: TesterHost, plan: HostPlan, wanted: set[str]) -> None:
+        self.s, self.host, self.plan, self.wanted = s, host, plan, wanted
+        self.trace = s.trace
+        self.codec = host.mesp.codec
+
+    # -- helpers ---------------------------------------------------------------------------
+    def raw(self, function: str, tag: int, params: dict[str, Any] | None = None,
+            extra: bytes = b"") -> bytes:
+        return self.codec.encode_request(function, tag, params or {}) + extra
+
+    def send_raw(self, label: str, message: bytes) -> None:
+        self.trace.mark(self.s.now, label, tag=message[4], service=message[0],
+                        function=message[3])
+        self.host.conn.send(message, self.s.now)
+
+    def link_payloads(self, label: str, payloads: list[bytes], *, drop: int | None = None
+                      ) -> None:
+        """Queue transport payloads straight on our link (our NUMs, our pacing)."""
+        for i, p in enumerate(payloads):
+            self.s.shim.watch(p, f"{label}#{i}", "drop" if i == drop else "label")
+            self.host.conn.link.send(p, PROBE_LINK_TAG + len(self.trace.marks), self.s.now)
+        self.trace.mark(self.s.now, label, frames=len(payloads))
+
+    def seen_boot(self) -> bool:
+        return any(m.name == "EYEQ_BOOT_STATUS_MSG" for m in self.trace.dut_msgs())
+
+    # -- the script ------------------------------------------------------------------------
+    def run(self) -> None:
+        s, host, plan = self.s, self.host, self.plan
+        self.trace.mark(s.now, "start")
+        host.start(s.now)
+        if s.wait(self.seen_boot, 5.0) and "early_init" in self.wanted:
+            params = init_message(0x92, host.sw, host.codec.cat)
+            assert params.codec is not None
+            body = params.codec.encode({})
+            self.send_raw("early_init", self.raw("EventCalibrationTool", TAG_EARLY_INIT, {
+                "ct_type": params.ct_type, "ct_stage": 0x92,
+                "ct_version": params.ct_version(body), "params": body}))
+        running = s.wait(lambda: host.state is S.RUNNING_VISION or host.state is S.FAILED,
+                         plan.bring_up_timeout)
+        if not running or host.state is not S.RUNNING_VISION:
+            self.trace.mark(s.now, "bring_up_failed", state=host.state.value,
+                            problem=host.problem)
+            return
+        self.trace.mark(s.now, "running")
+        s.run(plan.steady)
+        self.trace.mark(s.now, "steady_end")
+        if "mesp" in self.wanted:
+            self.mesp_probes()
+        if "link" in self.wanted:
+            self.link_probes()
+        if "flows" in self.wanted:
+            for mode in ("TAC", "SPC", "DV"):
+                if not self.mode_round_trip(mode):
+                    break
+
+    def mesp_probes(self) -> None:
+        s, host = self.s, self.host
+        requests: list[tuple[str, dict[str, Any]]] = [
+            ("GetEyeQExtendedState", {}), ("GetEyeQVersions", {}),
+            ("FFSReadFile", {"filename": "/mesp/eeprom.data1"}),
+            ("ComputeHash", {"hashType": 1, "datasetType": 0, "start": 0, "size": 4096}),
+            ("ComputeHash", {"hashType": 0, "datasetType": 0, "start": 0, "size": 4096}),
+            ("SendParamsToCalibrationTool", EDR_EXAMPLE),
+        ]
+        for fn, params in requests:
+            host.mesp.request(fn, params, now=s.now)
+            s.run(0.06)
+        self.send_raw("bad_params", self.raw("SwitchEyeQApplication", TAG_BAD_SWITCH,
+                                             {"applicationId": 0x7E}))
+        s.run(0.06)
+        hash_req = self.raw("ComputeHash", TAG_BAD_HASH,
+                            {"hashType": 1, "datasetType": 0, "start": 0, "size": 16})
+        self.send_raw("bad_params", hash_req[:-6])  # truncated: start and size cut short
+        s.run(0.06)
+        self.send_raw("unknown_function", bytes((0x05, 0x5E, 0x05, 0x7F, TAG_UNKNOWN_FN)))
+        s.run(0.06)
+        self.send_raw("unknown_service", bytes((0x09, 0x5E, 0x09, 0x01, TAG_UNKNOWN_SVC)))
+        s.run(0.1)
+
+    def link_probes(self) -> None:
+        s, host, shim, trace = self.s, self.host, self.s.shim, self.trace
+        link = host.conn.link
+        t0 = s.now
+        shim.probe("nak_crc", num=link.next_num, bad_crc=True)
+        s.run(0.03)
+        shim.probe("nak_format_d", num=link.next_num, d=0x1)
+        s.run(0.03)
+        shim.probe("nak_format_r", num=link.next_num, r=0x1)
+        s.run(0.03)
+        shim.probe("nak_window", num=link.next_num + 2048)
+        s.run(0.03)
+        dup = self.raw("GetEyeQExtendedState", TAG_DUP)
+        shim.watch(segment(dup, 0)[0], "dup", "duplicate")
+        self.send_raw("dup_request", dup)
+        s.run(0.1)
+        limit = int(_T["receive_limit"][trace.dut])
+        junk = bytes(range(256)) * 40
+        over = self.raw("GetEyeQVersions", TAG_LIMIT) + junk
+        self.link_payloads("limit_over", segment(over[: limit + 1], 0xC1)[:1])
+        s.run(0.05)
+        self.link_payloads("limit_at", segment(over[:limit], 0xC2))
+        s.run(0.15)
+        for label, tag, tid, drop in (("abort_control", TAG_CONTROL, 0xC3, None),
+                                      ("abort_gap", TAG_GAP, 0xC4, 1)):
+            msg = (self.raw("GetEyeQVersions", tag) + junk)[:300]
+            self.link_payloads(label, segment(msg, tid), drop=drop)
+            s.run(0.2)
+        msg = (self.raw("GetEyeQVersions", TAG_SILENCE) + junk)[:300]
+        parts = segment(msg, 0xC5)
+        self.link_payloads("abort_silence", parts[:2])
+        s.run(0.04)  # > 25 ms of silence (T6)
+        self.link_payloads("abort_silence_tail", parts[2:])
+        s.run(0.2)
+        trace.fault(t0, s.now, "probes")
+        # ACK blackout: we ACK nothing for 60 ms (L7 window, transmitTimeout, no resend)
+        t1 = s.now
+        shim.hold_acks_until = t1 + 0.06
+        trace.mark(t1, "ack_blackout", until=t1 + 0.06)
+        s.run(0.2)
+        trace.fault(t1, t1 + 0.06, "ack_blackout")
+        # our own driver reset, as the DUT's receiver sees it: our NUMs start again at 0 (L4,
+        # L6). Our receive window is kept, so our host does not take the DUT for reset.
+        t2 = s.now
+        link.reset(tx_num=0, expected=link.expected_num)
+        trace.restart_passive(trace.our_dir)
+        trace.mark(t2, "our_reset")
+        s.run(0.15)
+        host.mesp.request("GetEyeQExtendedState", now=s.now)
+        trace.mark(s.now, "after_reset_request")
+        s.run(0.2)
+        trace.fault(t2, s.now, "our_reset")
+
+    def mode_round_trip(self, mode: str) -> bool:
+        s, host, plan, trace = self.s, self.host, self.plan, self.trace
+        target = {"TAC": S.RUNNING_TAC, "SPC": S.RUNNING_SPC, "DV": S.DV}[mode]
+        t0 = s.now
+        trace.mark(t0, "switch", mode=mode)
+        host.switch_mode(mode, s.now)
+
+        def reached() -> bool:
+            if host.state is S.FAILED:
+                return True
+            if mode == "DV":
+                return host.state is S.DV
+            return host.state is target and host.calibration_result is not None
+
+        ok = s.wait(reached, plan.mode_timeout) and host.state is not S.FAILED
+        entered = s.now
+        if ok:
+            s.run(plan.mode_hold if mode != "DV" else 0.2)
+        result = dict(host.calibration_result or {})
+        trace.mark(s.now, "mode_done", mode=mode, ok=ok, entered=entered,
+                   state=host.state.value, result=result, problem=host.problem)
+        if not ok:
+            return False
+        host.switch_mode("VISION", s.now)
+        back = s.wait(lambda: host.state in (S.RUNNING_VISION, S.FAILED), plan.mode_timeout)
+        back = back and host.state is S.RUNNING_VISION
+        trace.mark(s.now, "mode_back", mode=mode, ok=back, state=host.state.value)
+        if back:
+            s.run(0.2)
+        return back
+
+
+def link_kinds() -> tuple[int, int, int]:
+    return int(FrameKind.DATA), int(FrameKind.ACK), int(FrameKind.NAK)

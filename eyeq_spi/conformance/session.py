@@ -1,0 +1,72 @@
+"""One conformance session: our tester node behind the shim, facing the implementation under
+test, in virtual time (``--builtin``: the DUT is one of our own nodes on a memory pair) or in
+real time (the DUT is behind a phy adapter). A script drives it with :meth:`Session.run` and
+:meth:`Session.wait`, which are the only places time advances."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+from eyeq_spi.conformance.shim import Shim
+from eyeq_spi.conformance.trace import Trace
+from eyeq_spi.phy.base import Adapter
+from eyeq_spi.phy.memory import memory_pair
+from eyeq_spi.runner.node import Node
+from eyeq_spi.runner.realtime import RealTimeRunner
+from eyeq_spi.runner.virtual import VirtualRunner
+
+SLICE = 0.002  # how often a waiting script looks at the trace (seconds of session time)
+
+
+class Session:
+    def __init__(self, trace: Trace, tester: Node, *, dut: Node | None = None,
+                 adapter: Adapter | None = None) -> None:
+        if (dut is None) == (adapter is None):
+            raise ValueError("a session has either a built-in DUT node or an adapter")
+        self.trace = trace
+        self.tester = tester
+        self.shim = Shim(tester, trace)
+        self.dut: Any = dut
+        self.adapter = adapter
+        self._virtual: VirtualRunner | None = None
+        self._rt: RealTimeRunner | None = None
+        if dut is not None:
+            a, b = memory_pair()
+            self._virtual = VirtualRunner([(self.shim, a), (dut, b)])
+        else:
+            assert adapter is not None
+            t0 = time.monotonic()
+            self._rt = RealTimeRunner(self.shim, adapter, clock=lambda: time.monotonic() - t0,
+                                      max_wait=SLICE)
+
+    @property
+    def realtime(self) -> bool:
+        return self._rt is not None
+
+    @property
+    def now(self) -> float:
+        if self._virtual is not None:
+            return self._virtual.now
+        assert self._rt is not None
+        return self._rt.clock()
+
+    def run(self, seconds: float) -> None:
+        self.wait(lambda: False, seconds)
+
+    def wait(self, cond: Callable[[], bool], timeout: float) -> bool:
+        """Advance until ``cond()`` holds (True) or ``timeout`` seconds pass (False)."""
+        end = self.now + timeout
+        while not cond():
+            if self.now >= end - 1e-9:
+                return False
+            if self._virtual is not None:
+                self._virtual.run_until(min(end, self._virtual.now + SLICE))
+            else:
+                assert self._rt is not None
+                self._rt.step()
+        return True
+
+    def finish(self) -> None:
+        self.trace.end = max(self.trace.end, self.now)

@@ -1,0 +1,102 @@
+"""The fault-injecting link shim: a node wrapper between our own implementation (the tester) and
+the wire. Everything that crosses it is recorded in the trace; on the way out it can withhold
+our ACKs, drop or duplicate chosen DATA frames, and inject frames we crafted (bad CRC, invalid
+header, NUM outside the window) to provoke the error handling of the implementation under test.
+
+It never changes what our own stack believes: a dropped frame is simply never ACKed, so our link
+fails it after ackTimeout as it would on a real wire (L7).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+from eyeq_spi.conformance.trace import Trace
+from eyeq_spi.link.frame import DATA_SIZE, Frame, FrameCodec, FrameKind
+from eyeq_spi.runner.node import Node
+
+
+@dataclass
+class _Rule:
+    payload: bytes  # the data field (122 bytes) that identifies the frame
+    label: str
+    action: str  # "label" | "drop" | "duplicate"
+
+
+class Shim:
+    """A :class:`Node` that wraps the tester node and records both channels in ``trace``."""
+
+    def __init__(self, node: Node, trace: Trace) -> None:
+        self.node = node
+        self.trace = trace
+        self.frames = FrameCodec()
+        self.hold_acks_until = float("-inf")
+        self.withheld = 0
+        self._inject: deque[tuple[bytes, str]] = deque()
+        self._rules: list[_Rule] = []
+        self.dup_next_mesp = False
+
+    # -- scripting -------------------------------------------------------------------------
+    def watch(self, payload: bytes, label: str, action: str = "label") -> None:
+        """Label (or drop, or duplicate) the next DATA frame whose data field is ``payload``."""
+        self._rules.append(_Rule(payload.ljust(DATA_SIZE, b"\0"), label, action))
+
+    def inject(self, transfer: bytes, label: str) -> None:
+        self._inject.append((transfer, label))
+
+    def probe(self, label: str, *, num: int, rsp: int = 0, d: int = FrameKind.DATA, r: int = 0,
+              bad_crc: bool = False, data: bytes = b"\x00\x01\xff") -> int:
+        """Inject one crafted DATA-like frame with ``num``; returns its NUM."""
+        frame = Frame(d, r, rsp, num % 4096, data.ljust(DATA_SIZE, b"\0"))
+        raw = bytearray(self.frames.encode(frame))
+        if d not in (FrameKind.DATA, FrameKind.ACK, FrameKind.NAK):
+            # an invalid D is checked as DATA (specs/link.yaml crc.coverage.other)
+            crc = self.frames.crc(bytes(raw[:4]) + bytes(raw[6:]))
+            raw[4:6] = crc.to_bytes(2, "little")
+        if bad_crc:
+            raw[4] ^= 0x5A
+        self.inject(bytes(raw), label)
+        return frame.num
+
+    # -- node interface --------------------------------------------------------------------
+    def receive_data(self, transfer: bytes, now: float) -> None:
+        self.trace.record(self.trace.dut_dir, now, transfer)
+        self.node.receive_data(transfer, now)
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        out: list[bytes] = []
+        while self._inject:
+            raw, injected = self._inject.popleft()
+            self.trace.record(self.trace.our_dir, now, raw, injected)
+            out.append(raw)
+        for t in self.node.data_to_send(now):
+            label: str | None = None
+            kind = self.frames.unpack_header(int.from_bytes(t[:4], "little"))[0]
+            if kind in (FrameKind.ACK, FrameKind.NAK) and now < self.hold_acks_until:
+                self.withheld += 1
+                continue
+            if kind == FrameKind.DATA and self._rules:
+                body = t[6:]
+                for rule in self._rules:
+                    if rule.payload == body:
+                        self._rules.remove(rule)
+                        label = rule.label
+                        if rule.action == "drop":
+                            self.trace.mark(now, "dropped", probe=label)
+                            t = b""
+                        elif rule.action == "duplicate":
+                            self.trace.record(self.trace.our_dir, now, t)  # the original
+                            out.append(t)
+                        break
+                if not t:
+                    continue
+            self.trace.record(self.trace.our_dir, now, t, label)
+            out.append(t)
+        return out
+
+    def get_timer(self) -> float | None:
+        return self.node.get_timer()
+
+    def handle_timer(self, now: float) -> None:
+        self.node.handle_timer(now)

@@ -1,0 +1,191 @@
+"""Run the suite: select cases, run the sessions they need (our tester against the
+implementation under test), judge every selected case on the traces, return the results."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from eyeq_spi.conformance.cases import ALL_SESSIONS, Case, cases_for
+from eyeq_spi.conformance.play_eyeq import EyeqPlan, EyeqScript, TesterEyeQ, tester_config
+from eyeq_spi.conformance.play_host import HostPlan, HostScript, make_tester
+from eyeq_spi.conformance.session import Session
+from eyeq_spi.conformance.trace import Trace
+from eyeq_spi.conformance.verdict import Context, Outcome, skip
+from eyeq_spi.errors import AdapterError, EyeqError, UsageError
+from eyeq_spi.phy.base import Adapter
+
+HOST_SESSIONS = ("normal", "eeprom_bad", "boot_fail")
+
+
+@dataclass(frozen=True)
+class Result:
+    case: Case
+    outcome: Outcome
+
+    def record(self) -> dict[str, Any]:
+        c = self.case
+        return {"kind": "case", "id": c.id, "title": c.title, "section": c.section,
+                "requirement": c.requirement, "decision": c.decision,
+                "verdict": self.outcome.verdict, "evidence": self.outcome.evidence}
+
+
+@dataclass
+class Options:
+    dut: str  # "eyeq" (we play the host) or "host" (we play the EyeQ)
+    sw: str | None = None
+    builtin: bool = False
+    port: str | None = None  # --dut eyeq: pyserial URL of the EyeQ
+    adapter: Adapter | None = None  # --dut host: a listener or pty the host connects to
+    accept_timeout: float = 30.0
+    select: str | None = None  # -k EXPR
+    mutant: str | None = None  # test-only: a broken variant of our own implementation
+    host_plan: HostPlan = field(default_factory=HostPlan)
+    eyeq_plan: EyeqPlan = field(default_factory=EyeqPlan)
+    progress: Callable[[str], None] | None = None
+
+
+_TOKEN = re.compile(r"\(|\)|[^\s()]+")
+
+
+def selector(expr: str | None) -> Callable[[Case], bool]:
+    """``-k``: words match case-insensitively against ID, title, group and section; combine
+    with ``and``, ``or``, ``not`` and parentheses (pytest's -k, without its keywords)."""
+    if not expr:
+        return lambda c: True
+    tokens = _TOKEN.findall(expr)
+    parts: list[str] = []
+    words: list[str] = []
+    for t in tokens:
+        low = t.lower()
+        if low in ("and", "or", "not", "(", ")"):
+            parts.append(low)
+        elif re.fullmatch(r"[\w.\-:/]+", t):
+            parts.append(f"_w[{len(words)}] in _h")
+            words.append(low)
+        else:
+            raise UsageError(f"-k: unexpected {t!r}")
+    code_text = " ".join(parts)
+    try:
+        code = compile(code_text, "<-k>", "eval")
+    except SyntaxError:
+        raise UsageError(f"-k: cannot parse {expr!r}") from None
+
+    def match(c: Case) -> bool:
+        hay = " ".join((c.id, c.title, c.group, c.section)).lower()
+        return bool(eval(code, {"__builtins__": {}}, {"_w": words, "_h": hay}))
+    return match
+
+
+def select_cases(opts: Options) -> list[Case]:
+    keep = selector(opts.select)
+    chosen = [c for c in cases_for(opts.dut, opts.sw) if keep(c)]
+    if not chosen:
+        raise UsageError(f"-k {opts.select!r} selects no case for --dut {opts.dut}")
+    return chosen
+
+
+def run(opts: Options) -> list[Result]:
+    cases = select_cases(opts)
+    wanted = {n for c in cases for n in c.needs}
+    ctx = Context(opts.dut, realtime=not opts.builtin)
+    if opts.dut == "eyeq":
+        ctx.traces["main"] = _eyeq_session(opts, wanted, ctx)
+    else:
+        needed = {c.session_for("host") for c in cases}
+        if ALL_SESSIONS in needed:
+            needed |= {"normal", "eeprom_bad"}
+        for i, name in enumerate(s for s in HOST_SESSIONS if s in needed):
+            tr = _host_session(opts, name, wanted, ctx, first=i == 0)
+            if tr is not None:
+                ctx.traces[name] = tr
+    out = []
+    for c in cases:
+        out.append(Result(c, _judge(c, ctx)))
+    return out
+
+
+def _judge(c: Case, ctx: Context) -> Outcome:
+    name = c.session_for(ctx.dut)
+    if name == ALL_SESSIONS:
+        return c.judge(ctx, dict(ctx.traces)) if ctx.traces else \
+            skip("no session could run")
+    tr = ctx.traces.get(name)
+    if tr is None:
+        return skip(f"session {name!r} did not run (the host under test did not connect)")
+    return c.judge(ctx, tr)  # type: ignore[no-any-return]
+
+
+def _say(opts: Options, text: str) -> None:
+    if opts.progress is not None:
+        opts.progress(text)
+
+
+# -- the EyeQ under test: one session ---------------------------------------------------------
+def _eyeq_session(opts: Options, wanted: set[str], ctx: Context) -> Trace:
+    plan = opts.host_plan
+    trace = Trace("eyeq", opts.sw, realtime=ctx.realtime)
+    tester = make_tester(opts.sw, plan)
+    if opts.builtin:
+        from eyeq_spi.conformance.mutants import build_eyeq
+
+        s = Session(trace, tester, dut=build_eyeq(opts.mutant, opts.sw))
+        s.dut.power_up(0.0)
+    else:
+        if opts.port is None:
+            raise UsageError("--dut eyeq needs --port URL (or --builtin)")
+        from eyeq_spi.phy.base import open_url
+
+        s = Session(trace, tester, adapter=open_url(opts.port))
+    _say(opts, "session main: we play the host")
+    try:
+        HostScript(s, tester, plan, wanted).run()
+    finally:
+        s.finish()
+        if s.adapter is not None:
+            s.adapter.close()
+    return trace
+
+
+# -- the host under test: one session per ignition cycle --------------------------------------
+def _host_session(opts: Options, name: str, wanted: set[str], ctx: Context, *,
+                  first: bool) -> Trace | None:
+    plan = opts.eyeq_plan
+    trace = Trace("host", opts.sw, realtime=ctx.realtime)
+    tester = TesterEyeQ(tester_config(name, opts.sw, fast=opts.builtin), trace)
+    if opts.builtin:
+        from eyeq_spi.conformance.mutants import build_host
+
+        dut = build_host(opts.mutant, opts.sw, tester.reset_line, ctx.builtin.get("nvm"))
+        ctx.builtin["nvm"] = dut.nvm  # one ECU: its NVM outlives the ignition cycle
+        s = Session(trace, tester, dut=dut)
+        dut.start(0.0)
+    else:
+        adapter = opts.adapter
+        if adapter is None:
+            raise UsageError("--dut host needs --listen tcp://HOST:PORT or --pty (or --builtin)")
+        accept: Any = getattr(adapter, "accept", None)
+        if not first:
+            drop: Any = getattr(adapter, "_drop", None)
+            if drop is None:
+                return None  # a pty cannot tell a new host from the old one: TCP only
+            drop()  # end the ignition cycle: the host under test reconnects
+        _say(opts, f"session {name}: waiting for the host to connect")
+        if accept is not None and not accept(opts.accept_timeout):
+            if first:
+                raise AdapterError(f"the host under test did not connect within "
+                                   f"{opts.accept_timeout} s")
+            return None
+        s = Session(trace, tester, adapter=adapter)
+    _say(opts, f"session {name}: we play the EyeQ")
+    try:
+        EyeqScript(s, tester, plan, name, wanted).run()
+    except EyeqError as exc:
+        if first:
+            raise
+        trace.mark(s.now, "session_error", error=str(exc))
+    finally:
+        s.finish()
+    return trace

@@ -1,0 +1,195 @@
+"""The conformance trace: every transfer on both SPI channels, in order, with its time, decoded
+as frames; the messages a passive receiver reassembles from each channel; and the marks the
+script leaves (probes sent, faults injected, resets). Judges read only this (and, for
+``--builtin``, the public state of our own implementations).
+
+Each channel has a passive receiver: a :class:`TransportConnection` in the role of the side that
+receives it, fed with the channel's DATA frames, so a message counts as sent exactly when a
+conformant receiver would have reassembled it. Its own ACK/NAK output goes nowhere.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from eyeq_spi.codec.message import DecodedMessage, MessageCodec
+from eyeq_spi.errors import FrameError
+from eyeq_spi.link.connection import LinkConfig
+from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
+from eyeq_spi.transport.connection import TransportConnection
+from eyeq_spi.transport.events import MessageReceived
+
+H2E, E2H = "h2e", "e2h"
+RECEIVER = {H2E: "eyeq", E2H: "host"}
+
+
+@dataclass(frozen=True, slots=True)
+class Xfer:
+    """One transfer on the wire. ``kind`` is DATA/ACK/NAK/BAD (invalid D or R)/LEN (not 128)."""
+
+    index: int
+    time: float
+    direction: str
+    data: bytes
+    kind: str
+    rsp: int
+    num: int
+    crc_ok: bool
+    probe: str | None = None  # the label of a frame we crafted or altered on purpose
+
+    @property
+    def ttype(self) -> int:
+        return self.data[6] if len(self.data) > 7 else -1
+
+
+@dataclass
+class Msg:
+    """A message the passive receiver reassembled. ``indices`` are its frames' trace indices."""
+
+    direction: str
+    data: bytes
+    indices: list[int]
+    t_first: float
+    time: float
+    decoded: DecodedMessage
+
+    @property
+    def name(self) -> str:
+        return self.decoded.name or self.decoded.protocol
+
+    @property
+    def header(self) -> dict[str, Any]:
+        return self.decoded.header
+
+    @property
+    def fields(self) -> dict[str, Any]:
+        return self.decoded.fields
+
+
+@dataclass(frozen=True, slots=True)
+class Mark:
+    time: float
+    label: str
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class _Passive:
+    conn: TransportConnection
+    index_of_num: dict[int, tuple[int, float]] = field(default_factory=dict)
+
+
+class Trace:
+    def __init__(self, dut: str, sw: str | None = None, *, realtime: bool = False) -> None:
+        self.dut = dut
+        self.dut_dir = E2H if dut == "eyeq" else H2E
+        self.our_dir = H2E if dut == "eyeq" else E2H
+        self.codec = MessageCodec(sw)
+        self.frames = FrameCodec()
+        self.realtime = realtime
+        self.xfers: list[Xfer] = []
+        self.msgs: list[Msg] = []
+        self.marks: list[Mark] = []
+        self.faults: list[tuple[float, float, str]] = []  # windows where we disturb the link
+        self.end = 0.0
+        self._passive: dict[str, _Passive] = {d: self._new_passive(d) for d in (H2E, E2H)}
+
+    @staticmethod
+    def _new_passive(direction: str) -> _Passive:
+        return _Passive(TransportConnection(LinkConfig(role=RECEIVER[direction])))  # type: ignore[arg-type]
+
+    # -- recording -------------------------------------------------------------------------
+    def mark(self, time: float, label: str, **info: Any) -> None:
+        self.marks.append(Mark(time, label, info))
+
+    def fault(self, start: float, end: float, label: str) -> None:
+        self.faults.append((start, end, label))
+
+    def restart_passive(self, direction: str) -> None:
+        """A side's SPI driver restarted (our simulated reset, or the DUT's): start over."""
+        self._passive[direction] = self._new_passive(direction)
+
+    def record(self, direction: str, time: float, data: bytes, probe: str | None = None) -> Xfer:
+        idx = len(self.xfers)
+        self.end = max(self.end, time)
+        kind, rsp, num, crc_ok = "LEN", -1, -1, False
+        if len(data) == FRAME_SIZE:
+            try:
+                f = self.frames.decode(data)
+            except FrameError:  # pragma: no cover - length checked above
+                f = None
+            if f is not None:
+                rsp, num, crc_ok = f.rsp, f.num, self.frames.crc_ok(data, f)
+                k = f.kind
+                kind = k.name if k is not None and f.r == 0 else "BAD"
+        x = Xfer(idx, time, direction, bytes(data), kind, rsp, num, crc_ok, probe)
+        self.xfers.append(x)
+        if kind in ("DATA", "BAD") and crc_ok:
+            self._feed(x)
+        return x
+
+    def _feed(self, x: Xfer) -> None:
+        p = self._passive[x.direction]
+        conn = p.conn
+        if x.kind == "DATA" and x.num == 0 and x.rsp == 0 and conn.link.expected_num != 0:
+            # L4: NUM 0 and RSP 0 again: that side's driver restarted (a reset we did not see)
+            self.restart_passive(x.direction)
+            p = self._passive[x.direction]
+            conn = p.conn
+        timer = conn.get_timer()
+        if timer is not None and timer <= x.time:
+            conn.handle_timer(x.time)
+        if x.kind == "DATA":
+            p.index_of_num[x.num] = (x.index, x.time)
+        conn.receive_data(x.data, x.time)
+        conn.data_to_send(float("inf"))
+        while (ev := conn.next_event()) is not None:
+            if isinstance(ev, MessageReceived):
+                where = [p.index_of_num.get(n, (x.index, x.time)) for n in ev.frames]
+                decoded = self.codec.decode(ev.data)
+                self.msgs.append(Msg(x.direction, ev.data, [i for i, _ in where],
+                                     where[0][1], x.time, decoded))
+
+    # -- queries ---------------------------------------------------------------------------
+    def dut_msgs(self, name: str | None = None) -> list[Msg]:
+        return [m for m in self.msgs if m.direction == self.dut_dir
+                and (name is None or m.name == name)]
+
+    def our_msgs(self, name: str | None = None) -> list[Msg]:
+        return [m for m in self.msgs if m.direction == self.our_dir
+                and (name is None or m.name == name)]
+
+    def marks_of(self, label: str) -> list[Mark]:
+        return [m for m in self.marks if m.label == label]
+
+    def first_mark(self, label: str) -> Mark | None:
+        for m in self.marks:
+            if m.label == label:
+                return m
+        return None
+
+    def disturbed(self, t0: float, t1: float, settle: float = 0.15) -> bool:
+        """True if [t0, t1] touches a fault window (plus ``settle`` seconds after it)."""
+        return any(t0 <= end + settle and t1 >= start for start, end, _ in self.faults)
+
+    def resets(self) -> list[float]:
+        return [m.time for m in self.marks
+                if m.label in ("our_reset", "reset_line", "soft_reset", "dut_reset")]
+
+    def at(self, index: int) -> Xfer:
+        return self.xfers[index]
+
+    def kinds(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for x in self.xfers:
+            out[x.kind] = out.get(x.kind, 0) + 1
+        return out
+
+
+def is_data(x: Xfer) -> bool:
+    return x.kind == "DATA"
+
+
+def is_control(x: Xfer) -> bool:
+    return x.kind in (FrameKind.ACK.name, FrameKind.NAK.name)

@@ -1,0 +1,52 @@
+"""Verdicts and the context judges read."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from eyeq_spi.conformance.trace import Trace
+
+Verdict = Literal["pass", "fail", "skip", "inconclusive"]
+VERDICTS: tuple[Verdict, ...] = ("pass", "fail", "skip", "inconclusive")
+
+
+@dataclass(frozen=True)
+class Outcome:
+    verdict: Verdict
+    evidence: str
+
+
+def ok(evidence: str) -> Outcome:
+    return Outcome("pass", evidence)
+
+
+def bad(evidence: str) -> Outcome:
+    return Outcome("fail", evidence)
+
+
+def unsure(evidence: str) -> Outcome:
+    return Outcome("inconclusive", evidence)
+
+
+def skip(evidence: str) -> Outcome:
+    return Outcome("skip", evidence)
+
+
+@dataclass
+class Context:
+    """What the judges see: one trace per session, and whether time was real."""
+
+    dut: str
+    realtime: bool
+    traces: dict[str, Trace] = field(default_factory=dict)
+    builtin: dict[str, Any] = field(default_factory=dict)  # our own DUT objects, per session
+
+    @property
+    def slack(self) -> float:
+        """Extra seconds granted to deadlines measured across a real byte stream."""
+        return 0.05 if self.realtime else 1e-6
+
+
+def at(t: float) -> str:
+    return f"t={t:.4f}s"
