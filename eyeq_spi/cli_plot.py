@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +37,8 @@ def add_plot_parser(sub: Any) -> None:
                    help="--birdseye: metres ahead (default: fitted)")
     p.add_argument("--lateral", dest="lateral_m", type=float, metavar="M",
                    help="--birdseye: metres to each side (default: fitted)")
+    p.add_argument("--name", metavar="REGEX",
+                   help="--timing: only messages whose name matches (default: all periodic)")
     p.add_argument("--bin", dest="bin_ms", type=float, default=100.0, metavar="MS",
                    help="--link: time bin (default 100 ms)")
     p.add_argument("--start", type=float, default=0.0, metavar="S", help="window start, s")
@@ -93,6 +96,10 @@ def run_plot(args: argparse.Namespace) -> int:
             raise UsageError(f"--{name.split('_')[0]} must be positive")
     if args.max_frames < 1 or args.start < 0 or not args.end > args.start:
         raise UsageError("need --max-frames >= 1 and 0 <= --start < --end")
+    try:
+        name_re = re.compile(args.name) if args.name else None
+    except re.error as exc:
+        raise UsageError(f"--name: bad regular expression: {exc}") from None
     out = args.output or _default_output(args, kind)
     check_output(out, animated=args.animate)
     mpl()  # fail before reading a large capture when matplotlib is missing
@@ -104,6 +111,8 @@ def run_plot(args: argparse.Namespace) -> int:
                     and not args.animate else None,
                     fps=args.fps if args.animate else None, max_frames=args.max_frames)
     data = collect(args.capture, col, fmt=args.format, direction=args.direction)
+    if name_re is not None:
+        data.streams = {k: v for k, v in data.streams.items() if name_re.search(k)}
     title = f"{Path(args.capture).name}: {kind}"
     if args.birdseye:
         from eyeq_spi.plot.birdseye import animation, birdseye

@@ -101,7 +101,7 @@ def _frame(ax: Any, range_m: float, lateral_m: float) -> None:
 def draw_scene(ax: Any, scene: Scene, range_m: float, lateral_m: float,
                title: str | None = None) -> None:
     from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch, Polygon, Rectangle
+    from matplotlib.patches import FancyArrowPatch, Patch, Polygon, Rectangle
 
     ax.clear()
     _frame(ax, range_m, lateral_m)
@@ -117,9 +117,9 @@ def draw_scene(ax: Any, scene: Scene, range_m: float, lateral_m: float,
         cx = o.lat + math.sin(o.heading) * o.length / 2
         cy = o.long + math.cos(o.heading) * o.length / 2
         if o.v_long or o.v_lat:  # drawn under the box: only the part outside it shows
-            ax.annotate("", xy=(cx + o.v_lat * ARROW_S, cy + o.v_long * ARROW_S),
-                        xytext=(cx, cy), zorder=4,
-                        arrowprops={"arrowstyle": "-|>", "color": "#000000", "lw": 1.2})
+            ax.add_patch(FancyArrowPatch(
+                (cx, cy), (cx + o.v_lat * ARROW_S, cy + o.v_long * ARROW_S), zorder=4,
+                arrowstyle="-|>", mutation_scale=10, color="#000000", linewidth=1.2))
         ax.add_patch(Polygon(box_corners(o), closed=True, facecolor=class_colour(o.cls),
                              edgecolor=CIPV_EDGE if o.cipv else "#202020",
                              linewidth=3.0 if o.cipv else 0.6, zorder=5))

@@ -1,0 +1,190 @@
+#!/usr/bin/env python3
+"""What the live monitor costs the emulator: each figure with and without the monitor.
+
+1. ``demo --virtual-time``: CPU seconds per simulated second (host + EyeQ), baseline = the
+   emulation alone, in slices as ``eyeq-spi demo`` runs it.
+2. ``demo`` in real time: how far virtual time trails the wall clock (worst lag), the obstacle
+   message rate and the link errors, and the redraw rate the monitor achieved.
+3. ``host`` against ``eyeq-spi sim`` over TCP (two processes, real link timers): the host's
+   link error counters (sendFailed, CRC, sequence) and MESP timeouts, the obstacle rate, and
+   the redraw rate.
+
+With the monitor, screens are written as to a 150x60 terminal (ANSI, rich ``Live``) into
+/dev/null. Each case runs ``--runs`` times; figures are median and spread (min..max) and the
+ratio of the medians with/without. Run from the repository root: ``python tools/bench_monitor.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import socket
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from eyeq_spi.emulator import build  # noqa: E402
+from eyeq_spi.monitor.app import run  # noqa: E402
+from eyeq_spi.monitor.sources import DemoSource, HostSource  # noqa: E402
+
+OBST = "EYEQ_VIS_OBSTACLES_MSG"
+
+
+def _console() -> Any:
+    from rich.console import Console
+
+    sink = open(os.devnull, "w")  # noqa: SIM115 - lives as long as the console
+    return Console(file=sink, force_terminal=True, width=150, height=60,
+                   color_system="truecolor")
+
+
+def _fmt(xs: list[float], unit: str = "", spec: str = ".3f") -> str:
+    return (f"{statistics.median(xs):{spec}}{unit} "
+            f"({min(xs):{spec}}..{max(xs):{spec}})")
+
+
+def _ratio(a: list[float], b: list[float]) -> str:
+    base = statistics.median(b)
+    return f"x{statistics.median(a) / base:.2f}" if base else "-"
+
+
+def virtual(duration: float) -> tuple[float, float]:
+    """CPU s per simulated s: (without, with) the monitor."""
+    emu = build(keep_rx_times=False)
+    c0 = time.process_time()
+    while emu.runner.now < duration - 1e-9:
+        emu.run_for(0.25)
+    base = (time.process_time() - c0) / duration
+    emu = build(keep_rx_times=False)
+    c0 = time.process_time()
+    run(DemoSource(emu, duration, realtime=False), console=_console())
+    return base, (time.process_time() - c0) / duration
+
+
+def realtime(duration: float, monitor: bool) -> dict[str, float]:
+    emu = build(keep_rx_times=False)
+    lag = 0.0
+    redraws = 0
+    w0 = time.perf_counter()
+    if monitor:
+        src = DemoSource(emu, duration, realtime=True)
+
+        def on_draw(_s: Any) -> None:
+            nonlocal lag
+            lag = max(lag, (time.perf_counter() - src.start) - emu.runner.now)
+
+        redraws = run(src, console=_console(), on_draw=on_draw).redraws
+    else:
+        t = 0.0
+        while t < duration:  # exactly run_demo's loop
+            step = min(0.25, duration - t)
+            emu.run_for(step, realtime=True)
+            t += step
+            lag = max(lag, (time.perf_counter() - w0) - emu.runner.now)
+    wall = time.perf_counter() - w0
+    link = emu.host.conn.link.counters.seed_view()
+    return {"lag_ms": lag * 1e3, "obst_hz": emu.host.counters.received[OBST] / duration,
+            "link_errors": float(sum(link.values())), "redraw_hz": redraws / wall,
+            "wall_s": wall}
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def host_tcp(duration: float, monitor: bool) -> dict[str, float]:
+    from eyeq_spi.host.host import HostEmulator
+    from eyeq_spi.phy.base import open_url
+    from eyeq_spi.runner.realtime import RealTimeRunner
+
+    port = _free_port()
+    sim = subprocess.Popen([sys.executable, "-m", "eyeq_spi.cli", "sim", "--listen",
+                            f"tcp://127.0.0.1:{port}", "--duration", str(duration + 5)],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                           text=True)
+    try:
+        assert sim.stdout is not None
+        line = sim.stdout.readline()
+        m = re.search(r"(socket://\S+)", line)
+        if not m:
+            raise SystemExit(f"sim did not say where it listens: {line!r}")
+        host = HostEmulator(keep_rx_times=False)
+        adapter = open_url(m.group(1))
+        runner = RealTimeRunner(host, adapter, max_wait=0.01)
+        src = HostSource(host, runner, duration, on_close=adapter.close)
+        w0 = time.perf_counter()
+        if monitor:
+            redraws = run(src, console=_console()).redraws
+        else:
+            while not src.done:
+                src.advance(time.perf_counter() + 0.2)
+            src.close()
+            redraws = 0
+        wall = time.perf_counter() - w0
+    finally:
+        sim.kill()
+        sim.wait(10)
+    link = host.conn.link.counters.seed_view()
+    # the rate while in Running Vision (bring-up over real link timers takes a while)
+    since = [t.time for t in host.transitions if t.dst.value == "RUNNING_VISION"]
+    running = src.now - (since[0] - src.start) if since else 0.0
+    return {"obst_hz": host.counters.received[OBST] / running if running > 0 else 0.0,
+            "link_errors": float(sum(link.values())),
+            "mesp_timeouts": float(host.mesp.counters.timeouts), "redraw_hz": redraws / wall,
+            "state_ok": float(host.state.value == "RUNNING_VISION")}
+
+
+def _pairs(fn: Callable[[bool], dict[str, float]], runs: int) -> tuple[dict[str, list[float]],
+                                                                         dict[str, list[float]]]:
+    without: dict[str, list[float]] = {}
+    with_: dict[str, list[float]] = {}
+    for _ in range(runs):
+        for flag, out in ((False, without), (True, with_)):
+            for k, v in fn(flag).items():
+                out.setdefault(k, []).append(v)
+    return without, with_
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--duration", type=float, default=5.0, help="seconds per real-time run")
+    ap.add_argument("--virtual", type=float, default=20.0, help="simulated seconds per run")
+    args = ap.parse_args()
+    print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+
+    base, mon = [], []
+    for _ in range(args.runs):
+        a, b = virtual(args.virtual)
+        base.append(a)
+        mon.append(b)
+    print(f"demo --virtual-time, CPU s per simulated s: without {_fmt(base)}, "
+          f"with monitor {_fmt(mon)} ({_ratio(mon, base)})")
+
+    wo, wi = _pairs(lambda m: realtime(args.duration, m), args.runs)
+    print(f"demo real time, {args.duration:g} s:")
+    for k in ("lag_ms", "obst_hz", "link_errors"):
+        print(f"  {k:12s} without {_fmt(wo[k])}  with {_fmt(wi[k])}  ({_ratio(wi[k], wo[k])})")
+    print(f"  redraws/s with monitor {_fmt(wi['redraw_hz'], spec='.2f')}")
+
+    wo, wi = _pairs(lambda m: host_tcp(args.duration, m), args.runs)
+    print(f"host against sim over TCP, {args.duration:g} s:")
+    for k in ("obst_hz", "link_errors", "mesp_timeouts", "state_ok"):
+        print(f"  {k:12s} without {_fmt(wo[k])}  with {_fmt(wi[k])}  ({_ratio(wi[k], wo[k])})")
+    print(f"  redraws/s with monitor {_fmt(wi['redraw_hz'], spec='.2f')}")
+    print(f"load average at end: {os.getloadavg()[0]:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
