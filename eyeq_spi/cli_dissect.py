@@ -44,6 +44,9 @@ def add_dissect_parser(sub: Any) -> None:
     d.add_argument("--errors-only", action="store_true",
                    help="only bad frames, link events and messages with errors")
     d.add_argument("--no-tree", action="store_true", help="no field tree in the human view")
+    from eyeq_spi.logic.options import add_spi_arguments
+
+    add_spi_arguments(d)
     w = sub.add_parser("wireshark", help="generate the Wireshark Lua dissector from specs/")
     w.add_argument("--output", "-o", metavar="FILE.lua", type=ca.output_file,
                    help="write the dissector here (default: standard output)")
@@ -85,6 +88,7 @@ def run_dissect(args: argparse.Namespace) -> int:
     from eyeq_spi.dissect.inputs import open_records
     from eyeq_spi.dissect.output import HumanWriter, JsonWriter, TableWriter
     from eyeq_spi.dissect.stats import Stats
+    from eyeq_spi.logic.options import spi_options_from
 
     if args.csv and args.parquet:
         raise UsageError("give --csv or --parquet, not both")
@@ -109,7 +113,7 @@ def run_dissect(args: argparse.Namespace) -> int:
         for path in args.files:
             fh = _open(path)
             try:
-                _, records = open_records(fh, args.format, args.direction)
+                _, records = open_records(fh, args.format, args.direction, spi_options_from(args))
                 dis = Dissector(codec=codec)
                 for r in _with_progress(_all(dis, records), fh, path,
                                         stdout_busy=bool(writers) and table is None):

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Run every check CI runs: tshark (installed if missing), ruff, mypy --strict, the import-layer
-contract, the specs schema, then pytest. Exits non-zero on the first failure; pytest's exit
+"""Run every check CI runs: tshark and sigrok-cli (installed if missing), ruff, mypy --strict,
+the import-layer contract, the specs schema, then pytest. Exits non-zero on the first failure; pytest's exit
 code 5 (no tests collected) is a failure too."""
 
 from __future__ import annotations
@@ -33,8 +33,25 @@ def ensure_tshark() -> None:
     subprocess.call(["apt-get", "install", "-y", "-qq", "tshark"], env=env)
 
 
+def ensure_sigrok() -> None:
+    """The sigrok decoder test (tests/test_bench_sigrok.py) runs Debian's sigrok-cli with its
+    libsigrokdecode (package libsigrokdecode4, pulled in by sigrok-cli): installed like tshark;
+    otherwise that test skips and says why."""
+    if shutil.which("sigrok-cli"):
+        return
+    if shutil.which("apt-get") is None or not hasattr(os, "geteuid") or os.geteuid() != 0:
+        print("==> sigrok-cli missing and cannot be installed here: its tests will be skipped")
+        return
+    env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
+    print("==> installing sigrok-cli and libsigrokdecode4 (apt-get)", flush=True)
+    subprocess.call(["apt-get", "update", "-qq"], env=env)
+    subprocess.call(["apt-get", "install", "-y", "-qq", "sigrok-cli", "libsigrokdecode4"],
+                    env=env)
+
+
 def main() -> int:
     ensure_tshark()
+    ensure_sigrok()
     py = sys.executable
     steps: list[tuple[str, list[str]]] = [
         ("ruff", [py, "-m", "ruff", "check", "eyeq_spi", "tests", "tools"]),

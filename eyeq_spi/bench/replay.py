@@ -60,6 +60,16 @@ class ReplayEyeQ:
         if self._next is None:
             raise ReplayError("the capture has no e2h transfer (EyeQ channel) to replay")
 
+    def begin(self, now: float) -> None:
+        """Start the replay clock at ``now`` (after slow set-up such as loading the specs)."""
+        shift = now - self.start
+        self.start = now
+        self._last_at += shift
+        if self.offset is not None:
+            self.offset += shift
+        if self._next_at is not None:
+            self._next_at += shift
+
     # -- the capture --------------------------------------------------------------------
     def _advance(self) -> None:
         for rec in self._src:
@@ -177,22 +187,37 @@ def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
 def replay_to_port(records: Iterable[Record], url: str, *, duration: float | None = None,
                    connect_timeout: float = 30.0) -> dict[str, Any]:
     """Play the capture's EyeQ channel to a host under test at ``url`` in real time."""
+    import sys
     import time
 
+    from eyeq_spi.errors import LinkLostError
     from eyeq_spi.phy.base import open_url
     from eyeq_spi.runner.realtime import RealTimeRunner
 
     adapter = open_url(url, timeout=connect_timeout)
+    lost: str | None = None
     try:
-        node = ReplayEyeQ(records, start=time.monotonic(), duration=duration)
+        accept = getattr(adapter, "accept", None)
+        if accept is not None:  # a listener: the capture starts when the host is there
+            print(f"replay: waiting for the host at {getattr(adapter, 'url', url)}",
+                  file=sys.stderr, flush=True)
+            if not accept(connect_timeout):
+                raise ReplayError(f"no host connected to {url} within {connect_timeout} s")
+        node = ReplayEyeQ(records, duration=duration)
         runner = RealTimeRunner(node, adapter)
         t0 = time.monotonic()
-        runner.run(stop=lambda: node.done)
-        runner.run(0.05)  # the host's last ACKs
+        node.begin(t0)
+        try:
+            runner.run(stop=lambda: node.done)
+            # the host's last answers: until every played frame is answered, at most 1 s
+            runner.run(1.0, stop=lambda: node.host_acks + node.host_naks.total() >= node.played)
+        except LinkLostError as exc:
+            lost = str(exc)
         wall = time.monotonic() - t0
     finally:
         adapter.close()
     out = {"mode": "port", "url": url, "wall_s": round(wall, 3),
-           "max_lateness_ms": round(node.lateness_max * 1e3, 3), **node.summary()}
-    out["ok"] = node.done
+           "max_lateness_ms": round(node.lateness_max * 1e3, 3), **node.summary(),
+           "link_lost": lost}
+    out["ok"] = node.done and lost is None
     return out

@@ -20,8 +20,10 @@ from typing import IO
 from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Record, read_pcapng
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec
+from eyeq_spi.logic.options import LogicInputError, SpiOptions
 
-FORMATS = ("raw", "hex", "pcapng")
+LOGIC_FORMATS = ("saleae2", "saleae1", "vcd")  # logic-analyzer captures (eyeq_spi.logic)
+FORMATS = ("raw", "hex", "pcapng", *LOGIC_FORMATS)
 _HEX_LINE = re.compile(
     rb"^\s*(?:[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?\s+)?(?:(?:h2e|e2h)\s+)?[0-9A-Fa-f:\s]*$"
 )
@@ -64,6 +66,9 @@ def detect(head: bytes) -> str:
         raise InputError("empty input")
     if head[:4] == PCAPNG_MAGIC:
         return "pcapng"
+    logic = _sniff_logic(head)
+    if logic is not None:
+        return logic
     sample = head[:2048]
     lines = sample.split(b"\n")
     if len(lines) > 1:
@@ -86,11 +91,14 @@ def detect(head: bytes) -> str:
 
 
 def open_records(stream: IO[bytes], fmt: str | None = None,
-                 direction: str | None = None) -> tuple[str, Iterator[Record]]:
+                 direction: str | None = None, spi: SpiOptions | None = None
+                 ) -> tuple[str, Iterator[Record]]:
     peek = PeekStream(stream)
     kind = fmt or detect(peek.head)
     if kind not in FORMATS:
         raise InputError(f"unknown format {kind!r}")
+    if kind in LOGIC_FORMATS:
+        return kind, _logic(peek, kind, spi or SpiOptions(direction=direction))
     if kind == "pcapng":
         if peek.head[:4] != PCAPNG_MAGIC:
             raise InputError("not a pcapng file")
@@ -100,6 +108,25 @@ def open_records(stream: IO[bytes], fmt: str | None = None,
     if not peek.head:
         raise InputError("empty input")
     return kind, _raw(peek, direction)
+
+
+def _sniff_logic(head: bytes) -> str | None:
+    from eyeq_spi.logic import saleae, vcd
+
+    return saleae.sniff(head) or vcd.sniff(head)
+
+
+def _logic(peek: PeekStream, kind: str, spi: SpiOptions) -> Iterator[Record]:
+    from eyeq_spi.logic import saleae, vcd
+
+    if not peek.head:
+        raise InputError("empty input")
+    read = {"saleae2": saleae.read_saleae2, "saleae1": saleae.read_saleae1,
+            "vcd": vcd.read_vcd}[kind]
+    try:
+        yield from read(peek, spi)
+    except LogicInputError as exc:
+        raise InputError(f"{kind}: {exc}") from None
 
 
 MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)

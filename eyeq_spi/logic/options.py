@@ -14,7 +14,7 @@ from eyeq_spi.spec.link import spec_file
 DIRECTIONS = ("h2e", "e2h")
 LINES = ("mosi", "miso")
 SIGNALS = ("cs", "clk", "mosi", "miso")
-MAX_TRANSFER = 65536  # bytes kept per transfer: a chip select that never rises is an error
+MAX_TRANSFER = 4096  # bytes kept per transfer (32 frames); a CS that never rises is an error
 
 
 class LogicInputError(EyeqError):

@@ -21,6 +21,9 @@ from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, Route, SpiOptions, bench_spec
 
 
+MAX_LINE = 1 << 16
+
+
 class ByteSource(Protocol):
     def read(self, n: int = -1) -> bytes: ...
 
@@ -43,8 +46,8 @@ def text_lines(src: ByteSource, chunk: int = 1 << 16) -> Iterator[str]:
             if buf:
                 yield buf.decode("utf-8", "replace")
             return
-        if len(buf) > MAX_TRANSFER * 8:
-            raise LogicInputError("line longer than 512 KiB: not a Saleae export")
+        if len(buf) > MAX_LINE:
+            raise LogicInputError("line longer than 64 KiB: not a Saleae export")
 
 
 def _norm(cells: list[str]) -> list[str]:

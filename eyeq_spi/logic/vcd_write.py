@@ -158,6 +158,10 @@ class VcdWriter:
 
     def close(self) -> None:
         self._flush(None)
+        # a last timestamp after the last change, or readers that turn changes into samples
+        # (libsigrok) never see the last CS rising edge
+        self.last_tick += 2 * self.half
+        self.fh.write(f"#{self.last_tick}\n")
 
 
 def write_vcd(records: Iterable[Record], fh: IO[str], opts: SpiOptions | None = None,
