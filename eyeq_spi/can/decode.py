@@ -100,7 +100,7 @@ class CanDecoder:
         if len(data) != spec.dlc:
             rec["errors"].append(f"DLC {len(data)}, spec {spec.dlc}")
             # decode what is there
-            data = (data + bytes(spec.dlc - len(data)))[:spec.dlc]
+            data = (data + bytes(max(spec.dlc - len(data), 0)))[:spec.dlc]
         try:
             raw = dbm.decode(data, decode_choices=False, scaling=False)
         except Exception as exc:  # cantools on a malformed payload

@@ -96,6 +96,12 @@ def physical_to_raw(sig: CanSignal, value: Any, counters: GatewayCounters | None
     if sig.is_float:
         return v
     raw = round((v - sig.offset) / sig.scale)
+    # rounding must not leave the printed range (127.93 -> 127.9375): one raw step back
+    step = 1 if sig.scale > 0 else -1
+    if sig.max is not None and raw * sig.scale + sig.offset > sig.max + 1e-12:
+        raw -= step
+    if sig.min is not None and raw * sig.scale + sig.offset < sig.min - 1e-12:
+        raw += step
     rlo, rhi = sig.raw_limits
     if not rlo <= raw <= rhi:
         note("clamped")
