@@ -1,0 +1,123 @@
+"""Start-up time of the CLI: ``--help``, ``spec list``, ``spec show``, usage errors and ``dissect``
+of a 20-transfer file, each as a fresh process (what a user waits for).
+
+    python tools/bench_startup.py [--runs N] [--before REV]
+
+Each command runs ``--runs`` times after one warm-up run (which also fills the catalogue cache);
+the table gives the median and the spread (min..max) of the wall time, the ratio of the median
+to an in-run baseline (``python -c pass`` with the same interpreter: the floor no CLI can beat),
+and the median CPU time (user + system), which a loaded machine disturbs less than wall time.
+``--before REV`` also runs the commands against ``git archive REV`` of this repository (for example
+the commit before issue 10's start-up work) in a temporary directory, for a before/after table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def commands(small_hex: str, small_pcapng: str) -> list[tuple[str, list[str]]]:
+    return [
+        ("--help", ["--help"]),
+        ("spec list", ["spec", "list"]),
+        ("spec show EYEQ_VIS_OBSTACLES_MSG", ["spec", "show", "EYEQ_VIS_OBSTACLES_MSG"]),
+        ("spec show 0xE4", ["spec", "show", "0xE4"]),
+        ("usage error: demo --fatal 999", ["demo", "--fatal", "999"]),
+        ("usage error: demo --stop-dasp FOO@3", ["demo", "--stop-dasp", "FOO@3"]),
+        ("usage error: host --port socket://x", ["host", "--port", "socket://127.0.0.1"]),
+        ("usage error: dissect --id zz", ["dissect", "--id", "zz", small_hex]),
+        ("dissect 20 transfers (hex)", ["dissect", small_hex]),
+        ("dissect 20 transfers (pcapng) --json", ["dissect", small_pcapng, "--json"]),
+    ]
+
+
+def time_one(argv: list[str], env: dict[str, str], runs: int) -> tuple[list[float], list[float]]:
+    """Wall and CPU (user + system) seconds of each run of ``argv`` as a child process."""
+    wall: list[float] = []
+    cpu: list[float] = []
+    subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   check=False)  # warm-up: page cache, .pyc files, catalogue cache
+    for _ in range(runs):
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t = time.perf_counter()
+        subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                       check=False)
+        wall.append(time.perf_counter() - t)
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu.append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
+    return wall, cpu
+
+
+def make_inputs(tmp: Path) -> tuple[str, str]:
+    """A 20-transfer hex file and pcapng capture, cut from 1 s of demo traffic."""
+    from eyeq_spi.capture.pcapng_io import CaptureWriter, read_pcapng
+
+    cap = tmp / "demo.pcapng"
+    subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "demo", "--virtual-time",
+                    "--duration", "1", "--capture", str(cap)], check=False,
+                   stdout=subprocess.DEVNULL, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    with cap.open("rb") as fh:
+        recs = [r for _, r in zip(range(20), read_pcapng(fh), strict=False)]
+    small_hex = tmp / "small.hex"
+    small_hex.write_text("".join(f"{r.time:.6f} {r.direction} {r.data.hex()}\n" for r in recs))
+    small_pcapng = tmp / "small.pcapng"
+    with CaptureWriter(small_pcapng) as w:
+        for r in recs:
+            w.write(r.direction or "h2e", r.time or 0.0, r.data)
+    return str(small_hex), str(small_pcapng)
+
+
+def row(label: str, samples: tuple[list[float], list[float]], base: float) -> str:
+    wall, cpu = samples
+    med = statistics.median(wall)
+    lo, hi = min(wall) * 1000, max(wall) * 1000
+    return (f"| {label} | {med * 1000:.0f} ms | {lo:.0f}..{hi:.0f} ms | {med / base:.1f}x | "
+            f"{statistics.median(cpu) * 1000:.0f} ms |")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=9)
+    ap.add_argument("--before", metavar="REV", help="also time this git revision")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as d:
+        tmp = Path(d)
+        small_hex, small_pcapng = make_inputs(tmp)
+        trees = [("after", ROOT)]
+        if args.before:
+            old = tmp / "before"
+            old.mkdir()
+            archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.before],
+                                     check=True, capture_output=True).stdout
+            subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
+            trees.insert(0, (f"before ({args.before})", old))
+        base_env = {**os.environ, "EYEQ_SPI_CACHE_DIR": str(tmp / "cache")}
+        baseline, base_cpu = time_one([sys.executable, "-c", "pass"], base_env, args.runs)
+        base = statistics.median(baseline)
+        print(f"baseline python -c pass: median {base * 1000:.0f} ms, "
+              f"{min(baseline) * 1000:.0f}..{max(baseline) * 1000:.0f} ms, CPU "
+              f"{statistics.median(base_cpu) * 1000:.0f} ms ({args.runs} runs, "
+              f"{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}, {sys.version.split()[0]})")
+        for name, tree in trees:
+            env = {**base_env, "PYTHONPATH": str(tree)}
+            print(f"\n{name}: {tree if tree == ROOT else 'git archive'}")
+            print("| command | median wall | spread | / baseline | median CPU |\n"
+                  "|---|---|---|---|---|")
+            for label, argv in commands(small_hex, small_pcapng):
+                samples = time_one([sys.executable, "-m", "eyeq_spi.cli", *argv], env, args.runs)
+                print(row(label, samples, base), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
