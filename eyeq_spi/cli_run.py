@@ -216,6 +216,12 @@ class LiveView:
             self.last_live = {k for k, r in live.items() if r >= 2.0}  # periodic streams
 
 
+def _connect_hint(endpoint: str) -> None:
+    """``sim``: the exact command that connects a host (its first stdout line has the URL)."""
+    print(f"eyeq-spi sim: waiting for a host: eyeq-spi host --port {endpoint}", file=sys.stderr,
+          flush=True)
+
+
 def _capture(args: argparse.Namespace) -> Any:
     if not args.capture:
         return None
@@ -326,12 +332,14 @@ def run_sim(args: argparse.Namespace) -> int:
 
         adapter: Any = PtyAdapter()
         print(f"PTY {adapter.path}", flush=True)
+        _connect_hint(adapter.path)
     else:
         url = args.listen
         if not url.startswith("tcp://"):
             raise UsageError("--listen takes tcp://HOST:PORT")
         adapter = open_url("listen://" + url[len("tcp://"):], timeout=args.accept_timeout)
         print(f"LISTEN {adapter.url}", flush=True)
+        _connect_hint(adapter.url)
     _on_sigterm()
     writer = _capture(args)
     clock = time.monotonic

@@ -244,3 +244,13 @@ def test_parquet_without_pyarrow_gives_the_install_hint(
     monkeypatch.setitem(sys.modules, "pyarrow", None)
     with pytest.raises(OutputError, match=r"eyeq-spi\[parquet\]"):
         TableWriter(str(tmp_path / "pq"), "parquet")
+
+
+def test_sim_prints_the_exact_url_to_hand_to_host() -> None:
+    r = subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "sim", "--port",
+                        "socket://0.0.0.0:0", "--duration", "0.5", "--accept-timeout", "0.5"],
+                       capture_output=True, text=True, timeout=60)
+    kind, url = r.stdout.splitlines()[0].split()
+    assert kind == "LISTEN" and url.startswith("socket://127.0.0.1:")
+    assert cli_args.host_endpoint(url) == url
+    assert f"eyeq-spi host --port {url}" in r.stderr
