@@ -33,6 +33,7 @@ from eyeq_spi.link.frame import FRAME_SIZE
 DIR_CODE: dict[str | None, int] = {"h2e": 0, "e2h": 1, None: -1}
 DIR_NAME: dict[int, str | None] = {v: k for k, v in DIR_CODE.items()}
 CHUNK = 1 << 15
+MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
 _EPB, _IDB = 6, 1
 _SHB = int.from_bytes(PCAPNG_MAGIC, "little")
 _BOM = 0x1A2B3C4D
@@ -188,6 +189,8 @@ class _Walker:
         self.chunk = chunk
         self.ifaces = _Interfaces()
         self.eof = False
+        self.offset = 0  # file position of buf[0]
+        self.packets = 0
         self._reset()
 
     def _reset(self) -> None:
@@ -205,6 +208,7 @@ class _Walker:
             if not more:
                 self.eof = True
                 break
+            self.offset += self.pos
             self.buf = self.buf[self.pos :] + more
             self.pos = 0
         return len(self.buf) - self.pos >= need
@@ -224,21 +228,21 @@ class _Walker:
 
     def _run(self) -> Iterator[Chunk]:
         while True:
-            if not self._fill(8):
+            if not self._fill(12):
                 if len(self.buf) - self.pos:
-                    raise CaptureError(f"malformed pcapng: {len(self.buf) - self.pos} bytes "
-                                       "after the last block")
+                    self._truncated()
                 break
             btype, blen = struct.unpack_from("<II", self.buf, self.pos)
-            if blen < 12 or blen % 4:
-                raise CaptureError(f"malformed pcapng: block length {blen}")
+            if blen % 4 or not 12 <= blen <= MAX_BLOCK:
+                raise CaptureError(f"malformed pcapng: block at byte {self.offset + self.pos} has "
+                                   f"length {blen} (a multiple of 4 in 12..{MAX_BLOCK} expected)")
             if btype == _EPB and self.n < self.chunk:
                 self._fast_run(blen)
                 if self.n >= self.chunk:
                     yield self._flush()
                 continue
             if not self._fill(blen):
-                raise CaptureError("malformed pcapng: truncated block")
+                self._truncated()
             body = self.buf[self.pos + 8 : self.pos + blen - 4]
             if struct.unpack_from("<I", self.buf, self.pos + blen - 4)[0] != blen:
                 raise CaptureError("malformed pcapng: block lengths differ")
@@ -255,6 +259,13 @@ class _Walker:
                 yield self._flush()
         if self.n:
             yield self._flush()
+        if not self.packets:
+            raise CaptureError("pcapng capture without any transfer (no Enhanced Packet Block)")
+
+    def _truncated(self) -> None:
+        left = len(self.buf) - self.pos
+        raise CaptureError(f"truncated pcapng: the file ends {left} bytes into the block that "
+                           f"starts at byte {self.offset + self.pos}")
 
     def _one_epb(self, body: bytes) -> None:
         iid, hi, lo, cap = struct.unpack_from("<IIII", body, 0)
@@ -269,6 +280,7 @@ class _Walker:
             self.rows.append(np.zeros((1, FRAME_SIZE), np.uint8))
         self.lengths.append(cap)
         self.n += 1
+        self.packets += 1
 
     def _add_meta(self, iid: int, ticks: int) -> None:
         names, scales = self.ifaces.names, self.ifaces.scales
@@ -293,7 +305,7 @@ class _Walker:
             k = int(np.argmin(good)) if not good.all() else k
         if k == 0:  # not a plain block: one at a time
             if not self._fill(blen):
-                raise CaptureError("malformed pcapng: truncated block")
+                self._truncated()
             body = self.buf[self.pos + 8 : self.pos + blen - 4]
             if struct.unpack_from("<I", self.buf, self.pos + blen - 4)[0] != blen:
                 raise CaptureError("malformed pcapng: block lengths differ")
@@ -312,4 +324,5 @@ class _Walker:
         self.times.extend(times.tolist())
         self.dirs.extend(codes.tolist())
         self.n += k
+        self.packets += k
         self.pos += k * blen

@@ -1,0 +1,165 @@
+"""``eyeq-spi dissect`` on the batch path: which inputs take it, how its items reach the writers,
+and ``--jobs N`` (files dissected in worker processes, output identical to a serial run).
+
+pcapng and raw files take the batch path (:mod:`.batch`); hex text, logic-analyzer captures and
+stdin keep the exact engine's record stream. Either way the records are the exact engine's (the
+agreement tests hold the batch path to that), so writers, filters and ``--stats`` see the same.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from typing import IO, Any
+
+import numpy as np
+
+from eyeq_spi.capture.fastread import Chunk, pcapng_chunks, raw_chunks
+from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.dissect.batch import BatchDissector
+from eyeq_spi.dissect.inputs import InputError, detect
+from eyeq_spi.dissect.output import JsonWriter
+from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBlock
+
+Item = dict[str, Any] | FrameBlock
+__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "is_plain", "parallel_items"]
+
+
+def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
+                codec: MessageCodec) -> Iterator[Item] | None:
+    """The batch path's items for a seekable pcapng or raw file (read from its start), else
+    None: the exact path goes on, ``fh`` at the position it had."""
+    try:
+        if not fh.seekable():
+            return None
+        pos = fh.tell()
+        fh.seek(0)
+        head = fh.read(4096)
+    except (OSError, ValueError):
+        return None
+    try:
+        kind = fmt or detect(head)
+    except InputError:
+        kind = None  # the exact path reports it, with its own words
+    if kind == "pcapng" and head[:4] == PCAPNG_MAGIC:
+        fh.seek(0)
+        return _items(pcapng_chunks(fh), codec)
+    if kind == "raw" and head:
+        fh.seek(0)
+        return _items(raw_chunks(fh, direction), codec)
+    fh.seek(pos)
+    return None
+
+
+def _items(chunks: Iterator[Chunk], codec: MessageCodec) -> Iterator[Item]:
+    bd = BatchDissector(codec=codec)
+    try:
+        for c in chunks:
+            yield from bd.feed(c)
+    except CaptureError as exc:
+        raise InputError(str(exc)) from None
+    except BatchUnsupportedError as exc:
+        raise InputError(f"{exc}: use the hex format or another CRC variant") from None
+    yield from bd.finish()
+
+
+def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: bool,
+            stats: Any, writers: list[Any]) -> None:
+    """A frame block to ``--stats`` and the writers. ``plain``: no filter is active (every
+    record is kept), so frames are counted and printed straight from the arrays."""
+    if not plain:
+        for r in item.records():
+            if keep(r):
+                stats.add(r)
+                for w in writers:
+                    w.write(r)
+        return
+    item.add_to(stats)
+    for w in writers:
+        if type(w) is JsonWriter:
+            w.fh.write(item.json_lines())
+        elif hasattr(w, "write_block"):
+            w.write_block(item)
+        elif getattr(w, "messages_only", False) or type(w).__name__ == "TableWriter":
+            for _, r in item.messages:
+                w.write(r)
+        else:
+            for r in item.records():
+                w.write(r)
+
+
+def is_plain(args: Any) -> bool:
+    return not (args.protocol or args.id is not None or args.name or args.errors_only)
+
+
+# -- --jobs N -------------------------------------------------------------------------------------
+def _compact(block: FrameBlock) -> FrameBlock:
+    """The block's rows only, and only the bytes its records read (header and transport)."""
+    fa, lo, hi = block.fa, block.lo, block.hi
+    c = fa.chunk
+    chunk = Chunk(np.ascontiguousarray(c.data[lo:hi, :8]), c.length[lo:hi].copy(),
+                  c.time[lo:hi].copy(), c.direction[lo:hi].copy())
+    small = FrameArrays(chunk, fa.base + lo, fa.ftype[lo:hi].copy(), fa.num[lo:hi].copy(),
+                        fa.rsp[lo:hi].copy(), fa.crc_ok[lo:hi].copy(), fa.d[lo:hi].copy(),
+                        fa.fed[lo:hi].copy(), fa.tfill[lo:hi].copy())
+    return FrameBlock(small, 0, hi - lo, [(r - lo, m) for r, m in block.messages])
+
+
+def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None
+            ) -> list[Item] | tuple[str, str]:
+    try:
+        codec = _codec(sw)
+        with open(path, "rb") as fh:
+            items = batch_items(fh, fmt, direction, codec)
+            if items is None:
+                return ("exact", "")
+            return [_compact(i) if isinstance(i, FrameBlock) else i for i in items]
+    except InputError as exc:
+        return ("error", str(exc))
+    except OSError as exc:
+        return ("error", f"{path}: {exc.strerror or exc}")
+
+
+_CODECS: dict[str | None, MessageCodec] = {}
+
+
+def _codec(sw: str | None) -> MessageCodec:
+    if sw not in _CODECS:
+        _CODECS[sw] = MessageCodec(sw)
+    return _CODECS[sw]
+
+
+def parallel_items(paths: list[str], jobs: int, fmt: str | None, direction: str | None,
+                   sw: str | None) -> Iterator[tuple[str, list[Item] | None]]:
+    """(path, items) in the order of ``paths``, dissected ``jobs`` files at a time in worker
+    processes; items None: the file is not a batch input (the caller runs the exact path).
+    At most ``jobs`` finished files wait in memory ahead of the one being written."""
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        pending: list[Any] = [pool.submit(_worker, p, fmt, direction, sw) for p in paths[:jobs]]
+        nxt = len(pending)
+        for i, path in enumerate(paths):
+            res = pending[i].result()
+            if nxt < len(paths):
+                pending.append(pool.submit(_worker, paths[nxt], fmt, direction, sw))
+                nxt += 1
+            pending[i] = None
+            if isinstance(res, tuple):
+                if res[0] == "error":
+                    raise InputError(res[1])
+                yield path, None
+            else:
+                yield path, res
+
+
+def default_jobs() -> int:
+    with contextlib.suppress(AttributeError):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
+def dumps(r: dict[str, Any]) -> str:
+    return json.dumps(r, separators=(",", ":"))

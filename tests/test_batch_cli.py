@@ -1,0 +1,88 @@
+"""`eyeq-spi dissect` on the batch path prints what the exact path prints (--json, --stats,
+--csv, --parquet, filters), and `--jobs N` prints what a serial run prints."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from eyeq_spi.capture.pcapng_io import CaptureWriter
+from eyeq_spi.cli import main
+from tests.test_batch import BASE, MUTATIONS, Rec
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _pcapng(items: list[Rec], path: Path) -> Path:
+    with CaptureWriter(path) as w:
+        for d, t, wire in items:
+            w.write(d, t, wire)
+    return path
+
+
+@pytest.fixture(scope="module")
+def captures(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    tmp = tmp_path_factory.mktemp("caps")
+    faulty = BASE
+    for name, where in (("flip", 30), ("drop", 90), ("dup", 120), ("late", 200),
+                        ("short", 260), ("reset", 300)):
+        faulty = MUTATIONS[name](faulty, where)
+    raw = tmp / "e2h.bin"
+    raw.write_bytes(b"".join(w for d, _, w in BASE if d == "e2h"))
+    return [_pcapng(BASE, tmp / "clean.pcapng"), _pcapng(faulty, tmp / "faulty.pcapng"), raw]
+
+
+def _cli(args: list[str], stdin: bytes | None = None) -> tuple[int, bytes]:
+    r = subprocess.run([sys.executable, "-m", "eyeq_spi.cli", *args], input=stdin,
+                       capture_output=True, cwd=ROOT, timeout=120)
+    assert b"Traceback" not in r.stderr, r.stderr[-800:]
+    return r.returncode, r.stdout
+
+
+@pytest.mark.parametrize("mode", [["--json"], ["--stats", "--json"], ["--stats"], [],
+                                  ["--json", "--errors-only"], ["--json", "--protocol", "MESP"]])
+def test_file_and_stdin_print_the_same(captures: list[Path], mode: list[str],
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """A file takes the batch path; stdin cannot seek and takes the exact one."""
+    for path in captures[:2]:
+        main(["dissect", str(path), *mode])
+        batch_out = capsys.readouterr().out
+        _, exact_out = _cli(["dissect", "-", *mode], path.read_bytes())
+        assert batch_out.encode() == exact_out
+    _, exact_out = _cli(["dissect", "-", "--format", "raw", "--direction", "e2h", *mode],
+                         captures[2].read_bytes())
+    main(["dissect", str(captures[2]), "--direction", "e2h", *mode])
+    assert capsys.readouterr().out.encode() == exact_out
+
+
+def test_tables_from_both_paths(captures: list[Path], tmp_path: Path,
+                                capsys: pytest.CaptureFixture[str]) -> None:
+    main(["dissect", str(captures[1]), "--csv", str(tmp_path / "b")])
+    _cli(["dissect", "-", "--csv", str(tmp_path / "e")], captures[1].read_bytes())
+    names = sorted(p.name for p in (tmp_path / "e").iterdir())
+    assert names and names == sorted(p.name for p in (tmp_path / "b").iterdir())
+    for n in names:
+        assert (tmp_path / "b" / n).read_bytes() == (tmp_path / "e" / n).read_bytes()
+
+
+def test_jobs_prints_what_a_serial_run_prints(captures: list[Path],
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    files = [str(p) for p in captures[:2]] * 2
+    for mode in (["--json"], ["--stats", "--json"]):
+        rc1 = main(["dissect", *files, *mode])
+        serial = capsys.readouterr().out
+        rc2 = main(["dissect", "--jobs", "2", *files, *mode])
+        assert (rc2, capsys.readouterr().out) == (rc1, serial)
+
+
+def test_jobs_errors(captures: list[Path], tmp_path: Path,
+                     capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "bad.pcapng"
+    bad.write_bytes(captures[0].read_bytes()[:-77])
+    assert main(["dissect", "--jobs", "2", str(captures[0]), str(bad), "--stats"]) == 2
+    err = capsys.readouterr().err
+    assert "truncated pcapng" in err and err.count("\n") == 1
+    assert main(["dissect", "--jobs", "-1", str(captures[0]), str(captures[0])]) == 2
