@@ -187,16 +187,16 @@ def test_gateway_is_silent_until_dasp_arrives_and_follows_the_clock() -> None:
     assert all(math.isclose(f.time, 10.2) for f in frames)
 
 
-@pytest.mark.parametrize("suffix", [".blf", ".asc", ".log", ".mf4"])
+@pytest.mark.parametrize("suffix", [".blf", ".asc", ".log", ".trc", ".mf4"])
 def test_log_targets_write_what_the_decoder_reads(tmp_path: Path, suffix: str) -> None:
     if suffix == ".mf4":
         pytest.importorskip("asammdf", reason=".mf4 logs need asammdf (python-can's MF4 writer)")
     path = tmp_path / f"out{suffix}"
     emu = build(sim_config=SimConfig(objects=3, signs=2, light_spots=2), keep_rx_times=False)
     out = attach(emu.host, emu.runner, target=str(path), protocol="extlog2")
-    emu.run_for(1.1)
+    emu.run_for(1.0)
     out.close()
-    assert out.sink.sent > 150 and out.sink.errors == 0
+    assert out.sink.sent > 100 and out.sink.errors == 0
     dec = CanDecoder("extlog2")
     recs = [dec.decode(m, i) for i, m in enumerate(read_log(str(path)))]
     assert len(recs) == out.sink.sent
@@ -258,6 +258,22 @@ def test_socketcan_vcan_target() -> None:
     finally:
         listener.shutdown()
     assert out.sink.sent > 50 and len(got) == out.sink.sent - out.sink.errors
+
+
+def test_attach_wraps_a_real_time_runner_node() -> None:
+    from eyeq_spi.host.host import HostEmulator
+    from eyeq_spi.phy.memory import memory_pair
+    from eyeq_spi.runner.realtime import RealTimeRunner
+
+    host = HostEmulator(keep_rx_times=False)
+    a, _ = memory_pair()
+    runner = RealTimeRunner(host, a)
+    out = attach(host, runner, target="virtual:eyeq-test-rt", protocol="extlog2")
+    try:
+        assert isinstance(runner.node, GatewayNode) and runner.node.inner is host
+        assert out.gateway.epoch == pytest.approx(runner.clock(), abs=1.0)
+    finally:
+        out.close()
 
 
 def test_database_is_shared() -> None:
