@@ -10,6 +10,12 @@ from typing import Any
 
 from eyeq_spi.errors import UsageError
 
+# shared options that only the simulated EyeQ uses, and those only the host emulator uses
+SIM_ONLY = ("seed", "objects", "signs", "light_spots", "boot_fail", "boot_test_bits",
+            "corrupt_eeprom", "fatal", "reply_delay", "drop_reply", "reset_at", "stop_dasp")
+HOST_ONLY = ("speed", "scenario", "camera_only_aeb", "ack_timeout", "transmit_timeout",
+             "capture")
+
 
 def add_plot_parser(sub: Any) -> None:
     p = sub.add_parser(
@@ -72,6 +78,7 @@ def add_plot_parser(sub: Any) -> None:
     m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
     m.add_argument("--format", choices=("raw", "hex", "pcapng"), help="--replay: skip detection")
     add_shared_options(m)
+    m.set_defaults(side_defaults={d: m.get_default(d) for d in SIM_ONLY + HOST_ONLY})
 
 
 def _default_output(args: argparse.Namespace, kind: str) -> str:
@@ -139,6 +146,11 @@ def run_monitor(args: argparse.Namespace) -> int:
         raise UsageError("--duration must be positive")
     if not 0 <= args.pace <= 1e6:
         raise UsageError("--pace must be >= 0")
+    unused = SIM_ONLY if args.port else SIM_ONLY + HOST_ONLY if args.replay else ()
+    for dest in unused:
+        if hasattr(args, dest) and getattr(args, dest) != args.side_defaults.get(dest):
+            src = "--port" if args.port else "--replay"
+            raise UsageError(f"--{dest.replace('_', '-')} does not apply to {src}")
     if args.replay:
         from eyeq_spi.codec.message import MessageCodec
         from eyeq_spi.monitor.sources import ReplaySource

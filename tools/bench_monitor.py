@@ -56,8 +56,8 @@ def _ratio(a: list[float], b: list[float]) -> str:
     return f"x{statistics.median(a) / base:.2f}" if base else "-"
 
 
-def virtual(duration: float) -> tuple[float, float]:
-    """CPU s per simulated s: (without, with) the monitor."""
+def virtual(duration: float) -> tuple[float, float, float]:
+    """CPU s per simulated s without and with the monitor, and CPU ms per redraw."""
     emu = build(keep_rx_times=False)
     c0 = time.process_time()
     while emu.runner.now < duration - 1e-9:
@@ -65,8 +65,9 @@ def virtual(duration: float) -> tuple[float, float]:
     base = (time.process_time() - c0) / duration
     emu = build(keep_rx_times=False)
     c0 = time.process_time()
-    run(DemoSource(emu, duration, realtime=False), console=_console())
-    return base, (time.process_time() - c0) / duration
+    st = run(DemoSource(emu, duration, realtime=False), console=_console())
+    per_draw = st.draw_cpu_s / st.redraws * 1e3
+    return base, (time.process_time() - c0) / duration, per_draw
 
 
 def realtime(duration: float, monitor: bool) -> dict[str, float]:
@@ -160,30 +161,46 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--duration", type=float, default=5.0, help="seconds per real-time run")
     ap.add_argument("--virtual", type=float, default=20.0, help="simulated seconds per run")
+    ap.add_argument("--only", choices=("virtual", "realtime", "host"), help="one case only")
     args = ap.parse_args()
     print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
 
-    base, mon = [], []
+    if args.only in (None, "virtual"):
+        _virtual(args)
+    if args.only in (None, "realtime"):
+        _realtime(args)
+    if args.only in (None, "host"):
+        _host(args)
+    print(f"load average at end: {os.getloadavg()[0]:.2f}")
+    return 0
+
+
+def _virtual(args: argparse.Namespace) -> None:
+    base, mon, draw = [], [], []
     for _ in range(args.runs):
-        a, b = virtual(args.virtual)
+        a, b, c = virtual(args.virtual)
         base.append(a)
         mon.append(b)
+        draw.append(c)
     print(f"demo --virtual-time, CPU s per simulated s: without {_fmt(base)}, "
-          f"with monitor {_fmt(mon)} ({_ratio(mon, base)})")
+          f"with monitor {_fmt(mon)} ({_ratio(mon, base)}); CPU per redraw "
+          f"{_fmt(draw, ' ms', '.1f')}")
 
+
+def _realtime(args: argparse.Namespace) -> None:
     wo, wi = _pairs(lambda m: realtime(args.duration, m), args.runs)
     print(f"demo real time, {args.duration:g} s:")
     for k in ("lag_ms", "obst_hz", "link_errors"):
         print(f"  {k:12s} without {_fmt(wo[k])}  with {_fmt(wi[k])}  ({_ratio(wi[k], wo[k])})")
     print(f"  redraws/s with monitor {_fmt(wi['redraw_hz'], spec='.2f')}")
 
+
+def _host(args: argparse.Namespace) -> None:
     wo, wi = _pairs(lambda m: host_tcp(args.duration, m), args.runs)
     print(f"host against sim over TCP, {args.duration:g} s:")
     for k in ("obst_hz", "link_errors", "mesp_timeouts", "state_ok"):
         print(f"  {k:12s} without {_fmt(wo[k])}  with {_fmt(wi[k])}  ({_ratio(wi[k], wo[k])})")
     print(f"  redraws/s with monitor {_fmt(wi['redraw_hz'], spec='.2f')}")
-    print(f"load average at end: {os.getloadavg()[0]:.2f}")
-    return 0
 
 
 if __name__ == "__main__":

@@ -36,6 +36,7 @@ class Source(Protocol):
 class RunStats:
     redraws: int = 0
     draw_s: float = 0.0  # wall time spent building and writing screens
+    draw_cpu_s: float = 0.0  # CPU time of the same
     wall_s: float = 0.0
 
 
@@ -60,7 +61,7 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         next_draw = clock()
         while True:
             source.advance(next_draw)
-            t0 = clock()
+            t0, c0 = clock(), time.process_time()
             snap = source.snapshot()
             if on_draw is not None:
                 on_draw(snap)
@@ -68,6 +69,7 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
                 live.update(render(snap), refresh=True)
             stats.redraws += 1
             stats.draw_s += clock() - t0
+            stats.draw_cpu_s += time.process_time() - c0
             if source.done:
                 break
             # keep the redraw grid: a slightly late draw is caught up, a whole missed period
