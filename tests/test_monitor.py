@@ -147,6 +147,8 @@ def test_refresh_limits_and_bad_replay(tmp_path: Path, capsys: pytest.CaptureFix
     assert main(["monitor", "--replay", str(tmp_path / "nope.pcapng")]) == 2
     assert main(["monitor", "--demo", "--pace", "-1"]) == 2
     assert main(["monitor", "--demo", "--replay", "x"]) == 2
+    assert main(["monitor", "--replay", "x.pcapng", "--objects", "3"]) == 2  # a sim option
+    assert main(["monitor", "--port", "loop://", "--reset-at", "1"]) == 2
     err = capsys.readouterr().err
     assert all(line.startswith("eyeq-spi: ") for line in err.splitlines())
 
