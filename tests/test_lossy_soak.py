@@ -18,7 +18,7 @@ from eyeq_spi.link.frame import FrameCodec
 def soak() -> SoakReport:
     # The profile (BER 1e-5, 1% each of drop, duplicate, reorder, truncation), switched
     # on in Running Vision so that the bring-up's reset-free path keeps the accounting exact.
-    return run_soak(SoakConfig(duration=8.0, seed=1))
+    return run_soak(SoakConfig(duration=6.0, seed=1))
 
 
 def test_soak_injects_every_fault_class_in_both_directions(soak: SoakReport) -> None:
@@ -46,7 +46,7 @@ def test_receiver_counters_account_for_every_injected_fault(soak: SoakReport, si
 
 
 def test_vision_is_reached_and_held_at_5_percent_frame_loss() -> None:
-    r = run_soak(SoakConfig(profile=FaultProfile.with_loss(0.05), duration=5.0, seed=1,
+    r = run_soak(SoakConfig(profile=FaultProfile.with_loss(0.05), duration=4.0, seed=1,
                             faults_from_start=True))
     assert r.reached_vision_at is not None and r.held, r.host
     assert r.corrupted == 0
