@@ -20,7 +20,6 @@ from typing import Protocol
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, Route, SpiOptions, bench_spec
 
-
 MAX_LINE = 1 << 16
 
 

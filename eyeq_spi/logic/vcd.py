@@ -57,31 +57,30 @@ class _Chan:
         self.miso_bytes = bytearray()
         self.t0 = 0
 
+    def emit(self, time: float) -> Iterator[Record]:
+        for r in self.routes:
+            data = self.mosi_bytes if r.line == "mosi" else self.miso_bytes
+            yield Record(time, r.direction, bytes(data))
 
-class _Tokens:
-    """Whitespace-separated tokens of a byte stream, read in large chunks."""
 
-    def __init__(self, src: ByteSource, first: bytes = b"") -> None:
-        self.src = src
-        self.rest = first
-
-    def chunks(self, size: int = 1 << 20) -> Iterator[list[bytes]]:
-        while True:
-            data = self.src.read(size)
-            buf = self.rest + data
-            if not data:
-                self.rest = b""
-                if buf.strip():
-                    yield buf.split()
-                return
-            cut = max(buf.rfind(b" "), buf.rfind(b"\n"), buf.rfind(b"\t"), buf.rfind(b"\r"))
-            if cut < 0:
-                self.rest = buf
-                if len(buf) > MAX_HEADER:
-                    raise LogicInputError("VCD token longer than 16 MiB")
-                continue
-            self.rest = buf[cut + 1:]
-            yield buf[:cut].split()
+def _raw_chunks(src: ByteSource, size: int = 1 << 20) -> Iterator[bytes]:
+    """The stream in chunks that end on whitespace (a token is never split)."""
+    rest = b""
+    while True:
+        data = src.read(size)
+        buf = rest + data
+        if not data:
+            if buf.strip():
+                yield buf
+            return
+        cut = max(buf.rfind(b"\n"), buf.rfind(b" "), buf.rfind(b"\t"), buf.rfind(b"\r"))
+        if cut < 0:
+            rest = buf
+            if len(buf) > MAX_HEADER:
+                raise LogicInputError("VCD token longer than 16 MiB")
+            continue
+        rest = buf[cut + 1:]
+        yield buf[:cut + 1]
 
 
 def _header(tokens: Iterator[bytes]) -> tuple[float, list[tuple[str, bytes, str]]]:
@@ -176,105 +175,131 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
     return table
 
 
-def read_vcd(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
-    chunks = _Tokens(src).chunks()
-    where: list[tuple[list[bytes], int]] = [([], 0)]
-
-    def header_tokens() -> Iterator[bytes]:
-        for chunk in chunks:
-            for i, tok in enumerate(chunk):
-                where[0] = (chunk, i + 1)
-                yield tok
-
-    scale, vars_ = _header(header_tokens())
-    chunk, i = where[0]
+def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
+             ) -> Iterator[Record]:
+    chunks = _raw_chunks(src, chunk_size)
+    head = b""
+    for chunk in chunks:
+        head += chunk
+        m = re.search(rb"\$enddefinitions\s+\$end\s", head)
+        if m is not None:
+            break
+        if len(head) > MAX_HEADER:
+            raise LogicInputError("VCD header longer than 16 MiB")
+    else:
+        m = re.search(rb"\$enddefinitions\s+\$end", head)
+    if m is None:
+        raise LogicInputError("truncated VCD: no $enddefinitions")
+    scale, vars_ = _header(iter(head[:m.end()].split()))
     table = _channels(vars_, opts)
-    yield from _body(chunk[i:], chunks, table, scale, opts)
+    reader = _Reader(table, scale, opts)
+    yield from reader.feed(head[m.end():])
+    for chunk in chunks:
+        yield from reader.feed(chunk)
 
 
-def _body(first: list[bytes], chunks: Iterator[list[bytes]],
-          table: dict[bytes, list[tuple[_Chan, int]]], scale: float,
-          opts: SpiOptions) -> Iterator[Record]:
-    sample_level = 1 if sample_on_rising(opts.mode) else 0
-    msb = opts.bit_order == "msb_first"
-    t = 0
-    vector_value: int | None = None
-    in_comment = False
+class _Reader:
+    """Value changes -> transfers. A chunk of one-character identifiers, one change per line
+    (what sigrok, PulseView and our writer produce) goes through the vectorised path of
+    :mod:`eyeq_spi.logic.vcd_fast`; anything else through the exact token loop below. Both
+    keep their state in the same :class:`_Chan` objects, so they can take turns."""
 
-    def batches() -> Iterator[list[bytes]]:
-        yield first
-        yield from chunks
+    def __init__(self, table: dict[bytes, list[tuple[_Chan, int]]], scale: float,
+                 opts: SpiOptions) -> None:
+        self.table = table
+        self.scale = scale
+        self.sample_level = 1 if sample_on_rising(opts.mode) else 0
+        self.msb = opts.bit_order == "msb_first"
+        self.t = 0
+        self.vector_value: int | None = None
+        self.in_comment = False
+        from eyeq_spi.logic.vcd_fast import FastPath
 
-    for batch in batches():
-        for tok in batch:
-            c0 = tok[0]
-            if vector_value is not None:
-                ident, v = tok, vector_value
-                vector_value = None
-            elif c0 == 35:  # '#'
-                try:
-                    t = int(tok[1:])
-                except ValueError:
-                    raise LogicInputError(f"bad VCD time {tok[:20]!r}") from None
-                continue
-            elif c0 == 48 or c0 == 49:  # '0' '1'
-                ident, v = tok[1:], c0 - 48
-            elif c0 == 36:  # '$'
-                if tok == b"$comment":
-                    in_comment = True
-                elif tok == b"$end":
-                    in_comment = False
-                continue
-            elif in_comment or c0 in b"xXzZ":
-                continue
-            elif c0 in b"bB":
-                bits = tok[1:].replace(b"x", b"0").replace(b"z", b"0").replace(b"X", b"0")
-                vector_value = bits[-1] - 48 if bits else 0
-                continue
-            elif c0 in b"rR":
-                vector_value = -1
-                continue
-            else:
-                raise LogicInputError(f"not a VCD value change: {tok[:20]!r}")
-            targets = table.get(ident)
-            if targets is None or v < 0:
-                continue
-            for ch, role in targets:
-                if role == CLK:
-                    if v == ch.clk:
-                        continue
-                    ch.clk = v
-                    if v != sample_level or not ch.active:
-                        continue
-                    if msb:
-                        ch.mo = (ch.mo << 1) | ch.mosi
-                        ch.mi = (ch.mi << 1) | ch.miso
-                    else:
-                        ch.mo |= ch.mosi << ch.nbits
-                        ch.mi |= ch.miso << ch.nbits
-                    ch.nbits += 1
-                    if ch.nbits == 8:
-                        ch.mosi_bytes.append(ch.mo)
-                        ch.miso_bytes.append(ch.mi)
-                        ch.nbits = ch.mo = ch.mi = 0
-                        if len(ch.mosi_bytes) > MAX_TRANSFER:
-                            raise LogicInputError(f"transfer longer than {MAX_TRANSFER} bytes "
-                                                  "(chip select never rises?)")
-                elif role == MOSI:
-                    ch.mosi = v
-                elif role == MISO:
-                    ch.miso = v
-                elif v != ch.cs:
-                    ch.cs = v
-                    if v == 0:
-                        ch.active = True
-                        ch.t0 = t
-                        ch.nbits = ch.mo = ch.mi = 0
-                        ch.mosi_bytes.clear()
-                        ch.miso_bytes.clear()
-                    elif ch.active:
-                        ch.active = False
-                        time = ch.t0 * scale
-                        for r in ch.routes:
-                            data = ch.mosi_bytes if r.line == "mosi" else ch.miso_bytes
-                            yield Record(time, r.direction, bytes(data))
+        self.fast = FastPath.build(table)
+
+    def feed(self, chunk: bytes) -> Iterator[Record]:
+        if self.fast is not None and not self.in_comment and self.vector_value is None:
+            done = self.fast.run(self, chunk)
+            if done is not None:
+                yield from done
+                return
+        yield from self._tokens(chunk.split())
+
+    def _tokens(self, batch: list[bytes]) -> Iterator[Record]:
+        table, scale, msb = self.table, self.scale, self.msb
+        sample_level = self.sample_level
+        t = self.t
+        vector_value = self.vector_value
+        in_comment = self.in_comment
+        try:
+            for tok in batch:
+                c0 = tok[0]
+                if vector_value is not None:
+                    ident, v = tok, vector_value
+                    vector_value = None
+                elif c0 == 35:  # '#'
+                    try:
+                        t = int(tok[1:])
+                    except ValueError:
+                        raise LogicInputError(f"bad VCD time {tok[:20]!r}") from None
+                    continue
+                elif c0 == 48 or c0 == 49:  # '0' '1'
+                    ident, v = tok[1:], c0 - 48
+                elif c0 == 36:  # '$'
+                    if tok == b"$comment":
+                        in_comment = True
+                    elif tok == b"$end":
+                        in_comment = False
+                    continue
+                elif in_comment or c0 in b"xXzZ":
+                    continue
+                elif c0 in b"bB":
+                    bits = tok[1:].replace(b"x", b"0").replace(b"z", b"0").replace(b"X", b"0")
+                    vector_value = bits[-1] - 48 if bits else 0
+                    continue
+                elif c0 in b"rR":
+                    vector_value = -1
+                    continue
+                else:
+                    raise LogicInputError(f"not a VCD value change: {tok[:20]!r}")
+                targets = table.get(ident)
+                if targets is None or v < 0:
+                    continue
+                for ch, role in targets:
+                    if role == CLK:
+                        if v == ch.clk:
+                            continue
+                        ch.clk = v
+                        if v != sample_level or not ch.active:
+                            continue
+                        if msb:
+                            ch.mo = (ch.mo << 1) | ch.mosi
+                            ch.mi = (ch.mi << 1) | ch.miso
+                        else:
+                            ch.mo |= ch.mosi << ch.nbits
+                            ch.mi |= ch.miso << ch.nbits
+                        ch.nbits += 1
+                        if ch.nbits == 8:
+                            ch.mosi_bytes.append(ch.mo)
+                            ch.miso_bytes.append(ch.mi)
+                            ch.nbits = ch.mo = ch.mi = 0
+                            if len(ch.mosi_bytes) > MAX_TRANSFER:
+                                raise LogicInputError(f"transfer longer than {MAX_TRANSFER} "
+                                                      "bytes (chip select never rises?)")
+                    elif role == MOSI:
+                        ch.mosi = v
+                    elif role == MISO:
+                        ch.miso = v
+                    elif v != ch.cs:
+                        ch.cs = v
+                        if v == 0:
+                            ch.active = True
+                            ch.t0 = t
+                            ch.nbits = ch.mo = ch.mi = 0
+                            ch.mosi_bytes.clear()
+                            ch.miso_bytes.clear()
+                        elif ch.active:
+                            ch.active = False
+                            yield from ch.emit(ch.t0 * scale)
+        finally:
+            self.t, self.vector_value, self.in_comment = t, vector_value, in_comment
