@@ -48,10 +48,10 @@ def soak(duration: float, transport: str) -> dict[str, Any]:
     time.sleep(0.5)
     sim.send_signal(subprocess.signal.SIGTERM)  # type: ignore[attr-defined]
     try:
-        sim_out, sim_err = sim.communicate(timeout=20)
+        sim_out, _ = sim.communicate(timeout=20)
     except subprocess.TimeoutExpired:
         sim.kill()
-        sim_out, sim_err = sim.communicate()
+        sim_out, _ = sim.communicate()
     h = json.loads(host.stdout.strip().splitlines()[-1])
     s = json.loads(sim_out.strip().splitlines()[-1])
     return {"transport": transport, "duration_s": duration, "host": _figures(h),
