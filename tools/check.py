@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Run every check CI runs: tshark and sigrok-cli (installed if missing), ruff, mypy --strict,
-the import-layer contract, the specs schema, then pytest. Exits non-zero on the first failure; pytest's exit
-code 5 (no tests collected) is a failure too."""
+the import-layer contract, the specs schema, then pytest. Exits non-zero on the first failure;
+pytest's exit code 5 (no tests collected) is a failure too."""
 
 from __future__ import annotations
 
