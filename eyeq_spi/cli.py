@@ -74,6 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
     from eyeq_spi.cli_dissect import add_dissect_parser
 
     add_dissect_parser(sub)
+    from eyeq_spi.cli_batch import add_batch_parser
+
+    add_batch_parser(sub)
     from eyeq_spi.cli_can import add_can_parser
 
     add_can_parser(sub)
@@ -138,6 +141,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             return {"export": cli_bench.run_export, "replay": cli_bench.run_replay,
                     "sigrok-decoder": cli_bench.run_sigrok_decoder}[args.command](args)
+        if args.command == "batch":
+            from eyeq_spi import cli_batch
+
+            return cli_batch.run_batch(args)
         if args.command in ("dissect", "wireshark"):
             from eyeq_spi import cli_dissect
 

@@ -1,0 +1,49 @@
+"""``eyeq-spi batch DIR --parquet OUT``: a fleet's captures into one partitioned Parquet
+dataset, in this process, a process pool, or on Dask."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from eyeq_spi.errors import UsageError
+
+
+def add_batch_parser(sub: Any) -> None:
+    b = sub.add_parser("batch", help="many captures into one partitioned Parquet dataset",
+                       description="Dissect every *.pcapng under DIR with the batch dissector "
+                       "and write one Parquet dataset partitioned by capture and message "
+                       "(OUT/capture=NAME/message=NAME/part-0.parquet). Prints one JSON "
+                       "summary per capture. Exit 0 all captures read, 1 some could not be "
+                       "read, 2 bad usage.")
+    b.add_argument("dir", metavar="DIR", help="a directory of captures (searched recursively) "
+                   "or one capture")
+    b.add_argument("--parquet", required=True, metavar="OUT", help="dataset directory")
+    b.add_argument("--sw", help="SW version of the traffic (default newest)")
+    where = b.add_mutually_exclusive_group()
+    where.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+                       help="captures at a time in local worker processes (default 1)")
+    where.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                       help="run the captures on this Dask scheduler (workers must see DIR "
+                       "and OUT at the same paths)")
+    where.add_argument("--local-cluster", type=int, metavar="N",
+                       help="run the captures on a Dask LocalCluster of N worker processes")
+
+
+def run_batch(args: argparse.Namespace) -> int:
+    from eyeq_spi.dissect.fleet import run_fleet
+
+    if args.jobs < 1:
+        raise UsageError(f"--jobs must be 1 or more, not {args.jobs}")
+    if args.local_cluster is not None and not 1 <= args.local_cluster <= 256:
+        raise UsageError(f"--local-cluster must be 1..256, not {args.local_cluster}")
+    if args.scheduler and not args.scheduler.startswith(("tcp://", "tls://", "inproc://")):
+        raise UsageError(f"--scheduler: a Dask address such as tcp://HOST:8786, "
+                         f"not {args.scheduler!r}")
+    summaries = run_fleet(args.dir, args.parquet, sw=args.sw, jobs=args.jobs,
+                          scheduler=args.scheduler, local_cluster=args.local_cluster)
+    for s in summaries:
+        sys.stdout.write(json.dumps(s, separators=(",", ":")) + "\n")
+    return 1 if any(s["error"] for s in summaries) else 0

@@ -1,0 +1,195 @@
+"""Many captures into one partitioned Parquet dataset (``eyeq-spi batch``).
+
+Each capture is one task: the batch dissector (:mod:`.batch`) reads it and every message becomes
+a row of the table of its type (its name, or its protocol when it has none), under
+``OUT/capture=<capture>/message=<name>/``. Columns are those of ``dissect --parquet``
+(``frame_index``, ``time``, ``direction``, ``header.*`` and the flattened fields) plus ``errors``
+(the record's errors joined by "; "); unlike ``dissect --parquet``, a message with no fields (a
+MESP request without parameters, a payload of the wrong length) is a row too, so the row counts
+are ``dissect --stats``'s message counts. The partition directories add ``capture`` and
+``message``: the whole fleet is one Hive-partitioned dataset for pyarrow, DuckDB or pandas.
+
+Tasks run in this process, in a local process pool, or on Dask (``distributed``: a scheduler
+address or a ``LocalCluster``); on Dask, the workers must see the captures and ``OUT`` at the same
+paths (a shared file system). A capture that cannot be read becomes an ``error`` in its summary
+and has no partition (the dataset holds whole captures only); the others are written anyway.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.dissect.output import OutputError, flatten
+from eyeq_spi.errors import EyeqError
+
+ROWS_PER_GROUP = 4096
+
+
+class FleetError(EyeqError):
+    """The fleet run cannot start (no captures, a missing extra, a scheduler that does not
+    answer)."""
+
+
+def find_captures(root: str | Path) -> list[Path]:
+    """Every ``*.pcapng`` under ``root`` (sorted), or ``root`` itself if it is one."""
+    p = Path(root)
+    if p.is_file():
+        return [p]
+    if not p.is_dir():
+        raise FleetError(f"{root}: no such directory")
+    found = sorted(q for q in p.rglob("*.pcapng") if q.is_file())
+    if not found:
+        raise FleetError(f"{root}: no *.pcapng capture in it")
+    return found
+
+
+def capture_key(path: Path, root: Path) -> str:
+    """The capture's partition value: its path under ``root`` without the suffix, with
+    separators and anything unsafe in a directory name replaced."""
+    try:
+        rel = path.relative_to(root) if root.is_dir() else Path(path.name)
+    except ValueError:
+        rel = Path(path.name)
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", str(rel.with_suffix("")).replace(os.sep, "__"))
+
+
+def _pyarrow() -> tuple[Any, Any]:
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError as exc:
+        raise FleetError("eyeq-spi batch needs pyarrow: pip install 'eyeq-spi[fleet]'") from exc
+    return pa, pq
+
+
+def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
+                    ) -> dict[str, Any]:
+    """One task: ``path`` into ``out/capture=<capture>/message=<name>/part-0.parquet``.
+    Returns a JSON-ready summary (never raises for a bad capture)."""
+    from eyeq_spi.codec.message import MessageCodec
+    from eyeq_spi.dissect.batch_run import batch_items
+    from eyeq_spi.dissect.vframes import FrameBlock
+
+    pa, pq = _pyarrow()
+    summary: dict[str, Any] = {"capture": capture, "path": path, "frames": 0, "messages": {},
+                               "events": 0, "error": None}
+    writers: dict[str, Any] = {}
+    rows: dict[str, list[dict[str, Any]]] = {}
+    base = Path(out) / f"capture={capture}"
+
+    def flush(name: str) -> None:
+        batch = rows.get(name)
+        if not batch:
+            return
+        table = pa.Table.from_pylist(batch)
+        w = writers.get(name)
+        if w is None:
+            d = base / f"message={name}"
+            d.mkdir(parents=True, exist_ok=True)
+            w = pq.ParquetWriter(str(d / "part-0.parquet"), table.schema)
+            writers[name] = w
+        w.write_table(table.cast(w.schema))
+        batch.clear()
+
+    def message(r: dict[str, Any]) -> None:
+        name = r["name"] or r["protocol"]
+        summary["messages"][name] = summary["messages"].get(name, 0) + 1
+        row = {"frame_index": r["frames"][-1] if r["frames"] else None, "time": r["time"],
+               "direction": r["direction"], "errors": "; ".join(r["errors"]),
+               **{f"header.{k}": v for k, v in r["header"].items()}, **flatten(r["fields"])}
+        batch = rows.setdefault(name, [])
+        batch.append(row)
+        if len(batch) >= ROWS_PER_GROUP:
+            flush(name)
+
+    try:
+        with open(path, "rb") as fh:
+            items = batch_items(fh, "pcapng", None, MessageCodec(sw))
+            if items is None:
+                raise FleetError("not a pcapng capture")
+            for item in items:
+                if isinstance(item, FrameBlock):
+                    summary["frames"] += item.hi - item.lo
+                    for _, r in item.messages:
+                        message(r)
+                elif item["kind"] == "frame":
+                    summary["frames"] += 1
+                elif item["kind"] == "message":
+                    message(item)
+                else:
+                    summary["events"] += 1
+        for name in list(rows):
+            flush(name)
+    except (EyeqError, OSError) as exc:
+        summary["error"] = str(exc)
+    finally:
+        for w in writers.values():
+            w.close()
+    if summary["error"] is not None:  # the dataset holds whole captures only
+        shutil.rmtree(base, ignore_errors=True)
+    return summary
+
+
+Runner = Callable[[list[tuple[str, str]]], Iterator[dict[str, Any]]]
+
+
+def run_fleet(root: str, out: str, *, sw: str | None = None, jobs: int = 1,
+              scheduler: str | None = None, local_cluster: int | None = None
+              ) -> list[dict[str, Any]]:
+    """Every capture under ``root`` into the dataset ``out``; one summary per capture, in the
+    order of the captures."""
+    _pyarrow()
+    paths = find_captures(root)
+    rootp = Path(root)
+    tasks = [(str(p.resolve()), capture_key(p, rootp)) for p in paths]
+    keys = [k for _, k in tasks]
+    if len(set(keys)) != len(keys):
+        raise FleetError("two captures map to the same partition name")
+    try:
+        Path(out).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create {out}: {exc}") from exc
+    outp = str(Path(out).resolve())
+    if scheduler or local_cluster:
+        return _on_dask(tasks, outp, sw, scheduler, local_cluster)
+    if jobs > 1 and len(tasks) > 1:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            futs = [pool.submit(dissect_capture, p, outp, k, sw) for p, k in tasks]
+            return [f.result() for f in futs]
+    return [dissect_capture(p, outp, k, sw) for p, k in tasks]
+
+
+def _on_dask(tasks: list[tuple[str, str]], out: str, sw: str | None, scheduler: str | None,
+             local_cluster: int | None) -> list[dict[str, Any]]:
+    try:
+        import importlib
+
+        dd: Any = importlib.import_module("distributed")  # partly typed: used as Any
+        Client, LocalCluster = dd.Client, dd.LocalCluster
+    except ImportError as exc:
+        raise FleetError("--scheduler/--local-cluster need Dask: "
+                         "pip install 'eyeq-spi[fleet]'") from exc
+    cluster = None
+    try:
+        if scheduler:
+            client = Client(scheduler, timeout="10s")
+        else:
+            cluster = LocalCluster(n_workers=local_cluster, threads_per_worker=1,
+                                   processes=True, dashboard_address=None)
+            client = Client(cluster)
+    except (OSError, TimeoutError) as exc:
+        raise FleetError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+    try:
+        futs = [client.submit(dissect_capture, p, out, k, sw, key=f"eyeq-spi-{k}", pure=False)
+                for p, k in tasks]
+        return list(client.gather(futs))
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
