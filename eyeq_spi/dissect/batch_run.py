@@ -9,7 +9,6 @@ agreement tests hold the batch path to that), so writers, filters and ``--stats`
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
@@ -81,7 +80,7 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
     item.add_to(stats)
     for w in writers:
         if type(w) is JsonWriter:
-            w.fh.write(item.json_lines())
+            item.write_json(w.fh, w.write)
         elif hasattr(w, "write_block"):
             w.write_block(item)
         elif getattr(w, "messages_only", False) or type(w).__name__ == "TableWriter":
@@ -159,7 +158,3 @@ def default_jobs() -> int:
     with contextlib.suppress(AttributeError):
         return len(os.sched_getaffinity(0))
     return os.cpu_count() or 1
-
-
-def dumps(r: dict[str, Any]) -> str:
-    return json.dumps(r, separators=(",", ":"))

@@ -9,7 +9,6 @@ into records, JSON Lines or ``--stats`` counts.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -131,10 +130,6 @@ def frame_arrays(chunk: Chunk, codec: FrameCodec, base: int, last_time: float | 
     return FrameArrays(chunk, base, ftype, num, rsp, crc_ok, d, fed, tfill)
 
 
-def _num(v: Any) -> str:
-    return "null" if v is None else str(v)
-
-
 @dataclass
 class FrameBlock:
     """Frame records of rows ``[lo, hi)`` of one chunk, with the messages that complete inside
@@ -183,9 +178,10 @@ class FrameBlock:
                 nxt = next(msgs, None)
         return out
 
-    def json_lines(self, dumps: Any = None) -> str:
-        """The JSON Lines of :meth:`records`, frames formatted straight from the arrays."""
-        dumps = dumps or (lambda r: json.dumps(r, separators=(",", ":")))
+    def write_json(self, fh: Any, write_message: Any) -> None:
+        """The JSON Lines of :meth:`records`: frame lines formatted straight from the arrays
+        (what ``json.dumps(record, separators=(",", ":"))`` prints for them) go to ``fh``;
+        each message goes to ``write_message`` (the JSON writer's own), in order."""
         fa = self.fa
         L = fa.lst
         times, dirs, lengths = L("time"), L("direction"), L("length")
@@ -208,9 +204,9 @@ class FrameBlock:
             else:
                 d = ds[i]
                 tr = tid = nak = "null"
-                if d == 2:
+                if d == FrameKind.NAK:
                     nak = str(nums[i])
-                elif d == 8 or d != 4:
+                elif d != FrameKind.ACK:  # DATA, or a D of no known kind
                     tt = ttypes[i]
                     tr = tnames.get(tt, "null")
                     if tt == 1 or tt == 2:
@@ -221,9 +217,11 @@ class FrameBlock:
                              f'"crc_ok":{"true" if oks[i] else "false"},"transport":{tr},'
                              f'"transfer_id":{tid},"nak_reason":{nak}}}\n')
             while mi < len(msgs) and msgs[mi][0] == i:
-                parts.append(dumps(msgs[mi][1]) + "\n")
+                fh.write("".join(parts))
+                parts.clear()
+                write_message(msgs[mi][1])
                 mi += 1
-        return "".join(parts)
+        fh.write("".join(parts))
 
     def add_to(self, stats: Any) -> None:
         """Count this block's frames and messages into a :class:`~.stats.Stats`."""
