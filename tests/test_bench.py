@@ -442,3 +442,25 @@ def test_replay_to_a_port_in_real_time(demo: Path, capsys: pytest.CaptureFixture
     assert got["acks_sent"] >= 1 and got["host_messages"].get("GetEyeQExtendedState", 0) > 0
     assert got["max_lateness_ms"] < 50
     assert host.counters.received["EYEQ_BOOT_STATUS_MSG"] >= 1
+
+
+def test_missing_bench_extra_gives_the_pip_hint(demo: Path, tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    import sys
+
+    monkeypatch.setitem(sys.modules, "asammdf", None)  # import asammdf raises ImportError
+    monkeypatch.setitem(sys.modules, "mcap.writer", None)
+    for opt in ("--mdf", "--mcap"):
+        rc, _, err = _run(capsys, "export", str(demo), opt, str(tmp_path / "out"))
+        assert rc == 2 and "pip install 'eyeq-spi[bench]'" in err and err.count("\n") == 1
+
+
+def test_replay_needs_an_eyeq_channel(demo_records: list[Record], tmp_path: Path,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "h2e.raw"
+    path.write_bytes(b"".join(r.data for r in demo_records if r.direction == "h2e")[:128 * 20])
+    rc, _, err = _run(capsys, "replay", str(path), "--into-host", "--direction", "h2e")
+    assert rc == 2 and "no e2h transfer" in err and err.count("\n") == 1
+    rc, _, err = _run(capsys, "replay", str(path), "--into-host", "--duration", "-1")
+    assert rc == 2 and "--duration" in err

@@ -65,17 +65,23 @@ def sniff(head: bytes) -> str | None:
     return None
 
 
-def _byte(text: str, where: str) -> int | None:
+_BYTES = {f"0x{v:02X}": v for v in range(256)} | {f"0x{v:02x}": v for v in range(256)}
+
+
+def _byte(text: str, n: int) -> int | None:
+    v = _BYTES.get(text)  # the usual hex radix, without parsing
+    if v is not None:
+        return v
     t = text.strip().strip('"')
     if not t:
         return None
     try:
         v = int(t, 0) if t[:2].lower() in ("0x", "0b") else int(t, 10)
     except ValueError:
-        raise LogicInputError(f"{where}: {t[:20]!r} is not a byte (export with a hex, decimal "
-                              "or binary radix)") from None
+        raise LogicInputError(f"line {n}: {t[:20]!r} is not a byte (export with a hex, "
+                              "decimal or binary radix)") from None
     if not 0 <= v <= 0xFF:
-        raise LogicInputError(f"{where}: {v} is not a byte (set the analyzer to 8 bits)")
+        raise LogicInputError(f"line {n}: {v} is not a byte (set the analyzer to 8 bits)")
     return v
 
 
@@ -109,31 +115,38 @@ def read_saleae2(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
         raise LogicInputError("not a Saleae Logic 2 SPI export: the header needs name, type, "
                               "start_time, mosi and miso") from None
     kinds = bench_spec()["saleae2"]["row_types"]
+    k_start, k_byte = kinds["start"], kinds["byte"]
     open_: dict[str, _Open | None] = {}
     routes: dict[str, list[Route]] = {}
     results = enables = 0
+    need = max(i_name, i_type, i_time, *cols.values())
+    col_list = list(cols.items())
     for n, row in enumerate(csv.reader(lines), start=2):
         if not row:
             continue
-        if len(row) <= max(i_name, i_type, i_time, *cols.values()):
+        if len(row) <= need:
             raise LogicInputError(f"line {n}: {len(row)} columns, expected {len(header)}")
-        name, kind = row[i_name], row[i_type].strip().lower()
+        name, kind = row[i_name], row[i_type]
         if name not in routes:
             routes[name] = opts.routes(name, len(routes) + 1)
-        if kind == kinds["start"]:
-            enables += 1
-            open_[name] = _Open(_time(row[i_time], f"line {n}"))
-        elif kind == kinds["byte"]:
+        if kind != k_byte and kind != k_start:
+            kind = kind.strip().lower()
+        if kind == k_byte:
             results += 1
             tr = open_.get(name)
             if tr is None:
                 continue  # a transfer cut by the start of the capture
-            for line, col in cols.items():
-                v = _byte(row[col], f"line {n}")
+            for line, col in col_list:
+                v = _byte(row[col], n)
                 if v is not None:
-                    tr.lines[line].append(v)
-            if len(tr.lines["mosi"]) > MAX_TRANSFER or len(tr.lines["miso"]) > MAX_TRANSFER:
-                raise LogicInputError(f"line {n}: transfer longer than {MAX_TRANSFER} bytes")
+                    buf = tr.lines[line]
+                    buf.append(v)
+                    if len(buf) > MAX_TRANSFER:
+                        raise LogicInputError(f"line {n}: transfer longer than {MAX_TRANSFER} "
+                                              "bytes")
+        elif kind == k_start:
+            enables += 1
+            open_[name] = _Open(_time(row[i_time], f"line {n}"))
         elif kind == kinds["end"]:
             tr = open_.pop(name, None)
             if tr is not None:
@@ -172,7 +185,7 @@ def read_saleae1(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
             tr, packet = _Open(_time(row[i_time], f"line {n}")), pid
         assert tr is not None
         for line, col in (("mosi", i_mosi), ("miso", i_miso)):
-            v = _byte(row[col], f"line {n}")
+            v = _byte(row[col], n)
             if v is not None:
                 tr.lines[line].append(v)
         if len(tr.lines["mosi"]) > MAX_TRANSFER or len(tr.lines["miso"]) > MAX_TRANSFER:
