@@ -1,85 +1,151 @@
 #!/usr/bin/env python3
-"""Dissector throughput and peak memory on a ~1-million-frame pcapng capture.
+"""Dissector throughput, before (exact engine) and after (batch path), with in-run baselines.
 
-The capture repeats a 3 s demo capture (both channels) with shifted timestamps until it holds
-``--frames`` transfers; each repetition starts with NUM 0 / RSP 0, which the dissector treats as
-a driver reset. Runs ``eyeq-spi dissect --json`` (to /dev/null) and ``--stats`` in subprocesses
-and reports frames/s, MB/s and peak RSS.
+Input: a full-load demo capture (``demo --virtual-time --objects 15 --signs 20 --light-spots 15
+--capture``, ``--duration`` seconds), as pcapng and as raw (the EyeQ -> host channel). Measures,
+``--repeat`` times each, median and spread (min..max):
+
+- batch frame validation (header fields + CRC of every frame, ``vframes.frame_arrays``);
+- the in-run baselines over the same frames: a Python loop of ``binascii.crc_hqx`` and a loop of
+  ``struct.unpack_from`` of the frame layout (header word, CRC);
+- ``eyeq-spi dissect --stats`` / ``--json`` / ``--parquet`` as subprocesses: "after" reads the
+  file (batch path); "before" reads the same bytes from a pipe, which cannot seek and so takes the
+  exact engine; frames/s, ratio after/before, ratio to the crc_hqx baseline, peak RSS.
+
+    python tools/bench_dissect.py [--duration 30] [--repeat 3] [--keep DIR] [--capture FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import binascii
 import json
 import os
-import resource
+import statistics
+import struct
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+GOALS = {"validate": 3_000_000, "stats": 250_000, "parquet": 150_000, "json": 60_000}
 
 
-def build(path: Path, frames: int) -> int:
-    from eyeq_spi.capture.pcapng_io import CaptureWriter, read_pcapng
-
-    demo = Path(tempfile.mkdtemp()) / "demo.pcapng"
+def build(dirpath: Path, duration: float) -> Path:
+    cap = dirpath / "full.pcapng"
     subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "demo", "--virtual-time",
-                    "--duration", "3", "--capture", str(demo), "--json"], check=True,
+                    "--duration", str(duration), "--objects", "15", "--signs", "20",
+                    "--light-spots", "15", "--capture", str(cap), "--json"], check=True,
                    cwd=ROOT, capture_output=True)
-    with open(demo, "rb") as fh:
-        recs = list(read_pcapng(fh))
-    # start each repetition once Running Vision traffic flows (skip the bring-up)
-    recs = recs[len(recs) // 3:]
-    period = (recs[-1].time or 0) - (recs[0].time or 0) + 0.01
-    n = 0
-    with CaptureWriter(path) as w:
-        rep = 0
-        while n < frames:
-            base = rep * period - (recs[0].time or 0)
-            for r in recs:
-                if n >= frames:
-                    break
-                w.write(r.direction or "e2h", (r.time or 0) + base, r.data)
-                n += 1
-            rep += 1
-    return n
+    return cap
 
 
-def measure(args: list[str]) -> tuple[float, int, int]:
+def timed(fn: Callable[[], object], repeat: int) -> list[float]:
+    out = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t0)
+    return out
+
+
+def summary(n: int, times: list[float]) -> dict[str, float]:
+    rates = sorted(n / t for t in times)
+    return {"median": round(statistics.median(rates)), "min": round(rates[0]),
+            "max": round(rates[-1])}
+
+
+def cli(args: list[str], stdin: Path | None) -> tuple[float, int]:
     code = ("import resource,sys; from eyeq_spi.cli import main; rc = main(sys.argv[1:]); "
-            "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, rc, file=sys.stderr)")
+            "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)")
+    cmd = [sys.executable, "-c", code, *args]
     t0 = time.perf_counter()
     with open(os.devnull, "w") as null:
-        r = subprocess.run([sys.executable, "-c", code, *args], stdout=null,
-                           stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        if stdin is None:
+            r = subprocess.run(cmd, stdout=null, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        else:
+            cat = subprocess.Popen(["cat", str(stdin)], stdout=subprocess.PIPE)
+            r = subprocess.run(cmd, stdin=cat.stdout, stdout=null, stderr=subprocess.PIPE,
+                               text=True, cwd=ROOT)
+            cat.wait()
     dt = time.perf_counter() - t0
-    rss, rc = r.stderr.strip().splitlines()[-1].split()
-    return dt, int(rss), int(rc)
+    if r.returncode not in (0, 1):
+        raise SystemExit(f"dissect failed: {r.stderr[-500:]}")
+    return dt, int(r.stderr.strip().splitlines()[-1])
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--frames", type=int, default=1_000_000)
-    ap.add_argument("--keep", metavar="FILE", help="keep the generated capture here")
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--duration", type=float, default=30.0)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--capture", type=Path, help="use this pcapng instead of a new demo capture")
+    ap.add_argument("--keep", type=Path, help="write the captures and tables here")
+    ap.add_argument("--skip-before", action="store_true", help="do not time the exact path")
     a = ap.parse_args()
-    path = Path(a.keep) if a.keep else Path(tempfile.mkdtemp()) / "big.pcapng"
-    t0 = time.perf_counter()
-    n = build(path, a.frames)
-    size = path.stat().st_size
-    out: dict[str, float] = {"frames": n, "file_mb": round(size / 1e6, 1),
-                             "build_s": round(time.perf_counter() - t0, 1)}
-    for label, extra in (("json", ["--json"]), ("stats", ["--stats"])):
-        dt, rss, rc = measure(["dissect", str(path), *extra])
-        out[f"{label}_s"] = round(dt, 1)
-        out[f"{label}_frames_per_s"] = round(n / dt)
-        out[f"{label}_mb_per_s"] = round(size / 1e6 / dt, 2)
-        out[f"{label}_peak_rss_mb"] = round(rss / 1024, 1)
-        out[f"{label}_exit"] = rc
+    work = a.keep or Path(tempfile.mkdtemp())
+    work.mkdir(parents=True, exist_ok=True)
+    cap = a.capture or build(work, a.duration)
+
+    import numpy as np
+
+    from eyeq_spi.capture.fastread import pcapng_chunks
+    from eyeq_spi.dissect.vframes import frame_arrays
+    from eyeq_spi.link.frame import FrameCodec
+
+    with open(cap, "rb") as fh:
+        chunks = list(pcapng_chunks(fh, 1 << 30))
+    data = np.concatenate([c.data for c in chunks])
+    n = len(data)
+    raw = work / "e2h.bin"
+    e2h = np.concatenate([c.data[c.direction == 1] for c in chunks])
+    raw.write_bytes(e2h.tobytes())
+    frames = [bytes(r) for r in data]
+    codec = FrameCodec()
+    hdr = struct.Struct("<IH")
+
+    def crc_loop() -> None:
+        for f in frames:
+            binascii.crc_hqx(f[:4] + f[6:], 0xFFFF)
+
+    def unpack_loop() -> None:
+        for f in frames:
+            hdr.unpack_from(f, 0)
+
+    out: dict[str, object] = {"frames": n, "pcapng_mb": round(cap.stat().st_size / 1e6, 1),
+                              "raw_frames": len(e2h)}
+    base_crc = summary(n, timed(crc_loop, a.repeat))
+    base_unpack = summary(n, timed(unpack_loop, a.repeat))
+    valid = summary(n, timed(lambda: frame_arrays(chunks[0], codec, 0, None), a.repeat))
+    out["baseline_crc_hqx_loop"] = base_crc
+    out["baseline_struct_unpack_loop"] = base_unpack
+    out["batch_validation"] = {**valid, "x_crc_hqx": round(valid["median"] / base_crc["median"], 2),
+                               "x_struct": round(valid["median"] / base_unpack["median"], 2),
+                               "goal": GOALS["validate"]}
+    modes = {"stats": ["--stats"], "json": ["--json"],
+             "parquet": ["--parquet", str(work / "tables")]}
+    for fmt, path, count, extra in (("pcapng", cap, n, []),
+                                    ("raw", raw, len(e2h), ["--direction", "e2h"])):
+        for mode, args in modes.items():
+            argv = ["dissect", "-", *extra, *args]
+            row: dict[str, object] = {}
+            for label, stdin in (("after", None), ("before", path)):
+                if label == "before" and a.skip_before:
+                    continue
+                runs = [cli(argv if stdin else [*argv[:1], str(path), *argv[2:]], stdin)
+                        for _ in range(a.repeat if label == "after" else 1)]
+                row[label] = {**summary(count, [r[0] for r in runs]),
+                              "peak_rss_mb": round(max(r[1] for r in runs) / 1024, 1)}
+            after = row["after"]["median"]  # type: ignore[index]
+            if "before" in row:
+                row["x_before"] = round(after / row["before"]["median"], 1)  # type: ignore[index]
+            row["x_crc_hqx"] = round(after / base_crc["median"], 3)
+            row["goal"] = GOALS[mode]
+            out[f"{mode}_{fmt}"] = row
     print(json.dumps(out, indent=1))
-    _ = resource
     return 0
 
 
