@@ -39,10 +39,10 @@ def test_no_corrupted_message_is_delivered_and_vision_holds(soak: SoakReport) ->
 def test_receiver_counters_account_for_every_injected_fault(soak: SoakReport, side: str) -> None:
     acc = soak.accounting[side]
     assert acc.mismatches(EXACT) == {}, (acc.injected, acc.expected, acc.observed)
-    # duplicated ACK/NAKs give one unexpected ACK each; a reordered ACK only if it came late,
-    # and a second ACK for a duplicated DATA frame only if it was not itself lost: bounds
-    lo, hi = acc.unexpected_ack_bounds
-    assert acc.unexpected_ack_ok, (lo, acc.observed["unexpectedAckCounter"], hi)
+    # late frames and unexpected ACKs depend on what came next and when: bounds, explained in
+    # eyeq_spi.faults.soak's docstring
+    assert acc.out_of_bounds() == {}, (acc.injected, acc.bounds, acc.observed)
+    assert acc.observed["lateFrames"] == acc.observed["sequenceErrorCounter"]  # L6a, no resync
 
 
 def test_vision_is_reached_and_held_at_5_percent_frame_loss() -> None:

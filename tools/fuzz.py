@@ -118,6 +118,12 @@ def main(argv: list[str] | None = None) -> int:
     engine = args.engine
     if engine == "auto":
         engine = "atheris" if importlib.util.find_spec("atheris") else "random"
+        if engine == "random":
+            print("fuzz: atheris is not installed (pip install atheris): running the seeded "
+                  "coverage-free mutator instead", file=sys.stderr)
+    elif engine == "atheris" and not importlib.util.find_spec("atheris"):
+        print("fuzz: --engine atheris needs atheris: pip install atheris", file=sys.stderr)
+        return 2
     out = Path(args.out or tempfile.mkdtemp(prefix="eyeq-fuzz-"))
     out.mkdir(parents=True, exist_ok=True)
     share = args.budget * max(1, args.jobs) / len(names)
