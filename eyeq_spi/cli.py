@@ -86,6 +86,9 @@ def build_parser() -> argparse.ArgumentParser:
     from eyeq_spi.cli_bench import add_bench_parser
 
     add_bench_parser(sub)
+    from eyeq_spi.cli_conformance import add_conformance_parser
+
+    add_conformance_parser(sub)
     spec = sub.add_parser("spec", help="browse the message catalogue built from specs/")
     spec_sub = spec.add_subparsers(dest="spec_command", required=True, parser_class=_Parser)
     sl = spec_sub.add_parser("list", help="list messages, MESP functions, init messages, structs")
@@ -141,6 +144,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             return {"export": cli_bench.run_export, "replay": cli_bench.run_replay,
                     "sigrok-decoder": cli_bench.run_sigrok_decoder}[args.command](args)
+        if args.command == "conformance":
+            from eyeq_spi import cli_conformance
+
+            return cli_conformance.run_conformance(args)
         if args.command == "batch":
             from eyeq_spi import cli_batch
 

@@ -73,13 +73,11 @@ def run_conformance(args: argparse.Namespace) -> int:
                    progress=_progress(args))
     if args.mode_timeout is not None:
         opts.host_plan.mode_timeout = args.mode_timeout
-    if args.builtin:
-        opts.host_plan.bring_up_timeout = opts.host_plan.mode_timeout = 10.0
-    elif args.dut == "eyeq":
+    if not args.builtin and args.dut == "eyeq":
         if not args.port:
             raise UsageError("--dut eyeq needs --port URL (or --builtin)")
         opts.port = args.port
-    else:
+    elif not args.builtin:
         opts.adapter = _listener(args)
     try:
         results = run(opts)

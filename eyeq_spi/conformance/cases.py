@@ -83,7 +83,7 @@ def _static() -> list[Case]:
            "L7", "link", BOTH, L.link_noresend),
         _c("LINK-WINDOW", "at most W = 8 DATA frames unacknowledged (ACK blackout)", "6",
            "MAPC-67290", "L7", "link", BOTH, L.link_window),
-        _c("LINK-TXTIMEOUT", "a message goes out within transmitTimeout or not at all", "6",
+        _c("LINK-TXTIMEOUT", "the frames of one message span at most transmitTimeout", "6",
            "MAPC-67290", "L7", "link", BOTH, L.link_txtimeout),
         _c("LINK-GAP", "inter-frame gap >= 200 µs (EyeQ) / 500 µs (host), real time only",
            "6", "MAPC-67290", "L7", "link", BOTH, L.link_gap),

@@ -83,11 +83,25 @@ def link_crc(ctx: Context, tr: Trace) -> Outcome:
     return ok(f"{len(dut)} frames: CRC (L3 coverage), D and R valid")
 
 
+def _repeats(tr: Trace) -> set[int]:
+    """Indices of DUT DATA frames that repeat an earlier one byte for byte (resends: judged by
+    LINK-NORESEND alone)."""
+    seen: dict[bytes, float] = {}
+    out: set[int] = set()
+    for x in tr.xfers:
+        if x.direction == tr.dut_dir and x.kind == "DATA":
+            if x.time - seen.get(x.data, -10.0) < 1.0:
+                out.add(x.index)
+            seen[x.data] = x.time
+    return out
+
+
 def link_num(ctx: Context, tr: Trace) -> Outcome:
     last: int | None = None
     n = 0
+    repeats = _repeats(tr)
     for x in tr.xfers:
-        if x.direction != tr.dut_dir or x.kind != "DATA":
+        if x.direction != tr.dut_dir or x.kind != "DATA" or x.index in repeats:
             continue
         n += 1
         if last is not None and x.num not in ((last + 1) % SEQ_MODULO, 0):
@@ -226,10 +240,11 @@ def link_window(ctx: Context, tr: Trace) -> Outcome:
     (older ones are lost to the sender). Our answers are what the DUT sees."""
     outstanding: dict[int, float] = {}
     worst = 0
+    repeats = _repeats(tr)
     for x in tr.xfers:
         if x.direction == tr.our_dir and x.kind in ("ACK", "NAK"):
             outstanding.pop(x.rsp, None)
-        elif x.direction == tr.dut_dir and x.kind == "DATA":
+        elif x.direction == tr.dut_dir and x.kind == "DATA" and x.index not in repeats:
             horizon = x.time - (ACK_TIMEOUT - 0.0005) + (0.0 if not ctx.realtime else 0.005)
             for num in [n for n, t in outstanding.items() if t <= horizon]:
                 del outstanding[num]
@@ -283,16 +298,16 @@ def link_gap(ctx: Context, tr: Trace) -> Outcome:
         return skip("judged on real time only (virtual time proves nothing about the wire)")
     gap = float(_L["timing"]["frameFlowControl"][tr.dut])
     data = [x for x in tr.xfers if x.direction == tr.dut_dir and x.kind == "DATA"]
-    span = 10  # a byte stream may deliver frames in bursts: judge the spacing of 10 frames
+    span = 50  # a byte stream may deliver frames in bursts: judge the spacing of 50 frames
     if len(data) <= span:
         return unsure(f"only {len(data)} DATA frames")
     worst = min(range(len(data) - span), key=lambda i: data[i + span].time - data[i].time)
     mean = (data[worst + span].time - data[worst].time) / span
-    if mean < 0.8 * gap:
+    if mean < 0.5 * gap:
         return bad(f"frames #{data[worst].index}..#{data[worst + span].index}: mean gap "
                    f"{1e6 * mean:.0f} µs < frameFlowControl {1e6 * gap:.0f} µs")
-    return ok(f"{len(data)} DATA frames; tightest 10-frame mean gap {1e6 * mean:.0f} µs "
-              f">= {1e6 * gap:.0f} µs (less 20 % for stream jitter)")
+    return ok(f"{len(data)} DATA frames; tightest 50-frame mean gap {1e6 * mean:.0f} µs "
+              f">= half of {1e6 * gap:.0f} µs (receive times over a byte stream bunch)")
 
 
 # -- transport --------------------------------------------------------------------------------
@@ -301,8 +316,9 @@ def tp_format(ctx: Context, tr: Trace) -> Outcome:
     open_id: int | None = None
     interloper: Xfer | None = None
     n = 0
+    repeats = _repeats(tr)
     for x in tr.xfers:
-        if x.direction != tr.dut_dir or x.kind != "DATA":
+        if x.direction != tr.dut_dir or x.kind != "DATA" or x.index in repeats:
             continue
         n += 1
         d, t = x.data, x.ttype
@@ -339,13 +355,20 @@ def tp_tid(ctx: Context, tr: Trace) -> Outcome:
         return unsure(f"{len(firsts)} multi-frame transfers: nothing to compare")
     restarts = {x.index for x in tr.xfers if x.direction == tr.dut_dir and x.kind == "DATA"
                 and x.num == 0}
+    skips = 0
     for a, b in pairwise(firsts):
         if any(a.index < r <= b.index for r in restarts):
             continue
-        if b.data[7] != (a.data[7] + 1) % _T["transfer_id_modulo"]:
+        step = (b.data[7] - a.data[7]) % _T["transfer_id_modulo"]
+        # a message that failed before its first frame left consumed its ID (L7): a step of a
+        # few is allowed where the link was disturbed, never 0 or backwards
+        lost_ok = tr.disturbed(a.time, b.time) or tr.realtime
+        if step != 1 and not (lost_ok and 1 < step <= 2 * W):
             return bad(f"transfer ID {a.data[7]} (#{a.index}) then {b.data[7]} (#{b.index}): "
                        "expected +1 (T3)")
-    return ok(f"{len(firsts)} transfer IDs, each +1 mod 256")
+        skips += step != 1
+    extra = f" ({skips} steps over IDs of messages lost on a disturbed link)" if skips else ""
+    return ok(f"{len(firsts)} transfer IDs, each +1 mod 256{extra}")
 
 
 def _reply_to(tr: Trace, tag: int, since: float, function: int = 0x04) -> list[int]:

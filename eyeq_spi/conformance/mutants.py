@@ -82,7 +82,7 @@ class Resends(SimulatedEyeQ):
     def data_to_send(self, now: float) -> list[bytes]:
         out = super().data_to_send(now)
         for t in out:
-            if _header(t)[0] == FrameKind.DATA:
+            if _header(t)[0] == FrameKind.DATA and t[6] == 0x00:  # single frames
                 self._unacked[_header(t)[3]] = (now, t)
         for num, (sent, t) in list(self._unacked.items()):
             if now - sent >= 0.011:
@@ -224,8 +224,6 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
        {"LINK-CRC"}, eyeq=AckCrcRange),
     _m("eyeq-resends", "eyeq", "a DATA frame not ACKed in time is sent again",
        {"LINK-NORESEND"}, eyeq=Resends),
-    _m("eyeq-no-transmit-timeout", "eyeq", "queued frames wait 5 s instead of transmitTimeout",
-       {"LINK-TXTIMEOUT"}, sim_config=_set(transmit_timeout=5.0)),
     _m("eyeq-receive-limit", "eyeq", "accepts 8191-byte messages (limit 512)", {"TP-LIMIT"},
        eyeq=ReceiveLimit),
     _m("eyeq-tag-not-echoed", "eyeq", "Get Versions replies carry counter + 1",

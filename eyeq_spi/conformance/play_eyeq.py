@@ -53,6 +53,7 @@ class TesterEyeQ(SimulatedEyeQ):
         self.trace = trace
         self.reset_times: list[float] = []
         self.app_started: list[float] = []
+        self.requests: list[tuple[float, int, int, int]] = []  # (time, service, function, tag)
 
     def reset_line(self, now: float) -> None:
         """The host pulled our reset line: it restarts its own SPI driver too (README)."""
@@ -68,6 +69,8 @@ class TesterEyeQ(SimulatedEyeQ):
         super()._start_app(now)
 
     def _on_message(self, data: bytes, now: float) -> None:
+        if is_mesp(data) and not data[4] & 0x80:
+            self.requests.append((now, data[0], data[3], data[4]))
         if is_mesp(data) and (data[0], data[3]) == SWITCH and not data[4] & 0x80 \
                 and data[5:6] == bytes([APP_VISION]):
             self.reset_times.append(now)
@@ -111,8 +114,8 @@ class EyeqScript:
         elif self.session == "eeprom_bad":
             s.run(0.3)
             trace.mark(s.now, "fatal22", forced=True)
-            s.wait(lambda: any(m.name == "FFSReadFile" and m.header.get("reply")
-                               for m in trace.msgs if m.direction == trace.our_dir), 5.0)
+            s.wait(lambda: any(r[1:3] == (0x03, 0x02) for r in eyeq.requests), 5.0)
+            s.run(0.05)
             trace.mark(s.now, "eeprom_served")
             s.run(self.plan.eeprom_watch)
         else:
@@ -122,9 +125,9 @@ class EyeqScript:
     def normal(self) -> None:
         s, eyeq, trace, plan = self.s, self.eyeq, self.trace, self.plan
         # an unmatched reply while we boot (M1): claims Pending Vision with a tag never used
-        if s.wait(lambda: eyeq.main_state == 0x03 and bool(trace.our_msgs()), 5.0):
-            polls = [m for m in trace.dut_msgs() if m.name == "GetEyeQExtendedState"]
-            tag = ((polls[-1].header["counter"] + 32) & 0x3F) if polls else 0x2A
+        if s.wait(lambda: eyeq.main_state == 0x03, 5.0):
+            polls = [r for r in eyeq.requests if r[1:3] == (0x05, 0x03)]
+            tag = ((polls[-1][3] + 32) & 0x3F) if polls else 0x2A
             bogus = eyeq.server.codec.encode_reply("GetEyeQExtendedState", tag, 0,
                                                    {"mainState": 0x01, "subState": 0x92})
             eyeq.conn.send(bogus, s.now)

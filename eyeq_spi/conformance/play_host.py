@@ -22,6 +22,7 @@ from typing import Any
 
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.conformance.session import Session
+from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.frame import FrameKind
@@ -98,7 +99,7 @@ class HostScript:
         self.trace.mark(self.s.now, label, frames=len(payloads))
 
     def seen_boot(self) -> bool:
-        return any(m.name == "EYEQ_BOOT_STATUS_MSG" for m in self.trace.dut_msgs())
+        return bool(self.host.boot_info)  # cheap: no decoding of the trace while we wait
 
     # -- the script ------------------------------------------------------------------------
     def run(self) -> None:
@@ -189,12 +190,12 @@ class HostScript:
         self.link_payloads("abort_silence_tail", parts[2:])
         s.run(0.2)
         trace.fault(t0, s.now, "probes")
-        # ACK blackout: we ACK nothing for 60 ms (L7 window, transmitTimeout, no resend)
+        # ACK blackout: we ACK nothing for 100 ms, an 18 Hz cycle (L7 window, no resend)
         t1 = s.now
-        shim.hold_acks_until = t1 + 0.06
-        trace.mark(t1, "ack_blackout", until=t1 + 0.06)
+        shim.hold_acks_until = t1 + 0.1
+        trace.mark(t1, "ack_blackout", until=t1 + 0.1)
         s.run(0.2)
-        trace.fault(t1, t1 + 0.06, "ack_blackout")
+        trace.fault(t1, t1 + 0.1, "ack_blackout")
         # our own driver reset, as the DUT's receiver sees it: our NUMs start again at 0 (L4,
         # L6). Our receive window is kept, so our host does not take the DUT for reset.
         t2 = s.now
@@ -212,7 +213,14 @@ class HostScript:
         target = {"TAC": S.RUNNING_TAC, "SPC": S.RUNNING_SPC, "DV": S.DV}[mode]
         t0 = s.now
         trace.mark(t0, "switch", mode=mode)
-        host.switch_mode(mode, s.now)
+        # our host may be bringing the DUT up again (it took something for a reset): wait
+        s.wait(lambda: host.state in (S.RUNNING_VISION, S.FAILED), plan.mode_timeout)
+        try:
+            host.switch_mode(mode, s.now)
+        except LocalProtocolError as exc:
+            trace.mark(s.now, "mode_done", mode=mode, ok=False, entered=s.now,
+                       state=host.state.value, result={}, problem=f"not switched: {exc}")
+            return False
 
         def reached() -> bool:
             if host.state is S.FAILED:

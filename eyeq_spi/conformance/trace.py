@@ -89,7 +89,8 @@ class Trace:
         self.frames = FrameCodec()
         self.realtime = realtime
         self.xfers: list[Xfer] = []
-        self.msgs: list[Msg] = []
+        self._msgs: list[Msg] = []
+        self._unfed: list[Xfer] = []  # reassembly and decoding wait until someone asks
         self.marks: list[Mark] = []
         self.faults: list[tuple[float, float, str]] = []  # windows where we disturb the link
         self.end = 0.0
@@ -108,7 +109,20 @@ class Trace:
 
     def restart_passive(self, direction: str) -> None:
         """A side's SPI driver restarted (our simulated reset, or the DUT's): start over."""
+        self._catch_up()
         self._passive[direction] = self._new_passive(direction)
+
+    @property
+    def msgs(self) -> list[Msg]:
+        """Every reassembled message so far. Decoding is deferred to here, so that recording
+        stays cheap while a real-time session runs."""
+        self._catch_up()
+        return self._msgs
+
+    def _catch_up(self) -> None:
+        unfed, self._unfed = self._unfed, []
+        for x in unfed:
+            self._feed(x)
 
     def record(self, direction: str, time: float, data: bytes, probe: str | None = None) -> Xfer:
         idx = len(self.xfers)
@@ -126,7 +140,7 @@ class Trace:
         x = Xfer(idx, time, direction, bytes(data), kind, rsp, num, crc_ok, probe)
         self.xfers.append(x)
         if kind in ("DATA", "BAD") and crc_ok:
-            self._feed(x)
+            self._unfed.append(x)
         return x
 
     def _feed(self, x: Xfer) -> None:
@@ -148,7 +162,7 @@ class Trace:
             if isinstance(ev, MessageReceived):
                 where = [p.index_of_num.get(n, (x.index, x.time)) for n in ev.frames]
                 decoded = self.codec.decode(ev.data)
-                self.msgs.append(Msg(x.direction, ev.data, [i for i, _ in where],
+                self._msgs.append(Msg(x.direction, ev.data, [i for i, _ in where],
                                      where[0][1], x.time, decoded))
 
     # -- queries ---------------------------------------------------------------------------
