@@ -25,7 +25,6 @@ from eyeq_spi.conformance.session import Session
 from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostState
-from eyeq_spi.link.frame import FrameKind
 from eyeq_spi.spec.link import link_spec
 from eyeq_spi.transport.segment import segment
 
@@ -245,7 +244,3 @@ class HostScript:
         if back:
             s.run(0.2)
         return back
-
-
-def link_kinds() -> tuple[int, int, int]:
-    return int(FrameKind.DATA), int(FrameKind.ACK), int(FrameKind.NAK)
