@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import binascii
 import re
-import struct
 from collections.abc import Iterator
 from typing import IO
 
@@ -129,96 +128,19 @@ def _logic(peek: PeekStream, kind: str, spi: SpiOptions) -> Iterator[Record]:
         raise InputError(f"{kind}: {exc}") from None
 
 
-MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
 MAX_HEX_LINE = 1 << 14  # characters; a 128-byte transfer with time and separators needs ~420
 
 
 def _pcapng(peek: PeekStream) -> Iterator[Record]:
-    guard = _PcapngGuard(peek)
     n = 0
     try:
-        for rec in read_pcapng(guard):  # type: ignore[arg-type]
+        for rec in read_pcapng(peek):  # type: ignore[arg-type]
             n += 1
             yield rec
-    except CaptureError as exc:
-        raise (guard.error or InputError(str(exc))) from None
-    if guard.error is not None:
-        raise guard.error
-    guard.at_end()
+    except CaptureError as exc:  # truncation and block sizes: capture.pcapng_io.PcapngGuard
+        raise InputError(str(exc)) from None
     if n == 0:
         raise InputError("pcapng capture without any transfer (no Enhanced Packet Block)")
-
-
-class _PcapngGuard:
-    """Watches the bytes a pcapng reader consumes and walks the block framing itself, so that
-    whatever reader runs: a file that ends inside a block is reported as truncated (python-pcapng
-    stops silently when a read at a field boundary finds the end of the file), and no single read
-    or block may exceed :data:`MAX_BLOCK` (memory stays bounded for a corrupt length)."""
-
-    def __init__(self, stream: PeekStream) -> None:
-        self.stream = stream
-        self.pos = 0
-        self.block_start = 0
-        self.hdr = b""
-        self.left = 0  # bytes of the current block still to come once its header is known
-        self.endian: str | None = None
-        self.error: InputError | None = None
-
-    def tell(self) -> int:
-        return self.stream.tell()
-
-    def read(self, n: int = -1) -> bytes:
-        if n < 0 or n > MAX_BLOCK:
-            self._fail(f"malformed pcapng: a block of {n} bytes at byte {self.block_start} is "
-                       f"over the {MAX_BLOCK >> 20} MiB limit")
-        data = self.stream.read(n)
-        self._feed(data)
-        if len(data) < n:
-            self.at_end()
-        return data
-
-    def at_end(self) -> None:
-        if self.hdr or self.left:
-            self._fail(f"truncated pcapng: the file ends {self.pos - self.block_start} bytes "
-                       f"into the block that starts at byte {self.block_start}")
-
-    def _fail(self, message: str) -> None:
-        self.error = self.error or InputError(message)
-        raise self.error
-
-    def _feed(self, data: bytes) -> None:
-        i, n = 0, len(data)
-        while i < n:
-            if self.left == 0:
-                take = min(12 - len(self.hdr), n - i)
-                self.hdr += data[i:i + take]
-                i += take
-                if len(self.hdr) == 12:
-                    self._header()
-            else:
-                step = min(self.left, n - i)
-                self.left -= step
-                i += step
-            if self.left == 0 and not self.hdr:
-                self.block_start = self.pos + i
-        self.pos += n
-
-    def _header(self) -> None:
-        hdr, self.hdr = self.hdr, b""
-        if hdr[:4] == PCAPNG_MAGIC:
-            bom = hdr[8:12]
-            self.endian = {b"\x4d\x3c\x2b\x1a": "<", b"\x1a\x2b\x3c\x4d": ">"}.get(bom)
-            if self.endian is None:
-                self._fail("malformed pcapng: bad byte-order magic in the section header")
-        elif self.endian is None:
-            self._fail("malformed pcapng: it does not start with a section header")
-        length = struct.unpack(f"{self.endian}I", hdr[4:8])[0]
-        if length % 4 or not 12 <= length <= MAX_BLOCK:
-            self._fail(f"malformed pcapng: block at byte {self.block_start} has length {length}"
-                       f" (a multiple of 4 in 12..{MAX_BLOCK} expected)")
-        self.left = length - 12
-        if self.left == 0:
-            self.block_start += length
 
 
 def _raw(peek: PeekStream, direction: str | None) -> Iterator[Record]:
