@@ -13,7 +13,7 @@ def test_demo_json_reaches_running_vision(capsys: pytest.CaptureFixture[str]) ->
     assert main(["demo", "--virtual-time", "--duration", "4", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["ok"] and out["state"] == "RUNNING_VISION"
-    assert out["virtual_s"] == pytest.approx(4.0)
+    assert out["elapsed_s"] == pytest.approx(4.0)  # the shared run-summary schema
     msgs = out["messages"]
     assert msgs["HOST_VEH_STATE_MSG"] > 100 and msgs["EYEQ_DIAGNOSTIC_MSG"] > 100
     assert msgs["EYEQ_VIS_OBSTACLES_MSG"] > 20 and out["e2e_errors"] == 0
