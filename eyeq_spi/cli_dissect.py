@@ -113,20 +113,19 @@ def run_dissect(args: argparse.Namespace) -> int:
     elif not table:
         writers.append(HumanWriter(out, codec, color=out.isatty(), tree=not args.no_tree))
     try:
-        from eyeq_spi.dissect import batch_run as br
-
-        plain = br.is_plain(args)
+        br: Any = _batch_run(args)  # None for small inputs: numpy costs more than it saves
+        plain = br.is_plain(args) if br is not None else True
         if args.jobs < 0:
             raise UsageError(f"--jobs must be 0 or more, not {args.jobs}")
-        jobs = args.jobs or br.default_jobs()
+        jobs = args.jobs or (br.default_jobs() if br is not None else 1)
         par = None
-        if jobs > 1 and len(args.files) > 1 and "-" not in args.files:
+        if br is not None and jobs > 1 and len(args.files) > 1 and "-" not in args.files:
             par = br.parallel_items(args.files, jobs, args.format, args.direction, args.sw)
         for path in args.files:
             done = next(par)[1] if par is not None else None
             if done is not None:
                 for r in done:
-                    if isinstance(r, br.FrameBlock):
+                    if br is not None and isinstance(r, br.FrameBlock):
                         br.consume(r, keep, plain, stats, writers)
                     elif keep(r):
                         stats.add(r)
@@ -137,10 +136,11 @@ def run_dissect(args: argparse.Namespace) -> int:
             try:
                 _, records = open_records(fh, args.format, args.direction, spi_options_from(args))
                 dis = Dissector(codec=codec)
-                batched = br.batch_items(fh, args.format, args.direction, codec)
+                batched = (br.batch_items(fh, args.format, args.direction, codec)
+                           if br is not None else None)
                 for r in _with_progress(batched or _all(dis, records), fh, path,
                                         stdout_busy=bool(writers) and table is None):
-                    if isinstance(r, br.FrameBlock):  # the batch path's frames
+                    if br is not None and isinstance(r, br.FrameBlock):  # the batch path
                         br.consume(r, keep, plain, stats, writers)
                     elif keep(r):  # --stats describes exactly what the filters keep
                         stats.add(r)
@@ -159,6 +159,29 @@ def run_dissect(args: argparse.Namespace) -> int:
         else:
             out.write(stats.render() + "\n")
     return 1 if stats.protocol_errors else 0
+
+
+SMALL_INPUT = 256 << 10  # bytes; below this the exact path is quicker than importing numpy
+
+
+def _batch_run(args: argparse.Namespace) -> Any:
+    """``eyeq_spi.dissect.batch_run``, or None when no input is big enough for the batch path
+    (nor several files for ``--jobs``): start-up of small runs stays under 300 ms."""
+    import os
+
+    several = args.jobs != 1 and len(args.files) > 1 and "-" not in args.files
+    big = False
+    for path in args.files:
+        if path != "-":
+            try:
+                big = big or os.path.getsize(path) >= SMALL_INPUT
+            except OSError:
+                big = True  # let the readers report it
+    if not (big or several):
+        return None
+    from eyeq_spi.dissect import batch_run
+
+    return batch_run
 
 
 def _all(dis: Any, records: Iterator[Any]) -> Iterator[dict[str, Any]]:
