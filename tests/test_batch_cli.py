@@ -3,17 +3,16 @@
 
 from __future__ import annotations
 
-import subprocess
+import io
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from eyeq_spi.capture.pcapng_io import CaptureWriter
 from eyeq_spi.cli import main
 from tests.test_batch import BASE, MUTATIONS, Rec
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _pcapng(items: list[Rec], path: Path) -> Path:
@@ -35,33 +34,50 @@ def captures(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     return [_pcapng(BASE, tmp / "clean.pcapng"), _pcapng(faulty, tmp / "faulty.pcapng"), raw]
 
 
-def _cli(args: list[str], stdin: bytes | None = None) -> tuple[int, bytes]:
-    r = subprocess.run([sys.executable, "-m", "eyeq_spi.cli", *args], input=stdin,
-                       capture_output=True, cwd=ROOT, timeout=120)
-    assert b"Traceback" not in r.stderr, r.stderr[-800:]
-    return r.returncode, r.stdout
+class _Pipe(io.RawIOBase):
+    """A stdin that cannot seek, as a pipe: the exact path reads it."""
+
+    def __init__(self, data: bytes) -> None:
+        self.src = io.BytesIO(data)
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, b: Any) -> int:
+        chunk = self.src.read(len(b))
+        b[: len(chunk)] = chunk
+        return len(chunk)
 
 
-@pytest.mark.parametrize("mode", [["--json"], ["--stats", "--json"], ["--stats"], [],
+def _exact(args: list[str], data: bytes, capsys: pytest.CaptureFixture[str],
+           monkeypatch: pytest.MonkeyPatch) -> tuple[int, str]:
+    capsys.readouterr()
+    with monkeypatch.context() as m:
+        m.setattr(sys, "stdin", io.TextIOWrapper(io.BufferedReader(_Pipe(data))))
+        rc = main(args)
+    return rc, capsys.readouterr().out
+
+
+@pytest.mark.parametrize("mode", [["--json"], ["--stats", "--json"], [],
                                   ["--json", "--errors-only"], ["--json", "--protocol", "MESP"]])
 def test_file_and_stdin_print_the_same(captures: list[Path], mode: list[str],
-                                       capsys: pytest.CaptureFixture[str]) -> None:
+                                       capsys: pytest.CaptureFixture[str],
+                                       monkeypatch: pytest.MonkeyPatch) -> None:
     """A file takes the batch path; stdin cannot seek and takes the exact one."""
-    for path in captures[:2]:
-        main(["dissect", str(path), *mode])
+    for path, extra in ((captures[1], []), (captures[2], ["--direction", "e2h"])):
+        capsys.readouterr()
+        rc = main(["dissect", str(path), *extra, *mode])
         batch_out = capsys.readouterr().out
-        _, exact_out = _cli(["dissect", "-", *mode], path.read_bytes())
-        assert batch_out.encode() == exact_out
-    _, exact_out = _cli(["dissect", "-", "--format", "raw", "--direction", "e2h", *mode],
-                         captures[2].read_bytes())
-    main(["dissect", str(captures[2]), "--direction", "e2h", *mode])
-    assert capsys.readouterr().out.encode() == exact_out
+        assert (rc, batch_out) == _exact(["dissect", "-", *extra, *mode], path.read_bytes(),
+                                         capsys, monkeypatch)
 
 
 def test_tables_from_both_paths(captures: list[Path], tmp_path: Path,
-                                capsys: pytest.CaptureFixture[str]) -> None:
+                                capsys: pytest.CaptureFixture[str],
+                                monkeypatch: pytest.MonkeyPatch) -> None:
     main(["dissect", str(captures[1]), "--csv", str(tmp_path / "b")])
-    _cli(["dissect", "-", "--csv", str(tmp_path / "e")], captures[1].read_bytes())
+    _exact(["dissect", "-", "--csv", str(tmp_path / "e")], captures[1].read_bytes(), capsys,
+           monkeypatch)
     names = sorted(p.name for p in (tmp_path / "e").iterdir())
     assert names and names == sorted(p.name for p in (tmp_path / "b").iterdir())
     for n in names:
