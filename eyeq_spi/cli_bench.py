@@ -50,6 +50,9 @@ def add_bench_parser(sub: Any) -> None:
     where.add_argument("--into-host", action="store_true",
                        help="feed the built-in host emulator in virtual time")
     r.add_argument("--duration", type=float, help="stop after S seconds of capture time")
+    r.add_argument("--lead", type=float, default=0.5, metavar="S",
+                   help="--port: seconds between the host connecting and the first frame "
+                   "(default 0.5)")
     r.add_argument("--json", action="store_true", help="end with one JSON object")
     s = sub.add_parser("sigrok-decoder", help="install the eyeq_spi decoder for sigrok/PulseView",
                        description="Write the eyeq_spi protocol decoder (stacked on sigrok's "
@@ -110,7 +113,9 @@ def run_replay(args: argparse.Namespace) -> int:
         if args.into_host:
             summary = replay_into_host(records, sw=args.sw, duration=args.duration)
         else:
-            summary = replay_to_port(records, args.port, duration=args.duration)
+            if args.lead < 0:
+                raise UsageError("--lead must not be negative")
+            summary = replay_to_port(records, args.port, duration=args.duration, lead=args.lead)
     finally:
         if fh is not sys.stdin.buffer:
             fh.close()

@@ -185,8 +185,10 @@ def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
 
 
 def replay_to_port(records: Iterable[Record], url: str, *, duration: float | None = None,
-                   connect_timeout: float = 30.0) -> dict[str, Any]:
-    """Play the capture's EyeQ channel to a host under test at ``url`` in real time."""
+                   connect_timeout: float = 30.0, lead: float = 0.5) -> dict[str, Any]:
+    """Play the capture's EyeQ channel to a host under test at ``url`` in real time, starting
+    ``lead`` seconds after the connection: a host opening its port may discard what arrives
+    meanwhile (pyserial's ``socket://`` resets its input buffer on open)."""
     import sys
     import time
 
@@ -206,7 +208,7 @@ def replay_to_port(records: Iterable[Record], url: str, *, duration: float | Non
         node = ReplayEyeQ(records, duration=duration)
         runner = RealTimeRunner(node, adapter)
         t0 = time.monotonic()
-        node.begin(t0)
+        node.begin(t0 + lead)
         try:
             runner.run(stop=lambda: node.done)
             # the host's last answers: until every played frame is answered, at most 1 s
