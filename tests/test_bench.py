@@ -266,6 +266,31 @@ def test_bad_logic_captures_give_one_line_and_exit_2(
     assert rc == 2 and msg in err and err.count("\n") == 1, err
 
 
+_VCD_HEAD = ("$timescale 1ns $end\n$var wire 1 a h2e_cs $end\n$var wire 1 b h2e_clk $end\n"
+             "$var wire 1 c h2e_mosi $end\n$enddefinitions $end\n")
+
+
+@given(st.sampled_from(["saleae2", "saleae1", "vcd"]),
+       st.one_of(st.binary(max_size=300),
+                 st.lists(st.sampled_from(["#1", "#x", "0a", "1a", "0b", "1b", "1c", "xa", "b1 a",
+                                           "r1.5 c", "$comment", "$end", "$dumpvars", "#99",
+                                           "2a", "", "\r"]), max_size=60)
+                 .map(lambda toks: (_VCD_HEAD + "\n".join(toks)).encode()),
+                 st.lists(st.sampled_from(['"h2e","enable",0.1,1e-6,,', '"h2e","result",0.2,'
+                                           '1e-6,0x08,0x00', '"h2e","disable",0.3,1e-6,,',
+                                           '"e2h","result",x,1,0x1FF,', "0.1,1,0x08,0x00",
+                                           "0.1,,0x08,", "a,b", '"', ""]), max_size=30)
+                 .map(lambda rows: ('name,type,start_time,duration,"mosi","miso"\n'
+                                    + "\n".join(rows)).encode())))
+def test_logic_readers_raise_only_input_errors(fmt: str, data: bytes) -> None:
+    """Any bytes in any logic format: records or one InputError, never another exception."""
+    try:
+        for rec in open_records(io.BytesIO(data), fmt)[1]:
+            assert isinstance(rec.data, bytes) and len(rec.data) <= 4096
+    except InputError:
+        pass
+
+
 def test_vcd_reading_memory_is_bounded() -> None:
     """A chip select that never rises does not grow a transfer without limit."""
     head = b"$timescale 1ns $end\n$var wire 1 a cs $end\n$var wire 1 b clk $end\n" \

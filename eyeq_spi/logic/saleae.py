@@ -106,6 +106,20 @@ def _time(text: str, where: str) -> float:
 
 
 def read_saleae2(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
+    try:
+        yield from _saleae2(src, opts)
+    except csv.Error as exc:
+        raise LogicInputError(f"not a CSV export: {exc}") from None
+
+
+def read_saleae1(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
+    try:
+        yield from _saleae1(src, opts)
+    except csv.Error as exc:
+        raise LogicInputError(f"not a CSV export: {exc}") from None
+
+
+def _saleae2(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
     lines = text_lines(src)
     header = _norm(next(csv.reader([next(lines, "")]), []))
     try:
@@ -158,7 +172,7 @@ def read_saleae2(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
                               "cannot be framed")
 
 
-def read_saleae1(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
+def _saleae1(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
     lines = text_lines(src)
     header = _norm(next(csv.reader([next(lines, "")]), []))
     want = [h.lower() for h in bench_spec()["saleae1"]["header"]]
