@@ -48,6 +48,16 @@ Annotation = tuple[int, int, int, str]
 """(start sample, end sample, row, text)"""
 
 
+def short_texts(row: int, text: str) -> list[str]:
+    """The text, then shorter forms for a zoomed-out PulseView (first word, its initial)."""
+    words = text.split()
+    if row == MESSAGE and len(words) > 1:
+        return [text, words[1], words[0]]
+    if row == LINK and len(words) > 1:
+        return [text, f"{words[0]} {words[1]}", words[0][0]]
+    return [text, words[0]] if len(words) > 1 else [text]
+
+
 class Annotator:
     """Feed the transfers of one SPI channel; get annotations back."""
 

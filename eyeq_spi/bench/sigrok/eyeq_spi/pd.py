@@ -5,7 +5,7 @@ from typing import Any, ClassVar, cast
 
 import sigrokdecode as srd
 
-from eyeq_spi.bench.annotate import ROWS, Annotator
+from eyeq_spi.bench.annotate import ROWS, Annotator, short_texts
 
 
 class Decoder(srd.Decoder):  # type: ignore[misc]
@@ -51,4 +51,4 @@ class Decoder(srd.Decoder):  # type: ignore[misc]
         payload = bytes(w.val & 0xFF for w in words)
         time = ss / self.samplerate if self.samplerate else None
         for a_ss, a_es, row, text in self.annotator.transfer(payload, ss, es, time):
-            self.put(a_ss, a_es, self.out_ann, [row, [text]])
+            self.put(a_ss, a_es, self.out_ann, [row, short_texts(row, text)])
