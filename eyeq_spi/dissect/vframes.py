@@ -92,10 +92,11 @@ class FrameArrays:
         return out
 
 
-def frame_arrays(chunk: Chunk, codec: FrameCodec, base: int, last_time: float | None
-                 ) -> FrameArrays:
-    data = chunk.data
-    n = len(chunk)
+def validate(data: np.ndarray, length: np.ndarray, codec: FrameCodec
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Header fields (D, R, RSP, NUM) and CRC verdict (L3 coverage by D) of every row of an
+    ``(N, 128)`` array: the batch frame validation."""
+    n = len(data)
     word = data[:, 0:4].copy().view("<u4")[:, 0].astype(np.int64)
     d, r, rsp, num = (np.asarray(x) for x in codec.unpack_header(word))  # type: ignore[arg-type]
     got = data[:, 4:6].copy().view("<u2")[:, 0]
@@ -107,14 +108,20 @@ def frame_arrays(chunk: Chunk, codec: FrameCodec, base: int, last_time: float | 
     table = crc_table(codec)
     if table is None:
         raise BatchUnsupportedError("the link CRC variant has no 16-bit table form")
-    init = codec.crc(b"")
-    hdr = batch_crc(words, init, table, 2)
+    hdr = batch_crc(words, codec.crc(b""), table, 2)
     crc = hdr
     for j in range(2, words.shape[0]):
         crc = table[crc ^ words[j]]
     control = (d == FrameKind.ACK) | (d == FrameKind.NAK)
+    crc_ok = np.where(control, hdr == got, crc == got) & (length == FRAME_SIZE)
+    return d, r, rsp, num, crc_ok
+
+
+def frame_arrays(chunk: Chunk, codec: FrameCodec, base: int, last_time: float | None
+                 ) -> FrameArrays:
+    n = len(chunk)
+    d, r, rsp, num, crc_ok = validate(chunk.data, chunk.length, codec)
     ok128 = chunk.length == FRAME_SIZE
-    crc_ok = np.where(control, hdr == got, crc == got) & ok128
     ftype = np.full(n, INVALID, np.int8)
     valid = ok128 & (r == 0)
     ftype[valid & (d == FrameKind.DATA)] = DATA
