@@ -41,17 +41,20 @@ def commands(small_hex: str, small_pcapng: str) -> list[tuple[str, list[str]]]:
     ]
 
 
-def time_one(argv: list[str], env: dict[str, str], runs: int) -> tuple[list[float], list[float]]:
-    """Wall and CPU (user + system) seconds of each run of ``argv`` as a child process."""
+def time_one(argv: list[str], env: dict[str, str], runs: int,
+             cwd: Path) -> tuple[list[float], list[float]]:
+    """Wall and CPU (user + system) seconds of each run of ``argv`` as a child process, run from
+    ``cwd`` (never the repository: ``python -m`` would import the package from there instead of
+    from ``PYTHONPATH``)."""
     wall: list[float] = []
     cpu: list[float] = []
     subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                   check=False)  # warm-up: page cache, .pyc files, catalogue cache
+                   check=False, cwd=cwd)  # warm-up: page cache, .pyc files, catalogue cache
     for _ in range(runs):
         r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t = time.perf_counter()
         subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                       check=False)
+                       check=False, cwd=cwd)
         wall.append(time.perf_counter() - t)
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpu.append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
@@ -64,7 +67,7 @@ def make_inputs(tmp: Path) -> tuple[str, str]:
 
     cap = tmp / "demo.pcapng"
     subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "demo", "--virtual-time",
-                    "--duration", "1", "--capture", str(cap)], check=False,
+                    "--duration", "1", "--capture", str(cap)], check=False, cwd=tmp,
                    stdout=subprocess.DEVNULL, env={**os.environ, "PYTHONPATH": str(ROOT)})
     with cap.open("rb") as fh:
         recs = [r for _, r in zip(range(20), read_pcapng(fh), strict=False)]
@@ -102,7 +105,7 @@ def main() -> int:
             subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
             trees.insert(0, (f"before ({args.before})", old))
         base_env = {**os.environ, "EYEQ_SPI_CACHE_DIR": str(tmp / "cache")}
-        baseline, base_cpu = time_one([sys.executable, "-c", "pass"], base_env, args.runs)
+        baseline, base_cpu = time_one([sys.executable, "-c", "pass"], base_env, args.runs, tmp)
         base = statistics.median(baseline)
         print(f"baseline python -c pass: median {base * 1000:.0f} ms, "
               f"{min(baseline) * 1000:.0f}..{max(baseline) * 1000:.0f} ms, CPU "
@@ -114,7 +117,8 @@ def main() -> int:
             print("| command | median wall | spread | / baseline | median CPU |\n"
                   "|---|---|---|---|---|")
             for label, argv in commands(small_hex, small_pcapng):
-                samples = time_one([sys.executable, "-m", "eyeq_spi.cli", *argv], env, args.runs)
+                samples = time_one([sys.executable, "-m", "eyeq_spi.cli", *argv], env, args.runs,
+                                   tmp)
                 print(row(label, samples, base), flush=True)
     return 0
 
