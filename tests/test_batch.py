@@ -184,7 +184,7 @@ def _mutations() -> dict[str, Callable[[list[Rec], int], list[Rec]]]:
         out = list(items[:i])
         num = 0
         for dd, t, w in items[i:]:
-            if dd == d and w[0] == 0x08:
+            if dd == d and len(w) == 128 and w[0] == 0x08:
                 f = FC.decode(w)
                 w = FC.data_frame(0 if num == 0 else f.rsp, num, f.data)
                 num += 1
@@ -193,9 +193,9 @@ def _mutations() -> dict[str, Callable[[list[Rec], int], list[Rec]]]:
 
     def header(items: list[Rec], i: int) -> list[Rec]:  # a bad transport type, CRC fixed
         d, t, w = items[i]
-        f = FC.decode(w)
-        if f.d != 0x8:
+        if len(w) != 128 or FC.decode(w).d != 0x8:
             return items
+        f = FC.decode(w)
         return [*items[:i], (d, t, FC.data_frame(f.rsp, f.num, b"\x07" + f.data[1:])),
                 *items[i + 1:]]
 
