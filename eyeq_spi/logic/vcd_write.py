@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import datetime as _dt
 from collections.abc import Iterable
-from typing import IO
+from typing import IO, Any, Literal
+
+import numpy as np
 
 from eyeq_spi import __version__
 from eyeq_spi.capture.pcapng_io import Record
@@ -52,11 +54,12 @@ class VcdWriter:
                     for i, d in enumerate(DIRECTIONS)}
         self.cpol, self.cpha = divmod(self.opts.mode, 2)
         self.level = {d: 0 for d in DIRECTIONS}  # MOSI level
-        self.pending: list[list[tuple[int, str]]] = []
+        self.pending: list[tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
         self.last_tick = -1
         self.count = 0
         self.delayed = 0
-        self._templates: dict[tuple[str, int, int], tuple[list[tuple[int, str]], int]] = {}
+        self._lines = np.array([f"{v}{self.ids[d][sig]}" for d in DIRECTIONS for sig in SIGNALS
+                                for v in (0, 1)], dtype=object)  # indexed by _code()
         self._header()
 
     def _header(self) -> None:
@@ -77,27 +80,8 @@ class VcdWriter:
         w("$end\n")
         self.last_tick = 0
 
-    def _byte(self, d: str, value: int, level: int) -> tuple[list[tuple[int, str]], int]:
-        """Events of one byte relative to its first bit's leading edge minus a half period."""
-        key = (d, value, level)
-        hit = self._templates.get(key)
-        if hit is not None:
-            return hit
-        h, ids = self.half, self.ids[d]
-        lead, trail = 1 - self.cpol, self.cpol
-        ev: list[tuple[int, str]] = []
-        bits = range(7, -1, -1) if self.opts.bit_order == "msb_first" else range(8)
-        for k, b in enumerate(bits):
-            bit = (value >> b) & 1
-            base = 2 * h * k
-            set_at = base + h if self.cpha else base  # CPHA 1: on the leading edge
-            if bit != level:
-                ev.append((set_at, f"{bit}{ids['mosi']}"))
-                level = bit
-            ev.append((base + h, f"{lead}{ids['clk']}"))
-            ev.append((base + 2 * h, f"{trail}{ids['clk']}"))
-        self._templates[key] = (ev, level)
-        return ev, level
+    def _code(self, d: str, signal: str, value: int) -> int:
+        return ((DIRECTIONS.index(d) * 4 + SIGNALS.index(signal)) << 1) | value
 
     def write(self, rec: Record) -> None:
         d = rec.direction or self.default_direction
@@ -110,51 +94,58 @@ class VcdWriter:
         self.last_start[d] = start
         if start > ticks and rec.time is not None:
             self.delayed += 1
-        ids, h = self.ids[d], self.half
-        ev: list[tuple[int, str]] = [(start, f"0{ids['cs']}")]
+        h = self.half
         t = start + (0 if self.cpha else h)
-        level = self.level[d]
-        for value in rec.data:
-            rel, level = self._byte(d, value, level)
-            ev += [(t + off, line) for off, line in rel]
-            t += 16 * h
-        end = t + h
-        ev.append((end, f"1{ids['cs']}"))
-        self.level[d] = level
+        order: Literal["big", "little"] = "big" if self.opts.bit_order == "msb_first" \
+            else "little"
+        bits = np.unpackbits(np.frombuffer(rec.data, dtype=np.uint8), bitorder=order
+                             ).astype(np.int64)
+        n = len(bits)
+        base = t + 2 * h * np.arange(n, dtype=np.int64)
+        prev = np.concatenate(([self.level[d]], bits[:-1]))
+        change = bits != prev  # MOSI moves only when the bit differs from the line
+        set_at = (base + h if self.cpha else base)[change]  # CPHA 1: on the leading edge
+        end = t + 2 * h * n + h
+        lead, trail = 1 - self.cpol, self.cpol
+        at = np.concatenate(([start], set_at, base + h, base + 2 * h, [end]))
+        codes = np.concatenate((
+            [self._code(d, "cs", 0)], self._code(d, "mosi", 0) + bits[change],
+            np.full(n, self._code(d, "clk", lead)), np.full(n, self._code(d, "clk", trail)),
+            [self._code(d, "cs", 1)]))
+        o = np.argsort(at, kind="stable")
+        self.pending.append((at[o], codes[o]))
+        if n:
+            self.level[d] = int(bits[-1])
         self.free[d] = end + self.min_idle
-        self.pending.append(ev)
         self.count += 1
 
     def _flush(self, limit: int | None) -> None:
         """Write every pending event before ``limit`` (all of them when None)."""
-        if not self.pending:
-            return
-        out: list[tuple[int, str]] = []
-        keep: list[list[tuple[int, str]]] = []
-        blocks = 0
-        for ev in self.pending:
-            if limit is None or ev[-1][0] < limit:
-                out += ev
-                blocks += 1
-            else:
-                n = next(i for i, e in enumerate(ev) if e[0] >= limit)
-                out += ev[:n]
-                blocks += n > 0
-                keep.append(ev[n:])
+        parts_t, parts_c = [], []
+        keep: list[tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
+        for ticks, codes in self.pending:
+            n = len(ticks) if limit is None else int(np.searchsorted(ticks, limit, "left"))
+            if n:
+                parts_t.append(ticks[:n])
+                parts_c.append(codes[:n])
+            if n < len(ticks):
+                keep.append((ticks[n:], codes[n:]))
         self.pending = keep
-        if blocks > 1:
-            out.sort(key=lambda e: e[0])  # stable: a channel's events keep their order
-        lines: list[str] = []
-        last = self.last_tick
-        for tick, line in out:
-            if tick != last:
-                lines.append(f"#{tick}")
-                last = tick
-            lines.append(line)
-        if lines:
-            lines.append("")
-            self.fh.write("\n".join(lines))
-        self.last_tick = last
+        if not parts_t:
+            return
+        ticks, codes = np.concatenate(parts_t), np.concatenate(parts_c)
+        if len(parts_t) > 1:  # two channels overlap: merge, each keeping its own order
+            o = np.argsort(ticks, kind="stable")
+            ticks, codes = ticks[o], codes[o]
+        new = np.empty(len(ticks), dtype=bool)
+        new[0] = ticks[0] != self.last_tick
+        new[1:] = ticks[1:] != ticks[:-1]
+        pos = np.arange(len(ticks)) + np.cumsum(new)
+        out = np.empty(len(ticks) + int(new.sum()), dtype=object)
+        out[pos] = self._lines[codes]
+        out[pos[new] - 1] = list(map("#{}".format, ticks[new].tolist()))
+        self.fh.write("\n".join(out.tolist()) + "\n")
+        self.last_tick = int(ticks[-1])
 
     def close(self) -> None:
         self._flush(None)
