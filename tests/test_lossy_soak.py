@@ -50,6 +50,8 @@ def test_vision_is_reached_and_held_at_5_percent_frame_loss() -> None:
                             faults_from_start=True))
     assert r.reached_vision_at is not None and r.held, r.host
     assert r.corrupted == 0
+    if not (r.host["eyeq_resets"] or r.host["boot_failures"]):  # then every fault is accounted
+        assert all(a.ok for a in r.accounting.values()), r.accounting
 
 
 def test_vision_is_reached_at_10_percent_frame_loss() -> None:

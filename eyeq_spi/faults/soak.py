@@ -160,19 +160,22 @@ def run_soak(config: SoakConfig | None = None) -> SoakReport:
     def in_vision() -> bool:
         return emu.host.state is HostState.RUNNING_VISION
 
+    def snapshot() -> dict[str, dict[str, int]]:
+        return {"eyeq": _counts(emu.sim.conn.link.counters),
+                "host": _counts(emu.host.conn.link.counters)}
+
     h2e.enabled = e2h.enabled = cfg.faults_from_start
+    before = snapshot()
     emu.run_for(cfg.bring_up_limit, stop=in_vision)
     reached = emu.runner.now if in_vision() else None
     if not cfg.faults_from_start:
         h2e.enabled = e2h.enabled = True
-    before = {"eyeq": _counts(emu.sim.conn.link.counters),
-              "host": _counts(emu.host.conn.link.counters)}
+        before = snapshot()
     if reached is not None:
         emu.run_for(cfg.duration)
     h2e.enabled = e2h.enabled = False
     emu.run_for(cfg.settle)
-    after = {"eyeq": _counts(emu.sim.conn.link.counters),
-             "host": _counts(emu.host.conn.link.counters)}
+    after = snapshot()
     return SoakReport(
         config={"profile": asdict(cfg.profile), "seed": cfg.seed, "duration": cfg.duration,
                 "faults_from_start": cfg.faults_from_start, "sw": emu.host.sw},
