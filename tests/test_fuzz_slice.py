@@ -20,6 +20,7 @@ from tests.fuzz.registry import run_slice
 SLICE = {
     "link_rx": 1500,
     "transport_pair": 300,
+    "transport_pair_wire": 200,
     "decoders": 500,
     "init_codec": 800,
     "host_messages": 150,

@@ -21,15 +21,15 @@ import subprocess
 import sys
 import tempfile
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-IN_PROCESS = ("link_rx", "transport_pair", "decoders", "init_codec", "host_messages",
-              "sim_messages", "host_eeprom")
+IN_PROCESS = ("link_rx", "transport_pair", "transport_pair_wire", "decoders", "init_codec",
+              "host_messages", "sim_messages", "host_eeprom")
 ALL = (*IN_PROCESS, "dissect")
 
 
@@ -101,6 +101,14 @@ def run_dissect(seconds: float, out: Path) -> dict[str, Any]:
             "detail": "\n".join(detail[:5])}
 
 
+def run_one(name: str, engine: str, share: float, out: Path) -> dict[str, Any]:
+    if name == "dissect":
+        return run_dissect(share, out)
+    if engine == "atheris":
+        return run_atheris(name, share, out)
+    return run_random(name, share, out)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--budget", type=float, required=True, help="seconds in total")
@@ -127,16 +135,10 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out or tempfile.mkdtemp(prefix="eyeq-fuzz-"))
     out.mkdir(parents=True, exist_ok=True)
     share = args.budget * max(1, args.jobs) / len(names)
-
-    def one(name: str) -> dict[str, Any]:
-        if name == "dissect":
-            return run_dissect(share, out)
-        if engine == "atheris":
-            return run_atheris(name, share, out)
-        return run_random(name, share, out)
-
-    with ThreadPoolExecutor(max(1, args.jobs)) as pool:
-        results = list(pool.map(one, names))
+    n = len(names)
+    # one process per target: the figures are per process
+    with ProcessPoolExecutor(max(1, args.jobs)) as pool:
+        results = list(pool.map(run_one, names, [engine] * n, [share] * n, [out] * n))
     total = {k: sum(int(r.get(k, 0)) for r in results)
              for k in ("execs", "frames", "messages", "findings")}
     if args.json:

@@ -183,6 +183,17 @@ class _Pair:
 
 
 def transport_pair(data: bytes) -> None:
+    """A held frame may arrive after a later peer reset (a delay no SPI wire has: see
+    ``tests/test_fuzz_findings.py`` for what L6a makes of it)."""
+    _transport_pair(data, delay_across_reset=True)
+
+
+def transport_pair_wire(data: bytes) -> None:
+    """The same, but a peer reset loses a frame still held on the wire, as on a real bus."""
+    _transport_pair(data, delay_across_reset=False)
+
+
+def _transport_pair(data: bytes, *, delay_across_reset: bool) -> None:
     r = Reader(data)
     allow_reset = bool(r.u8() & 1)
     p = _Pair(r)
@@ -199,6 +210,8 @@ def transport_pair(data: bytes) -> None:
         elif op == 3 and allow_reset:
             p.resets += 1
             p.tx.reset()  # the peer starts over: NUM 0, transfer ID 0 (L4)
+            if not delay_across_reset:
+                p.held = None
         elif op == 4:
             p.fault = 1 + r.u8() % 5
         else:

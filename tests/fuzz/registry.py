@@ -7,11 +7,12 @@ import random
 
 from .app_targets import decoders, host_eeprom, host_messages, init_codec, sim_messages
 from .core import FIGURES, SliceResult, Target, mutate
-from .link_targets import link_rx, transport_pair
+from .link_targets import link_rx, transport_pair, transport_pair_wire
 
 TARGETS: dict[str, Target] = {
     "link_rx": link_rx,
     "transport_pair": transport_pair,
+    "transport_pair_wire": transport_pair_wire,
     "decoders": decoders,
     "init_codec": init_codec,
     "host_messages": host_messages,
