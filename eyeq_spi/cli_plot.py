@@ -166,18 +166,10 @@ def run_monitor(args: argparse.Namespace) -> int:
 
 
 def _demo_source(args: argparse.Namespace) -> Any:
-    from eyeq_spi.cli_run import host_parts, sim_config
-    from eyeq_spi.emulator import build
+    from eyeq_spi.cli_run import build_demo
     from eyeq_spi.monitor.sources import DemoSource
 
-    host_cfg, nvm, scenario = host_parts(args)
-    writer = _writer(args)
-    tap = None
-    if writer is not None:
-        def tap(node: int, t: float, transfer: bytes) -> None:
-            writer.write("h2e" if node == 0 else "e2h", t, transfer)
-    emu = build(sim_config=sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario,
-                keep_rx_times=False, tap=tap)
+    emu, writer = build_demo(args)
     source = DemoSource(emu, 10.0 if args.duration is None else args.duration,
                         realtime=not args.virtual_time)
     if writer is not None:
@@ -185,18 +177,10 @@ def _demo_source(args: argparse.Namespace) -> Any:
     return source
 
 
-def _writer(args: argparse.Namespace) -> Any:
-    if not args.capture:
-        return None
-    from eyeq_spi.capture.pcapng_io import CaptureWriter
-
-    return CaptureWriter(args.capture)
-
-
 def _host_source(args: argparse.Namespace) -> Any:
     import gc
 
-    from eyeq_spi.cli_run import host_parts
+    from eyeq_spi.cli_run import capture_writer, host_parts
     from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.monitor.sources import HostSource
     from eyeq_spi.phy.base import open_url
@@ -205,7 +189,7 @@ def _host_source(args: argparse.Namespace) -> Any:
     host_cfg, nvm, scenario = host_parts(args)
     host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
     adapter = open_url(args.port)
-    writer = _writer(args)
+    writer = capture_writer(args)
     runner = RealTimeRunner(host, adapter, max_wait=0.01)
     if writer is not None:
         start = runner.clock()

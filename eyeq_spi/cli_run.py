@@ -222,7 +222,7 @@ def _connect_hint(endpoint: str) -> None:
           flush=True)
 
 
-def _capture(args: argparse.Namespace) -> Any:
+def capture_writer(args: argparse.Namespace) -> Any:
     if not args.capture:
         return None
     from eyeq_spi.capture.pcapng_io import CaptureWriter
@@ -275,20 +275,28 @@ def print_summary(out: dict[str, Any], as_json: bool) -> None:
     print("\n".join(lines), flush=True)
 
 
-def run_demo(args: argparse.Namespace) -> int:
+def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
+    """The host emulator and the simulated EyeQ of ``demo`` (and ``monitor --demo``) wired
+    in one process, with the ``--capture`` writer tapping both channels (or None)."""
     from eyeq_spi.emulator import build
-    from eyeq_spi.report import host_summary
 
-    if args.duration <= 0:
-        raise UsageError("--duration must be positive")
     host_cfg, nvm, scenario = host_parts(args)
-    writer = _capture(args)
+    writer = capture_writer(args)
     tap = None
     if writer is not None:
         def tap(node: int, t: float, transfer: bytes) -> None:
             writer.write("h2e" if node == 0 else "e2h", t, transfer)
     emu = build(sim_config=sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario,
                 keep_rx_times=False, tap=tap)
+    return emu, writer
+
+
+def run_demo(args: argparse.Namespace) -> int:
+    from eyeq_spi.report import host_summary
+
+    if args.duration <= 0:
+        raise UsageError("--duration must be positive")
+    emu, writer = build_demo(args)
     from eyeq_spi.can.sinks import attach_from_args
 
     attach_from_args(args, emu.host, emu.runner)  # --can-out: CAN gateway (issue 13)
@@ -341,7 +349,7 @@ def run_sim(args: argparse.Namespace) -> int:
         print(f"LISTEN {adapter.url}", flush=True)
         _connect_hint(adapter.url)
     _on_sigterm()
-    writer = _capture(args)
+    writer = capture_writer(args)
     clock = time.monotonic
     t0, cpu0 = clock(), time.process_time()
     end = None if args.duration is None else t0 + args.duration
@@ -417,7 +425,7 @@ def run_host(args: argparse.Namespace) -> int:
     gc.collect()
     adapter: Any = open_url(args.port)
     _on_sigterm()
-    writer = _capture(args)
+    writer = capture_writer(args)
     runner = RealTimeRunner(host, adapter)
     runner.tap = _realtime_tap(writer, runner.clock(), "h2e", "e2h")
     from eyeq_spi.can.sinks import attach_from_args
