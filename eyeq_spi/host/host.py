@@ -191,9 +191,7 @@ class HostEmulator:
         """The byte stream to the EyeQ was re-established (a new connection is a power-up):
         restart our SPI driver and run the bring-up again."""
         self.mesp.cancel_all()
-        self.conn.reset()
-        while self.conn.next_event() is not None:
-            pass
+        self._restart_driver()
         if next_state(self.state, E.EYEQ_RESET) is not None:
             self._fire(E.EYEQ_RESET, now, "link re-established")
         else:
@@ -567,12 +565,7 @@ class HostEmulator:
         self._fire(E.EYEQ_RESET, now, f"EyeQ link restarted at NUM {ev.num} ({ev.cause})")
         if self.reset_line is not None:
             # a clean power-up: both SPI drivers start over, the boot status arrives in window
-            self.mesp.cancel_all()
-            self._enter(S.POWER_UP, now)
-            self.conn.reset()
-            while self.conn.next_event() is not None:
-                pass
-            self.reset_line(now)
+            self._reset_eyeq(now, bringup=False)
         else:
             self.mesp.cancel_all()
             self._enter_after_app_restart(now)
@@ -682,16 +675,22 @@ class HostEmulator:
         if self.keep_rx_times:
             self.counters.tx_times.append(now)
 
-    def _reset_eyeq(self, now: float) -> None:
+    def _restart_driver(self) -> None:
+        """Our SPI driver starts over: NUM 0, E 0 (L4); what was pending is dropped."""
+        self.conn.reset()
+        while self.conn.next_event() is not None:
+            pass
+
+    def _reset_eyeq(self, now: float, *, bringup: bool = True) -> None:
+        """Reset the EyeQ; ``bringup`` counts it against ``max_resets`` (EEPROM-driven)."""
         self.mesp.cancel_all()
-        self._bringups += 1
+        if bringup:
+            self._bringups += 1
         self._enter(S.POWER_UP, now)
         if self.reset_line is not None:
             # Both SPI drivers start over together: NUM 0, E 0 on each side (L4). Without this
             # the reset EyeQ's first frames (its boot status) fall outside our receive window.
-            self.conn.reset()
-            while self.conn.next_event() is not None:
-                pass
+            self._restart_driver()
             self.reset_line(now)
         else:
             # no reset line (a remote EyeQ): a soft reset by switching to the vision app
