@@ -128,3 +128,17 @@ def test_stale_nvm_temp_files_are_removed_and_never_read(tmp_path: Path) -> None
     again.load()
     assert again.load_problem is None and again.removed_temp_files == 2
     assert not dead.exists() and not old.exists() and live.exists() and other.exists()
+
+
+def test_soft_reset_restarts_the_eyeqs_e2e_judgement() -> None:
+    """Found by tools/soak_live.py: after the host's soft reset (Switch Application vision, no
+    reset line) its rolling counters start afresh; the restarted EyeQ application must not count
+    that as an E2E error."""
+    sim = _running_sim()
+    for t in _veh_state_transfers(12.5, break_crc=False):
+        sim.receive_data(t, 0.31)
+    assert sim._switch_app({"applicationId": 0x01})[0] == 0  # the MESP handler
+    sim.conn.reset()  # a fresh sender below numbers its frames from 0 again
+    for t in _veh_state_transfers(12.5, break_crc=False):
+        sim.receive_data(t, 0.40)
+    assert sim.counters.e2e_errors == 0

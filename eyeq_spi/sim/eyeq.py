@@ -362,6 +362,10 @@ class SimulatedEyeQ:
         if app == APP_VISION:
             self.fatal_error = 0  # a restart of the vision application (the host's soft reset)
         self.main_state, self.sub_state = target
+        # the application restarts: it judges the host's E2E rolling counters afresh, as the
+        # host's restarted bring-up starts them afresh (found by tools/soak_live.py)
+        self._rx_e2e = E2EState()
+        self._last_veh = None
         self._init_ok = self._veh_state_seen = False
         self._cal_started = None
         self._next_dasp.clear()
