@@ -68,10 +68,10 @@ def test_a_reset_whose_first_frame_is_lost_is_never_spliced() -> None:
                                                   for m in delivered]
 
 
-@pytest.mark.xfail(strict=True, reason="fuzz finding (init_codec): "
-                   "the init codec accepts InitProtocolVersion = 0.5 (inside its tolerance of "
-                   "factor/2 below the minimum 1) and rounds it to raw 0, outside [1, 1]")
 def test_init_codec_never_encodes_a_value_its_own_check_rejects() -> None:
+    """Fuzz finding (init_codec), fixed: InitProtocolVersion = 0.5 lies inside the tolerance of
+    half a step below the minimum 1, and used to round to raw 0, outside [1, 1]. A value inside
+    the tolerance now snaps to the nearest raw value inside the range."""
     init_codec(HALF_ROUNDS_OUT)
 
 

@@ -66,6 +66,7 @@ class BitSignalCodec:
                 raw = math.trunc(q + (_EPS if q >= 0 else -_EPS))
             else:
                 raw = round(q)
+            raw = _into_range(raw, (lo - sig.offset) / sig.factor, (hi - sig.offset) / sig.factor)
         bits = sig.length
         if sig.signed:
             rmin, rmax = -(1 << (bits - 1)), (1 << (bits - 1)) - 1
@@ -124,6 +125,20 @@ class BitSignalCodec:
             if (isinstance(v, float) and math.isnan(v)) or v < s.min - tol or v > s.max + tol:
                 out.append(f"{self.message.name}.{s.name} = {v:g} outside [{s.min:g}, {s.max:g}]")
         return out
+
+
+def _into_range(raw: int, q_lo: float, q_hi: float) -> int:
+    """A value inside the range's half-step tolerance must not round to a raw value whose
+    physical value lies outside the range (0.5 for a [1, 1] signal rounded to 0): snap it to the
+    nearest raw value inside the range, when the range holds one."""
+    if not (math.isfinite(q_lo) and math.isfinite(q_hi)):
+        return raw
+    if q_lo > q_hi:  # a negative factor
+        q_lo, q_hi = q_hi, q_lo
+    first, last = math.ceil(q_lo - _EPS), math.floor(q_hi + _EPS)
+    if first > last:
+        return raw
+    return min(max(raw, first), last)
 
 
 def _exact(sig: InitSignal) -> bool:
