@@ -27,6 +27,7 @@ from eyeq_spi.plot.scene import SCENE_MESSAGES, Labels, SceneTracker
 
 Clock = Callable[[], float]
 MAIN_STATE_MSG = "EYEQ_DIAGNOSTIC_MSG"  # 0x41
+CATCH_UP = 0.05  # s of virtual time per slice when the demo trails the wall clock
 
 
 class _HostView:
@@ -90,7 +91,9 @@ class DemoSource:
             if self.realtime:
                 target = min(self.duration, self.clock() - self.start)
                 if target > emu.runner.now:
-                    emu.run_for(target - emu.runner.now)  # virtual time catches up the wall
+                    # virtual time catches up the wall in slices of at most CATCH_UP s, so a
+                    # machine that cannot keep up still sees the redraw deadline on time
+                    emu.run_for(min(target - emu.runner.now, CATCH_UP))
                 else:
                     self.sleep(min(0.002, max(0.0, deadline - self.clock())))
             else:

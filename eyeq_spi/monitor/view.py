@@ -1,5 +1,6 @@
 """A :class:`Snapshot` drawn with rich: header, rates, link and errors, objects, lanes and
-signs, state transitions. Pure: the same snapshot always gives the same screen."""
+signs, state transitions, as lines of rich Text in fixed columns (cheap to redraw).
+Pure: the same snapshot always gives the same screen."""
 
 from __future__ import annotations
 
@@ -54,19 +55,39 @@ def _rich() -> RichModules:
 
 
 Col = tuple[str, int, str]  # header, width, justify
+Cell = tuple[str, str]  # text, style
+GAP = "  "  # between columns
+SIDE_GAP = "   "  # between two blocks side by side
 
 
-def _table(title: str, cols: list[Col]) -> Any:
-    """Fixed column widths: rich then never measures cells, which keeps a redraw cheap."""
-    r = _rich()
-    t = r.Table(title=title, title_justify="left", box=r.box.SIMPLE_HEAD, pad_edge=False)
-    for head, width, just in cols:
-        t.add_column(head, width=width + 1, justify=just, no_wrap=True, overflow="ellipsis")
-    return t
+def _cell(text: str, width: int, just: str) -> str:
+    if len(text) > width:
+        text = text[:width - 1] + "\u2026"
+    return text.rjust(width) if just == "right" else text.ljust(width)
 
 
 def _width(cols: list[Col]) -> int:
-    return sum(w + 1 for _, w, _ in cols) + 2 * (len(cols) - 1)
+    return 1 + sum(w for _, w, _ in cols) + len(GAP) * (len(cols) - 1)
+
+
+def _block(title: str, cols: list[Col], rows: list[tuple[list[Cell], str]]) -> list[Any]:
+    """A table as lines of rich Text: title, bold header, rule, one line per row.
+
+    Columns have fixed widths and each row is one Text with a span per styled cell. A rich
+    ``Table`` measures, pads and wraps every cell on every redraw (about 15 ms of CPU for this
+    screen); lines of Text cost rich about a tenth of that (tools/bench_monitor.py)."""
+    Text = _rich().Text
+    head = " " + GAP.join(_cell(h, w, j) for h, w, j in cols)
+    lines = [Text(title, style="italic"), Text(head, style="bold"),
+             Text(" " + "\u2500" * (_width(cols) - 1), style="dim")]
+    for cells, row_style in rows:
+        t = Text(" ", style=row_style)
+        for k, ((text, style), (_, w, j)) in enumerate(zip(cells, cols, strict=True)):
+            if k:
+                t.append(GAP)
+            t.append(_cell(text, w, j), style=style or None)
+        lines.append(t)
+    return lines
 
 
 RATE_COLS: list[Col] = [("message", 22, "left"), ("count", 7, "right"), ("Hz", 6, "right"),
@@ -81,27 +102,24 @@ TRANSITION_COLS: list[Col] = [("t s", 9, "right"), ("from", 18, "left"), ("event
                               ("to", 18, "left")]
 
 
-def _rates(snap: Snapshot) -> Any:
-    r = _rich()
-    t = _table("messages (Hz over 2 s)", RATE_COLS)
+def _rates(snap: Snapshot) -> list[Any]:
+    rows = []
     for row in snap.rates:
         hz = "-" if row.hz is None else f"{row.hz:5.1f}"
         nom = "" if row.nominal_hz is None else f"{row.nominal_hz:g}"
-        t.add_row(short(row.name), str(row.count), hz, nom,
-                  r.Text(row.status, style=STATUS_STYLE.get(row.status, "")))
-    return t
+        rows.append(([(short(row.name), ""), (str(row.count), ""), (hz, ""), (nom, ""),
+                      (row.status, STATUS_STYLE.get(row.status, ""))], ""))
+    return _block("messages (Hz over 2 s)", RATE_COLS, rows)
 
 
-def _link(snap: Snapshot) -> Any:
-    r = _rich()
-    t = _table("link", LINK_COLS)
-    for k, v in sorted(snap.link.items()):
-        t.add_row(k, r.Text(str(v), style="red" if v and _is_error(k) else ""))
-    for k, v in snap.errors.items():
-        t.add_row(k, r.Text(str(v), style="bold red" if v else "green"))
-    t.add_row("stale streams", r.Text(", ".join(short(s) for s in snap.stale) or "none",
-                                      style="bold red" if snap.stale else "green"))
-    return t
+def _link(snap: Snapshot) -> list[Any]:
+    rows = [([(k, ""), (str(v), "red" if v and _is_error(k) else "")], "")
+            for k, v in sorted(snap.link.items())]
+    rows += [([(k, ""), (str(v), "bold red" if v else "green")], "")
+             for k, v in snap.errors.items()]
+    stale = ", ".join(short(s) for s in snap.stale) or "none"
+    rows.append(([("stale streams", ""), (stale, "bold red" if snap.stale else "green")], ""))
+    return _block("link", LINK_COLS, rows)
 
 
 def _is_error(key: str) -> bool:
@@ -112,55 +130,59 @@ def _fmt(v: float | None, spec: str = "6.1f") -> str:
     return "-" if v is None or not math.isfinite(v) else format(v, spec)
 
 
-def _objects(snap: Snapshot) -> Any:
-    t = _table(f"objects ({len(snap.scene.objects)})", OBJECT_COLS)
+def _objects(snap: Snapshot) -> list[Any]:
+    rows = []
     for o in sorted(snap.scene.objects, key=lambda o: o.long):
-        style = "bold reverse" if o.cipv else ""
-        t.add_row(str(o.id), o.cls_name + (" CIPV" if o.cipv else ""), _fmt(o.long),
-                  _fmt(o.lat, "5.1f"), _fmt(o.v_long, "5.1f"), _fmt(o.v_lat, "4.1f"),
-                  _fmt(o.ttc, "4.1f"), style=style)
-    return t
+        cells = [str(o.id), o.cls_name + (" CIPV" if o.cipv else ""), _fmt(o.long),
+                 _fmt(o.lat, "5.1f"), _fmt(o.v_long, "5.1f"), _fmt(o.v_lat, "4.1f"),
+                 _fmt(o.ttc, "4.1f")]
+        rows.append(([(c, "") for c in cells], "bold reverse" if o.cipv else ""))
+    return _block(f"objects ({len(snap.scene.objects)})", OBJECT_COLS, rows)
 
 
-def _road(snap: Snapshot) -> Any:
-    r = _rich()
-    t = _table(f"lanes ({len(snap.scene.lines)}) and signs ({len(snap.scene.signs)})",
-               ROAD_COLS)
-    for ln in snap.scene.lines:
-        t.add_row(ln.name, ln.type_name or ln.kind, _fmt(ln.coeffs[0], "5.2f"),
-                  f"{ln.start:.0f}-{ln.end:.0f}")
-    for s in sorted(snap.scene.signs, key=lambda s: s.long):
-        t.add_row(r.Text("sign", style="red"), s.name, _fmt(s.lat, "5.1f"), f"{s.long:.0f}")
-    return t
+def _road(snap: Snapshot) -> list[Any]:
+    rows = [([(ln.name, ""), (ln.type_name or ln.kind, ""), (_fmt(ln.coeffs[0], "5.2f"), ""),
+              (f"{ln.start:.0f}-{ln.end:.0f}", "")], "") for ln in snap.scene.lines]
+    rows += [([("sign", "red"), (s.name, ""), (_fmt(s.lat, "5.1f"), ""), (f"{s.long:.0f}", "")],
+              "") for s in sorted(snap.scene.signs, key=lambda s: s.long)]
+    return _block(f"lanes ({len(snap.scene.lines)}) and signs ({len(snap.scene.signs)})",
+                  ROAD_COLS, rows)
 
 
-def _transitions(snap: Snapshot) -> Any:
-    t = _table("transitions", TRANSITION_COLS)
-    for tt, a, ev, b in snap.transitions[-6:]:
-        t.add_row(f"{tt:8.3f}", a, ev, b)
-    return t
+def _transitions(snap: Snapshot) -> list[Any]:
+    rows = [([(f"{tt:8.3f}", ""), (a, ""), (ev, ""), (b, "")], "")
+            for tt, a, ev, b in snap.transitions[-6:]]
+    return _block("transitions", TRANSITION_COLS, rows)
 
 
-def _side_by_side(left: Any, lw: int, right: Any, rw: int) -> Any:
-    g = _rich().Table.grid(padding=(0, 3))
-    g.add_column(width=lw + 1)
-    g.add_column(width=rw + 1)
-    g.add_row(left, right)
-    return g
+def _side_by_side(left: list[Any], lw: int, right: list[Any]) -> list[Any]:
+    Text = _rich().Text
+    out = []
+    for k in range(max(len(left), len(right))):
+        a = left[k].copy() if k < len(left) else Text()
+        a.set_length(lw)
+        out.append(Text.assemble(a, SIDE_GAP, right[k]) if k < len(right) else a)
+    return out
 
 
-def render(snap: Snapshot) -> Any:
-    r = _rich()
+def screen_lines(snap: Snapshot) -> list[Any]:
+    """The screen as lines of rich Text (no wrapping: a narrow terminal crops them)."""
+    Text = _rich().Text
     state_style = "bold green" if snap.state in GOOD_STATES else "bold yellow"
-    head = r.Text.assemble(
+    head = Text.assemble(
         ("eyeq-spi monitor ", "bold"), (snap.source, "cyan"), f"   t {snap.now:8.2f} s   ",
         (f"{snap.state_label}: ", ""), (snap.state, state_style),
         ("   finished" if snap.done else "", "dim"))
-    parts: list[Any] = [head]
+    lines = [head]
     if snap.problem:
-        parts.append(r.Text(f"problem: {snap.problem}", style="bold red"))
-    parts += [_side_by_side(_rates(snap), _width(RATE_COLS), _link(snap), _width(LINK_COLS)),
-              _side_by_side(_objects(snap), _width(OBJECT_COLS), _road(snap),
-                            _width(ROAD_COLS)),
-              _transitions(snap)]
-    return r.Group(*parts)
+        lines.append(Text(f"problem: {snap.problem}", style="bold red"))
+    lines += [Text(), *_side_by_side(_rates(snap), _width(RATE_COLS), _link(snap)), Text(),
+              *_side_by_side(_objects(snap), _width(OBJECT_COLS), _road(snap)), Text(),
+              *_transitions(snap)]
+    for t in lines:
+        t.no_wrap, t.overflow, t.end = True, "crop", "\n"
+    return lines
+
+
+def render(snap: Snapshot) -> Any:
+    return _rich().Group(*screen_lines(snap))
