@@ -218,11 +218,16 @@ class _Reader:
         self.fast = FastPath.build(table)
 
     def feed(self, chunk: bytes) -> Iterator[Record]:
-        if self.fast is not None and not self.in_comment and self.vector_value is None:
+        while self.fast is not None and not self.in_comment and self.vector_value is None:
             done = self.fast.run(self, chunk)
-            if done is not None:
+            if done is None:
+                break
+            if isinstance(done, list):
                 yield from done
                 return
+            # a head the fast path cannot take ($dumpvars...): the token loop reads it
+            yield from self._tokens(chunk[:done].split())
+            chunk = chunk[done:]
         yield from self._tokens(chunk.split())
 
     def _tokens(self, batch: list[bytes]) -> Iterator[Record]:

@@ -11,6 +11,7 @@ falling/rising edges split the sampling clock edges into transfers; bits are pac
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -43,7 +44,10 @@ class FastPath:
             lut[ident[0]] = chans.index(ch) * 4 + role
         return cls(lut, chans)
 
-    def run(self, reader: _Reader, chunk: bytes) -> list[Record] | None:
+    def run(self, reader: _Reader, chunk: bytes) -> list[Record] | int | None:
+        """The records of ``chunk``; or the length of a head of it (up to the last line this
+        path cannot take, in its first half: ``$dumpvars``...) for the token loop to read
+        first; or None when the token loop must read it all."""
         if not chunk.endswith(b"\n"):
             return None
         raw = np.frombuffer(chunk, dtype=np.uint8)
@@ -52,43 +56,45 @@ class FastPath:
         starts[0] = 0
         starts[1:] = nl[:-1] + 1
         lens = nl - starts
-        keep = lens > 0
-        starts, lens = starts[keep], lens[keep]
+        if not lens.all():
+            keep = lens > 0
+            starts, lens, nl = starts[keep], lens[keep], nl[keep]
         if len(starts) == 0:
             return []
         first = raw[starts]
         is_val = (lens == 2) & ((first == 48) | (first == 49))
         is_time = (first == 35) & (lens >= 2) & (lens <= 19)
-        if not (is_val | is_time).all():
-            return None  # $dumpvars, x/z, vectors, comments, CRLF, long identifiers...
-        line = np.arange(len(starts))
-        t_lines = line[is_time]
-        ts, tl = starts[is_time] + 1, lens[is_time] - 1
-        times = np.empty(0, dtype=np.int64)
-        if len(ts):
-            width = int(tl.max())
-            k = np.arange(width)
-            # digits right-aligned in a (lines, width) table, zeros on the left
-            pad = (width - tl)[:, None]
-            valid = k[None, :] >= pad
-            digits = raw[np.where(valid, ts[:, None] - pad + k[None, :], 0)].astype(np.int64)
-            digits = np.where(valid, digits - 48, 0)
-            if ((digits < 0) | (digits > 9)).any():
+        ok = is_val | is_time
+        if len(ok) and not ok[-1]:
+            return None
+        if not ok.all():  # $dumpvars, x/z, vectors, comments, CRLF, long identifiers...
+            cut = int(nl[np.flatnonzero(~ok)[-1]]) + 1
+            return cut if cut <= len(chunk) // 2 else None
+        t_pos = starts[is_time]
+        if len(t_pos):
+            # every time is digits only (else the token loop reports it), parsed on demand
+            bounds = np.empty(2 * len(t_pos), dtype=np.int64)
+            bounds[0::2], bounds[1::2] = t_pos + 1, nl[is_time]
+            if np.logical_or.reduceat((raw - 48) > 9, bounds)[0::2].any():
                 return None
-            times = digits @ (10 ** np.arange(width - 1, -1, -1, dtype=np.int64))
-        v_lines = line[is_val]
-        sig = self.lut[raw[starts[is_val] + 1]]
+        v_pos = starts[is_val]
+        sig = self.lut[raw[v_pos + 1]]
         vals = (first[is_val] - 48).astype(np.int64)
-        before = np.searchsorted(t_lines, v_lines) - 1
-        v_times = np.where(before >= 0, times[np.maximum(before, 0)] if len(times) else 0,
-                           reader.t)
+        t_end = nl[is_time]
+        t_before = reader.t
+
+        def time_at(pos: int) -> int:
+            """The time of the value change at byte ``pos`` (the last ``#`` line before)."""
+            k = int(np.searchsorted(t_pos, pos)) - 1
+            return t_before if k < 0 else int(chunk[t_pos[k] + 1:t_end[k]])
+
         out: list[tuple[int, Record]] = []
         for c, ch in enumerate(self.chans):
             sel = (sig >> 2) == c
             sel &= sig >= 0
-            out += _channel(ch, sig[sel] & 3, vals[sel], v_times[sel], v_lines[sel], reader)
-        if len(times):
-            reader.t = int(times[-1])
+            out += _channel(ch, sig[sel] & 3, vals[sel], v_pos[sel], time_at, reader)
+        if len(t_pos):
+            reader.t = int(chunk[t_pos[-1] + 1:t_end[-1]])
         out.sort(key=lambda x: x[0])
         return [r for _, r in out]
 
@@ -105,7 +111,7 @@ def _bits_of(value: int, n: int, msb: bool) -> list[int]:
 
 
 def _channel(ch: _Chan, roles: np.ndarray[Any, Any], vals: np.ndarray[Any, Any],
-             times: np.ndarray[Any, Any], lines: np.ndarray[Any, Any], reader: _Reader
+             lines: np.ndarray[Any, Any], time_at: Callable[[int], int], reader: _Reader
              ) -> list[tuple[int, Record]]:
     n = len(roles)
     if n == 0:
@@ -153,14 +159,14 @@ def _channel(ch: _Chan, roles: np.ndarray[Any, Any], vals: np.ndarray[Any, Any],
     out: list[tuple[int, Record]] = []
     for e in np.flatnonzero(rise & active_before):
         k = int(seg[e])
-        t0 = ch.t0 if k == 0 else int(times[fall_idx[k - 1]])
+        t0 = ch.t0 if k == 0 else time_at(int(lines[fall_idx[k - 1]]))
         mo_b, mi_b, _, _ = segment(k)
         for r in ch.routes:
             out.append((int(lines[e]), Record(t0 * reader.scale, r.direction,
                                               mo_b if r.line == "mosi" else mi_b)))
     last = int(seg[-1])
     if last > 0:
-        ch.t0 = int(times[fall_idx[last - 1]])
+        ch.t0 = time_at(int(lines[fall_idx[last - 1]]))
     if bool(active[-1]):
         mo_b, mi_b, rest_mo, rest_mi = segment(last)
         ch.mosi_bytes, ch.miso_bytes = bytearray(mo_b), bytearray(mi_b)
