@@ -67,12 +67,16 @@ def add_plot_parser(sub: Any) -> None:
                      help="host emulator against the embedded simulated EyeQ (as demo)")
     src.add_argument("--port", metavar="URL", help="host emulator against an EyeQ (as host)")
     src.add_argument("--replay", metavar="FILE",
-                     help="a capture fed through the dissector at its own pace")
+                     help="a capture's EyeQ channel replayed into the host emulator (as replay "
+                     "--into-host) in capture time")
     m.add_argument("--duration", type=float, help="seconds (default: 10 for --demo, no limit "
                    "for --port, the whole capture for --replay)")
     m.add_argument("--virtual-time", action="store_true", help="--demo as fast as the CPU allows")
     m.add_argument("--pace", type=float, default=1.0, metavar="X",
                    help="--replay: X times real time (default 1; 0 = as fast as possible)")
+    m.add_argument("--passive", action="store_true",
+                   help="--replay: show both channels as recorded, through the dissector, "
+                   "instead of replaying into the host (a capture without the bring-up)")
     m.add_argument("--refresh", type=float, default=6.0, metavar="HZ",
                    help="screen redraws per second, 5..30 (default 6)")
     m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
@@ -151,12 +155,19 @@ def run_monitor(args: argparse.Namespace) -> int:
         if hasattr(args, dest) and getattr(args, dest) != args.side_defaults.get(dest):
             src = "--port" if args.port else "--replay"
             raise UsageError(f"--{dest.replace('_', '-')} does not apply to {src}")
-    if args.replay:
+    if args.passive and not args.replay:
+        raise UsageError("--passive goes with --replay")
+    if args.replay and args.passive:
         from eyeq_spi.codec.message import MessageCodec
+        from eyeq_spi.monitor.sources import DissectSource
+
+        source: Any = DissectSource(args.replay, MessageCodec(args.sw), speed=args.pace,
+                                    fmt=args.format)
+    elif args.replay:
         from eyeq_spi.monitor.sources import ReplaySource
 
-        source: Any = ReplaySource(args.replay, MessageCodec(args.sw), speed=args.pace,
-                                   fmt=args.format)
+        source = ReplaySource(args.replay, sw=args.sw, speed=args.pace, fmt=args.format,
+                              duration=args.duration)
     elif args.demo:
         source = _demo_source(args)
     else:

@@ -24,7 +24,7 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import build
 from eyeq_spi.monitor.app import run
 from eyeq_spi.monitor.model import RateMeter, Snapshot, band
-from eyeq_spi.monitor.sources import DemoSource, HostSource, ReplaySource
+from eyeq_spi.monitor.sources import DemoSource, DissectSource, HostSource, ReplaySource
 from eyeq_spi.monitor.view import MonitorError, render
 from eyeq_spi.plot.scene import OBSTACLES, ROAD
 from eyeq_spi.spec.catalog import catalog
@@ -62,8 +62,8 @@ def capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return synthetic_capture(tmp_path_factory.mktemp("mon") / "scene.pcapng", duration=1.5)
 
 
-def test_replay_snapshot_and_screen(capture: Path) -> None:
-    src = ReplaySource(str(capture), MessageCodec(None), speed=0)
+def test_passive_snapshot_and_screen(capture: Path) -> None:
+    src = DissectSource(str(capture), MessageCodec(None), speed=0)
     while not src.done:
         src.advance(time.perf_counter() + 0.05)
     snap = src.snapshot()
@@ -75,6 +75,73 @@ def test_replay_snapshot_and_screen(capture: Path) -> None:
     assert row.split()[3:6] == ["20.0", "0.0", "20.0"]  # long, lat, vlong
     assert re.search(r"\s9\s+pedestrian\s+12\.0\s+-6\.0", text)
     assert "hostLeftMarker" in text and "Speed Limit 50" in text
+
+
+@pytest.fixture(scope="module")
+def demo_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """1.5 s of the emulator with its bring-up (Running Vision at 0.53 s) as pcapng."""
+    path = tmp_path_factory.mktemp("mon") / "demo.pcapng"
+    assert main(["demo", "--virtual-time", "--duration", "1.5", "--objects", "5", "--signs",
+                 "3", "--capture", str(path), "--json"]) == 0
+    return path
+
+
+def _drain(src: Any) -> Snapshot:
+    while not src.done:
+        src.advance(time.perf_counter() + 0.05)
+    snap: Snapshot = src.snapshot()
+    src.close()
+    return snap
+
+
+def test_replay_goes_through_the_host_like_replay_into_host(demo_capture: Path) -> None:
+    """--replay is the project's replay (bench.replay.host_bench): the host emulator judges the
+    recorded EyeQ, and the scene it delivers is the one the dissector reads in the capture."""
+    snap = _drain(ReplaySource(str(demo_capture), speed=0))
+    assert snap.done and snap.source == "replay demo.pcapng (virtual time)"
+    assert snap.state == "RUNNING_VISION" and snap.state_label == "host state"
+    assert [t[3] for t in snap.transitions][-1] == "RUNNING_VISION"
+    assert 1.4 < snap.now < 1.5 + ReplaySource.SETTLE + 0.02  # capture time, not wall time
+    assert snap.errors["E2E errors"] == 0 and snap.errors["DASP counter gaps"] == 0
+    passive = _drain(DissectSource(str(demo_capture), MessageCodec(None), speed=0))
+
+    def objs(s: Snapshot) -> list[tuple[int, float, float]]:
+        return sorted((o.id, round(o.long, 2), round(o.lat, 2)) for o in s.scene.objects)
+
+    assert len(objs(snap)) == 5 and objs(snap) == objs(passive)
+    assert {s.name for s in snap.scene.signs} == {s.name for s in passive.scene.signs}
+    rates = {r.name: r for r in snap.rates}
+    assert rates[OBSTACLES].count == {r.name: r for r in passive.rates}[OBSTACLES].count
+    text = _text(render(snap))
+    assert "host state: RUNNING_VISION" in text and re.search(r"car CIPV|CIPV", text)
+
+
+@pytest.mark.parametrize("pace", [1.0, 2.5])
+def test_replay_follows_capture_time(demo_capture: Path, pace: float) -> None:
+    """A fake wall clock: at each redraw the replayed time is the wall time times --pace,
+    however long a redraw takes."""
+    wall = [0.0]
+
+    def sleep(s: float) -> None:
+        wall[0] += s
+
+    src = ReplaySource(str(demo_capture), speed=pace, clock=lambda: wall[0], sleep=sleep)
+    deadline = 0.0
+    seen = []
+    while not src.done:
+        deadline += 0.2
+        src.advance(deadline)
+        wall[0] += 0.03  # the redraw
+        seen.append((deadline, src.snapshot().now))
+    src.close()
+    from eyeq_spi.capture.pcapng_io import read_pcapng
+
+    with demo_capture.open("rb") as fh:
+        times = [r.time for r in read_pcapng(fh) if r.direction == "e2h"]
+    last = times[-1] - times[0]
+    for wall_t, now in seen[:-1]:
+        assert now == pytest.approx(min(wall_t * pace, last + 0.05), abs=0.06), (wall_t, now)
+    assert seen[-1][1] >= last and seen[-1][0] * pace < last + 0.5 * pace
 
 
 def test_demo_source_in_virtual_time() -> None:
@@ -149,6 +216,9 @@ def test_refresh_limits_and_bad_replay(tmp_path: Path, capsys: pytest.CaptureFix
     assert main(["monitor", "--demo", "--replay", "x"]) == 2
     assert main(["monitor", "--replay", "x.pcapng", "--objects", "3"]) == 2  # a sim option
     assert main(["monitor", "--port", "loop://", "--reset-at", "1"]) == 2
+    assert main(["monitor", "--demo", "--passive"]) == 2
+    (tmp_path / "h2e.hex").write_text("")
+    assert main(["monitor", "--replay", str(tmp_path / "h2e.hex")]) == 2  # no EyeQ channel
     err = capsys.readouterr().err
     assert all(line.startswith("eyeq-spi: ") for line in err.splitlines())
 

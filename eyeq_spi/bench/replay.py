@@ -147,11 +147,12 @@ class ReplayEyeQ:
                 "complete": self.done}
 
 
-def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
-                     duration: float | None = None) -> dict[str, Any]:
-    """Feed the capture's EyeQ channel to the built-in host emulator in virtual time."""
+def host_bench(records: Iterable[Record], *, sw: str | None = None,
+               duration: float | None = None) -> tuple[ReplayEyeQ, Any, Any]:
+    """The capture's EyeQ channel wired to a started built-in host emulator on a
+    :class:`VirtualRunner` (virtual time = capture time from its first transfer): (node, host,
+    runner). Used by :func:`replay_into_host` and by ``eyeq-spi monitor --replay``."""
     from eyeq_spi.host.host import HostConfig, HostEmulator
-    from eyeq_spi.host.machine import HostState
     from eyeq_spi.phy.memory import memory_pair
     from eyeq_spi.runner.virtual import VirtualRunner
 
@@ -160,6 +161,15 @@ def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
     a, b = memory_pair()
     runner = VirtualRunner([(host, a), (node, b)])
     host.start(0.0)
+    return node, host, runner
+
+
+def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
+                     duration: float | None = None) -> dict[str, Any]:
+    """Feed the capture's EyeQ channel to the built-in host emulator in virtual time."""
+    from eyeq_spi.host.machine import HostState
+
+    node, host, runner = host_bench(records, sw=sw, duration=duration)
     reached: float | None = None
     while not node.done:
         runner.run_until(runner.now + 0.01)

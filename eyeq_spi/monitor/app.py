@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from eyeq_spi.monitor.model import Snapshot
-from eyeq_spi.monitor.view import MonitorError, render, rich_modules
+from eyeq_spi.monitor.view import MonitorError, render, rich_modules, screen_lines
 
 MIN_REFRESH, MAX_REFRESH = 5.0, 30.0
 DEFAULT_REFRESH = 6.0  # a margin over the 5 Hz the monitor promises
@@ -83,5 +83,8 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         source.close()
         stats.wall_s = clock() - start
     if not live_screen and snap is not None:
-        console.print(render(snap))
+        # a pipe: the whole final screen, as wide as it is (the console's default is 80)
+        lines = screen_lines(snap)
+        console.width = max(console.width, *(t.cell_len for t in lines))
+        console.print(r.Group(*lines))
     return stats

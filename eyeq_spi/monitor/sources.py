@@ -6,20 +6,28 @@ deadline (the next redraw) and then describes itself as a :class:`Snapshot`.
   drawing is caught up and never slows the emulated link.
 - :class:`HostSource`: the host emulator against an EyeQ at a pyserial URL, on the real-time
   runner; the runner never waits longer than ``max_wait`` so a redraw is never late.
-- :class:`ReplaySource`: a capture file fed through the dissector engine at the capture's pace
-  (``speed`` times real time; 0 = as fast as possible).
+- :class:`ReplaySource`: the project's replay (:func:`eyeq_spi.bench.replay.host_bench`, as
+  ``eyeq-spi replay --into-host``): the capture's EyeQ channel played into the built-in host
+  emulator, its virtual time (= capture time) kept on the wall clock times ``speed`` (0 = as
+  fast as possible) exactly as the demo's is.
+- :class:`DissectSource` (``--passive``): a capture file fed through the dissector engine at the
+  capture's pace, both channels as recorded; for captures without the EyeQ's bring-up, which
+  the replayed host would never get past.
 
-Demo and host read the host only through its public face: ``subscribe`` (decoded DASP messages,
-delivered as the host delivers them), ``state``/``transitions`` and its counters.
+Demo, host and replay read the host only through its public face: ``subscribe`` (decoded DASP
+messages, delivered as the host delivers them), ``state``/``transitions`` and its counters.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator
-from typing import Any
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+from typing import IO, Any
 
+from eyeq_spi.bench.replay import host_bench
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
 from eyeq_spi.monitor.model import RateMeter, Snapshot
 from eyeq_spi.plot.collect import dissect_file
@@ -71,14 +79,18 @@ class _HostView:
 
 
 class DemoSource:
+    """An in-process emulation (``emu``: ``host``, ``runner.now``, ``run_for``) whose virtual
+    time is kept on the wall clock times ``speed`` from the start."""
+
     def __init__(self, emu: Any, duration: float, *, realtime: bool = True,
-                 clock: Clock = time.perf_counter, sleep: Callable[[float], None] = time.sleep
-                 ) -> None:
+                 clock: Clock = time.perf_counter, sleep: Callable[[float], None] = time.sleep,
+                 speed: float = 1.0, label: str = "demo") -> None:
         self.emu = emu
         self.duration = duration
         self.realtime = realtime
+        self.speed = speed
         self.clock, self.sleep = clock, sleep
-        self.view = _HostView(emu.host, "demo" + ("" if realtime else " (virtual time)"))
+        self.view = _HostView(emu.host, label + ("" if realtime else " (virtual time)"))
         self.start = clock()
 
     @property
@@ -89,13 +101,13 @@ class DemoSource:
         emu = self.emu
         while not self.done and self.clock() < deadline:
             if self.realtime:
-                target = min(self.duration, self.clock() - self.start)
+                target = min(self.duration, (self.clock() - self.start) * self.speed)
                 if target > emu.runner.now:
                     # virtual time catches up the wall in slices of at most CATCH_UP s, so a
                     # machine that cannot keep up still sees the redraw deadline on time
                     emu.run_for(min(target - emu.runner.now, CATCH_UP))
                 else:
-                    self.sleep(min(0.002, max(0.0, deadline - self.clock())))
+                    self.sleep(min(0.002 / self.speed, max(0.0, deadline - self.clock())))
             else:
                 emu.run_for(min(0.01, self.duration - emu.runner.now))
 
@@ -140,10 +152,60 @@ class HostSource:
             self.on_close()
 
 
-class ReplaySource:
-    """A capture at its own pace: record times (from the first one) against the wall clock
-    times ``speed``. Records without times (raw, hex without times) are fed as fast as
-    possible."""
+class _ReplayBench:
+    """The replay's node, host and virtual runner with the ``emu`` face DemoSource drives."""
+
+    def __init__(self, records: Iterable[Any], sw: str | None, duration: float | None) -> None:
+        self.node, self.host, self.runner = host_bench(records, sw=sw, duration=duration)
+
+    def run_for(self, dt: float) -> None:
+        self.runner.run_until(self.runner.now + dt)
+
+
+class ReplaySource(DemoSource):
+    """A capture replayed into the host emulator (``eyeq-spi replay --into-host``), in capture
+    time: the snapshot's ``now`` is the capture's time from its first transfer. ``speed`` is
+    times real time; 0 runs as fast as possible. It is done SETTLE s after the last frame."""
+
+    SETTLE = 0.05  # as replay_into_host: the last frames settle, well before stale limits
+
+    def __init__(self, path: str, *, sw: str | None = None, speed: float = 1.0,
+                 fmt: str | None = None, duration: float | None = None,
+                 clock: Clock = time.perf_counter,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
+        from eyeq_spi.dissect.inputs import InputError, open_records
+
+        try:
+            self._fh: IO[bytes] = open(path, "rb")  # noqa: SIM115 - closed by close()
+        except OSError as exc:
+            raise InputError(f"{path}: {exc.strerror or exc}") from None
+        try:
+            _, records = open_records(self._fh, fmt)
+            self.bench = _ReplayBench(records, sw, duration)
+        except BaseException:
+            self._fh.close()
+            raise
+        name = f"replay {Path(path).name}" + ("" if speed in (0, 1) else f" x{speed:g}")
+        super().__init__(self.bench, math.inf, realtime=speed > 0, clock=clock, sleep=sleep,
+                         speed=speed or 1.0, label=name)
+        self._end: float | None = None
+
+    @property
+    def done(self) -> bool:
+        if not self.bench.node.done:
+            return False
+        if self._end is None:
+            self._end = float(self.bench.runner.now)
+        return bool(self.bench.runner.now >= self._end + self.SETTLE - 1e-9)
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+class DissectSource:
+    """A capture at its own pace through the dissector (both channels as recorded): record times
+    (from the first one) against the wall clock times ``speed``. Records without times (raw,
+    hex without times) are fed as fast as possible."""
 
     def __init__(self, path: str, codec: MessageCodec, *, speed: float = 1.0,
                  fmt: str | None = None, clock: Clock = time.perf_counter) -> None:
@@ -226,7 +288,9 @@ class ReplaySource:
     def snapshot(self) -> Snapshot:
         self.rates.tick(self.now, self.counts)
         errors = {"E2E errors": 0, "DASP counter gaps": 0, "decode errors": 0, **self.errors}
-        return Snapshot(f"replay {self.path}" + ("" if self.speed == 1 else f" x{self.speed:g}"),
+        pace = "" if self.speed == 1 else " (as fast as possible)" if self.speed == 0 else (
+            f" x{self.speed:g}")
+        return Snapshot(f"dissect {Path(self.path).name}{pace}",
                         self.now, "EyeQ Main_State (0x41)", self.state, list(self.transitions),
                         self.rates.rows(), dict(self.link), errors, [],
                         self.tracker.snapshot(), None, self.done)
