@@ -94,8 +94,25 @@ class Recorder:
             objs = [o for o in self.latest["EYEQ_VIS_OBSTACLES_MSG"]["visObjects"]["visObs"]
                     if o["id"] != 0 and o["classification"] in (0, 1, 2, 3, 4, 7)]
             o = objs[(f.arbitration_id - 0x73B) // 3]
-            self.close_enough("Angle", v["Obstacle_Angle"],
-                              math.degrees(o["angularState"]["angleMid"]), step("Obstacle_Angle"))
+            # the DASP angles are ISO 8855 (left positive), the CAN angles right positive
+            # (seed 000 line 530, 001 line 2928): mapping.yaml's to_right = -1
+            ang = o["angularState"]
+            self.close_enough("Angle", v["Obstacle_Angle"], -math.degrees(ang["angleMid"]),
+                              step("Obstacle_Angle"))
+            rate = -math.degrees(ang["angularSpeed"])
+            if inside("Obstacle_Angle_Rate", rate):
+                self.close_enough("Angle_Rate", v["Obstacle_Angle_Rate"], rate,
+                                  step("Obstacle_Angle_Rate"))
+            pos_y = -o["physicalState"]["latDistance"]  # Obstacle_Pos_Y of the same object
+            if abs(pos_y) > 0.5 and abs(v["Obstacle_Angle"]) > 0.05:
+                assert (v["Obstacle_Angle"] > 0) == (pos_y > 0), (v, pos_y)
+                self.checked["Angle_sign"] += 1
+        elif spec.name == "TSR" and "EYEQ_VIS_TRAFFIC_SIGNS_MSG" in self.latest:
+            tsr = self.latest["EYEQ_VIS_TRAFFIC_SIGNS_MSG"]["tsrInfo"]
+            sign = tsr["trafficSigns"][:tsr["numberTrafficSigns"]][f.arbitration_id - 0x720]
+            y = -sign["signLatPosition"]  # left positive -> right positive (001 line 1504)
+            if inside("Sign_Position_Y", y):
+                self.close_enough("Sign_Y", v["Sign_Position_Y"], y, step("Sign_Position_Y"))
         elif spec.name == "LKA_Left_Lane_A":
             lm = self.latest["EYEQ_VIS_ROAD_DATA_MSG"]["roadInfo"]["roadMarkerInfo"][
                 "hostLeftMarker"]["laneMarker"]
@@ -148,8 +165,9 @@ def test_extlog2_at_full_load_in_virtual_time() -> None:
             else:  # a slot is sent only in the cycles its object or sign exists (line 1181)
                 assert n <= want + 1, (name, n, want)
     assert sum(1 for fid in got if 0x739 <= fid <= 0x765) >= 30  # many object slots in use
-    for key in ("Pos_X", "Pos_Y", "Rel_Vel_X", "Angle", "C0", "C2", "Lane_Curvature"):
-        assert rec.checked[key] > 20, (key, rec.checked)
+    for key in ("Pos_X", "Pos_Y", "Rel_Vel_X", "Angle", "Angle_Rate", "Angle_sign", "Sign_Y",
+                "C0", "C2", "Lane_Curvature"):
+        assert rec.checked[key] > (5 if key == "Sign_Y" else 20), (key, rec.checked)
     assert gw.counters.frames and not gw.counters.clamped.get("Obstacle_Rel_Vel_X")
 
 

@@ -216,8 +216,10 @@ class CanGateway:
             items = items[: len(p.db_messages)]
         for i, item in enumerate(items):
             env["i"], env["o"] = i, item
-            raw = {s.name: physical_to_raw(s, fn(env) if fn is not None else MISSING,
-                                           self.counters)
+            # an unmapped signal (mapping.yaml `unmapped`, C4) sends its invalid value or
+            # physical 0 by design: not counted as missing
+            raw = {s.name: physical_to_raw(s, fn(env), self.counters) if fn is not None
+                   else physical_to_raw(s, MISSING)
                    for s, fn in p.signals}
             dbm = p.db_messages[i]
             data = dbm.encode(raw, scaling=False, padding=False, strict=False)

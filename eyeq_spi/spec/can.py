@@ -25,6 +25,7 @@ SIGNAL_KEYS = frozenset({"name", "start", "length", "byte_order", "signed", "sca
                          "seed_line", "seed_form", "description", "reconstruction", "invented"})
 SLOT_KEYS = frozenset({"count", "stride", "seed_line", "rule"})
 MAPPING_KEYS = frozenset({"expr", "reason", "seed_line"})
+MESSAGE_MAPPING_KEYS = frozenset({"signals", "slots", "unmapped"})
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,7 @@ class CanSignal:
     is_float: bool = False
     seed_line: int = 0
     description: str | None = None
+    seed: str | None = None  # the seed seed_line counts in, when not the message's
 
     @property
     def raw_invalid(self) -> int | None:
@@ -89,6 +91,7 @@ class CanMessage:
     slots: SlotRule | None = None
     section: str | None = None
     seed_line: int = 0
+    seed: str | None = None  # the seed seed_line counts in, when not the protocol's
 
     def instances(self) -> list[tuple[int | None, int, str]]:
         """(slot, frame ID, DBC message name): one per repeated slot, else one."""
@@ -112,6 +115,7 @@ class CanProtocol:
     enums: dict[str, dict[int, str]]
     messages: tuple[CanMessage, ...]
     seeds: dict[str, str] = field(default_factory=dict)
+    seed: str = ""  # the seed whose line numbers the messages give (extlog2: 001)
 
     def message(self, name: str) -> CanMessage:
         for m in self.messages:
@@ -130,6 +134,9 @@ class SignalMapping:
 class MessageMapping:
     signals: dict[str, SignalMapping]
     slots: SignalMapping | None = None  # expression giving the list of slot items
+    # signals with no EyeQ4 source (C4): name -> reason; sent as the invalid value, or
+    # physical 0 clamped into range when the seed prints none
+    unmapped: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -294,12 +301,32 @@ def validate_mapping(rel: str, doc: Any, protocols: dict[str, Any]) -> list[str]
             out.append(f"{rel}: unknown protocol {pname!r}")
             continue
         pmsgs = {m.get("name"): m for m in proto.get("messages") or [] if isinstance(m, dict)}
+        for mname in sorted(set(pmsgs) - set(msgs or {}), key=str):
+            out.append(f"{rel}: {pname}.{mname}: not mapped; map its signals or list them "
+                       "under unmapped with a reason (C4)")
         for mname, mm in (msgs or {}).items():
             where = f"{rel}: {pname}.{mname}"
             if mname not in pmsgs:
                 out.append(f"{where}: no such message")
                 continue
+            if not isinstance(mm, dict) or set(mm) - MESSAGE_MAPPING_KEYS:
+                out.append(f"{where}: only signals, slots and unmapped")
+                continue
             sig_names = {s.get("name") for s in pmsgs[mname].get("signals") or []}
+            unmapped = mm.get("unmapped") or {}
+            if not isinstance(unmapped, dict):
+                out.append(f"{where}: unmapped is signal: reason")
+                unmapped = {}
+            for sname, why in unmapped.items():
+                if sname not in sig_names:
+                    out.append(f"{where}.{sname}: no such signal (unmapped)")
+                if not isinstance(why, str) or not why.strip():
+                    out.append(f"{where}.{sname}: an unmapped signal says why (C4)")
+                if sname in (mm.get("signals") or {}):
+                    out.append(f"{where}.{sname}: both mapped and unmapped")
+            for sname in sorted(sig_names - set(mm.get("signals") or {}) - set(unmapped),
+                                key=str):
+                out.append(f"{where}.{sname}: neither mapped nor listed under unmapped (C4)")
             entries = dict((mm or {}).get("signals") or {})
             if "slots" in (mm or {}):
                 entries["<slots>"] = mm["slots"]
@@ -343,6 +370,7 @@ def _signal(s: dict[str, Any]) -> CanSignal:
         out_of_range=s.get("out_of_range", "clamp"), enum=s.get("enum"),
         is_float=bool(s.get("float", False)), seed_line=int(s.get("seed_line", 0)),
         description=s.get("description"),
+        seed=str(s["seed"]) if s.get("seed") is not None else None,
     )
 
 
@@ -355,12 +383,13 @@ def _protocol(doc: dict[str, Any]) -> CanProtocol:
             signals=tuple(_signal(s) for s in m["signals"]),
             slots=SlotRule(int(sl["count"]), int(sl["stride"]), str(sl.get("rule", "")))
             if sl else None, section=m.get("section"), seed_line=int(m["seed_line"]),
+            seed=str(m["seed"]) if m.get("seed") is not None else None,
         ))
     enums = {k: {int(v): str(n) for v, n in e["values"].items()}
              for k, e in (doc.get("enums") or {}).items()}
     return CanProtocol(doc["name"], str(doc.get("title", doc["name"])),
                        int(doc.get("bitrate", 500000)), enums, tuple(msgs),
-                       dict(doc.get("seeds") or {}))
+                       dict(doc.get("seeds") or {}), str(doc.get("seed", "")))
 
 
 def _load_docs() -> dict[str, Any]:
@@ -397,7 +426,8 @@ def can_specs() -> tuple[dict[str, CanProtocol], CanMapping]:
                     prot[pname][mname] = MessageMapping(
                         {k: SignalMapping(str(v["expr"]), str(v["reason"]))
                          for k, v in (mm.get("signals") or {}).items()},
-                        SignalMapping(str(sl["expr"]), str(sl["reason"])) if sl else None)
+                        SignalMapping(str(sl["expr"]), str(sl["reason"])) if sl else None,
+                        {str(k): str(v) for k, v in (mm.get("unmapped") or {}).items()})
             mapping = CanMapping(
                 dict(mp.get("sources") or {}),
                 {k: _table(v) for k, v in (mp.get("tables") or {}).items()},
