@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 from eyeq_spi import __version__
 from eyeq_spi.errors import EyeqError, UsageError
@@ -17,10 +18,58 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-def build_parser() -> argparse.ArgumentParser:
+# Every subcommand with its one-line help, in --help order. main() builds the options of the
+# command it runs only; the others are a name and this line, which is all --help and a usage error
+# show (issue 10: start-up). tests/test_startup.py holds the table to the full parser.
+COMMANDS: dict[str, str] = {
+    "demo": "host emulator against the embedded simulated EyeQ",
+    "sim": "the simulated EyeQ on a TCP listener or a pty",
+    "host": "the host emulator against an EyeQ at a pyserial URL",
+    "dissect": "decode captured SPI traffic (raw, hex text, pcapng)",
+    "wireshark": "generate the Wireshark Lua dissector from specs/",
+    "batch": "many captures into one partitioned Parquet dataset",
+    "can": "Mobileye CAN output: generated DBCs, CAN log decoder",
+    "plot": "bird's-eye scene, stream timing or link behaviour of a capture",
+    "monitor": "live terminal view of demo, host or a replayed capture",
+    "export": "a capture as VCD waveforms, MDF4 or MCAP",
+    "replay": "play a capture's EyeQ channel to a host",
+    "sigrok-decoder": "install the eyeq_spi decoder for sigrok/PulseView",
+    "conformance": "protocol conformance suite: verdict per requirement",
+    "spec": "browse the message catalogue built from specs/",
+}
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The whole parser; with ``only``, the options of that command alone (every other command
+    is its name and help line from :data:`COMMANDS`, enough for ``--help`` and usage errors)."""
     p = _Parser(prog="eyeq-spi", description=__doc__)
     p.add_argument("--version", action="version", version=f"eyeq-spi {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for names, add in _groups():
+        if only is None or only in names or not all(n in COMMANDS for n in names):
+            add(sub)
+        else:
+            for n in names:
+                sub.add_parser(n, help=COMMANDS[n])
+    return p
+
+
+def _groups() -> list[tuple[tuple[str, ...], Callable[[Any], None]]]:
+    """Each function adding subcommands, with the names it adds, in --help order."""
+    return [
+        (("demo", "sim", "host"), _add_run), (("dissect", "wireshark"), _add_dissect),
+        (("batch",), _add_batch), (("can",), _add_can), (("plot", "monitor"), _add_plot),
+        (("export", "replay", "sigrok-decoder"), _add_bench),
+        (("conformance",), _add_conformance), (("spec",), _add_spec),
+    ]
+
+
+def _command(argv: Sequence[str]) -> str:
+    """The subcommand ``argv`` names, "" if none: the top-level options take no value."""
+    return next((a for a in argv if not a.startswith("-")), "")
+
+
+def _add_run(sub: Any) -> None:
     from eyeq_spi import cli_args as ca
     from eyeq_spi.cli_run import add_shared_options
 
@@ -71,24 +120,47 @@ def build_parser() -> argparse.ArgumentParser:
                       help="when the link is lost, wait for the EyeQ and run the bring-up again")
     host.add_argument("--json", action="store_true", help="end with one JSON object")
     add_shared_options(host, side="host")
+
+
+def _add_dissect(sub: Any) -> None:
     from eyeq_spi.cli_dissect import add_dissect_parser
 
     add_dissect_parser(sub)
+
+
+def _add_batch(sub: Any) -> None:
     from eyeq_spi.cli_batch import add_batch_parser
 
     add_batch_parser(sub)
+
+
+def _add_can(sub: Any) -> None:
     from eyeq_spi.cli_can import add_can_parser
 
     add_can_parser(sub)
+
+
+def _add_plot(sub: Any) -> None:
     from eyeq_spi.cli_plot import add_plot_parser
 
     add_plot_parser(sub)
+
+
+def _add_bench(sub: Any) -> None:
     from eyeq_spi.cli_bench import add_bench_parser
 
     add_bench_parser(sub)
+
+
+def _add_conformance(sub: Any) -> None:
     from eyeq_spi.cli_conformance import add_conformance_parser
 
     add_conformance_parser(sub)
+
+
+def _add_spec(sub: Any) -> None:
+    from eyeq_spi import cli_args as ca
+
     spec = sub.add_parser("spec", help="browse the message catalogue built from specs/")
     spec_sub = spec.add_subparsers(dest="spec_command", required=True, parser_class=_Parser)
     sl = spec_sub.add_parser("list", help="list messages, MESP functions, init messages, structs")
@@ -98,7 +170,6 @@ def build_parser() -> argparse.ArgumentParser:
                     "(any case, or part of one) or data ID such as 0xE4")
     ss.add_argument("--sw", type=ca.sw_release,
                     help="SW release, e.g. 9.0, 8.1 or sw5 (default: newest)")
-    return p
 
 
 def _spec(args: argparse.Namespace) -> int:
@@ -123,7 +194,8 @@ def _spec(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     try:
-        args = build_parser().parse_args(argv)
+        argv = sys.argv[1:] if argv is None else list(argv)
+        args = build_parser(only=_command(argv)).parse_args(argv)
         if args.command in ("demo", "sim", "host"):
             from eyeq_spi import cli_run
 

@@ -121,3 +121,178 @@ def test_libyaml_and_the_pure_python_loader_read_specs_alike() -> None:
     for path in paths[:: max(1, len(paths) // 6)]:  # a spread of sizes: the slow loader is slow
         text = path.read_text(encoding="utf-8")
         assert yaml.load(text, Loader=yaml.CSafeLoader) == yaml.safe_load(text), path
+
+
+# -- what a start imports (issue 10: start-up < 300 ms). Not timed: the mechanism is guarded. ---
+
+HEAVY = ("numpy", "construct", "yaml", "rich", "matplotlib", "pyarrow", "cantools")
+_PROBE = (
+    "import io, json, sys, contextlib\n"
+    "from eyeq_spi.cli import main\n"
+    "with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):\n"
+    "    try:\n"
+    "        rc = main(json.loads(sys.argv[1]))\n"
+    "    except SystemExit as exc:  # --help\n"
+    "        rc = exc.code\n"
+    "print(json.dumps([rc, sorted(m for m in json.loads(sys.argv[2]) if m in sys.modules)]))\n"
+)
+
+
+@pytest.fixture(scope="module")
+def warm_cache(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
+    """A filled cache directory (the first start of a user parses specs/ once) and a 3-transfer
+    hex capture."""
+    import subprocess
+    import sys
+
+    d = tmp_path_factory.mktemp("startup")
+    env = {**os.environ, "EYEQ_SPI_CACHE_DIR": str(d / "cache")}
+    env.pop("EYEQ_SPI_NO_CACHE", None)
+    hexfile = d / "small.hex"
+    zeros = bytes(128).hex()
+    hexfile.write_text("".join(f"{t:.6f} h2e {zeros}\n" for t in (0.0, 0.01, 0.02)))
+    subprocess.run([sys.executable, "-c", _PROBE, f'["dissect", "{hexfile}"]', "[]"], env=env,
+                   check=True, capture_output=True, timeout=120)
+    subprocess.run([sys.executable, "-c", _PROBE, '["spec", "list"]', "[]"], env=env,
+                   check=True, capture_output=True, timeout=120)
+    return {**env, "SMALL_HEX": str(hexfile)}
+
+
+def _imports(argv: list[str], env: dict[str, str], watch: tuple[str, ...]) -> tuple[int, list[str]]:
+    import json
+    import subprocess
+    import sys
+
+    argv = [a.replace("SMALL_HEX", env["SMALL_HEX"]) for a in argv]
+    out = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(argv), json.dumps(watch)],
+                         env=env, check=True, capture_output=True, text=True, timeout=120)
+    rc, mods = json.loads(out.stdout.strip().splitlines()[-1])
+    return int(rc), list(mods)
+
+
+@pytest.mark.parametrize(("argv", "rc", "allowed"), [
+    (["--help"], 0, ()),
+    (["demo", "--fatal", "999"], 2, ()),
+    (["demo", "--stop-dasp", "FOO@3"], 2, ()),
+    (["host", "--port", "socket://127.0.0.1"], 2, ()),
+    (["dissect", "--id", "zz", "SMALL_HEX"], 2, ()),
+    (["sim", "--port", "loop://"], 2, ()),
+    (["nonsense"], 2, ()),
+    (["spec", "list"], 0, ()),
+    (["spec", "show", "0xE4"], 0, ()),
+    (["spec", "show", "obstacles"], 0, ()),
+    # a small capture (of bad frames: exit 1): construct only for MESP, never yaml, numpy, rich
+    (["dissect", "SMALL_HEX"], 1, ("construct",)),
+    (["dissect", "SMALL_HEX", "--stats", "--json"], 1, ("construct",)),
+])
+def test_quick_commands_do_not_import_heavy_libraries(
+    warm_cache: dict[str, str], argv: list[str], rc: int, allowed: tuple[str, ...]
+) -> None:
+    got_rc, mods = _imports(argv, warm_cache, HEAVY)
+    assert got_rc == rc
+    assert [m for m in mods if m not in allowed] == [], f"{argv} imported {mods}"
+
+
+def test_the_probe_sees_a_heavy_import() -> None:
+    """The guard above can fail: a command that needs yaml (no cache) is seen importing it."""
+    import json
+    import subprocess
+    import sys
+
+    env = {**os.environ, "EYEQ_SPI_NO_CACHE": "1"}
+    out = subprocess.run([sys.executable, "-c", _PROBE, '["spec", "show", "0xE4"]',
+                          json.dumps(HEAVY)], env=env, check=True, capture_output=True, text=True,
+                         timeout=120)
+    assert "yaml" in json.loads(out.stdout.strip().splitlines()[-1])[1]
+
+
+def test_the_parser_of_one_command_is_the_full_parser_for_that_command() -> None:
+    """main() builds only the command it runs; COMMANDS must list every command with its help, in
+    the order of the full parser, and each command's parser must not depend on the others."""
+    import argparse
+
+    from eyeq_spi.cli import COMMANDS, build_parser
+
+    def subs(p: argparse.ArgumentParser) -> tuple[dict[str, str], dict[str, str]]:
+        act = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
+        helps = {c.dest: str(c.help) for c in act._choices_actions}
+        return helps, {n: sp.format_help() for n, sp in act.choices.items()}
+
+    full_help, full = subs(build_parser())
+    assert list(full_help.items()) == list(COMMANDS.items())
+    assert build_parser("").format_help() == build_parser().format_help()
+    for name in COMMANDS:
+        helps, one = subs(build_parser(name))
+        assert helps == full_help and one[name] == full[name], name
+
+
+def test_a_layout_builds_its_construct_codec_only_when_asked() -> None:
+    from eyeq_spi.codec.layout import LayoutCache
+    from eyeq_spi.spec.catalog import catalog
+
+    cat = catalog()
+    msg = next(m for m in cat.messages if m.data_id == 0xE4 and m.protocol == "DASP")
+    lay = LayoutCache(cat).get(msg.payload, cat.default_sw)
+    assert lay._struct is None and all(c._struct is None for c in lay.children.values())
+    assert lay.struct.sizeof() == lay.size  # built now, children included
+    zeros = lay.zero_values()
+    assert lay.parse_construct(lay.build_construct(zeros)) == lay.parse(lay.build(zeros))
+
+
+# -- single spec files through the cache (spec_file -> cache.cached_doc) -----------------------
+
+def _doc_loader() -> tuple[list[Path], object]:
+    calls: list[Path] = []
+
+    def load(path: Path) -> dict[str, object]:
+        calls.append(path)
+        doc: dict[str, object] = yaml.load(path.read_text(), Loader=yaml.CSafeLoader)
+        return doc
+
+    return calls, load
+
+
+def test_a_single_spec_file_is_read_from_the_cache_on_the_next_start(
+    specs_copy: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("EYEQ_SPI_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.delenv("EYEQ_SPI_NO_CACHE", raising=False)
+    monkeypatch.setattr(cache, "_DIGESTS", {})
+    calls, load = _doc_loader()
+    first = cache.cached_doc(specs_copy, "link.yaml", load)  # type: ignore[arg-type]
+    second = cache.cached_doc(specs_copy, "link.yaml", load)  # type: ignore[arg-type]
+    assert len(calls) == 1 and first == second == yaml.safe_load(
+        (specs_copy / "link.yaml").read_text())
+    (marshalled,) = (tmp_path / "cache").glob("doc-*-link.yaml.marshal")
+    assert marshalled.stat().st_mode & 0o077 == 0
+
+    path = specs_copy / "link.yaml"  # a new start after an edit: a new key, old file removed
+    path.write_text(path.read_text() + "\nextra_key_for_the_test: 1\n")
+    monkeypatch.setattr(cache, "_DIGESTS", {})
+    third = cache.cached_doc(specs_copy, "link.yaml", load)  # type: ignore[arg-type]
+    assert len(calls) == 2 and third["extra_key_for_the_test"] == 1
+    assert len(list((tmp_path / "cache").glob("doc-*-link.yaml.marshal"))) == 1
+
+    (marshalled,) = (tmp_path / "cache").glob("doc-*-link.yaml.marshal")
+    marshalled.write_bytes(b"\xffnot marshal")  # corrupt: parsed again, never fatal
+    monkeypatch.setattr(cache, "_DIGESTS", {})
+    assert cache.cached_doc(specs_copy, "link.yaml", load) == third  # type: ignore[arg-type]
+    assert len(calls) == 3
+
+
+def test_a_doc_marshal_cannot_hold_is_returned_uncached(
+    specs_copy: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import datetime
+
+    monkeypatch.setenv("EYEQ_SPI_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(cache, "_DIGESTS", {})
+    calls: list[Path] = []
+
+    def load(path: Path) -> dict[str, object]:
+        calls.append(path)
+        return {"when": datetime.date(2026, 1, 1)}  # YAML timestamps: marshal cannot hold them
+
+    for _ in range(2):
+        assert cache.cached_doc(specs_copy, "link.yaml", load)["when"].year == 2026
+    assert len(calls) == 2 and not list((tmp_path / "cache").glob("doc-*"))

@@ -2,7 +2,9 @@
 
 A :class:`Layout` is one struct at one SW version:
 
-- a compiled construct ``Struct`` for the byte layout. Bitfield members that share a container
+- a compiled construct ``Struct`` for the byte layout, built on first use of ``struct`` (the
+  fast path, ``spec list`` and ``spec show`` never need it, and construct costs start-up time,
+  issue 10). Bitfield members that share a container
   (D2) appear in it as one integer field; splitting and joining them is plain shifting done by
   precomputed operation lists, so no ``BitStruct`` (uncompilable, slow) is on the hot path;
 - a ``struct``-based fast path generated from the same fields (:mod:`.fastpath`), used by
@@ -22,31 +24,16 @@ import contextlib
 from dataclasses import dataclass, field
 from typing import Any
 
-from construct import (
-    Array,
-    Float32l,
-    Float64l,
-    Int8sl,
-    Int8ul,
-    Int16sl,
-    Int16ul,
-    Int32sl,
-    Int32ul,
-    Int64sl,
-    Int64ul,
-    Struct,
-)
-from construct.core import ConstructError
-
 from eyeq_spi.codec.fastpath import FastCodec
 from eyeq_spi.crc import crc16
 from eyeq_spi.errors import CodecError, SpecError
 from eyeq_spi.spec.catalog import Catalog, Member, SwKey
 
-PRIMITIVE = {
-    "uint8": (Int8ul, 1), "uint16": (Int16ul, 2), "uint32": (Int32ul, 4), "uint64": (Int64ul, 8),
-    "int8": (Int8sl, 1), "int16": (Int16sl, 2), "int32": (Int32sl, 4), "int64": (Int64sl, 8),
-    "real32": (Float32l, 4), "real64": (Float64l, 8), "bool": (Int8ul, 1),
+PRIMITIVE = {  # seed type -> (construct field name, bytes)
+    "uint8": ("Int8ul", 1), "uint16": ("Int16ul", 2), "uint32": ("Int32ul", 4),
+    "uint64": ("Int64ul", 8), "int8": ("Int8sl", 1), "int16": ("Int16sl", 2),
+    "int32": ("Int32sl", 4), "int64": ("Int64sl", 8), "real32": ("Float32l", 4),
+    "real64": ("Float64l", 8), "bool": ("Int8ul", 1),
 }
 INT_RANGE = {
     "uint8": (0, 0xFF), "uint16": (0, 0xFFFF), "uint32": (0, 0xFFFFFFFF),
@@ -85,10 +72,12 @@ class Layout:
     sw: SwKey
     variant: SwKey
     size: int
-    struct: Any  # compiled construct
     fields: list[FieldInfo]
     children: dict[str, Layout]
     crc_plan: list[CrcPlan] = field(default_factory=list)
+    # (member or bit-group key, construct field name or None for a child struct, count, child)
+    _cons: list[tuple[str, str | None, int | None, Layout | None]] = field(default_factory=list)
+    _struct: Any = None
     _decode_ops: list[tuple[Any, ...]] = field(default_factory=list)
     _encode_ops: list[tuple[Any, ...]] = field(default_factory=list)
     _by_name: dict[str, FieldInfo] = field(default_factory=dict)
@@ -150,6 +139,22 @@ class Layout:
         return out
 
     @property
+    def struct(self) -> Any:
+        """The compiled construct ``Struct`` (built, with its children's, on first use)."""
+        if self._struct is None:
+            import construct as c
+
+            subcons: list[Any] = []
+            for key, prim, count, child in self._cons:
+                con = getattr(c, prim) if prim is not None else child.struct  # type: ignore[union-attr]
+                subcons.append(key / (con if count is None else c.Array(count, con)))
+            struct = c.Struct(*subcons)
+            with contextlib.suppress(Exception):  # construct cannot compile it: run uncompiled
+                struct = struct.compile()
+            self._struct = struct
+        return self._struct
+
+    @property
     def fast(self) -> FastCodec:
         """The ``struct``-based path generated from this layout (built on first use)."""
         if self._fast is None:
@@ -169,6 +174,8 @@ class Layout:
 
     # The construct codec: the reference the fast path is tested against.
     def build_construct(self, values: dict[str, Any]) -> bytes:
+        from construct.core import ConstructError
+
         try:
             return bytes(self.struct.build(self.pre(values)))
         except (ConstructError, ValueError, OverflowError) as exc:
@@ -257,7 +264,7 @@ class LayoutCache:
         var = sdef.variant_for(sw)
         if var is None:
             raise SpecError(f"struct {name} has no layout for {sw}")
-        subcons: list[Any] = []
+        subcons: list[tuple[str, str | None, int | None, Layout | None]] = []
         fields: list[FieldInfo] = []
         children: dict[str, Layout] = {}
         dec: list[tuple[Any, ...]] = []
@@ -283,7 +290,7 @@ class LayoutCache:
                     j += 1
                 key = f"_bits{ngroup}"
                 ngroup += 1
-                subcons.append(key / con)
+                subcons.append((key, con, None, None))
                 used = 0
                 parts = []
                 for g in group:
@@ -301,36 +308,31 @@ class LayoutCache:
             count = self._count(m, sw)
             if m.type in PRIMITIVE:
                 con, size = PRIMITIVE[m.type]
+                subcons.append((m.name, con, count, None))
                 if count is None:
-                    subcons.append(m.name / con)
                     dec.append((0, m.name))
                     enc.append((0, m.name))
                 else:
-                    subcons.append(m.name / Array(count, con))
                     dec.append((1, m.name))
                     enc.append((1, m.name))
                     size *= count
             else:
                 child = self._compile(m.type, sw, (*stack, name))
                 children[m.name] = child
+                subcons.append((m.name, None, count, child))
                 if count is None:
-                    subcons.append(m.name / child.struct)
                     dec.append((2, m.name, child))
                     enc.append((2, m.name, child))
                     size = child.size
                 else:
-                    subcons.append(m.name / Array(count, child.struct))
                     dec.append((3, m.name, child))
                     enc.append((3, m.name, child, count))
                     size = child.size * count
             fields.append(FieldInfo(m.name, offset, size, m.type, count, None, m))
             offset += size
             i += 1
-        struct = Struct(*subcons)
-        with contextlib.suppress(Exception):  # construct cannot compile it: run uncompiled
-            struct = struct.compile()
-        lay = Layout(name, sw, var.key, offset, struct, fields, children)
-        lay._decode_ops, lay._encode_ops = dec, enc
+        lay = Layout(name, sw, var.key, offset, fields, children)
+        lay._cons, lay._decode_ops, lay._encode_ops = subcons, dec, enc
         lay._by_name = {f.name: f for f in fields}
         # E2E plan: children first (their CRCs are inside ours), then our own.
         for f in fields:

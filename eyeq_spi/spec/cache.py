@@ -6,6 +6,10 @@ catalogue (argument checks name messages, MESP functions and faults). The valida
 that hashes every byte of ``specs/`` and its path, the source of the loader modules and the Python
 version, so an edited YAML file, an edited loader or another interpreter never sees a stale one.
 
+Single files of ``specs/`` that code reads directly (``spec_file``: ``link.yaml``,
+``bench.yaml``, ``dasp_header.yaml``...) are cached the same way, each as a ``marshal`` file under
+the same key (:func:`cached_doc`), so a start from the cache never imports yaml (issue 10).
+
 The cache is an optimisation only: an unwritable, missing, corrupt or foreign cache file falls back
 to parsing ``specs/`` (and silently tries to write a fresh one). ``EYEQ_SPI_CACHE_DIR`` moves it;
 ``EYEQ_SPI_NO_CACHE=1`` turns it off. The pickle is read only from a directory of the current user,
@@ -16,13 +20,15 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import marshal
 import os
 import pickle
+import re
 import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import TypeVar, cast
+from typing import Any, TypeVar, cast
 
 T = TypeVar("T")
 
@@ -52,12 +58,15 @@ def specs_digest(root: Path) -> str:
     return h.hexdigest()
 
 
+_DIGESTS: dict[Path, str] = {}  # root -> digest, once per process (as spec_file's own cache)
+
+
 def cached_catalog(root: Path, load: Callable[[Path], T]) -> T:
     """``load(root)``, or the pickled result of an earlier call with the same ``specs/``."""
     if os.environ.get("EYEQ_SPI_NO_CACHE"):
         return load(root)
     try:
-        digest = specs_digest(root)
+        digest = _DIGESTS[root] = specs_digest(root)  # always afresh; single files reuse it
         path = cache_dir() / f"catalog-{digest[:32]}.pickle"
     except (OSError, ImportError):
         return load(root)
@@ -69,13 +78,31 @@ def cached_catalog(root: Path, load: Callable[[Path], T]) -> T:
     return value
 
 
-def _read(path: Path) -> object | None:
+def cached_doc(root: Path, name: str, load: Callable[[Path], dict[str, Any]]) -> dict[str, Any]:
+    """``load(root / name)`` (one parsed YAML file), or its marshalled copy from an earlier call
+    with the same ``specs/``. The key is computed once per process and root."""
+    if os.environ.get("EYEQ_SPI_NO_CACHE"):
+        return load(root / name)
+    try:
+        digest = _DIGESTS.get(root) or _DIGESTS.setdefault(root, specs_digest(root))
+        path = cache_dir() / f"doc-{digest[:32]}-{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}.marshal"
+    except (OSError, ImportError):
+        return load(root / name)
+    cached = _read(path, marshal.load)
+    if isinstance(cached, dict):
+        return cached
+    value = load(root / name)
+    _write(path, value, marshal.dump, f"doc-{digest[:32]}-")
+    return value
+
+
+def _read(path: Path, reader: Callable[[Any], object] = pickle.load) -> object | None:
     try:
         st = path.stat()
         if hasattr(os, "getuid") and st.st_uid != os.getuid():
             return None  # only trust a file this user wrote
         with path.open("rb") as fh:
-            value: object = pickle.load(fh)
+            value: object = reader(fh)
             return value
     except FileNotFoundError:
         return None
@@ -85,7 +112,10 @@ def _read(path: Path) -> object | None:
         return None
 
 
-def _write(path: Path, value: object) -> None:
+def _write(path: Path, value: object, writer: Callable[[Any, Any], object] | None = None,
+           current: str = "") -> None:
+    """Write atomically; then remove the files of other keys (``catalog-*.pickle``, or the
+    ``doc-*.marshal`` files not starting with ``current``)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".catalog-", suffix=".tmp")
@@ -93,9 +123,15 @@ def _write(path: Path, value: object) -> None:
         return  # read-only home, full disk...: run without a cache
     try:
         with os.fdopen(fd, "wb") as fh:
-            pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
+            if writer is None:
+                pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
+            else:
+                writer(value, fh)  # marshal: ValueError for a type it cannot hold
         os.replace(tmp, path)
-        for old in path.parent.glob("catalog-*.pickle"):  # keep only the current key
+        stale = (path.parent.glob("catalog-*.pickle") if writer is None
+                 else (p for p in path.parent.glob("doc-*.marshal")
+                       if not p.name.startswith(current)))
+        for old in stale:  # keep only the current key
             if old != path:
                 with contextlib.suppress(OSError):
                     old.unlink()

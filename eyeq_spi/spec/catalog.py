@@ -12,8 +12,6 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from eyeq_spi.errors import SpecError
 from eyeq_spi.spec.link import specs_dir
 from eyeq_spi.spec.schema import load_yaml_tree, sw_key, validate_tree
@@ -281,6 +279,8 @@ def _signal(s: dict[str, Any]) -> InitSignal:
 
 
 def load_catalog(root: Path) -> Catalog:
+    import yaml  # only when the start-up cache misses
+
     try:
         docs = load_yaml_tree(root)
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:

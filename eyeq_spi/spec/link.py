@@ -7,8 +7,6 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from eyeq_spi.errors import SpecError
 
 
@@ -27,8 +25,16 @@ def link_spec() -> dict[str, Any]:
 
 @cache
 def spec_file(name: str) -> dict[str, Any]:
-    """One YAML file of ``specs/`` as a mapping (cached)."""
-    path = specs_dir() / name
+    """One YAML file of ``specs/`` as a mapping (cached in the process, and across starts by
+    :func:`eyeq_spi.spec.cache.cached_doc`)."""
+    from eyeq_spi.spec.cache import cached_doc
+
+    return cached_doc(specs_dir(), name, _load_file)
+
+
+def _load_file(path: Path) -> dict[str, Any]:
+    import yaml  # here, not at module level: a start from the cache never parses YAML (issue 10)
+
     try:
         with path.open(encoding="utf-8") as fh:
             doc = yaml.load(fh, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))

@@ -11,8 +11,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 PRIMITIVES = frozenset(
     ["uint8", "uint16", "uint32", "uint64", "int8", "int16", "int32", "int64", "real32", "real64",
      "bool"]
@@ -47,16 +45,24 @@ def _is_num(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-# libyaml parses specs/ about 8x faster than the pure-Python loader; same safe subset.
-SafeLoader: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+def safe_loader() -> Any:
+    """libyaml's loader, about 8x faster than the pure-Python one on specs/; same safe subset.
+    yaml is imported here, not at module level: a start from the catalogue cache never needs it
+    (issue 10: start-up)."""
+    import yaml
+
+    return getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 def load_yaml_tree(root: Path) -> dict[str, Any]:
     """Load every YAML file of ``root`` into one dict keyed by relative path."""
+    import yaml
+
+    loader = safe_loader()
     out: dict[str, Any] = {}
     for path in sorted(root.rglob("*.yaml")):
         with path.open(encoding="utf-8") as fh:
-            out[str(path.relative_to(root))] = yaml.load(fh, Loader=SafeLoader)
+            out[str(path.relative_to(root))] = yaml.load(fh, Loader=loader)
     return out
 
 
