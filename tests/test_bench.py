@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import io
 import json
-import socket
 import threading
 from collections import Counter
 from pathlib import Path
@@ -428,20 +427,25 @@ def test_replay_to_a_port_in_real_time(demo: Path, capsys: pytest.CaptureFixture
     import sys
     import time
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
     result: dict[str, Any] = {}
 
     def replay() -> None:
-        result["rc"] = main(["replay", str(demo), "--port", f"listen://127.0.0.1:{port}",
+        result["rc"] = main(["replay", str(demo), "--port", "listen://127.0.0.1:0",
                              "--duration", "1.0", "--json"])
 
+    capsys.readouterr()
     th = threading.Thread(target=replay, daemon=True)
     th.start()
-    time.sleep(0.3)  # the listener is up once the replay has read the capture's first frame
+    # poll for readiness: the replay names its listening URL (port 0: no race for a port)
+    err, deadline = "", time.monotonic() + 30
+    while "waiting for the host at " not in err and th.is_alive() \
+            and time.monotonic() < deadline:
+        th.join(0.02)
+        err += capsys.readouterr().err
+    assert "waiting for the host at " in err, (err, result)
+    url = err.split("waiting for the host at ", 1)[1].split()[0]
     host = subprocess.run(
-        [sys.executable, "-m", "eyeq_spi.cli", "host", "--port", f"socket://127.0.0.1:{port}",
+        [sys.executable, "-m", "eyeq_spi.cli", "host", "--port", url,
          "--duration", "3", "--json"], capture_output=True, text=True, timeout=60,
         cwd=Path(__file__).resolve().parents[1], check=False)
     th.join(30)

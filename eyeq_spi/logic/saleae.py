@@ -14,39 +14,21 @@ capture's (the ``enable`` row, or the first byte in Logic 1.x).
 from __future__ import annotations
 
 import csv
+import itertools
 from collections.abc import Iterator
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, Route, SpiOptions, bench_spec
+
+if TYPE_CHECKING:
+    from eyeq_spi.logic.saleae_fast import Saleae1State, Saleae2State
 
 MAX_LINE = 1 << 16
 
 
 class ByteSource(Protocol):
     def read(self, n: int = -1) -> bytes: ...
-
-
-def text_lines(src: ByteSource, chunk: int = 1 << 16) -> Iterator[str]:
-    """Decoded lines of a byte stream (UTF-8, BOM dropped), bounded memory."""
-    buf = b""
-    first = True
-    while True:
-        data = src.read(chunk)
-        buf += data
-        parts = buf.split(b"\n")
-        buf = parts.pop() if data else b""
-        for raw in parts:
-            if first:
-                raw = raw.removeprefix(b"\xef\xbb\xbf")
-                first = False
-            yield raw.rstrip(b"\r").decode("utf-8", "replace")
-        if not data:
-            if buf:
-                yield buf.decode("utf-8", "replace")
-            return
-        if len(buf) > MAX_LINE:
-            raise LogicInputError("line longer than 64 KiB: not a Saleae export")
 
 
 def _norm(cells: list[str]) -> list[str]:
@@ -105,23 +87,84 @@ def _time(text: str, where: str) -> float:
         raise LogicInputError(f"{where}: bad time {text[:30]!r}") from None
 
 
-def read_saleae2(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
+def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
+                 ) -> Iterator[Record]:
     try:
-        yield from _saleae2(src, opts)
+        yield from _saleae2(src, opts, chunk_size)
     except csv.Error as exc:
         raise LogicInputError(f"not a CSV export: {exc}") from None
 
 
-def read_saleae1(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
+def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
+                  ) -> Iterator[Record]:
     try:
-        yield from _saleae1(src, opts)
+        yield from _saleae1(src, opts, chunk_size)
     except csv.Error as exc:
         raise LogicInputError(f"not a CSV export: {exc}") from None
 
 
-def _saleae2(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
-    lines = text_lines(src)
-    header = _norm(next(csv.reader([next(lines, "")]), []))
+def byte_chunks(src: ByteSource, size: int = 1 << 20) -> Iterator[bytes]:
+    """The stream in chunks of whole lines (the last may lack its newline), the UTF-8 BOM
+    dropped, bounded memory: a line longer than 64 KiB is an error."""
+    rest = b""
+    bom = True
+    while True:
+        data = src.read(size)
+        buf = rest + data
+        if bom:
+            if len(buf) < 3 and data:
+                rest = buf
+                continue
+            buf, bom = buf.removeprefix(b"\xef\xbb\xbf"), False
+        if not data:
+            if buf:
+                yield buf
+            return
+        cut = buf.rfind(b"\n") + 1
+        rest = buf[cut:]
+        if len(rest) > MAX_LINE:
+            raise LogicInputError("line longer than 64 KiB: not a Saleae export")
+        if cut:
+            yield buf[:cut]
+
+
+def _lines(chunk: bytes) -> list[str]:
+    parts = chunk.split(b"\n")
+    if not parts[-1]:
+        parts.pop()
+    return [p.rstrip(b"\r").decode("utf-8", "replace") for p in parts]
+
+
+def _head(chunks: Iterator[bytes]) -> tuple[list[str], bytes]:
+    """The normalised header cells and the rest of the first chunk."""
+    line0, _, body = next(chunks, b"").partition(b"\n")
+    text = line0.rstrip(b"\r").decode("utf-8", "replace")
+    return _norm(next(csv.reader([text]), [])), body
+
+
+def _line_count(chunk: bytes) -> int:
+    return chunk.count(b"\n") + (not chunk.endswith(b"\n"))
+
+
+class _Tries:
+    """The vectorised path is tried until it declined two chunks in a row (an export in a
+    radix or shape it does not take)."""
+
+    def __init__(self) -> None:
+        self.misses = 0
+
+    def __bool__(self) -> bool:
+        return self.misses < 2
+
+    def took(self, ok: bool) -> None:
+        self.misses = 0 if ok else self.misses + 1
+
+
+def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Record]:
+    from eyeq_spi.logic.saleae_fast import Saleae2State, saleae2_chunk
+
+    chunks = byte_chunks(src, chunk_size)
+    header, body = _head(chunks)
     try:
         i_name, i_type, i_time = (header.index(c) for c in ("name", "type", "start_time"))
         cols = {line: header.index(line) for line in bench_spec()["saleae2"]["data_columns"]}
@@ -129,24 +172,48 @@ def _saleae2(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
         raise LogicInputError("not a Saleae Logic 2 SPI export: the header needs name, type, "
                               "start_time, mosi and miso") from None
     kinds = bench_spec()["saleae2"]["row_types"]
-    k_start, k_byte = kinds["start"], kinds["byte"]
-    open_: dict[str, _Open | None] = {}
-    routes: dict[str, list[Route]] = {}
-    results = enables = 0
+    state = Saleae2State({}, {})
     need = max(i_name, i_type, i_time, *cols.values())
+    n = 2
+    tries = _Tries()
+    for chunk in itertools.chain([body], chunks):
+        if not chunk:
+            continue
+        recs = saleae2_chunk(chunk, len(header), cols, i_name, i_type, i_time, kinds, state,
+                             opts, _Open) if tries else None
+        if tries:
+            tries.took(recs is not None)
+        if recs is not None:
+            yield from recs
+        else:
+            yield from _saleae2_rows(csv.reader(_lines(chunk)), n, len(header), need, cols,
+                                     (i_name, i_type, i_time), kinds, state, opts)
+        n += _line_count(chunk)
+    if state.results and not state.enables:
+        raise LogicInputError("the SPI analyzer had no Enable (chip select) channel: transfers "
+                              "cannot be framed")
+
+
+def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
+                  cols: dict[str, int], where: tuple[int, int, int], kinds: dict[str, str],
+                  state: Saleae2State, opts: SpiOptions) -> Iterator[Record]:
+    """The csv loop: exact for any shape, reports errors with their line."""
+    i_name, i_type, i_time = where
+    k_start, k_byte = kinds["start"], kinds["byte"]
+    open_, routes = state.open_, state.routes
     col_list = list(cols.items())
-    for n, row in enumerate(csv.reader(lines), start=2):
+    for n, row in enumerate(rows, start=start):
         if not row:
             continue
         if len(row) <= need:
-            raise LogicInputError(f"line {n}: {len(row)} columns, expected {len(header)}")
+            raise LogicInputError(f"line {n}: {len(row)} columns, expected {ncols}")
         name, kind = row[i_name], row[i_type]
         if name not in routes:
             routes[name] = opts.routes(name, len(routes) + 1)
         if kind != k_byte and kind != k_start:
             kind = kind.strip().lower()
         if kind == k_byte:
-            results += 1
+            state.results += 1
             tr = open_.get(name)
             if tr is None:
                 continue  # a transfer cut by the start of the capture
@@ -159,7 +226,7 @@ def _saleae2(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
                         raise LogicInputError(f"line {n}: transfer longer than {MAX_TRANSFER} "
                                               "bytes")
         elif kind == k_start:
-            enables += 1
+            state.enables += 1
             open_[name] = _Open(_time(row[i_time], f"line {n}"))
         elif kind == kinds["end"]:
             tr = open_.pop(name, None)
@@ -167,14 +234,13 @@ def _saleae2(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
                 yield from _emit(tr, routes[name])
         else:
             raise LogicInputError(f"line {n}: row type {kind!r} is not enable/result/disable")
-    if results and not enables:
-        raise LogicInputError("the SPI analyzer had no Enable (chip select) channel: transfers "
-                              "cannot be framed")
 
 
-def _saleae1(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
-    lines = text_lines(src)
-    header = _norm(next(csv.reader([next(lines, "")]), []))
+def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Record]:
+    from eyeq_spi.logic.saleae_fast import Saleae1State, saleae1_chunk
+
+    chunks = byte_chunks(src, chunk_size)
+    header, body = _head(chunks)
     want = [h.lower() for h in bench_spec()["saleae1"]["header"]]
     try:
         i_time, i_id, i_mosi, i_miso = (header.index(c) for c in want)
@@ -182,21 +248,46 @@ def _saleae1(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
         raise LogicInputError("not a Saleae Logic 1.x SPI export: the header needs "
                               + ", ".join(want)) from None
     routes = opts.routes("", 1)
-    tr: _Open | None = None
-    packet: str | None = None
-    for n, row in enumerate(csv.reader(lines), start=2):
+    state = Saleae1State()
+    where = (i_time, i_id, i_mosi, i_miso)
+    n = 2
+    tries = _Tries()
+    for chunk in itertools.chain([body], chunks):
+        if not chunk:
+            continue
+        recs = saleae1_chunk(chunk, len(header), *where, state, routes, _Open) \
+            if tries else None
+        if tries:
+            tries.took(recs is not None)
+        if recs is not None:
+            yield from recs
+        else:
+            yield from _saleae1_rows(csv.reader(_lines(chunk)), n, len(header), where, state,
+                                     routes)
+        n += _line_count(chunk)
+    if state.tr is not None:
+        # Logic 1.x marks no CS rising edge: the last packet ends with the file
+        yield from _emit(state.tr, routes)
+
+
+def _saleae1_rows(rows: Iterator[list[str]], start: int, ncols: int,
+                  where: tuple[int, int, int, int], state: Saleae1State, routes: list[Route]
+                  ) -> Iterator[Record]:
+    i_time, i_id, i_mosi, i_miso = where
+    for n, row in enumerate(rows, start=start):
         if not row:
             continue
-        if len(row) <= max(i_time, i_id, i_mosi, i_miso):
-            raise LogicInputError(f"line {n}: {len(row)} columns, expected {len(header)}")
+        if len(row) <= max(where):
+            raise LogicInputError(f"line {n}: {len(row)} columns, expected {ncols}")
         pid = row[i_id].strip()
         if not pid:
             raise LogicInputError(f"line {n}: no Packet ID: the SPI analyzer had no Enable "
                                   "(chip select) channel, transfers cannot be framed")
-        if pid != packet:
-            if tr is not None:
-                yield from _emit(tr, routes)
-            tr, packet = _Open(_time(row[i_time], f"line {n}")), pid
+        if pid != state.packet:
+            if state.tr is not None:
+                yield from _emit(state.tr, routes)
+            state.tr, state.packet = _Open(_time(row[i_time], f"line {n}")), pid
+        tr = state.tr
         assert tr is not None
         for line, col in (("mosi", i_mosi), ("miso", i_miso)):
             v = _byte(row[col], n)
@@ -204,6 +295,3 @@ def _saleae1(src: ByteSource, opts: SpiOptions) -> Iterator[Record]:
                 tr.lines[line].append(v)
         if len(tr.lines["mosi"]) > MAX_TRANSFER or len(tr.lines["miso"]) > MAX_TRANSFER:
             raise LogicInputError(f"line {n}: transfer longer than {MAX_TRANSFER} bytes")
-    if tr is not None:
-        # Logic 1.x marks no CS rising edge: the last packet ends with the file
-        yield from _emit(tr, routes)

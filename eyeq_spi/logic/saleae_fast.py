@@ -1,0 +1,297 @@
+"""The vectorised path of the Saleae readers (numpy), for the common shape of an export: every
+row has the header's number of columns, a field is either unquoted or wholly quoted (no quote,
+comma or NUL inside), data bytes are empty or ``0xHH``, row types are exactly the spec's. It
+computes exactly what the csv loops of :mod:`eyeq_spi.logic.saleae` compute (a property test
+compares them on random exports cut at random places) and returns None for any chunk it cannot
+take, or whose reading would raise, without touching the readers' state; the csv loop then reads
+that chunk and reports the error with its line.
+
+A chunk is cut into a (rows, columns) table of field bounds with a few passes over its bytes;
+only the rows that frame transfers (``enable``/``disable``, a new Packet ID) are looked at one by
+one, the data bytes of a transfer are one slice of a column.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, Route, SpiOptions
+
+if TYPE_CHECKING:
+    from eyeq_spi.logic.saleae import _Open
+
+_HEX = np.full(256, -1, dtype=np.int16)
+for _c in b"0123456789":
+    _HEX[_c] = _c - 48
+for _c in b"abcdef":
+    _HEX[_c] = _HEX[_c - 32] = _c - 87
+_MAX_NAME = 256
+
+
+@dataclass
+class Table:
+    """Field bounds of a chunk's non-empty rows: ``lo``/``hi`` (rows, columns), quotes off."""
+
+    raw: np.ndarray[Any, Any]
+    lo: np.ndarray[Any, Any]
+    hi: np.ndarray[Any, Any]
+    line: np.ndarray[Any, Any]  # 0-based line of each row within the chunk
+
+    def text(self, row: int, col: int) -> str:
+        return bytes(self.raw[self.lo[row, col]:self.hi[row, col]]).decode("utf-8", "replace")
+
+    def strings(self, col: int, width: int) -> np.ndarray[Any, Any] | None:
+        """The column as a numpy bytes array (``S<width>``), None when a field is longer."""
+        lo, n = self.lo[:, col], self.hi[:, col] - self.lo[:, col]
+        if len(n) and int(n.max()) > width:
+            return None
+        w = max(1, int(n.max()) if len(n) else 1)
+        k = np.arange(w)
+        idx = np.minimum(lo[:, None] + k[None, :], len(self.raw) - 1)
+        cells = np.where(k[None, :] < n[:, None], self.raw[idx], 0).astype(np.uint8)
+        return np.ascontiguousarray(cells).view(f"S{w}").ravel()
+
+    def bytes_of(self, col: int, rows: np.ndarray[Any, Any]) -> np.ndarray[Any, Any] | None:
+        """``_byte`` of the column at ``rows``: -1 for an empty field; None unless every
+        field is empty or ``0xHH``/``0XHH``."""
+        lo, n = self.lo[rows, col], self.hi[rows, col] - self.lo[rows, col]
+        full = n == 4
+        if not (full | (n == 0)).all():
+            return None
+        lo = lo[full]
+        raw = self.raw
+        if not ((raw[lo] == 48) & ((raw[lo + 1] | 32) == 120)).all():
+            return None
+        hi_d, lo_d = _HEX[raw[lo + 2]], _HEX[raw[lo + 3]]
+        if ((hi_d < 0) | (lo_d < 0)).any():
+            return None
+        out = np.full(len(rows), -1, dtype=np.int16)
+        out[full] = hi_d * 16 + lo_d
+        return out
+
+
+def table(chunk: bytes, ncols: int) -> Table | None:
+    """The field table of a chunk of whole lines, None unless it has the simple shape."""
+    if not chunk.endswith(b"\n"):
+        return None
+    raw = np.frombuffer(chunk, dtype=np.uint8)
+    nl = np.flatnonzero(raw == 10)
+    starts = np.empty(len(nl), dtype=np.int64)
+    starts[0] = 0
+    starts[1:] = nl[:-1] + 1
+    cr = raw == 13
+    ends = nl.copy()
+    if cr.any():
+        before = nl[nl > 0] - 1
+        if int(cr.sum()) != int(cr[before].sum()):
+            return None  # a carriage return that does not end a line
+        ends -= cr[np.maximum(nl - 1, 0)] & (nl > starts)
+    if (raw == 0).any():
+        return None
+    line = np.arange(len(nl))
+    if not (ends > starts).all():
+        keep = ends > starts
+        starts, ends, line = starts[keep], ends[keep], line[keep]
+    commas = np.flatnonzero(raw == 44)
+    if len(commas) != len(starts) * (ncols - 1):
+        return None
+    # the commas in line order, ncols - 1 per row: each row's must lie within its line
+    cut = commas.reshape(len(starts), ncols - 1)
+    if ncols > 1 and ((cut[:, 0] < starts).any() or (cut[:, -1] >= ends).any()):
+        return None
+    lo = np.concatenate((starts[:, None], cut + 1), axis=1)
+    hi = np.concatenate((cut, ends[:, None]), axis=1)
+    n_quotes = int(np.count_nonzero(raw == 34))
+    if n_quotes:
+        size = hi - lo
+        at_lo = (raw[np.minimum(lo, len(raw) - 1)] == 34) & (size > 0)
+        at_hi = (raw[np.maximum(hi - 1, 0)] == 34) & (size > 0)
+        wrapped = at_lo & at_hi & (size >= 2)
+        # every quote wraps a field: a quote inside a field (or a quoted comma, which shifts
+        # the fields) is left to the csv module
+        if (at_lo != at_hi).any() or 2 * int(wrapped.sum()) != n_quotes:
+            return None
+        lo = lo + wrapped
+        hi = hi - wrapped
+    return Table(raw, lo, hi, line)
+
+
+@dataclass
+class Saleae2State:
+    open_: dict[str, _Open | None]
+    routes: dict[str, list[Route]]
+    results: int = 0
+    enables: int = 0
+
+
+def saleae2_chunk(chunk: bytes, ncols: int, cols: dict[str, int], i_name: int, i_type: int,
+                  i_time: int, kinds: dict[str, str], state: Saleae2State, opts: SpiOptions,
+                  make_open: Any) -> list[Record] | None:
+    t = table(chunk, ncols)
+    if t is None:
+        return None
+    rows = len(t.lo)
+    types = t.strings(i_type, 8)
+    names = t.strings(i_name, _MAX_NAME)
+    if types is None or names is None:
+        return None
+    k_start, k_byte, k_end = (kinds[k].encode() for k in ("start", "byte", "end"))
+    is_e, is_r, is_d = types == k_start, types == k_byte, types == k_end
+    if not (is_e | is_r | is_d).all():
+        return None
+    uniq, first, inv = np.unique(names, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    keys = [bytes(uniq[u]).decode("utf-8", "replace") for u in range(len(uniq))]
+    if len(set(keys)) != len(keys):
+        return None  # two names that only differ in bytes that are not UTF-8
+    routes = dict(state.routes)
+    try:
+        for u in order:
+            if keys[u] not in routes:
+                routes[keys[u]] = opts.routes(keys[u], len(routes) + 1)
+    except LogicInputError:
+        return None
+    r_rows = np.flatnonzero(is_r)
+    data: dict[str, np.ndarray[Any, Any]] = {}
+    for name, col in cols.items():
+        vals = t.bytes_of(col, r_rows)
+        if vals is None:
+            return None
+        data[name] = vals
+    r_name = inv[r_rows]
+    per_name = [np.flatnonzero(r_name == u) for u in range(len(uniq))]
+    # per name and line: its data bytes in row order (as bytes when no field is empty)
+    cells: list[dict[str, tuple[np.ndarray[Any, Any], np.ndarray[Any, Any], bytes | None]]] = []
+    for sel in per_name:
+        by_line = {}
+        for line, vals in data.items():
+            u8, full = vals[sel].astype(np.uint8), vals[sel] >= 0
+            by_line[line] = (u8, full, u8.tobytes() if full.all() else None)
+        cells.append(by_line)
+    open_: dict[str, _Open | None] = dict(state.open_)
+    opened_at: dict[str, int] = {}
+    jobs: list[tuple[int, _Open, int, int]] = []  # name, transfer, its bytes between rows
+    emits: list[tuple[_Open, str]] = []
+    kind_of, name_of = is_e.tolist(), inv.tolist()
+    for row in np.flatnonzero(~is_r).tolist():
+        u = name_of[row]
+        key = keys[u]
+        if kind_of[row]:
+            prev = open_.get(key)
+            if prev is not None:  # reopened: the csv loop would still check its length
+                if key not in opened_at:
+                    prev = _copy(prev, make_open)
+                jobs.append((u, prev, opened_at.get(key, -1), row))
+            try:
+                time = float(t.text(row, i_time))
+            except ValueError:
+                return None
+            open_[key] = make_open(time)
+            opened_at[key] = row
+            continue
+        tr = open_.pop(key, None)
+        if tr is None:
+            continue
+        if key not in opened_at:
+            tr = _copy(tr, make_open)  # open before this chunk: the state stays as it was
+        jobs.append((u, tr, opened_at.pop(key, -1), row))
+        emits.append((tr, key))
+    index = {key: u for u, key in enumerate(keys)}
+    for key, tr in open_.items():
+        if tr is None or key not in index:
+            continue
+        if key not in opened_at:
+            tr = open_[key] = _copy(tr, make_open)
+        jobs.append((index[key], tr, opened_at.get(key, -1), rows))
+    if jobs:
+        names_j = np.array([j[0] for j in jobs])
+        after = np.array([j[2] for j in jobs])
+        before = np.array([j[3] for j in jobs])
+        a_all = np.empty(len(jobs), dtype=np.int64)
+        b_all = np.empty(len(jobs), dtype=np.int64)
+        for u, sel in enumerate(per_name):
+            m = names_j == u
+            a_all[m] = np.searchsorted(r_rows[sel], after[m], "right")
+            b_all[m] = np.searchsorted(r_rows[sel], before[m], "left")
+        for (u, tr, _, _), a, b in zip(jobs, a_all.tolist(), b_all.tolist(), strict=True):
+            for line, (u8, full, blob) in cells[u].items():
+                buf = tr.lines[line]
+                buf += blob[a:b] if blob is not None else u8[a:b][full[a:b]].tobytes()
+                if len(buf) > MAX_TRANSFER:
+                    return None
+    out = [Record(tr.time, r.direction, bytes(tr.lines[r.line]))
+           for tr, key in emits for r in routes[key]]
+    state.open_.clear()
+    state.open_.update(open_)
+    state.routes.update(routes)
+    state.results += len(r_rows)
+    state.enables += int(is_e.sum())
+    return out
+
+
+def _copy(tr: _Open, make_open: Any) -> _Open:
+    new: _Open = make_open(tr.time)
+    for line, buf in tr.lines.items():
+        new.lines[line] = bytearray(buf)
+    return new
+
+
+@dataclass
+class Saleae1State:
+    tr: _Open | None = None
+    packet: str | None = None
+
+
+def saleae1_chunk(chunk: bytes, ncols: int, i_time: int, i_id: int, i_mosi: int, i_miso: int,
+                  state: Saleae1State, routes: list[Route], make_open: Any
+                  ) -> list[Record] | None:
+    t = table(chunk, ncols)
+    if t is None:
+        return None
+    rows = len(t.lo)
+    if rows == 0:
+        return []
+    pids = t.strings(i_id, 64)
+    if pids is None or (pids.view(np.uint8) >= 128).any():
+        return None
+    lo, hi = t.lo[:, i_id], t.hi[:, i_id]
+    if not (hi > lo).all() or (t.raw[lo] <= 32).any() or (t.raw[hi - 1] <= 32).any():
+        return None  # an empty Packet ID (an error) or spaces that strip() would take
+    all_rows = np.arange(rows)
+    data = {"mosi": t.bytes_of(i_mosi, all_rows), "miso": t.bytes_of(i_miso, all_rows)}
+    if data["mosi"] is None or data["miso"] is None:
+        return None
+    new = np.flatnonzero(pids[1:] != pids[:-1]) + 1
+    tr, packet = state.tr, state.packet
+    first = t.text(0, i_id)
+    if first != packet:
+        new = np.concatenate(([0], new))
+    elif tr is not None:
+        tr = _copy(tr, make_open)
+    bounds = np.concatenate((new, [rows])).tolist()
+    out: list[Record] = []
+    start = 0
+    for b in bounds:
+        if tr is not None:
+            for line, vals in data.items():
+                assert vals is not None
+                v = vals[start:b]
+                tr.lines[line] += v[v >= 0].astype(np.uint8).tobytes()
+                if len(tr.lines[line]) > MAX_TRANSFER:
+                    return None
+        if b == rows:
+            break
+        if tr is not None:
+            out += (Record(tr.time, r.direction, bytes(tr.lines[r.line])) for r in routes)
+        try:
+            tr = make_open(float(t.text(b, i_time)))
+        except ValueError:
+            return None
+        start = b
+    state.tr = tr
+    state.packet = t.text(rows - 1, i_id)
+    return out

@@ -1,0 +1,136 @@
+"""The vectorised paths of the Saleae readers (issue 14) against their exact csv loops, on random
+exports cut into random chunks; bounded memory and line-numbered errors on either path."""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.logic import saleae_fast
+from eyeq_spi.logic.options import LogicInputError, SpiOptions
+from eyeq_spi.logic.saleae import read_saleae1, read_saleae2
+
+Reader = Callable[..., Iterator[Record]]
+
+
+def _both(read: Reader, data: bytes, opts: SpiOptions, chunk: int
+          ) -> tuple[list[Record] | str, list[Record] | str]:
+    """(vectorised, csv loop): the records, or the error's text."""
+
+    def run() -> list[Record] | str:
+        try:
+            return list(read(io.BytesIO(data), opts, chunk_size=chunk))
+        except LogicInputError as exc:
+            return f"error: {exc}"
+
+    fast = run()
+    keep = saleae_fast.saleae2_chunk, saleae_fast.saleae1_chunk
+    try:
+        saleae_fast.saleae2_chunk = saleae_fast.saleae1_chunk = (  # type: ignore[assignment]
+            lambda *a, **k: None)
+        slow = run()
+    finally:
+        saleae_fast.saleae2_chunk, saleae_fast.saleae1_chunk = keep
+    return fast, slow
+
+
+def _cell(draw: Any, v: int | None) -> str:
+    if v is None:
+        return draw(st.sampled_from(["", '""']))
+    text = draw(st.sampled_from([f"0x{v:02X}", f"0x{v:02x}", f"0X{v:02X}", f'"0x{v:02X}"']))
+    return text if draw(st.integers(0, 30)) else str(v)  # now and then a decimal radix
+
+
+@st.composite
+def saleae2_exports(draw: Any) -> bytes:
+    rows = ['name,type,start_time,duration,"mosi","miso"']
+    t = 0.0
+    for _ in range(draw(st.integers(0, 12))):
+        name = draw(st.sampled_from(["h2e", "e2h", '"h2e"', '"e2h"']))
+        q = draw(st.sampled_from(['"', ""]))
+        extra = draw(st.sampled_from(["", "", "", "cut", "reopen", "unclosed", "odd"]))
+        if extra == "cut":  # bytes of a transfer the capture cut at its start
+            rows.append(f'{name},{q}result{q},{t!r},8e-07,0x01,0x02')
+        rows.append(f"{name},{q}enable{q},{t!r},2e-08,,")
+        for _ in range(draw(st.integers(0, 2)) if extra == "reopen" else 0):
+            rows.append(f'{name},{q}result{q},{t!r},8e-07,0x03,')
+            rows.append(f"{name},{q}enable{q},{t!r},2e-08,,")
+        for b in draw(st.lists(st.integers(0, 255), max_size=20)):
+            miso = draw(st.one_of(st.none(), st.integers(0, 255)))
+            rows.append(f"{name},{q}result{q},{t + 1e-6:.9f},8e-07,{_cell(draw, b)},"
+                        f"{_cell(draw, miso)}")
+        if extra == "odd":
+            rows.append(draw(st.sampled_from([f"{name},Result,1,1,0x05,", "", " ",
+                                              f'{name},"res,ult",1,1,,', f"{name},result,1",
+                                              '"h2e"x,result,1,1,0x01,']))
+                        )
+        if extra != "unclosed":
+            rows.append(f"{name},{q}disable{q},{t + 1e-4!r},2e-08,,")
+        t += 1e-3
+    end = draw(st.sampled_from(["\n", "\r\n"]))
+    return (end.join(rows) + draw(st.sampled_from([end, ""]))).encode()
+
+
+@st.composite
+def saleae1_exports(draw: Any) -> bytes:
+    rows = ["Time [s],Packet ID,MOSI,MISO"]
+    for pid in range(draw(st.integers(0, 10))):
+        if draw(st.integers(0, 20)) == 0:
+            rows.append(draw(st.sampled_from(["", f"1,{pid} ,0x01,", "x,3,0x01,0x02", "1,,0x01,",
+                                              f'1,"{pid}",0x01,0x02'])))
+        for i, b in enumerate(draw(st.lists(st.integers(0, 255), min_size=1, max_size=20))):
+            rows.append(f"{pid * 1e-3 + i * 8e-7:.9f},{pid},{_cell(draw, b)},"
+                        f"{_cell(draw, draw(st.one_of(st.none(), st.integers(0, 255))))}")
+    return ("\n".join(rows) + "\n").encode()
+
+
+@settings(max_examples=50, deadline=None)
+@given(saleae2_exports(), st.integers(min_value=5, max_value=3000))
+def test_saleae2_fast_path_equals_the_csv_loop(data: bytes, chunk: int) -> None:
+    fast, slow = _both(read_saleae2, data, SpiOptions(), chunk)
+    assert fast == slow
+
+
+@settings(max_examples=50, deadline=None)
+@given(saleae1_exports(), st.integers(min_value=5, max_value=3000),
+       st.sampled_from(["h2e", "e2h"]))
+def test_saleae1_fast_path_equals_the_csv_loop(data: bytes, chunk: int, direction: str) -> None:
+    fast, slow = _both(read_saleae1, data, SpiOptions(direction=direction), chunk)
+    assert fast == slow
+
+
+def test_fast_path_takes_the_common_shape() -> None:
+    """Not a vacuous equality: a plain export is read by the vectorised path."""
+    rows = ['name,type,start_time,duration,"mosi","miso"', '"h2e","enable",0.5,2e-08,,']
+    rows += [f'"h2e","result",0.5,8e-07,0x{b:02X},0xFF' for b in range(128)]
+    rows.append('"h2e","disable",0.6,2e-08,,')
+    body = ("\n".join(rows[1:]) + "\n").encode()
+    state = saleae_fast.Saleae2State({}, {})
+    from eyeq_spi.logic.saleae import _Open
+
+    recs = saleae_fast.saleae2_chunk(body, 6, {"mosi": 4, "miso": 5}, 0, 1, 2,
+                                     {"start": "enable", "byte": "result", "end": "disable"},
+                                     state, SpiOptions(), _Open)
+    assert recs == [Record(0.5, "h2e", bytes(range(128)))]
+    assert state.results == 128 and state.enables == 1
+
+
+@pytest.mark.parametrize("read,head,row", [
+    (read_saleae2, 'name,type,start_time,duration,"mosi","miso"\n"h2e","enable",0,0,,\n',
+     '"h2e","result",0,0,0x01,0x02\n'),
+    (read_saleae1, "Time [s],Packet ID,MOSI,MISO\n", "0.1,7,0x01,0x02\n"),
+])
+def test_saleae_transfer_without_chip_select_rising_is_bounded(read: Reader, head: str,
+                                                                row: str) -> None:
+    """A chip select that never rises: an error at the 4097th byte's line on the fast path
+    too, whatever the chunking."""
+    data = (head + row * 5000).encode()
+    for chunk in (1 << 12, 1 << 20):
+        with pytest.raises(LogicInputError, match=r"line \d+: transfer longer than 4096"):
+            list(read(io.BytesIO(data), SpiOptions(direction="h2e"), chunk_size=chunk))
