@@ -276,6 +276,8 @@ def test_socketcan_vcan_target() -> None:
     finally:
         listener.shutdown()
     assert out.sink.sent > 50 and len(got) == out.sink.sent - out.sink.errors
+    dec = CanDecoder("me8")  # what went over the kernel's bus decodes cleanly
+    assert all(dec.decode(m, i)["errors"] == [] for i, m in enumerate(got))
 
 
 def test_attach_wraps_a_real_time_runner_node() -> None:
