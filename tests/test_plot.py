@@ -28,6 +28,7 @@ from eyeq_spi.plot.charts import GAP_COLOUR, timing_figure
 from eyeq_spi.plot.collect import Collector, Window, collect
 from eyeq_spi.plot.output import save_figure
 from eyeq_spi.plot.scene import OBSTACLES, ROAD, SIGNS
+from eyeq_spi.transport.segment import segment
 from tests.test_plot_scene import (
     LINES,
     OBJECTS,
@@ -134,6 +135,78 @@ def test_signs_are_placed_where_reported(birdseye_png: Path) -> None:
         assert _close(img[row, col], (1.0, 1.0, 1.0), tol=0.05)  # the ring's white face
 
 
+def test_velocity_arrows_point_where_the_objects_go(birdseye_png: Path) -> None:
+    """The arrow runs from the box's middle 0.5 s of velocity ahead (ARROW_S): black pixels
+    ahead of a moving box up to its tip, none past it, none ahead of a standing object."""
+    from eyeq_spi.plot.birdseye import ARROW_S
+
+    img = _image(birdseye_png)
+    black = (0.0, 0.0, 0.0)
+    for oid, _cls, lo, la, _w, ln, _cipv, v in OBJECTS:
+        tip = lo + ln / 2 + v * ARROW_S
+        if v:
+            for long in (lo + ln + 1.0, tip - 1.0):
+                row, col = _pixel(long, la)
+                assert _near(img, row, col, black, r=1, tol=0.25), (oid, long)
+        row, col = _pixel((tip if v else lo + ln) + 1.5, la)
+        assert not _near(img, row, col, black, r=1, tol=0.25), oid
+
+
+CAR_SPEED, CAR_START = 20.0, 10.0  # the moving capture's car: long = CAR_START + CAR_SPEED * t
+
+
+@pytest.fixture(scope="module")
+def moving(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The synthetic scene, but the CIPV car (ID 3) drives away at CAR_SPEED m/s."""
+    from eyeq_spi.codec.e2e import E2EState
+    from tests.test_plot_scene import _fill_scene
+
+    codec = MessageCodec(None)
+    e2e = E2EState()
+    msgs = []
+    for k in range(18):
+        t = k / 18
+        obs = _fill_scene(codec, t)[OBSTACLES]
+        obs["visObjects"]["visObs"][0]["physicalState"]["longDistance"] = (
+            CAR_START + CAR_SPEED * t)
+        msgs.append((t, OBSTACLES, codec.encode_dasp(OBSTACLES, obs, k, e2e)))
+    return write_capture(tmp_path_factory.mktemp("moving") / "moving.pcapng", frames_of(msgs))
+
+
+def _car_at(img: Any, long: float) -> bool:
+    _oid, cls, _lo, la, _w, ln, _cipv, _v = OBJECTS[0]
+    row, col = _pixel(long + ln / 2, la)
+    return _close(img[row, col][:3], _rgb(class_colour(cls)), tol=0.1)
+
+
+def test_at_draws_the_scene_of_that_moment(moving: Path) -> None:
+    for at, k in ((0.25, 4), (0.52, 9)):  # the last obstacle message at or before T
+        out = moving.with_name(f"at{at}.png")
+        assert main(["plot", str(moving), "--birdseye", "--at", str(at), "--range", str(RANGE),
+                     "--lateral", str(LATERAL), "-o", str(out)]) == 0
+        img = _image(out)
+        assert _car_at(img, CAR_START + CAR_SPEED * k / 18), at
+        other = 9 if k == 4 else 4
+        assert not _car_at(img, CAR_START + CAR_SPEED * other / 18), at
+
+
+def test_animation_frames_follow_the_capture(moving: Path) -> None:
+    """Each GIF frame at T shows the scene of the messages before T."""
+    import numpy as np
+    from PIL import Image, ImageSequence
+
+    gif = moving.with_name("moving.gif")
+    assert main(["plot", str(moving), "--birdseye", "--animate", "--fps", "4", "--end", "0.9",
+                 "--range", str(RANGE), "--lateral", str(LATERAL), "-o", str(gif)]) == 0
+    with Image.open(gif) as im:
+        frames = [np.asarray(f.convert("RGB"), dtype=float) / 255
+                  for f in ImageSequence.Iterator(im)]
+    assert len(frames) == 4
+    for i, k in ((1, 4), (2, 8), (3, 13)):  # frame at i/4 s: last message before it
+        assert _car_at(frames[i], CAR_START + CAR_SPEED * k / 18), i
+        assert not _car_at(frames[i], CAR_START + CAR_SPEED * (k + 5) / 18), i
+
+
 def test_svg_and_html_are_self_contained(capture: Path) -> None:
     svg, page = capture.with_name("be.svg"), capture.with_name("be.html")
     assert main(["plot", str(capture), "--birdseye", "-o", str(svg)]) == 0
@@ -145,14 +218,8 @@ def test_svg_and_html_are_self_contained(capture: Path) -> None:
         'href="http://www.w3.org', "")
 
 
-def test_animation_gif_and_html_player(capture: Path) -> None:
-    from PIL import Image
-
-    gif, page = capture.with_name("anim.gif"), capture.with_name("anim.html")
-    assert main(["plot", str(capture), "--birdseye", "--animate", "--fps", "4", "--end", "0.9",
-                 "-o", str(gif)]) == 0
-    with Image.open(gif) as im:
-        assert im.n_frames == 4  # t = 0, 0.25, 0.5, 0.75 within [0, 0.9]
+def test_animation_html_player(capture: Path) -> None:
+    page = capture.with_name("anim.html")  # the GIF: test_animation_frames_follow_the_capture
     assert main(["plot", str(capture), "--birdseye", "--animate", "--fps", "2",
                  "-o", str(page)]) == 0
     text = page.read_text()
@@ -200,12 +267,19 @@ def test_timing_marks_the_known_gaps(stopped: Path) -> None:
 
 def test_link_counts_naks_crc_errors(tmp_path: Path) -> None:
     fc = FrameCodec()
-    frames = frames_of(scene_messages(MessageCodec(None), duration=0.3))
+    msgs = scene_messages(MessageCodec(None), duration=0.3)
+    frames = frames_of(msgs)
     t, _, data = frames[10]
     bad = bytearray(data)
     bad[40] ^= 0xFF
     frames[10] = (t, "e2h", bytes(bad))  # a CRC error
     frames.insert(12, (t + 1e-5, "h2e", fc.nak(99, 1)))  # NAK reason 0x001
+    # the obstacles transfer at 0.22 s (23 frames) loses its last frame and its ACK: the next
+    # first frame aborts it (events carry no time: counted at their frame's)
+    n = len(segment(msgs[0][2], 0))
+    first = next(i for i, (tt, d, _x) in enumerate(frames) if d == "e2h" and tt >= 0.2)
+    del frames[first + 2 * (n - 1):first + 2 * n]
+    lost_at = frames[first + 2 * (n - 1)][0]  # the next transfer's first frame
     cap = write_capture(tmp_path / "link.pcapng", frames)
     col = collect(str(cap), Collector(MessageCodec(None), Window(), link=True))
     total: dict[str, int] = {}
@@ -213,7 +287,11 @@ def test_link_counts_naks_crc_errors(tmp_path: Path) -> None:
         for k, v in c.items():
             total[k] = total.get(k, 0) + v
     assert total["CRC errors"] == 1 and total["NAK 0x001"] == 1
-    assert total["e2h DATA"] == sum(1 for _, d, _x in frames if d == "e2h") - 1 + 1
+    assert total["e2h DATA"] == sum(1 for _, d, _x in frames if d == "e2h")
+    assert total["abort: num_gap"] == 1  # the transfer holding the CRC error, at 0 s
+    assert total["abort: new_first_frame"] == 1
+    (abort_bin,) = [b for b, c in col.link.items() if c["abort: new_first_frame"]]
+    assert abort_bin == int(lost_at // col.link_bin) == 2
     out = tmp_path / "link.png"
     assert main(["plot", str(cap), "--link", "--bin", "50", "-o", str(out)]) == 0
     assert out.stat().st_size > 10_000

@@ -110,10 +110,15 @@ class Collector:
         self.tracker = SceneTracker(Labels(codec)) if (at is not None or fps) else None
         self.out = Collected(window, link_bin=link_bin)
         self._next_frame = window.start
+        self._last_t: float | None = None
         self.done = False
 
     def add(self, r: dict[str, Any]) -> None:
         t = self.w.rel(r.get("time"))
+        if t is None and r["kind"] == "event":
+            t = self._last_t  # an event names the frame that caused it (index), not its time
+        elif t is not None:
+            self._last_t = t
         if t is not None:
             self.out.has_time = True
             if self.tracker is not None:
