@@ -140,3 +140,37 @@ def test_unmapped_signals_send_their_invalid_or_default_value(proto: str) -> Non
         b0 = next(r for r in recs if r["name"] == "Obstacle_Data_B_0")
         assert {"Radar_Pos_X", "Radar_Vel_X", "Matched_Radar_ID"} <= set(b0["invalid"])
         assert radar.signal("Radar_Pos_X").invalid == 0xFFF
+
+
+def test_sign_position_and_glare_boundaries_follow_the_angle_convention() -> None:
+    sign = {"signType": 4, "signSupplementalType1": 0, "signLongPosition": 30.0,
+            "signLatPosition": 4.0, "signHeight": 1.0, "signFilterType": 0,
+            "signRelevantDecision": 0}  # 4 m to the LEFT (ISO 8855)
+    signs = Dasp("EYEQ_VIS_TRAFFIC_SIGNS_MSG",
+                 {"tsrInfo": {"numberTrafficSigns": 1, "trafficSigns": [sign]}})
+    spot = {"classification": 1, "leftAngle": 0.10, "rightAngle": 0.05, "bottomAngle": -0.02,
+            "topAngle": 0.0, "longPos": 80.0}  # a headlamp pair left of the axis
+    light = Dasp("EYEQ_VIS_LIGHT_SENSOR_DATA_MSG", {"activeLightSensorInfo": {
+        "numOfActiveLightSpots": 1, "activeLightSpots": [spot], "ahbcAvailable": 1,
+        "beamRequest": 0, "villageDetected": 0, "fogDetected": 0, "highwayDetected": 0}})
+    _, recs = run_one_cycle("extlog2", {"s": signs, "l": light})
+    by_name = {r["name"]: r for r in recs}
+    assert by_name["TSR_0"]["fields"]["Sign_Position_Y"] == -4.0  # right positive: left < 0
+    g = by_name["AHBC_Gradual"]["fields"]
+    # 0x729 counts counter-clockwise (left positive, 001 line 1640): a spot on the left > 0
+    assert g["Boundary_Domain_Non_Glare_Left_Hand_HLB"] == pytest.approx(
+        math.degrees(0.10), abs=0.1)
+    assert g["Boundary_Domain_Non_Glare_Right_Hand_HLB"] == pytest.approx(
+        math.degrees(0.05), abs=0.1)
+
+
+def test_a_valid_value_never_sends_the_invalid_raw_value() -> None:
+    gw_sig = protocol("extlog2").message("AHBC_Gradual").signal(
+        "Boundary_Domain_Non_Glare_Left_Hand_HLB")
+    assert gw_sig.invalid == 0xFF  # 0xFF * 0.1 - 20 = 5.5 deg: inside -20..20 (001 line 1646)
+    for deg, want in ((5.5, 256), (5.52, 256), (5.46, 254), (5.45, 254), (5.6, 256)):
+        raw = physical_to_raw(gw_sig, deg)
+        assert raw == want and abs(raw * 0.1 - 20 - deg) <= 0.1 + 1e-9, (deg, raw)
+    assert physical_to_raw(gw_sig, MISSING) == 0xFF and physical_to_raw(gw_sig, 30.0) == 0xFF
+    failsafe = protocol("extlog2").message("Obstacle_Status").signal("Failsafe")
+    assert physical_to_raw(failsafe, 0) == 0  # bit fields keep their printed "invalid" 0

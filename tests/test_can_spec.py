@@ -90,6 +90,8 @@ def test_generated_dbc_loads_back_and_matches_the_spec(name: str, tmp_path: Path
                     assert not ds.choices
                 # cantools' DBC reader drops raw_invalid: the invalid value travels as the
                 # signal attribute GenSigInvalidValue (raw, as a decoder sees it)
+                seed = s.seed or m.seed or proto.seed  # the seed its line counts in
+                assert ds.comment.startswith(f"seed {seed} line {s.seed_line}"), ds.comment
                 attr = ds.dbc.attributes.get("GenSigInvalidValue") if ds.dbc else None
                 assert (attr.value if attr is not None else None) == s.raw_invalid, s.name
                 n += 1

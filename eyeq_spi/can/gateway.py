@@ -51,6 +51,7 @@ class GatewayCounters:
     clamped: Counter[str] = field(default_factory=Counter)  # per signal name
     invalid: Counter[str] = field(default_factory=Counter)  # sent as invalid: out of range
     missing: Counter[str] = field(default_factory=Counter)  # no value: invalid or 0 sent
+    stepped: Counter[str] = field(default_factory=Counter)  # valid value moved off the invalid raw
     dasp_messages: int = 0
 
 
@@ -106,6 +107,13 @@ def physical_to_raw(sig: CanSignal, value: Any, counters: GatewayCounters | None
     if not rlo <= raw <= rhi:
         note("clamped")
         raw = min(max(raw, rlo), rhi)
+    if raw == sig.raw_invalid and sig.enum is None and (sig.scale != 1 or sig.offset != 0):
+        # a measured value that rounds onto the printed invalid raw value (0x729's 12-bit
+        # boundaries: FFh = 5.5 deg, inside -20..20) would read as invalid: one raw step
+        # towards the value instead, within one raw step as C4 allows
+        away = 1 if (v - sig.offset) / sig.scale >= raw else -1
+        raw = raw + away if rlo <= raw + away <= rhi else raw - away
+        note("stepped")
     return raw
 
 
