@@ -79,6 +79,8 @@ def add_plot_parser(sub: Any) -> None:
                    "instead of replaying into the host (a capture without the bring-up)")
     m.add_argument("--refresh", type=float, default=6.0, metavar="HZ",
                    help="screen redraws per second, 5..30 (default 6)")
+    m.add_argument("--screenshot", metavar="FILE",
+                   help="also write the last screen to FILE.svg (a picture), .html or .txt")
     m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
     m.add_argument("--format", choices=("raw", "hex", "pcapng"), help="--replay: skip detection")
     add_shared_options(m)
@@ -150,6 +152,10 @@ def run_monitor(args: argparse.Namespace) -> int:
         raise UsageError("--duration must be positive")
     if not 0 <= args.pace <= 1e6:
         raise UsageError("--pace must be >= 0")
+    if args.screenshot is not None:
+        from eyeq_spi.monitor.app import check_screenshot
+
+        check_screenshot(args.screenshot)  # before a long run
     unused = SIM_ONLY if args.port else SIM_ONLY + HOST_ONLY if args.replay else ()
     for dest in unused:
         if hasattr(args, dest) and getattr(args, dest) != args.side_defaults.get(dest):
@@ -172,7 +178,7 @@ def run_monitor(args: argparse.Namespace) -> int:
         source = _demo_source(args)
     else:
         source = _host_source(args)
-    run(source, refresh=args.refresh)
+    run(source, refresh=args.refresh, screenshot=args.screenshot)
     return 0
 
 

@@ -144,6 +144,21 @@ def test_replay_follows_capture_time(demo_capture: Path, pace: float) -> None:
     assert seen[-1][1] >= last and seen[-1][0] * pace < last + 0.5 * pace
 
 
+def test_screenshot_svg_and_text(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    svg, txt = tmp_path / "mon.svg", tmp_path / "mon.txt"
+    for out in (svg, txt):
+        assert main(["monitor", "--demo", "--virtual-time", "--duration", "0.8",
+                     "--screenshot", str(out)]) == 0
+    printed = capsys.readouterr().out  # not a terminal: the final screen on stdout too
+    text = txt.read_text()
+    assert text.splitlines()[0] == printed.splitlines()[0]
+    assert "host state: RUNNING_VISION" in text and re.search(r"VIS_OBSTACLES\s+\d+", text)
+    picture = svg.read_text()
+    assert picture.lstrip().startswith("<svg") and "RUNNING_VISION" in picture
+    assert main(["monitor", "--demo", "--screenshot", str(tmp_path / "x.png")]) == 2
+    assert "--screenshot" in capsys.readouterr().err
+
+
 def test_demo_source_in_virtual_time() -> None:
     emu = build(keep_rx_times=False)
     src = DemoSource(emu, 2.0, realtime=False)

@@ -40,12 +40,47 @@ class RunStats:
     wall_s: float = 0.0
 
 
+SCREENSHOT_SUFFIXES = (".svg", ".html", ".txt")
+
+
+def check_screenshot(path: str) -> None:
+    if not path.lower().endswith(SCREENSHOT_SUFFIXES):
+        raise MonitorError(f"--screenshot {path}: the file must end in "
+                           + ", ".join(SCREENSHOT_SUFFIXES))
+
+
+def save_screen(snap: Snapshot, path: str) -> None:
+    """The screen of ``snap`` as an SVG picture, an HTML page or plain text (rich's export)."""
+    import io
+
+    check_screenshot(path)
+    r = rich_modules()
+    lines = screen_lines(snap)
+    con = r.Console(file=io.StringIO(), record=True, force_terminal=True,
+                    color_system="truecolor", width=max(t.cell_len for t in lines))
+    con.print(r.Group(*lines))
+    suffix = path.lower().rsplit(".", 1)[-1]
+    try:
+        if suffix == "svg":
+            con.save_svg(path, title=f"eyeq-spi monitor: {snap.source}")
+        elif suffix == "html":
+            con.save_html(path)
+        else:
+            con.save_text(path)
+    except OSError as exc:
+        raise MonitorError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
 def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None,
         clock: Callable[[], float] = time.perf_counter,
-        on_draw: Callable[[Snapshot], None] | None = None) -> RunStats:
-    """Run until the source is done (or Ctrl-C); returns how long drawing took."""
+        on_draw: Callable[[Snapshot], None] | None = None,
+        screenshot: str | None = None) -> RunStats:
+    """Run until the source is done (or Ctrl-C); returns how long drawing took. With
+    ``screenshot``, the last screen is also written there (:func:`save_screen`)."""
     if not MIN_REFRESH <= refresh <= MAX_REFRESH:
         raise MonitorError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
+    if screenshot is not None:
+        check_screenshot(screenshot)
     r = rich_modules()
     console = console or r.Console()
     period = 1.0 / refresh
@@ -82,6 +117,8 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
             live.stop()
         source.close()
         stats.wall_s = clock() - start
+    if screenshot is not None and snap is not None:
+        save_screen(snap, screenshot)
     if not live_screen and snap is not None:
         # a pipe: the whole final screen, as wide as it is (the console's default is 80)
         lines = screen_lines(snap)
