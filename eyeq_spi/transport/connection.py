@@ -19,7 +19,19 @@ is aborted as ``interleaved``.
 
 A ``Resynchronised`` link event (3 out-of-window NAKs, or a peer reset recognised by L6a) aborts
 the open transfer as ``resynchronised`` before the frame that caused it is reassembled, so no
-message ever joins frames from both sides of a reset.
+message ever joins frames from both sides of a reset. Two more rules (decision T6a) keep frames
+of two transfers apart where the NUMs alone cannot (fuzz findings; L6a: "no reassembly may ever
+join frames sent before and after a peer reset"):
+- **Silence is judged on arrival too.** A frame that arrives after the open transfer's 25 ms
+  deadline (T6) finds the transfer already aborted (``timeout``), even when no timer ran in
+  between. A peer reset takes longer than 25 ms, so a reset whose first frame was lost cannot
+  continue a transfer begun before it.
+- **The last consecutive frame's padding is zero (T4).** A consecutive frame that should end the
+  open transfer but carries non-zero bytes after the transfer's last byte belongs to another
+  transfer: it is NAKed 0x011 and the open transfer is aborted as ``bad_padding``.
+These rules assume a channel that keeps frames in order, as SPI and byte streams do. A channel that
+reorders frames across a peer reset (a fault model, not a wire) can make an old first frame look
+like the reset itself, and then no receiver rule can tell which frames continue it (T6a).
 
 A passive receiver (``LinkConfig.passive``, L9) reports consecutive frames seen before any first
 frame as ``TransferIncomplete("start")``, and :meth:`finish` reports a transfer still open at
@@ -143,6 +155,8 @@ class TransportConnection:
 
     # -- receive ----------------------------------------------------------------------------
     def receive_data(self, transfer: bytes, now: float) -> None:
+        if self._open is not None and self._open.deadline <= now:
+            self._abort("timeout")  # T6: the silence ended before this frame, timer or not
         self.link.receive_data(transfer, now)
         self._drain_link(now)
 
@@ -161,9 +175,15 @@ class TransportConnection:
                 return NakReason.FORMAT_ERROR
             return None if seg.FIRST_TOTAL_MIN <= total <= limit else NakReason.FORMAT_ERROR
         if ttype == seg.CONSECUTIVE:
-            if self._open is not None and data[1] != self._open.transfer_id:
+            o = self._open
+            if o is not None and data[1] != o.transfer_id:
                 self._abort("wrong_id")
                 return NakReason.FORMAT_ERROR
+            if o is not None and num == (o.last_num + 1) % SEQ_MODULO:
+                remaining = o.total - len(o.buf)
+                if remaining < seg.CONSECUTIVE_CHUNK and any(data[2 + remaining :]):
+                    self._abort("bad_padding")  # T4: the rest is zero; this is another transfer
+                    return NakReason.FORMAT_ERROR
             return None
         return NakReason.FORMAT_ERROR
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 ABORT_REASONS = frozenset(
     {"num_gap", "wrong_id", "no_open_transfer", "timeout", "new_first_frame", "interleaved",
-     "reset", "resynchronised"}
+     "reset", "resynchronised", "bad_padding"}
 )
 
 

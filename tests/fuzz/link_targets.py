@@ -183,17 +183,19 @@ class _Pair:
 
 
 def transport_pair(data: bytes) -> None:
-    """A held frame may arrive after a later peer reset (a delay no SPI wire has: see
-    ``tests/test_fuzz_findings.py`` for what L6a makes of it)."""
-    _transport_pair(data, delay_across_reset=True)
+    """A frame held for reordering still arrives when the peer resets, before the reset's
+    frames: frames are reordered among themselves, never across a reset, because SPI and byte
+    streams keep order (T6a; ``tests/test_fuzz_findings.py`` pins what a channel that reorders
+    across a reset would do)."""
+    _transport_pair(data, lose_held_at_reset=False)
 
 
 def transport_pair_wire(data: bytes) -> None:
     """The same, but a peer reset loses a frame still held on the wire, as on a real bus."""
-    _transport_pair(data, delay_across_reset=False)
+    _transport_pair(data, lose_held_at_reset=True)
 
 
-def _transport_pair(data: bytes, *, delay_across_reset: bool) -> None:
+def _transport_pair(data: bytes, *, lose_held_at_reset: bool) -> None:
     r = Reader(data)
     allow_reset = bool(r.u8() & 1)
     p = _Pair(r)
@@ -209,9 +211,11 @@ def _transport_pair(data: bytes, *, delay_across_reset: bool) -> None:
             p.by_id[p.tx.send(msg, p.now)] = msg
         elif op == 3 and allow_reset:
             p.resets += 1
+            if p.held is not None and not lose_held_at_reset:
+                p.rx.receive_data(p.held, p.now)  # in flight before the reset: it arrives first
+            p.held = None
             p.tx.reset()  # the peer starts over: NUM 0, transfer ID 0 (L4)
-            if not delay_across_reset:
-                p.held = None
+            p.now += 0.026  # no reset is faster than the 25 ms reassembly timeout (T6a)
         elif op == 4:
             p.fault = 1 + r.u8() % 5
         else:
