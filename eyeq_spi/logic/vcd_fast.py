@@ -52,6 +52,7 @@ class FastPath:
             return None
         raw = np.frombuffer(chunk, dtype=np.uint8)
         nl = np.flatnonzero(raw == 10)
+        n_lines = len(nl)
         starts = np.empty(len(nl), dtype=np.int64)
         starts[0] = 0
         starts[1:] = nl[:-1] + 1
@@ -71,15 +72,17 @@ class FastPath:
             cut = int(nl[np.flatnonzero(~ok)[-1]]) + 1
             return cut if cut <= len(chunk) // 2 else None
         t_pos = starts[is_time]
-        if len(t_pos):
-            # every time is digits only (else the token loop reports it), parsed on demand
-            bounds = np.empty(2 * len(t_pos), dtype=np.int64)
-            bounds[0::2], bounds[1::2] = t_pos + 1, nl[is_time]
-            if np.logical_or.reduceat((raw - 48) > 9, bounds)[0::2].any():
-                return None
         v_pos = starts[is_val]
-        sig = self.lut[raw[v_pos + 1]]
-        vals = (first[is_val] - 48).astype(np.int64)
+        idents = raw[v_pos + 1]
+        # every time is digits only (else the token loop reports it; times are parsed on
+        # demand): the bytes that are not digits are exactly the newlines, the '#'s and the
+        # identifiers that are not digits
+        other = np.count_nonzero(raw < 48) + np.count_nonzero(raw > 57)
+        if other != n_lines + len(t_pos) + len(idents) - np.count_nonzero(
+                (idents >= 48) & (idents <= 57)):
+            return None
+        sig = self.lut[idents]
+        vals = first[is_val] - 48
         t_end = nl[is_time]
         t_before = reader.t
 
@@ -90,19 +93,21 @@ class FastPath:
 
         out: list[tuple[int, Record]] = []
         for c, ch in enumerate(self.chans):
-            sel = (sig >> 2) == c
-            sel &= sig >= 0
-            out += _channel(ch, sig[sel] & 3, vals[sel], v_pos[sel], time_at, reader)
+            out += _channel(ch, [np.flatnonzero(sig == c * 4 + role) for role in range(4)],
+                            vals, v_pos, time_at, reader)
         if len(t_pos):
             reader.t = int(chunk[t_pos[-1] + 1:t_end[-1]])
         out.sort(key=lambda x: x[0])
         return [r for _, r in out]
 
 
-def _ffill(mask: np.ndarray[Any, Any], vals: np.ndarray[Any, Any], init: int
-           ) -> np.ndarray[Any, Any]:
-    idx = np.maximum.accumulate(np.where(mask, np.arange(len(mask)), -1))
-    return np.where(idx >= 0, vals[np.maximum(idx, 0)], init)
+def _level_at(changes: np.ndarray[Any, Any], vals: np.ndarray[Any, Any],
+              at: np.ndarray[Any, Any], init: int) -> np.ndarray[Any, Any]:
+    """The level of a line (changing at ``changes``) just before each index of ``at``."""
+    k = np.searchsorted(changes, at) - 1
+    if len(changes) == 0:
+        return np.full(len(at), init, dtype=np.uint8)
+    return np.where(k >= 0, vals[changes][np.maximum(k, 0)], init).astype(np.uint8)
 
 
 def _bits_of(value: int, n: int, msb: bool) -> list[int]:
@@ -110,34 +115,30 @@ def _bits_of(value: int, n: int, msb: bool) -> list[int]:
         [(value >> i) & 1 for i in range(n)]
 
 
-def _channel(ch: _Chan, roles: np.ndarray[Any, Any], vals: np.ndarray[Any, Any],
+def _channel(ch: _Chan, by_role: list[np.ndarray[Any, Any]], vals: np.ndarray[Any, Any],
              lines: np.ndarray[Any, Any], time_at: Callable[[int], int], reader: _Reader
              ) -> list[tuple[int, Record]]:
-    n = len(roles)
-    if n == 0:
+    """The transfers of one channel; ``by_role``: the indices (into ``vals``/``lines``) of its
+    CS, CLK, MOSI and MISO changes, each line worked on as its own subsequence."""
+    cs_i, clk_i, mo_i, mi_i = by_role
+    if not (len(cs_i) or len(clk_i) or len(mo_i) or len(mi_i)):
         return []
     msb = reader.msb
-    is_cs = roles == CS
-    cs_lvl = _ffill(is_cs, vals, ch.cs)
-    cs_prev = np.concatenate(([ch.cs], cs_lvl[:-1]))
-    fall = is_cs & (cs_prev == 1) & (vals == 0)
-    rise = is_cs & (cs_prev == 0) & (vals == 1)
-    edges = fall | rise
-    act_idx = np.maximum.accumulate(np.where(edges, np.arange(n), -1))
-    active = np.where(act_idx >= 0, fall[np.maximum(act_idx, 0)], ch.active)
-    active_before = np.concatenate(([ch.active], active[:-1]))
-    is_clk = roles == CLK
-    clk_lvl = _ffill(is_clk, vals, ch.clk)
-    clk_prev = np.concatenate(([ch.clk], clk_lvl[:-1]))
-    sample = is_clk & (vals != clk_prev) & (vals == reader.sample_level) & active
-    mo_lvl = _ffill(roles == MOSI, vals, ch.mosi)
-    mi_lvl = _ffill(roles == MISO, vals, ch.miso)
-    seg = np.cumsum(fall)
-    s_idx = np.flatnonzero(sample)
-    s_seg = seg[s_idx]
-    s_mo = mo_lvl[s_idx].astype(np.uint8)
-    s_mi = mi_lvl[s_idx].astype(np.uint8)
-    fall_idx = np.flatnonzero(fall)
+    cs_v = vals[cs_i]
+    cs_prev = np.concatenate(([ch.cs], cs_v[:-1]))
+    edge = cs_v != cs_prev
+    edge_i, edge_fall = cs_i[edge], cs_v[edge] == 0
+    fall_i = edge_i[edge_fall]
+    clk_v = vals[clk_i]
+    clk_prev = np.concatenate(([ch.clk], clk_v[:-1]))
+    cand = clk_i[(clk_v != clk_prev) & (clk_v == reader.sample_level)]
+    k = np.searchsorted(edge_i, cand) - 1  # the last chip select edge before a clock edge
+    active = np.where(k >= 0, edge_fall[np.maximum(k, 0)] if len(edge_i) else False,
+                      ch.active)
+    s_idx = cand[active]
+    s_seg = np.searchsorted(fall_i, s_idx)  # 0: the transfer open before this chunk
+    s_mo = _level_at(mo_i, vals, s_idx, ch.mosi)
+    s_mi = _level_at(mi_i, vals, s_idx, ch.miso)
     order: Literal["big", "little"] = "big" if msb else "little"
 
     def segment(k: int) -> tuple[bytes, bytes, np.ndarray[Any, Any], np.ndarray[Any, Any]]:
@@ -157,17 +158,19 @@ def _channel(ch: _Chan, roles: np.ndarray[Any, Any], vals: np.ndarray[Any, Any],
                 mo[whole:], mi[whole:])
 
     out: list[tuple[int, Record]] = []
-    for e in np.flatnonzero(rise & active_before):
-        k = int(seg[e])
-        t0 = ch.t0 if k == 0 else time_at(int(lines[fall_idx[k - 1]]))
+    before = np.concatenate(([ch.active], edge_fall[:-1]))  # active before each edge
+    for e in edge_i[~edge_fall & before].tolist():
+        k = int(np.searchsorted(fall_i, e))
+        t0 = ch.t0 if k == 0 else time_at(int(lines[fall_i[k - 1]]))
         mo_b, mi_b, _, _ = segment(k)
         for r in ch.routes:
             out.append((int(lines[e]), Record(t0 * reader.scale, r.direction,
                                               mo_b if r.line == "mosi" else mi_b)))
-    last = int(seg[-1])
+    last = len(fall_i)
     if last > 0:
-        ch.t0 = time_at(int(lines[fall_idx[last - 1]]))
-    if bool(active[-1]):
+        ch.t0 = time_at(int(lines[fall_i[-1]]))
+    end_active = bool(edge_fall[-1]) if len(edge_i) else ch.active
+    if end_active:
         mo_b, mi_b, rest_mo, rest_mi = segment(last)
         ch.mosi_bytes, ch.miso_bytes = bytearray(mo_b), bytearray(mi_b)
         ch.nbits = len(rest_mo)
@@ -182,8 +185,14 @@ def _channel(ch: _Chan, roles: np.ndarray[Any, Any], vals: np.ndarray[Any, Any],
         ch.nbits = ch.mo = ch.mi = 0
         ch.mosi_bytes.clear()
         ch.miso_bytes.clear()
-    ch.cs, ch.clk = int(cs_lvl[-1]), int(clk_lvl[-1])
-    ch.mosi, ch.miso = int(mo_lvl[-1]), int(mi_lvl[-1])
-    ch.active = bool(active[-1])
+    if len(cs_i):
+        ch.cs = int(cs_v[-1])
+    if len(clk_i):
+        ch.clk = int(clk_v[-1])
+    if len(mo_i):
+        ch.mosi = int(vals[mo_i[-1]])
+    if len(mi_i):
+        ch.miso = int(vals[mi_i[-1]])
+    ch.active = end_active
     return out
 
