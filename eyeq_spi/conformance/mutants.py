@@ -11,14 +11,17 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from eyeq_spi.codec.message import is_mesp
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostEvent
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.link.frame import DATA_SIZE, FrameCodec, FrameKind
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
+from eyeq_spi.spec.link import link_spec
 
 _FRAMES = FrameCodec()
+_LINK = link_spec()
 BOOT, RUNNING_VISION = 0x03, 0x02
 
 
@@ -96,6 +99,43 @@ class Resends(SimulatedEyeQ):
             due = min(s for s, _ in self._unacked.values()) + 0.011
             t = due if t is None else min(t, due)
         return t
+
+
+class StretchedReplies(SimulatedEyeQ):
+    """transmitTimeout not enforced (§6, L7): a multi-frame MESP reply handed to an idle link
+    before Running Vision (the §7.1.3 EEPROM read) goes out one frame per ``STALL`` seconds
+    and is never failed, so its frames span more than 25 ms. Each pause stays under the
+    receiver's 25 ms silence abort (T6), so the message still arrives: only the span is wrong.
+    """
+
+    STALL = 0.015
+
+    def __init__(self, config: SimConfig | None = None) -> None:
+        super().__init__(config)
+        self._gap = self.conn.link.config.frame_gap
+        self._left = 0  # DATA frames still to go at the stretched pace
+
+    def _send(self, message: bytes, now: float) -> None:
+        link = self.conn.link
+        idle = not link.queued and not link.in_flight and self.main_state != RUNNING_VISION
+        stretch = idle and is_mesp(message) and bool(message[4] & 0x80) \
+            and len(message) > 2 * DATA_SIZE
+        if stretch:
+            link.config.transmit_timeout = 3600.0  # the queue deadline is set at send time
+        super()._send(message, now)
+        if stretch:
+            link.config.frame_gap = self.STALL
+            self._left = link.queued
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        out = super().data_to_send(now)
+        if self._left > 0:
+            self._left -= sum(1 for t in out if _header(t)[0] == FrameKind.DATA)
+            if self._left <= 0:
+                link = self.conn.link
+                link.config.frame_gap = self._gap
+                link.config.transmit_timeout = float(_LINK["timing"]["transmitTimeout"])
+        return out
 
 
 class _MessageOutput(SimulatedEyeQ):
@@ -195,6 +235,8 @@ class Mutant:
     dut: str
     bug: str
     expected: frozenset[str]  # the cases this bug violates
+    # cases whose precondition the bug removes: skip or inconclusive, never pass or fail
+    masks: frozenset[str] = frozenset()
     eyeq: Callable[[SimConfig], SimulatedEyeQ] | None = None
     host: Callable[[HostConfig, Nvm | None, Callable[[float], None]], HostEmulator] | None = None
     sim_config: Callable[[SimConfig], None] | None = None
@@ -219,15 +261,21 @@ def _host(cls: type[HostEmulator]) -> Callable[..., HostEmulator]:
 MUTANTS: dict[str, Mutant] = {m.name: m for m in (
     _m("eyeq-no-ack", "eyeq", "every 4th ACK is never sent", {"LINK-ACK"}, eyeq=NoAck),
     _m("eyeq-wrong-rsp", "eyeq", "ACK RSP is the frame's NUM + 1",
-       {"LINK-ACK", "LINK-DUP", "LINK-RESYNC"}, eyeq=WrongRsp),
+       {"LINK-ACK", "LINK-DUP", "LINK-RESYNC"}, eyeq=WrongRsp,
+       # our link takes none of its requests for delivered: no deadline can be measured
+       masks=frozenset({"MESP-DEADLINE"})),
     _m("eyeq-ack-crc-range", "eyeq", "ACK/NAK CRC computed over the pad bytes too",
        {"LINK-CRC"}, eyeq=AckCrcRange),
     _m("eyeq-resends", "eyeq", "a DATA frame not ACKed in time is sent again",
        {"LINK-NORESEND"}, eyeq=Resends),
+    _m("eyeq-tx-timeout", "eyeq", "transmitTimeout not enforced: a long reply during "
+       "bring-up goes out 15 ms per frame", {"LINK-TXTIMEOUT"}, eyeq=StretchedReplies),
     _m("eyeq-receive-limit", "eyeq", "accepts 8191-byte messages (limit 512)", {"TP-LIMIT"},
        eyeq=ReceiveLimit),
     _m("eyeq-tag-not-echoed", "eyeq", "Get Versions replies carry counter + 1",
-       {"MESP-TAG"}, eyeq=TagNotEchoed),
+       {"MESP-TAG"}, eyeq=TagNotEchoed,
+       # TP-ABORT tells "aborted" from "answered" by Get Versions replies matched by tag
+       masks=frozenset({"TP-ABORT"})),
     _m("eyeq-reply-600ms", "eyeq", "Get Versions replies leave after 600 ms",
        {"MESP-DEADLINE"}, sim_config=_set(delay_replies={"GetEyeQVersions": 0.6})),
     _m("eyeq-dasp-counter-stuck", "eyeq", "the counter of 0xA0 stays 0", {"DASP-COUNTER"},
@@ -243,11 +291,17 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
     _m("host-veh-50hz", "host", "HOST_VEH_STATE_MSG at 50 Hz",
        {"DASP-RATE-APP-HOST_VEH_STATE_MSG"}, host_config=_set(veh_state_rate=50.0)),
     _m("host-no-eeprom-reread", "host", "on Fatal 22 with a calibration in NVM it gives up "
-       "without reading the EEPROM", {"HOST-FATAL22"}, host=_host(NoEepromReread)),
+       "without reading the EEPROM", {"HOST-FATAL22"}, host=_host(NoEepromReread),
+       # in the eeprom_bad cycle it never reads the EEPROM either: its bad CRC goes unseen
+       masks=frozenset({"HOST-EEPROM-BAD"})),
     _m("host-versions-every-bring-up", "host", "asks Get Versions at every bring-up",
        {"HOST-VERSIONS"}, host=_host(VersionsEveryBringUp)),
     _m("host-e2e-wrong", "host", "crc_16 of host_vehicle_state_t is wrong", {"DASP-E2E"},
-       host=_host(HostE2eWrong)),
+       host=_host(HostE2eWrong),
+       # our EyeQ, like a real one, does not enter Running Vision on a HOST_VEH_STATE_MSG that
+       # fails E2E: the probes, the stale stream and our reset that need it never run
+       masks=frozenset({"LINK-NAK-CRC", "LINK-NAK-FORMAT", "LINK-NAK-WINDOW", "LINK-DUP",
+                        "LINK-RESYNC", "TP-LIMIT", "HOST-EYEQ-RESET", "HOST-STALE"})),
     _m("host-endless-boot-resets", "host", "resets a failing EyeQ 10 times",
        {"HOST-BOOT-RESETS"}, host_config=_set(boot_strikes=10)),
 )}

@@ -40,7 +40,8 @@ class EyeqPlan:
     bring_up_timeout: float = 15.0
     steady: float = 1.5
     stale_for: float = 0.6
-    after_reset: float = 4.0
+    after_reset: float = 4.0  # at most, for the host to bring us up again after our reset
+    after_running: float = 0.5  # watched once we are back in Running Vision
     boot_fail_watch: float = 6.0
     eeprom_watch: float = 1.5
 
@@ -154,7 +155,11 @@ class EyeqScript:
         trace.mark(t, "our_reset")
         eyeq.power_up(t)
         trace.restart_passive(trace.our_dir)
-        s.run(plan.after_reset)
+        # HOST-EYEQ-RESET needs 0x92 and HOST_VEH_STATE_MSG again: once we are back in Running
+        # Vision (which needs both) a short watch suffices; a host that never gets there is
+        # watched for the whole ``after_reset``
+        if s.wait(self.host_running, plan.after_reset):
+            s.run(plan.after_running)
         trace.mark(s.now, "after_reset_end")
 
     def link_probes(self) -> None:
