@@ -69,7 +69,9 @@ class Recorder:
 
         need = {"Obstacle_Data_A": "EYEQ_VIS_OBSTACLES_MSG", "Obstacle_Data_C":
                 "EYEQ_VIS_OBSTACLES_MSG", "Obstacle_Status": "EYEQ_VIS_OBSTACLES_MSG",
-                "LKA_Left_Lane_A": "EYEQ_VIS_ROAD_DATA_MSG", "Lane": "EYEQ_VIS_ROAD_DATA_MSG"}
+                "LKA_Left_Lane_A": "EYEQ_VIS_ROAD_DATA_MSG", "Lane": "EYEQ_VIS_ROAD_DATA_MSG",
+                "LKA_Right_Lane_B": "EYEQ_VIS_ROAD_DATA_MSG",
+                "Lane_AfterMarket": "EYEQ_VIS_ROAD_DATA_MSG"}
         if need.get(spec.name, "EYEQ_VIS_OBSTACLES_MSG") not in self.latest:
             self.checked["before_data"] += 1  # sent with invalid values: checked elsewhere
             return
@@ -90,6 +92,17 @@ class Recorder:
             rel = ps["absoluteLongVelocity"] - self.speed
             self.close_enough("Rel_Vel_X", v["Obstacle_Rel_Vel_X"],
                               min(max(rel, -127.93), 127.93), step("Obstacle_Rel_Vel_X"))
+        elif spec.name == "Obstacle_Data_B":
+            objs = [o for o in self.latest["EYEQ_VIS_OBSTACLES_MSG"]["visObjects"]["visObs"]
+                    if o["id"] != 0 and o["classification"] in (0, 1, 2, 3, 4, 7)]
+            o = objs[(f.arbitration_id - 0x73A) // 3]
+            ps = o["physicalState"]
+            if inside("Obstacle_Length", ps["length"]):
+                self.close_enough("Length", v["Obstacle_Length"], ps["length"],
+                                  step("Obstacle_Length"))
+            self.close_enough("Width", v["Obstacle_Width"], ps["width"], step("Obstacle_Width"))
+            assert v["Obstacle_Age"] == min(o["age"], 254)
+            assert v["CIPV_Flag"] == (1 if o["isCipv"] == 2 else 0)
         elif spec.name == "Obstacle_Data_C":
             objs = [o for o in self.latest["EYEQ_VIS_OBSTACLES_MSG"]["visObjects"]["visObs"]
                     if o["id"] != 0 and o["classification"] in (0, 1, 2, 3, 4, 7)]
@@ -125,6 +138,23 @@ class Recorder:
             a2 = -(mi["hostLeftMarker"]["laneMarker"]["a2"]
                    + mi["hostRightMarker"]["laneMarker"]["a2"]) / 2
             self.close_enough("Lane_Curvature", v["Lane_Curvature"], a2, step("Lane_Curvature"))
+            a1 = -(mi["hostLeftMarker"]["laneMarker"]["a1"]
+                   + mi["hostRightMarker"]["laneMarker"]["a1"]) / 2
+            self.close_enough("Lane_Heading", v["Lane_Heading"], a1, step("Lane_Heading"))
+        elif spec.name == "LKA_Right_Lane_B":
+            rm = self.latest["EYEQ_VIS_ROAD_DATA_MSG"]["roadInfo"]["roadMarkerInfo"][
+                "hostRightMarker"]
+            self.close_enough("C1", v["Heading_Angle_Parameter_C1"], -rm["laneMarker"]["a1"],
+                              step("Heading_Angle_Parameter_C1"))
+            if inside("View_Range", rm["measuredViewRange"]):
+                self.close_enough("View_Range", v["View_Range"], rm["measuredViewRange"],
+                                  step("View_Range"))
+        elif spec.name == "Lane_AfterMarket":
+            mi = self.latest["EYEQ_VIS_ROAD_DATA_MSG"]["roadInfo"]["roadMarkerInfo"]
+            for side in ("Left", "Right"):
+                a0 = -mi[f"host{side}Marker"]["laneMarker"]["a0"]
+                self.close_enough("Distance_669", v[f"Distance_To_{side}_Lane"], a0,
+                                  step(f"Distance_To_{side}_Lane"))
         elif spec.name == "Obstacle_Status":
             objs = [o for o in self.latest["EYEQ_VIS_OBSTACLES_MSG"]["visObjects"]["visObs"]
                     if o["id"] != 0 and o["classification"] in (0, 1, 2, 3, 4, 7)]
@@ -166,8 +196,10 @@ def test_extlog2_at_full_load_in_virtual_time() -> None:
                 assert n <= want + 1, (name, n, want)
     assert sum(1 for fid in got if 0x739 <= fid <= 0x765) >= 30  # many object slots in use
     for key in ("Pos_X", "Pos_Y", "Rel_Vel_X", "Angle", "Angle_Rate", "Angle_sign", "Sign_Y",
-                "C0", "C2", "Lane_Curvature"):
-        assert rec.checked[key] > (5 if key == "Sign_Y" else 20), (key, rec.checked)
+                "Length", "Width", "C0", "C1", "C2", "View_Range", "Lane_Curvature",
+                "Lane_Heading", "Distance_669"):
+        assert rec.checked[key] > (5 if key in ("Sign_Y", "Distance_669") else 20), \
+            (key, rec.checked)
     assert gw.counters.frames and not gw.counters.clamped.get("Obstacle_Rel_Vel_X")
 
 
