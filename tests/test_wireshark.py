@@ -163,7 +163,7 @@ def expected_link(records: list[Record]) -> list[dict[str, str]]:
 
 
 def reassemble(records: list[Record]) -> dict[int, bytes]:
-    """Frame number (1-based) -> the message that frame completed (T1-T6, trusted frames only)."""
+    """Frame number (1-based) -> the message that frame completed (T1-T6a, trusted frames only)."""
     fc = FrameCodec()
     open_: dict[str | None, dict[str, Any] | None] = {}
     out: dict[int, bytes] = {}
@@ -185,7 +185,11 @@ def reassemble(records: list[Record]) -> dict[int, bytes]:
             if data[1] != o["id"] or f.num != (o["last"] + 1) % 4096:
                 open_[rec.direction] = None
                 continue
-            o["buf"] += data[2 : 2 + min(CONSECUTIVE_CHUNK, o["total"] - len(o["buf"]))]
+            take = min(CONSECUTIVE_CHUNK, o["total"] - len(o["buf"]))
+            if any(data[2 + take :]):  # T4/T6a: the padding after the message is zero
+                open_[rec.direction] = None
+                continue
+            o["buf"] += data[2 : 2 + take]
             o["last"] = f.num
             if len(o["buf"]) >= o["total"]:
                 out[number] = bytes(o["buf"])
@@ -382,6 +386,7 @@ def test_link_cases(tmp_path: Path, two_pass: bool) -> None:
     aeb_lay = codec.layout(codec.cat.message("EYEQ_VIS_AEB_INFO_MSG"))
     aeb_msg = codec.encode_dasp("EYEQ_VIS_AEB_INFO_MSG",
                                 {**aeb_lay.zero_values(), "timestamp_ms": 4242}, counter=9)
+    padded = segment(dasp, 5)[1] + b"\xab"  # a byte after the message's last: not this transfer
     frames: list[tuple[str, bytes]] = [
         ("h2e", good),                                                # 1
         ("e2h", fc.ack(0)),                                           # 2
@@ -396,6 +401,8 @@ def test_link_cases(tmp_path: Path, two_pass: bool) -> None:
         ("e2h", fc.data_frame(0, 5, segment(aeb_msg, 0)[0])),        # 11
         ("e2h", fc.data_frame(0, 6, segment(aeb_msg[:-1], 0)[0])),   # 12: payload too short
         ("e2h", fc.data_frame(0, 7, segment(b"\xee\x01\x02", 0)[0])),  # 13: unknown
+        ("e2h", fc.data_frame(0, 8, segment(dasp, 5)[0])),           # 14
+        ("e2h", fc.data_frame(0, 9, padded)),                         # 15: bad padding (T6a)
     ]
     capture = tmp_path / "tiny.pcapng"
     with CaptureWriter(capture) as w:
@@ -424,6 +431,8 @@ def test_link_cases(tmp_path: Path, two_pass: bool) -> None:
         ["e2h", "DATA", "6", "0", "1", "", "single", "", "", str(len(aeb_msg) - 1), "", "DASP",
          "EYEQ_VIS_AEB_INFO_MSG"],
         ["e2h", "DATA", "7", "0", "1", "", "single", "", "", "3", "", "UNKNOWN", ""],
+        ["e2h", "DATA", "8", "0", "1", "", "first", "5", str(len(dasp)), "", "", "", ""],
+        ["e2h", "DATA", "9", "0", "1", "", "consecutive", "5", "", "", "", "", ""],
     ]
     experts = [g["_ws.expert.message"] for g in got]
     assert "CRC" in experts[3]
@@ -433,6 +442,7 @@ def test_link_cases(tmp_path: Path, two_pass: bool) -> None:
     assert "NAK" in experts[2] and "CRC_MISMATCH" in experts[2]
     assert "length mismatch" in experts[11]
     assert "unknown message" in experts[12]
+    assert "bad_padding" in experts[14]
     assert experts[0] == experts[9] == experts[10] == ""
     # a payload of the wrong length: header only
     payload = ["frame.number", "eyeq_spi.dasp.data_id", "eyeq_spi.dasp.counter",

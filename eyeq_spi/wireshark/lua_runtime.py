@@ -357,6 +357,10 @@ local function dissect_transport(tvb, pinfo, root, dir, num, trusted, feed)
         abort(st, pinfo, "wrong_id")
       elseif num ~= (o.last + 1) % C.SEQ_MODULO then
         abort(st, pinfo, "num_gap")
+      elseif o.total - o.len < C.CONSECUTIVE_CHUNK
+          and tvb:raw(C.NEXT_DATA + o.total - o.len, C.CONSECUTIVE_CHUNK - (o.total - o.len))
+              :find("[^\0]") then
+        abort(st, pinfo, "bad_padding")  -- T4/T6a: the rest is zero; this is another transfer
       else
         local take = math.min(C.CONSECUTIVE_CHUNK, o.total - o.len)
         o.parts[#o.parts + 1] = tvb:raw(C.NEXT_DATA, take)
