@@ -1,5 +1,7 @@
-"""The vectorised paths of the Saleae readers (issue 14) against their exact csv loops, on random
-exports cut into random chunks; bounded memory and line-numbered errors on either path."""
+"""The vectorised paths of the logic-analyzer readers (issue 14) against their exact loops: the
+Saleae readers against the csv loops on random exports, the VCD reader against the token loop
+on waveforms in sigrok's layout, all cut into random chunks; bounded memory and line-numbered
+errors on either path."""
 
 from __future__ import annotations
 
@@ -12,9 +14,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from eyeq_spi.capture.pcapng_io import Record
-from eyeq_spi.logic import saleae_fast
+from eyeq_spi.logic import saleae_fast, vcd_fast
 from eyeq_spi.logic.options import LogicInputError, SpiOptions
 from eyeq_spi.logic.saleae import read_saleae1, read_saleae2
+from eyeq_spi.logic.vcd import read_vcd
+from eyeq_spi.logic.vcd_write import write_vcd
 
 Reader = Callable[..., Iterator[Record]]
 
@@ -134,3 +138,37 @@ def test_saleae_transfer_without_chip_select_rising_is_bounded(read: Reader, hea
     for chunk in (1 << 12, 1 << 20):
         with pytest.raises(LogicInputError, match=r"line \d+: transfer longer than 4096"):
             list(read(io.BytesIO(data), SpiOptions(direction="h2e"), chunk_size=chunk))
+
+
+def _sigrok_layout(text: str, joins: list[bool]) -> str:
+    """Our one-change-per-line body rewritten as sigrok and PulseView write it: a ``#time``
+    and its changes on one line, separated by spaces (where ``joins`` says so)."""
+    head, body = text.split("$enddefinitions $end\n", 1)
+    out: list[str] = []
+    for i, line in enumerate(body.split("\n")):
+        if out and not line.startswith(("#", "$")) and not out[-1].startswith("$") \
+                and joins[i % len(joins)]:
+            out[-1] += " " + line
+        else:
+            out.append(line)
+    return head + "$enddefinitions $end\n" + "\n".join(out)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(["h2e", "e2h"]), st.binary(max_size=40)),
+                min_size=1, max_size=5),
+       st.sampled_from([0, 1, 2, 3]), st.lists(st.booleans(), min_size=1, max_size=7),
+       st.integers(min_value=7, max_value=3000))
+def test_vcd_fast_path_equals_the_token_loop_in_sigrok_layout(
+        items: list[tuple[str, bytes]], mode: int, joins: list[bool], chunk: int) -> None:
+    opts = SpiOptions(mode=mode)
+    recs = [Record(i * 1e-4, d, payload) for i, (d, payload) in enumerate(items)]
+    buf = io.StringIO()
+    write_vcd(recs, buf, opts)
+    raw = _sigrok_layout(buf.getvalue(), joins).encode()
+    fast = list(read_vcd(io.BytesIO(raw), opts, chunk_size=chunk))
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(vcd_fast.FastPath, "build", classmethod(lambda cls, table: None))
+        slow = list(read_vcd(io.BytesIO(raw), opts, chunk_size=chunk))
+    assert fast == slow
+    assert [r.data for r in fast] == [r.data for r in sorted(recs, key=lambda r: r.time or 0)]

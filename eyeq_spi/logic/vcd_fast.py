@@ -1,12 +1,16 @@
-"""The vectorised path of the VCD reader (numpy), for the common shape of a VCD body: one value
-change or ``#time`` per line, one-character identifiers, plain ``0``/``1`` values. It computes
-exactly what the token loop of :mod:`eyeq_spi.logic.vcd` computes (a property test compares
-them on random waveforms cut at random places) and returns None for any chunk it cannot take,
-which the token loop then reads.
+"""The vectorised path of the VCD reader (numpy), for the common shapes of a VCD body: value
+changes and ``#time`` tokens separated by newlines or spaces (one change per line as simulators
+and our writer put them, or ``#time 1! 0"`` lines as sigrok and PulseView do), one-character
+identifiers, plain ``0``/``1`` values. It computes exactly what the token loop of
+:mod:`eyeq_spi.logic.vcd` computes (property tests compare them on random waveforms in both
+layouts cut at random places, and on a VCD written by the real ``sigrok-cli``) and returns None
+for any chunk it cannot take, which the token loop then reads; a head it cannot take
+(``$dumpvars``...) goes to the token loop and the rest stays here.
 
-Per SPI channel: the level of every line after each change is a forward fill; chip select
-falling/rising edges split the sampling clock edges into transfers; bits are packed with
-``numpy.packbits``. The open transfer at the end of a chunk is carried in the channel's state.
+Per SPI channel, each line is worked on as its own subsequence of changes: chip select edges
+split the sampling clock edges into transfers, the data lines' levels at those edges are found
+with ``searchsorted`` and the bits packed with ``numpy.packbits``; times are parsed only where a
+transfer starts. The open transfer at the end of a chunk is carried in the channel's state.
 """
 
 from __future__ import annotations
@@ -48,10 +52,12 @@ class FastPath:
         """The records of ``chunk``; or the length of a head of it (up to the last line this
         path cannot take, in its first half: ``$dumpvars``...) for the token loop to read
         first; or None when the token loop must read it all."""
-        if not chunk.endswith(b"\n"):
+        if chunk[-1:] not in (b"\n", b" "):
             return None
         raw = np.frombuffer(chunk, dtype=np.uint8)
-        nl = np.flatnonzero(raw == 10)
+        # tokens end at a newline or a space: one change per line, or sigrok's and
+        # PulseView's "#time 1! 0\"" lines
+        nl = np.flatnonzero((raw == 10) | (raw == 32))
         n_lines = len(nl)
         starts = np.empty(len(nl), dtype=np.int64)
         starts[0] = 0
