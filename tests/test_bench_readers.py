@@ -172,3 +172,25 @@ def test_vcd_fast_path_equals_the_token_loop_in_sigrok_layout(
         slow = list(read_vcd(io.BytesIO(raw), opts, chunk_size=chunk))
     assert fast == slow
     assert [r.data for r in fast] == [r.data for r in sorted(recs, key=lambda r: r.time or 0)]
+
+
+@pytest.mark.parametrize("chunk", [64, 1 << 20])
+def test_saleae2_iso8601_timestamps(chunk: int) -> None:
+    """Logic 2's "Use ISO8601 timestamps" export: times since the epoch (UTC without a zone),
+    on either path."""
+    rows = ['name,type,start_time,duration,"mosi","miso"']
+    for i, stamp in enumerate(["2026-11-23T15:02:04.500000000+00:00",
+                               "2026-11-23T16:02:04.5003+01:00", "2026-11-23T15:02:04.5006"]):
+        rows.append(f'"h2e","enable",{stamp},2e-08,,')
+        rows.append(f'"h2e","result",{stamp},8e-07,0x{i:02X},0xFF')
+        rows.append(f'"h2e","disable",{stamp},2e-08,,')
+    data = ("\n".join(rows) + "\n").encode()
+    fast, slow = _both(read_saleae2, data, SpiOptions(), chunk)
+    assert fast == slow
+    assert isinstance(fast, list)
+    base = 1795446124.5  # 2026-11-23T15:02:04.5Z
+    assert [r.time for r in fast] == pytest.approx([base, base + 3e-4, base + 6e-4], abs=1e-6)
+    assert [r.data for r in fast] == [b"\x00", b"\x01", b"\x02"]
+    bad = data.replace(b"2026-11-23T15:02:04.5006", b"2026-13-23T15:02:04")
+    with pytest.raises(LogicInputError, match="line 8: bad time"):
+        list(read_saleae2(io.BytesIO(bad), SpiOptions(), chunk_size=chunk))

@@ -81,8 +81,10 @@ def _emit(tr: _Open, routes: list[Route]) -> Iterator[Record]:
 
 
 def _time(text: str, where: str) -> float:
+    from eyeq_spi.logic.saleae_fast import seconds
+
     try:
-        return float(text)
+        return seconds(text)
     except ValueError:
         raise LogicInputError(f"{where}: bad time {text[:30]!r}") from None
 

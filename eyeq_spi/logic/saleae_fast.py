@@ -14,6 +14,7 @@ one, the data bytes of a transfer are one slice of a column.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -30,6 +31,23 @@ for _c in b"0123456789":
 for _c in b"abcdef":
     _HEX[_c] = _HEX[_c - 32] = _c - 87
 _MAX_NAME = 256
+
+
+def seconds(text: str) -> float:
+    """A capture time: seconds (Logic 1.x, Logic 2's default), or an ISO 8601 date and time
+    (Logic 2's "Use ISO8601 timestamps" export option) as seconds since the epoch, UTC when
+    no zone is given; ValueError for anything else."""
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    t = text.strip().strip('"')
+    if len(t) < 10 or t[4:5] != "-":
+        raise ValueError(text)
+    stamp = datetime.fromisoformat(t)
+    if stamp.tzinfo is None:
+        stamp = stamp.replace(tzinfo=UTC)
+    return stamp.timestamp()
 
 
 @dataclass
@@ -187,7 +205,7 @@ def saleae2_chunk(chunk: bytes, ncols: int, cols: dict[str, int], i_name: int, i
                     prev = _copy(prev, make_open)
                 jobs.append((u, prev, opened_at.get(key, -1), row))
             try:
-                time = float(t.text(row, i_time))
+                time = seconds(t.text(row, i_time))
             except ValueError:
                 return None
             open_[key] = make_open(time)
@@ -288,7 +306,7 @@ def saleae1_chunk(chunk: bytes, ncols: int, i_time: int, i_id: int, i_mosi: int,
         if tr is not None:
             out += (Record(tr.time, r.direction, bytes(tr.lines[r.line])) for r in routes)
         try:
-            tr = make_open(float(t.text(b, i_time)))
+            tr = make_open(seconds(t.text(b, i_time)))
         except ValueError:
             return None
         start = b
