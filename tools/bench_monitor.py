@@ -1,6 +1,9 @@
 #!/usr/bin/env python3
 """What the live monitor costs the emulator: each figure with and without the monitor.
 
+0. One redraw (snapshot, screen, ANSI write of a 150x60 screen through rich ``Live``): CPU ms,
+   against an in-run baseline that draws the same snapshot as rich ``Table``s (what the monitor
+   did before it drew fixed-column lines of Text).
 1. ``demo --virtual-time``: CPU seconds per simulated second (host + EyeQ), baseline = the
    emulation alone, in slices as ``eyeq-spi demo`` runs it.
 2. ``demo`` in real time: how far virtual time trails the wall clock (worst lag), the obstacle
@@ -54,6 +57,67 @@ def _fmt(xs: list[float], unit: str = "", spec: str = ".3f") -> str:
 def _ratio(a: list[float], b: list[float]) -> str:
     base = statistics.median(b)
     return f"x{statistics.median(a) / base:.2f}" if base else "-"
+
+
+def _table_screen(snap: Any) -> Any:
+    """The baseline: the same snapshot as rich Tables with fixed column widths."""
+    from rich import box
+    from rich.console import Group
+    from rich.table import Table
+
+    from eyeq_spi.monitor import view
+
+    def table(title: str, cols: list[Any], rows: list[list[str]]) -> Any:
+        t = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+        for head, width, just in cols:
+            t.add_column(head, width=width + 1, justify=just, no_wrap=True, overflow="ellipsis")
+        for r in rows:
+            t.add_row(*r)
+        return t
+
+    def pair(a: Any, b: Any) -> Any:
+        g = Table.grid(padding=(0, 3))
+        g.add_row(a, b)
+        return g
+
+    rates = [[r.name, str(r.count), f"{r.hz or 0:5.1f}", f"{r.nominal_hz or 0:g}", r.status]
+             for r in snap.rates]
+    link = [[k, str(v)] for k, v in {**snap.link, **snap.errors}.items()]
+    objs = [[str(o.id), o.cls_name, f"{o.long:.1f}", f"{o.lat:.1f}", f"{o.v_long:.1f}",
+             f"{o.v_lat:.1f}", f"{o.ttc or 0:.1f}"] for o in snap.scene.objects]
+    road = [[ln.name, ln.kind, f"{ln.coeffs[0]:.2f}", f"{ln.start:.0f}"]
+            for ln in snap.scene.lines]
+    trans = [[f"{t:.3f}", a, e, b] for t, a, e, b in snap.transitions]
+    return Group(snap.source,
+                 pair(table("rates", view.RATE_COLS, rates), table("link", view.LINK_COLS, link)),
+                 pair(table("objects", view.OBJECT_COLS, objs),
+                      table("road", view.ROAD_COLS, road)),
+                 table("transitions", view.TRANSITION_COLS, trans))
+
+
+def redraw(n: int) -> tuple[float, float]:
+    """CPU ms per redraw: the monitor's screen and the rich-Table baseline, same snapshots."""
+    from rich.live import Live
+
+    from eyeq_spi.monitor.view import render
+
+    emu = build(keep_rx_times=False)
+    src = DemoSource(emu, 1e9, realtime=False)
+    emu.run_for(2.0)
+    out = []
+    for draw in (render, _table_screen):
+        live = Live(console=_console(), auto_refresh=False, vertical_overflow="crop",
+                    redirect_stdout=False, redirect_stderr=False)
+        live.start()
+        cpu = 0.0
+        for _ in range(n):
+            emu.run_for(0.05)
+            c0 = time.process_time()
+            live.update(draw(src.snapshot()), refresh=True)
+            cpu += time.process_time() - c0
+        live.stop()
+        out.append(cpu / n * 1e3)
+    return out[0], out[1]
 
 
 def virtual(duration: float) -> tuple[float, float, float]:
@@ -168,10 +232,13 @@ def main() -> int:
     ap.add_argument("--ack-timeout", type=float, metavar="MS",
                     help="host/sim link ackTimeout (default: the seed's 10 ms; transmitTimeout "
                     "follows at 2.5x) for an overloaded machine")
-    ap.add_argument("--only", choices=("virtual", "realtime", "host"), help="one case only")
+    ap.add_argument("--only", choices=("redraw", "virtual", "realtime", "host"),
+                    help="one case only")
     args = ap.parse_args()
     print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
 
+    if args.only in (None, "redraw"):
+        _redraw(args)
     if args.only in (None, "virtual"):
         _virtual(args)
     if args.only in (None, "realtime"):
@@ -180,6 +247,16 @@ def main() -> int:
         _host(args)
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
     return 0
+
+
+def _redraw(args: argparse.Namespace) -> None:
+    mine, base = [], []
+    for _ in range(args.runs):
+        a, b = redraw(60)
+        mine.append(a)
+        base.append(b)
+    print(f"one redraw, CPU: {_fmt(mine, ' ms', '.2f')}; rich-Table baseline "
+          f"{_fmt(base, ' ms', '.2f')} ({_ratio(mine, base)})")
 
 
 def _virtual(args: argparse.Namespace) -> None:

@@ -35,7 +35,8 @@ from eyeq_spi.plot.scene import SCENE_MESSAGES, Labels, SceneTracker
 
 Clock = Callable[[], float]
 MAIN_STATE_MSG = "EYEQ_DIAGNOSTIC_MSG"  # 0x41
-CATCH_UP = 0.05  # s of virtual time per slice when the demo trails the wall clock
+CATCH_UP = 0.05  # s of virtual time per slice (about 15 ms of CPU): trailing the wall clock,
+# or in virtual time, the source looks at the redraw deadline between slices
 
 
 class _HostView:
@@ -109,7 +110,7 @@ class DemoSource:
                 else:
                     self.sleep(min(0.002 / self.speed, max(0.0, deadline - self.clock())))
             else:
-                emu.run_for(min(0.01, self.duration - emu.runner.now))
+                emu.run_for(min(CATCH_UP, self.duration - emu.runner.now))
 
     def snapshot(self) -> Snapshot:
         return self.view.snapshot(self.emu.runner.now, self.done)
