@@ -9,6 +9,11 @@ to an in-run baseline (``python -c pass`` with the same interpreter: the floor n
 and the median CPU time (user + system), which a loaded machine disturbs less than wall time.
 ``--before REV`` also runs the commands against ``git archive REV`` of this repository (for example
 the commit before issue 10's start-up work) in a temporary directory, for a before/after table.
+
+The children run as an installed user's do: with bytecode caches (``.pyc``, written by the warm-up
+run into a temporary ``PYTHONPYCACHEPREFIX``, whatever ``PYTHONDONTWRITEBYTECODE`` says here) and
+with a filled catalogue cache. ``--no-pyc`` times them compiling every module from source instead.
+The load average is printed before and after: on a shared machine, compare rows of one run only.
 """
 
 from __future__ import annotations
@@ -92,6 +97,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=9)
     ap.add_argument("--before", metavar="REV", help="also time this git revision")
+    ap.add_argument("--no-pyc", action="store_true",
+                    help="no bytecode cache: every module compiled from source at each start")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
@@ -105,12 +112,19 @@ def main() -> int:
             subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
             trees.insert(0, (f"before ({args.before})", old))
         base_env = {**os.environ, "EYEQ_SPI_CACHE_DIR": str(tmp / "cache")}
+        base_env.pop("EYEQ_SPI_NO_CACHE", None)
+        if args.no_pyc:
+            base_env["PYTHONDONTWRITEBYTECODE"] = "1"
+        else:
+            base_env.pop("PYTHONDONTWRITEBYTECODE", None)
+            base_env["PYTHONPYCACHEPREFIX"] = str(tmp / "pycache")
         baseline, base_cpu = time_one([sys.executable, "-c", "pass"], base_env, args.runs, tmp)
         base = statistics.median(baseline)
         print(f"baseline python -c pass: median {base * 1000:.0f} ms, "
               f"{min(baseline) * 1000:.0f}..{max(baseline) * 1000:.0f} ms, CPU "
               f"{statistics.median(base_cpu) * 1000:.0f} ms ({args.runs} runs, "
-              f"{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}, {sys.version.split()[0]})")
+              f"{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}, {sys.version.split()[0]}, "
+              f"{'no bytecode cache' if args.no_pyc else 'with bytecode caches'})")
         for name, tree in trees:
             env = {**base_env, "PYTHONPATH": str(tree)}
             print(f"\n{name}: {tree if tree == ROOT else 'git archive'}")
@@ -120,6 +134,7 @@ def main() -> int:
                 samples = time_one([sys.executable, "-m", "eyeq_spi.cli", *argv], env, args.runs,
                                    tmp)
                 print(row(label, samples, base), flush=True)
+        print(f"\nload average at the end: {os.getloadavg()[0]:.1f}")
     return 0
 
 

@@ -7,6 +7,7 @@ init bit tables) reads it from here, never from a layout written by hand (STYLE.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
@@ -205,7 +206,7 @@ class Catalog:
     init_messages: dict[str, InitMessageDef]
     mesp: tuple[MespFunction, ...]
     mesp_ret: dict[int, str] = field(default_factory=dict)
-    raw: dict[str, Any] = field(default_factory=dict)
+    raw: Mapping[str, Any] = field(default_factory=dict)  # RawDocs: file name -> parsed YAML
 
     def constant(self, name: str, sw: SwKey) -> int:
         table = self.constants.get(name)
@@ -234,6 +235,39 @@ class Catalog:
             known = ", ".join(sw_release_text(k) for k in self.sw_versions)
             raise SpecError(f"SW {text} is not a release in specs/ (known: {known})")
         return key
+
+
+class RawDocs(Mapping[str, Any]):
+    """The parsed YAML files of ``specs/`` by relative path. A file is read when first asked for
+    (through the start-up cache, like ``spec_file``) and the pickled catalogue holds only the root:
+    the raw documents were three quarters of its bytes and few starts need any (issue 10)."""
+
+    def __init__(self, root: Path, docs: Mapping[str, Any] | None = None) -> None:
+        self._root = root
+        self._docs: dict[str, Any] = dict(docs or {})
+
+    def __getitem__(self, name: str) -> Any:
+        doc = self._docs.get(name)
+        if doc is None:
+            if name not in self._names():
+                raise KeyError(name)
+            from eyeq_spi.spec.cache import cached_doc
+            from eyeq_spi.spec.link import load_file
+
+            doc = self._docs[name] = cached_doc(self._root, name, load_file)
+        return doc
+
+    def _names(self) -> list[str]:
+        return sorted(str(p.relative_to(self._root)) for p in self._root.rglob("*.yaml"))
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names())
+
+    def __len__(self) -> int:
+        return len(self._names())
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (RawDocs, (self._root,))
 
 
 def _member(m: dict[str, Any]) -> Member:
@@ -351,7 +385,7 @@ def load_catalog(root: Path) -> Catalog:
             mesp_ret[int(code)] = str(ret["name"] if isinstance(ret, dict) else ret)
     return Catalog(
         root, versions, sw_doc.get("default", versions[-1]), constants, structs, enums,
-        tuple(messages), inits, tuple(mesp), mesp_ret, docs,
+        tuple(messages), inits, tuple(mesp), mesp_ret, RawDocs(root, docs),
     )
 
 

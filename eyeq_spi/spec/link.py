@@ -29,10 +29,11 @@ def spec_file(name: str) -> dict[str, Any]:
     :func:`eyeq_spi.spec.cache.cached_doc`)."""
     from eyeq_spi.spec.cache import cached_doc
 
-    return cached_doc(specs_dir(), name, _load_file)
+    return cached_doc(specs_dir(), name, load_file)
 
 
-def _load_file(path: Path) -> dict[str, Any]:
+def load_file(path: Path) -> dict[str, Any]:
+    """Parse one YAML file of ``specs/`` (libyaml) into a mapping; SpecError if it is not one."""
     import yaml  # here, not at module level: a start from the cache never parses YAML (issue 10)
 
     try:
