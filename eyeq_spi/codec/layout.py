@@ -82,6 +82,7 @@ class Layout:
     _encode_ops: list[tuple[Any, ...]] = field(default_factory=list)
     _by_name: dict[str, FieldInfo] = field(default_factory=dict)
     _fast: FastCodec | None = None
+    _verify: Any = None  # the generated E2E verifier (codec.e2e.compile_verifier)
 
     # -- values ----------------------------------------------------------------------------
     def post(self, c: Any) -> dict[str, Any]:

@@ -90,6 +90,7 @@ class MessageCodec:
         self.layouts = LayoutCache(self.cat)
         self.mesp = MespCodec(self.cat)
         self._other = {m.protocol: m for m in self.cat.messages if m.protocol in ("DIAG", "BOOT")}
+        self._dasp: dict[int, MessageDef | None] = {}  # data ID -> message in self.sw
 
     # -- layouts -----------------------------------------------------------------------------
     def layout(self, msg: MessageDef) -> Layout:
@@ -151,13 +152,17 @@ class MessageCodec:
         if len(data) < 4:
             out.errors.append(f"BadHdr: DASP message of {len(data)} bytes has no full header")
             return out
-        h = DASP_HEADER.parse(data[:4])
-        out.header = {"data_id": h.data_id, "counter": h.counter}
-        if h.reserved != 0:
-            out.errors.append(f"DASP reserved byte is 0x{h.reserved:02X}, not 0")
-        msg = self.cat.dasp_by_id(h.data_id, self.sw)
+        # §7.1.2 header (DASP_HEADER's fields; classify() has checked the protocol byte)
+        data_id, counter, reserved = data[1], data[2], data[3]
+        out.header = {"data_id": data_id, "counter": counter}
+        if reserved != 0:
+            out.errors.append(f"DASP reserved byte is 0x{reserved:02X}, not 0")
+        try:
+            msg = self._dasp[data_id]
+        except KeyError:
+            msg = self._dasp[data_id] = self.cat.dasp_by_id(data_id, self.sw)
         if msg is None:
-            out.errors.append(f"BadHdr: unknown DASP data ID 0x{h.data_id:02X} in {self.sw}")
+            out.errors.append(f"BadHdr: unknown DASP data ID 0x{data_id:02X} in {self.sw}")
             return out
         out.name = msg.name
         self._decode_payload(out, msg, data[4:], e2e)

@@ -1,0 +1,317 @@
+"""Many messages of one layout at once: numpy columns, E2E and enum checks over a whole group.
+
+A :class:`VecLayout` is built once per :class:`~eyeq_spi.codec.layout.Layout` from the same
+``FieldInfo`` lists (so from ``specs/``) as the construct codec and the ``struct`` fast path:
+
+- a numpy structured dtype with one field per primitive leaf (array elements and struct-array
+  elements expanded, named as ``dissect --csv`` flattens them: ``visObs[3].physicalState.width``),
+  bitfield containers as one field each and their members cut out with the codec's shifts/masks
+  (D2). ``columns`` turns an ``(n, size)`` uint8 array of payloads into those columns;
+- E2E (D5): every ``CrcPlan``'s covered bytes gathered for all rows and run through a
+  table-driven CRC-16 (two bytes per numpy step, a 65536-entry table built from
+  :func:`eyeq_spi.crc.crc16`); plans of equal length (the 15 ``visObs[i]`` CRCs) share the steps.
+  Long plans with few rows go through ``binascii.crc_hqx`` row by row, which is cheaper there.
+  Rolling counters are checked against the previous row of the group and the ``E2EState``;
+- the enum checks of the dissector (complete ``values`` enums on scalar members, in the order the
+  exact engine visits them, at most ten per message).
+
+``verify`` and ``enum_errors`` give, row by row, the same strings as
+:func:`eyeq_spi.codec.e2e.verify` and the exact engine's enum check, and update the
+``E2EState`` the same way; the tests hold them to that for every struct variant.
+"""
+
+from __future__ import annotations
+
+import binascii
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from eyeq_spi.codec.e2e import E2EState, _key, _label
+from eyeq_spi.crc import crc16
+
+if TYPE_CHECKING:
+    from eyeq_spi.codec.layout import Layout
+    from eyeq_spi.spec.catalog import Catalog
+
+NP_TYPE = {"uint8": "u1", "uint16": "<u2", "uint32": "<u4", "uint64": "<u8", "int8": "i1",
+           "int16": "<i2", "int32": "<i4", "int64": "<i8", "real32": "<f4", "real64": "<f8",
+           "bool": "u1"}
+INT_TYPES = {"uint8", "uint16", "uint32", "uint64", "int8", "int16", "int32", "int64", "bool"}
+MAX_ENUM_ERRORS = 10  # the exact engine keeps the first ten (engine._enum_errors)
+
+
+def _tables() -> tuple[np.ndarray, np.ndarray]:
+    """T1[b]: the register after byte b from register 0; T2[w]: after the big-endian word w
+    from 0. Built from ``crc16`` (CRC-16/CCITT-FALSE: not reflected, xorout 0, so linear in
+    the register). ``crc16`` starts at ``init``; its two big-endian bytes bring the register to
+    0, so ``crc16(init_bytes + bytes([b]))`` is T1[b]; T2 is composed from T1."""
+    lead = crc16(b"").to_bytes(2, "big")
+    t1 = np.array([crc16(lead + bytes([b])) for b in range(256)], np.uint32)
+    v = np.arange(65536, dtype=np.uint32)
+    r1 = t1[v >> 8]
+    t2 = ((r1 << 8) & 0xFFFF) ^ t1[(r1 >> 8) ^ (v & 0xFF)]
+    return t1.astype(np.uint16), t2.astype(np.uint16)
+
+
+_T1: np.ndarray | None = None
+_T2: np.ndarray | None = None
+
+
+def crc_rows(g: np.ndarray, init: int = 0xFFFF) -> np.ndarray:
+    """CRC-16 (``crc16``'s variant) of every row of the uint8 array ``g`` (n, L)."""
+    global _T1, _T2
+    if _T2 is None:
+        _T1, _T2 = _tables()
+    t1, t2 = _T1, _T2
+    assert t1 is not None
+    n, length = g.shape
+    c = np.full(n, init, np.uint16)
+    half = length // 2
+    if half:
+        w = g[:, : 2 * half].astype(np.uint16)
+        words = np.ascontiguousarray(((w[:, 0::2] << 8) | w[:, 1::2]).T)
+        for j in range(half):
+            c = t2[c ^ words[j]]
+    if length % 2:
+        c = ((c << 8) & 0xFFFF).astype(np.uint16) ^ t1[(c >> 8) ^ g[:, -1]]
+    return c
+
+
+@dataclass(frozen=True)
+class _Leaf:
+    name: str  # flattened path
+    field: str  # structured dtype field (the container for bitfields)
+    shift: int
+    mask: int | None  # None: the whole field
+    type: str
+
+
+@dataclass(frozen=True)
+class _Plan:
+    index: int
+    crc_offset: int
+    idx: np.ndarray  # covered byte offsets, in order
+    counter: tuple[int, int] | None  # (offset, size)
+    key: tuple[str, str]
+    crc_text: str
+    jump_text: str
+
+
+@dataclass(frozen=True)
+class _EnumLeaf:
+    leaf: _Leaf
+    label: str  # "<path>.<member>" after the message name
+    values: np.ndarray
+    enum: str
+
+
+class VecLayout:
+    """The vectorised decoder of one layout."""
+
+    def __init__(self, lay: Layout, cat: Catalog) -> None:
+        self.layout = lay
+        self.size = lay.size
+        names: list[str] = []
+        formats: list[str] = []
+        offsets: list[int] = []
+        self.leaves: list[_Leaf] = []
+        self.enums: list[_EnumLeaf] = []
+        self._walk(lay, cat, "", 0, names, formats, offsets, True)
+        self.dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                               "itemsize": lay.size})
+        self.plans = [
+            _Plan(i, p.crc_offset, np.array([o + k for o, s in p.ranges for k in range(s)],
+                                            np.intp),
+                  None if p.counter_offset is None else (p.counter_offset, p.counter_size),
+                  _key(lay, p), f"E2E CRC mismatch in {_label(lay, p)}: {p.field}=0x",
+                  f"E2E counter jump in {_label(lay, p)}: expected ")
+            for i, p in enumerate(lay.crc_plan)
+        ]
+
+    def _walk(self, lay: Layout, cat: Catalog, prefix: str, base: int, names: list[str],
+              formats: list[str], offsets: list[int], enums: bool) -> None:
+        seen: set[int] = set()
+        for f in lay.fields:
+            path = f"{prefix}.{f.name}" if prefix else f.name
+            child = lay.children.get(f.name)
+            e = cat.enums.get(f.member.enum or "")
+            check = (enums and e is not None and e.kind != "flags" and e.complete
+                     and not f.count and f.type in INT_TYPES)
+            if f.bits is not None:
+                cont = f"{prefix}#bits@{f.offset}"
+                if f.offset not in seen:
+                    seen.add(f.offset)
+                    names.append(cont)
+                    formats.append(NP_TYPE[f.type])
+                    offsets.append(base + f.offset)
+                lo, hi = f.bits
+                leaf = _Leaf(path, cont, lo, (1 << (hi - lo + 1)) - 1, f.type)
+                self.leaves.append(leaf)
+                if check and e is not None:
+                    self.enums.append(_EnumLeaf(leaf, path, np.array(sorted(e.values)), e.name))
+                continue
+            if child is not None:
+                for i in range(f.count or 1):
+                    sub = f"{path}[{i}]" if f.count else path
+                    self._walk(child, cat, sub, base + f.offset + i * child.size, names,
+                               formats, offsets, enums)
+                continue
+            width = f.size // (f.count or 1)
+            for i in range(f.count or 1):
+                name = f"{path}[{i}]" if f.count else path
+                names.append(name)
+                formats.append(NP_TYPE[f.type])
+                offsets.append(base + f.offset + i * width)
+                leaf = _Leaf(name, name, 0, None, f.type)
+                self.leaves.append(leaf)
+                if check and e is not None:
+                    self.enums.append(_EnumLeaf(leaf, path, np.array(sorted(e.values)), e.name))
+
+    # -- values ----------------------------------------------------------------------------
+    def records(self, payloads: np.ndarray) -> np.ndarray:
+        """The payloads ``(n, size)`` uint8 as structured records (a view, no copy)."""
+        arr = np.ascontiguousarray(payloads)
+        return arr.view(self.dtype).reshape(len(arr))
+
+    def column(self, rec: np.ndarray, leaf: _Leaf) -> np.ndarray:
+        col = rec[leaf.field]
+        if leaf.mask is None:
+            return col
+        return (col >> leaf.shift) & leaf.mask
+
+    def columns(self, payloads: np.ndarray) -> dict[str, np.ndarray]:
+        """Every leaf as a column, flattened names, in the order of ``flatten(fields)``."""
+        rec = self.records(payloads)
+        return {leaf.name: self.column(rec, leaf) for leaf in self.leaves}
+
+    # -- E2E -------------------------------------------------------------------------------
+    def crc_ok(self, payloads: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(got, computed) CRC fields as (n, plans) uint16 arrays and got == computed."""
+        n = len(payloads)
+        k = len(self.plans)
+        got = np.zeros((n, k), np.uint16)
+        want = np.zeros((n, k), np.uint16)
+        by_len: dict[int, list[_Plan]] = {}
+        for p in self.plans:
+            got[:, p.index] = payloads[:, p.crc_offset].astype(np.uint16) | (
+                payloads[:, p.crc_offset + 1].astype(np.uint16) << 8)
+            by_len.setdefault(len(p.idx), []).append(p)
+        for length, plans in by_len.items():
+            rows = n * len(plans)
+            # numpy: ~length/2 steps of fixed cost; crc_hqx: a call per row and range in C
+            if length // 2 * 1.5 > rows * (0.3 + length / 1500):
+                for p in plans:
+                    want[:, p.index] = _crc_loop(payloads, p.idx)
+                continue
+            idx = np.stack([p.idx for p in plans])  # (P, L)
+            g = payloads[:, idx].reshape(rows, length)
+            c = crc_rows(g).reshape(n, len(plans))
+            for j, p in enumerate(plans):
+                want[:, p.index] = c[:, j]
+        return got, want, got == want
+
+    def verify(self, payloads: np.ndarray, state: E2EState | None) -> list[list[str]]:
+        """Per row, what :func:`eyeq_spi.codec.e2e.verify` reports for it when the rows are
+        verified in order with ``state``; ``state`` ends as it would."""
+        n = len(payloads)
+        errs: list[list[str]] = [[] for _ in range(n)]
+        if not self.plans or not n:
+            return errs
+        got, want, ok = self.crc_ok(payloads)
+        bad_any = ~ok.all(axis=1)
+        jumps: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        if state is not None:
+            state.crc_errors += int((~ok).sum())
+            for p in self.plans:
+                if p.counter is None:
+                    continue
+                o, size = p.counter
+                v = np.zeros(n, np.int64)
+                for b in range(size):
+                    v |= payloads[:, o + b].astype(np.int64) << (8 * b)
+                modulo = 1 << (8 * size)
+                last = state.seen.get(p.key)
+                prev = np.empty(n, np.int64)
+                prev[0] = -1 if last is None else last
+                prev[1:] = v[:-1]
+                expected = (prev + 1) % modulo
+                jump = (prev >= 0) & (v != expected)
+                state.seen[p.key] = int(v[-1])
+                if jump.any():
+                    state.counter_errors += int(jump.sum())
+                    bad_any |= jump
+                    jumps[p.index] = (jump, np.stack([expected, v], axis=1))
+        for r in np.flatnonzero(bad_any).tolist():
+            out = errs[r]
+            for p in self.plans:
+                if not ok[r, p.index]:
+                    out.append(f"{p.crc_text}{int(got[r, p.index]):04X}, computed "
+                               f"0x{int(want[r, p.index]):04X}")
+                j = jumps.get(p.index)
+                if j is not None and j[0][r]:
+                    exp, val = j[1][r].tolist()
+                    out.append(f"{p.jump_text}{exp}, got {val}")
+        return errs
+
+    # -- enums -----------------------------------------------------------------------------
+    def enum_errors(self, payloads: np.ndarray, name: str, rows: np.ndarray | None = None
+                    ) -> dict[int, list[str]]:
+        """Rows (of those in ``rows``, default all) with an undefined enum value: the exact
+        engine's strings, ``bad enum value V for NAME.PATH (ENUM)``, the first ten."""
+        out: dict[int, list[str]] = {}
+        if not self.enums or not len(payloads):
+            return out
+        rec = self.records(payloads)
+        hits: list[tuple[np.ndarray, np.ndarray, _EnumLeaf]] = []
+        for e in self.enums:
+            col = self.column(rec, e.leaf)
+            bad = ~np.isin(col, e.values)
+            if rows is not None:
+                bad &= rows
+            if bad.any():
+                hits.append((bad, col, e))
+        if not hits:
+            return out
+        for bad, col, e in hits:
+            for r in np.flatnonzero(bad).tolist():
+                lst = out.setdefault(r, [])
+                if len(lst) < MAX_ENUM_ERRORS:
+                    lst.append(f"bad enum value {int(col[r])} for {name}.{e.label} ({e.enum})")
+        return out
+
+
+def _crc_loop(payloads: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``crc16`` of the bytes ``idx`` of every row through ``binascii.crc_hqx`` (in C), chaining
+    over the contiguous runs of ``idx``."""
+    runs: list[tuple[int, int]] = []
+    for o in idx.tolist():
+        if runs and runs[-1][1] == o:
+            runs[-1] = (runs[-1][0], o + 1)
+        else:
+            runs.append((o, o + 1))
+    init = crc16(b"")
+    h = binascii.crc_hqx
+    width = payloads.shape[1]
+    buf = memoryview(np.ascontiguousarray(payloads).tobytes())
+    out = np.empty(len(payloads), np.uint16)
+    for r in range(len(payloads)):
+        base = r * width
+        c = init
+        for a, b in runs:
+            c = h(buf[base + a : base + b], c)
+        out[r] = c
+    return out
+
+
+_CACHE: dict[int, tuple[Layout, VecLayout]] = {}
+
+
+def vec_layout(lay: Layout, cat: Catalog) -> VecLayout:
+    """The :class:`VecLayout` of ``lay`` (built once per layout object)."""
+    hit = _CACHE.get(id(lay))
+    if hit is None or hit[0] is not lay:
+        hit = (lay, VecLayout(lay, cat))
+        _CACHE[id(lay)] = hit
+    return hit[1]
