@@ -105,6 +105,9 @@ def _add_run(sub: Any) -> None:
     sim.add_argument("--accept-timeout", type=seconds, default=60.0,
                      help="seconds to wait for the host, (0, 86400] (default 60)")
     sim.add_argument("--json", action="store_true", help="end with one JSON object")
+    sim.add_argument("--rt-priority", type=ca.integer(0, 99), default=10, metavar="N",
+                     help="SCHED_FIFO priority 1..99 so that ACKs meet the 10 ms ackTimeout on a "
+                     "busy machine; 0: ordinary scheduling (default 10; falls back when refused)")
     add_shared_options(sim, side="sim")
     host = sub.add_parser("host", help="the host emulator against an EyeQ at a pyserial URL")
     host.add_argument("--port", required=True, metavar="URL", type=ca.host_endpoint,
@@ -119,6 +122,10 @@ def _add_run(sub: Any) -> None:
     host.add_argument("--reconnect", action="store_true",
                       help="when the link is lost, wait for the EyeQ and run the bring-up again")
     host.add_argument("--json", action="store_true", help="end with one JSON object")
+    host.add_argument("--rt-priority", type=ca.integer(0, 99), default=10, metavar="N",
+                      help="SCHED_FIFO priority 1..99 so that ACKs meet the 10 ms ackTimeout on "
+                      "a busy machine; 0: ordinary scheduling (default 10; falls back when "
+                      "refused)")
     add_shared_options(host, side="host")
 
 

@@ -269,6 +269,8 @@ def print_summary(out: dict[str, Any], as_json: bool) -> None:
                  f"{out['transport_aborts'] or 'none'}, stale "
                  f"{', '.join(out['stale_streams']) or 'none'}, MESP timeouts "
                  f"{out['mesp']['timeouts']}")
+    if "scheduling" in out:
+        lines.append(f"  scheduling: {out['scheduling']}")
     lines.append("  received: " + ", ".join(
         f"{k.replace('EYEQ_', '').replace('_MSG', '')} {v}"
         for k, v in sorted(out["messages"].items()) if v))
@@ -329,6 +331,7 @@ def run_sim(args: argparse.Namespace) -> int:
     from eyeq_spi.phy.base import open_url
     from eyeq_spi.report import sim_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
+    from eyeq_spi.runner.sched import request_realtime
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
 
     if bool(args.listen) == bool(args.pty):
@@ -349,6 +352,7 @@ def run_sim(args: argparse.Namespace) -> int:
         print(f"LISTEN {adapter.url}", flush=True)
         _connect_hint(adapter.url)
     _on_sigterm()
+    scheduling = request_realtime(args.rt_priority)
     writer = capture_writer(args)
     clock = time.monotonic
     t0, cpu0 = clock(), time.process_time()
@@ -391,6 +395,7 @@ def run_sim(args: argparse.Namespace) -> int:
                       cpu=time.process_time() - cpu0, connections=len(sessions),
                       interrupted=interrupted)
     out["sessions"] = sessions
+    out["scheduling"] = scheduling
     if not sessions and out["problem"] is None:
         out["problem"], out["ok"] = (f"no host connected within {args.accept_timeout} s"
                                      if not interrupted else "interrupted before any host"), False
@@ -418,6 +423,7 @@ def run_host(args: argparse.Namespace) -> int:
     from eyeq_spi.phy.base import open_url
     from eyeq_spi.report import host_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
+    from eyeq_spi.runner.sched import request_realtime
 
     host_cfg, nvm, scenario = host_parts(args)
     host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
@@ -425,6 +431,7 @@ def run_host(args: argparse.Namespace) -> int:
     gc.collect()
     adapter: Any = open_url(args.port)
     _on_sigterm()
+    scheduling = request_realtime(args.rt_priority)
     writer = capture_writer(args)
     runner = RealTimeRunner(host, adapter)
     runner.tap = _realtime_tap(writer, runner.clock(), "h2e", "e2h")
@@ -485,5 +492,6 @@ def run_host(args: argparse.Namespace) -> int:
                        interrupted=interrupted)
     if link_lost:
         out["link_lost"] = link_lost
+    out["scheduling"] = scheduling
     print_summary(out, args.json)
     return 0 if out["ok"] else 1

@@ -65,6 +65,7 @@ def _figures(out: dict[str, Any]) -> dict[str, Any]:
         "send_failures": out["link"]["sendFailedErrorCounter"],
         "mesp_timeouts": out["mesp"]["timeouts"],
         "ack_latency_ms": out["ack_latency_ms"], "link": out["link"],
+        "scheduling": out.get("scheduling"),
         **{k: out[k] for k in LOSS_KEYS},
     }
 

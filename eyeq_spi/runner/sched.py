@@ -1,0 +1,45 @@
+"""Real-time scheduling for a live link process.
+
+The link answers every DATA frame within the peer's 10 ms ``ackTimeout`` (L7, §6). On a machine
+whose cores are busy with other work, the kernel's ordinary time-sharing (``SCHED_OTHER``) can
+leave a woken process waiting longer than that: a live run at load average 8-9 on 2 cores lost
+186 frames in 30 s to late ACKs, every one of them a process that was ready but not running
+(``tools/soak_live.py``; the README has the figures). A bench emulator is a real-time program, so
+``host`` and ``sim`` ask for the ``SCHED_FIFO`` policy at a modest priority, which makes the
+kernel run them as soon as they are woken. The processes sleep in ``select`` between frames (about
+0.2 CPU-s per second at full load), and Linux keeps 5 % of every core for ordinary tasks
+(``sched_rt_runtime_us``), so the rest of the machine is not starved.
+
+Without permission (not root, no ``CAP_SYS_NICE``, no ``RLIMIT_RTPRIO``) the process falls
+back to the highest ``nice`` it may take, and then to ordinary scheduling; the policy obtained is
+reported in the run summary, never an error.
+"""
+
+from __future__ import annotations
+
+import os
+
+DEFAULT_PRIORITY = 10
+"""Of 1..99: above ordinary tasks, below the kernel's own real-time threads (50 and up)."""
+
+
+def request_realtime(priority: int = DEFAULT_PRIORITY) -> str:
+    """Ask for ``SCHED_FIFO`` at ``priority`` (0: leave scheduling alone). Returns what was
+    obtained: ``"SCHED_FIFO 10"``, ``"nice -10"`` or ``"SCHED_OTHER"`` (with the reason)."""
+    if priority <= 0:
+        return "SCHED_OTHER (not requested)"
+    if not hasattr(os, "sched_setscheduler"):  # not Linux
+        return "SCHED_OTHER (no sched_setscheduler on this platform)"
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return f"SCHED_FIFO {priority}"
+    except (PermissionError, OSError) as exc:
+        reason = exc.strerror or type(exc).__name__
+    try:
+        before = os.nice(0)
+        after = os.nice(-10)
+        if after < before:
+            return f"nice {after} (SCHED_FIFO refused: {reason})"
+    except OSError:
+        pass
+    return f"SCHED_OTHER (SCHED_FIFO refused: {reason})"
