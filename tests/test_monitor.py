@@ -79,16 +79,22 @@ def test_passive_snapshot_and_screen(capture: Path) -> None:
 
 @pytest.fixture(scope="module")
 def demo_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """1.5 s of the emulator with its bring-up (Running Vision at 0.53 s) as pcapng."""
+    """1.5 s of the emulator with its bring-up (Running Vision at 0.53 s) as pcapng; SRP stops
+    at 1 s (demo exits 1: a stale stream)."""
     path = tmp_path_factory.mktemp("mon") / "demo.pcapng"
     assert main(["demo", "--virtual-time", "--duration", "1.5", "--objects", "5", "--signs",
-                 "3", "--capture", str(path), "--json"]) == 0
+                 "3", "--stop-dasp", "EYEQ_VIS_SRP_MSG@1", "--capture", str(path),
+                 "--json"]) == 1
     return path
 
 
 def _drain(src: Any) -> Snapshot:
+    """Run a source to its end with a snapshot (a redraw) every 0.1 s of its time."""
+    deadline = 0.0
     while not src.done:
-        src.advance(time.perf_counter() + 0.05)
+        deadline += 0.1
+        while not src.done and src.snapshot().now < deadline:
+            src.advance(time.perf_counter() + 0.01)
     snap: Snapshot = src.snapshot()
     src.close()
     return snap
@@ -112,8 +118,14 @@ def test_replay_goes_through_the_host_like_replay_into_host(demo_capture: Path) 
     assert {s.name for s in snap.scene.signs} == {s.name for s in passive.scene.signs}
     rates = {r.name: r for r in snap.rates}
     assert rates[OBSTACLES].count == {r.name: r for r in passive.rates}[OBSTACLES].count
+    assert snap.stale == ["EYEQ_VIS_SRP_MSG"]
+    assert {r.name: r.status for r in snap.rates}["EYEQ_VIS_SRP_MSG"] == "stopped"
+    assert rates[OBSTACLES].status in ("ok", "low")  # "low": the 2 s window holds the bring-up
     text = _text(render(snap))
-    assert "host state: RUNNING_VISION" in text and re.search(r"car CIPV|CIPV", text)
+    assert "host state: RUNNING_VISION" in text and "CIPV" in text
+    assert re.search(r"VIS_SRP\s+\d+\s+[\d.]+\s+18\s+stopped", text)
+    assert re.search(r"stale streams\s+VIS_SRP", text)
+    assert re.search(r"sendFailedErrorCounter\s+0", text)
 
 
 @pytest.mark.parametrize("pace", [1.0, 2.5])
