@@ -393,7 +393,7 @@ def run_sim(args: argparse.Namespace) -> int:
         sim = SimulatedEyeQ(cfg)
     out = sim_summary(sim, elapsed=clock() - t0, wall=clock() - t0,
                       cpu=time.process_time() - cpu0, connections=len(sessions),
-                      interrupted=interrupted)
+                      interrupted=interrupted, t0=t0)
     out["sessions"] = sessions
     out["scheduling"] = scheduling
     if not sessions and out["problem"] is None:
@@ -489,7 +489,7 @@ def run_host(args: argparse.Namespace) -> int:
     out = host_summary(host, side="host", elapsed=now - start, wall=now - start,
                        cpu=time.process_time() - cpu0, running_since=running_since,
                        left_running=left, link_lost=link_lost, connections=connections,
-                       interrupted=interrupted)
+                       interrupted=interrupted, t0=start)
     if link_lost:
         out["link_lost"] = link_lost
     out["scheduling"] = scheduling

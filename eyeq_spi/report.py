@@ -79,8 +79,9 @@ def _aborts(conn: TransportConnection) -> dict[str, int]:
 def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, cpu: float,
                  running_since: float | None, left_running: list[float],
                  link_lost: str | None = None, connections: int = 1,
-                 interrupted: bool = False) -> dict[str, Any]:
-    """The summary of a host emulator run (``demo`` or ``host``)."""
+                 interrupted: bool = False, t0: float = 0.0) -> dict[str, Any]:
+    """The summary of a host emulator run (``demo`` or ``host``). Times are seconds since
+    ``t0``, the start of the run on the host's clock."""
     names = [m.name for m in host.codec.cat.messages if m.exists_in(host.sw) or
              m.protocol != "DASP"]
     messages = {n: int(host.counters.received.get(n, 0)) for n in names}
@@ -104,7 +105,7 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "eyeq_resets": host.counters.eyeq_resets,
         "versions": host.versions, "boot": host.boot_info,
         "transitions": [
-            {"t": round(t.time, 4), "from": t.src.value, "event": t.event.value,
+            {"t": round(t.time - t0, 4), "from": t.src.value, "event": t.event.value,
              "to": t.dst.value, "detail": t.detail} for t in host.transitions
         ],
         "running_vision_since": None if running_since is None else round(running_since, 4),
@@ -123,8 +124,9 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
 
 def sim_summary(sim: SimulatedEyeQ, *, elapsed: float, wall: float, cpu: float,
                 link_lost: str | None = None, connections: int = 1,
-                interrupted: bool = False) -> dict[str, Any]:
-    """The summary of a simulated EyeQ run (``sim``), for the last host it served plus totals."""
+                interrupted: bool = False, t0: float = 0.0) -> dict[str, Any]:
+    """The summary of a simulated EyeQ run (``sim``), for the last host it served plus totals.
+    Times are seconds since ``t0``, the start of the run on the simulator's clock."""
     c = sim.counters
     s: dict[str, Any] = {
         "side": "sim", "state": f"0x{sim.main_state:02X}", "sw": sw_release_text(sim.sw),
@@ -144,7 +146,8 @@ def sim_summary(sim: SimulatedEyeQ, *, elapsed: float, wall: float, cpu: float,
         "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
                      "eyeqSwVersionMinor": sim.sw_version[1]},
         "boot": {"boots": c.boots}, "transitions": [],
-        "running_vision_since": sim.running_since,
+        "running_vision_since": (None if sim.running_since is None
+                                 else round(sim.running_since - t0, 4)),
     }
     # the host leaving ends a session; it is not a loss on the EyeQ side (it serves the next)
     return _finish(s, None)

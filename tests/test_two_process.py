@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_host_and_sim_processes_reach_running_vision_over_tcp(tmp_path: Path) -> None:
     sim = subprocess.Popen(
         [sys.executable, "-m", "eyeq_spi.cli", "sim", "--listen", "tcp://127.0.0.1:0",
-         "--duration", "40", "--accept-timeout", "30"],
+         "--duration", "40", "--accept-timeout", "30", "--json"],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     try:
@@ -29,9 +29,19 @@ def test_host_and_sim_processes_reach_running_vision_over_tcp(tmp_path: Path) ->
             cwd=ROOT, capture_output=True, text=True, timeout=60,
         )
     finally:
-        sim.kill()
-        sim.wait(timeout=10)
+        sim.terminate()  # SIGTERM ends the sim cleanly, with its summary
+        try:
+            sim_out, _ = sim.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            sim.kill()
+            sim_out, _ = sim.communicate()
     out = json.loads(host.stdout.strip().splitlines()[-1])
+    sim_sum = json.loads(sim_out.strip().splitlines()[-1])
+    # every time in a summary counts from the start of that process's run, on either side
+    assert out["transitions"] and all(0 <= t["t"] <= out["elapsed_s"] for t in out["transitions"])
+    assert 0 <= out["running_vision_since"] <= out["elapsed_s"]
+    assert sim_sum["interrupted"] is True and sim_sum["connections"] == 1
+    assert 0 <= sim_sum["running_vision_since"] <= sim_sum["elapsed_s"], sim_sum
     assert out["state"] == "RUNNING_VISION", host.stderr[-2000:] + host.stdout[-2000:]
     # the exit code and the summary agree; losses, if any, are named (tools/soak_live.py and
     # tests/test_soak_live.py hold the zero-loss bar)
