@@ -284,7 +284,7 @@ def output_dir(text: str) -> str:
     return text
 
 
-_TCP = re.compile(r"^(socket|tcp|rfc2217)://(\[[0-9A-Fa-f:.]+\]|[^:/\[\]\s]*):([^/?#]*)(.*)$")
+_TCP = re.compile(r"^(socket|tcp|rfc2217|listen)://(\[[0-9A-Fa-f:.]+\]|[^:/\[\]\s]*):([^/?#]*)(.*)$")
 
 
 def _tcp(text: str, lo_port: int) -> tuple[str, str, int]:
@@ -320,6 +320,19 @@ def host_endpoint(text: str) -> str:
         _bad(f"no such device {text!r}; give socket://HOST:PORT, rfc2217://HOST:PORT or a "
              "tty/pty path")
     return text
+
+
+def host_under_test(text: str) -> str:
+    """Where ``replay --port`` finds the host under test: ``socket://HOST:PORT``,
+    ``listen://HOST:PORT`` (port 0: any free port), ``rfc2217://HOST:PORT`` or a tty/pty path.
+    ``loop://`` has no host on it (replay would read its own frames back): refused."""
+    if text.startswith("loop://"):
+        _bad("loop:// echoes replay's own transfers back and has no host on it; give the host "
+             "under test as socket://HOST:PORT, listen://HOST:PORT, rfc2217://HOST:PORT or a tty")
+    if text.startswith("listen://"):
+        _tcp(text, 0)
+        return text
+    return host_endpoint(text)
 
 
 def sim_endpoint(text: str) -> tuple[str, str | None]:

@@ -26,6 +26,8 @@ def _input_options(p: Any) -> None:
 
 
 def add_bench_parser(sub: Any) -> None:
+    from eyeq_spi import cli_args as ca
+
     e = sub.add_parser("export", help="a capture as VCD waveforms, MDF4 or MCAP",
                        description="Turn a capture into SPI waveforms for PulseView (--vcd), "
                        "decoded signals for asammdf/CANape (--mdf) or raw transfers and decoded "
@@ -44,13 +46,14 @@ def add_bench_parser(sub: Any) -> None:
                        "host reached Running Vision).")
     _input_options(r)
     where = r.add_mutually_exclusive_group(required=True)
-    where.add_argument("--port", metavar="URL",
+    where.add_argument("--port", metavar="URL", type=ca.host_under_test,
                        help="the host under test: socket://HOST:PORT, listen://HOST:PORT, a "
                        "tty or pty path, rfc2217://HOST:PORT")
     where.add_argument("--into-host", action="store_true",
                        help="feed the built-in host emulator in virtual time")
-    r.add_argument("--duration", type=float, help="stop after S seconds of capture time")
-    r.add_argument("--lead", type=float, default=0.5, metavar="S",
+    r.add_argument("--duration", type=ca.number(0, 86_400, lo_open=True, unit="s"),
+                   help="stop after S seconds of capture time, (0, 86400]")
+    r.add_argument("--lead", type=ca.number(0, 3600, unit="s"), default=0.5, metavar="S",
                    help="--port: seconds between the host connecting and the first frame "
                    "(default 0.5)")
     r.add_argument("--json", action="store_true", help="end with one JSON object")

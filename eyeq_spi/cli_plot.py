@@ -65,7 +65,10 @@ def add_plot_parser(sub: Any) -> None:
     src = m.add_mutually_exclusive_group(required=True)
     src.add_argument("--demo", action="store_true",
                      help="host emulator against the embedded simulated EyeQ (as demo)")
-    src.add_argument("--port", metavar="URL", help="host emulator against an EyeQ (as host)")
+    from eyeq_spi.cli_args import host_endpoint
+
+    src.add_argument("--port", metavar="URL", type=host_endpoint,
+                     help="host emulator against an EyeQ (as host)")
     src.add_argument("--replay", metavar="FILE",
                      help="a capture's EyeQ channel replayed into the host emulator (as replay "
                      "--into-host) in capture time")

@@ -111,6 +111,15 @@ BAD: list[tuple[list[str], tuple[str, ...]]] = [
     (["spec", "list", "--sw", "99"], ("--sw", "9.0")),
     (["wireshark", "--output", "/nonexistent-dir/x.lua"], ("--output", "does not exist")),
     (["wireshark", "--sw", "x"], ("--sw",)),
+    # loop:// has nobody on it wherever a peer is named; replay's times are checked too
+    (["monitor", "--port", "loop://"], ("--port", "loop://")),
+    (["monitor", "--port", "socket://127.0.0.1"], ("--port", "HOST:PORT")),
+    (["replay", "FILE", "--port", "loop://"], ("--port", "loop://", "listen://")),
+    (["replay", "FILE", "--port", "listen://127.0.0.1:x"], ("--port", "port must be")),
+    (["replay", "FILE", "--into-host", "--duration", "nan"], ("--duration", "(0, 86400]")),
+    (["replay", "FILE", "--into-host", "--duration", "-2"], ("--duration", "(0, 86400]")),
+    (["replay", "FILE", "--port", "socket://127.0.0.1:1", "--lead", "-1"], ("--lead", "[0, 3600]")),
+    (["sim", "--port", "loop://"], ("--port", "pty")),
 ]
 
 
