@@ -47,3 +47,17 @@ def test_a_changed_option_makes_the_check_fail() -> None:
     stale = head + tool.BEGIN + tail.replace("--virtual-time", "--virtual-tyme", 1)
     assert stale != readme
     assert tool.splice(stale, tool.render()) != stale
+
+
+def test_readme_docs_and_specs_point_at_nothing_outside_the_repository() -> None:
+    """A clone has no ../shared: README, docs/ and specs/ restate what they need (issue 10)."""
+    import re
+
+    outside = re.compile(r"\.\./shared|(?<![\w.-])shared/(seeds|PROTOCOL)|/work/")
+    paths = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")),
+             *sorted(p for p in (ROOT / "specs").rglob("*") if p.suffix in (".md", ".yaml"))]
+    hits = [f"{p.relative_to(ROOT)}:{n}: {line.strip()}" for p in paths
+            for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+            if outside.search(line)]
+    assert len(paths) > 20 and hits == []
+    assert outside.search("see ../shared/PROTOCOL_DECISIONS.md")  # the pattern can match
