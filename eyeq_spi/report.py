@@ -69,6 +69,9 @@ def _losses(s: dict[str, Any]) -> str | None:
 def _finish(s: dict[str, Any], first_problem: str | None) -> dict[str, Any]:
     s["problem"] = first_problem or _losses(s)
     s["ok"] = s["problem"] is None
+    s.setdefault("scheduling", None)  # host, sim: the CPU policy obtained (runner/sched.py)
+    s.setdefault("sessions", [])  # sim: one entry per host served
+    s.setdefault("link_lost", None)  # host: why the link was lost, if it was
     return s
 
 

@@ -42,6 +42,13 @@ def test_host_and_sim_processes_reach_running_vision_over_tcp(tmp_path: Path) ->
     assert 0 <= out["running_vision_since"] <= out["elapsed_s"]
     assert sim_sum["interrupted"] is True and sim_sum["connections"] == 1
     assert 0 <= sim_sum["running_vision_since"] <= sim_sum["elapsed_s"], sim_sum
+    # demo, host and sim print one schema (README, Run summaries)
+    demo = subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "demo", "--virtual-time",
+                           "--duration", "1", "--json"], cwd=ROOT, capture_output=True,
+                          text=True, timeout=60)
+    demo_sum = json.loads(demo.stdout.strip().splitlines()[-1])
+    assert sorted(demo_sum) == sorted(out) == sorted(sim_sum)
+    assert demo_sum["scheduling"] is None and out["scheduling"] and sim_sum["scheduling"]
     assert out["state"] == "RUNNING_VISION", host.stderr[-2000:] + host.stdout[-2000:]
     # the exit code and the summary agree; losses, if any, are named (tools/soak_live.py and
     # tests/test_soak_live.py hold the zero-loss bar)
