@@ -136,7 +136,8 @@ def run_dissect(args: argparse.Namespace) -> int:
             try:
                 _, records = open_records(fh, args.format, args.direction, spi_options_from(args))
                 dis = Dissector(codec=codec)
-                batched = (br.batch_items(fh, args.format, args.direction, codec)
+                batched = (br.batch_items(fh, args.format, args.direction, codec,
+                                          fields=bool(writers))
                            if br is not None else None)
                 for r in _with_progress(batched or _all(dis, records), fh, path,
                                         stdout_busy=bool(writers) and table is None):

@@ -12,17 +12,24 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from eyeq_spi.capture.fastread import chunks_from_records
+from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.codec.e2e import E2EState, protect, verify, verify_reference
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.codec.vdecode import crc_rows, vec_layout
 from eyeq_spi.crc import crc16
+from eyeq_spi.dissect import batch, engine
 from eyeq_spi.dissect.engine import _check_enums
 from eyeq_spi.dissect.output import flatten
+from eyeq_spi.dissect.vframes import FrameBlock
+from eyeq_spi.link.frame import FrameCodec
 from eyeq_spi.spec.catalog import catalog
+from eyeq_spi.transport.segment import segment
 from tests.strategies import layout_values
 
 CAT = catalog()
+FC = FrameCodec()
 SETTINGS = settings(max_examples=4, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                            HealthCheck.large_base_example])
@@ -182,3 +189,109 @@ def test_float_columns_keep_binary32_values() -> None:
     off = vl.dtype.fields[leaf.field][1]
     arr[0, off : off + 4] = np.frombuffer(struct.pack("<f", 0.1), np.uint8)
     assert vl.columns(arr)[leaf.name][0].item() == struct.unpack("<f", struct.pack("<f", 0.1))[0]
+
+
+# -- the batch dissector's span messages (dissect/vmessages.py) ------------------------------
+def _capture(faults: list[tuple[int, int]]) -> list[Record]:
+    """e2h DASP traffic (failsafe, obstacles, SRP, light sensor, timesync) in single and
+    multi-frame transfers, each data ID's counters and E2E stepping; ``faults`` (message index,
+    kind) break messages at the application layer only (the link frames stay good)."""
+    codec = MessageCodec()
+    tx = E2EState()
+    names = ["EYEQ_VIS_FAILSAFE_MSG", "EYEQ_VIS_OBSTACLES_MSG", "EYEQ_VIS_SRP_MSG",
+             "EYEQ_VIS_LIGHT_SENSOR_DATA_MSG", "EYEQ_TIMESYNC_MSG"]
+    zero = {n: codec.layout(codec.message(n)).zero_values() for n in names}
+    kinds = dict(faults)
+    out: list[Record] = []
+    num, tid, t = 0, 0, 0.0
+    counters = dict.fromkeys(names, 0)
+    for i in range(40):
+        name = names[i % len(names)]
+        msg = codec.message(name)
+        wire = bytearray(codec.encode_dasp(name, zero[name], counters[name] % 256, tx))
+        counters[name] += 1
+        kind = kinds.get(i)
+        if kind == 1:  # an E2E CRC broken
+            lay = codec.layout(msg)
+            if lay.crc_plan:
+                o = 4 + lay.crc_plan[0].crc_offset
+                wire[o] ^= 0x5A
+        elif kind == 2:  # a DASP counter gap
+            counters[name] += 3
+        elif kind == 3:  # reserved byte set
+            wire[3] = 0x80
+        elif kind == 4:  # an undefined enum value, CRCs made good again
+            lay = codec.layout(msg)
+            vl = vec_layout(lay, codec.cat)
+            if vl.enums:
+                e = vl.enums[i % len(vl.enums)]
+                off, dt = vl.dtype.fields[e.leaf.field][1], vl.dtype.fields[e.leaf.field][0]
+                mask = e.leaf.mask if e.leaf.mask is not None else (1 << (8 * dt.itemsize)) - 1
+                bad = next((x for x in range(mask + 1) if x not in set(e.values.tolist())),
+                           None)
+                if bad is not None:
+                    old = int.from_bytes(wire[4 + off : 4 + off + dt.itemsize], "little")
+                    new = (old & ~(mask << e.leaf.shift)) | (bad << e.leaf.shift)
+                    wire[4 + off : 4 + off + dt.itemsize] = new.to_bytes(dt.itemsize, "little")
+                    payload = bytearray(wire[4:])
+                    protect(payload, lay, None)
+                    wire[4:] = payload
+        elif kind == 5:  # wrong length
+            wire = wire[:-1]
+        elif kind == 6:  # an E2E rolling counter jump
+            lay = codec.layout(msg)
+            for p in lay.crc_plan:
+                k = (lay.name, f"{p.path}#{p.field}")
+                if k in tx.sent:
+                    tx.sent[k] += 2
+        elif kind == 7:  # an unknown data ID
+            wire[1] = 0xFE
+        for part in segment(bytes(wire), tid):
+            out.append(Record(round(t, 6), "e2h", FC.data_frame(0, num, part)))
+            num = (num + 1) % 4096
+            t += 0.0003
+        tid = (tid + 1) % 256
+        t += 0.002
+    return out
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 39), st.integers(1, 7)), max_size=6),
+       st.sampled_from([7, 64, 1 << 15]))
+def test_span_messages_agree_with_the_engine_under_application_faults(
+        faults: list[tuple[int, int]], chunk: int) -> None:
+    recs = _capture(faults)
+    want = list(engine.iter_records(recs))
+    got = list(batch.iter_records(chunks_from_records(recs, chunk)))
+    assert got == want
+    lean = list(batch.iter_records(chunks_from_records(recs, chunk), fields=False))
+    assert len(lean) == len(want)
+    for a, b in zip(want, lean, strict=True):
+        if b["kind"] == "message" and b["protocol"] == "DASP" and not b["fields"]:
+            a = {**a, "fields": {}}
+        assert a == b
+
+
+def test_application_faults_reach_the_vectorised_groups() -> None:
+    """The faults above are judged by vmessages' groups, not only by the exact fallback."""
+    recs = _capture([(1, 1), (6, 6), (11, 4), (13, 4), (16, 3), (22, 2)])
+    items = list(batch.iter_items(chunks_from_records(recs, 1 << 15)))
+    msgs = [m for b in items if isinstance(b, FrameBlock) for _, m in b.messages]
+    errors = [e for m in msgs for e in m["errors"]]
+    for needle in ("E2E CRC mismatch", "E2E counter jump", "bad enum value", "reserved byte",
+                   "DASP counter gap"):
+        assert any(needle in e for e in errors), needle
+    assert want_equal(recs)
+
+
+def want_equal(recs: list[Record]) -> bool:
+    return list(engine.iter_records(recs)) == list(batch.iter_records(
+        chunks_from_records(recs, 1 << 15)))
+
+
+def test_no_two_dasp_messages_share_a_layout() -> None:
+    """vmessages judges (direction, data ID) groups independently: E2E counters are keyed by
+    layout, so that needs one layout per data ID in every release."""
+    for sw in CAT.sw_versions:
+        payloads = [m.payload for m in CAT.messages if m.protocol == "DASP" and m.exists_in(sw)]
+        assert len(payloads) == len(set(payloads)), sw

@@ -102,6 +102,14 @@ class MessageCodec:
             raise SpecError(f"{name} does not exist in {self.sw}")
         return msg
 
+    def dasp_message(self, data_id: int) -> MessageDef | None:
+        """The DASP message with ``data_id`` in this SW release (cached), None if unknown."""
+        try:
+            return self._dasp[data_id]
+        except KeyError:
+            msg = self._dasp[data_id] = self.cat.dasp_by_id(data_id, self.sw)
+            return msg
+
     # -- encode ------------------------------------------------------------------------------
     def encode_payload(
         self, msg: MessageDef, fields: dict[str, Any], e2e: E2EState | None = None
@@ -157,10 +165,7 @@ class MessageCodec:
         out.header = {"data_id": data_id, "counter": counter}
         if reserved != 0:
             out.errors.append(f"DASP reserved byte is 0x{reserved:02X}, not 0")
-        try:
-            msg = self._dasp[data_id]
-        except KeyError:
-            msg = self._dasp[data_id] = self.cat.dasp_by_id(data_id, self.sw)
+        msg = self.dasp_message(data_id)
         if msg is None:
             out.errors.append(f"BadHdr: unknown DASP data ID 0x{data_id:02X} in {self.sw}")
             return out

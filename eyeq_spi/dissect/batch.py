@@ -46,6 +46,7 @@ from eyeq_spi.capture.fastread import DIR_NAME, Chunk
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine import Dissector
 from eyeq_spi.dissect.vframes import DATA, FrameArrays, FrameBlock, frame_arrays
+from eyeq_spi.dissect.vmessages import SpanDecoder, SpanMessage
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import SEQ_MODULO
 from eyeq_spi.spec.link import link_spec
@@ -117,8 +118,11 @@ class _Dir:
 class BatchDissector:
     """Chunks in, records (dicts) and :class:`FrameBlock` items out, in capture order."""
 
-    def __init__(self, sw: str | None = None, codec: MessageCodec | None = None) -> None:
+    def __init__(self, sw: str | None = None, codec: MessageCodec | None = None,
+                 *, fields: bool = True) -> None:
         self.dis = Dissector(sw, codec)
+        self.fields = fields  # False: DASP span messages get no "fields" (--stats alone)
+        self.decode = SpanDecoder(self.dis, fields=fields)
         self.base = 0
         self.dirs: dict[int, _Dir] = {}
         self.deadline: float | None = None
@@ -339,8 +343,9 @@ class BatchDissector:
                 st.ui += 1
         if len(done) > 1:
             done.sort(key=lambda x: x[0])
-        for row, st, u in done:
-            block.messages.append((row, self._message(fa, st, u, row)))
+        msgs = [self._message(fa, st, u, row) for row, st, u in done]
+        for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
+            block.messages.append((row, rec))
         t = fa.tfill[hi - 1]
         self.dis.last_time = None if t != t else float(t)
         return block
@@ -357,7 +362,7 @@ class BatchDissector:
             out.append((data[r].tobytes(), None if t != t else t, nums[r], fa.base + r))
         return out
 
-    def _message(self, fa: FrameArrays, st: _Dir, u: _Unit, row: int) -> dict[str, Any]:
+    def _message(self, fa: FrameArrays, st: _Dir, u: _Unit, row: int) -> SpanMessage:
         tid: int | None = None
         if u.first:
             frames = self._frames(fa, st, u.ks, u.ke)
@@ -375,8 +380,8 @@ class BatchDissector:
         dobj = self.dis._dirs[st.name]
         dobj.index_of_num.update(zip(nums, idxs, strict=True))
         t = fa.tfill[row]
-        self.dis.last_time = None if t != t else float(t)
-        return self.dis._message(st.name, dobj, MessageReceived(msg, nums, tid))
+        return SpanMessage(st.name, MessageReceived(msg, nums, tid), None if t != t else float(t),
+                           [dobj.index_of_num.get(n) for n in nums])
 
     # -- span state: what the receiver would hold --------------------------------------------
     def _state(self, st: _Dir, fa: FrameArrays | None
@@ -462,17 +467,18 @@ def _is_first(transfer: bytes) -> bool:
 
 
 def iter_items(chunks: Iterable[Chunk], *, sw: str | None = None,
-               codec: MessageCodec | None = None) -> Iterator[Item]:
-    bd = BatchDissector(sw, codec)
+               codec: MessageCodec | None = None, fields: bool = True) -> Iterator[Item]:
+    bd = BatchDissector(sw, codec, fields=fields)
     for c in chunks:
         yield from bd.feed(c)
     yield from bd.finish()
 
 
 def iter_records(chunks: Iterable[Chunk], *, sw: str | None = None,
-                 codec: MessageCodec | None = None) -> Iterator[dict[str, Any]]:
+                 codec: MessageCodec | None = None, fields: bool = True
+                 ) -> Iterator[dict[str, Any]]:
     """Every record, as :func:`.engine.iter_records` gives them."""
-    for item in iter_items(chunks, sw=sw, codec=codec):
+    for item in iter_items(chunks, sw=sw, codec=codec, fields=fields):
         if isinstance(item, FrameBlock):
             yield from item.records()
         else:

@@ -29,9 +29,10 @@ __all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "is_plain", "
 
 
 def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
-                codec: MessageCodec) -> Iterator[Item] | None:
+                codec: MessageCodec, *, fields: bool = True) -> Iterator[Item] | None:
     """The batch path's items for a seekable pcapng or raw file (read from its start), else
-    None: the exact path goes on, ``fh`` at the position it had."""
+    None: the exact path goes on, ``fh`` at the position it had. ``fields=False``: only
+    ``--stats`` reads the records, so DASP fields are not decoded (vmessages.SpanDecoder)."""
     try:
         if not fh.seekable():
             return None
@@ -46,16 +47,17 @@ def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
         kind = None  # the exact path reports it, with its own words
     if kind == "pcapng" and head[:4] == PCAPNG_MAGIC:
         fh.seek(0)
-        return _items(pcapng_chunks(fh), codec)
+        return _items(pcapng_chunks(fh), codec, fields)
     if kind == "raw" and head:
         fh.seek(0)
-        return _items(raw_chunks(fh, direction), codec)
+        return _items(raw_chunks(fh, direction), codec, fields)
     fh.seek(pos)
     return None
 
 
-def _items(chunks: Iterator[Chunk], codec: MessageCodec) -> Iterator[Item]:
-    bd = BatchDissector(codec=codec)
+def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: bool = True
+           ) -> Iterator[Item]:
+    bd = BatchDissector(codec=codec, fields=fields)
     try:
         for c in chunks:
             yield from bd.feed(c)
