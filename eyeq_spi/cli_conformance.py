@@ -6,10 +6,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from eyeq_spi import cli_args as ca
 from eyeq_spi.errors import UsageError
+
+if TYPE_CHECKING:
+    from eyeq_spi.conformance.suite import Options
 
 
 def add_conformance_parser(sub: Any) -> None:
@@ -78,7 +81,7 @@ def run_conformance(args: argparse.Namespace) -> int:
             raise UsageError("--dut eyeq needs --port URL (or --builtin)")
         opts.port = args.port
     elif not args.builtin:
-        opts.adapter = _listener(args)
+        opts.adapter = _listener(args, opts)
     try:
         results = run(opts)
     finally:
@@ -93,13 +96,19 @@ def run_conformance(args: argparse.Namespace) -> int:
     return report.exit_code(results)
 
 
-def _listener(args: argparse.Namespace) -> Any:
+def _listener(args: argparse.Namespace, opts: Options) -> Any:
     if args.pty:
         from eyeq_spi.phy.pty import PtyAdapter
 
-        adapter: Any = PtyAdapter()
-        print(f"PTY {adapter.path}", file=sys.stderr if args.json else sys.stdout, flush=True)
-        return adapter
+        def fresh() -> Any:
+            if opts.adapter is not None:
+                opts.adapter.close()
+            pty = PtyAdapter()
+            print(f"PTY {pty.path}", file=sys.stderr if args.json else sys.stdout, flush=True)
+            return pty
+
+        opts.reopen = fresh  # one pty per ignition cycle: the host opens each in turn
+        return fresh()
     if not args.listen:
         raise UsageError("--dut host needs --listen tcp://HOST:PORT or --pty (or --builtin)")
     try:
@@ -110,6 +119,6 @@ def _listener(args: argparse.Namespace) -> Any:
         raise UsageError("--listen takes tcp://HOST:PORT")
     from eyeq_spi.phy.base import open_url
 
-    adapter = open_url("listen://" + url[len("tcp://"):], timeout=args.accept_timeout)
+    adapter: Any = open_url("listen://" + url[len("tcp://"):], timeout=args.accept_timeout)
     print(f"LISTEN {adapter.url}", file=sys.stderr if args.json else sys.stdout, flush=True)
     return adapter

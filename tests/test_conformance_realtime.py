@@ -1,87 +1,130 @@
 """The conformance suite in real time against ``eyeq-spi sim`` and ``eyeq-spi host`` run as
-separate processes, over TCP (bounded; the long TAC/SPC flows and the sessions that need the
-host to reconnect are left to --builtin).
+separate processes, over TCP and over a pty (issue 12, Done-when). Bounded wall-clock tests.
 
-Only cases that do not depend on the schedule must pass here: on a loaded 2-core CI machine the
-peer process misses its own 18/37/66.67 Hz schedule and its ACK deadlines, and the suite rightly
-reports that (rates, deadlines, counters of lost messages). Those cases must still get a
-verdict with evidence."""
+Both DUT kinds run the whole suite: the EyeQ one session, the host its three ignition cycles
+(over TCP the host reconnects; over --pty each cycle gets a fresh pty and a new host process
+opens it). Our own implementations are conformant, so no case may fail. On a loaded machine
+the timing cases may come out ``inconclusive``, but only with the evidence of our own loop's
+stalls in the same run (conformance/load.py); every case that does not turn on the schedule
+must pass."""
 
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
+import threading
+import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+from eyeq_spi.conformance.cases import cases_for
+from eyeq_spi.conformance.load import rule_for
+
 ROOT = Path(__file__).resolve().parents[1]
 CLI = [sys.executable, "-m", "eyeq_spi.cli"]
+LIGHT = ["--objects", "1", "--signs", "1", "--light-spots", "1"]
+# not observable on the link (a host reports stale streams elsewhere)
+UNOBSERVABLE = {"HOST-STALE"}
 
 
-STRUCTURAL = {"LINK-SIZE", "LINK-CRC", "LINK-NUM", "LINK-NAK-CRC", "LINK-NAK-FORMAT",
-              "LINK-NAK-WINDOW", "LINK-NORESEND", "TP-FORMAT", "MESP-TAG",
-              "DASP-LENGTH", "DASP-UNUSED", "FLOW-BOOT-FIRST", "FLOW-PENDING", "FLOW-RUNNING",
-              "MESP-REQTAG", "MESP-LATE", "HOST-VERSIONS", "HOST-INIT-ORDER"}
-
-
-def _verdicts(stdout: str) -> dict[str, str]:
+def _records(stdout: str) -> dict[str, dict[str, Any]]:
     out = {}
     for line in stdout.splitlines():
         rec = json.loads(line)
-        if rec["kind"] == "case":
-            out[rec["id"]] = rec["verdict"]
+        out[rec["id"] if rec["kind"] == "case" else "summary"] = rec
     return out
 
 
+def _judge_run(dut: str, code: int, stdout: str, stderr: str) -> None:
+    recs = _records(stdout)
+    ids = {c.id for c in cases_for(dut)}
+    assert ids <= set(recs), (ids - set(recs), stderr[-2000:])
+    assert code == 0, ([(k, r["evidence"]) for k, r in recs.items()
+                        if r.get("verdict") == "fail"], stderr[-2000:])
+    for k in ids:
+        rec = recs[k]
+        v, ev = rec["verdict"], rec["evidence"]
+        assert ev, k
+        if k in UNOBSERVABLE:
+            assert v == "inconclusive", (k, ev)
+        elif rule_for(next(c for c in cases_for(dut) if c.id == k), dut, None) is not None:
+            # a timing case: pass, or inconclusive because our own loop stalled
+            assert v == "pass" or (v == "inconclusive" and "our own loop stalled" in ev), \
+                (k, v, ev)
+            assert "our own loop" in ev  # the gauge is stated either way
+        else:
+            assert v == "pass", (k, v, ev)
+
+
 @pytest.mark.realtime
-def test_eyeq_suite_against_a_sim_process_over_tcp() -> None:
-    sim = subprocess.Popen([*CLI, "sim", "--listen", "tcp://127.0.0.1:0", "--duration", "60",
-                            "--accept-timeout", "30", "--objects", "1", "--signs", "1",
-                            "--light-spots", "1"],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+@pytest.mark.parametrize("where", ["tcp", "pty"])
+def test_eyeq_suite_against_a_sim_process(where: str) -> None:
+    how = ["--listen", "tcp://127.0.0.1:0"] if where == "tcp" else ["--pty"]
+    sim = subprocess.Popen([*CLI, "sim", *how, "--duration", "90", "--accept-timeout", "30",
+                            *LIGHT], cwd=ROOT, stdout=subprocess.PIPE,
+                           stderr=subprocess.DEVNULL, text=True)
     try:
         assert sim.stdout is not None
         line = sim.stdout.readline().split()
-        assert line and line[0] == "LISTEN", line
-        res = subprocess.run(
-            [*CLI, "conformance", "--dut", "eyeq", "--port", line[1], "--json", "-k",
-             "not flows and not TAC and not SPC and not SwitchEyeQApplication"],
-            cwd=ROOT, capture_output=True, text=True, timeout=90)
+        assert line and line[0] in ("LISTEN", "PTY"), line
+        res = subprocess.run([*CLI, "conformance", "--dut", "eyeq", "--port", line[1],
+                              "--json"], cwd=ROOT, capture_output=True, text=True, timeout=120)
     finally:
         sim.kill()
         sim.wait(timeout=10)
-    verdicts = _verdicts(res.stdout)
-    assert res.returncode in (0, 1) and len(verdicts) > 30, res.stderr[-2000:]
-    failed = {k for k, v in verdicts.items() if v == "fail"} & STRUCTURAL
-    assert not failed, (failed, res.stdout[-3000:])
-    assert verdicts["LINK-GAP"] in ("pass", "fail")  # judged, now that time is real
+    _judge_run("eyeq", res.returncode, res.stdout, res.stderr)
 
 
 @pytest.mark.realtime
-def test_host_suite_against_a_host_process_over_tcp(tmp_path: Path) -> None:
-    conf = subprocess.Popen(
-        [*CLI, "conformance", "--dut", "host", "--listen", "tcp://127.0.0.1:0", "--json",
-         "--accept-timeout", "30", "-k", "not EEPROM-BAD and not BOOT-RESETS and not FATAL22"],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    host = None
-    try:
+@pytest.mark.parametrize("where", ["tcp", "pty"])
+def test_host_suite_against_host_processes(where: str, tmp_path: Path) -> None:
+    how = ["--listen", "tcp://127.0.0.1:0"] if where == "tcp" else ["--pty"]
+    conf = subprocess.Popen([*CLI, "conformance", "--dut", "host", *how, "--json",
+                             "--accept-timeout", "30"], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    urls: list[str] = []
+    err: list[str] = []
+
+    def read_stderr() -> None:  # LISTEN URL once, or PTY PATH once per ignition cycle
         assert conf.stderr is not None
-        line = conf.stderr.readline().split()
-        assert line and line[0] == "LISTEN", line
-        host = subprocess.Popen([*CLI, "host", "--port", line[1], "--duration", "40",
-                                 "--nvm", str(tmp_path / "nvm.json")],
-                                cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        out, err = conf.communicate(timeout=90)
+        for raw in conf.stderr:
+            err.append(raw)
+            part = raw.split()
+            if len(part) == 2 and part[0] in ("LISTEN", "PTY"):
+                urls.append(part[1])
+
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
+    host: subprocess.Popen[bytes] | None = None
+    used = None
+    out = ""
+    try:
+        deadline = time.monotonic() + 150
+        while conf.poll() is None and time.monotonic() < deadline:
+            # one ECU: its NVM outlives the ignition cycle; a new cycle is a new connection
+            if urls and (host is None or host.poll() is not None or used != len(urls)):
+                if host is not None:
+                    host.kill()
+                    host.wait(timeout=10)
+                used = len(urls)
+                host = subprocess.Popen(
+                    [*CLI, "host", "--port", urls[-1], "--duration", "60", "--reconnect",
+                     "--nvm", str(tmp_path / "nvm.json"), *LIGHT[:0]],
+                    cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            time.sleep(0.05)
+        assert conf.poll() is not None, "the suite did not finish within 150 s"
+        assert conf.stdout is not None
+        out = conf.stdout.read()
     finally:
         conf.kill()
+        conf.wait(timeout=10)
         if host is not None:
             host.kill()
             host.wait(timeout=10)
-    verdicts = _verdicts(out)
-    assert conf.returncode in (0, 1) and len(verdicts) > 20, err[-2000:]
-    failed = {k for k, v in verdicts.items() if v == "fail"} & STRUCTURAL
-    assert not failed, (failed, out[-3000:])
-    assert verdicts["LINK-GAP"] in ("pass", "fail")
-    assert verdicts["HOST-STALE"] == "inconclusive"  # not observable on the link
+        reader.join(timeout=5)
+    if where == "pty":
+        assert len(urls) == 3  # one pty per ignition cycle
+    _judge_run("host", conf.returncode, out, "".join(err))

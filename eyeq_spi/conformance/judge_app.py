@@ -248,11 +248,21 @@ def _defs(tr: Trace) -> dict[int, MessageDef]:
             and m.exists_in(tr.codec.sw)}
 
 
+def bring_ups(tr: Trace) -> list[float]:
+    """When the implementation under test started its application again: an EyeQ's boot
+    status, a host's Init_Params_Vision (0x92). Its counters may start afresh there: after one
+    of our resets it keeps counting until it notices the reset (real time), then restarts."""
+    if tr.dut == "eyeq":
+        return [m.time for m in tr.dut_msgs("EYEQ_BOOT_STATUS_MSG")]
+    return [m.time for m in tr.dut_msgs("EventCalibrationTool")
+            if is_request(m) and m.fields.get("ct_stage") == 0x92]
+
+
 def segments(tr: Trace, msgs: list[Msg], period: float) -> list[list[Msg]]:
     """Runs of one stream without a gap of 3 periods, a fault window, a reset or a mode
     change in between: the spans in which counters and rates must hold."""
     mode = _mode_at(tr)
-    resets = tr.resets()
+    resets = tr.resets() + bring_ups(tr)
     out: list[list[Msg]] = []
     cur: list[Msg] = []
     for m in msgs:

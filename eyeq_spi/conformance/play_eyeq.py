@@ -75,9 +75,11 @@ class TesterEyeQ(SimulatedEyeQ):
         if is_mesp(data) and (data[0], data[3]) == SWITCH and not data[4] & 0x80 \
                 and data[5:6] == bytes([APP_VISION]):
             self.reset_times.append(now)
+            if self.trace is not None:
+                # the host restarts its bring-up, and with it its DASP and E2E counters
+                self.trace.mark(now, "soft_reset")
             if not self.app_running:
                 if self.trace is not None:
-                    self.trace.mark(now, "soft_reset")
                     self.trace.restart_passive(self.trace.our_dir)
                 self.power_up(now)  # a soft reset while booting: boot again
                 return

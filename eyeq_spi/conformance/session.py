@@ -9,8 +9,10 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from eyeq_spi.conformance.load import STALL_MIN
 from eyeq_spi.conformance.shim import Shim
 from eyeq_spi.conformance.trace import Trace
+from eyeq_spi.errors import LinkLostError
 from eyeq_spi.phy.base import Adapter
 from eyeq_spi.phy.memory import memory_pair
 from eyeq_spi.runner.node import Node
@@ -32,6 +34,8 @@ class Session:
         self.adapter = adapter
         self._virtual: VirtualRunner | None = None
         self._rt: RealTimeRunner | None = None
+        self._last_turn: float | None = None  # real time: when the loop last came round
+        self.peer_left: float | None = None  # real time: when the peer closed the link
         if dut is not None:
             a, b = memory_pair()
             self._virtual = VirtualRunner([(self.shim, a), (dut, b)])
@@ -56,17 +60,33 @@ class Session:
         self.wait(lambda: False, seconds)
 
     def wait(self, cond: Callable[[], bool], timeout: float) -> bool:
-        """Advance until ``cond()`` holds (True) or ``timeout`` seconds pass (False)."""
+        """Advance until ``cond()`` holds (True) or ``timeout`` seconds pass (False). Once the
+        peer has left (a host that stops may close its port), time stands still: False."""
         end = self.now + timeout
         while not cond():
+            if self.peer_left is not None:
+                return False
             if self.now >= end - 1e-9:
                 return False
             if self._virtual is not None:
                 self._virtual.run_until(min(end, self._virtual.now + SLICE))
             else:
                 assert self._rt is not None
-                self._rt.step()
+                self._turn()
+                try:
+                    self._rt.step()
+                except LinkLostError as exc:
+                    self.peer_left = self.now
+                    self.trace.mark(self.now, "peer_left", error=str(exc))
+                    self.finish()
         return True
+
+    def _turn(self) -> None:
+        """Record a stall when the real-time loop comes round late (load.py)."""
+        now = self.now
+        last, self._last_turn = self._last_turn, now
+        if last is not None and now - last > SLICE + STALL_MIN:
+            self.trace.stalls.append((last, now))
 
     def finish(self) -> None:
         self.trace.end = max(self.trace.end, self.now)

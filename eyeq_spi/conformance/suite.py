@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.conformance.cases import ALL_SESSIONS, Case, cases_for
+from eyeq_spi.conformance.load import temper
 from eyeq_spi.conformance.play_eyeq import EyeqPlan, EyeqScript, TesterEyeQ, tester_config
 from eyeq_spi.conformance.play_host import HostPlan, HostScript, make_tester
 from eyeq_spi.conformance.session import Session
@@ -48,6 +49,9 @@ class Options:
     builtin: bool = False
     port: str | None = None  # --dut eyeq: pyserial URL of the EyeQ
     adapter: Adapter | None = None  # --dut host: a listener or pty the host connects to
+    # --dut host --pty: a fresh pty for each ignition cycle after the first (a pty cannot
+    # tell a new host from the old one); it closes the old adapter and prints the new path
+    reopen: Callable[[], Adapter] | None = None
     accept_timeout: float = 30.0
     select: str | None = None  # -k EXPR
     mutant: str | None = None  # test-only: a broken variant of our own implementation
@@ -124,19 +128,21 @@ def run(opts: Options) -> list[Result]:
                 ctx.traces[name] = tr
     out = []
     for c in cases:
-        out.append(Result(c, _judge(c, ctx)))
+        out.append(Result(c, _judge(c, ctx, opts.sw)))
     return out
 
 
-def _judge(c: Case, ctx: Context) -> Outcome:
+def _judge(c: Case, ctx: Context, sw: str | None = None) -> Outcome:
     name = c.session_for(ctx.dut)
     if name == ALL_SESSIONS:
-        return c.judge(ctx, dict(ctx.traces)) if ctx.traces else \
-            skip("no session could run")
+        if not ctx.traces:
+            return skip("no session could run")
+        out: Outcome = c.judge(ctx, dict(ctx.traces))
+        return temper(c, out, list(ctx.traces.values()), dut=ctx.dut, sw=sw)
     tr = ctx.traces.get(name)
     if tr is None:
         return skip(f"session {name!r} did not run (the host under test did not connect)")
-    return c.judge(ctx, tr)  # type: ignore[no-any-return]
+    return temper(c, c.judge(ctx, tr), [tr], dut=ctx.dut, sw=sw)
 
 
 def _say(opts: Options, text: str) -> None:
@@ -190,9 +196,13 @@ def _host_session(opts: Options, name: str, wanted: set[str], ctx: Context, *,
         accept: Any = getattr(adapter, "accept", None)
         if not first:
             drop: Any = getattr(adapter, "_drop", None)
-            if drop is None:
-                return None  # a pty cannot tell a new host from the old one: TCP only
-            drop()  # end the ignition cycle: the host under test reconnects
+            if drop is not None:
+                drop()  # end the ignition cycle: the host under test reconnects
+            elif opts.reopen is not None:
+                adapter = opts.adapter = opts.reopen()  # the host opens the new pty
+                accept = getattr(adapter, "accept", None)
+            else:
+                return None  # nothing can end the host's ignition cycle
         _say(opts, f"session {name}: waiting for the host to connect")
         if accept is not None and not accept(opts.accept_timeout):
             if first:

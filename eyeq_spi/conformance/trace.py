@@ -90,9 +90,11 @@ class Trace:
         self.realtime = realtime
         self.xfers: list[Xfer] = []
         self._msgs: list[Msg] = []
-        self._unfed: list[Xfer] = []  # reassembly and decoding wait until someone asks
+        # reassembly and decoding wait until someone asks; a str marks a restart of that side
+        self._unfed: list[Xfer | str] = []
         self.marks: list[Mark] = []
         self.faults: list[tuple[float, float, str]] = []  # windows where we disturb the link
+        self.stalls: list[tuple[float, float]] = []  # real time: our own loop came late (load.py)
         self.end = 0.0
         self._passive: dict[str, _Passive] = {d: self._new_passive(d) for d in (H2E, E2H)}
 
@@ -108,9 +110,9 @@ class Trace:
         self.faults.append((start, end, label))
 
     def restart_passive(self, direction: str) -> None:
-        """A side's SPI driver restarted (our simulated reset, or the DUT's): start over."""
-        self._catch_up()
-        self._passive[direction] = self._new_passive(direction)
+        """A side's SPI driver restarted (our simulated reset, or the DUT's): start over, once
+        the frames recorded so far are fed (decoding them now would stall a real-time loop)."""
+        self._unfed.append(direction)
 
     @property
     def msgs(self) -> list[Msg]:
@@ -122,7 +124,10 @@ class Trace:
     def _catch_up(self) -> None:
         unfed, self._unfed = self._unfed, []
         for x in unfed:
-            self._feed(x)
+            if isinstance(x, str):
+                self._passive[x] = self._new_passive(x)
+            else:
+                self._feed(x)
 
     def record(self, direction: str, time: float, data: bytes, probe: str | None = None) -> Xfer:
         idx = len(self.xfers)
@@ -148,8 +153,7 @@ class Trace:
         conn = p.conn
         if x.kind == "DATA" and x.num == 0 and x.rsp == 0 and conn.link.expected_num != 0:
             # L4: NUM 0 and RSP 0 again: that side's driver restarted (a reset we did not see)
-            self.restart_passive(x.direction)
-            p = self._passive[x.direction]
+            p = self._passive[x.direction] = self._new_passive(x.direction)
             conn = p.conn
         timer = conn.get_timer()
         if timer is not None and timer <= x.time:

@@ -1,0 +1,111 @@
+"""The load gauge of a real-time run: our own scheduling, measured in the same run, tells a
+timing verdict the implementation under test earned from one a loaded machine made.
+
+A real-time session's loop (:meth:`Session.wait`) should come round every ``SLICE``; whenever
+it comes round later than ``SLICE + STALL_MIN`` we record a stall (start, end) in the trace. A
+stall of ours shifts the receive times of everything that arrived during it (they bunch), delays
+our ACKs past the peer's ackTimeout (§6: a frame not ACKed in 10 ms is lost, L7, so its message
+and its counters go missing), and tells that the machine, which the peer shares when it runs
+beside us, was short of CPU.
+
+Each timing-dependent case has a tolerance: the shortest time its verdict turns on (a rate's
+period tolerance, the 10 ms ackTimeout for lost messages, 100 ms of the 500 ms MESP deadline).
+In real time a ``fail`` of such a case, in a run where one of our own stalls reached that
+tolerance, becomes ``inconclusive`` with both pieces of evidence: the violation seen and our
+stalls. A ``pass`` keeps its verdict and states our worst stall. In virtual time nothing
+changes. A run on a quiet machine keeps every fail.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from eyeq_spi.conformance.cases import Case
+from eyeq_spi.conformance.trace import Trace
+from eyeq_spi.conformance.verdict import Outcome, at, unsure
+from eyeq_spi.spec.catalog import catalog
+from eyeq_spi.spec.link import link_spec
+
+STALL_MIN = 0.002  # seconds beyond SLICE before a late loop turn counts as a stall
+_TIMING = link_spec()["timing"]
+ACK_TIMEOUT = float(_TIMING["ackTimeout"])
+GAP_SPAN = 50  # LINK-GAP judges 50-frame means (judge_link.link_gap)
+
+_Rule = tuple[float, Callable[[str], bool]]
+
+
+def _any(evidence: str) -> bool:
+    return True
+
+
+def _counter_only(evidence: str) -> bool:
+    # DASP-E2E: a rollingFrameCount jump follows a lost message; a CRC mismatch never does
+    return "rollingFrameCount" in evidence or "counter" in evidence
+
+
+def _rules(dut: str, sw: str | None) -> dict[str, _Rule]:
+    gap = float(_TIMING["frameFlowControl"][dut])
+    rules: dict[str, _Rule] = {
+        "LINK-GAP": (GAP_SPAN * gap / 2, _any),  # half the span's gap compressed into a burst
+        "LINK-TXTIMEOUT": (ACK_TIMEOUT, _any),
+        "LINK-ACK": (ACK_TIMEOUT, _any),
+        "LINK-WINDOW": (ACK_TIMEOUT, _any),  # "unacknowledged" counts frames younger than 10 ms
+        "MESP-DEADLINE": (0.1, _any),
+        "DIAG-RATE": (0.025, _any),  # 0x41's tolerance, -25/+50 ms (§7.1.5)
+        "DASP-COUNTER": (ACK_TIMEOUT, _any),
+        "DASP-E2E": (ACK_TIMEOUT, _counter_only),
+        "TP-ABORT": (ACK_TIMEOUT, _any),  # our own frames 25 ms apart by accident
+    }
+    cat = catalog()
+    key = cat.sw(sw)
+    for m in cat.messages:
+        if m.protocol != "DASP" or not m.exists_in(key) or m.rate_hz is None:
+            continue
+        lo, hi = m.tolerance_ms or (0.0, 0.0)
+        tol = max(min(abs(lo), abs(hi)), 1.0) / 1e3
+        for mode in m.modes:
+            rules[f"DASP-RATE-{mode}-{m.name}"] = (tol, _any)
+    return rules
+
+
+_CACHE: dict[tuple[str, str | None], dict[str, _Rule]] = {}
+
+
+def rule_for(case: Case, dut: str, sw: str | None) -> _Rule | None:
+    key = (dut, sw)
+    if key not in _CACHE:
+        _CACHE[key] = _rules(dut, sw)
+    return _CACHE[key].get(case.id)
+
+
+def stalls_of(traces: list[Trace]) -> list[tuple[float, float]]:
+    return [s for tr in traces for s in tr.stalls]
+
+
+def describe(stalls: list[tuple[float, float]], tol: float) -> str:
+    if not stalls:
+        return "our own loop never stalled in this run"
+    worst = max(stalls, key=lambda s: s[1] - s[0])
+    over = sum(1 for a, b in stalls if b - a >= tol)
+    return (f"our own loop stalled {len(stalls)} times, {over} of them >= {1e3 * tol:.1f} ms, "
+            f"worst {1e3 * (worst[1] - worst[0]):.1f} ms at {at(worst[0])}")
+
+
+def temper(case: Case, outcome: Outcome, traces: list[Trace], *, dut: str,
+           sw: str | None) -> Outcome:
+    """A real-time timing verdict, weighed against our own stalls in the same run."""
+    if not traces or not all(tr.realtime for tr in traces):
+        return outcome
+    rule = rule_for(case, dut, sw)
+    if rule is None or outcome.verdict not in ("pass", "fail"):
+        return outcome
+    tol, applies = rule
+    stalls = stalls_of(traces)
+    gauge = describe(stalls, tol)
+    if outcome.verdict == "pass":
+        return Outcome("pass", f"{outcome.evidence} ({gauge})")
+    if not applies(outcome.evidence) or not any(b - a >= tol for a, b in stalls):
+        return Outcome("fail", f"{outcome.evidence} ({gauge}: the machine was not the cause)")
+    return unsure(f"{outcome.evidence}; but {gauge}: the machine was loaded, so this timing "
+                  "cannot be blamed on the implementation under test (rerun on a quiet "
+                  "machine)")
