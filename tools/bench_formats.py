@@ -3,10 +3,12 @@
 an in-run baseline: reading the same transfers from our own pcapng captures.
 
 A demo capture (virtual time) is converted in memory to raw, hex, pcapng, Saleae Logic 2,
-Saleae Logic 1.x and VCD; each is read ``--repeat`` times through ``open_records`` (reading
-only) and once more through the dissector engine (reading + decoding). Export speeds (VCD,
-MDF4, MCAP writers) close the table. Figures: median and spread (min-max) of the repeats, and
-the ratio to the baseline's median.
+Saleae Logic 1.x and VCD (our layout, one change per line, and sigrok's/PulseView's, a time and
+its changes on one line); each is read ``--repeat`` times through ``open_records`` (reading
+only), the logic formats once more through their exact loops alone (the csv loops, the VCD
+token loop: the readers without their vectorised paths), and once more through the dissector
+engine (reading + decoding). Export speeds (VCD, MDF4, MCAP writers) close the table.
+Figures: median and spread (min-max) of the repeats, and the ratio to the baseline's median.
 
     python tools/bench_formats.py [--duration 2] [--repeat 5]
 """
@@ -15,12 +17,13 @@ from __future__ import annotations
 
 import argparse
 import binascii
+import contextlib
 import io
 import statistics
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from eyeq_spi.capture.pcapng_io import Record, read_pcapng
@@ -65,7 +68,37 @@ def _formats(recs: list[Record], pcapng: bytes) -> dict[str, tuple[bytes, dict[s
         "saleae2": ("\n".join(s2).encode() + b"\n", {}),
         "saleae1": ("\n".join(s1).encode() + b"\n", {"direction": "e2h"}),
         "vcd": (vcd.getvalue().encode(), {}),
+        "vcd-sigrok": (_sigrok_layout(vcd.getvalue()).encode(), {"format": "vcd"}),
     }
+
+
+def _sigrok_layout(text: str) -> str:
+    """Our VCD with each time and its changes on one line, as sigrok and PulseView write it."""
+    head, body = text.split("$enddefinitions $end\n", 1)
+    out: list[str] = []
+    for line in body.split("\n"):
+        if out and not line.startswith(("#", "$")) and not out[-1].startswith("$"):
+            out[-1] += " " + line
+        else:
+            out.append(line)
+    return head + "$enddefinitions $end\n" + "\n".join(out)
+
+
+@contextlib.contextmanager
+def _exact_loops() -> Iterator[None]:
+    """The readers without their vectorised paths: the csv loops and the VCD token loop (what
+    the logic formats ran before the vectorised paths, except our own VCD layout, which had a
+    slower vectorised path)."""
+    from eyeq_spi.logic import saleae_fast, vcd_fast
+
+    keep = saleae_fast.saleae2_chunk, saleae_fast.saleae1_chunk, vcd_fast.FastPath.build
+    saleae_fast.saleae2_chunk = saleae_fast.saleae1_chunk = lambda *a, **k: None  # type: ignore[assignment]
+    vcd_fast.FastPath.build = classmethod(lambda cls, table: None)  # type: ignore[method-assign, assignment]
+    try:
+        yield
+    finally:
+        saleae_fast.saleae2_chunk, saleae_fast.saleae1_chunk, build = keep
+        vcd_fast.FastPath.build = build  # type: ignore[method-assign]
 
 
 def _time(fn: Callable[[], int], repeat: int) -> tuple[list[float], int]:
@@ -78,12 +111,12 @@ def _time(fn: Callable[[], int], repeat: int) -> tuple[list[float], int]:
 
 
 def _read(data: bytes, fmt: str, kw: dict[str, str]) -> int:
-    _, it = open_records(io.BytesIO(data), fmt, kw.get("direction"))
+    _, it = open_records(io.BytesIO(data), kw.get("format", fmt), kw.get("direction"))
     return sum(1 for _ in it)
 
 
 def _dissect(data: bytes, fmt: str, kw: dict[str, str]) -> int:
-    _, it = open_records(io.BytesIO(data), fmt, kw.get("direction"))
+    _, it = open_records(io.BytesIO(data), kw.get("format", fmt), kw.get("direction"))
     dis = Dissector()
     n = 0
     for rec in it:
@@ -97,7 +130,7 @@ def _row(name: str, times: list[float], n: int, base: float | None) -> str:
     rates = sorted(n / t for t in times)
     med = statistics.median(rates)
     ratio = "" if base is None else f"{med / base:8.3f}"
-    return (f"{name:24s} {n:7d} {med:12,.0f} {rates[0]:10,.0f}-{rates[-1]:<10,.0f} "
+    return (f"{name:28s} {n:7d} {med:12,.0f} {rates[0]:10,.0f}-{rates[-1]:<10,.0f} "
             f"{ratio}")
 
 
@@ -112,7 +145,7 @@ def main() -> int:
         formats = _formats(recs, cap.read_bytes())
         print(f"{len(recs)} transfers from {args.duration} s of demo; sizes: " + ", ".join(
             f"{k} {len(v[0]) / 1e6:.1f} MB" for k, v in formats.items()))
-        print(f"{'frames/s':24s} {'frames':>7s} {'median':>12s} {'spread (min-max)':^21s} "
+        print(f"{'frames/s':28s} {'frames':>7s} {'median':>12s} {'spread (min-max)':^21s} "
               "ratio to pcapng read")
         base_times, base_n = _time(lambda: _read(formats["pcapng"][0], "pcapng", {}),
                                    args.repeat)
@@ -121,6 +154,12 @@ def main() -> int:
             times, n = _time(lambda data=data, fmt=fmt, kw=kw: _read(data, fmt, kw),  # type: ignore[misc]
                              args.repeat)
             print(_row(f"read {fmt}", times, n, base))
+        with _exact_loops():
+            for fmt in ("saleae2", "saleae1", "vcd", "vcd-sigrok"):
+                data, kw = formats[fmt]
+                times, n = _time(lambda data=data, fmt=fmt, kw=kw: _read(data, fmt, kw),  # type: ignore[misc]
+                                 args.repeat)
+                print(_row(f"read {fmt}, exact loop", times, n, base))
         for fmt, (data, kw) in formats.items():
             times, n = _time(lambda data=data, fmt=fmt, kw=kw: _dissect(data, fmt, kw),  # type: ignore[misc]
                              max(1, args.repeat // 2))

@@ -30,7 +30,7 @@ for _c in b"0123456789":
     _HEX[_c] = _c - 48
 for _c in b"abcdef":
     _HEX[_c] = _HEX[_c - 32] = _c - 87
-_MAX_NAME = 256
+_MAX_NAME = 64  # longer analyzer names: the csv loop (the table would be rows x width)
 
 
 def seconds(text: str) -> float:
