@@ -149,7 +149,7 @@ def test_replay_follows_capture_time(demo_capture: Path, pace: float) -> None:
     from eyeq_spi.capture.pcapng_io import read_pcapng
 
     with demo_capture.open("rb") as fh:
-        times = [r.time for r in read_pcapng(fh) if r.direction == "e2h"]
+        times = [r.time for r in read_pcapng(fh) if r.direction == "e2h" and r.time is not None]
     last = times[-1] - times[0]
     for wall_t, now in seen[:-1]:
         assert now == pytest.approx(min(wall_t * pace, last + 0.05), abs=0.06), (wall_t, now)
@@ -169,6 +169,30 @@ def test_screenshot_svg_and_text(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert picture.lstrip().startswith("<svg") and "RUNNING_VISION" in picture
     assert main(["monitor", "--demo", "--screenshot", str(tmp_path / "x.png")]) == 2
     assert "--screenshot" in capsys.readouterr().err
+
+
+def test_ctrl_c_is_a_normal_end(tmp_path: Path) -> None:
+    """Ctrl-C (KeyboardInterrupt) in the middle of a run: the source is closed, the last screen
+    is printed and the screenshot written."""
+    from rich.console import Console
+
+    src = DemoSource(build(keep_rx_times=False), 5.0, realtime=False)
+    advance, calls, closed = src.advance, [0], []
+
+    def interrupted(deadline: float) -> None:
+        calls[0] += 1
+        if calls[0] == 3:
+            raise KeyboardInterrupt
+        advance(deadline)
+
+    src.advance = interrupted  # type: ignore[method-assign]
+    src.close = lambda: closed.append(True)  # type: ignore[method-assign]
+    out, shot = io.StringIO(), tmp_path / "last.txt"
+    stats = run(src, console=Console(file=out, width=150, color_system=None),
+                screenshot=str(shot))
+    assert stats.interrupted and stats.redraws == 2 and closed == [True]
+    assert "eyeq-spi monitor demo" in out.getvalue() and "finished" not in out.getvalue()
+    assert shot.read_text().splitlines()[0] == out.getvalue().splitlines()[0]
 
 
 def test_demo_source_in_virtual_time() -> None:

@@ -38,6 +38,7 @@ class RunStats:
     draw_s: float = 0.0  # wall time spent building and writing screens
     draw_cpu_s: float = 0.0  # CPU time of the same
     wall_s: float = 0.0
+    interrupted: bool = False  # stopped by Ctrl-C
 
 
 SCREENSHOT_SUFFIXES = (".svg", ".html", ".txt")
@@ -94,24 +95,30 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         if live_screen:
             live.start()
         next_draw = clock()
-        while True:
-            source.advance(next_draw)
-            t0, c0 = clock(), time.process_time()
+        try:
+            while True:
+                source.advance(next_draw)
+                t0, c0 = clock(), time.process_time()
+                snap = source.snapshot()
+                if on_draw is not None:
+                    on_draw(snap)
+                if live_screen:
+                    live.update(render(snap), refresh=True)
+                stats.redraws += 1
+                stats.draw_s += clock() - t0
+                stats.draw_cpu_s += time.process_time() - c0
+                if source.done:
+                    break
+                # keep the redraw grid: a slightly late draw is caught up, a whole missed
+                # period is skipped (never a burst of draws)
+                next_draw += period
+                if clock() - next_draw > period:
+                    next_draw = clock()
+        except KeyboardInterrupt:  # Ctrl-C is the way to stop a live view: a normal end
+            stats.interrupted = True
             snap = source.snapshot()
-            if on_draw is not None:
-                on_draw(snap)
             if live_screen:
                 live.update(render(snap), refresh=True)
-            stats.redraws += 1
-            stats.draw_s += clock() - t0
-            stats.draw_cpu_s += time.process_time() - c0
-            if source.done:
-                break
-            # keep the redraw grid: a slightly late draw is caught up, a whole missed period
-            # is skipped (never a burst of draws)
-            next_draw += period
-            if clock() - next_draw > period:
-                next_draw = clock()
     finally:
         if live_screen:
             live.stop()
