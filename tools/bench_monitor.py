@@ -138,7 +138,7 @@ def realtime(duration: float, monitor: bool) -> dict[str, float]:
     emu = build(keep_rx_times=False)
     lag = 0.0
     redraws = 0
-    w0 = time.perf_counter()
+    w0, c0 = time.perf_counter(), time.process_time()
     if monitor:
         src = DemoSource(emu, duration, realtime=True)
 
@@ -155,8 +155,10 @@ def realtime(duration: float, monitor: bool) -> dict[str, float]:
             t += step
             lag = max(lag, (time.perf_counter() - w0) - emu.runner.now)
     wall = time.perf_counter() - w0
+    cpu = time.process_time() - c0
     link = emu.host.conn.link.counters.seed_view()
-    return {"lag_ms": lag * 1e3, "obst_hz": emu.host.counters.received[OBST] / duration,
+    return {"lag_ms": lag * 1e3, "cpu_per_sim_s": cpu / duration,
+            "obst_hz": emu.host.counters.received[OBST] / duration,
             "link_errors": float(sum(link.values())), "redraw_hz": redraws / wall,
             "wall_s": wall}
 
@@ -274,7 +276,7 @@ def _virtual(args: argparse.Namespace) -> None:
 def _realtime(args: argparse.Namespace) -> None:
     wo, wi = _pairs(lambda m: realtime(args.duration, m), args.runs)
     print(f"demo real time, {args.duration:g} s:")
-    for k in ("lag_ms", "obst_hz", "link_errors"):
+    for k in ("lag_ms", "cpu_per_sim_s", "obst_hz", "link_errors"):
         print(f"  {k:12s} without {_fmt(wo[k])}  with {_fmt(wi[k])}  ({_ratio(wi[k], wo[k])})")
     print(f"  redraws/s with monitor {_fmt(wi['redraw_hz'], spec='.2f')}")
 
