@@ -171,6 +171,20 @@ def test_screenshot_svg_and_text(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert "--screenshot" in capsys.readouterr().err
 
 
+def test_a_narrow_terminal_stacks_the_blocks(capture: Path) -> None:
+    """Over SSH a terminal may be 100 columns: blocks that do not fit side by side are
+    stacked, so the link counters and the lanes stay on screen."""
+    snap = _drain(DissectSource(str(capture), MessageCodec(None), speed=0))
+    wide = _text(render(snap, 150), 150).splitlines()
+    narrow = _text(render(snap, 100), 100).splitlines()
+    assert any(line.startswith("objects (3)") and "lanes (2)" in line for line in wide)
+    assert "lanes (2) and signs (2)" in narrow and "objects (3)" in narrow  # own lines
+    assert any(line.startswith("messages") and line.rstrip().endswith("link")
+               for line in narrow)  # rates and link still fit side by side in 100
+    assert max(len(line.rstrip()) for line in narrow) <= 100
+    assert any("hostLeftMarker" in line for line in narrow)
+
+
 def test_ctrl_c_is_a_normal_end(tmp_path: Path) -> None:
     """Ctrl-C (KeyboardInterrupt) in the middle of a run: the source is closed, the last screen
     is printed and the screenshot written."""

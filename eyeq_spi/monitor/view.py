@@ -165,8 +165,18 @@ def _side_by_side(left: list[Any], lw: int, right: list[Any]) -> list[Any]:
     return out
 
 
-def screen_lines(snap: Snapshot) -> list[Any]:
-    """The screen as lines of rich Text (no wrapping: a narrow terminal crops them)."""
+def _pair(left: list[Any], lw: int, right: list[Any], rw: int, width: int | None
+          ) -> list[Any]:
+    """Two blocks side by side, or one above the other when the terminal is too narrow."""
+    if width is None or lw + len(SIDE_GAP) + rw <= width:
+        return _side_by_side(left, lw, right)
+    return [*left, _rich().Text(), *right]
+
+
+def screen_lines(snap: Snapshot, width: int | None = None) -> list[Any]:
+    """The screen as lines of rich Text. Blocks stand side by side, or stacked where the
+    terminal (``width`` columns) is too narrow for two; lines never wrap (a terminal narrower
+    than a block crops it)."""
     Text = _rich().Text
     state_style = "bold green" if snap.state in GOOD_STATES else "bold yellow"
     head = Text.assemble(
@@ -176,13 +186,15 @@ def screen_lines(snap: Snapshot) -> list[Any]:
     lines = [head]
     if snap.problem:
         lines.append(Text(f"problem: {snap.problem}", style="bold red"))
-    lines += [Text(), *_side_by_side(_rates(snap), _width(RATE_COLS), _link(snap)), Text(),
-              *_side_by_side(_objects(snap), _width(OBJECT_COLS), _road(snap)), Text(),
+    lines += [Text(), *_pair(_rates(snap), _width(RATE_COLS), _link(snap), _width(LINK_COLS),
+                             width), Text(),
+              *_pair(_objects(snap), _width(OBJECT_COLS), _road(snap), _width(ROAD_COLS),
+                     width), Text(),
               *_transitions(snap)]
     for t in lines:
         t.no_wrap, t.overflow, t.end = True, "crop", "\n"
     return lines
 
 
-def render(snap: Snapshot) -> Any:
-    return _rich().Group(*screen_lines(snap))
+def render(snap: Snapshot, width: int | None = None) -> Any:
+    return _rich().Group(*screen_lines(snap, width))
