@@ -16,7 +16,7 @@ import math
 import os
 import re
 from collections.abc import Callable, Iterable, Sequence
-from typing import Any, NoReturn
+from typing import Any, NamedTuple, NoReturn
 
 from eyeq_spi.errors import EyeqError
 
@@ -34,6 +34,46 @@ def _cat() -> Any:
         return catalog()
     except EyeqError as exc:  # a broken specs/ is not the user's argument: say so plainly
         _bad(f"cannot check it: {exc}")
+
+
+class _Msg(NamedTuple):
+    name: str
+    data_id: int
+    protocol: str
+    direction: str
+
+
+class _Fn(NamedTuple):
+    name: str
+    service: int
+    function: int
+
+
+_INDEX_TAG = "argument-names-1"  # bump when _build_index changes shape
+
+
+def _index() -> dict[str, Any]:
+    """The names and IDs the argument checks need, as plain data cached beside the catalogue
+    (``marshal``, keyed on ``specs/`` like it): checking a name, and so every usage error,
+    neither imports nor unpickles the catalogue (issue 10: start-up)."""
+    from eyeq_spi.spec.cache import cached_data
+    from eyeq_spi.spec.link import specs_dir
+
+    try:
+        return cached_data(specs_dir(), _INDEX_TAG, _build_index)
+    except EyeqError as exc:  # a broken specs/ is not the user's argument: say so plainly
+        _bad(f"cannot check it: {exc}")
+
+
+def _build_index() -> dict[str, Any]:
+    cat = _cat()
+    return {
+        "sw_versions": list(cat.sw_versions), "default_sw": cat.default_sw,
+        "messages": [[m.name, m.data_id, m.protocol, m.direction] for m in cat.messages],
+        "mesp": [[f.name, f.service, f.function] for f in cat.mesp],
+        "enums": {n: {k: v.name for k, v in cat.enums[n].values.items()}
+                  for n in ("fatal_error", "boot_test_result")},
+    }
 
 
 def did_you_mean(word: str, candidates: Iterable[str]) -> str:
@@ -94,13 +134,13 @@ def integer(lo: int, hi: int, *, what: str = "an integer") -> Type:
 
 def sw_release(text: str) -> str:
     """A SW release that ``specs/`` describes (``9.0``, ``8.1``, ``SW8_1``) -> its key."""
-    from eyeq_spi.spec.catalog import normalise_sw
+    from eyeq_spi.spec.schema import normalise_sw
 
-    cat = _cat()
+    idx = _index()
     releases = {k: k[2:].replace("_", ".") if "_" in k else f"{k[2:]}.0"
-                for k in cat.sw_versions}
+                for k in idx["sw_versions"]}
     try:
-        key = normalise_sw(text, cat.default_sw)
+        key = normalise_sw(text, idx["default_sw"])
     except EyeqError:
         key = ""
     if key not in releases:
@@ -127,7 +167,7 @@ def _named(text: str, entries: dict[str, Any], ids: dict[int, str], what: str,
 
 
 def _messages(pred: Callable[[Any], bool]) -> tuple[dict[str, Any], dict[int, str]]:
-    msgs = [m for m in _cat().messages if pred(m)]
+    msgs = [m for m in (_Msg(*r) for r in _index()["messages"]) if pred(m)]
     return {m.name: m for m in msgs}, {m.data_id: m.name for m in msgs}
 
 
@@ -154,7 +194,7 @@ def message_id(text: str) -> int:
 def mesp_function(text: str) -> str:
     """A MESP function: name (any case), ``SERVICE/FUNCTION`` (``0x05/0x04``) or a function
     number that only one service uses -> its name."""
-    fns = {f.name: f for f in _cat().mesp}
+    fns = {f.name: f for f in (_Fn(*r) for r in _index()["mesp"])}
     listing = "functions: " + ", ".join(fns)
     pair = re.fullmatch(r"\s*(\w+)\s*/\s*(\w+)\s*", text)
     if pair:
@@ -199,20 +239,20 @@ stop_dasp.__doc__ = "``MESSAGE[@T]``: stop sending the message at T s (default 0
 
 def fatal_code(text: str) -> int:
     """A Fatal_Error of 0x41 (§7.1.5.2, enum ``fatal_error``): name (any case) or number."""
-    enum = _cat().enums["fatal_error"]
-    names = {v.name: v for v in enum.values.values() if v.value != 0}
-    ids = {v.value: v.name for v in names.values()}
+    values: dict[int, str] = _index()["enums"]["fatal_error"]
+    ids = {k: n for k, n in values.items() if k != 0}
+    names = {n: k for k, n in ids.items()}
     codes = ", ".join(f"{k}" for k in sorted(ids))
     name = _named(text, names, ids, "Fatal_Error code",
                   f"codes: {codes} (eyeq-spi spec show fatal_error names them)")
-    return int(names[name].value)
+    return int(names[name])
 
 
 def boot_test_bits(text: str) -> int:
     """TestResults of a failing boot (§7.1.5.3): an integer 1..0xFFFF or bit names joined with
     ``|`` or ``,`` (enum ``boot_test_result``)."""
-    enum = _cat().enums["boot_test_result"]
-    bits = {v.name: 1 << k for k, v in enum.values.items()}
+    values: dict[int, str] = _index()["enums"]["boot_test_result"]
+    bits = {n: 1 << k for k, n in values.items()}
     try:
         v = _int(text)
     except ValueError:

@@ -164,8 +164,10 @@ def _imports(argv: list[str], env: dict[str, str], watch: tuple[str, ...]) -> tu
     import sys
 
     argv = [a.replace("SMALL_HEX", env["SMALL_HEX"]) for a in argv]
-    out = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(argv), json.dumps(watch)],
-                         env=env, check=True, capture_output=True, text=True, timeout=120)
+    cmd = [sys.executable, "-c", _PROBE, json.dumps(argv), json.dumps(watch)]
+    # the first run refills the cache should specs/ have changed since (as a user's second start)
+    subprocess.run(cmd, env=env, check=True, capture_output=True, timeout=120)
+    out = subprocess.run(cmd, env=env, check=True, capture_output=True, text=True, timeout=120)
     rc, mods = json.loads(out.stdout.strip().splitlines()[-1])
     return int(rc), list(mods)
 
@@ -322,3 +324,29 @@ def test_the_key_changes_when_a_file_is_touched_or_added(specs_copy: Path) -> No
     touched = cache.specs_digest(specs_copy)
     (specs_copy / "can" / "extra.yaml").write_text("x: 1\n")
     assert len({before, touched, cache.specs_digest(specs_copy)}) == 3
+
+
+@pytest.mark.parametrize("argv", [
+    ["demo", "--fatal", "999"], ["demo", "--stop-dasp", "FOO@3"], ["demo", "--sw", "7.7"],
+    ["sim", "--port", "socket://127.0.0.1:0", "--drop-reply", "nosuch"],
+    ["demo", "--boot-test-bits", "NOPE"], ["dissect", "--id", "obstacles", "SMALL_HEX"],
+])
+def test_a_usage_error_about_a_name_reads_the_names_index_not_the_catalogue(
+    warm_cache: dict[str, str], argv: list[str]
+) -> None:
+    rc, mods = _imports(argv, warm_cache, ("eyeq_spi.spec.catalog", "pickle", *HEAVY))
+    assert rc == 2 and mods == []
+
+
+def test_the_names_index_agrees_with_the_catalogue() -> None:
+    from eyeq_spi import cli_args as ca
+    from eyeq_spi.spec.catalog import catalog
+
+    cat, idx = catalog(), ca._index()
+    assert idx == ca._build_index()
+    assert idx["default_sw"] == cat.default_sw and len(idx["messages"]) == len(cat.messages)
+    assert ca.fatal_code("intrinsic_calibration_mismatch") == 22 == ca.fatal_code("0x16")
+    assert ca.eyeq_dasp_message("0xe4") == "EYEQ_VIS_OBSTACLES_MSG"
+    assert ca.mesp_function("0x05/0x04") == next(
+        f.name for f in cat.mesp if (f.service, f.function) == (5, 4))
+    assert ca.sw_release("8.1") == "sw8_1"

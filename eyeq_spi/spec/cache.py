@@ -22,7 +22,6 @@ from __future__ import annotations
 import contextlib
 import marshal
 import os
-import pickle
 import re
 import sys
 import tempfile
@@ -93,22 +92,33 @@ def cached_catalog(root: Path, load: Callable[[Path], T]) -> T:
 def cached_doc(root: Path, name: str, load: Callable[[Path], dict[str, Any]]) -> dict[str, Any]:
     """``load(root / name)`` (one parsed YAML file), or its marshalled copy from an earlier call
     with the same ``specs/``. The key is computed once per process and root."""
+    return cached_data(root, name, lambda: load(root / name))
+
+
+def cached_data(root: Path, tag: str, build: Callable[[], dict[str, Any]]) -> dict[str, Any]:
+    """``build()`` (plain data derived from ``specs/`` only), or its marshalled copy from an
+    earlier call with the same ``specs/`` and ``tag``. A caller whose data also depends on its own
+    code puts a format version in ``tag``."""
     if os.environ.get("EYEQ_SPI_NO_CACHE"):
-        return load(root / name)
+        return build()
     try:
         digest = _DIGESTS.get(root) or _DIGESTS.setdefault(root, specs_digest(root))
-        path = cache_dir() / f"doc-{digest[:32]}-{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}.marshal"
+        path = cache_dir() / f"doc-{digest[:32]}-{re.sub(r'[^A-Za-z0-9_.-]', '_', tag)}.marshal"
     except (OSError, ImportError):
-        return load(root / name)
+        return build()
     cached = _read(path, marshal.load)
     if isinstance(cached, dict):
         return cached
-    value = load(root / name)
+    value = build()
     _write(path, value, marshal.dump, f"doc-{digest[:32]}-")
     return value
 
 
-def _read(path: Path, reader: Callable[[Any], object] = pickle.load) -> object | None:
+def _read(path: Path, reader: Callable[[Any], object] | None = None) -> object | None:
+    if reader is None:
+        import pickle  # not for the marshal files: a usage error never imports it (issue 10)
+
+        reader = pickle.load
     try:
         st = path.stat()
         if hasattr(os, "getuid") and st.st_uid != os.getuid():
@@ -136,6 +146,8 @@ def _write(path: Path, value: object, writer: Callable[[Any, Any], object] | Non
     try:
         with os.fdopen(fd, "wb") as fh:
             if writer is None:
+                import pickle
+
                 pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
             else:
                 writer(value, fh)  # marshal: ValueError for a type it cannot hold

@@ -6,7 +6,6 @@ init bit tables) reads it from here, never from a layout written by hand (STYLE.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cache
@@ -15,24 +14,15 @@ from typing import Any
 
 from eyeq_spi.errors import SpecError
 from eyeq_spi.spec.link import specs_dir
-from eyeq_spi.spec.schema import load_yaml_tree, sw_key, validate_tree
+from eyeq_spi.spec.schema import (  # normalise_sw: re-exported
+    load_yaml_tree,
+    normalise_sw,
+    sw_key,
+    validate_tree,
+)
 
 SwKey = str
 """A variant key such as ``sw8_1``."""
-
-_SW_INPUT = re.compile(r"^(?:sw)?(\d+)(?:[._](\d+))?$", re.IGNORECASE)
-
-
-def normalise_sw(text: str | None, default: SwKey) -> SwKey:
-    """``"8.1"``, ``"SW8.1"``, ``"sw8_1"`` -> ``"sw8_1"``; ``"9"``/``"9.0"`` -> ``"sw9"``."""
-    if text is None:
-        return default
-    m = _SW_INPUT.match(text.strip())
-    if not m:
-        raise SpecError(f"not a SW version: {text!r} (try 9.0, 8.1 or sw8_1)")
-    major, minor = int(m.group(1)), int(m.group(2) or 0)
-    return f"sw{major}" if minor == 0 else f"sw{major}_{minor}"
-
 
 def sw_release(key: SwKey) -> tuple[int, int]:
     """``"sw8_1"`` -> ``(8, 1)``, ``"sw9"`` -> ``(9, 0)``: the numbers the EyeQ reports."""

@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from eyeq_spi.errors import SpecError
+
 PRIMITIVES = frozenset(
     ["uint8", "uint16", "uint32", "uint64", "int8", "int16", "int32", "int64", "real32", "real64",
      "bool"]
@@ -43,6 +45,20 @@ def sw_key(variant: str) -> tuple[int, int]:
 
 def _is_num(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+_SW_INPUT = re.compile(r"^(?:sw)?(\d+)(?:[._](\d+))?$", re.IGNORECASE)
+
+
+def normalise_sw(text: str | None, default: str) -> str:
+    """``"8.1"``, ``"SW8.1"``, ``"sw8_1"`` -> ``"sw8_1"``; ``"9"``/``"9.0"`` -> ``"sw9"``."""
+    if text is None:
+        return default
+    m = _SW_INPUT.match(text.strip())
+    if not m:
+        raise SpecError(f"not a SW version: {text!r} (try 9.0, 8.1 or sw8_1)")
+    major, minor = int(m.group(1)), int(m.group(2) or 0)
+    return f"sw{major}" if minor == 0 else f"sw{major}_{minor}"
 
 
 def safe_loader() -> Any:
