@@ -105,6 +105,24 @@ class _EnumLeaf:
     label: str  # "<path>.<member>" after the message name
     values: np.ndarray
     enum: str
+    table: np.ndarray | None  # bool per possible value (fields of 16 bits or fewer), else isin
+
+    def bad(self, col: np.ndarray) -> np.ndarray:
+        if self.table is not None:
+            return self.table[col]  # type: ignore[no-any-return]
+        return ~np.isin(col, self.values)
+
+
+def _enum_leaf(leaf: _Leaf, label: str, values: list[int], enum: str) -> _EnumLeaf:
+    arr = np.array(sorted(values))
+    bits = (leaf.mask.bit_length() if leaf.mask is not None
+            else 8 * np.dtype(NP_TYPE[leaf.type]).itemsize)
+    table = None
+    if bits <= 16 and leaf.type.startswith(("uint", "bool")):
+        table = np.ones(1 << bits, bool)
+        ok = arr[(arr >= 0) & (arr < (1 << bits))]
+        table[ok] = False
+    return _EnumLeaf(leaf, label, arr, enum, table)
 
 
 class VecLayout:
@@ -150,7 +168,7 @@ class VecLayout:
                 leaf = _Leaf(path, cont, lo, (1 << (hi - lo + 1)) - 1, f.type)
                 self.leaves.append(leaf)
                 if check and e is not None:
-                    self.enums.append(_EnumLeaf(leaf, path, np.array(sorted(e.values)), e.name))
+                    self.enums.append(_enum_leaf(leaf, path, list(e.values), e.name))
                 continue
             if child is not None:
                 for i in range(f.count or 1):
@@ -167,7 +185,7 @@ class VecLayout:
                 leaf = _Leaf(name, name, 0, None, f.type)
                 self.leaves.append(leaf)
                 if check and e is not None:
-                    self.enums.append(_EnumLeaf(leaf, path, np.array(sorted(e.values)), e.name))
+                    self.enums.append(_enum_leaf(leaf, path, list(e.values), e.name))
 
     # -- values ----------------------------------------------------------------------------
     def records(self, payloads: np.ndarray) -> np.ndarray:
@@ -267,7 +285,7 @@ class VecLayout:
         hits: list[tuple[np.ndarray, np.ndarray, _EnumLeaf]] = []
         for e in self.enums:
             col = self.column(rec, e.leaf)
-            bad = ~np.isin(col, e.values)
+            bad = e.bad(col)
             if rows is not None:
                 bad &= rows
             if bad.any():

@@ -364,24 +364,41 @@ class BatchDissector:
 
     def _message(self, fa: FrameArrays, st: _Dir, u: _Unit, row: int) -> SpanMessage:
         tid: int | None = None
-        if u.first:
+        P = self._rows[st.code]
+        data = fa.chunk.data
+        base = fa.base
+        if u.first and u.ks >= 0:  # all its frames in this chunk: cut from the array
+            rows = P[u.ks : u.ke]
+            block = data[rows]
+            head = block[0]
+            total = int.from_bytes(head[8:12].tobytes(), "little")
+            msg = (head[12:].tobytes() + block[1:, 8:].tobytes())[:total]
+            all_nums = fa.lst("num")
+            nums: tuple[int, ...] = tuple(all_nums[r] for r in rows)
+            idxs = [base + r for r in rows]
+            tid = int(head[7])
+        elif u.first:
             frames = self._frames(fa, st, u.ks, u.ke)
-            head = frames[0][0]
-            total = int.from_bytes(head[8:12], "little")
-            msg = (head[12:] + b"".join(f[0][8:] for f in frames[1:]))[:total]
+            head_b = frames[0][0]
+            total = int.from_bytes(head_b[8:12], "little")
+            msg = (head_b[12:] + b"".join(f[0][8:] for f in frames[1:]))[:total]
             nums = tuple(f[2] for f in frames)
             idxs = [f[3] for f in frames]
-            tid = head[7]
+            tid = head_b[7]
         else:
-            r = self._rows[st.code][u.ks]
-            size = int(fa.chunk.data[r, 7])
-            msg = fa.chunk.data[r, 8 : 8 + size].tobytes()
-            nums, idxs = (int(fa.num[r]),), [fa.base + r]
+            r = P[u.ks]
+            size = fa.lst("tid")[r]  # byte 7: a single frame's size
+            msg = data[r, 8 : 8 + size].tobytes()
+            nums, idxs = (fa.lst("num")[r],), [base + r]
         dobj = self.dis._dirs[st.name]
-        dobj.index_of_num.update(zip(nums, idxs, strict=True))
-        t = fa.tfill[row]
-        return SpanMessage(st.name, MessageReceived(msg, nums, tid), None if t != t else float(t),
-                           [dobj.index_of_num.get(n) for n in nums])
+        index_of_num = dobj.index_of_num
+        index_of_num.update(zip(nums, idxs, strict=True))
+        t = fa.lst("tfill")[row]
+        # NUMs of one transfer are distinct (fewer frames than SEQ_MODULO), so each maps to its
+        # own index, as the exact engine's lookup gives
+        frames_idx = idxs if len(idxs) < SEQ_MODULO else [index_of_num.get(n) for n in nums]
+        return SpanMessage(st.name, MessageReceived(msg, nums, tid), None if t != t else t,
+                           list(frames_idx))
 
     # -- span state: what the receiver would hold --------------------------------------------
     def _state(self, st: _Dir, fa: FrameArrays | None
