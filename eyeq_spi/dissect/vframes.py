@@ -46,7 +46,7 @@ def crc_table(codec: FrameCodec) -> np.ndarray | None:
     t1 = np.array([codec.crc(lead + bytes([b])) & 0xFFFF for b in range(256)], np.uint32)
     v = np.arange(65536, dtype=np.uint32)
     r1 = t1[v >> 8]
-    table = (((r1 << 8) & 0xFFFF) ^ t1[(r1 >> 8) ^ (v & 0xFF)]).astype(np.uint16)
+    table: np.ndarray = (((r1 << 8) & 0xFFFF) ^ t1[(r1 >> 8) ^ (v & 0xFF)]).astype(np.uint16)
     rng = np.random.default_rng(11)
     for n in (2, 4, 126):
         msg = rng.integers(0, 256, n, np.uint8).tobytes()
