@@ -92,10 +92,10 @@ class FastPath:
         t_end = nl[is_time]
         t_before = reader.t
 
-        def time_at(pos: int) -> int:
-            """The time of the value change at byte ``pos`` (the last ``#`` line before)."""
-            k = int(np.searchsorted(t_pos, pos)) - 1
-            return t_before if k < 0 else int(chunk[t_pos[k] + 1:t_end[k]])
+        def time_at(pos: np.ndarray[Any, Any]) -> list[int]:
+            """The times of the value changes at bytes ``pos`` (the last ``#`` before each)."""
+            ks = (np.searchsorted(t_pos, pos) - 1).tolist()
+            return [t_before if k < 0 else int(chunk[t_pos[k] + 1:t_end[k]]) for k in ks]
 
         out: list[tuple[int, Record]] = []
         for c, ch in enumerate(self.chans):
@@ -122,7 +122,8 @@ def _bits_of(value: int, n: int, msb: bool) -> list[int]:
 
 
 def _channel(ch: _Chan, by_role: list[np.ndarray[Any, Any]], vals: np.ndarray[Any, Any],
-             lines: np.ndarray[Any, Any], time_at: Callable[[int], int], reader: _Reader
+             lines: np.ndarray[Any, Any],
+             time_at: Callable[[np.ndarray[Any, Any]], list[int]], reader: _Reader
              ) -> list[tuple[int, Record]]:
     """The transfers of one channel; ``by_role``: the indices (into ``vals``/``lines``) of its
     CS, CLK, MOSI and MISO changes, each line worked on as its own subsequence."""
@@ -147,8 +148,11 @@ def _channel(ch: _Chan, by_role: list[np.ndarray[Any, Any]], vals: np.ndarray[An
     s_mi = _level_at(mi_i, vals, s_idx, ch.miso)
     order: Literal["big", "little"] = "big" if msb else "little"
 
+    # the samples of transfer k (0: the one open before this chunk) are s_*[at[k]:at[k + 1]]
+    at = np.searchsorted(s_seg, np.arange(len(fall_i) + 2)).tolist()
+
     def segment(k: int) -> tuple[bytes, bytes, np.ndarray[Any, Any], np.ndarray[Any, Any]]:
-        lo, hi = np.searchsorted(s_seg, k, "left"), np.searchsorted(s_seg, k, "right")
+        lo, hi = at[k], at[k + 1]
         mo, mi = s_mo[lo:hi], s_mi[lo:hi]
         head_mo = head_mi = b""
         if k == 0:  # the transfer open before this chunk
@@ -165,16 +169,16 @@ def _channel(ch: _Chan, by_role: list[np.ndarray[Any, Any]], vals: np.ndarray[An
 
     out: list[tuple[int, Record]] = []
     before = np.concatenate(([ch.active], edge_fall[:-1]))  # active before each edge
-    for e in edge_i[~edge_fall & before].tolist():
-        k = int(np.searchsorted(fall_i, e))
-        t0 = ch.t0 if k == 0 else time_at(int(lines[fall_i[k - 1]]))
+    fall_t = [ch.t0, *time_at(lines[fall_i])]  # start time of transfer k
+    rises = edge_i[~edge_fall & before]
+    for e, k in zip(lines[rises].tolist(), np.searchsorted(fall_i, rises).tolist(),
+                    strict=True):
         mo_b, mi_b, _, _ = segment(k)
+        t0 = fall_t[k] * reader.scale
         for r in ch.routes:
-            out.append((int(lines[e]), Record(t0 * reader.scale, r.direction,
-                                              mo_b if r.line == "mosi" else mi_b)))
+            out.append((e, Record(t0, r.direction, mo_b if r.line == "mosi" else mi_b)))
     last = len(fall_i)
-    if last > 0:
-        ch.t0 = time_at(int(lines[fall_i[-1]]))
+    ch.t0 = fall_t[-1]
     end_active = bool(edge_fall[-1]) if len(edge_i) else ch.active
     if end_active:
         mo_b, mi_b, rest_mo, rest_mi = segment(last)
