@@ -331,7 +331,7 @@ def run_sim(args: argparse.Namespace) -> int:
     from eyeq_spi.phy.base import open_url
     from eyeq_spi.report import sim_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
-    from eyeq_spi.runner.sched import request_realtime
+    from eyeq_spi.runner.sched import realtime
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
 
     if bool(args.listen) == bool(args.pty):
@@ -352,7 +352,6 @@ def run_sim(args: argparse.Namespace) -> int:
         print(f"LISTEN {adapter.url}", flush=True)
         _connect_hint(adapter.url)
     _on_sigterm()
-    scheduling = request_realtime(args.rt_priority)
     writer = capture_writer(args)
     clock = time.monotonic
     t0, cpu0 = clock(), time.process_time()
@@ -361,6 +360,8 @@ def run_sim(args: argparse.Namespace) -> int:
     sessions: list[dict[str, Any]] = []
     interrupted = False
     gc.freeze()  # the catalogue and layouts live forever: keep collections short
+    rt = contextlib.ExitStack()  # real-time scheduling for the live run only
+    scheduling = rt.enter_context(realtime(args.rt_priority))
     try:
         while end is None or clock() < end:
             if sim is None and clock() - t0 > args.accept_timeout:
@@ -386,6 +387,7 @@ def run_sim(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         interrupted = True
     finally:
+        rt.close()
         adapter.close()
         if writer is not None:
             writer.close()
@@ -423,7 +425,7 @@ def run_host(args: argparse.Namespace) -> int:
     from eyeq_spi.phy.base import open_url
     from eyeq_spi.report import host_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
-    from eyeq_spi.runner.sched import request_realtime
+    from eyeq_spi.runner.sched import realtime
 
     host_cfg, nvm, scenario = host_parts(args)
     host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
@@ -431,7 +433,6 @@ def run_host(args: argparse.Namespace) -> int:
     gc.collect()
     adapter: Any = open_url(args.port)
     _on_sigterm()
-    scheduling = request_realtime(args.rt_priority)
     writer = capture_writer(args)
     runner = RealTimeRunner(host, adapter)
     runner.tap = _realtime_tap(writer, runner.clock(), "h2e", "e2h")
@@ -448,6 +449,8 @@ def run_host(args: argparse.Namespace) -> int:
     link_lost: str | None = None
     connections = 1
     interrupted = False
+    rt = contextlib.ExitStack()  # real-time scheduling for the live run only
+    scheduling = rt.enter_context(realtime(args.rt_priority))
     try:
         while runner.clock() < end:
             try:
@@ -480,6 +483,7 @@ def run_host(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         interrupted = True
     finally:
+        rt.close()
         if adapter is not None:
             adapter.close()
         nvm.save()

@@ -17,7 +17,9 @@ reported in the run summary, never an error.
 
 from __future__ import annotations
 
+import contextlib
 import os
+from collections.abc import Iterator
 
 DEFAULT_PRIORITY = 10
 """Of 1..99: above ordinary tasks, below the kernel's own real-time threads (50 and up)."""
@@ -25,13 +27,16 @@ DEFAULT_PRIORITY = 10
 
 def request_realtime(priority: int = DEFAULT_PRIORITY) -> str:
     """Ask for ``SCHED_FIFO`` at ``priority`` (0: leave scheduling alone). Returns what was
-    obtained: ``"SCHED_FIFO 10"``, ``"nice -10"`` or ``"SCHED_OTHER"`` (with the reason)."""
+    obtained: ``"SCHED_FIFO 10"``, ``"nice -10"`` or ``"SCHED_OTHER"`` (with the reason).
+    Children forked afterwards start with ordinary scheduling (``SCHED_RESET_ON_FORK``).
+    Prefer :func:`realtime`, which gives the policy back when the live run ends."""
     if priority <= 0:
         return "SCHED_OTHER (not requested)"
     if not hasattr(os, "sched_setscheduler"):  # not Linux
         return "SCHED_OTHER (no sched_setscheduler on this platform)"
     try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        policy = os.SCHED_FIFO | getattr(os, "SCHED_RESET_ON_FORK", 0)
+        os.sched_setscheduler(0, policy, os.sched_param(priority))
         return f"SCHED_FIFO {priority}"
     except (PermissionError, OSError) as exc:
         reason = exc.strerror or type(exc).__name__
@@ -43,3 +48,24 @@ def request_realtime(priority: int = DEFAULT_PRIORITY) -> str:
     except OSError:
         pass
     return f"SCHED_OTHER (SCHED_FIFO refused: {reason})"
+
+
+@contextlib.contextmanager
+def realtime(priority: int = DEFAULT_PRIORITY) -> Iterator[str]:
+    """:func:`request_realtime` for the duration of a live run, then the process's previous
+    policy and nice value again. A process that runs ``host`` or ``sim`` in-process (a test,
+    a notebook) must not stay real-time afterwards: a CPU-bound task at ``SCHED_FIFO`` holds its
+    core until it sleeps, which starves every ordinary task and other real-time links."""
+    if priority <= 0 or not hasattr(os, "sched_getscheduler"):
+        yield request_realtime(priority)
+        return
+    policy, param, nice = os.sched_getscheduler(0), os.sched_getparam(0), os.nice(0)
+    try:
+        yield request_realtime(priority)
+    finally:
+        with contextlib.suppress(OSError):
+            os.sched_setscheduler(0, policy, param)
+        with contextlib.suppress(OSError):
+            now = os.nice(0)
+            if now != nice:
+                os.nice(nice - now)
