@@ -165,6 +165,7 @@ def _eyeq_session(opts: Options, wanted: set[str], ctx: Context) -> Trace:
             raise UsageError("--dut eyeq needs --port URL (or --builtin)")
         from eyeq_spi.phy.base import open_url
 
+        tester.warm_up()  # no first-time codec build may stall our loop (load.py)
         s = Session(trace, tester, adapter=open_url(opts.port))
     _say(opts, "session main: we play the host")
     try:
@@ -209,6 +210,7 @@ def _host_session(opts: Options, name: str, wanted: set[str], ctx: Context, *,
                 raise AdapterError(f"the host under test did not connect within "
                                    f"{opts.accept_timeout} s")
             return None
+        tester.warm_up()  # no first-time codec build may stall our loop (load.py)
         s = Session(trace, tester, adapter=adapter)
     _say(opts, f"session {name}: we play the EyeQ")
     try:
