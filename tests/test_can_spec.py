@@ -100,6 +100,13 @@ def test_generated_dbc_loads_back_and_matches_the_spec(name: str, tmp_path: Path
     if name == "extlog2":  # 8000h printed, two's complement in a 16-bit signed field
         curv = db.get_message_by_name("Lane").get_signal_by_name("Lane_Curvature")
         assert curv.dbc.attributes["GenSigInvalidValue"].value == -0x8000
+    # and the attribute survives cantools' own load -> dump -> load
+    again = cantools.database.load_string(db.as_dbc_string())
+    invalid = [s.dbc.attributes["GenSigInvalidValue"].value for m in again.messages
+               for s in m.signals if s.dbc and "GenSigInvalidValue" in s.dbc.attributes]
+    assert sorted(invalid) == sorted(s.raw_invalid for m in proto.messages
+                                     for _ in m.instances() for s in m.signals
+                                     if s.raw_invalid is not None)
 
 
 # (protocol, message, signal): (scale, offset) transcribed from the seed's "Conversion" lines
