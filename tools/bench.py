@@ -3,13 +3,18 @@
 
 - frame codec: encode and decode frames/s;
 - EYEQ_VIS_OBSTACLES_MSG with 15 objects: µs per decode with the specs-built construct codec,
-  beside a hand-written ``struct.unpack_from`` decoder of the same SW9 layout in the same run.
+  beside a hand-written ``struct.unpack_from`` decoder of the same SW9 layout in the same run;
+- the emulator (issue 11): host + simulated EyeQ at full load in virtual time, wall and CPU per
+  simulated second, the host alone, median and spread, as ratios to an in-run CRC baseline.
 """
 
 from __future__ import annotations
 
 import argparse
+import binascii
 import json
+import math
+import statistics
 import struct
 import sys
 import time
@@ -192,36 +197,113 @@ def obstacles_bench(seconds: float) -> dict[str, float]:
     }
 
 
-def emulator_bench(seconds: float) -> dict[str, float]:
-    """Demo wall time for 60 s of virtual time, and CPU per simulated second at full load."""
+class _TimedNode:
+    """Wraps a node and adds up the CPU time spent inside it (the host-alone figure)."""
+
+    def __init__(self, node: Any) -> None:
+        self.node, self.cpu = node, 0.0
+
+    def receive_data(self, transfer: bytes, now: float) -> None:
+        c = time.thread_time()
+        self.node.receive_data(transfer, now)
+        self.cpu += time.thread_time() - c
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        c = time.thread_time()
+        out: list[bytes] = self.node.data_to_send(now)
+        self.cpu += time.thread_time() - c
+        return out
+
+    def get_timer(self) -> float | None:
+        c = time.thread_time()
+        t: float | None = self.node.get_timer()
+        self.cpu += time.thread_time() - c
+        return t
+
+    def handle_timer(self, now: float) -> None:
+        c = time.thread_time()
+        self.node.handle_timer(now)
+        self.cpu += time.thread_time() - c
+
+
+def crc_baseline_us() -> float:
+    """The in-run baseline: µs of CPU for one ``binascii.crc_hqx`` over a 128-byte frame."""
+    frame = bytes(range(128))
+    n = 200_000
+    c = time.thread_time()
+    for _ in range(n):
+        binascii.crc_hqx(frame, 0xFFFF)
+    return (time.thread_time() - c) / n * 1e6
+
+
+def _one_demo(virtual_s: float, full: bool, timed_host: bool) -> dict[str, float]:
     from eyeq_spi.emulator import build
     from eyeq_spi.host.machine import HostState
     from eyeq_spi.sim.config import SimConfig
 
+    cfg = SimConfig(objects=15, signs=20, light_spots=15) if full else SimConfig()
+    emu = build(sim_config=cfg, keep_rx_times=False)
+    host = None
+    if timed_host:
+        host = _TimedNode(emu.host)
+        emu.runner.nodes[0] = (host, emu.runner.nodes[0][1])
+    emu.run_for(virtual_s)
+    assert emu.host.state is HostState.RUNNING_VISION
+    out = {"wall_s": emu.runner.wall_s, "cpu_per_sim_s": emu.runner.cpu_s / virtual_s}
+    if host is not None:
+        out["host_cpu_per_sim_s"] = host.cpu / virtual_s
+    return out
+
+
+def emulator_bench(runs: int = 3, long_s: float = 0.0) -> dict[str, float]:
+    """``demo --virtual-time`` at full load (15 objects, 20 signs, 15 light spots): wall time
+    per 60 s of virtual time, CPU-s per simulated second for host + simulated EyeQ and for the
+    host alone (CPU inside the host's node calls), median and spread of ``runs`` runs, and each
+    as a ratio to the in-run CRC baseline (how many 128-byte ``crc_hqx`` calls the same CPU
+    time buys). ``long_s``: one more run of that many virtual seconds (the issue's 600 s)."""
     out: dict[str, float] = {}
-    for label, cfg in (
-        ("default", SimConfig()),
-        ("full", SimConfig(objects=15, signs=20, light_spots=15)),
-    ):
-        emu = build(sim_config=cfg, keep_rx_times=False)
-        emu.run_for(60.0)
-        assert emu.host.state is HostState.RUNNING_VISION
-        out[f"emulator_{label}_wall_s_per_60s_virtual"] = emu.runner.wall_s
-        out[f"emulator_{label}_cpu_ms_per_simulated_s"] = 1000 * emu.runner.cpu_s / 60.0
+    crc = [crc_baseline_us()]
+    rows = []
+    for _ in range(runs):
+        rows.append(_one_demo(60.0, True, False))
+        rows.append({**_one_demo(10.0, True, True), "wall_s": math.nan})
+        crc.append(crc_baseline_us())
+    base = statistics.median(crc)
+    out["crc_hqx_128B_us_baseline"] = base
+    for key, label in (("wall_s", "emulator_full_wall_s_per_60s_virtual"),
+                       ("cpu_per_sim_s", "emulator_full_cpu_s_per_sim_s"),
+                       ("host_cpu_per_sim_s", "emulator_host_alone_cpu_s_per_sim_s")):
+        vals = [r[key] for r in rows if key in r and not math.isnan(r[key])]
+        out[label] = statistics.median(vals)
+        out[label + "_min"] = min(vals)
+        out[label + "_max"] = max(vals)
+        if key != "wall_s":
+            out[label + "_in_crc_calls"] = statistics.median(vals) / (base * 1e-6)
+    out["emulator_full_x_real_time"] = 60.0 / out["emulator_full_wall_s_per_60s_virtual"]
+    if long_s:
+        r = _one_demo(long_s, True, False)
+        out[f"emulator_full_wall_s_per_{long_s:g}s_virtual"] = r["wall_s"]
+        out[f"emulator_full_x_real_time_{long_s:g}s"] = long_s / r["wall_s"]
     return out
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seconds", type=float, default=1.0, help="time per measurement")
-    ap.add_argument("--no-emulator", action="store_true", help="skip the 2 x 60 s emulator runs")
+    ap.add_argument("--no-emulator", action="store_true", help="skip the emulator runs")
+    ap.add_argument("--emulator-only", action="store_true", help="only the emulator runs")
+    ap.add_argument("--runs", type=int, default=3, help="emulator runs (median and spread)")
+    ap.add_argument("--long", type=float, default=0.0, metavar="S",
+                    help="one more emulator run of S virtual seconds (the issue's 600)")
     args = ap.parse_args()
-    out = {**frame_bench(args.seconds), **obstacles_bench(args.seconds)}
+    out: dict[str, float] = {}
+    if not args.emulator_only:
+        out.update({**frame_bench(args.seconds), **obstacles_bench(args.seconds)})
     if not args.no_emulator:
-        out.update(emulator_bench(args.seconds))
+        out.update(emulator_bench(args.runs, args.long))
     for k, v in out.items():
-        print(f"{k:45s} {v:14,.1f}")
-    print(json.dumps({k: round(v, 1) for k, v in out.items()}))
+        print(f"{k:55s} {v:14,.4g}")
+    print(json.dumps({k: float(f"{v:.4g}") for k, v in out.items()}))
     return 0
 
 

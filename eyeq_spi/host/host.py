@@ -220,12 +220,15 @@ class HostEmulator:
         return self.conn.data_to_send(now)
 
     def get_timer(self) -> float | None:
-        times = [self.conn.get_timer(), self.mesp.get_timer(), self._boot_deadline,
-                 self._next_poll, self._veh_next]
-        if self.state is S.RUNNING_VISION and self._last_rx:
-            times.append(self._next_stale_check)
-        valid = [t for t in times if t is not None]
-        return min(valid) if valid else None
+        # asked after every event (runner/virtual.py): no temporary lists here
+        best = self.conn.get_timer()
+        for t in (self.mesp.get_timer() if self.mesp.outstanding else None,
+                  self._boot_deadline, self._next_poll, self._veh_next,
+                  self._next_stale_check if self.state is S.RUNNING_VISION and self._last_rx
+                  else None):
+            if t is not None and (best is None or t < best):
+                best = t
+        return best
 
     def handle_timer(self, now: float) -> None:
         self.now = now

@@ -6,6 +6,12 @@ from typing import Protocol
 
 
 class Node(Protocol):
+    """A node may also declare ``SELF_CONTAINED = True`` (an attribute of its own class, not
+    inherited; read once by :class:`~eyeq_spi.runner.virtual.VirtualRunner`): its calls act on
+    nothing but itself, and once ``data_to_send`` has been called after a ``receive_data`` or
+    ``handle_timer``, a call that hands over nothing leaves ``get_timer()`` unchanged. The
+    runner then re-asks only this node after touching it; without it, every node."""
+
     def receive_data(self, transfer: bytes, now: float) -> None: ...
 
     def data_to_send(self, now: float) -> list[bytes]: ...

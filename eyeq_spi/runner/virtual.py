@@ -1,12 +1,26 @@
-"""Virtual-clock runner: jumps from one timer to the next, so a minute of protocol runs in
-however long the CPU needs. Used by the tests and the simulation."""
+"""Virtual-clock runner: jumps from one deadline to the next, so a minute of protocol runs in
+however long the CPU needs. Used by the tests and the simulation.
+
+Event-driven (issue 11): transfers in flight wait in a deadline heap, and each node's deadline is
+kept between events; a node is asked ``get_timer()`` again only after it was touched (it received
+a transfer, handled a timer, or was asked for data), and ``data_to_send`` again only when it was
+touched, handed something over, or the clock moved. The calls that remain are the ones a polling
+loop would make that can change something, in the same order, so the transfers and their times
+are those of polling (``tests/test_runner_events.py`` compares both, transfer by transfer).
+
+What counts as a touch is deliberately broad: ``receive_data`` and ``handle_timer`` on a node
+invalidate every node's cached deadline, because a node may act on another one inside those calls
+(the host emulator's reset line powers the simulated EyeQ up), unless the node declares
+``SELF_CONTAINED = True`` (see :class:`~eyeq_spi.runner.node.Node`). Between ``run_until`` calls and
+after every ``stop()`` the caches are dropped, so code that drives a node from outside (a test, a
+fault campaign) is seen.
+"""
 
 from __future__ import annotations
 
 import heapq
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 from eyeq_spi.phy.base import Adapter
 from eyeq_spi.runner.node import Node
@@ -14,21 +28,15 @@ from eyeq_spi.runner.node import Node
 Tap = Callable[[int, float, bytes], None]
 """Called for every transfer a node puts on the wire: (node index, time, transfer)."""
 
-
-@dataclass(order=True)
-class _InTransit:
-    at: float
-    seq: int
-    to: int = field(compare=False)
-    transfer: bytes = field(compare=False)
-
-
 class VirtualRunner:
     """Runs nodes, each bound to an adapter (normally the two ends of a memory pair).
 
     ``latency`` is the time from a node handing over a transfer to the peer receiving it; the
     default is the wire time of 128 bytes at the seed's 10 MHz SPI clock.
     """
+
+    verify = False
+    """Tests set this: every cached deadline is checked against a fresh ``get_timer()``."""
 
     def __init__(
         self,
@@ -43,51 +51,124 @@ class VirtualRunner:
         self.latency = latency
         self.now = start
         self.tap = tap
-        self._transit: list[_InTransit] = []
+        # the deadline heap of transfers in flight: (arrival time, sequence, node index, bytes)
+        self._transit: list[tuple[float, int, int, bytes]] = []
         self._seq = 0
         self._max_steps = max_steps_per_instant
         self.wall_s = 0.0  # wall-clock and CPU time spent in run_until
         self.cpu_s = 0.0
+        n = len(nodes)
+        self._timer: list[float | None] = [None] * n  # cached get_timer()
+        self._known = [False] * n  # _timer[i] is still what get_timer() would say
+        self._quiet = [False] * n  # data_to_send(now) gave nothing and nothing touched it since
+        self._fresh = [True] * n  # touched since its last data_to_send
+        # nodes that promise SELF_CONTAINED (see Node): touching them leaves the others' caches
+        # (declared by the node's own class: a subclass that rewrites the output, such as a
+        # conformance mutant withholding ACKs, does not inherit the promise)
+        self._alone = [vars(type(node)).get("SELF_CONTAINED") is True for node, _ in nodes]
 
-    def _pump(self) -> None:
-        """Move transfers until nothing more happens at ``now``."""
+    # -- caches -----------------------------------------------------------------------------
+    def _touch_all(self) -> None:
+        n = len(self.nodes)
+        self._known[:] = [False] * n
+        self._quiet[:] = [False] * n
+        self._fresh[:] = [True] * n
+
+    def _touch(self, i: int) -> None:
+        """Node ``i`` received a transfer or handled a timer."""
+        if self._alone[i]:
+            self._known[i] = self._quiet[i] = False
+            self._fresh[i] = True
+        else:  # it may have acted on another node (the host's reset line powers the EyeQ up)
+            self._touch_all()
+
+    def _deadline(self, i: int) -> float | None:
+        if not self._known[i]:
+            self._known[i] = True
+            t = self._timer[i] = self.nodes[i][0].get_timer()
+            return t
+        t = self._timer[i]
+        if self.verify:
+            fresh = self.nodes[i][0].get_timer()
+            if fresh != t:
+                raise AssertionError(f"node {i}: cached deadline {t} but get_timer() is {fresh}")
+        return t
+
+    def _drain(self, sender: int) -> None:
+        """Put what reached the other nodes' adapters in flight, to arrive ``latency`` later."""
+        at = self.now + self.latency
+        for j, (_, other) in enumerate(self.nodes):
+            if j == sender:
+                continue
+            while (t := other.recv(0)) is not None:
+                # a memory pair delivers to exactly one peer, so attribute it to `j`
+                self._seq += 1
+                heapq.heappush(self._transit, (at, self._seq, j, t))
+
+    # -- one instant ------------------------------------------------------------------------
+    def _pump(self, drain_all: bool = False) -> None:
+        """Move transfers until nothing more happens at ``now``. ``drain_all``: look at every
+        adapter in the first round (something may have been put there from outside)."""
+        nodes, now, transit, tap = self.nodes, self.now, self._transit, self.tap
+        quiet, known, fresh, alone = self._quiet, self._known, self._fresh, self._alone
+        n = len(nodes)
         for _ in range(self._max_steps):
             progress = False
-            for i, (node, adapter) in enumerate(self.nodes):
-                for out in node.data_to_send(self.now):
+            for i in range(n):
+                if quiet[i]:
+                    if drain_all:
+                        self._drain(i)
+                    continue
+                node, adapter = nodes[i]
+                outs = node.data_to_send(now)
+                if outs:
                     progress = True
-                    if self.tap is not None:
-                        self.tap(i, self.now, out)
-                    adapter.send(out)
-                for j, (_, other) in enumerate(self.nodes):
-                    if j == i:
-                        continue
-                    while (t := other.recv(0)) is not None:
-                        # `other` received it from its peer `i` only if they are a pair; a
-                        # memory pair delivers to exactly one peer, so attribute it to `j`.
-                        self._seq += 1
-                        item = _InTransit(self.now + self.latency, self._seq, j, t)
-                        heapq.heappush(self._transit, item)
-                        progress = True
-            while self._transit and self._transit[0].at <= self.now:
-                item = heapq.heappop(self._transit)
-                self.nodes[item.to][0].receive_data(item.transfer, self.now)
+                    known[i] = False
+                    for out in outs:
+                        if tap is not None:
+                            tap(i, now, out)
+                        adapter.send(out)
+                else:
+                    # handing over nothing can still move a deadline: a request queued behind
+                    # a full window, a wrapper that withholds what its node hands over (the
+                    # conformance shim holding ACKs back); a SELF_CONTAINED node promises
+                    # that only the first call after a touch can
+                    if fresh[i] or not alone[i]:
+                        known[i] = False
+                    quiet[i] = True
+                fresh[i] = False
+                if outs or drain_all:
+                    self._drain(i)
+            drain_all = False
+            while transit and transit[0][0] <= now:
+                _, _, to, transfer = heapq.heappop(transit)
+                nodes[to][0].receive_data(transfer, now)
+                self._touch(to)
                 progress = True
-            for node, _ in self.nodes:
-                timer = node.get_timer()
-                if timer is not None and timer <= self.now:
-                    node.handle_timer(self.now)
+            for i in range(n):
+                timer = self._deadline(i)
+                if timer is not None and timer <= now:
+                    nodes[i][0].handle_timer(now)
+                    self._touch(i)
                     progress = True
             if not progress:
                 return
         raise RuntimeError(f"no quiescence at t={self.now}: a node keeps asking for work")
 
-    def next_time(self) -> float | None:
-        times = [t for n, _ in self.nodes if (t := n.get_timer()) is not None]
-        if self._transit:
-            times.append(self._transit[0].at)
-        return min(times) if times else None
+    def _next(self) -> float | None:
+        best = self._transit[0][0] if self._transit else None
+        for i in range(len(self.nodes)):
+            t = self._deadline(i)
+            if t is not None and (best is None or t < best):
+                best = t
+        return best
 
+    def next_time(self) -> float | None:
+        """The next deadline of any node or transfer (asks every node afresh)."""
+        self._touch_all()
+        return self._next()
+
+    # -- running ----------------------------------------------------------------------------
     def run_until(
         self, t_end: float, *, stop: Callable[[], bool] | None = None, realtime: bool = False
     ) -> float:
@@ -103,21 +184,29 @@ class VirtualRunner:
             self.wall_s += time.perf_counter() - w0
             self.cpu_s += time.process_time() - c0
 
+    def _new_instant(self, t: float) -> None:
+        if t != self.now:
+            self.now = t
+            self._quiet[:] = [False] * len(self.nodes)
+
     def _run(
         self, t_end: float, stop: Callable[[], bool] | None, pace: tuple[float, float] | None
     ) -> float:
-        self._pump()
+        self._touch_all()  # nodes may have been driven from outside since the last call
+        self._pump(drain_all=True)
         while stop is None or not stop():
-            nxt = self.next_time()
+            if stop is not None:
+                self._touch_all()
+            nxt = self._next()
             if nxt is None or nxt > t_end:
-                self.now = max(self.now, t_end)
+                self._new_instant(max(self.now, t_end))
                 self._pump()
                 break
             if pace is not None:
                 ahead = (nxt - pace[1]) - (time.perf_counter() - pace[0])
                 if ahead > 0:
                     time.sleep(ahead)
-            self.now = max(self.now, nxt)
+            self._new_instant(max(self.now, nxt))
             self._pump()
         return self.now
 

@@ -55,7 +55,7 @@ from eyeq_spi.mesp.server import (
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.flash import FlashImage, hash_request
 from eyeq_spi.sim.scene import Scene, SceneConfig
-from eyeq_spi.spec.catalog import sw_release
+from eyeq_spi.spec.catalog import MessageDef, sw_release
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
@@ -93,6 +93,10 @@ class SimCounters:
 
 
 class SimulatedEyeQ:
+    # runner/node.py: our calls act on nothing but this EyeQ, and a data_to_send that hands
+    # over nothing leaves the deadline alone (the link's ACK/DATA queues only shrink by output)
+    SELF_CONTAINED = True
+
     def __init__(self, config: SimConfig | None = None) -> None:
         self.config = config or SimConfig()
         cfg = self.config
@@ -139,6 +143,9 @@ class SimulatedEyeQ:
         self._dasp_counter: Counter[int] = Counter()
         self._rx_counter = DaspCounters()
         self._templates: dict[str, dict[str, Any]] = {}
+        self._dasp_msgs: dict[str, list[MessageDef]] = {}  # mode -> the DASP messages it sends
+        self._scene_frame: int | None = None  # the camera frame the scene was last stepped to
+        self._dasp_min = 0.0  # min(_next_dasp.values()) when _next_dasp is not empty
         self.powered = False
         self.app_running = False
         self.now = 0.0
@@ -226,16 +233,21 @@ class SimulatedEyeQ:
     def get_timer(self) -> float | None:
         if not self.powered:
             return None
-        times = [t for t in (self.conn.get_timer(), self._boot_at, self._app_at) if t is not None]
-        if self.config.reset_at is not None and not self._reset_done:
-            times.append(self.config.reset_at)
-        if self._replies:
-            times.append(self._replies[0][0])
+        # asked after every event (runner/virtual.py): no temporary lists here
+        best = self.conn.get_timer()
+        for t in (self._boot_at, self._app_at,
+                  None if self._reset_done else self.config.reset_at,
+                  self._replies[0][0] if self._replies else None):
+            if t is not None and (best is None or t < best):
+                best = t
         if self.app_running:
-            times.append(self._next_diag)
+            if best is None or self._next_diag < best:
+                best = self._next_diag
             if self._dasp_mode() is not None:
-                times.append(min(self._next_dasp.values(), default=self.now))
-        return min(times) if times else None
+                t = self._dasp_min if self._next_dasp else self.now
+                if t < best:
+                    best = t
+        return best
 
     def handle_timer(self, now: float) -> None:
         if not self.powered:
@@ -489,23 +501,29 @@ class SimulatedEyeQ:
         mode = self._dasp_mode()
         if mode is None:
             return
-        msgs = [m for m in self.codec.cat.messages
+        msgs = self._dasp_msgs.get(mode)
+        if msgs is None:
+            msgs = self._dasp_msgs[mode] = [
+                m for m in self.codec.cat.messages
                 if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw)
                 and mode in m.modes]
-        period = 1.0 / self.config.dasp_rate
+        rate = self.config.dasp_rate
+        period = 1.0 / rate
         if not self._next_dasp:
             # stagger the messages over one period so that no message waits behind the others
             # for longer than transmitTimeout
             for i, m in enumerate(msgs):
                 self._next_dasp[m.name] = now + i * period / max(1, len(msgs))
-        stepped = False
         for m in msgs:
             due = self._next_dasp.get(m.name, now)
             if now < due:
                 continue
-            if not stepped:
-                self.scene.step(now, *self._ego)
-                stepped = True
+            # §7.1.4: the scene moves once per camera frame (at the frame's start), and every
+            # message of that frame reads the same state
+            frame = math.floor(now * rate + 1e-6)
+            if frame != self._scene_frame:
+                self._scene_frame = frame
+                self.scene.step(min(now, frame * period), *self._ego)
             self._next_dasp[m.name] = max(due + period, now)
             stop = self.config.stop_dasp.get(m.name)
             if stop is not None and now >= stop:
@@ -516,6 +534,7 @@ class SimulatedEyeQ:
             self._dasp_counter[m.data_id] = (counter + 1) & 0xFF
             self._send(self.codec.encode_dasp(m.name, values, counter, self.e2e), now)
             self.counters.sent[m.name] += 1
+        self._dasp_min = min(self._next_dasp.values(), default=now)
 
     def _fill(self, name: str, values: dict[str, Any], now: float) -> None:
         if "timestamp_ms" in values:
