@@ -296,22 +296,18 @@ def _winsize(fd: int, rows: int, cols: int) -> None:
     fcntl.ioctl(fd, termios.TIOCSWINSZ, struct.pack("HHHH", rows, cols, 0, 0))
 
 
-@pytest.mark.realtime
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs a Linux pty")
-def test_monitor_in_a_pseudo_terminal() -> None:
-    """Real time, in a pty: the screen is redrawn at >= 5 Hz and shows rates and objects."""
-    pyte = pytest.importorskip("pyte", reason="pyte reads the terminal screen (test extra)")
+def _run_in_pty(argv: list[str], rows: int, cols: int) -> tuple[int, list[tuple[float, bytes]]]:
+    """``eyeq-spi monitor ARGV`` in a pseudo-terminal of ROWS x COLS: its exit code and what it
+    wrote, read as it came (time, bytes)."""
     import pty
 
-    rows, cols = 60, 150
     master, slave = pty.openpty()
     _winsize(slave, rows, cols)
     env = {**os.environ, "TERM": "xterm-256color"}
     env.pop("COLUMNS", None)
     env.pop("LINES", None)
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "eyeq_spi.cli", "monitor", "--demo", "--duration", "3"],
-        stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
+    proc = subprocess.Popen([sys.executable, "-m", "eyeq_spi.cli", "monitor", *argv],
+                            stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
     os.close(slave)
     chunks: list[tuple[float, bytes]] = []  # read fast, parse later: a slow reader would
     deadline = time.monotonic() + 30          # block the monitor's writes to the pty
@@ -334,11 +330,41 @@ def test_monitor_in_a_pseudo_terminal() -> None:
             proc.kill()
         proc.wait(10)
         os.close(master)
+    return proc.returncode, chunks
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs a Linux pty")
+def test_replay_in_a_narrow_pseudo_terminal(demo_capture: Path) -> None:
+    """A replayed capture in a 100-column terminal (an SSH window): the blocks that do not fit
+    side by side are stacked, and the final screen shows the host's view of the capture."""
+    pyte = pytest.importorskip("pyte", reason="pyte reads the terminal screen (test extra)")
+    rows, cols = 80, 100
+    returncode, chunks = _run_in_pty(["--replay", str(demo_capture), "--pace", "4"], rows, cols)
+    screen = pyte.Screen(cols, rows)
+    pyte.ByteStream(screen).feed(b"".join(c for _, c in chunks))
+    assert returncode == 0
+    lines = [line.rstrip() for line in screen.display]
+    assert lines[0].startswith("eyeq-spi monitor replay demo.pcapng x4") and "finished" in lines[0]
+    assert "host state: RUNNING_VISION" in lines[0]
+    assert any(re.match(r"\s*VIS_SRP\s+\d+\s+[\d.]+\s+18\s+stopped\s+stale streams\s+"
+                        r"VIS_SRP", line) for line in lines), "\n".join(lines)
+    assert "objects (5)" in lines and any(line.startswith("lanes (") for line in lines)
+    assert len(re.findall(r"^\s+\d+\s+(?:car|truck|uncertain_vehicle|bike|bicycle|pedestrian)",
+                          "\n".join(lines), re.M)) == 5
+
+
+@pytest.mark.realtime
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs a Linux pty")
+def test_monitor_in_a_pseudo_terminal() -> None:
+    """Real time, in a pty: the screen is redrawn at >= 5 Hz and shows rates and objects."""
+    pyte = pytest.importorskip("pyte", reason="pyte reads the terminal screen (test extra)")
+    rows, cols = 60, 150
+    returncode, chunks = _run_in_pty(["--demo", "--duration", "3"], rows, cols)
     screen = pyte.Screen(cols, rows)
     stream = pyte.ByteStream(screen)
     raw = b"".join(c for _, c in chunks)
     stream.feed(raw)
-    assert proc.returncode == 0
+    assert returncode == 0
     text = "\n".join(screen.display)
     assert "host state: RUNNING_VISION" in screen.display[0]
     rate = next(line for line in screen.display if line.lstrip().startswith("VIS_OBSTACLES"))
