@@ -43,8 +43,9 @@ def answers(tr: Trace, slack: float) -> list[Answer]:
             out[x.index] = Answer(x, None)
         elif x.direction == tr.dut_dir and x.kind in ("ACK", "NAK"):
             queue = pending.get(x.rsp)
-            while queue and x.time - queue[0].time > limit:
-                queue.pop(0)
+            while queue and (x.time - queue[0].time > limit or (
+                    x.kind == "ACK" and (queue[0].kind == "BAD" or not queue[0].crc_ok))):
+                queue.pop(0)  # too old, or a frame no receiver may ACK (bad CRC, D or R: L5)
             if queue:
                 out[queue.pop(0).index].reply = x
     return list(out.values())

@@ -15,7 +15,7 @@ from eyeq_spi.codec.message import is_mesp
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostEvent
 from eyeq_spi.host.nvm import Nvm
-from eyeq_spi.link.frame import DATA_SIZE, FrameCodec, FrameKind
+from eyeq_spi.link.frame import DATA_SIZE, FrameCodec, FrameKind, NakReason
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.spec.link import link_spec
@@ -60,6 +60,12 @@ class NoAck(_LinkOutput):
 class WrongRsp(_LinkOutput):
     def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
         return _FRAMES.ack((rsp + 1) % 4096) if d == FrameKind.ACK else t
+
+
+class SilentOnBadCrc(_LinkOutput):
+    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
+        # a frame with a bad CRC is dropped without its NAK 0x002 (L5)
+        return b"" if d == FrameKind.NAK and num == NakReason.CRC_MISMATCH else t
 
 
 class AckCrcRange(_LinkOutput):
@@ -177,6 +183,21 @@ class TagNotEchoed(SimulatedEyeQ):
         self.server.handle = wrapped  # type: ignore[method-assign]
 
 
+class UnknownRet1(SimulatedEyeQ):
+    """Answers an unknown service or function with ret 1 instead of 2 (M2)."""
+
+    def __init__(self, config: SimConfig | None = None) -> None:
+        super().__init__(config)
+        handle = self.server.handle
+
+        def wrapped(data: bytes) -> bytes | None:
+            reply = handle(data)
+            if reply is not None and len(reply) >= 9 and reply[5:9] == (2).to_bytes(4, "little"):
+                reply = reply[:5] + (1).to_bytes(4, "little") + reply[9:]
+            return reply
+        self.server.handle = wrapped  # type: ignore[method-assign]
+
+
 class InitBeforePending(SimulatedEyeQ):
     def _calibration(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         if self.main_state == BOOT and p["ct_stage"] == 0x92:
@@ -264,6 +285,10 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
        {"LINK-ACK", "LINK-DUP", "LINK-RESYNC"}, eyeq=WrongRsp,
        # our link takes none of its requests for delivered: no deadline can be measured
        masks=frozenset({"MESP-DEADLINE"})),
+    _m("eyeq-silent-on-bad-crc", "eyeq", "a frame with a bad CRC gets no NAK 0x002",
+       {"LINK-NAK-CRC"}, eyeq=SilentOnBadCrc),
+    _m("eyeq-unknown-ret-1", "eyeq", "an unknown service or function is answered with ret 1",
+       {"MESP-UNKNOWN"}, eyeq=UnknownRet1),
     _m("eyeq-ack-crc-range", "eyeq", "ACK/NAK CRC computed over the pad bytes too",
        {"LINK-CRC"}, eyeq=AckCrcRange),
     _m("eyeq-resends", "eyeq", "a DATA frame not ACKed in time is sent again",
