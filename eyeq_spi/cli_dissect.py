@@ -137,7 +137,7 @@ def run_dissect(args: argparse.Namespace) -> int:
                 _, records = open_records(fh, args.format, args.direction, spi_options_from(args))
                 dis = Dissector(codec=codec)
                 batched = (br.batch_items(fh, args.format, args.direction, codec,
-                                          fields=bool(writers))
+                                          fields=br.fields_mode(writers, plain))
                            if br is not None else None)
                 for r in _with_progress(batched or _all(dis, records), fh, path,
                                         stdout_busy=bool(writers) and table is None):

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 import struct
+import tempfile
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,9 +21,10 @@ from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.codec.vdecode import crc_rows, vec_layout
 from eyeq_spi.crc import crc16
-from eyeq_spi.dissect import batch, engine
+from eyeq_spi.dissect import batch, batch_run, engine
 from eyeq_spi.dissect.engine import _check_enums
-from eyeq_spi.dissect.output import flatten
+from eyeq_spi.dissect.output import TableWriter, flatten
+from eyeq_spi.dissect.stats import Stats
 from eyeq_spi.dissect.vframes import FrameBlock
 from eyeq_spi.link.frame import FrameCodec
 from eyeq_spi.spec.catalog import catalog
@@ -264,7 +267,7 @@ def test_span_messages_agree_with_the_engine_under_application_faults(
     want = list(engine.iter_records(recs))
     got = list(batch.iter_records(chunks_from_records(recs, chunk)))
     assert got == want
-    lean = list(batch.iter_records(chunks_from_records(recs, chunk), fields=False))
+    lean = list(batch.iter_records(chunks_from_records(recs, chunk), fields="none"))
     assert len(lean) == len(want)
     for a, b in zip(want, lean, strict=True):
         if b["kind"] == "message" and b["protocol"] == "DASP" and not b["fields"]:
@@ -295,3 +298,50 @@ def test_no_two_dasp_messages_share_a_layout() -> None:
     for sw in CAT.sw_versions:
         payloads = [m.payload for m in CAT.messages if m.protocol == "DASP" and m.exists_in(sw)]
         assert len(payloads) == len(set(payloads)), sw
+
+
+def _tables(tmp: Path, fmt: str, recs: list[Record], chunk: int | None) -> Path:
+    """The tables of the exact engine (chunk None) or of the batch path in columns mode."""
+    out = tmp / f"{fmt}-{chunk}"
+    w = TableWriter(str(out), fmt)
+    if chunk is None:
+        for r in engine.iter_records(recs):
+            w.write(r)
+    else:
+        for item in batch.iter_items(chunks_from_records(recs, chunk), fields="columns"):
+            if isinstance(item, FrameBlock):
+                batch_run.consume(item, lambda r: True, True, Stats(CAT), [w])
+            else:
+                w.write(item)
+    w.close()
+    return out
+
+
+@settings(max_examples=6, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 39), st.integers(1, 7)), max_size=4),
+       st.sampled_from([7, 1 << 15]))
+def test_table_columns_agree_with_the_exact_rows(faults: list[tuple[int, int]],
+                                                 chunk: int) -> None:
+    pq = pytest.importorskip("pyarrow.parquet", reason="--parquet needs pyarrow (extra)")
+    recs = _capture(faults)
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(tmp)
+        want, got = _tables(base, "csv", recs, None), _tables(base, "csv", recs, chunk)
+        names = sorted(p.name for p in want.iterdir())
+        assert names == sorted(p.name for p in got.iterdir())
+        for n in names:
+            assert (want / n).read_bytes() == (got / n).read_bytes(), n
+        want, got = _tables(base, "parquet", recs, None), _tables(base, "parquet", recs, chunk)
+        for n in sorted(p.name for p in want.iterdir()):
+            a, b = pq.read_table(want / n), pq.read_table(got / n)
+            assert a.schema.equals(b.schema) and a.equals(b), n
+
+
+def test_columns_mode_really_writes_columns() -> None:
+    recs = _capture([])
+    items = list(batch.iter_items(chunks_from_records(recs, 1 << 15), fields="columns"))
+    groups = [g for b in items if isinstance(b, FrameBlock) for g in b.tables]
+    assert {g.name for g in groups} >= {"EYEQ_VIS_OBSTACLES_MSG", "EYEQ_VIS_FAILSAFE_MSG"}
+    assert batch_run.fields_mode([], True) == "none"
+    assert batch_run.fields_mode([TableWriter.__new__(TableWriter)], True) == "columns"
+    assert batch_run.fields_mode([TableWriter.__new__(TableWriter)], False) == "dict"

@@ -119,10 +119,9 @@ class BatchDissector:
     """Chunks in, records (dicts) and :class:`FrameBlock` items out, in capture order."""
 
     def __init__(self, sw: str | None = None, codec: MessageCodec | None = None,
-                 *, fields: bool = True) -> None:
+                 *, fields: str = "dict") -> None:
         self.dis = Dissector(sw, codec)
-        self.fields = fields  # False: DASP span messages get no "fields" (--stats alone)
-        self.decode = SpanDecoder(self.dis, fields=fields)
+        self.decode = SpanDecoder(self.dis, fields=fields)  # "dict" | "none" | "columns"
         self.base = 0
         self.dirs: dict[int, _Dir] = {}
         self.deadline: float | None = None
@@ -346,6 +345,7 @@ class BatchDissector:
         msgs = [self._message(fa, st, u, row) for row, st, u in done]
         for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
             block.messages.append((row, rec))
+        block.tables = self.decode.tables
         t = fa.tfill[hi - 1]
         self.dis.last_time = None if t != t else float(t)
         return block
@@ -484,7 +484,7 @@ def _is_first(transfer: bytes) -> bool:
 
 
 def iter_items(chunks: Iterable[Chunk], *, sw: str | None = None,
-               codec: MessageCodec | None = None, fields: bool = True) -> Iterator[Item]:
+               codec: MessageCodec | None = None, fields: str = "dict") -> Iterator[Item]:
     bd = BatchDissector(sw, codec, fields=fields)
     for c in chunks:
         yield from bd.feed(c)
@@ -492,7 +492,7 @@ def iter_items(chunks: Iterable[Chunk], *, sw: str | None = None,
 
 
 def iter_records(chunks: Iterable[Chunk], *, sw: str | None = None,
-                 codec: MessageCodec | None = None, fields: bool = True
+                 codec: MessageCodec | None = None, fields: str = "dict"
                  ) -> Iterator[dict[str, Any]]:
     """Every record, as :func:`.engine.iter_records` gives them."""
     for item in iter_items(chunks, sw=sw, codec=codec, fields=fields):

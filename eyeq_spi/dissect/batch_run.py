@@ -25,14 +25,16 @@ from eyeq_spi.dissect.output import JsonWriter
 from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBlock
 
 Item = dict[str, Any] | FrameBlock
-__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "is_plain", "parallel_items"]
+__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "fields_mode", "is_plain",
+           "parallel_items"]
 
 
 def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
-                codec: MessageCodec, *, fields: bool = True) -> Iterator[Item] | None:
+                codec: MessageCodec, *, fields: str = "dict") -> Iterator[Item] | None:
     """The batch path's items for a seekable pcapng or raw file (read from its start), else
-    None: the exact path goes on, ``fh`` at the position it had. ``fields=False``: only
-    ``--stats`` reads the records, so DASP fields are not decoded (vmessages.SpanDecoder)."""
+    None: the exact path goes on, ``fh`` at the position it had. ``fields``: what the span
+    messages carry (:class:`~.vmessages.SpanDecoder`: "dict", "none" for ``--stats`` alone,
+    "columns" for a table writer alone)."""
     try:
         if not fh.seekable():
             return None
@@ -55,7 +57,7 @@ def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
     return None
 
 
-def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: bool = True
+def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
            ) -> Iterator[Item]:
     bd = BatchDissector(codec=codec, fields=fields)
     try:
@@ -86,8 +88,13 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
         elif hasattr(w, "write_block"):
             w.write_block(item)
         elif getattr(w, "messages_only", False) or type(w).__name__ == "TableWriter":
-            for _, r in item.messages:
-                w.write(r)
+            tables = iter(item.tables)
+            nxt = next(tables, None)
+            for i, (_, r) in enumerate(item.messages):
+                while nxt is not None and nxt.first == i:  # a group's rows, from its columns
+                    w.write_columns(nxt.name, nxt.columns)
+                    nxt = next(tables, None)
+                w.write(r)  # a group's own records have no fields: the writer skips them
         else:
             for r in item.records():
                 w.write(r)
@@ -95,6 +102,16 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
 
 def is_plain(args: Any) -> bool:
     return not (args.protocol or args.id is not None or args.name or args.errors_only)
+
+
+def fields_mode(writers: list[Any], plain: bool) -> str:
+    """What span messages must carry for these writers (vmessages.SpanDecoder): nothing for
+    ``--stats`` alone, columns for one table writer and no filter, else the fields."""
+    if not writers:
+        return "none"
+    if plain and len(writers) == 1 and type(writers[0]).__name__ == "TableWriter":
+        return "columns"
+    return "dict"
 
 
 # -- --jobs N -------------------------------------------------------------------------------------

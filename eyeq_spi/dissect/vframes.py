@@ -152,6 +152,7 @@ class FrameBlock:
     lo: int
     hi: int
     messages: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
+    tables: list[Any] = field(default_factory=list)  # vmessages.ColumnGroup, "columns" mode
 
     def frame(self, i: int) -> dict[str, Any]:
         fa = self.fa

@@ -11,8 +11,15 @@ own layout, and no two DASP messages of a release share one, which the tests che
 are independent and each is judged in capture order: every record is the one the exact engine
 makes (``tests/test_batch.py`` holds them to it record for record).
 
-``fields=False`` (``dissect --stats`` with no other output): DASP records of the vectorised
-groups carry ``"fields": {}``; everything ``--stats`` and the filters read is there.
+``fields`` says what the records of the vectorised groups carry:
+
+- ``"dict"``: the fields as the exact engine decodes them (the generated ``struct`` path);
+- ``"none"`` (``dissect --stats`` with no other output): ``"fields": {}``; everything ``--stats``
+  and the filters read is there;
+- ``"columns"`` (``--csv``/``--parquet`` with no filter and no other output): ``"fields": {}``,
+  and each group's table rows as columns straight from the arrays in :attr:`SpanDecoder.tables`
+  (``frame_index``, ``time``, ``direction``, ``header.*``, then the flattened fields, the row a
+  :class:`~.output.TableWriter` makes of the exact record, value for value).
 """
 
 from __future__ import annotations
@@ -40,15 +47,32 @@ class SpanMessage:
     frames: list[int | None]
 
 
+FIELD_MODES = ("dict", "none", "columns")
+
+
+@dataclass
+class ColumnGroup:
+    """The table rows of a group's messages: ``first`` is the position (in the block's
+    messages) of its first message; ``columns`` in the order of the exact table row."""
+
+    first: int
+    name: str
+    columns: dict[str, Any]
+
+
 class SpanDecoder:
-    def __init__(self, dis: Dissector, *, fields: bool = True) -> None:
+    def __init__(self, dis: Dissector, *, fields: str = "dict") -> None:
+        if fields not in FIELD_MODES:
+            raise ValueError(f"fields must be one of {FIELD_MODES}, not {fields!r}")
         self.dis = dis
         self.codec = dis.codec
         self.fields = fields
+        self.tables: list[ColumnGroup] = []  # of the last records() call, by first position
 
     def records(self, msgs: list[SpanMessage]) -> list[dict[str, Any]]:
         """The message records of ``msgs`` (in capture order), in that order."""
         out: list[dict[str, Any] | None] = [None] * len(msgs)
+        self.tables = []
         groups: dict[tuple[str | None, int], list[int]] = {}
         exact: list[int] = []
         for i, m in enumerate(msgs):
@@ -57,9 +81,14 @@ class SpanDecoder:
                 groups.setdefault((m.direction, data[1]), []).append(i)
             else:
                 exact.append(i)
+        ids = [k[1] for k in groups]
         for (direction, data_id), rows in groups.items():
-            if not self._group(msgs, rows, direction, data_id, out):
+            # a data ID in both directions: two groups of one table, rows as dicts
+            columns = self.fields == "columns" and ids.count(data_id) == 1
+            if not self._group(msgs, rows, direction, data_id, out, columns):
                 exact += rows
+        if len(self.tables) > 1:
+            self.tables.sort(key=lambda g: g.first)
         for i in sorted(exact) if len(exact) > 1 else exact:
             m = msgs[i]
             self.dis.last_time = m.time
@@ -69,7 +98,7 @@ class SpanDecoder:
         return out  # type: ignore[return-value]
 
     def _group(self, msgs: list[SpanMessage], rows: list[int], direction: str | None,
-               data_id: int, out: list[dict[str, Any] | None]) -> bool:
+               data_id: int, out: list[dict[str, Any] | None], columns: bool) -> bool:
         """Judge one (direction, data ID) group at once; False: it needs the exact path."""
         codec = self.codec
         msg = codec.dasp_message(data_id)
@@ -92,8 +121,12 @@ class SpanDecoder:
         e2e = vl.verify(payloads, d.e2e)
         clean = np.array([not e and not r for e, r in zip(e2e, reserved, strict=True)], bool)
         enums = vl.enum_errors(payloads, msg.name, clean)
-        parse = lay.fast.decode if self.fields else None
+        parse = lay.fast.decode if self.fields == "dict" or (
+            self.fields == "columns" and not columns) else None
         name = msg.name
+        if columns:
+            self.tables.append(ColumnGroup(rows[0], name, self._columns(
+                msgs, rows, direction, data_id, counters, vl.columns(payloads))))
         check = d.dasp_counters.check
         for k, i in enumerate(rows):
             m = msgs[i]
@@ -112,3 +145,26 @@ class SpanDecoder:
                 "errors": errors,
             }
         return True
+
+    @staticmethod
+    def _columns(msgs: list[SpanMessage], rows: list[int], direction: str | None, data_id: int,
+                 counters: list[int], fields: dict[str, np.ndarray]) -> dict[str, Any]:
+        """The TableWriter row of each message as columns: numpy arrays where pyarrow infers
+        from them what it infers from the Python values (int64, double), lists elsewhere."""
+        n = len(rows)
+        out: dict[str, Any] = {
+            "frame_index": [msgs[i].frames[-1] if msgs[i].frames else None for i in rows],
+            "time": [msgs[i].time for i in rows],
+            "direction": [direction] * n,
+            "header.data_id": [data_id] * n,
+            "header.counter": counters,
+        }
+        for k, col in fields.items():
+            kind = col.dtype.kind
+            if kind == "f":
+                out[k] = col.astype(np.float64)
+            elif kind == "i" or (kind == "u" and col.dtype.itemsize < 8):
+                out[k] = col.astype(np.int64)
+            else:  # uint64: Python ints, as the exact row has them
+                out[k] = col.tolist()
+        return out
