@@ -174,14 +174,10 @@ def _imports(argv: list[str], env: dict[str, str], watch: tuple[str, ...]) -> tu
 
 @pytest.mark.parametrize(("argv", "rc", "allowed"), [
     (["--help"], 0, ()),
-    (["demo", "--fatal", "999"], 2, ()),
-    (["demo", "--stop-dasp", "FOO@3"], 2, ()),
     (["host", "--port", "socket://127.0.0.1"], 2, ()),
     (["dissect", "--id", "zz", "SMALL_HEX"], 2, ()),
-    (["sim", "--port", "loop://"], 2, ()),
     (["nonsense"], 2, ()),
     (["spec", "list"], 0, ()),
-    (["spec", "show", "0xE4"], 0, ()),
     (["spec", "show", "obstacles"], 0, ()),
     # a small capture (of bad frames: exit 1): construct only for MESP, never yaml, numpy, rich
     (["dissect", "SMALL_HEX"], 1, ("construct",)),
