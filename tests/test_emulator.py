@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 import statistics
 from pathlib import Path
 
@@ -99,16 +100,39 @@ def test_tac_and_spc_round_trips_update_nvm(running, mode: str, state: HostState
     result = emu.host.calibration_result
     assert result is not None and result["ok"] and result["mode"] == mode
     a = emu.host.nvm.data.alignment
-    assert a.cameraAlignmentValidKA == 1
-    assert (a.horizonKA, a.yawKA) == (result["distPitch"], result["distYaw"])
+    assert a["cameraAlignmentValidKA"] == 1
+    assert (a["horizonKA"], a["yawKA"]) == (result["distPitch"], result["distYaw"])
     if roll_kept:
-        assert a.rollAngleKA == pytest.approx(result["roll"])
+        assert a["rollAngleKA"] == pytest.approx(result["roll"])
     else:
-        assert a.rollAngleKA == 0.0  # §21: SPC sets rollAngleKA to 0
+        assert a["rollAngleKA"] == 0.0  # §21: SPC sets rollAngleKA to 0
     emu.host.switch_mode("VISION", emu.runner.now)
     emu.run_for(2.0)
     assert emu.host.state is S.RUNNING_VISION
     assert (0x85 if mode == "TAC" else 0x82, 0) in emu.sim.counters.calibration_events
+
+
+def test_init_0x92_carries_the_stored_alignment_as_section_21_says(running) -> None:  # type: ignore[no-untyped-def]
+    """§21 via specs/nvm.yaml: horizonKA -> horizonFull, yawKA -> yawFull, rollAngleKA (degrees,
+    as TAC measures roll) -> rollAngle in radians, cameraAlignmentValidKA ->
+    cameraAlignmentValid."""
+    host = running.host
+    host.nvm.data.alignment = {"horizonKA": 3.0, "yawKA": -4.0, "rollAngleKA": 2.0,
+                               "cameraAlignmentValidKA": 1.0}
+    assert host._init_values(0x92) == pytest.approx(
+        {"horizonFull": 3.0, "yawFull": -4.0, "rollAngle": math.radians(2.0),
+         "cameraAlignmentValid": 1.0})
+
+
+def test_a_failed_calibration_leaves_the_nvm_alone(running) -> None:  # type: ignore[no-untyped-def]
+    emu = running
+    emu.sim.config.tac_error = 2  # TARGET_NOT_FOUND
+    before = dict(emu.host.nvm.data.alignment)
+    emu.host.switch_mode("TAC", emu.runner.now)
+    emu.run_for(4.0)
+    result = emu.host.calibration_result
+    assert result is not None and result["mode"] == "TAC" and not result["ok"]
+    assert emu.host.nvm.data.alignment == before
 
 
 def test_dv_mode(running) -> None:  # type: ignore[no-untyped-def]

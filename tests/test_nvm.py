@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from eyeq_spi.cli import main
-from eyeq_spi.host.nvm import Alignment, Nvm, NvmError
+from eyeq_spi.host.nvm import Nvm, NvmError, alignment_defaults
 from eyeq_spi.host.scenario import ConstantDrive, CsvScenario, ScenarioError
 
 
@@ -17,11 +17,12 @@ def test_round_trip_and_first_power_up(tmp_path: Path) -> None:
     nvm = Nvm(tmp_path / "n.json")
     assert nvm.load().intrinsic == {} and nvm.load_problem is None  # missing file: first power-up
     nvm.data.intrinsic = {"CCAM_camK1_FocalLengthX_m": 1502.5625}
-    nvm.data.alignment = Alignment(1.0, -2.0, 0.01, 1)
+    stored = {"horizonKA": 1.0, "yawKA": -2.0, "rollAngleKA": 0.01, "cameraAlignmentValidKA": 1.0}
+    nvm.data.alignment = dict(stored)
     nvm.save()
     again = Nvm(tmp_path / "n.json").load()
     assert again.intrinsic == {"CCAM_camK1_FocalLengthX_m": 1502.5625}
-    assert again.alignment == Alignment(1.0, -2.0, 0.01, 1)
+    assert again.alignment == stored
 
 
 def test_a_crash_during_save_leaves_the_old_file_and_no_debris(
@@ -50,7 +51,12 @@ def test_corrupt_file_is_reported_and_treated_as_empty(tmp_path: Path) -> None:
     assert nvm.load().intrinsic == {}
     assert nvm.load_problem and "unreadable NVM" in nvm.load_problem
     path.write_text(json.dumps({"alignment": {"bogus": 1}}))
-    assert Nvm(path).load().alignment == Alignment()
+    assert Nvm(path).load().alignment == alignment_defaults()  # a name §21 lacks is ignored
+    for bad in ("NaN", '"x"', "true", "1e999"):
+        path.write_text('{"alignment": {"yawKA": ' + bad + '}}')
+        nvm = Nvm(path)
+        assert nvm.load().alignment == alignment_defaults(), bad
+        assert nvm.load_problem and "yawKA" in nvm.load_problem, bad
 
 
 def test_csv_scenario_errors_are_typed(tmp_path: Path) -> None:

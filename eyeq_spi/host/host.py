@@ -21,13 +21,14 @@ from eyeq_spi.codec.intrinsic import (
 from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
 from eyeq_spi.errors import CodecError, LocalProtocolError, SpecError
 from eyeq_spi.host.machine import HostEvent, HostState, next_state
-from eyeq_spi.host.nvm import Alignment, Nvm
+from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import ConstantDrive, Scenario
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.mesp.client import MespClient, MespCompleted, MespFailed
 from eyeq_spi.mesp.replies import MespError, MespReply
 from eyeq_spi.spec.catalog import sw_release
+from eyeq_spi.spec.tables import alignment_nvm
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
@@ -412,10 +413,8 @@ class HostEmulator:
             # mismatch (Fatal 22) and the EEPROM is read again (§7.1.3).
             return {k: v for k, v in self.nvm.data.intrinsic.items()
                     if isinstance(v, int | float) and math.isfinite(v)}
-        if stage == 0x92:
-            a = self.nvm.data.alignment
-            values = {"horizonFull": a.horizonKA, "yawFull": a.yawKA, "rollAngle": a.rollAngleKA}
-            return values
+        if stage == 0x92:  # §21: each stored parameter goes out as its 0x92 signal
+            return alignment_nvm().init_values(self.nvm.data.alignment)
         return {}
 
     def _has_init_table(self, stage: int) -> bool:
@@ -605,23 +604,35 @@ class HostEmulator:
         if self.calibration_result is not None:
             return
         if mode == "TAC":
-            if cal["progress"] != 4:  # RESULTS_READY
+            if cal["progress"] != self._enum_value("static_cal_progress", "RESULTS_READY"):
                 return
-            ok = cal["error"] == 1  # NO_ERROR
-        else:
-            if cal["status"] == 0:  # INIT: still running
-                return
-            ok = cal["status"] == 1 and cal["error"] == 0
+        elif cal["status"] == self._enum_value("dynamic_cal_status", "INIT"):
+            return  # still running
+        table = alignment_nvm()
+        source = table.source(mode)
+        # §21: "update ... only when TAC, SPC or Autofix is successfully completed"; what
+        # success means per run is the `success` row of specs/nvm.yaml
+        ok = all(cal.get(member) == self._member_value(source.result, member, name)
+                 for member, name in source.success.items())
         self.calibration_result = {"mode": mode, "ok": ok, "time": now, **{
             k: cal[k] for k in ("distYaw", "distPitch", "roll", "phYaw", "phPitch") if k in cal}}
         if ok:
-            # §21: TAC updates all four; SPC sets rollAngleKA to 0
-            self.nvm.data.alignment = Alignment(
-                horizonKA=float(cal["distPitch"]), yawKA=float(cal["distYaw"]),
-                rollAngleKA=float(cal["roll"]) if mode == "TAC" else 0.0,
-                cameraAlignmentValidKA=1,
-            )
+            self.nvm.data.alignment = table.apply(mode, self.nvm.data.alignment, cal)
             self.nvm.save()
+
+    def _enum_value(self, enum: str, name: str) -> int:
+        for v in self.codec.cat.enums[enum].values.values():
+            if v.name == name:
+                return v.value
+        raise SpecError(f"enum {enum} has no value {name}")
+
+    def _member_value(self, struct: str, member: str, name: str) -> int:
+        """The value of enum value ``name`` of ``struct.member`` in this release."""
+        var = self.codec.cat.structs[struct].variant_for(self.sw)
+        m = next((m for m in var.members if m.name == member), None) if var else None
+        if m is None or m.enum is None:
+            raise SpecError(f"{struct}.{member} is not an enum in SW {self.sw}")
+        return self._enum_value(m.enum, name)
 
     def _deliver(self, out: DecodedMessage) -> None:
         for cb in self._subscribers:

@@ -1,11 +1,16 @@
 """The host's non-volatile memory, as a JSON file written atomically (temp file, fsync, rename,
-fsync of the directory), so a crash at any point leaves either the old or the new file."""
+fsync of the directory), so a crash at any point leaves either the old or the new file.
+
+The camera alignment it keeps is the §21 Alignment NVM table: its parameters, defaults and the
+rules for updating them come from ``specs/nvm.yaml`` (:func:`eyeq_spi.spec.tables.alignment_nvm`),
+not from this module."""
 
 from __future__ import annotations
 
 import contextlib
 import glob
 import json
+import math
 import os
 import re
 import tempfile
@@ -14,26 +19,39 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.errors import EyeqError
+from eyeq_spi.spec.tables import alignment_nvm
 
 
 class NvmError(EyeqError):
     """The NVM file cannot be read or written."""
 
 
-@dataclass
-class Alignment:
-    """§21 Alignment NVM table."""
+def alignment_defaults() -> dict[str, float]:
+    """The §21 Alignment NVM parameters (``horizonKA``, ``yawKA``, ``rollAngleKA``,
+    ``cameraAlignmentValidKA``) at their defaults, as ``specs/nvm.yaml`` lists them."""
+    return alignment_nvm().defaults()
 
-    horizonKA: float = 0.0
-    yawKA: float = 0.0
-    rollAngleKA: float = 0.0
-    cameraAlignmentValidKA: int = 0
+
+def _alignment(raw: Any) -> dict[str, float]:
+    """The stored alignment: every parameter of the table, a missing one at its default; names
+    the table does not have are ignored. A value that is not a finite number is a corrupt NVM."""
+    if not isinstance(raw, dict):
+        raise ValueError("alignment is not an object")
+    out = alignment_defaults()
+    for name in out:
+        if name in raw:
+            value = raw[name]
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
+                    value):
+                raise ValueError(f"alignment {name} is {value!r}, not a finite number")
+            out[name] = float(value)
+    return out
 
 
 @dataclass
 class NvmData:
     intrinsic: dict[str, float] = field(default_factory=dict)  # 0x84 signals; empty = zeros
-    alignment: Alignment = field(default_factory=Alignment)
+    alignment: dict[str, float] = field(default_factory=alignment_defaults)  # §21, by name
     ignition_cycles: int = 0
     versions: dict[str, int] = field(default_factory=dict)
 
@@ -102,7 +120,7 @@ class Nvm:
                 raise ValueError("top level is not an object")
             self.data = NvmData(
                 intrinsic={str(k): float(v) for k, v in raw.get("intrinsic", {}).items()},
-                alignment=Alignment(**raw.get("alignment", {})),
+                alignment=_alignment(raw.get("alignment", {})),
                 ignition_cycles=int(raw.get("ignition_cycles", 0)),
                 versions={str(k): int(v) for k, v in raw.get("versions", {}).items()},
             )

@@ -575,8 +575,8 @@ class SimulatedEyeQ:
         else:
             cal = values["dynamicCalParams"]
             cal["runMode"] = 5
-            cal["status"] = 1 if done else 0
-            cal["error"] = 0
+            cal["status"] = 1 if done else 0  # SUCCESS / INIT
+            cal["error"] = 3 if done else 0  # OK when done, as scene.py's SPC results (§9.9)
             cal["overallProgress"] = int(frac * 100)
         # deterministic "measured" alignment from the seed
         h = zlib.crc32(f"{self.config.seed}-{name}".encode())
