@@ -34,8 +34,16 @@ _NAME = re.compile(r"^(?P<channel>.*?)[_.](?P<signal>" + "|".join(_ALIASES) + r"
 CS, CLK, MOSI, MISO = range(4)
 
 
+def _skip_meta(head: bytes) -> bytes:
+    """sigrok-cli 0.7, converting a file (not recording from a device), writes its input's
+    ``META samplerate: N`` line before the VCD itself; it is not VCD and is skipped."""
+    while head.startswith(b"META ") and b"\n" in head:
+        head = head.split(b"\n", 1)[1]
+    return head
+
+
 def sniff(head: bytes) -> str | None:
-    text = head.lstrip()
+    text = _skip_meta(head.lstrip())
     if text[:1] == b"$" and re.match(rb"\$(date|version|timescale|comment|scope|var)\b", text):
         return "vcd"
     return None
@@ -190,6 +198,10 @@ def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
         m = re.search(rb"\$enddefinitions\s+\$end", head)
     if m is None:
         raise LogicInputError("truncated VCD: no $enddefinitions")
+    meta = _skip_meta(head[:m.start()])  # only before the definitions end
+    head = meta + head[m.start():]
+    m = re.search(rb"\$enddefinitions\s+\$end\s?", head)
+    assert m is not None
     scale, vars_ = _header(iter(head[:m.end()].split()))
     table = _channels(vars_, opts)
     reader = _Reader(table, scale, opts)
