@@ -131,3 +131,32 @@ def test_host_suite_against_host_processes(where: str, tmp_path: Path) -> None:
     if where == "pty":
         assert len(urls) == 3  # one pty per ignition cycle
     _judge_run("host", conf.returncode, out, "".join(err))
+
+
+@pytest.mark.realtime
+def test_a_real_violation_still_fails_in_real_time() -> None:
+    """A sim process whose MESP replies leave 700 ms late (its --reply-delay fault switch):
+    MESP-DEADLINE fails, and the gauge says our own loop was not the cause (a stall of 100 ms
+    would be needed to excuse 200 ms of lateness)."""
+    sim = subprocess.Popen([*CLI, "sim", "--listen", "tcp://127.0.0.1:0", "--duration", "60",
+                            "--accept-timeout", "30", "--reply-delay", "0.7", *LIGHT], cwd=ROOT,
+                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        assert sim.stdout is not None
+        line = sim.stdout.readline().split()
+        assert line and line[0] == "LISTEN", line
+        res = subprocess.run([*CLI, "conformance", "--dut", "eyeq", "--port", line[1], "--json",
+                              "-k", "MESP-DEADLINE or LINK-SIZE"], cwd=ROOT,
+                             capture_output=True, text=True, timeout=120)
+    finally:
+        sim.kill()
+        sim.wait(timeout=10)
+    recs = _records(res.stdout)
+    assert res.returncode in (0, 1), res.stderr[-2000:]
+    assert recs["LINK-SIZE"]["verdict"] == "pass"
+    deadline = recs["MESP-DEADLINE"]
+    if "the machine was loaded" in deadline["evidence"]:  # a stall of >= 100 ms: excused
+        assert deadline["verdict"] == "inconclusive", deadline
+    else:
+        assert deadline["verdict"] == "fail" and res.returncode == 1, deadline
+        assert "> 500 ms" in deadline["evidence"] and "not the cause" in deadline["evidence"]
