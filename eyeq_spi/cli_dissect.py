@@ -109,7 +109,7 @@ def run_dissect(args: argparse.Namespace) -> int:
     if args.stats:
         pass  # statistics only (as text, or one JSON object with --json)
     elif args.json:
-        writers.append(JsonWriter(out))
+        writers.append(JsonWriter(out, fast=True))
     elif not table:
         writers.append(HumanWriter(out, codec, color=out.isatty(), tree=not args.no_tree))
     try:
@@ -156,7 +156,7 @@ def run_dissect(args: argparse.Namespace) -> int:
     stats.finish()
     if args.stats:
         if args.json:
-            JsonWriter(out).write(stats.as_dict())
+            JsonWriter(out, fast=True).write(stats.as_dict())
         else:
             out.write(stats.render() + "\n")
     return 1 if stats.protocol_errors else 0

@@ -3,6 +3,8 @@ codec: every DASP message at every SW release, value for value and error for err
 
 from __future__ import annotations
 
+import io
+import json
 import math
 import struct
 import tempfile
@@ -23,7 +25,7 @@ from eyeq_spi.codec.vdecode import crc_rows, vec_layout
 from eyeq_spi.crc import crc16
 from eyeq_spi.dissect import batch, batch_run, engine
 from eyeq_spi.dissect.engine import _check_enums
-from eyeq_spi.dissect.output import TableWriter, flatten
+from eyeq_spi.dissect.output import JsonWriter, TableWriter, flatten
 from eyeq_spi.dissect.stats import Stats
 from eyeq_spi.dissect.vframes import FrameBlock
 from eyeq_spi.link.frame import FrameCodec
@@ -345,3 +347,31 @@ def test_columns_mode_really_writes_columns() -> None:
     assert batch_run.fields_mode([], True) == "none"
     assert batch_run.fields_mode([TableWriter.__new__(TableWriter)], True) == "columns"
     assert batch_run.fields_mode([TableWriter.__new__(TableWriter)], False) == "dict"
+
+
+def test_json_frame_lines_spell_floats_as_the_fast_writer() -> None:
+    """Frame lines formatted from the arrays and orjson's records agree byte for byte, also for
+    times where orjson and json.dumps spell floats differently."""
+    recs = _capture([(3, 1)])
+    odd = [5e-05, 2.5e-07, 1e16, 1e-5, 123.25, float("nan")]
+    recs = [Record(odd[i] if i < len(odd) else r.time, r.direction, r.data)
+            for i, r in enumerate(recs)]
+    items = list(batch.iter_items(chunks_from_records(recs, 1 << 15)))
+    for fast in (False, True):
+        got, want = io.StringIO(), io.StringIO()
+        w = JsonWriter(got, fast=fast)
+        ref = JsonWriter(want, fast=fast)
+        for item in items:
+            if isinstance(item, FrameBlock):
+                item.write_json(got, w.write, fast)
+                for r in item.records():
+                    ref.write(r)
+            else:
+                w.write(item)
+                ref.write(item)
+        assert got.getvalue() == want.getvalue()
+        lines = got.getvalue().splitlines()
+        assert all(json.loads(x) for x in lines)
+        text = got.getvalue()
+        assert ('"time":2.5e-7,' in text) is fast and ('"time":5e-05,' in text) is not fast
+        assert ('"time":1e16,' in text) is fast and ('"time":0.00001,' in text) is fast

@@ -84,7 +84,7 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
     item.add_to(stats)
     for w in writers:
         if type(w) is JsonWriter:
-            item.write_json(w.fh, w.write)
+            item.write_json(w.fh, w.write, w.fast)
         elif hasattr(w, "write_block"):
             w.write_block(item)
         elif getattr(w, "messages_only", False) or type(w).__name__ == "TableWriter":

@@ -16,6 +16,7 @@ import numpy as np
 
 from eyeq_spi.capture.fastread import DIR_NAME, Chunk
 from eyeq_spi.dissect.engine import TRANSPORT_NAMES
+from eyeq_spi.dissect.output import json_float
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 
@@ -192,9 +193,10 @@ class FrameBlock:
                 nxt = next(msgs, None)
         return out
 
-    def write_json(self, fh: Any, write_message: Any) -> None:
+    def write_json(self, fh: Any, write_message: Any, fast: bool = False) -> None:
         """The JSON Lines of :meth:`records`: frame lines formatted straight from the arrays
-        (what ``json.dumps(record, separators=(",", ":"))`` prints for them) go to ``fh``;
+        (what ``json.dumps(record, separators=(",", ":"))`` prints for them, or orjson with
+        ``fast``: only float spelling differs, :func:`~.output.json_float`) go to ``fh``;
         each message goes to ``write_message`` (the JSON writer's own), in order."""
         fa = self.fa
         L = fa.lst
@@ -210,6 +212,8 @@ class FrameBlock:
         for i in range(self.lo, self.hi):
             t = times[i]
             ts = "null" if t != t else repr(t)
+            if fast and "e" in ts:
+                ts = json_float(t, fast)
             if lengths[i] != FRAME_SIZE:
                 parts.append(f'{{"kind":"frame","index":{base + i},"time":{ts},"direction":'
                              f'{dname[dirs[i]]},"frame_type":"INVALID","num":null,"rsp":null,'
