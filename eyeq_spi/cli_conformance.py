@@ -87,15 +87,20 @@ def run_conformance(args: argparse.Namespace) -> int:
         opts.port = args.port
     elif not args.builtin:
         opts.adapter = _listener(args, opts)
-    if not args.builtin:
-        from eyeq_spi.runner.sched import request_realtime
+    import contextlib
 
-        scheduling = request_realtime(args.rt_priority)  # our stalls are the load gauge
+    rt = contextlib.ExitStack()  # real-time scheduling for the live run only (runner/sched.py)
+    if not args.builtin:
+        from eyeq_spi.runner.sched import realtime
+
+        scheduling = rt.enter_context(realtime(args.rt_priority))  # our stalls: the load gauge
+        opts.sessions_done = rt.close  # judging is CPU-bound: ordinary scheduling again
         if opts.progress is not None:
             opts.progress(f"scheduling: {scheduling}")
     try:
         results = run(opts)
     finally:
+        rt.close()  # never leave a caller (a test, a notebook) at SCHED_FIFO
         if opts.adapter is not None:
             opts.adapter.close()
     title = f"eyeq-spi conformance --dut {args.dut}" + (" --builtin" if args.builtin else "")

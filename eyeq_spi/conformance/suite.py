@@ -58,6 +58,9 @@ class Options:
     host_plan: HostPlan = field(default_factory=HostPlan)
     eyeq_plan: EyeqPlan = field(default_factory=EyeqPlan)
     progress: Callable[[str], None] | None = None
+    # called once the live sessions are over, before judging (the CLI gives back real-time
+    # scheduling there: judging is CPU-bound and must not hold a core at SCHED_FIFO)
+    sessions_done: Callable[[], None] | None = None
 
 
 _TOKEN = re.compile(r"\(|\)|[^\s()]+")
@@ -126,6 +129,8 @@ def run(opts: Options) -> list[Result]:
             tr = _host_session(opts, name, wanted, ctx, first=i == 0)
             if tr is not None:
                 ctx.traces[name] = tr
+    if opts.sessions_done is not None:
+        opts.sessions_done()
     out = []
     for c in cases:
         out.append(Result(c, _judge(c, ctx, opts.sw)))
