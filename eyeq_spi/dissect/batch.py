@@ -342,7 +342,7 @@ class BatchDissector:
                 st.ui += 1
         if len(done) > 1:
             done.sort(key=lambda x: x[0])
-        msgs = [self._message(fa, st, u, row) for row, st, u in done]
+        msgs = self._messages(fa, done)
         for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
             block.messages.append((row, rec))
         block.tables = self.decode.tables
@@ -360,6 +360,47 @@ class BatchDissector:
             r = P[k]
             t = times[r]
             out.append((data[r].tobytes(), None if t != t else t, nums[r], fa.base + r))
+        return out
+
+    def _messages(self, fa: FrameArrays, done: list[tuple[int, _Dir, _Unit]]
+                  ) -> list[SpanMessage]:
+        """The messages of ``done`` (in order), cut from one copy of all their rows' transport
+        payloads (a transfer's frames are consecutive there, so a multi-frame message is one
+        slice); the receivers' NUM -> index maps end as the engine's sequential updates leave
+        them. A transfer carried in from the previous chunk goes through :meth:`_message`."""
+        out: list[SpanMessage] = []
+        P_of = {st.code: self._rows[st.code] for _, st, _ in done}
+        local = [u.ks >= 0 for _, _, u in done]
+        rows: list[int] = []
+        for (_, st, u), ok in zip(done, local, strict=True):
+            if ok:
+                rows += P_of[st.code][u.ks : u.ke]
+        data = fa.chunk.data
+        width = data.shape[1] - 8
+        blob = data[rows, 8:].tobytes() if rows else b""
+        tid_col, nums, tfill = fa.lst("tid"), fa.lst("num"), fa.lst("tfill")
+        base = fa.base
+        pos = 0  # next row of ``rows``
+        for (row, st, u), ok in zip(done, local, strict=True):
+            if not ok:
+                out.append(self._message(fa, st, u, row))
+                continue
+            mine = P_of[st.code][u.ks : u.ke]
+            o = pos * width
+            pos += len(mine)
+            if u.first:  # bytes 8..11 of the first frame: the total (transport header)
+                total = int.from_bytes(blob[o : o + 4], "little")
+                msg = blob[o + 4 : min(o + 4 + total, pos * width)]
+                tid: int | None = tid_col[mine[0]]
+            else:
+                msg = blob[o : o + tid_col[mine[0]]]  # byte 7 of a single frame: its size
+                tid = None
+            fnums = tuple(nums[r] for r in mine)
+            idxs = [base + r for r in mine]
+            self.dis._dirs[st.name].index_of_num.update(zip(fnums, idxs, strict=True))
+            t = tfill[row]
+            out.append(SpanMessage(st.name, MessageReceived(msg, fnums, tid),
+                                   None if t != t else t, list[int | None](idxs)))
         return out
 
     def _message(self, fa: FrameArrays, st: _Dir, u: _Unit, row: int) -> SpanMessage:
