@@ -13,6 +13,7 @@ import time
 from eyeq_spi.link import LinkConfig
 from eyeq_spi.phy.tcp import TcpListenAdapter
 from eyeq_spi.runner import RealTimeRunner
+from eyeq_spi.runner.sched import realtime
 from eyeq_spi.transport import MessageReceived, TransportConnection
 
 
@@ -52,10 +53,11 @@ def main() -> int:
     node = Echo()
     runner = RealTimeRunner(node, adapter)
     start = time.monotonic()
-    runner.run(
-        stop=lambda: time.monotonic() - node.last > args.idle
-        or time.monotonic() - start > args.limit
-    )
+    with realtime():  # as host and sim do (eyeq_spi/runner/sched.py)
+        runner.run(
+            stop=lambda: time.monotonic() - node.last > args.idle
+            or time.monotonic() - start > args.limit
+        )
     adapter.close()
     return 0
 
