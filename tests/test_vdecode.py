@@ -305,7 +305,7 @@ def test_no_two_dasp_messages_share_a_layout() -> None:
 def _tables(tmp: Path, fmt: str, recs: list[Record], chunk: int | None) -> Path:
     """The tables of the exact engine (chunk None) or of the batch path in columns mode."""
     out = tmp / f"{fmt}-{chunk}"
-    w = TableWriter(str(out), fmt)
+    w = TableWriter(str(out), fmt, batch=3)  # small batches: column and dict rows interleave
     if chunk is None:
         for r in engine.iter_records(recs):
             w.write(r)

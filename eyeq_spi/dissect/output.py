@@ -182,6 +182,7 @@ class TableWriter:
         self._csv: dict[str, tuple[IO[str], Any, list[str]]] = {}
         self._rows: dict[str, list[dict[str, Any]]] = {}
         self._pq: dict[str, Any] = {}
+        self._tables: dict[str, list[Any]] = {}  # column batches not yet written
         if fmt == "parquet":
             try:
                 import pyarrow  # noqa: F401
@@ -200,6 +201,8 @@ class TableWriter:
         if self.fmt == "csv":
             self._write_csv(name, row)
         else:
+            if self._tables.get(name):
+                self._flush_tables(name)  # column batches of this table come first
             rows = self._rows.setdefault(name, [])
             rows.append(row)
             if len(rows) >= self.batch:
@@ -223,10 +226,25 @@ class TableWriter:
             csv.writer(entry[0]).writerows(zip(*(c[start:] for c in cols), strict=True))
             return
         import pyarrow as pa
-        import pyarrow.parquet as pq
 
         self._flush(name)  # rows of this table written as dicts come first
         table = pa.table({k: pa.array(v) for k, v in columns.items()})
+        pending = self._tables.setdefault(name, [])
+        pending.append(table)
+        if sum(t.num_rows for t in pending) >= self.batch:
+            self._flush_tables(name)
+
+    def _flush_tables(self, name: str) -> None:
+        """Column batches of a table written as one row group (few row groups: each costs
+        per column)."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        pending = self._tables.get(name)
+        if not pending:
+            return
+        table = pending[0] if len(pending) == 1 else pa.concat_tables(pending)
+        pending.clear()
         w = self._pq.get(name)
         if w is None:
             w = pq.ParquetWriter(str(self.dir / f"{name}.parquet"), table.schema)
@@ -267,5 +285,7 @@ class TableWriter:
             fh.close()
         for name in list(self._rows):
             self._flush(name)
+        for name in list(self._tables):
+            self._flush_tables(name)
         for w in self._pq.values():
             w.close()
