@@ -120,7 +120,8 @@ def run_dissect(args: argparse.Namespace) -> int:
         jobs = args.jobs or (br.default_jobs() if br is not None else 1)
         par = None
         if br is not None and jobs > 1 and len(args.files) > 1 and "-" not in args.files:
-            par = br.parallel_items(args.files, jobs, args.format, args.direction, args.sw)
+            par = br.parallel_items(args.files, jobs, args.format, args.direction, args.sw,
+                                    br.fields_mode(writers, plain))
         for path in args.files:
             done = next(par)[1] if par is not None else None
             if done is not None:

@@ -17,7 +17,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from eyeq_spi.capture.fastread import chunks_from_records
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
+from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState, protect, verify, verify_reference
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
@@ -375,3 +376,21 @@ def test_json_frame_lines_spell_floats_as_the_fast_writer() -> None:
         text = got.getvalue()
         assert ('"time":2.5e-7,' in text) is fast and ('"time":5e-05,' in text) is not fast
         assert ('"time":1e16,' in text) is fast and ('"time":0.00001,' in text) is fast
+
+
+def test_jobs_tables_are_the_serial_tables(tmp_path: Path) -> None:
+    """--jobs workers send column groups to the parent: same CSV as a serial run."""
+    files = []
+    for k, faults in enumerate(([], [(4, 1), (9, 4)])):
+        path = tmp_path / f"c{k}.pcapng"
+        with CaptureWriter(path) as w:
+            for r in _capture(faults):
+                w.write(r.direction, r.time, r.data)
+        files.append(str(path))
+    assert main(["dissect", *files, "--csv", str(tmp_path / "serial")]) in (0, 1)
+    assert main(["dissect", "--jobs", "2", *files, "--csv", str(tmp_path / "jobs")]) in (0, 1)
+    names = sorted(p.name for p in (tmp_path / "serial").iterdir())
+    assert "EYEQ_VIS_OBSTACLES_MSG.csv" in names
+    assert names == sorted(p.name for p in (tmp_path / "jobs").iterdir())
+    for n in names:
+        assert (tmp_path / "serial" / n).read_bytes() == (tmp_path / "jobs" / n).read_bytes()

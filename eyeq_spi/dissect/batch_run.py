@@ -124,15 +124,16 @@ def _compact(block: FrameBlock) -> FrameBlock:
     small = FrameArrays(chunk, fa.base + lo, fa.ftype[lo:hi].copy(), fa.num[lo:hi].copy(),
                         fa.rsp[lo:hi].copy(), fa.crc_ok[lo:hi].copy(), fa.d[lo:hi].copy(),
                         fa.fed[lo:hi].copy(), fa.tfill[lo:hi].copy())
-    return FrameBlock(small, 0, hi - lo, [(r - lo, m) for r, m in block.messages])
+    return FrameBlock(small, 0, hi - lo, [(r - lo, m) for r, m in block.messages],
+                      block.tables)
 
 
-def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None
-            ) -> list[Item] | tuple[str, str]:
+def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,
+            fields: str = "dict") -> list[Item] | tuple[str, str]:
     try:
         codec = _codec(sw)
         with open(path, "rb") as fh:
-            items = batch_items(fh, fmt, direction, codec)
+            items = batch_items(fh, fmt, direction, codec, fields=fields)
             if items is None:
                 return ("exact", "")
             return [_compact(i) if isinstance(i, FrameBlock) else i for i in items]
@@ -152,17 +153,19 @@ def _codec(sw: str | None) -> MessageCodec:
 
 
 def parallel_items(paths: list[str], jobs: int, fmt: str | None, direction: str | None,
-                   sw: str | None) -> Iterator[tuple[str, list[Item] | None]]:
+                   sw: str | None, fields: str = "dict"
+                   ) -> Iterator[tuple[str, list[Item] | None]]:
     """(path, items) in the order of ``paths``, dissected ``jobs`` files at a time in worker
     processes; items None: the file is not a batch input (the caller runs the exact path).
     At most ``jobs`` finished files wait in memory ahead of the one being written."""
     with ProcessPoolExecutor(max_workers=jobs) as pool:
-        pending: list[Any] = [pool.submit(_worker, p, fmt, direction, sw) for p in paths[:jobs]]
+        pending: list[Any] = [pool.submit(_worker, p, fmt, direction, sw, fields)
+                              for p in paths[:jobs]]
         nxt = len(pending)
         for i, path in enumerate(paths):
             res = pending[i].result()
             if nxt < len(paths):
-                pending.append(pool.submit(_worker, paths[nxt], fmt, direction, sw))
+                pending.append(pool.submit(_worker, paths[nxt], fmt, direction, sw, fields))
                 nxt += 1
             pending[i] = None
             if isinstance(res, tuple):
