@@ -4,8 +4,10 @@ The batch dissector (:mod:`.batch`) reassembles a block's messages from its arra
 become message records. DASP messages are grouped by (direction, data ID): a group whose every
 message has the layout's length is judged at once — E2E CRCs and rolling counters
 (:meth:`VecLayout.verify`, D5), undefined enum values (:meth:`VecLayout.enum_errors`) — and its
-DASP counters (D1) and fields row by row; any other message (MESP, 0x41, 0x10, unknown IDs,
-a group with a wrong length in it) goes through the exact engine's ``_message``. The receivers'
+DASP counters (D1) and fields row by row. 0x41 and 0x10 messages (rule A: an ID byte and one
+layout each, no E2E state, no counters) are grouped by (direction, protocol) the same way. Any
+other message (MESP, unknown IDs, a group with a wrong length in it) goes through the exact
+engine's ``_message``. The receivers'
 state is per (direction, data ID) for DASP (decision D1; E2E counters are keyed by the message's
 own layout, and no two DASP messages of a release share one, which the tests check), so groups
 are independent and each is judged in capture order: every record is the one the exact engine
@@ -29,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from eyeq_spi.codec.message import DASP_PROTOCOL, classify
+from eyeq_spi.codec.message import classify
 from eyeq_spi.codec.vdecode import vec_layout
 from eyeq_spi.dissect.engine import Dissector
 from eyeq_spi.errors import SpecError
@@ -73,19 +75,25 @@ class SpanDecoder:
         """The message records of ``msgs`` (in capture order), in that order."""
         out: list[dict[str, Any] | None] = [None] * len(msgs)
         self.tables = []
-        groups: dict[tuple[str | None, int], list[int]] = {}
+        groups: dict[tuple[str | None, int | str], list[int]] = {}
         exact: list[int] = []
         for i, m in enumerate(msgs):
             data = m.ev.data
-            if len(data) >= 4 and data[0] == DASP_PROTOCOL and classify(data) == "DASP":
+            proto = classify(data) if data else "UNKNOWN"
+            if proto == "DASP" and len(data) >= 4:
                 groups.setdefault((m.direction, data[1]), []).append(i)
+            elif proto in ("DIAG", "BOOT"):  # 0x41 / 0x10: one layout each (rule A)
+                groups.setdefault((m.direction, proto), []).append(i)
             else:
                 exact.append(i)
         ids = [k[1] for k in groups]
         for (direction, data_id), rows in groups.items():
             # a data ID in both directions: two groups of one table, rows as dicts
             columns = self.fields == "columns" and ids.count(data_id) == 1
-            if not self._group(msgs, rows, direction, data_id, out, columns):
+            ok = (self._group(msgs, rows, direction, data_id, out, columns)
+                  if isinstance(data_id, int) else
+                  self._other(msgs, rows, direction, data_id, out, columns))
+            if not ok:
                 exact += rows
         if len(self.tables) > 1:
             self.tables.sort(key=lambda g: g.first)
@@ -126,7 +134,8 @@ class SpanDecoder:
         name = msg.name
         if columns:
             self.tables.append(ColumnGroup(rows[0], name, self._columns(
-                msgs, rows, direction, data_id, counters, vl.columns(payloads))))
+                msgs, rows, direction, {"header.data_id": [data_id] * len(rows),
+                                        "header.counter": counters}, vl.columns(payloads))))
         check = d.dasp_counters.check
         for k, i in enumerate(rows):
             m = msgs[i]
@@ -146,9 +155,47 @@ class SpanDecoder:
             }
         return True
 
+    def _other(self, msgs: list[SpanMessage], rows: list[int], direction: str | None,
+               proto: str, out: list[dict[str, Any] | None], columns: bool) -> bool:
+        """A 0x41 (DIAG) or 0x10 (BOOT) group: the ID byte, then the seed's table; no E2E
+        state (the engine decodes them without one) and no counters."""
+        codec = self.codec
+        msg = codec._other.get(proto)
+        if msg is None:
+            return False
+        try:
+            lay = codec.layout(msg)
+        except SpecError:
+            return False
+        length = 1 + lay.size
+        datas = [msgs[i].ev.data for i in rows]
+        if any(len(x) != length for x in datas):
+            return False
+        vl = vec_layout(lay, codec.cat)
+        arr = np.frombuffer(b"".join(datas), np.uint8).reshape(len(rows), length)
+        payloads = arr[:, 1:]
+        ids = arr[:, 0].tolist()
+        e2e = vl.verify(payloads, None)
+        enums = vl.enum_errors(payloads, msg.name, np.array([not e for e in e2e], bool))
+        parse = lay.fast.decode if self.fields == "dict" or (
+            self.fields == "columns" and not columns) else None
+        if columns:
+            self.tables.append(ColumnGroup(rows[0], msg.name, self._columns(
+                msgs, rows, direction, {"header.id": ids}, vl.columns(payloads))))
+        for k, i in enumerate(rows):
+            m = msgs[i]
+            out[i] = {
+                "kind": "message", "protocol": proto, "name": msg.name, "length": length,
+                "direction": direction, "time": m.time, "frames": m.frames,
+                "header": {"id": ids[k]},
+                "fields": parse(datas[k][1:]) if parse is not None else {},
+                "errors": e2e[k] + enums.get(k, []),
+            }
+        return True
+
     @staticmethod
-    def _columns(msgs: list[SpanMessage], rows: list[int], direction: str | None, data_id: int,
-                 counters: list[int], fields: dict[str, np.ndarray]) -> dict[str, Any]:
+    def _columns(msgs: list[SpanMessage], rows: list[int], direction: str | None,
+                 header: dict[str, list[int]], fields: dict[str, np.ndarray]) -> dict[str, Any]:
         """The TableWriter row of each message as columns: numpy arrays where pyarrow infers
         from them what it infers from the Python values (int64, double), lists elsewhere."""
         n = len(rows)
@@ -156,8 +203,7 @@ class SpanDecoder:
             "frame_index": [msgs[i].frames[-1] if msgs[i].frames else None for i in rows],
             "time": [msgs[i].time for i in rows],
             "direction": [direction] * n,
-            "header.data_id": [data_id] * n,
-            "header.counter": counters,
+            **header,
         }
         for k, col in fields.items():
             kind = col.dtype.kind
