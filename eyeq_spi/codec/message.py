@@ -138,12 +138,16 @@ class MessageCodec:
         return bytes([msg.data_id]) + self.encode_payload(msg, fields)
 
     # -- decode ------------------------------------------------------------------------------
-    def decode(self, data: bytes, e2e: E2EState | None = None) -> DecodedMessage:
+    def decode(
+        self, data: bytes, e2e: E2EState | None = None, *, fields: bool = True
+    ) -> DecodedMessage:
+        """``fields=False``: a DASP message gets its header, E2E and length checks (the same
+        errors) but no field values (a host with nobody listening, issue 11)."""
         proto = classify(data)
         if proto == "MESP":
             return self.mesp.decode(data)
         if proto == "DASP":
-            return self._decode_dasp(data, e2e)
+            return self._decode_dasp(data, e2e, fields)
         if proto in ("DIAG", "BOOT"):
             msg = self._other[proto]
             out = DecodedMessage(proto, msg.name, len(data), {"id": data[0]})
@@ -155,7 +159,9 @@ class MessageCodec:
         )
         return out
 
-    def _decode_dasp(self, data: bytes, e2e: E2EState | None) -> DecodedMessage:
+    def _decode_dasp(
+        self, data: bytes, e2e: E2EState | None, fields: bool = True
+    ) -> DecodedMessage:
         out = DecodedMessage("DASP", None, len(data))
         if len(data) < 4:
             out.errors.append(f"BadHdr: DASP message of {len(data)} bytes has no full header")
@@ -170,11 +176,12 @@ class MessageCodec:
             out.errors.append(f"BadHdr: unknown DASP data ID 0x{data_id:02X} in {self.sw}")
             return out
         out.name = msg.name
-        self._decode_payload(out, msg, data[4:], e2e)
+        self._decode_payload(out, msg, data[4:], e2e, fields)
         return out
 
     def _decode_payload(
-        self, out: DecodedMessage, msg: MessageDef, payload: bytes, e2e: E2EState | None
+        self, out: DecodedMessage, msg: MessageDef, payload: bytes, e2e: E2EState | None,
+        fields: bool = True,
     ) -> None:
         out.name = msg.name
         try:
@@ -189,5 +196,6 @@ class MessageCodec:
                 f"({self.sw})"
             )
             return
-        out.fields = lay.parse(payload)
+        if fields:
+            out.fields = lay.parse(payload)
         out.errors += verify(payload, lay, e2e)

@@ -486,7 +486,12 @@ class HostEmulator:
     def _on_message(self, data: bytes, now: float) -> None:
         if self.mesp.receive_message(data, now):
             return
-        out = self.codec.decode(data, self._e2e if data[:1] == b"\x65" else None)
+        dasp = data[:1] == b"\x65"
+        # field values only when someone reads them: subscribers, async queues, a TAC/SPC
+        # result; E2E, counters and lengths are checked either way (issue 11)
+        fields = not dasp or bool(self._subscribers or self._queues) \
+            or self.state in (S.RUNNING_TAC, S.RUNNING_SPC)
+        out = self.codec.decode(data, self._e2e if dasp else None, fields=fields)
         name = out.name or out.protocol
         self.counters.received[name] += 1
         if self.keep_rx_times:

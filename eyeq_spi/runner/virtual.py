@@ -111,6 +111,7 @@ class VirtualRunner:
         adapter in the first round (something may have been put there from outside)."""
         nodes, now, transit, tap = self.nodes, self.now, self._transit, self.tap
         quiet, known, fresh, alone = self._quiet, self._known, self._fresh, self._alone
+        timers, cached = self._timer, not self.verify
         n = len(nodes)
         for _ in range(self._max_steps):
             progress = False
@@ -146,7 +147,7 @@ class VirtualRunner:
                 self._touch(to)
                 progress = True
             for i in range(n):
-                timer = self._deadline(i)
+                timer = timers[i] if cached and known[i] else self._deadline(i)
                 if timer is not None and timer <= now:
                     nodes[i][0].handle_timer(now)
                     self._touch(i)
