@@ -107,12 +107,12 @@ class Recorder:
             objs = [o for o in self.latest["EYEQ_VIS_OBSTACLES_MSG"]["visObjects"]["visObs"]
                     if o["id"] != 0 and o["classification"] in (0, 1, 2, 3, 4, 7)]
             o = objs[(f.arbitration_id - 0x73B) // 3]
-            # the DASP angles are ISO 8855 (left positive), the CAN angles right positive
-            # (seed 000 line 530, 001 line 2928): mapping.yaml's to_right = -1
+            # the DASP angles (seed 004 line 3922) and the CAN angles (seed 000 line 530, 001
+            # line 2928) are both right positive: mapping.yaml's to_right = 1
             ang = o["angularState"]
-            self.close_enough("Angle", v["Obstacle_Angle"], -math.degrees(ang["angleMid"]),
+            self.close_enough("Angle", v["Obstacle_Angle"], math.degrees(ang["angleMid"]),
                               step("Obstacle_Angle"))
-            rate = -math.degrees(ang["angularSpeed"])
+            rate = math.degrees(ang["angularSpeed"])
             if inside("Obstacle_Angle_Rate", rate):
                 self.close_enough("Angle_Rate", v["Obstacle_Angle_Rate"], rate,
                                   step("Obstacle_Angle_Rate"))
@@ -123,7 +123,7 @@ class Recorder:
         elif spec.name == "TSR" and "EYEQ_VIS_TRAFFIC_SIGNS_MSG" in self.latest:
             tsr = self.latest["EYEQ_VIS_TRAFFIC_SIGNS_MSG"]["tsrInfo"]
             sign = tsr["trafficSigns"][:tsr["numberTrafficSigns"]][f.arbitration_id - 0x720]
-            y = -sign["signLatPosition"]  # left positive -> right positive (001 line 1504)
+            y = sign["signLatPosition"]  # right positive in both (004 line 3434, 001 line 1504)
             if inside("Sign_Position_Y", y):
                 self.close_enough("Sign_Y", v["Sign_Position_Y"], y, step("Sign_Position_Y"))
         elif spec.name == "LKA_Left_Lane_A":

@@ -70,12 +70,12 @@ def test_validator_requires_the_whole_protocol_to_be_covered() -> None:
     assert "M.B: neither mapped nor listed under unmapped" in problems
 
 
-OBJECT = {  # one car 20 m ahead, 3 m to the LEFT (ISO 8855: latDistance > 0, angleMid > 0)
+OBJECT = {  # one car 20 m ahead, 3 m to the LEFT (latDistance > 0; angleMid < 0, §13.2.5.4)
     "id": 7, "classification": 0, "isCipv": 2, "age": 5, "laneAssignment": 1,
     "isVeryClose": 0,
     "physicalState": {"longDistance": 20.0, "latDistance": 3.0, "absoluteLongVelocity": 20.0,
                       "absoluteLongAcc": 0.0, "length": 4.5, "width": 1.8},
-    "angularState": {"angleMid": math.atan2(3.0, 20.0), "angularSpeed": 0.02},
+    "angularState": {"angleMid": -math.atan2(3.0, 20.0), "angularSpeed": -0.02},
     "mobilityState": {"motionStatus": 1, "motionOrientation": 0},
     "lightIndicators": {"valid": 0, "turnLeft": 0, "turnRight": 0, "brake": 0},
 }
@@ -105,7 +105,7 @@ def test_object_angle_is_right_positive_like_its_lateral_position() -> None:
     assert angle == pytest.approx(-math.degrees(math.atan2(3.0, 20.0)), abs=0.01)
     assert angle < 0 and rate == pytest.approx(-math.degrees(0.02), abs=0.01)
     _, mapping = can_specs()
-    assert dict(mapping.derived)["to_right"].expr == "-1"
+    assert dict(mapping.derived)["to_right"].expr == "1"  # seed 004 and the CAN seeds agree
 
 
 @pytest.mark.parametrize("proto", ["extlog2", "me8"])
@@ -144,12 +144,12 @@ def test_unmapped_signals_send_their_invalid_or_default_value(proto: str) -> Non
 
 def test_sign_position_and_glare_boundaries_follow_the_angle_convention() -> None:
     sign = {"signType": 4, "signSupplementalType1": 0, "signLongPosition": 30.0,
-            "signLatPosition": 4.0, "signHeight": 1.0, "signFilterType": 0,
-            "signRelevantDecision": 0}  # 4 m to the LEFT (ISO 8855)
+            "signLatPosition": -4.0, "signHeight": 1.0, "signFilterType": 0,
+            "signRelevantDecision": 0}  # 4 m to the LEFT (§16: a negative value is left)
     signs = Dasp("EYEQ_VIS_TRAFFIC_SIGNS_MSG",
                  {"tsrInfo": {"numberTrafficSigns": 1, "trafficSigns": [sign]}})
-    spot = {"classification": 1, "leftAngle": 0.10, "rightAngle": 0.05, "bottomAngle": -0.02,
-            "topAngle": 0.0, "longPos": 80.0}  # a headlamp pair left of the axis
+    spot = {"classification": 1, "leftAngle": -0.10, "rightAngle": -0.05, "bottomAngle": 0.02,
+            "topAngle": 0.0, "longPos": 80.0}  # a headlamp pair left of the axis (§15: right +)
     light = Dasp("EYEQ_VIS_LIGHT_SENSOR_DATA_MSG", {"activeLightSensorInfo": {
         "numOfActiveLightSpots": 1, "activeLightSpots": [spot], "ahbcAvailable": 1,
         "beamRequest": 0, "villageDetected": 0, "fogDetected": 0, "highwayDetected": 0}})

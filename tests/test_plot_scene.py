@@ -63,7 +63,8 @@ def _fill_scene(codec: MessageCodec, t: float) -> dict[str, dict[str, Any]]:
     tsr = codec.layout(codec.message(SIGNS)).zero_values()
     info = tsr["tsrInfo"]
     for i, (lo, la, typ) in enumerate(SIGNS_AT):
-        info["trafficSigns"][i].update(signLongPosition=lo, signLatPosition=la, signType=typ,
+        # SIGNS_AT is in the plot's frame (lateral left positive); §16 sends right positive
+        info["trafficSigns"][i].update(signLongPosition=lo, signLatPosition=-la, signType=typ,
                                        signHeight=2.0)
     info["numberTrafficSigns"] = len(SIGNS_AT)
     out[SIGNS] = tsr

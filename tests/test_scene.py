@@ -284,8 +284,9 @@ def test_ttc_confidence_age_angles() -> None:
                 assert o["ttc_const_vel"] == 7.0
             assert 0.5 <= o["confidence"] <= 1.0
             if x > 0.5:
-                assert ang["angleMid"] == pytest.approx(math.atan2(y, x))
-                assert ang["angleLeft"] > ang["angleMid"] > ang["angleRight"]
+                # §13.2.5.4: "The positive side is to the host's right" (latDistance: left)
+                assert ang["angleMid"] == pytest.approx(math.atan2(-y, x))
+                assert ang["angleRight"] > ang["angleMid"] > ang["angleLeft"]
                 box = o["imageBox"]["rect"]
                 assert box["xLeftCoord"] <= box["xRightCoord"]
             for key in ("widthStd", "lengthStd", "longDistanceStd", "latDistanceStd",
@@ -469,8 +470,11 @@ def test_light_spots() -> None:
         for spot in info["activeLightSpots"][:n]:
             assert spot["classification"] in classes
             assert spot["vdID"] in ids
-            assert spot["leftAngle"] >= spot["rightAngle"]
-            assert spot["topAngle"] >= spot["bottomAngle"]
+            # §15: right of the sensor positive, below the horizon positive
+            assert spot["rightAngle"] >= spot["leftAngle"]
+            assert spot["bottomAngle"] >= spot["topAngle"]
+            assert spot["pixelTop"] >= spot["pixelBottom"]  # from the image's bottom left
+            assert spot["pixelRight"] >= spot["pixelLeft"]
         assert all(s["classification"] == 0 for s in info["activeLightSpots"][n:])
 
 

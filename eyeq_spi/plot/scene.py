@@ -217,7 +217,7 @@ def signs(fields: dict[str, Any], labels: Labels) -> list[SceneSign]:
                 continue
             st = int(s.get("signType", 0))
             out.append(SceneSign(
-                long=_f(s, "signLongPosition"), lat=_f(s, "signLatPosition"),
+                long=_f(s, "signLongPosition"), lat=-_f(s, "signLatPosition"),  # §16: right +
                 height=_f(s, "signHeight"), type=st,
                 name=labels.label(SIGNS, (*path, "trafficSigns", "signType"), st)))
     return out

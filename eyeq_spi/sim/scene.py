@@ -457,11 +457,13 @@ class Scene:
         road_heading = np.arctan(c1 + s * (2 * c2 + 3 * c3 * s))
         heading = np.where(moving, np.arctan2(vy, vx), 0.0) + road_heading
         heading = (heading + math.pi) % (2 * math.pi) - math.pi
-        mid = np.arctan2(y, ss)
+        # §13.2.5.4: angles are measured from Z with "the positive side to the host's right";
+        # y (latDistance) is left positive (ISO 8855), hence atan2(-y, ...)
+        mid = np.arctan2(-y, ss)
         far = ss + length
         on_left, on_right = y > HALF_LANE, y < -HALF_LANE  # we see its right / left side
-        side = np.where(on_left, np.arctan2(y - w / 2, far),
-                        np.where(on_right, np.arctan2(y + w / 2, far), mid))
+        side = np.where(on_left, np.arctan2(w / 2 - y, far),
+                        np.where(on_right, np.arctan2(-y - w / 2, far), mid))
         ang_std = 0.002 + 5e-5 * a_s
         closing = -vrel
         ttc = np.where((s > 0.0) & (closing > 0.1),
@@ -474,8 +476,8 @@ class Scene:
             vx, 0.1 + 0.01 * a_s, vy, 0.1 + 0.005 * a_s, ax, 0.2 + 0.004 * a_s,
             ay, 0.2 + 0.002 * a_s, s, 0.05 + 0.01 * a_s + 5e-5 * s * s, y, 0.05 + 0.003 * a_s,
             heading,
-            np.arctan2(y - w / 2, ss), ang_std, np.arctan2(y + w / 2, ss), ang_std, side, ang_std,
-            mid, ang_std, (ss * vy - y * vrel) / (ss * ss + y * y), 0.005 + 1e-4 * a_s,
+            np.arctan2(w / 2 - y, ss), ang_std, np.arctan2(-y - w / 2, ss), ang_std, side, ang_std,
+            mid, ang_std, -(ss * vy - y * vrel) / (ss * ss + y * y), 0.005 + 1e-4 * a_s,
             conf, ttc], dtype=np.float64)
         # image: origin at the image centre, x right, y down (the rect is for visualisation)
         vis = s > 0.5
@@ -722,7 +724,8 @@ class Scene:
             u, v = IMAGE_W / 2 - FOCAL_PX * y / ss, IMAGE_H / 2 - FOCAL_PX * (z - CAM_HEIGHT) / ss
             half = FOCAL_PX * 0.35 / ss
             rows.append({
-                "signLongPosition": s, "signLatPosition": y, "signHeight": z,
+                # §16: "a positive value indicates the sign is on the right"
+                "signLongPosition": s, "signLatPosition": -y, "signHeight": z,
                 "signConfidence": min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + self._sg_bias[i]),
                 "signSuppConfidence1": 0.0, "signSuppConfidence2": 0.0,
                 "relevancyConfidence": 0.95 if self._sg_lat[i] < 0.0 else 0.85,
@@ -760,15 +763,18 @@ class Scene:
             oncoming_seen |= kind == ONCOMING
             code = (_code(cls, "Pair of Headlamps", 3) if kind == ONCOMING else
                     _code(cls, "Pair of Tail-lamps", 4) if pair else _code(cls, "Tail-lamp", 2))
-            left, right = math.atan2(y + half, s), math.atan2(y - half, s)
-            top, bottom = math.atan2(1.0 - CAM_HEIGHT, s), math.atan2(0.6 - CAM_HEIGHT, s)
+            # §15 light spots: "angles to the right of the sensor coordinate system are
+            # positive", "angle below the horizon are positive"; pixels from the image's left
+            # bottom corner
+            left, right = math.atan2(-y - half, s), math.atan2(half - y, s)
+            top, bottom = math.atan2(CAM_HEIGHT - 1.0, s), math.atan2(CAM_HEIGHT - 0.6, s)
             rows.append({
                 "leftAngle": left, "rightAngle": right, "topAngle": top, "bottomAngle": bottom,
                 "id": float(self._oid[i]), "vdID": float(self._oid[i]), "longPos": s,
                 "pixelTop": IMAGE_H / 2 - FOCAL_PX * math.tan(top),
                 "pixelBottom": IMAGE_H / 2 - FOCAL_PX * math.tan(bottom),
-                "pixelLeft": IMAGE_W / 2 - FOCAL_PX * math.tan(left),
-                "pixelRight": IMAGE_W / 2 - FOCAL_PX * math.tan(right),
+                "pixelLeft": IMAGE_W / 2 + FOCAL_PX * math.tan(left),
+                "pixelRight": IMAGE_W / 2 + FOCAL_PX * math.tan(right),
                 "classification": code, "isTruck": float(name == "truck")})
         _write_rows(spots, sn, rows, _SPOT_KEYS)
         signs, gn = _elements(ld, ln, "reflectiveSigns")
@@ -778,8 +784,8 @@ class Scene:
             y = float(self._lateral(self._sg_s[i:i + 1], self._sg_lat[i:i + 1])[0])
             glare = 100.0 * math.exp(-s / 50.0)
             refl.append({
-                "lightSignLeftAngle": math.atan2(y + 0.4, s),
-                "lightSignRightAngle": math.atan2(y - 0.4, s),
+                "lightSignLeftAngle": math.atan2(-y - 0.4, s),  # §15: "Negative: left"
+                "lightSignRightAngle": math.atan2(0.4 - y, s),
                 "lightSignBottomAngle": math.atan2(z - 0.4, s),
                 "lightSignTopAngle": math.atan2(z + 0.4, s), "lightSignID": float(self._sg_id[i]),
                 "lightSignDistance": s, "lightSignGlareLevelMax": min(100.0, glare + 10.0),
