@@ -383,3 +383,19 @@ def test_monitor_in_a_pseudo_terminal() -> None:
         pytest.skip(f"redraw rate not measurable: machine overloaded (load {load:.1f}); "
                     f"{len(stamps)} redraws in {span:.2f} s")
     assert len(stamps) - 1 >= 5 * span and len(stamps) >= 12, (len(stamps), span)
+
+
+def test_a_stream_that_stopped_between_sparse_redraws_reads_stopped() -> None:
+    """A replay at 4x redraws every ~0.7 s of capture time, longer than SRP's stop gap (3 periods
+    at 18 Hz): the stop must be dated by the message's own arrival, not by the redraw that first
+    saw the count change (which read 'low' for a stopped stream)."""
+    cat = MessageCodec().cat
+    srp = "EYEQ_VIS_SRP_MSG"
+    sparse = RateMeter(cat)
+    sparse.tick(0.0, {srp: 0})
+    sparse.tick(1.4, {srp: 8})
+    assert {r.name: r.status for r in sparse.rows()}[srp] == "low"  # dated 1.4: not silent
+    dated = RateMeter(cat)
+    dated.tick(0.0, {srp: 0})
+    dated.tick(1.4, {srp: 8}, last_seen={srp: 0.99})
+    assert {r.name: r.status for r in dated.rows()}[srp] == "stopped"

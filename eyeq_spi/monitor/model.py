@@ -69,12 +69,18 @@ class RateMeter:
                 self._nominal[name] = (None, None)
         return self._nominal[name]
 
-    def tick(self, now: float, counts: Mapping[str, int]) -> None:
+    def tick(self, now: float, counts: Mapping[str, int],
+             last_seen: Mapping[str, float] | None = None) -> None:
+        """``last_seen``: when each message last arrived, where the source knows it; without
+        it a change is dated at the tick that saw it, which is coarse when ticks are sparse (a
+        replay at 4x redraws every 0.7 s of capture time, longer than a stream's stop gap)."""
         snap = dict(counts)
         prev = self._hist[-1][1] if self._hist else {}
         for k, v in snap.items():
             if v != prev.get(k, 0) or k not in self._last_change:
                 self._last_change[k] = now
+        if last_seen:
+            self._last_change.update(last_seen)
         self._hist.append((now, snap))
         while len(self._hist) > 2 and now - self._hist[1][0] >= self.window:
             self._hist.popleft()

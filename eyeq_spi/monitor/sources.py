@@ -42,26 +42,30 @@ CATCH_UP = 0.05  # s of virtual time per slice (about 15 ms of CPU): trailing th
 class _HostView:
     """Snapshot of a HostEmulator through its public face."""
 
-    def __init__(self, host: Any, source: str) -> None:
+    def __init__(self, host: Any, source: str, origin: float = 0.0) -> None:
         self.host = host
         self.source = source
+        self.origin = origin  # the host's clock reading at the snapshots' time 0
         self.rates = RateMeter(host.codec.cat)
         self.tracker = SceneTracker(Labels(host.codec))
         self._latest: dict[str, DecodedMessage] = {}
+        self._seen: dict[str, float] = {}  # message -> when it last arrived (host time)
         self._now = 0.0
         host.subscribe(self._on_message)
 
     def _on_message(self, out: DecodedMessage) -> None:
         # keep only the latest scene message of each kind; decoding it into a scene waits for
-        # the next redraw, so the link path pays one dict store per message
+        # the next redraw, so the link path pays two dict stores per message
         if out.name in SCENE_MESSAGES:
             self._latest[out.name] = out
+        if out.name is not None:
+            self._seen[out.name] = self.host.now - self.origin
 
     def snapshot(self, now: float, done: bool) -> Snapshot:
         host = self.host
         counts: Counter[str] = Counter(host.counters.received)
         counts["HOST_VEH_STATE_MSG"] = host.counters.sent.get("HOST_VEH_STATE_MSG", 0)
-        self.rates.tick(now, counts)
+        self.rates.tick(now, counts, self._seen)
         for name, out in self._latest.items():
             self.tracker.update(name, out.fields, now, out.errors)
         self._latest.clear()
@@ -126,8 +130,8 @@ class HostSource:
         self.runner = runner
         self.duration = duration
         self.on_close = on_close
-        self.view = _HostView(host, "host")
         self.start = runner.clock()
+        self.view = _HostView(host, "host", origin=self.start)
         host.start(self.start)
 
     @property
