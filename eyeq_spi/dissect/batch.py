@@ -50,7 +50,6 @@ from eyeq_spi.dissect.vmessages import SpanDecoder, SpanMessage
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import SEQ_MODULO
 from eyeq_spi.spec.link import link_spec
-from eyeq_spi.transport.events import MessageReceived
 from eyeq_spi.transport.segment import (
     CONSECUTIVE,
     CONSECUTIVE_CHUNK,
@@ -381,26 +380,31 @@ class BatchDissector:
         tid_col, nums, tfill = fa.lst("tid"), fa.lst("num"), fa.lst("tfill")
         base = fa.base
         pos = 0  # next row of ``rows``
+        maps = {st.code: self.dis._dirs[st.name].index_of_num for _, st, _ in done}
         for (row, st, u), ok in zip(done, local, strict=True):
             if not ok:
                 out.append(self._message(fa, st, u, row))
                 continue
-            mine = P_of[st.code][u.ks : u.ke]
-            o = pos * width
-            pos += len(mine)
-            if u.first:  # bytes 8..11 of the first frame: the total (transport header)
-                total = int.from_bytes(blob[o : o + 4], "little")
-                msg = blob[o + 4 : min(o + 4 + total, pos * width)]
-                tid: int | None = tid_col[mine[0]]
-            else:
-                msg = blob[o : o + tid_col[mine[0]]]  # byte 7 of a single frame: its size
-                tid = None
-            fnums = tuple(nums[r] for r in mine)
-            idxs = [base + r for r in mine]
-            self.dis._dirs[st.name].index_of_num.update(zip(fnums, idxs, strict=True))
             t = tfill[row]
-            out.append(SpanMessage(st.name, MessageReceived(msg, fnums, tid),
-                                   None if t != t else t, list[int | None](idxs)))
+            o = pos * width
+            if not u.first:  # byte 7 of a single frame: its size
+                r = P_of[st.code][u.ks]
+                pos += 1
+                num, idx = nums[r], base + r
+                maps[st.code][num] = idx
+                out.append(SpanMessage(st.name, blob[o : o + tid_col[r]], (num,), None,
+                                       None if t != t else t, [idx]))
+                continue
+            mine = P_of[st.code][u.ks : u.ke]
+            pos += len(mine)
+            # bytes 8..11 of the first frame: the total (transport header)
+            total = int.from_bytes(blob[o : o + 4], "little")
+            msg = blob[o + 4 : min(o + 4 + total, pos * width)]
+            fnums = tuple([nums[r] for r in mine])
+            idxs: list[int | None] = [base + r for r in mine]
+            maps[st.code].update(zip(fnums, idxs, strict=True))  # type: ignore[arg-type]
+            out.append(SpanMessage(st.name, msg, fnums, tid_col[mine[0]],
+                                   None if t != t else t, idxs))
         return out
 
     def _message(self, fa: FrameArrays, st: _Dir, u: _Unit, row: int) -> SpanMessage:
@@ -438,7 +442,7 @@ class BatchDissector:
         # NUMs of one transfer are distinct (fewer frames than SEQ_MODULO), so each maps to its
         # own index, as the exact engine's lookup gives
         frames_idx = idxs if len(idxs) < SEQ_MODULO else [index_of_num.get(n) for n in nums]
-        return SpanMessage(st.name, MessageReceived(msg, nums, tid), None if t != t else t,
+        return SpanMessage(st.name, msg, nums, tid, None if t != t else t,
                            list(frames_idx))
 
     # -- span state: what the receiver would hold --------------------------------------------

@@ -205,14 +205,16 @@ class Dissector:
         return errs[:10]
 
 
-_ENUM_PLANS: dict[int, list[tuple[str, Any, Any, bool]]] = {}
+_ENUM_PLANS: dict[int, tuple[Any, list[tuple[str, Any, Any, bool]]]] = {}
 
 
 def _enum_plan(codec: MessageCodec, lay: Any) -> list[tuple[str, Any, Any, bool]]:
     """(member, enum or None, child layout or None, is_array) for the members worth visiting:
-    enum-typed scalars and structs that contain one."""
+    enum-typed scalars and structs that contain one. Cached by layout object (the layout is
+    kept with its plan: a new layout reusing a dead one's id() must not get its plan)."""
     key = id(lay)
-    plan = _ENUM_PLANS.get(key)
+    hit = _ENUM_PLANS.get(key)
+    plan = hit[1] if hit is not None and hit[0] is lay else None
     if plan is None:
         plan = []
         for f in lay.fields:
@@ -226,7 +228,7 @@ def _enum_plan(codec: MessageCodec, lay: Any) -> list[tuple[str, Any, Any, bool]
             # lets us read: any other value is not an error
             if e is not None and e.kind != "flags" and e.complete and not f.count:
                 plan.append((f.name, e, None, False))
-        _ENUM_PLANS[key] = plan
+        _ENUM_PLANS[key] = (lay, plan)
     return plan
 
 

@@ -38,15 +38,21 @@ from eyeq_spi.errors import SpecError
 from eyeq_spi.transport.events import MessageReceived
 
 
-@dataclass
 class SpanMessage:
-    """A reassembled message of a span: its direction, time and capture indices of its frames
-    (taken when it completed, as the exact engine takes them)."""
+    """A reassembled message of a span: its direction, bytes, NUMs, transfer ID, time and
+    capture indices of its frames (taken when it completed, as the exact engine takes them)."""
 
-    direction: str | None
-    ev: MessageReceived
-    time: float | None
-    frames: list[int | None]
+    __slots__ = ("data", "direction", "frames", "nums", "tid", "time")
+
+    def __init__(self, direction: str | None, data: bytes, nums: tuple[int, ...],
+                 tid: int | None, time: float | None, frames: list[int | None]) -> None:
+        self.direction, self.data, self.nums, self.tid = direction, data, nums, tid
+        self.time, self.frames = time, frames
+
+    @property
+    def ev(self) -> MessageReceived:
+        """The transport event the exact engine would have delivered."""
+        return MessageReceived(self.data, self.nums, self.tid)
 
 
 FIELD_MODES = ("dict", "none", "columns")
@@ -78,7 +84,7 @@ class SpanDecoder:
         groups: dict[tuple[str | None, int | str], list[int]] = {}
         exact: list[int] = []
         for i, m in enumerate(msgs):
-            data = m.ev.data
+            data = m.data
             proto = classify(data) if data else "UNKNOWN"
             if proto == "DASP" and len(data) >= 4:
                 groups.setdefault((m.direction, data[1]), []).append(i)
@@ -117,7 +123,7 @@ class SpanDecoder:
         except SpecError:
             return False
         length = 4 + lay.size
-        datas = [msgs[i].ev.data for i in rows]
+        datas = [msgs[i].data for i in rows]
         if any(len(x) != length for x in datas):
             return False
         vl = vec_layout(lay, codec.cat)
@@ -168,7 +174,7 @@ class SpanDecoder:
         except SpecError:
             return False
         length = 1 + lay.size
-        datas = [msgs[i].ev.data for i in rows]
+        datas = [msgs[i].data for i in rows]
         if any(len(x) != length for x in datas):
             return False
         vl = vec_layout(lay, codec.cat)
