@@ -199,6 +199,23 @@ def _mutations() -> dict[str, Callable[[list[Rec], int], list[Rec]]]:
         return [*items[:i], (d, t, FC.data_frame(f.rsp, f.num, b"\x07" + f.data[1:])),
                 *items[i + 1:]]
 
+    def padding(items: list[Rec], i: int) -> list[Rec]:  # T6a: a non-zero byte in the
+        # padding of a transfer's last consecutive frame (the data field's last byte), CRC fixed
+        def data(k: int) -> bool:
+            return len(items[k][2]) == 128 and items[k][2][0] == 0x08
+
+        for k in range(i, len(items)):
+            d, t, w = items[k]
+            if not (data(k) and w[6] == 0x02):
+                continue
+            nxt = next((j for j in range(k + 1, len(items)) if items[j][0] == d and data(j)),
+                       None)
+            if nxt is None or items[nxt][2][6] != 0x02:  # the transfer's last frame
+                f = FC.decode(w)
+                w = FC.data_frame(f.rsp, f.num, f.data[:-1] + b"\xab")
+                return [*items[:k], (d, t, w), *items[k + 1:]]
+        return items
+
     def cut_start(items: list[Rec], i: int) -> list[Rec]:
         return items[i:]
 
@@ -209,7 +226,7 @@ def _mutations() -> dict[str, Callable[[list[Rec], int], list[Rec]]]:
         return [(d, float("nan") if k >= i else t, w) for k, (d, t, w) in enumerate(items)]
 
     return {f.__name__: f for f in (flip, drop, dup, swap, short, late, reset, header,
-                                    cut_start, cut_end, notime)}
+                                    padding, cut_start, cut_end, notime)}
 
 
 MUTATIONS = _mutations()

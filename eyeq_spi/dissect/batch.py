@@ -112,6 +112,7 @@ class _Dir:
     carried: list[Frame] | None = None  # the open transfer at the start of the chunk
     carried_tid: int = 0
     carried_need: int = 0  # consecutive frames it still needs
+    carried_last_take: int = 0  # message bytes in its last frame (T6a: zeros after them)
 
 
 class BatchDissector:
@@ -249,12 +250,34 @@ class BatchDissector:
         link = okf & (tt == CONSECUTIVE) & cont & gap
         link[1:] &= tid[1:] == tid[:-1]
         link[0] &= bool(carried) and int(tid[0]) == st.carried_tid
-        bad = np.concatenate([[0], np.cumsum(~link)])
         need = np.where(tt == FIRST,
                         -(-(np.maximum(total, FIRST_TOTAL_MIN) - FIRST_CHUNK)
                           // CONSECUTIVE_CHUNK), 0)
+        self._padding(data, sel, tt, total, need, link, st if carried else None)
+        bad = np.concatenate([[0], np.cumsum(~link)])
         return _Plan(sel.tolist(), okf.tolist(), tt.tolist(), tid.tolist(), need.tolist(),
                      cont.tolist(), gap.tolist(), bad.tolist())
+
+    @staticmethod
+    def _padding(data: Any, sel: Any, tt: Any, total: Any, need: Any, link: Any,
+                 carried: _Dir | None) -> None:
+        """T6a: the last consecutive frame of a transfer carries zeros after the message's last
+        byte. Where it does not, that frame is no link of a clean span, so the exact engine
+        judges it (it NAKs the frame 0x011 and aborts the transfer as ``bad_padding``)."""
+        fk = np.flatnonzero(tt == FIRST)
+        m = need[fk]
+        last = fk + m
+        takes = total[fk] - FIRST_CHUNK - (m - 1) * CONSECUTIVE_CHUNK
+        inside = last < sel.size
+        lasts, takes = last[inside], takes[inside]
+        if carried is not None and 1 <= carried.carried_need <= sel.size:
+            lasts = np.append(lasts, carried.carried_need - 1)
+            takes = np.append(takes, carried.carried_last_take)
+        if not lasts.size:
+            return
+        rows = data[sel[lasts]]
+        pad = np.arange(rows.shape[1])[None, :] >= (8 + takes)[:, None]
+        link[lasts[((rows != 0) & pad).any(axis=1)]] = False
 
     def _walk(self, fa: FrameArrays, st: _Dir, pl: _Plan, k0: int, *, fresh: bool) -> int:
         """The span from P[k0]: complete units, open transfer, stop index and switch row.
@@ -512,8 +535,9 @@ class BatchDissector:
             head = opened[0][0]
             total = int.from_bytes(head[8:12], "little")
             st.carried_tid = head[7]
-            st.carried_need = -(-(total - FIRST_CHUNK) // CONSECUTIVE_CHUNK) - (
-                len(opened) - 1)
+            frames = -(-(total - FIRST_CHUNK) // CONSECUTIVE_CHUNK)
+            st.carried_need = frames - (len(opened) - 1)
+            st.carried_last_take = total - FIRST_CHUNK - (frames - 1) * CONSECUTIVE_CHUNK
         st.carried, st.hist, st.last_first = opened, units, last_first
         st.units, st.ui = [], 0
         if pl.P and st.stop_k > 0:
