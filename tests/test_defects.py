@@ -142,3 +142,34 @@ def test_soft_reset_restarts_the_eyeqs_e2e_judgement() -> None:
     for t in _veh_state_transfers(12.5, break_crc=False):
         sim.receive_data(t, 0.40)
     assert sim.counters.e2e_errors == 0
+
+
+def test_a_soft_reset_leaves_the_host_rolling_counters_unbroken_for_a_passive_reader() -> None:
+    """Live runs (no reset line): after Fatal 22 the host soft-resets the EyeQ with Switch EyeQ
+    Application. Its HOST_VEH_STATE E2E rolling counters used to restart there while its DASP
+    counter ran on, so `dissect` of a normal first-ignition capture reported an E2E counter jump.
+    Our own counters now run on across EyeQ resets, as the DASP counter does."""
+    from eyeq_spi.capture.pcapng_io import Record
+    from eyeq_spi.dissect.engine import Dissector
+    from eyeq_spi.host.host import HostEmulator
+    from eyeq_spi.phy.memory import memory_pair
+    from eyeq_spi.runner.virtual import VirtualRunner
+
+    sim = SimulatedEyeQ(SimConfig())
+    host = HostEmulator(HostConfig(), nvm=Nvm())  # no reset line: a remote EyeQ
+    a, b = memory_pair()
+    seen: list[Record] = []
+    runner = VirtualRunner([(host, a), (sim, b)], tap=lambda node, t, x: seen.append(
+        Record(t, "h2e" if node == 0 else "e2h", x)))
+    sim.power_up(0.0)
+    host.start(0.0)
+    runner.run_until(2.0)
+    assert host.state is HostState.RUNNING_VISION
+    assert host.counters.sent["HOST_VEH_STATE_MSG"] > 20
+    assert sim.counters.e2e_errors == 0
+    dis = Dissector()
+    out = [r for rec in seen for r in dis.feed(rec)]
+    switches = [r for r in out if r.get("name") == "SwitchEyeQApplication"]
+    veh = [r for r in out if r.get("name") == "HOST_VEH_STATE_MSG"]
+    assert switches and veh[0]["time"] < switches[0]["time"]  # the case: sent before the reset
+    assert [r["errors"] for r in veh if r["errors"]] == []

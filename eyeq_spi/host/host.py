@@ -128,7 +128,11 @@ class HostEmulator:
         self.calibration_result: dict[str, Any] | None = None
         self._subscribers: list[Subscriber] = []
         self._queues: list[asyncio.Queue[DecodedMessage]] = []
-        self._e2e = E2EState()
+        self._e2e = E2EState()  # D5: the EyeQ's rolling counters, judged afresh per boot
+        # our own HOST_VEH_STATE rolling counters run on across EyeQ resets, as our DASP counter
+        # does: a capture of the whole run then shows one unbroken sequence (the EyeQ's
+        # restarted application takes whatever comes first)
+        self._tx_e2e = E2EState()
         self._rx_counters = DaspCounters()
         self._last_rx: dict[str, float] = {}
         self._stale: set[str] = set()
@@ -683,7 +687,7 @@ class HostEmulator:
             values["host_sync_timestamp_us_valid"] = VALID
             values["host_sync_timestamp_us"] = int(now * 1e6)
         try:
-            wire = self.codec.encode_dasp(msg.name, values, self._dasp_counter, self._e2e)
+            wire = self.codec.encode_dasp(msg.name, values, self._dasp_counter, self._tx_e2e)
         except CodecError as exc:
             self.problem = f"HOST_VEH_STATE_MSG cannot be encoded: {exc}"
             self._veh_next = None
