@@ -6,9 +6,8 @@ from __future__ import annotations
 
 import asyncio
 import math
-from collections import Counter, deque
+from collections import deque
 from collections.abc import AsyncIterator, Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.codec.e2e import E2EState
@@ -20,10 +19,31 @@ from eyeq_spi.codec.intrinsic import (
 )
 from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
 from eyeq_spi.errors import CodecError, LocalProtocolError, SpecError
+from eyeq_spi.host import calibration
+from eyeq_spi.host.config import (
+    APP_IDS,
+    DV_STATE,
+    EEPROM_FILE,
+    FATAL_INTRINSIC,
+    PENDING,
+    PENDING_OF,
+    PENDING_VISION,
+    RUNNING_SPC,
+    RUNNING_TAC,
+    RUNNING_VISION,
+    STAGE_OF,
+    STALE_CHECK,
+    VALID,
+    E,
+    HostConfig,
+    HostCounters,
+    S,
+    Transition,
+    link_config,
+)
 from eyeq_spi.host.machine import HostEvent, HostState, next_state
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import ConstantDrive, Scenario
-from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.mesp.client import MespClient, MespCompleted, MespFailed
 from eyeq_spi.mesp.replies import MespError, MespReply
@@ -32,69 +52,10 @@ from eyeq_spi.spec.tables import alignment_nvm
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
-S, E = HostState, HostEvent
-PENDING, RUNNING_VISION, DV_STATE = 0x01, 0x02, 0xAA  # M7: RUNNING_DV is 0xAA
-PENDING_VISION, PENDING_TAC, PENDING_SPC = 0x92, 0x85, 0x82
-RUNNING_TAC, RUNNING_SPC = 0xAC, 0x22
-APP_IDS = {"VISION": 0x01, "TAC": 0x03, "SPC": 0x04, "DV": 0x05}
-PENDING_OF = {"TAC": PENDING_TAC, "SPC": PENDING_SPC, "VISION": PENDING_VISION}
-STAGE_OF = {"TAC": 0x85, "SPC": 0x82}
-EEPROM_FILE = "/mesp/eeprom.data1"
-FATAL_INTRINSIC = 22
-VALID = 0x69  # host_sync_timestamp_us_valid
-STALE_CHECK = 0.010  # stale streams are looked for every 10 ms
-
-
-@dataclass
-class HostConfig:
-    sw: str | None = None
-    camera_only_aeb: bool = False  # send IPB 0x78 and PCW 0x79 before 0x92
-    ipb_params: bytes = b"\x00"  # the seed prints no 0x78 bit table: sent as opaque bytes
-    veh_state_rate: float = 66.67  # §7.1.2.2
-    poll_interval: float = 0.1  # Get Extended State polling
-    boot_timeout: float = 2.0  # no boot status within this -> reset and retry
-    boot_strikes: int = 3
-    stale_periods: float = 3.0  # a DASP stream is stale after this many periods of silence
-    max_resets: int = 3  # EEPROM-driven resets before giving up (Fatal 22 that never clears)
-    ack_timeout: float | None = None  # link timings; None: the seed's defaults (§6)
-    transmit_timeout: float | None = None
-
-
-@dataclass
-class HostCounters:
-    received: Counter[str] = field(default_factory=Counter)
-    sent: Counter[str] = field(default_factory=Counter)
-    dasp_counter_gaps: int = 0
-    e2e_errors: int = 0
-    decode_errors: int = 0
-    stale_events: Counter[str] = field(default_factory=Counter)
-    ignored_events: int = 0
-    eyeq_resets: int = 0
-    boot_failures: int = 0
-    rx_times: dict[str, list[float]] = field(default_factory=dict)
-    tx_times: list[float] = field(default_factory=list)
-
-
-@dataclass(frozen=True)
-class Transition:
-    time: float
-    src: HostState
-    event: HostEvent
-    dst: HostState
-    detail: str = ""
-
-
-def _link_config(role: str, ack: float | None, transmit: float | None) -> LinkConfig:
-    cfg = LinkConfig(role=role)  # type: ignore[arg-type]
-    if ack is not None:
-        cfg.ack_timeout = ack
-    if transmit is not None:
-        cfg.transmit_timeout = transmit
-    return cfg
-
-
 ResetLine = Callable[[float], None]
 Subscriber = Callable[[DecodedMessage], None]
+
+__all__ = ["HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber", "Transition"]
 
 
 class HostEmulator:
@@ -110,7 +71,7 @@ class HostEmulator:
         self.config = config or HostConfig()
         self.codec = MessageCodec(self.config.sw)
         self.sw = self.codec.sw
-        self.conn = TransportConnection(_link_config("host", self.config.ack_timeout,
+        self.conn = TransportConnection(link_config("host", self.config.ack_timeout,
                                                      self.config.transmit_timeout))
         self.mesp = MespClient(self.codec.cat)
         self.nvm = nvm or Nvm()
@@ -612,36 +573,14 @@ class HostEmulator:
     def _on_cal_result(self, mode: str, cal: dict[str, Any], now: float) -> None:
         if self.calibration_result is not None:
             return
-        if mode == "TAC":
-            if cal["progress"] != self._enum_value("static_cal_progress", "RESULTS_READY"):
-                return
-        elif cal["status"] == self._enum_value("dynamic_cal_status", "INIT"):
+        ok = calibration.outcome(self.codec.cat, self.sw, mode, cal)
+        if ok is None:
             return  # still running
-        table = alignment_nvm()
-        source = table.source(mode)
-        # §21: "update ... only when TAC, SPC or Autofix is successfully completed"; what
-        # success means per run is the `success` row of specs/nvm.yaml
-        ok = all(cal.get(member) == self._member_value(source.result, member, name)
-                 for member, name in source.success.items())
         self.calibration_result = {"mode": mode, "ok": ok, "time": now, **{
             k: cal[k] for k in ("distYaw", "distPitch", "roll", "phYaw", "phPitch") if k in cal}}
-        if ok:
-            self.nvm.data.alignment = table.apply(mode, self.nvm.data.alignment, cal)
+        if ok:  # §21: "update ... only when TAC, SPC or Autofix is successfully completed"
+            self.nvm.data.alignment = alignment_nvm().apply(mode, self.nvm.data.alignment, cal)
             self.nvm.save()
-
-    def _enum_value(self, enum: str, name: str) -> int:
-        for v in self.codec.cat.enums[enum].values.values():
-            if v.name == name:
-                return v.value
-        raise SpecError(f"enum {enum} has no value {name}")
-
-    def _member_value(self, struct: str, member: str, name: str) -> int:
-        """The value of enum value ``name`` of ``struct.member`` in this release."""
-        var = self.codec.cat.structs[struct].variant_for(self.sw)
-        m = next((m for m in var.members if m.name == member), None) if var else None
-        if m is None or m.enum is None:
-            raise SpecError(f"{struct}.{member} is not an enum in SW {self.sw}")
-        return self._enum_value(m.enum, name)
 
     def _deliver(self, out: DecodedMessage) -> None:
         for cb in self._subscribers:

@@ -1,32 +1,16 @@
 """A seeded, reproducible driving scene that fills the simulated EyeQ's DASP payloads (§7.1.4).
 
-Theory of operation
--------------------
-The world lives in *road coordinates* relative to the ego vehicle: ``s`` is the distance along
-the road ahead of the ego's front bumper, ``d`` the lateral offset from the centre of the ego
-lane (left positive), lanes are 3.6 m wide. Every tracked object follows the seed's process model
-(seed 002 §7.1): within one step its accelerations are constant, so
-``s(t+dt) = s + (vx - v_ego)*dt + 0.5*ax*dt^2``. Between steps a small controller (IDM car
-following, lane changes, a lateral PD) picks the accelerations for the next step, objects leave
-when far behind or ahead and new ones spawn at once, so the number of objects stays as configured.
-
-The road is a clothoid (seed 002 §7.2): curvature is piecewise linear in arc length, drifting
-between straights and gentle curves. Each step fits ``c2 x^2 + c3 x^3`` to the road centre over
-the next 100 m; ``c0``/``c1`` come from the ego's wander inside its lane. Lane markers, borders,
-objects and signs all use that one polynomial, so they agree with each other.
-
-All randomness is drawn in :meth:`Scene.step` from one ``np.random.Generator``; :meth:`Scene.fill`
-only reads state, so the same seed and the same step times give the same payloads. ``fill`` knows
-nothing of the SW version: it recognises the layout from the shape of the value dict and clamps
-each value into the member's declared range and wire type (the intersection over every release
-with that shape).
+The world and its dynamics (road, objects, signs, the step) are :class:`SceneWorld` in
+:mod:`eyeq_spi.sim.scene_world`; this module adds what the EyeQ reports of it: the object columns
+and :meth:`Scene.fill`, which writes one DASP message's values. ``fill`` only reads state, so the
+same seed and the same step times give the same payloads. It knows nothing of the SW version: it
+recognises the layout from the shape of the value dict and clamps each value into the member's
+declared range and wire type (the intersection over every release with that shape).
 """
 
 from __future__ import annotations
 
 import math
-from collections import deque
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -34,32 +18,18 @@ import numpy.typing as npt
 
 from eyeq_spi.sim.scene_layout import (
     _AGE_ROW,
-    _CLASS_DEFAULT,
-    _CLASS_P,
     _FILLERS,
-    _PINV,
     _REFLECT_KEYS,
     _SIGN_KEYS,
     _SPOT_KEYS,
-    _XS,
     CAM_HEIGHT,
     CLASSES,
     CYCLIST,
-    EGO_LENGTH,
-    EGO_SPEED_MAX,
-    EGO_SPEED_MIN,
     FOCAL_PX,
     HALF_LANE,
     IMAGE_H,
     IMAGE_W,
-    LANE_WIDTH,
-    MAX_GAP,
-    MAX_OBJECTS,
-    MAX_SIGNS,
-    MAX_SPOTS,
-    MAX_SUBSTEP,
     ONCOMING,
-    PEDESTRIAN,
     TTC_NONE,
     VEHICLE,
     FArr,
@@ -67,377 +37,24 @@ from eyeq_spi.sim.scene_layout import (
     _child,
     _choose,
     _code,
-    _cumtrapz,
     _elements,
     _frame,
     _Node,
     _node_for,
     _obj_plan,
-    _ObjPlan,
     _puts,
-    _sign_table,
     _write_rows,
 )
+from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
+
+__all__ = ["CLASSES", "Scene", "SceneConfig", "SceneWorld"]
 
 
-@dataclass
-class SceneConfig:
-    seed: int = 1
-    objects: int = 8  # 0..15 tracked objects (E_EYEQ_MAX_VISION_OBJECTS = 15)
-    signs: int = 4  # 0..20 traffic signs visible at a time
-    light_spots: int = 4  # 0..15
-    ego_speed: float = 25.0  # m/s, default constant-speed drive
-
-
-# -- member ranges, recognised from the shape of a value dict ------------------------------------
-class Scene:
+class Scene(SceneWorld):
     """The world (objects, road, signs) and the writer of its DASP payloads."""
 
-    def __init__(self, config: SceneConfig | None = None) -> None:
-        self.config = cfg = config or SceneConfig()
-        self._rng = rng = np.random.default_rng(cfg.seed)
-        self._n_obj = int(min(max(cfg.objects, 0), MAX_OBJECTS))
-        self._n_signs = int(min(max(cfg.signs, 0), MAX_SIGNS))
-        self._n_spots = int(min(max(cfg.light_spots, 0), MAX_SPOTS))
-        self._t: float | None = None
-        self._tau = 0.0  # s since the first step
-        self._v = float(cfg.ego_speed)
-        self._v_host: float | None = None
-        self._k_host: float | None = None
-        self._s_e = 0.0  # distance the ego has driven
-        self._e = 0.0  # ego offset from its lane centre, left positive
-        self._veh_index = 0
-        self._frame_now = 0
-        self._phase = rng.uniform(0.0, 2 * math.pi, 8)
-        self._poly = (0.0, 0.0, 0.0, 0.0)
-        self._knot_s, self._knot_k = [-200.0, 0.0], [0.0, 0.0]
-        self._extend_road()
-        n = MAX_OBJECTS
-        self._alive = np.zeros(n, dtype=bool)
-        self._oid, self._cls, self._kind, self._birth = (np.zeros(n, np.int64) for _ in range(4))
-        self._s, self._d, self._vx, self._vy, self._ax, self._ay = (np.zeros(n) for _ in range(6))
-        self._w, self._l, self._h, self._vdes, self._dtgt, self._cbias = (
-            np.zeros(n) for _ in range(6))
-        self._free_ids: deque[int] = deque(range(1, MAX_OBJECTS + 1))
-        self._cls_code = np.array(
-            [_code("object_classification", c[0], _CLASS_DEFAULT[c[0]]) for c in CLASSES])
-        m = MAX_SIGNS
-        self._sg_alive = np.zeros(m, dtype=bool)
-        self._sg_id, self._sg_type = np.zeros(m, np.int64), np.zeros(m, np.int64)
-        self._sg_s, self._sg_lat, self._sg_z, self._sg_bias = (np.zeros(m) for _ in range(4))
-        self._free_sign_ids: deque[int] = deque(range(MAX_SIGNS))
-        self._next_sign = float(rng.exponential(60.0)) + 20.0
-        for k in range(self._n_obj):
-            self._spawn(initial=True, first=k == 0)
-        self._update_road(None, 0.0)
-        self._cols: tuple[FArr, IArr, IArr] | None = None
-        self._plans: dict[int, _ObjPlan] = {}
-        self._nodes: dict[str, tuple[dict[str, Any], _Node | None]] = {}
-
-    def unanchor(self) -> None:
-        """Forget the time of the last step (after a warm-up): the next step anchors the scene
-        in time as the first one does."""
-        self._t = None
-
-    # -- time --------------------------------------------------------------------------------
-    def step(self, t: float, ego_speed: float | None = None, yaw_rate: float | None = None) -> None:
-        """Advance the world to virtual time ``t`` (s, monotonic); ego state from the host's
-        HOST_VEH_STATE_MSG when known, else the last known speed (or ``config.ego_speed``)."""
-        t = float(t)
-        if not math.isfinite(t):
-            return
-        if ego_speed is not None and math.isfinite(ego_speed):
-            self._veh_index += 1
-            # §7.1.2.2 vehicleVelocity range: no input may make a step unbounded
-            self._v_host = min(max(float(ego_speed), EGO_SPEED_MIN), EGO_SPEED_MAX)
-        v_target = self._v_host if self._v_host is not None else float(self.config.ego_speed)
-        yaw = None if yaw_rate is None or not math.isfinite(yaw_rate) else float(yaw_rate)
-        if self._t is None:  # the first step anchors the scene in time
-            self._t, self._frame_now, self._v = t, _frame(t), v_target
-            self._birth[self._alive] += self._frame_now
-            self._update_road(yaw, 0.0)
-            self._cols = None
-            self._columns()
-            return
-        dt = t - self._t
-        if dt <= 0.0:
-            return
-        skip = max(0.0, dt - MAX_GAP)
-        n = max(1, math.ceil((dt - skip) / MAX_SUBSTEP - 1e-9))
-        h, v0 = (dt - skip) / n, self._v
-        self._tau += skip
-        for i in range(n):
-            va = v0 + (v_target - v0) * i / n
-            vb = v0 + (v_target - v0) * (i + 1) / n
-            self._integrate(h, va, vb)
-            self._tau += h
-            self._v = vb
-            self._frame_now = _frame(self._t + skip + (i + 1) * h)
-            self._update_road(yaw, h)
-            self._decide(h)
-        self._t = t
-        self._cols = None
+    def _after_step(self) -> None:
         self._columns()  # the vectorised part of filling EYEQ_VIS_OBSTACLES_MSG
-
-    def _integrate(self, h: float, va: float, vb: float) -> None:
-        """§7.1 constant-acceleration process model over ``h`` seconds, relative to the ego."""
-        disp = 0.5 * (va + vb) * h
-        self._s += self._vx * h + 0.5 * self._ax * h * h - disp
-        self._vx += self._ax * h
-        self._d += self._vy * h + 0.5 * self._ay * h * h
-        self._vy += self._ay * h
-        self._sg_s -= disp
-        self._s_e += disp
-
-    def _decide(self, h: float) -> None:
-        self._despawn()
-        while int(self._alive.sum()) < self._n_obj and self._spawn():
-            pass
-        self._lane_changes(h)
-        self._accelerations(h)
-        self._signs()
-
-    # -- road --------------------------------------------------------------------------------
-    def _extend_road(self) -> None:
-        """§7.2 clothoids: curvature linear in arc length between straights and gentle arcs."""
-        rng = self._rng
-        if self._knot_s[-1] < self._s_e - 1000.0:
-            # far behind (a jump in time or distance): restart the road at the ego instead of
-            # generating every kilometre in between; keeps each step bounded
-            self._knot_s = [self._s_e - 300.0, self._s_e - 100.0]
-            self._knot_k = [self._knot_k[-1], self._knot_k[-1]]
-        while self._knot_s[-1] < self._s_e + 400.0:
-            straight = rng.random() < 0.4
-            target = 0.0 if straight else float(np.clip(rng.normal(0.0, 0.001), -0.003, 0.003))
-            s0, l1, l2 = self._knot_s[-1], rng.uniform(80.0, 200.0), rng.uniform(100.0, 400.0)
-            self._knot_s += [s0 + l1, s0 + l1 + l2]
-            self._knot_k += [target, target]
-        while len(self._knot_s) > 3 and self._knot_s[1] < self._s_e - 200.0:
-            del self._knot_s[0], self._knot_k[0]
-
-    def _update_road(self, yaw_rate: float | None, h: float) -> None:
-        self._extend_road()
-        k = np.interp(self._s_e + _XS, self._knot_s, self._knot_k)
-        if yaw_rate is not None and abs(self._v) > 1.0:
-            # the host's yaw rate says how the road bends where the ego is
-            target = float(np.clip(yaw_rate / self._v, -0.008, 0.008))
-            kh = self._k_host
-            kh = target if kh is None else kh + (target - kh) * min(1.0, h / 0.5)
-            self._k_host = kh
-            k = k - k[0] + kh
-        else:
-            self._k_host = None
-        y = _cumtrapz(_cumtrapz(k, _XS), _XS)
-        c2, c3 = (float(c) for c in _PINV @ y)
-        p, tau = self._phase, self._tau
-        w1, w2 = 2 * math.pi / 14.0, 2 * math.pi / 4.3
-        self._e = 0.15 * math.sin(w1 * tau + p[0]) + 0.05 * math.sin(w2 * tau + p[1])
-        e_dot = 0.15 * w1 * math.cos(w1 * tau + p[0]) + 0.05 * w2 * math.cos(w2 * tau + p[1])
-        c1 = float(np.clip(-e_dot / max(abs(self._v), 1.0), -0.05, 0.05))
-        self._poly = (-self._e, c1, float(np.clip(c2, -0.0099, 0.0099)),
-                      float(np.clip(c3, -1.69e-4, 1.69e-4)))
-
-    def _lateral(self, s: FArr, d: FArr) -> FArr:
-        """Road (s, d) -> lateral distance in the ego frame through the road polynomial."""
-        c0, c1, c2, c3 = self._poly
-        out: FArr = d + c0 + s * (c1 + s * (c2 + s * c3))
-        return out
-
-    # -- objects -----------------------------------------------------------------------------
-    def _clear(self, s: float, d: float, length: float) -> bool:
-        if abs(d - self._e) < 2.5 and -EGO_LENGTH - 15.0 < s < 15.0:
-            return False
-        there = (np.abs(self._d - d) < 2.5) | (np.abs(self._dtgt - d) < 2.5)
-        near = self._alive & there & (np.abs(self._s - s) < 15.0 + np.maximum(length, self._l))
-        return not bool(near.any())
-
-    def _place(self, name: str, kind: int, initial: bool, first: bool
-               ) -> tuple[float, float, float]:
-        """One candidate (s, d, target speed) for a new object of class ``name``."""
-        rng, v_e = self._rng, max(self._v, 0.0)
-        if kind == VEHICLE:
-            vdes = float(np.clip(v_e * rng.uniform(0.8, 1.15) + rng.normal(0.0, 1.0), 0.0, 45.0))
-            vdes = min(vdes, 25.0) if name == "truck" else vdes
-            lane = int(rng.choice((-1, 0, 1)))
-            if first:
-                lane, s, vdes = 0, rng.uniform(25.0, 50.0), v_e * rng.uniform(0.97, 1.03)
-            elif initial:
-                s = rng.uniform(10.0, 150.0)
-            elif vdes < v_e - 0.5 or v_e < 1.0:
-                s = rng.uniform(100.0, 190.0)
-                if lane == 0:  # the ego lane carries traffic at about the ego's speed
-                    vdes = max(vdes, v_e * rng.uniform(0.97, 1.08))
-            else:  # faster than the ego: comes from behind in a neighbour lane
-                s = rng.uniform(-26.0, -14.0)
-                lane = lane or int(rng.choice((-1, 1)))
-            return s, lane * LANE_WIDTH, vdes
-        if kind == ONCOMING:  # the other carriageway, beyond the left barrier
-            vdes = float(np.clip(max(v_e, 15.0) * rng.uniform(0.8, 1.1), 5.0, 40.0))
-            s = rng.uniform(30.0, 180.0) if initial else rng.uniform(150.0, 195.0)
-            return s, float(rng.choice((8.2, 11.8))), -vdes
-        if kind == CYCLIST:  # the right shoulder
-            vdes = rng.uniform(3.5, 7.0)
-            s = (rng.uniform(10.0, 90.0) if initial else
-                 rng.uniform(70.0, 110.0) if vdes < v_e else rng.uniform(-12.0, -8.0))
-            return s, -6.4 + rng.normal(0.0, 0.15), vdes
-        # pedestrians on the sidewalks, walking either way
-        d = (1.0 if rng.random() < 0.4 else -1.0) * rng.uniform(6.8, 8.0)
-        vdes = rng.uniform(0.8, 1.6) * float(rng.choice((-1.0, 1.0)))
-        s = rng.uniform(8.0, 70.0) if initial or v_e < 0.5 else rng.uniform(50.0, 85.0)
-        return s, d, vdes
-
-    def _spawn(self, initial: bool = False, first: bool = False) -> bool:
-        free = np.flatnonzero(~self._alive)
-        if len(free) == 0 or not self._free_ids:
-            return False
-        i, rng = int(free[0]), self._rng
-        ci = 0 if first else int(rng.choice(len(CLASSES), p=_CLASS_P))
-        kind = CLASSES[ci][5]
-        if kind == VEHICLE and ci <= 1 and not first and rng.random() < 0.12:
-            kind = ONCOMING
-        for attempt in range(13):
-            if attempt == 12:  # the road is full: someone on the sidewalk instead
-                ci = next(k for k, c in enumerate(CLASSES) if c[5] == PEDESTRIAN)
-                kind = PEDESTRIAN
-            s, d, vdes = self._place(CLASSES[ci][0], kind, initial, first)
-            if self._clear(s, d, CLASSES[ci][3]):
-                break
-        name, _, w, length, hgt, _ = CLASSES[ci]
-        self._alive[i] = True
-        self._oid[i] = self._free_ids.popleft()
-        self._cls[i], self._kind[i] = ci, kind
-        self._s[i], self._d[i], self._dtgt[i] = s, d, d
-        self._vx[i], self._vdes[i] = vdes, vdes
-        self._vy[i] = self._ax[i] = self._ay[i] = 0.0
-        self._w[i] = float(np.clip(w * rng.normal(1.0, 0.04), 0.45, 2.9))
-        self._l[i] = float(np.clip(length * rng.normal(1.0, 0.2 if name == "truck" else 0.06),
-                                   0.45, 18.5))
-        self._h[i] = float(np.clip(hgt * rng.normal(1.0, 0.04), 0.5, 4.0))
-        self._cbias[i] = rng.normal(0.0, 0.015)
-        self._birth[i] = self._frame_now - (int(rng.integers(0, 300)) if initial else 0)
-        return True
-
-    def _despawn(self) -> None:
-        s, kind = self._s, self._kind
-        behind = np.where(kind == VEHICLE, -30.0, np.where(kind == ONCOMING, -20.0, np.where(
-            kind == CYCLIST, -15.0, -10.0)))
-        far = (s < behind) | (s > np.where(kind <= ONCOMING, 200.0, np.where(
-            kind == CYCLIST, 130.0, 95.0)))
-        # an object the ego drives into is lost rather than driven through
-        hit = (np.abs(self._d - self._e) < 1.6) & (s > -EGO_LENGTH - 1.0) & (s < 1.0)
-        for i in np.flatnonzero(self._alive & (far | (hit & (kind != ONCOMING)))):
-            self._alive[i] = False
-            self._free_ids.append(int(self._oid[i]))
-            self._oid[i] = 0
-
-    def _change_lane(self, i: int, lane: int, escape: bool = False) -> bool:
-        s, target = float(self._s[i]), lane * LANE_WIDTH
-        if not -1 <= lane <= 1 or (lane == 0 and not escape and -40.0 < s < 30.0):
-            return False
-        others = self._alive.copy()
-        others[i] = False
-        there = (np.abs(self._d - target) < 2.5) | (np.abs(self._dtgt - target) < 0.5)
-        gap = (6.0 if escape else 15.0) + np.maximum(self._l[i], self._l)
-        busy = others & there & (np.abs(self._s - s) < gap)
-        if busy.any():
-            return False
-        self._dtgt[i] = target
-        return True
-
-    def _lane_changes(self, h: float) -> None:
-        rng, v_e, s = self._rng, self._v, self._s
-        steady = self._alive & (self._kind == VEHICLE) & (np.abs(self._dtgt - self._d) <= 0.3)
-        lane = self._lane_index(self._dtgt)
-        closing = v_e - self._vx
-        # the ego closes in on it: it gets out of the way or speeds up
-        escape = steady & (lane == 0) & (s > -1.0) & (closing > 0.5) & (
-            (s < 10.0 * closing) | (s < 0.8 * v_e + 5.0))
-        u = rng.random((3, MAX_OBJECTS))
-        for i in (int(k) for k in np.flatnonzero(escape)):
-            if not (self._change_lane(i, -1, True) or self._change_lane(i, 1, True)):
-                # boxed in: the whole ego lane ahead speeds up
-                platoon = self._alive & (self._kind == VEHICLE) & (s > -1.0) & (
-                    (lane == 0) | (self._lane_index(self._d) == 0))
-                self._vdes[platoon] = np.maximum(self._vdes[platoon], v_e + 3.0)
-        for i in (int(k) for k in np.flatnonzero(steady & ~escape & (u[0] < 0.03 * h))):
-            self._change_lane(i, int(lane[i]) + (1 if u[1, i] < 0.5 else -1))
-        drift = u[2] < 0.1 * h
-        if drift.any():
-            self._vdes[drift] *= rng.uniform(0.95, 1.05, int(drift.sum()))
-
-    def _accelerations(self, h: float) -> None:
-        """Accelerations held over the next step: IDM car following for vehicles (the ego is a
-        leader too), P control of the speed otherwise, a lateral PD towards the target lane."""
-        alive, kind, s, d, vx, vy = self._alive, self._kind, self._s, self._d, self._vx, self._vy
-        veh = alive & (kind == VEHICLE)
-        same = (np.abs(d[:, None] - d[None, :]) < 2.0) | (
-            np.abs(self._dtgt[:, None] - d[None, :]) < 2.0)
-        same &= veh[:, None] & veh[None, :]
-        np.fill_diagonal(same, False)
-        gaps = np.where(same & (s[None, :] > s[:, None]),
-                        s[None, :] - s[:, None] - self._l[:, None], np.inf)
-        lead = np.argmin(gaps, axis=1)
-        gap, v_lead = gaps[np.arange(MAX_OBJECTS), lead], vx[lead]
-        ego_gap = -EGO_LENGTH - s - self._l
-        use = veh & (np.abs(d - self._e) < 2.0) & (s < -1.0) & (ego_gap < gap)
-        gap, v_lead = np.where(use, ego_gap, gap), np.where(use, self._v, v_lead)
-        v, v0 = np.maximum(vx, 0.0), np.maximum(self._vdes, 1.0)
-        # the ego lane ahead hurries when the ego (driven by the host, never braking) comes close
-        hurry = (self._lane_index(d) == 0) & (s > 0.0) & (vx < self._v + 1.0)
-        a_max, headway = np.where(hurry, 2.5, 1.2), np.where(hurry, 0.9, 1.3)
-        s_star = 3.0 + np.maximum(0.0, headway * v + v * (v - v_lead) / (2 * np.sqrt(a_max * 2.0)))
-        a_idm = np.clip(a_max * (1 - (v / v0) ** 4 - (s_star / np.maximum(gap, 0.5)) ** 2), -6, 2.5)
-        a_idm = np.maximum(a_idm, -v / max(h, 1e-3))  # stop, never reverse
-        ax = np.where(kind == VEHICLE, a_idm, np.clip(
-            np.where(kind == ONCOMING, 0.3, 0.5) * (self._vdes - vx), -1.0, 1.0))
-        err = self._dtgt - d
-        ay = np.where(kind <= ONCOMING, np.clip(0.8 * err - 1.6 * vy, -1.5, 1.5),
-                      np.clip(0.5 * err - 1.0 * vy, -0.5, 0.5))
-        self._ax = np.where(alive, ax, 0.0)
-        self._ay = np.where(alive, ay, 0.0)
-
-    # -- signs -------------------------------------------------------------------------------
-    def _signs(self) -> None:
-        s = self._sg_s
-        gone = self._sg_alive & ((s < 8.0) | (s < np.abs(self._sg_lat) / math.tan(0.7)))
-        for i in np.flatnonzero(gone):
-            self._sg_alive[i] = False
-            self._free_sign_ids.append(int(self._sg_id[i]))
-        if self._s_e - self._next_sign > 1000.0:
-            self._next_sign = self._s_e  # bounded: one sign, not one per 100 m skipped
-        while self._s_e >= self._next_sign:  # a new sign every ~100 m: every 4 s at 25 m/s
-            self._next_sign += float(self._rng.exponential(60.0)) + 40.0
-            self._spawn_signs()
-
-    def _spawn_signs(self) -> None:
-        rng = self._rng
-        names, codes, p = _sign_table()
-        k = int(rng.choice(len(names), p=p))
-        s = rng.uniform(70.0, 100.0)
-        if names[k].startswith("e_lgt_"):  # electronic signs hang on a gantry over the lanes
-            places = [(rng.uniform(-LANE_WIDTH, LANE_WIDTH), 5.5)]
-        else:
-            places = [(-(3 * HALF_LANE + rng.uniform(1.0, 2.5)), rng.uniform(1.8, 2.6))]
-            if names[k][6:].isdigit() and rng.random() < 0.4:  # speed limits often in pairs
-                places.append((3 * HALF_LANE + rng.uniform(0.8, 1.5), places[0][1]))
-        for lat, z in places:
-            free = np.flatnonzero(~self._sg_alive)
-            if int(self._sg_alive.sum()) >= self._n_signs or len(free) == 0:
-                return
-            i = int(free[0])
-            self._sg_alive[i] = True
-            self._sg_id[i], self._sg_type[i] = self._free_sign_ids.popleft(), codes[k]
-            self._sg_s[i], self._sg_lat[i], self._sg_z[i] = s, lat, z
-            self._sg_bias[i] = rng.normal(0.0, 0.03)
-
-    # -- derived obstacle state --------------------------------------------------------------
-    def _lane_index(self, d: FArr) -> IArr:
-        out: IArr = np.rint(d / LANE_WIDTH).astype(np.int64)
-        return out
-
-    def _cipv_distance(self) -> float:
-        ego = self._alive & (self._lane_index(self._d) == 0) & (self._s > 0.0)
-        return float(self._s[ego].min()) if ego.any() else math.inf
 
     def _columns(self) -> tuple[FArr, IArr, IArr]:
         """Rows of :data:`_OBJ_F` / :data:`_OBJ_I` for the live objects in id order, and their

@@ -1,0 +1,42 @@
+"""When a TAC or SPC run has finished, and whether it succeeded (§9.9, §9.11, §21).
+
+What "successfully completed" means per run is the ``success`` row of the §21 Alignment NVM table
+in ``specs/nvm.yaml``: member -> enum value name of the run's result struct, all must hold.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from eyeq_spi.errors import SpecError
+from eyeq_spi.spec.catalog import Catalog, SwKey
+from eyeq_spi.spec.tables import alignment_nvm
+
+
+def enum_value(cat: Catalog, enum: str, name: str) -> int:
+    for v in cat.enums[enum].values.values():
+        if v.name == name:
+            return v.value
+    raise SpecError(f"enum {enum} has no value {name}")
+
+
+def member_value(cat: Catalog, sw: SwKey, struct: str, member: str, name: str) -> int:
+    """The value of enum value ``name`` of ``struct.member`` in release ``sw``."""
+    var = cat.structs[struct].variant_for(sw)
+    m = next((m for m in var.members if m.name == member), None) if var else None
+    if m is None or m.enum is None:
+        raise SpecError(f"{struct}.{member} is not an enum in SW {sw}")
+    return enum_value(cat, m.enum, name)
+
+
+def outcome(cat: Catalog, sw: SwKey, mode: str, cal: Mapping[str, Any]) -> bool | None:
+    """None while the ``mode`` run (TAC or SPC) is still going, else whether it succeeded."""
+    if mode == "TAC":
+        if cal["progress"] != enum_value(cat, "static_cal_progress", "RESULTS_READY"):
+            return None
+    elif cal["status"] == enum_value(cat, "dynamic_cal_status", "INIT"):
+        return None
+    source = alignment_nvm().source(mode)
+    return all(cal.get(member) == member_value(cat, sw, source.result, member, name)
+               for member, name in source.success.items())
