@@ -45,10 +45,11 @@ def test_live_run_over_tcp_loses_nothing() -> None:
 @pytest.mark.realtime
 def test_live_run_over_a_pty_holds_vision_and_reports_every_loss() -> None:
     """Over a pty the kernel moves each write to the reader from a worker thread at ordinary
-    priority, and even on a quiet machine that sometimes takes longer than the 10 ms ackTimeout
-    (600 s runs lost 3 host and 20 EyeQ frames of 700,000; README, Live runs). So this run
-    asserts what must hold anyway: Running Vision reached and held on both sides, losses a tiny
-    fraction, and every loss counted and named in `problem` (summaries tell the truth)."""
+    priority, which other CPU-bound work can delay past the 10 ms ackTimeout whatever our
+    priority (600 s lost nothing on a quiet machine, 23 frames of 700,000 at load 0.5-3.6;
+    README, Live runs), and CI machines are not always quiet. So this run asserts what must hold
+    anyway: Running Vision reached and held on both sides, losses a tiny fraction, and every loss
+    counted and named in `problem` (summaries tell the truth)."""
     r = soak_live.soak(float(os.environ.get("EYEQ_SOAK_S", "20")), "pty")
     for side in ("host", "sim"):
         x = r[side]
