@@ -269,7 +269,7 @@ def print_summary(out: dict[str, Any], as_json: bool) -> None:
                  f"{out['transport_aborts'] or 'none'}, stale "
                  f"{', '.join(out['stale_streams']) or 'none'}, MESP timeouts "
                  f"{out['mesp']['timeouts']}")
-    if "scheduling" in out:
+    if out.get("scheduling"):  # host and sim; the in-process demo has no live link
         lines.append(f"  scheduling: {out['scheduling']}")
     lines.append("  received: " + ", ".join(
         f"{k.replace('EYEQ_', '').replace('_MSG', '')} {v}"
