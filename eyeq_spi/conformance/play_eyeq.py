@@ -167,14 +167,7 @@ class EyeqScript:
     def link_probes(self) -> None:
         s, shim, trace, link = self.s, self.s.shim, self.trace, self.eyeq.conn.link
         t0 = s.now
-        shim.probe("nak_crc", num=link.next_num, bad_crc=True)
-        s.run(0.03)
-        shim.probe("nak_format_d", num=link.next_num, d=0x1)
-        s.run(0.03)
-        shim.probe("nak_format_r", num=link.next_num, r=0x1)
-        s.run(0.03)
-        shim.probe("nak_window", num=link.next_num + 2048)
-        s.run(0.03)
+        s.nak_probes(link)
         # a stale MESP reply (tag never used): harmless to a host, single frame, duplicated
         stale = self.eyeq.server.codec.encode_reply("GetEyeQVersions", 0x3F, 0, {
             "apiVersionMajor": 0, "apiVersionMinor": 0, "eyeqSwVersionMajor": 0,

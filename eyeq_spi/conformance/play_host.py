@@ -158,14 +158,7 @@ class HostScript:
         s, host, shim, trace = self.s, self.host, self.s.shim, self.trace
         link = host.conn.link
         t0 = s.now
-        shim.probe("nak_crc", num=link.next_num, bad_crc=True)
-        s.run(0.03)
-        shim.probe("nak_format_d", num=link.next_num, d=0x1)
-        s.run(0.03)
-        shim.probe("nak_format_r", num=link.next_num, r=0x1)
-        s.run(0.03)
-        shim.probe("nak_window", num=link.next_num + 2048)
-        s.run(0.03)
+        s.nak_probes(link)
         dup = self.raw("GetEyeQExtendedState", TAG_DUP)
         shim.watch(segment(dup, 0)[0], "dup", "duplicate")
         self.send_raw("dup_request", dup)

@@ -59,6 +59,17 @@ class Session:
     def run(self, seconds: float) -> None:
         self.wait(lambda: False, seconds)
 
+    def nak_probes(self, link: Any) -> None:
+        """The frames both players corrupt on purpose to provoke the DUT's NAKs (L5): a bad
+        CRC, a bad D, a bad R and a NUM far outside the window, 30 ms apart; ``link`` is our
+        own link connection, whose next NUM each probe takes."""
+        for name, bad in (("nak_crc", {"bad_crc": True}), ("nak_format_d", {"d": 0x1}),
+                          ("nak_format_r", {"r": 0x1})):
+            self.shim.probe(name, num=link.next_num, **bad)
+            self.run(0.03)
+        self.shim.probe("nak_window", num=link.next_num + 2048)
+        self.run(0.03)
+
     def wait(self, cond: Callable[[], bool], timeout: float) -> bool:
         """Advance until ``cond()`` holds (True) or ``timeout`` seconds pass (False). Once the
         peer has left (a host that stops may close its port), time stands still: False."""
