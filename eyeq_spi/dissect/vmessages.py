@@ -111,24 +111,32 @@ class SpanDecoder:
             out[i] = rec
         return out  # type: ignore[return-value]
 
+    def _rows(self, msgs: list[SpanMessage], rows: list[int], msg: Any, header: int
+              ) -> tuple[Any, Any, list[bytes], Any] | None:
+        """A group's layout, vectorised layout, message bytes and (rows, header + payload)
+        array; None when the group needs the exact path (no layout, or a length that is not the
+        layout's)."""
+        try:
+            lay = self.codec.layout(msg)
+        except SpecError:
+            return None
+        length = header + lay.size
+        datas = [msgs[i].data for i in rows]
+        if any(len(x) != length for x in datas):
+            return None
+        arr = np.frombuffer(b"".join(datas), np.uint8).reshape(len(rows), length)
+        return lay, vec_layout(lay, self.codec.cat), datas, arr
+
     def _group(self, msgs: list[SpanMessage], rows: list[int], direction: str | None,
                data_id: int, out: list[dict[str, Any] | None], columns: bool) -> bool:
         """Judge one (direction, data ID) group at once; False: it needs the exact path."""
-        codec = self.codec
-        msg = codec.dasp_message(data_id)
-        if msg is None:
+        msg = self.codec.dasp_message(data_id)
+        got = None if msg is None else self._rows(msgs, rows, msg, 4)
+        if msg is None or got is None:
             return False
-        try:
-            lay = codec.layout(msg)
-        except SpecError:
-            return False
-        length = 4 + lay.size
-        datas = [msgs[i].data for i in rows]
-        if any(len(x) != length for x in datas):
-            return False
-        vl = vec_layout(lay, codec.cat)
+        lay, vl, datas, arr = got
+        length = arr.shape[1]
         d = self.dis._dirs[direction]
-        arr = np.frombuffer(b"".join(datas), np.uint8).reshape(len(rows), length)
         payloads = arr[:, 4:]
         reserved = arr[:, 3].tolist()
         counters = arr[:, 2].tolist()
@@ -165,20 +173,12 @@ class SpanDecoder:
                proto: str, out: list[dict[str, Any] | None], columns: bool) -> bool:
         """A 0x41 (DIAG) or 0x10 (BOOT) group: the ID byte, then the seed's table; no E2E
         state (the engine decodes them without one) and no counters."""
-        codec = self.codec
-        msg = codec._other.get(proto)
-        if msg is None:
+        msg = self.codec._other.get(proto)
+        got = None if msg is None else self._rows(msgs, rows, msg, 1)
+        if msg is None or got is None:
             return False
-        try:
-            lay = codec.layout(msg)
-        except SpecError:
-            return False
-        length = 1 + lay.size
-        datas = [msgs[i].data for i in rows]
-        if any(len(x) != length for x in datas):
-            return False
-        vl = vec_layout(lay, codec.cat)
-        arr = np.frombuffer(b"".join(datas), np.uint8).reshape(len(rows), length)
+        lay, vl, datas, arr = got
+        length = arr.shape[1]
         payloads = arr[:, 1:]
         ids = arr[:, 0].tolist()
         e2e = vl.verify(payloads, None)
