@@ -4,6 +4,7 @@ values."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from itertools import pairwise
 
@@ -97,13 +98,17 @@ def _repeats(tr: Trace) -> set[int]:
     return out
 
 
+def _dut_data(tr: Trace) -> Iterator[Xfer]:
+    """The DUT's DATA frames in order, resends left out (:func:`_repeats`)."""
+    repeats = _repeats(tr)
+    return (x for x in tr.xfers
+            if x.direction == tr.dut_dir and x.kind == "DATA" and x.index not in repeats)
+
+
 def link_num(ctx: Context, tr: Trace) -> Outcome:
     last: int | None = None
     n = 0
-    repeats = _repeats(tr)
-    for x in tr.xfers:
-        if x.direction != tr.dut_dir or x.kind != "DATA" or x.index in repeats:
-            continue
+    for x in _dut_data(tr):
         n += 1
         if last is not None and x.num not in ((last + 1) % SEQ_MODULO, 0):
             return bad(f"{_frame(x)}: expected NUM {(last + 1) % SEQ_MODULO} (or 0 after a "
@@ -317,10 +322,7 @@ def tp_format(ctx: Context, tr: Trace) -> Outcome:
     open_id: int | None = None
     interloper: Xfer | None = None
     n = 0
-    repeats = _repeats(tr)
-    for x in tr.xfers:
-        if x.direction != tr.dut_dir or x.kind != "DATA" or x.index in repeats:
-            continue
+    for x in _dut_data(tr):
         n += 1
         d, t = x.data, x.ttype
         if t == SINGLE:
