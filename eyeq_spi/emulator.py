@@ -17,6 +17,9 @@ from eyeq_spi.runner.virtual import Tap, VirtualRunner
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 
+HOST_ALONE = frozenset({0})
+"""The host (node 0) acts on no other node but through its reset line, which tells the runner."""
+
 
 @dataclass
 class Emulation:
@@ -53,13 +56,23 @@ def build(
     keep_rx_times: bool = True,
 ) -> Emulation:
     sim = SimulatedEyeQ(sim_config)
-    host = HostEmulator(host_config, nvm=nvm, scenario=scenario, reset_line=sim.power_up,
+    made: list[Emulation] = []
+
+    def reset_line(now: float) -> None:
+        # the host acts on the EyeQ: whatever runner drives them must ask both afresh
+        sim.power_up(now)
+        for emu in made:
+            emu.runner.touch_all()
+
+    host = HostEmulator(host_config, nvm=nvm, scenario=scenario, reset_line=reset_line,
                         keep_rx_times=keep_rx_times)
     a, b = memory_pair()
-    runner = VirtualRunner([(host, a), (sim, b)], tap=tap)
+    # the host's only effect on another node is the reset line, which tells the runner
+    runner = VirtualRunner([(host, a), (sim, b)], tap=tap, self_contained=HOST_ALONE)
     sim.power_up(0.0)
     host.start(0.0)
-    return Emulation(host, sim, runner)
+    made.append(Emulation(host, sim, runner))
+    return made[0]
 
 
 def summary(emu: Emulation) -> dict[str, Any]:

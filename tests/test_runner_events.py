@@ -10,7 +10,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from eyeq_spi.emulator import Emulation, build
+from eyeq_spi.emulator import HOST_ALONE, Emulation, build
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.phy.base import Adapter
 from eyeq_spi.phy.memory import MemoryAdapter
@@ -81,7 +81,8 @@ def _emulation(polling: bool, cfg: SimConfig, loss: float = 0.0) -> tuple[Emulat
     trace: Trace = []
     emu = build(sim_config=cfg, keep_rx_times=False)
     cls = PollingRunner if polling else VirtualRunner
-    emu.runner = cls(emu.runner.nodes, tap=lambda i, t, b: trace.append((i, t, b)))
+    emu.runner = cls(emu.runner.nodes, tap=lambda i, t, b: trace.append((i, t, b)),
+                     self_contained=HOST_ALONE)
     if loss:
         for k, (_, adapter) in enumerate(emu.runner.nodes):
             assert isinstance(adapter, MemoryAdapter)
@@ -103,6 +104,8 @@ CASES = {
     "full_load": (SimConfig(objects=15, signs=20, light_spots=15), 0.0, 2.5),
     "eyeq_resets_itself": (SimConfig(reset_at=1.2), 0.0, 2.5),
     "lossy_link": (SimConfig(), 0.02, 2.5),
+    # boot test failures: the host resets the EyeQ through its reset line (touch_all)
+    "boot_failures_reset_line": (SimConfig(boot_test_failures=1, boot_failures=2), 0.0, 2.5),
     "late_and_dropped_replies": (
         SimConfig(reply_delay=0.03, drop_replies={"GetEyeQExtendedState": 2}), 0.0, 2.0),
 }

@@ -62,6 +62,7 @@ Role = Literal["host", "eyeq"]
 PayloadCheck = Callable[[int, bytes], "NakReason | None"]
 
 _SPEC = link_spec()
+_DATA, _ACK, _NAK = int(FrameKind.DATA), int(FrameKind.ACK), int(FrameKind.NAK)
 
 
 @dataclass
@@ -215,7 +216,9 @@ class LinkConnection:
         if self._queue and len(self._inflight) < self.config.window:
             deadlines.append(self._next_tx)
         if self._inflight:
-            deadlines.append(min(f.deadline for f in self._inflight.values()))
+            # frames enter in send order with deadline = sent + ack_timeout: the oldest is due
+            # first
+            deadlines.append(next(iter(self._inflight.values())).deadline)
         if self._queue:
             deadlines.append(self._queue[0].deadline)
         return min(deadlines) if deadlines else None
@@ -235,34 +238,36 @@ class LinkConnection:
     def receive_data(self, transfer: bytes, now: float) -> None:
         c = self.counters
         try:
-            frame = self.codec.decode(transfer)
+            # the header fields and the CRC verdict, without building a Frame (hot path; the
+            # same reading as FrameCodec.decode + crc_ok, tests/test_frame.py holds them equal)
+            d, r, rsp, num, crc_ok = self.codec.judge(transfer)
         except FrameError as exc:  # L8: the header cannot be trusted, so no NAK
             c.formatErrorCounter += 1
             c.badLengthTransfers += 1
             self._events.append(FrameRejected(None, None, str(exc)))
             return
-        is_control = frame.d in (FrameKind.ACK, FrameKind.NAK)
-        if not self.codec.crc_ok(transfer, frame):
+        is_control = d in (_ACK, _NAK)
+        if not crc_ok:
             c.dataCRCErrorCounter += 1
             if is_control:
-                self._events.append(FrameRejected(None, frame.rsp, "CRC mismatch in ACK/NAK"))
+                self._events.append(FrameRejected(None, rsp, "CRC mismatch in ACK/NAK"))
             else:
-                self._reject(frame.num, NakReason.CRC_MISMATCH, "CRC mismatch")
+                self._reject(num, NakReason.CRC_MISMATCH, "CRC mismatch")
             return
-        if frame.kind is None or frame.r != 0:
+        if r != 0 or not (is_control or d == _DATA):
             c.formatErrorCounter += 1
-            detail = f"invalid header D=0x{frame.d:X} R=0x{frame.r:X}"
+            detail = f"invalid header D=0x{d:X} R=0x{r:X}"
             if is_control:
-                self._events.append(FrameRejected(None, frame.rsp, detail))
+                self._events.append(FrameRejected(None, rsp, detail))
             else:
-                self._reject(frame.num, NakReason.FORMAT_ERROR, detail)
+                self._reject(num, NakReason.FORMAT_ERROR, detail)
             return
-        if frame.kind is FrameKind.ACK:
-            self._on_ack(frame.rsp, now)
-        elif frame.kind is FrameKind.NAK:
-            self._on_nak(frame.rsp, frame.num)
+        if d == _ACK:
+            self._on_ack(rsp, now)
+        elif d == _NAK:
+            self._on_nak(rsp, num)
         else:
-            self._on_data(frame.num, frame.data, transfer)
+            self._on_data(num, transfer[6:], transfer)
 
     def _on_data(self, num: int, data: bytes, transfer: bytes) -> None:
         c, w, m = self.counters, self.config.window, SEQ_MODULO

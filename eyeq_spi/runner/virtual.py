@@ -46,6 +46,7 @@ class VirtualRunner:
         start: float = 0.0,
         tap: Tap | None = None,
         max_steps_per_instant: int = 100_000,
+        self_contained: frozenset[int] = frozenset(),
     ) -> None:
         self.nodes = nodes
         self.latency = latency
@@ -65,7 +66,10 @@ class VirtualRunner:
         # nodes that promise SELF_CONTAINED (see Node): touching them leaves the others' caches
         # (declared by the node's own class: a subclass that rewrites the output, such as a
         # conformance mutant withholding ACKs, does not inherit the promise)
-        self._alone = [vars(type(node)).get("SELF_CONTAINED") is True for node, _ in nodes]
+        # ``self_contained``: indices of nodes the caller declares so, because it wired their
+        # only outside effect (the host's reset line) to call :meth:`touch_all`
+        self._alone = [vars(type(node)).get("SELF_CONTAINED") is True or i in self_contained
+                       for i, (node, _) in enumerate(nodes)]
 
     # -- caches -----------------------------------------------------------------------------
     def _touch_all(self) -> None:
@@ -73,6 +77,11 @@ class VirtualRunner:
         self._known[:] = [False] * n
         self._quiet[:] = [False] * n
         self._fresh[:] = [True] * n
+
+    def touch_all(self) -> None:
+        """Forget every node's cached deadline and quiet state: for a call that acts on another
+        node from inside a node (the emulator's reset line powers the simulated EyeQ up)."""
+        self._touch_all()
 
     def _touch(self, i: int) -> None:
         """Node ``i`` received a transfer or handled a timer."""
@@ -129,6 +138,12 @@ class VirtualRunner:
                         if tap is not None:
                             tap(i, now, out)
                         adapter.send(out)
+                    if alone[i]:
+                        # a SELF_CONTAINED node hands over all that is due in one call
+                        quiet[i] = True
+                        if self.verify and node.data_to_send(now):
+                            raise AssertionError(f"node {i}: more to send at {now} after a "
+                                                 "call that handed over")
                 else:
                     # handing over nothing can still move a deadline: a request queued behind
                     # a full window, a wrapper that withholds what its node hands over (the
@@ -186,9 +201,22 @@ class VirtualRunner:
             self.cpu_s += time.process_time() - c0
 
     def _new_instant(self, t: float) -> None:
-        if t != self.now:
-            self.now = t
-            self._quiet[:] = [False] * len(self.nodes)
+        """Move the clock to ``t``. A node stays quiet (is not asked ``data_to_send``) when
+        nothing touched it since it last handed over nothing and its deadline is later than
+        ``t``: what a node sends becomes due only through a touch or its own timer (the Node
+        contract); ``verify`` checks it."""
+        if t == self.now:
+            return
+        self.now = t
+        quiet, known, fresh, timers = self._quiet, self._known, self._fresh, self._timer
+        for i in range(len(quiet)):
+            if quiet[i]:
+                timer = timers[i]
+                if fresh[i] or not known[i] or (timer is not None and timer <= t):
+                    quiet[i] = False
+                elif self.verify and self.nodes[i][0].data_to_send(t):
+                    raise AssertionError(f"node {i}: quiet with deadline {timer} but has "
+                                         f"something to send at {t}")
 
     def _run(
         self, t_end: float, stop: Callable[[], bool] | None, pace: tuple[float, float] | None
