@@ -102,3 +102,25 @@ def test_hot_path_codec_agrees_with_the_construct_reference(d: int, r: int, rsp:
     got = fc.decode(ref)
     assert (got.crc, got.data) == (parsed.crc, parsed.data)
     assert fc.unpack_header(parsed.header) == (got.d, got.r, got.rsp, got.num)
+
+
+@given(st.binary(min_size=FRAME_SIZE, max_size=FRAME_SIZE), st.sampled_from(list(BitOrder)),
+       st.booleans())
+def test_judge_agrees_with_decode_and_crc_ok(raw: bytes, order: BitOrder, fix_crc: bool) -> None:
+    """The receiver's hot path (FrameCodec.judge) reads what decode + crc_ok read, for any 128
+    bytes: random headers (every D, valid or not) with a good or a random CRC."""
+    codec = FrameCodec(bit_order=order)
+    if fix_crc:
+        d = codec.unpack_header(int.from_bytes(raw[:4], "little"))[0]
+        crc = codec.compute_crc(d, raw[:4], raw[6:])
+        raw = raw[:4] + crc.to_bytes(2, "little") + raw[6:]
+    frame = codec.decode(raw)
+    assert codec.judge(raw) == (frame.d, frame.r, frame.rsp, frame.num, codec.crc_ok(raw, frame))
+    if fix_crc:
+        assert codec.judge(raw)[4]
+
+
+@pytest.mark.parametrize("length", [0, 127, 129])
+def test_judge_refuses_a_wrong_length(length: int) -> None:
+    with pytest.raises(FrameError):
+        FrameCodec().judge(bytes(length))
