@@ -355,7 +355,8 @@ def test_columns_mode_really_writes_columns() -> None:
     items = list(batch.iter_items(chunks_from_records(recs, 1 << 15), fields="columns"))
     groups = [g for b in items if isinstance(b, FrameBlock) for g in b.tables]
     assert {g.name for g in groups} >= {"EYEQ_VIS_OBSTACLES_MSG", "EYEQ_VIS_FAILSAFE_MSG"}
-    assert batch_run.fields_mode([], True) == "none"
+    assert batch_run.fields_mode([], True) == "count"
+    assert batch_run.fields_mode([], False) == "none"
     assert batch_run.fields_mode([TableWriter.__new__(TableWriter)], True) == "columns"
     assert batch_run.fields_mode([TableWriter.__new__(TableWriter)], False) == "dict"
 

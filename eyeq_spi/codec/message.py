@@ -59,6 +59,15 @@ class DaspCounters:
             return (last + 1) & 0xFF
         return None
 
+    def last(self, data_id: int) -> int | None:
+        """The last counter seen for ``data_id`` (None: none yet)."""
+        return self._last.get(data_id)
+
+    def learn(self, data_id: int, counter: int) -> None:
+        """Take ``counter`` as the last one seen: the end of a run that the batch dissector
+        judged at once (``dissect.vmessages``), as :meth:`check` row by row would leave it."""
+        self._last[data_id] = counter
+
     def clear(self) -> None:
         self._last.clear()
 

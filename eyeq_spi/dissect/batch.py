@@ -45,6 +45,7 @@ import numpy as np
 from eyeq_spi.capture.fastread import DIR_NAME, Chunk
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine import Dissector
+from eyeq_spi.dissect.vcut import lean_messages
 from eyeq_spi.dissect.vframes import DATA, FrameArrays, FrameBlock, frame_arrays
 from eyeq_spi.dissect.vmessages import SpanDecoder, SpanMessage
 from eyeq_spi.link.connection import LinkConfig
@@ -121,7 +122,7 @@ class BatchDissector:
     def __init__(self, sw: str | None = None, codec: MessageCodec | None = None,
                  *, fields: str = "dict") -> None:
         self.dis = Dissector(sw, codec)
-        self.decode = SpanDecoder(self.dis, fields=fields)  # "dict" | "none" | "columns"
+        self.decode = SpanDecoder(self.dis, fields=fields)  # vmessages.FIELD_MODES
         self.base = 0
         self.dirs: dict[int, _Dir] = {}
         self.deadline: float | None = None
@@ -364,10 +365,13 @@ class BatchDissector:
                 st.ui += 1
         if len(done) > 1:
             done.sort(key=lambda x: x[0])
-        msgs = self._messages(fa, done)
-        for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
-            block.messages.append((row, rec))
-        block.tables = self.decode.tables
+        if self.decode.lean:  # --stats or one table writer, no filter: vcut
+            block.messages, block.tables, block.counts = lean_messages(self, fa, done)
+        else:
+            msgs = self._messages(fa, done)
+            for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
+                block.messages.append((row, rec))
+            block.tables = self.decode.tables
         t = fa.tfill[hi - 1]
         self.dis.last_time = None if t != t else float(t)
         return block

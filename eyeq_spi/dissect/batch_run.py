@@ -12,6 +12,7 @@ import contextlib
 import os
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from typing import IO, Any
 
 import numpy as np
@@ -95,6 +96,9 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
                     w.write_columns(nxt.name, nxt.columns)
                     nxt = next(tables, None)
                 w.write(r)  # a group's own records have no fields: the writer skips them
+            while nxt is not None:  # lean blocks: groups after the last record
+                w.write_columns(nxt.name, nxt.columns)
+                nxt = next(tables, None)
         else:
             for r in item.records():
                 w.write(r)
@@ -105,10 +109,11 @@ def is_plain(args: Any) -> bool:
 
 
 def fields_mode(writers: list[Any], plain: bool) -> str:
-    """What span messages must carry for these writers (vmessages.SpanDecoder): nothing for
-    ``--stats`` alone, columns for one table writer and no filter, else the fields."""
+    """What span messages must carry for these writers (vmessages.SpanDecoder): counts only
+    for ``--stats`` alone with no filter, no fields with a filter, columns for one table writer
+    and no filter, else the fields."""
     if not writers:
-        return "none"
+        return "count" if plain else "none"
     if plain and len(writers) == 1 and type(writers[0]).__name__ == "TableWriter":
         return "columns"
     return "dict"
@@ -124,8 +129,11 @@ def _compact(block: FrameBlock) -> FrameBlock:
     small = FrameArrays(chunk, fa.base + lo, fa.ftype[lo:hi].copy(), fa.num[lo:hi].copy(),
                         fa.rsp[lo:hi].copy(), fa.crc_ok[lo:hi].copy(), fa.d[lo:hi].copy(),
                         fa.fed[lo:hi].copy(), fa.tfill[lo:hi].copy())
+    counts = [replace(g, first_row=g.first_row - lo if g.first_row >= 0 else -1,
+                      last_row=g.last_row - lo if g.last_row >= 0 else -1)
+              for g in block.counts]
     return FrameBlock(small, 0, hi - lo, [(r - lo, m) for r, m in block.messages],
-                      block.tables)
+                      block.tables, counts)
 
 
 def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,

@@ -154,6 +154,8 @@ class FrameBlock:
     hi: int
     messages: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
     tables: list[Any] = field(default_factory=list)  # vmessages.ColumnGroup, "columns" mode
+    # vmessages.GroupCount, lean modes: messages without a record (plain consumers only)
+    counts: list[Any] = field(default_factory=list)
 
     def frame(self, i: int) -> dict[str, Any]:
         fa = self.fa
@@ -259,5 +261,23 @@ class FrameBlock:
             vals, cnt = np.unique(fa.num[lo:hi][naks], return_counts=True)
             for v, c in zip(vals.tolist(), cnt.tolist(), strict=True):
                 stats.nak_reasons[f"0x{v:03X}"] += c
-        for _, rec in self.messages:
-            stats.add(rec)
+        if not self.counts:
+            for _, rec in self.messages:
+                stats.add(rec)
+            return
+        # lean: the counted messages' first and last times (Stats._message) at their rows, in
+        # capture order with the records
+        marks: list[tuple[int, int, Any]] = [(r, 0, rec) for r, rec in self.messages]
+        for g in self.counts:
+            stats.messages[g.name] += g.n
+            if g.first_row >= 0:
+                marks.append((g.first_row, 1, (g.name, g.t_first)))
+                marks.append((g.last_row, 1, (g.name, g.t_last)))
+        marks.sort(key=lambda x: x[0])
+        for _, is_mark, x in marks:
+            if not is_mark:
+                stats.add(x)
+                continue
+            name, t = x
+            stats.first.setdefault(name, t)
+            stats.last[name] = t

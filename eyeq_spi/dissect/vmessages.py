@@ -16,16 +16,24 @@ makes (``tests/test_batch.py`` holds them to it record for record).
 ``fields`` says what the records of the vectorised groups carry:
 
 - ``"dict"``: the fields as the exact engine decodes them (the generated ``struct`` path);
-- ``"none"`` (``dissect --stats`` with no other output): ``"fields": {}``; everything ``--stats``
-  and the filters read is there;
+- ``"none"`` (``dissect --stats`` with a filter and no other output): ``"fields": {}``; everything
+  ``--stats`` and the filters read is there;
+- ``"count"`` (``dissect --stats``, no filter, no other output): *lean*, see below;
 - ``"columns"`` (``--csv``/``--parquet`` with no filter and no other output): ``"fields": {}``,
   and each group's table rows as columns straight from the arrays in :attr:`SpanDecoder.tables`
   (``frame_index``, ``time``, ``direction``, ``header.*``, then the flattened fields, the row a
-  :class:`~.output.TableWriter` makes of the exact record, value for value).
+  :class:`~.output.TableWriter` makes of the exact record, value for value). Also lean.
+
+Lean modes (``"count"``, ``"columns"``): the batch dissector cuts a group's messages straight into
+an array (:mod:`.vcut`) and :meth:`SpanDecoder.lean_group` judges it as :meth:`_group` would, but
+makes a record only for a message with an error; the others are one :class:`GroupCount` (how many,
+the rows and times of the first and last with a time), which is all ``--stats`` reads of them
+(:meth:`.vframes.FrameBlock.add_to`). Only plain consumers (no filter) take lean blocks.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,7 +63,21 @@ class SpanMessage:
         return MessageReceived(self.data, self.nums, self.tid)
 
 
-FIELD_MODES = ("dict", "none", "columns")
+FIELD_MODES = ("dict", "none", "count", "columns")
+LEAN_MODES = ("count", "columns")
+
+
+@dataclass
+class GroupCount:
+    """A lean group's messages without errors: ``n`` of them; the capture rows (in the chunk)
+    and times of the first and the last that have a time (rows -1: none has)."""
+
+    name: str
+    n: int
+    first_row: int
+    t_first: float | None
+    last_row: int
+    t_last: float | None
 
 
 @dataclass
@@ -76,6 +98,7 @@ class SpanDecoder:
         self.codec = dis.codec
         self.fields = fields
         self.tables: list[ColumnGroup] = []  # of the last records() call, by first position
+        self.lean = fields in LEAN_MODES
 
     def records(self, msgs: list[SpanMessage]) -> list[dict[str, Any]]:
         """The message records of ``msgs`` (in capture order), in that order."""
@@ -148,8 +171,9 @@ class SpanDecoder:
         name = msg.name
         if columns:
             self.tables.append(ColumnGroup(rows[0], name, self._columns(
-                msgs, rows, direction, {"header.data_id": [data_id] * len(rows),
-                                        "header.counter": counters}, vl.columns(payloads))))
+                *_last_and_times(msgs, rows), direction,
+                {"header.data_id": [data_id] * len(rows), "header.counter": counters},
+                vl.columns(payloads))))
         check = d.dasp_counters.check
         for k, i in enumerate(rows):
             m = msgs[i]
@@ -187,7 +211,8 @@ class SpanDecoder:
             self.fields == "columns" and not columns) else None
         if columns:
             self.tables.append(ColumnGroup(rows[0], msg.name, self._columns(
-                msgs, rows, direction, {"header.id": ids}, vl.columns(payloads))))
+                *_last_and_times(msgs, rows), direction, {"header.id": ids},
+                vl.columns(payloads))))
         for k, i in enumerate(rows):
             m = msgs[i]
             out[i] = {
@@ -200,14 +225,14 @@ class SpanDecoder:
         return True
 
     @staticmethod
-    def _columns(msgs: list[SpanMessage], rows: list[int], direction: str | None,
+    def _columns(last: list[int | None], times: list[float | None], direction: str | None,
                  header: dict[str, list[int]], fields: dict[str, np.ndarray]) -> dict[str, Any]:
         """The TableWriter row of each message as columns: numpy arrays where pyarrow infers
         from them what it infers from the Python values (int64, double), lists elsewhere."""
-        n = len(rows)
+        n = len(last)
         out: dict[str, Any] = {
-            "frame_index": [msgs[i].frames[-1] if msgs[i].frames else None for i in rows],
-            "time": [msgs[i].time for i in rows],
+            "frame_index": last,
+            "time": times,
             "direction": [direction] * n,
             **header,
         }
@@ -220,3 +245,99 @@ class SpanDecoder:
             else:  # uint64: Python ints, as the exact row has them
                 out[k] = col.tolist()
         return out
+
+    # -- lean modes ----------------------------------------------------------------------------
+    def lean_group(self, direction: str | None, key: int | str, arr: np.ndarray,
+                   rows: list[int], times: np.ndarray, last: list[int | None],
+                   frames_of: Callable[[int], list[int | None]], columns: bool
+                   ) -> tuple[list[tuple[int, dict[str, Any]]], GroupCount | None,
+                              ColumnGroup | None] | None:
+        """A (direction, data ID) DASP group (``key`` an int) or a 0x41/0x10 group (``key``
+        "DIAG"/"BOOT") whose messages are the rows of ``arr`` (header + payload), completed at
+        chunk ``rows`` with ``times`` (NaN: none) and ``last`` frame indices; ``frames_of(k)``:
+        row k's frame indices. The records of the messages with errors (as :meth:`_group` /
+        :meth:`_other` make them, ``"fields": {}``) with their rows, the count of the others,
+        and with ``columns`` every message's table row. None: the group needs the exact path."""
+        dasp = isinstance(key, int)
+        msg = self.codec.dasp_message(key) if isinstance(key, int) else self.codec._other.get(key)
+        hdr = 4 if dasp else 1
+        if msg is None:
+            return None
+        try:
+            lay = self.codec.layout(msg)
+        except SpecError:
+            return None
+        n, length = arr.shape
+        if length != hdr + lay.size or not n:
+            return None
+        vl = vec_layout(lay, self.codec.cat)
+        payloads = arr[:, hdr:]
+        name = msg.name
+        d = self.dis._dirs[direction]
+        e2e = vl.verify(payloads, d.e2e if dasp else None)
+        clean = ~np.fromiter(map(bool, e2e), bool, n)
+        head: dict[str, list[int]]
+        if isinstance(key, int):
+            reserved = arr[:, 3]
+            clean &= reserved == 0
+            counters = arr[:, 2].astype(np.int64)
+            # D1: each counter against the one before it (the receiver's last for row 0)
+            dc = d.dasp_counters
+            before = dc.last(key)
+            prev = np.empty(n, np.int64)
+            prev[0] = -1 if before is None else before
+            prev[1:] = counters[:-1]
+            expected = (prev + 1) & 0xFF
+            gap = (prev >= 0) & (counters != expected)
+            dc.learn(key, int(counters[-1]))
+            bad = ~clean | gap
+            head = {"header.data_id": [key] * n, "header.counter": counters.tolist()}
+        else:
+            bad = ~clean
+            head = {"header.id": arr[:, 0].tolist()}
+        enums = vl.enum_errors(payloads, name, clean)
+        if enums:
+            bad[list(enums)] = True
+        proto = "DASP" if dasp else str(key)
+        recs: list[tuple[int, dict[str, Any]]] = []
+        for k in np.flatnonzero(bad).tolist():
+            t = float(times[k])
+            if dasp:
+                counter = head["header.counter"][k]
+                r = int(reserved[k])
+                errors = [f"DASP reserved byte is 0x{r:02X}, not 0"] if r else []
+                errors += e2e[k]
+                if gap[k]:
+                    errors.append(f"DASP counter gap: expected {int(expected[k])}, got {counter}")
+                header: dict[str, int] = {"data_id": key, "counter": counter}  # type: ignore[dict-item]
+            else:
+                errors = list(e2e[k])
+                header = {"id": head["header.id"][k]}
+            errors += enums.get(k, ())
+            recs.append((rows[k], {
+                "kind": "message", "protocol": proto, "name": name, "length": length,
+                "direction": direction, "time": None if t != t else t, "frames": frames_of(k),
+                "header": header, "fields": {}, "errors": errors,
+            }))
+        count = None
+        ok = ~bad
+        if ok.any():
+            timed = np.flatnonzero(ok & ~np.isnan(times))
+            lo, hi = (int(timed[0]), int(timed[-1])) if timed.size else (-1, -1)
+            count = GroupCount(name, int(ok.sum()), rows[lo] if lo >= 0 else -1,
+                               float(times[lo]) if lo >= 0 else None,
+                               rows[hi] if hi >= 0 else -1,
+                               float(times[hi]) if hi >= 0 else None)
+        table = None
+        if columns:
+            tl = times.tolist()
+            table = ColumnGroup(rows[0], name, self._columns(
+                last, [None if t != t else t for t in tl], direction, head,
+                vl.columns(payloads)))
+        return recs, count, table
+
+
+def _last_and_times(msgs: list[SpanMessage], rows: list[int]
+                    ) -> tuple[list[int | None], list[float | None]]:
+    return ([msgs[i].frames[-1] if msgs[i].frames else None for i in rows],
+            [msgs[i].time for i in rows])

@@ -1,0 +1,189 @@
+"""The lean modes of the batch dissector (``--stats`` or one table writer, no filter): a block's
+messages cut a group at a time straight from the chunk's array, no bytes object per message.
+
+:meth:`.batch.BatchDissector._emit` gives the transfers (units) of the spans that complete in a
+block. Here every unit whose frames are all in this chunk is located with numpy: its first row,
+its message length (byte 7 of a single frame, T2; the total of a first frame, T3) and its first
+four message bytes, which rule A (decision A) classifies. The units of one (direction, data ID)
+DASP group, or one (direction, 0x41/0x10) group, that are all single frames or all first frames
+with the same frame count become one ``(n, length)`` array in one gather:
+:meth:`.vmessages.SpanDecoder.lean_group` judges it. Everything else — a group with a transfer
+carried in from the previous chunk, mixed transfer shapes, a wrong length, MESP, unknown IDs, a
+data ID in both directions when tables are written — becomes :class:`~.vmessages.SpanMessage`
+objects and takes the non-lean :meth:`~.vmessages.SpanDecoder.records`, as before.
+
+The receivers' NUM -> capture index maps end as the engine's sequential updates leave them: one
+bulk update per direction over the block's frames, in order (the last index of each NUM wins).
+"""
+
+from __future__ import annotations
+
+import bisect
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from eyeq_spi.codec.mesp import MESP_PROTOCOL
+from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, DIAG_ID, classify
+from eyeq_spi.dissect.vmessages import ColumnGroup, GroupCount, SpanMessage
+
+if TYPE_CHECKING:
+    from eyeq_spi.dissect.batch import BatchDissector, _Dir, _Unit
+    from eyeq_spi.dissect.vframes import FrameArrays
+
+DIAG_KEY, BOOT_KEY = 256, 257  # group keys of 0x41 / 0x10 messages beside DASP data IDs 0..255
+_PROTO = {DIAG_KEY: "DIAG", BOOT_KEY: "BOOT"}
+Done = list[tuple[int, "_Dir", "_Unit"]]
+
+
+def _key_of(data: bytes) -> int:
+    """The group key of a reassembled message: its data ID (DASP), DIAG_KEY, BOOT_KEY, or -1."""
+    proto = classify(data) if data else "UNKNOWN"
+    if proto == "DASP" and len(data) >= 4:
+        return data[1]
+    return {"DIAG": DIAG_KEY, "BOOT": BOOT_KEY}.get(proto, -1)
+
+
+def lean_messages(bd: BatchDissector, fa: FrameArrays, done: Done
+                  ) -> tuple[list[tuple[int, dict[str, Any]]], list[ColumnGroup],
+                             list[GroupCount]]:
+    """(row, record) of the messages that get a record, in row order; the column groups
+    (``first``: their position among those records); the counts of the others."""
+    dec = bd.decode
+    data = fa.chunk.data
+    base = fa.base
+    columns_mode = dec.fields == "columns"
+    loc = [j for j, (_, _, u) in enumerate(done) if u.ks >= 0]
+    carried = [j for j, (_, _, u) in enumerate(done) if u.ks < 0]
+    m = len(loc)
+    rows = np.array([done[j][0] for j in loc], np.int64)
+    codes = np.array([done[j][1].code for j in loc], np.int64)
+    ks = np.array([done[j][2].ks for j in loc], np.int64)
+    ke = np.array([done[j][2].ke for j in loc], np.int64)
+    first = np.array([done[j][2].first for j in loc], bool)
+    P_np: dict[int, np.ndarray] = {}
+    start = np.zeros(m, np.int64)
+    for code in np.unique(codes).tolist():
+        P_np[code] = np.asarray(bd._rows[code], np.int64)
+        sel = codes == code
+        start[sel] = P_np[code][ks[sel]]
+    # T2 / T3: a single frame's size is byte 7, a first frame's total bytes 8..11
+    total = np.ascontiguousarray(data[start, 8:12]).view("<u4")[:, 0].astype(np.int64)
+    length = np.where(first, total, data[start, 7].astype(np.int64))
+    col = np.where(first, 12, 8)
+    b = data[start[:, None], col[:, None] + np.arange(4)].astype(np.int64)
+    # rule A (codec.message.classify), in its order
+    mesp = (length >= 3) & (b[:, 1] == MESP_PROTOCOL) & (b[:, 0] == b[:, 2])
+    kind = np.full(m, -1, np.int64)
+    other = ~mesp & (length >= 1)
+    dasp = other & (b[:, 0] == DASP_PROTOCOL) & (length >= 4)
+    kind[dasp] = b[dasp, 1]
+    kind[other & (b[:, 0] == DIAG_ID)] = DIAG_KEY
+    kind[other & (b[:, 0] == BOOT_ID)] = BOOT_KEY
+    # the carried transfers (frames from the previous chunk) as span messages
+    loose: dict[int, SpanMessage] = {}
+    loose_keys: set[tuple[int, int]] = set()
+    for j in carried:
+        row, st, u = done[j]
+        msg = bd._message(fa, st, u, row)
+        loose[j] = msg
+        loose_keys.add((st.code, _key_of(msg.data)))
+    keys = set(zip(codes.tolist(), kind.tolist(), strict=True)) | loose_keys
+    dirs_of: dict[int, int] = {}
+    for _, k in keys:
+        dirs_of[k] = dirs_of.get(k, 0) + 1
+    fallback: list[int] = list(carried)  # indices into done
+    recs: list[tuple[int, dict[str, Any]]] = []
+    tables: list[tuple[int, ColumnGroup]] = []
+    counts: list[GroupCount] = []
+    tfill = fa.tfill
+    for code, k in sorted(keys):
+        if k < 0:
+            continue
+        ix = np.flatnonzero((codes == code) & (kind == k))
+        if not ix.size:
+            continue
+        whole = (code, k) not in loose_keys and not (columns_mode and dirs_of[k] > 1)
+        arr = _gather(data, P_np.get(code), first[ix], ks[ix], ke[ix], start[ix],
+                      length[ix]) if whole else None
+        got = None
+        if arr is not None:
+            st = done[loc[int(ix[0])]][1]
+            grows = rows[ix]
+            gks, gke = ks[ix].tolist(), ke[ix].tolist()
+            P = bd._rows[code]
+
+            def frames_of(i: int, gks: list[int] = gks, gke: list[int] = gke,
+                          P: list[int] = P) -> list[int | None]:
+                return [base + r for r in P[gks[i] : gke[i]]]
+
+            got = dec.lean_group(st.name, _PROTO.get(k, k), arr, grows.tolist(), tfill[grows],
+                                 (base + grows).tolist(), frames_of,
+                                 columns_mode and dirs_of[k] == 1)
+        if got is None:
+            fallback += [loc[i] for i in ix.tolist()]
+            continue
+        recs += got[0]
+        if got[1] is not None:
+            counts.append(got[1])
+        if got[2] is not None:
+            tables.append((got[2].first, got[2]))
+    exact = [loc[i] for i in np.flatnonzero(kind < 0).tolist()]
+    fallback = sorted(fallback + exact, key=lambda j: done[j][0])
+    msgs = [loose[j] if j in loose else bd._message(fa, done[j][1], done[j][2], done[j][0])
+            for j in fallback]
+    _bulk_maps(bd, fa, done, loc, P_np)
+    fb_rows = [done[j][0] for j in fallback]
+    recs += list(zip(fb_rows, dec.records(msgs), strict=True))
+    tables += [(fb_rows[g.first], g) for g in dec.tables]
+    recs.sort(key=lambda x: x[0])
+    at = [r for r, _ in recs]
+    out_tables = []
+    for row, g in sorted(tables, key=lambda x: x[0]):
+        g.first = bisect.bisect_left(at, row)
+        out_tables.append(g)
+    return recs, out_tables, counts
+
+
+def _gather(data: np.ndarray, P: np.ndarray | None, first: np.ndarray, ks: np.ndarray,
+            ke: np.ndarray, start: np.ndarray, length: np.ndarray) -> np.ndarray | None:
+    """The messages of a group as one ``(n, length)`` array, or None (not one shape)."""
+    size = int(length[0])
+    if P is None or (length != size).any():
+        return None
+    if not first.any():
+        if 8 + size > data.shape[1]:
+            return None
+        return data[start, 8 : 8 + size]
+    if not first.all():
+        return None
+    nf = ke - ks
+    f = int(nf[0])
+    if (nf != f).any():
+        return None
+    blk = data[P[ks[:, None] + np.arange(f)]]  # (n, frames, 128)
+    n = len(ks)
+    out = np.concatenate([blk[:, 0, 12:], blk[:, 1:, 8:].reshape(n, -1)], axis=1)
+    if out.shape[1] < size:
+        return None
+    return out[:, :size]
+
+
+def _bulk_maps(bd: BatchDissector, fa: FrameArrays, done: Done, loc: list[int],
+               P_np: dict[int, np.ndarray]) -> None:
+    """Every frame of the block's local units into its receiver's NUM -> index map, in order
+    (a direction's units are consecutive in its rows, so their frames are one range)."""
+    span: dict[int, list[int]] = {}
+    for j in loc:
+        _, st, u = done[j]
+        lo_hi = span.get(st.code)
+        if lo_hi is None:
+            span[st.code] = [u.ks, u.ke]
+        else:
+            lo_hi[0] = min(lo_hi[0], u.ks)
+            lo_hi[1] = max(lo_hi[1], u.ke)
+    for code, (lo, hi) in span.items():
+        name = done[next(j for j in loc if done[j][1].code == code)][1].name
+        rr = P_np[code][lo:hi]
+        bd.dis._dirs[name].index_of_num.update(
+            zip(fa.num[rr].tolist(), (fa.base + rr).tolist(), strict=True))
