@@ -54,7 +54,9 @@ from eyeq_spi.mesp.server import (
 )
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.flash import FlashImage, hash_request
+from eyeq_spi.sim.packer import DaspPacker
 from eyeq_spi.sim.scene import Scene, SceneConfig
+from eyeq_spi.sim.schedule import DueHeap
 from eyeq_spi.spec.catalog import MessageDef, sw_release
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
@@ -146,6 +148,9 @@ class SimulatedEyeQ:
         self._dasp_msgs: dict[str, list[MessageDef]] = {}  # mode -> the DASP messages it sends
         self._scene_frame: int | None = None  # the camera frame the scene was last stepped to
         self._dasp_min = 0.0  # min(_next_dasp.values()) when _next_dasp is not empty
+        self._due = DueHeap()  # _next_dasp as a heap (sim/schedule.py)
+        self._packers: dict[str, DaspPacker | None] = {}  # None: this message takes the dict path
+        self.dasp_paths: Counter[str] = Counter()  # debug stat: messages sent "packed" / "dict"
         self.powered = False
         self.app_running = False
         self.now = 0.0
@@ -185,6 +190,11 @@ class SimulatedEyeQ:
                 self.scene.step(0.0, *self._ego)
                 self._fill(m.name, values, 0.0)
                 self.codec.decode(self.codec.encode_dasp(m.name, values, 0, e2e))
+                packer = self._packer(m)
+                if packer is not None:
+                    self._fill(m.name, packer.root, 0.0)  # type: ignore[arg-type]
+                    packer.encode(0, e2e)
+                    packer.reset()  # as the templates: the first real message starts from zeros
         self._templates.clear()
         self.counters.sent.clear()
         self.scene.unanchor()  # the first real step anchors the scene in time again
@@ -509,32 +519,51 @@ class SimulatedEyeQ:
                 and mode in m.modes]
         rate = self.config.dasp_rate
         period = 1.0 / rate
+        due = self._due
         if not self._next_dasp:
             # stagger the messages over one period so that no message waits behind the others
             # for longer than transmitTimeout
             for i, m in enumerate(msgs):
                 self._next_dasp[m.name] = now + i * period / max(1, len(msgs))
-        for m in msgs:
-            due = self._next_dasp.get(m.name, now)
-            if now < due:
-                continue
+            due.invalidate()
+        due.sync(msgs, self._next_dasp, now)
+        for t, i in due.pop_due(now):
+            m = msgs[i]
             # §7.1.4: the scene moves once per camera frame (at the frame's start), and every
             # message of that frame reads the same state
             frame = math.floor(now * rate + 1e-6)
             if frame != self._scene_frame:
                 self._scene_frame = frame
                 self.scene.step(min(now, frame * period), *self._ego)
-            self._next_dasp[m.name] = max(due + period, now)
+            nxt = self._next_dasp[m.name] = max(t + period, now)
+            due.push(nxt, i)
             stop = self.config.stop_dasp.get(m.name)
             if stop is not None and now >= stop:
                 continue
-            values = self._template(m.name, m.payload)
-            self._fill(m.name, values, now)
             counter = self._dasp_counter[m.data_id]
             self._dasp_counter[m.data_id] = (counter + 1) & 0xFF
-            self._send(self.codec.encode_dasp(m.name, values, counter, self.e2e), now)
+            self._send(self._dasp_bytes(m, counter, now), now)
             self.counters.sent[m.name] += 1
-        self._dasp_min = min(self._next_dasp.values(), default=now)
+        self._dasp_min = due.earliest(self._next_dasp, now)
+
+    def _packer(self, m: MessageDef) -> DaspPacker | None:
+        """The message's packer; None: the dict path (switched off, or no packer for it)."""
+        if m.name not in self._packers:
+            self._packers[m.name] = DaspPacker.build(self.codec.layout(m), m.data_id) \
+                if self.config.dasp_packer else None
+        return self._packers[m.name]
+
+    def _dasp_bytes(self, m: MessageDef, counter: int, now: float) -> bytes:
+        """One DASP message: packed in place, or by the dict path (the reference)."""
+        packer = self._packer(m)
+        if packer is not None:
+            self._fill(m.name, packer.root, now)  # type: ignore[arg-type]
+            self.dasp_paths["packed"] += 1
+            return packer.encode(counter, self.e2e)
+        values = self._template(m.name, m.payload)
+        self._fill(m.name, values, now)
+        self.dasp_paths["dict"] += 1
+        return self.codec.encode_dasp(m.name, values, counter, self.e2e)
 
     def _fill(self, name: str, values: dict[str, Any], now: float) -> None:
         if "timestamp_ms" in values:

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from eyeq_spi.sim.packer import StructView
 from eyeq_spi.sim.scene_layout import (
     _AGE_ROW,
     _FILLERS,
@@ -43,6 +44,7 @@ from eyeq_spi.sim.scene_layout import (
     _node_for,
     _obj_plan,
     _puts,
+    _write_objects_packed,
     _write_rows,
 )
 from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
@@ -181,7 +183,9 @@ class Scene(SceneWorld):
     # -- payloads ----------------------------------------------------------------------------
     def fill(self, name: str, values: dict[str, Any], t: float) -> None:
         """Write the scene into a ``zero_values()`` dict of DASP message ``name`` (any SW
-        version); members the layout lacks are skipped, unknown messages are left unchanged."""
+        version), or into a :class:`~eyeq_spi.sim.packer.DaspPacker`'s root view (the same
+        writes, packed in place); members the layout lacks are skipped, unknown messages are
+        left unchanged."""
         method = _FILLERS.get(name)
         if method is None:
             return
@@ -189,14 +193,17 @@ class Scene(SceneWorld):
         if last is not None and last[0] is values:  # the caller reuses its dict: same layout
             node = last[1]
         else:
-            node = _node_for(name, values)
+            # a packer's view has the shape of its template dict (the same ranges)
+            shape = values.template if isinstance(values, StructView) else values
+            node = None if shape is None else _node_for(name, shape)
             self._nodes[name] = (values, node)
         if node is None:
             return
         t = float(t)
         self._fill_header(values, node, t)
         for key, sub in node.members.items():
-            if isinstance(sub, _Node) and sub.count is None and isinstance(values.get(key), dict):
+            if isinstance(sub, _Node) and sub.count is None \
+                    and isinstance(values.get(key), dict | StructView):
                 self._fill_header(values[key], sub, t)
         getattr(self, method)(values, node, t)
 
@@ -223,8 +230,11 @@ class Scene(SceneWorld):
         n = min(f.shape[1], len(objs))
         i = i[:, :n].copy()
         i[_AGE_ROW] = np.maximum(_frame(t) - birth[:n] + 1, 1)
-        fl = np.clip(f[:, :n], plan.flo[:, None], plan.fhi[:, None]).tolist()
-        il = np.clip(i, plan.ilo[:, None], plan.ihi[:, None]).tolist()
+        fa = np.clip(f[:, :n], plan.flo[:, None], plan.fhi[:, None])
+        ia = np.clip(i, plan.ilo[:, None], plan.ihi[:, None])
+        if isinstance(objs[0], StructView) and _write_objects_packed(objs, plan, fa, ia, n):
+            return
+        fl, il = fa.tolist(), ia.tolist()
         for path, items in plan.groups:
             probe: Any = objs[0]
             for p in path:

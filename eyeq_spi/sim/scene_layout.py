@@ -5,14 +5,18 @@ declared range and wire type (split out of :mod:`eyeq_spi.sim.scene`)."""
 from __future__ import annotations
 
 import math
+import struct
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
 
-from eyeq_spi.errors import SpecError
+from eyeq_spi.codec.layout import INT_RANGE
+from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.sim.packer import BITS, NP_FMT, REAL, SCALAR, StructView, columns
 from eyeq_spi.spec.catalog import Catalog, Member, SwKey, catalog
 
 FArr = npt.NDArray[np.float64]
@@ -192,27 +196,79 @@ def _put(d: dict[str, Any], n: _Node, key: str, x: float) -> None:
 
 
 def _puts(d: dict[str, Any], n: _Node, vals: dict[str, float]) -> None:
+    if isinstance(d, StructView):
+        ck = ("puts", id(n), tuple(vals))
+        got = d.cache.get(ck)
+        if got is None or got[0] is not n:
+            got = d.cache[ck] = (n, {})
+        writer = got[1].get(d.base, _NONE)
+        if writer is _NONE:
+            writer = got[1][d.base] = _compile_puts(d, n, tuple(vals))
+        if writer is not None:
+            writer(d.buf, d.shadow, vals)
+            return
     for key, x in vals.items():
         _put(d, n, key, x)
 
 
+_NONE: Any = object()
+
+
+def _compile_puts(d: StructView, n: _Node, keys: tuple[str, ...]
+                  ) -> Callable[[bytearray, Any, dict[str, float]], None] | None:
+    """:func:`_puts` into view ``d`` as generated code: per key the same clamp expression as
+    :meth:`_Leaf.clamp` and a ``pack_into`` at the member's offset from the layout (a bitfield
+    read, masked and written back). None if a key names a struct or an array: the loop runs."""
+    env: dict[str, Any] = {"CodecError": CodecError, "StructError": struct.error}
+    body: list[str] = []
+    for i, key in enumerate(keys):
+        leaf = n.members.get(key)
+        if not isinstance(leaf, _Leaf) or key not in d:
+            continue
+        s = d.slots.get(key)
+        if s is None or s.kind not in (SCALAR, BITS):
+            return None
+        env[f"K{i}"], env[f"L{i}"], env[f"H{i}"], env[f"S{i}"] = key, leaf.lo, leaf.hi, s.st
+        o = d.base + s.offset
+        body.append(f"x = float(min(max(v[K{i}], L{i}), H{i}))" if leaf.real
+                    else f"x = int(min(max(round(v[K{i}]), L{i}), H{i}))")
+        if s.kind == SCALAR:
+            body.append(f"S{i}.pack_into(b, {o}, x)")
+        else:
+            keep = ((1 << (8 * s.st.size)) - 1) & ~(s.mask << s.lo)
+            body += [f"if not isinstance(x, int) or not 0 <= x <= {s.mask}:",
+                     f"    raise CodecError(f'{{K{i}}}: {{x!r}} does not fit "
+                     f"{s.mask.bit_length()} bit(s)')",
+                     f"S{i}.pack_into(b, {o}, S{i}.unpack_from(b, {o})[0] & {keep} | x << {s.lo})"]
+        if d.shadow is not None:
+            body.append(f"sh[K{i}] = x")
+    src = ["def _w(b, sh, v):", "    try:"] + [f"        {line}" for line in body or ["pass"]]
+    src += ["    except (StructError, TypeError) as exc:",
+            f"        raise CodecError(f'{d.layout.name}: cannot encode: {{exc}}') from None"]
+    exec("\n".join(src), env)
+    fn: Callable[[bytearray, Any, dict[str, float]], None] = env["_w"]
+    return fn
+
+
 def _child(d: dict[str, Any], n: _Node, key: str) -> tuple[dict[str, Any], _Node] | None:
     sub, v = n.members.get(key), d.get(key)
-    if isinstance(sub, _Node) and isinstance(v, dict):
-        return v, sub
+    if isinstance(sub, _Node) and isinstance(v, dict | StructView):
+        return cast("dict[str, Any]", v), sub  # a packer's view serves as the dict
     return None
 
 
 def _elements(d: dict[str, Any], n: _Node, key: str) -> tuple[list[dict[str, Any]], _Node]:
     sub, v = n.members.get(key), d.get(key)
     if isinstance(sub, _Node) and isinstance(v, list):
-        return [x for x in v if isinstance(x, dict)], sub
+        return [cast("dict[str, Any]", x) for x in v if isinstance(x, dict | StructView)], sub
     return [], _Node({})
 
 
 def _write_rows(elems: list[dict[str, Any]], n: _Node, rows: list[dict[str, float]],
                 keys: tuple[str, ...]) -> None:
     """Rows into the first elements of an array of structs; ``keys`` of the rest zeroed."""
+    if elems and isinstance(elems[0], StructView) and _write_rows_packed(elems, n, rows, keys):
+        return
     for j, e in enumerate(elems):
         if j < len(rows):
             _puts(e, n, rows[j])
@@ -221,6 +277,169 @@ def _write_rows(elems: list[dict[str, Any]], n: _Node, rows: list[dict[str, floa
             leaf = n.members.get(k)
             if isinstance(leaf, _Leaf) and k in e:
                 e[k] = leaf.zero
+
+
+_EXACT = 2.0**53  # ints below this survive float64 exactly
+
+
+def _write_rows_packed(elems: list[Any], n: _Node, rows: list[dict[str, float]],
+                       keys: tuple[str, ...]) -> bool:
+    """:func:`_write_rows` into a packer's views as numpy columns, clamped as
+    :meth:`_Leaf.clamp` clamps (``min(max(x, lo), hi)``, ints rounded half to even first). False
+    (nothing written) when the loop must run instead: rows of different keys, a bitfield or
+    struct member, an integer that float64 does not hold exactly or a type the encoder refuses."""
+    rows = rows[:len(elems)]
+    rkeys = tuple(rows[0]) if rows else ()
+    if any(r.keys() != rows[0].keys() for r in rows):
+        return False
+    ck = ("rows", id(n), rkeys, keys, len(elems))
+    got = elems[0].cache.get(ck)
+    if got is None or got[0] is not n:
+        got = elems[0].cache[ck] = (n, _rows_plan(elems, n, rkeys, keys))
+    plan = got[1]
+    if plan is None:
+        return False
+    arr, cols, zeros, lo, hi, ints, real = plan
+    if rows:
+        m = np.array([[r[k] for k in rkeys] for r in rows], dtype=np.float64)[:, cols]
+        if len(ints):
+            x = m[:, ints]
+            if not np.isfinite(x).all() or np.abs(x).max() >= _EXACT:
+                return False  # round() would raise, or float64 would not hold the int
+            m[:, ints] = np.rint(x)
+        m = np.where(lo > m, lo, m)  # min(max(x, lo), hi), NaN kept
+        m = np.where(hi < m, hi, m)
+        for j, key in enumerate(real):
+            arr[key][:len(rows)] = m[:, j]
+    for key in zeros:
+        arr[key][len(rows):] = 0
+    return True
+
+
+def _rows_plan(elems: list[StructView], n: _Node, rkeys: tuple[str, ...], keys: tuple[str, ...]
+               ) -> tuple[Any, list[int], list[str], FArr, FArr, list[int], list[str]] | None:
+    """Columns of ``rkeys`` to write (row index, bounds, the integer ones) and ``keys`` to zero."""
+    first = elems[0]
+    cols: list[int] = []
+    los: list[float] = []
+    his: list[float] = []
+    ints: list[int] = []
+    names: list[str] = []
+    zeros: list[str] = []
+    fields: dict[str, tuple[str, int, str]] = {}
+    for j, key in enumerate(rkeys + keys):
+        leaf = n.members.get(key)
+        if not isinstance(leaf, _Leaf) or key not in first:
+            continue
+        s = first.slots.get(key)
+        if s is None or s.kind != SCALAR or (leaf.real and not s.real):
+            return None
+        if not leaf.real and not s.real and not s.wire[0] <= leaf.lo <= leaf.hi <= s.wire[1]:
+            return None
+        fields[key] = (key, s.offset, s.type)
+        if j >= len(rkeys):
+            zeros.append(key)
+            continue
+        if not leaf.real:
+            ints.append(len(cols))
+        cols.append(j)
+        los.append(leaf.lo)
+        his.append(leaf.hi)
+        names.append(key)
+    arr = columns(elems, fields.values()) if fields else None
+    if arr is None:
+        return None
+    return arr, cols, zeros, np.array(los), np.array(his), ints, names
+
+
+def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n: int) -> bool:
+    """The object loop of ``Scene._fill_obstacles`` into a packer's views: the same clamped
+    arrays, scattered per wire type into the payload bytes (slots past ``n`` get 0). False
+    (nothing written) when the loop must run."""
+    first = objs[0]
+    ck = ("objs", id(plan), len(objs))
+    got = first.cache.get(ck)
+    if got is None or got[0] is not plan:
+        got = first.cache[ck] = (plan, _objects_plan(objs, plan))
+    p = got[1]
+    if p is None:
+        return False
+    u8, groups, containers = p
+    count = len(objs)
+    done: list[tuple[Any, Any]] = []
+    for typ, real, rows, idx, wlo, whi in groups:
+        src = fl[rows] if real else il[rows]
+        if not real and n and (src.min() < wlo or src.max() > whi):
+            return False  # the encoder would refuse it: let the loop raise
+        v = np.zeros((len(rows), count), dtype=typ)
+        v[:, :n] = src if real or typ.kind != "f" else src.astype(np.float64)
+        done.append((idx, v))
+    for _, _, bits in containers:
+        for row, _, mask in bits:
+            if n and (il[row].min() < 0 or il[row].max() > mask):
+                return False
+    for idx, v in done:
+        u8[idx] = v.view(np.uint8).ravel()
+    for arr, keep, bits in containers:
+        word = arr[:n] & keep
+        for row, lo, _ in bits:
+            word = word | (il[row] << lo)
+        arr[:n] = word
+        arr[n:] &= keep
+    return True
+
+
+def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, list[Any], list[Any]
+                                                                  ] | None:
+    """Per (wire type, source) the rows of the column arrays and the payload byte indices they
+    go to; per bitfield container a column view, the bits it keeps and (row, lo, mask)."""
+    first = objs[0]
+    count = len(objs)
+    stride = objs[1].base - first.base if count > 1 else first.layout.size
+    if any(e.base != first.base + k * stride for k, e in enumerate(objs)):
+        return None
+    by_type: dict[tuple[str, bool], list[tuple[int, int]]] = {}
+    bits: dict[int, tuple[str, int, list[tuple[int, int, int]]]] = {}
+    for path, items in plan.groups:
+        probe: Any = first
+        for p in path:
+            ok = (isinstance(probe, StructView) and isinstance(p, str) and p in probe) or (
+                isinstance(probe, list) and isinstance(p, int) and p < len(probe))
+            probe = probe[p] if ok else None
+        if not isinstance(probe, StructView):
+            continue
+        for key, real, row in items:
+            if key not in probe:
+                continue
+            s = probe.slots.get(key)
+            if s is None or s.kind not in (SCALAR, BITS) or (real and not s.real):
+                return None
+            rel = probe.base - first.base + s.offset
+            if s.kind == BITS:
+                bits.setdefault(rel, (s.type, s.st.size, []))[2].append((row, s.lo, s.mask))
+            else:
+                by_type.setdefault((s.type, real), []).append((row, rel))
+    u8 = np.frombuffer(first.buf, dtype=np.uint8)
+    groups = []
+    for (typ, real), cols in by_type.items():
+        dt = np.dtype(NP_FMT[typ])
+        rels = np.array([r for _, r in cols])
+        # (column, element, byte) -> payload index, in the order of v.view(uint8).ravel()
+        idx = (first.base + rels[:, None, None] + stride * np.arange(count)[None, :, None]
+               + np.arange(dt.itemsize)[None, None, :]).ravel()
+        wlo, whi = (-np.inf, np.inf) if typ in REAL else INT_RANGE[typ]
+        groups.append((dt, real, [r for r, _ in cols], idx, wlo, whi))
+    containers = []
+    for rel_off, (typ, size, parts) in bits.items():
+        arr = columns(objs, [("c", rel_off, typ)])
+        if arr is None:
+            return None
+        used = 0
+        for _, lo, mask in parts:
+            used |= mask << lo
+        keep = np.array(((1 << (8 * size)) - 1) & ~used, dtype=arr["c"].dtype)
+        containers.append((arr["c"], keep, parts))
+    return u8, groups, containers
 
 
 @cache

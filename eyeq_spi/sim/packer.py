@@ -1,0 +1,268 @@
+"""DASP payloads packed in place (issue 11): a reused bytearray per (message, SW release) that the
+scene writes straight into, instead of a value dict that ``MessageCodec.encode_dasp`` then packs.
+
+Theory of operation
+-------------------
+A :class:`DaspPacker` holds the payload of one DASP message at one SW release as a ``bytearray``
+that starts as ``Layout.build(zero_values())`` (so bitfield containers carry their unused bits set,
+D2) and is reused from frame to frame, exactly as the dict path reuses its value dict: a member
+nobody writes keeps its last value.
+
+Its :class:`StructView` tree mirrors that value dict (nested structs are views, arrays of structs
+are lists of views) and supports what the fillers do to a dict: ``key in v``, ``v.get(key)``,
+``v[key]`` and ``v[key] = x``, ``v.update(...)``. Every offset, ``struct`` format and bitfield
+position comes from the :class:`~eyeq_spi.codec.layout.Layout` (hence from ``specs/``), never by
+hand. Writing a leaf packs it at once, with the errors the dict path's encoder would raise
+(:class:`~eyeq_spi.errors.CodecError`). The fillers in :mod:`eyeq_spi.sim.scene_layout` notice
+views and write whole columns of an array of structs with numpy (:func:`columns`).
+
+:meth:`DaspPacker.encode` then fills the rolling counters and CRCs (D5, generated from
+``Layout.crc_plan`` like :func:`eyeq_spi.codec.e2e.compile_verifier`; same order and values as
+:func:`eyeq_spi.codec.e2e.protect`) and prepends the §7.1.2 DASP header, as
+``MessageCodec.encode_dasp`` does. The dict path stays the reference the tests hold this to.
+"""
+
+from __future__ import annotations
+
+import binascii
+import struct
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from eyeq_spi.codec.e2e import E2EState, _key
+from eyeq_spi.codec.fastpath import FMT
+from eyeq_spi.codec.layout import INT_RANGE, Layout
+from eyeq_spi.codec.message import DASP_PROTOCOL
+from eyeq_spi.errors import CodecError, EyeqError
+
+# numpy dtypes of the seed's primitive types (little-endian, as fastpath.FMT's "<" formats)
+NP_FMT = {"uint8": "u1", "uint16": "<u2", "uint32": "<u4", "uint64": "<u8", "int8": "i1",
+          "int16": "<i2", "int32": "<i4", "int64": "<i8", "real32": "<f4", "real64": "<f8",
+          "bool": "u1"}
+REAL = ("real32", "real64")
+SCALAR, BITS, ARRAY = 0, 1, 2
+Protector = Callable[[bytearray, "E2EState | None"], None]
+
+
+@dataclass(frozen=True)
+class Slot:
+    """Where one leaf member lives inside its struct."""
+
+    name: str
+    kind: int  # SCALAR, BITS (inside a container) or ARRAY (of a primitive)
+    offset: int  # of the member, or of its bitfield container
+    type: str  # seed type (of the container for BITS)
+    st: struct.Struct
+    lo: int = 0  # BITS: lowest bit
+    mask: int = 0  # BITS: mask of the value before shifting
+    count: int = 0  # ARRAY: element count
+
+    @property
+    def real(self) -> bool:
+        return self.kind == SCALAR and self.type in REAL
+
+    @property
+    def wire(self) -> tuple[float, float]:
+        """The values a SCALAR integer slot can hold."""
+        return INT_RANGE.get(self.type, (-np.inf, np.inf))
+
+
+def _slots(lay: Layout) -> dict[str, Slot]:
+    out: dict[str, Slot] = {}
+    for f in lay.fields:
+        if f.name in lay.children:
+            continue
+        fmt = FMT[f.type]
+        if f.bits is not None:
+            lo, hi = f.bits
+            out[f.name] = Slot(f.name, BITS, f.offset, f.type, struct.Struct("<" + fmt), lo,
+                               (1 << (hi - lo + 1)) - 1)
+        elif f.count:
+            out[f.name] = Slot(f.name, ARRAY, f.offset, f.type,
+                               struct.Struct("<" + fmt * f.count), count=f.count)
+        else:
+            out[f.name] = Slot(f.name, SCALAR, f.offset, f.type, struct.Struct("<" + fmt))
+    return out
+
+
+class StructView:
+    """One struct of a :class:`DaspPacker`'s payload, used like its value dict."""
+
+    __slots__ = ("base", "buf", "cache", "kids", "layout", "shadow", "slots", "template")
+
+    def __init__(self, buf: bytearray, lay: Layout, base: int, keep: bool,
+                 cache: dict[Any, Any]) -> None:
+        self.buf, self.layout, self.base, self.cache = buf, lay, base, cache
+        self.template: dict[str, Any] | None = None  # the root's: the dict path's template
+        key = ("slots", id(lay))
+        if key not in cache:
+            cache[key] = (lay, _slots(lay))
+        self.slots: dict[str, Slot] = cache[key][1]
+        # the values last written, for a filler that reads one back (eyeq._fill_calibration);
+        # elements of arrays keep none (only numpy columns write them) and read the buffer
+        self.shadow: dict[str, Any] | None = {} if keep else None
+        self.kids: dict[str, StructView | list[StructView]] = {}
+        for f in lay.fields:
+            child = lay.children.get(f.name)
+            if child is None:
+                continue
+            o = base + f.offset
+            self.kids[f.name] = (
+                [StructView(buf, child, o + k * child.size, False, cache) for k in range(f.count)]
+                if f.count else StructView(buf, child, o, keep, cache))
+
+    # -- the dict interface the fillers use --------------------------------------------------
+    def __contains__(self, key: object) -> bool:
+        return key in self.slots or key in self.kids
+
+    def get(self, key: str, default: Any = None) -> Any:
+        kid = self.kids.get(key)
+        if kid is not None:
+            return kid
+        return self[key] if key in self.slots else default
+
+    def __getitem__(self, key: str) -> Any:
+        kid = self.kids.get(key)
+        if kid is not None:
+            return kid
+        if self.shadow is not None and key in self.shadow:
+            return self.shadow[key]
+        s = self.slots[key]
+        if s.kind == ARRAY:
+            return list(s.st.unpack_from(self.buf, self.base + s.offset))
+        v = s.st.unpack_from(self.buf, self.base + s.offset)[0]
+        return (v >> s.lo) & s.mask if s.kind == BITS else v
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        s = self.slots.get(key)
+        if s is None:
+            kid = self.kids.get(key)
+            if isinstance(kid, StructView) and isinstance(value, Mapping):
+                kid.assign(value)
+            elif isinstance(kid, list) and isinstance(value, list):
+                if len(value) != len(kid):
+                    raise CodecError(f"{key} needs {len(kid)} elements, got {len(value)}")
+                for view, v in zip(kid, value, strict=True):
+                    view.assign(v)
+            return  # a member this release lacks: the dict path's encoder ignores it too
+        o = self.base + s.offset
+        try:
+            if s.kind == SCALAR:
+                s.st.pack_into(self.buf, o, value)
+            elif s.kind == BITS:  # fastpath._bits: the same check, then the container's bits
+                if not isinstance(value, int) or not 0 <= value <= s.mask:
+                    raise CodecError(f"{key}: {value!r} does not fit "
+                                     f"{s.mask.bit_length()} bit(s)")
+                c = s.st.unpack_from(self.buf, o)[0] & ~(s.mask << s.lo)
+                s.st.pack_into(self.buf, o, c | value << s.lo)
+            else:
+                if len(value) != s.count:
+                    raise CodecError(f"{key} needs {s.count} elements, got {len(value)}")
+                s.st.pack_into(self.buf, o, *value)
+        except (struct.error, TypeError) as exc:
+            raise CodecError(f"{self.layout.name}.{key}: cannot encode: {exc}") from None
+        if self.shadow is not None:
+            self.shadow[key] = value
+
+    def update(self, values: Mapping[str, Any]) -> None:
+        for k, v in values.items():
+            self[k] = v
+
+    def assign(self, values: Mapping[str, Any]) -> None:
+        """A whole struct at once (the dict path replaces its sub-dict): every member needed."""
+        missing = [k for k in (*self.slots, *self.kids) if k not in values]
+        if missing:
+            raise CodecError(f"{self.layout.name}: missing member {missing[0]}")
+        self.update(values)
+
+    def reset(self) -> None:
+        if self.shadow is not None:
+            self.shadow.clear()
+        for kid in self.kids.values():
+            for v in kid if isinstance(kid, list) else (kid,):
+                v.reset()
+
+
+def compile_protector(layout: Layout) -> Protector:
+    """``e2e.protect(buf, layout, state)`` as generated code (D5): per CRC of
+    ``layout.crc_plan``, inner first, the rolling counter then ``crc_hqx`` seeded 0xFFFF chained
+    over the covered ranges, every offset a literal."""
+    env: dict[str, Any] = {"h": binascii.crc_hqx}
+    lines = ["def _protect(b, state):"]
+    for i, plan in enumerate(layout.crc_plan):
+        if plan.counter_offset is not None:
+            env[f"K{i}"] = _key(layout, plan)
+            c, n = plan.counter_offset, plan.counter_size
+            lines += ["    if state is not None:",
+                      f"        b[{c}:{c + n}] = state.next_counter(K{i}, {n})"
+                      f".to_bytes({n}, 'little')"]
+        expr = "65535"
+        for o, s in plan.ranges:
+            expr = f"h(b[{o}:{o + s}], {expr})"
+        o = plan.crc_offset
+        lines.append(f"    b[{o}:{o + 2}] = ({expr}).to_bytes(2, 'little')")
+    lines.append("    return None")
+    exec("\n".join(lines), env)
+    fn: Protector = env["_protect"]
+    return fn
+
+
+class DaspPacker:
+    """The payload of one DASP message at one SW release, packed in place."""
+
+    def __init__(self, layout: Layout, data_id: int) -> None:
+        self.layout = layout
+        self.template = layout.zero_values()  # the dict path's template: its shape picks ranges
+        self._zero = layout.build(self.template)
+        self.buf = bytearray(self._zero)
+        self.cache: dict[Any, Any] = {}
+        self.root = StructView(self.buf, layout, 0, True, self.cache)
+        self.root.template = self.template
+        self._protect = compile_protector(layout)
+        self._head = bytes((DASP_PROTOCOL, data_id))
+
+    @classmethod
+    def build(cls, layout: Layout, data_id: int) -> DaspPacker | None:
+        """A packer, or None when the layout cannot be packed (the caller takes the dict
+        path, which reports the problem as it always has)."""
+        try:
+            return cls(layout, data_id)
+        except EyeqError:
+            return None
+
+    def reset(self) -> None:
+        """Back to the zero template (as the dict path's fresh ``zero_values()`` dict)."""
+        self.buf[:] = self._zero
+        self.root.reset()
+
+    def encode(self, counter: int, e2e: E2EState | None) -> bytes:
+        """§7.1.2 header (protocol, data ID, counter, reserved 0) and the protected payload."""
+        if not 0 <= counter <= 255:
+            raise CodecError(f"DASP counter {counter} outside 0..255")
+        self._protect(self.buf, e2e)
+        return self._head + bytes((counter, 0)) + self.buf
+
+
+# -- numpy columns over an array of structs --------------------------------------------------
+def columns(elems: list[StructView], cols: Iterable[tuple[str, int, str]]
+            ) -> np.ndarray[Any, Any] | None:
+    """A structured array over ``elems`` (equally spaced views of one array) whose field
+    ``str(i)`` is member ``rel`` bytes into each element: ``cols`` are (i-name, rel offset of a
+    SCALAR slot, seed type) triples. None if the elements are not equally spaced."""
+    first = elems[0]
+    stride = elems[1].base - first.base if len(elems) > 1 else first.layout.size
+    if any(e.base != first.base + k * stride for k, e in enumerate(elems)):
+        return None
+    names, formats, offsets = [], [], []
+    for name, rel, typ in cols:
+        names.append(name)
+        formats.append(NP_FMT[typ])
+        offsets.append(rel)
+    dt = np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                   "itemsize": stride})
+    arr: np.ndarray[Any, Any] = np.ndarray((len(elems),), dtype=dt, buffer=first.buf,
+                                           offset=first.base)
+    return arr
