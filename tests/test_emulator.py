@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from eyeq_spi.emulator import build, summary
+from eyeq_spi.host import init_seq
 from eyeq_spi.host.host import HostConfig
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.host.nvm import Nvm
@@ -119,7 +120,7 @@ def test_init_0x92_carries_the_stored_alignment_as_section_21_says(running) -> N
     host = running.host
     host.nvm.data.alignment = {"horizonKA": 3.0, "yawKA": -4.0, "rollAngleKA": 2.0,
                                "cameraAlignmentValidKA": 1.0}
-    assert host._init_values(0x92) == pytest.approx(
+    assert init_seq.init_values(0x92, host.nvm.data) == pytest.approx(
         {"horizonFull": 3.0, "yawFull": -4.0, "rollAngle": math.radians(2.0),
          "cameraAlignmentValid": 1.0})
 

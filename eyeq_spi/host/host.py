@@ -5,21 +5,15 @@ the real link and transport. Sans-IO; the state machine is the table in ``machin
 from __future__ import annotations
 
 import asyncio
-import math
 from collections import deque
 from collections.abc import AsyncIterator, Callable
 from typing import Any
 
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
-from eyeq_spi.codec.intrinsic import (
-    eeprom_crc_ok,
-    intrinsic_params_from_eeprom,
-    version_text,
-)
 from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
 from eyeq_spi.errors import CodecError, LocalProtocolError, SpecError
-from eyeq_spi.host import calibration
+from eyeq_spi.host import calibration, init_seq
 from eyeq_spi.host.config import (
     APP_IDS,
     DV_STATE,
@@ -33,7 +27,6 @@ from eyeq_spi.host.config import (
     RUNNING_VISION,
     STAGE_OF,
     STALE_CHECK,
-    VALID,
     E,
     HostConfig,
     HostCounters,
@@ -43,7 +36,7 @@ from eyeq_spi.host.config import (
 )
 from eyeq_spi.host.machine import HostEvent, HostState, next_state
 from eyeq_spi.host.nvm import Nvm
-from eyeq_spi.host.scenario import ConstantDrive, Scenario
+from eyeq_spi.host.scenario import ConstantDrive, Scenario, veh_state_values
 from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.mesp.client import MespClient, MespCompleted, MespFailed
 from eyeq_spi.mesp.replies import MespError, MespReply
@@ -247,7 +240,7 @@ class HostEmulator:
         self._next_poll = now
 
     def _on_init(self, now: float) -> None:
-        stages = [0x84] if self._has_init_table(0x84) else []  # §7.1.3 from SW6
+        stages = [0x84] if init_seq.has_init_table(0x84, self.sw, self.codec.cat) else []
         if self.config.camera_only_aeb:
             stages += [0x78, 0x79]
         stages.append(0x92)
@@ -349,15 +342,9 @@ class HostEmulator:
             self.problem = f"EEPROM read failed: {result}"
             self._fire(E.EEPROM_BAD, now, self.problem)
             return
-        image: bytes = result.value.data
-        if not eeprom_crc_ok(image):
-            self.problem = "camera EEPROM CRC-16 does not match: repair or replace the camera"
-            self._fire(E.EEPROM_BAD, now, self.problem)
-            return
-        try:
-            params = intrinsic_params_from_eeprom(image, self.sw)
-        except (CodecError, SpecError) as exc:
-            self.problem = f"EEPROM content unusable: {exc}"
+        params = init_seq.eeprom_intrinsics(result.value.data, self.sw)
+        if isinstance(params, str):
+            self.problem = params
             self._fire(E.EEPROM_BAD, now, self.problem)
             return
         if self._bringups >= self.config.max_resets:
@@ -365,30 +352,12 @@ class HostEmulator:
                             "EyeQ resets: repair or replace the camera")
             self._fire(E.EEPROM_BAD, now, self.problem)
             return
-        self.nvm.data.intrinsic = {k: float(v) for k, v in params.items()}
+        self.nvm.data.intrinsic = params
         self.nvm.save()
         self._fire(E.EEPROM_OK, now, "NVM updated from EEPROM; resetting the EyeQ")
         self._reset_eyeq(now)
 
     # -- init messages ----------------------------------------------------------------------
-    def _init_values(self, stage: int) -> dict[str, float]:
-        if stage == 0x84:
-            # empty on first power-up: initial (zero) values. A value that is not a finite
-            # number cannot have come from a good EEPROM: leave it out, so the EyeQ reports the
-            # mismatch (Fatal 22) and the EEPROM is read again (§7.1.3).
-            return {k: v for k, v in self.nvm.data.intrinsic.items()
-                    if isinstance(v, int | float) and math.isfinite(v)}
-        if stage == 0x92:  # §21: each stored parameter goes out as its 0x92 signal
-            return alignment_nvm().init_values(self.nvm.data.alignment)
-        return {}
-
-    def _has_init_table(self, stage: int) -> bool:
-        try:
-            init_message(stage, self.sw, self.codec.cat)
-        except (SpecError, CodecError):
-            return False
-        return True
-
     def _send_next_init(self, now: float) -> None:
         if self._init_busy:
             return
@@ -399,24 +368,13 @@ class HostEmulator:
 
     def _send_init(self, stage: int, now: float, *, mode_init: bool) -> None:
         try:
-            msg = init_message(stage, self.sw, self.codec.cat)
-            if msg.codec is None:
-                params = self.config.ipb_params
-            else:
-                values = self._init_values(stage)
-                clamped = {}
-                for k, v in values.items():
-                    sig = msg.codec.signals.get(k)
-                    if sig is not None and math.isfinite(v):
-                        clamped[k] = min(max(v, sig.min), sig.max)
-                params = msg.codec.encode(clamped)
+            req = init_seq.init_request(stage, self.sw, self.codec.cat, self.nvm.data,
+                                        self.config.ipb_params)
         except (CodecError, SpecError) as exc:
             self.problem = f"init message 0x{stage:02X} cannot be built: {exc}"
             self._fire(E.INIT_REJECTED, now, self.problem)
             return
         self._init_busy = True
-        req = {"ct_type": msg.ct_type, "ct_stage": stage, "ct_version": msg.ct_version(params),
-               "params": params}
 
         def done(result: MespReply | MespError) -> None:
             self._init_busy = False
@@ -475,11 +433,7 @@ class HostEmulator:
             self.counters.decode_errors += 1
             return
         f = out.fields
-        self.boot_info = {
-            "TestResults": f["TestResults"], "EyeQID": f["EyeQID"],
-            "BootVersion": version_text(bytes(f["BootVersion"])),
-            "ApplicationVersion": version_text(bytes(f["ApplicationVersion"])),
-        }
+        self.boot_info = init_seq.boot_info(f)
         if self.state is not S.POWER_UP:
             # a boot status we did not ask for: the EyeQ reset by itself
             self.counters.eyeq_resets += 1
@@ -608,23 +562,10 @@ class HostEmulator:
     # -- transmit ---------------------------------------------------------------------------
     def _send_veh_state(self, now: float) -> None:
         msg = self.codec.message("HOST_VEH_STATE_MSG")
-        values = self.codec.layout(msg).zero_values()
-        vs = values["vehStateInfo"]
-        for k, v in self.scenario.signals(now).items():
-            if k in vs:
-                vs[k] = v
-        for k in list(vs):
-            if k.endswith("Validity") and not k.startswith("OBS"):
-                vs[k] = 1
-        if "timestamp_us" in vs:
-            vs["timestamp_us"] = int(now * 1e6)
-        if "apiVersionMajor" in vs:
-            vs["apiVersionMajor"], vs["apiVersionMinor"] = sw_release(self.sw)
         self._rolling = (self._rolling + 1) & 0xFFFF
-        values["SPI_Rolling_Count"] = self._rolling
-        if "host_sync_timestamp_us_valid" in values:
-            values["host_sync_timestamp_us_valid"] = VALID
-            values["host_sync_timestamp_us"] = int(now * 1e6)
+        values = veh_state_values(self.codec.layout(msg).zero_values(),
+                                  self.scenario.signals(now), now, sw_release(self.sw),
+                                  self._rolling)
         try:
             wire = self.codec.encode_dasp(msg.name, values, self._dasp_counter, self._tx_e2e)
         except CodecError as exc:

@@ -10,10 +10,12 @@ from __future__ import annotations
 import bisect
 import csv
 import math
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from eyeq_spi.errors import EyeqError
+from eyeq_spi.host.config import VALID
 
 
 class ScenarioError(EyeqError):
@@ -74,3 +76,26 @@ class CsvScenario:
     def signals(self, t: float) -> dict[str, float]:
         i = bisect.bisect_right(self.times, t) - 1
         return dict(self.rows[max(i, 0)])
+
+
+def veh_state_values(values: dict[str, Any], signals: Mapping[str, float], now: float,
+                     api: tuple[int, int], rolling: int) -> dict[str, Any]:
+    """Fill a ``zero_values()`` dict of HOST_VEH_STATE_MSG (any release): the scenario's
+    signals, every validity flag but the OBS ones set, the time stamps, our API version and
+    ``SPI_Rolling_Count`` (echoed by the EyeQ in 0xA0)."""
+    vs = values["vehStateInfo"]
+    for k, v in signals.items():
+        if k in vs:
+            vs[k] = v
+    for k in list(vs):
+        if k.endswith("Validity") and not k.startswith("OBS"):
+            vs[k] = 1
+    if "timestamp_us" in vs:
+        vs["timestamp_us"] = int(now * 1e6)
+    if "apiVersionMajor" in vs:
+        vs["apiVersionMajor"], vs["apiVersionMinor"] = api
+    values["SPI_Rolling_Count"] = rolling
+    if "host_sync_timestamp_us_valid" in values:
+        values["host_sync_timestamp_us_valid"] = VALID
+        values["host_sync_timestamp_us"] = int(now * 1e6)
+    return values

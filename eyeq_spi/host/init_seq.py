@@ -1,0 +1,77 @@
+"""What the host sends in INIT and reads at boot (seed 004 §7.1.3, §8.2, §21): the init
+messages' parameters from the NVM, the intrinsic parameters of an EEPROM image, and the boot
+status it keeps.
+Pure functions; the host's state machine (``host.py``) decides when.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from eyeq_spi.codec.init_params import init_message
+from eyeq_spi.codec.intrinsic import eeprom_crc_ok, intrinsic_params_from_eeprom, version_text
+from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.host.nvm import NvmData
+from eyeq_spi.spec.catalog import Catalog
+from eyeq_spi.spec.tables import alignment_nvm
+
+
+def init_values(stage: int, nvm: NvmData) -> dict[str, float]:
+    """The signals of init message ``stage`` from the NVM."""
+    if stage == 0x84:
+        # empty on first power-up: initial (zero) values. A value that is not a finite number
+        # cannot have come from a good EEPROM: leave it out, so the EyeQ reports the mismatch
+        # (Fatal 22) and the EEPROM is read again (§7.1.3).
+        return {k: v for k, v in nvm.intrinsic.items()
+                if isinstance(v, int | float) and math.isfinite(v)}
+    if stage == 0x92:  # §21: each stored parameter goes out as its 0x92 signal
+        return alignment_nvm().init_values(nvm.alignment)
+    return {}
+
+
+def has_init_table(stage: int, sw: str, cat: Catalog) -> bool:
+    """Whether release ``sw`` has init message ``stage`` (0x84 exists from SW6, §7.1.3)."""
+    try:
+        init_message(stage, sw, cat)
+    except (SpecError, CodecError):
+        return False
+    return True
+
+
+def init_request(stage: int, sw: str, cat: Catalog, nvm: NvmData, opaque: bytes
+                 ) -> dict[str, Any]:
+    """The EventCalibrationTool request carrying init message ``stage``: its signals from the
+    NVM, each clamped into its declared range; ``opaque`` for a stage the seed prints no bit
+    table for (0x78). Raises ``CodecError``/``SpecError`` when it cannot be built."""
+    msg = init_message(stage, sw, cat)
+    if msg.codec is None:
+        params = opaque
+    else:
+        clamped = {}
+        for k, v in init_values(stage, nvm).items():
+            sig = msg.codec.signals.get(k)
+            if sig is not None and math.isfinite(v):
+                clamped[k] = min(max(v, sig.min), sig.max)
+        params = msg.codec.encode(clamped)
+    return {"ct_type": msg.ct_type, "ct_stage": stage, "ct_version": msg.ct_version(params),
+            "params": params}
+
+
+def eeprom_intrinsics(image: bytes, sw: str) -> dict[str, float] | str:
+    """The intrinsic parameters of a camera EEPROM image (§7.1.3), or why it is unusable."""
+    if not eeprom_crc_ok(image):
+        return "camera EEPROM CRC-16 does not match: repair or replace the camera"
+    try:
+        params = intrinsic_params_from_eeprom(image, sw)
+    except (CodecError, SpecError) as exc:
+        return f"EEPROM content unusable: {exc}"
+    return {k: float(v) for k, v in params.items()}
+
+
+def boot_info(fields: dict[str, Any]) -> dict[str, Any]:
+    """What the host keeps of EYEQ_BOOT_STATUS_MSG: test bits, EyeQ ID and both versions as
+    text."""
+    return {"TestResults": fields["TestResults"], "EyeQID": fields["EyeQID"],
+            "BootVersion": version_text(bytes(fields["BootVersion"])),
+            "ApplicationVersion": version_text(bytes(fields["ApplicationVersion"]))}
