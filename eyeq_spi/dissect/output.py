@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import sys
 from pathlib import Path
 from typing import IO, Any
 
@@ -168,6 +169,33 @@ def _item(v: Any, i: int) -> Any:
     return x.item() if hasattr(x, "item") else x
 
 
+class _NoPandas:
+    """A meta path finder that fails every import of pandas (see :func:`hide_pandas`)."""
+
+    @staticmethod
+    def find_spec(name: str, path: Any = None, target: Any = None) -> None:
+        if name == "pandas" or name.startswith("pandas."):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+
+
+def hide_pandas() -> None:
+    """Until :func:`show_pandas`, imports of pandas fail (unless it is loaded already).
+
+    pyarrow imports pandas, when it is installed, on its first conversion of anything (its
+    "is this a pandas Series?" check, and the C++ converter of Python lists looking for pd.NA):
+    0.15 CPU-s, more than writing the tables of a 90 s capture takes. No table of ours comes
+    from pandas, so a :class:`TableWriter` writing Parquet hides it while it lives; the values
+    and files are the same. Afterwards anything that really needs pandas (``to_pandas``,
+    ``from_pandas``) imports it: pyarrow tries again then."""
+    if "pandas" not in sys.modules and _NoPandas not in sys.meta_path:
+        sys.meta_path.insert(0, _NoPandas)  # type: ignore[arg-type]
+
+
+def show_pandas() -> None:
+    while _NoPandas in sys.meta_path:
+        sys.meta_path.remove(_NoPandas)  # type: ignore[arg-type]
+
+
 class TableWriter:
     """One table per message type, flattened field names: CSV files or Parquet files."""
 
@@ -189,6 +217,7 @@ class TableWriter:
             except ImportError as exc:
                 raise OutputError("--parquet needs pyarrow: pip install 'eyeq-spi[parquet]'") \
                     from exc
+            hide_pandas()
 
     def write(self, r: dict[str, Any]) -> None:
         if r["kind"] != "message" or not r["fields"]:
@@ -281,11 +310,15 @@ class TableWriter:
         rows.clear()
 
     def close(self) -> None:
-        for fh, _, _ in self._csv.values():
-            fh.close()
-        for name in list(self._rows):
-            self._flush(name)
-        for name in list(self._tables):
-            self._flush_tables(name)
-        for w in self._pq.values():
-            w.close()
+        try:
+            for fh, _, _ in self._csv.values():
+                fh.close()
+            for name in list(self._rows):
+                self._flush(name)
+            for name in list(self._tables):
+                self._flush_tables(name)
+            for w in self._pq.values():
+                w.close()
+        finally:
+            if self.fmt == "parquet":
+                show_pandas()

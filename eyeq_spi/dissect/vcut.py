@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from eyeq_spi.capture.fastread import DIR_NAME
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, DIAG_ID, classify
 from eyeq_spi.dissect.vmessages import ColumnGroup, GroupCount, SpanMessage
@@ -82,17 +83,17 @@ def lean_messages(bd: BatchDissector, fa: FrameArrays, done: Done
     kind[other & (b[:, 0] == BOOT_ID)] = BOOT_KEY
     # the carried transfers (frames from the previous chunk) as span messages
     loose: dict[int, SpanMessage] = {}
-    loose_keys: set[tuple[int, int]] = set()
+    loose_keys: dict[tuple[int, int], int] = {}  # at most one per direction: its first unit
     for j in carried:
         row, st, u = done[j]
         msg = bd._message(fa, st, u, row)
         loose[j] = msg
-        loose_keys.add((st.code, _key_of(msg.data)))
-    keys = set(zip(codes.tolist(), kind.tolist(), strict=True)) | loose_keys
+        loose_keys[(st.code, _key_of(msg.data))] = j
+    keys = set(zip(codes.tolist(), kind.tolist(), strict=True)) | set(loose_keys)
     dirs_of: dict[int, int] = {}
     for _, k in keys:
         dirs_of[k] = dirs_of.get(k, 0) + 1
-    fallback: list[int] = list(carried)  # indices into done
+    fallback: list[int] = []  # indices into done
     recs: list[tuple[int, dict[str, Any]]] = []
     tables: list[tuple[int, ColumnGroup]] = []
     counts: list[GroupCount] = []
@@ -101,27 +102,38 @@ def lean_messages(bd: BatchDissector, fa: FrameArrays, done: Done
         if k < 0:
             continue
         ix = np.flatnonzero((codes == code) & (kind == k))
-        if not ix.size:
-            continue
-        whole = (code, k) not in loose_keys and not (columns_mode and dirs_of[k] > 1)
-        arr = _gather(data, P_np.get(code), first[ix], ks[ix], ke[ix], start[ix],
-                      length[ix]) if whole else None
+        jc = loose_keys.get((code, k))  # a carried transfer: the group's first message
+        members = ([] if jc is None else [jc]) + [loc[i] for i in ix.tolist()]
         got = None
+        arr = None
+        if not (columns_mode and dirs_of[k] > 1):
+            arr = _gather(data, P_np.get(code), first[ix], ks[ix], ke[ix], start[ix],
+                          length[ix]) if ix.size else np.zeros((0, 0), np.uint8)
+        if arr is not None and jc is not None:
+            head = np.frombuffer(loose[jc].data, np.uint8)
+            arr = (head[None, :] if not ix.size else
+                   np.concatenate([head[None, :], arr]) if len(head) == arr.shape[1] else None)
         if arr is not None:
-            st = done[loc[int(ix[0])]][1]
-            grows = rows[ix]
-            gks, gke = ks[ix].tolist(), ke[ix].tolist()
+            st = done[members[0]][1]
+            grows = rows[ix] if jc is None else np.concatenate([[done[jc][0]], rows[ix]])
+            gks = [0] * (jc is not None) + ks[ix].tolist()
+            gke = [0] * (jc is not None) + ke[ix].tolist()
             P = bd._rows[code]
+            carried_frames = None if jc is None else loose[jc].frames
+            last = (base + grows).tolist()
+            if carried_frames is not None:
+                last[0] = carried_frames[-1] if carried_frames else None
 
-            def frames_of(i: int, gks: list[int] = gks, gke: list[int] = gke,
-                          P: list[int] = P) -> list[int | None]:
+            def frames_of(i: int, gks: list[int] = gks, gke: list[int] = gke, P: list[int] = P,
+                          cf: list[int | None] | None = carried_frames) -> list[int | None]:
+                if i == 0 and cf is not None:
+                    return list(cf)
                 return [base + r for r in P[gks[i] : gke[i]]]
 
             got = dec.lean_group(st.name, _PROTO.get(k, k), arr, grows.tolist(), tfill[grows],
-                                 (base + grows).tolist(), frames_of,
-                                 columns_mode and dirs_of[k] == 1)
+                                 last, frames_of, columns_mode and dirs_of[k] == 1)
         if got is None:
-            fallback += [loc[i] for i in ix.tolist()]
+            fallback += members
             continue
         recs += got[0]
         if got[1] is not None:
@@ -129,10 +141,11 @@ def lean_messages(bd: BatchDissector, fa: FrameArrays, done: Done
         if got[2] is not None:
             tables.append((got[2].first, got[2]))
     exact = [loc[i] for i in np.flatnonzero(kind < 0).tolist()]
+    exact += [j for key, j in loose_keys.items() if key[1] < 0]
     fallback = sorted(fallback + exact, key=lambda j: done[j][0])
     msgs = [loose[j] if j in loose else bd._message(fa, done[j][1], done[j][2], done[j][0])
             for j in fallback]
-    _bulk_maps(bd, fa, done, loc, P_np)
+    _bulk_maps(bd, fa, codes, ks, ke, P_np)
     fb_rows = [done[j][0] for j in fallback]
     recs += list(zip(fb_rows, dec.records(msgs), strict=True))
     tables += [(fb_rows[g.first], g) for g in dec.tables]
@@ -169,21 +182,12 @@ def _gather(data: np.ndarray, P: np.ndarray | None, first: np.ndarray, ks: np.nd
     return out[:, :size]
 
 
-def _bulk_maps(bd: BatchDissector, fa: FrameArrays, done: Done, loc: list[int],
-               P_np: dict[int, np.ndarray]) -> None:
+def _bulk_maps(bd: BatchDissector, fa: FrameArrays, codes: np.ndarray, ks: np.ndarray,
+               ke: np.ndarray, P_np: dict[int, np.ndarray]) -> None:
     """Every frame of the block's local units into its receiver's NUM -> index map, in order
     (a direction's units are consecutive in its rows, so their frames are one range)."""
-    span: dict[int, list[int]] = {}
-    for j in loc:
-        _, st, u = done[j]
-        lo_hi = span.get(st.code)
-        if lo_hi is None:
-            span[st.code] = [u.ks, u.ke]
-        else:
-            lo_hi[0] = min(lo_hi[0], u.ks)
-            lo_hi[1] = max(lo_hi[1], u.ke)
-    for code, (lo, hi) in span.items():
-        name = done[next(j for j in loc if done[j][1].code == code)][1].name
-        rr = P_np[code][lo:hi]
-        bd.dis._dirs[name].index_of_num.update(
+    for code, P in P_np.items():
+        sel = codes == code
+        rr = P[int(ks[sel].min()) : int(ke[sel].max())]
+        bd.dis._dirs[DIR_NAME[code]].index_of_num.update(
             zip(fa.num[rr].tolist(), (fa.base + rr).tolist(), strict=True))
