@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import re
 import sys
 from collections.abc import Callable, Iterator
@@ -112,6 +113,8 @@ def run_dissect(args: argparse.Namespace) -> int:
         writers.append(JsonWriter(out, fast=True))
     elif not table:
         writers.append(HumanWriter(out, codec, color=out.isatty(), tree=not args.no_tree))
+    gc_was = gc.isenabled()
+    gc.disable()  # collected by _paced_gc instead
     try:
         br: Any = _batch_run(args)  # None for small inputs: numpy costs more than it saves
         plain = br.is_plain(args) if br is not None else True
@@ -125,13 +128,14 @@ def run_dissect(args: argparse.Namespace) -> int:
         for path in args.files:
             done = next(par)[1] if par is not None else None
             if done is not None:
-                for r in done:
+                for r in _paced_gc(done):
                     if br is not None and isinstance(r, br.FrameBlock):
                         br.consume(r, keep, plain, stats, writers)
                     elif keep(r):
                         stats.add(r)
                         for w in writers:
                             w.write(r)
+                    r = None  # _paced_gc: the block is garbage now
                 continue
             fh = _open(path)
             try:
@@ -140,18 +144,21 @@ def run_dissect(args: argparse.Namespace) -> int:
                 batched = (br.batch_items(fh, args.format, args.direction, codec,
                                           fields=br.fields_mode(writers, plain))
                            if br is not None else None)
-                for r in _with_progress(batched or _all(dis, records), fh, path,
-                                        stdout_busy=bool(writers) and table is None):
+                for r in _paced_gc(_with_progress(batched or _all(dis, records), fh, path,
+                                                  stdout_busy=bool(writers) and table is None)):
                     if br is not None and isinstance(r, br.FrameBlock):  # the batch path
                         br.consume(r, keep, plain, stats, writers)
                     elif keep(r):  # --stats describes exactly what the filters keep
                         stats.add(r)
                         for w in writers:
                             w.write(r)
+                    r = None  # _paced_gc: the block is garbage now
             finally:
                 if fh is not sys.stdin.buffer:
                     fh.close()
     finally:
+        if gc_was:
+            gc.enable()
         if table is not None:
             table.close()
     stats.finish()
@@ -184,6 +191,29 @@ def _batch_run(args: argparse.Namespace) -> Any:
     from eyeq_spi.dissect import batch_run
 
     return batch_run
+
+
+PACE = 4096  # records between two collections of the young generations
+
+
+def _paced_gc(items: Any) -> Iterator[Any]:
+    """``items``, with the young generations of the cyclic garbage collector collected after
+    each frame block and every ``PACE`` other items, while the automatic collector is off.
+
+    Records are trees of dicts and lists freed by reference counting; the default automatic
+    collection (every 700 new containers) re-scanned records under construction (1,500
+    containers in one obstacles message) and spent 0.6 of 2.1 CPU-s of ``dissect --json`` on a
+    90 s capture. Here a collection sees only what is alive between two blocks, and any cycle is
+    still freed within a block, so memory stays bounded."""
+    n = 0
+    for item in items:
+        block = not isinstance(item, dict)
+        yield item
+        del item  # the caller drops its own reference before it asks for the next one
+        n += 1
+        if n >= PACE or block:
+            gc.collect(1)
+            n = 0
 
 
 def _all(dis: Any, records: Iterator[Any]) -> Iterator[dict[str, Any]]:

@@ -188,12 +188,12 @@ def hide_pandas() -> None:
     and files are the same. Afterwards anything that really needs pandas (``to_pandas``,
     ``from_pandas``) imports it: pyarrow tries again then."""
     if "pandas" not in sys.modules and _NoPandas not in sys.meta_path:
-        sys.meta_path.insert(0, _NoPandas)  # type: ignore[arg-type]
+        sys.meta_path.insert(0, _NoPandas)
 
 
 def show_pandas() -> None:
     while _NoPandas in sys.meta_path:
-        sys.meta_path.remove(_NoPandas)  # type: ignore[arg-type]
+        sys.meta_path.remove(_NoPandas)
 
 
 class TableWriter:
