@@ -315,6 +315,46 @@ def emulator_bench(runs: int = 3, long_s: float = 0.0) -> dict[str, float]:
     return out
 
 
+def _dasp_cpu_per_sim_s(packer: bool, virtual_s: float) -> float:
+    """CPU-s per simulated second of the simulated EyeQ's DASP generation alone at full load
+    (``_send_due_dasp``: due heap, scene step, fill, pack, E2E; the link's ``_send`` stubbed)."""
+    from eyeq_spi.sim.config import SimConfig
+    from eyeq_spi.sim.eyeq import RUNNING_VISION, SimulatedEyeQ
+
+    sim = SimulatedEyeQ(SimConfig(objects=15, signs=20, light_spots=15, dasp_packer=packer))
+    sim.warm_up()
+    sim.powered, sim.app_running, sim.main_state = True, True, RUNNING_VISION
+    sim._send = lambda message, now: None  # type: ignore[method-assign]
+    sim._send_due_dasp(0.0)
+    c = time.thread_time()
+    while sim._dasp_min < virtual_s:
+        sim._send_due_dasp(sim._dasp_min)
+    return (time.thread_time() - c) / virtual_s
+
+
+def dasp_bench(runs: int = 3, virtual_s: float = 20.0) -> dict[str, float]:
+    """The simulated EyeQ's DASP generation (issue 11): the packer (sim/packer.py) against the
+    dict path (Scene.fill + encode_dasp) in interleaved runs, median and spread, the ratio, and
+    each in 128-byte ``crc_hqx`` calls of the in-run baseline."""
+    rows: dict[bool, list[float]] = {False: [], True: []}
+    crc = [crc_baseline_us()]
+    for _ in range(runs):
+        for packer in (False, True):
+            rows[packer].append(_dasp_cpu_per_sim_s(packer, virtual_s))
+        crc.append(crc_baseline_us())
+    base = statistics.median(crc)
+    out: dict[str, float] = {}
+    for packer, label in ((False, "dasp_dict_path"), (True, "dasp_packer")):
+        vals = rows[packer]
+        out[f"{label}_cpu_ms_per_sim_s"] = statistics.median(vals) * 1e3
+        out[f"{label}_cpu_ms_per_sim_s_min"] = min(vals) * 1e3
+        out[f"{label}_cpu_ms_per_sim_s_max"] = max(vals) * 1e3
+        out[f"{label}_in_crc_calls"] = statistics.median(vals) / (base * 1e-6)
+    out["dasp_dict_over_packer"] = (out["dasp_dict_path_cpu_ms_per_sim_s"]
+                                    / out["dasp_packer_cpu_ms_per_sim_s"])
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seconds", type=float, default=1.0, help="time per measurement")
@@ -329,6 +369,7 @@ def main() -> int:
         out.update({**frame_bench(args.seconds), **obstacles_bench(args.seconds)})
     if not args.no_emulator:
         out.update(emulator_bench(args.runs, args.long))
+        out.update(dasp_bench(args.runs))
     for k, v in out.items():
         print(f"{k:55s} {v:14,.4g}")
     print(json.dumps({k: float(f"{v:.4g}") for k, v in out.items()}))

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import binascii
 import struct
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -244,25 +244,3 @@ class DaspPacker:
             raise CodecError(f"DASP counter {counter} outside 0..255")
         self._protect(self.buf, e2e)
         return self._head + bytes((counter, 0)) + self.buf
-
-
-# -- numpy columns over an array of structs --------------------------------------------------
-def columns(elems: list[StructView], cols: Iterable[tuple[str, int, str]]
-            ) -> np.ndarray[Any, Any] | None:
-    """A structured array over ``elems`` (equally spaced views of one array) whose field
-    ``str(i)`` is member ``rel`` bytes into each element: ``cols`` are (i-name, rel offset of a
-    SCALAR slot, seed type) triples. None if the elements are not equally spaced."""
-    first = elems[0]
-    stride = elems[1].base - first.base if len(elems) > 1 else first.layout.size
-    if any(e.base != first.base + k * stride for k, e in enumerate(elems)):
-        return None
-    names, formats, offsets = [], [], []
-    for name, rel, typ in cols:
-        names.append(name)
-        formats.append(NP_FMT[typ])
-        offsets.append(rel)
-    dt = np.dtype({"names": names, "formats": formats, "offsets": offsets,
-                   "itemsize": stride})
-    arr: np.ndarray[Any, Any] = np.ndarray((len(elems),), dtype=dt, buffer=first.buf,
-                                           offset=first.base)
-    return arr

@@ -4,6 +4,7 @@ declared range and wire type (split out of :mod:`eyeq_spi.sim.scene`)."""
 
 from __future__ import annotations
 
+import itertools
 import math
 import struct
 from collections.abc import Callable
@@ -14,9 +15,8 @@ from typing import Any, cast
 import numpy as np
 import numpy.typing as npt
 
-from eyeq_spi.codec.layout import INT_RANGE
 from eyeq_spi.errors import CodecError, SpecError
-from eyeq_spi.sim.packer import BITS, NP_FMT, REAL, SCALAR, StructView, columns
+from eyeq_spi.sim.packer import BITS, NP_FMT, SCALAR, StructView
 from eyeq_spi.spec.catalog import Catalog, Member, SwKey, catalog
 
 FArr = npt.NDArray[np.float64]
@@ -290,7 +290,7 @@ def _write_rows_packed(elems: list[Any], n: _Node, rows: list[dict[str, float]],
     struct member, an integer that float64 does not hold exactly or a type the encoder refuses."""
     rows = rows[:len(elems)]
     rkeys = tuple(rows[0]) if rows else ()
-    if any(r.keys() != rows[0].keys() for r in rows):
+    if any(tuple(r) != rkeys for r in rows):
         return False
     ck = ("rows", id(n), rkeys, keys, len(elems))
     got = elems[0].cache.get(ck)
@@ -299,34 +299,48 @@ def _write_rows_packed(elems: list[Any], n: _Node, rows: list[dict[str, float]],
     plan = got[1]
     if plan is None:
         return False
-    arr, cols, zeros, lo, hi, ints, real = plan
-    if rows:
-        m = np.array([[r[k] for k in rkeys] for r in rows], dtype=np.float64)[:, cols]
+    u8, cols, lo, hi, ints, wgroups, zgroups = plan
+    r = len(rows)
+    if r:
+        m = np.fromiter(itertools.chain.from_iterable(x.values() for x in rows), np.float64,
+                        r * len(rkeys)).reshape(r, len(rkeys))[:, cols]
         if len(ints):
             x = m[:, ints]
-            if not np.isfinite(x).all() or np.abs(x).max() >= _EXACT:
+            if not np.abs(x).max() < _EXACT:  # NaN compares False too
                 return False  # round() would raise, or float64 would not hold the int
             m[:, ints] = np.rint(x)
         m = np.where(lo > m, lo, m)  # min(max(x, lo), hi), NaN kept
         m = np.where(hi < m, hi, m)
-        for j, key in enumerate(real):
-            arr[key][:len(rows)] = m[:, j]
-    for key in zeros:
-        arr[key][len(rows):] = 0
+        for dt, pos, idx in wgroups:
+            u8[idx[:, :r].ravel()] = np.ascontiguousarray(m[:, pos].T, dtype=dt).view(
+                np.uint8).ravel()
+    for idx in zgroups:  # any zero, 0 or 0.0, is all zero bytes
+        u8[idx[:, r:].ravel()] = 0
     return True
 
 
-def _rows_plan(elems: list[StructView], n: _Node, rkeys: tuple[str, ...], keys: tuple[str, ...]
-               ) -> tuple[Any, list[int], list[str], FArr, FArr, list[int], list[str]] | None:
-    """Columns of ``rkeys`` to write (row index, bounds, the integer ones) and ``keys`` to zero."""
+def _elem_index(elems: list[StructView], rel: int, size: int) -> Any:
+    """Payload byte indices (element, byte) of the member ``rel`` bytes into each element."""
     first = elems[0]
+    stride = elems[1].base - first.base if len(elems) > 1 else first.layout.size
+    return (first.base + rel + stride * np.arange(len(elems))[:, None]
+            + np.arange(size)[None, :])
+
+
+def _rows_plan(elems: list[StructView], n: _Node, rkeys: tuple[str, ...], keys: tuple[str, ...]
+               ) -> tuple[Any, ...] | None:
+    """Columns of ``rkeys`` to write (row index, bounds, the integer ones, per wire type the
+    payload indices) and the payload indices of ``keys`` to zero."""
+    first = elems[0]
+    stride = elems[1].base - first.base if len(elems) > 1 else first.layout.size
+    if any(e.base != first.base + k * stride for k, e in enumerate(elems)):
+        return None
     cols: list[int] = []
     los: list[float] = []
     his: list[float] = []
     ints: list[int] = []
-    names: list[str] = []
-    zeros: list[str] = []
-    fields: dict[str, tuple[str, int, str]] = {}
+    by_type: dict[str, list[tuple[int, int]]] = {}
+    by_size: dict[int, list[int]] = {}
     for j, key in enumerate(rkeys + keys):
         leaf = n.members.get(key)
         if not isinstance(leaf, _Leaf) or key not in first:
@@ -336,20 +350,24 @@ def _rows_plan(elems: list[StructView], n: _Node, rkeys: tuple[str, ...], keys: 
             return None
         if not leaf.real and not s.real and not s.wire[0] <= leaf.lo <= leaf.hi <= s.wire[1]:
             return None
-        fields[key] = (key, s.offset, s.type)
         if j >= len(rkeys):
-            zeros.append(key)
+            by_size.setdefault(s.st.size, []).append(s.offset)
             continue
         if not leaf.real:
             ints.append(len(cols))
+        by_type.setdefault(s.type, []).append((len(cols), s.offset))
         cols.append(j)
         los.append(leaf.lo)
         his.append(leaf.hi)
-        names.append(key)
-    arr = columns(elems, fields.values()) if fields else None
-    if arr is None:
-        return None
-    return arr, cols, zeros, np.array(los), np.array(his), ints, names
+    wgroups = []
+    for typ, items in by_type.items():
+        dt = np.dtype(NP_FMT[typ])
+        idx = np.stack([_elem_index(elems, rel, dt.itemsize) for _, rel in items])
+        wgroups.append((dt, [c for c, _ in items], idx))
+    zgroups = [np.stack([_elem_index(elems, rel, size) for rel in rels])
+               for size, rels in by_size.items()]
+    return (np.frombuffer(first.buf, dtype=np.uint8), cols, np.array(los), np.array(his), ints,
+            wgroups, zgroups)
 
 
 def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n: int) -> bool:
@@ -364,42 +382,36 @@ def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n
     p = got[1]
     if p is None:
         return False
-    u8, groups, containers = p
-    count = len(objs)
-    done: list[tuple[Any, Any]] = []
-    for typ, real, rows, idx, wlo, whi in groups:
-        src = fl[rows] if real else il[rows]
-        if not real and n and (src.min() < wlo or src.max() > whi):
+    u8, groups, check, bitgroups = p
+    rows, lo, hi = check
+    if n and len(rows):  # one range check for every integer column (wire type or bit width)
+        x = il[rows]
+        if (x < lo).any() or (x > hi).any():
             return False  # the encoder would refuse it: let the loop raise
-        v = np.zeros((len(rows), count), dtype=typ)
-        v[:, :n] = src if real or typ.kind != "f" else src.astype(np.float64)
-        done.append((idx, v))
-    for _, _, bits in containers:
-        for row, _, mask in bits:
-            if n and (il[row].min() < 0 or il[row].max() > mask):
-                return False
-    for idx, v in done:
+    for real, rows, idx, v in groups:
+        v[:, :n] = fl[rows] if real else il[rows]
+        v[:, n:] = 0
         u8[idx] = v.view(np.uint8).ravel()
-    for arr, keep, bits in containers:
-        word = arr[:n] & keep
-        for row, lo, _ in bits:
-            word = word | (il[row] << lo)
-        arr[:n] = word
-        arr[n:] &= keep
+    for brows, shift, starts, base, idx, v in bitgroups:
+        # a container holds the bits the objects do not write as they are (D2 unused bits set)
+        v[:] = base
+        if n:
+            v[:, :n] = base[:, :n] | np.bitwise_or.reduceat(il[brows] << shift, starts, axis=0)
+        u8[idx] = v.view(np.uint8).ravel()
     return True
 
 
-def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, list[Any], list[Any]
-                                                                  ] | None:
-    """Per (wire type, source) the rows of the column arrays and the payload byte indices they
-    go to; per bitfield container a column view, the bits it keeps and (row, lo, mask)."""
+def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | None:
+    """Per (wire type, source) the rows of the column arrays, the payload byte indices they go
+    to and a reused array; the integer rows' bounds; per container type the bit columns."""
     first = objs[0]
     count = len(objs)
     stride = objs[1].base - first.base if count > 1 else first.layout.size
     if any(e.base != first.base + k * stride for k, e in enumerate(objs)):
         return None
     by_type: dict[tuple[str, bool], list[tuple[int, int]]] = {}
-    bits: dict[int, tuple[str, int, list[tuple[int, int, int]]]] = {}
+    bits: dict[int, tuple[str, list[tuple[int, int, int]]]] = {}
+    check: list[tuple[int, float, float]] = []
     for path, items in plan.groups:
         probe: Any = first
         for p in path:
@@ -416,30 +428,50 @@ def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, list[Any
                 return None
             rel = probe.base - first.base + s.offset
             if s.kind == BITS:
-                bits.setdefault(rel, (s.type, s.st.size, []))[2].append((row, s.lo, s.mask))
-            else:
-                by_type.setdefault((s.type, real), []).append((row, rel))
+                bits.setdefault(rel, (s.type, []))[1].append((row, s.lo, s.mask))
+                check.append((row, 0, s.mask))
+                continue
+            by_type.setdefault((s.type, real), []).append((row, rel))
+            if not real and not s.real:
+                check.append((row, *s.wire))
     u8 = np.frombuffer(first.buf, dtype=np.uint8)
+
+    def index(typ: str, rels: list[int]) -> tuple[np.dtype[Any], Any]:
+        dt = np.dtype(NP_FMT[typ])
+        r = np.array(rels)
+        # (column, element, byte) -> payload index, in the order of v.view(uint8).ravel()
+        return dt, (first.base + r[:, None, None] + stride * np.arange(count)[None, :, None]
+                    + np.arange(dt.itemsize)[None, None, :]).ravel()
+
     groups = []
     for (typ, real), cols in by_type.items():
-        dt = np.dtype(NP_FMT[typ])
-        rels = np.array([r for _, r in cols])
-        # (column, element, byte) -> payload index, in the order of v.view(uint8).ravel()
-        idx = (first.base + rels[:, None, None] + stride * np.arange(count)[None, :, None]
-               + np.arange(dt.itemsize)[None, None, :]).ravel()
-        wlo, whi = (-np.inf, np.inf) if typ in REAL else INT_RANGE[typ]
-        groups.append((dt, real, [r for r, _ in cols], idx, wlo, whi))
-    containers = []
-    for rel_off, (typ, size, parts) in bits.items():
-        arr = columns(objs, [("c", rel_off, typ)])
-        if arr is None:
-            return None
-        used = 0
-        for _, lo, mask in parts:
-            used |= mask << lo
-        keep = np.array(((1 << (8 * size)) - 1) & ~used, dtype=arr["c"].dtype)
-        containers.append((arr["c"], keep, parts))
-    return u8, groups, containers
+        dt, idx = index(typ, [r for _, r in cols])
+        groups.append((real, np.array([r for r, _ in cols]), idx,
+                       np.zeros((len(cols), count), dtype=dt)))
+    bitgroups = []
+    for typ in sorted({t for t, _ in bits.values()}):
+        rels = [r for r, (t, _) in bits.items() if t == typ]
+        dt, idx = index(typ, rels)
+        brows: list[int] = []
+        shift: list[int] = []
+        starts: list[int] = []
+        base = np.zeros((len(rels), count), dtype=dt)
+        for c, rel in enumerate(rels):
+            starts.append(len(brows))
+            used = 0
+            for row, lo, mask in bits[rel][1]:
+                brows.append(row)
+                shift.append(lo)
+                used |= mask << lo
+            for k in range(count):  # the container as it stands, less the bits written here
+                o = first.base + rel + k * stride
+                base[c, k] = int.from_bytes(first.buf[o:o + dt.itemsize], "little") & ~used
+        bitgroups.append((np.array(brows), np.array(shift)[:, None], np.array(starts), base,
+                          idx, np.zeros_like(base)))
+    bounds = (np.array([r for r, _, _ in check], dtype=np.intp),
+              np.array([x for _, x, _ in check], dtype=np.float64)[:, None],
+              np.array([x for _, _, x in check], dtype=np.float64)[:, None])
+    return u8, groups, bounds, bitgroups
 
 
 @cache
