@@ -15,7 +15,15 @@ Input: a full-load demo capture (``demo --virtual-time --objects 15 --signs 20 -
 Every figure is frames per CPU-second (user + system time of the process doing the work, start-up
 included for the CLI runs), so that neighbours on a loaded machine do not skew it.
 
+The CLI runs start as an installed copy does: with the package's bytecode cached (pip compiles it
+at install; a checkout writes ``__pycache__`` on its first run). Where ``PYTHONDONTWRITEBYTECODE``
+is set, as in some sandboxes, every run would compile the package's 370 kB of sources again
+(0.065 CPU-s); the children then keep their bytecode under ``--keep``/pycache
+(``PYTHONPYCACHEPREFIX``) after one untimed run. ``--cold-bytecode`` keeps the inherited
+environment instead (and says so in the output).
+
     python tools/bench_dissect.py [--duration 30] [--repeat 3] [--keep DIR] [--capture FILE]
+                                  [--cold-bytecode]
 """
 
 from __future__ import annotations
@@ -62,6 +70,9 @@ def summary(n: int, times: list[float]) -> dict[str, float]:
             "max": round(rates[-1])}
 
 
+ENV: dict[str, str] | None = None  # the children's environment (None: inherited)
+
+
 def cli(args: list[str], stdin: Path | None) -> tuple[float, int]:
     # the child reports its own CPU time (user + system) and peak RSS: on a loaded machine wall
     # time measures the neighbours
@@ -71,11 +82,12 @@ def cli(args: list[str], stdin: Path | None) -> tuple[float, int]:
     cmd = [sys.executable, "-c", code, *args]
     with open(os.devnull, "w") as null:
         if stdin is None:
-            r = subprocess.run(cmd, stdout=null, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+            r = subprocess.run(cmd, stdout=null, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                               env=ENV)
         else:
             cat = subprocess.Popen(["cat", str(stdin)], stdout=subprocess.PIPE)
             r = subprocess.run(cmd, stdin=cat.stdout, stdout=null, stderr=subprocess.PIPE,
-                               text=True, cwd=ROOT)
+                               text=True, cwd=ROOT, env=ENV)
             cat.wait()
     if r.returncode not in (0, 1):
         raise SystemExit(f"dissect failed: {r.stderr[-500:]}")
@@ -92,6 +104,9 @@ def main() -> int:
     ap.add_argument("--keep", type=Path, help="write the captures and tables here")
     ap.add_argument("--skip-before", action="store_true", help="do not time the exact path")
     ap.add_argument("--no-cli", action="store_true", help="baselines and validation only")
+    ap.add_argument("--cold-bytecode", action="store_true",
+                    help="CLI children in the inherited environment, even if it forbids "
+                    "writing bytecode (each run then compiles the package's sources)")
     a = ap.parse_args()
     work = a.keep or Path(tempfile.mkdtemp())
     work.mkdir(parents=True, exist_ok=True)
@@ -133,6 +148,16 @@ def main() -> int:
     out["batch_validation"] = {**valid, "x_crc_hqx": round(valid["median"] / base_crc["median"], 2),
                                "x_struct": round(valid["median"] / base_unpack["median"], 2),
                                "goal": GOALS["validate"]}
+    global ENV
+    if os.environ.get("PYTHONDONTWRITEBYTECODE") and not a.cold_bytecode:
+        ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+        ENV["PYTHONPYCACHEPREFIX"] = str((work / "pycache").resolve())
+        for warm in (["--stats"], ["--json"], ["--parquet", str(work / "tables")]):  # untimed
+            cli(["dissect", str(raw), "--direction", "e2h", *warm], None)
+        out["bytecode"] = f"cached in {ENV['PYTHONPYCACHEPREFIX']}"
+    else:
+        out["bytecode"] = ("compiled at every start (PYTHONDONTWRITEBYTECODE)"
+                           if os.environ.get("PYTHONDONTWRITEBYTECODE") else "as inherited")
     modes = {"stats": ["--stats"], "json": ["--json"],
              "parquet": ["--parquet", str(work / "tables")]}
     for fmt, path, count, extra in () if a.no_cli else (

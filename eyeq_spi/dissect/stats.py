@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import statistics
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
@@ -107,6 +106,8 @@ class Stats:
             periodic = nominal is not None and span > 0 and n > 1
             rates[name] = {"count": n, "mean_hz": round((n - 1) / span, 3) if periodic else None,
                            "nominal_hz": nominal}
+        import statistics  # 2 ms of start-up (decimal, fractions) only a MESP latency needs
+
         lat = {
             name: {"count": len(v), "min_ms": round(min(v) * 1e3, 3),
                    "median_ms": round(statistics.median(v) * 1e3, 3),

@@ -1,0 +1,235 @@
+"""The batch dissector's lean modes (``dissect --stats`` alone, one table writer): a group's
+messages cut from the chunk at once (dissect/vcut.py), records only for messages with errors,
+the others counted. ``--stats`` (text and JSON, key order included), the tables and the exit
+code are those of the exact engine on clean, link-faulty and application-faulty captures; and
+what the CLI does around it: the paced garbage collector, pandas kept out of Parquet writing."""
+
+from __future__ import annotations
+
+import gc
+import io
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from eyeq_spi import cli_dissect
+from eyeq_spi.capture.fastread import chunks_from_records
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
+from eyeq_spi.cli import main
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.dissect import batch, batch_run, engine, output
+from eyeq_spi.dissect.stats import Stats
+from eyeq_spi.dissect.vframes import FrameBlock
+from tests.test_batch import BASE, MUTATIONS, Rec, _as_records, synthetic
+from tests.test_vdecode import _capture
+
+CAT = MessageCodec().cat
+
+
+def _stats_text(st: Stats) -> tuple[str, str]:
+    st.finish()
+    return json.dumps(st.as_dict()), st.render()  # json.dumps keeps the key order
+
+
+def exact_stats(recs: list[Record]) -> tuple[str, str]:
+    st = Stats(CAT)
+    for r in engine.iter_records(recs):
+        st.add(r)
+    return _stats_text(st)
+
+
+def lean_stats(recs: list[Record], chunk: int) -> tuple[tuple[str, str], int, int]:
+    """--stats from count-mode blocks; also (messages with a record, messages counted)."""
+    st = Stats(CAT)
+    with_rec = counted = 0
+    for item in batch.iter_items(chunks_from_records(recs, chunk), fields="count"):
+        if isinstance(item, FrameBlock):
+            batch_run.consume(item, lambda r: True, True, st, [])
+            with_rec += len(item.messages)
+            counted += sum(g.n for g in item.counts)
+        else:
+            st.add(item)
+    return _stats_text(st), with_rec, counted
+
+
+@pytest.mark.parametrize("chunk", [5, 64, 1 << 15])
+def test_lean_stats_of_a_clean_capture_count_instead_of_records(chunk: int) -> None:
+    recs = _as_records(synthetic(12))
+    got, with_rec, counted = lean_stats(recs, chunk)
+    assert got == exact_stats(recs)
+    if chunk == 1 << 15:  # one span: the DASP messages are counted, MESP ones get records
+        assert counted >= 2 * 12 - 2 and with_rec >= 5 * 12 - 2
+
+
+@pytest.mark.parametrize("name", sorted(MUTATIONS))
+def test_lean_stats_under_each_link_fault(name: str) -> None:
+    for i, chunk in ((40, 1 << 15), (150, 16)):
+        recs = _as_records(MUTATIONS[name](BASE, min(i, len(BASE) - 1)))
+        assert lean_stats(recs, chunk)[0] == exact_stats(recs), (name, i, chunk)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 39), st.integers(1, 7)), max_size=6),
+       st.sampled_from([7, 64, 1 << 15]))
+def test_lean_stats_under_application_faults(faults: list[tuple[int, int]], chunk: int
+                                             ) -> None:
+    """E2E, counter gaps, reserved bytes, bad enums, wrong lengths, unknown IDs: the records
+    of the faulty messages and the counts of the others give the exact statistics."""
+    recs = _capture(faults)
+    assert lean_stats(recs, chunk)[0] == exact_stats(recs)
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(sorted(MUTATIONS)), st.integers(0, 10**6)),
+                min_size=1, max_size=4),
+       st.sampled_from([3, 17, 1 << 15]))
+def test_lean_stats_under_mixed_link_faults(ops: list[tuple[str, int]], chunk: int) -> None:
+    items: list[Rec] = BASE
+    for name, where in ops:
+        if len(items) < 2:
+            break
+        items = MUTATIONS[name](items, where % len(items))
+    recs = _as_records(items)
+    assert lean_stats(recs, chunk)[0] == exact_stats(recs)
+
+
+# -- the CLI: file (batch path) against stdin (exact path) ------------------------------------
+def _pcapng(recs: list[Record], path: Path) -> Path:
+    with CaptureWriter(path) as w:
+        for r in recs:
+            w.write(r.direction, r.time, r.data)
+    return path
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[Path, list[str]]]:
+    tmp = tmp_path_factory.mktemp("lean")
+    faulty = BASE
+    for name, where in (("flip", 30), ("drop", 90), ("late", 200), ("reset", 300)):
+        faulty = MUTATIONS[name](faulty, where)
+    app = _capture([(3, 1), (8, 2), (12, 4), (17, 5), (21, 7)])
+    raw = tmp / "e2h.bin"
+    raw.write_bytes(b"".join(r.data for r in app))
+    return [(_pcapng(_as_records(faulty), tmp / "faulty.pcapng"), []),
+            (_pcapng(app, tmp / "app.pcapng"), []), (raw, ["--direction", "e2h"])]
+
+
+class _Pipe(io.RawIOBase):
+    def __init__(self, data: bytes) -> None:
+        self.src = io.BytesIO(data)
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, b: Any) -> int:
+        chunk = self.src.read(len(b))
+        b[: len(chunk)] = chunk
+        return len(chunk)
+
+
+def _run(args: list[str], capsys: pytest.CaptureFixture[str], stdin: bytes | None = None,
+         monkeypatch: pytest.MonkeyPatch | None = None) -> tuple[int, str]:
+    capsys.readouterr()
+    if stdin is None:
+        return main(args), capsys.readouterr().out
+    assert monkeypatch is not None
+    with monkeypatch.context() as m:
+        m.setattr(sys, "stdin", io.TextIOWrapper(io.BufferedReader(_Pipe(stdin))))
+        rc = main(args)
+    return rc, capsys.readouterr().out
+
+
+@pytest.mark.parametrize("mode", [["--stats"], ["--stats", "--json"], ["--json"]])
+def test_cli_batch_and_exact_print_the_same(files: list[tuple[Path, list[str]]],
+                                            mode: list[str], capsys: pytest.CaptureFixture[str],
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """The test captures are small: SMALL_INPUT 0 sends them through the batch path."""
+    monkeypatch.setattr(cli_dissect, "SMALL_INPUT", 0)
+    for path, extra in files:
+        got = _run(["dissect", str(path), *extra, *mode], capsys)
+        want = _run(["dissect", "-", *extra, *mode], capsys, path.read_bytes(), monkeypatch)
+        assert got == want, path.name
+        assert got[0] == 1  # the faults are protocol errors
+
+
+def test_cli_tables_batch_and_exact(files: list[tuple[Path, list[str]]], tmp_path: Path,
+                                    capsys: pytest.CaptureFixture[str],
+                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    pq = pytest.importorskip("pyarrow.parquet", reason="--parquet needs pyarrow (extra)")
+    monkeypatch.setattr(cli_dissect, "SMALL_INPUT", 0)
+    for k, (path, extra) in enumerate(files):
+        for fmt in ("csv", "parquet"):
+            b, e = tmp_path / f"{k}{fmt}b", tmp_path / f"{k}{fmt}e"
+            rb = _run(["dissect", str(path), *extra, f"--{fmt}", str(b)], capsys)[0]
+            re_ = _run(["dissect", "-", *extra, f"--{fmt}", str(e)], capsys, path.read_bytes(),
+                       monkeypatch)[0]
+            assert rb == re_
+            names = sorted(p.name for p in e.iterdir())
+            assert names and names == sorted(p.name for p in b.iterdir())
+            for n in names:
+                if fmt == "csv":
+                    assert (b / n).read_bytes() == (e / n).read_bytes(), n
+                else:
+                    x, y = pq.read_table(b / n), pq.read_table(e / n)
+                    assert x.schema.equals(y.schema) and x.equals(y), n
+
+
+# -- around it -------------------------------------------------------------------------------
+def test_paced_gc_collects_per_block_and_every_pace(monkeypatch: pytest.MonkeyPatch) -> None:
+    calls: list[int] = []
+    monkeypatch.setattr(gc, "collect", lambda gen=2: calls.append(gen) or 0)
+    monkeypatch.setattr(cli_dissect, "PACE", 3)
+    items: list[Any] = [{"kind": "frame"}] * 7 + [object()] + [{"kind": "frame"}]
+    assert list(cli_dissect._paced_gc(iter(items))) == items
+    assert calls == [1, 1, 1]  # after records 3 and 6, after the block
+
+
+def test_dissect_leaves_the_collector_as_it_found_it(files: list[tuple[Path, list[str]]],
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    path, extra = files[0]
+    assert gc.isenabled()
+    main(["dissect", str(path), *extra, "--stats"])
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        main(["dissect", str(path), *extra, "--stats"])
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
+    main(["dissect", "/nonexistent.pcapng", "--stats"])  # an error on the way out
+    assert gc.isenabled()
+    capsys.readouterr()
+
+
+def test_parquet_writer_hides_pandas_only_while_it_lives(tmp_path: Path) -> None:
+    pytest.importorskip("pyarrow", reason="--parquet needs pyarrow (extra)")
+    if "pandas" in sys.modules:
+        pytest.skip("pandas already imported in this process: nothing to hide")
+    w = output.TableWriter(str(tmp_path), "parquet")
+    with pytest.raises(ImportError):
+        __import__("pandas")
+    w.close()
+    assert output._NoPandas not in sys.meta_path
+    try:
+        import pandas  # noqa: F401
+    except ImportError:
+        pytest.skip("pandas is not installed")
+
+
+def test_parquet_dictionaries_only_for_words(tmp_path: Path) -> None:
+    pq = pytest.importorskip("pyarrow.parquet", reason="--parquet needs pyarrow (extra)")
+    w = output.TableWriter(str(tmp_path), "parquet")
+    for r in engine.iter_records(_capture([])):
+        w.write(r)
+    w.close()
+    meta = pq.ParquetFile(tmp_path / "EYEQ_VIS_FAILSAFE_MSG.parquet").metadata
+    rg = meta.row_group(0)
+    dicts = {rg.column(i).path_in_schema: rg.column(i).has_dictionary_page
+             for i in range(rg.num_columns)}
+    assert dicts["direction"] and not dicts["frame_index"]
+    assert sum(dicts.values()) == 1
