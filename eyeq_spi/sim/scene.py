@@ -11,6 +11,7 @@ declared range and wire type (the intersection over every release with that shap
 from __future__ import annotations
 
 import math
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -52,8 +53,17 @@ from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
 __all__ = ["CLASSES", "Scene", "SceneConfig", "SceneWorld"]
 
 
+@cache
+def _lane_codes() -> IArr:
+    return np.array([_code("object_lane_assignment", n, v) for n, v in (
+        ("RIGHT_NEXT_NEXT", 2), ("RIGHT_NEXT", 1), ("EGO_LANE", 0), ("LEFT_NEXT", -1),
+        ("LEFT_NEXT_NEXT", -2))])
+
+
 class Scene(SceneWorld):
     """The world (objects, road, signs) and the writer of its DASP payloads."""
+
+    _signs_seen: tuple[object, list[tuple[int, float]]] | None = None
 
     def _after_step(self) -> None:
         self._columns()  # the vectorised part of filling EYEQ_VIS_OBSTACLES_MSG
@@ -108,9 +118,7 @@ class Scene(SceneWorld):
         v_bs = np.where(side_vis, FOCAL_PX * CAM_HEIGHT / far, 0.0)
         zero = np.zeros(len(idx))
         lane = self._lane_index(d)
-        lanes = np.array([_code("object_lane_assignment", n, v) for n, v in (
-            ("RIGHT_NEXT_NEXT", 2), ("RIGHT_NEXT", 1), ("EGO_LANE", 0), ("LEFT_NEXT", -1),
-            ("LEFT_NEXT_NEXT", -2))])
+        lanes = _lane_codes()
         lane_code = np.where(np.abs(lane) > 2, _code("object_lane_assignment", "UNKNOWN", 3),
                              lanes[np.clip(lane, -2, 2) + 2])
         vehicle = kind <= ONCOMING
@@ -334,9 +342,18 @@ class Scene(SceneWorld):
         _puts(rd, rn, {"drivingSide": _code("road_driving_side", "Right Side", 0),
                        "laneChange": _code("road_lane_change", "No lane change", 0)})
 
-    def _visible_signs(self) -> list[int]:
+    def _visible_signs(self) -> list[tuple[int, float]]:
+        """Signs ahead, nearest first, with their lateral distance; once per step (both sign
+        messages read it; ``_lateral`` is elementwise arithmetic, the same per sign or at once)."""
+        cached = self._signs_seen
+        if cached is not None and cached[0] is self._cols and cached[0] is not None:
+            return cached[1]
         idx = np.flatnonzero(self._sg_alive & (self._sg_s > 0.0))
-        return [int(i) for i in idx[np.argsort(self._sg_s[idx], kind="stable")]]
+        idx = idx[np.argsort(self._sg_s[idx], kind="stable")]
+        out = list(zip(idx.tolist(), self._lateral(self._sg_s[idx], self._sg_lat[idx]).tolist(),
+                       strict=True))
+        self._signs_seen = (self._cols, out)
+        return out
 
     def _fill_signs(self, values: dict[str, Any], node: _Node, t: float) -> None:
         tsr = _child(values, node, "tsrInfo")
@@ -344,9 +361,8 @@ class Scene(SceneWorld):
             return
         elems, en = _elements(*tsr, "trafficSigns")
         rows: list[dict[str, float]] = []
-        for i in self._visible_signs()[:len(elems)]:
+        for i, y in self._visible_signs()[:len(elems)]:
             s, z = float(self._sg_s[i]), float(self._sg_z[i])
-            y = float(self._lateral(self._sg_s[i:i + 1], self._sg_lat[i:i + 1])[0])
             ss = max(s, 1.0)
             u, v = IMAGE_W / 2 - FOCAL_PX * y / ss, IMAGE_H / 2 - FOCAL_PX * (z - CAM_HEIGHT) / ss
             half = FOCAL_PX * 0.35 / ss
@@ -406,9 +422,8 @@ class Scene(SceneWorld):
         _write_rows(spots, sn, rows, _SPOT_KEYS)
         signs, gn = _elements(ld, ln, "reflectiveSigns")
         refl: list[dict[str, float]] = []
-        for i in self._visible_signs()[:len(signs)]:
+        for i, y in self._visible_signs()[:len(signs)]:
             s, z = float(self._sg_s[i]), float(self._sg_z[i]) - CAM_HEIGHT
-            y = float(self._lateral(self._sg_s[i:i + 1], self._sg_lat[i:i + 1])[0])
             glare = 100.0 * math.exp(-s / 50.0)
             refl.append({
                 "lightSignLeftAngle": math.atan2(-y - 0.4, s),  # §15: "Negative: left"

@@ -267,7 +267,9 @@ def _elements(d: dict[str, Any], n: _Node, key: str) -> tuple[list[dict[str, Any
 def _write_rows(elems: list[dict[str, Any]], n: _Node, rows: list[dict[str, float]],
                 keys: tuple[str, ...]) -> None:
     """Rows into the first elements of an array of structs; ``keys`` of the rest zeroed."""
-    if elems and isinstance(elems[0], StructView) and _write_rows_packed(elems, n, rows, keys):
+    # a packer's views: numpy columns, unless so few values that the generated writers win
+    if elems and isinstance(elems[0], StructView) and len(elems) * len(keys) >= _MIN_COLUMNS \
+            and _write_rows_packed(elems, n, rows, keys):
         return
     for j, e in enumerate(elems):
         if j < len(rows):
@@ -280,6 +282,7 @@ def _write_rows(elems: list[dict[str, Any]], n: _Node, rows: list[dict[str, floa
 
 
 _EXACT = 2.0**53  # ints below this survive float64 exactly
+_MIN_COLUMNS = 48  # values per array below which _write_rows loops (measured: SRP's 2 x 10)
 
 
 def _write_rows_packed(elems: list[Any], n: _Node, rows: list[dict[str, float]],
