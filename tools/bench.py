@@ -264,12 +264,14 @@ def crc_baseline_us() -> float:
     return (time.thread_time() - c) / n * 1e6
 
 
-def _one_demo(virtual_s: float, full: bool, timed_host: bool) -> dict[str, float]:
+def _one_demo(virtual_s: float, full: bool, timed_host: bool,
+              dasp_packer: bool = True) -> dict[str, float]:
     from eyeq_spi.emulator import build
     from eyeq_spi.host.machine import HostState
     from eyeq_spi.sim.config import SimConfig
 
-    cfg = SimConfig(objects=15, signs=20, light_spots=15) if full else SimConfig()
+    cfg = SimConfig(objects=15, signs=20, light_spots=15, dasp_packer=dasp_packer) if full \
+        else SimConfig(dasp_packer=dasp_packer)
     emu = build(sim_config=cfg, keep_rx_times=False)
     host = None
     if timed_host:
@@ -283,7 +285,8 @@ def _one_demo(virtual_s: float, full: bool, timed_host: bool) -> dict[str, float
     return out
 
 
-def emulator_bench(runs: int = 3, long_s: float = 0.0) -> dict[str, float]:
+def emulator_bench(runs: int = 3, long_s: float = 0.0, dasp_packer: bool = True
+                   ) -> dict[str, float]:
     """``demo --virtual-time`` at full load (15 objects, 20 signs, 15 light spots): wall time
     per 60 s of virtual time, CPU-s per simulated second for host + simulated EyeQ and for the
     host alone (CPU inside the host's node calls), median and spread of ``runs`` runs, and each
@@ -293,8 +296,8 @@ def emulator_bench(runs: int = 3, long_s: float = 0.0) -> dict[str, float]:
     crc = [crc_baseline_us()]
     rows = []
     for _ in range(runs):
-        rows.append(_one_demo(60.0, True, False))
-        rows.append({**_one_demo(10.0, True, True), "wall_s": math.nan})
+        rows.append(_one_demo(60.0, True, False, dasp_packer))
+        rows.append({**_one_demo(10.0, True, True, dasp_packer), "wall_s": math.nan})
         crc.append(crc_baseline_us())
     base = statistics.median(crc)
     out["crc_hqx_128B_us_baseline"] = base
@@ -309,7 +312,7 @@ def emulator_bench(runs: int = 3, long_s: float = 0.0) -> dict[str, float]:
             out[label + "_in_crc_calls"] = statistics.median(vals) / (base * 1e-6)
     out["emulator_full_x_real_time"] = 60.0 / out["emulator_full_wall_s_per_60s_virtual"]
     if long_s:
-        r = _one_demo(long_s, True, False)
+        r = _one_demo(long_s, True, False, dasp_packer)
         out[f"emulator_full_wall_s_per_{long_s:g}s_virtual"] = r["wall_s"]
         out[f"emulator_full_x_real_time_{long_s:g}s"] = long_s / r["wall_s"]
     return out
@@ -363,12 +366,15 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=3, help="emulator runs (median and spread)")
     ap.add_argument("--long", type=float, default=0.0, metavar="S",
                     help="one more emulator run of S virtual seconds (the issue's 600)")
+    ap.add_argument("--dasp-dict", action="store_true",
+                    help="emulator runs with the simulated EyeQ's DASP dict path (the reference "
+                         "the packer is held to) instead of the packer")
     args = ap.parse_args()
     out: dict[str, float] = {}
     if not args.emulator_only:
         out.update({**frame_bench(args.seconds), **obstacles_bench(args.seconds)})
     if not args.no_emulator:
-        out.update(emulator_bench(args.runs, args.long))
+        out.update(emulator_bench(args.runs, args.long, not args.dasp_dict))
         out.update(dasp_bench(args.runs))
     for k, v in out.items():
         print(f"{k:55s} {v:14,.4g}")
