@@ -21,10 +21,12 @@ from eyeq_spi import cli_dissect
 from eyeq_spi.capture.fastread import chunks_from_records
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
 from eyeq_spi.cli import main
+from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import batch, batch_run, engine, output
 from eyeq_spi.dissect.stats import Stats
 from eyeq_spi.dissect.vframes import FrameBlock
+from eyeq_spi.transport.segment import segment
 from tests.test_batch import BASE, MUTATIONS, Rec, _as_records, synthetic
 from tests.test_vdecode import _capture
 
@@ -233,3 +235,36 @@ def test_parquet_dictionaries_only_for_words(tmp_path: Path) -> None:
              for i in range(rg.num_columns)}
     assert dicts["direction"] and not dicts["frame_index"]
     assert sum(dicts.values()) == 1
+
+
+def test_no_group_is_judged_across_a_switch_application_request() -> None:
+    """§7.1.1.1.4: after a SwitchEyeQApplication request the host's E2E rolling counters may
+    start over; the exact engine may judge the messages after it afresh, so the batch path
+    (records and lean counts) judges the messages on each side of it apart, in order."""
+    mc = MessageCodec()
+    fc = batch.Dissector().frames
+    e2e = {"a": E2EState(), "b": E2EState()}
+    zero = mc.layout(mc.message("HOST_VEH_STATE_MSG")).zero_values()
+    recs: list[Record] = []
+    num, t = 0, 0.0
+
+    def put(msg: bytes) -> None:
+        nonlocal num, t
+        for part in segment(msg, 0):
+            recs.append(Record(round(t, 6), "h2e", fc.data_frame(0, num, part)))
+            num, t = (num + 1) % 4096, t + 0.0003
+
+    for i in range(30):
+        put(mc.encode_dasp("HOST_VEH_STATE_MSG", zero, i, e2e["a"]))
+    put(mc.mesp.encode_request("SwitchEyeQApplication", 1, {"applicationId": 1}))
+    for i in range(30, 60):  # the host's E2E counters start over (a fresh state)
+        put(mc.encode_dasp("HOST_VEH_STATE_MSG", zero, i, e2e["b"]))
+    want = list(engine.iter_records(recs))
+    for chunk in (7, 1 << 15):
+        assert list(batch.iter_records(chunks_from_records(recs, chunk))) == want
+        assert lean_stats(recs, chunk)[0] == exact_stats(recs)
+    dec = batch.BatchDissector().decode
+    assert dec.is_barrier(mc.mesp.encode_request("SwitchEyeQApplication", 1,
+                                                 {"applicationId": 1}))
+    assert not dec.is_barrier(mc.mesp.encode_reply("SwitchEyeQApplication", 1, 0,
+                                                   {"applicationId": 1}))

@@ -365,8 +365,9 @@ class BatchDissector:
                 st.ui += 1
         if len(done) > 1:
             done.sort(key=lambda x: x[0])
-        if self.decode.lean:  # --stats or one table writer, no filter: vcut
-            block.messages, block.tables, block.counts = lean_messages(self, fa, done)
+        lean = lean_messages(self, fa, done) if self.decode.lean else None  # vcut
+        if lean is not None:  # --stats or one table writer, no filter
+            block.messages, block.tables, block.counts = lean
         else:
             msgs = self._messages(fa, done)
             for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):

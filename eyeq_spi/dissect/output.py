@@ -3,13 +3,10 @@
 from __future__ import annotations
 
 import csv
-import json
 import math
 import sys
 from pathlib import Path
 from typing import IO, Any
-
-import orjson
 
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.errors import EyeqError
@@ -123,16 +120,22 @@ class JsonWriter:
     ``1e+16``: :func:`json_float`); NaN and infinities are ``null`` either way."""
 
     def __init__(self, fh: IO[str], *, fast: bool = False) -> None:
+        import orjson  # here, not at start-up: --stats and the tables never need it
+
         self.fh = fh
         self.fast = fast
+        self._dumps = orjson.dumps
+        self._opt = orjson.OPT_APPEND_NEWLINE
 
     def write(self, r: dict[str, Any]) -> None:
         if self.fast:
             try:
-                self.fh.write(orjson.dumps(r, option=orjson.OPT_APPEND_NEWLINE).decode())
+                self.fh.write(self._dumps(r, option=self._opt).decode())
                 return
             except TypeError:  # an int over 64 bits: json.dumps writes it (same in both paths)
                 pass
+        import json
+
         try:
             text = json.dumps(r, separators=(",", ":"), allow_nan=False)
         except ValueError:  # NaN/Infinity are not JSON: they become null (README contract)
@@ -145,7 +148,9 @@ def json_float(t: float, fast: bool) -> str:
     which differs only where either uses an exponent."""
     s = repr(t)
     if fast and "e" in s:
-        return orjson.dumps(t).decode()
+        import orjson
+
+        return str(orjson.dumps(t).decode())
     return s
 
 
@@ -288,7 +293,7 @@ class TableWriter:
         w = self._pq.get(name)
         if w is None:
             w = self._pq[name] = _parquet_writer(pq, self.dir / f"{name}.parquet", table.schema)
-        w.write_table(table.cast(w.schema))
+        w.write_table(table if table.schema.equals(w.schema) else table.cast(w.schema))
 
     def _write_csv(self, name: str, row: dict[str, Any]) -> None:
         entry = self._csv.get(name)
@@ -315,7 +320,7 @@ class TableWriter:
         w = self._pq.get(name)
         if w is None:
             w = self._pq[name] = _parquet_writer(pq, self.dir / f"{name}.parquet", table.schema)
-        w.write_table(table.cast(w.schema))
+        w.write_table(table if table.schema.equals(w.schema) else table.cast(w.schema))
         rows.clear()
 
     def close(self) -> None:

@@ -106,11 +106,9 @@ class Stats:
             periodic = nominal is not None and span > 0 and n > 1
             rates[name] = {"count": n, "mean_hz": round((n - 1) / span, 3) if periodic else None,
                            "nominal_hz": nominal}
-        import statistics  # 2 ms of start-up (decimal, fractions) only a MESP latency needs
-
         lat = {
             name: {"count": len(v), "min_ms": round(min(v) * 1e3, 3),
-                   "median_ms": round(statistics.median(v) * 1e3, 3),
+                   "median_ms": round(_median(v) * 1e3, 3),
                    "max_ms": round(max(v) * 1e3, 3), "timeouts": self.mesp_timeouts.get(name, 0)}
             for name, v in sorted(self.mesp_latency.items())
         }
@@ -154,3 +152,9 @@ class Stats:
                 out.append(f"  {name:30s} timeouts {r['timeouts']}")
         out.append(f"== protocol errors: {d['protocol_errors']}")
         return "\n".join(out)
+
+
+def _median(v: list[float]) -> float:
+    import statistics  # 2 ms of start-up (decimal, fractions): only MESP latencies need it
+
+    return float(statistics.median(v))

@@ -47,9 +47,11 @@ def _key_of(data: bytes) -> int:
 
 def lean_messages(bd: BatchDissector, fa: FrameArrays, done: Done
                   ) -> tuple[list[tuple[int, dict[str, Any]]], list[ColumnGroup],
-                             list[GroupCount]]:
+                             list[GroupCount]] | None:
     """(row, record) of the messages that get a record, in row order; the column groups
-    (``first``: their position among those records); the counts of the others."""
+    (``first``: their position among those records); the counts of the others. None: the
+    block has a barrier message (:meth:`.vmessages.SpanDecoder.is_barrier`): the caller takes
+    the non-lean path, which judges the messages on each side of it apart."""
     dec = bd.decode
     data = fa.chunk.data
     base = fa.base
@@ -72,7 +74,7 @@ def lean_messages(bd: BatchDissector, fa: FrameArrays, done: Done
     total = np.ascontiguousarray(data[start, 8:12]).view("<u4")[:, 0].astype(np.int64)
     length = np.where(first, total, data[start, 7].astype(np.int64))
     col = np.where(first, 12, 8)
-    b = data[start[:, None], col[:, None] + np.arange(4)].astype(np.int64)
+    b = data[start[:, None], col[:, None] + np.arange(5)].astype(np.int64)
     # rule A (codec.message.classify), in its order
     mesp = (length >= 3) & (b[:, 1] == MESP_PROTOCOL) & (b[:, 0] == b[:, 2])
     kind = np.full(m, -1, np.int64)
@@ -81,12 +83,18 @@ def lean_messages(bd: BatchDissector, fa: FrameArrays, done: Done
     kind[dasp] = b[dasp, 1]
     kind[other & (b[:, 0] == DIAG_ID)] = DIAG_KEY
     kind[other & (b[:, 0] == BOOT_ID)] = BOOT_KEY
+    # a MESP request of a barrier function (its service and function, reply bit clear)
+    req = mesp & (length >= 5) & ((b[:, 4] & 0x80) == 0)
+    if req.any() and any(dec.is_barrier(bytes(x)) for x in b[req].astype(np.uint8).tolist()):
+        return None
     # the carried transfers (frames from the previous chunk) as span messages
     loose: dict[int, SpanMessage] = {}
     loose_keys: dict[tuple[int, int], int] = {}  # at most one per direction: its first unit
     for j in carried:
         row, st, u = done[j]
         msg = bd._message(fa, st, u, row)
+        if dec.is_barrier(msg.data):
+            return None
         loose[j] = msg
         loose_keys[(st.code, _key_of(msg.data))] = j
     keys = set(zip(codes.tolist(), kind.tolist(), strict=True)) | set(loose_keys)

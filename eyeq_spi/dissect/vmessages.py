@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import classify
 from eyeq_spi.codec.vdecode import vec_layout
 from eyeq_spi.dissect.engine import Dissector
@@ -63,6 +64,7 @@ class SpanMessage:
         return MessageReceived(self.data, self.nums, self.tid)
 
 
+BARRIER = "SwitchEyeQApplication"  # see SpanDecoder.is_barrier
 FIELD_MODES = ("dict", "none", "count", "columns")
 LEAN_MODES = ("count", "columns")
 
@@ -102,6 +104,16 @@ class SpanDecoder:
 
     def records(self, msgs: list[SpanMessage]) -> list[dict[str, Any]]:
         """The message records of ``msgs`` (in capture order), in that order."""
+        cut = next((i for i, m in enumerate(msgs) if self.is_barrier(m.data)), None)
+        if cut is not None:  # the messages before it, it, then the ones after it
+            head = self.records(msgs[:cut])
+            tables = self.tables
+            mid = self.records_exact(msgs[cut : cut + 1])
+            tail = self.records(msgs[cut + 1 :])
+            for g in self.tables:
+                g.first += cut + 1
+            self.tables = tables + self.tables
+            return head + mid + tail
         out: list[dict[str, Any] | None] = [None] * len(msgs)
         self.tables = []
         groups: dict[tuple[str | None, int | str], list[int]] = {}
@@ -126,13 +138,29 @@ class SpanDecoder:
                 exact += rows
         if len(self.tables) > 1:
             self.tables.sort(key=lambda g: g.first)
-        for i in sorted(exact) if len(exact) > 1 else exact:
-            m = msgs[i]
+        for i, rec in zip(sorted(exact), self.records_exact([msgs[i] for i in sorted(exact)]),
+                          strict=True):
+            out[i] = rec
+        return out  # type: ignore[return-value]
+
+    def records_exact(self, msgs: list[SpanMessage]) -> list[dict[str, Any]]:
+        """The exact engine's records of ``msgs``, one by one."""
+        out = []
+        for m in msgs:
             self.dis.last_time = m.time
             rec = self.dis._message(m.direction, self.dis._dirs[m.direction], m.ev)
             rec["frames"] = m.frames
-            out[i] = rec
-        return out  # type: ignore[return-value]
+            out.append(rec)
+        return out
+
+    def is_barrier(self, data: bytes) -> bool:
+        """A MESP SwitchEyeQApplication request (§7.1.1.1.4): the exact engine may reset the
+        direction's E2E state on it (the application restarts), so no group is judged across
+        it: the messages before it, it, and those after it are judged in that order."""
+        if len(data) < 5 or data[1] != MESP_PROTOCOL or data[0] != data[2] or data[4] & 0x80:
+            return False
+        f = self.codec.mesp.functions.get((data[0], data[3]))
+        return f is not None and f.name == BARRIER
 
     def _rows(self, msgs: list[SpanMessage], rows: list[int], msg: Any, header: int
               ) -> tuple[Any, Any, list[bytes], Any] | None:
