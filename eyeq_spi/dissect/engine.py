@@ -46,6 +46,9 @@ def jsonable(v: Any) -> Any:
     return v
 
 
+SWITCH_APP = "SwitchEyeQApplication"
+
+
 @dataclass
 class _Direction:
     conn: TransportConnection
@@ -177,6 +180,11 @@ class Dissector:
 
     def _message(self, direction: str | None, d: _Direction, ev: MessageReceived) -> dict[str, Any]:
         out = self.codec.decode(ev.data, d.e2e if ev.data[:1] == b"\x65" else None)
+        if out.name == SWITCH_APP and out.protocol == "MESP" and not out.header.get("reply"):
+            # §7.1.1.7: the EyeQ application restarts and judges the sender's E2E rolling
+            # counters (D5) afresh, as the simulated EyeQ does; so does a passive observer (a
+            # host's counters may start over with its bring-up after this soft reset)
+            d.e2e.seen.clear()
         errors = list(out.errors)
         data_id = out.header.get("data_id") if out.protocol == "DASP" else None
         if data_id is not None:
