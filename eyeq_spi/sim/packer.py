@@ -91,12 +91,14 @@ def _slots(lay: Layout) -> dict[str, Slot]:
 class StructView:
     """One struct of a :class:`DaspPacker`'s payload, used like its value dict."""
 
-    __slots__ = ("base", "buf", "cache", "kids", "layout", "shadow", "slots", "template")
+    __slots__ = ("base", "buf", "cache", "kids", "layout", "shadow", "slots", "template",
+                 "writers")
 
     def __init__(self, buf: bytearray, lay: Layout, base: int, keep: bool,
                  cache: dict[Any, Any]) -> None:
         self.buf, self.layout, self.base, self.cache = buf, lay, base, cache
         self.template: dict[str, Any] | None = None  # the root's: the dict path's template
+        self.writers: dict[Any, Any] = {}  # scene_layout._puts' generated writers for this view
         key = ("slots", id(lay))
         if key not in cache:
             cache[key] = (lay, _slots(lay))

@@ -197,21 +197,15 @@ def _put(d: dict[str, Any], n: _Node, key: str, x: float) -> None:
 
 def _puts(d: dict[str, Any], n: _Node, vals: dict[str, float]) -> None:
     if isinstance(d, StructView):
-        ck = ("puts", id(n), tuple(vals))
-        got = d.cache.get(ck)
+        keys = tuple(vals)
+        got = d.writers.get((id(n), keys))
         if got is None or got[0] is not n:
-            got = d.cache[ck] = (n, {})
-        writer = got[1].get(d.base, _NONE)
-        if writer is _NONE:
-            writer = got[1][d.base] = _compile_puts(d, n, tuple(vals))
-        if writer is not None:
-            writer(d.buf, d.shadow, vals)
+            got = d.writers[(id(n), keys)] = (n, _compile_puts(d, n, keys))
+        if got[1] is not None:
+            got[1](d.buf, d.shadow, vals)
             return
     for key, x in vals.items():
         _put(d, n, key, x)
-
-
-_NONE: Any = object()
 
 
 def _compile_puts(d: StructView, n: _Node, keys: tuple[str, ...]
