@@ -149,9 +149,11 @@ def test_sign_position_and_glare_boundaries_follow_the_angle_convention() -> Non
     signs = Dasp("EYEQ_VIS_TRAFFIC_SIGNS_MSG",
                  {"tsrInfo": {"numberTrafficSigns": 1, "trafficSigns": [sign]}})
     spot = {"classification": 1, "leftAngle": -0.10, "rightAngle": -0.05, "bottomAngle": 0.02,
-            "topAngle": 0.0, "longPos": 80.0}  # a headlamp pair left of the axis (§15: right +)
+            "topAngle": 0.03, "longPos": 80.0}  # a headlamp pair left of the axis (§15: right +)
+    # a nearer pair lower in the image (SW4.0+: above the horizon positive, 004 line 3295)
+    near = {**spot, "leftAngle": -0.07, "bottomAngle": -0.03, "topAngle": -0.01, "longPos": 40.0}
     light = Dasp("EYEQ_VIS_LIGHT_SENSOR_DATA_MSG", {"activeLightSensorInfo": {
-        "numOfActiveLightSpots": 1, "activeLightSpots": [spot], "ahbcAvailable": 1,
+        "numOfActiveLightSpots": 2, "activeLightSpots": [spot, near], "ahbcAvailable": 1,
         "beamRequest": 0, "villageDetected": 0, "fogDetected": 0, "highwayDetected": 0}})
     _, recs = run_one_cycle("extlog2", {"s": signs, "l": light})
     by_name = {r["name"]: r for r in recs}
@@ -162,6 +164,12 @@ def test_sign_position_and_glare_boundaries_follow_the_angle_convention() -> Non
         math.degrees(0.10), abs=0.1)
     assert g["Boundary_Domain_Non_Glare_Right_Hand_HLB"] == pytest.approx(
         math.degrees(0.05), abs=0.1)
+    # the lower boundary is the closest object's, the lowest bottom edge, upwards positive
+    # (001 lines 1620, 1676): -0.03 rad, not the farther spot's +0.02
+    assert dict(can_specs()[1].derived)["up"].expr == "1"
+    assert g["Boundary_Domain_Bottom_Non_Glare_HLB"] == pytest.approx(
+        math.degrees(-0.03), abs=0.1)
+    assert g["Object_Distance_HLB"] == 40.0
 
 
 def test_a_valid_value_never_sends_the_invalid_raw_value() -> None:
