@@ -193,12 +193,14 @@ def _batch_run(args: argparse.Namespace) -> Any:
     return batch_run
 
 
-PACE = 4096  # records between two collections of the young generations
+PACE = 4096  # records between two looks at the young generation
+YOUNG = 20_000  # containers it must have grown by to be collected
 
 
 def _paced_gc(items: Any) -> Iterator[Any]:
-    """``items``, with the young generations of the cyclic garbage collector collected after
-    each frame block and every ``PACE`` other items, while the automatic collector is off.
+    """``items``, with the young generations of the cyclic garbage collector collected (when
+    they have grown by ``YOUNG`` containers) after each frame block and every ``PACE`` other
+    items, while the automatic collector is off.
 
     Records are trees of dicts and lists freed by reference counting; the default automatic
     collection (every 700 new containers) re-scanned records under construction (1,500
@@ -212,8 +214,9 @@ def _paced_gc(items: Any) -> Iterator[Any]:
         del item  # the caller drops its own reference before it asks for the next one
         n += 1
         if n >= PACE or block:
-            gc.collect(1)
             n = 0
+            if gc.get_count()[0] >= YOUNG:
+                gc.collect(1)
 
 
 def _all(dis: Any, records: Iterator[Any]) -> Iterator[dict[str, Any]]:

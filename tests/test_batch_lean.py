@@ -184,11 +184,14 @@ def test_cli_tables_batch_and_exact(files: list[tuple[Path, list[str]]], tmp_pat
 # -- around it -------------------------------------------------------------------------------
 def test_paced_gc_collects_per_block_and_every_pace(monkeypatch: pytest.MonkeyPatch) -> None:
     calls: list[int] = []
+    young = iter([5, 50, 60, 70])  # what the young generation has grown by at each look
     monkeypatch.setattr(gc, "collect", lambda gen=2: calls.append(gen) or 0)
+    monkeypatch.setattr(gc, "get_count", lambda: (next(young), 0, 0))
     monkeypatch.setattr(cli_dissect, "PACE", 3)
-    items: list[Any] = [{"kind": "frame"}] * 7 + [object()] + [{"kind": "frame"}]
+    monkeypatch.setattr(cli_dissect, "YOUNG", 10)
+    items: list[Any] = [{"kind": "frame"}] * 7 + [object()] + [{"kind": "frame"}] * 3
     assert list(cli_dissect._paced_gc(iter(items))) == items
-    assert calls == [1, 1, 1]  # after records 3 and 6, after the block
+    assert calls == [1, 1, 1]  # looks after records 3 (too young) and 6, the block, 3 more
 
 
 def test_dissect_leaves_the_collector_as_it_found_it(files: list[tuple[Path, list[str]]],
