@@ -470,9 +470,9 @@ def test_light_spots() -> None:
         for spot in info["activeLightSpots"][:n]:
             assert spot["classification"] in classes
             assert spot["vdID"] in ids
-            # §15: right of the sensor positive, below the horizon positive
+            # §15: right of the sensor positive; SW4.0+ above the horizon positive (line 3295)
             assert spot["rightAngle"] >= spot["leftAngle"]
-            assert spot["bottomAngle"] >= spot["topAngle"]
+            assert spot["bottomAngle"] <= spot["topAngle"]
             assert spot["pixelTop"] >= spot["pixelBottom"]  # from the image's bottom left
             assert spot["pixelRight"] >= spot["pixelLeft"]
         assert all(s["classification"] == 0 for s in info["activeLightSpots"][n:])
@@ -503,3 +503,26 @@ def test_frame_counters_and_timestamps_increase() -> None:
         last = now
 
 
+
+
+@pytest.mark.parametrize(("sw", "up"), [("sw9", True), ("sw4", True), ("sw3", False),
+                                        ("sw2_2", False)])
+def test_light_spot_vertical_angles_follow_the_release(sw: str, up: bool) -> None:
+    """§15: light-spot top/bottom angles count above the horizon positive in the SW4.0+ table
+    (seed 004 lines 3294-3295) and below it before (lines 3256-3257, 3273-3274). The lamps are
+    below the camera, so their angles are negative from SW4.0; the bottom edge is lower than the
+    top edge either way, and the pixel rows (from the image's bottom) do not change."""
+    from eyeq_spi.sim.config import SimConfig
+    from eyeq_spi.sim.eyeq import SimulatedEyeQ
+
+    assert SimulatedEyeQ(SimConfig(sw=sw)).scene.config.spot_angles_up is up
+    scene = Scene(SceneConfig(seed=3, objects=10, light_spots=8, spot_angles_up=up))
+    for _ in run(scene, 1.0):
+        pass
+    spots = filled(scene, LIGHTS, 1.0, sw)["activeLightSensorInfo"]["activeLightSpots"]
+    lit = [s for s in spots if s["longPos"] > 0]
+    assert lit
+    for s in lit:
+        lower = s["bottomAngle"] < s["topAngle"] if up else s["bottomAngle"] > s["topAngle"]
+        assert lower and (s["bottomAngle"] < 0) is up
+        assert s["pixelBottom"] < s["pixelTop"]

@@ -58,6 +58,7 @@ from eyeq_spi.sim.packer import DaspPacker
 from eyeq_spi.sim.scene import Scene, SceneConfig
 from eyeq_spi.sim.schedule import DueHeap
 from eyeq_spi.spec.catalog import MessageDef, sw_release
+from eyeq_spi.spec.schema import sw_key
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
@@ -120,7 +121,8 @@ class SimulatedEyeQ:
             self.eeprom[0x4C] ^= 0xFF
         self.flash = FlashImage(cfg.flash_mb, cfg.seed)
         self.scene = Scene(SceneConfig(seed=cfg.seed, objects=cfg.objects, signs=cfg.signs,
-                                       light_spots=cfg.light_spots))
+                                       light_spots=cfg.light_spots,
+                                       spot_angles_up=sw_key(self.sw) >= sw_key("sw4")))
         self.counters = SimCounters()
         self.e2e = E2EState()
         self.server = MespServer({

@@ -397,6 +397,7 @@ class Scene(SceneWorld):
         lit = np.flatnonzero(self._alive & (self._kind <= CYCLIST) & (self._s > 3.0))
         lit = lit[np.argsort(self._s[lit], kind="stable")][:min(self._n_spots, len(spots))]
         y_all = self._lateral(self._s, self._d)
+        vsign = -1.0 if self.config.spot_angles_up else 1.0  # top, bottom: below-positive
         rows: list[dict[str, float]] = []
         oncoming_seen = False
         for i in (int(k) for k in lit):
@@ -407,12 +408,13 @@ class Scene(SceneWorld):
             code = (_code(cls, "Pair of Headlamps", 3) if kind == ONCOMING else
                     _code(cls, "Pair of Tail-lamps", 4) if pair else _code(cls, "Tail-lamp", 2))
             # §15 light spots: "angles to the right of the sensor coordinate system are
-            # positive", "angle below the horizon are positive"; pixels from the image's left
-            # bottom corner
+            # positive"; "angle above the horizon are positive" from SW4.0 (line 3295), below
+            # before it (line 3257); pixels from the image's left bottom corner
             left, right = math.atan2(-y - half, s), math.atan2(half - y, s)
             top, bottom = math.atan2(CAM_HEIGHT - 1.0, s), math.atan2(CAM_HEIGHT - 0.6, s)
             rows.append({
-                "leftAngle": left, "rightAngle": right, "topAngle": top, "bottomAngle": bottom,
+                "leftAngle": left, "rightAngle": right, "topAngle": vsign * top,
+                "bottomAngle": vsign * bottom,
                 "id": float(self._oid[i]), "vdID": float(self._oid[i]), "longPos": s,
                 "pixelTop": IMAGE_H / 2 - FOCAL_PX * math.tan(top),
                 "pixelBottom": IMAGE_H / 2 - FOCAL_PX * math.tan(bottom),

@@ -69,6 +69,9 @@ class SceneConfig:
     signs: int = 4  # 0..20 traffic signs visible at a time
     light_spots: int = 4  # 0..15
     ego_speed: float = 25.0  # m/s, default constant-speed drive
+    # light-spot topAngle/bottomAngle count above the horizon positive in the SW4.0+ table
+    # (seed 004 lines 3294-3295), below the horizon in the earlier ones (lines 3256-3257, 3273-3274)
+    spot_angles_up: bool = True
 
 
 # -- member ranges, recognised from the shape of a value dict ------------------------------------
