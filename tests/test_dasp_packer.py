@@ -84,7 +84,7 @@ def test_packer_bytes_equal_the_dict_path(seed: int, sw: str, objects: int, sign
 def test_full_load_over_many_frames_and_calibration(sw: str) -> None:
     ref, new = _pair(sw=sw, seed=11, objects=15, signs=20, light_spots=15)
     _compare(ref, new, [k / 18 for k in range(40)])
-    # TAC/SPC results in progress, then done (eyeq._fill_calibration reads a member back)
+    # TAC/SPC results in progress, then done (sim.calibration.fill_calibration reads a member back)
     ref2, new2 = _pair(sw=sw, seed=3, objects=15, signs=20, light_spots=15, tac_duration=0.5)
     _compare(ref2, new2, [2.0 + k / 18 for k in range(20)], calibrating_from=2.0)
 

@@ -30,12 +30,10 @@ EEPROM; on a mismatch it reports Fatal_Error 22 in 0x41 and will not enter visio
 from __future__ import annotations
 
 import math
-import zlib
 from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.codec.bits import BitSignalCodec
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.intrinsic import (
@@ -52,6 +50,7 @@ from eyeq_spi.mesp.server import (
     RET_NOT_ALLOWED,
     MespServer,
 )
+from eyeq_spi.sim.calibration import fill_calibration, strip_crc
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.flash import FlashImage, hash_request
 from eyeq_spi.sim.packer import DaspPacker
@@ -140,7 +139,7 @@ class SimulatedEyeQ:
         except EyeqError:
             expected = None  # §7.1.3 intrinsic calibration: no 0x84 table in this release
         if expected is not None and expected.codec is not None:
-            self._expected_0x84_no_crc = self._strip_crc(expected.codec, expected.codec.encode(
+            self._expected_0x84_no_crc = strip_crc(expected.codec, expected.codec.encode(
                 intrinsic_params_from_eeprom(bytes(self.eeprom), self.sw)))
         self._replies: deque[tuple[float, bytes]] = deque()
         self._dropped: Counter[str] = Counter()
@@ -431,7 +430,7 @@ class SimulatedEyeQ:
         if stage == 0x84:
             assert msg.codec is not None
             if (self._expected_0x84_no_crc is not None
-                    and self._strip_crc(msg.codec, params) != self._expected_0x84_no_crc):
+                    and strip_crc(msg.codec, params) != self._expected_0x84_no_crc):
                 self.fatal_error = FATAL_INTRINSIC  # §7.1.3: NVM does not match the EEPROM
         elif stage == 0x92:
             self._init_ok = True
@@ -444,17 +443,6 @@ class SimulatedEyeQ:
     def _cal_result(self, stage: int, ret: int, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         self.counters.calibration_events.append((stage, ret))
         return ret, {k: p[k] for k in ("ct_type", "ct_stage", "ct_version")}
-
-    @staticmethod
-    def _strip_crc(codec: BitSignalCodec, params: bytes) -> bytes:
-        if "CRC_from_EEPROM" not in codec.signals or len(params) != codec.length:
-            return params
-        raw = codec.decode_raw(params)
-        raw["CRC_from_EEPROM"] = 0
-        word = 0
-        for s in codec.variant.signals:
-            word |= raw[s.name] << s.start
-        return word.to_bytes(codec.length, "little")
 
     # -- transmit ---------------------------------------------------------------------------
     def _send(self, message: bytes, now: float) -> None:
@@ -587,36 +575,10 @@ class SimulatedEyeQ:
                 values["spiDiagnosticInfo"] = self.conn.link.counters.seed_view()
             return
         if name in ("EYEQ_TAC_CAL_MSG", "EYEQ_DYNAMIC_CAL_MSG") and self._cal_started is not None:
-            self._fill_calibration(name, values, now)
+            fill_calibration(name, values, now, self._cal_started, self.config.tac_duration,
+                             self.config.seed, self.config.tac_error)
             return
         self.scene.fill(name, values, now)
 
     def calibration_done(self, now: float) -> bool:
         return self._cal_started is not None and now - self._cal_started >= self.config.tac_duration
-
-    def _fill_calibration(self, name: str, values: dict[str, Any], now: float) -> None:
-        assert self._cal_started is not None
-        done = self.calibration_done(now)
-        frac = min(1.0, (now - self._cal_started) / max(self.config.tac_duration, 1e-9))
-        if name == "EYEQ_TAC_CAL_MSG":
-            cal = values["tacCalParams"]
-            cal["runMode"] = 1
-            cal["progress"] = 4 if done else 1
-            cal["error"] = (self.config.tac_error or 1) if done else 0
-        else:
-            cal = values["dynamicCalParams"]
-            cal["runMode"] = 5
-            cal["status"] = 1 if done else 0  # SUCCESS / INIT
-            cal["error"] = 3 if done else 0  # OK when done, as scene.py's SPC results (§9.9)
-            cal["overallProgress"] = int(frac * 100)
-        # deterministic "measured" alignment from the seed
-        h = zlib.crc32(f"{self.config.seed}-{name}".encode())
-        cal["distYaw"] = (h & 0x3F) - 32 if done else 0
-        cal["distPitch"] = ((h >> 6) & 0x3F) - 32 if done else 0
-        cal["roll"] = ((h >> 12) & 0xFF) / 1000.0 - 0.128 if done else 0.0
-        cal["phYaw"] = cal["distYaw"] * 0.05
-        cal["phPitch"] = cal["distPitch"] * 0.05
-        if "camHeight" in cal:
-            cal["camHeight"] = 1.25
-        cal["timestamp_us"] = int(now * 1e6)
-

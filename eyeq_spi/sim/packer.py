@@ -103,7 +103,7 @@ class StructView:
         if key not in cache:
             cache[key] = (lay, _slots(lay))
         self.slots: dict[str, Slot] = cache[key][1]
-        # the values last written, for a filler that reads one back (eyeq._fill_calibration);
+        # the values last written, for a filler that reads one back (calibration.fill_calibration);
         # elements of arrays keep none (only numpy columns write them) and read the buffer
         self.shadow: dict[str, Any] | None = {} if keep else None
         self.kids: dict[str, StructView | list[StructView]] = {}
