@@ -23,7 +23,7 @@ from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect import batch, batch_run, engine, output
+from eyeq_spi.dissect import batch, batch_run, engine, inputs, output
 from eyeq_spi.dissect.stats import Stats
 from eyeq_spi.dissect.vframes import FrameBlock
 from eyeq_spi.transport.segment import segment
@@ -271,3 +271,28 @@ def test_no_group_is_judged_across_a_switch_application_request() -> None:
                                                  {"applicationId": 1}))
     assert not dec.is_barrier(mc.mesp.encode_reply("SwitchEyeQApplication", 1, 0,
                                                    {"applicationId": 1}))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.sampled_from(sorted(inputs._BINARY_LEAD)),
+       # text formats, whole and without their first character (the lead byte completes it
+       # where that byte could start a text)
+       st.sampled_from([t[k:] for t in (b"$date today $end\n", b"Time [s],Packet ID,MOSI\n",
+                                        b"0.5 e2h 08000000 0000 0102030405060708\n",
+                                        b"META samplerate: 1\n$var wire 1 ! cs $end\n",
+                                        b"\xef\xbb\xbfTime [s],x\n") for k in (0, 1)]),
+       st.binary(max_size=300))
+def test_a_binary_first_byte_skips_only_text_sniffers_that_cannot_match(
+        lead: int, text: bytes, rest: bytes) -> None:
+    """detect() skips the logic-analyzer and hex sniffers for a head whose first byte no text
+    format starts with (every raw capture: 0x04 ACK, 0x08 DATA): same answer or same error."""
+    def run(head: bytes, sniff: bool) -> str:
+        try:
+            return inputs._detect(head, sniff)
+        except inputs.InputError as exc:
+            return f"error: {exc}"
+
+    for head in (bytes([lead]) + text + rest, bytes([lead]) + rest + text):
+        assert run(head, True) == run(head, False)
+    frames = b"".join(r.data for r in _capture([])[:8])
+    assert inputs.detect(frames) == "raw" and frames[0] in inputs._BINARY_LEAD

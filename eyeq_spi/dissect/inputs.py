@@ -60,21 +60,36 @@ class PeekStream:
         return self.fh.read(n)
 
 
+# Bytes no text format can begin with: not ASCII whitespace for bytes.lstrip or the hex regex,
+# not whitespace for str.strip (0x1C-0x1F are), not a letter, quote, digit or '$'. An EyeQ frame's
+# first byte (the header word's low byte: 0x04 ACK, 0x08 DATA) is one of them.
+_BINARY_LEAD = frozenset([*range(0x00, 0x09), *range(0x0E, 0x1C)])
+
+
 def detect(head: bytes) -> str:
+    return _detect(head, text=not head or head[0] not in _BINARY_LEAD)
+
+
+def _detect(head: bytes, text: bool) -> str:
+    """``text``: try the text formats (logic-analyzer exports, hex). A head that starts with a
+    byte of ``_BINARY_LEAD`` can be none of them, so a raw capture skips their sniffers (and the
+    import of eyeq_spi.logic): the answer is the same (tests/test_batch_lean.py)."""
     if not head:
         raise InputError("empty input")
     if head[:4] == PCAPNG_MAGIC:
         return "pcapng"
-    logic = _sniff_logic(head)
-    if logic is not None:
-        return logic
-    sample = head[:2048]
-    lines = sample.split(b"\n")
-    if len(lines) > 1:
-        lines = lines[:-1]  # the last line of the sample may be cut
-    body = [line.split(b"#", 1)[0] for line in lines]
-    if all(_HEX_LINE.match(line) for line in body) and re.search(rb"[0-9A-Fa-f]{16}", sample):
-        return "hex"
+    if text:
+        logic = _sniff_logic(head)
+        if logic is not None:
+            return logic
+        sample = head[:2048]
+        lines = sample.split(b"\n")
+        if len(lines) > 1:
+            lines = lines[:-1]  # the last line of the sample may be cut
+        body = [line.split(b"#", 1)[0] for line in lines]
+        if all(_HEX_LINE.match(line) for line in body) and re.search(rb"[0-9A-Fa-f]{16}",
+                                                                     sample):
+            return "hex"
     if head[:4] in (b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4"):
         raise InputError("classic pcap is not supported: convert with editcap -F pcapng")
     codec = FrameCodec()
