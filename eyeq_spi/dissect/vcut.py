@@ -27,6 +27,7 @@ from eyeq_spi.capture.fastread import DIR_NAME
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, DIAG_ID, classify
 from eyeq_spi.dissect.vmessages import ColumnGroup, GroupCount, SpanMessage
+from eyeq_spi.link.frame import SEQ_MODULO
 
 if TYPE_CHECKING:
     from eyeq_spi.dissect.batch import BatchDissector, _Dir, _Unit
@@ -56,14 +57,19 @@ def lean_messages(bd: BatchDissector, fa: FrameArrays, done: Done
     data = fa.chunk.data
     base = fa.base
     columns_mode = dec.fields == "columns"
-    loc = [j for j, (_, _, u) in enumerate(done) if u.ks >= 0]
-    carried = [j for j, (_, _, u) in enumerate(done) if u.ks < 0]
+    loc: list[int] = []
+    carried: list[int] = []
+    cols: list[tuple[int, int, int, int, bool]] = []
+    for j, (row, st, u) in enumerate(done):
+        if u.ks >= 0:
+            loc.append(j)
+            cols.append((row, st.code, u.ks, u.ke, u.first))
+        else:
+            carried.append(j)
     m = len(loc)
-    rows = np.array([done[j][0] for j in loc], np.int64)
-    codes = np.array([done[j][1].code for j in loc], np.int64)
-    ks = np.array([done[j][2].ks for j in loc], np.int64)
-    ke = np.array([done[j][2].ke for j in loc], np.int64)
-    first = np.array([done[j][2].first for j in loc], bool)
+    table = np.array(cols, np.int64).reshape(m, 5)
+    rows, codes, ks, ke = table[:, 0], table[:, 1], table[:, 2], table[:, 3]
+    first = table[:, 4].astype(bool)
     P_np: dict[int, np.ndarray] = {}
     start = np.zeros(m, np.int64)
     for code in sorted(set(codes.tolist())):  # not np.unique: it imports numpy.ma (13 ms)
@@ -197,5 +203,9 @@ def _bulk_maps(bd: BatchDissector, fa: FrameArrays, codes: np.ndarray, ks: np.nd
     for code, P in P_np.items():
         sel = codes == code
         rr = P[int(ks[sel].min()) : int(ke[sel].max())]
+        nums = fa.num[rr]
+        if len(rr) > SEQ_MODULO:  # only each NUM's last frame stays in the map
+            last, at = np.unique(nums[::-1], return_index=True)
+            rr, nums = rr[len(rr) - 1 - at], last
         bd.dis._dirs[DIR_NAME[code]].index_of_num.update(
-            zip(fa.num[rr].tolist(), (fa.base + rr).tolist(), strict=True))
+            zip(nums.tolist(), (fa.base + rr).tolist(), strict=True))
