@@ -42,7 +42,7 @@ import numpy as np
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import classify
 from eyeq_spi.codec.vdecode import vec_layout
-from eyeq_spi.dissect.engine import Dissector
+from eyeq_spi.dissect.engine import SWITCH_APP, Dissector
 from eyeq_spi.errors import SpecError
 from eyeq_spi.transport.events import MessageReceived
 
@@ -64,7 +64,6 @@ class SpanMessage:
         return MessageReceived(self.data, self.nums, self.tid)
 
 
-BARRIER = "SwitchEyeQApplication"  # see SpanDecoder.is_barrier
 FIELD_MODES = ("dict", "none", "count", "columns")
 LEAN_MODES = ("count", "columns")
 
@@ -160,7 +159,7 @@ class SpanDecoder:
         if len(data) < 5 or data[1] != MESP_PROTOCOL or data[0] != data[2] or data[4] & 0x80:
             return False
         f = self.codec.mesp.functions.get((data[0], data[3]))
-        return f is not None and f.name == BARRIER
+        return f is not None and f.name == SWITCH_APP
 
     def _rows(self, msgs: list[SpanMessage], rows: list[int], msg: Any, header: int
               ) -> tuple[Any, Any, list[bytes], Any] | None:
