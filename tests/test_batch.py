@@ -34,26 +34,34 @@ def dasp(name: str, counter: int, e2e: E2EState) -> bytes:
     return MC.encode_dasp(name, MC.layout(MC.message(name)).zero_values(), counter, e2e)
 
 
+class Wire:
+    """Both channels of a synthetic capture: each message segmented into DATA frames 0.3 ms
+    apart, each ACKed on the other channel 0.1 ms later."""
+
+    def __init__(self, t0: float = 0.0) -> None:
+        self.out: list[Rec] = []
+        self.t = t0
+        self.num = {"h2e": 0, "e2h": 0}
+        self.tid = {"h2e": 0, "e2h": 0}
+
+    def send(self, d: str, msg: bytes) -> None:
+        parts = segment(msg, self.tid[d])
+        if len(parts) > 1:
+            self.tid[d] = (self.tid[d] + 1) % 256
+        other = "e2h" if d == "h2e" else "h2e"
+        for p in parts:
+            self.out.append((d, round(self.t, 6), FC.data_frame(self.num[other], self.num[d], p)))
+            self.out.append((other, round(self.t + 0.0001, 6), FC.ack(self.num[d])))
+            self.num[d] = (self.num[d] + 1) % 4096
+            self.t += 0.0003
+
+
 def synthetic(n_rounds: int = 6, *, t0: float = 0.0) -> list[Rec]:
     """Both channels: DASP singles and 23-frame obstacle messages from the EyeQ, MESP requests
     from the host, every DATA frame ACKed on the other channel."""
-    out: list[Rec] = []
-    num = {"h2e": 0, "e2h": 0}
-    tid = {"h2e": 0, "e2h": 0}
+    wire = Wire(t0)
+    out, send = wire.out, wire.send
     e2e = E2EState()
-    t = t0
-
-    def send(d: str, msg: bytes) -> None:
-        nonlocal t
-        parts = segment(msg, tid[d])
-        if len(parts) > 1:
-            tid[d] = (tid[d] + 1) % 256
-        other = "e2h" if d == "h2e" else "h2e"
-        for p in parts:
-            out.append((d, round(t, 6), FC.data_frame(num[other], num[d], p)))
-            out.append((other, round(t + 0.0001, 6), FC.ack(num[d])))
-            num[d] = (num[d] + 1) % 4096
-            t += 0.0003
 
     for i in range(n_rounds):
         send("e2h", dasp("EYEQ_VIS_FAILSAFE_MSG", i % 256, e2e))
@@ -63,7 +71,7 @@ def synthetic(n_rounds: int = 6, *, t0: float = 0.0) -> list[Rec]:
                                          {"mainState": 2, "subState": 0}))
         for _ in range(3):
             send("h2e", MC.mesp.encode_request("GetEyeQVersions", i % 256, {}))
-        t += 0.01
+        wire.t += 0.01
     return out
 
 

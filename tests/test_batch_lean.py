@@ -28,6 +28,7 @@ from eyeq_spi.dissect.stats import Stats
 from eyeq_spi.dissect.vframes import FrameBlock
 from eyeq_spi.transport.segment import segment
 from tests.test_batch import BASE, MUTATIONS, Rec, _as_records, synthetic
+from tests.test_batch_cli import _Pipe
 from tests.test_vdecode import _capture
 
 CAT = MessageCodec().cat
@@ -121,17 +122,6 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[Path, list[str
             (_pcapng(app, tmp / "app.pcapng"), []), (raw, ["--direction", "e2h"])]
 
 
-class _Pipe(io.RawIOBase):
-    def __init__(self, data: bytes) -> None:
-        self.src = io.BytesIO(data)
-
-    def readable(self) -> bool:
-        return True
-
-    def readinto(self, b: Any) -> int:
-        chunk = self.src.read(len(b))
-        b[: len(chunk)] = chunk
-        return len(chunk)
 
 
 def _run(args: list[str], capsys: pytest.CaptureFixture[str], stdin: bytes | None = None,

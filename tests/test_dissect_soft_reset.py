@@ -12,10 +12,8 @@ from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import batch, engine
-from eyeq_spi.link.frame import FrameCodec
-from eyeq_spi.transport.segment import segment
+from tests.test_batch import Wire
 
-FC = FrameCodec()
 MC = MessageCodec()
 VEH = "HOST_VEH_STATE_MSG"
 
@@ -23,39 +21,24 @@ VEH = "HOST_VEH_STATE_MSG"
 def _capture(switch: bool, rounds: int = 40) -> list[Record]:
     """The host sends HOST_VEH_STATE_MSG, then (``switch``) Switch EyeQ Application to vision,
     then starts its E2E counters over; the EyeQ ACKs and answers."""
-    out: list[Record] = []
-    num = {"h2e": 0, "e2h": 0}
-    tid = {"h2e": 0, "e2h": 0}
-    t = 0.0
-
-    def send(d: str, msg: bytes) -> None:
-        nonlocal t
-        parts = segment(msg, tid[d])
-        if len(parts) > 1:
-            tid[d] = (tid[d] + 1) % 256
-        other = "e2h" if d == "h2e" else "h2e"
-        for p in parts:
-            out.append(Record(round(t, 6), d, FC.data_frame(num[other], num[d], p)))
-            out.append(Record(round(t + 0.0001, 6), other, FC.ack(num[d])))
-            num[d] = (num[d] + 1) % 4096
-            t += 0.0003
-
+    wire = Wire()
+    send = wire.send
     zero = MC.layout(MC.message(VEH)).zero_values()
     fs = "EYEQ_VIS_FAILSAFE_MSG"
     fs_zero, fs_e2e = MC.layout(MC.message(fs)).zero_values(), E2EState()
     counter = 0
-    for e2e in (E2EState(), E2EState()):  # the second: counters start over
+    for k, e2e in enumerate((E2EState(), E2EState())):  # the second: counters start over
         for _ in range(rounds):
             send("h2e", MC.encode_dasp(VEH, zero, counter, e2e))
             send("e2h", MC.encode_dasp(fs, fs_zero, counter, fs_e2e))
             counter = (counter + 1) & 0xFF
-            t += 0.015
-        if switch and len(out) < 4 * rounds + 10:
+            wire.t += 0.015
+        if switch and k == 0:
             send("h2e", MC.mesp.encode_request("SwitchEyeQApplication", 7,
                                                {"applicationId": 1}))
             send("e2h", MC.mesp.encode_reply("SwitchEyeQApplication", 7, 0,
                                              {"applicationId": 1}))
-    return out
+    return [Record(t, d, w) for d, t, w in wire.out]
 
 
 def _e2e_errors(recs: list[dict[str, Any]]) -> list[str]:
