@@ -72,16 +72,14 @@ class VirtualRunner:
                        for i, (node, _) in enumerate(nodes)]
 
     # -- caches -----------------------------------------------------------------------------
-    def _touch_all(self) -> None:
+    def touch_all(self) -> None:
+        """Forget every node's cached deadline and quiet state: after code drove a node from
+        outside, or for a call that acts on another node from inside a node (the emulator's
+        reset line powers the simulated EyeQ up)."""
         n = len(self.nodes)
         self._known[:] = [False] * n
         self._quiet[:] = [False] * n
         self._fresh[:] = [True] * n
-
-    def touch_all(self) -> None:
-        """Forget every node's cached deadline and quiet state: for a call that acts on another
-        node from inside a node (the emulator's reset line powers the simulated EyeQ up)."""
-        self._touch_all()
 
     def _touch(self, i: int) -> None:
         """Node ``i`` received a transfer or handled a timer."""
@@ -89,7 +87,7 @@ class VirtualRunner:
             self._known[i] = self._quiet[i] = False
             self._fresh[i] = True
         else:  # it may have acted on another node (the host's reset line powers the EyeQ up)
-            self._touch_all()
+            self.touch_all()
 
     def _deadline(self, i: int) -> float | None:
         if not self._known[i]:
@@ -181,7 +179,7 @@ class VirtualRunner:
 
     def next_time(self) -> float | None:
         """The next deadline of any node or transfer (asks every node afresh)."""
-        self._touch_all()
+        self.touch_all()
         return self._next()
 
     # -- running ----------------------------------------------------------------------------
@@ -221,11 +219,11 @@ class VirtualRunner:
     def _run(
         self, t_end: float, stop: Callable[[], bool] | None, pace: tuple[float, float] | None
     ) -> float:
-        self._touch_all()  # nodes may have been driven from outside since the last call
+        self.touch_all()  # nodes may have been driven from outside since the last call
         self._pump(drain_all=True)
         while stop is None or not stop():
             if stop is not None:
-                self._touch_all()
+                self.touch_all()
             nxt = self._next()
             if nxt is None or nxt > t_end:
                 self._new_instant(max(self.now, t_end))
