@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import csv
 import itertools
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Protocol
 
 from eyeq_spi.capture.pcapng_io import Record
@@ -162,6 +162,26 @@ class _Tries:
         self.misses = 0 if ok else self.misses + 1
 
 
+def _by_chunk(body: bytes, chunks: Iterator[bytes],
+              fast: Callable[[bytes], list[Record] | None],
+              rows: Callable[[bytes, int], Iterator[Record]]) -> Iterator[Record]:
+    """Each chunk through the vectorised reader while it keeps succeeding (``_Tries``), else
+    through the csv row loop, which is told the chunk's first line number (the header is 1)."""
+    n = 2
+    tries = _Tries()
+    for chunk in itertools.chain([body], chunks):
+        if not chunk:
+            continue
+        recs = fast(chunk) if tries else None
+        if tries:
+            tries.took(recs is not None)
+        if recs is not None:
+            yield from recs
+        else:
+            yield from rows(chunk, n)
+        n += _line_count(chunk)
+
+
 def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Record]:
     from eyeq_spi.logic.saleae_fast import Saleae2State, saleae2_chunk
 
@@ -176,21 +196,12 @@ def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Rec
     kinds = bench_spec()["saleae2"]["row_types"]
     state = Saleae2State({}, {})
     need = max(i_name, i_type, i_time, *cols.values())
-    n = 2
-    tries = _Tries()
-    for chunk in itertools.chain([body], chunks):
-        if not chunk:
-            continue
-        recs = saleae2_chunk(chunk, len(header), cols, i_name, i_type, i_time, kinds, state,
-                             opts, _Open) if tries else None
-        if tries:
-            tries.took(recs is not None)
-        if recs is not None:
-            yield from recs
-        else:
-            yield from _saleae2_rows(csv.reader(_lines(chunk)), n, len(header), need, cols,
-                                     (i_name, i_type, i_time), kinds, state, opts)
-        n += _line_count(chunk)
+    yield from _by_chunk(
+        body, chunks,
+        lambda chunk: saleae2_chunk(chunk, len(header), cols, i_name, i_type, i_time, kinds,
+                                    state, opts, _Open),
+        lambda chunk, n: _saleae2_rows(csv.reader(_lines(chunk)), n, len(header), need, cols,
+                                       (i_name, i_type, i_time), kinds, state, opts))
     if state.results and not state.enables:
         raise LogicInputError("the SPI analyzer had no Enable (chip select) channel: transfers "
                               "cannot be framed")
@@ -252,21 +263,11 @@ def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Rec
     routes = opts.routes("", 1)
     state = Saleae1State()
     where = (i_time, i_id, i_mosi, i_miso)
-    n = 2
-    tries = _Tries()
-    for chunk in itertools.chain([body], chunks):
-        if not chunk:
-            continue
-        recs = saleae1_chunk(chunk, len(header), *where, state, routes, _Open) \
-            if tries else None
-        if tries:
-            tries.took(recs is not None)
-        if recs is not None:
-            yield from recs
-        else:
-            yield from _saleae1_rows(csv.reader(_lines(chunk)), n, len(header), where, state,
-                                     routes)
-        n += _line_count(chunk)
+    yield from _by_chunk(
+        body, chunks,
+        lambda chunk: saleae1_chunk(chunk, len(header), *where, state, routes, _Open),
+        lambda chunk, n: _saleae1_rows(csv.reader(_lines(chunk)), n, len(header), where, state,
+                                       routes))
     if state.tr is not None:
         # Logic 1.x marks no CS rising edge: the last packet ends with the file
         yield from _emit(state.tr, routes)
