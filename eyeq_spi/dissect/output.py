@@ -116,8 +116,9 @@ class HumanWriter:
 
 class JsonWriter:
     """One JSON object per line. ``fast`` (``dissect --json``): orjson encodes, which spells
-    some floats its own way (``1e-7`` for ``1e-07``, ``0.00005`` for ``5e-05``, ``1e16`` for
-    ``1e+16``: :func:`json_float`); NaN and infinities are ``null`` either way."""
+    some floats its own way (``2.5e-7`` for ``2.5e-07``, ``0.00005`` for ``5e-05``; the exact
+    spelling depends on orjson's version, the number does not: :func:`json_float`); NaN and
+    infinities are ``null`` either way."""
 
     def __init__(self, fh: IO[str], *, fast: bool = False) -> None:
         import orjson  # here, not at start-up: --stats and the tables never need it
