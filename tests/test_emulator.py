@@ -288,10 +288,10 @@ def test_bad_init_parameters_get_nonzero_ret(running) -> None:  # type: ignore[n
     assert ret == 3
 
 
-def test_readme_state_diagram_is_generated_from_the_table() -> None:
+def test_architecture_state_diagram_is_generated_from_the_table() -> None:
     from eyeq_spi.host.machine import diagram
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    readme = (Path(__file__).resolve().parents[1] / "docs" / "architecture.md").read_text()
     assert "```mermaid\n" + diagram() + "\n```" in readme
 
 
