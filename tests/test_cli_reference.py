@@ -1,4 +1,4 @@
-"""The CLI reference (docs/cli.md) is generated from the argparse definitions and must not be stale."""
+"""The CLI reference (docs/cli.md) is generated from the argparse definitions, never stale."""
 
 from __future__ import annotations
 

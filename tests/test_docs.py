@@ -12,6 +12,7 @@ The README's two set-up commands are held elsewhere: the test command is what ``
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import shlex
@@ -55,7 +56,8 @@ def test_shell_blocks_run(page: Path, tmp_path: Path) -> None:
     script = "set -euo pipefail\n" + "\n".join(_runnable(page))
     env = {**os.environ,
            "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
-           "HOME": str(tmp_path / "home"), "EYEQ_SPI_REPO": str(ROOT), "COLUMNS": "80", "LINES": "24", "NO_COLOR": "1"}
+           "HOME": str(tmp_path / "home"), "EYEQ_SPI_REPO": str(ROOT), "COLUMNS": "80",
+           "LINES": "24", "NO_COLOR": "1"}
     proc = subprocess.Popen(["bash", "-c", script], cwd=tmp_path, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
@@ -66,10 +68,8 @@ def test_shell_blocks_run(page: Path, tmp_path: Path) -> None:
         out, _ = proc.communicate()
         pytest.fail(f"{page.name}: its shell blocks ran over {PAGE_TIMEOUT_S} s\n{out[-4000:]}")
     finally:
-        try:  # whatever the page left running in the background
+        with contextlib.suppress(ProcessLookupError):  # what the page left in the background
             os.killpg(proc.pid, signal.SIGTERM)
-        except ProcessLookupError:
-            pass
     assert proc.returncode == 0, (
         f"{page.relative_to(ROOT)}: a shell block failed (exit {proc.returncode})\n"
         f"script:\n{script}\noutput (tail):\n{out[-4000:]}")

@@ -29,3 +29,33 @@ def test_a_wheel_carries_every_spec_file(tmp_path: Path) -> None:
             for p in (ROOT / "specs").rglob("*") if p.is_file()}
     assert want and want <= names, sorted(want - names)[:10]
     assert "eyeq_spi/py.typed" in names
+
+
+def test_the_readme_install_runs_the_demo(tmp_path: Path) -> None:
+    """The README's first command: a regular install into a fresh venv, then ``eyeq-spi demo
+    --duration 5``. The venv sees this Python's packages (no download in a test) but not its
+    editable install, installs the wheel without dependencies, and must run the installed copy,
+    not this checkout."""
+    wheels = tmp_path / "wheels"
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", str(ROOT),
+                        "-w", str(wheels)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    (wheel,) = wheels.glob("eyeq_spi-*.whl")
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
+    py, exe = venv / "bin" / "python", venv / "bin" / "eyeq-spi"
+    site_dir = subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()"
+                               "['purelib'])"], capture_output=True, text=True, check=True)
+    # this Python's packages as plain paths: their .pth files (our editable install) stay off
+    (Path(site_dir.stdout.strip()) / "deps.pth").write_text(
+        "\n".join(p for p in sys.path if p.endswith("site-packages")) + "\n")
+    r = subprocess.run([str(py), "-m", "pip", "install", "-q", "--no-deps", "--no-index",
+                        str(wheel)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    where = subprocess.run([str(py), "-c", "import eyeq_spi; print(eyeq_spi.__file__)"],
+                           cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert str(venv) in where.stdout, where.stdout + where.stderr
+    demo = subprocess.run([str(exe), "demo", "--duration", "5"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120)
+    assert demo.returncode == 0, demo.stdout[-2000:] + demo.stderr[-2000:]
+    assert "RUNNING_VISION" in demo.stdout + demo.stderr
