@@ -1,4 +1,4 @@
-"""One error tree for the whole stack (STYLE.md §5).
+"""One error tree for the whole stack (docs/STYLE.md §5).
 
 A peer's fault surfaces only on the receive path, and only as a counted event; these exceptions are
 for local misuse (bad arguments, a value out of range, a spec that does not load) and for adapter

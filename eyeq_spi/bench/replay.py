@@ -1,7 +1,7 @@
 """Replay the EyeQ channel of a capture to a host: a recorded drive as a stand-in EyeQ.
 
 :class:`ReplayEyeQ` is a sans-IO node (``receive_data``/``data_to_send``/``get_timer``/
-``handle_timer``, STYLE.md §2). It plays every transfer of the capture's ``e2h`` channel at its
+``handle_timer``, docs/STYLE.md §2). It plays every transfer of the capture's ``e2h`` channel at its
 capture time, byte for byte, except the EyeQ's ACK/NAK frames: those answered the recorded host,
 so the node answers the host in front of it instead, through a real :class:`TransportConnection`
 in the EyeQ role (ACK every accepted frame, NAK per L5, reassemble the host's messages to count

@@ -1,4 +1,4 @@
-"""The host's bring-up and mode state machine, as data (STYLE.md §3).
+"""The host's bring-up and mode state machine, as data (docs/STYLE.md §3).
 
 Theory of operation (seed 004 §6 message flow, §7.1.3, §7.1.1.1.4)
 ---------------------------------------------------------------

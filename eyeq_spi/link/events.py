@@ -1,4 +1,5 @@
-"""Events the link layer reports. Small frozen dataclasses that check themselves (STYLE.md §4)."""
+"""Events the link layer reports: small frozen dataclasses that check themselves
+(docs/STYLE.md §4)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The interface every sans-IO stack exposes to a runner (STYLE.md §2)."""
+"""The interface every sans-IO stack exposes to a runner (docs/STYLE.md §2)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """The message catalogue of ``specs/`` as typed, immutable objects.
 
 Load once with :func:`catalog`; everything that builds a wire format (DASP/0x41/0x10 structs, MESP,
-init bit tables) reads it from here, never from a layout written by hand (STYLE.md §6).
+init bit tables) reads it from here, never from a layout written by hand (docs/STYLE.md §6).
 """
 
 from __future__ import annotations
