@@ -16,7 +16,7 @@ import pytest
 
 from eyeq_spi.host.nvm import Nvm
 
-KILLS = 200
+KILLS = int(os.environ.get("EYEQ_NVM_KILLS", "200"))  # more in a long run (docs/development.md)
 pytestmark = pytest.mark.realtime
 
 
