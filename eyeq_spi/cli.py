@@ -24,7 +24,7 @@ class _Parser(argparse.ArgumentParser):
 COMMANDS: dict[str, str] = {
     "demo": "host emulator against the embedded simulated EyeQ",
     "sim": "the simulated EyeQ on a TCP listener or a pty",
-    "host": "the host emulator against an EyeQ at a pyserial URL",
+    "host": "the host emulator against an EyeQ at --port URL",
     "dissect": "decode captured SPI traffic (raw, hex text, pcapng)",
     "wireshark": "generate the Wireshark Lua dissector from specs/",
     "batch": "many captures into one partitioned Parquet dataset",
@@ -114,7 +114,7 @@ def _add_run(sub: Any) -> None:
                      help="SCHED_FIFO priority 1..99 so that ACKs meet the 10 ms ackTimeout on a "
                      "busy machine; 0: ordinary scheduling (default 10; falls back when refused)")
     add_shared_options(sim, side="sim")
-    host = sub.add_parser("host", help="the host emulator against an EyeQ at a pyserial URL")
+    host = sub.add_parser("host", help="the host emulator against an EyeQ at --port URL")
     host.add_argument("--port", required=True, metavar="URL", type=ca.connect_address,
                       help="the EyeQ: tcp://HOST:PORT as eyeq-spi sim prints it (socket:// "
                       "too), rfc2217://HOST:PORT, or a tty or pty path")

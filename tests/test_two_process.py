@@ -58,11 +58,13 @@ def test_host_and_sim_processes_reach_running_vision_over_tcp(tmp_path: Path) ->
     # tests/test_soak_live.py hold the zero-loss bar)
     assert host.returncode == (0 if out["ok"] else 1)
     assert out["ok"] or out["problem"]
-    # what each side received and what it sent, apart: the host's own HOST_VEH_STATE is sent
-    assert out["received"]["EYEQ_BOOT_STATUS_MSG"] >= 1
-    assert "HOST_VEH_STATE_MSG" not in out["received"] and out["sent"]["HOST_VEH_STATE_MSG"] >= 1
-    assert sim_sum["received"]["HOST_VEH_STATE_MSG"] >= 1
-    assert "HOST_VEH_STATE_MSG" not in sim_sum["sent"] and sim_sum["sent"]["EYEQ_BOOT_STATUS_MSG"]
+    # what each side received and what it sent, apart: HOST_VEH_STATE is the host's own
+    # (--exit-when-running may stop the host before its first one: no count is asserted)
+    assert out["received"]["EYEQ_BOOT_STATUS_MSG"] >= 1 and out["sent"]["MESP"] >= 1
+    assert "HOST_VEH_STATE_MSG" not in out["received"]
+    assert sim_sum["received"]["MESP"] >= 1 and sim_sum["sent"]["EYEQ_BOOT_STATUS_MSG"] >= 1
+    assert "HOST_VEH_STATE_MSG" not in sim_sum["sent"]
+    assert "EYEQ_BOOT_STATUS_MSG" not in sim_sum["received"]
     # first ignition with an empty NVM went through the EEPROM read and wrote the NVM
     nvm = json.loads((tmp_path / "nvm.json").read_text())
     assert nvm["intrinsic"]["CCAM_Num_Of_distorParams_m"] == 15
@@ -83,9 +85,9 @@ def test_sim_reports_each_host_served_and_the_totals(tmp_path: Path) -> None:
     assert all(sorted(sess) == sorted(SESSION_KEYS) for sess in s["sessions"])
     a, b = s["sessions"]
     assert a["ended_s"] <= b["began_s"]
-    for name in ("HOST_VEH_STATE_MSG", "MESP"):
-        assert a["received"][name] >= 1 and b["received"][name] >= 1
-        assert s["received"][name] == a["received"][name] + b["received"][name]
+    assert a["received"]["MESP"] >= 1 and b["received"]["MESP"] >= 1
+    for name in set(a["received"]) | set(b["received"]):
+        assert s["received"][name] == a["received"].get(name, 0) + b["received"].get(name, 0)
     assert s["sent"]["EYEQ_BOOT_STATUS_MSG"] == (a["sent"]["EYEQ_BOOT_STATUS_MSG"]
                                                  + b["sent"]["EYEQ_BOOT_STATUS_MSG"])
     assert s["mesp"]["requests"] == a["mesp"]["requests"] + b["mesp"]["requests"]
