@@ -24,7 +24,7 @@ class _Parser(argparse.ArgumentParser):
 COMMANDS: dict[str, str] = {
     "demo": "host emulator against the embedded simulated EyeQ",
     "sim": "the simulated EyeQ on a TCP listener or a pty",
-    "host": "the host emulator against an EyeQ at a pyserial URL",
+    "host": "the host emulator against an EyeQ at --port URL",
     "dissect": "decode captured SPI traffic (raw, hex text, pcapng)",
     "wireshark": "generate the Wireshark Lua dissector from specs/",
     "batch": "many captures into one partitioned Parquet dataset",
@@ -86,21 +86,26 @@ def _add_run(sub: Any) -> None:
                       help="seconds, (0, 86400] (default 10)")
     demo.add_argument("--virtual-time", action="store_true",
                       help="run as fast as the CPU allows instead of in real time")
+    demo.add_argument("--nvm", metavar="FILE", type=ca.output_file,
+                      help="the host's NVM as a JSON file, read at the start and written "
+                      "atomically: the next run starts with the calibration it learned "
+                      "(default: in memory, empty)")
     demo.add_argument("--json", action="store_true", help="end with one JSON object")
     add_shared_options(demo, side="demo")
     sim = sub.add_parser(
         "sim", help="the simulated EyeQ on a TCP listener or a pty",
-        description="The simulated EyeQ in real time. It prints LISTEN URL (or PTY PATH) on its "
-        "first line: hand exactly that URL to eyeq-spi host --port.")
+        description="The simulated EyeQ in real time. It prints LISTEN URL (or PTY PATH) on "
+        "stderr as soon as it waits for a host: hand exactly that URL to eyeq-spi host --port. "
+        "It serves one host after another (each connection is a power-up) and ends with one "
+        "summary: per host served and in total.")
     ep = sim.add_mutually_exclusive_group(required=True)
-    ep.add_argument("--port", dest="endpoint", type=ca.sim_endpoint, action=ca.SimEndpoint,
-                    metavar="URL", help="socket://HOST:PORT to listen on (port 0: any free "
-                    "port), or pty; the same URL form host --port takes")
-    ep.add_argument("--listen", dest="endpoint", type=ca.sim_endpoint, action=ca.SimEndpoint,
-                    metavar="URL", help="same as --port (tcp://HOST:PORT is accepted too)")
-    ep.add_argument("--pty", dest="endpoint", nargs=0, action=ca.SimEndpoint,
-                    help="same as --port pty: open a pty and print its path")
-    sim.set_defaults(listen=None, pty=False)
+    ep.add_argument("--listen", dest="endpoint", action=ca.Endpoint, metavar="tcp://HOST:PORT",
+                    help="listen here for the host (port 0: any free port)")
+    ep.add_argument("--pty", dest="endpoint", nargs=0, action=ca.Endpoint,
+                    help="open a pty and print its path; the host opens it as a serial port")
+    ep.add_argument("--port", dest="endpoint", action=ca.Endpoint, port_listens=True,
+                    help=argparse.SUPPRESS)  # old spelling of --listen / --pty
+    sim.set_defaults(listen=None, pty=False, port=None)
     sim.add_argument("--duration", type=seconds, help="stop after S seconds (default: never)")
     sim.add_argument("--accept-timeout", type=seconds, default=60.0,
                      help="seconds to wait for the host, (0, 86400] (default 60)")
@@ -109,10 +114,10 @@ def _add_run(sub: Any) -> None:
                      help="SCHED_FIFO priority 1..99 so that ACKs meet the 10 ms ackTimeout on a "
                      "busy machine; 0: ordinary scheduling (default 10; falls back when refused)")
     add_shared_options(sim, side="sim")
-    host = sub.add_parser("host", help="the host emulator against an EyeQ at a pyserial URL")
-    host.add_argument("--port", required=True, metavar="URL", type=ca.host_endpoint,
-                      help="the EyeQ: socket://HOST:PORT as eyeq-spi sim prints it, a tty or "
-                      "pty path, or rfc2217://HOST:PORT")
+    host = sub.add_parser("host", help="the host emulator against an EyeQ at --port URL")
+    host.add_argument("--port", required=True, metavar="URL", type=ca.connect_address,
+                      help="the EyeQ: tcp://HOST:PORT as eyeq-spi sim prints it (socket:// "
+                      "too), rfc2217://HOST:PORT, or a tty or pty path")
     host.add_argument("--nvm", metavar="FILE", type=ca.output_file,
                       help="NVM file, JSON, written atomically (default: in memory)")
     host.add_argument("--duration", type=seconds, default=10.0,

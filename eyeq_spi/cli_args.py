@@ -324,77 +324,85 @@ def output_dir(text: str) -> str:
     return text
 
 
-_TCP = re.compile(r"^(socket|tcp|rfc2217|listen)://(\[[0-9A-Fa-f:.]+\]|[^:/\[\]\s]*):([^/?#]*)(.*)$")
+def _address_error(exc: Exception) -> NoReturn:
+    _bad(str(exc))
 
 
-def _tcp(text: str, lo_port: int) -> tuple[str, str, int]:
-    m = _TCP.match(text)
-    if not m:
-        _bad(f"{text!r} is not SCHEME://HOST:PORT")
-    scheme, host, port_text, rest = m.groups()
-    if rest and not rest.startswith("?"):
-        _bad(f"{text!r}: nothing may follow :PORT")
+def connect_address(text: str) -> str:
+    """``--port URL`` of a command that connects (``host``, ``monitor``, ``conformance --dut
+    eyeq``): ``tcp://HOST:PORT`` (``socket://`` too), ``rfc2217://HOST:PORT`` or a tty/pty path
+    (grammar: :mod:`eyeq_spi.phy.address`) -> the URL to open. ``loop://`` echoes our own
+    transfers back and has no peer on it: refused."""
+    from eyeq_spi.phy.address import CONNECT_FORMS, AddressError, parse_connect
+
+    if text.startswith("loop://"):
+        _bad(f"loop:// echoes our own transfers back and has no peer on it; give {CONNECT_FORMS}")
     try:
-        port = int(port_text)
-    except ValueError:
-        _bad(f"{text!r}: the port must be an integer in {lo_port}..65535, got {port_text!r}")
-    if not lo_port <= port <= 65535:
-        _bad(f"{text!r}: the port must be in {lo_port}..65535")
-    return scheme, host or "127.0.0.1", port
+        addr = parse_connect(text)
+    except AddressError as exc:
+        _address_error(exc)
+    if addr.mode == "listen":
+        _bad(f"{text!r} listens, and this command connects; give {CONNECT_FORMS}")
+    if "://" in addr.url and not addr.url.startswith(("socket://", "rfc2217://")):
+        _bad(f"unsupported scheme {text.split('://', 1)[0]}://; give {CONNECT_FORMS}")
+    return addr.url
 
 
-def host_endpoint(text: str) -> str:
-    """Where the host finds its EyeQ: ``socket://HOST:PORT`` (what ``sim`` prints),
-    ``rfc2217://HOST:PORT``, or a tty/pty path. ``loop://`` has no EyeQ on it: refused."""
-    if text.startswith("loop://"):
-        _bad("loop:// echoes the host's own transfers back and has no EyeQ on it; use "
-             "eyeq-spi demo, or socket://HOST:PORT from eyeq-spi sim")
-    if "://" in text:
-        scheme = text.split("://", 1)[0]
-        if scheme not in ("socket", "rfc2217"):
-            _bad(f"unsupported scheme {scheme}://; give socket://HOST:PORT, "
-                 "rfc2217://HOST:PORT or a tty/pty path")
-        _tcp(text, 1)
-        return text
-    if not os.path.exists(text):
-        _bad(f"no such device {text!r}; give socket://HOST:PORT, rfc2217://HOST:PORT or a "
-             "tty/pty path")
-    return text
+def note(message: str) -> None:
+    """One line on stderr that does not stop the command (an old spelling, a fallback)."""
+    import sys
+
+    print(f"eyeq-spi: note: {one_line(message)}", file=sys.stderr, flush=True)
 
 
-def host_under_test(text: str) -> str:
-    """Where ``replay --port`` finds the host under test: ``socket://HOST:PORT``,
-    ``listen://HOST:PORT`` (port 0: any free port), ``rfc2217://HOST:PORT`` or a tty/pty path.
-    ``loop://`` has no host on it (replay would read its own frames back): refused."""
-    if text.startswith("loop://"):
-        _bad("loop:// echoes replay's own transfers back and has no host on it; give the host "
-             "under test as socket://HOST:PORT, listen://HOST:PORT, rfc2217://HOST:PORT or a tty")
-    if text.startswith("listen://"):
-        _tcp(text, 0)
-        return text
-    return host_endpoint(text)
+class Endpoint(argparse.Action):
+    """``--listen tcp://HOST:PORT``, ``--port URL`` and ``--pty`` of a command that may listen
+    (``sim``, ``replay``, ``conformance``), in the one address grammar of
+    :mod:`eyeq_spi.phy.address`. Each sets ``listen`` (``tcp://HOST:PORT``), ``port`` (the URL
+    to connect to) or ``pty`` in the namespace. Old spellings (``sim --port socket://``,
+    ``replay --port listen://``, ``--listen socket://``, ``--listen pty``) still work, with a
+    one-line note on stderr giving the new one. ``port_listens``: the command never connects,
+    so every ``--port`` is an old spelling of ``--listen`` (``sim``)."""
 
-
-def sim_endpoint(text: str) -> tuple[str, str | None]:
-    """Where the simulated EyeQ serves: ``socket://HOST:PORT`` (``tcp://`` too; port 0 = any
-    free port) -> ``("tcp", "tcp://HOST:PORT")``, or ``pty`` -> ``("pty", None)``."""
-    if text.lower() == "pty":
-        return "pty", None
-    if text.startswith(("socket://", "tcp://")):
-        _, host, port = _tcp(text, 0)
-        return "tcp", f"tcp://{host}:{port}"
-    _bad(f"{text!r}: give socket://HOST:PORT (port 0 = any free port) or pty")
-
-
-class SimEndpoint(argparse.Action):
-    """``sim --port URL`` / ``--listen URL`` / ``--pty``: all set ``listen`` and ``pty``, which
-    is what ``run_sim`` reads."""
+    def __init__(self, option_strings: Sequence[str], dest: str, port_listens: bool = False,
+                 **kwargs: Any) -> None:
+        self.port_listens = port_listens
+        super().__init__(option_strings, dest, **kwargs)
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: Any, option_string: str | None = None) -> None:
-        kind, url = values if isinstance(values, tuple) else ("pty", None)
-        namespace.listen = url
-        namespace.pty = kind == "pty"
+        from eyeq_spi.phy.address import LISTEN_FORM, AddressError, parse_listen
+
+        command = parser.prog.split()[-1]
+        if option_string == "--pty":
+            namespace.pty = True
+            return
+        text = str(values)
+        try:
+            if text.strip().lower() == "pty":
+                note(f"{command} {option_string} pty is an old spelling; say --pty")
+                namespace.pty = True
+                return
+            if option_string == "--listen" or self.port_listens:
+                if option_string == "--port" and "://" not in text:
+                    raise AddressError(f"{text!r}: {command} listens: give --listen "
+                                       f"{LISTEN_FORM} or --pty")
+                addr = parse_listen(text)
+                if addr.old or option_string != "--listen":
+                    note(f"{command} {option_string} {text} is an old spelling; say "
+                         f"{addr.spelling}")
+                namespace.listen = addr.url
+                return
+            url = connect_address(text) if not text.startswith("listen://") else None
+            if url is None:
+                addr = parse_listen(text)
+                note(f"{command} {option_string} {text} is an old spelling; say {addr.spelling}")
+                namespace.listen = addr.url
+                return
+            namespace.port = url
+        except (AddressError, argparse.ArgumentTypeError) as exc:
+            hint = " or --pty" if self.port_listens and "--pty" not in str(exc) else ""
+            raise argparse.ArgumentError(self, f"{exc}{hint}") from None
 
 
 class NotForThisSide(argparse.Action):

@@ -40,17 +40,24 @@ def add_bench_parser(sub: Any) -> None:
     e.add_argument("--json", action="store_true", help="end with one JSON summary object")
     r = sub.add_parser("replay", help="play a capture's EyeQ channel to a host",
                        description="Play the EyeQ channel (e2h) of a capture to a host under "
-                       "test at --port in real time, keeping the capture's timing and ACKing "
-                       "the host's frames, or (--into-host) to the built-in host emulator in "
-                       "virtual time. Exit 0 when played to the end (--into-host: and the "
-                       "host reached Running Vision).")
+                       "test in real time, keeping the capture's timing and ACKing the host's "
+                       "frames (--listen: the host connects to us; --port: we connect to the "
+                       "host), or (--into-host) to the built-in host emulator in virtual time. "
+                       "Ends with the run summary demo, host and sim print. Exit 0 when the run "
+                       "is ok: played to the end with nothing lost (--into-host: judged as "
+                       "host judges, Running Vision reached and held), else 1.")
     _input_options(r)
     where = r.add_mutually_exclusive_group(required=True)
-    where.add_argument("--port", metavar="URL", type=ca.host_under_test,
-                       help="the host under test: socket://HOST:PORT, listen://HOST:PORT, a "
-                       "tty or pty path, rfc2217://HOST:PORT")
+    where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
+                       metavar="tcp://HOST:PORT",
+                       help="listen here for the host under test (port 0: any free port); "
+                       "prints LISTEN URL on stderr")
+    where.add_argument("--port", dest="endpoint", action=ca.Endpoint, metavar="URL",
+                       help="connect to the host under test at tcp://HOST:PORT (socket:// too), "
+                       "rfc2217://HOST:PORT or a tty/pty path")
     where.add_argument("--into-host", action="store_true",
                        help="feed the built-in host emulator in virtual time")
+    r.set_defaults(port=None, listen=None, pty=False)
     r.add_argument("--duration", type=ca.number(0, 86_400, lo_open=True, unit="s"),
                    help="stop after S seconds of capture time, (0, 86400]")
     r.add_argument("--lead", type=ca.number(0, 3600, unit="s"), default=0.5, metavar="S",
@@ -108,9 +115,12 @@ def _spi(args: argparse.Namespace) -> Any:
 
 def run_replay(args: argparse.Namespace) -> int:
     from eyeq_spi.bench.replay import replay_into_host, replay_to_port
+    from eyeq_spi.report import format_summary
 
     if args.duration is not None and args.duration <= 0:
         raise UsageError("--duration must be positive")
+    if args.pty:
+        raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
     fh, records = _records(args)
     try:
         if args.into_host:
@@ -118,16 +128,17 @@ def run_replay(args: argparse.Namespace) -> int:
         else:
             if args.lead < 0:
                 raise UsageError("--lead must not be negative")
-            summary = replay_to_port(records, args.port, duration=args.duration, lead=args.lead)
+            summary = replay_to_port(records, args.listen or args.port,
+                                     listen=bool(args.listen), duration=args.duration,
+                                     lead=args.lead, sw=args.sw)
     finally:
         if fh is not sys.stdin.buffer:
             fh.close()
     if args.json:
-        print(json.dumps(summary, separators=(",", ":")))
+        print(json.dumps(summary, sort_keys=True), flush=True)
     else:
-        for k, v in summary.items():
-            print(f"{k}: {v}")
-    return 0 if summary.get("ok") else 1
+        print(format_summary(summary), flush=True)
+    return 0 if summary["ok"] else 1
 
 
 def run_sigrok_decoder(args: argparse.Namespace) -> int:

@@ -26,13 +26,17 @@ def add_conformance_parser(sub: Any) -> None:
         "errors.")
     p.add_argument("--dut", choices=("eyeq", "host"), help="the implementation under test")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--port", metavar="URL", type=ca.host_endpoint,
-                       help="--dut eyeq: the EyeQ (socket://HOST:PORT, a tty or pty, rfc2217://)")
-    where.add_argument("--listen", metavar="tcp://HOST:PORT",
-                       help="--dut host: listen here; the host connects (once per session)")
-    where.add_argument("--pty", action="store_true",
+    where.add_argument("--port", dest="endpoint", action=ca.Endpoint, metavar="URL",
+                       help="--dut eyeq: connect to the EyeQ at tcp://HOST:PORT (socket:// too), "
+                       "rfc2217://HOST:PORT or a tty/pty path")
+    where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
+                       metavar="tcp://HOST:PORT",
+                       help="--dut host: listen here (port 0: any free port); the host connects "
+                       "(once per session)")
+    where.add_argument("--pty", dest="endpoint", nargs=0, action=ca.Endpoint,
                        help="--dut host: open a pty per ignition cycle, print each path; the "
                        "host opens each in turn")
+    p.set_defaults(port=None, listen=None, pty=False)
     where.add_argument("--builtin", action="store_true",
                        help="test our own simulated EyeQ / host emulator, in virtual time")
     p.add_argument("--list", action="store_true",
@@ -83,7 +87,8 @@ def run_conformance(args: argparse.Namespace) -> int:
         opts.host_plan.mode_timeout = args.mode_timeout
     if not args.builtin and args.dut == "eyeq":
         if not args.port:
-            raise UsageError("--dut eyeq needs --port URL (or --builtin)")
+            raise UsageError("--dut eyeq needs --port URL (or --builtin): it connects to the "
+                             "EyeQ under test")
         opts.port = args.port
     elif not args.builtin:
         opts.adapter = _listener(args, opts)
@@ -127,14 +132,8 @@ def _listener(args: argparse.Namespace, opts: Options) -> Any:
         return fresh()
     if not args.listen:
         raise UsageError("--dut host needs --listen tcp://HOST:PORT or --pty (or --builtin)")
-    try:
-        kind, url = ca.sim_endpoint(args.listen)
-    except argparse.ArgumentTypeError as exc:
-        raise UsageError(f"argument --listen: {exc}") from None
-    if kind != "tcp" or url is None:
-        raise UsageError("--listen takes tcp://HOST:PORT")
-    from eyeq_spi.phy.base import open_url
+    from eyeq_spi.phy.base import open_listener
 
-    adapter: Any = open_url("listen://" + url[len("tcp://"):], timeout=args.accept_timeout)
+    adapter: Any = open_listener(args.listen, timeout=args.accept_timeout)
     print(f"LISTEN {adapter.url}", file=sys.stderr if args.json else sys.stdout, flush=True)
     return adapter

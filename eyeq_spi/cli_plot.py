@@ -65,9 +65,9 @@ def add_plot_parser(sub: Any) -> None:
     src = m.add_mutually_exclusive_group(required=True)
     src.add_argument("--demo", action="store_true",
                      help="host emulator against the embedded simulated EyeQ (as demo)")
-    from eyeq_spi.cli_args import host_endpoint
+    from eyeq_spi.cli_args import connect_address
 
-    src.add_argument("--port", metavar="URL", type=host_endpoint,
+    src.add_argument("--port", metavar="URL", type=connect_address,
                      help="host emulator against an EyeQ (as host)")
     src.add_argument("--replay", metavar="FILE",
                      help="a capture's EyeQ channel replayed into the host emulator (as replay "

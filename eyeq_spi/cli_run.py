@@ -217,7 +217,7 @@ class LiveView:
 
 
 def _connect_hint(endpoint: str) -> None:
-    """``sim``: the exact command that connects a host (its first stdout line has the URL)."""
+    """``sim``: the exact command that connects a host (after the LISTEN or PTY line)."""
     print(f"eyeq-spi sim: waiting for a host: eyeq-spi host --port {endpoint}", file=sys.stderr,
           flush=True)
 
@@ -256,25 +256,9 @@ def print_summary(out: dict[str, Any], as_json: bool) -> None:
     if as_json:
         print(json.dumps(out, sort_keys=True), flush=True)
         return
-    lines = [f"{out['side']}: {'OK' if out['ok'] else 'NOT OK'} - state {out['state']}, "
-             f"SW {out['sw']}, {out['elapsed_s']:.2f} s (wall {out['wall_s']:.2f} s, "
-             f"CPU {out['cpu_s']:.2f} s), connections {out['connections']}"]
-    if out["problem"]:
-        lines.append(f"  problem: {out['problem']}")
-    link = out["link"]
-    lines.append("  link: " + ", ".join(f"{k} {v}" for k, v in link.items() if v)
-                 if any(link.values()) else "  link: no errors")
-    lines.append(f"  E2E errors {out['e2e_errors']}, DASP counter gaps "
-                 f"{out['dasp_counter_gaps']}, transport aborts "
-                 f"{out['transport_aborts'] or 'none'}, stale "
-                 f"{', '.join(out['stale_streams']) or 'none'}, MESP timeouts "
-                 f"{out['mesp']['timeouts']}")
-    if out.get("scheduling"):  # host and sim; the in-process demo has no live link
-        lines.append(f"  scheduling: {out['scheduling']}")
-    lines.append("  received: " + ", ".join(
-        f"{k.replace('EYEQ_', '').replace('_MSG', '')} {v}"
-        for k, v in sorted(out["messages"].items()) if v))
-    print("\n".join(lines), flush=True)
+    from eyeq_spi.report import format_summary
+
+    print(format_summary(out), flush=True)
 
 
 def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
@@ -315,6 +299,7 @@ def run_demo(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         interrupted = True
     finally:
+        emu.host.nvm.save()  # --nvm: the ignition count and what the run learned
         if writer is not None:
             writer.close()
     out = host_summary(emu.host, side="demo", elapsed=emu.runner.now, wall=emu.runner.wall_s,
@@ -328,8 +313,8 @@ def run_sim(args: argparse.Namespace) -> int:
     """Serve one host after another until ``--duration`` ends or we are interrupted; every new
     connection is a power-up (boot status first)."""
     from eyeq_spi.errors import LinkLostError
-    from eyeq_spi.phy.base import open_url
-    from eyeq_spi.report import sim_summary
+    from eyeq_spi.phy.base import open_listener
+    from eyeq_spi.report import sim_session, sim_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
     from eyeq_spi.runner.sched import realtime
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
@@ -342,15 +327,13 @@ def run_sim(args: argparse.Namespace) -> int:
         from eyeq_spi.phy.pty import PtyAdapter
 
         adapter: Any = PtyAdapter()
-        print(f"PTY {adapter.path}", flush=True)
-        _connect_hint(adapter.path)
+        address = adapter.path
+        print(f"PTY {address}", file=sys.stderr, flush=True)  # stdout: the summary only
     else:
-        url = args.listen
-        if not url.startswith("tcp://"):
-            raise UsageError("--listen takes tcp://HOST:PORT")
-        adapter = open_url("listen://" + url[len("tcp://"):], timeout=args.accept_timeout)
-        print(f"LISTEN {adapter.url}", flush=True)
-        _connect_hint(adapter.url)
+        adapter = open_listener(args.listen, timeout=args.accept_timeout)
+        address = adapter.url
+        print(f"LISTEN {address}", file=sys.stderr, flush=True)
+    _connect_hint(address)
     _on_sigterm()
     writer = capture_writer(args)
     clock = time.monotonic
@@ -382,8 +365,8 @@ def run_sim(args: argparse.Namespace) -> int:
                 runner.run(None if end is None else max(0.0, end - clock()))
             except LinkLostError as exc:
                 lost = str(exc)
-            sessions.append({"began_s": round(began - t0, 3), "ended_s": round(clock() - t0, 3),
-                             "link_lost": lost})
+            sessions.append(sim_session(sim, began=began - t0, ended=clock() - t0,
+                                        link_lost=lost, t0=t0))
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -391,16 +374,14 @@ def run_sim(args: argparse.Namespace) -> int:
         adapter.close()
         if writer is not None:
             writer.close()
-    if sim is None:
-        sim = SimulatedEyeQ(cfg)
-    out = sim_summary(sim, elapsed=clock() - t0, wall=clock() - t0,
-                      cpu=time.process_time() - cpu0, connections=len(sessions),
-                      interrupted=interrupted, t0=t0)
-    out["sessions"] = sessions
-    out["scheduling"] = scheduling
-    if not sessions and out["problem"] is None:
-        out["problem"], out["ok"] = (f"no host connected within {args.accept_timeout} s"
-                                     if not interrupted else "interrupted before any host"), False
+    problem = None
+    if not sessions:
+        problem = (f"no host connected within {args.accept_timeout} s" if not interrupted
+                   else "interrupted before any host")
+    out = sim_summary(sim or SimulatedEyeQ(cfg), sessions, elapsed=clock() - t0,
+                      wall=clock() - t0, cpu=time.process_time() - cpu0,
+                      interrupted=interrupted, address=address, scheduling=scheduling,
+                      problem=problem)
     print_summary(out, args.json)
     return 0 if out["ok"] else 1
 
@@ -422,6 +403,7 @@ def run_host(args: argparse.Namespace) -> int:
     from eyeq_spi.errors import LinkLostError
     from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.host.machine import HostState
+    from eyeq_spi.phy.address import parse_connect
     from eyeq_spi.phy.base import open_url
     from eyeq_spi.report import host_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
@@ -493,9 +475,8 @@ def run_host(args: argparse.Namespace) -> int:
     out = host_summary(host, side="host", elapsed=now - start, wall=now - start,
                        cpu=time.process_time() - cpu0, running_since=running_since,
                        left_running=left, link_lost=link_lost, connections=connections,
-                       interrupted=interrupted, t0=start)
-    if link_lost:
-        out["link_lost"] = link_lost
-    out["scheduling"] = scheduling
+                       interrupted=interrupted, t0=start,
+                       address=parse_connect(args.port, check_path=False).display,
+                       scheduling=scheduling)
     print_summary(out, args.json)
     return 0 if out["ok"] else 1

@@ -76,37 +76,9 @@ def build(
 
 
 def summary(emu: Emulation) -> dict[str, Any]:
-    """The demo's closing JSON object."""
-    host = emu.host
-    names = [m.name for m in host.codec.cat.messages if m.exists_in(host.sw) or
-             m.protocol != "DASP"]
-    messages = {n: int(host.counters.received.get(n, 0)) for n in names}
-    messages["HOST_VEH_STATE_MSG"] = int(host.counters.sent.get("HOST_VEH_STATE_MSG", 0))
-    link = host.conn.link.counters.seed_view()
-    return {
-        "state": host.state.value,
-        "virtual_s": round(emu.runner.now, 6),
-        "wall_s": round(emu.runner.wall_s, 3),
-        "cpu_s": round(emu.runner.cpu_s, 3),
-        "sw": host.sw,
-        "messages": messages,
-        "link": link,
-        "transport_aborts": dict(host.conn.counters.transferAborts),
-        "e2e_errors": host.counters.e2e_errors,
-        "dasp_counter_gaps": host.counters.dasp_counter_gaps,
-        "decode_errors": host.counters.decode_errors,
-        "stale_streams": sorted(host.stale_streams),
-        "mesp": {"requests": host.mesp.counters.requests, "retries": host.mesp.counters.retries,
-                 "timeouts": host.mesp.counters.timeouts,
-                 "stale_replies": host.mesp.counters.stale_replies},
-        "eyeq_resets": host.counters.eyeq_resets,
-        "versions": host.versions,
-        "boot": host.boot_info,
-        "problem": host.problem,
-        "transitions": [
-            {"t": round(t.time, 4), "from": t.src.value, "event": t.event.value,
-             "to": t.dst.value} for t in host.transitions
-        ],
-        "running_vision_since": None if emu.running_since is None
-        else round(emu.running_since, 4),
-    }
+    """The demo's closing summary: the schema every run prints (:mod:`eyeq_spi.report`)."""
+    from eyeq_spi.report import host_summary
+
+    return host_summary(emu.host, side="demo", elapsed=emu.runner.now, wall=emu.runner.wall_s,
+                        cpu=emu.runner.cpu_s, running_since=emu.running_since,
+                        left_running=emu.left_running)

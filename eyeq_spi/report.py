@@ -1,14 +1,16 @@
-"""One closing summary for ``demo``, ``host`` and ``sim``: the same JSON schema on every side,
-with ``ok`` false and ``problem`` naming the first cause whenever data was lost or corrupted or a
-deadline was missed.
+"""One closing summary for every run: ``demo``, ``host``, ``sim`` and ``replay`` print the same
+JSON object (the same keys, :data:`KEYS`), with ``ok`` false and ``problem`` naming the first
+cause whenever data was lost or corrupted or a deadline was missed (docs/emulator.md, "Run
+summaries", describes every field).
 
-Schema (README "Run summaries"): ``side``, ``ok``, ``problem``, ``state``, ``sw``, ``elapsed_s``,
-``wall_s``, ``cpu_s``, ``connections``, ``messages`` (received, per name), ``sent`` (per name),
-``link`` (the §9.2 counters plus ``lateFrames``, ``duplicateFrames``, ``skippedFrames``,
-``resynchronisations``), ``ack_latency_ms`` (``n``, ``p50``, ``p99_9``, ``max`` of our DATA
-frames' send -> ACK time), ``transport_aborts``, ``e2e_errors``, ``dasp_counter_gaps``,
-``stale_streams``, ``mesp`` (``requests``, ``retries``, ``timeouts``, ``stale_replies``),
-``eyeq_resets``, ``versions``, ``boot``, ``transitions``, ``running_vision_since``.
+- ``received`` and ``sent`` are apart: what this side received from its peer and what it sent,
+  per message name (MESP requests or replies as ``MESP``).
+- ``sim`` serves one host after another: ``sessions`` holds one object per host served (the
+  same fields as the totals, for that host only), the top level holds the totals over all of
+  them (counts summed; state, versions and boot of the last).
+- A MESP reply that never came is a timeout on every side (M6): the host counts its deadline
+  expiries and the requests an EyeQ reset left unanswered (``mesp.abandoned``); the simulated
+  EyeQ counts the replies it dropped or sent past the deadline.
 """
 
 from __future__ import annotations
@@ -24,6 +26,21 @@ from eyeq_spi.spec.catalog import sw_release_text
 from eyeq_spi.transport.connection import TransportConnection
 
 LINK_EXTRA = ("lateFrames", "duplicateFrames", "skippedFrames", "resynchronisations")
+
+# Every summary has exactly these keys, in this order (docs/emulator.md, "Run summaries").
+KEYS = (
+    "side", "ok", "problem", "address", "state", "sw", "elapsed_s", "wall_s", "cpu_s",
+    "connections", "interrupted", "received", "sent", "link", "ack_latency_ms",
+    "transport_aborts", "e2e_errors", "dasp_counter_gaps", "decode_errors", "stale_streams",
+    "mesp", "eyeq_resets", "versions", "boot", "transitions", "running_vision_since",
+    "sessions", "link_lost", "scheduling", "replay",
+)
+# a sim session: the summary of one host served, without what belongs to the whole run
+SESSION_KEYS = ("began_s", "ended_s", "ok", "problem", "state", "received", "sent", "link",
+                "ack_latency_ms", "transport_aborts", "e2e_errors", "dasp_counter_gaps",
+                "decode_errors", "stale_streams", "mesp", "eyeq_resets", "versions", "boot",
+                "running_vision_since", "link_lost")
+MESP_KEYS = ("requests", "retries", "timeouts", "abandoned", "stale_replies")
 
 
 def link_view(c: SpiDiagnosticInfo) -> dict[str, int]:
@@ -53,48 +70,61 @@ def ack_latency_ms(hist: Counter[int]) -> dict[str, float | int]:
 def _losses(s: dict[str, Any]) -> str | None:
     """The first data loss, corruption or missed deadline in a summary, in words."""
     link = s["link"]
+    mesp = s["mesp"]
+    timeouts = mesp.get("timeouts") or 0
+    abandoned = mesp.get("abandoned") or 0
     checks: list[tuple[bool, str]] = [
         (s["e2e_errors"] > 0, f"{s['e2e_errors']} E2E errors"),
-        (link["sendFailedErrorCounter"] > 0,
-         f"{link['sendFailedErrorCounter']} send failures (frames not ACKed in time)"),
+        (link.get("sendFailedErrorCounter", 0) > 0,
+         f"{link.get('sendFailedErrorCounter')} send failures (frames not ACKed in time)"),
         (sum(s["transport_aborts"].values()) > 0,
          f"transport aborts {s['transport_aborts']}"),
         (s["dasp_counter_gaps"] > 0, f"{s['dasp_counter_gaps']} DASP counter gaps"),
         (bool(s["stale_streams"]), f"stale streams: {', '.join(s['stale_streams'])}"),
-        (s["mesp"]["timeouts"] > 0, f"{s['mesp']['timeouts']} MESP timeouts"),
+        (timeouts > 0, f"{timeouts} MESP timeouts"
+         + (f" ({abandoned} unanswered when the EyeQ reset)" if abandoned else "")),
     ]
     return next((why for bad, why in checks if bad), None)
 
 
-def _finish(s: dict[str, Any], first_problem: str | None) -> dict[str, Any]:
+def finish(s: dict[str, Any], first_problem: str | None) -> dict[str, Any]:
+    """Judge a summary (``problem``, ``ok``) and give it exactly the keys of :data:`KEYS`."""
     s["problem"] = first_problem or _losses(s)
     s["ok"] = s["problem"] is None
-    s.setdefault("scheduling", None)  # host, sim: the CPU policy obtained (runner/sched.py)
-    s.setdefault("sessions", [])  # sim: one entry per host served
-    s.setdefault("link_lost", None)  # host: why the link was lost, if it was
-    return s
+    return {k: s.get(k) for k in KEYS} | {
+        "sessions": s.get("sessions") or [], "received": s.get("received") or {},
+        "sent": s.get("sent") or {}}
 
 
 def _aborts(conn: TransportConnection) -> dict[str, int]:
     return {k: int(v) for k, v in conn.counters.transferAborts.items() if v}
 
 
+def host_mesp(host: HostEmulator) -> dict[str, int]:
+    c = host.mesp.counters
+    return {"requests": c.requests, "retries": c.retries, "timeouts": c.timeouts,
+            "abandoned": c.abandoned, "stale_replies": c.stale_replies}
+
+
 def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, cpu: float,
                  running_since: float | None, left_running: list[float],
                  link_lost: str | None = None, connections: int = 1,
-                 interrupted: bool = False, t0: float = 0.0) -> dict[str, Any]:
-    """The summary of a host emulator run (``demo`` or ``host``). Times are seconds since
-    ``t0``, the start of the run on the host's clock."""
-    names = [m.name for m in host.codec.cat.messages if m.exists_in(host.sw) or
-             m.protocol != "DASP"]
-    messages = {n: int(host.counters.received.get(n, 0)) for n in names}
-    messages["HOST_VEH_STATE_MSG"] = int(host.counters.sent.get("HOST_VEH_STATE_MSG", 0))
+                 interrupted: bool = False, t0: float = 0.0, address: str | None = None,
+                 scheduling: str | None = None) -> dict[str, Any]:
+    """The summary of a host emulator run (``demo``, ``host``, ``replay --into-host``). Times
+    are seconds since ``t0``, the start of the run on the host's clock."""
+    names = [m.name for m in host.codec.cat.messages
+             if m.direction == "e2h" and (m.exists_in(host.sw) or m.protocol != "DASP")]
+    received = {n: int(host.counters.received.get(n, 0)) for n in names}
+    received.update({k: int(v) for k, v in host.counters.received.items()})
     stale = sorted(set(host.counters.stale_events) | host.stale_streams)
     s: dict[str, Any] = {
-        "side": side, "state": host.state.value, "sw": sw_release_text(host.sw),
+        "side": side, "address": address, "state": host.state.value,
+        "sw": sw_release_text(host.sw),
         "elapsed_s": round(elapsed, 6), "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
         "connections": connections, "interrupted": interrupted,
-        "messages": messages, "sent": {k: int(v) for k, v in host.counters.sent.items()},
+        "received": dict(sorted(received.items())),
+        "sent": {k: int(v) for k, v in sorted(host.counters.sent.items())},
         "link": link_view(host.conn.link.counters),
         "ack_latency_ms": ack_latency_ms(host.conn.link.ack_latency),
         "transport_aborts": _aborts(host.conn),
@@ -102,9 +132,7 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "dasp_counter_gaps": host.counters.dasp_counter_gaps,
         "decode_errors": host.counters.decode_errors,
         "stale_streams": stale,
-        "mesp": {"requests": host.mesp.counters.requests, "retries": host.mesp.counters.retries,
-                 "timeouts": host.mesp.counters.timeouts,
-                 "stale_replies": host.mesp.counters.stale_replies},
+        "mesp": host_mesp(host),
         "eyeq_resets": host.counters.eyeq_resets,
         "versions": host.versions, "boot": host.boot_info,
         "transitions": [
@@ -112,6 +140,7 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
              "to": t.dst.value, "detail": t.detail} for t in host.transitions
         ],
         "running_vision_since": None if running_since is None else round(running_since, 4),
+        "link_lost": link_lost, "scheduling": scheduling,
     }
     first = None
     if link_lost:
@@ -122,21 +151,21 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         first = f"Running Vision not reached (state {host.state.value})"
     elif left_running:
         first = f"left Running Vision at {left_running[0]:.3f} s"
-    return _finish(s, first)
+    return finish(s, first)
 
 
-def sim_summary(sim: SimulatedEyeQ, *, elapsed: float, wall: float, cpu: float,
-                link_lost: str | None = None, connections: int = 1,
-                interrupted: bool = False, t0: float = 0.0) -> dict[str, Any]:
-    """The summary of a simulated EyeQ run (``sim``), for the last host it served plus totals.
-    Times are seconds since ``t0``, the start of the run on the simulator's clock."""
+# -- sim: per host served and in total -------------------------------------------------------
+
+def sim_session(sim: SimulatedEyeQ, *, began: float, ended: float, link_lost: str | None,
+                t0: float = 0.0, connections: int = 1) -> dict[str, Any]:
+    """The summary of one host served by ``sim``. Every time is in seconds since the run
+    started: ``t0`` is that start on the simulator's clock."""
     c = sim.counters
     s: dict[str, Any] = {
-        "side": "sim", "state": f"0x{sim.main_state:02X}", "sw": sw_release_text(sim.sw),
-        "elapsed_s": round(elapsed, 6), "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
-        "connections": connections, "interrupted": interrupted,
-        "messages": {k: int(v) for k, v in c.received.items()},
-        "sent": {k: int(v) for k, v in c.sent.items()},
+        "began_s": round(began, 3), "ended_s": round(ended, 3),
+        "state": f"0x{sim.main_state:02X}",
+        "received": {k: int(v) for k, v in sorted(c.received.items())},
+        "sent": {k: int(v) for k, v in sorted(c.sent.items())},
         "link": link_view(sim.conn.link.counters),
         "ack_latency_ms": ack_latency_ms(sim.conn.link.ack_latency),
         "transport_aborts": _aborts(sim.conn),
@@ -144,16 +173,155 @@ def sim_summary(sim: SimulatedEyeQ, *, elapsed: float, wall: float, cpu: float,
         "dasp_counter_gaps": c.counter_gaps,
         "decode_errors": c.bad_hdr_total,
         "stale_streams": ["HOST_VEH_STATE_MSG"] if c.veh_state_stale else [],
-        "mesp": {"requests": c.mesp_requests, "retries": 0, "timeouts": 0, "stale_replies": 0},
-        "eyeq_resets": c.boots - connections if c.boots > connections else 0,
+        # what the host waited for in vain; retries and stale replies are the host's to count
+        "mesp": {"requests": c.mesp_requests, "retries": None,
+                 "timeouts": c.mesp_replies_dropped + c.mesp_replies_late,
+                 "abandoned": None, "stale_replies": None},
+        "eyeq_resets": max(0, c.boots - connections),
         "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
                      "eyeqSwVersionMinor": sim.sw_version[1]},
-        "boot": {"boots": c.boots}, "transitions": [],
+        "boot": {"boots": c.boots},
         "running_vision_since": (None if sim.running_since is None
                                  else round(sim.running_since - t0, 4)),
+        "link_lost": link_lost,
     }
     # the host leaving ends a session; it is not a loss on the EyeQ side (it serves the next)
-    return _finish(s, None)
+    s["problem"] = _losses(s)
+    s["ok"] = s["problem"] is None
+    s["_ack_hist"] = Counter(sim.conn.link.ack_latency)  # for the totals; dropped by them
+    return s
+
+
+def _add(total: Any, part: Any) -> Any:
+    """Counts summed key by key (None: not counted on this side)."""
+    if isinstance(part, dict):
+        out = dict(total or {})
+        for k, v in part.items():
+            out[k] = _add(out.get(k), v)
+        return out
+    if part is None:
+        return total
+    return (total or 0) + part
+
+
+def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: float,
+                wall: float, cpu: float, interrupted: bool = False, address: str | None = None,
+                scheduling: str | None = None, problem: str | None = None) -> dict[str, Any]:
+    """The summary of a ``sim`` run: every host served in ``sessions`` (from
+    :func:`sim_session`) and their totals; ``sim`` is the last one served (or an idle one)."""
+    hist: Counter[int] = Counter()
+    s: dict[str, Any] = {
+        "side": "sim", "address": address, "sw": sw_release_text(sim.sw),
+        "elapsed_s": round(elapsed, 6), "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
+        "connections": len(sessions), "interrupted": interrupted,
+        "received": {}, "sent": {}, "link": link_view(SpiDiagnosticInfo()),
+        "transport_aborts": {}, "e2e_errors": 0, "dasp_counter_gaps": 0, "decode_errors": 0,
+        "stale_streams": [], "eyeq_resets": 0, "transitions": [],
+        "mesp": {"requests": 0, "retries": None, "timeouts": 0, "abandoned": None,
+                 "stale_replies": None},
+        "state": f"0x{sim.main_state:02X}", "running_vision_since": None,
+        "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
+                     "eyeqSwVersionMinor": sim.sw_version[1]},
+        "boot": {"boots": 0}, "scheduling": scheduling, "link_lost": None,
+    }
+    for sess in sessions:
+        hist.update(sess.pop("_ack_hist", Counter()))
+        for k in ("received", "sent", "link", "transport_aborts", "e2e_errors",
+                  "dasp_counter_gaps", "decode_errors", "eyeq_resets", "mesp", "boot"):
+            s[k] = _add(s[k], sess[k])
+        s["stale_streams"] = sorted(set(s["stale_streams"]) | set(sess["stale_streams"]))
+        s["state"], s["versions"] = sess["state"], sess["versions"]
+        s["running_vision_since"] = sess["running_vision_since"]
+        s["link_lost"] = sess["link_lost"]
+    s["ack_latency_ms"] = ack_latency_ms(hist)
+    s["sessions"] = [{k: sess[k] for k in SESSION_KEYS} for sess in sessions]
+    return finish(s, problem)
+
+
+# -- replay: a capture's EyeQ channel played to a host -----------------------------------------
+
+def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cpu: float,
+                        link: dict[str, int], link_lost: str | None, sent: dict[str, int],
+                        interrupted: bool = False, connections: int = 1,
+                        scheduling: str | None = None) -> dict[str, Any]:
+    """The summary of ``replay --port``/``--listen``: the capture played to a host under test
+    in real time. The host keeps its own state; we judge what we can see: the capture played
+    to the end, the link held, every played frame answered, no frame NAKed."""
+    naks = sum(replay["host_naks"].values())
+    unanswered = replay["played"] - replay["host_acks"] - naks
+    s: dict[str, Any] = {
+        "side": "replay", "address": address, "state": None, "sw": replay.get("sw"),
+        "elapsed_s": round(wall, 6), "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
+        "connections": connections, "interrupted": interrupted,
+        "received": replay["host_messages"], "sent": sent, "link": link,
+        "ack_latency_ms": {"n": 0}, "transport_aborts": {}, "e2e_errors": 0,
+        "dasp_counter_gaps": 0, "decode_errors": replay.get("decode_errors", 0),
+        "stale_streams": [],
+        "mesp": {"requests": None, "retries": None, "timeouts": None, "abandoned": None,
+                 "stale_replies": None},
+        "eyeq_resets": replay["reset_line_pulls"], "versions": None, "boot": None,
+        "transitions": [], "running_vision_since": None, "link_lost": link_lost,
+        "scheduling": scheduling, "replay": replay,
+    }
+    first = None
+    if interrupted:
+        first = "interrupted"
+    elif link_lost:
+        first = "link lost"
+    elif not replay["complete"]:
+        first = "the capture was not played to the end"
+    elif naks:
+        first = f"the host NAKed {naks} played frames: {replay['host_naks']}"
+    elif unanswered > 0:
+        first = f"{unanswered} of {replay['played']} played frames not ACKed by the host"
+    return finish(s, first)
+
+
+# -- text ---------------------------------------------------------------------------------------
+
+def _short(name: str) -> str:
+    return name.replace("EYEQ_", "").replace("_MSG", "")
+
+
+def _counts(counts: dict[str, int]) -> str:
+    return ", ".join(f"{_short(k)} {v}" for k, v in sorted(counts.items()) if v) or "nothing"
+
+
+def format_summary(out: dict[str, Any]) -> str:
+    """The readable block of a summary: the same content as its JSON, one topic a line."""
+    state = "" if out["state"] is None else f"state {out['state']}, "
+    lines = [f"{out['side']}: {'OK' if out['ok'] else 'NOT OK'} - {state}"
+             f"SW {out['sw']}, {out['elapsed_s']:.2f} s (wall {out['wall_s']:.2f} s, "
+             f"CPU {out['cpu_s']:.2f} s), connections {out['connections']}"]
+    if out["address"]:
+        lines.append(f"  address: {out['address']}")
+    if out["problem"]:
+        lines.append(f"  problem: {out['problem']}")
+    link = out["link"]
+    lines.append("  link: " + ", ".join(f"{k} {v}" for k, v in link.items() if v)
+                 if any(link.values()) else "  link: no errors")
+    mesp = out["mesp"]
+    timeouts = "-" if mesp["timeouts"] is None else mesp["timeouts"]
+    lines.append(f"  E2E errors {out['e2e_errors']}, DASP counter gaps "
+                 f"{out['dasp_counter_gaps']}, transport aborts "
+                 f"{out['transport_aborts'] or 'none'}, stale "
+                 f"{', '.join(out['stale_streams']) or 'none'}, MESP timeouts {timeouts}")
+    if out.get("scheduling"):  # host, sim and replay to a port; the in-process demo has none
+        lines.append(f"  scheduling: {out['scheduling']}")
+    lines.append(f"  received: {_counts(out['received'])}")
+    lines.append(f"  sent: {_counts(out['sent'])}")
+    for i, sess in enumerate(out["sessions"], 1):
+        verdict = "OK" if sess["ok"] else f"NOT OK ({sess['problem']})"
+        lines.append(f"  host {i}: {sess['began_s']:.2f}-{sess['ended_s']:.2f} s, {verdict}, "
+                     f"received {sum(sess['received'].values())}, sent "
+                     f"{sum(sess['sent'].values())}"
+                     + (f", link lost: {sess['link_lost']}" if sess["link_lost"] else ""))
+    rep = out.get("replay")
+    if rep:
+        lines.append(f"  replay: played {rep['played']} frames"
+                     f"{'' if rep['complete'] else ' (not to the end)'}, host ACKs "
+                     f"{rep['host_acks']}, host NAKs {sum(rep['host_naks'].values())}")
+    return "\n".join(lines)
 
 
 def running_state(host: HostEmulator) -> bool:

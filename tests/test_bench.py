@@ -393,7 +393,26 @@ def test_replay_into_host_follows_the_recorded_bring_up(
     recorded_acks = sum(r["kind"] == "frame" and r["direction"] == "h2e" and
                         r["frame_type"] == "ACK" for r in demo_json)
     assert got["replay"]["host_acks"] == recorded_acks
-    assert got["messages"]["EYEQ_VIS_OBSTACLES_MSG"] > 0
+    assert got["received"]["EYEQ_VIS_OBSTACLES_MSG"] > 0
+    assert got["side"] == "replay" and got["sent"]["HOST_VEH_STATE_MSG"] > 0
+
+
+def test_replay_into_host_judges_as_host_does(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """A capture of a run that was not ok (a stream stopped): the replay is not ok either, names
+    the problem, exits 1, and prints the summary schema of demo, host and sim."""
+    from eyeq_spi.report import KEYS
+
+    cap = tmp_path / "stopped.pcapng"
+    rc, out, _ = _run(capsys, "demo", "--virtual-time", "--duration", "3", "--json",
+                      "--stop-dasp", "EYEQ_VIS_SRP_MSG@1.5", "--capture", str(cap))
+    assert rc == 1 and "EYEQ_VIS_SRP_MSG" in json.loads(out)["problem"]
+    rc, out, _ = _run(capsys, "replay", str(cap), "--into-host", "--json")
+    got = json.loads(out)
+    assert rc == 1 and not got["ok"] and "stale streams: EYEQ_VIS_SRP_MSG" in got["problem"]
+    assert sorted(got) == sorted(KEYS)
+    rc, out, _ = _run(capsys, "replay", str(cap), "--into-host")
+    assert rc == 1 and out.startswith("replay: NOT OK") and "problem: stale streams" in out
 
 
 def test_replay_into_host_judges_a_corrupted_capture(
@@ -430,7 +449,7 @@ def test_replay_to_a_port_in_real_time(demo: Path, capsys: pytest.CaptureFixture
     result: dict[str, Any] = {}
 
     def replay() -> None:
-        result["rc"] = main(["replay", str(demo), "--port", "listen://127.0.0.1:0",
+        result["rc"] = main(["replay", str(demo), "--listen", "tcp://127.0.0.1:0",
                              "--duration", "1.0", "--json"])
 
     capsys.readouterr()
@@ -450,14 +469,19 @@ def test_replay_to_a_port_in_real_time(demo: Path, capsys: pytest.CaptureFixture
         cwd=Path(__file__).resolve().parents[1], check=False)
     th.join(30)
     out = capsys.readouterr().out
-    got = json.loads(out.strip().splitlines()[-1])
-    assert result.get("rc") == 0, out
+    summary = json.loads(out.strip().splitlines()[-1])
+    got = summary["replay"]
+    assert summary["side"] == "replay" and summary["address"] == url
+    assert result.get("rc") == (0 if summary["ok"] else 1), out
+    assert summary["ok"] or summary["problem"]
     assert got["played"] > 100 and got["host_acks"] >= 0.9 * got["played"], json.dumps(got)
     assert got["acks_sent"] >= 1 and got["host_messages"].get("GetEyeQExtendedState", 0) > 0, \
         (json.dumps(got), host.stdout[-3000:], host.stderr[-1000:])
+    assert summary["received"] == got["host_messages"]
+    assert summary["sent"].get("EYEQ_BOOT_STATUS_MSG", 0) >= 1, summary["sent"]
     assert got["max_lateness_ms"] < 500  # bounded; this loaded 2-core machine starves us
     host_summary = json.loads(host.stdout.strip().splitlines()[-1])
-    assert host_summary["messages"]["EYEQ_BOOT_STATUS_MSG"] >= 1, host.stderr[-1000:]
+    assert host_summary["received"]["EYEQ_BOOT_STATUS_MSG"] >= 1, host.stderr[-1000:]
 
 def test_missing_bench_extra_gives_the_pip_hint(demo: Path, tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch,

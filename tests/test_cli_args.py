@@ -3,6 +3,7 @@ stderr naming the option and what it accepts, no traceback), and the names the c
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -68,8 +69,14 @@ BAD: list[tuple[list[str], tuple[str, ...]]] = [
     (["demo", "--capture", "/nonexistent-dir/x.pcapng"], ("--capture", "does not exist")),
     (["demo", "--capture", "DIR"], ("--capture", "directory")),
     (["demo", "--bogus"], ("--bogus",)),
-    (["sim"], ("--port", "--pty")),
-    (["sim", "--listen", "udp://x:1"], ("--listen", "socket://HOST:PORT")),
+    (["sim"], ("--listen", "--pty")),
+    (["sim", "--listen", "udp://x:1"], ("--listen", "tcp://HOST:PORT")),
+    (["sim", "--listen", "127.0.0.1:5000"], ("--listen", "tcp://HOST:PORT")),
+    (["host", "--port", "listen://127.0.0.1:5"], ("--port", "listens", "tcp://HOST:PORT")),
+    (["host", "--port", "udp://127.0.0.1:5"], ("--port", "udp://", "tcp://HOST:PORT")),
+    (["conformance", "--dut", "host", "--listen", "rfc2217://127.0.0.1:5"],
+     ("--listen", "rfc2217://", "tcp://HOST:PORT")),
+    (["replay", "FILE", "--listen", "tcp://127.0.0.1:99999"], ("--listen", "0..65535")),
     (["sim", "--port", "socket://127.0.0.1:70000"], ("--port", "0..65535")),
     (["sim", "--pty", "--listen", "tcp://127.0.0.1:0"], ("--listen", "--pty")),
     (["sim", "--pty", "--accept-timeout", "-1"], ("--accept-timeout", "(0, 86400]")),
@@ -114,7 +121,7 @@ BAD: list[tuple[list[str], tuple[str, ...]]] = [
     # loop:// has nobody on it wherever a peer is named; replay's times are checked too
     (["monitor", "--port", "loop://"], ("--port", "loop://")),
     (["monitor", "--port", "socket://127.0.0.1"], ("--port", "HOST:PORT")),
-    (["replay", "FILE", "--port", "loop://"], ("--port", "loop://", "listen://")),
+    (["replay", "FILE", "--port", "loop://"], ("--port", "loop://", "tcp://HOST:PORT")),
     (["replay", "FILE", "--port", "listen://127.0.0.1:x"], ("--port", "port must be")),
     (["replay", "FILE", "--into-host", "--duration", "nan"], ("--duration", "(0, 86400]")),
     (["replay", "FILE", "--into-host", "--duration", "-2"], ("--duration", "(0, 86400]")),
@@ -183,14 +190,62 @@ def test_boot_test_bits_by_name() -> None:
     assert a.boot_test_bits == (1 << bit0) | (1 << bit1)  # type: ignore[attr-defined]
 
 
-def test_sim_takes_the_host_url_form_and_keeps_the_old_options() -> None:
-    a = _parse(["sim", "--port", "socket://0.0.0.0:0"])
-    assert (a.listen, a.pty) == ("tcp://0.0.0.0:0", False)  # type: ignore[attr-defined]
-    a = _parse(["sim", "--listen", "tcp://127.0.0.1:5000"])
-    assert (a.listen, a.pty) == ("tcp://127.0.0.1:5000", False)  # type: ignore[attr-defined]
-    for argv in (["sim", "--pty"], ["sim", "--port", "pty"]):
-        a = _parse(argv)
-        assert (a.listen, a.pty) == (None, True)  # type: ignore[attr-defined]
+# one address grammar: --listen tcp://HOST:PORT listens, --port URL connects, in every command
+GRAMMAR: list[tuple[list[str], dict[str, object]]] = [
+    (["sim", "--listen", "tcp://127.0.0.1:5000"], {"listen": "tcp://127.0.0.1:5000"}),
+    (["sim", "--listen", "tcp://[::1]:0"], {"listen": "tcp://[::1]:0"}),
+    (["sim", "--pty"], {"pty": True, "listen": None}),
+    (["replay", "FILE", "--listen", "tcp://127.0.0.1:0"], {"listen": "tcp://127.0.0.1:0"}),
+    (["replay", "FILE", "--port", "tcp://127.0.0.1:5"], {"port": "socket://127.0.0.1:5"}),
+    (["conformance", "--dut", "host", "--listen", "tcp://0.0.0.0:0"],
+     {"listen": "tcp://0.0.0.0:0"}),
+    (["conformance", "--dut", "eyeq", "--port", "tcp://127.0.0.1:5"],
+     {"port": "socket://127.0.0.1:5"}),
+    (["host", "--port", "tcp://127.0.0.1:5"], {"port": "socket://127.0.0.1:5"}),
+    (["host", "--port", "socket://127.0.0.1:5"], {"port": "socket://127.0.0.1:5"}),
+    (["host", "--port", "rfc2217://10.0.0.2:4000"], {"port": "rfc2217://10.0.0.2:4000"}),
+    (["host", "--port", "/dev/null"], {"port": "/dev/null"}),
+    (["monitor", "--port", "tcp://127.0.0.1:5"], {"port": "socket://127.0.0.1:5"}),
+]
+
+
+@pytest.mark.parametrize(("argv", "want"), GRAMMAR, ids=[" ".join(a) for a, _ in GRAMMAR])
+def test_one_address_grammar_in_every_command(
+    argv: list[str], want: dict[str, object], files: dict[str, str],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    a = _parse(_fill(argv, files))
+    assert {k: getattr(a, k) for k in want} == want
+    assert capsys.readouterr().err == ""  # the new spelling: no note
+
+
+# old spellings: (argv, what they mean, the new spelling the note gives)
+OLD: list[tuple[list[str], dict[str, object], str]] = [
+    (["sim", "--port", "socket://0.0.0.0:0"], {"listen": "tcp://0.0.0.0:0", "pty": False},
+     "--listen tcp://0.0.0.0:0"),
+    (["sim", "--port", "tcp://127.0.0.1:7"], {"listen": "tcp://127.0.0.1:7"},
+     "--listen tcp://127.0.0.1:7"),
+    (["sim", "--listen", "socket://127.0.0.1:7"], {"listen": "tcp://127.0.0.1:7"},
+     "--listen tcp://127.0.0.1:7"),
+    (["sim", "--port", "pty"], {"listen": None, "pty": True}, "--pty"),
+    (["sim", "--listen", "pty"], {"listen": None, "pty": True}, "--pty"),
+    (["replay", "FILE", "--port", "listen://127.0.0.1:0"],
+     {"listen": "tcp://127.0.0.1:0", "port": None}, "--listen tcp://127.0.0.1:0"),
+    (["conformance", "--dut", "host", "--listen", "socket://127.0.0.1:0"],
+     {"listen": "tcp://127.0.0.1:0"}, "--listen tcp://127.0.0.1:0"),
+]
+
+
+@pytest.mark.parametrize(("argv", "want", "new"), OLD, ids=[" ".join(a) for a, _, _ in OLD])
+def test_old_spellings_work_with_a_one_line_note_giving_the_new_one(
+    argv: list[str], want: dict[str, object], new: str, files: dict[str, str],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    a = _parse(_fill(argv, files))
+    assert {k: getattr(a, k) for k in want} == want
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("eyeq-spi: note: "), err
+    assert f"say {new}" in err and "old spelling" in err, err
 
 
 def test_the_listener_prints_a_url_host_can_use() -> None:
@@ -199,7 +254,8 @@ def test_the_listener_prints_a_url_host_can_use() -> None:
     ad = TcpListenAdapter("0.0.0.0", 0, timeout=0.1)
     try:
         url = ad.url
-        assert url.startswith("socket://127.0.0.1:") and cli_args.host_endpoint(url) == url
+        assert url.startswith("tcp://127.0.0.1:")
+        assert cli_args.connect_address(url) == "socket://" + url[len("tcp://"):]
     finally:
         ad.close()
 
@@ -255,11 +311,16 @@ def test_parquet_without_pyarrow_gives_the_install_hint(
         TableWriter(str(tmp_path / "pq"), "parquet")
 
 
-def test_sim_prints_the_exact_url_to_hand_to_host() -> None:
-    r = subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "sim", "--port",
-                        "socket://0.0.0.0:0", "--duration", "0.5", "--accept-timeout", "0.5"],
-                       capture_output=True, text=True, timeout=60)
-    kind, url = r.stdout.splitlines()[0].split()
-    assert kind == "LISTEN" and url.startswith("socket://127.0.0.1:")
-    assert cli_args.host_endpoint(url) == url
+def test_sim_prints_the_exact_url_to_hand_to_host_on_stderr() -> None:
+    """The address goes to stderr (and into the summary): stdout is the summary alone, so
+    ``sim --json | jq`` works."""
+    r = subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "sim", "--listen",
+                        "tcp://0.0.0.0:0", "--duration", "0.5", "--accept-timeout", "0.5",
+                        "--json"], capture_output=True, text=True, timeout=60)
+    kind, url = r.stderr.splitlines()[0].split()
+    assert kind == "LISTEN" and url.startswith("tcp://127.0.0.1:")
+    assert cli_args.connect_address(url) == "socket://" + url[len("tcp://"):]
     assert f"eyeq-spi host --port {url}" in r.stderr
+    summary = json.loads(r.stdout)  # the whole of stdout is one JSON object
+    assert summary["address"] == url and summary["connections"] == 0
+    assert summary["problem"].startswith("no host connected") and r.returncode == 1

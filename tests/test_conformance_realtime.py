@@ -22,6 +22,7 @@ import pytest
 
 from eyeq_spi.conformance.cases import cases_for
 from eyeq_spi.conformance.load import rule_for
+from tests.sim_proc import start_sim
 
 ROOT = Path(__file__).resolve().parents[1]
 CLI = [sys.executable, "-m", "eyeq_spi.cli"]
@@ -63,14 +64,9 @@ def _judge_run(dut: str, code: int, stdout: str, stderr: str) -> None:
 @pytest.mark.parametrize("where", ["tcp", "pty"])
 def test_eyeq_suite_against_a_sim_process(where: str) -> None:
     how = ["--listen", "tcp://127.0.0.1:0"] if where == "tcp" else ["--pty"]
-    sim = subprocess.Popen([*CLI, "sim", *how, "--duration", "90", "--accept-timeout", "30",
-                            *LIGHT], cwd=ROOT, stdout=subprocess.PIPE,
-                           stderr=subprocess.DEVNULL, text=True)
+    sim, url = start_sim(*how, "--duration", "90", "--accept-timeout", "30", *LIGHT)
     try:
-        assert sim.stdout is not None
-        line = sim.stdout.readline().split()
-        assert line and line[0] in ("LISTEN", "PTY"), line
-        res = subprocess.run([*CLI, "conformance", "--dut", "eyeq", "--port", line[1],
+        res = subprocess.run([*CLI, "conformance", "--dut", "eyeq", "--port", url,
                               "--json"], cwd=ROOT, capture_output=True, text=True, timeout=120)
     finally:
         sim.kill()
@@ -138,14 +134,10 @@ def test_a_real_violation_still_fails_in_real_time() -> None:
     """A sim process whose MESP replies leave 700 ms late (its --reply-delay fault switch):
     MESP-DEADLINE fails, and the gauge says our own loop was not the cause (a stall of 100 ms
     would be needed to excuse 200 ms of lateness)."""
-    sim = subprocess.Popen([*CLI, "sim", "--listen", "tcp://127.0.0.1:0", "--duration", "60",
-                            "--accept-timeout", "30", "--reply-delay", "0.7", *LIGHT], cwd=ROOT,
-                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    sim, url = start_sim("--listen", "tcp://127.0.0.1:0", "--duration", "60",
+                         "--accept-timeout", "30", "--reply-delay", "0.7", *LIGHT)
     try:
-        assert sim.stdout is not None
-        line = sim.stdout.readline().split()
-        assert line and line[0] == "LISTEN", line
-        res = subprocess.run([*CLI, "conformance", "--dut", "eyeq", "--port", line[1], "--json",
+        res = subprocess.run([*CLI, "conformance", "--dut", "eyeq", "--port", url, "--json",
                               "-k", "MESP-DEADLINE or LINK-SIZE"], cwd=ROOT,
                              capture_output=True, text=True, timeout=120)
     finally:

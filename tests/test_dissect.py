@@ -266,8 +266,8 @@ def test_demo_capture_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[s
     s = json.loads(out.splitlines()[-1])
     assert rc == 0, s
     assert s["messages"]["EYEQ_VIS_OBSTACLES_MSG"]["count"] == \
-        demo["messages"]["EYEQ_VIS_OBSTACLES_MSG"]
-    assert s["messages"]["HOST_VEH_STATE_MSG"]["count"] == demo["messages"]["HOST_VEH_STATE_MSG"]
+        demo["received"]["EYEQ_VIS_OBSTACLES_MSG"]
+    assert s["messages"]["HOST_VEH_STATE_MSG"]["count"] == demo["sent"]["HOST_VEH_STATE_MSG"]
 
 
 def test_bounded_memory_on_a_large_capture(tmp_path: Path) -> None:

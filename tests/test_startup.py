@@ -324,7 +324,7 @@ def test_the_key_changes_when_a_file_is_touched_or_added(specs_copy: Path) -> No
 
 @pytest.mark.parametrize("argv", [
     ["demo", "--fatal", "999"], ["demo", "--stop-dasp", "FOO@3"], ["demo", "--sw", "7.7"],
-    ["sim", "--port", "socket://127.0.0.1:0", "--drop-reply", "nosuch"],
+    ["sim", "--listen", "tcp://127.0.0.1:0", "--drop-reply", "nosuch"],
     ["demo", "--boot-test-bits", "NOPE"], ["dissect", "--id", "obstacles", "SMALL_HEX"],
 ])
 def test_a_usage_error_about_a_name_reads_the_names_index_not_the_catalogue(

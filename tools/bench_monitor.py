@@ -179,12 +179,12 @@ def host_tcp(duration: float, monitor: bool, ack_ms: float | None) -> dict[str, 
                                         str(2.5 * ack_ms)]
     sim = subprocess.Popen([sys.executable, "-m", "eyeq_spi.cli", "sim", "--listen",
                             f"tcp://127.0.0.1:{port}", "--duration", str(duration + 5), *timing],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                           cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                            text=True)
     try:
-        assert sim.stdout is not None
-        line = sim.stdout.readline()
-        m = re.search(r"(socket://\S+)", line)
+        assert sim.stderr is not None
+        line = sim.stderr.readline()  # LISTEN URL, on stderr
+        m = re.search(r"^LISTEN (\S+)", line)
         if not m:
             raise SystemExit(f"sim did not say where it listens: {line!r}")
         cfg = HostConfig() if ack_ms is None else HostConfig(

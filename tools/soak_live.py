@@ -34,11 +34,16 @@ def soak(duration: float, transport: str) -> dict[str, Any]:
     sim = subprocess.Popen(
         [*_cli(), "sim", *listen, "--duration", str(duration + 15), "--accept-timeout", "30",
          "--json", *LOAD], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert sim.stdout is not None
-    first = sim.stdout.readline().split()
-    if len(first) != 2:
+    assert sim.stderr is not None
+    seen = []
+    for line in sim.stderr:  # LISTEN URL or PTY PATH comes on stderr (stdout: the summary)
+        first = line.split()
+        if len(first) == 2 and first[0] in ("LISTEN", "PTY"):
+            break
+        seen.append(line)
+    else:
         sim.kill()
-        raise SystemExit(f"sim did not start: {first} {sim.stderr.read() if sim.stderr else ''}")
+        raise SystemExit(f"sim did not start: {''.join(seen)}")
     port = first[1]
     with tempfile.TemporaryDirectory() as tmp:
         host = subprocess.run(

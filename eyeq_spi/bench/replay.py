@@ -26,6 +26,7 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.errors import EyeqError, FrameError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
+from eyeq_spi.spec.catalog import sw_release_text as sw_text
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
@@ -36,7 +37,8 @@ class ReplayError(EyeqError):
 
 class ReplayEyeQ:
     def __init__(self, records: Iterable[Record], *, start: float = 0.0,
-                 duration: float | None = None, sw: str | None = None) -> None:
+                 duration: float | None = None, sw: str | None = None,
+                 count_sent: bool = False) -> None:
         self._src: Iterator[Record] = (r for r in records if r.direction == "e2h")
         self.start = start
         self.duration = duration
@@ -56,6 +58,11 @@ class ReplayEyeQ:
         self.resets = 0
         self.acks_sent = 0
         self.done = False
+        # count_sent: the played frames reassembled as the recorded host's driver did, so the
+        # summary names the messages sent (``sent``); what it would answer is discarded
+        self.sent: Counter[str] = Counter()
+        self.decode_errors = 0
+        self._played_rx = TransportConnection(LinkConfig(role="host")) if count_sent else None
         self._advance()
         if self._next is None:
             raise ReplayError("the capture has no e2h transfer (EyeQ channel) to replay")
@@ -117,10 +124,25 @@ class ReplayEyeQ:
         while self._next is not None and self._next_at is not None and self._next_at <= now:
             out.append(self._next.data)
             self.played += 1
+            if self._played_rx is not None:
+                self._count_sent(self._next.data, now)
             self.lateness_max = max(self.lateness_max, now - self._next_at)
             self._last_at = self._next_at
             self._advance()
         return out
+
+    def _count_sent(self, transfer: bytes, now: float) -> None:
+        rx = self._played_rx
+        assert rx is not None
+        try:
+            rx.receive_data(transfer, now)
+            rx.data_to_send(now)  # the ACKs it would send: not ours to send
+            while (ev := rx.next_event()) is not None:
+                if isinstance(ev, MessageReceived):
+                    out = self.codec.decode(ev.data)
+                    self.sent[out.name or out.protocol] += 1
+        except EyeqError:
+            self.decode_errors += 1
 
     def get_timer(self) -> float | None:
         timers = [t for t in (self._next_at, self.conn.get_timer()) if t is not None]
@@ -144,7 +166,8 @@ class ReplayEyeQ:
                 "host_naks": {f"0x{k:03X}": v for k, v in sorted(self.host_naks.items())},
                 "host_messages": dict(sorted(self.host_messages.items())),
                 "reset_line_pulls": self.resets,
-                "complete": self.done}
+                "complete": self.done, "sw": self.codec.sw and sw_text(self.codec.sw),
+                "decode_errors": self.decode_errors}
 
 
 def host_bench(records: Iterable[Record], *, sw: str | None = None,
@@ -166,56 +189,63 @@ def host_bench(records: Iterable[Record], *, sw: str | None = None,
 
 def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
                      duration: float | None = None) -> dict[str, Any]:
-    """Feed the capture's EyeQ channel to the built-in host emulator in virtual time."""
-    from eyeq_spi.host.machine import HostState
+    """Feed the capture's EyeQ channel to the built-in host emulator in virtual time; the run
+    summary (:mod:`eyeq_spi.report`) judges it as ``host`` judges a live run: Running Vision
+    reached and held, nothing lost (E2E, DASP counters, stale streams, MESP timeouts)."""
+    import time
 
+    from eyeq_spi.host.machine import HostState
+    from eyeq_spi.report import host_summary
+
+    cpu0 = time.process_time()
+    wall0 = time.monotonic()
     node, host, runner = host_bench(records, sw=sw, duration=duration)
     reached: float | None = None
+    left: list[float] = []
     while not node.done:
         runner.run_until(runner.now + 0.01)
-        if reached is None and host.state is HostState.RUNNING_VISION:
+        running = host.state is HostState.RUNNING_VISION
+        if running and reached is None:
             reached = runner.now
+        elif not running and reached is not None:
+            left.append(runner.now)
+            reached = None
     runner.run_until(runner.now + 0.05)  # let the last frames settle, well before stale limits
-    link = host.conn.link.counters.seed_view()
-    out: dict[str, Any] = {
-        "mode": "into-host", "virtual_s": round(runner.now, 6), "state": host.state.value,
-        "running_vision_at": None if reached is None else round(reached, 4),
-        "transitions": [{"t": round(t.time, 4), "from": t.src.value, "event": t.event.value,
-                         "to": t.dst.value} for t in host.transitions],
-        "messages": dict(sorted((k, int(v)) for k, v in host.counters.received.items())),
-        "e2e_errors": host.counters.e2e_errors,
-        "dasp_counter_gaps": host.counters.dasp_counter_gaps,
-        "decode_errors": host.counters.decode_errors,
-        "stale_events": dict(sorted(host.counters.stale_events.items())),
-        "link": link, "problem": host.problem, "replay": node.summary(),
-    }
-    out["ok"] = bool(reached is not None and not out["e2e_errors"] and not out["decode_errors"]
-                     and host.state is HostState.RUNNING_VISION)
+    out = host_summary(host, side="replay", elapsed=runner.now,
+                       wall=time.monotonic() - wall0, cpu=time.process_time() - cpu0,
+                       running_since=reached, left_running=left)
+    out["replay"] = node.summary()
     return out
 
 
-def replay_to_port(records: Iterable[Record], url: str, *, duration: float | None = None,
-                   connect_timeout: float = 30.0, lead: float = 0.5) -> dict[str, Any]:
-    """Play the capture's EyeQ channel to a host under test at ``url`` in real time, starting
+def replay_to_port(records: Iterable[Record], url: str, *, listen: bool = False,
+                   duration: float | None = None, connect_timeout: float = 30.0,
+                   lead: float = 0.5, sw: str | None = None) -> dict[str, Any]:
+    """Play the capture's EyeQ channel to a host under test in real time: connect to it at
+    ``url`` (``listen``: listen on ``url``, ``tcp://HOST:PORT``, and wait for it), starting
     ``lead`` seconds after the connection: a host opening its port may discard what arrives
     meanwhile (pyserial's ``socket://`` resets its input buffer on open)."""
     import sys
     import time
 
     from eyeq_spi.errors import LinkLostError
-    from eyeq_spi.phy.base import open_url
+    from eyeq_spi.phy.base import open_listener, open_url
+    from eyeq_spi.report import link_view, replay_port_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
 
-    adapter = open_url(url, timeout=connect_timeout)
+    node = ReplayEyeQ(records, duration=duration, sw=sw, count_sent=True)
+    adapter = open_listener(url, timeout=connect_timeout) if listen else open_url(url)
+    address = getattr(adapter, "url", url)
     lost: str | None = None
+    interrupted = False
+    cpu0 = time.process_time()
+    t0 = time.monotonic()
     try:
-        accept = getattr(adapter, "accept", None)
-        if accept is not None:  # a listener: the capture starts when the host is there
-            print(f"replay: waiting for the host at {getattr(adapter, 'url', url)}",
-                  file=sys.stderr, flush=True)
-            if not accept(connect_timeout):
-                raise ReplayError(f"no host connected to {url} within {connect_timeout} s")
-        node = ReplayEyeQ(records, duration=duration)
+        if listen:  # the capture starts when the host is there
+            print(f"LISTEN {address}", file=sys.stderr, flush=True)
+            print(f"replay: waiting for the host at {address}", file=sys.stderr, flush=True)
+            if not adapter.accept(connect_timeout):  # type: ignore[attr-defined]
+                raise ReplayError(f"no host connected to {address} within {connect_timeout} s")
         runner = RealTimeRunner(node, adapter)
         t0 = time.monotonic()
         node.begin(t0 + lead)
@@ -225,11 +255,13 @@ def replay_to_port(records: Iterable[Record], url: str, *, duration: float | Non
             runner.run(1.0, stop=lambda: node.host_acks + node.host_naks.total() >= node.played)
         except LinkLostError as exc:
             lost = str(exc)
-        wall = time.monotonic() - t0
+        except KeyboardInterrupt:
+            interrupted = True
     finally:
         adapter.close()
-    out = {"mode": "port", "url": url, "wall_s": round(wall, 3),
-           "max_lateness_ms": round(node.lateness_max * 1e3, 3), **node.summary(),
-           "link_lost": lost}
-    out["ok"] = node.done and lost is None
-    return out
+    rep = node.summary()
+    rep["max_lateness_ms"] = round(node.lateness_max * 1e3, 3)
+    return replay_port_summary(rep, address=address, wall=time.monotonic() - t0,
+                               cpu=time.process_time() - cpu0,
+                               link=link_view(node.conn.link.counters), link_lost=lost,
+                               sent=dict(sorted(node.sent.items())), interrupted=interrupted)

@@ -149,7 +149,7 @@ class HostEmulator:
     def link_restarted(self, now: float) -> None:
         """The byte stream to the EyeQ was re-established (a new connection is a power-up):
         restart our SPI driver and run the bring-up again."""
-        self.mesp.cancel_all()
+        self._abandon_mesp()
         self._restart_driver()
         if next_state(self.state, E.EYEQ_RESET) is not None:
             self._fire(E.EYEQ_RESET, now, "link re-established")
@@ -493,7 +493,7 @@ class HostEmulator:
             # a clean power-up: both SPI drivers start over, the boot status arrives in window
             self._reset_eyeq(now, bringup=False)
         else:
-            self.mesp.cancel_all()
+            self._abandon_mesp()
             self._enter_after_app_restart(now)
 
     def _enter_after_app_restart(self, now: float) -> None:
@@ -578,6 +578,13 @@ class HostEmulator:
         if self.keep_rx_times:
             self.counters.tx_times.append(now)
 
+    def _abandon_mesp(self) -> None:
+        """The EyeQ reset: what we asked it goes unanswered. Versions not yet known are asked
+        again on the next bring-up (§6 flow step 12)."""
+        self.mesp.cancel_all()
+        if self.versions is None:
+            self._versions_asked = False
+
     def _restart_driver(self) -> None:
         """Our SPI driver starts over: NUM 0, E 0 (L4); what was pending is dropped."""
         self.conn.reset()
@@ -586,7 +593,7 @@ class HostEmulator:
 
     def _reset_eyeq(self, now: float, *, bringup: bool = True) -> None:
         """Reset the EyeQ; ``bringup`` counts it against ``max_resets`` (EEPROM-driven)."""
-        self.mesp.cancel_all()
+        self._abandon_mesp()
         if bringup:
             self._bringups += 1
         self._enter(S.POWER_UP, now)

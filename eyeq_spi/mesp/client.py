@@ -67,6 +67,7 @@ class MespClientCounters:
     timeouts: int = 0
     failures: int = 0
     stale_replies: int = 0
+    abandoned: int = 0  # outstanding when the EyeQ reset: no reply will come (also timeouts)
     latencies: dict[str, list[float]] = field(default_factory=dict)
 
 
@@ -109,7 +110,12 @@ class MespClient:
         return len(self._pending)
 
     def cancel_all(self) -> None:
-        """Forget every outstanding request (EyeQ reset); late replies will count as stale."""
+        """Forget every outstanding request (EyeQ reset); late replies will count as stale.
+
+        A reset EyeQ answers nothing it was asked before: each outstanding request ended
+        without its reply, so it counts as a timeout (and as ``abandoned``), not retried."""
+        self.counters.timeouts += len(self._pending)
+        self.counters.abandoned += len(self._pending)
         self._pending.clear()
 
     def data_to_send(self) -> list[bytes]:

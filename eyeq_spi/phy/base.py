@@ -104,24 +104,26 @@ def adapter_class(name: str) -> type[Adapter]:
 
 
 def open_url(url: str, *, timeout: float = 5.0) -> Adapter:
-    """Open an adapter from a URL.
+    """Open an adapter from an address in the grammar of :mod:`eyeq_spi.phy.address`.
 
-    - ``tcp://HOST:PORT`` with ``listen=True`` semantics is ``listen://HOST:PORT`` here: a TCP
-      listener that serves the other end of a ``socket://`` URL;
-    - anything else is a pyserial URL or device (``socket://``, ``loop://``, ``rfc2217://``,
-      ``/dev/ttyUSB0``, a pty path).
+    - ``tcp://HOST:PORT``, ``socket://HOST:PORT``, ``rfc2217://HOST:PORT``, a tty or pty path,
+      or any other pyserial URL (``loop://``): connect;
+    - ``listen://HOST:PORT`` (the old spelling of ``--listen tcp://HOST:PORT``): listen, as
+      :func:`open_listener` does.
     """
-    if url.startswith("listen://"):
-        host, _, port = url[len("listen://") :].rpartition(":")
-        return adapter_class("tcp-listen")(host or "127.0.0.1", _port(port, url), timeout=timeout)  # type: ignore[call-arg]
-    return adapter_class("serial")(url)  # type: ignore[call-arg]
+    from eyeq_spi.phy.address import parse_connect
+
+    addr = parse_connect(url, check_path=False)
+    if addr.mode == "listen":
+        return open_listener(addr.url, timeout=timeout)
+    return adapter_class("serial")(addr.url)  # type: ignore[call-arg]
 
 
-def _port(text: str, url: str) -> int:
-    try:
-        port = int(text)
-    except ValueError:
-        raise AdapterError(f"bad port in {url!r}") from None
-    if not 0 <= port <= 65535:
-        raise AdapterError(f"port out of range in {url!r}")
-    return port
+def open_listener(url: str, *, timeout: float = 5.0) -> Adapter:
+    """A TCP listener on ``tcp://HOST:PORT`` (port 0: any free port) that serves one peer at a
+    time; ``timeout`` bounds the wait for a peer on the first send or receive."""
+    from eyeq_spi.phy.address import parse_listen
+
+    addr = parse_listen(url)
+    assert addr.host is not None and addr.port is not None
+    return adapter_class("tcp-listen")(addr.host, addr.port, timeout=timeout)  # type: ignore[call-arg]

@@ -1,4 +1,5 @@
-"""TCP listener adapter: serves the other end of a pyserial ``socket://HOST:PORT`` URL.
+"""TCP listener adapter (``--listen tcp://HOST:PORT``): serves a peer that connects with
+``--port tcp://HOST:PORT`` (pyserial's ``socket://HOST:PORT``).
 
 It accepts one connection (waiting up to ``timeout`` seconds for it on the first send/recv, or in
 :meth:`accept`), then carries COBS-framed transfers like the serial adapter. A new connection
@@ -13,6 +14,7 @@ import select
 import socket
 
 from eyeq_spi.errors import AdapterError, LinkLostError
+from eyeq_spi.phy.address import listen_url
 from eyeq_spi.phy.stream import CobsDecoder, StreamAdapter
 
 
@@ -30,11 +32,9 @@ class TcpListenAdapter(StreamAdapter):
 
     @property
     def url(self) -> str:
-        """The pyserial URL a peer uses to reach us (a wildcard address becomes loopback, so
-        the URL can be handed to ``eyeq-spi host --port`` as printed)."""
-        host = {"0.0.0.0": "127.0.0.1", "": "127.0.0.1", "::": "::1"}.get(self.address[0],
-                                                                        self.address[0])
-        return f"socket://{f'[{host}]' if ':' in host else host}:{self.address[1]}"
+        """The URL a peer gives to ``--port`` to reach us (a wildcard address becomes loopback,
+        so the URL can be handed to ``eyeq-spi host --port`` as printed)."""
+        return listen_url(self.address[0], self.address[1])
 
     def accept(self, timeout: float | None = None) -> bool:
         if self.conn is not None:

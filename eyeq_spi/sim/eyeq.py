@@ -86,6 +86,10 @@ class SimCounters:
     bad_hdr_total: int = 0  # bad_hdr, not wrapped
     veh_state_stale: int = 0  # HOST_VEH_STATE silent > 3 periods in Running Vision (§7.1.2.2)
     mesp_requests: int = 0
+    # MESP replies the host waits for in vain (M6: no reply within the deadline is a timeout):
+    # dropped (--drop-reply, or still delayed when the EyeQ reset) or sent past the deadline
+    mesp_replies_dropped: int = 0
+    mesp_replies_late: int = 0
     received: Counter[str] = field(default_factory=Counter)
     rejected_values: int = 0  # vehicle signals not valid, not finite or outside the seed range
     edr_triggers: list[dict[str, Any]] = field(default_factory=list)
@@ -141,8 +145,9 @@ class SimulatedEyeQ:
         if expected is not None and expected.codec is not None:
             self._expected_0x84_no_crc = strip_crc(expected.codec, expected.codec.encode(
                 intrinsic_params_from_eeprom(bytes(self.eeprom), self.sw)))
-        self._replies: deque[tuple[float, bytes]] = deque()
+        self._replies: deque[tuple[float, bytes, bool]] = deque()  # (due, reply, late)
         self._dropped: Counter[str] = Counter()
+        self._reply_deadline = float(self.codec.cat.raw["mesp.yaml"]["mesp"]["reply_deadline"])
         self._dasp_counter: Counter[int] = Counter()
         self._rx_counter = DaspCounters()
         self._templates: dict[str, dict[str, Any]] = {}
@@ -207,6 +212,8 @@ class SimulatedEyeQ:
         self.conn.reset()
         while self.conn.next_event() is not None:
             pass
+        # a reset loses the delayed replies: the host never gets them (late ones are counted)
+        self.counters.mesp_replies_dropped += sum(not late for _, _, late in self._replies)
         self._replies.clear()
         self._boot_at = now + self.config.boot_delay
         self._app_at = None
@@ -306,10 +313,13 @@ class SimulatedEyeQ:
         name = fn.name if fn else ""
         if self._dropped[name] < self.config.drop_replies.get(name, 0):
             self._dropped[name] += 1
+            self.counters.mesp_replies_dropped += 1
             return
         delay = self.config.reply_delay + self.config.delay_replies.get(name, 0.0)
+        late = delay >= self._reply_deadline
+        self.counters.mesp_replies_late += late
         if delay > 0:
-            self._replies.append((now + delay, reply))
+            self._replies.append((now + delay, reply, late))
         else:
             self._send(reply, now)
 

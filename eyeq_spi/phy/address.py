@@ -1,0 +1,120 @@
+"""One address grammar for every command: where a peer is, and whether we listen or connect.
+
+Transfers between processes travel over a byte stream (decision S). Every command names that
+stream the same way:
+
+- ``--listen tcp://HOST:PORT``: we listen; the peer connects. Port 0 takes any free port; the
+  command prints the URL the peer should use (``LISTEN tcp://127.0.0.1:40719``).
+- ``--port URL``: we connect to a peer that is already there: ``tcp://HOST:PORT`` or its
+  pyserial spelling ``socket://HOST:PORT`` (a peer listening on TCP), ``rfc2217://HOST:PORT`` (a
+  serial port behind an RFC 2217 server), or the path of a tty or pty.
+
+Older spellings are still understood and reported with the new one (:attr:`Address.old`):
+``listen://HOST:PORT`` and ``socket://HOST:PORT`` given to listen are ``--listen
+tcp://HOST:PORT``. :func:`parse_connect` and :func:`parse_listen` are the only parsers; the CLI
+(``cli_args``) and :func:`eyeq_spi.phy.base.open_url` both use them.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+from typing import Literal
+
+from eyeq_spi.errors import AdapterError
+
+CONNECT_FORMS = "tcp://HOST:PORT, socket://HOST:PORT, rfc2217://HOST:PORT or a tty/pty path"
+LISTEN_FORM = "tcp://HOST:PORT (port 0: any free port)"
+
+_URL = re.compile(r"^([a-z0-9+]+)://(\[[0-9A-Fa-f:.]+\]|[^:/\[\]\s?#]*):([^/?#]*)(.*)$")
+
+
+class AddressError(AdapterError):
+    """An address that does not follow the grammar (scheme, host, port)."""
+
+
+@dataclass(frozen=True)
+class Address:
+    """A parsed address: ``mode`` says whether we listen or connect; ``url`` is canonical
+    (listen: ``tcp://HOST:PORT``; connect: the pyserial URL or device path we open); ``old`` is
+    the text given when it was an old spelling, else None."""
+
+    mode: Literal["listen", "connect"]
+    url: str
+    host: str | None = None
+    port: int | None = None
+    old: str | None = None
+
+    @property
+    def spelling(self) -> str:
+        """How to say this address now: ``--listen tcp://H:P`` or ``--port URL``."""
+        return f"--{'listen' if self.mode == 'listen' else 'port'} {self.display}"
+
+    @property
+    def display(self) -> str:
+        """The address in the new grammar (what a user types)."""
+        if self.host is not None and self.url.startswith("socket://"):
+            return "tcp://" + self.url[len("socket://"):]
+        return self.url
+
+
+def _host_port(text: str, lo_port: int) -> tuple[str, str, int, str]:
+    m = _URL.match(text.strip())
+    if not m:
+        raise AddressError(f"{text!r} is not SCHEME://HOST:PORT")
+    scheme, host, port_text, rest = m.groups()
+    if rest and not rest.startswith("?"):
+        raise AddressError(f"{text!r}: nothing may follow :PORT")
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise AddressError(f"{text!r}: the port must be an integer in {lo_port}..65535, "
+                           f"got {port_text!r}") from None
+    if not lo_port <= port <= 65535:
+        raise AddressError(f"{text!r}: the port must be in {lo_port}..65535")
+    return scheme, host or "127.0.0.1", port, rest
+
+
+def _bare(host: str) -> str:
+    return host[1:-1] if host.startswith("[") else host
+
+
+def parse_listen(text: str) -> Address:
+    """``tcp://HOST:PORT`` to listen on. ``socket://`` and ``listen://`` are old spellings."""
+    if "://" not in text:
+        raise AddressError(f"{text!r}: give {LISTEN_FORM}")
+    scheme = text.split("://", 1)[0].lower()
+    if scheme not in ("tcp", "socket", "listen"):
+        raise AddressError(f"cannot listen on {scheme}://; give {LISTEN_FORM}")
+    _, host, port, rest = _host_port(text, 0)
+    if rest:
+        raise AddressError(f"{text!r}: a listening address takes no options after :PORT")
+    url = f"tcp://{host}:{port}"
+    return Address("listen", url, _bare(host), port, None if scheme == "tcp" else text)
+
+
+def parse_connect(text: str, *, check_path: bool = True) -> Address:
+    """Where to connect: ``tcp://`` or ``socket://HOST:PORT``, ``rfc2217://HOST:PORT``, or a
+    tty/pty path (``check_path``: it must exist). ``listen://HOST:PORT`` is the old spelling of
+    ``--listen tcp://HOST:PORT``: returned as a listening address with ``old`` set. Any other
+    pyserial URL (``loop://``...) is passed through for :func:`open_url`'s callers in code."""
+    if "://" not in text:
+        if check_path and not os.path.exists(text):
+            raise AddressError(f"no such device {text!r}; give {CONNECT_FORMS}")
+        return Address("connect", text)
+    scheme = text.split("://", 1)[0].lower()
+    if scheme == "listen":
+        return parse_listen(text)
+    if scheme in ("tcp", "socket", "rfc2217"):
+        _, host, port, rest = _host_port(text, 1)
+        url = f"{'rfc2217' if scheme == 'rfc2217' else 'socket'}://{host}:{port}{rest}"
+        return Address("connect", url, _bare(host), port)
+    return Address("connect", text)
+
+
+def listen_url(host: str, port: int) -> str:
+    """The URL a peer gives to ``--port`` to reach a listener on ``host:port`` (a wildcard
+    address becomes loopback, so the URL works as printed on this machine)."""
+    host = {"0.0.0.0": "127.0.0.1", "": "127.0.0.1", "::": "::1"}.get(host, host)
+    return f"tcp://{f'[{host}]' if ':' in host else host}:{port}"

@@ -1,0 +1,58 @@
+"""The one run summary (eyeq_spi/report.py): the simulated EyeQ's side of a dropped or late MESP
+reply, per-session totals, the text block."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.emulator import build, summary
+from eyeq_spi.host.nvm import Nvm
+from eyeq_spi.report import KEYS, format_summary, sim_session, sim_summary
+from eyeq_spi.sim.config import SimConfig
+
+
+def _sim_view(cfg: SimConfig, tmp_path: Path) -> dict[str, Any]:
+    """The sim's summary of a second ignition (the NVM already right: no EEPROM-driven reset)."""
+    if not (tmp_path / "nvm.json").exists():
+        build(nvm=Nvm(tmp_path / "nvm.json")).run_for(3.0)
+    emu = build(sim_config=cfg, nvm=Nvm(tmp_path / "nvm.json"))
+    emu.run_for(4.0)
+    sess = sim_session(emu.sim, began=0.0, ended=4.0, link_lost=None)
+    return sim_summary(emu.sim, [sess], elapsed=4.0, wall=1.0, cpu=1.0)
+
+
+def test_the_sim_counts_a_dropped_reply_as_a_timeout(tmp_path: Path) -> None:
+    s = _sim_view(SimConfig(drop_replies={"GetEyeQExtendedState": 1}), tmp_path)
+    assert s["mesp"]["timeouts"] == 1 and not s["ok"] and "MESP timeouts" in str(s["problem"])
+    assert list(s) == list(KEYS)
+
+
+def test_the_sim_counts_a_reply_past_the_deadline_as_a_timeout(tmp_path: Path) -> None:
+    s = _sim_view(SimConfig(delay_replies={"GetEyeQVersions": 0.7}), tmp_path)
+    assert s["mesp"]["timeouts"] >= 1 and not s["ok"]
+    assert _sim_view(SimConfig(delay_replies={"GetEyeQVersions": 0.1}), tmp_path)["ok"]
+
+
+def test_sim_totals_are_the_sums_of_its_sessions(tmp_path: Path) -> None:
+    sessions = []
+    for _ in range(2):
+        emu = build(nvm=Nvm(tmp_path / "nvm.json"))
+        emu.run_for(2.0)
+        sessions.append(sim_session(emu.sim, began=0.0, ended=2.0, link_lost=None))
+    a, b = (dict(s) for s in sessions)
+    s = sim_summary(emu.sim, sessions, elapsed=4.0, wall=1.0, cpu=1.0)
+    assert s["connections"] == 2
+    assert s["received"]["HOST_VEH_STATE_MSG"] == (a["received"]["HOST_VEH_STATE_MSG"]
+                                                   + b["received"]["HOST_VEH_STATE_MSG"])
+    assert s["ack_latency_ms"]["n"] == a["ack_latency_ms"]["n"] + b["ack_latency_ms"]["n"]
+    assert "_ack_hist" not in s["sessions"][0]
+
+
+def test_the_text_block_lists_received_and_sent_apart(tmp_path: Path) -> None:
+    emu = build(nvm=Nvm(tmp_path / "nvm.json"))
+    emu.run_for(2.0)
+    text = format_summary(summary(emu))
+    rx = next(line for line in text.splitlines() if line.startswith("  received:"))
+    tx = next(line for line in text.splitlines() if line.startswith("  sent:"))
+    assert "HOST_VEH_STATE" not in rx and "HOST_VEH_STATE" in tx and "VIS_OBSTACLES" in rx
