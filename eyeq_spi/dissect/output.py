@@ -68,7 +68,7 @@ class HumanWriter:
             if self.tree and r["fields"]:
                 self._tree(r)
         elif kind == "event":
-            rest = " ".join(f"{k}={v}" for k, v in r.items() if k not in ("kind", "type"))
+            rest = " ".join(f"{k}={v}" for k, v in r.items() if k not in ("kind", "type", "file"))
             self.fh.write("  " + self._c(YELLOW, f"event {r['type']}") + f" {rest}\n")
         elif kind == "stats":
             pass
