@@ -26,7 +26,9 @@ def add_dissect_parser(sub: Any) -> None:
                    help="skip detection")
     d.add_argument("--direction", choices=("h2e", "e2h"),
                    help="channel of a raw or hex file without directions")
-    d.add_argument("--sw", type=ca.sw_release, help="SW release of the traffic (default newest)")
+    d.add_argument("--sw", type=ca.sw_release,
+                   help="SW release of the traffic (default: the one each capture records or "
+                   "shows, else the newest)")
     d.add_argument("--json", action="store_true", help="JSON Lines, one object per line")
     d.add_argument("--csv", metavar="DIR", type=ca.output_dir,
                    help="one CSV table per message type")

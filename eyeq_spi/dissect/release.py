@@ -187,3 +187,17 @@ def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | Non
     head = list(itertools.islice(records, SNIFF_RECORDS))
     found = infer_release(head)
     return Capture(kind, itertools.chain(head, records), choose_release(sw, found, name), tail)
+
+
+def release_of(path: str, sw: str | None = None, fmt: str | None = None,
+               direction: str | None = None, spi: SpiOptions | None = None) -> Release:
+    """The release to read the capture file ``path`` with (for a reader that needs it before
+    it reads the file: its codec builds the plot's or the monitor's labels)."""
+    from eyeq_spi.dissect.inputs import InputError
+
+    try:
+        fh = open(path, "rb")  # noqa: SIM115 - closed below
+    except OSError as exc:
+        raise InputError(f"{path}: {exc.strerror or exc}") from None
+    with fh:
+        return open_capture(fh, fmt, direction, spi, sw=sw, name=path).release
