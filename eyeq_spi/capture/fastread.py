@@ -237,8 +237,11 @@ class _Walker:
         except TruncatedCaptureError as exc:
             if self.n:  # every complete transfer before the fault
                 yield self._flush()
-            if self.tail is None or not self.packets:
+            if self.tail is None:
                 raise
+            if not self.packets:
+                raise CaptureError("pcapng capture without any transfer (no whole Enhanced "
+                                   "Packet Block)") from None
             self.tail.take(exc)
         except CaptureError:
             if self.n:  # every complete transfer before the fault, then the error
