@@ -19,8 +19,7 @@ from eyeq_spi.errors import EyeqError
 from eyeq_spi.spec.catalog import SwKey, catalog, sw_release_text
 
 DIRECTIONS = ("h2e", "e2h")
-SW_COMMENT = "eyeq-spi sw="  # opt_comment of the SHB and the first EPB: "eyeq-spi sw=8.1"
-_SW_COMMENT_RE = re.compile(r"eyeq-spi sw=(\S+)")
+SW_COMMENT = "eyeq-spi sw={release}"  # specs/capture.yaml release_comment: "eyeq-spi sw=8.1"
 
 
 class CaptureError(EyeqError):
@@ -56,7 +55,8 @@ class Tail:
 def release_from_comment(text: str) -> SwKey | None:
     """The ``specs/`` key of an ``eyeq-spi sw=<release>`` comment (None: no such comment, or a
     release ``specs/`` does not know)."""
-    m = _SW_COMMENT_RE.search(text)
+    prefix = str(_spec().get("release_comment", SW_COMMENT)).split("{release}")[0]
+    m = re.search(re.escape(prefix) + r"(\S+)", text)
     if m is None:
         return None
     try:
@@ -110,7 +110,8 @@ class CaptureWriter:
 
     Crash-safe: blocks are encoded here (``specs/capture.yaml``) into a buffer that goes to the
     file in whole blocks only, with one unbuffered write each time it holds ``FLUSH_BYTES`` or
-    ``FLUSH_S`` seconds (``clock``) have passed since the last one. A process killed at any
+    ``flush_interval_s`` seconds (``specs/capture.yaml``, by ``clock``) have passed since the last
+    one. A process killed at any
     instant leaves a file that ends on a block boundary and loses at most the last second of
     traffic. The release of the traffic (``sw``, a ``specs/`` key or release text; default the
     newest) is recorded as an ``opt_comment`` ``eyeq-spi sw=<release>`` on the Section Header
@@ -127,7 +128,8 @@ class CaptureWriter:
             self.release = sw_release_text(cat.sw(sw))
         except EyeqError as exc:
             raise CaptureError(str(exc)) from None
-        self.comment = f"{SW_COMMENT}{self.release}"
+        self.comment = str(spec.get("release_comment", SW_COMMENT)).format(release=self.release)
+        self.flush_s = float(spec.get("flush_interval_s", self.FLUSH_S))
         try:
             self._fh: IO[bytes] = open(path, "wb", buffering=0)  # noqa: SIM115 - see close()
         except OSError as exc:
@@ -156,7 +158,7 @@ class CaptureWriter:
         self._buf += opts
         self._buf += size.to_bytes(4, "little")
         self.count += 1
-        if len(self._buf) >= self.FLUSH_BYTES or self._clock() - self._last_flush >= self.FLUSH_S:
+        if len(self._buf) >= self.FLUSH_BYTES or self._clock() - self._last_flush >= self.flush_s:
             self.flush()
 
     def flush(self) -> None:
