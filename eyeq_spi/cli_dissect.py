@@ -131,6 +131,8 @@ def run_dissect(args: argparse.Namespace) -> int:
             done = next(par)[1] if par is not None else None
             stats = Stats(cat, file=path)
             per_file.append(stats)
+            if table is not None:
+                table.file = path
             if human is not None and len(args.files) > 1:
                 out.write(f"=== {path}\n")
             if done is not None:

@@ -82,7 +82,7 @@ def test_a_capture_of_every_release_dissects_clean(captures: dict[str, Path], ba
         rc, out, err = _run(capsys, "dissect", str(path), "--stats", "--json")
         st = json.loads(out)
         assert (rc, st["protocol_errors"], st["sw"], st["sw_source"], err) == \
-            (0, 0, r, "capture", ""), r
+            (0, 0, r, "recorded in the capture", ""), r
 
 
 def test_both_paths_give_the_same_records(captures: dict[str, Path],

@@ -236,6 +236,7 @@ class TableWriter:
             raise OutputError(f"cannot create {self.dir}: {exc}") from exc
         self.fmt = fmt
         self.batch = batch
+        self.file: str | None = None  # the capture being written: every row's first column
         self._csv: dict[str, tuple[IO[str], Any, list[str]]] = {}
         self._rows: dict[str, list[dict[str, Any]]] = {}
         self._pq: dict[str, Any] = {}
@@ -252,7 +253,8 @@ class TableWriter:
         if r["kind"] != "message" or not r["fields"]:
             return
         name = r["name"] or r["protocol"]
-        row = {"frame_index": r["frames"][-1] if r["frames"] else None, "time": r.get("time"),
+        row = {"file": r.get("file", self.file),
+               "frame_index": r["frames"][-1] if r["frames"] else None, "time": r.get("time"),
                "direction": r.get("direction"), **{f"header.{k}": v for k, v in
                                                     r["header"].items()},
                **flatten(r["fields"])}
@@ -272,6 +274,7 @@ class TableWriter:
         n = len(columns["frame_index"])
         if not n:
             return
+        columns = {"file": [self.file] * n, **columns}
         if self.fmt == "csv":
             entry = self._csv.get(name)
             if entry is None:

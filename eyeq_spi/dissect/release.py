@@ -33,6 +33,7 @@ from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.spec.catalog import Catalog, SwKey, catalog, sw_release_text
 from eyeq_spi.spec.schema import sw_key
 
+RECORDED = "recorded in the capture"
 SNIFF_RECORDS = 6000  # transfers looked at: about 3 s of a running EyeQ's traffic
 BASE_DIAG_ID = 0xA0  # EYEQ_BASE_DIAG_STATUS_MSG; its release bytes are at the same offsets in
 # every layout (§7.1.4.1: timestamp_ms u32, apiVersion u8 u8, eyeqSwVersion u8 u8)
@@ -43,7 +44,7 @@ class Release:
     """The release a capture is read with, where it came from, and the disagreement line."""
 
     key: SwKey
-    source: str  # "--sw", "capture", "GetEyeQVersions reply", ..., "default"
+    source: str  # "--sw", RECORDED, "GetEyeQVersions reply", ..., "default"
     found: SwKey | None = None  # what the capture says (recorded or inferred), None: nothing
     found_source: str | None = None
     warning: str | None = None
@@ -152,11 +153,11 @@ def choose_release(sw: str | None, found: tuple[SwKey, str] | None, name: str,
     if sw is None:
         if fkey is None:
             return Release(cat.default_sw, "default")
-        return Release(fkey, fsrc or "capture", fkey, fsrc)
+        return Release(fkey, fsrc or RECORDED, fkey, fsrc)
     key = cat.sw(sw)
     warning = None
     if fkey is not None and fkey != key:
-        warning = (f"{name}: read as SW {sw_release_text(key)} (--sw) although the capture says "
+        warning = (f"{name}: read as SW {sw_release_text(key)} (--sw) but the capture says "
                    f"SW {sw_release_text(fkey)} ({fsrc})")
     return Release(key, "--sw", fkey, fsrc, warning)
 
@@ -183,7 +184,7 @@ def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | Non
     recorded = recorded_release(peek.head)
     kind, records = open_records(peek, fmt, direction, spi, tail)  # type: ignore[arg-type]
     if recorded is not None:
-        return Capture(kind, records, choose_release(sw, (recorded, "capture"), name), tail)
+        return Capture(kind, records, choose_release(sw, (recorded, RECORDED), name), tail)
     head = list(itertools.islice(records, SNIFF_RECORDS))
     found = infer_release(head)
     return Capture(kind, itertools.chain(head, records), choose_release(sw, found, name), tail)

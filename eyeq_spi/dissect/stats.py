@@ -148,7 +148,7 @@ class Stats:
         if self.files:
             out.append(f"=== total of {self.files} files")
         elif self.file is not None:
-            src = f" (SW {d['sw']}, from {d['sw_source']})" if "sw" in d else ""
+            src = f" (SW {d['sw']}: {d['sw_source']})" if "sw" in d else ""
             out.append(f"=== {self.file}{src}")
         if self.ignored_bytes:
             out.append(f"  ignored {self.ignored_bytes} bytes of an incomplete last block")
