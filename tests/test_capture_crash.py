@@ -98,10 +98,23 @@ def test_the_cli_readers_say_it_in_one_line_and_exit_1(good: bytes, tmp_path: Pa
             lines = err.splitlines()
             assert rc == 1 and out and len(lines) == argv.count(str(cut)), (argv, err)
             assert all("ignored the last" in x and "Traceback" not in x for x in lines)
-    capsys.readouterr()
-    assert main(["replay", str(cut), "--into-host", "--json"]) == 1
-    err = capsys.readouterr().err
-    assert "ignored the last" in err
+    bounds = _boundaries(good)
+    left = len(good) - 8 - bounds[-2]  # the last block, but for the 8 bytes cut off
+    others = [["replay", str(cut), "--into-host", "--json"],
+              ["monitor", "--replay", str(cut), "--pace", "0"],
+              ["monitor", "--replay", str(cut), "--passive", "--pace", "0"]]
+    import importlib.util
+
+    if importlib.util.find_spec("mcap") is not None:
+        others.append(["export", str(cut), "--mcap", str(tmp_path / "x.mcap")])
+    if importlib.util.find_spec("matplotlib") is not None:
+        others.append(["plot", str(cut), "--link", "-o", str(tmp_path / "l.png")])
+    for argv in others:
+        capsys.readouterr()
+        rc = main(argv)
+        err = capsys.readouterr().err
+        assert rc == 1 and err.count("\n") == 1 and "Traceback" not in err, argv
+        assert f"ignored the last {left} bytes" in err, argv
 
 
 def test_a_writer_flushes_whole_blocks_at_least_once_a_second(tmp_path: Path) -> None:
