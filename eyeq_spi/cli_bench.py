@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Iterator
 from typing import IO, Any
 
 from eyeq_spi.errors import UsageError
@@ -21,7 +20,8 @@ def _input_options(p: Any) -> None:
     p.add_argument("--format", choices=_FORMATS, help="skip detection")
     p.add_argument("--direction", choices=("h2e", "e2h"),
                    help="channel of an input without directions")
-    p.add_argument("--sw", help="SW release of the traffic (default newest)")
+    p.add_argument("--sw", help="SW release of the traffic (default: the one the capture "
+                   "records or shows, else the newest)")
     add_spi_arguments(p)
 
 
@@ -72,8 +72,11 @@ def add_bench_parser(sub: Any) -> None:
                    "any other needs SIGROKDECODE_DIR=DIR)")
 
 
-def _records(args: argparse.Namespace) -> tuple[IO[bytes], Iterator[Any]]:
-    from eyeq_spi.dissect.inputs import InputError, open_records
+def _records(args: argparse.Namespace, command: str) -> tuple[IO[bytes], Any]:
+    """The capture opened with its release (``--sw`` overrides, one warning line when they
+    disagree) and its tail (a pcapng cut inside a block is read up to its last whole block)."""
+    from eyeq_spi.dissect.inputs import InputError
+    from eyeq_spi.dissect.release import open_capture
     from eyeq_spi.logic.options import spi_options_from
 
     if args.capture == "-":
@@ -83,8 +86,25 @@ def _records(args: argparse.Namespace) -> tuple[IO[bytes], Iterator[Any]]:
             fh = open(args.capture, "rb")  # noqa: SIM115 - closed by the caller
         except OSError as exc:
             raise InputError(f"{args.capture}: {exc.strerror or exc}") from None
-    _, records = open_records(fh, args.format, args.direction, spi_options_from(args))
-    return fh, records
+    try:
+        cap = open_capture(fh, args.format, args.direction, spi_options_from(args), sw=args.sw,
+                           name=args.capture)
+    except BaseException:
+        if fh is not sys.stdin.buffer:
+            fh.close()
+        raise
+    if cap.release.warning:
+        print(f"eyeq-spi {command}: warning: {cap.release.warning}", file=sys.stderr,
+              flush=True)
+    return fh, cap
+
+
+def _tail_rc(command: str, path: str, cap: Any) -> int:
+    """1 with one line on stderr when the reader left an incomplete last block, else 0."""
+    if not cap.tail.ignored:
+        return 0
+    print(f"eyeq-spi {command}: {cap.tail.note(path)}", file=sys.stderr, flush=True)
+    return 1
 
 
 def run_export(args: argparse.Namespace) -> int:
@@ -92,10 +112,10 @@ def run_export(args: argparse.Namespace) -> int:
 
     if not (args.vcd or args.mdf or args.mcap):
         raise UsageError("give at least one of --vcd, --mdf, --mcap")
-    fh, records = _records(args)
+    fh, cap = _records(args, "export")
     try:
-        summary = export(records, source=args.capture, sw=args.sw, vcd=args.vcd, mdf=args.mdf,
-                         mcap=args.mcap, spi=_spi(args))
+        summary = export(cap.records, source=args.capture, sw=cap.release.key, vcd=args.vcd,
+                         mdf=args.mdf, mcap=args.mcap, spi=_spi(args))
     finally:
         if fh is not sys.stdin.buffer:
             fh.close()
@@ -104,7 +124,7 @@ def run_export(args: argparse.Namespace) -> int:
     else:
         for line in summary["written"]:
             print(f"wrote {line}")
-    return 0
+    return _tail_rc("export", args.capture, cap)
 
 
 def _spi(args: argparse.Namespace) -> Any:
@@ -121,16 +141,16 @@ def run_replay(args: argparse.Namespace) -> int:
         raise UsageError("--duration must be positive")
     if args.pty:
         raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
-    fh, records = _records(args)
+    fh, cap = _records(args, "replay")
     try:
         if args.into_host:
-            summary = replay_into_host(records, sw=args.sw, duration=args.duration)
+            summary = replay_into_host(cap.records, sw=cap.release.key, duration=args.duration)
         else:
             if args.lead < 0:
                 raise UsageError("--lead must not be negative")
-            summary = replay_to_port(records, args.listen or args.port,
+            summary = replay_to_port(cap.records, args.listen or args.port,
                                      listen=bool(args.listen), duration=args.duration,
-                                     lead=args.lead, sw=args.sw)
+                                     lead=args.lead, sw=cap.release.key)
     finally:
         if fh is not sys.stdin.buffer:
             fh.close()
@@ -138,7 +158,8 @@ def run_replay(args: argparse.Namespace) -> int:
         print(json.dumps(summary, sort_keys=True), flush=True)
     else:
         print(format_summary(summary), flush=True)
-    return 0 if summary["ok"] else 1
+    rc = _tail_rc("replay", args.capture, cap)
+    return 0 if summary["ok"] and not rc else 1
 
 
 def run_sigrok_decoder(args: argparse.Namespace) -> int:

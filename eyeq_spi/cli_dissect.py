@@ -26,7 +26,9 @@ def add_dissect_parser(sub: Any) -> None:
                    help="skip detection")
     d.add_argument("--direction", choices=("h2e", "e2h"),
                    help="channel of a raw or hex file without directions")
-    d.add_argument("--sw", type=ca.sw_release, help="SW release of the traffic (default newest)")
+    d.add_argument("--sw", type=ca.sw_release,
+                   help="SW release of the traffic (default: the one each capture records or "
+                   "shows, else the newest)")
     d.add_argument("--json", action="store_true", help="JSON Lines, one object per line")
     d.add_argument("--csv", metavar="DIR", type=ca.output_dir,
                    help="one CSV table per message type")
@@ -87,32 +89,32 @@ def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
 
 
 def run_dissect(args: argparse.Namespace) -> int:
-    from eyeq_spi.codec.message import MessageCodec
-    from eyeq_spi.dissect.engine import Dissector
-    from eyeq_spi.dissect.inputs import open_records
     from eyeq_spi.dissect.output import HumanWriter, JsonWriter, TableWriter
-    from eyeq_spi.dissect.stats import Stats
-    from eyeq_spi.logic.options import spi_options_from
+    from eyeq_spi.dissect.stats import Stats, combine
+    from eyeq_spi.spec.catalog import catalog
 
     if args.csv and args.parquet:
         raise UsageError("give --csv or --parquet, not both")
     if args.files.count("-") > 1:
         raise UsageError("stdin (-) can be given once")
-    codec = MessageCodec(args.sw)
+    cat = catalog()
     keep = _filter(args)
-    stats = Stats(codec.cat)
     writers: list[Any] = []
     table = None
     if args.csv or args.parquet:
         table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet")
         writers.append(table)
     out = sys.stdout
+    human = None
     if args.stats:
-        pass  # statistics only (as text, or one JSON object with --json)
+        pass  # statistics only (as text, or one JSON object per file with --json)
     elif args.json:
         writers.append(JsonWriter(out, fast=True))
     elif not table:
-        writers.append(HumanWriter(out, codec, color=out.isatty(), tree=not args.no_tree))
+        human = HumanWriter(out, _codec(cat.default_sw), color=out.isatty(),
+                            tree=not args.no_tree)
+        writers.append(human)
+    per_file: list[Stats] = []
     gc_was = gc.isenabled()
     gc.disable()  # collected by _paced_gc instead
     try:
@@ -127,47 +129,98 @@ def run_dissect(args: argparse.Namespace) -> int:
                                     br.fields_mode(writers, plain))
         for path in args.files:
             done = next(par)[1] if par is not None else None
+            stats = Stats(cat, file=path)
+            per_file.append(stats)
+            if table is not None:
+                table.file = path
+            if human is not None and len(args.files) > 1:
+                out.write(f"=== {path}\n")
             if done is not None:
-                for r in _paced_gc(done):
-                    if br is not None and isinstance(r, br.FrameBlock):
-                        br.consume(r, keep, plain, stats, writers)
-                    elif keep(r):
-                        stats.add(r)
-                        for w in writers:
-                            w.write(r)
-                    r = None  # _paced_gc: the block is garbage now
-                continue
-            fh = _open(path)
-            try:
-                _, records = open_records(fh, args.format, args.direction, spi_options_from(args))
-                dis = Dissector(codec=codec)
-                batched = (br.batch_items(fh, args.format, args.direction, codec,
-                                          fields=br.fields_mode(writers, plain))
-                           if br is not None else None)
-                for r in _paced_gc(_with_progress(batched or _all(dis, records), fh, path,
-                                                  stdout_busy=bool(writers) and table is None)):
-                    if br is not None and isinstance(r, br.FrameBlock):  # the batch path
-                        br.consume(r, keep, plain, stats, writers)
-                    elif keep(r):  # --stats describes exactly what the filters keep
-                        stats.add(r)
-                        for w in writers:
-                            w.write(r)
-                    r = None  # _paced_gc: the block is garbage now
-            finally:
-                if fh is not sys.stdin.buffer:
-                    fh.close()
+                items, release, tail = done
+                _file_start(path, release, stats, human)
+                _feed(_paced_gc(items), br, keep, plain, stats, writers, path)
+            else:
+                tail = _dissect_file(path, args, br, plain, keep, stats, writers, human)
+            if tail.ignored:
+                stats.ignored_bytes = tail.ignored
+                print(f"eyeq-spi dissect: {tail.note(path)}", file=sys.stderr, flush=True)
+            stats.finish()
     finally:
         if gc_was:
             gc.enable()
         if table is not None:
             table.close()
-    stats.finish()
     if args.stats:
-        if args.json:
-            JsonWriter(out, fast=True).write(stats.as_dict())
+        shown = [*per_file, combine(per_file)] if len(per_file) > 1 else per_file
+        for st in shown:
+            if args.json:
+                JsonWriter(out, fast=True).write(st.as_dict())
+            else:
+                out.write(st.render() + "\n")
+    return 1 if any(st.protocol_errors or st.ignored_bytes for st in per_file) else 0
+
+
+_CODECS: dict[str, Any] = {}
+
+
+def _codec(key: str) -> Any:
+    from eyeq_spi.codec.message import MessageCodec
+
+    if key not in _CODECS:
+        _CODECS[key] = MessageCodec(key)
+    return _CODECS[key]
+
+
+def _file_start(path: str, release: Any, stats: Any, human: Any) -> None:
+    """The release a file is read with: in its statistics, to the human view, and the one-line
+    warning when ``--sw`` disagrees with the capture."""
+    stats.sw = release.as_dict()
+    if human is not None:
+        human.codec = _codec(release.key)
+    if release.warning:
+        print(f"eyeq-spi dissect: warning: {release.warning}", file=sys.stderr, flush=True)
+
+
+def _feed(items: Any, br: Any, keep: Callable[[dict[str, Any]], bool], plain: bool,
+          stats: Any, writers: list[Any], path: str) -> None:
+    for r in items:
+        if br is not None and isinstance(r, br.FrameBlock):  # the batch path
+            br.consume(r, keep, plain, stats, writers, path)
         else:
-            out.write(stats.render() + "\n")
-    return 1 if stats.protocol_errors else 0
+            r["file"] = path
+            if keep(r):  # --stats describes exactly what the filters keep
+                stats.add(r)
+                for w in writers:
+                    w.write(r)
+        r = None  # _paced_gc: the block is garbage now
+
+
+def _dissect_file(path: str, args: argparse.Namespace, br: Any, plain: bool,
+                  keep: Callable[[dict[str, Any]], bool], stats: Any, writers: list[Any],
+                  human: Any) -> Any:
+    """One file in this process (the batch path when it is a seekable pcapng or raw file, else
+    the exact engine); returns what its reader left at its end."""
+    from eyeq_spi.dissect.engine import Dissector
+    from eyeq_spi.dissect.release import open_capture
+    from eyeq_spi.logic.options import spi_options_from
+
+    fh = _open(path)
+    try:
+        cap = open_capture(fh, args.format, args.direction, spi_options_from(args), sw=args.sw,
+                           name=path)
+        _file_start(path, cap.release, stats, human)
+        codec = _codec(cap.release.key)
+        batched = (br.batch_items(fh, args.format, args.direction, codec,
+                                  fields=br.fields_mode(writers, plain), tail=cap.tail)
+                   if br is not None else None)
+        table = any(type(w).__name__ == "TableWriter" for w in writers)
+        items = _with_progress(batched or _all(Dissector(codec=codec), cap.records), fh, path,
+                               stdout_busy=bool(writers) and not table)
+        _feed(_paced_gc(items), br, keep, plain, stats, writers, path)
+        return cap.tail
+    finally:
+        if fh is not sys.stdin.buffer:
+            fh.close()
 
 
 SMALL_INPUT = 256 << 10  # bytes; below this the exact path is quicker than importing numpy

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -52,7 +53,8 @@ def add_plot_parser(sub: Any) -> None:
     p.add_argument("--format", choices=("raw", "hex", "pcapng"), help="skip detection")
     p.add_argument("--direction", choices=("h2e", "e2h"),
                    help="channel of a raw or hex file without directions")
-    p.add_argument("--sw", help="SW version of the traffic (default newest)")
+    p.add_argument("--sw", help="SW release of the traffic (default: the one the capture "
+                   "records or shows, else the newest)")
 
     from eyeq_spi.cli_run import add_shared_options
 
@@ -97,6 +99,7 @@ def _default_output(args: argparse.Namespace, kind: str) -> str:
 
 
 def run_plot(args: argparse.Namespace) -> int:
+    from eyeq_spi.capture.pcapng_io import Tail
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.plot.collect import Collector, Window, collect
     from eyeq_spi.plot.output import check_output, mpl, save_animation, save_figure
@@ -119,14 +122,15 @@ def run_plot(args: argparse.Namespace) -> int:
     out = args.output or _default_output(args, kind)
     check_output(out, animated=args.animate)
     mpl()  # fail before reading a large capture when matplotlib is missing
-    codec = MessageCodec(args.sw)
+    codec = MessageCodec(_release(args.capture, args.sw, args.format, args.direction, "plot"))
     window = Window(args.start, args.end)
     col = Collector(codec, window, timing=args.timing, link=args.link,
                     link_bin=args.bin_ms / 1000.0,
                     at=(args.at if args.at is not None else math.inf) if args.birdseye
                     and not args.animate else None,
                     fps=args.fps if args.animate else None, max_frames=args.max_frames)
-    data = collect(args.capture, col, fmt=args.format, direction=args.direction)
+    tail = Tail()
+    data = collect(args.capture, col, fmt=args.format, direction=args.direction, tail=tail)
     if name_re is not None:
         data.streams = {k: v for k, v in data.streams.items() if name_re.search(k)}
     title = f"{Path(args.capture).name}: {kind}"
@@ -145,7 +149,27 @@ def run_plot(args: argparse.Namespace) -> int:
         fig = timing_figure(data)[0] if args.timing else link_figure(data)
         save_figure(fig, out, title)
     print(f"wrote {out}")
-    return 0
+    return _tail_note("plot", args.capture, tail)
+
+
+def _release(path: str, sw: str | None, fmt: str | None, direction: str | None,
+             command: str) -> str:
+    """The release a capture is read with (the capture's own unless ``--sw``), with the
+    one-line warning when they disagree."""
+    from eyeq_spi.dissect.release import release_of
+
+    rel = release_of(path, sw, fmt, direction)
+    if rel.warning:
+        print(f"eyeq-spi {command}: warning: {rel.warning}", file=sys.stderr, flush=True)
+    return rel.key
+
+
+def _tail_note(command: str, path: str, tail: Any) -> int:
+    """Exit 1 with one line when the reader left an incomplete last block, else 0."""
+    if tail is None or not tail.ignored:
+        return 0
+    print(f"eyeq-spi {command}: {tail.note(path)}", file=sys.stderr, flush=True)
+    return 1
 
 
 def run_monitor(args: argparse.Namespace) -> int:
@@ -170,19 +194,21 @@ def run_monitor(args: argparse.Namespace) -> int:
         from eyeq_spi.codec.message import MessageCodec
         from eyeq_spi.monitor.sources import DissectSource
 
-        source: Any = DissectSource(args.replay, MessageCodec(args.sw), speed=args.pace,
+        sw = _release(args.replay, args.sw, args.format, None, "monitor")
+        source: Any = DissectSource(args.replay, MessageCodec(sw), speed=args.pace,
                                     fmt=args.format)
     elif args.replay:
         from eyeq_spi.monitor.sources import ReplaySource
 
-        source = ReplaySource(args.replay, sw=args.sw, speed=args.pace, fmt=args.format,
+        sw = _release(args.replay, args.sw, args.format, None, "monitor")
+        source = ReplaySource(args.replay, sw=sw, speed=args.pace, fmt=args.format,
                               duration=args.duration)
     elif args.demo:
         source = _demo_source(args)
     else:
         source = _host_source(args)
     run(source, refresh=args.refresh, screenshot=args.screenshot)
-    return 0
+    return _tail_note("monitor", args.replay, getattr(source, "tail", None))
 
 
 def _demo_source(args: argparse.Namespace) -> Any:

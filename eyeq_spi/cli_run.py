@@ -227,7 +227,7 @@ def capture_writer(args: argparse.Namespace) -> Any:
         return None
     from eyeq_spi.capture.pcapng_io import CaptureWriter
 
-    return CaptureWriter(args.capture)
+    return CaptureWriter(args.capture, getattr(args, "sw", None))
 
 
 def _realtime_tap(writer: Any, start: float, tx: str, rx: str) -> Any:

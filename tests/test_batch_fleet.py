@@ -82,12 +82,17 @@ def test_batch_with_a_process_pool_and_a_bad_capture(fleet: Path, tmp_path: Path
         dst = root / p.relative_to(fleet)
         dst.parent.mkdir(parents=True, exist_ok=True)
         dst.write_bytes(p.read_bytes())
-    (root / "broken.pcapng").write_bytes((root / "car1" / "mon.pcapng").read_bytes()[:-77])
+    data = (root / "car1" / "mon.pcapng").read_bytes()
+    (root / "broken.pcapng").write_bytes(data[:40] + b"\xff" * 8 + data[48:])
+    # a killed writer's capture: read up to its last whole block, reported, kept
+    (root / "cut.pcapng").write_bytes(data[:-77])
     out = tmp_path / "ds"
     assert main(["batch", str(root), "--parquet", str(out), "--jobs", "2"]) == 1
     lines = {s["capture"]: s for s in map(json.loads, capsys.readouterr().out.splitlines())}
-    assert "truncated pcapng" in lines["broken"]["error"]
+    assert "malformed pcapng" in lines["broken"]["error"]
     assert not (out / "capture=broken").exists()
+    assert "ignored the last" in lines["cut"]["error"] and lines["cut"]["ignored_bytes"] > 0
+    assert (out / "capture=cut").exists() and lines["cut"]["frames"] > 0
     _check(out, root, capsys)
 
 

@@ -35,11 +35,11 @@ def _jsonl(text: str) -> list[dict[str, Any]]:
 
 
 def _per_direction(records: list[dict[str, Any]]) -> dict[tuple[str, str], list[Any]]:
-    """Frames, messages and events of each direction without times and global indices (the
+    """Frames, messages and events of each direction without times, global indices and file (the
     interleaving of the two channels may differ by a transfer's duration)."""
     out: dict[tuple[str, str], list[Any]] = {}
     for r in records:
-        body = {k: v for k, v in r.items() if k not in ("time", "index", "frames")}
+        body = {k: v for k, v in r.items() if k not in ("time", "index", "frames", "file")}
         out.setdefault((r["direction"], r["kind"]), []).append(body)
     return out
 

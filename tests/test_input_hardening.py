@@ -127,7 +127,9 @@ def test_the_cli_names_the_reason_in_one_line(pcapng_bytes: bytes, tmp_path: Pat
     }
     for name, data in cases.items():
         (tmp_path / name).write_bytes(data)
-        assert main(["dissect", str(tmp_path / name)]) == 2, name
+        # a pcapng cut inside a block is read up to its last whole block: a finding (exit 1)
+        assert main(["dissect", str(tmp_path / name)]) == (1 if name == "cut.pcapng" else 2), \
+            name
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "Traceback" not in err, err
 

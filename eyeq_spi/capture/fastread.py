@@ -15,7 +15,8 @@ fault, L8) keeps its bytes in ``Chunk.odd`` and a zero row in ``data``.
 - any other stream of :class:`Record`: :func:`chunks_from_records`.
 
 Memory stays bounded by ``chunk``. A malformed or truncated file raises :class:`CaptureError` after
-every complete transfer before the fault has been returned.
+every complete transfer before the fault has been returned; given a :class:`Tail`, a truncated
+one ends after its last whole block instead, and the tail says how many bytes were left.
 """
 
 from __future__ import annotations
@@ -27,7 +28,15 @@ from typing import Protocol
 
 import numpy as np
 
-from eyeq_spi.capture.pcapng_io import DIRECTIONS, PCAPNG_MAGIC, CaptureError, Record, read_pcapng
+from eyeq_spi.capture.pcapng_io import (
+    DIRECTIONS,
+    PCAPNG_MAGIC,
+    CaptureError,
+    Record,
+    Tail,
+    TruncatedCaptureError,
+    read_pcapng,
+)
 from eyeq_spi.link.frame import FRAME_SIZE
 
 DIR_CODE: dict[str | None, int] = {"h2e": 0, "e2h": 1, None: -1}
@@ -152,16 +161,18 @@ class _Interfaces:
         self.scales.append(scale)
 
 
-def pcapng_chunks(stream: Readable, chunk: int = CHUNK) -> Iterator[Chunk]:
+def pcapng_chunks(stream: Readable, chunk: int = CHUNK, tail: Tail | None = None
+                  ) -> Iterator[Chunk]:
     """Stream a pcapng capture as chunks; see the module docstring."""
     head = _read_exact(stream, 12)
     if head[:4] != PCAPNG_MAGIC:
         raise CaptureError("not a pcapng file")
     if len(head) < 12 or struct.unpack_from("<I", head, 8)[0] != _BOM:
         # big-endian (or too short to tell): the reference reader handles it
-        yield from chunks_from_records(read_pcapng(_Prefixed(head, stream)), chunk)  # type: ignore[arg-type]
+        yield from chunks_from_records(read_pcapng(_Prefixed(head, stream), tail),  # type: ignore[arg-type]
+                                       chunk)
         return
-    yield from _Walker(stream, head, chunk).run()
+    yield from _Walker(stream, head, chunk, tail).run()
 
 
 class _Prefixed:
@@ -182,8 +193,10 @@ class _Prefixed:
 
 
 class _Walker:
-    def __init__(self, stream: Readable, head: bytes, chunk: int) -> None:
+    def __init__(self, stream: Readable, head: bytes, chunk: int, tail: Tail | None = None
+                 ) -> None:
         self.stream = stream
+        self.tail = tail
         self.buf = head
         self.pos = 0
         self.chunk = chunk
@@ -221,6 +234,15 @@ class _Walker:
     def run(self) -> Iterator[Chunk]:
         try:
             yield from self._run()
+        except TruncatedCaptureError as exc:
+            if self.n:  # every complete transfer before the fault
+                yield self._flush()
+            if self.tail is None:
+                raise
+            if not self.packets:
+                raise CaptureError("pcapng capture without any transfer (no whole Enhanced "
+                                   "Packet Block)") from None
+            self.tail.take(exc)
         except CaptureError:
             if self.n:  # every complete transfer before the fault, then the error
                 yield self._flush()
@@ -263,9 +285,9 @@ class _Walker:
             raise CaptureError("pcapng capture without any transfer (no Enhanced Packet Block)")
 
     def _truncated(self) -> None:
-        left = len(self.buf) - self.pos
-        raise CaptureError(f"truncated pcapng: the file ends {left} bytes into the block that "
-                           f"starts at byte {self.offset + self.pos}")
+        left, at = len(self.buf) - self.pos, self.offset + self.pos
+        raise TruncatedCaptureError(f"truncated pcapng: the file ends {left} bytes into the block "
+                               f"that starts at byte {at}", left, at)
 
     def _one_epb(self, body: bytes) -> None:
         iid, hi, lo, cap = struct.unpack_from("<IIII", body, 0)

@@ -1,21 +1,91 @@
-"""Write and read SPI captures as pcapng (``specs/capture.yaml``) with python-pcapng."""
+"""Write SPI captures as pcapng (``specs/capture.yaml``) and read them with python-pcapng.
+
+A file that ends inside a block (a writer killed mid-block by another tool, a copy cut short) is
+read up to its last whole block when the caller passes a :class:`Tail`, which then says how many
+bytes at the end were ignored; without one it raises :class:`TruncatedCaptureError`.
+"""
 
 from __future__ import annotations
 
+import re
 import struct
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
 from eyeq_spi.errors import EyeqError
-from eyeq_spi.spec.catalog import catalog
+from eyeq_spi.spec.catalog import SwKey, catalog, sw_release_text
 
 DIRECTIONS = ("h2e", "e2h")
+SW_COMMENT = "eyeq-spi sw={release}"  # specs/capture.yaml release_comment: "eyeq-spi sw=8.1"
 
 
 class CaptureError(EyeqError):
     """A capture file cannot be written or read."""
+
+
+class TruncatedCaptureError(CaptureError):
+    """The file ends ``ignored`` bytes into the block that starts at byte ``at``."""
+
+    def __init__(self, message: str, ignored: int, at: int) -> None:
+        super().__init__(message)
+        self.ignored = ignored
+        self.at = at
+
+
+@dataclass
+class Tail:
+    """What a reader left unread at the end of a capture: ``ignored`` bytes of an incomplete
+    block that starts at byte ``at`` (0 bytes: the file ended on a block boundary)."""
+
+    ignored: int = 0
+    at: int = 0
+
+    def take(self, exc: TruncatedCaptureError) -> None:
+        self.ignored, self.at = exc.ignored, exc.at
+
+    def note(self, name: str) -> str:
+        """The one line a reader prints about it."""
+        return (f"{name}: the capture ends inside a block: read up to the last whole block and "
+                f"ignored the last {self.ignored} bytes (from byte {self.at})")
+
+
+def release_from_comment(text: str) -> SwKey | None:
+    """The ``specs/`` key of an ``eyeq-spi sw=<release>`` comment (None: no such comment, or a
+    release ``specs/`` does not know)."""
+    prefix = str(_spec().get("release_comment", SW_COMMENT)).split("{release}")[0]
+    m = re.search(re.escape(prefix) + r"(\S+)", text)
+    if m is None:
+        return None
+    try:
+        return catalog().sw(m.group(1))
+    except EyeqError:
+        return None
+
+
+def recorded_release(head: bytes) -> SwKey | None:
+    """The release recorded in the Section Header Block at the start of ``head`` (the first
+    bytes of a pcapng file), or None."""
+    if len(head) < 28 or head[:4] != PCAPNG_MAGIC:
+        return None
+    endian = {b"\x4d\x3c\x2b\x1a": "<", b"\x1a\x2b\x3c\x4d": ">"}.get(head[8:12])
+    if endian is None:
+        return None
+    length = struct.unpack_from(f"{endian}I", head, 4)[0]
+    end = min(length - 4, len(head))
+    pos = 24  # type, length, byte-order magic, version, section length
+    while pos + 4 <= end:
+        code, size = struct.unpack_from(f"{endian}HH", head, pos)
+        if code == 0:
+            break
+        if code == 1:
+            key = release_from_comment(head[pos + 4 : pos + 4 + size].decode("utf-8", "replace"))
+            if key is not None:
+                return key
+        pos += 4 + size + (-size % 4)
+    return None
 
 
 def _spec() -> dict[str, Any]:
@@ -29,45 +99,88 @@ class Record:
     data: bytes
 
 
-class CaptureWriter:
-    """Streams transfers to a pcapng file: ``write(direction, time, transfer)``."""
+PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
 
-    def __init__(self, path: str | Path) -> None:
-        try:
-            from pcapng import FileWriter, blocks
-        except ImportError as exc:  # pragma: no cover - the extra is missing
-            raise CaptureError("writing captures needs python-pcapng: "
-                               "pip install 'eyeq-spi[capture]'") from exc
+
+MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
+
+
+class CaptureWriter:
+    """Streams transfers to a pcapng file: ``write(direction, time, transfer)``.
+
+    Crash-safe: blocks are encoded here (``specs/capture.yaml``) into a buffer that goes to the
+    file in whole blocks only, with one unbuffered write each time it holds ``FLUSH_BYTES`` or
+    ``flush_interval_s`` seconds (``specs/capture.yaml``, by ``clock``) have passed since the last
+    one. A process killed at any
+    instant leaves a file that ends on a block boundary and loses at most the last second of
+    traffic. The release of the traffic (``sw``, a ``specs/`` key or release text; default the
+    newest) is recorded as an ``opt_comment`` ``eyeq-spi sw=<release>`` on the Section Header
+    Block and on the first Enhanced Packet Block."""
+
+    FLUSH_BYTES = 1 << 16
+    FLUSH_S = 1.0
+
+    def __init__(self, path: str | Path, sw: str | None = None, *,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         spec = _spec()
-        self._blocks = blocks
+        cat = catalog()
         try:
-            self._fh: IO[bytes] = open(path, "wb")  # noqa: SIM115 - closed in close()
+            self.release = sw_release_text(cat.sw(sw))
+        except EyeqError as exc:
+            raise CaptureError(str(exc)) from None
+        self.comment = str(spec.get("release_comment", SW_COMMENT)).format(release=self.release)
+        self.flush_s = float(spec.get("flush_interval_s", self.FLUSH_S))
+        try:
+            self._fh: IO[bytes] = open(path, "wb", buffering=0)  # noqa: SIM115 - see close()
         except OSError as exc:
             raise CaptureError(f"cannot write capture {path}: {exc}") from exc
-        self._shb = blocks.SectionHeader(options={"shb_userappl": spec["application"]})
-        for iface in spec["interfaces"]:
-            self._shb.new_member(
-                blocks.InterfaceDescription, link_type=spec["link_type"],
-                options={"if_name": iface["name"], "if_description": iface["description"],
-                         "if_tsresol": bytes([spec["timestamp_resolution"]])},
-            )
-        self._writer = FileWriter(self._fh, self._shb)
+        self._clock = clock
         self._ids = {i["name"]: i["id"] for i in spec["interfaces"]}
         self._scale = 10 ** spec["timestamp_resolution"]
+        self._buf = bytearray(_shb(spec["application"], self.comment))
+        for iface in sorted(spec["interfaces"], key=lambda i: int(i["id"])):
+            self._buf += _idb(spec["link_type"], iface["name"], iface["description"],
+                              spec["timestamp_resolution"])
+        self._last_flush = clock()
+        self.flush()
         self.count = 0
 
     def write(self, direction: str, time: float, transfer: bytes) -> None:
-        epb = self._shb.new_member(self._blocks.EnhancedPacket)
-        epb.interface_id = self._ids[direction]
         ticks = max(0, round(time * self._scale))
-        epb.timestamp_high, epb.timestamp_low = ticks >> 32, ticks & 0xFFFFFFFF
-        epb.packet_data = bytes(transfer)
-        self._writer.write_block(epb)
+        data = bytes(transfer)
+        pad = -len(data) % 4
+        opts = _options([(1, self.comment.encode())]) if self.count == 0 else b""
+        size = 32 + len(data) + pad + len(opts)
+        self._buf += _EPB_HEAD.pack(6, size, self._ids[direction], ticks >> 32,
+                                    ticks & 0xFFFFFFFF, len(data), len(data))
+        self._buf += data
+        self._buf += b"\0" * pad
+        self._buf += opts
+        self._buf += size.to_bytes(4, "little")
         self.count += 1
+        if len(self._buf) >= self.FLUSH_BYTES or self._clock() - self._last_flush >= self.flush_s:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write every whole block buffered so far."""
+        view = memoryview(self._buf)
+        try:
+            while view:
+                n = self._fh.write(view)
+                view = view[n or 0:]
+        except OSError as exc:
+            raise CaptureError(f"cannot write capture {self._fh.name}: {exc}") from None
+        finally:
+            view.release()
+        self._buf.clear()
+        self._last_flush = self._clock()
 
     def close(self) -> None:
         if not self._fh.closed:
-            self._fh.close()
+            try:
+                self.flush()
+            finally:
+                self._fh.close()
 
     def __enter__(self) -> CaptureWriter:
         return self
@@ -76,23 +189,58 @@ class CaptureWriter:
         self.close()
 
 
-PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
+_EPB_HEAD = struct.Struct("<IIIIIII")  # type, length, interface, ts high, ts low, caplen, len
 
 
-MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
+def _options(opts: list[tuple[int, bytes]]) -> bytes:
+    """pcapng options, then opt_endofopt."""
+    out = bytearray()
+    for code, value in opts:
+        out += struct.pack("<HH", code, len(value)) + value + b"\0" * (-len(value) % 4)
+    return bytes(out + b"\0\0\0\0")
 
 
-def read_pcapng(fh: IO[bytes]) -> Iterator[Record]:
-    """Stream the transfers of a pcapng capture. Malformed or truncated files raise
-    :class:`CaptureError` (see :class:`PcapngGuard`)."""
+def _block(btype: int, body: bytes) -> bytes:
+    size = 12 + len(body)
+    return struct.pack("<II", btype, size) + body + struct.pack("<I", size)
+
+
+def _shb(application: str, comment: str) -> bytes:
+    # byte-order magic, version 1.0, section length unknown (-1); opt_comment, shb_userappl
+    return _block(int.from_bytes(PCAPNG_MAGIC, "little"),
+                  struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1)
+                  + _options([(1, comment.encode()), (4, application.encode())]))
+
+
+def _idb(link_type: int, name: str, description: str, tsresol: int) -> bytes:
+    return _block(1, struct.pack("<HHI", link_type, 0, 0)
+                  + _options([(2, name.encode()), (3, description.encode()),
+                              (9, bytes([tsresol]))]))
+
+
+
+def read_pcapng(fh: IO[bytes], tail: Tail | None = None) -> Iterator[Record]:
+    """Stream the transfers of a pcapng capture. Malformed files raise :class:`CaptureError`
+    (see :class:`PcapngGuard`); a truncated one too, unless ``tail`` is given: then it ends
+    after the last whole block and ``tail`` says what was left."""
     from pcapng import FileScanner, blocks
     from pcapng.exceptions import PcapngException
 
-    names: dict[int, str | None] = {}
-    scales: dict[int, float] = {}
     guard = PcapngGuard(fh)
     try:
-        for block in FileScanner(guard):
+        yield from _scan(guard, FileScanner, blocks, PcapngException)
+    except TruncatedCaptureError as exc:
+        if tail is None:
+            raise
+        tail.take(exc)
+
+
+def _scan(guard: PcapngGuard, scanner: Any, blocks: Any, pcapng_error: type[Exception]
+          ) -> Iterator[Record]:
+    names: dict[int, str | None] = {}
+    scales: dict[int, float] = {}
+    try:
+        for block in scanner(guard):
             if isinstance(block, blocks.InterfaceDescription):
                 iid = len(names)
                 name = block.options.get("if_name") if block.options else None
@@ -108,7 +256,7 @@ def read_pcapng(fh: IO[bytes]) -> Iterator[Record]:
                              bytes(block.packet_data))
     except CaptureError:
         raise
-    except (PcapngException, struct.error, EOFError, ValueError, KeyError) as exc:
+    except (pcapng_error, struct.error, EOFError, ValueError, KeyError) as exc:
         raise (guard.error or CaptureError(f"malformed pcapng: {exc}")) from None
     except Exception as exc:
         raise (guard.error or CaptureError(
@@ -148,8 +296,11 @@ class PcapngGuard:
 
     def at_end(self) -> None:
         if self.hdr or self.left:
-            self._fail(f"truncated pcapng: the file ends {self.pos - self.block_start} bytes "
-                       f"into the block that starts at byte {self.block_start}")
+            left = self.pos - self.block_start
+            self.error = self.error or TruncatedCaptureError(
+                f"truncated pcapng: the file ends {left} bytes into the block that starts at "
+                f"byte {self.block_start}", left, self.block_start)
+            raise self.error
 
     def _fail(self, message: str) -> None:
         self.error = self.error or CaptureError(message)

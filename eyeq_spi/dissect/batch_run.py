@@ -17,11 +17,12 @@ from typing import IO, Any
 import numpy as np
 
 from eyeq_spi.capture.fastread import Chunk, pcapng_chunks, raw_chunks
-from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError
+from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.batch import BatchDissector
 from eyeq_spi.dissect.inputs import InputError, detect
 from eyeq_spi.dissect.output import JsonWriter
+from eyeq_spi.dissect.release import Release
 from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBlock
 
 Item = dict[str, Any] | FrameBlock
@@ -30,11 +31,13 @@ __all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "fields_mode"
 
 
 def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
-                codec: MessageCodec, *, fields: str = "dict") -> Iterator[Item] | None:
+                codec: MessageCodec, *, fields: str = "dict", tail: Tail | None = None
+                ) -> Iterator[Item] | None:
     """The batch path's items for a seekable pcapng or raw file (read from its start), else
     None: the exact path goes on, ``fh`` at the position it had. ``fields``: what the span
     messages carry (:class:`~.vmessages.SpanDecoder`: "dict", "none" for ``--stats`` alone,
-    "columns" for a table writer alone)."""
+    "columns" for a table writer alone). ``tail``: a pcapng file that ends inside a block is
+    read up to its last whole block, as :func:`~.inputs.open_records` does."""
     try:
         if not fh.seekable():
             return None
@@ -49,7 +52,7 @@ def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
         kind = None  # the exact path reports it, with its own words
     if kind == "pcapng" and head[:4] == PCAPNG_MAGIC:
         fh.seek(0)
-        return _items(pcapng_chunks(fh), codec, fields)
+        return _items(pcapng_chunks(fh, tail=tail), codec, fields)
     if kind == "raw" and head:
         fh.seek(0)
         return _items(raw_chunks(fh, direction), codec, fields)
@@ -71,11 +74,17 @@ def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
 
 
 def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: bool,
-            stats: Any, writers: list[Any]) -> None:
+            stats: Any, writers: list[Any], file: str | None = None) -> None:
     """A frame block to ``--stats`` and the writers. ``plain``: no filter is active (every
-    record is kept), so frames are counted and printed straight from the arrays."""
+    record is kept), so frames are counted and printed straight from the arrays. ``file``:
+    every record's ``file`` member."""
+    if file is not None:
+        for _, m in item.messages:
+            m["file"] = file
     if not plain:
         for r in item.records():
+            if file is not None:
+                r["file"] = file
             if keep(r):
                 stats.add(r)
                 for w in writers:
@@ -84,7 +93,7 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
     item.add_to(stats)
     for w in writers:
         if type(w) is JsonWriter:
-            item.write_json(w.fh, w.write, w.fast)
+            item.write_json(w.fh, w.write, w.fast, file)
         elif hasattr(w, "write_block"):
             w.write_block(item)
         elif getattr(w, "messages_only", False) or type(w).__name__ == "TableWriter":
@@ -136,14 +145,26 @@ def _compact(block: FrameBlock) -> FrameBlock:
 
 
 def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,
-            fields: str = "dict") -> list[Item] | tuple[str, str]:
+            fields: str = "dict") -> tuple[list[Item], Release, Tail] | tuple[str, str]:
+    from eyeq_spi.dissect.release import open_capture
+
     try:
-        codec = _codec(sw)
         with open(path, "rb") as fh:
-            items = batch_items(fh, fmt, direction, codec, fields=fields)
+            head = fh.read(4096)
+            try:
+                kind = fmt or detect(head)
+            except InputError:
+                kind = None  # the exact path reports it, with its own words
+            if kind not in ("pcapng", "raw"):
+                return ("exact", "")
+            fh.seek(0)
+            cap = open_capture(fh, fmt, direction, sw=sw, name=path)
+            items = batch_items(fh, fmt, direction, _codec(cap.release.key), fields=fields,
+                                tail=cap.tail)
             if items is None:
                 return ("exact", "")
-            return [_compact(i) if isinstance(i, FrameBlock) else i for i in items]
+            return ([_compact(i) if isinstance(i, FrameBlock) else i for i in items],
+                    cap.release, cap.tail)
     except InputError as exc:
         return ("error", str(exc))
     except OSError as exc:
@@ -161,9 +182,10 @@ def _codec(sw: str | None) -> MessageCodec:
 
 def parallel_items(paths: list[str], jobs: int, fmt: str | None, direction: str | None,
                    sw: str | None, fields: str = "dict"
-                   ) -> Iterator[tuple[str, list[Item] | None]]:
-    """(path, items) in the order of ``paths``, dissected ``jobs`` files at a time in worker
-    processes; items None: the file is not a batch input (the caller runs the exact path).
+                   ) -> Iterator[tuple[str, tuple[list[Item], Release, Tail] | None]]:
+    """(path, (items, release, tail)) in the order of ``paths``, dissected ``jobs`` files at a
+    time in worker processes; None: the file is not a batch input (the caller runs the exact
+    path).
     At most ``jobs`` finished files wait in memory ahead of the one being written."""
     from concurrent.futures import ProcessPoolExecutor  # 6 ms of start-up a serial run saves
 
@@ -177,9 +199,9 @@ def parallel_items(paths: list[str], jobs: int, fmt: str | None, direction: str 
                 pending.append(pool.submit(_worker, paths[nxt], fmt, direction, sw, fields))
                 nxt += 1
             pending[i] = None
-            if isinstance(res, tuple):
+            if isinstance(res[0], str):
                 if res[0] == "error":
-                    raise InputError(res[1])
+                    raise InputError(str(res[1]))
                 yield path, None
             else:
                 yield path, res

@@ -74,6 +74,7 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
     Returns a JSON-ready summary (never raises for a bad capture)."""
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.dissect.batch_run import batch_items
+    from eyeq_spi.dissect.release import open_capture
     from eyeq_spi.dissect.vframes import FrameBlock
 
     pa, pq = _pyarrow()
@@ -110,7 +111,12 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
 
     try:
         with open(path, "rb") as fh:
-            items = batch_items(fh, "pcapng", None, MessageCodec(sw))
+            cap = open_capture(fh, "pcapng", sw=sw, name=path)
+            summary.update(cap.release.as_dict())
+            if cap.release.warning:
+                summary["warning"] = cap.release.warning
+            items = batch_items(fh, "pcapng", None, MessageCodec(cap.release.key),
+                                tail=cap.tail)
             if items is None:
                 raise FleetError("not a pcapng capture")
             for item in items:
@@ -126,12 +132,16 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
                     summary["events"] += 1
         for name in list(rows):
             flush(name)
+        if cap.tail.ignored:  # the dataset keeps what was whole; the summary says what was not
+            summary["ignored_bytes"] = cap.tail.ignored
+            summary["error"] = cap.tail.note(path)
+            summary["partial"] = True
     except (EyeqError, OSError) as exc:
         summary["error"] = str(exc)
     finally:
         for w in writers.values():
             w.close()
-    if summary["error"] is not None:  # the dataset holds whole captures only
+    if summary["error"] is not None and not summary.get("partial"):  # whole captures only
         shutil.rmtree(base, ignore_errors=True)
     return summary
 

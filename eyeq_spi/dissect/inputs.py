@@ -6,7 +6,9 @@
 - ``raw``: concatenated 128-byte transfers of one channel.
 
 Detection looks at the first bytes; ``--format`` forces one. A file that is none of them, is
-empty or ends in the middle of a transfer raises :class:`InputError` (exit code 2).
+empty or ends in the middle of a transfer raises :class:`InputError` (exit code 2), except a
+pcapng file that ends inside a block when the caller passes a :class:`Tail` (a capture whose
+writer was killed): it is read up to its last whole block.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import re
 from collections.abc import Iterator
 from typing import IO
 
-from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Record, read_pcapng
+from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Record, Tail, read_pcapng
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec
 from eyeq_spi.logic.options import LogicInputError, SpiOptions
@@ -105,8 +107,11 @@ def _detect(head: bytes, text: bool) -> str:
 
 
 def open_records(stream: IO[bytes], fmt: str | None = None,
-                 direction: str | None = None, spi: SpiOptions | None = None
-                 ) -> tuple[str, Iterator[Record]]:
+                 direction: str | None = None, spi: SpiOptions | None = None,
+                 tail: Tail | None = None) -> tuple[str, Iterator[Record]]:
+    """The format and the transfers of a capture. ``tail``: a pcapng file that ends inside a
+    block is read up to its last whole block and ``tail`` says what was left (else it is an
+    :class:`InputError`)."""
     peek = PeekStream(stream)
     kind = fmt or detect(peek.head)
     if kind not in FORMATS:
@@ -116,7 +121,7 @@ def open_records(stream: IO[bytes], fmt: str | None = None,
     if kind == "pcapng":
         if peek.head[:4] != PCAPNG_MAGIC:
             raise InputError("not a pcapng file")
-        return kind, _pcapng(peek)
+        return kind, _pcapng(peek, tail)
     if kind == "hex":
         return kind, _hex(peek, direction)
     if not peek.head:
@@ -146,10 +151,10 @@ def _logic(peek: PeekStream, kind: str, spi: SpiOptions) -> Iterator[Record]:
 MAX_HEX_LINE = 1 << 14  # characters; a 128-byte transfer with time and separators needs ~420
 
 
-def _pcapng(peek: PeekStream) -> Iterator[Record]:
+def _pcapng(peek: PeekStream, tail: Tail | None = None) -> Iterator[Record]:
     n = 0
     try:
-        for rec in read_pcapng(peek):  # type: ignore[arg-type]
+        for rec in read_pcapng(peek, tail):  # type: ignore[arg-type]
             n += 1
             yield rec
     except CaptureError as exc:  # truncation and block sizes: capture.pcapng_io.PcapngGuard

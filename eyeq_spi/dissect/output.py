@@ -68,7 +68,7 @@ class HumanWriter:
             if self.tree and r["fields"]:
                 self._tree(r)
         elif kind == "event":
-            rest = " ".join(f"{k}={v}" for k, v in r.items() if k not in ("kind", "type"))
+            rest = " ".join(f"{k}={v}" for k, v in r.items() if k not in ("kind", "type", "file"))
             self.fh.write("  " + self._c(YELLOW, f"event {r['type']}") + f" {rest}\n")
         elif kind == "stats":
             pass
@@ -237,6 +237,7 @@ class TableWriter:
             raise OutputError(f"cannot create {self.dir}: {exc}") from exc
         self.fmt = fmt
         self.batch = batch
+        self.file: str | None = None  # the capture being written: every row's first column
         self._csv: dict[str, tuple[IO[str], Any, list[str]]] = {}
         self._rows: dict[str, list[dict[str, Any]]] = {}
         self._pq: dict[str, Any] = {}
@@ -253,7 +254,8 @@ class TableWriter:
         if r["kind"] != "message" or not r["fields"]:
             return
         name = r["name"] or r["protocol"]
-        row = {"frame_index": r["frames"][-1] if r["frames"] else None, "time": r.get("time"),
+        row = {"file": r.get("file", self.file),
+               "frame_index": r["frames"][-1] if r["frames"] else None, "time": r.get("time"),
                "direction": r.get("direction"), **{f"header.{k}": v for k, v in
                                                     r["header"].items()},
                **flatten(r["fields"])}
@@ -273,6 +275,7 @@ class TableWriter:
         n = len(columns["frame_index"])
         if not n:
             return
+        columns = {"file": [self.file] * n, **columns}
         if self.fmt == "csv":
             entry = self._csv.get(name)
             if entry is None:

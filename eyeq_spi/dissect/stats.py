@@ -1,4 +1,8 @@
-"""``eyeq-spi dissect --stats``: what a capture contains and what went wrong in it."""
+"""``eyeq-spi dissect --stats``: what a capture contains and what went wrong in it.
+
+One :class:`Stats` per file; :func:`combine` adds several up into a total whose mean rates are
+each file's message intervals over each file's time span, so a rate never spans two files.
+"""
 
 from __future__ import annotations
 
@@ -30,6 +34,12 @@ class Stats:
     mesp_latency: dict[str, list[float]] = field(default_factory=dict)
     mesp_timeouts: Counter[str] = field(default_factory=Counter)
     mesp_unmatched: int = 0
+    file: str | None = None  # the capture these statistics describe (None: a total)
+    sw: dict[str, Any] = field(default_factory=dict)  # {"sw": "8.1", "sw_source": ...}
+    ignored_bytes: int = 0  # bytes of an incomplete last block the reader left
+    files: int = 0  # a total: how many files it adds up (0: one file's own statistics)
+    spans: dict[str, float] = field(default_factory=dict)  # a total: sum of per-file spans
+    steps: Counter[str] = field(default_factory=Counter)  # a total: sum of per-file intervals
 
     def add(self, r: dict[str, Any]) -> None:
         kind = r["kind"]
@@ -97,14 +107,17 @@ class Stats:
     def as_dict(self) -> dict[str, Any]:
         rates: dict[str, Any] = {}
         for name, n in sorted(self.messages.items()):
-            span = self.last.get(name, 0.0) - self.first.get(name, 0.0)
+            if self.files:
+                span, steps = self.spans.get(name, 0.0), self.steps.get(name, 0)
+            else:
+                span, steps = self.last.get(name, 0.0) - self.first.get(name, 0.0), n - 1
             nominal = None
             try:
                 nominal = self.cat.message(name).rate_hz
             except Exception:
                 nominal = None
-            periodic = nominal is not None and span > 0 and n > 1
-            rates[name] = {"count": n, "mean_hz": round((n - 1) / span, 3) if periodic else None,
+            periodic = nominal is not None and span > 0 and steps > 0
+            rates[name] = {"count": n, "mean_hz": round(steps / span, 3) if periodic else None,
                            "nominal_hz": nominal}
         lat = {
             name: {"count": len(v), "min_ms": round(min(v) * 1e3, 3),
@@ -114,8 +127,12 @@ class Stats:
         }
         for name, n in self.mesp_timeouts.items():
             lat.setdefault(name, {"count": 0, "timeouts": n})
+        head: dict[str, Any] = {"kind": "stats", "file": self.file}
+        if self.files:
+            head["files"] = self.files
+        head.update(self.sw)
         return {
-            "kind": "stats",
+            **head, "ignored_bytes": self.ignored_bytes,
             "frames": dict(self.frames), "bad_length": self.bad_length,
             "crc_errors": self.crc_errors, "nak_reasons": dict(self.nak_reasons),
             "aborted_transfers": dict(self.aborts), "events": dict(self.events),
@@ -127,7 +144,15 @@ class Stats:
 
     def render(self) -> str:
         d = self.as_dict()
-        out = ["== frames", "  " + "  ".join(f"{k} {v}" for k, v in sorted(d["frames"].items())),
+        out = []
+        if self.files:
+            out.append(f"=== total of {self.files} files")
+        elif self.file is not None:
+            src = f" (SW {d['sw']}: {d['sw_source']})" if "sw" in d else ""
+            out.append(f"=== {self.file}{src}")
+        if self.ignored_bytes:
+            out.append(f"  ignored {self.ignored_bytes} bytes of an incomplete last block")
+        out += ["== frames", "  " + "  ".join(f"{k} {v}" for k, v in sorted(d["frames"].items())),
                f"  CRC errors {d['crc_errors']}, wrong length {d['bad_length']}, NAK reasons "
                f"{d['nak_reasons'] or 'none'}, "
                f"aborted transfers {d['aborted_transfers'] or 'none'}",
@@ -152,6 +177,25 @@ class Stats:
                 out.append(f"  {name:30s} timeouts {r['timeouts']}")
         out.append(f"== protocol errors: {d['protocol_errors']}")
         return "\n".join(out)
+
+
+def combine(parts: list[Stats]) -> Stats:
+    """The total of several files' finished statistics."""
+    total = Stats(parts[0].cat, files=len(parts))
+    for p in parts:
+        for name in ("frames", "nak_reasons", "aborts", "events", "messages", "counter_gaps",
+                     "e2e_errors", "mesp_timeouts"):
+            getattr(total, name).update(getattr(p, name))
+        for name in ("bad_length", "crc_errors", "message_errors", "mesp_unmatched",
+                     "ignored_bytes"):
+            setattr(total, name, getattr(total, name) + getattr(p, name))
+        for name, n in p.messages.items():
+            if name in p.first:
+                total.spans[name] = total.spans.get(name, 0.0) + p.last[name] - p.first[name]
+                total.steps[name] += n - 1
+        for name, v in p.mesp_latency.items():
+            total.mesp_latency.setdefault(name, []).extend(v)
+    return total
 
 
 def _median(v: list[float]) -> float:

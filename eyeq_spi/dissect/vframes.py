@@ -198,11 +198,16 @@ class FrameBlock:
                 nxt = next(msgs, None)
         return out
 
-    def write_json(self, fh: Any, write_message: Any, fast: bool = False) -> None:
+    def write_json(self, fh: Any, write_message: Any, fast: bool = False,
+                   file: str | None = None) -> None:
         """The JSON Lines of :meth:`records`: frame lines formatted straight from the arrays
         (what ``json.dumps(record, separators=(",", ":"))`` prints for them, or orjson with
         ``fast``: only float spelling differs, :func:`~.output.json_float`) go to ``fh``;
-        each message goes to ``write_message`` (the JSON writer's own), in order."""
+        each message goes to ``write_message`` (the JSON writer's own), in order. ``file``:
+        the ``file`` member every frame line ends with (the messages carry their own)."""
+        import json
+
+        end = "}\n" if file is None else f',"file":{json.dumps(file, ensure_ascii=False)}}}\n'
         fa = self.fa
         L = fa.lst
         times, dirs, lengths = L("time"), L("direction"), L("length")
@@ -223,7 +228,7 @@ class FrameBlock:
                 parts.append(f'{{"kind":"frame","index":{base + i},"time":{ts},"direction":'
                              f'{dname[dirs[i]]},"frame_type":"INVALID","num":null,"rsp":null,'
                              f'"crc_ok":false,"transport":null,"transfer_id":null,'
-                             f'"nak_reason":null,"length":{lengths[i]}}}\n')
+                             f'"nak_reason":null,"length":{lengths[i]}{end}')
             else:
                 d = ds[i]
                 tr = tid = nak = "null"
@@ -238,7 +243,7 @@ class FrameBlock:
                              f'{dname[dirs[i]]},"frame_type":"{TYPE_NAMES[ftypes[i]]}",'
                              f'"num":{nums[i]},"rsp":{rsps[i]},'
                              f'"crc_ok":{"true" if oks[i] else "false"},"transport":{tr},'
-                             f'"transfer_id":{tid},"nak_reason":{nak}}}\n')
+                             f'"transfer_id":{tid},"nak_reason":{nak}{end}')
             while mi < len(msgs) and msgs[mi][0] == i:
                 fh.write("".join(parts))
                 parts.clear()

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from eyeq_spi.bench.replay import host_bench
+from eyeq_spi.capture.pcapng_io import Tail
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
 from eyeq_spi.monitor.model import RateMeter, Snapshot
 from eyeq_spi.plot.collect import dissect_file
@@ -180,12 +181,13 @@ class ReplaySource(DemoSource):
                  sleep: Callable[[float], None] = time.sleep) -> None:
         from eyeq_spi.dissect.inputs import InputError, open_records
 
+        self.tail = Tail()  # what was left at the end of a pcapng cut inside a block
         try:
             self._fh: IO[bytes] = open(path, "rb")  # noqa: SIM115 - closed by close()
         except OSError as exc:
             raise InputError(f"{path}: {exc.strerror or exc}") from None
         try:
-            _, records = open_records(self._fh, fmt)
+            _, records = open_records(self._fh, fmt, tail=self.tail)
             self.bench = _ReplayBench(records, sw, duration)
         except BaseException:
             self._fh.close()
@@ -218,7 +220,8 @@ class DissectSource:
         self.codec = codec
         self.speed = speed
         self.clock = clock
-        self._records: Iterator[dict[str, Any]] = dissect_file(path, codec, fmt)
+        self.tail = Tail()  # what was left at the end of a pcapng cut inside a block
+        self._records: Iterator[dict[str, Any]] = dissect_file(path, codec, fmt, tail=self.tail)
         self._pending: dict[str, Any] | None = None
         self._t0: float | None = None
         self.start = clock()

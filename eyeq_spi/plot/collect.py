@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import IO, Any
 
+from eyeq_spi.capture.pcapng_io import Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine import Dissector
 from eyeq_spi.dissect.inputs import InputError, open_records
@@ -32,10 +33,13 @@ def open_capture(path: str) -> IO[bytes]:
 
 
 def dissect_file(path: str, codec: MessageCodec, fmt: str | None = None,
-                 direction: str | None = None) -> Iterator[dict[str, Any]]:
-    """The dissector's records (README JSON contract) of one capture file, streamed."""
+                 direction: str | None = None, tail: Tail | None = None
+                 ) -> Iterator[dict[str, Any]]:
+    """The dissector's records (docs/dissector.md JSON contract) of one capture file, streamed.
+    ``tail``: a pcapng file cut inside a block is read up to its last whole block and ``tail``
+    says what was left (else it is an :class:`InputError`)."""
     with open_capture(path) as fh:
-        _, records = open_records(fh, fmt, direction)
+        _, records = open_records(fh, fmt, direction, tail=tail)
         dis = Dissector(codec=codec)
         for rec in records:
             yield from dis.feed(rec)
@@ -205,8 +209,8 @@ class Collector:
 
 
 def collect(path: str, collector: Collector, *, fmt: str | None = None,
-            direction: str | None = None) -> Collected:
-    for r in dissect_file(path, collector.codec, fmt, direction):
+            direction: str | None = None, tail: Tail | None = None) -> Collected:
+    for r in dissect_file(path, collector.codec, fmt, direction, tail):
         collector.add(r)
         if collector.done:
             break

@@ -1,0 +1,204 @@
+"""Which SW release a capture speaks, and captures opened with it (every capture reader's entry).
+
+The release decides the DASP layouts (seed 004 §7.1.4: they differ between releases), so a
+capture read with the wrong one shows length errors that were never on the wire. In order:
+
+1. ``--sw`` (the caller's ``sw``) when given;
+2. the release the capture records: the ``eyeq-spi sw=<release>`` comment of its pcapng Section
+   Header Block (``specs/capture.yaml``);
+3. the release the EyeQ reports in the traffic: the GetEyeQVersions reply (§7.1.1.1.5), the
+   boot status' application version (§7.1.5.3) or EYEQ_BASE_DIAG_STATUS_MSG (§7.1.4.1), the
+   first of them in the first :data:`SNIFF_RECORDS` transfers; a release ``specs/`` does not
+   list maps to the newest listed one before it (decision D4);
+4. the release whose DASP layouts fit the payload lengths seen there (the newest such);
+5. else the newest release.
+
+When ``--sw`` disagrees with 2 to 4, the capture is read with ``--sw`` and :attr:`Release.warning`
+is the one line that names both.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import IO, Any
+
+from eyeq_spi.capture.pcapng_io import Record, Tail, recorded_release
+from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, MessageCodec, classify
+from eyeq_spi.dissect.engine import Dissector
+from eyeq_spi.dissect.inputs import PeekStream, open_records
+from eyeq_spi.errors import EyeqError
+from eyeq_spi.logic.options import SpiOptions
+from eyeq_spi.spec.catalog import Catalog, SwKey, catalog, sw_release_text
+from eyeq_spi.spec.schema import sw_key
+
+RECORDED = "recorded in the capture"
+SNIFF_RECORDS = 6000  # transfers looked at: about 3 s of a running EyeQ's traffic
+BASE_DIAG_ID = 0xA0  # EYEQ_BASE_DIAG_STATUS_MSG; its release bytes are at the same offsets in
+# every layout (§7.1.4.1: timestamp_ms u32, apiVersion u8 u8, eyeqSwVersion u8 u8)
+
+
+@dataclass(frozen=True)
+class Release:
+    """The release a capture is read with, where it came from, and the disagreement line."""
+
+    key: SwKey
+    source: str  # "--sw", RECORDED, "GetEyeQVersions reply", ..., "default"
+    found: SwKey | None = None  # what the capture says (recorded or inferred), None: nothing
+    found_source: str | None = None
+    warning: str | None = None
+
+    @property
+    def text(self) -> str:
+        return sw_release_text(self.key)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"sw": self.text, "sw_source": self.source}
+
+
+class _Sniffer(Dissector):
+    """The engine's reassembly, keeping each message's bytes instead of decoding them."""
+
+    def __init__(self, cat: Catalog) -> None:
+        super().__init__(codec=MessageCodec(cat=cat))
+        self.messages: list[bytes] = []
+
+    def _message(self, direction: str | None, d: Any, ev: Any) -> dict[str, Any]:
+        self.messages.append(bytes(ev.data))
+        return {"kind": "message"}
+
+
+def _known(cat: Catalog, major: int, minor: int) -> SwKey | None:
+    """The ``specs/`` release for a reported one: the same, else the newest before it (D4)."""
+    best = None
+    for key in cat.sw_versions:
+        if sw_key(key) <= (major, minor) and (best is None or sw_key(key) > sw_key(best)):
+            best = key
+    return best
+
+
+def _reported(cat: Catalog, codec: MessageCodec, data: bytes) -> tuple[SwKey, str] | None:
+    kind = classify(data)
+    if kind == "MESP":
+        out = codec.mesp.decode(data)
+        f = out.fields
+        if out.name == "GetEyeQVersions" and out.header.get("reply") and not out.errors \
+                and "eyeqSwVersionMajor" in f:
+            key = _known(cat, int(f["eyeqSwVersionMajor"]), int(f["eyeqSwVersionMinor"]))
+            return (key, "GetEyeQVersions reply") if key else None
+    elif kind == "BOOT" and data[:1] == bytes([BOOT_ID]):
+        out = codec.decode(data)
+        version = out.fields.get("ApplicationVersion") if not out.errors else None
+        if version:
+            key = _known(cat, int(version[0]), int(version[1]))
+            return (key, "boot status") if key else None
+    elif kind == "DASP" and len(data) >= 12 and data[1] == BASE_DIAG_ID:
+        key = _known(cat, data[10], data[11])  # 4-byte header, then the payload's bytes 6, 7
+        return (key, "EYEQ_BASE_DIAG_STATUS_MSG") if key else None
+    return None
+
+
+def _fitting(cat: Catalog, lengths: set[tuple[int, int]]) -> list[SwKey]:
+    """The releases whose DASP layouts fit the most of the (data ID, length) pairs seen."""
+    codecs = {k: MessageCodec(k, cat) for k in cat.sw_versions}
+    score: dict[SwKey, int] = {}
+    for key, codec in codecs.items():
+        n = 0
+        for data_id, length in lengths:
+            msg = codec.dasp_message(data_id)
+            if msg is None:
+                continue
+            try:
+                if codec.layout(msg).size == length - 4:
+                    n += 1
+            except EyeqError:  # a layout this release cannot build does not fit
+                continue
+        score[key] = n
+    best = max(score.values(), default=0)
+    return [k for k in cat.sw_versions if best and score[k] == best]
+
+
+def infer_release(records: Iterable[Record], cat: Catalog | None = None
+                  ) -> tuple[SwKey, str] | None:
+    """The release the traffic shows (steps 3 and 4 of the module docstring), with where it was
+    seen, or None when nothing in ``records`` tells."""
+    cat = cat or catalog()
+    sniff = _Sniffer(cat)
+    codec = sniff.codec
+    lengths: set[tuple[int, int]] = set()
+    for rec in records:
+        for _ in sniff.feed(rec):
+            pass
+        for data in sniff.messages:
+            found = _reported(cat, codec, data)
+            if found is not None:
+                return found
+            if len(data) >= 4 and data[0] == DASP_PROTOCOL:
+                lengths.add((data[1], len(data)))
+        sniff.messages.clear()
+    fit = _fitting(cat, lengths)
+    if not fit:
+        return None
+    newest = max(fit, key=sw_key)
+    names = ", ".join(sw_release_text(k) for k in fit)
+    return newest, f"DASP payload lengths (fit {names})"
+
+
+def choose_release(sw: str | None, found: tuple[SwKey, str] | None, name: str,
+                   cat: Catalog | None = None) -> Release:
+    """Step 1 against what the capture says; the warning when they disagree."""
+    cat = cat or catalog()
+    fkey, fsrc = found if found is not None else (None, None)
+    if sw is None:
+        if fkey is None:
+            return Release(cat.default_sw, "default")
+        return Release(fkey, fsrc or RECORDED, fkey, fsrc)
+    key = cat.sw(sw)
+    warning = None
+    if fkey is not None and fkey != key:
+        warning = (f"{name}: read as SW {sw_release_text(key)} (--sw) but the capture says "
+                   f"SW {sw_release_text(fkey)} ({fsrc})")
+    return Release(key, "--sw", fkey, fsrc, warning)
+
+
+@dataclass
+class Capture:
+    """An opened capture: its format, its transfers, the release to read them with, and what
+    was left unread at its end (filled once ``records`` is exhausted)."""
+
+    kind: str
+    records: Iterator[Record]
+    release: Release
+    tail: Tail = field(default_factory=Tail)
+
+
+def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | None = None,
+                 spi: SpiOptions | None = None, *, sw: str | None = None, name: str = "-"
+                 ) -> Capture:
+    """:func:`~.inputs.open_records` with the release resolved (module docstring) and a file
+    that ends inside a pcapng block read up to its last whole block (:class:`Tail`). The
+    transfers looked at to infer the release are kept and come first in ``records``."""
+    tail = Tail()
+    peek = stream if isinstance(stream, PeekStream) else PeekStream(stream)
+    recorded = recorded_release(peek.head)
+    kind, records = open_records(peek, fmt, direction, spi, tail)  # type: ignore[arg-type]
+    if recorded is not None:
+        return Capture(kind, records, choose_release(sw, (recorded, RECORDED), name), tail)
+    head = list(itertools.islice(records, SNIFF_RECORDS))
+    found = infer_release(head)
+    return Capture(kind, itertools.chain(head, records), choose_release(sw, found, name), tail)
+
+
+def release_of(path: str, sw: str | None = None, fmt: str | None = None,
+               direction: str | None = None, spi: SpiOptions | None = None) -> Release:
+    """The release to read the capture file ``path`` with (for a reader that needs it before
+    it reads the file: its codec builds the plot's or the monitor's labels)."""
+    from eyeq_spi.dissect.inputs import InputError
+
+    try:
+        fh = open(path, "rb")  # noqa: SIM115 - closed below
+    except OSError as exc:
+        raise InputError(f"{path}: {exc.strerror or exc}") from None
+    with fh:
+        return open_capture(fh, fmt, direction, spi, sw=sw, name=path).release
