@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import gc
+import os
 import re
 import sys
 from collections.abc import Callable, Iterator
@@ -87,6 +87,7 @@ def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
 
 
 def run_dissect(args: argparse.Namespace) -> int:
+    from eyeq_spi.cli_progress import JobProgress, file_size, track_file
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.dissect.engine import Dissector
     from eyeq_spi.dissect.inputs import open_records
@@ -112,7 +113,14 @@ def run_dissect(args: argparse.Namespace) -> int:
     elif args.json:
         writers.append(JsonWriter(out, fast=True))
     elif not table:
-        writers.append(HumanWriter(out, codec, color=out.isatty(), tree=not args.no_tree))
+        human = HumanWriter(out, codec, color=out.isatty(), tree=not args.no_tree)
+        writers.append(human)
+        if not _plain(args):  # the filters drop records: the human view still dates from
+            kept = keep  # the file's first record, as plot does
+
+            def keep(r: dict[str, Any]) -> bool:
+                human.see(r)
+                return kept(r)
     gc_was = gc.isenabled()
     gc.disable()  # collected by _paced_gc instead
     try:
@@ -138,21 +146,26 @@ def run_dissect(args: argparse.Namespace) -> int:
                     r = None  # _paced_gc: the block is garbage now
                 continue
             fh = _open(path)
+            size = file_size(fh)
+            bar = JobProgress(f"dissect {os.path.basename(path)}", size,
+                              records_on_stdout=bool(writers) and table is None,
+                              enabled=None if size else False)
             try:
                 _, records = open_records(fh, args.format, args.direction, spi_options_from(args))
                 dis = Dissector(codec=codec)
                 batched = (br.batch_items(fh, args.format, args.direction, codec,
                                           fields=br.fields_mode(writers, plain))
                            if br is not None else None)
-                for r in _paced_gc(_with_progress(batched or _all(dis, records), fh, path,
-                                                  stdout_busy=bool(writers) and table is None)):
-                    if br is not None and isinstance(r, br.FrameBlock):  # the batch path
-                        br.consume(r, keep, plain, stats, writers)
-                    elif keep(r):  # --stats describes exactly what the filters keep
-                        stats.add(r)
-                        for w in writers:
-                            w.write(r)
-                    r = None  # _paced_gc: the block is garbage now
+                with bar:
+                    for r in _paced_gc(track_file(batched or _all(dis, records), fh, bar,
+                                                   _BlockPosition())):
+                        if br is not None and isinstance(r, br.FrameBlock):  # the batch path
+                            br.consume(r, keep, plain, stats, writers)
+                        elif keep(r):  # --stats describes exactly what the filters keep
+                            stats.add(r)
+                            for w in writers:
+                                w.write(r)
+                        r = None  # _paced_gc: the block is garbage now
             finally:
                 if fh is not sys.stdin.buffer:
                     fh.close()
@@ -168,6 +181,30 @@ def run_dissect(args: argparse.Namespace) -> int:
         else:
             out.write(stats.render() + "\n")
     return 1 if stats.protocol_errors else 0
+
+
+class _BlockPosition:
+    """Where in the file a frame block of the batch path stands: its chunk was read between
+    the positions seen at this chunk's first block and the previous chunk's, and the block
+    ends ``hi`` rows into it (the reader reads a whole chunk before the first block)."""
+
+    def __init__(self) -> None:
+        self.fa: object = None
+        self.start = self.end = 0
+
+    def __call__(self, item: Any, pos: int) -> float:
+        fa: Any = getattr(item, "fa", None)
+        if fa is None or not hasattr(item, "hi"):
+            return pos
+        if fa is not self.fa:
+            self.fa, self.start, self.end = fa, self.end, pos
+        rows = max(1, len(fa.ftype))
+        return float(self.start + (self.end - self.start) * min(1.0, item.hi / rows))
+
+
+def _plain(args: argparse.Namespace) -> bool:
+    """No filter: every record is kept."""
+    return not (args.protocol or args.id is not None or args.name or args.errors_only)
 
 
 SMALL_INPUT = 256 << 10  # bytes; below this the exact path is quicker than importing numpy
@@ -234,33 +271,6 @@ def _open(path: str) -> IO[bytes]:
         return open(path, "rb")
     except OSError as exc:
         raise InputError(f"{path}: {exc.strerror or exc}") from None
-
-
-def _with_progress(it: Iterator[Any], fh: IO[bytes], path: str,
-                   stdout_busy: bool = False) -> Iterator[Any]:
-    """A progress bar on stderr for files, only when stderr is a terminal, and not while the
-    records themselves scroll on that same terminal (stdout a TTY too)."""
-    if not sys.stderr.isatty() or path == "-" or (stdout_busy and sys.stdout.isatty()):
-        yield from it
-        return
-    import os
-
-    try:
-        total = os.fstat(fh.fileno()).st_size
-        from rich.console import Console
-        from rich.progress import Progress
-    except (OSError, ImportError, ValueError):
-        yield from it
-        return
-    console = Console(file=sys.stderr, stderr=True)
-    with Progress(console=console, transient=True, redirect_stdout=False,
-                  redirect_stderr=False) as progress:
-        task = progress.add_task(path, total=total)
-        for n, r in enumerate(it):
-            if n % 4096 == 0:
-                with contextlib.suppress(OSError, ValueError):
-                    progress.update(task, completed=fh.tell())
-            yield r
 
 
 def run_wireshark(args: argparse.Namespace) -> int:
