@@ -132,3 +132,74 @@ def test_dissect_draws_a_bar_when_stdout_is_a_file(demo_capture: Path, tmp_path:
         shown = _stderr_on_pty(["dissect", str(demo_capture)], f)
     assert b"ETA" in shown and b"dissect demo.pcapng" in shown and b"B/s" in shown, shown[:300]
     assert (tmp_path / "out.txt").stat().st_size > 0
+
+
+def _all_parsers() -> list[tuple[str, Any]]:
+    import argparse
+
+    from eyeq_spi.cli import build_parser
+    from eyeq_spi.cli_help import finish
+
+    top = build_parser()
+    finish(top)
+    out: list[tuple[str, Any]] = []
+
+    def walk(p: Any, name: str) -> None:
+        out.append((name, p))
+        for a in p._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for n, sub in a.choices.items():
+                    walk(sub, f"{name} {n}".strip())
+
+    walk(top, "")
+    return out
+
+
+def test_every_help_has_a_description_and_examples_that_parse(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import shlex
+
+    from eyeq_spi.cli import build_parser
+
+    monkeypatch.chdir(tmp_path)
+    for f in ("capture.pcapng", "drive.blf", "drive.asc", "x.pcapng"):
+        (tmp_path / f).write_bytes(b"")
+    parsers = _all_parsers()
+    assert len(parsers) >= 19  # the top level, 14 commands, can's and spec's subcommands
+    for name, p in parsers:
+        text = p.format_help()
+        assert p.description and len(p.description) > 20, name
+        examples = text.split("\nexamples:\n", 1)[1].splitlines()
+        assert 2 <= len(examples) <= 3, (name, examples)
+        for line in examples:
+            cmd = line.split(" && ")[0].split(" | ")[0].split("  #")[0].strip()
+            if not cmd.startswith("eyeq-spi ") or "COMMAND" in cmd:
+                continue
+            argv = shlex.split(cmd)[1:]
+            assert build_parser().parse_args(argv), (name, cmd)
+    top = parsers[0][1].format_help()
+    assert "EyeqError" not in top and "traceback" not in top  # no developer docstring
+
+
+def test_bare_command_prints_the_command_table(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([]) == 0
+    out = capsys.readouterr().out
+    assert "commands:" in out and "dissect" in out and "examples:" in out
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and re.match(r"eyeq-spi \d+\.\d+", capsys.readouterr().out)
+
+
+def test_bash_completion_completes_commands_and_options(tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]
+                                                        ) -> None:
+    pytest.importorskip("shtab", reason="shell completion needs shtab")
+    assert main(["--print-completion", "bash"]) == 0
+    script = tmp_path / "eyeq-spi.bash"
+    script.write_text(capsys.readouterr().out)
+    probe = (f"source {script}; COMP_WORDS=(eyeq-spi dis); COMP_CWORD=1; _shtab_eyeq_spi; "
+             "echo \"${COMPREPLY[@]}\"; COMP_WORDS=(eyeq-spi dissect --sta); COMP_CWORD=2; "
+             "_shtab_eyeq_spi; echo \"${COMPREPLY[@]}\"")
+    r = subprocess.run(["bash", "-c", probe], capture_output=True, text=True, timeout=60)
+    assert r.stdout.split("\n")[:2] == ["dissect", "--stats"], r
+    assert main(["--print-completion", "fish"]) == 2
