@@ -22,7 +22,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from eyeq_spi.plot.output import new_figure
+from eyeq_spi.plot.output import new_figure, plural
 from eyeq_spi.plot.scene import Scene, SceneLine, SceneObject
 
 FIGSIZE = (10.0, 9.0)  # inches
@@ -130,11 +130,6 @@ def _frame(ax: Any, range_m: float, lateral_m: float) -> None:
     ax.set_xlabel("lateral (m, left +)")
     ax.set_ylabel("longitudinal (m)")
     ax.grid(True, color="#dddddd", linewidth=0.5, zorder=0)
-
-
-def plural(n: int, word: str) -> str:
-    """``1 sign``, ``3 signs``, ``1 bus``... (the words the plots use)."""
-    return f"{n} {word}" if n == 1 else f"{n} {word}s"
 
 
 def _label_side(lat: float, half: float) -> tuple[float, str]:
