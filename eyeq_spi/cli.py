@@ -1,5 +1,5 @@
 """Command-line interface. Every ``EyeqError`` becomes a one-line message and exit code 2; a
-user never sees a traceback for bad input."""
+user never sees a traceback for bad input. What ``--help`` shows is in :mod:`eyeq_spi.cli_help`."""
 
 from __future__ import annotations
 
@@ -42,9 +42,13 @@ COMMANDS: dict[str, str] = {
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The whole parser; with ``only``, the options of that command alone (every other command
     is its name and help line from :data:`COMMANDS`, enough for ``--help`` and usage errors)."""
-    p = _Parser(prog="eyeq-spi", description=__doc__)
+    p = _Parser(prog="eyeq-spi")
     p.add_argument("--version", action="version", version=f"eyeq-spi {__version__}")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p.add_argument("--print-completion", choices=("bash", "zsh", "tcsh"), metavar="SHELL",
+                   help="print the shell completion script for SHELL (bash, zsh, tcsh; "
+                   "docs/cli.md says where to put it)")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser,
+                           title="commands", metavar="COMMAND")
     for names, add in _groups():
         if only is None or only in names or not all(n in COMMANDS for n in names):
             add(sub)
@@ -65,8 +69,30 @@ def _groups() -> list[tuple[tuple[str, ...], Callable[[Any], None]]]:
 
 
 def _command(argv: Sequence[str]) -> str:
-    """The subcommand ``argv`` names, "" if none: the top-level options take no value."""
-    return next((a for a in argv if not a.startswith("-")), "")
+    """The subcommand ``argv`` names, "" if none (``--print-completion`` takes a value)."""
+    rest = [a for k, a in enumerate(argv)
+            if k == 0 or argv[k - 1] != "--print-completion"]
+    return next((a for a in rest if not a.startswith("-")), "")
+
+
+def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
+    """The parser ``main`` needs: one command's options; with help asked for (or nothing
+    given), descriptions and examples too; for a completion script, every command's."""
+    p = build_parser(only=None if "--print-completion" in argv else _command(argv))
+    if not argv or "-h" in argv or "--help" in argv:
+        from eyeq_spi.cli_help import finish
+
+        finish(p)
+    return p
+
+
+def _completion(parser: argparse.ArgumentParser, shell: str) -> int:
+    try:
+        import shtab
+    except ImportError:
+        raise UsageError("shell completion needs shtab: pip install shtab") from None
+    sys.stdout.write(shtab.complete(parser, shell=shell))
+    return 0
 
 
 def _add_run(sub: Any) -> None:
@@ -207,7 +233,18 @@ def _spec(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
-        args = build_parser(only=_command(argv)).parse_args(argv)
+        parser = _parser_for(argv)
+        if not argv:  # bare eyeq-spi: what it is, the commands, examples
+            sys.stdout.write(parser.format_help())
+            return 0
+        if "--print-completion" in argv and _command(argv) == "":
+            k = argv.index("--print-completion") + 1
+            shell = argv[k] if k < len(argv) else ""
+            if shell not in ("bash", "zsh", "tcsh"):
+                raise UsageError(f"argument --print-completion: give bash, zsh or tcsh, "
+                                 f"not {shell!r}")
+            return _completion(parser, shell)
+        args = parser.parse_args(argv)
         if args.command in ("demo", "sim", "host"):
             from eyeq_spi import cli_run
 

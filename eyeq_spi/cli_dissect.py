@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import gc
+import os
 import re
 import sys
 from collections.abc import Callable, Iterator
@@ -114,6 +114,12 @@ def run_dissect(args: argparse.Namespace) -> int:
         human = HumanWriter(out, _codec(cat.default_sw), color=out.isatty(),
                             tree=not args.no_tree)
         writers.append(human)
+        if not _plain(args):  # the filters drop records: the human view still dates from
+            kept = keep  # the file's first record, as plot does
+
+            def keep(r: dict[str, Any]) -> bool:
+                human.see(r)
+                return kept(r)
     per_file: list[Stats] = []
     gc_was = gc.isenabled()
     gc.disable()  # collected by _paced_gc instead
@@ -223,14 +229,49 @@ def _dissect_file(path: str, args: argparse.Namespace, br: Any, plain: bool,
             fh.close()
 
 
+
+def _with_progress(it: Iterator[Any], fh: IO[bytes], path: str,
+                   stdout_busy: bool = False) -> Iterator[Any]:
+    """The shared progress bar (:mod:`eyeq_spi.cli_progress`) over one file: on stderr, only
+    where it cannot land between records, following the batch path's blocks inside a chunk."""
+    from eyeq_spi.cli_progress import JobProgress, file_size, track_file
+
+    size = file_size(fh)
+    bar = JobProgress(f"dissect {os.path.basename(path)}", size,
+                      records_on_stdout=stdout_busy, enabled=None if size else False)
+    with bar:
+        yield from track_file(it, fh, bar, _BlockPosition())
+
+class _BlockPosition:
+    """Where in the file a frame block of the batch path stands: its chunk was read between
+    the positions seen at this chunk's first block and the previous chunk's, and the block
+    ends ``hi`` rows into it (the reader reads a whole chunk before the first block)."""
+
+    def __init__(self) -> None:
+        self.fa: object = None
+        self.start = self.end = 0
+
+    def __call__(self, item: Any, pos: int) -> float:
+        fa: Any = getattr(item, "fa", None)
+        if fa is None or not hasattr(item, "hi"):
+            return pos
+        if fa is not self.fa:
+            self.fa, self.start, self.end = fa, self.end, pos
+        rows = max(1, len(fa.ftype))
+        return float(self.start + (self.end - self.start) * min(1.0, item.hi / rows))
+
+
+def _plain(args: argparse.Namespace) -> bool:
+    """No filter: every record is kept."""
+    return not (args.protocol or args.id is not None or args.name or args.errors_only)
+
+
 SMALL_INPUT = 256 << 10  # bytes; below this the exact path is quicker than importing numpy
 
 
 def _batch_run(args: argparse.Namespace) -> Any:
     """``eyeq_spi.dissect.batch_run``, or None when no input is big enough for the batch path
     (nor several files for ``--jobs``): start-up of small runs stays under 300 ms."""
-    import os
-
     several = args.jobs != 1 and len(args.files) > 1 and "-" not in args.files
     big = False
     for path in args.files:
@@ -287,33 +328,6 @@ def _open(path: str) -> IO[bytes]:
         return open(path, "rb")
     except OSError as exc:
         raise InputError(f"{path}: {exc.strerror or exc}") from None
-
-
-def _with_progress(it: Iterator[Any], fh: IO[bytes], path: str,
-                   stdout_busy: bool = False) -> Iterator[Any]:
-    """A progress bar on stderr for files, only when stderr is a terminal, and not while the
-    records themselves scroll on that same terminal (stdout a TTY too)."""
-    if not sys.stderr.isatty() or path == "-" or (stdout_busy and sys.stdout.isatty()):
-        yield from it
-        return
-    import os
-
-    try:
-        total = os.fstat(fh.fileno()).st_size
-        from rich.console import Console
-        from rich.progress import Progress
-    except (OSError, ImportError, ValueError):
-        yield from it
-        return
-    console = Console(file=sys.stderr, stderr=True)
-    with Progress(console=console, transient=True, redirect_stdout=False,
-                  redirect_stderr=False) as progress:
-        task = progress.add_task(path, total=total)
-        for n, r in enumerate(it):
-            if n % 4096 == 0:
-                with contextlib.suppress(OSError, ValueError):
-                    progress.update(task, completed=fh.tell())
-            yield r
 
 
 def run_wireshark(args: argparse.Namespace) -> int:

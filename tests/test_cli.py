@@ -59,7 +59,7 @@ def test_demo_with_a_corrupt_eeprom_exits_1(capsys: pytest.CaptureFixture[str]) 
 
 @pytest.mark.parametrize(
     "argv",
-    [[], ["nope"], ["demo", "--duration", "x"], ["demo", "--duration", "-1"],
+    [["nope"], ["demo", "--duration", "x"], ["demo", "--duration", "-1"],
      ["demo", "--objects", "16"], ["demo", "--drop-reply", "GetEyeQVersions:x"],
      ["sim"], ["sim", "--listen", "udp://x:1"], ["host", "--port", "/dev/nonexistent-eyeq"],
      ["demo", "--scenario", "/nonexistent.csv"], ["spec", "show", "nope"]],

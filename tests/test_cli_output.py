@@ -67,11 +67,17 @@ def _run_in_pty(argv: list[str], *, stdout_tty: bool = False,
 
 
 def test_progress_bar_goes_to_stderr_on_a_tty_and_never_into_stdout(capture: Path) -> None:
+    """Records on a pipe (which may end on the same terminal, as ``| head`` does): no bar.
+    ``--stats`` writes nothing until the end: the bar is drawn on the terminal."""
     rc, out, tty = _run_in_pty(["dissect", str(capture), "--json"])
     assert rc in (0, 1)
     assert b"\x1b" not in out  # no escape sequence, no bar in the records
     for line in out.decode().splitlines():
         json.loads(line)
+    assert b"\x1b[?25l" not in tty and b"ETA" not in tty
+    rc, out, tty = _run_in_pty(["dissect", str(capture), "--stats", "--json"])
+    assert rc in (0, 1) and b"\x1b" not in out
+    json.loads(out)
     assert b"\x1b[?25l" in tty  # rich drew (and hid the cursor for) the bar on the terminal
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +16,6 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.link.frame import FrameCodec
 from eyeq_spi.plot import PlotError
 from eyeq_spi.plot.birdseye import (
-    AXES_RECT,
     CIPV_EDGE,
     DPI,
     FIGSIZE,
@@ -23,6 +23,7 @@ from eyeq_spi.plot.birdseye import (
     REAR_M,
     SIGN_COLOUR,
     class_colour,
+    layout,
 )
 from eyeq_spi.plot.charts import GAP_COLOUR, timing_figure
 from eyeq_spi.plot.collect import Collector, Window, collect
@@ -54,12 +55,26 @@ def _image(path: Path) -> Any:
 
 
 def _pixel(long: float, lat: float) -> tuple[int, int]:
-    """(row, column) of a point in metres, computed from the published fixed layout alone."""
+    """(row, column) of a point in metres in the whole view, computed from the published fixed
+    layout alone."""
     w, h = FIGSIZE[0] * DPI, FIGSIZE[1] * DPI
-    left, bottom, width, height = AXES_RECT
+    left, bottom, width, height = layout(RANGE, LATERAL)[0]
     x = w * (left + width * (LATERAL - lat) / (2 * LATERAL))  # x axis: +LATERAL .. -LATERAL
     y = h * (bottom + height * (long + REAR_M) / (RANGE + REAR_M))
     return int(h - y), int(x)
+
+
+def test_the_view_is_true_to_scale() -> None:
+    """A metre across is as many pixels as a metre along, in the whole view and in the zoom,
+    and the zoom appears where the whole view is narrow."""
+    w, h = FIGSIZE[0] * DPI, FIGSIZE[1] * DPI
+    for rng, lat in ((60.0, 12.0), (170.0, 12.0), (40.0, 30.0)):
+        main, zoom, zoom_range = layout(rng, lat)
+        assert main[2] * w / (2 * lat) == pytest.approx(main[3] * h / (rng + REAR_M))
+        if zoom is not None:
+            assert zoom[2] * w / (2 * lat) == pytest.approx(zoom[3] * h / (zoom_range + REAR_M))
+            assert zoom_range < rng and zoom[0] >= main[0] + main[2]
+    assert layout(170.0, 12.0)[1] is not None
 
 
 def _close(px: Any, colour: tuple[float, float, float], tol: float = 0.03) -> bool:
@@ -214,8 +229,7 @@ def test_svg_and_html_are_self_contained(capture: Path) -> None:
     assert svg.read_text().lstrip().startswith("<?xml")
     text = page.read_text()
     assert text.startswith("<!DOCTYPE html>") and "<svg" in text
-    assert "src=\"http" not in text and "href=\"http" not in text.replace(
-        'href="http://www.w3.org', "")
+    _no_network(text)
 
 
 def test_animation_html_player(capture: Path) -> None:
@@ -224,6 +238,15 @@ def test_animation_html_player(capture: Path) -> None:
                  "-o", str(page)]) == 0
     text = page.read_text()
     assert "<script" in text and "data:image/png;base64" in text
+    _no_network(text)  # matplotlib's player loads its icon font from a CDN: not ours
+
+
+def _no_network(text: str) -> None:
+    """No address a browser would fetch: only the SVG namespace names (identifiers, never
+    loaded) may be written as http URLs."""
+    addresses = set(re.findall(r"(?:https?:)?//[\w.-]+\.[a-z]{2,}[^\s\"'<>)]*", text))
+    assert addresses <= {"http://www.w3.org/2000/svg", "http://www.w3.org/1999/xlink"}, addresses
+    assert "<link" not in text and "@import" not in text
 
 
 @pytest.fixture(scope="module")

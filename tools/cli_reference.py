@@ -21,7 +21,8 @@ WIDTH = 100
 
 
 def _fixed_width(parser: argparse.ArgumentParser) -> None:
-    parser.formatter_class = lambda prog: argparse.HelpFormatter(
+    """Descriptions were wrapped by ``cli_help.finish`` at WIDTH; examples stay as written."""
+    parser.formatter_class = lambda prog: argparse.RawDescriptionHelpFormatter(
         prog, width=WIDTH, max_help_position=32)
 
 
@@ -41,9 +42,12 @@ def _walk(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
 def render() -> str:
     sys.path.insert(0, str(ROOT))
     from eyeq_spi.cli import build_parser
+    from eyeq_spi.cli_help import finish
 
+    top = build_parser()
+    finish(top, width=WIDTH)
     parts = [BEGIN, ""]
-    for parser in _walk(build_parser()):
+    for parser in _walk(top):
         _fixed_width(parser)
         text = parser.format_help().rstrip()
         parts += [f"#### `{parser.prog}`", "", "```text", text, "```", ""]

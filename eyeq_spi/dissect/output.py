@@ -38,14 +38,34 @@ class HumanWriter:
         self.codec = codec
         self.color = color
         self.tree = tree
+        self._origin: float | None = None  # time of the file's first timestamped record
+        self._file: object = None
 
     def _c(self, code: str, text: str) -> str:
         return f"{code}{text}{RESET}" if self.color else text
 
+    def see(self, r: dict[str, Any]) -> None:
+        """Note a record the filters may drop: the time origin is the file's first timestamped
+        record, whatever is printed."""
+        f = r.get("file")
+        if f != self._file:
+            self._file, self._origin = f, None
+        if self._origin is None:
+            self._origin = r.get("time")
+
+    def _when(self, r: dict[str, Any]) -> str:
+        """Seconds since the first timestamped record of the record's file (the origin of
+        ``eyeq-spi plot``'s time axis); ``-`` for a record without a time (raw, plain hex)."""
+        self.see(r)
+        t = r.get("time")
+        if t is None or self._origin is None:
+            return "-"
+        return f"{t - self._origin:.6f}"
+
     def write(self, r: dict[str, Any]) -> None:
         kind = r["kind"]
+        t = self._when(r) if kind != "stats" else "-"
         if kind == "frame":
-            t = "-" if r["time"] is None else f"{r['time']:.6f}"
             ok = self._c(GREEN, "crc ok") if r["crc_ok"] else self._c(RED, "CRC BAD")
             if "length" in r:
                 ok = self._c(RED, f"bad length {r['length']}")
@@ -63,13 +83,16 @@ class HumanWriter:
             name = r["name"] or "?"
             head = " ".join(f"{k}={v}" for k, v in r["header"].items())
             errs = "" if not r["errors"] else " " + self._c(RED, "; ".join(r["errors"][:3]))
-            self.fh.write(f"  {self._c(CYAN, r['protocol'])} {self._c(CYAN, name)} "
+            self.fh.write(f"{'':8s} {t:>14s} {r.get('direction') or '-':3s} "
+                          f"{self._c(CYAN, r['protocol'])} {self._c(CYAN, name)} "
                           f"{r['length']} bytes {head}{errs}\n")
             if self.tree and r["fields"]:
                 self._tree(r)
         elif kind == "event":
-            rest = " ".join(f"{k}={v}" for k, v in r.items() if k not in ("kind", "type", "file"))
-            self.fh.write("  " + self._c(YELLOW, f"event {r['type']}") + f" {rest}\n")
+            rest = " ".join(f"{k}={v}" for k, v in r.items()
+                            if k not in ("kind", "type", "time", "direction", "file"))
+            self.fh.write(f"{'':8s} {t:>14s} {r.get('direction') or '-':3s} "
+                          + self._c(YELLOW, f"event {r['type']}") + f" {rest}\n")
         elif kind == "stats":
             pass
 

@@ -103,7 +103,7 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
                 if on_draw is not None:
                     on_draw(snap)
                 if live_screen:
-                    live.update(render(snap, console.width), refresh=True)
+                    live.update(render(snap, console.width, console.height), refresh=True)
                 stats.redraws += 1
                 stats.draw_s += clock() - t0
                 stats.draw_cpu_s += time.process_time() - c0
@@ -118,7 +118,7 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
             stats.interrupted = True
             snap = source.snapshot()
             if live_screen:
-                live.update(render(snap, console.width), refresh=True)
+                live.update(render(snap, console.width, console.height), refresh=True)
     finally:
         if live_screen:
             live.stop()

@@ -12,6 +12,8 @@ from eyeq_spi.plot.scene import Scene
 from eyeq_spi.spec.catalog import Catalog
 
 RATE_WINDOW = 2.0  # seconds of history behind each rate
+MIN_SPAN = 0.75  # s of a stream's history before its rate is judged low or high (13 counts
+# at 18 Hz: one message more or less is 7 %, well inside the §7.1.4 tolerance band of 15 %)
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,7 @@ class RateMeter:
         self.window = window
         self._hist: deque[tuple[float, dict[str, int]]] = deque()
         self._last_change: dict[str, float] = {}
+        self._first: dict[str, tuple[float, int]] = {}  # tick before a message's first arrival
         self._nominal: dict[str, tuple[float | None, tuple[float, float] | None]] = {}
 
     def _nominal_of(self, name: str) -> tuple[float | None, tuple[float, float] | None]:
@@ -77,6 +80,9 @@ class RateMeter:
         snap = dict(counts)
         prev = self._hist[-1][1] if self._hist else {}
         for k, v in snap.items():
+            if k not in self._first and v:  # counted from the last tick that knew it (at 0),
+                # else from the first that saw it
+                self._first[k] = (self._hist[-1][0], prev[k]) if k in prev else (now, v)
             if v != prev.get(k, 0) or k not in self._last_change:
                 self._last_change[k] = now
         if last_seen:
@@ -93,13 +99,21 @@ class RateMeter:
         out = []
         for name in sorted(c1):
             nominal, tol = self._nominal_of(name)
-            hz = (c1[name] - c0.get(name, 0)) / (t1 - t0) if t1 > t0 else None
+            # the window starts at the tick that first saw the message, if later: a stream
+            # that began 1 s ago is not at half its rate over a 2 s window
+            ts, cs = t0, c0.get(name, 0)
+            first = self._first.get(name)
+            if first is not None and first[0] > t0:
+                ts, cs = first
+            hz = (c1[name] - cs) / (t1 - ts) if t1 > ts else None
             b = band(nominal, tol)
             status = "-"
             if nominal and hz is not None:
                 silent = t1 - self._last_change.get(name, t1)
                 if silent > GAP_PERIODS / nominal:
                     status = "stopped"
+                elif t1 - ts < MIN_SPAN:
+                    status = "-"  # too few messages yet to call the rate low or high
                 elif b is not None and hz < b[0]:
                     status = "low"
                 elif b is not None and hz > b[1]:

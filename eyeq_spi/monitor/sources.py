@@ -77,7 +77,7 @@ class _HostView:
         errors = {"E2E errors": c.e2e_errors, "DASP counter gaps": c.dasp_counter_gaps,
                   "decode errors": c.decode_errors, "EyeQ resets": c.eyeq_resets,
                   "MESP timeouts": host.mesp.counters.timeouts}
-        trans = [(t.time, t.src.value, t.event.value, t.dst.value)
+        trans = [(t.time - self.origin, t.src.value, t.event.value, t.dst.value)
                  for t in host.transitions[-8:]]
         return Snapshot(self.source, now, "host state", host.state.value, trans,
                         self.rates.rows(), link, errors, sorted(host.stale_streams),

@@ -173,28 +173,47 @@ def _pair(left: list[Any], lw: int, right: list[Any], rw: int, width: int | None
     return [*left, _rich().Text(), *right]
 
 
-def screen_lines(snap: Snapshot, width: int | None = None) -> list[Any]:
-    """The screen as lines of rich Text. Blocks stand side by side, or stacked where the
-    terminal (``width`` columns) is too narrow for two; lines never wrap (a terminal narrower
-    than a block crops it)."""
+def _head(snap: Snapshot, width: int | None) -> list[Any]:
+    """The header (source, time since the start, state) and the problem, if any."""
     Text = _rich().Text
     state_style = "bold green" if snap.state in GOOD_STATES else "bold yellow"
-    head = Text.assemble(
-        ("eyeq-spi monitor ", "bold"), (snap.source, "cyan"), f"   t {snap.now:8.2f} s   ",
-        (f"{snap.state_label}: ", ""), (snap.state, state_style),
-        ("   finished" if snap.done else "", "dim"))
-    lines = [head]
+    state = Text.assemble((f"{snap.state_label}: ", ""), (snap.state, state_style),
+                          ("   finished" if snap.done else "", "dim"))
+    when = f"   t {snap.now:8.2f} s   "
+    source = snap.source
+    if width is not None:  # the state and time are kept whole; the source gives way
+        room = width - len("eyeq-spi monitor ") - len(when) - state.cell_len
+        if room < len(source):
+            source = source[:max(1, room) - 1] + "\u2026" if room > 1 else ""
+    head = [Text.assemble(("eyeq-spi monitor ", "bold"), (source, "cyan"), when, state)]
     if snap.problem:
-        lines.append(Text(f"problem: {snap.problem}", style="bold red"))
+        head.append(Text(f"problem: {snap.problem}", style="bold red"))
+    return head
+
+
+def screen_lines(snap: Snapshot, width: int | None = None,
+                 height: int | None = None) -> list[Any]:
+    """The screen as lines of rich Text. Blocks stand side by side, or stacked where the
+    terminal (``width`` columns) is too narrow for two; where that does not fit ``height``
+    rows either, the compact screen (:mod:`eyeq_spi.monitor.compact`) folds the panels.
+    Lines never wrap."""
+    Text = _rich().Text
+    lines = _head(snap, width)
+    head = list(lines)
     lines += [Text(), *_pair(_rates(snap), _width(RATE_COLS), _link(snap), _width(LINK_COLS),
                              width), Text(),
               *_pair(_objects(snap), _width(OBJECT_COLS), _road(snap), _width(ROAD_COLS),
                      width), Text(),
               *_transitions(snap)]
+    too_wide = width is not None and max(t.cell_len for t in lines) > width
+    if height is not None and width is not None and (len(lines) > height or too_wide):
+        from eyeq_spi.monitor.compact import compact_lines
+
+        lines = compact_lines(snap, head, width, height - 1, Text)  # the cursor's line
     for t in lines:
         t.no_wrap, t.overflow, t.end = True, "crop", "\n"
     return lines
 
 
-def render(snap: Snapshot, width: int | None = None) -> Any:
-    return _rich().Group(*screen_lines(snap, width))
+def render(snap: Snapshot, width: int | None = None, height: int | None = None) -> Any:
+    return _rich().Group(*screen_lines(snap, width, height))

@@ -8,10 +8,17 @@ from typing import Any
 
 from eyeq_spi.plot import PlotError
 from eyeq_spi.plot.collect import GAP_PERIODS, Collected, Stream
-from eyeq_spi.plot.output import new_figure
+from eyeq_spi.plot.output import new_figure, plural
 
 GAP_COLOUR = "#d62728"
 BAND_COLOUR = "#2ca02c"
+DOT_COLOUR = "#1f77b4"
+# the origin of every time axis: the capture's first timestamped record, as dissect's lines
+TIME_LABEL = "s since the capture's first record (as eyeq-spi dissect)"
+# series of one panel: each its own colour and style, the first drawn widest so that series
+# with equal values show as nested stripes instead of hiding one another
+SERIES_STYLES = (("#1f77b4", "-", 5.0), ("#ff7f0e", "--", 3.2), ("#2ca02c", "-", 1.8),
+                 ("#d62728", ":", 1.2), ("#9467bd", "-.", 1.0), ("#8c564b", "-", 0.8))
 ROW_IN = 1.25  # inches per stream in the timing plot
 WIDTH_IN = 11.0
 DPI = 100
@@ -33,20 +40,37 @@ def timing_figure(col: Collected) -> tuple[Any, dict[str, Any]]:
     rows = timing_rows(col)
     if not rows:
         raise PlotError("no periodic messages (DASP or 0x41) in the capture window")
-    fig = new_figure(WIDTH_IN, 0.9 + ROW_IN * len(rows), DPI)
+    fig = new_figure(WIDTH_IN, 1.25 + ROW_IN * len(rows), DPI)
     axes = fig.subplots(len(rows), 1, sharex=True, squeeze=False)[:, 0]
-    fig.subplots_adjust(left=0.2, right=0.97, top=1 - 0.75 / fig.get_figheight(),
+    fig.subplots_adjust(left=0.2, right=0.97, top=1 - 1.1 / fig.get_figheight(),
                         bottom=0.45 / fig.get_figheight(), hspace=0.35)
     end = col.end
     by_name: dict[str, Any] = {}
     for ax, s in zip(axes, rows, strict=True):
         by_name[s.name] = ax
         _timing_row(ax, s, end)
-    axes[-1].set_xlabel("capture time (s)")
+    axes[-1].set_xlabel(TIME_LABEL)
     axes[0].set_xlim(col.window.start, max(end, col.window.start + 1e-3))
-    fig.suptitle(f"inter-arrival time per message: nominal period (line), tolerance (band), "
-                 f"stopped > {GAP_PERIODS:g} periods (red span), counter jumps (x)", fontsize=9)
+    fig.suptitle("inter-arrival time of each message against its nominal period", fontsize=10)
+    fig.legend(handles=_timing_legend(), loc="upper center", ncol=3, fontsize=7,
+               bbox_to_anchor=(0.5, 1 - 0.3 / fig.get_figheight()), frameon=False)
     return fig, by_name
+
+
+def _timing_legend() -> list[Any]:
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    return [
+        Line2D([], [], marker=".", linestyle="", color=DOT_COLOUR, label="inter-arrival time"),
+        Line2D([], [], color=BAND_COLOUR, linewidth=1.0, label="nominal period"),
+        Patch(facecolor=BAND_COLOUR, alpha=0.25, label="tolerance (§7.1.4)"),
+        Patch(facecolor=GAP_COLOUR, alpha=0.35,
+              label=f"stopped: silent > {GAP_PERIODS:g} periods"),
+        Line2D([], [], marker="^", linestyle="", color=GAP_COLOUR,
+               label=f"gap above the axis (> {GAP_PERIODS + 1:g} periods)"),
+        Line2D([], [], marker="x", linestyle="", color=GAP_COLOUR, label="DASP counter jump"),
+    ]
 
 
 def _timing_row(ax: Any, s: Stream, end: float) -> None:
@@ -67,7 +91,7 @@ def _timing_row(ax: Any, s: Stream, end: float) -> None:
     above = [x for x, d in zip(xs, dts, strict=True) if d > top]
     if inside:
         ax.plot([x for x, _ in inside], [d for _, d in inside], ".", markersize=2.5,
-                color="#1f77b4", zorder=3)
+                color=DOT_COLOUR, zorder=3)
     if above:
         ax.plot(above, [top * 0.97] * len(above), "^", markersize=4, color=GAP_COLOUR, zorder=3)
     if s.counter_jumps:
@@ -77,8 +101,9 @@ def _timing_row(ax: Any, s: Stream, end: float) -> None:
     late = sum(1 for d in dts if not p_ms + lo <= d <= p_ms + hi)
     ax.set_ylabel(f"{short(s.name)}\n{s.rate_hz:g} Hz · ms", fontsize=7)
     ax.tick_params(labelsize=7)
-    ax.text(1.0, 1.0, f"{len(t)} msgs, {late} outside tolerance, {len(gaps)} gaps, "
-            f"{len(s.counter_jumps)} counter jumps", transform=ax.transAxes, fontsize=7,
+    ax.text(1.0, 1.0, f"{plural(len(t), 'message')}, {late} outside tolerance, "
+            f"{plural(len(gaps), 'gap')}, {plural(len(s.counter_jumps), 'counter jump')}",
+            transform=ax.transAxes, fontsize=7,
             ha="right", va="bottom")
 
 
@@ -109,34 +134,39 @@ def link_figure(col: Collected) -> Any:
     def series(key: str) -> list[float]:
         return [bins.get(b, Counter()).get(key, 0) / width for b in range(first, last + 1)]
 
-    fig = new_figure(WIDTH_IN, 8.0, DPI)
-    axes = fig.subplots(3, 1, sharex=True)
-    fig.subplots_adjust(left=0.08, right=0.8, top=0.94, bottom=0.07, hspace=0.25)
+    fig = new_figure(WIDTH_IN, 9.5, DPI)
+    axes = fig.subplots(4, 1, sharex=True)
+    fig.subplots_adjust(left=0.08, right=0.78, top=0.94, bottom=0.06, hspace=0.25)
     frames = sorted(k for k in keys if k.split(" ")[-1] in ("DATA", "ACK", "NAK", "INVALID"))
     naks = sorted(k for k in keys if k.startswith("NAK 0x"))
     errors = sorted(k for k in keys if k in ("CRC errors", "wrong length", "E2E errors")
                     or k.startswith("abort: "))
-    panels = ((axes[0], frames, "frames/s by kind"), (axes[1], naks, "NAKs/s by reason"),
-              (axes[2], errors, "errors/s"))
+    panels = ((axes[0], [k for k in frames if k.startswith("e2h")], "EyeQ \u2192 host\nframes/s"),
+              (axes[1], [k for k in frames if not k.startswith("e2h")],
+               "host \u2192 EyeQ\nframes/s"),
+              (axes[2], naks, "NAKs/s by reason"), (axes[3], errors, "errors/s"))
     for ax, ks, label in panels:
-        for k in ks:
-            ax.plot(xs, series(k), drawstyle="steps-mid", linewidth=1.0, label=k,
-                    linestyle="--" if k.endswith(" ACK") else "-")
+        for k, (colour, style, lw) in zip(ks, itertools.cycle(SERIES_STYLES)):
+            ax.plot(xs, series(k), drawstyle="steps-mid", linewidth=lw, label=k,
+                    color=colour, linestyle=style, alpha=0.9)
         if not ks:
             ax.text(0.5, 0.5, "none", transform=ax.transAxes, ha="center", va="center",
                     color="#808080")
         else:
-            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7,
+                      title="equal values: nested lines" if len(ks) > 1 else None,
+                      title_fontsize=6)
         ax.set_ylabel(label, fontsize=8)
         ax.tick_params(labelsize=7)
         ax.set_ylim(bottom=0)
         ax.grid(True, color="#e0e0e0", linewidth=0.5)
-    axes[-1].set_xlabel(f"capture time (s), bins of {width * 1e3:g} ms")
+    axes[-1].set_xlabel(f"{TIME_LABEL}, bins of {width * 1e3:g} ms")
     totals = Counter[str]()
     for c in bins.values():
         totals.update(c)
     n_nak = sum(totals[k] for k in naks)
     n_err = sum(totals[k] for k in errors)
-    fig.suptitle(f"link: {sum(totals[k] for k in frames)} frames, {n_nak} NAKs, "
-                 f"{n_err} errors (CRC, length, aborts, E2E)", fontsize=10)
+    fig.suptitle(f"link: {plural(sum(totals[k] for k in frames), 'frame')}, "
+                 f"{plural(n_nak, 'NAK')}, {plural(n_err, 'error')} (CRC, length, aborts, E2E)",
+                 fontsize=10)
     return fig

@@ -25,6 +25,11 @@ def mpl() -> Any:
     return matplotlib
 
 
+def plural(n: int, word: str) -> str:
+    """``1 sign``, ``3 signs`` (the words the plots use take an s)."""
+    return f"{n} {word}" if n == 1 else f"{n} {word}s"
+
+
 def new_figure(width_in: float, height_in: float, dpi: int) -> Any:
     mpl()
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -63,8 +68,10 @@ def save_figure(fig: Any, path: str, title: str) -> None:
     suffix = check_output(path, animated=False)
     buf = io.BytesIO()
     # no bbox_inches="tight": pixel positions stay where the fixed layout puts them
+    # SVG metadata would name matplotlib's web site: an HTML page holds no web address
     fig.savefig(buf, format="svg" if suffix != ".png" else "png", dpi=fig.dpi,
-                metadata=None if suffix != ".png" else {"Software": "eyeq-spi"})
+                metadata={"Creator": None, "Date": None, "Format": None, "Type": None}
+                if suffix != ".png" else {"Software": "eyeq-spi"})
     if suffix == ".html":
         svg = buf.getvalue().decode("utf-8")
         svg = svg[svg.find("<svg"):]  # inline: drop the XML prolog and doctype
@@ -83,4 +90,22 @@ def save_animation(anim: Any, path: str, fps: float, title: str) -> None:
         except OSError as exc:
             raise PlotError(f"cannot write {path}: {exc.strerror or exc}") from None
     else:
-        _write(path, _page(title, anim.to_jshtml(fps=fps, default_mode="once")))
+        _write(path, _page(title, offline(anim.to_jshtml(fps=fps, default_mode="once"))))
+
+
+# matplotlib's HTML player draws its buttons with Font Awesome from a CDN; these are the same
+# buttons as plain characters, so the page needs nothing from the network
+_ICONS = {"fa fa-minus": "\u2212", "fa fa-fast-backward": "\u23ee",
+          "fa fa-step-backward": "\u23f4\u2758", "fa fa-play fa-flip-horizontal": "\u25c0",
+          "fa fa-pause": "\u23f8", "fa fa-play": "\u25b6", "fa fa-step-forward": "\u2758\u23f5",
+          "fa fa-fast-forward": "\u23ed", "fa fa-plus": "+"}
+
+
+def offline(page: str) -> str:
+    """``page`` without its stylesheet links (the player's icon font) and with the icons as
+    characters."""
+    import re
+
+    page = re.sub(r"<link\b[^>]*>", "", page, flags=re.S)
+    return re.sub(r'<i class="(fa [^"]*)"></i>',
+                  lambda m: _ICONS.get(m.group(1), m.group(1).split()[-1]), page)

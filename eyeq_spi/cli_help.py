@@ -1,0 +1,137 @@
+"""What ``--help`` shows beyond the options: a description for every command and 2-3 examples
+(an argparse epilog, kept as written by ``RawDescriptionHelpFormatter``; descriptions are
+wrapped here to the terminal instead). Every example is a command that parses
+(``tests/test_term.py``)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import textwrap
+
+TOP_DESCRIPTION = (
+    "The host side of the EyeQ4 SPI interface and its Mobileye CAN output: a simulated EyeQ "
+    "and a host emulator to run against each other or against real hardware, a dissector for "
+    "captures (terminal, JSON, tables, Wireshark, PulseView), plots, a live monitor and a "
+    "conformance suite. Every wire format comes from specs/.")
+
+TOP_EXAMPLES = [
+    "eyeq-spi demo --duration 5                  # bring a simulated EyeQ up, 5 s",
+    "eyeq-spi demo --virtual-time --capture x.pcapng && eyeq-spi dissect x.pcapng --stats",
+    "eyeq-spi COMMAND --help                     # the options and examples of one command",
+]
+
+# command (subcommands as "can dbc") -> (description when it has none, examples)
+EXAMPLES: dict[str, list[str]] = {
+    "demo": [
+        "eyeq-spi demo --duration 5",
+        "eyeq-spi demo --virtual-time --duration 60 --capture run.pcapng",
+        "eyeq-spi demo --virtual-time --stop-dasp EYEQ_VIS_SRP_MSG@3 --json",
+    ],
+    "sim": [
+        "eyeq-spi sim --port socket://127.0.0.1:0       # prints LISTEN socket://HOST:PORT",
+        "eyeq-spi sim --pty --duration 60",
+    ],
+    "host": [
+        "eyeq-spi host --port socket://127.0.0.1:5000 --duration 10",
+        "eyeq-spi host --port rfc2217://192.168.1.20:4000 --exit-when-running --json",
+    ],
+    "dissect": [
+        "eyeq-spi dissect capture.pcapng --id 0xE4 --no-tree",
+        "eyeq-spi dissect capture.pcapng --stats",
+        "eyeq-spi dissect capture.pcapng --json | jq -c 'select(.kind==\"message\")'",
+    ],
+    "wireshark": [
+        "eyeq-spi wireshark -o eyeq_spi.lua",
+        "wireshark -X lua_script:eyeq_spi.lua capture.pcapng",
+    ],
+    "batch": [
+        "eyeq-spi batch captures/ --parquet dataset/",
+        "eyeq-spi batch captures/ --parquet dataset/ --jobs 4",
+    ],
+    "can": [
+        "eyeq-spi can dbc --output dbc/",
+        "eyeq-spi can decode drive.blf --stats",
+    ],
+    "can dbc": [
+        "eyeq-spi can dbc --output dbc/",
+        "eyeq-spi can dbc --protocol me8 --output dbc/",
+    ],
+    "can decode": [
+        "eyeq-spi can decode drive.blf --stats",
+        "eyeq-spi can decode drive.asc --protocol me8 --json",
+    ],
+    "plot": [
+        "eyeq-spi plot capture.pcapng --birdseye --at 4 -o scene.png",
+        "eyeq-spi plot capture.pcapng --timing --name 'OBSTACLES|SRP' -o timing.html",
+        "eyeq-spi plot capture.pcapng --link -o link.svg",
+    ],
+    "monitor": [
+        "eyeq-spi monitor --demo --duration 30",
+        "eyeq-spi monitor --replay capture.pcapng --pace 4",
+        "eyeq-spi monitor --port socket://127.0.0.1:5000",
+    ],
+    "export": [
+        "eyeq-spi export capture.pcapng --vcd capture.vcd",
+        "eyeq-spi export capture.pcapng --mdf capture.mf4 --mcap capture.mcap",
+    ],
+    "replay": [
+        "eyeq-spi replay capture.pcapng --into-host",
+        "eyeq-spi replay capture.pcapng --port listen://127.0.0.1:5000",
+    ],
+    "sigrok-decoder": [
+        "eyeq-spi sigrok-decoder --install",
+        "eyeq-spi sigrok-decoder --install decoders/",
+    ],
+    "conformance": [
+        "eyeq-spi conformance --builtin --dut eyeq",
+        "eyeq-spi conformance --dut eyeq --port socket://127.0.0.1:5000 --junit results.xml",
+        "eyeq-spi conformance --list",
+    ],
+    "spec": [
+        "eyeq-spi spec list",
+        "eyeq-spi spec show 0xE4",
+    ],
+    "spec list": [
+        "eyeq-spi spec list",
+        "eyeq-spi spec list --sw 8.1",
+    ],
+    "spec show": [
+        "eyeq-spi spec show EYEQ_VIS_OBSTACLES_MSG",
+        "eyeq-spi spec show 0xE4 --sw 8.1",
+    ],
+}
+
+
+def _width() -> int:
+    try:
+        cols = int(os.environ.get("COLUMNS", "")) or os.get_terminal_size().columns
+    except (OSError, ValueError):
+        cols = 80
+    return max(40, min(cols, 100) - 2)
+
+
+def _examples(lines: list[str]) -> str:
+    return "examples:\n" + "\n".join(f"  {line}" for line in lines)
+
+
+def finish(parser: argparse.ArgumentParser, name: str = "", help_line: str = "",
+           width: int | None = None) -> None:
+    """Give ``parser`` and every subcommand parser under it a description wrapped at ``width``
+    (default: the terminal's) and their examples. Cheap: it touches only the parsers that
+    exist (main builds one command's)."""
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    desc = parser.description or help_line or ""
+    if not name:
+        desc = TOP_DESCRIPTION
+    width = width or _width()
+    parser.description = "\n\n".join(textwrap.fill(" ".join(p.split()), width)
+                                      for p in desc.split("\n\n")) if desc else None
+    examples = TOP_EXAMPLES if not name else EXAMPLES.get(name)
+    if examples:
+        parser.epilog = _examples(examples)
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            helps = {a.dest: a.help or "" for a in action._choices_actions}
+            for sub_name, sub in action.choices.items():
+                finish(sub, f"{name} {sub_name}".strip(), helps.get(sub_name, ""), width)

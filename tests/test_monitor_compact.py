@@ -1,0 +1,101 @@
+"""The monitor in an 80x24 terminal: panels fold, nothing essential is cut; times since the
+start; rates judged from a stream's first message against its nominal rate."""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("rich", reason="the monitor extra (rich) is not installed")
+
+from eyeq_spi.cli import main
+from eyeq_spi.emulator import build
+from eyeq_spi.monitor.model import RateMeter
+from eyeq_spi.monitor.sources import ReplaySource, _HostView
+from eyeq_spi.monitor.view import screen_lines
+from eyeq_spi.spec.catalog import catalog
+from tests.test_monitor import _drain, _run_in_pty
+
+
+@pytest.fixture(scope="module")
+def busy_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """2 s of the emulator with 10 objects and 5 signs; SRP stops at 1.2 s."""
+    path = tmp_path_factory.mktemp("compact") / "busy.pcapng"
+    main(["demo", "--virtual-time", "--duration", "2", "--objects", "10", "--signs", "5",
+          "--stop-dasp", "EYEQ_VIS_SRP_MSG@1.2", "--capture", str(path), "--json"])
+    return path
+
+
+def test_80x24_folds_the_panels_and_keeps_what_matters(busy_capture: Path) -> None:
+    snap = _drain(ReplaySource(str(busy_capture), speed=0))
+    lines = [t.plain for t in screen_lines(snap, 80, 24)]
+    text = "\n".join(lines)
+    assert len(lines) <= 23 and max(len(line) for line in lines) <= 80, text
+    assert lines[0].startswith("eyeq-spi monitor") and "RUNNING_VISION" in lines[0]
+    for key, value in {**snap.link, **snap.errors}.items():  # every counter, with its value
+        assert f"{key} {value}" in text, key
+    assert "stale streams: VIS_SRP" in text
+    assert re.search(r"VIS_SRP\s+[\d.]+\s+18 stopped", text)
+    for row in snap.rates:  # every stream has its rate line
+        assert row.name.removeprefix("EYEQ_").removesuffix("_MSG")[:17] in text
+    assert re.search(r"objects 10: nearest \d+ shown, \d+ more", text)
+    last = snap.transitions[-1]
+    assert f"{last[0]:8.3f}  {last[1]} --{last[2]}--> {last[3]}" in text
+    wide = [t.plain for t in screen_lines(snap, 160, 80)]  # room: the full screen
+    assert any(line.startswith("objects (10)") for line in wide)
+
+
+def test_transitions_are_dated_from_the_start() -> None:
+    """The host emulator on the real-time runner keeps monotonic clock readings: the view
+    shows them from its origin (the runner's clock when the monitor started)."""
+    emu = build(keep_rx_times=False)
+    view = _HostView(emu.host, "host", origin=0.25)
+    emu.run_for(1.0)
+    snap = view.snapshot(1.0 - 0.25, False)
+    raw = [t.time for t in emu.host.transitions[-8:]]
+    assert [t[0] for t in snap.transitions] == pytest.approx([t - 0.25 for t in raw])
+
+
+def test_a_stream_that_began_late_is_not_low() -> None:
+    """Rates count from a stream's first message: 1 s after the bring-up an 18 Hz stream is
+    18 Hz and ok, not 9 Hz "low" over a 2 s window that holds the bring-up."""
+    meter = RateMeter(catalog())
+    name = "EYEQ_VIS_OBSTACLES_MSG"
+    for k in range(0, 16):  # ticks every 0.1 s; the stream starts at 0.5 s
+        t = k * 0.1
+        counts = {"HOST_VEH_STATE_MSG": int(t * 66.67)}
+        if t >= 0.5:
+            counts[name] = int((t - 0.5) * 18) + 1
+        meter.tick(t, counts)
+    row = {r.name: r for r in meter.rows()}[name]
+    assert row.hz == pytest.approx(18, abs=1.2) and row.status == "ok"
+
+
+def test_a_fresh_stream_is_not_judged_yet() -> None:
+    meter = RateMeter(catalog())
+    name = "EYEQ_VIS_OBSTACLES_MSG"
+    meter.tick(0.0, {})
+    meter.tick(0.1, {name: 2})
+    meter.tick(0.3, {name: 5})
+    assert {r.name: r for r in meter.rows()}[name].status == "-"
+
+
+def test_demo_in_an_80x24_pseudo_terminal() -> None:
+    if not sys.platform.startswith("linux"):
+        pytest.skip("needs a Linux pty")
+    pyte = pytest.importorskip("pyte", reason="pyte reads the terminal screen (test extra)")
+    returncode, chunks = _run_in_pty(["--demo", "--virtual-time", "--duration", "3",
+                                      "--objects", "10", "--signs", "3"], 24, 80)
+    screen = pyte.Screen(80, 24)
+    pyte.ByteStream(screen).feed(b"".join(c for _, c in chunks))
+    assert returncode == 0
+    lines = [line.rstrip() for line in screen.display]
+    text = "\n".join(lines)
+    assert lines[0].startswith("eyeq-spi monitor demo") and "finished" in lines[0], text
+    assert "MESP timeouts 0" in text and "stale streams: none" in text
+    assert re.search(r"objects 10", text) and "transitions" in text
+    assert re.search(r"VIS_OBSTACLES\s+1[78]\.\d\s+18 ok", text), text
+    assert "--RUNNING_VISION--> RUNNING_VISION" in text
