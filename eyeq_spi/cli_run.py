@@ -314,7 +314,7 @@ def run_sim(args: argparse.Namespace) -> int:
     connection is a power-up (boot status first)."""
     from eyeq_spi.errors import LinkLostError
     from eyeq_spi.phy.base import open_listener
-    from eyeq_spi.report import sim_session, sim_summary
+    from eyeq_spi.report import SimSessions, sim_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
     from eyeq_spi.runner.sched import realtime
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
@@ -340,7 +340,7 @@ def run_sim(args: argparse.Namespace) -> int:
     t0, cpu0 = clock(), time.process_time()
     end = None if args.duration is None else t0 + args.duration
     sim: Any = None
-    sessions: list[dict[str, Any]] = []
+    served = SimSessions(t0)  # one summary per host served
     interrupted = False
     gc.freeze()  # the catalogue and layouts live forever: keep collections short
     rt = contextlib.ExitStack()  # real-time scheduling for the live run only
@@ -365,8 +365,7 @@ def run_sim(args: argparse.Namespace) -> int:
                 runner.run(None if end is None else max(0.0, end - clock()))
             except LinkLostError as exc:
                 lost = str(exc)
-            sessions.append(sim_session(sim, began=began - t0, ended=clock() - t0,
-                                        link_lost=lost, t0=t0))
+            served.add(sim, began=began - t0, ended=clock() - t0, link_lost=lost)
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -375,10 +374,10 @@ def run_sim(args: argparse.Namespace) -> int:
         if writer is not None:
             writer.close()
     problem = None
-    if not sessions:
+    if not served.sessions:
         problem = (f"no host connected within {args.accept_timeout} s" if not interrupted
                    else "interrupted before any host")
-    out = sim_summary(sim or SimulatedEyeQ(cfg), sessions, elapsed=clock() - t0,
+    out = sim_summary(sim or SimulatedEyeQ(cfg), served.sessions, elapsed=clock() - t0,
                       wall=clock() - t0, cpu=time.process_time() - cpu0,
                       interrupted=interrupted, address=address, scheduling=scheduling,
                       problem=problem)

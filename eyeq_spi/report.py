@@ -156,40 +156,79 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
 
 # -- sim: per host served and in total -------------------------------------------------------
 
-def sim_session(sim: SimulatedEyeQ, *, began: float, ended: float, link_lost: str | None,
-                t0: float = 0.0, connections: int = 1) -> dict[str, Any]:
-    """The summary of one host served by ``sim``. Every time is in seconds since the run
-    started: ``t0`` is that start on the simulator's clock."""
+def _sim_counts(sim: SimulatedEyeQ) -> dict[str, Any]:
+    """The simulator's counts since it was made (they run on across power-ups)."""
     c = sim.counters
-    s: dict[str, Any] = {
-        "began_s": round(began, 3), "ended_s": round(ended, 3),
-        "state": f"0x{sim.main_state:02X}",
-        "received": {k: int(v) for k, v in sorted(c.received.items())},
-        "sent": {k: int(v) for k, v in sorted(c.sent.items())},
+    return {
+        "received": {k: int(v) for k, v in c.received.items()},
+        "sent": {k: int(v) for k, v in c.sent.items()},
         "link": link_view(sim.conn.link.counters),
-        "ack_latency_ms": ack_latency_ms(sim.conn.link.ack_latency),
-        "transport_aborts": _aborts(sim.conn),
-        "e2e_errors": c.e2e_errors,
-        "dasp_counter_gaps": c.counter_gaps,
-        "decode_errors": c.bad_hdr_total,
-        "stale_streams": ["HOST_VEH_STATE_MSG"] if c.veh_state_stale else [],
-        # what the host waited for in vain; retries and stale replies are the host's to count
-        "mesp": {"requests": c.mesp_requests, "retries": None,
-                 "timeouts": c.mesp_replies_dropped + c.mesp_replies_late,
-                 "abandoned": None, "stale_replies": None},
-        "eyeq_resets": max(0, c.boots - connections),
-        "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
-                     "eyeqSwVersionMinor": sim.sw_version[1]},
-        "boot": {"boots": c.boots},
-        "running_vision_since": (None if sim.running_since is None
-                                 else round(sim.running_since - t0, 4)),
-        "link_lost": link_lost,
+        "transport_aborts": {k: int(v) for k, v in sim.conn.counters.transferAborts.items()},
+        "e2e_errors": c.e2e_errors, "dasp_counter_gaps": c.counter_gaps,
+        "decode_errors": c.bad_hdr_total, "stale": c.veh_state_stale,
+        "mesp": {"requests": c.mesp_requests,
+                 "timeouts": c.mesp_replies_dropped + c.mesp_replies_late},
+        "boots": c.boots, "hist": Counter(sim.conn.link.ack_latency),
     }
-    # the host leaving ends a session; it is not a loss on the EyeQ side (it serves the next)
-    s["problem"] = _losses(s)
-    s["ok"] = s["problem"] is None
-    s["_ack_hist"] = Counter(sim.conn.link.ack_latency)  # for the totals; dropped by them
-    return s
+
+
+def _minus(now: Any, before: Any) -> Any:
+    """``now - before`` key by key (counts only grow)."""
+    if isinstance(now, dict):
+        return {k: _minus(v, before.get(k)) for k, v in now.items()}
+    return now - (before or 0)
+
+
+def _nonzero(d: dict[str, int]) -> dict[str, int]:
+    return {k: v for k, v in sorted(d.items()) if v}
+
+
+class SimSessions:
+    """The summaries of the hosts a ``sim`` run serves, one per connection. Each holds that
+    host's counts only, whether the serve loop makes a new :class:`SimulatedEyeQ` for each
+    connection or powers the same one up again (then the counts before it are subtracted).
+    Every time is in seconds since the run started, ``t0`` on the simulator's clock."""
+
+    def __init__(self, t0: float = 0.0) -> None:
+        self.t0 = t0
+        self.sessions: list[dict[str, Any]] = []
+        self._last: tuple[SimulatedEyeQ, dict[str, Any]] | None = None
+
+    def add(self, sim: SimulatedEyeQ, *, began: float, ended: float,
+            link_lost: str | None) -> dict[str, Any]:
+        """Close the session of the host that was just served (``began``/``ended``: seconds
+        since the run started) and return its summary."""
+        now = _sim_counts(sim)
+        d = now if self._last is None or self._last[0] is not sim \
+            else _minus(now, self._last[1])
+        self._last = (sim, now)
+        s: dict[str, Any] = {
+            "began_s": round(began, 3), "ended_s": round(ended, 3),
+            "state": f"0x{sim.main_state:02X}",
+            "received": _nonzero(d["received"]), "sent": _nonzero(d["sent"]),
+            "link": d["link"], "ack_latency_ms": ack_latency_ms(d["hist"]),
+            "transport_aborts": _nonzero(d["transport_aborts"]),
+            "e2e_errors": d["e2e_errors"], "dasp_counter_gaps": d["dasp_counter_gaps"],
+            "decode_errors": d["decode_errors"],
+            "stale_streams": ["HOST_VEH_STATE_MSG"] if d["stale"] else [],
+            # what the host waited for in vain; retries and stale replies are the host's count
+            "mesp": {"requests": d["mesp"]["requests"], "retries": None,
+                     "timeouts": d["mesp"]["timeouts"], "abandoned": None,
+                     "stale_replies": None},
+            "eyeq_resets": max(0, d["boots"] - 1),  # the connection's own power-up is no reset
+            "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
+                         "eyeqSwVersionMinor": sim.sw_version[1]},
+            "boot": {"boots": d["boots"]},
+            "running_vision_since": (None if sim.running_since is None
+                                     else round(sim.running_since - self.t0, 4)),
+            "link_lost": link_lost,
+        }
+        # the host leaving ends a session; it is not a loss on the EyeQ side (it serves the next)
+        s["problem"] = _losses(s)
+        s["ok"] = s["problem"] is None
+        s["_ack_hist"] = d["hist"]  # for the totals; sim_summary drops it
+        self.sessions.append(s)
+        return s
 
 
 def _add(total: Any, part: Any) -> Any:
@@ -208,7 +247,7 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
                 wall: float, cpu: float, interrupted: bool = False, address: str | None = None,
                 scheduling: str | None = None, problem: str | None = None) -> dict[str, Any]:
     """The summary of a ``sim`` run: every host served in ``sessions`` (from
-    :func:`sim_session`) and their totals; ``sim`` is the last one served (or an idle one)."""
+    :class:`SimSessions`) and their totals; ``sim`` is the last one served (or an idle one)."""
     hist: Counter[int] = Counter()
     s: dict[str, Any] = {
         "side": "sim", "address": address, "sw": sw_release_text(sim.sw),

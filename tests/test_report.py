@@ -8,7 +8,7 @@ from typing import Any
 
 from eyeq_spi.emulator import build, summary
 from eyeq_spi.host.nvm import Nvm
-from eyeq_spi.report import KEYS, format_summary, sim_session, sim_summary
+from eyeq_spi.report import KEYS, SimSessions, format_summary, sim_summary
 from eyeq_spi.sim.config import SimConfig
 
 
@@ -18,8 +18,9 @@ def _sim_view(cfg: SimConfig, tmp_path: Path) -> dict[str, Any]:
         build(nvm=Nvm(tmp_path / "nvm.json")).run_for(3.0)
     emu = build(sim_config=cfg, nvm=Nvm(tmp_path / "nvm.json"))
     emu.run_for(4.0)
-    sess = sim_session(emu.sim, began=0.0, ended=4.0, link_lost=None)
-    return sim_summary(emu.sim, [sess], elapsed=4.0, wall=1.0, cpu=1.0)
+    served = SimSessions()
+    served.add(emu.sim, began=0.0, ended=4.0, link_lost=None)
+    return sim_summary(emu.sim, served.sessions, elapsed=4.0, wall=1.0, cpu=1.0)
 
 
 def test_the_sim_counts_a_dropped_reply_as_a_timeout(tmp_path: Path) -> None:
@@ -35,18 +36,37 @@ def test_the_sim_counts_a_reply_past_the_deadline_as_a_timeout(tmp_path: Path) -
 
 
 def test_sim_totals_are_the_sums_of_its_sessions(tmp_path: Path) -> None:
-    sessions = []
+    served = SimSessions()
     for _ in range(2):
         emu = build(nvm=Nvm(tmp_path / "nvm.json"))
         emu.run_for(2.0)
-        sessions.append(sim_session(emu.sim, began=0.0, ended=2.0, link_lost=None))
-    a, b = (dict(s) for s in sessions)
-    s = sim_summary(emu.sim, sessions, elapsed=4.0, wall=1.0, cpu=1.0)
+        served.add(emu.sim, began=0.0, ended=2.0, link_lost=None)
+    a, b = (dict(s) for s in served.sessions)
+    s = sim_summary(emu.sim, served.sessions, elapsed=4.0, wall=1.0, cpu=1.0)
     assert s["connections"] == 2
     assert s["received"]["HOST_VEH_STATE_MSG"] == (a["received"]["HOST_VEH_STATE_MSG"]
                                                    + b["received"]["HOST_VEH_STATE_MSG"])
     assert s["ack_latency_ms"]["n"] == a["ack_latency_ms"]["n"] + b["ack_latency_ms"]["n"]
     assert "_ack_hist" not in s["sessions"][0]
+
+
+def test_a_sim_powered_up_again_reports_each_session_alone(tmp_path: Path) -> None:
+    """One SimulatedEyeQ serving two connections (a power-up each): the second session's
+    counts are its own, not the run's so far."""
+    build(nvm=Nvm(tmp_path / "nvm.json")).run_for(3.0)
+    emu = build(nvm=Nvm(tmp_path / "nvm.json"))
+    served = SimSessions()
+    emu.run_for(2.0)
+    first = dict(served.add(emu.sim, began=0.0, ended=2.0, link_lost=None))
+    emu.run_for(2.0)  # the same EyeQ, the same host: two more seconds
+    second = served.add(emu.sim, began=2.0, ended=4.0, link_lost=None)
+    total = emu.sim.counters.received["HOST_VEH_STATE_MSG"]
+    assert first["received"]["HOST_VEH_STATE_MSG"] + second["received"]["HOST_VEH_STATE_MSG"] \
+        == total
+    assert 0 < second["received"]["HOST_VEH_STATE_MSG"] < total
+    assert second["boot"]["boots"] == 0 and second["eyeq_resets"] == 0
+    s = sim_summary(emu.sim, served.sessions, elapsed=4.0, wall=1.0, cpu=1.0)
+    assert s["received"]["HOST_VEH_STATE_MSG"] == total
 
 
 def test_the_text_block_lists_received_and_sent_apart(tmp_path: Path) -> None:
