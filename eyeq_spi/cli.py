@@ -151,7 +151,8 @@ def _add_run(sub: Any) -> None:
     host.add_argument("--exit-when-running", action="store_true",
                       help="stop as soon as Running Vision is reached")
     host.add_argument("--reconnect", action="store_true",
-                      help="when the link is lost, wait for the EyeQ and run the bring-up again")
+                      help="wait for the EyeQ at the start and whenever the link is lost, "
+                           "and run the bring-up again")
     host.add_argument("--json", action="store_true", help="end with one JSON object")
     host.add_argument("--rt-priority", type=ca.integer(0, 99), default=10, metavar="N",
                       help="SCHED_FIFO priority 1..99 so that ACKs meet the 10 ms ackTimeout on "

@@ -412,7 +412,9 @@ def run_host(args: argparse.Namespace) -> int:
     host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
     host.warm_up()
     gc.collect()
-    adapter: Any = open_url(args.port)
+    # --reconnect: the EyeQ may not be there yet (a sim still starting, a camera powering up)
+    adapter: Any = ((_reopen(args.port, time.monotonic() + args.duration) if args.reconnect
+                     else None) or open_url(args.port))
     _on_sigterm()
     writer = capture_writer(args)
     runner = RealTimeRunner(host, adapter)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import subprocess
 from pathlib import Path
@@ -94,3 +95,31 @@ def test_sim_reports_each_host_served_and_the_totals(tmp_path: Path) -> None:
     assert s["ok"] == (a["ok"] and b["ok"])
     for h in hosts:
         assert json.loads(h.stdout)["state"] == "RUNNING_VISION", h.stderr[-2000:]
+
+
+@pytest.mark.realtime
+def test_host_reconnect_waits_for_an_eyeq_that_is_not_there_yet(tmp_path: Path) -> None:
+    """``host --reconnect`` started before anything listens at its address waits for the EyeQ
+    (a sim still starting, a camera powering up) instead of giving up at once."""
+    import socket
+
+    with socket.socket() as s:  # a free port; nothing listens on it until the sim starts
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    url = f"tcp://127.0.0.1:{port}"
+    host = subprocess.Popen([*CLI, "host", "--port", url, "--reconnect", "--exit-when-running",
+                             "--duration", "60", "--json", "--nvm", str(tmp_path / "nvm.json")],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    sim = None
+    try:
+        with contextlib.suppress(subprocess.TimeoutExpired):  # up and retrying, no sim yet
+            host.wait(timeout=2.0)
+        assert host.poll() is None, host.communicate()
+        sim, _ = start_sim("--listen", url, "--duration", "60")
+        out, err = host.communicate(timeout=90)
+        assert host.returncode == 0, err[-2000:]
+        assert json.loads(out)["state"] == "RUNNING_VISION"
+    finally:
+        host.kill()
+        if sim is not None:
+            _stop(sim)
