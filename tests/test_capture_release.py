@@ -192,3 +192,23 @@ def test_jobs_print_what_one_file_at_a_time_prints(captures: dict[str, Path], mo
         serial = _run(capsys, "dissect", *files, *mode)
         assert serial[0] == 0
         assert _run(capsys, "dissect", "--jobs", "2", *files, *mode) == serial
+
+
+def test_a_fault_still_comes_after_the_transfers_before_it(captures: dict[str, Path]) -> None:
+    """The transfers read to find the release are kept; a fault among them is raised after
+    them, as the reader alone would."""
+    import io
+
+    from eyeq_spi.dissect.inputs import InputError
+
+    data = (captures["8.1"].read_bytes().replace(b"eyeq-spi sw=8.1", b"another tool   "))
+    at = 0  # the 40th block among the first transfers gets an impossible length
+    for _ in range(40):
+        at += int.from_bytes(data[at + 4:at + 8], "little")
+    bad = data[:at + 4] + (13).to_bytes(4, "little") + data[at + 8:]
+    cap = rel.open_capture(io.BytesIO(bad), name="bad")
+    got = []
+    with pytest.raises(InputError, match="malformed pcapng"):
+        for r in cap.records:
+            got.append(r)
+    assert len(got) > 10
