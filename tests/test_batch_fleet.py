@@ -83,7 +83,10 @@ def test_batch_with_a_process_pool_and_a_bad_capture(fleet: Path, tmp_path: Path
         dst.parent.mkdir(parents=True, exist_ok=True)
         dst.write_bytes(p.read_bytes())
     data = (root / "car1" / "mon.pcapng").read_bytes()
-    (root / "broken.pcapng").write_bytes(data[:40] + b"\xff" * 8 + data[48:])
+    at = 0  # the fifth block gets an impossible length
+    for _ in range(4):
+        at += int.from_bytes(data[at + 4:at + 8], "little")
+    (root / "broken.pcapng").write_bytes(data[:at + 4] + b"\xff" * 4 + data[at + 8:])
     # a killed writer's capture: read up to its last whole block, reported, kept
     (root / "cut.pcapng").write_bytes(data[:-77])
     out = tmp_path / "ds"

@@ -120,7 +120,7 @@ def test_the_cli_readers_say_it_in_one_line_and_exit_1(good: bytes, tmp_path: Pa
 def test_a_writer_flushes_whole_blocks_at_least_once_a_second(tmp_path: Path) -> None:
     now = [0.0]
     path = tmp_path / "w.pcapng"
-    w = CaptureWriter(path, clock=lambda: now[0])
+    w = CaptureWriter(path, clock=lambda: now[0], idle_flush=False)
     head = path.stat().st_size
     assert head > 0  # the header blocks are on disk at once
     w.write("h2e", 0.0, bytes(128))
@@ -131,6 +131,22 @@ def test_a_writer_flushes_whole_blocks_at_least_once_a_second(tmp_path: Path) ->
     assert size > head and _both(path.read_bytes())[1].ignored == 0
     w.close()
     assert path.stat().st_size == size
+
+
+def test_an_idle_writer_flushes_too(tmp_path: Path) -> None:
+    """No transfer after the last one (a vanished peer): the waiting blocks still reach the
+    file within the flush interval (bounded wall time: a thread of the writer does it)."""
+    path = tmp_path / "idle.pcapng"
+    w = CaptureWriter(path, flush_s=0.05)
+    try:
+        head = path.stat().st_size
+        w.write("h2e", 0.0, bytes(128))
+        deadline = time.monotonic() + 20
+        while path.stat().st_size == head and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert path.stat().st_size == head + 160 + 24  # the first packet, with its comment
+    finally:
+        w.close()
 
 
 def test_a_writer_killed_at_random_instants_leaves_a_readable_capture(tmp_path: Path) -> None:

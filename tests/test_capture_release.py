@@ -88,11 +88,12 @@ def test_a_capture_of_every_release_dissects_clean(captures: dict[str, Path], ba
 def test_both_paths_give_the_same_records(captures: dict[str, Path],
                                           capsys: pytest.CaptureFixture[str],
                                           monkeypatch: pytest.MonkeyPatch) -> None:
-    outs = []
-    for small in (1 << 40, 0):
-        monkeypatch.setattr("eyeq_spi.cli_dissect.SMALL_INPUT", small)
-        outs.append(_run(capsys, "dissect", str(captures["8.1"]), "--json")[:2])
-    assert outs[0] == outs[1] and outs[0][0] == 0
+    for r, path in captures.items():
+        outs = []
+        for small in (1 << 40, 0):  # the exact path, then the batch path
+            monkeypatch.setattr("eyeq_spi.cli_dissect.SMALL_INPUT", small)
+            outs.append(_run(capsys, "dissect", str(path), "--json")[:2])
+        assert outs[0] == outs[1] and outs[0][0] == 0, r
 
 
 def test_without_the_comment_the_release_comes_from_the_traffic(
@@ -156,3 +157,58 @@ def test_the_other_readers_use_the_capture_release(captures: dict[str, Path], tm
             assert summary["ok"] and summary.get("decode_errors", 0) == 0
         rc, out, err = _run(capsys, *argv, "--sw", "9.0")
         assert err.count("\n") == 1 and "SW 8.1" in err, (name, err)
+
+
+# -- several files --------------------------------------------------------------------------
+def test_several_files_each_with_its_file_its_release_and_its_own_rates(
+        captures: dict[str, Path], capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    a, b = str(captures["8.1"]), str(captures["9.0"])
+    rc, out, _ = _run(capsys, "dissect", a, b, "--stats", "--json")
+    per_a, per_b, total = (json.loads(x) for x in out.splitlines())
+    assert rc == 0 and (per_a["file"], per_b["file"], total["file"]) == (a, b, None)
+    assert (per_a["sw"], per_b["sw"], total["files"]) == ("8.1", "9.0", 2)
+    name = "HOST_VEH_STATE_MSG"
+    rates = [s["messages"][name] for s in (per_a, per_b, total)]
+    assert rates[2]["count"] == rates[0]["count"] + rates[1]["count"]
+    # the two runs overlap in time: a rate over both files at once would be about twice this
+    assert rates[2]["mean_hz"] == pytest.approx(rates[0]["mean_hz"], rel=0.05)
+    assert rates[2]["mean_hz"] < rates[2]["nominal_hz"] * 1.1
+    rc, out, _ = _run(capsys, "dissect", a, b, "--json")
+    files = [json.loads(x)["file"] for x in out.splitlines()]
+    assert rc == 0 and files[0] == a and files[-1] == b
+    assert files == sorted(files, key=(a, b).index)  # every record, in file order
+    rc, out, _ = _run(capsys, "dissect", a, b, "--id", "0xA0", "--no-tree")
+    assert [x for x in out.splitlines() if x.startswith("===")] == [f"=== {a}", f"=== {b}"]
+
+
+@pytest.mark.parametrize("mode", [["--json"], ["--stats"], ["--stats", "--json"]])
+def test_jobs_print_what_one_file_at_a_time_prints(captures: dict[str, Path], mode: list[str],
+                                                   capsys: pytest.CaptureFixture[str],
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    files = [str(captures[r]) for r in ("8.1", "9.0", "5.0")]
+    for small in (1 << 40, 0):  # small files: the exact path serially, workers for --jobs
+        monkeypatch.setattr("eyeq_spi.cli_dissect.SMALL_INPUT", small)
+        serial = _run(capsys, "dissect", *files, *mode)
+        assert serial[0] == 0
+        assert _run(capsys, "dissect", "--jobs", "2", *files, *mode) == serial
+
+
+def test_a_fault_still_comes_after_the_transfers_before_it(captures: dict[str, Path]) -> None:
+    """The transfers read to find the release are kept; a fault among them is raised after
+    them, as the reader alone would."""
+    import io
+
+    from eyeq_spi.dissect.inputs import InputError
+
+    data = (captures["8.1"].read_bytes().replace(b"eyeq-spi sw=8.1", b"another tool   "))
+    at = 0  # the 40th block among the first transfers gets an impossible length
+    for _ in range(40):
+        at += int.from_bytes(data[at + 4:at + 8], "little")
+    bad = data[:at + 4] + (13).to_bytes(4, "little") + data[at + 8:]
+    cap = rel.open_capture(io.BytesIO(bad), name="bad")
+    got = []
+    with pytest.raises(InputError, match="malformed pcapng"):
+        for r in cap.records:
+            got.append(r)
+    assert len(got) > 10

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 import struct
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -110,18 +111,21 @@ class CaptureWriter:
 
     Crash-safe: blocks are encoded here (``specs/capture.yaml``) into a buffer that goes to the
     file in whole blocks only, with one unbuffered write each time it holds ``FLUSH_BYTES`` or
-    ``flush_interval_s`` seconds (``specs/capture.yaml``, by ``clock``) have passed since the last
-    one. A process killed at any
-    instant leaves a file that ends on a block boundary and loses at most the last second of
-    traffic. The release of the traffic (``sw``, a ``specs/`` key or release text; default the
-    newest) is recorded as an ``opt_comment`` ``eyeq-spi sw=<release>`` on the Section Header
-    Block and on the first Enhanced Packet Block."""
+    ``flush_interval_s`` (``specs/capture.yaml``) has passed since the last write, by ``clock``;
+    with ``idle_flush`` a daemon thread also writes what waits when no transfer comes for that
+    long. A process that dies loses at most the last ``flush_interval_s`` of traffic, and its
+    file ends on a block boundary unless the kernel was cut in the middle of copying a write
+    (readers read up to the last whole block, :class:`Tail`). The release of the traffic
+    (``sw``, a ``specs/`` key or release text; default the newest) is recorded as an
+    ``opt_comment`` ``eyeq-spi sw=<release>`` on the Section Header Block and on the first
+    Enhanced Packet Block."""
 
     FLUSH_BYTES = 1 << 16
     FLUSH_S = 1.0
 
     def __init__(self, path: str | Path, sw: str | None = None, *,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic, idle_flush: bool = True,
+                 flush_s: float | None = None) -> None:
         spec = _spec()
         cat = catalog()
         try:
@@ -129,7 +133,7 @@ class CaptureWriter:
         except EyeqError as exc:
             raise CaptureError(str(exc)) from None
         self.comment = str(spec.get("release_comment", SW_COMMENT)).format(release=self.release)
-        self.flush_s = float(spec.get("flush_interval_s", self.FLUSH_S))
+        self.flush_s = float(flush_s or spec.get("flush_interval_s", self.FLUSH_S))
         try:
             self._fh: IO[bytes] = open(path, "wb", buffering=0)  # noqa: SIM115 - see close()
         except OSError as exc:
@@ -142,10 +146,32 @@ class CaptureWriter:
             self._buf += _idb(spec["link_type"], iface["name"], iface["description"],
                               spec["timestamp_resolution"])
         self._last_flush = clock()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
         self.flush()
         self.count = 0
+        self._idle: threading.Thread | None = None
+        if idle_flush:
+            self._idle = threading.Thread(target=self._idle_flush, name="capture-flush",
+                                          daemon=True)
+            self._idle.start()
+
+    def _idle_flush(self) -> None:
+        """What waits in the buffer goes to the file when no transfer came to write it."""
+        while not self._stop.wait(self.flush_s / 2):
+            with self._lock:
+                if self._buf and not self._fh.closed and \
+                        self._clock() - self._last_flush >= self.flush_s:
+                    try:
+                        self._flush()
+                    except CaptureError:
+                        return  # the next write or close() reports it
 
     def write(self, direction: str, time: float, transfer: bytes) -> None:
+        with self._lock:
+            self._write(direction, time, transfer)
+
+    def _write(self, direction: str, time: float, transfer: bytes) -> None:
         ticks = max(0, round(time * self._scale))
         data = bytes(transfer)
         pad = -len(data) % 4
@@ -159,10 +185,14 @@ class CaptureWriter:
         self._buf += size.to_bytes(4, "little")
         self.count += 1
         if len(self._buf) >= self.FLUSH_BYTES or self._clock() - self._last_flush >= self.flush_s:
-            self.flush()
+            self._flush()
 
     def flush(self) -> None:
         """Write every whole block buffered so far."""
+        with self._lock:
+            self._flush()
+
+    def _flush(self) -> None:
         view = memoryview(self._buf)
         try:
             while view:
@@ -176,6 +206,9 @@ class CaptureWriter:
         self._last_flush = self._clock()
 
     def close(self) -> None:
+        self._stop.set()
+        if self._idle is not None and self._idle is not threading.current_thread():
+            self._idle.join()
         if not self._fh.closed:
             try:
                 self.flush()

@@ -185,9 +185,22 @@ def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | Non
     kind, records = open_records(peek, fmt, direction, spi, tail)  # type: ignore[arg-type]
     if recorded is not None:
         return Capture(kind, records, choose_release(sw, (recorded, RECORDED), name), tail)
-    head = list(itertools.islice(records, SNIFF_RECORDS))
+    head: list[Record] = []
+    fault: EyeqError | None = None
+    try:
+        head.extend(itertools.islice(records, SNIFF_RECORDS))
+    except EyeqError as exc:  # raised after the transfers before it, as the reader would
+        fault = exc
     found = infer_release(head)
-    return Capture(kind, itertools.chain(head, records), choose_release(sw, found, name), tail)
+    return Capture(kind, _then(head, fault, records), choose_release(sw, found, name), tail)
+
+
+def _then(head: list[Record], fault: EyeqError | None, rest: Iterator[Record]
+          ) -> Iterator[Record]:
+    yield from head
+    if fault is not None:
+        raise fault
+    yield from rest
 
 
 def release_of(path: str, sw: str | None = None, fmt: str | None = None,
