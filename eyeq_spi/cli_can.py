@@ -27,9 +27,10 @@ def add_can_parser(sub: Any) -> None:
     d.add_argument("--output", "-o", metavar="DIR", default=".",
                    help="directory for PROTOCOL.dbc (default .); - prints one protocol")
     x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs",
-                      description="Decode CAN logs with the generated DBCs. Exit 0 clean, 1 "
-                      "frames with errors (unknown ID, wrong DLC, value out of range), 2 bad "
-                      "input or usage.")
+                      description="Decode CAN logs with the protocols of specs/can/. Exit 0 "
+                      "clean, 1 frames with errors (unknown ID, wrong DLC, value out of range) "
+                      "or a truncated log, 2 bad input or usage. Cycle-time deviations and "
+                      "short DLCs that hold every signal are shown, not errors.")
     x.add_argument("logs", nargs="+", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
                    ".mf4 .csv)")
     x.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
@@ -40,6 +41,12 @@ def add_can_parser(sub: Any) -> None:
     x.add_argument("--stats", action="store_true",
                    help="only statistics: cycle time per ID against the spec, invalid and "
                    "out-of-range values (one JSON object with --json)")
+    x.add_argument("--channel", metavar="N",
+                   help="only frames of this channel (python-can Message.channel, as --stats "
+                   "lists them)")
+    x.add_argument("--raw-invalid", action="store_true",
+                   help="--csv/--parquet: write the decoded number of a value at its invalid "
+                   "value (default: empty / NULL)")
     x.add_argument("--id", metavar="ID", type=lambda s: int(s, 0),
                    help="only frames with this arbitration ID (0x739)")
     x.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
@@ -62,7 +69,15 @@ def _dbc(args: argparse.Namespace) -> int:
 
 
 def _decode(args: argparse.Namespace) -> int:
-    from eyeq_spi.can.decode import CanDecoder, CanStats, human_record, human_stats, read_log
+    from eyeq_spi.can.decode import (
+        CanDecoder,
+        CanLogError,
+        CanLogTruncatedError,
+        human_record,
+        read_log,
+        table_record,
+    )
+    from eyeq_spi.can.stats import CanStats, human_stats
     from eyeq_spi.dissect.output import JsonWriter, TableWriter
 
     if args.csv and args.parquet:
@@ -72,47 +87,73 @@ def _decode(args: argparse.Namespace) -> int:
     except re.error as exc:
         raise UsageError(f"--name: bad regular expression: {exc}") from None
     decoder = CanDecoder(args.protocol)
-    stats = CanStats(decoder) if args.stats else None
+    channel = args.channel
+    truncated: list[str] = []
+    if args.stats:
+        stats = CanStats(decoder, channel)
+        for path in args.logs:
+            try:
+                for msg in read_log(path):
+                    stats.add(msg)
+            except CanLogTruncatedError as exc:
+                truncated.append(str(exc))
+        result = stats.result()
+        if args.id is not None or name_re is not None:
+            result["ids"] = [r for r in result["ids"]
+                             if (args.id is None or r["id"] == args.id)
+                             and (name_re is None or name_re.search(r["name"] or ""))]
+        if args.json:
+            JsonWriter(sys.stdout, fast=True).write(result)
+        else:
+            print(human_stats(result))
+        if stats.frames == 0 and not truncated:
+            raise CanLogError("no CAN frames in the input" if channel is None else
+                              f"no CAN frames on channel {channel}")
+        for line in truncated:
+            print(line, file=sys.stderr)
+        return 1 if stats.error_frames or truncated else 0
+
     table = None
-    if not args.stats and (args.csv or args.parquet):
+    if args.csv or args.parquet:
         table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet")
-    json_out = JsonWriter(sys.stdout) if args.json and not args.stats else None
+    json_out = JsonWriter(sys.stdout, fast=True) if args.json else None
     bad = 0
     index = 0
+    kept = 0
     try:
         for path in args.logs:
-            for msg in read_log(path):
-                rec = decoder.decode(msg, index)
-                index += 1
-                if args.id is not None and rec["header"]["id"] != args.id:
-                    continue
-                if name_re is not None and not name_re.search(rec["name"] or ""):
-                    continue
-                if args.errors_only and not rec["errors"]:
-                    continue
-                bad += bool(rec["errors"])
-                if stats is not None:
-                    stats.add(rec)
-                elif table is not None:
-                    table.write(rec)
-                elif json_out is not None:
-                    json_out.write(rec)
-                else:
-                    print(human_record(rec))
+            try:
+                for msg in read_log(path):
+                    index += 1
+                    if channel is not None and str(msg.channel) != channel:
+                        continue
+                    if args.id is not None and msg.arbitration_id != args.id:
+                        continue
+                    rec = decoder.decode(msg, index - 1)
+                    kept += 1
+                    if name_re is not None and not name_re.search(rec["name"] or ""):
+                        continue
+                    if args.errors_only and not rec["errors"]:
+                        continue
+                    bad += bool(rec["errors"])
+                    if table is not None:
+                        table.write(table_record(rec, args.raw_invalid))
+                    elif json_out is not None:
+                        json_out.write(rec)
+                    else:
+                        print(human_record(rec))
+            except CanLogTruncatedError as exc:
+                truncated.append(str(exc))
     finally:
         if table is not None:
             table.close()
-    if stats is not None:
-        result = stats.result()
-        if args.json:
-            JsonWriter(sys.stdout).write(result)
-        else:
-            print(human_stats(result))
-    if index == 0:
-        from eyeq_spi.can.decode import CanLogError
-
+    if index == 0 and not truncated:
         raise CanLogError("no CAN frames in the input")
-    return 1 if bad else 0
+    if kept == 0 and channel is not None and not truncated:
+        raise CanLogError(f"no CAN frames on channel {channel}")
+    for line in truncated:
+        print(line, file=sys.stderr)
+    return 1 if bad or truncated else 0
 
 
 def run_can(args: argparse.Namespace) -> int:
