@@ -24,6 +24,7 @@ import math
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import cache
 from typing import Any
 
 from eyeq_spi.can.logs import CanLogError, CanLogTruncatedError, read_log
@@ -93,8 +94,71 @@ class MessageDecoder:
         self.dlc = spec.dlc
         self.signals = [SignalDecoder.build(s, spec.dlc, enums) for s in spec.signals]
         self.needed = max(s.nbytes for s in self.signals)  # C8: the shortest complete frame
+        self._fast = self._compile()
+
+    def _compile(self) -> Any:
+        """Straight-line Python for a complete frame, constants inlined: the per-message
+        decoder built once from the spec (the loop of :meth:`decode_into` is its reference)."""
+        env: dict[str, Any] = {"_F32": _F32.unpack, "_finite": math.isfinite,
+                               "_fmt": _out_of_range}
+        big = any(s.big_endian for s in self.signals)
+        body = ["def _decode(data, fields, labels, invalid, errors):",
+                "    le = int.from_bytes(data, 'little')"]
+        if big:
+            body.append("    be = int.from_bytes(data, 'big')")
+        for k, s in enumerate(self.signals):
+            word = "be" if s.big_endian else "le"
+            name = s.spec.name
+            body.append(f"    r = ({word} >> {s.shift}) & {s.mask}" if s.shift else
+                        f"    r = {word} & {s.mask}")
+            if s.sign_bit:
+                body.append(f"    if r & {s.sign_bit}: r -= {s.mask + 1}")
+            if s.spec.is_float:
+                body += ["    x = _F32(r.to_bytes(4, 'big'))[0]",
+                         "    if not _finite(x): x = None"]
+            elif s.integer:
+                x = "r" if s.scale == 1 and s.offset == 0 else \
+                    f"r * {int(s.scale)} + {int(s.offset)}"
+                body.append(f"    x = {x}")
+            else:
+                body.append(f"    x = r * {s.scale!r} + {s.offset!r}")
+            body.append(f"    fields[{name!r}] = x")
+            if s.labels is not None:
+                env[f"_L{k}"] = s.labels
+                body.append(f"    labels[{name!r}] = _L{k}.get(r)")
+            checks = []
+            if s.low is not None:
+                checks.append(f"x < {s.low!r}")
+            if s.high is not None:
+                checks.append(f"x > {s.high!r}")
+            cond = " or ".join(checks)
+            if s.spec.is_float and cond:
+                cond = f"x is not None and ({cond})"
+            if s.invalid is not None:
+                body.append(f"    if r == {s.invalid}: invalid.append({name!r})")
+                if cond:
+                    body.append(f"    elif {cond}: errors.append(_fmt({name!r}, x, "
+                                f"{s.spec.min!r}, {s.spec.max!r}))")
+            elif cond:
+                body.append(f"    if {cond}: errors.append(_fmt({name!r}, x, {s.spec.min!r}, "
+                            f"{s.spec.max!r}))")
+        exec(compile("\n".join(body), f"<decoder {self.name}>", "exec"), env)
+        return env["_decode"]
 
     def decode_into(self, data: bytes, rec: dict[str, Any]) -> None:
+        n = len(data)
+        if n == self.dlc:
+            self._fast(data, rec["fields"], rec["labels"], rec["invalid"], rec["errors"])
+            return
+        if self.needed <= n < self.dlc:  # C8: short, every signal inside
+            rec["short_dlc"] = True
+            self._fast(data + bytes(self.dlc - n), rec["fields"], rec["labels"],
+                       rec["invalid"], rec["errors"])
+            return
+        self.decode_slow(data, rec)
+
+    def decode_slow(self, data: bytes, rec: dict[str, Any]) -> None:
+        """The reference loop (any DLC): a wrong DLC is an error, the signals it holds decoded."""
         n = len(data)
         fields, labels, invalid, errors = rec["fields"], rec["labels"], rec["invalid"], \
             rec["errors"]
@@ -123,7 +187,20 @@ class MessageDecoder:
                 invalid.append(name)
             elif value is not None and ((s.low is not None and value < s.low)
                                         or (s.high is not None and value > s.high)):
-                errors.append(f"{name} {value:g} outside [{s.spec.min:g}, {s.spec.max:g}]")
+                errors.append(_out_of_range(name, value, s.spec.min, s.spec.max))
+
+
+def _out_of_range(name: str, value: float, lo: float | None, hi: float | None) -> str:
+    return (f"{name} {value:g} outside [{'-inf' if lo is None else f'{lo:g}'}, "
+            f"{'inf' if hi is None else f'{hi:g}'}]")
+
+
+@cache
+def _message_decoders(proto: str) -> dict[int, MessageDecoder]:
+    """The compiled decoders of a protocol, by frame ID (built once per process)."""
+    p = protocol(proto)
+    return {fid: MessageDecoder(m, name, p.enums) for m in p.messages
+            for _, fid, name in m.instances()}
 
 
 class CanDecoder:
@@ -131,10 +208,7 @@ class CanDecoder:
 
     def __init__(self, proto: str) -> None:
         self.protocol = protocol(proto)
-        self.by_id: dict[int, MessageDecoder] = {}
-        for m in self.protocol.messages:
-            for _, fid, name in m.instances():
-                self.by_id[fid] = MessageDecoder(m, name, self.protocol.enums)
+        self.by_id: dict[int, MessageDecoder] = _message_decoders(self.protocol.name)
 
     def spec_for(self, frame_id: int) -> CanMessage | None:
         hit = self.by_id.get(frame_id)
@@ -144,18 +218,24 @@ class CanDecoder:
         fid = msg.arbitration_id
         data = msg.data
         ch = msg.channel
-        rec: dict[str, Any] = {
-            "kind": "message", "protocol": "CAN", "name": None, "length": len(data),
-            "direction": None, "time": float(msg.timestamp), "frames": [index],
-            "header": {"id": fid, "channel": None if ch is None else str(ch)},
-            "fields": {}, "labels": {}, "invalid": [], "short_dlc": False, "errors": [],
-        }
+        fields: dict[str, Any] = {}
+        labels: dict[str, Any] = {}
+        invalid: list[str] = []
+        errors: list[str] = []
         dec = None if msg.is_extended_id else self.by_id.get(fid)
+        rec: dict[str, Any] = {
+            "kind": "message", "protocol": "CAN", "name": None if dec is None else dec.name,
+            "length": len(data), "direction": None, "time": msg.timestamp, "frames": [index],
+            "header": {"id": fid, "channel": ch if ch is None or type(ch) is str else str(ch)},
+            "fields": fields, "labels": labels, "invalid": invalid, "short_dlc": False,
+            "errors": errors,
+        }
         if dec is None:
-            rec["errors"].append(f"unknown ID 0x{fid:X}")
-            return rec
-        rec["name"] = dec.name
-        dec.decode_into(bytes(data), rec)
+            errors.append(f"unknown ID 0x{fid:X}")
+        elif len(data) == dec.dlc:
+            dec._fast(data, fields, labels, invalid, errors)
+        else:
+            dec.decode_into(bytes(data), rec)
         return rec
 
     def decode_all(self, messages: Iterator[Any]) -> Iterator[dict[str, Any]]:

@@ -40,7 +40,8 @@ class CanStats:
     def __init__(self, decoder: CanDecoder, channel: str | None = None) -> None:
         self.decoder = decoder
         self.channel = channel
-        self._buf: dict[tuple[Any, int, bool], tuple[list[float], list[bytes]]] = {}
+        # (times, payloads, times.append, payloads.append) per (channel, ID, extended)
+        self._buf: dict[tuple[Any, int, bool], tuple[list[float], list[bytes], Any, Any]] = {}
         self._keys: dict[tuple[str | None, int], _Key] = {}
         self.per_channel: Counter[str | None] = Counter()
         self.unknown: Counter[int] = Counter()
@@ -48,20 +49,29 @@ class CanStats:
         self.last: float | None = None
 
     def add(self, msg: Any) -> None:
-        """One python-can message (the hot path: two appends)."""
-        key = (msg.channel, msg.arbitration_id, msg.is_extended_id)
-        buf = self._buf.get(key)
-        if buf is None:
-            buf = self._buf[key] = ([], [])
-        buf[0].append(msg.timestamp)
-        buf[1].append(msg.data)
-        if len(buf[0]) >= CHUNK:
-            self._flush(key)
+        """One python-can message."""
+        self.add_all((msg,))
+
+    def add_all(self, messages: Any) -> None:
+        """python-can messages (the hot path: one append per frame)."""
+        buffers = self._buf
+        get = buffers.get
+        for msg in messages:
+            key = (msg.channel, msg.arbitration_id, msg.is_extended_id)
+            buf = get(key)
+            if buf is None:
+                times: list[float] = []
+                datas: list[bytes] = []
+                buf = buffers[key] = (times, datas, times.append, datas.append)
+            buf[2](msg.timestamp)
+            buf[3](msg.data)
+            if len(buf[0]) >= CHUNK:
+                self._flush(key)
 
     def _flush(self, key: tuple[Any, int, bool]) -> None:
         import numpy as np
 
-        times, datas = self._buf.pop(key)
+        times, datas, _, _ = self._buf.pop(key)
         ch_raw, fid, ext = key
         ch = None if ch_raw is None else str(ch_raw)
         n = len(times)
@@ -90,10 +100,15 @@ class CanStats:
         import numpy as np
 
         n = len(datas)
-        lens = np.fromiter(map(len, datas), dtype=np.int64, count=n)
-        if bool((lens == dec.dlc).all()):
-            arr = np.frombuffer(b"".join(map(bytes, datas)), dtype=np.uint8).reshape(n, dec.dlc)
+        sizes = set(map(len, datas))
+        if len(sizes) == 1:  # the usual case: one length per ID (8, or the camera's short 4)
+            size = sizes.pop()
+            lens = np.full(n, size, dtype=np.int64)
+            arr = np.frombuffer(b"".join(datas), dtype=np.uint8).reshape(n, size)[:, :dec.dlc]
+            if size < dec.dlc:
+                arr = np.pad(arr, ((0, 0), (0, dec.dlc - size)))
         else:
+            lens = np.fromiter(map(len, datas), dtype=np.int64, count=n)
             arr = np.frombuffer(b"".join(bytes(d[:dec.dlc]).ljust(dec.dlc, b"\0") for d in datas),
                                 dtype=np.uint8).reshape(n, dec.dlc)
         short = (lens < dec.dlc) & (lens >= dec.needed)
