@@ -26,12 +26,13 @@ def add_can_parser(sub: Any) -> None:
                    help="which protocol (default all)")
     d.add_argument("--output", "-o", metavar="DIR", default=".",
                    help="directory for PROTOCOL.dbc (default .); - prints one protocol")
-    x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs",
+    x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
+                      "or a live bus",
                       description="Decode CAN logs with the protocols of specs/can/. Exit 0 "
                       "clean, 1 frames with errors (unknown ID, wrong DLC, value out of range) "
                       "or a truncated log, 2 bad input or usage. Cycle-time deviations and "
                       "short DLCs that hold every signal are shown, not errors.")
-    x.add_argument("logs", nargs="+", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
+    x.add_argument("logs", nargs="*", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
                    ".mf4 .csv)")
     x.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
                    help="protocol of the log (default extlog2)")
@@ -41,6 +42,11 @@ def add_can_parser(sub: Any) -> None:
     x.add_argument("--stats", action="store_true",
                    help="only statistics: cycle time per ID against the spec, invalid and "
                    "out-of-range values (one JSON object with --json)")
+    x.add_argument("--bus", metavar="INTERFACE:CHANNEL",
+                   help="decode a live python-can bus instead of logs (virtual:NAME, "
+                   "socketcan:can0, ...) until --count, --duration or Ctrl-C")
+    x.add_argument("--count", type=int, metavar="N", help="--bus: stop after N frames")
+    x.add_argument("--duration", type=float, metavar="S", help="--bus: stop after S seconds")
     x.add_argument("--channel", metavar="N",
                    help="only frames of this channel (python-can Message.channel, as --stats "
                    "lists them)")
@@ -66,6 +72,21 @@ def _dbc(args: argparse.Namespace) -> int:
         path = write_dbc(n, Path(args.output))
         print(path)
     return 0
+
+
+def _sources(args: argparse.Namespace) -> Any:
+    """One iterator of python-can messages per log file, or the live bus (shut down after)."""
+    from eyeq_spi.can.logs import open_bus, read_bus, read_log
+
+    if not args.bus:
+        for path in args.logs:
+            yield read_log(path)
+        return
+    bus = open_bus(args.bus)
+    try:
+        yield read_bus(bus, duration=args.duration, count=args.count)
+    finally:
+        bus.shutdown()
 
 
 class _JsonLines:
@@ -100,7 +121,6 @@ def _decode(args: argparse.Namespace) -> int:
         CanLogError,
         CanLogTruncatedError,
         human_record,
-        read_log,
         table_record,
     )
     from eyeq_spi.can.stats import CanStats, human_stats
@@ -112,16 +132,22 @@ def _decode(args: argparse.Namespace) -> int:
         name_re = re.compile(args.name) if args.name else None
     except re.error as exc:
         raise UsageError(f"--name: bad regular expression: {exc}") from None
+    if bool(args.bus) == bool(args.logs):
+        raise UsageError("give CAN log files or --bus INTERFACE:CHANNEL (one of them)")
+    if not args.bus and (args.count is not None or args.duration is not None):
+        raise UsageError("--count and --duration apply to --bus")
     decoder = CanDecoder(args.protocol)
     channel = args.channel
     truncated: list[str] = []
     if args.stats:
         stats = CanStats(decoder, channel)
-        for path in args.logs:
+        for source in _sources(args):
             try:
-                stats.add_all(read_log(path))
+                stats.add_all(source)
             except CanLogTruncatedError as exc:
                 truncated.append(str(exc))
+            except KeyboardInterrupt:  # a live bus: stop and report what was received
+                pass
         result = stats.result()
         if args.id is not None or name_re is not None:
             result["ids"] = [r for r in result["ids"]
@@ -161,9 +187,9 @@ def _decode(args: argparse.Namespace) -> int:
     errors_only = args.errors_only
     decode = decoder.decode
     try:
-        for path in args.logs:
+        for source in _sources(args):
             try:
-                for msg in read_log(path):
+                for msg in source:
                     index += 1
                     if channel is not None and str(msg.channel) != channel:
                         continue
@@ -180,6 +206,8 @@ def _decode(args: argparse.Namespace) -> int:
                     emit(rec)
             except CanLogTruncatedError as exc:
                 truncated.append(str(exc))
+            except KeyboardInterrupt:  # a live bus: stop, keep what was decoded
+                pass
     finally:
         if table is not None:
             table.close()

@@ -15,12 +15,12 @@ from __future__ import annotations
 import gc
 import struct
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 from eyeq_spi.can.dbc import require_cantools
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import AdapterError, EyeqError, UsageError
 
 READ_SUFFIXES = (".blf", ".asc", ".log", ".trc", ".mf4", ".csv")
 TEXT_SUFFIXES = (".asc", ".log", ".trc", ".csv")
@@ -28,6 +28,10 @@ TEXT_SUFFIXES = (".asc", ".log", ".trc", ".csv")
 
 class CanLogError(EyeqError):
     """A CAN log cannot be read (missing, unknown format, corrupt)."""
+
+
+class CanBusError(AdapterError):
+    """A live CAN bus cannot be opened or read."""
 
 
 class CanLogTruncatedError(CanLogError):
@@ -167,3 +171,46 @@ def _starts_like_mf4(p: Path) -> bool:
             return fh.read(8) in (b"MDF     ", b"UnFinMF ")
     except OSError:
         return False
+
+
+def open_bus(target: str) -> Any:
+    """A python-can bus for ``INTERFACE:CHANNEL`` (``virtual:NAME``, ``socketcan:vcan0``...)."""
+    require_cantools()
+    import can
+
+    interface, sep, channel = target.partition(":")
+    if not interface or not sep or not channel:
+        raise UsageError(f"--bus {target!r}: give INTERFACE:CHANNEL, e.g. virtual:camera or "
+                         "socketcan:can0")
+    try:
+        return can.Bus(interface=interface, channel=channel, receive_own_messages=False)
+    except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:
+        raise CanBusError(f"cannot open CAN bus {target!r}: {exc}") from exc
+
+
+def read_bus(bus: Any, *, duration: float | None = None, count: int | None = None,
+             now: Callable[[], float] | None = None, poll: float = 0.2) -> Iterator[Any]:
+    """python-can messages received on ``bus`` until ``count`` frames or ``duration`` seconds
+    on the clock ``now`` (default: the monotonic clock) have passed; error frames are skipped.
+    The caller shuts the bus down."""
+    import time
+
+    import can
+
+    clock = now or time.monotonic
+    end = None if duration is None else clock() + duration
+    n = 0
+    while count is None or n < count:
+        timeout = poll if end is None else max(0.0, min(poll, end - clock()))
+        try:
+            msg = bus.recv(timeout)
+        except (can.CanError, OSError, ValueError) as exc:
+            raise CanBusError(f"CAN bus read failed after {n} frames: {exc}") from exc
+        if msg is None:
+            if end is not None and clock() >= end:
+                return
+            continue
+        if msg.is_error_frame or msg.is_remote_frame:
+            continue
+        n += 1
+        yield msg
