@@ -118,3 +118,38 @@ def test_socketcan_vcan_bus() -> None:
     finally:
         tx.shutdown()
         rx.shutdown()
+
+
+def test_monitor_view_of_a_can_bus_lists_ids_cycles_and_signals() -> None:
+    pytest.importorskip("rich", reason="the monitor needs rich")
+    from eyeq_spi.monitor.can_bus import CanBusView
+
+    view = CanBusView("extlog2", "virtual:test")
+    rng = random.Random(3)
+    for n in range(4):
+        for fid, data in camera_can.camera_cycle(n, 0.0, rng):
+            view.add(can.Message(timestamp=100 + n * 0.078, arbitration_id=fid, data=data,
+                                 is_extended_id=False, channel=1), n * 0.078)
+    view.add(can.Message(timestamp=101, arbitration_id=0x738, data=bytes(7),
+                         is_extended_id=False, channel=1), 1.0)
+    text = [t.plain for t in view.lines(width=200)]
+    assert "errors 1" in text[0] and len(text) == 2 + len(view.rows)
+    foe = next(t for t in text if " 650 Fixed_FOE" in t)
+    assert "Fixed_Yaw=40" in foe and " 78 " in foe and " 66 " in foe  # cycle, spec
+    assert any("Obstacle_Status" in t and "DLC 7, spec 6" in t for t in text)
+    assert len(view.lines(width=80, height=10)) == 10  # a short terminal: cropped, says so
+
+
+def test_monitor_cli_shows_a_virtual_bus(tmp_path: Any,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("rich", reason="the monitor needs rich")
+    msgs = cycle_messages()
+    th = _send_when_listened("eyeq-test-monitor-bus", msgs)
+    shot = tmp_path / "can.txt"
+    capsys.readouterr()
+    assert main(["monitor", "--can-bus", "virtual:eyeq-test-monitor-bus", "--duration", "1.5",
+                 "--screenshot", str(shot)]) == 0
+    th.join(5)
+    out = capsys.readouterr().out
+    assert "Car_Info" in out and "LKA_Left_Lane_B" in out and "errors 0" in out
+    assert "Fixed_FOE" in shot.read_text()
