@@ -26,6 +26,16 @@ def add_can_parser(sub: Any) -> None:
                    help="which protocol (default all)")
     d.add_argument("--output", "-o", metavar="DIR", default=".",
                    help="directory for PROTOCOL.dbc (default .); - prints one protocol")
+    k = cs.add_parser("compare", help="compare a vendor's DBC with ours, signal by signal",
+                      description="A DBC you hold (vendor, public) against the DBC built from "
+                      "specs/can/: ID, DLC, cycle and each signal's start, length, byte order, "
+                      "sign, scale, offset, range, invalid value, with our reason (seed line, "
+                      "decision) where they differ. Exit 0 the same, 1 differences, 2 bad "
+                      "input.")
+    k.add_argument("dbc", metavar="OTHER.dbc", help="the DBC file to compare")
+    k.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
+                   help="our protocol to compare with (default extlog2)")
+    k.add_argument("--json", action="store_true", help="the differences as a JSON list")
     x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
                       "or a live bus",
                       description="Decode CAN logs with the protocols of specs/can/. Exit 0 "
@@ -57,6 +67,19 @@ def add_can_parser(sub: Any) -> None:
                    help="only frames with this arbitration ID (0x739)")
     x.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
     x.add_argument("--errors-only", action="store_true", help="only frames with errors")
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from eyeq_spi.can.compare import as_json, compare, human
+
+    diffs = compare(args.dbc, args.protocol)
+    if args.json:
+        import json
+
+        print(json.dumps(as_json(diffs), indent=1))
+    else:
+        print(human(diffs, args.dbc, args.protocol))
+    return 1 if diffs else 0
 
 
 def _dbc(args: argparse.Namespace) -> int:
@@ -223,4 +246,6 @@ def _decode(args: argparse.Namespace) -> int:
 
 
 def run_can(args: argparse.Namespace) -> int:
+    if args.can_command == "compare":
+        return _compare(args)
     return _dbc(args) if args.can_command == "dbc" else _decode(args)

@@ -422,6 +422,13 @@ def _load_docs() -> dict[str, Any]:
 
 
 @cache
+def can_documents() -> dict[str, Any]:
+    """The YAML documents of ``specs/can/`` as loaded (with their notes: ``reconstruction``,
+    ``differences``, ``description``), for tools that explain a reading."""
+    return _load_docs()
+
+
+@cache
 def can_specs() -> tuple[dict[str, CanProtocol], CanMapping]:
     """Every protocol of ``specs/can/`` and the DASP -> CAN mapping, validated."""
     docs = _load_docs()
