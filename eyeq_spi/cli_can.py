@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -50,8 +51,9 @@ def add_can_parser(sub: Any) -> None:
     x.add_argument("--csv", metavar="DIR", help="one CSV table per message")
     x.add_argument("--parquet", metavar="DIR", help="one Parquet table per message")
     x.add_argument("--stats", action="store_true",
-                   help="only statistics: cycle time per ID against the spec, invalid and "
-                   "out-of-range values (one JSON object with --json)")
+                   help="only statistics: frames per channel, per ID the cycle time against "
+                   "the spec, DLC errors, short DLCs, invalid and out-of-range values per "
+                   "signal (one JSON object with --json)")
     x.add_argument("--bus", metavar="INTERFACE:CHANNEL",
                    help="decode a live python-can bus instead of logs (virtual:NAME, "
                    "socketcan:can0, ...) until --count, --duration or Ctrl-C")
@@ -66,7 +68,8 @@ def add_can_parser(sub: Any) -> None:
     x.add_argument("--id", metavar="ID", type=lambda s: int(s, 0),
                    help="only frames with this arbitration ID (0x739)")
     x.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
-    x.add_argument("--errors-only", action="store_true", help="only frames with errors")
+    x.add_argument("--errors-only", action="store_true",
+                   help="only frames with errors (not with --stats, which counts them)")
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -122,11 +125,15 @@ class _JsonLines:
         self._opt = orjson.OPT_APPEND_NEWLINE
         self._out = getattr(sys.stdout, "buffer", None)
         self._block: list[bytes] = []
+        dumps, opt, block = self._dumps, self._opt, self._block
+        add = block.append
 
-    def write(self, rec: dict[str, Any]) -> None:
-        self._block.append(self._dumps(rec, option=self._opt))
-        if len(self._block) >= 512:
-            self.flush()
+        def write(rec: dict[str, Any]) -> None:  # the hot path: locals only
+            add(dumps(rec, option=opt))
+            if len(block) >= 512:
+                self.flush()
+
+        self.write: Callable[[dict[str, Any]], None] = write
 
     def flush(self) -> None:
         data = b"".join(self._block)

@@ -209,6 +209,7 @@ class CanDecoder:
     def __init__(self, proto: str) -> None:
         self.protocol = protocol(proto)
         self.by_id: dict[int, MessageDecoder] = _message_decoders(self.protocol.name)
+        self._channels: dict[Any, str | None] = {None: None}  # Message.channel -> its text
 
     def spec_for(self, frame_id: int) -> CanMessage | None:
         hit = self.by_id.get(frame_id)
@@ -218,6 +219,12 @@ class CanDecoder:
         fid = msg.arbitration_id
         data = msg.data
         ch = msg.channel
+        try:
+            chs = self._channels[ch]
+        except KeyError:
+            chs = self._channels[ch] = str(ch)
+        except TypeError:  # an unhashable channel object
+            chs = str(ch)
         fields: dict[str, Any] = {}
         labels: dict[str, Any] = {}
         invalid: list[str] = []
@@ -226,7 +233,7 @@ class CanDecoder:
         rec: dict[str, Any] = {
             "kind": "message", "protocol": "CAN", "name": None if dec is None else dec.name,
             "length": len(data), "direction": None, "time": msg.timestamp, "frames": [index],
-            "header": {"id": fid, "channel": ch if ch is None or type(ch) is str else str(ch)},
+            "header": {"id": fid, "channel": chs},
             "fields": fields, "labels": labels, "invalid": invalid, "short_dlc": False,
             "errors": errors,
         }
