@@ -179,10 +179,12 @@ def _decode(args: argparse.Namespace) -> int:
             except KeyboardInterrupt:  # a live bus: stop and report what was received
                 pass
         result = stats.result()
-        if args.id is not None or name_re is not None:
+        bad = stats.error_frames
+        if args.id is not None or name_re is not None:  # only the IDs asked for
             result["ids"] = [r for r in result["ids"]
                              if (args.id is None or r["id"] == args.id)
                              and (name_re is None or name_re.search(r["name"] or ""))]
+            bad = sum(r["error_frames"] for r in result["ids"])
         if args.json:
             JsonWriter(sys.stdout, fast=True).write(result)
         else:
@@ -192,7 +194,7 @@ def _decode(args: argparse.Namespace) -> int:
                               f"no CAN frames on channel {channel}")
         for line in truncated:
             print(line, file=sys.stderr)
-        return 1 if stats.error_frames or truncated else 0
+        return 1 if bad or truncated else 0
 
     table = None
     if args.csv or args.parquet:

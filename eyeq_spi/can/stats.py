@@ -198,6 +198,7 @@ class CanStats:
                 else round(100.0 * (med - cyc) / cyc, 2),
                 "invalid": dict(st.invalid), "out_of_range": dict(st.out_of_range),
                 "dlc_errors": st.dlc_errors, "short_dlc": st.short_dlc,
+                "error_frames": st.error_frames,
             })
         shared = {f"0x{fid:X}": sorted(str(c) for c in chs)
                   for fid, chs in sorted(id_channels.items()) if len(chs) > 1}
