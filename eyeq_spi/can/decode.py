@@ -238,7 +238,7 @@ class CanDecoder:
             "errors": errors,
         }
         if dec is None:
-            errors.append(f"unknown ID 0x{fid:X}")
+            errors.append(_unknown(fid))
         elif len(data) == dec.dlc:
             dec._fast(data, fields, labels, invalid, errors)
         else:
@@ -248,6 +248,11 @@ class CanDecoder:
     def decode_all(self, messages: Iterator[Any]) -> Iterator[dict[str, Any]]:
         for i, m in enumerate(messages):
             yield self.decode(m, i)
+
+
+@cache
+def _unknown(fid: int) -> str:
+    return f"unknown ID 0x{fid:X}"
 
 
 def table_record(rec: dict[str, Any], raw_invalid: bool = False) -> dict[str, Any]:
