@@ -185,13 +185,14 @@ def _decode(args: argparse.Namespace) -> int:
                              if (args.id is None or r["id"] == args.id)
                              and (name_re is None or name_re.search(r["name"] or ""))]
             bad = sum(r["error_frames"] for r in result["ids"])
+        if stats.frames == 0 and not truncated:
+            raise CanLogError("no CAN frames in the input" if channel is None else
+                              f"no CAN frames on channel {channel} (the channels are: "
+                              f"{', '.join(result['channels']) or 'none'})")
         if args.json:
             JsonWriter(sys.stdout, fast=True).write(result)
         else:
             print(human_stats(result))
-        if stats.frames == 0 and not truncated:
-            raise CanLogError("no CAN frames in the input" if channel is None else
-                              f"no CAN frames on channel {channel}")
         for line in truncated:
             print(line, file=sys.stderr)
         return 1 if bad or truncated else 0
@@ -217,6 +218,7 @@ def _decode(args: argparse.Namespace) -> int:
             print(human_record(rec))
     want_id = args.id
     errors_only = args.errors_only
+    others: set[str] = set()  # channels skipped by --channel, named if none matched
     decode = decoder.decode
     try:
         for source in _sources(args):
@@ -224,6 +226,7 @@ def _decode(args: argparse.Namespace) -> int:
                 for msg in source:
                     index += 1
                     if channel is not None and str(msg.channel) != channel:
+                        others.add(str(msg.channel))
                         continue
                     if want_id is not None and msg.arbitration_id != want_id:
                         continue
@@ -248,7 +251,8 @@ def _decode(args: argparse.Namespace) -> int:
     if index == 0 and not truncated:
         raise CanLogError("no CAN frames in the input")
     if kept == 0 and channel is not None and not truncated:
-        raise CanLogError(f"no CAN frames on channel {channel}")
+        raise CanLogError(f"no CAN frames on channel {channel} (the channels are: "
+                          f"{', '.join(sorted(others)) or 'none'})")
     for line in truncated:
         print(line, file=sys.stderr)
     return 1 if bad or truncated else 0

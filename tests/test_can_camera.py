@@ -149,7 +149,10 @@ def test_stats_without_channel_lists_channels_and_ids_on_several(
     out = capsys.readouterr().out
     assert "0x650 on 1, 2" in out and "--channel" in out and "channels (all frames" in out
     assert main(["can", "decode", str(logs[".blf"]), "--channel", "7"]) == 2
-    assert "no CAN frames on channel 7" in capsys.readouterr().err
+    assert "no CAN frames on channel 7 (the channels are: 0, 1, 2, 3)" in \
+        capsys.readouterr().err
+    assert main(["can", "decode", str(logs[".log"]), "--stats", "--channel", "1"]) == 2
+    assert "(the channels are: can0, can1, can2, can3)" in capsys.readouterr().err
 
 
 # -- truncated logs -------------------------------------------------------------------------
