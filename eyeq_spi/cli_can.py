@@ -199,7 +199,8 @@ def _decode(args: argparse.Namespace) -> int:
 
     table = None
     if args.csv or args.parquet:
-        table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet")
+        table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet",
+                            column_type=decoder.column_type)
     json_out = _JsonLines() if args.json else None
     bad = 0
     index = 0

@@ -243,3 +243,21 @@ def test_stats_with_id_judges_that_id(logs: dict[str, Path],
     path = str(logs[".blf"])
     assert main(["can", "decode", path, "--stats", "--json", "--id", "0x738"]) == 0
     assert main(["can", "decode", path, "--stats", "--json", "--id", "0x773"]) == 1
+
+
+def test_parquet_column_null_in_its_first_row_group_keeps_its_type(
+        tmp_path: Path) -> None:
+    """A signal invalid (NULL) for the first row group, valid later: its column is a number."""
+    pq = pytest.importorskip("pyarrow.parquet", reason="--parquet needs pyarrow")
+    path = tmp_path / "late.log"
+    w = can.Logger(str(path))
+    for k in range(2500):  # Lane_Curvature 8000h (invalid) first, then a value
+        raw = 0x8000 if k < 2100 else 50
+        w.on_message_received(can.Message(timestamp=1.0 + 0.066 * k, arbitration_id=0x737,
+                                          data=struct.pack("<HHHH", raw, 0, 0x7FFF, 0x7FFF),
+                                          is_extended_id=False))
+    w.stop()
+    assert main(["can", "decode", str(path), "--parquet", str(tmp_path / "p")]) == 0
+    col = pq.read_table(str(tmp_path / "p" / "Lane.parquet")).column("Lane_Curvature")
+    assert str(col.type) == "double" and col.null_count == 2100
+    assert col[2200].as_py() == pytest.approx(50 * 3.81e-6)

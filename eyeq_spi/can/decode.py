@@ -210,6 +210,23 @@ class CanDecoder:
         self.protocol = protocol(proto)
         self.by_id: dict[int, MessageDecoder] = _message_decoders(self.protocol.name)
         self._channels: dict[Any, str | None] = {None: None}  # Message.channel -> its text
+        self._names: dict[str, MessageDecoder] | None = None
+
+    def column_type(self, table: str, column: str) -> str | None:
+        """The Arrow type of a decoded table's column (for a column NULL in its first rows)."""
+        if column in ("time",):
+            return "float64"
+        if column in ("frame_index", "header.id"):
+            return "int64"
+        if column == "header.channel":
+            return "string"
+        if self._names is None:
+            self._names = {d.name: d for d in self.by_id.values()}
+        dec = self._names.get(table)
+        for s in dec.signals if dec is not None else ():
+            if s.spec.name == column:
+                return "int64" if s.integer else "float64"
+        return None
 
     def spec_for(self, frame_id: int) -> CanMessage | None:
         hit = self.by_id.get(frame_id)
