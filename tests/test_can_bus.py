@@ -147,7 +147,7 @@ def test_monitor_cli_shows_a_virtual_bus(tmp_path: Any,
     th = _send_when_listened("eyeq-test-monitor-bus", msgs)
     shot = tmp_path / "can.txt"
     capsys.readouterr()
-    assert main(["monitor", "--can-bus", "virtual:eyeq-test-monitor-bus", "--duration", "1.5",
+    assert main(["monitor", "--can-bus", "virtual:eyeq-test-monitor-bus", "--duration", "2.5",
                  "--screenshot", str(shot)]) == 0
     th.join(5)
     out = capsys.readouterr().out
