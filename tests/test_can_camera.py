@@ -261,3 +261,15 @@ def test_parquet_column_null_in_its_first_row_group_keeps_its_type(
     col = pq.read_table(str(tmp_path / "p" / "Lane.parquet")).column("Lane_Curvature")
     assert str(col.type) == "double" and col.null_count == 2100
     assert col[2200].as_py() == pytest.approx(50 * 3.81e-6)
+
+
+def test_an_asc_without_trigger_block_is_not_truncated(tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """A converter's ASC (no Begin/End TriggerBlock, as can-utils' log2asc writes) is whole."""
+    path = tmp_path / "log2asc.asc"
+    path.write_text("date Wed Nov 25 10:00:00 2026\nbase hex  timestamps absolute\n"
+                    "no internal events logged\n"
+                    "   1.000000 1  650             Rx   d 8 42 20 00 00 41 24 00 00\n")
+    capsys.readouterr()
+    assert main(["can", "decode", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["fields"]["Fixed_Yaw"] == 40.0

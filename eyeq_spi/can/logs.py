@@ -60,6 +60,7 @@ def _text_cut(p: Path, suffix: str) -> str | None:
     """Why a text log looks cut, or None."""
     try:
         with p.open("rb") as fh:
+            head = fh.read(4096)
             size = fh.seek(0, 2)
             if size == 0:
                 return None
@@ -69,7 +70,9 @@ def _text_cut(p: Path, suffix: str) -> str | None:
         return None
     if not tail.endswith(b"\n"):
         return "its last line has no line end"
-    if suffix == ".asc":
+    if suffix == ".asc" and b"begin triggerblock" in head.lower():
+        # Vector's block: a file that opens it ends with it (converters that write neither,
+        # as can-utils' log2asc, are judged by their last line only)
         last = tail.rstrip().rsplit(b"\n", 1)[-1].strip().lower()
         if not last.startswith(b"end triggerblock"):
             return "it has no 'End TriggerBlock'"
