@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -26,11 +27,23 @@ def add_can_parser(sub: Any) -> None:
                    help="which protocol (default all)")
     d.add_argument("--output", "-o", metavar="DIR", default=".",
                    help="directory for PROTOCOL.dbc (default .); - prints one protocol")
-    x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs",
-                      description="Decode CAN logs with the generated DBCs. Exit 0 clean, 1 "
-                      "frames with errors (unknown ID, wrong DLC, value out of range), 2 bad "
-                      "input or usage.")
-    x.add_argument("logs", nargs="+", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
+    k = cs.add_parser("compare", help="compare a vendor's DBC with ours, signal by signal",
+                      description="A DBC you hold (vendor, public) against the DBC built from "
+                      "specs/can/: ID, DLC, cycle and each signal's start, length, byte order, "
+                      "sign, scale, offset, range, invalid value, with our reason (seed line, "
+                      "decision) where they differ. Exit 0 the same, 1 differences, 2 bad "
+                      "input.")
+    k.add_argument("dbc", metavar="OTHER.dbc", help="the DBC file to compare")
+    k.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
+                   help="our protocol to compare with (default extlog2)")
+    k.add_argument("--json", action="store_true", help="the differences as a JSON list")
+    x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
+                      "or a live bus",
+                      description="Decode CAN logs with the protocols of specs/can/. Exit 0 "
+                      "clean, 1 frames with errors (unknown ID, wrong DLC, value out of range) "
+                      "or a truncated log, 2 bad input or usage. Cycle-time deviations and "
+                      "short DLCs that hold every signal are shown, not errors.")
+    x.add_argument("logs", nargs="*", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
                    ".mf4 .csv)")
     x.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
                    help="protocol of the log (default extlog2)")
@@ -38,12 +51,38 @@ def add_can_parser(sub: Any) -> None:
     x.add_argument("--csv", metavar="DIR", help="one CSV table per message")
     x.add_argument("--parquet", metavar="DIR", help="one Parquet table per message")
     x.add_argument("--stats", action="store_true",
-                   help="only statistics: cycle time per ID against the spec, invalid and "
-                   "out-of-range values (one JSON object with --json)")
+                   help="only statistics: frames per channel, per ID the cycle time against "
+                   "the spec, DLC errors, short DLCs, invalid and out-of-range values per "
+                   "signal (one JSON object with --json)")
+    x.add_argument("--bus", metavar="INTERFACE:CHANNEL",
+                   help="decode a live python-can bus instead of logs (virtual:NAME, "
+                   "socketcan:can0, ...) until --count, --duration or Ctrl-C")
+    x.add_argument("--count", type=int, metavar="N", help="--bus: stop after N frames")
+    x.add_argument("--duration", type=float, metavar="S", help="--bus: stop after S seconds")
+    x.add_argument("--channel", metavar="N",
+                   help="only frames of this channel (python-can Message.channel, as --stats "
+                   "lists them)")
+    x.add_argument("--raw-invalid", action="store_true",
+                   help="--csv/--parquet: write the decoded number of a value at its invalid "
+                   "value (default: empty / NULL)")
     x.add_argument("--id", metavar="ID", type=lambda s: int(s, 0),
                    help="only frames with this arbitration ID (0x739)")
     x.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
-    x.add_argument("--errors-only", action="store_true", help="only frames with errors")
+    x.add_argument("--errors-only", action="store_true",
+                   help="only frames with errors (not with --stats, which counts them)")
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from eyeq_spi.can.compare import as_json, compare, human
+
+    diffs = compare(args.dbc, args.protocol)
+    if args.json:
+        import json
+
+        print(json.dumps(as_json(diffs), indent=1))
+    else:
+        print(human(diffs, args.dbc, args.protocol))
+    return 1 if diffs else 0
 
 
 def _dbc(args: argparse.Namespace) -> int:
@@ -61,8 +100,60 @@ def _dbc(args: argparse.Namespace) -> int:
     return 0
 
 
+def _sources(args: argparse.Namespace) -> Any:
+    """One iterator of python-can messages per log file, or the live bus (shut down after)."""
+    from eyeq_spi.can.logs import open_bus, read_bus, read_log
+
+    if not args.bus:
+        for path in args.logs:
+            yield read_log(path)
+        return
+    bus = open_bus(args.bus)
+    try:
+        yield read_bus(bus, duration=args.duration, count=args.count)
+    finally:
+        bus.shutdown()
+
+
+class _JsonLines:
+    """JSON Lines with orjson, written in blocks (``dissect --json``'s fast spelling)."""
+
+    def __init__(self) -> None:
+        import orjson
+
+        self._dumps = orjson.dumps
+        self._opt = orjson.OPT_APPEND_NEWLINE
+        self._out = getattr(sys.stdout, "buffer", None)
+        self._block: list[bytes] = []
+        dumps, opt, block = self._dumps, self._opt, self._block
+        add = block.append
+
+        def write(rec: dict[str, Any]) -> None:  # the hot path: locals only
+            add(dumps(rec, option=opt))
+            if len(block) >= 512:
+                self.flush()
+
+        self.write: Callable[[dict[str, Any]], None] = write
+
+    def flush(self) -> None:
+        data = b"".join(self._block)
+        self._block.clear()
+        if self._out is not None:
+            sys.stdout.flush()
+            self._out.write(data)
+        else:  # a text stream without a buffer (tests capture into StringIO)
+            sys.stdout.write(data.decode())
+
+
 def _decode(args: argparse.Namespace) -> int:
-    from eyeq_spi.can.decode import CanDecoder, CanStats, human_record, human_stats, read_log
+    from eyeq_spi.can.decode import (
+        CanDecoder,
+        CanLogError,
+        CanLogTruncatedError,
+        human_record,
+        table_record,
+    )
+    from eyeq_spi.can.stats import CanStats, human_stats
     from eyeq_spi.dissect.output import JsonWriter, TableWriter
 
     if args.csv and args.parquet:
@@ -71,49 +162,104 @@ def _decode(args: argparse.Namespace) -> int:
         name_re = re.compile(args.name) if args.name else None
     except re.error as exc:
         raise UsageError(f"--name: bad regular expression: {exc}") from None
+    if bool(args.bus) == bool(args.logs):
+        raise UsageError("give CAN log files or --bus INTERFACE:CHANNEL (one of them)")
+    if not args.bus and (args.count is not None or args.duration is not None):
+        raise UsageError("--count and --duration apply to --bus")
     decoder = CanDecoder(args.protocol)
-    stats = CanStats(decoder) if args.stats else None
+    channel = args.channel
+    truncated: list[str] = []
+    if args.stats:
+        stats = CanStats(decoder, channel)
+        for source in _sources(args):
+            try:
+                stats.add_all(source)
+            except CanLogTruncatedError as exc:
+                truncated.append(str(exc))
+            except KeyboardInterrupt:  # a live bus: stop and report what was received
+                pass
+        result = stats.result()
+        bad = stats.error_frames
+        if args.id is not None or name_re is not None:  # only the IDs asked for
+            result["ids"] = [r for r in result["ids"]
+                             if (args.id is None or r["id"] == args.id)
+                             and (name_re is None or name_re.search(r["name"] or ""))]
+            bad = sum(r["error_frames"] for r in result["ids"])
+        if stats.frames == 0 and not truncated:
+            raise CanLogError("no CAN frames in the input" if channel is None else
+                              f"no CAN frames on channel {channel} (the channels are: "
+                              f"{', '.join(result['channels']) or 'none'})")
+        if args.json:
+            JsonWriter(sys.stdout, fast=True).write(result)
+        else:
+            print(human_stats(result))
+        for line in truncated:
+            print(line, file=sys.stderr)
+        return 1 if bad or truncated else 0
+
     table = None
-    if not args.stats and (args.csv or args.parquet):
-        table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet")
-    json_out = JsonWriter(sys.stdout) if args.json and not args.stats else None
+    if args.csv or args.parquet:
+        table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet",
+                            column_type=decoder.column_type)
+    json_out = _JsonLines() if args.json else None
     bad = 0
     index = 0
+    kept = 0
+    emit: Any
+    if table is not None:
+        raw_invalid = args.raw_invalid
+        tw = table.write
+
+        def emit(rec: dict[str, Any]) -> None:
+            tw(table_record(rec, raw_invalid))
+    elif json_out is not None:
+        emit = json_out.write
+    else:
+        def emit(rec: dict[str, Any]) -> None:
+            print(human_record(rec))
+    want_id = args.id
+    errors_only = args.errors_only
+    others: set[str] = set()  # channels skipped by --channel, named if none matched
+    decode = decoder.decode
     try:
-        for path in args.logs:
-            for msg in read_log(path):
-                rec = decoder.decode(msg, index)
-                index += 1
-                if args.id is not None and rec["header"]["id"] != args.id:
-                    continue
-                if name_re is not None and not name_re.search(rec["name"] or ""):
-                    continue
-                if args.errors_only and not rec["errors"]:
-                    continue
-                bad += bool(rec["errors"])
-                if stats is not None:
-                    stats.add(rec)
-                elif table is not None:
-                    table.write(rec)
-                elif json_out is not None:
-                    json_out.write(rec)
-                else:
-                    print(human_record(rec))
+        for source in _sources(args):
+            try:
+                for msg in source:
+                    index += 1
+                    if channel is not None and str(msg.channel) != channel:
+                        others.add(str(msg.channel))
+                        continue
+                    if want_id is not None and msg.arbitration_id != want_id:
+                        continue
+                    rec = decode(msg, index - 1)
+                    kept += 1
+                    if name_re is not None and not name_re.search(rec["name"] or ""):
+                        continue
+                    if rec["errors"]:
+                        bad += 1
+                    elif errors_only:
+                        continue
+                    emit(rec)
+            except CanLogTruncatedError as exc:
+                truncated.append(str(exc))
+            except KeyboardInterrupt:  # a live bus: stop, keep what was decoded
+                pass
     finally:
         if table is not None:
             table.close()
-    if stats is not None:
-        result = stats.result()
-        if args.json:
-            JsonWriter(sys.stdout).write(result)
-        else:
-            print(human_stats(result))
-    if index == 0:
-        from eyeq_spi.can.decode import CanLogError
-
+        if json_out is not None:
+            json_out.flush()
+    if index == 0 and not truncated:
         raise CanLogError("no CAN frames in the input")
-    return 1 if bad else 0
+    if kept == 0 and channel is not None and not truncated:
+        raise CanLogError(f"no CAN frames on channel {channel} (the channels are: "
+                          f"{', '.join(sorted(others)) or 'none'})")
+    for line in truncated:
+        print(line, file=sys.stderr)
+    return 1 if bad or truncated else 0
 
 
 def run_can(args: argparse.Namespace) -> int:
+    if args.can_command == "compare":
+        return _compare(args)
     return _dbc(args) if args.can_command == "dbc" else _decode(args)

@@ -74,8 +74,12 @@ def add_plot_parser(sub: Any) -> None:
     src.add_argument("--replay", metavar="FILE",
                      help="a capture's EyeQ channel replayed into the host emulator (as replay "
                      "--into-host) in capture time")
+    src.add_argument("--can-bus", metavar="INTERFACE:CHANNEL",
+                     help="a live Mobileye CAN bus (virtual:NAME, socketcan:can0): one line per "
+                     "ID with its cycle and newest signals, as cantools monitor (protocol: "
+                     "--can-protocol)")
     m.add_argument("--duration", type=float, help="seconds (default: 10 for --demo, no limit "
-                   "for --port, the whole capture for --replay)")
+                   "for --port and --can-bus, the whole capture for --replay)")
     m.add_argument("--virtual-time", action="store_true", help="--demo as fast as the CPU allows")
     m.add_argument("--pace", type=float, default=1.0, metavar="X",
                    help="--replay: X times real time (default 1; 0 = as fast as possible)")
@@ -183,6 +187,15 @@ def run_monitor(args: argparse.Namespace) -> int:
         from eyeq_spi.monitor.app import check_screenshot
 
         check_screenshot(args.screenshot)  # before a long run
+    if args.can_bus:
+        from eyeq_spi.monitor.app import MAX_REFRESH, MIN_REFRESH
+        from eyeq_spi.monitor.can_bus import run_can_monitor
+
+        if not MIN_REFRESH <= args.refresh <= MAX_REFRESH:
+            raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
+        run_can_monitor(args.can_bus, args.can_protocol, duration=args.duration,
+                        refresh=args.refresh, screenshot=args.screenshot)
+        return 0
     unused = SIM_ONLY if args.port else SIM_ONLY + HOST_ONLY if args.replay else ()
     for dest in unused:
         if hasattr(args, dest) and getattr(args, dest) != args.side_defaults.get(dest):

@@ -285,7 +285,7 @@ def run_demo(args: argparse.Namespace) -> int:
     emu, writer = build_demo(args)
     from eyeq_spi.can.sinks import attach_from_args
 
-    attach_from_args(args, emu.host, emu.runner)  # --can-out: CAN gateway (issue 13)
+    can_out = attach_from_args(args, emu.host, emu.runner)  # --can-out: the CAN gateway
     _on_sigterm()
     view = LiveView(sys.stderr.isatty() and not args.json)
     t = 0.0
@@ -302,9 +302,13 @@ def run_demo(args: argparse.Namespace) -> int:
         emu.host.nvm.save()  # --nvm: the ignition count and what the run learned
         if writer is not None:
             writer.close()
+        if can_out is not None:
+            can_out.close()  # a log file is complete when the command returns
     out = host_summary(emu.host, side="demo", elapsed=emu.runner.now, wall=emu.runner.wall_s,
                        cpu=emu.runner.cpu_s, running_since=emu.running_since,
                        left_running=emu.left_running, interrupted=interrupted)
+    if can_out is not None:
+        out["can"] = can_out.summary()
     print_summary(out, args.json)
     return 0 if out["ok"] else 1
 
@@ -421,7 +425,7 @@ def run_host(args: argparse.Namespace) -> int:
     runner.tap = _realtime_tap(writer, runner.clock(), "h2e", "e2h")
     from eyeq_spi.can.sinks import attach_from_args
 
-    attach_from_args(args, host, runner)  # --can-out: CAN gateway (issue 13)
+    can_out = attach_from_args(args, host, runner)  # --can-out: the CAN gateway
     gc.freeze()
     view = LiveView(sys.stderr.isatty() and not args.json)
     start, cpu0 = runner.clock(), time.process_time()
@@ -472,6 +476,8 @@ def run_host(args: argparse.Namespace) -> int:
         nvm.save()
         if writer is not None:
             writer.close()
+        if can_out is not None:
+            can_out.close()
     now = runner.clock()
     out = host_summary(host, side="host", elapsed=now - start, wall=now - start,
                        cpu=time.process_time() - cpu0, running_since=running_since,
@@ -479,5 +485,7 @@ def run_host(args: argparse.Namespace) -> int:
                        interrupted=interrupted, t0=start,
                        address=parse_connect(args.port, check_path=False).display,
                        scheduling=scheduling)
+    if can_out is not None:
+        out["can"] = can_out.summary()
     print_summary(out, args.json)
     return 0 if out["ok"] else 1

@@ -33,7 +33,7 @@ KEYS = (
     "connections", "interrupted", "received", "sent", "link", "ack_latency_ms",
     "transport_aborts", "e2e_errors", "dasp_counter_gaps", "decode_errors", "stale_streams",
     "mesp", "eyeq_resets", "versions", "boot", "transitions", "running_vision_since",
-    "sessions", "link_lost", "scheduling", "replay",
+    "sessions", "link_lost", "scheduling", "replay", "can",
 )
 # a sim session: the summary of one host served, without what belongs to the whole run
 SESSION_KEYS = ("began_s", "ended_s", "ok", "problem", "state", "received", "sent", "link",
@@ -355,6 +355,12 @@ def format_summary(out: dict[str, Any]) -> str:
                      f"received {sum(sess['received'].values())}, sent "
                      f"{sum(sess['sent'].values())}"
                      + (f", link lost: {sess['link_lost']}" if sess["link_lost"] else ""))
+    c = out.get("can")
+    if c:
+        over = ", ".join(f"{k} {v}" for k, v in c["slot_overflow"].items())
+        lines.append(f"  CAN {c['protocol']} -> {c['target']}: {c['frames']} frames, send errors "
+                     f"{c['send_errors']}, clamped {c['clamped']}, sent invalid {c['invalid']}"
+                     + (f", objects beyond the slots (not sent) {over}" if over else ""))
     rep = out.get("replay")
     if rep:
         lines.append(f"  replay: played {rep['played']} frames"

@@ -93,7 +93,9 @@ def run_one_cycle(proto: str, fields: dict[str, Dasp]) -> tuple[CanGateway, list
     return gw, recs
 
 
-def test_object_angle_is_right_positive_like_its_lateral_position() -> None:
+def test_object_angle_is_right_positive_and_lateral_position_left_positive() -> None:
+    """C5: on a production camera Obstacle_Pos_Y is left positive (latDistance as it is) while
+    Obstacle_Angle is right positive: the two have opposite signs."""
     objs = Dasp("EYEQ_VIS_OBSTACLES_MSG",
                 {"timestamp_ms": 0, "visObjects": {"visObs": [OBJECT]}})
     _, recs = run_one_cycle("extlog2", {"o": objs})
@@ -101,11 +103,15 @@ def test_object_angle_is_right_positive_like_its_lateral_position() -> None:
     pos_y = by_name["Obstacle_Data_A_0"]["Obstacle_Pos_Y"]
     angle = by_name["Obstacle_Data_C_0"]["Obstacle_Angle"]
     rate = by_name["Obstacle_Data_C_0"]["Obstacle_Angle_Rate"]
-    assert pos_y == pytest.approx(-3.0, abs=0.0625)  # left of the car: negative
+    assert pos_y == pytest.approx(3.0, abs=0.0625)  # left of the car: positive (C5)
     assert angle == pytest.approx(-math.degrees(math.atan2(3.0, 20.0)), abs=0.01)
     assert angle < 0 and rate == pytest.approx(-math.degrees(0.02), abs=0.01)
     _, mapping = can_specs()
     assert dict(mapping.derived)["to_right"].expr == "1"  # seed 004 and the CAN seeds agree
+    # the two lateral signs are named parameters of the mapping, with their evidence (C5)
+    signs = dict(mapping.derived)
+    assert signs["obstacle_y_sign"].expr == "1" and "production" in signs["obstacle_y_sign"].reason
+    assert signs["lane_y_sign"].expr == "-1" and "C0" in signs["lane_y_sign"].reason
 
 
 @pytest.mark.parametrize("proto", ["extlog2", "me8"])
@@ -124,8 +130,10 @@ def test_unmapped_signals_send_their_invalid_or_default_value(proto: str) -> Non
             s = spec.signal(name)
             raw = physical_to_raw(s, MISSING)
             want = s.raw_invalid if s.raw_invalid is not None else raw
-            if s.invalid is not None:
+            if s.reported_invalid is not None:
                 assert name in r["invalid"], (spec.name, name)
+            elif s.invalid is not None:  # C8: its invalid value is also a normal state
+                assert name not in r["invalid"], (spec.name, name)
             else:  # physical 0, clamped into the printed range
                 lo = s.min if s.min is not None else -math.inf
                 hi = s.max if s.max is not None else math.inf

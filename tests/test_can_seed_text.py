@@ -26,6 +26,9 @@ KNOWN = {
     ("extlog2", "Obstacle_Data_C", "Obstacle_Scale_Change", "range"):
         "001 line 2297 prints -6.5532 : 6.5332; the 16-bit field at 0.0002 is symmetric, "
         "6.5332 read as an OCR slip for 6.5532",
+    ("extlog2", "Obstacle_Data_C", "Obstacle_Scale_Change", "invalid"):
+        "decision C8: 001 and 000 print 7FFh, which lost an F: a production camera sends "
+        "0x7FFF for objects younger than 4 frames",
 }
 
 
@@ -212,7 +215,8 @@ def test_seed_000_signals_are_in_the_specs_and_agree_or_are_recorded() -> None:
             diffs.append((m.name, s.name, "range"))
         if inv != "absent" and inv != s.invalid:
             diffs.append((m.name, s.name, "invalid"))
-    # the one difference is the OCR'd range both seeds print (see KNOWN)
-    assert diffs == [("Obstacle_Data_C", "Obstacle_Scale_Change", "range")], diffs
+    # the differences are the OCR'd range and invalid value both seeds print (see KNOWN)
+    assert diffs == [("Obstacle_Data_C", "Obstacle_Scale_Change", "range"),
+                     ("Obstacle_Data_C", "Obstacle_Scale_Change", "invalid")], diffs
     assert only_001 == ["active_version_number_section", "application_version",
                         "protocol_version"], only_001

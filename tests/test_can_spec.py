@@ -93,7 +93,7 @@ def test_generated_dbc_loads_back_and_matches_the_spec(name: str, tmp_path: Path
                 seed = s.seed or m.seed or proto.seed  # the seed its line counts in
                 assert ds.comment.startswith(f"seed {seed} line {s.seed_line}"), ds.comment
                 attr = ds.dbc.attributes.get("GenSigInvalidValue") if ds.dbc else None
-                assert (attr.value if attr is not None else None) == s.raw_invalid, s.name
+                assert (attr.value if attr is not None else None) == s.reported_invalid, s.name
                 n += 1
     assert n >= (500 if name == "extlog2" else 60)
     assert db.dbc.attributes["Baudrate"].value == proto.bitrate
@@ -104,9 +104,9 @@ def test_generated_dbc_loads_back_and_matches_the_spec(name: str, tmp_path: Path
     again = cantools.database.load_string(db.as_dbc_string())
     invalid = [s.dbc.attributes["GenSigInvalidValue"].value for m in again.messages
                for s in m.signals if s.dbc and "GenSigInvalidValue" in s.dbc.attributes]
-    assert sorted(invalid) == sorted(s.raw_invalid for m in proto.messages
+    assert sorted(invalid) == sorted(s.reported_invalid for m in proto.messages
                                      for _ in m.instances() for s in m.signals
-                                     if s.raw_invalid is not None)
+                                     if s.reported_invalid is not None)
 
 
 # (protocol, message, signal): (scale, offset) transcribed from the seed's "Conversion" lines

@@ -1,6 +1,6 @@
 """DBC databases built with cantools from ``specs/can/`` (never hand-written DBC text).
 
-One DBC message per repeated slot (``Obstacle_Data_A_0`` .. ``_14`` at 0x739 + 3*i), value
+One DBC message per repeated slot (``Obstacle_Data_A_0`` .. ``_12`` at 0x739 + 3*i), value
 tables for enums, ``GenMsgCycleTime`` from the spec's cycle, the invalid value as cantools'
 ``raw_invalid``, as the signal attribute ``GenSigInvalidValue`` (the raw value a decoder sees,
 two's complement for signed signals: Lane_Curvature's 8000h is -32768) and in the signal comment
@@ -72,14 +72,18 @@ def _signal(s: CanSignal, enums: dict[str, dict[int, str]], seed: str,
     if s.description:
         notes.append(s.description)
     specifics = None
-    if s.invalid is not None:
+    if s.invalid is not None and s.invalid_means is not None:
+        # C8: the printed invalid value is also a normal state, so no invalid attribute
+        notes.append(f"printed invalid raw 0x{s.invalid:X} also means {s.invalid_means}: "
+                     "not an invalid marker")
+    elif s.invalid is not None:
         notes.append(f"invalid raw 0x{s.invalid:X}")
         specifics = specifics_cls(attributes=OrderedDict(
             {INVALID_ATTRIBUTE: attribute(s.raw_invalid, invalid_def)}))
     return Signal(
         name=s.name, start=s.start, length=s.length,
         byte_order="big_endian" if s.byte_order == "big_endian" else "little_endian",
-        is_signed=s.signed, raw_invalid=s.raw_invalid,
+        is_signed=s.signed, raw_invalid=s.reported_invalid,
         conversion=BaseConversion.factory(scale=s.scale, offset=s.offset, choices=choices,
                                           is_float=s.is_float),
         minimum=s.min, maximum=s.max, unit=s.unit, comment="; ".join(notes),

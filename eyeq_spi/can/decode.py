@@ -1,217 +1,286 @@
-"""Decoding CAN logs (BLF, ASC, candump, TRC, MF4 through python-can's readers) with the DBCs
-built from ``specs/can/``, into the record shape of ``eyeq-spi dissect --json``, and the
-statistics of ``--stats`` (cycle time per ID against the spec, invalid and out-of-range values).
+"""Decoding CAN logs (BLF, ASC, candump, TRC, MF4 through python-can's readers) with the
+protocols of ``specs/can/``, into the record shape of ``eyeq-spi dissect --json``.
 
 A record is ``{"kind": "message", "protocol": "CAN", "name", "length", "direction": null,
 "time", "frames": [index], "header": {"id", "channel"}, "fields": {signal: physical},
-"labels": {signal: enum label}, "invalid": [signals at their invalid value], "errors": [...]}``;
-``errors`` lists an unknown ID, a DLC that is not the spec's and values outside a signal's range.
+"labels": {signal: enum label}, "invalid": [signals at their invalid value], "short_dlc": bool,
+"errors": [...]}``; ``errors`` lists an unknown ID, a DLC that is not the spec's and values
+outside a signal's range.
+
+Decision C8: a frame shorter than its spec's DLC that still holds every defined signal (the LKA
+"B" frames a production camera sends with DLC 4) is decoded and flagged ``short_dlc``, not an
+error; a printed invalid value that is also a normal state (``invalid_means``: Failsafe 0 = no
+failsafe) is not reported invalid.
+
+Each message is decoded by a :class:`MessageDecoder` compiled once from the spec (shift, mask,
+sign, scale per signal): the same arithmetic cantools applies to the DBC built from the same
+spec (tested frame by frame), without its per-frame dispatch. ``CanStats`` (``stats.py``) runs
+the same decoders on numpy columns, one ID at a time.
 """
 
 from __future__ import annotations
 
 import math
-import statistics
-from collections import Counter, defaultdict
+import struct
 from collections.abc import Iterator
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
+from functools import cache
 from typing import Any
 
-from eyeq_spi.can.dbc import database, require_cantools
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.can.logs import CanLogError, CanLogTruncatedError, read_log
 from eyeq_spi.spec.can import CanMessage, CanSignal, protocol
 
-READ_SUFFIXES = (".blf", ".asc", ".log", ".trc", ".mf4", ".csv")
+__all__ = ["CanDecoder", "CanLogError", "CanLogTruncatedError", "MessageDecoder",
+           "SignalDecoder", "human_record", "read_log", "table_record"]
+
+_F32 = struct.Struct(">f")
 
 
-class CanLogError(EyeqError):
-    """A CAN log cannot be read (missing, unknown format, corrupt)."""
+@dataclass(frozen=True)
+class SignalDecoder:
+    """One signal's raw extraction from the payload as an integer (see ``shift``)."""
 
-
-def read_log(path: str) -> Iterator[Any]:
-    """python-can messages of one log file, in file order."""
-    require_cantools()
-    import can
-
-    p = Path(path)
-    if p.suffix.lower() not in READ_SUFFIXES:
-        raise CanLogError(f"{path}: unknown CAN log format {p.suffix!r} "
-                          f"(one of {', '.join(READ_SUFFIXES)})")
-    if not p.is_file():
-        raise CanLogError(f"{path}: no such file")
-    try:
-        reader = can.LogReader(str(p))
-    except ImportError as exc:
-        raise CanLogError(f"{path}: this format needs {exc.name or exc} "
-                          "(pip install asammdf for .mf4)") from exc
-    except Exception as exc:  # python-can raises many kinds on a foreign file
-        raise CanLogError(f"{path}: not a readable {p.suffix} CAN log: {exc}") from exc
-    try:
-        yield from reader
-    except EyeqError:
-        raise
-    except Exception as exc:  # truncated or corrupt content
-        raise CanLogError(f"{path}: corrupt {p.suffix} CAN log: {exc}") from exc
-    finally:
-        stop = getattr(reader, "stop", None)
-        if callable(stop):
-            stop()
-
-
-@dataclass
-class _Sig:
     spec: CanSignal
-    db: Any  # cantools Signal
+    big_endian: bool
+    shift: int  # raw = (payload_int >> shift) & mask; payload_int little- or big-endian
+    mask: int
+    sign_bit: int  # 0 if unsigned
+    scale: float
+    offset: float
+    integer: bool  # scale 1 and offset 0 as ints: physical values stay int (as cantools)
+    low: float | None  # range with the tolerance of the printed figures
+    high: float | None
+    invalid: int | None  # the raw value reported invalid (C8: none when also a normal state)
+    labels: dict[int, str] | None
+    nbytes: int  # leading payload bytes that hold the signal
+
+    @classmethod
+    def build(cls, s: CanSignal, dlc: int, enums: dict[str, dict[int, str]]) -> SignalDecoder:
+        big = s.byte_order == "big_endian"
+        if big:  # Motorola: start is the MSB's bit in DBC numbering; count from the left
+            msb = (s.start // 8) * 8 + (7 - s.start % 8)
+            shift = dlc * 8 - 1 - (msb + s.length - 1)
+        else:
+            shift = s.start
+        integer = isinstance(s.scale, int) and isinstance(s.offset, int) and not s.is_float
+        return cls(s, big, shift, (1 << s.length) - 1,
+                   1 << (s.length - 1) if s.signed else 0, s.scale, s.offset, integer,
+                   None if s.min is None else s.min - 1e-9 * abs(s.min),
+                   None if s.max is None else s.max + 1e-9 * abs(s.max),
+                   s.reported_invalid, enums.get(s.enum) if s.enum else None,
+                   s.covered_bytes())
+
+    def raw(self, le: int, be: int) -> int:
+        r = ((be if self.big_endian else le) >> self.shift) & self.mask
+        if self.sign_bit and r & self.sign_bit:
+            r -= self.mask + 1
+        return r
+
+    def physical(self, raw: int) -> float | int | None:
+        if self.spec.is_float:
+            v: float = _F32.unpack((raw & 0xFFFFFFFF).to_bytes(4, "big"))[0]
+            return v if math.isfinite(v) else None
+        if self.integer:
+            return raw * int(self.scale) + int(self.offset)
+        return raw * self.scale + self.offset
+
+
+class MessageDecoder:
+    """Decoder of one frame ID, compiled from its spec message."""
+
+    def __init__(self, spec: CanMessage, name: str, enums: dict[str, dict[int, str]]) -> None:
+        self.spec = spec
+        self.name = name
+        self.dlc = spec.dlc
+        self.signals = [SignalDecoder.build(s, spec.dlc, enums) for s in spec.signals]
+        self.needed = max(s.nbytes for s in self.signals)  # C8: the shortest complete frame
+        self._fast = self._compile()
+
+    def _compile(self) -> Any:
+        """Straight-line Python for a complete frame, constants inlined: the per-message
+        decoder built once from the spec (the loop of :meth:`decode_into` is its reference)."""
+        env: dict[str, Any] = {"_F32": _F32.unpack, "_finite": math.isfinite,
+                               "_fmt": _out_of_range}
+        big = any(s.big_endian for s in self.signals)
+        body = ["def _decode(data, fields, labels, invalid, errors):",
+                "    le = int.from_bytes(data, 'little')"]
+        if big:
+            body.append("    be = int.from_bytes(data, 'big')")
+        for k, s in enumerate(self.signals):
+            word = "be" if s.big_endian else "le"
+            name = s.spec.name
+            body.append(f"    r = ({word} >> {s.shift}) & {s.mask}" if s.shift else
+                        f"    r = {word} & {s.mask}")
+            if s.sign_bit:
+                body.append(f"    if r & {s.sign_bit}: r -= {s.mask + 1}")
+            if s.spec.is_float:
+                body += ["    x = _F32(r.to_bytes(4, 'big'))[0]",
+                         "    if not _finite(x): x = None"]
+            elif s.integer:
+                x = "r" if s.scale == 1 and s.offset == 0 else \
+                    f"r * {int(s.scale)} + {int(s.offset)}"
+                body.append(f"    x = {x}")
+            else:
+                body.append(f"    x = r * {s.scale!r} + {s.offset!r}")
+            body.append(f"    fields[{name!r}] = x")
+            if s.labels is not None:
+                env[f"_L{k}"] = s.labels
+                body.append(f"    labels[{name!r}] = _L{k}.get(r)")
+            checks = []
+            if s.low is not None:
+                checks.append(f"x < {s.low!r}")
+            if s.high is not None:
+                checks.append(f"x > {s.high!r}")
+            cond = " or ".join(checks)
+            if s.spec.is_float and cond:
+                cond = f"x is not None and ({cond})"
+            if s.invalid is not None:
+                body.append(f"    if r == {s.invalid}: invalid.append({name!r})")
+                if cond:
+                    body.append(f"    elif {cond}: errors.append(_fmt({name!r}, x, "
+                                f"{s.spec.min!r}, {s.spec.max!r}))")
+            elif cond:
+                body.append(f"    if {cond}: errors.append(_fmt({name!r}, x, {s.spec.min!r}, "
+                            f"{s.spec.max!r}))")
+        exec(compile("\n".join(body), f"<decoder {self.name}>", "exec"), env)
+        return env["_decode"]
+
+    def decode_into(self, data: bytes, rec: dict[str, Any]) -> None:
+        n = len(data)
+        if n == self.dlc:
+            self._fast(data, rec["fields"], rec["labels"], rec["invalid"], rec["errors"])
+            return
+        if self.needed <= n < self.dlc:  # C8: short, every signal inside
+            rec["short_dlc"] = True
+            self._fast(data + bytes(self.dlc - n), rec["fields"], rec["labels"],
+                       rec["invalid"], rec["errors"])
+            return
+        self.decode_slow(data, rec)
+
+    def decode_slow(self, data: bytes, rec: dict[str, Any]) -> None:
+        """The reference loop (any DLC): a wrong DLC is an error, the signals it holds decoded."""
+        n = len(data)
+        fields, labels, invalid, errors = rec["fields"], rec["labels"], rec["invalid"], \
+            rec["errors"]
+        have = self.dlc
+        if n != self.dlc:
+            if self.needed <= n < self.dlc:
+                rec["short_dlc"] = True
+            else:
+                errors.append(f"DLC {n}, spec {self.dlc}")
+                have = min(n, self.dlc)
+            data = (data + bytes(self.dlc))[:self.dlc]
+        le = int.from_bytes(data, "little")
+        be = int.from_bytes(data, "big")
+        for s in self.signals:
+            if s.nbytes > have:
+                continue  # not in this (too short) frame
+            r = ((be if s.big_endian else le) >> s.shift) & s.mask
+            if s.sign_bit and r & s.sign_bit:
+                r -= s.mask + 1
+            value = s.physical(r)
+            name = s.spec.name
+            fields[name] = value
+            if s.labels is not None:
+                labels[name] = s.labels.get(r)
+            if r == s.invalid:
+                invalid.append(name)
+            elif value is not None and ((s.low is not None and value < s.low)
+                                        or (s.high is not None and value > s.high)):
+                errors.append(_out_of_range(name, value, s.spec.min, s.spec.max))
+
+
+def _out_of_range(name: str, value: float, lo: float | None, hi: float | None) -> str:
+    return (f"{name} {value:g} outside [{'-inf' if lo is None else f'{lo:g}'}, "
+            f"{'inf' if hi is None else f'{hi:g}'}]")
+
+
+@cache
+def _message_decoders(proto: str) -> dict[int, MessageDecoder]:
+    """The compiled decoders of a protocol, by frame ID (built once per process)."""
+    p = protocol(proto)
+    return {fid: MessageDecoder(m, name, p.enums) for m in p.messages
+            for _, fid, name in m.instances()}
 
 
 class CanDecoder:
-    """Decodes python-can messages of one protocol with its generated database."""
+    """Decodes python-can messages of one protocol."""
 
     def __init__(self, proto: str) -> None:
         self.protocol = protocol(proto)
-        self.db = database(self.protocol.name)
-        self._by_id: dict[int, tuple[CanMessage, Any, list[_Sig]]] = {}
-        for m in self.protocol.messages:
-            for _, fid, _ in m.instances():
-                dbm = self.db.get_message_by_frame_id(fid)
-                sigs = [_Sig(s, dbm.get_signal_by_name(s.name)) for s in m.signals]
-                self._by_id[fid] = (m, dbm, sigs)
+        self.by_id: dict[int, MessageDecoder] = _message_decoders(self.protocol.name)
+        self._channels: dict[Any, str | None] = {None: None}  # Message.channel -> its text
+        self._names: dict[str, MessageDecoder] | None = None
+
+    def column_type(self, table: str, column: str) -> str | None:
+        """The Arrow type of a decoded table's column (for a column NULL in its first rows)."""
+        if column in ("time",):
+            return "float64"
+        if column in ("frame_index", "header.id"):
+            return "int64"
+        if column == "header.channel":
+            return "string"
+        if self._names is None:
+            self._names = {d.name: d for d in self.by_id.values()}
+        dec = self._names.get(table)
+        for s in dec.signals if dec is not None else ():
+            if s.spec.name == column:
+                return "int64" if s.integer else "float64"
+        return None
 
     def spec_for(self, frame_id: int) -> CanMessage | None:
-        hit = self._by_id.get(frame_id)
-        return hit[0] if hit else None
+        hit = self.by_id.get(frame_id)
+        return hit.spec if hit else None
 
     def decode(self, msg: Any, index: int) -> dict[str, Any]:
-        fid = int(msg.arbitration_id)
-        data = bytes(msg.data)
-        rec: dict[str, Any] = {
-            "kind": "message", "protocol": "CAN", "name": None, "length": len(data),
-            "direction": None, "time": float(msg.timestamp), "frames": [index],
-            "header": {"id": fid, "channel": None if msg.channel is None else str(msg.channel)},
-            "fields": {}, "labels": {}, "invalid": [], "errors": [],
-        }
-        hit = self._by_id.get(fid) if not msg.is_extended_id else None
-        if hit is None:
-            rec["errors"].append(f"unknown ID 0x{fid:X}")
-            return rec
-        spec, dbm, sigs = hit
-        rec["name"] = dbm.name
-        if len(data) != spec.dlc:
-            rec["errors"].append(f"DLC {len(data)}, spec {spec.dlc}")
-            # decode what is there
-            data = (data + bytes(max(spec.dlc - len(data), 0)))[:spec.dlc]
+        fid = msg.arbitration_id
+        data = msg.data
+        ch = msg.channel
         try:
-            raw = dbm.decode(data, decode_choices=False, scaling=False)
-        except Exception as exc:  # cantools on a malformed payload
-            rec["errors"].append(f"undecodable: {exc}")
-            return rec
-        for s in sigs:
-            r = raw.get(s.spec.name)
-            if r is None:
-                continue
-            value = s.db.conversion.raw_to_scaled(r, decode_choices=False)
-            if isinstance(value, float) and not math.isfinite(value):
-                value = None
-            rec["fields"][s.spec.name] = value
-            if s.spec.enum:
-                label = self.protocol.enums[s.spec.enum].get(int(r))
-                rec["labels"][s.spec.name] = label
-            if s.spec.raw_invalid is not None and r == s.spec.raw_invalid:
-                rec["invalid"].append(s.spec.name)
-            elif value is not None and (
-                    (s.spec.min is not None and value < s.spec.min - 1e-9 * abs(s.spec.min))
-                    or (s.spec.max is not None and value > s.spec.max + 1e-9 * abs(s.spec.max))):
-                rec["errors"].append(f"{s.spec.name} {value:g} outside "
-                                     f"[{s.spec.min:g}, {s.spec.max:g}]")
+            chs = self._channels[ch]
+        except KeyError:
+            chs = self._channels[ch] = str(ch)
+        except TypeError:  # an unhashable channel object
+            chs = str(ch)
+        fields: dict[str, Any] = {}
+        labels: dict[str, Any] = {}
+        invalid: list[str] = []
+        errors: list[str] = []
+        dec = None if msg.is_extended_id else self.by_id.get(fid)
+        rec: dict[str, Any] = {
+            "kind": "message", "protocol": "CAN", "name": None if dec is None else dec.name,
+            "length": len(data), "direction": None, "time": msg.timestamp, "frames": [index],
+            "header": {"id": fid, "channel": chs},
+            "fields": fields, "labels": labels, "invalid": invalid, "short_dlc": False,
+            "errors": errors,
+        }
+        if dec is None:
+            errors.append(_unknown(fid))
+        elif len(data) == dec.dlc:
+            dec._fast(data, fields, labels, invalid, errors)
+        else:
+            dec.decode_into(bytes(data), rec)
         return rec
 
-
-@dataclass
-class _IdStats:
-    name: str | None
-    count: int = 0
-    last: float | None = None
-    intervals: list[float] = field(default_factory=list)
+    def decode_all(self, messages: Iterator[Any]) -> Iterator[dict[str, Any]]:
+        for i, m in enumerate(messages):
+            yield self.decode(m, i)
 
 
-class CanStats:
-    """Streaming statistics: frames per ID, cycle time against the spec, value problems."""
-
-    MAX_INTERVALS = 100_000  # per ID: memory stays bounded whatever the log size
-
-    def __init__(self, decoder: CanDecoder) -> None:
-        self.decoder = decoder
-        self.frames = 0
-        self.ids: dict[int, _IdStats] = {}
-        self.unknown: Counter[int] = Counter()
-        self.dlc_errors: Counter[str] = Counter()
-        self.invalid: defaultdict[str, Counter[str]] = defaultdict(Counter)
-        self.out_of_range: defaultdict[str, Counter[str]] = defaultdict(Counter)
-        self.first: float | None = None
-        self.last: float | None = None
-
-    def add(self, rec: dict[str, Any]) -> None:
-        self.frames += 1
-        t, fid, name = rec["time"], rec["header"]["id"], rec["name"]
-        self.first = t if self.first is None else min(self.first, t)
-        self.last = t if self.last is None else max(self.last, t)
-        if name is None:
-            self.unknown[fid] += 1
-            return
-        st = self.ids.setdefault(fid, _IdStats(name))
-        st.count += 1
-        if st.last is not None and len(st.intervals) < self.MAX_INTERVALS:
-            st.intervals.append(t - st.last)
-        st.last = t
-        for s in rec["invalid"]:
-            self.invalid[name][s] += 1
-        for e in rec["errors"]:
-            if e.startswith("DLC"):
-                self.dlc_errors[name] += 1
-            elif " outside " in e:
-                self.out_of_range[name][e.split(" ", 1)[0]] += 1
-
-    def result(self) -> dict[str, Any]:
-        per_id = []
-        for fid, st in sorted(self.ids.items()):
-            spec = self.decoder.spec_for(fid)
-            cyc = spec.cycle_ms if spec else None
-            med = statistics.median(st.intervals) * 1000 if st.intervals else None
-            mean = statistics.fmean(st.intervals) * 1000 if st.intervals else None
-            per_id.append({
-                "id": fid, "name": st.name, "frames": st.count, "spec_cycle_ms": cyc,
-                "median_cycle_ms": None if med is None else round(med, 3),
-                "mean_cycle_ms": None if mean is None else round(mean, 3),
-                "cycle_deviation_pct": None if med is None or not cyc
-                else round(100.0 * (med - cyc) / cyc, 2),
-                "invalid": dict(self.invalid.get(st.name or "", {})),
-                "out_of_range": dict(self.out_of_range.get(st.name or "", {})),
-                "dlc_errors": self.dlc_errors.get(st.name or "", 0),
-            })
-        return {"kind": "stats", "protocol": self.decoder.protocol.name, "frames": self.frames,
-                "duration_s": None if self.first is None or self.last is None
-                else round(self.last - self.first, 6),
-                "unknown_ids": {f"0x{k:X}": v for k, v in sorted(self.unknown.items())},
-                "invalid_values": sum(sum(c.values()) for c in self.invalid.values()),
-                "out_of_range_values": sum(sum(c.values()) for c in self.out_of_range.values()),
-                "ids": per_id}
+@cache
+def _unknown(fid: int) -> str:
+    return f"unknown ID 0x{fid:X}"
 
 
-def human_stats(s: dict[str, Any]) -> str:
-    lines = [f"{s['frames']} frames over {s['duration_s']} s, protocol {s['protocol']}; "
-             f"unknown IDs {s['unknown_ids'] or 'none'}; invalid values {s['invalid_values']}, "
-             f"out of range {s['out_of_range_values']}",
-             f"{'ID':>6s} {'message':30s} {'frames':>7s} {'cycle ms':>9s} {'spec':>6s} "
-             f"{'dev %':>7s}  invalid / out of range"]
-    for r in s["ids"]:
-        med = "-" if r["median_cycle_ms"] is None else f"{r['median_cycle_ms']:.1f}"
-        dev = "-" if r["cycle_deviation_pct"] is None else f"{r['cycle_deviation_pct']:+.1f}"
-        probs = ", ".join([f"{k} invalid x{v}" for k, v in r["invalid"].items()]
-                          + [f"{k} out of range x{v}" for k, v in r["out_of_range"].items()])
-        lines.append(f"0x{r['id']:04X} {r['name']:30s} {r['frames']:7d} {med:>9s} "
-                     f"{r['spec_cycle_ms']!s:>6s} {dev:>7s}  {probs}")
-    return "\n".join(lines)
+def table_record(rec: dict[str, Any], raw_invalid: bool = False) -> dict[str, Any]:
+    """``rec`` for ``--csv``/``--parquet``: a value at its invalid value is empty (NULL), as the
+    ``invalid`` list marks it in JSON; ``raw_invalid`` keeps the decoded number."""
+    if raw_invalid or not rec["invalid"]:
+        return rec
+    fields = dict(rec["fields"])
+    for name in rec["invalid"]:
+        fields[name] = None
+    return {**rec, "fields": fields}
 
 
 def human_record(r: dict[str, Any]) -> str:
@@ -226,5 +295,7 @@ def human_record(r: dict[str, Any]) -> str:
         if k in r["invalid"]:
             text += " (invalid)"
         parts.append(f"{k}={text}")
+    if r.get("short_dlc"):
+        parts.append(f"(short DLC {r['length']})")
     errs = f"  !! {'; '.join(r['errors'])}" if r["errors"] else ""
     return f"{head} {' '.join(parts)}{errs}"

@@ -9,7 +9,9 @@ injected clock, so it runs in virtual time as in real time. ``handle_timer(now)`
 mapping of ``specs/can/mapping.yaml`` (C4) for every message due, turns physical values into raw
 values as the signal's spec says (range -> clamp or invalid value; uncomputable -> invalid value),
 packs them with the cantools database built from ``specs/can/`` and queues :class:`CanFrame`.
-``frames()`` hands them out. A repeated message (0x739 + 3*i) sends one frame per slot item.
+``frames()`` hands them out. A repeated message (0x739 + 3*i) sends one frame per slot item; items
+beyond its slots (ExtLogData2 has 13 obstacle slots, decision C7, for up to 15 EyeQ4 objects) are
+not sent and counted in ``counters.slot_overflow``.
 
 :class:`GatewayNode` wraps the host node for a runner: the runner sees one node whose timer is
 the earlier of the host's and the gateway's, and every frame goes to a sink (``sinks.py``).
@@ -52,6 +54,8 @@ class GatewayCounters:
     invalid: Counter[str] = field(default_factory=Counter)  # sent as invalid: out of range
     missing: Counter[str] = field(default_factory=Counter)  # no value: invalid or 0 sent
     stepped: Counter[str] = field(default_factory=Counter)  # valid value moved off the invalid raw
+    # slot items with no slot left, per message (C7: 13 obstacle slots for up to 15 objects)
+    slot_overflow: Counter[str] = field(default_factory=Counter)
     dasp_messages: int = 0
 
 
@@ -221,7 +225,9 @@ class CanGateway:
         else:
             got = p.slots(env)
             items = list(got) if isinstance(got, list) else []
-            items = items[: len(p.db_messages)]
+            if len(items) > len(p.db_messages):
+                self.counters.slot_overflow[p.message.name] += len(items) - len(p.db_messages)
+                items = items[: len(p.db_messages)]
         for i, item in enumerate(items):
             env["i"], env["o"] = i, item
             # an unmapped signal (mapping.yaml `unmapped`, C4) sends its invalid value or

@@ -113,7 +113,9 @@ class CanOutput:
         c = self.gateway.counters
         return {"target": self.sink.target, "protocol": self.gateway.protocol.name,
                 "frames": sum(c.frames.values()), "send_errors": self.sink.errors,
-                "clamped": sum(c.clamped.values()), "invalid": sum(c.invalid.values())}
+                "clamped": sum(c.clamped.values()), "invalid": sum(c.invalid.values()),
+                # objects beyond the 13 ExtLogData2 obstacle slots (C7), not sent
+                "slot_overflow": dict(c.slot_overflow)}
 
 
 def attach(host: Any, runner: Any, *, target: str, protocol: str) -> CanOutput:

@@ -252,8 +252,14 @@ def _parquet_writer(pq: Any, path: Path, schema: Any) -> Any:
 class TableWriter:
     """One table per message type, flattened field names: CSV files or Parquet files."""
 
-    def __init__(self, directory: str, fmt: str, batch: int = 2000) -> None:
+    def __init__(self, directory: str, fmt: str, batch: int = 2000,
+                 column_type: Any = None) -> None:
+        """``column_type(table, column)`` may name the Arrow type ("float64", "int64",
+        "string") of a column whose first rows are all empty (NULL): a Parquet file's schema is
+        fixed by its first row group, which must not say ``null`` for a column that has values
+        later (a CAN signal at its invalid value until the first measurement)."""
         self.dir = Path(directory)
+        self.column_type = column_type
         try:
             self.dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -332,8 +338,22 @@ class TableWriter:
         pending.clear()
         w = self._pq.get(name)
         if w is None:
-            w = self._pq[name] = _parquet_writer(pq, self.dir / f"{name}.parquet", table.schema)
+            w = self._pq[name] = _parquet_writer(pq, self.dir / f"{name}.parquet",
+                                                 self._schema(name, table.schema))
         w.write_table(table if table.schema.equals(w.schema) else table.cast(w.schema))
+
+    def _schema(self, name: str, schema: Any) -> Any:
+        """``schema`` with its all-NULL columns typed by ``column_type`` where it knows them."""
+        import pyarrow as pa
+
+        if self.column_type is None:
+            return schema
+        for i, f in enumerate(schema):
+            if pa.types.is_null(f.type):
+                alias = self.column_type(name, f.name)
+                if alias is not None:
+                    schema = schema.set(i, pa.field(f.name, pa.type_for_alias(alias)))
+        return schema
 
     def _write_csv(self, name: str, row: dict[str, Any]) -> None:
         entry = self._csv.get(name)
@@ -359,7 +379,8 @@ class TableWriter:
         table = pa.Table.from_pylist(rows)
         w = self._pq.get(name)
         if w is None:
-            w = self._pq[name] = _parquet_writer(pq, self.dir / f"{name}.parquet", table.schema)
+            w = self._pq[name] = _parquet_writer(pq, self.dir / f"{name}.parquet",
+                                                 self._schema(name, table.schema))
         w.write_table(table if table.schema.equals(w.schema) else table.cast(w.schema))
         rows.clear()
 

@@ -21,8 +21,9 @@ PROTOCOL_KEYS = frozenset({"name", "title", "seeds", "bitrate", "seed", "seed_li
 MESSAGE_KEYS = frozenset({"name", "id", "dlc", "cycle_ms", "slots", "section", "seed",
                           "seed_line", "signals", "reconstruction", "differences", "description"})
 SIGNAL_KEYS = frozenset({"name", "start", "length", "byte_order", "signed", "scale", "offset",
-                         "unit", "min", "max", "invalid", "out_of_range", "enum", "float", "seed",
-                         "seed_line", "seed_form", "description", "reconstruction", "invented"})
+                         "unit", "min", "max", "invalid", "invalid_means", "out_of_range", "enum",
+                         "float", "seed", "seed_line", "seed_form", "description",
+                         "reconstruction", "invented"})
 SLOT_KEYS = frozenset({"count", "stride", "seed_line", "rule"})
 MAPPING_KEYS = frozenset({"expr", "reason", "seed_line"})
 MESSAGE_MAPPING_KEYS = frozenset({"signals", "slots", "unmapped"})
@@ -41,6 +42,9 @@ class CanSignal:
     min: float | None = None
     max: float | None = None
     invalid: int | None = None  # raw bit pattern as printed (0x800), see raw_invalid
+    # the normal state the printed invalid value also denotes (Failsafe 0 = No_Failsafe):
+    # such a value is not reported invalid (decision C8)
+    invalid_means: str | None = None
     out_of_range: str = "clamp"  # "clamp" | "invalid"
     enum: str | None = None
     is_float: bool = False
@@ -56,6 +60,15 @@ class CanSignal:
         if self.signed and self.invalid >= 1 << (self.length - 1):
             return self.invalid - (1 << self.length)
         return self.invalid
+
+    @property
+    def reported_invalid(self) -> int | None:
+        """The raw value a decoder reports as invalid: none when it is also a normal state."""
+        return None if self.invalid_means is not None else self.raw_invalid
+
+    def covered_bytes(self) -> int:
+        """How many leading bytes of the payload hold this signal (decision C8 short DLC)."""
+        return max(self.bits()) // 8 + 1
 
     @property
     def raw_limits(self) -> tuple[int, int]:
@@ -193,6 +206,8 @@ def _check_signal(where: str, s: Any, dlc: int, enums: dict[str, Any]) -> list[s
     if "invalid" in s and (not isinstance(s["invalid"], int) or
                            not 0 <= s["invalid"] < 1 << s["length"]):
         out.append(f"{where}: invalid must be a raw value that fits {s['length']} bits")
+    if "invalid_means" in s and ("invalid" not in s or not isinstance(s["invalid_means"], str)):
+        out.append(f"{where}: invalid_means names the state an invalid value also means")
     if "enum" in s and s["enum"] not in enums:
         out.append(f"{where}: unknown enum {s['enum']!r}")
     if s.get("float") and s["length"] != 32:
@@ -367,6 +382,7 @@ def _signal(s: dict[str, Any]) -> CanSignal:
         byte_order=s.get("byte_order", "little_endian"), signed=bool(s.get("signed", False)),
         scale=s.get("scale", 1), offset=s.get("offset", 0), unit=s.get("unit"),
         min=s.get("min"), max=s.get("max"), invalid=s.get("invalid"),
+        invalid_means=s.get("invalid_means"),
         out_of_range=s.get("out_of_range", "clamp"), enum=s.get("enum"),
         is_float=bool(s.get("float", False)), seed_line=int(s.get("seed_line", 0)),
         description=s.get("description"),
@@ -403,6 +419,13 @@ def _load_docs() -> dict[str, Any]:
         except (OSError, yaml.YAMLError) as exc:
             raise SpecError(f"{path}: {exc}") from exc
     return out
+
+
+@cache
+def can_documents() -> dict[str, Any]:
+    """The YAML documents of ``specs/can/`` as loaded (with their notes: ``reconstruction``,
+    ``differences``, ``description``), for tools that explain a reading."""
+    return _load_docs()
 
 
 @cache

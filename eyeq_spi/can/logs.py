@@ -1,0 +1,219 @@
+"""Reading CAN log files through python-can's readers, and telling a truncated log from a
+complete one.
+
+python-can's readers stop quietly at the end of what a file holds: a BLF cut inside a container,
+an ASC, candump or TRC file cut inside a line gives the frames before the cut and no error. So
+after the reader ends, :func:`read_log` checks the file itself: a BLF whose header announces more
+bytes than the file has, a text log whose last line has no line end (or an ASC without its
+``End TriggerBlock``), an MF4 that cannot be opened although it starts like one. It then raises
+:class:`CanLogTruncatedError`, which says how much was read; the frames before it have been
+yielded (and decoded) already.
+"""
+
+from __future__ import annotations
+
+import gc
+import struct
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.can.dbc import require_cantools
+from eyeq_spi.errors import AdapterError, EyeqError, UsageError
+
+READ_SUFFIXES = (".blf", ".asc", ".log", ".trc", ".mf4", ".csv")
+TEXT_SUFFIXES = (".asc", ".log", ".trc", ".csv")
+
+
+class CanLogError(EyeqError):
+    """A CAN log cannot be read (missing, unknown format, corrupt)."""
+
+
+class CanBusError(AdapterError):
+    """A live CAN bus cannot be opened or read."""
+
+
+class CanLogTruncatedError(CanLogError):
+    """A CAN log ends inside a record or container: what was before the cut has been read."""
+
+    def __init__(self, message: str, frames: int) -> None:
+        super().__init__(message)
+        self.frames = frames
+
+
+def _blf_announced_size(p: Path) -> int | None:
+    """The file size a BLF header announces (0/None when the writer never finished it)."""
+    try:
+        with p.open("rb") as fh:
+            head = fh.read(48)
+    except OSError:
+        return None
+    if len(head) < 48 or head[:4] != b"LOGG":
+        return None
+    # "LOGG", header size, API number, app id/versions (4 x u8), then file size (u64)
+    size: int = struct.unpack_from("<Q", head, 16)[0]
+    return size or None
+
+
+def _text_cut(p: Path, suffix: str) -> str | None:
+    """Why a text log looks cut, or None."""
+    try:
+        with p.open("rb") as fh:
+            head = fh.read(4096)
+            size = fh.seek(0, 2)
+            if size == 0:
+                return None
+            fh.seek(max(0, size - 4096))
+            tail = fh.read()
+    except OSError:
+        return None
+    if not tail.endswith(b"\n"):
+        return "its last line has no line end"
+    if suffix == ".asc" and b"begin triggerblock" in head.lower():
+        # Vector's block: a file that opens it ends with it (converters that write neither,
+        # as can-utils' log2asc, are judged by their last line only)
+        last = tail.rstrip().rsplit(b"\n", 1)[-1].strip().lower()
+        if not last.startswith(b"end triggerblock"):
+            return "it has no 'End TriggerBlock'"
+    return None
+
+
+def truncation(p: Path, frames: int) -> str | None:
+    """A one-line description of how ``p`` is truncated after ``frames`` frames, or None."""
+    suffix = p.suffix.lower()
+    try:
+        size = p.stat().st_size
+    except OSError:
+        return None
+    if suffix == ".blf":
+        want = _blf_announced_size(p)
+        if want is not None and size < want:
+            return (f"{p}: truncated BLF: the file has {size} of the {want} bytes its header "
+                    f"announces; {frames} frames read")
+    elif suffix in TEXT_SUFFIXES:
+        why = _text_cut(p, suffix)
+        if why is not None:
+            return f"{p}: truncated {suffix} log ({why}); {frames} frames read, {size} bytes"
+    return None
+
+
+def read_log(path: str) -> Iterator[Any]:
+    """python-can messages of one log file, in file order; :class:`CanLogTruncatedError` after
+    the last frame when the file ends inside a record or container."""
+    require_cantools()
+    import can
+
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in READ_SUFFIXES:
+        raise CanLogError(f"{path}: unknown CAN log format {p.suffix!r} "
+                          f"(one of {', '.join(READ_SUFFIXES)})")
+    if not p.is_file():
+        raise CanLogError(f"{path}: no such file")
+    try:
+        reader = _open(can, p)
+    except ImportError as exc:
+        raise CanLogError(f"{path}: this format needs {exc.name or exc} "
+                          "(pip install asammdf for .mf4)") from exc
+    except Exception as exc:  # python-can raises many kinds on a foreign file
+        if suffix == ".mf4" and _starts_like_mf4(p):
+            raise CanLogTruncatedError(
+                f"{path}: truncated or damaged MF4 ({p.stat().st_size} bytes, which asammdf "
+                f"cannot open: {exc}); 0 frames read", 0) from exc
+        raise CanLogError(f"{path}: not a readable {p.suffix} CAN log: {exc}") from exc
+    frames = 0
+    try:
+        for msg in reader:
+            frames += 1
+            yield msg
+    except EyeqError:
+        raise
+    except Exception as exc:  # cut or corrupt content
+        why = truncation(p, frames)
+        if why is not None:
+            raise CanLogTruncatedError(why, frames) from exc
+        raise CanLogError(f"{path}: corrupt {p.suffix} CAN log after {frames} frames: "
+                          f"{exc}") from exc
+    finally:
+        stop = getattr(reader, "stop", None)
+        if callable(stop):
+            stop()
+    why = truncation(p, frames)
+    if why is not None:
+        raise CanLogTruncatedError(why, frames)
+
+
+class _OpenError(Exception):
+    pass
+
+
+def _open(can: Any, p: Path) -> Any:
+    """python-can's reader for ``p``. asammdf leaves a half-built object whose ``__del__``
+    raises when an MF4 cannot be opened: it is collected here, its noise swallowed."""
+    if p.suffix.lower() != ".mf4":
+        return can.LogReader(str(p))
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda _u: None
+    try:
+        try:
+            return can.LogReader(str(p))
+        except ImportError:
+            raise
+        except Exception as exc:
+            text = f"{type(exc).__name__}: {exc}"
+        raise _OpenError(text)
+    finally:
+        gc.collect()
+        sys.unraisablehook = hook
+
+
+def _starts_like_mf4(p: Path) -> bool:
+    try:
+        with p.open("rb") as fh:
+            return fh.read(8) in (b"MDF     ", b"UnFinMF ")
+    except OSError:
+        return False
+
+
+def open_bus(target: str) -> Any:
+    """A python-can bus for ``INTERFACE:CHANNEL`` (``virtual:NAME``, ``socketcan:vcan0``...)."""
+    require_cantools()
+    import can
+
+    interface, sep, channel = target.partition(":")
+    if not interface or not sep or not channel:
+        raise UsageError(f"--bus {target!r}: give INTERFACE:CHANNEL, e.g. virtual:camera or "
+                         "socketcan:can0")
+    try:
+        return can.Bus(interface=interface, channel=channel, receive_own_messages=False)
+    except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:
+        raise CanBusError(f"cannot open CAN bus {target!r}: {exc}") from exc
+
+
+def read_bus(bus: Any, *, duration: float | None = None, count: int | None = None,
+             now: Callable[[], float] | None = None, poll: float = 0.2) -> Iterator[Any]:
+    """python-can messages received on ``bus`` until ``count`` frames or ``duration`` seconds
+    on the clock ``now`` (default: the monotonic clock) have passed; error frames are skipped.
+    The caller shuts the bus down."""
+    import time
+
+    import can
+
+    clock = now or time.monotonic
+    end = None if duration is None else clock() + duration
+    n = 0
+    while count is None or n < count:
+        timeout = poll if end is None else max(0.0, min(poll, end - clock()))
+        try:
+            msg = bus.recv(timeout)
+        except (can.CanError, OSError, ValueError) as exc:
+            raise CanBusError(f"CAN bus read failed after {n} frames: {exc}") from exc
+        if msg is None:
+            if end is not None and clock() >= end:
+                return
+            continue
+        if msg.is_error_frame or msg.is_remote_frame:
+            continue
+        n += 1
+        yield msg

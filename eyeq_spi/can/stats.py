@@ -1,0 +1,251 @@
+"""``can decode --stats``: frames per channel and ID, cycle time against the spec, DLC errors,
+short DLCs (decision C8), invalid and out-of-range values per signal.
+
+Frames are only collected per (channel, ID) while the log is read (timestamp and payload); each
+ID is decoded in chunks with numpy, signal by signal, with the same compiled
+:class:`~eyeq_spi.can.decode.MessageDecoder` as the per-frame decoder. Decision C9: cycle times
+that differ from the seed's are shown as deviations, never counted as errors.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field
+from typing import Any
+
+from eyeq_spi.can.decode import CanDecoder, MessageDecoder
+
+CHUNK = 1 << 15  # frames per (channel, ID) decoded at once: memory stays bounded
+
+
+@dataclass
+class _Key:
+    name: str | None
+    frames: int = 0
+    error_frames: int = 0
+    dlc_errors: int = 0
+    short_dlc: int = 0
+    last: float | None = None
+    intervals: list[Any] = field(default_factory=list)  # numpy arrays (ms)
+    n_intervals: int = 0
+    invalid: Counter[str] = field(default_factory=Counter)
+    out_of_range: Counter[str] = field(default_factory=Counter)
+
+
+class CanStats:
+    """Streaming statistics of one protocol; ``channel`` keeps only that channel's frames."""
+
+    MAX_INTERVALS = 100_000  # per ID
+
+    def __init__(self, decoder: CanDecoder, channel: str | None = None) -> None:
+        self.decoder = decoder
+        self.channel = channel
+        # (times, payloads, times.append, payloads.append) per (channel, ID, extended)
+        self._buf: dict[tuple[Any, int, bool], tuple[list[float], list[bytes], Any, Any]] = {}
+        self._keys: dict[tuple[str | None, int], _Key] = {}
+        self.per_channel: Counter[str | None] = Counter()
+        self.unknown: Counter[int] = Counter()
+        self.first: float | None = None
+        self.last: float | None = None
+
+    def add(self, msg: Any) -> None:
+        """One python-can message."""
+        self.add_all((msg,))
+
+    def add_all(self, messages: Any) -> None:
+        """python-can messages (the hot path: one append per frame)."""
+        buffers = self._buf
+        get = buffers.get
+        for msg in messages:
+            key = (msg.channel, msg.arbitration_id, msg.is_extended_id)
+            buf = get(key)
+            if buf is None:
+                times: list[float] = []
+                datas: list[bytes] = []
+                buf = buffers[key] = (times, datas, times.append, datas.append)
+            buf[2](msg.timestamp)
+            buf[3](msg.data)
+            if len(buf[0]) >= CHUNK:
+                self._flush(key)
+
+    def _flush(self, key: tuple[Any, int, bool]) -> None:
+        import numpy as np
+
+        times, datas, _, _ = self._buf.pop(key)
+        ch_raw, fid, ext = key
+        ch = None if ch_raw is None else str(ch_raw)
+        n = len(times)
+        self.per_channel[ch] += n
+        if self.channel is not None and ch != self.channel:
+            return
+        t = np.asarray(times, dtype=np.float64)
+        lo, hi = float(t.min()), float(t.max())
+        self.first = lo if self.first is None else min(self.first, lo)
+        self.last = hi if self.last is None else max(self.last, hi)
+        dec = None if ext else self.decoder.by_id.get(fid)
+        if dec is None:
+            self.unknown[fid] += n
+            return
+        st = self._keys.setdefault((ch, fid), _Key(dec.name))
+        st.frames += n
+        if st.n_intervals < self.MAX_INTERVALS:
+            prev = t if st.last is None else np.concatenate(([st.last], t))
+            iv = np.diff(prev) * 1000.0
+            st.intervals.append(iv)
+            st.n_intervals += len(iv)
+        st.last = float(t[-1])
+        self._decode(dec, datas, st)
+
+    def _decode(self, dec: MessageDecoder, datas: list[bytes], st: _Key) -> None:
+        import numpy as np
+
+        n = len(datas)
+        sizes = set(map(len, datas))
+        if len(sizes) == 1:  # the usual case: one length per ID (8, or the camera's short 4)
+            size = sizes.pop()
+            lens = np.full(n, size, dtype=np.int64)
+            arr = np.frombuffer(b"".join(datas), dtype=np.uint8).reshape(n, size)[:, :dec.dlc]
+            if size < dec.dlc:
+                arr = np.pad(arr, ((0, 0), (0, dec.dlc - size)))
+        else:
+            lens = np.fromiter(map(len, datas), dtype=np.int64, count=n)
+            arr = np.frombuffer(b"".join(bytes(d[:dec.dlc]).ljust(dec.dlc, b"\0") for d in datas),
+                                dtype=np.uint8).reshape(n, dec.dlc)
+        short = (lens < dec.dlc) & (lens >= dec.needed)
+        bad_dlc = (lens != dec.dlc) & ~short
+        have = np.where(bad_dlc, np.minimum(lens, dec.dlc), dec.dlc)
+        st.short_dlc += int(short.sum())
+        st.dlc_errors += int(bad_dlc.sum())
+        full = np.zeros((n, 8), dtype=np.uint8)
+        full[:, :dec.dlc] = arr
+        le = full.view("<u8").ravel()
+        be = full.view(">u8").ravel().astype(np.uint64)
+        pad = (8 - dec.dlc) * 8
+        err = bad_dlc.copy()
+        with np.errstate(invalid="ignore", over="ignore"):  # NaN floats: not finite, skipped
+            for s in dec.signals:
+                self._signal(s, le, be, pad, have, st, err)
+        st.error_frames += int(err.sum())
+
+    @staticmethod
+    def _signal(s: Any, le: Any, be: Any, pad: int, have: Any, st: _Key, err: Any) -> None:
+        import numpy as np
+
+        n = len(le)
+        present = have >= s.nbytes
+        word = be if s.big_endian else le
+        shift = s.shift + pad if s.big_endian else s.shift
+        raw_u = (word >> np.uint64(shift)) & np.uint64(s.mask)
+        phys: Any
+        if s.spec.is_float:
+            phys = raw_u.astype(np.uint32).view(np.float32).astype(np.float64)
+            raw = raw_u.astype(np.int64)
+        else:
+            raw = raw_u.astype(np.int64)
+            if s.sign_bit:
+                raw = np.where(raw & s.sign_bit, raw - (s.mask + 1), raw)
+            phys = raw * float(s.scale) + float(s.offset)
+        if s.invalid is not None:
+            inv = present & (raw == s.invalid)
+            k = int(inv.sum())
+            if k:
+                st.invalid[s.spec.name] += k
+        else:
+            inv = np.zeros(n, dtype=bool)
+        oor = np.zeros(n, dtype=bool)
+        if s.low is not None:
+            oor |= phys < s.low
+        if s.high is not None:
+            oor |= phys > s.high
+        oor &= present & ~inv & np.isfinite(phys)
+        k = int(oor.sum())
+        if k:
+            st.out_of_range[s.spec.name] += k
+            err |= oor
+
+    def finish(self) -> None:
+        for key in list(self._buf):
+            self._flush(key)
+
+    @property
+    def frames(self) -> int:
+        return sum(s.frames for s in self._keys.values()) + sum(self.unknown.values())
+
+    @property
+    def error_frames(self) -> int:
+        """Frames with an error (unknown ID, bad DLC, a value out of range): exit 1."""
+        return sum(s.error_frames for s in self._keys.values()) + sum(self.unknown.values())
+
+    def result(self) -> dict[str, Any]:
+        import numpy as np
+
+        self.finish()
+        per_id: list[dict[str, Any]] = []
+        id_channels: defaultdict[int, list[str | None]] = defaultdict(list)
+        for (ch, fid), st in sorted(self._keys.items(), key=lambda kv: (kv[0][1], str(kv[0][0]))):
+            id_channels[fid].append(ch)
+            spec = self.decoder.spec_for(fid)
+            cyc = spec.cycle_ms if spec else None
+            iv = np.concatenate(st.intervals)[:self.MAX_INTERVALS] if st.intervals else None
+            med = float(np.median(iv)) if iv is not None and len(iv) else None
+            mean = float(np.mean(iv)) if iv is not None and len(iv) else None
+            per_id.append({
+                "id": fid, "channel": ch, "name": st.name, "frames": st.frames,
+                "spec_cycle_ms": cyc,
+                "median_cycle_ms": None if med is None else round(med, 3),
+                "mean_cycle_ms": None if mean is None else round(mean, 3),
+                "cycle_deviation_pct": None if med is None or not cyc
+                else round(100.0 * (med - cyc) / cyc, 2),
+                "invalid": dict(st.invalid), "out_of_range": dict(st.out_of_range),
+                "dlc_errors": st.dlc_errors, "short_dlc": st.short_dlc,
+                "error_frames": st.error_frames,
+            })
+        shared = {f"0x{fid:X}": sorted(str(c) for c in chs)
+                  for fid, chs in sorted(id_channels.items()) if len(chs) > 1}
+        return {"kind": "stats", "protocol": self.decoder.protocol.name, "frames": self.frames,
+                "channel": self.channel,
+                "channels": {str(k): v for k, v in sorted(self.per_channel.items(),
+                                                          key=lambda kv: str(kv[0]))},
+                "ids_on_several_channels": shared,
+                "duration_s": None if self.first is None or self.last is None
+                else round(self.last - self.first, 6),
+                "unknown_ids": {f"0x{k:X}": v for k, v in sorted(self.unknown.items())},
+                "error_frames": self.error_frames,
+                "dlc_errors": sum(r["dlc_errors"] for r in per_id),
+                "short_dlc": sum(r["short_dlc"] for r in per_id),
+                "invalid_values": sum(sum(r["invalid"].values()) for r in per_id),
+                "out_of_range_values": sum(sum(r["out_of_range"].values()) for r in per_id),
+                "ids": per_id}
+
+
+def human_stats(s: dict[str, Any]) -> str:
+    chans = ", ".join(f"{k}: {v}" for k, v in s["channels"].items())
+    lines = [f"{s['frames']} frames over {s['duration_s']} s, protocol {s['protocol']}"
+             + (f", channel {s['channel']}" if s["channel"] is not None else ""),
+             f"channels (all frames in the log): {chans or 'none'}"]
+    if s["ids_on_several_channels"] and s["channel"] is None:
+        ids = "; ".join(f"{k} on {', '.join(v)}" for k, v in s["ids_on_several_channels"].items())
+        lines.append(f"note: protocol IDs on several channels ({ids}): pick the camera's with "
+                     "--channel")
+    lines.append(f"errors: {s['error_frames']} frames (unknown IDs "
+                 f"{s['unknown_ids'] or 'none'}, DLC errors {s['dlc_errors']}, values out of "
+                 f"range {s['out_of_range_values']}); short DLCs {s['short_dlc']} (accepted); "
+                 f"invalid values {s['invalid_values']}")
+    several = any(r["channel"] != s["ids"][0]["channel"] for r in s["ids"]) if s["ids"] else False
+    lines.append(f"{'ID':>6s} {'ch':>3s} {'message':26s} {'frames':>7s} {'cycle ms':>9s} "
+                 f"{'spec':>5s} {'dev %':>7s}  DLC / invalid / out of range"
+                 if several else
+                 f"{'ID':>6s} {'message':26s} {'frames':>7s} {'cycle ms':>9s} {'spec':>5s} "
+                 f"{'dev %':>7s}  DLC / invalid / out of range")
+    for r in s["ids"]:
+        med = "-" if r["median_cycle_ms"] is None else f"{r['median_cycle_ms']:.1f}"
+        dev = "-" if r["cycle_deviation_pct"] is None else f"{r['cycle_deviation_pct']:+.1f}"
+        probs = ([f"DLC errors x{r['dlc_errors']}"] if r["dlc_errors"] else []) \
+            + ([f"short DLC x{r['short_dlc']}"] if r["short_dlc"] else []) \
+            + [f"{k} invalid x{v}" for k, v in r["invalid"].items()] \
+            + [f"{k} out of range x{v}" for k, v in r["out_of_range"].items()]
+        ch = f" {r['channel'] or '-':>3s}" if several else ""
+        spec = "-" if r["spec_cycle_ms"] is None else f"{r['spec_cycle_ms']:g}"
+        lines.append(f"0x{r['id']:04X}{ch} {r['name']:26s} {r['frames']:7d} {med:>9s} "
+                     f"{spec:>5s} {dev:>7s}  {', '.join(probs)}")
+    return "\n".join(lines)

@@ -1,0 +1,167 @@
+"""``eyeq-spi monitor --can-bus INTERFACE:CHANNEL``: a live view of a Mobileye CAN bus, in the
+manner of ``cantools monitor``: one line per frame ID with its message name, frame count, cycle
+time against the spec, and the newest decoded signals (invalid values marked, errors in red).
+
+:class:`CanBusView` is sans-IO: ``add(msg, now)`` for each received frame, ``lines(width,
+height)`` for the screen. :func:`run_can_monitor` reads the bus (``eyeq_spi.can.logs``) between
+redraws and draws with rich ``Live``, as the protocol monitor does.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from eyeq_spi.monitor.view import rich_modules
+
+
+@dataclass
+class _Row:
+    name: str | None
+    count: int = 0
+    last: float | None = None
+    cycle_ms: float | None = None  # smoothed interval
+    spec_ms: float | None = None
+    rec: dict[str, Any] = field(default_factory=dict)
+    errors: int = 0
+
+
+class CanBusView:
+    """Frames per (channel, ID), cycle times and the newest decoded values."""
+
+    def __init__(self, proto: str, source: str) -> None:
+        from eyeq_spi.can.decode import CanDecoder
+
+        self.decoder = CanDecoder(proto)
+        self.source = source
+        self.rows: dict[tuple[str | None, int], _Row] = {}
+        self.frames = 0
+        self.error_frames = 0
+        self.now = 0.0
+        self.done = False
+
+    def add(self, msg: Any, now: float) -> None:
+        self.now = now
+        rec = self.decoder.decode(msg, self.frames)
+        self.frames += 1
+        key = (rec["header"]["channel"], rec["header"]["id"])
+        row = self.rows.get(key)
+        if row is None:
+            spec = self.decoder.spec_for(key[1])
+            row = self.rows[key] = _Row(rec["name"], spec_ms=spec.cycle_ms if spec else None)
+        t = float(msg.timestamp) if msg.timestamp else now
+        if row.last is not None and t > row.last:
+            dt = (t - row.last) * 1000.0
+            row.cycle_ms = dt if row.cycle_ms is None else 0.8 * row.cycle_ms + 0.2 * dt
+        row.last = t
+        row.count += 1
+        row.rec = rec
+        if rec["errors"]:
+            row.errors += 1
+            self.error_frames += 1
+
+    def lines(self, width: int = 120, height: int | None = None) -> list[Any]:
+        Text = rich_modules().Text
+        head = Text.assemble(("eyeq-spi monitor ", "bold"), (self.source, "cyan"),
+                             f"   {self.decoder.protocol.name}   frames {self.frames}   ",
+                             (f"errors {self.error_frames}",
+                              "bold red" if self.error_frames else "green"),
+                             ("   finished" if self.done else "", "dim"))
+        out = [head, Text(f"{'ch':>4s} {'ID':>5s} {'message':22s} {'count':>7s} "
+                          f"{'cycle':>6s} {'spec':>4s}  signals", style="bold")]
+        for (ch, fid), row in sorted(self.rows.items(), key=lambda kv: (kv[0][1],
+                                                                         str(kv[0][0]))):
+            rec = row.rec
+            cyc = "-" if row.cycle_ms is None else f"{row.cycle_ms:.0f}"
+            spec = "-" if row.spec_ms is None else f"{row.spec_ms:g}"
+            line = Text(f"{ch or '-':>4s} {fid:5X} {(row.name or '?')[:22]:22s} {row.count:7d} "
+                        f"{cyc:>6s} {spec:>4s}  ")
+            if rec["errors"]:  # first: a narrow terminal crops the signals, not the errors
+                line.append("; ".join(rec["errors"]) + "  ", style="red")
+            for k, v in rec["fields"].items():
+                text = f"{v:.4g}" if isinstance(v, float) else str(v)
+                label = rec["labels"].get(k)
+                if label:
+                    text = label
+                line.append(f"{k}=")
+                line.append(text, style="dim" if k in rec["invalid"] else "cyan")
+                line.append(" ")
+            line.truncate(width, overflow="crop")
+            out.append(line)
+        if height is not None and len(out) > height:
+            more = len(out) - height + 1
+            out = [*out[:height - 1], Text(f"... {more} more IDs (a taller terminal shows them)",
+                                           style="dim")]
+        return out
+
+
+def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
+                    refresh: float = 6.0, console: Any = None,
+                    clock: Callable[[], float] = time.monotonic,
+                    screenshot: str | None = None) -> CanBusView:
+    """Show the bus ``target`` until ``duration`` seconds have passed or Ctrl-C."""
+    from eyeq_spi.can.logs import open_bus, read_bus
+    from eyeq_spi.monitor.app import check_screenshot
+
+    if screenshot is not None:
+        check_screenshot(screenshot)
+    r = rich_modules()
+    console = console or r.Console()
+    view = CanBusView(proto, target)
+    bus = open_bus(target)
+    live = r.Live(console=console, auto_refresh=False, transient=False,
+                  vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
+    start = clock()
+    period = 1.0 / refresh
+    on_terminal = console.is_terminal
+    try:
+        if on_terminal:
+            live.start()
+        while True:
+            left = None if duration is None else start + duration - clock()
+            if left is not None and left <= 0:
+                break
+            slot = period if left is None else min(period, left)
+            for msg in read_bus(bus, duration=slot, now=clock, poll=min(0.05, slot)):
+                view.add(msg, clock() - start)
+            if on_terminal:
+                live.update(r.Group(*view.lines(console.width, console.height)), refresh=True)
+    except KeyboardInterrupt:  # Ctrl-C ends a live view normally
+        pass
+    finally:
+        bus.shutdown()
+        view.done = True
+        if on_terminal:
+            live.update(r.Group(*view.lines(console.width, console.height)), refresh=True)
+            live.stop()
+    if not on_terminal:  # a pipe: the final screen once, as wide as it is
+        lines = view.lines(width=400)
+        console.width = max(console.width, *(t.cell_len for t in lines))
+        console.print(r.Group(*lines))
+    if screenshot is not None:
+        _save(view, screenshot)
+    return view
+
+
+def _save(view: CanBusView, path: str) -> None:
+    import io
+
+    from eyeq_spi.monitor.view import MonitorError
+
+    r = rich_modules()
+    lines = view.lines(width=400)
+    con = r.Console(file=io.StringIO(), record=True, force_terminal=True,
+                    color_system="truecolor", width=max(t.cell_len for t in lines))
+    con.print(r.Group(*lines))
+    suffix = path.lower().rsplit(".", 1)[-1]
+    try:
+        if suffix == "svg":
+            con.save_svg(path, title=f"eyeq-spi monitor: {view.source}")
+        elif suffix == "html":
+            con.save_html(path)
+        else:
+            con.save_text(path)
+    except OSError as exc:
+        raise MonitorError(f"cannot write {path}: {exc.strerror or exc}") from None
