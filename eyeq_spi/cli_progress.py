@@ -108,6 +108,18 @@ class JobProgress:
     def __call__(self, done: float, total: float | None = None) -> None:
         self.update(done, total)
 
+    def print(self, line: str) -> None:
+        """A line on stderr above the bar (or plainly when there is no bar)."""
+        if self._progress is not None:
+            self._progress.console.print(line, markup=False, highlight=False, soft_wrap=True)
+        else:
+            print(line, file=sys.stderr)
+
+    def lines(self) -> Lines:
+        """A file-like object whose lines :meth:`print` writes (for code that prints)."""
+        return Lines(self)
+
+
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         if self._progress is not None:
@@ -145,3 +157,21 @@ def file_size(fh: IO[bytes]) -> int | None:
     except (OSError, ValueError, AttributeError):
         return None
     return st.st_size if stat.S_ISREG(st.st_mode) else None
+
+
+class Lines:
+    """Text written here goes to :meth:`JobProgress.print`, line by line."""
+
+    def __init__(self, bar: JobProgress) -> None:
+        self.bar = bar
+        self.buf = ""
+
+    def write(self, text: str) -> int:
+        self.buf += text
+        while "\n" in self.buf:
+            line, self.buf = self.buf.split("\n", 1)
+            self.bar.print(line)
+        return len(text)
+
+    def flush(self) -> None:
+        pass
