@@ -131,7 +131,7 @@ class JobProgress:
 def track_file(items: Iterable[T], fh: IO[bytes], bar: JobProgress,
                where: Callable[[T, int], float] | None = None) -> Iterator[T]:
     """``items``, with ``bar`` following the position of ``fh`` (read by the items' reader).
-    Looks at the position every 256 items and at every item that is not a dict (a block of
+    Looks at the position every 32 items and at every item that is not a dict (a block of
     many records). ``where(item, position)``: the file position the item stands for, when the
     reader reads far ahead of what it hands out (a chunk of many blocks)."""
     if not bar.enabled:
@@ -140,7 +140,7 @@ def track_file(items: Iterable[T], fh: IO[bytes], bar: JobProgress,
     n = 0
     for item in items:
         n += 1
-        if n >= 256 or not isinstance(item, dict):
+        if n >= 32 or not isinstance(item, dict):
             n = 0
             with contextlib.suppress(OSError, ValueError):
                 pos = fh.tell()
