@@ -225,3 +225,12 @@ def test_batch_reports_each_capture_done(tmp_path: Path, monkeypatch: pytest.Mon
     fleet.run_fleet(str(tmp_path), str(tmp_path / "out"), progress=lambda d, t: seen.append(
         (d, t)))
     assert seen == [(0, 3), (1, 3), (2, 3), (3, 3)]
+
+
+def test_conformance_reports_its_steps() -> None:
+    """The bar's total is known up front: the sessions to run, then the judging."""
+    from eyeq_spi.conformance.suite import Options, run
+
+    seen: list[tuple[int, int]] = []
+    results = run(Options(dut="eyeq", builtin=True, steps=lambda d, t: seen.append((d, t))))
+    assert seen == [(0, 2), (1, 2), (2, 2)] and results
