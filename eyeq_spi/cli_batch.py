@@ -42,8 +42,13 @@ def run_batch(args: argparse.Namespace) -> int:
     if args.scheduler and not args.scheduler.startswith(("tcp://", "tls://", "inproc://")):
         raise UsageError(f"--scheduler: a Dask address such as tcp://HOST:8786, "
                          f"not {args.scheduler!r}")
-    summaries = run_fleet(args.dir, args.parquet, sw=args.sw, jobs=args.jobs,
-                          scheduler=args.scheduler, local_cluster=args.local_cluster)
+    from eyeq_spi.cli_progress import JobProgress
+
+    # the summaries go to stdout at the end: nothing is written between them while it runs
+    with JobProgress("batch", unit="captures") as bar:
+        summaries = run_fleet(args.dir, args.parquet, sw=args.sw, jobs=args.jobs,
+                              scheduler=args.scheduler, local_cluster=args.local_cluster,
+                              progress=bar.update)
     for s in summaries:
         sys.stdout.write(json.dumps(s, separators=(",", ":")) + "\n")
     return 1 if any(s["error"] for s in summaries) else 0

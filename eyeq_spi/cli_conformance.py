@@ -102,8 +102,16 @@ def run_conformance(args: argparse.Namespace) -> int:
         opts.sessions_done = rt.close  # judging is CPU-bound: ordinary scheduling again
         if opts.progress is not None:
             opts.progress(f"scheduling: {scheduling}")
+    from eyeq_spi.cli_progress import JobProgress
+
     try:
-        results = run(opts)
+        # the report goes to stdout at the end; the session lines print above the bar
+        with JobProgress("conformance", unit="sessions + judging",
+                         enabled=False if args.json else None) as bar:
+            if opts.progress is not None:
+                opts.progress = bar.print
+            opts.steps = bar.update
+            results = run(opts)
     finally:
         rt.close()  # never leave a caller (a test, a notebook) at SCHED_FIFO
         if opts.adapter is not None:

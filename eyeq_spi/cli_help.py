@@ -29,11 +29,11 @@ EXAMPLES: dict[str, list[str]] = {
         "eyeq-spi demo --virtual-time --stop-dasp EYEQ_VIS_SRP_MSG@3 --json",
     ],
     "sim": [
-        "eyeq-spi sim --port socket://127.0.0.1:0       # prints LISTEN socket://HOST:PORT",
+        "eyeq-spi sim --listen tcp://127.0.0.1:0       # prints LISTEN tcp://HOST:PORT",
         "eyeq-spi sim --pty --duration 60",
     ],
     "host": [
-        "eyeq-spi host --port socket://127.0.0.1:5000 --duration 10",
+        "eyeq-spi host --port tcp://127.0.0.1:5000 --duration 10",
         "eyeq-spi host --port rfc2217://192.168.1.20:4000 --exit-when-running --json",
     ],
     "dissect": [
@@ -58,8 +58,13 @@ EXAMPLES: dict[str, list[str]] = {
         "eyeq-spi can dbc --protocol me8 --output dbc/",
     ],
     "can decode": [
-        "eyeq-spi can decode drive.blf --stats",
+        "eyeq-spi can decode drive.blf --channel 1 --stats",
         "eyeq-spi can decode drive.asc --protocol me8 --json",
+        "eyeq-spi can decode --bus socketcan:can0 --duration 10",
+    ],
+    "can compare": [
+        "eyeq-spi can compare vendor.dbc",
+        "eyeq-spi can compare vendor.dbc --json",
     ],
     "plot": [
         "eyeq-spi plot capture.pcapng --birdseye --at 4 -o scene.png",
@@ -69,7 +74,7 @@ EXAMPLES: dict[str, list[str]] = {
     "monitor": [
         "eyeq-spi monitor --demo --duration 30",
         "eyeq-spi monitor --replay capture.pcapng --pace 4",
-        "eyeq-spi monitor --port socket://127.0.0.1:5000",
+        "eyeq-spi monitor --port tcp://127.0.0.1:5000",
     ],
     "export": [
         "eyeq-spi export capture.pcapng --vcd capture.vcd",
@@ -77,7 +82,7 @@ EXAMPLES: dict[str, list[str]] = {
     ],
     "replay": [
         "eyeq-spi replay capture.pcapng --into-host",
-        "eyeq-spi replay capture.pcapng --port listen://127.0.0.1:5000",
+        "eyeq-spi replay capture.pcapng --listen tcp://127.0.0.1:5000",
     ],
     "sigrok-decoder": [
         "eyeq-spi sigrok-decoder --install",
@@ -85,7 +90,7 @@ EXAMPLES: dict[str, list[str]] = {
     ],
     "conformance": [
         "eyeq-spi conformance --builtin --dut eyeq",
-        "eyeq-spi conformance --dut eyeq --port socket://127.0.0.1:5000 --junit results.xml",
+        "eyeq-spi conformance --dut eyeq --port tcp://127.0.0.1:5000 --junit results.xml",
         "eyeq-spi conformance --list",
     ],
     "spec": [

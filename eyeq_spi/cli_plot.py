@@ -90,10 +90,21 @@ def add_plot_parser(sub: Any) -> None:
                    help="screen redraws per second, 5..30 (default 6)")
     m.add_argument("--screenshot", metavar="FILE",
                    help="also write the last screen to FILE.svg (a picture), .html or .txt")
+    m.add_argument("--screenshot-size", metavar="COLSxROWS", type=_size,
+                   help="--screenshot: the screen as a terminal of that size shows it, e.g. "
+                   "80x24 (default: the whole screen)")
     m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
     m.add_argument("--format", choices=("raw", "hex", "pcapng"), help="--replay: skip detection")
     add_shared_options(m)
     m.set_defaults(side_defaults={d: m.get_default(d) for d in SIM_ONLY + HOST_ONLY})
+
+
+def _size(text: str) -> tuple[int, int]:
+    """``COLSxROWS`` of a terminal, at least 80x24."""
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    if not m or int(m.group(1)) < 80 or int(m.group(2)) < 24:
+        raise argparse.ArgumentTypeError(f"give COLSxROWS of at least 80x24, not {text!r}")
+    return int(m.group(1)), int(m.group(2))
 
 
 def _default_output(args: argparse.Namespace, kind: str) -> str:
@@ -220,7 +231,8 @@ def run_monitor(args: argparse.Namespace) -> int:
         source = _demo_source(args)
     else:
         source = _host_source(args)
-    run(source, refresh=args.refresh, screenshot=args.screenshot)
+    run(source, refresh=args.refresh, screenshot=args.screenshot,
+        screenshot_size=args.screenshot_size)
     return _tail_note("monitor", args.replay, getattr(source, "tail", None))
 
 

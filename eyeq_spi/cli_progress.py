@@ -108,6 +108,18 @@ class JobProgress:
     def __call__(self, done: float, total: float | None = None) -> None:
         self.update(done, total)
 
+    def print(self, line: str) -> None:
+        """A line on stderr above the bar (or plainly when there is no bar)."""
+        if self._progress is not None:
+            self._progress.console.print(line, markup=False, highlight=False, soft_wrap=True)
+        else:
+            print(line, file=sys.stderr)
+
+    def lines(self) -> Lines:
+        """A file-like object whose lines :meth:`print` writes (for code that prints)."""
+        return Lines(self)
+
+
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         if self._progress is not None:
@@ -119,7 +131,7 @@ class JobProgress:
 def track_file(items: Iterable[T], fh: IO[bytes], bar: JobProgress,
                where: Callable[[T, int], float] | None = None) -> Iterator[T]:
     """``items``, with ``bar`` following the position of ``fh`` (read by the items' reader).
-    Looks at the position every 256 items and at every item that is not a dict (a block of
+    Looks at the position every 32 items and at every item that is not a dict (a block of
     many records). ``where(item, position)``: the file position the item stands for, when the
     reader reads far ahead of what it hands out (a chunk of many blocks)."""
     if not bar.enabled:
@@ -128,7 +140,7 @@ def track_file(items: Iterable[T], fh: IO[bytes], bar: JobProgress,
     n = 0
     for item in items:
         n += 1
-        if n >= 256 or not isinstance(item, dict):
+        if n >= 32 or not isinstance(item, dict):
             n = 0
             with contextlib.suppress(OSError, ValueError):
                 pos = fh.tell()
@@ -145,3 +157,21 @@ def file_size(fh: IO[bytes]) -> int | None:
     except (OSError, ValueError, AttributeError):
         return None
     return st.st_size if stat.S_ISREG(st.st_mode) else None
+
+
+class Lines:
+    """Text written here goes to :meth:`JobProgress.print`, line by line."""
+
+    def __init__(self, bar: JobProgress) -> None:
+        self.bar = bar
+        self.buf = ""
+
+    def write(self, text: str) -> int:
+        self.buf += text
+        while "\n" in self.buf:
+            line, self.buf = self.buf.split("\n", 1)
+            self.bar.print(line)
+        return len(text)
+
+    def flush(self) -> None:
+        pass

@@ -157,18 +157,30 @@ FATAL_22_NOTE = (
 )
 
 
+def _stderr_width() -> int:
+    """The width of the terminal on stderr, at most 100 (lines are cut, never wrapped)."""
+    import os
+
+    try:
+        cols = os.get_terminal_size(sys.stderr.fileno()).columns
+    except (OSError, ValueError, AttributeError):
+        cols = 0
+    return max(40, min(100, cols)) if cols else 100  # 0: a terminal that does not say
+
+
 class LiveView:
     """On a TTY: state transitions as they happen and message rates once a second.
 
     One time base: every time printed is seconds since the run started, the same clock the
     transitions carry (a host on the wall clock has its start subtracted, inferred from the
-    host's own ``now`` on the first update). Every line fits ``width`` (100) columns; the first
-    FATAL_22 gets an explanation (an empty NVM on a first run)."""
+    host's own ``now`` on the first update). Every line fits the terminal (at most 100
+    columns): event lines are cut, explanations wrapped; the first FATAL_22 gets an explanation
+    (an empty NVM on a first run)."""
 
-    def __init__(self, enabled: bool, out: Any = None, width: int = 100) -> None:
+    def __init__(self, enabled: bool, out: Any = None, width: int | None = None) -> None:
         self.enabled = enabled
         self.out = out
-        self.width = width
+        self.width = width or _stderr_width()
         self.shown = 0
         self.last_counts: Counter[str] = Counter()
         self.last_t = 0.0
@@ -177,6 +189,13 @@ class LiveView:
         self.last_live: set[str] = set()
 
     def _print(self, line: str) -> None:
+        if len(line) > self.width and line[:1] == " ":  # an explanation: wrapped
+            import textwrap
+
+            indent = " " * (len(line) - len(line.lstrip()))
+            for part in textwrap.wrap(line.strip(), self.width - len(indent)):
+                print(indent + part, file=self.out or sys.stderr)
+            return
         if len(line) > self.width:
             line = line[:self.width - 1] + "…"
         print(line, file=self.out or sys.stderr)
@@ -277,6 +296,9 @@ def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
     return emu, writer
 
 
+LONG_DEMO_S = 20.0  # demos this long or longer show a progress bar on a terminal
+
+
 def run_demo(args: argparse.Namespace) -> int:
     from eyeq_spi.report import host_summary
 
@@ -286,16 +308,23 @@ def run_demo(args: argparse.Namespace) -> int:
     from eyeq_spi.can.sinks import attach_from_args
 
     can_out = attach_from_args(args, emu.host, emu.runner)  # --can-out: the CAN gateway
+    from eyeq_spi.cli_progress import JobProgress
+
     _on_sigterm()
-    view = LiveView(sys.stderr.isatty() and not args.json)
     t = 0.0
     interrupted = False
+    # a long demo shows how far it is (run time, s); the live lines print above the bar
+    long_run = args.duration >= LONG_DEMO_S and not args.json
     try:
-        while t < args.duration:
-            step = min(0.25, args.duration - t)
-            emu.run_for(step, realtime=not args.virtual_time)
-            t += step
-            view.update(emu.host, emu.runner.now)
+        with JobProgress("demo", args.duration, unit="s of run time",
+                         enabled=None if long_run else False) as bar:
+            view = LiveView(sys.stderr.isatty() and not args.json, out=bar.lines())
+            while t < args.duration:
+                step = min(0.25, args.duration - t)
+                emu.run_for(step, realtime=not args.virtual_time)
+                t += step
+                view.update(emu.host, emu.runner.now)
+                bar.update(round(t, 2))
     except KeyboardInterrupt:
         interrupted = True
     finally:

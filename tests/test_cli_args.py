@@ -27,7 +27,6 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
 
 # (argv, words the one stderr line must contain)
 BAD: list[tuple[list[str], tuple[str, ...]]] = [
-    ([], ("command",)),
     (["nope"], ("nope",)),
     (["demo", "--duration", "x"], ("--duration", "(0, 86400]")),
     (["demo", "--duration", "-1"], ("--duration", "(0, 86400]")),

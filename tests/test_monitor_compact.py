@@ -34,7 +34,8 @@ def test_80x24_folds_the_panels_and_keeps_what_matters(busy_capture: Path) -> No
     lines = [t.plain for t in screen_lines(snap, 80, 24)]
     text = "\n".join(lines)
     assert len(lines) <= 23 and max(len(line) for line in lines) <= 80, text
-    assert lines[0].startswith("eyeq-spi monitor") and "RUNNING_VISION" in lines[0]
+    assert lines[0].startswith("replay busy.pcapng") and "RUNNING_VISION" in lines[0]
+    assert "t 1.90 s" in lines[0]  # seconds since the start
     for key, value in {**snap.link, **snap.errors}.items():  # every counter, with its value
         assert f"{key} {value}" in text, key
     assert "stale streams: VIS_SRP" in text
@@ -94,7 +95,7 @@ def test_demo_in_an_80x24_pseudo_terminal() -> None:
     assert returncode == 0
     lines = [line.rstrip() for line in screen.display]
     text = "\n".join(lines)
-    assert lines[0].startswith("eyeq-spi monitor demo") and "finished" in lines[0], text
+    assert lines[0].startswith("demo (virtual time)") and "finished" in lines[0], text
     assert "MESP timeouts 0" in text and "stale streams: none" in text
     assert re.search(r"objects 10", text) and "transitions" in text
     assert re.search(r"VIS_OBSTACLES\s+1[78]\.\d\s+18 ok", text), text

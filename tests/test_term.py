@@ -162,7 +162,7 @@ def test_every_help_has_a_description_and_examples_that_parse(
     from eyeq_spi.cli import build_parser
 
     monkeypatch.chdir(tmp_path)
-    for f in ("capture.pcapng", "drive.blf", "drive.asc", "x.pcapng"):
+    for f in ("capture.pcapng", "drive.blf", "drive.asc", "x.pcapng", "vendor.dbc"):
         (tmp_path / f).write_bytes(b"")
     parsers = _all_parsers()
     assert len(parsers) >= 19  # the top level, 14 commands, can's and spec's subcommands
@@ -203,3 +203,34 @@ def test_bash_completion_completes_commands_and_options(tmp_path: Path,
     r = subprocess.run(["bash", "-c", probe], capture_output=True, text=True, timeout=60)
     assert r.stdout.split("\n")[:2] == ["dissect", "--stats"], r
     assert main(["--print-completion", "fish"]) == 2
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs a Linux pty")
+def test_a_long_demo_shows_a_bar_below_its_live_lines() -> None:
+    shown = _stderr_on_pty(["demo", "--virtual-time", "--duration", "20"], subprocess.DEVNULL)
+    assert b"ETA" in shown and b"s of run time" in shown
+    assert b"--RUNNING_VISION--> RUNNING_VISION" in shown  # the live lines still print
+
+
+def test_batch_reports_each_capture_done(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                         ) -> None:
+    pytest.importorskip("pyarrow", reason="batch needs the parquet extra")
+    from eyeq_spi.dissect import fleet
+
+    for name in ("a", "b", "c"):
+        (tmp_path / f"{name}.pcapng").write_bytes(b"")
+    monkeypatch.setattr(fleet, "dissect_capture",
+                        lambda path, out, key, sw: {"capture": key, "error": None})
+    seen: list[tuple[int, int]] = []
+    fleet.run_fleet(str(tmp_path), str(tmp_path / "out"), progress=lambda d, t: seen.append(
+        (d, t)))
+    assert seen == [(0, 3), (1, 3), (2, 3), (3, 3)]
+
+
+def test_conformance_reports_its_steps() -> None:
+    """The bar's total is known up front: the sessions to run, then the judging."""
+    from eyeq_spi.conformance.suite import Options, run
+
+    seen: list[tuple[int, int]] = []
+    results = run(Options(dut="eyeq", builtin=True, steps=lambda d, t: seen.append((d, t))))
+    assert seen == [(0, 2), (1, 2), (2, 2)] and results

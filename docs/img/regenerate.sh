@@ -15,3 +15,5 @@ eyeq_spi plot "$cap" --timing --name 'OBSTACLES|ROAD|SRP|DIAGNOSTIC|HOST_VEH' \
     -o docs/img/timing.png
 eyeq_spi plot "$cap" --link -o docs/img/link.png
 eyeq_spi monitor --replay "$cap" --pace 0 --screenshot docs/img/monitor.svg > /dev/null
+eyeq_spi monitor --replay "$cap" --pace 0 --screenshot docs/img/monitor-80x24.svg \
+    --screenshot-size 80x24 > /dev/null

@@ -5,7 +5,7 @@ dissect`` decodes)."""
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import IO, Any
 
 from eyeq_spi.bench.mdf import ExportError
@@ -24,7 +24,10 @@ def _open(path: str, mode: str) -> IO[Any]:
 
 def export(records: Iterable[Record], *, source: str, sw: str | None = None,
            vcd: str | None = None, mdf: str | None = None, mcap: str | None = None,
-           spi: SpiOptions | None = None) -> dict[str, Any]:
+           spi: SpiOptions | None = None, vcd_max_idle: float | None = None,
+           progress: Callable[[int], None] | None = None) -> dict[str, Any]:
+    """Write the outputs asked for in one pass over ``records``; ``progress(transfers)`` is
+    called after each transfer (a progress bar's update)."""
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.dissect.engine import Dissector
 
@@ -34,7 +37,7 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
         if vcd:
             from eyeq_spi.logic.vcd_write import VcdWriter
 
-            vcd_w = VcdWriter(stack.enter_context(_open(vcd, "w")), spi)
+            vcd_w = VcdWriter(stack.enter_context(_open(vcd, "w")), spi, max_idle=vcd_max_idle)
         if mdf:
             from eyeq_spi.bench.mdf import MdfWriter
 
@@ -48,6 +51,8 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
         transfers = 0
         for rec in records:
             transfers += 1
+            if progress is not None:
+                progress(transfers)
             if vcd_w is not None:
                 vcd_w.write(rec)
             if dis is None:

@@ -58,6 +58,9 @@ class Options:
     host_plan: HostPlan = field(default_factory=HostPlan)
     eyeq_plan: EyeqPlan = field(default_factory=EyeqPlan)
     progress: Callable[[str], None] | None = None
+    # steps done of all (each session run, then the judging, one step): a progress bar's
+    # update; sessions take the time, so the steps are sessions
+    steps: Callable[[int, int], None] | None = None
     # called once the live sessions are over, before judging (the CLI gives back real-time
     # scheduling there: judging is CPU-bound and must not hold a core at SCHED_FIFO)
     sessions_done: Callable[[], None] | None = None
@@ -119,21 +122,28 @@ def run(opts: Options) -> list[Result]:
         builtin_plans(opts)
     wanted = {n for c in cases for n in c.needs}
     ctx = Context(opts.dut, realtime=not opts.builtin)
-    if opts.dut == "eyeq":
-        ctx.traces["main"] = _eyeq_session(opts, wanted, ctx)
-    else:
+    sessions: list[str] = ["main"]
+    if opts.dut != "eyeq":
         needed = {c.session_for("host") for c in cases}
         if ALL_SESSIONS in needed:
             needed |= {"normal", "eeprom_bad"}
-        for i, name in enumerate(s for s in HOST_SESSIONS if s in needed):
+        sessions = [s for s in HOST_SESSIONS if s in needed]
+    total = len(sessions) + 1
+    step = opts.steps or (lambda done, all_: None)
+    step(0, total)
+    if opts.dut == "eyeq":
+        ctx.traces["main"] = _eyeq_session(opts, wanted, ctx)
+        step(1, total)
+    else:
+        for i, name in enumerate(sessions):
             tr = _host_session(opts, name, wanted, ctx, first=i == 0)
             if tr is not None:
                 ctx.traces[name] = tr
+            step(i + 1, total)
     if opts.sessions_done is not None:
         opts.sessions_done()
-    out = []
-    for c in cases:
-        out.append(Result(c, _judge(c, ctx, opts.sw)))
+    out = [Result(c, _judge(c, ctx, opts.sw)) for c in cases]
+    step(total, total)
     return out
 
 

@@ -150,10 +150,11 @@ Runner = Callable[[list[tuple[str, str]]], Iterator[dict[str, Any]]]
 
 
 def run_fleet(root: str, out: str, *, sw: str | None = None, jobs: int = 1,
-              scheduler: str | None = None, local_cluster: int | None = None
-              ) -> list[dict[str, Any]]:
+              scheduler: str | None = None, local_cluster: int | None = None,
+              progress: Callable[[int, int], None] | None = None) -> list[dict[str, Any]]:
     """Every capture under ``root`` into the dataset ``out``; one summary per capture, in the
-    order of the captures."""
+    order of the captures. ``progress(done, total)``: captures finished so far (in this
+    process and the local pool; Dask reports at the end)."""
     _pyarrow()
     paths = find_captures(root)
     rootp = Path(root)
@@ -166,13 +167,26 @@ def run_fleet(root: str, out: str, *, sw: str | None = None, jobs: int = 1,
     except OSError as exc:
         raise OutputError(f"cannot create {out}: {exc}") from exc
     outp = str(Path(out).resolve())
+    n = len(tasks)
+    tick = progress or (lambda done, total: None)
+    tick(0, n)
     if scheduler or local_cluster:
-        return _on_dask(tasks, outp, sw, scheduler, local_cluster)
-    if jobs > 1 and len(tasks) > 1:
+        results = _on_dask(tasks, outp, sw, scheduler, local_cluster)
+        tick(n, n)
+        return results
+    if jobs > 1 and n > 1:
+        from concurrent.futures import as_completed
+
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             futs = [pool.submit(dissect_capture, p, outp, k, sw) for p, k in tasks]
+            for done, _ in enumerate(as_completed(futs), 1):
+                tick(done, n)
             return [f.result() for f in futs]
-    return [dissect_capture(p, outp, k, sw) for p, k in tasks]
+    results = []
+    for p, k in tasks:
+        results.append(dissect_capture(p, outp, k, sw))
+        tick(len(results), n)
+    return results
 
 
 def _on_dask(tasks: list[tuple[str, str]], out: str, sw: str | None, scheduler: str | None,

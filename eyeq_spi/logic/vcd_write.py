@@ -9,6 +9,12 @@ one, as the link paces them (L7); one that would overlap the previous transfer o
 starts ``min_idle`` after its CS rising edge (``specs/bench.yaml``). The slave's MISO is left
 idle. Memory stays bounded: only the transfers that still overlap the next capture time are
 held.
+
+Size: every bit is two clock edges, each a timestamp line and a value line, so the file grows
+with the bits sent (about 30 bytes per bit, :func:`estimate_size`), not with the capture's
+length. ``max_idle`` shortens every stretch with both channels idle (CS high) to at most that
+many seconds, which keeps the timestamps short and spares a sampling reader (sigrok converts a
+VCD to samples at its sample rate) the idle time; the file says so in a ``$comment``.
 """
 
 from __future__ import annotations
@@ -33,10 +39,21 @@ def _timescale(text: str) -> float:
     return int(num) * _UNITS[text[len(num):]]
 
 
+def estimate_size(transfers: int, data_bytes: int, span_s: float,
+                  timescale: str | None = None) -> int:
+    """About how many bytes :class:`VcdWriter` writes for ``transfers`` transfers of
+    ``data_bytes`` bytes in all over ``span_s`` seconds: per bit two clock edges (a timestamp
+    line and a value line each) and half a MOSI change, plus a line per CS edge."""
+    scale = _timescale(timescale or str(bench_spec()["vcd"]["timescale"]))
+    digits = len(str(max(1, round(span_s / scale))))
+    per_bit = 2 * (digits + 2) + 2 * 3 + 0.5 * 3
+    return int(512 + data_bytes * 8 * per_bit + transfers * 2 * (digits + 5))
+
+
 class VcdWriter:
     def __init__(self, fh: IO[str], opts: SpiOptions | None = None, *,
                  baud_rate: int | None = None, timescale: str | None = None,
-                 default_direction: str = "h2e") -> None:
+                 default_direction: str = "h2e", max_idle: float | None = None) -> None:
         spec = bench_spec()
         self.fh = fh
         self.opts = opts or SpiOptions()
@@ -56,6 +73,9 @@ class VcdWriter:
         self.level = {d: 0 for d in DIRECTIONS}  # MOSI level
         self.pending: list[tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
         self.last_tick = -1
+        # idle stretches longer than this many ticks are cut to it; shift: ticks cut so far
+        self.max_idle = None if max_idle is None else max(1, round(max_idle / self.scale))
+        self.shift = 0
         self.count = 0
         self.delayed = 0
         self._lines = np.array([f"{v}{self.ids[d][sig]}" for d in DIRECTIONS for sig in SIGNALS
@@ -68,6 +88,9 @@ class VcdWriter:
         w(f"$version eyeq-spi {__version__} $end\n")
         w(f"$comment EyeQ4 SPI, two channels (seed 004 §5), mode {self.opts.mode}, "
           f"{self.opts.bit_order} $end\n")
+        if self.max_idle is not None:
+            w(f"$comment idle time compressed: every stretch with both channels idle is at most "
+              f"{self.max_idle * self.scale:g} s; times are not capture times $end\n")
         w(f"$timescale {self.timescale} $end\n$scope module eyeq_spi $end\n")
         for d in DIRECTIONS:
             for s in SIGNALS:
@@ -88,7 +111,12 @@ class VcdWriter:
         if rec.time is None:
             ticks = max(self.free[d], self.last_start[d] + self.gap[d], self.last_tick + 1)
         else:
-            ticks = round(rec.time / self.scale)
+            ticks = round(rec.time / self.scale) - self.shift
+            if self.max_idle is not None:
+                busy_until = max(self.last_tick, *self.free.values())
+                if ticks - busy_until > self.max_idle:
+                    self.shift += ticks - busy_until - self.max_idle
+                    ticks = busy_until + self.max_idle
         self._flush(ticks)
         start = max(ticks, self.free[d], self.last_tick + 1)
         self.last_start[d] = start

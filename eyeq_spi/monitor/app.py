@@ -50,13 +50,15 @@ def check_screenshot(path: str) -> None:
                            + ", ".join(SCREENSHOT_SUFFIXES))
 
 
-def save_screen(snap: Snapshot, path: str) -> None:
-    """The screen of ``snap`` as an SVG picture, an HTML page or plain text (rich's export)."""
+def save_screen(snap: Snapshot, path: str, size: tuple[int, int] | None = None) -> None:
+    """The screen of ``snap`` as an SVG picture, an HTML page or plain text (rich's export);
+    ``size`` (columns, rows): as a terminal of that size shows it (default: the whole screen,
+    as wide as it is)."""
     import io
 
     check_screenshot(path)
     r = rich_modules()
-    lines = screen_lines(snap)
+    lines = screen_lines(snap) if size is None else screen_lines(snap, size[0], size[1])
     con = r.Console(file=io.StringIO(), record=True, force_terminal=True,
                     color_system="truecolor", width=max(t.cell_len for t in lines))
     con.print(r.Group(*lines))
@@ -75,7 +77,8 @@ def save_screen(snap: Snapshot, path: str) -> None:
 def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None,
         clock: Callable[[], float] = time.perf_counter,
         on_draw: Callable[[Snapshot], None] | None = None,
-        screenshot: str | None = None) -> RunStats:
+        screenshot: str | None = None,
+        screenshot_size: tuple[int, int] | None = None) -> RunStats:
     """Run until the source is done (or Ctrl-C); returns how long drawing took. With
     ``screenshot``, the last screen is also written there (:func:`save_screen`)."""
     if not MIN_REFRESH <= refresh <= MAX_REFRESH:
@@ -125,7 +128,7 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         source.close()
         stats.wall_s = clock() - start
     if screenshot is not None and snap is not None:
-        save_screen(snap, screenshot)
+        save_screen(snap, screenshot, screenshot_size)
     if not live_screen and snap is not None:
         # a pipe: the whole final screen, as wide as it is (the console's default is 80)
         lines = screen_lines(snap)

@@ -111,7 +111,9 @@ class RateMeter:
             if nominal and hz is not None:
                 silent = t1 - self._last_change.get(name, t1)
                 if silent > GAP_PERIODS / nominal:
-                    status = "stopped"
+                    # its rate now is 0: the 2 s average would still read up to the nominal
+                    # rate beside "stopped" (a "17.9 Hz" stream that stopped 0.2 s ago)
+                    status, hz = "stopped", 0.0
                 elif t1 - ts < MIN_SPAN:
                     status = "-"  # too few messages yet to call the rate low or high
                 elif b is not None and hz < b[0]:

@@ -180,12 +180,14 @@ def _head(snap: Snapshot, width: int | None) -> list[Any]:
     state = Text.assemble((f"{snap.state_label}: ", ""), (snap.state, state_style),
                           ("   finished" if snap.done else "", "dim"))
     when = f"   t {snap.now:8.2f} s   "
-    source = snap.source
-    if width is not None:  # the state and time are kept whole; the source gives way
-        room = width - len("eyeq-spi monitor ") - len(when) - state.cell_len
+    source, title = snap.source, "eyeq-spi monitor "
+    if width is not None:  # the state and time are kept whole; the title, then the source give
+        if len(title) + len(source) + len(when) + state.cell_len > width:
+            title, when = "", f"  t {snap.now:.2f} s  "
+        room = width - len(title) - len(when) - state.cell_len
         if room < len(source):
             source = source[:max(1, room) - 1] + "\u2026" if room > 1 else ""
-    head = [Text.assemble(("eyeq-spi monitor ", "bold"), (source, "cyan"), when, state)]
+    head = [Text.assemble((title, "bold"), (source, "cyan"), when, state)]
     if snap.problem:
         head.append(Text(f"problem: {snap.problem}", style="bold red"))
     return head
