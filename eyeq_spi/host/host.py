@@ -102,6 +102,7 @@ class HostEmulator:
         self._init_busy = False
         self._target_mode = "VISION"
         self._versions_asked = False
+        self._versions_ok = False  # a positive Get EyeQ Versions reply in this ignition cycle
         self._started = False
         self._stale_limits: dict[str, float] = {}
         self._next_stale_check = 0.0
@@ -149,7 +150,7 @@ class HostEmulator:
     def link_restarted(self, now: float) -> None:
         """The byte stream to the EyeQ was re-established (a new connection is a power-up):
         restart our SPI driver and run the bring-up again."""
-        self.mesp.cancel_all()
+        self._cancel_requests()
         self._restart_driver()
         if next_state(self.state, E.EYEQ_RESET) is not None:
             self._fire(E.EYEQ_RESET, now, "link re-established")
@@ -325,6 +326,7 @@ class HostEmulator:
                              "eyeqSwVersionMajor": v.eyeqSwVersionMajor,
                              "eyeqSwVersionMinor": v.eyeqSwVersionMinor}
             self.nvm.data.versions = dict(self.versions)
+            self._versions_ok = True
         else:
             self._versions_asked = False  # ask again on the next bring-up
 
@@ -493,7 +495,7 @@ class HostEmulator:
             # a clean power-up: both SPI drivers start over, the boot status arrives in window
             self._reset_eyeq(now, bringup=False)
         else:
-            self.mesp.cancel_all()
+            self._cancel_requests()
             self._enter_after_app_restart(now)
 
     def _enter_after_app_restart(self, now: float) -> None:
@@ -578,6 +580,14 @@ class HostEmulator:
         if self.keep_rx_times:
             self.counters.tx_times.append(now)
 
+    def _cancel_requests(self) -> None:
+        """An EyeQ reset: outstanding MESP requests are lost. Get EyeQ Versions is asked again
+        at the next bring-up unless it was answered (§6 flow step 12: once per ignition cycle,
+        after a positive response)."""
+        self.mesp.cancel_all()
+        if not self._versions_ok:
+            self._versions_asked = False
+
     def _restart_driver(self) -> None:
         """Our SPI driver starts over: NUM 0, E 0 (L4); what was pending is dropped."""
         self.conn.reset()
@@ -586,7 +596,7 @@ class HostEmulator:
 
     def _reset_eyeq(self, now: float, *, bringup: bool = True) -> None:
         """Reset the EyeQ; ``bringup`` counts it against ``max_resets`` (EEPROM-driven)."""
-        self.mesp.cancel_all()
+        self._cancel_requests()
         if bringup:
             self._bringups += 1
         self._enter(S.POWER_UP, now)

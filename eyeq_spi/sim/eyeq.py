@@ -511,6 +511,10 @@ class SimulatedEyeQ:
         period = 1.0 / rate
         due = self._due
         if not self._next_dasp:
+            # The streams (re)start (Running Vision after a boot or another mode): the scene
+            # resumes from where it stood instead of catching up the whole pause in one step,
+            # which held the loop for several milliseconds, past the host's 10 ms ackTimeout.
+            self.scene.unanchor()
             # stagger the messages over one period so that no message waits behind the others
             # for longer than transmitTimeout
             for i, m in enumerate(msgs):
