@@ -17,7 +17,7 @@ from eyeq_spi.conformance.trace import Msg, Trace
 from eyeq_spi.conformance.verdict import Context, bad
 from eyeq_spi.host.host import HostEmulator
 from eyeq_spi.host.machine import HostState
-from eyeq_spi.link.frame import FrameCodec
+from eyeq_spi.link.frame import FrameCodec, NakReason
 from eyeq_spi.phy.memory import memory_pair
 from eyeq_spi.runner.virtual import VirtualRunner
 from eyeq_spi.sim.config import SimConfig
@@ -63,7 +63,7 @@ def test_every_ack_latency_is_judged_also_in_real_time() -> None:
 def test_ack_and_nak_pad_bytes_must_be_zero() -> None:
     tr = Trace("host")
     tr.record(tr.dut_dir, 0.0, CODEC.ack(3))
-    tr.record(tr.dut_dir, 0.1, CODEC.nak(4, 2))
+    tr.record(tr.dut_dir, 0.1, CODEC.nak(4, NakReason.CRC_MISMATCH))
     ctx = Context("host", realtime=False)
     assert link_pad(ctx, tr).verdict == "pass"
     dirty = CODEC.ack(5)[:6] + b"\xaa" * 122  # L3: the CRC covers the header only
@@ -154,7 +154,7 @@ def test_restarted_streams_do_not_replay_the_pause_in_one_scene_step() -> None:
     def spy(t: float, *args: Any) -> None:
         anchored.append(sim.scene._t is None)
         step(t, *args)
-    sim.scene.step = spy  # type: ignore[method-assign]
+    sim.scene.step = spy  # type: ignore[method-assign,assignment]
     sim.power_up(runner.now)  # the EyeQ resets by itself; the host brings it up again
     runner.run_until(runner.now + 3.0)
     assert host.state is HostState.RUNNING_VISION
