@@ -48,12 +48,15 @@ def mesp_pairs(tr: Trace) -> list[Pair]:
         if not is_reply(rep):
             continue
         key = (rep.header["service"], rep.header["function"])
-        for p in pairs:
-            if p.reply is None and (p.request.header["service"],
-                                    p.request.header["function"]) == key \
-                    and p.request.time <= rep.time:
-                p.reply = rep
-                break
+        open_ = [p for p in pairs if p.reply is None and p.request.time <= rep.time
+                 and (p.request.header["service"], p.request.header["function"]) == key]
+        if not open_:
+            continue
+        # the request with the reply's counter (a request lost on the link, around a reset for
+        # instance, has no reply); else the oldest open one, so a wrong tag is still judged
+        counter = rep.header["tag"] & 0x3F
+        same = [p for p in open_ if p.request.header["tag"] & 0x3F == counter]
+        (same[-1] if same else open_[0]).reply = rep
     return pairs
 
 

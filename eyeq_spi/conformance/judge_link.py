@@ -86,16 +86,40 @@ def link_crc(ctx: Context, tr: Trace) -> Outcome:
     return ok(f"{len(dut)} frames: CRC (L3 coverage), D and R valid")
 
 
-def _repeats(tr: Trace) -> set[int]:
-    """Indices of DUT DATA frames that repeat an earlier one byte for byte (resends: judged by
-    LINK-NORESEND alone)."""
-    seen: dict[bytes, float] = {}
-    out: set[int] = set()
+def _restarted(tr: Trace) -> list[float]:
+    """When the DUT's link started afresh (L10): our resets and every DUT DATA frame with
+    NUM 0 and RSP 0 after its first (L4). A frame after such a restart never repeats one
+    before it, even byte for byte (a new boot status at NUM 0 often is identical)."""
+    out = list(tr.resets())
+    first = True
     for x in tr.xfers:
         if x.direction == tr.dut_dir and x.kind == "DATA":
-            if x.time - seen.get(x.data, -10.0) < 1.0:
-                out.add(x.index)
-            seen[x.data] = x.time
+            if x.num == 0 and x.rsp == 0 and not first:
+                out.append(x.time - 1e-9)
+            first = False
+    return sorted(out)
+
+
+def _since_restart(tr: Trace) -> Iterator[tuple[Xfer, int]]:
+    """The DUT's DATA frames, each with the number of restarts (L10) before it."""
+    restarts = _restarted(tr)
+    k = 0
+    for x in tr.xfers:
+        if x.direction == tr.dut_dir and x.kind == "DATA":
+            while k < len(restarts) and restarts[k] < x.time:
+                k += 1
+            yield x, k
+
+
+def _repeats(tr: Trace) -> set[int]:
+    """Indices of DUT DATA frames that repeat an earlier one byte for byte since the last
+    restart (resends: judged by LINK-NORESEND alone)."""
+    seen: dict[tuple[bytes, int], float] = {}
+    out: set[int] = set()
+    for x, era in _since_restart(tr):
+        if x.time - seen.get((x.data, era), -10.0) < 1.0:
+            out.add(x.index)
+        seen[(x.data, era)] = x.time
     return out
 
 
@@ -274,17 +298,16 @@ def link_resync(ctx: Context, tr: Trace) -> Outcome:
 
 
 def link_noresend(ctx: Context, tr: Trace) -> Outcome:
-    seen: dict[int, tuple[float, bytes, int]] = {}
+    seen: dict[int, tuple[float, bytes, int, int]] = {}
     n = 0
-    for x in tr.xfers:
-        if x.direction != tr.dut_dir or x.kind != "DATA":
-            continue
+    for x, era in _since_restart(tr):  # L10: never a repeat of a frame before a reset
         n += 1
         prev = seen.get(x.num)
-        if prev is not None and prev[1] == x.data and x.time - prev[0] < 1.0:
+        if prev is not None and prev[1] == x.data and x.time - prev[0] < 1.0 \
+                and prev[3] == era:
             return bad(f"{_frame(x)} repeats frame #{prev[2]} byte for byte "
                        f"{1e3 * (x.time - prev[0]):.1f} ms later: a resend (§6, L7)")
-        seen[x.num] = (x.time, x.data, x.index)
+        seen[x.num] = (x.time, x.data, x.index, era)
     return ok(f"{n} DATA frames, none resent") if n else unsure("no DATA frames")
 
 

@@ -342,9 +342,7 @@ def _host(cls: type[HostEmulator]) -> Callable[..., HostEmulator]:
 MUTANTS: dict[str, Mutant] = {m.name: m for m in (
     _m("eyeq-no-ack", "eyeq", "every 4th ACK is never sent", {"LINK-ACK"}, eyeq=NoAck),
     _m("eyeq-wrong-rsp", "eyeq", "ACK RSP is the frame's NUM + 1",
-       {"LINK-ACK", "LINK-DUP", "LINK-RESYNC"}, eyeq=WrongRsp,
-       # our link takes none of its requests for delivered: no deadline can be measured
-       masks=frozenset({"MESP-DEADLINE"})),
+       {"LINK-ACK", "LINK-DUP"}, eyeq=WrongRsp),
     _m("eyeq-silent-on-bad-crc", "eyeq", "a frame with a bad CRC gets no NAK 0x002",
        {"LINK-NAK-CRC"}, eyeq=SilentOnBadCrc),
     _m("eyeq-unknown-ret-1", "eyeq", "an unknown service or function is answered with ret 1",
