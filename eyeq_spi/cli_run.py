@@ -325,8 +325,9 @@ def run_demo(args: argparse.Namespace) -> int:
 
 
 def run_sim(args: argparse.Namespace) -> int:
-    """Serve one host after another until ``--duration`` ends or we are interrupted; every new
-    connection is a power-up (boot status first)."""
+    """Serve one host after another until ``--duration`` ends or we are interrupted: one
+    simulated EyeQ, and every new connection powers it up (boot status first; ``--boot-fail N``
+    counts boots across connections)."""
     from eyeq_spi.errors import LinkLostError
     from eyeq_spi.phy.base import open_url
     from eyeq_spi.report import sim_summary
@@ -337,7 +338,11 @@ def run_sim(args: argparse.Namespace) -> int:
     if bool(args.listen) == bool(args.pty):
         raise UsageError("give exactly one of --listen tcp://HOST:PORT or --pty")
     cfg = sim_config(args)
-    SimulatedEyeQ(cfg).warm_up()  # bad options fail here, before anybody connects
+    # One EyeQ for the whole run: every connection powers it up again (a new boot, counted
+    # against --boot-fail), as the reset line would; bad options fail here, before anybody
+    # connects
+    eyeq = SimulatedEyeQ(cfg)
+    eyeq.warm_up()
     if args.pty:
         from eyeq_spi.phy.pty import PtyAdapter
 
@@ -369,8 +374,7 @@ def run_sim(args: argparse.Namespace) -> int:
             wait = 0.5 if end is None else max(0.0, min(0.5, end - clock()))
             if not adapter.accept(wait):
                 continue
-            sim = SimulatedEyeQ(cfg)
-            sim.warm_up()
+            sim = eyeq
             gc.collect()
             gc.freeze()
             runner = RealTimeRunner(sim, adapter)
@@ -392,7 +396,7 @@ def run_sim(args: argparse.Namespace) -> int:
         if writer is not None:
             writer.close()
     if sim is None:
-        sim = SimulatedEyeQ(cfg)
+        sim = eyeq
     out = sim_summary(sim, elapsed=clock() - t0, wall=clock() - t0,
                       cpu=time.process_time() - cpu0, connections=len(sessions),
                       interrupted=interrupted, t0=t0)

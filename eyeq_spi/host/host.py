@@ -446,9 +446,11 @@ class HostEmulator:
         f = out.fields
         self.boot_info = init_seq.boot_info(f)
         if self.state is not S.POWER_UP:
-            # a boot status we did not ask for: the EyeQ reset by itself; our link to it
-            # starts over in both directions (L10)
+            # a boot status we did not ask for: the EyeQ reset (by itself, or on our soft
+            # reset); our link to it starts over in both directions (L10), and no request
+            # from before the reset will be answered
             self.conn.restart()
+            self._cancel_requests()
             self.counters.eyeq_resets += 1
             self._fire(E.EYEQ_RESET, now, "unexpected boot status")
         self._boot_deadline = None
