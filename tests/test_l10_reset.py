@@ -143,3 +143,22 @@ def test_the_dissector_follows_a_reset_request_in_both_paths() -> None:
     assert [r["direction"] for r in resets] == ["h2e"]  # the host's NUM 0 after its request
     for chunk in (5, 64, 1 << 15):
         assert list(batch.iter_records(chunks_from_records(recs, chunk))) == out
+
+
+def test_after_an_eyeq_reset_the_restarted_host_link_is_taken_at_once() -> None:
+    """The EyeQ resets by itself under a host without a reset line: the host learns of it late
+    (three NAKs, L6) and then numbers from 0 (L10); the EyeQ, which had learnt the host's old
+    numbering, takes that NUM 0 as the host's restart instead of NAKing the host's bring-up
+    requests, so the bring-up is not held up by MESP retries."""
+    sim, host, runner = _pair(SimConfig(objects=1, signs=1, light_spots=1,
+                                        app_start_delay=0.3), reset_line=False)
+    runner.run_until(2.0)
+    assert host.state is HostState.RUNNING_VISION
+    t0 = runner.now
+    sim.power_up(t0)
+    runner.run_until(t0 + 0.3)
+    while runner.now < t0 + 5.0 and not (
+            _state(host) is HostState.RUNNING_VISION and sim.main_state == 0x02):
+        runner.run_until(runner.now + 0.01)
+    assert runner.now - t0 < 1.0
+    assert sim.conn.link.counters.naksSent == {}

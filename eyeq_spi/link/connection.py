@@ -66,6 +66,10 @@ PayloadCheck = Callable[[int, bytes], "NakReason | None"]
 
 _SPEC = link_spec()
 _DATA, _ACK, _NAK = int(FrameKind.DATA), int(FrameKind.ACK), int(FrameKind.NAK)
+# L10: after a learning reset, a NUM 0 is taken as the peer's restart within this many windows
+# of frames (the peer keeps its old numbering until it learns of the reset: a boot status, or
+# three NAKs of its frames at 15-30 ms each)
+RESTART_HORIZON = 8
 
 
 @dataclass
@@ -138,10 +142,9 @@ class LinkConnection:
         self._tx_num = tx_num
         self._expected = expected
         self._started = not (self.config.passive or learn)  # L9, L10: the receiver learns E
-        # L10: frames the peer sent before the reset may still arrive and be learned; its first
-        # frame after the reset (NUM 0, RSP 0, L4) then takes E back to 0. W frames suffice:
-        # no more than W of its frames can have been in flight.
-        self._expect_restart_frames = self.config.window if learn else 0
+        # L10: frames the peer sent before it learnt of the reset may still arrive and be
+        # learned; its first frame after it restarted (NUM 0, L4) then takes E back to 0
+        self._expect_restart_frames = RESTART_HORIZON * self.config.window if learn else 0
         self._accepted: OrderedDict[int, bytes] = OrderedDict()  # L6a: last W accepted
         self._last_accepted = 0
         self._restart_tag: int | None = None  # L10: number from 0 once this tag's frames left
@@ -170,7 +173,7 @@ class LinkConnection:
         self._accepted.clear()
         self._last_accepted = 0
         self._naks_in_row = 0
-        self._expect_restart_frames = self.config.window
+        self._expect_restart_frames = RESTART_HORIZON * self.config.window
 
     def restart_after(self, tag: int, now: float, expect_for: float = 1.0) -> None:
         """L10 for a message that resets the peer (Switch EyeQ Application): our frames
@@ -302,14 +305,16 @@ class LinkConnection:
         elif d == _NAK:
             self._on_nak(rsp, num)
         else:
-            peer_restart = num == 0 and rsp == 0 and (
+            expecting = num == 0 and (
                 now <= self._expect_restart_until or self._expect_restart_frames > 0)
             if self._expect_restart_frames > 0:
                 self._expect_restart_frames -= 1
-            self._on_data(num, transfer[6:], transfer, peer_restart)
+            self._on_data(num, transfer[6:], transfer, rsp if expecting else None)
 
     def _on_data(self, num: int, data: bytes, transfer: bytes,
-                 peer_restart: bool = False) -> None:
+                 restart_rsp: int | None = None) -> None:
+        """``restart_rsp``: the RSP of a NUM 0 frame that may be the peer's first after a reset
+        (L10): taken as such if its RSP is 0 (L4) or if it lies outside the window."""
         c, w, m = self.counters, self.config.window, SEQ_MODULO
         if not self._started:  # L9: the first DATA frame a passive receiver sees sets E
             self._started = True
@@ -317,6 +322,8 @@ class LinkConnection:
         ahead = (num - self._expected) % m
         behind = (self._expected - num) % m
         resync: str | None = None
+        peer_restart = restart_rsp is not None and (
+            restart_rsp == 0 or (ahead >= w and not 1 <= behind <= w))
         if peer_restart:
             self._expect_restart_until = float("-inf")
             self._expect_restart_frames = 0
