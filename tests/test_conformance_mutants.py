@@ -50,7 +50,8 @@ def matrix() -> dict[str, Verdicts]:
 def test_enough_mutants_and_every_group_has_one() -> None:
     assert len(MUTANTS) >= 12
     # each rule this suite added has a mutant the earlier suite let through
-    assert {"host-late-acks", "host-ack-pad", "eyeq-ack-pad", "host-no-retry"} <= set(MUTANTS)
+    assert {"host-late-acks", "host-ack-pad", "eyeq-ack-pad", "host-no-retry",
+            "host-no-renumber"} <= set(MUTANTS)
     by_id = {c.id: c for dut in ("eyeq", "host") for c in cases_for(dut)}
     covered = {by_id[c].group for m in MUTANTS.values() for c in m.expected}
     assert covered == GROUPS

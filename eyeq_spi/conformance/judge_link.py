@@ -130,7 +130,12 @@ def _dut_data(tr: Trace) -> Iterator[Xfer]:
             if x.direction == tr.dut_dir and x.kind == "DATA" and x.index not in repeats)
 
 
+RENUMBER_WITHIN = 1.0  # s after a reset the host asked for, to number from 0 again (L10)
+
+
 def link_num(ctx: Context, tr: Trace) -> Outcome:
+    """L4: +1 per DATA frame mod 4096, 0 after a reset. L10: a host that resets the EyeQ (a
+    reset-line pulse, Switch EyeQ Application) numbers its frames from 0 again."""
     last: int | None = None
     n = 0
     for x in _dut_data(tr):
@@ -139,7 +144,24 @@ def link_num(ctx: Context, tr: Trace) -> Outcome:
             return bad(f"{_frame(x)}: expected NUM {(last + 1) % SEQ_MODULO} (or 0 after a "
                        f"reset), saw {x.num}")
         last = x.num
-    return ok(f"{n} DATA frames numbered +1 mod 4096") if n else unsure("no DATA frames")
+    if not n:
+        return unsure("no DATA frames")
+    restarts = 0
+    if tr.dut == "host":
+        data = [x for x in tr.xfers if x.direction == tr.dut_dir and x.kind == "DATA"]
+        for m in tr.marks:
+            if m.label not in ("reset_line", "soft_reset"):
+                continue
+            after = [x for x in data if m.time < x.time <= m.time + RENUMBER_WITHIN]
+            if after and m.time + RENUMBER_WITHIN <= tr.end \
+                    and not any(x.num == 0 for x in after):
+                return bad(f"the host reset us at {at(m.time)} ({m.label}); its {len(after)} "
+                           f"DATA frames in the next {RENUMBER_WITHIN:.0f} s, from "
+                           f"{_frame(after[0])}, never number from 0 again (L10: a reset "
+                           "starts both link directions afresh)")
+            restarts += bool(after)
+    extra = f"; numbered from 0 again after each of {restarts} resets (L10)" if restarts else ""
+    return ok(f"{n} DATA frames numbered +1 mod 4096{extra}")
 
 
 def link_ack(ctx: Context, tr: Trace) -> Outcome:

@@ -273,6 +273,27 @@ class HostAckPad(_HostLinkOutput):
         return t[:6] + b"\xaa" * DATA_SIZE, 0.0  # §6: "122 pad bytes set to 0"
 
 
+class HostNoRenumber(HostEmulator):
+    """Ignores L10: after resetting the EyeQ its frames keep their old numbering."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        link = self.conn.link
+        restart = link.restart
+
+        def keep_numbering() -> None:
+            num = link.next_num
+            restart()
+            link.reset(tx_num=num, expected=link.expected_num)
+        link.restart = keep_numbering  # type: ignore[method-assign]
+        link.restart_after = lambda tag, now, expect_for=1.0: None  # type: ignore[method-assign]
+
+    def _restart_driver(self) -> None:
+        num = self.conn.link.next_num
+        super()._restart_driver()
+        self.conn.link.reset(tx_num=num, learn=True)
+
+
 class HostNoRetry(HostEmulator):
     """A MESP request that timed out is never retried (M6: up to 3 attempts, new tag)."""
 
@@ -382,6 +403,8 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
        {"LINK-ACK"}, host=_host(HostLateAcks)),
     _m("host-ack-pad", "host", "ACK and NAK pad bytes are 0xAA", {"LINK-PAD"},
        host=_host(HostAckPad)),
+    _m("host-no-renumber", "host", "after resetting the EyeQ its frames keep their old "
+       "numbering (L10)", {"LINK-NUM"}, host=_host(HostNoRenumber)),
     _m("host-no-retry", "host", "a timed-out MESP request is never retried",
        {"HOST-RETRY"}, host=_host(HostNoRetry)),
     _m("host-e2e-wrong", "host", "crc_16 of host_vehicle_state_t is wrong", {"DASP-E2E"},
