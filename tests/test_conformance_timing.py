@@ -11,7 +11,13 @@ from typing import Any
 
 from eyeq_spi.conformance.cases import Case, cases_for
 from eyeq_spi.conformance.judge_app import _rate
-from eyeq_spi.conformance.judge_link import link_ack, link_pad, link_txtimeout, link_window
+from eyeq_spi.conformance.judge_link import (
+    link_ack,
+    link_noresend,
+    link_pad,
+    link_txtimeout,
+    link_window,
+)
 from eyeq_spi.conformance.load import temper
 from eyeq_spi.conformance.trace import Msg, Trace
 from eyeq_spi.conformance.verdict import Context, bad
@@ -83,6 +89,8 @@ def test_rules_never_exercised_skip_with_the_reason() -> None:
     assert out.verdict == "skip" and "no multi-frame transfer" in out.evidence
     out = link_window(ctx, tr)
     assert out.verdict == "skip" and "not exercised" in out.evidence
+    out = link_noresend(ctx, tr)
+    assert out.verdict == "skip" and "never had a frame to resend" in out.evidence
 
 
 def _msgs(times: list[float]) -> list[Msg]:

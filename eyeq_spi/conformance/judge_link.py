@@ -330,7 +330,27 @@ def link_noresend(ctx: Context, tr: Trace) -> Outcome:
             return bad(f"{_frame(x)} repeats frame #{prev[2]} byte for byte "
                        f"{1e3 * (x.time - prev[0]):.1f} ms later: a resend (§6, L7)")
         seen[x.num] = (x.time, x.data, x.index, era)
-    return ok(f"{n} DATA frames, none resent") if n else unsure("no DATA frames")
+    if not n:
+        return unsure("no DATA frames")
+    unacked = _unacked(tr)
+    if not unacked:
+        return skip(f"all {n} DATA frames of the DUT were ACKed within ackTimeout: it never had "
+                    "a frame to resend")
+    return ok(f"{n} DATA frames, none resent ({unacked} of them not ACKed within ackTimeout)")
+
+
+def _unacked(tr: Trace) -> int:
+    """DUT DATA frames that no ACK of ours with their NUM followed within ackTimeout."""
+    acks: dict[int, list[float]] = {}
+    for x in tr.xfers:
+        if x.direction == tr.our_dir and x.kind == "ACK":
+            acks.setdefault(x.rsp, []).append(x.time)
+    out = 0
+    for x in tr.xfers:
+        if x.direction == tr.dut_dir and x.kind == "DATA" and not any(
+                x.time <= t <= x.time + ACK_TIMEOUT for t in acks.get(x.num, ())):
+            out += 1
+    return out
 
 
 def link_window(ctx: Context, tr: Trace) -> Outcome:

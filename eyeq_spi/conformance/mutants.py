@@ -412,6 +412,7 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
        # our EyeQ, like a real one, does not enter Running Vision on a HOST_VEH_STATE_MSG that
        # fails E2E: the probes, the stale stream and our reset that need it never run
        masks=frozenset({"LINK-NAK-CRC", "LINK-NAK-FORMAT", "LINK-NAK-WINDOW", "LINK-DUP",
+                        "LINK-NORESEND",
                         "LINK-RESYNC", "TP-LIMIT", "HOST-EYEQ-RESET", "HOST-STALE"})),
 )}
 
