@@ -335,7 +335,7 @@ def run_demo(args: argparse.Namespace) -> int:
             can_out.close()  # a log file is complete when the command returns
     out = host_summary(emu.host, side="demo", elapsed=emu.runner.now, wall=emu.runner.wall_s,
                        cpu=emu.runner.cpu_s, running_since=emu.running_since,
-                       left_running=emu.left_running, interrupted=interrupted)
+                       left_running=emu.left_running, interrupted=interrupted, eyeq=emu.sim)
     if can_out is not None:
         out["can"] = can_out.summary()
     print_summary(out, args.json)
@@ -343,8 +343,9 @@ def run_demo(args: argparse.Namespace) -> int:
 
 
 def run_sim(args: argparse.Namespace) -> int:
-    """Serve one host after another until ``--duration`` ends or we are interrupted; every new
-    connection is a power-up (boot status first)."""
+    """Serve one host after another until ``--duration`` ends or we are interrupted: one
+    simulated EyeQ, and every new connection powers it up (boot status first; ``--boot-fail N``
+    counts boots across connections)."""
     from eyeq_spi.errors import LinkLostError
     from eyeq_spi.phy.base import open_listener
     from eyeq_spi.report import SimSessions, sim_summary
@@ -355,7 +356,11 @@ def run_sim(args: argparse.Namespace) -> int:
     if bool(args.listen) == bool(args.pty):
         raise UsageError("give exactly one of --listen tcp://HOST:PORT or --pty")
     cfg = sim_config(args)
-    SimulatedEyeQ(cfg).warm_up()  # bad options fail here, before anybody connects
+    # One EyeQ for the whole run: every connection powers it up again (a new boot, counted
+    # against --boot-fail), as the reset line would; bad options fail here, before anybody
+    # connects
+    eyeq = SimulatedEyeQ(cfg)
+    eyeq.warm_up()
     if args.pty:
         from eyeq_spi.phy.pty import PtyAdapter
 
@@ -385,8 +390,7 @@ def run_sim(args: argparse.Namespace) -> int:
             wait = 0.5 if end is None else max(0.0, min(0.5, end - clock()))
             if not adapter.accept(wait):
                 continue
-            sim = SimulatedEyeQ(cfg)
-            sim.warm_up()
+            sim = eyeq
             gc.collect()
             gc.freeze()
             runner = RealTimeRunner(sim, adapter)
@@ -410,7 +414,7 @@ def run_sim(args: argparse.Namespace) -> int:
     if not served.sessions:
         problem = (f"no host connected within {args.accept_timeout} s" if not interrupted
                    else "interrupted before any host")
-    out = sim_summary(sim or SimulatedEyeQ(cfg), served.sessions, elapsed=clock() - t0,
+    out = sim_summary(sim or eyeq, served.sessions, elapsed=clock() - t0,
                       wall=clock() - t0, cpu=time.process_time() - cpu0,
                       interrupted=interrupted, address=address, scheduling=scheduling,
                       problem=problem)

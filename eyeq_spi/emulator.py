@@ -81,4 +81,4 @@ def summary(emu: Emulation) -> dict[str, Any]:
 
     return host_summary(emu.host, side="demo", elapsed=emu.runner.now, wall=emu.runner.wall_s,
                         cpu=emu.runner.cpu_s, running_since=emu.running_since,
-                        left_running=emu.left_running)
+                        left_running=emu.left_running, eyeq=emu.sim)

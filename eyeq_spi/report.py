@@ -8,9 +8,11 @@ summaries", describes every field).
 - ``sim`` serves one host after another: ``sessions`` holds one object per host served (the
   same fields as the totals, for that host only), the top level holds the totals over all of
   them (counts summed; state, versions and boot of the last).
-- A MESP reply that never came is a timeout on every side (M6): the host counts its deadline
-  expiries and the requests an EyeQ reset left unanswered (``mesp.abandoned``); the simulated
-  EyeQ counts the replies it dropped or sent past the deadline.
+- A MESP reply that never came is a timeout on every side that can know it (M6): the host
+  counts its deadline expiries; the simulated EyeQ counts the replies it dropped or sent past
+  the deadline; ``demo``, which holds both, reports the larger of the two, so a dropped reply
+  is a timeout even when a reset cut the host's wait short. Requests an EyeQ reset left
+  unanswered are ``mesp.abandoned``: reported, not a loss (the bring-up asks again).
 """
 
 from __future__ import annotations
@@ -72,7 +74,6 @@ def _losses(s: dict[str, Any]) -> str | None:
     link = s["link"]
     mesp = s["mesp"]
     timeouts = mesp.get("timeouts") or 0
-    abandoned = mesp.get("abandoned") or 0
     checks: list[tuple[bool, str]] = [
         (s["e2e_errors"] > 0, f"{s['e2e_errors']} E2E errors"),
         (link.get("sendFailedErrorCounter", 0) > 0,
@@ -81,8 +82,7 @@ def _losses(s: dict[str, Any]) -> str | None:
          f"transport aborts {s['transport_aborts']}"),
         (s["dasp_counter_gaps"] > 0, f"{s['dasp_counter_gaps']} DASP counter gaps"),
         (bool(s["stale_streams"]), f"stale streams: {', '.join(s['stale_streams'])}"),
-        (timeouts > 0, f"{timeouts} MESP timeouts"
-         + (f" ({abandoned} unanswered when the EyeQ reset)" if abandoned else "")),
+        (timeouts > 0, f"{timeouts} MESP timeouts"),
     ]
     return next((why for bad, why in checks if bad), None)
 
@@ -100,9 +100,10 @@ def _aborts(conn: TransportConnection) -> dict[str, int]:
     return {k: int(v) for k, v in conn.counters.transferAborts.items() if v}
 
 
-def host_mesp(host: HostEmulator) -> dict[str, int]:
+def host_mesp(host: HostEmulator, eyeq: SimulatedEyeQ | None = None) -> dict[str, int]:
     c = host.mesp.counters
-    return {"requests": c.requests, "retries": c.retries, "timeouts": c.timeouts,
+    dropped = 0 if eyeq is None else eyeq.counters.mesp_replies_dropped
+    return {"requests": c.requests, "retries": c.retries, "timeouts": max(c.timeouts, dropped),
             "abandoned": c.abandoned, "stale_replies": c.stale_replies}
 
 
@@ -110,9 +111,11 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
                  running_since: float | None, left_running: list[float],
                  link_lost: str | None = None, connections: int = 1,
                  interrupted: bool = False, t0: float = 0.0, address: str | None = None,
-                 scheduling: str | None = None) -> dict[str, Any]:
+                 scheduling: str | None = None,
+                 eyeq: SimulatedEyeQ | None = None) -> dict[str, Any]:
     """The summary of a host emulator run (``demo``, ``host``, ``replay --into-host``). Times
-    are seconds since ``t0``, the start of the run on the host's clock."""
+    are seconds since ``t0``, the start of the run on the host's clock. ``eyeq``: the simulated
+    EyeQ of an in-process run (``demo``), whose dropped replies are timeouts too."""
     names = [m.name for m in host.codec.cat.messages
              if m.direction == "e2h" and (m.exists_in(host.sw) or m.protocol != "DASP")]
     received = {n: int(host.counters.received.get(n, 0)) for n in names}
@@ -132,7 +135,7 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "dasp_counter_gaps": host.counters.dasp_counter_gaps,
         "decode_errors": host.counters.decode_errors,
         "stale_streams": stale,
-        "mesp": host_mesp(host),
+        "mesp": host_mesp(host, eyeq),
         "eyeq_resets": host.counters.eyeq_resets,
         "versions": host.versions, "boot": host.boot_info,
         "transitions": [
@@ -344,7 +347,9 @@ def format_summary(out: dict[str, Any]) -> str:
     lines.append(f"  E2E errors {out['e2e_errors']}, DASP counter gaps "
                  f"{out['dasp_counter_gaps']}, transport aborts "
                  f"{out['transport_aborts'] or 'none'}, stale "
-                 f"{', '.join(out['stale_streams']) or 'none'}, MESP timeouts {timeouts}")
+                 f"{', '.join(out['stale_streams']) or 'none'}, MESP timeouts {timeouts}"
+                 + (f" ({mesp['abandoned']} requests abandoned at EyeQ resets)"
+                    if mesp.get("abandoned") else ""))
     if out.get("scheduling"):  # host, sim and replay to a port; the in-process demo has none
         lines.append(f"  scheduling: {out['scheduling']}")
     lines.append(f"  received: {_counts(out['received'])}")

@@ -20,6 +20,8 @@ from eyeq_spi.conformance.verdict import Context
 from eyeq_spi.link.frame import FrameCodec
 
 REALTIME_ONLY = {"LINK-GAP"}
+# our host sends single frames only: the rules about several frames in flight are not exercised
+NOT_EXERCISED = {"host": {"LINK-WINDOW", "LINK-TXTIMEOUT"}, "eyeq": set()}
 
 
 @pytest.fixture(scope="module")
@@ -35,8 +37,10 @@ def host_results():  # type: ignore[no-untyped-def]
 @pytest.mark.parametrize("which", ["eyeq_results", "host_results"])
 def test_builtin_passes_every_case(which: str, request: pytest.FixtureRequest) -> None:
     results = request.getfixturevalue(which)
+    skips = REALTIME_ONLY | NOT_EXERCISED[which.split("_")[0]]
     bad = {r.case.id: r.outcome for r in results
-           if r.outcome.verdict != "pass" and r.case.id not in REALTIME_ONLY}
+           if r.outcome.verdict != "pass" and not (r.case.id in skips
+                                                   and r.outcome.verdict == "skip")}
     assert not bad, bad
     gap = [r for r in results if r.case.id == "LINK-GAP"]
     assert gap and gap[0].outcome.verdict == "skip" and "real time" in gap[0].outcome.evidence

@@ -48,12 +48,15 @@ def mesp_pairs(tr: Trace) -> list[Pair]:
         if not is_reply(rep):
             continue
         key = (rep.header["service"], rep.header["function"])
-        for p in pairs:
-            if p.reply is None and (p.request.header["service"],
-                                    p.request.header["function"]) == key \
-                    and p.request.time <= rep.time:
-                p.reply = rep
-                break
+        open_ = [p for p in pairs if p.reply is None and p.request.time <= rep.time
+                 and (p.request.header["service"], p.request.header["function"]) == key]
+        if not open_:
+            continue
+        # the request with the reply's counter (a request lost on the link, around a reset for
+        # instance, has no reply); else the oldest open one, so a wrong tag is still judged
+        counter = rep.header["tag"] & 0x3F
+        same = [p for p in open_ if p.request.header["tag"] & 0x3F == counter]
+        (same[-1] if same else open_[0]).reply = rep
     return pairs
 
 
@@ -143,12 +146,14 @@ def mesp_deadline(ctx: Context, tr: Trace) -> Outcome:
             continue
         n += 1
         if p.reply is None:
-            return bad(f"{req.name} request #{req.indices[0]} at {at(req.time)} never answered")
+            return bad(f"{req.name} request #{req.indices[0]} at {at(req.time)} never answered",
+                       [(req.time, tr.end, max(tr.end - req.time - DEADLINE, DEADLINE))])
         dt = p.reply.time - req.time
         worst = max(worst, dt)
         if dt > DEADLINE + ctx.slack:
             return bad(f"{req.name} request #{req.indices[0]} at {at(req.time)}: reply "
-                       f"#{p.reply.indices[-1]} after {1e3 * dt:.1f} ms (> 500 ms, §7.1.1, M6)")
+                       f"#{p.reply.indices[-1]} after {1e3 * dt:.1f} ms (> 500 ms, §7.1.1, M6)",
+                       [(req.time, p.reply.time, dt - DEADLINE)])
     return ok(f"{n} delivered requests answered, slowest in {1e3 * worst:.2f} ms") if n else \
         unsure("no delivered requests")
 
@@ -395,14 +400,27 @@ def _rate(ctx: Context, tr: Trace, msgs: list[Msg], hz: float, tol: tuple[float,
             periods.append((b.t_first - a.t_first, b))
     if len(periods) < 5:
         return unsure(f"{len(periods)} periods of {what} observed (need 5)")
-    for p, m in periods:
-        if not lo - slack <= p <= hi + slack:
-            return bad(f"{what}: period {1e3 * p:.2f} ms before #{m.indices[0]} at "
-                       f"{at(m.t_first)} outside {1e3 * lo:.1f}..{1e3 * hi:.1f} ms")
+    outside = [(p, m) for p, m in periods if not lo - slack <= p <= hi + slack]
     mean = sum(p for p, _ in periods) / len(periods)
-    if abs(1.0 / mean - hz) > RATE_MEAN_TOLERANCE * hz:
+    # each violation with its time span and by how much it misses (load.py weighs our stalls
+    # against exactly these): a period outside the tolerance, and the mean rate, whose excess
+    # is the time the whole run of periods is off the nearest rate allowed
+    spans = [(m.t_first - p, m.t_first, (lo - p) if p < lo else (p - hi)) for p, m in outside]
+    fast, slow = 1.0 / ((1 + RATE_MEAN_TOLERANCE) * hz), 1.0 / ((1 - RATE_MEAN_TOLERANCE) * hz)
+    mean_off = abs(1.0 / mean - hz) > RATE_MEAN_TOLERANCE * hz
+    if mean_off:
+        t0 = min(m.t_first - p for p, m in periods)
+        t1 = max(m.t_first for _, m in periods)
+        total = sum(p for p, _ in periods)
+        spans.append((t0, t1, max(total - len(periods) * slow, len(periods) * fast - total)))
+    if outside:
+        p, m = outside[0]
+        return bad(f"{what}: {len(outside)} of {len(periods)} periods outside "
+                   f"{1e3 * lo:.1f}..{1e3 * hi:.1f} ms, first {1e3 * p:.2f} ms before "
+                   f"#{m.indices[0]} at {at(m.t_first)}; mean rate {1 / mean:.2f} Hz", spans)
+    if mean_off:
         return bad(f"{what}: mean rate {1 / mean:.2f} Hz over {len(periods)} periods, "
-                   f"nominal {hz} Hz (±{100 * RATE_MEAN_TOLERANCE:.0f} %)")
+                   f"nominal {hz} Hz (±{100 * RATE_MEAN_TOLERANCE:.0f} %)", spans)
     return ok(f"{what}: {len(periods)} periods {1e3 * min(p for p, _ in periods):.2f}.."
               f"{1e3 * max(p for p, _ in periods):.2f} ms, mean {1 / mean:.2f} Hz")
 

@@ -8,21 +8,27 @@ our ACKs past the peer's ackTimeout (§6: a frame not ACKed in 10 ms is lost, L7
 and its counters go missing), and tells that the machine, which the peer shares when it runs
 beside us, was short of CPU.
 
-Each timing-dependent case has a tolerance: the shortest time its verdict turns on (a rate's
-period tolerance, the 10 ms ackTimeout for lost messages, 100 ms of the 500 ms MESP deadline).
-In real time a ``fail`` of such a case, in a run where one of our own stalls reached that
-tolerance, becomes ``inconclusive`` with both pieces of evidence: the violation seen and our
-stalls. A ``pass`` keeps its verdict and states our worst stall. In virtual time nothing
-changes. A run on a quiet machine keeps every fail.
+A timing judge that fails names each violating measurement: its time span and by how much it
+missed its limit (``Outcome.spans``: a late ACK, a period outside its tolerance, a mean rate
+off over the whole run, a late MESP reply). In real time such a ``fail`` becomes
+``inconclusive`` only if every violation is overlapped by stalls of ours at least as long as its
+excess; otherwise it stays a ``fail`` and says which violation no stall explains. A stall thus
+excuses only the measurements it overlaps, and only by its size.
+
+A judge that names no spans falls back to its case's tolerance: the shortest time its verdict
+turns on (10 ms ackTimeout for lost messages, for instance); a fail in a run where one of our
+stalls reached it becomes ``inconclusive`` with both pieces of evidence. A ``pass`` keeps its
+verdict and states our worst stall. In virtual time nothing changes.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 from eyeq_spi.conformance.cases import Case
 from eyeq_spi.conformance.trace import Trace
-from eyeq_spi.conformance.verdict import Outcome, at, unsure
+from eyeq_spi.conformance.verdict import Outcome, Span, at, unsure
 from eyeq_spi.spec.catalog import catalog
 from eyeq_spi.spec.link import link_spec
 
@@ -91,9 +97,24 @@ def describe(stalls: list[tuple[float, float]], tol: float) -> str:
             f"worst {1e3 * (worst[1] - worst[0]):.1f} ms at {at(worst[0])}")
 
 
+def excused(span: Span, stalls: list[tuple[float, float]]) -> float:
+    """Seconds of our own stalls that can explain one violating measurement: the stalls that
+    overlap it in time. A stall ending just before the measurement starts counts too (the
+    messages that arrived during it were recorded late, so the next period begins late)."""
+    t0, t1, _ = span
+    total = 0.0
+    for a, b in stalls:
+        if a <= t1 and b >= t0 - (b - a):
+            total += b - a
+    return total
+
+
 def temper(case: Case, outcome: Outcome, traces: list[Trace], *, dut: str,
            sw: str | None) -> Outcome:
-    """A real-time timing verdict, weighed against our own stalls in the same run."""
+    """A real-time timing verdict, weighed against our own stalls in the same run. A fail that
+    names its violating measurements (``Outcome.spans``) is excused only if every one of them
+    is overlapped by stalls of ours at least as long as its excess: an 8 ms stall cannot
+    explain a mean rate 40 % off, nor a late ACK half a second later."""
     if not traces or not all(tr.realtime for tr in traces):
         return outcome
     rule = rule_for(case, dut, sw)
@@ -103,9 +124,24 @@ def temper(case: Case, outcome: Outcome, traces: list[Trace], *, dut: str,
     stalls = stalls_of(traces)
     gauge = describe(stalls, tol)
     if outcome.verdict == "pass":
-        return Outcome("pass", f"{outcome.evidence} ({gauge})")
+        return replace(outcome, evidence=f"{outcome.evidence} ({gauge})")
+    if outcome.spans:
+        unexplained = [sp for sp in outcome.spans if excused(sp, stalls) < sp[2]]
+        if unexplained:
+            t0, t1, excess = unexplained[0]
+            return replace(outcome, evidence=(
+                f"{outcome.evidence} ({gauge}; {len(unexplained)} of {len(outcome.spans)} "
+                f"violations not explained by our stalls, first {at(t0)}..{at(t1)}: "
+                f"{1e3 * excess:.1f} ms beyond the limit, our stalls overlapping it "
+                f"{1e3 * excused((t0, t1, excess), stalls):.1f} ms: the machine was not the "
+                "cause)"))
+        return unsure(f"{outcome.evidence}; but each of the {len(outcome.spans)} violations is "
+                      f"overlapped by stalls of our own loop at least as long as its excess "
+                      f"({gauge}): this timing cannot be blamed on the implementation under "
+                      "test (rerun on a quiet machine)")
     if not applies(outcome.evidence) or not any(b - a >= tol for a, b in stalls):
-        return Outcome("fail", f"{outcome.evidence} ({gauge}: the machine was not the cause)")
+        return replace(outcome, evidence=f"{outcome.evidence} ({gauge}: the machine was not "
+                       "the cause)")
     return unsure(f"{outcome.evidence}; but {gauge}: the machine was loaded, so this timing "
                   "cannot be blamed on the implementation under test (rerun on a quiet "
                   "machine)")

@@ -3,6 +3,8 @@ can fail. Test-only (``--builtin --mutant NAME``). Each is a subclass, a wrapper
 output or of one message, or a configuration value: host and simulator internals are not
 edited. ``expected`` names the cases its bug violates; the CI matrix checks that exactly those
 fail and every other case still passes or stays as it is for the correct implementation.
+``ADVISED`` holds variants that depart only from our recommendations (no rule of the seed or a
+decision): the suite passes them and says so in the case's advice.
 """
 
 from __future__ import annotations
@@ -220,7 +222,86 @@ class ReceiveLimit(SimulatedEyeQ):
         self.conn.config.receive_limit = 8191  # the host's limit instead of 512
 
 
+class AckPad(_LinkOutput):
+    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
+        return t[:6] + b"\xaa" * DATA_SIZE  # §6: "122 pad bytes set to 0"; CRC covers H only
+
+
 # -- host mutants -----------------------------------------------------------------------------
+class _HostLinkOutput(HostEmulator):
+    """Rewrites or holds back the host link's ACK/NAK output without touching the link."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        self._held: list[tuple[float, bytes]] = []
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        out = [t for due, t in self._held if due <= now]
+        self._held = [(due, t) for due, t in self._held if due > now]
+        for t in super().data_to_send(now):
+            d, _, rsp, num = _header(t)
+            delay = 0.0
+            if d in (FrameKind.ACK, FrameKind.NAK):
+                t, delay = self.control(t, d, rsp, num)
+            if delay > 0:
+                self._held.append((now + delay, t))
+            else:
+                out.append(t)
+        return out
+
+    def get_timer(self) -> float | None:
+        t = super().get_timer()
+        if self._held:
+            due = min(d for d, _ in self._held)
+            t = due if t is None else min(t, due)
+        return t
+
+    def control(self, t: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
+        return t, 0.0
+
+
+class HostLateAcks(_HostLinkOutput):
+    """Every other ACK leaves 12 ms late (§6 ackTimeout is 10 ms: the EyeQ has given the
+    frame up by then, L7)."""
+
+    def control(self, t: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
+        return t, (0.012 if d == FrameKind.ACK and rsp % 2 else 0.0)
+
+
+class HostAckPad(_HostLinkOutput):
+    def control(self, t: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
+        return t[:6] + b"\xaa" * DATA_SIZE, 0.0  # §6: "122 pad bytes set to 0"
+
+
+class HostNoRenumber(HostEmulator):
+    """Ignores L10: after resetting the EyeQ its frames keep their old numbering."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        link = self.conn.link
+        restart = link.restart
+
+        def keep_numbering() -> None:
+            num = link.next_num
+            restart()
+            link.reset(tx_num=num, expected=link.expected_num)
+        link.restart = keep_numbering  # type: ignore[method-assign]
+        link.restart_after = lambda tag, now, expect_for=1.0: None  # type: ignore[method-assign]
+
+    def _restart_driver(self) -> None:
+        num = self.conn.link.next_num
+        super()._restart_driver()
+        self.conn.link.reset(tx_num=num, learn=True)
+
+
+class HostNoRetry(HostEmulator):
+    """A MESP request that timed out is never retried (M6: up to 3 attempts, new tag)."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        self.mesp.max_attempts = 1
+
+
 class NoEepromReread(HostEmulator):
     def _on_read_eeprom(self, now: float) -> None:
         if self.nvm.data.intrinsic:  # "the NVM already holds a calibration": gives up unread
@@ -282,15 +363,14 @@ def _host(cls: type[HostEmulator]) -> Callable[..., HostEmulator]:
 MUTANTS: dict[str, Mutant] = {m.name: m for m in (
     _m("eyeq-no-ack", "eyeq", "every 4th ACK is never sent", {"LINK-ACK"}, eyeq=NoAck),
     _m("eyeq-wrong-rsp", "eyeq", "ACK RSP is the frame's NUM + 1",
-       {"LINK-ACK", "LINK-DUP", "LINK-RESYNC"}, eyeq=WrongRsp,
-       # our link takes none of its requests for delivered: no deadline can be measured
-       masks=frozenset({"MESP-DEADLINE"})),
+       {"LINK-ACK", "LINK-DUP"}, eyeq=WrongRsp),
     _m("eyeq-silent-on-bad-crc", "eyeq", "a frame with a bad CRC gets no NAK 0x002",
        {"LINK-NAK-CRC"}, eyeq=SilentOnBadCrc),
     _m("eyeq-unknown-ret-1", "eyeq", "an unknown service or function is answered with ret 1",
        {"MESP-UNKNOWN"}, eyeq=UnknownRet1),
     _m("eyeq-ack-crc-range", "eyeq", "ACK/NAK CRC computed over the pad bytes too",
        {"LINK-CRC"}, eyeq=AckCrcRange),
+    _m("eyeq-ack-pad", "eyeq", "ACK and NAK pad bytes are 0xAA", {"LINK-PAD"}, eyeq=AckPad),
     _m("eyeq-resends", "eyeq", "a DATA frame not ACKed in time is sent again",
        {"LINK-NORESEND"}, eyeq=Resends),
     _m("eyeq-tx-timeout", "eyeq", "transmitTimeout not enforced: a long reply during "
@@ -319,14 +399,27 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
        "without reading the EEPROM", {"HOST-FATAL22"}, host=_host(NoEepromReread),
        # in the eeprom_bad cycle it never reads the EEPROM either: its bad CRC goes unseen
        masks=frozenset({"HOST-EEPROM-BAD"})),
-    _m("host-versions-every-bring-up", "host", "asks Get Versions at every bring-up",
-       {"HOST-VERSIONS"}, host=_host(VersionsEveryBringUp)),
+    _m("host-late-acks", "host", "every other ACK leaves 12 ms late (ackTimeout 10 ms)",
+       {"LINK-ACK"}, host=_host(HostLateAcks)),
+    _m("host-ack-pad", "host", "ACK and NAK pad bytes are 0xAA", {"LINK-PAD"},
+       host=_host(HostAckPad)),
+    _m("host-no-renumber", "host", "after resetting the EyeQ its frames keep their old "
+       "numbering (L10)", {"LINK-NUM"}, host=_host(HostNoRenumber)),
+    _m("host-no-retry", "host", "a timed-out MESP request is never retried",
+       {"HOST-RETRY"}, host=_host(HostNoRetry)),
     _m("host-e2e-wrong", "host", "crc_16 of host_vehicle_state_t is wrong", {"DASP-E2E"},
        host=_host(HostE2eWrong),
        # our EyeQ, like a real one, does not enter Running Vision on a HOST_VEH_STATE_MSG that
        # fails E2E: the probes, the stale stream and our reset that need it never run
        masks=frozenset({"LINK-NAK-CRC", "LINK-NAK-FORMAT", "LINK-NAK-WINDOW", "LINK-DUP",
+                        "LINK-NORESEND",
                         "LINK-RESYNC", "TP-LIMIT", "HOST-EYEQ-RESET", "HOST-STALE"})),
+)}
+
+# Hosts that depart only from our recommendations: every case passes, with advice.
+ADVISED: dict[str, Mutant] = {m.name: m for m in (
+    _m("host-versions-every-bring-up", "host", "asks Get Versions at every bring-up",
+       {"HOST-VERSIONS"}, host=_host(VersionsEveryBringUp)),
     _m("host-endless-boot-resets", "host", "resets a failing EyeQ 10 times",
        {"HOST-BOOT-RESETS"}, host_config=_set(boot_strikes=10)),
 )}
@@ -335,11 +428,11 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
 def _mutant(name: str | None, dut: str) -> Mutant | None:
     if name is None:
         return None
-    m = MUTANTS.get(name)
+    m = MUTANTS.get(name) or ADVISED.get(name)
     if m is None or m.dut != dut:
         from eyeq_spi.errors import UsageError
 
-        known = ", ".join(k for k, v in MUTANTS.items() if v.dut == dut)
+        known = ", ".join(k for k, v in (MUTANTS | ADVISED).items() if v.dut == dut)
         raise UsageError(f"no {dut} mutant {name!r} (known: {known})")
     return m
 

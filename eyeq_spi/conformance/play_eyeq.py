@@ -3,7 +3,8 @@ session needs. A host session is one ignition cycle; a host behind a port reconn
 
 Sessions:
 
-- ``normal``: the host brings us up (an empty NVM meets our EEPROM: Fatal 22 and the §7.1.3
+- ``normal``: the reply to the host's first Get EyeQ Versions is withheld (M6: it must retry);
+  the host brings us up (an empty NVM meets our EEPROM: Fatal 22 and the §7.1.3
   flow); while we boot, an unsolicited Get Extended State reply claiming Pending Vision is sent
   (M1: it must be ignored); in Running Vision we probe the host's link, stop one DASP stream for
   a while (stale detection) and finally reset ourselves (the host must bring us up again);
@@ -29,6 +30,8 @@ from eyeq_spi.transport.segment import segment
 
 _T = link_spec()["transport"]
 SWITCH = (0x05, 0x05)
+VERSIONS = (0x05, 0x04)
+REARM_WITHIN = 1.5  # s: a reset this soon after a withheld reply withholds the next one
 APP_VISION = 0x01
 STALE_STREAM = "EYEQ_VIS_SRP_MSG"
 PROBE_LINK_TAG = 1 << 40
@@ -55,10 +58,21 @@ class TesterEyeQ(SimulatedEyeQ):
         self.reset_times: list[float] = []
         self.app_started: list[float] = []
         self.requests: list[tuple[float, int, int, int]] = []  # (time, service, function, tag)
+        # (service, function) of requests whose first occurrence we leave unanswered (M6)
+        self.withhold: set[tuple[int, int]] = set()
+        self._withheld: list[tuple[float, tuple[int, int]]] = []
+
+    def _rearm(self, now: float) -> None:
+        """A reset right after a withheld reply leaves nothing to judge (the host's requests
+        start over): withhold the next one instead."""
+        for t, key in self._withheld:
+            if now - t < REARM_WITHIN:
+                self.withhold.add(key)
 
     def reset_line(self, now: float) -> None:
         """The host pulled our reset line: it restarts its own SPI driver too (README)."""
         self.reset_times.append(now)
+        self._rearm(now)
         if self.trace is not None:
             self.trace.mark(now, "reset_line")
             self.trace.restart_passive(self.trace.our_dir)
@@ -72,9 +86,19 @@ class TesterEyeQ(SimulatedEyeQ):
     def _on_message(self, data: bytes, now: float) -> None:
         if is_mesp(data) and not data[4] & 0x80:
             self.requests.append((now, data[0], data[3], data[4]))
+            if (data[0], data[3]) in self.withhold:
+                # the request arrived (the link ACKed it) but its reply never leaves: the host
+                # must retry after its 500 ms deadline (M6)
+                self.withhold.discard((data[0], data[3]))
+                self._withheld.append((now, (data[0], data[3])))
+                if self.trace is not None:
+                    self.trace.mark(now, "reply_withheld", service=data[0], function=data[3],
+                                    tag=data[4] & 0x3F)
+                return
         if is_mesp(data) and (data[0], data[3]) == SWITCH and not data[4] & 0x80 \
                 and data[5:6] == bytes([APP_VISION]):
             self.reset_times.append(now)
+            self._rearm(now)
             if self.trace is not None:
                 # the host restarts its bring-up, and with it its DASP and E2E counters
                 self.trace.mark(now, "soft_reset")
@@ -127,6 +151,7 @@ class EyeqScript:
 
     def normal(self) -> None:
         s, eyeq, trace, plan = self.s, self.eyeq, self.trace, self.plan
+        eyeq.withhold.add(VERSIONS)  # HOST-RETRY (M6)
         # an unmatched reply while we boot (M1): claims Pending Vision with a tag never used
         if s.wait(lambda: eyeq.main_state == 0x03, 5.0):
             polls = [r for r in eyeq.requests if r[1:3] == (0x05, 0x03)]

@@ -37,9 +37,12 @@ class Result:
 
     def record(self) -> dict[str, Any]:
         c = self.case
-        return {"kind": "case", "id": c.id, "title": c.title, "section": c.section,
-                "requirement": c.requirement, "decision": c.decision,
-                "verdict": self.outcome.verdict, "evidence": self.outcome.evidence}
+        out = {"kind": "case", "id": c.id, "title": c.title, "section": c.section,
+               "requirement": c.requirement, "decision": c.decision,
+               "verdict": self.outcome.verdict, "evidence": self.outcome.evidence}
+        if self.outcome.advice:  # our recommendation beyond the seed: never a failure
+            out["advice"] = self.outcome.advice
+        return out
 
 
 @dataclass

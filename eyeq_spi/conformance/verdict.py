@@ -7,22 +7,35 @@ from typing import Any, Literal
 
 from eyeq_spi.conformance.trace import Trace
 
+Span = tuple[float, float, float]
+"""One violating measurement: (start, end, excess in seconds beyond its limit)."""
 Verdict = Literal["pass", "fail", "skip", "inconclusive"]
 VERDICTS: tuple[Verdict, ...] = ("pass", "fail", "skip", "inconclusive")
 
 
 @dataclass(frozen=True)
 class Outcome:
+    """``advice``: what we recommend beyond the seed and the decisions; never a failure."""
+
     verdict: Verdict
     evidence: str
+    advice: str = ""
+    # a timing fail: each violating measurement, so that only our own stalls that overlap it
+    # and are at least its excess can excuse it (load.py)
+    spans: tuple[Span, ...] = ()
 
 
 def ok(evidence: str) -> Outcome:
     return Outcome("pass", evidence)
 
 
-def bad(evidence: str) -> Outcome:
-    return Outcome("fail", evidence)
+def advise(evidence: str, advice: str) -> Outcome:
+    """A pass that carries our recommendation (a rule neither the seed nor a decision states)."""
+    return Outcome("pass", f"{evidence}; advice: {advice}", advice)
+
+
+def bad(evidence: str, spans: list[Span] | tuple[Span, ...] = ()) -> Outcome:
+    return Outcome("fail", evidence, spans=tuple(spans))
 
 
 def unsure(evidence: str) -> Outcome:

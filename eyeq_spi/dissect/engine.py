@@ -28,7 +28,7 @@ from eyeq_spi.link.events import (
     FramesSkipped,
     Resynchronised,
 )
-from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
+from eyeq_spi.link.frame import FRAME_SIZE, SEQ_MODULO, FrameCodec, FrameKind
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived, TransferAborted, TransferIncomplete
 
@@ -55,6 +55,9 @@ class _Direction:
     index_of_num: dict[int, int] = field(default_factory=dict)
     e2e: E2EState = field(default_factory=E2EState)
     dasp_counters: DaspCounters = field(default_factory=DaspCounters)
+    # L10: the NUM of a Switch EyeQ Application request's last frame; its sender may number
+    # its next frame from 0 (the reset it asked for starts its link afresh)
+    restart_after: int | None = None
 
 
 class Dissector:
@@ -113,6 +116,15 @@ class Dissector:
         yield frame_rec
         if frame_rec["frame_type"] in ("ACK", "NAK"):
             return  # acknowledgements of the other channel's frames: nothing to reassemble
+        after = d.restart_after
+        if after is not None and frame_rec["frame_type"] == "DATA" and frame_rec["crc_ok"]:
+            d.restart_after = None
+            if frame_rec["num"] == 0 and after != SEQ_MODULO - 1:
+                # L10: the host asked for a reset (Switch EyeQ Application) and numbers its
+                # frames after it from 0: a receiver takes this one as its start
+                d = self._reset_direction(rec.direction)
+                yield {"kind": "event", "type": "driver_reset", "direction": rec.direction,
+                       "index": idx}
         if (frame_rec["frame_type"] == "DATA" and frame_rec["num"] == 0 and frame_rec["rsp"] == 0
                 and frame_rec["crc_ok"] and d.conn.link.expected_num != 0):
             # L4: NUM is 0 after a reset. The real receiver was reset with its peer (both SPI
@@ -185,6 +197,8 @@ class Dissector:
             # counters (D5) afresh, as the simulated EyeQ does; so does a passive observer (a
             # host's counters may start over with its bring-up after this soft reset)
             d.e2e.seen.clear()
+            if ev.frames:
+                d.restart_after = ev.frames[-1]
         errors = list(out.errors)
         data_id = out.header.get("data_id") if out.protocol == "DASP" else None
         if data_id is not None:

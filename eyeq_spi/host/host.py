@@ -45,6 +45,8 @@ from eyeq_spi.spec.tables import alignment_nvm
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
+SWITCH_APP = (0x05, 0x05)  # MESP Switch EyeQ Application (service, function), M3
+
 ResetLine = Callable[[float], None]
 Subscriber = Callable[[DecodedMessage], None]
 
@@ -102,6 +104,8 @@ class HostEmulator:
         self._init_busy = False
         self._target_mode = "VISION"
         self._versions_asked = False
+        self._versions_ok = False  # a positive Get EyeQ Versions reply in this ignition cycle
+        self._switch_at: float | None = None  # when the last one was sent, until its ACK
         self._started = False
         self._stale_limits: dict[str, float] = {}
         self._next_stale_check = 0.0
@@ -149,7 +153,7 @@ class HostEmulator:
     def link_restarted(self, now: float) -> None:
         """The byte stream to the EyeQ was re-established (a new connection is a power-up):
         restart our SPI driver and run the bring-up again."""
-        self._abandon_mesp()
+        self._cancel_requests()
         self._restart_driver()
         if next_state(self.state, E.EYEQ_RESET) is not None:
             self._fire(E.EYEQ_RESET, now, "link re-established")
@@ -291,8 +295,14 @@ class HostEmulator:
     # -- MESP results -----------------------------------------------------------------------
     def _flush_mesp(self, now: float) -> None:
         for m in self.mesp.data_to_send():
-            self.conn.send(m, now)
+            sid = self.conn.send(m, now)  # the link's tag of its frames
             self.counters.sent["MESP"] += 1
+            if (m[0], m[3]) == SWITCH_APP:
+                # L10: the EyeQ that takes it starts over, and so does our link to it: our
+                # frames after it are numbered from 0, its first frame after (NUM 0, RSP 0)
+                # restarts our receiver
+                self.conn.link.restart_after(sid, now, self.mesp.deadline)
+                self._switch_at = now
 
     def _on_state_reply(self, reply: MespReply) -> None:
         now = self.now
@@ -325,6 +335,7 @@ class HostEmulator:
                              "eyeqSwVersionMajor": v.eyeqSwVersionMajor,
                              "eyeqSwVersionMinor": v.eyeqSwVersionMinor}
             self.nvm.data.versions = dict(self.versions)
+            self._versions_ok = True
         else:
             self._versions_asked = False  # ask again on the next bring-up
 
@@ -435,7 +446,11 @@ class HostEmulator:
         f = out.fields
         self.boot_info = init_seq.boot_info(f)
         if self.state is not S.POWER_UP:
-            # a boot status we did not ask for: the EyeQ reset by itself
+            # a boot status we did not ask for: the EyeQ reset (by itself, or on our soft
+            # reset); our link to it starts over in both directions (L10), and no request
+            # from before the reset will be answered
+            self.conn.restart()
+            self._cancel_requests()
             self.counters.eyeq_resets += 1
             self._fire(E.EYEQ_RESET, now, "unexpected boot status")
         self._boot_deadline = None
@@ -483,6 +498,12 @@ class HostEmulator:
     def _on_link_resync(self, ev: Resynchronised, now: float) -> None:
         """The EyeQ's link started over (L6/L6a): NUM went back, so the EyeQ reset by itself.
         Its boot status was probably lost to out-of-window NAKs, so do not wait for it."""
+        if ev.cause == "peer_restart" or (
+                self._switch_at is not None and now - self._switch_at <= self.mesp.deadline):
+            # L10: the EyeQ took our Switch EyeQ Application and started its link afresh, as
+            # we did ours: the switch, not a reset of its own
+            self._switch_at = None
+            return
         if self.state in (S.POWER_UP, S.FAILED, S.BOOT_FAILED):
             return  # a boot status is awaited anyway (with its timeout), or we gave up
         self.counters.eyeq_resets += 1
@@ -493,7 +514,8 @@ class HostEmulator:
             # a clean power-up: both SPI drivers start over, the boot status arrives in window
             self._reset_eyeq(now, bringup=False)
         else:
-            self._abandon_mesp()
+            self._cancel_requests()
+            self.conn.restart()  # L10: our transmitter numbers from 0 again as well
             self._enter_after_app_restart(now)
 
     def _enter_after_app_restart(self, now: float) -> None:
@@ -578,22 +600,25 @@ class HostEmulator:
         if self.keep_rx_times:
             self.counters.tx_times.append(now)
 
-    def _abandon_mesp(self) -> None:
-        """The EyeQ reset: what we asked it goes unanswered. Versions not yet known are asked
-        again on the next bring-up (§6 flow step 12)."""
+    def _cancel_requests(self) -> None:
+        """An EyeQ reset: outstanding MESP requests are lost. Get EyeQ Versions is asked again
+        at the next bring-up unless it was answered (§6 flow step 12: once per ignition cycle,
+        after a positive response)."""
         self.mesp.cancel_all()
-        if self.versions is None:
+        if not self._versions_ok:
             self._versions_asked = False
 
     def _restart_driver(self) -> None:
-        """Our SPI driver starts over: NUM 0, E 0 (L4); what was pending is dropped."""
-        self.conn.reset()
+        """Our SPI driver starts over: NUM 0 (L4), and the EyeQ's first DATA frame after the
+        reset sets E (L10); what was pending is dropped."""
+        self._switch_at = None
+        self.conn.reset(learn=True)
         while self.conn.next_event() is not None:
             pass
 
     def _reset_eyeq(self, now: float, *, bringup: bool = True) -> None:
         """Reset the EyeQ; ``bringup`` counts it against ``max_resets`` (EEPROM-driven)."""
-        self._abandon_mesp()
+        self._cancel_requests()
         if bringup:
             self._bringups += 1
         self._enter(S.POWER_UP, now)

@@ -21,7 +21,10 @@ Theory of operation
    header, NAK 0x011), then accept: ACK, ``DataReceived``.
 
 A passive receiver (``LinkConfig.passive``, decision L9: a dissector that did not see the link
-start) takes the NUM of the first DATA frame it sees as E.
+start) takes the NUM of the first DATA frame it sees as E. So does every receiver after a reset
+(decision L10: ``reset(learn=True)``, or :meth:`LinkConnection.restart`, which keeps what is
+queued and in flight): both directions start afresh, and a frame received after the reset is
+never a duplicate of one received before it.
 
 ``send(data, tag, now)`` queues one DATA frame. ``data_to_send(now)`` releases transfers: control
 frames (ACK/NAK) first, then DATA frames while fewer than W are in flight (L7), never closer than
@@ -63,6 +66,10 @@ PayloadCheck = Callable[[int, bytes], "NakReason | None"]
 
 _SPEC = link_spec()
 _DATA, _ACK, _NAK = int(FrameKind.DATA), int(FrameKind.ACK), int(FrameKind.NAK)
+# L10: after a learning reset, a NUM 0 is taken as the peer's restart within this many windows
+# of frames (the peer keeps its old numbering until it learns of the reset: a boot status, or
+# three NAKs of its frames at 15-30 ms each)
+RESTART_HORIZON = 8
 
 
 @dataclass
@@ -123,18 +130,25 @@ class LinkConnection:
         self.reset()
 
     # -- state ------------------------------------------------------------------------------
-    def reset(self, *, tx_num: int = 0, expected: int = 0) -> None:
+    def reset(self, *, tx_num: int = 0, expected: int = 0, learn: bool = False) -> None:
         """Power-up state: NUM and E back to 0 (L4). Queues and in-flight frames are lost.
 
+        ``learn``: the receiver takes the first DATA frame's NUM as E (L10: after a reset the
+        peer's numbering is not known; as L9's passive receivers do).
         ``tx_num``/``expected`` start elsewhere, for conformance tests of the 4095 -> 0 wrap.
         """
         if not (0 <= tx_num < SEQ_MODULO and 0 <= expected < SEQ_MODULO):
             raise LocalProtocolError("start NUMs must be 0..4095")
         self._tx_num = tx_num
         self._expected = expected
-        self._started = not self.config.passive  # L9: a passive receiver learns E
+        self._started = not (self.config.passive or learn)  # L9, L10: the receiver learns E
+        # L10: frames the peer sent before it learnt of the reset may still arrive and be
+        # learned; its first frame after it restarted (NUM 0, L4) then takes E back to 0
+        self._expect_restart_frames = RESTART_HORIZON * self.config.window if learn else 0
         self._accepted: OrderedDict[int, bytes] = OrderedDict()  # L6a: last W accepted
         self._last_accepted = 0
+        self._restart_tag: int | None = None  # L10: number from 0 once this tag's frames left
+        self._expect_restart_until = float("-inf")  # L10: the peer's NUM 0/RSP 0 restarts E
         self._naks_in_row = 0
         self._next_tx = float("-inf")
         self._next_ctl = float("-inf")
@@ -147,6 +161,28 @@ class LinkConnection:
         self._queue.clear()
         self._inflight.clear()
         self.counters.busyFrames = 0
+
+    def restart(self) -> None:
+        """L10: a reset starts both directions afresh, without dropping what is queued or in
+        flight. Frames released from now on are numbered from 0 (RSP 0 until a frame is
+        accepted), the next DATA frame received sets E, and no frame received from now on
+        is a duplicate of one received before, even byte-identical (a new boot status at
+        NUM 0 often is)."""
+        self._tx_num = 0
+        self._started = False
+        self._accepted.clear()
+        self._last_accepted = 0
+        self._naks_in_row = 0
+        self._expect_restart_frames = RESTART_HORIZON * self.config.window
+
+    def restart_after(self, tag: int, now: float, expect_for: float = 1.0) -> None:
+        """L10 for a message that resets the peer (Switch EyeQ Application): our frames
+        released after the last frame of ``tag`` are numbered from 0; and for ``expect_for``
+        seconds a DATA frame with NUM 0 and RSP 0 (the peer's first after its reset, L4) is
+        taken as the new E wherever E stands, so the peer's frames from before its reset are
+        still accepted and its first one after is not NAKed as out of window."""
+        self._restart_tag = tag
+        self._expect_restart_until = now + expect_for
 
     @property
     def expected_num(self) -> int:
@@ -200,6 +236,8 @@ class LinkConnection:
             q = self._queue.popleft()
             num = self._tx_num
             self._tx_num = (num + 1) % SEQ_MODULO
+            if q.tag == self._restart_tag and not any(r.tag == q.tag for r in self._queue):
+                self._tx_num, self._restart_tag = 0, None  # L10: after the reset request
             out.append(self.codec.data_frame(self._last_accepted, num, q.data))
             self._inflight[num] = _InFlight(q.tag, now + cfg.ack_timeout, now)
             self.counters.busyFrames = len(self._inflight)
@@ -267,9 +305,16 @@ class LinkConnection:
         elif d == _NAK:
             self._on_nak(rsp, num)
         else:
-            self._on_data(num, transfer[6:], transfer)
+            expecting = num == 0 and (
+                now <= self._expect_restart_until or self._expect_restart_frames > 0)
+            if self._expect_restart_frames > 0:
+                self._expect_restart_frames -= 1
+            self._on_data(num, transfer[6:], transfer, rsp if expecting else None)
 
-    def _on_data(self, num: int, data: bytes, transfer: bytes) -> None:
+    def _on_data(self, num: int, data: bytes, transfer: bytes,
+                 restart_rsp: int | None = None) -> None:
+        """``restart_rsp``: the RSP of a NUM 0 frame that may be the peer's first after a reset
+        (L10): taken as such if its RSP is 0 (L4) or if it lies outside the window."""
         c, w, m = self.counters, self.config.window, SEQ_MODULO
         if not self._started:  # L9: the first DATA frame a passive receiver sees sets E
             self._started = True
@@ -277,7 +322,14 @@ class LinkConnection:
         ahead = (num - self._expected) % m
         behind = (self._expected - num) % m
         resync: str | None = None
-        if self._naks_in_row >= self.config.resync_after_naks:
+        peer_restart = restart_rsp is not None and (
+            restart_rsp == 0 or (ahead >= w and not 1 <= behind <= w))
+        if peer_restart:
+            self._expect_restart_until = float("-inf")
+            self._expect_restart_frames = 0
+            if ahead:
+                resync = "peer_restart"  # L10: the peer's first frame after its reset
+        elif self._naks_in_row >= self.config.resync_after_naks:
             resync = "nak_limit"  # L6: take this frame's NUM as the new E
         elif ahead >= w:
             if 1 <= behind <= w:
@@ -365,6 +417,8 @@ class LinkConnection:
 
     # -- tag bookkeeping --------------------------------------------------------------------
     def _fail(self, tag: int, num: int | None, why: str, nak: NakReason | None = None) -> None:
+        if tag == self._restart_tag:
+            self._restart_tag = None  # the reset request never left whole: no restart
         entry = self._tags.get(tag)
         if entry is None or entry[1]:
             return

@@ -68,14 +68,16 @@ class DuplicateReceived:
 class Resynchronised:
     """The receiver took ``num`` as the new E: after ``resync_after_naks`` out-of-window NAKs
     (L6, ``cause="nak_limit"``) or because a frame repeated an accepted NUM with other bytes
-    (L6a, ``cause="peer_reset"``). Nothing received before it may join what follows."""
+    (L6a, ``cause="peer_reset"``), or because the peer we had asked to reset sent its first
+    frame after the reset, NUM 0 and RSP 0 (L10, ``cause="peer_restart"``). Nothing received
+    before it may join what follows."""
 
     num: int
     cause: str = "nak_limit"
 
     def __post_init__(self) -> None:
         _check_num(self.num)
-        if self.cause not in ("nak_limit", "peer_reset"):
+        if self.cause not in ("nak_limit", "peer_reset", "peer_restart"):
             raise ValueError(f"bad Resynchronised cause {self.cause!r}")
 
 

@@ -67,7 +67,7 @@ class MespClientCounters:
     timeouts: int = 0
     failures: int = 0
     stale_replies: int = 0
-    abandoned: int = 0  # outstanding when the EyeQ reset: no reply will come (also timeouts)
+    abandoned: int = 0  # outstanding when the EyeQ reset: no reply will come
     latencies: dict[str, list[float]] = field(default_factory=dict)
 
 
@@ -112,9 +112,10 @@ class MespClient:
     def cancel_all(self) -> None:
         """Forget every outstanding request (EyeQ reset); late replies will count as stale.
 
-        A reset EyeQ answers nothing it was asked before: each outstanding request ended
-        without its reply, so it counts as a timeout (and as ``abandoned``), not retried."""
-        self.counters.timeouts += len(self._pending)
+        A reset EyeQ answers nothing it was asked before: each outstanding request is
+        ``abandoned`` (reported, not retried; the bring-up asks again what it still needs). It
+        is not a timeout: no deadline passed, and a host that resets the EyeQ on purpose (a
+        failed boot, the EEPROM) abandons requests as part of a correct bring-up."""
         self.counters.abandoned += len(self._pending)
         self._pending.clear()
 

@@ -41,7 +41,7 @@ from eyeq_spi.codec.intrinsic import (
     intrinsic_params_from_eeprom,
     version_bytes,
 )
-from eyeq_spi.codec.message import DaspCounters, MessageCodec
+from eyeq_spi.codec.message import DaspCounters, MessageCodec, is_mesp
 from eyeq_spi.errors import CodecError, EyeqError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.mesp.server import (
@@ -64,6 +64,7 @@ from eyeq_spi.transport.events import MessageReceived
 VEH_STATE_STALE = 3 / 66.67  # three HOST_VEH_STATE periods (§7.1.2.2: 66.67 Hz)
 # M7: in DV the EyeQ reports mainState 0xAA (RUNNING_DV); 0x05 is DV's application ID
 PENDING, RUNNING_VISION, BOOT, DV = 0x01, 0x02, 0x03, 0xAA
+SWITCH_APP = (0x05, 0x05)  # MESP Switch EyeQ Application (service, function), M3
 PENDING_VISION, PENDING_TAC, PENDING_SPC = 0x92, 0x85, 0x82
 RUNNING_TAC, RUNNING_SPC = 0xAC, 0x22
 APP_VISION, APP_TAC, APP_SPC, APP_DV = 0x01, 0x03, 0x04, 0x05
@@ -208,8 +209,10 @@ class SimulatedEyeQ:
     # -- power ------------------------------------------------------------------------------
     def power_up(self, now: float) -> None:
         """Power-on or hardware reset: link, transport and application start over."""
+        # L10: after a reset of ours the host's numbering is unknown: its first DATA frame
+        # after the boot sets E. At the first power-up both sides start together at 0 (L4).
+        self.conn.reset(learn=self.powered)
         self.powered = True
-        self.conn.reset()
         while self.conn.next_event() is not None:
             pass
         # a reset loses the delayed replies: the host never gets them (late ones are counted)
@@ -298,6 +301,10 @@ class SimulatedEyeQ:
 
     def _on_message(self, data: bytes, now: float) -> None:
         if self.main_state == 0:
+            if is_mesp(data) and (data[0], data[3]) == SWITCH_APP and not data[4] & 0x80:
+                # the host's soft reset while we boot (or failed to): boot again, as a pulse
+                # on the reset line would (a new boot status, counted against --boot-fail)
+                self.power_up(now)
             return  # still booting: nobody listens yet
         if data[:1] == b"\x65":
             self._on_dasp(data, now)
@@ -402,6 +409,9 @@ class SimulatedEyeQ:
         self._init_ok = self._veh_state_seen = False
         self._cal_started = None
         self._next_dasp.clear()
+        # L10: the host takes an accepted switch for a reset of ours; both link directions
+        # start afresh (the reply is our first frame numbered from 0)
+        self.conn.restart()
         return 0, {"applicationId": app}
 
     def _ffs_read(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
@@ -521,6 +531,10 @@ class SimulatedEyeQ:
         period = 1.0 / rate
         due = self._due
         if not self._next_dasp:
+            # The streams (re)start (Running Vision after a boot or another mode): the scene
+            # resumes from where it stood instead of catching up the whole pause in one step,
+            # which held the loop for several milliseconds, past the host's 10 ms ackTimeout.
+            self.scene.unanchor()
             # stagger the messages over one period so that no message waits behind the others
             # for longer than transmitTimeout
             for i, m in enumerate(msgs):

@@ -114,15 +114,25 @@ class TransportConnection:
     def role(self) -> Role:
         return self.link.config.role
 
-    def reset(self, *, tx_num: int = 0, expected: int = 0, transfer_id: int = 0) -> None:
-        """Power-up state of both layers (the link's pending messages fail). The start values
-        exist for conformance tests of the wraps."""
+    def reset(self, *, tx_num: int = 0, expected: int = 0, transfer_id: int = 0,
+              learn: bool = False) -> None:
+        """Power-up state of both layers (the link's pending messages fail). ``learn``: the
+        receiver takes the first DATA frame's NUM as E (L10). The start values exist for
+        conformance tests of the wraps."""
         if not 0 <= transfer_id < seg.ID_MODULO:
             raise ValueError("transfer_id must be 0..255")
         self._abort("reset")
-        self.link.reset(tx_num=tx_num, expected=expected)
+        self.link.reset(tx_num=tx_num, expected=expected, learn=learn)
         self._next_transfer_id = transfer_id
         self._drain_link(0.0)
+
+    def restart(self) -> None:
+        """L10: the peer reset (or we reset it): both link directions start afresh
+        (:meth:`LinkConnection.restart`); a transfer still open is aborted, since no reassembly
+        may join frames from before and after a reset (L6a)."""
+        self._abort("reset")
+        self._dead_id = None
+        self.link.restart()
 
     # -- send -------------------------------------------------------------------------------
     def send(self, message: bytes, now: float) -> int:
