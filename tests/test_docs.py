@@ -56,6 +56,8 @@ def test_shell_blocks_run(page: Path, tmp_path: Path) -> None:
     script = "set -euo pipefail\n" + "\n".join(_runnable(page))
     env = {**os.environ,
            "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
+           # a page that says "from a clone" may run the clone's own modules (python -m tests.x)
+           "PYTHONPATH": str(ROOT),
            "HOME": str(tmp_path / "home"), "EYEQ_SPI_REPO": str(ROOT), "COLUMNS": "80",
            "LINES": "24", "NO_COLOR": "1"}
     proc = subprocess.Popen(["bash", "-c", script], cwd=tmp_path, env=env,
