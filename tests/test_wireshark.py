@@ -306,7 +306,7 @@ def test_demo_capture_matches_python(tmp_path: Path) -> None:
         assert m.ok, f"frame {n}: {m.errors}"
     # ... and as many of each as the demo itself counted
     counts = Counter(m.name for m in messages.values())
-    for name, count in summary["messages"].items():
+    for name, count in summary["received"].items():
         assert counts[name] == count, name
     multi = {m.name for n, m in messages.items()
              if rows[n - 1][LINK_FIELDS.index("eyeq_spi.transport")] != "single"}
