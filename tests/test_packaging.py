@@ -59,3 +59,23 @@ def test_the_readme_install_runs_the_demo(tmp_path: Path) -> None:
                           capture_output=True, text=True, timeout=120)
     assert demo.returncode == 0, demo.stdout[-2000:] + demo.stderr[-2000:]
     assert "RUNNING_VISION" in demo.stdout + demo.stderr
+
+
+def test_the_oldest_versions_ci_tests_are_the_floors_of_pyproject() -> None:
+    """``.ci/oldest.txt`` (what ``tools/check.py --oldest`` installs) pins every direct
+    dependency with a ``>=`` floor to exactly that floor, so CI tests what the pins allow."""
+    import re
+    import tomllib
+
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    floors = {}
+    for req in meta["dependencies"] + meta["optional-dependencies"]["test"]:
+        m = re.match(r"([A-Za-z0-9_.\-]+)(\[.*\])?\s*>=\s*([0-9.]+)", req)
+        if m:
+            floors[m.group(1).lower()] = m.group(3)
+    pins = {}
+    for line in (ROOT / ".ci" / "oldest.txt").read_text().splitlines():
+        if line.strip() and not line.startswith("#"):
+            name, _, version = line.partition("==")
+            pins[name.strip().lower()] = version.strip()
+    assert pins == floors

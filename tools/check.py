@@ -1,7 +1,13 @@
 #!/usr/bin/env python3
 """Run every check CI runs: tshark and sigrok-cli (installed if missing), ruff, mypy --strict,
 the import-layer contract, the specs schema, then pytest. Exits non-zero on the first failure;
-pytest's exit code 5 (no tests collected) is a failure too."""
+pytest's exit code 5 (no tests collected) is a failure too.
+
+Then, when ``CI`` is set or with ``--oldest``: the same project against the OLDEST version of
+every direct dependency that ``pyproject.toml`` allows (``.ci/oldest.txt``, held equal to its
+floors by ``tests/test_packaging.py``), in a second virtual environment (``.venv-oldest``),
+running the tests that exercise those libraries. The newest versions are what the first run
+got from a fresh install. Other arguments go to pytest (``-k link``)."""
 
 from __future__ import annotations
 
@@ -49,7 +55,41 @@ def ensure_sigrok() -> None:
                     env=env)
 
 
+# the tests that exercise third-party libraries (formats, codecs, tables, plots, CAN, Dask,
+# terminal, start-up imports): what the oldest allowed versions must pass too
+OLDEST_TESTS = [
+    "tests/test_vdecode.py", "tests/test_dissect.py", "tests/test_batch_lean.py",
+    "tests/test_batch_fleet.py", "tests/test_bench.py", "tests/test_bench_readers.py",
+    "tests/test_capture_release.py", "tests/test_capture_crash.py", "tests/test_plot.py",
+    "tests/test_plot_review.py", "tests/test_monitor.py", "tests/test_monitor_compact.py",
+    "tests/test_term.py", "tests/test_startup.py", "tests/test_specs.py", "tests/test_codec.py",
+    "tests/test_can_spec.py", "tests/test_can_decode.py", "tests/test_can_camera.py",
+    "tests/test_can_compare.py", "tests/test_can_gateway.py", "tests/test_can_bus.py",
+    "tests/test_cli_reference.py", "tests/test_input_hardening.py",
+]
+
+
+def oldest(pytest_args: list[str]) -> int:
+    """The oldest allowed versions: a venv of their own, the dependency-facing tests."""
+    venv = ROOT / ".venv-oldest"
+    py = venv / "bin" / "python"
+    if not py.exists() and run("oldest: venv", [sys.executable, "-m", "venv", str(venv)]):
+        return 1
+    if run("oldest: install", [str(py), "-m", "pip", "install", "-q", "-c",
+                               str(ROOT / ".ci" / "oldest.txt"), "-e", ".[test]"]):
+        print("FAILED: installing the oldest allowed versions", file=sys.stderr)
+        return 1
+    subprocess.call([str(py), "-m", "pip", "list", "--format=freeze"], cwd=ROOT)
+    rc = run("oldest: pytest", [str(py), "-m", "pytest", *OLDEST_TESTS, *pytest_args])
+    if rc:
+        print("FAILED: the tests on the oldest allowed versions", file=sys.stderr)
+    return rc
+
+
 def main() -> int:
+    args = sys.argv[1:]
+    with_oldest = "--oldest" in args or bool(os.environ.get("CI"))
+    args = [a for a in args if a != "--oldest"]
     ensure_tshark()
     ensure_sigrok()
     py = sys.executable
@@ -63,11 +103,13 @@ def main() -> int:
         if run(name, cmd) != 0:
             print(f"FAILED: {name}", file=sys.stderr)
             return 1
-    rc = run("pytest", [py, "-m", "pytest", *sys.argv[1:]])
+    rc = run("pytest", [py, "-m", "pytest", *args])
     if rc == 5:
         print("FAILED: pytest collected no tests", file=sys.stderr)
         return 1
-    return rc
+    if rc or not with_oldest:
+        return rc
+    return oldest(args)
 
 
 if __name__ == "__main__":
