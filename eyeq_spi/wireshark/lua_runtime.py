@@ -509,6 +509,10 @@ function p.prefs_changed()
   PREF = p.prefs.sw
 end
 
+-- A filtering tap makes Wireshark build a tree on its first pass too (tshark -2), so frames get
+-- their direction, are fed to the reassembly and show their release in capture order.
+local direction_tap = Listener.new(nil, "eyeq_spi")
+
 -- "h2e"/"e2h" from the pcapng interface; "?" when the capture has no interfaces; nil when this
 -- pass builds no tree, so no field can be read.
 local function direction()
