@@ -654,6 +654,15 @@ local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
   return string.format("transport 0x%02X", ttype), nil
 end
 
+-- the Tvb of the message being dissected, made only when an item needs its bytes
+local MSG_DATA, FRAME_TVB
+local function make_reassembled()
+  return ByteArray.new(MSG_DATA, true):tvb("Reassembled EyeQ message")
+end
+local function make_single()
+  return FRAME_TVB(C.SINGLE_DATA, #MSG_DATA):tvb()
+end
+
 -- the message a DATA frame completed or carried, its fragments, and its Info text
 local function message_of(n, tvb, single, feed)
   local data, make = done[n], nil
@@ -672,17 +681,18 @@ local function message_of(n, tvb, single, feed)
       end
       for i = #list, 1, -1 do add(rt, F["fragment"], nil, nil, list[i]) end
     end
-    make = function() return ByteArray.new(data, true):tvb("Reassembled EyeQ message") end
+    make = make_reassembled
   elseif reasm_in[n] then
     add(ROOT, F["reassembled_in"], nil, nil, reasm_in[n])
     return nil
   elseif single then
     data = single
-    make = function() return tvb(C.SINGLE_DATA, #single):tvb() end
+    make = make_single
   else
     return nil
   end
   if feed and not REL.final and n <= SNIFF_RECORDS then evidence(data, n) end
+  MSG_DATA, FRAME_TVB = data, tvb
   return dissect_message(data, make)
 end
 
@@ -695,16 +705,18 @@ function p.dissector(tvb, pinfo, tree)
   prev_number = n
   VIS = tree.visible
   local cols = COLS
+  local columns = pinfo.cols
   if VIS or cols == nil then
-    cols = tostring(pinfo.cols.info) ~= "(info)"  -- "(info)": this dissection fills no columns
+    cols = tostring(columns.info) ~= "(info)"  -- "(info)": this dissection fills no columns
     if not VIS then COLS = cols end
   end
-  if cols then pinfo.cols.protocol = "EyeQ SPI" end
+  if cols then columns.protocol = "EyeQ SPI" end
   local len = tvb:len()
   local dir = direction()
   if not dir then return len end  -- no tree in this pass: nothing to add, nothing to feed
   TVB, TVB_MAKE = tvb, nil
-  ROOT, ROOT_TEXT = tree:add(p, tvb()), nil
+  -- a tree that is not shown needs no byte range (one object less per packet)
+  ROOT, ROOT_TEXT = VIS and tree:add(p, tvb()) or tree:add(p), nil
   local seen = n <= last_fed
   local feed = not seen
   local link = not skip(G_FRAME)
@@ -720,7 +732,7 @@ function p.dissector(tvb, pinfo, tree)
     add(ROOT, F["length"], nil, nil, len)
     expert(nil, X.bad_length, string.format("malformed transfer: %d bytes, not %d (L8)",
                                             len, C.FRAME_SIZE))
-    if cols then pinfo.cols.info = dirtext .. "bad length " .. len end
+    if cols then columns.info = dirtext .. "bad length " .. len end
     return len
   end
   local raw = tvb:raw(0, len)
@@ -782,15 +794,15 @@ function p.dissector(tvb, pinfo, tree)
   if cols then
     local bad = crc_ok and "" or " [bad CRC]"
     if kind == "DATA" then
-      pinfo.cols.info = dirtext .. "DATA NUM=" .. NUMSTR[num] .. " RSP=" .. NUMSTR[rsp] .. bad
+      columns.info = dirtext .. "DATA NUM=" .. NUMSTR[num] .. " RSP=" .. NUMSTR[rsp] .. bad
                         .. " " .. tinfo .. (name and ": " .. name or "")
     elseif kind == "ACK" then
-      pinfo.cols.info = dirtext .. "ACK of NUM=" .. NUMSTR[rsp] .. bad
+      columns.info = dirtext .. "ACK of NUM=" .. NUMSTR[rsp] .. bad
     elseif kind == "NAK" then
-      pinfo.cols.info = dirtext .. "NAK of NUM=" .. NUMSTR[rsp] .. " "
+      columns.info = dirtext .. "NAK of NUM=" .. NUMSTR[rsp] .. " "
                         .. (NAK_REASONS[num] or string.format("0x%03X", num)) .. bad
     else
-      pinfo.cols.info = dirtext .. kind .. string.format(" D=0x%X", d) .. bad
+      columns.info = dirtext .. kind .. string.format(" D=0x%X", d) .. bad
     end
   end
   return len
