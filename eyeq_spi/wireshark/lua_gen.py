@@ -38,6 +38,7 @@ from eyeq_spi.wireshark.lua_common import (
     value_table,
 )
 from eyeq_spi.wireshark.lua_crc import CRC_RUNTIME, CRC_SELFTEST, crc_functions
+from eyeq_spi.wireshark.lua_items import RUNTIME_ITEMS
 from eyeq_spi.wireshark.lua_runtime import RUNTIME
 
 LINKTYPE_USER0 = 147  # LINKTYPE_USER0..USER15 are 147..162 = wtap.USER0..USER15
@@ -323,6 +324,7 @@ class LuaGenerator:
             f"local MESP_REPLY_MASK = {lua_int(reply_mask)}",
             f"local MESP_TAG_SPARE = {lua_int(spare_mask)}",
             *self.app.out.messages,
+            RUNTIME_ITEMS,
             RUNTIME,
             self.registration(),
             "",
