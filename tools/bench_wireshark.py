@@ -15,10 +15,13 @@ computed per repetition (with / without) and summarised the same way. Modes:
 - ``stats``: ``tshark -q -z io,stat,0 -r CAPTURE`` (a statistics run, no output per packet);
 - ``filter``: ``-Y 'eyeq_spi.eyeq_vision_object_t.id == 3'`` with the dissector (a payload
   member, so payloads are decoded), against ``-Y frame`` without it;
-- ``details``: ``tshark -V`` (every packet's whole tree printed; not a goal, for reference).
+- ``details``: ``tshark -V`` (every packet's whole tree printed; not a goal, for reference);
+- ``floor``: summary lines with :data:`FLOOR_LUA`, a Lua dissector that only does what every
+  Lua dissector of these captures must: read each packet's interface, add its protocol item,
+  set two columns. Its ratio is what Lua costs before any decoding.
 
     python tools/bench_wireshark.py [--duration 60] [--repeat 3] [--capture FILE] [--lua FILE]
-                                    [--modes summary,stats,filter,details] [--json]
+                                    [--modes summary,stats,filter,floor,details] [--json]
 """
 
 from __future__ import annotations
@@ -42,7 +45,24 @@ MODES: dict[str, tuple[list[str], list[str]]] = {  # mode -> (tshark args withou
     "stats": (["-q", "-z", "io,stat,0"], ["-q", "-z", "io,stat,0"]),
     "filter": (["-Y", "frame"], ["-Y", "eyeq_spi.eyeq_vision_object_t.id == 3"]),
     "details": (["-V"], ["-V"]),
+    "floor": ([], []),
 }
+FLOOR_LUA = """
+local p = Proto("eyeq_floor", "Lua floor")
+local f_iface = Field.new("frame.interface_id")
+local f_comment = Field.new("frame.comment")
+local f_number = Field.new("frame.number")
+local DIRS = {[0] = "h2e", [1] = "e2h"}
+function p.dissector(tvb, pinfo, tree)
+  local cols = pinfo.cols
+  cols.protocol = "EyeQ SPI"
+  local fi = f_iface()
+  tree:add(p, tvb())
+  cols.info = (fi and DIRS[fi.value] or "?") .. " " .. tvb:len()
+  return tvb:len()
+end
+DissectorTable.get("wtap_encap"):add(wtap.USER0, p)
+"""
 
 
 def build(dirpath: Path, duration: float) -> Path:
@@ -79,7 +99,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--capture", type=Path)
     ap.add_argument("--lua", type=Path, help="a dissector file (default: generate it)")
-    ap.add_argument("--modes", default="summary,stats,filter,details")
+    ap.add_argument("--modes", default="summary,stats,filter,floor,details")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
     tshark = shutil.which("tshark")
@@ -101,6 +121,8 @@ def main() -> int:
 
             lua = work / "eyeq_spi.lua"
             lua.write_text(generate_lua(), encoding="utf-8")
+        floor = work / "floor.lua"
+        floor.write_text(FLOOR_LUA, encoding="utf-8")
         frames = sum(1 for _ in subprocess.run(
             [tshark, "-r", str(cap), "-T", "fields", "-e", "frame.number"], check=True,
             capture_output=True, text=True, env={**os.environ, "HOME": tmp}).stdout.splitlines())
@@ -110,7 +132,8 @@ def main() -> int:
         for mode in modes:
             without, with_lua = MODES[mode]
             base_cmd = [tshark, "-n", "-r", str(cap), *without]
-            lua_cmd = [tshark, "-n", "-r", str(cap), "-X", f"lua_script:{lua}", *with_lua]
+            script = floor if mode == "floor" else lua
+            lua_cmd = [tshark, "-n", "-r", str(cap), "-X", f"lua_script:{script}", *with_lua]
             base, lua_s, ratio = [], [], []
             for _ in range(args.repeat):
                 b = run_once(base_cmd, work)
