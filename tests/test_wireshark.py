@@ -554,3 +554,22 @@ def test_hidden_trees_keep_what_filters_reference(
     # a second pass (tshark -2) reads what the first pass stored
     display_filter = f"eyeq_spi.eyeq_vision_object_t.id == {some_id}"
     assert set(filtered_frames(capture, lua, tmp_path, display_filter, True)) == ids[some_id]
+
+
+def test_one_field_per_member_across_releases() -> None:
+    """Releases that lay a member out differently share its filter name: the widest integer
+    type; a mask or enum only where all agree (the row then computes or labels the value)."""
+    from eyeq_spi.wireshark.lua_app import MemberField, merge
+
+    old = MemberField("uint8", "x", "uint8, bits 0-5", 'E["a"]', 0x3F)
+    new = MemberField("uint16", "x", "uint16", None, None)
+    merged = merge("s.x", [old, new])
+    assert (merged.ctor, merged.vs, merged.mask, merged.desc) == ("uint16", None, None, "uint16")
+    assert merge("s.x", [old, old]) == old
+    with pytest.raises(ValueError, match="cannot share"):
+        merge("s.x", [old, MemberField("float", "x", "real32")])
+    lua = generate_lua()
+    # a member whose mask differs between releases: computed from its container in that layout
+    assert "eyeq_spi.host_vehicle_state_t.vehicleYawRateValidity" in lua
+    assert re.search(r'F\["host_vehicle_state_t\.vehicleYawRateValidity"\], false, '
+                     r'"vehicleYawRateValidity", nil, \{\d+, (0x[0-9A-F]+|\d+)\}', lua)
