@@ -542,7 +542,8 @@ def test_hidden_trees_keep_what_filters_reference(
             {i for i, row in enumerate(link, 1) if row["eyeq_spi.transport"] == "first"},
         'eyeq_spi.frame_type == "ACK" && eyeq_spi.crc_ok == 1':
             {i for i, row in enumerate(link, 1) if row["eyeq_spi.frame_type"] == "ACK"},
-        'eyeq_spi.sw == "9.0" && eyeq_spi.sw_source == "boot status"': set(messages),
+        'eyeq_spi.sw == "9.0" && (eyeq_spi.sw_source == "boot status"'
+        ' || eyeq_spi.sw_source == "capture")': set(messages),
         "eyeq_spi.fragment": multi,
         "eyeq_spi.mesp.reply == 1": {n for n, m in messages.items()
                                 if m.protocol == "MESP" and m.header.get("reply")},
