@@ -151,7 +151,11 @@ local function walk(tree, base, key)
         end
       end
     elseif n == 0 then
-      add_scalar(tree, m, o, s)
+      if m[7] or m[8] or m[9] then
+        add_scalar(tree, m, o, s)
+      else
+        tree:add_le(f, TVB(o, s))  -- the common member, without the helpers (TVB exists here)
+      end
     else
       local arr = tree:add(range(o, s * n), m[6] .. "[" .. n .. "]")
       for k = 0, n - 1 do
