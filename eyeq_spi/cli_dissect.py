@@ -57,7 +57,9 @@ def add_dissect_parser(sub: Any) -> None:
     w.add_argument("--output", "-o", metavar="FILE.lua", type=ca.output_file,
                    help="write the dissector here (default: standard output)")
     w.add_argument("--sw", type=ca.sw_release,
-                   help="SW release whose layouts the dissector decodes (default newest)")
+                   help="read every capture as this SW release: the default of the "
+                        "dissector's eyeq_spi.sw preference (default: auto, each capture's "
+                        "own release)")
 
 
 def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:

@@ -106,10 +106,10 @@ def test_generated_lua_is_lua52(tmp_path: Path) -> None:
 
 # -- tshark ---------------------------------------------------------------------------------------
 def tshark(capture: Path, lua: Path, fields: list[str], home: Path,
-           two_pass: bool = False) -> list[list[str]]:
+           two_pass: bool = False, options: tuple[str, ...] = ()) -> list[list[str]]:
     assert TSHARK is not None
     cmd = [TSHARK, "-r", str(capture), "-X", f"lua_script:{lua}", "-T", "fields",
-           "-E", "separator=/t", "-E", "occurrence=a", "-E", "aggregator=,"]
+           "-E", "separator=/t", "-E", "occurrence=a", "-E", "aggregator=,", *options]
     if two_pass:
         cmd.append("-2")
     for f in fields:
@@ -264,17 +264,29 @@ def compare_values(where: str, printed: str, values: Iterable[Any]) -> None:
         assert same(p, v), f"{where}[{i}]: tshark {p!r}, Python {v!r}"
 
 
-# -- test: the demo's capture ---------------------------------------------------------------------
-@needs_tshark
-def test_demo_capture_matches_python(tmp_path: Path) -> None:
-    capture = tmp_path / "c.pcapng"
+def run_demo(capture: Path, *extra: str) -> dict[str, Any]:
     demo = subprocess.run(
         [sys.executable, "-m", "eyeq_spi.cli", "demo", "--virtual-time", "--duration", "3",
-         "--capture", str(capture), "--json"],
+         "--capture", str(capture), "--json", *extra],
         cwd=ROOT, capture_output=True, text=True, timeout=120, check=False,
     )
     assert demo.returncode == 0, demo.stderr[-2000:]
-    summary = json.loads(demo.stdout.strip().splitlines()[-1])
+    summary: dict[str, Any] = json.loads(demo.stdout.strip().splitlines()[-1])
+    return summary
+
+
+@pytest.fixture(scope="module")
+def demo_capture(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, Any]]:
+    """A 3 s demo capture of the newest release and the demo's own summary."""
+    capture = tmp_path_factory.mktemp("demo") / "c.pcapng"
+    return capture, run_demo(capture)
+
+
+# -- test: the demo's capture ---------------------------------------------------------------------
+@needs_tshark
+def test_demo_capture_matches_python(tmp_path: Path,
+                                     demo_capture: tuple[Path, dict[str, Any]]) -> None:
+    capture, summary = demo_capture
     lua = write_lua(tmp_path)
     with capture.open("rb") as fh:
         records = list(read_pcapng(fh))
@@ -484,3 +496,82 @@ def test_field_names_are_registered(tmp_path: Path) -> None:
         *all_member_fields(codec), *mesp_field_names(codec).values(),
     }
     assert required <= names, sorted(required - names)[:20]
+
+
+# -- test: trees that are not shown (summary lines, -q, filters) ----------------------------------
+def filtered_frames(capture: Path, lua: Path, home: Path, display_filter: str,
+                    two_pass: bool = False) -> list[int]:
+    """Frame numbers tshark keeps for ``display_filter`` with summary lines: the dissector gets
+    a tree that will not be shown, in which only the filter's fields are referenced."""
+    assert TSHARK is not None
+    cmd = [TSHARK, "-r", str(capture), "-X", f"lua_script:{lua}", "-Y", display_filter]
+    if two_pass:
+        cmd.append("-2")
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False,
+                          env={**os.environ, "HOME": str(home)})
+    assert proc.returncode == 0, proc.stderr
+    assert "Lua: Error" not in proc.stderr, proc.stderr
+    return [int(line.split()[0]) for line in proc.stdout.splitlines() if line.strip()]
+
+
+@needs_tshark
+def test_hidden_trees_keep_what_filters_reference(
+        tmp_path: Path, demo_capture: tuple[Path, dict[str, Any]]) -> None:
+    """Where the tree is not shown the dissector adds only referenced fields and walks a payload
+    only while a member is referenced: every filter still finds what the Python view says."""
+    capture, _ = demo_capture
+    lua = write_lua(tmp_path)
+    with capture.open("rb") as fh:
+        records = list(read_pcapng(fh))
+    codec = MessageCodec()
+    messages = {n: codec.decode(data) for n, data in reassemble(records).items()}
+    link = expected_link(records)
+    ids: dict[int, set[int]] = {}
+    for n, m in messages.items():
+        if m.protocol != "MESP":
+            flat: dict[str, list[Any]] = {}
+            flatten(codec.layout(codec.cat.message(m.name or "")), m.fields, flat)
+            for v in flat.get("eyeq_spi.eyeq_vision_object_t.id", []):
+                ids.setdefault(int(v), set()).add(n)
+    some_id = sorted(ids, key=lambda k: len(ids[k]))[len(ids) // 2]
+    multi = {n for n in messages if link[n - 1]["eyeq_spi.transport"] == "consecutive"}
+    cases = {
+        'eyeq_spi.message == "EYEQ_VIS_OBSTACLES_MSG"':
+            {n for n, m in messages.items() if m.name == "EYEQ_VIS_OBSTACLES_MSG"},
+        f"eyeq_spi.eyeq_vision_object_t.id == {some_id}": ids[some_id],
+        'eyeq_spi.transport == "first"':
+            {i for i, row in enumerate(link, 1) if row["eyeq_spi.transport"] == "first"},
+        'eyeq_spi.frame_type == "ACK" && eyeq_spi.crc_ok == 1':
+            {i for i, row in enumerate(link, 1) if row["eyeq_spi.frame_type"] == "ACK"},
+        'eyeq_spi.sw == "9.0" && (eyeq_spi.sw_source == "boot status"'
+        ' || eyeq_spi.sw_source == "capture")': set(messages),
+        "eyeq_spi.fragment": multi,
+        "eyeq_spi.mesp.reply == 1": {n for n, m in messages.items()
+                                if m.protocol == "MESP" and m.header.get("reply")},
+    }
+    assert all(cases.values()), cases
+    for display_filter, expect in cases.items():
+        got = filtered_frames(capture, lua, tmp_path, display_filter)
+        assert set(got) == expect, (display_filter, sorted(set(got) ^ expect)[:10])
+    # a second pass (tshark -2) reads what the first pass stored
+    display_filter = f"eyeq_spi.eyeq_vision_object_t.id == {some_id}"
+    assert set(filtered_frames(capture, lua, tmp_path, display_filter, True)) == ids[some_id]
+
+
+def test_one_field_per_member_across_releases() -> None:
+    """Releases that lay a member out differently share its filter name: the widest integer
+    type; a mask or enum only where all agree (the row then computes or labels the value)."""
+    from eyeq_spi.wireshark.lua_app import MemberField, merge
+
+    old = MemberField("uint8", "x", "uint8, bits 0-5", 'E["a"]', 0x3F)
+    new = MemberField("uint16", "x", "uint16", None, None)
+    merged = merge("s.x", [old, new])
+    assert (merged.ctor, merged.vs, merged.mask, merged.desc) == ("uint16", None, None, "uint16")
+    assert merge("s.x", [old, old]) == old
+    with pytest.raises(ValueError, match="cannot share"):
+        merge("s.x", [old, MemberField("float", "x", "real32")])
+    lua = generate_lua()
+    # a member whose mask differs between releases: computed from its container in that layout
+    assert "eyeq_spi.host_vehicle_state_t.vehicleYawRateValidity" in lua
+    assert re.search(r'F\["host_vehicle_state_t\.vehicleYawRateValidity"\], false, '
+                     r'"vehicleYawRateValidity", nil, \{\d+, (0x[0-9A-F]+|\d+)\}', lua)

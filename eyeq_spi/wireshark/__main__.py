@@ -13,7 +13,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m eyeq_spi.wireshark",
                                  description="Generate the Wireshark Lua dissector.")
     ap.add_argument("-o", "--output", help="file to write (default: stdout)")
-    ap.add_argument("--sw", help="SW version of the payload layouts (default: newest)")
+    ap.add_argument("--sw", help="read every capture as this SW release (default: each "
+                                    "capture's own)")
     args = ap.parse_args(argv)
     try:
         text = generate_lua(args.sw)

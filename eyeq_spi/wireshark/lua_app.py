@@ -1,21 +1,29 @@
-"""Application-layer tables of the Lua dissector (decisions A, M, D), built from the codec.
+"""Application-layer tables of the Lua dissector (decisions A, M, D), for every SW release.
 
 Nothing here knows an offset by heart: every struct layout comes from
-:class:`eyeq_spi.codec.message.MessageCodec` (which compiles ``specs/structs``), every enum from
-``specs/enums``, every MESP function from ``specs/mesp.yaml``.
+:class:`eyeq_spi.codec.message.MessageCodec` (which compiles ``specs/structs``) for each release
+of ``specs/sw_versions.yaml``, every enum from ``specs/enums``, every MESP function from
+``specs/mesp.yaml``. The dissector picks the release at run time (see
+:mod:`eyeq_spi.wireshark.lua_runtime`), so one file reads captures of every release.
 
-Generated Lua (see :mod:`eyeq_spi.wireshark.lua_runtime` for the code that walks it):
+Generated Lua:
 
-- ``S["<struct>"]`` — one row per member, in layout order:
-  ``{offset, element size, count (0 = scalar), field, child struct or false, label, flags}``.
-  A bitfield's row has its container's offset and size; its field carries the mask (D2).
-- ``DASP[data_id]``, ``OTHER[first byte]`` — ``{name=, struct=, size=}``;
+- ``S["<struct>#<n>"]`` — one table per distinct layout (the releases that share a layout share
+  it), one row per member, in layout order:
+  ``{offset, element size, count (0 = scalar), field, child layout or false, label, flags,
+  bits, value names}``. A bitfield's row has its container's offset and size; its field carries
+  the mask (D2). ``bits`` (``{shift, mask}``) is set where the field has no mask because
+  another release lays the member out differently: the value is then computed. ``value names``
+  likewise labels a value whose enum differs between releases.
+- ``MSG[i]`` — ``{name=, protocol=, struct=, size=, field=}``; ``DASP_R[release][data_id]`` and
+  ``OTHER_R[release][first byte]`` point at them; ``SIZES[release][data_id]`` is a DASP
+  payload's size, for the release fit (decision D4).
 - ``MESP[service * 256 + function]`` — ``{name=, req={{type, field, label}...}, rep={...}}``.
 
-Filter names: every member is ``eyeq_spi.<struct type>.<member>``, defined once per
-(struct, member) and shared by every array element and every message that contains the struct;
-a flag of a flags enum is ``eyeq_spi.<struct>.<member>.<flag>``; a payload is
-``eyeq_spi.<payload struct>``.
+Filter names: every member is ``eyeq_spi.<struct type>.<member>``, one field per
+(struct, member) for every release and every array element; where releases differ the field
+takes the widest integer type and drops what they do not share (mask, enum); a flag of a flags
+enum is ``eyeq_spi.<struct>.<member>.<flag>``; a payload is ``eyeq_spi.<payload struct>``.
 """
 
 from __future__ import annotations
@@ -25,20 +33,65 @@ from dataclasses import dataclass, field
 from eyeq_spi.codec.layout import FieldInfo, Layout
 from eyeq_spi.codec.mesp import REPLY_BIT, TAG_MASK
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.spec.catalog import MespParam
+from eyeq_spi.errors import EyeqError
+from eyeq_spi.spec.catalog import MespParam, MessageDef, SwKey
 from eyeq_spi.wireshark.lua_common import (
     FLOAT_FIELD,
     INT_FIELD,
     INT_SIZE,
     FieldRegistry,
     ValueStrings,
-    int_field_args,
     lua_int,
     lua_str,
     name_part,
+    value_table,
 )
 
 MESP_PARAM_FIELD = {"u8": ("uint8", 1), "u16": ("uint16", 2), "u32": ("uint32", 4)}
+_INT_WIDTH = {"8": 1, "16": 2, "32": 4, "64": 8}
+
+
+@dataclass(frozen=True)
+class MemberField:
+    """One release's view of a ProtoField: what ``ProtoField.<ctor>`` would be called with."""
+
+    ctor: str
+    label: str
+    desc: str
+    vs: str | None = None  # value_string name (``E[...]``)
+    mask: int | None = None
+    flags: tuple[tuple[str, str, int, int], ...] = ()  # (key, label, container bits, mask)
+
+
+@dataclass(frozen=True)
+class Merged:
+    """The field every release shares, after :func:`merge`."""
+
+    spec: MemberField
+    ref: str
+
+
+def merge(key: str, specs: list[MemberField]) -> MemberField:
+    """One definition for all releases (``specs`` oldest first): the widest integer type, the
+    mask and enum only where every release has the same, the newest description, the flag
+    fields of every release."""
+    ctors = {s.ctor for s in specs}
+    ctor = specs[-1].ctor
+    if len(ctors) > 1:
+        kinds = {c.rstrip("0123456789") for c in ctors}
+        if len(kinds) != 1 or kinds.pop() not in ("uint", "int"):
+            raise ValueError(f"field eyeq_spi.{key}: types {sorted(ctors)} cannot share a field")
+        ctor = max(ctors, key=lambda c: _INT_WIDTH[c.lstrip("uint")])
+    masks = {s.mask for s in specs}
+    vss = {s.vs for s in specs}
+    flags: dict[str, tuple[str, str, int, int]] = {}
+    for s in specs:  # every release's flags get a field; a row adds its own release's
+        for flag in s.flags:
+            if flags.setdefault(flag[0], flag) != flag:
+                raise ValueError(f"flag field eyeq_spi.{flag[0]} differs between releases")
+    return MemberField(ctor, specs[-1].label, specs[-1].desc,
+                       vss.pop() if len(vss) == 1 else None,
+                       masks.pop() if len(masks) == 1 else None, tuple(flags.values()))
 
 
 @dataclass
@@ -49,50 +102,33 @@ class AppTables:
     messages: list[str] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class _Row:
+    fi: FieldInfo
+    key: str
+    child: Layout | None
+    spec: MemberField
+
+
 class AppGenerator:
-    def __init__(self, codec: MessageCodec, fields: FieldRegistry, vs: ValueStrings) -> None:
-        self.codec = codec
-        self.cat = codec.cat
+    def __init__(self, codecs: dict[SwKey, MessageCodec], fields: FieldRegistry,
+                 vs: ValueStrings) -> None:
+        self.codecs = codecs  # oldest release first
+        self.releases = list(codecs)
+        self.cat = next(iter(codecs.values())).cat
         self.fields = fields
         self.vs = vs
         self.out = AppTables()
-        self._done: set[str] = set()
         self.data_id_names: dict[int, str] = {}
         self.mesp_masks = (TAG_MASK, REPLY_BIT)
+        self._specs: dict[str, list[MemberField]] = {}
+        self._merged: dict[str, Merged] = {}
+        self._struct_keys: dict[str, str] = {}  # emitted rows text -> S key
+        self._layout_keys: dict[int, str] = {}  # id(Layout) -> S key
+        self._count: dict[str, int] = {}
+        self._layouts: list[Layout] = []  # kept alive: _layout_keys is keyed by id()
 
-    # -- structs -----------------------------------------------------------------------------
-    def struct(self, lay: Layout) -> None:
-        """Emit ``S[lay.name]`` and, first, everything it needs."""
-        if lay.name in self._done:
-            return
-        self._done.add(lay.name)
-        rows: list[str] = []
-        for f in lay.fields:
-            child = lay.children.get(f.name)
-            if child is not None:
-                self.struct(child)
-            rows.append(self._row(lay, f, child))
-        body = ",\n  ".join(rows)
-        self.out.structs.append(
-            f"-- {lay.name}: {lay.size} bytes (layout {lay.variant})\n"
-            f"S[{lua_str(lay.name)}] = {{\n  {body},\n}}"
-        )
-
-    def _row(self, lay: Layout, f: FieldInfo, child: Layout | None) -> str:
-        count = f.count or 0
-        elem = f.size // count if count else f.size
-        key = f"{name_part(lay.name)}.{name_part(f.name)}"
-        label = lua_str(f.name)
-        flags = "nil"
-        if child is not None:
-            ref = self.fields.add(key, "none", lua_str(f.name), lua_str(self._desc(f, child.name)))
-            target = lua_str(child.name)
-        else:
-            ref, flags = self._scalar(key, lay, f)
-            target = "false"
-        row = f"{{{f.offset}, {elem}, {count}, {ref}, {target}, {label}"
-        return row + (f", {flags}}}" if flags != "nil" else "}")
-
+    # -- member fields --------------------------------------------------------------------------
     @staticmethod
     def _desc(f: FieldInfo, type_name: str | None = None) -> str:
         """The field's blurb: type, bits, units, enum."""
@@ -110,13 +146,14 @@ class AppGenerator:
             parts.append(m.description)
         return ", ".join(parts)
 
-    def _scalar(self, key: str, lay: Layout, f: FieldInfo) -> tuple[str, str]:
+    def _member(self, lay: Layout, f: FieldInfo, child: Layout | None) -> MemberField:
+        if child is not None:
+            return MemberField("none", f.name, self._desc(f, child.name))
         m = f.member
         if f.type in FLOAT_FIELD:
             if f.bits is not None:
                 raise ValueError(f"{lay.name}.{f.name}: a float cannot be a bitfield")
-            ctor = FLOAT_FIELD[f.type][0]
-            return self.fields.add(key, ctor, lua_str(f.name), lua_str(self._desc(f))), "nil"
+            return MemberField(FLOAT_FIELD[f.type][0], f.name, self._desc(f))
         if f.type not in INT_FIELD:
             raise ValueError(f"{lay.name}.{f.name}: no Wireshark field type for {f.type}")
         mask = None
@@ -127,7 +164,8 @@ class AppGenerator:
             width = hi - lo + 1
             mask = ((1 << width) - 1) << lo
         vs: str | None = None
-        flags = "nil"
+        flags: tuple[tuple[str, str, int, int], ...] = ()
+        key = f"{name_part(lay.name)}.{name_part(f.name)}"
         if m.enum:
             enum = self.cat.enums[m.enum]
             if enum.kind == "flags":
@@ -138,14 +176,14 @@ class AppGenerator:
             vs = self.vs.add(key, dict(m.values))
         elif f.type == "bool":
             vs = self.vs.add("bool", {0: "false", 1: "true"})
-        args = int_field_args(f.name, "base.DEC", vs, mask, self._desc(f))
-        return self.fields.add(key, INT_FIELD[f.type], *args), flags
+        return MemberField(INT_FIELD[f.type], f.name, self._desc(f), vs, mask, flags)
 
-    def _flags(self, key: str, f: FieldInfo, lo: int, width: int) -> str:
+    def _flags(self, key: str, f: FieldInfo, lo: int,
+               width: int) -> tuple[tuple[str, str, int, int], ...]:
         """One boolean field per flag of a ``kind: flags`` enum, on the member's container."""
         enum = self.cat.enums[f.member.enum or ""]
         container_bits = 8 * INT_SIZE[f.type]
-        refs: list[str] = []
+        out: list[tuple[str, str, int, int]] = []
         used: set[str] = set()
         for bit, v in sorted(enum.values.items()):
             if bit + v.width > width:
@@ -154,34 +192,129 @@ class AppGenerator:
             while sub in used:
                 sub += "_"
             used.add(sub)
-            refs.append(self.fields.add(
-                f"{key}.{sub}", "bool", lua_str(v.name), str(container_bits), "nil",
-                lua_int(((1 << v.width) - 1) << (lo + bit)),  # a multi-bit field: any bit set
-            ))
-        return "{" + ", ".join(refs) + "}" if refs else "nil"
+            # a multi-bit field: any bit set
+            out.append((f"{key}.{sub}", v.name, container_bits,
+                        ((1 << v.width) - 1) << (lo + bit)))
+        return tuple(out)
+
+    def _collect(self, lay: Layout) -> list[_Row]:
+        rows = []
+        for f in lay.fields:
+            child = lay.children.get(f.name)
+            if child is not None:
+                self._collect(child)
+            key = f"{name_part(lay.name)}.{name_part(f.name)}"
+            spec = self._member(lay, f, child)
+            specs = self._specs.setdefault(key, [])
+            if spec not in specs:
+                specs.append(spec)
+            rows.append(_Row(f, key, child, spec))
+        return rows
+
+    def _register(self, key: str) -> Merged:
+        done = self._merged.get(key)
+        if done is not None:
+            return done
+        spec = merge(key, self._specs[key])
+        args = [lua_str(spec.label)]
+        if spec.ctor == "none" or spec.ctor in ("float", "double"):
+            args.append(lua_str(spec.desc))
+        else:
+            args += ["base.DEC", spec.vs or "nil", lua_int(spec.mask) if spec.mask else "nil",
+                     lua_str(spec.desc)]
+        ref = self.fields.add(key, spec.ctor, *args)
+        for fkey, label, bits, mask in spec.flags:
+            self.fields.add(fkey, "bool", lua_str(label), str(bits), "nil", lua_int(mask))
+        merged = self._merged[key] = Merged(spec, ref)
+        return merged
+
+    # -- structs -----------------------------------------------------------------------------
+    def struct(self, lay: Layout) -> str:
+        """The ``S`` key of ``lay``, emitting it and, first, everything it needs."""
+        known = self._layout_keys.get(id(lay))
+        if known is not None:
+            return known
+        rows: list[str] = []
+        for r in self._collect(lay):
+            f = r.fi
+            count = f.count or 0
+            elem = f.size // count if count else f.size
+            merged = self._register(r.key)
+            target = lua_str(self.struct(r.child)) if r.child is not None else "false"
+            cells = [str(f.offset), str(elem), str(count), merged.ref, target, lua_str(f.name)]
+            extra = ["nil", "nil", "nil"]
+            if r.spec.flags:
+                extra[0] = "{" + ", ".join(self.fields.ref(k) for k, *_ in r.spec.flags) + "}"
+            if r.spec.mask is not None and merged.spec.mask is None:
+                lo = (r.spec.mask & -r.spec.mask).bit_length() - 1
+                extra[1] = f"{{{lo}, {lua_int(r.spec.mask >> lo)}}}"
+            if r.spec.vs is not None and merged.spec.vs is None:
+                extra[2] = r.spec.vs
+            while extra and extra[-1] == "nil":
+                extra.pop()
+            cells += extra
+            rows.append("{" + ", ".join(cells) + "}")
+        body = ",\n  ".join(rows)
+        n = self._count.get(lay.name, 0)
+        skey = self._struct_keys.get(lay.name + "\n" + body)
+        if skey is None:
+            skey = f"{lay.name}#{n}"
+            self._count[lay.name] = n + 1
+            self._struct_keys[lay.name + "\n" + body] = skey
+            self.out.structs.append(
+                f"-- {lay.name}: {lay.size} bytes (layout {lay.variant})\n"
+                f"S[{lua_str(skey)}] = {{\n  {body},\n}}")
+        self._layout_keys[id(lay)] = skey
+        self._layouts.append(lay)
+        return skey
 
     # -- messages ----------------------------------------------------------------------------
-    def messages(self) -> None:
-        dasp: list[str] = []
-        other: list[str] = []
-        names: dict[int, str] = {}
-        for msg in self.cat.messages:
-            if msg.protocol == "DASP" and not msg.exists_in(self.codec.sw):
+    def _layouts_of(self, msg: MessageDef) -> list[tuple[int, Layout]]:
+        out = []
+        for ri, (sw, codec) in enumerate(self.codecs.items(), 1):
+            if msg.protocol == "DASP" and not msg.exists_in(sw):
                 continue
-            lay = self.codec.layout(msg)
-            self.struct(lay)
-            key = name_part(lay.name)
-            self.fields.add(key, "none", lua_str(msg.payload),
-                            lua_str(f"payload of {msg.name}, {lay.size} bytes"))
-            entry = (f"{{name={lua_str(msg.name)}, protocol={lua_str(msg.protocol)}, "
-                     f"struct={lua_str(lay.name)}, size={lay.size}, "
-                     f"field={self.fields.ref(key)}}}")
-            if msg.protocol == "DASP":
-                names[msg.data_id] = msg.name
-                dasp.append(f"DASP[{lua_int(msg.data_id)}] = {entry}")
-            else:
-                other.append(f"OTHER[{lua_int(msg.data_id)}] = {entry}")
-        self.out.messages += dasp + other
+            try:
+                out.append((ri, codec.layout(msg)))
+            except EyeqError:  # a layout this release cannot build: the message is unknown there
+                continue
+        return out
+
+    def messages(self) -> None:
+        per_release: dict[int, list[str]] = {ri: [] for ri in range(1, len(self.releases) + 1)}
+        entries: dict[tuple[str, str, int], str] = {}
+        lines: list[str] = []
+        names: dict[int, str] = {}
+        sizes: dict[int, dict[int, int]] = {ri: {} for ri in per_release}
+        found = [(msg, self._layouts_of(msg)) for msg in self.cat.messages]
+        for msg, lays in found:  # collect every release's view of every field first
+            for _, lay in lays:
+                self._collect(lay)
+            self._specs.setdefault(name_part(msg.payload), []).append(
+                MemberField("none", msg.payload, f"payload of {msg.name}"))
+        for msg, lays in found:
+            for ri, lay in lays:
+                skey = self.struct(lay)
+                key = name_part(lay.name)
+                ref = self._register(key).ref
+                ident = (msg.name, skey, lay.size)
+                var = entries.get(ident)
+                if var is None:
+                    var = f"MSG[{len(entries) + 1}]"
+                    entries[ident] = var
+                    lines.append(f"{var} = {{name={lua_str(msg.name)}, "
+                                 f"protocol={lua_str(msg.protocol)}, struct={lua_str(skey)}, "
+                                 f"size={lay.size}, field={ref}}}")
+                table = "DASP_R" if msg.protocol == "DASP" else "OTHER_R"
+                per_release[ri].append(f"{table}[{ri}][{lua_int(msg.data_id)}] = {var}")
+                if msg.protocol == "DASP":
+                    names[msg.data_id] = msg.name
+                    sizes[ri][msg.data_id] = lay.size
+        self.out.messages += lines
+        for ri, rows in per_release.items():
+            self.out.messages.append(f"DASP_R[{ri}], OTHER_R[{ri}] = {{}}, {{}}")
+            self.out.messages += rows
+            self.out.messages.append(f"SIZES[{ri}] = {value_table_int(sizes[ri])}")
         self.data_id_names = names
 
     def mesp_fields(self) -> None:
@@ -236,3 +369,11 @@ class AppGenerator:
         if prm.type == "bytes":
             return self.fields.add(key, "bytes", lua_str(prm.name))
         raise ValueError(f"MESP parameter {prm.name}: unknown type {prm.type}")
+
+
+def value_table_int(values: dict[int, int]) -> str:
+    """A Lua table ``{[key]=value}`` of integers, sorted by key."""
+    return "{" + ", ".join(f"[{lua_int(k)}]={v}" for k, v in sorted(values.items())) + "}"
+
+
+__all__ = ["MESP_PARAM_FIELD", "AppGenerator", "merge", "value_table", "value_table_int"]

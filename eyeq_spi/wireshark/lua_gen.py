@@ -9,10 +9,13 @@ capture opens with no set-up::
 
 Sources: the link and transport constants from ``specs/link.yaml`` (L1-L8, T1-T6), interfaces
 from ``specs/capture.yaml``, MESP from ``specs/mesp.yaml`` (M1-M3) and every DASP/0x41/0x10 layout
-from :class:`eyeq_spi.codec.message.MessageCodec` for one SW version (the newest by default,
-D4). Fixed filter names: ``eyeq_spi.dir``, ``.frame_type``, ``.num``, ``.rsp``, ``.crc``,
+from :class:`eyeq_spi.codec.message.MessageCodec` for every SW release of
+``specs/sw_versions.yaml``: the dissector reads each capture with its own release (the
+preference ``eyeq_spi.sw``, else the capture's ``eyeq-spi sw=<release>`` comment, else the
+release the EyeQ reports, else the one whose DASP layouts fit, decision D4). Fixed filter
+names: ``eyeq_spi.dir``, ``.frame_type``, ``.num``, ``.rsp``, ``.crc``,
 ``.crc_ok``, ``.nak_reason``, ``.transport``, ``.transfer_id``, ``.total``, ``.size``,
-``.bad_length``; ``eyeq_spi.mesp.*``, ``eyeq_spi.dasp.*``; payload members
+``.bad_length``, ``.sw``, ``.sw_source``; ``eyeq_spi.mesp.*``, ``eyeq_spi.dasp.*``; payload members
 ``eyeq_spi.<struct>.<member>`` (see :mod:`eyeq_spi.wireshark.lua_app`).
 """
 
@@ -22,7 +25,9 @@ from typing import Any
 
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import DASP_PROTOCOL, MessageCodec
+from eyeq_spi.spec.catalog import SwKey, sw_release_text
 from eyeq_spi.spec.link import link_spec
+from eyeq_spi.spec.schema import sw_key
 from eyeq_spi.wireshark.lua_app import MESP_PARAM_FIELD, AppGenerator
 from eyeq_spi.wireshark.lua_common import (
     FieldRegistry,
@@ -32,6 +37,8 @@ from eyeq_spi.wireshark.lua_common import (
     lua_str,
     value_table,
 )
+from eyeq_spi.wireshark.lua_crc import CRC_RUNTIME, CRC_SELFTEST, crc_functions
+from eyeq_spi.wireshark.lua_items import RUNTIME_ITEMS
 from eyeq_spi.wireshark.lua_runtime import RUNTIME
 
 LINKTYPE_USER0 = 147  # LINKTYPE_USER0..USER15 are 147..162 = wtap.USER0..USER15
@@ -71,18 +78,68 @@ def _header_fields(frame: dict[str, Any]) -> dict[str, tuple[int, int]]:
     return out
 
 
-def _ranges(ranges: list[list[int]]) -> str:
-    return "{" + ", ".join(f"{{{int(a)}, {int(b)}}}" for a, b in ranges) + "}"
+SNIFF_RECORDS = 6000  # transfers in which the release is looked for, as `eyeq-spi dissect` does
+VERSIONS_FUNCTION = "GetEyeQVersions"  # its reply reports the EyeQ's SW release (§7.1.1.1.5)
+BOOT_MESSAGE, BOOT_VERSION = "EYEQ_BOOT_STATUS_MSG", "ApplicationVersion"  # §7.1.5.3
+BASE_DIAG_MESSAGE = "EYEQ_BASE_DIAG_STATUS_MSG"  # §7.1.4.1: eyeqSwVersionMajor/Minor
+SW_MAJOR, SW_MINOR = "eyeqSwVersionMajor", "eyeqSwVersionMinor"
 
 
 class LuaGenerator:
     def __init__(self, sw: str | None = None) -> None:
-        self.codec = MessageCodec(sw)
+        newest = MessageCodec()
+        self.cat = newest.cat
+        self.fixed: SwKey | None = self.cat.sw(sw) if sw is not None else None
+        self.codecs = {k: MessageCodec(k, self.cat)
+                       for k in sorted(self.cat.sw_versions, key=sw_key)}
+        self.releases = list(self.codecs)
         self.spec = link_spec()
-        self.capture = dict(self.codec.cat.raw["capture.yaml"]["capture"])
+        self.capture = dict(self.cat.raw["capture.yaml"]["capture"])
         self.fields = FieldRegistry()
         self.vs = ValueStrings()
-        self.app = AppGenerator(self.codec, self.fields, self.vs)
+        self.app = AppGenerator(self.codecs, self.fields, self.vs)
+
+    def release_constants(self) -> list[str]:
+        """Releases, the preference's choices and where the EyeQ reports its release."""
+        rel = [sw_release_text(k) for k in self.releases]
+        lines = ["local RELEASES = {" + ", ".join(lua_str(r) for r in rel) + "}",
+                 f"local NEWEST = {self.releases.index(self.cat.default_sw) + 1}",
+                 f"local SNIFF_RECORDS = {SNIFF_RECORDS}"]
+        fixed = 0 if self.fixed is None else self.releases.index(self.fixed) + 1
+        lines.append(f"local PREF_DEFAULT = {fixed}")
+        choices = ['{1, "auto", 0}'] + [
+            f"{{{i + 1}, {lua_str(r)}, {i}}}" for i, r in enumerate(rel, 1)]
+        lines.append("local PREF_CHOICES = {" + ", ".join(choices) + "}")
+        fn = next(f for f in self.cat.mesp if f.name == VERSIONS_FUNCTION)
+        off, where = 0, {}
+        for prm in fn.reply:
+            if prm.type not in MESP_PARAM_FIELD:
+                break
+            where[prm.name] = off
+            off += MESP_PARAM_FIELD[prm.type][1]
+        if SW_MAJOR not in where or SW_MINOR not in where:
+            raise ValueError(f"{fn.name}: the reply does not lead with {SW_MAJOR}/{SW_MINOR}")
+        lines.append(f"local VERSIONS = {{key = {lua_int(fn.service * 256 + fn.function)}, "
+                     f"major = {where[SW_MAJOR]}, minor = {where[SW_MINOR]}}}")
+        boot = self.cat.message(BOOT_MESSAGE)
+        diag = self.cat.message(BASE_DIAG_MESSAGE)
+        boot_at: dict[int, int] = {}
+        diag_at: set[tuple[int, int]] = set()
+        for codec in self.codecs.values():
+            lay = codec.layout(boot)
+            boot_at[1 + lay.size] = 1 + next(f.offset for f in lay.fields if f.name == BOOT_VERSION)
+            if diag.exists_in(codec.sw):
+                f = {x.name: x.offset for x in codec.layout(diag).fields}
+                diag_at.add((4 + f[SW_MAJOR], 4 + f[SW_MINOR]))
+        if len(diag_at) != 1:
+            raise ValueError(f"{BASE_DIAG_MESSAGE}: the release bytes move between releases")
+        major, minor = diag_at.pop()
+        lines.append(f"local BOOT = {{id = {lua_int(boot.data_id)}, at = "
+                     + "{" + ", ".join(f"[{n}] = {o}" for n, o in sorted(boot_at.items()))
+                     + "}}")
+        lines.append(f"local BASE_DIAG = {{id = {lua_int(diag.data_id)}, major = {major}, "
+                     f"minor = {minor}}}")
+        return lines
 
     # -- constants ---------------------------------------------------------------------------
     def constants(self) -> list[str]:
@@ -131,11 +188,6 @@ class LuaGenerator:
             f"{k} = {{{sh}, {lua_int(m)}}}" for k, (sh, m) in hdr.items()) + "}")
         kinds = {int(v): str(k) for k, v in s["kinds"].items()}
         lines.append(f"local KIND = {value_table(kinds)}")
-        cov = crc["coverage"]
-        by_kind = ", ".join(f"[{lua_int(int(s['kinds'][k]))}] = {_ranges(cov[k])}"
-                            for k in s["kinds"])
-        lines.append(f"local COVER = {{{by_kind}}}")
-        lines.append(f"local COVER_OTHER = {_ranges(cov['other'])}")
         lines.append("local NAK_REASONS = " + value_table(
             {int(k): str(v["name"]) for k, v in s["nak_reasons"].items()}))
         lines.append("local TTYPE = " + value_table({int(v): str(k) for k, v in types.items()}))
@@ -146,15 +198,21 @@ class LuaGenerator:
         limits = ", ".join(f"{name} = {int(tr['receive_limit'][RECEIVER[name]])}"
                            for name in sorted(RECEIVER))
         lines.append(f"local RX_LIMIT = {{{limits}}}")
-        lines.append(f"local SW = {lua_str(self.codec.sw)}")
         lines.append(f"local DASP_PROTOCOL = {lua_int(DASP_PROTOCOL)}")
-        mesp_protocol = int(self.codec.cat.raw["mesp.yaml"]["mesp"]["protocol"])
+        mesp_protocol = int(self.cat.raw["mesp.yaml"]["mesp"]["protocol"])
         if mesp_protocol != MESP_PROTOCOL:
             raise ValueError("specs/mesp.yaml protocol disagrees with eyeq_spi.codec.mesp")
         lines.append(f"local MESP_PROTOCOL = {lua_int(mesp_protocol)}")
         widths = ", ".join(f"{k} = {w}" for k, (_, w) in MESP_PARAM_FIELD.items())
         lines.append(f"local MESP_WIDTH = {{{widths}}}")
         return lines
+
+    def crc(self) -> list[str]:
+        cov = self.spec["crc"]["coverage"]
+        kinds = self.spec["kinds"]
+        by_kind = {int(kinds[k]): [(int(a), int(b)) for a, b in cov[k]] for k in kinds}
+        other = [(int(a), int(b)) for a, b in cov["other"]]
+        return [CRC_RUNTIME, *crc_functions(by_kind, other), CRC_SELFTEST]
 
     # -- fixed fields --------------------------------------------------------------------------
     def link_fields(self) -> None:
@@ -196,6 +254,8 @@ class LuaGenerator:
         add("app_protocol", "string", lua_str("Application protocol"))
         add("message", "string", lua_str("Message name"))
         add("msg_id", "uint8", lua_str("Message ID"), "base.HEX")
+        add("sw", "string", lua_str("SW release"))
+        add("sw_source", "string", lua_str("SW release from"))
 
     def dasp_fields(self) -> None:
         add = self.fields.add
@@ -228,7 +288,8 @@ class LuaGenerator:
         spare_mask = 0xFF & ~(counter_mask | reply_mask)
         parts = [
             f"-- EyeQ4 SPI dissector for Wireshark 4.0+ (Lua 5.2), generated by\n"
-            f"-- eyeq_spi.wireshark.lua_gen from specs/ for {self.codec.sw}. Do not edit: "
+            f"-- eyeq_spi.wireshark.lua_gen from specs/ for SW "
+            f"{', '.join(sw_release_text(k) for k in self.releases)}. Do not edit: "
             f"regenerate.\n"
             f"-- Usage: tshark -X lua_script:eyeq_spi.lua -r capture.pcapng "
             f"(or copy to the plugins folder)",
@@ -237,6 +298,8 @@ class LuaGenerator:
             "",
             "-- constants from specs/link.yaml, specs/capture.yaml and the codec",
             *self.constants(),
+            *self.release_constants(),
+            *self.crc(),
             "",
             "-- value_strings: specs/enums, link.yaml, mesp.yaml, messages.yaml",
             "local E = {}",
@@ -257,10 +320,11 @@ class LuaGenerator:
             *self.app.out.structs,
             "",
             "-- messages (decision A; specs/messages.yaml, specs/mesp.yaml)",
-            "local DASP, OTHER, MESP = {}, {}, {}",
+            "local MSG, DASP_R, OTHER_R, SIZES, MESP = {}, {}, {}, {}, {}",
             f"local MESP_REPLY_MASK = {lua_int(reply_mask)}",
             f"local MESP_TAG_SPARE = {lua_int(spare_mask)}",
             *self.app.out.messages,
+            RUNTIME_ITEMS,
             RUNTIME,
             self.registration(),
             "",
@@ -269,5 +333,6 @@ class LuaGenerator:
 
 
 def generate_lua(sw: str | None = None) -> str:
-    """The whole dissector as Lua source, for SW version ``sw`` (default: the newest)."""
+    """The whole dissector as Lua source for every release; ``sw`` is the default of its
+    ``eyeq_spi.sw`` preference, which overrides what a capture says (default: automatic)."""
     return LuaGenerator(sw).generate()

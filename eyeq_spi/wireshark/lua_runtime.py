@@ -1,128 +1,63 @@
-"""The fixed part of the generated Lua: CRC, struct walker, application and link dissectors.
+"""The second part of the generated Lua's fixed code: messages, transport and link layer.
 
-It holds no protocol numbers: every constant it uses (``C``, ``HDR``, ``KIND``, ``COVER``,
-``TTYPE``, ``DIRS``, ``RX_LIMIT``, ``S``, ``DASP``, ``OTHER``, ``MESP`` ...) is emitted from
-``specs/`` by :mod:`eyeq_spi.wireshark.lua_gen` before this text. Lua 5.2 only: bit operations
-go through Wireshark's ``bit`` library (``band``, ``bxor``, ``lshift``, ``rshift`` are locals).
+It holds no protocol numbers: every constant it uses (``C``, ``HDR``, ``KIND``, ``CRC_BY_KIND``,
+``TTYPE``, ``DIRS``, ``RX_LIMIT``, ``S``, ``MSG``, ``DASP_R``, ``OTHER_R``, ``MESP``,
+``RELEASES`` ...) is emitted from ``specs/`` by :mod:`eyeq_spi.wireshark.lua_gen`, and the item
+helpers, the walker and the release choice by :mod:`eyeq_spi.wireshark.lua_items`, before this
+text. Lua 5.2 only: bit operations go through Wireshark's ``bit`` library.
+
+Speed (the dissector runs once per transfer, 2,300 times per second of a full-load capture):
+the CRC is unrolled from ``specs/link.yaml`` (:mod:`eyeq_spi.wireshark.lua_crc`); the Info
+column is built only when this dissection fills columns; state is kept by frame number in flat
+tables, set once on the first pass (the message a frame completed, the previous fragment of each
+fragment, the completing frame of each fragment, the frames whose CRC was bad); later passes only
+read them.
 """
 
 from __future__ import annotations
 
 RUNTIME = r"""
 -- =============================================================================================
--- CRC (decision L3), table-driven, MSB-first (not reflected)
--- =============================================================================================
-local CRC_TABLE = {}
-for i = 0, 255 do
-  local c = lshift(i, 8)
-  for _ = 1, 8 do
-    if band(c, 0x8000) ~= 0 then
-      c = bxor(lshift(c, 1), C.CRC_POLY)
-    else
-      c = lshift(c, 1)
-    end
-    c = band(c, 0xFFFF)
-  end
-  CRC_TABLE[i] = c
-end
-
-local sbyte, ssub = string.byte, string.sub
-
-local function crc_update(crc, s)
-  for i = 1, #s do
-    crc = bxor(band(lshift(crc, 8), 0xFFFF), CRC_TABLE[bxor(rshift(crc, 8), sbyte(s, i))])
-  end
-  return crc
-end
-
--- ranges: {{start, end}, ...}, end exclusive, 0-based, over the raw transfer
-local function crc_over(raw, ranges)
-  local crc = C.CRC_INIT
-  for i = 1, #ranges do
-    crc = crc_update(crc, ssub(raw, ranges[i][1] + 1, ranges[i][2]))
-  end
-  return bxor(crc, C.CRC_XOROUT)
-end
-
-assert(bxor(crc_update(C.CRC_INIT, "123456789"), C.CRC_XOROUT) == C.CRC_CHECK,
-       "eyeq_spi: the CRC does not give the check value of specs/link.yaml")
-
--- =============================================================================================
--- Struct walker (decision D2): S[name] rows are
--- {offset, element size, count (0 = scalar), field, child struct or false, label, flags}
--- =============================================================================================
-local function add_flags(tree, range, flags)
-  for i = 1, #flags do
-    tree:add_le(flags[i], range)
-  end
-end
-
-local function walk(tvb, tree, base, rows)
-  for i = 1, #rows do
-    local m = rows[i]
-    local o, s, n, f, c = base + m[1], m[2], m[3], m[4], m[5]
-    if c then
-      local child = S[c]
-      if n == 0 then
-        walk(tvb, tree:add(f, tvb(o, s)), o, child)
-      else
-        for k = 0, n - 1 do
-          local at = o + k * s
-          local it = tree:add(f, tvb(at, s))
-          it:append_text("[" .. k .. "]")
-          walk(tvb, it, at, child)
-        end
-      end
-    elseif n == 0 then
-      local it = tree:add_le(f, tvb(o, s))
-      if m[7] then add_flags(it, tvb(o, s), m[7]) end
-    else
-      local arr = tree:add(tvb(o, s * n), m[6] .. "[" .. n .. "]")
-      for k = 0, n - 1 do
-        local r = tvb(o + k * s, s)
-        local it = arr:add_le(f, r)
-        it:prepend_text("[" .. k .. "] ")
-        if m[7] then add_flags(it, r, m[7]) end
-      end
-    end
-  end
-end
-
--- =============================================================================================
 -- Application messages (decisions A, M, D)
 -- =============================================================================================
-local function dissect_payload(tvb, mt, off, entry)
-  local n = tvb:len() - off
+local function dissect_payload(mt, off, len, entry, ri)
+  local n = len - off
   if n ~= entry.size then
-    mt:add_proto_expert_info(X.length_mismatch, string.format(
-      "length mismatch: %s payload is %d bytes, the %s layout is %d",
-      entry.name, n, SW, entry.size))
-    return false
+    expert(mt, X.length_mismatch, string.format(
+      "length mismatch: %s payload is %d bytes, the SW %s layout is %d",
+      entry.name, n, RELEASES[ri], entry.size))
+    return
   end
-  walk(tvb, mt:add(entry.field, tvb(off, n)), off, S[entry.struct])
-  return true
+  if VIS then
+    walk(mt:add(entry.field, range(off, n)), off, entry.struct)
+  elseif ANY[entry.struct] ~= false or REF[entry.field] ~= false then
+    add(nil, entry.field, off, n)
+    walk_hidden(off, entry.struct)
+  end
 end
 
-local function mesp_params(tvb, tree, off, rows)
-  local n = tvb:len()
+local function mesp_params(data, tree, off, rows)
+  local n = #data
   for i = 1, #rows do
     local r = rows[i]
     local w = MESP_WIDTH[r[1]]
     if w then
       if off + w > n then return off, r[3] end
-      tree:add_le(r[2], tvb(off, w))
+      add_le(tree, r[2], off, w)
       off = off + w
     else
       if off + 4 > n then return off, r[3] end
-      local len = tvb(off, 4):le_uint()
+      local a, b, c, d = sbyte(data, off + 1, off + 4)
+      local len = a + b * 256 + c * 65536 + d * 16777216
       if off + 4 + len > n then return off, r[3] end
-      tree:add_le(F["mesp.length"], tvb(off, 4)):prepend_text(r[3] .. " ")
+      local lt = add_le(tree, F["mesp.length"], off, 4)
+      if lt then lt:prepend_text(r[3] .. " ") end
       if len > 0 then
-        tree:add(r[2], tvb(off + 4, len))
+        add(tree, r[2], off + 4, len)
       elseif r[1] == "string" then
-        tree:add(r[2], tvb(off, 4), "")
-      else
-        tree:add(tvb(off, 4), r[3] .. ": (empty)")
+        add(tree, r[2], off, 4, "")
+      elseif VIS then
+        tree:add(range(off, 4), r[3] .. ": (empty)")
       end
       off = off + 4 + len
     end
@@ -130,111 +65,122 @@ local function mesp_params(tvb, tree, off, rows)
   return off, nil
 end
 
-local function dissect_mesp(tvb, mt)
-  local n = tvb:len()
-  mt:add(F["app_protocol"], tvb(1, 1), "MESP")
+local function dissect_mesp(data, mt)
+  local n = #data
+  add(mt, F["app_protocol"], 1, 1, "MESP")
   if n < 5 then
-    mt:add_proto_expert_info(X.malformed, "MESP message of " .. n .. " bytes has no full header")
+    expert(mt, X.malformed, "MESP message of " .. n .. " bytes has no full header")
     return "MESP (short)"
   end
-  mt:add(F["mesp.service"], tvb(0, 1))
-  mt:add(F["mesp.protocol"], tvb(1, 1))
-  mt:add(F["mesp.service_repeat"], tvb(2, 1))
-  mt:add(F["mesp.function"], tvb(3, 1))
-  local tt = mt:add(F["mesp.tag"], tvb(4, 1))
-  tt:add(F["mesp.counter"], tvb(4, 1))
-  tt:add(F["mesp.reply"], tvb(4, 1))
-  local tag = tvb(4, 1):uint()
+  local service, _, _, func, tag = sbyte(data, 1, 5)
+  add(mt, F["mesp.service"], 0, 1)
+  add(mt, F["mesp.protocol"], 1, 1)
+  add(mt, F["mesp.service_repeat"], 2, 1)
+  add(mt, F["mesp.function"], 3, 1)
+  local tt = add(mt, F["mesp.tag"], 4, 1)
+  add(tt, F["mesp.counter"], 4, 1)
+  add(tt, F["mesp.reply"], 4, 1)
   local reply = band(tag, MESP_REPLY_MASK) ~= 0
   if band(tag, MESP_TAG_SPARE) ~= 0 then
-    tt:add_proto_expert_info(X.note, "tag bits outside counter and reply are set (M1 says 0)")
+    expert(tt, X.note, "tag bits outside counter and reply are set (M1 says 0)")
   end
-  local service, func = tvb(0, 1):uint(), tvb(3, 1):uint()
   local fn = MESP[service * 256 + func]
   if not fn then
-    mt:add_proto_expert_info(X.unknown, string.format(
-      "unknown MESP service/function 0x%02X/0x%02X", service, func))
+    expert(mt, X.unknown, string.format("unknown MESP service/function 0x%02X/0x%02X",
+                                        service, func))
     return string.format("MESP 0x%02X/0x%02X", service, func)
   end
-  mt:add(F["mesp.name"], tvb(3, 1), fn.name)
+  add(mt, F["mesp.name"], 3, 1, fn.name)
   local what = fn.name .. (reply and " reply" or " request")
-  mt:add(F["message"], tvb(3, 1), fn.name)
+  add(mt, F["message"], 3, 1, fn.name)
   local off, bad
   if reply then
     if n < 9 then
-      mt:add_proto_expert_info(X.malformed, "MESP reply without its 4-byte ret")
+      expert(mt, X.malformed, "MESP reply without its 4-byte ret")
       return what
     end
-    mt:add_le(F["mesp.ret"], tvb(5, 4))
-    local ret = tvb(5, 4):le_uint()
+    add_le(mt, F["mesp.ret"], 5, 4)
+    local a, b, c, d = sbyte(data, 6, 9)
+    local ret = a + b * 256 + c * 65536 + d * 16777216
     if ret ~= 0 then what = what .. " ret=" .. ret end
     if ret ~= 0 and n == 9 then return what end
-    off, bad = mesp_params(tvb, mt, 9, fn.rep)
+    off, bad = mesp_params(data, mt, 9, fn.rep)
   else
-    off, bad = mesp_params(tvb, mt, 5, fn.req)
+    off, bad = mesp_params(data, mt, 5, fn.req)
   end
   if bad then
-    mt:add_proto_expert_info(X.malformed, fn.name .. ": parameter " .. bad .. " is cut short")
+    expert(mt, X.malformed, fn.name .. ": parameter " .. bad .. " is cut short")
   elseif off ~= n then
-    mt:add_proto_expert_info(X.malformed, string.format(
-      "%s: %d bytes after the last parameter", fn.name, n - off))
+    expert(mt, X.malformed, string.format("%s: %d bytes after the last parameter",
+                                          fn.name, n - off))
   end
   return what
 end
 
-local function dissect_dasp(tvb, mt)
-  local n = tvb:len()
-  mt:add(F["app_protocol"], tvb(0, 1), "DASP")
+local function dissect_dasp(data, mt, ri, items)
+  local n = #data
+  if items then add(mt, F["app_protocol"], 0, 1, "DASP") end
   if n < 4 then
-    mt:add_proto_expert_info(X.malformed, "BadHdr: DASP message of " .. n .. " bytes")
+    expert(mt, X.malformed, "BadHdr: DASP message of " .. n .. " bytes")
     return "DASP (short)"
   end
-  mt:add(F["dasp.protocol"], tvb(0, 1))
-  mt:add(F["dasp.data_id"], tvb(1, 1))
-  mt:add(F["dasp.counter"], tvb(2, 1))
-  local rt = mt:add(F["dasp.reserved"], tvb(3, 1))
-  if tvb(3, 1):uint() ~= 0 then
-    rt:add_proto_expert_info(X.note, "DASP reserved byte is not 0")
+  local rt
+  if not skip(G_DASP) then
+    add(mt, F["dasp.protocol"], 0, 1)
+    add(mt, F["dasp.data_id"], 1, 1)
+    add(mt, F["dasp.counter"], 2, 1)
+    rt = add(mt, F["dasp.reserved"], 3, 1)
   end
-  local id = tvb(1, 1):uint()
-  local entry = DASP[id]
+  local _, id, counter, reserved = sbyte(data, 1, 4)
+  if reserved ~= 0 then expert(rt, X.note, "DASP reserved byte is not 0") end
+  local entry = DASP_R[ri][id]
   if not entry then
-    mt:add_proto_expert_info(X.unknown, string.format(
-      "BadHdr: unknown DASP data ID 0x%02X in %s", id, SW))
+    expert(mt, X.unknown, string.format("BadHdr: unknown DASP data ID 0x%02X in SW %s",
+                                        id, RELEASES[ri]))
     return string.format("DASP 0x%02X", id)
   end
-  mt:add(F["message"], tvb(1, 1), entry.name)
-  dissect_payload(tvb, mt, 4, entry)
-  return entry.name .. " #" .. tvb(2, 1):uint()
+  if items then add(mt, F["message"], 1, 1, entry.name) end
+  dissect_payload(mt, 4, n, entry, ri)
+  return entry.name .. " #" .. NUMSTR[counter]
 end
 
-local function dissect_other(tvb, mt, entry)
-  mt:add(F["app_protocol"], tvb(0, 1), entry.protocol)
-  mt:add(F["msg_id"], tvb(0, 1))
-  mt:add(F["message"], tvb(0, 1), entry.name)
-  dissect_payload(tvb, mt, 1, entry)
+local function dissect_other(data, mt, entry, ri, items)
+  if items then
+    add(mt, F["app_protocol"], 0, 1, entry.protocol)
+    add(mt, F["message"], 0, 1, entry.name)
+  end
+  add(mt, F["msg_id"], 0, 1)
+  dissect_payload(mt, 1, #data, entry, ri)
   return entry.name
 end
 
--- Decision A: route a whole message by its first bytes.
-local function dissect_message(tvb, root)
-  local n = tvb:len()
-  local mt = root:add(F["msg"], tvb())
-  mt:add(F["msg_length"], tvb(), n)
-  local b0 = tvb(0, 1):uint()
+-- Decision A: route a whole message (a string; its Tvb is made only if an item needs it).
+local function dissect_message(data, make_tvb)
+  TVB, TVB_MAKE = nil, make_tvb
+  local n = #data
+  local ri, src = release()
+  local items = not skip(G_MSG)
+  local mt
+  if items then
+    mt = add(ROOT, F["msg"], 0, n)
+    add(mt, F["msg_length"], 0, n, n)
+    add(mt, F["sw"], nil, nil, RELEASES[ri])
+    add(mt, F["sw_source"], nil, nil, src)
+  end
+  local b0, b1, b2 = sbyte(data, 1, 3)
   local name
-  if n >= 3 and tvb(1, 1):uint() == MESP_PROTOCOL and b0 == tvb(2, 1):uint() then
-    name = dissect_mesp(tvb, mt)
+  if n >= 3 and b1 == MESP_PROTOCOL and b0 == b2 then
+    name = dissect_mesp(data, mt)
   elseif b0 == DASP_PROTOCOL then
-    name = dissect_dasp(tvb, mt)
-  elseif OTHER[b0] then
-    name = dissect_other(tvb, mt, OTHER[b0])
+    name = dissect_dasp(data, mt, ri, items)
+  elseif OTHER_R[ri][b0] then
+    name = dissect_other(data, mt, OTHER_R[ri][b0], ri, items)
   else
-    mt:add(F["app_protocol"], tvb(0, 1), "UNKNOWN")
-    mt:add_proto_expert_info(X.unknown, string.format("unknown message: first byte 0x%02X", b0))
+    if items then add(mt, F["app_protocol"], 0, 1, "UNKNOWN") end
+    expert(mt, X.unknown, string.format("unknown message: first byte 0x%02X", b0))
     name = string.format("unknown message 0x%02X", b0)
   end
-  mt:append_text(": " .. name)
+  if mt then mt:append_text(": " .. name) end
   return name
 end
 
@@ -242,24 +188,47 @@ end
 -- Transport (decisions T1-T6) and reassembly across frames
 -- =============================================================================================
 -- Each frame is fed to the reassembly once, in capture order, the first time it is dissected
--- with its direction known: on the first pass normally (not pinfo.visited). A pass that builds
--- no protocol tree (tshark -2's first pass) cannot read frame.interface_id; its frames are fed
--- on the next pass, which runs in capture order too. rx[direction] holds the open transfer of
--- that direction; done[frame number] keeps the reassembled bytes of the frame that completed a
--- message, notes[] the reassembly events of a frame, reasm_in[] the completing frame of every
--- fragment. Later passes only read these tables.
+-- with its direction known: on the first pass normally. A pass that builds no protocol tree
+-- (tshark -2's first pass) cannot read frame.interface_id; its frames are fed on the next pass,
+-- which runs in capture order too. rx[direction] holds that direction's transfer; done[frame]
+-- the message a frame completed, prev[frame] the previous fragment of a fragment, reasm_in[]
+-- the completing frame of every fragment, notes[] a frame's reassembly events, crc_bad[] the
+-- computed CRC of a frame whose CRC was bad. Later passes only read these tables.
 local f_iface = Field.new("frame.interface_id")
 local f_number = Field.new("frame.number")
-local rx, done, notes, reasm_in, last_fed
+local f_comment
+do
+  local ok, fld = pcall(Field.new, "frame.comment")
+  if ok then f_comment = fld end
+end
+local rx, done, prev, reasm_in, notes, crc_bad, last_fed, prev_number
+local COLS  -- this pass: the columns are filled (nil: not known yet)
+
+local function new_pass()
+  REF, ANY, SKIP, COLS = {}, {}, {}, nil
+end
 
 local function reset_state()
-  rx, done, notes, reasm_in, last_fed = {}, {}, {}, {}, 0
+  rx, done, prev, reasm_in, notes, crc_bad = {}, {}, {}, {}, {}, {}
+  last_fed, prev_number = 0, math.huge
+  new_pass()
+  REL = {ri = NEWEST, src = "default", final = false, pairs = {}}
+  rel_notes = {}
+  PREF = p.prefs.sw
 end
 reset_state()
 
 function p.init()
   reset_state()
 end
+
+function p.prefs_changed()
+  PREF = p.prefs.sw
+end
+
+-- A filtering tap makes Wireshark build a tree on its first pass too (tshark -2), so frames get
+-- their direction, are fed to the reassembly and show their release in capture order.
+local direction_tap = Listener.new(nil, "eyeq_spi")
 
 -- "h2e"/"e2h" from the pcapng interface; "?" when the capture has no interfaces; nil when this
 -- pass builds no tree, so no field can be read.
@@ -270,201 +239,289 @@ local function direction()
   return nil
 end
 
--- A filtering tap makes Wireshark build a tree on its first pass, so frames get their direction
--- (and are fed to the reassembly) in capture order.
-local direction_tap = Listener.new(nil, "eyeq_spi")
+local function comment(n)
+  for _, fi in ipairs({f_comment()}) do
+    local text = tostring(fi.value):match("eyeq%-spi sw=(%S+)")
+    local ri = text and release_of_text(text)
+    if ri then
+      found(ri, "capture", n)
+      return
+    end
+  end
+end
 
-local function note(pinfo, text)
-  local t = notes[pinfo.number]
+local function note(n, text)
+  local t = notes[n]
   if not t then
     t = {}
-    notes[pinfo.number] = t
+    notes[n] = t
   end
   t[#t + 1] = text
 end
 
-local function abort(st, pinfo, reason)
-  local o = st.open
-  if not o then return end
-  st.open = nil
-  st.dead = o.id
-  note(pinfo, string.format("transfer %d abandoned (%s) after %d of %d bytes, started in frame %d",
-                            o.id, reason, o.len, o.total, o.frames[1]))
+local function abort(st, n, reason)
+  if not st.open then return end
+  st.open = false
+  st.dead = st.id
+  note(n, string.format("transfer %d abandoned (%s) after %d of %d bytes, started in frame %d",
+                        st.id, reason, st.len, st.total, st.first))
 end
 
--- Returns the Info text and, for a trusted single frame, the message as a Tvb.
-local function dissect_transport(tvb, pinfo, root, dir, num, trusted, feed)
-  local ttype = tvb(C.T_TYPE, 1):uint()
-  local tname = TTYPE[ttype]
-  local tt = root:add(F["transport"], tvb(C.T_TYPE, 1), tname or "invalid")
-  tt:add(F["transport_type"], tvb(C.T_TYPE, 1))
+local function u32(raw, at)
+  local a, b, c, d = sbyte(raw, at + 1, at + 4)
+  return a + b * 256 + c * 65536 + d * 16777216
+end
+
+-- Returns the Info text (when the columns are filled) and, for a trusted single frame, the
+-- message bytes.
+local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
+  local ttype, targ = sbyte(raw, C.T_TYPE + 1, C.T_ARG + 1)
+  local items = not skip(G_DATA)
+  local tt
+  if items then
+    tt = add(ROOT, F["transport"], C.T_TYPE, 1, TTYPE[ttype] or "invalid")
+    add(tt, F["transport_type"], C.T_TYPE, 1)
+  end
   local st
   if trusted and feed then
     st = rx[dir]
     if not st then
-      st = {}
+      st = {open = false, parts = {}}
       rx[dir] = st
     end
-    if st.last == num then
-      note(pinfo, "duplicate of the previous DATA frame (NUM " .. num .. "): not reassembled")
+    if st.lastnum == num then
+      note(n, "duplicate of the previous DATA frame (NUM " .. num .. "): not reassembled")
       st = nil
     else
-      st.last = num
-      local o = st.open
-      if o and pinfo.abs_ts - o.time >= C.REASSEMBLY_TIMEOUT then abort(st, pinfo, "timeout") end
+      st.lastnum = num
+      if st.open and pinfo.abs_ts - st.time >= C.REASSEMBLY_TIMEOUT then
+        abort(st, n, "timeout")
+      end
     end
   end
   if ttype == C.T_SINGLE then
-    local size = tvb(C.T_ARG, 1):uint()
-    tt:add(F["size"], tvb(C.T_ARG, 1))
-    if size < 1 or size > C.SINGLE_MAX then
-      tt:add_proto_expert_info(X.format, string.format(
-        "single frame size %d outside 1..%d (T2)", size, C.SINGLE_MAX))
-      return "single size=" .. size, nil
+    add(tt, F["size"], C.T_ARG, 1)
+    if targ < 1 or targ > C.SINGLE_MAX then
+      expert(tt, X.format, string.format("single frame size %d outside 1..%d (T2)",
+                                         targ, C.SINGLE_MAX))
+      return "single size=" .. targ, nil
     end
-    tt:add(F["chunk"], tvb(C.SINGLE_DATA, size))
-    if st and st.open then abort(st, pinfo, "interleaved") end
+    if items then add(tt, F["chunk"], C.SINGLE_DATA, targ) end
+    if st and st.open then abort(st, n, "interleaved") end
     if not trusted then return "single", nil end
-    return "single", tvb(C.SINGLE_DATA, size):tvb()
+    return "single", ssub(raw, C.SINGLE_DATA + 1, C.SINGLE_DATA + targ)
   elseif ttype == C.T_FIRST then
-    local tid = tvb(C.T_ARG, 1):uint()
-    local total = tvb(C.T_TOTAL, 4):le_uint()
-    tt:add(F["transfer_id"], tvb(C.T_ARG, 1))
-    tt:add_le(F["total"], tvb(C.T_TOTAL, 4))
-    tt:add(F["chunk"], tvb(C.FIRST_DATA, C.FIRST_CHUNK))
+    local total = u32(raw, C.T_TOTAL)
+    add(tt, F["transfer_id"], C.T_ARG, 1)
+    add_le(tt, F["total"], C.T_TOTAL, 4)
+    if items then add(tt, F["chunk"], C.FIRST_DATA, C.FIRST_CHUNK) end
     local limit = RX_LIMIT[dir] or C.MAX_TOTAL
     if total < C.FIRST_TOTAL_MIN or total > limit then
-      tt:add_proto_expert_info(X.format, string.format(
-        "first frame total %d outside %d..%d (T3, T6)", total, C.FIRST_TOTAL_MIN, limit))
-      return "first ID=" .. tid .. " total=" .. total, nil
+      expert(tt, X.format, string.format("first frame total %d outside %d..%d (T3, T6)",
+                                         total, C.FIRST_TOTAL_MIN, limit))
+      return "first ID=" .. targ .. " total=" .. total, nil
     end
     if st then
-      abort(st, pinfo, "new_first_frame")
+      abort(st, n, "new_first_frame")
       st.dead = nil
-      st.open = {id = tid, total = total, parts = {tvb:raw(C.FIRST_DATA, C.FIRST_CHUNK)},
-                 len = C.FIRST_CHUNK, last = num, time = pinfo.abs_ts, frames = {pinfo.number}}
+      st.open, st.id, st.total, st.len = true, targ, total, C.FIRST_CHUNK
+      st.last, st.time, st.first, st.at = num, pinfo.abs_ts, n, n
+      st.parts[1] = ssub(raw, C.FIRST_DATA + 1, C.FIRST_DATA + C.FIRST_CHUNK)
+      st.np = 1
+      prev[n] = 0
     end
-    return "first ID=" .. tid .. " total=" .. total, nil
+    return cols and "first ID=" .. NUMSTR[targ] .. " total=" .. total, nil
   elseif ttype == C.T_CONSECUTIVE then
-    local tid = tvb(C.T_ARG, 1):uint()
-    tt:add(F["transfer_id"], tvb(C.T_ARG, 1))
-    tt:add(F["chunk"], tvb(C.NEXT_DATA, C.CONSECUTIVE_CHUNK))
+    add(tt, F["transfer_id"], C.T_ARG, 1)
+    if items then add(tt, F["chunk"], C.NEXT_DATA, C.CONSECUTIVE_CHUNK) end
     if st then
-      local o = st.open
-      if not o then
-        if tid ~= st.dead then note(pinfo, "consecutive frame with no open transfer") end
-      elseif tid ~= o.id then
-        abort(st, pinfo, "wrong_id")
-      elseif num ~= (o.last + 1) % C.SEQ_MODULO then
-        abort(st, pinfo, "num_gap")
-      elseif o.total - o.len < C.CONSECUTIVE_CHUNK
-          and tvb:raw(C.NEXT_DATA + o.total - o.len, C.CONSECUTIVE_CHUNK - (o.total - o.len))
+      local rest = st.open and st.total - st.len
+      if not st.open then
+        if targ ~= st.dead then note(n, "consecutive frame with no open transfer") end
+      elseif targ ~= st.id then
+        abort(st, n, "wrong_id")
+      elseif num ~= (st.last + 1) % C.SEQ_MODULO then
+        abort(st, n, "num_gap")
+      elseif rest < C.CONSECUTIVE_CHUNK
+          and ssub(raw, C.NEXT_DATA + rest + 1, C.NEXT_DATA + C.CONSECUTIVE_CHUNK)
               :find("[^\0]") then
-        abort(st, pinfo, "bad_padding")  -- T4/T6a: the rest is zero; this is another transfer
+        abort(st, n, "bad_padding")  -- T4/T6a: the rest is zero; this is another transfer
       else
-        local take = math.min(C.CONSECUTIVE_CHUNK, o.total - o.len)
-        o.parts[#o.parts + 1] = tvb:raw(C.NEXT_DATA, take)
-        o.len = o.len + take
-        o.last = num
-        o.time = pinfo.abs_ts
-        o.frames[#o.frames + 1] = pinfo.number
-        if o.len >= o.total then
-          st.open = nil
-          done[pinfo.number] = {data = table.concat(o.parts), frames = o.frames}
-          for _, fnum in ipairs(o.frames) do reasm_in[fnum] = pinfo.number end
+        local take = math.min(C.CONSECUTIVE_CHUNK, rest)
+        st.np = st.np + 1
+        st.parts[st.np] = ssub(raw, C.NEXT_DATA + 1, C.NEXT_DATA + take)
+        st.len = st.len + take
+        st.last, st.time = num, pinfo.abs_ts
+        prev[n] = st.at
+        st.at = n
+        if st.len >= st.total then
+          st.open = false
+          done[n] = table.concat(st.parts, "", 1, st.np)
+          local f = n
+          while f ~= 0 do
+            reasm_in[f] = n
+            f = prev[f]
+          end
         end
       end
     end
-    return "consecutive ID=" .. tid, nil
+    return cols and "consecutive ID=" .. NUMSTR[targ], nil
   end
-  tt:add_proto_expert_info(X.format, string.format("transport type 0x%02X is not 0..2 (T1)", ttype))
+  expert(tt, X.format, string.format("transport type 0x%02X is not 0..2 (T1)", ttype))
   return string.format("transport 0x%02X", ttype), nil
+end
+
+-- the Tvb of the message being dissected, made only when an item needs its bytes
+local MSG_DATA, FRAME_TVB
+local function make_reassembled()
+  return ByteArray.new(MSG_DATA, true):tvb("Reassembled EyeQ message")
+end
+local function make_single()
+  return FRAME_TVB(C.SINGLE_DATA, #MSG_DATA):tvb()
+end
+
+-- the message a DATA frame completed or carried, its fragments, and its Info text
+local function message_of(n, tvb, single, feed)
+  local data, make = done[n], nil
+  if data then
+    local count, f = 0, n
+    while f ~= 0 do
+      count = count + 1
+      f = prev[f]
+    end
+    local rt = add(ROOT, F["fragment_count"], nil, nil, count)
+    if VIS or REF[F["fragment"]] ~= false then
+      local list, f2 = {}, n
+      while f2 ~= 0 do
+        list[#list + 1] = f2
+        f2 = prev[f2]
+      end
+      for i = #list, 1, -1 do add(rt, F["fragment"], nil, nil, list[i]) end
+    end
+    make = make_reassembled
+  elseif reasm_in[n] then
+    add(ROOT, F["reassembled_in"], nil, nil, reasm_in[n])
+    return nil
+  elseif single then
+    data = single
+    make = make_single
+  else
+    return nil
+  end
+  if feed and not REL.final and n <= SNIFF_RECORDS then evidence(data, n) end
+  MSG_DATA, FRAME_TVB = data, tvb
+  return dissect_message(data, make)
 end
 
 -- =============================================================================================
 -- Link layer (decisions L1-L8) and the dissector
 -- =============================================================================================
 function p.dissector(tvb, pinfo, tree)
-  pinfo.cols.protocol = "EyeQ SPI"
-  local n = tvb:len()
-  local root = tree:add(p, tvb())
+  local n = pinfo.number
+  if n <= prev_number then new_pass() end  -- a new pass: filters and columns may differ
+  prev_number = n
+  VIS = tree.visible
+  local cols = COLS
+  local columns = pinfo.cols
+  if VIS or cols == nil then
+    cols = tostring(columns.info) ~= "(info)"  -- "(info)": this dissection fills no columns
+    if not VIS then COLS = cols end
+  end
+  if cols then columns.protocol = "EyeQ SPI" end
+  local len = tvb:len()
   local dir = direction()
-  local info = ""
-  local feed = false
-  if dir then
-    if dir ~= "?" then root:add(F["dir"], dir) end
-    info = dir .. " "
-    feed = pinfo.number > last_fed
-    if feed then last_fed = pinfo.number end
+  if not dir then return len end  -- no tree in this pass: nothing to add, nothing to feed
+  TVB, TVB_MAKE = tvb, nil
+  -- a tree that is not shown needs no byte range (one object less per packet)
+  ROOT, ROOT_TEXT = VIS and tree:add(p, tvb()) or tree:add(p), nil
+  local seen = n <= last_fed
+  local feed = not seen
+  local link = not skip(G_FRAME)
+  if dir ~= "?" and link then add(ROOT, F["dir"], nil, nil, dir) end
+  if feed then
+    last_fed = n
+    if f_comment and not REL.final and n <= SNIFF_RECORDS then comment(n) end
   end
-  if n ~= C.FRAME_SIZE then
-    root:add(F["bad_length"], true)
-    root:add(F["length"], n)
-    root:add_proto_expert_info(X.bad_length, string.format(
-      "malformed transfer: %d bytes, not %d (L8)", n, C.FRAME_SIZE))
-    pinfo.cols.info = info .. "bad length " .. n
-    return n
+  if rel_notes[n] then expert(nil, X.note, rel_notes[n]) end
+  local dirtext = dir ~= "?" and (dir .. " ") or ""
+  if len ~= C.FRAME_SIZE then
+    add(ROOT, F["bad_length"], nil, nil, true)
+    add(ROOT, F["length"], nil, nil, len)
+    expert(nil, X.bad_length, string.format("malformed transfer: %d bytes, not %d (L8)",
+                                            len, C.FRAME_SIZE))
+    if cols then columns.info = dirtext .. "bad length " .. len end
+    return len
   end
-  local raw = tvb:raw(0, n)
-  local h = tvb(0, 4):le_uint()
+  local raw = tvb:raw(0, len)
+  local h0, h1, h2, h3 = sbyte(raw, 1, 4)
+  local h = h0 + h1 * 256 + h2 * 65536 + h3 * 16777216
   local d = band(rshift(h, HDR.D[1]), HDR.D[2])
   local r = band(rshift(h, HDR.R[1]), HDR.R[2])
   local rsp = band(rshift(h, HDR.RSP[1]), HDR.RSP[2])
   local num = band(rshift(h, HDR.NUM[1]), HDR.NUM[2])
   local kind = KIND[d] or "INVALID"
-  root:add(F["frame_type"], tvb(0, 4), kind)
-  local ht = root:add_le(F["header"], tvb(0, 4))
-  ht:add_le(F["d"], tvb(0, 4))
-  ht:add_le(F["r"], tvb(0, 4))
-  ht:add_le(F["rsp"], tvb(0, 4))
-  ht:add_le(F["num"], tvb(0, 4))
+  local ht
+  if link then
+    add(ROOT, F["frame_type"], 0, 4, kind)
+    ht = add_le(ROOT, F["header"], 0, 4)
+    add_le(ht, F["d"], 0, 4)
+    add_le(ht, F["r"], 0, 4)
+    add_le(ht, F["rsp"], 0, 4)
+    add_le(ht, F["num"], 0, 4)
+  end
   if kind == "INVALID" then
-    ht:add_proto_expert_info(X.format, string.format("D=0x%X is not a frame kind (L2)", d))
+    expert(ht, X.format, string.format("D=0x%X is not a frame kind (L2)", d))
   end
-  if r ~= 0 then
-    ht:add_proto_expert_info(X.format, string.format("R=0x%X, reserved must be 0 (L2)", r))
-  end
-  local crc = crc_over(raw, COVER[d] or COVER_OTHER)
-  local got = tvb(C.CRC_OFFSET, 2):le_uint()
-  local ct = root:add_le(F["crc"], tvb(C.CRC_OFFSET, 2))
-  ct:add(F["crc_computed"], tvb(C.CRC_OFFSET, 2), crc)
-  ct:add(F["crc_ok"], tvb(C.CRC_OFFSET, 2), crc == got)
-  if crc ~= got then
-    ct:add_proto_expert_info(X.bad_crc, string.format("CRC 0x%04X, computed 0x%04X (L3)", got, crc))
-  end
-  info = info .. kind
-  if kind == "DATA" then
-    info = info .. " NUM=" .. num .. " RSP=" .. rsp
-  elseif kind == "ACK" then
-    info = info .. " of NUM=" .. rsp
-  elseif kind == "NAK" then
-    info = info .. " of NUM=" .. rsp .. " " .. (NAK_REASONS[num] or string.format("0x%03X", num))
-    local nt = root:add(F["nak_reason"], tvb(0, 4), num)
-    nt:add_proto_expert_info(X.nak, string.format("NAK of NUM %d: %s", rsp,
-                                                  NAK_REASONS[num] or "unknown reason"))
+  if r ~= 0 then expert(ht, X.format, string.format("R=0x%X, reserved must be 0 (L2)", r)) end
+  local c0, c1 = sbyte(raw, C.CRC_OFFSET + 1, C.CRC_OFFSET + 2)
+  local got = c0 + c1 * 256
+  local crc, crc_ok
+  if seen and not VIS then  -- checked when the frame was fed
+    crc = crc_bad[n]
+    crc_ok = crc == nil
+    if crc_ok then crc = got end
   else
-    info = info .. string.format(" D=0x%X", d)
+    crc = (CRC_BY_KIND[d] or CRC_OTHER)(raw)
+    crc_ok = crc == got
+    if not crc_ok then crc_bad[n] = crc end
   end
-  if crc ~= got then info = info .. " [bad CRC]" end
+  local ct
+  if link then
+    ct = add_le(ROOT, F["crc"], C.CRC_OFFSET, 2)
+    add(ct, F["crc_computed"], C.CRC_OFFSET, 2, crc)
+    add(ct, F["crc_ok"], C.CRC_OFFSET, 2, crc_ok)
+  end
+  if not crc_ok then
+    expert(ct, X.bad_crc, string.format("CRC 0x%04X, computed 0x%04X (L3)", got, crc))
+  end
+  if kind == "NAK" then
+    local nt = add(ROOT, F["nak_reason"], 0, 4, num)
+    expert(nt, X.nak, string.format("NAK of NUM %d: %s", rsp, NAK_REASONS[num] or "unknown reason"))
+  end
+  local tinfo, name
   if kind == "DATA" then
-    local trusted = crc == got and r == 0
-    local tinfo, mtvb = dissect_transport(tvb, pinfo, root, dir, num, trusted, feed)
-    info = info .. " " .. tinfo
-    local nt = notes[pinfo.number]
+    local single
+    tinfo, single = dissect_transport(raw, pinfo, dir, num, crc_ok and r == 0, feed, n, cols)
+    local nt = notes[n]
     if nt then
-      for i = 1, #nt do root:add_proto_expert_info(X.reassembly, nt[i]) end
+      for i = 1, #nt do expert(nil, X.reassembly, nt[i]) end
     end
-    local dn = done[pinfo.number]
-    if dn then
-      local rt = root:add(F["fragment_count"], #dn.frames)
-      for i = 1, #dn.frames do rt:add(F["fragment"], dn.frames[i]) end
-      mtvb = ByteArray.new(dn.data, true):tvb("Reassembled EyeQ message")
-    elseif reasm_in[pinfo.number] then
-      root:add(F["reassembled_in"], reasm_in[pinfo.number])
-    end
-    if mtvb then info = info .. ": " .. dissect_message(mtvb, root) end
+    name = message_of(n, tvb, single, feed)
   end
-  pinfo.cols.info = info
-  return n
+  if cols then
+    local bad = crc_ok and "" or " [bad CRC]"
+    if kind == "DATA" then
+      columns.info = dirtext .. "DATA NUM=" .. NUMSTR[num] .. " RSP=" .. NUMSTR[rsp] .. bad
+                        .. " " .. tinfo .. (name and ": " .. name or "")
+    elseif kind == "ACK" then
+      columns.info = dirtext .. "ACK of NUM=" .. NUMSTR[rsp] .. bad
+    elseif kind == "NAK" then
+      columns.info = dirtext .. "NAK of NUM=" .. NUMSTR[rsp] .. " "
+                        .. (NAK_REASONS[num] or string.format("0x%03X", num)) .. bad
+    else
+      columns.info = dirtext .. kind .. string.format(" D=0x%X", d) .. bad
+    end
+  end
+  return len
 end
 """
