@@ -83,9 +83,11 @@ def add_bench_parser(sub: Any) -> None:
                    "any other needs SIGROKDECODE_DIR=DIR)")
 
 
-def _records(args: argparse.Namespace, command: str) -> tuple[IO[bytes], Any]:
+def _records(args: argparse.Namespace, command: str, *,
+             quiet: bool = False) -> tuple[IO[bytes], Any]:
     """The capture opened with its release (``--sw`` overrides, one warning line when they
-    disagree) and its tail (a pcapng cut inside a block is read up to its last whole block)."""
+    disagree, unless ``quiet``: a first pass that only counts) and its tail (a pcapng cut
+    inside a block is read up to its last whole block)."""
     from eyeq_spi.dissect.inputs import InputError
     from eyeq_spi.dissect.release import open_capture
     from eyeq_spi.logic.options import spi_options_from
@@ -104,7 +106,7 @@ def _records(args: argparse.Namespace, command: str) -> tuple[IO[bytes], Any]:
         if fh is not sys.stdin.buffer:
             fh.close()
         raise
-    if cap.release.warning:
+    if cap.release.warning and not quiet:
         print(f"eyeq-spi {command}: warning: {cap.release.warning}", file=sys.stderr,
               flush=True)
     return fh, cap
@@ -149,7 +151,7 @@ def _vcd_plan(args: argparse.Namespace) -> int:
     refused above --vcd-max-size."""
     from eyeq_spi.logic.vcd_write import estimate_size
 
-    fh, cap = _records(args, "export")
+    fh, cap = _records(args, "export", quiet=True)
     n = nbytes = 0
     t0 = t1 = None
     try:
