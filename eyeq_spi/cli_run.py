@@ -412,7 +412,9 @@ def run_sim(args: argparse.Namespace) -> int:
             writer.close()
     problem = None
     if not served.sessions:
-        problem = (f"no host connected within {args.accept_timeout} s" if not interrupted
+        waited = (args.accept_timeout if args.duration is None
+                  else min(args.accept_timeout, args.duration))
+        problem = (f"no host connected within {waited:g} s" if not interrupted
                    else "interrupted before any host")
     out = sim_summary(sim or eyeq, served.sessions, elapsed=clock() - t0,
                       wall=clock() - t0, cpu=time.process_time() - cpu0,
@@ -435,12 +437,25 @@ def _reopen(url: str, until: float) -> Any:
     return None
 
 
+def _open_or_say(args: argparse.Namespace) -> Any:
+    """Connect to ``--port``; with ``--reconnect`` the wait above already took ``--duration``."""
+    from eyeq_spi.errors import AdapterError
+    from eyeq_spi.phy.base import open_url
+
+    try:
+        return open_url(args.port)
+    except AdapterError as exc:
+        if args.reconnect:
+            raise AdapterError(f"no EyeQ answered at {args.port} within --duration "
+                               f"{args.duration:g} s ({exc})") from None
+        raise
+
+
 def run_host(args: argparse.Namespace) -> int:
     from eyeq_spi.errors import LinkLostError
     from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.host.machine import HostState
     from eyeq_spi.phy.address import parse_connect
-    from eyeq_spi.phy.base import open_url
     from eyeq_spi.report import host_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
     from eyeq_spi.runner.sched import realtime
@@ -451,7 +466,7 @@ def run_host(args: argparse.Namespace) -> int:
     gc.collect()
     # --reconnect: the EyeQ may not be there yet (a sim still starting, a camera powering up)
     adapter: Any = ((_reopen(args.port, time.monotonic() + args.duration) if args.reconnect
-                     else None) or open_url(args.port))
+                     else None) or _open_or_say(args))
     _on_sigterm()
     writer = capture_writer(args)
     runner = RealTimeRunner(host, adapter)

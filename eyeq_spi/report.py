@@ -371,7 +371,24 @@ def format_summary(out: dict[str, Any]) -> str:
         lines.append(f"  replay: played {rep['played']} frames"
                      f"{'' if rep['complete'] else ' (not to the end)'}, host ACKs "
                      f"{rep['host_acks']}, host NAKs {sum(rep['host_naks'].values())}")
-    return "\n".join(lines)
+    return "\n".join(_wrap(line) for line in lines)
+
+
+def _wrap(line: str, width: int = 80) -> str:
+    """A summary line folded between words to fit an 80-column terminal, continuation lines
+    indented under their topic."""
+    import re
+    import textwrap
+
+    if len(line) <= width:
+        return line
+    lead = len(line) - len(line.lstrip())
+    # fold only after a comma or a colon: "DIAGNOSTIC 94" or "MESP timeouts 0" stays whole
+    glued = re.sub(r"(?<![,:]) ", "\u00a0", line[lead:])
+    text = textwrap.fill(glued, width=width, initial_indent=" " * lead,
+                         subsequent_indent=" " * (lead + 4), break_long_words=False,
+                         break_on_hyphens=False)
+    return text.replace("\u00a0", " ")
 
 
 def running_state(host: HostEmulator) -> bool:

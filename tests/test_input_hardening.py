@@ -142,3 +142,16 @@ def _lines(n: int) -> Iterator[bytes]:
 def test_hex_lines_up_to_the_limit_read(tmp_path: Path) -> None:
     data = b"".join(_lines(5)) + b"# a comment\n" + b"00" * 128 + b"\n"
     assert len(_read_all(data, "hex")) == 6
+
+
+def test_a_file_that_is_not_a_vcd_is_named_so(tmp_path: Path) -> None:
+    """``--format vcd`` on a file that is not a VCD says so (not "truncated VCD")."""
+    import subprocess
+    import sys
+
+    f = tmp_path / "x.pcapng"
+    f.write_bytes(b"\x0a\x0d\x0d\x0a" + bytes(200))
+    r = subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "dissect", str(f), "--format",
+                        "vcd"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "not a VCD file" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1

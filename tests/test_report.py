@@ -73,6 +73,42 @@ def test_the_text_block_lists_received_and_sent_apart(tmp_path: Path) -> None:
     emu = build(nvm=Nvm(tmp_path / "nvm.json"))
     emu.run_for(2.0)
     text = format_summary(summary(emu))
-    rx = next(line for line in text.splitlines() if line.startswith("  received:"))
-    tx = next(line for line in text.splitlines() if line.startswith("  sent:"))
+    rx, tx = _topic(text, "received:"), _topic(text, "sent:")
     assert "HOST_VEH_STATE" not in rx and "HOST_VEH_STATE" in tx and "VIS_OBSTACLES" in rx
+
+
+def _topic(text: str, head: str) -> str:
+    """A topic of the text block with its continuation lines (folded at 80 columns)."""
+    out: list[str] = []
+    for line in text.splitlines():
+        if line.startswith("  " + head) or (out and line.startswith("      ")):
+            out.append(line)
+        elif out:
+            break
+    return " ".join(x.strip() for x in out)
+
+
+def test_the_text_block_fits_80_columns_and_folds_between_items(tmp_path: Path) -> None:
+    emu = build(nvm=Nvm(tmp_path / "nvm.json"))
+    emu.run_for(2.0)
+    text = format_summary(summary(emu))
+    assert max(len(line) for line in text.splitlines()) <= 80, text
+    rx = _topic(text, "received:")
+    assert len(rx) > 80  # folded, and every "NAME COUNT" item kept whole
+    for item in rx.removeprefix("received: ").split(", "):
+        name, count = item.split(" ")
+        assert name.isupper() and count.isdigit(), item
+
+
+def test_requests_abandoned_at_an_eyeq_reset_are_counted_apart_from_timeouts() -> None:
+    """A reset EyeQ answers nothing it was asked before: the outstanding requests are
+    ``abandoned`` (reported; the bring-up asks again), not timeouts (no deadline passed)."""
+    from eyeq_spi.mesp.client import MespClient
+
+    client = MespClient()
+    client.request("GetEyeQVersions", now=0.0)
+    client.request("GetEyeQExtendedState", now=0.0)
+    client.cancel_all()
+    assert client.counters.abandoned == 2 and client.counters.timeouts == 0
+    client.handle_timer(10.0)  # nothing left to expire
+    assert client.counters.timeouts == 0 and client.get_timer() is None

@@ -50,7 +50,8 @@ class Tail:
     def note(self, name: str) -> str:
         """The one line a reader prints about it."""
         return (f"{name}: the capture ends inside a block: read up to the last whole block and "
-                f"ignored the last {self.ignored} bytes (from byte {self.at})")
+                f"ignored the last {self.ignored} byte{'' if self.ignored == 1 else 's'} "
+                f"(from byte {self.at})")
 
 
 def release_from_comment(text: str) -> SwKey | None:

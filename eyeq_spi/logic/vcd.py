@@ -197,6 +197,8 @@ def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
     else:
         m = re.search(rb"\$enddefinitions\s+\$end", head)
     if m is None:
+        if not head.lstrip()[:1] == b"$":  # a VCD starts with a $ keyword ($date, $timescale..)
+            raise LogicInputError("not a VCD file: it does not start with a $ keyword")
         raise LogicInputError("truncated VCD: no $enddefinitions")
     meta = _skip_meta(head[:m.start()])  # only before the definitions end
     head = meta + head[m.start():]
