@@ -5,6 +5,7 @@ does, 2 for usage or connection errors."""
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 from typing import TYPE_CHECKING, Any
 
@@ -121,7 +122,8 @@ def run_conformance(args: argparse.Namespace) -> int:
         report.write(args.junit, report.junit(results, f"eyeq-spi.conformance.{args.dut}"))
     if args.report:
         report.write_report(args.report, results, title)
-    print(report.json_lines(results) if args.json else report.console(results))
+    width = shutil.get_terminal_size((80, 24)).columns if sys.stdout.isatty() else None
+    print(report.json_lines(results) if args.json else report.console(results, width=width))
     return report.exit_code(results)
 
 

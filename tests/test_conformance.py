@@ -135,3 +135,18 @@ def test_unused_bit_masks_come_from_the_layout() -> None:
     data = lay.build(lay.zero_values())
     for off, size, mask in masks:
         assert int.from_bytes(data[off:off + size], "little") & mask == mask
+
+
+def test_console_report_keeps_the_whole_evidence_and_fits_a_terminal() -> None:
+    """The text report never cuts evidence: full lines for a file, folded for a terminal."""
+    from eyeq_spi.conformance.report import console
+
+    results = run(Options(dut="eyeq", builtin=True, select="LINK-CRC or LINK-ACK or DASP-RATE"))
+    full = console(results)
+    for r in results:
+        assert r.outcome.evidence in full and f"§{r.case.section}" in full
+    narrow = console(results, width=80)
+    assert max(len(line) for line in narrow.splitlines()) <= 80, narrow
+    words = " ".join(narrow.split())
+    for r in results:
+        assert " ".join(r.outcome.evidence.split()) in words

@@ -32,13 +32,26 @@ def json_lines(results: Sequence[Result]) -> str:
     return "\n".join(lines)
 
 
-def console(results: Sequence[Result], *, width: int = 100) -> str:
+def console(results: Sequence[Result], *, width: int | None = None) -> str:
+    """One line per case: verdict, ID, the seed section it cites, its evidence in full. With
+    ``width`` (a terminal's columns) the evidence folds between words under its case; without
+    it (a file, a pipe) every case stays on one line."""
+    import textwrap
+
     rows = []
+    idw = max((len(r.case.id) for r in results), default=0)
     for r in results:
-        ev = r.outcome.evidence
-        room = max(20, width - 58)
-        rows.append(f"{r.outcome.verdict.upper():12s} {r.case.id:42s} "
-                    f"{ev if len(ev) <= room else ev[: room - 1] + '…'}")
+        head = f"{r.outcome.verdict.upper():12s} {r.case.id:{idw}s} §{r.case.section}"
+        if width is not None and len(head) > width:  # no column padding on a narrow screen
+            head = f"{r.outcome.verdict.upper()} {r.case.id} §{r.case.section}"
+        line = f"{head}  {r.outcome.evidence}"
+        if width is None or len(line) <= width:
+            rows.append(line)
+        else:  # a narrow terminal: the case on its line, its evidence folded below it
+            rows.append(head)
+            rows.append(textwrap.fill(r.outcome.evidence, width=max(width, 40),
+                                      initial_indent=" " * 4, subsequent_indent=" " * 4,
+                                      break_long_words=False, break_on_hyphens=False))
     s = summary(results)
     rows.append(" ".join(f"{v} {s[v]}" for v in VERDICTS))
     return "\n".join(rows)
