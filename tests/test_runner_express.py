@@ -12,6 +12,7 @@ import pytest
 
 from eyeq_spi.emulator import HOST_ALONE, Emulation, build
 from eyeq_spi.host.machine import HostState
+from eyeq_spi.link.frame import FrameCodec, FrameKind
 from eyeq_spi.phy.memory import MemoryAdapter
 from eyeq_spi.runner.express import EXACT_ENV, Express
 from eyeq_spi.runner.virtual import VirtualRunner
@@ -77,6 +78,10 @@ def test_express_gives_the_reference_transfers_and_state(case: str) -> None:
     loop = fast.runner._express
     assert ref.runner._express is None
     assert loop is not None and loop.instants > 0.8 * len({t for _, t, _ in fast_trace})
+    if case == "full_load":  # most DATA frames continue a message: the host takes them in one step
+        codec = FrameCodec()
+        data = sum(1 for i, _, b in fast_trace if i == 1 and codec.judge(b)[0] == FrameKind.DATA)
+        assert loop.absorbed > 0.5 * data
 
 
 def test_mode_switch_from_outside_between_runs() -> None:
@@ -135,3 +140,75 @@ def test_express_needs_two_self_contained_nodes_on_one_pair() -> None:
     assert Express.eligible(VirtualRunner([(SimulatedEyeQ(), a), (SimulatedEyeQ(), b)]))
     assert not Express.eligible(VirtualRunner([(SimulatedEyeQ(), a), (SimulatedEyeQ(), b)],
                                               latency=0.0))
+
+
+def _ordinary(rx: Any, frame: bytes, t: float) -> list[bytes]:
+    """What a runner does with a frame: receive_data, handle_timer if due, data_to_send."""
+    rx.receive_data(frame, t)
+    timer = rx.get_timer()
+    if timer is not None and timer <= t:
+        rx.handle_timer(t)
+    out: list[bytes] = rx.data_to_send(t)
+    return out
+
+
+def _snapshot(rx: Any) -> tuple[Any, ...]:
+    link, o = rx.link, rx._open
+    events = []
+    while (ev := rx.next_event()) is not None:
+        events.append(ev)
+    return (repr(link.counters), link.expected_num, list(link._accepted.items()),
+            link._next_ctl, link._naks_in_row, repr(rx.counters), rx._dead_id, rx._seen_first,
+            None if o is None else (o.transfer_id, o.total, bytes(o.buf), o.last_num, o.deadline,
+                                    o.nums), events, rx.get_timer())
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_absorb_is_receive_timer_and_send_in_one_step(seed: int) -> None:
+    """The transport's express hook against the ordinary calls, frame by frame, on a stream with
+    every fault the link knows: drops, duplicates, bad CRCs, swapped frames, a sender that
+    starts over, a silence longer than the reassembly timeout. Where the hook declines it must
+    have changed nothing (the ordinary path then gives the same result)."""
+    from eyeq_spi.link.connection import LinkConfig
+    from eyeq_spi.transport.connection import TransportConnection
+
+    rng = random.Random(seed)
+    tx = TransportConnection(LinkConfig(role="eyeq", window=1000))  # never waits for an ACK
+    fast, ref = (TransportConnection(LinkConfig(role="host")) for _ in range(2))
+    t, absorbed, declined = 0.0, 0, 0
+    for _ in range(300):
+        if rng.random() < 0.03:
+            tx.reset()  # the EyeQ starts over: same NUMs, other bytes (L6a)
+        tx.send(rng.randbytes(rng.choice([5, 117, 300, 700, 1500])), t)
+        frames: list[bytes] = []
+        while tx.link.queued:
+            t += 0.0002
+            frames += tx.data_to_send(t)
+        for k, frame in enumerate(list(frames)):
+            r = rng.random()
+            if r < 0.04:
+                frames[k] = frame[:-1] + bytes([frame[-1] ^ 1])  # bad CRC
+            elif r < 0.07:
+                frames[k] = b""  # dropped
+            elif r < 0.10:
+                frames.append(frame)  # duplicated later
+            elif r < 0.12 and k + 1 < len(frames):
+                frames[k], frames[k + 1] = frames[k + 1], frame  # swapped
+        for frame in frames:
+            if not frame:
+                continue
+            t += 0.0003 if rng.random() > 0.02 else 0.03  # now and then a long silence
+            ack = fast.absorb(frame, t)
+            if ack is None:
+                declined += 1
+                got = _ordinary(fast, frame, t)
+            else:
+                absorbed += 1
+                got = [ack]
+            assert got == _ordinary(ref, frame, t)
+            assert _snapshot(fast) == _snapshot(ref)
+            for ack_frame in got:
+                tx.receive_data(ack_frame, t)
+            while tx.next_event() is not None:
+                pass
+    assert absorbed > 200 and declined > 200

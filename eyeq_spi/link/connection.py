@@ -390,3 +390,39 @@ class LinkConnection:
             del self._tags[tag]
             if not entry[1]:
                 self._events.append(Sent(tag))
+
+    # -- express path (runner/express.py) ---------------------------------------------------
+    def in_order(self, transfer: bytes, now: float) -> int | None:
+        """The NUM of ``transfer`` if it is a good DATA frame with the expected NUM that this
+        connection accepts and answers at once: nothing of its own queued, nothing due at
+        ``now``, the ACK free to go (``control_gap`` passed), no resynchronisation pending.
+        None for any other frame or state. Changes nothing."""
+        if (len(transfer) != 128 or self._control or self._queue or not self._started
+                or now < self._next_ctl or self._naks_in_row >= self.config.resync_after_naks
+                or self.payload_check is None):
+            return None
+        if self._inflight and next(iter(self._inflight.values())).deadline <= now:
+            return None
+        d, r, _, num, crc_ok = self.codec.judge(transfer)
+        if d != _DATA or r != 0 or not crc_ok or num != self._expected:
+            return None
+        return num
+
+    def accept_in_order(self, num: int, transfer: bytes, now: float) -> bytes:
+        """What ``receive_data``, ``handle_timer`` and ``data_to_send`` at ``now`` do with a
+        frame :meth:`in_order` gave ``num`` for, once the layer above checked its payload:
+        accept it (L6) and return its ACK as sent. The payload goes to the caller, not into
+        the event queue."""
+        m, w = SEQ_MODULO, self.config.window
+        self._naks_in_row = 0
+        self._expected = (num + 1) % m
+        self._last_accepted = num
+        acc = self._accepted
+        acc.pop(num, None)
+        acc[num] = bytes(transfer)
+        while acc and (self._expected - next(iter(acc))) % m > w:
+            acc.popitem(last=False)
+        self.counters.framesReceived += 1
+        self.counters.busyFrames = len(self._inflight)
+        self._next_ctl = now + self.config.control_gap
+        return self.codec.ack(num)
