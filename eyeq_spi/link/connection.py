@@ -426,3 +426,29 @@ class LinkConnection:
         self.counters.busyFrames = len(self._inflight)
         self._next_ctl = now + self.config.control_gap
         return self.codec.ack(num)
+
+    def ack_in_flight(self, transfer: bytes, now: float) -> bool:
+        """``receive_data`` of a good ACK for a frame in flight whose message has more frames
+        to settle, where nothing is due at ``now`` (no frame to send, no timeout): settle the
+        frame and return True. False, with nothing changed, for any other frame or state."""
+        if len(transfer) != 128 or (self._control and self._next_ctl <= now):
+            return False
+        if self._queue and (self._next_tx <= now or self._queue[0].deadline <= now):
+            return False
+        if self._inflight and next(iter(self._inflight.values())).deadline <= now:
+            return False  # an ACK timeout is due first
+        d, r, rsp, _, crc_ok = self.codec.judge(transfer)
+        if d != _ACK or r != 0 or not crc_ok:
+            return False
+        f = self._inflight.get(rsp)
+        if f is None:
+            return False
+        entry = self._tags.get(f.tag)
+        if entry is None or entry[0] <= 1:
+            return False  # the last frame of its message: Sent or the end of a failure
+        del self._inflight[rsp]
+        self.ack_latency[int((now - f.sent) * 1e5)] += 1
+        self.counters.busyFrames = len(self._inflight)
+        self.counters.framesAcked += 1
+        entry[0] -= 1
+        return True

@@ -309,3 +309,13 @@ class TransportConnection:
             o.nums.append(num)
             o.deadline = now + self.config.reassembly_timeout
         return ack
+
+    def absorb_ack(self, transfer: bytes, now: float) -> bool:
+        """``receive_data`` and ``data_to_send`` at ``now`` in one step for an ACK that settles
+        a frame of a message with more frames in flight or queued, when it lets no frame go at
+        ``now`` (:meth:`LinkConnection.ack_in_flight`): True. False, with nothing changed,
+        otherwise."""
+        o = self._open
+        if o is not None and o.deadline <= now:
+            return False
+        return self.link.ack_in_flight(transfer, now)
