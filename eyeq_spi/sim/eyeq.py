@@ -251,7 +251,8 @@ class SimulatedEyeQ:
     def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
         """runner/express.py: ``receive_data`` and ``data_to_send`` at the same ``now`` in one
         step for an ACK that settles a frame of a message still going out and lets no frame go
-        (what they hand over: nothing). None, with nothing changed, for anything else."""
+        (what they hand over: nothing). None, with nothing changed, for anything else. Called
+        only while :meth:`get_timer` is later than ``now`` (the runner's promise)."""
         if not self.powered or not self.conn.absorb_ack(transfer, now):
             return None
         self.now = now
