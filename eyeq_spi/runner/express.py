@@ -160,7 +160,6 @@ class Express:
             if not self._clean():  # a node closed or fed an adapter: the general loop decides
                 return
 
-
     def _hand_over(self, j: int, t: float, outs: list[bytes]) -> None:
         """Put what node ``j`` handed over at ``t`` in flight, as the general loop's tap, adapter
         and drain do."""
