@@ -210,18 +210,22 @@ class LinkConnection:
 
     # -- timers -----------------------------------------------------------------------------
     def get_timer(self) -> float | None:
-        deadlines: list[float] = []
-        if self._control:
-            deadlines.append(self._next_ctl)
-        if self._queue and len(self._inflight) < self.config.window:
-            deadlines.append(self._next_tx)
-        if self._inflight:
+        # asked after every event (runner/virtual.py): no temporary lists here
+        best: float | None = self._next_ctl if self._control else None
+        queue, inflight = self._queue, self._inflight
+        if queue:
+            t = queue[0].deadline
+            if len(inflight) < self.config.window and self._next_tx < t:
+                t = self._next_tx
+            if best is None or t < best:
+                best = t
+        if inflight:
             # frames enter in send order with deadline = sent + ack_timeout: the oldest is due
             # first
-            deadlines.append(next(iter(self._inflight.values())).deadline)
-        if self._queue:
-            deadlines.append(self._queue[0].deadline)
-        return min(deadlines) if deadlines else None
+            t = next(iter(inflight.values())).deadline
+            if best is None or t < best:
+                best = t
+        return best
 
     def handle_timer(self, now: float) -> None:
         for num in [n for n, f in self._inflight.items() if f.deadline <= now]:
