@@ -182,6 +182,24 @@ class HostEmulator:
         self._flush_mesp(now)
         return self.conn.data_to_send(now)
 
+    def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
+        """runner/express.py: ``receive_data``, then ``handle_timer`` and ``data_to_send`` at
+        the same ``now`` (as a runner calls them for a DATA frame, whose ACK makes the timer
+        due), in one step, when the frame continues a message and completes nothing and no
+        timer of the host is due: the ACK. None, with nothing changed, otherwise."""
+        if self.mesp.waiting or (self.state is S.RUNNING_VISION
+                                 and now >= self._next_stale_check):
+            return None
+        for t in (self.mesp.get_timer() if self.mesp.outstanding else None,
+                  self._boot_deadline, self._next_poll, self._veh_next):
+            if t is not None and t <= now:
+                return None
+        ack = self.conn.absorb(transfer, now)
+        if ack is None:
+            return None
+        self.now = now
+        return [ack]
+
     def get_timer(self) -> float | None:
         # asked after every event (runner/virtual.py): no temporary lists here
         best = self.conn.get_timer()

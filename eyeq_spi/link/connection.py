@@ -248,18 +248,22 @@ class LinkConnection:
 
     # -- timers -----------------------------------------------------------------------------
     def get_timer(self) -> float | None:
-        deadlines: list[float] = []
-        if self._control:
-            deadlines.append(self._next_ctl)
-        if self._queue and len(self._inflight) < self.config.window:
-            deadlines.append(self._next_tx)
-        if self._inflight:
+        # asked after every event (runner/virtual.py): no temporary lists here
+        best: float | None = self._next_ctl if self._control else None
+        queue, inflight = self._queue, self._inflight
+        if queue:
+            t = queue[0].deadline
+            if len(inflight) < self.config.window and self._next_tx < t:
+                t = self._next_tx
+            if best is None or t < best:
+                best = t
+        if inflight:
             # frames enter in send order with deadline = sent + ack_timeout: the oldest is due
             # first
-            deadlines.append(next(iter(self._inflight.values())).deadline)
-        if self._queue:
-            deadlines.append(self._queue[0].deadline)
-        return min(deadlines) if deadlines else None
+            t = next(iter(inflight.values())).deadline
+            if best is None or t < best:
+                best = t
+        return best
 
     def handle_timer(self, now: float) -> None:
         for num in [n for n, f in self._inflight.items() if f.deadline <= now]:
@@ -444,3 +448,65 @@ class LinkConnection:
             del self._tags[tag]
             if not entry[1]:
                 self._events.append(Sent(tag))
+
+    # -- express path (runner/express.py) ---------------------------------------------------
+    def in_order(self, transfer: bytes, now: float) -> int | None:
+        """The NUM of ``transfer`` if it is a good DATA frame with the expected NUM that this
+        connection accepts and answers at once: nothing of its own queued, nothing due at
+        ``now``, the ACK free to go (``control_gap`` passed), no resynchronisation pending.
+        None for any other frame or state. Changes nothing."""
+        if (len(transfer) != 128 or self._control or self._queue or not self._started
+                or now < self._next_ctl or self._naks_in_row >= self.config.resync_after_naks
+                or self.payload_check is None):
+            return None
+        if self._inflight and next(iter(self._inflight.values())).deadline <= now:
+            return None
+        d, r, _, num, crc_ok = self.codec.judge(transfer)
+        if d != _DATA or r != 0 or not crc_ok or num != self._expected:
+            return None
+        return num
+
+    def accept_in_order(self, num: int, transfer: bytes, now: float) -> bytes:
+        """What ``receive_data``, ``handle_timer`` and ``data_to_send`` at ``now`` do with a
+        frame :meth:`in_order` gave ``num`` for, once the layer above checked its payload:
+        accept it (L6) and return its ACK as sent. The payload goes to the caller, not into
+        the event queue."""
+        m, w = SEQ_MODULO, self.config.window
+        self._naks_in_row = 0
+        self._expected = (num + 1) % m
+        self._last_accepted = num
+        acc = self._accepted
+        acc.pop(num, None)
+        acc[num] = bytes(transfer)
+        while acc and (self._expected - next(iter(acc))) % m > w:
+            acc.popitem(last=False)
+        self.counters.framesReceived += 1
+        self.counters.busyFrames = len(self._inflight)
+        self._next_ctl = now + self.config.control_gap
+        return self.codec.ack(num)
+
+    def ack_in_flight(self, transfer: bytes, now: float) -> bool:
+        """``receive_data`` of a good ACK for a frame in flight whose message has more frames
+        to settle, where nothing is due at ``now`` (no frame to send, no timeout): settle the
+        frame and return True. False, with nothing changed, for any other frame or state."""
+        if len(transfer) != 128 or (self._control and self._next_ctl <= now):
+            return False
+        if self._queue and (self._next_tx <= now or self._queue[0].deadline <= now):
+            return False
+        if self._inflight and next(iter(self._inflight.values())).deadline <= now:
+            return False  # an ACK timeout is due first
+        d, r, rsp, _, crc_ok = self.codec.judge(transfer)
+        if d != _ACK or r != 0 or not crc_ok:
+            return False
+        f = self._inflight.get(rsp)
+        if f is None:
+            return False
+        entry = self._tags.get(f.tag)
+        if entry is None or entry[0] <= 1:
+            return False  # the last frame of its message: Sent or the end of a failure
+        del self._inflight[rsp]
+        self.ack_latency[int((now - f.sent) * 1e5)] += 1
+        self.counters.busyFrames = len(self._inflight)
+        self.counters.framesAcked += 1
+        entry[0] -= 1
+        return True

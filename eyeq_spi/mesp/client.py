@@ -119,6 +119,11 @@ class MespClient:
         self.counters.abandoned += len(self._pending)
         self._pending.clear()
 
+    @property
+    def waiting(self) -> int:
+        """Requests built but not yet handed over by :meth:`data_to_send`."""
+        return len(self._out)
+
     def data_to_send(self) -> list[bytes]:
         out = list(self._out)
         self._out.clear()

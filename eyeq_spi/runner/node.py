@@ -15,7 +15,14 @@ class Node(Protocol):
 
     Every node: ``data_to_send(now)`` hands over nothing unless the node was touched since its
     last call or ``get_timer()`` is at most ``now`` (the runner does not ask it otherwise).
-    ``VirtualRunner.verify`` checks both promises."""
+    ``VirtualRunner.verify`` checks both promises.
+
+    Optional, read from the node's own class only (runner/express.py):
+    ``express_absorb(transfer, now) -> list[bytes] | None`` makes the calls a runner makes for
+    one arriving transfer (``receive_data``; ``handle_timer`` if that made the timer due;
+    ``data_to_send``) in one step and returns what ``data_to_send`` hands over, or returns None
+    having changed nothing when it cannot tell that they would do nothing else. It is called
+    only while the node's ``get_timer()`` is later than ``now``."""
 
     def receive_data(self, transfer: bytes, now: float) -> None: ...
 

@@ -23,6 +23,7 @@ import time
 from collections.abc import Callable
 
 from eyeq_spi.phy.base import Adapter
+from eyeq_spi.runner.express import Express, exact_requested
 from eyeq_spi.runner.node import Node
 
 Tap = Callable[[int, float, bytes], None]
@@ -47,6 +48,7 @@ class VirtualRunner:
         tap: Tap | None = None,
         max_steps_per_instant: int = 100_000,
         self_contained: frozenset[int] = frozenset(),
+        express: bool | None = None,
     ) -> None:
         self.nodes = nodes
         self.latency = latency
@@ -70,6 +72,10 @@ class VirtualRunner:
         # only outside effect (the host's reset line) to call :meth:`touch_all`
         self._alone = [vars(type(node)).get("SELF_CONTAINED") is True or i in self_contained
                        for i, (node, _) in enumerate(nodes)]
+        # express instants (runner/express.py) where they apply; ``express=False`` or
+        # EYEQ_SPI_EXACT=1: the general loop only (the reference)
+        self.express = (not exact_requested()) if express is None else express
+        self._express: Express | None = None
 
     # -- caches -----------------------------------------------------------------------------
     def touch_all(self) -> None:
@@ -221,9 +227,15 @@ class VirtualRunner:
     ) -> float:
         self.touch_all()  # nodes may have been driven from outside since the last call
         self._pump(drain_all=True)
+        fast = None
+        if self.express and stop is None and pace is None and not self.verify \
+                and Express.eligible(self):
+            fast = self._express = self._express or Express(self)
         while stop is None or not stop():
             if stop is not None:
                 self.touch_all()
+            if fast is not None:
+                fast.run(t_end)
             nxt = self._next()
             if nxt is None or nxt > t_end:
                 self._new_instant(max(self.now, t_end))

@@ -280,3 +280,52 @@ class TransportConnection:
         self._dead_id = o.transfer_id
         self.counters.transferAborts[reason] += 1
         self._events.append(TransferAborted(reason, o.transfer_id, len(o.buf), o.total))
+
+    # -- express path (runner/express.py) ---------------------------------------------------
+    def absorb(self, transfer: bytes, now: float) -> bytes | None:
+        """``receive_data``, ``handle_timer`` and ``data_to_send`` at ``now`` in one step, for a
+        DATA frame that the link accepts in order (:meth:`LinkConnection.in_order`) and whose
+        payload opens or continues the transfer and completes nothing: returns the ACK as
+        sent. None, with nothing changed, for any other frame or state (the caller then takes
+        the ordinary path)."""
+        o = self._open
+        if o is not None and o.deadline <= now:
+            return None  # T6: the silence ended before this frame
+        link = self.link
+        num = link.in_order(transfer, now)
+        if num is None:
+            return None
+        ttype, tid = transfer[6], transfer[7]
+        if ttype == seg.FIRST:
+            total = int.from_bytes(transfer[8:12], "little")
+            limit = self.config.receive_limit or seg.MAX_TOTAL
+            if o is not None or not seg.FIRST_TOTAL_MIN <= total <= limit:
+                return None
+        elif ttype == seg.CONSECUTIVE:
+            if (o is None or tid != o.transfer_id or num != (o.last_num + 1) % SEQ_MODULO
+                    or o.total - len(o.buf) <= seg.CONSECUTIVE_CHUNK):
+                return None  # no transfer to continue, or this frame ends it
+        else:
+            return None
+        ack = link.accept_in_order(num, transfer, now)
+        if o is None:  # as _on_payload opens a transfer
+            self._dead_id = None
+            self._seen_first = True
+            self._open = _Open(tid, total, bytearray(transfer[12 : 12 + seg.FIRST_CHUNK]), num,
+                               now + self.config.reassembly_timeout, [num])
+        else:
+            o.buf += transfer[8 : 8 + seg.CONSECUTIVE_CHUNK]
+            o.last_num = num
+            o.nums.append(num)
+            o.deadline = now + self.config.reassembly_timeout
+        return ack
+
+    def absorb_ack(self, transfer: bytes, now: float) -> bool:
+        """``receive_data`` and ``data_to_send`` at ``now`` in one step for an ACK that settles
+        a frame of a message with more frames in flight or queued, when it lets no frame go at
+        ``now`` (:meth:`LinkConnection.ack_in_flight`): True. False, with nothing changed,
+        otherwise."""
+        o = self._open
+        if o is not None and o.deadline <= now:
+            return False
+        return self.link.ack_in_flight(transfer, now)

@@ -1,0 +1,238 @@
+"""Express instants (runner/express.py) give the same transfers at the same virtual times, and
+leave host, simulated EyeQ and link in the same state, as the general per-frame loop (the
+reference, ``express=False`` or ``EYEQ_SPI_EXACT=1``): on clean runs and on the faults and
+resets the emulator can inject."""
+
+from __future__ import annotations
+
+import random
+from typing import Any
+
+import pytest
+
+from eyeq_spi.emulator import HOST_ALONE, Emulation, build
+from eyeq_spi.host.machine import HostState
+from eyeq_spi.link.frame import FrameCodec, FrameKind
+from eyeq_spi.phy.memory import MemoryAdapter
+from eyeq_spi.runner.express import EXACT_ENV, Express
+from eyeq_spi.runner.virtual import VirtualRunner
+from eyeq_spi.sim.config import SimConfig
+
+Trace = list[tuple[int, float, bytes]]
+
+
+def _emulation(express: bool, cfg: SimConfig) -> tuple[Emulation, Trace]:
+    trace: Trace = []
+    emu = build(sim_config=cfg, keep_rx_times=False)
+    emu.runner = VirtualRunner(emu.runner.nodes, tap=lambda i, t, b: trace.append((i, t, b)),
+                               self_contained=HOST_ALONE, express=express)
+    return emu, trace
+
+
+def _state(emu: Emulation) -> dict[str, Any]:
+    """What both paths must agree on besides the wire: counters of every layer, the host's
+    state machine history, the adapters' statistics, the clock."""
+    host, sim = emu.host, emu.sim
+    return {
+        "now": emu.runner.now,
+        "host_state": host.state,
+        "transitions": list(host.transitions),
+        "host_counters": repr(host.counters),
+        "sim_counters": repr(sim.counters),
+        "links": [repr(n.conn.link.counters) for n in (host, sim)],
+        "ack_latency": [dict(n.conn.link.ack_latency) for n in (host, sim)],
+        "transport": [repr(n.conn.counters) for n in (host, sim)],
+        "adapters": [repr(a.stats) for _, a in emu.runner.nodes],
+    }
+
+
+CASES = {
+    "full_load": (SimConfig(objects=15, signs=20, light_spots=15), 3.0),
+    "eyeq_resets_itself": (SimConfig(reset_at=1.2), 2.5),
+    "boot_failures_reset_line": (SimConfig(boot_test_failures=1, boot_failures=2), 2.5),
+    "late_and_dropped_replies": (
+        SimConfig(reply_delay=0.03, drop_replies={"GetEyeQExtendedState": 2}), 2.0),
+}
+
+
+def _first_difference(old: Trace, new: Trace) -> str | None:
+    k = next((k for k, (a, b) in enumerate(zip(old, new, strict=False)) if a != b), None)
+    if k is None:
+        return None if len(old) == len(new) else f"lengths {len(old)} and {len(new)}"
+    return f"transfer {k}: {old[k][:2]} {old[k][2][:8].hex()} / {new[k][:2]} {new[k][2][:8].hex()}"
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_express_gives_the_reference_transfers_and_state(case: str) -> None:
+    cfg, seconds = CASES[case]
+    runs = []
+    for express in (False, True):
+        emu, trace = _emulation(express, SimConfig(**vars(cfg)))
+        emu.run_for(seconds)
+        runs.append((emu, trace))
+    (ref, ref_trace), (fast, fast_trace) = runs
+    assert len(ref_trace) > 1000
+    assert _first_difference(ref_trace, fast_trace) is None, \
+        _first_difference(ref_trace, fast_trace)
+    assert _state(ref) == _state(fast)
+    loop = fast.runner._express
+    assert ref.runner._express is None
+    assert loop is not None and loop.instants > 0.8 * len({t for _, t, _ in fast_trace})
+    if case == "full_load":  # most DATA frames continue a message: the host takes them in one step
+        codec = FrameCodec()
+        data = sum(1 for i, _, b in fast_trace if i == 1 and codec.judge(b)[0] == FrameKind.DATA)
+        assert loop.absorbed > 0.5 * data
+
+
+def test_mode_switch_from_outside_between_runs() -> None:
+    traces, states = [], []
+    for express in (False, True):
+        emu, trace = _emulation(express, SimConfig(objects=15))
+        emu.run_for(1.5)
+        assert emu.host.state is HostState.RUNNING_VISION
+        emu.host.switch_mode("DV", emu.runner.now)
+        emu.run_for(1.0)
+        traces.append(trace)
+        states.append(_state(emu))
+    assert _first_difference(traces[0], traces[1]) is None
+    assert states[0] == states[1]
+
+
+def test_faulty_wire_runs_the_reference_loop() -> None:
+    """A fault hook on the wire (drops, duplicates, bad CRCs): no express instant at all, so the
+    run is the reference's by construction."""
+    emu, trace = _emulation(True, SimConfig())
+    rng = random.Random(3)
+
+    def mangle(t: bytes) -> list[bytes]:
+        r = rng.random()
+        return [] if r < 0.02 else [t, t] if r < 0.04 else [t]
+
+    for _, adapter in emu.runner.nodes:
+        assert isinstance(adapter, MemoryAdapter)
+        adapter.mangle = mangle
+    emu.run_for(1.0)
+    assert len(trace) > 100
+    assert emu.runner._express is not None and emu.runner._express.instants == 0
+
+
+def test_exact_switch_and_verify_turn_express_off(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(EXACT_ENV, "1")
+    emu = build(sim_config=SimConfig())
+    assert emu.runner.express is False
+    emu.run_for(0.2)
+    assert emu.runner._express is None
+    monkeypatch.setenv(EXACT_ENV, "0")
+    emu = build(sim_config=SimConfig())
+    assert emu.runner.express is True
+    emu.runner.verify = True
+    emu.run_for(0.2)
+    assert emu.runner._express is None
+
+
+def test_express_needs_two_self_contained_nodes_on_one_pair() -> None:
+    from eyeq_spi.conformance.mutants import NoAck
+    from eyeq_spi.sim.eyeq import SimulatedEyeQ
+
+    a, b = MemoryAdapter(), MemoryAdapter()
+    a.peer, b.peer = b, a
+    assert not Express.eligible(VirtualRunner([(SimulatedEyeQ(), a), (NoAck(), b)]))
+    assert Express.eligible(VirtualRunner([(SimulatedEyeQ(), a), (SimulatedEyeQ(), b)]))
+    assert not Express.eligible(VirtualRunner([(SimulatedEyeQ(), a), (SimulatedEyeQ(), b)],
+                                              latency=0.0))
+
+
+def _ordinary(rx: Any, frame: bytes, t: float) -> list[bytes]:
+    """What a runner does with a frame: receive_data, handle_timer if due, data_to_send."""
+    rx.receive_data(frame, t)
+    timer = rx.get_timer()
+    if timer is not None and timer <= t:
+        rx.handle_timer(t)
+    out: list[bytes] = rx.data_to_send(t)
+    return out
+
+
+def _snapshot(rx: Any) -> tuple[Any, ...]:
+    link, o = rx.link, rx._open
+    events = []
+    while (ev := rx.next_event()) is not None:
+        events.append(ev)
+    return (repr(link.counters), link.expected_num, list(link._accepted.items()),
+            link._next_ctl, link._naks_in_row, repr(rx.counters), rx._dead_id, rx._seen_first,
+            None if o is None else (o.transfer_id, o.total, bytes(o.buf), o.last_num, o.deadline,
+                                    o.nums), events, rx.get_timer())
+
+
+def _sender_snapshot(tx: Any) -> tuple[Any, ...]:
+    link = tx.link
+    events = []
+    while (ev := tx.next_event()) is not None:
+        events.append(ev)
+    return (repr(link.counters), dict(link.ack_latency), list(link._inflight.items()),
+            {k: list(v) for k, v in link._tags.items()}, link.next_num, link.queued,
+            repr(tx.counters), events, tx.get_timer())
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_absorb_is_receive_timer_and_send_in_one_step(seed: int) -> None:
+    """The transport's express hooks against the ordinary calls, frame by frame, on a stream
+    with every fault the link knows: drops, duplicates, bad CRCs, swapped frames, a sender that
+    starts over, a silence longer than the reassembly timeout; on the receiver (DATA frames)
+    and on the sender (their ACKs). Where a hook declines it must have changed nothing (the
+    ordinary path then gives the same result)."""
+    from eyeq_spi.link.connection import LinkConfig
+    from eyeq_spi.transport.connection import TransportConnection
+
+    rng = random.Random(seed)
+    # the senders never wait for an ACK, so that ACKs come late, twice or never
+    tx_fast, tx_ref = (TransportConnection(LinkConfig(role="eyeq", window=1000))
+                       for _ in range(2))
+    fast, ref = (TransportConnection(LinkConfig(role="host")) for _ in range(2))
+    t, absorbed, declined, acks = 0.0, 0, 0, 0
+    for _ in range(300):
+        if rng.random() < 0.03:
+            tx_fast.reset()  # the EyeQ starts over: same NUMs, other bytes (L6a)
+            tx_ref.reset()
+        message = rng.randbytes(rng.choice([5, 117, 300, 700, 1500]))
+        tx_fast.send(message, t)
+        tx_ref.send(message, t)
+        frames: list[bytes] = []
+        while tx_ref.link.queued:
+            t += 0.0002
+            frames += tx_ref.data_to_send(t)
+            assert tx_fast.data_to_send(t) == frames[-1:]
+        for k, frame in enumerate(list(frames)):
+            r = rng.random()
+            if r < 0.04:
+                frames[k] = frame[:-1] + bytes([frame[-1] ^ 1])  # bad CRC
+            elif r < 0.07:
+                frames[k] = b""  # dropped
+            elif r < 0.10:
+                frames.append(frame)  # duplicated later
+            elif r < 0.12 and k + 1 < len(frames):
+                frames[k], frames[k + 1] = frames[k + 1], frame  # swapped
+        for frame in frames:
+            if not frame:
+                continue
+            t += 0.0003 if rng.random() > 0.02 else 0.03  # now and then a long silence
+            ack = fast.absorb(frame, t)
+            if ack is None:
+                declined += 1
+                got = _ordinary(fast, frame, t)
+            else:
+                absorbed += 1
+                got = [ack]
+            assert got == _ordinary(ref, frame, t)
+            assert _snapshot(fast) == _snapshot(ref)
+            for back in got:
+                if rng.random() < 0.05:
+                    continue  # the ACK is lost
+                t += 0.0001
+                if tx_fast.absorb_ack(back, t):
+                    acks += 1
+                    assert tx_fast.data_to_send(t) == []
+                    assert _ordinary(tx_ref, back, t) == []
+                else:
+                    assert _ordinary(tx_fast, back, t) == _ordinary(tx_ref, back, t)
+                assert _sender_snapshot(tx_fast) == _sender_snapshot(tx_ref)
+    assert absorbed > 200 and declined > 200 and acks > 100
