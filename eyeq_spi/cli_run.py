@@ -150,15 +150,15 @@ def host_parts(args: argparse.Namespace) -> tuple[Any, Any, Any]:
 
 
 FATAL_22_NOTE = (
-    "          Fatal_Error 22 = the EyeQ's EEPROM does not match the intrinsic calibration (0x84)",
-    "          the host sent from its NVM. Expected on a first run: the NVM is empty, so the host",
-    "          reads the EEPROM into the NVM and resets the EyeQ (§7.1.3, decision I2). --nvm FILE",
-    "          keeps the NVM for the next run.",
+    "Fatal_Error 22 = the EyeQ's EEPROM does not match the intrinsic calibration (0x84) the "
+    "host sent from its NVM. Expected on a first run: the NVM is empty, so the host reads the "
+    "EEPROM into the NVM and resets the EyeQ (§7.1.3, decision I2). --nvm FILE keeps the NVM "
+    "for the next run."
 )
 
 
 def _stderr_width() -> int:
-    """The width of the terminal on stderr, at most 100 (lines are cut, never wrapped)."""
+    """The width of the terminal on stderr, at most 100 (longer lines are folded)."""
     import os
 
     try:
@@ -174,8 +174,8 @@ class LiveView:
     One time base: every time printed is seconds since the run started, the same clock the
     transitions carry (a host on the wall clock has its start subtracted, inferred from the
     host's own ``now`` on the first update). Every line fits the terminal (at most 100
-    columns): event lines are cut, explanations wrapped; the first FATAL_22 gets an explanation
-    (an empty NVM on a first run)."""
+    columns), folded between words, never cut; the first FATAL_22 gets an explanation (an empty
+    NVM on a first run)."""
 
     def __init__(self, enabled: bool, out: Any = None, width: int | None = None) -> None:
         self.enabled = enabled
@@ -187,18 +187,25 @@ class LiveView:
         self.origin: float | None = None
         self.explained = False
         self.last_live: set[str] = set()
+        self._periodic_names: set[str] | None = None
 
-    def _print(self, line: str) -> None:
-        if len(line) > self.width and line[:1] == " ":  # an explanation: wrapped
+    def _print(self, line: str, indent: int = 11) -> None:
+        """A line of the live view, folded between words to the terminal's width (continuation
+        lines indented past the time stamp), never cut."""
+        if len(line) > self.width:
             import textwrap
 
-            indent = " " * (len(line) - len(line.lstrip()))
-            for part in textwrap.wrap(line.strip(), self.width - len(indent)):
-                print(indent + part, file=self.out or sys.stderr)
-            return
-        if len(line) > self.width:
-            line = line[:self.width - 1] + "…"
+            lead = " " * (len(line) - len(line.lstrip()))
+            line = textwrap.fill(line.strip(), self.width, initial_indent=lead,
+                                 subsequent_indent=" " * max(indent, len(lead)),
+                                 break_long_words=False, break_on_hyphens=False)
         print(line, file=self.out or sys.stderr)
+
+    def _periodic(self, host: Any) -> set[str]:
+        """The messages the spec gives a nominal rate (seed 004's message table)."""
+        if self._periodic_names is None:
+            self._periodic_names = {m.name for m in host.codec.cat.messages if m.rate_hz}
+        return self._periodic_names
 
     def update(self, host: Any, now: float) -> None:
         if not self.enabled:
@@ -213,14 +220,14 @@ class LiveView:
                         f"{t.dst.value}{detail}")
             if t.event.value == "FATAL_22" and not self.explained:
                 self.explained = True
-                for line in FATAL_22_NOTE:
-                    self._print(line)
+                self._print(" " * 11 + FATAL_22_NOTE)
         self.shown = len(host.transitions)
         if now - self.last_t >= 1.0:
             counts = Counter(host.counters.received)
             dt = now - self.last_t
             rates = {k: (v - self.last_counts.get(k, 0)) / dt for k, v in counts.items()}
-            live = {k: r for k, r in rates.items() if r > 0}
+            periodic = self._periodic(host)  # a boot status or a MESP reply is no stream
+            live = {k: r for k, r in rates.items() if r > 0 and k in periodic}
             line = f"[{now:8.3f}] {host.state.value:14s} rx {sum(live.values()):6.1f} msg/s"
             if live:
                 slow = min(live, key=lambda k: live[k])

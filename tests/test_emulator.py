@@ -346,3 +346,17 @@ def test_fatal_22_that_never_clears_ends_in_failed_not_a_loop() -> None:
     assert emu.host.state is S.FAILED
     assert "still mismatched" in (emu.host.problem or "")
     assert emu.sim.counters.boots == 4  # the first boot and three resets
+
+
+@pytest.mark.realtime
+def test_real_time_pacing_takes_the_wall_time_of_quiet_stretches_too() -> None:
+    """``run_for(S, realtime=True)`` lasts at least S of wall time, including the stretches in
+    which nothing is due (a real-time demo of 5 s used to end after 4.5 s). Bounded: a loaded
+    machine can only make it longer."""
+    import time
+
+    emu = build()
+    t0 = time.perf_counter()
+    emu.run_for(0.6, realtime=True)
+    assert time.perf_counter() - t0 >= 0.58
+    assert emu.runner.now == pytest.approx(0.6)

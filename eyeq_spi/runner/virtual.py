@@ -238,6 +238,10 @@ class VirtualRunner:
                 fast.run(t_end)
             nxt = self._next()
             if nxt is None or nxt > t_end:
+                if pace is not None:  # a quiet stretch takes its wall time too
+                    ahead = (t_end - pace[1]) - (time.perf_counter() - pace[0])
+                    if ahead > 0:
+                        time.sleep(ahead)
                 self._new_instant(max(self.now, t_end))
                 self._pump()
                 break
