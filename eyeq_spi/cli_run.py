@@ -204,7 +204,9 @@ class LiveView:
     def _periodic(self, host: Any) -> set[str]:
         """The messages the spec gives a nominal rate (seed 004's message table)."""
         if self._periodic_names is None:
-            self._periodic_names = {m.name for m in host.codec.cat.messages if m.rate_hz}
+            from eyeq_spi.spec.catalog import catalog
+
+            self._periodic_names = {m.name for m in catalog().messages if m.rate_hz}
         return self._periodic_names
 
     def update(self, host: Any, now: float) -> None:
