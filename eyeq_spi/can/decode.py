@@ -297,5 +297,20 @@ def human_record(r: dict[str, Any]) -> str:
         parts.append(f"{k}={text}")
     if r.get("short_dlc"):
         parts.append(f"(short DLC {r['length']})")
-    errs = f"  !! {'; '.join(r['errors'])}" if r["errors"] else ""
-    return f"{head} {' '.join(parts)}{errs}"
+    if r["errors"]:
+        parts.append(f"!! {'; '.join(r['errors'])}")
+    return pack(head.rstrip(), parts)
+
+
+def pack(head: str, items: list[str], width: int = 80, indent: int = 9) -> str:
+    """``head`` then ``items`` separated by spaces, folded between items to ``width`` columns
+    (continuation lines indented); an item longer than a line gets a line of its own."""
+    lines, line = [], head
+    for item in items:
+        if len(line) + 1 + len(item) > width and line.strip():
+            lines.append(line)
+            line = " " * indent + item
+        else:
+            line = f"{line} {item}" if line else item
+    lines.append(line)
+    return "\n".join(lines)

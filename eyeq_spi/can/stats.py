@@ -13,7 +13,7 @@ from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.can.decode import CanDecoder, MessageDecoder
+from eyeq_spi.can.decode import CanDecoder, MessageDecoder, pack
 
 CHUNK = 1 << 15  # frames per (channel, ID) decoded at once: memory stays bounded
 
@@ -227,25 +227,30 @@ def human_stats(s: dict[str, Any]) -> str:
         ids = "; ".join(f"{k} on {', '.join(v)}" for k, v in s["ids_on_several_channels"].items())
         lines.append(f"note: protocol IDs on several channels ({ids}): pick the camera's with "
                      "--channel")
-    lines.append(f"errors: {s['error_frames']} frames (unknown IDs "
-                 f"{s['unknown_ids'] or 'none'}, DLC errors {s['dlc_errors']}, values out of "
-                 f"range {s['out_of_range_values']}); short DLCs {s['short_dlc']} (accepted); "
-                 f"invalid values {s['invalid_values']}")
+    lines.append(pack(f"errors: {s['error_frames']} frames", [
+        f"(unknown IDs {s['unknown_ids'] or 'none'},", f"DLC errors {s['dlc_errors']},",
+        f"values out of range {s['out_of_range_values']});",
+        f"short DLCs {s['short_dlc']} (accepted);",
+        f"invalid values {s['invalid_values']} (as sent: not errors)"], indent=4))
     several = any(r["channel"] != s["ids"][0]["channel"] for r in s["ids"]) if s["ids"] else False
     lines.append(f"{'ID':>6s} {'ch':>3s} {'message':26s} {'frames':>7s} {'cycle ms':>9s} "
-                 f"{'spec':>5s} {'dev %':>7s}  DLC / invalid / out of range"
+                 f"{'spec':>5s} {'dev %':>7s}  findings below"
                  if several else
                  f"{'ID':>6s} {'message':26s} {'frames':>7s} {'cycle ms':>9s} {'spec':>5s} "
-                 f"{'dev %':>7s}  DLC / invalid / out of range")
+                 f"{'dev %':>7s}  findings below")
     for r in s["ids"]:
         med = "-" if r["median_cycle_ms"] is None else f"{r['median_cycle_ms']:.1f}"
-        dev = "-" if r["cycle_deviation_pct"] is None else f"{r['cycle_deviation_pct']:+.1f}"
+        d = r["cycle_deviation_pct"]
+        dev = "-" if d is None else ("0.0" if abs(d) < 0.05 else f"{d:+.1f}")
         probs = ([f"DLC errors x{r['dlc_errors']}"] if r["dlc_errors"] else []) \
             + ([f"short DLC x{r['short_dlc']}"] if r["short_dlc"] else []) \
             + [f"{k} invalid x{v}" for k, v in r["invalid"].items()] \
             + [f"{k} out of range x{v}" for k, v in r["out_of_range"].items()]
         ch = f" {r['channel'] or '-':>3s}" if several else ""
         spec = "-" if r["spec_cycle_ms"] is None else f"{r['spec_cycle_ms']:g}"
-        lines.append(f"0x{r['id']:04X}{ch} {r['name']:26s} {r['frames']:7d} {med:>9s} "
-                     f"{spec:>5s} {dev:>7s}  {', '.join(probs)}")
+        row = (f"0x{r['id']:04X}{ch} {r['name']:26s} {r['frames']:7d} {med:>9s} "
+               f"{spec:>5s} {dev:>7s}")
+        # the findings of a row fold under it, between findings, to 80 columns
+        lines.append(pack(row, [p + "," for p in probs[:-1]] + probs[-1:], indent=8)
+                     if probs else row)
     return "\n".join(lines)
