@@ -208,11 +208,19 @@ class _Walker:
 
     def _reset(self) -> None:
         self.rows: list[np.ndarray] = []
-        self.lengths: list[int] = []
+        self.lengths: list[int] = []  # of the blocks read one at a time since the last run
         self.times: list[float] = []
         self.dirs: list[int] = []
+        self.runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # whole columns
         self.odd: dict[int, bytes] = {}
         self.n = 0
+
+    def _seal(self) -> None:
+        """The blocks read one at a time so far as one segment of columns."""
+        if self.lengths:
+            self.runs.append((np.asarray(self.lengths, np.int64),
+                              np.asarray(self.times, np.float64), np.asarray(self.dirs, np.int8)))
+            self.lengths, self.times, self.dirs = [], [], []
 
     def _fill(self, need: int) -> bool:
         """At least ``need`` bytes after ``pos`` in ``buf``; False at end of file."""
@@ -227,7 +235,12 @@ class _Walker:
         return len(self.buf) - self.pos >= need
 
     def _flush(self) -> Chunk:
-        c = _chunk(self.rows, self.lengths, self.times, self.dirs, self.odd)
+        self._seal()
+        runs = self.runs or [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int8))]
+        data = np.concatenate(self.rows) if self.rows else np.zeros((0, FRAME_SIZE), np.uint8)
+        length, time, direction = (runs[0][i] if len(runs) == 1
+                                   else np.concatenate([r[i] for r in runs]) for i in range(3))
+        c = Chunk(data, length, time, direction, self.odd)
         self._reset()
         return c
 
@@ -342,9 +355,8 @@ class _Walker:
         times = ticks.astype(np.float64) * scales
         codes = np.asarray([DIR_CODE[nm] for nm in self.ifaces.names], np.int8)[iid]
         self.rows.append(blocks[:k, 28 : 28 + FRAME_SIZE])
-        self.lengths.extend([FRAME_SIZE] * k)
-        self.times.extend(times.tolist())
-        self.dirs.extend(codes.tolist())
+        self._seal()
+        self.runs.append((np.full(k, FRAME_SIZE, np.int64), times, codes))
         self.n += k
         self.packets += k
         self.pos += k * blen

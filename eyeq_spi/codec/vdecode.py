@@ -137,6 +137,8 @@ class VecLayout:
         self.leaves: list[_Leaf] = []
         self.enums: list[_EnumLeaf] = []
         self._walk(lay, cat, "", 0, names, formats, offsets, True)
+        self._enum_groups: list[tuple[np.ndarray, int, int, int, np.ndarray, list[int]]] | None \
+            = None
         self.dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
                                "itemsize": lay.size})
         self.plans = [
@@ -274,6 +276,27 @@ class VecLayout:
         return errs
 
     # -- enums -----------------------------------------------------------------------------
+    def _groups(self, payload_size: int
+                ) -> list[tuple[np.ndarray, int, int, int, np.ndarray, list[int]]]:
+        """The table-checked enum leaves grouped by (table, field width, shift, mask): per group
+        the byte offsets of its fields, so that one gather reads all of them (the 15
+        ``visObs[i]`` members of one enum are one group); the other leaves one by one."""
+        if self._enum_groups is None:
+            groups: dict[tuple[str, int, int, int], list[int]] = {}  # the table is the enum's
+            for i, e in enumerate(self.enums):
+                if e.table is None:
+                    continue
+                dt = self.dtype.fields[e.leaf.field][0]  # type: ignore[index]
+                mask = e.leaf.mask if e.leaf.mask is not None else (1 << 8 * dt.itemsize) - 1
+                groups.setdefault((e.enum, dt.itemsize, e.leaf.shift, mask), []).append(i)
+            out = []
+            for (_, width, shift, mask), members in groups.items():
+                offs = np.array([self.dtype.fields[self.enums[i].leaf.field][1]  # type: ignore[index]
+                                 for i in members], np.intp)
+                out.append((offs, width, shift, mask, self.enums[members[0]].table, members))
+            self._enum_groups = out  # type: ignore[assignment]
+        return self._enum_groups  # type: ignore[return-value]
+
     def enum_errors(self, payloads: np.ndarray, name: str, rows: np.ndarray | None = None
                     ) -> dict[int, list[str]]:
         """Rows (of those in ``rows``, default all) with an undefined enum value: the exact
@@ -281,18 +304,39 @@ class VecLayout:
         out: dict[int, list[str]] = {}
         if not self.enums or not len(payloads):
             return out
-        rec = self.records(payloads)
-        hits: list[tuple[np.ndarray, np.ndarray, _EnumLeaf]] = []
-        for e in self.enums:
+        found: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # enum index -> (bad, values)
+        grouped: set[int] = set()
+        for offs, width, shift, mask, table, members in self._groups(payloads.shape[1]):
+            grouped.update(members)
+            col = payloads[:, offs]
+            if width > 1:  # little-endian fields of ``width`` bytes
+                col = col.astype(np.uint64)
+                for b in range(1, width):
+                    col |= payloads[:, offs + b].astype(np.uint64) << np.uint64(8 * b)
+            if shift or mask != (1 << 8 * width) - 1:
+                col = (col >> shift) & mask
+            bad = table[col]
+            if rows is not None:
+                bad &= rows[:, None]
+            hit = bad.any(axis=0)
+            if hit.any():
+                for j in np.flatnonzero(hit).tolist():
+                    found[members[j]] = (bad[:, j], col[:, j])
+        rec = None
+        for i, e in enumerate(self.enums):
+            if i in grouped:
+                continue
+            if rec is None:
+                rec = self.records(payloads)
             col = self.column(rec, e.leaf)
             bad = e.bad(col)
             if rows is not None:
                 bad &= rows
             if bad.any():
-                hits.append((bad, col, e))
-        if not hits:
-            return out
-        for bad, col, e in hits:
+                found[i] = (bad, col)
+        for i in sorted(found):  # in the exact engine's order of the leaves
+            bad, col = found[i]
+            e = self.enums[i]
             for r in np.flatnonzero(bad).tolist():
                 lst = out.setdefault(r, [])
                 if len(lst) < MAX_ENUM_ERRORS:
