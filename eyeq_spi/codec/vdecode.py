@@ -113,16 +113,25 @@ class _EnumLeaf:
         return ~np.isin(col, self.values)
 
 
+_ENUM_TABLES: dict[tuple[tuple[int, ...], int, bool], tuple[np.ndarray, np.ndarray | None]] = {}
+
+
 def _enum_leaf(leaf: _Leaf, label: str, values: list[int], enum: str) -> _EnumLeaf:
-    arr = np.array(sorted(values))
+    """The check of one enum member; its value array and table are shared by every member with
+    the same values and width (built once: a layout has hundreds of such members)."""
     bits = (leaf.mask.bit_length() if leaf.mask is not None
             else 8 * np.dtype(NP_TYPE[leaf.type]).itemsize)
-    table = None
-    if bits <= 16 and leaf.type.startswith(("uint", "bool")):
-        table = np.ones(1 << bits, bool)
-        ok = arr[(arr >= 0) & (arr < (1 << bits))]
-        table[ok] = False
-    return _EnumLeaf(leaf, label, arr, enum, table)
+    key = (tuple(sorted(values)), bits, leaf.type.startswith(("uint", "bool")))
+    hit = _ENUM_TABLES.get(key)
+    if hit is None:
+        arr = np.array(key[0])
+        table = None
+        if bits <= 16 and key[2]:
+            table = np.ones(1 << bits, bool)
+            ok = arr[(arr >= 0) & (arr < (1 << bits))]
+            table[ok] = False
+        hit = _ENUM_TABLES[key] = (arr, table)
+    return _EnumLeaf(leaf, label, hit[0], enum, hit[1])
 
 
 class VecLayout:

@@ -199,6 +199,11 @@ def combine(parts: list[Stats]) -> Stats:
 
 
 def _median(v: list[float]) -> float:
-    import statistics  # 2 ms of start-up (decimal, fractions): only MESP latencies need it
-
-    return float(statistics.median(v))
+    """``statistics.median`` (the mean of the two middle values of an even count) without
+    importing statistics, which brings decimal and fractions (7-9 ms of start-up)."""
+    s = sorted(v)
+    n = len(s)
+    if not n:
+        raise ValueError("no median of no values")
+    mid = n // 2
+    return float(s[mid]) if n % 2 else (s[mid - 1] + s[mid]) / 2
