@@ -43,6 +43,7 @@ DIR_CODE: dict[str | None, int] = {"h2e": 0, "e2h": 1, None: -1}
 DIR_NAME: dict[int, str | None] = {v: k for k, v in DIR_CODE.items()}
 CHUNK = 1 << 15
 MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
+READ_SIZE = 8 << 20  # bytes read at a time: what is left of the buffer is copied at each read
 _EPB, _IDB = 6, 1
 _SHB = int.from_bytes(PCAPNG_MAGIC, "little")
 _BOM = 0x1A2B3C4D
@@ -225,7 +226,7 @@ class _Walker:
     def _fill(self, need: int) -> bool:
         """At least ``need`` bytes after ``pos`` in ``buf``; False at end of file."""
         while len(self.buf) - self.pos < need and not self.eof:
-            more = self.stream.read(max(1 << 20, need))
+            more = self.stream.read(max(READ_SIZE, need))
             if not more:
                 self.eof = True
                 break

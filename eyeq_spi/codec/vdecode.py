@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import binascii
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -79,8 +79,7 @@ def crc_rows(g: np.ndarray, init: int = 0xFFFF) -> np.ndarray:
     return c
 
 
-@dataclass(frozen=True)
-class _Leaf:
+class _Leaf(NamedTuple):  # a tuple: a layout has thousands, built at every start
     name: str  # flattened path
     field: str  # structured dtype field (the container for bitfields)
     shift: int
@@ -99,8 +98,7 @@ class _Plan:
     jump_text: str
 
 
-@dataclass(frozen=True)
-class _EnumLeaf:
+class _EnumLeaf(NamedTuple):
     leaf: _Leaf
     label: str  # "<path>.<member>" after the message name
     values: np.ndarray
@@ -292,16 +290,18 @@ class VecLayout:
         ``visObs[i]`` members of one enum are one group); the other leaves one by one."""
         if self._enum_groups is None:
             groups: dict[tuple[str, int, int, int], list[int]] = {}  # the table is the enum's
+            fields = self.dtype.fields  # read once: a mapping proxy per access
+            assert fields is not None
             for i, e in enumerate(self.enums):
                 if e.table is None:
                     continue
-                dt = self.dtype.fields[e.leaf.field][0]  # type: ignore[index]
+                dt = fields[e.leaf.field][0]
                 mask = e.leaf.mask if e.leaf.mask is not None else (1 << 8 * dt.itemsize) - 1
                 groups.setdefault((e.enum, dt.itemsize, e.leaf.shift, mask), []).append(i)
             out = []
             for (_, width, shift, mask), members in groups.items():
-                offs = np.array([self.dtype.fields[self.enums[i].leaf.field][1]  # type: ignore[index]
-                                 for i in members], np.intp)
+                offs = np.array([fields[self.enums[i].leaf.field][1] for i in members],
+                                np.intp)
                 out.append((offs, width, shift, mask, self.enums[members[0]].table, members))
             self._enum_groups = out  # type: ignore[assignment]
         return self._enum_groups  # type: ignore[return-value]
