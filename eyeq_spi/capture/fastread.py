@@ -59,6 +59,8 @@ class Readable(Protocol):
 
 @dataclass
 class Chunk:
+    """Up to ``chunk`` transfers as arrays (module docstring)."""
+
     data: np.ndarray  # (n, 128) uint8
     length: np.ndarray  # (n,) int64
     time: np.ndarray  # (n,) float64, NaN for "no time"

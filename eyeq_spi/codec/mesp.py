@@ -72,6 +72,8 @@ def parse_params(params: Any, body: bytes) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class MespHeader:
+    """The 5-byte MESP header (M1): service, function and tag."""
+
     service: int
     function: int
     tag: int

@@ -41,6 +41,8 @@ def __getattr__(name: str) -> Any:
 
 @dataclass
 class DecodedMessage:
+    """A decoded application message: protocol, name, header, fields, errors."""
+
     protocol: str  # MESP | DASP | DIAG | BOOT | UNKNOWN
     name: str | None
     length: int

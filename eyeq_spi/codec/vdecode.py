@@ -89,6 +89,8 @@ class _Leaf(NamedTuple):  # a tuple: a layout has thousands, built at every star
 
 @dataclass(frozen=True)
 class _Plan:
+    """An E2E check of the layout as byte offsets (gathered for all rows at once)."""
+
     index: int
     crc_offset: int
     idx: np.ndarray  # covered byte offsets, in order

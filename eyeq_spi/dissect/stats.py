@@ -17,6 +17,9 @@ MESP_DEADLINE = 0.5  # M6
 
 @dataclass
 class Stats:
+    """``dissect --stats``: counts, rates, errors and MESP latencies of one capture (or, from
+    :func:`combine`, the total of several)."""
+
     cat: Catalog
     frames: Counter[str] = field(default_factory=Counter)
     bad_length: int = 0
