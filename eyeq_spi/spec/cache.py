@@ -24,7 +24,6 @@ import marshal
 import os
 import re
 import sys
-import tempfile
 import zlib
 from collections.abc import Callable
 from pathlib import Path
@@ -145,6 +144,8 @@ def _write(path: Path, value: object, writer: Callable[[Any, Any], object] | Non
     their own caches instead of evicting each other's on every start."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+        import tempfile  # only to write: a start from the cache does not import it (nor random)
+
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".catalog-", suffix=".tmp")
     except OSError:
         return  # read-only home, full disk...: run without a cache
