@@ -21,10 +21,6 @@ one ends after its last whole block instead, and the tail says how many bytes we
 
 from __future__ import annotations
 
-import contextlib
-import io
-import mmap
-import os
 import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -204,47 +200,14 @@ class _Walker:
                  ) -> None:
         self.stream = stream
         self.tail = tail
-        self.buf: bytes | mmap.mmap = head
+        self.buf = head
         self.pos = 0
         self.chunk = chunk
         self.ifaces = _Interfaces()
         self.eof = False
         self.offset = 0  # file position of buf[0]
         self.packets = 0
-        self.mapped = self._map(len(head))
         self._reset()
-
-    def _map(self, read: int) -> bool:
-        """A regular file is mapped instead of read (no copy of its bytes into buffers): ``buf``
-        is then the whole file, ``offset`` 0 and ``pos`` where the head started. The stream's
-        position follows what has been consumed (the progress bar reads it)."""
-        try:
-            fileno = self.stream.fileno()  # type: ignore[attr-defined]
-            start = self.stream.tell() - read  # type: ignore[attr-defined]
-            size = os.fstat(fileno).st_size
-            if start < 0 or size < start + read:
-                return False
-            mm = mmap.mmap(fileno, 0, access=mmap.ACCESS_READ)
-        except (AttributeError, OSError, ValueError, io.UnsupportedOperation):
-            return False
-        self.buf, self.pos, self.eof = mm, start, True
-        return True
-
-    def _consumed(self) -> None:
-        """Mapped: move the stream to what has been consumed, and let the kernel drop the pages
-        before it from this process (they stay in the page cache; rows already copied)."""
-        if not self.mapped:
-            return
-        with contextlib.suppress(OSError, ValueError):
-            self.stream.seek(self.pos)  # type: ignore[attr-defined]
-        done = self.pos - self.pos % mmap.PAGESIZE
-        if done > self._dropped and hasattr(self.buf, "madvise"):
-            with contextlib.suppress(OSError, ValueError):
-                self.buf.madvise(
-                    mmap.MADV_DONTNEED, self._dropped, done - self._dropped)
-            self._dropped = done
-
-    _dropped = 0
 
     def _reset(self) -> None:
         self.rows: list[np.ndarray] = []
@@ -282,7 +245,6 @@ class _Walker:
                                    else np.concatenate([r[i] for r in runs]) for i in range(3))
         c = Chunk(data, length, time, direction, self.odd)
         self._reset()
-        self._consumed()
         return c
 
     def run(self) -> Iterator[Chunk]:
