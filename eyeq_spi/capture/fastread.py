@@ -43,7 +43,7 @@ DIR_CODE: dict[str | None, int] = {"h2e": 0, "e2h": 1, None: -1}
 DIR_NAME: dict[int, str | None] = {v: k for k, v in DIR_CODE.items()}
 CHUNK = 1 << 15
 MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
-READ_SIZE = 8 << 20  # bytes read at a time: what is left of the buffer is copied at each read
+READ_SIZE = 8 << 20  # bytes read at a time (what is left of the buffer is copied before them)
 _EPB, _IDB = 6, 1
 _SHB = int.from_bytes(PCAPNG_MAGIC, "little")
 _BOM = 0x1A2B3C4D
@@ -145,7 +145,7 @@ class _Interfaces:
         self.names: list[str | None] = []
         self.scales: list[float] = []
 
-    def add(self, body: bytes) -> None:
+    def add(self, body: bytes | bytearray) -> None:
         name: str | None = None
         scale = 1e-6
         pos = 8  # link type, reserved, snaplen
@@ -200,7 +200,7 @@ class _Walker:
                  ) -> None:
         self.stream = stream
         self.tail = tail
-        self.buf = head
+        self.buf: bytes | bytearray = head
         self.pos = 0
         self.chunk = chunk
         self.ifaces = _Interfaces()
@@ -228,13 +228,34 @@ class _Walker:
     def _fill(self, need: int) -> bool:
         """At least ``need`` bytes after ``pos`` in ``buf``; False at end of file."""
         while len(self.buf) - self.pos < need and not self.eof:
-            more = self.stream.read(max(READ_SIZE, need))
-            if not more:
+            into = getattr(self.stream, "readinto", None)
+            if into is None:
+                more = self.stream.read(max(READ_SIZE, need))
+                if not more:
+                    self.eof = True
+                    break
+                self.offset += self.pos
+                self.buf = bytes(self.buf[self.pos :]) + more
+                self.pos = 0
+                continue
+            # read straight after what is left, into a new buffer (earlier views keep the old)
+            rest = len(self.buf) - self.pos
+            buf = bytearray(rest + max(READ_SIZE, need))
+            buf[:rest] = memoryview(self.buf)[self.pos :]
+            with memoryview(buf) as mv:
+                got = rest
+                while got < len(buf):
+                    n = into(mv[got:])
+                    if not n:
+                        break
+                    got += n
+            if got == rest:
                 self.eof = True
                 break
+            if got < len(buf):
+                del buf[got:]
             self.offset += self.pos
-            self.buf = self.buf[self.pos :] + more
-            self.pos = 0
+            self.buf, self.pos = buf, 0
         return len(self.buf) - self.pos >= need
 
     def _flush(self) -> Chunk:
@@ -305,9 +326,9 @@ class _Walker:
         raise TruncatedCaptureError(f"truncated pcapng: the file ends {left} bytes into the block "
                                f"that starts at byte {at}", left, at)
 
-    def _one_epb(self, body: bytes) -> None:
+    def _one_epb(self, body: bytes | bytearray) -> None:
         iid, hi, lo, cap = struct.unpack_from("<IIII", body, 0)
-        data = body[20 : 20 + cap]
+        data = bytes(body[20 : 20 + cap])
         if len(data) != cap:
             raise CaptureError("malformed pcapng: packet longer than its block")
         self._add_meta(iid, (hi << 32) | lo)
