@@ -235,6 +235,16 @@ def test_quick_commands_do_not_import_heavy_libraries(
     assert [m for m in mods if m not in allowed] == [], f"{argv} imported {mods}"
 
 
+def test_batch_stats_imports_nothing_it_does_not_use(warm_cache: dict[str, str]) -> None:
+    """``dissect --stats`` of a big capture (MESP latencies in its statistics): no construct (MESP
+    parameters parsed by hand), no statistics (the median by hand), no tempfile (the cache is only
+    read), no process pool."""
+    watch = ("construct", "yaml", "statistics", "tempfile", "concurrent", "pyarrow", "rich",
+             "orjson")
+    rc, mods = _imports(["dissect", "BIG_PCAPNG", "--stats"], warm_cache, watch)
+    assert rc == 0 and mods == []
+
+
 def test_the_probe_sees_a_heavy_import() -> None:
     """The guard above can fail: a command that needs yaml (no cache) is seen importing it."""
     import json
