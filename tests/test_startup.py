@@ -59,6 +59,7 @@ def test_an_edited_spec_file_misses_the_cache(
     specs_copy: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv("EYEQ_SPI_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(cache, "KEEP_KEYS", 0)
     calls, load = _counting_loader()
     before = cache.cached_catalog(specs_copy, load)  # type: ignore[arg-type]
     path = specs_copy / "sw_versions.yaml"
@@ -67,6 +68,31 @@ def test_an_edited_spec_file_misses_the_cache(
     assert len(calls) == 2
     assert before.default_sw == "sw9" and after.default_sw == "sw8_1"  # type: ignore[attr-defined]
     assert len(list((tmp_path / "cache").glob("catalog-*.pickle"))) == 1  # old key removed
+
+
+def test_several_installs_keep_their_own_caches(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two checkouts (or virtual environments) of one user, started in turn, each read their
+    own cached catalogue; past KEEP_KEYS other keys, the oldest key's files go."""
+    monkeypatch.setenv("EYEQ_SPI_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(cache, "KEEP_KEYS", 2)
+    trees = [Path(shutil.copytree(specs_dir(), tmp_path / f"specs{i}")) for i in range(4)]
+    calls, load = _counting_loader()
+    for _ in range(3):  # a, b, a, b, ...: each parsed once
+        for tree in trees[:2]:
+            cache.cached_catalog(tree, load)  # type: ignore[arg-type]
+    assert calls == trees[:2]
+    for tree in trees[2:]:  # two more keys: the oldest (trees[0]) is pruned
+        for p in (tmp_path / "cache").glob("catalog-*.pickle"):  # distinct ages, oldest first
+            key = p.name.split("-")[1].split(".")[0]
+            age = [cache.specs_digest(t)[:16] for t in trees].index(key)
+            os.utime(p, (1000.0 + age, 1000.0 + age))
+        cache.cached_catalog(tree, load)  # type: ignore[arg-type]
+        assert len(list((tmp_path / "cache").glob("catalog-*.pickle"))) == 3
+    calls.clear()
+    cache.cached_catalog(trees[0], load)  # type: ignore[arg-type]
+    assert calls == [trees[0]]
 
 
 def test_a_corrupt_cache_file_is_rebuilt(
@@ -155,7 +181,19 @@ def warm_cache(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
                    check=True, capture_output=True, timeout=120)
     subprocess.run([sys.executable, "-c", _PROBE, '["spec", "list"]', "[]"], env=env,
                    check=True, capture_output=True, timeout=120)
-    return {**env, "SMALL_HEX": str(hexfile)}
+    # 2 s of full-load traffic (560 kB: the batch path) with MESP requests and replies in it,
+    # as pcapng and as the raw EyeQ -> host channel (whose release is inferred from the traffic)
+    big = d / "big.pcapng"
+    subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "demo", "--virtual-time", "--duration",
+                    "2", "--objects", "15", "--signs", "20", "--light-spots", "15", "--capture",
+                    str(big)], env=env, check=True, capture_output=True, timeout=120)
+    from eyeq_spi.capture.pcapng_io import read_pcapng
+
+    with big.open("rb") as fh:
+        raw = b"".join(r.data for r in read_pcapng(fh) if r.direction == "e2h")
+    (d / "big.bin").write_bytes(raw)
+    return {**env, "SMALL_HEX": str(hexfile), "BIG_PCAPNG": str(big),
+            "BIG_RAW": str(d / "big.bin")}
 
 
 def _imports(argv: list[str], env: dict[str, str], watch: tuple[str, ...]) -> tuple[int, list[str]]:
@@ -163,7 +201,8 @@ def _imports(argv: list[str], env: dict[str, str], watch: tuple[str, ...]) -> tu
     import subprocess
     import sys
 
-    argv = [a.replace("SMALL_HEX", env["SMALL_HEX"]) for a in argv]
+    for name in ("SMALL_HEX", "BIG_PCAPNG", "BIG_RAW"):
+        argv = [a.replace(name, env[name]) for a in argv]
     cmd = [sys.executable, "-c", _PROBE, json.dumps(argv), json.dumps(watch)]
     # the first run refills the cache should specs/ have changed since (as a user's second start)
     subprocess.run(cmd, env=env, check=True, capture_output=True, timeout=120)
@@ -179,9 +218,14 @@ def _imports(argv: list[str], env: dict[str, str], watch: tuple[str, ...]) -> tu
     (["nonsense"], 2, ()),
     (["spec", "list"], 0, ()),
     (["spec", "show", "obstacles"], 0, ()),
-    # a small capture (of bad frames: exit 1): construct only for MESP, never yaml, numpy, rich
-    (["dissect", "SMALL_HEX"], 1, ("construct",)),
-    (["dissect", "SMALL_HEX", "--stats", "--json"], 1, ("construct",)),
+    # a small capture (of bad frames: exit 1): none of them (MESP parameters are parsed
+    # without construct)
+    (["dissect", "SMALL_HEX"], 1, ()),
+    (["dissect", "SMALL_HEX", "--stats", "--json"], 1, ()),
+    # the batch path (a big capture with MESP in it): numpy, and nothing else
+    (["dissect", "BIG_PCAPNG", "--stats"], 0, ("numpy",)),
+    (["dissect", "BIG_RAW", "--direction", "e2h", "--stats", "--json"], 0, ("numpy",)),
+    (["dissect", "BIG_PCAPNG", "--json"], 0, ("numpy",)),
 ])
 def test_quick_commands_do_not_import_heavy_libraries(
     warm_cache: dict[str, str], argv: list[str], rc: int, allowed: tuple[str, ...]
@@ -189,6 +233,16 @@ def test_quick_commands_do_not_import_heavy_libraries(
     got_rc, mods = _imports(argv, warm_cache, HEAVY)
     assert got_rc == rc
     assert [m for m in mods if m not in allowed] == [], f"{argv} imported {mods}"
+
+
+def test_batch_stats_imports_nothing_it_does_not_use(warm_cache: dict[str, str]) -> None:
+    """``dissect --stats`` of a big capture (MESP latencies in its statistics): no construct (MESP
+    parameters parsed by hand), no statistics (the median by hand), no tempfile (the cache is only
+    read), no process pool."""
+    watch = ("construct", "yaml", "statistics", "tempfile", "concurrent", "pyarrow", "rich",
+             "orjson")
+    rc, mods = _imports(["dissect", "BIG_PCAPNG", "--stats"], warm_cache, watch)
+    assert rc == 0 and mods == []
 
 
 def test_the_probe_sees_a_heavy_import() -> None:
@@ -256,6 +310,7 @@ def test_a_single_spec_file_is_read_from_the_cache_on_the_next_start(
     monkeypatch.setenv("EYEQ_SPI_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.delenv("EYEQ_SPI_NO_CACHE", raising=False)
     monkeypatch.setattr(cache, "_DIGESTS", {})
+    monkeypatch.setattr(cache, "KEEP_KEYS", 0)
     calls, load = _doc_loader()
     first = cache.cached_doc(specs_copy, "link.yaml", load)  # type: ignore[arg-type]
     second = cache.cached_doc(specs_copy, "link.yaml", load)  # type: ignore[arg-type]

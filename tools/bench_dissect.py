@@ -15,6 +15,14 @@ Input: a full-load demo capture (``demo --virtual-time --objects 15 --signs 20 -
 Every figure is frames per CPU-second (user + system time of the process doing the work, start-up
 included for the CLI runs), so that neighbours on a loaded machine do not skew it.
 
+``--split``: ``dissect --stats`` start-up and steady state apart, from whole-process CPU times of
+three full-load captures (``--short`` 2 s, ``--capture`` 60 s, ``--long`` 600 s by default, made
+if not given). Run ``i`` of each capture makes one estimate: steady state = (frames long - frames
+short) / (CPU long - CPU short), start-up = CPU short - frames short / steady state; the whole
+process on the 60 s and on the long capture in frames/s. Each is given as median (min..max) over
+``--repeat`` runs and as a ratio to an in-run baseline: start-up to ``python -c "import numpy"``
+(the floor of any batch run), steady state and the whole process to the ``crc_hqx`` loop.
+
 The CLI runs start as an installed copy does: with the package's bytecode cached (pip compiles it
 at install; a checkout writes ``__pycache__`` on its first run). Where ``PYTHONDONTWRITEBYTECODE``
 is set, as in some sandboxes, every run would compile the package's 370 kB of sources again
@@ -23,7 +31,7 @@ is set, as in some sandboxes, every run would compile the package's 370 kB of so
 environment instead (and says so in the output).
 
     python tools/bench_dissect.py [--duration 30] [--repeat 3] [--keep DIR] [--capture FILE]
-                                  [--cold-bytecode]
+                                  [--cold-bytecode] [--split [--short FILE] [--long FILE]]
 """
 
 from __future__ import annotations
@@ -32,6 +40,7 @@ import argparse
 import binascii
 import json
 import os
+import resource
 import statistics
 import struct
 import subprocess
@@ -42,11 +51,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-GOALS = {"validate": 3_000_000, "stats": 250_000, "parquet": 150_000, "json": 60_000}
+GOALS = {"validate": 3_000_000, "stats": 250_000, "parquet": 150_000, "json": 60_000,
+         "startup_cpu_s": 0.15, "steady": 1_000_000}
 
 
-def build(dirpath: Path, duration: float) -> Path:
-    cap = dirpath / "full.pcapng"
+def build(dirpath: Path, duration: float, name: str = "full.pcapng") -> Path:
+    cap = dirpath / name
     subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "demo", "--virtual-time",
                     "--duration", str(duration), "--objects", "15", "--signs", "20",
                     "--light-spots", "15", "--capture", str(cap), "--json"], check=True,
@@ -95,6 +105,67 @@ def cli(args: list[str], stdin: Path | None) -> tuple[float, int]:
     return float(cpu), int(rss)
 
 
+def frames_of(cap: Path) -> int:
+    from eyeq_spi.capture.fastread import pcapng_chunks
+
+    with open(cap, "rb") as fh:
+        return sum(len(c) for c in pcapng_chunks(fh))
+
+
+def python_cpu(code: str, repeat: int) -> list[float]:
+    """CPU seconds (user + system) of ``python -c code`` as a child, each of ``repeat`` runs."""
+    out = []
+    for _ in range(repeat):
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        subprocess.run([sys.executable, "-c", code], check=True, env=ENV)
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        out.append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
+    return out
+
+
+def spread(values: list[float], nd: int = 3) -> dict[str, float]:
+    v = sorted(values)
+    return {"median": round(statistics.median(v), nd), "min": round(v[0], nd),
+            "max": round(v[-1], nd)}
+
+
+def split(a: argparse.Namespace, work: Path, base_crc: dict[str, float]) -> dict[str, object]:
+    """``dissect --stats`` start-up and steady state apart (module docstring, ``--split``)."""
+    short = a.short or build(work, 2, "short.pcapng")
+    mid = a.capture or build(work, 60, "full60.pcapng")
+    long = a.long or build(work, 600, "full600.pcapng")
+    n = {k: frames_of(p) for k, p in (("short", short), ("mid", mid), ("long", long))}
+    for p in (short, mid, long):  # untimed: page cache, bytecode, catalogue cache
+        cli(["dissect", str(p), "--stats"], None)
+    numpy_cpu = python_cpu("import numpy", a.repeat)
+    bare_cpu = python_cpu("pass", a.repeat)
+    startup, steady, whole, whole_long = [], [], [], []
+    for _ in range(a.repeat):
+        cs = cli(["dissect", str(short), "--stats"], None)[0]
+        cm = cli(["dissect", str(mid), "--stats"], None)[0]
+        cl = cli(["dissect", str(long), "--stats"], None)[0]
+        rate = (n["long"] - n["short"]) / (cl - cs)
+        steady.append(rate)
+        startup.append(cs - n["short"] / rate)
+        whole.append(n["mid"] / cm)
+        whole_long.append(n["long"] / cl)
+    crc = base_crc["median"]
+    return {
+        "frames": n,
+        "baseline_python_pass_cpu_s": spread(bare_cpu),
+        "baseline_import_numpy_cpu_s": spread(numpy_cpu),
+        "startup_cpu_s": {**spread(startup), "x_import_numpy": round(
+            statistics.median(startup) / statistics.median(numpy_cpu), 2),
+            "goal": GOALS["startup_cpu_s"]},
+        "steady_frames_per_s": {**spread(steady, 0), "x_crc_hqx": round(
+            statistics.median(steady) / crc, 3), "goal": GOALS["steady"]},
+        "whole_process_60s_frames_per_s": {**spread(whole, 0), "x_crc_hqx": round(
+            statistics.median(whole) / crc, 3), "goal": GOALS["stats"]},
+        "whole_process_long_frames_per_s": {**spread(whole_long, 0), "x_crc_hqx": round(
+            statistics.median(whole_long) / crc, 3)},
+    }
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -104,12 +175,21 @@ def main() -> int:
     ap.add_argument("--keep", type=Path, help="write the captures and tables here")
     ap.add_argument("--skip-before", action="store_true", help="do not time the exact path")
     ap.add_argument("--no-cli", action="store_true", help="baselines and validation only")
+    ap.add_argument("--split", action="store_true",
+                    help="dissect --stats start-up and steady state apart (see above)")
+    ap.add_argument("--short", type=Path, help="--split: the short capture (default: 2 s made)")
+    ap.add_argument("--long", type=Path, help="--split: the long capture (default: 600 s made)")
     ap.add_argument("--cold-bytecode", action="store_true",
                     help="CLI children in the inherited environment, even if it forbids "
                     "writing bytecode (each run then compiles the package's sources)")
     a = ap.parse_args()
     work = a.keep or Path(tempfile.mkdtemp())
     work.mkdir(parents=True, exist_ok=True)
+    for name in ("capture", "short", "long"):  # the children run in the repository
+        if getattr(a, name) is not None:
+            setattr(a, name, getattr(a, name).resolve())
+    if a.split and not a.capture:
+        a.capture = build(work, 60, "full60.pcapng")
     cap = a.capture or build(work, a.duration)
 
     import numpy as np
@@ -153,11 +233,19 @@ def main() -> int:
         ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
         ENV["PYTHONPYCACHEPREFIX"] = str((work / "pycache").resolve())
         for warm in (["--stats"], ["--json"], ["--parquet", str(work / "tables")]):  # untimed
-            cli(["dissect", str(raw), "--direction", "e2h", *warm], None)
+            if not a.split:
+                cli(["dissect", str(raw), "--direction", "e2h", *warm], None)
         out["bytecode"] = f"cached in {ENV['PYTHONPYCACHEPREFIX']}"
     else:
         out["bytecode"] = ("compiled at every start (PYTHONDONTWRITEBYTECODE)"
                            if os.environ.get("PYTHONDONTWRITEBYTECODE") else "as inherited")
+    out["load_average"] = round(os.getloadavg()[0], 1)
+    if "EYEQ_SPI_CACHE_DIR" not in os.environ:  # a catalogue cache of this run's own
+        ENV = {**(ENV or os.environ), "EYEQ_SPI_CACHE_DIR": str((work / "cache").resolve())}
+    if a.split:
+        out["split"] = split(a, work, base_crc)
+        print(json.dumps(out, indent=1))
+        return 0
     modes = {"stats": ["--stats"], "json": ["--json"],
              "parquet": ["--parquet", str(work / "tables")]}
     for fmt, path, count, extra in () if a.no_cli else (

@@ -1,5 +1,7 @@
-"""Start-up time of the CLI: ``--help``, ``spec list``, ``spec show``, usage errors and ``dissect``
-of a 20-transfer file, each as a fresh process (what a user waits for).
+"""Start-up time of the CLI: ``--help``, ``spec list``, ``spec show``, usage errors, ``dissect``
+of a 20-transfer file, and ``dissect --stats`` of a 2 s full-load capture (560 kB: the numpy batch
+path, about 4,600 transfers, whose own work is a few ms), each as a fresh process (what a user
+waits for).
 
     python tools/bench_startup.py [--runs N] [--before REV]
 
@@ -31,7 +33,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def commands(small_hex: str, small_pcapng: str) -> list[tuple[str, list[str]]]:
+def commands(small_hex: str, small_pcapng: str, batch: str) -> list[tuple[str, list[str]]]:
     return [
         ("--help", ["--help"]),
         ("spec list", ["spec", "list"]),
@@ -43,6 +45,7 @@ def commands(small_hex: str, small_pcapng: str) -> list[tuple[str, list[str]]]:
         ("usage error: dissect --id zz", ["dissect", "--id", "zz", small_hex]),
         ("dissect 20 transfers (hex)", ["dissect", small_hex]),
         ("dissect 20 transfers (pcapng) --json", ["dissect", small_pcapng, "--json"]),
+        ("dissect --stats, 2 s full load (batch path)", ["dissect", batch, "--stats"]),
     ]
 
 
@@ -66,9 +69,16 @@ def time_one(argv: list[str], env: dict[str, str], runs: int,
     return wall, cpu
 
 
-def make_inputs(tmp: Path) -> tuple[str, str]:
-    """A 20-transfer hex file and pcapng capture, cut from 1 s of demo traffic."""
+def make_inputs(tmp: Path) -> tuple[str, str, str]:
+    """A 20-transfer hex file and pcapng capture, cut from 1 s of demo traffic, and 2 s of
+    full-load traffic."""
     from eyeq_spi.capture.pcapng_io import CaptureWriter, read_pcapng
+
+    batch = tmp / "full2.pcapng"
+    subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "demo", "--virtual-time",
+                    "--duration", "2", "--objects", "15", "--signs", "20", "--light-spots", "15",
+                    "--capture", str(batch)], check=True, cwd=tmp, stdout=subprocess.DEVNULL,
+                   env={**os.environ, "PYTHONPATH": str(ROOT)})
 
     cap = tmp / "demo.pcapng"
     subprocess.run([sys.executable, "-m", "eyeq_spi.cli", "demo", "--virtual-time",
@@ -82,7 +92,7 @@ def make_inputs(tmp: Path) -> tuple[str, str]:
     with CaptureWriter(small_pcapng) as w:
         for r in recs:
             w.write(r.direction or "h2e", r.time or 0.0, r.data)
-    return str(small_hex), str(small_pcapng)
+    return str(small_hex), str(small_pcapng), str(batch)
 
 
 def row(label: str, samples: tuple[list[float], list[float]], base: float) -> str:
@@ -102,7 +112,7 @@ def main() -> int:
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
-        small_hex, small_pcapng = make_inputs(tmp)
+        small_hex, small_pcapng, batch = make_inputs(tmp)
         trees = [("after", ROOT)]
         if args.before:
             old = tmp / "before"
@@ -125,12 +135,17 @@ def main() -> int:
               f"{statistics.median(base_cpu) * 1000:.0f} ms ({args.runs} runs, "
               f"{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}, {sys.version.split()[0]}, "
               f"{'no bytecode cache' if args.no_pyc else 'with bytecode caches'})")
+        npw, npc = time_one([sys.executable, "-c", "import numpy"], base_env, args.runs, tmp)
+        print(f"baseline python -c 'import numpy' (the floor of a batch-path dissect): median "
+              f"{statistics.median(npw) * 1000:.0f} ms wall, CPU "
+              f"{statistics.median(npc) * 1000:.0f} ms ({min(npc) * 1000:.0f}.."
+              f"{max(npc) * 1000:.0f})")
         for name, tree in trees:
             env = {**base_env, "PYTHONPATH": str(tree)}
             print(f"\n{name}: {tree if tree == ROOT else 'git archive'}")
             print("| command | median wall | spread | / baseline | median CPU |\n"
                   "|---|---|---|---|---|")
-            for label, argv in commands(small_hex, small_pcapng):
+            for label, argv in commands(small_hex, small_pcapng, batch):
                 samples = time_one([sys.executable, "-m", "eyeq_spi.cli", *argv], env, args.runs,
                                    tmp)
                 print(row(label, samples, base), flush=True)

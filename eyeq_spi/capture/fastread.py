@@ -43,6 +43,7 @@ DIR_CODE: dict[str | None, int] = {"h2e": 0, "e2h": 1, None: -1}
 DIR_NAME: dict[int, str | None] = {v: k for k, v in DIR_CODE.items()}
 CHUNK = 1 << 15
 MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
+READ_SIZE = 8 << 20  # bytes read at a time (what is left of the buffer is copied before them)
 _EPB, _IDB = 6, 1
 _SHB = int.from_bytes(PCAPNG_MAGIC, "little")
 _BOM = 0x1A2B3C4D
@@ -54,6 +55,8 @@ class Readable(Protocol):
 
 @dataclass
 class Chunk:
+    """Up to ``chunk`` transfers as arrays (module docstring)."""
+
     data: np.ndarray  # (n, 128) uint8
     length: np.ndarray  # (n,) int64
     time: np.ndarray  # (n,) float64, NaN for "no time"
@@ -142,7 +145,7 @@ class _Interfaces:
         self.names: list[str | None] = []
         self.scales: list[float] = []
 
-    def add(self, body: bytes) -> None:
+    def add(self, body: bytes | bytearray) -> None:
         name: str | None = None
         scale = 1e-6
         pos = 8  # link type, reserved, snaplen
@@ -197,7 +200,7 @@ class _Walker:
                  ) -> None:
         self.stream = stream
         self.tail = tail
-        self.buf = head
+        self.buf: bytes | bytearray = head
         self.pos = 0
         self.chunk = chunk
         self.ifaces = _Interfaces()
@@ -208,26 +211,60 @@ class _Walker:
 
     def _reset(self) -> None:
         self.rows: list[np.ndarray] = []
-        self.lengths: list[int] = []
+        self.lengths: list[int] = []  # of the blocks read one at a time since the last run
         self.times: list[float] = []
         self.dirs: list[int] = []
+        self.runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # whole columns
         self.odd: dict[int, bytes] = {}
         self.n = 0
+
+    def _seal(self) -> None:
+        """The blocks read one at a time so far as one segment of columns."""
+        if self.lengths:
+            self.runs.append((np.asarray(self.lengths, np.int64),
+                              np.asarray(self.times, np.float64), np.asarray(self.dirs, np.int8)))
+            self.lengths, self.times, self.dirs = [], [], []
 
     def _fill(self, need: int) -> bool:
         """At least ``need`` bytes after ``pos`` in ``buf``; False at end of file."""
         while len(self.buf) - self.pos < need and not self.eof:
-            more = self.stream.read(max(1 << 20, need))
-            if not more:
+            into = getattr(self.stream, "readinto", None)
+            if into is None:
+                more = self.stream.read(max(READ_SIZE, need))
+                if not more:
+                    self.eof = True
+                    break
+                self.offset += self.pos
+                self.buf = bytes(self.buf[self.pos :]) + more
+                self.pos = 0
+                continue
+            # read straight after what is left, into a new buffer (earlier views keep the old)
+            rest = len(self.buf) - self.pos
+            buf = bytearray(rest + max(READ_SIZE, need))
+            buf[:rest] = memoryview(self.buf)[self.pos :]
+            with memoryview(buf) as mv:
+                got = rest
+                while got < len(buf):
+                    n = into(mv[got:])
+                    if not n:
+                        break
+                    got += n
+            if got == rest:
                 self.eof = True
                 break
+            if got < len(buf):
+                del buf[got:]
             self.offset += self.pos
-            self.buf = self.buf[self.pos :] + more
-            self.pos = 0
+            self.buf, self.pos = buf, 0
         return len(self.buf) - self.pos >= need
 
     def _flush(self) -> Chunk:
-        c = _chunk(self.rows, self.lengths, self.times, self.dirs, self.odd)
+        self._seal()
+        runs = self.runs or [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int8))]
+        data = np.concatenate(self.rows) if self.rows else np.zeros((0, FRAME_SIZE), np.uint8)
+        length, time, direction = (runs[0][i] if len(runs) == 1
+                                   else np.concatenate([r[i] for r in runs]) for i in range(3))
+        c = Chunk(data, length, time, direction, self.odd)
         self._reset()
         return c
 
@@ -289,9 +326,9 @@ class _Walker:
         raise TruncatedCaptureError(f"truncated pcapng: the file ends {left} bytes into the block "
                                f"that starts at byte {at}", left, at)
 
-    def _one_epb(self, body: bytes) -> None:
+    def _one_epb(self, body: bytes | bytearray) -> None:
         iid, hi, lo, cap = struct.unpack_from("<IIII", body, 0)
-        data = body[20 : 20 + cap]
+        data = bytes(body[20 : 20 + cap])
         if len(data) != cap:
             raise CaptureError("malformed pcapng: packet longer than its block")
         self._add_meta(iid, (hi << 32) | lo)
@@ -342,9 +379,8 @@ class _Walker:
         times = ticks.astype(np.float64) * scales
         codes = np.asarray([DIR_CODE[nm] for nm in self.ifaces.names], np.int8)[iid]
         self.rows.append(blocks[:k, 28 : 28 + FRAME_SIZE])
-        self.lengths.extend([FRAME_SIZE] * k)
-        self.times.extend(times.tolist())
-        self.dirs.extend(codes.tolist())
+        self._seal()
+        self.runs.append((np.full(k, FRAME_SIZE, np.int64), times, codes))
         self.n += k
         self.packets += k
         self.pos += k * blen

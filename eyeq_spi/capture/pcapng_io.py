@@ -96,6 +96,8 @@ def _spec() -> dict[str, Any]:
 
 @dataclass(frozen=True, slots=True)
 class Record:
+    """One transfer as read from a capture: time, direction, bytes."""
+
     time: float | None
     direction: str | None  # "h2e" | "e2h" | None when unknown
     data: bytes

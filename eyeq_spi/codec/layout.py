@@ -58,6 +58,8 @@ class FieldInfo:
 
 @dataclass(frozen=True)
 class CrcPlan:
+    """An E2E check laid out (D5): its CRC, counter and covered byte ranges in the struct."""
+
     path: str  # e.g. "visObs[3]" or "" for this struct
     field: str
     crc_offset: int
@@ -68,6 +70,8 @@ class CrcPlan:
 
 @dataclass
 class Layout:
+    """A struct's byte layout in one SW release: fields, children, E2E plan, codecs."""
+
     name: str
     sw: SwKey
     variant: SwKey

@@ -5,19 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from construct import (
-    Const,
-    GreedyBytes,
-    Int8ul,
-    Int16ul,
-    Int32ul,
-    PascalString,
-    Prefixed,
-    Struct,
-    Terminated,
-)
-from construct.core import ConstructError
-
 from eyeq_spi.errors import CodecError
 from eyeq_spi.spec.catalog import Catalog, MespFunction
 
@@ -28,23 +15,65 @@ MESP_PROTOCOL = 0x5E
 REPLY_BIT = 0x80
 TAG_MASK = 0x3F
 
-PARAM = {
-    "u8": Int8ul, "u16": Int16ul, "u32": Int32ul,
-    "string": PascalString(Int32ul, "ascii"),
-    "bytes": Prefixed(Int32ul, GreedyBytes),
-}
+INT_PARAMS = {"u8": 1, "u16": 2, "u32": 4}  # little-endian unsigned; string and bytes: a u32
+# length, then that many bytes (M3)
 
-HEADER = Struct(
-    "service" / Int8ul,
-    "protocol" / Const(MESP_PROTOCOL, Int8ul),
-    "service_repeat" / Int8ul,
-    "function" / Int8ul,
-    "tag" / Int8ul,
-)
+
+def param_types() -> dict[str, Any]:
+    """The construct type of each parameter type (M3): the encoders' reference. Built on first
+    use, so that decoding (``dissect``) never imports construct."""
+    from construct import GreedyBytes, Int8ul, Int16ul, Int32ul, PascalString, Prefixed
+
+    return {"u8": Int8ul, "u16": Int16ul, "u32": Int32ul,
+            "string": PascalString(Int32ul, "ascii"), "bytes": Prefixed(Int32ul, GreedyBytes)}
+
+
+class MalformedParamsError(ValueError):
+    """A parameter block that does not parse; the message is what construct's parser says in
+    the first line of its error, so a decoded record reads the same either way."""
+
+
+def parse_params(params: Any, body: bytes) -> dict[str, Any]:
+    """The parameters ``params`` (``MespParam`` list) of ``body``, in order, then nothing more
+    (M3): the parse of ``Struct(*params, Terminated)`` without construct."""
+    out: dict[str, Any] = {}
+    pos = 0
+    n = len(body)
+    for p in params:
+        size = INT_PARAMS.get(p.type)
+        if size is not None:
+            if pos + size > n:
+                raise MalformedParamsError(f"Error in path (parsing) -> {p.name}")
+            out[p.name] = int.from_bytes(body[pos : pos + size], "little")
+            pos += size
+            continue
+        if pos + 4 > n:
+            raise MalformedParamsError(f"Error in path (parsing) -> {p.name}")
+        length = int.from_bytes(body[pos : pos + 4], "little")
+        pos += 4
+        if pos + length > n:
+            raise MalformedParamsError(f"Error in path (parsing) -> {p.name}")
+        raw = body[pos : pos + length]
+        pos += length
+        if p.type == "string":
+            try:
+                out[p.name] = raw.decode("ascii")
+            except UnicodeDecodeError:
+                raise MalformedParamsError(
+                    f"cannot use encoding 'ascii' to decode {raw!r}") from None
+        elif p.type == "bytes":
+            out[p.name] = raw
+        else:
+            raise MalformedParamsError(f"unknown parameter type {p.type}")
+    if pos != n:
+        raise MalformedParamsError("Error in path (parsing)")
+    return out
 
 
 @dataclass(frozen=True)
 class MespHeader:
+    """The 5-byte MESP header (M1): service, function and tag."""
+
     service: int
     function: int
     tag: int
@@ -63,12 +92,18 @@ class MespCodec:
         self.functions = {(f.service, f.function): f for f in cat.mesp}
         self.by_name = {f.name: f for f in cat.mesp}
         self.ret_names = cat.mesp_ret
-        self._req = {k: self._params(f.request) for k, f in self.functions.items()}
-        self._rep = {k: self._params(f.reply) for k, f in self.functions.items()}
+        self._built: dict[tuple[bool, int, int], Any] = {}  # construct encoders, on first use
 
-    @staticmethod
-    def _params(params: Any) -> Any:
-        return Struct(*(p.name / PARAM[p.type] for p in params), Terminated)
+    def _encoder(self, f: MespFunction, reply: bool) -> Any:
+        key = (reply, f.service, f.function)
+        enc = self._built.get(key)
+        if enc is None:
+            from construct import Struct, Terminated
+
+            types = param_types()
+            enc = self._built[key] = Struct(
+                *(p.name / types[p.type] for p in (f.reply if reply else f.request)), Terminated)
+        return enc
 
     def function(self, name: str) -> MespFunction:
         try:
@@ -86,8 +121,10 @@ class MespCodec:
         f = self.function(name)
         if not 0 <= counter <= TAG_MASK:
             raise CodecError(f"MESP tag counter {counter} outside 0..63 (M1)")
+        from construct.core import ConstructError
+
         try:
-            body = self._req[(f.service, f.function)].build(params)
+            body = self._encoder(f, False).build(params)
         except (ConstructError, KeyError, TypeError, ValueError) as exc:
             raise CodecError(f"{name} request: {exc}") from None
         return self.header(f, counter) + bytes(body)
@@ -97,8 +134,10 @@ class MespCodec:
         head = self.header(f, REPLY_BIT | (counter & TAG_MASK)) + ret.to_bytes(4, "little")
         if ret != 0:
             return head
+        from construct.core import ConstructError
+
         try:
-            return head + bytes(self._rep[(f.service, f.function)].build(params))
+            return head + bytes(self._encoder(f, True).build(params))
         except (ConstructError, KeyError, TypeError, ValueError) as exc:
             raise CodecError(f"{name} reply: {exc}") from None
 
@@ -110,8 +149,10 @@ class MespCodec:
         if len(data) < 5:
             out.errors.append(f"MESP message of {len(data)} bytes has no full header")
             return out
-        h = HEADER.parse(data[:5])
-        hdr = MespHeader(h.service, h.function, h.tag)
+        if data[1] != MESP_PROTOCOL:  # rule A has checked it for a classified message
+            out.errors.append(f"MESP protocol byte is 0x{data[1]:02X}, not 0x{MESP_PROTOCOL:02X}")
+            return out
+        hdr = MespHeader(data[0], data[3], data[4])  # M1: service, 0x5E, service, function, tag
         out.header = {"service": hdr.service, "function": hdr.function, "tag": hdr.tag,
                       "counter": hdr.counter, "reply": hdr.reply}
         if hdr.tag & 0x40:
@@ -124,7 +165,6 @@ class MespCodec:
             return out
         out.name = f.name
         body = data[5:]
-        key = (f.service, f.function)
         try:
             if hdr.reply:
                 if len(body) < 4:
@@ -134,13 +174,9 @@ class MespCodec:
                 out.fields["ret"] = ret
                 if ret != 0 and len(body) == 4:
                     return out
-                out.fields.update(_plain(self._rep[key].parse(body[4:])))
+                out.fields.update(parse_params(f.reply, body[4:]))
             else:
-                out.fields.update(_plain(self._req[key].parse(body)))
-        except ConstructError as exc:
-            out.errors.append(f"{f.name}: malformed parameters: {str(exc).splitlines()[0]}")
+                out.fields.update(parse_params(f.request, body))
+        except MalformedParamsError as exc:
+            out.errors.append(f"{f.name}: malformed parameters: {exc}")
         return out
-
-
-def _plain(c: Any) -> dict[str, Any]:
-    return {k: v for k, v in c.items() if not k.startswith("_")}

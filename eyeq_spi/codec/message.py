@@ -9,8 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from construct import Const, Int8ul, Struct
-
 from eyeq_spi.codec.e2e import E2EState, protect, verify
 from eyeq_spi.codec.layout import Layout, LayoutCache
 from eyeq_spi.codec.mesp import MESP_PROTOCOL, MespCodec
@@ -22,16 +20,29 @@ DASP_PROTOCOL = dasp_header().protocol  # §7.1.2: 0x65, specs/dasp_header.yaml
 DIAG_ID = 0x41
 BOOT_ID = 0x10
 
-DASP_HEADER = Struct(
-    "protocol" / Const(DASP_PROTOCOL, Int8ul),
-    "data_id" / Int8ul,
-    "counter" / Int8ul,
-    "reserved" / Int8ul,
-).compile()
+
+
+def __getattr__(name: str) -> Any:
+    """``DASP_HEADER``, the §7.1.2 header as a construct Struct (the reference layout), built on
+    first use: decoding reads the four bytes directly and never imports construct."""
+    if name == "DASP_HEADER":
+        from construct import Const, Int8ul, Struct
+
+        hdr = Struct(
+            "protocol" / Const(DASP_PROTOCOL, Int8ul),
+            "data_id" / Int8ul,
+            "counter" / Int8ul,
+            "reserved" / Int8ul,
+        ).compile()
+        globals()["DASP_HEADER"] = hdr
+        return hdr
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass
 class DecodedMessage:
+    """A decoded application message: protocol, name, header, fields, errors."""
+
     protocol: str  # MESP | DASP | DIAG | BOOT | UNKNOWN
     name: str | None
     length: int
@@ -136,9 +147,7 @@ class MessageCodec:
             raise CodecError(f"{name} is not a DASP message")
         if not 0 <= counter <= 255:
             raise CodecError(f"DASP counter {counter} outside 0..255")
-        header = DASP_HEADER.build(
-            {"protocol": DASP_PROTOCOL, "data_id": msg.data_id, "counter": counter, "reserved": 0}
-        )
+        header = bytes((DASP_PROTOCOL, msg.data_id, counter, 0))  # DASP_HEADER (§7.1.2)
         return bytes(header) + self.encode_payload(msg, fields, e2e)
 
     def encode_other(self, protocol: str, fields: dict[str, Any]) -> bytes:

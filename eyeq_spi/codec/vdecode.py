@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import binascii
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -79,8 +79,7 @@ def crc_rows(g: np.ndarray, init: int = 0xFFFF) -> np.ndarray:
     return c
 
 
-@dataclass(frozen=True)
-class _Leaf:
+class _Leaf(NamedTuple):  # a tuple: a layout has thousands, built at every start
     name: str  # flattened path
     field: str  # structured dtype field (the container for bitfields)
     shift: int
@@ -90,6 +89,8 @@ class _Leaf:
 
 @dataclass(frozen=True)
 class _Plan:
+    """An E2E check of the layout as byte offsets (gathered for all rows at once)."""
+
     index: int
     crc_offset: int
     idx: np.ndarray  # covered byte offsets, in order
@@ -99,8 +100,7 @@ class _Plan:
     jump_text: str
 
 
-@dataclass(frozen=True)
-class _EnumLeaf:
+class _EnumLeaf(NamedTuple):
     leaf: _Leaf
     label: str  # "<path>.<member>" after the message name
     values: np.ndarray
@@ -113,16 +113,25 @@ class _EnumLeaf:
         return ~np.isin(col, self.values)
 
 
+_ENUM_TABLES: dict[tuple[tuple[int, ...], int, bool], tuple[np.ndarray, np.ndarray | None]] = {}
+
+
 def _enum_leaf(leaf: _Leaf, label: str, values: list[int], enum: str) -> _EnumLeaf:
-    arr = np.array(sorted(values))
+    """The check of one enum member; its value array and table are shared by every member with
+    the same values and width (built once: a layout has hundreds of such members)."""
     bits = (leaf.mask.bit_length() if leaf.mask is not None
             else 8 * np.dtype(NP_TYPE[leaf.type]).itemsize)
-    table = None
-    if bits <= 16 and leaf.type.startswith(("uint", "bool")):
-        table = np.ones(1 << bits, bool)
-        ok = arr[(arr >= 0) & (arr < (1 << bits))]
-        table[ok] = False
-    return _EnumLeaf(leaf, label, arr, enum, table)
+    key = (tuple(sorted(values)), bits, leaf.type.startswith(("uint", "bool")))
+    hit = _ENUM_TABLES.get(key)
+    if hit is None:
+        arr = np.array(key[0])
+        table = None
+        if bits <= 16 and key[2]:
+            table = np.ones(1 << bits, bool)
+            ok = arr[(arr >= 0) & (arr < (1 << bits))]
+            table[ok] = False
+        hit = _ENUM_TABLES[key] = (arr, table)
+    return _EnumLeaf(leaf, label, hit[0], enum, hit[1])
 
 
 class VecLayout:
@@ -137,6 +146,8 @@ class VecLayout:
         self.leaves: list[_Leaf] = []
         self.enums: list[_EnumLeaf] = []
         self._walk(lay, cat, "", 0, names, formats, offsets, True)
+        self._enum_groups: list[tuple[np.ndarray, int, int, int, np.ndarray, list[int]]] | None \
+            = None
         self.dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
                                "itemsize": lay.size})
         self.plans = [
@@ -274,6 +285,29 @@ class VecLayout:
         return errs
 
     # -- enums -----------------------------------------------------------------------------
+    def _groups(self, payload_size: int
+                ) -> list[tuple[np.ndarray, int, int, int, np.ndarray, list[int]]]:
+        """The table-checked enum leaves grouped by (table, field width, shift, mask): per group
+        the byte offsets of its fields, so that one gather reads all of them (the 15
+        ``visObs[i]`` members of one enum are one group); the other leaves one by one."""
+        if self._enum_groups is None:
+            groups: dict[tuple[str, int, int, int], list[int]] = {}  # the table is the enum's
+            fields = self.dtype.fields  # read once: a mapping proxy per access
+            assert fields is not None
+            for i, e in enumerate(self.enums):
+                if e.table is None:
+                    continue
+                dt = fields[e.leaf.field][0]
+                mask = e.leaf.mask if e.leaf.mask is not None else (1 << 8 * dt.itemsize) - 1
+                groups.setdefault((e.enum, dt.itemsize, e.leaf.shift, mask), []).append(i)
+            out = []
+            for (_, width, shift, mask), members in groups.items():
+                offs = np.array([fields[self.enums[i].leaf.field][1] for i in members],
+                                np.intp)
+                out.append((offs, width, shift, mask, self.enums[members[0]].table, members))
+            self._enum_groups = out  # type: ignore[assignment]
+        return self._enum_groups  # type: ignore[return-value]
+
     def enum_errors(self, payloads: np.ndarray, name: str, rows: np.ndarray | None = None
                     ) -> dict[int, list[str]]:
         """Rows (of those in ``rows``, default all) with an undefined enum value: the exact
@@ -281,18 +315,39 @@ class VecLayout:
         out: dict[int, list[str]] = {}
         if not self.enums or not len(payloads):
             return out
-        rec = self.records(payloads)
-        hits: list[tuple[np.ndarray, np.ndarray, _EnumLeaf]] = []
-        for e in self.enums:
+        found: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # enum index -> (bad, values)
+        grouped: set[int] = set()
+        for offs, width, shift, mask, table, members in self._groups(payloads.shape[1]):
+            grouped.update(members)
+            col = payloads[:, offs]
+            if width > 1:  # little-endian fields of ``width`` bytes
+                col = col.astype(np.uint64)
+                for b in range(1, width):
+                    col |= payloads[:, offs + b].astype(np.uint64) << np.uint64(8 * b)
+            if shift or mask != (1 << 8 * width) - 1:
+                col = (col >> shift) & mask
+            bad = table[col]
+            if rows is not None:
+                bad &= rows[:, None]
+            hit = bad.any(axis=0)
+            if hit.any():
+                for j in np.flatnonzero(hit).tolist():
+                    found[members[j]] = (bad[:, j], col[:, j])
+        rec = None
+        for i, e in enumerate(self.enums):
+            if i in grouped:
+                continue
+            if rec is None:
+                rec = self.records(payloads)
             col = self.column(rec, e.leaf)
             bad = e.bad(col)
             if rows is not None:
                 bad &= rows
             if bad.any():
-                hits.append((bad, col, e))
-        if not hits:
-            return out
-        for bad, col, e in hits:
+                found[i] = (bad, col)
+        for i in sorted(found):  # in the exact engine's order of the leaves
+            bad, col = found[i]
+            e = self.enums[i]
             for r in np.flatnonzero(bad).tolist():
                 lst = out.setdefault(r, [])
                 if len(lst) < MAX_ENUM_ERRORS:

@@ -89,6 +89,8 @@ class _Plan:
 
 @dataclass
 class _Unit:
+    """One transfer of a span: its first and last index into the direction's rows."""
+
     ks: int  # first index into P, -1: the open transfer carried in from the previous chunk
     ke: int  # one past the last
     first: bool
@@ -96,6 +98,8 @@ class _Unit:
 
 @dataclass
 class _Dir:
+    """One direction's mode (exact or batch) and its span's state."""
+
     name: str | None
     code: int
     batch: bool = False

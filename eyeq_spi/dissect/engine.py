@@ -51,6 +51,9 @@ SWITCH_APP = "SwitchEyeQApplication"
 
 @dataclass
 class _Direction:
+    """One direction's passive receiver (transport connection), its NUM -> capture index map,
+    E2E state and DASP counters."""
+
     conn: TransportConnection
     index_of_num: dict[int, int] = field(default_factory=dict)
     e2e: E2EState = field(default_factory=E2EState)

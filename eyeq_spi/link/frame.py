@@ -1,7 +1,8 @@
 """Link frame codec (seed 004 §6, decisions L1-L3).
 
 A frame is exactly 128 bytes: a uint32 LE header word (D/R/RSP/NUM), a CRC-16 LE, and 122 data
-bytes. The byte layout is a compiled construct Struct; the header word is split by shifts whose
+bytes. The byte layout is a compiled construct Struct (``FRAME_LAYOUT``, built on first use;
+the codec packs and unpacks with ``struct``); the header word is split by shifts whose
 positions come from ``specs/link.yaml`` (LSB-first by default, MSB-first configurable).
 """
 
@@ -9,9 +10,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
-from typing import NewType
-
-from construct import Bytes, Int16ul, Int32ul, Struct
+from typing import Any, NewType
 
 from eyeq_spi.crc import CCITT_FALSE, CrcFunction, CrcVariant, make_crc
 from eyeq_spi.errors import FrameError, LocalProtocolError
@@ -47,11 +46,22 @@ class BitOrder(enum.Enum):
     MSB_FIRST = "msb_first"
 
 
-FRAME_LAYOUT = Struct(
-    "header" / Int32ul,
-    "crc" / Int16ul,
-    "data" / Bytes(DATA_SIZE),
-).compile()
+
+
+def __getattr__(name: str) -> Any:
+    """``FRAME_LAYOUT``, the frame's byte layout as a construct Struct (the reference the codec's
+    ``struct`` path is tested against), built on first use so that no reader imports construct."""
+    if name == "FRAME_LAYOUT":
+        from construct import Bytes, Int16ul, Int32ul, Struct
+
+        layout = Struct(
+            "header" / Int32ul,
+            "crc" / Int16ul,
+            "data" / Bytes(DATA_SIZE),
+        ).compile()
+        globals()["FRAME_LAYOUT"] = layout
+        return layout
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _field_shifts(order: BitOrder) -> dict[str, tuple[int, int]]:

@@ -24,7 +24,6 @@ import marshal
 import os
 import re
 import sys
-import tempfile
 import zlib
 from collections.abc import Callable
 from pathlib import Path
@@ -134,12 +133,19 @@ def _read(path: Path, reader: Callable[[Any], object] | None = None) -> object |
         return None
 
 
+KEEP_KEYS = 16  # other keys' files kept: several installs, checkouts or Pythons of one user
+
+
 def _write(path: Path, value: object, writer: Callable[[Any, Any], object] | None = None,
            current: str = "") -> None:
-    """Write atomically; then remove the files of other keys (``catalog-*.pickle``, or the
-    ``doc-*.marshal`` files not starting with ``current``)."""
+    """Write atomically; then prune the files of other keys (``catalog-*.pickle``, or the
+    ``doc-*.marshal`` files not starting with ``current``) to the ``KEEP_KEYS`` newest keys, so
+    that several installs of one user (checkouts, virtual environments, Python versions) keep
+    their own caches instead of evicting each other's on every start."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+        import tempfile  # only to write: a start from the cache does not import it (nor random)
+
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".catalog-", suffix=".tmp")
     except OSError:
         return  # read-only home, full disk...: run without a cache
@@ -152,13 +158,26 @@ def _write(path: Path, value: object, writer: Callable[[Any, Any], object] | Non
             else:
                 writer(value, fh)  # marshal: ValueError for a type it cannot hold
         os.replace(tmp, path)
-        stale = (path.parent.glob("catalog-*.pickle") if writer is None
-                 else (p for p in path.parent.glob("doc-*.marshal")
-                       if not p.name.startswith(current)))
-        for old in stale:  # keep only the current key
-            if old != path:
-                with contextlib.suppress(OSError):
-                    old.unlink()
+        _prune(path.parent, "catalog-" if writer is None else "doc-", current or path.name)
     except Exception:  # a corrupt, foreign or unpicklable cache is never fatal
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+
+
+def _prune(folder: Path, kind: str, current: str) -> None:
+    """Remove the files of ``kind`` whose key is not among the ``KEEP_KEYS`` newest other keys
+    (by the newest modification time of the key's files); never those starting with
+    ``current``."""
+    newest: dict[str, float] = {}
+    files: dict[str, list[Path]] = {}
+    for p in folder.glob(f"{kind}*"):
+        if p.name.startswith(current):
+            continue
+        key = p.name[len(kind) : len(kind) + 32].split("-")[0].split(".")[0]
+        with contextlib.suppress(OSError):
+            newest[key] = max(newest.get(key, 0.0), p.stat().st_mtime)
+            files.setdefault(key, []).append(p)
+    for key in sorted(newest, key=newest.__getitem__, reverse=True)[KEEP_KEYS:]:
+        for p in files[key]:
+            with contextlib.suppress(OSError):
+                p.unlink()

@@ -37,6 +37,8 @@ def sw_release_text(key: SwKey) -> str:
 
 @dataclass(frozen=True)
 class Member:
+    """One member of a struct in ``specs/structs/``: its name, type, count, enum and bits."""
+
     name: str
     type: str
     array: int | str | None = None
@@ -52,6 +54,8 @@ class Member:
 
 @dataclass(frozen=True)
 class Crc:
+    """An E2E check of a struct (D5): its CRC member, its rolling counter and what it covers."""
+
     field: str
     counter: str | None
     covers: tuple[str, ...]
@@ -59,6 +63,8 @@ class Crc:
 
 @dataclass(frozen=True)
 class StructVariant:
+    """A struct's members in one SW release range (seed 004 §7.1.4)."""
+
     key: SwKey
     seed_line: int
     members: tuple[Member, ...]
@@ -67,6 +73,8 @@ class StructVariant:
 
 @dataclass(frozen=True)
 class StructDef:
+    """A struct of ``specs/structs/``, with its variants per SW release."""
+
     name: str
     section: str | None
     description: str | None
@@ -83,6 +91,8 @@ class StructDef:
 
 @dataclass(frozen=True)
 class EnumValue:
+    """One value of an enum: its number and name."""
+
     value: int
     name: str
     family: str | None = None
@@ -94,6 +104,8 @@ class EnumValue:
 
 @dataclass(frozen=True)
 class EnumDef:
+    """An enum of ``specs/enums/``: its values (or flags) and whether it is complete."""
+
     name: str
     kind: str  # "values" | "flags"
     values: dict[int, EnumValue]
@@ -115,6 +127,9 @@ class EnumDef:
 
 @dataclass(frozen=True)
 class MessageDef:
+    """An application message of ``specs/messages/``: protocol, data ID, direction, payload
+    struct, rate and the SW releases that have it."""
+
     name: str
     data_id: int
     direction: str
@@ -135,6 +150,8 @@ class MessageDef:
 
 @dataclass(frozen=True)
 class InitSignal:
+    """A signal of a CAN initialisation message."""
+
     name: str
     start: int
     length: int
@@ -151,6 +168,8 @@ class InitSignal:
 
 @dataclass(frozen=True)
 class InitVariant:
+    """An initialisation message's signals in one SW release range."""
+
     key: SwKey
     signals: tuple[InitSignal, ...]
     length_bytes: int
@@ -158,6 +177,8 @@ class InitVariant:
 
 @dataclass(frozen=True)
 class InitMessageDef:
+    """A CAN initialisation message, with its variants per SW release."""
+
     name: str
     id: int
     ct_type: int | None
@@ -171,12 +192,16 @@ class InitMessageDef:
 
 @dataclass(frozen=True)
 class MespParam:
+    """A MESP request or reply parameter (M3): its name and type."""
+
     name: str
     type: str  # u8 | u16 | u32 | string | bytes
 
 
 @dataclass(frozen=True)
 class MespFunction:
+    """A MESP function of ``specs/mesp.yaml``: service, function and parameters."""
+
     name: str
     service: int
     function: int
@@ -186,6 +211,8 @@ class MespFunction:
 
 @dataclass
 class Catalog:
+    """Everything ``specs/`` defines, validated; pickled by the start-up cache."""
+
     root: Path
     sw_versions: tuple[SwKey, ...]
     default_sw: SwKey

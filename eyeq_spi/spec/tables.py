@@ -32,6 +32,8 @@ UINT8_TYPES = frozenset({"uint8"})
 # -- typed views ---------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Decision:
+    """A normative decision of ``docs/PROTOCOL_DECISIONS.md`` (its id and title)."""
+
     id: str
     title: str
     section: str | None
@@ -40,6 +42,8 @@ class Decision:
 
 @dataclass(frozen=True)
 class DaspHeaderField:
+    """One field of the §7.1.2 DASP header: name, offset and size."""
+
     name: str
     offset: int
     value: int | None  # a constant byte (Protocol 0x65, RESERVED 0), else None
@@ -74,6 +78,8 @@ class DaspHeader:
 
 @dataclass(frozen=True)
 class GpioPin:
+    """One pin of a GPIO group (its label and GPIO name)."""
+
     label: str
     gpio: str | None  # None where the OCR left it unreadable (see the reconstruction note)
     ball: str
@@ -82,6 +88,8 @@ class GpioPin:
 
 @dataclass(frozen=True)
 class GpioGroup:
+    """A group of GPIO pins with one direction."""
+
     name: str
     direction: str  # eyeq_to_host | host_to_eyeq
     encoding: tuple[str, ...]  # pin labels, most significant bit first
@@ -108,6 +116,8 @@ class GpioGroup:
 
 @dataclass(frozen=True)
 class NvmParameter:
+    """One parameter of an NVM table."""
+
     name: str
     type: str
     default: float
@@ -119,6 +129,8 @@ class NvmParameter:
 
 @dataclass(frozen=True)
 class NvmSource:
+    """A source of NVM values (TAC, SPC, Autofix) and the mode it runs in."""
+
     name: str  # TAC | SPC | Autofix
     mode: str  # APP | SPC | TAC
     message: str
