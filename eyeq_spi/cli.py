@@ -20,7 +20,7 @@ class _Parser(argparse.ArgumentParser):
 
 # Every subcommand with its one-line help, in --help order. main() builds the options of the
 # command it runs only; the others are a name and this line, which is all --help and a usage error
-# show (issue 10: start-up). tests/test_startup.py holds the table to the full parser.
+# show. tests/test_startup.py holds the table to the full parser.
 COMMANDS: dict[str, str] = {
     "demo": "host emulator against the embedded simulated EyeQ",
     "sim": "the simulated EyeQ on a TCP listener or a pty",

@@ -55,7 +55,7 @@ _INDEX_TAG = "argument-names-1"  # bump when _build_index changes shape
 def _index() -> dict[str, Any]:
     """The names and IDs the argument checks need, as plain data cached beside the catalogue
     (``marshal``, keyed on ``specs/`` like it): checking a name, and so every usage error,
-    neither imports nor unpickles the catalogue (issue 10: start-up)."""
+    neither imports nor unpickles the catalogue."""
     from eyeq_spi.spec.cache import cached_data
     from eyeq_spi.spec.link import specs_dir
 

@@ -1,4 +1,4 @@
-"""``eyeq-spi export``, ``eyeq-spi replay`` and ``eyeq-spi sigrok-decoder`` (issue 14)."""
+"""``eyeq-spi export``, ``eyeq-spi replay`` and ``eyeq-spi sigrok-decoder``."""
 
 from __future__ import annotations
 

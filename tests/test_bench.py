@@ -1,4 +1,4 @@
-"""Bench tools (issue 14): logic-analyzer inputs of dissect, VCD export, MDF4/MCAP exports,
+"""Bench tools: logic-analyzer inputs of dissect, VCD export, MDF4/MCAP exports,
 replay into the host emulator and to a port."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The sigrok decoder (issue 14) in the real ``sigrok-cli`` from Debian: on a VCD exported from a
+"""The sigrok decoder in the real ``sigrok-cli`` from Debian: on a VCD exported from a
 demo capture, its annotations equal ``eyeq-spi dissect --json`` frame by frame."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Where the public decoders of ExtLogData2 are wrong (issue 13's list), ours must be right: one
+"""Where the public decoders of ExtLogData2 are wrong, ours must be right: one
 test per error, each built so that the public decoder's reading fails it. Frames are decoded by
 our DBC database and by ``can decode``'s decoder (which also reports DLC and invalid values)."""
 

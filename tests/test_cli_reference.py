@@ -50,7 +50,7 @@ def test_a_changed_option_makes_the_check_fail() -> None:
 
 
 def test_readme_docs_and_specs_point_at_nothing_outside_the_repository() -> None:
-    """A clone has no ../shared: README, docs/ and specs/ restate what they need (issue 10)."""
+    """A clone has no ../shared: README, docs/ and specs/ restate what they need."""
     import re
 
     outside = re.compile(r"\.\./shared|(?<![\w.-])shared/(seeds|PROTOCOL)|/work/")

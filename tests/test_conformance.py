@@ -1,4 +1,4 @@
-"""The conformance suite (issue 12) against our own implementations in virtual time: every case
+"""The conformance suite against our own implementations in virtual time: every case
 passes (LINK-GAP is judged on real time only), the CLI contract (list, -k, JSON, JUnit, report,
 exit codes), and the judges on hand-made traces."""
 

@@ -1,4 +1,4 @@
-"""The proof that the suite can fail (issue 12): each deliberately broken variant of our
+"""The proof that the suite can fail: each deliberately broken variant of our
 simulated EyeQ or host runs the whole suite and fails exactly the cases its bug violates. Every
 other case keeps the verdict the correct implementation gets (pass; LINK-GAP skip in virtual
 time), except the cases a mutant declares masked (its bug removes what they need): those must

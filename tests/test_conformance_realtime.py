@@ -1,5 +1,5 @@
 """The conformance suite in real time against ``eyeq-spi sim`` and ``eyeq-spi host`` run as
-separate processes, over TCP and over a pty (issue 12, Done-when). Bounded wall-clock tests.
+separate processes, over TCP and over a pty. Bounded wall-clock tests.
 
 Both DUT kinds run the whole suite: the EyeQ one session, the host its three ignition cycles
 (over TCP the host reconnects; over --pty each cycle gets a fresh pty and a new host process

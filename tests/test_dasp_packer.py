@@ -1,4 +1,4 @@
-"""DASP payloads packed in place (eyeq_spi/sim/packer.py, issue 11) against the dict path
+"""DASP payloads packed in place (eyeq_spi/sim/packer.py) against the dict path
 (Scene.fill + MessageCodec.encode_dasp), the reference: identical bytes, message by message and
 transfer by transfer; and the due heap of SimulatedEyeQ._send_due_dasp."""
 

@@ -1,4 +1,4 @@
-"""Regression tests for the defects the fault campaign found (issue 9, item 1). Each failed
+"""Regression tests for the defects the fault campaign found. Each failed
 before its fix; defect 1 (splice across a peer reset) is in tests/test_passive.py."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Host emulator against the simulated EyeQ, in virtual time (issue 4)."""
+"""Host emulator against the simulated EyeQ, in virtual time."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Seeded slice of the fuzz targets (issue 9 item 2), on every CI run: coverage-free seeded
+"""Seeded slice of the fuzz targets, on every CI run: coverage-free seeded
 inputs into each target of ``tests/fuzz`` and the ``dissect`` subprocess on every input format.
 ``tools/fuzz.py --budget S`` runs the coverage-guided long version under atheris."""
 

@@ -1,4 +1,4 @@
-"""A host with nobody listening skips the DASP field values (issue 11) but reports exactly what
+"""A host with nobody listening skips the DASP field values but reports exactly what
 a host with a subscriber reports: counters, E2E errors, DASP counter gaps, stale streams."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Lossy-channel soak (issue 9 item 3): host and simulated EyeQ through the memory pair's fault
+"""Lossy-channel soak: host and simulated EyeQ through the memory pair's fault
 hook, in virtual time. Every injected fault is accounted for by the receiver's counters (exact
 where the rule is deterministic, see ``eyeq_spi.faults.soak``), no corrupted message is ever
 delivered, and Running Vision is reached and held under loss."""

@@ -1,4 +1,4 @@
-"""NVM crash test (issue 9 item 5): 200 ``kill -9`` of a process writing the NVM through
+"""NVM crash test: 200 ``kill -9`` of a process writing the NVM through
 ``eyeq_spi.host.nvm``'s atomic writer. The NVM file must never be corrupt (it is always one
 complete version), and once the host's start-up cleanup has run no temporary file is left."""
 
@@ -83,6 +83,6 @@ def test_start_up_leaves_no_temp_file_after_200_kills(
         killed: tuple[Path, list[int | None], int]) -> None:
     path, _, mid_write = killed
     assert mid_write > 0, "no kill landed inside a write: the test proves nothing"
-    # before the fix of issue 9 defect 6 (8db4c39) about 90 temp files were left here
+    # before the fix of defect 6 (8db4c39) about 90 temp files were left here
     Nvm(path).load()  # the host's start-up
     assert sorted(p.name for p in path.parent.iterdir()) == [path.name]

@@ -1,4 +1,4 @@
-"""Reset campaign, CI slice (issue 9 item 4): 50 seeded random EyeQ resets in Running Vision
+"""Reset campaign, CI slice: 50 seeded random EyeQ resets in Running Vision
 must all recover with no stale data. ``tools/reset_campaign.py`` runs the 1000-run campaign."""
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def test_no_stale_data_after_any_of_50_resets(campaign: CampaignReport) -> None:
 
 
 def test_all_50_resets_recover_to_running_vision(campaign: CampaignReport) -> None:
-    # before the fix of issue 9 defect 5 (9eb4034), seeds 4, 15, 28, 31, 32 and 42 (resets
+    # before the fix of defect 5 (9eb4034), seeds 4, 15, 28, 31, 32 and 42 (resets
     # 5-13 ms into Running Vision, before any 0x41 reported Main_State 2) never recovered
     assert campaign.recovered == campaign.runs, [
         (f["seed"], round(f["offset"], 4), f["host_state"], f["eyeq_main_state"])

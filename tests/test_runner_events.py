@@ -1,4 +1,4 @@
-"""The event-driven VirtualRunner (issue 11) makes the same transfers at the same virtual times as
+"""The event-driven VirtualRunner makes the same transfers at the same virtual times as
 the polling loop it replaced: both run the same emulations and their tap traces are compared
 transfer by transfer (node, time, bytes)."""
 
@@ -22,7 +22,7 @@ Trace = list[tuple[int, float, bytes]]
 
 
 class PollingRunner(VirtualRunner):
-    """The runner as it was before issue 11 (HEAD 2519954): every round asks every node for
+    """The runner as it was before it became event-driven (HEAD 2519954): every round asks every node for
     data and for its timer, and the next instant is the minimum over all of them."""
 
     def _pump(self, drain_all: bool = False) -> None:

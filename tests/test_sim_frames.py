@@ -1,4 +1,4 @@
-"""The simulated EyeQ steps its scene once per camera frame (issue 11, §7.1.4: every vision
+"""The simulated EyeQ steps its scene once per camera frame (§7.1.4: every vision
 message runs at 18 Hz) and every DASP message of a frame is filled from that one state."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Bounded live soak (issue 8): host and simulated EyeQ as two processes in real time at full
+"""Bounded live soak: host and simulated EyeQ as two processes in real time at full
 load over TCP and over a pty, 20 s each (``EYEQ_SOAK_S`` changes it), asserting zero losses on
 both sides, on every CI run. Both processes take SCHED_FIFO by default (``--rt-priority``,
 ``eyeq_spi/runner/sched.py``), which is what keeps their ACKs inside the 10 ms ackTimeout while

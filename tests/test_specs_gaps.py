@@ -1,4 +1,4 @@
-"""Seed content that issue 8 found missing from specs/, and decisions D6/M7/M2/M3 as data: checked
+"""Seed content found missing from specs/, and decisions D6/M7/M2/M3 as data: checked
 against the seed text (OCR'd seed 004) and PROTOCOL_DECISIONS.md like tests/test_specs.py does."""
 
 from __future__ import annotations

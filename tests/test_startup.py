@@ -149,7 +149,7 @@ def test_libyaml_and_the_pure_python_loader_read_specs_alike() -> None:
         assert yaml.load(text, Loader=yaml.CSafeLoader) == yaml.safe_load(text), path
 
 
-# -- what a start imports (issue 10: start-up < 300 ms). Not timed: the mechanism is guarded. ---
+# -- what a start imports. Not timed: the mechanism is guarded. ---
 
 HEAVY = ("numpy", "construct", "yaml", "rich", "matplotlib", "pyarrow", "cantools")
 _PROBE = (

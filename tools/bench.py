@@ -4,7 +4,7 @@
 - frame codec: encode and decode frames/s;
 - EYEQ_VIS_OBSTACLES_MSG with 15 objects: µs per decode with the specs-built construct codec,
   beside a hand-written ``struct.unpack_from`` decoder of the same SW9 layout in the same run;
-- the emulator (issue 11): host + simulated EyeQ at full load in virtual time, wall and CPU per
+- the emulator: host + simulated EyeQ at full load in virtual time, wall and CPU per
   simulated second, the host alone, median and spread, as ratios to an in-run CRC baseline.
 """
 
@@ -186,7 +186,7 @@ def obstacles_bench(seconds: float) -> dict[str, float]:
     decoded = codec.decode(wire).fields
     assert hand == decoded, "the hand-written decoder must agree with the specs-built codec"
     # rounds interleave the decoders so that a loaded machine slows all of them alike; the goal
-    # (issue 11) is the ratio of the codec with E2E (16 CRCs; with a state also the 16 rolling
+    # is the ratio of the codec with E2E (16 CRCs; with a state also the 16 rolling
     # counters) to the hand-written struct decoder, median over the rounds
     fns = {
         "obstacles_decode_us_specs_codec_with_e2e": lambda: codec.decode(wire),
@@ -357,7 +357,7 @@ def _dasp_cpu_per_sim_s(packer: bool, virtual_s: float) -> float:
 
 
 def dasp_bench(runs: int = 3, virtual_s: float = 20.0) -> dict[str, float]:
-    """The simulated EyeQ's DASP generation (issue 11): the packer (sim/packer.py) against the
+    """The simulated EyeQ's DASP generation: the packer (sim/packer.py) against the
     dict path (Scene.fill + encode_dasp) in interleaved runs, median and spread, the ratio, and
     each in 128-byte ``crc_hqx`` calls of the in-run baseline."""
     rows: dict[bool, list[float]] = {False: [], True: []}

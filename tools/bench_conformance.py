@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Conformance suite figures (issue 12).
+"""Conformance suite figures.
 
 1. One ``--builtin`` run of the whole suite, per DUT kind, in CPU seconds, against an in-run
    baseline: the plain emulator (our host and our simulated EyeQ, the same light scene, no

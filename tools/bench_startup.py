@@ -10,7 +10,7 @@ the table gives the median and the spread (min..max) of the wall time, the ratio
 to an in-run baseline (``python -c pass`` with the same interpreter: the floor no CLI can beat),
 and the median CPU time (user + system), which a loaded machine disturbs less than wall time.
 ``--before REV`` also runs the commands against ``git archive REV`` of this repository (for example
-the commit before issue 10's start-up work) in a temporary directory, for a before/after table.
+the commit before a start-up change) in a temporary directory, for a before/after table.
 
 The children run as an installed user's do: with bytecode caches (``.pyc``, written by the warm-up
 run into a temporary ``PYTHONPYCACHEPREFIX``, whatever ``PYTHONDONTWRITEBYTECODE`` says here) and

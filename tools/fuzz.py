@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Long fuzz run (issue 9): every target of ``tests/fuzz`` for a share of ``--budget`` seconds.
+"""Long fuzz run: every target of ``tests/fuzz`` for a share of ``--budget`` seconds.
 In-process targets run coverage-guided under atheris (libFuzzer), one subprocess each; when
 atheris is missing they run under the seeded coverage-free mutator of the CI slice. The
 ``dissect`` target feeds mutated raw/hex/pcapng captures to ``eyeq-spi dissect`` in a subprocess

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""EyeQ reset campaign (issue 9): N seeded random resets of the simulated EyeQ in Running
+"""EyeQ reset campaign: N seeded random resets of the simulated EyeQ in Running
 Vision; each must be noticed by the host, recover to Running Vision, hold it, and deliver no
 stale data. Prints the figure (recovered of runs) and every failing seed. Exit 1 if any fails.
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Lossy-channel soak (issue 9): host emulator and simulated EyeQ through the memory pair's
+"""Lossy-channel soak: host emulator and simulated EyeQ through the memory pair's
 fault hook, in virtual time. Prints the injected faults per class, the receiver counters that
 account for them (expected = observed for every exact rule), the messages sent, delivered and
 corrupted, and whether Running Vision was reached and held. Exit 1 if any check fails.

@@ -3,8 +3,8 @@
 A :class:`Layout` is one struct at one SW version:
 
 - a compiled construct ``Struct`` for the byte layout, built on first use of ``struct`` (the
-  fast path, ``spec list`` and ``spec show`` never need it, and construct costs start-up time,
-  issue 10). Bitfield members that share a container
+  fast path, ``spec list`` and ``spec show`` never need it, and construct costs start-up
+  time). Bitfield members that share a container
   (D2) appear in it as one integer field; splitting and joining them is plain shifting done by
   precomputed operation lists, so no ``BitStruct`` (uncompilable, slow) is on the hot path;
 - a ``struct``-based fast path generated from the same fields (:mod:`.fastpath`), used by

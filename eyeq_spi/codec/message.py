@@ -160,7 +160,7 @@ class MessageCodec:
         self, data: bytes, e2e: E2EState | None = None, *, fields: bool = True
     ) -> DecodedMessage:
         """``fields=False``: a DASP message gets its header, E2E and length checks (the same
-        errors) but no field values (a host with nobody listening, issue 11)."""
+        errors) but no field values (a host with nobody listening)."""
         proto = classify(data)
         if proto == "MESP":
             return self.mesp.decode(data)

@@ -1,4 +1,4 @@
-"""Protocol conformance suite (issue 12): plays the host against an EyeQ under test, or the EyeQ
+"""Protocol conformance suite: plays the host against an EyeQ under test, or the EyeQ
 against a host under test, judges one case per requirement from the recorded traffic, and
 reports verdicts with evidence. ``--builtin`` runs it against our own implementations in
 virtual time; ``mutants`` holds the broken variants that prove each case can fail."""

@@ -162,7 +162,7 @@ class HostEmulator:
 
     def warm_up(self) -> None:
         """Decode one message of each kind the EyeQ sends and encode HOST_VEH_STATE once, so
-        that no first-time codec build delays an ACK in real time (issue 8 finding)."""
+        that no first-time codec build delays an ACK in real time."""
         e2e = E2EState()
         for m in self.codec.cat.messages:
             if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw):
@@ -440,7 +440,7 @@ class HostEmulator:
             return
         dasp = data[:1] == b"\x65"
         # field values only when someone reads them: subscribers, async queues, a TAC/SPC
-        # result; E2E, counters and lengths are checked either way (issue 11)
+        # result; E2E, counters and lengths are checked either way
         fields = not dasp or bool(self._subscribers or self._queues) \
             or self.state in (S.RUNNING_TAC, S.RUNNING_SPC)
         out = self.codec.decode(data, self._e2e if dasp else None, fields=fields)

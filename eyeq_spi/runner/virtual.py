@@ -1,7 +1,7 @@
 """Virtual-clock runner: jumps from one deadline to the next, so a minute of protocol runs in
 however long the CPU needs. Used by the tests and the simulation.
 
-Event-driven (issue 11): transfers in flight wait in a deadline heap, and each node's deadline is
+Event-driven: transfers in flight wait in a deadline heap, and each node's deadline is
 kept between events; a node is asked ``get_timer()`` again only after it was touched (it received
 a transfer, handled a timer, or was asked for data), and ``data_to_send`` again only when it was
 touched, handed something over, or the clock moved. The calls that remain are the ones a polling

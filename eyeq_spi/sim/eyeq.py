@@ -189,7 +189,7 @@ class SimulatedEyeQ:
     def warm_up(self) -> None:
         """Build every template, fill plan and codec path once, before real time starts: the
         first message of each kind costs several milliseconds, enough for the peer's 10 ms
-        ackTimeout to expire on frames we have not ACKed yet (live-run finding, issue 8)."""
+        ackTimeout to expire on frames we have not ACKed yet (live-run finding)."""
         e2e = E2EState()
         for m in self.codec.cat.messages:
             if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw):

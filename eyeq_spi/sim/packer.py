@@ -1,4 +1,4 @@
-"""DASP payloads packed in place (issue 11): a reused bytearray per (message, SW release) that the
+"""DASP payloads packed in place: a reused bytearray per (message, SW release) that the
 scene writes straight into, instead of a value dict that ``MessageCodec.encode_dasp`` then packs.
 
 Theory of operation

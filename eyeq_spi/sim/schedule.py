@@ -1,4 +1,4 @@
-"""The due heap of the simulated EyeQ's periodic DASP messages (issue 11): each call of
+"""The due heap of the simulated EyeQ's periodic DASP messages: each call of
 ``SimulatedEyeQ._send_due_dasp`` does O(due messages) work instead of scanning the catalogue.
 
 The due times stay in the simulator's ``_next_dasp`` dict (name -> time), which the simulator

@@ -9,7 +9,7 @@ or another interpreter never sees a stale one.
 
 Single files of ``specs/`` that code reads directly (``spec_file``: ``link.yaml``,
 ``bench.yaml``, ``dasp_header.yaml``...) are cached the same way, each as a ``marshal`` file under
-the same key (:func:`cached_doc`), so a start from the cache never imports yaml (issue 10).
+the same key (:func:`cached_doc`), so a start from the cache never imports yaml.
 
 The cache is an optimisation only: an unwritable, missing, corrupt or foreign cache file falls back
 to parsing ``specs/`` (and silently tries to write a fresh one). ``EYEQ_SPI_CACHE_DIR`` moves it;
@@ -48,7 +48,7 @@ def specs_digest(root: Path) -> str:
     """A key over the path, size and modification time (ns) of every file of ``root`` and of the
     loader sources, the root and the Python version: the test Python's own bytecode cache makes
     (an edited file has a new mtime), from one ``stat`` per file and no file read, so a start
-    spends 0.2 ms here instead of 7 ms hashing every byte (issue 10). 64 bits (CRC-32, Adler-32)."""
+    spends 0.2 ms here instead of 7 ms hashing every byte. 64 bits (CRC-32, Adler-32)."""
     sig = [_FORMAT.decode(), sys.version, str(root.resolve())]
     sig += _stat_tree(Path(__file__).resolve().parent, ".py") + _stat_tree(root, "")
     text = "\0".join(sig).encode()
@@ -115,7 +115,7 @@ def cached_data(root: Path, tag: str, build: Callable[[], dict[str, Any]]) -> di
 
 def _read(path: Path, reader: Callable[[Any], object] | None = None) -> object | None:
     if reader is None:
-        import pickle  # not for the marshal files: a usage error never imports it (issue 10)
+        import pickle  # not for the marshal files: a usage error never imports it
 
         reader = pickle.load
     try:

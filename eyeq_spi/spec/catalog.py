@@ -257,7 +257,7 @@ class Catalog:
 class RawDocs(Mapping[str, Any]):
     """The parsed YAML files of ``specs/`` by relative path. A file is read when first asked for
     (through the start-up cache, like ``spec_file``) and the pickled catalogue holds only the root:
-    the raw documents were three quarters of its bytes and few starts need any (issue 10)."""
+    the raw documents were three quarters of its bytes and few starts need any."""
 
     def __init__(self, root: Path, docs: Mapping[str, Any] | None = None) -> None:
         self._root = root

@@ -34,7 +34,7 @@ def spec_file(name: str) -> dict[str, Any]:
 
 def load_file(path: Path) -> dict[str, Any]:
     """Parse one YAML file of ``specs/`` (libyaml) into a mapping; SpecError if it is not one."""
-    import yaml  # here, not at module level: a start from the cache never parses YAML (issue 10)
+    import yaml  # here, not at module level: a start from the cache never parses YAML
 
     try:
         with path.open(encoding="utf-8") as fh:

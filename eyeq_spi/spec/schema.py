@@ -63,8 +63,8 @@ def normalise_sw(text: str | None, default: str) -> str:
 
 def safe_loader() -> Any:
     """libyaml's loader, about 8x faster than the pure-Python one on specs/; same safe subset.
-    yaml is imported here, not at module level: a start from the catalogue cache never needs it
-    (issue 10: start-up)."""
+    yaml is imported here, not at module level: a start from the catalogue cache never needs
+    it."""
     import yaml
 
     return getattr(yaml, "CSafeLoader", yaml.SafeLoader)
