@@ -22,8 +22,8 @@ Trace = list[tuple[int, float, bytes]]
 
 
 class PollingRunner(VirtualRunner):
-    """The runner as it was before it became event-driven (HEAD 2519954): every round asks every node for
-    data and for its timer, and the next instant is the minimum over all of them."""
+    """The runner before it became event-driven: every round asks every node for data and for
+    its timer, and the next instant is the minimum over all of them."""
 
     def _pump(self, drain_all: bool = False) -> None:
         for _ in range(self._max_steps):
