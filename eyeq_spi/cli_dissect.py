@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import os
 import re
@@ -125,6 +126,7 @@ def run_dissect(args: argparse.Namespace) -> int:
     per_file: list[Stats] = []
     gc_was = gc.isenabled()
     gc.disable()  # collected by _paced_gc instead
+    bars = contextlib.ExitStack()
     try:
         br: Any = _batch_run(args)  # None for small inputs: numpy costs more than it saves
         plain = br.is_plain(args) if br is not None else True
@@ -135,7 +137,15 @@ def run_dissect(args: argparse.Namespace) -> int:
         if br is not None and jobs > 1 and len(args.files) > 1 and "-" not in args.files:
             par = br.parallel_items(args.files, jobs, args.format, args.direction, args.sw,
                                     br.fields_mode(writers, plain))
-        for path in args.files:
+        from eyeq_spi.cli_progress import JobProgress
+
+        # --jobs: files are decoded in workers, so the bar counts files as they arrive (a
+        # file read here has its own bar over its bytes instead)
+        files_bar = bars.enter_context(JobProgress(
+            f"dissect {len(args.files)} files", len(args.files), unit="files",
+            records_on_stdout=bool(writers) and table is None,
+            enabled=None if par is not None else False))
+        for n, path in enumerate(args.files, 1):
             done = next(par)[1] if par is not None else None
             stats = Stats(cat, file=path)
             per_file.append(stats)
@@ -153,7 +163,9 @@ def run_dissect(args: argparse.Namespace) -> int:
                 stats.ignored_bytes = tail.ignored
                 print(f"eyeq-spi dissect: {tail.note(path)}", file=sys.stderr, flush=True)
             stats.finish()
+            files_bar.update(n)
     finally:
+        bars.close()
         if gc_was:
             gc.enable()
         if table is not None:

@@ -134,6 +134,19 @@ def test_dissect_draws_a_bar_when_stdout_is_a_file(demo_capture: Path, tmp_path:
     assert (tmp_path / "out.txt").stat().st_size > 0
 
 
+def test_dissect_jobs_draws_a_bar_over_the_files(demo_capture: Path, tmp_path: Path) -> None:
+    """``--jobs``: the files are decoded in workers, so the bar counts files."""
+    import shutil
+
+    b = tmp_path / "b.pcapng"
+    shutil.copy(demo_capture, b)
+    with open(tmp_path / "out.txt", "wb") as f:
+        shown = _stderr_on_pty(["dissect", str(demo_capture), str(b), "--jobs", "2",
+                                "--stats"], f)
+    assert b"dissect 2 files" in shown and b"files" in shown, shown[:300]
+    assert b"total" in (tmp_path / "out.txt").read_bytes()
+
+
 def _all_parsers() -> list[tuple[str, Any]]:
     import argparse
 
