@@ -194,7 +194,7 @@ def _decode(args: argparse.Namespace) -> int:
         else:
             print(human_stats(result))
         for line in truncated:
-            print(line, file=sys.stderr)
+            print(f"eyeq-spi can decode: {line}", file=sys.stderr)
         return 1 if bad or truncated else 0
 
     table = None
@@ -255,7 +255,7 @@ def _decode(args: argparse.Namespace) -> int:
         raise CanLogError(f"no CAN frames on channel {channel} (the channels are: "
                           f"{', '.join(sorted(others)) or 'none'})")
     for line in truncated:
-        print(line, file=sys.stderr)
+        print(f"eyeq-spi can decode: {line}", file=sys.stderr)
     return 1 if bad or truncated else 0
 
 
