@@ -360,3 +360,15 @@ def test_real_time_pacing_takes_the_wall_time_of_quiet_stretches_too() -> None:
     emu.run_for(0.6, realtime=True)
     assert time.perf_counter() - t0 >= 0.58
     assert emu.runner.now == pytest.approx(0.6)
+
+
+def test_warm_up_builds_every_mesp_encoder_before_real_time() -> None:
+    """A MESP encoder built on first use costs milliseconds: in a live run the first request
+    then waited past the peer's 10 ms ackTimeout. Both sides build them all in warm_up."""
+    emu = build()
+    emu.sim.warm_up()
+    emu.host.warm_up()
+    n = 2 * len(emu.sim.server.codec.functions)
+    for codec in (emu.sim.server.codec, emu.sim.codec.mesp, emu.host.mesp.codec,
+                  emu.host.codec.mesp):
+        assert len(codec._built) == n

@@ -105,6 +105,13 @@ class MespCodec:
                 *(p.name / types[p.type] for p in (f.reply if reply else f.request)), Terminated)
         return enc
 
+    def warm_up(self) -> None:
+        """Build every function's request and reply encoder now: built on first use, one
+        costs milliseconds, enough to make a live peer's 10 ms ackTimeout expire (seed §6)."""
+        for f in self.functions.values():
+            self._encoder(f, False)
+            self._encoder(f, True)
+
     def function(self, name: str) -> MespFunction:
         try:
             return self.by_name[name]

@@ -171,6 +171,8 @@ class HostEmulator:
                                   E2EState())
         msg = self.codec.message("HOST_VEH_STATE_MSG")
         self.codec.encode_dasp(msg.name, self.codec.layout(msg).zero_values(), 0, E2EState())
+        self.mesp.codec.warm_up()  # MESP requests we send, replies we read
+        self.codec.mesp.warm_up()
 
     # -- node interface ---------------------------------------------------------------------
     def receive_data(self, transfer: bytes, now: float) -> None:

@@ -202,6 +202,8 @@ class SimulatedEyeQ:
                     self._fill(m.name, packer.root, 0.0)  # type: ignore[arg-type]
                     packer.encode(0, e2e)
                     packer.reset()  # as the templates: the first real message starts from zeros
+        self.server.codec.warm_up()  # MESP requests we read, replies we send
+        self.codec.mesp.warm_up()
         self._templates.clear()
         self.counters.sent.clear()
         self.scene.unanchor()  # the first real step anchors the scene in time again
