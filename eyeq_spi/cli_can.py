@@ -18,7 +18,7 @@ PROTOCOLS = ("extlog2", "me8")
 
 
 def add_can_parser(sub: Any) -> None:
-    c = sub.add_parser("can", help="Mobileye CAN output: generated DBCs, CAN log decoder",
+    c = sub.add_parser("can", help="Mobileye CAN: DBCs, decode logs or a live bus, compare",
                        description="The Mobileye CAN protocols of specs/can/: ExtLogData2/AWS/"
                        "LKA (extlog2, seeds 000/001) and Mobileye 8 Connect (me8, seed 003).")
     cs = c.add_subparsers(dest="can_command", required=True, parser_class=sub._parser_class)

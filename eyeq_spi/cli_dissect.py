@@ -17,7 +17,7 @@ from eyeq_spi.errors import UsageError
 def add_dissect_parser(sub: Any) -> None:
     from eyeq_spi import cli_args as ca
 
-    d = sub.add_parser("dissect", help="decode captured SPI traffic (raw, hex text, pcapng)",
+    d = sub.add_parser("dissect", help="decode SPI captures (pcapng, raw, hex, Saleae, VCD)",
                        description="Decode SPI transfers: frames, reassembled messages with "
                        "their fields, link events. Exit 0 clean, 1 protocol errors found, "
                        "2 bad input or usage.")

@@ -16,9 +16,10 @@ TOP_DESCRIPTION = (
     "conformance suite. Every wire format comes from specs/.")
 
 TOP_EXAMPLES = [
-    "eyeq-spi demo --duration 5                  # bring a simulated EyeQ up, 5 s",
-    "eyeq-spi demo --virtual-time --capture x.pcapng && eyeq-spi dissect x.pcapng --stats",
-    "eyeq-spi COMMAND --help                     # the options and examples of one command",
+    "eyeq-spi demo --duration 5                       # a simulated EyeQ up, 5 s",
+    "eyeq-spi demo --virtual-time --capture x.pcapng  # 10 s captured, fast",
+    "eyeq-spi dissect x.pcapng --stats                # what the capture holds",
+    "eyeq-spi COMMAND --help                          # one command's options, examples",
 ]
 
 # command (subcommands as "can dbc") -> (description when it has none, examples)
