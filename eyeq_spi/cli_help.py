@@ -19,7 +19,6 @@ TOP_EXAMPLES = [
     "eyeq-spi demo --duration 5                       # a simulated EyeQ up, 5 s",
     "eyeq-spi demo --virtual-time --capture x.pcapng  # 10 s captured, fast",
     "eyeq-spi dissect x.pcapng --stats                # what the capture holds",
-    "eyeq-spi COMMAND --help                          # one command's options, examples",
 ]
 
 # command (subcommands as "can dbc") -> (description when it has none, examples)
