@@ -375,15 +375,7 @@ class LinkConnection:
         if ahead:
             c.skippedFrames += ahead
             self._events.append(FramesSkipped(self._expected, num, ahead))
-        self._naks_in_row = 0
-        self._expected = (num + 1) % m
-        self._last_accepted = num
-        acc = self._accepted
-        acc.pop(num, None)
-        acc[num] = bytes(transfer)
-        while acc and (self._expected - next(iter(acc))) % m > w:
-            acc.popitem(last=False)  # only [E-W, E) can be a duplicate
-        c.framesReceived += 1
+        self._accepted_frame(num, transfer)
         self._control.append(self.codec.ack(num))
         self._events.append(DataReceived(num, data))
 
@@ -466,21 +458,26 @@ class LinkConnection:
             return None
         return num
 
-    def accept_in_order(self, num: int, transfer: bytes, now: float) -> bytes:
-        """What ``receive_data``, ``handle_timer`` and ``data_to_send`` at ``now`` do with a
-        frame :meth:`in_order` gave ``num`` for, once the layer above checked its payload:
-        accept it (L6) and return its ACK as sent. The payload goes to the caller, not into
-        the event queue."""
-        m, w = SEQ_MODULO, self.config.window
+    def _accepted_frame(self, num: int, transfer: bytes) -> None:
+        """A DATA frame accepted (L6): E moves past it, and it joins the last W accepted
+        frames L6a tells duplicates from peer resets by."""
+        m = SEQ_MODULO
         self._naks_in_row = 0
         self._expected = (num + 1) % m
         self._last_accepted = num
         acc = self._accepted
         acc.pop(num, None)
         acc[num] = bytes(transfer)
-        while acc and (self._expected - next(iter(acc))) % m > w:
-            acc.popitem(last=False)
+        while acc and (self._expected - next(iter(acc))) % m > self.config.window:
+            acc.popitem(last=False)  # only [E-W, E) can be a duplicate
         self.counters.framesReceived += 1
+
+    def accept_in_order(self, num: int, transfer: bytes, now: float) -> bytes:
+        """What ``receive_data``, ``handle_timer`` and ``data_to_send`` at ``now`` do with a
+        frame :meth:`in_order` gave ``num`` for, once the layer above checked its payload:
+        accept it (L6) and return its ACK as sent. The payload goes to the caller, not into
+        the event queue."""
+        self._accepted_frame(num, transfer)
         self.counters.busyFrames = len(self._inflight)
         self._next_ctl = now + self.config.control_gap
         return self.codec.ack(num)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from eyeq_spi.monitor.model import Snapshot
-from eyeq_spi.monitor.view import MonitorError, render, rich_modules, screen_lines
+from eyeq_spi.monitor.view import MonitorError, render, rich_modules, save_lines, screen_lines
 
 MIN_REFRESH, MAX_REFRESH = 5.0, 30.0
 DEFAULT_REFRESH = 6.0  # a margin over the 5 Hz the monitor promises
@@ -54,24 +54,10 @@ def save_screen(snap: Snapshot, path: str, size: tuple[int, int] | None = None) 
     """The screen of ``snap`` as an SVG picture, an HTML page or plain text (rich's export);
     ``size`` (columns, rows): as a terminal of that size shows it (default: the whole screen,
     as wide as it is)."""
-    import io
 
     check_screenshot(path)
-    r = rich_modules()
     lines = screen_lines(snap) if size is None else screen_lines(snap, size[0], size[1])
-    con = r.Console(file=io.StringIO(), record=True, force_terminal=True,
-                    color_system="truecolor", width=max(t.cell_len for t in lines))
-    con.print(r.Group(*lines))
-    suffix = path.lower().rsplit(".", 1)[-1]
-    try:
-        if suffix == "svg":
-            con.save_svg(path, title=f"eyeq-spi monitor: {snap.source}")
-        elif suffix == "html":
-            con.save_html(path)
-        else:
-            con.save_text(path)
-    except OSError as exc:
-        raise MonitorError(f"cannot write {path}: {exc.strerror or exc}") from None
+    save_lines(lines, path, f"eyeq-spi monitor: {snap.source}")
 
 
 def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None,

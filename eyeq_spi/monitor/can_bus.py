@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.monitor.view import rich_modules
+from eyeq_spi.monitor.view import rich_modules, save_lines
 
 
 @dataclass
@@ -146,22 +146,4 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
 
 
 def _save(view: CanBusView, path: str) -> None:
-    import io
-
-    from eyeq_spi.monitor.view import MonitorError
-
-    r = rich_modules()
-    lines = view.lines(width=400)
-    con = r.Console(file=io.StringIO(), record=True, force_terminal=True,
-                    color_system="truecolor", width=max(t.cell_len for t in lines))
-    con.print(r.Group(*lines))
-    suffix = path.lower().rsplit(".", 1)[-1]
-    try:
-        if suffix == "svg":
-            con.save_svg(path, title=f"eyeq-spi monitor: {view.source}")
-        elif suffix == "html":
-            con.save_html(path)
-        else:
-            con.save_text(path)
-    except OSError as exc:
-        raise MonitorError(f"cannot write {path}: {exc.strerror or exc}") from None
+    save_lines(view.lines(width=400), path, f"eyeq-spi monitor: {view.source}")

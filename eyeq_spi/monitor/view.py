@@ -219,3 +219,24 @@ def screen_lines(snap: Snapshot, width: int | None = None,
 
 def render(snap: Snapshot, width: int | None = None, height: int | None = None) -> Any:
     return _rich().Group(*screen_lines(snap, width, height))
+
+
+def save_lines(lines: list[Any], path: str, title: str) -> None:
+    """Rich lines as an SVG picture, an HTML page or plain text (by ``path``'s suffix), as
+    wide as the widest line; :class:`MonitorError` when the file cannot be written."""
+    import io
+
+    r = rich_modules()
+    con = r.Console(file=io.StringIO(), record=True, force_terminal=True,
+                    color_system="truecolor", width=max(t.cell_len for t in lines))
+    con.print(r.Group(*lines))
+    suffix = path.lower().rsplit(".", 1)[-1]
+    try:
+        if suffix == "svg":
+            con.save_svg(path, title=title)
+        elif suffix == "html":
+            con.save_html(path)
+        else:
+            con.save_text(path)
+    except OSError as exc:
+        raise MonitorError(f"cannot write {path}: {exc.strerror or exc}") from None
