@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from eyeq_spi.codec.types import DecodedMessage
 from eyeq_spi.errors import CodecError
 from eyeq_spi.spec.catalog import Catalog, MespFunction
-
-if TYPE_CHECKING:
-    from eyeq_spi.codec.message import DecodedMessage
 
 MESP_PROTOCOL = 0x5E
 REPLY_BIT = 0x80
@@ -98,7 +96,7 @@ class MespCodec:
         key = (reply, f.service, f.function)
         enc = self._built.get(key)
         if enc is None:
-            from construct import Struct, Terminated
+            from construct import Struct, Terminated  # lazy: decoding never imports construct
 
             types = param_types()
             enc = self._built[key] = Struct(
@@ -128,7 +126,7 @@ class MespCodec:
         f = self.function(name)
         if not 0 <= counter <= TAG_MASK:
             raise CodecError(f"MESP tag counter {counter} outside 0..63 (M1)")
-        from construct.core import ConstructError
+        from construct.core import ConstructError  # lazy: only encoders import construct
 
         try:
             body = self._encoder(f, False).build(params)
@@ -141,7 +139,7 @@ class MespCodec:
         head = self.header(f, REPLY_BIT | (counter & TAG_MASK)) + ret.to_bytes(4, "little")
         if ret != 0:
             return head
-        from construct.core import ConstructError
+        from construct.core import ConstructError  # lazy: only encoders import construct
 
         try:
             return head + bytes(self._encoder(f, True).build(params))
@@ -150,8 +148,6 @@ class MespCodec:
 
     # -- decode ------------------------------------------------------------------------------
     def decode(self, data: bytes) -> DecodedMessage:
-        from eyeq_spi.codec.message import DecodedMessage
-
         out = DecodedMessage("MESP", None, len(data))
         if len(data) < 5:
             out.errors.append(f"MESP message of {len(data)} bytes has no full header")

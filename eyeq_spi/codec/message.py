@@ -6,12 +6,12 @@ Every problem — wrong length, unknown ID, E2E mismatch, value out of its enum 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.codec.e2e import E2EState, protect, verify
 from eyeq_spi.codec.layout import Layout, LayoutCache
 from eyeq_spi.codec.mesp import MESP_PROTOCOL, MespCodec
+from eyeq_spi.codec.types import DecodedMessage as DecodedMessage  # re-exported: the result
 from eyeq_spi.errors import CodecError, SpecError
 from eyeq_spi.spec.catalog import Catalog, MessageDef, SwKey, catalog
 from eyeq_spi.spec.tables import dasp_header
@@ -37,22 +37,6 @@ def __getattr__(name: str) -> Any:
         globals()["DASP_HEADER"] = hdr
         return hdr
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-@dataclass
-class DecodedMessage:
-    """A decoded application message: protocol, name, header, fields, errors."""
-
-    protocol: str  # MESP | DASP | DIAG | BOOT | UNKNOWN
-    name: str | None
-    length: int
-    header: dict[str, Any] = field(default_factory=dict)
-    fields: dict[str, Any] = field(default_factory=dict)
-    errors: list[str] = field(default_factory=list)
-
-    @property
-    def ok(self) -> bool:
-        return not self.errors
 
 
 class DaspCounters:
