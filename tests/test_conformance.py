@@ -12,11 +12,11 @@ import pytest
 
 from eyeq_spi.cli import main
 from eyeq_spi.conformance import all_cases, cases_for
-from eyeq_spi.conformance.judge_app import unused_masks
-from eyeq_spi.conformance.judge_link import link_noresend, link_size
+from eyeq_spi.conformance.judges.app import unused_masks
+from eyeq_spi.conformance.judges.link import link_noresend, link_size
+from eyeq_spi.conformance.judges.verdict import Context
 from eyeq_spi.conformance.suite import Options, run, selector
 from eyeq_spi.conformance.trace import Trace
-from eyeq_spi.conformance.verdict import Context
 from eyeq_spi.link.frame import FrameCodec
 
 REALTIME_ONLY = {"LINK-GAP"}

@@ -10,10 +10,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from eyeq_spi.conformance.cases import Case, cases_for
+from eyeq_spi.conformance.judges.verdict import Outcome, bad, ok
 from eyeq_spi.conformance.load import STALL_MIN, rule_for, temper
-from eyeq_spi.conformance.session import SLICE, Session
+from eyeq_spi.conformance.play.session import SLICE, Session
 from eyeq_spi.conformance.trace import Trace
-from eyeq_spi.conformance.verdict import Outcome, bad, ok
 
 RATE = "DASP-RATE-APP-EYEQ_VIS_OBSTACLES_MSG"
 

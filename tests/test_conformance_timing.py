@@ -10,17 +10,17 @@ from __future__ import annotations
 from typing import Any
 
 from eyeq_spi.conformance.cases import Case, cases_for
-from eyeq_spi.conformance.judge_app import _rate
-from eyeq_spi.conformance.judge_link import (
+from eyeq_spi.conformance.judges.app import _rate
+from eyeq_spi.conformance.judges.link import (
     link_ack,
     link_noresend,
     link_pad,
     link_txtimeout,
     link_window,
 )
+from eyeq_spi.conformance.judges.verdict import Context, bad
 from eyeq_spi.conformance.load import temper
 from eyeq_spi.conformance.trace import Msg, Trace
-from eyeq_spi.conformance.verdict import Context, bad
 from eyeq_spi.host.host import HostEmulator
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.frame import FrameCodec, NakReason

@@ -10,9 +10,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from eyeq_spi.conformance import judge_app as A  # noqa: N812 - short names keep the table
-from eyeq_spi.conformance import judge_flow as F  # noqa: N812
-from eyeq_spi.conformance import judge_link as L  # noqa: N812
+from eyeq_spi.conformance.judges import app as A  # noqa: N812 - short names keep the table
+from eyeq_spi.conformance.judges import flow as F  # noqa: N812
+from eyeq_spi.conformance.judges import link as L  # noqa: N812
 from eyeq_spi.spec.catalog import catalog
 
 EYEQ, HOST, BOTH = ("eyeq",), ("host",), ("eyeq", "host")

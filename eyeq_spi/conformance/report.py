@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.conformance.cases import Case
+from eyeq_spi.conformance.judges.verdict import VERDICTS
 from eyeq_spi.conformance.suite import Result
-from eyeq_spi.conformance.verdict import VERDICTS
 from eyeq_spi.errors import EyeqError
 
 

@@ -9,12 +9,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.conformance.cases import ALL_SESSIONS, Case, cases_for
+from eyeq_spi.conformance.judges.verdict import Context, Outcome, skip
 from eyeq_spi.conformance.load import temper
-from eyeq_spi.conformance.play_eyeq import EyeqPlan, EyeqScript, TesterEyeQ, tester_config
-from eyeq_spi.conformance.play_host import HostPlan, HostScript, make_tester
-from eyeq_spi.conformance.session import Session
+from eyeq_spi.conformance.play.eyeq import EyeqPlan, EyeqScript, TesterEyeQ, tester_config
+from eyeq_spi.conformance.play.host import HostPlan, HostScript, make_tester
+from eyeq_spi.conformance.play.session import Session
 from eyeq_spi.conformance.trace import Trace
-from eyeq_spi.conformance.verdict import Context, Outcome, skip
 from eyeq_spi.errors import AdapterError, EyeqError, UsageError
 from eyeq_spi.host.nvm import Nvm, NvmData
 from eyeq_spi.phy.base import Adapter

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.codec.init_params import init_message
-from eyeq_spi.conformance.session import Session
+from eyeq_spi.conformance.play.session import Session
 from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostState

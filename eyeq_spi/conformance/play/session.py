@@ -10,7 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 from eyeq_spi.conformance.load import STALL_MIN
-from eyeq_spi.conformance.shim import Shim
+from eyeq_spi.conformance.play.shim import Shim
 from eyeq_spi.conformance.trace import Trace
 from eyeq_spi.errors import LinkLostError
 from eyeq_spi.phy.base import Adapter

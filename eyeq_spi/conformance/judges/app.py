@@ -10,9 +10,9 @@ from typing import Any
 
 from eyeq_spi.codec.intrinsic import eeprom_crc_ok
 from eyeq_spi.codec.layout import Layout
-from eyeq_spi.conformance.judge_link import answers
+from eyeq_spi.conformance.judges.link import answers
+from eyeq_spi.conformance.judges.verdict import Context, Outcome, at, bad, ok, skip, unsure
 from eyeq_spi.conformance.trace import Msg, Trace
-from eyeq_spi.conformance.verdict import Context, Outcome, at, bad, ok, skip, unsure
 from eyeq_spi.spec.catalog import MessageDef, catalog
 
 _M = catalog().raw["mesp.yaml"]["mesp"]
@@ -67,7 +67,7 @@ def delivered(tr: Trace, ctx: Context) -> set[int]:
 
 
 def _probe_tags() -> set[int]:
-    from eyeq_spi.conformance import play_host as p
+    from eyeq_spi.conformance.play import host as p
 
     return {p.TAG_EARLY_INIT, p.TAG_GAP, p.TAG_SILENCE, p.TAG_LIMIT}
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from eyeq_spi.codec.message import is_mesp
-from eyeq_spi.conformance.session import Session
+from eyeq_spi.conformance.play.session import Session
 from eyeq_spi.conformance.trace import Trace
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from eyeq_spi.conformance.judge_app import DEADLINE, is_reply, is_request, mesp_pairs, ret_of
+from eyeq_spi.conformance.judges.app import DEADLINE, is_reply, is_request, mesp_pairs, ret_of
+from eyeq_spi.conformance.judges.verdict import Context, Outcome, advise, at, bad, ok, skip, unsure
 from eyeq_spi.conformance.trace import Msg, Trace
-from eyeq_spi.conformance.verdict import Context, Outcome, advise, at, bad, ok, skip, unsure
 
 PENDING, RUNNING_VISION, PENDING_VISION = 0x01, 0x02, 0x92
 FATAL_INTRINSIC = 22
@@ -164,7 +164,7 @@ def host_retry(ctx: Context, tr: Trace) -> Outcome:
     if not marks:
         return skip("the host sent no Get EyeQ Versions request, so no reply was withheld")
     # a reset soon after a withheld reply starts the host's requests over: the next request's
-    # reply is withheld instead (play_eyeq), and that one is judged
+    # reply is withheld instead (play.eyeq), and that one is judged
     usable = [m for m in marks if not any(
         m.time < r <= m.time + RETRY_WITHIN + ctx.slack for r in tr.resets())]
     if not usable:
