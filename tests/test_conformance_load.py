@@ -9,9 +9,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from eyeq_spi.conformance.cases import Case, cases_for
+from eyeq_spi.conformance.cases import cases_for
 from eyeq_spi.conformance.judges.verdict import Outcome, bad, ok
-from eyeq_spi.conformance.load import STALL_MIN, rule_for, temper
+from eyeq_spi.conformance.load import rule_for, temper
+from eyeq_spi.conformance.model import STALL_MIN, Case
 from eyeq_spi.conformance.play.session import SLICE, Session
 from eyeq_spi.conformance.trace import Trace
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from eyeq_spi.conformance.cases import Case, cases_for
+from eyeq_spi.conformance.cases import cases_for
 from eyeq_spi.conformance.judges.app import _rate
 from eyeq_spi.conformance.judges.link import (
     link_ack,
@@ -20,6 +20,7 @@ from eyeq_spi.conformance.judges.link import (
 )
 from eyeq_spi.conformance.judges.verdict import Context, bad
 from eyeq_spi.conformance.load import temper
+from eyeq_spi.conformance.model import Case
 from eyeq_spi.conformance.trace import Msg, Trace
 from eyeq_spi.host.host import HostEmulator
 from eyeq_spi.host.machine import HostState

@@ -3,7 +3,8 @@ against a host under test, judges one case per requirement from the recorded tra
 reports verdicts with evidence. ``--builtin`` runs it against our own implementations in
 virtual time; ``mutants`` holds the broken variants that prove each case can fail."""
 
-from eyeq_spi.conformance.cases import Case, all_cases, cases_for
+from eyeq_spi.conformance.cases import all_cases, cases_for
+from eyeq_spi.conformance.model import Case
 from eyeq_spi.conformance.suite import Options, Result, run, select_cases
 
 __all__ = ["Case", "Options", "Result", "all_cases", "cases_for", "run", "select_cases"]

@@ -7,16 +7,15 @@ steps it needs, and its judge. DASP rate cases and MESP function cases are gener
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.conformance.judges import app as A  # noqa: N812 - short names keep the table
 from eyeq_spi.conformance.judges import flow as F  # noqa: N812
 from eyeq_spi.conformance.judges import link as L  # noqa: N812
+from eyeq_spi.conformance.model import ALL_SESSIONS, Case
 from eyeq_spi.spec.catalog import catalog
 
 EYEQ, HOST, BOTH = ("eyeq",), ("host",), ("eyeq", "host")
-ALL_SESSIONS = "*"
 
 # seed sections and requirement IDs of the M3 functions (request / response)
 MESP_REFS = {
@@ -30,25 +29,6 @@ MESP_REFS = {
 }
 # the script step that exercises each function (the others run during bring-up and flows)
 MESP_STEP = {"SwitchEyeQApplication": "flows", "EventCalibrationTool": "early_init"}
-
-
-@dataclass(frozen=True)
-class Case:
-    id: str
-    title: str
-    section: str
-    requirement: str | None
-    decision: str | None
-    group: str
-    duts: tuple[str, ...]
-    judge: Callable[..., Any]
-    session: str = "main"  # the host suite: normal | eeprom_bad | boot_fail | *
-    needs: tuple[str, ...] = ()  # script steps: early_init, mesp, link, flows
-
-    def session_for(self, dut: str) -> str:
-        if dut == "eyeq":
-            return "main"
-        return "normal" if self.session == "main" else self.session
 
 
 def _c(id: str, title: str, section: str, req: str | None, dec: str | None, group: str,

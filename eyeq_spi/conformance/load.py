@@ -26,13 +26,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import replace
 
-from eyeq_spi.conformance.cases import Case
 from eyeq_spi.conformance.judges.verdict import Outcome, Span, at, unsure
+from eyeq_spi.conformance.model import Case
 from eyeq_spi.conformance.trace import Trace
 from eyeq_spi.spec.catalog import catalog
 from eyeq_spi.spec.link import link_spec
 
-STALL_MIN = 0.002  # seconds beyond SLICE before a late loop turn counts as a stall
 _TIMING = link_spec()["timing"]
 ACK_TIMEOUT = float(_TIMING["ackTimeout"])
 GAP_SPAN = 50  # LINK-GAP judges 50-frame means (judges.link.link_gap)

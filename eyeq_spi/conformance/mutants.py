@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.codec.message import is_mesp
+from eyeq_spi.errors import UsageError
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostEvent
 from eyeq_spi.host.nvm import Nvm
@@ -430,8 +431,6 @@ def _mutant(name: str | None, dut: str) -> Mutant | None:
         return None
     m = MUTANTS.get(name) or ADVISED.get(name)
     if m is None or m.dut != dut:
-        from eyeq_spi.errors import UsageError
-
         known = ", ".join(k for k, v in (MUTANTS | ADVISED).items() if v.dut == dut)
         raise UsageError(f"no {dut} mutant {name!r} (known: {known})")
     return m

@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import html
 import json
+import textwrap
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.conformance.cases import Case
 from eyeq_spi.conformance.judges.verdict import VERDICTS
+from eyeq_spi.conformance.model import Case
 from eyeq_spi.conformance.suite import Result
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import EyeqError, UsageError
 
 
 def summary(results: Sequence[Result]) -> dict[str, Any]:
@@ -36,8 +37,6 @@ def console(results: Sequence[Result], *, width: int | None = None) -> str:
     """One line per case: verdict, ID, the seed section it cites, its evidence in full. With
     ``width`` (a terminal's columns) the evidence folds between words under its case; without
     it (a file, a pipe) every case stays on one line."""
-    import textwrap
-
     rows = []
     idw = max((len(r.case.id) for r in results), default=0)
     for r in results:
@@ -139,6 +138,4 @@ def write_report(path: str, results: Sequence[Result], title: str) -> None:
     elif path.endswith((".html", ".htm")):
         write(path, html_report(results, title))
     else:
-        from eyeq_spi.errors import UsageError
-
         raise UsageError(f"--report {path}: use a .md or .html file name")

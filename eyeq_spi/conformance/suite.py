@@ -8,16 +8,18 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.conformance.cases import ALL_SESSIONS, Case, cases_for
+from eyeq_spi.conformance.cases import cases_for
 from eyeq_spi.conformance.judges.verdict import Context, Outcome, skip
 from eyeq_spi.conformance.load import temper
+from eyeq_spi.conformance.model import ALL_SESSIONS, Case
+from eyeq_spi.conformance.mutants import build_eyeq, build_host
 from eyeq_spi.conformance.play.eyeq import EyeqPlan, EyeqScript, TesterEyeQ, tester_config
 from eyeq_spi.conformance.play.host import HostPlan, HostScript, make_tester
 from eyeq_spi.conformance.play.session import Session
 from eyeq_spi.conformance.trace import Trace
 from eyeq_spi.errors import AdapterError, EyeqError, UsageError
 from eyeq_spi.host.nvm import Nvm, NvmData
-from eyeq_spi.phy.base import Adapter
+from eyeq_spi.phy.base import Adapter, open_url
 
 HOST_SESSIONS = ("normal", "eeprom_bad", "boot_fail")
 
@@ -174,15 +176,11 @@ def _eyeq_session(opts: Options, wanted: set[str], ctx: Context) -> Trace:
     trace = Trace("eyeq", opts.sw, realtime=ctx.realtime)
     tester = make_tester(opts.sw, plan)
     if opts.builtin:
-        from eyeq_spi.conformance.mutants import build_eyeq
-
         s = Session(trace, tester, dut=build_eyeq(opts.mutant, opts.sw))
         s.dut.power_up(0.0)
     else:
         if opts.port is None:
             raise UsageError("--dut eyeq needs --port URL (or --builtin)")
-        from eyeq_spi.phy.base import open_url
-
         tester.warm_up()  # no first-time codec build may stall our loop (load.py)
         s = Session(trace, tester, adapter=open_url(opts.port))
     _say(opts, "session main: we play the host")
@@ -202,8 +200,6 @@ def _host_session(opts: Options, name: str, wanted: set[str], ctx: Context, *,
     trace = Trace("host", opts.sw, realtime=ctx.realtime)
     tester = TesterEyeQ(tester_config(name, opts.sw, fast=opts.builtin), trace)
     if opts.builtin:
-        from eyeq_spi.conformance.mutants import build_host
-
         nvm = ctx.builtin.setdefault("nvm", EcuNvm())  # one ECU: its NVM outlives the cycle
         dut = build_host(opts.mutant, opts.sw, tester.reset_line, nvm)
         s = Session(trace, tester, dut=dut)

@@ -12,6 +12,7 @@ from eyeq_spi.codec.intrinsic import eeprom_crc_ok
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.conformance.judges.link import answers
 from eyeq_spi.conformance.judges.verdict import Context, Outcome, at, bad, ok, skip, unsure
+from eyeq_spi.conformance.model import TAG_EARLY_INIT, TAG_GAP, TAG_LIMIT, TAG_SILENCE
 from eyeq_spi.conformance.trace import Msg, Trace
 from eyeq_spi.spec.catalog import MessageDef, catalog
 
@@ -67,9 +68,7 @@ def delivered(tr: Trace, ctx: Context) -> set[int]:
 
 
 def _probe_tags() -> set[int]:
-    from eyeq_spi.conformance.play import host as p
-
-    return {p.TAG_EARLY_INIT, p.TAG_GAP, p.TAG_SILENCE, p.TAG_LIMIT}
+    return {TAG_EARLY_INIT, TAG_GAP, TAG_SILENCE, TAG_LIMIT}
 
 
 # -- MESP, the EyeQ as server -----------------------------------------------------------------

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from itertools import pairwise
 
 from eyeq_spi.conformance.judges.verdict import Context, Outcome, Span, at, bad, ok, skip, unsure
+from eyeq_spi.conformance.model import TAG_CONTROL, TAG_GAP, TAG_LIMIT, TAG_SILENCE
 from eyeq_spi.conformance.trace import Trace, Xfer
 from eyeq_spi.link.frame import SEQ_MODULO, NakReason
 from eyeq_spi.spec.link import link_spec
@@ -517,8 +518,6 @@ def tp_limit(ctx: Context, tr: Trace) -> Outcome:
     at_limit = tr.first_mark("limit_at")
     if at_limit is None:
         return base
-    from eyeq_spi.conformance.play.host import TAG_LIMIT
-
     if not _reply_to(tr, TAG_LIMIT, at_limit.time):
         return bad(f"{base.evidence}; but the {_T['receive_limit']['eyeq']}-byte request sent "
                    f"at {at(at_limit.time)} was never answered (the limit itself must pass)")
@@ -526,8 +525,6 @@ def tp_limit(ctx: Context, tr: Trace) -> Outcome:
 
 
 def tp_abort(ctx: Context, tr: Trace) -> Outcome:
-    from eyeq_spi.conformance.play.host import TAG_CONTROL, TAG_GAP, TAG_SILENCE
-
     marks = {m.label: m for m in tr.marks if m.label.startswith("abort_")}
     if "abort_control" not in marks:
         return skip("the transport probes were not sent")

@@ -21,6 +21,18 @@ from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.codec.init_params import init_message
+from eyeq_spi.conformance.model import (
+    TAG_BAD_HASH,
+    TAG_BAD_SWITCH,
+    TAG_CONTROL,
+    TAG_DUP,
+    TAG_EARLY_INIT,
+    TAG_GAP,
+    TAG_LIMIT,
+    TAG_SILENCE,
+    TAG_UNKNOWN_FN,
+    TAG_UNKNOWN_SVC,
+)
 from eyeq_spi.conformance.play.session import Session
 from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.host.host import HostConfig, HostEmulator
@@ -31,10 +43,6 @@ from eyeq_spi.transport.segment import segment
 S = HostState
 _T = link_spec()["transport"]
 
-# MESP tag counters reserved for raw probes (M1: 0..63); our host's own client never has a
-# request of the same service/function outstanding while one of these is in flight.
-TAG_EARLY_INIT, TAG_BAD_SWITCH, TAG_BAD_HASH, TAG_UNKNOWN_FN, TAG_UNKNOWN_SVC = 63, 62, 61, 60, 59
-TAG_LIMIT, TAG_CONTROL, TAG_GAP, TAG_SILENCE, TAG_DUP = 58, 57, 56, 55, 54
 PROBE_LINK_TAG = 1 << 40  # link tags of raw probe frames: far above any transport message id
 EDR_EXAMPLE = {"edr_type": 6, "edr_policy": 1, "edr_function": 4, "edr_params_num": 1,
                "params": b"\x01"}  # M4, the seed's "Trigger LB1" example

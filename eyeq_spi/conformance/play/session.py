@@ -9,7 +9,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from eyeq_spi.conformance.load import STALL_MIN
+from eyeq_spi.conformance.model import STALL_MIN
 from eyeq_spi.conformance.play.shim import Shim
 from eyeq_spi.conformance.trace import Trace
 from eyeq_spi.errors import LinkLostError
