@@ -1,0 +1,1 @@
+"""Readers and writers of every file format (see the registry in this package)."""
