@@ -141,6 +141,11 @@ def names(kind: Kind) -> tuple[str, ...]:
     return tuple(f.name for f in REGISTRY if f.kind == kind)
 
 
+def readers() -> tuple[str, ...]:
+    """The capture readers' names (``--format``)."""
+    return names(CAPTURE_READER)
+
+
 def formats(kind: Kind) -> tuple[Format, ...]:
     return tuple(f for f in REGISTRY if f.kind == kind)
 
@@ -238,4 +243,4 @@ def markdown_table() -> str:
 
 __all__ = ["CAN_LOG", "CAPTURE_READER", "CAPTURE_WRITER", "KINDS", "RECORD_WRITER", "REGISTRY",
            "Format", "by_suffix", "formats", "get", "load", "markdown_table", "missing", "names",
-           "require", "sniffers"]
+           "readers", "require", "sniffers"]
