@@ -35,7 +35,7 @@ CAN_LOG: Kind = "can log"  # a CAN log python-can reads (its own registry, by su
 KINDS: tuple[Kind, ...] = (CAPTURE_READER, CAPTURE_WRITER, RECORD_WRITER, CAN_LOG)
 
 Takes = Literal["direction", "spi", "tail", ""]
-Truncation = Literal["error", "drop", "line", ""]
+Truncation = Literal["error", "drop", "short", ""]
 
 
 @dataclass(frozen=True)
@@ -52,7 +52,8 @@ class Format:
     holds both directions, 1 when it holds one (the caller says which); ``truncation``: what a
     file cut short gives: ``error`` (:class:`~eyeq_spi.errors.TruncatedInputError`), ``drop``
     (the transfer the cut ends is dropped, as a logic analyzer stopped mid-transfer) or
-    ``line`` (the last line is read as it stands; a cut inside a byte is an error).
+    ``short`` (the format marks no transfer's end: the last transfer is read as far as it
+    goes). A text format cut inside a row or line says so, naming the line.
 
     Capture writers are called ``target(records, path, **options) -> transfers written``.
     Record writers are the dissector's writer classes; their constructors differ (a directory
@@ -97,15 +98,15 @@ REGISTRY: tuple[Format, ...] = (
     Format("saleae1", CAPTURE_READER, (".csv",), "eyeq_spi.logic.saleae:read_saleae1",
            "Saleae Logic 1.x SPI analyzer export (Packet ID per transfer)",
            sniff="eyeq_spi.logic.saleae:sniff", text=True, takes="spi", resolution=0.0,
-           channels=1, truncation="drop"),
+           channels=1, truncation="short"),
     Format("vcd", CAPTURE_READER, (".vcd",), "eyeq_spi.logic.vcd:read_vcd",
            "VCD waveforms of CS, CLK, MOSI, MISO (sigrok, PulseView, simulators)",
            sniff="eyeq_spi.logic.vcd:sniff", text=True, takes="spi", resolution=1e-8,
            truncation="drop"),
     Format("hex", CAPTURE_READER, (".hex", ".txt"), f"{_PLAIN}:read_hex",
-           "one transfer per line: [TIME] [h2e|e2h] HEX BYTES (# comments)",
+           "one transfer per line: [TIME] [h2e or e2h] HEX BYTES (# comments)",
            sniff=f"{_PLAIN}:sniff_hex", text=True, takes="direction", resolution=0.0,
-           truncation="line"),
+           truncation="short"),
     Format("raw", CAPTURE_READER, (".raw", ".bin"), f"{_PLAIN}:read_raw",
            "concatenated 128-byte transfers of one channel, no times",
            sniff=f"{_PLAIN}:sniff_raw", takes="direction", channels=1, truncation="error"),
@@ -222,22 +223,30 @@ def sniffers(text: bool) -> list[tuple[str, Callable[[bytes], str | None]]]:
     return out
 
 
+_CUT = {"error": "error", "drop": "cut transfer dropped", "short": "last transfer as cut"}
+
+
 def markdown_table() -> str:
     """The table of formats in ``docs/captures.md``."""
-    rows = ["| Format | Kind | Suffixes | Needs | Times | What |",
-            "|---|---|---|---|---|---|"]
+    rows = ["| Format | Kind | Suffixes | Needs | Channels | Times | A cut file | What |",
+            "|---|---|---|---|---|---|---|---|"]
     for f in REGISTRY:
         extra = f"`eyeq-spi[{f.extra}]`" if f.extra else "-"
         suffixes = " ".join(f"`{s}`" for s in f.suffixes) or "python-can's"
-        if f.kind != CAPTURE_READER:
-            times = "-"
-        elif f.resolution is None:
-            times = "none"
-        elif f.resolution == 0:
-            times = "as written"
-        else:
-            times = f"{f.resolution * 1e9:g} ns"
-        rows.append(f"| `{f.name}` | {f.kind} | {suffixes} | {extra} | {times} | {f.summary} |")
+        times = channels = cut = "-"
+        if f.kind == CAPTURE_READER:
+            channels = "both" if f.channels == 2 else "one"
+            cut = _CUT[f.truncation]
+            if f.resolution is None:
+                times = "none"
+            elif f.resolution == 0:
+                times = "as written"
+            elif f.resolution >= 1e-6:
+                times = f"{f.resolution * 1e6:g} µs"
+            else:
+                times = f"{f.resolution * 1e9:g} ns"
+        rows.append(f"| `{f.name}` | {f.kind} | {suffixes} | {extra} | {channels} | {times} | "
+                    f"{cut} | {f.summary} |")
     return "\n".join(rows) + "\n"
 
 
