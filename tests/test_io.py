@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import importlib
 import io
 import json
 import math
@@ -162,7 +163,7 @@ def test_an_empty_file_is_a_clear_error(fmt: Format) -> None:
     assert str(exc.value) and "\n" not in str(exc.value)
 
 
-def test_unknown_names_and_suffixes_list_the_known_ones() -> None:
+def test_unknown_names_and_suffixes_list_the_known_ones(tmp_path: Path) -> None:
     with pytest.raises(UnknownFormatError) as exc:
         registry.by_suffix("run.xyz", CAPTURE_WRITER)
     assert all(n in str(exc.value) for n in registry.names(CAPTURE_WRITER))
@@ -171,6 +172,10 @@ def test_unknown_names_and_suffixes_list_the_known_ones() -> None:
     assert all(n in str(exc.value) for n in registry.readers())
     with pytest.raises(InputError, match="formats: " + ", ".join(registry.readers())):
         open_records(io.BytesIO(bytes(range(14, 28)) * 20))
+    from eyeq_spi.dissect.output import TableWriter
+
+    with pytest.raises(UnknownFormatError, match="one of csv, parquet"):
+        TableWriter(str(tmp_path), "xlsx")
     assert registry.by_suffix("Run.MF4", RECORD_WRITER).name == "mdf4"
     assert registry.get("jsonl", RECORD_WRITER).suffixes == (".jsonl", ".ndjson")
 
@@ -183,6 +188,9 @@ def test_every_entry_imports(fmt: Format) -> None:
     assert callable(registry.load(fmt))
     if fmt.sniff is not None:
         assert any(name == fmt.sniff for name, _ in registry.sniffers(text=True))
+    if fmt.batch is not None:
+        mod, _, name = fmt.batch.partition(":")
+        assert callable(getattr(importlib.import_module(mod), name))
     assert fmt.suffixes or fmt.kind == registry.CAN_LOG
     assert all(s.startswith(".") and s == s.lower() for s in fmt.suffixes)
 

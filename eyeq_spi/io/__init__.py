@@ -53,7 +53,9 @@ class Format:
     file cut short gives: ``error`` (:class:`~eyeq_spi.errors.TruncatedInputError`), ``drop``
     (the transfer the cut ends is dropped, as a logic analyzer stopped mid-transfer) or
     ``short`` (the format marks no transfer's end: the last transfer is read as far as it
-    goes). A text format cut inside a row or line says so, naming the line.
+    goes). A text format cut inside a row or line says so, naming the line. ``batch``: the
+    ``module:callable`` reading the format in chunks for the batch dissector (else only the
+    exact reader reads it).
 
     Capture writers are called ``target(records, path, **options) -> transfers written``.
     Record writers are the dissector's writer classes; their constructors differ (a directory
@@ -72,6 +74,7 @@ class Format:
     resolution: float | None = None
     channels: int = 2
     truncation: Truncation = ""
+    batch: str | None = None  # readers: the batch (numpy) path's chunk reader, if it has one
 
     @property
     def module(self) -> str:
@@ -90,7 +93,8 @@ _WRITERS = "eyeq_spi.io.writers"
 REGISTRY: tuple[Format, ...] = (
     Format("pcapng", CAPTURE_READER, (".pcapng",), f"{_PLAIN}:read_pcapng_input",
            "our captures: one interface per SPI channel (specs/capture.yaml)",
-           sniff=f"{_PLAIN}:sniff_pcapng", takes="tail", resolution=1e-6, truncation="error"),
+           sniff=f"{_PLAIN}:sniff_pcapng", takes="tail", resolution=1e-6, truncation="error",
+           batch="eyeq_spi.capture.fastread:pcapng_chunks"),
     Format("saleae2", CAPTURE_READER, (".csv",), "eyeq_spi.logic.saleae:read_saleae2",
            "Saleae Logic 2 SPI analyzer export table (one analyzer per channel)",
            sniff="eyeq_spi.logic.saleae:sniff", text=True, takes="spi", resolution=0.0,
@@ -109,7 +113,8 @@ REGISTRY: tuple[Format, ...] = (
            truncation="short"),
     Format("raw", CAPTURE_READER, (".raw", ".bin"), f"{_PLAIN}:read_raw",
            "concatenated 128-byte transfers of one channel, no times",
-           sniff=f"{_PLAIN}:sniff_raw", takes="direction", channels=1, truncation="error"),
+           sniff=f"{_PLAIN}:sniff_raw", takes="direction", channels=1, truncation="error",
+           batch="eyeq_spi.capture.fastread:raw_chunks"),
     Format("pcapng", CAPTURE_WRITER, (".pcapng",), f"{_WRITERS}:write_pcapng",
            "what demo, host and sim --capture write (crash-safe, streamed)"),
     Format("vcd", CAPTURE_WRITER, (".vcd",), f"{_WRITERS}:write_vcd_file",
@@ -145,6 +150,11 @@ def names(kind: Kind) -> tuple[str, ...]:
 def readers() -> tuple[str, ...]:
     """The capture readers' names (``--format``)."""
     return names(CAPTURE_READER)
+
+
+def batch_readers() -> tuple[str, ...]:
+    """The capture readers the batch dissector reads (the others take the exact path)."""
+    return tuple(f.name for f in formats(CAPTURE_READER) if f.batch)
 
 
 def formats(kind: Kind) -> tuple[Format, ...]:
@@ -193,16 +203,17 @@ def require(fmt: Format, what: str | None = None) -> None:
                                 f"'eyeq-spi[{fmt.extra}]'", fmt.extra)
 
 
-def load(fmt: Format | str, kind: Kind = CAPTURE_READER) -> Callable[..., Any]:
+def load(fmt: Format | str, kind: Kind = CAPTURE_READER, *,
+         what: str | None = None) -> Callable[..., Any]:
     """``fmt``'s callable, imported now (:class:`MissingExtraError` when its extra is not
-    installed)."""
+    installed; ``what``: how the user asked for it, for the message)."""
     f = get(fmt, kind) if isinstance(fmt, str) else fmt
-    require(f)
+    require(f, what)
     try:
         module = importlib.import_module(f.module)
     except ImportError as exc:
         if f.extra is not None and (exc.name or "").split(".")[0] in f.needs:
-            raise MissingExtraError(f"{f.name} needs {exc.name}: pip install "
+            raise MissingExtraError(f"{what or f.name} needs {exc.name}: pip install "
                                     f"'eyeq-spi[{f.extra}]'", f.extra) from None
         raise
     obj: Callable[..., Any] = getattr(module, f.callable_name)
@@ -251,5 +262,5 @@ def markdown_table() -> str:
 
 
 __all__ = ["CAN_LOG", "CAPTURE_READER", "CAPTURE_WRITER", "KINDS", "RECORD_WRITER", "REGISTRY",
-           "Format", "by_suffix", "formats", "get", "load", "markdown_table", "missing", "names",
-           "readers", "require", "sniffers"]
+           "Format", "batch_readers", "by_suffix", "formats", "get", "load", "markdown_table",
+           "missing", "names", "readers", "require", "sniffers"]
