@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import binascii
 import re
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import IO
 
@@ -141,15 +141,17 @@ def open_records(stream: IO[bytes], fmt: str | None = None,
     entry = registry.get(kind, registry.CAPTURE_READER)
     read = registry.load(entry)
     if entry.takes == "spi":
-        return kind, _logic(read(peek, spi or SpiOptions(direction=direction)), peek, kind)
+        return kind, _logic(read, peek, spi or SpiOptions(direction=direction), kind)
     return kind, read(peek, tail if entry.takes == "tail" else direction)
 
 
-def _logic(records: Iterator[Record], peek: PeekStream, kind: str) -> Iterator[Record]:
+def _logic(read: Callable[[PeekStream, SpiOptions], Iterator[Record]], peek: PeekStream,
+           spi: SpiOptions, kind: str) -> Iterator[Record]:
+    """A logic-analyzer reader's transfers; its errors as :class:`InputError`."""
     if not peek.head:
         raise InputError("empty input")
     try:
-        yield from records
+        yield from read(peek, spi)
     except LogicInputError as exc:
         raise InputError(f"{kind}: {exc}") from None
 
