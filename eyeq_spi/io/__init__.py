@@ -7,11 +7,12 @@ imported on first use (:func:`load`), so the command line starts as fast with ev
 known, and a missing optional dependency is a :class:`~eyeq_spi.errors.MissingExtraError` that
 names the ``pip install 'eyeq-spi[EXTRA]'`` to run.
 
-Readers are found by name (``--format``), by content (:func:`detect`: every reader's sniffer,
-in registry order, on the first bytes; suffixes never decide, so stdin and renamed files read
-the same) and all open through :func:`eyeq_spi.io.plain.open_records`. Writers are found by
-name or by the suffix of the path they write (:func:`by_suffix`). CAN logs are python-can's:
-its own registry reads them by suffix, so one entry points there (:mod:`eyeq_spi.can.logs`).
+Readers are found by name (``--format``), by content (:func:`eyeq_spi.io.plain.detect`: every
+reader's sniffer, in registry order, on the first bytes; suffixes never decide, so stdin and
+renamed files read the same) and all open through :func:`eyeq_spi.io.plain.open_records`.
+Writers are found by name or by the suffix of the path they write (:func:`by_suffix`). CAN
+logs are python-can's: its own registry reads them by suffix, so one entry points there
+(:mod:`eyeq_spi.can.logs`).
 
 The table in ``docs/captures.md`` is :func:`markdown_table` (a test keeps them equal).
 """
