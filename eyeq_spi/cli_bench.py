@@ -9,8 +9,7 @@ import sys
 from typing import IO, Any
 
 from eyeq_spi.errors import UsageError
-
-_FORMATS = ("raw", "hex", "pcapng", "saleae2", "saleae1", "vcd")
+from eyeq_spi.io import readers
 
 
 def _input_options(p: Any) -> None:
@@ -18,7 +17,7 @@ def _input_options(p: Any) -> None:
 
     p.add_argument("capture", metavar="CAPTURE",
                    help="a capture in any format dissect reads (pcapng, raw, hex, Saleae, VCD)")
-    p.add_argument("--format", choices=_FORMATS, help="skip detection")
+    p.add_argument("--format", choices=readers(), help="skip detection")
     p.add_argument("--direction", choices=("h2e", "e2h"),
                    help="channel of an input without directions")
     p.add_argument("--sw", help="SW release of the traffic (default: the one the capture "

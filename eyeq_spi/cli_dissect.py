@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterator
 from typing import IO, Any
 
 from eyeq_spi.errors import UsageError
+from eyeq_spi.io import readers
 
 
 def add_dissect_parser(sub: Any) -> None:
@@ -23,8 +24,7 @@ def add_dissect_parser(sub: Any) -> None:
                        "2 bad input or usage.")
     d.add_argument("files", nargs="+", metavar="FILE", type=ca.input_file,
                    help="capture files, or - for stdin")
-    d.add_argument("--format", choices=("raw", "hex", "pcapng", "saleae2", "saleae1", "vcd"),
-                   help="skip detection")
+    d.add_argument("--format", choices=readers(), help="skip detection")
     d.add_argument("--direction", choices=("h2e", "e2h"),
                    help="channel of a raw or hex file without directions")
     d.add_argument("--sw", type=ca.sw_release,

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.errors import UsageError
+from eyeq_spi.io import readers
 
 # shared options that only the simulated EyeQ uses, and those only the host emulator uses
 SIM_ONLY = ("seed", "objects", "signs", "light_spots", "boot_fail", "boot_test_bits",
@@ -50,7 +51,7 @@ def add_plot_parser(sub: Any) -> None:
                    help="--link: time bin (default 100 ms)")
     p.add_argument("--start", type=float, default=0.0, metavar="S", help="window start, s")
     p.add_argument("--end", type=float, default=math.inf, metavar="S", help="window end, s")
-    p.add_argument("--format", choices=("raw", "hex", "pcapng"), help="skip detection")
+    p.add_argument("--format", choices=readers(), help="skip detection")
     p.add_argument("--direction", choices=("h2e", "e2h"),
                    help="channel of a raw or hex file without directions")
     p.add_argument("--sw", help="SW release of the traffic (default: the one the capture "
@@ -94,7 +95,7 @@ def add_plot_parser(sub: Any) -> None:
                    help="--screenshot: the screen as a terminal of that size shows it, e.g. "
                    "80x24 (default: the whole screen)")
     m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
-    m.add_argument("--format", choices=("raw", "hex", "pcapng"), help="--replay: skip detection")
+    m.add_argument("--format", choices=readers(), help="--replay: skip detection")
     add_shared_options(m)
     m.set_defaults(side_defaults={d: m.get_default(d) for d in SIM_ONLY + HOST_ONLY})
 

@@ -50,3 +50,25 @@ class LinkLostError(AdapterError):
 
 class UsageError(EyeqError):
     """A command-line argument is wrong."""
+
+
+class InputError(EyeqError):
+    """The input is not a capture we can read (foreign, empty, damaged)."""
+
+
+class TruncatedInputError(InputError):
+    """The input ends in the middle of a transfer or block (a copy cut short, a killed
+    writer)."""
+
+
+class UnknownFormatError(InputError):
+    """No registered format has this name or suffix (the message lists the known ones)."""
+
+
+class MissingExtraError(EyeqError):
+    """A format needs an optional dependency that is not installed; ``extra`` names the
+    ``pip install 'eyeq-spi[EXTRA]'`` that brings it."""
+
+    def __init__(self, message: str, extra: str) -> None:
+        super().__init__(message)
+        self.extra = extra

@@ -8,6 +8,7 @@ import contextlib
 from collections.abc import Callable, Iterable
 from typing import IO, Any
 
+from eyeq_spi import io as formats
 from eyeq_spi.bench.mdf import ExportError
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.logic.options import SpiOptions
@@ -39,14 +40,11 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
 
             vcd_w = VcdWriter(stack.enter_context(_open(vcd, "w")), spi, max_idle=vcd_max_idle)
         if mdf:
-            from eyeq_spi.bench.mdf import MdfWriter
-
-            mdf_w = MdfWriter(mdf, codec, source=source)
+            mdf_w = formats.load("mdf4", formats.RECORD_WRITER, what="--mdf")(
+                mdf, codec, source=source)
         if mcap:
-            from eyeq_spi.bench.mcap_out import McapWriter
-
-            mcap_w = McapWriter(stack.enter_context(_open(mcap, "wb")), sw=codec.sw,
-                                source=source)
+            mcap_w = formats.load("mcap", formats.RECORD_WRITER, what="--mcap")(
+                stack.enter_context(_open(mcap, "wb")), sw=codec.sw, source=source)
         dis = Dissector(codec=codec) if (mdf_w or mcap_w) else None
         transfers = 0
         for rec in records:

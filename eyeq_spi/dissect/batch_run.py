@@ -24,6 +24,7 @@ from eyeq_spi.dissect.inputs import InputError, detect
 from eyeq_spi.dissect.output import JsonWriter
 from eyeq_spi.dissect.release import Release
 from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBlock
+from eyeq_spi.io import batch_readers
 
 Item = dict[str, Any] | FrameBlock
 __all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "fields_mode", "is_plain",
@@ -155,7 +156,7 @@ def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,
                 kind = fmt or detect(head)
             except InputError:
                 kind = None  # the exact path reports it, with its own words
-            if kind not in ("pcapng", "raw"):
+            if kind not in batch_readers():
                 return ("exact", "")
             fh.seek(0)
             cap = open_capture(fh, fmt, direction, sw=sw, name=path)

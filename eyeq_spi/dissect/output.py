@@ -8,8 +8,9 @@ import sys
 from pathlib import Path
 from typing import IO, Any
 
+from eyeq_spi import io as formats
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import EyeqError, UnknownFormatError
 
 RESET, DIM, RED, GREEN, CYAN, YELLOW = "\x1b[0m", "\x1b[2m", "\x1b[31m", "\x1b[32m", "\x1b[36m", \
     "\x1b[33m"
@@ -258,6 +259,10 @@ class TableWriter:
         "string") of a column whose first rows are all empty (NULL): a Parquet file's schema is
         fixed by its first row group, which must not say ``null`` for a column that has values
         later (a CAN signal at its invalid value until the first measurement)."""
+        tables = [f.name for f in formats.formats(formats.RECORD_WRITER)
+                  if f.target == f"{__name__}:TableWriter"]
+        if fmt not in tables:
+            raise UnknownFormatError(f"unknown table format {fmt!r} (one of {', '.join(tables)})")
         self.dir = Path(directory)
         self.column_type = column_type
         try:
@@ -275,7 +280,8 @@ class TableWriter:
             try:
                 import pyarrow  # noqa: F401
             except ImportError as exc:
-                raise OutputError("--parquet needs pyarrow: pip install 'eyeq-spi[parquet]'") \
+                extra = formats.get("parquet", formats.RECORD_WRITER).extra
+                raise OutputError(f"--parquet needs pyarrow: pip install 'eyeq-spi[{extra}]'") \
                     from exc
             hide_pandas()
 

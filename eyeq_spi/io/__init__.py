@@ -1,0 +1,267 @@
+"""One registry of the file formats eyeq-spi reads and writes (python-can's ``can.io`` pattern).
+
+Each :class:`Format` says its name, file suffixes, kind (:data:`CAPTURE_READER`,
+:data:`CAPTURE_WRITER`, :data:`RECORD_WRITER`, :data:`CAN_LOG`), the ``module:callable`` that
+implements it and the optional extra it needs. Registering imports nothing: the callable is
+imported on first use (:func:`load`), so the command line starts as fast with every format
+known, and a missing optional dependency is a :class:`~eyeq_spi.errors.MissingExtraError` that
+names the ``pip install 'eyeq-spi[EXTRA]'`` to run.
+
+Readers are found by name (``--format``), by content (:func:`eyeq_spi.io.plain.detect`: every
+reader's sniffer, in registry order, on the first bytes; suffixes never decide, so stdin and
+renamed files read the same) and all open through :func:`eyeq_spi.io.plain.open_records`.
+Writers are found by name or by the suffix of the path they write (:func:`by_suffix`). CAN
+logs are python-can's: its own registry reads them by suffix, so one entry points there
+(:mod:`eyeq_spi.can.logs`).
+
+The table in ``docs/captures.md`` is :func:`markdown_table` (a test keeps them equal).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import PurePath
+from typing import Any, Literal
+
+from eyeq_spi.errors import MissingExtraError, UnknownFormatError
+
+Kind = Literal["capture reader", "capture writer", "record writer", "can log"]
+CAPTURE_READER: Kind = "capture reader"  # a file of SPI transfers -> Record(time, direction, data)
+CAPTURE_WRITER: Kind = "capture writer"  # Records -> a file of SPI transfers
+RECORD_WRITER: Kind = "record writer"  # the dissector's records (docs/dissector.md) -> a file
+CAN_LOG: Kind = "can log"  # a CAN log python-can reads (its own registry, by suffix)
+KINDS: tuple[Kind, ...] = (CAPTURE_READER, CAPTURE_WRITER, RECORD_WRITER, CAN_LOG)
+
+Takes = Literal["direction", "spi", "tail", ""]
+Truncation = Literal["error", "drop", "short", ""]
+
+
+@dataclass(frozen=True)
+class Format:
+    """A registered format. ``target``: ``module:callable``, imported by :func:`load`.
+
+    Capture readers are called ``target(stream, arg)`` where ``takes`` names ``arg``: the
+    ``direction`` of a one-channel input, the ``spi`` options of a logic-analyzer export, or
+    the ``tail`` that lets a pcapng cut inside a block read up to its last whole block.
+    ``sniff``: ``module:function(head) -> name | None`` on the first bytes (several formats may
+    share one sniffer); ``text``: a text format, whose sniffer is skipped for a head starting
+    with a byte no text begins with. ``resolution``: seconds to which times survive a write and
+    read back (0: exactly; None: the format carries no times); ``channels``: 2 when one file
+    holds both directions, 1 when it holds one (the caller says which); ``truncation``: what a
+    file cut short gives: ``error`` (:class:`~eyeq_spi.errors.TruncatedInputError`), ``drop``
+    (the transfer the cut ends is dropped, as a logic analyzer stopped mid-transfer) or
+    ``short`` (the format marks no transfer's end: the last transfer is read as far as it
+    goes). A text format cut inside a row or line says so, naming the line. ``batch``: the
+    ``module:callable`` reading the format in chunks for the batch dissector (else only the
+    exact reader reads it).
+
+    Capture writers are called ``target(records, path, **options) -> transfers written``.
+    Record writers are the dissector's writer classes; their constructors differ (a directory
+    of tables, a text stream, a file path with the codec)."""
+
+    name: str
+    kind: Kind
+    suffixes: tuple[str, ...]
+    target: str
+    summary: str
+    extra: str | None = None  # pip extra: pip install 'eyeq-spi[EXTRA]'
+    needs: tuple[str, ...] = ()  # top-level modules that extra brings
+    sniff: str | None = None
+    text: bool = False
+    takes: Takes = ""
+    resolution: float | None = None
+    channels: int = 2
+    truncation: Truncation = ""
+    batch: str | None = None  # readers: the batch (numpy) path's chunk reader, if it has one
+
+    @property
+    def module(self) -> str:
+        return self.target.split(":", 1)[0]
+
+    @property
+    def callable_name(self) -> str:
+        return self.target.split(":", 1)[1]
+
+
+_PLAIN = "eyeq_spi.io.plain"
+_WRITERS = "eyeq_spi.io.writers"
+
+# Order matters for detection: the first sniffer that names a format wins (pcapng's magic,
+# then the text formats, then raw transfers with a valid CRC).
+REGISTRY: tuple[Format, ...] = (
+    Format("pcapng", CAPTURE_READER, (".pcapng",), f"{_PLAIN}:read_pcapng_input",
+           "our captures: one interface per SPI channel (specs/capture.yaml)",
+           sniff=f"{_PLAIN}:sniff_pcapng", takes="tail", resolution=1e-6, truncation="error",
+           batch="eyeq_spi.capture.fastread:pcapng_chunks"),
+    Format("saleae2", CAPTURE_READER, (".csv",), "eyeq_spi.logic.saleae:read_saleae2",
+           "Saleae Logic 2 SPI analyzer export table (one analyzer per channel)",
+           sniff="eyeq_spi.logic.saleae:sniff", text=True, takes="spi", resolution=0.0,
+           truncation="drop"),
+    Format("saleae1", CAPTURE_READER, (".csv",), "eyeq_spi.logic.saleae:read_saleae1",
+           "Saleae Logic 1.x SPI analyzer export (Packet ID per transfer)",
+           sniff="eyeq_spi.logic.saleae:sniff", text=True, takes="spi", resolution=0.0,
+           channels=1, truncation="short"),
+    Format("vcd", CAPTURE_READER, (".vcd",), "eyeq_spi.logic.vcd:read_vcd",
+           "VCD waveforms of CS, CLK, MOSI, MISO (sigrok, PulseView, simulators)",
+           sniff="eyeq_spi.logic.vcd:sniff", text=True, takes="spi", resolution=1e-8,
+           truncation="drop"),
+    Format("hex", CAPTURE_READER, (".hex", ".txt"), f"{_PLAIN}:read_hex",
+           "one transfer per line: [TIME] [h2e or e2h] HEX BYTES (# comments)",
+           sniff=f"{_PLAIN}:sniff_hex", text=True, takes="direction", resolution=0.0,
+           truncation="short"),
+    Format("raw", CAPTURE_READER, (".raw", ".bin"), f"{_PLAIN}:read_raw",
+           "concatenated 128-byte transfers of one channel, no times",
+           sniff=f"{_PLAIN}:sniff_raw", takes="direction", channels=1, truncation="error",
+           batch="eyeq_spi.capture.fastread:raw_chunks"),
+    Format("pcapng", CAPTURE_WRITER, (".pcapng",), f"{_WRITERS}:write_pcapng",
+           "what demo, host and sim --capture write (crash-safe, streamed)"),
+    Format("vcd", CAPTURE_WRITER, (".vcd",), f"{_WRITERS}:write_vcd_file",
+           "SPI waveforms for PulseView and sigrok (export --vcd)"),
+    Format("hex", CAPTURE_WRITER, (".hex", ".txt"), f"{_PLAIN}:write_hex",
+           "one transfer per line: TIME DIRECTION HEX"),
+    Format("raw", CAPTURE_WRITER, (".raw", ".bin"), f"{_PLAIN}:write_raw",
+           "the transfers of one channel, concatenated"),
+    Format("jsonl", RECORD_WRITER, (".jsonl", ".ndjson"), "eyeq_spi.dissect.output:JsonWriter",
+           "JSON Lines: every record (dissect --json)"),
+    Format("csv", RECORD_WRITER, (".csv",), "eyeq_spi.dissect.output:TableWriter",
+           "a directory of tables, one CSV file per message type (dissect --csv)"),
+    Format("parquet", RECORD_WRITER, (".parquet",), "eyeq_spi.dissect.output:TableWriter",
+           "a directory of tables, one Parquet file per message type (dissect --parquet)",
+           extra="parquet", needs=("pyarrow",)),
+    Format("mdf4", RECORD_WRITER, (".mf4", ".mdf"), "eyeq_spi.bench.mdf:MdfWriter",
+           "decoded signals for asammdf and CANape (export --mdf)",
+           extra="bench", needs=("asammdf",)),
+    Format("mcap", RECORD_WRITER, (".mcap",), "eyeq_spi.bench.mcap_out:McapWriter",
+           "raw transfers and decoded messages for Foxglove (export --mcap)",
+           extra="bench", needs=("mcap", "zstandard")),
+    Format("can-log", CAN_LOG, (), "eyeq_spi.can.logs:read_log",
+           "CAN logs: python-can's own registry reads them by suffix (eyeq-spi can)",
+           extra="can", needs=("can", "cantools")),
+)
+
+
+def names(kind: Kind) -> tuple[str, ...]:
+    """The names of one kind, in registry order (``choices=`` of ``--format``)."""
+    return tuple(f.name for f in REGISTRY if f.kind == kind)
+
+
+def readers() -> tuple[str, ...]:
+    """The capture readers' names (``--format``)."""
+    return names(CAPTURE_READER)
+
+
+def batch_readers() -> tuple[str, ...]:
+    """The capture readers the batch dissector reads (the others take the exact path)."""
+    return tuple(f.name for f in formats(CAPTURE_READER) if f.batch)
+
+
+def formats(kind: Kind) -> tuple[Format, ...]:
+    return tuple(f for f in REGISTRY if f.kind == kind)
+
+
+def get(name: str, kind: Kind = CAPTURE_READER) -> Format:
+    """The format ``name`` of ``kind``; an unknown name lists the known ones."""
+    for f in REGISTRY:
+        if f.kind == kind and f.name == name:
+            return f
+    raise UnknownFormatError(f"unknown {kind} format {name!r} (one of "
+                             f"{', '.join(names(kind))})")
+
+
+def by_suffix(path: str | PurePath, kind: Kind) -> Format:
+    """The first format of ``kind`` whose suffixes hold ``path``'s (case-insensitive); an
+    unknown suffix lists the known names and suffixes."""
+    suffix = PurePath(path).suffix.lower()
+    for f in REGISTRY:
+        if f.kind == kind and suffix in f.suffixes:
+            return f
+    known = ", ".join(f"{f.name} ({' '.join(f.suffixes)})" for f in formats(kind) if f.suffixes)
+    raise UnknownFormatError(f"{path}: unknown {kind} suffix {suffix or '(none)'!r}; known: "
+                             f"{known}")
+
+
+def missing(fmt: Format) -> str | None:
+    """The first module of ``fmt``'s extra that is not installed (None: all are), found
+    without importing anything."""
+    for mod in fmt.needs:
+        try:
+            if importlib.util.find_spec(mod) is None:
+                return mod
+        except (ImportError, ValueError):
+            return mod
+    return None
+
+
+def require(fmt: Format, what: str | None = None) -> None:
+    """Raise :class:`MissingExtraError` naming the pip extra when ``fmt`` cannot work here.
+    ``what``: how the user asked for it (``--parquet``), else the format's name."""
+    mod = missing(fmt)
+    if mod is not None and fmt.extra is not None:
+        raise MissingExtraError(f"{what or fmt.name} needs {mod}: pip install "
+                                f"'eyeq-spi[{fmt.extra}]'", fmt.extra)
+
+
+def load(fmt: Format | str, kind: Kind = CAPTURE_READER, *,
+         what: str | None = None) -> Callable[..., Any]:
+    """``fmt``'s callable, imported now (:class:`MissingExtraError` when its extra is not
+    installed; ``what``: how the user asked for it, for the message)."""
+    f = get(fmt, kind) if isinstance(fmt, str) else fmt
+    require(f, what)
+    try:
+        module = importlib.import_module(f.module)
+    except ImportError as exc:
+        if f.extra is not None and (exc.name or "").split(".")[0] in f.needs:
+            raise MissingExtraError(f"{what or f.name} needs {exc.name}: pip install "
+                                    f"'eyeq-spi[{f.extra}]'", f.extra) from None
+        raise
+    obj: Callable[..., Any] = getattr(module, f.callable_name)
+    return obj
+
+
+def sniffers(text: bool) -> list[tuple[str, Callable[[bytes], str | None]]]:
+    """The capture readers' sniffers, once each, in registry order; ``text=False`` leaves out
+    the text formats' (without importing their modules)."""
+    out: list[tuple[str, Callable[[bytes], str | None]]] = []
+    seen: set[str] = set()
+    for f in formats(CAPTURE_READER):
+        if f.sniff is None or f.sniff in seen or (f.text and not text):
+            continue
+        seen.add(f.sniff)
+        mod, _, fn = f.sniff.partition(":")
+        out.append((f.sniff, getattr(importlib.import_module(mod), fn)))
+    return out
+
+
+_CUT = {"error": "error", "drop": "cut transfer dropped", "short": "last transfer as cut"}
+
+
+def markdown_table() -> str:
+    """The table of formats in ``docs/captures.md``."""
+    rows = ["| Format | Kind | Suffixes | Needs | Channels | Times | A cut file | What |",
+            "|---|---|---|---|---|---|---|---|"]
+    for f in REGISTRY:
+        extra = f"`eyeq-spi[{f.extra}]`" if f.extra else "-"
+        suffixes = " ".join(f"`{s}`" for s in f.suffixes) or "python-can's"
+        times = channels = cut = "-"
+        if f.kind == CAPTURE_READER:
+            channels = "both" if f.channels == 2 else "one"
+            cut = _CUT[f.truncation]
+            if f.resolution is None:
+                times = "none"
+            elif f.resolution == 0:
+                times = "as written"
+            elif f.resolution >= 1e-6:
+                times = f"{f.resolution * 1e6:g} µs"
+            else:
+                times = f"{f.resolution * 1e9:g} ns"
+        rows.append(f"| `{f.name}` | {f.kind} | {suffixes} | {extra} | {channels} | {times} | "
+                    f"{cut} | {f.summary} |")
+    return "\n".join(rows) + "\n"
+
+
+__all__ = ["CAN_LOG", "CAPTURE_READER", "CAPTURE_WRITER", "KINDS", "RECORD_WRITER", "REGISTRY",
+           "Format", "batch_readers", "by_suffix", "formats", "get", "load", "markdown_table",
+           "missing", "names", "readers", "require", "sniffers"]

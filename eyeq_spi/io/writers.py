@@ -1,0 +1,35 @@
+"""Capture writers with the registry's one signature, ``write(records, path, **options) ->
+transfers written``, over the streaming writers that demo, host, sim and export use."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
+
+
+def write_pcapng(records: Iterable[Record], path: str | Path, *, sw: str | None = None,
+                 default_direction: str = "h2e") -> int:
+    """A pcapng capture (``specs/capture.yaml``); ``sw`` is recorded as the traffic's release.
+    A transfer without a time gets the previous one's; one without a direction goes to
+    ``default_direction``."""
+    n = 0
+    last = 0.0
+    with CaptureWriter(path, sw, idle_flush=False) as w:
+        for rec in records:
+            last = rec.time if rec.time is not None else last
+            w.write(rec.direction or default_direction, last, rec.data)
+            n += 1
+    return n
+
+
+def write_vcd_file(records: Iterable[Record], path: str | Path, **options: Any) -> int:
+    """SPI waveforms (:class:`eyeq_spi.logic.vcd_write.VcdWriter`; ``options`` are its
+    keyword arguments, ``opts`` the SPI options)."""
+    from eyeq_spi.logic.vcd_write import write_vcd
+
+    with open(path, "w", encoding="utf-8", newline="\n") as fh:
+        w = write_vcd(records, fh, options.pop("opts", None), **options)
+    return int(w.count)
