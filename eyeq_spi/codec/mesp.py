@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from eyeq_spi.errors import CodecError
+from eyeq_spi.errors import MalformedParamsError as MalformedParamsError
 from eyeq_spi.spec.catalog import Catalog, MespFunction
 
 if TYPE_CHECKING:
@@ -26,11 +27,6 @@ def param_types() -> dict[str, Any]:
 
     return {"u8": Int8ul, "u16": Int16ul, "u32": Int32ul,
             "string": PascalString(Int32ul, "ascii"), "bytes": Prefixed(Int32ul, GreedyBytes)}
-
-
-class MalformedParamsError(ValueError):
-    """A parameter block that does not parse; the message is what construct's parser says in
-    the first line of its error, so a decoded record reads the same either way."""
 
 
 def parse_params(params: Any, body: bytes) -> dict[str, Any]:

@@ -19,7 +19,7 @@ from collections.abc import Iterator
 from typing import IO
 
 from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Record, Tail, read_pcapng
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import InputError as InputError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec
 from eyeq_spi.logic.options import LogicInputError, SpiOptions
 
@@ -28,10 +28,6 @@ FORMATS = ("raw", "hex", "pcapng", *LOGIC_FORMATS)
 _HEX_LINE = re.compile(
     rb"^\s*(?:[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?\s+)?(?:(?:h2e|e2h)\s+)?[0-9A-Fa-f:\s]*$"
 )
-
-
-class InputError(EyeqError):
-    """The input is not a capture we can read."""
 
 
 class PeekStream:

@@ -41,7 +41,7 @@ from eyeq_spi.host.machine import ENTRY_ACTIONS, HostEvent, HostState, next_stat
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import ConstantDrive, Scenario
 from eyeq_spi.mesp.client import MespClient
-from eyeq_spi.mesp.replies import MespError, MespReply
+from eyeq_spi.mesp.replies import MespFailure, MespReply, MespResult
 from eyeq_spi.transport.connection import TransportConnection
 
 SWITCH_APP = (0x05, 0x05)  # MESP Switch EyeQ Application (service, function), M3
@@ -232,7 +232,7 @@ class HostBringUp:
                           S.WAIT_MODE_RUNNING) and self._next_poll is None:
             self._next_poll = now + self.config.poll_interval
 
-    def _on_versions(self, result: MespReply | MespError) -> None:
+    def _on_versions(self, result: MespResult) -> None:
         if isinstance(result, MespReply):
             v = result.value
             self.versions = {"apiVersionMajor": v.apiVersionMajor,
@@ -244,17 +244,17 @@ class HostBringUp:
         else:
             self._versions_asked = False  # ask again on the next bring-up
 
-    def _on_switch_reply(self, result: MespReply | MespError) -> None:
+    def _on_switch_reply(self, result: MespResult) -> None:
         if isinstance(result, MespReply):
             self._fire(E.SWITCH_ACCEPTED, self.now)
         else:
             self.problem = str(result)
             self._fire(E.SWITCH_REJECTED, self.now, str(result))
 
-    def _on_eeprom(self, result: MespReply | MespError, now: float) -> None:
+    def _on_eeprom(self, result: MespResult, now: float) -> None:
         if self.state is not S.READ_EEPROM:
             return
-        if isinstance(result, MespError):
+        if isinstance(result, MespFailure):
             self.problem = f"EEPROM read failed: {result}"
             self._fire(E.EEPROM_BAD, now, self.problem)
             return
@@ -292,9 +292,9 @@ class HostBringUp:
             return
         self._init_busy = True
 
-        def done(result: MespReply | MespError) -> None:
+        def done(result: MespResult) -> None:
             self._init_busy = False
-            if isinstance(result, MespError):
+            if isinstance(result, MespFailure):
                 self.problem = f"init message 0x{stage:02X} rejected: {result}"
                 self._fire(E.INIT_REJECTED, self.now, self.problem)
             elif mode_init:

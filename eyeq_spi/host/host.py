@@ -170,7 +170,7 @@ class HostEmulator(HostBringUp):
             if isinstance(mev, MespCompleted) and mev.reply.function == "GetEyeQExtendedState":
                 self._poll_busy = False
                 self._on_state_reply(mev.reply)
-            elif isinstance(mev, MespFailed) and mev.error.function == "GetEyeQExtendedState":
+            elif isinstance(mev, MespFailed) and mev.failure.function == "GetEyeQExtendedState":
                 self._poll_busy = False
                 if self._next_poll is None and self.state in (
                         S.WAIT_PENDING, S.WAIT_RUNNING, S.WAIT_MODE_PENDING, S.WAIT_MODE_RUNNING):
@@ -247,7 +247,7 @@ class HostEmulator(HostBringUp):
             return
         # A running EyeQ never reports boot or pending again without a reset. Compare with the
         # mode, not with the previous 0x41: the host can reach Running Vision by a Get State
-        # reply before any 0x41 has reported it (fault campaign defect 5).
+        # reply before any 0x41 has reported it (found by the reset campaign, faults/resets.py).
         went_back = (self.state in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC)
                      and main in (0, PENDING) and prev is not None)
         if went_back:
