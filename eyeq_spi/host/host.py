@@ -1,5 +1,7 @@
 """The Aurix host emulator: brings an EyeQ4 up and runs it in vision mode (and TAC/SPC/DV) over
-the real link and transport. Sans-IO; the state machine is the table in ``machine.py``.
+the real link and transport. Sans-IO; the state machine is the table in ``machine.py``, run with
+its entry actions by the base class in ``bringup.py``; this module adds the node interface, the
+receive path, stale detection and HOST_VEH_STATE_MSG.
 """
 
 from __future__ import annotations
