@@ -3,15 +3,11 @@ of the host at import; a subclass replaces one by overriding the method the tabl
 
 from __future__ import annotations
 
-import asyncio
-from collections.abc import Callable
-
 import pytest
 
 from eyeq_spi.host.bringup import HostBringUp
 from eyeq_spi.host.host import HostEmulator
 from eyeq_spi.host.machine import ENTRY_ACTIONS, NO_ENTRY_ACTION, HostState
-from eyeq_spi.runner.aio import message_stream
 
 S = HostState
 
@@ -52,16 +48,3 @@ def test_an_overridden_entry_action_runs_on_entry() -> None:
     assert seen == [("POWER_UP", 1.5)] and host.state is S.POWER_UP
     assert host.get_timer() == 1.5 + host.config.boot_timeout  # the default action ran too
     assert issubclass(HostEmulator, HostBringUp)
-
-
-def test_message_stream_yields_what_the_node_delivers_in_order() -> None:
-    callbacks: list[Callable[[int], None]] = []
-    stream = message_stream(callbacks.append)
-    assert len(callbacks) == 1
-    for i in range(3):
-        callbacks[0](i)
-
-    async def take() -> list[int]:
-        return [await stream.__anext__() for _ in range(3)]
-
-    assert asyncio.run(take()) == [0, 1, 2]
