@@ -17,7 +17,8 @@ from eyeq_spi.spec.can import CanMessage, CanProtocol, CanSignal, can_specs
 
 ROOT = Path(__file__).resolve().parents[1]
 SEEDS = ROOT.parent / "shared" / "seeds"
-pytestmark = pytest.mark.skipif(not SEEDS.exists(), reason="shared/seeds not beside the clone")
+pytestmark = pytest.mark.skipif(not SEEDS.exists(),
+                                reason="the OCR'd seed texts are not beside the clone")
 
 NUM = r"[-+]?\s*\d+(?:\.\d+)?"
 

@@ -176,7 +176,7 @@ def test_every_signal_range_fits_its_field() -> None:
                     f"{pname}.{m.name}.{s.name}"
 
 
-@pytest.mark.skipif(not SEEDS.exists(), reason="shared/seeds not beside the clone")
+@pytest.mark.skipif(not SEEDS.exists(), reason="the OCR'd seed texts are not beside the clone")
 def test_seed_lines_point_at_the_signal_text() -> None:
     """Every message and signal cites a line of its seed near its name (spaces and case aside)."""
     def squash(t: str) -> str:

@@ -306,7 +306,7 @@ def _mesp(emu, function: str, params: dict):  # type: ignore[no-untyped-def]
 def test_compute_hash_over_the_link_on_the_appendix_f_examples(running) -> None:  # type: ignore[no-untyped-def]
     import yaml
 
-    from eyeq_spi.mesp.replies import MespError, MespReply
+    from eyeq_spi.mesp.replies import MespFailure, MespReply
     from eyeq_spi.spec.link import specs_dir
 
     examples = yaml.safe_load((specs_dir() / "flash_map.yaml").read_text())["flash_map"]["examples"]
@@ -319,7 +319,7 @@ def test_compute_hash_over_the_link_on_the_appendix_f_examples(running) -> None:
             assert isinstance(r, MespReply), r
             assert r.value.result == flash.hash(ex["hash_type"], ex["start"], ex["size"])
         else:
-            assert isinstance(r, MespError) and r.ret == 3  # the 128 MB range on a 64 MB flash
+            assert isinstance(r, MespFailure) and r.ret == 3  # the 128 MB range on a 64 MB flash
     r = _mesp(running, "ComputeHash", {"hashType": 0, "datasetType": 0, "start": 0x1000,
                                        "size": 4096})
     import hashlib
@@ -327,7 +327,7 @@ def test_compute_hash_over_the_link_on_the_appendix_f_examples(running) -> None:
 
 
 def test_edr_trigger_is_recorded_and_ffs_errors_are_typed(running) -> None:  # type: ignore[no-untyped-def]
-    from eyeq_spi.mesp.replies import MespError, MespReply
+    from eyeq_spi.mesp.replies import MespFailure, MespReply
 
     r = _mesp(running, "SendParamsToCalibrationTool", {
         "edr_type": 6, "edr_policy": 1, "edr_function": 4, "edr_params_num": 1,
@@ -335,9 +335,9 @@ def test_edr_trigger_is_recorded_and_ffs_errors_are_typed(running) -> None:  # t
     assert isinstance(r, MespReply) and r.value.edr_function == 4
     assert running.sim.counters.edr_triggers[-1]["params"] == b"\x01"
     r = _mesp(running, "FFSReadFile", {"filename": "/mesp/nope"})
-    assert isinstance(r, MespError) and r.ret == 5 and r.ret_name == "FILE_NOT_FOUND"
+    assert isinstance(r, MespFailure) and r.ret == 5 and r.ret_name == "FILE_NOT_FOUND"
     r = _mesp(running, "SwitchEyeQApplication", {"applicationId": 9})
-    assert isinstance(r, MespError) and r.ret == 3
+    assert isinstance(r, MespFailure) and r.ret == 3
 
 
 def test_fatal_22_that_never_clears_ends_in_failed_not_a_loop() -> None:

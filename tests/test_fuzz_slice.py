@@ -41,7 +41,7 @@ def test_fuzz_slice_finds_nothing(name: str) -> None:
 
 
 def test_eeprom_with_nan_in_the_distortion_parameters_is_a_camera_fault() -> None:
-    # the case, as the host_eeprom target builds it: CRC-valid, CCAM_distorParams_m_*
+    # the case the host_eeprom fuzz target found, as it builds it: CRC-valid, CCAM_distorParams_m_*
     # set to NaN (each entry: signal index, then pick 0 = the NaN bit pattern)
     names = [s.name for s in eeprom_codec().variant.signals]
     picks = [names.index(n) for n in names if n.startswith("CCAM_distorParams_m_")][:4]

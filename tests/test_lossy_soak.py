@@ -16,8 +16,9 @@ from eyeq_spi.link.frame import FrameCodec
 
 @pytest.fixture(scope="module")
 def soak() -> SoakReport:
-    # The profile (BER 1e-5, 1% each of drop, duplicate, reorder, truncation), switched
-    # on in Running Vision so that the bring-up's reset-free path keeps the accounting exact.
+    # The default fault profile (BER 1e-5, 1% each of drop, duplicate, reorder, truncation),
+    # switched on in Running Vision so that the bring-up's reset-free path keeps the accounting
+    # exact.
     return run_soak(SoakConfig(duration=6.0, seed=1))
 
 

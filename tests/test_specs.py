@@ -45,7 +45,7 @@ def test_schema_validator_catches_broken_entries(tmp_path: Path) -> None:
     assert any("duplicate name" in p for p in problems)
 
 
-@pytest.mark.skipif(not SEED.exists(), reason="shared/seeds not beside the clone")
+@pytest.mark.skipif(not SEED.exists(), reason="the OCR'd seed texts are not beside the clone")
 def test_every_member_name_occurs_in_the_seed() -> None:
     seed = squash(SEED.read_text(encoding="utf-8"))
     missing, invented = [], set()

@@ -28,9 +28,10 @@ ROOT = Path(__file__).resolve().parents[1]
 SEEDS = ROOT.parent / "shared"
 SEED = SEEDS / "seeds" / "004_63c766cc38b57438.txt"
 DECISIONS_MD = SEEDS / "PROTOCOL_DECISIONS.md"
-needs_seed = pytest.mark.skipif(not SEED.exists(), reason="shared/seeds not beside the clone")
+needs_seed = pytest.mark.skipif(not SEED.exists(),
+                                reason="the OCR'd seed texts are not beside the clone")
 needs_decisions = pytest.mark.skipif(not DECISIONS_MD.exists(),
-                                     reason="shared/PROTOCOL_DECISIONS.md not beside the clone")
+                                     reason="the decisions file is not beside the clone")
 
 
 def squash(text: str) -> str:

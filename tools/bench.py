@@ -303,8 +303,8 @@ def emulator_bench(runs: int = 3, long_s: float = 0.0, dasp_packer: bool = True
     host alone (CPU inside the host's node calls), median and spread of ``runs`` runs, and each
     as a ratio to the in-run CRC baseline (how many 128-byte ``crc_hqx`` calls the same CPU
     time buys). Each round also runs the per-frame reference loop (``EYEQ_SPI_EXACT=1``) for
-    the ratio of both paths. ``long_s``: one more run of that many virtual seconds (the issue's
-    600 s)."""
+    the ratio of both paths. ``long_s``: one more run of that many virtual seconds (600 s for
+    the ten-minute figure)."""
     out: dict[str, float] = {}
     crc = [crc_baseline_us()]
     rows, exact = [], []
@@ -386,7 +386,7 @@ def main() -> int:
     ap.add_argument("--emulator-only", action="store_true", help="only the emulator runs")
     ap.add_argument("--runs", type=int, default=3, help="emulator runs (median and spread)")
     ap.add_argument("--long", type=float, default=0.0, metavar="S",
-                    help="one more emulator run of S virtual seconds (the issue's 600)")
+                    help="one more emulator run of S virtual seconds (e.g. 600 for ten minutes)")
     ap.add_argument("--dasp-dict", action="store_true",
                     help="emulator runs with the simulated EyeQ's DASP dict path (the reference "
                          "the packer is held to) instead of the packer")

@@ -4,7 +4,7 @@ fault hook, in virtual time. Prints the injected faults per class, the receiver 
 account for them (expected = observed for every exact rule), the messages sent, delivered and
 corrupted, and whether Running Vision was reached and held. Exit 1 if any check fails.
 
-    python tools/soak_lossy.py --duration 60            # the issue's profile, 60 s in vision
+    python tools/soak_lossy.py --duration 60            # the default profile, 60 s in vision
     python tools/soak_lossy.py --loss 0.05 --from-start # 5 % frame loss from power-up
 """
 
@@ -27,7 +27,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=60.0, help="virtual seconds with faults")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--loss", type=float, default=None,
-                    help="total frame loss (drop raised above the issue's profile)")
+                    help="total frame loss (drop raised above the default profile)")
     ap.add_argument("--from-start", action="store_true", help="faults from power-up")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)

@@ -18,14 +18,11 @@ import numpy as np
 
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.output import flatten
+from eyeq_spi.errors import ExportError as ExportError
 from eyeq_spi.errors import EyeqError
 
 FRAME_KINDS = {0: "INVALID", 1: "DATA", 2: "ACK", 3: "NAK"}
 _KIND_CODE = {v: k for k, v in FRAME_KINDS.items()}
-
-
-class ExportError(EyeqError):
-    """An export cannot be written (missing extra, unwritable file)."""
 
 
 def need(module: str, what: str) -> Any:

@@ -24,15 +24,12 @@ from typing import Any
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.errors import EyeqError, FrameError
+from eyeq_spi.errors import ReplayError as ReplayError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 from eyeq_spi.spec.catalog import sw_release_text as sw_text
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
-
-
-class ReplayError(EyeqError):
-    """A capture cannot be replayed (no EyeQ channel in it...)."""
 
 
 class ReplayEyeQ:

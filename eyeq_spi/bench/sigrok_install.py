@@ -11,13 +11,9 @@ import sys
 from pathlib import Path
 
 import eyeq_spi
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import InstallError as InstallError
 
 DECODER_FILES = ("__init__.py", "pd.py")
-
-
-class InstallError(EyeqError):
-    """The decoder cannot be written."""
 
 
 def decoder_source() -> Path:

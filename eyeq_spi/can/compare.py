@@ -18,12 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.can.dbc import INVALID_ATTRIBUTE, database, require_cantools
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import CanCompareError as CanCompareError
 from eyeq_spi.spec.can import CanMessage, CanSignal, can_documents, protocol
-
-
-class CanCompareError(EyeqError):
-    """The DBC to compare cannot be read."""
 
 
 @dataclass(frozen=True)

@@ -15,14 +15,11 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from eyeq_spi.errors import CanExtraMissingError as CanExtraMissingError
 from eyeq_spi.errors import EyeqError, SpecError
 from eyeq_spi.spec.can import CanMessage, CanProtocol, CanSignal, protocol
 
 INVALID_ATTRIBUTE = "GenSigInvalidValue"
-
-
-class CanExtraMissingError(EyeqError):
-    """cantools / python-can are not installed."""
 
 
 def require_cantools() -> Any:

@@ -20,26 +20,13 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.can.dbc import require_cantools
-from eyeq_spi.errors import AdapterError, EyeqError, UsageError
+from eyeq_spi.errors import CanBusError as CanBusError
+from eyeq_spi.errors import CanLogError as CanLogError
+from eyeq_spi.errors import CanLogTruncatedError as CanLogTruncatedError
+from eyeq_spi.errors import EyeqError, UsageError
 
 READ_SUFFIXES = (".blf", ".asc", ".log", ".trc", ".mf4", ".csv")
 TEXT_SUFFIXES = (".asc", ".log", ".trc", ".csv")
-
-
-class CanLogError(EyeqError):
-    """A CAN log cannot be read (missing, unknown format, corrupt)."""
-
-
-class CanBusError(AdapterError):
-    """A live CAN bus cannot be opened or read."""
-
-
-class CanLogTruncatedError(CanLogError):
-    """A CAN log ends inside a record or container: what was before the cut has been read."""
-
-    def __init__(self, message: str, frames: int) -> None:
-        super().__init__(message)
-        self.frames = frames
 
 
 def _blf_announced_size(p: Path) -> int | None:

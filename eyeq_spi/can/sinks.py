@@ -16,13 +16,10 @@ from typing import Any
 
 from eyeq_spi.can.dbc import CanExtraMissingError
 from eyeq_spi.can.gateway import CanFrame, CanGateway, GatewayNode
-from eyeq_spi.errors import AdapterError, UsageError
+from eyeq_spi.errors import CanOutputError as CanOutputError
+from eyeq_spi.errors import UsageError
 
 LOG_SUFFIXES = (".blf", ".asc", ".mf4", ".log", ".trc", ".csv")
-
-
-class CanOutputError(AdapterError):
-    """A CAN bus or log file cannot be opened or written."""
 
 
 def _can() -> Any:

@@ -16,24 +16,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+from eyeq_spi.errors import CaptureError as CaptureError
 from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import TruncatedCaptureError as TruncatedCaptureError
 from eyeq_spi.spec.catalog import SwKey, catalog, sw_release_text
 
 DIRECTIONS = ("h2e", "e2h")
 SW_COMMENT = "eyeq-spi sw={release}"  # specs/capture.yaml release_comment: "eyeq-spi sw=8.1"
-
-
-class CaptureError(EyeqError):
-    """A capture file cannot be written or read."""
-
-
-class TruncatedCaptureError(CaptureError):
-    """The file ends ``ignored`` bytes into the block that starts at byte ``at``."""
-
-    def __init__(self, message: str, ignored: int, at: int) -> None:
-        super().__init__(message)
-        self.ignored = ignored
-        self.at = at
 
 
 @dataclass

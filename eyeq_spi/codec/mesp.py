@@ -7,6 +7,7 @@ from typing import Any
 
 from eyeq_spi.codec.types import DecodedMessage
 from eyeq_spi.errors import CodecError
+from eyeq_spi.errors import MalformedParamsError as MalformedParamsError
 from eyeq_spi.spec.catalog import Catalog, MespFunction
 
 MESP_PROTOCOL = 0x5E
@@ -24,11 +25,6 @@ def param_types() -> dict[str, Any]:
 
     return {"u8": Int8ul, "u16": Int16ul, "u32": Int32ul,
             "string": PascalString(Int32ul, "ascii"), "bytes": Prefixed(Int32ul, GreedyBytes)}
-
-
-class MalformedParamsError(ValueError):
-    """A parameter block that does not parse; the message is what construct's parser says in
-    the first line of its error, so a decoded record reads the same either way."""
 
 
 def parse_params(params: Any, body: bytes) -> dict[str, Any]:

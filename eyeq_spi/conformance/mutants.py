@@ -1,8 +1,10 @@
 """Deliberately broken variants of our own simulated EyeQ and host: the proof that the suite
 can fail. Test-only (``--builtin --mutant NAME``). Each is a subclass, a wrapper of the link's
 output or of one message, or a configuration value: host and simulator internals are not
-edited. ``expected`` names the cases its bug violates; the CI matrix checks that exactly those
-fail and every other case still passes or stays as it is for the correct implementation.
+edited; a host mutant changes an entry action by overriding the method that
+``host/machine.py ENTRY_ACTIONS`` names for the state. ``expected`` names the cases its bug
+violates; the CI matrix checks that exactly those fail and every other case still passes or
+stays as it is for the correct implementation.
 ``ADVISED`` holds variants that depart only from our recommendations (no rule of the seed or a
 decision): the suite passes them and says so in the case's advice.
 """
@@ -304,18 +306,18 @@ class HostNoRetry(HostEmulator):
 
 
 class NoEepromReread(HostEmulator):
-    def _on_read_eeprom(self, now: float) -> None:
+    def entry_read_eeprom(self, now: float) -> None:
         if self.nvm.data.intrinsic:  # "the NVM already holds a calibration": gives up unread
             self.problem = "Fatal 22 with a calibration in NVM"
             self._fire(HostEvent.EEPROM_BAD, now, self.problem)
             return
-        super()._on_read_eeprom(now)
+        super().entry_read_eeprom(now)
 
 
 class VersionsEveryBringUp(HostEmulator):
-    def _on_wait_running(self, now: float) -> None:
+    def entry_start_vehicle_state(self, now: float) -> None:
         self._versions_asked = False
-        super()._on_wait_running(now)
+        super().entry_start_vehicle_state(now)
 
 
 class HostE2eWrong(HostEmulator):

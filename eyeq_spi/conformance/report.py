@@ -1,4 +1,5 @@
-"""Reporters: console table, JSON Lines (the issue's contract), JUnit XML, Markdown and HTML."""
+"""Reporters: console table, JSON Lines (one object per case, then the summary, as
+docs/conformance.md describes), JUnit XML, Markdown and HTML."""
 
 from __future__ import annotations
 

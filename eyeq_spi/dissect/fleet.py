@@ -27,13 +27,9 @@ from typing import Any
 
 from eyeq_spi.dissect.output import OutputError, flatten
 from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import FleetError as FleetError
 
 ROWS_PER_GROUP = 4096
-
-
-class FleetError(EyeqError):
-    """The fleet run cannot start (no captures, a missing extra, a scheduler that does not
-    answer)."""
 
 
 def find_captures(root: str | Path) -> list[Path]:

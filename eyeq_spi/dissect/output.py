@@ -11,13 +11,10 @@ from typing import IO, Any
 from eyeq_spi import io as formats
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.errors import EyeqError, UnknownFormatError
+from eyeq_spi.errors import OutputError as OutputError
 
 RESET, DIM, RED, GREEN, CYAN, YELLOW = "\x1b[0m", "\x1b[2m", "\x1b[31m", "\x1b[32m", "\x1b[36m", \
     "\x1b[33m"
-
-
-class OutputError(EyeqError):
-    """An output directory or file cannot be written."""
 
 
 def flatten(values: Any, prefix: str = "") -> dict[str, Any]:

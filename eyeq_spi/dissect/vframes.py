@@ -17,13 +17,8 @@ import numpy as np
 from eyeq_spi.capture.fastread import DIR_NAME, Chunk
 from eyeq_spi.dissect.engine import TRANSPORT_NAMES
 from eyeq_spi.dissect.output import json_float
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import BatchUnsupportedError as BatchUnsupportedError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
-
-
-class BatchUnsupportedError(EyeqError):
-    """The batch path cannot judge these frames (an unusual CRC variant): use the exact one."""
-
 
 # frame_type codes
 DATA, ACK, NAK, INVALID = 0, 1, 2, 3

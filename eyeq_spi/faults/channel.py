@@ -49,7 +49,7 @@ class FaultProfile:
 
     @classmethod
     def with_loss(cls, loss: float) -> FaultProfile:
-        """The issue's profile with ``drop`` raised so that about ``loss`` of the frames never
+        """The default profile with ``drop`` raised so that about ``loss`` of the frames never
         arrive intact: BER 1e-5 (≈1% of 128-byte frames) + 1% truncation + the rest dropped."""
         ber_frames = 1.0 - (1.0 - 1e-5) ** (FRAME_SIZE * 8)
         drop = loss - 0.01 - ber_frames

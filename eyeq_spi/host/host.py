@@ -1,30 +1,24 @@
 """The Aurix host emulator: brings an EyeQ4 up and runs it in vision mode (and TAC/SPC/DV) over
-the real link and transport. Sans-IO; the state machine is the table in ``machine.py``.
+the real link and transport. Sans-IO; the state machine is the table in ``machine.py``, run with
+its entry actions by the base class in ``bringup.py``; this module adds the node interface, the
+receive path, stale detection and HOST_VEH_STATE_MSG.
 """
 
 from __future__ import annotations
 
-import asyncio
-from collections import deque
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from typing import Any
 
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
-from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
+from eyeq_spi.codec.message import DecodedMessage
 from eyeq_spi.errors import CodecError, LocalProtocolError, SpecError
 from eyeq_spi.host import calibration, init_seq
+from eyeq_spi.host.bringup import SWITCH_APP, HostBringUp, ResetLine, Subscriber
 from eyeq_spi.host.config import (
     APP_IDS,
-    DV_STATE,
-    EEPROM_FILE,
     FATAL_INTRINSIC,
     PENDING,
-    PENDING_OF,
-    PENDING_VISION,
-    RUNNING_SPC,
-    RUNNING_TAC,
-    RUNNING_VISION,
     STAGE_OF,
     STALE_CHECK,
     E,
@@ -32,84 +26,22 @@ from eyeq_spi.host.config import (
     HostCounters,
     S,
     Transition,
-    link_config,
 )
-from eyeq_spi.host.machine import HostEvent, HostState, next_state
-from eyeq_spi.host.nvm import Nvm
-from eyeq_spi.host.scenario import ConstantDrive, Scenario, veh_state_values
+from eyeq_spi.host.machine import next_state
+from eyeq_spi.host.scenario import veh_state_values
 from eyeq_spi.link.events import Resynchronised
-from eyeq_spi.mesp.client import MespClient, MespCompleted, MespFailed
-from eyeq_spi.mesp.replies import MespError, MespReply
+from eyeq_spi.mesp.client import MespCompleted, MespFailed
 from eyeq_spi.spec.catalog import sw_release
 from eyeq_spi.spec.tables import alignment_nvm
-from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
-SWITCH_APP = (0x05, 0x05)  # MESP Switch EyeQ Application (service, function), M3
-
-ResetLine = Callable[[float], None]
-Subscriber = Callable[[DecodedMessage], None]
-
-__all__ = ["HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber", "Transition"]
+__all__ = ["SWITCH_APP", "HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
+           "Transition"]
 
 
-class HostEmulator:
-    def __init__(
-        self,
-        config: HostConfig | None = None,
-        *,
-        nvm: Nvm | None = None,
-        scenario: Scenario | None = None,
-        reset_line: ResetLine | None = None,
-        keep_rx_times: bool = True,
-    ) -> None:
-        self.config = config or HostConfig()
-        self.codec = MessageCodec(self.config.sw)
-        self.sw = self.codec.sw
-        self.conn = TransportConnection(link_config("host", self.config.ack_timeout,
-                                                     self.config.transmit_timeout))
-        self.mesp = MespClient(self.codec.cat)
-        self.nvm = nvm or Nvm()
-        self.nvm.load()
-        self.scenario = scenario or ConstantDrive()
-        self.reset_line = reset_line
-        self.counters = HostCounters()
-        self.keep_rx_times = keep_rx_times
-        self.state = S.POWER_UP
-        self.transitions: list[Transition] = []
-        self.problem: str | None = self.nvm.load_problem
-        self.versions: dict[str, int] | None = None
-        self.boot_info: dict[str, Any] = {}
-        self.last_diag: dict[str, Any] = {}
-        self.calibration_result: dict[str, Any] | None = None
-        self._subscribers: list[Subscriber] = []
-        self._queues: list[asyncio.Queue[DecodedMessage]] = []
-        self._e2e = E2EState()  # D5: the EyeQ's rolling counters, judged afresh per boot
-        # our own HOST_VEH_STATE rolling counters run on across EyeQ resets, as our DASP counter
-        # does: a capture of the whole run then shows one unbroken sequence (the EyeQ's
-        # restarted application takes whatever comes first)
-        self._tx_e2e = E2EState()
-        self._rx_counters = DaspCounters()
-        self._last_rx: dict[str, float] = {}
-        self._stale: set[str] = set()
-        self._strikes = 0
-        self._bringups = 0
-        self._boot_deadline: float | None = None
-        self._next_poll: float | None = None
-        self._poll_busy = False
-        self._veh_next: float | None = None
-        self._rolling = 0
-        self._dasp_counter = 0
-        self._init_queue: deque[int] = deque()
-        self._init_busy = False
-        self._target_mode = "VISION"
-        self._versions_asked = False
-        self._versions_ok = False  # a positive Get EyeQ Versions reply in this ignition cycle
-        self._switch_at: float | None = None  # when the last one was sent, until its ACK
-        self._started = False
-        self._stale_limits: dict[str, float] = {}
-        self._next_stale_check = 0.0
-        self.now = 0.0
+class HostEmulator(HostBringUp):
+    """The host emulator as a sans-IO node: the public API, the receive path, stale detection
+    and HOST_VEH_STATE_MSG. Its state and bring-up are :class:`HostBringUp`."""
 
     # -- public API -------------------------------------------------------------------------
     def start(self, now: float) -> None:
@@ -122,15 +54,11 @@ class HostEmulator:
         self._subscribers.append(callback)
 
     def messages(self) -> AsyncIterator[DecodedMessage]:
-        """Async iterator over delivered messages (one queue per iterator)."""
-        q: asyncio.Queue[DecodedMessage] = asyncio.Queue()
-        self._queues.append(q)
+        """Async iterator over delivered messages (one queue per iterator): the asyncio
+        adapter ``runner/aio.py``, loaded only when asked for."""
+        from eyeq_spi.runner.aio import message_stream
 
-        async def gen() -> AsyncIterator[DecodedMessage]:
-            while True:
-                yield await q.get()
-
-        return gen()
+        return message_stream(self.subscribe)
 
     def switch_mode(self, mode: str, now: float) -> None:
         """Go to TAC, SPC or DV, or back to VISION (§6 flow step 16)."""
@@ -233,192 +161,6 @@ class HostEmulator:
             self._check_stale(now)
         self._pump(now)
 
-    # -- state machine ----------------------------------------------------------------------
-    def _fire(self, event: HostEvent, now: float, detail: str = "") -> None:
-        dst = next_state(self.state, event)
-        if dst is None:
-            self.counters.ignored_events += 1
-            return
-        self.transitions.append(Transition(now, self.state, event, dst, detail))
-        self._enter(dst, now)
-
-    def _enter(self, state: HostState, now: float) -> None:
-        self.state = state
-        self._next_poll = None
-        self._poll_busy = False
-        action = getattr(self, f"_on_{state.value.lower()}", None)
-        if action is not None:
-            action(now)
-
-    def _on_power_up(self, now: float) -> None:
-        self._veh_next = None
-        self._boot_deadline = now + self.config.boot_timeout
-        self._init_queue.clear()
-        self._init_busy = False
-        self._e2e = E2EState()
-        self._rx_counters.clear()
-        self._last_rx.clear()
-        self._stale.clear()
-
-    def _on_wait_pending(self, now: float) -> None:
-        self._next_poll = now
-
-    def _on_init(self, now: float) -> None:
-        stages = [0x84] if init_seq.has_init_table(0x84, self.sw, self.codec.cat) else []
-        if self.config.camera_only_aeb:
-            stages += [0x78, 0x79]
-        stages.append(0x92)
-        self._init_queue = deque(stages)
-        self._init_busy = False
-        self._send_next_init(now)
-
-    def _on_read_eeprom(self, now: float) -> None:
-        self._veh_next = None
-        self.mesp.request("FFSReadFile", {"filename": EEPROM_FILE}, now=now,
-                          callback=lambda r: self._on_eeprom(r, self.now))
-
-    def _on_wait_running(self, now: float) -> None:
-        self._veh_next = now
-        if not self._versions_asked:
-            self._versions_asked = True  # once per ignition cycle (§6 flow step 12)
-            self.mesp.request("GetEyeQVersions", now=now, callback=self._on_versions)
-        self._next_poll = now
-
-    def _on_running_vision(self, now: float) -> None:
-        expected = self._expected_dasp("APP")
-        self._last_rx = {m.name: now for m in expected}
-        self._stale_limits = {m.name: self.config.stale_periods / (m.rate_hz or 18.0)
-                              for m in expected}
-        self._next_stale_check = now + STALE_CHECK
-        self._stale.clear()
-
-    def _on_fatal(self, now: float) -> None:
-        self._last_rx.clear()  # stop expecting DASP (a fatal EyeQ sends none)
-
-    def _on_switching(self, now: float) -> None:
-        self._veh_next = None  # stop DASP first (§6 flow step 16)
-        self._last_rx.clear()
-        self.calibration_result = None
-        self.mesp.request("SwitchEyeQApplication", {"applicationId": APP_IDS[self._target_mode]},
-                          now=now, callback=self._on_switch_reply)
-
-    def _on_wait_mode_pending(self, now: float) -> None:
-        self._next_poll = now
-
-    def _on_mode_init(self, now: float) -> None:
-        stage = STAGE_OF[self._target_mode]
-        self._send_init(stage, now, mode_init=True)
-
-    def _on_wait_mode_running(self, now: float) -> None:
-        self._next_poll = now
-
-    # -- MESP results -----------------------------------------------------------------------
-    def _flush_mesp(self, now: float) -> None:
-        for m in self.mesp.data_to_send():
-            sid = self.conn.send(m, now)  # the link's tag of its frames
-            self.counters.sent["MESP"] += 1
-            if (m[0], m[3]) == SWITCH_APP:
-                # L10: the EyeQ that takes it starts over, and so does our link to it: our
-                # frames after it are numbered from 0, its first frame after (NUM 0, RSP 0)
-                # restarts our receiver
-                self.conn.link.restart_after(sid, now, self.mesp.deadline)
-                self._switch_at = now
-
-    def _on_state_reply(self, reply: MespReply) -> None:
-        now = self.now
-        st = reply.value
-        main, sub = st.mainState, st.subState
-        if self.state is S.WAIT_PENDING and main == PENDING and sub == PENDING_VISION:
-            self._fire(E.PENDING_VISION, now)
-        elif self.state is S.WAIT_RUNNING and main == RUNNING_VISION:
-            self._fire(E.RUNNING_VISION, now)
-        elif self.state is S.WAIT_MODE_PENDING:
-            if self._target_mode == "DV" and main == DV_STATE:
-                self._fire(E.MODE_DV, now)
-            elif main == PENDING and sub == PENDING_OF.get(self._target_mode):
-                self._fire(E.MODE_VISION_PENDING if self._target_mode == "VISION"
-                           else E.MODE_PENDING, now)
-        elif self.state is S.WAIT_MODE_RUNNING:
-            if main == RUNNING_TAC:
-                self._fire(E.RUNNING_TAC, now)
-            elif main == RUNNING_SPC:
-                self._fire(E.RUNNING_SPC, now)
-        if self.state in (S.WAIT_PENDING, S.WAIT_RUNNING, S.WAIT_MODE_PENDING,
-                          S.WAIT_MODE_RUNNING) and self._next_poll is None:
-            self._next_poll = now + self.config.poll_interval
-
-    def _on_versions(self, result: MespReply | MespError) -> None:
-        if isinstance(result, MespReply):
-            v = result.value
-            self.versions = {"apiVersionMajor": v.apiVersionMajor,
-                             "apiVersionMinor": v.apiVersionMinor,
-                             "eyeqSwVersionMajor": v.eyeqSwVersionMajor,
-                             "eyeqSwVersionMinor": v.eyeqSwVersionMinor}
-            self.nvm.data.versions = dict(self.versions)
-            self._versions_ok = True
-        else:
-            self._versions_asked = False  # ask again on the next bring-up
-
-    def _on_switch_reply(self, result: MespReply | MespError) -> None:
-        if isinstance(result, MespReply):
-            self._fire(E.SWITCH_ACCEPTED, self.now)
-        else:
-            self.problem = str(result)
-            self._fire(E.SWITCH_REJECTED, self.now, str(result))
-
-    def _on_eeprom(self, result: MespReply | MespError, now: float) -> None:
-        if self.state is not S.READ_EEPROM:
-            return
-        if isinstance(result, MespError):
-            self.problem = f"EEPROM read failed: {result}"
-            self._fire(E.EEPROM_BAD, now, self.problem)
-            return
-        params = init_seq.eeprom_intrinsics(result.value.data, self.sw)
-        if isinstance(params, str):
-            self.problem = params
-            self._fire(E.EEPROM_BAD, now, self.problem)
-            return
-        if self._bringups >= self.config.max_resets:
-            self.problem = (f"intrinsic calibration still mismatched after {self._bringups} "
-                            "EyeQ resets: repair or replace the camera")
-            self._fire(E.EEPROM_BAD, now, self.problem)
-            return
-        self.nvm.data.intrinsic = params
-        self.nvm.save()
-        self._fire(E.EEPROM_OK, now, "NVM updated from EEPROM; resetting the EyeQ")
-        self._reset_eyeq(now)
-
-    # -- init messages ----------------------------------------------------------------------
-    def _send_next_init(self, now: float) -> None:
-        if self._init_busy:
-            return
-        if not self._init_queue:
-            self._fire(E.INIT_DONE, now)
-            return
-        self._send_init(self._init_queue.popleft(), now, mode_init=False)
-
-    def _send_init(self, stage: int, now: float, *, mode_init: bool) -> None:
-        try:
-            req = init_seq.init_request(stage, self.sw, self.codec.cat, self.nvm.data,
-                                        self.config.ipb_params)
-        except (CodecError, SpecError) as exc:
-            self.problem = f"init message 0x{stage:02X} cannot be built: {exc}"
-            self._fire(E.INIT_REJECTED, now, self.problem)
-            return
-        self._init_busy = True
-
-        def done(result: MespReply | MespError) -> None:
-            self._init_busy = False
-            if isinstance(result, MespError):
-                self.problem = f"init message 0x{stage:02X} rejected: {result}"
-                self._fire(E.INIT_REJECTED, self.now, self.problem)
-            elif mode_init:
-                self._fire(E.MODE_PARAMS_ACCEPTED, self.now)
-            elif self.state is S.INIT:
-                self._send_next_init(self.now)
-
-        self.mesp.request("EventCalibrationTool", req, now=now, callback=done)
-
     # -- receive ----------------------------------------------------------------------------
     def _pump(self, now: float) -> None:
         while (ev := self.conn.next_event()) is not None:
@@ -430,7 +172,7 @@ class HostEmulator:
             if isinstance(mev, MespCompleted) and mev.reply.function == "GetEyeQExtendedState":
                 self._poll_busy = False
                 self._on_state_reply(mev.reply)
-            elif isinstance(mev, MespFailed) and mev.error.function == "GetEyeQExtendedState":
+            elif isinstance(mev, MespFailed) and mev.failure.function == "GetEyeQExtendedState":
                 self._poll_busy = False
                 if self._next_poll is None and self.state in (
                         S.WAIT_PENDING, S.WAIT_RUNNING, S.WAIT_MODE_PENDING, S.WAIT_MODE_RUNNING):
@@ -441,9 +183,9 @@ class HostEmulator:
         if self.mesp.receive_message(data, now):
             return
         dasp = data[:1] == b"\x65"
-        # field values only when someone reads them: subscribers, async queues, a TAC/SPC
+        # field values only when someone reads them: subscribers (async iterators too), a TAC/SPC
         # result; E2E, counters and lengths are checked either way
-        fields = not dasp or bool(self._subscribers or self._queues) \
+        fields = not dasp or bool(self._subscribers) \
             or self.state in (S.RUNNING_TAC, S.RUNNING_SPC)
         out = self.codec.decode(data, self._e2e if dasp else None, fields=fields)
         name = out.name or out.protocol
@@ -507,7 +249,7 @@ class HostEmulator:
             return
         # A running EyeQ never reports boot or pending again without a reset. Compare with the
         # mode, not with the previous 0x41: the host can reach Running Vision by a Get State
-        # reply before any 0x41 has reported it (fault campaign defect 5).
+        # reply before any 0x41 has reported it (found by the reset campaign, faults/resets.py).
         went_back = (self.state in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC)
                      and main in (0, PENDING) and prev is not None)
         if went_back:
@@ -581,15 +323,8 @@ class HostEmulator:
     def _deliver(self, out: DecodedMessage) -> None:
         for cb in self._subscribers:
             cb(out)
-        for q in self._queues:
-            q.put_nowait(out)
 
     # -- stale detection --------------------------------------------------------------------
-    def _expected_dasp(self, mode: str) -> list[Any]:
-        return [m for m in self.codec.cat.messages
-                if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw)
-                and mode in m.modes]
-
     def _check_stale(self, now: float) -> None:
         for name, t in self._last_rx.items():
             limit = self._stale_limits.get(name)
@@ -619,37 +354,3 @@ class HostEmulator:
         self.counters.sent["HOST_VEH_STATE_MSG"] += 1
         if self.keep_rx_times:
             self.counters.tx_times.append(now)
-
-    def _cancel_requests(self) -> None:
-        """An EyeQ reset: outstanding MESP requests are lost. Get EyeQ Versions is asked again
-        at the next bring-up unless it was answered (§6 flow step 12: once per ignition cycle,
-        after a positive response)."""
-        self.mesp.cancel_all()
-        if not self._versions_ok:
-            self._versions_asked = False
-
-    def _restart_driver(self) -> None:
-        """Our SPI driver starts over: NUM 0 (L4), and the EyeQ's first DATA frame after the
-        reset sets E (L10); what was pending is dropped."""
-        self._switch_at = None
-        self.conn.reset(learn=True)
-        while self.conn.next_event() is not None:
-            pass
-
-    def _reset_eyeq(self, now: float, *, bringup: bool = True) -> None:
-        """Reset the EyeQ; ``bringup`` counts it against ``max_resets`` (EEPROM-driven)."""
-        self._cancel_requests()
-        if bringup:
-            self._bringups += 1
-        self._enter(S.POWER_UP, now)
-        if self.reset_line is not None:
-            # Both SPI drivers start over together: NUM 0, E 0 on each side (L4). Without this
-            # the reset EyeQ's first frames (its boot status) fall outside our receive window.
-            self._restart_driver()
-            self.reset_line(now)
-        else:
-            # no reset line (a remote EyeQ): a soft reset by switching to the vision app
-            self.mesp.request("SwitchEyeQApplication", {"applicationId": APP_IDS["VISION"]},
-                              now=now)
-            self._boot_deadline = None
-            self._fire(E.BOOT_OK, now, "soft reset (no reset line)")

@@ -13,8 +13,10 @@ the DASP stream. A new boot status or a 0x41 state that goes back is an EyeQ res
 runs again. A mode switch stops DASP, switches the application and, for TAC/SPC, sends the mode's
 init message and waits for the results.
 
-``TRANSITIONS`` maps (state, event) to the next state. The host runs the entry action of the new
-state; a pair that is not in the table is ignored and counted.
+``TRANSITIONS`` maps (state, event) to the next state; a pair that is not in the table is ignored
+and counted. ``ENTRY_ACTIONS`` names the host method run on entering a state (every state is either
+there or in ``NO_ENTRY_ACTION``, checked at import); the host checks at import that each name is one
+of its methods. A subclass changes an entry action by overriding the method the table names.
 """
 
 from __future__ import annotations
@@ -103,6 +105,36 @@ for _state in HostState:
         TRANSITIONS[(_state, E.EYEQ_RESET)] = S.POWER_UP
     if _state not in TERMINAL and _state is not S.READ_EEPROM:
         TRANSITIONS.setdefault((_state, E.FATAL), S.FATAL)
+
+
+# The host method run on entering each state (host/bringup.py). States that share a name share
+# the action: the three waits poll Get Extended State.
+ENTRY_ACTIONS: dict[HostState, str] = {
+    S.POWER_UP: "entry_await_boot",  # §7.1.1.1.4: wait for EYEQ_BOOT_STATUS_MSG, fresh counters
+    S.WAIT_PENDING: "entry_poll_state",
+    S.INIT: "entry_send_init",  # 0x84, 0x78/0x79 (camera-only AEB), 0x92
+    S.READ_EEPROM: "entry_read_eeprom",  # §7.1.3
+    S.WAIT_RUNNING: "entry_start_vehicle_state",  # HOST_VEH_STATE_MSG, Get Versions, poll
+    S.RUNNING_VISION: "entry_watch_streams",  # stale detection of the DASP streams
+    S.FATAL: "entry_stop_watching",
+    S.SWITCHING: "entry_request_switch",  # §6 flow step 16
+    S.WAIT_MODE_PENDING: "entry_poll_state",
+    S.MODE_INIT: "entry_send_mode_init",
+    S.WAIT_MODE_RUNNING: "entry_poll_state",
+}
+NO_ENTRY_ACTION = frozenset({S.BOOT_FAILED, S.FAILED, S.RUNNING_TAC, S.RUNNING_SPC, S.DV})
+
+
+def _check_entry_actions() -> None:
+    both = NO_ENTRY_ACTION & ENTRY_ACTIONS.keys()
+    neither = set(HostState) - NO_ENTRY_ACTION - ENTRY_ACTIONS.keys()
+    if both or neither:
+        raise RuntimeError(  # a programming error in this table, found at import
+            f"ENTRY_ACTIONS: states in both tables {sorted(s.value for s in both)}, "
+            f"in neither {sorted(s.value for s in neither)}")
+
+
+_check_entry_actions()
 
 
 def next_state(state: HostState, event: HostEvent) -> HostState | None:

@@ -18,12 +18,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import NvmError as NvmError
 from eyeq_spi.spec.tables import alignment_nvm
-
-
-class NvmError(EyeqError):
-    """The NVM file cannot be read or written."""
 
 
 def alignment_defaults() -> dict[str, float]:

@@ -14,12 +14,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Protocol
 
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import ScenarioError as ScenarioError
 from eyeq_spi.host.config import VALID
-
-
-class ScenarioError(EyeqError):
-    """A scenario file is malformed."""
 
 
 class Scenario(Protocol):

@@ -8,17 +8,14 @@ from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
-from eyeq_spi.errors import EyeqError, UsageError
+from eyeq_spi.errors import LogicInputError as LogicInputError
+from eyeq_spi.errors import UsageError
 from eyeq_spi.spec.link import spec_file
 
 DIRECTIONS = ("h2e", "e2h")
 LINES = ("mosi", "miso")
 SIGNALS = ("cs", "clk", "mosi", "miso")
 MAX_TRANSFER = 4096  # bytes kept per transfer (32 frames); a CS that never rises is an error
-
-
-class LogicInputError(EyeqError):
-    """A logic-analyzer capture cannot be read (foreign, truncated, no chip select...)."""
 
 
 @cache

@@ -18,7 +18,7 @@ from typing import Any
 from eyeq_spi.codec.mesp import REPLY_BIT, TAG_MASK, MespCodec
 from eyeq_spi.codec.message import is_mesp
 from eyeq_spi.errors import LocalProtocolError
-from eyeq_spi.mesp.replies import MespError, MespReply, typed
+from eyeq_spi.mesp.replies import MespFailure, MespReply, MespResult, typed
 from eyeq_spi.spec.catalog import Catalog, catalog
 
 _M = catalog().raw["mesp.yaml"]["mesp"]
@@ -33,7 +33,7 @@ class MespCompleted:
 @dataclass(frozen=True)
 class MespFailed:
     request_id: int
-    error: MespError
+    failure: MespFailure  # a plain value, not an exception
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,7 @@ class StaleReply:
 
 
 MespEvent = MespCompleted | MespFailed | StaleReply
-Callback = Callable[[MespReply | MespError], None]
+Callback = Callable[[MespResult], None]
 
 
 @dataclass
@@ -144,7 +144,7 @@ class MespClient:
                 self.counters.retries += 1
                 self._send(p, now)
             else:
-                self._finish(p, MespError(p.function, None, "no reply (timeout)", p.attempts))
+                self._finish(p, MespFailure(p.function, None, "no reply (timeout)", p.attempts))
 
     # -- receive ----------------------------------------------------------------------------
     def receive_message(self, data: bytes, now: float) -> bool:
@@ -161,10 +161,10 @@ class MespClient:
         ret = decoded.fields.get("ret")
         if decoded.errors or ret is None:
             err = "; ".join(decoded.errors) or "reply without ret"
-            self._finish(p, MespError(p.function, ret, f"malformed reply: {err}", p.attempts))
+            self._finish(p, MespFailure(p.function, ret, f"malformed reply: {err}", p.attempts))
         elif ret != 0:
             name = self.codec.ret_names.get(ret, "unknown ret")
-            self._finish(p, MespError(p.function, ret, name, p.attempts))
+            self._finish(p, MespFailure(p.function, ret, name, p.attempts))
         else:
             values = {k: v for k, v in decoded.fields.items() if k != "ret"}
             latency = now - p.first_sent
@@ -191,8 +191,8 @@ class MespClient:
         self._pending[p.key] = p
         self._out.append(self.codec.encode_request(p.function, p.counter, p.params))
 
-    def _finish(self, p: _Pending, result: MespReply | MespError) -> None:
-        if isinstance(result, MespError):
+    def _finish(self, p: _Pending, result: MespResult) -> None:
+        if isinstance(result, MespFailure):
             self.counters.failures += 1
             self._events.append(MespFailed(p.request_id, result))
         else:

@@ -1,12 +1,20 @@
 """Typed MESP results. Field names are the reply parameters of ``specs/mesp.yaml``; a test checks
-that every dataclass here matches its spec entry, so the two cannot drift apart."""
+that every dataclass here matches its spec entry, so the two cannot drift apart.
+
+A request ends in a :class:`MespReply` or a :class:`MespFailure`, both plain values
+(``MespResult``); ``MespError`` (the error tree, ``eyeq_spi/errors.py``) is only raised, by
+:func:`unwrap` or from ``MespFailure.exception()``, for a caller that wants an exception.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Any, TypeAlias
 
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import MespError
+
+__all__ = ["REPLY_TYPES", "MespError", "MespFailure", "MespReply", "MespResult", "typed",
+           "unwrap"]
 
 
 @dataclass(frozen=True)
@@ -79,16 +87,33 @@ class MespReply:
     latency: float
 
 
-class MespError(EyeqError):
-    """A reply with non-zero ``ret`` (decision M2), or no reply after every attempt."""
+@dataclass(frozen=True)
+class MespFailure:
+    """A failed request, as a value: a reply with non-zero ``ret`` (decision M2; ``ret_name``
+    from ``specs/mesp.yaml``), a malformed reply (``ret_name`` says what is wrong), or no reply
+    after every attempt (``ret`` None). ``str()`` reads as the matching :class:`MespError`."""
 
-    def __init__(self, function: str, ret: int | None, ret_name: str, attempts: int) -> None:
-        what = f"ret {ret} ({ret_name})" if ret is not None else ret_name
-        super().__init__(f"{function}: {what} after {attempts} attempt(s)")
-        self.function = function
-        self.ret = ret
-        self.ret_name = ret_name
-        self.attempts = attempts
+    function: str
+    ret: int | None
+    ret_name: str
+    attempts: int
+
+    def __str__(self) -> str:
+        return str(self.exception())
+
+    def exception(self) -> MespError:
+        """The exception to raise for this failure."""
+        return MespError(self.function, self.ret, self.ret_name, self.attempts)
+
+
+MespResult: TypeAlias = MespReply | MespFailure
+
+
+def unwrap(result: MespResult) -> MespReply:
+    """The reply, or raise :class:`MespError` for a failure."""
+    if isinstance(result, MespFailure):
+        raise result.exception()
+    return result
 
 
 def typed(function: str, values: dict[str, Any]) -> Any:

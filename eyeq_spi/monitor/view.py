@@ -8,17 +8,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import MonitorError as MonitorError
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.plot.charts import short
 
 STATUS_STYLE = {"ok": "green", "low": "yellow", "high": "yellow", "stopped": "bold red",
                 "-": "dim"}
 GOOD_STATES = ("RUNNING_VISION", "RUNNING_TAC", "RUNNING_SPC", "DV", "Running Vision")
-
-
-class MonitorError(EyeqError):
-    """The monitor cannot run (missing library, bad option)."""
 
 
 @dataclass

@@ -22,16 +22,12 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
-from eyeq_spi.errors import AdapterError
+from eyeq_spi.errors import AddressError as AddressError
 
 CONNECT_FORMS = "tcp://HOST:PORT, socket://HOST:PORT, rfc2217://HOST:PORT or a tty/pty path"
 LISTEN_FORM = "tcp://HOST:PORT (port 0: any free port)"
 
 _URL = re.compile(r"^([a-z0-9+]+)://(\[[0-9A-Fa-f:.]+\]|[^:/\[\]\s?#]*):([^/?#]*)(.*)$")
-
-
-class AddressError(AdapterError):
-    """An address that does not follow the grammar (scheme, host, port)."""
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,7 @@ needs no plotting library; matplotlib (the ``plot`` extra) is imported only when
 
 from __future__ import annotations
 
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import PlotError
 
+__all__ = ["PlotError"]
 
-class PlotError(EyeqError):
-    """A plot cannot be made: missing library, nothing to draw, bad output name."""

@@ -19,11 +19,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from eyeq_spi.errors import SpecError
-
-
-class ExprError(SpecError):
-    """A mapping expression uses something the language does not have."""
+from eyeq_spi.errors import ExprError as ExprError
 
 
 class _Missing:

@@ -107,7 +107,8 @@ class _Pair:
         self.r = r
         self.tx = TransportConnection(LinkConfig(role="eyeq"))
         self.rx = TransportConnection(LinkConfig(role="host"))
-        start = 4094 if r.u8() & 1 else r.u16() % SEQ_MODULO  # the case starts at 4094
+        # 4094: NUM wraps to 0 inside the first multi-frame message
+        start = 4094 if r.u8() & 1 else r.u16() % SEQ_MODULO
         self.tx.reset(tx_num=start, transfer_id=r.u8())
         self.rx.reset(expected=start)
         self.now = 0.0

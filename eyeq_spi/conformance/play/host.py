@@ -68,9 +68,9 @@ class TesterHost(HostEmulator):
         self.hold = hold
         self._hold_until = float("-inf")
 
-    def _on_wait_running(self, now: float) -> None:
+    def entry_start_vehicle_state(self, now: float) -> None:
         self._hold_until = now + self.hold
-        super()._on_wait_running(now)
+        super().entry_start_vehicle_state(now)
 
     def _send_veh_state(self, now: float) -> None:
         if now >= self._hold_until:
