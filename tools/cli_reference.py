@@ -42,7 +42,7 @@ def _walk(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
 def render() -> str:
     sys.path.insert(0, str(ROOT))
     from eyeq_spi.cli import build_parser
-    from eyeq_spi.cli_help import finish
+    from eyeq_spi.cli.help import finish
 
     top = build_parser()
     finish(top, width=WIDTH)

@@ -15,7 +15,7 @@ from eyeq_spi.errors import UsageError
 
 
 def add_dissect_parser(sub: Any) -> None:
-    from eyeq_spi import cli_args as ca
+    from eyeq_spi.cli import args as ca
 
     d = sub.add_parser("dissect", help="decode SPI captures (pcapng, raw, hex, Saleae, VCD)",
                        description="Decode SPI transfers: frames, reassembled messages with "
@@ -137,7 +137,7 @@ def run_dissect(args: argparse.Namespace) -> int:
         if br is not None and jobs > 1 and len(args.files) > 1 and "-" not in args.files:
             par = br.parallel_items(args.files, jobs, args.format, args.direction, args.sw,
                                     br.fields_mode(writers, plain))
-        from eyeq_spi.cli_progress import JobProgress
+        from eyeq_spi.cli.progress import JobProgress
 
         # --jobs: files are decoded in workers, so the bar counts files as they arrive (a
         # file read here has its own bar over its bytes instead)
@@ -246,9 +246,9 @@ def _dissect_file(path: str, args: argparse.Namespace, br: Any, plain: bool,
 
 def _with_progress(it: Iterator[Any], fh: IO[bytes], path: str,
                    stdout_busy: bool = False) -> Iterator[Any]:
-    """The shared progress bar (:mod:`eyeq_spi.cli_progress`) over one file: on stderr, only
+    """The shared progress bar (:mod:`eyeq_spi.cli.progress`) over one file: on stderr, only
     where it cannot land between records, following the batch path's blocks inside a chunk."""
-    from eyeq_spi.cli_progress import JobProgress, file_size, track_file
+    from eyeq_spi.cli.progress import JobProgress, file_size, track_file
 
     size = file_size(fh)
     bar = JobProgress(f"dissect {os.path.basename(path)}", size,

@@ -56,7 +56,7 @@ def add_plot_parser(sub: Any) -> None:
     p.add_argument("--sw", help="SW release of the traffic (default: the one the capture "
                    "records or shows, else the newest)")
 
-    from eyeq_spi.cli_run import add_shared_options
+    from eyeq_spi.cli.run import add_shared_options
 
     m = sub.add_parser(
         "monitor", help="live terminal view of demo, host or a replayed capture",
@@ -67,7 +67,7 @@ def add_plot_parser(sub: Any) -> None:
     src = m.add_mutually_exclusive_group(required=True)
     src.add_argument("--demo", action="store_true",
                      help="host emulator against the embedded simulated EyeQ (as demo)")
-    from eyeq_spi.cli_args import connect_address
+    from eyeq_spi.cli.args import connect_address
 
     src.add_argument("--port", metavar="URL", type=connect_address,
                      help="host emulator against an EyeQ (as host)")
@@ -237,7 +237,7 @@ def run_monitor(args: argparse.Namespace) -> int:
 
 
 def _demo_source(args: argparse.Namespace) -> Any:
-    from eyeq_spi.cli_run import build_demo
+    from eyeq_spi.cli.run import build_demo
     from eyeq_spi.monitor.sources import DemoSource
 
     emu, writer = build_demo(args)
@@ -251,7 +251,7 @@ def _demo_source(args: argparse.Namespace) -> Any:
 def _host_source(args: argparse.Namespace) -> Any:
     import gc
 
-    from eyeq_spi.cli_run import capture_writer, host_parts
+    from eyeq_spi.cli.run import capture_writer, host_parts
     from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.monitor.sources import HostSource
     from eyeq_spi.phy.base import open_url

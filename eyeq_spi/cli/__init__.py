@@ -1,5 +1,5 @@
 """Command-line interface. Every ``EyeqError`` becomes a one-line message and exit code 2; a
-user never sees a traceback for bad input. What ``--help`` shows is in :mod:`eyeq_spi.cli_help`."""
+user never sees a traceback for bad input. What ``--help`` shows is in :mod:`eyeq_spi.cli.help`."""
 
 from __future__ import annotations
 
@@ -80,7 +80,7 @@ def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     given), descriptions and examples too; for a completion script, every command's."""
     p = build_parser(only=None if "--print-completion" in argv else _command(argv))
     if not argv or "-h" in argv or "--help" in argv:
-        from eyeq_spi.cli_help import finish
+        from eyeq_spi.cli.help import finish
 
         finish(p)
     return p
@@ -96,8 +96,8 @@ def _completion(parser: argparse.ArgumentParser, shell: str) -> int:
 
 
 def _add_run(sub: Any) -> None:
-    from eyeq_spi import cli_args as ca
-    from eyeq_spi.cli_run import add_shared_options
+    from eyeq_spi.cli import args as ca
+    from eyeq_spi.cli.run import add_shared_options
 
     seconds = ca.number(0, 86_400, lo_open=True, unit="s")
 
@@ -162,43 +162,43 @@ def _add_run(sub: Any) -> None:
 
 
 def _add_dissect(sub: Any) -> None:
-    from eyeq_spi.cli_dissect import add_dissect_parser
+    from eyeq_spi.cli.dissect import add_dissect_parser
 
     add_dissect_parser(sub)
 
 
 def _add_batch(sub: Any) -> None:
-    from eyeq_spi.cli_batch import add_batch_parser
+    from eyeq_spi.cli.batch import add_batch_parser
 
     add_batch_parser(sub)
 
 
 def _add_can(sub: Any) -> None:
-    from eyeq_spi.cli_can import add_can_parser
+    from eyeq_spi.cli.can import add_can_parser
 
     add_can_parser(sub)
 
 
 def _add_plot(sub: Any) -> None:
-    from eyeq_spi.cli_plot import add_plot_parser
+    from eyeq_spi.cli.plot import add_plot_parser
 
     add_plot_parser(sub)
 
 
 def _add_bench(sub: Any) -> None:
-    from eyeq_spi.cli_bench import add_bench_parser
+    from eyeq_spi.cli.export import add_bench_parser
 
     add_bench_parser(sub)
 
 
 def _add_conformance(sub: Any) -> None:
-    from eyeq_spi.cli_conformance import add_conformance_parser
+    from eyeq_spi.cli.conformance import add_conformance_parser
 
     add_conformance_parser(sub)
 
 
 def _add_spec(sub: Any) -> None:
-    from eyeq_spi import cli_args as ca
+    from eyeq_spi.cli import args as ca
 
     spec = sub.add_parser("spec", help="browse the message catalogue built from specs/")
     spec_sub = spec.add_subparsers(dest="spec_command", required=True, parser_class=_Parser)
@@ -220,7 +220,7 @@ def _spec(args: argparse.Namespace) -> int:
     if args.spec_command == "list":
         text = spec_list(cat, sw)
     else:
-        from eyeq_spi.cli_args import spec_entry
+        from eyeq_spi.cli.args import spec_entry
 
         try:
             name = spec_entry(args.name)
@@ -247,35 +247,35 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _completion(parser, shell)
         args = parser.parse_args(argv)
         if args.command in ("demo", "sim", "host"):
-            from eyeq_spi import cli_run
+            from eyeq_spi.cli import run as cli_run
 
             run = {"demo": cli_run.run_demo, "sim": cli_run.run_sim, "host": cli_run.run_host}
             return run[args.command](args)
         if args.command == "spec":
             return _spec(args)
         if args.command in ("plot", "monitor"):
-            from eyeq_spi import cli_plot
+            from eyeq_spi.cli import plot as cli_plot
 
             return (cli_plot.run_plot if args.command == "plot" else cli_plot.run_monitor)(args)
         if args.command == "can":
-            from eyeq_spi import cli_can
+            from eyeq_spi.cli import can as cli_can
 
             return cli_can.run_can(args)
         if args.command in ("export", "replay", "sigrok-decoder"):
-            from eyeq_spi import cli_bench
+            from eyeq_spi.cli import export as cli_bench
 
             return {"export": cli_bench.run_export, "replay": cli_bench.run_replay,
                     "sigrok-decoder": cli_bench.run_sigrok_decoder}[args.command](args)
         if args.command == "conformance":
-            from eyeq_spi import cli_conformance
+            from eyeq_spi.cli import conformance as cli_conformance
 
             return cli_conformance.run_conformance(args)
         if args.command == "batch":
-            from eyeq_spi import cli_batch
+            from eyeq_spi.cli import batch as cli_batch
 
             return cli_batch.run_batch(args)
         if args.command in ("dissect", "wireshark"):
-            from eyeq_spi import cli_dissect
+            from eyeq_spi.cli import dissect as cli_dissect
 
             return (cli_dissect.run_dissect if args.command == "dissect"
                     else cli_dissect.run_wireshark)(args)
@@ -297,7 +297,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _fail(message: str, code: int = 2) -> int:
     """One line on stderr, whatever the message holds."""
-    from eyeq_spi.cli_args import one_line
+    from eyeq_spi.cli.args import one_line
 
     with contextlib.suppress(OSError):  # stderr is gone too
         print(f"eyeq-spi: {one_line(message)}", file=sys.stderr, flush=True)

@@ -42,7 +42,7 @@ def run_batch(args: argparse.Namespace) -> int:
     if args.scheduler and not args.scheduler.startswith(("tcp://", "tls://", "inproc://")):
         raise UsageError(f"--scheduler: a Dask address such as tcp://HOST:8786, "
                          f"not {args.scheduler!r}")
-    from eyeq_spi.cli_progress import JobProgress
+    from eyeq_spi.cli.progress import JobProgress
 
     # the summaries go to stdout at the end: nothing is written between them while it runs
     with JobProgress("batch", unit="captures") as bar:

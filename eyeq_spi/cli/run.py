@@ -22,7 +22,7 @@ _NOT_SIM = "applies to the host emulator (demo, host), not to sim"
 def add_shared_options(p: argparse.ArgumentParser, side: str = "demo") -> None:
     """Scenario, link and fault options of ``demo`` (both sides), ``sim`` (the simulated EyeQ)
     and ``host`` (the host emulator). An option of the other side is refused, not ignored."""
-    from eyeq_spi import cli_args as ca
+    from eyeq_spi.cli import args as ca
 
     if side not in SIDES:
         raise ValueError(f"side must be one of {SIDES}")
@@ -83,7 +83,7 @@ def add_shared_options(p: argparse.ArgumentParser, side: str = "demo") -> None:
 
 def _speed(text: str) -> float:
     """``--speed``: within host_vehicle_state_t.vehicleVelocity's range in specs/."""
-    from eyeq_spi import cli_args as ca
+    from eyeq_spi.cli import args as ca
 
     cat = ca._cat()
     var = cat.structs["host_vehicle_state_t"].variant_for(cat.default_sw)
@@ -317,7 +317,7 @@ def run_demo(args: argparse.Namespace) -> int:
     from eyeq_spi.can.sinks import attach_from_args
 
     can_out = attach_from_args(args, emu.host, emu.runner)  # --can-out: the CAN gateway
-    from eyeq_spi.cli_progress import JobProgress
+    from eyeq_spi.cli.progress import JobProgress
 
     _on_sigterm()
     t = 0.0

@@ -27,7 +27,7 @@ def _input_options(p: Any) -> None:
 
 
 def add_bench_parser(sub: Any) -> None:
-    from eyeq_spi import cli_args as ca
+    from eyeq_spi.cli import args as ca
 
     e = sub.add_parser("export", help="a capture as VCD waveforms, MDF4 or MCAP",
                        description="Turn a capture into SPI waveforms for PulseView (--vcd), "
@@ -122,7 +122,7 @@ def _tail_rc(command: str, path: str, cap: Any) -> int:
 
 def run_export(args: argparse.Namespace) -> int:
     from eyeq_spi.bench.export import export
-    from eyeq_spi.cli_progress import JobProgress
+    from eyeq_spi.cli.progress import JobProgress
 
     if not (args.vcd or args.mdf or args.mcap):
         raise UsageError("give at least one of --vcd, --mdf, --mcap")

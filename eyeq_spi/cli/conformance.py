@@ -9,7 +9,7 @@ import shutil
 import sys
 from typing import TYPE_CHECKING, Any
 
-from eyeq_spi import cli_args as ca
+from eyeq_spi.cli import args as ca
 from eyeq_spi.errors import UsageError
 
 if TYPE_CHECKING:
@@ -103,7 +103,7 @@ def run_conformance(args: argparse.Namespace) -> int:
         opts.sessions_done = rt.close  # judging is CPU-bound: ordinary scheduling again
         if opts.progress is not None:
             opts.progress(f"scheduling: {scheduling}")
-    from eyeq_spi.cli_progress import JobProgress
+    from eyeq_spi.cli.progress import JobProgress
 
     try:
         # the report goes to stdout at the end; the session lines print above the bar
