@@ -260,7 +260,7 @@ def test_the_listener_prints_a_url_host_can_use() -> None:
 
 
 def test_sim_config_gets_the_checked_values() -> None:
-    from eyeq_spi.cli.run import sim_config
+    from eyeq_spi.cli.options import sim_config
 
     cfg = sim_config(_parse(["demo", "--drop-reply", "GetEyeQVersions:2",
                              "--drop-reply", "getEyeQVersions", "--stop-dasp", "0xE4@1.5"]))

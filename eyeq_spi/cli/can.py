@@ -17,8 +17,8 @@ from eyeq_spi.errors import UsageError
 PROTOCOLS = ("extlog2", "me8")
 
 
-def add_can_parser(sub: Any) -> None:
-    c = sub.add_parser("can", help="Mobileye CAN: DBCs, decode logs or a live bus, compare",
+def add_parser(sub: Any, name: str, help: str) -> None:
+    c = sub.add_parser(name, help=help,
                        description="The Mobileye CAN protocols of specs/can/: ExtLogData2/AWS/"
                        "LKA (extlog2, seeds 000/001) and Mobileye 8 Connect (me8, seed 003).")
     cs = c.add_subparsers(dest="can_command", required=True, parser_class=sub._parser_class)
@@ -259,7 +259,7 @@ def _decode(args: argparse.Namespace) -> int:
     return 1 if bad or truncated else 0
 
 
-def run_can(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     if args.can_command == "compare":
         return _compare(args)
     return _dbc(args) if args.can_command == "dbc" else _decode(args)

@@ -1,4 +1,5 @@
-"""``eyeq-spi export``, ``eyeq-spi replay`` and ``eyeq-spi sigrok-decoder``."""
+"""``eyeq-spi export``: a capture as VCD waveforms, MDF4 or MCAP; and the capture input that
+``export`` and ``replay`` share."""
 
 from __future__ import annotations
 
@@ -10,30 +11,28 @@ from typing import IO, Any
 
 from eyeq_spi.errors import UsageError
 
-_FORMATS = ("raw", "hex", "pcapng", "saleae2", "saleae1", "vcd")
+
+def capture_parents() -> list[Any]:
+    """The capture-input options of export and replay."""
+    from eyeq_spi.cli import options as opt
+
+    return [opt.capture_input(direction_help="channel of an input without directions")]
 
 
-def _input_options(p: Any) -> None:
-    from eyeq_spi.logic.options import add_spi_arguments
-
+def add_capture_argument(p: Any) -> None:
     p.add_argument("capture", metavar="CAPTURE",
                    help="a capture in any format dissect reads (pcapng, raw, hex, Saleae, VCD)")
-    p.add_argument("--format", choices=_FORMATS, help="skip detection")
-    p.add_argument("--direction", choices=("h2e", "e2h"),
-                   help="channel of an input without directions")
-    p.add_argument("--sw", help="SW release of the traffic (default: the one the capture "
-                   "records or shows, else the newest)")
-    add_spi_arguments(p)
 
 
-def add_bench_parser(sub: Any) -> None:
+def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
+    from eyeq_spi.cli import options as opt
 
-    e = sub.add_parser("export", help="a capture as VCD waveforms, MDF4 or MCAP",
+    e = sub.add_parser(name, help=help, parents=capture_parents(),
                        description="Turn a capture into SPI waveforms for PulseView (--vcd), "
                        "decoded signals for asammdf/CANape (--mdf) or raw transfers and decoded "
                        "messages for Foxglove (--mcap). Several outputs may be given at once.")
-    _input_options(e)
+    add_capture_argument(e)
     e.add_argument("--vcd", metavar="OUT.vcd", type=ca.output_file,
                    help="SPI waveforms, 10 MHz, mode 1 (about 30 bytes per bit sent: the size "
                    "is said before writing)")
@@ -48,49 +47,21 @@ def add_bench_parser(sub: Any) -> None:
                    help="decoded signals (needs the [bench] extra)")
     e.add_argument("--mcap", metavar="OUT.mcap", type=ca.output_file,
                    help="raw transfers and decoded messages (needs the [bench] extra)")
-    e.add_argument("--json", action="store_true", help="end with one JSON summary object")
-    r = sub.add_parser("replay", help="play a capture's EyeQ channel to a host",
-                       description="Play the EyeQ channel (e2h) of a capture to a host under "
-                       "test in real time, keeping the capture's timing and ACKing the host's "
-                       "frames (--listen: the host connects to us; --port: we connect to the "
-                       "host), or (--into-host) to the built-in host emulator in virtual time. "
-                       "Ends with the run summary demo, host and sim print. Exit 0 when the run "
-                       "is ok: played to the end with nothing lost (--into-host: judged as "
-                       "host judges, Running Vision reached and held), else 1.")
-    _input_options(r)
-    where = r.add_mutually_exclusive_group(required=True)
-    where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
-                       metavar="tcp://HOST:PORT",
-                       help="listen here for the host under test (port 0: any free port); "
-                       "prints LISTEN URL on stderr")
-    where.add_argument("--port", dest="endpoint", action=ca.Endpoint, metavar="URL",
-                       help="connect to the host under test at tcp://HOST:PORT (socket:// too), "
-                       "rfc2217://HOST:PORT or a tty/pty path")
-    where.add_argument("--into-host", action="store_true",
-                       help="feed the built-in host emulator in virtual time")
-    r.set_defaults(port=None, listen=None, pty=False)
-    r.add_argument("--duration", type=ca.number(0, 86_400, lo_open=True, unit="s"),
-                   help="stop after S seconds of capture time, (0, 86400]")
-    r.add_argument("--lead", type=ca.number(0, 3600, unit="s"), default=0.5, metavar="S",
-                   help="--port: seconds between the host connecting and the first frame "
-                   "(default 0.5)")
-    r.add_argument("--json", action="store_true", help="end with one JSON object")
-    s = sub.add_parser("sigrok-decoder", help="install the eyeq_spi decoder for sigrok/PulseView",
-                       description="Write the eyeq_spi protocol decoder (stacked on sigrok's "
-                       "spi) where libsigrokdecode looks for decoders.")
-    s.add_argument("--install", metavar="DIR", nargs="?", const="",
-                   help="decoders folder (default ~/.local/share/libsigrokdecode/decoders; "
-                   "any other needs SIGROKDECODE_DIR=DIR)")
+    opt.include(e, opt.json_out("end with one JSON summary object"))
 
 
-def _records(args: argparse.Namespace, command: str, *,
+def run(args: argparse.Namespace) -> int:
+    return run_export(args)
+
+
+def open_input(args: argparse.Namespace, command: str, *,
              quiet: bool = False) -> tuple[IO[bytes], Any]:
     """The capture opened with its release (``--sw`` overrides, one warning line when they
     disagree, unless ``quiet``: a first pass that only counts) and its tail (a pcapng cut
     inside a block is read up to its last whole block)."""
+    from eyeq_spi.cli.options import spi_options
     from eyeq_spi.dissect.inputs import InputError
     from eyeq_spi.dissect.release import open_capture
-    from eyeq_spi.logic.options import spi_options_from
 
     if args.capture == "-":
         fh: IO[bytes] = sys.stdin.buffer
@@ -100,7 +71,7 @@ def _records(args: argparse.Namespace, command: str, *,
         except OSError as exc:
             raise InputError(f"{args.capture}: {exc.strerror or exc}") from None
     try:
-        cap = open_capture(fh, args.format, args.direction, spi_options_from(args), sw=args.sw,
+        cap = open_capture(fh, args.format, args.direction, spi_options(args), sw=args.sw,
                            name=args.capture)
     except BaseException:
         if fh is not sys.stdin.buffer:
@@ -112,7 +83,7 @@ def _records(args: argparse.Namespace, command: str, *,
     return fh, cap
 
 
-def _tail_rc(command: str, path: str, cap: Any) -> int:
+def tail_rc(command: str, path: str, cap: Any) -> int:
     """1 with one line on stderr when the reader left an incomplete last block, else 0."""
     if not cap.tail.ignored:
         return 0
@@ -127,7 +98,7 @@ def run_export(args: argparse.Namespace) -> int:
     if not (args.vcd or args.mdf or args.mcap):
         raise UsageError("give at least one of --vcd, --mdf, --mcap")
     total = _vcd_plan(args) if args.capture != "-" else None
-    fh, cap = _records(args, "export")
+    fh, cap = open_input(args, "export")
     try:
         with JobProgress(f"export {os.path.basename(args.capture)}", total,
                          unit="transfers", enabled=None if total else False) as bar:
@@ -142,7 +113,7 @@ def run_export(args: argparse.Namespace) -> int:
     else:
         for line in summary["written"]:
             print(f"wrote {line}")
-    return _tail_rc("export", args.capture, cap)
+    return tail_rc("export", args.capture, cap)
 
 
 def _vcd_plan(args: argparse.Namespace) -> int:
@@ -151,7 +122,7 @@ def _vcd_plan(args: argparse.Namespace) -> int:
     refused above --vcd-max-size."""
     from eyeq_spi.logic.vcd_write import estimate_size
 
-    fh, cap = _records(args, "export", quiet=True)
+    fh, cap = open_input(args, "export", quiet=True)
     n = nbytes = 0
     t0 = t1 = None
     try:
@@ -180,48 +151,6 @@ def _vcd_plan(args: argparse.Namespace) -> int:
 
 
 def _spi(args: argparse.Namespace) -> Any:
-    from eyeq_spi.logic.options import spi_options_from
+    from eyeq_spi.cli.options import spi_options
 
-    return spi_options_from(args)
-
-
-def run_replay(args: argparse.Namespace) -> int:
-    from eyeq_spi.bench.replay import replay_into_host, replay_to_port
-    from eyeq_spi.report import format_summary
-
-    if args.duration is not None and args.duration <= 0:
-        raise UsageError("--duration must be positive")
-    if args.pty:
-        raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
-    fh, cap = _records(args, "replay")
-    try:
-        if args.into_host:
-            summary = replay_into_host(cap.records, sw=cap.release.key, duration=args.duration)
-        else:
-            if args.lead < 0:
-                raise UsageError("--lead must not be negative")
-            summary = replay_to_port(cap.records, args.listen or args.port,
-                                     listen=bool(args.listen), duration=args.duration,
-                                     lead=args.lead, sw=cap.release.key)
-    finally:
-        if fh is not sys.stdin.buffer:
-            fh.close()
-    if args.json:
-        print(json.dumps(summary, sort_keys=True), flush=True)
-    else:
-        print(format_summary(summary), flush=True)
-    rc = _tail_rc("replay", args.capture, cap)
-    return 0 if summary["ok"] and not rc else 1
-
-
-def run_sigrok_decoder(args: argparse.Namespace) -> int:
-    from eyeq_spi.bench.sigrok_install import default_dir, install
-
-    if args.install is None:
-        raise UsageError("give --install [DIR]")
-    target = install(args.install or None)
-    hint = "" if not args.install or target.parent == default_dir() else \
-        f" (run sigrok with SIGROKDECODE_DIR={target.parent})"
-    print(f"installed the eyeq_spi decoder in {target}{hint}; use it as "
-          "-P spi:cpol=0:cpha=1:...,eyeq_spi:direction=h2e")
-    return 0
+    return spi_options(args)

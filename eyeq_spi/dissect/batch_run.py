@@ -26,7 +26,7 @@ from eyeq_spi.dissect.release import Release
 from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBlock
 
 Item = dict[str, Any] | FrameBlock
-__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "fields_mode", "is_plain",
+__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "fields_mode",
            "parallel_items"]
 
 
@@ -110,10 +110,6 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
         else:
             for r in item.records():
                 w.write(r)
-
-
-def is_plain(args: Any) -> bool:
-    return not (args.protocol or args.id is not None or args.name or args.errors_only)
 
 
 def fields_mode(writers: list[Any], plain: bool) -> str:
