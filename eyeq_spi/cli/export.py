@@ -1,5 +1,4 @@
-"""``eyeq-spi export``: a capture as VCD waveforms, MDF4 or MCAP; and the capture input that
-``export`` and ``replay`` share."""
+"""``eyeq-spi export``: a capture as VCD waveforms, MDF4 or MCAP."""
 
 from __future__ import annotations
 
@@ -7,32 +6,21 @@ import argparse
 import json
 import os
 import sys
-from typing import IO, Any
+from typing import Any
 
+from eyeq_spi.cli import inputs
 from eyeq_spi.errors import UsageError
-
-
-def capture_parents() -> list[Any]:
-    """The capture-input options of export and replay."""
-    from eyeq_spi.cli import options as opt
-
-    return [opt.capture_input(direction_help="channel of an input without directions")]
-
-
-def add_capture_argument(p: Any) -> None:
-    p.add_argument("capture", metavar="CAPTURE",
-                   help="a capture in any format dissect reads (pcapng, raw, hex, Saleae, VCD)")
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
-    e = sub.add_parser(name, help=help, parents=capture_parents(),
+    e = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
                        description="Turn a capture into SPI waveforms for PulseView (--vcd), "
                        "decoded signals for asammdf/CANape (--mdf) or raw transfers and decoded "
                        "messages for Foxglove (--mcap). Several outputs may be given at once.")
-    add_capture_argument(e)
+    inputs.add_capture_argument(e)
     e.add_argument("--vcd", metavar="OUT.vcd", type=ca.output_file,
                    help="SPI waveforms, 10 MHz, mode 1 (about 30 bytes per bit sent: the size "
                    "is said before writing)")
@@ -54,43 +42,6 @@ def run(args: argparse.Namespace) -> int:
     return run_export(args)
 
 
-def open_input(args: argparse.Namespace, command: str, *,
-             quiet: bool = False) -> tuple[IO[bytes], Any]:
-    """The capture opened with its release (``--sw`` overrides, one warning line when they
-    disagree, unless ``quiet``: a first pass that only counts) and its tail (a pcapng cut
-    inside a block is read up to its last whole block)."""
-    from eyeq_spi.cli.options import spi_options
-    from eyeq_spi.dissect.inputs import InputError
-    from eyeq_spi.dissect.release import open_capture
-
-    if args.capture == "-":
-        fh: IO[bytes] = sys.stdin.buffer
-    else:
-        try:
-            fh = open(args.capture, "rb")  # noqa: SIM115 - closed by the caller
-        except OSError as exc:
-            raise InputError(f"{args.capture}: {exc.strerror or exc}") from None
-    try:
-        cap = open_capture(fh, args.format, args.direction, spi_options(args), sw=args.sw,
-                           name=args.capture)
-    except BaseException:
-        if fh is not sys.stdin.buffer:
-            fh.close()
-        raise
-    if cap.release.warning and not quiet:
-        print(f"eyeq-spi {command}: warning: {cap.release.warning}", file=sys.stderr,
-              flush=True)
-    return fh, cap
-
-
-def tail_rc(command: str, path: str, cap: Any) -> int:
-    """1 with one line on stderr when the reader left an incomplete last block, else 0."""
-    if not cap.tail.ignored:
-        return 0
-    print(f"eyeq-spi {command}: {cap.tail.note(path)}", file=sys.stderr, flush=True)
-    return 1
-
-
 def run_export(args: argparse.Namespace) -> int:
     from eyeq_spi.bench.export import export
     from eyeq_spi.cli.progress import JobProgress
@@ -98,7 +49,7 @@ def run_export(args: argparse.Namespace) -> int:
     if not (args.vcd or args.mdf or args.mcap):
         raise UsageError("give at least one of --vcd, --mdf, --mcap")
     total = _vcd_plan(args) if args.capture != "-" else None
-    fh, cap = open_input(args, "export")
+    fh, cap = inputs.open_input(args, "export")
     try:
         with JobProgress(f"export {os.path.basename(args.capture)}", total,
                          unit="transfers", enabled=None if total else False) as bar:
@@ -113,7 +64,7 @@ def run_export(args: argparse.Namespace) -> int:
     else:
         for line in summary["written"]:
             print(f"wrote {line}")
-    return tail_rc("export", args.capture, cap)
+    return inputs.tail_note("export", args.capture, cap.tail)
 
 
 def _vcd_plan(args: argparse.Namespace) -> int:
@@ -122,7 +73,7 @@ def _vcd_plan(args: argparse.Namespace) -> int:
     refused above --vcd-max-size."""
     from eyeq_spi.logic.vcd_write import estimate_size
 
-    fh, cap = open_input(args, "export", quiet=True)
+    fh, cap = inputs.open_input(args, "export", quiet=True)
     n = nbytes = 0
     t0 = t1 = None
     try:

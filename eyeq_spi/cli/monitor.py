@@ -6,8 +6,8 @@ import argparse
 import re
 from typing import Any
 
+from eyeq_spi.cli import inputs
 from eyeq_spi.cli import options as opt
-from eyeq_spi.cli.plot import _release, _tail_note
 from eyeq_spi.errors import UsageError
 
 
@@ -92,13 +92,13 @@ def run(args: argparse.Namespace) -> int:
         from eyeq_spi.codec.message import MessageCodec
         from eyeq_spi.monitor.sources import DissectSource
 
-        sw = _release(args.replay, args.sw, args.format, None, "monitor")
+        sw = inputs.release(args.replay, args.sw, args.format, None, "monitor")
         source: Any = DissectSource(args.replay, MessageCodec(sw), speed=args.pace,
                                     fmt=args.format)
     elif args.replay:
         from eyeq_spi.monitor.sources import ReplaySource
 
-        sw = _release(args.replay, args.sw, args.format, None, "monitor")
+        sw = inputs.release(args.replay, args.sw, args.format, None, "monitor")
         source = ReplaySource(args.replay, sw=sw, speed=args.pace, fmt=args.format,
                               duration=args.duration)
     elif args.demo:
@@ -107,14 +107,13 @@ def run(args: argparse.Namespace) -> int:
         source = _host_source(args)
     run_app(source, refresh=args.refresh, screenshot=args.screenshot,
         screenshot_size=args.screenshot_size)
-    return _tail_note("monitor", args.replay, getattr(source, "tail", None))
+    return inputs.tail_note("monitor", args.replay, getattr(source, "tail", None))
 
 
 def _demo_source(args: argparse.Namespace) -> Any:
-    from eyeq_spi.cli.run import build_demo
     from eyeq_spi.monitor.sources import DemoSource
 
-    emu, writer = build_demo(args)
+    emu, writer = opt.build_demo(args)
     source = DemoSource(emu, 10.0 if args.duration is None else args.duration,
                         realtime=not args.virtual_time)
     if writer is not None:

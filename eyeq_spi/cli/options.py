@@ -351,3 +351,19 @@ def can_output(args: argparse.Namespace, host: Any, runner: Any) -> Any:
 
     return attach(host, runner, target=target,
                   protocol=getattr(args, "can_protocol", None) or "extlog2")
+
+
+def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
+    """The host emulator and the simulated EyeQ of ``demo`` (and ``monitor --demo``) wired
+    in one process, with the ``--capture`` writer tapping both channels (or None)."""
+    from eyeq_spi.emulator import build
+
+    host_cfg, nvm, scenario_ = host_parts(args)
+    writer = capture_writer(args)
+    tap = None
+    if writer is not None:
+        def tap(node: int, t: float, transfer: bytes) -> None:
+            writer.write("h2e" if node == 0 else "e2h", t, transfer)
+    emu = build(sim_config=sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario_,
+                keep_rx_times=False, tap=tap)
+    return emu, writer

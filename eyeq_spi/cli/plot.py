@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 import math
 import re
-import sys
 from pathlib import Path
 from typing import Any
 
+from eyeq_spi.cli import inputs
 from eyeq_spi.errors import UsageError
 
 
@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     out = args.output or _default_output(args, kind)
     check_output(out, animated=args.animate)
     mpl()  # fail before reading a large capture when matplotlib is missing
-    codec = MessageCodec(_release(args.capture, args.sw, args.format, args.direction, "plot"))
+    codec = MessageCodec(inputs.release(args.capture, args.sw, args.format, args.direction, "plot"))
     window = Window(args.start, args.end)
     col = Collector(codec, window, timing=args.timing, link=args.link,
                     link_bin=args.bin_ms / 1000.0,
@@ -106,24 +106,4 @@ def run(args: argparse.Namespace) -> int:
         fig = timing_figure(data)[0] if args.timing else link_figure(data)
         save_figure(fig, out, title)
     print(f"wrote {out}")
-    return _tail_note("plot", args.capture, tail)
-
-
-def _release(path: str, sw: str | None, fmt: str | None, direction: str | None,
-             command: str) -> str:
-    """The release a capture is read with (the capture's own unless ``--sw``), with the
-    one-line warning when they disagree."""
-    from eyeq_spi.dissect.release import release_of
-
-    rel = release_of(path, sw, fmt, direction)
-    if rel.warning:
-        print(f"eyeq-spi {command}: warning: {rel.warning}", file=sys.stderr, flush=True)
-    return rel.key
-
-
-def _tail_note(command: str, path: str, tail: Any) -> int:
-    """Exit 1 with one line when the reader left an incomplete last block, else 0."""
-    if tail is None or not tail.ignored:
-        return 0
-    print(f"eyeq-spi {command}: {tail.note(path)}", file=sys.stderr, flush=True)
-    return 1
+    return inputs.tail_note("plot", args.capture, tail)

@@ -8,7 +8,7 @@ import json
 import sys
 from typing import Any
 
-from eyeq_spi.cli.export import add_capture_argument, capture_parents, open_input, tail_rc
+from eyeq_spi.cli import inputs
 from eyeq_spi.errors import UsageError
 
 
@@ -16,7 +16,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
-    r = sub.add_parser(name, help=help, parents=capture_parents(),
+    r = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
                        description="Play the EyeQ channel (e2h) of a capture to a host under "
                        "test in real time, keeping the capture's timing and ACKing the host's "
                        "frames (--listen: the host connects to us; --port: we connect to the "
@@ -24,7 +24,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                        "Ends with the run summary demo, host and sim print. Exit 0 when the run "
                        "is ok: played to the end with nothing lost (--into-host: judged as "
                        "host judges, Running Vision reached and held), else 1.")
-    add_capture_argument(r)
+    inputs.add_capture_argument(r)
     where = r.add_mutually_exclusive_group(required=True)
     where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
                        metavar="tcp://HOST:PORT",
@@ -56,7 +56,7 @@ def run_replay(args: argparse.Namespace) -> int:
         raise UsageError("--duration must be positive")
     if args.pty:
         raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
-    fh, cap = open_input(args, "replay")
+    fh, cap = inputs.open_input(args, "replay")
     try:
         if args.into_host:
             summary = replay_into_host(cap.records, sw=cap.release.key, duration=args.duration)
@@ -73,5 +73,5 @@ def run_replay(args: argparse.Namespace) -> int:
         print(json.dumps(summary, sort_keys=True), flush=True)
     else:
         print(format_summary(summary), flush=True)
-    rc = tail_rc("replay", args.capture, cap)
+    rc = inputs.tail_note("replay", args.capture, cap.tail)
     return 0 if summary["ok"] and not rc else 1

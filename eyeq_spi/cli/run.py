@@ -204,22 +204,6 @@ def print_summary(out: dict[str, Any], as_json: bool) -> None:
     print(format_summary(out), flush=True)
 
 
-def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
-    """The host emulator and the simulated EyeQ of ``demo`` (and ``monitor --demo``) wired
-    in one process, with the ``--capture`` writer tapping both channels (or None)."""
-    from eyeq_spi.emulator import build
-
-    host_cfg, nvm, scenario = opt.host_parts(args)
-    writer = opt.capture_writer(args)
-    tap = None
-    if writer is not None:
-        def tap(node: int, t: float, transfer: bytes) -> None:
-            writer.write("h2e" if node == 0 else "e2h", t, transfer)
-    emu = build(sim_config=opt.sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario,
-                keep_rx_times=False, tap=tap)
-    return emu, writer
-
-
 LONG_DEMO_S = 20.0  # demos this long or longer show a progress bar on a terminal
 
 
@@ -228,7 +212,7 @@ def run_demo(args: argparse.Namespace) -> int:
 
     if args.duration <= 0:
         raise UsageError("--duration must be positive")
-    emu, writer = build_demo(args)
+    emu, writer = opt.build_demo(args)
     can_out = opt.can_output(args, emu.host, emu.runner)  # --can-out: the CAN gateway
     from eyeq_spi.cli.progress import JobProgress
 
