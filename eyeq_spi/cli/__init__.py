@@ -146,6 +146,3 @@ def _quiet_pipe() -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())

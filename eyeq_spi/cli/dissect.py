@@ -45,7 +45,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     d.add_argument("--errors-only", action="store_true",
                    help="only bad frames, link events and messages with errors")
     d.add_argument("--no-tree", action="store_true", help="no field tree in the human view")
-    d.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+    d.add_argument("--jobs", "-j", type=opt.limited("dissect_jobs"), default=1, metavar="N",
                    help="dissect N files at a time in worker processes (same output as one "
                    "at a time; 0: one per CPU)")
     opt.add_spi_arguments(d)

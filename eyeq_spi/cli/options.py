@@ -30,18 +30,23 @@ FORMATS = TRANSFER_FORMATS + LOGIC_FORMATS
 DIRECTIONS = ("h2e", "e2h")
 
 # -- limits: (lo, hi) of every bounded option, checked at parse time and in the conversion -----
-LIMITS: dict[str, tuple[int, int]] = {
+SCENARIO_LIMITS: dict[str, tuple[int, int]] = {
     "seed": (0, 2**32 - 1), "objects": (0, 15), "signs": (0, 20), "light_spots": (0, 15),
-    "boot_fail": (0, 1000), "rt_priority": (0, 99),
+    "boot_fail": (0, 1000),
+}
+LIMITS: dict[str, tuple[int, int]] = {
+    **SCENARIO_LIMITS, "rt_priority": (0, 99),
+    "dissect_jobs": (0, 1024),  # dissect --jobs (0: one per CPU)
+    "batch_jobs": (1, 1024), "local_cluster": (1, 256),  # batch --jobs, --local-cluster
 }
 DAY_S = 86_400.0  # durations and instants: (0, DAY_S] seconds
 LINK_TIMEOUT_MS = 60_000.0  # --ack-timeout, --transmit-timeout: (0, this] ms
 REPLY_DELAY_S = 3600.0  # --reply-delay: [0, this] s
 
 
-def limited(dest: str) -> ca.Type:
+def limited(key: str) -> ca.Type:
     """The argparse type of a bounded integer option, from :data:`LIMITS`."""
-    lo, hi = LIMITS[dest]
+    lo, hi = LIMITS[key]
     return ca.integer(lo, hi)
 
 
@@ -285,7 +290,7 @@ def _ms(value: float | None, name: str) -> float | None:
 
 
 def _check_limits(args: argparse.Namespace) -> None:
-    for dest, (lo, hi) in LIMITS.items():
+    for dest, (lo, hi) in SCENARIO_LIMITS.items():
         v = getattr(args, dest, None)
         if v is not None and not lo <= v <= hi:
             raise UsageError(f"--{dest.replace('_', '-')} must be {lo}..{hi}, got {v}")
