@@ -126,6 +126,19 @@ BAD: list[tuple[list[str], tuple[str, ...]]] = [
     (["replay", "FILE", "--into-host", "--duration", "-2"], ("--duration", "(0, 86400]")),
     (["replay", "FILE", "--port", "socket://127.0.0.1:1", "--lead", "-1"], ("--lead", "[0, 3600]")),
     (["sim", "--port", "loop://"], ("--port", "pty")),
+    # --sw is checked by every command that takes it; a side's option is refused where it
+    # does not run, monitor included; the --jobs ranges at parse time
+    (["plot", "FILE", "--link", "--sw", "7.7"], ("--sw", "9.0")),
+    (["export", "FILE", "--vcd", "x.vcd", "--sw", "7.7"], ("--sw", "9.0")),
+    (["replay", "FILE", "--into-host", "--sw", "7.7"], ("--sw", "9.0")),
+    (["batch", "DIR", "--parquet", "out", "--sw", "7.7"], ("--sw", "9.0")),
+    (["monitor", "--port", "socket://127.0.0.1:5", "--objects", "3"],
+     ("--objects", "not to monitor --port")),
+    (["monitor", "--replay", "FILE", "--capture", "x.pcapng"], ("--capture", "monitor --replay")),
+    (["monitor", "--replay", "FILE", "--speed", "3"], ("--speed", "monitor --replay")),
+    (["sim", "--pty", "--can-protocol", "me8"], ("--can-protocol", "not to sim")),
+    (["batch", "DIR", "--parquet", "out", "--local-cluster", "300"], ("--local-cluster", "1..256")),
+    (["dissect", "--jobs", "-1", "FILE"], ("--jobs", "0..1024")),
 ]
 
 
