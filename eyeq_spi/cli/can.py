@@ -18,6 +18,8 @@ PROTOCOLS = ("extlog2", "me8")
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import options as opt
+
     c = sub.add_parser(name, help=help,
                        description="The Mobileye CAN protocols of specs/can/: ExtLogData2/AWS/"
                        "LKA (extlog2, seeds 000/001) and Mobileye 8 Connect (me8, seed 003).")
@@ -36,7 +38,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     k.add_argument("dbc", metavar="OTHER.dbc", help="the DBC file to compare")
     k.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
                    help="our protocol to compare with (default extlog2)")
-    k.add_argument("--json", action="store_true", help="the differences as a JSON list")
+    opt.include(k, opt.json_out("the differences as a JSON list"))
     x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
                       "or a live bus",
                       description="Decode CAN logs with the protocols of specs/can/. Exit 0 "
@@ -47,7 +49,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                    ".mf4 .csv)")
     x.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
                    help="protocol of the log (default extlog2)")
-    x.add_argument("--json", action="store_true", help="JSON Lines, one object per frame")
+    opt.include(x, opt.json_out("JSON Lines, one object per frame"))
     x.add_argument("--csv", metavar="DIR", help="one CSV table per message")
     x.add_argument("--parquet", metavar="DIR", help="one Parquet table per message")
     x.add_argument("--stats", action="store_true",

@@ -47,8 +47,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     p.add_argument("-k", dest="select", metavar="EXPR",
                    help="select cases: words matched in ID/title/group/section, with and/or/not")
     opt.add_sw(p, "SW release (default: newest)")
-    p.add_argument("--json", action="store_true",
-                   help="JSON Lines: one object per case, then a summary object")
+    opt.include(p, opt.json_out("JSON Lines: one object per case, then a summary object"))
     p.add_argument("--junit", metavar="FILE", type=ca.output_file, help="write JUnit XML")
     p.add_argument("--report", metavar="FILE.md|FILE.html", type=ca.output_file,
                    help="write a Markdown or HTML report")
