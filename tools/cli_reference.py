@@ -21,7 +21,7 @@ WIDTH = 100
 
 
 def _fixed_width(parser: argparse.ArgumentParser) -> None:
-    """Descriptions were wrapped by ``cli_help.finish`` at WIDTH; examples stay as written."""
+    """Descriptions were wrapped by ``cli.help.finish`` at WIDTH; examples stay as written."""
     parser.formatter_class = lambda prog: argparse.RawDescriptionHelpFormatter(
         prog, width=WIDTH, max_help_position=32)
 
