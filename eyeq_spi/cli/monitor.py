@@ -125,6 +125,7 @@ def _host_source(args: argparse.Namespace) -> Any:
     import gc
 
     from eyeq_spi.host.host import HostEmulator
+    from eyeq_spi.live import capture_tap
     from eyeq_spi.monitor.sources import HostSource
     from eyeq_spi.phy.base import open_url
     from eyeq_spi.runner.realtime import RealTimeRunner
@@ -134,13 +135,7 @@ def _host_source(args: argparse.Namespace) -> Any:
     adapter = open_url(args.port)
     writer = opt.capture_writer(args)
     runner = RealTimeRunner(host, adapter, max_wait=0.01)
-    if writer is not None:
-        start = runner.clock()
-
-        def tap(kind: str, t: float, transfer: bytes) -> None:
-            writer.write("h2e" if kind == "tx" else "e2h", t - start, transfer)
-
-        runner.tap = tap
+    runner.tap = capture_tap(writer, runner.clock(), "h2e", "e2h")
     gc.freeze()  # as `host` does: the catalogue and layouts live forever
 
     def close() -> None:
