@@ -9,10 +9,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.host.host import HostConfig, HostEmulator
-from eyeq_spi.host.machine import HostState
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import Scenario
 from eyeq_spi.phy.memory import memory_pair
+from eyeq_spi.report import RunningVision
 from eyeq_spi.runner.virtual import Tap, VirtualRunner
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
@@ -26,8 +26,17 @@ class Emulation:
     host: HostEmulator
     sim: SimulatedEyeQ
     runner: VirtualRunner
-    running_since: float | None = None
-    left_running: list[float] = field(default_factory=list)
+    vision: RunningVision = field(default_factory=RunningVision)
+
+    @property
+    def running_since(self) -> float | None:
+        """When the host entered Running Vision (None while outside it)."""
+        return self.vision.since
+
+    @property
+    def left_running(self) -> list[float]:
+        """Every time the host left Running Vision."""
+        return self.vision.left
 
     def run_for(self, seconds: float, *, realtime: bool = False,
                 stop: Callable[[], bool] | None = None) -> None:
@@ -35,15 +44,7 @@ class Emulation:
         end = self.runner.now + seconds
         while self.runner.now < end - 1e-12 and not (stop is not None and stop()):
             self.runner.run_until(min(end, self.runner.now + 0.01), realtime=realtime)
-            self._track()
-
-    def _track(self) -> None:
-        running = self.host.state is HostState.RUNNING_VISION
-        if running and self.running_since is None:
-            self.running_since = self.runner.now
-        elif not running and self.running_since is not None:
-            self.left_running.append(self.runner.now)
-            self.running_since = None
+            self.vision.update(self.host, self.runner.now)
 
 
 def build(
@@ -75,10 +76,11 @@ def build(
     return made[0]
 
 
-def summary(emu: Emulation) -> dict[str, Any]:
+def summary(emu: Emulation, *, interrupted: bool = False) -> dict[str, Any]:
     """The demo's closing summary: the schema every run prints (:mod:`eyeq_spi.report`)."""
     from eyeq_spi.report import host_summary
 
     return host_summary(emu.host, side="demo", elapsed=emu.runner.now, wall=emu.runner.wall_s,
                         cpu=emu.runner.cpu_s, running_since=emu.running_since,
-                        left_running=emu.left_running, eyeq=emu.sim)
+                        left_running=emu.left_running, interrupted=interrupted,
+                        eyeq=emu.sim)

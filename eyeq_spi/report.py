@@ -107,6 +107,29 @@ def host_mesp(host: HostEmulator, eyeq: SimulatedEyeQ | None = None) -> dict[str
             "abandoned": c.abandoned, "stale_replies": c.stale_replies}
 
 
+class RunningVision:
+    """Whether the host reached Running Vision and held it: when it entered (``since``, None
+    while outside) and every time it left (``left``). The one judge of "reached and held" that
+    :func:`host_summary` reports, for every run (in one process, live, replayed)."""
+
+    def __init__(self) -> None:
+        self.since: float | None = None
+        self.left: list[float] = []
+
+    def update(self, host: HostEmulator, t: float) -> None:
+        """Look at ``host`` at time ``t`` (seconds on the run's clock)."""
+        running = host.state is HostState.RUNNING_VISION
+        if running and self.since is None:
+            self.since = t
+        elif not running and self.since is not None:
+            self.left.append(t)
+            self.since = None
+
+    def reset(self) -> None:
+        """A new connection: judged again from its start."""
+        self.since, self.left = None, []
+
+
 def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, cpu: float,
                  running_since: float | None, left_running: list[float],
                  link_lost: str | None = None, connections: int = 1,

@@ -18,9 +18,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from eyeq_spi import cli_dissect
 from eyeq_spi.capture.fastread import chunks_from_records
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
+from eyeq_spi.cli import dissect as cli_dissect
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec

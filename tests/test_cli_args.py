@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from eyeq_spi import cli_args
+from eyeq_spi.cli import args as cli_args
 from eyeq_spi.cli import build_parser, main
 
 HOST = ["host", "--port", "socket://127.0.0.1:5"]
@@ -126,6 +126,19 @@ BAD: list[tuple[list[str], tuple[str, ...]]] = [
     (["replay", "FILE", "--into-host", "--duration", "-2"], ("--duration", "(0, 86400]")),
     (["replay", "FILE", "--port", "socket://127.0.0.1:1", "--lead", "-1"], ("--lead", "[0, 3600]")),
     (["sim", "--port", "loop://"], ("--port", "pty")),
+    # --sw is checked by every command that takes it; a side's option is refused where it
+    # does not run, monitor included; the --jobs ranges at parse time
+    (["plot", "FILE", "--link", "--sw", "7.7"], ("--sw", "9.0")),
+    (["export", "FILE", "--vcd", "x.vcd", "--sw", "7.7"], ("--sw", "9.0")),
+    (["replay", "FILE", "--into-host", "--sw", "7.7"], ("--sw", "9.0")),
+    (["batch", "DIR", "--parquet", "out", "--sw", "7.7"], ("--sw", "9.0")),
+    (["monitor", "--port", "socket://127.0.0.1:5", "--objects", "3"],
+     ("--objects", "not to monitor --port")),
+    (["monitor", "--replay", "FILE", "--capture", "x.pcapng"], ("--capture", "monitor --replay")),
+    (["monitor", "--replay", "FILE", "--speed", "3"], ("--speed", "monitor --replay")),
+    (["sim", "--pty", "--can-protocol", "me8"], ("--can-protocol", "not to sim")),
+    (["batch", "DIR", "--parquet", "out", "--local-cluster", "300"], ("--local-cluster", "1..256")),
+    (["dissect", "--jobs", "-1", "FILE"], ("--jobs", "0..1024")),
 ]
 
 
@@ -260,7 +273,7 @@ def test_the_listener_prints_a_url_host_can_use() -> None:
 
 
 def test_sim_config_gets_the_checked_values() -> None:
-    from eyeq_spi.cli_run import sim_config
+    from eyeq_spi.cli.options import sim_config
 
     cfg = sim_config(_parse(["demo", "--drop-reply", "GetEyeQVersions:2",
                              "--drop-reply", "getEyeQVersions", "--stop-dasp", "0xE4@1.5"]))

@@ -183,7 +183,7 @@ class _Host:
 
 
 def test_live_view_one_time_base_100_columns_and_fatal_22_explained() -> None:
-    from eyeq_spi.cli_run import LiveView
+    from eyeq_spi.cli.run import LiveView
 
     t0 = 84_000.0  # a host on the monotonic clock: transitions carry t0 + elapsed
     host = _Host(t0 + 0.2)

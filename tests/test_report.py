@@ -112,3 +112,27 @@ def test_requests_abandoned_at_an_eyeq_reset_are_counted_apart_from_timeouts() -
     assert client.counters.abandoned == 2 and client.counters.timeouts == 0
     client.handle_timer(10.0)  # nothing left to expire
     assert client.counters.timeouts == 0 and client.get_timer() is None
+
+
+def test_running_vision_is_judged_once_for_every_run() -> None:
+    """demo (the emulation) and host (eyeq_spi.live.drive) judge "reached and held" with the
+    same RunningVision: entered, left, and judged again after a reconnection."""
+    from types import SimpleNamespace
+
+    from eyeq_spi.host.machine import HostState
+    from eyeq_spi.report import RunningVision
+
+    watch = RunningVision()
+    host: Any = SimpleNamespace(state=HostState.RUNNING_VISION)
+    watch.update(host, 1.0)
+    watch.update(host, 2.0)
+    assert (watch.since, watch.left) == (1.0, [])
+    host.state = next(s for s in HostState if s is not HostState.RUNNING_VISION)
+    watch.update(host, 3.0)
+    assert (watch.since, watch.left) == (None, [3.0])
+    watch.reset()
+    assert (watch.since, watch.left) == (None, [])
+    emu = build(sim_config=SimConfig(reset_at=4.0), keep_rx_times=False)
+    emu.run_for(8.0)
+    assert emu.vision.left and emu.left_running is emu.vision.left
+    assert summary(emu)["running_vision_since"] == round(emu.running_since or -1, 4)

@@ -390,7 +390,7 @@ def test_a_usage_error_about_a_name_reads_the_names_index_not_the_catalogue(
 
 
 def test_the_names_index_agrees_with_the_catalogue() -> None:
-    from eyeq_spi import cli_args as ca
+    from eyeq_spi.cli import args as ca
     from eyeq_spi.spec.catalog import catalog
 
     cat, idx = catalog(), ca._index()

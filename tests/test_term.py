@@ -49,7 +49,7 @@ def test_human_dissect_lines_carry_time_and_direction(
 
 def test_progress_only_where_it_cannot_garble_records(
         monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    from eyeq_spi import cli_progress as cp
+    from eyeq_spi.cli import progress as cp
 
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
     with open(tmp_path / "out", "w") as f, monkeypatch.context() as m:
@@ -70,7 +70,7 @@ def test_block_position_moves_inside_a_chunk() -> None:
     through the chunk, not the read position (which stood still, then jumped)."""
     from types import SimpleNamespace
 
-    from eyeq_spi.cli_dissect import _BlockPosition
+    from eyeq_spi.cli.dissect import _BlockPosition
 
     where = _BlockPosition()
     fa = SimpleNamespace(ftype=[0] * 100)
@@ -151,7 +151,7 @@ def _all_parsers() -> list[tuple[str, Any]]:
     import argparse
 
     from eyeq_spi.cli import build_parser
-    from eyeq_spi.cli_help import finish
+    from eyeq_spi.cli.help import finish
 
     top = build_parser()
     finish(top)

@@ -21,7 +21,7 @@ WIDTH = 100
 
 
 def _fixed_width(parser: argparse.ArgumentParser) -> None:
-    """Descriptions were wrapped by ``cli_help.finish`` at WIDTH; examples stay as written."""
+    """Descriptions were wrapped by ``cli.help.finish`` at WIDTH; examples stay as written."""
     parser.formatter_class = lambda prog: argparse.RawDescriptionHelpFormatter(
         prog, width=WIDTH, max_help_position=32)
 
@@ -42,7 +42,7 @@ def _walk(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
 def render() -> str:
     sys.path.insert(0, str(ROOT))
     from eyeq_spi.cli import build_parser
-    from eyeq_spi.cli_help import finish
+    from eyeq_spi.cli.help import finish
 
     top = build_parser()
     finish(top, width=WIDTH)

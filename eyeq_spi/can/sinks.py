@@ -141,12 +141,3 @@ def attach(host: Any, runner: Any, *, target: str, protocol: str) -> CanOutput:
     out = CanOutput(gateway, sink, node)
     atexit.register(out.close)
     return out
-
-
-def attach_from_args(args: Any, host: Any, runner: Any) -> CanOutput | None:
-    """``demo``/``host --can-out TARGET [--can-protocol P]``: attach a gateway, or do nothing."""
-    target = getattr(args, "can_out", None)
-    if not target:
-        return None
-    return attach(host, runner, target=target,
-                  protocol=getattr(args, "can_protocol", None) or "extlog2")

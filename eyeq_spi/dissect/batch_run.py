@@ -27,7 +27,7 @@ from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBl
 from eyeq_spi.io import batch_readers
 
 Item = dict[str, Any] | FrameBlock
-__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "fields_mode", "is_plain",
+__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "fields_mode",
            "parallel_items"]
 
 
@@ -111,10 +111,6 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
         else:
             for r in item.records():
                 w.write(r)
-
-
-def is_plain(args: Any) -> bool:
-    return not (args.protocol or args.id is not None or args.name or args.errors_only)
 
 
 def fields_mode(writers: list[Any], plain: bool) -> str:

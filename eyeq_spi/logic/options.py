@@ -106,31 +106,3 @@ def parse_signals(items: list[str]) -> dict[str, tuple[str, str, str, str | None
 
 def signal_name(channel: str, signal: str) -> str:
     return str(bench_spec()["vcd"]["name_format"]).format(channel=channel, signal=signal)
-
-
-def add_spi_arguments(parser: Any) -> None:
-    """The logic-analyzer options shared by ``dissect`` and ``export`` (argparse)."""
-    g = parser.add_argument_group("logic-analyzer inputs (saleae2, saleae1, vcd)")
-    g.add_argument("--spi-mode", type=int, choices=(0, 1, 2, 3),
-                   help="SPI mode (default 1: §6 POLARITY_0_PHASE_1)")
-    g.add_argument("--bit-order", choices=("msb_first", "lsb_first"),
-                   help="bit order of each byte on the wire (default msb_first)")
-    g.add_argument("--channel-map", metavar="MAP",
-                   help="which capture channel carries each direction: h2e=NAME[:LINE],"
-                   "e2h=NAME[:LINE] (NAME: Saleae analyzer name or VCD channel prefix, empty "
-                   "for the only one; LINE mosi|miso). Default: channels named h2e/e2h, MOSI")
-    g.add_argument("--signals", action="append", default=[], metavar="CHANNEL=CS,CLK,MOSI[,MISO]",
-                   help="VCD signal names of a channel (repeatable; default <channel>_cs ...)")
-
-
-def spi_options_from(args: Any) -> SpiOptions:
-    kw: dict[str, Any] = {"direction": getattr(args, "direction", None)}
-    if getattr(args, "spi_mode", None) is not None:
-        kw["mode"] = args.spi_mode
-    if getattr(args, "bit_order", None):
-        kw["bit_order"] = args.bit_order
-    if getattr(args, "channel_map", None):
-        kw["channel_map"] = parse_channel_map(args.channel_map)
-    if getattr(args, "signals", None):
-        kw["signals"] = parse_signals(args.signals)
-    return SpiOptions(**kw)

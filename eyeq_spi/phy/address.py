@@ -12,7 +12,7 @@ stream the same way:
 Older spellings are still understood and reported with the new one (:attr:`Address.old`):
 ``listen://HOST:PORT`` and ``socket://HOST:PORT`` given to listen are ``--listen
 tcp://HOST:PORT``. :func:`parse_connect` and :func:`parse_listen` are the only parsers; the CLI
-(``cli_args``) and :func:`eyeq_spi.phy.base.open_url` both use them.
+(``eyeq_spi.cli.args``) and :func:`eyeq_spi.phy.base.open_url` both use them.
 """
 
 from __future__ import annotations

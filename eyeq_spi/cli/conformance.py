@@ -9,16 +9,18 @@ import shutil
 import sys
 from typing import TYPE_CHECKING, Any
 
-from eyeq_spi import cli_args as ca
+from eyeq_spi.cli import args as ca
 from eyeq_spi.errors import UsageError
 
 if TYPE_CHECKING:
     from eyeq_spi.conformance.suite import Options
 
 
-def add_conformance_parser(sub: Any) -> None:
+def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import options as opt
+
     p = sub.add_parser(
-        "conformance", help="protocol conformance suite: verdict per requirement",
+        name, help=help,
         description="Play the host against an EyeQ under test (--dut eyeq --port URL) or the "
         "EyeQ against a host under test (--dut host --listen tcp://HOST:PORT or --pty), judge "
         "one case per requirement of seed 004 and the protocol decisions, and report verdicts "
@@ -44,9 +46,8 @@ def add_conformance_parser(sub: Any) -> None:
                    help="print every case (ID, DUT, seed section, requirement, decision, title)")
     p.add_argument("-k", dest="select", metavar="EXPR",
                    help="select cases: words matched in ID/title/group/section, with and/or/not")
-    p.add_argument("--sw", type=ca.sw_release, help="SW release (default: newest)")
-    p.add_argument("--json", action="store_true",
-                   help="JSON Lines: one object per case, then a summary object")
+    opt.add_sw(p, "SW release (default: newest)")
+    opt.include(p, opt.json_out("JSON Lines: one object per case, then a summary object"))
     p.add_argument("--junit", metavar="FILE", type=ca.output_file, help="write JUnit XML")
     p.add_argument("--report", metavar="FILE.md|FILE.html", type=ca.output_file,
                    help="write a Markdown or HTML report")
@@ -54,10 +55,7 @@ def add_conformance_parser(sub: Any) -> None:
                    default=30.0, help="seconds to wait for the host under test (default 30)")
     p.add_argument("--mode-timeout", type=ca.number(0, 3600, lo_open=True, unit="s"),
                    default=None, help="seconds to wait for TAC/SPC results and mode changes")
-    p.add_argument("--rt-priority", type=ca.integer(0, 99), default=10, metavar="N",
-                   help="real time: SCHED_FIFO priority 1..99 so that our ACKs meet the 10 ms "
-                   "ackTimeout on a busy machine; 0: ordinary scheduling (default 10; falls back "
-                   "when refused)")
+    opt.include(p, opt.rt_priority("our ACKs"))
     p.add_argument("--mutant", help=argparse.SUPPRESS)  # test-only: a broken built-in variant
 
 
@@ -67,7 +65,7 @@ def _progress(args: argparse.Namespace) -> Any:
     return lambda text: print(text, file=sys.stderr, flush=True)
 
 
-def run_conformance(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     from eyeq_spi.conformance import report
     from eyeq_spi.conformance.cases import all_cases, cases_for
     from eyeq_spi.conformance.suite import Options, run, selector
@@ -103,7 +101,7 @@ def run_conformance(args: argparse.Namespace) -> int:
         opts.sessions_done = rt.close  # judging is CPU-bound: ordinary scheduling again
         if opts.progress is not None:
             opts.progress(f"scheduling: {scheduling}")
-    from eyeq_spi.cli_progress import JobProgress
+    from eyeq_spi.cli.progress import JobProgress
 
     try:
         # the report goes to stdout at the end; the session lines print above the bar

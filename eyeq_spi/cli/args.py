@@ -405,32 +405,6 @@ class Endpoint(argparse.Action):
             raise argparse.ArgumentError(self, f"{exc}{hint}") from None
 
 
-class NotForThisSide(argparse.Action):
-    """An option that exists on another command but means nothing here: refused, not ignored."""
-
-    def __init__(self, option_strings: Sequence[str], dest: str, reason: str = "",
-                 **kwargs: Any) -> None:
-        self.reason = reason
-        super().__init__(option_strings, dest, **kwargs)
-
-    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
-                 values: Any, option_string: str | None = None) -> None:
-        raise argparse.ArgumentError(self, self.reason)
-
-
-def add_option(group: Any, applies: bool, reason: str, *flags: str, **kw: Any) -> None:
-    """``group.add_argument(*flags, **kw)`` when the option ``applies``; otherwise the option is
-    still known (hidden, its default in the namespace) but giving it is a usage error."""
-    if applies:
-        group.add_argument(*flags, **kw)
-        return
-    flag_like = kw.get("action") in ("store_true", "store_false")
-    group.add_argument(*flags, action=NotForThisSide, reason=reason,
-                       nargs=0 if flag_like else "?",
-                       default=kw.get("default", False if flag_like else None),
-                       dest=kw.get("dest"), help=argparse.SUPPRESS)
-
-
 def spec_entry(query: str) -> str:
     """``spec show``'s NAME: an exact name in any case, a data ID (``0xE4``: DASP, 0x41, 0x10;
     init messages by ID too), ``SERVICE/FUNCTION`` of a MESP function, or a unique part of a

@@ -12,25 +12,22 @@ from collections.abc import Callable, Iterator
 from typing import IO, Any
 
 from eyeq_spi.errors import UsageError
-from eyeq_spi.io import readers
 
 
-def add_dissect_parser(sub: Any) -> None:
-    from eyeq_spi import cli_args as ca
+def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import args as ca
+    from eyeq_spi.cli import options as opt
 
-    d = sub.add_parser("dissect", help="decode SPI captures (pcapng, raw, hex, Saleae, VCD)",
+    d = sub.add_parser(name, help=help,
                        description="Decode SPI transfers: frames, reassembled messages with "
                        "their fields, link events. Exit 0 clean, 1 protocol errors found, "
-                       "2 bad input or usage.")
+                       "2 bad input or usage.",
+                       parents=[opt.capture_input(
+                           sw_help="SW release of the traffic (default: the one each capture "
+                           "records or shows, else the newest)", spi=False),
+                           opt.json_out("JSON Lines, one object per line")])
     d.add_argument("files", nargs="+", metavar="FILE", type=ca.input_file,
                    help="capture files, or - for stdin")
-    d.add_argument("--format", choices=readers(), help="skip detection")
-    d.add_argument("--direction", choices=("h2e", "e2h"),
-                   help="channel of a raw or hex file without directions")
-    d.add_argument("--sw", type=ca.sw_release,
-                   help="SW release of the traffic (default: the one each capture records or "
-                   "shows, else the newest)")
-    d.add_argument("--json", action="store_true", help="JSON Lines, one object per line")
     d.add_argument("--csv", metavar="DIR", type=ca.output_dir,
                    help="one CSV table per message type")
     d.add_argument("--parquet", metavar="DIR", type=ca.output_dir,
@@ -48,19 +45,14 @@ def add_dissect_parser(sub: Any) -> None:
     d.add_argument("--errors-only", action="store_true",
                    help="only bad frames, link events and messages with errors")
     d.add_argument("--no-tree", action="store_true", help="no field tree in the human view")
-    d.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+    d.add_argument("--jobs", "-j", type=opt.limited("dissect_jobs"), default=1, metavar="N",
                    help="dissect N files at a time in worker processes (same output as one "
                    "at a time; 0: one per CPU)")
-    from eyeq_spi.logic.options import add_spi_arguments
+    opt.add_spi_arguments(d)
 
-    add_spi_arguments(d)
-    w = sub.add_parser("wireshark", help="generate the Wireshark Lua dissector from specs/")
-    w.add_argument("--output", "-o", metavar="FILE.lua", type=ca.output_file,
-                   help="write the dissector here (default: standard output)")
-    w.add_argument("--sw", type=ca.sw_release,
-                   help="read every capture as this SW release: the default of the "
-                        "dissector's eyeq_spi.sw preference (default: auto, each capture's "
-                        "own release)")
+
+def run(args: argparse.Namespace) -> int:
+    return run_dissect(args)
 
 
 def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
@@ -129,7 +121,7 @@ def run_dissect(args: argparse.Namespace) -> int:
     bars = contextlib.ExitStack()
     try:
         br: Any = _batch_run(args)  # None for small inputs: numpy costs more than it saves
-        plain = br.is_plain(args) if br is not None else True
+        plain = _plain(args)
         if args.jobs < 0:
             raise UsageError(f"--jobs must be 0 or more, not {args.jobs}")
         jobs = args.jobs or (br.default_jobs() if br is not None else 1)
@@ -137,7 +129,7 @@ def run_dissect(args: argparse.Namespace) -> int:
         if br is not None and jobs > 1 and len(args.files) > 1 and "-" not in args.files:
             par = br.parallel_items(args.files, jobs, args.format, args.direction, args.sw,
                                     br.fields_mode(writers, plain))
-        from eyeq_spi.cli_progress import JobProgress
+        from eyeq_spi.cli.progress import JobProgress
 
         # --jobs: files are decoded in workers, so the bar counts files as they arrive (a
         # file read here has its own bar over its bytes instead)
@@ -220,13 +212,13 @@ def _dissect_file(path: str, args: argparse.Namespace, br: Any, plain: bool,
                   human: Any) -> Any:
     """One file in this process (the batch path when it is a seekable pcapng or raw file, else
     the exact engine); returns what its reader left at its end."""
+    from eyeq_spi.cli.options import spi_options
     from eyeq_spi.dissect.engine import Dissector
     from eyeq_spi.dissect.release import open_capture
-    from eyeq_spi.logic.options import spi_options_from
 
     fh = _open(path)
     try:
-        cap = open_capture(fh, args.format, args.direction, spi_options_from(args), sw=args.sw,
+        cap = open_capture(fh, args.format, args.direction, spi_options(args), sw=args.sw,
                            name=path)
         _file_start(path, cap.release, stats, human)
         codec = _codec(cap.release.key)
@@ -246,9 +238,9 @@ def _dissect_file(path: str, args: argparse.Namespace, br: Any, plain: bool,
 
 def _with_progress(it: Iterator[Any], fh: IO[bytes], path: str,
                    stdout_busy: bool = False) -> Iterator[Any]:
-    """The shared progress bar (:mod:`eyeq_spi.cli_progress`) over one file: on stderr, only
+    """The shared progress bar (:mod:`eyeq_spi.cli.progress`) over one file: on stderr, only
     where it cannot land between records, following the batch path's blocks inside a chunk."""
-    from eyeq_spi.cli_progress import JobProgress, file_size, track_file
+    from eyeq_spi.cli.progress import JobProgress, file_size, track_file
 
     size = file_size(fh)
     bar = JobProgress(f"dissect {os.path.basename(path)}", size,
@@ -342,21 +334,3 @@ def _open(path: str) -> IO[bytes]:
         return open(path, "rb")
     except OSError as exc:
         raise InputError(f"{path}: {exc.strerror or exc}") from None
-
-
-def run_wireshark(args: argparse.Namespace) -> int:
-    from eyeq_spi.wireshark.lua_gen import generate_lua
-
-    text = generate_lua(args.sw)
-    if args.output in (None, "-"):
-        sys.stdout.write(text)
-        sys.stdout.flush()
-        return 0
-    try:
-        with open(args.output, "w", encoding="utf-8") as fh:
-            fh.write(text)
-    except OSError as exc:
-        raise UsageError(f"cannot write {args.output}: {exc.strerror or exc}") from None
-    print(f"wrote {args.output} ({len(text.splitlines())} lines); use it with "
-          f"wireshark -X lua_script:{args.output} or copy it to your Lua plugins folder")
-    return 0

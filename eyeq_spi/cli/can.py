@@ -17,8 +17,10 @@ from eyeq_spi.errors import UsageError
 PROTOCOLS = ("extlog2", "me8")
 
 
-def add_can_parser(sub: Any) -> None:
-    c = sub.add_parser("can", help="Mobileye CAN: DBCs, decode logs or a live bus, compare",
+def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import options as opt
+
+    c = sub.add_parser(name, help=help,
                        description="The Mobileye CAN protocols of specs/can/: ExtLogData2/AWS/"
                        "LKA (extlog2, seeds 000/001) and Mobileye 8 Connect (me8, seed 003).")
     cs = c.add_subparsers(dest="can_command", required=True, parser_class=sub._parser_class)
@@ -36,7 +38,7 @@ def add_can_parser(sub: Any) -> None:
     k.add_argument("dbc", metavar="OTHER.dbc", help="the DBC file to compare")
     k.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
                    help="our protocol to compare with (default extlog2)")
-    k.add_argument("--json", action="store_true", help="the differences as a JSON list")
+    opt.include(k, opt.json_out("the differences as a JSON list"))
     x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
                       "or a live bus",
                       description="Decode CAN logs with the protocols of specs/can/. Exit 0 "
@@ -47,7 +49,7 @@ def add_can_parser(sub: Any) -> None:
                    ".mf4 .csv)")
     x.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
                    help="protocol of the log (default extlog2)")
-    x.add_argument("--json", action="store_true", help="JSON Lines, one object per frame")
+    opt.include(x, opt.json_out("JSON Lines, one object per frame"))
     x.add_argument("--csv", metavar="DIR", help="one CSV table per message")
     x.add_argument("--parquet", metavar="DIR", help="one Parquet table per message")
     x.add_argument("--stats", action="store_true",
@@ -259,7 +261,7 @@ def _decode(args: argparse.Namespace) -> int:
     return 1 if bad or truncated else 0
 
 
-def run_can(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     if args.can_command == "compare":
         return _compare(args)
     return _dbc(args) if args.can_command == "dbc" else _decode(args)

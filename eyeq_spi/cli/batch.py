@@ -11,8 +11,10 @@ from typing import Any
 from eyeq_spi.errors import UsageError
 
 
-def add_batch_parser(sub: Any) -> None:
-    b = sub.add_parser("batch", help="many captures into one partitioned Parquet dataset",
+def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import options as opt
+
+    b = sub.add_parser(name, help=help,
                        description="Dissect every *.pcapng under DIR with the batch dissector "
                        "and write one Parquet dataset partitioned by capture and message "
                        "(OUT/capture=NAME/message=NAME/part-0.parquet). Prints one JSON "
@@ -21,28 +23,24 @@ def add_batch_parser(sub: Any) -> None:
     b.add_argument("dir", metavar="DIR", help="a directory of captures (searched recursively) "
                    "or one capture")
     b.add_argument("--parquet", required=True, metavar="OUT", help="dataset directory")
-    b.add_argument("--sw", help="SW version of the traffic (default newest)")
+    opt.add_sw(b, "SW release of the traffic (default newest)")
     where = b.add_mutually_exclusive_group()
-    where.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+    where.add_argument("--jobs", "-j", type=opt.limited("batch_jobs"), default=1, metavar="N",
                        help="captures at a time in local worker processes (default 1)")
     where.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                        help="run the captures on this Dask scheduler (workers must see DIR "
                        "and OUT at the same paths)")
-    where.add_argument("--local-cluster", type=int, metavar="N",
+    where.add_argument("--local-cluster", type=opt.limited("local_cluster"), metavar="N",
                        help="run the captures on a Dask LocalCluster of N worker processes")
 
 
-def run_batch(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     from eyeq_spi.dissect.fleet import run_fleet
 
-    if args.jobs < 1:
-        raise UsageError(f"--jobs must be 1 or more, not {args.jobs}")
-    if args.local_cluster is not None and not 1 <= args.local_cluster <= 256:
-        raise UsageError(f"--local-cluster must be 1..256, not {args.local_cluster}")
     if args.scheduler and not args.scheduler.startswith(("tcp://", "tls://", "inproc://")):
         raise UsageError(f"--scheduler: a Dask address such as tcp://HOST:8786, "
                          f"not {args.scheduler!r}")
-    from eyeq_spi.cli_progress import JobProgress
+    from eyeq_spi.cli.progress import JobProgress
 
     # the summaries go to stdout at the end: nothing is written between them while it runs
     with JobProgress("batch", unit="captures") as bar:

@@ -1,0 +1,107 @@
+"""``eyeq-spi export``: a capture as VCD waveforms, MDF4 or MCAP."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from typing import Any
+
+from eyeq_spi.cli import inputs
+from eyeq_spi.errors import UsageError
+
+
+def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import args as ca
+    from eyeq_spi.cli import options as opt
+
+    e = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
+                       description="Turn a capture into SPI waveforms for PulseView (--vcd), "
+                       "decoded signals for asammdf/CANape (--mdf) or raw transfers and decoded "
+                       "messages for Foxglove (--mcap). Several outputs may be given at once.")
+    inputs.add_capture_argument(e)
+    e.add_argument("--vcd", metavar="OUT.vcd", type=ca.output_file,
+                   help="SPI waveforms, 10 MHz, mode 1 (about 30 bytes per bit sent: the size "
+                   "is said before writing)")
+    e.add_argument("--vcd-max-idle", type=ca.number(0, 3600, lo_open=True, unit="s"),
+                   metavar="S", help="--vcd: shorten every stretch with both channels idle to "
+                   "at most S seconds (smaller timestamps, and sigrok samples no idle time); "
+                   "default: capture timing")
+    e.add_argument("--vcd-max-size", type=ca.number(0, 1e6, lo_open=True, unit="MB"),
+                   default=2000.0, metavar="MB", help="--vcd: refuse, before writing, a VCD "
+                   "estimated larger than this (default 2000 MB)")
+    e.add_argument("--mdf", metavar="OUT.mf4", type=ca.output_file,
+                   help="decoded signals (needs the [bench] extra)")
+    e.add_argument("--mcap", metavar="OUT.mcap", type=ca.output_file,
+                   help="raw transfers and decoded messages (needs the [bench] extra)")
+    opt.include(e, opt.json_out("end with one JSON summary object"))
+
+
+def run(args: argparse.Namespace) -> int:
+    return run_export(args)
+
+
+def run_export(args: argparse.Namespace) -> int:
+    from eyeq_spi.bench.export import export
+    from eyeq_spi.cli.progress import JobProgress
+
+    if not (args.vcd or args.mdf or args.mcap):
+        raise UsageError("give at least one of --vcd, --mdf, --mcap")
+    total = _vcd_plan(args) if args.capture != "-" else None
+    fh, cap = inputs.open_input(args, "export")
+    try:
+        with JobProgress(f"export {os.path.basename(args.capture)}", total,
+                         unit="transfers", enabled=None if total else False) as bar:
+            summary = export(cap.records, source=args.capture, sw=cap.release.key,
+                             vcd=args.vcd, mdf=args.mdf, mcap=args.mcap, spi=_spi(args),
+                             vcd_max_idle=args.vcd_max_idle, progress=bar.update)
+    finally:
+        if fh is not sys.stdin.buffer:
+            fh.close()
+    if args.json:
+        print(json.dumps(summary, separators=(",", ":")))
+    else:
+        for line in summary["written"]:
+            print(f"wrote {line}")
+    return inputs.tail_note("export", args.capture, cap.tail)
+
+
+def _vcd_plan(args: argparse.Namespace) -> int:
+    """A first pass over the capture: how many transfers it holds (the progress bar's total)
+    and, for --vcd, the VCD's estimated size, said on stderr before anything is written and
+    refused above --vcd-max-size."""
+    from eyeq_spi.logic.vcd_write import estimate_size
+
+    fh, cap = inputs.open_input(args, "export", quiet=True)
+    n = nbytes = 0
+    t0 = t1 = None
+    try:
+        for rec in cap.records:
+            n += 1
+            nbytes += len(rec.data)
+            if rec.time is not None:
+                t0 = rec.time if t0 is None else t0
+                t1 = rec.time
+    finally:
+        fh.close()
+    if args.vcd:
+        span = (t1 - t0) if t0 is not None and t1 is not None else n * 5e-4
+        if args.vcd_max_idle is not None:
+            span = min(span, n * (args.vcd_max_idle + 15e-6))
+        size = estimate_size(n, nbytes, span)
+        mb = size / 1e6
+        capture = os.path.getsize(args.capture) / 1e6
+        if mb > args.vcd_max_size:
+            raise UsageError(f"the VCD of {args.capture} would be about {mb:,.0f} MB "
+                             f"({n:,} transfers, {nbytes * 8:,} bits; a VCD holds every clock "
+                             f"edge); raise --vcd-max-size or export part of the capture")
+        print(f"eyeq-spi: {os.path.basename(args.vcd)} will be about {mb:,.0f} MB "
+              f"({capture:,.1f} MB capture; a VCD holds every clock edge)", file=sys.stderr)
+    return n
+
+
+def _spi(args: argparse.Namespace) -> Any:
+    from eyeq_spi.cli.options import spi_options
+
+    return spi_options(args)

@@ -1,0 +1,148 @@
+"""``eyeq-spi monitor``: a live terminal view of demo, host, a replayed capture or a CAN bus."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from typing import Any
+
+from eyeq_spi.cli import inputs
+from eyeq_spi.cli import options as opt
+from eyeq_spi.errors import UsageError
+
+
+def add_parser(sub: Any, name: str, help: str) -> None:
+    m = sub.add_parser(
+        name, help=help,
+        description="A live view (rich, plain ANSI, works over SSH): host state and "
+        "transitions, message rates against nominal, link counters, E2E and counter errors, "
+        "the current objects, lanes and signs. Ctrl-C stops it. Needs rich: "
+        "pip install 'eyeq-spi[monitor]'.")
+    src = m.add_mutually_exclusive_group(required=True)
+    src.add_argument("--demo", action="store_true",
+                     help="host emulator against the embedded simulated EyeQ (as demo)")
+    from eyeq_spi.cli.args import connect_address
+
+    src.add_argument("--port", metavar="URL", type=connect_address,
+                     help="host emulator against an EyeQ (as host)")
+    src.add_argument("--replay", metavar="FILE",
+                     help="a capture's EyeQ channel replayed into the host emulator (as replay "
+                     "--into-host) in capture time")
+    src.add_argument("--can-bus", metavar="INTERFACE:CHANNEL",
+                     help="a live Mobileye CAN bus (virtual:NAME, socketcan:can0): one line per "
+                     "ID with its cycle and newest signals, as cantools monitor (protocol: "
+                     "--can-protocol)")
+    m.add_argument("--duration", type=float, help="seconds (default: 10 for --demo, no limit "
+                   "for --port and --can-bus, the whole capture for --replay)")
+    m.add_argument("--virtual-time", action="store_true", help="--demo as fast as the CPU allows")
+    m.add_argument("--pace", type=float, default=1.0, metavar="X",
+                   help="--replay: X times real time (default 1; 0 = as fast as possible)")
+    m.add_argument("--passive", action="store_true",
+                   help="--replay: show both channels as recorded, through the dissector, "
+                   "instead of replaying into the host (a capture without the bring-up)")
+    m.add_argument("--refresh", type=float, default=6.0, metavar="HZ",
+                   help="screen redraws per second, 5..30 (default 6)")
+    m.add_argument("--screenshot", metavar="FILE",
+                   help="also write the last screen to FILE.svg (a picture), .html or .txt")
+    m.add_argument("--screenshot-size", metavar="COLSxROWS", type=_size,
+                   help="--screenshot: the screen as a terminal of that size shows it, e.g. "
+                   "80x24 (default: the whole screen)")
+    m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
+    m.add_argument("--format", choices=opt.FORMATS, help="--replay: skip detection")
+    opt.include(m, opt.scenario("monitor"))
+
+
+
+
+def _size(text: str) -> tuple[int, int]:
+    """``COLSxROWS`` of a terminal, at least 80x24."""
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    if not m or int(m.group(1)) < 80 or int(m.group(2)) < 24:
+        raise argparse.ArgumentTypeError(f"give COLSxROWS of at least 80x24, not {text!r}")
+    return int(m.group(1)), int(m.group(2))
+
+
+def run(args: argparse.Namespace) -> int:
+    from eyeq_spi.monitor.app import run as run_app
+
+    if args.duration is not None and args.duration <= 0:
+        raise UsageError("--duration must be positive")
+    if not 0 <= args.pace <= 1e6:
+        raise UsageError("--pace must be >= 0")
+    if args.screenshot is not None:
+        from eyeq_spi.monitor.app import check_screenshot
+
+        check_screenshot(args.screenshot)  # before a long run
+    if args.can_bus:
+        from eyeq_spi.monitor.app import MAX_REFRESH, MIN_REFRESH
+        from eyeq_spi.monitor.can_bus import run_can_monitor
+
+        if not MIN_REFRESH <= args.refresh <= MAX_REFRESH:
+            raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
+        run_can_monitor(args.can_bus, args.can_protocol, duration=args.duration,
+                        refresh=args.refresh, screenshot=args.screenshot)
+        return 0
+    if args.port:
+        opt.refuse_inapplicable(args, [opt.HOST], "monitor --port: the EyeQ there decides")
+    elif args.replay:
+        opt.refuse_inapplicable(args, [], "monitor --replay")
+    if args.passive and not args.replay:
+        raise UsageError("--passive goes with --replay")
+    if args.replay and args.passive:
+        from eyeq_spi.codec.message import MessageCodec
+        from eyeq_spi.monitor.sources import DissectSource
+
+        sw = inputs.release(args.replay, args.sw, args.format, None, "monitor")
+        source: Any = DissectSource(args.replay, MessageCodec(sw), speed=args.pace,
+                                    fmt=args.format)
+    elif args.replay:
+        from eyeq_spi.monitor.sources import ReplaySource
+
+        sw = inputs.release(args.replay, args.sw, args.format, None, "monitor")
+        source = ReplaySource(args.replay, sw=sw, speed=args.pace, fmt=args.format,
+                              duration=args.duration)
+    elif args.demo:
+        source = _demo_source(args)
+    else:
+        source = _host_source(args)
+    run_app(source, refresh=args.refresh, screenshot=args.screenshot,
+        screenshot_size=args.screenshot_size)
+    return inputs.tail_note("monitor", args.replay, getattr(source, "tail", None))
+
+
+def _demo_source(args: argparse.Namespace) -> Any:
+    from eyeq_spi.monitor.sources import DemoSource
+
+    emu, writer = opt.build_demo(args)
+    source = DemoSource(emu, 10.0 if args.duration is None else args.duration,
+                        realtime=not args.virtual_time)
+    if writer is not None:
+        source.close = writer.close  # type: ignore[method-assign]
+    return source
+
+
+def _host_source(args: argparse.Namespace) -> Any:
+    import gc
+
+    from eyeq_spi.host.host import HostEmulator
+    from eyeq_spi.live import capture_tap
+    from eyeq_spi.monitor.sources import HostSource
+    from eyeq_spi.phy.base import open_url
+    from eyeq_spi.runner.realtime import RealTimeRunner
+
+    host_cfg, nvm, scenario = opt.host_parts(args)
+    host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
+    adapter = open_url(args.port)
+    writer = opt.capture_writer(args)
+    runner = RealTimeRunner(host, adapter, max_wait=0.01)
+    runner.tap = capture_tap(writer, runner.clock(), "h2e", "e2h")
+    gc.freeze()  # as `host` does: the catalogue and layouts live forever
+
+    def close() -> None:
+        adapter.close()
+        nvm.save()
+        if writer is not None:
+            writer.close()
+
+    return HostSource(host, runner, args.duration, on_close=close)
+

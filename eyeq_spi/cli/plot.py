@@ -1,0 +1,109 @@
+"""``eyeq-spi plot``: pictures of a capture (bird's-eye scene, stream timing, link behaviour)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+from eyeq_spi.cli import inputs
+from eyeq_spi.errors import UsageError
+
+
+def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import options as opt
+
+    p = sub.add_parser(
+        name, help=help,
+        description="Draw a capture (read through the dissector) as PNG, SVG or a "
+        "self-contained HTML file; --animate writes a GIF or an HTML player. Needs the plot "
+        "extra: pip install 'eyeq-spi[plot]'.")
+    p.add_argument("capture", metavar="CAPTURE", help="pcapng, hex or raw capture")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--birdseye", action="store_true",
+                      help="objects, lanes and signs seen from above")
+    what.add_argument("--timing", action="store_true",
+                      help="inter-arrival time of each message against its nominal rate")
+    what.add_argument("--link", action="store_true",
+                      help="frames/s by kind, NAKs by reason, CRC errors and aborts over time")
+    p.add_argument("-o", "--output", metavar="FILE",
+                   help="FILE.png, .svg or .html (--animate: .gif or .html); default: "
+                   "CAPTURE_<kind>.png (.gif when animated) beside the capture")
+    p.add_argument("--at", type=float, metavar="T",
+                   help="--birdseye: the scene at T s from the capture start (default: the end)")
+    p.add_argument("--animate", action="store_true", help="--birdseye over the whole window")
+    p.add_argument("--fps", type=float, default=5.0, help="--animate: frames per capture second")
+    p.add_argument("--max-frames", type=int, default=600, help="--animate: at most N frames")
+    p.add_argument("--range", dest="range_m", type=float, metavar="M",
+                   help="--birdseye: metres ahead (default: fitted)")
+    p.add_argument("--lateral", dest="lateral_m", type=float, metavar="M",
+                   help="--birdseye: metres to each side (default: fitted)")
+    p.add_argument("--name", metavar="REGEX",
+                   help="--timing: only messages whose name matches (default: all periodic)")
+    p.add_argument("--bin", dest="bin_ms", type=float, default=100.0, metavar="MS",
+                   help="--link: time bin (default 100 ms)")
+    p.add_argument("--start", type=float, default=0.0, metavar="S", help="window start, s")
+    p.add_argument("--end", type=float, default=math.inf, metavar="S", help="window end, s")
+    opt.include(p, opt.capture_input(opt.FORMATS, spi=False))
+
+
+def _default_output(args: argparse.Namespace, kind: str) -> str:
+    cap = Path(args.capture)
+    suffix = ".gif" if args.animate else ".png"
+    return str(cap.with_name(f"{cap.stem}_{kind}{suffix}"))
+
+
+def run(args: argparse.Namespace) -> int:
+    from eyeq_spi.capture.pcapng_io import Tail
+    from eyeq_spi.codec.message import MessageCodec
+    from eyeq_spi.plot.collect import Collector, Window, collect
+    from eyeq_spi.plot.output import check_output, mpl, save_animation, save_figure
+
+    kind = "birdseye" if args.birdseye else "timing" if args.timing else "link"
+    if (args.at is not None or args.animate) and not args.birdseye:
+        raise UsageError("--at and --animate go with --birdseye")
+    if args.at is not None and args.animate:
+        raise UsageError("give --at or --animate, not both")
+    for name in ("fps", "bin_ms", "range_m", "lateral_m"):
+        v = getattr(args, name)
+        if v is not None and not (0 < v < 1e6):
+            raise UsageError(f"--{name.split('_')[0]} must be positive")
+    if args.max_frames < 1 or args.start < 0 or not args.end > args.start:
+        raise UsageError("need --max-frames >= 1 and 0 <= --start < --end")
+    try:
+        name_re = re.compile(args.name) if args.name else None
+    except re.error as exc:
+        raise UsageError(f"--name: bad regular expression: {exc}") from None
+    out = args.output or _default_output(args, kind)
+    check_output(out, animated=args.animate)
+    mpl()  # fail before reading a large capture when matplotlib is missing
+    codec = MessageCodec(inputs.release(args.capture, args.sw, args.format, args.direction, "plot"))
+    window = Window(args.start, args.end)
+    col = Collector(codec, window, timing=args.timing, link=args.link,
+                    link_bin=args.bin_ms / 1000.0,
+                    at=(args.at if args.at is not None else math.inf) if args.birdseye
+                    and not args.animate else None,
+                    fps=args.fps if args.animate else None, max_frames=args.max_frames)
+    tail = Tail()
+    data = collect(args.capture, col, fmt=args.format, direction=args.direction, tail=tail)
+    if name_re is not None:
+        data.streams = {k: v for k, v in data.streams.items() if name_re.search(k)}
+    title = f"{Path(args.capture).name}: {kind}"
+    if args.birdseye:
+        from eyeq_spi.plot.birdseye import animation, birdseye
+
+        if args.animate:
+            anim = animation(data.frames, args.fps, args.range_m, args.lateral_m)
+            save_animation(anim, out, args.fps, title)
+        else:
+            assert data.scene is not None
+            save_figure(birdseye(data.scene, args.range_m, args.lateral_m), out, title)
+    else:
+        from eyeq_spi.plot.charts import link_figure, timing_figure
+
+        fig = timing_figure(data)[0] if args.timing else link_figure(data)
+        save_figure(fig, out, title)
+    print(f"wrote {out}")
+    return inputs.tail_note("plot", args.capture, tail)

@@ -1,0 +1,77 @@
+"""``eyeq-spi replay``: a capture's EyeQ channel played to a host under test or to the built-in
+host emulator."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from eyeq_spi.cli import inputs
+from eyeq_spi.errors import UsageError
+
+
+def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import args as ca
+    from eyeq_spi.cli import options as opt
+
+    r = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
+                       description="Play the EyeQ channel (e2h) of a capture to a host under "
+                       "test in real time, keeping the capture's timing and ACKing the host's "
+                       "frames (--listen: the host connects to us; --port: we connect to the "
+                       "host), or (--into-host) to the built-in host emulator in virtual time. "
+                       "Ends with the run summary demo, host and sim print. Exit 0 when the run "
+                       "is ok: played to the end with nothing lost (--into-host: judged as "
+                       "host judges, Running Vision reached and held), else 1.")
+    inputs.add_capture_argument(r)
+    where = r.add_mutually_exclusive_group(required=True)
+    where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
+                       metavar="tcp://HOST:PORT",
+                       help="listen here for the host under test (port 0: any free port); "
+                       "prints LISTEN URL on stderr")
+    where.add_argument("--port", dest="endpoint", action=ca.Endpoint, metavar="URL",
+                       help="connect to the host under test at tcp://HOST:PORT (socket:// too), "
+                       "rfc2217://HOST:PORT or a tty/pty path")
+    where.add_argument("--into-host", action="store_true",
+                       help="feed the built-in host emulator in virtual time")
+    r.set_defaults(port=None, listen=None, pty=False)
+    r.add_argument("--duration", type=opt.seconds,
+                   help="stop after S seconds of capture time, (0, 86400]")
+    r.add_argument("--lead", type=ca.number(0, 3600, unit="s"), default=0.5, metavar="S",
+                   help="--port: seconds between the host connecting and the first frame "
+                   "(default 0.5)")
+    opt.include(r, opt.json_out())
+
+
+def run(args: argparse.Namespace) -> int:
+    return run_replay(args)
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    from eyeq_spi.bench.replay import replay_into_host, replay_to_port
+    from eyeq_spi.report import format_summary
+
+    if args.duration is not None and args.duration <= 0:
+        raise UsageError("--duration must be positive")
+    if args.pty:
+        raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
+    fh, cap = inputs.open_input(args, "replay")
+    try:
+        if args.into_host:
+            summary = replay_into_host(cap.records, sw=cap.release.key, duration=args.duration)
+        else:
+            if args.lead < 0:
+                raise UsageError("--lead must not be negative")
+            summary = replay_to_port(cap.records, args.listen or args.port,
+                                     listen=bool(args.listen), duration=args.duration,
+                                     lead=args.lead, sw=cap.release.key)
+    finally:
+        if fh is not sys.stdin.buffer:
+            fh.close()
+    if args.json:
+        print(json.dumps(summary, sort_keys=True), flush=True)
+    else:
+        print(format_summary(summary), flush=True)
+    rc = inputs.tail_note("replay", args.capture, cap.tail)
+    return 0 if summary["ok"] and not rc else 1

@@ -1,0 +1,42 @@
+"""``eyeq-spi wireshark``: the Wireshark Lua dissector generated from ``specs/``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from eyeq_spi.errors import UsageError
+
+
+def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import args as ca
+    from eyeq_spi.cli import options as opt
+
+    w = sub.add_parser(name, help=help)
+    w.add_argument("--output", "-o", metavar="FILE.lua", type=ca.output_file,
+                   help="write the dissector here (default: standard output)")
+    opt.add_sw(w, "read every capture as this SW release: the default of the dissector's "
+               "eyeq_spi.sw preference (default: auto, each capture's own release)")
+
+
+def run(args: argparse.Namespace) -> int:
+    return run_wireshark(args)
+
+
+def run_wireshark(args: argparse.Namespace) -> int:
+    from eyeq_spi.wireshark.lua_gen import generate_lua
+
+    text = generate_lua(args.sw)
+    if args.output in (None, "-"):
+        sys.stdout.write(text)
+        sys.stdout.flush()
+        return 0
+    try:
+        with open(args.output, "w", encoding="utf-8") as fh:
+            fh.write(text)
+    except OSError as exc:
+        raise UsageError(f"cannot write {args.output}: {exc.strerror or exc}") from None
+    print(f"wrote {args.output} ({len(text.splitlines())} lines); use it with "
+          f"wireshark -X lua_script:{args.output} or copy it to your Lua plugins folder")
+    return 0
