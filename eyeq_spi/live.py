@@ -71,6 +71,8 @@ def serve(eyeq: SimulatedEyeQ, adapter: Any, *, duration: float | None, accept_t
                 runner.run(None if end is None else max(0.0, end - clock()))
             except LinkLostError as exc:
                 lost = str(exc)
+            finally:
+                runner.close()
             served.add(sim, began=began - t0, ended=clock() - t0, link_lost=lost)
     except KeyboardInterrupt:
         interrupted = True
@@ -152,6 +154,7 @@ def drive(host: HostEmulator, adapter: Any, *, duration: float, address: str,
     except KeyboardInterrupt:
         interrupted = True
     finally:
+        runner.close()
         rt.close()
         if adapter is not None:
             adapter.close()

@@ -98,3 +98,53 @@ def test_two_processes_exchange_1000_messages_over_tcp() -> None:
     assert all(host.echoed[i] == messages[i] for i in range(1000))
     # resends are allowed (a real-time scheduler hiccup can cost an ACK) but must stay rare
     assert host.resends < 20, host.resends
+
+
+def test_the_runner_gives_the_collector_back_as_it_found_it() -> None:
+    """The runner turns the cyclic GC off while it runs; closing it (or leaving its ``with``
+    block) restores the state it found, once, however often it is closed."""
+    import gc
+
+    from eyeq_spi.phy.memory import memory_pair
+
+    a, _ = memory_pair()
+    assert gc.isenabled()
+    with RealTimeRunner(TransportConnection(LinkConfig()), a) as runner:
+        assert not gc.isenabled()
+    assert gc.isenabled()
+    runner.close()
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        RealTimeRunner(TransportConnection(LinkConfig()), a).close()
+        assert not gc.isenabled()  # it was off before: it stays off
+    finally:
+        gc.enable()
+
+
+def test_replay_to_a_host_leaves_the_collector_on() -> None:
+    """A library call that runs in real time (here: replaying frames to a host that hangs up at
+    once) must not leave the collector off for the rest of the caller's process."""
+    import gc
+    import socket
+    import threading
+
+    from eyeq_spi.bench.replay import replay_to_port
+    from eyeq_spi.capture.pcapng_io import Record
+
+    srv = socket.create_server(("127.0.0.1", 0))
+    port = srv.getsockname()[1]
+
+    def hang_up() -> None:
+        conn, _ = srv.accept()
+        conn.close()
+
+    t = threading.Thread(target=hang_up, daemon=True)
+    t.start()
+    assert gc.isenabled()
+    try:
+        replay_to_port([Record(0.0, "e2h", bytes(128))], f"tcp://127.0.0.1:{port}", lead=0.05)
+    finally:
+        srv.close()
+        t.join(5)
+    assert gc.isenabled()

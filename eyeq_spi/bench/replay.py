@@ -254,6 +254,8 @@ def replay_to_port(records: Iterable[Record], url: str, *, listen: bool = False,
             lost = str(exc)
         except KeyboardInterrupt:
             interrupted = True
+        finally:
+            runner.close()
     finally:
         adapter.close()
     rep = node.summary()

@@ -139,6 +139,7 @@ def _host_source(args: argparse.Namespace) -> Any:
     gc.freeze()  # as `host` does: the catalogue and layouts live forever
 
     def close() -> None:
+        runner.close()
         adapter.close()
         nvm.save()
         if writer is not None:

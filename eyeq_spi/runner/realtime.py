@@ -38,7 +38,9 @@ class RealTimeRunner:
         self.idle_gc = idle_gc
         self._last_gc = clock()
         self._gcs = 0
+        self._gc_was: bool | None = None  # the collector's state to give back on close
         if idle_gc:
+            self._gc_was = gc.isenabled()
             gc.disable()
 
     def _flush(self, now: float) -> None:
@@ -75,9 +77,19 @@ class RealTimeRunner:
             t = self.adapter.recv(0)
 
     def close(self) -> None:
-        """Give the cyclic GC back to the process."""
-        if self.idle_gc:
-            gc.enable()
+        """Give the cyclic GC back to the process as it was before this runner (idempotent).
+        Every owner calls it, or uses the runner as a context manager: a runner left open leaves
+        the collector off for the rest of the process."""
+        if self._gc_was is not None:
+            if self._gc_was:
+                gc.enable()
+            self._gc_was = None
+
+    def __enter__(self) -> RealTimeRunner:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     def run(self, duration: float | None = None, *, stop: Callable[[], bool] | None = None) -> None:
         end = None if duration is None else self.clock() + duration

@@ -100,4 +100,6 @@ class Session:
             self.trace.stalls.append((last, now))
 
     def finish(self) -> None:
+        if self._rt is not None:
+            self._rt.close()  # the collector back on (idempotent: finish may come twice)
         self.trace.end = max(self.trace.end, self.now)
