@@ -26,8 +26,7 @@ from eyeq_spi.dissect.release import Release
 from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBlock
 
 Item = dict[str, Any] | FrameBlock
-__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "fields_mode", "is_plain",
-           "parallel_items"]
+__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "parallel_items"]
 
 
 def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
@@ -110,21 +109,6 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
         else:
             for r in item.records():
                 w.write(r)
-
-
-def is_plain(args: Any) -> bool:
-    return not (args.protocol or args.id is not None or args.name or args.errors_only)
-
-
-def fields_mode(writers: list[Any], plain: bool) -> str:
-    """What span messages must carry for these writers (vmessages.SpanDecoder): counts only
-    for ``--stats`` alone with no filter, no fields with a filter, columns for one table writer
-    and no filter, else the fields."""
-    if not writers:
-        return "count" if plain else "none"
-    if plain and len(writers) == 1 and type(writers[0]).__name__ == "TableWriter":
-        return "columns"
-    return "dict"
 
 
 # -- --jobs N -------------------------------------------------------------------------------------
