@@ -6,7 +6,7 @@ import argparse
 import json
 import os
 import sys
-from typing import IO, Any
+from typing import Any
 
 from eyeq_spi.errors import UsageError
 
@@ -83,33 +83,18 @@ def add_bench_parser(sub: Any) -> None:
                    "any other needs SIGROKDECODE_DIR=DIR)")
 
 
-def _records(args: argparse.Namespace, command: str, *,
-             quiet: bool = False) -> tuple[IO[bytes], Any]:
-    """The capture opened with its release (``--sw`` overrides, one warning line when they
-    disagree, unless ``quiet``: a first pass that only counts) and its tail (a pcapng cut
-    inside a block is read up to its last whole block)."""
-    from eyeq_spi.dissect.inputs import InputError
-    from eyeq_spi.dissect.release import open_capture
-    from eyeq_spi.logic.options import spi_options_from
+def _capture(args: argparse.Namespace, command: str, *, quiet: bool = False) -> Any:
+    """The capture opened by the dissect pipeline with its release (``--sw`` overrides, one
+    warning line when they disagree, unless ``quiet``: a first pass that only counts) and its
+    tail (a pcapng cut inside a block is read up to its last whole block)."""
+    from eyeq_spi.dissect.pipeline import DissectConfig, open_capture_file
 
-    if args.capture == "-":
-        fh: IO[bytes] = sys.stdin.buffer
-    else:
-        try:
-            fh = open(args.capture, "rb")  # noqa: SIM115 - closed by the caller
-        except OSError as exc:
-            raise InputError(f"{args.capture}: {exc.strerror or exc}") from None
-    try:
-        cap = open_capture(fh, args.format, args.direction, spi_options_from(args), sw=args.sw,
-                           name=args.capture)
-    except BaseException:
-        if fh is not sys.stdin.buffer:
-            fh.close()
-        raise
+    cap = open_capture_file(args.capture, DissectConfig(
+        fmt=args.format, direction=args.direction, spi=_spi(args), sw=args.sw))
     if cap.release.warning and not quiet:
         print(f"eyeq-spi {command}: warning: {cap.release.warning}", file=sys.stderr,
               flush=True)
-    return fh, cap
+    return cap
 
 
 def _tail_rc(command: str, path: str, cap: Any) -> int:
@@ -121,22 +106,29 @@ def _tail_rc(command: str, path: str, cap: Any) -> int:
 
 
 def run_export(args: argparse.Namespace) -> int:
-    from eyeq_spi.bench.export import export
+    from eyeq_spi.bench.export import export, export_mdf
     from eyeq_spi.cli_progress import JobProgress
 
     if not (args.vcd or args.mdf or args.mcap):
         raise UsageError("give at least one of --vcd, --mdf, --mcap")
-    total = _vcd_plan(args) if args.capture != "-" else None
-    fh, cap = _records(args, "export")
+    transfers = bool(args.vcd or args.mcap)  # else MDF alone, from the pipeline's records
+    total = _vcd_plan(args) if args.capture != "-" and transfers else None
+    cap = _capture(args, "export")
     try:
-        with JobProgress(f"export {os.path.basename(args.capture)}", total,
-                         unit="transfers", enabled=None if total else False) as bar:
-            summary = export(cap.records, source=args.capture, sw=cap.release.key,
-                             vcd=args.vcd, mdf=args.mdf, mcap=args.mcap, spi=_spi(args),
-                             vcd_max_idle=args.vcd_max_idle, progress=bar.update)
+        if transfers:
+            with JobProgress(f"export {os.path.basename(args.capture)}", total,
+                             unit="transfers", enabled=None if total else False) as bar:
+                summary = export(cap.transfers, source=args.capture, sw=cap.release.key,
+                                 vcd=args.vcd, mdf=args.mdf, mcap=args.mcap, spi=_spi(args),
+                                 vcd_max_idle=args.vcd_max_idle, progress=bar.update)
+        else:
+            with JobProgress(f"export {os.path.basename(args.capture)}",
+                             enabled=None if args.capture != "-" else False) as bar:
+                cap.progress = lambda _path, done, size: bar.update(done, size)
+                summary = export_mdf(cap.items, args.mdf, source=args.capture,
+                                     sw=cap.release.key)
     finally:
-        if fh is not sys.stdin.buffer:
-            fh.close()
+        cap.close()
     if args.json:
         print(json.dumps(summary, separators=(",", ":")))
     else:
@@ -151,18 +143,18 @@ def _vcd_plan(args: argparse.Namespace) -> int:
     refused above --vcd-max-size."""
     from eyeq_spi.logic.vcd_write import estimate_size
 
-    fh, cap = _records(args, "export", quiet=True)
+    cap = _capture(args, "export", quiet=True)
     n = nbytes = 0
     t0 = t1 = None
     try:
-        for rec in cap.records:
+        for rec in cap.transfers:
             n += 1
             nbytes += len(rec.data)
             if rec.time is not None:
                 t0 = rec.time if t0 is None else t0
                 t1 = rec.time
     finally:
-        fh.close()
+        cap.close()
     if args.vcd:
         span = (t1 - t0) if t0 is not None and t1 is not None else n * 5e-4
         if args.vcd_max_idle is not None:
@@ -193,19 +185,18 @@ def run_replay(args: argparse.Namespace) -> int:
         raise UsageError("--duration must be positive")
     if args.pty:
         raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
-    fh, cap = _records(args, "replay")
+    cap = _capture(args, "replay")
     try:
         if args.into_host:
-            summary = replay_into_host(cap.records, sw=cap.release.key, duration=args.duration)
+            summary = replay_into_host(cap.transfers, sw=cap.release.key, duration=args.duration)
         else:
             if args.lead < 0:
                 raise UsageError("--lead must not be negative")
-            summary = replay_to_port(cap.records, args.listen or args.port,
+            summary = replay_to_port(cap.transfers, args.listen or args.port,
                                      listen=bool(args.listen), duration=args.duration,
                                      lead=args.lead, sw=cap.release.key)
     finally:
-        if fh is not sys.stdin.buffer:
-            fh.close()
+        cap.close()
     if args.json:
         print(json.dumps(summary, sort_keys=True), flush=True)
     else:

@@ -114,9 +114,8 @@ def _default_output(args: argparse.Namespace, kind: str) -> str:
 
 
 def run_plot(args: argparse.Namespace) -> int:
-    from eyeq_spi.capture.pcapng_io import Tail
     from eyeq_spi.codec.message import MessageCodec
-    from eyeq_spi.plot.collect import Collector, Window, collect
+    from eyeq_spi.plot.collect import Collector, Window, collect_capture
     from eyeq_spi.plot.output import check_output, mpl, save_animation, save_figure
 
     kind = "birdseye" if args.birdseye else "timing" if args.timing else "link"
@@ -137,15 +136,18 @@ def run_plot(args: argparse.Namespace) -> int:
     out = args.output or _default_output(args, kind)
     check_output(out, animated=args.animate)
     mpl()  # fail before reading a large capture when matplotlib is missing
-    codec = MessageCodec(_release(args.capture, args.sw, args.format, args.direction, "plot"))
+    cf = _open_capture(args, args.capture, "plot")
+    codec = MessageCodec(cf.release.key)
     window = Window(args.start, args.end)
     col = Collector(codec, window, timing=args.timing, link=args.link,
                     link_bin=args.bin_ms / 1000.0,
                     at=(args.at if args.at is not None else math.inf) if args.birdseye
                     and not args.animate else None,
                     fps=args.fps if args.animate else None, max_frames=args.max_frames)
-    tail = Tail()
-    data = collect(args.capture, col, fmt=args.format, direction=args.direction, tail=tail)
+    try:
+        data = collect_capture(cf, col)
+    finally:
+        cf.close()
     if name_re is not None:
         data.streams = {k: v for k, v in data.streams.items() if name_re.search(k)}
     title = f"{Path(args.capture).name}: {kind}"
@@ -164,19 +166,22 @@ def run_plot(args: argparse.Namespace) -> int:
         fig = timing_figure(data)[0] if args.timing else link_figure(data)
         save_figure(fig, out, title)
     print(f"wrote {out}")
-    return _tail_note("plot", args.capture, tail)
+    return _tail_note("plot", args.capture, cf.tail)
 
 
-def _release(path: str, sw: str | None, fmt: str | None, direction: str | None,
-             command: str) -> str:
-    """The release a capture is read with (the capture's own unless ``--sw``), with the
-    one-line warning when they disagree."""
-    from eyeq_spi.dissect.release import release_of
+def _open_capture(args: argparse.Namespace, path: str, command: str) -> Any:
+    """The capture opened by the dissect pipeline with the release it is read with (the
+    capture's own unless ``--sw``), with the one-line warning when they disagree."""
+    from eyeq_spi.dissect.pipeline import DissectConfig, open_capture_file
+    from eyeq_spi.logic.options import spi_options_from
 
-    rel = release_of(path, sw, fmt, direction)
-    if rel.warning:
-        print(f"eyeq-spi {command}: warning: {rel.warning}", file=sys.stderr, flush=True)
-    return rel.key
+    cf = open_capture_file(path, DissectConfig(
+        fmt=args.format, direction=getattr(args, "direction", None),
+        spi=spi_options_from(args), sw=args.sw, pace_gc=command != "monitor"))
+    if cf.release.warning:
+        print(f"eyeq-spi {command}: warning: {cf.release.warning}", file=sys.stderr,
+              flush=True)
+    return cf
 
 
 def _tail_note(command: str, path: str, tail: Any) -> int:
@@ -218,14 +223,12 @@ def run_monitor(args: argparse.Namespace) -> int:
         from eyeq_spi.codec.message import MessageCodec
         from eyeq_spi.monitor.sources import DissectSource
 
-        sw = _release(args.replay, args.sw, args.format, None, "monitor")
-        source: Any = DissectSource(args.replay, MessageCodec(sw), speed=args.pace,
-                                    fmt=args.format)
+        cf = _open_capture(args, args.replay, "monitor")
+        source: Any = DissectSource(cf, MessageCodec(cf.release.key), speed=args.pace)
     elif args.replay:
         from eyeq_spi.monitor.sources import ReplaySource
 
-        sw = _release(args.replay, args.sw, args.format, None, "monitor")
-        source = ReplaySource(args.replay, sw=sw, speed=args.pace, fmt=args.format,
+        source = ReplaySource(_open_capture(args, args.replay, "monitor"), speed=args.pace,
                               duration=args.duration)
     elif args.demo:
         source = _demo_source(args)

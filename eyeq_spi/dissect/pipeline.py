@@ -42,6 +42,8 @@ SMALL_INPUT = 256 << 10  # bytes; below this the exact path is quicker than impo
 PACE = 4096  # records between two looks at the young generation
 YOUNG = 20_000  # containers it must have grown by to be collected
 
+AUTO = "auto"
+
 Progress = Callable[[str | None, float, float | None], None]
 """``progress(path, done, total)``: ``done`` of ``total`` bytes of the file ``path`` read (a
 file read in this process, when its size is known), or with ``path`` None, ``done`` of
@@ -100,7 +102,8 @@ class CaptureFile:
 
     path: str
     config: DissectConfig = field(default_factory=DissectConfig)
-    batch: Any = None  # eyeq_spi.dissect.batch_run when the batch path may be taken
+    batch: Any = None  # eyeq_spi.dissect.batch_run when the batch path may be taken, AUTO:
+    # when the file is big enough (batch_module)
     progress: Progress | None = None
     _done: tuple[list[Any], Release, Tail] | None = None  # from a worker process
     _fh: IO[bytes] | None = None
@@ -156,7 +159,7 @@ class CaptureFile:
         fh = self._fh
         assert fh is not None
         try:
-            br = self.batch
+            br = batch_module([self.path]) if self.batch is AUTO else self.batch
             batched = (br.batch_items(fh, self.config.fmt, self.config.direction, self.codec,
                                       fields=self.config.fields, tail=cap.tail)
                        if br is not None else None)
@@ -211,24 +214,33 @@ def dissect_captures(paths: Sequence[str], config: DissectConfig | None = None, 
     par = None
     if br is not None and jobs > 1 and len(paths) > 1 and "-" not in paths:
         par = br.parallel_items(list(paths), jobs, cfg.fmt, cfg.direction, cfg.sw, cfg.fields)
-    gc_was = gc.isenabled()
-    if cfg.pace_gc:
-        gc.disable()  # collected by paced_gc instead
     current: CaptureFile | None = None
+    with paused_gc() if cfg.pace_gc else contextlib.nullcontext():
+        try:
+            for n, path in enumerate(paths, 1):
+                done = next(par)[1] if par is not None else None
+                current = CaptureFile(path, cfg, br, progress, done)
+                yield current
+                current.close()
+                if par is not None and progress is not None:
+                    progress(None, n, len(paths))
+        finally:
+            if current is not None:
+                current.close()
+            if par is not None:
+                par.close()
+
+
+@contextlib.contextmanager
+def paused_gc() -> Iterator[None]:
+    """The automatic cyclic garbage collector off (items go through :func:`paced_gc`), on
+    again after, if it was on."""
+    was = gc.isenabled()
+    gc.disable()
     try:
-        for n, path in enumerate(paths, 1):
-            done = next(par)[1] if par is not None else None
-            current = CaptureFile(path, cfg, br, progress, done)
-            yield current
-            current.close()
-            if par is not None and progress is not None:
-                progress(None, n, len(paths))
+        yield
     finally:
-        if current is not None:
-            current.close()
-        if par is not None:
-            par.close()
-        if gc_was:
+        if was:
             gc.enable()
 
 
@@ -268,7 +280,7 @@ def open_capture_file(path: str, config: DissectConfig | None = None) -> Capture
     """One capture opened with its release (:attr:`CaptureFile.release` raises a bad input's
     :class:`.inputs.InputError` now); read its :attr:`~CaptureFile.transfers` or
     :attr:`~CaptureFile.items`, then :meth:`~CaptureFile.close` it."""
-    cf = CaptureFile(path, config or DissectConfig())
+    cf = CaptureFile(path, config or DissectConfig(), AUTO)
     cf._open()
     return cf
 
