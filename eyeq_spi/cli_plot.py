@@ -18,6 +18,9 @@ HOST_ONLY = ("speed", "scenario", "camera_only_aeb", "ack_timeout", "transmit_ti
              "capture")
 
 
+_FORMATS = ("raw", "hex", "pcapng", "saleae2", "saleae1", "vcd")  # as dissect reads
+
+
 def add_plot_parser(sub: Any) -> None:
     p = sub.add_parser(
         "plot", help="bird's-eye scene, stream timing or link behaviour of a capture",
@@ -50,9 +53,12 @@ def add_plot_parser(sub: Any) -> None:
                    help="--link: time bin (default 100 ms)")
     p.add_argument("--start", type=float, default=0.0, metavar="S", help="window start, s")
     p.add_argument("--end", type=float, default=math.inf, metavar="S", help="window end, s")
-    p.add_argument("--format", choices=("raw", "hex", "pcapng"), help="skip detection")
+    from eyeq_spi.logic.options import add_spi_arguments
+
+    p.add_argument("--format", choices=_FORMATS, help="skip detection")
     p.add_argument("--direction", choices=("h2e", "e2h"),
-                   help="channel of a raw or hex file without directions")
+                   help="channel of an input without directions")
+    add_spi_arguments(p)
     p.add_argument("--sw", help="SW release of the traffic (default: the one the capture "
                    "records or shows, else the newest)")
 
@@ -94,7 +100,10 @@ def add_plot_parser(sub: Any) -> None:
                    help="--screenshot: the screen as a terminal of that size shows it, e.g. "
                    "80x24 (default: the whole screen)")
     m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
-    m.add_argument("--format", choices=("raw", "hex", "pcapng"), help="--replay: skip detection")
+    m.add_argument("--format", choices=_FORMATS, help="--replay: skip detection")
+    m.add_argument("--direction", choices=("h2e", "e2h"),
+                   help="--replay: channel of an input without directions")
+    add_spi_arguments(m)
     add_shared_options(m)
     m.set_defaults(side_defaults={d: m.get_default(d) for d in SIM_ONLY + HOST_ONLY})
 
