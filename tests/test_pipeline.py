@@ -78,6 +78,13 @@ def test_dissect_files_hands_out_what_dissect_prints(demo: Path, small: int,
     assert json.loads(json.dumps(jobs)) == want
 
 
+def _recorder(seen: list[tuple[str | None, float, float | None]]) -> pipeline.Progress:
+    def progress(path: str | None, done: float, total: float | None) -> None:
+        seen.append((path, done, total))
+
+    return progress
+
+
 def test_dissect_files_reports_progress_and_a_cut_tail(demo: Path, tmp_path: Path,
                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     cut = tmp_path / "cut.pcapng"
@@ -85,8 +92,7 @@ def test_dissect_files_reports_progress_and_a_cut_tail(demo: Path, tmp_path: Pat
     for small in (1 << 40, 0):
         monkeypatch.setattr(pipeline, "SMALL_INPUT", small)
         seen: list[tuple[str | None, float, float | None]] = []
-        run = dissect_files([str(cut)], progress=lambda p, d, t, seen=seen: seen.append(
-            (p, d, t)))
+        run = dissect_files([str(cut)], progress=_recorder(seen))
         n = sum(1 for _ in run)
         size = cut.stat().st_size
         assert n and run.ignored > 0 and run.files[0].tail.ignored == run.ignored
