@@ -20,11 +20,10 @@ from hypothesis import strategies as st
 
 from eyeq_spi.capture.fastread import chunks_from_records
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
-from eyeq_spi.cli import dissect as cli_dissect
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect import batch, batch_run, engine, inputs, output
+from eyeq_spi.dissect import batch, batch_run, engine, inputs, output, pipeline
 from eyeq_spi.dissect.stats import Stats
 from eyeq_spi.dissect.vframes import FrameBlock
 from eyeq_spi.transport.segment import segment
@@ -142,7 +141,7 @@ def test_cli_batch_and_exact_print_the_same(files: list[tuple[Path, list[str]]],
                                             mode: list[str], capsys: pytest.CaptureFixture[str],
                                             monkeypatch: pytest.MonkeyPatch) -> None:
     """The test captures are small: SMALL_INPUT 0 sends them through the batch path."""
-    monkeypatch.setattr(cli_dissect, "SMALL_INPUT", 0)
+    monkeypatch.setattr(pipeline, "SMALL_INPUT", 0)
     for path, extra in files:
         rc, out = _run(["dissect", str(path), *extra, *mode], capsys)
         got = (rc, out.replace(str(path), "-"))  # every record's file
@@ -155,7 +154,7 @@ def test_cli_tables_batch_and_exact(files: list[tuple[Path, list[str]]], tmp_pat
                                     capsys: pytest.CaptureFixture[str],
                                     monkeypatch: pytest.MonkeyPatch) -> None:
     pq = pytest.importorskip("pyarrow.parquet", reason="--parquet needs pyarrow (extra)")
-    monkeypatch.setattr(cli_dissect, "SMALL_INPUT", 0)
+    monkeypatch.setattr(pipeline, "SMALL_INPUT", 0)
     for k, (path, extra) in enumerate(files):
         for fmt in ("csv", "parquet"):
             b, e = tmp_path / f"{k}{fmt}b", tmp_path / f"{k}{fmt}e"
@@ -183,10 +182,10 @@ def test_paced_gc_collects_per_block_and_every_pace(monkeypatch: pytest.MonkeyPa
     young = iter([5, 50, 60, 70])  # what the young generation has grown by at each look
     monkeypatch.setattr(gc, "collect", lambda gen=2: calls.append(gen) or 0)
     monkeypatch.setattr(gc, "get_count", lambda: (next(young), 0, 0))
-    monkeypatch.setattr(cli_dissect, "PACE", 3)
-    monkeypatch.setattr(cli_dissect, "YOUNG", 10)
+    monkeypatch.setattr(pipeline, "PACE", 3)
+    monkeypatch.setattr(pipeline, "YOUNG", 10)
     items: list[Any] = [{"kind": "frame"}] * 7 + [object()] + [{"kind": "frame"}] * 3
-    assert list(cli_dissect._paced_gc(iter(items))) == items
+    assert list(pipeline.paced_gc(iter(items))) == items
     assert calls == [1, 1, 1]  # looks after records 3 (too young) and 6, the block, 3 more
 
 

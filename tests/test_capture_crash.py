@@ -89,7 +89,7 @@ def test_the_cli_readers_say_it_in_one_line_and_exit_1(good: bytes, tmp_path: Pa
     cut = tmp_path / "cut.pcapng"
     cut.write_bytes(good[:-8])  # 8 bytes into the last block, as the killed demo left it
     for small in (1 << 40, 0):  # the exact and the batch path
-        monkeypatch.setattr("eyeq_spi.cli.dissect.SMALL_INPUT", small)
+        monkeypatch.setattr("eyeq_spi.dissect.pipeline.SMALL_INPUT", small)
         for argv in (["dissect", str(cut), "--json"], ["dissect", str(cut), "--stats"],
                      ["dissect", "-j", "2", str(cut), str(cut), "--stats", "--json"]):
             capsys.readouterr()

@@ -77,7 +77,7 @@ def test_a_capture_of_every_release_dissects_clean(captures: dict[str, Path], ba
                                                    capsys: pytest.CaptureFixture[str],
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """Before captures carried their release, every release but the newest read as broken."""
-    monkeypatch.setattr("eyeq_spi.cli.dissect.SMALL_INPUT", 0 if batch else 1 << 40)
+    monkeypatch.setattr("eyeq_spi.dissect.pipeline.SMALL_INPUT", 0 if batch else 1 << 40)
     for r, path in captures.items():
         rc, out, err = _run(capsys, "dissect", str(path), "--stats", "--json")
         st = json.loads(out)
@@ -91,7 +91,7 @@ def test_both_paths_give_the_same_records(captures: dict[str, Path],
     for r, path in captures.items():
         outs = []
         for small in (1 << 40, 0):  # the exact path, then the batch path
-            monkeypatch.setattr("eyeq_spi.cli.dissect.SMALL_INPUT", small)
+            monkeypatch.setattr("eyeq_spi.dissect.pipeline.SMALL_INPUT", small)
             outs.append(_run(capsys, "dissect", str(path), "--json")[:2])
         assert outs[0] == outs[1] and outs[0][0] == 0, r
 
@@ -188,7 +188,7 @@ def test_jobs_print_what_one_file_at_a_time_prints(captures: dict[str, Path], mo
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     files = [str(captures[r]) for r in ("8.1", "9.0", "5.0")]
     for small in (1 << 40, 0):  # small files: the exact path serially, workers for --jobs
-        monkeypatch.setattr("eyeq_spi.cli.dissect.SMALL_INPUT", small)
+        monkeypatch.setattr("eyeq_spi.dissect.pipeline.SMALL_INPUT", small)
         serial = _run(capsys, "dissect", *files, *mode)
         assert serial[0] == 0
         assert _run(capsys, "dissect", "--jobs", "2", *files, *mode) == serial

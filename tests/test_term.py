@@ -70,7 +70,7 @@ def test_block_position_moves_inside_a_chunk() -> None:
     through the chunk, not the read position (which stood still, then jumped)."""
     from types import SimpleNamespace
 
-    from eyeq_spi.cli.dissect import _BlockPosition
+    from eyeq_spi.dissect.pipeline import BlockPosition as _BlockPosition
 
     where = _BlockPosition()
     fa = SimpleNamespace(ftype=[0] * 100)

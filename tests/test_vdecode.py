@@ -25,7 +25,7 @@ from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.codec.vdecode import crc_rows, vec_layout
 from eyeq_spi.crc import crc16
-from eyeq_spi.dissect import batch, batch_run, engine
+from eyeq_spi.dissect import batch, batch_run, engine, pipeline
 from eyeq_spi.dissect.engine import _check_enums
 from eyeq_spi.dissect.output import JsonWriter, TableWriter, flatten
 from eyeq_spi.dissect.stats import Stats
@@ -356,10 +356,10 @@ def test_columns_mode_really_writes_columns() -> None:
     items = list(batch.iter_items(chunks_from_records(recs, 1 << 15), fields="columns"))
     groups = [g for b in items if isinstance(b, FrameBlock) for g in b.tables]
     assert {g.name for g in groups} >= {"EYEQ_VIS_OBSTACLES_MSG", "EYEQ_VIS_FAILSAFE_MSG"}
-    assert batch_run.fields_mode([], True) == "count"
-    assert batch_run.fields_mode([], False) == "none"
-    assert batch_run.fields_mode([TableWriter.__new__(TableWriter)], True) == "columns"
-    assert batch_run.fields_mode([TableWriter.__new__(TableWriter)], False) == "dict"
+    assert pipeline.fields_mode([], True) == "count"
+    assert pipeline.fields_mode([], False) == "none"
+    assert pipeline.fields_mode([TableWriter.__new__(TableWriter)], True) == "columns"
+    assert pipeline.fields_mode([TableWriter.__new__(TableWriter)], False) == "dict"
 
 
 def test_json_frame_lines_spell_floats_as_the_fast_writer() -> None:

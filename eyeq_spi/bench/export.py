@@ -1,6 +1,8 @@
 """One pass over a capture feeding every export asked for: VCD waveforms (raw transfers, no
 decoding), MDF4 and MCAP (through the dissector engine, so they hold exactly what ``eyeq-spi
-dissect`` decodes)."""
+dissect`` decodes). MDF4 alone is written from the dissect pipeline's records
+(:func:`export_mdf`: the batch path where it applies); VCD and MCAP need the raw transfers
+(:func:`export`)."""
 
 from __future__ import annotations
 
@@ -88,3 +90,25 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
                                "messages": mcap_w.messages}
         summary["written"] = written
         return summary
+
+
+def export_mdf(records: Iterable[dict[str, Any]], mdf: str, *, source: str,
+               sw: str | None = None) -> dict[str, Any]:
+    """The MDF4 file ``mdf`` from the dissector's records of one capture (what
+    :func:`eyeq_spi.dissect.pipeline.dissect_files` hands out), in one pass; the summary of
+    :func:`export` with ``mdf`` alone."""
+    from eyeq_spi.bench.mdf import MdfWriter
+    from eyeq_spi.codec.message import MessageCodec
+
+    codec = MessageCodec(sw)
+    mdf_w = MdfWriter(mdf, codec, source=source)
+    transfers = 0
+    for r in records:
+        if r["kind"] == "frame":
+            transfers += 1  # one frame record per transfer
+        mdf_w.write(r)
+    mdf_w.close()
+    return {"transfers": transfers, "sw": codec.sw,
+            "mdf": {"path": mdf, "groups": len(mdf_w.groups), "messages": mdf_w.messages},
+            "written": [f"{mdf} ({len(mdf_w.groups)} channel groups, {mdf_w.messages} "
+                        "messages)"]}

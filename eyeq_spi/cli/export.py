@@ -43,22 +43,29 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_export(args: argparse.Namespace) -> int:
-    from eyeq_spi.bench.export import export
+    from eyeq_spi.bench.export import export, export_mdf
     from eyeq_spi.cli.progress import JobProgress
 
     if not (args.vcd or args.mdf or args.mcap):
         raise UsageError("give at least one of --vcd, --mdf, --mcap")
-    total = _vcd_plan(args) if args.capture != "-" else None
-    fh, cap = inputs.open_input(args, "export")
+    transfers = bool(args.vcd or args.mcap)  # else MDF alone, from the pipeline's records
+    total = _vcd_plan(args) if args.capture != "-" and transfers else None
+    cap = inputs.open_input(args, "export")
     try:
-        with JobProgress(f"export {os.path.basename(args.capture)}", total,
-                         unit="transfers", enabled=None if total else False) as bar:
-            summary = export(cap.records, source=args.capture, sw=cap.release.key,
-                             vcd=args.vcd, mdf=args.mdf, mcap=args.mcap, spi=_spi(args),
-                             vcd_max_idle=args.vcd_max_idle, progress=bar.update)
+        if transfers:
+            with JobProgress(f"export {os.path.basename(args.capture)}", total,
+                             unit="transfers", enabled=None if total else False) as bar:
+                summary = export(cap.transfers, source=args.capture, sw=cap.release.key,
+                                 vcd=args.vcd, mdf=args.mdf, mcap=args.mcap, spi=_spi(args),
+                                 vcd_max_idle=args.vcd_max_idle, progress=bar.update)
+        else:
+            with JobProgress(f"export {os.path.basename(args.capture)}",
+                             enabled=None if args.capture != "-" else False) as bar:
+                cap.progress = lambda _path, done, size: bar.update(done, size)
+                summary = export_mdf(cap.items, args.mdf, source=args.capture,
+                                     sw=cap.release.key)
     finally:
-        if fh is not sys.stdin.buffer:
-            fh.close()
+        cap.close()
     if args.json:
         print(json.dumps(summary, separators=(",", ":")))
     else:
@@ -73,18 +80,18 @@ def _vcd_plan(args: argparse.Namespace) -> int:
     refused above --vcd-max-size."""
     from eyeq_spi.logic.vcd_write import estimate_size
 
-    fh, cap = inputs.open_input(args, "export", quiet=True)
+    cap = inputs.open_input(args, "export", quiet=True)
     n = nbytes = 0
     t0 = t1 = None
     try:
-        for rec in cap.records:
+        for rec in cap.transfers:
             n += 1
             nbytes += len(rec.data)
             if rec.time is not None:
                 t0 = rec.time if t0 is None else t0
                 t1 = rec.time
     finally:
-        fh.close()
+        cap.close()
     if args.vcd:
         span = (t1 - t0) if t0 is not None and t1 is not None else n * 5e-4
         if args.vcd_max_idle is not None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import IO, Any
+from typing import Any
 
 
 def capture_parents() -> list[Any]:
@@ -21,45 +21,23 @@ def add_capture_argument(p: Any) -> None:
                    help="a capture in any format dissect reads (pcapng, raw, hex, Saleae, VCD)")
 
 
-def open_input(args: argparse.Namespace, command: str, *,
-               quiet: bool = False) -> tuple[IO[bytes], Any]:
-    """The capture opened with its release (``--sw`` overrides, one warning line when they
-    disagree, unless ``quiet``: a first pass that only counts) and its tail (a pcapng cut
-    inside a block is read up to its last whole block)."""
+def open_input(args: argparse.Namespace, command: str, path: str | None = None, *,
+               quiet: bool = False, pace_gc: bool = True) -> Any:
+    """The capture (``path``, default ``args.capture``) opened by the dissect pipeline
+    (:func:`eyeq_spi.dissect.pipeline.open_capture_file`) with its release (``--sw`` overrides,
+    one warning line when they disagree, unless ``quiet``: a first pass that only counts) and
+    its tail (a pcapng cut inside a block is read up to its last whole block). The caller
+    closes it."""
     from eyeq_spi.cli.options import spi_options
-    from eyeq_spi.dissect.inputs import InputError
-    from eyeq_spi.dissect.release import open_capture
+    from eyeq_spi.dissect.pipeline import DissectConfig, open_capture_file
 
-    if args.capture == "-":
-        fh: IO[bytes] = sys.stdin.buffer
-    else:
-        try:
-            fh = open(args.capture, "rb")  # noqa: SIM115 - closed by the caller
-        except OSError as exc:
-            raise InputError(f"{args.capture}: {exc.strerror or exc}") from None
-    try:
-        cap = open_capture(fh, args.format, args.direction, spi_options(args), sw=args.sw,
-                           name=args.capture)
-    except BaseException:
-        if fh is not sys.stdin.buffer:
-            fh.close()
-        raise
-    if cap.release.warning and not quiet:
-        print(f"eyeq-spi {command}: warning: {cap.release.warning}", file=sys.stderr,
+    cf = open_capture_file(path or args.capture, DissectConfig(
+        fmt=args.format, direction=getattr(args, "direction", None), spi=spi_options(args),
+        sw=args.sw, pace_gc=pace_gc))
+    if cf.release.warning and not quiet:
+        print(f"eyeq-spi {command}: warning: {cf.release.warning}", file=sys.stderr,
               flush=True)
-    return fh, cap
-
-
-def release(path: str, sw: str | None, fmt: str | None, direction: str | None,
-             command: str) -> str:
-    """The release a capture is read with (the capture's own unless ``--sw``), with the
-    one-line warning when they disagree."""
-    from eyeq_spi.dissect.release import release_of
-
-    rel = release_of(path, sw, fmt, direction)
-    if rel.warning:
-        print(f"eyeq-spi {command}: warning: {rel.warning}", file=sys.stderr, flush=True)
-    return rel.key
+    return cf
 
 
 def tail_note(command: str, path: str, tail: Any) -> int:

@@ -48,7 +48,9 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                    help="--screenshot: the screen as a terminal of that size shows it, e.g. "
                    "80x24 (default: the whole screen)")
     m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
-    m.add_argument("--format", choices=opt.FORMATS, help="--replay: skip detection")
+    opt.include(m, opt.capture_input(opt.FORMATS, format_help="--replay: skip detection",
+                                     direction_help="--replay: channel of an input without "
+                                     "directions", sw_help=None))
     opt.include(m, opt.scenario("monitor"))
 
 
@@ -92,14 +94,13 @@ def run(args: argparse.Namespace) -> int:
         from eyeq_spi.codec.message import MessageCodec
         from eyeq_spi.monitor.sources import DissectSource
 
-        sw = inputs.release(args.replay, args.sw, args.format, None, "monitor")
-        source: Any = DissectSource(args.replay, MessageCodec(sw), speed=args.pace,
-                                    fmt=args.format)
+        cf = inputs.open_input(args, "monitor", args.replay, pace_gc=False)
+        source: Any = DissectSource(cf, MessageCodec(cf.release.key), speed=args.pace)
     elif args.replay:
         from eyeq_spi.monitor.sources import ReplaySource
 
-        sw = inputs.release(args.replay, args.sw, args.format, None, "monitor")
-        source = ReplaySource(args.replay, sw=sw, speed=args.pace, fmt=args.format,
+        source = ReplaySource(inputs.open_input(args, "monitor", args.replay, pace_gc=False),
+                              speed=args.pace,
                               duration=args.duration)
     elif args.demo:
         source = _demo_source(args)

@@ -46,7 +46,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                    help="--link: time bin (default 100 ms)")
     p.add_argument("--start", type=float, default=0.0, metavar="S", help="window start, s")
     p.add_argument("--end", type=float, default=math.inf, metavar="S", help="window end, s")
-    opt.include(p, opt.capture_input(opt.FORMATS, spi=False))
+    opt.include(p, opt.capture_input(opt.FORMATS,
+                                     direction_help="channel of an input without directions"))
 
 
 def _default_output(args: argparse.Namespace, kind: str) -> str:
@@ -56,9 +57,8 @@ def _default_output(args: argparse.Namespace, kind: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from eyeq_spi.capture.pcapng_io import Tail
     from eyeq_spi.codec.message import MessageCodec
-    from eyeq_spi.plot.collect import Collector, Window, collect
+    from eyeq_spi.plot.collect import Collector, Window, collect_capture
     from eyeq_spi.plot.output import check_output, mpl, save_animation, save_figure
 
     kind = "birdseye" if args.birdseye else "timing" if args.timing else "link"
@@ -79,15 +79,18 @@ def run(args: argparse.Namespace) -> int:
     out = args.output or _default_output(args, kind)
     check_output(out, animated=args.animate)
     mpl()  # fail before reading a large capture when matplotlib is missing
-    codec = MessageCodec(inputs.release(args.capture, args.sw, args.format, args.direction, "plot"))
+    cf = inputs.open_input(args, "plot")
+    codec = MessageCodec(cf.release.key)
     window = Window(args.start, args.end)
     col = Collector(codec, window, timing=args.timing, link=args.link,
                     link_bin=args.bin_ms / 1000.0,
                     at=(args.at if args.at is not None else math.inf) if args.birdseye
                     and not args.animate else None,
                     fps=args.fps if args.animate else None, max_frames=args.max_frames)
-    tail = Tail()
-    data = collect(args.capture, col, fmt=args.format, direction=args.direction, tail=tail)
+    try:
+        data = collect_capture(cf, col)
+    finally:
+        cf.close()
     if name_re is not None:
         data.streams = {k: v for k, v in data.streams.items() if name_re.search(k)}
     title = f"{Path(args.capture).name}: {kind}"
@@ -106,4 +109,4 @@ def run(args: argparse.Namespace) -> int:
         fig = timing_figure(data)[0] if args.timing else link_figure(data)
         save_figure(fig, out, title)
     print(f"wrote {out}")
-    return inputs.tail_note("plot", args.capture, tail)
+    return inputs.tail_note("plot", args.capture, cf.tail)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from typing import Any
 
 from eyeq_spi.cli import inputs
@@ -56,19 +55,18 @@ def run_replay(args: argparse.Namespace) -> int:
         raise UsageError("--duration must be positive")
     if args.pty:
         raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
-    fh, cap = inputs.open_input(args, "replay")
+    cap = inputs.open_input(args, "replay")
     try:
         if args.into_host:
-            summary = replay_into_host(cap.records, sw=cap.release.key, duration=args.duration)
+            summary = replay_into_host(cap.transfers, sw=cap.release.key, duration=args.duration)
         else:
             if args.lead < 0:
                 raise UsageError("--lead must not be negative")
-            summary = replay_to_port(cap.records, args.listen or args.port,
+            summary = replay_to_port(cap.transfers, args.listen or args.port,
                                      listen=bool(args.listen), duration=args.duration,
                                      lead=args.lead, sw=cap.release.key)
     finally:
-        if fh is not sys.stdin.buffer:
-            fh.close()
+        cap.close()
     if args.json:
         print(json.dumps(summary, sort_keys=True), flush=True)
     else:

@@ -27,8 +27,7 @@ from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBl
 from eyeq_spi.io import batch_readers
 
 Item = dict[str, Any] | FrameBlock
-__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "fields_mode",
-           "parallel_items"]
+__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "parallel_items"]
 
 
 def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
@@ -111,17 +110,6 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
         else:
             for r in item.records():
                 w.write(r)
-
-
-def fields_mode(writers: list[Any], plain: bool) -> str:
-    """What span messages must carry for these writers (vmessages.SpanDecoder): counts only
-    for ``--stats`` alone with no filter, no fields with a filter, columns for one table writer
-    and no filter, else the fields."""
-    if not writers:
-        return "count" if plain else "none"
-    if plain and len(writers) == 1 and type(writers[0]).__name__ == "TableWriter":
-        return "columns"
-    return "dict"
 
 
 # -- --jobs N -------------------------------------------------------------------------------------

@@ -25,13 +25,12 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 from eyeq_spi.bench.replay import host_bench
-from eyeq_spi.capture.pcapng_io import Tail
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
+from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file
 from eyeq_spi.monitor.model import RateMeter, Snapshot
-from eyeq_spi.plot.collect import dissect_file
 from eyeq_spi.plot.scene import SCENE_MESSAGES, Labels, SceneTracker
 
 Clock = Callable[[], float]
@@ -175,23 +174,22 @@ class ReplaySource(DemoSource):
 
     SETTLE = 0.05  # as replay_into_host: the last frames settle, well before stale limits
 
-    def __init__(self, path: str, *, sw: str | None = None, speed: float = 1.0,
+    def __init__(self, path: str | CaptureFile, *, sw: str | None = None, speed: float = 1.0,
                  fmt: str | None = None, duration: float | None = None,
                  clock: Clock = time.perf_counter,
                  sleep: Callable[[float], None] = time.sleep) -> None:
-        from eyeq_spi.dissect.inputs import InputError, open_records
-
-        self.tail = Tail()  # what was left at the end of a pcapng cut inside a block
+        """``path``: a capture file (any format the dissect pipeline reads), or one the
+        pipeline opened; its EyeQ channel is replayed as the release it is read with."""
+        self.capture = path if isinstance(path, CaptureFile) else open_capture_file(
+            path, DissectConfig(fmt=fmt, sw=sw, pace_gc=False))
+        self.tail = self.capture.tail  # what was left at the end of a pcapng cut inside a block
         try:
-            self._fh: IO[bytes] = open(path, "rb")  # noqa: SIM115 - closed by close()
-        except OSError as exc:
-            raise InputError(f"{path}: {exc.strerror or exc}") from None
-        try:
-            _, records = open_records(self._fh, fmt, tail=self.tail)
-            self.bench = _ReplayBench(records, sw, duration)
+            self.bench = _ReplayBench(self.capture.transfers, self.capture.release.key,
+                                      duration)
         except BaseException:
-            self._fh.close()
+            self.capture.close()
             raise
+        path = self.capture.path
         name = f"replay {Path(path).name}" + ("" if speed in (0, 1) else f" x{speed:g}")
         super().__init__(self.bench, math.inf, realtime=speed > 0, clock=clock, sleep=sleep,
                          speed=speed or 1.0, label=name)
@@ -206,7 +204,7 @@ class ReplaySource(DemoSource):
         return bool(self.bench.runner.now >= self._end + self.SETTLE - 1e-9)
 
     def close(self) -> None:
-        self._fh.close()
+        self.capture.close()
 
 
 class DissectSource:
@@ -214,14 +212,18 @@ class DissectSource:
     (from the first one) against the wall clock times ``speed``. Records without times (raw,
     hex without times) are fed as fast as possible."""
 
-    def __init__(self, path: str, codec: MessageCodec, *, speed: float = 1.0,
+    def __init__(self, path: str | CaptureFile, codec: MessageCodec, *, speed: float = 1.0,
                  fmt: str | None = None, clock: Clock = time.perf_counter) -> None:
-        self.path = path
+        """``path``: a capture file (any format the dissect pipeline reads, dissected with
+        ``codec``'s release), or one the pipeline opened."""
+        self.capture = path if isinstance(path, CaptureFile) else open_capture_file(
+            path, DissectConfig(fmt=fmt, sw=codec.sw, pace_gc=False))
+        self.path = self.capture.path
         self.codec = codec
         self.speed = speed
         self.clock = clock
-        self.tail = Tail()  # what was left at the end of a pcapng cut inside a block
-        self._records: Iterator[dict[str, Any]] = dissect_file(path, codec, fmt, tail=self.tail)
+        self.tail = self.capture.tail  # what was left at the end of a pcapng cut inside a block
+        self._records: Iterator[dict[str, Any]] = self.capture.items
         self._pending: dict[str, Any] | None = None
         self._t0: float | None = None
         self.start = clock()
@@ -307,3 +309,4 @@ class DissectSource:
         close = getattr(self._records, "close", None)
         if close is not None:
             close()
+        self.capture.close()

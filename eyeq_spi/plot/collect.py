@@ -1,4 +1,4 @@
-"""One pass over a capture through the dissector engine, collecting what the plots draw.
+"""One pass over a capture through the dissect pipeline, collecting what the plots draw.
 
 Times are seconds from the capture's first timestamped transfer. Memory is bounded by what is
 drawn: one float per periodic message for the timing plot, one counter per time bin for the link
@@ -11,39 +11,17 @@ import itertools
 import math
 from array import array
 from collections import Counter
-from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import IO, Any
+from typing import Any
 
 from eyeq_spi.capture.pcapng_io import Tail
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.dissect.inputs import InputError, open_records
+from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file, paused_gc
+from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.plot import PlotError
 from eyeq_spi.plot.scene import Labels, Scene, SceneTracker
 
 GAP_PERIODS = 3.0  # a stream is stopped after 3 nominal periods of silence, the host's stale rule
-
-
-def open_capture(path: str) -> IO[bytes]:
-    try:
-        return open(path, "rb")
-    except OSError as exc:
-        raise InputError(f"{path}: {exc.strerror or exc}") from None
-
-
-def dissect_file(path: str, codec: MessageCodec, fmt: str | None = None,
-                 direction: str | None = None, tail: Tail | None = None
-                 ) -> Iterator[dict[str, Any]]:
-    """The dissector's records (docs/dissector.md JSON contract) of one capture file, streamed.
-    ``tail``: a pcapng file cut inside a block is read up to its last whole block and ``tail``
-    says what was left (else it is an :class:`InputError`)."""
-    with open_capture(path) as fh:
-        _, records = open_records(fh, fmt, direction, tail=tail)
-        dis = Dissector(codec=codec)
-        for rec in records:
-            yield from dis.feed(rec)
-        yield from dis.finish()
 
 
 @dataclass
@@ -184,7 +162,10 @@ class Collector:
     def _count(self, t: float, key: str, n: int = 1) -> None:
         if n:
             b = int(t // self.out.link_bin)
-            self.out.link.setdefault(b, Counter())[key] += n
+            counts = self.out.link.get(b)
+            if counts is None:  # not setdefault: a Counter built per frame cost a tenth
+                counts = self.out.link[b] = Counter()
+            counts[key] += n
 
     def _link(self, r: dict[str, Any], t: float) -> None:
         if r["kind"] == "frame":
@@ -209,14 +190,38 @@ class Collector:
 
 
 def collect(path: str, collector: Collector, *, fmt: str | None = None,
-            direction: str | None = None, tail: Tail | None = None) -> Collected:
-    for r in dissect_file(path, collector.codec, fmt, direction, tail):
-        collector.add(r)
-        if collector.done:
-            break
+            direction: str | None = None, tail: Tail | None = None,
+            spi: SpiOptions | None = None) -> Collected:
+    """The capture file ``path`` (any format :mod:`eyeq_spi.dissect.pipeline` reads) through
+    ``collector``, dissected with the collector's release. ``tail``: filled with what the
+    reader ignored at the end of a pcapng file cut inside a block."""
+    cf = open_capture_file(path, DissectConfig(fmt=fmt, direction=direction, spi=spi,
+                                               sw=collector.codec.sw))
+    try:
+        return collect_capture(cf, collector)
+    finally:
+        cf.close()
+        if tail is not None:
+            tail.ignored, tail.at = cf.tail.ignored, cf.tail.at
+
+
+def collect_capture(cf: CaptureFile, collector: Collector) -> Collected:
+    """An opened capture's records through ``collector`` (the batch path where it applies),
+    until the collector is done."""
+    items = cf.items
+    try:
+        with paused_gc():
+            for r in items:
+                collector.add(r)
+                if collector.done:
+                    break
+    finally:
+        close = getattr(items, "close", None)
+        if close is not None:
+            close()
     out = collector.finish()
     at_time = collector.at is not None and math.isfinite(collector.at)
     if not out.has_time and (collector.timing or collector.link or collector.fps or at_time):
-        raise PlotError(f"{path}: the capture has no timestamps (a raw file, or hex without "
+        raise PlotError(f"{cf.path}: the capture has no timestamps (a raw file, or hex without "
                         "times); this plot needs them")
     return out

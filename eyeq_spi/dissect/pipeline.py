@@ -1,0 +1,372 @@
+"""Captures in, dissector records out: the one pipeline behind ``dissect``, ``plot``, ``monitor``,
+``export`` and ``replay``.
+
+Every reader of captures opens them here, so each reads every input format
+(:mod:`.inputs`: pcapng, raw, hex, Saleae, VCD), reads each capture with its own SW release
+(:mod:`.release`: its ``sw=`` tag, the release the EyeQ reports, the layouts that fit, or the
+caller's ``sw`` with the one warning line of :attr:`.Release.warning`), reads a pcapng file cut
+inside a block up to its last whole block (:attr:`CaptureFile.tail` says what was ignored), and
+gets the fast path where it applies:
+
+- a seekable pcapng or raw file of at least :data:`SMALL_INPUT` bytes takes the batch path
+  (:mod:`.batch_run`; numpy costs more than it saves below that), anything else (hex, logic
+  captures, stdin, small files) the exact engine (:class:`.engine.Dissector`); the records are
+  the same either way (the agreement tests hold the batch path to the engine);
+- ``jobs`` > 1 and several files: files are dissected in worker processes, in the order given;
+- the cyclic garbage collector is paced (:func:`paced_gc`) instead of running every 700 new
+  containers.
+
+:func:`dissect_files` hands out plain records (each with its ``file``); :func:`dissect_captures`
+hands out one :class:`CaptureFile` per file, for callers that need the release before the
+records or consume the batch path's frame blocks whole (``dissect``'s writers);
+:func:`open_capture_file` opens one capture for its transfers (``replay``, ``export --vcd``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+import os
+import sys
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import IO, Any
+
+from eyeq_spi.capture.pcapng_io import Record, Tail
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.dissect.inputs import InputError
+from eyeq_spi.dissect.release import Capture, Release, open_capture
+from eyeq_spi.logic.options import SpiOptions
+
+SMALL_INPUT = 256 << 10  # bytes; below this the exact path is quicker than importing numpy
+PACE = 4096  # records between two looks at the young generation
+YOUNG = 20_000  # containers it must have grown by to be collected
+
+AUTO = "auto"
+
+Progress = Callable[[str | None, float, float | None], None]
+"""``progress(path, done, total)``: ``done`` of ``total`` bytes of the file ``path`` read (a
+file read in this process, when its size is known), or with ``path`` None, ``done`` of
+``total`` files finished (files dissected in worker processes)."""
+
+
+@dataclass(frozen=True)
+class DissectConfig:
+    """How captures are read. ``fmt``, ``direction``, ``spi``: the input format (None: detect
+    it), the channel of a raw or hex file without directions, the logic-analyzer options.
+    ``sw``: read every capture as this release (None: each capture's own). ``jobs``: files
+    dissected at a time in worker processes (0: one per CPU). ``fields``: what the batch path's
+    messages carry (:func:`fields_mode`). ``blocks``: hand out the batch path's
+    frame blocks whole (a consumer that writes them straight from their arrays,
+    :func:`.batch_run.consume`) instead of their records. ``pace_gc``: the automatic collector
+    is off while records are handed out, collections paced by :func:`paced_gc` (off for a
+    consumer that holds the iterator for long between records, such as a live view)."""
+
+    fmt: str | None = None
+    direction: str | None = None
+    spi: SpiOptions | None = None
+    sw: str | None = None
+    jobs: int = 1
+    fields: str = "dict"
+    blocks: bool = False
+    pace_gc: bool = True
+
+
+_CODECS: dict[str, MessageCodec] = {}
+
+
+def codec_for(key: str) -> MessageCodec:
+    """One codec per release for the whole process (building one reads ``specs/``)."""
+    if key not in _CODECS:
+        _CODECS[key] = MessageCodec(key)
+    return _CODECS[key]
+
+
+def open_stream(path: str) -> IO[bytes]:
+    """The file ``path`` for reading, or stdin for ``-``."""
+    if path == "-":
+        return sys.stdin.buffer
+    try:
+        return open(path, "rb")
+    except OSError as exc:
+        raise InputError(f"{path}: {exc.strerror or exc}") from None
+
+
+@dataclass
+class CaptureFile:
+    """One capture of the pipeline: its path, the release it is read with, its dissected
+    ``items`` (records, or frame blocks with :attr:`DissectConfig.blocks`), or its raw
+    ``transfers`` (one or the other), and what its reader ignored at its end (:attr:`tail`,
+    filled once the items or transfers are exhausted). The file is opened at the first look at
+    :attr:`release`, :attr:`items` or :attr:`transfers`."""
+
+    path: str
+    config: DissectConfig = field(default_factory=DissectConfig)
+    batch: Any = None  # eyeq_spi.dissect.batch_run when the batch path may be taken, AUTO:
+    # when the file is big enough (batch_module)
+    progress: Progress | None = None
+    _done: tuple[list[Any], Release, Tail] | None = None  # from a worker process
+    _fh: IO[bytes] | None = None
+    _cap: Capture | None = None
+
+    def _open(self) -> Capture:
+        if self._cap is None:
+            cfg = self.config
+            self._fh = open_stream(self.path)
+            try:
+                self._cap = open_capture(self._fh, cfg.fmt, cfg.direction, cfg.spi,
+                                         sw=cfg.sw, name=self.path)
+            except BaseException:
+                self.close()
+                raise
+        return self._cap
+
+    @property
+    def release(self) -> Release:
+        if self._done is not None:
+            return self._done[1]
+        return self._open().release
+
+    @property
+    def tail(self) -> Tail:
+        if self._done is not None:
+            return self._done[2]
+        return self._open().tail
+
+    @property
+    def codec(self) -> MessageCodec:
+        return codec_for(self.release.key)
+
+    @property
+    def transfers(self) -> Iterator[Record]:
+        """The capture's transfers as read (no dissection)."""
+        return self._open().records
+
+    @property
+    def items(self) -> Iterator[Any]:
+        """The dissector's records in order (with :attr:`DissectConfig.blocks`, the batch
+        path's frame blocks whole, the other records as dicts), GC paced when configured."""
+        items = self._items()
+        return self._expand(paced_gc(items) if self.config.pace_gc else items)
+
+    def _items(self) -> Iterator[Any]:
+        if self._done is not None:
+            yield from self._done[0]
+            return
+        from eyeq_spi.dissect.engine import Dissector
+
+        cap = self._open()
+        fh = self._fh
+        assert fh is not None
+        try:
+            br = batch_module([self.path]) if self.batch is AUTO else self.batch
+            batched = (br.batch_items(fh, self.config.fmt, self.config.direction, self.codec,
+                                      fields=self.config.fields, tail=cap.tail)
+                       if br is not None else None)
+            items = batched or _all(Dissector(codec=self.codec), cap.records)
+            yield from self._tracked(items, fh)
+        finally:
+            self.close()
+
+    def _expand(self, items: Iterable[Any]) -> Iterator[Any]:
+        if self.config.blocks:
+            yield from items
+            return
+        for item in items:
+            if isinstance(item, dict):
+                yield item
+            else:
+                yield from item.records()
+
+    def _tracked(self, items: Iterator[Any], fh: IO[bytes]) -> Iterator[Any]:
+        """``items``, with :attr:`progress` following how far into the file they stand: the
+        read position every 32 records and at every frame block (:class:`BlockPosition`)."""
+        size = _file_size(fh) if self.progress is not None else None
+        if not size or self.progress is None:
+            yield from items
+            return
+        report, where, n = self.progress, BlockPosition(), 0
+        for item in items:
+            n += 1
+            if n >= 32 or not isinstance(item, dict):
+                n = 0
+                with contextlib.suppress(OSError, ValueError):
+                    report(self.path, where(item, fh.tell()), size)
+            yield item
+        report(self.path, size, size)
+
+    def close(self) -> None:
+        fh, self._fh = self._fh, None
+        if fh is not None and fh is not sys.stdin.buffer:
+            fh.close()
+
+
+def dissect_captures(paths: Sequence[str], config: DissectConfig | None = None, *,
+                     progress: Progress | None = None) -> Iterator[CaptureFile]:
+    """One :class:`CaptureFile` per path, in order; consume one's items before asking for
+    the next. Raises :class:`.inputs.InputError` for a file that cannot be read (when its
+    turn comes; a worker's error when its file's turn comes)."""
+    cfg = config or DissectConfig()
+    if cfg.jobs < 0:
+        raise ValueError(f"jobs must be 0 or more, not {cfg.jobs}")
+    br = batch_module(paths, cfg.jobs)
+    jobs = cfg.jobs or (br.default_jobs() if br is not None else 1)
+    par = None
+    if br is not None and jobs > 1 and len(paths) > 1 and "-" not in paths:
+        par = br.parallel_items(list(paths), jobs, cfg.fmt, cfg.direction, cfg.sw, cfg.fields)
+    current: CaptureFile | None = None
+    with paused_gc() if cfg.pace_gc else contextlib.nullcontext():
+        try:
+            for n, path in enumerate(paths, 1):
+                done = next(par)[1] if par is not None else None
+                current = CaptureFile(path, cfg, br, progress, done)
+                yield current
+                current.close()
+                if par is not None and progress is not None:
+                    progress(None, n, len(paths))
+        finally:
+            if current is not None:
+                current.close()
+            if par is not None:
+                par.close()
+
+
+@contextlib.contextmanager
+def paused_gc() -> Iterator[None]:
+    """The automatic cyclic garbage collector off (items go through :func:`paced_gc`), on
+    again after, if it was on."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
+class Dissection:
+    """The records of :func:`dissect_files`; :attr:`files` holds the files begun so far (their
+    releases, and once read, their tails)."""
+
+    def __init__(self, paths: list[str], config: DissectConfig | None,
+                 progress: Progress | None) -> None:
+        self.paths, self.config, self.progress = paths, config, progress
+        self.files: list[CaptureFile] = []
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        cfg = self.config or DissectConfig()
+        if cfg.blocks:
+            raise ValueError("dissect_files hands out records: use dissect_captures for blocks")
+        for cf in dissect_captures(self.paths, cfg, progress=self.progress):
+            self.files.append(cf)
+            for r in cf.items:
+                r["file"] = cf.path
+                yield r
+
+    @property
+    def ignored(self) -> int:
+        """Bytes the readers left at the end of the files read (pcapng cut inside a block)."""
+        return sum(cf.tail.ignored for cf in self.files)
+
+
+def dissect_files(paths: Sequence[str], config: DissectConfig | None = None, *,
+                  progress: Progress | None = None) -> Dissection:
+    """The dissector's records of the files ``paths`` in order (docs/dissector.md JSON
+    contract), each with its ``file`` member: ``for r in dissect_files(["a.pcapng"])``."""
+    return Dissection(list(paths), config, progress)
+
+
+def open_capture_file(path: str, config: DissectConfig | None = None) -> CaptureFile:
+    """One capture opened with its release (:attr:`CaptureFile.release` raises a bad input's
+    :class:`.inputs.InputError` now); read its :attr:`~CaptureFile.transfers` or
+    :attr:`~CaptureFile.items`, then :meth:`~CaptureFile.close` it."""
+    cf = CaptureFile(path, config or DissectConfig(), AUTO)
+    cf._open()
+    return cf
+
+
+def fields_mode(writers: list[Any], plain: bool) -> str:
+    """What the batch path's messages must carry for these writers (vmessages.SpanDecoder):
+    counts only for statistics alone with no filter, no fields with a filter, columns for one
+    table writer and no filter, else the fields."""
+    if not writers:
+        return "count" if plain else "none"
+    if plain and len(writers) == 1 and type(writers[0]).__name__ == "TableWriter":
+        return "columns"
+    return "dict"
+
+
+def batch_module(paths: Sequence[str], jobs: int = 1) -> Any:
+    """:mod:`eyeq_spi.dissect.batch_run`, or None when no input is big enough for the batch
+    path (nor several files for ``jobs``): start-up of small runs stays under 300 ms."""
+    several = jobs != 1 and len(paths) > 1 and "-" not in paths
+    big = False
+    for path in paths:
+        if path != "-":
+            try:
+                big = big or os.path.getsize(path) >= SMALL_INPUT
+            except OSError:
+                big = True  # let the readers report it
+    if not (big or several):
+        return None
+    from eyeq_spi.dissect import batch_run
+
+    return batch_run
+
+
+class BlockPosition:
+    """Where in the file a frame block of the batch path stands: its chunk was read between
+    the positions seen at this chunk's first block and the previous chunk's, and the block
+    ends ``hi`` rows into it (the reader reads a whole chunk before the first block)."""
+
+    def __init__(self) -> None:
+        self.fa: object = None
+        self.start = self.end = 0
+
+    def __call__(self, item: Any, pos: int) -> float:
+        fa: Any = getattr(item, "fa", None)
+        if fa is None or not hasattr(item, "hi"):
+            return pos
+        if fa is not self.fa:
+            self.fa, self.start, self.end = fa, self.end, pos
+        rows = max(1, len(fa.ftype))
+        return float(self.start + (self.end - self.start) * min(1.0, item.hi / rows))
+
+
+def paced_gc(items: Iterable[Any]) -> Iterator[Any]:
+    """``items``, with the young generations of the cyclic garbage collector collected (when
+    they have grown by ``YOUNG`` containers) after each frame block and every ``PACE`` other
+    items, while the automatic collector is off.
+
+    Records are trees of dicts and lists freed by reference counting; the default automatic
+    collection (every 700 new containers) re-scanned records under construction (1,500
+    containers in one obstacles message) and spent 0.6 of 2.1 CPU-s of ``dissect --json`` on a
+    90 s capture. Here a collection sees only what is alive between two blocks, and any cycle is
+    still freed within a block, so memory stays bounded."""
+    n = 0
+    for item in items:
+        block = not isinstance(item, dict)
+        yield item
+        del item  # the caller drops its own reference before it asks for the next one
+        n += 1
+        if n >= PACE or block:
+            n = 0
+            if gc.get_count()[0] >= YOUNG:
+                gc.collect(1)
+
+
+def _file_size(fh: IO[bytes]) -> int | None:
+    """Size of a regular file behind ``fh``; None for a pipe or stdin."""
+    import stat
+
+    try:
+        st = os.fstat(fh.fileno())
+    except (OSError, ValueError, AttributeError):
+        return None
+    return st.st_size if stat.S_ISREG(st.st_mode) else None
+
+
+def _all(dis: Any, records: Iterator[Record]) -> Iterator[dict[str, Any]]:
+    for rec in records:
+        yield from dis.feed(rec)
+    yield from dis.finish()
