@@ -12,10 +12,10 @@ from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import Scenario
 from eyeq_spi.phy.memory import memory_pair
-from eyeq_spi.report import RunningVision
 from eyeq_spi.runner.virtual import Tap, VirtualRunner
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
+from eyeq_spi.summary import RunningVision
 
 HOST_ALONE = frozenset({0})
 """The host (node 0) acts on no other node but through its reset line, which tells the runner."""
@@ -77,8 +77,8 @@ def build(
 
 
 def summary(emu: Emulation, *, interrupted: bool = False) -> dict[str, Any]:
-    """The demo's closing summary: the schema every run prints (:mod:`eyeq_spi.report`)."""
-    from eyeq_spi.report import host_summary
+    """The demo's closing summary: the schema every run prints (:mod:`eyeq_spi.summary`)."""
+    from eyeq_spi.summary import host_summary
 
     return host_summary(emu.host, side="demo", elapsed=emu.runner.now, wall=emu.runner.wall_s,
                         cpu=emu.runner.cpu_s, running_since=emu.running_since,

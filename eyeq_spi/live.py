@@ -1,6 +1,6 @@
 """The live runs in real time over a real adapter: :func:`serve` (the simulated EyeQ serving one
 host after another, ``eyeq-spi sim``) and :func:`drive` (the host emulator against an EyeQ,
-``eyeq-spi host``). Each returns one run summary in the schema of :mod:`eyeq_spi.report`, the
+``eyeq-spi host``). Each returns one run summary in the schema of :mod:`eyeq_spi.summary`, the
 same that ``demo`` and ``replay`` print. Ctrl-C (``KeyboardInterrupt``) ends a run cleanly:
 the summary says ``interrupted``."""
 
@@ -15,10 +15,10 @@ from typing import Any
 from eyeq_spi.errors import AdapterError, LinkLostError
 from eyeq_spi.host.host import HostEmulator
 from eyeq_spi.host.machine import HostState
-from eyeq_spi.report import RunningVision, SimSessions, host_summary, sim_summary
 from eyeq_spi.runner.realtime import RealTimeRunner
 from eyeq_spi.runner.sched import realtime
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
+from eyeq_spi.summary import RunningVision, SimSessions, host_summary, sim_summary
 
 Tap = Callable[[str, float, bytes], None]
 """``tap(kind, t, transfer)``: every transfer, ``kind`` "tx" or "rx", as the runner sees it."""

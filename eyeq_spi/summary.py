@@ -20,11 +20,11 @@ from __future__ import annotations
 from collections import Counter
 from typing import Any
 
+from eyeq_spi.catalog.messages import sw_release_text
 from eyeq_spi.host.host import HostEmulator
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.counters import SpiDiagnosticInfo
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
-from eyeq_spi.spec.catalog import sw_release_text
 from eyeq_spi.transport.connection import TransportConnection
 
 LINK_EXTRA = ("lateFrames", "duplicateFrames", "skippedFrames", "resynchronisations")

@@ -8,8 +8,8 @@ from typing import Any
 
 from hypothesis import strategies as st
 
+from eyeq_spi.catalog.messages import Catalog, InitSignal, Member
 from eyeq_spi.codec.layout import INT_RANGE, Layout
-from eyeq_spi.spec.catalog import Catalog, InitSignal, Member
 
 
 def _f32(x: float) -> float:

@@ -303,7 +303,7 @@ def test_vcd_reading_memory_is_bounded() -> None:
 def test_mdf_export_reads_back_with_asammdf(demo: Path, demo_json: list[dict[str, Any]],
                                             tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
-    asammdf = pytest.importorskip("asammdf", reason="the [bench] extra is not installed")
+    asammdf = pytest.importorskip("asammdf", reason="the [export] extra is not installed")
     out_path = tmp_path / "demo.mf4"
     rc, _, err = _run(capsys, "export", str(demo), "--mdf", str(out_path))
     assert rc == 0, err
@@ -335,7 +335,7 @@ def test_mdf_export_reads_back_with_asammdf(demo: Path, demo_json: list[dict[str
 
 def test_mcap_export_reads_back(demo: Path, demo_json: list[dict[str, Any]], tmp_path: Path,
                                 capsys: pytest.CaptureFixture[str]) -> None:
-    reader_mod = pytest.importorskip("mcap.reader", reason="the [bench] extra is not installed")
+    reader_mod = pytest.importorskip("mcap.reader", reason="the [export] extra is not installed")
     out_path = tmp_path / "demo.mcap"
     rc, _, err = _run(capsys, "export", str(demo), "--mcap", str(out_path), "--sw", "9.0")
     assert rc == 0, err
@@ -401,7 +401,7 @@ def test_replay_into_host_judges_as_host_does(tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
     """A capture of a run that was not ok (a stream stopped): the replay is not ok either, names
     the problem, exits 1, and prints the summary schema of demo, host and sim."""
-    from eyeq_spi.report import KEYS
+    from eyeq_spi.summary import KEYS
 
     cap = tmp_path / "stopped.pcapng"
     rc, out, _ = _run(capsys, "demo", "--virtual-time", "--duration", "3", "--json",
@@ -492,7 +492,7 @@ def test_missing_bench_extra_gives_the_pip_hint(demo: Path, tmp_path: Path,
     monkeypatch.setitem(sys.modules, "mcap.writer", None)
     for opt in ("--mdf", "--mcap"):
         rc, _, err = _run(capsys, "export", str(demo), opt, str(tmp_path / "out"))
-        assert rc == 2 and "pip install 'eyeq-spi[bench]'" in err and err.count("\n") == 1
+        assert rc == 2 and "pip install 'eyeq-spi[export]'" in err and err.count("\n") == 1
 
 
 def test_replay_needs_an_eyeq_channel(demo_records: list[Record], tmp_path: Path,

@@ -14,8 +14,8 @@ from typing import Any
 
 import pytest
 
-from eyeq_spi.bench.annotate import event_text, link_text, message_text, transport_text
 from eyeq_spi.cli import main
+from eyeq_spi.interop.annotate import event_text, link_text, message_text, transport_text
 
 SIGROK = shutil.which("sigrok-cli")
 needs_sigrok = pytest.mark.skipif(
@@ -47,7 +47,7 @@ def test_install_writes_the_decoder_and_where_the_project_is(bench: dict[str, Pa
     site_paths = (target / "_site.py").read_text()
     assert str(Path(__file__).resolve().parents[1]) in site_paths  # this checkout's project
     # imported as a part of the project (not inside sigrok) the decoder package is inert
-    import eyeq_spi.bench.sigrok.eyeq_spi as pkg
+    import eyeq_spi.interop.sigrok.decoder as pkg
 
     assert not hasattr(pkg, "Decoder")
 
@@ -99,7 +99,7 @@ def test_sigrok_decoder_without_the_project_says_why(tmp_path: Path) -> None:
     assert SIGROK is not None
     target = tmp_path / "eyeq_spi"
     target.mkdir()
-    src = Path(__file__).resolve().parents[1] / "eyeq_spi" / "bench" / "sigrok" / "eyeq_spi"
+    src = Path(__file__).resolve().parents[1] / "eyeq_spi" / "interop" / "sigrok" / "decoder"
     for name in ("__init__.py", "pd.py"):
         shutil.copyfile(src / name, target / name)
     (target / "_site.py").write_text("PATHS = []\n")

@@ -17,8 +17,8 @@ cantools = pytest.importorskip("cantools", reason="needs the [can] extra (cantoo
 
 from eyeq_spi.can.dbc import database  # noqa: E402
 from eyeq_spi.can.decode import CanDecoder  # noqa: E402
+from eyeq_spi.catalog.can import protocol  # noqa: E402
 from eyeq_spi.cli import main  # noqa: E402
-from eyeq_spi.spec.can import protocol  # noqa: E402
 from tests import camera_can  # noqa: E402
 
 SUFFIXES = (".blf", ".asc", ".log")

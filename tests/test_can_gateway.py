@@ -21,10 +21,10 @@ from eyeq_spi.can.dbc import database  # noqa: E402
 from eyeq_spi.can.decode import CanDecoder, read_log  # noqa: E402
 from eyeq_spi.can.gateway import CanFrame, CanGateway, GatewayNode  # noqa: E402
 from eyeq_spi.can.sinks import attach  # noqa: E402
+from eyeq_spi.catalog.can import protocol  # noqa: E402
 from eyeq_spi.emulator import build  # noqa: E402
 from eyeq_spi.host.machine import HostState  # noqa: E402
 from eyeq_spi.sim.config import SimConfig  # noqa: E402
-from eyeq_spi.spec.can import protocol  # noqa: E402
 
 FULL = SimConfig(objects=15, signs=20, light_spots=15)
 

@@ -16,8 +16,8 @@ pytest.importorskip("cantools", reason="needs the [can] extra (cantools)")
 
 from eyeq_spi.can.decode import CanDecoder  # noqa: E402
 from eyeq_spi.can.gateway import CanGateway, physical_to_raw  # noqa: E402
-from eyeq_spi.spec.can import can_specs, protocol, validate_can_docs  # noqa: E402
-from eyeq_spi.spec.can_expr import MISSING  # noqa: E402
+from eyeq_spi.catalog.can import can_specs, protocol, validate_can_docs  # noqa: E402
+from eyeq_spi.catalog.can_expr import MISSING  # noqa: E402
 
 
 @dataclass

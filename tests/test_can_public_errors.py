@@ -14,7 +14,7 @@ pytest.importorskip("cantools", reason="needs the [can] extra (cantools)")
 
 from eyeq_spi.can.dbc import database  # noqa: E402
 from eyeq_spi.can.decode import CanDecoder  # noqa: E402
-from eyeq_spi.spec.can import protocol  # noqa: E402
+from eyeq_spi.catalog.can import protocol  # noqa: E402
 
 
 def lane_frame(curv: int = 0, heading: int = 0, bits_28_31: int = 0, yaw: int = 0x7FFF,

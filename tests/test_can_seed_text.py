@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from eyeq_spi.spec.can import CanMessage, CanProtocol, CanSignal, can_specs
+from eyeq_spi.catalog.can import CanMessage, CanProtocol, CanSignal, can_specs
 
 ROOT = Path(__file__).resolve().parents[1]
 SEEDS = ROOT.parent / "shared" / "seeds"

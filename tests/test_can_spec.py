@@ -18,8 +18,8 @@ cantools = pytest.importorskip("cantools", reason="needs the [can] extra (cantoo
 from eyeq_spi.can.dbc import database, dbc_text  # noqa: E402
 from eyeq_spi.can.decode import CanDecoder  # noqa: E402
 from eyeq_spi.can.gateway import physical_to_raw  # noqa: E402
-from eyeq_spi.spec.can import _load_docs, can_specs, protocol, validate_can_docs  # noqa: E402
-from eyeq_spi.spec.can_expr import MISSING, ExprError, compile_expr  # noqa: E402
+from eyeq_spi.catalog.can import _load_docs, can_specs, protocol, validate_can_docs  # noqa: E402
+from eyeq_spi.catalog.can_expr import MISSING, ExprError, compile_expr  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SEEDS = ROOT.parent / "shared" / "seeds"

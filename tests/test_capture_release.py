@@ -12,9 +12,9 @@ from typing import Any
 import pytest
 
 from eyeq_spi.capture.pcapng_io import CaptureWriter, read_pcapng, recorded_release
+from eyeq_spi.catalog.messages import catalog, sw_release_text
 from eyeq_spi.cli import main
 from eyeq_spi.dissect import release as rel
-from eyeq_spi.spec.catalog import catalog, sw_release_text
 
 RELEASES = [sw_release_text(k) for k in catalog().sw_versions]
 

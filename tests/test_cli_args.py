@@ -194,7 +194,7 @@ def test_names_match_in_any_case_and_by_hex_id() -> None:
 
 
 def test_boot_test_bits_by_name() -> None:
-    from eyeq_spi.spec.catalog import catalog
+    from eyeq_spi.catalog.messages import catalog
 
     enum = catalog().enums["boot_test_result"]
     (bit0, v0), (bit1, v1) = sorted(enum.values.items())[:2]
@@ -308,7 +308,7 @@ def test_help_lists_every_command_without_loading_the_catalogue() -> None:
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             "    try: main(['--help'])\n"
             "    except SystemExit: pass\n"
-            "print('eyeq_spi.spec.catalog' in sys.modules)\n")
+            "print('eyeq_spi.catalog.messages' in sys.modules)\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.stdout.strip() == "False", r.stderr
 

@@ -141,7 +141,7 @@ def test_stats_honours_every_filter(capture: Path, capsys: pytest.CaptureFixture
 
     assert "EYEQ_VIS_OBSTACLES_MSG" in names(everything) and "GetEyeQVersions" in names(
         everything)
-    from eyeq_spi.spec.catalog import catalog
+    from eyeq_spi.catalog.messages import catalog
 
     functions = {f.name for f in catalog().mesp} | {"MESP"}
     assert names(mesp) and names(mesp) <= functions, names(mesp)

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.codec.bits import BitSignalCodec
 from eyeq_spi.codec.e2e import E2EState, protect, verify
 from eyeq_spi.codec.intrinsic import (
@@ -22,7 +23,6 @@ from eyeq_spi.codec.intrinsic import (
 from eyeq_spi.codec.layout import LayoutCache
 from eyeq_spi.codec.message import MessageCodec, classify
 from eyeq_spi.errors import CodecError
-from eyeq_spi.spec.catalog import catalog
 from tests.strategies import layout_values, signal_value
 
 CAT = catalog()

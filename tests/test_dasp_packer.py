@@ -12,6 +12,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from eyeq_spi.catalog.messages import MessageDef, catalog
 from eyeq_spi.codec.e2e import E2EState, protect
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import build
@@ -22,7 +23,6 @@ from eyeq_spi.host.scenario import CsvScenario
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.sim.packer import DaspPacker, compile_protector
-from eyeq_spi.spec.catalog import MessageDef, catalog
 
 SWS = catalog().sw_versions
 

@@ -306,8 +306,8 @@ def _mesp(emu, function: str, params: dict):  # type: ignore[no-untyped-def]
 def test_compute_hash_over_the_link_on_the_appendix_f_examples(running) -> None:  # type: ignore[no-untyped-def]
     import yaml
 
+    from eyeq_spi.catalog.link import specs_dir
     from eyeq_spi.mesp.replies import MespFailure, MespReply
-    from eyeq_spi.spec.link import specs_dir
 
     examples = yaml.safe_load((specs_dir() / "flash_map.yaml").read_text())["flash_map"]["examples"]
     flash = running.sim.flash  # 64 MB

@@ -43,7 +43,7 @@ def test_no_public_error_class_is_defined_outside_errors_py() -> None:
 # where each class was defined before it moved to errors.py: the old import keeps working
 OLD_HOMES = {
     "eyeq_spi.codec.mesp": ["MalformedParamsError"],
-    "eyeq_spi.spec.can_expr": ["ExprError"],
+    "eyeq_spi.catalog.can_expr": ["ExprError"],
     "eyeq_spi.phy.address": ["AddressError"],
     "eyeq_spi.can.compare": ["CanCompareError"],
     "eyeq_spi.can.dbc": ["CanExtraMissingError"],
@@ -61,9 +61,9 @@ OLD_HOMES = {
     "eyeq_spi.dissect.inputs": ["InputError"],
     "eyeq_spi.dissect.vframes": ["BatchUnsupportedError"],
     "eyeq_spi.dissect.fleet": ["FleetError"],
-    "eyeq_spi.bench.replay": ["ReplayError"],
-    "eyeq_spi.bench.mdf": ["ExportError"],
-    "eyeq_spi.bench.sigrok_install": ["InstallError"],
+    "eyeq_spi.interop.replay": ["ReplayError"],
+    "eyeq_spi.interop.mdf": ["ExportError"],
+    "eyeq_spi.interop.sigrok_install": ["InstallError"],
 }
 
 

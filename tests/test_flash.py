@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.errors import CodecError
 from eyeq_spi.sim.flash import (
     DATASET_EXPLICIT,
@@ -27,7 +28,6 @@ from eyeq_spi.sim.flash import (
     flash_examples,
     hash_request,
 )
-from eyeq_spi.spec.catalog import catalog
 
 HASHES: dict[int, Callable[[bytes], bytes]] = {
     HASH_CRC32: lambda b: zlib.crc32(b).to_bytes(4, "little"),

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from eyeq_spi.codec.intrinsic import eeprom_codec
-from eyeq_spi.faults.bench import Scene, bench
+from eyeq_spi.faults.rig import Scene, rig
 from eyeq_spi.host.machine import HostState
 from tests.fuzz import dissect_target
 from tests.fuzz.app_targets import eeprom_image, host_eeprom
@@ -49,7 +49,7 @@ def test_eeprom_with_nan_in_the_distortion_parameters_is_a_camera_fault() -> Non
     data = bytes([len(picks) - 1]) + b"".join(bytes([i, 0]) for i in picks)
     image, touched = eeprom_image(Reader(data))
     assert all(n.startswith("CCAM_distorParams_m_") for n in touched)
-    emu = bench(fresh_nvm=True, scene=Scene(0, 0, 0))
+    emu = rig(fresh_nvm=True, scene=Scene(0, 0, 0))
     emu.sim.eeprom[:] = image
     emu.run_for(3.0, stop=lambda: emu.host.state is HostState.FAILED)
     assert emu.host.state is HostState.FAILED

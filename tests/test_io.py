@@ -210,9 +210,9 @@ def test_a_missing_extra_names_the_pip_extra(monkeypatch: pytest.MonkeyPatch) ->
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
                         lambda name, *a: None if name == "asammdf" else real(name, *a))
-    with pytest.raises(MissingExtraError, match=r"pip install 'eyeq-spi\[bench\]'") as exc:
+    with pytest.raises(MissingExtraError, match=r"pip install 'eyeq-spi\[export\]'") as exc:
         registry.load("mdf4", RECORD_WRITER)
-    assert exc.value.extra == "bench"
+    assert exc.value.extra == "export"
     fake = Format("fake", RECORD_WRITER, (".fake",), "no_such_module_xyz:Writer", "",
                   extra="fake", needs=("no_such_module_xyz",))
     with pytest.raises(MissingExtraError, match=r"eyeq-spi\[fake\]"):

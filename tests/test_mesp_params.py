@@ -11,8 +11,8 @@ from construct import Struct, Terminated
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from eyeq_spi.catalog.messages import MespParam, catalog
 from eyeq_spi.codec.mesp import MalformedParamsError, MespCodec, param_types, parse_params
-from eyeq_spi.spec.catalog import MespParam, catalog
 
 TYPES = ("u8", "u16", "u32", "string", "bytes")
 

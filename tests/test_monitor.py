@@ -19,6 +19,7 @@ import pytest
 
 pytest.importorskip("rich", reason="the monitor extra (rich) is not installed")
 
+from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.cli import main
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import build
@@ -26,8 +27,7 @@ from eyeq_spi.monitor.app import run
 from eyeq_spi.monitor.model import RateMeter, Snapshot, band
 from eyeq_spi.monitor.sources import DemoSource, DissectSource, HostSource, ReplaySource
 from eyeq_spi.monitor.view import MonitorError, render
-from eyeq_spi.plot.scene import OBSTACLES, ROAD
-from eyeq_spi.spec.catalog import catalog
+from eyeq_spi.plot.perceived import OBSTACLES, ROAD
 from tests.test_plot_scene import synthetic_capture
 
 

@@ -11,12 +11,12 @@ import pytest
 
 pytest.importorskip("rich", reason="the monitor extra (rich) is not installed")
 
+from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.cli import main
 from eyeq_spi.emulator import build
 from eyeq_spi.monitor.model import RateMeter
 from eyeq_spi.monitor.sources import ReplaySource, _HostView
 from eyeq_spi.monitor.view import screen_lines
-from eyeq_spi.spec.catalog import catalog
 from tests.test_monitor import _drain, _run_in_pty
 
 

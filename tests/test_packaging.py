@@ -9,7 +9,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from eyeq_spi.spec.link import specs_dir
+from eyeq_spi.catalog.link import specs_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 

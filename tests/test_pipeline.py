@@ -159,7 +159,7 @@ def test_monitor_replays_a_saleae_export_like_the_capture(saleae: Path, demo: Pa
 
 # -- export and replay -------------------------------------------------------------------------
 def _mdf_content(path: Path) -> dict[str, Any]:
-    asammdf = pytest.importorskip("asammdf", reason="--mdf needs asammdf (the [bench] extra)")
+    asammdf = pytest.importorskip("asammdf", reason="--mdf needs asammdf (the [export] extra)")
     mdf = asammdf.MDF(str(path))
     try:
         out: dict[str, Any] = {}
@@ -179,7 +179,7 @@ def test_export_mdf_from_the_pipeline_equals_the_transfer_pass(
     """--mdf alone takes the pipeline (the batch path for a big pcapng); with --mcap it rides
     on the pass over the transfers. The MDF holds the same either way, and the Saleae export's
     MDF is the capture's."""
-    pytest.importorskip("mcap", reason="--mcap needs mcap (the [bench] extra)")
+    pytest.importorskip("mcap", reason="--mcap needs mcap (the [export] extra)")
     monkeypatch.setattr(pipeline, "SMALL_INPUT", 0)
     runs = {}
     for name, path, extra in (("alone", demo, []),

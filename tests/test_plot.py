@@ -27,8 +27,8 @@ from eyeq_spi.plot.birdseye import (
 )
 from eyeq_spi.plot.charts import GAP_COLOUR, timing_figure
 from eyeq_spi.plot.collect import Collector, Window, collect
-from eyeq_spi.plot.output import save_figure
-from eyeq_spi.plot.scene import OBSTACLES, ROAD, SIGNS
+from eyeq_spi.plot.figures import save_figure
+from eyeq_spi.plot.perceived import OBSTACLES, ROAD, SIGNS
 from eyeq_spi.transport.segment import segment
 from tests.test_plot_scene import (
     LINES,
@@ -349,7 +349,7 @@ def test_bad_inputs_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
 def test_missing_matplotlib_is_a_typed_error(monkeypatch: pytest.MonkeyPatch) -> None:
     import sys
 
-    from eyeq_spi.plot.output import mpl
+    from eyeq_spi.plot.figures import mpl
 
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     with pytest.raises(PlotError, match=r"pip install 'eyeq-spi\[plot\]'"):

@@ -15,7 +15,7 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.plot.birdseye import birdseye
 from eyeq_spi.plot.charts import TIME_LABEL, link_figure, timing_figure
 from eyeq_spi.plot.collect import Collector, Window, collect
-from eyeq_spi.plot.scene import OBSTACLES, ROAD, Scene, SceneSign
+from eyeq_spi.plot.perceived import OBSTACLES, ROAD, Scene, SceneSign
 from tests.test_plot_scene import synthetic_capture
 
 

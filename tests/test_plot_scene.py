@@ -12,7 +12,7 @@ import pytest
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.link.frame import FrameCodec
-from eyeq_spi.plot.scene import (
+from eyeq_spi.plot.perceived import (
     OBSTACLES,
     ROAD,
     SIGNS,

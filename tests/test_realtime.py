@@ -129,8 +129,8 @@ def test_replay_to_a_host_leaves_the_collector_on() -> None:
     import socket
     import threading
 
-    from eyeq_spi.bench.replay import replay_to_port
     from eyeq_spi.capture.pcapng_io import Record
+    from eyeq_spi.interop.replay import replay_to_port
 
     srv = socket.create_server(("127.0.0.1", 0))
     port = srv.getsockname()[1]

@@ -1,4 +1,4 @@
-"""The one run summary (eyeq_spi/report.py): the simulated EyeQ's side of a dropped or late MESP
+"""The one run summary (eyeq_spi/summary.py): the simulated EyeQ's side of a dropped or late MESP
 reply, per-session totals, the text block."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ from typing import Any
 
 from eyeq_spi.emulator import build, summary
 from eyeq_spi.host.nvm import Nvm
-from eyeq_spi.report import KEYS, SimSessions, format_summary, sim_summary
 from eyeq_spi.sim.config import SimConfig
+from eyeq_spi.summary import KEYS, SimSessions, format_summary, sim_summary
 
 
 def _sim_view(cfg: SimConfig, tmp_path: Path) -> dict[str, Any]:
@@ -120,7 +120,7 @@ def test_running_vision_is_judged_once_for_every_run() -> None:
     from types import SimpleNamespace
 
     from eyeq_spi.host.machine import HostState
-    from eyeq_spi.report import RunningVision
+    from eyeq_spi.summary import RunningVision
 
     watch = RunningVision()
     host: Any = SimpleNamespace(state=HostState.RUNNING_VISION)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import pytest
 
-from eyeq_spi.faults.bench import Scene
 from eyeq_spi.faults.resets import (
     CampaignReport,
     ResetConfig,
@@ -13,6 +12,7 @@ from eyeq_spi.faults.resets import (
     run_reset,
     summarise,
 )
+from eyeq_spi.faults.rig import Scene
 
 # A light scene and resets within 0.3 s keep the 50 runs inside the CI budget; a quarter of the
 # offsets fall in the first 50 ms of Running Vision either way.

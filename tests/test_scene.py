@@ -11,11 +11,11 @@ from typing import Any
 
 import pytest
 
+from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.sim.scene import CLASSES, Scene, SceneConfig
-from eyeq_spi.spec.catalog import catalog
 
 CAT = catalog()
 DT = 1.0 / 18.0

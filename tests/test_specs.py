@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 import yaml
 
+from eyeq_spi.catalog.link import specs_dir
+from eyeq_spi.catalog.messages import catalog, normalise_sw
+from eyeq_spi.catalog.schema import validate_tree
 from eyeq_spi.codec.layout import LayoutCache
-from eyeq_spi.spec.catalog import catalog, normalise_sw
-from eyeq_spi.spec.link import specs_dir
-from eyeq_spi.spec.schema import validate_tree
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT.parent / "shared" / "seeds" / "004_63c766cc38b57438.txt"

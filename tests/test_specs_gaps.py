@@ -13,16 +13,16 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
+from eyeq_spi.catalog.link import spec_file, specs_dir
+from eyeq_spi.catalog.messages import catalog
+from eyeq_spi.catalog.schema import validate_tree
+from eyeq_spi.catalog.tables import alignment_nvm, dasp_header, decisions, gpio_groups
 from eyeq_spi.codec.describe import spec_show
 from eyeq_spi.codec.layout import LayoutCache
 from eyeq_spi.codec.message import DASP_PROTOCOL, MessageCodec
 from eyeq_spi.dissect.engine import _enum_plan
 from eyeq_spi.dissect.output import HumanWriter
 from eyeq_spi.errors import SpecError
-from eyeq_spi.spec.catalog import catalog
-from eyeq_spi.spec.link import spec_file, specs_dir
-from eyeq_spi.spec.schema import validate_tree
-from eyeq_spi.spec.tables import alignment_nvm, dasp_header, decisions, gpio_groups
 
 ROOT = Path(__file__).resolve().parents[1]
 SEEDS = ROOT.parent / "shared"

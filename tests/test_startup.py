@@ -1,4 +1,4 @@
-"""The start-up cache of the catalogue (``eyeq_spi/spec/cache.py``) and the libyaml loader."""
+"""The start-up cache of the catalogue (``eyeq_spi/catalog/cache.py``) and the libyaml loader."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 import yaml
 
+from eyeq_spi.catalog import cache
+from eyeq_spi.catalog.link import specs_dir
+from eyeq_spi.catalog.messages import load_catalog
 from eyeq_spi.errors import SpecError
-from eyeq_spi.spec import cache
-from eyeq_spi.spec.catalog import load_catalog
-from eyeq_spi.spec.link import specs_dir
 
 
 @pytest.fixture
@@ -279,8 +279,8 @@ def test_the_parser_of_one_command_is_the_full_parser_for_that_command() -> None
 
 
 def test_a_layout_builds_its_construct_codec_only_when_asked() -> None:
+    from eyeq_spi.catalog.messages import catalog
     from eyeq_spi.codec.layout import LayoutCache
-    from eyeq_spi.spec.catalog import catalog
 
     cat = catalog()
     msg = next(m for m in cat.messages if m.data_id == 0xE4 and m.protocol == "DASP")
@@ -385,13 +385,13 @@ def test_the_key_changes_when_a_file_is_touched_or_added(specs_copy: Path) -> No
 def test_a_usage_error_about_a_name_reads_the_names_index_not_the_catalogue(
     warm_cache: dict[str, str], argv: list[str]
 ) -> None:
-    rc, mods = _imports(argv, warm_cache, ("eyeq_spi.spec.catalog", "pickle", *HEAVY))
+    rc, mods = _imports(argv, warm_cache, ("eyeq_spi.catalog.messages", "pickle", *HEAVY))
     assert rc == 2 and mods == []
 
 
 def test_the_names_index_agrees_with_the_catalogue() -> None:
+    from eyeq_spi.catalog.messages import catalog
     from eyeq_spi.cli import args as ca
-    from eyeq_spi.spec.catalog import catalog
 
     cat, idx = catalog(), ca._index()
     assert idx == ca._build_index()

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from eyeq_spi.report import KEYS, SESSION_KEYS
+from eyeq_spi.summary import KEYS, SESSION_KEYS
 from tests.sim_proc import CLI, ROOT, start_sim
 
 

@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 
 from eyeq_spi.capture.fastread import chunks_from_records
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
+from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState, protect, verify, verify_reference
 from eyeq_spi.codec.layout import Layout
@@ -31,7 +32,6 @@ from eyeq_spi.dissect.output import JsonWriter, TableWriter, flatten
 from eyeq_spi.dissect.stats import Stats
 from eyeq_spi.dissect.vframes import FrameBlock
 from eyeq_spi.link.frame import FrameCodec
-from eyeq_spi.spec.catalog import catalog
 from eyeq_spi.transport.segment import segment
 from tests.strategies import layout_values
 

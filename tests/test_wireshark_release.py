@@ -14,10 +14,10 @@ from pathlib import Path
 import pytest
 
 from eyeq_spi.capture.pcapng_io import CaptureWriter, read_pcapng
+from eyeq_spi.catalog.messages import sw_release_text
+from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.link.frame import FrameCodec
-from eyeq_spi.spec.catalog import sw_release_text
-from eyeq_spi.spec.schema import sw_key
 from eyeq_spi.transport.segment import segment
 from tests.test_wireshark import (
     LINK_FIELDS,

@@ -164,7 +164,7 @@ def main() -> int:
             times, n = _time(lambda data=data, fmt=fmt, kw=kw: _dissect(data, fmt, kw),  # type: ignore[misc]
                              max(1, args.repeat // 2))
             print(_row(f"read+dissect {fmt}", times, n, base))
-        from eyeq_spi.bench.export import export
+        from eyeq_spi.interop.export import export
 
         for out in ("vcd", "mdf", "mcap"):
             target = str(Path(d) / f"out.{out}")

@@ -102,7 +102,7 @@ def main() -> int:
         ("ruff", [py, "-m", "ruff", "check", "eyeq_spi", "tests", "tools"]),
         ("mypy", [py, "-m", "mypy"]),
         ("import layers", [shutil.which("lint-imports") or "lint-imports"]),
-        ("specs schema", [py, "-m", "eyeq_spi.spec.schema", "specs"]),
+        ("specs schema", [py, "-m", "eyeq_spi.catalog.schema", "specs"]),
     ]
     for name, cmd in steps:
         if run(name, cmd) != 0:

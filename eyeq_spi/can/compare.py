@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.can.dbc import INVALID_ATTRIBUTE, database, require_cantools
+from eyeq_spi.catalog.can import CanMessage, CanSignal, can_documents, protocol
 from eyeq_spi.errors import CanCompareError as CanCompareError
-from eyeq_spi.spec.can import CanMessage, CanSignal, can_documents, protocol
 
 
 @dataclass(frozen=True)

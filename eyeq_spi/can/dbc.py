@@ -15,9 +15,9 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from eyeq_spi.catalog.can import CanMessage, CanProtocol, CanSignal, protocol
 from eyeq_spi.errors import CanExtraMissingError as CanExtraMissingError
 from eyeq_spi.errors import EyeqError, SpecError
-from eyeq_spi.spec.can import CanMessage, CanProtocol, CanSignal, protocol
 
 INVALID_ATTRIBUTE = "GenSigInvalidValue"
 

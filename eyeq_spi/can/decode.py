@@ -28,7 +28,7 @@ from functools import cache
 from typing import Any
 
 from eyeq_spi.can.logs import CanLogError, CanLogTruncatedError, read_log
-from eyeq_spi.spec.can import CanMessage, CanSignal, protocol
+from eyeq_spi.catalog.can import CanMessage, CanSignal, protocol
 
 __all__ = ["CanDecoder", "CanLogError", "CanLogTruncatedError", "MessageDecoder",
            "SignalDecoder", "human_record", "read_log", "table_record"]

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.can.dbc import database
-from eyeq_spi.spec.can import (
+from eyeq_spi.catalog.can import (
     BASE_NAMES,
     CanMessage,
     CanProtocol,
@@ -34,7 +34,7 @@ from eyeq_spi.spec.can import (
     can_specs,
     protocol,
 )
-from eyeq_spi.spec.can_expr import MISSING, compile_expr
+from eyeq_spi.catalog.can_expr import MISSING, compile_expr
 
 Vehicle = Callable[[float], dict[str, Any]]
 

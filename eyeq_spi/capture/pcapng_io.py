@@ -16,10 +16,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+from eyeq_spi.catalog.messages import SwKey, catalog, sw_release_text
 from eyeq_spi.errors import CaptureError as CaptureError
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.errors import TruncatedCaptureError as TruncatedCaptureError
-from eyeq_spi.spec.catalog import SwKey, catalog, sw_release_text
 
 DIRECTIONS = ("h2e", "e2h")
 SW_COMMENT = "eyeq-spi sw={release}"  # specs/capture.yaml release_comment: "eyeq-spi sw=8.1"

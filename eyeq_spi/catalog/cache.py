@@ -2,7 +2,7 @@
 
 Parsing and validating ``specs/`` costs ~0.2 s even with libyaml; every CLI start needs the
 catalogue (argument checks name messages, MESP functions and faults). The validated
-:class:`~eyeq_spi.spec.catalog.Catalog` is pickled into the user's cache directory under a key
+:class:`~eyeq_spi.catalog.messages.Catalog` is pickled into the user's cache directory under a key
 over the path, size and modification time of every file of ``specs/`` and of the loader modules'
 sources, and the Python version (:func:`specs_digest`), so an edited YAML file, an edited loader
 or another interpreter never sees a stale one.

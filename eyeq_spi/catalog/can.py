@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
+from eyeq_spi.catalog.can_expr import ExprError, compile_expr
+from eyeq_spi.catalog.link import specs_dir
 from eyeq_spi.errors import SpecError
-from eyeq_spi.spec.can_expr import ExprError, compile_expr
-from eyeq_spi.spec.link import specs_dir
 
 PROTOCOL_KEYS = frozenset({"name", "title", "seeds", "bitrate", "seed", "seed_line", "enums",
                            "messages"})

@@ -26,8 +26,8 @@ def link_spec() -> dict[str, Any]:
 @cache
 def spec_file(name: str) -> dict[str, Any]:
     """One YAML file of ``specs/`` as a mapping (cached in the process, and across starts by
-    :func:`eyeq_spi.spec.cache.cached_doc`)."""
-    from eyeq_spi.spec.cache import cached_doc
+    :func:`eyeq_spi.catalog.cache.cached_doc`)."""
+    from eyeq_spi.catalog.cache import cached_doc
 
     return cached_doc(specs_dir(), name, load_file)
 

@@ -12,14 +12,14 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.errors import SpecError
-from eyeq_spi.spec.link import specs_dir
-from eyeq_spi.spec.schema import (  # normalise_sw: re-exported
+from eyeq_spi.catalog.link import specs_dir
+from eyeq_spi.catalog.schema import (  # normalise_sw: re-exported
     load_yaml_tree,
     normalise_sw,
     sw_key,
     validate_tree,
 )
+from eyeq_spi.errors import SpecError
 
 SwKey = str
 """A variant key such as ``sw8_1``."""
@@ -268,8 +268,8 @@ class RawDocs(Mapping[str, Any]):
         if doc is None:
             if name not in self._names():
                 raise KeyError(name)
-            from eyeq_spi.spec.cache import cached_doc
-            from eyeq_spi.spec.link import load_file
+            from eyeq_spi.catalog.cache import cached_doc
+            from eyeq_spi.catalog.link import load_file
 
             doc = self._docs[name] = cached_doc(self._root, name, load_file)
         return doc
@@ -409,6 +409,6 @@ def load_catalog(root: Path) -> Catalog:
 @cache
 def catalog() -> Catalog:
     """The catalogue of the shipped ``specs/``, from the start-up cache when it is current."""
-    from eyeq_spi.spec.cache import cached_catalog
+    from eyeq_spi.catalog.cache import cached_catalog
 
     return cached_catalog(specs_dir(), load_catalog)

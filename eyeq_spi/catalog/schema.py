@@ -1,7 +1,7 @@
 """Validation of the ``specs/`` tree against the schema in ``specs/SCHEMA.md``.
 
 The validator returns a list of human-readable problems instead of raising, so that a test (or
-``python -m eyeq_spi.spec.schema specs/``) can print all of them at once.
+``python -m eyeq_spi.catalog.schema specs/``) can print all of them at once.
 """
 
 from __future__ import annotations
@@ -128,7 +128,7 @@ def validate_tree(root: Path, docs: dict[str, Any] | None = None) -> list[str]:
         for v in e["values"]:
             key = "bit" if flags else "value"
             if flags and isinstance(v, dict) and "bits" in v:  # a multi-bit field of a flag word
-                from eyeq_spi.spec.tables import flag_field_problems
+                from eyeq_spi.catalog.tables import flag_field_problems
 
                 problems += [f"{where}: {p}" for p in flag_field_problems(v, seen)]
                 continue
@@ -285,10 +285,10 @@ def validate_tree(root: Path, docs: dict[str, Any] | None = None) -> list[str]:
                             problems.append(f"{swhere}: bit {b} overlaps {used[b]}")
                             break
                         used[b] = sig["name"]
-    from eyeq_spi.spec.tables import validate_tables  # GPIO, NVM, DASP header, decisions, MESP
+    from eyeq_spi.catalog.tables import validate_tables  # GPIO, NVM, DASP header, decisions, MESP
 
     problems += validate_tables(docs)
-    from eyeq_spi.spec.can import validate_can_docs  # specs/can/ (seeds 000, 001, 003)
+    from eyeq_spi.catalog.can import validate_can_docs  # specs/can/ (seeds 000, 001, 003)
 
     problems += validate_can_docs(docs)
     return problems

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
+from eyeq_spi.catalog.link import spec_file
 from eyeq_spi.errors import SpecError
-from eyeq_spi.spec.link import spec_file
 
 DECISION_ID = re.compile(r"^[A-Z]\d+[a-z]?$")
 """A ``decision:`` value that names a decision (``D6``, ``L6a``); longer values are prose notes."""

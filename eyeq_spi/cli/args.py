@@ -28,7 +28,7 @@ def _bad(message: str) -> NoReturn:
 
 
 def _cat() -> Any:
-    from eyeq_spi.spec.catalog import catalog
+    from eyeq_spi.catalog.messages import catalog
 
     try:
         return catalog()
@@ -56,8 +56,8 @@ def _index() -> dict[str, Any]:
     """The names and IDs the argument checks need, as plain data cached beside the catalogue
     (``marshal``, keyed on ``specs/`` like it): checking a name, and so every usage error,
     neither imports nor unpickles the catalogue."""
-    from eyeq_spi.spec.cache import cached_data
-    from eyeq_spi.spec.link import specs_dir
+    from eyeq_spi.catalog.cache import cached_data
+    from eyeq_spi.catalog.link import specs_dir
 
     try:
         return cached_data(specs_dir(), _INDEX_TAG, _build_index)
@@ -134,7 +134,7 @@ def integer(lo: int, hi: int, *, what: str = "an integer") -> Type:
 
 def sw_release(text: str) -> str:
     """A SW release that ``specs/`` describes (``9.0``, ``8.1``, ``SW8_1``) -> its key."""
-    from eyeq_spi.spec.schema import normalise_sw
+    from eyeq_spi.catalog.schema import normalise_sw
 
     idx = _index()
     releases = {k: k[2:].replace("_", ".") if "_" in k else f"{k[2:]}.0"

@@ -82,6 +82,7 @@ def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
 
 
 def run_dissect(args: argparse.Namespace) -> int:
+    from eyeq_spi.catalog.messages import catalog
     from eyeq_spi.cli.options import spi_options
     from eyeq_spi.dissect.output import HumanWriter, JsonWriter, TableWriter
     from eyeq_spi.dissect.pipeline import (
@@ -91,7 +92,6 @@ def run_dissect(args: argparse.Namespace) -> int:
         fields_mode,
     )
     from eyeq_spi.dissect.stats import Stats, combine
-    from eyeq_spi.spec.catalog import catalog
 
     if args.csv and args.parquet:
         raise UsageError("give --csv or --parquet, not both")

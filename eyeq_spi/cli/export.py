@@ -32,9 +32,9 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                    default=2000.0, metavar="MB", help="--vcd: refuse, before writing, a VCD "
                    "estimated larger than this (default 2000 MB)")
     e.add_argument("--mdf", metavar="OUT.mf4", type=ca.output_file,
-                   help="decoded signals (needs the [bench] extra)")
+                   help="decoded signals (needs the [export] extra)")
     e.add_argument("--mcap", metavar="OUT.mcap", type=ca.output_file,
-                   help="raw transfers and decoded messages (needs the [bench] extra)")
+                   help="raw transfers and decoded messages (needs the [export] extra)")
     opt.include(e, opt.json_out("end with one JSON summary object"))
 
 
@@ -43,8 +43,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_export(args: argparse.Namespace) -> int:
-    from eyeq_spi.bench.export import export, export_mdf
     from eyeq_spi.cli.progress import JobProgress
+    from eyeq_spi.interop.export import export, export_mdf
 
     if not (args.vcd or args.mdf or args.mcap):
         raise UsageError("give at least one of --vcd, --mdf, --mcap")

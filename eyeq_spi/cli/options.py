@@ -324,7 +324,7 @@ def host_parts(args: argparse.Namespace) -> tuple[Any, Any, Any]:
     from eyeq_spi.host.scenario import ConstantDrive, CsvScenario
 
     if args.scenario:
-        from eyeq_spi.spec.catalog import catalog
+        from eyeq_spi.catalog.messages import catalog
 
         cat = catalog()
         variant = cat.structs["host_vehicle_state_t"].variant_for(cat.sw(args.sw))

@@ -59,7 +59,7 @@ def _default_output(args: argparse.Namespace, kind: str) -> str:
 def run(args: argparse.Namespace) -> int:
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.plot.collect import Collector, Window, collect_capture
-    from eyeq_spi.plot.output import check_output, mpl, save_animation, save_figure
+    from eyeq_spi.plot.figures import check_output, mpl, save_animation, save_figure
 
     kind = "birdseye" if args.birdseye else "timing" if args.timing else "link"
     if (args.at is not None or args.animate) and not args.birdseye:

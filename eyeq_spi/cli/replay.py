@@ -48,8 +48,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_replay(args: argparse.Namespace) -> int:
-    from eyeq_spi.bench.replay import replay_into_host, replay_to_port
-    from eyeq_spi.report import format_summary
+    from eyeq_spi.interop.replay import replay_into_host, replay_to_port
+    from eyeq_spi.summary import format_summary
 
     if args.duration is not None and args.duration <= 0:
         raise UsageError("--duration must be positive")

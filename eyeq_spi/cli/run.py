@@ -137,7 +137,7 @@ class LiveView:
     def _periodic(self, host: Any) -> set[str]:
         """The messages the spec gives a nominal rate (seed 004's message table)."""
         if self._periodic_names is None:
-            from eyeq_spi.spec.catalog import catalog
+            from eyeq_spi.catalog.messages import catalog
 
             self._periodic_names = {m.name for m in catalog().messages if m.rate_hz}
         return self._periodic_names
@@ -199,7 +199,7 @@ def print_summary(out: dict[str, Any], as_json: bool) -> None:
     if as_json:
         print(json.dumps(out, sort_keys=True), flush=True)
         return
-    from eyeq_spi.report import format_summary
+    from eyeq_spi.summary import format_summary
 
     print(format_summary(out), flush=True)
 

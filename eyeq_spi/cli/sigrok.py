@@ -22,7 +22,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_sigrok_decoder(args: argparse.Namespace) -> int:
-    from eyeq_spi.bench.sigrok_install import default_dir, install
+    from eyeq_spi.interop.sigrok_install import default_dir, install
 
     if args.install is None:
         raise UsageError("give --install [DIR]")

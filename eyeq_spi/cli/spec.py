@@ -24,8 +24,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from eyeq_spi.catalog.messages import catalog
     from eyeq_spi.codec.describe import spec_list, spec_show
-    from eyeq_spi.spec.catalog import catalog
 
     cat = catalog()
     sw = cat.sw(args.sw)

@@ -12,8 +12,15 @@ import math
 import struct
 from typing import Any
 
+from eyeq_spi.catalog.messages import (
+    Catalog,
+    InitMessageDef,
+    InitSignal,
+    InitVariant,
+    SwKey,
+    catalog,
+)
 from eyeq_spi.errors import CodecError, SpecError
-from eyeq_spi.spec.catalog import Catalog, InitMessageDef, InitSignal, InitVariant, SwKey, catalog
 
 _EPS = 1e-9
 

@@ -3,10 +3,10 @@ spirit of ``cantools dump``): offsets, sizes, types, ranges, enums and CRC cover
 
 from __future__ import annotations
 
+from eyeq_spi.catalog.messages import Catalog, SwKey
 from eyeq_spi.codec.bits import BitSignalCodec
 from eyeq_spi.codec.layout import Layout, LayoutCache
 from eyeq_spi.errors import SpecError
-from eyeq_spi.spec.catalog import Catalog, SwKey
 
 
 def _hz(v: float | None) -> str:

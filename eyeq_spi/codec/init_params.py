@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from eyeq_spi.catalog.messages import Catalog, InitMessageDef, catalog
 from eyeq_spi.codec.bits import BitSignalCodec
 from eyeq_spi.errors import CodecError, SpecError
-from eyeq_spi.spec.catalog import Catalog, InitMessageDef, catalog
 
 
 @dataclass(frozen=True)

@@ -24,10 +24,10 @@ import contextlib
 from dataclasses import dataclass, field
 from typing import Any
 
+from eyeq_spi.catalog.messages import Catalog, Member, SwKey
 from eyeq_spi.codec.fastpath import FastCodec
 from eyeq_spi.crc import crc16
 from eyeq_spi.errors import CodecError, SpecError
-from eyeq_spi.spec.catalog import Catalog, Member, SwKey
 
 PRIMITIVE = {  # seed type -> (construct field name, bytes)
     "uint8": ("Int8ul", 1), "uint16": ("Int16ul", 2), "uint32": ("Int32ul", 4),

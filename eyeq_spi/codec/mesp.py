@@ -5,10 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from eyeq_spi.catalog.messages import Catalog, MespFunction
 from eyeq_spi.codec.types import DecodedMessage
 from eyeq_spi.errors import CodecError
 from eyeq_spi.errors import MalformedParamsError as MalformedParamsError
-from eyeq_spi.spec.catalog import Catalog, MespFunction
 
 MESP_PROTOCOL = 0x5E
 REPLY_BIT = 0x80

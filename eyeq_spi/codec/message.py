@@ -8,13 +8,13 @@ from __future__ import annotations
 
 from typing import Any
 
+from eyeq_spi.catalog.messages import Catalog, MessageDef, SwKey, catalog
+from eyeq_spi.catalog.tables import dasp_header
 from eyeq_spi.codec.e2e import E2EState, protect, verify
 from eyeq_spi.codec.layout import Layout, LayoutCache
 from eyeq_spi.codec.mesp import MESP_PROTOCOL, MespCodec
 from eyeq_spi.codec.types import DecodedMessage as DecodedMessage  # re-exported: the result
 from eyeq_spi.errors import CodecError, SpecError
-from eyeq_spi.spec.catalog import Catalog, MessageDef, SwKey, catalog
-from eyeq_spi.spec.tables import dasp_header
 
 DASP_PROTOCOL = dasp_header().protocol  # §7.1.2: 0x65, specs/dasp_header.yaml
 DIAG_ID = 0x41

@@ -32,8 +32,8 @@ from eyeq_spi.codec.e2e import E2EState, _key, _label
 from eyeq_spi.crc import crc16
 
 if TYPE_CHECKING:
+    from eyeq_spi.catalog.messages import Catalog
     from eyeq_spi.codec.layout import Layout
-    from eyeq_spi.spec.catalog import Catalog
 
 NP_TYPE = {"uint8": "u1", "uint16": "<u2", "uint32": "<u4", "uint64": "<u8", "int8": "i1",
            "int16": "<i2", "int32": "<i4", "int64": "<i8", "real32": "<f4", "real64": "<f8",

@@ -9,11 +9,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.conformance.judges import app as A  # noqa: N812 - short names keep the table
 from eyeq_spi.conformance.judges import flow as F  # noqa: N812
 from eyeq_spi.conformance.judges import link as L  # noqa: N812
 from eyeq_spi.conformance.model import ALL_SESSIONS, Case
-from eyeq_spi.spec.catalog import catalog
 
 EYEQ, HOST, BOTH = ("eyeq",), ("host",), ("eyeq", "host")
 

@@ -26,11 +26,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import replace
 
+from eyeq_spi.catalog.link import link_spec
+from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.conformance.judges.verdict import Outcome, Span, at, unsure
 from eyeq_spi.conformance.model import Case
 from eyeq_spi.conformance.trace import Trace
-from eyeq_spi.spec.catalog import catalog
-from eyeq_spi.spec.link import link_spec
 
 _TIMING = link_spec()["timing"]
 ACK_TIMEOUT = float(_TIMING["ackTimeout"])

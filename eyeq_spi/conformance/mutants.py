@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import is_mesp
 from eyeq_spi.errors import UsageError
 from eyeq_spi.host.host import HostConfig, HostEmulator
@@ -23,7 +24,6 @@ from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.link.frame import DATA_SIZE, FrameCodec, FrameKind, NakReason
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
-from eyeq_spi.spec.link import link_spec
 
 _FRAMES = FrameCodec()
 _LINK = link_spec()

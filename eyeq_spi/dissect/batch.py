@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from eyeq_spi.capture.fastread import DIR_NAME, Chunk
+from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine import Dissector
 from eyeq_spi.dissect.vcut import lean_messages
@@ -50,7 +51,6 @@ from eyeq_spi.dissect.vframes import DATA, FrameArrays, FrameBlock, frame_arrays
 from eyeq_spi.dissect.vmessages import SpanDecoder, SpanMessage
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import SEQ_MODULO
-from eyeq_spi.spec.link import link_spec
 from eyeq_spi.transport.segment import (
     CONSECUTIVE,
     CONSECUTIVE_CHUNK,

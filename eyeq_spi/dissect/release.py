@@ -25,13 +25,13 @@ from dataclasses import dataclass, field
 from typing import IO, Any
 
 from eyeq_spi.capture.pcapng_io import Record, Tail, recorded_release
+from eyeq_spi.catalog.messages import Catalog, SwKey, catalog, sw_release_text
+from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, MessageCodec, classify
 from eyeq_spi.dissect.engine import Dissector
 from eyeq_spi.dissect.inputs import PeekStream, open_records
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.logic.options import SpiOptions
-from eyeq_spi.spec.catalog import Catalog, SwKey, catalog, sw_release_text
-from eyeq_spi.spec.schema import sw_key
 
 RECORDED = "recorded in the capture"
 SNIFF_RECORDS = 6000  # transfers looked at: about 3 s of a running EyeQ's traffic

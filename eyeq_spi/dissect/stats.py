@@ -10,7 +10,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.spec.catalog import Catalog
+from eyeq_spi.catalog.messages import Catalog
 
 MESP_DEADLINE = 0.5  # M6
 

@@ -3,7 +3,7 @@ host must notice, bring it up again and deliver no stale data.
 
 One run (seed ``s``):
 
-1. host and EyeQ come up to Running Vision (NVM already matched, :mod:`eyeq_spi.faults.bench`);
+1. host and EyeQ come up to Running Vision (NVM already matched, :mod:`eyeq_spi.faults.rig`);
 2. after ``offset`` seconds (drawn from the seed, see :func:`reset_offset`) the EyeQ is reset
    through its public ``power_up`` (what the host's reset line does), without telling the host;
 3. within ``recovery_limit`` the host must report the reset (an ``EYEQ_RESET`` transition) and
@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from eyeq_spi.codec.message import DecodedMessage
-from eyeq_spi.faults.bench import Scene, bench
+from eyeq_spi.faults.rig import Scene, rig
 from eyeq_spi.host.machine import HostEvent, HostState
 
 EARLY_SHARE = 0.25
@@ -82,7 +82,7 @@ def _timestamp_ms(fields: dict[str, Any]) -> int | None:
 def run_reset(seed: int, config: ResetConfig | None = None) -> ResetOutcome:
     cfg = config or ResetConfig()
     offset = reset_offset(seed, cfg.max_offset)
-    emu = bench(seed=seed, sw=cfg.sw, scene=cfg.scene)
+    emu = rig(seed=seed, sw=cfg.sw, scene=cfg.scene)
     host, sim = emu.host, emu.sim
     emu.run_for(cfg.bring_up_limit, stop=lambda: host.state is HostState.RUNNING_VISION)
     if host.state is not HostState.RUNNING_VISION:

@@ -42,7 +42,7 @@ def matched_nvm(sw: str | None = None) -> NvmData:
     return copy.deepcopy(_matched_nvm(sw))
 
 
-def bench(*, seed: int = 1, sw: str | None = None, scene: Scene | None = None,
+def rig(*, seed: int = 1, sw: str | None = None, scene: Scene | None = None,
           fresh_nvm: bool = False, sim_config: SimConfig | None = None) -> Emulation:
     sc = scene or Scene()
     cfg = sim_config or SimConfig(sw=sw, seed=seed, objects=sc.objects, signs=sc.signs,

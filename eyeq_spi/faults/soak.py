@@ -36,8 +36,8 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from eyeq_spi.emulator import Emulation
-from eyeq_spi.faults.bench import Scene, adapters, bench
 from eyeq_spi.faults.channel import FaultProfile, FaultyChannel
+from eyeq_spi.faults.rig import Scene, adapters, rig
 from eyeq_spi.faults.taps import MessageLedger, tap
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.counters import SpiDiagnosticInfo
@@ -149,7 +149,7 @@ def account(into: FaultyChannel, out_of: FaultyChannel, before: dict[str, int],
 
 def run_soak(config: SoakConfig | None = None) -> SoakReport:
     cfg = config or SoakConfig()
-    emu = bench(seed=cfg.seed, sw=cfg.sw, scene=cfg.scene)
+    emu = rig(seed=cfg.seed, sw=cfg.sw, scene=cfg.scene)
     host_end, sim_end = adapters(emu)
     h2e = FaultyChannel(cfg.profile, cfg.seed * 2 + 0)
     e2h = FaultyChannel(cfg.profile, cfg.seed * 2 + 1)

@@ -9,9 +9,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from eyeq_spi.catalog.messages import Catalog, SwKey
+from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.errors import SpecError
-from eyeq_spi.spec.catalog import Catalog, SwKey
-from eyeq_spi.spec.tables import alignment_nvm
 
 
 def enum_value(cat: Catalog, enum: str, name: str) -> int:

@@ -9,6 +9,8 @@ from __future__ import annotations
 from collections.abc import AsyncIterator
 from typing import Any
 
+from eyeq_spi.catalog.messages import sw_release
+from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.message import DecodedMessage
@@ -31,8 +33,6 @@ from eyeq_spi.host.machine import next_state
 from eyeq_spi.host.scenario import veh_state_values
 from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.mesp.client import MespCompleted, MespFailed
-from eyeq_spi.spec.catalog import sw_release
-from eyeq_spi.spec.tables import alignment_nvm
 from eyeq_spi.transport.events import MessageReceived
 
 __all__ = ["SWITCH_APP", "HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",

@@ -9,12 +9,12 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from eyeq_spi.catalog.messages import Catalog
+from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.intrinsic import eeprom_crc_ok, intrinsic_params_from_eeprom, version_text
 from eyeq_spi.errors import CodecError, SpecError
 from eyeq_spi.host.nvm import NvmData
-from eyeq_spi.spec.catalog import Catalog
-from eyeq_spi.spec.tables import alignment_nvm
 
 
 def init_values(stage: int, nvm: NvmData) -> dict[str, float]:

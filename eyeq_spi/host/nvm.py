@@ -2,8 +2,8 @@
 fsync of the directory), so a crash at any point leaves either the old or the new file.
 
 The camera alignment it keeps is the §21 Alignment NVM table: its parameters, defaults and the
-rules for updating them come from ``specs/nvm.yaml`` (:func:`eyeq_spi.spec.tables.alignment_nvm`),
-not from this module."""
+rules for updating them come from ``specs/nvm.yaml``
+(:func:`eyeq_spi.catalog.tables.alignment_nvm`), not from this module."""
 
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.errors import NvmError as NvmError
-from eyeq_spi.spec.tables import alignment_nvm
 
 
 def alignment_defaults() -> dict[str, float]:

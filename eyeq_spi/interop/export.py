@@ -11,8 +11,8 @@ from collections.abc import Callable, Iterable
 from typing import IO, Any
 
 from eyeq_spi import io as formats
-from eyeq_spi.bench.mdf import ExportError
 from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.interop.mdf import ExportError
 from eyeq_spi.logic.options import SpiOptions
 
 
@@ -97,8 +97,8 @@ def export_mdf(records: Iterable[dict[str, Any]], mdf: str, *, source: str,
     """The MDF4 file ``mdf`` from the dissector's records of one capture (what
     :func:`eyeq_spi.dissect.pipeline.dissect_files` hands out), in one pass; the summary of
     :func:`export` with ``mdf`` alone."""
-    from eyeq_spi.bench.mdf import MdfWriter
     from eyeq_spi.codec.message import MessageCodec
+    from eyeq_spi.interop.mdf import MdfWriter
 
     codec = MessageCodec(sw)
     mdf_w = MdfWriter(mdf, codec, source=source)

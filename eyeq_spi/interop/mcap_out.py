@@ -18,8 +18,8 @@ import json
 from typing import IO, Any
 
 from eyeq_spi import __version__
-from eyeq_spi.bench.mdf import ExportError, need
 from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.interop.mdf import ExportError, need
 
 _TRANSFER_SCHEMA: dict[str, Any] = {
     "type": "object", "title": "eyeq_spi.Transfer",

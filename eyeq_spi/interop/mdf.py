@@ -31,7 +31,7 @@ def need(module: str, what: str) -> Any:
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise ExportError(f"{what} needs {module.split('.')[0]}: pip install 'eyeq-spi[bench]'") \
+        raise ExportError(f"{what} needs {module.split('.')[0]}: pip install 'eyeq-spi[export]'") \
             from None
 
 

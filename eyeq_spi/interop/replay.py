@@ -22,12 +22,12 @@ from collections.abc import Iterable, Iterator
 from typing import Any
 
 from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.catalog.messages import sw_release_text as sw_text
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.errors import EyeqError, FrameError
 from eyeq_spi.errors import ReplayError as ReplayError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
-from eyeq_spi.spec.catalog import sw_release_text as sw_text
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
@@ -187,12 +187,12 @@ def host_bench(records: Iterable[Record], *, sw: str | None = None,
 def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
                      duration: float | None = None) -> dict[str, Any]:
     """Feed the capture's EyeQ channel to the built-in host emulator in virtual time; the run
-    summary (:mod:`eyeq_spi.report`) judges it as ``host`` judges a live run: Running Vision
+    summary (:mod:`eyeq_spi.summary`) judges it as ``host`` judges a live run: Running Vision
     reached and held, nothing lost (E2E, DASP counters, stale streams, MESP timeouts)."""
     import time
 
     from eyeq_spi.host.machine import HostState
-    from eyeq_spi.report import host_summary
+    from eyeq_spi.summary import host_summary
 
     cpu0 = time.process_time()
     wall0 = time.monotonic()
@@ -227,8 +227,8 @@ def replay_to_port(records: Iterable[Record], url: str, *, listen: bool = False,
 
     from eyeq_spi.errors import LinkLostError
     from eyeq_spi.phy.base import open_listener, open_url
-    from eyeq_spi.report import link_view, replay_port_summary
     from eyeq_spi.runner.realtime import RealTimeRunner
+    from eyeq_spi.summary import link_view, replay_port_summary
 
     node = ReplayEyeQ(records, duration=duration, sw=sw, count_sent=True)
     adapter = open_listener(url, timeout=connect_timeout) if listen else open_url(url)

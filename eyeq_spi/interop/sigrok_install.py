@@ -17,7 +17,7 @@ DECODER_FILES = ("__init__.py", "pd.py")
 
 
 def decoder_source() -> Path:
-    return Path(__file__).resolve().parent / "sigrok" / "eyeq_spi"
+    return Path(__file__).resolve().parent / "sigrok" / "decoder"
 
 
 def default_dir() -> Path:

@@ -45,6 +45,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
 
+from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.errors import FrameError, LocalProtocolError
 from eyeq_spi.link.counters import SpiDiagnosticInfo
 from eyeq_spi.link.events import (
@@ -59,7 +60,6 @@ from eyeq_spi.link.events import (
     UnexpectedAck,
 )
 from eyeq_spi.link.frame import DATA_SIZE, SEQ_MODULO, FrameCodec, FrameKind, NakReason
-from eyeq_spi.spec.link import link_spec
 
 Role = Literal["host", "eyeq"]
 PayloadCheck = Callable[[int, bytes], "NakReason | None"]

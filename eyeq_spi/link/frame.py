@@ -12,9 +12,9 @@ import enum
 from dataclasses import dataclass
 from typing import Any, NewType
 
+from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.crc import CCITT_FALSE, CrcFunction, CrcVariant, make_crc
 from eyeq_spi.errors import FrameError, LocalProtocolError
-from eyeq_spi.spec.link import link_spec
 
 _SPEC = link_spec()
 FRAME_SIZE: int = _SPEC["frame"]["size"]

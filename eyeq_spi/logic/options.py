@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
+from eyeq_spi.catalog.link import spec_file
 from eyeq_spi.errors import LogicInputError as LogicInputError
 from eyeq_spi.errors import UsageError
-from eyeq_spi.spec.link import spec_file
 
 DIRECTIONS = ("h2e", "e2h")
 LINES = ("mosi", "miso")

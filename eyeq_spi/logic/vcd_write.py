@@ -27,8 +27,8 @@ import numpy as np
 
 from eyeq_spi import __version__
 from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.logic.options import DIRECTIONS, SIGNALS, SpiOptions, bench_spec, signal_name
-from eyeq_spi.spec.link import link_spec
 
 _UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "ps": 1e-12}
 _SENDER = {"h2e": "host", "e2h": "eyeq"}

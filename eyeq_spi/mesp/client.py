@@ -15,11 +15,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from eyeq_spi.catalog.messages import Catalog, catalog
 from eyeq_spi.codec.mesp import REPLY_BIT, TAG_MASK, MespCodec
 from eyeq_spi.codec.message import is_mesp
 from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.mesp.replies import MespFailure, MespReply, MespResult, typed
-from eyeq_spi.spec.catalog import Catalog, catalog
 
 _M = catalog().raw["mesp.yaml"]["mesp"]
 

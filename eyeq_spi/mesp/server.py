@@ -10,10 +10,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from eyeq_spi.catalog.messages import Catalog, catalog
 from eyeq_spi.codec.mesp import MESP_PROTOCOL, REPLY_BIT, TAG_MASK, MespCodec
 from eyeq_spi.codec.message import is_mesp
 from eyeq_spi.errors import CodecError
-from eyeq_spi.spec.catalog import Catalog, catalog
 
 Handler = Callable[[dict[str, Any]], tuple[int, dict[str, Any]]]
 

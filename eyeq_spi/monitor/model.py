@@ -7,9 +7,9 @@ from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from eyeq_spi.catalog.messages import Catalog
 from eyeq_spi.plot.collect import GAP_PERIODS
-from eyeq_spi.plot.scene import Scene
-from eyeq_spi.spec.catalog import Catalog
+from eyeq_spi.plot.perceived import Scene
 
 RATE_WINDOW = 2.0  # seconds of history behind each rate
 MIN_SPAN = 0.75  # s of a stream's history before its rate is judged low or high (13 counts

@@ -6,7 +6,7 @@ deadline (the next redraw) and then describes itself as a :class:`Snapshot`.
   drawing is caught up and never slows the emulated link.
 - :class:`HostSource`: the host emulator against an EyeQ at a pyserial URL, on the real-time
   runner; the runner never waits longer than ``max_wait`` so a redraw is never late.
-- :class:`ReplaySource`: the project's replay (:func:`eyeq_spi.bench.replay.host_bench`, as
+- :class:`ReplaySource`: the project's replay (:func:`eyeq_spi.interop.replay.host_bench`, as
   ``eyeq-spi replay --into-host``): the capture's EyeQ channel played into the built-in host
   emulator, its virtual time (= capture time) kept on the wall clock times ``speed`` (0 = as
   fast as possible) exactly as the demo's is.
@@ -27,11 +27,11 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.bench.replay import host_bench
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
 from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file
+from eyeq_spi.interop.replay import host_bench
 from eyeq_spi.monitor.model import RateMeter, Snapshot
-from eyeq_spi.plot.scene import SCENE_MESSAGES, Labels, SceneTracker
+from eyeq_spi.plot.perceived import SCENE_MESSAGES, Labels, SceneTracker
 
 Clock = Callable[[], float]
 MAIN_STATE_MSG = "EYEQ_DIAGNOSTIC_MSG"  # 0x41

@@ -22,8 +22,8 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from eyeq_spi.plot.output import new_figure, plural
-from eyeq_spi.plot.scene import Scene, SceneLine, SceneObject
+from eyeq_spi.plot.figures import new_figure, plural
+from eyeq_spi.plot.perceived import Scene, SceneLine, SceneObject
 
 FIGSIZE = (10.0, 9.0)  # inches
 DPI = 100

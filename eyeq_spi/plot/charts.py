@@ -8,7 +8,7 @@ from typing import Any
 
 from eyeq_spi.plot import PlotError
 from eyeq_spi.plot.collect import GAP_PERIODS, Collected, Stream
-from eyeq_spi.plot.output import new_figure, plural
+from eyeq_spi.plot.figures import new_figure, plural
 
 GAP_COLOUR = "#d62728"
 BAND_COLOUR = "#2ca02c"

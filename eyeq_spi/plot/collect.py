@@ -19,7 +19,7 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file, paused_gc
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.plot import PlotError
-from eyeq_spi.plot.scene import Labels, Scene, SceneTracker
+from eyeq_spi.plot.perceived import Labels, Scene, SceneTracker
 
 GAP_PERIODS = 3.0  # a stream is stopped after 3 nominal periods of silence, the host's stale rule
 

@@ -22,9 +22,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+from eyeq_spi.catalog.messages import EnumDef
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.spec.catalog import EnumDef
 
 OBSTACLES = "EYEQ_VIS_OBSTACLES_MSG"
 ROAD = "EYEQ_VIS_ROAD_DATA_MSG"

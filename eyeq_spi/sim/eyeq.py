@@ -37,6 +37,8 @@ import math
 from collections import Counter, deque
 from typing import Any
 
+from eyeq_spi.catalog.messages import MessageDef, sw_release
+from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.intrinsic import (
@@ -65,8 +67,6 @@ from eyeq_spi.sim.mesp_functions import (
 from eyeq_spi.sim.packer import DaspPacker
 from eyeq_spi.sim.scene import Scene, SceneConfig
 from eyeq_spi.sim.schedule import DueHeap
-from eyeq_spi.spec.catalog import MessageDef, sw_release
-from eyeq_spi.spec.schema import sw_key
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 

@@ -46,8 +46,8 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, Final
 
+from eyeq_spi.catalog.link import spec_file
 from eyeq_spi.errors import CodecError, SpecError
-from eyeq_spi.spec.link import spec_file
 
 # §7.1.1.3 request "Hash type" enum
 HASH_SHA256: Final = 0

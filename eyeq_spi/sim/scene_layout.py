@@ -15,9 +15,9 @@ from typing import Any, cast
 import numpy as np
 import numpy.typing as npt
 
+from eyeq_spi.catalog.messages import Catalog, Member, SwKey, catalog
 from eyeq_spi.errors import CodecError, SpecError
 from eyeq_spi.sim.packer import BITS, NP_FMT, SCALAR, StructView
-from eyeq_spi.spec.catalog import Catalog, Member, SwKey, catalog
 
 FArr = npt.NDArray[np.float64]
 IArr = npt.NDArray[np.int64]

@@ -46,10 +46,10 @@ from __future__ import annotations
 from collections import Counter, deque
 from dataclasses import dataclass, field
 
+from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.link.connection import LinkConfig, LinkConnection, Role
 from eyeq_spi.link.events import DataReceived, LinkEvent, Resynchronised, SendFailed, Sent
 from eyeq_spi.link.frame import SEQ_MODULO, NakReason
-from eyeq_spi.spec.link import link_spec
 from eyeq_spi.transport import segment as seg
 from eyeq_spi.transport.events import (
     MessageReceived,

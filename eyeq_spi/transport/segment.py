@@ -7,8 +7,8 @@ from __future__ import annotations
 
 from typing import NewType
 
+from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.errors import LocalProtocolError
-from eyeq_spi.spec.link import link_spec
 
 _T = link_spec()["transport"]
 SINGLE: int = _T["types"]["single"]

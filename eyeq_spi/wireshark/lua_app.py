@@ -30,11 +30,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from eyeq_spi.catalog.messages import MespParam, MessageDef, SwKey
 from eyeq_spi.codec.layout import FieldInfo, Layout
 from eyeq_spi.codec.mesp import REPLY_BIT, TAG_MASK
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.errors import EyeqError
-from eyeq_spi.spec.catalog import MespParam, MessageDef, SwKey
 from eyeq_spi.wireshark.lua_common import (
     FLOAT_FIELD,
     INT_FIELD,

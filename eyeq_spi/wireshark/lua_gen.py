@@ -23,11 +23,11 @@ from __future__ import annotations
 
 from typing import Any
 
+from eyeq_spi.catalog.link import link_spec
+from eyeq_spi.catalog.messages import SwKey, sw_release_text
+from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import DASP_PROTOCOL, MessageCodec
-from eyeq_spi.spec.catalog import SwKey, sw_release_text
-from eyeq_spi.spec.link import link_spec
-from eyeq_spi.spec.schema import sw_key
 from eyeq_spi.wireshark.lua_app import MESP_PARAM_FIELD, AppGenerator
 from eyeq_spi.wireshark.lua_common import (
     FieldRegistry,

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
+from eyeq_spi.catalog.messages import MessageDef, catalog
 from eyeq_spi.codec.bits import BitSignalCodec
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
@@ -22,12 +23,11 @@ from eyeq_spi.codec.intrinsic import eeprom_codec, intrinsic_params_from_eeprom,
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import Emulation
 from eyeq_spi.errors import CodecError, SpecError
-from eyeq_spi.faults.bench import Scene, bench
+from eyeq_spi.faults.rig import Scene, rig
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.mesp.client import MespClient
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
-from eyeq_spi.spec.catalog import MessageDef, catalog
 
 from .core import FIGURES, Finding, Reader, time_limit
 
@@ -164,7 +164,7 @@ def eeprom_image(r: Reader) -> tuple[bytes, list[str]]:
 def host_eeprom(data: bytes) -> None:
     r = Reader(data)
     image, touched = eeprom_image(r)
-    emu = bench(fresh_nvm=True, scene=Scene(0, 0, 0))  # first ignition: Fatal 22 -> EEPROM
+    emu = rig(fresh_nvm=True, scene=Scene(0, 0, 0))  # first ignition: Fatal 22 -> EEPROM
     emu.sim.eeprom[:] = image
     done = (HostState.RUNNING_VISION, HostState.FAILED)
     with time_limit(20 * STEP_LIMIT):
@@ -189,7 +189,7 @@ def _live(side: str) -> _Live:
     live = _LIVE.get(side)
     if live is None or live.injected > 400 or live.emu.host.state in (
             HostState.FAILED, HostState.BOOT_FAILED, HostState.FATAL):
-        emu = bench(scene=Scene(1, 1, 1))
+        emu = rig(scene=Scene(1, 1, 1))
         emu.run_for(2.0, stop=lambda: emu.host.state is HostState.RUNNING_VISION)
         live = _LIVE[side] = _Live(emu)
     return live

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from eyeq_spi.capture.pcapng_io import CaptureWriter
-from eyeq_spi.faults.bench import Scene, bench
+from eyeq_spi.faults.rig import Scene, rig
 from eyeq_spi.host.machine import HostState
 
 from .core import FIGURES, Finding, mutate
@@ -28,7 +28,7 @@ Transfer = tuple[int, float, bytes]  # (direction index, time, bytes)
 def seed_log(transfers: int = 300) -> list[Transfer]:
     """The first ``transfers`` transfers of a bring-up to Running Vision."""
     log: list[Transfer] = []
-    emu = bench(scene=Scene(1, 1, 1))
+    emu = rig(scene=Scene(1, 1, 1))
     emu.runner.tap = lambda i, t, data: log.append((i, t, data)) if len(log) < transfers \
         else None
     emu.run_for(1.0, stop=lambda: len(log) >= transfers

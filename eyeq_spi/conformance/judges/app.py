@@ -8,13 +8,13 @@ from dataclasses import dataclass
 from itertools import pairwise
 from typing import Any
 
+from eyeq_spi.catalog.messages import MessageDef, catalog
 from eyeq_spi.codec.intrinsic import eeprom_crc_ok
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.conformance.judges.link import answers
 from eyeq_spi.conformance.judges.verdict import Context, Outcome, at, bad, ok, skip, unsure
 from eyeq_spi.conformance.model import TAG_EARLY_INIT, TAG_GAP, TAG_LIMIT, TAG_SILENCE
 from eyeq_spi.conformance.trace import Msg, Trace
-from eyeq_spi.spec.catalog import MessageDef, catalog
 
 _M = catalog().raw["mesp.yaml"]["mesp"]
 DEADLINE = float(_M["reply_deadline"])

@@ -8,11 +8,11 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from itertools import pairwise
 
+from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.conformance.judges.verdict import Context, Outcome, Span, at, bad, ok, skip, unsure
 from eyeq_spi.conformance.model import TAG_CONTROL, TAG_GAP, TAG_LIMIT, TAG_SILENCE
 from eyeq_spi.conformance.trace import Trace, Xfer
 from eyeq_spi.link.frame import SEQ_MODULO, NakReason
-from eyeq_spi.spec.link import link_spec
 
 _L = link_spec()
 _T = _L["transport"]

@@ -20,12 +20,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import is_mesp
 from eyeq_spi.conformance.play.session import Session
 from eyeq_spi.conformance.trace import Trace
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
-from eyeq_spi.spec.link import link_spec
 from eyeq_spi.transport.segment import segment
 
 _T = link_spec()["transport"]

@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.conformance.model import (
     TAG_BAD_HASH,
@@ -37,7 +38,6 @@ from eyeq_spi.conformance.play.session import Session
 from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostState
-from eyeq_spi.spec.link import link_spec
 from eyeq_spi.transport.segment import segment
 
 S = HostState

@@ -1,7 +1,7 @@
 """EyeQ4 SPI protocol decoder for libsigrokdecode (PulseView, sigrok-cli), stacked on ``spi``.
 
 It annotates link frames (kind, NUM/RSP, CRC), transport frames and reassembled messages of one
-SPI channel with the eyeq-spi project's own codecs (``eyeq_spi.bench.annotate``).
+SPI channel with the eyeq-spi project's own codecs (``eyeq_spi.interop.annotate``).
 
 libsigrokdecode imports a decoder as a top-level module named after its folder, so inside
 sigrok this package *is* ``eyeq_spi`` and would hide the project of the same name. It therefore
@@ -31,7 +31,7 @@ def _attach_project() -> None:
             site.addsitedir(p)  # appended: this decoder's folder stays first
     for entry in [*paths, *sys.path]:
         candidate = os.path.join(entry or ".", "eyeq_spi")
-        if (os.path.isfile(os.path.join(candidate, "spec", "link.py"))
+        if (os.path.isfile(os.path.join(candidate, "catalog", "link.py"))
                 and os.path.realpath(candidate) != os.path.realpath(here)):
             __path__.append(candidate)
             with open(os.path.join(candidate, "__init__.py"), encoding="utf-8") as fh:

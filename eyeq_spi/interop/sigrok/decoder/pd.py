@@ -1,11 +1,11 @@
 """The decoder class (libsigrokdecode API 3). The decoding itself is the project's:
-``eyeq_spi.bench.annotate.Annotator`` runs the dissector engine on each chip-select transfer."""
+``eyeq_spi.interop.annotate.Annotator`` runs the dissector engine on each chip-select transfer."""
 
 from typing import Any, ClassVar, cast
 
 import sigrokdecode as srd
 
-from eyeq_spi.bench.annotate import ROWS, Annotator, short_texts
+from eyeq_spi.interop.annotate import ROWS, Annotator, short_texts
 
 
 class Decoder(srd.Decoder):  # type: ignore[misc]
