@@ -1,4 +1,4 @@
-"""The vectorised decoder (codec/vdecode.py) and the generated E2E verifier against the exact
+"""The vectorised decoder (codec/message_fast.py) and the generated E2E verifier against the exact
 codec: every DASP message at every SW release, value for value and error for error."""
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState, protect, verify, verify_reference
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.codec.vdecode import crc_rows, vec_layout
+from eyeq_spi.codec.message_fast import crc_rows, vec_layout
 from eyeq_spi.crc import crc16
 from eyeq_spi.dissect import batch, batch_run, engine
 from eyeq_spi.dissect.engine import _check_enums

@@ -246,7 +246,7 @@ class _TimedNode:
         self.calls += 1
 
     def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
-        """The node's express hook (runner/express.py), timed, where its class has one."""
+        """The node's express hook (runner/virtual_fast.py), timed, where its class has one."""
         if "express_absorb" not in vars(type(self.node)):
             return None
         c = time.thread_time()

@@ -1,4 +1,4 @@
-"""The messages of a batch span, decoded a group at a time (:mod:`eyeq_spi.codec.vdecode`).
+"""The messages of a batch span, decoded a group at a time (:mod:`eyeq_spi.codec.message_fast`).
 
 The batch dissector (:mod:`.batch`) reassembles a block's messages from its arrays; here they
 become message records. DASP messages are grouped by (direction, data ID): a group whose every
@@ -41,7 +41,7 @@ import numpy as np
 
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import classify
-from eyeq_spi.codec.vdecode import vec_layout
+from eyeq_spi.codec.message_fast import vec_layout
 from eyeq_spi.dissect.engine import SWITCH_APP, Dissector
 from eyeq_spi.errors import SpecError
 from eyeq_spi.transport.events import MessageReceived

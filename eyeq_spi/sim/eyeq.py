@@ -254,7 +254,7 @@ class SimulatedEyeQ:
         return self.conn.data_to_send(now) if self.powered else []
 
     def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
-        """runner/express.py: ``receive_data`` and ``data_to_send`` at the same ``now`` in one
+        """runner/virtual_fast.py: ``receive_data`` and ``data_to_send`` at the same ``now`` in one
         step for an ACK that settles a frame of a message still going out and lets no frame go
         (what they hand over: nothing). None, with nothing changed, for anything else. Called
         only while :meth:`get_timer` is later than ``now`` (the runner's promise)."""
