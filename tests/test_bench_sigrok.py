@@ -117,7 +117,7 @@ def test_dissect_reads_a_vcd_written_by_sigrok_cli(bench: dict[str, Path], tmp_p
     ``dissect``, through the vectorised path: the same records as our waveforms."""
     from eyeq_spi.logic import vcd_fast
     from eyeq_spi.logic.options import SpiOptions
-    from eyeq_spi.logic.vcd import read_vcd
+    from eyeq_spi.logic.vcd_fast import read_vcd  # the fast twin itself, whatever the switch
 
     assert SIGROK is not None
     out = tmp_path / "sigrok.vcd"

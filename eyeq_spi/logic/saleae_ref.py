@@ -9,6 +9,10 @@ A transfer is the bytes between CS falling and rising (§6), so a chip-select fa
 of the wrong length (L8). Bytes before a channel's first ``enable`` belong to a transfer the
 capture cut: they are dropped, as is a transfer still open at the end. Record times are the
 capture's (the ``enable`` row, or the first byte in Logic 1.x).
+
+This is the reference reader (the csv module, any shape of export, errors with their line);
+:mod:`eyeq_spi.logic.saleae_fast` tries numpy on each chunk first and falls back to it, and
+:mod:`eyeq_spi.logic.saleae` picks between them.
 """
 
 from __future__ import annotations
@@ -16,19 +20,21 @@ from __future__ import annotations
 import csv
 import itertools
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Protocol
 
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, Route, SpiOptions, bench_spec
+from eyeq_spi.logic.saleae_types import (
+    MAX_LINE,
+    ByteSource,
+    OpenTransfer,
+    Saleae1State,
+    Saleae2State,
+    seconds,
+)
 
-if TYPE_CHECKING:
-    from eyeq_spi.logic.saleae_fast import Saleae1State, Saleae2State
-
-MAX_LINE = 1 << 16
-
-
-class ByteSource(Protocol):
-    def read(self, n: int = -1) -> bytes: ...
+ChunkReader = Callable[..., "list[Record] | None"]
+"""A fast twin's reader of one chunk (``saleae_fast.saleae2_chunk``/``saleae1_chunk``): the
+records, or None when it declines the chunk (the csv loop then reads it)."""
 
 
 def _norm(cells: list[str]) -> list[str]:
@@ -67,22 +73,12 @@ def _byte(text: str, n: int) -> int | None:
     return v
 
 
-class _Open:
-    __slots__ = ("lines", "time")
-
-    def __init__(self, time: float | None) -> None:
-        self.time = time
-        self.lines: dict[str, bytearray] = {"mosi": bytearray(), "miso": bytearray()}
-
-
-def _emit(tr: _Open, routes: list[Route]) -> Iterator[Record]:
+def _emit(tr: OpenTransfer, routes: list[Route]) -> Iterator[Record]:
     for r in routes:
         yield Record(tr.time, r.direction, bytes(tr.lines[r.line]))
 
 
 def _time(text: str, where: str) -> float:
-    from eyeq_spi.logic.saleae_fast import seconds
-
     try:
         return seconds(text)
     except ValueError:
@@ -92,7 +88,7 @@ def _time(text: str, where: str) -> float:
 def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
                  ) -> Iterator[Record]:
     try:
-        yield from _saleae2(src, opts, chunk_size)
+        yield from _saleae2(src, opts, chunk_size, None)
     except csv.Error as exc:
         raise LogicInputError(f"not a CSV export: {exc}") from None
 
@@ -100,7 +96,7 @@ def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
 def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
                   ) -> Iterator[Record]:
     try:
-        yield from _saleae1(src, opts, chunk_size)
+        yield from _saleae1(src, opts, chunk_size, None)
     except csv.Error as exc:
         raise LogicInputError(f"not a CSV export: {exc}") from None
 
@@ -163,7 +159,7 @@ class _Tries:
 
 
 def _by_chunk(body: bytes, chunks: Iterator[bytes],
-              fast: Callable[[bytes], list[Record] | None],
+              fast: Callable[[bytes], list[Record] | None] | None,
               rows: Callable[[bytes, int], Iterator[Record]]) -> Iterator[Record]:
     """Each chunk through the vectorised reader while it keeps succeeding (``_Tries``), else
     through the csv row loop, which is told the chunk's first line number (the header is 1)."""
@@ -172,7 +168,7 @@ def _by_chunk(body: bytes, chunks: Iterator[bytes],
     for chunk in itertools.chain([body], chunks):
         if not chunk:
             continue
-        recs = fast(chunk) if tries else None
+        recs = fast(chunk) if fast is not None and tries else None
         if tries:
             tries.took(recs is not None)
         if recs is not None:
@@ -182,9 +178,27 @@ def _by_chunk(body: bytes, chunks: Iterator[bytes],
         n += _line_count(chunk)
 
 
-def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Record]:
-    from eyeq_spi.logic.saleae_fast import Saleae2State, saleae2_chunk
+def saleae2_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
+                    fast: ChunkReader | None) -> Iterator[Record]:
+    """:func:`read_saleae2` with a fast twin's chunk reader tried first (None: the csv loop
+    reads every chunk)."""
+    try:
+        yield from _saleae2(src, opts, chunk_size, fast)
+    except csv.Error as exc:
+        raise LogicInputError(f"not a CSV export: {exc}") from None
 
+
+def saleae1_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
+                    fast: ChunkReader | None) -> Iterator[Record]:
+    """:func:`read_saleae1` with a fast twin's chunk reader, as :func:`saleae2_records`."""
+    try:
+        yield from _saleae1(src, opts, chunk_size, fast)
+    except csv.Error as exc:
+        raise LogicInputError(f"not a CSV export: {exc}") from None
+
+
+def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkReader | None
+             ) -> Iterator[Record]:
     chunks = byte_chunks(src, chunk_size)
     header, body = _head(chunks)
     try:
@@ -198,8 +212,9 @@ def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Rec
     need = max(i_name, i_type, i_time, *cols.values())
     yield from _by_chunk(
         body, chunks,
-        lambda chunk: saleae2_chunk(chunk, len(header), cols, i_name, i_type, i_time, kinds,
-                                    state, opts, _Open),
+        None if fast is None else
+        lambda chunk: fast(chunk, len(header), cols, i_name, i_type, i_time, kinds, state, opts,
+                           OpenTransfer),
         lambda chunk, n: _saleae2_rows(csv.reader(_lines(chunk)), n, len(header), need, cols,
                                        (i_name, i_type, i_time), kinds, state, opts))
     if state.results and not state.enables:
@@ -240,7 +255,7 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
                                               "bytes")
         elif kind == k_start:
             state.enables += 1
-            open_[name] = _Open(_time(row[i_time], f"line {n}"))
+            open_[name] = OpenTransfer(_time(row[i_time], f"line {n}"))
         elif kind == kinds["end"]:
             tr = open_.pop(name, None)
             if tr is not None:
@@ -249,9 +264,8 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
             raise LogicInputError(f"line {n}: row type {kind!r} is not enable/result/disable")
 
 
-def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Record]:
-    from eyeq_spi.logic.saleae_fast import Saleae1State, saleae1_chunk
-
+def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkReader | None
+             ) -> Iterator[Record]:
     chunks = byte_chunks(src, chunk_size)
     header, body = _head(chunks)
     want = [h.lower() for h in bench_spec()["saleae1"]["header"]]
@@ -265,7 +279,8 @@ def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Rec
     where = (i_time, i_id, i_mosi, i_miso)
     yield from _by_chunk(
         body, chunks,
-        lambda chunk: saleae1_chunk(chunk, len(header), *where, state, routes, _Open),
+        None if fast is None else
+        lambda chunk: fast(chunk, len(header), *where, state, routes, OpenTransfer),
         lambda chunk, n: _saleae1_rows(csv.reader(_lines(chunk)), n, len(header), where, state,
                                        routes))
     if state.tr is not None:
@@ -289,7 +304,7 @@ def _saleae1_rows(rows: Iterator[list[str]], start: int, ncols: int,
         if pid != state.packet:
             if state.tr is not None:
                 yield from _emit(state.tr, routes)
-            state.tr, state.packet = _Open(_time(row[i_time], f"line {n}")), pid
+            state.tr, state.packet = OpenTransfer(_time(row[i_time], f"line {n}")), pid
         tr = state.tr
         assert tr is not None
         for line, col in (("mosi", i_mosi), ("miso", i_miso)):

@@ -20,18 +20,17 @@ from eyeq_spi.logic.options import (
     MAX_TRANSFER,
     SIGNALS,
     LogicInputError,
-    Route,
     SpiOptions,
     sample_on_rising,
 )
-from eyeq_spi.logic.saleae import ByteSource
+from eyeq_spi.logic.saleae_types import ByteSource
+from eyeq_spi.logic.vcd_types import CLK, MISO, MOSI, Chan, ChunkPathBuilder
 
 MAX_HEADER = 16 << 20
 _UNITS = {b"s": 1.0, b"ms": 1e-3, b"us": 1e-6, b"ns": 1e-9, b"ps": 1e-12, b"fs": 1e-15}
 _ALIASES = {"cs": "cs", "ncs": "cs", "csn": "cs", "cs_n": "cs", "ss": "cs", "nss": "cs",
             "clk": "clk", "sck": "clk", "sclk": "clk", "mosi": "mosi", "miso": "miso"}
 _NAME = re.compile(r"^(?P<channel>.*?)[_.](?P<signal>" + "|".join(_ALIASES) + r")$", re.I)
-CS, CLK, MOSI, MISO = range(4)
 
 
 def _skip_meta(head: bytes) -> bytes:
@@ -47,28 +46,6 @@ def sniff(head: bytes) -> str | None:
     if text[:1] == b"$" and re.match(rb"\$(date|version|timescale|comment|scope|var)\b", text):
         return "vcd"
     return None
-
-
-class _Chan:
-    __slots__ = ("active", "clk", "cs", "mi", "miso", "miso_bytes", "mo", "mosi", "mosi_bytes",
-                 "name", "nbits", "routes", "t0")
-
-    def __init__(self, name: str, routes: list[Route]) -> None:
-        self.name = name
-        self.routes = routes
-        self.cs = 1
-        self.clk = -1
-        self.mosi = self.miso = 0
-        self.active = False
-        self.nbits = self.mo = self.mi = 0
-        self.mosi_bytes = bytearray()
-        self.miso_bytes = bytearray()
-        self.t0 = 0
-
-    def emit(self, time: float) -> Iterator[Record]:
-        for r in self.routes:
-            data = self.mosi_bytes if r.line == "mosi" else self.miso_bytes
-            yield Record(time, r.direction, bytes(data))
 
 
 def _raw_chunks(src: ByteSource, size: int = 1 << 20) -> Iterator[bytes]:
@@ -133,7 +110,7 @@ def _header(tokens: Iterator[bytes]) -> tuple[float, list[tuple[str, bytes, str]
 
 
 def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
-              ) -> dict[bytes, list[tuple[_Chan, int]]]:
+              ) -> dict[bytes, list[tuple[Chan, int]]]:
     found: dict[str, dict[str, bytes]] = {}
     if opts.signals:
         by_name: dict[str, bytes] = {}
@@ -165,9 +142,9 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
     if not found:
         raise LogicInputError("no SPI signals in the VCD: name them <channel>_cs, _clk, _mosi, "
                               "_miso or give --signals CHANNEL=CS,CLK,MOSI[,MISO]")
-    table: dict[bytes, list[tuple[_Chan, int]]] = {}
+    table: dict[bytes, list[tuple[Chan, int]]] = {}
     for name, sigs in found.items():
-        ch = _Chan(name, opts.routes(name, len(found)))
+        ch = Chan(name, opts.routes(name, len(found)))
         if not ch.routes:
             continue
         need = {"cs", "clk"} | {r.line for r in ch.routes}
@@ -185,6 +162,15 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
 
 def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
              ) -> Iterator[Record]:
+    """Value changes -> one record per transfer and direction, every token through the token
+    loop (the reference)."""
+    return vcd_records(src, opts, chunk_size, None)
+
+
+def vcd_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
+                fast: ChunkPathBuilder | None) -> Iterator[Record]:
+    """:func:`read_vcd` with a fast twin's chunk reader, built from the channel table, tried
+    on each chunk first (None: the token loop reads every chunk)."""
     chunks = _raw_chunks(src, chunk_size)
     head = b""
     for chunk in chunks:
@@ -206,20 +192,20 @@ def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
     assert m is not None
     scale, vars_ = _header(iter(head[:m.end()].split()))
     table = _channels(vars_, opts)
-    reader = _Reader(table, scale, opts)
+    reader = _Reader(table, scale, opts, fast)
     yield from reader.feed(head[m.end():])
     for chunk in chunks:
         yield from reader.feed(chunk)
 
 
 class _Reader:
-    """Value changes -> transfers. A chunk of one-character identifiers, one change per line
-    (what sigrok, PulseView and our writer produce) goes through the vectorised path of
-    :mod:`eyeq_spi.logic.vcd_fast`; anything else through the exact token loop below. Both
-    keep their state in the same :class:`_Chan` objects, so they can take turns."""
+    """Value changes -> transfers. A fast twin's chunk reader (``vcd_fast``: one-character
+    identifiers, one change per line, what sigrok, PulseView and our writer produce) reads the
+    chunks it can take; anything else goes through the exact token loop below. Both keep their
+    state in the same :class:`Chan` objects, so they can take turns."""
 
-    def __init__(self, table: dict[bytes, list[tuple[_Chan, int]]], scale: float,
-                 opts: SpiOptions) -> None:
+    def __init__(self, table: dict[bytes, list[tuple[Chan, int]]], scale: float,
+                 opts: SpiOptions, fast: ChunkPathBuilder | None) -> None:
         self.table = table
         self.scale = scale
         self.sample_level = 1 if sample_on_rising(opts.mode) else 0
@@ -227,9 +213,7 @@ class _Reader:
         self.t = 0
         self.vector_value: int | None = None
         self.in_comment = False
-        from eyeq_spi.logic.vcd_fast import FastPath
-
-        self.fast = FastPath.build(table)
+        self.fast = fast(table) if fast is not None else None
 
     def feed(self, chunk: bytes) -> Iterator[Record]:
         while self.fast is not None and not self.in_comment and self.vector_value is None:
