@@ -19,23 +19,21 @@ bulk update per direction over the block's frames, in order (the last index of e
 from __future__ import annotations
 
 import bisect
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from eyeq_spi.capture.fastread import DIR_NAME
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, DIAG_ID, classify
+from eyeq_spi.dissect.batch_types import BatchState, Dir, Unit
+from eyeq_spi.dissect.vframes import FrameArrays
 from eyeq_spi.dissect.vmessages import ColumnGroup, GroupCount, SpanMessage
 from eyeq_spi.link.frame import SEQ_MODULO
 
-if TYPE_CHECKING:
-    from eyeq_spi.dissect.batch import BatchDissector, _Dir, _Unit
-    from eyeq_spi.dissect.vframes import FrameArrays
-
 DIAG_KEY, BOOT_KEY = 256, 257  # group keys of 0x41 / 0x10 messages beside DASP data IDs 0..255
 _PROTO = {DIAG_KEY: "DIAG", BOOT_KEY: "BOOT"}
-Done = list[tuple[int, "_Dir", "_Unit"]]
+Done = list[tuple[int, Dir, Unit]]
 
 
 def _key_of(data: bytes) -> int:
@@ -46,7 +44,7 @@ def _key_of(data: bytes) -> int:
     return {"DIAG": DIAG_KEY, "BOOT": BOOT_KEY}.get(proto, -1)
 
 
-def lean_messages(bd: BatchDissector, fa: FrameArrays, done: Done
+def lean_messages(bd: BatchState, fa: FrameArrays, done: Done
                   ) -> tuple[list[tuple[int, dict[str, Any]]], list[ColumnGroup],
                              list[GroupCount]] | None:
     """(row, record) of the messages that get a record, in row order; the column groups
@@ -196,7 +194,7 @@ def _gather(data: np.ndarray, P: np.ndarray | None, first: np.ndarray, ks: np.nd
     return out[:, :size]
 
 
-def _bulk_maps(bd: BatchDissector, fa: FrameArrays, codes: np.ndarray, ks: np.ndarray,
+def _bulk_maps(bd: BatchState, fa: FrameArrays, codes: np.ndarray, ks: np.ndarray,
                ke: np.ndarray, P_np: dict[int, np.ndarray]) -> None:
     """Every frame of the block's local units into its receiver's NUM -> index map, in order
     (a direction's units are consecutive in its rows, so their frames are one range)."""
