@@ -24,6 +24,7 @@ from eyeq_spi.dissect.inputs import InputError, detect
 from eyeq_spi.dissect.output import JsonWriter
 from eyeq_spi.dissect.release import Release
 from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBlock
+from eyeq_spi.twins import exact
 
 Item = dict[str, Any] | FrameBlock
 __all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "fields_mode", "is_plain",
@@ -37,7 +38,10 @@ def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
     None: the exact path goes on, ``fh`` at the position it had. ``fields``: what the span
     messages carry (:class:`~.vmessages.SpanDecoder`: "dict", "none" for ``--stats`` alone,
     "columns" for a table writer alone). ``tail``: a pcapng file that ends inside a block is
-    read up to its last whole block, as :func:`~.inputs.open_records` does."""
+    read up to its last whole block, as :func:`~.inputs.open_records` does. With
+    ``EYEQ_SPI_EXACT=1`` always None: the exact :class:`~.engine.Dissector` reads everything."""
+    if exact():
+        return None
     try:
         if not fh.seekable():
             return None

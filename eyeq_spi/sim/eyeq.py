@@ -60,6 +60,7 @@ from eyeq_spi.spec.catalog import MessageDef, sw_release
 from eyeq_spi.spec.schema import sw_key
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
+from eyeq_spi.twins import exact
 
 VEH_STATE_STALE = 3 / 66.67  # three HOST_VEH_STATE periods (§7.1.2.2: 66.67 Hz)
 # M7: in DV the EyeQ reports mainState 0xAA (RUNNING_DV); 0x05 is DV's application ID
@@ -573,10 +574,14 @@ class SimulatedEyeQ:
         self._dasp_min = due.earliest(self._next_dasp, now)
 
     def _packer(self, m: MessageDef) -> DaspPacker | None:
-        """The message's packer; None: the dict path (switched off, or no packer for it)."""
+        """The message's packer; None: the dict path (switched off, by the config or, when the
+        config leaves it open, by ``EYEQ_SPI_EXACT=1``; or no packer for it)."""
         if m.name not in self._packers:
+            packed = self.config.dasp_packer
+            if packed is None:
+                packed = not exact()
             self._packers[m.name] = DaspPacker.build(self.codec.layout(m), m.data_id) \
-                if self.config.dasp_packer else None
+                if packed else None
         return self._packers[m.name]
 
     def _dasp_bytes(self, m: MessageDef, counter: int, now: float) -> bytes:
