@@ -25,6 +25,8 @@ from eyeq_spi.dissect.vframes import FrameBlock, frame_arrays
 from eyeq_spi.link.frame import FrameCodec, NakReason
 from eyeq_spi.transport.segment import segment
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 FC = FrameCodec()
 MC = MessageCodec()
 Rec = tuple[str, float, bytes]

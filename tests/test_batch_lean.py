@@ -32,6 +32,8 @@ from tests.test_batch import BASE, MUTATIONS, Rec, _as_records, synthetic
 from tests.test_batch_cli import _Pipe
 from tests.test_vdecode import _capture
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 CAT = MessageCodec().cat
 
 

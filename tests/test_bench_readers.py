@@ -20,6 +20,8 @@ from eyeq_spi.logic.saleae import read_saleae1, read_saleae2
 from eyeq_spi.logic.vcd import read_vcd
 from eyeq_spi.logic.vcd_write import write_vcd
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 Reader = Callable[..., Iterator[Record]]
 
 

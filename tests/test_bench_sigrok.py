@@ -17,6 +17,8 @@ import pytest
 from eyeq_spi.bench.annotate import event_text, link_text, message_text, transport_text
 from eyeq_spi.cli import main
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 SIGROK = shutil.which("sigrok-cli")
 needs_sigrok = pytest.mark.skipif(
     SIGROK is None, reason="sigrok-cli is not installed (tools/check.py installs Debian's "

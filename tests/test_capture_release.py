@@ -16,6 +16,8 @@ from eyeq_spi.cli import main
 from eyeq_spi.dissect import release as rel
 from eyeq_spi.spec.catalog import catalog, sw_release_text
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 RELEASES = [sw_release_text(k) for k in catalog().sw_versions]
 
 

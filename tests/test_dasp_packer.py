@@ -24,6 +24,8 @@ from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.sim.packer import DaspPacker, compile_protector
 from eyeq_spi.spec.catalog import MessageDef, catalog
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 SWS = catalog().sw_versions
 
 

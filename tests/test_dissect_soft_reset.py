@@ -14,6 +14,8 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import batch, engine
 from tests.test_batch import Wire
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 MC = MessageCodec()
 VEH = "HOST_VEH_STATE_MSG"
 

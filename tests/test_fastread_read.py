@@ -14,6 +14,8 @@ from eyeq_spi.capture import fastread
 from eyeq_spi.capture.fastread import pcapng_chunks
 from eyeq_spi.capture.pcapng_io import CaptureError, CaptureWriter, Tail
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 
 class _ReadOnly:
     """A stream with ``read`` only (no ``readinto``), in short reads."""

@@ -19,6 +19,8 @@ from eyeq_spi.runner.virtual_fast import Express
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.twins import EXACT_ENV
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 Trace = list[tuple[int, float, bytes]]
 
 

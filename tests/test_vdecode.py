@@ -35,6 +35,8 @@ from eyeq_spi.spec.catalog import catalog
 from eyeq_spi.transport.segment import segment
 from tests.strategies import layout_values
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 CAT = catalog()
 FC = FrameCodec()
 SETTINGS = settings(max_examples=4, deadline=None,
