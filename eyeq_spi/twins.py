@@ -31,7 +31,7 @@ FAMILIES: dict[str, tuple[str, str]] = {
     "codec.layout": ("construct codec (Layout.parse_construct)", "eyeq_spi.codec.layout_fast"),
     "codec.message": ("Layout.parse per message", "eyeq_spi.codec.message_fast"),
     "dissect.engine": ("eyeq_spi.dissect.engine", "eyeq_spi.dissect.batch"),
-    "capture.pcapng": ("eyeq_spi.capture.pcapng_io", "eyeq_spi.capture.fastread"),
+    "capture.pcapng": ("eyeq_spi.capture.pcapng_io", "eyeq_spi.capture.pcapng_fast"),
     "sim.dasp": ("the dict path (MessageCodec.encode)", "eyeq_spi.sim.packer"),
     "runner.virtual": ("eyeq_spi.runner.virtual", "eyeq_spi.runner.virtual_fast"),
 }

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from eyeq_spi.capture.fastread import chunks_from_records, pcapng_chunks, raw_chunks
+from eyeq_spi.capture.pcapng_fast import chunks_from_records, pcapng_chunks, raw_chunks
 from eyeq_spi.capture.pcapng_io import CaptureError, CaptureWriter, Record, read_pcapng
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from eyeq_spi.capture.fastread import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_records
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec

@@ -131,7 +131,7 @@ def _layout() -> Pair:
 def _dissect() -> Pair:
     """The exact dissector against the batch one (frames, spans, the vectorised message decode
     of ``codec.message_fast``), clean and under application faults, chunked finely and not."""
-    from eyeq_spi.capture.fastread import chunks_from_records
+    from eyeq_spi.capture.pcapng_fast import chunks_from_records
     from eyeq_spi.dissect import batch, engine
     from tests.test_vdecode import _capture
 
@@ -148,7 +148,7 @@ def _dissect() -> Pair:
 
 
 def _pcapng(tmp_path: Path) -> Pair:
-    from eyeq_spi.capture.fastread import pcapng_chunks
+    from eyeq_spi.capture.pcapng_fast import pcapng_chunks
     from eyeq_spi.capture.pcapng_io import Tail
     from tests.test_fastread_read import _capture
 
@@ -232,7 +232,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
                                                       Callable[[], Any]]]:
     """Per family: where to poison its fast twin (it then raises), and a run through the code
     the rest of the project calls (facade, config default, runner default)."""
-    from eyeq_spi.capture import fastread
+    from eyeq_spi.capture import pcapng_fast
     from eyeq_spi.capture.pcapng_io import CaptureWriter
     from eyeq_spi.codec.layout_fast import FastCodec
     from eyeq_spi.codec.message import MessageCodec
@@ -285,7 +285,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
         "codec.message": ([(vmessages, "vec_layout", _poison)], batch),
         "dissect.engine": ([(batch_run, "BatchDissector", _poison)], batch),
         "capture.pcapng": ([(batch_run, "pcapng_chunks", _poison),
-                            (fastread, "pcapng_chunks", _poison)], batch),
+                            (pcapng_fast, "pcapng_chunks", _poison)], batch),
         "sim.dasp": ([(packer.DaspPacker, "build", classmethod(_poison))], dasp),
         "runner.virtual": ([(virtual_fast.Express, "eligible", staticmethod(_poison))],
                            emulate),

@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from eyeq_spi.capture.fastread import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_records
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState, protect, verify, verify_reference

@@ -106,7 +106,7 @@ def cli(args: list[str], stdin: Path | None) -> tuple[float, int]:
 
 
 def frames_of(cap: Path) -> int:
-    from eyeq_spi.capture.fastread import pcapng_chunks
+    from eyeq_spi.capture.pcapng_fast import pcapng_chunks
 
     with open(cap, "rb") as fh:
         return sum(len(c) for c in pcapng_chunks(fh))
@@ -194,7 +194,7 @@ def main() -> int:
 
     import numpy as np
 
-    from eyeq_spi.capture.fastread import pcapng_chunks
+    from eyeq_spi.capture.pcapng_fast import pcapng_chunks
     from eyeq_spi.dissect.vframes import validate
     from eyeq_spi.link.frame import FrameCodec
 

@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from eyeq_spi.capture.fastread import DIR_NAME, Chunk
+from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.batch_types import Dir, Frame, Item, Unit
 from eyeq_spi.dissect.engine import Dissector

@@ -16,7 +16,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from eyeq_spi.capture.fastread import Chunk, pcapng_chunks, raw_chunks
+from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
 from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.batch import BatchDissector

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from eyeq_spi.capture.fastread import DIR_NAME
+from eyeq_spi.capture.pcapng_fast import DIR_NAME
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, DIAG_ID, classify
 from eyeq_spi.dissect.batch_types import BatchState, Dir, Unit

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from eyeq_spi.capture.fastread import DIR_NAME, Chunk
+from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.dissect.engine import TRANSPORT_NAMES
 from eyeq_spi.dissect.output import json_float
 from eyeq_spi.errors import EyeqError
