@@ -76,6 +76,22 @@ def _workers(args: list[str]) -> list[str]:
     return ["-n", "2", "--dist", "loadfile"]
 
 
+def _twin_args(args: list[str]) -> list[str]:
+    """``args`` with the ``twin`` marker added to a ``-m`` expression the caller gave (pytest
+    keeps only the last ``-m``)."""
+    out: list[str] = []
+    expr = "twin"
+    it = iter(args)
+    for a in it:
+        if a == "-m":
+            expr = f"twin and ({next(it, '')})"
+        elif a.startswith("-m") and not a.startswith("-m="):
+            expr = f"twin and ({a[2:]})"
+        else:
+            out.append(a)
+    return ["-m", expr, *out]
+
+
 def oldest(pytest_args: list[str]) -> int:
     """The oldest allowed versions: a venv of their own, the dependency-facing tests."""
     venv = ROOT / ".venv-oldest"
@@ -120,7 +136,7 @@ def main() -> int:
     # the references: every facade picks them (eyeq_spi/twins.py); a -k that selects no twin
     # test leaves nothing to run here, which is not a failure
     rc = run("pytest, references (EYEQ_SPI_EXACT=1)",
-             [py, "-m", "pytest", *_workers(args), "-m", "twin", *args],
+             [py, "-m", "pytest", *_workers(args), *_twin_args(args)],
              env={"EYEQ_SPI_EXACT": "1"})
     if rc == 5 and args:
         rc = 0
