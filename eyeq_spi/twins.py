@@ -30,8 +30,8 @@ FAMILIES: dict[str, tuple[str, str]] = {
     "logic.vcd": ("eyeq_spi.logic.vcd_ref", "eyeq_spi.logic.vcd_fast"),
     "codec.layout": ("construct codec (Layout.parse_construct)", "eyeq_spi.codec.layout_fast"),
     "codec.message": ("Layout.parse per message", "eyeq_spi.codec.message_fast"),
-    "dissect.engine": ("eyeq_spi.dissect.engine", "eyeq_spi.dissect.batch"),
+    "dissect.engine": ("eyeq_spi.dissect.engine", "eyeq_spi.dissect.engine_fast"),
     "capture.pcapng": ("eyeq_spi.capture.pcapng_io", "eyeq_spi.capture.pcapng_fast"),
-    "sim.dasp": ("the dict path (MessageCodec.encode)", "eyeq_spi.sim.packer"),
+    "sim.dasp": ("the dict path (MessageCodec.encode)", "eyeq_spi.sim.dasp_fast"),
     "runner.virtual": ("eyeq_spi.runner.virtual", "eyeq_spi.runner.virtual_fast"),
 }

@@ -132,7 +132,8 @@ def _dissect() -> Pair:
     """The exact dissector against the batch one (frames, spans, the vectorised message decode
     of ``codec.message_fast``), clean and under application faults, chunked finely and not."""
     from eyeq_spi.capture.pcapng_fast import chunks_from_records
-    from eyeq_spi.dissect import batch, engine
+    from eyeq_spi.dissect import engine
+    from eyeq_spi.dissect import engine_fast as batch
     from tests.test_vdecode import _capture
 
     ref: list[Any] = []
@@ -236,12 +237,12 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
     from eyeq_spi.capture.pcapng_io import CaptureWriter
     from eyeq_spi.codec.layout_fast import FastCodec
     from eyeq_spi.codec.message import MessageCodec
-    from eyeq_spi.dissect import batch_run, vmessages
+    from eyeq_spi.dissect import batch_run, engine_fast_messages
     from eyeq_spi.emulator import build
     from eyeq_spi.logic import saleae, saleae_fast, vcd, vcd_fast
     from eyeq_spi.logic.vcd_write import write_vcd
     from eyeq_spi.runner import virtual_fast
-    from eyeq_spi.sim import packer
+    from eyeq_spi.sim import dasp_fast
     from eyeq_spi.sim.config import SimConfig
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
     from tests.test_vdecode import _capture
@@ -282,11 +283,11 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
                       lambda: list(vcd.read_vcd(io.BytesIO(vcd_bytes), SpiOptions()))),
         "codec.layout": ([(FastCodec, "decode", _poison), (FastCodec, "encode", _poison)],
                          dasp_layout),
-        "codec.message": ([(vmessages, "vec_layout", _poison)], batch),
+        "codec.message": ([(engine_fast_messages, "vec_layout", _poison)], batch),
         "dissect.engine": ([(batch_run, "BatchDissector", _poison)], batch),
         "capture.pcapng": ([(batch_run, "pcapng_chunks", _poison),
                             (pcapng_fast, "pcapng_chunks", _poison)], batch),
-        "sim.dasp": ([(packer.DaspPacker, "build", classmethod(_poison))], dasp),
+        "sim.dasp": ([(dasp_fast.DaspPacker, "build", classmethod(_poison))], dasp),
         "runner.virtual": ([(virtual_fast.Express, "eligible", staticmethod(_poison))],
                            emulate),
     }

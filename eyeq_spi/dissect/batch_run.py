@@ -19,11 +19,11 @@ import numpy as np
 from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
 from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Tail
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.batch import BatchDissector
+from eyeq_spi.dissect.engine_fast import BatchDissector
+from eyeq_spi.dissect.engine_fast_frames import BatchUnsupportedError, FrameArrays, FrameBlock
 from eyeq_spi.dissect.inputs import InputError, detect
 from eyeq_spi.dissect.output import JsonWriter
 from eyeq_spi.dissect.release import Release
-from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBlock
 from eyeq_spi.twins import exact
 
 Item = dict[str, Any] | FrameBlock
@@ -36,8 +36,8 @@ def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
                 ) -> Iterator[Item] | None:
     """The batch path's items for a seekable pcapng or raw file (read from its start), else
     None: the exact path goes on, ``fh`` at the position it had. ``fields``: what the span
-    messages carry (:class:`~.vmessages.SpanDecoder`: "dict", "none" for ``--stats`` alone,
-    "columns" for a table writer alone). ``tail``: a pcapng file that ends inside a block is
+    messages carry (:class:`~.engine_fast_messages.SpanDecoder`: "dict", "none" for ``--stats``
+    alone, "columns" for a table writer alone). ``tail``: a pcapng file that ends inside a block is
     read up to its last whole block, as :func:`~.inputs.open_records` does. With
     ``EYEQ_SPI_EXACT=1`` always None: the exact :class:`~.engine.Dissector` reads everything."""
     if exact():
@@ -121,8 +121,8 @@ def is_plain(args: Any) -> bool:
 
 
 def fields_mode(writers: list[Any], plain: bool) -> str:
-    """What span messages must carry for these writers (vmessages.SpanDecoder): counts only
-    for ``--stats`` alone with no filter, no fields with a filter, columns for one table writer
+    """What span messages must carry for these writers (engine_fast_messages.SpanDecoder): counts
+    only for ``--stats`` alone with no filter, no fields with a filter, columns for one table writer
     and no filter, else the fields."""
     if not writers:
         return "count" if plain else "none"

@@ -2,10 +2,10 @@
 
 Theory of operation
 -------------------
-:func:`~.vframes.frame_arrays` judges a chunk of transfers at once (header fields, CRC, frame
-type). Frame records depend on nothing but the transfer, so every frame record comes from these
-arrays. What the passive receivers do with the DATA frames is stateful; per direction the pass is
-in one of two modes:
+:func:`~.engine_fast_frames.frame_arrays` judges a chunk of transfers at once (header fields, CRC,
+frame type). Frame records depend on nothing but the transfer, so every frame record comes from
+these arrays. What the passive receivers do with the DATA frames is stateful; per direction the
+pass is in one of two modes:
 
 - **exact**: each transfer goes through the exact sans-IO engine
   (:class:`~.engine.Dissector.feed`), which is the reference for everything;
@@ -44,11 +44,11 @@ import numpy as np
 
 from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.batch_types import Dir, Frame, Item, Unit
 from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.dissect.vcut import lean_messages
-from eyeq_spi.dissect.vframes import DATA, FrameArrays, FrameBlock, frame_arrays
-from eyeq_spi.dissect.vmessages import SpanDecoder, SpanMessage
+from eyeq_spi.dissect.engine_fast_cut import lean_messages
+from eyeq_spi.dissect.engine_fast_frames import DATA, FrameArrays, FrameBlock, frame_arrays
+from eyeq_spi.dissect.engine_fast_messages import SpanDecoder, SpanMessage
+from eyeq_spi.dissect.engine_fast_types import Dir, Frame, Item, Unit
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import SEQ_MODULO
 from eyeq_spi.spec.link import link_spec
@@ -90,7 +90,7 @@ class BatchDissector:
     def __init__(self, sw: str | None = None, codec: MessageCodec | None = None,
                  *, fields: str = "dict") -> None:
         self.dis = Dissector(sw, codec)
-        self.decode = SpanDecoder(self.dis, fields=fields)  # vmessages.FIELD_MODES
+        self.decode = SpanDecoder(self.dis, fields=fields)  # engine_fast_messages.FIELD_MODES
         self.base = 0
         self.dirs: dict[int, Dir] = {}
         self.deadline: float | None = None
@@ -333,7 +333,7 @@ class BatchDissector:
                 st.ui += 1
         if len(done) > 1:
             done.sort(key=lambda x: x[0])
-        lean = lean_messages(self, fa, done) if self.decode.lean else None  # vcut
+        lean = lean_messages(self, fa, done) if self.decode.lean else None  # engine_fast_cut
         if lean is not None:  # --stats or one table writer, no filter
             block.messages, block.tables, block.counts = lean
         else:

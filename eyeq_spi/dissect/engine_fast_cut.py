@@ -1,16 +1,17 @@
 """The lean modes of the batch dissector (``--stats`` or one table writer, no filter): a block's
 messages cut a group at a time straight from the chunk's array, no bytes object per message.
 
-:meth:`.batch.BatchDissector._emit` gives the transfers (units) of the spans that complete in a
-block. Here every unit whose frames are all in this chunk is located with numpy: its first row,
+:meth:`.engine_fast.BatchDissector._emit` gives the transfers (units) of the spans that complete in
+a block. Here every unit whose frames are all in this chunk is located with numpy: its first row,
 its message length (byte 7 of a single frame, T2; the total of a first frame, T3) and its first
 four message bytes, which rule A (decision A) classifies. The units of one (direction, data ID)
 DASP group, or one (direction, 0x41/0x10) group, that are all single frames or all first frames
 with the same frame count become one ``(n, length)`` array in one gather:
-:meth:`.vmessages.SpanDecoder.lean_group` judges it. Everything else — a group with a transfer
-carried in from the previous chunk, mixed transfer shapes, a wrong length, MESP, unknown IDs, a
-data ID in both directions when tables are written — becomes :class:`~.vmessages.SpanMessage`
-objects and takes the non-lean :meth:`~.vmessages.SpanDecoder.records`, as before.
+:meth:`.engine_fast_messages.SpanDecoder.lean_group` judges it. Everything else — a group with a
+transfer carried in from the previous chunk, mixed transfer shapes, a wrong length, MESP, unknown
+IDs, a data ID in both directions when tables are written — becomes
+:class:`~.engine_fast_messages.SpanMessage` objects and takes the non-lean
+:meth:`~.engine_fast_messages.SpanDecoder.records`, as before.
 
 The receivers' NUM -> capture index maps end as the engine's sequential updates leave them: one
 bulk update per direction over the block's frames, in order (the last index of each NUM wins).
@@ -26,9 +27,9 @@ import numpy as np
 from eyeq_spi.capture.pcapng_fast import DIR_NAME
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, DIAG_ID, classify
-from eyeq_spi.dissect.batch_types import BatchState, Dir, Unit
-from eyeq_spi.dissect.vframes import FrameArrays
-from eyeq_spi.dissect.vmessages import ColumnGroup, GroupCount, SpanMessage
+from eyeq_spi.dissect.engine_fast_frames import FrameArrays
+from eyeq_spi.dissect.engine_fast_messages import ColumnGroup, GroupCount, SpanMessage
+from eyeq_spi.dissect.engine_fast_types import BatchState, Dir, Unit
 from eyeq_spi.link.frame import SEQ_MODULO
 
 DIAG_KEY, BOOT_KEY = 256, 257  # group keys of 0x41 / 0x10 messages beside DASP data IDs 0..255
@@ -49,8 +50,8 @@ def lean_messages(bd: BatchState, fa: FrameArrays, done: Done
                              list[GroupCount]] | None:
     """(row, record) of the messages that get a record, in row order; the column groups
     (``first``: their position among those records); the counts of the others. None: the
-    block has a barrier message (:meth:`.vmessages.SpanDecoder.is_barrier`): the caller takes
-    the non-lean path, which judges the messages on each side of it apart."""
+    block has a barrier message (:meth:`.engine_fast_messages.SpanDecoder.is_barrier`): the
+    caller takes the non-lean path, which judges the messages on each side of it apart."""
     dec = bd.decode
     data = fa.chunk.data
     base = fa.base

@@ -189,8 +189,10 @@ class FrameBlock:
     lo: int
     hi: int
     messages: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
-    tables: list[Any] = field(default_factory=list)  # vmessages.ColumnGroup, "columns" mode
-    # vmessages.GroupCount, lean modes: messages without a record (plain consumers only)
+    # engine_fast_messages.ColumnGroup, "columns" mode
+    tables: list[Any] = field(default_factory=list)
+    # engine_fast_messages.GroupCount, lean modes: messages without a record (plain consumers
+    # only)
     counts: list[Any] = field(default_factory=list)
 
     def frame(self, i: int) -> dict[str, Any]:

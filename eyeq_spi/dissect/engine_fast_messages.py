@@ -25,10 +25,11 @@ makes (``tests/test_batch.py`` holds them to it record for record).
   :class:`~.output.TableWriter` makes of the exact record, value for value). Also lean.
 
 Lean modes (``"count"``, ``"columns"``): the batch dissector cuts a group's messages straight into
-an array (:mod:`.vcut`) and :meth:`SpanDecoder.lean_group` judges it as :meth:`_group` would, but
-makes a record only for a message with an error; the others are one :class:`GroupCount` (how many,
-the rows and times of the first and last with a time), which is all ``--stats`` reads of them
-(:meth:`.vframes.FrameBlock.add_to`). Only plain consumers (no filter) take lean blocks.
+an array (:mod:`.engine_fast_cut`) and :meth:`SpanDecoder.lean_group` judges it as :meth:`_group`
+would, but makes a record only for a message with an error; the others are one :class:`GroupCount`
+(how many, the rows and times of the first and last with a time), which is all ``--stats`` reads of
+them (:meth:`.engine_fast_frames.FrameBlock.add_to`). Only plain consumers (no filter) take lean
+blocks.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
-"""The batch dissector's vocabulary (:mod:`eyeq_spi.dissect.batch`, the fast twin of
+"""The batch dissector's vocabulary (:mod:`eyeq_spi.dissect.engine_fast`, the fast twin of
 :class:`~eyeq_spi.dissect.engine.Dissector`): the items it yields, a direction's span state and
-the transfers of a span, and the state the message cutter (:mod:`eyeq_spi.dissect.vcut`) reads
-from it. Kept apart so the cutter does not import the dissector that calls it."""
+the transfers of a span, and the state the message cutter (:mod:`eyeq_spi.dissect.engine_fast_cut`)
+reads from it. Kept apart so the cutter does not import the dissector that calls it."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.dissect.vframes import FrameArrays, FrameBlock
-from eyeq_spi.dissect.vmessages import SpanDecoder, SpanMessage
+from eyeq_spi.dissect.engine_fast_frames import FrameArrays, FrameBlock
+from eyeq_spi.dissect.engine_fast_messages import SpanDecoder, SpanMessage
 
 Item = dict[str, Any] | FrameBlock
 Frame = tuple[bytes, float | None, int, int]  # transfer, time, NUM, capture index

@@ -52,8 +52,8 @@ from eyeq_spi.mesp.server import (
 )
 from eyeq_spi.sim.calibration import fill_calibration, strip_crc
 from eyeq_spi.sim.config import SimConfig
+from eyeq_spi.sim.dasp_fast import DaspPacker
 from eyeq_spi.sim.flash import FlashImage, hash_request
-from eyeq_spi.sim.packer import DaspPacker
 from eyeq_spi.sim.scene import Scene, SceneConfig
 from eyeq_spi.sim.schedule import DueHeap
 from eyeq_spi.spec.catalog import MessageDef, sw_release

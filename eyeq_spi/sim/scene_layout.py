@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from eyeq_spi.errors import CodecError, SpecError
-from eyeq_spi.sim.packer import BITS, NP_FMT, SCALAR, StructView
+from eyeq_spi.sim.dasp_fast import BITS, NP_FMT, SCALAR, StructView
 from eyeq_spi.spec.catalog import Catalog, Member, SwKey, catalog
 
 FArr = npt.NDArray[np.float64]
