@@ -304,3 +304,21 @@ def test_exact_switch_selects_every_reference(family: str, tmp_path: Path,
         run()
     monkeypatch.setenv(twins.EXACT_ENV, "1")
     run()
+
+
+def test_logic_references_do_not_import_their_fast_twins() -> None:
+    """The Saleae and VCD references read a file without numpy or their fast twins loaded."""
+    import subprocess
+    import sys
+
+    code = (
+        "import io, sys\n"
+        "from eyeq_spi.logic import saleae_ref, vcd_ref\n"
+        "from eyeq_spi.logic.options import SpiOptions\n"
+        "data = b'Time [s],Packet ID,MOSI,MISO\\n0.1,1,0x01,0x02\\n'\n"
+        "assert list(saleae_ref.read_saleae1(io.BytesIO(data), SpiOptions()))\n"
+        "print(sorted(m for m in sys.modules if m == 'numpy' or m.endswith('_fast')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, check=True)
+    assert out.stdout.strip() == "[]"
