@@ -12,7 +12,8 @@ from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import Scenario
 from eyeq_spi.phy.memory import memory_pair
-from eyeq_spi.runner.virtual import Tap, VirtualRunner
+from eyeq_spi.runner.virtual import VirtualRunner
+from eyeq_spi.runner.virtual_types import Tap
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.summary import RunningVision

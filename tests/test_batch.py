@@ -15,15 +15,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from eyeq_spi.capture.fastread import chunks_from_records, pcapng_chunks, raw_chunks
+from eyeq_spi.capture.pcapng_fast import chunks_from_records, pcapng_chunks, raw_chunks
 from eyeq_spi.capture.pcapng_io import CaptureError, CaptureWriter, Record, read_pcapng
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect import batch, engine
-from eyeq_spi.dissect.vframes import FrameBlock, frame_arrays
+from eyeq_spi.dissect import engine
+from eyeq_spi.dissect import engine_fast as batch
+from eyeq_spi.dissect.engine_fast_frames import FrameBlock, frame_arrays
 from eyeq_spi.link.frame import FrameCodec, NakReason
 from eyeq_spi.transport.segment import segment
+
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
 FC = FrameCodec()
 MC = MessageCodec()

@@ -1,6 +1,6 @@
 """The batch dissector's lean modes (``dissect --stats`` alone, one table writer): a group's
-messages cut from the chunk at once (dissect/vcut.py), records only for messages with errors,
-the others counted. ``--stats`` (text and JSON, key order included), the tables and the exit
+messages cut from the chunk at once (dissect/engine_fast_cut.py), records only for messages with
+errors, the others counted. ``--stats`` (text and JSON, key order included), the tables and the exit
 code are those of the exact engine on clean, link-faulty and application-faulty captures; and
 what the CLI does around it: the paced garbage collector, pandas kept out of Parquet writing."""
 
@@ -18,18 +18,22 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from eyeq_spi.capture.fastread import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_records
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect import batch, batch_run, engine, inputs, output, pipeline
+from eyeq_spi.dissect import batch_run, engine, output, pipeline
+from eyeq_spi.dissect import engine_fast as batch
+from eyeq_spi.dissect.engine_fast_frames import FrameBlock
 from eyeq_spi.dissect.stats import Stats
-from eyeq_spi.dissect.vframes import FrameBlock
+from eyeq_spi.io import plain as inputs
 from eyeq_spi.transport.segment import segment
 from tests.test_batch import BASE, MUTATIONS, Rec, _as_records, synthetic
 from tests.test_batch_cli import _Pipe
 from tests.test_vdecode import _capture
+
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
 CAT = MessageCodec().cat
 

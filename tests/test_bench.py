@@ -16,11 +16,13 @@ from hypothesis import strategies as st
 
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record, read_pcapng
 from eyeq_spi.cli import main
-from eyeq_spi.dissect.inputs import InputError, detect, open_records
+from eyeq_spi.io.plain import InputError, detect, open_records
 from eyeq_spi.link.frame import FrameCodec
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.vcd import read_vcd
 from eyeq_spi.logic.vcd_write import write_vcd
+
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
 
 def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:

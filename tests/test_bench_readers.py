@@ -20,6 +20,8 @@ from eyeq_spi.logic.saleae import read_saleae1, read_saleae2
 from eyeq_spi.logic.vcd import read_vcd
 from eyeq_spi.logic.vcd_write import write_vcd
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 Reader = Callable[..., Iterator[Record]]
 
 
@@ -116,11 +118,11 @@ def test_fast_path_takes_the_common_shape() -> None:
     rows.append('"h2e","disable",0.6,2e-08,,')
     body = ("\n".join(rows[1:]) + "\n").encode()
     state = saleae_fast.Saleae2State({}, {})
-    from eyeq_spi.logic.saleae import _Open
+    from eyeq_spi.logic.saleae_types import OpenTransfer
 
     recs = saleae_fast.saleae2_chunk(body, 6, {"mosi": 4, "miso": 5}, 0, 1, 2,
                                      {"start": "enable", "byte": "result", "end": "disable"},
-                                     state, SpiOptions(), _Open)
+                                     state, SpiOptions(), OpenTransfer)
     assert recs == [Record(0.5, "h2e", bytes(range(128)))]
     assert state.results == 128 and state.enables == 1
 

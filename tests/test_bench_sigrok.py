@@ -17,6 +17,8 @@ import pytest
 from eyeq_spi.cli import main
 from eyeq_spi.interop.annotate import event_text, link_text, message_text, transport_text
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 SIGROK = shutil.which("sigrok-cli")
 needs_sigrok = pytest.mark.skipif(
     SIGROK is None, reason="sigrok-cli is not installed (tools/check.py installs Debian's "
@@ -117,7 +119,7 @@ def test_dissect_reads_a_vcd_written_by_sigrok_cli(bench: dict[str, Path], tmp_p
     ``dissect``, through the vectorised path: the same records as our waveforms."""
     from eyeq_spi.logic import vcd_fast
     from eyeq_spi.logic.options import SpiOptions
-    from eyeq_spi.logic.vcd import read_vcd
+    from eyeq_spi.logic.vcd_fast import read_vcd  # the fast twin itself, whatever the switch
 
     assert SIGROK is not None
     out = tmp_path / "sigrok.vcd"

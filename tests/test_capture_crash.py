@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from eyeq_spi.capture.fastread import pcapng_chunks
+from eyeq_spi.capture.pcapng_fast import pcapng_chunks
 from eyeq_spi.capture.pcapng_io import CaptureError, CaptureWriter, Tail, read_pcapng
 from eyeq_spi.cli import main
-from eyeq_spi.dissect.inputs import InputError, open_records
+from eyeq_spi.io.plain import InputError, open_records
 
 WRITER = """
 import itertools, sys

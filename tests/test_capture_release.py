@@ -16,6 +16,8 @@ from eyeq_spi.catalog.messages import catalog, sw_release_text
 from eyeq_spi.cli import main
 from eyeq_spi.dissect import release as rel
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 RELEASES = [sw_release_text(k) for k in catalog().sw_versions]
 
 
@@ -199,7 +201,7 @@ def test_a_fault_still_comes_after_the_transfers_before_it(captures: dict[str, P
     them, as the reader alone would."""
     import io
 
-    from eyeq_spi.dissect.inputs import InputError
+    from eyeq_spi.io.plain import InputError
 
     data = (captures["8.1"].read_bytes().replace(b"eyeq-spi sw=8.1", b"another tool   "))
     at = 0  # the 40th block among the first transfers gets an impossible length

@@ -25,6 +25,8 @@ from eyeq_spi.codec.message import MessageCodec, classify
 from eyeq_spi.errors import CodecError
 from tests.strategies import layout_values, signal_value
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 CAT = catalog()
 LC = LayoutCache(CAT)
 STRUCT_VARIANTS = [(n, k) for n, s in CAT.structs.items() for k in s.variants]

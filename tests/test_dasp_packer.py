@@ -1,4 +1,4 @@
-"""DASP payloads packed in place (eyeq_spi/sim/packer.py) against the dict path
+"""DASP payloads packed in place (eyeq_spi/sim/dasp_fast.py) against the dict path
 (Scene.fill + MessageCodec.encode_dasp), the reference: identical bytes, message by message and
 transfer by transfer; and the due heap of SimulatedEyeQ._send_due_dasp."""
 
@@ -21,8 +21,10 @@ from eyeq_spi.host.host import HostConfig
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import CsvScenario
 from eyeq_spi.sim.config import SimConfig
+from eyeq_spi.sim.dasp_fast import DaspPacker, compile_protector
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
-from eyeq_spi.sim.packer import DaspPacker, compile_protector
+
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
 SWS = catalog().sw_versions
 

@@ -7,12 +7,15 @@ from typing import Any
 
 import pytest
 
-from eyeq_spi.capture.fastread import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_records
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect import batch, engine
+from eyeq_spi.dissect import engine
+from eyeq_spi.dissect import engine_fast as batch
 from tests.test_batch import Wire
+
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
 MC = MessageCodec()
 VEH = "HOST_VEH_STATE_MSG"

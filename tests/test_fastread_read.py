@@ -1,4 +1,4 @@
-"""The pcapng reader's buffer refills (``capture/fastread.py``): read into a new buffer after what
+"""The pcapng reader's buffer refills (``capture.pcapng_fast``): read into a new buffer after what
 is left (``readinto``) or joined (a stream with ``read`` only), the chunks are the same, whole or
 cut anywhere (with a ``Tail``), with refills inside blocks and runs."""
 
@@ -10,9 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from eyeq_spi.capture import fastread
-from eyeq_spi.capture.fastread import pcapng_chunks
+from eyeq_spi.capture import pcapng_fast
+from eyeq_spi.capture.pcapng_fast import pcapng_chunks
 from eyeq_spi.capture.pcapng_io import CaptureError, CaptureWriter, Tail
+
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
 
 class _ReadOnly:
@@ -48,12 +50,12 @@ def _read(src: object, tail: Tail | None) -> tuple[str, object]:
                   [sorted(c.odd.items()) for c in chunks])
 
 
-@pytest.mark.parametrize("read_size", [fastread.READ_SIZE, 5000, 100])
+@pytest.mark.parametrize("read_size", [pcapng_fast.READ_SIZE, 5000, 100])
 @pytest.mark.parametrize("cut", [None, 60, 1000, 160 * 700 + 13, -1, -4])
 def test_refills_read_the_same_with_readinto_or_read(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, read_size: int, cut: int | None
 ) -> None:
-    monkeypatch.setattr(fastread, "READ_SIZE", read_size)
+    monkeypatch.setattr(pcapng_fast, "READ_SIZE", read_size)
     blob = _capture(tmp_path / "c.pcapng")
     short = blob if cut is None else blob[:cut]
     path = tmp_path / "cut.pcapng"

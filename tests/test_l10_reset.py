@@ -4,11 +4,12 @@ last one byte for byte, and the dissector (engine and batch path agree). Virtual
 
 from __future__ import annotations
 
-from eyeq_spi.capture.fastread import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_records
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect import batch, engine
+from eyeq_spi.dissect import engine
+from eyeq_spi.dissect import engine_fast as batch
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.connection import LinkConfig, LinkConnection

@@ -18,6 +18,8 @@ from eyeq_spi.runner.node import Node
 from eyeq_spi.runner.virtual import VirtualRunner
 from eyeq_spi.sim.config import SimConfig
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 Trace = list[tuple[int, float, bytes]]
 
 

@@ -1,4 +1,4 @@
-"""Express instants (runner/express.py) give the same transfers at the same virtual times, and
+"""Express instants (runner/virtual_fast.py) give the same transfers at the same virtual times, and
 leave host, simulated EyeQ and link in the same state, as the general per-frame loop (the
 reference, ``express=False`` or ``EYEQ_SPI_EXACT=1``): on clean runs and on the faults and
 resets the emulator can inject."""
@@ -14,9 +14,12 @@ from eyeq_spi.emulator import HOST_ALONE, Emulation, build
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.frame import FrameCodec, FrameKind
 from eyeq_spi.phy.memory import MemoryAdapter
-from eyeq_spi.runner.express import EXACT_ENV, Express
 from eyeq_spi.runner.virtual import VirtualRunner
+from eyeq_spi.runner.virtual_fast import Express
 from eyeq_spi.sim.config import SimConfig
+from eyeq_spi.twins import EXACT_ENV
+
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
 Trace = list[tuple[int, float, bytes]]
 

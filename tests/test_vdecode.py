@@ -1,4 +1,4 @@
-"""The vectorised decoder (codec/vdecode.py) and the generated E2E verifier against the exact
+"""The vectorised decoder (codec/message_fast.py) and the generated E2E verifier against the exact
 codec: every DASP message at every SW release, value for value and error for error."""
 
 from __future__ import annotations
@@ -17,23 +17,26 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from eyeq_spi.capture.fastread import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_records
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
 from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState, protect, verify, verify_reference
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.codec.vdecode import crc_rows, vec_layout
+from eyeq_spi.codec.message_fast import crc_rows, vec_layout
 from eyeq_spi.crc import crc16
-from eyeq_spi.dissect import batch, batch_run, engine, pipeline
+from eyeq_spi.dissect import batch_run, engine, pipeline
+from eyeq_spi.dissect import engine_fast as batch
 from eyeq_spi.dissect.engine import _check_enums
+from eyeq_spi.dissect.engine_fast_frames import FrameBlock
 from eyeq_spi.dissect.output import JsonWriter, TableWriter, flatten
 from eyeq_spi.dissect.stats import Stats
-from eyeq_spi.dissect.vframes import FrameBlock
 from eyeq_spi.link.frame import FrameCodec
 from eyeq_spi.transport.segment import segment
 from tests.strategies import layout_values
+
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
 CAT = catalog()
 FC = FrameCodec()
@@ -198,7 +201,7 @@ def test_float_columns_keep_binary32_values() -> None:
     assert vl.columns(arr)[leaf.name][0].item() == struct.unpack("<f", struct.pack("<f", 0.1))[0]
 
 
-# -- the batch dissector's span messages (dissect/vmessages.py) ------------------------------
+# -- the batch dissector's span messages (dissect/engine_fast_messages.py) ---------------------
 def _capture(faults: list[tuple[int, int]]) -> list[Record]:
     """e2h DASP traffic (failsafe, obstacles, SRP, light sensor, timesync) in single and
     multi-frame transfers, each data ID's counters and E2E stepping; ``faults`` (message index,
@@ -290,7 +293,8 @@ def test_span_messages_agree_with_the_engine_under_application_faults(
 
 
 def test_application_faults_reach_the_vectorised_groups() -> None:
-    """The faults above are judged by vmessages' groups, not only by the exact fallback."""
+    """The faults above are judged by engine_fast_messages' groups, not only by the exact
+    fallback."""
     recs = _capture([(1, 1), (6, 6), (11, 4), (13, 4), (16, 3), (22, 2)])
     items = list(batch.iter_items(chunks_from_records(recs, 1 << 15)))
     msgs = [m for b in items if isinstance(b, FrameBlock) for _, m in b.messages]
@@ -307,8 +311,8 @@ def want_equal(recs: list[Record]) -> bool:
 
 
 def test_no_two_dasp_messages_share_a_layout() -> None:
-    """vmessages judges (direction, data ID) groups independently: E2E counters are keyed by
-    layout, so that needs one layout per data ID in every release."""
+    """engine_fast_messages judges (direction, data ID) groups independently: E2E counters are
+    keyed by layout, so that needs one layout per data ID in every release."""
     for sw in CAT.sw_versions:
         payloads = [m.payload for m in CAT.messages if m.protocol == "DASP" and m.exists_in(sw)]
         assert len(payloads) == len(set(payloads)), sw

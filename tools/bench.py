@@ -246,7 +246,7 @@ class _TimedNode:
         self.calls += 1
 
     def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
-        """The node's express hook (runner/express.py), timed, where its class has one."""
+        """The node's express hook (runner/virtual_fast.py), timed, where its class has one."""
         if "express_absorb" not in vars(type(self.node)):
             return None
         c = time.thread_time()
@@ -357,7 +357,7 @@ def _dasp_cpu_per_sim_s(packer: bool, virtual_s: float) -> float:
 
 
 def dasp_bench(runs: int = 3, virtual_s: float = 20.0) -> dict[str, float]:
-    """The simulated EyeQ's DASP generation: the packer (sim/packer.py) against the
+    """The simulated EyeQ's DASP generation: the packer (sim/dasp_fast.py) against the
     dict path (Scene.fill + encode_dasp) in interleaved runs, median and spread, the ratio, and
     each in 128-byte ``crc_hqx`` calls of the in-run baseline."""
     rows: dict[bool, list[float]] = {False: [], True: []}

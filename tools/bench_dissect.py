@@ -5,7 +5,8 @@ Input: a full-load demo capture (``demo --virtual-time --objects 15 --signs 20 -
 --capture``, ``--duration`` seconds), as pcapng and as raw (the EyeQ -> host channel). Measures,
 ``--repeat`` times each, median and spread (min..max):
 
-- batch frame validation (header fields + CRC verdict of every frame, ``vframes.validate``);
+- batch frame validation (header fields + CRC verdict of every frame,
+  ``engine_fast_frames.validate``);
 - the in-run baselines over the same frames: a Python loop of ``binascii.crc_hqx`` and a loop of
   ``struct.unpack_from`` of the frame layout (header word, CRC);
 - ``eyeq-spi dissect --stats`` / ``--json`` / ``--parquet`` as subprocesses: "after" reads the
@@ -106,7 +107,7 @@ def cli(args: list[str], stdin: Path | None) -> tuple[float, int]:
 
 
 def frames_of(cap: Path) -> int:
-    from eyeq_spi.capture.fastread import pcapng_chunks
+    from eyeq_spi.capture.pcapng_fast import pcapng_chunks
 
     with open(cap, "rb") as fh:
         return sum(len(c) for c in pcapng_chunks(fh))
@@ -194,8 +195,8 @@ def main() -> int:
 
     import numpy as np
 
-    from eyeq_spi.capture.fastread import pcapng_chunks
-    from eyeq_spi.dissect.vframes import validate
+    from eyeq_spi.capture.pcapng_fast import pcapng_chunks
+    from eyeq_spi.dissect.engine_fast_frames import validate
     from eyeq_spi.link.frame import FrameCodec
 
     with open(cap, "rb") as fh:

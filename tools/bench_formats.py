@@ -28,7 +28,7 @@ from pathlib import Path
 
 from eyeq_spi.capture.pcapng_io import Record, read_pcapng
 from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.dissect.inputs import open_records
+from eyeq_spi.io.plain import open_records
 from eyeq_spi.logic.vcd_write import write_vcd
 
 

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Run every check CI runs: tshark and sigrok-cli (installed if missing), ruff, mypy --strict,
-the import-layer contract, the specs schema, then pytest. Exits non-zero on the first failure;
-pytest's exit code 5 (no tests collected) is a failure too.
+the import-layer contract, the specs schema, then pytest; then pytest again on the tests marked
+``twin`` (those that run an exact/fast twin) with ``EYEQ_SPI_EXACT=1``, so every code path also
+runs on the references. Exits non-zero on the first failure; pytest's exit code 5 (no tests
+collected) is a failure too.
 
 Then, when ``CI`` is set or with ``--oldest``: the same project against the OLDEST version of
 every direct dependency that ``pyproject.toml`` allows (``.ci/oldest.txt``, held equal to its
@@ -20,9 +22,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def run(name: str, cmd: list[str]) -> int:
-    print(f"==> {name}: {' '.join(cmd)}", flush=True)
-    return subprocess.call(cmd, cwd=ROOT)
+def run(name: str, cmd: list[str], env: dict[str, str] | None = None) -> int:
+    shown = "".join(f"{k}={v} " for k, v in (env or {}).items())
+    print(f"==> {name}: {shown}{' '.join(cmd)}", flush=True)
+    return subprocess.call(cmd, cwd=ROOT, env={**os.environ, **env} if env else None)
 
 
 def ensure_tshark() -> None:
@@ -73,6 +76,22 @@ def _workers(args: list[str]) -> list[str]:
     return ["-n", "2", "--dist", "loadfile"]
 
 
+def _twin_args(args: list[str]) -> list[str]:
+    """``args`` with the ``twin`` marker added to a ``-m`` expression the caller gave (pytest
+    keeps only the last ``-m``)."""
+    out: list[str] = []
+    expr = "twin"
+    it = iter(args)
+    for a in it:
+        if a == "-m":
+            expr = f"twin and ({next(it, '')})"
+        elif a.startswith("-m") and not a.startswith("-m="):
+            expr = f"twin and ({a[2:]})"
+        else:
+            out.append(a)
+    return ["-m", expr, *out]
+
+
 def oldest(pytest_args: list[str]) -> int:
     """The oldest allowed versions: a venv of their own, the dependency-facing tests."""
     venv = ROOT / ".venv-oldest"
@@ -112,7 +131,18 @@ def main() -> int:
     if rc == 5:
         print("FAILED: pytest collected no tests", file=sys.stderr)
         return 1
+    if rc:
+        return rc
+    # the references: every facade picks them (eyeq_spi/twins.py); a -k that selects no twin
+    # test leaves nothing to run here, which is not a failure
+    rc = run("pytest, references (EYEQ_SPI_EXACT=1)",
+             [py, "-m", "pytest", *_workers(args), *_twin_args(args)],
+             env={"EYEQ_SPI_EXACT": "1"})
+    if rc == 5 and args:
+        rc = 0
     if rc or not with_oldest:
+        if rc == 5:
+            print("FAILED: no test is marked twin", file=sys.stderr)
         return rc
     return oldest(args)
 

@@ -7,7 +7,7 @@ A :class:`Layout` is one struct at one SW version:
   time). Bitfield members that share a container
   (D2) appear in it as one integer field; splitting and joining them is plain shifting done by
   precomputed operation lists, so no ``BitStruct`` (uncompilable, slow) is on the hot path;
-- a ``struct``-based fast path generated from the same fields (:mod:`.fastpath`), used by
+- a ``struct``-based fast path generated from the same fields (:mod:`.layout_fast`), used by
   ``parse``/``build``; the construct codec (``parse_construct``/``build_construct``) is the
   reference the tests hold it to;
 - the offset and size of every member, used for CRC coverage and for ``spec show``;
@@ -25,9 +25,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.catalog.messages import Catalog, Member, SwKey
-from eyeq_spi.codec.fastpath import FastCodec
+from eyeq_spi.codec.layout_fast import FastCodec
+from eyeq_spi.codec.layout_types import (
+    FieldInfo as FieldInfo,  # re-exported: its users import it here
+)
 from eyeq_spi.crc import crc16
 from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.twins import exact
 
 PRIMITIVE = {  # seed type -> (construct field name, bytes)
     "uint8": ("Int8ul", 1), "uint16": ("Int16ul", 2), "uint32": ("Int32ul", 4),
@@ -41,19 +45,6 @@ INT_RANGE = {
     "int32": (-0x80000000, 0x7FFFFFFF), "int64": (-0x8000000000000000, 0x7FFFFFFFFFFFFFFF),
     "bool": (0, 0xFF),
 }
-
-
-@dataclass(frozen=True)
-class FieldInfo:
-    """One member as laid out: for ``spec show`` and the dissector."""
-
-    name: str
-    offset: int
-    size: int  # bytes of the whole member (all array elements); container size for bitfields
-    type: str
-    count: int | None  # array length, None if scalar
-    bits: tuple[int, int] | None
-    member: Member
 
 
 @dataclass(frozen=True)
@@ -167,6 +158,8 @@ class Layout:
         return self._fast
 
     def build(self, values: dict[str, Any]) -> bytes:
+        if exact():
+            return self.build_construct(values)
         try:
             return self.fast.encode(values)
         except CodecError as exc:
@@ -175,6 +168,8 @@ class Layout:
     def parse(self, data: bytes) -> dict[str, Any]:
         if len(data) != self.size:
             raise CodecError(f"{self.name} ({self.sw}) is {self.size} bytes, got {len(data)}")
+        if exact():
+            return self.post(self.struct.parse(data))
         return self.fast.decode(data)
 
     # The construct codec: the reference the fast path is tested against.

@@ -60,7 +60,8 @@ class DaspCounters:
 
     def learn(self, data_id: int, counter: int) -> None:
         """Take ``counter`` as the last one seen: the end of a run that the batch dissector
-        judged at once (``dissect.vmessages``), as :meth:`check` row by row would leave it."""
+        judged at once (``dissect.engine_fast_messages``), as :meth:`check` row by row would
+        leave it."""
         self._last[data_id] = counter
 
     def clear(self) -> None:

@@ -16,15 +16,16 @@ from typing import IO, Any
 
 import numpy as np
 
-from eyeq_spi.capture.fastread import Chunk, pcapng_chunks, raw_chunks
+from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
 from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Tail
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.batch import BatchDissector
-from eyeq_spi.dissect.inputs import InputError, detect
+from eyeq_spi.dissect.engine_fast import BatchDissector
+from eyeq_spi.dissect.engine_fast_frames import BatchUnsupportedError, FrameArrays, FrameBlock
 from eyeq_spi.dissect.output import JsonWriter
 from eyeq_spi.dissect.release import Release
-from eyeq_spi.dissect.vframes import BatchUnsupportedError, FrameArrays, FrameBlock
 from eyeq_spi.io import batch_readers
+from eyeq_spi.io.plain import InputError, detect
+from eyeq_spi.twins import exact
 
 Item = dict[str, Any] | FrameBlock
 __all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "parallel_items"]
@@ -35,9 +36,12 @@ def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
                 ) -> Iterator[Item] | None:
     """The batch path's items for a seekable pcapng or raw file (read from its start), else
     None: the exact path goes on, ``fh`` at the position it had. ``fields``: what the span
-    messages carry (:class:`~.vmessages.SpanDecoder`: "dict", "none" for ``--stats`` alone,
-    "columns" for a table writer alone). ``tail``: a pcapng file that ends inside a block is
-    read up to its last whole block, as :func:`~.inputs.open_records` does."""
+    messages carry (:class:`~.engine_fast_messages.SpanDecoder`: "dict", "none" for ``--stats``
+    alone, "columns" for a table writer alone). ``tail``: a pcapng file that ends inside a block is
+    read up to its last whole block, as :func:`~.inputs.open_records` does. With
+    ``EYEQ_SPI_EXACT=1`` always None: the exact :class:`~.engine.Dissector` reads everything."""
+    if exact():
+        return None
     try:
         if not fh.seekable():
             return None

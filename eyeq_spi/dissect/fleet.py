@@ -70,8 +70,8 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
     Returns a JSON-ready summary (never raises for a bad capture)."""
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.dissect.batch_run import batch_items
+    from eyeq_spi.dissect.engine_fast_frames import FrameBlock
     from eyeq_spi.dissect.release import open_capture
-    from eyeq_spi.dissect.vframes import FrameBlock
 
     pa, pq = _pyarrow()
     summary: dict[str, Any] = {"capture": capture, "path": path, "frames": 0, "messages": {},

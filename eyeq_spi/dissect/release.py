@@ -29,8 +29,8 @@ from eyeq_spi.catalog.messages import Catalog, SwKey, catalog, sw_release_text
 from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, MessageCodec, classify
 from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.dissect.inputs import PeekStream, open_records
 from eyeq_spi.errors import EyeqError
+from eyeq_spi.io.plain import PeekStream, open_records
 from eyeq_spi.logic.options import SpiOptions
 
 RECORDED = "recorded in the capture"
@@ -207,7 +207,7 @@ def release_of(path: str, sw: str | None = None, fmt: str | None = None,
                direction: str | None = None, spi: SpiOptions | None = None) -> Release:
     """The release to read the capture file ``path`` with (for a reader that needs it before
     it reads the file: its codec builds the plot's or the monitor's labels)."""
-    from eyeq_spi.dissect.inputs import InputError
+    from eyeq_spi.io.plain import InputError
 
     try:
         fh = open(path, "rb")  # noqa: SIM115 - closed below

@@ -113,7 +113,7 @@ class HostEmulator(HostBringUp):
         return self.conn.data_to_send(now)
 
     def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
-        """runner/express.py: ``receive_data``, then ``handle_timer`` and ``data_to_send`` at
+        """runner/virtual_fast.py: ``receive_data``, then ``handle_timer`` and ``data_to_send`` at
         the same ``now`` (as a runner calls them for a DATA frame, whose ACK makes the timer
         due), in one step, when the frame continues a message and completes nothing and no
         timer of the host is due: the ACK. None, with nothing changed, otherwise."""

@@ -441,7 +441,7 @@ class LinkConnection:
             if not entry[1]:
                 self._events.append(Sent(tag))
 
-    # -- express path (runner/express.py) ---------------------------------------------------
+    # -- express path (runner/virtual_fast.py) ---------------------------------------------------
     def in_order(self, transfer: bytes, now: float) -> int | None:
         """The NUM of ``transfer`` if it is a good DATA frame with the expected NUM that this
         connection accepts and answers at once: nothing of its own queued, nothing due at

@@ -1,7 +1,7 @@
 """The vectorised path of the Saleae readers (numpy), for the common shape of an export: every
 row has the header's number of columns, a field is either unquoted or wholly quoted (no quote,
 comma or NUL inside), data bytes are empty or ``0xHH``, row types are exactly the spec's. It
-computes exactly what the csv loops of :mod:`eyeq_spi.logic.saleae` compute (a property test
+computes exactly what the csv loops of :mod:`eyeq_spi.logic.saleae_ref` compute (a property test
 compares them on random exports cut at random places) and returns None for any chunk it cannot
 take, or whose reading would raise, without touching the readers' state; the csv loop then reads
 that chunk and reports the error with its line.
@@ -13,17 +13,22 @@ one, the data bytes of a transfer are one slice of a column.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
-from datetime import UTC, datetime
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, Route, SpiOptions
-
-if TYPE_CHECKING:
-    from eyeq_spi.logic.saleae import _Open
+from eyeq_spi.logic.saleae_ref import saleae1_records, saleae2_records
+from eyeq_spi.logic.saleae_types import (
+    ByteSource,
+    OpenTransfer,
+    Saleae1State,
+    Saleae2State,
+    seconds,
+)
 
 _HEX = np.full(256, -1, dtype=np.int16)
 for _c in b"0123456789":
@@ -31,23 +36,6 @@ for _c in b"0123456789":
 for _c in b"abcdef":
     _HEX[_c] = _HEX[_c - 32] = _c - 87
 _MAX_NAME = 64  # longer analyzer names: the csv loop (the table would be rows x width)
-
-
-def seconds(text: str) -> float:
-    """A capture time: seconds (Logic 1.x, Logic 2's default), or an ISO 8601 date and time
-    (Logic 2's "Use ISO8601 timestamps" export option) as seconds since the epoch, UTC when
-    no zone is given; ValueError for anything else."""
-    try:
-        return float(text)
-    except ValueError:
-        pass
-    t = text.strip().strip('"')
-    if len(t) < 10 or t[4:5] != "-":
-        raise ValueError(text)
-    stamp = datetime.fromisoformat(t)
-    if stamp.tzinfo is None:
-        stamp = stamp.replace(tzinfo=UTC)
-    return stamp.timestamp()
 
 
 @dataclass
@@ -138,14 +126,6 @@ def table(chunk: bytes, ncols: int) -> Table | None:
     return Table(raw, lo, hi, line)
 
 
-@dataclass
-class Saleae2State:
-    open_: dict[str, _Open | None]
-    routes: dict[str, list[Route]]
-    results: int = 0
-    enables: int = 0
-
-
 def saleae2_chunk(chunk: bytes, ncols: int, cols: dict[str, int], i_name: int, i_type: int,
                   i_time: int, kinds: dict[str, str], state: Saleae2State, opts: SpiOptions,
                   make_open: Any) -> list[Record] | None:
@@ -190,10 +170,10 @@ def saleae2_chunk(chunk: bytes, ncols: int, cols: dict[str, int], i_name: int, i
             u8, full = vals[sel].astype(np.uint8), vals[sel] >= 0
             by_line[line] = (u8, full, u8.tobytes() if full.all() else None)
         cells.append(by_line)
-    open_: dict[str, _Open | None] = dict(state.open_)
+    open_: dict[str, OpenTransfer | None] = dict(state.open_)
     opened_at: dict[str, int] = {}
-    jobs: list[tuple[int, _Open, int, int]] = []  # name, transfer, its bytes between rows
-    emits: list[tuple[_Open, str]] = []
+    jobs: list[tuple[int, OpenTransfer, int, int]] = []  # name, transfer, its bytes between rows
+    emits: list[tuple[OpenTransfer, str]] = []
     kind_of, name_of = is_e.tolist(), inv.tolist()
     for row in np.flatnonzero(~is_r).tolist():
         u = name_of[row]
@@ -251,17 +231,11 @@ def saleae2_chunk(chunk: bytes, ncols: int, cols: dict[str, int], i_name: int, i
     return out
 
 
-def _copy(tr: _Open, make_open: Any) -> _Open:
-    new: _Open = make_open(tr.time)
+def _copy(tr: OpenTransfer, make_open: Any) -> OpenTransfer:
+    new: OpenTransfer = make_open(tr.time)
     for line, buf in tr.lines.items():
         new.lines[line] = bytearray(buf)
     return new
-
-
-@dataclass
-class Saleae1State:
-    tr: _Open | None = None
-    packet: str | None = None
 
 
 def saleae1_chunk(chunk: bytes, ncols: int, i_time: int, i_id: int, i_mosi: int, i_miso: int,
@@ -313,3 +287,16 @@ def saleae1_chunk(chunk: bytes, ncols: int, i_time: int, i_id: int, i_mosi: int,
     state.tr = tr
     state.packet = t.text(rows - 1, i_id)
     return out
+
+
+def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
+                 ) -> Iterator[Record]:
+    """The Logic 2 reader: each chunk through :func:`saleae2_chunk` while it keeps succeeding,
+    else through the reference's csv loop."""
+    return saleae2_records(src, opts, chunk_size, saleae2_chunk)
+
+
+def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
+                 ) -> Iterator[Record]:
+    """The Logic 1.x reader, as :func:`read_saleae2`."""
+    return saleae1_records(src, opts, chunk_size, saleae1_chunk)

@@ -2,7 +2,7 @@
 changes and ``#time`` tokens separated by newlines or spaces (one change per line as simulators
 and our writer put them, or ``#time 1! 0"`` lines as sigrok and PulseView do), one-character
 identifiers, plain ``0``/``1`` values. It computes exactly what the token loop of
-:mod:`eyeq_spi.logic.vcd` computes (property tests compare them on random waveforms in both
+:mod:`eyeq_spi.logic.vcd_ref` computes (property tests compare them on random waveforms in both
 layouts cut at random places, and on a VCD written by the real ``sigrok-cli``) and returns None
 for any chunk it cannot take, which the token loop then reads; a head it cannot take
 (``$dumpvars``...) goes to the token loop and the rest stays here.
@@ -15,30 +15,29 @@ transfer starts. The open transfer at the end of a chunk is carried in the chann
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Literal
+from collections.abc import Callable, Iterator
+from typing import Any, Literal
 
 import numpy as np
 
 from eyeq_spi.capture.pcapng_io import Record
-from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError
+from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, SpiOptions
+from eyeq_spi.logic.saleae_types import ByteSource
+from eyeq_spi.logic.vcd_ref import vcd_records
+from eyeq_spi.logic.vcd_types import Chan, ReaderState
 
-if TYPE_CHECKING:
-    from eyeq_spi.logic.vcd import _Chan, _Reader
-
-CS, CLK, MOSI, MISO = range(4)
 _IGNORED = -1
 
 
 class FastPath:
-    def __init__(self, lut: np.ndarray[Any, Any], chans: list[_Chan]) -> None:
+    def __init__(self, lut: np.ndarray[Any, Any], chans: list[Chan]) -> None:
         self.lut = lut  # identifier byte -> channel * 4 + role, or -1
         self.chans = chans
 
     @classmethod
-    def build(cls, table: dict[bytes, list[tuple[_Chan, int]]]) -> FastPath | None:
+    def build(cls, table: dict[bytes, list[tuple[Chan, int]]]) -> FastPath | None:
         lut = np.full(256, _IGNORED, dtype=np.int64)
-        chans: list[_Chan] = []
+        chans: list[Chan] = []
         for ident, targets in table.items():
             if len(ident) != 1 or len(targets) != 1:
                 return None  # longer identifiers or a line feeding two roles: token loop
@@ -48,7 +47,7 @@ class FastPath:
             lut[ident[0]] = chans.index(ch) * 4 + role
         return cls(lut, chans)
 
-    def run(self, reader: _Reader, chunk: bytes) -> list[Record] | int | None:
+    def run(self, reader: ReaderState, chunk: bytes) -> list[Record] | int | None:
         """The records of ``chunk``; or the length of a head of it (up to the last line this
         path cannot take, in its first half: ``$dumpvars``...) for the token loop to read
         first; or None when the token loop must read it all."""
@@ -121,9 +120,9 @@ def _bits_of(value: int, n: int, msb: bool) -> list[int]:
         [(value >> i) & 1 for i in range(n)]
 
 
-def _channel(ch: _Chan, by_role: list[np.ndarray[Any, Any]], vals: np.ndarray[Any, Any],
+def _channel(ch: Chan, by_role: list[np.ndarray[Any, Any]], vals: np.ndarray[Any, Any],
              lines: np.ndarray[Any, Any],
-             time_at: Callable[[np.ndarray[Any, Any]], list[int]], reader: _Reader
+             time_at: Callable[[np.ndarray[Any, Any]], list[int]], reader: ReaderState
              ) -> list[tuple[int, Record]]:
     """The transfers of one channel; ``by_role``: the indices (into ``vals``/``lines``) of its
     CS, CLK, MOSI and MISO changes, each line worked on as its own subsequence."""
@@ -206,3 +205,9 @@ def _channel(ch: _Chan, by_role: list[np.ndarray[Any, Any]], vals: np.ndarray[An
     ch.active = end_active
     return out
 
+
+def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
+             ) -> Iterator[Record]:
+    """The VCD reader with :class:`FastPath` on every chunk it can take (the reference's token
+    loop reads the rest)."""
+    return vcd_records(src, opts, chunk_size, FastPath.build)

@@ -17,7 +17,7 @@ class Node(Protocol):
     last call or ``get_timer()`` is at most ``now`` (the runner does not ask it otherwise).
     ``VirtualRunner.verify`` checks both promises.
 
-    Optional, read from the node's own class only (runner/express.py):
+    Optional, read from the node's own class only (runner/virtual_fast.py):
     ``express_absorb(transfer, now) -> list[bytes] | None`` makes the calls a runner makes for
     one arriving transfer (``receive_data``; ``handle_timer`` if that made the timer due;
     ``data_to_send``) in one step and returns what ``data_to_send`` hands over, or returns None

@@ -23,10 +23,11 @@ import time
 from collections.abc import Callable
 
 from eyeq_spi.phy.base import Adapter
-from eyeq_spi.runner.express import Express, exact_requested
 from eyeq_spi.runner.node import Node
+from eyeq_spi.runner.virtual_fast import Express
+from eyeq_spi.runner.virtual_types import Tap
+from eyeq_spi.twins import exact
 
-Tap = Callable[[int, float, bytes], None]
 """Called for every transfer a node puts on the wire: (node index, time, transfer)."""
 
 class VirtualRunner:
@@ -72,9 +73,9 @@ class VirtualRunner:
         # only outside effect (the host's reset line) to call :meth:`touch_all`
         self._alone = [vars(type(node)).get("SELF_CONTAINED") is True or i in self_contained
                        for i, (node, _) in enumerate(nodes)]
-        # express instants (runner/express.py) where they apply; ``express=False`` or
+        # express instants (runner/virtual_fast.py) where they apply; ``express=False`` or
         # EYEQ_SPI_EXACT=1: the general loop only (the reference)
-        self.express = (not exact_requested()) if express is None else express
+        self.express = (not exact()) if express is None else express
         self._express: Express | None = None
 
     # -- caches -----------------------------------------------------------------------------

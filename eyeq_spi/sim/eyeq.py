@@ -52,6 +52,7 @@ from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.mesp.server import MespServer
 from eyeq_spi.sim.calibration import fill_calibration, strip_crc
 from eyeq_spi.sim.config import SimConfig
+from eyeq_spi.sim.dasp_fast import DaspPacker
 from eyeq_spi.sim.flash import FlashImage
 from eyeq_spi.sim.mesp_functions import (
     BOOT,
@@ -64,11 +65,11 @@ from eyeq_spi.sim.mesp_functions import (
     MespFunctions,
     SimCounters,
 )
-from eyeq_spi.sim.packer import DaspPacker
 from eyeq_spi.sim.scene import Scene, SceneConfig
 from eyeq_spi.sim.schedule import DueHeap
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
+from eyeq_spi.twins import exact
 
 
 class SimulatedEyeQ(MespFunctions):
@@ -226,7 +227,7 @@ class SimulatedEyeQ(MespFunctions):
         return self.conn.data_to_send(now) if self.powered else []
 
     def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
-        """runner/express.py: ``receive_data`` and ``data_to_send`` at the same ``now`` in one
+        """runner/virtual_fast.py: ``receive_data`` and ``data_to_send`` at the same ``now`` in one
         step for an ACK that settles a frame of a message still going out and lets no frame go
         (what they hand over: nothing). None, with nothing changed, for anything else. Called
         only while :meth:`get_timer` is later than ``now`` (the runner's promise)."""
@@ -456,10 +457,14 @@ class SimulatedEyeQ(MespFunctions):
         self._dasp_min = due.earliest(self._next_dasp, now)
 
     def _packer(self, m: MessageDef) -> DaspPacker | None:
-        """The message's packer; None: the dict path (switched off, or no packer for it)."""
+        """The message's packer; None: the dict path (switched off, by the config or, when the
+        config leaves it open, by ``EYEQ_SPI_EXACT=1``; or no packer for it)."""
         if m.name not in self._packers:
+            packed = self.config.dasp_packer
+            if packed is None:
+                packed = not exact()
             self._packers[m.name] = DaspPacker.build(self.codec.layout(m), m.data_id) \
-                if self.config.dasp_packer else None
+                if packed else None
         return self._packers[m.name]
 
     def _dasp_bytes(self, m: MessageDef, counter: int, now: float) -> bytes:

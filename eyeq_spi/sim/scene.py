@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from eyeq_spi.sim.packer import StructView
+from eyeq_spi.sim.dasp_fast import StructView
 from eyeq_spi.sim.scene_layout import (
     _AGE_ROW,
     _FILLERS,
@@ -191,7 +191,7 @@ class Scene(SceneWorld):
     # -- payloads ----------------------------------------------------------------------------
     def fill(self, name: str, values: dict[str, Any], t: float) -> None:
         """Write the scene into a ``zero_values()`` dict of DASP message ``name`` (any SW
-        version), or into a :class:`~eyeq_spi.sim.packer.DaspPacker`'s root view (the same
+        version), or into a :class:`~eyeq_spi.sim.dasp_fast.DaspPacker`'s root view (the same
         writes, packed in place); members the layout lacks are skipped, unknown messages are
         left unchanged."""
         method = _FILLERS.get(name)

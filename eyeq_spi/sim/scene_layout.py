@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from eyeq_spi.catalog.messages import Catalog, Member, SwKey, catalog
 from eyeq_spi.errors import CodecError, SpecError
-from eyeq_spi.sim.packer import BITS, NP_FMT, SCALAR, StructView
+from eyeq_spi.sim.dasp_fast import BITS, NP_FMT, SCALAR, StructView
 
 FArr = npt.NDArray[np.float64]
 IArr = npt.NDArray[np.int64]

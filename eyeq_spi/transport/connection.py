@@ -281,7 +281,7 @@ class TransportConnection:
         self.counters.transferAborts[reason] += 1
         self._events.append(TransferAborted(reason, o.transfer_id, len(o.buf), o.total))
 
-    # -- express path (runner/express.py) ---------------------------------------------------
+    # -- express path (runner/virtual_fast.py) ---------------------------------------------------
     def absorb(self, transfer: bytes, now: float) -> bytes | None:
         """``receive_data``, ``handle_timer`` and ``data_to_send`` at ``now`` in one step, for a
         DATA frame that the link accepts in order (:meth:`LinkConnection.in_order`) and whose

@@ -2,10 +2,10 @@
 
 Theory of operation
 -------------------
-:func:`~.vframes.frame_arrays` judges a chunk of transfers at once (header fields, CRC, frame
-type). Frame records depend on nothing but the transfer, so every frame record comes from these
-arrays. What the passive receivers do with the DATA frames is stateful; per direction the pass is
-in one of two modes:
+:func:`~.engine_fast_frames.frame_arrays` judges a chunk of transfers at once (header fields, CRC,
+frame type). Frame records depend on nothing but the transfer, so every frame record comes from
+these arrays. What the passive receivers do with the DATA frames is stateful; per direction the
+pass is in one of two modes:
 
 - **exact**: each transfer goes through the exact sans-IO engine
   (:class:`~.engine.Dissector.feed`), which is the reference for everything;
@@ -37,18 +37,19 @@ from __future__ import annotations
 
 import bisect
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from eyeq_spi.capture.fastread import DIR_NAME, Chunk
+from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.dissect.vcut import lean_messages
-from eyeq_spi.dissect.vframes import DATA, FrameArrays, FrameBlock, frame_arrays
-from eyeq_spi.dissect.vmessages import SpanDecoder, SpanMessage
+from eyeq_spi.dissect.engine_fast_cut import lean_messages
+from eyeq_spi.dissect.engine_fast_frames import DATA, FrameArrays, FrameBlock, frame_arrays
+from eyeq_spi.dissect.engine_fast_messages import SpanDecoder, SpanMessage
+from eyeq_spi.dissect.engine_fast_types import Dir, Frame, Item, Unit
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import SEQ_MODULO
 from eyeq_spi.transport.segment import (
@@ -68,10 +69,6 @@ REASSEMBLY_TIMEOUT: float = _T["reassembly_timeout"]
 RECEIVE_LIMIT = {"h2e": int(_T["receive_limit"]["eyeq"]), "e2h": int(_T["receive_limit"]["host"]),
                  None: int(_T["receive_limit"]["host"])}
 
-Item = dict[str, Any] | FrameBlock
-Frame = tuple[bytes, float | None, int, int]  # transfer, time, NUM, capture index
-
-
 @dataclass
 class _Plan:
     """One direction's fed rows in the current chunk and their per-row checks (as lists)."""
@@ -87,48 +84,15 @@ class _Plan:
     ip: int = 0  # next row (index into P) for the exact engine
 
 
-@dataclass
-class _Unit:
-    """One transfer of a span: its first and last index into the direction's rows."""
-
-    ks: int  # first index into P, -1: the open transfer carried in from the previous chunk
-    ke: int  # one past the last
-    first: bool
-
-
-@dataclass
-class _Dir:
-    """One direction's mode (exact or batch) and its span's state."""
-
-    name: str | None
-    code: int
-    batch: bool = False
-    canonical: bool = False  # exact mode: the last fed frame completed a message
-    # the span in the current chunk
-    units: list[_Unit] = field(default_factory=list)
-    ui: int = 0  # next unit to emit
-    stop_k: int = 0  # index into P of the first frame not in the span
-    open_ks: int = -1  # index into P of the open transfer's first frame, -1: none or carried
-    switch_row: int = 0
-    # carried across chunks in batch mode
-    last_num: int = -1
-    hist: list[list[Frame]] = field(default_factory=list)  # last complete units, oldest first
-    last_first: list[Frame] | None = None  # the span's last complete multi-frame transfer
-    carried: list[Frame] | None = None  # the open transfer at the start of the chunk
-    carried_tid: int = 0
-    carried_need: int = 0  # consecutive frames it still needs
-    carried_last_take: int = 0  # message bytes in its last frame (T6a: zeros after them)
-
-
 class BatchDissector:
     """Chunks in, records (dicts) and :class:`FrameBlock` items out, in capture order."""
 
     def __init__(self, sw: str | None = None, codec: MessageCodec | None = None,
                  *, fields: str = "dict") -> None:
         self.dis = Dissector(sw, codec)
-        self.decode = SpanDecoder(self.dis, fields=fields)  # vmessages.FIELD_MODES
+        self.decode = SpanDecoder(self.dis, fields=fields)  # engine_fast_messages.FIELD_MODES
         self.base = 0
-        self.dirs: dict[int, _Dir] = {}
+        self.dirs: dict[int, Dir] = {}
         self.deadline: float | None = None
         self._rows: dict[int, list[int]] = {}
 
@@ -157,7 +121,7 @@ class BatchDissector:
         for code in [int(c) for c in codes[np.argsort(first)]]:
             name = DIR_NAME[code]
             self.dis._dir(name)  # directions exist in the order the engine would create them
-            st = self.dirs.setdefault(code, _Dir(name, code))
+            st = self.dirs.setdefault(code, Dir(name, code))
             plans[code] = self._plan(fa, st)
         for code, st in self.dirs.items():
             pl = plans.setdefault(code, _empty_plan())
@@ -220,7 +184,7 @@ class BatchDissector:
         self.deadline = min(ts) if ts else None
 
     # -- planning ------------------------------------------------------------------------------
-    def _plan(self, fa: FrameArrays, st: _Dir) -> _Plan:
+    def _plan(self, fa: FrameArrays, st: Dir) -> _Plan:
         sel = np.flatnonzero(fa.fed & (fa.chunk.direction == st.code))
         if not sel.size:
             return _empty_plan()
@@ -265,7 +229,7 @@ class BatchDissector:
 
     @staticmethod
     def _padding(data: Any, sel: Any, tt: Any, total: Any, need: Any, link: Any,
-                 carried: _Dir | None) -> None:
+                 carried: Dir | None) -> None:
         """T6a: the last consecutive frame of a transfer carries zeros after the message's last
         byte. Where it does not, that frame is no link of a clean span, so the exact engine
         judges it (it NAKs the frame 0x011 and aborts the transfer as ``bad_padding``)."""
@@ -284,13 +248,13 @@ class BatchDissector:
         pad = np.arange(rows.shape[1])[None, :] >= (8 + takes)[:, None]
         link[lasts[((rows != 0) & pad).any(axis=1)]] = False
 
-    def _walk(self, fa: FrameArrays, st: _Dir, pl: _Plan, k0: int, *, fresh: bool) -> int:
+    def _walk(self, fa: FrameArrays, st: Dir, pl: _Plan, k0: int, *, fresh: bool) -> int:
         """The span from P[k0]: complete units, open transfer, stop index and switch row.
         ``fresh``: a new span (its first NUM was checked against E), else one carried in.
         Returns the number of this chunk's frames it covers."""
         P, okf, tt, need, cont, B = pl.P, pl.okf, pl.ttype, pl.need, pl.cont, pl.B
         n = len(P)
-        units: list[_Unit] = []
+        units: list[Unit] = []
         k = k0
         st.open_ks = -1
         open_carried = False
@@ -299,7 +263,7 @@ class BatchDissector:
             e = min(rest, n)
             if B[e] - B[0] == 0:
                 if rest <= n:
-                    units.append(_Unit(-1, rest, True))
+                    units.append(Unit(-1, rest, True))
                     k = rest
                 else:
                     k, open_carried = n, True
@@ -309,14 +273,14 @@ class BatchDissector:
             while k < n and okf[k] and ((fresh and k == k0) or cont[k]):
                 t = tt[k]
                 if t == SINGLE:
-                    units.append(_Unit(k, k + 1, False))
+                    units.append(Unit(k, k + 1, False))
                     k += 1
                 elif t == FIRST:
                     m = need[k]
                     e = min(k + m, n - 1)
                     nbad = B[e + 1] - B[k + 1]
                     if nbad == 0 and k + m < n:
-                        units.append(_Unit(k, k + m + 1, True))
+                        units.append(Unit(k, k + m + 1, True))
                         k += m + 1
                         continue
                     st.open_ks = k
@@ -342,7 +306,7 @@ class BatchDissector:
         st.switch_row = row
         return k - k0
 
-    def _try_span(self, fa: FrameArrays, st: _Dir, pl: _Plan, k: int) -> bool:
+    def _try_span(self, fa: FrameArrays, st: Dir, pl: _Plan, k: int) -> bool:
         conn = self.dis._dirs[st.name].conn
         if int(fa.num[pl.P[k]]) != conn.link.expected_num:
             return False
@@ -355,7 +319,7 @@ class BatchDissector:
     # -- output ------------------------------------------------------------------------------
     def _emit(self, fa: FrameArrays, lo: int, hi: int) -> FrameBlock:
         block = FrameBlock(fa, lo, hi)
-        done: list[tuple[int, _Dir, _Unit]] = []
+        done: list[tuple[int, Dir, Unit]] = []
         for st in self.dirs.values():
             if not st.batch:
                 continue
@@ -369,7 +333,7 @@ class BatchDissector:
                 st.ui += 1
         if len(done) > 1:
             done.sort(key=lambda x: x[0])
-        lean = lean_messages(self, fa, done) if self.decode.lean else None  # vcut
+        lean = lean_messages(self, fa, done) if self.decode.lean else None  # engine_fast_cut
         if lean is not None:  # --stats or one table writer, no filter
             block.messages, block.tables, block.counts = lean
         else:
@@ -381,7 +345,7 @@ class BatchDissector:
         self.dis.last_time = None if t != t else float(t)
         return block
 
-    def _frames(self, fa: FrameArrays, st: _Dir, ks: int, ke: int) -> list[Frame]:
+    def _frames(self, fa: FrameArrays, st: Dir, ks: int, ke: int) -> list[Frame]:
         """Frames P[ks:ke] of this chunk (ks = -1: after the carried open transfer)."""
         P = self._rows[st.code]
         times, nums = fa.lst("time"), fa.lst("num")
@@ -393,7 +357,7 @@ class BatchDissector:
             out.append((data[r].tobytes(), None if t != t else t, nums[r], fa.base + r))
         return out
 
-    def _messages(self, fa: FrameArrays, done: list[tuple[int, _Dir, _Unit]]
+    def _messages(self, fa: FrameArrays, done: list[tuple[int, Dir, Unit]]
                   ) -> list[SpanMessage]:
         """The messages of ``done`` (in order), cut from one copy of all their rows' transport
         payloads (a transfer's frames are consecutive there, so a multi-frame message is one
@@ -439,7 +403,7 @@ class BatchDissector:
                                    None if t != t else t, idxs))
         return out
 
-    def _message(self, fa: FrameArrays, st: _Dir, u: _Unit, row: int) -> SpanMessage:
+    def _message(self, fa: FrameArrays, st: Dir, u: Unit, row: int) -> SpanMessage:
         tid: int | None = None
         P = self._rows[st.code]
         data = fa.chunk.data
@@ -478,7 +442,7 @@ class BatchDissector:
                            list(frames_idx))
 
     # -- span state: what the receiver would hold --------------------------------------------
-    def _state(self, st: _Dir, fa: FrameArrays | None
+    def _state(self, st: Dir, fa: FrameArrays | None
                ) -> tuple[list[list[Frame]], list[Frame] | None, list[Frame] | None]:
         """(last complete units with at least W frames, oldest first; the last complete
         multi-frame transfer; the open transfer) of the span so far."""
@@ -511,7 +475,7 @@ class BatchDissector:
         units.reverse()
         return units, last_first, opened
 
-    def _to_exact(self, st: _Dir, fa: FrameArrays | None) -> None:
+    def _to_exact(self, st: Dir, fa: FrameArrays | None) -> None:
         """Reset the direction's receiver and feed it the span's tail again (output dropped)."""
         units, last_first, opened = self._state(st, fa)
         st.batch = st.canonical = False
@@ -537,7 +501,7 @@ class BatchDissector:
         while conn.next_event() is not None:
             pass
 
-    def _carry(self, fa: FrameArrays, st: _Dir, pl: _Plan) -> None:
+    def _carry(self, fa: FrameArrays, st: Dir, pl: _Plan) -> None:
         """End of a chunk in batch mode: keep the open transfer, the last units and the NUM."""
         units, last_first, opened = self._state(st, fa)
         if opened is not None:

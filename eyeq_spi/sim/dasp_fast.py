@@ -33,12 +33,12 @@ from typing import Any
 import numpy as np
 
 from eyeq_spi.codec.e2e import E2EState, _key
-from eyeq_spi.codec.fastpath import FMT
 from eyeq_spi.codec.layout import INT_RANGE, CrcPlan, Layout
+from eyeq_spi.codec.layout_fast import FMT
 from eyeq_spi.codec.message import DASP_PROTOCOL
 from eyeq_spi.errors import CodecError, EyeqError
 
-# numpy dtypes of the seed's primitive types (little-endian, as fastpath.FMT's "<" formats)
+# numpy dtypes of the seed's primitive types (little-endian, as layout_fast.FMT's "<" formats)
 NP_FMT = {"uint8": "u1", "uint16": "<u2", "uint32": "<u4", "uint64": "<u8", "int8": "i1",
           "int16": "<i2", "int32": "<i4", "int64": "<i8", "real32": "<f4", "real64": "<f8",
           "bool": "u1"}
@@ -154,7 +154,7 @@ class StructView:
         try:
             if s.kind == SCALAR:
                 s.st.pack_into(self.buf, o, value)
-            elif s.kind == BITS:  # fastpath._bits: the same check, then the container's bits
+            elif s.kind == BITS:  # layout_fast._bits: the same check, then the container's bits
                 if not isinstance(value, int) or not 0 <= value <= s.mask:
                     raise CodecError(f"{key}: {value!r} does not fit "
                                      f"{s.mask.bit_length()} bit(s)")

@@ -11,19 +11,17 @@ require both to give the same values and bytes for every struct variant.
 from __future__ import annotations
 
 import struct
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from eyeq_spi.codec.layout_types import LayoutShape
 from eyeq_spi.errors import CodecError
-
-if TYPE_CHECKING:
-    from eyeq_spi.codec.layout import Layout
 
 FMT = {"uint8": "B", "uint16": "H", "uint32": "I", "uint64": "Q", "int8": "b", "int16": "h",
        "int32": "i", "int64": "q", "real32": "f", "real64": "d", "bool": "B"}
 
 
 class FastCodec:
-    def __init__(self, layout: Layout) -> None:
+    def __init__(self, layout: LayoutShape) -> None:
         self._fmt: list[str] = []
         self._src: list[str] = []
         self._names: dict[int, str] = {}
@@ -52,7 +50,7 @@ class FastCodec:
             raise CodecError(f"cannot encode: {exc}") from None
 
     # -- generation --------------------------------------------------------------------------
-    def _gen(self, lay: Layout) -> str:
+    def _gen(self, lay: LayoutShape) -> str:
         """Generate d_<n>(t, o) and e_<n>(v, out) for ``lay``; returns <n>. Leaves are appended
         to the format in byte order, so a struct's leaves are one contiguous run."""
         n = str(len(self._names))

@@ -1,16 +1,17 @@
 """The lean modes of the batch dissector (``--stats`` or one table writer, no filter): a block's
 messages cut a group at a time straight from the chunk's array, no bytes object per message.
 
-:meth:`.batch.BatchDissector._emit` gives the transfers (units) of the spans that complete in a
-block. Here every unit whose frames are all in this chunk is located with numpy: its first row,
+:meth:`.engine_fast.BatchDissector._emit` gives the transfers (units) of the spans that complete in
+a block. Here every unit whose frames are all in this chunk is located with numpy: its first row,
 its message length (byte 7 of a single frame, T2; the total of a first frame, T3) and its first
 four message bytes, which rule A (decision A) classifies. The units of one (direction, data ID)
 DASP group, or one (direction, 0x41/0x10) group, that are all single frames or all first frames
 with the same frame count become one ``(n, length)`` array in one gather:
-:meth:`.vmessages.SpanDecoder.lean_group` judges it. Everything else — a group with a transfer
-carried in from the previous chunk, mixed transfer shapes, a wrong length, MESP, unknown IDs, a
-data ID in both directions when tables are written — becomes :class:`~.vmessages.SpanMessage`
-objects and takes the non-lean :meth:`~.vmessages.SpanDecoder.records`, as before.
+:meth:`.engine_fast_messages.SpanDecoder.lean_group` judges it. Everything else — a group with a
+transfer carried in from the previous chunk, mixed transfer shapes, a wrong length, MESP, unknown
+IDs, a data ID in both directions when tables are written — becomes
+:class:`~.engine_fast_messages.SpanMessage` objects and takes the non-lean
+:meth:`~.engine_fast_messages.SpanDecoder.records`, as before.
 
 The receivers' NUM -> capture index maps end as the engine's sequential updates leave them: one
 bulk update per direction over the block's frames, in order (the last index of each NUM wins).
@@ -19,23 +20,21 @@ bulk update per direction over the block's frames, in order (the last index of e
 from __future__ import annotations
 
 import bisect
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from eyeq_spi.capture.fastread import DIR_NAME
+from eyeq_spi.capture.pcapng_fast import DIR_NAME
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, DIAG_ID, classify
-from eyeq_spi.dissect.vmessages import ColumnGroup, GroupCount, SpanMessage
+from eyeq_spi.dissect.engine_fast_frames import FrameArrays
+from eyeq_spi.dissect.engine_fast_messages import ColumnGroup, GroupCount, SpanMessage
+from eyeq_spi.dissect.engine_fast_types import BatchState, Dir, Unit
 from eyeq_spi.link.frame import SEQ_MODULO
-
-if TYPE_CHECKING:
-    from eyeq_spi.dissect.batch import BatchDissector, _Dir, _Unit
-    from eyeq_spi.dissect.vframes import FrameArrays
 
 DIAG_KEY, BOOT_KEY = 256, 257  # group keys of 0x41 / 0x10 messages beside DASP data IDs 0..255
 _PROTO = {DIAG_KEY: "DIAG", BOOT_KEY: "BOOT"}
-Done = list[tuple[int, "_Dir", "_Unit"]]
+Done = list[tuple[int, Dir, Unit]]
 
 
 def _key_of(data: bytes) -> int:
@@ -46,13 +45,13 @@ def _key_of(data: bytes) -> int:
     return {"DIAG": DIAG_KEY, "BOOT": BOOT_KEY}.get(proto, -1)
 
 
-def lean_messages(bd: BatchDissector, fa: FrameArrays, done: Done
+def lean_messages(bd: BatchState, fa: FrameArrays, done: Done
                   ) -> tuple[list[tuple[int, dict[str, Any]]], list[ColumnGroup],
                              list[GroupCount]] | None:
     """(row, record) of the messages that get a record, in row order; the column groups
     (``first``: their position among those records); the counts of the others. None: the
-    block has a barrier message (:meth:`.vmessages.SpanDecoder.is_barrier`): the caller takes
-    the non-lean path, which judges the messages on each side of it apart."""
+    block has a barrier message (:meth:`.engine_fast_messages.SpanDecoder.is_barrier`): the
+    caller takes the non-lean path, which judges the messages on each side of it apart."""
     dec = bd.decode
     data = fa.chunk.data
     base = fa.base
@@ -196,7 +195,7 @@ def _gather(data: np.ndarray, P: np.ndarray | None, first: np.ndarray, ks: np.nd
     return out[:, :size]
 
 
-def _bulk_maps(bd: BatchDissector, fa: FrameArrays, codes: np.ndarray, ks: np.ndarray,
+def _bulk_maps(bd: BatchState, fa: FrameArrays, codes: np.ndarray, ks: np.ndarray,
                ke: np.ndarray, P_np: dict[int, np.ndarray]) -> None:
     """Every frame of the block's local units into its receiver's NUM -> index map, in order
     (a direction's units are consecutive in its rows, so their frames are one range)."""

@@ -1,4 +1,4 @@
-"""The messages of a batch span, decoded a group at a time (:mod:`eyeq_spi.codec.vdecode`).
+"""The messages of a batch span, decoded a group at a time (:mod:`eyeq_spi.codec.message_fast`).
 
 The batch dissector (:mod:`.batch`) reassembles a block's messages from its arrays; here they
 become message records. DASP messages are grouped by (direction, data ID): a group whose every
@@ -25,10 +25,11 @@ makes (``tests/test_batch.py`` holds them to it record for record).
   :class:`~.output.TableWriter` makes of the exact record, value for value). Also lean.
 
 Lean modes (``"count"``, ``"columns"``): the batch dissector cuts a group's messages straight into
-an array (:mod:`.vcut`) and :meth:`SpanDecoder.lean_group` judges it as :meth:`_group` would, but
-makes a record only for a message with an error; the others are one :class:`GroupCount` (how many,
-the rows and times of the first and last with a time), which is all ``--stats`` reads of them
-(:meth:`.vframes.FrameBlock.add_to`). Only plain consumers (no filter) take lean blocks.
+an array (:mod:`.engine_fast_cut`) and :meth:`SpanDecoder.lean_group` judges it as :meth:`_group`
+would, but makes a record only for a message with an error; the others are one :class:`GroupCount`
+(how many, the rows and times of the first and last with a time), which is all ``--stats`` reads of
+them (:meth:`.engine_fast_frames.FrameBlock.add_to`). Only plain consumers (no filter) take lean
+blocks.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ import numpy as np
 
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import classify
-from eyeq_spi.codec.vdecode import vec_layout
+from eyeq_spi.codec.message_fast import vec_layout
 from eyeq_spi.dissect.engine import SWITCH_APP, Dissector
 from eyeq_spi.errors import SpecError
 from eyeq_spi.transport.events import MessageReceived

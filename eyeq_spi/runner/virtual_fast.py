@@ -23,29 +23,17 @@ the run is paced to the wall clock, or when ``EYEQ_SPI_EXACT=1`` asks for the re
 from __future__ import annotations
 
 import heapq
-import os
-from typing import TYPE_CHECKING
 
 from eyeq_spi.phy.memory import MemoryAdapter
-
-if TYPE_CHECKING:
-    from eyeq_spi.runner.virtual import VirtualRunner
-
-EXACT_ENV = "EYEQ_SPI_EXACT"
-"""Set to 1: every runner uses the general per-frame loop only (the reference)."""
+from eyeq_spi.runner.virtual_types import RunnerState
 
 _INF = float("inf")
-
-
-def exact_requested() -> bool:
-    """True when the environment asks for the reference path."""
-    return os.environ.get(EXACT_ENV, "").strip() not in ("", "0")
 
 
 class Express:
     """The fast instant loop of one runner (see the module's description)."""
 
-    def __init__(self, runner: VirtualRunner) -> None:
+    def __init__(self, runner: RunnerState) -> None:
         self.runner = runner
         (self.n0, a0), (self.n1, a1) = runner.nodes
         assert isinstance(a0, MemoryAdapter) and isinstance(a1, MemoryAdapter)
@@ -60,7 +48,7 @@ class Express:
             for n in (self.n0, self.n1))
 
     @staticmethod
-    def eligible(runner: VirtualRunner) -> bool:
+    def eligible(runner: RunnerState) -> bool:
         """Two self-contained nodes on the two ends of one memory pair, a positive latency."""
         if len(runner.nodes) != 2 or not all(runner._alone) or runner.latency <= 0:
             return False

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from eyeq_spi.capture.fastread import DIR_NAME, Chunk
+from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.dissect.engine import TRANSPORT_NAMES
 from eyeq_spi.dissect.output import json_float
 from eyeq_spi.errors import BatchUnsupportedError as BatchUnsupportedError
@@ -184,8 +184,10 @@ class FrameBlock:
     lo: int
     hi: int
     messages: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
-    tables: list[Any] = field(default_factory=list)  # vmessages.ColumnGroup, "columns" mode
-    # vmessages.GroupCount, lean modes: messages without a record (plain consumers only)
+    # engine_fast_messages.ColumnGroup, "columns" mode
+    tables: list[Any] = field(default_factory=list)
+    # engine_fast_messages.GroupCount, lean modes: messages without a record (plain consumers
+    # only)
     counts: list[Any] = field(default_factory=list)
 
     def frame(self, i: int) -> dict[str, Any]:

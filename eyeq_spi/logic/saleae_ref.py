@@ -1,0 +1,315 @@
+"""Saleae SPI analyzer exports (``specs/bench.yaml`` ``saleae2``/``saleae1``), streamed.
+
+- Logic 2 "Export table": ``name,type,start_time,duration,"mosi","miso"``; per analyzer
+  (``name``) an ``enable`` row (CS falls), one ``result`` row per byte, a ``disable`` row (CS
+  rises). Several analyzers (one per SPI channel) may share one file.
+- Logic 1.x: ``Time [s],Packet ID,MOSI,MISO``; the rows of one ``Packet ID`` are one transfer.
+
+A transfer is the bytes between CS falling and rising (§6), so a chip-select fault is a transfer
+of the wrong length (L8). Bytes before a channel's first ``enable`` belong to a transfer the
+capture cut: they are dropped, as is a transfer still open at the end. Record times are the
+capture's (the ``enable`` row, or the first byte in Logic 1.x).
+
+This is the reference reader (the csv module, any shape of export, errors with their line);
+:mod:`eyeq_spi.logic.saleae_fast` tries numpy on each chunk first and falls back to it, and
+:mod:`eyeq_spi.logic.saleae` picks between them.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+from collections.abc import Callable, Iterator
+
+from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, Route, SpiOptions, bench_spec
+from eyeq_spi.logic.saleae_types import (
+    MAX_LINE,
+    ByteSource,
+    OpenTransfer,
+    Saleae1State,
+    Saleae2State,
+    seconds,
+)
+
+ChunkReader = Callable[..., "list[Record] | None"]
+"""A fast twin's reader of one chunk (``saleae_fast.saleae2_chunk``/``saleae1_chunk``): the
+records, or None when it declines the chunk (the csv loop then reads it)."""
+
+
+def _norm(cells: list[str]) -> list[str]:
+    return [c.strip().strip('"').strip().lower() for c in cells]
+
+
+def sniff(head: bytes) -> str | None:
+    line = head.removeprefix(b"\xef\xbb\xbf").split(b"\n", 1)[0].decode("utf-8", "replace")
+    cells = _norm(line.split(","))
+    s2 = [h.lower() for h in bench_spec()["saleae2"]["header"]]
+    s1 = [h.lower() for h in bench_spec()["saleae1"]["header"]]
+    if cells[:len(s2)] == s2:
+        return "saleae2"
+    if cells[:2] == s1[:2]:
+        return "saleae1"
+    return None
+
+
+_BYTES = {f"0x{v:02X}": v for v in range(256)} | {f"0x{v:02x}": v for v in range(256)}
+
+
+def _byte(text: str, n: int) -> int | None:
+    v = _BYTES.get(text)  # the usual hex radix, without parsing
+    if v is not None:
+        return v
+    t = text.strip().strip('"')
+    if not t:
+        return None
+    try:
+        v = int(t, 0) if t[:2].lower() in ("0x", "0b") else int(t, 10)
+    except ValueError:
+        raise LogicInputError(f"line {n}: {t[:20]!r} is not a byte (export with a hex, "
+                              "decimal or binary radix)") from None
+    if not 0 <= v <= 0xFF:
+        raise LogicInputError(f"line {n}: {v} is not a byte (set the analyzer to 8 bits)")
+    return v
+
+
+def _emit(tr: OpenTransfer, routes: list[Route]) -> Iterator[Record]:
+    for r in routes:
+        yield Record(tr.time, r.direction, bytes(tr.lines[r.line]))
+
+
+def _time(text: str, where: str) -> float:
+    try:
+        return seconds(text)
+    except ValueError:
+        raise LogicInputError(f"{where}: bad time {text[:30]!r}") from None
+
+
+def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
+                 ) -> Iterator[Record]:
+    try:
+        yield from _saleae2(src, opts, chunk_size, None)
+    except csv.Error as exc:
+        raise LogicInputError(f"not a CSV export: {exc}") from None
+
+
+def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
+                  ) -> Iterator[Record]:
+    try:
+        yield from _saleae1(src, opts, chunk_size, None)
+    except csv.Error as exc:
+        raise LogicInputError(f"not a CSV export: {exc}") from None
+
+
+def byte_chunks(src: ByteSource, size: int = 1 << 20) -> Iterator[bytes]:
+    """The stream in chunks of whole lines (the last may lack its newline), the UTF-8 BOM
+    dropped, bounded memory: a line longer than 64 KiB is an error."""
+    rest = b""
+    bom = True
+    while True:
+        data = src.read(size)
+        buf = rest + data
+        if bom:
+            if len(buf) < 3 and data:
+                rest = buf
+                continue
+            buf, bom = buf.removeprefix(b"\xef\xbb\xbf"), False
+        if not data:
+            if buf:
+                yield buf
+            return
+        cut = buf.rfind(b"\n") + 1
+        rest = buf[cut:]
+        if len(rest) > MAX_LINE:
+            raise LogicInputError("line longer than 64 KiB: not a Saleae export")
+        if cut:
+            yield buf[:cut]
+
+
+def _lines(chunk: bytes) -> list[str]:
+    parts = chunk.split(b"\n")
+    if not parts[-1]:
+        parts.pop()
+    return [p.rstrip(b"\r").decode("utf-8", "replace") for p in parts]
+
+
+def _head(chunks: Iterator[bytes]) -> tuple[list[str], bytes]:
+    """The normalised header cells and the rest of the first chunk."""
+    line0, _, body = next(chunks, b"").partition(b"\n")
+    text = line0.rstrip(b"\r").decode("utf-8", "replace")
+    return _norm(next(csv.reader([text]), [])), body
+
+
+def _line_count(chunk: bytes) -> int:
+    return chunk.count(b"\n") + (not chunk.endswith(b"\n"))
+
+
+class _Tries:
+    """The vectorised path is tried until it declined two chunks in a row (an export in a
+    radix or shape it does not take)."""
+
+    def __init__(self) -> None:
+        self.misses = 0
+
+    def __bool__(self) -> bool:
+        return self.misses < 2
+
+    def took(self, ok: bool) -> None:
+        self.misses = 0 if ok else self.misses + 1
+
+
+def _by_chunk(body: bytes, chunks: Iterator[bytes],
+              fast: Callable[[bytes], list[Record] | None] | None,
+              rows: Callable[[bytes, int], Iterator[Record]]) -> Iterator[Record]:
+    """Each chunk through the vectorised reader while it keeps succeeding (``_Tries``), else
+    through the csv row loop, which is told the chunk's first line number (the header is 1)."""
+    n = 2
+    tries = _Tries()
+    for chunk in itertools.chain([body], chunks):
+        if not chunk:
+            continue
+        recs = fast(chunk) if fast is not None and tries else None
+        if tries:
+            tries.took(recs is not None)
+        if recs is not None:
+            yield from recs
+        else:
+            yield from rows(chunk, n)
+        n += _line_count(chunk)
+
+
+def saleae2_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
+                    fast: ChunkReader | None) -> Iterator[Record]:
+    """:func:`read_saleae2` with a fast twin's chunk reader tried first (None: the csv loop
+    reads every chunk)."""
+    try:
+        yield from _saleae2(src, opts, chunk_size, fast)
+    except csv.Error as exc:
+        raise LogicInputError(f"not a CSV export: {exc}") from None
+
+
+def saleae1_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
+                    fast: ChunkReader | None) -> Iterator[Record]:
+    """:func:`read_saleae1` with a fast twin's chunk reader, as :func:`saleae2_records`."""
+    try:
+        yield from _saleae1(src, opts, chunk_size, fast)
+    except csv.Error as exc:
+        raise LogicInputError(f"not a CSV export: {exc}") from None
+
+
+def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkReader | None
+             ) -> Iterator[Record]:
+    chunks = byte_chunks(src, chunk_size)
+    header, body = _head(chunks)
+    try:
+        i_name, i_type, i_time = (header.index(c) for c in ("name", "type", "start_time"))
+        cols = {line: header.index(line) for line in bench_spec()["saleae2"]["data_columns"]}
+    except ValueError:
+        raise LogicInputError("not a Saleae Logic 2 SPI export: the header needs name, type, "
+                              "start_time, mosi and miso") from None
+    kinds = bench_spec()["saleae2"]["row_types"]
+    state = Saleae2State({}, {})
+    need = max(i_name, i_type, i_time, *cols.values())
+    yield from _by_chunk(
+        body, chunks,
+        None if fast is None else
+        lambda chunk: fast(chunk, len(header), cols, i_name, i_type, i_time, kinds, state, opts,
+                           OpenTransfer),
+        lambda chunk, n: _saleae2_rows(csv.reader(_lines(chunk)), n, len(header), need, cols,
+                                       (i_name, i_type, i_time), kinds, state, opts))
+    if state.results and not state.enables:
+        raise LogicInputError("the SPI analyzer had no Enable (chip select) channel: transfers "
+                              "cannot be framed")
+
+
+def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
+                  cols: dict[str, int], where: tuple[int, int, int], kinds: dict[str, str],
+                  state: Saleae2State, opts: SpiOptions) -> Iterator[Record]:
+    """The csv loop: exact for any shape, reports errors with their line."""
+    i_name, i_type, i_time = where
+    k_start, k_byte = kinds["start"], kinds["byte"]
+    open_, routes = state.open_, state.routes
+    col_list = list(cols.items())
+    for n, row in enumerate(rows, start=start):
+        if not row:
+            continue
+        if len(row) <= need:
+            raise LogicInputError(f"line {n}: {len(row)} columns, expected {ncols}")
+        name, kind = row[i_name], row[i_type]
+        if name not in routes:
+            routes[name] = opts.routes(name, len(routes) + 1)
+        if kind != k_byte and kind != k_start:
+            kind = kind.strip().lower()
+        if kind == k_byte:
+            state.results += 1
+            tr = open_.get(name)
+            if tr is None:
+                continue  # a transfer cut by the start of the capture
+            for line, col in col_list:
+                v = _byte(row[col], n)
+                if v is not None:
+                    buf = tr.lines[line]
+                    buf.append(v)
+                    if len(buf) > MAX_TRANSFER:
+                        raise LogicInputError(f"line {n}: transfer longer than {MAX_TRANSFER} "
+                                              "bytes")
+        elif kind == k_start:
+            state.enables += 1
+            open_[name] = OpenTransfer(_time(row[i_time], f"line {n}"))
+        elif kind == kinds["end"]:
+            tr = open_.pop(name, None)
+            if tr is not None:
+                yield from _emit(tr, routes[name])
+        else:
+            raise LogicInputError(f"line {n}: row type {kind!r} is not enable/result/disable")
+
+
+def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkReader | None
+             ) -> Iterator[Record]:
+    chunks = byte_chunks(src, chunk_size)
+    header, body = _head(chunks)
+    want = [h.lower() for h in bench_spec()["saleae1"]["header"]]
+    try:
+        i_time, i_id, i_mosi, i_miso = (header.index(c) for c in want)
+    except ValueError:
+        raise LogicInputError("not a Saleae Logic 1.x SPI export: the header needs "
+                              + ", ".join(want)) from None
+    routes = opts.routes("", 1)
+    state = Saleae1State()
+    where = (i_time, i_id, i_mosi, i_miso)
+    yield from _by_chunk(
+        body, chunks,
+        None if fast is None else
+        lambda chunk: fast(chunk, len(header), *where, state, routes, OpenTransfer),
+        lambda chunk, n: _saleae1_rows(csv.reader(_lines(chunk)), n, len(header), where, state,
+                                       routes))
+    if state.tr is not None:
+        # Logic 1.x marks no CS rising edge: the last packet ends with the file
+        yield from _emit(state.tr, routes)
+
+
+def _saleae1_rows(rows: Iterator[list[str]], start: int, ncols: int,
+                  where: tuple[int, int, int, int], state: Saleae1State, routes: list[Route]
+                  ) -> Iterator[Record]:
+    i_time, i_id, i_mosi, i_miso = where
+    for n, row in enumerate(rows, start=start):
+        if not row:
+            continue
+        if len(row) <= max(where):
+            raise LogicInputError(f"line {n}: {len(row)} columns, expected {ncols}")
+        pid = row[i_id].strip()
+        if not pid:
+            raise LogicInputError(f"line {n}: no Packet ID: the SPI analyzer had no Enable "
+                                  "(chip select) channel, transfers cannot be framed")
+        if pid != state.packet:
+            if state.tr is not None:
+                yield from _emit(state.tr, routes)
+            state.tr, state.packet = OpenTransfer(_time(row[i_time], f"line {n}")), pid
+        tr = state.tr
+        assert tr is not None
+        for line, col in (("mosi", i_mosi), ("miso", i_miso)):
+            v = _byte(row[col], n)
+            if v is not None:
+                tr.lines[line].append(v)
+        if len(tr.lines["mosi"]) > MAX_TRANSFER or len(tr.lines["miso"]) > MAX_TRANSFER:
+            raise LogicInputError(f"line {n}: transfer longer than {MAX_TRANSFER} bytes")

@@ -1,0 +1,37 @@
+"""The exact/fast switch shared by every twin family.
+
+Where a hot path has a faster twin (numpy, ``struct``, a packed buffer, an express loop), the
+pure-Python one is the reference: it is what the seed says, and the fast one is held to give
+the same output (``tests/test_twins.py``). A facade picks the fast twin unless
+``EYEQ_SPI_EXACT=1`` is set in the environment; then every family runs its reference.
+
+The convention (``docs/STYLE.md``): ``<name>_ref.py`` the reference, ``<name>_fast.py`` the
+fast twin, ``<name>_types.py`` the vocabulary both share, and ``<name>.py`` the facade the rest
+of the code imports. :data:`FAMILIES` lists them.
+"""
+
+from __future__ import annotations
+
+import os
+
+EXACT_ENV = "EYEQ_SPI_EXACT"
+"""Set to 1 (any value but empty or 0): every facade picks its reference."""
+
+
+def exact() -> bool:
+    """True when the environment asks for the references. Read at each call (cheap), so a
+    test or a tool may set the variable for one run."""
+    return os.environ.get(EXACT_ENV, "").strip() not in ("", "0")
+
+
+FAMILIES: dict[str, tuple[str, str]] = {
+    # family: (reference, fast twin); the facade is the family's module
+    "logic.saleae": ("eyeq_spi.logic.saleae_ref", "eyeq_spi.logic.saleae_fast"),
+    "logic.vcd": ("eyeq_spi.logic.vcd_ref", "eyeq_spi.logic.vcd_fast"),
+    "codec.layout": ("construct codec (Layout.parse_construct)", "eyeq_spi.codec.layout_fast"),
+    "codec.message": ("Layout.parse per message", "eyeq_spi.codec.message_fast"),
+    "dissect.engine": ("eyeq_spi.dissect.engine", "eyeq_spi.dissect.engine_fast"),
+    "capture.pcapng": ("eyeq_spi.capture.pcapng_io", "eyeq_spi.capture.pcapng_fast"),
+    "sim.dasp": ("the dict path (MessageCodec.encode)", "eyeq_spi.sim.dasp_fast"),
+    "runner.virtual": ("eyeq_spi.runner.virtual", "eyeq_spi.runner.virtual_fast"),
+}
