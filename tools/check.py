@@ -76,20 +76,32 @@ def _workers(args: list[str]) -> list[str]:
     return ["-n", "2", "--dist", "loadfile"]
 
 
-def _twin_args(args: list[str]) -> list[str]:
-    """``args`` with the ``twin`` marker added to a ``-m`` expression the caller gave (pytest
-    keeps only the last ``-m``)."""
+def _marked(args: list[str], expr: str) -> list[str]:
+    """``args`` with the marker expression ``expr`` and'ed to a ``-m`` expression the caller gave
+    (pytest keeps only the last ``-m``)."""
     out: list[str] = []
-    expr = "twin"
+    given = None
     it = iter(args)
     for a in it:
         if a == "-m":
-            expr = f"twin and ({next(it, '')})"
+            given = next(it, "")
         elif a.startswith("-m") and not a.startswith("-m="):
-            expr = f"twin and ({a[2:]})"
+            given = a[2:]
         else:
             out.append(a)
-    return ["-m", expr, *out]
+    return ["-m", f"{expr} and ({given})" if given else expr, *out]
+
+
+def _pytest(name: str, py: str, args: list[str], *, selected: bool, workers: bool = True,
+            env: dict[str, str] | None = None) -> int:
+    """One pytest pass. Exit code 5 (no test collected) fails it, unless the caller's own
+    selection (``selected``: -k, -m, paths) may leave a pass empty."""
+    rc = run(name, [py, "-m", "pytest", *(_workers(args) if workers else []), *args], env=env)
+    if rc == 5:
+        if selected:
+            return 0
+        print(f"FAILED: {name} collected no tests", file=sys.stderr)
+    return rc
 
 
 def oldest(pytest_args: list[str]) -> int:
@@ -104,7 +116,7 @@ def oldest(pytest_args: list[str]) -> int:
         return 1
     subprocess.call([str(py), "-m", "pip", "list", "--format=freeze"], cwd=ROOT)
     rc = run("oldest: pytest", [str(py), "-m", "pytest", *_workers(pytest_args), *OLDEST_TESTS,
-                                *pytest_args])
+                                *_marked(pytest_args, "not realtime")])
     if rc:
         print("FAILED: the tests on the oldest allowed versions", file=sys.stderr)
     return rc
@@ -127,23 +139,23 @@ def main() -> int:
         if run(name, cmd) != 0:
             print(f"FAILED: {name}", file=sys.stderr)
             return 1
-    rc = run("pytest", [py, "-m", "pytest", *_workers(args), *args])
-    if rc == 5:
-        print("FAILED: pytest collected no tests", file=sys.stderr)
-        return 1
-    if rc:
-        return rc
-    # the references: every facade picks them (eyeq_spi/twins.py); a -k that selects no twin
-    # test leaves nothing to run here, which is not a failure
-    rc = run("pytest, references (EYEQ_SPI_EXACT=1)",
-             [py, "-m", "pytest", *_workers(args), *_twin_args(args)],
-             env={"EYEQ_SPI_EXACT": "1"})
-    if rc == 5 and args:
-        rc = 0
-    if rc or not with_oldest:
-        if rc == 5:
-            print("FAILED: no test is marked twin", file=sys.stderr)
-        return rc
+    # the bounded real-time tests (two processes, wall clock) run on their own, one at a time,
+    # after the others: beside a busy xdist worker a peer process can be starved past the
+    # protocol's 10 ms ackTimeout, which no judge of ours could tell from a late ACK
+    passes = [
+        ("pytest", _marked(args, "not realtime"), True, None),
+        ("pytest, real-time tests one at a time", _marked(args, "realtime"), False, None),
+        # the references: every facade picks them (eyeq_spi/twins.py)
+        ("pytest, references (EYEQ_SPI_EXACT=1)", _marked(args, "twin and not realtime"), True,
+         {"EYEQ_SPI_EXACT": "1"}),
+    ]
+    for name, pargs, workers, env in passes:
+        rc = _pytest(name, py, pargs, selected=bool(args), workers=workers, env=env)
+        if rc:
+            print(f"FAILED: {name}", file=sys.stderr)
+            return rc
+    if not with_oldest:
+        return 0
     return oldest(args)
 
 
