@@ -46,7 +46,7 @@ def capture(tmp_path_factory: pytest.TempPathFactory) -> list[Record]:
     assert len(recs) > 20 and {r.direction for r in recs} == {"h2e", "e2h"}
     # one transfer every 250 us, in capture order: no transfer overlaps another (a VCD writer
     # moves one that would overlap its channel's previous transfer, as an ACK handed over with
-    # a DATA frame; tests/test_bench.py covers that)
+    # a DATA frame; tests/test_logic.py covers that)
     return [Record(round(0.15 + i * 250e-6, 6), r.direction, r.data) for i, r in enumerate(recs)]
 
 
@@ -283,8 +283,8 @@ def _parquet(recs: list[dict[str, Any]], out: Path) -> Any:
 ROUND_TRIPS: dict[str, Callable[[list[dict[str, Any]], Path], Any]] = {
     "jsonl": _jsonl, "csv": _csv, "parquet": _parquet}
 READ_BACK_ELSEWHERE = {  # writers whose reading back needs their own library's reader
-    "mdf4": "tests/test_bench.py::test_mdf_export_reads_back_with_asammdf",
-    "mcap": "tests/test_bench.py::test_mcap_export_reads_back",
+    "mdf4": "tests/test_logic.py::test_mdf_export_reads_back_with_asammdf",
+    "mcap": "tests/test_logic.py::test_mcap_export_reads_back",
 }
 
 

@@ -2,8 +2,8 @@
 inputs, and ``EYEQ_SPI_EXACT=1`` makes every facade pick the reference.
 
 One case per family (``eyeq_spi.twins.FAMILIES``); the inputs are the ones the families' own
-tests use (the capture generators of ``test_vdecode``, ``test_fastread_read``,
-``test_bench_readers``, the emulations of ``test_runner_express`` and ``test_dasp_packer``),
+tests use (the capture generators of ``test_codec_message_fast``, ``test_capture_pcapng_fast``,
+``test_logic_saleae_fast``, the emulations of ``test_runner_virtual_fast`` and ``test_sim_dasp_fast``),
 taken here at fixed seeds; those modules keep their randomised and fault-specific checks."""
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ def _saleae(kind: str) -> Pair:
 def _vcd() -> Pair:
     from eyeq_spi.logic import vcd_fast, vcd_ref
     from eyeq_spi.logic.vcd_write import write_vcd
-    from tests.test_bench_readers import _sigrok_layout
+    from tests.test_logic_saleae_fast import _sigrok_layout
 
     rng = random.Random(3)
     out: list[list[Any]] = [[], []]
@@ -110,7 +110,7 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def _layout() -> Pair:
-    from tests.test_vdecode import CASES, _codec
+    from tests.test_codec_message_fast import CASES, _codec
 
     rng = random.Random(4)
     ref: list[Any] = []
@@ -134,7 +134,7 @@ def _dissect() -> Pair:
     from eyeq_spi.capture.pcapng_fast import chunks_from_records
     from eyeq_spi.dissect import engine
     from eyeq_spi.dissect import engine_fast as batch
-    from tests.test_vdecode import _capture
+    from tests.test_codec_message_fast import _capture
 
     ref: list[Any] = []
     fast: list[Any] = []
@@ -151,7 +151,7 @@ def _dissect() -> Pair:
 def _pcapng(tmp_path: Path) -> Pair:
     from eyeq_spi.capture.pcapng_fast import pcapng_chunks
     from eyeq_spi.capture.pcapng_io import Tail
-    from tests.test_fastread_read import _capture
+    from tests.test_capture_pcapng_fast import _capture
 
     blob = _capture(tmp_path / "c.pcapng")
     ref: list[Any] = []
@@ -168,7 +168,7 @@ def _pcapng(tmp_path: Path) -> Pair:
 
 # -- sim and runner ------------------------------------------------------------------------------
 def _dasp() -> Pair:
-    from tests.test_dasp_packer import _dasp, _pair
+    from tests.test_sim_dasp_fast import _dasp, _pair
 
     ref_sim, fast_sim = _pair(seed=5, objects=15, signs=20, light_spots=15)
     ref: list[bytes] = []
@@ -185,7 +185,7 @@ def _dasp() -> Pair:
 
 def _runner() -> Pair:
     from eyeq_spi.sim.config import SimConfig
-    from tests.test_runner_express import _emulation, _state
+    from tests.test_runner_virtual_fast import _emulation, _state
 
     out = []
     for express in (False, True):
@@ -245,7 +245,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
     from eyeq_spi.sim import dasp_fast
     from eyeq_spi.sim.config import SimConfig
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
-    from tests.test_vdecode import _capture
+    from tests.test_codec_message_fast import _capture
 
     buf = io.StringIO()
     write_vcd([Record(0.0, "h2e", b"\x01\x02")], buf, SpiOptions())

@@ -43,7 +43,7 @@ def ensure_tshark() -> None:
 
 
 def ensure_sigrok() -> None:
-    """The sigrok decoder test (tests/test_bench_sigrok.py) runs Debian's sigrok-cli with its
+    """The sigrok decoder test (tests/test_interop_sigrok.py) runs Debian's sigrok-cli with its
     libsigrokdecode (package libsigrokdecode4, pulled in by sigrok-cli): installed like tshark;
     otherwise that test skips and says why."""
     if shutil.which("sigrok-cli"):
@@ -61,10 +61,10 @@ def ensure_sigrok() -> None:
 # the tests that exercise third-party libraries (formats, codecs, tables, plots, CAN, Dask,
 # terminal, start-up imports): what the oldest allowed versions must pass too
 OLDEST_TESTS = [
-    "tests/test_vdecode.py", "tests/test_dissect.py", "tests/test_batch_fleet.py",
-    "tests/test_bench.py", "tests/test_plot.py", "tests/test_monitor_compact.py",
-    "tests/test_startup.py", "tests/test_specs.py", "tests/test_codec.py",
-    "tests/test_can_spec.py", "tests/test_can_decode.py", "tests/test_can_bus.py",
+    "tests/test_codec_message_fast.py", "tests/test_cli_dissect.py", "tests/test_cli_batch.py",
+    "tests/test_logic.py", "tests/test_plot.py", "tests/test_monitor_compact.py",
+    "tests/test_startup.py", "tests/test_catalog.py", "tests/test_codec.py",
+    "tests/test_catalog_can.py", "tests/test_cli_can.py", "tests/test_can_logs.py",
 ]
 
 

@@ -1,7 +1,7 @@
 """What ``--help`` shows beyond the options: a description for every command and 2-3 examples
 (an argparse epilog, kept as written by ``RawDescriptionHelpFormatter``; descriptions are
 wrapped here to the terminal instead). Every example is a command that parses
-(``tests/test_term.py``)."""
+(``tests/test_cli_progress.py``)."""
 
 from __future__ import annotations
 

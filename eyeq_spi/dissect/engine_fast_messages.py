@@ -11,7 +11,7 @@ engine's ``_message``. The receivers'
 state is per (direction, data ID) for DASP (decision D1; E2E counters are keyed by the message's
 own layout, and no two DASP messages of a release share one, which the tests check), so groups
 are independent and each is judged in capture order: every record is the one the exact engine
-makes (``tests/test_batch.py`` holds them to it record for record).
+makes (``tests/test_dissect_engine_fast.py`` holds them to it record for record).
 
 ``fields`` says what the records of the vectorised groups carry:
 

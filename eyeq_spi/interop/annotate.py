@@ -1,6 +1,6 @@
 """SPI transfers of one channel -> sigrok annotation rows (link, transport, message, event),
 computed by the dissector engine: the sigrok decoder repeats no codec. The texts are the same
-functions of the dissector's records that ``tests/test_bench_sigrok.py`` applies to
+functions of the dissector's records that ``tests/test_interop_sigrok.py`` applies to
 ``eyeq-spi dissect --json``, so the two can be compared frame by frame."""
 
 from __future__ import annotations

@@ -145,7 +145,7 @@ class FrameCodec:
     # -- encode / decode ----------------------------------------------------------------------
     def encode(self, frame: Frame) -> bytes:
         # FRAME_LAYOUT (construct) is the reference layout; this is its hot-path equivalent,
-        # and tests/test_frame.py checks that both give the same bytes.
+        # and tests/test_link_frame.py checks that both give the same bytes.
         word = self.pack_header(frame.d, frame.r, frame.rsp, frame.num)
         header = word.to_bytes(4, "little")
         data = frame.data if frame.d not in (FrameKind.ACK, FrameKind.NAK) else _ZERO_DATA

@@ -6,7 +6,7 @@ kept between events; a node is asked ``get_timer()`` again only after it was tou
 a transfer, handled a timer, or was asked for data), and ``data_to_send`` again only when it was
 touched, handed something over, or the clock moved. The calls that remain are the ones a polling
 loop would make that can change something, in the same order, so the transfers and their times
-are those of polling (``tests/test_runner_events.py`` compares both, transfer by transfer).
+are those of polling (``tests/test_runner_virtual.py`` compares both, transfer by transfer).
 
 What counts as a touch is deliberately broad: ``receive_data`` and ``handle_timer`` on a node
 invalidate every node's cached deadline, because a node may act on another one inside those calls

@@ -17,7 +17,7 @@ whole run when the wire is not clean (a ``mangle`` fault hook on an adapter, a c
 transfers put into an adapter from outside), when a node does not promise to be self-contained
 (a conformance shim or mutant), when ``verify`` is on, when a ``stop`` condition is polled or
 the run is paced to the wall clock, or when ``EYEQ_SPI_EXACT=1`` asks for the reference path
-(``tests/test_runner_events.py`` compares both transfer by transfer).
+(``tests/test_runner_virtual.py`` compares both transfer by transfer).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Regression tests for the defects the fault campaign found. Each failed
-before its fix; defect 1 (splice across a peer reset) is in tests/test_passive.py."""
+before its fix; defect 1 (splice across a peer reset) is in tests/test_dissect_engine.py."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Seed content found missing from specs/, and decisions D6/M7/M2/M3 as data: checked
-against the seed text (OCR'd seed 004) and PROTOCOL_DECISIONS.md like tests/test_specs.py does."""
+against the seed text (OCR'd seed 004) and PROTOCOL_DECISIONS.md like tests/test_catalog.py does."""
 
 from __future__ import annotations
 

@@ -13,7 +13,7 @@ from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import engine
 from eyeq_spi.dissect import engine_fast as batch
-from tests.test_batch import Wire
+from tests.test_dissect_engine_fast import Wire
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 

@@ -12,7 +12,7 @@ import pytest
 
 from eyeq_spi.capture.pcapng_io import CaptureWriter
 from eyeq_spi.cli import main
-from tests.test_batch import BASE, MUTATIONS, Rec
+from tests.test_dissect_engine_fast import BASE, MUTATIONS, Rec
 
 pa = pytest.importorskip("pyarrow", reason="the fleet extra (pyarrow) is not installed")
 ds = pytest.importorskip("pyarrow.dataset", reason="the fleet extra (pyarrow) is not installed")

@@ -18,7 +18,7 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import pipeline
 from eyeq_spi.dissect.pipeline import DissectConfig, dissect_files, open_capture_file
 from eyeq_spi.logic.options import SpiOptions, parse_channel_map
-from tests.test_bench import _saleae2
+from tests.test_logic import _saleae2
 
 MAP = "h2e=SPI [1]:mosi,e2h=SPI [2]"  # analyzers named so need the map: plot and monitor
 # read no such capture before they took the pipeline's options

@@ -1,5 +1,5 @@
 """``export --vcd``: the size is said before writing and bounded by --vcd-max-size; idle time
-can be compressed; the long export shows the shared progress bar (tests/test_term.py)."""
+can be compressed; the long export shows the shared progress bar (tests/test_cli_progress.py)."""
 
 from __future__ import annotations
 

@@ -19,7 +19,7 @@ from eyeq_spi.phy.memory import memory_pair
 from eyeq_spi.runner.virtual import VirtualRunner
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
-from tests.test_batch import Wire
+from tests.test_dissect_engine_fast import Wire
 
 FC = FrameCodec()
 MC = MessageCodec()
