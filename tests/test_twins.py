@@ -3,7 +3,8 @@ inputs, and ``EYEQ_SPI_EXACT=1`` makes every facade pick the reference.
 
 One case per family (``eyeq_spi.twins.FAMILIES``); the inputs are the ones the families' own
 tests use (the capture generators of ``test_codec_message_fast``, ``test_capture_pcapng_fast``,
-``test_logic_saleae_fast``, the emulations of ``test_runner_virtual_fast`` and ``test_sim_dasp_fast``),
+``test_logic_saleae_fast``, the emulations of ``test_runner_virtual_fast`` and
+``test_sim_dasp_fast``),
 taken here at fixed seeds; those modules keep their randomised and fault-specific checks."""
 
 from __future__ import annotations

@@ -186,8 +186,8 @@ class _Pair:
 def transport_pair(data: bytes) -> None:
     """A frame held for reordering still arrives when the peer resets, before the reset's
     frames: frames are reordered among themselves, never across a reset, because SPI and byte
-    streams keep order (T6a; ``tests/test_transport_connection.py`` pins what a channel that reorders
-    across a reset would do)."""
+    streams keep order (T6a; ``tests/test_transport_connection.py`` pins what a channel that
+    reorders across a reset would do)."""
     _transport_pair(data, lose_held_at_reset=False)
 
 
