@@ -22,9 +22,8 @@ from __future__ import annotations
 import importlib
 import importlib.util
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import PurePath
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 from eyeq_spi.errors import MissingExtraError, UnknownFormatError
 
@@ -39,8 +38,7 @@ Takes = Literal["direction", "spi", "tail", ""]
 Truncation = Literal["error", "drop", "short", ""]
 
 
-@dataclass(frozen=True)
-class Format:
+class Format(NamedTuple):  # a NamedTuple: dataclasses would cost the CLI's start-up 10 ms
     """A registered format. ``target``: ``module:callable``, imported by :func:`load`.
 
     Capture readers are called ``target(stream, arg)`` where ``takes`` names ``arg``: the
