@@ -20,6 +20,8 @@ from eyeq_spi.capture.pcapng_io import CaptureError, CaptureWriter, Tail, read_p
 from eyeq_spi.cli import main
 from eyeq_spi.io.plain import InputError, open_records
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 WRITER = """
 import itertools, sys
 from eyeq_spi.capture.pcapng_io import CaptureWriter

@@ -14,6 +14,8 @@ from eyeq_spi.capture.pcapng_io import CaptureWriter
 from eyeq_spi.cli import main
 from tests.test_dissect_engine_fast import BASE, MUTATIONS, Rec
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 pa = pytest.importorskip("pyarrow", reason="the fleet extra (pyarrow) is not installed")
 ds = pytest.importorskip("pyarrow.dataset", reason="the fleet extra (pyarrow) is not installed")
 

@@ -18,6 +18,8 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.link.frame import FrameCodec, NakReason
 from eyeq_spi.transport.segment import segment
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 ROOT = Path(__file__).resolve().parents[1]
 FC = FrameCodec()
 MC = MessageCodec()

@@ -20,6 +20,8 @@ from eyeq_spi.dissect.pipeline import DissectConfig, dissect_files, open_capture
 from eyeq_spi.logic.options import SpiOptions, parse_channel_map
 from tests.test_logic import _saleae2
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 MAP = "h2e=SPI [1]:mosi,e2h=SPI [2]"  # analyzers named so need the map: plot and monitor
 # read no such capture before they took the pipeline's options
 

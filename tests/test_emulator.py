@@ -17,6 +17,8 @@ from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import CsvScenario
 from eyeq_spi.sim.config import SimConfig
 
+pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+
 S = HostState
 
 

@@ -70,6 +70,7 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
     Returns a JSON-ready summary (never raises for a bad capture)."""
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.dissect.batch_run import batch_items
+    from eyeq_spi.dissect.engine import Dissector
     from eyeq_spi.dissect.engine_fast_frames import FrameBlock
     from eyeq_spi.dissect.release import open_capture
 
@@ -111,10 +112,10 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
             summary.update(cap.release.as_dict())
             if cap.release.warning:
                 summary["warning"] = cap.release.warning
-            items = batch_items(fh, "pcapng", None, MessageCodec(cap.release.key),
-                                tail=cap.tail)
-            if items is None:
-                raise FleetError("not a pcapng capture")
+            codec = MessageCodec(cap.release.key)
+            items: Iterator[Any] | None = batch_items(fh, "pcapng", None, codec, tail=cap.tail)
+            if items is None:  # the exact engine (EYEQ_SPI_EXACT=1): the same records
+                items = _exact(Dissector(codec=codec), cap.records)
             for item in items:
                 if isinstance(item, FrameBlock):
                     summary["frames"] += item.hi - item.lo
@@ -213,3 +214,10 @@ def _on_dask(tasks: list[tuple[str, str]], out: str, sw: str | None, scheduler: 
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _exact(dis: Any, records: Iterator[Any]) -> Iterator[dict[str, Any]]:
+    """Every record of the exact engine over ``records``, with the end-of-capture aborts."""
+    for rec in records:
+        yield from dis.feed(rec)
+    yield from dis.finish()
