@@ -234,20 +234,27 @@ def records(capture: list[Record]) -> list[dict[str, Any]]:
 
 
 def _rows(records: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
-    """The table rows of the messages with fields (``docs/dissector.md`` tables)."""
-    from eyeq_spi.dissect.output import flatten
+    """The table rows of the messages with fields (``docs/dissector.md`` tables), every field
+    kept: a table per message name, a MESP reply in ``NAME.reply``; a row with a column its
+    table's header lacks goes in the next part (``NAME.2``) whose header holds it."""
+    from eyeq_spi.dissect.output import flatten, table_name
 
     out: dict[str, list[dict[str, Any]]] = {}
+    headers: dict[str, list[list[str]]] = {}
     for r in records:
         if r["kind"] == "message" and r["fields"]:
-            out.setdefault(r["name"] or r["protocol"], []).append(
-                {"file": None, "frame_index": r["frames"][-1], "time": r["time"],
-                 "direction": r["direction"],
-                 **{f"header.{k}": v for k, v in r["header"].items()}, **flatten(r["fields"])})
-    # a table's columns are its first row's (TableWriter, CSV and Parquet alike): a later row
-    # with other fields (a reply under its request's name) has them dropped or left empty
-    return {name: [{k: row.get(k) for k in rows[0]} for row in rows]
-            for name, rows in out.items()}
+            row = {"file": None, "frame_index": r["frames"][-1], "time": r["time"],
+                   "direction": r["direction"],
+                   **{f"header.{k}": v for k, v in r["header"].items()}, **flatten(r["fields"])}
+            name = table_name(r)
+            parts = headers.setdefault(name, [])
+            k = next((i for i, h in enumerate(parts) if set(row) <= set(h)), None)
+            if k is None:
+                parts.append(list(row))
+                k = len(parts) - 1
+            stem = name if k == 0 else f"{name}.{k + 1}"
+            out.setdefault(stem, []).append({c: row.get(c) for c in parts[k]})
+    return out
 
 
 def _jsonl(recs: list[dict[str, Any]], out: Path) -> Any:
@@ -320,3 +327,41 @@ def test_docs_table_is_the_registry() -> None:
     assert table == registry.markdown_table(), (
         "docs/captures.md is stale: put the output of python -c 'from eyeq_spi.io import "
         "markdown_table; print(markdown_table(), end=\"\")' between its markers")
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_a_row_with_a_new_column_goes_in_a_new_part_not_lost(fmt: str, tmp_path: Path) -> None:
+    """Two releases' variants of one message (other members) in one run: the table's first
+    part keeps its header, the row with a member it lacks goes in ``NAME.2``; nothing is lost."""
+    if fmt == "parquet":
+        pytest.importorskip("pyarrow", reason="the parquet extra (pyarrow) is not installed")
+    w = registry.load(fmt, RECORD_WRITER)(str(tmp_path), fmt)
+
+    def rec(i: int, fields: dict[str, Any]) -> dict[str, Any]:
+        return {"kind": "message", "name": "M", "protocol": "DASP", "frames": [i], "time": i / 10,
+                "direction": "e2h", "header": {"counter": i}, "fields": fields}
+
+    for r in (rec(1, {"a": 1}), rec(2, {"a": 2, "b": 3}), rec(3, {"a": 4}), rec(4, {"b": 5})):
+        w.write(r)
+    w.close()
+    if fmt == "csv":
+        got = {p.stem: list(csv.DictReader(p.open(encoding="utf-8")))
+               for p in tmp_path.glob("*.csv")}
+        assert [r["a"] for r in got["M"]] == ["1", "4"]
+        assert [(r["a"], r["b"]) for r in got["M.2"]] == [("2", "3"), ("", "5")]
+    else:
+        import pyarrow.parquet as pq
+
+        # rows are written in groups: a group's table has every column of its rows, and a later
+        # group with a column the file lacks would open M.2 as the CSV does
+        rows = [r for p in sorted(tmp_path.glob("M*.parquet"))
+                for r in pq.read_table(p).to_pylist()]
+        assert sorted(((r["a"], r.get("b")) for r in rows), key=str) == sorted(
+            [(1, None), (2, 3), (4, None), (None, 5)], key=str)
+        w = registry.load(fmt, RECORD_WRITER)(str(tmp_path / "g"), fmt, batch=1)
+        for r in (rec(1, {"a": 1}), rec(2, {"a": 2, "b": 3}), rec(3, {"a": 4})):
+            w.write(r)
+        w.close()
+        got = {p.stem: pq.read_table(p).to_pylist() for p in (tmp_path / "g").glob("*.parquet")}
+        assert [r["a"] for r in got["M"]] == [1, 4]
+        assert [(r["a"], r["b"]) for r in got["M.2"]] == [(2, 3)]

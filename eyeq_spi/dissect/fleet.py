@@ -25,7 +25,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.dissect.output import OutputError, flatten
+from eyeq_spi.dissect.output import OutputError, flatten, table_name
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.errors import FleetError as FleetError
 
@@ -77,7 +77,7 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
     pa, pq = _pyarrow()
     summary: dict[str, Any] = {"capture": capture, "path": path, "frames": 0, "messages": {},
                                "events": 0, "error": None}
-    writers: dict[str, Any] = {}
+    writers: dict[str, list[Any]] = {}  # each table's Parquet parts
     rows: dict[str, list[dict[str, Any]]] = {}
     base = Path(out) / f"capture={capture}"
 
@@ -85,19 +85,27 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
         batch = rows.get(name)
         if not batch:
             return
-        table = pa.Table.from_pylist(batch)
-        w = writers.get(name)
-        if w is None:
+        keys = list(dict.fromkeys(k for r in batch for k in r))  # every row's columns
+        table = pa.table({k: [r.get(k) for r in batch] for k in keys})
+        parts = writers.setdefault(name, [])
+        for w in parts:  # the first part with every column of these rows (the rest NULL)
+            if set(keys) <= set(w.schema.names):
+                w.write_table(pa.table({f.name: table.column(f.name) if f.name in keys
+                                        else pa.nulls(table.num_rows, f.type)
+                                        for f in w.schema}).cast(w.schema))
+                break
+        else:  # a column no part has (another release's struct variant): a new part
             d = base / f"message={name}"
             d.mkdir(parents=True, exist_ok=True)
-            w = pq.ParquetWriter(str(d / "part-0.parquet"), table.schema)
-            writers[name] = w
-        w.write_table(table.cast(w.schema))
+            w = pq.ParquetWriter(str(d / f"part-{len(parts)}.parquet"), table.schema)
+            parts.append(w)
+            w.write_table(table)
         batch.clear()
 
     def message(r: dict[str, Any]) -> None:
         name = r["name"] or r["protocol"]
         summary["messages"][name] = summary["messages"].get(name, 0) + 1
+        name = table_name(r)  # the partition: a MESP reply beside its request
         row = {"frame_index": r["frames"][-1] if r["frames"] else None, "time": r["time"],
                "direction": r["direction"], "errors": "; ".join(r["errors"]),
                **{f"header.{k}": v for k, v in r["header"].items()}, **flatten(r["fields"])}
@@ -136,8 +144,9 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
     except (EyeqError, OSError) as exc:
         summary["error"] = str(exc)
     finally:
-        for w in writers.values():
-            w.close()
+        for parts in writers.values():
+            for w in parts:
+                w.close()
     if summary["error"] is not None and not summary.get("partial"):  # whole captures only
         shutil.rmtree(base, ignore_errors=True)
     return summary

@@ -247,8 +247,20 @@ def _parquet_writer(pq: Any, path: Path, schema: Any) -> Any:
     return pq.ParquetWriter(str(path), schema, use_dictionary=words)
 
 
+def table_name(r: dict[str, Any]) -> str:
+    """The table a message record goes in: its name; a MESP reply in ``NAME.reply`` (a request
+    and its reply share a name but not their fields)."""
+    name: str = r["name"] or r["protocol"]
+    return f"{name}.reply" if r["header"].get("reply") is True else name
+
+
 class TableWriter:
-    """One table per message type, flattened field names: CSV files or Parquet files."""
+    """One table per message type, flattened field names: CSV files or Parquet files.
+
+    A table's columns are those of its first row. A later row with a column the table lacks
+    (another release's variant of a struct, in a run over several captures) starts a new part,
+    ``NAME.2.csv`` (``NAME.2.parquet``), rather than losing that column; readers of the
+    directory (pyarrow and DuckDB with ``union_by_name``) join the parts."""
 
     def __init__(self, directory: str, fmt: str, batch: int = 2000,
                  column_type: Any = None) -> None:
@@ -269,9 +281,12 @@ class TableWriter:
         self.fmt = fmt
         self.batch = batch
         self.file: str | None = None  # the capture being written: every row's first column
-        self._csv: dict[str, tuple[IO[str], Any, list[str]]] = {}
+        self._csv: dict[str, tuple[IO[str], Any, list[str]]] = {}  # each table's first part
+        self._parts: dict[str, list[tuple[IO[str], Any, list[str]]]] = {}  # and every part
+        self._last: dict[str, tuple[list[str], tuple[IO[str], Any, list[str]]]] = {}
         self._rows: dict[str, list[dict[str, Any]]] = {}
-        self._pq: dict[str, Any] = {}
+        self._pq: dict[str, Any] = {}  # each table's first Parquet part
+        self._pq_parts: dict[str, list[Any]] = {}
         self._tables: dict[str, list[Any]] = {}  # column batches not yet written
         if fmt == "parquet":
             try:
@@ -285,7 +300,7 @@ class TableWriter:
     def write(self, r: dict[str, Any]) -> None:
         if r["kind"] != "message" or not r["fields"]:
             return
-        name = r["name"] or r["protocol"]
+        name = table_name(r)
         row = {"file": r.get("file", self.file),
                "frame_index": r["frames"][-1] if r["frames"] else None, "time": r.get("time"),
                "direction": r.get("direction"), **{f"header.{k}": v for k, v in
@@ -309,14 +324,9 @@ class TableWriter:
             return
         columns = {"file": [self.file] * n, **columns}
         if self.fmt == "csv":
-            entry = self._csv.get(name)
-            if entry is None:
-                self._write_csv(name, {k: _item(v, 0) for k, v in columns.items()})
-                entry = self._csv[name]
-                start = 1
-            else:
-                start = 0
+            entry = self._csv_part(name, list(columns))
             cols = [_as_list(columns[c]) if c in columns else [""] * n for c in entry[2]]
+            start = 0
             csv.writer(entry[0]).writerows(zip(*(c[start:] for c in cols), strict=True))
             return
         import pyarrow as pa
@@ -337,13 +347,30 @@ class TableWriter:
         pending = self._tables.get(name)
         if not pending:
             return
-        table = pending[0] if len(pending) == 1 else pa.concat_tables(pending)
+        table = pending[0] if len(pending) == 1 else pa.concat_tables(pending,
+                                                                     promote_options="default")
         pending.clear()
-        w = self._pq.get(name)
-        if w is None:
-            w = self._pq[name] = _parquet_writer(pq, self.dir / f"{name}.parquet",
-                                                 self._schema(name, table.schema))
-        w.write_table(table if table.schema.equals(w.schema) else table.cast(w.schema))
+        self._write_parquet(pq, name, table)
+
+    def _write_parquet(self, pq: Any, name: str, table: Any) -> None:
+        """``table`` into the first part of ``name`` whose columns hold all of its columns (a
+        missing one written as NULL), else into a new part."""
+        import pyarrow as pa
+
+        parts = self._pq_parts.setdefault(name, [])
+        for w in parts:
+            if set(table.column_names) <= set(w.schema.names):
+                if not table.schema.equals(w.schema):
+                    table = pa.table({f.name: table.column(f.name) if f.name in table.column_names
+                                      else pa.nulls(table.num_rows, f.type) for f in w.schema})
+                    table = table.cast(w.schema)
+                w.write_table(table)
+                return
+        stem = name if not parts else f"{name}.{len(parts) + 1}"
+        w = _parquet_writer(pq, self.dir / f"{stem}.parquet", self._schema(name, table.schema))
+        parts.append(w)
+        self._pq.setdefault(name, w)
+        w.write_table(table)
 
     def _schema(self, name: str, schema: Any) -> Any:
         """``schema`` with its all-NULL columns typed by ``column_type`` where it knows them."""
@@ -359,18 +386,32 @@ class TableWriter:
         return schema
 
     def _write_csv(self, name: str, row: dict[str, Any]) -> None:
-        entry = self._csv.get(name)
-        if entry is None:
-            try:
-                fh = open(self.dir / f"{name}.csv", "w", newline="", encoding="utf-8")  # noqa: SIM115
-            except OSError as exc:
-                raise OutputError(f"cannot write {self.dir / name}.csv: {exc}") from exc
-            cols = list(row)
-            w = csv.DictWriter(fh, fieldnames=cols, extrasaction="ignore")
-            w.writeheader()
-            entry = (fh, w, cols)
-            self._csv[name] = entry
-        entry[1].writerow(row)
+        self._csv_part(name, list(row))[1].writerow(row)
+
+    def _csv_part(self, name: str, keys: list[str]) -> tuple[IO[str], Any, list[str]]:
+        """The first CSV part of ``name`` whose header holds every column of ``keys``; a new
+        part (``NAME.csv``, then ``NAME.2.csv``...) with ``keys`` as its header if none does."""
+        last = self._last.get(name)
+        if last is not None and last[0] == keys:  # the common case: the same columns again
+            return last[1]
+        parts = self._parts.setdefault(name, [])
+        want = set(keys)
+        for entry in parts:
+            if want <= set(entry[2]):
+                self._last[name] = (keys, entry)
+                return entry
+        stem = name if not parts else f"{name}.{len(parts) + 1}"
+        try:
+            fh = open(self.dir / f"{stem}.csv", "w", newline="", encoding="utf-8")  # noqa: SIM115
+        except OSError as exc:
+            raise OutputError(f"cannot write {self.dir / stem}.csv: {exc}") from exc
+        w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")  # a row never has more
+        w.writeheader()
+        entry = (fh, w, keys)
+        parts.append(entry)
+        self._last[name] = (keys, entry)
+        self._csv.setdefault(name, entry)
+        return entry
 
     def _flush(self, name: str) -> None:
         import pyarrow as pa
@@ -379,24 +420,23 @@ class TableWriter:
         rows = self._rows.get(name)
         if not rows:
             return
-        table = pa.Table.from_pylist(rows)
-        w = self._pq.get(name)
-        if w is None:
-            w = self._pq[name] = _parquet_writer(pq, self.dir / f"{name}.parquet",
-                                                 self._schema(name, table.schema))
-        w.write_table(table if table.schema.equals(w.schema) else table.cast(w.schema))
+        keys = list(dict.fromkeys(k for r in rows for k in r))  # every row's columns, in order
+        table = pa.table({k: [r.get(k) for r in rows] for k in keys})
+        self._write_parquet(pq, name, table)
         rows.clear()
 
     def close(self) -> None:
         try:
-            for fh, _, _ in self._csv.values():
-                fh.close()
+            for parts in self._parts.values():
+                for fh, _, _ in parts:
+                    fh.close()
             for name in list(self._rows):
                 self._flush(name)
             for name in list(self._tables):
                 self._flush_tables(name)
-            for w in self._pq.values():
-                w.close()
+            for ws in self._pq_parts.values():
+                for w in ws:
+                    w.close()
         finally:
             if self.fmt == "parquet":
                 show_pandas()
