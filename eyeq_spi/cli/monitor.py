@@ -75,6 +75,13 @@ def run(args: argparse.Namespace) -> int:
         from eyeq_spi.monitor.app import check_screenshot
 
         check_screenshot(args.screenshot)  # before a long run
+    if not args.replay:  # the capture-input options read a capture: --replay only
+        for dest, flag in (("format", "--format"), ("direction", "--direction"),
+                           ("spi_mode", "--spi-mode"), ("bit_order", "--bit-order"),
+                           ("channel_map", "--channel-map"), ("signals", "--signals")):
+            if getattr(args, dest, None):
+                given = "--can-bus" if args.can_bus else "--port" if args.port else "--demo"
+                raise UsageError(f"argument {flag}: applies to --replay, not to monitor {given}")
     if args.can_bus:
         from eyeq_spi.monitor.app import MAX_REFRESH, MIN_REFRESH
         from eyeq_spi.monitor.can_bus import run_can_monitor
