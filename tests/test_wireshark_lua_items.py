@@ -178,12 +178,12 @@ def test_without_a_report_the_payload_lengths_decide(tmp_path: Path, sw: str) ->
 
 
 def test_sniff_window_matches_dissect() -> None:
-    """The dissector looks for the release in as many transfers as ``eyeq-spi dissect``."""
-    from eyeq_spi.wireshark import lua_gen
+    """The dissector looks for the release in as many transfers as ``eyeq-spi dissect``: both
+    read ``release_sniff_transfers`` of ``specs/capture.yaml``."""
+    from eyeq_spi.capture.pcapng_io import release_sniff_transfers
+    from eyeq_spi.wireshark.lua_gen import generate_lua
 
-    try:
-        from eyeq_spi.dissect.release import SNIFF_RECORDS  # type: ignore[import-not-found]
-    except ImportError:
-        pytest.skip("eyeq_spi.dissect.release is not in this tree")
-    assert lua_gen.SNIFF_RECORDS == SNIFF_RECORDS
+    n = release_sniff_transfers()
+    assert n > 0
+    assert f"local SNIFF_RECORDS = {n}\n" in generate_lua(None)
 

@@ -83,6 +83,13 @@ def _spec() -> dict[str, Any]:
     return dict(catalog().raw["capture.yaml"]["capture"])
 
 
+def release_sniff_transfers() -> int:
+    """How many first transfers of a capture without its release comment are looked at for
+    the release (``specs/capture.yaml`` ``release_sniff_transfers``): dissect and the Lua
+    dissector alike."""
+    return int(_spec()["release_sniff_transfers"])
+
+
 @dataclass(frozen=True, slots=True)
 class Record:
     """One transfer as read from a capture: time, direction, bytes."""

@@ -8,8 +8,8 @@ capture read with the wrong one shows length errors that were never on the wire.
    Header Block (``specs/capture.yaml``);
 3. the release the EyeQ reports in the traffic: the GetEyeQVersions reply (§7.1.1.1.5), the
    boot status' application version (§7.1.5.3) or EYEQ_BASE_DIAG_STATUS_MSG (§7.1.4.1), the
-   first of them in the first :data:`SNIFF_RECORDS` transfers; a release ``specs/`` does not
-   list maps to the newest listed one before it (decision D4);
+   first of them in the first ``release_sniff_transfers`` transfers (``specs/capture.yaml``);
+   a release ``specs/`` does not list maps to the newest listed one before it (decision D4);
 4. the release whose DASP layouts fit the payload lengths seen there (the newest such);
 5. else the newest release.
 
@@ -24,7 +24,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import IO, Any
 
-from eyeq_spi.capture.pcapng_io import Record, Tail, recorded_release
+from eyeq_spi.capture.pcapng_io import Record, Tail, recorded_release, release_sniff_transfers
 from eyeq_spi.catalog.messages import Catalog, SwKey, catalog, sw_release_text
 from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, MessageCodec, classify
@@ -34,7 +34,6 @@ from eyeq_spi.io.plain import PeekStream, open_records
 from eyeq_spi.logic.options import SpiOptions
 
 RECORDED = "recorded in the capture"
-SNIFF_RECORDS = 6000  # transfers looked at: about 3 s of a running EyeQ's traffic
 BASE_DIAG_ID = 0xA0  # EYEQ_BASE_DIAG_STATUS_MSG; its release bytes are at the same offsets in
 # every layout (§7.1.4.1: timestamp_ms u32, apiVersion u8 u8, eyeqSwVersion u8 u8)
 
@@ -188,7 +187,7 @@ def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | Non
     head: list[Record] = []
     fault: EyeqError | None = None
     try:
-        head.extend(itertools.islice(records, SNIFF_RECORDS))
+        head.extend(itertools.islice(records, release_sniff_transfers()))
     except EyeqError as exc:  # raised after the transfers before it, as the reader would
         fault = exc
     found = infer_release(head)

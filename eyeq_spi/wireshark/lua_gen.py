@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from eyeq_spi.capture.pcapng_io import release_sniff_transfers
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.catalog.messages import SwKey, sw_release_text
 from eyeq_spi.catalog.schema import sw_key
@@ -78,7 +79,6 @@ def _header_fields(frame: dict[str, Any]) -> dict[str, tuple[int, int]]:
     return out
 
 
-SNIFF_RECORDS = 6000  # transfers in which the release is looked for, as `eyeq-spi dissect` does
 VERSIONS_FUNCTION = "GetEyeQVersions"  # its reply reports the EyeQ's SW release (§7.1.1.1.5)
 BOOT_MESSAGE, BOOT_VERSION = "EYEQ_BOOT_STATUS_MSG", "ApplicationVersion"  # §7.1.5.3
 BASE_DIAG_MESSAGE = "EYEQ_BASE_DIAG_STATUS_MSG"  # §7.1.4.1: eyeqSwVersionMajor/Minor
@@ -104,7 +104,7 @@ class LuaGenerator:
         rel = [sw_release_text(k) for k in self.releases]
         lines = ["local RELEASES = {" + ", ".join(lua_str(r) for r in rel) + "}",
                  f"local NEWEST = {self.releases.index(self.cat.default_sw) + 1}",
-                 f"local SNIFF_RECORDS = {SNIFF_RECORDS}"]
+                 f"local SNIFF_RECORDS = {release_sniff_transfers()}"]
         fixed = 0 if self.fixed is None else self.releases.index(self.fixed) + 1
         lines.append(f"local PREF_DEFAULT = {fixed}")
         choices = ['{1, "auto", 0}'] + [
