@@ -367,10 +367,11 @@ class TableWriter:
                 w.write_table(table)
                 return
         stem = name if not parts else f"{name}.{len(parts) + 1}"
-        w = _parquet_writer(pq, self.dir / f"{stem}.parquet", self._schema(name, table.schema))
+        schema = self._schema(name, table.schema)  # all-NULL columns typed where known
+        w = _parquet_writer(pq, self.dir / f"{stem}.parquet", schema)
         parts.append(w)
         self._pq.setdefault(name, w)
-        w.write_table(table)
+        w.write_table(table if table.schema.equals(schema) else table.cast(schema))
 
     def _schema(self, name: str, schema: Any) -> Any:
         """``schema`` with its all-NULL columns typed by ``column_type`` where it knows them."""
