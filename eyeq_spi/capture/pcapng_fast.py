@@ -24,7 +24,6 @@ from __future__ import annotations
 import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
 
@@ -32,6 +31,8 @@ from eyeq_spi.capture.pcapng_io import (
     DIRECTIONS,
     PCAPNG_MAGIC,
     CaptureError,
+    PeekStream,
+    Readable,
     Record,
     Tail,
     TruncatedCaptureError,
@@ -47,10 +48,6 @@ READ_SIZE = 8 << 20  # bytes read at a time (what is left of the buffer is copie
 _EPB, _IDB = 6, 1
 _SHB = int.from_bytes(PCAPNG_MAGIC, "little")
 _BOM = 0x1A2B3C4D
-
-
-class Readable(Protocol):
-    def read(self, n: int = -1, /) -> bytes: ...
 
 
 @dataclass
@@ -172,27 +169,10 @@ def pcapng_chunks(stream: Readable, chunk: int = CHUNK, tail: Tail | None = None
         raise CaptureError("not a pcapng file")
     if len(head) < 12 or struct.unpack_from("<I", head, 8)[0] != _BOM:
         # big-endian (or too short to tell): the reference reader handles it
-        yield from chunks_from_records(read_pcapng(_Prefixed(head, stream), tail),  # type: ignore[arg-type]
+        yield from chunks_from_records(read_pcapng(PeekStream(stream, head=head), tail),  # type: ignore[arg-type]
                                        chunk)
         return
     yield from _Walker(stream, head, chunk, tail).run()
-
-
-class _Prefixed:
-    def __init__(self, head: bytes, stream: Readable) -> None:
-        self.head = head
-        self.stream = stream
-
-    def read(self, n: int = -1) -> bytes:
-        if self.head:
-            if n < 0:
-                out, self.head = self.head + self.stream.read(), b""
-                return out
-            out, self.head = self.head[:n], self.head[n:]
-            if len(out) < n:
-                out += self.stream.read(n - len(out))
-            return out
-        return self.stream.read(n)
 
 
 class _Walker:

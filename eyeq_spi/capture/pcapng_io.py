@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Protocol
 
 from eyeq_spi.catalog.messages import SwKey, catalog, sw_release_text
 from eyeq_spi.errors import CaptureError as CaptureError
@@ -100,6 +100,39 @@ class Record:
 
 
 PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
+
+
+class Readable(Protocol):
+    def read(self, n: int = -1, /) -> bytes: ...
+
+
+class PeekStream:
+    """A binary stream with its first bytes already read (stdin cannot seek): ``n`` bytes read
+    here, or the ``head`` a caller already read."""
+
+    def __init__(self, fh: Readable, n: int = 4096, head: bytes | None = None) -> None:
+        self.fh = fh
+        self.head = fh.read(n) if head is None else head
+        self.pos = 0
+
+    def tell(self) -> int:
+        return self.pos
+
+    def read(self, n: int = -1) -> bytes:
+        out = self._read(n)
+        self.pos += len(out)
+        return out
+
+    def _read(self, n: int) -> bytes:
+        if self.head:
+            if n < 0:
+                out, self.head = self.head + self.fh.read(), b""
+                return out
+            out, self.head = self.head[:n], self.head[n:]
+            if len(out) < n:
+                out += self.fh.read(n - len(out))
+            return out
+        return self.fh.read(n)
 
 
 MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)

@@ -26,6 +26,7 @@ from eyeq_spi import io as registry
 from eyeq_spi.capture.pcapng_io import (
     PCAPNG_MAGIC,
     CaptureError,
+    PeekStream,
     Record,
     Tail,
     TruncatedCaptureError,
@@ -43,34 +44,6 @@ _HEX_LINE = re.compile(
 )
 __all__ = ["FORMATS", "LOGIC_FORMATS", "InputError", "PeekStream", "TruncatedInputError",
            "detect", "open_records"]
-
-
-class PeekStream:
-    """A binary stream with the first bytes already read (stdin cannot seek)."""
-
-    def __init__(self, fh: IO[bytes], n: int = 4096) -> None:
-        self.fh = fh
-        self.head = fh.read(n)
-        self.pos = 0
-
-    def tell(self) -> int:
-        return self.pos
-
-    def read(self, n: int = -1) -> bytes:
-        out = self._read(n)
-        self.pos += len(out)
-        return out
-
-    def _read(self, n: int) -> bytes:
-        if self.head:
-            if n < 0:
-                out, self.head = self.head + self.fh.read(), b""
-                return out
-            out, self.head = self.head[:n], self.head[n:]
-            if len(out) < n:
-                out += self.fh.read(n - len(out))
-            return out
-        return self.fh.read(n)
 
 
 # Bytes no text format can begin with: not ASCII whitespace for bytes.lstrip or the hex regex,
