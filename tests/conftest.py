@@ -1,7 +1,8 @@
 from __future__ import annotations
 
+import gc
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -87,3 +88,14 @@ def transport_pair() -> Pair:
     return Pair(
         TransportConnection(LinkConfig(role="host")), TransportConnection(LinkConfig(role="eyeq"))
     )
+
+
+@pytest.fixture(autouse=True)
+def _collector_left_on() -> Iterator[None]:
+    """Code that turns the cyclic garbage collector off (the real-time runner, the dissect
+    pipeline) must turn it back on: a test that leaves it off fails here, by name, instead of
+    a later test in the same process."""
+    yield
+    if not gc.isenabled():
+        gc.enable()
+        pytest.fail("the test left the cyclic garbage collector off")

@@ -325,13 +325,13 @@ def test_attach_wraps_a_real_time_runner_node() -> None:
 
     host = HostEmulator(keep_rx_times=False)
     a, _ = memory_pair()
-    runner = RealTimeRunner(host, a)
-    out = attach(host, runner, target="virtual:eyeq-test-rt", protocol="extlog2")
-    try:
-        assert isinstance(runner.node, GatewayNode) and runner.node.inner is host
-        assert out.gateway.epoch == pytest.approx(runner.clock(), abs=1.0)
-    finally:
-        out.close()
+    with RealTimeRunner(host, a) as runner:  # closed: the collector back on
+        out = attach(host, runner, target="virtual:eyeq-test-rt", protocol="extlog2")
+        try:
+            assert isinstance(runner.node, GatewayNode) and runner.node.inner is host
+            assert out.gateway.epoch == pytest.approx(runner.clock(), abs=1.0)
+        finally:
+            out.close()
 
 
 def test_database_is_shared() -> None:
