@@ -408,3 +408,22 @@ def test_the_names_index_agrees_with_the_catalogue() -> None:
     assert ca.mesp_function("0x05/0x04") == next(
         f.name for f in cat.mesp if (f.service, f.function) == (5, 4))
     assert ca.sw_release("8.1") == "sw8_1"
+
+
+@pytest.mark.parametrize(("given", "expected"), [(None, "1"), ("3", "3")])
+def test_the_cli_keeps_openblas_to_one_thread_unless_the_user_chose(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], given: str | None,
+    expected: str,
+) -> None:
+    """numpy's OpenBLAS starts a spinning thread per core at import, which only burned CPU (no
+    command does linear algebra): main() asks for one before anything imports numpy, and leaves
+    a value the user set."""
+    from eyeq_spi.cli import main
+
+    if given is None:
+        monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    else:
+        monkeypatch.setenv("OPENBLAS_NUM_THREADS", given)
+    assert main(["spec", "list"]) == 0
+    capsys.readouterr()
+    assert os.environ["OPENBLAS_NUM_THREADS"] == expected
