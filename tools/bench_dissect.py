@@ -114,11 +114,16 @@ def frames_of(cap: Path) -> int:
 
 
 def python_cpu(code: str, repeat: int) -> list[float]:
-    """CPU seconds (user + system) of ``python -c code`` as a child, each of ``repeat`` runs."""
+    """CPU seconds (user + system) of ``python -c code`` as a child, each of ``repeat`` runs,
+    with numpy's BLAS threads as the CLI sets them (``cli.BLAS_THREADS``, unless the caller's
+    environment chose), so that ``import numpy`` is the floor of a batch run."""
+    from eyeq_spi.cli import BLAS_THREADS
+
+    env = {BLAS_THREADS[0]: BLAS_THREADS[1], **(os.environ if ENV is None else ENV)}
     out = []
     for _ in range(repeat):
         r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run([sys.executable, "-c", code], check=True, env=ENV)
+        subprocess.run([sys.executable, "-c", code], check=True, env=env)
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         out.append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
     return out
