@@ -44,11 +44,9 @@ from eyeq_spi.sim.scene_layout import (
     _Node,
     _node_for,
     _obj_plan,
-    _puts,
-    _write_objects_packed,
-    _write_rows,
 )
 from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
+from eyeq_spi.sim.scene_write import _puts, _puts_once, _write_objects_packed, _write_rows
 
 __all__ = ["CLASSES", "Scene", "SceneConfig", "SceneWorld"]
 
@@ -64,6 +62,7 @@ class Scene(SceneWorld):
     """The world (objects, road, signs) and the writer of its DASP payloads."""
 
     _signs_seen: tuple[object, list[tuple[int, float]]] | None = None
+    _header: tuple[float, int, dict[str, float]] | None = None  # the last header's values
 
     def _after_step(self) -> None:
         self._columns()  # the vectorised part of filling EYEQ_VIS_OBSTACLES_MSG
@@ -216,10 +215,14 @@ class Scene(SceneWorld):
         getattr(self, method)(values, node, t)
 
     def _fill_header(self, d: dict[str, Any], n: _Node, t: float) -> None:
-        frame = _frame(t)
-        _puts(d, n, {"timestamp_ms": int(t * 1000) & 0xFFFFFFFF,
-                     "timestamp_us": max(0, round(t * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
-                     "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
+        last = self._header
+        if last is None or last[0] != t or last[1] != self._veh_index:
+            frame = _frame(t)
+            last = self._header = (t, self._veh_index, {
+                "timestamp_ms": int(t * 1000) & 0xFFFFFFFF,
+                "timestamp_us": max(0, round(t * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
+                "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
+        _puts(d, n, last[2])  # the same values for every header of one instant
 
     def _fill_nothing(self, values: dict[str, Any], node: _Node, t: float) -> None:
         """Headers only (EYEQ_SAFETY_MSG: no safety fault, no challenge)."""
@@ -272,23 +275,26 @@ class Scene(SceneWorld):
                      spec: tuple[float, str, float, float] | None) -> None:
         poly, conf = _child(md, mn, "laneMarker"), _child(md, mn, "laneMarkerConf")
         lmt = "lane_marker_type"
+        # each marker's spec is None or of one kind for good: its constants are written once
         if spec is None:  # §10.6: only seen with a wide separation between lanes
             if poly:
-                _puts(*poly, dict.fromkeys(self._poly_values(0.0, 0.0), 0.0))
+                _puts_once(*poly, "none", lambda: dict.fromkeys(self._poly_values(0.0, 0.0), 0.0))
             if conf:
-                _puts(*conf, {"sfConf": 0.0, "confidence": 0})
-            _puts(md, mn, {"measuredViewRange": 0.0, "laneMarkerWidth": 0.0,
-                           "laneMarkerType": _code(lmt, "INVALID", 6), "dlmType": 0,
-                           "decelType": 0, "laneMarkerColor": 0})
+                _puts_once(*conf, "none", lambda: {"sfConf": 0.0, "confidence": 0})
+            _puts_once(md, mn, "none", lambda: {
+                "measuredViewRange": 0.0, "laneMarkerWidth": 0.0,
+                "laneMarkerType": _code(lmt, "INVALID", 6), "dlmType": 0, "decelType": 0,
+                "laneMarkerColor": 0})
             return
         offset, kind, view, phase = spec
         if poly:
             _puts(*poly, self._poly_values(offset, view))
         if conf:
-            _puts(*conf, {"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase),
-                          "confidence": _code("road_confidence_level", "Detected lanemark", 3)})
-        _puts(md, mn, {
-            "measuredViewRange": view * (0.85 if kind == "DASHED" else 0.95),
+            _puts(*conf, {"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase)})
+            _puts_once(*conf, "seen", lambda: {
+                "confidence": _code("road_confidence_level", "Detected lanemark", 3)})
+        _puts(md, mn, {"measuredViewRange": view * (0.85 if kind == "DASHED" else 0.95)})
+        _puts_once(md, mn, kind, lambda: {
             "laneMarkerWidth": 0.12 if kind == "DASHED" else 0.15,
             "laneMarkerType": _code(lmt, kind, 0), "dlmType": _code("dlm_type", "NOTDLM", 0),
             "decelType": _code("decel_type", "NOTDECEL", 0),
@@ -300,8 +306,9 @@ class Scene(SceneWorld):
             return
         rd, rn = info
         p = self._phase
-        view = float(np.clip(min(105.0 + 12.0 * math.sin(0.2 * self._tau + p[2]),
-                                 self._cipv_distance() + 25.0), 20.0, 128.0))
+        # min(max()) is np.clip on one float (NaN kept), without numpy's call overhead
+        view = float(min(max(min(105.0 + 12.0 * math.sin(0.2 * self._tau + p[2]),
+                                 self._cipv_distance() + 25.0), 20.0), 128.0))
         markers: dict[str, tuple[float, str, float, float] | None] = {
             "hostLeftMarker": (HALF_LANE, "DASHED", view, p[3]),
             "hostRightMarker": (-HALF_LANE, "DASHED", view, p[4]),
@@ -314,8 +321,9 @@ class Scene(SceneWorld):
                 m = _child(*mi, key)
                 if m:
                     self._fill_marker(*m, spec)
-            _puts(*mi, {"ambiguousLinePatternLeft": 0, "ambiguousLinePatternRight": 0,
-                        "constructionArea": 0, "roadPredictionLeft": 0, "roadPredictionRight": 0})
+            _puts_once(*mi, "road", lambda: {
+                "ambiguousLinePatternLeft": 0, "ambiguousLinePatternRight": 0,
+                "constructionArea": 0, "roadPredictionLeft": 0, "roadPredictionRight": 0})
         bi = _child(rd, rn, "roadBorderInfo")
         borders = (("leftRoadBorder", 3 * HALF_LANE + 0.8, "Barrier", 4, 0.8),
                    ("rightRoadBorder", -3 * HALF_LANE - 0.6, "Curb", 3, 0.15))
@@ -327,20 +335,22 @@ class Scene(SceneWorld):
             if poly:
                 _puts(*poly, self._poly_values(offset, 0.6 * view))
             if conf:
-                _puts(*conf, {"sfConf": 0.8, "confidence": _code(
+                _puts_once(*conf, "border", lambda: {"sfConf": 0.8, "confidence": _code(
                     "road_confidence_level", "Detected lanemark", 3)})
-            _puts(*b, {"roadBorderHeight": height,
-                       "roadBorderType": _code("road_border_type", kind, default)})
+            _puts_once(*b, "border", lambda h=height, k=kind, v=default: {  # type: ignore[misc]
+                "roadBorderHeight": h, "roadBorderType": _code("road_border_type", k, v)})
         hpp = _child(rd, rn, "roadHppFusionInfo")
         if hpp:
             centre = _child(*hpp, "laneCenter")
             if centre:
                 _puts(*centre, self._poly_values(0.0, view))
-            _puts(*hpp, {"roadFusionConf": 0.92, "halfWidth": HALF_LANE, "hppLeftWeight": 0.5,
-                         "hppCenterWeight": 0.0, "hppRightWeight": 0.5, "roadLeftWeight": 0.5,
-                         "roadRightWeight": 0.5})
-        _puts(rd, rn, {"drivingSide": _code("road_driving_side", "Right Side", 0),
-                       "laneChange": _code("road_lane_change", "No lane change", 0)})
+            _puts_once(*hpp, "hpp", lambda: {
+                "roadFusionConf": 0.92, "halfWidth": HALF_LANE, "hppLeftWeight": 0.5,
+                "hppCenterWeight": 0.0, "hppRightWeight": 0.5, "roadLeftWeight": 0.5,
+                "roadRightWeight": 0.5})
+        _puts_once(rd, rn, "road", lambda: {
+            "drivingSide": _code("road_driving_side", "Right Side", 0),
+            "laneChange": _code("road_lane_change", "No lane change", 0)})
 
     def _visible_signs(self) -> list[tuple[int, float]]:
         """Signs ahead, nearest first, with their lateral distance; once per step (both sign
@@ -379,11 +389,11 @@ class Scene(SceneWorld):
                 "signRelevantDecision": _code("tsr_sign_relevant_decision", "RELEVANT_SIGN", 0),
                 "signFilterType": _code("tsr_sign_filter_type", "NO_SLI_FILTER", 0)})
         _write_rows(elems, en, rows, _SIGN_KEYS)
-        _puts(*tsr, {"numberTrafficSigns": len(rows),
-                     "currentMarket": _code("tsr_current_market", "EUROPE", 1)})
+        _puts(*tsr, {"numberTrafficSigns": len(rows)})
+        _puts_once(*tsr, "tsr", lambda: {"currentMarket": _code("tsr_current_market", "EUROPE", 1)})
         marks = _child(*tsr, "roadMarkings")
         if marks:
-            _puts(*marks, dict.fromkeys((
+            _puts_once(*marks, "none", lambda: dict.fromkeys((
                 "numberOfArrowsMarkings", "numberOfStopLinesMarkings",
                 "numberOfSpeedLimitMarkings", "numberOfCrossingMarkings"), 0))
 
@@ -436,30 +446,33 @@ class Scene(SceneWorld):
                 "lightSignGlareLevelCurrent": glare})
         _write_rows(signs, gn, refl, _REFLECT_KEYS)
         _puts(ld, ln, {
-            "ahbcAvailable": _code("ahbc_available", "Full", 2),
-            "gridFrequency": _code("ahbc_grid_frequency", "50 Hz", 1),
             "numOfActiveLightSpots": len(rows), "numOfReflectiveSigns": len(refl),
             "clearFieldOfView": _code("ahbc_clear_field_of_view", "No Clear Field-Of-View", 1)
             if rows else _code("ahbc_clear_field_of_view", "Clear Field-Of-View", 2),
             "beamRequest": _code("ahbc_beam_request", "OFF" if rows else "ON", 0 if rows else 1),
+            "oncomingLaneNotDark": int(oncoming_seen)})
+        _puts_once(ld, ln, "ahbc", lambda: {
+            "ahbcAvailable": _code("ahbc_available", "Full", 2),
+            "gridFrequency": _code("ahbc_grid_frequency", "50 Hz", 1),
             "inTunnel": _code("ahbc_in_tunnel", "FALSE", 1), "eventsDetected": 0,
             "fogDetected": 0, "highwayDetected": 1, "villageDetected": 0,
-            "oncomingLaneNotDark": int(oncoming_seen), "approachingJunction": 0,
-            "lightNoisyScene": 0, "lightCone": 0})
+            "approachingJunction": 0, "lightNoisyScene": 0, "lightCone": 0})
 
     def _fill_aeb(self, values: dict[str, Any], node: _Node, t: float) -> None:
         aeb = _child(values, node, "visAEB")
         if aeb:  # vision-only AEB stays quiet: the ego never closes in dangerously
-            _puts(*aeb, {k: 0 for k in aeb[1].members if k.startswith("visOnly")})
-            _puts(*aeb, {"roadFreeDetection": _code(
-                "aeb_road_free_detection", "NO_PENETRATION_DETECTED", 0)})
+            _puts_once(*aeb, "quiet", lambda: {
+                **{k: 0 for k in aeb[1].members if k.startswith("visOnly")},
+                "roadFreeDetection": _code("aeb_road_free_detection", "NO_PENETRATION_DETECTED",
+                                           0)})
 
     def _fill_failsafe(self, values: dict[str, Any], node: _Node, t: float) -> None:
         fs = _child(values, node, "visFailsafes")
         if fs:
             none = _code("failsafe_severity", "NONE", 1)
-            _puts(*fs, {k: none for k in fs[1].members if k.endswith("SeverityLevel")})
-            _puts(*fs, {"freeSight": _code("free_sight", "TRUE", 1), "outOfCalibTSR": 0})
+            _puts_once(*fs, "none", lambda: {
+                **{k: none for k in fs[1].members if k.endswith("SeverityLevel")},
+                "freeSight": _code("free_sight", "TRUE", 1), "outOfCalibTSR": 0})
 
     def _fill_srp(self, values: dict[str, Any], node: _Node, t: float) -> None:
         srp = _child(values, node, "visSRP")
