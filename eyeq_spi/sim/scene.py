@@ -46,7 +46,13 @@ from eyeq_spi.sim.scene_layout import (
     _obj_plan,
 )
 from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
-from eyeq_spi.sim.scene_write import _puts, _puts_once, _write_objects_packed, _write_rows
+from eyeq_spi.sim.scene_write import (
+    _puts,
+    _puts_once,
+    _write_objects_packed,
+    _write_rows,
+    _write_table,
+)
 
 __all__ = ["CLASSES", "Scene", "SceneConfig", "SceneWorld"]
 
@@ -56,6 +62,19 @@ def _lane_codes() -> IArr:
     return np.array([_code("object_lane_assignment", n, v) for n, v in (
         ("RIGHT_NEXT_NEXT", 2), ("RIGHT_NEXT", 1), ("EGO_LANE", 0), ("LEFT_NEXT", -1),
         ("LEFT_NEXT_NEXT", -2))])
+
+
+_STRUCTS: dict[int, tuple[_Node, list[tuple[str, _Node]]]] = {}
+
+
+def _struct_members(node: _Node) -> list[tuple[str, _Node]]:
+    """The members of ``node`` that are one struct (not an array of them): where
+    :meth:`Scene.fill` writes a header too. Kept per node (range trees live for the process)."""
+    got = _STRUCTS.get(id(node))
+    if got is None or got[0] is not node:
+        got = _STRUCTS[id(node)] = (node, [(k, sub) for k, sub in node.members.items()
+                                        if isinstance(sub, _Node) and sub.count is None])
+    return got[1]
 
 
 class Scene(SceneWorld):
@@ -208,9 +227,8 @@ class Scene(SceneWorld):
             return
         t = float(t)
         self._fill_header(values, node, t)
-        for key, sub in node.members.items():
-            if isinstance(sub, _Node) and sub.count is None \
-                    and isinstance(values.get(key), dict | StructView):
+        for key, sub in _struct_members(node):
+            if isinstance(values.get(key), dict | StructView):
                 self._fill_header(values[key], sub, t)
         getattr(self, method)(values, node, t)
 
@@ -408,11 +426,16 @@ class Scene(SceneWorld):
         lit = lit[np.argsort(self._s[lit], kind="stable")][:min(self._n_spots, len(spots))]
         y_all = self._lateral(self._s, self._d)
         vsign = -1.0 if self.config.spot_angles_up else 1.0  # top, bottom: below-positive
-        rows: list[dict[str, float]] = []
+        # rows as tuples in the order of _SPOT_KEYS / _REFLECT_KEYS (no dict per row); the
+        # arrays as Python numbers first (the same values float() of an element gives)
+        rows: list[tuple[float, ...]] = []
         oncoming_seen = False
-        for i in (int(k) for k in lit):
-            s, y, half = float(self._s[i]), float(y_all[i]), max(float(self._w[i]) / 2 - 0.15, 0.0)
-            name, kind = CLASSES[int(self._cls[i])][0], int(self._kind[i])
+        s_l, y_l, w_l, cls_l, kind_l, oid_l = (a.tolist() for a in (
+            self._s, y_all, self._w, self._cls, self._kind, self._oid))
+        atan2, tan = math.atan2, math.tan
+        for i in lit.tolist():
+            s, y, half = s_l[i], y_l[i], max(w_l[i] / 2 - 0.15, 0.0)
+            name, kind = CLASSES[cls_l[i]][0], kind_l[i]
             pair = name not in ("bike", "bicycle")
             oncoming_seen |= kind == ONCOMING
             code = (_code(cls, "Pair of Headlamps", 3) if kind == ONCOMING else
@@ -420,31 +443,25 @@ class Scene(SceneWorld):
             # §15 light spots: "angles to the right of the sensor coordinate system are
             # positive"; "angle above the horizon are positive" from SW4.0 (line 3295), below
             # before it (line 3257); pixels from the image's left bottom corner
-            left, right = math.atan2(-y - half, s), math.atan2(half - y, s)
-            top, bottom = math.atan2(CAM_HEIGHT - 1.0, s), math.atan2(CAM_HEIGHT - 0.6, s)
-            rows.append({
-                "leftAngle": left, "rightAngle": right, "topAngle": vsign * top,
-                "bottomAngle": vsign * bottom,
-                "id": float(self._oid[i]), "vdID": float(self._oid[i]), "longPos": s,
-                "pixelTop": IMAGE_H / 2 - FOCAL_PX * math.tan(top),
-                "pixelBottom": IMAGE_H / 2 - FOCAL_PX * math.tan(bottom),
-                "pixelLeft": IMAGE_W / 2 + FOCAL_PX * math.tan(left),
-                "pixelRight": IMAGE_W / 2 + FOCAL_PX * math.tan(right),
-                "classification": code, "isTruck": float(name == "truck")})
-        _write_rows(spots, sn, rows, _SPOT_KEYS)
+            left, right = atan2(-y - half, s), atan2(half - y, s)
+            top, bottom = atan2(CAM_HEIGHT - 1.0, s), atan2(CAM_HEIGHT - 0.6, s)
+            oid = float(oid_l[i])
+            rows.append((  # _SPOT_KEYS
+                left, right, vsign * top, vsign * bottom, oid, oid, s,
+                IMAGE_H / 2 - FOCAL_PX * tan(top), IMAGE_H / 2 - FOCAL_PX * tan(bottom),
+                IMAGE_W / 2 + FOCAL_PX * tan(left), IMAGE_W / 2 + FOCAL_PX * tan(right),
+                code, float(name == "truck")))
+        _write_table(spots, sn, _SPOT_KEYS, rows, _SPOT_KEYS)
         signs, gn = _elements(ld, ln, "reflectiveSigns")
-        refl: list[dict[str, float]] = []
+        refl: list[tuple[float, ...]] = []
+        sg_s, sg_z, sg_id = self._sg_s.tolist(), self._sg_z.tolist(), self._sg_id.tolist()
         for i, y in self._visible_signs()[:len(signs)]:
-            s, z = float(self._sg_s[i]), float(self._sg_z[i]) - CAM_HEIGHT
+            s, z = sg_s[i], sg_z[i] - CAM_HEIGHT
             glare = 100.0 * math.exp(-s / 50.0)
-            refl.append({
-                "lightSignLeftAngle": math.atan2(-y - 0.4, s),  # §15: "Negative: left"
-                "lightSignRightAngle": math.atan2(0.4 - y, s),
-                "lightSignBottomAngle": math.atan2(z - 0.4, s),
-                "lightSignTopAngle": math.atan2(z + 0.4, s), "lightSignID": float(self._sg_id[i]),
-                "lightSignDistance": s, "lightSignGlareLevelMax": min(100.0, glare + 10.0),
-                "lightSignGlareLevelCurrent": glare})
-        _write_rows(signs, gn, refl, _REFLECT_KEYS)
+            refl.append((  # _REFLECT_KEYS; §15: "Negative: left"
+                atan2(-y - 0.4, s), atan2(0.4 - y, s), atan2(z - 0.4, s), atan2(z + 0.4, s),
+                float(sg_id[i]), s, min(100.0, glare + 10.0), glare))
+        _write_table(signs, gn, _REFLECT_KEYS, refl, _REFLECT_KEYS)
         _puts(ld, ln, {
             "numOfActiveLightSpots": len(rows), "numOfReflectiveSigns": len(refl),
             "clearFieldOfView": _code("ahbc_clear_field_of_view", "No Clear Field-Of-View", 1)

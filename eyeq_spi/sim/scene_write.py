@@ -109,16 +109,39 @@ _EXACT = 2.0**53  # ints below this survive float64 exactly
 _MIN_COLUMNS = 48  # values per array below which _write_rows loops (measured: SRP's 2 x 10)
 
 
+def _write_table(elems: list[dict[str, Any]], n: _Node, rkeys: tuple[str, ...],
+                 rows: list[tuple[float, ...]], keys: tuple[str, ...]) -> None:
+    """:func:`_write_rows` of rows given as tuples in the order of ``rkeys``: a packer's views
+    take them as one float64 matrix (no dict per row); otherwise the rows become dicts."""
+    if elems and isinstance(elems[0], StructView) and len(elems) * len(keys) >= _MIN_COLUMNS:
+        r = min(len(rows), len(elems))
+        m = np.array(rows[:r], dtype=np.float64).reshape(r, len(rkeys))
+        if _write_matrix(elems, n, rkeys if r else (), m, keys):
+            return
+    _write_rows(elems, n, [dict(zip(rkeys, row, strict=True)) for row in rows], keys)
+
+
 def _write_rows_packed(elems: list[Any], n: _Node, rows: list[dict[str, float]],
                        keys: tuple[str, ...]) -> bool:
-    """:func:`_write_rows` into a packer's views as numpy columns, clamped as
-    :meth:`_Leaf.clamp` clamps (``min(max(x, lo), hi)``, ints rounded half to even first). False
-    (nothing written) when the loop must run instead: rows of different keys, a bitfield or
-    struct member, an integer that float64 does not hold exactly or a type the encoder refuses."""
+    """:func:`_write_rows` into a packer's views as numpy columns (:func:`_write_matrix`).
+    False (nothing written) when the loop must run instead: rows of different keys, or what
+    :func:`_write_matrix` refuses."""
     rows = rows[:len(elems)]
     rkeys = tuple(rows[0]) if rows else ()
     if any(tuple(r) != rkeys for r in rows):
         return False
+    r = len(rows)
+    m = np.fromiter(itertools.chain.from_iterable(x.values() for x in rows), np.float64,
+                    r * len(rkeys)).reshape(r, len(rkeys))
+    return _write_matrix(elems, n, rkeys, m, keys)
+
+
+def _write_matrix(elems: list[Any], n: _Node, rkeys: tuple[str, ...], m: FArr,
+                  keys: tuple[str, ...]) -> bool:
+    """Rows of ``m`` (columns ``rkeys``) into the first elements, ``keys`` of the rest zeroed,
+    clamped as :meth:`_Leaf.clamp` clamps (``min(max(x, lo), hi)``, ints rounded half to even
+    first). False (nothing written) when the loop must run instead: a bitfield or struct
+    member, an integer that float64 does not hold exactly or a type the encoder refuses."""
     ck = ("rows", id(n), rkeys, keys, len(elems))
     got = elems[0].cache.get(ck)
     if got is None or got[0] is not n:
@@ -127,10 +150,9 @@ def _write_rows_packed(elems: list[Any], n: _Node, rows: list[dict[str, float]],
     if plan is None:
         return False
     u8, cols, lo, hi, ints, wgroups, zgroups = plan
-    r = len(rows)
+    r = len(m)
     if r:
-        m = np.fromiter(itertools.chain.from_iterable(x.values() for x in rows), np.float64,
-                        r * len(rkeys)).reshape(r, len(rkeys))[:, cols]
+        m = m[:, cols]
         if len(ints):
             x = m[:, ints]
             if not np.abs(x).max() < _EXACT:  # NaN compares False too
