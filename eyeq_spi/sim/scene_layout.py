@@ -187,6 +187,16 @@ def _node_for(name: str, values: dict[str, Any]) -> _Node | None:
 
 
 def _child(d: dict[str, Any], n: _Node, key: str) -> tuple[dict[str, Any], _Node] | None:
+    if isinstance(d, StructView):  # a packer's views never change: the answer is kept
+        got = d.writers.get(("child", id(n), key))
+        if got is None or got[0] is not n:
+            got = d.writers[("child", id(n), key)] = (n, _child_of(d, n, key))
+        out: tuple[dict[str, Any], _Node] | None = got[1]
+        return out
+    return _child_of(d, n, key)
+
+
+def _child_of(d: dict[str, Any], n: _Node, key: str) -> tuple[dict[str, Any], _Node] | None:
     sub, v = n.members.get(key), d.get(key)
     if isinstance(sub, _Node) and isinstance(v, dict | StructView):
         return cast("dict[str, Any]", v), sub  # a packer's view serves as the dict
