@@ -104,3 +104,27 @@ def test_a_run_that_raises_still_writes_every_transfer_handed_over(tmp_path: Pat
     got = list(read_pcapng(path.open("rb")))
     assert [(r.direction, r.data) for r in got] == [(d, x) for d, _, x in tapped]
     assert [r.time for r in got] == pytest.approx([t for _, t, _ in tapped], abs=1e-6)
+
+
+@pytest.mark.parametrize("blocks", [False, True])
+def test_a_time_without_a_timestamp_is_a_capture_error_and_the_rest_is_written(
+        tmp_path: Path, blocks: bool) -> None:
+    """NaN, infinity or a time past 2**64 µs: one typed error (at the write, or at the flush
+    that encodes it in block mode); every other transfer reaches the file."""
+    from eyeq_spi.capture.pcapng_io import CaptureError
+
+    path = tmp_path / "bad.pcapng"
+    w = CaptureWriter(path, idle_flush=False, blocks=blocks)
+    errors = []
+    for i, t in enumerate([0.0, 1e-3, float("nan"), 2e-3, float("inf"), 3e-3, 2e14, 4e-3]):
+        try:
+            w.write("h2e", t, bytes([i]) * 128)
+        except CaptureError as exc:
+            errors.append(str(exc))
+    try:
+        w.close()
+    except CaptureError as exc:
+        errors.append(str(exc))
+    assert errors and all("has no pcapng timestamp" in e for e in errors)
+    got = [r.data[0] for r in read_pcapng(path.open("rb"))]
+    assert got == [0, 1, 3, 5, 7]

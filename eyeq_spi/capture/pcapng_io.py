@@ -236,11 +236,19 @@ class CaptureWriter:
         ids, times, data = zip(*self._pending, strict=True)
         self._pending, self._p_bytes, self._room = [], 0, self.FLUSH_BYTES
         ticks = ticks_of(times, self._scale)
-        if ticks is None:  # a time the fast encoder cannot take: the reference says why
-            for i, t, d in zip(ids, times, data, strict=True):
-                self._encode_one(i, t, d, b"")
+        if ticks is not None:
+            self._buf += encode_blocks(ids, ticks, data)
             return
-        self._buf += encode_blocks(ids, ticks, data)
+        # a time the fast encoder cannot take: the reference encodes every other transfer and
+        # says what it could not write
+        bad: CaptureError | None = None
+        for i, t, d in zip(ids, times, data, strict=True):
+            try:
+                self._encode_one(i, t, d, b"")
+            except CaptureError as exc:
+                bad = bad or exc
+        if bad is not None:
+            raise bad
 
     def _write(self, direction: str, time: float, transfer: bytes) -> None:
         opts = _options([(1, self.comment.encode())]) if self.count == 0 else b""
@@ -250,12 +258,19 @@ class CaptureWriter:
             self._flush()
 
     def _encode_one(self, iface: int, time: float, data: bytes, opts: bytes) -> None:
-        """One Enhanced Packet Block into the buffer (the reference encoder)."""
-        ticks = max(0, round(time * self._scale))
+        """One Enhanced Packet Block into the buffer (the reference encoder); a time without a
+        pcapng timestamp (not a number, infinite, past 2**64 ticks) is a :class:`CaptureError`
+        and writes nothing."""
         pad = -len(data) % 4
         size = 32 + len(data) + pad + len(opts)
-        self._buf += _EPB_HEAD.pack(6, size, iface, ticks >> 32, ticks & 0xFFFFFFFF, len(data),
-                                    len(data))
+        try:
+            ticks = max(0, round(time * self._scale))
+            head = _EPB_HEAD.pack(6, size, iface, ticks >> 32, ticks & 0xFFFFFFFF, len(data),
+                                  len(data))
+        except (ValueError, OverflowError, TypeError, struct.error):
+            raise CaptureError(f"cannot write capture {self._fh.name}: transfer time {time!r} "
+                               "has no pcapng timestamp") from None
+        self._buf += head
         self._buf += data
         self._buf += b"\0" * pad
         self._buf += opts
@@ -267,7 +282,11 @@ class CaptureWriter:
             self._flush()
 
     def _flush(self) -> None:
-        self._encode_pending()
+        bad: CaptureError | None = None
+        try:
+            self._encode_pending()
+        except CaptureError as exc:  # the other transfers still go to the file
+            bad = exc
         view = memoryview(self._buf)
         try:
             while view:
@@ -280,6 +299,8 @@ class CaptureWriter:
         self._buf.clear()
         self._room = self.FLUSH_BYTES
         self._last_flush = self._clock()
+        if bad is not None:
+            raise bad
 
     def close(self) -> None:
         self._stop.set()
