@@ -210,7 +210,7 @@ class SceneWorld:
         k = np.interp(self._s_e + _XS, self._knot_s, self._knot_k)
         if yaw_rate is not None and abs(self._v) > 1.0:
             # the host's yaw rate says how the road bends where the ego is
-            target = float(np.clip(yaw_rate / self._v, -0.008, 0.008))
+            target = min(max(yaw_rate / self._v, -0.008), 0.008)  # np.clip of one float
             kh = self._k_host
             kh = target if kh is None else kh + (target - kh) * min(1.0, h / 0.5)
             self._k_host = kh
