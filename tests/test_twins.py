@@ -245,7 +245,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
                                                       Callable[[], Any]]]:
     """Per family: where to poison its fast twin (it then raises), and a run through the code
     the rest of the project calls (facade, config default, runner default)."""
-    from eyeq_spi.capture import pcapng_fast, pcapng_io
+    from eyeq_spi.capture import pcapng_fast, pcapng_write_fast
     from eyeq_spi.capture.pcapng_io import CaptureWriter
     from eyeq_spi.codec.layout_fast import FastCodec
     from eyeq_spi.codec.message import MessageCodec
@@ -305,7 +305,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
         "dissect.engine": ([(batch_run, "BatchDissector", _poison)], batch),
         "capture.pcapng": ([(batch_run, "pcapng_chunks", _poison),
                             (pcapng_fast, "pcapng_chunks", _poison)], batch),
-        "capture.write": ([(pcapng_io, "encode_blocks", _poison)], capture),
+        "capture.write": ([(pcapng_write_fast, "encode_blocks", _poison)], capture),
         "sim.dasp": ([(dasp_fast.DaspPacker, "build", classmethod(_poison))], dasp),
         "runner.virtual": ([(virtual_fast.Express, "eligible", staticmethod(_poison))],
                            emulate),

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, Protocol
 
-from eyeq_spi.capture.pcapng_write_fast import encode_blocks, ticks_of
 from eyeq_spi.catalog.messages import SwKey, catalog, sw_release_text
 from eyeq_spi.errors import CaptureError as CaptureError
 from eyeq_spi.errors import EyeqError
@@ -168,6 +167,8 @@ class CaptureWriter:
                  flush_s: float | None = None, blocks: bool | None = None) -> None:
         spec = _spec()
         self.blocks = not exact() if blocks is None else blocks
+        if self.blocks:  # numpy now, not at the first write: readers of captures start without it
+            import eyeq_spi.capture.pcapng_write_fast  # noqa: F401
         # block mode: (interface id, time, transfer) kept since the last encoding (None before
         # the first transfer), the bytes they will take at most (block size with 3 bytes of
         # padding each) and what the buffer may take before it is written
@@ -233,6 +234,8 @@ class CaptureWriter:
         """The kept transfers into the buffer, as ``_write`` encodes them one by one."""
         if not self._pending:
             return
+        from eyeq_spi.capture.pcapng_write_fast import encode_blocks, ticks_of  # loaded
+
         ids, times, data = zip(*self._pending, strict=True)
         self._pending, self._p_bytes, self._room = [], 0, self.FLUSH_BYTES
         ticks = ticks_of(times, self._scale)
