@@ -32,6 +32,8 @@ FAMILIES: dict[str, tuple[str, str]] = {
     "codec.message": ("Layout.parse per message", "eyeq_spi.codec.message_fast"),
     "dissect.engine": ("eyeq_spi.dissect.engine", "eyeq_spi.dissect.engine_fast"),
     "capture.pcapng": ("eyeq_spi.capture.pcapng_io", "eyeq_spi.capture.pcapng_fast"),
+    "capture.write": ("CaptureWriter, one block per write",
+                      "eyeq_spi.capture.pcapng_write_fast"),
     "sim.dasp": ("the dict path (MessageCodec.encode)", "eyeq_spi.sim.dasp_fast"),
     "runner.virtual": ("eyeq_spi.runner.virtual", "eyeq_spi.runner.virtual_fast"),
 }

@@ -192,3 +192,40 @@ def test_due_heap_sends_as_the_scan_did() -> None:
     sent.clear()
     sim._send_due_dasp(t + 0.01)
     assert sent == msgs[:1] and len(sim._next_dasp) == len(msgs)
+
+
+@pytest.mark.parametrize("sw", SWS)
+def test_every_message_of_every_release_at_full_load(sw: str) -> None:
+    """Every DASP message the simulated EyeQ sends at every release, packed and by the dict
+    path, over a few frames of a full scene (objects, signs and light spots at their maxima)."""
+    ref, new = _pair(sw=sw, seed=23, objects=15, signs=20, light_spots=15)
+    assert _compare(ref, new, [0.4 + k / 18 for k in range(6)], (27.0, 0.01)) \
+        == 6 * len(_dasp(ref))
+
+
+def _stream(sim: SimulatedEyeQ, seconds: float) -> list[tuple[float, bytes]]:
+    """What ``_send_due_dasp`` sends in Running Vision over ``seconds`` (the link stubbed)."""
+    out: list[tuple[float, bytes]] = []
+    sim.powered, sim.app_running, sim.main_state = True, True, 0x02  # Running Vision
+    sim._send = lambda message, now: out.append((now, message))  # type: ignore[method-assign]
+    sim._send_due_dasp(0.0)
+    while sim._dasp_min < seconds:
+        sim._send_due_dasp(sim._dasp_min)
+    return out
+
+
+@pytest.mark.parametrize("sw", [SWS[0], "sw5", SWS[-1]])
+def test_a_long_run_wraps_every_counter_alike(sw: str) -> None:
+    """Over 16 simulated seconds each message is sent more than 256 times: the DASP header
+    counters and the E2E rolling counters (D5; none before the releases with CRCs) wrap, on
+    both paths alike, byte for byte."""
+    ref, new = _pair(sw=sw, seed=29, objects=15, signs=20, light_spots=15)
+    a, b = _stream(ref, 16.0), _stream(new, 16.0)
+    assert len(a) == len(b) > 256 * 10
+    for k, (x, y) in enumerate(zip(a, b, strict=True)):
+        assert x == y, (sw, k, x[0])
+    assert new.dasp_paths["dict"] == 0 and ref.dasp_paths["packed"] == 0
+    assert min(new.counters.sent.values()) > 256
+    assert max(new._dasp_counter.values()) < 64  # 289 or 290 sent: wrapped past 255
+    assert all(v < 64 for v in new.e2e.sent.values())
+    assert new.e2e.sent == ref.e2e.sent and (bool(new.e2e.sent) or sw == SWS[0])

@@ -167,6 +167,16 @@ def _pcapng(tmp_path: Path) -> Pair:
     return ref, fast
 
 
+def _capture_write(tmp_path: Path) -> Pair:
+    from tests.test_capture_pcapng_write_fast import _write
+
+    rng = random.Random(6)
+    recs = [(rng.choice(["h2e", "e2h"]), i * 2.5e-6, rng.randbytes(rng.choice([128, 128, 9])),
+             rng.random() * 0.3) for i in range(800)]
+    return (_write(tmp_path / "one.pcapng", False, recs, 97),
+            _write(tmp_path / "blocks.pcapng", True, recs, 97))
+
+
 # -- sim and runner ------------------------------------------------------------------------------
 def _dasp() -> Pair:
     from tests.test_sim_dasp_fast import _dasp, _pair
@@ -204,6 +214,7 @@ CONTRACT: dict[str, Callable[[Path], Pair]] = {
     "codec.layout": lambda _: _layout(),
     "dissect.engine + codec.message": lambda _: _dissect(),
     "capture.pcapng": _pcapng,
+    "capture.write": _capture_write,
     "sim.dasp": lambda _: _dasp(),
     "runner.virtual": lambda _: _runner(),
 }
@@ -234,7 +245,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
                                                       Callable[[], Any]]]:
     """Per family: where to poison its fast twin (it then raises), and a run through the code
     the rest of the project calls (facade, config default, runner default)."""
-    from eyeq_spi.capture import pcapng_fast
+    from eyeq_spi.capture import pcapng_fast, pcapng_write_fast
     from eyeq_spi.capture.pcapng_io import CaptureWriter
     from eyeq_spi.codec.layout_fast import FastCodec
     from eyeq_spi.codec.message import MessageCodec
@@ -274,6 +285,12 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
                  if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(sim.sw))
         return [sim._dasp_bytes(m, 0, 0.1)]
 
+    def capture() -> Any:
+        with CaptureWriter(tmp_path / "w.pcapng", idle_flush=False) as w:
+            for i in range(3):
+                w.write("h2e", i * 1e-3, bytes(128))
+        return (tmp_path / "w.pcapng").read_bytes()
+
     def emulate() -> Any:
         build(sim_config=SimConfig(dasp_packer=False)).run_for(0.3)
 
@@ -288,6 +305,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
         "dissect.engine": ([(batch_run, "BatchDissector", _poison)], batch),
         "capture.pcapng": ([(batch_run, "pcapng_chunks", _poison),
                             (pcapng_fast, "pcapng_chunks", _poison)], batch),
+        "capture.write": ([(pcapng_write_fast, "encode_blocks", _poison)], capture),
         "sim.dasp": ([(dasp_fast.DaspPacker, "build", classmethod(_poison))], dasp),
         "runner.virtual": ([(virtual_fast.Express, "eligible", staticmethod(_poison))],
                            emulate),

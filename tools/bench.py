@@ -379,6 +379,61 @@ def dasp_bench(runs: int = 3, virtual_s: float = 20.0) -> dict[str, float]:
     return out
 
 
+def _tapped(virtual_s: float) -> list[tuple[str, float, bytes]]:
+    """The transfers of a full-load ``demo --virtual-time`` run, as its ``--capture`` tap sees
+    them."""
+    from eyeq_spi.emulator import build
+    from eyeq_spi.sim.config import SimConfig
+
+    out: list[tuple[str, float, bytes]] = []
+    emu = build(sim_config=SimConfig(objects=15, signs=20, light_spots=15),
+                keep_rx_times=False,
+                tap=lambda node, t, x: out.append(("h2e" if node == 0 else "e2h", t, x)))
+    emu.run_for(virtual_s)
+    return out
+
+
+def _capture_cpu_per_sim_s(records: list[tuple[str, float, bytes]], blocks: bool,
+                           virtual_s: float) -> float:
+    import tempfile
+
+    from eyeq_spi.capture.pcapng_io import CaptureWriter
+
+    with tempfile.TemporaryDirectory() as d:
+        w = CaptureWriter(Path(d) / "c.pcapng", idle_flush=False, blocks=blocks)
+        write = w.write
+        c = time.thread_time()  # from the first write to the file closed
+        for direction, t, x in records:
+            write(direction, t, x)
+        w.close()
+        return (time.thread_time() - c) / virtual_s
+
+
+def capture_bench(runs: int = 3, virtual_s: float = 20.0) -> dict[str, float]:
+    """``--capture`` in a full-load virtual-time run: CPU per simulated second of writing its
+    transfers (the tap's ``CaptureWriter.write`` calls, encoding and file writes), one
+    encoding per transfer against block mode, interleaved, median and spread, and each in
+    128-byte ``crc_hqx`` calls of the in-run baseline."""
+    records = _tapped(virtual_s)
+    rows: dict[bool, list[float]] = {False: [], True: []}
+    crc = [crc_baseline_us()]
+    for _ in range(runs):
+        for blocks in (False, True):
+            rows[blocks].append(_capture_cpu_per_sim_s(records, blocks, virtual_s))
+        crc.append(crc_baseline_us())
+    base = statistics.median(crc)
+    out: dict[str, float] = {"capture_transfers_per_sim_s": len(records) / virtual_s}
+    for blocks, label in ((False, "capture_per_transfer"), (True, "capture_blocks")):
+        vals = rows[blocks]
+        out[f"{label}_cpu_ms_per_sim_s"] = statistics.median(vals) * 1e3
+        out[f"{label}_cpu_ms_per_sim_s_min"] = min(vals) * 1e3
+        out[f"{label}_cpu_ms_per_sim_s_max"] = max(vals) * 1e3
+        out[f"{label}_in_crc_calls"] = statistics.median(vals) / (base * 1e-6)
+    out["capture_per_transfer_over_blocks"] = (out["capture_per_transfer_cpu_ms_per_sim_s"]
+                                               / out["capture_blocks_cpu_ms_per_sim_s"])
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seconds", type=float, default=1.0, help="time per measurement")
@@ -390,13 +445,19 @@ def main() -> int:
     ap.add_argument("--dasp-dict", action="store_true",
                     help="emulator runs with the simulated EyeQ's DASP dict path (the reference "
                          "the packer is held to) instead of the packer")
+    ap.add_argument("--capture-only", action="store_true",
+                    help="only the --capture writer: per-transfer encoding against blocks")
     args = ap.parse_args()
     out: dict[str, float] = {}
+    if args.capture_only:
+        out.update(capture_bench(args.runs))
+        args.no_emulator = args.emulator_only = True
     if not args.emulator_only:
         out.update({**frame_bench(args.seconds), **obstacles_bench(args.seconds)})
     if not args.no_emulator:
         out.update(emulator_bench(args.runs, args.long, not args.dasp_dict))
         out.update(dasp_bench(args.runs))
+        out.update(capture_bench(args.runs))
     for k, v in out.items():
         print(f"{k:55s} {v:14,.4g}")
     print(json.dumps({k: float(f"{v:.4g}") for k, v in out.items()}))

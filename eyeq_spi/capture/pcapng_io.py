@@ -20,6 +20,7 @@ from eyeq_spi.catalog.messages import SwKey, catalog, sw_release_text
 from eyeq_spi.errors import CaptureError as CaptureError
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.errors import TruncatedCaptureError as TruncatedCaptureError
+from eyeq_spi.twins import exact
 
 DIRECTIONS = ("h2e", "e2h")
 SW_COMMENT = "eyeq-spi sw={release}"  # specs/capture.yaml release_comment: "eyeq-spi sw=8.1"
@@ -150,15 +151,30 @@ class CaptureWriter:
     (readers read up to the last whole block, :class:`Tail`). The release of the traffic
     (``sw``, a ``specs/`` key or release text; default the newest) is recorded as an
     ``opt_comment`` ``eyeq-spi sw=<release>`` on the Section Header Block and on the first
-    Enhanced Packet Block."""
+    Enhanced Packet Block.
+
+    ``blocks`` (default: on unless ``EYEQ_SPI_EXACT=1``): ``write`` only keeps the transfer,
+    and the kept transfers are encoded many at a time (``capture/pcapng_write_fast.py``) when
+    the buffer is due to be written, by the same rules; the file gets the same bytes as with
+    one encoding per transfer. ``flush``, ``close`` and the idle thread write every transfer
+    handed over so far."""
 
     FLUSH_BYTES = 1 << 16
     FLUSH_S = 1.0
 
     def __init__(self, path: str | Path, sw: str | None = None, *,
                  clock: Callable[[], float] = time.monotonic, idle_flush: bool = True,
-                 flush_s: float | None = None) -> None:
+                 flush_s: float | None = None, blocks: bool | None = None) -> None:
         spec = _spec()
+        self.blocks = not exact() if blocks is None else blocks
+        if self.blocks:  # numpy now, not at the first write: readers of captures start without it
+            import eyeq_spi.capture.pcapng_write_fast  # noqa: F401
+        # block mode: (interface id, time, transfer) kept since the last encoding (None before
+        # the first transfer), the bytes they will take at most (block size with 3 bytes of
+        # padding each) and what the buffer may take before it is written
+        self._pending: list[tuple[int, float, bytes]] | None = None
+        self._p_bytes = 0
+        self._room = self.FLUSH_BYTES
         cat = catalog()
         try:
             self.release = sw_release_text(cat.sw(sw))
@@ -192,7 +208,7 @@ class CaptureWriter:
         """What waits in the buffer goes to the file when no transfer came to write it."""
         while not self._stop.wait(self.flush_s / 2):
             with self._lock:
-                if self._buf and not self._fh.closed and \
+                if (self._buf or self._pending) and not self._fh.closed and \
                         self._clock() - self._last_flush >= self.flush_s:
                     try:
                         self._flush()
@@ -201,23 +217,67 @@ class CaptureWriter:
 
     def write(self, direction: str, time: float, transfer: bytes) -> None:
         with self._lock:
-            self._write(direction, time, transfer)
+            pending = self._pending
+            if pending is None:  # one block per write, or the first (it carries the comment)
+                self._write(direction, time, transfer)
+                if self.blocks:
+                    self._pending, self._room = [], self.FLUSH_BYTES - len(self._buf)
+                return
+            data = bytes(transfer)
+            pending.append((self._ids[direction], time, data))
+            self.count += 1
+            self._p_bytes += 35 + len(data)
+            if self._p_bytes >= self._room or self._clock() - self._last_flush >= self.flush_s:
+                self._flush()
+
+    def _encode_pending(self) -> None:
+        """The kept transfers into the buffer, as ``_write`` encodes them one by one."""
+        if not self._pending:
+            return
+        from eyeq_spi.capture.pcapng_write_fast import encode_blocks, ticks_of  # loaded
+
+        ids, times, data = zip(*self._pending, strict=True)
+        self._pending, self._p_bytes, self._room = [], 0, self.FLUSH_BYTES
+        ticks = ticks_of(times, self._scale)
+        if ticks is not None:
+            self._buf += encode_blocks(ids, ticks, data)
+            return
+        # a time the fast encoder cannot take: the reference encodes every other transfer and
+        # says what it could not write
+        bad: CaptureError | None = None
+        for i, t, d in zip(ids, times, data, strict=True):
+            try:
+                self._encode_one(i, t, d, b"")
+            except CaptureError as exc:
+                bad = bad or exc
+        if bad is not None:
+            raise bad
 
     def _write(self, direction: str, time: float, transfer: bytes) -> None:
-        ticks = max(0, round(time * self._scale))
-        data = bytes(transfer)
-        pad = -len(data) % 4
         opts = _options([(1, self.comment.encode())]) if self.count == 0 else b""
+        self._encode_one(self._ids[direction], time, bytes(transfer), opts)
+        self.count += 1
+        if len(self._buf) >= self.FLUSH_BYTES or self._clock() - self._last_flush >= self.flush_s:
+            self._flush()
+
+    def _encode_one(self, iface: int, time: float, data: bytes, opts: bytes) -> None:
+        """One Enhanced Packet Block into the buffer (the reference encoder); a time without a
+        pcapng timestamp (not a number, infinite, past 2**64 ticks) is a :class:`CaptureError`
+        and writes nothing."""
+        pad = -len(data) % 4
         size = 32 + len(data) + pad + len(opts)
-        self._buf += _EPB_HEAD.pack(6, size, self._ids[direction], ticks >> 32,
-                                    ticks & 0xFFFFFFFF, len(data), len(data))
+        try:
+            ticks = max(0, round(time * self._scale))
+            head = _EPB_HEAD.pack(6, size, iface, ticks >> 32, ticks & 0xFFFFFFFF, len(data),
+                                  len(data))
+        except (ValueError, OverflowError, TypeError, struct.error):
+            raise CaptureError(f"cannot write capture {self._fh.name}: transfer time {time!r} "
+                               "has no pcapng timestamp") from None
+        self._buf += head
         self._buf += data
         self._buf += b"\0" * pad
         self._buf += opts
         self._buf += size.to_bytes(4, "little")
-        self.count += 1
-        if len(self._buf) >= self.FLUSH_BYTES or self._clock() - self._last_flush >= self.flush_s:
-            self._flush()
 
     def flush(self) -> None:
         """Write every whole block buffered so far."""
@@ -225,6 +285,11 @@ class CaptureWriter:
             self._flush()
 
     def _flush(self) -> None:
+        bad: CaptureError | None = None
+        try:
+            self._encode_pending()
+        except CaptureError as exc:  # the other transfers still go to the file
+            bad = exc
         view = memoryview(self._buf)
         try:
             while view:
@@ -235,7 +300,10 @@ class CaptureWriter:
         finally:
             view.release()
         self._buf.clear()
+        self._room = self.FLUSH_BYTES
         self._last_flush = self._clock()
+        if bad is not None:
+            raise bad
 
     def close(self) -> None:
         self._stop.set()

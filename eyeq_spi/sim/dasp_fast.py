@@ -13,8 +13,8 @@ are lists of views) and supports what the fillers do to a dict: ``key in v``, ``
 ``v[key]`` and ``v[key] = x``, ``v.update(...)``. Every offset, ``struct`` format and bitfield
 position comes from the :class:`~eyeq_spi.codec.layout.Layout` (hence from ``specs/``), never by
 hand. Writing a leaf packs it at once, with the errors the dict path's encoder would raise
-(:class:`~eyeq_spi.errors.CodecError`). The fillers in :mod:`eyeq_spi.sim.scene_layout` notice
-views and write whole columns of an array of structs with numpy (:func:`columns`).
+(:class:`~eyeq_spi.errors.CodecError`). The fillers' writers in :mod:`eyeq_spi.sim.scene_write`
+notice views, write whole columns of an array of structs with numpy and write constants once.
 
 :meth:`DaspPacker.encode` then fills the rolling counters and CRCs (D5, generated from
 ``Layout.crc_plan`` like :func:`eyeq_spi.codec.e2e.compile_verifier`; same order and values as
@@ -91,14 +91,15 @@ def _slots(lay: Layout) -> dict[str, Slot]:
 class StructView:
     """One struct of a :class:`DaspPacker`'s payload, used like its value dict."""
 
-    __slots__ = ("base", "buf", "cache", "kids", "layout", "shadow", "slots", "template",
+    __slots__ = ("base", "buf", "cache", "done", "kids", "layout", "shadow", "slots", "template",
                  "writers")
 
     def __init__(self, buf: bytearray, lay: Layout, base: int, keep: bool,
                  cache: dict[Any, Any]) -> None:
         self.buf, self.layout, self.base, self.cache = buf, lay, base, cache
         self.template: dict[str, Any] | None = None  # the root's: the dict path's template
-        self.writers: dict[Any, Any] = {}  # scene_layout._puts' generated writers for this view
+        self.writers: dict[Any, Any] = {}  # scene_write._puts' generated writers for this view
+        self.done: set[Any] = set()  # scene_write._puts_once: constants written since reset
         key = ("slots", id(lay))
         if key not in cache:
             cache[key] = (lay, _slots(lay))
@@ -183,6 +184,7 @@ class StructView:
     def reset(self) -> None:
         if self.shadow is not None:
             self.shadow.clear()
+        self.done.clear()
         for kid in self.kids.values():
             for v in kid if isinstance(kid, list) else (kid,):
                 v.reset()

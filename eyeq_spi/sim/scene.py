@@ -44,11 +44,15 @@ from eyeq_spi.sim.scene_layout import (
     _Node,
     _node_for,
     _obj_plan,
-    _puts,
-    _write_objects_packed,
-    _write_rows,
 )
 from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
+from eyeq_spi.sim.scene_write import (
+    _puts,
+    _puts_once,
+    _write_objects_packed,
+    _write_rows,
+    _write_table,
+)
 
 __all__ = ["CLASSES", "Scene", "SceneConfig", "SceneWorld"]
 
@@ -60,10 +64,27 @@ def _lane_codes() -> IArr:
         ("LEFT_NEXT_NEXT", -2))])
 
 
+# (a, b) of the obstacles' standard deviations a + b·|longDistance| (physicalState, angularState)
+_STD = np.array([(0.05, 0.002), (0.2, 0.01), (0.1, 0.01), (0.1, 0.005), (0.2, 0.004),
+                 (0.2, 0.002), (0.05, 0.003), (0.005, 1e-4)])
+_STRUCTS: dict[int, tuple[_Node, list[tuple[str, _Node]]]] = {}
+
+
+def _struct_members(node: _Node) -> list[tuple[str, _Node]]:
+    """The members of ``node`` that are one struct (not an array of them): where
+    :meth:`Scene.fill` writes a header too. Kept per node (range trees live for the process)."""
+    got = _STRUCTS.get(id(node))
+    if got is None or got[0] is not node:
+        got = _STRUCTS[id(node)] = (node, [(k, sub) for k, sub in node.members.items()
+                                        if isinstance(sub, _Node) and sub.count is None])
+    return got[1]
+
+
 class Scene(SceneWorld):
     """The world (objects, road, signs) and the writer of its DASP payloads."""
 
     _signs_seen: tuple[object, list[tuple[int, float]]] | None = None
+    _header: tuple[float, int, dict[str, float]] | None = None  # the last header's values
 
     def _after_step(self) -> None:
         self._columns()  # the vectorised part of filling EYEQ_VIS_OBSTACLES_MSG
@@ -100,13 +121,14 @@ class Scene(SceneWorld):
         age = self._frame_now - self._birth[idx] + 1
         conf = np.clip(0.97 - 0.0015 * a_s + self._cbias[idx]
                        - 0.2 * np.exp(-np.maximum(age, 1) / 6.0), 0.5, 1.0)
+        # the standard deviations a + b·|s| (_STD) in two numpy steps for all of them: the same
+        # multiplication and addition per element as one row at a time
+        sd = _STD[:, :1] + _STD[:, 1:] * a_s
         f = np.array([
-            w, 0.05 + 0.002 * a_s, length, 0.2 + 0.01 * a_s, hgt, 0.05 + 0.002 * a_s,
-            vx, 0.1 + 0.01 * a_s, vy, 0.1 + 0.005 * a_s, ax, 0.2 + 0.004 * a_s,
-            ay, 0.2 + 0.002 * a_s, s, 0.05 + 0.01 * a_s + 5e-5 * s * s, y, 0.05 + 0.003 * a_s,
-            heading,
+            w, sd[0], length, sd[1], hgt, sd[0], vx, sd[2], vy, sd[3], ax, sd[4], ay, sd[5],
+            s, 0.05 + 0.01 * a_s + 5e-5 * s * s, y, sd[6], heading,
             np.arctan2(w / 2 - y, ss), ang_std, np.arctan2(-y - w / 2, ss), ang_std, side, ang_std,
-            mid, ang_std, -(ss * vy - y * vrel) / (ss * ss + y * y), 0.005 + 1e-4 * a_s,
+            mid, ang_std, -(ss * vy - y * vrel) / (ss * ss + y * y), sd[7],
             conf, ttc], dtype=np.float64)
         # image: origin at the image centre, x right, y down (the rect is for visualisation)
         vis = s > 0.5
@@ -209,17 +231,20 @@ class Scene(SceneWorld):
             return
         t = float(t)
         self._fill_header(values, node, t)
-        for key, sub in node.members.items():
-            if isinstance(sub, _Node) and sub.count is None \
-                    and isinstance(values.get(key), dict | StructView):
+        for key, sub in _struct_members(node):
+            if isinstance(values.get(key), dict | StructView):
                 self._fill_header(values[key], sub, t)
         getattr(self, method)(values, node, t)
 
     def _fill_header(self, d: dict[str, Any], n: _Node, t: float) -> None:
-        frame = _frame(t)
-        _puts(d, n, {"timestamp_ms": int(t * 1000) & 0xFFFFFFFF,
-                     "timestamp_us": max(0, round(t * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
-                     "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
+        last = self._header
+        if last is None or last[0] != t or last[1] != self._veh_index:
+            frame = _frame(t)
+            last = self._header = (t, self._veh_index, {
+                "timestamp_ms": int(t * 1000) & 0xFFFFFFFF,
+                "timestamp_us": max(0, round(t * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
+                "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
+        _puts(d, n, last[2])  # the same values for every header of one instant
 
     def _fill_nothing(self, values: dict[str, Any], node: _Node, t: float) -> None:
         """Headers only (EYEQ_SAFETY_MSG: no safety fault, no challenge)."""
@@ -272,23 +297,26 @@ class Scene(SceneWorld):
                      spec: tuple[float, str, float, float] | None) -> None:
         poly, conf = _child(md, mn, "laneMarker"), _child(md, mn, "laneMarkerConf")
         lmt = "lane_marker_type"
+        # each marker's spec is None or of one kind for good: its constants are written once
         if spec is None:  # §10.6: only seen with a wide separation between lanes
             if poly:
-                _puts(*poly, dict.fromkeys(self._poly_values(0.0, 0.0), 0.0))
+                _puts_once(*poly, "none", lambda: dict.fromkeys(self._poly_values(0.0, 0.0), 0.0))
             if conf:
-                _puts(*conf, {"sfConf": 0.0, "confidence": 0})
-            _puts(md, mn, {"measuredViewRange": 0.0, "laneMarkerWidth": 0.0,
-                           "laneMarkerType": _code(lmt, "INVALID", 6), "dlmType": 0,
-                           "decelType": 0, "laneMarkerColor": 0})
+                _puts_once(*conf, "none", lambda: {"sfConf": 0.0, "confidence": 0})
+            _puts_once(md, mn, "none", lambda: {
+                "measuredViewRange": 0.0, "laneMarkerWidth": 0.0,
+                "laneMarkerType": _code(lmt, "INVALID", 6), "dlmType": 0, "decelType": 0,
+                "laneMarkerColor": 0})
             return
         offset, kind, view, phase = spec
         if poly:
             _puts(*poly, self._poly_values(offset, view))
         if conf:
-            _puts(*conf, {"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase),
-                          "confidence": _code("road_confidence_level", "Detected lanemark", 3)})
-        _puts(md, mn, {
-            "measuredViewRange": view * (0.85 if kind == "DASHED" else 0.95),
+            _puts(*conf, {"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase)})
+            _puts_once(*conf, "seen", lambda: {
+                "confidence": _code("road_confidence_level", "Detected lanemark", 3)})
+        _puts(md, mn, {"measuredViewRange": view * (0.85 if kind == "DASHED" else 0.95)})
+        _puts_once(md, mn, kind, lambda: {
             "laneMarkerWidth": 0.12 if kind == "DASHED" else 0.15,
             "laneMarkerType": _code(lmt, kind, 0), "dlmType": _code("dlm_type", "NOTDLM", 0),
             "decelType": _code("decel_type", "NOTDECEL", 0),
@@ -300,8 +328,9 @@ class Scene(SceneWorld):
             return
         rd, rn = info
         p = self._phase
-        view = float(np.clip(min(105.0 + 12.0 * math.sin(0.2 * self._tau + p[2]),
-                                 self._cipv_distance() + 25.0), 20.0, 128.0))
+        # min(max()) is np.clip on one float (NaN kept), without numpy's call overhead
+        view = float(min(max(min(105.0 + 12.0 * math.sin(0.2 * self._tau + p[2]),
+                                 self._cipv_distance() + 25.0), 20.0), 128.0))
         markers: dict[str, tuple[float, str, float, float] | None] = {
             "hostLeftMarker": (HALF_LANE, "DASHED", view, p[3]),
             "hostRightMarker": (-HALF_LANE, "DASHED", view, p[4]),
@@ -314,8 +343,9 @@ class Scene(SceneWorld):
                 m = _child(*mi, key)
                 if m:
                     self._fill_marker(*m, spec)
-            _puts(*mi, {"ambiguousLinePatternLeft": 0, "ambiguousLinePatternRight": 0,
-                        "constructionArea": 0, "roadPredictionLeft": 0, "roadPredictionRight": 0})
+            _puts_once(*mi, "road", lambda: {
+                "ambiguousLinePatternLeft": 0, "ambiguousLinePatternRight": 0,
+                "constructionArea": 0, "roadPredictionLeft": 0, "roadPredictionRight": 0})
         bi = _child(rd, rn, "roadBorderInfo")
         borders = (("leftRoadBorder", 3 * HALF_LANE + 0.8, "Barrier", 4, 0.8),
                    ("rightRoadBorder", -3 * HALF_LANE - 0.6, "Curb", 3, 0.15))
@@ -327,20 +357,22 @@ class Scene(SceneWorld):
             if poly:
                 _puts(*poly, self._poly_values(offset, 0.6 * view))
             if conf:
-                _puts(*conf, {"sfConf": 0.8, "confidence": _code(
+                _puts_once(*conf, "border", lambda: {"sfConf": 0.8, "confidence": _code(
                     "road_confidence_level", "Detected lanemark", 3)})
-            _puts(*b, {"roadBorderHeight": height,
-                       "roadBorderType": _code("road_border_type", kind, default)})
+            _puts_once(*b, "border", lambda h=height, k=kind, v=default: {  # type: ignore[misc]
+                "roadBorderHeight": h, "roadBorderType": _code("road_border_type", k, v)})
         hpp = _child(rd, rn, "roadHppFusionInfo")
         if hpp:
             centre = _child(*hpp, "laneCenter")
             if centre:
                 _puts(*centre, self._poly_values(0.0, view))
-            _puts(*hpp, {"roadFusionConf": 0.92, "halfWidth": HALF_LANE, "hppLeftWeight": 0.5,
-                         "hppCenterWeight": 0.0, "hppRightWeight": 0.5, "roadLeftWeight": 0.5,
-                         "roadRightWeight": 0.5})
-        _puts(rd, rn, {"drivingSide": _code("road_driving_side", "Right Side", 0),
-                       "laneChange": _code("road_lane_change", "No lane change", 0)})
+            _puts_once(*hpp, "hpp", lambda: {
+                "roadFusionConf": 0.92, "halfWidth": HALF_LANE, "hppLeftWeight": 0.5,
+                "hppCenterWeight": 0.0, "hppRightWeight": 0.5, "roadLeftWeight": 0.5,
+                "roadRightWeight": 0.5})
+        _puts_once(rd, rn, "road", lambda: {
+            "drivingSide": _code("road_driving_side", "Right Side", 0),
+            "laneChange": _code("road_lane_change", "No lane change", 0)})
 
     def _visible_signs(self) -> list[tuple[int, float]]:
         """Signs ahead, nearest first, with their lateral distance; once per step (both sign
@@ -379,11 +411,11 @@ class Scene(SceneWorld):
                 "signRelevantDecision": _code("tsr_sign_relevant_decision", "RELEVANT_SIGN", 0),
                 "signFilterType": _code("tsr_sign_filter_type", "NO_SLI_FILTER", 0)})
         _write_rows(elems, en, rows, _SIGN_KEYS)
-        _puts(*tsr, {"numberTrafficSigns": len(rows),
-                     "currentMarket": _code("tsr_current_market", "EUROPE", 1)})
+        _puts(*tsr, {"numberTrafficSigns": len(rows)})
+        _puts_once(*tsr, "tsr", lambda: {"currentMarket": _code("tsr_current_market", "EUROPE", 1)})
         marks = _child(*tsr, "roadMarkings")
         if marks:
-            _puts(*marks, dict.fromkeys((
+            _puts_once(*marks, "none", lambda: dict.fromkeys((
                 "numberOfArrowsMarkings", "numberOfStopLinesMarkings",
                 "numberOfSpeedLimitMarkings", "numberOfCrossingMarkings"), 0))
 
@@ -398,11 +430,16 @@ class Scene(SceneWorld):
         lit = lit[np.argsort(self._s[lit], kind="stable")][:min(self._n_spots, len(spots))]
         y_all = self._lateral(self._s, self._d)
         vsign = -1.0 if self.config.spot_angles_up else 1.0  # top, bottom: below-positive
-        rows: list[dict[str, float]] = []
+        # rows as tuples in the order of _SPOT_KEYS / _REFLECT_KEYS (no dict per row); the
+        # arrays as Python numbers first (the same values float() of an element gives)
+        rows: list[tuple[float, ...]] = []
         oncoming_seen = False
-        for i in (int(k) for k in lit):
-            s, y, half = float(self._s[i]), float(y_all[i]), max(float(self._w[i]) / 2 - 0.15, 0.0)
-            name, kind = CLASSES[int(self._cls[i])][0], int(self._kind[i])
+        s_l, y_l, w_l, cls_l, kind_l, oid_l = (a.tolist() for a in (
+            self._s, y_all, self._w, self._cls, self._kind, self._oid))
+        atan2, tan = math.atan2, math.tan
+        for i in lit.tolist():
+            s, y, half = s_l[i], y_l[i], max(w_l[i] / 2 - 0.15, 0.0)
+            name, kind = CLASSES[cls_l[i]][0], kind_l[i]
             pair = name not in ("bike", "bicycle")
             oncoming_seen |= kind == ONCOMING
             code = (_code(cls, "Pair of Headlamps", 3) if kind == ONCOMING else
@@ -410,56 +447,53 @@ class Scene(SceneWorld):
             # §15 light spots: "angles to the right of the sensor coordinate system are
             # positive"; "angle above the horizon are positive" from SW4.0 (line 3295), below
             # before it (line 3257); pixels from the image's left bottom corner
-            left, right = math.atan2(-y - half, s), math.atan2(half - y, s)
-            top, bottom = math.atan2(CAM_HEIGHT - 1.0, s), math.atan2(CAM_HEIGHT - 0.6, s)
-            rows.append({
-                "leftAngle": left, "rightAngle": right, "topAngle": vsign * top,
-                "bottomAngle": vsign * bottom,
-                "id": float(self._oid[i]), "vdID": float(self._oid[i]), "longPos": s,
-                "pixelTop": IMAGE_H / 2 - FOCAL_PX * math.tan(top),
-                "pixelBottom": IMAGE_H / 2 - FOCAL_PX * math.tan(bottom),
-                "pixelLeft": IMAGE_W / 2 + FOCAL_PX * math.tan(left),
-                "pixelRight": IMAGE_W / 2 + FOCAL_PX * math.tan(right),
-                "classification": code, "isTruck": float(name == "truck")})
-        _write_rows(spots, sn, rows, _SPOT_KEYS)
+            left, right = atan2(-y - half, s), atan2(half - y, s)
+            top, bottom = atan2(CAM_HEIGHT - 1.0, s), atan2(CAM_HEIGHT - 0.6, s)
+            oid = float(oid_l[i])
+            rows.append((  # _SPOT_KEYS
+                left, right, vsign * top, vsign * bottom, oid, oid, s,
+                IMAGE_H / 2 - FOCAL_PX * tan(top), IMAGE_H / 2 - FOCAL_PX * tan(bottom),
+                IMAGE_W / 2 + FOCAL_PX * tan(left), IMAGE_W / 2 + FOCAL_PX * tan(right),
+                code, float(name == "truck")))
+        _write_table(spots, sn, _SPOT_KEYS, rows, _SPOT_KEYS)
         signs, gn = _elements(ld, ln, "reflectiveSigns")
-        refl: list[dict[str, float]] = []
+        refl: list[tuple[float, ...]] = []
+        sg_s, sg_z, sg_id = self._sg_s.tolist(), self._sg_z.tolist(), self._sg_id.tolist()
         for i, y in self._visible_signs()[:len(signs)]:
-            s, z = float(self._sg_s[i]), float(self._sg_z[i]) - CAM_HEIGHT
+            s, z = sg_s[i], sg_z[i] - CAM_HEIGHT
             glare = 100.0 * math.exp(-s / 50.0)
-            refl.append({
-                "lightSignLeftAngle": math.atan2(-y - 0.4, s),  # §15: "Negative: left"
-                "lightSignRightAngle": math.atan2(0.4 - y, s),
-                "lightSignBottomAngle": math.atan2(z - 0.4, s),
-                "lightSignTopAngle": math.atan2(z + 0.4, s), "lightSignID": float(self._sg_id[i]),
-                "lightSignDistance": s, "lightSignGlareLevelMax": min(100.0, glare + 10.0),
-                "lightSignGlareLevelCurrent": glare})
-        _write_rows(signs, gn, refl, _REFLECT_KEYS)
+            refl.append((  # _REFLECT_KEYS; §15: "Negative: left"
+                atan2(-y - 0.4, s), atan2(0.4 - y, s), atan2(z - 0.4, s), atan2(z + 0.4, s),
+                float(sg_id[i]), s, min(100.0, glare + 10.0), glare))
+        _write_table(signs, gn, _REFLECT_KEYS, refl, _REFLECT_KEYS)
         _puts(ld, ln, {
-            "ahbcAvailable": _code("ahbc_available", "Full", 2),
-            "gridFrequency": _code("ahbc_grid_frequency", "50 Hz", 1),
             "numOfActiveLightSpots": len(rows), "numOfReflectiveSigns": len(refl),
             "clearFieldOfView": _code("ahbc_clear_field_of_view", "No Clear Field-Of-View", 1)
             if rows else _code("ahbc_clear_field_of_view", "Clear Field-Of-View", 2),
             "beamRequest": _code("ahbc_beam_request", "OFF" if rows else "ON", 0 if rows else 1),
+            "oncomingLaneNotDark": int(oncoming_seen)})
+        _puts_once(ld, ln, "ahbc", lambda: {
+            "ahbcAvailable": _code("ahbc_available", "Full", 2),
+            "gridFrequency": _code("ahbc_grid_frequency", "50 Hz", 1),
             "inTunnel": _code("ahbc_in_tunnel", "FALSE", 1), "eventsDetected": 0,
             "fogDetected": 0, "highwayDetected": 1, "villageDetected": 0,
-            "oncomingLaneNotDark": int(oncoming_seen), "approachingJunction": 0,
-            "lightNoisyScene": 0, "lightCone": 0})
+            "approachingJunction": 0, "lightNoisyScene": 0, "lightCone": 0})
 
     def _fill_aeb(self, values: dict[str, Any], node: _Node, t: float) -> None:
         aeb = _child(values, node, "visAEB")
         if aeb:  # vision-only AEB stays quiet: the ego never closes in dangerously
-            _puts(*aeb, {k: 0 for k in aeb[1].members if k.startswith("visOnly")})
-            _puts(*aeb, {"roadFreeDetection": _code(
-                "aeb_road_free_detection", "NO_PENETRATION_DETECTED", 0)})
+            _puts_once(*aeb, "quiet", lambda: {
+                **{k: 0 for k in aeb[1].members if k.startswith("visOnly")},
+                "roadFreeDetection": _code("aeb_road_free_detection", "NO_PENETRATION_DETECTED",
+                                           0)})
 
     def _fill_failsafe(self, values: dict[str, Any], node: _Node, t: float) -> None:
         fs = _child(values, node, "visFailsafes")
         if fs:
             none = _code("failsafe_severity", "NONE", 1)
-            _puts(*fs, {k: none for k in fs[1].members if k.endswith("SeverityLevel")})
-            _puts(*fs, {"freeSight": _code("free_sight", "TRUE", 1), "outOfCalibTSR": 0})
+            _puts_once(*fs, "none", lambda: {
+                **{k: none for k in fs[1].members if k.endswith("SeverityLevel")},
+                "freeSight": _code("free_sight", "TRUE", 1), "outOfCalibTSR": 0})
 
     def _fill_srp(self, values: dict[str, Any], node: _Node, t: float) -> None:
         srp = _child(values, node, "visSRP")

@@ -210,7 +210,7 @@ class SceneWorld:
         k = np.interp(self._s_e + _XS, self._knot_s, self._knot_k)
         if yaw_rate is not None and abs(self._v) > 1.0:
             # the host's yaw rate says how the road bends where the ego is
-            target = float(np.clip(yaw_rate / self._v, -0.008, 0.008))
+            target = min(max(yaw_rate / self._v, -0.008), 0.008)  # np.clip of one float
             kh = self._k_host
             kh = target if kh is None else kh + (target - kh) * min(1.0, h / 0.5)
             self._k_host = kh
@@ -223,9 +223,10 @@ class SceneWorld:
         w1, w2 = 2 * math.pi / 14.0, 2 * math.pi / 4.3
         self._e = 0.15 * math.sin(w1 * tau + p[0]) + 0.05 * math.sin(w2 * tau + p[1])
         e_dot = 0.15 * w1 * math.cos(w1 * tau + p[0]) + 0.05 * w2 * math.cos(w2 * tau + p[1])
-        c1 = float(np.clip(-e_dot / max(abs(self._v), 1.0), -0.05, 0.05))
-        self._poly = (-self._e, c1, float(np.clip(c2, -0.0099, 0.0099)),
-                      float(np.clip(c3, -1.69e-4, 1.69e-4)))
+        # min(max()) is np.clip on one float (NaN kept), without numpy's call overhead
+        c1 = min(max(-e_dot / max(abs(self._v), 1.0), -0.05), 0.05)
+        self._poly = (-self._e, c1, min(max(c2, -0.0099), 0.0099),
+                      min(max(c3, -1.69e-4), 1.69e-4))
 
     def _lateral(self, s: FArr, d: FArr) -> FArr:
         """Road (s, d) -> lateral distance in the ego frame through the road polynomial."""

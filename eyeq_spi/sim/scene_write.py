@@ -1,0 +1,323 @@
+"""How the scene's values reach a payload: :func:`_puts` of one struct's members (clamped as
+:meth:`~eyeq_spi.sim.scene_layout._Leaf.clamp` says, generated writers into a packer's views),
+constants written once per packer (:func:`_puts_once`), and the arrays of structs as rows or
+numpy columns (split out of :mod:`eyeq_spi.sim.scene_layout`)."""
+
+from __future__ import annotations
+
+import itertools
+import struct
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from eyeq_spi.errors import CodecError
+from eyeq_spi.sim.dasp_fast import BITS, NP_FMT, SCALAR, StructView
+from eyeq_spi.sim.scene_layout import FArr, IArr, _Leaf, _Node, _ObjPlan
+
+
+def _put(d: dict[str, Any], n: _Node, key: str, x: float) -> None:
+    leaf = n.members.get(key)
+    if isinstance(leaf, _Leaf) and key in d:
+        d[key] = leaf.clamp(x)
+
+
+def _puts(d: dict[str, Any], n: _Node, vals: dict[str, float]) -> None:
+    if isinstance(d, StructView):
+        keys = tuple(vals)
+        got = d.writers.get((id(n), keys))
+        if got is None or got[0] is not n:
+            got = d.writers[(id(n), keys)] = (n, _compile_puts(d, n, keys))
+        if got[1] is not None:
+            got[1](d.buf, d.shadow, vals)
+            return
+    for key, x in vals.items():
+        _put(d, n, key, x)
+
+
+def _puts_once(d: dict[str, Any], n: _Node, key: str,
+               make: Callable[[], dict[str, float]]) -> None:
+    """:func:`_puts` of values that never change (``make()``, the same every call): a packer's
+    view keeps its bytes from frame to frame and no other write touches these members, so they
+    are written once after each reset; a dict gets them every time (the reference)."""
+    if isinstance(d, StructView):
+        k = (id(n), key)
+        if k in d.done:
+            return
+        _puts(d, n, make())
+        d.done.add(k)
+        return
+    _puts(d, n, make())
+
+
+def _compile_puts(d: StructView, n: _Node, keys: tuple[str, ...]
+                  ) -> Callable[[bytearray, Any, dict[str, float]], None] | None:
+    """:func:`_puts` into view ``d`` as generated code: per key the same clamp expression as
+    :meth:`_Leaf.clamp` and a ``pack_into`` at the member's offset from the layout (a bitfield
+    read, masked and written back). None if a key names a struct or an array: the loop runs."""
+    env: dict[str, Any] = {"CodecError": CodecError, "StructError": struct.error}
+    body: list[str] = []
+    for i, key in enumerate(keys):
+        leaf = n.members.get(key)
+        if not isinstance(leaf, _Leaf) or key not in d:
+            continue
+        s = d.slots.get(key)
+        if s is None or s.kind not in (SCALAR, BITS):
+            return None
+        env[f"K{i}"], env[f"L{i}"], env[f"H{i}"], env[f"S{i}"] = key, leaf.lo, leaf.hi, s.st
+        o = d.base + s.offset
+        body.append(f"x = float(min(max(v[K{i}], L{i}), H{i}))" if leaf.real
+                    else f"x = int(min(max(round(v[K{i}]), L{i}), H{i}))")
+        if s.kind == SCALAR:
+            body.append(f"S{i}.pack_into(b, {o}, x)")
+        else:
+            keep = ((1 << (8 * s.st.size)) - 1) & ~(s.mask << s.lo)
+            body += [f"if not isinstance(x, int) or not 0 <= x <= {s.mask}:",
+                     f"    raise CodecError(f'{{K{i}}}: {{x!r}} does not fit "
+                     f"{s.mask.bit_length()} bit(s)')",
+                     f"S{i}.pack_into(b, {o}, S{i}.unpack_from(b, {o})[0] & {keep} | x << {s.lo})"]
+        if d.shadow is not None:
+            body.append(f"sh[K{i}] = x")
+    src = ["def _w(b, sh, v):", "    try:"] + [f"        {line}" for line in body or ["pass"]]
+    src += ["    except (StructError, TypeError) as exc:",
+            f"        raise CodecError(f'{d.layout.name}: cannot encode: {{exc}}') from None"]
+    exec("\n".join(src), env)
+    fn: Callable[[bytearray, Any, dict[str, float]], None] = env["_w"]
+    return fn
+
+
+
+def _write_rows(elems: list[dict[str, Any]], n: _Node, rows: list[dict[str, float]],
+                keys: tuple[str, ...]) -> None:
+    """Rows into the first elements of an array of structs; ``keys`` of the rest zeroed."""
+    # a packer's views: numpy columns, unless so few values that the generated writers win
+    if elems and isinstance(elems[0], StructView) and len(elems) * len(keys) >= _MIN_COLUMNS \
+            and _write_rows_packed(elems, n, rows, keys):
+        return
+    for j, e in enumerate(elems):
+        if j < len(rows):
+            _puts(e, n, rows[j])
+            continue
+        for k in keys:
+            leaf = n.members.get(k)
+            if isinstance(leaf, _Leaf) and k in e:
+                e[k] = leaf.zero
+
+
+_EXACT = 2.0**53  # ints below this survive float64 exactly
+_MIN_COLUMNS = 48  # values per array below which _write_rows loops (measured: SRP's 2 x 10)
+
+
+def _write_table(elems: list[dict[str, Any]], n: _Node, rkeys: tuple[str, ...],
+                 rows: list[tuple[float, ...]], keys: tuple[str, ...]) -> None:
+    """:func:`_write_rows` of rows given as tuples in the order of ``rkeys``: a packer's views
+    take them as one float64 matrix (no dict per row); otherwise the rows become dicts."""
+    if elems and isinstance(elems[0], StructView) and len(elems) * len(keys) >= _MIN_COLUMNS:
+        r = min(len(rows), len(elems))
+        m = np.array(rows[:r], dtype=np.float64).reshape(r, len(rkeys))
+        if _write_matrix(elems, n, rkeys if r else (), m, keys):
+            return
+    _write_rows(elems, n, [dict(zip(rkeys, row, strict=True)) for row in rows], keys)
+
+
+def _write_rows_packed(elems: list[Any], n: _Node, rows: list[dict[str, float]],
+                       keys: tuple[str, ...]) -> bool:
+    """:func:`_write_rows` into a packer's views as numpy columns (:func:`_write_matrix`).
+    False (nothing written) when the loop must run instead: rows of different keys, or what
+    :func:`_write_matrix` refuses."""
+    rows = rows[:len(elems)]
+    rkeys = tuple(rows[0]) if rows else ()
+    if any(tuple(r) != rkeys for r in rows):
+        return False
+    r = len(rows)
+    m = np.fromiter(itertools.chain.from_iterable(x.values() for x in rows), np.float64,
+                    r * len(rkeys)).reshape(r, len(rkeys))
+    return _write_matrix(elems, n, rkeys, m, keys)
+
+
+def _write_matrix(elems: list[Any], n: _Node, rkeys: tuple[str, ...], m: FArr,
+                  keys: tuple[str, ...]) -> bool:
+    """Rows of ``m`` (columns ``rkeys``) into the first elements, ``keys`` of the rest zeroed,
+    clamped as :meth:`_Leaf.clamp` clamps (``min(max(x, lo), hi)``, ints rounded half to even
+    first). False (nothing written) when the loop must run instead: a bitfield or struct
+    member, an integer that float64 does not hold exactly or a type the encoder refuses."""
+    ck = ("rows", id(n), rkeys, keys, len(elems))
+    got = elems[0].cache.get(ck)
+    if got is None or got[0] is not n:
+        got = elems[0].cache[ck] = (n, _rows_plan(elems, n, rkeys, keys))
+    plan = got[1]
+    if plan is None:
+        return False
+    u8, cols, lo, hi, ints, wgroups, zgroups = plan
+    r = len(m)
+    if r:
+        m = m[:, cols]
+        if len(ints):
+            x = m[:, ints]
+            if not np.abs(x).max() < _EXACT:  # NaN compares False too
+                return False  # round() would raise, or float64 would not hold the int
+            m[:, ints] = np.rint(x)
+        m = np.where(lo > m, lo, m)  # min(max(x, lo), hi), NaN kept
+        m = np.where(hi < m, hi, m)
+        for dt, pos, idx in wgroups:
+            u8[idx[:, :r].ravel()] = np.ascontiguousarray(m[:, pos].T, dtype=dt).view(
+                np.uint8).ravel()
+    for idx in zgroups:  # any zero, 0 or 0.0, is all zero bytes
+        u8[idx[:, r:].ravel()] = 0
+    return True
+
+
+def _elem_index(elems: list[StructView], rel: int, size: int) -> Any:
+    """Payload byte indices (element, byte) of the member ``rel`` bytes into each element."""
+    first = elems[0]
+    stride = elems[1].base - first.base if len(elems) > 1 else first.layout.size
+    return (first.base + rel + stride * np.arange(len(elems))[:, None]
+            + np.arange(size)[None, :])
+
+
+def _rows_plan(elems: list[StructView], n: _Node, rkeys: tuple[str, ...], keys: tuple[str, ...]
+               ) -> tuple[Any, ...] | None:
+    """Columns of ``rkeys`` to write (row index, bounds, the integer ones, per wire type the
+    payload indices) and the payload indices of ``keys`` to zero."""
+    first = elems[0]
+    stride = elems[1].base - first.base if len(elems) > 1 else first.layout.size
+    if any(e.base != first.base + k * stride for k, e in enumerate(elems)):
+        return None
+    cols: list[int] = []
+    los: list[float] = []
+    his: list[float] = []
+    ints: list[int] = []
+    by_type: dict[str, list[tuple[int, int]]] = {}
+    by_size: dict[int, list[int]] = {}
+    for j, key in enumerate(rkeys + keys):
+        leaf = n.members.get(key)
+        if not isinstance(leaf, _Leaf) or key not in first:
+            continue
+        s = first.slots.get(key)
+        if s is None or s.kind != SCALAR or (leaf.real and not s.real):
+            return None
+        if not leaf.real and not s.real and not s.wire[0] <= leaf.lo <= leaf.hi <= s.wire[1]:
+            return None
+        if j >= len(rkeys):
+            by_size.setdefault(s.st.size, []).append(s.offset)
+            continue
+        if not leaf.real:
+            ints.append(len(cols))
+        by_type.setdefault(s.type, []).append((len(cols), s.offset))
+        cols.append(j)
+        los.append(leaf.lo)
+        his.append(leaf.hi)
+    wgroups = []
+    for typ, items in by_type.items():
+        dt = np.dtype(NP_FMT[typ])
+        idx = np.stack([_elem_index(elems, rel, dt.itemsize) for _, rel in items])
+        wgroups.append((dt, [c for c, _ in items], idx))
+    zgroups = [np.stack([_elem_index(elems, rel, size) for rel in rels])
+               for size, rels in by_size.items()]
+    return (np.frombuffer(first.buf, dtype=np.uint8), cols, np.array(los), np.array(his), ints,
+            wgroups, zgroups)
+
+
+def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n: int) -> bool:
+    """The object loop of ``Scene._fill_obstacles`` into a packer's views: the same clamped
+    arrays, scattered per wire type into the payload bytes (slots past ``n`` get 0). False
+    (nothing written) when the loop must run."""
+    first = objs[0]
+    ck = ("objs", id(plan), len(objs))
+    got = first.cache.get(ck)
+    if got is None or got[0] is not plan:
+        got = first.cache[ck] = (plan, _objects_plan(objs, plan))
+    p = got[1]
+    if p is None:
+        return False
+    u8, groups, check, bitgroups = p
+    rows, lo, hi = check
+    if n and len(rows):  # one range check for every integer column (wire type or bit width)
+        x = il[rows]
+        if (x < lo).any() or (x > hi).any():
+            return False  # the encoder would refuse it: let the loop raise
+    for real, rows, idx, v in groups:
+        v[:, :n] = fl[rows] if real else il[rows]
+        v[:, n:] = 0
+        u8[idx] = v.view(np.uint8).ravel()
+    for brows, shift, starts, base, idx, v in bitgroups:
+        # a container holds the bits the objects do not write as they are (D2 unused bits set)
+        v[:] = base
+        if n:
+            v[:, :n] = base[:, :n] | np.bitwise_or.reduceat(il[brows] << shift, starts, axis=0)
+        u8[idx] = v.view(np.uint8).ravel()
+    return True
+
+
+def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | None:
+    """Per (wire type, source) the rows of the column arrays, the payload byte indices they go
+    to and a reused array; the integer rows' bounds; per container type the bit columns."""
+    first = objs[0]
+    count = len(objs)
+    stride = objs[1].base - first.base if count > 1 else first.layout.size
+    if any(e.base != first.base + k * stride for k, e in enumerate(objs)):
+        return None
+    by_type: dict[tuple[str, bool], list[tuple[int, int]]] = {}
+    bits: dict[int, tuple[str, list[tuple[int, int, int]]]] = {}
+    check: list[tuple[int, float, float]] = []
+    for path, items in plan.groups:
+        probe: Any = first
+        for p in path:
+            ok = (isinstance(probe, StructView) and isinstance(p, str) and p in probe) or (
+                isinstance(probe, list) and isinstance(p, int) and p < len(probe))
+            probe = probe[p] if ok else None
+        if not isinstance(probe, StructView):
+            continue
+        for key, real, row in items:
+            if key not in probe:
+                continue
+            s = probe.slots.get(key)
+            if s is None or s.kind not in (SCALAR, BITS) or (real and not s.real):
+                return None
+            rel = probe.base - first.base + s.offset
+            if s.kind == BITS:
+                bits.setdefault(rel, (s.type, []))[1].append((row, s.lo, s.mask))
+                check.append((row, 0, s.mask))
+                continue
+            by_type.setdefault((s.type, real), []).append((row, rel))
+            if not real and not s.real:
+                check.append((row, *s.wire))
+    u8 = np.frombuffer(first.buf, dtype=np.uint8)
+
+    def index(typ: str, rels: list[int]) -> tuple[np.dtype[Any], Any]:
+        dt = np.dtype(NP_FMT[typ])
+        r = np.array(rels)
+        # (column, element, byte) -> payload index, in the order of v.view(uint8).ravel()
+        return dt, (first.base + r[:, None, None] + stride * np.arange(count)[None, :, None]
+                    + np.arange(dt.itemsize)[None, None, :]).ravel()
+
+    groups = []
+    for (typ, real), cols in by_type.items():
+        dt, idx = index(typ, [r for _, r in cols])
+        groups.append((real, np.array([r for r, _ in cols]), idx,
+                       np.zeros((len(cols), count), dtype=dt)))
+    bitgroups = []
+    for typ in sorted({t for t, _ in bits.values()}):
+        rels = [r for r, (t, _) in bits.items() if t == typ]
+        dt, idx = index(typ, rels)
+        brows: list[int] = []
+        shift: list[int] = []
+        starts: list[int] = []
+        base = np.zeros((len(rels), count), dtype=dt)
+        for c, rel in enumerate(rels):
+            starts.append(len(brows))
+            used = 0
+            for row, lo, mask in bits[rel][1]:
+                brows.append(row)
+                shift.append(lo)
+                used |= mask << lo
+            for k in range(count):  # the container as it stands, less the bits written here
+                o = first.base + rel + k * stride
+                base[c, k] = int.from_bytes(first.buf[o:o + dt.itemsize], "little") & ~used
+        bitgroups.append((np.array(brows), np.array(shift)[:, None], np.array(starts), base,
+                          idx, np.zeros_like(base)))
+    bounds = (np.array([r for r, _, _ in check], dtype=np.intp),
+              np.array([x for _, x, _ in check], dtype=np.float64)[:, None],
+              np.array([x for _, _, x in check], dtype=np.float64)[:, None])
+    return u8, groups, bounds, bitgroups
