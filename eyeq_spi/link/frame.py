@@ -105,6 +105,7 @@ class Frame:
 
 
 _ZERO_DATA = bytes(DATA_SIZE)
+_DATA_KIND = int(FrameKind.DATA)
 
 
 class FrameCodec:
@@ -121,6 +122,7 @@ class FrameCodec:
         s = _field_shifts(self.bit_order)
         self._d, self._r, self._rsp, self._num = s["D"], s["R"], s["RSP"], s["NUM"]
         self._acks: dict[int, bytes] = {}  # NUM -> ACK frame: built once (hot path)
+        self._data_word = int(FrameKind.DATA) << self._d[0]
 
     # -- header word -------------------------------------------------------------------------
     def pack_header(self, d: int, r: int, rsp: int, num: int) -> int:
@@ -153,10 +155,17 @@ class FrameCodec:
         return header + crc.to_bytes(2, "little") + data
 
     def data_frame(self, rsp: int, num: int, data: bytes) -> bytes:
-        """Encode a DATA frame, zero-padding ``data`` to 122 bytes (§6 pad bytes)."""
+        """Encode a DATA frame, zero-padding ``data`` to 122 bytes (§6 pad bytes): what
+        ``encode(Frame(DATA, 0, rsp, num, data))`` gives, without building the Frame (every
+        frame a sender releases; tests/test_link_frame.py holds both equal)."""
         if len(data) > DATA_SIZE:
             raise LocalProtocolError(f"data field holds {DATA_SIZE} bytes, got {len(data)}")
-        return self.encode(Frame(FrameKind.DATA, 0, rsp, num, data.ljust(DATA_SIZE, b"\0")))
+        if not (0 <= rsp < SEQ_MODULO and 0 <= num < SEQ_MODULO):
+            raise LocalProtocolError(f"RSP/NUM out of 12-bit range: {rsp}, {num}")
+        header = (self._data_word | (rsp << self._rsp[0]) | (num << self._num[0])).to_bytes(
+            4, "little")
+        data = data.ljust(DATA_SIZE, b"\0")
+        return header + self.crc(header + data).to_bytes(2, "little") + data
 
     def ack(self, num: int) -> bytes:
         """L5: an ACK's RSP is the accepted frame's NUM, its NUM is 0."""
@@ -194,6 +203,18 @@ class FrameCodec:
             ok = self.crc(transfer[:4] + transfer[6:]) == crc
         return (d, (word >> self._r[0]) & self._r[1], (word >> self._rsp[0]) & self._rsp[1],
                 (word >> self._num[0]) & self._num[1], ok)
+
+    def data_num(self, transfer: bytes) -> int | None:
+        """The NUM of a 128-byte transfer that is a DATA frame with R 0 and a good CRC; None for
+        any other transfer (what :meth:`judge` reads, for the receiver's in-order run)."""
+        if len(transfer) != FRAME_SIZE:
+            return None
+        word = int.from_bytes(transfer[:4], "little")
+        if ((word >> self._d[0]) & self._d[1] != _DATA_KIND or (word >> self._r[0]) & self._r[1]
+                or self.crc(transfer[:4] + transfer[6:])
+                != int.from_bytes(transfer[4:6], "little")):
+            return None
+        return (word >> self._num[0]) & self._num[1]
 
     def crc_ok(self, transfer: bytes, frame: Frame) -> bool:
         return self.compute_crc(frame.d, transfer[:4], transfer[6:]) == frame.crc
