@@ -131,10 +131,11 @@ class Express:
             # the rounds of the general loop for node j alone (the other node is quiet with a
             # later deadline, and nothing it sends arrives before t + latency)
             other = 1 - j
+            handed = False
             for _ in range(steps):
                 outs = node.data_to_send(t)
                 if outs:
-                    known_j = False
+                    known_j, handed = False, True
                     self._hand_over(j, t, outs)
                 elif is_fresh:
                     known_j = False
@@ -155,7 +156,7 @@ class Express:
             timers[j] = timer
             if not self._clean():  # a node closed or fed an adapter: the general loop decides
                 return
-            if transit and self.runs[j] is not None:
+            if handed and self.runs[j] is not None:  # it may have let a frame go
                 self._handover(j, t, t_end)
 
     def _hand_over(self, j: int, t: float, outs: list[bytes]) -> None:
