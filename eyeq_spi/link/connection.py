@@ -454,11 +454,11 @@ class LinkConnection:
                 or self._naks_in_row >= self.config.resync_after_naks):
             return 0
         due = next(iter(self._inflight.values())).deadline if self._inflight else math.inf
-        data_num, m, gap = self.codec.data_num, SEQ_MODULO, self.config.control_gap
+        m, gap = SEQ_MODULO, self.config.control_gap
         expected, free = self._expected, self._next_ctl
-        for k, transfer in enumerate(frames):
+        for k, num in enumerate(self.codec.data_nums(frames)):
             now = times[k]
-            if now < free or due <= now or data_num(transfer) != expected:
+            if now < free or due <= now or num != expected:
                 return k
             expected, free = (expected + 1) % m, now + gap
         return len(frames)

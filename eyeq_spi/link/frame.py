@@ -204,17 +204,24 @@ class FrameCodec:
         return (d, (word >> self._r[0]) & self._r[1], (word >> self._rsp[0]) & self._rsp[1],
                 (word >> self._num[0]) & self._num[1], ok)
 
+    def data_nums(self, transfers: list[bytes]) -> list[int | None]:
+        """For each transfer, its NUM if it is a 128-byte DATA frame with R 0 and a good CRC,
+        else None (what :meth:`judge` reads, for a receiver's run of frames in order)."""
+        crc, d, r, n = self.crc, self._d, self._r, self._num
+        out: list[int | None] = []
+        for t in transfers:
+            if len(t) != FRAME_SIZE:
+                out.append(None)
+                continue
+            word = int.from_bytes(t[:4], "little")
+            ok = ((word >> d[0]) & d[1] == _DATA_KIND and not (word >> r[0]) & r[1]
+                  and crc(t[:4] + t[6:]) == int.from_bytes(t[4:6], "little"))
+            out.append((word >> n[0]) & n[1] if ok else None)
+        return out
+
     def data_num(self, transfer: bytes) -> int | None:
-        """The NUM of a 128-byte transfer that is a DATA frame with R 0 and a good CRC; None for
-        any other transfer (what :meth:`judge` reads, for the receiver's in-order run)."""
-        if len(transfer) != FRAME_SIZE:
-            return None
-        word = int.from_bytes(transfer[:4], "little")
-        if ((word >> self._d[0]) & self._d[1] != _DATA_KIND or (word >> self._r[0]) & self._r[1]
-                or self.crc(transfer[:4] + transfer[6:])
-                != int.from_bytes(transfer[4:6], "little")):
-            return None
-        return (word >> self._num[0]) & self._num[1]
+        """:meth:`data_nums` of one transfer."""
+        return self.data_nums([transfer])[0]
 
     def crc_ok(self, transfer: bytes, frame: Frame) -> bool:
         return self.compute_crc(frame.d, transfer[:4], transfer[6:]) == frame.crc
