@@ -368,3 +368,30 @@ def test_absorb_run_is_absorb_frame_after_frame(seed: int) -> None:
                 n += 1
             i += n
     assert taken > 500 and stopped > 100
+
+
+def test_a_tap_with_a_block_method_gets_the_handover_in_blocks() -> None:
+    """A tap that offers ``many(transfers)`` gets a handover's transfers in one call, the
+    others one by one: together every transfer, in order, with its time, as a plain tap."""
+
+    class BlockTap:
+        def __init__(self) -> None:
+            self.trace: Trace = []
+            self.blocks = 0
+
+        def __call__(self, i: int, t: float, b: bytes) -> None:
+            self.trace.append((i, t, b))
+
+        def many(self, transfers: list[tuple[int, float, bytes]]) -> None:
+            self.blocks += 1
+            self.trace.extend(transfers)
+
+    cfg = SimConfig(objects=15, signs=20, light_spots=15)
+    ref, ref_trace = _emulation(False, cfg)
+    ref.run_for(1.5)
+    tap = BlockTap()
+    emu = build(sim_config=SimConfig(**vars(cfg)), keep_rx_times=False)
+    emu.runner = VirtualRunner(emu.runner.nodes, tap=tap, self_contained=HOST_ALONE)
+    emu.run_for(1.5)
+    assert tap.blocks > 10
+    assert _first_difference(ref_trace, tap.trace) is None
