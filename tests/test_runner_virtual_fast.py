@@ -391,7 +391,8 @@ def test_a_tap_with_a_block_method_gets_the_handover_in_blocks() -> None:
     ref.run_for(1.5)
     tap = BlockTap()
     emu = build(sim_config=SimConfig(**vars(cfg)), keep_rx_times=False)
-    emu.runner = VirtualRunner(emu.runner.nodes, tap=tap, self_contained=HOST_ALONE)
+    emu.runner = VirtualRunner(emu.runner.nodes, tap=tap, self_contained=HOST_ALONE,
+                               express=True)
     emu.run_for(1.5)
     assert tap.blocks > 10
     assert _first_difference(ref_trace, tap.trace) is None
