@@ -489,8 +489,7 @@ class LinkConnection:
             datas.append(q.data)
             nums.append(num)
             num = (num + 1) % m
-        ack = self.codec.ack
-        return DataRun(nums, sent, datas, [ack(n) for n in nums], self._next_tx, gap,
+        return DataRun(nums, sent, datas, self.codec.acks(nums), self._next_tx, gap,
                        self.config.ack_timeout, self.config.window, queue[0].deadline,
                        len(datas) < len(queue), self._last_accepted, self.codec)
 

@@ -174,6 +174,11 @@ class FrameCodec:
             frame = self._acks[num] = self.encode(Frame(FrameKind.ACK, 0, num, 0))
         return frame
 
+    def acks(self, nums: list[int]) -> list[bytes]:
+        """:meth:`ack` of each NUM."""
+        cache, ack = self._acks, self.ack
+        return [cache.get(n) or ack(n) for n in nums]
+
     def nak(self, num: int, reason: NakReason) -> bytes:
         """L5: a NAK's RSP is the rejected frame's NUM, its NUM holds the reason."""
         return self.encode(Frame(FrameKind.NAK, 0, num, int(reason)))

@@ -268,25 +268,21 @@ class Express:
                 received = received[:got]
                 if not walk:
                     return
-        run_take(run, [w for w, kind, _ in walk if kind == 0],
-                 [w for w, kind, _ in walk if kind == 2])
         # the transfers of the walked instants in their order (each takes the heap sequence
         # number its hand-over would); what was in flight and arrived leaves the heap, what
         # is still on its way goes into it
         seq = r._seq
-        sent, rcvd = (self.a0, self.a1)[j].stats, (self.a0, self.a1)[other].stats
         handed: list[tuple[int, float, bytes]] = []
         pending: dict[tuple[int, int], tuple[float, int, int, bytes]] = {}
+        releases: list[float] = []
+        ack_times: list[float] = []
         for when, kind, k in walk:
             if kind == 0:  # frame k released
                 seq += 1
                 frame = frames[k]
                 handed.append((j, when, frame))
                 pending[(1, k)] = (when + latency, seq, other, frame)
-                sent.transfers_sent += 1
-                sent.bytes_sent += len(frame)
-                rcvd.transfers_received += 1
-                rcvd.bytes_received += len(frame)
+                releases.append(when)
             elif kind == 1:  # frame k arrived, its ACK handed over
                 if pending.pop((1, k), None) is None:
                     heapq.heappop(transit)  # it was in flight when the step began
@@ -294,15 +290,25 @@ class Express:
                 ack = run.acks[k]
                 handed.append((other, when, ack))
                 pending[(2, k)] = (when + latency, seq, j, ack)
-                rcvd.transfers_sent += 1
-                rcvd.bytes_sent += len(ack)
-                sent.transfers_received += 1
-                sent.bytes_received += len(ack)
-            elif pending.pop((2, k), None) is None:  # its ACK arrived
-                heapq.heappop(transit)
+            else:  # its ACK arrived
+                ack_times.append(when)
+                if pending.pop((2, k), None) is None:
+                    heapq.heappop(transit)
+        run_take(run, releases, ack_times)
         r._seq = seq
         for item in pending.values():
             heapq.heappush(transit, item)
+        out = [len(b) for i, _, b in handed if i == j]
+        back = [len(b) for i, _, b in handed if i != j]
+        sent, rcvd = (self.a0, self.a1)[j].stats, (self.a0, self.a1)[other].stats
+        sent.transfers_sent += len(out)
+        sent.bytes_sent += sum(out)
+        rcvd.transfers_received += len(out)
+        rcvd.bytes_received += sum(out)
+        rcvd.transfers_sent += len(back)
+        rcvd.bytes_sent += sum(back)
+        sent.transfers_received += len(back)
+        sent.bytes_received += sum(back)
         tap = r.tap
         if tap is not None:
             many = getattr(tap, "many", None)
