@@ -11,6 +11,14 @@ its transfers are put in flight with the same arrival times and heap order. What
 decides (an ACK, a NAK, a timer, a reset) is its own code's decision: nothing is predicted, so
 faults and resets inside a node take the same course on both paths.
 
+Most of those instants belong to messages of several frames: each frame is released, arrives
+and is ACKed, and the ACK comes back. Once the sending node has let a frame go and everything in
+flight belongs to its message, :meth:`Express._handover` hands the rest of that message across in
+one step, with the instants the per-frame loop would go through computed (release, release +
+latency, release + 2 × latency, one frame gap apart) and merged in time order, up to the first
+instant that is anything else; the nodes' hooks (``express_run``, ``express_run_take``,
+``express_take``) make the same changes to their links and transports as the per-frame calls.
+
 The general loop takes over, instant by instant, whenever an instant is not of these kinds (two
 arrivals or deadlines at the same time, a node whose timer and an arrival coincide), and for the
 whole run when the wire is not clean (a ``mangle`` fault hook on an adapter, a closed adapter,
