@@ -124,3 +124,42 @@ def test_judge_agrees_with_decode_and_crc_ok(raw: bytes, order: BitOrder, fix_cr
 def test_judge_refuses_a_wrong_length(length: int) -> None:
     with pytest.raises(FrameError):
         FrameCodec().judge(bytes(length))
+
+
+@given(st.integers(0, 4095), st.integers(0, 4095), st.binary(max_size=122),
+       st.sampled_from(list(BitOrder)), st.sampled_from(["CRC-16/CCITT-FALSE", "CRC-16/KERMIT"]))
+def test_data_frame_is_encode_of_a_data_frame(rsp: int, num: int, data: bytes, order: BitOrder,
+                                              crc: str) -> None:
+    """The sender's hot path (FrameCodec.data_frame, no Frame built) gives encode's bytes."""
+    c = FrameCodec(bit_order=order, crc=VARIANTS[crc])
+    assert c.data_frame(rsp, num, data) == c.encode(
+        Frame(FrameKind.DATA, 0, rsp, num, data.ljust(122, b"\0")))
+
+
+@given(st.lists(st.binary(min_size=FRAME_SIZE, max_size=FRAME_SIZE), max_size=4),
+       st.sampled_from(list(BitOrder)), st.booleans(), st.sampled_from([0, 127, 128]))
+def test_data_nums_read_what_judge_reads(raws: list[bytes], order: BitOrder, fix_crc: bool,
+                                         length: int) -> None:
+    """FrameCodec.data_nums (a receiver's run of frames): the NUM exactly where judge reads a
+    DATA frame with R 0 and a good CRC, for random frames, good ones and wrong lengths."""
+    codec = FrameCodec(bit_order=order)
+    frames = []
+    for raw in raws:
+        if fix_crc:
+            word = codec.pack_header(8, 0, 0, 0) if raw[0] & 1 else int.from_bytes(raw[:4],
+                                                                                      "little")
+            head = word.to_bytes(4, "little")
+            d = codec.unpack_header(word)[0]
+            raw = head + codec.compute_crc(d, head, raw[6:]).to_bytes(2, "little") + raw[6:]
+        frames.append(raw)
+    frames.append(bytes(length))
+    want = []
+    for f in frames:
+        try:
+            d, r, _, num, ok = codec.judge(f)
+        except FrameError:
+            want.append(None)
+            continue
+        want.append(num if d == FrameKind.DATA and r == 0 and ok else None)
+    assert codec.data_nums(frames) == want
+    assert [codec.data_num(f) for f in frames] == want

@@ -24,12 +24,26 @@ pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI
 Trace = list[tuple[int, float, bytes]]
 
 
-def _emulation(express: bool, cfg: SimConfig) -> tuple[Emulation, Trace]:
+def _emulation(express: bool, cfg: SimConfig, **runner: Any) -> tuple[Emulation, Trace]:
     trace: Trace = []
     emu = build(sim_config=cfg, keep_rx_times=False)
     emu.runner = VirtualRunner(emu.runner.nodes, tap=lambda i, t, b: trace.append((i, t, b)),
-                               self_contained=HOST_ALONE, express=express)
+                               self_contained=HOST_ALONE, express=express, **runner)
     return emu, trace
+
+
+def _layers(node: Any) -> tuple[Any, ...]:
+    """A node's link and transport down to the times and frames they keep: what a handover
+    that got a time, a NUM or a frame wrong would leave different even where the wire does
+    not show it yet."""
+    conn = node.conn
+    link, o = conn.link, conn._open
+    return (node.now, node.get_timer(), link.next_num, link.expected_num, link._last_accepted,
+            link._next_tx, link._next_ctl, link._naks_in_row, list(link._inflight.items()),
+            [(q.tag, q.deadline, q.data) for q in link._queue], list(link._accepted.items()),
+            {k: list(v) for k, v in link._tags.items()}, list(link._control),
+            None if o is None else (o.transfer_id, o.total, bytes(o.buf), o.last_num,
+                                    o.deadline, o.nums), conn._dead_id)
 
 
 def _state(emu: Emulation) -> dict[str, Any]:
@@ -46,6 +60,9 @@ def _state(emu: Emulation) -> dict[str, Any]:
         "ack_latency": [dict(n.conn.link.ack_latency) for n in (host, sim)],
         "transport": [repr(n.conn.counters) for n in (host, sim)],
         "adapters": [repr(a.stats) for _, a in emu.runner.nodes],
+        "layers": [_layers(n) for n in (host, sim)],
+        "in_flight": sorted(emu.runner._transit),
+        "seq": emu.runner._seq,
     }
 
 
@@ -65,26 +82,75 @@ def _first_difference(old: Trace, new: Trace) -> str | None:
     return f"transfer {k}: {old[k][:2]} {old[k][2][:8].hex()} / {new[k][:2]} {new[k][2][:8].hex()}"
 
 
+def _lockstep(cfg: SimConfig, seconds: float, window: int | None = None,
+              **runner: Any) -> tuple[Emulation, Trace]:
+    """Run the reference and the express path side by side in slices of 0.7 ms (which end
+    inside messages, where a handover stops with frames and ACKs still on their way), and
+    compare the transfers so far and the state of every layer after each slice. Returns the
+    express run and its transfers."""
+    pair = []
+    for express in (False, True):
+        emu, trace = _emulation(express, SimConfig(**vars(cfg)), **runner)
+        if window is not None:
+            emu.sim.conn.link.config.window = window
+        pair.append((emu, trace))
+    (ref, ref_trace), (fast, fast_trace) = pair
+    t = 0.0
+    while t < seconds:
+        t += 0.0007
+        ref.runner.run_until(t)
+        fast.runner.run_until(t)
+        assert _first_difference(ref_trace, fast_trace) is None, \
+            f"at {t}: {_first_difference(ref_trace, fast_trace)}"
+        assert _state(ref) == _state(fast), f"at {t}"
+    assert len(ref_trace) > 1000
+    assert ref.runner._express is None
+    return fast, fast_trace
+
+
 @pytest.mark.parametrize("case", list(CASES))
 def test_express_gives_the_reference_transfers_and_state(case: str) -> None:
     cfg, seconds = CASES[case]
-    runs = []
-    for express in (False, True):
-        emu, trace = _emulation(express, SimConfig(**vars(cfg)))
-        emu.run_for(seconds)
-        runs.append((emu, trace))
-    (ref, ref_trace), (fast, fast_trace) = runs
-    assert len(ref_trace) > 1000
-    assert _first_difference(ref_trace, fast_trace) is None, \
-        _first_difference(ref_trace, fast_trace)
-    assert _state(ref) == _state(fast)
+    fast, fast_trace = _lockstep(cfg, seconds)
     loop = fast.runner._express
-    assert ref.runner._express is None
     assert loop is not None and loop.instants > 0.8 * len({t for _, t, _ in fast_trace})
-    if case == "full_load":  # most DATA frames continue a message: the host takes them in one step
+    if case == "full_load":  # most DATA frames continue a message: the host takes them in one
+        # step, most of them in the handover of the rest of their message
         codec = FrameCodec()
         data = sum(1 for i, _, b in fast_trace if i == 1 and codec.judge(b)[0] == FrameKind.DATA)
-        assert loop.absorbed > 0.5 * data
+        assert loop.absorbed + loop.handed > 0.5 * data
+        assert loop.handed > 0.5 * data
+
+
+HANDOVER_CASES: dict[str, tuple[dict[str, Any], dict[str, Any], int | None]] = {
+    # (SimConfig fields, VirtualRunner arguments, the EyeQ's window)
+    # an ACK comes back before the next frame goes out: one frame in flight at a time
+    "short_wire": ({}, {"latency": 40e-6}, None),
+    # an arrival lands exactly on a release (two events at one time: the general loop)
+    "arrival_on_a_release": ({}, {"latency": 100e-6}, None),
+    # the next frame goes out before the last one arrives
+    "long_wire": ({}, {"latency": 450e-6}, None),
+    # messages queued back to back, the next one's first frame due while ACKs are on their way
+    "messages_back_to_back": ({"dasp_rate": 40}, {"latency": 450e-6}, None),
+    # the window fills: the EyeQ waits for an ACK before each frame
+    "window_of_one": ({}, {}, 1),
+    # an ackTimeout just above the round trip; the frames of the longer messages dropped by
+    # their transmit timeout in the middle of the message
+    "timeouts_inside_messages": ({"ack_timeout": 210e-6, "transmit_timeout": 1.5e-3}, {},
+                                 None),
+}
+
+
+@pytest.mark.parametrize("case", list(HANDOVER_CASES))
+def test_handover_gives_the_reference_transfers_and_state(case: str) -> None:
+    """The handover of a message's rest stops where the per-frame loop would do something
+    else: two events at one time, a full window, a timeout inside the message; and its times
+    follow the wire's latency either side of the frame gap. Compared slice by slice."""
+    fields, runner, window = HANDOVER_CASES[case]
+    fast, _ = _lockstep(SimConfig(objects=15, signs=20, light_spots=15, **fields), 1.2, window,
+                        **runner)
+    loop = fast.runner._express
+    assert loop is not None and loop.handed > 0
 
 
 def test_mode_switch_from_outside_between_runs() -> None:
@@ -239,3 +305,94 @@ def test_absorb_is_receive_timer_and_send_in_one_step(seed: int) -> None:
                     assert _ordinary(tx_fast, back, t) == _ordinary(tx_ref, back, t)
                 assert _sender_snapshot(tx_fast) == _sender_snapshot(tx_ref)
     assert absorbed > 200 and declined > 200 and acks > 100
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_absorb_run_is_absorb_frame_after_frame(seed: int) -> None:
+    """The receiver's side of a handover (TransportConnection.absorb_run) takes what the
+    ordinary calls take at once, frame after frame, and stops at the first frame they would
+    treat otherwise: on runs cut from streams with drops, duplicates, bad CRCs, swapped
+    frames, a sender that starts over, silences longer than the reassembly timeout, and ACKs
+    that the sender would not take as its own (another codec)."""
+    from eyeq_spi.crc import VARIANTS
+    from eyeq_spi.link.connection import LinkConfig
+    from eyeq_spi.link.frame import SEQ_MODULO
+    from eyeq_spi.transport.connection import TransportConnection
+
+    rng = random.Random(seed)
+    tx = TransportConnection(LinkConfig(role="eyeq", window=1000))
+    fast, ref = (TransportConnection(LinkConfig(role="host")) for _ in range(2))
+    other = FrameCodec(crc=VARIANTS["CRC-16/KERMIT"])
+    t, taken, stopped = 0.0, 0, 0
+    for _ in range(150):
+        if rng.random() < 0.03 or tx.link.in_flight > 900:  # (it never hears an ACK)
+            tx.reset()  # the sender starts over
+        tx.send(rng.randbytes(rng.choice([5, 300, 476, 700, 1500, 2684])), t)
+        frames: list[bytes] = []
+        while tx.link.queued:
+            t += 0.0002
+            frames += tx.data_to_send(t)
+        for k, frame in enumerate(list(frames)):
+            r = rng.random()
+            if r < 0.02:
+                frames[k] = frame[:-1] + bytes([frame[-1] ^ 1])
+            elif r < 0.04:
+                frames[k] = b""
+            elif r < 0.06:
+                frames.append(frame)
+            elif r < 0.07 and k + 1 < len(frames):
+                frames[k], frames[k + 1] = frames[k + 1], frame
+        frames = [f for f in frames if f]
+        i = 0
+        while i < len(frames):
+            run = frames[i:i + rng.randint(1, 12)]
+            times = []
+            for _ in run:
+                t += 0.0003 if rng.random() > 0.01 else 0.03
+                times.append(t)
+            e = fast.link.expected_num
+            codec = other if rng.random() < 0.05 else fast.link.codec
+            acks = None if rng.random() < 0.3 else [codec.ack((e + k) % SEQ_MODULO)
+                                                     for k in range(len(run))]
+            n = fast.absorb_run(run, times, acks)
+            for k in range(n):  # taken: each is what the ordinary calls do with it
+                ack = fast.link.codec.ack((e + k) % SEQ_MODULO)
+                assert _ordinary(ref, run[k], times[k]) == [ack]
+                assert acks is None or acks[k] == ack
+            assert _snapshot(fast) == _snapshot(ref)
+            taken += n
+            if n < len(run):  # the first it left: the ordinary calls, on both
+                stopped += 1
+                assert _ordinary(fast, run[n], times[n]) == _ordinary(ref, run[n], times[n])
+                assert _snapshot(fast) == _snapshot(ref)
+                n += 1
+            i += n
+    assert taken > 500 and stopped > 100
+
+
+def test_a_tap_with_a_block_method_gets_the_handover_in_blocks() -> None:
+    """A tap that offers ``many(transfers)`` gets a handover's transfers in one call, the
+    others one by one: together every transfer, in order, with its time, as a plain tap."""
+
+    class BlockTap:
+        def __init__(self) -> None:
+            self.trace: Trace = []
+            self.blocks = 0
+
+        def __call__(self, i: int, t: float, b: bytes) -> None:
+            self.trace.append((i, t, b))
+
+        def many(self, transfers: list[tuple[int, float, bytes]]) -> None:
+            self.blocks += 1
+            self.trace.extend(transfers)
+
+    cfg = SimConfig(objects=15, signs=20, light_spots=15)
+    ref, ref_trace = _emulation(False, cfg)
+    ref.run_for(1.5)
+    tap = BlockTap()
+    emu = build(sim_config=SimConfig(**vars(cfg)), keep_rx_times=False)
+    emu.runner = VirtualRunner(emu.runner.nodes, tap=tap, self_contained=HOST_ALONE,
+                               express=True)
+    emu.run_for(1.5)
+    assert tap.blocks > 10
+    assert _first_difference(ref_trace, tap.trace) is None

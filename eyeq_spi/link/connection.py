@@ -40,6 +40,7 @@ The connection never reads a clock: every call takes ``now`` (seconds, any epoch
 
 from __future__ import annotations
 
+import math
 from collections import Counter, OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -60,6 +61,7 @@ from eyeq_spi.link.events import (
     UnexpectedAck,
 )
 from eyeq_spi.link.frame import DATA_SIZE, SEQ_MODULO, FrameCodec, FrameKind, NakReason
+from eyeq_spi.link.run import DataRun
 
 Role = Literal["host", "eyeq"]
 PayloadCheck = Callable[[int, bytes], "NakReason | None"]
@@ -442,21 +444,77 @@ class LinkConnection:
                 self._events.append(Sent(tag))
 
     # -- express path (runner/virtual_fast.py) ---------------------------------------------------
-    def in_order(self, transfer: bytes, now: float) -> int | None:
-        """The NUM of ``transfer`` if it is a good DATA frame with the expected NUM that this
-        connection accepts and answers at once: nothing of its own queued, nothing due at
-        ``now``, the ACK free to go (``control_gap`` passed), no resynchronisation pending.
-        None for any other frame or state. Changes nothing."""
-        if (len(transfer) != 128 or self._control or self._queue or not self._started
-                or now < self._next_ctl or self._naks_in_row >= self.config.resync_after_naks
-                or self.payload_check is None):
+    def in_order(self, frames: list[bytes], times: list[float]) -> int:
+        """How many of ``frames`` (arriving at ``times``, rising), from the first, are good DATA
+        frames with the expected NUMs that this connection accepts and answers at once, each
+        after the ones before it were accepted (:meth:`accept_in_order`): nothing of its own
+        queued, nothing due, the ACK free to go (``control_gap`` passed), no
+        resynchronisation pending. Changes nothing."""
+        if (self._control or self._queue or not self._started or self.payload_check is None
+                or self._naks_in_row >= self.config.resync_after_naks):
+            return 0
+        due = next(iter(self._inflight.values())).deadline if self._inflight else math.inf
+        m, gap = SEQ_MODULO, self.config.control_gap
+        expected, free = self._expected, self._next_ctl
+        for k, num in enumerate(self.codec.data_nums(frames)):
+            now = times[k]
+            if now < free or due <= now or num != expected:
+                return k
+            expected, free = (expected + 1) % m, now + gap
+        return len(frames)
+
+    def data_run(self, now: float) -> DataRun | None:
+        """The message this sender is in the middle of, if its rest can be handed over in one
+        step: frames of it in flight and none of another, more of it queued at the head of the
+        queue, the next release after ``now``, no ACK/NAK of ours waiting, no reset request
+        going out (L10). None otherwise. Changes nothing."""
+        gap = float(self.config.frame_gap or 0.0)
+        queue, inflight = self._queue, self._inflight
+        if (gap <= 0 or not inflight or not queue or self._control or self._next_tx <= now
+                or self._restart_tag is not None):
             return None
-        if self._inflight and next(iter(self._inflight.values())).deadline <= now:
-            return None
-        d, r, _, num, crc_ok = self.codec.judge(transfer)
-        if d != _DATA or r != 0 or not crc_ok or num != self._expected:
-            return None
-        return num
+        tag, m = queue[0].tag, SEQ_MODULO
+        num = (self._tx_num - len(inflight)) % m
+        nums, sent = [], []
+        for n, f in inflight.items():
+            if f.tag != tag or n != num:
+                return None  # another message's frame, or a gap
+            nums.append(n)
+            sent.append(f.sent)
+            num = (num + 1) % m
+        datas = []
+        for q in queue:
+            if q.tag != tag:
+                break
+            datas.append(q.data)
+            nums.append(num)
+            num = (num + 1) % m
+        return DataRun(nums, sent, datas, self.codec.acks(nums), self._next_tx, gap,
+                       self.config.ack_timeout, self.config.window, queue[0].deadline,
+                       len(datas) < len(queue), self._last_accepted, self.codec)
+
+    def take_run(self, run: DataRun, released: list[float], acked: list[float]) -> None:
+        """What ``data_to_send`` at each of ``released`` (the queued frames of ``run``, one per
+        call) and ``receive_data`` of the ACKs at each of ``acked`` (frames 0..) do, in one
+        step: the caller (runner/virtual_fast.py) computed these times so that nothing else
+        happens in between, every frame is released in its turn and every ACK settles a frame
+        of the message and comes before its ackTimeout."""
+        cfg, queue, inflight = self.config, self._queue, self._inflight
+        m = SEQ_MODULO
+        for s in released:
+            q = queue.popleft()
+            num = self._tx_num
+            self._tx_num = (num + 1) % m
+            inflight[num] = _InFlight(q.tag, s + cfg.ack_timeout, s)
+            self._next_tx = s + run.gap
+        if acked:
+            entry = self._tags[inflight[run.nums[0]].tag]
+            latency = self.ack_latency
+            for num, c in zip(run.nums, acked, strict=False):
+                latency[int((c - inflight.pop(num).sent) * 1e5)] += 1
+            self.counters.framesAcked += len(acked)
+            entry[0] -= len(acked)
+        self.counters.busyFrames = len(inflight)
 
     def _accepted_frame(self, num: int, transfer: bytes) -> None:
         """A DATA frame accepted (L6): E moves past it, and it joins the last W accepted
@@ -472,15 +530,27 @@ class LinkConnection:
             acc.popitem(last=False)  # only [E-W, E) can be a duplicate
         self.counters.framesReceived += 1
 
-    def accept_in_order(self, num: int, transfer: bytes, now: float) -> bytes:
-        """What ``receive_data``, ``handle_timer`` and ``data_to_send`` at ``now`` do with a
-        frame :meth:`in_order` gave ``num`` for, once the layer above checked its payload:
-        accept it (L6) and return its ACK as sent. The payload goes to the caller, not into
-        the event queue."""
-        self._accepted_frame(num, transfer)
+    def accept_in_order(self, frames: list[bytes], times: list[float]) -> None:
+        """What ``receive_data``, ``handle_timer`` and ``data_to_send`` at each of ``times`` do
+        with the frames :meth:`in_order` counted, once the layer above checked their payloads:
+        accept them (L6, as :meth:`_accepted_frame` does one by one) and release their ACKs
+        (``codec.ack`` of each NUM). The payloads go to the caller, not into the event
+        queue."""
+        m, w = SEQ_MODULO, self.config.window
+        acc = self._accepted
+        num = self._expected
+        for transfer in frames:
+            acc.pop(num, None)
+            acc[num] = bytes(transfer)
+            num = (num + 1) % m
+            while acc and (num - next(iter(acc))) % m > w:
+                acc.popitem(last=False)  # only [E-W, E) can be a duplicate
+        self._naks_in_row = 0
+        self._expected = num
+        self._last_accepted = (num - 1) % m
+        self.counters.framesReceived += len(frames)
         self.counters.busyFrames = len(self._inflight)
-        self._next_ctl = now + self.config.control_gap
-        return self.codec.ack(num)
+        self._next_ctl = times[len(frames) - 1] + self.config.control_gap
 
     def ack_in_flight(self, transfer: bytes, now: float) -> bool:
         """``receive_data`` of a good ACK for a frame in flight whose message has more frames

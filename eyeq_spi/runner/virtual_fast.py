@@ -11,6 +11,14 @@ its transfers are put in flight with the same arrival times and heap order. What
 decides (an ACK, a NAK, a timer, a reset) is its own code's decision: nothing is predicted, so
 faults and resets inside a node take the same course on both paths.
 
+Most of those instants belong to messages of several frames: each frame is released, arrives
+and is ACKed, and the ACK comes back. Once the sending node has let a frame go and everything in
+flight belongs to its message, :meth:`Express._handover` hands the rest of that message across in
+one step, with the instants the per-frame loop would go through computed (release, release +
+latency, release + 2 × latency, one frame gap apart) and merged in time order, up to the first
+instant that is anything else; the nodes' hooks (``express_run``, ``express_run_take``,
+``express_take``) make the same changes to their links and transports as the per-frame calls.
+
 The general loop takes over, instant by instant, whenever an instant is not of these kinds (two
 arrivals or deadlines at the same time, a node whose timer and an arrival coincide), and for the
 whole run when the wire is not clean (a ``mangle`` fault hook on an adapter, a closed adapter,
@@ -23,6 +31,8 @@ the run is paced to the wall clock, or when ``EYEQ_SPI_EXACT=1`` asks for the re
 from __future__ import annotations
 
 import heapq
+from collections.abc import Callable
+from typing import Any
 
 from eyeq_spi.phy.memory import MemoryAdapter
 from eyeq_spi.runner.virtual_types import RunnerState
@@ -43,9 +53,15 @@ class Express:
         # a node's own class may offer ``express_absorb(transfer, now) -> list[bytes] | None``:
         # receive_data, handle_timer and data_to_send at ``now`` in one step where it can tell
         # that they would do nothing else (not inherited, as SELF_CONTAINED)
-        self.absorbs = tuple(
-            getattr(n, "express_absorb", None) if "express_absorb" in vars(type(n)) else None
-            for n in (self.n0, self.n1))
+        self.absorbs = tuple(_hook(n, "express_absorb") for n in (self.n0, self.n1))
+        # and, for the handover of a whole message (see :meth:`_handover`): on the sending
+        # node ``express_run(now) -> DataRun | None`` and ``express_run_take(run, released,
+        # acked)``, on the receiving node ``express_take(frames, times, acks) -> int``
+        self.runs = tuple(_hook(n, "express_run") for n in (self.n0, self.n1))
+        self.run_takes = tuple(_hook(n, "express_run_take") for n in (self.n0, self.n1))
+        self.takes = tuple(_hook(n, "express_take") for n in (self.n0, self.n1))
+        self.handovers = 0  # messages (or their rests) handed over in one step
+        self.handed = 0  # DATA frames received in those steps
 
     @staticmethod
     def eligible(runner: RunnerState) -> bool:
@@ -123,10 +139,11 @@ class Express:
             # the rounds of the general loop for node j alone (the other node is quiet with a
             # later deadline, and nothing it sends arrives before t + latency)
             other = 1 - j
+            handed = False
             for _ in range(steps):
                 outs = node.data_to_send(t)
                 if outs:
-                    known_j = False
+                    known_j, handed = False, True
                     self._hand_over(j, t, outs)
                 elif is_fresh:
                     known_j = False
@@ -147,6 +164,8 @@ class Express:
             timers[j] = timer
             if not self._clean():  # a node closed or fed an adapter: the general loop decides
                 return
+            if handed and self.runs[j] is not None:  # it may have let a frame go
+                self._handover(j, t, t_end)
 
     def _hand_over(self, j: int, t: float, outs: list[bytes]) -> None:
         """Put what node ``j`` handed over at ``t`` in flight, as the general loop's tap, adapter
@@ -165,6 +184,157 @@ class Express:
             r._seq += 1
             heapq.heappush(r._transit, (at, r._seq, other, out))
 
+    def _handover(self, j: int, t: float, t_end: float) -> None:
+        """Node ``j`` is in the middle of a message whose rest it can tell (``express_run``),
+        and everything in flight belongs to it. Hand that rest over in one step, up to the
+        first instant that is not one of its own: the releases (``s``, one frame gap apart),
+        the arrivals at the other node, which ACKs at once (``b``), and the ACKs' arrivals
+        back (``c``), each at the time the per-frame loop would reach it, with its transfers,
+        tap calls, adapter statistics and heap order; whatever is still on its way at the end
+        stays in (or goes into) the heap. The step stops before: a deadline of either node
+        (the receiver's cached one, the sender's own, a transmit or ACK timeout), ``t_end``,
+        two events at one time, a full window, a frame the receiver would not take at once
+        (its ``express_take`` decides, frame by frame, as its ``express_absorb`` would), the
+        ACK of the message's last frame (which completes the message on the sender's side:
+        the ordinary calls)."""
+        r = self.runner
+        other = 1 - j
+        take, run_take, run_hook = self.takes[other], self.run_takes[j], self.runs[j]
+        if take is None or run_take is None or run_hook is None:
+            return
+        run = run_hook(t)
+        if run is None:
+            return
+        transit = r._transit
+        latency, gap, n, i0 = r.latency, run.gap, len(run.nums), len(run.sent)
+        # the per-frame loop's times: each release one gap after the last, each arrival one
+        # latency after its hand-over
+        s = list(run.sent)
+        s.append(run.next_tx)
+        while len(s) < n:
+            s.append(s[-1] + gap)
+        timer = r._timer[other]
+        until = run.until if timer is None or run.until < timer else timer
+        if run.more and s[-1] + gap < until:
+            until = s[-1] + gap  # the next message's first frame goes out then
+        # every transfer in flight is a frame of the run on its way (b) or its ACK (c)
+        events: list[tuple[float, int, int]] = []
+        frames: dict[int, bytes] = {}  # frame k's bytes: on their way, or to be released
+        if len(transit) > i0:
+            return
+        for k in range(i0):
+            b = s[k] + latency
+            match = [x for x in transit if x[0] == b and x[2] == other]
+            if match:
+                if len(match) > 1 or run.codec.data_num(match[0][3]) != run.nums[k]:
+                    return
+                frames[k] = match[0][3]
+                events.append((b, 1, k))
+            elif not any(x[0] == b + latency and x[2] == j and x[3] == run.acks[k]
+                         for x in transit):
+                return  # not ACKed at once (or lost): the ordinary calls
+            events.append((b + latency, 2, k))
+        for k in range(i0, n):
+            if s[k] >= until or s[k] > t_end:
+                break
+            b = s[k] + latency
+            events.append((s[k], 0, k))
+            events.append((b, 1, k))
+            events.append((b + latency, 2, k))
+        events.sort()
+        # what can happen, the receiver's choice apart
+        walk: list[tuple[float, int, int]] = []
+        released, acked, window, ack_timeout = i0, 0, run.window, run.ack_timeout
+        for e, (when, kind, k) in enumerate(events):
+            if when >= until or when > t_end or (
+                    e + 1 < len(events) and events[e + 1][0] == when):
+                break  # a deadline, the end of the run, or two events at one time
+            if released > acked and s[acked] + ack_timeout <= when:
+                break  # the oldest frame in flight times out first
+            if kind == 0:
+                if released - acked >= window:
+                    break
+                released += 1
+            elif kind == 2:
+                if k == n - 1:
+                    break  # the message's last ACK: Sent, the ordinary calls
+                acked += 1
+            walk.append((when, kind, k))
+        received = [k for _, kind, k in walk if kind == 1]
+        if not walk:
+            return
+        for k in range(i0, released):
+            frames[k] = run.frame(k)
+        if received:  # consecutive frames
+            first = received[0]
+            got = take([frames[k] for k in received], [s[k] + latency for k in received],
+                       run.acks[first:])
+            if got < len(received):  # the receiver leaves that frame to the ordinary calls
+                stop = first + got
+                walk = walk[:next(e for e, (_, kind, k) in enumerate(walk)
+                                  if kind == 1 and k == stop)]
+                received = received[:got]
+                if not walk:
+                    return
+        # the transfers of the walked instants in their order (each takes the heap sequence
+        # number its hand-over would); what was in flight and arrived leaves the heap, what
+        # is still on its way goes into it
+        seq = r._seq
+        handed: list[tuple[int, float, bytes]] = []
+        pending: dict[tuple[int, int], tuple[float, int, int, bytes]] = {}
+        releases: list[float] = []
+        ack_times: list[float] = []
+        for when, kind, k in walk:
+            if kind == 0:  # frame k released
+                seq += 1
+                frame = frames[k]
+                handed.append((j, when, frame))
+                pending[(1, k)] = (when + latency, seq, other, frame)
+                releases.append(when)
+            elif kind == 1:  # frame k arrived, its ACK handed over
+                if pending.pop((1, k), None) is None:
+                    heapq.heappop(transit)  # it was in flight when the step began
+                seq += 1
+                ack = run.acks[k]
+                handed.append((other, when, ack))
+                pending[(2, k)] = (when + latency, seq, j, ack)
+            else:  # its ACK arrived
+                ack_times.append(when)
+                if pending.pop((2, k), None) is None:
+                    heapq.heappop(transit)
+        run_take(run, releases, ack_times)
+        r._seq = seq
+        for item in pending.values():
+            heapq.heappush(transit, item)
+        out = [len(b) for i, _, b in handed if i == j]
+        back = [len(b) for i, _, b in handed if i != j]
+        sent, rcvd = (self.a0, self.a1)[j].stats, (self.a0, self.a1)[other].stats
+        sent.transfers_sent += len(out)
+        sent.bytes_sent += sum(out)
+        rcvd.transfers_received += len(out)
+        rcvd.bytes_received += sum(out)
+        rcvd.transfers_sent += len(back)
+        rcvd.bytes_sent += sum(back)
+        sent.transfers_received += len(back)
+        sent.bytes_received += sum(back)
+        tap = r.tap
+        if tap is not None:
+            many = getattr(tap, "many", None)
+            if many is not None:
+                many(handed)
+            else:
+                for i, when, b in handed:
+                    tap(i, when, b)
+        r.now = walk[-1][0]
+        self.instants += len(walk)
+        self.handovers += 1
+        self.handed += len(received)
+        for i in (j, other):
+            timer = (self.n0, self.n1)[i].get_timer()
+            if timer is not None and timer <= r.now:
+                raise RuntimeError(f"node {i}: due at {r.now} after a handover")
+            r._timer[i] = timer
+
     def _general(self, t: float, first: int) -> None:
         """A node call acted on the other node (``touch_all``, as the host's reset line does):
         finish the instant as the general loop would from where it is, in its timer checks at
@@ -176,6 +346,12 @@ class Express:
                 r.nodes[i][0].handle_timer(t)
                 r._touch(i)
         r._pump()
+
+
+def _hook(node: object, name: str) -> Callable[..., Any] | None:
+    """A node's express hook, read from its own class only (not inherited, as SELF_CONTAINED:
+    a subclass that rewrites what its node does must not be handed over past)."""
+    return getattr(node, name, None) if name in vars(type(node)) else None
 
 
 def _second(transit: list[tuple[float, int, int, bytes]]) -> float:

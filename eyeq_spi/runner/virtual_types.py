@@ -11,6 +11,10 @@ from eyeq_spi.phy.base import Adapter
 from eyeq_spi.runner.node import Node
 
 Tap = Callable[[int, float, bytes], None]
+"""Called for every transfer a node puts on the wire: (node index, time, transfer). A tap may
+also offer ``many(transfers)``, a list of such triples in their order: the express loop then
+hands it the transfers of a message handover in one call (a capture writer encodes them as a
+block); without it, each goes to the tap on its own."""
 
 
 class RunnerState(Protocol):

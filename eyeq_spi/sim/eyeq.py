@@ -49,6 +49,7 @@ from eyeq_spi.codec.intrinsic import (
 from eyeq_spi.codec.message import DaspCounters, MessageCodec, is_mesp
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.link.connection import LinkConfig
+from eyeq_spi.link.run import DataRun
 from eyeq_spi.mesp.server import MespServer
 from eyeq_spi.sim.calibration import fill_calibration, strip_crc
 from eyeq_spi.sim.config import SimConfig
@@ -236,11 +237,35 @@ class SimulatedEyeQ(MespFunctions):
         self.now = now
         return []
 
+    def express_run(self, now: float) -> DataRun | None:
+        """runner/virtual_fast.py: the rest of the message whose frame went out at ``now``, to
+        be handed over in one step before anything of ours other than its frames is due
+        (``until``); None when our link cannot tell (:meth:`TransportConnection.data_run`)."""
+        run = self.conn.data_run(now) if self.powered else None
+        if run is not None:
+            own = self._own_timer()
+            if own is not None and own < run.until:
+                run.until = own
+        return run
+
+    def express_run_take(self, run: DataRun, released: list[float], acked: list[float]) -> None:
+        """The frames of ``run`` released at ``released`` and the ACKs taken at ``acked``, as the
+        runner's calls at those times would (:meth:`LinkConnection.take_run`)."""
+        self.conn.link.take_run(run, released, acked)
+        if acked:
+            self.now = acked[-1]
+
     def get_timer(self) -> float | None:
         if not self.powered:
             return None
         # asked after every event (runner/virtual.py): no temporary lists here
         best = self.conn.get_timer()
+        own = self._own_timer()
+        return own if best is None or (own is not None and own < best) else best
+
+    def _own_timer(self) -> float | None:
+        """The deadline of the EyeQ itself, its link's and transport's apart."""
+        best: float | None = None
         for t in (self._boot_at, self._app_at,
                   None if self._reset_done else self.config.reset_at,
                   self._replies[0][0] if self._replies else None):

@@ -50,6 +50,7 @@ from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.link.connection import LinkConfig, LinkConnection, Role
 from eyeq_spi.link.events import DataReceived, LinkEvent, Resynchronised, SendFailed, Sent
 from eyeq_spi.link.frame import SEQ_MODULO, NakReason
+from eyeq_spi.link.run import DataRun
 from eyeq_spi.transport import segment as seg
 from eyeq_spi.transport.events import (
     MessageReceived,
@@ -288,37 +289,64 @@ class TransportConnection:
         payload opens or continues the transfer and completes nothing: returns the ACK as
         sent. None, with nothing changed, for any other frame or state (the caller then takes
         the ordinary path)."""
-        o = self._open
-        if o is not None and o.deadline <= now:
-            return None  # T6: the silence ended before this frame
+        if not self.absorb_run([transfer], [now]):
+            return None
+        return self.link.codec.ack((self.link.expected_num - 1) % SEQ_MODULO)
+
+    def absorb_run(self, frames: list[bytes], times: list[float],
+                   acks: list[bytes] | None = None) -> int:
+        """:meth:`absorb` of ``frames[k]`` at ``times[k]`` (rising), frame after frame, up to the
+        first it declines or, with ``acks``, the first whose ACK would not be ``acks[k]``: how
+        many it took. Their ACKs are the link's ``codec.ack`` of their NUMs."""
         link = self.link
-        num = link.in_order(transfer, now)
-        if num is None:
-            return None
-        ttype, tid = transfer[6], transfer[7]
-        if ttype == seg.FIRST:
-            total = int.from_bytes(transfer[8:12], "little")
-            limit = self.config.receive_limit or seg.MAX_TOTAL
-            if o is not None or not seg.FIRST_TOTAL_MIN <= total <= limit:
-                return None
-        elif ttype == seg.CONSECUTIVE:
-            if (o is None or tid != o.transfer_id or num != (o.last_num + 1) % SEQ_MODULO
-                    or o.total - len(o.buf) <= seg.CONSECUTIVE_CHUNK):
-                return None  # no transfer to continue, or this frame ends it
-        else:
-            return None
-        ack = link.accept_in_order(num, transfer, now)
-        if o is None:  # as _on_payload opens a transfer
-            self._dead_id = None
-            self._seen_first = True
-            self._open = _Open(tid, total, bytearray(transfer[12 : 12 + seg.FIRST_CHUNK]), num,
-                               now + self.config.reassembly_timeout, [num])
-        else:
-            o.buf += transfer[8 : 8 + seg.CONSECUTIVE_CHUNK]
-            o.last_num = num
-            o.nums.append(num)
-            o.deadline = now + self.config.reassembly_timeout
-        return ack
+        n = link.in_order(frames, times)
+        if not n:
+            return 0
+        num, m = link.expected_num, SEQ_MODULO
+        ack = link.codec.ack
+        limit = self.config.receive_limit or seg.MAX_TOTAL
+        timeout = self.config.reassembly_timeout
+        o = self._open
+        for k in range(n):
+            transfer, now = frames[k], times[k]
+            if (o is not None and o.deadline <= now) or (acks is not None
+                                                         and ack(num) != acks[k]):
+                n = k  # T6: the silence ended before this frame; or another ACK
+                break
+            ttype, tid = transfer[6], transfer[7]
+            if ttype == seg.FIRST:
+                total = int.from_bytes(transfer[8:12], "little")
+                if o is not None or not seg.FIRST_TOTAL_MIN <= total <= limit:
+                    n = k
+                    break
+                # as _on_payload opens a transfer
+                self._dead_id = None
+                self._seen_first = True
+                o = self._open = _Open(tid, total, bytearray(transfer[12 : 12 + seg.FIRST_CHUNK]),
+                                       num, now + timeout, [num])
+            elif (ttype == seg.CONSECUTIVE and o is not None and tid == o.transfer_id
+                  and num == (o.last_num + 1) % m
+                  and o.total - len(o.buf) > seg.CONSECUTIVE_CHUNK):
+                o.buf += transfer[8 : 8 + seg.CONSECUTIVE_CHUNK]
+                o.last_num = num
+                o.nums.append(num)
+                o.deadline = now + timeout
+            else:  # a single frame, no transfer to continue, or a frame that ends it
+                n = k
+                break
+            num = (num + 1) % m
+        if n:
+            link.accept_in_order(frames[:n], times)
+        return n
+
+    def data_run(self, now: float) -> DataRun | None:
+        """:meth:`LinkConnection.data_run`, due no later than the open transfer's silence
+        deadline (T6: an ACK arriving after it takes the ordinary path)."""
+        run = self.link.data_run(now)
+        o = self._open
+        if run is not None and o is not None and o.deadline < run.until:
+            run.until = o.deadline
+        return run
 
     def absorb_ack(self, transfer: bytes, now: float) -> bool:
         """``receive_data`` and ``data_to_send`` at ``now`` in one step for an ACK that settles
