@@ -4,6 +4,7 @@ or raises still finds every transfer it handed over on disk."""
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,11 @@ _TIMES = st.one_of(
 _TRANSFER = st.one_of(st.binary(min_size=128, max_size=128), st.binary(max_size=140))
 _RECORDS = st.lists(st.tuples(st.sampled_from(["h2e", "e2h"]), _TIMES, _TRANSFER,
                               st.floats(0.0, 0.7)), max_size=60)
+
+
+def _records(path: Path) -> list[Any]:
+    with path.open("rb") as fh:
+        return list(read_pcapng(fh))
 
 
 def _write(path: Path, blocks: bool, records: list[tuple[str, float, bytes, float]],
@@ -68,7 +74,7 @@ def test_block_mode_encodes_many_transfers_at_once(tmp_path: Path,
         for i in range(1000):
             w.write("h2e", i * 1e-3, bytes(128))
     assert calls == [1]
-    assert len(list(read_pcapng((tmp_path / "c.pcapng").open("rb")))) == 1000
+    assert len(_records(tmp_path / "c.pcapng")) == 1000
 
 
 def test_a_run_that_raises_still_writes_every_transfer_handed_over(tmp_path: Path) -> None:
@@ -101,7 +107,7 @@ def test_a_run_that_raises_still_writes_every_transfer_handed_over(tmp_path: Pat
         finally:
             writer.close()
     assert len(tapped) > 100
-    got = list(read_pcapng(path.open("rb")))
+    got = _records(path)
     assert [(r.direction, r.data) for r in got] == [(d, x) for d, _, x in tapped]
     assert [r.time for r in got] == pytest.approx([t for _, t, _ in tapped], abs=1e-6)
 
@@ -126,5 +132,57 @@ def test_a_time_without_a_timestamp_is_a_capture_error_and_the_rest_is_written(
     except CaptureError as exc:
         errors.append(str(exc))
     assert errors and all("has no pcapng timestamp" in e for e in errors)
-    got = [r.data[0] for r in read_pcapng(path.open("rb"))]
+    got = [r.data[0] for r in _records(path)]
     assert got == [0, 1, 3, 5, 7]
+
+
+def _write_many(path: Path, blocks: bool, records: list[tuple[str, float, bytes, float]],
+                cuts: list[int]) -> bytes:
+    """The records handed over in runs (``write_many``), cut at ``cuts``."""
+    now = [0.0]
+    edges = [0, *sorted(c % (len(records) + 1) for c in cuts), len(records)]
+    with CaptureWriter(path, "8.1", clock=lambda: now[0], idle_flush=False,
+                       blocks=blocks) as w:
+        for a, b in itertools.pairwise(edges):
+            now[0] += sum(dt for *_, dt in records[a:b])
+            w.write_many([(d, t, data) for d, t, data, _ in records[a:b]])
+    return path.read_bytes()
+
+
+@settings(max_examples=100, deadline=None)
+@given(_RECORDS, st.lists(st.integers(0, 60), max_size=6), st.booleans())
+def test_runs_handed_over_at_once_write_the_bytes_of_single_writes(
+        tmp_path_factory: pytest.TempPathFactory, records: list[Any], cuts: list[int],
+        blocks: bool) -> None:
+    """``write_many`` (a message handover's transfers, from the emulator's tap) gives the file
+    ``write`` gives, in both modes, the first transfer (it carries the comment) inside a run."""
+    d = tmp_path_factory.mktemp("m")
+    want = _write(d / "one.pcapng", False, records)
+    assert _write_many(d / "many.pcapng", blocks, records, cuts) == want
+
+
+def test_the_demo_capture_takes_handovers_in_blocks_and_equals_the_reference(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``demo --virtual-time --capture``: the writer gets message handovers through ``many``,
+    and the file is the per-frame reference's, byte for byte."""
+    from eyeq_spi.cli import main
+    from eyeq_spi.twins import exact
+
+    express = not exact()  # under EYEQ_SPI_EXACT=1 both runs are the reference
+    calls: list[int] = []
+    orig = CaptureWriter.write_many
+
+    def counting(self: CaptureWriter, transfers: Any) -> None:
+        items = list(transfers)
+        calls.append(len(items))
+        orig(self, items)
+
+    monkeypatch.setattr(CaptureWriter, "write_many", counting)
+    fast, ref = tmp_path / "fast.pcapng", tmp_path / "ref.pcapng"
+    args = ["demo", "--virtual-time", "--duration", "1.5", "--objects", "5", "--json"]
+    assert main([*args, "--capture", str(fast)]) == 0
+    monkeypatch.setenv("EYEQ_SPI_EXACT", "1")
+    assert main([*args, "--capture", str(ref)]) == 0
+    assert fast.read_bytes() == ref.read_bytes()
+    assert not express or max(calls, default=0) > 1

@@ -11,7 +11,7 @@ import re
 import struct
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, Protocol
@@ -223,12 +223,36 @@ class CaptureWriter:
                 if self.blocks:
                     self._pending, self._room = [], self.FLUSH_BYTES - len(self._buf)
                 return
-            data = bytes(transfer)
-            pending.append((self._ids[direction], time, data))
-            self.count += 1
-            self._p_bytes += 35 + len(data)
+            self._keep(direction, time, transfer)
             if self._p_bytes >= self._room or self._clock() - self._last_flush >= self.flush_s:
                 self._flush()
+
+    def write_many(self, transfers: Iterable[tuple[str, float, bytes]]) -> None:
+        """``write`` of each (direction, time, transfer) in order, under one lock; in block mode
+        the flush rules are checked once, after the last (the file gets the same bytes)."""
+        items = iter(transfers)
+        with self._lock:
+            if self._pending is None:  # one block per write, or the first: one at a time
+                for direction, time, transfer in items:
+                    if self._pending is None:
+                        self._write(direction, time, transfer)
+                        if self.blocks:
+                            self._pending, self._room = [], self.FLUSH_BYTES - len(self._buf)
+                    else:
+                        self._keep(direction, time, transfer)
+            else:
+                for direction, time, transfer in items:
+                    self._keep(direction, time, transfer)
+            if self._pending and (self._p_bytes >= self._room
+                                  or self._clock() - self._last_flush >= self.flush_s):
+                self._flush()
+
+    def _keep(self, direction: str, time: float, transfer: bytes) -> None:
+        data = bytes(transfer)
+        assert self._pending is not None  # block mode, after the first transfer
+        self._pending.append((self._ids[direction], time, data))
+        self.count += 1
+        self._p_bytes += 35 + len(data)
 
     def _encode_pending(self) -> None:
         """The kept transfers into the buffer, as ``_write`` encodes them one by one."""

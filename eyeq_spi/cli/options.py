@@ -359,6 +359,23 @@ def can_output(args: argparse.Namespace, host: Any, runner: Any) -> Any:
                   protocol=getattr(args, "can_protocol", None) or "extlog2")
 
 
+class CaptureTap:
+    """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``. A
+    message handed over in one step reaches the writer in one call (``many``)."""
+
+    DIRECTIONS = ("h2e", "e2h")
+
+    def __init__(self, writer: Any) -> None:
+        self.writer = writer
+
+    def __call__(self, node: int, t: float, transfer: bytes) -> None:
+        self.writer.write(self.DIRECTIONS[node], t, transfer)
+
+    def many(self, transfers: list[tuple[int, float, bytes]]) -> None:
+        d = self.DIRECTIONS
+        self.writer.write_many([(d[node], t, b) for node, t, b in transfers])
+
+
 def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
     """The host emulator and the simulated EyeQ of ``demo`` (and ``monitor --demo``) wired
     in one process, with the ``--capture`` writer tapping both channels (or None)."""
@@ -366,10 +383,7 @@ def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
 
     host_cfg, nvm, scenario_ = host_parts(args)
     writer = capture_writer(args)
-    tap = None
-    if writer is not None:
-        def tap(node: int, t: float, transfer: bytes) -> None:
-            writer.write("h2e" if node == 0 else "e2h", t, transfer)
+    tap = None if writer is None else CaptureTap(writer)
     emu = build(sim_config=sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario_,
                 keep_rx_times=False, tap=tap)
     return emu, writer
