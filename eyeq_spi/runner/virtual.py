@@ -28,7 +28,6 @@ from eyeq_spi.runner.virtual_fast import Express
 from eyeq_spi.runner.virtual_types import Tap
 from eyeq_spi.twins import exact
 
-"""Called for every transfer a node puts on the wire: (node index, time, transfer)."""
 
 class VirtualRunner:
     """Runs nodes, each bound to an adapter (normally the two ends of a memory pair).
