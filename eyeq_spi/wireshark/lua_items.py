@@ -97,7 +97,8 @@ local function skip(g)
 end
 local G_FRAME = {F["dir"], F["frame_type"], F["header"], F["d"], F["r"], F["rsp"], F["num"],
                  F["crc"], F["crc_computed"], F["crc_ok"]}
-local G_DATA = {F["transport"], F["transport_type"], F["chunk"]}
+local G_DATA = {F["transport"], F["transport_type"], F["chunk"], F["size"], F["transfer_id"],
+                F["total"]}
 local G_MSG = {F["msg"], F["msg_length"], F["sw"], F["sw_source"], F["app_protocol"],
                F["message"]}
 local G_DASP = {F["dasp.protocol"], F["dasp.data_id"], F["dasp.counter"], F["dasp.reserved"]}

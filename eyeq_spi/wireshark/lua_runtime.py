@@ -1,10 +1,12 @@
 """The second part of the generated Lua's fixed code: messages, transport and link layer.
 
-It holds no protocol numbers: every constant it uses (``C``, ``HDR``, ``KIND``, ``CRC_BY_KIND``,
+It holds no protocol numbers: every constant it uses (``C``, ``KIND``, ``CRC_BY_KIND``,
 ``TTYPE``, ``DIRS``, ``RX_LIMIT``, ``S``, ``MSG``, ``DASP_R``, ``OTHER_R``, ``MESP``,
 ``RELEASES`` ...) is emitted from ``specs/`` by :mod:`eyeq_spi.wireshark.lua_gen`, and the item
 helpers, the walker and the release choice by :mod:`eyeq_spi.wireshark.lua_items`, before this
-text. Lua 5.2 only: bit operations go through Wireshark's ``bit`` library.
+text. The generator writes each ``C.NAME`` as its value and each ``@HDR.<field>@`` as the
+arithmetic that takes the field out of the header word ``h``. Lua 5.2 only: bit operations go
+through Wireshark's ``bit`` library, one C call each, so the per-frame path avoids them.
 
 Speed (the dissector runs once per transfer, 2,300 times per second of a full-load capture):
 the CRC is unrolled from ``specs/link.yaml`` (:mod:`eyeq_spi.wireshark.lua_crc`); the Info
@@ -232,12 +234,6 @@ local direction_tap = Listener.new(nil, "eyeq_spi")
 
 -- "h2e"/"e2h" from the pcapng interface; "?" when the capture has no interfaces; nil when this
 -- pass builds no tree, so no field can be read.
-local function direction()
-  local fi = f_iface()
-  if fi then return DIRS[fi.value] or ("interface " .. fi.value) end
-  if f_number() then return "?" end
-  return nil
-end
 
 local function comment(n)
   for _, fi in ipairs({f_comment()}) do
@@ -276,13 +272,14 @@ end
 -- message bytes.
 local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
   local ttype, targ = sbyte(raw, C.T_TYPE + 1, C.T_ARG + 1)
-  local items = not skip(G_DATA)
+  local sk = SKIP[G_DATA]
+  local items = VIS or not (sk or sk == nil and skip(G_DATA))
   local tt
   if items then
     tt = add(ROOT, F["transport"], C.T_TYPE, 1, TTYPE[ttype] or "invalid")
     add(tt, F["transport_type"], C.T_TYPE, 1)
   end
-  local st
+  local st, now
   if trusted and feed then
     st = rx[dir]
     if not st then
@@ -294,13 +291,14 @@ local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
       st = nil
     else
       st.lastnum = num
-      if st.open and pinfo.abs_ts - st.time >= C.REASSEMBLY_TIMEOUT then
+      now = pinfo.abs_ts  -- read once: each read is a call into Wireshark
+      if st.open and now - st.time >= C.REASSEMBLY_TIMEOUT then
         abort(st, n, "timeout")
       end
     end
   end
   if ttype == C.T_SINGLE then
-    add(tt, F["size"], C.T_ARG, 1)
+    if items then add(tt, F["size"], C.T_ARG, 1) end
     if targ < 1 or targ > C.SINGLE_MAX then
       expert(tt, X.format, string.format("single frame size %d outside 1..%d (T2)",
                                          targ, C.SINGLE_MAX))
@@ -312,9 +310,11 @@ local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
     return "single", ssub(raw, C.SINGLE_DATA + 1, C.SINGLE_DATA + targ)
   elseif ttype == C.T_FIRST then
     local total = u32(raw, C.T_TOTAL)
-    add(tt, F["transfer_id"], C.T_ARG, 1)
-    add_le(tt, F["total"], C.T_TOTAL, 4)
-    if items then add(tt, F["chunk"], C.FIRST_DATA, C.FIRST_CHUNK) end
+    if items then
+      add(tt, F["transfer_id"], C.T_ARG, 1)
+      add_le(tt, F["total"], C.T_TOTAL, 4)
+      add(tt, F["chunk"], C.FIRST_DATA, C.FIRST_CHUNK)
+    end
     local limit = RX_LIMIT[dir] or C.MAX_TOTAL
     if total < C.FIRST_TOTAL_MIN or total > limit then
       expert(tt, X.format, string.format("first frame total %d outside %d..%d (T3, T6)",
@@ -325,15 +325,17 @@ local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
       abort(st, n, "new_first_frame")
       st.dead = nil
       st.open, st.id, st.total, st.len = true, targ, total, C.FIRST_CHUNK
-      st.last, st.time, st.first, st.at = num, pinfo.abs_ts, n, n
+      st.last, st.time, st.first, st.at = num, now, n, n
       st.parts[1] = ssub(raw, C.FIRST_DATA + 1, C.FIRST_DATA + C.FIRST_CHUNK)
       st.np = 1
       prev[n] = 0
     end
     return cols and "first ID=" .. NUMSTR[targ] .. " total=" .. total, nil
   elseif ttype == C.T_CONSECUTIVE then
-    add(tt, F["transfer_id"], C.T_ARG, 1)
-    if items then add(tt, F["chunk"], C.NEXT_DATA, C.CONSECUTIVE_CHUNK) end
+    if items then
+      add(tt, F["transfer_id"], C.T_ARG, 1)
+      add(tt, F["chunk"], C.NEXT_DATA, C.CONSECUTIVE_CHUNK)
+    end
     if st then
       local rest = st.open and st.total - st.len
       if not st.open then
@@ -351,7 +353,7 @@ local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
         st.np = st.np + 1
         st.parts[st.np] = ssub(raw, C.NEXT_DATA + 1, C.NEXT_DATA + take)
         st.len = st.len + take
-        st.last, st.time = num, pinfo.abs_ts
+        st.last, st.time = num, now
         prev[n] = st.at
         st.at = n
         if st.len >= st.total then
@@ -429,21 +431,30 @@ function p.dissector(tvb, pinfo, tree)
   end
   if cols then columns.protocol = "EyeQ SPI" end
   local len = tvb:len()
-  local dir = direction()
-  if not dir then return len end  -- no tree in this pass: nothing to add, nothing to feed
+  -- the direction from the pcapng interface; "?" when the capture has no interfaces; no field
+  -- at all when this pass builds no tree
+  local fi, dir = f_iface(), nil
+  if fi then
+    dir = DIRS[fi.value] or ("interface " .. fi.value)
+  elseif f_number() then
+    dir = "?"
+  else
+    return len  -- no tree in this pass: nothing to add, nothing to feed
+  end  -- no tree in this pass: nothing to add, nothing to feed
   TVB, TVB_MAKE = tvb, nil
   -- a tree that is not shown needs no byte range (one object less per packet)
   ROOT, ROOT_TEXT = VIS and tree:add(p, tvb()) or tree:add(p), nil
   local seen = n <= last_fed
   local feed = not seen
-  local link = not skip(G_FRAME)
+  local sk = SKIP[G_FRAME]
+  local link = VIS or not (sk or sk == nil and skip(G_FRAME))
   if dir ~= "?" and link then add(ROOT, F["dir"], nil, nil, dir) end
   if feed then
     last_fed = n
     if f_comment and not REL.final and n <= SNIFF_RECORDS then comment(n) end
   end
   if rel_notes[n] then expert(nil, X.note, rel_notes[n]) end
-  local dirtext = dir ~= "?" and (dir .. " ") or ""
+  local dirtext = DIRTEXT[dir] or (dir .. " ")
   if len ~= C.FRAME_SIZE then
     add(ROOT, F["bad_length"], nil, nil, true)
     add(ROOT, F["length"], nil, nil, len)
@@ -455,10 +466,10 @@ function p.dissector(tvb, pinfo, tree)
   local raw = tvb:raw(0, len)
   local h0, h1, h2, h3 = sbyte(raw, 1, 4)
   local h = h0 + h1 * 256 + h2 * 65536 + h3 * 16777216
-  local d = band(rshift(h, HDR.D[1]), HDR.D[2])
-  local r = band(rshift(h, HDR.R[1]), HDR.R[2])
-  local rsp = band(rshift(h, HDR.RSP[1]), HDR.RSP[2])
-  local num = band(rshift(h, HDR.NUM[1]), HDR.NUM[2])
+  local d = @HDR.D@
+  local r = @HDR.R@
+  local rsp = @HDR.RSP@
+  local num = @HDR.NUM@
   local kind = KIND[d] or "INVALID"
   local ht
   if link then
@@ -506,13 +517,18 @@ function p.dissector(tvb, pinfo, tree)
     if nt then
       for i = 1, #nt do expert(nil, X.reassembly, nt[i]) end
     end
-    name = message_of(n, tvb, single, feed)
+    if single or done[n] or reasm_in[n] then name = message_of(n, tvb, single, feed) end
   end
   if cols then
     local bad = crc_ok and "" or " [bad CRC]"
     if kind == "DATA" then
-      columns.info = dirtext .. "DATA NUM=" .. NUMSTR[num] .. " RSP=" .. NUMSTR[rsp] .. bad
-                        .. " " .. tinfo .. (name and ": " .. name or "")
+      if name then  -- one concatenation each, no intermediate string
+        columns.info = dirtext .. "DATA NUM=" .. NUMSTR[num] .. " RSP=" .. NUMSTR[rsp] .. bad
+                          .. " " .. tinfo .. ": " .. name
+      else
+        columns.info = dirtext .. "DATA NUM=" .. NUMSTR[num] .. " RSP=" .. NUMSTR[rsp] .. bad
+                          .. " " .. tinfo
+      end
     elseif kind == "ACK" then
       columns.info = dirtext .. "ACK of NUM=" .. NUMSTR[rsp] .. bad
     elseif kind == "NAK" then
