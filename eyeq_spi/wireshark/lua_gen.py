@@ -199,6 +199,9 @@ class LuaGenerator:
             "FIRST_TOTAL_MIN": int(tr["first_total_min"]),
             "MAX_TOTAL": int(tr["max_total"]),
         }
+        if c["CRC_OFFSET"] != 4 or c["T_TYPE"] != 6:  # the runtime reads them with one call
+            raise ValueError("the Lua dissector expects the CRC right after the 4-byte header "
+                             "and the transport type right after the CRC")
         if c["FIRST_DATA"] + c["FIRST_CHUNK"] > c["FRAME_SIZE"]:
             raise ValueError("first_chunk does not fit the frame")
         if c["NEXT_DATA"] + c["CONSECUTIVE_CHUNK"] > c["FRAME_SIZE"]:

@@ -77,7 +77,9 @@ local function expert(item, x, text)
 end
 
 -- Fields added together (every frame, every DATA frame, every message): once each has been
--- added in this pass and none is referenced, the group is skipped with one look-up.
+-- added in this pass and none is referenced, the group is skipped with one look-up. Callers on
+-- the per-frame path test SKIP[g] themselves and call skip(g) only while it is nil:
+--   local sk = SKIP[g]; if VIS or not (sk or sk == nil and skip(g)) then <add the group> end
 local SKIP = {}  -- this pass: group -> true (skip), false (add each), nil (still learning)
 local function skip(g)
   if VIS then return false end

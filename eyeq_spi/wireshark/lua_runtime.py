@@ -127,7 +127,8 @@ local function dissect_dasp(data, mt, ri, items)
     return "DASP (short)"
   end
   local rt
-  if not skip(G_DASP) then
+  local sk = SKIP[G_DASP]
+  if VIS or not (sk or sk == nil and skip(G_DASP)) then
     add(mt, F["dasp.protocol"], 0, 1)
     add(mt, F["dasp.data_id"], 1, 1)
     add(mt, F["dasp.counter"], 2, 1)
@@ -161,7 +162,8 @@ local function dissect_message(data, make_tvb)
   TVB, TVB_MAKE = nil, make_tvb
   local n = #data
   local ri, src = release()
-  local items = not skip(G_MSG)
+  local sk = SKIP[G_MSG]
+  local items = VIS or not (sk or sk == nil and skip(G_MSG))
   local mt
   if items then
     mt = add(ROOT, F["msg"], 0, n)
@@ -269,9 +271,8 @@ local function u32(raw, at)
 end
 
 -- Returns the Info text (when the columns are filled) and, for a trusted single frame, the
--- message bytes.
-local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
-  local ttype, targ = sbyte(raw, C.T_TYPE + 1, C.T_ARG + 1)
+-- message bytes. ttype and targ are the frame's bytes T_TYPE and T_ARG.
+local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols, ttype, targ)
   local sk = SKIP[G_DATA]
   local items = VIS or not (sk or sk == nil and skip(G_DATA))
   local tt
@@ -418,6 +419,8 @@ end
 -- =============================================================================================
 -- Link layer (decisions L1-L8) and the dissector
 -- =============================================================================================
+local ACK_INFO = {}  -- Info text prefix -> NUM -> the Info text of an ACK
+
 function p.dissector(tvb, pinfo, tree)
   local n = pinfo.number
   if n <= prev_number then new_pass() end  -- a new pass: filters and columns may differ
@@ -430,7 +433,8 @@ function p.dissector(tvb, pinfo, tree)
     if not VIS then COLS = cols end
   end
   if cols then columns.protocol = "EyeQ SPI" end
-  local len = tvb:len()
+  local raw = tvb:raw()  -- the whole transfer; its length is #raw (one call instead of two)
+  local len = #raw
   -- the direction from the pcapng interface; "?" when the capture has no interfaces; no field
   -- at all when this pass builds no tree
   local fi, dir = f_iface(), nil
@@ -463,8 +467,8 @@ function p.dissector(tvb, pinfo, tree)
     if cols then columns.info = dirtext .. "bad length " .. len end
     return len
   end
-  local raw = tvb:raw(0, len)
-  local h0, h1, h2, h3 = sbyte(raw, 1, 4)
+  -- the header word, the CRC (L1) and a DATA frame's transport type and argument (T1)
+  local h0, h1, h2, h3, c0, c1, ttype, targ = sbyte(raw, 1, C.T_ARG + 1)
   local h = h0 + h1 * 256 + h2 * 65536 + h3 * 16777216
   local d = @HDR.D@
   local r = @HDR.R@
@@ -484,7 +488,6 @@ function p.dissector(tvb, pinfo, tree)
     expert(ht, X.format, string.format("D=0x%X is not a frame kind (L2)", d))
   end
   if r ~= 0 then expert(ht, X.format, string.format("R=0x%X, reserved must be 0 (L2)", r)) end
-  local c0, c1 = sbyte(raw, C.CRC_OFFSET + 1, C.CRC_OFFSET + 2)
   local got = c0 + c1 * 256
   local crc, crc_ok
   if seen and not VIS then  -- checked when the frame was fed
@@ -492,7 +495,7 @@ function p.dissector(tvb, pinfo, tree)
     crc_ok = crc == nil
     if crc_ok then crc = got end
   else
-    crc = (CRC_BY_KIND[d] or CRC_OTHER)(raw)
+    crc = (CRC_BY_KIND[d] or CRC_OTHER)(raw, h0, h1, h2, h3)
     crc_ok = crc == got
     if not crc_ok then crc_bad[n] = crc end
   end
@@ -512,7 +515,8 @@ function p.dissector(tvb, pinfo, tree)
   local tinfo, name
   if kind == "DATA" then
     local single
-    tinfo, single = dissect_transport(raw, pinfo, dir, num, crc_ok and r == 0, feed, n, cols)
+    tinfo, single = dissect_transport(raw, pinfo, dir, num, crc_ok and r == 0, feed, n, cols,
+                                      ttype, targ)
     local nt = notes[n]
     if nt then
       for i = 1, #nt do expert(nil, X.reassembly, nt[i]) end
@@ -529,8 +533,18 @@ function p.dissector(tvb, pinfo, tree)
         columns.info = dirtext .. "DATA NUM=" .. NUMSTR[num] .. " RSP=" .. NUMSTR[rsp] .. bad
                           .. " " .. tinfo
       end
-    elseif kind == "ACK" then
-      columns.info = dirtext .. "ACK of NUM=" .. NUMSTR[rsp] .. bad
+    elseif kind == "ACK" then  -- a few thousand different texts: made once each
+      local t = ACK_INFO[dirtext]
+      if not t then
+        t = {}
+        ACK_INFO[dirtext] = t
+      end
+      local text = t[rsp]
+      if not text then
+        text = dirtext .. "ACK of NUM=" .. NUMSTR[rsp]
+        t[rsp] = text
+      end
+      columns.info = text .. bad
     elseif kind == "NAK" then
       columns.info = dirtext .. "NAK of NUM=" .. NUMSTR[rsp] .. " "
                         .. (NAK_REASONS[num] or string.format("0x%03X", num)) .. bad
