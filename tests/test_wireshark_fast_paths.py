@@ -10,6 +10,7 @@ summary lines (a tree that is not shown) with the one of a tree that is shown.
 from __future__ import annotations
 
 import os
+import struct
 import subprocess
 from pathlib import Path
 
@@ -145,3 +146,26 @@ def test_details_tree_is_built_where_shown(tmp_path: Path) -> None:
     assert out.count("[Expert Info (Error/Checksum): CRC 0x") == 5  # each bad CRC
     assert out.count("Header word: ") == len(frames)
     assert "GetEyeQExtendedState" in out
+
+
+def write_pcap(path: Path, frames: list[tuple[str, bytes]]) -> Path:
+    """A classic pcap of link type USER0: no interfaces, so no direction."""
+    out = bytearray(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 147))
+    for i, (_, data) in enumerate(frames):
+        out += struct.pack("<IIII", 0, 1000 * i, len(data), len(data)) + data
+    path.write_bytes(bytes(out))
+    return path
+
+
+@needs_tshark
+def test_capture_without_interfaces(tmp_path: Path) -> None:
+    """A capture with no interfaces (pcap) is decoded with direction "?" in every pass that
+    builds a tree, one pass or two."""
+    capture = write_pcap(tmp_path / "crc.pcap", crc_cases())
+    lua = write_lua(tmp_path)
+    for options in ((), ("-2",)):
+        info = summary_info(capture, lua, tmp_path, *options)
+        assert info[0] == "DATA NUM=0 RSP=0 single: GetEyeQExtendedState request"
+        assert info[8] == "ACK of NUM=5 [bad CRC]"
+    rows = tshark(capture, lua, ["eyeq_spi.dir", "eyeq_spi.message"], tmp_path)
+    assert rows[0] == ["", "GetEyeQExtendedState"]

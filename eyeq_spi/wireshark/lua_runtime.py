@@ -199,7 +199,9 @@ end
 -- the completing frame of every fragment, notes[] a frame's reassembly events, crc_bad[] the
 -- computed CRC of a frame whose CRC was bad. Later passes only read these tables.
 local f_iface = Field.new("frame.interface_id")
-local f_number = Field.new("frame.number")
+-- the frame protocol item, present in every pass that builds a tree: Wireshark makes it for
+-- every Lua field extractor anyway, where frame.number would be one more item per packet
+local f_frame = Field.new("frame")
 local f_comment
 do
   local ok, fld = pcall(Field.new, "frame.comment")
@@ -440,7 +442,7 @@ function p.dissector(tvb, pinfo, tree)
   local fi, dir = f_iface(), nil
   if fi then
     dir = DIRS[fi.value] or ("interface " .. fi.value)
-  elseif f_number() then
+  elseif f_frame() then
     dir = "?"
   else
     return len  -- no tree in this pass: nothing to add, nothing to feed
