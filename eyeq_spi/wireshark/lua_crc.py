@@ -94,6 +94,9 @@ def crc_functions(coverage: dict[int, list[tuple[int, int]]],
     lines.append("local CRC_BY_KIND = {" + ", ".join(
         f"[{d}] = {name}" for d, name in kinds.items()) + "}")
     lines.append(f"local CRC_OTHER = {other_fn}")
+    head_only = [d for d, r in sorted(coverage.items()) if max(b for _, b in r) <= HEAD]
+    lines.append("local CRC_HEAD_ONLY = {" + ", ".join(f"[{d}] = true" for d in head_only)
+                 + "}  -- kinds whose CRC covers only the header word")
     lines.append("local CRC_RANGES = {" + ", ".join(
         f"[{name}] = {{" + ", ".join(f"{{{a}, {b}}}" for a, b in key) + "}"
         for key, name in by_ranges.items()) + "}")

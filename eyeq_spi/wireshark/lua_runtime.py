@@ -435,8 +435,7 @@ function p.dissector(tvb, pinfo, tree)
     if not VIS then COLS = cols end
   end
   if cols then columns.protocol = "EyeQ SPI" end
-  local raw = tvb:raw()  -- the whole transfer; its length is #raw (one call instead of two)
-  local len = #raw
+  local len = tvb:len()
   -- the direction from the pcapng interface; "?" when the capture has no interfaces; no field
   -- at all when this pass builds no tree
   local fi, dir = f_iface(), nil
@@ -469,10 +468,15 @@ function p.dissector(tvb, pinfo, tree)
     if cols then columns.info = dirtext .. "bad length " .. len end
     return len
   end
-  -- the header word, the CRC (L1) and a DATA frame's transport type and argument (T1)
+  -- The header word, the CRC (L1) and a DATA frame's transport type and argument (T1). Only
+  -- these bytes are copied into Lua, and the whole transfer only when the frame's CRC covers
+  -- more (a DATA frame): a copy of every ACK would only feed the garbage collector, which
+  -- takes a third of the dissector's time and grows with every byte allocated.
+  local raw = tvb:raw(0, C.T_ARG + 1)
   local h0, h1, h2, h3, c0, c1, ttype, targ = sbyte(raw, 1, C.T_ARG + 1)
   local h = h0 + h1 * 256 + h2 * 65536 + h3 * 16777216
   local d = @HDR.D@
+  if not CRC_HEAD_ONLY[d] then raw = tvb:raw() end
   local r = @HDR.R@
   local rsp = @HDR.RSP@
   local num = @HDR.NUM@
