@@ -40,6 +40,7 @@ from eyeq_spi.wireshark.lua_common import (
     value_table,
 )
 from eyeq_spi.wireshark.lua_crc import CRC_RUNTIME, CRC_SELFTEST, crc_functions
+from eyeq_spi.wireshark.lua_crc import HEAD as CRC_HEAD
 from eyeq_spi.wireshark.lua_items import RUNTIME_ITEMS
 from eyeq_spi.wireshark.lua_runtime import RUNTIME
 
@@ -187,6 +188,7 @@ class LuaGenerator:
             "T_TYPE": d,
             "T_ARG": d + 1,
             "T_TOTAL": d + 2,
+            "HEAD": d + 2,  # bytes read before the rest of a frame (lua_crc.HEAD)
             "SINGLE_DATA": d + 2,
             "FIRST_DATA": d + 6,
             "NEXT_DATA": d + 2,
@@ -199,9 +201,10 @@ class LuaGenerator:
             "FIRST_TOTAL_MIN": int(tr["first_total_min"]),
             "MAX_TOTAL": int(tr["max_total"]),
         }
-        if c["CRC_OFFSET"] != 4 or c["T_TYPE"] != 6:  # the runtime reads them with one call
-            raise ValueError("the Lua dissector expects the CRC right after the 4-byte header "
-                             "and the transport type right after the CRC")
+        if c["CRC_OFFSET"] != 4 or c["HEAD"] != CRC_HEAD or c["NEXT_DATA"] != CRC_HEAD \
+                or c["SINGLE_DATA"] != CRC_HEAD:  # the runtime reads them with one call
+            raise ValueError("the Lua dissector expects the CRC right after the 4-byte header, "
+                             "then transport type and argument, then the data")
         if c["FIRST_DATA"] + c["FIRST_CHUNK"] > c["FRAME_SIZE"]:
             raise ValueError("first_chunk does not fit the frame")
         if c["NEXT_DATA"] + c["CONSECUTIVE_CHUNK"] > c["FRAME_SIZE"]:
