@@ -430,12 +430,16 @@ function p.dissector(tvb, pinfo, tree)
   prev_number = n
   VIS = tree.visible
   local cols = COLS
-  local columns = pinfo.cols
+  local columns  -- fetched only where columns are filled or not known yet (one object less)
   if VIS or cols == nil then
+    columns = pinfo.cols
     cols = tostring(columns.info) ~= "(info)"  -- "(info)": this dissection fills no columns
     if not VIS then COLS = cols end
   end
-  if cols then columns.protocol = "EyeQ SPI" end
+  if cols then
+    columns = columns or pinfo.cols
+    columns.protocol = "EyeQ SPI"
+  end
   local len = tvb:len()
   -- the direction from the pcapng interface; "?" when the capture has no interfaces; no field
   -- at all when this pass builds no tree
