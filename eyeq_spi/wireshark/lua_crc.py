@@ -11,37 +11,79 @@ at load.
 
 from __future__ import annotations
 
-CHUNK = 32  # bytes fetched by one string.byte call (one bxor call each)
+# bytes fetched by one string.byte call (one bxor call each): fewer calls cost less, and 64
+# values plus the bxor call's 65 arguments stay well inside Lua 5.2's 250 registers
+CHUNK = 64
+# the bytes the dissector reads first (header word, CRC, transport type and argument) and
+# passes in as h1..h8; the CRC reads the rest from ``tail``, the frame from byte HEAD on
+HEAD = 8
+# A frame whose bytes from SHORT on are all zero (a short message, a chunk of a payload's
+# unused slots: a third of the DATA frames of a full-load capture) needs only its first SHORT.
+SHORT = 32
+
+
+def _segments(ranges: list[tuple[int, int]]) -> list[tuple[int, int, int]]:
+    """(start, end, position in the covered stream) of each range."""
+    out, pos = [], 0
+    for a, b in ranges:
+        out.append((a, b, pos))
+        pos += b - a
+    return out
+
+
+def _blocks(segments: list[tuple[int, int, int]], limit: int, indent: str) -> list[str]:
+    """Lua adding the contributions of the covered bytes before ``limit`` (0-based): bytes
+    below HEAD from the arguments h1..h8, the rest CHUNK bytes per string.byte call on
+    ``tail``."""
+    lines = []
+    for a, b, pos in segments:
+        start, b = a, min(b, limit)
+        while start < b:
+            if start < HEAD:  # bytes the caller passes
+                end = min(b, HEAD)
+                terms = [f"P[h{start + i} + {(pos + start - a + i - 1) * 256 + 1}]"
+                         for i in range(1, end - start + 1)]
+                lines.append(f"{indent}acc = bxor(acc, {', '.join(terms)})")
+            else:
+                end = min(b, start + CHUNK)
+                names = [f"b{i}" for i in range(1, end - start + 1)]
+                terms = [f"P[b{i} + {(pos + start - a + i - 1) * 256 + 1}]"
+                         for i in range(1, end - start + 1)]
+                lines += [f"{indent}do",
+                          f"{indent}  local {', '.join(names)} = "
+                          f"sbyte(tail, {start - HEAD + 1}, {end - HEAD})",
+                          f"{indent}  acc = bxor(acc, {', '.join(terms)})",
+                          f"{indent}end"]
+            start = end
+    return lines
 
 
 def _function(name: str, ranges: list[tuple[int, int]]) -> list[str]:
-    """``local function <name>(raw)``: the CRC over ``ranges`` (0-based, end exclusive)."""
+    """``local function <name>(tail, h1, ..., h8)``: the CRC over ``ranges`` (0-based, end
+    exclusive) of a frame whose first HEAD bytes the caller has already read and passes as
+    ``h1..h8``, and whose bytes from HEAD on are the string ``tail`` (nil where the CRC covers
+    none of them). A zero byte contributes nothing, so a frame whose bytes from SHORT on are
+    all zero (one plain string.find) is summed only up to SHORT."""
     length = sum(b - a for a, b in ranges)
+    segments = _segments(ranges)
     lines = [f"local {name}_P, {name}_K = crc_tables({length})",
-             f"local function {name}(raw)",
+             f"local function {name}(tail, {', '.join(f'h{i}' for i in range(1, HEAD + 1))})",
              f"  local P, acc = {name}_P, {name}_K"]
-    pos = 0
-    for a, b in ranges:
-        start = a
-        while start < b:
-            end = min(b, start + CHUNK)
-            n = end - start
-            names = [f"b{i}" for i in range(1, n + 1)]
-            terms = [f"P[b{i} + {(pos + i - 1) * 256 + 1}]" for i in range(1, n + 1)]
-            lines += ["  do",
-                      f"    local {', '.join(names)} = sbyte(raw, {start + 1}, {end})",
-                      f"    acc = bxor(acc, {', '.join(terms)})",
-                      "  end"]
-            pos += n
-            start = end
+    lines += _blocks(segments, HEAD, "  ")
+    rest = [(max(a, HEAD), b, pos + max(a, HEAD) - a) for a, b, pos in segments if b > HEAD]
+    if max(b for _, b in ranges) > SHORT:
+        lines.append(f"  if sfind(tail, CRC_ZERO_TAIL, {SHORT - HEAD + 1}, true) then  -- zeros")
+        lines += [*_blocks(rest, SHORT, "    "), "    return acc", "  end"]
+    lines += _blocks(rest, 1 << 30, "  ")
     lines += ["  return acc", "end"]
     return lines
 
 
 def crc_functions(coverage: dict[int, list[tuple[int, int]]],
                   other: list[tuple[int, int]]) -> list[str]:
-    """Lua defining ``CRC_BY_KIND[D]`` and ``CRC_OTHER`` (functions of the raw 128-byte frame)."""
-    lines: list[str] = []
+    """Lua defining ``CRC_BY_KIND[D]`` and ``CRC_OTHER`` (functions of the raw 128-byte frame
+    and its first four bytes)."""
+    lines = [f'local CRC_ZERO_TAIL = string.rep("\\0", C.FRAME_SIZE - {SHORT})']
     by_ranges: dict[tuple[tuple[int, int], ...], str] = {}
 
     def fn(ranges: list[tuple[int, int]]) -> str:
@@ -57,6 +99,9 @@ def crc_functions(coverage: dict[int, list[tuple[int, int]]],
     lines.append("local CRC_BY_KIND = {" + ", ".join(
         f"[{d}] = {name}" for d, name in kinds.items()) + "}")
     lines.append(f"local CRC_OTHER = {other_fn}")
+    head_only = [d for d, r in sorted(coverage.items()) if max(b for _, b in r) <= HEAD]
+    lines.append("local CRC_HEAD_ONLY = {" + ", ".join(f"[{d}] = true" for d in head_only)
+                 + "}  -- kinds whose CRC covers only bytes read before the tail")
     lines.append("local CRC_RANGES = {" + ", ".join(
         f"[{name}] = {{" + ", ".join(f"{{{a}, {b}}}" for a, b in key) + "}"
         for key, name in by_ranges.items()) + "}")
@@ -82,7 +127,7 @@ for i = 0, 255 do
   CRC_TABLE[i] = c
 end
 
-local sbyte, ssub = string.byte, string.sub
+local sbyte, ssub, sfind = string.byte, string.sub, string.find
 
 local function crc_update(crc, s)
   for i = 1, #s do
@@ -117,14 +162,22 @@ end
 """
 
 CRC_SELFTEST = r"""
-do  -- the unrolled CRCs agree with the byte-wise one on a frame of every byte value
+do  -- the unrolled CRCs agree with the byte-wise one on a frame of every byte value, on one
+    -- whose tail is zero (the short sum) and on one whose tail is zero but its last byte
   local t = {}
   for i = 1, C.FRAME_SIZE do t[i] = string.char((i * 37 + 11) % 256) end
-  local raw = table.concat(t)
-  for fn, ranges in pairs(CRC_RANGES) do
-    local crc = C.CRC_INIT
-    for i = 1, #ranges do crc = crc_update(crc, ssub(raw, ranges[i][1] + 1, ranges[i][2])) end
-    assert(fn(raw) == bxor(crc, C.CRC_XOROUT), "eyeq_spi: unrolled CRC disagrees")
+  local frames = {table.concat(t)}
+  for i = #CRC_ZERO_TAIL, 1, -1 do t[C.FRAME_SIZE - i + 1] = "\0" end
+  frames[2] = table.concat(t)
+  t[C.FRAME_SIZE] = "\1"
+  frames[3] = table.concat(t)
+  for _, raw in ipairs(frames) do
+    for fn, ranges in pairs(CRC_RANGES) do
+      local crc = C.CRC_INIT
+      for i = 1, #ranges do crc = crc_update(crc, ssub(raw, ranges[i][1] + 1, ranges[i][2])) end
+      assert(fn(ssub(raw, C.HEAD + 1), sbyte(raw, 1, C.HEAD)) == bxor(crc, C.CRC_XOROUT),
+             "eyeq_spi: unrolled CRC disagrees")
+    end
   end
 end
 """

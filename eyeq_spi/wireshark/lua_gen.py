@@ -21,6 +21,7 @@ names: ``eyeq_spi.dir``, ``.frame_type``, ``.num``, ``.rsp``, ``.crc``,
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from eyeq_spi.capture.pcapng_io import release_sniff_transfers
@@ -39,6 +40,7 @@ from eyeq_spi.wireshark.lua_common import (
     value_table,
 )
 from eyeq_spi.wireshark.lua_crc import CRC_RUNTIME, CRC_SELFTEST, crc_functions
+from eyeq_spi.wireshark.lua_crc import HEAD as CRC_HEAD
 from eyeq_spi.wireshark.lua_items import RUNTIME_ITEMS
 from eyeq_spi.wireshark.lua_runtime import RUNTIME
 
@@ -57,6 +59,28 @@ EXPERTS = [
     ("unknown", "Unknown message", "UNDECODED", "WARN"),
     ("note", "Protocol note", "PROTOCOL", "NOTE"),
 ]
+
+
+def header_expr(word: str, shift: int, mask: int) -> str:
+    """Lua arithmetic for ``(word >> shift) & mask`` of a non-negative integer below 2^32, for
+    a mask of low bits: exact in Lua 5.2's doubles and with no call into the ``bit`` library,
+    which costs a C call per operation in every frame."""
+    if mask & (mask + 1):
+        raise ValueError(f"header mask 0x{mask:X} is not a run of low bits")
+    value = word if shift == 0 else f"({word} - {word} % {1 << shift}) / {1 << shift}"
+    return f"{value} % {mask + 1}"
+
+
+def inline_constants(text: str, inline: dict[str, str]) -> str:
+    """The fixed Lua ``text`` with every constant of ``inline`` (``C.NAME``, ``@HDR.X@``)
+    written as its value: a literal costs nothing per frame, a look-up in ``C`` a hashed
+    table access."""
+    def value(m: re.Match[str]) -> str:
+        key = m.group(0)
+        if key not in inline:
+            raise ValueError(f"the Lua runtime uses {key}, which the generator does not define")
+        return inline[key]
+    return re.sub(r"\bC\.[A-Z_]+\b|@HDR\.[A-Z]+@", value, text)
 
 
 def _header_fields(frame: dict[str, Any]) -> dict[str, tuple[int, int]]:
@@ -98,6 +122,7 @@ class LuaGenerator:
         self.fields = FieldRegistry()
         self.vs = ValueStrings()
         self.app = AppGenerator(self.codecs, self.fields, self.vs)
+        self.inline: dict[str, str] = {}  # constant -> its Lua text (set by constants())
 
     def release_constants(self) -> list[str]:
         """Releases, the preference's choices and where the EyeQ reports its release."""
@@ -163,6 +188,7 @@ class LuaGenerator:
             "T_TYPE": d,
             "T_ARG": d + 1,
             "T_TOTAL": d + 2,
+            "HEAD": d + 2,  # bytes read before the rest of a frame (lua_crc.HEAD)
             "SINGLE_DATA": d + 2,
             "FIRST_DATA": d + 6,
             "NEXT_DATA": d + 2,
@@ -175,17 +201,23 @@ class LuaGenerator:
             "FIRST_TOTAL_MIN": int(tr["first_total_min"]),
             "MAX_TOTAL": int(tr["max_total"]),
         }
+        if c["CRC_OFFSET"] != 4 or c["HEAD"] != CRC_HEAD or c["NEXT_DATA"] != CRC_HEAD \
+                or c["SINGLE_DATA"] != CRC_HEAD:  # the runtime reads them with one call
+            raise ValueError("the Lua dissector expects the CRC right after the 4-byte header, "
+                             "then transport type and argument, then the data")
         if c["FIRST_DATA"] + c["FIRST_CHUNK"] > c["FRAME_SIZE"]:
             raise ValueError("first_chunk does not fit the frame")
         if c["NEXT_DATA"] + c["CONSECUTIVE_CHUNK"] > c["FRAME_SIZE"]:
             raise ValueError("consecutive_chunk does not fit the frame")
         lines = ["local C = {"]
         lines += [f"  {k} = {lua_int(v) if k.startswith('CRC_') else v}," for k, v in c.items()]
-        lines.append(f"  REASSEMBLY_TIMEOUT = {float(tr['reassembly_timeout'])!r},")
+        timeout = repr(float(tr["reassembly_timeout"]))
+        lines.append(f"  REASSEMBLY_TIMEOUT = {timeout},")
         lines.append("}")
         hdr = _header_fields(frame)
-        lines.append("local HDR = {" + ", ".join(
-            f"{k} = {{{sh}, {lua_int(m)}}}" for k, (sh, m) in hdr.items()) + "}")
+        self.inline = {f"C.{k}": str(v) for k, v in c.items()}
+        self.inline["C.REASSEMBLY_TIMEOUT"] = timeout
+        self.inline.update({f"@HDR.{k}@": header_expr("h", sh, m) for k, (sh, m) in hdr.items()})
         kinds = {int(v): str(k) for k, v in s["kinds"].items()}
         lines.append(f"local KIND = {value_table(kinds)}")
         lines.append("local NAK_REASONS = " + value_table(
@@ -195,6 +227,8 @@ class LuaGenerator:
         if set(dirs.values()) != set(RECEIVER):
             raise ValueError(f"capture interfaces {sorted(dirs.values())} are not h2e/e2h")
         lines.append(f"local DIRS = {value_table(dirs)}")
+        lines.append('local DIRTEXT = {["?"] = ""}  -- the Info column\'s prefix per direction')
+        lines.append("for _, name in pairs(DIRS) do DIRTEXT[name] = name .. \" \" end")
         limits = ", ".join(f"{name} = {int(tr['receive_limit'][RECEIVER[name]])}"
                            for name in sorted(RECEIVER))
         lines.append(f"local RX_LIMIT = {{{limits}}}")
@@ -324,8 +358,8 @@ class LuaGenerator:
             f"local MESP_REPLY_MASK = {lua_int(reply_mask)}",
             f"local MESP_TAG_SPARE = {lua_int(spare_mask)}",
             *self.app.out.messages,
-            RUNTIME_ITEMS,
-            RUNTIME,
+            inline_constants(RUNTIME_ITEMS, self.inline),
+            inline_constants(RUNTIME, self.inline),
             self.registration(),
             "",
         ]

@@ -77,7 +77,9 @@ local function expert(item, x, text)
 end
 
 -- Fields added together (every frame, every DATA frame, every message): once each has been
--- added in this pass and none is referenced, the group is skipped with one look-up.
+-- added in this pass and none is referenced, the group is skipped with one look-up. Callers on
+-- the per-frame path test SKIP[g] themselves and call skip(g) only while it is nil:
+--   local sk = SKIP[g]; if VIS or not (sk or sk == nil and skip(g)) then <add the group> end
 local SKIP = {}  -- this pass: group -> true (skip), false (add each), nil (still learning)
 local function skip(g)
   if VIS then return false end
@@ -97,7 +99,8 @@ local function skip(g)
 end
 local G_FRAME = {F["dir"], F["frame_type"], F["header"], F["d"], F["r"], F["rsp"], F["num"],
                  F["crc"], F["crc_computed"], F["crc_ok"]}
-local G_DATA = {F["transport"], F["transport_type"], F["chunk"]}
+local G_DATA = {F["transport"], F["transport_type"], F["chunk"], F["size"], F["transfer_id"],
+                F["total"]}
 local G_MSG = {F["msg"], F["msg_length"], F["sw"], F["sw_source"], F["app_protocol"],
                F["message"]}
 local G_DASP = {F["dasp.protocol"], F["dasp.data_id"], F["dasp.counter"], F["dasp.reserved"]}

@@ -1,10 +1,12 @@
 """The second part of the generated Lua's fixed code: messages, transport and link layer.
 
-It holds no protocol numbers: every constant it uses (``C``, ``HDR``, ``KIND``, ``CRC_BY_KIND``,
+It holds no protocol numbers: every constant it uses (``C``, ``KIND``, ``CRC_BY_KIND``,
 ``TTYPE``, ``DIRS``, ``RX_LIMIT``, ``S``, ``MSG``, ``DASP_R``, ``OTHER_R``, ``MESP``,
 ``RELEASES`` ...) is emitted from ``specs/`` by :mod:`eyeq_spi.wireshark.lua_gen`, and the item
 helpers, the walker and the release choice by :mod:`eyeq_spi.wireshark.lua_items`, before this
-text. Lua 5.2 only: bit operations go through Wireshark's ``bit`` library.
+text. The generator writes each ``C.NAME`` as its value and each ``@HDR.<field>@`` as the
+arithmetic that takes the field out of the header word ``h``. Lua 5.2 only: bit operations go
+through Wireshark's ``bit`` library, one C call each, so the per-frame path avoids them.
 
 Speed (the dissector runs once per transfer, 2,300 times per second of a full-load capture):
 the CRC is unrolled from ``specs/link.yaml`` (:mod:`eyeq_spi.wireshark.lua_crc`); the Info
@@ -125,7 +127,8 @@ local function dissect_dasp(data, mt, ri, items)
     return "DASP (short)"
   end
   local rt
-  if not skip(G_DASP) then
+  local sk = SKIP[G_DASP]
+  if VIS or not (sk or sk == nil and skip(G_DASP)) then
     add(mt, F["dasp.protocol"], 0, 1)
     add(mt, F["dasp.data_id"], 1, 1)
     add(mt, F["dasp.counter"], 2, 1)
@@ -159,7 +162,8 @@ local function dissect_message(data, make_tvb)
   TVB, TVB_MAKE = nil, make_tvb
   local n = #data
   local ri, src = release()
-  local items = not skip(G_MSG)
+  local sk = SKIP[G_MSG]
+  local items = VIS or not (sk or sk == nil and skip(G_MSG))
   local mt
   if items then
     mt = add(ROOT, F["msg"], 0, n)
@@ -195,7 +199,9 @@ end
 -- the completing frame of every fragment, notes[] a frame's reassembly events, crc_bad[] the
 -- computed CRC of a frame whose CRC was bad. Later passes only read these tables.
 local f_iface = Field.new("frame.interface_id")
-local f_number = Field.new("frame.number")
+-- the frame protocol item, present in every pass that builds a tree: Wireshark makes it for
+-- every Lua field extractor anyway, where frame.number would be one more item per packet
+local f_frame = Field.new("frame")
 local f_comment
 do
   local ok, fld = pcall(Field.new, "frame.comment")
@@ -232,12 +238,6 @@ local direction_tap = Listener.new(nil, "eyeq_spi")
 
 -- "h2e"/"e2h" from the pcapng interface; "?" when the capture has no interfaces; nil when this
 -- pass builds no tree, so no field can be read.
-local function direction()
-  local fi = f_iface()
-  if fi then return DIRS[fi.value] or ("interface " .. fi.value) end
-  if f_number() then return "?" end
-  return nil
-end
 
 local function comment(n)
   for _, fi in ipairs({f_comment()}) do
@@ -273,16 +273,16 @@ local function u32(raw, at)
 end
 
 -- Returns the Info text (when the columns are filled) and, for a trusted single frame, the
--- message bytes.
-local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
-  local ttype, targ = sbyte(raw, C.T_TYPE + 1, C.T_ARG + 1)
-  local items = not skip(G_DATA)
+-- message bytes. ttype and targ are the frame's bytes T_TYPE and T_ARG.
+local function dissect_transport(tail, pinfo, dir, num, trusted, feed, n, cols, ttype, targ)
+  local sk = SKIP[G_DATA]
+  local items = VIS or not (sk or sk == nil and skip(G_DATA))
   local tt
   if items then
     tt = add(ROOT, F["transport"], C.T_TYPE, 1, TTYPE[ttype] or "invalid")
     add(tt, F["transport_type"], C.T_TYPE, 1)
   end
-  local st
+  local st, now
   if trusted and feed then
     st = rx[dir]
     if not st then
@@ -294,13 +294,14 @@ local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
       st = nil
     else
       st.lastnum = num
-      if st.open and pinfo.abs_ts - st.time >= C.REASSEMBLY_TIMEOUT then
+      now = pinfo.abs_ts  -- read once: each read is a call into Wireshark
+      if st.open and now - st.time >= C.REASSEMBLY_TIMEOUT then
         abort(st, n, "timeout")
       end
     end
   end
   if ttype == C.T_SINGLE then
-    add(tt, F["size"], C.T_ARG, 1)
+    if items then add(tt, F["size"], C.T_ARG, 1) end
     if targ < 1 or targ > C.SINGLE_MAX then
       expert(tt, X.format, string.format("single frame size %d outside 1..%d (T2)",
                                          targ, C.SINGLE_MAX))
@@ -309,12 +310,15 @@ local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
     if items then add(tt, F["chunk"], C.SINGLE_DATA, targ) end
     if st and st.open then abort(st, n, "interleaved") end
     if not trusted then return "single", nil end
-    return "single", ssub(raw, C.SINGLE_DATA + 1, C.SINGLE_DATA + targ)
+    if targ == #tail then return "single", tail end  -- the tail starts at SINGLE_DATA
+    return "single", ssub(tail, 1, targ)
   elseif ttype == C.T_FIRST then
-    local total = u32(raw, C.T_TOTAL)
-    add(tt, F["transfer_id"], C.T_ARG, 1)
-    add_le(tt, F["total"], C.T_TOTAL, 4)
-    if items then add(tt, F["chunk"], C.FIRST_DATA, C.FIRST_CHUNK) end
+    local total = u32(tail, C.T_TOTAL - C.HEAD)
+    if items then
+      add(tt, F["transfer_id"], C.T_ARG, 1)
+      add_le(tt, F["total"], C.T_TOTAL, 4)
+      add(tt, F["chunk"], C.FIRST_DATA, C.FIRST_CHUNK)
+    end
     local limit = RX_LIMIT[dir] or C.MAX_TOTAL
     if total < C.FIRST_TOTAL_MIN or total > limit then
       expert(tt, X.format, string.format("first frame total %d outside %d..%d (T3, T6)",
@@ -325,15 +329,17 @@ local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
       abort(st, n, "new_first_frame")
       st.dead = nil
       st.open, st.id, st.total, st.len = true, targ, total, C.FIRST_CHUNK
-      st.last, st.time, st.first, st.at = num, pinfo.abs_ts, n, n
-      st.parts[1] = ssub(raw, C.FIRST_DATA + 1, C.FIRST_DATA + C.FIRST_CHUNK)
+      st.last, st.time, st.first, st.at = num, now, n, n
+      st.parts[1] = ssub(tail, C.FIRST_DATA - C.HEAD + 1, C.FIRST_DATA - C.HEAD + C.FIRST_CHUNK)
       st.np = 1
       prev[n] = 0
     end
     return cols and "first ID=" .. NUMSTR[targ] .. " total=" .. total, nil
   elseif ttype == C.T_CONSECUTIVE then
-    add(tt, F["transfer_id"], C.T_ARG, 1)
-    if items then add(tt, F["chunk"], C.NEXT_DATA, C.CONSECUTIVE_CHUNK) end
+    if items then
+      add(tt, F["transfer_id"], C.T_ARG, 1)
+      add(tt, F["chunk"], C.NEXT_DATA, C.CONSECUTIVE_CHUNK)
+    end
     if st then
       local rest = st.open and st.total - st.len
       if not st.open then
@@ -343,15 +349,15 @@ local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols)
       elseif num ~= (st.last + 1) % C.SEQ_MODULO then
         abort(st, n, "num_gap")
       elseif rest < C.CONSECUTIVE_CHUNK
-          and ssub(raw, C.NEXT_DATA + rest + 1, C.NEXT_DATA + C.CONSECUTIVE_CHUNK)
+          and ssub(tail, rest + 1, C.CONSECUTIVE_CHUNK)
               :find("[^\0]") then
         abort(st, n, "bad_padding")  -- T4/T6a: the rest is zero; this is another transfer
       else
         local take = math.min(C.CONSECUTIVE_CHUNK, rest)
         st.np = st.np + 1
-        st.parts[st.np] = ssub(raw, C.NEXT_DATA + 1, C.NEXT_DATA + take)
+        st.parts[st.np] = take == #tail and tail or ssub(tail, 1, take)  -- from NEXT_DATA
         st.len = st.len + take
-        st.last, st.time = num, pinfo.abs_ts
+        st.last, st.time = num, now
         prev[n] = st.at
         st.at = n
         if st.len >= st.total then
@@ -416,34 +422,49 @@ end
 -- =============================================================================================
 -- Link layer (decisions L1-L8) and the dissector
 -- =============================================================================================
+local ACK_INFO = {}  -- Info text prefix -> NUM -> the Info text of an ACK
+
 function p.dissector(tvb, pinfo, tree)
   local n = pinfo.number
   if n <= prev_number then new_pass() end  -- a new pass: filters and columns may differ
   prev_number = n
   VIS = tree.visible
   local cols = COLS
-  local columns = pinfo.cols
+  local columns  -- fetched only where columns are filled or not known yet (one object less)
   if VIS or cols == nil then
+    columns = pinfo.cols
     cols = tostring(columns.info) ~= "(info)"  -- "(info)": this dissection fills no columns
     if not VIS then COLS = cols end
   end
-  if cols then columns.protocol = "EyeQ SPI" end
+  if cols then
+    columns = columns or pinfo.cols
+    columns.protocol = "EyeQ SPI"
+  end
   local len = tvb:len()
-  local dir = direction()
-  if not dir then return len end  -- no tree in this pass: nothing to add, nothing to feed
+  -- the direction from the pcapng interface; "?" when the capture has no interfaces; no field
+  -- at all when this pass builds no tree
+  local fi, dir = f_iface(), nil
+  if fi then
+    dir = DIRS[fi.value] or ("interface " .. fi.value)
+  elseif f_frame() then
+    dir = "?"
+  else
+    return len  -- no tree in this pass: nothing to add, nothing to feed
+  end  -- no tree in this pass: nothing to add, nothing to feed
   TVB, TVB_MAKE = tvb, nil
   -- a tree that is not shown needs no byte range (one object less per packet)
   ROOT, ROOT_TEXT = VIS and tree:add(p, tvb()) or tree:add(p), nil
   local seen = n <= last_fed
   local feed = not seen
-  local link = not skip(G_FRAME)
+  local sk = SKIP[G_FRAME]
+  local link = VIS or not (sk or sk == nil and skip(G_FRAME))
   if dir ~= "?" and link then add(ROOT, F["dir"], nil, nil, dir) end
   if feed then
     last_fed = n
     if f_comment and not REL.final and n <= SNIFF_RECORDS then comment(n) end
   end
   if rel_notes[n] then expert(nil, X.note, rel_notes[n]) end
-  local dirtext = dir ~= "?" and (dir .. " ") or ""
+  local dirtext = DIRTEXT[dir] or (dir .. " ")
   if len ~= C.FRAME_SIZE then
     add(ROOT, F["bad_length"], nil, nil, true)
     add(ROOT, F["length"], nil, nil, len)
@@ -452,13 +473,18 @@ function p.dissector(tvb, pinfo, tree)
     if cols then columns.info = dirtext .. "bad length " .. len end
     return len
   end
-  local raw = tvb:raw(0, len)
-  local h0, h1, h2, h3 = sbyte(raw, 1, 4)
+  -- The header word, the CRC (L1) and a DATA frame's transport type and argument (T1). Only
+  -- these bytes are copied into Lua, and the rest (the tail, which is also a consecutive
+  -- frame's chunk as it stands) only when the frame's CRC covers it (a DATA frame): every
+  -- copy feeds the garbage collector, which takes a third of the dissector's time.
+  local h0, h1, h2, h3, c0, c1, ttype, targ = sbyte(tvb:raw(0, C.HEAD), 1, C.HEAD)
   local h = h0 + h1 * 256 + h2 * 65536 + h3 * 16777216
-  local d = band(rshift(h, HDR.D[1]), HDR.D[2])
-  local r = band(rshift(h, HDR.R[1]), HDR.R[2])
-  local rsp = band(rshift(h, HDR.RSP[1]), HDR.RSP[2])
-  local num = band(rshift(h, HDR.NUM[1]), HDR.NUM[2])
+  local d = @HDR.D@
+  local tail  -- the frame from byte HEAD on
+  if not CRC_HEAD_ONLY[d] then tail = tvb:raw(C.HEAD) end
+  local r = @HDR.R@
+  local rsp = @HDR.RSP@
+  local num = @HDR.NUM@
   local kind = KIND[d] or "INVALID"
   local ht
   if link then
@@ -473,7 +499,6 @@ function p.dissector(tvb, pinfo, tree)
     expert(ht, X.format, string.format("D=0x%X is not a frame kind (L2)", d))
   end
   if r ~= 0 then expert(ht, X.format, string.format("R=0x%X, reserved must be 0 (L2)", r)) end
-  local c0, c1 = sbyte(raw, C.CRC_OFFSET + 1, C.CRC_OFFSET + 2)
   local got = c0 + c1 * 256
   local crc, crc_ok
   if seen and not VIS then  -- checked when the frame was fed
@@ -481,7 +506,7 @@ function p.dissector(tvb, pinfo, tree)
     crc_ok = crc == nil
     if crc_ok then crc = got end
   else
-    crc = (CRC_BY_KIND[d] or CRC_OTHER)(raw)
+    crc = (CRC_BY_KIND[d] or CRC_OTHER)(tail, h0, h1, h2, h3, c0, c1, ttype, targ)
     crc_ok = crc == got
     if not crc_ok then crc_bad[n] = crc end
   end
@@ -501,20 +526,36 @@ function p.dissector(tvb, pinfo, tree)
   local tinfo, name
   if kind == "DATA" then
     local single
-    tinfo, single = dissect_transport(raw, pinfo, dir, num, crc_ok and r == 0, feed, n, cols)
+    tinfo, single = dissect_transport(tail, pinfo, dir, num, crc_ok and r == 0, feed, n, cols,
+                                      ttype, targ)
     local nt = notes[n]
     if nt then
       for i = 1, #nt do expert(nil, X.reassembly, nt[i]) end
     end
-    name = message_of(n, tvb, single, feed)
+    if single or done[n] or reasm_in[n] then name = message_of(n, tvb, single, feed) end
   end
   if cols then
     local bad = crc_ok and "" or " [bad CRC]"
     if kind == "DATA" then
-      columns.info = dirtext .. "DATA NUM=" .. NUMSTR[num] .. " RSP=" .. NUMSTR[rsp] .. bad
-                        .. " " .. tinfo .. (name and ": " .. name or "")
-    elseif kind == "ACK" then
-      columns.info = dirtext .. "ACK of NUM=" .. NUMSTR[rsp] .. bad
+      if name then  -- one concatenation each, no intermediate string
+        columns.info = dirtext .. "DATA NUM=" .. NUMSTR[num] .. " RSP=" .. NUMSTR[rsp] .. bad
+                          .. " " .. tinfo .. ": " .. name
+      else
+        columns.info = dirtext .. "DATA NUM=" .. NUMSTR[num] .. " RSP=" .. NUMSTR[rsp] .. bad
+                          .. " " .. tinfo
+      end
+    elseif kind == "ACK" then  -- a few thousand different texts: made once each
+      local t = ACK_INFO[dirtext]
+      if not t then
+        t = {}
+        ACK_INFO[dirtext] = t
+      end
+      local text = t[rsp]
+      if not text then
+        text = dirtext .. "ACK of NUM=" .. NUMSTR[rsp]
+        t[rsp] = text
+      end
+      columns.info = text .. bad
     elseif kind == "NAK" then
       columns.info = dirtext .. "NAK of NUM=" .. NUMSTR[rsp] .. " "
                         .. (NAK_REASONS[num] or string.format("0x%03X", num)) .. bad
