@@ -110,6 +110,8 @@ class HostBringUp:
         self._veh_next: float | None = None
         self._rolling = 0
         self._dasp_counter = 0
+        # HOST_VEH_STATE_MSG's template (host/veh_state_fast.py): (codec, packer), on first use
+        self._veh_packed: tuple[Any, Any] | None = None
         self._init_queue: deque[int] = deque()
         self._init_busy = False
         self._target_mode = "VISION"

@@ -15,7 +15,7 @@ from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.message import DecodedMessage
-from eyeq_spi.errors import CodecError, LocalProtocolError, SpecError
+from eyeq_spi.errors import CodecError, EyeqError, LocalProtocolError, SpecError
 from eyeq_spi.host import calibration, init_seq
 from eyeq_spi.host.bringup import SWITCH_APP, HostBringUp, ResetLine, Subscriber
 from eyeq_spi.host.config import (
@@ -32,9 +32,11 @@ from eyeq_spi.host.config import (
 )
 from eyeq_spi.host.machine import next_state
 from eyeq_spi.host.scenario import veh_state_values
+from eyeq_spi.host.veh_state_fast import VehStatePacker
 from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.mesp.client import MespCompleted, MespFailed
 from eyeq_spi.transport.events import MessageReceived
+from eyeq_spi.twins import exact
 
 __all__ = ["SWITCH_APP", "HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
            "Transition"]
@@ -361,19 +363,37 @@ class HostEmulator(HostBringUp):
 
     # -- transmit ---------------------------------------------------------------------------
     def _send_veh_state(self, now: float) -> None:
-        msg = self.codec.message("HOST_VEH_STATE_MSG")
         self._rolling = (self._rolling + 1) & 0xFFFF
-        values = veh_state_values(self.codec.layout(msg).zero_values(),
-                                  self.scenario.signals(now), now, sw_release(self.sw),
-                                  self._rolling)
-        try:
-            wire = self.codec.encode_dasp(msg.name, values, self._dasp_counter, self._tx_e2e)
-        except CodecError as exc:
-            self.problem = f"HOST_VEH_STATE_MSG cannot be encoded: {exc}"
-            self._veh_next = None
-            return
+        signals = self.scenario.signals(now)
+        # the fast twin (host/veh_state_fast.py) where it can say, else the dict path
+        packer = None if exact() else self._veh_packer()
+        wire = None if packer is None else packer.encode(
+            signals, now, self._rolling, self._dasp_counter, self._tx_e2e)
+        if wire is None:
+            msg = self.codec.message("HOST_VEH_STATE_MSG")
+            values = veh_state_values(self.codec.layout(msg).zero_values(), signals, now,
+                                      sw_release(self.sw), self._rolling)
+            try:
+                wire = self.codec.encode_dasp(msg.name, values, self._dasp_counter,
+                                              self._tx_e2e)
+            except CodecError as exc:
+                self.problem = f"HOST_VEH_STATE_MSG cannot be encoded: {exc}"
+                self._veh_next = None
+                return
         self._dasp_counter = (self._dasp_counter + 1) & 0xFF
         self.conn.send(wire, now)
         self.counters.sent["HOST_VEH_STATE_MSG"] += 1
         if self.keep_rx_times:
             self.counters.tx_times.append(now)
+
+    def _veh_packer(self) -> VehStatePacker | None:
+        """The template of HOST_VEH_STATE_MSG for our codec (built on first use), None where
+        it cannot be built (the dict path then encodes, or reports why not)."""
+        built = self._veh_packed
+        if built is None or built[0] is not self.codec:
+            try:
+                packer: VehStatePacker | None = VehStatePacker(self.codec, sw_release(self.sw))
+            except (EyeqError, ValueError, KeyError):
+                packer = None
+            built = self._veh_packed = (self.codec, packer)
+        return built[1]
