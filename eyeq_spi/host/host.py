@@ -14,7 +14,7 @@ from eyeq_spi.catalog.messages import sw_release
 from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
-from eyeq_spi.codec.message import DecodedMessage
+from eyeq_spi.codec.message import DecodedMessage, classify
 from eyeq_spi.errors import CodecError, EyeqError, LocalProtocolError, SpecError
 from eyeq_spi.host import calibration, init_seq
 from eyeq_spi.host.bringup import SWITCH_APP, HostBringUp, ResetLine, Subscriber
@@ -34,12 +34,19 @@ from eyeq_spi.host.machine import next_state
 from eyeq_spi.host.scenario import veh_state_values
 from eyeq_spi.host.veh_state_fast import VehStatePacker
 from eyeq_spi.link.events import Resynchronised
+from eyeq_spi.link.frame import SEQ_MODULO
 from eyeq_spi.mesp.client import MespCompleted, MespFailed
 from eyeq_spi.transport.events import MessageReceived
 from eyeq_spi.twins import exact
 
 __all__ = ["SWITCH_APP", "HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
            "Transition"]
+
+
+def _is_dasp(head: bytes) -> bool:
+    """A message that starts with ``head`` (its first 5 bytes or all of it) is a DASP message
+    (rule A): no MESP reply, no 0x41 or boot status, which can change the host's state."""
+    return classify(head) == "DASP"
 
 
 class HostEmulator(HostBringUp):
@@ -118,15 +125,30 @@ class HostEmulator(HostBringUp):
     def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
         """runner/virtual_fast.py: ``receive_data``, then ``handle_timer`` and ``data_to_send`` at
         the same ``now`` (as a runner calls them for a DATA frame, whose ACK makes the timer
-        due), in one step, when the frame continues a message and completes nothing and no
-        timer of the host is due: the ACK. None, with nothing changed, otherwise."""
+        due), in one step, when no timer of the host is due and the frame continues a message
+        and completes nothing: the ACK. In Running Vision with nobody subscribed, also for a
+        frame that completes a DASP message (handled as ``receive_data`` handles it: counters,
+        E2E, stale bookkeeping) and for the ACK of the last frame of one of our messages
+        (nothing to send then). None, with nothing changed, otherwise."""
         if now >= self._absorb_until():
             return None
-        ack = self.conn.absorb(transfer, now)
-        if ack is None:
+        conn = self.conn
+        whole = not self._subscribers and self.state is S.RUNNING_VISION
+        if whole:  # most frames that arrive alone complete a message
+            message = conn.absorb_last(transfer, now, _is_dasp)
+            if message is not None:
+                self.now = now
+                self._on_message(message, now)
+                return [conn.link.codec.ack((conn.link.expected_num - 1) % SEQ_MODULO)]
+        ack = conn.absorb(transfer, now)
+        if ack is not None:
+            self.now = now
+            return [ack]
+        if not whole or not conn.absorb_ack(transfer, now, last=True):
             return None
         self.now = now
-        return [ack]
+        self._pump(now)
+        return []
 
     def express_take(self, frames: list[bytes], times: list[float], acks: list[bytes]) -> int:
         """runner/virtual_fast.py: :meth:`express_absorb` of ``frames[k]`` at ``times[k]``
