@@ -201,6 +201,8 @@ class HostBringUp:
 
     # -- MESP results -----------------------------------------------------------------------
     def _flush_mesp(self, now: float) -> None:
+        if not self.mesp.waiting:
+            return
         for m in self.mesp.data_to_send():
             sid = self.conn.send(m, now)  # the link's tag of its frames
             self.counters.sent["MESP"] += 1
