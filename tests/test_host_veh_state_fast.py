@@ -122,7 +122,11 @@ def _host_wires(monkeypatch: pytest.MonkeyPatch, exact: str) -> list[bytes]:
     monkeypatch.setenv(EXACT_ENV, exact)
     host = HostEmulator(scenario=ConstantDrive(13.0, -0.2))
     sent: list[bytes] = []
-    host.conn.send = lambda message, now: sent.append(message) or 0  # type: ignore[method-assign]
+    def send(message: bytes, now: float) -> int:
+        sent.append(message)
+        return 0
+
+    host.conn.send = send  # type: ignore[method-assign]
     for k in range(70):
         host._send_veh_state(0.25 + k / 66.67)
     return sent

@@ -155,7 +155,7 @@ def test_data_nums_read_what_judge_reads(raws: list[bytes], order: BitOrder, fix
             raw = head + codec.compute_crc(d, head, raw[6:]).to_bytes(2, "little") + raw[6:]
         frames.append(raw)
     frames.append(bytes(length))
-    want = []
+    want: list[int | None] = []
     for f in frames:
         try:
             d, r, _, num, ok = codec.judge(f)

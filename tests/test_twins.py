@@ -314,7 +314,11 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
     def veh_state() -> Any:
         host = HostEmulator()
         sent: list[bytes] = []
-        host.conn.send = lambda message, now: sent.append(message) or 0  # type: ignore[method-assign]
+        def send(message: bytes, now: float) -> int:
+            sent.append(message)
+            return 0
+
+        host.conn.send = send  # type: ignore[method-assign]
         host._send_veh_state(0.5)
         return sent
 
