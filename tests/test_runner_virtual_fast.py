@@ -40,6 +40,7 @@ def _layers(node: Any) -> tuple[Any, ...]:
     link, o = conn.link, conn._open
     return (node.now, node.get_timer(), link.next_num, link.expected_num, link._last_accepted,
             link._next_tx, link._next_ctl, link._naks_in_row, list(link._inflight.items()),
+            link._expect_restart_frames, link._expect_restart_until,
             [(q.tag, q.deadline, q.data) for q in link._queue], list(link._accepted.items()),
             {k: list(v) for k, v in link._tags.items()}, list(link._control),
             None if o is None else (o.transfer_id, o.total, bytes(o.buf), o.last_num,
