@@ -35,5 +35,7 @@ FAMILIES: dict[str, tuple[str, str]] = {
     "capture.write": ("CaptureWriter, one block per write",
                       "eyeq_spi.capture.pcapng_write_fast"),
     "sim.dasp": ("the dict path (MessageCodec.encode)", "eyeq_spi.sim.dasp_fast"),
+    "host.veh_state": ("the dict path (veh_state_values, MessageCodec.encode_dasp)",
+                       "eyeq_spi.host.veh_state_fast"),
     "runner.virtual": ("eyeq_spi.runner.virtual", "eyeq_spi.runner.virtual_fast"),
 }

@@ -137,12 +137,14 @@ def test_data_frame_is_encode_of_a_data_frame(rsp: int, num: int, data: bytes, o
 
 
 @given(st.lists(st.binary(min_size=FRAME_SIZE, max_size=FRAME_SIZE), max_size=4),
-       st.sampled_from(list(BitOrder)), st.booleans(), st.sampled_from([0, 127, 128]))
+       st.sampled_from(list(BitOrder)), st.booleans(), st.sampled_from([0, 127, 128]),
+       st.sampled_from(["CRC-16/CCITT-FALSE", "CRC-16/KERMIT"]))
 def test_data_nums_read_what_judge_reads(raws: list[bytes], order: BitOrder, fix_crc: bool,
-                                         length: int) -> None:
+                                         length: int, crc: str) -> None:
     """FrameCodec.data_nums (a receiver's run of frames): the NUM exactly where judge reads a
-    DATA frame with R 0 and a good CRC, for random frames, good ones and wrong lengths."""
-    codec = FrameCodec(bit_order=order)
+    DATA frame with R 0 and a good CRC, for random frames, good ones and wrong lengths, with
+    the seed's CRC (chained ``crc_hqx``) and another variant (the general path)."""
+    codec = FrameCodec(bit_order=order, crc=VARIANTS[crc])
     frames = []
     for raw in raws:
         if fix_crc:
@@ -153,7 +155,7 @@ def test_data_nums_read_what_judge_reads(raws: list[bytes], order: BitOrder, fix
             raw = head + codec.compute_crc(d, head, raw[6:]).to_bytes(2, "little") + raw[6:]
         frames.append(raw)
     frames.append(bytes(length))
-    want = []
+    want: list[int | None] = []
     for f in frames:
         try:
             d, r, _, num, ok = codec.judge(f)

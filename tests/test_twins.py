@@ -194,6 +194,23 @@ def _dasp() -> Pair:
     return ref, fast
 
 
+def _veh_state() -> Pair:
+    from eyeq_spi.codec.e2e import E2EState
+    from tests.test_host_veh_state_fast import RELEASES, _codec, _fast, _reference
+
+    rng = random.Random(7)
+    ref: list[Any] = []
+    fast: list[Any] = []
+    for sw in RELEASES:
+        e2e = (E2EState(), E2EState())
+        for k in range(40):
+            signals = {"vehicleVelocity": rng.uniform(0, 40), "vehicleYawRate": rng.random(),
+                       "turnIndicator": rng.choice([0, 1, 2])}
+            ref.append(_reference(_codec(sw), signals, k / 66.67, k, k, e2e[0]))
+            fast.append(_fast(_codec(sw), signals, k / 66.67, k, k, e2e[1]))
+    return ref, fast
+
+
 def _runner() -> Pair:
     from eyeq_spi.sim.config import SimConfig
     from tests.test_runner_virtual_fast import _emulation, _state
@@ -216,6 +233,7 @@ CONTRACT: dict[str, Callable[[Path], Pair]] = {
     "capture.pcapng": _pcapng,
     "capture.write": _capture_write,
     "sim.dasp": lambda _: _dasp(),
+    "host.veh_state": lambda _: _veh_state(),
     "runner.virtual": lambda _: _runner(),
 }
 
@@ -251,6 +269,8 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.dissect import batch_run, engine_fast_messages
     from eyeq_spi.emulator import build
+    from eyeq_spi.host import veh_state_fast
+    from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.logic import saleae, saleae_fast, vcd, vcd_fast
     from eyeq_spi.logic.vcd_write import write_vcd
     from eyeq_spi.runner import virtual_fast
@@ -291,6 +311,17 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
                 w.write("h2e", i * 1e-3, bytes(128))
         return (tmp_path / "w.pcapng").read_bytes()
 
+    def veh_state() -> Any:
+        host = HostEmulator()
+        sent: list[bytes] = []
+        def send(message: bytes, now: float) -> int:
+            sent.append(message)
+            return 0
+
+        host.conn.send = send  # type: ignore[method-assign]
+        host._send_veh_state(0.5)
+        return sent
+
     def emulate() -> Any:
         build(sim_config=SimConfig(dasp_packer=False)).run_for(0.3)
 
@@ -307,6 +338,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
                             (pcapng_fast, "pcapng_chunks", _poison)], batch),
         "capture.write": ([(pcapng_write_fast, "encode_blocks", _poison)], capture),
         "sim.dasp": ([(dasp_fast.DaspPacker, "build", classmethod(_poison))], dasp),
+        "host.veh_state": ([(veh_state_fast.VehStatePacker, "encode", _poison)], veh_state),
         "runner.virtual": ([(virtual_fast.Express, "eligible", staticmethod(_poison))],
                            emulate),
     }

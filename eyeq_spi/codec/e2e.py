@@ -11,6 +11,7 @@ from typing import Any
 from eyeq_spi.codec.layout import CrcPlan, Layout, compute_crc
 
 Verifier = Callable[[bytes, "E2EState | None"], list[str]]
+Protector = Callable[[bytearray, "E2EState | None"], None]
 
 
 @dataclass
@@ -53,6 +54,75 @@ def protect(buf: bytearray, layout: Layout, state: E2EState | None, base: int = 
         )
         crc = compute_crc(buf, shifted)
         buf[base + plan.crc_offset : base + plan.crc_offset + 2] = crc.to_bytes(2, "little")
+
+
+def _batches(plans: list[CrcPlan]) -> list[list[int]]:
+    """Runs of consecutive CRCs of one shape (range sizes, counter size: the elements of an
+    array) none of which covers another's CRC or counter: their counters can all be stepped
+    first, in order, and their covered bytes gathered at once (same values as one by one)."""
+    out: list[list[int]] = []
+    for i, p in enumerate(plans):
+        shape = (tuple(s for _, s in p.ranges), p.counter_size, p.counter_offset is None)
+        prev = out[-1] if out else None
+        if prev is not None and shape == _shape_of(plans[prev[0]]) and all(
+                _apart(plans[j], p) and _apart(p, plans[j]) for j in prev):
+            prev.append(i)
+        else:
+            out.append([i])
+    return out
+
+
+def _shape_of(p: CrcPlan) -> tuple[Any, ...]:
+    return (tuple(s for _, s in p.ranges), p.counter_size, p.counter_offset is None)
+
+
+def _apart(a: CrcPlan, b: CrcPlan) -> bool:
+    """``a`` covers neither ``b``'s CRC nor its counter."""
+    fields = [(b.crc_offset, 2)]
+    if b.counter_offset is not None:
+        fields.append((b.counter_offset, b.counter_size))
+    return not any(o < fo + fs and fo < o + s for o, s in a.ranges for fo, fs in fields)
+
+
+def compile_protector(layout: Layout) -> Protector:
+    """``e2e.protect(buf, layout, state)`` as generated code (D5): per CRC of
+    ``layout.crc_plan``, inner first, the rolling counter then ``crc_hqx`` seeded 0xFFFF chained
+    over the covered ranges, every offset a literal. A run of same-shaped CRCs (one per element
+    of an array, :func:`_batches`) gathers its covered bytes with one numpy index instead."""
+    env: dict[str, Any] = {"h": binascii.crc_hqx}
+    lines = ["def _protect(b, state):"]
+    plans = layout.crc_plan
+    for batch in _batches(plans):
+        for i in batch:
+            plan = plans[i]
+            if plan.counter_offset is not None:
+                env[f"K{i}"] = _key(layout, plan)
+                c, n = plan.counter_offset, plan.counter_size
+                lines += ["    if state is not None:",
+                          f"        b[{c}:{c + n}] = state.next_counter(K{i}, {n})"
+                          f".to_bytes({n}, 'little')"]
+            if len(batch) > 1:
+                continue
+            expr = "65535"
+            for o, s in plan.ranges:
+                expr = f"h(b[{o}:{o + s}], {expr})"
+            o = plan.crc_offset
+            lines.append(f"    b[{o}:{o + 2}] = ({expr}).to_bytes(2, 'little')")
+        if len(batch) > 1:
+            import numpy as np  # only for arrays of protected structs (DASP generation)
+
+            env["np"] = np
+            i = batch[0]
+            env[f"G{i}"] = np.array([[o + k for o, s in plans[j].ranges for k in range(s)]
+                                     for j in batch], dtype=np.intp)
+            env[f"O{i}"] = [plans[j].crc_offset for j in batch]
+            lines += [f"    g = np.frombuffer(b, dtype=np.uint8)[G{i}]",
+                      f"    for r, o in zip(g, O{i}):",
+                      "        b[o:o + 2] = h(r, 65535).to_bytes(2, 'little')"]
+    lines.append("    return None")
+    exec("\n".join(lines), env)
+    fn: Protector = env["_protect"]
+    return fn
 
 
 def verify(data: bytes, layout: Layout, state: E2EState | None) -> list[str]:

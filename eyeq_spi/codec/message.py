@@ -19,6 +19,8 @@ from eyeq_spi.errors import CodecError, SpecError
 DASP_PROTOCOL = dasp_header().protocol  # §7.1.2: 0x65, specs/dasp_header.yaml
 DIAG_ID = 0x41
 BOOT_ID = 0x10
+# rule A after MESP, by the first byte: DASP before 0x41 before 0x10 (a later key wins)
+_FIRST_BYTE = {BOOT_ID: "BOOT", DIAG_ID: "DIAG", DASP_PROTOCOL: "DASP"}
 
 
 
@@ -77,13 +79,9 @@ def classify(data: bytes) -> str:
     """Rule A on the first bytes of a reassembled message."""
     if len(data) >= 3 and data[1] == MESP_PROTOCOL and data[0] == data[2]:
         return "MESP"
-    if data[:1] == bytes([DASP_PROTOCOL]):
-        return "DASP"
-    if data[:1] == bytes([DIAG_ID]):
-        return "DIAG"
-    if data[:1] == bytes([BOOT_ID]):
-        return "BOOT"
-    return "UNKNOWN"
+    if not data:
+        return "UNKNOWN"
+    return _FIRST_BYTE.get(data[0], "UNKNOWN")
 
 
 class MessageCodec:

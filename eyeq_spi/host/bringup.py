@@ -110,6 +110,8 @@ class HostBringUp:
         self._veh_next: float | None = None
         self._rolling = 0
         self._dasp_counter = 0
+        # HOST_VEH_STATE_MSG's template (host/veh_state_fast.py): (codec, packer), on first use
+        self._veh_packed: tuple[Any, Any] | None = None
         self._init_queue: deque[int] = deque()
         self._init_busy = False
         self._target_mode = "VISION"
@@ -199,6 +201,8 @@ class HostBringUp:
 
     # -- MESP results -----------------------------------------------------------------------
     def _flush_mesp(self, now: float) -> None:
+        if not self.mesp.waiting:
+            return
         for m in self.mesp.data_to_send():
             sid = self.conn.send(m, now)  # the link's tag of its frames
             self.counters.sent["MESP"] += 1

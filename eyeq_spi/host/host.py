@@ -14,8 +14,8 @@ from eyeq_spi.catalog.messages import sw_release
 from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
-from eyeq_spi.codec.message import DecodedMessage
-from eyeq_spi.errors import CodecError, LocalProtocolError, SpecError
+from eyeq_spi.codec.message import DecodedMessage, classify
+from eyeq_spi.errors import CodecError, EyeqError, LocalProtocolError, SpecError
 from eyeq_spi.host import calibration, init_seq
 from eyeq_spi.host.bringup import SWITCH_APP, HostBringUp, ResetLine, Subscriber
 from eyeq_spi.host.config import (
@@ -32,12 +32,21 @@ from eyeq_spi.host.config import (
 )
 from eyeq_spi.host.machine import next_state
 from eyeq_spi.host.scenario import veh_state_values
+from eyeq_spi.host.veh_state_fast import VehStatePacker
 from eyeq_spi.link.events import Resynchronised
+from eyeq_spi.link.frame import SEQ_MODULO
 from eyeq_spi.mesp.client import MespCompleted, MespFailed
 from eyeq_spi.transport.events import MessageReceived
+from eyeq_spi.twins import exact
 
 __all__ = ["SWITCH_APP", "HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
            "Transition"]
+
+
+def _is_dasp(head: bytes) -> bool:
+    """A message that starts with ``head`` (its first 5 bytes or all of it) is a DASP message
+    (rule A): no MESP reply, no 0x41 or boot status, which can change the host's state."""
+    return classify(head) == "DASP"
 
 
 class HostEmulator(HostBringUp):
@@ -116,15 +125,30 @@ class HostEmulator(HostBringUp):
     def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
         """runner/virtual_fast.py: ``receive_data``, then ``handle_timer`` and ``data_to_send`` at
         the same ``now`` (as a runner calls them for a DATA frame, whose ACK makes the timer
-        due), in one step, when the frame continues a message and completes nothing and no
-        timer of the host is due: the ACK. None, with nothing changed, otherwise."""
+        due), in one step, when no timer of the host is due and the frame continues a message
+        and completes nothing: the ACK. In Running Vision with nobody subscribed, also for a
+        frame that completes a DASP message (handled as ``receive_data`` handles it: counters,
+        E2E, stale bookkeeping) and for the ACK of the last frame of one of our messages
+        (nothing to send then). None, with nothing changed, otherwise."""
         if now >= self._absorb_until():
             return None
-        ack = self.conn.absorb(transfer, now)
-        if ack is None:
+        conn = self.conn
+        whole = not self._subscribers and self.state is S.RUNNING_VISION
+        if whole:  # most frames that arrive alone complete a message
+            message = conn.absorb_last(transfer, now, _is_dasp)
+            if message is not None:
+                self.now = now
+                self._on_message(message, now)
+                return [conn.link.codec.ack((conn.link.expected_num - 1) % SEQ_MODULO)]
+        ack = conn.absorb(transfer, now)
+        if ack is not None:
+            self.now = now
+            return [ack]
+        if not whole or not conn.absorb_ack(transfer, now, last=True):
             return None
         self.now = now
-        return [ack]
+        self._pump(now)
+        return []
 
     def express_take(self, frames: list[bytes], times: list[float], acks: list[bytes]) -> int:
         """runner/virtual_fast.py: :meth:`express_absorb` of ``frames[k]`` at ``times[k]``
@@ -361,19 +385,37 @@ class HostEmulator(HostBringUp):
 
     # -- transmit ---------------------------------------------------------------------------
     def _send_veh_state(self, now: float) -> None:
-        msg = self.codec.message("HOST_VEH_STATE_MSG")
         self._rolling = (self._rolling + 1) & 0xFFFF
-        values = veh_state_values(self.codec.layout(msg).zero_values(),
-                                  self.scenario.signals(now), now, sw_release(self.sw),
-                                  self._rolling)
-        try:
-            wire = self.codec.encode_dasp(msg.name, values, self._dasp_counter, self._tx_e2e)
-        except CodecError as exc:
-            self.problem = f"HOST_VEH_STATE_MSG cannot be encoded: {exc}"
-            self._veh_next = None
-            return
+        signals = self.scenario.signals(now)
+        # the fast twin (host/veh_state_fast.py) where it can say, else the dict path
+        packer = None if exact() else self._veh_packer()
+        wire = None if packer is None else packer.encode(
+            signals, now, self._rolling, self._dasp_counter, self._tx_e2e)
+        if wire is None:
+            msg = self.codec.message("HOST_VEH_STATE_MSG")
+            values = veh_state_values(self.codec.layout(msg).zero_values(), signals, now,
+                                      sw_release(self.sw), self._rolling)
+            try:
+                wire = self.codec.encode_dasp(msg.name, values, self._dasp_counter,
+                                              self._tx_e2e)
+            except CodecError as exc:
+                self.problem = f"HOST_VEH_STATE_MSG cannot be encoded: {exc}"
+                self._veh_next = None
+                return
         self._dasp_counter = (self._dasp_counter + 1) & 0xFF
         self.conn.send(wire, now)
         self.counters.sent["HOST_VEH_STATE_MSG"] += 1
         if self.keep_rx_times:
             self.counters.tx_times.append(now)
+
+    def _veh_packer(self) -> VehStatePacker | None:
+        """The template of HOST_VEH_STATE_MSG for our codec (built on first use), None where
+        it cannot be built (the dict path then encodes, or reports why not)."""
+        built = self._veh_packed
+        if built is None or built[0] is not self.codec:
+            try:
+                packer: VehStatePacker | None = VehStatePacker(self.codec, sw_release(self.sw))
+            except (EyeqError, ValueError, KeyError):
+                packer = None
+            built = self._veh_packed = (self.codec, packer)
+        return built[1]

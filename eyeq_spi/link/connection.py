@@ -552,10 +552,12 @@ class LinkConnection:
         self.counters.busyFrames = len(self._inflight)
         self._next_ctl = times[len(frames) - 1] + self.config.control_gap
 
-    def ack_in_flight(self, transfer: bytes, now: float) -> bool:
+    def ack_in_flight(self, transfer: bytes, now: float, last: bool = False) -> bool:
         """``receive_data`` of a good ACK for a frame in flight whose message has more frames
         to settle, where nothing is due at ``now`` (no frame to send, no timeout): settle the
-        frame and return True. False, with nothing changed, for any other frame or state."""
+        frame and return True. False, with nothing changed, for any other frame or state.
+        ``last``: also the last frame of its message (``Sent``, or the end of a failure, then
+        goes to the event queue as in ``receive_data``)."""
         if len(transfer) != 128 or (self._control and self._next_ctl <= now):
             return False
         if self._queue and (self._next_tx <= now or self._queue[0].deadline <= now):
@@ -569,11 +571,11 @@ class LinkConnection:
         if f is None:
             return False
         entry = self._tags.get(f.tag)
-        if entry is None or entry[0] <= 1:
+        if entry is None or (entry[0] <= 1 and not last):
             return False  # the last frame of its message: Sent or the end of a failure
         del self._inflight[rsp]
         self.ack_latency[int((now - f.sent) * 1e5)] += 1
         self.counters.busyFrames = len(self._inflight)
         self.counters.framesAcked += 1
-        entry[0] -= 1
+        self._settle(f.tag)
         return True

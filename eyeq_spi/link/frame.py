@@ -8,6 +8,7 @@ positions come from ``specs/link.yaml`` (LSB-first by default, MSB-first configu
 
 from __future__ import annotations
 
+import binascii
 import enum
 from dataclasses import dataclass
 from typing import Any, NewType
@@ -123,6 +124,7 @@ class FrameCodec:
         self._d, self._r, self._rsp, self._num = s["D"], s["R"], s["RSP"], s["NUM"]
         self._acks: dict[int, bytes] = {}  # NUM -> ACK frame: built once (hot path)
         self._data_word = int(FrameKind.DATA) << self._d[0]
+        self._hqx = self.crc is make_crc(CCITT_FALSE)  # binascii.crc_hqx seeded 0xFFFF (L3)
 
     # -- header word -------------------------------------------------------------------------
     def pack_header(self, d: int, r: int, rsp: int, num: int) -> int:
@@ -214,6 +216,18 @@ class FrameCodec:
         else None (what :meth:`judge` reads, for a receiver's run of frames in order)."""
         crc, d, r, n = self.crc, self._d, self._r, self._num
         out: list[int | None] = []
+        if self._hqx:  # CCITT-FALSE: crc_hqx chained over header and data, nothing joined
+            h, dmask, rmask, data_word = binascii.crc_hqx, d[1] << d[0], r[1] << r[0], \
+                self._data_word
+            for t in transfers:
+                if len(t) != FRAME_SIZE:
+                    out.append(None)
+                    continue
+                word = int.from_bytes(t[:4], "little")
+                ok = (word & dmask == data_word and not word & rmask
+                      and h(t[6:], h(t[:4], 0xFFFF)) == t[4] | t[5] << 8)
+                out.append((word >> n[0]) & n[1] if ok else None)
+            return out
         for t in transfers:
             if len(t) != FRAME_SIZE:
                 out.append(None)

@@ -24,16 +24,16 @@ notice views, write whole columns of an array of structs with numpy and write co
 
 from __future__ import annotations
 
-import binascii
 import struct
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from eyeq_spi.codec.e2e import E2EState, _key
-from eyeq_spi.codec.layout import INT_RANGE, CrcPlan, Layout
+from eyeq_spi.codec.e2e import E2EState
+from eyeq_spi.codec.e2e import compile_protector as compile_protector
+from eyeq_spi.codec.layout import INT_RANGE, Layout
 from eyeq_spi.codec.layout_fast import FMT
 from eyeq_spi.codec.message import DASP_PROTOCOL
 from eyeq_spi.errors import CodecError, EyeqError
@@ -44,7 +44,6 @@ NP_FMT = {"uint8": "u1", "uint16": "<u2", "uint32": "<u4", "uint64": "<u8", "int
           "bool": "u1"}
 REAL = ("real32", "real64")
 SCALAR, BITS, ARRAY = 0, 1, 2
-Protector = Callable[[bytearray, "E2EState | None"], None]
 
 
 @dataclass(frozen=True)
@@ -188,72 +187,6 @@ class StructView:
         for kid in self.kids.values():
             for v in kid if isinstance(kid, list) else (kid,):
                 v.reset()
-
-
-def _batches(plans: list[CrcPlan]) -> list[list[int]]:
-    """Runs of consecutive CRCs of one shape (range sizes, counter size: the elements of an
-    array) none of which covers another's CRC or counter: their counters can all be stepped
-    first, in order, and their covered bytes gathered at once (same values as one by one)."""
-    out: list[list[int]] = []
-    for i, p in enumerate(plans):
-        shape = (tuple(s for _, s in p.ranges), p.counter_size, p.counter_offset is None)
-        prev = out[-1] if out else None
-        if prev is not None and shape == _shape_of(plans[prev[0]]) and all(
-                _apart(plans[j], p) and _apart(p, plans[j]) for j in prev):
-            prev.append(i)
-        else:
-            out.append([i])
-    return out
-
-
-def _shape_of(p: CrcPlan) -> tuple[Any, ...]:
-    return (tuple(s for _, s in p.ranges), p.counter_size, p.counter_offset is None)
-
-
-def _apart(a: CrcPlan, b: CrcPlan) -> bool:
-    """``a`` covers neither ``b``'s CRC nor its counter."""
-    fields = [(b.crc_offset, 2)]
-    if b.counter_offset is not None:
-        fields.append((b.counter_offset, b.counter_size))
-    return not any(o < fo + fs and fo < o + s for o, s in a.ranges for fo, fs in fields)
-
-
-def compile_protector(layout: Layout) -> Protector:
-    """``e2e.protect(buf, layout, state)`` as generated code (D5): per CRC of
-    ``layout.crc_plan``, inner first, the rolling counter then ``crc_hqx`` seeded 0xFFFF chained
-    over the covered ranges, every offset a literal. A run of same-shaped CRCs (one per element
-    of an array, :func:`_batches`) gathers its covered bytes with one numpy index instead."""
-    env: dict[str, Any] = {"h": binascii.crc_hqx, "np": np}
-    lines = ["def _protect(b, state):"]
-    plans = layout.crc_plan
-    for batch in _batches(plans):
-        for i in batch:
-            plan = plans[i]
-            if plan.counter_offset is not None:
-                env[f"K{i}"] = _key(layout, plan)
-                c, n = plan.counter_offset, plan.counter_size
-                lines += ["    if state is not None:",
-                          f"        b[{c}:{c + n}] = state.next_counter(K{i}, {n})"
-                          f".to_bytes({n}, 'little')"]
-            if len(batch) > 1:
-                continue
-            expr = "65535"
-            for o, s in plan.ranges:
-                expr = f"h(b[{o}:{o + s}], {expr})"
-            o = plan.crc_offset
-            lines.append(f"    b[{o}:{o + 2}] = ({expr}).to_bytes(2, 'little')")
-        if len(batch) > 1:
-            i = batch[0]
-            env[f"G{i}"] = np.array([[o + k for o, s in plans[j].ranges for k in range(s)]
-                                     for j in batch], dtype=np.intp)
-            env[f"O{i}"] = [plans[j].crc_offset for j in batch]
-            lines += [f"    g = np.frombuffer(b, dtype=np.uint8)[G{i}]",
-                      f"    for r, o in zip(g, O{i}):",
-                      "        b[o:o + 2] = h(r, 65535).to_bytes(2, 'little')"]
-    lines.append("    return None")
-    exec("\n".join(lines), env)
-    fn: Protector = env["_protect"]
-    return fn
 
 
 class DaspPacker:

@@ -44,6 +44,7 @@ passed through unchanged, so one ``next_event()`` loop sees everything.
 from __future__ import annotations
 
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from eyeq_spi.catalog.link import link_spec
@@ -339,6 +340,43 @@ class TransportConnection:
             link.accept_in_order(frames[:n], times)
         return n
 
+    def absorb_last(self, transfer: bytes, now: float,
+                    want: Callable[[bytes], bool]) -> bytes | None:
+        """:meth:`absorb` for the DATA frame that completes a message (a single frame, or the
+        consecutive frame that ends the open transfer with zero padding, T4): the link accepts
+        it in order and ACKs it, and the message is returned instead of queued as
+        ``MessageReceived`` (the caller handles it as its event loop would). ``want`` sees the
+        message's first bytes (up to 5) before anything changes. None, with nothing changed,
+        for any other frame or state, or a message ``want`` declines."""
+        link = self.link
+        o = self._open
+        if (o is not None and o.deadline <= now) or not link.in_order([transfer], [now]):
+            return None
+        ttype, num = transfer[6], link.expected_num
+        if ttype == seg.SINGLE:
+            size = transfer[7]
+            if o is not None or not 1 <= size <= seg.SINGLE_MAX \
+                    or not want(transfer[8 : 8 + min(size, 5)]):
+                return None
+            link.accept_in_order([transfer], [now])
+            message = transfer[8 : 8 + size]
+        elif ttype == seg.CONSECUTIVE and o is not None and transfer[7] == o.transfer_id \
+                and num == (o.last_num + 1) % SEQ_MODULO:
+            remaining = o.total - len(o.buf)
+            if remaining > seg.CONSECUTIVE_CHUNK or any(transfer[8 + remaining :]) \
+                    or not want(bytes(o.buf[:5])):
+                return None  # more to come, or another transfer's frame (T4: NAKed)
+            link.accept_in_order([transfer], [now])
+            o.buf += transfer[8 : 8 + remaining]
+            o.last_num = num
+            o.nums.append(num)
+            self._open = None
+            message = bytes(o.buf)
+        else:
+            return None
+        self.counters.messagesReceived += 1
+        return message
+
     def data_run(self, now: float) -> DataRun | None:
         """:meth:`LinkConnection.data_run`, due no later than the open transfer's silence
         deadline (T6: an ACK arriving after it takes the ordinary path)."""
@@ -348,12 +386,17 @@ class TransportConnection:
             run.until = o.deadline
         return run
 
-    def absorb_ack(self, transfer: bytes, now: float) -> bool:
+    def absorb_ack(self, transfer: bytes, now: float, last: bool = False) -> bool:
         """``receive_data`` and ``data_to_send`` at ``now`` in one step for an ACK that settles
         a frame of a message with more frames in flight or queued, when it lets no frame go at
         ``now`` (:meth:`LinkConnection.ack_in_flight`): True. False, with nothing changed,
-        otherwise."""
+        otherwise. ``last``: also the ACK of a message's last frame (its ``MessageSent`` or
+        ``MessageSendFailed`` is then queued, as ``receive_data`` queues it)."""
         o = self._open
         if o is not None and o.deadline <= now:
             return False
-        return self.link.ack_in_flight(transfer, now)
+        if not self.link.ack_in_flight(transfer, now, last):
+            return False
+        if last:
+            self._drain_link(now)
+        return True
