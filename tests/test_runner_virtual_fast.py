@@ -255,7 +255,8 @@ def _snapshot(rx: Any) -> tuple[Any, ...]:
     while (ev := rx.next_event()) is not None:
         events.append(ev)
     return (repr(link.counters), link.expected_num, list(link._accepted.items()),
-            link._next_ctl, link._naks_in_row, repr(rx.counters), rx._dead_id, rx._seen_first,
+            link._next_ctl, link._naks_in_row, link._started, link._expect_restart_frames,
+            link._expect_restart_until, repr(rx.counters), rx._dead_id, rx._seen_first,
             None if o is None else (o.transfer_id, o.total, bytes(o.buf), o.last_num, o.deadline,
                                     o.nums), events, rx.get_timer())
 
@@ -340,8 +341,9 @@ def test_absorb_run_is_absorb_frame_after_frame(seed: int) -> None:
     """The receiver's side of a handover (TransportConnection.absorb_run) takes what the
     ordinary calls take at once, frame after frame, and stops at the first frame they would
     treat otherwise: on runs cut from streams with drops, duplicates, bad CRCs, swapped
-    frames, a sender that starts over, silences longer than the reassembly timeout, and ACKs
-    that the sender would not take as its own (another codec)."""
+    frames, a sender that starts over, a receiver that restarts its link (L10: both directions
+    afresh, a NUM 0 frame may be the peer's restart), silences longer than the reassembly
+    timeout, and ACKs that the sender would not take as its own (another codec)."""
     from eyeq_spi.crc import VARIANTS
     from eyeq_spi.link.connection import LinkConfig
     from eyeq_spi.link.frame import SEQ_MODULO
@@ -355,6 +357,10 @@ def test_absorb_run_is_absorb_frame_after_frame(seed: int) -> None:
     for _ in range(150):
         if rng.random() < 0.03 or tx.link.in_flight > 900:  # (it never hears an ACK)
             tx.reset()  # the sender starts over
+        if rng.random() < 0.05:  # L10 on the receiving side, with the sender numbering anew
+            tx.reset()
+            for rx in (fast, ref):
+                rx.link.restart()
         tx.send(rng.randbytes(rng.choice([5, 300, 476, 700, 1500, 2684])), t)
         frames: list[bytes] = []
         while tx.link.queued:

@@ -456,9 +456,12 @@ class LinkConnection:
         due = next(iter(self._inflight.values())).deadline if self._inflight else math.inf
         m, gap = SEQ_MODULO, self.config.control_gap
         expected, free = self._expected, self._next_ctl
+        # L10: after a reset a NUM 0 frame may be the peer's restart (receive_data judges it)
+        left, until = self._expect_restart_frames, self._expect_restart_until
         for k, num in enumerate(self.codec.data_nums(frames)):
             now = times[k]
-            if now < free or due <= now or num != expected:
+            if now < free or due <= now or num != expected or (
+                    num == 0 and (left > k or now <= until)):
                 return k
             expected, free = (expected + 1) % m, now + gap
         return len(frames)
@@ -548,6 +551,8 @@ class LinkConnection:
         self._naks_in_row = 0
         self._expected = num
         self._last_accepted = (num - 1) % m
+        # L10: each DATA frame received counts down the frames that may still be the peer's
+        self._expect_restart_frames = max(0, self._expect_restart_frames - len(frames))
         self.counters.framesReceived += len(frames)
         self.counters.busyFrames = len(self._inflight)
         self._next_ctl = times[len(frames) - 1] + self.config.control_gap
