@@ -173,3 +173,47 @@ def test_a_soft_reset_leaves_the_host_rolling_counters_unbroken_for_a_passive_re
     veh = [r for r in out if r.get("name") == "HOST_VEH_STATE_MSG"]
     assert switches and veh[0]["time"] < switches[0]["time"]  # the case: sent before the reset
     assert [r["errors"] for r in veh if r["errors"]] == []
+
+
+@pytest.mark.parametrize("exact_path", [False, True])
+@pytest.mark.parametrize(("member", "value"), [
+    ("vehicleVelocity", 1e39),  # beyond real32
+    ("vehIndex", 1e39),  # a float into a uint32
+    ("vehIndex", -1.0),
+])
+def test_a_scenario_value_the_message_cannot_carry_is_a_host_problem_not_a_crash(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+    exact_path: bool, member: str, value: float,
+) -> None:
+    """A scenario CSV value that HOST_VEH_STATE_MSG cannot encode stopped the run with an
+    internal error (an OverflowError or struct.error out of the encoder on either path, then a
+    TypeError in the host's timer): the host now reports the problem and demo exits 1."""
+    from eyeq_spi.cli import main
+
+    if exact_path:
+        monkeypatch.setenv("EYEQ_SPI_EXACT", "1")
+    else:
+        monkeypatch.delenv("EYEQ_SPI_EXACT", raising=False)
+    csv = tmp_path / "s.csv"
+    csv.write_text(f"time,{member}\n0,10\n0.5,{value!r}\n")
+    rc = main(["demo", "--virtual-time", "--duration", "1.5", "--scenario", str(csv)])
+    out, err = capsys.readouterr()
+    assert rc == 1, err
+    assert "HOST_VEH_STATE_MSG cannot be encoded" in out and "internal error" not in err
+
+
+@pytest.mark.parametrize("exact_path", [False, True])
+def test_both_encoders_refuse_unencodable_values_with_a_codec_error(
+    monkeypatch: pytest.MonkeyPatch, exact_path: bool,
+) -> None:
+    from eyeq_spi.errors import CodecError
+
+    monkeypatch.setenv("EYEQ_SPI_EXACT", "1" if exact_path else "0")
+    codec = MessageCodec()
+    lay = codec.layout(codec.message("HOST_VEH_STATE_MSG"))
+    for member, value in (("vehicleVelocity", 1e39), ("vehIndex", 1e39), ("vehIndex", -1),
+                          ("vehIndex", 1 << 40), ("vehicleVelocity", "fast")):
+        values = lay.zero_values()
+        values["vehStateInfo"][member] = value
+        with pytest.raises(CodecError, match="cannot encode"):
+            lay.build(values)

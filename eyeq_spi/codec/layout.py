@@ -21,6 +21,7 @@ names; bitfield members appear as ints under their own names.
 from __future__ import annotations
 
 import contextlib
+import struct
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -178,7 +179,8 @@ class Layout:
 
         try:
             return bytes(self.struct.build(self.pre(values)))
-        except (ConstructError, ValueError, OverflowError) as exc:
+        except (ConstructError, ValueError, OverflowError, TypeError, struct.error) as exc:
+            # (construct's compiled builders let struct's own errors through)
             raise CodecError(f"{self.name}: cannot encode: {exc}") from None
 
     def parse_construct(self, data: bytes) -> dict[str, Any]:

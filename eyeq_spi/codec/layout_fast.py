@@ -46,7 +46,7 @@ class FastCodec:
             return self.struct.pack(*out)
         except KeyError as exc:
             raise CodecError(f"missing member {exc.args[0]}") from None
-        except (struct.error, TypeError) as exc:
+        except (struct.error, TypeError, OverflowError) as exc:  # 1e39 into a real32, ...
             raise CodecError(f"cannot encode: {exc}") from None
 
     # -- generation --------------------------------------------------------------------------

@@ -201,8 +201,9 @@ class HostEmulator(HostBringUp):
             self.mesp.request("GetEyeQExtendedState", now=now)
         if self._veh_next is not None and now >= self._veh_next:
             self._send_veh_state(now)
-            period = 1.0 / self.config.veh_state_rate
-            self._veh_next = max(self._veh_next + period, now)
+            if self._veh_next is not None:  # None: the message could not be encoded (problem)
+                period = 1.0 / self.config.veh_state_rate
+                self._veh_next = max(self._veh_next + period, now)
         if self.state is S.RUNNING_VISION and now >= self._next_stale_check:
             self._next_stale_check = now + STALE_CHECK
             self._check_stale(now)
