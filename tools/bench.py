@@ -376,16 +376,23 @@ def dasp_bench(runs: int = 3, virtual_s: float = 20.0) -> dict[str, float]:
         for packer in (False, True):
             rows[packer].append(_dasp_cpu_per_sim_s(packer, virtual_s))
         crc.append(crc_baseline_us())
-    base = statistics.median(crc)
+    out = _pair_summary(rows, ("dasp_dict_path", "dasp_packer"), statistics.median(crc))
+    out["dasp_dict_over_packer"] = (out["dasp_dict_path_cpu_ms_per_sim_s"]
+                                    / out["dasp_packer_cpu_ms_per_sim_s"])
+    return out
+
+
+def _pair_summary(rows: dict[bool, list[float]], labels: tuple[str, str],
+                  base_us: float) -> dict[str, float]:
+    """CPU-ms per simulated second of the reference (``rows[False]``) and the fast path
+    (``rows[True]``): median, min, max, and the median in ``crc_hqx`` calls of ``base_us``."""
     out: dict[str, float] = {}
-    for packer, label in ((False, "dasp_dict_path"), (True, "dasp_packer")):
-        vals = rows[packer]
+    for fast, label in zip((False, True), labels, strict=True):
+        vals = rows[fast]
         out[f"{label}_cpu_ms_per_sim_s"] = statistics.median(vals) * 1e3
         out[f"{label}_cpu_ms_per_sim_s_min"] = min(vals) * 1e3
         out[f"{label}_cpu_ms_per_sim_s_max"] = max(vals) * 1e3
-        out[f"{label}_in_crc_calls"] = statistics.median(vals) / (base * 1e-6)
-    out["dasp_dict_over_packer"] = (out["dasp_dict_path_cpu_ms_per_sim_s"]
-                                    / out["dasp_packer_cpu_ms_per_sim_s"])
+        out[f"{label}_in_crc_calls"] = statistics.median(vals) / (base_us * 1e-6)
     return out
 
 
@@ -431,14 +438,9 @@ def capture_bench(runs: int = 3, virtual_s: float = 20.0) -> dict[str, float]:
         for blocks in (False, True):
             rows[blocks].append(_capture_cpu_per_sim_s(records, blocks, virtual_s))
         crc.append(crc_baseline_us())
-    base = statistics.median(crc)
-    out: dict[str, float] = {"capture_transfers_per_sim_s": len(records) / virtual_s}
-    for blocks, label in ((False, "capture_per_transfer"), (True, "capture_blocks")):
-        vals = rows[blocks]
-        out[f"{label}_cpu_ms_per_sim_s"] = statistics.median(vals) * 1e3
-        out[f"{label}_cpu_ms_per_sim_s_min"] = min(vals) * 1e3
-        out[f"{label}_cpu_ms_per_sim_s_max"] = max(vals) * 1e3
-        out[f"{label}_in_crc_calls"] = statistics.median(vals) / (base * 1e-6)
+    out = {"capture_transfers_per_sim_s": len(records) / virtual_s,
+           **_pair_summary(rows, ("capture_per_transfer", "capture_blocks"),
+                           statistics.median(crc))}
     out["capture_per_transfer_over_blocks"] = (out["capture_per_transfer_cpu_ms_per_sim_s"]
                                                / out["capture_blocks_cpu_ms_per_sim_s"])
     return out

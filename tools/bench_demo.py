@@ -23,7 +23,7 @@ import tempfile
 from pathlib import Path
 
 from bench import crc_baseline_us
-from bench_startup import ROOT
+from bench_startup import trees_to_time
 
 FULL = ["--objects", "15", "--signs", "20", "--light-spots", "15"]
 
@@ -46,14 +46,7 @@ def main() -> int:
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
-        trees = [("after", ROOT)]
-        if args.before:
-            old = tmp / "before"
-            old.mkdir()
-            archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.before],
-                                     check=True, capture_output=True).stdout
-            subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
-            trees.insert(0, (f"before ({args.before})", old))
+        trees = trees_to_time(args.before, tmp)
         env = {**os.environ, "EYEQ_SPI_CACHE_DIR": str(tmp / "cache"),
                "PYTHONPYCACHEPREFIX": str(tmp / "pycache")}
         env.pop("EYEQ_SPI_NO_CACHE", None)

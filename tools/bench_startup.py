@@ -95,6 +95,19 @@ def make_inputs(tmp: Path) -> tuple[str, str, str]:
     return str(small_hex), str(small_pcapng), str(batch)
 
 
+def trees_to_time(before: str | None, tmp: Path) -> list[tuple[str, Path]]:
+    """This checkout ("after"), preceded by git revision ``before`` extracted under ``tmp``."""
+    trees = [("after", ROOT)]
+    if before:
+        old = tmp / "before"
+        old.mkdir()
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", before],
+                                 check=True, capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
+        trees.insert(0, (f"before ({before})", old))
+    return trees
+
+
 def row(label: str, samples: tuple[list[float], list[float]], base: float) -> str:
     wall, cpu = samples
     med = statistics.median(wall)
@@ -113,14 +126,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         small_hex, small_pcapng, batch = make_inputs(tmp)
-        trees = [("after", ROOT)]
-        if args.before:
-            old = tmp / "before"
-            old.mkdir()
-            archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.before],
-                                     check=True, capture_output=True).stdout
-            subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
-            trees.insert(0, (f"before ({args.before})", old))
+        trees = trees_to_time(args.before, tmp)
         base_env = {**os.environ, "EYEQ_SPI_CACHE_DIR": str(tmp / "cache")}
         base_env.pop("EYEQ_SPI_NO_CACHE", None)
         if args.no_pyc:
