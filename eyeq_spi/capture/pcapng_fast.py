@@ -21,6 +21,8 @@ one ends after its last whole block instead, and the tail says how many bytes we
 
 from __future__ import annotations
 
+import os
+import stat
 import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -175,6 +177,18 @@ def pcapng_chunks(stream: Readable, chunk: int = CHUNK, tail: Tail | None = None
     yield from _Walker(stream, head, chunk, tail).run()
 
 
+def _bytes_left(stream: Readable) -> int | None:
+    """The bytes a regular file still holds after the stream's position (None: unknown, as for
+    a pipe). Only sizes the read buffer: a file that grows meanwhile is still read to its end."""
+    try:
+        st = os.fstat(stream.fileno())  # type: ignore[attr-defined]
+        if not stat.S_ISREG(st.st_mode):
+            return None
+        return max(st.st_size - int(stream.tell()), 0)  # type: ignore[attr-defined]
+    except (AttributeError, OSError, ValueError):
+        return None
+
+
 class _Walker:
     def __init__(self, stream: Readable, head: bytes, chunk: int, tail: Tail | None = None
                  ) -> None:
@@ -187,6 +201,7 @@ class _Walker:
         self.eof = False
         self.offset = 0  # file position of buf[0]
         self.packets = 0
+        self.left = _bytes_left(stream)
         self._reset()
 
     def _reset(self) -> None:
@@ -220,7 +235,10 @@ class _Walker:
                 continue
             # read straight after what is left, into a new buffer (earlier views keep the old)
             rest = len(self.buf) - self.pos
-            buf = bytearray(rest + max(READ_SIZE, need))
+            size = max(READ_SIZE, need)
+            if self.left is not None:  # a short file: no 8 MiB buffer to zero and fault in
+                size = max(min(size, self.left), 1)  # (1: the read that finds the end)
+            buf = bytearray(rest + size)
             buf[:rest] = memoryview(self.buf)[self.pos :]
             with memoryview(buf) as mv:
                 got = rest
@@ -232,6 +250,8 @@ class _Walker:
             if got == rest:
                 self.eof = True
                 break
+            if self.left is not None:
+                self.left = max(self.left - (got - rest), 0)
             if got < len(buf):
                 del buf[got:]
             self.offset += self.pos

@@ -121,7 +121,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  f"not {shell!r}")
             return _completion(parser, shell)
         args = parser.parse_args(argv)
-        return int(command_module(args.command).run(args))
+        from eyeq_spi.catalog.cache import compiled_dataclass_methods
+
+        with compiled_dataclass_methods(args.command):
+            return int(command_module(args.command).run(args))
     except UsageError as exc:
         return _fail(f"usage error: {exc}")
     except EyeqError as exc:
