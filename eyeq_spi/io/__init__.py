@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import PurePath
 from typing import Any, Literal, NamedTuple
 
@@ -219,18 +219,17 @@ def load(fmt: Format | str, kind: Kind = CAPTURE_READER, *,
     return obj
 
 
-def sniffers(text: bool) -> list[tuple[str, Callable[[bytes], str | None]]]:
-    """The capture readers' sniffers, once each, in registry order; ``text=False`` leaves out
-    the text formats' (without importing their modules)."""
-    out: list[tuple[str, Callable[[bytes], str | None]]] = []
+def sniffers(text: bool) -> Iterator[tuple[str, Callable[[bytes], str | None]]]:
+    """The capture readers' sniffers, once each, in registry order, each module imported when
+    the caller gets that far (a pcapng file, sniffed first, imports no logic-analyzer reader);
+    ``text=False`` leaves out the text formats'."""
     seen: set[str] = set()
     for f in formats(CAPTURE_READER):
         if f.sniff is None or f.sniff in seen or (f.text and not text):
             continue
         seen.add(f.sniff)
         mod, _, fn = f.sniff.partition(":")
-        out.append((f.sniff, getattr(importlib.import_module(mod), fn)))
-    return out
+        yield f.sniff, getattr(importlib.import_module(mod), fn)
 
 
 _CUT = {"error": "error", "drop": "cut transfer dropped", "short": "last transfer as cut"}
