@@ -252,6 +252,55 @@ def test_batch_stats_imports_nothing_it_does_not_use(warm_cache: dict[str, str])
     assert rc == 0 and mods == []
 
 
+@pytest.mark.skipif(exact(), reason="EYEQ_SPI_EXACT=1: the exact engine reads every capture; "
+                    "this holds the batch path to its imports")
+def test_batch_stats_of_a_pcapng_imports_no_other_reader_or_writer(
+    warm_cache: dict[str, str]
+) -> None:
+    """``dissect --stats`` of a pcapng file: the pcapng sniffer answers first, so no
+    logic-analyzer reader is imported; no csv (only tables write it), no threading (only the
+    capture writer's idle flush starts a thread)."""
+    watch = ("eyeq_spi.logic.saleae", "eyeq_spi.logic.saleae_ref", "eyeq_spi.logic.saleae_types",
+             "eyeq_spi.logic.vcd", "eyeq_spi.logic.vcd_ref", "csv", "threading")
+    rc, mods = _imports(["dissect", "BIG_PCAPNG", "--stats"], warm_cache, watch)
+    assert rc == 0 and mods == []
+
+
+_COMPILES = (
+    "import builtins, io, json, sys, contextlib\n"
+    "seen = []\n"
+    "real = builtins.compile\n"
+    "def counting(source, *args, **kw):\n"
+    "    seen.append(isinstance(source, str) and source.startswith('def __create_fn__'))\n"
+    "    return real(source, *args, **kw)\n"
+    "from eyeq_spi.cli import main\n"
+    "builtins.compile = counting\n"
+    "with contextlib.redirect_stdout(io.StringIO()):\n"
+    "    rc = main(json.loads(sys.argv[1]))\n"
+    "print(json.dumps([rc, sum(seen)]))\n"
+)
+
+
+def test_a_second_start_compiles_no_dataclass_method(
+    warm_cache: dict[str, str], tmp_path: Path
+) -> None:
+    """The first ``dissect --stats`` start with an empty cache compiles the methods dataclasses
+    generates (and keeps them); the next compiles none."""
+    import json
+    import subprocess
+    import sys
+
+    env = {**warm_cache, "EYEQ_SPI_CACHE_DIR": str(tmp_path / "cache")}
+    argv = json.dumps(["dissect", warm_cache["BIG_PCAPNG"], "--stats"])
+    counts = []
+    for _ in range(2):
+        out = subprocess.run([sys.executable, "-c", _COMPILES, argv], env=env, check=True,
+                             capture_output=True, text=True, timeout=120)
+        counts.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    assert counts[0][0] == counts[1][0] == 0
+    assert counts[0][1] > 50 and counts[1][1] == 0, counts
+
+
 def test_the_probe_sees_a_heavy_import() -> None:
     """The guard above can fail: a command that needs yaml (no cache) is seen importing it."""
     import json

@@ -9,18 +9,20 @@ from __future__ import annotations
 
 import re
 import struct
-import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, Protocol
+from typing import IO, TYPE_CHECKING, Any, Protocol
 
 from eyeq_spi.catalog.messages import SwKey, catalog, sw_release_text
 from eyeq_spi.errors import CaptureError as CaptureError
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.errors import TruncatedCaptureError as TruncatedCaptureError
 from eyeq_spi.twins import exact
+
+if TYPE_CHECKING:
+    import threading
 
 DIRECTIONS = ("h2e", "e2h")
 SW_COMMENT = "eyeq-spi sw={release}"  # specs/capture.yaml release_comment: "eyeq-spi sw=8.1"
@@ -194,6 +196,8 @@ class CaptureWriter:
             self._buf += _idb(spec["link_type"], iface["name"], iface["description"],
                               spec["timestamp_resolution"])
         self._last_flush = clock()
+        import threading  # here: reading a capture never needs it
+
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self.flush()
@@ -330,6 +334,8 @@ class CaptureWriter:
             raise bad
 
     def close(self) -> None:
+        import threading
+
         self._stop.set()
         if self._idle is not None and self._idle is not threading.current_thread():
             self._idle.join()

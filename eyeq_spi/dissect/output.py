@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import math
 import sys
 from pathlib import Path
@@ -327,6 +326,8 @@ class TableWriter:
             entry = self._csv_part(name, list(columns))
             cols = [_as_list(columns[c]) if c in columns else [""] * n for c in entry[2]]
             start = 0
+            import csv  # here: --stats and Parquet never need it
+
             csv.writer(entry[0]).writerows(zip(*(c[start:] for c in cols), strict=True))
             return
         import pyarrow as pa
@@ -406,6 +407,8 @@ class TableWriter:
             fh = open(self.dir / f"{stem}.csv", "w", newline="", encoding="utf-8")  # noqa: SIM115
         except OSError as exc:
             raise OutputError(f"cannot write {self.dir / stem}.csv: {exc}") from exc
+        import csv
+
         w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")  # a row never has more
         w.writeheader()
         entry = (fh, w, keys)
