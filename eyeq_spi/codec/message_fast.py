@@ -116,12 +116,13 @@ class _EnumLeaf(NamedTuple):
 _ENUM_TABLES: dict[tuple[tuple[int, ...], int, bool], tuple[np.ndarray, np.ndarray | None]] = {}
 
 
-def _enum_leaf(leaf: _Leaf, label: str, values: list[int], enum: str) -> _EnumLeaf:
-    """The check of one enum member; its value array and table are shared by every member with
-    the same values and width (built once: a layout has hundreds of such members)."""
+def _enum_leaf(leaf: _Leaf, label: str, values: tuple[int, ...], enum: str) -> _EnumLeaf:
+    """The check of one enum member (``values`` sorted); its value array and table are shared by
+    every member with the same values and width (built once: a layout has hundreds of such
+    members)."""
     bits = (leaf.mask.bit_length() if leaf.mask is not None
             else 8 * np.dtype(NP_TYPE[leaf.type]).itemsize)
-    key = (tuple(sorted(values)), bits, leaf.type.startswith(("uint", "bool")))
+    key = (values, bits, leaf.type.startswith(("uint", "bool")))
     hit = _ENUM_TABLES.get(key)
     if hit is None:
         arr = np.array(key[0])
@@ -132,6 +133,32 @@ def _enum_leaf(leaf: _Leaf, label: str, values: list[int], enum: str) -> _EnumLe
             table[ok] = False
         hit = _ENUM_TABLES[key] = (arr, table)
     return _EnumLeaf(leaf, label, hit[0], enum, hit[1])
+
+
+_new_leaf = tuple.__new__  # a _Leaf without the Python call of its __new__: thousands a start
+
+_FieldRow = tuple[str, int, int, str, "int | None", "tuple[int, int] | None", "Layout | None",
+                  "tuple[str, tuple[int, ...]] | None"]
+_FIELDS: dict[tuple[int, bool], tuple[Layout, list[_FieldRow]]] = {}
+
+
+def _fields(lay: Layout, cat: Catalog, enums: bool) -> list[_FieldRow]:
+    """What :meth:`VecLayout._walk` reads of each field of ``lay``, once per layout: name,
+    offset, size, type, count, bits, child layout and the enum to check with its sorted values
+    (None: no check). A struct array walks its element's layout once per element."""
+    hit = _FIELDS.get((id(lay), enums))
+    if hit is not None and hit[0] is lay:
+        return hit[1]
+    rows: list[_FieldRow] = []
+    for f in lay.fields:
+        e = cat.enums.get(f.member.enum or "")
+        check = (enums and e is not None and e.kind != "flags" and e.complete
+                 and not f.count and f.type in INT_TYPES)
+        rows.append((f.name, f.offset, f.size, f.type, f.count, f.bits,
+                     lay.children.get(f.name),
+                     (e.name, tuple(sorted(e.values))) if check and e is not None else None))
+    _FIELDS[(id(lay), enums)] = (lay, rows)
+    return rows
 
 
 class VecLayout:
@@ -162,41 +189,44 @@ class VecLayout:
     def _walk(self, lay: Layout, cat: Catalog, prefix: str, base: int, names: list[str],
               formats: list[str], offsets: list[int], enums: bool) -> None:
         seen: set[int] = set()
-        for f in lay.fields:
-            path = f"{prefix}.{f.name}" if prefix else f.name
-            child = lay.children.get(f.name)
-            e = cat.enums.get(f.member.enum or "")
-            check = (enums and e is not None and e.kind != "flags" and e.complete
-                     and not f.count and f.type in INT_TYPES)
-            if f.bits is not None:
-                cont = f"{prefix}#bits@{f.offset}"
-                if f.offset not in seen:
-                    seen.add(f.offset)
+        leaves = self.leaves
+        for name, off, size, typ, count, bits, child, e in _fields(lay, cat, enums):
+            path = f"{prefix}.{name}" if prefix else name
+            if bits is not None:
+                cont = f"{prefix}#bits@{off}"
+                if off not in seen:
+                    seen.add(off)
                     names.append(cont)
-                    formats.append(NP_TYPE[f.type])
-                    offsets.append(base + f.offset)
-                lo, hi = f.bits
-                leaf = _Leaf(path, cont, lo, (1 << (hi - lo + 1)) - 1, f.type)
-                self.leaves.append(leaf)
-                if check and e is not None:
-                    self.enums.append(_enum_leaf(leaf, path, list(e.values), e.name))
+                    formats.append(NP_TYPE[typ])
+                    offsets.append(base + off)
+                lo, hi = bits
+                leaf = _new_leaf(_Leaf, (path, cont, lo, (1 << (hi - lo + 1)) - 1, typ))
+                leaves.append(leaf)
+                if e is not None:
+                    self.enums.append(_enum_leaf(leaf, path, e[1], e[0]))
                 continue
             if child is not None:
-                for i in range(f.count or 1):
-                    sub = f"{path}[{i}]" if f.count else path
-                    self._walk(child, cat, sub, base + f.offset + i * child.size, names,
+                for i in range(count or 1):
+                    sub = f"{path}[{i}]" if count else path
+                    self._walk(child, cat, sub, base + off + i * child.size, names,
                                formats, offsets, enums)
                 continue
-            width = f.size // (f.count or 1)
-            for i in range(f.count or 1):
-                name = f"{path}[{i}]" if f.count else path
-                names.append(name)
-                formats.append(NP_TYPE[f.type])
-                offsets.append(base + f.offset + i * width)
-                leaf = _Leaf(name, name, 0, None, f.type)
-                self.leaves.append(leaf)
-                if check and e is not None:
-                    self.enums.append(_enum_leaf(leaf, path, list(e.values), e.name))
+            at = base + off
+            if count:  # never an enum check (scalars only)
+                width = size // count
+                items = [f"{path}[{i}]" for i in range(count)]
+                names += items
+                formats += [NP_TYPE[typ]] * count
+                offsets += [at + i * width for i in range(count)]
+                leaves += [_new_leaf(_Leaf, (n, n, 0, None, typ)) for n in items]
+                continue
+            names.append(path)
+            formats.append(NP_TYPE[typ])
+            offsets.append(at)
+            leaf = _new_leaf(_Leaf, (path, path, 0, None, typ))
+            leaves.append(leaf)
+            if e is not None:
+                self.enums.append(_enum_leaf(leaf, path, e[1], e[0]))
 
     # -- values ----------------------------------------------------------------------------
     def records(self, payloads: np.ndarray) -> np.ndarray:
