@@ -301,6 +301,39 @@ def test_a_second_start_compiles_no_dataclass_method(
     assert counts[0][1] > 50 and counts[1][1] == 0, counts
 
 
+_COLLECTIONS = (
+    "import gc, io, json, sys, contextlib\n"
+    "older, explicit = [], []\n"
+    "gc.callbacks.append(lambda phase, info: phase == 'start' and info['generation'] and "
+    "older.append(1))\n"
+    "real = gc.collect\n"
+    "def counting(*args):\n"
+    "    explicit.append(1)\n"
+    "    return real(*args)\n"
+    "gc.collect = counting\n"
+    "from eyeq_spi.cli import main\n"
+    "with contextlib.redirect_stdout(io.StringIO()):\n"
+    "    rc = main(json.loads(sys.argv[1]))\n"
+    "print(json.dumps([rc, len(older) - len(explicit), gc.isenabled(), gc.get_freeze_count()]))\n"
+)
+
+
+def test_dissect_leaves_what_its_start_loads_out_of_the_collections(
+    warm_cache: dict[str, str]
+) -> None:
+    """``dissect`` turns the automatic cyclic collector off for the whole command: no automatic
+    collection of the older generations re-scans the modules and catalogue a start loaded (the
+    dissection's own paced collections remain); the collector is on and nothing frozen after."""
+    import json
+    import subprocess
+    import sys
+
+    argv = json.dumps(["dissect", warm_cache["BIG_PCAPNG"], "--stats"])
+    out = subprocess.run([sys.executable, "-c", _COLLECTIONS, argv], env=warm_cache, check=True,
+                         capture_output=True, text=True, timeout=120)
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == [0, 0, True, 0]
+
+
 def test_the_probe_sees_a_heavy_import() -> None:
     """The guard above can fail: a command that needs yaml (no cache) is seen importing it."""
     import json

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import os
 import sys
 from collections.abc import Sequence
@@ -107,6 +108,11 @@ BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "1")
 
 def main(argv: Sequence[str] | None = None) -> int:
     os.environ.setdefault(*BLAS_THREADS)
+    # The start (parser, command module) makes long-lived objects only: no automatic collection
+    # re-scans them; frozen out of every later collection before the command runs, unfrozen at
+    # the end (as the live views freeze the catalogue).
+    collecting = gc.isenabled()
+    gc.disable()
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
         parser = _parser_for(argv)
@@ -123,6 +129,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
         from eyeq_spi.catalog.cache import compiled_dataclass_methods
 
+        gc.freeze()
+        if collecting:
+            gc.enable()
         with compiled_dataclass_methods(args.command):
             return int(command_module(args.command).run(args))
     except UsageError as exc:
@@ -138,6 +147,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _fail(f"error:{where}: {exc.strerror or exc}")
     except Exception as exc:
         return _fail(f"internal error: {type(exc).__name__}: {exc} (please report this)", 3)
+    finally:
+        gc.unfreeze()
+        if collecting:
+            gc.enable()
 
 
 def _fail(message: str, code: int = 2) -> int:
