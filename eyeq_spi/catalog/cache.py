@@ -11,12 +11,13 @@ Single files of ``specs/`` that code reads directly (``spec_file``: ``link.yaml`
 ``bench.yaml``, ``dasp_header.yaml``...) are cached the same way, each as a ``marshal`` file under
 the same key (:func:`cached_doc`), so a start from the cache never imports yaml.
 
-The methods that :mod:`dataclasses` writes for every class (``__init__``, ``__repr__``, ``__eq__``,
-``__hash__``, ``__setattr__``...) are compiled from source text at each class creation: about 60 %
-of the 0.3 ms a class costs, for the 70 classes a ``dissect --stats`` start creates.
-:func:`compiled_dataclass_methods` keeps those code objects per command in a ``marshal`` file
-(``dataclass-*.marshal``) under a key over the Python version, and hands dataclasses the code
-compiled from the very same text (same flags, same file name), so a class is the same class.
+Generated code is compiled from source text at every start: the methods :mod:`dataclasses`
+writes for every class (``__init__``, ``__repr__``, ``__eq__``, ``__hash__``, ``__setattr__``...;
+about 60 % of the 0.3 ms a class costs, for the 70 classes a ``dissect --stats`` start creates)
+and the fast layout codecs (:mod:`eyeq_spi.codec.layout_fast`). :func:`compiled_code` keeps
+those code objects per command in a ``marshal`` file (``code-*.marshal``) under a key over the
+Python version, and hands out the code compiled from the very same text (same flags, same file
+name), so a class or codec is the one the text makes.
 
 The cache is an optimisation only: an unwritable, missing, corrupt or foreign cache file falls back
 to parsing ``specs/`` (and silently tries to write a fresh one). ``EYEQ_SPI_CACHE_DIR`` moves it;
@@ -34,6 +35,7 @@ import sys
 import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from types import CodeType
 from typing import Any, TypeVar, cast
 
 T = TypeVar("T")
@@ -125,46 +127,62 @@ def _unmarshal(fh: Any) -> object:
     return marshal.loads(fh.read())
 
 
+_ACTIVE: list[tuple[dict[str, CodeType], dict[str, CodeType]]] = []  # (read, compiled since)
+
+
+def compile_generated(source: str) -> CodeType:
+    """``source`` (generated code) compiled as ``exec(source)`` compiles it, without the
+    ``__future__`` flags of this module; from the active :func:`compiled_code` cache when it holds
+    this exact text (and kept there when it does not)."""
+    if not _ACTIVE:
+        return compile(source, "<string>", "exec", dont_inherit=True)
+    codes, new = _ACTIVE[-1]
+    code = codes.get(source) or new.get(source)
+    if code is None:
+        code = new[source] = compile(source, "<string>", "exec", dont_inherit=True)
+    return code
+
+
 @contextlib.contextmanager
-def compiled_dataclass_methods(name: str) -> Iterator[None]:
-    """While active, the code of the methods :mod:`dataclasses` generates comes from the
-    ``dataclass-<key>-<name>.marshal`` cache when it holds their exact source text (module
-    docstring); what was compiled meanwhile is added to it at the end. ``name`` (a command) keeps
-    one file per command, so that a start reads only the code it uses."""
+def compiled_code(name: str) -> Iterator[None]:
+    """While active, generated code (the methods :mod:`dataclasses` writes, and what callers
+    compile with :func:`compile_generated`, such as the fast layout codecs) comes from the
+    ``code-<key>-<name>.marshal`` cache when it holds its exact source text (module docstring);
+    what was compiled meanwhile is added to it at the end. ``name`` (a command) keeps one file
+    per command, so that a start reads only the code it uses."""
     import dataclasses
 
-    if os.environ.get("EYEQ_SPI_NO_CACHE") or hasattr(dataclasses, "exec"):
-        yield  # no cache, or a hook already in place (a nested call)
+    if os.environ.get("EYEQ_SPI_NO_CACHE") or _ACTIVE or hasattr(dataclasses, "exec"):
+        yield  # no cache, or one active already (a nested call)
         return
     try:
         import importlib.util
 
         text = f"{_FORMAT.decode()}\0{sys.version}\0{importlib.util.MAGIC_NUMBER.hex()}"
         key = f"{zlib.crc32(text.encode()):08x}{zlib.adler32(text.encode()):08x}"
-        path = cache_dir() / f"dataclass-{key}-{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}.marshal"
+        path = cache_dir() / f"code-{key}-{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}.marshal"
     except (OSError, ImportError):
         yield
         return
     cached = _read(path, _unmarshal)
-    codes: dict[str, Any] = cached if isinstance(cached, dict) else {}
-    new: dict[str, Any] = {}
+    codes: dict[str, CodeType] = cached if isinstance(cached, dict) else {}
+    new: dict[str, CodeType] = {}
 
     def exec_cached(source: Any, globals: Any = None, locals: Any = None) -> None:
         if isinstance(source, str):  # dataclasses passes the text of its generated functions
-            code = codes.get(source)
-            if code is None:  # as exec(source) compiles it: no __future__ flags of this module
-                code = new[source] = compile(source, "<string>", "exec", dont_inherit=True)
-            source = code
+            source = compile_generated(source)
         exec(source, globals, locals)
 
+    _ACTIVE.append((codes, new))
     dataclasses.exec = exec_cached  # type: ignore[attr-defined]  # found before the builtin
     try:
         yield
     finally:
         del dataclasses.exec  # type: ignore[attr-defined]
+        _ACTIVE.pop()
         if new:
             _write(path, {**codes, **new} if len(codes) < 4096 else new, marshal.dump,
-                   f"dataclass-{key}-", "dataclass-")
+                   f"code-{key}-", "code-")
 
 
 def _read(path: Path, reader: Callable[[Any], object] | None = None) -> object | None:

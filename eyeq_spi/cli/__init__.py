@@ -127,12 +127,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  f"not {shell!r}")
             return _completion(parser, shell)
         args = parser.parse_args(argv)
-        from eyeq_spi.catalog.cache import compiled_dataclass_methods
+        from eyeq_spi.catalog.cache import compiled_code
 
         gc.freeze()
         if collecting:
             gc.enable()
-        with compiled_dataclass_methods(args.command):
+        with compiled_code(args.command):
             return int(command_module(args.command).run(args))
     except UsageError as exc:
         return _fail(f"usage error: {exc}")

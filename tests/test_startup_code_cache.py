@@ -1,5 +1,6 @@
-"""The cache of the methods dataclasses generates (``cache.compiled_dataclass_methods``): a class
-made from cached code is the class dataclasses makes, and a second start compiles nothing."""
+"""The cache of generated code (``cache.compiled_code``): a class made from cached code is the
+class dataclasses makes, a fast layout codec the codec its text makes, and a second start
+compiles nothing."""
 
 from __future__ import annotations
 
@@ -81,13 +82,13 @@ def test_classes_from_cached_code_are_the_classes_dataclasses_makes(
     compiles: list[str], tmp_path: Path
 ) -> None:
     plain = _behaviour(_make())
-    with cache.compiled_dataclass_methods("test"):
+    with cache.compiled_code("test"):
         first = _behaviour(_make())
     assert compiles and not hasattr(dataclasses, "exec")
-    (path,) = (tmp_path / "cache").glob("dataclass-*-test.marshal")
+    (path,) = (tmp_path / "cache").glob("code-*-test.marshal")
     assert path.stat().st_mode & 0o077 == 0
     n = len(compiles)
-    with cache.compiled_dataclass_methods("test"):  # the next start: all from the file
+    with cache.compiled_code("test"):  # the next start: all from the file
         second = _behaviour(_make())
     assert len(compiles) == n
     assert plain == first == second
@@ -97,14 +98,35 @@ def test_a_corrupt_or_disabled_code_cache_compiles_as_dataclasses_does(
     compiles: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     plain = _behaviour(_make())
-    with cache.compiled_dataclass_methods("test"):
+    with cache.compiled_code("test"):
         _make()
-    (path,) = (tmp_path / "cache").glob("dataclass-*-test.marshal")
+    (path,) = (tmp_path / "cache").glob("code-*-test.marshal")
     path.write_bytes(b"\xffnot marshal")
     n = len(compiles)
-    with cache.compiled_dataclass_methods("test"):
+    with cache.compiled_code("test"):
         assert _behaviour(_make()) == plain
     assert len(compiles) > n  # compiled again, and written afresh
     monkeypatch.setenv("EYEQ_SPI_NO_CACHE", "1")
-    with cache.compiled_dataclass_methods("test"):
+    with cache.compiled_code("test"):
         assert not hasattr(dataclasses, "exec") and _behaviour(_make()) == plain
+
+
+def test_a_fast_codec_from_cached_code_decodes_as_a_fresh_one(
+    compiles: list[str], tmp_path: Path
+) -> None:
+    from eyeq_spi.catalog.messages import catalog
+    from eyeq_spi.codec.layout import LayoutCache
+    from eyeq_spi.codec.layout_fast import FastCodec
+
+    cat = catalog()
+    lay = LayoutCache(cat).get("EYEQ_VIS_OBSTACLES_MSG", cat.default_sw)
+    payload = bytes(range(256)) * (lay.size // 256) + bytes(lay.size % 256)
+    fresh = FastCodec(lay)
+    plain, plain_bytes = fresh.decode(payload), fresh.encode(fresh.decode(payload))
+    for _ in range(2):  # the first start compiles it, the next reads it
+        n = len(compiles)
+        with cache.compiled_code("test"):
+            codec = FastCodec(lay)
+        assert repr(codec.decode(payload)) == repr(plain)  # NaNs from the byte pattern too
+        assert codec.encode(codec.decode(payload)) == plain_bytes
+    assert len(compiles) == n
