@@ -178,8 +178,8 @@ def pcapng_chunks(stream: Readable, chunk: int = CHUNK, tail: Tail | None = None
 
 
 def _bytes_left(stream: Readable) -> int | None:
-    """The bytes a regular file still holds after the stream's position (None: unknown, as for
-    a pipe). Only sizes the read buffer: a file that grows meanwhile is still read to its end."""
+    """The bytes a regular file holds after the stream's position (None: unknown, as for a
+    pipe). Only sizes the read buffer."""
     try:
         st = os.fstat(stream.fileno())  # type: ignore[attr-defined]
         if not stat.S_ISREG(st.st_mode):
@@ -201,7 +201,6 @@ class _Walker:
         self.eof = False
         self.offset = 0  # file position of buf[0]
         self.packets = 0
-        self.left = _bytes_left(stream)
         self._reset()
 
     def _reset(self) -> None:
@@ -236,8 +235,9 @@ class _Walker:
             # read straight after what is left, into a new buffer (earlier views keep the old)
             rest = len(self.buf) - self.pos
             size = max(READ_SIZE, need)
-            if self.left is not None:  # a short file: no 8 MiB buffer to zero and fault in
-                size = max(min(size, self.left), 1)  # (1: the read that finds the end)
+            left = _bytes_left(self.stream)  # asked afresh: a file may grow while it is read
+            if left is not None:  # a short file: no 8 MiB buffer to zero and fault in
+                size = max(min(size, left), 1)  # (1: the read that finds the end)
             buf = bytearray(rest + size)
             buf[:rest] = memoryview(self.buf)[self.pos :]
             with memoryview(buf) as mv:
@@ -250,8 +250,6 @@ class _Walker:
             if got == rest:
                 self.eof = True
                 break
-            if self.left is not None:
-                self.left = max(self.left - (got - rest), 0)
             if got < len(buf):
                 del buf[got:]
             self.offset += self.pos
