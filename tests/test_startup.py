@@ -313,8 +313,10 @@ _COLLECTIONS = (
     "    return real(*args)\n"
     "gc.collect = counting\n"
     "from eyeq_spi.cli import main\n"
+    "argv = json.loads(sys.argv[1])\n"
+    "older.clear()  # from here: the command\n"
     "with contextlib.redirect_stdout(io.StringIO()):\n"
-    "    rc = main(json.loads(sys.argv[1]))\n"
+    "    rc = main(argv)\n"
     "print(json.dumps([rc, len(older) - len(explicit), gc.isenabled(), gc.get_freeze_count()]))\n"
 )
 
