@@ -134,9 +134,10 @@ def compile_generated(source: str) -> CodeType:
     """``source`` (generated code) compiled as ``exec(source)`` compiles it, without the
     ``__future__`` flags of this module; from the active :func:`compiled_code` cache when it holds
     this exact text (and kept there when it does not)."""
-    if not _ACTIVE:
+    try:
+        codes, new = _ACTIVE[-1]
+    except IndexError:  # no cache active (or it ended meanwhile, in another thread's command)
         return compile(source, "<string>", "exec", dont_inherit=True)
-    codes, new = _ACTIVE[-1]
     code = codes.get(source) or new.get(source)
     if code is None:
         code = new[source] = compile(source, "<string>", "exec", dont_inherit=True)
