@@ -101,6 +101,14 @@ def test_a_corrupt_or_disabled_code_cache_compiles_as_dataclasses_does(
     with cache.compiled_code("test"):
         _make()
     (path,) = (tmp_path / "cache").glob("code-*-test.marshal")
+    import marshal
+
+    texts = list(marshal.loads(path.read_bytes()))
+    path.write_bytes(marshal.dumps(dict.fromkeys(texts, 1)))  # marshal, but no code in it
+    n = len(compiles)
+    with cache.compiled_code("test"):
+        assert _behaviour(_make()) == plain
+    assert len(compiles) > n
     path.write_bytes(b"\xffnot marshal")
     n = len(compiles)
     with cache.compiled_code("test"):

@@ -139,7 +139,7 @@ def compile_generated(source: str) -> CodeType:
     except IndexError:  # no cache active (or it ended meanwhile, in another thread's command)
         return compile(source, "<string>", "exec", dont_inherit=True)
     code = codes.get(source) or new.get(source)
-    if code is None:
+    if type(code) is not CodeType:  # not cached (or a foreign file's value: never run)
         code = new[source] = compile(source, "<string>", "exec", dont_inherit=True)
     return code
 
@@ -179,7 +179,7 @@ def compiled_code(name: str) -> Iterator[None]:
     try:
         yield
     finally:
-        del dataclasses.exec  # type: ignore[attr-defined]
+        vars(dataclasses).pop("exec", None)
         _ACTIVE.pop()
         if new:
             _write(path, {**codes, **new} if len(codes) < 4096 else new, marshal.dump,
