@@ -141,7 +141,7 @@ def split(a: argparse.Namespace, work: Path, base_crc: dict[str, float]) -> dict
     mid = a.capture or build(work, 60, "full60.pcapng")
     long = a.long or build(work, 600, "full600.pcapng")
     n = {k: frames_of(p) for k, p in (("short", short), ("mid", mid), ("long", long))}
-    for p in (short, mid, long):  # untimed: page cache, bytecode, catalogue cache
+    for p in (short, mid, long):  # untimed: page cache, bytecode, catalogue and code caches
         cli(["dissect", str(p), "--stats"], None)
     numpy_cpu = python_cpu("import numpy", a.repeat)
     bare_cpu = python_cpu("pass", a.repeat)
