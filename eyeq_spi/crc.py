@@ -14,9 +14,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import crcmod
-import crcmod.crcmod
-
 CrcFunction = Callable[[bytes], int]
 
 
@@ -47,6 +44,8 @@ VARIANTS: dict[str, CrcVariant] = {
 
 def crcmod_uses_c_extension() -> bool:
     """True if crcmod runs its C extension (``crcmod._crcfunext``)."""
+    import crcmod.crcmod  # here: the default CRC (binascii) never needs it
+
     # crcmod.crcmod imports ``crcmod._crcfunext`` when it can and silently falls back otherwise.
     return getattr(crcmod.crcmod, "_crcfunext", None) is not None
 
@@ -76,6 +75,8 @@ def make_crc(variant: CrcVariant = CCITT_FALSE, *, engine: str = "auto") -> CrcF
             RuntimeWarning,
             stacklevel=2,
         )
+    import crcmod
+
     fn: Any = crcmod.mkCrcFun(
         0x10000 | variant.poly,
         # crcmod wants the initial register XORed with xorOut (its documented convention).
