@@ -513,3 +513,45 @@ def test_the_cli_keeps_openblas_to_one_thread_unless_the_user_chose(
     assert main(["spec", "list"]) == 0
     capsys.readouterr()
     assert os.environ["OPENBLAS_NUM_THREADS"] == expected
+
+
+_CONSOLE = (
+    "import gc, io, json, sys, contextlib\n"
+    "import eyeq_spi.cli.dissect as d\n"
+    "finalized = []\n"
+    "class Cycle:\n"
+    "    def __del__(self):\n"
+    "        finalized.append(1)\n"
+    "real = d.run_dissect\n"
+    "def run_dissect(args):\n"
+    "    rc = real(args)\n"
+    "    c = Cycle(); c.me = c  # garbage of the command, reachable only by the collector\n"
+    "    del c\n"
+    "    return rc\n"
+    "d.run_dissect = run_dissect\n"
+    "from eyeq_spi.cli import console\n"
+    "sys.argv = ['eyeq-spi', *json.loads(sys.argv[1])]\n"
+    "with contextlib.redirect_stdout(io.StringIO()):\n"
+    "    rc = console()\n"
+    "print(json.dumps([rc, len(finalized), gc.get_freeze_count(), len(gc.get_objects()),\n"
+    "                  gc.isenabled()]))\n"
+)
+
+
+def test_the_console_entry_collects_the_commands_garbage_and_freezes_the_rest(
+    warm_cache: dict[str, str]
+) -> None:
+    """``eyeq-spi`` (``cli.console``): after the command, its own garbage is collected (a cycle
+    with a finalizer is finalized) and everything still alive is frozen, so that the exit's full
+    collections do not walk the modules, catalogue and layouts again; ``main`` (a library call)
+    unfreezes instead (the test above)."""
+    import json
+    import subprocess
+    import sys
+
+    argv = json.dumps(["dissect", warm_cache["BIG_PCAPNG"], "--stats"])
+    out = subprocess.run([sys.executable, "-c", _CONSOLE, argv], env=warm_cache, check=True,
+                         capture_output=True, text=True, timeout=120)
+    rc, finalized, frozen, tracked, enabled = json.loads(out.stdout.strip().splitlines()[-1])
+    assert (rc, finalized, enabled) == (0, 1, True)
+    assert frozen > 20_000 and tracked < 100, (frozen, tracked)

@@ -13,8 +13,9 @@ Input: a full-load demo capture (``demo --virtual-time --objects 15 --signs 20 -
   file (batch path); "before" reads the same bytes from a pipe, which cannot seek and so takes the
   exact engine; frames/s, ratio after/before, ratio to the crc_hqx baseline, peak RSS.
 
-Every figure is frames per CPU-second (user + system time of the process doing the work, start-up
-included for the CLI runs), so that neighbours on a loaded machine do not skew it.
+Every figure is frames per CPU-second (user + system time of the process doing the work; for the
+CLI runs the whole ``eyeq-spi`` process as a user starts it, from start-up to exit, from the
+kernel's account of that child), so that neighbours on a loaded machine do not skew it.
 
 ``--split``: ``dissect --stats`` start-up and steady state apart, from whole-process CPU times of
 three full-load captures (``--short`` 2 s, ``--capture`` 60 s, ``--long`` 600 s by default, made
@@ -85,25 +86,25 @@ ENV: dict[str, str] | None = None  # the children's environment (None: inherited
 
 
 def cli(args: list[str], stdin: Path | None) -> tuple[float, int]:
-    # the child reports its own CPU time (user + system) and peak RSS: on a loaded machine wall
-    # time measures the neighbours
-    code = ("import resource,sys; from eyeq_spi.cli import main; rc = main(sys.argv[1:]); "
-            "u = resource.getrusage(resource.RUSAGE_SELF); "
-            "print(u.ru_utime + u.ru_stime, u.ru_maxrss, file=sys.stderr)")
-    cmd = [sys.executable, "-c", code, *args]
-    with open(os.devnull, "w") as null:
-        if stdin is None:
-            r = subprocess.run(cmd, stdout=null, stderr=subprocess.PIPE, text=True, cwd=ROOT,
-                               env=ENV)
-        else:
-            cat = subprocess.Popen(["cat", str(stdin)], stdout=subprocess.PIPE)
-            r = subprocess.run(cmd, stdin=cat.stdout, stdout=null, stderr=subprocess.PIPE,
-                               text=True, cwd=ROOT, env=ENV)
+    """CPU seconds (user + system) and peak RSS (kB) of one ``eyeq-spi`` process, as a user runs
+    it (``python -m eyeq_spi.cli``: the console entry, exit included), from the kernel's account
+    of that child alone (``os.wait4``): on a loaded machine wall time measures the neighbours."""
+    cmd = [sys.executable, "-m", "eyeq_spi.cli", *args]
+    with open(os.devnull, "w") as null, tempfile.TemporaryFile() as err:
+        cat = None if stdin is None else subprocess.Popen(["cat", str(stdin)],
+                                                           stdout=subprocess.PIPE)
+        proc = subprocess.Popen(cmd, stdin=None if cat is None else cat.stdout, stdout=null,
+                                stderr=err, cwd=ROOT, env=ENV)
+        if cat is not None and cat.stdout is not None:
+            cat.stdout.close()  # the child holds the pipe now
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)  # waited: Popen must not wait again
+        if cat is not None:
             cat.wait()
-    if r.returncode not in (0, 1):
-        raise SystemExit(f"dissect failed: {r.stderr[-500:]}")
-    cpu, rss = r.stderr.strip().splitlines()[-1].split()
-    return float(cpu), int(rss)
+        if proc.returncode not in (0, 1):
+            err.seek(0)
+            raise SystemExit(f"dissect failed: {err.read()[-500:].decode(errors='replace')}")
+    return usage.ru_utime + usage.ru_stime, usage.ru_maxrss
 
 
 def frames_of(cap: Path) -> int:
@@ -246,8 +247,9 @@ def main() -> int:
         out["bytecode"] = ("compiled at every start (PYTHONDONTWRITEBYTECODE)"
                            if os.environ.get("PYTHONDONTWRITEBYTECODE") else "as inherited")
     out["load_average"] = round(os.getloadavg()[0], 1)
-    if "EYEQ_SPI_CACHE_DIR" not in os.environ:  # a catalogue cache of this run's own
-        ENV = {**(ENV or os.environ), "EYEQ_SPI_CACHE_DIR": str((work / "cache").resolve())}
+    if "EYEQ_SPI_CACHE_DIR" not in os.environ:  # a cache of this run's own, found as a user's
+        # is (platformdirs' XDG rule: that lookup is part of every start)
+        ENV = {**(ENV or os.environ), "XDG_CACHE_HOME": str((work / "cache").resolve())}
     if a.split:
         out["split"] = split(a, work, base_crc)
         print(json.dumps(out, indent=1))

@@ -2,6 +2,6 @@
 
 import sys
 
-from eyeq_spi.cli import main
+from eyeq_spi.cli import console
 
-sys.exit(main())
+sys.exit(console())

@@ -54,7 +54,9 @@ def run(args: argparse.Namespace) -> int:
     # (pipeline.paused_gc): what a start imports and loads (modules, catalogue, layouts) lives
     # to the end, and the collector kept re-scanning it (65 collections, 5 % of the CPU of a
     # 2 s capture). Before each file's records it is frozen out of the collections the
-    # dissection makes at its own pace (pipeline.paced_gc), as live views do; all back after.
+    # dissection makes at its own pace (pipeline.paced_gc), as live views do; the collector is
+    # back on after, and cli.main unfreezes (or, when the process ends, collects only what the
+    # command made: cli.console).
     import gc
 
     was = gc.isenabled()
@@ -62,7 +64,6 @@ def run(args: argparse.Namespace) -> int:
     try:
         return run_dissect(args)
     finally:
-        gc.unfreeze()
         if was:
             gc.enable()
 
