@@ -153,14 +153,26 @@ class HostEmulator(HostBringUp):
     def express_take(self, frames: list[bytes], times: list[float], acks: list[bytes]) -> int:
         """runner/virtual_fast.py: :meth:`express_absorb` of ``frames[k]`` at ``times[k]``
         (rising), frame after frame, up to the first it would decline or whose ACK would not
-        be ``acks[k]``: how many it took."""
+        be ``acks[k]``: how many it took. The last of ``frames`` may complete a DASP message
+        (taken as :meth:`express_absorb` takes it)."""
         until = self._absorb_until()
         n = 0
         while n < len(frames) and times[n] < until:
             n += 1
-        n = self.conn.absorb_run(frames[:n], times, acks)
+        cut = n
+        conn = self.conn
+        n = conn.absorb_run(frames[:cut], times, acks)
         if n:
             self.now = times[n - 1]
+        if n == cut - 1 and not self._subscribers and self.state is S.RUNNING_VISION:
+            # the frame that completes a DASP message, as express_absorb takes it
+            link = conn.link
+            if link.codec.ack(link.expected_num) == acks[n]:
+                message = conn.absorb_last(frames[n], times[n], _is_dasp)
+                if message is not None:
+                    self.now = times[n]
+                    self._on_message(message, times[n])
+                    n += 1
         return n
 
     def _absorb_until(self) -> float:

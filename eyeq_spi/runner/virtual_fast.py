@@ -11,9 +11,9 @@ its transfers are put in flight with the same arrival times and heap order. What
 decides (an ACK, a NAK, a timer, a reset) is its own code's decision: nothing is predicted, so
 faults and resets inside a node take the same course on both paths.
 
-Most of those instants belong to messages of several frames: each frame is released, arrives
-and is ACKed, and the ACK comes back. Once the sending node has let a frame go and everything in
-flight belongs to its message, :meth:`Express._handover` hands the rest of that message across in
+Most of those instants belong to messages: each frame is released, arrives and is ACKed, and
+the ACK comes back. Once the sending node has let a frame go and everything in flight belongs to
+its message, :meth:`Express._handover` hands the rest of that message across in
 one step, with the instants the per-frame loop would go through computed (release, release +
 latency, release + 2 × latency, one frame gap apart) and merged in time order, up to the first
 instant that is anything else; the nodes' hooks (``express_run``, ``express_run_take``,
@@ -194,12 +194,14 @@ class Express:
         stays in (or goes into) the heap. The step stops before: a deadline of either node
         (the receiver's cached one, the sender's own, a transmit or ACK timeout), ``t_end``,
         two events at one time, a full window, a frame the receiver would not take at once
-        (its ``express_take`` decides, frame by frame, as its ``express_absorb`` would), the
-        ACK of the message's last frame (which completes the message on the sender's side:
-        the ordinary calls)."""
+        (its ``express_take`` decides, frame by frame, as its ``express_absorb`` would). A
+        message of one frame is handed over too, and a message the receiver takes whole is
+        handed over up to its last ACK (the sender's ``express_run_take`` completes it), or up
+        to the receiver's deadline as it stands once it has the message."""
         r = self.runner
         other = 1 - j
         take, run_take, run_hook = self.takes[other], self.run_takes[j], self.runs[j]
+        nodes_other = (self.n0, self.n1)[other]
         if take is None or run_take is None or run_hook is None:
             return
         run = run_hook(t)
@@ -210,13 +212,15 @@ class Express:
         # the per-frame loop's times: each release one gap after the last, each arrival one
         # latency after its hand-over
         s = list(run.sent)
-        s.append(run.next_tx)
-        while len(s) < n:
-            s.append(s[-1] + gap)
+        if n > i0:
+            s.append(run.next_tx)
+            while len(s) < n:
+                s.append(s[-1] + gap)
         timer = r._timer[other]
         until = run.until if timer is None or run.until < timer else timer
-        if run.more and s[-1] + gap < until:
-            until = s[-1] + gap  # the next message's first frame goes out then
+        after = s[-1] + gap if n > i0 else run.next_tx
+        if run.more and after < until:
+            until = after  # the next message's first frame goes out then
         # every transfer in flight is a frame of the run on its way (b) or its ACK (c)
         events: list[tuple[float, int, int]] = []
         frames: dict[int, bytes] = {}  # frame k's bytes: on their way, or to be released
@@ -256,8 +260,6 @@ class Express:
                     break
                 released += 1
             elif kind == 2:
-                if k == n - 1:
-                    break  # the message's last ACK: Sent, the ordinary calls
                 acked += 1
             walk.append((when, kind, k))
         received = [k for _, kind, k in walk if kind == 1]
@@ -276,6 +278,15 @@ class Express:
                 received = received[:got]
                 if not walk:
                     return
+            if got and received[-1] == n - 1:
+                # it took the message whole: what it did with it may have moved its deadline
+                # (the ACKs still on their way back arrive only before that)
+                due = nodes_other.get_timer()
+                if due is not None:
+                    last = next(e for e, (_, kind, k) in enumerate(walk)
+                                if kind == 1 and k == n - 1)
+                    while len(walk) > last + 1 and walk[-1][0] >= due:
+                        walk.pop()
         # the transfers of the walked instants in their order (each takes the heap sequence
         # number its hand-over would); what was in flight and arrived leaves the heap, what
         # is still on its way goes into it

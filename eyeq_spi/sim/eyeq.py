@@ -250,10 +250,12 @@ class SimulatedEyeQ(MespFunctions):
 
     def express_run_take(self, run: DataRun, released: list[float], acked: list[float]) -> None:
         """The frames of ``run`` released at ``released`` and the ACKs taken at ``acked``, as the
-        runner's calls at those times would (:meth:`LinkConnection.take_run`)."""
-        self.conn.link.take_run(run, released, acked)
+        runner's calls at those times would (:meth:`TransportConnection.take_run`; the ACK of
+        the message's last frame completes it, and its ``MessageSent`` is drained)."""
+        self.conn.take_run(run, released, acked)
         if acked:
             self.now = acked[-1]
+            self._drain(self.now)
 
     def get_timer(self) -> float | None:
         if not self.powered:

@@ -386,6 +386,13 @@ class TransportConnection:
             run.until = o.deadline
         return run
 
+    def take_run(self, run: DataRun, released: list[float], acked: list[float]) -> None:
+        """:meth:`LinkConnection.take_run`, and what ``receive_data`` of the last of ``acked``
+        does with the link's ``Sent`` when that ACK completes the message (``MessageSent``)."""
+        self.link.take_run(run, released, acked)
+        if acked:
+            self._drain_link(acked[-1])
+
     def absorb_ack(self, transfer: bytes, now: float, last: bool = False) -> bool:
         """``receive_data`` and ``data_to_send`` at ``now`` in one step for an ACK that settles
         a frame of a message with more frames in flight or queued, when it lets no frame go at
