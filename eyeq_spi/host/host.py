@@ -35,6 +35,7 @@ from eyeq_spi.host.scenario import veh_state_values
 from eyeq_spi.host.veh_state_fast import VehStatePacker
 from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.link.frame import SEQ_MODULO
+from eyeq_spi.link.run import DataRun
 from eyeq_spi.mesp.client import MespCompleted, MespFailed
 from eyeq_spi.transport.events import MessageReceived
 from eyeq_spi.twins import exact
@@ -174,6 +175,26 @@ class HostEmulator(HostBringUp):
                     self._on_message(message, times[n])
                     n += 1
         return n
+
+    def express_run(self, now: float) -> DataRun | None:
+        """runner/virtual_fast.py: the rest of the message whose frame went out at ``now``, to
+        be handed over in one step before anything of ours other than its frames is due (as
+        :meth:`_absorb_until` tells); None when our link cannot tell."""
+        run = self.conn.data_run(now)
+        if run is not None:
+            until = self._absorb_until()
+            if until < run.until:
+                run.until = until
+        return run
+
+    def express_run_take(self, run: DataRun, released: list[float], acked: list[float]) -> None:
+        """The frames of ``run`` released at ``released`` and the ACKs taken at ``acked``, as the
+        runner's calls at those times would (:meth:`TransportConnection.take_run`; the last
+        ACK's events go through :meth:`_pump`, as ``receive_data`` sends them)."""
+        self.conn.take_run(run, released, acked)
+        if acked:
+            self.now = acked[-1]
+            self._pump(self.now)
 
     def _absorb_until(self) -> float:
         """The first time at which :meth:`express_absorb` leaves a frame to the ordinary calls

@@ -61,6 +61,7 @@ class Express:
         self.run_takes = tuple(_hook(n, "express_run_take") for n in (self.n0, self.n1))
         self.takes = tuple(_hook(n, "express_take") for n in (self.n0, self.n1))
         self.handovers = 0  # messages (or their rests) handed over in one step
+        self.sent_over = [0, 0]  # of them, those node 0 and node 1 sent
         self.handed = 0  # DATA frames received in those steps
 
     @staticmethod
@@ -339,6 +340,7 @@ class Express:
         r.now = walk[-1][0]
         self.instants += len(walk)
         self.handovers += 1
+        self.sent_over[j] += 1
         self.handed += len(received)
         for i in (j, other):
             timer = (self.n0, self.n1)[i].get_timer()

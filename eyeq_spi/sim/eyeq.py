@@ -237,6 +237,30 @@ class SimulatedEyeQ(MespFunctions):
         self.now = now
         return []
 
+    def express_take(self, frames: list[bytes], times: list[float], acks: list[bytes]) -> int:
+        """runner/virtual_fast.py: ``receive_data``, ``handle_timer`` and ``data_to_send`` of
+        ``frames[k]`` at ``times[k]`` (rising) in one step, frame after frame, while each
+        continues a message and its ACK is ``acks[k]``
+        (:meth:`TransportConnection.absorb_run`); in Running Vision the last may complete a DASP
+        message of the host's, which is handled as ``receive_data`` handles it (it changes no
+        deadline of ours). How many it took. Called only with ``times`` before our deadline
+        (the runner's promise): ``handle_timer`` then has nothing to do."""
+        if not self.powered:
+            return 0
+        conn = self.conn
+        n = conn.absorb_run(frames, times, acks)
+        if n:
+            self.now = times[n - 1]
+        if n == len(frames) - 1 and self.main_state == RUNNING_VISION:
+            link = conn.link
+            if link.codec.ack(link.expected_num) == acks[n]:
+                message = conn.absorb_last(frames[n], times[n], _is_dasp)
+                if message is not None:
+                    self.now = times[n]
+                    self._on_message(message, times[n])
+                    n += 1
+        return n
+
     def express_run(self, now: float) -> DataRun | None:
         """runner/virtual_fast.py: the rest of the message whose frame went out at ``now``, to
         be handed over in one step before anything of ours other than its frames is due
@@ -533,3 +557,8 @@ class SimulatedEyeQ(MespFunctions):
 
     def calibration_done(self, now: float) -> bool:
         return self._cal_started is not None and now - self._cal_started >= self.config.tac_duration
+
+
+def _is_dasp(head: bytes) -> bool:
+    """A message that starts with ``head`` goes to ``_on_dasp`` (see ``_on_message``)."""
+    return head[:1] == b"\x65"
