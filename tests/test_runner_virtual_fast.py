@@ -6,6 +6,7 @@ resets the emulator can inject."""
 from __future__ import annotations
 
 import random
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -87,7 +88,8 @@ def _first_difference(old: Trace, new: Trace) -> str | None:
 
 
 def _lockstep(cfg: SimConfig, seconds: float, window: int | None = None, slice_s: float = 0.0007,
-              min_transfers: int = 1000, **runner: Any) -> tuple[Emulation, Trace]:
+              min_transfers: int = 1000, setup: Callable[[Emulation], None] | None = None,
+              **runner: Any) -> tuple[Emulation, Trace]:
     """Run the reference and the express path side by side in slices of 0.7 ms (which end
     inside messages, where a handover stops with frames and ACKs still on their way), and
     compare the transfers so far and the state of every layer after each slice. Returns the
@@ -98,6 +100,8 @@ def _lockstep(cfg: SimConfig, seconds: float, window: int | None = None, slice_s
         emu, trace = _emulation(express, SimConfig(**vars(cfg)), **runner)
         if window is not None:
             emu.sim.conn.link.config.window = window
+        if setup is not None:
+            setup(emu)
         pair.append((emu, trace))
     (ref, ref_trace), (fast, fast_trace) = pair
     t = 0.0
@@ -191,6 +195,34 @@ def test_host_messages_handed_over_up_to_the_host_deadlines() -> None:
                         min_transfers=300, latency=3e-3)
     loop = fast.runner._express
     assert loop is not None and loop.sent_over[0] > 20
+
+
+def test_link_restart_then_handover() -> None:
+    """L10 in a whole emulation: the EyeQ resets by itself and the host, with no reset line,
+    restarts its link (``TransportConnection.restart``: numbering from 0, the next DATA
+    frame sets E, a NUM 0 frame within the restart horizon may be the peer's restart), brings
+    the EyeQ up again and takes its messages in handovers once more. Compared slice by
+    slice."""
+    restarts: list[tuple[float, int]] = []
+
+    def no_reset_line(emu: Emulation) -> None:
+        emu.host.reset_line = None
+        restart = emu.host.conn.restart
+
+        def recorded() -> None:
+            loop = emu.runner._express
+            restarts.append((emu.host.now, 0 if loop is None else loop.handovers))
+            restart()
+
+        emu.host.conn.restart = recorded  # type: ignore[method-assign]
+
+    fast, _ = _lockstep(SimConfig(objects=15, signs=20, light_spots=15, reset_at=1.2), 2.6,
+                        setup=no_reset_line)
+    host, loop = fast.host, fast.runner._express
+    assert host.counters.eyeq_resets >= 1 and host.state is HostState.RUNNING_VISION
+    assert loop is not None
+    at, before = restarts[-1]  # the express run's (the reference's come first)
+    assert 1.2 <= at < 2.0 and loop.handovers > before + 100
 
 
 def test_mode_switch_from_outside_between_runs() -> None:
@@ -414,6 +446,38 @@ def test_absorb_run_is_absorb_frame_after_frame(seed: int) -> None:
                 n += 1
             i += n
     assert taken > 500 and stopped > 100
+
+
+def test_absorb_run_leaves_num_0_in_the_restart_horizon_to_receive_data() -> None:
+    """After a restart of its link (L10) a receiver that has learnt E from the peer's frames
+    still takes a NUM 0 frame for the peer's possible restart until the horizon has passed:
+    where the peer's numbering wraps to 0 just then, absorb_run leaves that frame to the
+    ordinary calls (which end the horizon)."""
+    from eyeq_spi.link.connection import LinkConfig
+    from eyeq_spi.transport.connection import TransportConnection
+
+    tx = TransportConnection(LinkConfig(role="eyeq", window=1000))
+    tx.reset(tx_num=4090)
+    fast, ref = (TransportConnection(LinkConfig(role="host")) for _ in range(2))
+    for rx in (fast, ref):
+        rx.link.restart()
+    t = 0.0
+    tx.send(bytes(range(256)) * 6, t)  # 13 frames: NUM 4090..4095, 0..6
+    frames: list[bytes] = []
+    while tx.link.queued:
+        t += 0.0002
+        frames += tx.data_to_send(t)
+    times = [0.01 + 0.0003 * k for k in range(len(frames))]
+    for rx in (fast, ref):  # the first frame sets E (the ordinary calls)
+        _ordinary(rx, frames[0], times[0])
+    assert fast.absorb_run(frames[1:], times[1:]) == 5  # up to NUM 4095
+    for k in range(1, 6):
+        _ordinary(ref, frames[k], times[k])
+    assert _snapshot(fast) == _snapshot(ref)
+    assert fast.link._expect_restart_frames > 0
+    for k in range(6, len(frames)):  # NUM 0, then the rest
+        assert _ordinary(fast, frames[k], times[k]) == _ordinary(ref, frames[k], times[k])
+    assert _snapshot(fast) == _snapshot(ref) and fast.link._expect_restart_frames == 0
 
 
 def test_a_tap_with_a_block_method_gets_the_handover_in_blocks() -> None:
