@@ -160,20 +160,13 @@ class HostEmulator(HostBringUp):
         n = 0
         while n < len(frames) and times[n] < until:
             n += 1
-        cut = n
-        conn = self.conn
-        n = conn.absorb_run(frames[:cut], times, acks)
+        whole = not self._subscribers and self.state is S.RUNNING_VISION
+        n, message = self.conn.absorb_message(frames[:n], times, acks,
+                                              _is_dasp if whole else None)
         if n:
             self.now = times[n - 1]
-        if n == cut - 1 and not self._subscribers and self.state is S.RUNNING_VISION:
-            # the frame that completes a DASP message, as express_absorb takes it
-            link = conn.link
-            if link.codec.ack(link.expected_num) == acks[n]:
-                message = conn.absorb_last(frames[n], times[n], _is_dasp)
-                if message is not None:
-                    self.now = times[n]
-                    self._on_message(message, times[n])
-                    n += 1
+        if message is not None:  # a DASP message whole, as express_absorb takes it
+            self._on_message(message, self.now)
         return n
 
     def express_run(self, now: float) -> DataRun | None:

@@ -247,18 +247,12 @@ class SimulatedEyeQ(MespFunctions):
         (the runner's promise): ``handle_timer`` then has nothing to do."""
         if not self.powered:
             return 0
-        conn = self.conn
-        n = conn.absorb_run(frames, times, acks)
+        n, message = self.conn.absorb_message(
+            frames, times, acks, _is_dasp if self.main_state == RUNNING_VISION else None)
         if n:
             self.now = times[n - 1]
-        if n == len(frames) - 1 and self.main_state == RUNNING_VISION:
-            link = conn.link
-            if link.codec.ack(link.expected_num) == acks[n]:
-                message = conn.absorb_last(frames[n], times[n], _is_dasp)
-                if message is not None:
-                    self.now = times[n]
-                    self._on_message(message, times[n])
-                    n += 1
+        if message is not None:
+            self._on_message(message, self.now)
         return n
 
     def express_run(self, now: float) -> DataRun | None:

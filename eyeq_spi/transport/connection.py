@@ -299,15 +299,24 @@ class TransportConnection:
         """:meth:`absorb` of ``frames[k]`` at ``times[k]`` (rising), frame after frame, up to the
         first it declines or, with ``acks``, the first whose ACK would not be ``acks[k]``: how
         many it took. Their ACKs are the link's ``codec.ack`` of their NUMs."""
+        return self.absorb_message(frames, times, acks)[0]
+
+    def absorb_message(self, frames: list[bytes], times: list[float],
+                       acks: list[bytes] | None = None,
+                       want: Callable[[bytes], bool] | None = None) -> tuple[int, bytes | None]:
+        """:meth:`absorb_run`, and with ``want``, :meth:`absorb_last` of the last of ``frames``
+        once all before it were taken, in one pass: how many it took, and the message that
+        frame completed (None if it took no such frame)."""
         link = self.link
         n = link.in_order(frames, times)
         if not n:
-            return 0
+            return 0, None
         num, m = link.expected_num, SEQ_MODULO
         ack = link.codec.ack
         limit = self.config.receive_limit or seg.MAX_TOTAL
         timeout = self.config.reassembly_timeout
         o = self._open
+        message: bytes | None = None
         for k in range(n):
             transfer, now = frames[k], times[k]
             if (o is not None and o.deadline <= now) or (acks is not None
@@ -333,12 +342,44 @@ class TransportConnection:
                 o.nums.append(num)
                 o.deadline = now + timeout
             else:  # a single frame, no transfer to continue, or a frame that ends it
+                if want is not None and k == len(frames) - 1:
+                    message = self._complete(transfer, num, want)
+                    if message is not None:
+                        n = k + 1
+                        break
                 n = k
                 break
             num = (num + 1) % m
         if n:
             link.accept_in_order(frames[:n], times)
-        return n
+        if message is not None:
+            self.counters.messagesReceived += 1
+        return n, message
+
+    def _complete(self, transfer: bytes, num: int, want: Callable[[bytes], bool]) -> bytes | None:
+        """The message a DATA frame in order (NUM ``num``) completes, as :meth:`absorb_last`
+        judges it (the open transfer closed with it), if ``want`` takes it; else None, with
+        nothing changed."""
+        o = self._open
+        ttype = transfer[6]
+        if ttype == seg.SINGLE:
+            size = transfer[7]
+            if o is not None or not 1 <= size <= seg.SINGLE_MAX \
+                    or not want(transfer[8 : 8 + min(size, 5)]):
+                return None
+            return transfer[8 : 8 + size]
+        if ttype == seg.CONSECUTIVE and o is not None and transfer[7] == o.transfer_id \
+                and num == (o.last_num + 1) % SEQ_MODULO:
+            remaining = o.total - len(o.buf)
+            if remaining > seg.CONSECUTIVE_CHUNK or any(transfer[8 + remaining :]) \
+                    or not want(bytes(o.buf[:5])):
+                return None  # more to come, or another transfer's frame (T4: NAKed)
+            o.buf += transfer[8 : 8 + remaining]
+            o.last_num = num
+            o.nums.append(num)
+            self._open = None
+            return bytes(o.buf)
+        return None
 
     def absorb_last(self, transfer: bytes, now: float,
                     want: Callable[[bytes], bool]) -> bytes | None:
@@ -352,28 +393,10 @@ class TransportConnection:
         o = self._open
         if (o is not None and o.deadline <= now) or not link.in_order([transfer], [now]):
             return None
-        ttype, num = transfer[6], link.expected_num
-        if ttype == seg.SINGLE:
-            size = transfer[7]
-            if o is not None or not 1 <= size <= seg.SINGLE_MAX \
-                    or not want(transfer[8 : 8 + min(size, 5)]):
-                return None
-            link.accept_in_order([transfer], [now])
-            message = transfer[8 : 8 + size]
-        elif ttype == seg.CONSECUTIVE and o is not None and transfer[7] == o.transfer_id \
-                and num == (o.last_num + 1) % SEQ_MODULO:
-            remaining = o.total - len(o.buf)
-            if remaining > seg.CONSECUTIVE_CHUNK or any(transfer[8 + remaining :]) \
-                    or not want(bytes(o.buf[:5])):
-                return None  # more to come, or another transfer's frame (T4: NAKed)
-            link.accept_in_order([transfer], [now])
-            o.buf += transfer[8 : 8 + remaining]
-            o.last_num = num
-            o.nums.append(num)
-            self._open = None
-            message = bytes(o.buf)
-        else:
+        message = self._complete(transfer, link.expected_num, want)
+        if message is None:
             return None
+        link.accept_in_order([transfer], [now])
         self.counters.messagesReceived += 1
         return message
 
