@@ -155,6 +155,51 @@ def test_host_takes_whole_dasp_messages_and_its_last_acks_in_one_step() -> None:
     assert len(calls) < diag + 0.1 * messages
 
 
+def test_host_takes_0x41_whole_in_one_step() -> None:
+    """In Running Vision with nobody subscribed, a 0x41 that starts no state event is taken
+    whole as a DASP message is (``HostEmulator._quiet``): at full load no transfer reaches
+    the host's ordinary ``receive_data``."""
+    emu, _ = _emulation(True, SimConfig(objects=15, signs=20, light_spots=15))
+    emu.run_for(2.0)
+    calls: list[bytes] = []
+    ordinary = emu.host.receive_data
+
+    def receive_data(transfer: bytes, now: float) -> None:
+        calls.append(transfer)
+        ordinary(transfer, now)
+
+    emu.host.receive_data = receive_data  # type: ignore[method-assign]
+    diag = emu.host.counters.received["EYEQ_DIAGNOSTIC_MSG"]
+    emu.run_for(1.0)
+    assert emu.host.counters.received["EYEQ_DIAGNOSTIC_MSG"] - diag > 20
+    assert len(calls) <= 2
+
+
+@pytest.mark.parametrize("event", ["fatal", "went_back"])
+def test_a_0x41_that_starts_an_event_takes_the_ordinary_calls(event: str) -> None:
+    """A 0x41 in Running Vision that reports a fatal error (the host goes to FATAL) or a
+    Main_State gone back to Pending (the host takes it for a reset of the EyeQ and pulls its
+    reset line, which acts on the other node): the express paths leave it to
+    ``receive_data``, and both paths give the same transfers and state."""
+    from eyeq_spi.sim.mesp_functions import PENDING
+
+    traces, states = [], []
+    for express in (False, True):
+        emu, trace = _emulation(express, SimConfig(objects=15))
+        emu.run_for(1.5)
+        assert emu.host.state is HostState.RUNNING_VISION
+        if event == "fatal":
+            emu.sim.config.fatal_error = 7
+        else:
+            emu.sim.main_state = PENDING
+        emu.run_for(0.5)
+        assert emu.host.state is not HostState.RUNNING_VISION or emu.host.counters.eyeq_resets
+        traces.append(trace)
+        states.append(_state(emu))
+    assert _first_difference(traces[0], traces[1]) is None
+    assert states[0] == states[1]
+
+
 HANDOVER_CASES: dict[str, tuple[dict[str, Any], dict[str, Any], int | None]] = {
     # (SimConfig fields, VirtualRunner arguments, the EyeQ's window)
     # an ACK comes back before the next frame goes out: one frame in flight at a time

@@ -364,21 +364,24 @@ class TransportConnection:
         ttype = transfer[6]
         if ttype == seg.SINGLE:
             size = transfer[7]
-            if o is not None or not 1 <= size <= seg.SINGLE_MAX \
-                    or not want(transfer[8 : 8 + min(size, 5)]):
+            if o is not None or not 1 <= size <= seg.SINGLE_MAX:
                 return None
-            return transfer[8 : 8 + size]
+            message = transfer[8 : 8 + size]
+            return message if want(message) else None
         if ttype == seg.CONSECUTIVE and o is not None and transfer[7] == o.transfer_id \
                 and num == (o.last_num + 1) % SEQ_MODULO:
             remaining = o.total - len(o.buf)
-            if remaining > seg.CONSECUTIVE_CHUNK or any(transfer[8 + remaining :]) \
-                    or not want(bytes(o.buf[:5])):
+            if remaining > seg.CONSECUTIVE_CHUNK or any(transfer[8 + remaining :]):
                 return None  # more to come, or another transfer's frame (T4: NAKed)
-            o.buf += transfer[8 : 8 + remaining]
+            tail = transfer[8 : 8 + remaining]
+            message = bytes(o.buf) + tail
+            if not want(message):
+                return None
+            o.buf += tail
             o.last_num = num
             o.nums.append(num)
             self._open = None
-            return bytes(o.buf)
+            return message
         return None
 
     def absorb_last(self, transfer: bytes, now: float,
@@ -387,8 +390,8 @@ class TransportConnection:
         consecutive frame that ends the open transfer with zero padding, T4): the link accepts
         it in order and ACKs it, and the message is returned instead of queued as
         ``MessageReceived`` (the caller handles it as its event loop would). ``want`` sees the
-        message's first bytes (up to 5) before anything changes. None, with nothing changed,
-        for any other frame or state, or a message ``want`` declines."""
+        message before anything changes (the same object is returned). None, with nothing
+        changed, for any other frame or state, or a message ``want`` declines."""
         link = self.link
         o = self._open
         if (o is not None and o.deadline <= now) or not link.in_order([transfer], [now]):
