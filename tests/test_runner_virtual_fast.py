@@ -6,6 +6,7 @@ resets the emulator can inject."""
 from __future__ import annotations
 
 import random
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -86,28 +87,32 @@ def _first_difference(old: Trace, new: Trace) -> str | None:
     return f"transfer {k}: {old[k][:2]} {old[k][2][:8].hex()} / {new[k][:2]} {new[k][2][:8].hex()}"
 
 
-def _lockstep(cfg: SimConfig, seconds: float, window: int | None = None,
+def _lockstep(cfg: SimConfig, seconds: float, window: int | None = None, slice_s: float = 0.0007,
+              min_transfers: int = 1000, setup: Callable[[Emulation], None] | None = None,
               **runner: Any) -> tuple[Emulation, Trace]:
     """Run the reference and the express path side by side in slices of 0.7 ms (which end
     inside messages, where a handover stops with frames and ACKs still on their way), and
     compare the transfers so far and the state of every layer after each slice. Returns the
-    express run and its transfers."""
+    express run and its transfers. (A longer ``slice_s`` lets a handover run on to the
+    nodes' own deadlines.)"""
     pair = []
     for express in (False, True):
         emu, trace = _emulation(express, SimConfig(**vars(cfg)), **runner)
         if window is not None:
             emu.sim.conn.link.config.window = window
+        if setup is not None:
+            setup(emu)
         pair.append((emu, trace))
     (ref, ref_trace), (fast, fast_trace) = pair
     t = 0.0
     while t < seconds:
-        t += 0.0007
+        t += slice_s
         ref.runner.run_until(t)
         fast.runner.run_until(t)
         assert _first_difference(ref_trace, fast_trace) is None, \
             f"at {t}: {_first_difference(ref_trace, fast_trace)}"
         assert _state(ref) == _state(fast), f"at {t}"
-    assert len(ref_trace) > 1000
+    assert len(ref_trace) > min_transfers
     assert ref.runner._express is None
     return fast, fast_trace
 
@@ -150,6 +155,51 @@ def test_host_takes_whole_dasp_messages_and_its_last_acks_in_one_step() -> None:
     assert len(calls) < diag + 0.1 * messages
 
 
+def test_host_takes_0x41_whole_in_one_step() -> None:
+    """In Running Vision with nobody subscribed, a 0x41 that starts no state event is taken
+    whole as a DASP message is (``HostEmulator._quiet``): at full load no transfer reaches
+    the host's ordinary ``receive_data``."""
+    emu, _ = _emulation(True, SimConfig(objects=15, signs=20, light_spots=15))
+    emu.run_for(2.0)
+    calls: list[bytes] = []
+    ordinary = emu.host.receive_data
+
+    def receive_data(transfer: bytes, now: float) -> None:
+        calls.append(transfer)
+        ordinary(transfer, now)
+
+    emu.host.receive_data = receive_data  # type: ignore[method-assign]
+    diag = emu.host.counters.received["EYEQ_DIAGNOSTIC_MSG"]
+    emu.run_for(1.0)
+    assert emu.host.counters.received["EYEQ_DIAGNOSTIC_MSG"] - diag > 20
+    assert len(calls) <= 2
+
+
+@pytest.mark.parametrize("event", ["fatal", "went_back"])
+def test_a_0x41_that_starts_an_event_takes_the_ordinary_calls(event: str) -> None:
+    """A 0x41 in Running Vision that reports a fatal error (the host goes to FATAL) or a
+    Main_State gone back to Pending (the host takes it for a reset of the EyeQ and pulls its
+    reset line, which acts on the other node): the express paths leave it to
+    ``receive_data``, and both paths give the same transfers and state."""
+    from eyeq_spi.sim.mesp_functions import PENDING
+
+    traces, states = [], []
+    for express in (False, True):
+        emu, trace = _emulation(express, SimConfig(objects=15))
+        emu.run_for(1.5)
+        assert emu.host.state is HostState.RUNNING_VISION
+        if event == "fatal":
+            emu.sim.config.fatal_error = 7
+        else:
+            emu.sim.main_state = PENDING
+        emu.run_for(0.5)
+        assert emu.host.state is not HostState.RUNNING_VISION or emu.host.counters.eyeq_resets
+        traces.append(trace)
+        states.append(_state(emu))
+    assert _first_difference(traces[0], traces[1]) is None
+    assert states[0] == states[1]
+
+
 HANDOVER_CASES: dict[str, tuple[dict[str, Any], dict[str, Any], int | None]] = {
     # (SimConfig fields, VirtualRunner arguments, the EyeQ's window)
     # an ACK comes back before the next frame goes out: one frame in flight at a time
@@ -179,6 +229,45 @@ def test_handover_gives_the_reference_transfers_and_state(case: str) -> None:
                         **runner)
     loop = fast.runner._express
     assert loop is not None and loop.handed > 0
+
+
+def test_host_messages_handed_over_up_to_the_host_deadlines() -> None:
+    """The host's own messages are handed over too (HostEmulator.express_run, the EyeQ's
+    express_take), up to the host's own deadlines: on a wire with a 6 ms round trip to an
+    EyeQ that rarely sends, its 10 ms stale check and its next HOST_VEH_STATE_MSG fall
+    inside the handover of its messages. Compared in slices longer than a round trip."""
+    fast, _ = _lockstep(SimConfig(dasp_rate=2.0, diag_rate=2.0), 3.0, slice_s=0.0113,
+                        min_transfers=300, latency=3e-3)
+    loop = fast.runner._express
+    assert loop is not None and loop.sent_over[0] > 20
+
+
+def test_link_restart_then_handover() -> None:
+    """L10 in a whole emulation: the EyeQ resets by itself and the host, with no reset line,
+    restarts its link (``TransportConnection.restart``: numbering from 0, the next DATA
+    frame sets E, a NUM 0 frame within the restart horizon may be the peer's restart), brings
+    the EyeQ up again and takes its messages in handovers once more. Compared slice by
+    slice."""
+    restarts: list[tuple[float, int]] = []
+
+    def no_reset_line(emu: Emulation) -> None:
+        emu.host.reset_line = None
+        restart = emu.host.conn.restart
+
+        def recorded() -> None:
+            loop = emu.runner._express
+            restarts.append((emu.host.now, 0 if loop is None else loop.handovers))
+            restart()
+
+        emu.host.conn.restart = recorded  # type: ignore[method-assign]
+
+    fast, _ = _lockstep(SimConfig(objects=15, signs=20, light_spots=15, reset_at=1.2), 2.6,
+                        setup=no_reset_line)
+    host, loop = fast.host, fast.runner._express
+    assert host.counters.eyeq_resets >= 1 and host.state is HostState.RUNNING_VISION
+    assert loop is not None
+    at, before = restarts[-1]  # the express run's (the reference's come first)
+    assert 1.2 <= at < 2.0 and loop.handovers > before + 100
 
 
 def test_mode_switch_from_outside_between_runs() -> None:
@@ -402,6 +491,38 @@ def test_absorb_run_is_absorb_frame_after_frame(seed: int) -> None:
                 n += 1
             i += n
     assert taken > 500 and stopped > 100
+
+
+def test_absorb_run_leaves_num_0_in_the_restart_horizon_to_receive_data() -> None:
+    """After a restart of its link (L10) a receiver that has learnt E from the peer's frames
+    still takes a NUM 0 frame for the peer's possible restart until the horizon has passed:
+    where the peer's numbering wraps to 0 just then, absorb_run leaves that frame to the
+    ordinary calls (which end the horizon)."""
+    from eyeq_spi.link.connection import LinkConfig
+    from eyeq_spi.transport.connection import TransportConnection
+
+    tx = TransportConnection(LinkConfig(role="eyeq", window=1000))
+    tx.reset(tx_num=4090)
+    fast, ref = (TransportConnection(LinkConfig(role="host")) for _ in range(2))
+    for rx in (fast, ref):
+        rx.link.restart()
+    t = 0.0
+    tx.send(bytes(range(256)) * 6, t)  # 13 frames: NUM 4090..4095, 0..6
+    frames: list[bytes] = []
+    while tx.link.queued:
+        t += 0.0002
+        frames += tx.data_to_send(t)
+    times = [0.01 + 0.0003 * k for k in range(len(frames))]
+    for rx in (fast, ref):  # the first frame sets E (the ordinary calls)
+        _ordinary(rx, frames[0], times[0])
+    assert fast.absorb_run(frames[1:], times[1:]) == 5  # up to NUM 4095
+    for k in range(1, 6):
+        _ordinary(ref, frames[k], times[k])
+    assert _snapshot(fast) == _snapshot(ref)
+    assert fast.link._expect_restart_frames > 0
+    for k in range(6, len(frames)):  # NUM 0, then the rest
+        assert _ordinary(fast, frames[k], times[k]) == _ordinary(ref, frames[k], times[k])
+    assert _snapshot(fast) == _snapshot(ref) and fast.link._expect_restart_frames == 0
 
 
 def test_a_tap_with_a_block_method_gets_the_handover_in_blocks() -> None:

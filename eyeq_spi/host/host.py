@@ -35,18 +35,13 @@ from eyeq_spi.host.scenario import veh_state_values
 from eyeq_spi.host.veh_state_fast import VehStatePacker
 from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.link.frame import SEQ_MODULO
+from eyeq_spi.link.run import DataRun
 from eyeq_spi.mesp.client import MespCompleted, MespFailed
 from eyeq_spi.transport.events import MessageReceived
 from eyeq_spi.twins import exact
 
 __all__ = ["SWITCH_APP", "HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
            "Transition"]
-
-
-def _is_dasp(head: bytes) -> bool:
-    """A message that starts with ``head`` (its first 5 bytes or all of it) is a DASP message
-    (rule A): no MESP reply, no 0x41 or boot status, which can change the host's state."""
-    return classify(head) == "DASP"
 
 
 class HostEmulator(HostBringUp):
@@ -135,7 +130,7 @@ class HostEmulator(HostBringUp):
         conn = self.conn
         whole = not self._subscribers and self.state is S.RUNNING_VISION
         if whole:  # most frames that arrive alone complete a message
-            message = conn.absorb_last(transfer, now, _is_dasp)
+            message = conn.absorb_last(transfer, now, self._quiet)
             if message is not None:
                 self.now = now
                 self._on_message(message, now)
@@ -153,15 +148,56 @@ class HostEmulator(HostBringUp):
     def express_take(self, frames: list[bytes], times: list[float], acks: list[bytes]) -> int:
         """runner/virtual_fast.py: :meth:`express_absorb` of ``frames[k]`` at ``times[k]``
         (rising), frame after frame, up to the first it would decline or whose ACK would not
-        be ``acks[k]``: how many it took."""
+        be ``acks[k]``: how many it took. The last of ``frames`` may complete a DASP message
+        (taken as :meth:`express_absorb` takes it)."""
         until = self._absorb_until()
         n = 0
         while n < len(frames) and times[n] < until:
             n += 1
-        n = self.conn.absorb_run(frames[:n], times, acks)
+        whole = not self._subscribers and self.state is S.RUNNING_VISION
+        n, message = self.conn.absorb_message(frames[:n], times, acks,
+                                              self._quiet if whole else None)
         if n:
             self.now = times[n - 1]
+        if message is not None:  # a message whole, as express_absorb takes it
+            self._on_message(message, self.now)
         return n
+
+    def express_run(self, now: float) -> DataRun | None:
+        """runner/virtual_fast.py: the rest of the message whose frame went out at ``now``, to
+        be handed over in one step before anything of ours other than its frames is due (as
+        :meth:`_absorb_until` tells); None when our link cannot tell."""
+        run = self.conn.data_run(now)
+        if run is not None:
+            until = self._absorb_until()
+            if until < run.until:
+                run.until = until
+        return run
+
+    def express_run_take(self, run: DataRun, released: list[float], acked: list[float]) -> None:
+        """The frames of ``run`` released at ``released`` and the ACKs taken at ``acked``, as the
+        runner's calls at those times would (:meth:`TransportConnection.take_run`; the last
+        ACK's events go through :meth:`_pump`, as ``receive_data`` sends them)."""
+        self.conn.take_run(run, released, acked)
+        if acked:
+            self.now = acked[-1]
+            self._pump(self.now)
+
+    def _quiet(self, message: bytes) -> bool:
+        """A message the express paths may take whole in Running Vision (nobody subscribed):
+        DASP, or a 0x41 that starts no state event (:meth:`_diag_event`): what the host does
+        with either changes no deadline and sends nothing. A 0x41 is decoded here (without E2E
+        state: nothing changes) and the result kept for :meth:`_on_message`."""
+        kind = classify(message[:5])
+        if kind == "DASP":
+            return True
+        if kind != "DIAG":
+            return False
+        out = self.codec.decode(message)
+        if not out.errors and self._diag_event(out) is not None:
+            return False
+        self._decoded = (message, out)
+        return True
 
     def _absorb_until(self) -> float:
         """The first time at which :meth:`express_absorb` leaves a frame to the ordinary calls
@@ -231,11 +267,15 @@ class HostEmulator(HostBringUp):
         if self.mesp.receive_message(data, now):
             return
         dasp = data[:1] == b"\x65"
-        # field values only when someone reads them: subscribers (async iterators too), a TAC/SPC
-        # result; E2E, counters and lengths are checked either way
-        fields = not dasp or bool(self._subscribers) \
-            or self.state in (S.RUNNING_TAC, S.RUNNING_SPC)
-        out = self.codec.decode(data, self._e2e if dasp else None, fields=fields)
+        decoded, self._decoded = self._decoded, None
+        if decoded is not None and decoded[0] is data:
+            out = decoded[1]  # a 0x41 that _quiet decoded
+        else:
+            # field values only when someone reads them: subscribers (async iterators too), a
+            # TAC/SPC result; E2E, counters and lengths are checked either way
+            fields = not dasp or bool(self._subscribers) \
+                or self.state in (S.RUNNING_TAC, S.RUNNING_SPC)
+            out = self.codec.decode(data, self._e2e if dasp else None, fields=fields)
         name = out.name or out.protocol
         self.counters.received[name] += 1
         if self.keep_rx_times:
@@ -280,29 +320,38 @@ class HostEmulator(HostBringUp):
         self._fire(E.BOOT_BAD, now, why)
         self._reset_eyeq(now)
 
+    def _diag_event(self, out: DecodedMessage) -> str | None:
+        """What a good 0x41 starts (before the host keeps it as ``last_diag``):
+        ``"fatal_22"``, ``"fatal"``, ``"went_back"``, or None (it is only kept)."""
+        main, fatal = out.fields["Main_State"], out.fields["Fatal_Error"]
+        before_vision = self.state in (S.WAIT_PENDING, S.INIT, S.WAIT_RUNNING)
+        if fatal == FATAL_INTRINSIC and before_vision:
+            return "fatal_22"
+        if fatal and self.state not in (S.FATAL, S.READ_EEPROM, S.FAILED, S.POWER_UP):
+            return "fatal"
+        # A running EyeQ never reports boot or pending again without a reset. Compare with the
+        # mode, not with the previous 0x41: the host can reach Running Vision by a Get State
+        # reply before any 0x41 has reported it (found by the reset campaign, faults/resets.py).
+        if (self.state in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC)
+                and main in (0, PENDING) and self.last_diag.get("Main_State") is not None):
+            return "went_back"
+        return None
+
     def _on_diag(self, out: DecodedMessage, now: float) -> None:
         if out.errors:
             self.counters.decode_errors += 1
             return
-        prev = self.last_diag.get("Main_State")
+        event = self._diag_event(out)
         self.last_diag = out.fields
-        main, fatal = out.fields["Main_State"], out.fields["Fatal_Error"]
-        before_vision = self.state in (S.WAIT_PENDING, S.INIT, S.WAIT_RUNNING)
-        if fatal == FATAL_INTRINSIC and before_vision:
+        if event == "fatal_22":
             self._fire(E.FATAL_22, now, "0x41 Fatal_Error 22")
-            return
-        if fatal and self.state not in (S.FATAL, S.READ_EEPROM, S.FAILED, S.POWER_UP):
-            self.problem = f"EyeQ fatal error {fatal}"
+        elif event == "fatal":
+            self.problem = f"EyeQ fatal error {out.fields['Fatal_Error']}"
             self._fire(E.FATAL, now, self.problem)
-            return
-        # A running EyeQ never reports boot or pending again without a reset. Compare with the
-        # mode, not with the previous 0x41: the host can reach Running Vision by a Get State
-        # reply before any 0x41 has reported it (found by the reset campaign, faults/resets.py).
-        went_back = (self.state in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC)
-                     and main in (0, PENDING) and prev is not None)
-        if went_back:
+        elif event == "went_back":
             self.counters.eyeq_resets += 1
-            self._fire(E.EYEQ_RESET, now, f"0x41 Main_State went back to {main}")
+            self._fire(E.EYEQ_RESET, now,
+                       f"0x41 Main_State went back to {out.fields['Main_State']}")
             self._enter_after_app_restart(now)
 
     def _on_link_resync(self, ev: Resynchronised, now: float) -> None:

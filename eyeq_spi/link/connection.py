@@ -468,15 +468,15 @@ class LinkConnection:
 
     def data_run(self, now: float) -> DataRun | None:
         """The message this sender is in the middle of, if its rest can be handed over in one
-        step: frames of it in flight and none of another, more of it queued at the head of the
-        queue, the next release after ``now``, no ACK/NAK of ours waiting, no reset request
-        going out (L10). None otherwise. Changes nothing."""
+        step: frames of it in flight and none of another, the rest of it (if any) queued at the
+        head of the queue, the next release after ``now`` if anything is queued, no ACK/NAK of
+        ours waiting, no reset request going out (L10). None otherwise. Changes nothing."""
         gap = float(self.config.frame_gap or 0.0)
         queue, inflight = self._queue, self._inflight
-        if (gap <= 0 or not inflight or not queue or self._control or self._next_tx <= now
+        if (gap <= 0 or not inflight or self._control or (queue and self._next_tx <= now)
                 or self._restart_tag is not None):
             return None
-        tag, m = queue[0].tag, SEQ_MODULO
+        tag, m = next(iter(inflight.values())).tag, SEQ_MODULO
         num = (self._tx_num - len(inflight)) % m
         nums, sent = [], []
         for n, f in inflight.items():
@@ -493,15 +493,17 @@ class LinkConnection:
             nums.append(num)
             num = (num + 1) % m
         return DataRun(nums, sent, datas, self.codec.acks(nums), self._next_tx, gap,
-                       self.config.ack_timeout, self.config.window, queue[0].deadline,
-                       len(datas) < len(queue), self._last_accepted, self.codec)
+                       self.config.ack_timeout, self.config.window,
+                       queue[0].deadline if queue else math.inf, len(datas) < len(queue),
+                       self._last_accepted, self.codec)
 
     def take_run(self, run: DataRun, released: list[float], acked: list[float]) -> None:
         """What ``data_to_send`` at each of ``released`` (the queued frames of ``run``, one per
         call) and ``receive_data`` of the ACKs at each of ``acked`` (frames 0..) do, in one
         step: the caller (runner/virtual_fast.py) computed these times so that nothing else
         happens in between, every frame is released in its turn and every ACK settles a frame
-        of the message and comes before its ackTimeout."""
+        of the message and comes before its ackTimeout. The ACK of the message's last frame
+        queues ``Sent`` (or nothing, for a message that failed), as ``receive_data`` does."""
         cfg, queue, inflight = self.config, self._queue, self._inflight
         m = SEQ_MODULO
         for s in released:
@@ -511,12 +513,17 @@ class LinkConnection:
             inflight[num] = _InFlight(q.tag, s + cfg.ack_timeout, s)
             self._next_tx = s + run.gap
         if acked:
-            entry = self._tags[inflight[run.nums[0]].tag]
+            tag = inflight[run.nums[0]].tag
+            entry = self._tags[tag]
             latency = self.ack_latency
             for num, c in zip(run.nums, acked, strict=False):
                 latency[int((c - inflight.pop(num).sent) * 1e5)] += 1
             self.counters.framesAcked += len(acked)
             entry[0] -= len(acked)
+            if entry[0] <= 0:  # the message's last ACK, as _settle takes it
+                del self._tags[tag]
+                if not entry[1]:
+                    self._events.append(Sent(tag))
         self.counters.busyFrames = len(inflight)
 
     def _accepted_frame(self, num: int, transfer: bytes) -> None:

@@ -11,9 +11,9 @@ its transfers are put in flight with the same arrival times and heap order. What
 decides (an ACK, a NAK, a timer, a reset) is its own code's decision: nothing is predicted, so
 faults and resets inside a node take the same course on both paths.
 
-Most of those instants belong to messages of several frames: each frame is released, arrives
-and is ACKed, and the ACK comes back. Once the sending node has let a frame go and everything in
-flight belongs to its message, :meth:`Express._handover` hands the rest of that message across in
+Most of those instants belong to messages: each frame is released, arrives and is ACKed, and
+the ACK comes back. Once the sending node has let a frame go and everything in flight belongs to
+its message, :meth:`Express._handover` hands the rest of that message across in
 one step, with the instants the per-frame loop would go through computed (release, release +
 latency, release + 2 × latency, one frame gap apart) and merged in time order, up to the first
 instant that is anything else; the nodes' hooks (``express_run``, ``express_run_take``,
@@ -61,6 +61,7 @@ class Express:
         self.run_takes = tuple(_hook(n, "express_run_take") for n in (self.n0, self.n1))
         self.takes = tuple(_hook(n, "express_take") for n in (self.n0, self.n1))
         self.handovers = 0  # messages (or their rests) handed over in one step
+        self.sent_over = [0, 0]  # of them, those node 0 and node 1 sent
         self.handed = 0  # DATA frames received in those steps
 
     @staticmethod
@@ -194,9 +195,10 @@ class Express:
         stays in (or goes into) the heap. The step stops before: a deadline of either node
         (the receiver's cached one, the sender's own, a transmit or ACK timeout), ``t_end``,
         two events at one time, a full window, a frame the receiver would not take at once
-        (its ``express_take`` decides, frame by frame, as its ``express_absorb`` would), the
-        ACK of the message's last frame (which completes the message on the sender's side:
-        the ordinary calls)."""
+        (its ``express_take`` decides, frame by frame, as its ``express_absorb`` would). A
+        message of one frame is handed over too, and a message the receiver takes whole is
+        handed over up to its last ACK (the sender's ``express_run_take`` completes it), or up
+        to the receiver's deadline as it stands once it has the message."""
         r = self.runner
         other = 1 - j
         take, run_take, run_hook = self.takes[other], self.run_takes[j], self.runs[j]
@@ -206,76 +208,93 @@ class Express:
         if run is None:
             return
         transit = r._transit
-        latency, gap, n, i0 = r.latency, run.gap, len(run.nums), len(run.sent)
+        sent, nums, acks = run.sent, run.nums, run.acks
+        n, i0 = len(nums), len(sent)
+        if len(transit) > i0:
+            return
+        latency, gap = r.latency, run.gap
         # the per-frame loop's times: each release one gap after the last, each arrival one
         # latency after its hand-over
-        s = list(run.sent)
-        s.append(run.next_tx)
-        while len(s) < n:
-            s.append(s[-1] + gap)
+        s = list(sent)
+        if n > i0:
+            x = run.next_tx
+            s.append(x)
+            for _ in range(i0 + 1, n):
+                x = x + gap
+                s.append(x)
+            after = x + gap
+        else:
+            after = run.next_tx
         timer = r._timer[other]
         until = run.until if timer is None or run.until < timer else timer
-        if run.more and s[-1] + gap < until:
-            until = s[-1] + gap  # the next message's first frame goes out then
+        if run.more and after < until:
+            until = after  # the next message's first frame goes out then
         # every transfer in flight is a frame of the run on its way (b) or its ACK (c)
         events: list[tuple[float, int, int]] = []
         frames: dict[int, bytes] = {}  # frame k's bytes: on their way, or to be released
-        if len(transit) > i0:
-            return
         for k in range(i0):
             b = s[k] + latency
             match = [x for x in transit if x[0] == b and x[2] == other]
             if match:
-                if len(match) > 1 or run.codec.data_num(match[0][3]) != run.nums[k]:
+                if len(match) > 1 or run.codec.data_num(match[0][3]) != nums[k]:
                     return
                 frames[k] = match[0][3]
                 events.append((b, 1, k))
-            elif not any(x[0] == b + latency and x[2] == j and x[3] == run.acks[k]
+            elif not any(x[0] == b + latency and x[2] == j and x[3] == acks[k]
                          for x in transit):
                 return  # not ACKed at once (or lost): the ordinary calls
             events.append((b + latency, 2, k))
         for k in range(i0, n):
-            if s[k] >= until or s[k] > t_end:
+            sk = s[k]
+            if sk >= until or sk > t_end:
                 break
-            b = s[k] + latency
-            events.append((s[k], 0, k))
-            events.append((b, 1, k))
-            events.append((b + latency, 2, k))
+            b = sk + latency
+            events += ((sk, 0, k), (b, 1, k), (b + latency, 2, k))
         events.sort()
         # what can happen, the receiver's choice apart
         walk: list[tuple[float, int, int]] = []
+        received: list[int] = []
         released, acked, window, ack_timeout = i0, 0, run.window, run.ack_timeout
-        for e, (when, kind, k) in enumerate(events):
-            if when >= until or when > t_end or (
-                    e + 1 < len(events) and events[e + 1][0] == when):
+        last = len(events) - 1
+        for e, event in enumerate(events):
+            when, kind, k = event
+            if when >= until or when > t_end or (e < last and events[e + 1][0] == when):
                 break  # a deadline, the end of the run, or two events at one time
             if released > acked and s[acked] + ack_timeout <= when:
                 break  # the oldest frame in flight times out first
             if kind == 0:
                 if released - acked >= window:
                     break
+                frames[k] = run.frame(k)
                 released += 1
-            elif kind == 2:
-                if k == n - 1:
-                    break  # the message's last ACK: Sent, the ordinary calls
+            elif kind == 1:
+                received.append(k)
+            else:
                 acked += 1
-            walk.append((when, kind, k))
-        received = [k for _, kind, k in walk if kind == 1]
+            walk.append(event)
         if not walk:
             return
-        for k in range(i0, released):
-            frames[k] = run.frame(k)
+        asked, due = False, None  # the receiver's deadline, when it had to be asked again
         if received:  # consecutive frames
             first = received[0]
             got = take([frames[k] for k in received], [s[k] + latency for k in received],
-                       run.acks[first:])
+                       acks[first:])
             if got < len(received):  # the receiver leaves that frame to the ordinary calls
                 stop = first + got
                 walk = walk[:next(e for e, (_, kind, k) in enumerate(walk)
                                   if kind == 1 and k == stop)]
-                received = received[:got]
+                del received[got:]
                 if not walk:
                     return
+            if got and received[-1] == n - 1:
+                # it took the message whole: what it did with it may have moved its deadline
+                # (the ACKs still on their way back arrive only before that)
+                asked, due = True, (self.n0, self.n1)[other].get_timer()
+                if due is not None:
+                    end = next(e for e, (_, kind, k) in enumerate(walk)
+                               if kind == 1 and k == n - 1) + 1
+                    while len(walk) > end and walk[-1][0] >= due:
+                        walk.pop()
         # the transfers of the walked instants in their order (each takes the heap sequence
         # number its hand-over would); what was in flight and arrived leaves the heap, what
         # is still on its way goes into it
@@ -284,6 +303,7 @@ class Express:
         pending: dict[tuple[int, int], tuple[float, int, int, bytes]] = {}
         releases: list[float] = []
         ack_times: list[float] = []
+        out_bytes = back_bytes = 0
         for when, kind, k in walk:
             if kind == 0:  # frame k released
                 seq += 1
@@ -291,13 +311,15 @@ class Express:
                 handed.append((j, when, frame))
                 pending[(1, k)] = (when + latency, seq, other, frame)
                 releases.append(when)
+                out_bytes += len(frame)
             elif kind == 1:  # frame k arrived, its ACK handed over
                 if pending.pop((1, k), None) is None:
                     heapq.heappop(transit)  # it was in flight when the step began
                 seq += 1
-                ack = run.acks[k]
+                ack = acks[k]
                 handed.append((other, when, ack))
                 pending[(2, k)] = (when + latency, seq, j, ack)
+                back_bytes += len(ack)
             else:  # its ACK arrived
                 ack_times.append(when)
                 if pending.pop((2, k), None) is None:
@@ -306,17 +328,16 @@ class Express:
         r._seq = seq
         for item in pending.values():
             heapq.heappush(transit, item)
-        out = [len(b) for i, _, b in handed if i == j]
-        back = [len(b) for i, _, b in handed if i != j]
-        sent, rcvd = (self.a0, self.a1)[j].stats, (self.a0, self.a1)[other].stats
-        sent.transfers_sent += len(out)
-        sent.bytes_sent += sum(out)
-        rcvd.transfers_received += len(out)
-        rcvd.bytes_received += sum(out)
-        rcvd.transfers_sent += len(back)
-        rcvd.bytes_sent += sum(back)
-        sent.transfers_received += len(back)
-        sent.bytes_received += sum(back)
+        n_out, n_back = len(releases), len(handed) - len(releases)
+        sent_stats, rcvd = (self.a0, self.a1)[j].stats, (self.a0, self.a1)[other].stats
+        sent_stats.transfers_sent += n_out
+        sent_stats.bytes_sent += out_bytes
+        rcvd.transfers_received += n_out
+        rcvd.bytes_received += out_bytes
+        rcvd.transfers_sent += n_back
+        rcvd.bytes_sent += back_bytes
+        sent_stats.transfers_received += n_back
+        sent_stats.bytes_received += back_bytes
         tap = r.tap
         if tap is not None:
             many = getattr(tap, "many", None)
@@ -325,14 +346,15 @@ class Express:
             else:
                 for i, when, b in handed:
                     tap(i, when, b)
-        r.now = walk[-1][0]
+        now = r.now = walk[-1][0]
         self.instants += len(walk)
         self.handovers += 1
+        self.sent_over[j] += 1
         self.handed += len(received)
         for i in (j, other):
-            timer = (self.n0, self.n1)[i].get_timer()
-            if timer is not None and timer <= r.now:
-                raise RuntimeError(f"node {i}: due at {r.now} after a handover")
+            timer = due if i == other and asked else (self.n0, self.n1)[i].get_timer()
+            if timer is not None and timer <= now:
+                raise RuntimeError(f"node {i}: due at {now} after a handover")
             r._timer[i] = timer
 
     def _general(self, t: float, first: int) -> None:

@@ -299,15 +299,24 @@ class TransportConnection:
         """:meth:`absorb` of ``frames[k]`` at ``times[k]`` (rising), frame after frame, up to the
         first it declines or, with ``acks``, the first whose ACK would not be ``acks[k]``: how
         many it took. Their ACKs are the link's ``codec.ack`` of their NUMs."""
+        return self.absorb_message(frames, times, acks)[0]
+
+    def absorb_message(self, frames: list[bytes], times: list[float],
+                       acks: list[bytes] | None = None,
+                       want: Callable[[bytes], bool] | None = None) -> tuple[int, bytes | None]:
+        """:meth:`absorb_run`, and with ``want``, :meth:`absorb_last` of the last of ``frames``
+        once all before it were taken, in one pass: how many it took, and the message that
+        frame completed (None if it took no such frame)."""
         link = self.link
         n = link.in_order(frames, times)
         if not n:
-            return 0
+            return 0, None
         num, m = link.expected_num, SEQ_MODULO
         ack = link.codec.ack
         limit = self.config.receive_limit or seg.MAX_TOTAL
         timeout = self.config.reassembly_timeout
         o = self._open
+        message: bytes | None = None
         for k in range(n):
             transfer, now = frames[k], times[k]
             if (o is not None and o.deadline <= now) or (acks is not None
@@ -333,12 +342,47 @@ class TransportConnection:
                 o.nums.append(num)
                 o.deadline = now + timeout
             else:  # a single frame, no transfer to continue, or a frame that ends it
+                if want is not None and k == len(frames) - 1:
+                    message = self._complete(transfer, num, want)
+                    if message is not None:
+                        n = k + 1
+                        break
                 n = k
                 break
             num = (num + 1) % m
         if n:
             link.accept_in_order(frames[:n], times)
-        return n
+        if message is not None:
+            self.counters.messagesReceived += 1
+        return n, message
+
+    def _complete(self, transfer: bytes, num: int, want: Callable[[bytes], bool]) -> bytes | None:
+        """The message a DATA frame in order (NUM ``num``) completes, as :meth:`absorb_last`
+        judges it (the open transfer closed with it), if ``want`` takes it; else None, with
+        nothing changed."""
+        o = self._open
+        ttype = transfer[6]
+        if ttype == seg.SINGLE:
+            size = transfer[7]
+            if o is not None or not 1 <= size <= seg.SINGLE_MAX:
+                return None
+            message = transfer[8 : 8 + size]
+            return message if want(message) else None
+        if ttype == seg.CONSECUTIVE and o is not None and transfer[7] == o.transfer_id \
+                and num == (o.last_num + 1) % SEQ_MODULO:
+            remaining = o.total - len(o.buf)
+            if remaining > seg.CONSECUTIVE_CHUNK or any(transfer[8 + remaining :]):
+                return None  # more to come, or another transfer's frame (T4: NAKed)
+            tail = transfer[8 : 8 + remaining]
+            message = bytes(o.buf) + tail
+            if not want(message):
+                return None
+            o.buf += tail
+            o.last_num = num
+            o.nums.append(num)
+            self._open = None
+            return message
+        return None
 
     def absorb_last(self, transfer: bytes, now: float,
                     want: Callable[[bytes], bool]) -> bytes | None:
@@ -346,34 +390,16 @@ class TransportConnection:
         consecutive frame that ends the open transfer with zero padding, T4): the link accepts
         it in order and ACKs it, and the message is returned instead of queued as
         ``MessageReceived`` (the caller handles it as its event loop would). ``want`` sees the
-        message's first bytes (up to 5) before anything changes. None, with nothing changed,
-        for any other frame or state, or a message ``want`` declines."""
+        message before anything changes (the same object is returned). None, with nothing
+        changed, for any other frame or state, or a message ``want`` declines."""
         link = self.link
         o = self._open
         if (o is not None and o.deadline <= now) or not link.in_order([transfer], [now]):
             return None
-        ttype, num = transfer[6], link.expected_num
-        if ttype == seg.SINGLE:
-            size = transfer[7]
-            if o is not None or not 1 <= size <= seg.SINGLE_MAX \
-                    or not want(transfer[8 : 8 + min(size, 5)]):
-                return None
-            link.accept_in_order([transfer], [now])
-            message = transfer[8 : 8 + size]
-        elif ttype == seg.CONSECUTIVE and o is not None and transfer[7] == o.transfer_id \
-                and num == (o.last_num + 1) % SEQ_MODULO:
-            remaining = o.total - len(o.buf)
-            if remaining > seg.CONSECUTIVE_CHUNK or any(transfer[8 + remaining :]) \
-                    or not want(bytes(o.buf[:5])):
-                return None  # more to come, or another transfer's frame (T4: NAKed)
-            link.accept_in_order([transfer], [now])
-            o.buf += transfer[8 : 8 + remaining]
-            o.last_num = num
-            o.nums.append(num)
-            self._open = None
-            message = bytes(o.buf)
-        else:
+        message = self._complete(transfer, link.expected_num, want)
+        if message is None:
             return None
+        link.accept_in_order([transfer], [now])
         self.counters.messagesReceived += 1
         return message
 
@@ -385,6 +411,13 @@ class TransportConnection:
         if run is not None and o is not None and o.deadline < run.until:
             run.until = o.deadline
         return run
+
+    def take_run(self, run: DataRun, released: list[float], acked: list[float]) -> None:
+        """:meth:`LinkConnection.take_run`, and what ``receive_data`` of the last of ``acked``
+        does with the link's ``Sent`` when that ACK completes the message (``MessageSent``)."""
+        self.link.take_run(run, released, acked)
+        if acked:
+            self._drain_link(acked[-1])
 
     def absorb_ack(self, transfer: bytes, now: float, last: bool = False) -> bool:
         """``receive_data`` and ``data_to_send`` at ``now`` in one step for an ACK that settles
