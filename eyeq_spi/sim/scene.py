@@ -50,7 +50,6 @@ from eyeq_spi.sim.scene_write import (
     _puts,
     _puts_once,
     _write_objects_packed,
-    _write_rows,
     _write_table,
 )
 
@@ -67,6 +66,9 @@ def _lane_codes() -> IArr:
 # (a, b) of the obstacles' standard deviations a + b·|longDistance| (physicalState, angularState)
 _STD = np.array([(0.05, 0.002), (0.2, 0.01), (0.1, 0.01), (0.1, 0.005), (0.2, 0.004),
                  (0.2, 0.002), (0.05, 0.003), (0.005, 1e-4)])
+# light spots: a pair of lamps unless a two-wheeler; the truck flag
+_PAIR_LAMPS = tuple(c[0] not in ("bike", "bicycle") for c in CLASSES)
+_TRUCK = next(k for k, c in enumerate(CLASSES) if c[0] == "truck")
 _STRUCTS: dict[int, tuple[_Node, list[tuple[str, _Node]]]] = {}
 
 
@@ -83,7 +85,7 @@ def _struct_members(node: _Node) -> list[tuple[str, _Node]]:
 class Scene(SceneWorld):
     """The world (objects, road, signs) and the writer of its DASP payloads."""
 
-    _signs_seen: tuple[object, list[tuple[int, float]]] | None = None
+    _signs_seen: tuple[object, tuple[IArr, FArr]] | None = None
     _header: tuple[float, int, dict[str, float]] | None = None  # the last header's values
 
     def _after_step(self) -> None:
@@ -374,16 +376,15 @@ class Scene(SceneWorld):
             "drivingSide": _code("road_driving_side", "Right Side", 0),
             "laneChange": _code("road_lane_change", "No lane change", 0)})
 
-    def _visible_signs(self) -> list[tuple[int, float]]:
-        """Signs ahead, nearest first, with their lateral distance; once per step (both sign
+    def _visible_signs(self) -> tuple[IArr, FArr]:
+        """Signs ahead, nearest first, and their lateral distances; once per step (both sign
         messages read it; ``_lateral`` is elementwise arithmetic, the same per sign or at once)."""
         cached = self._signs_seen
         if cached is not None and cached[0] is self._cols and cached[0] is not None:
             return cached[1]
         idx = np.flatnonzero(self._sg_alive & (self._sg_s > 0.0))
         idx = idx[np.argsort(self._sg_s[idx], kind="stable")]
-        out = list(zip(idx.tolist(), self._lateral(self._sg_s[idx], self._sg_lat[idx]).tolist(),
-                       strict=True))
+        out = (idx, self._lateral(self._sg_s[idx], self._sg_lat[idx]))
         self._signs_seen = (self._cols, out)
         return out
 
@@ -392,25 +393,23 @@ class Scene(SceneWorld):
         if tsr is None:
             return
         elems, en = _elements(*tsr, "trafficSigns")
-        rows: list[dict[str, float]] = []
-        for i, y in self._visible_signs()[:len(elems)]:
-            s, z = float(self._sg_s[i]), float(self._sg_z[i])
+        idx, y_all = self._visible_signs()
+        n = min(len(elems), len(idx))
+        rows: list[tuple[float, ...]] = []
+        s_l, z_l, bias, lat, typ, sid = (a[idx[:n]].tolist() for a in (
+            self._sg_s, self._sg_z, self._sg_bias, self._sg_lat, self._sg_type, self._sg_id))
+        decision = _code("tsr_sign_relevant_decision", "RELEVANT_SIGN", 0)
+        filt = _code("tsr_sign_filter_type", "NO_SLI_FILTER", 0)
+        for k, y in enumerate(y_all[:n].tolist()):
+            s, z = s_l[k], z_l[k]
             ss = max(s, 1.0)
             u, v = IMAGE_W / 2 - FOCAL_PX * y / ss, IMAGE_H / 2 - FOCAL_PX * (z - CAM_HEIGHT) / ss
             half = FOCAL_PX * 0.35 / ss
-            rows.append({
-                # §16: "a positive value indicates the sign is on the right"
-                "signLongPosition": s, "signLatPosition": -y, "signHeight": z,
-                "signConfidence": min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + self._sg_bias[i]),
-                "signSuppConfidence1": 0.0, "signSuppConfidence2": 0.0,
-                "relevancyConfidence": 0.95 if self._sg_lat[i] < 0.0 else 0.85,
-                "signPositionBottom": v + half, "signPositionLeft": u - half,
-                "signPositionRight": u + half, "signPositionTop": v - half,
-                "signType": float(self._sg_type[i]), "signSupplementalType1": 0,
-                "signSupplementalType2": 0, "signID": float(self._sg_id[i]),
-                "signRelevantDecision": _code("tsr_sign_relevant_decision", "RELEVANT_SIGN", 0),
-                "signFilterType": _code("tsr_sign_filter_type", "NO_SLI_FILTER", 0)})
-        _write_rows(elems, en, rows, _SIGN_KEYS)
+            rows.append((  # _SIGN_KEYS; §16: "a positive value indicates the sign is on the right"
+                s, -y, z, min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[k]), 0.0, 0.0,
+                0.95 if lat[k] < 0.0 else 0.85, v + half, u - half, u + half, v - half,
+                typ[k], 0, 0, sid[k], decision, filt))
+        _write_table(elems, en, _SIGN_KEYS, rows, _SIGN_KEYS)
         _puts(*tsr, {"numberTrafficSigns": len(rows)})
         _puts_once(*tsr, "tsr", lambda: {"currentMarket": _code("tsr_current_market", "EUROPE", 1)})
         marks = _child(*tsr, "roadMarkings")
@@ -419,58 +418,68 @@ class Scene(SceneWorld):
                 "numberOfArrowsMarkings", "numberOfStopLinesMarkings",
                 "numberOfSpeedLimitMarkings", "numberOfCrossingMarkings"), 0))
 
-    def _fill_lights(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        info = _child(values, node, "activeLightSensorInfo")
-        if info is None:
-            return
-        ld, ln = info
-        cls = "light_spot_classification"
-        spots, sn = _elements(ld, ln, "activeLightSpots")
+    def _spot_rows(self, count: int) -> tuple[list[tuple[float, ...]], bool]:
+        """The light spots' rows (tuples in the order of :data:`_SPOT_KEYS`), nearest first,
+        and whether an oncoming vehicle is among them."""
         lit = np.flatnonzero(self._alive & (self._kind <= CYCLIST) & (self._s > 3.0))
-        lit = lit[np.argsort(self._s[lit], kind="stable")][:min(self._n_spots, len(spots))]
-        y_all = self._lateral(self._s, self._d)
+        lit = lit[np.argsort(self._s[lit], kind="stable")][:min(self._n_spots, count)]
         vsign = -1.0 if self.config.spot_angles_up else 1.0  # top, bottom: below-positive
-        # rows as tuples in the order of _SPOT_KEYS / _REFLECT_KEYS (no dict per row); the
-        # arrays as Python numbers first (the same values float() of an element gives)
+        # the arrays as Python numbers first (the same values float() of an element gives)
         rows: list[tuple[float, ...]] = []
-        oncoming_seen = False
-        s_l, y_l, w_l, cls_l, kind_l, oid_l = (a.tolist() for a in (
-            self._s, y_all, self._w, self._cls, self._kind, self._oid))
+        s_l, w_l, cls_l, kind_l, oid_l = (a[lit].tolist() for a in (
+            self._s, self._w, self._cls, self._kind, self._oid))
+        y_l = self._lateral(self._s[lit], self._d[lit]).tolist()
         atan2, tan = math.atan2, math.tan
-        for i in lit.tolist():
-            s, y, half = s_l[i], y_l[i], max(w_l[i] / 2 - 0.15, 0.0)
-            name, kind = CLASSES[cls_l[i]][0], kind_l[i]
-            pair = name not in ("bike", "bicycle")
-            oncoming_seen |= kind == ONCOMING
-            code = (_code(cls, "Pair of Headlamps", 3) if kind == ONCOMING else
-                    _code(cls, "Pair of Tail-lamps", 4) if pair else _code(cls, "Tail-lamp", 2))
+        c = "light_spot_classification"
+        codes = (_code(c, "Pair of Headlamps", 3), _code(c, "Pair of Tail-lamps", 4),
+                 _code(c, "Tail-lamp", 2))
+        for s, y, w, ci, kind, oid in zip(s_l, y_l, w_l, cls_l, kind_l, oid_l, strict=True):
+            half = max(w / 2 - 0.15, 0.0)
             # §15 light spots: "angles to the right of the sensor coordinate system are
             # positive"; "angle above the horizon are positive" from SW4.0 (line 3295), below
             # before it (line 3257); pixels from the image's left bottom corner
             left, right = atan2(-y - half, s), atan2(half - y, s)
             top, bottom = atan2(CAM_HEIGHT - 1.0, s), atan2(CAM_HEIGHT - 0.6, s)
-            oid = float(oid_l[i])
             rows.append((  # _SPOT_KEYS
                 left, right, vsign * top, vsign * bottom, oid, oid, s,
                 IMAGE_H / 2 - FOCAL_PX * tan(top), IMAGE_H / 2 - FOCAL_PX * tan(bottom),
                 IMAGE_W / 2 + FOCAL_PX * tan(left), IMAGE_W / 2 + FOCAL_PX * tan(right),
-                code, float(name == "truck")))
+                codes[0] if kind == ONCOMING else codes[1] if _PAIR_LAMPS[ci] else codes[2],
+                float(ci == _TRUCK)))
+        return rows, ONCOMING in kind_l
+
+    def _reflect_rows(self, count: int) -> list[tuple[float, ...]]:
+        """The reflective signs' rows (tuples in the order of :data:`_REFLECT_KEYS`)."""
+        idx, y_all = self._visible_signs()
+        idx = idx[:count]
+        out: list[tuple[float, ...]] = []
+        atan2 = math.atan2
+        for s, z, sid, y in zip(self._sg_s[idx].tolist(), self._sg_z[idx].tolist(),
+                                self._sg_id[idx].tolist(), y_all[:count].tolist(), strict=True):
+            z -= CAM_HEIGHT
+            glare = 100.0 * math.exp(-s / 50.0)
+            out.append((  # §15: "Negative: left"
+                atan2(-y - 0.4, s), atan2(0.4 - y, s), atan2(z - 0.4, s), atan2(z + 0.4, s),
+                float(sid), s, min(100.0, glare + 10.0), glare))
+        return out
+
+    def _fill_lights(self, values: dict[str, Any], node: _Node, t: float) -> None:
+        info = _child(values, node, "activeLightSensorInfo")
+        if info is None:
+            return
+        ld, ln = info
+        spots, sn = _elements(ld, ln, "activeLightSpots")
+        rows, oncoming_seen = self._spot_rows(len(spots))
         _write_table(spots, sn, _SPOT_KEYS, rows, _SPOT_KEYS)
         signs, gn = _elements(ld, ln, "reflectiveSigns")
-        refl: list[tuple[float, ...]] = []
-        sg_s, sg_z, sg_id = self._sg_s.tolist(), self._sg_z.tolist(), self._sg_id.tolist()
-        for i, y in self._visible_signs()[:len(signs)]:
-            s, z = sg_s[i], sg_z[i] - CAM_HEIGHT
-            glare = 100.0 * math.exp(-s / 50.0)
-            refl.append((  # _REFLECT_KEYS; §15: "Negative: left"
-                atan2(-y - 0.4, s), atan2(0.4 - y, s), atan2(z - 0.4, s), atan2(z + 0.4, s),
-                float(sg_id[i]), s, min(100.0, glare + 10.0), glare))
+        refl = self._reflect_rows(len(signs))
         _write_table(signs, gn, _REFLECT_KEYS, refl, _REFLECT_KEYS)
+        lit = len(rows) > 0
         _puts(ld, ln, {
             "numOfActiveLightSpots": len(rows), "numOfReflectiveSigns": len(refl),
             "clearFieldOfView": _code("ahbc_clear_field_of_view", "No Clear Field-Of-View", 1)
-            if rows else _code("ahbc_clear_field_of_view", "Clear Field-Of-View", 2),
-            "beamRequest": _code("ahbc_beam_request", "OFF" if rows else "ON", 0 if rows else 1),
+            if lit else _code("ahbc_clear_field_of_view", "Clear Field-Of-View", 2),
+            "beamRequest": _code("ahbc_beam_request", "OFF" if lit else "ON", 0 if lit else 1),
             "oncomingLaneNotDark": int(oncoming_seen)})
         _puts_once(ld, ln, "ahbc", lambda: {
             "ahbcAvailable": _code("ahbc_available", "Full", 2),
@@ -499,16 +508,15 @@ class Scene(SceneWorld):
         srp = _child(values, node, "visSRP")
         if srp is None:
             return
-        for key, phase in (("leftWheelDataPoints", self._phase[0]),
-                           ("rightWheelDataPoints", self._phase[1])):
+        two_pi, sin, s_e = 2 * math.pi, math.sin, self._s_e
+        for key, phase in (("leftWheelDataPoints", float(self._phase[0])),
+                           ("rightWheelDataPoints", float(self._phase[1]))):
             elems, en = _elements(*srp, key)
-            rows: list[dict[str, float]] = []
-            for k in range(len(elems)):  # road profile under each wheel, 5..32 m ahead
-                pos = self._s_e + 5.0 + 3.0 * k
-                rows.append({"height": 0.8 * math.sin(2 * math.pi * pos / 37.0 + phase)
-                             + 0.4 * math.sin(2 * math.pi * pos / 11.3 + 2 * phase),
-                             "conf": 15 - k})
-            _write_rows(elems, en, rows, ("height", "conf"))
+            # road profile under each wheel, 5..32 m ahead
+            pos = [s_e + 5.0 + 3.0 * k for k in range(len(elems))]
+            _write_table(elems, en, ("height", "conf"), [
+                (0.8 * sin(two_pi * p / 37.0 + phase) + 0.4 * sin(two_pi * p / 11.3 + 2 * phase),
+                 15 - k) for k, p in enumerate(pos)], ("height", "conf"))
         _puts(*srp, {"vehicleVelocity": self._v, "frameValid": 1})
 
     def _fill_timesync(self, values: dict[str, Any], node: _Node, t: float) -> None:
