@@ -44,9 +44,11 @@ from eyeq_spi.sim.scene_layout import (
     _Node,
     _node_for,
     _obj_plan,
+    clip,
 )
 from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
 from eyeq_spi.sim.scene_write import (
+    _bound_puts,
     _puts,
     _puts_once,
     _write_objects_packed,
@@ -69,6 +71,8 @@ _STD = np.array([(0.05, 0.002), (0.2, 0.01), (0.1, 0.01), (0.1, 0.005), (0.2, 0.
 # light spots: a pair of lamps unless a two-wheeler; the truck flag
 _PAIR_LAMPS = tuple(c[0] not in ("bike", "bicycle") for c in CLASSES)
 _TRUCK = next(k for k, c in enumerate(CLASSES) if c[0] == "truck")
+_BORDER_OFFSET = {"leftRoadBorder": 3 * HALF_LANE + 0.8, "rightRoadBorder": -3 * HALF_LANE - 0.6}
+_HEADER_KEYS = ("timestamp_ms", "timestamp_us", "frameIndex", "imageIndex", "vehIndexUsed")
 _STRUCTS: dict[int, tuple[_Node, list[tuple[str, _Node]]]] = {}
 
 
@@ -121,7 +125,7 @@ class Scene(SceneWorld):
         ttc = np.where((s > 0.0) & (closing > 0.1),
                        np.minimum(s / np.maximum(closing, 0.1), TTC_NONE), TTC_NONE)
         age = self._frame_now - self._birth[idx] + 1
-        conf = np.clip(0.97 - 0.0015 * a_s + self._cbias[idx]
+        conf = clip(0.97 - 0.0015 * a_s + self._cbias[idx]
                        - 0.2 * np.exp(-np.maximum(age, 1) / 6.0), 0.5, 1.0)
         # the standard deviations a + b·|s| (_STD) in two numpy steps for all of them: the same
         # multiplication and addition per element as one row at a time
@@ -144,7 +148,7 @@ class Scene(SceneWorld):
         lane = self._lane_index(d)
         lanes = _lane_codes()
         lane_code = np.where(np.abs(lane) > 2, _code("object_lane_assignment", "UNKNOWN", 3),
-                             lanes[np.clip(lane, -2, 2) + 2])
+                             lanes[clip(lane, -2, 2) + 2])
         vehicle = kind <= ONCOMING
         cipv = np.where(vehicle | (kind == CYCLIST), _code("object_is_cipv", "no_CIPV", 1),
                         _code("object_is_cipv", "not_relevant", 0))
@@ -218,27 +222,40 @@ class Scene(SceneWorld):
         version), or into a :class:`~eyeq_spi.sim.dasp_fast.DaspPacker`'s root view (the same
         writes, packed in place); members the layout lacks are skipped, unknown messages are
         left unchanged."""
-        method = _FILLERS.get(name)
-        if method is None:
-            return
         last = self._nodes.get(name)
         if last is not None and last[0] is values:  # the caller reuses its dict: same layout
-            node = last[1]
+            node, heads, method = last[1], last[2], last[3]
         else:
+            filler = _FILLERS.get(name)
+            if filler is None:
+                return
+            method = filler
             # a packer's view has the shape of its template dict (the same ranges)
             shape = values.template if isinstance(values, StructView) else values
             node = None if shape is None else _node_for(name, shape)
-            self._nodes[name] = (values, node)
+            # a packer's views never change: their headers' writers are bound once
+            heads = None if node is None or not isinstance(values, StructView) else [
+                _bound_puts(values, node, _HEADER_KEYS), *(
+                    _bound_puts(values[key], sub, _HEADER_KEYS)
+                    for key, sub in _struct_members(node)
+                    if isinstance(values.get(key), StructView))]
+            self._nodes[name] = (values, node, heads, method)
         if node is None:
             return
         t = float(t)
-        self._fill_header(values, node, t)
-        for key, sub in _struct_members(node):
-            if isinstance(values.get(key), dict | StructView):
-                self._fill_header(values[key], sub, t)
+        if heads is not None:
+            vals = self._header_values(t)
+            for put in heads:
+                put(vals)
+        else:
+            self._fill_header(values, node, t)
+            for key, sub in _struct_members(node):
+                if isinstance(values.get(key), dict | StructView):
+                    self._fill_header(values[key], sub, t)
         getattr(self, method)(values, node, t)
 
-    def _fill_header(self, d: dict[str, Any], n: _Node, t: float) -> None:
+    def _header_values(self, t: float) -> dict[str, float]:
+        """The values of every header of instant ``t`` (kept for the next message)."""
         last = self._header
         if last is None or last[0] != t or last[1] != self._veh_index:
             frame = _frame(t)
@@ -246,7 +263,10 @@ class Scene(SceneWorld):
                 "timestamp_ms": int(t * 1000) & 0xFFFFFFFF,
                 "timestamp_us": max(0, round(t * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
                 "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
-        _puts(d, n, last[2])  # the same values for every header of one instant
+        return last[2]
+
+    def _fill_header(self, d: dict[str, Any], n: _Node, t: float) -> None:
+        _puts(d, n, self._header_values(t))  # the same values for every header of one instant
 
     def _fill_nothing(self, values: dict[str, Any], node: _Node, t: float) -> None:
         """Headers only (EYEQ_SAFETY_MSG: no safety fault, no challenge)."""
@@ -265,8 +285,8 @@ class Scene(SceneWorld):
         n = min(f.shape[1], len(objs))
         i = i[:, :n].copy()
         i[_AGE_ROW] = np.maximum(_frame(t) - birth[:n] + 1, 1)
-        fa = np.clip(f[:, :n], plan.flo[:, None], plan.fhi[:, None])
-        ia = np.clip(i, plan.ilo[:, None], plan.ihi[:, None])
+        fa = clip(f[:, :n], plan.flo[:, None], plan.fhi[:, None])
+        ia = clip(i, plan.ilo[:, None], plan.ihi[:, None])
         if isinstance(objs[0], StructView) and _write_objects_packed(objs, plan, fa, ia, n):
             return
         fl, il = fa.tolist(), ia.tolist()
@@ -339,6 +359,11 @@ class Scene(SceneWorld):
             "nextLeftLeftMarker": (3 * HALF_LANE, "SOLID", 0.75 * view, p[5]),
             "nextRightRightMarker": (-3 * HALF_LANE, "SOLID", 0.75 * view, p[6]),
             "nextLeftRightMarker": None, "nextRightLeftMarker": None}
+        if isinstance(rd, StructView):
+            plan = rd.writers.get(("road", id(rn)))
+            if plan is not None and plan[0] is rn and ("road", id(rn)) in rd.done:
+                self._fill_road_moving(plan[1], markers, view)
+                return
         mi = _child(rd, rn, "roadMarkerInfo")
         if mi:
             for key, spec in markers.items():
@@ -349,8 +374,8 @@ class Scene(SceneWorld):
                 "ambiguousLinePatternLeft": 0, "ambiguousLinePatternRight": 0,
                 "constructionArea": 0, "roadPredictionLeft": 0, "roadPredictionRight": 0})
         bi = _child(rd, rn, "roadBorderInfo")
-        borders = (("leftRoadBorder", 3 * HALF_LANE + 0.8, "Barrier", 4, 0.8),
-                   ("rightRoadBorder", -3 * HALF_LANE - 0.6, "Curb", 3, 0.15))
+        borders = (("leftRoadBorder", _BORDER_OFFSET["leftRoadBorder"], "Barrier", 4, 0.8),
+                   ("rightRoadBorder", _BORDER_OFFSET["rightRoadBorder"], "Curb", 3, 0.15))
         for key, offset, kind, default, height in borders if bi else ():
             b = _child(*bi, key) if bi else None
             if b is None:
@@ -375,6 +400,57 @@ class Scene(SceneWorld):
         _puts_once(rd, rn, "road", lambda: {
             "drivingSide": _code("road_driving_side", "Right Side", 0),
             "laneChange": _code("road_lane_change", "No lane change", 0)})
+        if isinstance(rd, StructView):  # the constants are in place until the packer's reset
+            rd.writers[("road", id(rn))] = (rn, self._road_plan(rd, rn, markers))
+            rd.done.add(("road", id(rn)))
+
+    @staticmethod
+    def _road_plan(rd: dict[str, Any], rn: _Node,
+                   markers: dict[str, tuple[float, str, float, float] | None]
+                   ) -> list[tuple[str, Any, Any]]:
+        """What :meth:`_fill_road` writes that changes from frame to frame, as bound writers:
+        (marker key or border offset, the polynomial's writer, the marker's two writers)."""
+        out: list[tuple[str, Any, Any]] = []
+        poly_keys = ("a0", "a1", "a2", "a3", "startRange", "endRange")
+        mi = _child(rd, rn, "roadMarkerInfo")
+        for key, spec in markers.items() if mi else ():
+            m = _child(*mi, key) if mi else None
+            if m is None or spec is None:
+                continue
+            poly, conf = _child(*m, "laneMarker"), _child(*m, "laneMarkerConf")
+            out.append((key, poly and _bound_puts(*poly, poly_keys), (
+                conf and _bound_puts(*conf, ("sfConf",)),
+                _bound_puts(*m, ("measuredViewRange",)))))
+        bi = _child(rd, rn, "roadBorderInfo")
+        for key in ("leftRoadBorder", "rightRoadBorder") if bi else ():
+            b = _child(*bi, key) if bi else None
+            poly = _child(*b, "roadBorder") if b else None
+            if poly:
+                out.append((key, _bound_puts(*poly, poly_keys), None))
+        hpp = _child(rd, rn, "roadHppFusionInfo")
+        centre = _child(*hpp, "laneCenter") if hpp else None
+        if centre:
+            out.append(("laneCenter", _bound_puts(*centre, poly_keys), None))
+        return out
+
+    def _fill_road_moving(self, plan: list[tuple[str, Any, Any]],
+                          markers: dict[str, tuple[float, str, float, float] | None],
+                          view: float) -> None:
+        """The writes of :meth:`_fill_road` that change, in its order, through its plan."""
+        for key, poly, extra in plan:
+            if extra is not None:  # a marker: see _fill_marker
+                spec = markers[key]
+                assert spec is not None
+                offset, kind, mview, phase = spec
+                if poly:
+                    poly(self._poly_values(offset, mview))
+                if extra[0]:
+                    extra[0]({"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase)})
+                extra[1]({"measuredViewRange": mview * (0.85 if kind == "DASHED" else 0.95)})
+            elif key == "laneCenter":
+                poly(self._poly_values(0.0, view))
+            else:
+                poly(self._poly_values(_BORDER_OFFSET[key], 0.6 * view))
 
     def _visible_signs(self) -> tuple[IArr, FArr]:
         """Signs ahead, nearest first, and their lateral distances; once per step (both sign

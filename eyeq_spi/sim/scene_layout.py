@@ -4,6 +4,7 @@ declared range and wire type (split out of :mod:`eyeq_spi.sim.scene`)."""
 
 from __future__ import annotations
 
+import importlib
 import math
 from dataclasses import dataclass
 from functools import cache
@@ -306,6 +307,20 @@ def _choose(conds: list[npt.NDArray[np.bool_]], codes: list[int], default: int) 
     for cond, code in zip(reversed(conds), reversed(codes), strict=True):
         out[cond] = code
     return out
+
+
+def _clip_ufunc() -> Any:
+    """numpy's ``clip`` ufunc, which ``np.clip`` of a float array (or with bounds inside an
+    integer array's type) ends in, without its Python wrapper (a few microseconds a call)."""
+    for mod in ("numpy._core.umath", "numpy.core.umath"):
+        try:
+            return importlib.import_module(mod).clip
+        except (ImportError, AttributeError):
+            continue
+    return np.clip  # pragma: no cover
+
+
+clip = _clip_ufunc()
 
 
 def _frame(t: float) -> int:

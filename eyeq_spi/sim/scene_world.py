@@ -59,6 +59,7 @@ from eyeq_spi.sim.scene_layout import (
     _Node,
     _ObjPlan,
     _sign_table,
+    clip,
 )
 
 
@@ -118,7 +119,9 @@ class SceneWorld:
         self._update_road(None, 0.0)
         self._cols: tuple[FArr, IArr, IArr] | None = None
         self._plans: dict[int, _ObjPlan] = {}
-        self._nodes: dict[str, tuple[dict[str, Any], _Node | None]] = {}
+        # per message: the value dict or view last filled, its range tree, its headers' writers
+        # (views only) and the filler's name
+        self._nodes: dict[str, tuple[dict[str, Any], _Node | None, list[Any] | None, str]] = {}
 
     def unanchor(self) -> None:
         """Forget the time of the last step (after a warm-up): the next step anchors the scene
@@ -377,13 +380,13 @@ class SceneWorld:
         hurry = (self._lane_index(d) == 0) & (s > 0.0) & (vx < self._v + 1.0)
         a_max, headway = np.where(hurry, 2.5, 1.2), np.where(hurry, 0.9, 1.3)
         s_star = 3.0 + np.maximum(0.0, headway * v + v * (v - v_lead) / (2 * np.sqrt(a_max * 2.0)))
-        a_idm = np.clip(a_max * (1 - (v / v0) ** 4 - (s_star / np.maximum(gap, 0.5)) ** 2), -6, 2.5)
+        a_idm = clip(a_max * (1 - (v / v0) ** 4 - (s_star / np.maximum(gap, 0.5)) ** 2), -6, 2.5)
         a_idm = np.maximum(a_idm, -v / max(h, 1e-3))  # stop, never reverse
-        ax = np.where(kind == VEHICLE, a_idm, np.clip(
+        ax = np.where(kind == VEHICLE, a_idm, clip(
             np.where(kind == ONCOMING, 0.3, 0.5) * (self._vdes - vx), -1.0, 1.0))
         err = self._dtgt - d
-        ay = np.where(kind <= ONCOMING, np.clip(0.8 * err - 1.6 * vy, -1.5, 1.5),
-                      np.clip(0.5 * err - 1.0 * vy, -0.5, 0.5))
+        ay = np.where(kind <= ONCOMING, clip(0.8 * err - 1.6 * vy, -1.5, 1.5),
+                      clip(0.5 * err - 1.0 * vy, -0.5, 0.5))
         self._ax = np.where(alive, ax, 0.0)
         self._ay = np.where(alive, ay, 0.0)
 

@@ -5,6 +5,7 @@ numpy columns (split out of :mod:`eyeq_spi.sim.scene_layout`)."""
 
 from __future__ import annotations
 
+import functools
 import struct
 from collections.abc import Callable
 from typing import Any
@@ -33,6 +34,17 @@ def _puts(d: dict[str, Any], n: _Node, vals: dict[str, float]) -> None:
             return
     for key, x in vals.items():
         _put(d, n, key, x)
+
+
+def _bound_puts(d: dict[str, Any], n: _Node, keys: tuple[str, ...]
+                ) -> Callable[[dict[str, float]], None]:
+    """:func:`_puts` of values with ``keys`` into ``d`` as one callable: for a packer's view
+    its generated writer bound to the view's buffer (views never change)."""
+    if isinstance(d, StructView):
+        fn = _compile_puts(d, n, keys)
+        if fn is not None:
+            return functools.partial(fn, d.buf, d.shadow)
+    return functools.partial(_puts, d, n)
 
 
 def _puts_once(d: dict[str, Any], n: _Node, key: str,
