@@ -73,6 +73,7 @@ _PAIR_LAMPS = tuple(c[0] not in ("bike", "bicycle") for c in CLASSES)
 _TRUCK = next(k for k, c in enumerate(CLASSES) if c[0] == "truck")
 _BORDER_OFFSET = {"leftRoadBorder": 3 * HALF_LANE + 0.8, "rightRoadBorder": -3 * HALF_LANE - 0.6}
 _HEADER_KEYS = ("timestamp_ms", "timestamp_us", "frameIndex", "imageIndex", "vehIndexUsed")
+_PX = np.array([[-FOCAL_PX], [-FOCAL_PX], [FOCAL_PX]])  # the image rows' factors
 _STRUCTS: dict[int, tuple[_Node, list[tuple[str, _Node]]]] = {}
 
 
@@ -100,50 +101,59 @@ class Scene(SceneWorld):
         birth frames; computed once per step."""
         if self._cols is not None:
             return self._cols
-        idx = np.flatnonzero(self._alive)
-        idx = idx[np.argsort(self._oid[idx], kind="stable")]
-        s, d, vx, vy, ax, ay = (a[idx] for a in (self._s, self._d, self._vx, self._vy,
-                                                 self._ax, self._ay))
-        w, length, hgt, kind = self._w[idx], self._l[idx], self._h[idx], self._kind[idx]
+        idx = self._alive.nonzero()[0]
+        idx = idx[self._oid[idx].argsort(kind="stable")]
+        # the state of the live objects as rows of two matrices: one gather for all columns.
+        # Below, what several rows share is computed once and the same operation on several
+        # rows is one numpy call on a matrix: elementwise, the same numbers as row by row
+        s, d, vx, vy, ax, ay, w, length, hgt, dtgt, cbias = np.array((
+            self._s, self._d, self._vx, self._vy, self._ax, self._ay, self._w, self._l,
+            self._h, self._dtgt, self._cbias))[:, idx]
+        kind, oid, cls, birth = np.array((self._kind, self._oid, self._cls, self._birth))[:, idx]
         c1, c2, c3 = self._poly[1:]
         y = self._lateral(s, d)
         vrel, a_s, ss = vx - self._v, np.abs(s), np.maximum(s, 0.5)
         speed = np.hypot(vx, vy)
         moving = speed >= 0.3
         road_heading = np.arctan(c1 + s * (2 * c2 + 3 * c3 * s))
-        heading = np.where(moving, np.arctan2(vy, vx), 0.0) + road_heading
-        heading = (heading + math.pi) % (2 * math.pi) - math.pi
         # §13.2.5.4: angles are measured from Z with "the positive side to the host's right";
         # y (latDistance) is left positive (ISO 8855), hence atan2(-y, ...)
-        mid = np.arctan2(-y, ss)
+        hw, ny = w / 2, -y
+        right, left = hw - y, ny - hw  # w/2 - y, -y - w/2
         far = ss + length
+        at = np.arctan2(np.array((vy, ny, right, left, right, left)),
+                        np.array((vx, ss, far, far, ss, ss)))
+        heading = np.where(moving, at[0], 0.0) + road_heading
+        heading = (heading + math.pi) % (2 * math.pi) - math.pi
+        mid = at[1]
         on_left, on_right = y > HALF_LANE, y < -HALF_LANE  # we see its right / left side
-        side = np.where(on_left, np.arctan2(w / 2 - y, far),
-                        np.where(on_right, np.arctan2(-y - w / 2, far), mid))
+        side = np.where(on_left, at[2], np.where(on_right, at[3], mid))
         ang_std = 0.002 + 5e-5 * a_s
         closing = -vrel
         ttc = np.where((s > 0.0) & (closing > 0.1),
                        np.minimum(s / np.maximum(closing, 0.1), TTC_NONE), TTC_NONE)
-        age = self._frame_now - self._birth[idx] + 1
-        conf = clip(0.97 - 0.0015 * a_s + self._cbias[idx]
-                       - 0.2 * np.exp(-np.maximum(age, 1) / 6.0), 0.5, 1.0)
+        age = self._frame_now - birth + 1
+        conf = clip(0.97 - 0.0015 * a_s + cbias
+                    - 0.2 * np.exp(-np.maximum(age, 1) / 6.0), 0.5, 1.0)
         # the standard deviations a + b·|s| (_STD) in two numpy steps for all of them: the same
         # multiplication and addition per element as one row at a time
         sd = _STD[:, :1] + _STD[:, 1:] * a_s
         f = np.array([
             w, sd[0], length, sd[1], hgt, sd[0], vx, sd[2], vy, sd[3], ax, sd[4], ay, sd[5],
             s, 0.05 + 0.01 * a_s + 5e-5 * s * s, y, sd[6], heading,
-            np.arctan2(w / 2 - y, ss), ang_std, np.arctan2(-y - w / 2, ss), ang_std, side, ang_std,
+            at[4], ang_std, at[5], ang_std, side, ang_std,
             mid, ang_std, -(ss * vy - y * vrel) / (ss * ss + y * y), sd[7],
             conf, ttc], dtype=np.float64)
-        # image: origin at the image centre, x right, y down (the rect is for visualisation)
+        # image: origin at the image centre, x right, y down (the rect is for visualisation);
+        # -FOCAL_PX * (y + w/2), -FOCAL_PX * (y - w/2), FOCAL_PX * (CAM_HEIGHT - hgt)
         vis = s > 0.5
-        u_l, u_r = -FOCAL_PX * (y + w / 2) / ss, -FOCAL_PX * (y - w / 2) / ss
-        v_t, v_b = FOCAL_PX * (CAM_HEIGHT - hgt) / ss, FOCAL_PX * CAM_HEIGHT / ss
+        px = np.array((y + hw, y - hw, CAM_HEIGHT - hgt)) * _PX
+        u_l, u_r, v_t = px / ss
+        v_b = FOCAL_PX * CAM_HEIGHT / ss
         side_vis = vis & (on_left | on_right)
-        u_s = np.where(side_vis, -FOCAL_PX * np.where(on_left, y - w / 2, y + w / 2) / far, 0.0)
-        v_ts = np.where(side_vis, FOCAL_PX * (CAM_HEIGHT - hgt) / far, 0.0)
-        v_bs = np.where(side_vis, FOCAL_PX * CAM_HEIGHT / far, 0.0)
+        u_s, v_ts, v_bs = np.where(side_vis, np.array((
+            np.where(on_left, px[1], px[0]), px[2], np.full(len(idx), FOCAL_PX * CAM_HEIGHT)))
+            / far, 0.0)
         zero = np.zeros(len(idx))
         lane = self._lane_index(d)
         lanes = _lane_codes()
@@ -155,7 +165,7 @@ class Scene(SceneWorld):
         ahead = (lane == 0) & (s > 0.0)
         if ahead.any():
             cipv[int(np.argmin(np.where(ahead, s, np.inf)))] = _code("object_is_cipv", "CIPV", 2)
-        err = self._dtgt[idx] - d
+        err = dtgt - d
         signal = kind == VEHICLE
         i = np.array([
             u_l, u_r, v_t, v_b,
@@ -166,13 +176,13 @@ class Scene(SceneWorld):
             np.where(vis & on_left, _code("object_visible_side", "Right", 1),
                      np.where(vis & on_right, _code("object_visible_side", "Left", 2), 0)),
             self._motion_status(speed, vehicle), self._motion_category(
-                s, vx, vy, vrel, lane, kind, moving, d, self._dtgt[idx]),
+                s, vx, vy, vrel, lane, kind, moving, d, dtgt),
             self._motion_orientation(vx, vy, moving),
-            zero, self._oid[idx], self._cls_code[self._cls[idx]], cipv, lane_code,
+            zero, oid, self._cls_code[cls], cipv, lane_code,
             vehicle, signal & (ax < -1.0), signal & (err < -0.5), signal & (err > 0.5),
             zero, np.abs(d) < 3 * HALF_LANE + 0.5, (s < 3.0) & (np.abs(y) < 3.0)],
             dtype=np.float64)
-        self._cols = (f, np.rint(i).astype(np.int64), self._birth[idx].copy())
+        self._cols = (f, np.rint(i).astype(np.int64), birth)
         return self._cols
 
     @staticmethod
@@ -458,8 +468,8 @@ class Scene(SceneWorld):
         cached = self._signs_seen
         if cached is not None and cached[0] is self._cols and cached[0] is not None:
             return cached[1]
-        idx = np.flatnonzero(self._sg_alive & (self._sg_s > 0.0))
-        idx = idx[np.argsort(self._sg_s[idx], kind="stable")]
+        idx = (self._sg_alive & (self._sg_s > 0.0)).nonzero()[0]
+        idx = idx[self._sg_s[idx].argsort(kind="stable")]
         out = (idx, self._lateral(self._sg_s[idx], self._sg_lat[idx]))
         self._signs_seen = (self._cols, out)
         return out
@@ -497,8 +507,8 @@ class Scene(SceneWorld):
     def _spot_rows(self, count: int) -> tuple[list[tuple[float, ...]], bool]:
         """The light spots' rows (tuples in the order of :data:`_SPOT_KEYS`), nearest first,
         and whether an oncoming vehicle is among them."""
-        lit = np.flatnonzero(self._alive & (self._kind <= CYCLIST) & (self._s > 3.0))
-        lit = lit[np.argsort(self._s[lit], kind="stable")][:min(self._n_spots, count)]
+        lit = (self._alive & (self._kind <= CYCLIST) & (self._s > 3.0)).nonzero()[0]
+        lit = lit[self._s[lit].argsort(kind="stable")][:min(self._n_spots, count)]
         vsign = -1.0 if self.config.spot_angles_up else 1.0  # top, bottom: below-positive
         # the arrays as Python numbers first (the same values float() of an element gives)
         rows: list[tuple[float, ...]] = []

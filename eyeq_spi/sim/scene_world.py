@@ -62,6 +62,9 @@ from eyeq_spi.sim.scene_layout import (
     clip,
 )
 
+_ROWS = np.arange(MAX_OBJECTS)
+_OTHERS = ~np.eye(MAX_OBJECTS, dtype=bool)  # pairs of two different objects
+
 
 @dataclass
 class SceneConfig:
@@ -281,7 +284,7 @@ class SceneWorld:
         return s, d, vdes
 
     def _spawn(self, initial: bool = False, first: bool = False) -> bool:
-        free = np.flatnonzero(~self._alive)
+        free = (~self._alive).nonzero()[0]
         if len(free) == 0 or not self._free_ids:
             return False
         i, rng = int(free[0]), self._rng
@@ -347,13 +350,13 @@ class SceneWorld:
         escape = steady & (lane == 0) & (s > -1.0) & (closing > 0.5) & (
             (s < 10.0 * closing) | (s < 0.8 * v_e + 5.0))
         u = rng.random((3, MAX_OBJECTS))
-        for i in (int(k) for k in np.flatnonzero(escape)):
+        for i in (int(k) for k in escape.nonzero()[0]):
             if not (self._change_lane(i, -1, True) or self._change_lane(i, 1, True)):
                 # boxed in: the whole ego lane ahead speeds up
                 platoon = self._alive & (self._kind == VEHICLE) & (s > -1.0) & (
                     (lane == 0) | (self._lane_index(self._d) == 0))
                 self._vdes[platoon] = np.maximum(self._vdes[platoon], v_e + 3.0)
-        for i in (int(k) for k in np.flatnonzero(steady & ~escape & (u[0] < 0.03 * h))):
+        for i in (int(k) for k in (steady & ~escape & (u[0] < 0.03 * h)).nonzero()[0]):
             self._change_lane(i, int(lane[i]) + (1 if u[1, i] < 0.5 else -1))
         drift = u[2] < 0.1 * h
         if drift.any():
@@ -366,12 +369,11 @@ class SceneWorld:
         veh = alive & (kind == VEHICLE)
         same = (np.abs(d[:, None] - d[None, :]) < 2.0) | (
             np.abs(self._dtgt[:, None] - d[None, :]) < 2.0)
-        same &= veh[:, None] & veh[None, :]
-        np.fill_diagonal(same, False)
+        same &= (veh[:, None] & veh[None, :]) & _OTHERS  # not itself
         gaps = np.where(same & (s[None, :] > s[:, None]),
                         s[None, :] - s[:, None] - self._l[:, None], np.inf)
         lead = np.argmin(gaps, axis=1)
-        gap, v_lead = gaps[np.arange(MAX_OBJECTS), lead], vx[lead]
+        gap, v_lead = gaps[_ROWS, lead], vx[lead]
         ego_gap = -EGO_LENGTH - s - self._l
         use = veh & (np.abs(d - self._e) < 2.0) & (s < -1.0) & (ego_gap < gap)
         gap, v_lead = np.where(use, ego_gap, gap), np.where(use, self._v, v_lead)
@@ -394,7 +396,7 @@ class SceneWorld:
     def _signs(self) -> None:
         s = self._sg_s
         gone = self._sg_alive & ((s < 8.0) | (s < np.abs(self._sg_lat) / math.tan(0.7)))
-        for i in np.flatnonzero(gone):
+        for i in gone.nonzero()[0]:
             self._sg_alive[i] = False
             self._free_sign_ids.append(int(self._sg_id[i]))
         if self._s_e - self._next_sign > 1000.0:
@@ -415,7 +417,7 @@ class SceneWorld:
             if names[k][6:].isdigit() and rng.random() < 0.4:  # speed limits often in pairs
                 places.append((3 * HALF_LANE + rng.uniform(0.8, 1.5), places[0][1]))
         for lat, z in places:
-            free = np.flatnonzero(~self._sg_alive)
+            free = (~self._sg_alive).nonzero()[0]
             if int(self._sg_alive.sum()) >= self._n_signs or len(free) == 0:
                 return
             i = int(free[0])
