@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -17,7 +18,17 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.dasp_fast import DaspPacker
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
-from eyeq_spi.sim.scene_layout import _REFLECT_KEYS, _SIGN_KEYS, _SPOT_KEYS, _child, _elements
+from eyeq_spi.sim.scene import Scene
+from eyeq_spi.sim.scene_layout import (
+    _REFLECT_KEYS,
+    _SIGN_KEYS,
+    _SPOT_KEYS,
+    ONCOMING,
+    VEHICLE,
+    _child,
+    _code,
+    _elements,
+)
 from eyeq_spi.sim.scene_layout import _node_for as node_for
 from eyeq_spi.sim.scene_write import _MIN_NUMPY, _write_table
 
@@ -120,3 +131,50 @@ def test_the_road_writes_its_constants_again_after_a_reset(sw: str) -> None:
             ref._templates.pop(m.name, None)
         assert ref._dasp_bytes(m, k, t) == new._dasp_bytes(m, k, t), k
     assert new.dasp_paths["packed"] == 6
+
+
+def _motion_reference(s: float, vx: float, vy: float, vrel: float, lane: int, kind: int,
+                      speed: float, d: float, dtgt: float) -> tuple[int, int, int]:
+    """The object motion rules one object at a time, first true condition wins (§13.2.2)."""
+    def c(enum: str, name: str, v: int) -> int:
+        return _code(f"object_motion_{enum}", name, v)
+
+    moving, vehicle, changing = speed >= 0.3, kind <= ONCOMING, kind == VEHICLE
+    status = (c("status", "moving", 1) if speed >= 2.0 else
+              c("status", "Moving_slowly", 4) if moving else
+              c("status", "Stopped", 3) if vehicle else c("status", "stationary", 2))
+    crossing, oncoming = abs(vy) > max(abs(vx), 0.5), vx < -1.0
+    category = next((code for cond, code in (
+        (crossing, c("category", "Crossing", 7)), (oncoming, c("category", "Oncoming", 12)),
+        (changing and abs(dtgt) < abs(d) - 0.5, c("category", "Moving_in", 5)),
+        (changing and abs(dtgt) > abs(d) + 0.5, c("category", "Moving_out", 6)),
+        (moving and lane == 0 and s > 0.0 and vx > 0.5, c("category", "Preceding", 11)),
+        (moving and lane != 0 and vrel > 1.0 and changing, c("category", "Passing", 1)),
+        (moving, c("category", "Moving", 10))) if cond), c("category", "Undefined", 0))
+    orientation = next((code for cond, code in (
+        (crossing and vy > 0, c("orientation", "Crossing_left", 6)),
+        (crossing, c("orientation", "Crossing_right", 2)),
+        (oncoming and vy > 0.3, c("orientation", "Oncoming_drifting_left", 5)),
+        (oncoming and vy < -0.3, c("orientation", "Oncoming_drifting_right", 3)),
+        (oncoming, c("orientation", "Oncoming", 4)),
+        (moving and vy > 0.3, c("orientation", "Drifting_left", 7)),
+        (moving and vy < -0.3, c("orientation", "Drifting_right", 1)),
+        (moving, c("orientation", "Preceding", 8))) if cond), c("orientation", "Unknown", 0))
+    return status, category, orientation
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(
+    st.floats(-30, 200), st.floats(-40, 45), st.floats(-3, 3), st.floats(-20, 20),
+    st.integers(-3, 3), st.integers(0, 3), st.floats(-12, 12), st.floats(-12, 12),
+    st.sampled_from([0.0, 0.2999, 0.3, 1.0, 1.999, 2.0, 5.0])), min_size=1, max_size=15))
+def test_motion_rule_tables_pick_the_first_true_condition(rows: list[tuple[Any, ...]]) -> None:
+    """Scene._motion (the conditions as bits of one index into rule tables) gives, object by
+    object, what the ordered rules give, thresholds included."""
+    s, vx, vy, vrel, lane, kind, d, dtgt, speed = (np.array(col) for col in zip(*rows,
+                                                                               strict=True))
+    got = Scene._motion(s, vx, vy, vrel, lane.astype(np.int64), kind.astype(np.int64), speed,
+                        speed >= 0.3, d, dtgt)
+    want = [_motion_reference(float(r[0]), float(r[1]), float(r[2]), float(r[3]), int(r[4]),
+                              int(r[5]), float(r[8]), float(r[6]), float(r[7])) for r in rows]
+    assert got.T.tolist() == [list(w) for w in want]

@@ -11,7 +11,6 @@ declared range and wire type (the intersection over every release with that shap
 from __future__ import annotations
 
 import math
-from functools import cache
 from typing import Any
 
 import numpy as np
@@ -20,10 +19,17 @@ import numpy.typing as npt
 from eyeq_spi.sim.dasp_fast import StructView
 from eyeq_spi.sim.scene_layout import (
     _AGE_ROW,
+    _BIT_WEIGHTS,
+    _BORDER_OFFSET,
     _FILLERS,
+    _HEADER_KEYS,
+    _PAIR_LAMPS,
+    _PX,
     _REFLECT_KEYS,
     _SIGN_KEYS,
     _SPOT_KEYS,
+    _STD,
+    _TRUCK,
     CAM_HEIGHT,
     CLASSES,
     CYCLIST,
@@ -37,13 +43,15 @@ from eyeq_spi.sim.scene_layout import (
     FArr,
     IArr,
     _child,
-    _choose,
     _code,
     _elements,
     _frame,
+    _lane_codes,
+    _motion_tables,
     _Node,
     _node_for,
     _obj_plan,
+    _struct_members,
     clip,
 )
 from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
@@ -56,35 +64,6 @@ from eyeq_spi.sim.scene_write import (
 )
 
 __all__ = ["CLASSES", "Scene", "SceneConfig", "SceneWorld"]
-
-
-@cache
-def _lane_codes() -> IArr:
-    return np.array([_code("object_lane_assignment", n, v) for n, v in (
-        ("RIGHT_NEXT_NEXT", 2), ("RIGHT_NEXT", 1), ("EGO_LANE", 0), ("LEFT_NEXT", -1),
-        ("LEFT_NEXT_NEXT", -2))])
-
-
-# (a, b) of the obstacles' standard deviations a + b·|longDistance| (physicalState, angularState)
-_STD = np.array([(0.05, 0.002), (0.2, 0.01), (0.1, 0.01), (0.1, 0.005), (0.2, 0.004),
-                 (0.2, 0.002), (0.05, 0.003), (0.005, 1e-4)])
-# light spots: a pair of lamps unless a two-wheeler; the truck flag
-_PAIR_LAMPS = tuple(c[0] not in ("bike", "bicycle") for c in CLASSES)
-_TRUCK = next(k for k, c in enumerate(CLASSES) if c[0] == "truck")
-_BORDER_OFFSET = {"leftRoadBorder": 3 * HALF_LANE + 0.8, "rightRoadBorder": -3 * HALF_LANE - 0.6}
-_HEADER_KEYS = ("timestamp_ms", "timestamp_us", "frameIndex", "imageIndex", "vehIndexUsed")
-_PX = np.array([[-FOCAL_PX], [-FOCAL_PX], [FOCAL_PX]])  # the image rows' factors
-_STRUCTS: dict[int, tuple[_Node, list[tuple[str, _Node]]]] = {}
-
-
-def _struct_members(node: _Node) -> list[tuple[str, _Node]]:
-    """The members of ``node`` that are one struct (not an array of them): where
-    :meth:`Scene.fill` writes a header too. Kept per node (range trees live for the process)."""
-    got = _STRUCTS.get(id(node))
-    if got is None or got[0] is not node:
-        got = _STRUCTS[id(node)] = (node, [(k, sub) for k, sub in node.members.items()
-                                        if isinstance(sub, _Node) and sub.count is None])
-    return got[1]
 
 
 class Scene(SceneWorld):
@@ -175,9 +154,7 @@ class Scene(SceneWorld):
                                    _code("object_visible_rect", "Back", 2)), 0),
             np.where(vis & on_left, _code("object_visible_side", "Right", 1),
                      np.where(vis & on_right, _code("object_visible_side", "Left", 2), 0)),
-            self._motion_status(speed, vehicle), self._motion_category(
-                s, vx, vy, vrel, lane, kind, moving, d, dtgt),
-            self._motion_orientation(vx, vy, moving),
+            *self._motion(s, vx, vy, vrel, lane, kind, speed, moving, d, dtgt),
             zero, oid, self._cls_code[cls], cipv, lane_code,
             vehicle, signal & (ax < -1.0), signal & (err < -0.5), signal & (err > 0.5),
             zero, np.abs(d) < 3 * HALF_LANE + 0.5, (s < 3.0) & (np.abs(y) < 3.0)],
@@ -186,44 +163,18 @@ class Scene(SceneWorld):
         return self._cols
 
     @staticmethod
-    def _motion_status(speed: FArr, vehicle: npt.NDArray[np.bool_]) -> IArr:
-        c = _code
-        out: IArr = _choose(
-            [speed >= 2.0, speed >= 0.3, vehicle],
-            [c("object_motion_status", "moving", 1), c("object_motion_status", "Moving_slowly", 4),
-             c("object_motion_status", "Stopped", 3)], c("object_motion_status", "stationary", 2))
-        return out
-
-    @staticmethod
-    def _motion_category(s: FArr, vx: FArr, vy: FArr, vrel: FArr, lane: IArr, kind: IArr,
-                         moving: npt.NDArray[np.bool_], d: FArr, dtgt: FArr) -> IArr:
-        def c(name: str, default: int) -> int:
-            return _code("object_motion_category", name, default)
-
+    def _motion(s: FArr, vx: FArr, vy: FArr, vrel: FArr, lane: IArr, kind: IArr, speed: FArr,
+                moving: npt.NDArray[np.bool_], d: FArr, dtgt: FArr) -> IArr:
+        """motionStatus, motionCategory and motionOrientation (rows): each object's conditions
+        as the bits of one index into the rule tables of :func:`_motion_tables`."""
         changing = kind == VEHICLE
-        out: IArr = _choose(
-            [np.abs(vy) > np.maximum(np.abs(vx), 0.5), vx < -1.0,
-             changing & (np.abs(dtgt) < np.abs(d) - 0.5),
-             changing & (np.abs(dtgt) > np.abs(d) + 0.5),
-             moving & (lane == 0) & (s > 0.0) & (vx > 0.5),
-             moving & (lane != 0) & (vrel > 1.0) & (kind == VEHICLE), moving],
-            [c("Crossing", 7), c("Oncoming", 12), c("Moving_in", 5), c("Moving_out", 6),
-             c("Preceding", 11), c("Passing", 1), c("Moving", 10)], c("Undefined", 0))
-        return out
-
-    @staticmethod
-    def _motion_orientation(vx: FArr, vy: FArr, moving: npt.NDArray[np.bool_]) -> IArr:
-        def c(name: str, default: int) -> int:
-            return _code("object_motion_orientation", name, default)
-
-        crossing = np.abs(vy) > np.maximum(np.abs(vx), 0.5)
-        oncoming = vx < -1.0
-        out: IArr = _choose(
-            [crossing & (vy > 0), crossing, oncoming & (vy > 0.3), oncoming & (vy < -0.3),
-             oncoming, moving & (vy > 0.3), moving & (vy < -0.3), moving],
-            [c("Crossing_left", 6), c("Crossing_right", 2), c("Oncoming_drifting_left", 5),
-             c("Oncoming_drifting_right", 3), c("Oncoming", 4), c("Drifting_left", 7),
-             c("Drifting_right", 1), c("Preceding", 8)], c("Unknown", 0))
+        bits = _BIT_WEIGHTS @ np.array((  # CROSSING .. VEHICLE_KIND
+            np.abs(vy) > np.maximum(np.abs(vx), 0.5), vx < -1.0, moving, vy > 0, vy > 0.3,
+            vy < -0.3, changing & (np.abs(dtgt) < np.abs(d) - 0.5),
+            changing & (np.abs(dtgt) > np.abs(d) + 0.5), (lane == 0) & (s > 0.0) & (vx > 0.5),
+            (lane != 0) & (vrel > 1.0) & changing, speed >= 2.0, kind <= ONCOMING),
+            dtype=np.int64)
+        out: IArr = _motion_tables()[:, bits]
         return out
 
     # -- payloads ----------------------------------------------------------------------------
