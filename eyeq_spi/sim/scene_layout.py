@@ -362,6 +362,7 @@ def _frame(t: float) -> int:
 
 _CLASS_P = np.array([c[1] for c in CLASSES]) / sum(c[1] for c in CLASSES)
 _XS = np.linspace(0.0, 100.0, 21)  # road-fit sample points ahead
+_DXS = np.diff(_XS)
 _PINV = np.linalg.pinv(np.stack([_XS**2, _XS**3], axis=1))
 _SIGN_KEYS = (
     "signLongPosition", "signLatPosition", "signHeight", "signConfidence", "signSuppConfidence1",
@@ -391,8 +392,9 @@ def _sign_table() -> tuple[tuple[str, ...], tuple[int, ...], FArr]:
     return tuple(r[0] for r in rows), tuple(r[1] for r in rows), p / p.sum()
 
 
-def _cumtrapz(y: FArr, x: FArr) -> FArr:
-    return np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))))
+def _cumtrapz(y: FArr, dx: FArr) -> FArr:
+    """The cumulative trapezoid integral of ``y`` over steps ``dx`` (``np.diff`` of x)."""
+    return np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * dx)))
 
 
 # -- what the scene's writer shares between frames ---------------------------------------------

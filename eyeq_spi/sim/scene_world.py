@@ -34,6 +34,7 @@ import numpy as np
 from eyeq_spi.sim.scene_layout import (
     _CLASS_DEFAULT,
     _CLASS_P,
+    _DXS,
     _PINV,
     _XS,
     CLASSES,
@@ -223,7 +224,7 @@ class SceneWorld:
             k = k - k[0] + kh
         else:
             self._k_host = None
-        y = _cumtrapz(_cumtrapz(k, _XS), _XS)
+        y = _cumtrapz(_cumtrapz(k, _DXS), _DXS)
         c2, c3 = (float(c) for c in _PINV @ y)
         p, tau = self._phase, self._tau
         w1, w2 = 2 * math.pi / 14.0, 2 * math.pi / 4.3
