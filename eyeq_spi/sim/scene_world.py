@@ -63,6 +63,9 @@ from eyeq_spi.sim.scene_layout import (
     clip,
 )
 
+# per kind (VEHICLE, ONCOMING, CYCLIST, PEDESTRIAN): where an object leaves, behind and ahead
+_BEHIND = np.array([-30.0, -20.0, -15.0, -10.0])
+_AHEAD = np.array([200.0, 200.0, 130.0, 95.0])
 _ROWS = np.arange(MAX_OBJECTS)
 _OTHERS = ~np.eye(MAX_OBJECTS, dtype=bool)  # pairs of two different objects
 
@@ -317,10 +320,7 @@ class SceneWorld:
 
     def _despawn(self) -> None:
         s, kind = self._s, self._kind
-        behind = np.where(kind == VEHICLE, -30.0, np.where(kind == ONCOMING, -20.0, np.where(
-            kind == CYCLIST, -15.0, -10.0)))
-        far = (s < behind) | (s > np.where(kind <= ONCOMING, 200.0, np.where(
-            kind == CYCLIST, 130.0, 95.0)))
+        far = (s < _BEHIND[kind]) | (s > _AHEAD[kind])  # leaves the range of its kind
         # an object the ego drives into is lost rather than driven through
         hit = (np.abs(self._d - self._e) < 1.6) & (s > -EGO_LENGTH - 1.0) & (s < 1.0)
         for i in np.flatnonzero(self._alive & (far | (hit & (kind != ONCOMING)))):
@@ -373,7 +373,7 @@ class SceneWorld:
         same &= (veh[:, None] & veh[None, :]) & _OTHERS  # not itself
         gaps = np.where(same & (s[None, :] > s[:, None]),
                         s[None, :] - s[:, None] - self._l[:, None], np.inf)
-        lead = np.argmin(gaps, axis=1)
+        lead = gaps.argmin(axis=1)
         gap, v_lead = gaps[_ROWS, lead], vx[lead]
         ego_gap = -EGO_LENGTH - s - self._l
         use = veh & (np.abs(d - self._e) < 2.0) & (s < -1.0) & (ego_gap < gap)
