@@ -237,8 +237,8 @@ def _rows_writer(first: StructView, stride: int, put: list[tuple[int, str, str]]
 
 def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n: int) -> bool:
     """The object loop of ``Scene._fill_obstacles`` into a packer's views: the same clamped
-    arrays, scattered per wire type into the payload bytes (slots past ``n`` get 0). False
-    (nothing written) when the loop must run."""
+    arrays, cast per wire type into one byte array and scattered into the payload bytes at once
+    (slots past ``n`` get 0). False (nothing written) when the loop must run."""
     first = objs[0]
     ck = ("objs", id(plan), len(objs))
     got = first.cache.get(ck)
@@ -247,22 +247,24 @@ def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n
     p = got[1]
     if p is None:
         return False
-    u8, groups, check, bitgroups = p
+    u8, groups, check, bitgroups, raw, everywhere = p
     rows, lo, hi = check
     if n and len(rows):  # one range check for every integer column (wire type or bit width)
         x = il[rows]
         if (x < lo).any() or (x > hi).any():
             return False  # the encoder would refuse it: let the loop raise
-    for real, rows, idx, v in groups:
+    count = len(objs)
+    for real, rows, v in groups:
         v[:, :n] = fl[rows] if real else il[rows]
-        v[:, n:] = 0
-        u8[idx] = v.view(np.uint8).ravel()
-    for brows, shift, starts, base, idx, v in bitgroups:
+        if n < count:
+            v[:, n:] = 0
+    for brows, shift, starts, base, v in bitgroups:
         # a container holds the bits the objects do not write as they are (D2 unused bits set)
-        v[:] = base
+        if n < count:
+            v[:, n:] = base[:, n:]
         if n:
             v[:, :n] = base[:, :n] | np.bitwise_or.reduceat(il[brows] << shift, starts, axis=0)
-        u8[idx] = v.view(np.uint8).ravel()
+    u8[everywhere] = raw  # every group's bytes in one scatter
     return True
 
 
@@ -308,8 +310,11 @@ def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | N
         return dt, (first.base + r[:, None, None] + stride * np.arange(count)[None, :, None]
                     + np.arange(dt.itemsize)[None, None, :]).ravel()
 
+    # each group's values live in one byte array (widest types first: aligned), scattered into
+    # the payload at once by the concatenation of the groups' indices
+    order = sorted(by_type.items(), key=lambda kv: -np.dtype(NP_FMT[kv[0][0]]).itemsize)
     groups = []
-    for (typ, real), cols in by_type.items():
+    for (typ, real), cols in order:
         dt, idx = index(typ, [r for _, r in cols])
         groups.append((real, np.array([r for r, _ in cols]), idx,
                        np.zeros((len(cols), count), dtype=dt)))
@@ -336,4 +341,15 @@ def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | N
     bounds = (np.array([r for r, _, _ in check], dtype=np.intp),
               np.array([x for _, x, _ in check], dtype=np.float64)[:, None],
               np.array([x for _, _, x in check], dtype=np.float64)[:, None])
-    return u8, groups, bounds, bitgroups
+    arrays = [g[3] for g in groups] + [b[5] for b in bitgroups]
+    raw = np.zeros(sum(a.nbytes for a in arrays), dtype=np.uint8)
+    views, at = [], 0
+    for a in arrays:
+        views.append(raw[at:at + a.nbytes].view(a.dtype).reshape(a.shape))
+        at += a.nbytes
+    for k, b in enumerate(bitgroups):  # the containers as the payload holds them now
+        views[len(groups) + k][:] = b[3]
+    everywhere = np.concatenate([g[2] for g in groups] + [b[4] for b in bitgroups])
+    return (u8, [(g[0], g[1], v) for g, v in zip(groups, views, strict=False)], bounds,
+            [(*b[:4], v) for b, v in zip(bitgroups, views[len(groups):], strict=True)], raw,
+            everywhere)
