@@ -385,8 +385,9 @@ def dasp_bench(runs: int = 3, virtual_s: float = 20.0) -> dict[str, float]:
 def dasp_before_bench(before: str, runs: int = 5, virtual_s: float = 20.0,
                       packer: bool = True) -> dict[str, float]:
     """The DASP generation of :func:`_dasp_cpu_per_sim_s` in this tree against git revision
-    ``before``: each run a fresh process, the trees alternating round by round (a change of the
-    machine's load hits both), median and spread of each, the ratio, in ``crc_hqx`` calls."""
+    ``before`` (each tree's own ``tools/bench.py``, which puts its tree first on the path): each
+    run a fresh process, the trees alternating round by round (a change of the machine's load
+    hits both), median and spread of each, the ratio, in ``crc_hqx`` calls."""
     import os
     import subprocess
     import tempfile
@@ -403,7 +404,7 @@ def dasp_before_bench(before: str, runs: int = 5, virtual_s: float = 20.0,
         for _ in range(runs):
             for after, tree in ((False, old_tree), (True, new_tree)):
                 got = subprocess.run(
-                    [sys.executable, "-c", code.format(tools=str(Path(__file__).parent),
+                    [sys.executable, "-c", code.format(tools=str(tree / "tools"),
                                                        packer=packer, s=virtual_s)],
                     env={**os.environ, "PYTHONPATH": str(tree)}, cwd=d, check=True,
                     capture_output=True, text=True).stdout
