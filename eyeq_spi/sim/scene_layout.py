@@ -312,10 +312,10 @@ def _rules(enum: str, rules: list[tuple[int, str, int]], default: tuple[str, int
     """Codes of enum ``enum`` per index of :data:`MOTION_BITS` condition bits: the first rule
     (mask, name, fallback value) whose mask bits are all set picks its code, else ``default``
     (the ``np.select`` of the conditions, as a table)."""
-    codes = [(mask, _code(enum, name, v)) for mask, name, v in rules]
+    index = np.arange(1 << MOTION_BITS)
     out = np.full(1 << MOTION_BITS, _code(enum, *default), dtype=np.int64)
-    for b in range(1 << MOTION_BITS):
-        out[b] = next((c for mask, c in codes if b & mask == mask), out[b])
+    for mask, name, v in reversed(rules):  # the first rule last: it wins where it holds
+        out[index & mask == mask] = _code(enum, name, v)
     return out
 
 
