@@ -1,7 +1,8 @@
 """How the scene's values reach a payload: :func:`_puts` of one struct's members (clamped as
 :meth:`~eyeq_spi.sim.scene_layout._Leaf.clamp` says, generated writers into a packer's views),
-constants written once per packer (:func:`_puts_once`), and the arrays of structs as rows or
-numpy columns (split out of :mod:`eyeq_spi.sim.scene_layout`)."""
+writers bound once to a view (:func:`_bound_puts`), constants written once per packer
+(:func:`_puts_once`), and the arrays of structs as rows (:func:`_write_table`: generated row
+writers) or, for the obstacles, numpy columns (split out of :mod:`eyeq_spi.sim.scene_layout`)."""
 
 from __future__ import annotations
 
