@@ -382,6 +382,40 @@ def dasp_bench(runs: int = 3, virtual_s: float = 20.0) -> dict[str, float]:
     return out
 
 
+def dasp_before_bench(before: str, runs: int = 5, virtual_s: float = 20.0,
+                      packer: bool = True) -> dict[str, float]:
+    """The DASP generation of :func:`_dasp_cpu_per_sim_s` in this tree against git revision
+    ``before`` (each tree's own ``tools/bench.py``, which puts its tree first on the path): each
+    run a fresh process, the trees alternating round by round (a change of the machine's load
+    hits both), median and spread of each, the ratio, in ``crc_hqx`` calls."""
+    import os
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    from bench_startup import trees_to_time
+
+    code = ("import sys; sys.path.insert(0, {tools!r}); import bench; "
+            "print(bench._dasp_cpu_per_sim_s({packer}, {s!r}))")
+    rows: dict[bool, list[float]] = {False: [], True: []}
+    crc = [crc_baseline_us()]
+    with tempfile.TemporaryDirectory() as d:
+        (_, old_tree), (_, new_tree) = trees_to_time(before, Path(d))
+        for _ in range(runs):
+            for after, tree in ((False, old_tree), (True, new_tree)):
+                got = subprocess.run(
+                    [sys.executable, "-c", code.format(tools=str(tree / "tools"),
+                                                       packer=packer, s=virtual_s)],
+                    env={**os.environ, "PYTHONPATH": str(tree)}, cwd=d, check=True,
+                    capture_output=True, text=True).stdout
+                rows[after].append(float(got))
+            crc.append(crc_baseline_us())
+    out = _pair_summary(rows, ("dasp_before", "dasp_after"), statistics.median(crc))
+    out["dasp_after_over_before"] = (out["dasp_after_cpu_ms_per_sim_s"]
+                                     / out["dasp_before_cpu_ms_per_sim_s"])
+    return out
+
+
 def _pair_summary(rows: dict[bool, list[float]], labels: tuple[str, str],
                   base_us: float) -> dict[str, float]:
     """CPU-ms per simulated second of the reference (``rows[False]``) and the fast path
@@ -459,8 +493,14 @@ def main() -> int:
                          "the packer is held to) instead of the packer")
     ap.add_argument("--capture-only", action="store_true",
                     help="only the --capture writer: per-transfer encoding against blocks")
+    ap.add_argument("--dasp-before", metavar="REV",
+                    help="only the DASP generation, this tree against git revision REV in "
+                         "alternating fresh processes (--runs rounds; --dasp-dict: the dict path)")
     args = ap.parse_args()
     out: dict[str, float] = {}
+    if args.dasp_before:
+        out.update(dasp_before_bench(args.dasp_before, args.runs, packer=not args.dasp_dict))
+        args.no_emulator = args.emulator_only = True
     if args.capture_only:
         out.update(capture_bench(args.runs))
         args.no_emulator = args.emulator_only = True

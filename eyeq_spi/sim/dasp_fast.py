@@ -14,7 +14,8 @@ are lists of views) and supports what the fillers do to a dict: ``key in v``, ``
 position comes from the :class:`~eyeq_spi.codec.layout.Layout` (hence from ``specs/``), never by
 hand. Writing a leaf packs it at once, with the errors the dict path's encoder would raise
 (:class:`~eyeq_spi.errors.CodecError`). The fillers' writers in :mod:`eyeq_spi.sim.scene_write`
-notice views, write whole columns of an array of structs with numpy and write constants once.
+notice views: they pack whole rows of an array of structs with generated code (the obstacles
+as numpy columns), bind writers to views once and write constants once.
 
 :meth:`DaspPacker.encode` then fills the rolling counters and CRCs (D5, generated from
 ``Layout.crc_plan`` like :func:`eyeq_spi.codec.e2e.compile_verifier`; same order and values as

@@ -11,7 +11,6 @@ declared range and wire type (the intersection over every release with that shap
 from __future__ import annotations
 
 import math
-from functools import cache
 from typing import Any
 
 import numpy as np
@@ -20,10 +19,17 @@ import numpy.typing as npt
 from eyeq_spi.sim.dasp_fast import StructView
 from eyeq_spi.sim.scene_layout import (
     _AGE_ROW,
+    _BIT_WEIGHTS,
+    _BORDER_OFFSET,
     _FILLERS,
+    _HEADER_KEYS,
+    _PAIR_LAMPS,
+    _PX,
     _REFLECT_KEYS,
     _SIGN_KEYS,
     _SPOT_KEYS,
+    _STD,
+    _TRUCK,
     CAM_HEIGHT,
     CLASSES,
     CYCLIST,
@@ -37,53 +43,33 @@ from eyeq_spi.sim.scene_layout import (
     FArr,
     IArr,
     _child,
-    _choose,
     _code,
     _elements,
     _frame,
+    _lane_codes,
+    _motion_tables,
     _Node,
     _node_for,
     _obj_plan,
+    _struct_members,
+    clip,
 )
 from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
 from eyeq_spi.sim.scene_write import (
+    _bound_puts,
     _puts,
     _puts_once,
     _write_objects_packed,
-    _write_rows,
     _write_table,
 )
 
 __all__ = ["CLASSES", "Scene", "SceneConfig", "SceneWorld"]
 
 
-@cache
-def _lane_codes() -> IArr:
-    return np.array([_code("object_lane_assignment", n, v) for n, v in (
-        ("RIGHT_NEXT_NEXT", 2), ("RIGHT_NEXT", 1), ("EGO_LANE", 0), ("LEFT_NEXT", -1),
-        ("LEFT_NEXT_NEXT", -2))])
-
-
-# (a, b) of the obstacles' standard deviations a + b·|longDistance| (physicalState, angularState)
-_STD = np.array([(0.05, 0.002), (0.2, 0.01), (0.1, 0.01), (0.1, 0.005), (0.2, 0.004),
-                 (0.2, 0.002), (0.05, 0.003), (0.005, 1e-4)])
-_STRUCTS: dict[int, tuple[_Node, list[tuple[str, _Node]]]] = {}
-
-
-def _struct_members(node: _Node) -> list[tuple[str, _Node]]:
-    """The members of ``node`` that are one struct (not an array of them): where
-    :meth:`Scene.fill` writes a header too. Kept per node (range trees live for the process)."""
-    got = _STRUCTS.get(id(node))
-    if got is None or got[0] is not node:
-        got = _STRUCTS[id(node)] = (node, [(k, sub) for k, sub in node.members.items()
-                                        if isinstance(sub, _Node) and sub.count is None])
-    return got[1]
-
-
 class Scene(SceneWorld):
     """The world (objects, road, signs) and the writer of its DASP payloads."""
 
-    _signs_seen: tuple[object, list[tuple[int, float]]] | None = None
+    _signs_seen: tuple[object, tuple[IArr, FArr]] | None = None
     _header: tuple[float, int, dict[str, float]] | None = None  # the last header's values
 
     def _after_step(self) -> None:
@@ -94,62 +80,71 @@ class Scene(SceneWorld):
         birth frames; computed once per step."""
         if self._cols is not None:
             return self._cols
-        idx = np.flatnonzero(self._alive)
-        idx = idx[np.argsort(self._oid[idx], kind="stable")]
-        s, d, vx, vy, ax, ay = (a[idx] for a in (self._s, self._d, self._vx, self._vy,
-                                                 self._ax, self._ay))
-        w, length, hgt, kind = self._w[idx], self._l[idx], self._h[idx], self._kind[idx]
+        idx = self._alive.nonzero()[0]
+        idx = idx[self._oid[idx].argsort(kind="stable")]
+        # the state of the live objects as rows of two matrices: one gather for all columns.
+        # Below, what several rows share is computed once and the same operation on several
+        # rows is one numpy call on a matrix: elementwise, the same numbers as row by row
+        s, d, vx, vy, ax, ay, w, length, hgt, dtgt, cbias = np.array((
+            self._s, self._d, self._vx, self._vy, self._ax, self._ay, self._w, self._l,
+            self._h, self._dtgt, self._cbias))[:, idx]
+        kind, oid, cls, birth = np.array((self._kind, self._oid, self._cls, self._birth))[:, idx]
         c1, c2, c3 = self._poly[1:]
         y = self._lateral(s, d)
         vrel, a_s, ss = vx - self._v, np.abs(s), np.maximum(s, 0.5)
         speed = np.hypot(vx, vy)
         moving = speed >= 0.3
         road_heading = np.arctan(c1 + s * (2 * c2 + 3 * c3 * s))
-        heading = np.where(moving, np.arctan2(vy, vx), 0.0) + road_heading
-        heading = (heading + math.pi) % (2 * math.pi) - math.pi
         # §13.2.5.4: angles are measured from Z with "the positive side to the host's right";
         # y (latDistance) is left positive (ISO 8855), hence atan2(-y, ...)
-        mid = np.arctan2(-y, ss)
+        hw, ny = w / 2, -y
+        right, left = hw - y, ny - hw  # w/2 - y, -y - w/2
         far = ss + length
+        at = np.arctan2(np.array((vy, ny, right, left, right, left)),
+                        np.array((vx, ss, far, far, ss, ss)))
+        heading = np.where(moving, at[0], 0.0) + road_heading
+        heading = (heading + math.pi) % (2 * math.pi) - math.pi
+        mid = at[1]
         on_left, on_right = y > HALF_LANE, y < -HALF_LANE  # we see its right / left side
-        side = np.where(on_left, np.arctan2(w / 2 - y, far),
-                        np.where(on_right, np.arctan2(-y - w / 2, far), mid))
+        side = np.where(on_left, at[2], np.where(on_right, at[3], mid))
         ang_std = 0.002 + 5e-5 * a_s
         closing = -vrel
         ttc = np.where((s > 0.0) & (closing > 0.1),
                        np.minimum(s / np.maximum(closing, 0.1), TTC_NONE), TTC_NONE)
-        age = self._frame_now - self._birth[idx] + 1
-        conf = np.clip(0.97 - 0.0015 * a_s + self._cbias[idx]
-                       - 0.2 * np.exp(-np.maximum(age, 1) / 6.0), 0.5, 1.0)
+        age = self._frame_now - birth + 1
+        conf = clip(0.97 - 0.0015 * a_s + cbias
+                    - 0.2 * np.exp(-np.maximum(age, 1) / 6.0), 0.5, 1.0)
         # the standard deviations a + b·|s| (_STD) in two numpy steps for all of them: the same
         # multiplication and addition per element as one row at a time
         sd = _STD[:, :1] + _STD[:, 1:] * a_s
         f = np.array([
             w, sd[0], length, sd[1], hgt, sd[0], vx, sd[2], vy, sd[3], ax, sd[4], ay, sd[5],
             s, 0.05 + 0.01 * a_s + 5e-5 * s * s, y, sd[6], heading,
-            np.arctan2(w / 2 - y, ss), ang_std, np.arctan2(-y - w / 2, ss), ang_std, side, ang_std,
+            at[4], ang_std, at[5], ang_std, side, ang_std,
             mid, ang_std, -(ss * vy - y * vrel) / (ss * ss + y * y), sd[7],
             conf, ttc], dtype=np.float64)
-        # image: origin at the image centre, x right, y down (the rect is for visualisation)
+        # image: origin at the image centre, x right, y down (the rect is for visualisation);
+        # -FOCAL_PX * (y + w/2), -FOCAL_PX * (y - w/2), FOCAL_PX * (CAM_HEIGHT - hgt)
         vis = s > 0.5
-        u_l, u_r = -FOCAL_PX * (y + w / 2) / ss, -FOCAL_PX * (y - w / 2) / ss
-        v_t, v_b = FOCAL_PX * (CAM_HEIGHT - hgt) / ss, FOCAL_PX * CAM_HEIGHT / ss
+        px = np.array((y + hw, y - hw, CAM_HEIGHT - hgt)) * _PX
+        u_l, u_r, v_t = px / ss
+        v_b = FOCAL_PX * CAM_HEIGHT / ss
         side_vis = vis & (on_left | on_right)
-        u_s = np.where(side_vis, -FOCAL_PX * np.where(on_left, y - w / 2, y + w / 2) / far, 0.0)
-        v_ts = np.where(side_vis, FOCAL_PX * (CAM_HEIGHT - hgt) / far, 0.0)
-        v_bs = np.where(side_vis, FOCAL_PX * CAM_HEIGHT / far, 0.0)
+        u_s, v_ts, v_bs = np.where(side_vis, np.array((
+            np.where(on_left, px[1], px[0]), px[2], np.full(len(idx), FOCAL_PX * CAM_HEIGHT)))
+            / far, 0.0)
         zero = np.zeros(len(idx))
         lane = self._lane_index(d)
         lanes = _lane_codes()
         lane_code = np.where(np.abs(lane) > 2, _code("object_lane_assignment", "UNKNOWN", 3),
-                             lanes[np.clip(lane, -2, 2) + 2])
+                             lanes[clip(lane, -2, 2) + 2])
         vehicle = kind <= ONCOMING
         cipv = np.where(vehicle | (kind == CYCLIST), _code("object_is_cipv", "no_CIPV", 1),
                         _code("object_is_cipv", "not_relevant", 0))
         ahead = (lane == 0) & (s > 0.0)
         if ahead.any():
-            cipv[int(np.argmin(np.where(ahead, s, np.inf)))] = _code("object_is_cipv", "CIPV", 2)
-        err = self._dtgt[idx] - d
+            cipv[int(np.where(ahead, s, np.inf).argmin())] = _code("object_is_cipv", "CIPV", 2)
+        err = dtgt - d
         signal = kind == VEHICLE
         i = np.array([
             u_l, u_r, v_t, v_b,
@@ -159,55 +154,27 @@ class Scene(SceneWorld):
                                    _code("object_visible_rect", "Back", 2)), 0),
             np.where(vis & on_left, _code("object_visible_side", "Right", 1),
                      np.where(vis & on_right, _code("object_visible_side", "Left", 2), 0)),
-            self._motion_status(speed, vehicle), self._motion_category(
-                s, vx, vy, vrel, lane, kind, moving, d, self._dtgt[idx]),
-            self._motion_orientation(vx, vy, moving),
-            zero, self._oid[idx], self._cls_code[self._cls[idx]], cipv, lane_code,
+            *self._motion(s, vx, vy, vrel, lane, kind, speed, moving, d, dtgt),
+            zero, oid, self._cls_code[cls], cipv, lane_code,
             vehicle, signal & (ax < -1.0), signal & (err < -0.5), signal & (err > 0.5),
             zero, np.abs(d) < 3 * HALF_LANE + 0.5, (s < 3.0) & (np.abs(y) < 3.0)],
             dtype=np.float64)
-        self._cols = (f, np.rint(i).astype(np.int64), self._birth[idx].copy())
+        self._cols = (f, np.rint(i).astype(np.int64), birth)
         return self._cols
 
     @staticmethod
-    def _motion_status(speed: FArr, vehicle: npt.NDArray[np.bool_]) -> IArr:
-        c = _code
-        out: IArr = _choose(
-            [speed >= 2.0, speed >= 0.3, vehicle],
-            [c("object_motion_status", "moving", 1), c("object_motion_status", "Moving_slowly", 4),
-             c("object_motion_status", "Stopped", 3)], c("object_motion_status", "stationary", 2))
-        return out
-
-    @staticmethod
-    def _motion_category(s: FArr, vx: FArr, vy: FArr, vrel: FArr, lane: IArr, kind: IArr,
-                         moving: npt.NDArray[np.bool_], d: FArr, dtgt: FArr) -> IArr:
-        def c(name: str, default: int) -> int:
-            return _code("object_motion_category", name, default)
-
+    def _motion(s: FArr, vx: FArr, vy: FArr, vrel: FArr, lane: IArr, kind: IArr, speed: FArr,
+                moving: npt.NDArray[np.bool_], d: FArr, dtgt: FArr) -> IArr:
+        """motionStatus, motionCategory and motionOrientation (rows): each object's conditions
+        as the bits of one index into the rule tables of :func:`_motion_tables`."""
         changing = kind == VEHICLE
-        out: IArr = _choose(
-            [np.abs(vy) > np.maximum(np.abs(vx), 0.5), vx < -1.0,
-             changing & (np.abs(dtgt) < np.abs(d) - 0.5),
-             changing & (np.abs(dtgt) > np.abs(d) + 0.5),
-             moving & (lane == 0) & (s > 0.0) & (vx > 0.5),
-             moving & (lane != 0) & (vrel > 1.0) & (kind == VEHICLE), moving],
-            [c("Crossing", 7), c("Oncoming", 12), c("Moving_in", 5), c("Moving_out", 6),
-             c("Preceding", 11), c("Passing", 1), c("Moving", 10)], c("Undefined", 0))
-        return out
-
-    @staticmethod
-    def _motion_orientation(vx: FArr, vy: FArr, moving: npt.NDArray[np.bool_]) -> IArr:
-        def c(name: str, default: int) -> int:
-            return _code("object_motion_orientation", name, default)
-
-        crossing = np.abs(vy) > np.maximum(np.abs(vx), 0.5)
-        oncoming = vx < -1.0
-        out: IArr = _choose(
-            [crossing & (vy > 0), crossing, oncoming & (vy > 0.3), oncoming & (vy < -0.3),
-             oncoming, moving & (vy > 0.3), moving & (vy < -0.3), moving],
-            [c("Crossing_left", 6), c("Crossing_right", 2), c("Oncoming_drifting_left", 5),
-             c("Oncoming_drifting_right", 3), c("Oncoming", 4), c("Drifting_left", 7),
-             c("Drifting_right", 1), c("Preceding", 8)], c("Unknown", 0))
+        bits = _BIT_WEIGHTS @ np.array((  # CROSSING .. VEHICLE_KIND
+            np.abs(vy) > np.maximum(np.abs(vx), 0.5), vx < -1.0, moving, vy > 0, vy > 0.3,
+            vy < -0.3, changing & (np.abs(dtgt) < np.abs(d) - 0.5),
+            changing & (np.abs(dtgt) > np.abs(d) + 0.5), (lane == 0) & (s > 0.0) & (vx > 0.5),
+            (lane != 0) & (vrel > 1.0) & changing, speed >= 2.0, kind <= ONCOMING),
+            dtype=np.int64)
+        out: IArr = _motion_tables()[:, bits]
         return out
 
     # -- payloads ----------------------------------------------------------------------------
@@ -216,27 +183,40 @@ class Scene(SceneWorld):
         version), or into a :class:`~eyeq_spi.sim.dasp_fast.DaspPacker`'s root view (the same
         writes, packed in place); members the layout lacks are skipped, unknown messages are
         left unchanged."""
-        method = _FILLERS.get(name)
-        if method is None:
-            return
         last = self._nodes.get(name)
         if last is not None and last[0] is values:  # the caller reuses its dict: same layout
-            node = last[1]
+            node, heads, method = last[1], last[2], last[3]
         else:
+            filler = _FILLERS.get(name)
+            if filler is None:
+                return
+            method = filler
             # a packer's view has the shape of its template dict (the same ranges)
             shape = values.template if isinstance(values, StructView) else values
             node = None if shape is None else _node_for(name, shape)
-            self._nodes[name] = (values, node)
+            # a packer's views never change: their headers' writers are bound once
+            heads = None if node is None or not isinstance(values, StructView) else [
+                _bound_puts(values, node, _HEADER_KEYS), *(
+                    _bound_puts(values[key], sub, _HEADER_KEYS)
+                    for key, sub in _struct_members(node)
+                    if isinstance(values.get(key), StructView))]
+            self._nodes[name] = (values, node, heads, method)
         if node is None:
             return
         t = float(t)
-        self._fill_header(values, node, t)
-        for key, sub in _struct_members(node):
-            if isinstance(values.get(key), dict | StructView):
-                self._fill_header(values[key], sub, t)
+        if heads is not None:
+            vals = self._header_values(t)
+            for put in heads:
+                put(vals)
+        else:
+            self._fill_header(values, node, t)
+            for key, sub in _struct_members(node):
+                if isinstance(values.get(key), dict | StructView):
+                    self._fill_header(values[key], sub, t)
         getattr(self, method)(values, node, t)
 
-    def _fill_header(self, d: dict[str, Any], n: _Node, t: float) -> None:
+    def _header_values(self, t: float) -> dict[str, float]:
+        """The values of every header of instant ``t`` (kept for the next message)."""
         last = self._header
         if last is None or last[0] != t or last[1] != self._veh_index:
             frame = _frame(t)
@@ -244,7 +224,10 @@ class Scene(SceneWorld):
                 "timestamp_ms": int(t * 1000) & 0xFFFFFFFF,
                 "timestamp_us": max(0, round(t * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
                 "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
-        _puts(d, n, last[2])  # the same values for every header of one instant
+        return last[2]
+
+    def _fill_header(self, d: dict[str, Any], n: _Node, t: float) -> None:
+        _puts(d, n, self._header_values(t))  # the same values for every header of one instant
 
     def _fill_nothing(self, values: dict[str, Any], node: _Node, t: float) -> None:
         """Headers only (EYEQ_SAFETY_MSG: no safety fault, no challenge)."""
@@ -263,8 +246,8 @@ class Scene(SceneWorld):
         n = min(f.shape[1], len(objs))
         i = i[:, :n].copy()
         i[_AGE_ROW] = np.maximum(_frame(t) - birth[:n] + 1, 1)
-        fa = np.clip(f[:, :n], plan.flo[:, None], plan.fhi[:, None])
-        ia = np.clip(i, plan.ilo[:, None], plan.ihi[:, None])
+        fa = clip(f[:, :n], plan.flo[:, None], plan.fhi[:, None])
+        ia = clip(i, plan.ilo[:, None], plan.ihi[:, None])
         if isinstance(objs[0], StructView) and _write_objects_packed(objs, plan, fa, ia, n):
             return
         fl, il = fa.tolist(), ia.tolist()
@@ -337,6 +320,11 @@ class Scene(SceneWorld):
             "nextLeftLeftMarker": (3 * HALF_LANE, "SOLID", 0.75 * view, p[5]),
             "nextRightRightMarker": (-3 * HALF_LANE, "SOLID", 0.75 * view, p[6]),
             "nextLeftRightMarker": None, "nextRightLeftMarker": None}
+        if isinstance(rd, StructView):
+            plan = rd.writers.get(("road", id(rn)))
+            if plan is not None and plan[0] is rn and ("road", id(rn)) in rd.done:
+                self._fill_road_moving(plan[1], markers, view)
+                return
         mi = _child(rd, rn, "roadMarkerInfo")
         if mi:
             for key, spec in markers.items():
@@ -347,8 +335,8 @@ class Scene(SceneWorld):
                 "ambiguousLinePatternLeft": 0, "ambiguousLinePatternRight": 0,
                 "constructionArea": 0, "roadPredictionLeft": 0, "roadPredictionRight": 0})
         bi = _child(rd, rn, "roadBorderInfo")
-        borders = (("leftRoadBorder", 3 * HALF_LANE + 0.8, "Barrier", 4, 0.8),
-                   ("rightRoadBorder", -3 * HALF_LANE - 0.6, "Curb", 3, 0.15))
+        borders = (("leftRoadBorder", _BORDER_OFFSET["leftRoadBorder"], "Barrier", 4, 0.8),
+                   ("rightRoadBorder", _BORDER_OFFSET["rightRoadBorder"], "Curb", 3, 0.15))
         for key, offset, kind, default, height in borders if bi else ():
             b = _child(*bi, key) if bi else None
             if b is None:
@@ -373,17 +361,67 @@ class Scene(SceneWorld):
         _puts_once(rd, rn, "road", lambda: {
             "drivingSide": _code("road_driving_side", "Right Side", 0),
             "laneChange": _code("road_lane_change", "No lane change", 0)})
+        if isinstance(rd, StructView):  # the constants are in place until the packer's reset
+            rd.writers[("road", id(rn))] = (rn, self._road_plan(rd, rn, markers))
+            rd.done.add(("road", id(rn)))
 
-    def _visible_signs(self) -> list[tuple[int, float]]:
-        """Signs ahead, nearest first, with their lateral distance; once per step (both sign
+    @staticmethod
+    def _road_plan(rd: dict[str, Any], rn: _Node,
+                   markers: dict[str, tuple[float, str, float, float] | None]
+                   ) -> list[tuple[str, Any, Any]]:
+        """What :meth:`_fill_road` writes that changes from frame to frame, as bound writers:
+        (marker key or border offset, the polynomial's writer, the marker's two writers)."""
+        out: list[tuple[str, Any, Any]] = []
+        poly_keys = ("a0", "a1", "a2", "a3", "startRange", "endRange")
+        mi = _child(rd, rn, "roadMarkerInfo")
+        for key, spec in markers.items() if mi else ():
+            m = _child(*mi, key) if mi else None
+            if m is None or spec is None:
+                continue
+            poly, conf = _child(*m, "laneMarker"), _child(*m, "laneMarkerConf")
+            out.append((key, poly and _bound_puts(*poly, poly_keys), (
+                conf and _bound_puts(*conf, ("sfConf",)),
+                _bound_puts(*m, ("measuredViewRange",)))))
+        bi = _child(rd, rn, "roadBorderInfo")
+        for key in ("leftRoadBorder", "rightRoadBorder") if bi else ():
+            b = _child(*bi, key) if bi else None
+            poly = _child(*b, "roadBorder") if b else None
+            if poly:
+                out.append((key, _bound_puts(*poly, poly_keys), None))
+        hpp = _child(rd, rn, "roadHppFusionInfo")
+        centre = _child(*hpp, "laneCenter") if hpp else None
+        if centre:
+            out.append(("laneCenter", _bound_puts(*centre, poly_keys), None))
+        return out
+
+    def _fill_road_moving(self, plan: list[tuple[str, Any, Any]],
+                          markers: dict[str, tuple[float, str, float, float] | None],
+                          view: float) -> None:
+        """The writes of :meth:`_fill_road` that change, in its order, through its plan."""
+        for key, poly, extra in plan:
+            if extra is not None:  # a marker: see _fill_marker
+                spec = markers[key]
+                assert spec is not None
+                offset, kind, mview, phase = spec
+                if poly:
+                    poly(self._poly_values(offset, mview))
+                if extra[0]:
+                    extra[0]({"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase)})
+                extra[1]({"measuredViewRange": mview * (0.85 if kind == "DASHED" else 0.95)})
+            elif key == "laneCenter":
+                poly(self._poly_values(0.0, view))
+            else:
+                poly(self._poly_values(_BORDER_OFFSET[key], 0.6 * view))
+
+    def _visible_signs(self) -> tuple[IArr, FArr]:
+        """Signs ahead, nearest first, and their lateral distances; once per step (both sign
         messages read it; ``_lateral`` is elementwise arithmetic, the same per sign or at once)."""
         cached = self._signs_seen
         if cached is not None and cached[0] is self._cols and cached[0] is not None:
             return cached[1]
-        idx = np.flatnonzero(self._sg_alive & (self._sg_s > 0.0))
-        idx = idx[np.argsort(self._sg_s[idx], kind="stable")]
-        out = list(zip(idx.tolist(), self._lateral(self._sg_s[idx], self._sg_lat[idx]).tolist(),
-                       strict=True))
+        idx = (self._sg_alive & (self._sg_s > 0.0)).nonzero()[0]
+        idx = idx[self._sg_s[idx].argsort(kind="stable")]
+        out = (idx, self._lateral(self._sg_s[idx], self._sg_lat[idx]))
         self._signs_seen = (self._cols, out)
         return out
 
@@ -392,25 +430,23 @@ class Scene(SceneWorld):
         if tsr is None:
             return
         elems, en = _elements(*tsr, "trafficSigns")
-        rows: list[dict[str, float]] = []
-        for i, y in self._visible_signs()[:len(elems)]:
-            s, z = float(self._sg_s[i]), float(self._sg_z[i])
+        idx, y_all = self._visible_signs()
+        n = min(len(elems), len(idx))
+        rows: list[tuple[float, ...]] = []
+        s_l, z_l, bias, lat, typ, sid = (a[idx[:n]].tolist() for a in (
+            self._sg_s, self._sg_z, self._sg_bias, self._sg_lat, self._sg_type, self._sg_id))
+        decision = _code("tsr_sign_relevant_decision", "RELEVANT_SIGN", 0)
+        filt = _code("tsr_sign_filter_type", "NO_SLI_FILTER", 0)
+        for k, y in enumerate(y_all[:n].tolist()):
+            s, z = s_l[k], z_l[k]
             ss = max(s, 1.0)
             u, v = IMAGE_W / 2 - FOCAL_PX * y / ss, IMAGE_H / 2 - FOCAL_PX * (z - CAM_HEIGHT) / ss
             half = FOCAL_PX * 0.35 / ss
-            rows.append({
-                # §16: "a positive value indicates the sign is on the right"
-                "signLongPosition": s, "signLatPosition": -y, "signHeight": z,
-                "signConfidence": min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + self._sg_bias[i]),
-                "signSuppConfidence1": 0.0, "signSuppConfidence2": 0.0,
-                "relevancyConfidence": 0.95 if self._sg_lat[i] < 0.0 else 0.85,
-                "signPositionBottom": v + half, "signPositionLeft": u - half,
-                "signPositionRight": u + half, "signPositionTop": v - half,
-                "signType": float(self._sg_type[i]), "signSupplementalType1": 0,
-                "signSupplementalType2": 0, "signID": float(self._sg_id[i]),
-                "signRelevantDecision": _code("tsr_sign_relevant_decision", "RELEVANT_SIGN", 0),
-                "signFilterType": _code("tsr_sign_filter_type", "NO_SLI_FILTER", 0)})
-        _write_rows(elems, en, rows, _SIGN_KEYS)
+            rows.append((  # _SIGN_KEYS; §16: "a positive value indicates the sign is on the right"
+                s, -y, z, min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[k]), 0.0, 0.0,
+                0.95 if lat[k] < 0.0 else 0.85, v + half, u - half, u + half, v - half,
+                typ[k], 0, 0, sid[k], decision, filt))
+        _write_table(elems, en, _SIGN_KEYS, rows, _SIGN_KEYS)
         _puts(*tsr, {"numberTrafficSigns": len(rows)})
         _puts_once(*tsr, "tsr", lambda: {"currentMarket": _code("tsr_current_market", "EUROPE", 1)})
         marks = _child(*tsr, "roadMarkings")
@@ -419,58 +455,68 @@ class Scene(SceneWorld):
                 "numberOfArrowsMarkings", "numberOfStopLinesMarkings",
                 "numberOfSpeedLimitMarkings", "numberOfCrossingMarkings"), 0))
 
-    def _fill_lights(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        info = _child(values, node, "activeLightSensorInfo")
-        if info is None:
-            return
-        ld, ln = info
-        cls = "light_spot_classification"
-        spots, sn = _elements(ld, ln, "activeLightSpots")
-        lit = np.flatnonzero(self._alive & (self._kind <= CYCLIST) & (self._s > 3.0))
-        lit = lit[np.argsort(self._s[lit], kind="stable")][:min(self._n_spots, len(spots))]
-        y_all = self._lateral(self._s, self._d)
+    def _spot_rows(self, count: int) -> tuple[list[tuple[float, ...]], bool]:
+        """The light spots' rows (tuples in the order of :data:`_SPOT_KEYS`), nearest first,
+        and whether an oncoming vehicle is among them."""
+        lit = (self._alive & (self._kind <= CYCLIST) & (self._s > 3.0)).nonzero()[0]
+        lit = lit[self._s[lit].argsort(kind="stable")][:min(self._n_spots, count)]
         vsign = -1.0 if self.config.spot_angles_up else 1.0  # top, bottom: below-positive
-        # rows as tuples in the order of _SPOT_KEYS / _REFLECT_KEYS (no dict per row); the
-        # arrays as Python numbers first (the same values float() of an element gives)
+        # the arrays as Python numbers first (the same values float() of an element gives)
         rows: list[tuple[float, ...]] = []
-        oncoming_seen = False
-        s_l, y_l, w_l, cls_l, kind_l, oid_l = (a.tolist() for a in (
-            self._s, y_all, self._w, self._cls, self._kind, self._oid))
+        s_l, w_l, cls_l, kind_l, oid_l = (a[lit].tolist() for a in (
+            self._s, self._w, self._cls, self._kind, self._oid))
+        y_l = self._lateral(self._s[lit], self._d[lit]).tolist()
         atan2, tan = math.atan2, math.tan
-        for i in lit.tolist():
-            s, y, half = s_l[i], y_l[i], max(w_l[i] / 2 - 0.15, 0.0)
-            name, kind = CLASSES[cls_l[i]][0], kind_l[i]
-            pair = name not in ("bike", "bicycle")
-            oncoming_seen |= kind == ONCOMING
-            code = (_code(cls, "Pair of Headlamps", 3) if kind == ONCOMING else
-                    _code(cls, "Pair of Tail-lamps", 4) if pair else _code(cls, "Tail-lamp", 2))
+        c = "light_spot_classification"
+        codes = (_code(c, "Pair of Headlamps", 3), _code(c, "Pair of Tail-lamps", 4),
+                 _code(c, "Tail-lamp", 2))
+        for s, y, w, ci, kind, oid in zip(s_l, y_l, w_l, cls_l, kind_l, oid_l, strict=True):
+            half = max(w / 2 - 0.15, 0.0)
             # §15 light spots: "angles to the right of the sensor coordinate system are
             # positive"; "angle above the horizon are positive" from SW4.0 (line 3295), below
             # before it (line 3257); pixels from the image's left bottom corner
             left, right = atan2(-y - half, s), atan2(half - y, s)
             top, bottom = atan2(CAM_HEIGHT - 1.0, s), atan2(CAM_HEIGHT - 0.6, s)
-            oid = float(oid_l[i])
             rows.append((  # _SPOT_KEYS
                 left, right, vsign * top, vsign * bottom, oid, oid, s,
                 IMAGE_H / 2 - FOCAL_PX * tan(top), IMAGE_H / 2 - FOCAL_PX * tan(bottom),
                 IMAGE_W / 2 + FOCAL_PX * tan(left), IMAGE_W / 2 + FOCAL_PX * tan(right),
-                code, float(name == "truck")))
+                codes[0] if kind == ONCOMING else codes[1] if _PAIR_LAMPS[ci] else codes[2],
+                float(ci == _TRUCK)))
+        return rows, ONCOMING in kind_l
+
+    def _reflect_rows(self, count: int) -> list[tuple[float, ...]]:
+        """The reflective signs' rows (tuples in the order of :data:`_REFLECT_KEYS`)."""
+        idx, y_all = self._visible_signs()
+        idx = idx[:count]
+        out: list[tuple[float, ...]] = []
+        atan2 = math.atan2
+        for s, z, sid, y in zip(self._sg_s[idx].tolist(), self._sg_z[idx].tolist(),
+                                self._sg_id[idx].tolist(), y_all[:count].tolist(), strict=True):
+            z -= CAM_HEIGHT
+            glare = 100.0 * math.exp(-s / 50.0)
+            out.append((  # §15: "Negative: left"
+                atan2(-y - 0.4, s), atan2(0.4 - y, s), atan2(z - 0.4, s), atan2(z + 0.4, s),
+                float(sid), s, min(100.0, glare + 10.0), glare))
+        return out
+
+    def _fill_lights(self, values: dict[str, Any], node: _Node, t: float) -> None:
+        info = _child(values, node, "activeLightSensorInfo")
+        if info is None:
+            return
+        ld, ln = info
+        spots, sn = _elements(ld, ln, "activeLightSpots")
+        rows, oncoming_seen = self._spot_rows(len(spots))
         _write_table(spots, sn, _SPOT_KEYS, rows, _SPOT_KEYS)
         signs, gn = _elements(ld, ln, "reflectiveSigns")
-        refl: list[tuple[float, ...]] = []
-        sg_s, sg_z, sg_id = self._sg_s.tolist(), self._sg_z.tolist(), self._sg_id.tolist()
-        for i, y in self._visible_signs()[:len(signs)]:
-            s, z = sg_s[i], sg_z[i] - CAM_HEIGHT
-            glare = 100.0 * math.exp(-s / 50.0)
-            refl.append((  # _REFLECT_KEYS; §15: "Negative: left"
-                atan2(-y - 0.4, s), atan2(0.4 - y, s), atan2(z - 0.4, s), atan2(z + 0.4, s),
-                float(sg_id[i]), s, min(100.0, glare + 10.0), glare))
+        refl = self._reflect_rows(len(signs))
         _write_table(signs, gn, _REFLECT_KEYS, refl, _REFLECT_KEYS)
+        lit = len(rows) > 0
         _puts(ld, ln, {
             "numOfActiveLightSpots": len(rows), "numOfReflectiveSigns": len(refl),
             "clearFieldOfView": _code("ahbc_clear_field_of_view", "No Clear Field-Of-View", 1)
-            if rows else _code("ahbc_clear_field_of_view", "Clear Field-Of-View", 2),
-            "beamRequest": _code("ahbc_beam_request", "OFF" if rows else "ON", 0 if rows else 1),
+            if lit else _code("ahbc_clear_field_of_view", "Clear Field-Of-View", 2),
+            "beamRequest": _code("ahbc_beam_request", "OFF" if lit else "ON", 0 if lit else 1),
             "oncomingLaneNotDark": int(oncoming_seen)})
         _puts_once(ld, ln, "ahbc", lambda: {
             "ahbcAvailable": _code("ahbc_available", "Full", 2),
@@ -499,16 +545,15 @@ class Scene(SceneWorld):
         srp = _child(values, node, "visSRP")
         if srp is None:
             return
-        for key, phase in (("leftWheelDataPoints", self._phase[0]),
-                           ("rightWheelDataPoints", self._phase[1])):
+        two_pi, sin, s_e = 2 * math.pi, math.sin, self._s_e
+        for key, phase in (("leftWheelDataPoints", float(self._phase[0])),
+                           ("rightWheelDataPoints", float(self._phase[1]))):
             elems, en = _elements(*srp, key)
-            rows: list[dict[str, float]] = []
-            for k in range(len(elems)):  # road profile under each wheel, 5..32 m ahead
-                pos = self._s_e + 5.0 + 3.0 * k
-                rows.append({"height": 0.8 * math.sin(2 * math.pi * pos / 37.0 + phase)
-                             + 0.4 * math.sin(2 * math.pi * pos / 11.3 + 2 * phase),
-                             "conf": 15 - k})
-            _write_rows(elems, en, rows, ("height", "conf"))
+            # road profile under each wheel, 5..32 m ahead
+            pos = [s_e + 5.0 + 3.0 * k for k in range(len(elems))]
+            _write_table(elems, en, ("height", "conf"), [
+                (0.8 * sin(two_pi * p / 37.0 + phase) + 0.4 * sin(two_pi * p / 11.3 + 2 * phase),
+                 15 - k) for k, p in enumerate(pos)], ("height", "conf"))
         _puts(*srp, {"vehicleVelocity": self._v, "frameValid": 1})
 
     def _fill_timesync(self, values: dict[str, Any], node: _Node, t: float) -> None:

@@ -4,6 +4,7 @@ declared range and wire type (split out of :mod:`eyeq_spi.sim.scene`)."""
 
 from __future__ import annotations
 
+import importlib
 import math
 from dataclasses import dataclass
 from functools import cache
@@ -300,12 +301,59 @@ def _obj_plan(elem: _Node) -> _ObjPlan:
     return _ObjPlan(flo, fhi, ilo.astype(np.int64), ihi.astype(np.int64), list(groups.items()))
 
 
-def _choose(conds: list[npt.NDArray[np.bool_]], codes: list[int], default: int) -> IArr:
-    """``np.select`` for small arrays: the first true condition picks the code."""
-    out = np.full(conds[0].shape, default, dtype=np.int64)
-    for cond, code in zip(reversed(conds), reversed(codes), strict=True):
-        out[cond] = code
+# -- object motion: ordered rules over conditions that are bits of one index --------------------
+# the conditions, one bit each (computed in Scene._columns)
+(CROSSING, ONCOMING_VX, MOVING, VY_POS, VY_LEFT, VY_RIGHT, MOVING_IN, MOVING_OUT, PRECEDING,
+ PASSING, FAST, VEHICLE_KIND) = (1 << k for k in range(12))
+MOTION_BITS = 12
+
+
+def _rules(enum: str, rules: list[tuple[int, str, int]], default: tuple[str, int]) -> IArr:
+    """Codes of enum ``enum`` per index of :data:`MOTION_BITS` condition bits: the first rule
+    (mask, name, fallback value) whose mask bits are all set picks its code, else ``default``
+    (the ``np.select`` of the conditions, as a table)."""
+    index = np.arange(1 << MOTION_BITS)
+    out = np.full(1 << MOTION_BITS, _code(enum, *default), dtype=np.int64)
+    for mask, name, v in reversed(rules):  # the first rule last: it wins where it holds
+        out[index & mask == mask] = _code(enum, name, v)
     return out
+
+
+@cache
+def _motion_tables() -> IArr:
+    """motionStatus, motionCategory and motionOrientation (rows) per condition index."""
+    status = _rules("object_motion_status", [
+        (FAST, "moving", 1), (MOVING, "Moving_slowly", 4), (VEHICLE_KIND, "Stopped", 3)],
+        ("stationary", 2))
+    category = _rules("object_motion_category", [
+        (CROSSING, "Crossing", 7), (ONCOMING_VX, "Oncoming", 12), (MOVING_IN, "Moving_in", 5),
+        (MOVING_OUT, "Moving_out", 6), (MOVING | PRECEDING, "Preceding", 11),
+        (MOVING | PASSING, "Passing", 1),
+        (MOVING, "Moving", 10)], ("Undefined", 0))
+    orientation = _rules("object_motion_orientation", [
+        (CROSSING | VY_POS, "Crossing_left", 6), (CROSSING, "Crossing_right", 2),
+        (ONCOMING_VX | VY_LEFT, "Oncoming_drifting_left", 5),
+        (ONCOMING_VX | VY_RIGHT, "Oncoming_drifting_right", 3), (ONCOMING_VX, "Oncoming", 4),
+        (MOVING | VY_LEFT, "Drifting_left", 7), (MOVING | VY_RIGHT, "Drifting_right", 1),
+        (MOVING, "Preceding", 8)], ("Unknown", 0))
+    return np.array((status, category, orientation))
+
+
+_BIT_WEIGHTS = np.array([1 << k for k in range(MOTION_BITS)], dtype=np.int64)
+
+
+def _clip_ufunc() -> Any:
+    """numpy's ``clip`` ufunc, which ``np.clip`` of a float array (or with bounds inside an
+    integer array's type) ends in, without its Python wrapper (a few microseconds a call)."""
+    for mod in ("numpy._core.umath", "numpy.core.umath"):
+        try:
+            return importlib.import_module(mod).clip
+        except (ImportError, AttributeError):
+            continue
+    return np.clip  # pragma: no cover
+
+
+clip = _clip_ufunc()
 
 
 def _frame(t: float) -> int:
@@ -314,6 +362,7 @@ def _frame(t: float) -> int:
 
 _CLASS_P = np.array([c[1] for c in CLASSES]) / sum(c[1] for c in CLASSES)
 _XS = np.linspace(0.0, 100.0, 21)  # road-fit sample points ahead
+_DXS = np.diff(_XS)
 _PINV = np.linalg.pinv(np.stack([_XS**2, _XS**3], axis=1))
 _SIGN_KEYS = (
     "signLongPosition", "signLatPosition", "signHeight", "signConfidence", "signSuppConfidence1",
@@ -343,7 +392,36 @@ def _sign_table() -> tuple[tuple[str, ...], tuple[int, ...], FArr]:
     return tuple(r[0] for r in rows), tuple(r[1] for r in rows), p / p.sum()
 
 
-def _cumtrapz(y: FArr, x: FArr) -> FArr:
-    return np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))))
+def _cumtrapz(y: FArr, dx: FArr) -> FArr:
+    """The cumulative trapezoid integral of ``y`` over steps ``dx`` (``np.diff`` of x)."""
+    return np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * dx)))
 
 
+# -- what the scene's writer shares between frames ---------------------------------------------
+@cache
+def _lane_codes() -> IArr:
+    return np.array([_code("object_lane_assignment", n, v) for n, v in (
+        ("RIGHT_NEXT_NEXT", 2), ("RIGHT_NEXT", 1), ("EGO_LANE", 0), ("LEFT_NEXT", -1),
+        ("LEFT_NEXT_NEXT", -2))])
+
+
+# (a, b) of the obstacles' standard deviations a + b·|longDistance| (physicalState, angularState)
+_STD = np.array([(0.05, 0.002), (0.2, 0.01), (0.1, 0.01), (0.1, 0.005), (0.2, 0.004),
+                 (0.2, 0.002), (0.05, 0.003), (0.005, 1e-4)])
+# light spots: a pair of lamps unless a two-wheeler; the truck flag
+_PAIR_LAMPS = tuple(c[0] not in ("bike", "bicycle") for c in CLASSES)
+_TRUCK = next(k for k, c in enumerate(CLASSES) if c[0] == "truck")
+_BORDER_OFFSET = {"leftRoadBorder": 3 * HALF_LANE + 0.8, "rightRoadBorder": -3 * HALF_LANE - 0.6}
+_HEADER_KEYS = ("timestamp_ms", "timestamp_us", "frameIndex", "imageIndex", "vehIndexUsed")
+_PX = np.array([[-FOCAL_PX], [-FOCAL_PX], [FOCAL_PX]])  # the image rows' factors
+_STRUCTS: dict[int, tuple[_Node, list[tuple[str, _Node]]]] = {}
+
+
+def _struct_members(node: _Node) -> list[tuple[str, _Node]]:
+    """The members of ``node`` that are one struct (not an array of them): where
+    :meth:`Scene.fill` writes a header too. Kept per node (range trees live for the process)."""
+    got = _STRUCTS.get(id(node))
+    if got is None or got[0] is not node:
+        got = _STRUCTS[id(node)] = (node, [(k, sub) for k, sub in node.members.items()
+                                        if isinstance(sub, _Node) and sub.count is None])
+    return got[1]

@@ -34,6 +34,7 @@ import numpy as np
 from eyeq_spi.sim.scene_layout import (
     _CLASS_DEFAULT,
     _CLASS_P,
+    _DXS,
     _PINV,
     _XS,
     CLASSES,
@@ -59,7 +60,14 @@ from eyeq_spi.sim.scene_layout import (
     _Node,
     _ObjPlan,
     _sign_table,
+    clip,
 )
+
+# per kind (VEHICLE, ONCOMING, CYCLIST, PEDESTRIAN): where an object leaves, behind and ahead
+_BEHIND = np.array([-30.0, -20.0, -15.0, -10.0])
+_AHEAD = np.array([200.0, 200.0, 130.0, 95.0])
+_ROWS = np.arange(MAX_OBJECTS)
+_OTHERS = ~np.eye(MAX_OBJECTS, dtype=bool)  # pairs of two different objects
 
 
 @dataclass
@@ -118,7 +126,9 @@ class SceneWorld:
         self._update_road(None, 0.0)
         self._cols: tuple[FArr, IArr, IArr] | None = None
         self._plans: dict[int, _ObjPlan] = {}
-        self._nodes: dict[str, tuple[dict[str, Any], _Node | None]] = {}
+        # per message: the value dict or view last filled, its range tree, its headers' writers
+        # (views only) and the filler's name
+        self._nodes: dict[str, tuple[dict[str, Any], _Node | None, list[Any] | None, str]] = {}
 
     def unanchor(self) -> None:
         """Forget the time of the last step (after a warm-up): the next step anchors the scene
@@ -217,7 +227,7 @@ class SceneWorld:
             k = k - k[0] + kh
         else:
             self._k_host = None
-        y = _cumtrapz(_cumtrapz(k, _XS), _XS)
+        y = _cumtrapz(_cumtrapz(k, _DXS), _DXS)
         c2, c3 = (float(c) for c in _PINV @ y)
         p, tau = self._phase, self._tau
         w1, w2 = 2 * math.pi / 14.0, 2 * math.pi / 4.3
@@ -278,7 +288,7 @@ class SceneWorld:
         return s, d, vdes
 
     def _spawn(self, initial: bool = False, first: bool = False) -> bool:
-        free = np.flatnonzero(~self._alive)
+        free = (~self._alive).nonzero()[0]
         if len(free) == 0 or not self._free_ids:
             return False
         i, rng = int(free[0]), self._rng
@@ -310,10 +320,7 @@ class SceneWorld:
 
     def _despawn(self) -> None:
         s, kind = self._s, self._kind
-        behind = np.where(kind == VEHICLE, -30.0, np.where(kind == ONCOMING, -20.0, np.where(
-            kind == CYCLIST, -15.0, -10.0)))
-        far = (s < behind) | (s > np.where(kind <= ONCOMING, 200.0, np.where(
-            kind == CYCLIST, 130.0, 95.0)))
+        far = (s < _BEHIND[kind]) | (s > _AHEAD[kind])  # leaves the range of its kind
         # an object the ego drives into is lost rather than driven through
         hit = (np.abs(self._d - self._e) < 1.6) & (s > -EGO_LENGTH - 1.0) & (s < 1.0)
         for i in np.flatnonzero(self._alive & (far | (hit & (kind != ONCOMING)))):
@@ -344,13 +351,13 @@ class SceneWorld:
         escape = steady & (lane == 0) & (s > -1.0) & (closing > 0.5) & (
             (s < 10.0 * closing) | (s < 0.8 * v_e + 5.0))
         u = rng.random((3, MAX_OBJECTS))
-        for i in (int(k) for k in np.flatnonzero(escape)):
+        for i in (int(k) for k in escape.nonzero()[0]):
             if not (self._change_lane(i, -1, True) or self._change_lane(i, 1, True)):
                 # boxed in: the whole ego lane ahead speeds up
                 platoon = self._alive & (self._kind == VEHICLE) & (s > -1.0) & (
                     (lane == 0) | (self._lane_index(self._d) == 0))
                 self._vdes[platoon] = np.maximum(self._vdes[platoon], v_e + 3.0)
-        for i in (int(k) for k in np.flatnonzero(steady & ~escape & (u[0] < 0.03 * h))):
+        for i in (int(k) for k in (steady & ~escape & (u[0] < 0.03 * h)).nonzero()[0]):
             self._change_lane(i, int(lane[i]) + (1 if u[1, i] < 0.5 else -1))
         drift = u[2] < 0.1 * h
         if drift.any():
@@ -363,12 +370,11 @@ class SceneWorld:
         veh = alive & (kind == VEHICLE)
         same = (np.abs(d[:, None] - d[None, :]) < 2.0) | (
             np.abs(self._dtgt[:, None] - d[None, :]) < 2.0)
-        same &= veh[:, None] & veh[None, :]
-        np.fill_diagonal(same, False)
+        same &= (veh[:, None] & veh[None, :]) & _OTHERS  # not itself
         gaps = np.where(same & (s[None, :] > s[:, None]),
                         s[None, :] - s[:, None] - self._l[:, None], np.inf)
-        lead = np.argmin(gaps, axis=1)
-        gap, v_lead = gaps[np.arange(MAX_OBJECTS), lead], vx[lead]
+        lead = gaps.argmin(axis=1)
+        gap, v_lead = gaps[_ROWS, lead], vx[lead]
         ego_gap = -EGO_LENGTH - s - self._l
         use = veh & (np.abs(d - self._e) < 2.0) & (s < -1.0) & (ego_gap < gap)
         gap, v_lead = np.where(use, ego_gap, gap), np.where(use, self._v, v_lead)
@@ -377,13 +383,13 @@ class SceneWorld:
         hurry = (self._lane_index(d) == 0) & (s > 0.0) & (vx < self._v + 1.0)
         a_max, headway = np.where(hurry, 2.5, 1.2), np.where(hurry, 0.9, 1.3)
         s_star = 3.0 + np.maximum(0.0, headway * v + v * (v - v_lead) / (2 * np.sqrt(a_max * 2.0)))
-        a_idm = np.clip(a_max * (1 - (v / v0) ** 4 - (s_star / np.maximum(gap, 0.5)) ** 2), -6, 2.5)
+        a_idm = clip(a_max * (1 - (v / v0) ** 4 - (s_star / np.maximum(gap, 0.5)) ** 2), -6, 2.5)
         a_idm = np.maximum(a_idm, -v / max(h, 1e-3))  # stop, never reverse
-        ax = np.where(kind == VEHICLE, a_idm, np.clip(
+        ax = np.where(kind == VEHICLE, a_idm, clip(
             np.where(kind == ONCOMING, 0.3, 0.5) * (self._vdes - vx), -1.0, 1.0))
         err = self._dtgt - d
-        ay = np.where(kind <= ONCOMING, np.clip(0.8 * err - 1.6 * vy, -1.5, 1.5),
-                      np.clip(0.5 * err - 1.0 * vy, -0.5, 0.5))
+        ay = np.where(kind <= ONCOMING, clip(0.8 * err - 1.6 * vy, -1.5, 1.5),
+                      clip(0.5 * err - 1.0 * vy, -0.5, 0.5))
         self._ax = np.where(alive, ax, 0.0)
         self._ay = np.where(alive, ay, 0.0)
 
@@ -391,7 +397,7 @@ class SceneWorld:
     def _signs(self) -> None:
         s = self._sg_s
         gone = self._sg_alive & ((s < 8.0) | (s < np.abs(self._sg_lat) / math.tan(0.7)))
-        for i in np.flatnonzero(gone):
+        for i in gone.nonzero()[0]:
             self._sg_alive[i] = False
             self._free_sign_ids.append(int(self._sg_id[i]))
         if self._s_e - self._next_sign > 1000.0:
@@ -412,7 +418,7 @@ class SceneWorld:
             if names[k][6:].isdigit() and rng.random() < 0.4:  # speed limits often in pairs
                 places.append((3 * HALF_LANE + rng.uniform(0.8, 1.5), places[0][1]))
         for lat, z in places:
-            free = np.flatnonzero(~self._sg_alive)
+            free = (~self._sg_alive).nonzero()[0]
             if int(self._sg_alive.sum()) >= self._n_signs or len(free) == 0:
                 return
             i = int(free[0])

@@ -1,11 +1,12 @@
 """How the scene's values reach a payload: :func:`_puts` of one struct's members (clamped as
 :meth:`~eyeq_spi.sim.scene_layout._Leaf.clamp` says, generated writers into a packer's views),
-constants written once per packer (:func:`_puts_once`), and the arrays of structs as rows or
-numpy columns (split out of :mod:`eyeq_spi.sim.scene_layout`)."""
+writers bound once to a view (:func:`_bound_puts`), constants written once per packer
+(:func:`_puts_once`), and the arrays of structs as rows (:func:`_write_table`: generated row
+writers) or, for the obstacles, numpy columns (split out of :mod:`eyeq_spi.sim.scene_layout`)."""
 
 from __future__ import annotations
 
-import itertools
+import functools
 import struct
 from collections.abc import Callable
 from typing import Any
@@ -34,6 +35,17 @@ def _puts(d: dict[str, Any], n: _Node, vals: dict[str, float]) -> None:
             return
     for key, x in vals.items():
         _put(d, n, key, x)
+
+
+def _bound_puts(d: dict[str, Any], n: _Node, keys: tuple[str, ...]
+                ) -> Callable[[dict[str, float]], None]:
+    """:func:`_puts` of values with ``keys`` into ``d`` as one callable: for a packer's view
+    its generated writer bound to the view's buffer (views never change)."""
+    if isinstance(d, StructView):
+        fn = _compile_puts(d, n, keys)
+        if fn is not None:
+            return functools.partial(fn, d.buf, d.shadow)
+    return functools.partial(_puts, d, n)
 
 
 def _puts_once(d: dict[str, Any], n: _Node, key: str,
@@ -91,10 +103,6 @@ def _compile_puts(d: StructView, n: _Node, keys: tuple[str, ...]
 def _write_rows(elems: list[dict[str, Any]], n: _Node, rows: list[dict[str, float]],
                 keys: tuple[str, ...]) -> None:
     """Rows into the first elements of an array of structs; ``keys`` of the rest zeroed."""
-    # a packer's views: numpy columns, unless so few values that the generated writers win
-    if elems and isinstance(elems[0], StructView) and len(elems) * len(keys) >= _MIN_COLUMNS \
-            and _write_rows_packed(elems, n, rows, keys):
-        return
     for j, e in enumerate(elems):
         if j < len(rows):
             _puts(e, n, rows[j])
@@ -106,90 +114,60 @@ def _write_rows(elems: list[dict[str, Any]], n: _Node, rows: list[dict[str, floa
 
 
 _EXACT = 2.0**53  # ints below this survive float64 exactly
-_MIN_COLUMNS = 48  # values per array below which _write_rows loops (measured: SRP's 2 x 10)
+_MIN_NUMPY = 80  # values per table from which numpy clamps them (measured: numpy's ~17 µs)
 
 
 def _write_table(elems: list[dict[str, Any]], n: _Node, rkeys: tuple[str, ...],
-                 rows: list[tuple[float, ...]], keys: tuple[str, ...]) -> None:
-    """:func:`_write_rows` of rows given as tuples in the order of ``rkeys``: a packer's views
-    take them as one float64 matrix (no dict per row); otherwise the rows become dicts."""
-    if elems and isinstance(elems[0], StructView) and len(elems) * len(keys) >= _MIN_COLUMNS:
-        r = min(len(rows), len(elems))
-        m = np.array(rows[:r], dtype=np.float64).reshape(r, len(rkeys))
-        if _write_matrix(elems, n, rkeys if r else (), m, keys):
-            return
+                 rows: list[tuple[float, ...]] | FArr, keys: tuple[str, ...]) -> None:
+    """:func:`_write_rows` of rows given as tuples in the order of ``rkeys`` (or a float64
+    matrix of such rows): a packer's views take them as one float64 matrix, clamped by numpy and
+    packed by generated code (:func:`_compile_rows`); otherwise the rows become dicts."""
+    if elems and isinstance(elems[0], StructView):
+        ck = ("table", id(n), rkeys, keys, len(elems))
+        got = elems[0].cache.get(ck)
+        if got is None or got[0] is not n:
+            got = elems[0].cache[ck] = (n, _compile_rows(elems, n, rkeys, keys))
+        if got[1] is not None:
+            lo, hi, ints, write, clamp_write = got[1]
+            r = min(len(rows), len(elems))
+            if r * len(rkeys) < _MIN_NUMPY:
+                clamp_write(elems[0].buf, rows[:r])
+                return
+            m = np.array(rows[:r], dtype=np.float64).reshape(r, len(rkeys))
+            if r and len(ints):
+                x = m[:, ints]
+                if not np.abs(x).max() < _EXACT:  # NaN compares False too
+                    ints = None  # round() would raise, or float64 would not hold the int
+                else:
+                    m[:, ints] = np.rint(x)  # round(): half to even
+            if ints is not None:
+                m = np.where(lo > m, lo, m)  # min(max(x, lo), hi), NaN kept
+                write(elems[0].buf, np.where(hi < m, hi, m).tolist())
+                return
+    if isinstance(rows, np.ndarray):
+        rows = rows.tolist()
     _write_rows(elems, n, [dict(zip(rkeys, row, strict=True)) for row in rows], keys)
 
 
-def _write_rows_packed(elems: list[Any], n: _Node, rows: list[dict[str, float]],
-                       keys: tuple[str, ...]) -> bool:
-    """:func:`_write_rows` into a packer's views as numpy columns (:func:`_write_matrix`).
-    False (nothing written) when the loop must run instead: rows of different keys, or what
-    :func:`_write_matrix` refuses."""
-    rows = rows[:len(elems)]
-    rkeys = tuple(rows[0]) if rows else ()
-    if any(tuple(r) != rkeys for r in rows):
-        return False
-    r = len(rows)
-    m = np.fromiter(itertools.chain.from_iterable(x.values() for x in rows), np.float64,
-                    r * len(rkeys)).reshape(r, len(rkeys))
-    return _write_matrix(elems, n, rkeys, m, keys)
-
-
-def _write_matrix(elems: list[Any], n: _Node, rkeys: tuple[str, ...], m: FArr,
-                  keys: tuple[str, ...]) -> bool:
-    """Rows of ``m`` (columns ``rkeys``) into the first elements, ``keys`` of the rest zeroed,
-    clamped as :meth:`_Leaf.clamp` clamps (``min(max(x, lo), hi)``, ints rounded half to even
-    first). False (nothing written) when the loop must run instead: a bitfield or struct
-    member, an integer that float64 does not hold exactly or a type the encoder refuses."""
-    ck = ("rows", id(n), rkeys, keys, len(elems))
-    got = elems[0].cache.get(ck)
-    if got is None or got[0] is not n:
-        got = elems[0].cache[ck] = (n, _rows_plan(elems, n, rkeys, keys))
-    plan = got[1]
-    if plan is None:
-        return False
-    u8, cols, lo, hi, ints, wgroups, zgroups = plan
-    r = len(m)
-    if r:
-        m = m[:, cols]
-        if len(ints):
-            x = m[:, ints]
-            if not np.abs(x).max() < _EXACT:  # NaN compares False too
-                return False  # round() would raise, or float64 would not hold the int
-            m[:, ints] = np.rint(x)
-        m = np.where(lo > m, lo, m)  # min(max(x, lo), hi), NaN kept
-        m = np.where(hi < m, hi, m)
-        for dt, pos, idx in wgroups:
-            u8[idx[:, :r].ravel()] = np.ascontiguousarray(m[:, pos].T, dtype=dt).view(
-                np.uint8).ravel()
-    for idx in zgroups:  # any zero, 0 or 0.0, is all zero bytes
-        u8[idx[:, r:].ravel()] = 0
-    return True
-
-
-def _elem_index(elems: list[StructView], rel: int, size: int) -> Any:
-    """Payload byte indices (element, byte) of the member ``rel`` bytes into each element."""
+def _compile_rows(elems: list[StructView], n: _Node, rkeys: tuple[str, ...],
+                  keys: tuple[str, ...]) -> tuple[FArr, FArr, Any, Any, Any] | None:
+    """:func:`_write_table` into a packer's views: the bounds of the ``rkeys`` columns, the
+    integer ones, and two generated writers that pack rows with one ``pack_into`` per run of
+    adjacent members and zero ``keys`` of the elements past the rows by slices: one for rows
+    numpy has clamped and rounded, one that clamps each value with :meth:`_Leaf.clamp`'s
+    expression. None (the loop runs) for elements not evenly spaced, a bitfield or struct
+    member, a real into an integer or an integer range wider than its wire type."""
     first = elems[0]
-    stride = elems[1].base - first.base if len(elems) > 1 else first.layout.size
-    return (first.base + rel + stride * np.arange(len(elems))[:, None]
-            + np.arange(size)[None, :])
-
-
-def _rows_plan(elems: list[StructView], n: _Node, rkeys: tuple[str, ...], keys: tuple[str, ...]
-               ) -> tuple[Any, ...] | None:
-    """Columns of ``rkeys`` to write (row index, bounds, the integer ones, per wire type the
-    payload indices) and the payload indices of ``keys`` to zero."""
-    first = elems[0]
-    stride = elems[1].base - first.base if len(elems) > 1 else first.layout.size
+    count = len(elems)
+    stride = elems[1].base - first.base if count > 1 else first.layout.size
     if any(e.base != first.base + k * stride for k, e in enumerate(elems)):
         return None
-    cols: list[int] = []
-    los: list[float] = []
-    his: list[float] = []
+    put: list[tuple[int, str, str]] = []  # (offset, struct code, expression)
+    zero: list[tuple[int, int]] = []  # (offset, size) of the members zeroed past the rows
+    lo, hi = np.full(len(rkeys), -np.inf), np.full(len(rkeys), np.inf)
     ints: list[int] = []
-    by_type: dict[str, list[tuple[int, int]]] = {}
-    by_size: dict[int, list[int]] = {}
+    clamped: list[str] = []  # the expressions of :meth:`_Leaf.clamp`
+    env: dict[str, Any] = {"CodecError": CodecError, "StructError": struct.error}
     for j, key in enumerate(rkeys + keys):
         leaf = n.members.get(key)
         if not isinstance(leaf, _Leaf) or key not in first:
@@ -200,29 +178,68 @@ def _rows_plan(elems: list[StructView], n: _Node, rkeys: tuple[str, ...], keys: 
         if not leaf.real and not s.real and not s.wire[0] <= leaf.lo <= leaf.hi <= s.wire[1]:
             return None
         if j >= len(rkeys):
-            by_size.setdefault(s.st.size, []).append(s.offset)
+            zero.append((s.offset, s.st.size))
             continue
+        lo[j], hi[j] = leaf.lo, leaf.hi
         if not leaf.real:
-            ints.append(len(cols))
-        by_type.setdefault(s.type, []).append((len(cols), s.offset))
-        cols.append(j)
-        los.append(leaf.lo)
-        his.append(leaf.hi)
-    wgroups = []
-    for typ, items in by_type.items():
-        dt = np.dtype(NP_FMT[typ])
-        idx = np.stack([_elem_index(elems, rel, dt.itemsize) for _, rel in items])
-        wgroups.append((dt, [c for c, _ in items], idx))
-    zgroups = [np.stack([_elem_index(elems, rel, size) for rel in rels])
-               for size, rels in by_size.items()]
-    return (np.frombuffer(first.buf, dtype=np.uint8), cols, np.array(los), np.array(his), ints,
-            wgroups, zgroups)
+            ints.append(j)
+        put.append((s.offset, s.st.format[1:], f"r[{j}]" if leaf.real else f"int(r[{j}])"))
+        clamped.append(f"float(min(max(r[{j}], L{j}), H{j}))" if leaf.real
+                       else f"int(min(max(round(r[{j}]), L{j}), H{j}))")
+        env[f"L{j}"], env[f"H{j}"] = leaf.lo, leaf.hi
+    env["Z"] = _zero_spans(first.base, stride, count, zero)
+    return (lo, hi, np.array(ints, dtype=np.intp), _rows_writer(first, stride, put, env),
+            _rows_writer(first, stride, [(o, c, e) for (o, c, _), e in zip(put, clamped,
+                                                                            strict=True)], env))
+
+
+def _zero_spans(base: int, stride: int, count: int, zero: list[tuple[int, int]]
+                ) -> list[list[tuple[int, int]]]:
+    """Per number of rows, the byte ranges (merged) of the members zeroed past them."""
+    spans = sorted((base + k * stride + off, size) for k in range(count) for off, size in zero)
+    out = []
+    for r in range(count + 1):
+        merged: list[tuple[int, int]] = []
+        for a, size in spans:
+            if a < base + r * stride:
+                continue
+            if merged and merged[-1][1] == a:
+                merged[-1] = (merged[-1][0], a + size)
+            else:
+                merged.append((a, a + size))
+        out.append(merged)
+    return out
+
+
+def _rows_writer(first: StructView, stride: int, put: list[tuple[int, str, str]],
+                 env: dict[str, Any]) -> Callable[[bytearray, list[Any]], None]:
+    """Generated code packing rows, one ``pack_into`` per run of adjacent members."""
+    env = dict(env)
+    put = sorted(put)
+    runs: list[tuple[int, str, list[str]]] = []
+    for off, code, expr in put:
+        last = runs[-1] if runs else None
+        if last is not None and last[0] + struct.calcsize("<" + last[1]) == off:
+            runs[-1] = (last[0], last[1] + code, [*last[2], expr])
+        else:
+            runs.append((off, code, [expr]))
+    body = ["def _w(b, rows):", "    try:", f"        o = {first.base}", "        for r in rows:"]
+    for k, (off, code, exprs) in enumerate(runs):
+        env[f"S{k}"] = struct.Struct("<" + code)
+        body.append(f"            S{k}.pack_into(b, o + {off}, {', '.join(exprs)})")
+    body += [f"            o += {stride}", "        for a, e in Z[len(rows)]:",
+             "            b[a:e] = bytes(e - a)",
+             "    except (StructError, TypeError, OverflowError) as exc:",
+             f"        raise CodecError(f'{first.layout.name}: cannot encode: {{exc}}') from None"]
+    exec("\n".join(body), env)
+    fn: Callable[[bytearray, list[Any]], None] = env.pop("_w")
+    return fn
 
 
 def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n: int) -> bool:
     """The object loop of ``Scene._fill_obstacles`` into a packer's views: the same clamped
-    arrays, scattered per wire type into the payload bytes (slots past ``n`` get 0). False
-    (nothing written) when the loop must run."""
+    arrays, cast per wire type into one byte array and scattered into the payload bytes at once
+    (slots past ``n`` get 0). False (nothing written) when the loop must run."""
     first = objs[0]
     ck = ("objs", id(plan), len(objs))
     got = first.cache.get(ck)
@@ -231,22 +248,24 @@ def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n
     p = got[1]
     if p is None:
         return False
-    u8, groups, check, bitgroups = p
+    u8, groups, check, bitgroups, raw, everywhere = p
     rows, lo, hi = check
     if n and len(rows):  # one range check for every integer column (wire type or bit width)
         x = il[rows]
         if (x < lo).any() or (x > hi).any():
             return False  # the encoder would refuse it: let the loop raise
-    for real, rows, idx, v in groups:
+    count = len(objs)
+    for real, rows, v in groups:
         v[:, :n] = fl[rows] if real else il[rows]
-        v[:, n:] = 0
-        u8[idx] = v.view(np.uint8).ravel()
-    for brows, shift, starts, base, idx, v in bitgroups:
+        if n < count:
+            v[:, n:] = 0
+    for brows, shift, starts, base, v in bitgroups:
         # a container holds the bits the objects do not write as they are (D2 unused bits set)
-        v[:] = base
+        if n < count:
+            v[:, n:] = base[:, n:]
         if n:
             v[:, :n] = base[:, :n] | np.bitwise_or.reduceat(il[brows] << shift, starts, axis=0)
-        u8[idx] = v.view(np.uint8).ravel()
+    u8[everywhere] = raw  # every group's bytes in one scatter
     return True
 
 
@@ -292,8 +311,11 @@ def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | N
         return dt, (first.base + r[:, None, None] + stride * np.arange(count)[None, :, None]
                     + np.arange(dt.itemsize)[None, None, :]).ravel()
 
+    # each group's values live in one byte array (widest types first: aligned), scattered into
+    # the payload at once by the concatenation of the groups' indices
+    order = sorted(by_type.items(), key=lambda kv: -np.dtype(NP_FMT[kv[0][0]]).itemsize)
     groups = []
-    for (typ, real), cols in by_type.items():
+    for (typ, real), cols in order:
         dt, idx = index(typ, [r for _, r in cols])
         groups.append((real, np.array([r for r, _ in cols]), idx,
                        np.zeros((len(cols), count), dtype=dt)))
@@ -320,4 +342,15 @@ def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | N
     bounds = (np.array([r for r, _, _ in check], dtype=np.intp),
               np.array([x for _, x, _ in check], dtype=np.float64)[:, None],
               np.array([x for _, _, x in check], dtype=np.float64)[:, None])
-    return u8, groups, bounds, bitgroups
+    arrays = [g[3] for g in groups] + [b[5] for b in bitgroups]
+    raw = np.zeros(sum(a.nbytes for a in arrays), dtype=np.uint8)
+    views, at = [], 0
+    for a in arrays:
+        views.append(raw[at:at + a.nbytes].view(a.dtype).reshape(a.shape))
+        at += a.nbytes
+    for k, b in enumerate(bitgroups):  # the containers as the payload holds them now
+        views[len(groups) + k][:] = b[3]
+    everywhere = np.concatenate([g[2] for g in groups] + [b[4] for b in bitgroups])
+    return (u8, [(g[0], g[1], v) for g, v in zip(groups, views, strict=False)], bounds,
+            [(*b[:4], v) for b, v in zip(bitgroups, views[len(groups):], strict=True)], raw,
+            everywhere)
