@@ -144,7 +144,18 @@ local function dissect_dasp(data, mt, ri, items)
   end
   if items then add(mt, F["message"], 1, 1, entry.name) end
   dissect_payload(mt, 4, n, entry, ri)
-  return entry.name .. " #" .. NUMSTR[counter]
+  -- the name and counter, made once per message and counter value (a byte)
+  local named = entry.counted
+  if not named then
+    named = {}
+    entry.counted = named
+  end
+  local text = named[counter]
+  if not text then
+    text = entry.name .. " #" .. NUMSTR[counter]
+    named[counter] = text
+  end
+  return text
 end
 
 local function dissect_other(data, mt, entry, ri, items)
@@ -273,8 +284,8 @@ local function u32(raw, at)
 end
 
 -- Returns the Info text (when the columns are filled) and, for a trusted single frame, the
--- message bytes. ttype and targ are the frame's bytes T_TYPE and T_ARG.
-local function dissect_transport(tail, pinfo, dir, num, trusted, feed, n, cols, ttype, targ)
+-- message bytes. raw is the whole frame, ttype and targ its bytes T_TYPE and T_ARG.
+local function dissect_transport(raw, pinfo, dir, num, trusted, feed, n, cols, ttype, targ)
   local sk = SKIP[G_DATA]
   local items = VIS or not (sk or sk == nil and skip(G_DATA))
   local tt
@@ -294,9 +305,13 @@ local function dissect_transport(tail, pinfo, dir, num, trusted, feed, n, cols, 
       st = nil
     else
       st.lastnum = num
-      now = pinfo.abs_ts  -- read once: each read is a call into Wireshark
-      if st.open and now - st.time >= C.REASSEMBLY_TIMEOUT then
-        abort(st, n, "timeout")
+      -- the time, read once (each read is a call into Wireshark), only where it matters: an
+      -- open transfer may time out, a first or consecutive frame records it
+      if st.open or ttype ~= C.T_SINGLE then
+        now = pinfo.abs_ts
+        if st.open and now - st.time >= C.REASSEMBLY_TIMEOUT then
+          abort(st, n, "timeout")
+        end
       end
     end
   end
@@ -310,10 +325,9 @@ local function dissect_transport(tail, pinfo, dir, num, trusted, feed, n, cols, 
     if items then add(tt, F["chunk"], C.SINGLE_DATA, targ) end
     if st and st.open then abort(st, n, "interleaved") end
     if not trusted then return "single", nil end
-    if targ == #tail then return "single", tail end  -- the tail starts at SINGLE_DATA
-    return "single", ssub(tail, 1, targ)
+    return "single", ssub(raw, C.SINGLE_DATA + 1, C.SINGLE_DATA + targ)
   elseif ttype == C.T_FIRST then
-    local total = u32(tail, C.T_TOTAL - C.HEAD)
+    local total = u32(raw, C.T_TOTAL)
     if items then
       add(tt, F["transfer_id"], C.T_ARG, 1)
       add_le(tt, F["total"], C.T_TOTAL, 4)
@@ -330,7 +344,7 @@ local function dissect_transport(tail, pinfo, dir, num, trusted, feed, n, cols, 
       st.dead = nil
       st.open, st.id, st.total, st.len = true, targ, total, C.FIRST_CHUNK
       st.last, st.time, st.first, st.at = num, now, n, n
-      st.parts[1] = ssub(tail, C.FIRST_DATA - C.HEAD + 1, C.FIRST_DATA - C.HEAD + C.FIRST_CHUNK)
+      st.parts[1] = ssub(raw, C.FIRST_DATA + 1, C.FIRST_DATA + C.FIRST_CHUNK)
       st.np = 1
       prev[n] = 0
     end
@@ -349,13 +363,13 @@ local function dissect_transport(tail, pinfo, dir, num, trusted, feed, n, cols, 
       elseif num ~= (st.last + 1) % C.SEQ_MODULO then
         abort(st, n, "num_gap")
       elseif rest < C.CONSECUTIVE_CHUNK
-          and ssub(tail, rest + 1, C.CONSECUTIVE_CHUNK)
-              :find("[^\0]") then
+          and (sfind(raw, "[^\0]", C.NEXT_DATA + rest + 1) or math.huge)
+              <= C.NEXT_DATA + C.CONSECUTIVE_CHUNK then
         abort(st, n, "bad_padding")  -- T4/T6a: the rest is zero; this is another transfer
       else
         local take = math.min(C.CONSECUTIVE_CHUNK, rest)
         st.np = st.np + 1
-        st.parts[st.np] = take == #tail and tail or ssub(tail, 1, take)  -- from NEXT_DATA
+        st.parts[st.np] = ssub(raw, C.NEXT_DATA + 1, C.NEXT_DATA + take)
         st.len = st.len + take
         st.last, st.time = num, now
         prev[n] = st.at
@@ -371,7 +385,7 @@ local function dissect_transport(tail, pinfo, dir, num, trusted, feed, n, cols, 
         end
       end
     end
-    return cols and "consecutive ID=" .. NUMSTR[targ], nil
+    return cols and CONS_INFO[targ], nil
   end
   expert(tt, X.format, string.format("transport type 0x%02X is not 0..2 (T1)", ttype))
   return string.format("transport 0x%02X", ttype), nil
@@ -440,7 +454,6 @@ function p.dissector(tvb, pinfo, tree)
     columns = columns or pinfo.cols
     columns.protocol = "EyeQ SPI"
   end
-  local len = tvb:len()
   -- the direction from the pcapng interface; "?" when the capture has no interfaces; no field
   -- at all when this pass builds no tree
   local fi, dir = f_iface(), nil
@@ -449,8 +462,13 @@ function p.dissector(tvb, pinfo, tree)
   elseif f_frame() then
     dir = "?"
   else
-    return len  -- no tree in this pass: nothing to add, nothing to feed
-  end  -- no tree in this pass: nothing to add, nothing to feed
+    return tvb:len()  -- no tree in this pass: nothing to add, nothing to feed
+  end
+  -- The whole frame is copied into Lua once, as one string: its length is the frame's, the
+  -- header, CRC and transport bytes and the CRC's input are read from it, and a message's
+  -- chunks are cut from it. Each call into Wireshark costs more than the Lua around it.
+  local raw = tvb:raw()
+  local len = #raw
   TVB, TVB_MAKE = tvb, nil
   -- a tree that is not shown needs no byte range (one object less per packet)
   ROOT, ROOT_TEXT = VIS and tree:add(p, tvb()) or tree:add(p), nil
@@ -473,15 +491,10 @@ function p.dissector(tvb, pinfo, tree)
     if cols then columns.info = dirtext .. "bad length " .. len end
     return len
   end
-  -- The header word, the CRC (L1) and a DATA frame's transport type and argument (T1). Only
-  -- these bytes are copied into Lua, and the rest (the tail, which is also a consecutive
-  -- frame's chunk as it stands) only when the frame's CRC covers it (a DATA frame): every
-  -- copy feeds the garbage collector, which takes a third of the dissector's time.
-  local h0, h1, h2, h3, c0, c1, ttype, targ = sbyte(tvb:raw(0, C.HEAD), 1, C.HEAD)
+  -- The header word, the CRC (L1) and a DATA frame's transport type and argument (T1).
+  local h0, h1, h2, h3, c0, c1, ttype, targ = sbyte(raw, 1, C.HEAD)
   local h = h0 + h1 * 256 + h2 * 65536 + h3 * 16777216
   local d = @HDR.D@
-  local tail  -- the frame from byte HEAD on
-  if not CRC_HEAD_ONLY[d] then tail = tvb:raw(C.HEAD) end
   local r = @HDR.R@
   local rsp = @HDR.RSP@
   local num = @HDR.NUM@
@@ -506,7 +519,7 @@ function p.dissector(tvb, pinfo, tree)
     crc_ok = crc == nil
     if crc_ok then crc = got end
   else
-    crc = (CRC_BY_KIND[d] or CRC_OTHER)(tail, h0, h1, h2, h3, c0, c1, ttype, targ)
+    crc = (CRC_BY_KIND[d] or CRC_OTHER)(raw, h0, h1, h2, h3, c0, c1, ttype, targ)
     crc_ok = crc == got
     if not crc_ok then crc_bad[n] = crc end
   end
@@ -526,7 +539,7 @@ function p.dissector(tvb, pinfo, tree)
   local tinfo, name
   if kind == "DATA" then
     local single
-    tinfo, single = dissect_transport(tail, pinfo, dir, num, crc_ok and r == 0, feed, n, cols,
+    tinfo, single = dissect_transport(raw, pinfo, dir, num, crc_ok and r == 0, feed, n, cols,
                                       ttype, targ)
     local nt = notes[n]
     if nt then
