@@ -172,10 +172,10 @@ def test_capture_without_interfaces(tmp_path: Path) -> None:
 
 
 @needs_tshark
-def test_frame_read_once_cuts_chunks_and_names(tmp_path: Path) -> None:
-    """The whole frame is one string: singles, first and consecutive chunks are cut from it at
-    their offsets, the zero padding after a message's last byte is checked up to the frame's
-    last byte, and the Info names made once per message and counter stay per message."""
+def test_chunks_padding_and_info_names(tmp_path: Path) -> None:
+    """Singles, first and consecutive chunks are cut at their offsets, the zero padding after a
+    message's last byte is searched up to the frame's last byte, and the Info texts made once
+    per transfer ID and per message and counter stay per message."""
     fc = FrameCodec()
     codec = MessageCodec()
     base = codec.cat.message("EYEQ_BASE_DIAG_STATUS_MSG")

@@ -15,8 +15,7 @@ from __future__ import annotations
 # values plus the bxor call's 65 arguments stay well inside Lua 5.2's 250 registers
 CHUNK = 64
 # the bytes the dissector reads first (header word, CRC, transport type and argument) and
-# passes in as h1..h8; the CRC reads the rest from ``raw``, the whole frame as one string (one
-# copy into Lua per frame)
+# passes in as h1..h8; the CRC reads the rest from ``tail``, the frame from byte HEAD on
 HEAD = 8
 # A frame whose bytes from SHORT on are all zero (a short message, a chunk of a payload's
 # unused slots: a third of the DATA frames of a full-load capture) needs only its first SHORT.
@@ -35,7 +34,7 @@ def _segments(ranges: list[tuple[int, int]]) -> list[tuple[int, int, int]]:
 def _blocks(segments: list[tuple[int, int, int]], limit: int, indent: str) -> list[str]:
     """Lua adding the contributions of the covered bytes before ``limit`` (0-based): bytes
     below HEAD from the arguments h1..h8, the rest CHUNK bytes per string.byte call on
-    ``raw``."""
+    ``tail``."""
     lines = []
     for a, b, pos in segments:
         start, b = a, min(b, limit)
@@ -52,7 +51,7 @@ def _blocks(segments: list[tuple[int, int, int]], limit: int, indent: str) -> li
                          for i in range(1, end - start + 1)]
                 lines += [f"{indent}do",
                           f"{indent}  local {', '.join(names)} = "
-                          f"sbyte(raw, {start + 1}, {end})",
+                          f"sbyte(tail, {start - HEAD + 1}, {end - HEAD})",
                           f"{indent}  acc = bxor(acc, {', '.join(terms)})",
                           f"{indent}end"]
             start = end
@@ -60,20 +59,20 @@ def _blocks(segments: list[tuple[int, int, int]], limit: int, indent: str) -> li
 
 
 def _function(name: str, ranges: list[tuple[int, int]]) -> list[str]:
-    """``local function <name>(raw, h1, ..., h8)``: the CRC over ``ranges`` (0-based, end
-    exclusive) of the frame ``raw`` (a string of FRAME_SIZE bytes) whose first HEAD bytes the
-    caller has already read and passes as ``h1..h8``. A zero byte contributes nothing, so a
-    frame whose bytes from SHORT on are all zero (one plain string.find) is summed only up to
-    SHORT."""
+    """``local function <name>(tail, h1, ..., h8)``: the CRC over ``ranges`` (0-based, end
+    exclusive) of a frame whose first HEAD bytes the caller has already read and passes as
+    ``h1..h8``, and whose bytes from HEAD on are the string ``tail`` (nil where the CRC covers
+    none of them). A zero byte contributes nothing, so a frame whose bytes from SHORT on are
+    all zero (one plain string.find) is summed only up to SHORT."""
     length = sum(b - a for a, b in ranges)
     segments = _segments(ranges)
     lines = [f"local {name}_P, {name}_K = crc_tables({length})",
-             f"local function {name}(raw, {', '.join(f'h{i}' for i in range(1, HEAD + 1))})",
+             f"local function {name}(tail, {', '.join(f'h{i}' for i in range(1, HEAD + 1))})",
              f"  local P, acc = {name}_P, {name}_K"]
     lines += _blocks(segments, HEAD, "  ")
     rest = [(max(a, HEAD), b, pos + max(a, HEAD) - a) for a, b, pos in segments if b > HEAD]
     if max(b for _, b in ranges) > SHORT:
-        lines.append(f"  if sfind(raw, CRC_ZERO_TAIL, {SHORT + 1}, true) then  -- zeros")
+        lines.append(f"  if sfind(tail, CRC_ZERO_TAIL, {SHORT - HEAD + 1}, true) then  -- zeros")
         lines += [*_blocks(rest, SHORT, "    "), "    return acc", "  end"]
     lines += _blocks(rest, 1 << 30, "  ")
     lines += ["  return acc", "end"]
@@ -100,6 +99,9 @@ def crc_functions(coverage: dict[int, list[tuple[int, int]]],
     lines.append("local CRC_BY_KIND = {" + ", ".join(
         f"[{d}] = {name}" for d, name in kinds.items()) + "}")
     lines.append(f"local CRC_OTHER = {other_fn}")
+    head_only = [d for d, r in sorted(coverage.items()) if max(b for _, b in r) <= HEAD]
+    lines.append("local CRC_HEAD_ONLY = {" + ", ".join(f"[{d}] = true" for d in head_only)
+                 + "}  -- kinds whose CRC covers only bytes read before the tail")
     lines.append("local CRC_RANGES = {" + ", ".join(
         f"[{name}] = {{" + ", ".join(f"{{{a}, {b}}}" for a, b in key) + "}"
         for key, name in by_ranges.items()) + "}")
@@ -173,7 +175,7 @@ do  -- the unrolled CRCs agree with the byte-wise one on a frame of every byte v
     for fn, ranges in pairs(CRC_RANGES) do
       local crc = C.CRC_INIT
       for i = 1, #ranges do crc = crc_update(crc, ssub(raw, ranges[i][1] + 1, ranges[i][2])) end
-      assert(fn(raw, sbyte(raw, 1, C.HEAD)) == bxor(crc, C.CRC_XOROUT),
+      assert(fn(ssub(raw, C.HEAD + 1), sbyte(raw, 1, C.HEAD)) == bxor(crc, C.CRC_XOROUT),
              "eyeq_spi: unrolled CRC disagrees")
     end
   end
