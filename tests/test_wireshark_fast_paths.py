@@ -169,3 +169,40 @@ def test_capture_without_interfaces(tmp_path: Path) -> None:
         assert info[8] == "ACK of NUM=5 [bad CRC]"
     rows = tshark(capture, lua, ["eyeq_spi.dir", "eyeq_spi.message"], tmp_path)
     assert rows[0] == ["", "GetEyeQExtendedState"]
+
+
+@needs_tshark
+def test_chunks_padding_and_info_names(tmp_path: Path) -> None:
+    """Singles, first and consecutive chunks are cut at their offsets, the zero padding after a
+    message's last byte is searched up to the frame's last byte, and the Info texts made once
+    per transfer ID and per message and counter stay per message."""
+    fc = FrameCodec()
+    codec = MessageCodec()
+    base = codec.cat.message("EYEQ_BASE_DIAG_STATUS_MSG")
+    aeb = codec.cat.message("EYEQ_VIS_AEB_INFO_MSG")
+    dasp = codec.encode_dasp(base.name, codec.layout(base).zero_values(), counter=7)
+    single = codec.encode_dasp(aeb.name, codec.layout(aeb).zero_values(), counter=7)
+    parts = segment(dasp, 3)
+    assert len(parts) == 2 and len(parts[1]) < 122
+    again = segment(dasp, 4)
+    last_set = again[1] + bytes(121 - len(again[1])) + b"\x01"  # only the frame's last byte
+    frames = [
+        ("e2h", fc.data_frame(0, 0, segment(single, 0)[0])),  # 1: a single, counter 7
+        ("e2h", fc.data_frame(0, 1, parts[0])),  # 2
+        ("e2h", fc.data_frame(0, 2, parts[1])),  # 3: complete, counter 7, another message
+        ("e2h", fc.data_frame(0, 3, again[0])),  # 4
+        ("e2h", fc.data_frame(0, 4, last_set)),  # 5: a nonzero last byte: bad padding
+        ("e2h", fc.data_frame(0, 5, segment(single, 0)[0])),  # 6: the first message again
+    ]
+    assert len(frames[4][1]) == 128
+    capture = write_capture(tmp_path / "chunks.pcapng", frames)
+    lua = write_lua(tmp_path)
+    info = summary_info(capture, lua, tmp_path)
+    assert info[0] == f"e2h DATA NUM=0 RSP=0 single: {aeb.name} #7"
+    assert info[1] == "e2h DATA NUM=1 RSP=0 first ID=3 total=" + str(len(dasp))
+    assert info[2] == f"e2h DATA NUM=2 RSP=0 consecutive ID=3: {base.name} #7"
+    assert info[4] == "e2h DATA NUM=4 RSP=0 consecutive ID=4"
+    assert info[5] == f"e2h DATA NUM=5 RSP=0 single: {aeb.name} #7"
+    rows = tshark(capture, lua, ["eyeq_spi.msg_length", "_ws.expert.message"], tmp_path)
+    assert rows[0][0] == str(len(single)) and rows[2][0] == str(len(dasp))
+    assert "bad_padding" in rows[4][1]

@@ -108,6 +108,9 @@ local G_DASP = {F["dasp.protocol"], F["dasp.data_id"], F["dasp.counter"], F["das
 -- decimal text of the numbers the Info column shows most (NUM, RSP, IDs)
 local NUMSTR = {}
 for i = 0, C.SEQ_MODULO - 1 do NUMSTR[i] = tostring(i) end
+-- the Info text of a consecutive frame, per transfer ID (one byte): made once each
+local CONS_INFO = {}
+for i = 0, 255 do CONS_INFO[i] = "consecutive ID=" .. i end
 
 -- =============================================================================================
 -- Struct walker (decision D2): S[key] rows are {offset, element size, count (0 = scalar),

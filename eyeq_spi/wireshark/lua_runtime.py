@@ -144,7 +144,18 @@ local function dissect_dasp(data, mt, ri, items)
   end
   if items then add(mt, F["message"], 1, 1, entry.name) end
   dissect_payload(mt, 4, n, entry, ri)
-  return entry.name .. " #" .. NUMSTR[counter]
+  -- the name and counter, made once per message and counter value (a byte)
+  local named = entry.counted
+  if not named then
+    named = {}
+    entry.counted = named
+  end
+  local text = named[counter]
+  if not text then
+    text = entry.name .. " #" .. NUMSTR[counter]
+    named[counter] = text
+  end
+  return text
 end
 
 local function dissect_other(data, mt, entry, ri, items)
@@ -294,9 +305,13 @@ local function dissect_transport(tail, pinfo, dir, num, trusted, feed, n, cols, 
       st = nil
     else
       st.lastnum = num
-      now = pinfo.abs_ts  -- read once: each read is a call into Wireshark
-      if st.open and now - st.time >= C.REASSEMBLY_TIMEOUT then
-        abort(st, n, "timeout")
+      -- the time, read once (each read is a call into Wireshark), only where it matters: an
+      -- open transfer may time out, a first or consecutive frame records it
+      if st.open or ttype ~= C.T_SINGLE then
+        now = pinfo.abs_ts
+        if st.open and now - st.time >= C.REASSEMBLY_TIMEOUT then
+          abort(st, n, "timeout")
+        end
       end
     end
   end
@@ -348,9 +363,8 @@ local function dissect_transport(tail, pinfo, dir, num, trusted, feed, n, cols, 
         abort(st, n, "wrong_id")
       elseif num ~= (st.last + 1) % C.SEQ_MODULO then
         abort(st, n, "num_gap")
-      elseif rest < C.CONSECUTIVE_CHUNK
-          and ssub(tail, rest + 1, C.CONSECUTIVE_CHUNK)
-              :find("[^\0]") then
+      elseif rest < C.CONSECUTIVE_CHUNK  -- a search, no copy
+          and (sfind(tail, "[^\0]", rest + 1) or math.huge) <= C.CONSECUTIVE_CHUNK then
         abort(st, n, "bad_padding")  -- T4/T6a: the rest is zero; this is another transfer
       else
         local take = math.min(C.CONSECUTIVE_CHUNK, rest)
@@ -371,7 +385,7 @@ local function dissect_transport(tail, pinfo, dir, num, trusted, feed, n, cols, 
         end
       end
     end
-    return cols and "consecutive ID=" .. NUMSTR[targ], nil
+    return cols and CONS_INFO[targ], nil
   end
   expert(tt, X.format, string.format("transport type 0x%02X is not 0..2 (T1)", ttype))
   return string.format("transport 0x%02X", ttype), nil
@@ -450,7 +464,7 @@ function p.dissector(tvb, pinfo, tree)
     dir = "?"
   else
     return len  -- no tree in this pass: nothing to add, nothing to feed
-  end  -- no tree in this pass: nothing to add, nothing to feed
+  end
   TVB, TVB_MAKE = tvb, nil
   -- a tree that is not shown needs no byte range (one object less per packet)
   ROOT, ROOT_TEXT = VIS and tree:add(p, tvb()) or tree:add(p), nil
