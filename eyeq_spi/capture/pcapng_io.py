@@ -244,9 +244,13 @@ class CaptureWriter:
                             self._pending, self._room = [], self.FLUSH_BYTES - len(self._buf)
                     else:
                         self._keep(direction, time, transfer)
-            else:
-                for direction, time, transfer in items:
-                    self._keep(direction, time, transfer)
+            else:  # block mode: all kept at once, as _keep keeps each
+                ids = self._ids
+                kept = [(ids[direction], time, bytes(transfer))
+                        for direction, time, transfer in items]
+                self._pending.extend(kept)
+                self.count += len(kept)
+                self._p_bytes += 35 * len(kept) + sum(len(k[2]) for k in kept)
             if self._pending and (self._p_bytes >= self._room
                                   or self._clock() - self._last_flush >= self.flush_s):
                 self._flush()

@@ -373,7 +373,7 @@ class CaptureTap:
 
     def many(self, transfers: list[tuple[int, float, bytes]]) -> None:
         d = self.DIRECTIONS
-        self.writer.write_many([(d[node], t, b) for node, t, b in transfers])
+        self.writer.write_many((d[node], t, b) for node, t, b in transfers)
 
 
 def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
