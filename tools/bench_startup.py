@@ -141,8 +141,11 @@ def main() -> int:
               f"{statistics.median(base_cpu) * 1000:.0f} ms ({args.runs} runs, "
               f"{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}, {sys.version.split()[0]}, "
               f"{'no bytecode cache' if args.no_pyc else 'with bytecode caches'})")
-        npw, npc = time_one([sys.executable, "-c", "import numpy"], base_env, args.runs, tmp)
-        print(f"baseline python -c 'import numpy' (the floor of a batch-path dissect): median "
+        # numpy with the BLAS threads the CLI sets (cli.BLAS_THREADS), unless the caller chose
+        np_env = {"OPENBLAS_NUM_THREADS": "1", **base_env}
+        npw, npc = time_one([sys.executable, "-c", "import numpy"], np_env, args.runs, tmp)
+        print(f"baseline python -c 'import numpy' (the floor of a batch-path dissect, one BLAS "
+              f"thread as the CLI sets): median "
               f"{statistics.median(npw) * 1000:.0f} ms wall, CPU "
               f"{statistics.median(npc) * 1000:.0f} ms ({min(npc) * 1000:.0f}.."
               f"{max(npc) * 1000:.0f})")
