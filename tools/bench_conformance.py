@@ -47,13 +47,13 @@ def suite_run(dut: str) -> tuple[float, float]:
             spans.append(tr.end)
         return tr
 
-    suite._eyeq_session, suite._host_session = eyeq, host  # type: ignore[assignment]
+    suite._eyeq_session, suite._host_session = eyeq, host
     try:
         c0 = time.process_time()
         results = run(Options(dut=dut, builtin=True))
         cpu = time.process_time() - c0
     finally:
-        suite._eyeq_session, suite._host_session = orig_e, orig_h  # type: ignore[assignment]
+        suite._eyeq_session, suite._host_session = orig_e, orig_h
     assert all(r.outcome.verdict in ("pass", "skip") for r in results)
     return cpu, sum(spans)
 

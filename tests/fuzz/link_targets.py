@@ -157,15 +157,15 @@ class _Pair:
             self.drain()
             if moved:
                 continue
-            timers = [x for c in (self.tx, self.rx) if (x := c.get_timer()) is not None]
-            due = [x for x in timers if x <= until]
+            timers = [tm for c in (self.tx, self.rx) if (tm := c.get_timer()) is not None]
+            due = [tm for tm in timers if tm <= until]
             if not due:
                 self.now = max(self.now, until)
                 return
             self.now = max(self.now, min(due))
             for c in (self.tx, self.rx):
-                x = c.get_timer()
-                if x is not None and x <= self.now:
+                tm = c.get_timer()
+                if tm is not None and tm <= self.now:
                     c.handle_timer(self.now)
         raise Finding("the pair never went quiet")
 
