@@ -276,7 +276,10 @@ def test_demo_capture_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[s
 
 
 def test_bounded_memory_on_a_large_capture(tmp_path: Path) -> None:
-    """Peak memory of --stats does not grow with the capture: 40k vs 320k frames."""
+    """Peak memory of --stats does not grow with the capture: 100k vs 500k frames (the batch
+    path's read buffer and chunk arrays are full from about 100k frames on: a smaller capture
+    would measure their filling, not growth). One untimed run first, so that both measured runs
+    find the catalogue and code caches as a user's second start does."""
     frame = segment(dasp("EYEQ_VIS_FAILSAFE_MSG", 0)[:60], 0)[0]
 
     def make(n: int) -> Path:
@@ -300,5 +303,7 @@ def test_bounded_memory_on_a_large_capture(tmp_path: Path) -> None:
         assert r.returncode in (0, 1), r.stderr[-500:]
         return int(r.stderr.strip().splitlines()[-1])
 
-    small, large = peak(make(40_000)), peak(make(320_000))
-    assert large < small * 1.25 + 8_000, (small, large)  # KiB
+    small_file = make(100_000)
+    peak(small_file)
+    small, large = peak(small_file), peak(make(500_000))
+    assert large < small + 16_384, (small, large)  # KiB: 400k more frames are 51 MB
