@@ -23,6 +23,7 @@ A :class:`VecLayout` is built once per :class:`~eyeq_spi.codec.layout.Layout` fr
 from __future__ import annotations
 
 import binascii
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -42,30 +43,30 @@ INT_TYPES = {"uint8", "uint16", "uint32", "uint64", "int8", "int16", "int32", "i
 MAX_ENUM_ERRORS = 10  # the exact engine keeps the first ten (engine._enum_errors)
 
 
-def _tables() -> tuple[np.ndarray, np.ndarray]:
+def crc_word_tables(crc: Callable[[bytes], int]) -> tuple[np.ndarray, np.ndarray]:
     """T1[b]: the register after byte b from register 0; T2[w]: after the big-endian word w
-    from 0. Built from ``crc16`` (CRC-16/CCITT-FALSE: not reflected, xorout 0, so linear in
-    the register). ``crc16`` starts at ``init``; its two big-endian bytes bring the register to
-    0, so ``crc16(init_bytes + bytes([b]))`` is T1[b]; T2 is composed from T1."""
-    lead = crc16(b"").to_bytes(2, "big")
-    t1 = np.array([crc16(lead + bytes([b])) for b in range(256)], np.uint32)
-    v = np.arange(65536, dtype=np.uint32)
-    r1 = t1[v >> 8]
-    t2 = ((r1 << 8) & 0xFFFF) ^ t1[(r1 >> 8) ^ (v & 0xFF)]
-    return t1.astype(np.uint16), t2.astype(np.uint16)
+    from 0, for a CRC-16 function ``crc`` of the form CRC-16/CCITT-FALSE has (not reflected,
+    xorout 0, so linear in the register). ``crc`` starts at ``init``; its two big-endian bytes
+    bring the register to 0, so ``crc(init_bytes + bytes([b]))`` is T1[b]; T2 is composed from
+    T1. Built once per function (the frame CRC of the dissector's batch path, L3, and the E2E
+    CRCs here are the same ``crc16``); a caller with another function checks the tables."""
+    got = _WORD_TABLES.get(crc)
+    if got is None:
+        lead = crc(b"").to_bytes(2, "big")
+        t1 = np.array([crc(lead + bytes([b])) & 0xFFFF for b in range(256)], np.uint32)
+        v = np.arange(65536, dtype=np.uint32)
+        r1 = t1[v >> 8]
+        t2 = ((r1 << 8) & 0xFFFF) ^ t1[(r1 >> 8) ^ (v & 0xFF)]
+        got = _WORD_TABLES[crc] = (t1.astype(np.uint16), t2.astype(np.uint16))
+    return got
 
 
-_T1: np.ndarray | None = None
-_T2: np.ndarray | None = None
+_WORD_TABLES: dict[Callable[[bytes], int], tuple[np.ndarray, np.ndarray]] = {}
 
 
 def crc_rows(g: np.ndarray, init: int = 0xFFFF) -> np.ndarray:
     """CRC-16 (``crc16``'s variant) of every row of the uint8 array ``g`` (n, L)."""
-    global _T1, _T2
-    if _T2 is None:
-        _T1, _T2 = _tables()
-    t1, t2 = _T1, _T2
-    assert t1 is not None
+    t1, t2 = crc_word_tables(crc16)
     n, length = g.shape
     c = np.full(n, init, np.uint16)
     half = length // 2

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
+from eyeq_spi.codec.message_fast import crc_word_tables
 from eyeq_spi.dissect.engine import TRANSPORT_NAMES
 from eyeq_spi.dissect.output import json_float
 from eyeq_spi.errors import BatchUnsupportedError as BatchUnsupportedError
@@ -35,14 +36,10 @@ def crc_table(codec: FrameCodec) -> np.ndarray | None:
     if key in _TABLES:
         return _TABLES[key]
     init = codec.crc(b"")
-    # 256 calls, not 65536: for such a CRC the register after init's own two bytes is 0, so
-    # codec.crc(init bytes + b) is the one-byte table; the word table is composed from it (the
-    # checks below hold whatever comes out to the codec's function)
-    lead = init.to_bytes(2, "big")
-    t1 = np.array([codec.crc(lead + bytes([b])) & 0xFFFF for b in range(256)], np.uint32)
-    v = np.arange(65536, dtype=np.uint32)
-    r1 = t1[v >> 8]
-    table: np.ndarray = (((r1 << 8) & 0xFFFF) ^ t1[(r1 >> 8) ^ (v & 0xFF)]).astype(np.uint16)
+    # 256 calls, not 65536 (codec/message_fast.crc_word_tables, shared with the E2E CRCs when
+    # the codec's function is crc16); the checks below hold whatever comes out to the codec's
+    # function
+    table: np.ndarray = crc_word_tables(codec.crc)[1]
     for n in (2, 4, 126):
         # a fixed byte pattern that reaches every bit of the table's index (numpy.random would
         # cost 20 ms of start-up to import)
