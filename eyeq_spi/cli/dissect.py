@@ -57,6 +57,8 @@ def run(args: argparse.Namespace) -> int:
     # dissection makes at its own pace (pipeline.paced_gc), as live views do; the collector is
     # back on after, and cli.main unfreezes (or, when the process ends, collects only what the
     # command made: cli.console).
+    # (pipeline.paused_gc does the same, but importing the pipeline before the collector is
+    # off would run collections over the start: test_startup holds that)
     import gc
 
     was = gc.isenabled()
