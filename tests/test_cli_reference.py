@@ -61,3 +61,35 @@ def test_readme_docs_and_specs_point_at_nothing_outside_the_repository() -> None
             if outside.search(line)]
     assert len(paths) > 20 and hits == []
     assert outside.search("see ../shared/PROTOCOL_DECISIONS.md")  # the pattern can match
+
+
+def test_help_is_formatted_the_same_on_every_python() -> None:
+    """``--help`` (and so docs/cli.md) must not depend on the Python release: an option's
+    metavar once (``-o, --output FILE``, Python 3.13's form; 3.11 prints ``-o FILE, --output
+    FILE``), and the usage filled with each bracketed option or group whole (3.13 wraps inside
+    a group of exclusive options, 3.11 does not)."""
+    import argparse
+
+    from eyeq_spi.cli.help import HelpFormatter, _usage_units
+
+    p = argparse.ArgumentParser(prog="eyeq-spi batch", formatter_class=lambda prog: HelpFormatter(
+        prog, width=72))
+    p.add_argument("-o", "--output", metavar="FILE")
+    p.add_argument("--jobs", "-j", type=int, metavar="N")
+    p.add_argument("--quiet", "-q", action="store_true")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--port", metavar="URL")
+    g.add_argument("--listen", metavar="tcp://HOST:PORT")
+    g.add_argument("--pty", action="store_true")
+    p.add_argument("dir", metavar="DIR")
+    text = p.format_help()
+    assert "  -o, --output FILE" in text and "  --jobs, -j N" in text
+    assert "  --quiet, -q" in text
+    usage = text.split("\n\n")[0].splitlines()
+    assert usage[0].startswith("usage: eyeq-spi batch [-h] [-o FILE]")
+    assert any(line.strip() == "[--port URL | --listen tcp://HOST:PORT | --pty]"
+               or "[--port URL | --listen tcp://HOST:PORT | --pty]" in line for line in usage)
+    assert all(len(line) <= 72 for line in usage)
+    assert all(line.startswith(" " * len("usage: eyeq-spi batch ")) for line in usage[1:])
+    assert _usage_units(" [-h] [--a X [--b]] (--c | --d) DIR [DIR ...]") == [
+        "[-h]", "[--a X [--b]]", "(--c | --d)", "DIR", "[DIR ...]"]

@@ -22,8 +22,9 @@ WIDTH = 100
 
 def _fixed_width(parser: argparse.ArgumentParser) -> None:
     """Descriptions were wrapped by ``cli.help.finish`` at WIDTH; examples stay as written."""
-    parser.formatter_class = lambda prog: argparse.RawDescriptionHelpFormatter(
-        prog, width=WIDTH, max_help_position=32)
+    from eyeq_spi.cli.help import HelpFormatter
+
+    parser.formatter_class = lambda prog: HelpFormatter(prog, width=WIDTH, max_help_position=32)
 
 
 def _walk(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:

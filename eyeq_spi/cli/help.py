@@ -1,5 +1,5 @@
 """What ``--help`` shows beyond the options: a description for every command and 2-3 examples
-(an argparse epilog, kept as written by ``RawDescriptionHelpFormatter``; descriptions are
+(an argparse epilog, kept as written by :class:`HelpFormatter`; descriptions are
 wrapped here to the terminal instead). Every example is a command that parses
 (``tests/test_cli_progress.py``)."""
 
@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import os
 import textwrap
+from typing import Any
 
 TOP_DESCRIPTION = (
     "The host side of the EyeQ4 SPI interface and its Mobileye CAN output: a simulated EyeQ "
@@ -108,6 +109,65 @@ EXAMPLES: dict[str, list[str]] = {
 }
 
 
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """argparse's help with descriptions and examples kept as written, and an option that takes
+    a value listed as ``-j, --jobs N`` (its metavar once, as Python 3.13 and later print it)
+    on every Python: Python 3.11 and 3.12 print ``-j N, --jobs N``. So ``--help`` reads the
+    same everywhere, and docs/cli.md (generated from it) matches every supported Python."""
+
+    def _format_action_invocation(self, action: argparse.Action) -> str:
+        if not action.option_strings:
+            return super()._format_action_invocation(action)
+        if action.nargs == 0:
+            return ", ".join(action.option_strings)
+        metavar = self._format_args(action, self._get_default_metavar_for_optional(action))
+        return f"{', '.join(action.option_strings)} {metavar}"
+
+    def _format_usage(self, usage: str | None, actions: Any, groups: Any,
+                      prefix: str | None) -> str:
+        """The usage line as argparse makes it, wrapped here: each bracketed option or group
+        whole, filled up to the width. Python 3.13 wraps inside a group of exclusive options
+        where 3.11 does not; this wraps the same on every Python."""
+        width = self._width
+        self._width = 1 << 30  # one line: argparse's own wrapping differs between releases
+        try:
+            text = super()._format_usage(usage, actions, groups, prefix).strip("\n")
+        finally:
+            self._width = width
+        head = f"{'usage: ' if prefix is None else prefix}{self._prog}"
+        if not text.startswith(head):
+            return f"{text}\n\n"
+        units = _usage_units(text[len(head):])
+        lines, indent = [head], len(head) + 1
+        if indent > 0.75 * width and units:  # a long program name: the options go below it
+            indent = len("usage: " if prefix is None else prefix)
+            lines.append(" " * indent + units.pop(0))
+        for unit in units:
+            if len(lines[-1]) + 1 + len(unit) > width and lines[-1] != head:
+                lines.append(" " * indent + unit)
+            else:
+                lines[-1] += " " + unit
+        return "\n".join(lines) + "\n\n"
+
+
+def _usage_units(text: str) -> list[str]:
+    """``text`` split at the spaces outside brackets and parentheses."""
+    units: list[str] = []
+    depth, start = 0, None
+    for i, ch in enumerate(text + " "):
+        if ch in "[(":
+            depth += 1
+        elif ch in "])":
+            depth = max(0, depth - 1)
+        if ch == " " and depth == 0:
+            if start is not None:
+                units.append(text[start:i])
+                start = None
+        elif start is None:
+            start = i
+    return units
+
+
 def _width() -> int:
     try:
         cols = int(os.environ.get("COLUMNS", "")) or os.get_terminal_size().columns
@@ -125,7 +185,7 @@ def finish(parser: argparse.ArgumentParser, name: str = "", help_line: str = "",
     """Give ``parser`` and every subcommand parser under it a description wrapped at ``width``
     (default: the terminal's) and their examples. Cheap: it touches only the parsers that
     exist (main builds one command's)."""
-    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.formatter_class = HelpFormatter
     desc = parser.description or help_line or ""
     if not name:
         desc = TOP_DESCRIPTION
