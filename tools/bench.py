@@ -174,7 +174,11 @@ def hand_decode_obstacles(buf: bytes, off: int = 4) -> dict[str, Any]:
 
 
 def obstacles_bench(seconds: float) -> dict[str, float]:
-    from tests.strategies import layout_values
+    try:
+        from tests.strategies import layout_values
+    except ImportError as exc:  # hypothesis: the [test] extra
+        raise SystemExit(f"bench.py: the obstacles benchmark needs the test extra ({exc}): "
+                         "python -m pip install -e '.[test]', or --emulator-only") from None
 
     codec = MessageCodec("sw9")
     msg = codec.message("EYEQ_VIS_OBSTACLES_MSG")

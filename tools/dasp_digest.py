@@ -20,6 +20,8 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
+# this checkout's eyeq_spi (not an installed copy), or with --before the revision's tree
+sys.path.insert(0, os.environ.get("EYEQ_SPI_DIGEST_TREE", str(ROOT)))
 
 
 def digests(seconds: float) -> list[str]:
@@ -64,7 +66,7 @@ def main() -> int:
         subprocess.run(["tar", "-x", "-C", d], input=archive, check=True)
         old = subprocess.run(
             [sys.executable, str(Path(__file__).resolve()), "--seconds", f"{args.seconds!r}"],
-            env={**os.environ, "PYTHONPATH": d}, cwd=d, check=True, capture_output=True,
+            env={**os.environ, "EYEQ_SPI_DIGEST_TREE": d}, cwd=d, check=True, capture_output=True,
             text=True).stdout.split("\n")
     differ = [a for a, b in zip(now, old, strict=False) if a != b]
     print(f"{len(now) - len(differ)} of {len(now)} digests as at {args.before}")
