@@ -79,7 +79,7 @@ class CanStats:
         if self.channel is not None and ch != self.channel:
             return
         t = np.asarray(times, dtype=np.float64)
-        lo, hi = float(t.min()), float(t.max())
+        lo, hi = float(np.min(t)), float(np.max(t))
         self.first = lo if self.first is None else min(self.first, lo)
         self.last = hi if self.last is None else max(self.last, hi)
         dec = None if ext else self.decoder.by_id.get(fid)

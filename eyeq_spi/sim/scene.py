@@ -143,7 +143,7 @@ class Scene(SceneWorld):
                         _code("object_is_cipv", "not_relevant", 0))
         ahead = (lane == 0) & (s > 0.0)
         if ahead.any():
-            cipv[int(np.where(ahead, s, np.inf).argmin())] = _code("object_is_cipv", "CIPV", 2)
+            cipv[int(np.argmin(np.where(ahead, s, np.inf)))] = _code("object_is_cipv", "CIPV", 2)
         err = dtgt - d
         signal = kind == VEHICLE
         i = np.array([
