@@ -9,7 +9,10 @@ Then, when ``CI`` is set or with ``--oldest``: the same project against the OLDE
 every direct dependency that ``pyproject.toml`` allows (``.ci/oldest.txt``, held equal to its
 floors by ``tests/test_packaging.py``), in a second virtual environment (``.venv-oldest``),
 running the tests that exercise those libraries. The newest versions are what the first run
-got from a fresh install. Other arguments go to pytest (``-k link``)."""
+got from a fresh install. And when ``CI`` is set or with ``--newest``: the newest Python on the
+machine (``python3.N`` on the PATH or a pyenv version), newer than the one running, in
+``.venv-newest`` with the newest versions that Python gets (some only support newer Pythons):
+mypy and the dependency-facing tests. Other arguments go to pytest (``-k link``)."""
 
 from __future__ import annotations
 
@@ -130,10 +133,77 @@ def oldest(pytest_args: list[str]) -> int:
     return rc
 
 
+# what the newest Python must pass beyond mypy: the dependency-facing tests (the newest numpy,
+# pyarrow, ... come only for the newest Python) and what leans on the interpreter's own
+# generated text (argparse's help, dataclasses' code)
+NEWEST_TESTS = [*OLDEST_TESTS, "tests/test_cli_reference.py", "tests/test_startup_code_cache.py",
+                "tests/test_sim_scene.py"]
+
+
+def _python_version(py: str) -> tuple[int, int] | None:
+    try:
+        out = subprocess.run([py, "-c", "import sys; print(*sys.version_info[:2])"],
+                             capture_output=True, text=True, timeout=30, check=True).stdout
+        major, minor = (int(x) for x in out.split())
+    except (OSError, ValueError, subprocess.SubprocessError):
+        return None
+    return major, minor
+
+
+def newest_python() -> tuple[str, tuple[int, int]] | None:
+    """The newest CPython on this machine newer than the one running: ``python3.N`` on the
+    PATH, or a pyenv version (``$PYENV_ROOT``, default ``~/.pyenv``)."""
+    found: list[tuple[tuple[int, int], str]] = []
+    mine = sys.version_info[:2]
+    for minor in range(mine[1] + 1, 20):
+        exe = shutil.which(f"python3.{minor}")
+        if exe:
+            found.append(((3, minor), exe))
+    root = Path(os.environ.get("PYENV_ROOT") or Path.home() / ".pyenv") / "versions"
+    for exe_path in sorted(root.glob("3.*/bin/python3")) if root.is_dir() else []:
+        found.append(((0, 0), str(exe_path)))
+    best: tuple[str, tuple[int, int]] | None = None
+    for _, exe in found:
+        version = _python_version(exe)
+        if version is not None and version > mine and (best is None or version > best[1]):
+            best = (exe, version)
+    return best
+
+
+def newest(pytest_args: list[str]) -> int:
+    """The newest Python on the machine, with the newest versions it gets: a venv of its own
+    (``.venv-newest``), mypy and the tests of :data:`NEWEST_TESTS`."""
+    got = newest_python()
+    if got is None:
+        print("==> newest Python: none newer than this one here: that pass is skipped")
+        return 0
+    exe, (major, minor) = got
+    venv = ROOT / ".venv-newest"
+    py = venv / "bin" / "python"
+    if py.exists() and _python_version(str(py)) != (major, minor):
+        shutil.rmtree(venv)
+    if not py.exists() and run(f"newest: venv (Python {major}.{minor})", [exe, "-m", "venv",
+                                                                           str(venv)]):
+        return 1
+    if run("newest: install", [str(py), "-m", "pip", "install", "-q", "-e", ".[test]"]):
+        print("FAILED: installing on the newest Python", file=sys.stderr)
+        return 1
+    subprocess.call([str(py), "-m", "pip", "list", "--format=freeze"], cwd=ROOT)
+    if run("newest: mypy", [str(py), "-m", "mypy"]):
+        print(f"FAILED: mypy on Python {major}.{minor}", file=sys.stderr)
+        return 1
+    rc = run("newest: pytest", [str(py), "-m", "pytest", *_workers(pytest_args), *NEWEST_TESTS,
+                                *_marked(pytest_args, "not realtime")])
+    if rc:
+        print(f"FAILED: the tests on Python {major}.{minor}", file=sys.stderr)
+    return rc
+
+
 def main() -> int:
     args = sys.argv[1:]
     with_oldest = "--oldest" in args or bool(os.environ.get("CI"))
-    args = [a for a in args if a != "--oldest"]
+    with_newest = "--newest" in args or bool(os.environ.get("CI"))
+    args = [a for a in args if a not in ("--oldest", "--newest")]
     ensure_tshark()
     ensure_sigrok()
     py = sys.executable
@@ -162,9 +232,9 @@ def main() -> int:
         if rc:
             print(f"FAILED: {name}", file=sys.stderr)
             return rc
-    if not with_oldest:
-        return 0
-    return oldest(args)
+    if with_oldest and (rc := oldest(args)):
+        return rc
+    return newest(args) if with_newest else 0
 
 
 if __name__ == "__main__":
