@@ -160,6 +160,23 @@ def test_clean_capture_exits_0_and_human_view(tmp_path: Path,
     assert "\x1b[" not in out  # colour only on a TTY
 
 
+def test_human_view_fits_80_columns_and_lines_up(faulty: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """Messages alone (``--id``) drop the frame-index column and fit 80 columns; with frames
+    shown, a message line's time stands under the frames' times."""
+    _, out, _ = run(["dissect", str(faulty), "--id", "0xE5", "--no-tree"], capsys)
+    lines = out.splitlines()
+    assert len(lines) == 3 and all(len(line.split(" DASP counter gap")[0]) <= 80
+                                   for line in lines), lines  # an error may run on
+    assert all(line.split()[2:4] == ["DASP", "EYEQ_VIS_FAILSAFE_MSG"] for line in lines)
+    _, out, _ = run(["dissect", str(faulty), "--no-tree"], capsys)
+    frame = next(line for line in out.splitlines() if " NUM=" in line)
+    message = next(line for line in out.splitlines() if " DASP " in line)
+    time_end = len(frame.split(" e2h ")[0].split(" h2e ")[0])
+    assert message[:time_end].strip() and message[:9].strip() == ""
+    assert message[time_end:time_end + 5] in (" e2h ", " h2e ")
+
+
 def test_filters(faulty: Path, capsys: pytest.CaptureFixture[str]) -> None:
     _, out, _ = run(["dissect", str(faulty), "--json", "--protocol", "MESP"], capsys)
     rows = [json.loads(x) for x in out.splitlines()]

@@ -37,6 +37,7 @@ def run_wireshark(args: argparse.Namespace) -> int:
             fh.write(text)
     except OSError as exc:
         raise UsageError(f"cannot write {args.output}: {exc.strerror or exc}") from None
-    print(f"wrote {args.output} ({len(text.splitlines())} lines); use it with "
-          f"wireshark -X lua_script:{args.output} or copy it to your Lua plugins folder")
+    print(f"wrote {args.output} ({len(text.splitlines())} lines)\n"
+          f"use it with: wireshark -X lua_script:{args.output}\n"
+          "or copy it to your personal Lua plugins folder (Help > About Wireshark > Folders)")
     return 0

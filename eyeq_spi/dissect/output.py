@@ -35,6 +35,10 @@ class HumanWriter:
         self.codec = codec
         self.color = color
         self.tree = tree
+        # a message or event line keeps a blank frame-index column (and a time as wide as a
+        # frame line's) only where frame lines are shown, so that it lines up with them; a run
+        # that shows messages alone (--id, --name) fits 80 columns
+        self._wide = False
         self._origin: float | None = None  # time of the file's first timestamped record
         self._file: object = None
 
@@ -74,13 +78,14 @@ class HumanWriter:
             nak = f" reason=0x{r['nak_reason']:03X}" if r["nak_reason"] is not None else ""
             num = "-" if r["num"] is None else r["num"]
             rsp = "-" if r["rsp"] is None else r["rsp"]
+            self._wide = True
             self.fh.write(f"{r['index']:8d} {t:>14s} {r['direction'] or '-':3s} {ft:7s} "
                           f"NUM={num!s:>4s} RSP={rsp!s:>4s} {ok} {tr}{nak}\n")
         elif kind == "message":
             name = r["name"] or "?"
             head = " ".join(f"{k}={v}" for k, v in r["header"].items())
             errs = "" if not r["errors"] else " " + self._c(RED, "; ".join(r["errors"][:3]))
-            self.fh.write(f"{'':8s} {t:>14s} {r.get('direction') or '-':3s} "
+            self.fh.write(f"{self._lead(t)} {r.get('direction') or '-':3s} "
                           f"{self._c(CYAN, r['protocol'])} {self._c(CYAN, name)} "
                           f"{r['length']} bytes {head}{errs}\n")
             if self.tree and r["fields"]:
@@ -88,10 +93,13 @@ class HumanWriter:
         elif kind == "event":
             rest = " ".join(f"{k}={v}" for k, v in r.items()
                             if k not in ("kind", "type", "time", "direction", "file"))
-            self.fh.write(f"{'':8s} {t:>14s} {r.get('direction') or '-':3s} "
+            self.fh.write(f"{self._lead(t)} {r.get('direction') or '-':3s} "
                           + self._c(YELLOW, f"event {r['type']}") + f" {rest}\n")
         elif kind == "stats":
             pass
+
+    def _lead(self, t: str) -> str:
+        return f"{'':8s} {t:>14s}" if self._wide else f"{t:>12s}"
 
     def _tree(self, r: dict[str, Any]) -> None:
         lay = None

@@ -170,12 +170,11 @@ class Stats:
         out.append(f"== DASP counter gaps {d['dasp_counter_gaps'] or 'none'}; "
                    f"E2E errors {d['e2e_errors'] or 'none'}; other message errors "
                    f"{d['message_errors']}")
-        out.append("== MESP request -> reply latency")
+        out.append("== MESP request -> reply latency, ms (min / median / max)")
         for name, r in d["mesp_latency"].items():
-            if r.get("count"):
-                out.append(f"  {name:30s} n={r['count']:5d} min {r['min_ms']:.3f} ms  median "
-                           f"{r['median_ms']:.3f} ms  max {r['max_ms']:.3f} ms  "
-                           f"timeouts {r['timeouts']}")
+            if r.get("count"):  # 80 columns wide
+                out.append(f"  {name:30s} n={r['count']:<5d} {r['min_ms']:.3f} / "
+                           f"{r['median_ms']:.3f} / {r['max_ms']:.3f}  timeouts {r['timeouts']}")
             else:
                 out.append(f"  {name:30s} timeouts {r['timeouts']}")
         out.append(f"== protocol errors: {d['protocol_errors']}")

@@ -295,7 +295,8 @@ def dasp_counter(ctx: Context, tr: Trace) -> Outcome:
                     return bad(f"data ID 0x{did:02X}: counter {a.header['counter']} "
                                f"(#{a.indices[0]}) then {b.header['counter']} (#{b.indices[0]}, "
                                f"{at(b.time)}), expected +1 (D1)")
-    return ok(f"{len(msgs)} DASP messages, {len(by_id)} data IDs, counters +1") if msgs else \
+    ids = f"{len(by_id)} data ID{'' if len(by_id) == 1 else 's'}"
+    return ok(f"{len(msgs)} DASP messages, {ids}, counters +1") if msgs else \
         unsure("no DASP messages")
 
 
@@ -385,7 +386,7 @@ def dasp_unused(ctx: Context, tr: Trace) -> Outcome:
     if not sampled:
         return unsure("no DASP messages")
     return ok(f"{containers} bitfield containers in {sum(sampled.values())} messages of "
-              f"{len(sampled)} kinds: unused bits all 1")
+              f"{len(sampled)} kind{'' if len(sampled) == 1 else 's'}: unused bits all 1")
 
 
 def _rate(ctx: Context, tr: Trace, msgs: list[Msg], hz: float, tol: tuple[float, float],
