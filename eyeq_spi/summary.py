@@ -352,9 +352,21 @@ def _counts(counts: dict[str, int]) -> str:
     return ", ".join(f"{_short(k)} {v}" for k, v in sorted(counts.items()) if v) or "nothing"
 
 
+def _state_text(state: str) -> str:
+    """A host state as it is (``RUNNING_VISION``); the EyeQ's Main_State (``0x02``, the JSON's
+    value) with its name from specs/ (§7.1.5: ``0x02 RUNNING_VISION``)."""
+    if not state.startswith("0x"):
+        return state
+    from eyeq_spi.catalog.messages import catalog
+
+    enum = catalog().enums.get("main_state")
+    value = enum.values.get(int(state, 16)) if enum is not None else None
+    return state if value is None else f"{state} {value.name}"
+
+
 def format_summary(out: dict[str, Any]) -> str:
     """The readable block of a summary: the same content as its JSON, one topic a line."""
-    state = "" if out["state"] is None else f"state {out['state']}, "
+    state = "" if out["state"] is None else f"state {_state_text(out['state'])}, "
     lines = [f"{out['side']}: {'OK' if out['ok'] else 'NOT OK'} - {state}"
              f"SW {out['sw']}, {out['elapsed_s']:.2f} s (wall {out['wall_s']:.2f} s, "
              f"CPU {out['cpu_s']:.2f} s), connections {out['connections']}"]

@@ -136,3 +136,11 @@ def test_running_vision_is_judged_once_for_every_run() -> None:
     emu.run_for(8.0)
     assert emu.vision.left and emu.left_running is emu.vision.left
     assert summary(emu)["running_vision_since"] == round(emu.running_since or -1, 4)
+
+
+def test_the_sim_text_names_the_main_state_the_json_gives_as_its_value(tmp_path: Path) -> None:
+    """``sim``'s summary keeps Main_State as the JSON's ``0x02``; its text adds the name from
+    specs/ (§7.1.5), as the host's text names its state."""
+    s = _sim_view(SimConfig(), tmp_path)
+    assert s["state"] == "0x02"
+    assert format_summary(s).splitlines()[0].startswith("sim: OK - state 0x02 RUNNING_VISION, ")
