@@ -148,6 +148,7 @@ def test_stats_without_channel_lists_channels_and_ids_on_several(
     assert main(["can", "decode", str(logs[".blf"]), "--stats"]) == 1
     out = capsys.readouterr().out
     assert "0x650 on 1, 2" in out and "--channel" in out and "channels (all frames" in out
+    assert max(len(line) for line in out.splitlines()) <= 80, out  # several channels: a column more
     assert main(["can", "decode", str(logs[".blf"]), "--channel", "7"]) == 2
     assert "no CAN frames on channel 7 (the channels are: 0, 1, 2, 3)" in \
         capsys.readouterr().err

@@ -56,7 +56,9 @@ def test_decode_human_json_and_stats(demo_log: Path, capsys: pytest.CaptureFixtu
     assert by_id[0x669]["cycle_deviation_pct"] == pytest.approx(0.0, abs=0.01)
     assert by_id[0x73A]["invalid"]["Radar_Pos_X"] == by_id[0x73A]["frames"]  # no radar
     assert main(["can", "decode", str(demo_log), "--stats"]) == 0
-    assert "Obstacle_Status" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "Obstacle_Status" in text
+    assert max(len(line) for line in text.splitlines()) <= 80, text  # an 80-column terminal
 
 
 @pytest.mark.parametrize("fmt", ["csv", "parquet"])

@@ -225,19 +225,20 @@ def human_stats(s: dict[str, Any]) -> str:
              f"channels (all frames in the log): {chans or 'none'}"]
     if s["ids_on_several_channels"] and s["channel"] is None:
         ids = "; ".join(f"{k} on {', '.join(v)}" for k, v in s["ids_on_several_channels"].items())
-        lines.append(f"note: protocol IDs on several channels ({ids}): pick the camera's with "
-                     "--channel")
+        lines.append(pack("note: protocol IDs on several channels", [
+            *f"({ids}):".split(" "), "pick", "the", "camera's", "with", "--channel"], indent=6))
+    unknown = [f"{k} x{v}," for k, v in s["unknown_ids"].items()] or ["none,"]
     lines.append(pack(f"errors: {s['error_frames']} frames", [
-        f"(unknown IDs {s['unknown_ids'] or 'none'},", f"DLC errors {s['dlc_errors']},",
+        f"(unknown IDs {unknown[0]}", *unknown[1:], f"DLC errors {s['dlc_errors']},",
         f"values out of range {s['out_of_range_values']});",
         f"short DLCs {s['short_dlc']} (accepted);",
         f"invalid values {s['invalid_values']} (as sent: not errors)"], indent=4))
     several = any(r["channel"] != s["ids"][0]["channel"] for r in s["ids"]) if s["ids"] else False
     lines.append(f"{'ID':>6s} {'ch':>3s} {'message':26s} {'frames':>7s} {'cycle ms':>9s} "
-                 f"{'spec':>5s} {'dev %':>7s}  findings below"
+                 f"{'spec':>5s} {'dev %':>7s}"
                  if several else
                  f"{'ID':>6s} {'message':26s} {'frames':>7s} {'cycle ms':>9s} {'spec':>5s} "
-                 f"{'dev %':>7s}  findings below")
+                 f"{'dev %':>7s}")
     for r in s["ids"]:
         med = "-" if r["median_cycle_ms"] is None else f"{r['median_cycle_ms']:.1f}"
         d = r["cycle_deviation_pct"]
