@@ -134,6 +134,15 @@ def test_dissect_draws_a_bar_when_stdout_is_a_file(demo_capture: Path, tmp_path:
     assert (tmp_path / "out.txt").stat().st_size > 0
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs a Linux pty")
+def test_dissect_draws_one_bar_per_file(demo_capture: Path, tmp_path: Path) -> None:
+    """A file's bar runs once from 0 to 100 %: the calls about a file after its bar ended (the
+    statistics' last pass) draw no second one."""
+    with open(tmp_path / "out.txt", "wb") as f:
+        shown = _stderr_on_pty(["dissect", str(demo_capture), "--stats"], f)
+    assert shown.count(b"\x1b[?25l") == 1, shown  # rich hides the cursor once per bar
+
+
 def test_dissect_jobs_draws_a_bar_over_the_files(demo_capture: Path, tmp_path: Path) -> None:
     """``--jobs``: the files are decoded in workers, so the bar counts files."""
     import shutil

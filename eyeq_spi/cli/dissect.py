@@ -220,6 +220,8 @@ class _Bars:
                 self.files_bar.__enter__()
             self.files_bar.update(done)
             return
+        if path == self.path and self.bar is None:
+            return  # that file's bar ran to its end: later calls about it redraw nothing
         if path != self.path or self.bar is None:
             self._close_file_bar()
             self.path = path
