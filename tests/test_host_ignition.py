@@ -52,7 +52,7 @@ def test_boot_strikes_start_afresh_in_the_next_ignition_cycle() -> None:
     _new_connection(emu)
     assert emu.host.transitions[-1].dst is S.POWER_UP and emu.host.problem is None
     emu.run_for(6.0, stop=lambda: emu.running_since is not None)
-    assert emu.host.state is S.RUNNING_VISION, (emu.host.problem, emu.host.transitions[-3:])
+    assert emu.running_since is not None, (emu.host.problem, emu.host.transitions[-3:])
     events = [t.event for t in emu.host.transitions]
     cycle = events[events.index(HostEvent.IGNITION):]
     assert cycle[:3] == [HostEvent.IGNITION, HostEvent.BOOT_BAD, HostEvent.BOOT_OK], cycle

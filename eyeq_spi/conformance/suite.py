@@ -218,11 +218,15 @@ def _host_session(opts: Options, name: str, wanted: set[str], ctx: Context, *,
                 accept = getattr(adapter, "accept", None)
             else:
                 return None  # nothing can end the host's ignition cycle
-        _say(opts, f"session {name}: waiting for the host to connect")
+        where = getattr(adapter, "url", None) or getattr(adapter, "path", None)
+        _say(opts, f"session {name}: waiting up to {opts.accept_timeout:g} s for the host to "
+             f"connect" + (f" to {where}" if where else ""))
         if accept is not None and not accept(opts.accept_timeout):
             if first:
                 raise AdapterError(f"the host under test did not connect within "
                                    f"{opts.accept_timeout} s")
+            _say(opts, f"session {name}: the host did not connect within "
+                 f"{opts.accept_timeout:g} s; the cases judged on this session are skipped")
             return None
         tester.warm_up()  # no first-time codec build may stall our loop (load.py)
         s = Session(trace, tester, adapter=adapter)
