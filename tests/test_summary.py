@@ -136,3 +136,21 @@ def test_running_vision_is_judged_once_for_every_run() -> None:
     emu.run_for(8.0)
     assert emu.vision.left and emu.left_running is emu.vision.left
     assert summary(emu)["running_vision_since"] == round(emu.running_since or -1, 4)
+
+
+def test_a_host_that_gave_up_names_why_before_the_link_it_then_lost() -> None:
+    """A host stays connected after it gives up (§7.1.3 step 6); when the EyeQ then closes the
+    link, the summary's problem is still why it gave up (link_lost says the rest)."""
+    from eyeq_spi.summary import host_summary
+
+    emu = build(sim_config=SimConfig(corrupt_eeprom_crc=True))
+    emu.run_for(3.0)
+    out = host_summary(emu.host, side="host", elapsed=3.0, wall=3.0, cpu=1.0,
+                       running_since=None, left_running=[], link_lost="the peer left")
+    assert out["state"] == "FAILED" and not out["ok"]
+    assert "EEPROM" in out["problem"] and out["link_lost"] == "the peer left", out["problem"]
+    emu = build()
+    emu.run_for(0.05)  # still bringing the EyeQ up: a lost link is the problem
+    out = host_summary(emu.host, side="host", elapsed=0.05, wall=0.05, cpu=0.05,
+                       running_since=None, left_running=[], link_lost="the peer left")
+    assert out["problem"] == "link lost"
