@@ -14,7 +14,6 @@ from typing import Any
 
 from eyeq_spi.errors import AdapterError, LinkLostError
 from eyeq_spi.host.host import HostEmulator
-from eyeq_spi.host.machine import HostState
 from eyeq_spi.runner.realtime import RealTimeRunner
 from eyeq_spi.runner.sched import realtime
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
@@ -110,6 +109,10 @@ def drive(host: HostEmulator, adapter: Any, *, duration: float, address: str,
     """Run ``host`` against the EyeQ on ``adapter`` for ``duration`` s, and judge it: Running
     Vision reached and held. ``reopen_adapter(until)``: when the link is lost, a new adapter
     (None: give up), and the bring-up runs again on it; without it a lost link ends the run.
+    A host that gives up (FAILED, BOOT_FAILED) stays connected and quiet (§7.1.3 step 6: the
+    unit is failed for this ignition cycle) until the link is lost or ``duration`` ends; with
+    ``reopen_adapter`` the next connection is its next ignition cycle
+    (:meth:`HostEmulator.link_restarted`).
     ``exit_when_running``: stop as soon as Running Vision is reached. ``attach(runner)``: a CAN
     output put on the runner (its ``summary()`` joins the result as ``can``; closed at the end).
     ``on_step(host, t)``: after every step, ``t`` seconds since the start (a live view).
@@ -147,8 +150,6 @@ def drive(host: HostEmulator, adapter: Any, *, duration: float, address: str,
             if on_step is not None:
                 on_step(host, now - start)
             vision.update(host, now - start)
-            if host.state in (HostState.FAILED, HostState.BOOT_FAILED):
-                break
             if exit_when_running and vision.since is not None:
                 break
     except KeyboardInterrupt:

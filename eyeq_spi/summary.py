@@ -169,7 +169,8 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "link_lost": link_lost, "scheduling": scheduling,
     }
     first = None
-    if link_lost:
+    gave_up = host.state in (HostState.FAILED, HostState.BOOT_FAILED)  # why, not "link lost"
+    if link_lost and not (gave_up and host.problem):
         first = "link lost"
     elif host.problem:
         first = host.problem

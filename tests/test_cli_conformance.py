@@ -158,3 +158,61 @@ def test_a_real_violation_still_fails_in_real_time() -> None:
     else:
         assert deadline["verdict"] == "fail" and res.returncode == 1, deadline
         assert "> 500 ms" in deadline["evidence"] and "not the cause" in deadline["evidence"]
+
+
+@pytest.mark.realtime
+def test_one_reconnecting_host_gets_through_every_ignition_cycle(tmp_path: Path) -> None:
+    """docs/conformance.md's two commands: the suite listening (its stderr a pipe, not a
+    terminal) and ONE ``eyeq-spi host --reconnect`` process, never restarted. The host stops
+    after the bad EEPROM (HOST-EEPROM-BAD watches it, connected and quiet, for at least 1 s)
+    and still joins the next ignition cycle; every session announces on stderr that it waits
+    for the host."""
+    conf = subprocess.Popen([*CLI, "conformance", "--dut", "host", "--listen",
+                             "tcp://127.0.0.1:0", "--json", "--accept-timeout", "30", "-k",
+                             "HOST-VERSIONS or HOST-EEPROM-BAD or HOST-BOOT-RESETS"],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    urls: list[str] = []
+    err: list[str] = []
+
+    def read_stderr() -> None:
+        assert conf.stderr is not None
+        for raw in conf.stderr:
+            err.append(raw)
+            part = raw.split()
+            if len(part) == 2 and part[0] == "LISTEN":
+                urls.append(part[1])
+
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
+    host: subprocess.Popen[bytes] | None = None
+    out = ""
+    try:
+        deadline = time.monotonic() + 150
+        while conf.poll() is None and time.monotonic() < deadline:
+            if urls and host is None:
+                host = subprocess.Popen(
+                    [*CLI, "host", "--port", urls[0], "--reconnect", "--duration", "300",
+                     "--nvm", str(tmp_path / "nvm.json")],
+                    cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            time.sleep(0.05)
+        assert conf.poll() is not None, "the suite did not finish within 150 s"
+        assert host is not None
+        assert host.poll() is None, "the host under test exited before the suite ended"
+        assert conf.stdout is not None
+        out = conf.stdout.read()
+    finally:
+        conf.kill()
+        conf.wait(timeout=10)
+        if host is not None:
+            host.kill()
+            host.wait(timeout=10)
+        reader.join(timeout=5)
+    recs = _records(out)
+    stderr = "".join(err)
+    assert conf.returncode == 0, (recs, stderr[-2000:])
+    for session in ("normal", "eeprom_bad", "boot_fail"):
+        assert f"session {session}: waiting up to 30 s for the host to connect to {urls[0]}" \
+            in stderr, stderr
+    for k in ("HOST-VERSIONS", "HOST-EEPROM-BAD", "HOST-BOOT-RESETS"):
+        assert recs[k]["verdict"] == "pass", (k, recs[k]["evidence"])
+    assert "at least 1.0 s" in recs["HOST-EEPROM-BAD"]["evidence"]

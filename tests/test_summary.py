@@ -144,3 +144,21 @@ def test_the_sim_text_names_the_main_state_the_json_gives_as_its_value(tmp_path:
     s = _sim_view(SimConfig(), tmp_path)
     assert s["state"] == "0x02"
     assert format_summary(s).splitlines()[0].startswith("sim: OK - state 0x02 RUNNING_VISION, ")
+
+
+def test_a_host_that_gave_up_names_why_before_the_link_it_then_lost() -> None:
+    """A host stays connected after it gives up (§7.1.3 step 6); when the EyeQ then closes the
+    link, the summary's problem is still why it gave up (link_lost says the rest)."""
+    from eyeq_spi.summary import host_summary
+
+    emu = build(sim_config=SimConfig(corrupt_eeprom_crc=True))
+    emu.run_for(3.0)
+    out = host_summary(emu.host, side="host", elapsed=3.0, wall=3.0, cpu=1.0,
+                       running_since=None, left_running=[], link_lost="the peer left")
+    assert out["state"] == "FAILED" and not out["ok"]
+    assert "EEPROM" in out["problem"] and out["link_lost"] == "the peer left", out["problem"]
+    emu = build()
+    emu.run_for(0.05)  # still bringing the EyeQ up: a lost link is the problem
+    out = host_summary(emu.host, side="host", elapsed=0.05, wall=0.05, cpu=0.05,
+                       running_since=None, left_running=[], link_lost="the peer left")
+    assert out["problem"] == "link lost"

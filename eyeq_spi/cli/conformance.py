@@ -60,7 +60,11 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def _progress(args: argparse.Namespace) -> Any:
-    if args.json or not sys.stderr.isatty():
+    """The session lines on stderr (above the bar on a terminal). A live run prints them
+    wherever stderr goes, a pipe or a log too (with --json as well: the records are on
+    stdout): whoever runs the implementation under test must see when each session waits for
+    it. A --builtin run prints them on a terminal only, as the scheduling line of a live run."""
+    if args.builtin and (args.json or not sys.stderr.isatty()):
         return None
     return lambda text: print(text, file=sys.stderr, flush=True)
 
@@ -99,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
 
         scheduling = rt.enter_context(realtime(args.rt_priority))  # our stalls: the load gauge
         opts.sessions_done = rt.close  # judging is CPU-bound: ordinary scheduling again
-        if opts.progress is not None:
+        if opts.progress is not None and not args.json and sys.stderr.isatty():
             opts.progress(f"scheduling: {scheduling}")
     from eyeq_spi.cli.progress import JobProgress
 

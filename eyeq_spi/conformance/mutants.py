@@ -18,10 +18,12 @@ from typing import Any
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import is_mesp
 from eyeq_spi.errors import UsageError
+from eyeq_spi.host import init_seq
 from eyeq_spi.host.host import HostConfig, HostEmulator
-from eyeq_spi.host.machine import HostEvent
+from eyeq_spi.host.machine import HostEvent, HostState
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.link.frame import DATA_SIZE, FrameCodec, FrameKind, NakReason
+from eyeq_spi.mesp.replies import MespReply, MespResult
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 
@@ -314,6 +316,19 @@ class NoEepromReread(HostEmulator):
         super().entry_read_eeprom(now)
 
 
+class IgnoresEepromCrc(HostEmulator):
+    """An EEPROM whose CRC-16 does not match is taken as good: the host resets the EyeQ and
+    carries on (§7.1.3 step 6: the unit is failed)."""
+
+    def _on_eeprom(self, result: MespResult, now: float) -> None:
+        if self.state is HostState.READ_EEPROM and isinstance(result, MespReply) \
+                and isinstance(init_seq.eeprom_intrinsics(result.value.data, self.sw), str):
+            self._fire(HostEvent.EEPROM_OK, now, "EEPROM CRC-16 not checked")
+            self._reset_eyeq(now)
+            return
+        super()._on_eeprom(result, now)
+
+
 class VersionsEveryBringUp(HostEmulator):
     def entry_start_vehicle_state(self, now: float) -> None:
         self._versions_asked = False
@@ -402,6 +417,8 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
        "without reading the EEPROM", {"HOST-FATAL22"}, host=_host(NoEepromReread),
        # in the eeprom_bad cycle it never reads the EEPROM either: its bad CRC goes unseen
        masks=frozenset({"HOST-EEPROM-BAD"})),
+    _m("host-ignores-bad-eeprom", "host", "an EEPROM with a bad CRC-16 is taken as good: the "
+       "host resets the EyeQ and carries on", {"HOST-EEPROM-BAD"}, host=_host(IgnoresEepromCrc)),
     _m("host-late-acks", "host", "every other ACK leaves 12 ms late (ackTimeout 10 ms)",
        {"LINK-ACK"}, host=_host(HostLateAcks)),
     _m("host-ack-pad", "host", "ACK and NAK pad bytes are 0xAA", {"LINK-PAD"},

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.conformance.cases import cases_for
+from eyeq_spi.conformance.judges.flow import QUIET_FOR
 from eyeq_spi.conformance.judges.verdict import Context, Outcome, skip
 from eyeq_spi.conformance.load import temper
 from eyeq_spi.conformance.model import ALL_SESSIONS, Case
@@ -118,7 +119,8 @@ def builtin_plans(opts: Options) -> None:
     hp.bring_up_timeout = hp.mode_timeout = 10.0
     hp.steady, hp.mode_hold = 0.8, 0.5
     ep.steady, ep.stale_for, ep.after_reset = 0.8, 0.5, 2.5
-    ep.boot_fail_watch, ep.eeprom_watch = 3.0, 1.0
+    # the eeprom_bad watch: HOST-EEPROM-BAD's window (the script adds 0.05 s after the request)
+    ep.boot_fail_watch, ep.eeprom_watch = 3.0, QUIET_FOR
 
 
 def run(opts: Options) -> list[Result]:
@@ -218,11 +220,15 @@ def _host_session(opts: Options, name: str, wanted: set[str], ctx: Context, *,
                 accept = getattr(adapter, "accept", None)
             else:
                 return None  # nothing can end the host's ignition cycle
-        _say(opts, f"session {name}: waiting for the host to connect")
+        where = getattr(adapter, "url", None) or getattr(adapter, "path", None)
+        _say(opts, f"session {name}: waiting up to {opts.accept_timeout:g} s for the host to "
+             f"connect" + (f" to {where}" if where else ""))
         if accept is not None and not accept(opts.accept_timeout):
             if first:
                 raise AdapterError(f"the host under test did not connect within "
                                    f"{opts.accept_timeout} s")
+            _say(opts, f"session {name}: the host did not connect within "
+                 f"{opts.accept_timeout:g} s; the cases judged on this session are skipped")
             return None
         tester.warm_up()  # no first-time codec build may stall our loop (load.py)
         s = Session(trace, tester, adapter=adapter)

@@ -85,13 +85,32 @@ class HostEmulator(HostBringUp):
 
     def link_restarted(self, now: float) -> None:
         """The byte stream to the EyeQ was re-established (a new connection is a power-up):
-        restart our SPI driver and run the bring-up again."""
+        restart our SPI driver and run the bring-up again. A host that had given up (FAILED,
+        BOOT_FAILED) stayed quiet on the old connection; the new one is its next ignition
+        cycle (:meth:`_next_ignition_cycle`)."""
         self._cancel_requests()
         self._restart_driver()
-        if next_state(self.state, E.EYEQ_RESET) is not None:
+        if self.state in (S.FAILED, S.BOOT_FAILED):
+            self._next_ignition_cycle(now, "new connection after the host gave up")
+        else:  # every other state takes an EyeQ reset (machine.py)
             self._fire(E.EYEQ_RESET, now, "link re-established")
-        else:
-            self._enter(S.POWER_UP, now)
+
+    def _next_ignition_cycle(self, now: float, why: str) -> None:
+        """Ignition off and on after the host gave up (FAILED, BOOT_FAILED; §7.1.3 step 6: the
+        unit is failed for this ignition cycle): what a new host with the same NVM would be.
+        The per-cycle state starts afresh (boot strikes, EyeQ resets for the EEPROM, Get EyeQ
+        Versions asked once per ignition cycle, the problem, our DASP counters); the run's
+        counters and transitions go on."""
+        self._cancel_requests()
+        self._versions_asked = self._versions_ok = False
+        self._strikes = self._bringups = 0
+        self._target_mode = "VISION"
+        self.problem = None
+        self.calibration_result = None
+        self._tx_e2e = E2EState()
+        self._dasp_counter = self._rolling = 0
+        self.nvm.data.ignition_cycles += 1
+        self._fire(E.IGNITION, now, why)
 
     def warm_up(self) -> None:
         """Decode one message of each kind the EyeQ sends and encode HOST_VEH_STATE once, so

@@ -10,8 +10,9 @@ Fatal_Error 22 before vision leads to READ_EEPROM: the EEPROM's CRC decides betw
 ("repair or replace") and a new NVM plus an EyeQ reset. WAIT_RUNNING sends HOST_VEH_STATE_MSG,
 asks Get Versions once per ignition cycle and polls until Running Vision. RUNNING_VISION receives
 the DASP stream. A new boot status or a 0x41 state that goes back is an EyeQ reset: the bring-up
-runs again. A mode switch stops DASP, switches the application and, for TAC/SPC, sends the mode's
-init message and waits for the results.
+runs again. FAILED and BOOT_FAILED are terminal for the ignition cycle: only the next one
+(IGNITION) starts the bring-up afresh. A mode switch stops DASP, switches the application and,
+for TAC/SPC, sends the mode's init message and waits for the results.
 
 ``TRANSITIONS`` maps (state, event) to the next state; a pair that is not in the table is ignored
 and counted. ``ENTRY_ACTIONS`` names the host method run on entering a state (every state is either
@@ -65,6 +66,9 @@ class HostEvent(enum.Enum):
     MODE_PARAMS_ACCEPTED = "MODE_PARAMS_ACCEPTED"
     RUNNING_TAC = "RUNNING_TAC"
     RUNNING_SPC = "RUNNING_SPC"
+    # the next ignition cycle after the host gave up (live.drive: a new connection under
+    # --reconnect); a fresh bring-up with the same NVM
+    IGNITION = "IGNITION"
 
 
 S, E = HostState, HostEvent
@@ -98,11 +102,14 @@ TRANSITIONS: dict[tuple[HostState, HostEvent], HostState] = {
     (S.WAIT_MODE_RUNNING, E.RUNNING_TAC): S.RUNNING_TAC,
     (S.WAIT_MODE_RUNNING, E.RUNNING_SPC): S.RUNNING_SPC,
 }
-# An EyeQ reset re-runs the bring-up from every state except the terminal ones.
+# An EyeQ reset re-runs the bring-up from every state except the terminal ones: a host that
+# gave up (§7.1.3 step 6: "the unit is failed") stays quiet until the next ignition cycle.
 TERMINAL = frozenset({S.BOOT_FAILED, S.FAILED})
 for _state in HostState:
     if _state not in TERMINAL:
         TRANSITIONS[(_state, E.EYEQ_RESET)] = S.POWER_UP
+    else:
+        TRANSITIONS[(_state, E.IGNITION)] = S.POWER_UP
     if _state not in TERMINAL and _state is not S.READ_EEPROM:
         TRANSITIONS.setdefault((_state, E.FATAL), S.FATAL)
 

@@ -208,7 +208,20 @@ def host_fatal22(ctx: Context, trs: dict[str, Trace]) -> Outcome:
     return ok("; ".join(judged))
 
 
+# How long a host must be watched, quiet, after a bad EEPROM before "it stopped" means anything:
+# every step of the §7.1.3 flow is a reaction the host makes at once, and the longest the seed's
+# timing lets a host wait before its next message is a MESP request's reply deadline (500 ms,
+# §7.1.1, M6), after which it retries. A host that carried on (stored the calibration, reset us,
+# sent 0x84 again, §7.1.3 step 7) or never saw the reply (a retry) shows itself within that
+# deadline plus the half second HOST-RETRY grants: the same 1 s.
+QUIET_FOR = RETRY_WITHIN
+
+
 def host_eeprom_bad(ctx: Context, tr: Trace) -> Outcome:
+    """§7.1.3 step 6: after a bad EEPROM CRC "the unit is failed": the host sends no init, no
+    switch, no reset and no HOST_VEH_STATE_MSG. A pass needs the host watched, quiet and
+    connected, for :data:`QUIET_FOR` after the reply; a host that left sooner (closed its port)
+    is inconclusive."""
     served = [m for m in tr.our_msgs("FFSReadFile") if is_reply(m)]
     if not served:
         return unsure("the host did not read the EEPROM, so its reaction to a bad CRC is unknown")
@@ -222,8 +235,17 @@ def host_eeprom_bad(ctx: Context, tr: Trace) -> Outcome:
     if resets:
         return bad(f"EEPROM with a bad CRC-16 served at {at(t)}, yet the host reset us at "
                    f"{at(resets[0])}")
+    watched = tr.end - t
+    if watched < QUIET_FOR - 1e-9:
+        left = tr.first_mark("peer_left")
+        why = (f"the host closed the link at {at(left.time)}" if left is not None
+               else "the session ended")
+        return unsure(f"EEPROM with a bad CRC-16 served at {at(t)}; {why} {watched:.2f} s later, "
+                      f"before the {QUIET_FOR:.1f} s a host must be watched to show it stopped "
+                      "(a MESP reply deadline, 500 ms, and half a second: M6); a host that "
+                      "stops keeps its port open")
     return ok(f"EEPROM with a bad CRC-16 served at {at(t)}; the host stopped (no init, switch, "
-              f"reset or HOST_VEH_STATE_MSG for {tr.end - t:.2f} s)")
+              f"reset or HOST_VEH_STATE_MSG for {watched:.2f} s, at least {QUIET_FOR:.1f} s)")
 
 
 def host_boot_resets(ctx: Context, tr: Trace) -> Outcome:

@@ -46,7 +46,7 @@ class EyeqPlan:
     after_reset: float = 4.0  # at most, for the host to bring us up again after our reset
     after_running: float = 0.5  # watched once we are back in Running Vision
     boot_fail_watch: float = 6.0
-    eeprom_watch: float = 1.5
+    eeprom_watch: float = 1.5  # HOST-EEPROM-BAD needs >= 1 s of it (judges.flow.QUIET_FOR)
 
 
 class TesterEyeQ(SimulatedEyeQ):
