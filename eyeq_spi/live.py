@@ -64,6 +64,7 @@ def serve(eyeq: SimulatedEyeQ, adapter: Any, *, duration: float | None, accept_t
             runner = RealTimeRunner(sim, adapter)
             runner.tap = capture_tap(capture, t0, "e2h", "h2e")
             sim.power_up(runner.clock())
+            served.begin(sim)
             began = clock()
             lost = None
             try:

@@ -199,10 +199,13 @@ def _sim_counts(sim: SimulatedEyeQ) -> dict[str, Any]:
     }
 
 
+GAUGES = frozenset({"busyFrames"})  # link values that are a level now, not a count
+
+
 def _minus(now: Any, before: Any) -> Any:
-    """``now - before`` key by key (counts only grow)."""
+    """``now - before`` key by key (counts only grow); a gauge is its value now."""
     if isinstance(now, dict):
-        return {k: _minus(v, before.get(k)) for k, v in now.items()}
+        return {k: v if k in GAUGES else _minus(v, before.get(k)) for k, v in now.items()}
     return now - (before or 0)
 
 
@@ -220,6 +223,14 @@ class SimSessions:
         self.t0 = t0
         self.sessions: list[dict[str, Any]] = []
         self._last: tuple[SimulatedEyeQ, dict[str, Any]] | None = None
+        self._begun: tuple[SimulatedEyeQ, dict[str, Any]] | None = None
+
+    def begin(self, sim: SimulatedEyeQ) -> None:
+        """A host connected and ``sim`` was powered up for it. The power-up's reset (L10) drops
+        what the link and transport still held for the host that left before, counted as send
+        failures and aborts: the last host's leaving, no loss of this session (nor of the last,
+        which ended when its host left), so this session's link counts start here."""
+        self._begun = (sim, _sim_counts(sim))
 
     def add(self, sim: SimulatedEyeQ, *, began: float, ended: float,
             link_lost: str | None) -> dict[str, Any]:
@@ -228,7 +239,10 @@ class SimSessions:
         now = _sim_counts(sim)
         d = now if self._last is None or self._last[0] is not sim \
             else _minus(now, self._last[1])
-        self._last = (sim, now)
+        if self._begun is not None and self._begun[0] is sim:  # link counts from the power-up
+            for key in ("link", "transport_aborts"):
+                d[key] = _minus(now[key], self._begun[1][key])
+        self._last, self._begun = (sim, now), None
         s: dict[str, Any] = {
             "began_s": round(began, 3), "ended_s": round(ended, 3),
             "state": f"0x{sim.main_state:02X}",

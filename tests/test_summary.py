@@ -162,3 +162,25 @@ def test_a_host_that_gave_up_names_why_before_the_link_it_then_lost() -> None:
     out = host_summary(emu.host, side="host", elapsed=0.05, wall=0.05, cpu=0.05,
                        running_since=None, left_running=[], link_lost="the peer left")
     assert out["problem"] == "link lost"
+
+
+def test_frames_a_leaving_host_left_in_flight_are_no_loss_of_the_next_session(
+        tmp_path: Path) -> None:
+    """``sim`` powers the EyeQ up for each host; that reset (L10) drops what the link still had
+    in flight for the host that left, counted as send failures. Those belong to no session
+    (the last one ended when its host left): the next host's session starts clean, and the
+    busyFrames gauge is its value, never a difference."""
+    build(nvm=Nvm(tmp_path / "nvm.json")).run_for(3.0)  # the first ignition writes the NVM
+    emu = build(nvm=Nvm(tmp_path / "nvm.json"))
+    emu.run_for(2.0)
+    link = emu.sim.conn.link
+    while not link._inflight:  # the host leaves in the middle of a frame
+        emu.run_for(0.0002)
+    served = SimSessions()
+    served.add(emu.sim, began=0.0, ended=emu.runner.now, link_lost="the peer left")
+    emu.sim.power_up(emu.runner.now)  # the next host connects
+    assert link.counters.sendFailedErrorCounter > 0  # the reset dropped the frames in flight
+    served.begin(emu.sim)
+    second = served.add(emu.sim, began=emu.runner.now, ended=emu.runner.now, link_lost=None)
+    assert second["link"]["sendFailedErrorCounter"] == 0 and second["ok"], second["problem"]
+    assert second["link"]["busyFrames"] == link.counters.busyFrames >= 0
