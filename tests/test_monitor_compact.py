@@ -49,6 +49,21 @@ def test_80x24_folds_the_panels_and_keeps_what_matters(busy_capture: Path) -> No
     assert any(line.startswith("objects (10)") for line in wide)
 
 
+def test_the_transitions_panel_counts_every_transition_it_does_not_show() -> None:
+    """The views keep the last few transitions; their titles say how many there were in all
+    (an EyeQ that reset three times has more than fit), on the small screen and the wide one."""
+    from eyeq_spi.monitor.model import Snapshot
+
+    trans = [(float(k), f"S{k}", "E", f"S{k + 1}") for k in range(11, 19)]
+    snap = Snapshot("test", 20.0, "host state", "S19", trans, transitions_seen=19)
+    small = "\n".join(t.plain for t in screen_lines(snap, 80, 24))
+    assert re.search(r"transitions \((s since the start, )?last \d+ of 19\)", small), small
+    wide = "\n".join(t.plain for t in screen_lines(snap, 160, 80))
+    assert "transitions (last 6 of 19)" in wide, wide
+    few = Snapshot("test", 20.0, "host state", "S2", trans[:2], transitions_seen=2)
+    assert "of 2)" not in "\n".join(t.plain for t in screen_lines(few, 160, 80))
+
+
 def test_transitions_are_dated_from_the_start() -> None:
     """The host emulator on the real-time runner keeps monotonic clock readings: the view
     shows them from its origin (the runner's clock when the monitor started)."""

@@ -117,14 +117,15 @@ def _link(T: Any, snap: Snapshot, width: int) -> Panel:
 def _transitions(T: Any, snap: Snapshot, width: int) -> Panel:
     rows = [T(_fit(f" {tt:8.3f}  {a} --{ev}--> {b}", width))
             for tt, a, ev, b in snap.transitions[-6:]]
-    title = T(f"transitions (s since the start, last {len(rows)})", style="italic")
+    total = snap.transitions_total
+    title = T(f"transitions (s since the start, last {len(rows)} of {total})", style="italic")
 
     def partial(n: int) -> Lines:
-        return [T(f"transitions (last {n - 1} of {len(rows)})", style="italic"),
+        return [T(f"transitions (last {n - 1} of {total})", style="italic"),
                 *rows[len(rows) - (n - 1):]] if n > 1 else [title]
 
     last = snap.transitions[-1] if snap.transitions else None
-    folded = T("transitions: " + (f"{len(snap.transitions)}, last {last[0]:.3f} s -> "
+    folded = T("transitions: " + (f"{total}, last {last[0]:.3f} s -> "
                                   f"{last[3]}" if last else "none"), style="italic")
     return Panel([title, *rows], folded, partial)
 

@@ -40,6 +40,11 @@ class Snapshot:
     scene: Scene = field(default_factory=Scene)
     problem: str | None = None
     done: bool = False
+    transitions_seen: int = 0  # of which ``transitions`` holds the last few (0: as many)
+
+    @property
+    def transitions_total(self) -> int:
+        return max(self.transitions_seen, len(self.transitions))
 
 
 def band(rate_hz: float | None, tolerance_ms: tuple[float, float] | None

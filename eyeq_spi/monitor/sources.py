@@ -80,7 +80,8 @@ class _HostView:
                  for t in host.transitions[-8:]]
         return Snapshot(self.source, now, "host state", host.state.value, trans,
                         self.rates.rows(), link, errors, sorted(host.stale_streams),
-                        self.tracker.snapshot(), host.problem, done)
+                        self.tracker.snapshot(), host.problem, done,
+                        transitions_seen=len(host.transitions))
 
 
 class DemoSource:
@@ -236,6 +237,7 @@ class DissectSource:
         self.errors: Counter[str] = Counter()
         self.state = "-"
         self.transitions: list[tuple[float, str, str, str]] = []
+        self.transitions_seen = 0
         self._main = Labels(codec)
 
     def _next(self) -> dict[str, Any] | None:
@@ -293,6 +295,7 @@ class DissectSource:
         if label != self.state:
             self.transitions.append((self.now, self.state, "0x41", label))
             self.transitions = self.transitions[-8:]
+            self.transitions_seen += 1
             self.state = label
 
     def snapshot(self) -> Snapshot:
@@ -303,7 +306,8 @@ class DissectSource:
         return Snapshot(f"dissect {Path(self.path).name}{pace}",
                         self.now, "EyeQ Main_State (0x41)", self.state, list(self.transitions),
                         self.rates.rows(), dict(self.link), errors, [],
-                        self.tracker.snapshot(), None, self.done)
+                        self.tracker.snapshot(), None, self.done,
+                        transitions_seen=self.transitions_seen)
 
     def close(self) -> None:
         close = getattr(self._records, "close", None)

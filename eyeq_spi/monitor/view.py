@@ -148,7 +148,9 @@ def _road(snap: Snapshot) -> list[Any]:
 def _transitions(snap: Snapshot) -> list[Any]:
     rows = [([(f"{tt:8.3f}", ""), (a, ""), (ev, ""), (b, "")], "")
             for tt, a, ev, b in snap.transitions[-6:]]
-    return _block("transitions", TRANSITION_COLS, rows)
+    total = snap.transitions_total
+    title = "transitions" if total <= len(rows) else f"transitions (last {len(rows)} of {total})"
+    return _block(title, TRANSITION_COLS, rows)
 
 
 def _side_by_side(left: list[Any], lw: int, right: list[Any]) -> list[Any]:
