@@ -137,7 +137,7 @@ def _listener(args: argparse.Namespace, opts: Options) -> Any:
             if opts.adapter is not None:
                 opts.adapter.close()
             pty = PtyAdapter()
-            print(f"PTY {pty.path}", file=sys.stderr if args.json else sys.stdout, flush=True)
+            print(f"PTY {pty.path}", file=sys.stderr, flush=True)  # stdout: the report
             return pty
 
         opts.reopen = fresh  # one pty per ignition cycle: the host opens each in turn
@@ -147,5 +147,5 @@ def _listener(args: argparse.Namespace, opts: Options) -> Any:
     from eyeq_spi.phy.base import open_listener
 
     adapter: Any = open_listener(args.listen, timeout=args.accept_timeout)
-    print(f"LISTEN {adapter.url}", file=sys.stderr if args.json else sys.stdout, flush=True)
+    print(f"LISTEN {adapter.url}", file=sys.stderr, flush=True)
     return adapter
