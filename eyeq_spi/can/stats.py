@@ -220,7 +220,8 @@ class CanStats:
 
 def human_stats(s: dict[str, Any]) -> str:
     chans = ", ".join(f"{k}: {v}" for k, v in s["channels"].items())
-    lines = [f"{s['frames']} frames over {s['duration_s']} s, protocol {s['protocol']}"
+    span = "-" if s["duration_s"] is None else f"{s['duration_s']:.3f}"
+    lines = [f"{s['frames']} frames over {span} s, protocol {s['protocol']}"
              + (f", channel {s['channel']}" if s["channel"] is not None else ""),
              f"channels (all frames in the log): {chans or 'none'}"]
     if s["ids_on_several_channels"] and s["channel"] is None:
