@@ -241,6 +241,7 @@ def test_bad_files_give_one_line_and_exit_2(tmp_path: Path, content: bytes, msg:
     p.write_bytes(content)
     rc, _, err = run(["dissect", str(p)], capsys)
     assert rc == 2 and msg in err and err.count("\n") == 1 and "Traceback" not in err
+    assert f"error: {p}: " in err  # which file: with several, the user must know
 
 
 def test_truncated_raw_and_pcapng(tmp_path: Path, faulty: Path,

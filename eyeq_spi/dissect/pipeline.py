@@ -35,6 +35,7 @@ from typing import IO, Any
 from eyeq_spi.capture.pcapng_io import Record, Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.release import Capture, Release, open_capture
+from eyeq_spi.errors import EyeqError
 from eyeq_spi.io.plain import InputError
 from eyeq_spi.logic.options import SpiOptions
 
@@ -116,6 +117,9 @@ class CaptureFile:
             try:
                 self._cap = open_capture(self._fh, cfg.fmt, cfg.direction, cfg.spi,
                                          sw=cfg.sw, name=self.path)
+            except EyeqError as exc:
+                self.close()
+                raise _naming(exc, self.path) from None
             except BaseException:
                 self.close()
                 raise
@@ -165,6 +169,8 @@ class CaptureFile:
                        if br is not None else None)
             items = batched or _all(Dissector(codec=self.codec), cap.records)
             yield from self._tracked(items, fh)
+        except EyeqError as exc:
+            raise _naming(exc, self.path) from None
         finally:
             self.close()
 
@@ -199,6 +205,20 @@ class CaptureFile:
         fh, self._fh = self._fh, None
         if fh is not None and fh is not sys.stdin.buffer:
             fh.close()
+
+
+def _naming(exc: EyeqError, path: str) -> EyeqError:
+    """``exc`` with the file it is about in front (``a.pcapng: empty input``), so that with
+    several files the user knows which one; the same class, so callers catch it as before."""
+    name = "stdin" if path == "-" else path
+    text = str(exc)
+    if text.startswith(f"{name}:") or text.startswith(f"{path}:"):
+        return exc
+    try:
+        named = type(exc)(f"{name}: {text}")
+    except TypeError:  # an error class with other arguments: as it is
+        return exc
+    return named
 
 
 def dissect_captures(paths: Sequence[str], config: DissectConfig | None = None, *,
