@@ -80,6 +80,17 @@ def test_eyeq_suite_against_a_sim_process(where: str) -> None:
     _judge_run("eyeq", res.returncode, res.stdout, res.stderr)
 
 
+def _stop(conf: subprocess.Popen[str], host: subprocess.Popen[bytes] | None,
+          reader: threading.Thread) -> None:
+    """The suite's and the host's processes gone, the suite's stderr read to its end."""
+    conf.kill()
+    conf.wait(timeout=10)
+    if host is not None:
+        host.kill()
+        host.wait(timeout=10)
+    reader.join(timeout=5)
+
+
 @pytest.mark.realtime
 @pytest.mark.parametrize("where", ["tcp", "pty"])
 def test_host_suite_against_host_processes(where: str, tmp_path: Path) -> None:
@@ -124,12 +135,7 @@ def test_host_suite_against_host_processes(where: str, tmp_path: Path) -> None:
         assert conf.stdout is not None
         out = conf.stdout.read()
     finally:
-        conf.kill()
-        conf.wait(timeout=10)
-        if host is not None:
-            host.kill()
-            host.wait(timeout=10)
-        reader.join(timeout=5)
+        _stop(conf, host, reader)
     if where == "pty":
         assert len(urls) == 3  # one pty per ignition cycle
     _judge_run("host", conf.returncode, out, "".join(err))
@@ -202,12 +208,7 @@ def test_one_reconnecting_host_gets_through_every_ignition_cycle(tmp_path: Path)
         assert conf.stdout is not None
         out = conf.stdout.read()
     finally:
-        conf.kill()
-        conf.wait(timeout=10)
-        if host is not None:
-            host.kill()
-            host.wait(timeout=10)
-        reader.join(timeout=5)
+        _stop(conf, host, reader)
     recs = _records(out)
     stderr = "".join(err)
     assert conf.returncode == 0, (recs, stderr[-2000:])
