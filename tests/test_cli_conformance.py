@@ -180,6 +180,7 @@ def test_one_reconnecting_host_gets_through_every_ignition_cycle(tmp_path: Path)
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     urls: list[str] = []
     err: list[str] = []
+    listening = threading.Event()
 
     def read_stderr() -> None:
         assert conf.stderr is not None
@@ -188,22 +189,22 @@ def test_one_reconnecting_host_gets_through_every_ignition_cycle(tmp_path: Path)
             part = raw.split()
             if len(part) == 2 and part[0] == "LISTEN":
                 urls.append(part[1])
+                listening.set()
 
     reader = threading.Thread(target=read_stderr, daemon=True)
     reader.start()
     host: subprocess.Popen[bytes] | None = None
     out = ""
     try:
-        deadline = time.monotonic() + 150
-        while conf.poll() is None and time.monotonic() < deadline:
-            if urls and host is None:
-                host = subprocess.Popen(
-                    [*CLI, "host", "--port", urls[0], "--reconnect", "--duration", "300",
-                     "--nvm", str(tmp_path / "nvm.json")],
-                    cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            time.sleep(0.05)
-        assert conf.poll() is not None, "the suite did not finish within 150 s"
-        assert host is not None
+        assert listening.wait(60), f"the suite did not listen: {''.join(err)[-500:]}"
+        host = subprocess.Popen(
+            [*CLI, "host", "--port", urls[0], "--reconnect", "--duration", "300",
+             "--nvm", str(tmp_path / "nvm.json")],
+            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:  # its --json output is a few lines: the pipe cannot fill up meanwhile
+            conf.wait(timeout=150)
+        except subprocess.TimeoutExpired:
+            raise AssertionError("the suite did not finish within 150 s") from None
         assert host.poll() is None, "the host under test exited before the suite ended"
         assert conf.stdout is not None
         out = conf.stdout.read()
