@@ -238,6 +238,18 @@ class FrameCodec:
             out.append((word >> n[0]) & n[1] if ok else None)
         return out
 
+    def data_header_num(self, transfer: bytes) -> int | None:
+        """The NUM of a 128-byte transfer whose header says DATA with R 0, else None: what
+        :meth:`data_num` reads, the CRC left unjudged (the runner's handover tells its frames
+        in flight by their NUMs; the receiver judges each when it takes it)."""
+        if len(transfer) != FRAME_SIZE:
+            return None
+        word = int.from_bytes(transfer[:4], "little")
+        d, r, n = self._d, self._r, self._num
+        if (word >> d[0]) & d[1] != _DATA_KIND or (word >> r[0]) & r[1]:
+            return None
+        return (word >> n[0]) & n[1]
+
     def data_num(self, transfer: bytes) -> int | None:
         """:meth:`data_nums` of one transfer."""
         return self.data_nums([transfer])[0]
