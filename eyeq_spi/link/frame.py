@@ -167,7 +167,11 @@ class FrameCodec:
         header = (self._data_word | (rsp << self._rsp[0]) | (num << self._num[0])).to_bytes(
             4, "little")
         data = data.ljust(DATA_SIZE, b"\0")
-        return header + self.crc(header + data).to_bytes(2, "little") + data
+        if self._hqx:  # CCITT-FALSE (L3): crc_hqx chained over header and data, nothing joined
+            crc = binascii.crc_hqx(data, binascii.crc_hqx(header, 0xFFFF))
+        else:
+            crc = self.crc(header + data)
+        return header + crc.to_bytes(2, "little") + data
 
     def ack(self, num: int) -> bytes:
         """L5: an ACK's RSP is the accepted frame's NUM, its NUM is 0."""
