@@ -165,3 +165,13 @@ def test_data_nums_read_what_judge_reads(raws: list[bytes], order: BitOrder, fix
         want.append(num if d == FrameKind.DATA and r == 0 and ok else None)
     assert codec.data_nums(frames) == want
     assert [codec.data_num(f) for f in frames] == want
+    # data_header_num: the same header reading, the CRC left unjudged
+    heads: list[int | None] = []
+    for f in frames:
+        try:
+            d, r, _, num, _ = codec.judge(f)
+        except FrameError:
+            heads.append(None)
+            continue
+        heads.append(num if d == FrameKind.DATA and r == 0 else None)
+    assert [codec.data_header_num(f) for f in frames] == heads

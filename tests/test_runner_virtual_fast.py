@@ -89,12 +89,13 @@ def _first_difference(old: Trace, new: Trace) -> str | None:
 
 def _lockstep(cfg: SimConfig, seconds: float, window: int | None = None, slice_s: float = 0.0007,
               min_transfers: int = 1000, setup: Callable[[Emulation], None] | None = None,
-              **runner: Any) -> tuple[Emulation, Trace]:
+              driven: bool = True, **runner: Any) -> tuple[Emulation, Trace]:
     """Run the reference and the express path side by side in slices of 0.7 ms (which end
     inside messages, where a handover stops with frames and ACKs still on their way), and
     compare the transfers so far and the state of every layer after each slice. Returns the
     express run and its transfers. (A longer ``slice_s`` lets a handover run on to the
-    nodes' own deadlines.)"""
+    nodes' own deadlines.) ``driven=False``: the express run's slices keep the runner's
+    caches, as the emulator's own slices do."""
     pair = []
     for express in (False, True):
         emu, trace = _emulation(express, SimConfig(**vars(cfg)), **runner)
@@ -108,7 +109,7 @@ def _lockstep(cfg: SimConfig, seconds: float, window: int | None = None, slice_s
     while t < seconds:
         t += slice_s
         ref.runner.run_until(t)
-        fast.runner.run_until(t)
+        fast.runner.run_until(t, driven=driven or t == slice_s)
         assert _first_difference(ref_trace, fast_trace) is None, \
             f"at {t}: {_first_difference(ref_trace, fast_trace)}"
         assert _state(ref) == _state(fast), f"at {t}"
@@ -129,6 +130,30 @@ def test_express_gives_the_reference_transfers_and_state(case: str) -> None:
         data = sum(1 for i, _, b in fast_trace if i == 1 and codec.judge(b)[0] == FrameKind.DATA)
         assert loop.absorbed + loop.handed > 0.5 * data
         assert loop.handed > 0.5 * data
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_slices_that_keep_the_caches_give_the_reference(case: str) -> None:
+    """``run_until(driven=False)`` (nothing drove a node since the last call) goes on from
+    the caches the last call left, with no round of the general loop at the start: the same
+    transfers and state as the reference, which starts every slice afresh."""
+    cfg, seconds = CASES[case]
+    _lockstep(cfg, seconds, driven=False)
+
+
+def test_emulator_slices_keep_the_runner_caches(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Emulation.run_for runs 10 ms slices: only its first starts afresh (the others follow
+    slices in which only the host's state was read); with a ``stop`` condition, every one."""
+    monkeypatch.delenv(EXACT_ENV, raising=False)
+    emu = build(keep_rx_times=False)
+    emu.run_for(1.0)
+    touched = []
+    monkeypatch.setattr(emu.runner, "touch_all", lambda: touched.append(emu.runner.now))
+    emu.run_for(0.5)
+    assert touched == [pytest.approx(1.0)]
+    touched.clear()
+    emu.run_for(0.1, stop=lambda: False)
+    assert len(touched) == 10  # each slice starts afresh
 
 
 def test_host_takes_whole_messages_and_its_last_acks_in_one_step() -> None:

@@ -221,25 +221,45 @@ class HostEmulator(HostBringUp):
     def _absorb_until(self) -> float:
         """The first time at which :meth:`express_absorb` leaves a frame to the ordinary calls
         for the host's own sake: a request to hand over, a stale check, a timer due."""
-        if self.mesp.waiting:
+        mesp = self.mesp
+        if mesp.waiting:
             return -math.inf
-        until = math.inf
-        if self.state is S.RUNNING_VISION:
-            until = self._next_stale_check
-        for t in (self.mesp.get_timer() if self.mesp.outstanding else None,
-                  self._boot_deadline, self._next_poll, self._veh_next):
+        until = self._next_stale_check if self.state is S.RUNNING_VISION else math.inf
+        # asked for every message handed over: straight comparisons, no temporary tuple
+        if mesp.outstanding:
+            t = mesp.get_timer()
             if t is not None and t < until:
                 until = t
+        t = self._boot_deadline
+        if t is not None and t < until:
+            until = t
+        t = self._next_poll
+        if t is not None and t < until:
+            until = t
+        t = self._veh_next
+        if t is not None and t < until:
+            until = t
         return until
 
     def get_timer(self) -> float | None:
         # asked after every event (runner/virtual.py): no temporary lists here
         best = self.conn.get_timer()
-        for t in (self.mesp.get_timer() if self.mesp.outstanding else None,
-                  self._boot_deadline, self._next_poll, self._veh_next,
-                  self._next_stale_check if self.state is S.RUNNING_VISION and self._last_rx
-                  else None):
+        if self.mesp.outstanding:
+            t = self.mesp.get_timer()
             if t is not None and (best is None or t < best):
+                best = t
+        t = self._boot_deadline
+        if t is not None and (best is None or t < best):
+            best = t
+        t = self._next_poll
+        if t is not None and (best is None or t < best):
+            best = t
+        t = self._veh_next
+        if t is not None and (best is None or t < best):
+            best = t
+        if self.state is S.RUNNING_VISION and self._last_rx:
+            t = self._next_stale_check
+            if best is None or t < best:
                 best = t
         return best
 

@@ -553,8 +553,11 @@ class LinkConnection:
             acc.pop(num, None)
             acc[num] = bytes(transfer)
             num = (num + 1) % m
-            while acc and (num - next(iter(acc))) % m > w:
-                acc.popitem(last=False)  # only [E-W, E) can be a duplicate
+        # only [E-W, E) can be a duplicate: trimmed once for the run, which leaves what a trim
+        # after each frame leaves (a NUM's distance behind E only grows while E moves on, and
+        # a NUM that E reaches again is taken out and put back above)
+        while acc and (num - next(iter(acc))) % m > w:
+            acc.popitem(last=False)
         self._naks_in_row = 0
         self._expected = num
         self._last_accepted = (num - 1) % m

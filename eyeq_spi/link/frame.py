@@ -167,7 +167,11 @@ class FrameCodec:
         header = (self._data_word | (rsp << self._rsp[0]) | (num << self._num[0])).to_bytes(
             4, "little")
         data = data.ljust(DATA_SIZE, b"\0")
-        return header + self.crc(header + data).to_bytes(2, "little") + data
+        if self._hqx:  # CCITT-FALSE (L3): crc_hqx chained over header and data, nothing joined
+            crc = binascii.crc_hqx(data, binascii.crc_hqx(header, 0xFFFF))
+        else:
+            crc = self.crc(header + data)
+        return header + crc.to_bytes(2, "little") + data
 
     def ack(self, num: int) -> bytes:
         """L5: an ACK's RSP is the accepted frame's NUM, its NUM is 0."""
@@ -237,6 +241,18 @@ class FrameCodec:
                   and crc(t[:4] + t[6:]) == int.from_bytes(t[4:6], "little"))
             out.append((word >> n[0]) & n[1] if ok else None)
         return out
+
+    def data_header_num(self, transfer: bytes) -> int | None:
+        """The NUM of a 128-byte transfer whose header says DATA with R 0, else None: what
+        :meth:`data_num` reads, the CRC left unjudged (the runner's handover tells its frames
+        in flight by their NUMs; the receiver judges each when it takes it)."""
+        if len(transfer) != FRAME_SIZE:
+            return None
+        word = int.from_bytes(transfer[:4], "little")
+        d, r, n = self._d, self._r, self._num
+        if (word >> d[0]) & d[1] != _DATA_KIND or (word >> r[0]) & r[1]:
+            return None
+        return (word >> n[0]) & n[1]
 
     def data_num(self, transfer: bytes) -> int | None:
         """:meth:`data_nums` of one transfer."""

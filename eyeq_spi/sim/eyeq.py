@@ -285,11 +285,18 @@ class SimulatedEyeQ(MespFunctions):
 
     def _own_timer(self) -> float | None:
         """The deadline of the EyeQ itself, its link's and transport's apart."""
-        best: float | None = None
-        for t in (self._boot_at, self._app_at,
-                  None if self._reset_done else self.config.reset_at,
-                  self._replies[0][0] if self._replies else None):
+        # asked after every event: straight comparisons, no temporary tuple
+        best = self._boot_at
+        t = self._app_at
+        if t is not None and (best is None or t < best):
+            best = t
+        if not self._reset_done:
+            t = self.config.reset_at
             if t is not None and (best is None or t < best):
+                best = t
+        if self._replies:
+            t = self._replies[0][0]
+            if best is None or t < best:
                 best = t
         if self.app_running:
             if best is None or self._next_diag < best:
