@@ -156,22 +156,16 @@ def test_data_nums_read_what_judge_reads(raws: list[bytes], order: BitOrder, fix
         frames.append(raw)
     frames.append(bytes(length))
     want: list[int | None] = []
+    heads: list[int | None] = []  # data_header_num: the same header reading, CRC unjudged
     for f in frames:
         try:
             d, r, _, num, ok = codec.judge(f)
         except FrameError:
             want.append(None)
-            continue
-        want.append(num if d == FrameKind.DATA and r == 0 and ok else None)
-    assert codec.data_nums(frames) == want
-    assert [codec.data_num(f) for f in frames] == want
-    # data_header_num: the same header reading, the CRC left unjudged
-    heads: list[int | None] = []
-    for f in frames:
-        try:
-            d, r, _, num, _ = codec.judge(f)
-        except FrameError:
             heads.append(None)
             continue
         heads.append(num if d == FrameKind.DATA and r == 0 else None)
+        want.append(heads[-1] if ok else None)
+    assert codec.data_nums(frames) == want
+    assert [codec.data_num(f) for f in frames] == want
     assert [codec.data_header_num(f) for f in frames] == heads
