@@ -16,12 +16,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.catalog.link import link_spec
-from eyeq_spi.codec.message import is_mesp
+from eyeq_spi.codec.message import DecodedMessage, is_mesp
 from eyeq_spi.errors import UsageError
 from eyeq_spi.host import init_seq
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostEvent, HostState
 from eyeq_spi.host.nvm import Nvm
+from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.link.frame import DATA_SIZE, FrameCodec, FrameKind, NakReason
 from eyeq_spi.mesp.replies import MespReply, MespResult
 from eyeq_spi.sim.config import SimConfig
@@ -299,6 +300,42 @@ class HostNoRenumber(HostEmulator):
         self.conn.link.reset(tx_num=num, learn=True)
 
 
+class HostLateRestart(HostEmulator):
+    """Learns of an EyeQ reset late, and then numbers its frames from 0 again (L10, L10a): it
+    takes no link resynchronisation for a reset (so the boot status it NAKed is lost), sees
+    the reset only when 0x41 ``Main_State`` goes back, and restarts its link there. Its first
+    frame after that has NUM 0 and, in RSP, the NUM of the last EyeQ frame its previous frames
+    named (not 0). A correct host: the suite's EyeQ accepts that frame (L10a), and so must
+    every judge."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        self._last_rsp = 0
+        self._restarted = False
+
+    def _on_link_resync(self, ev: Resynchronised, now: float) -> None:
+        return  # the boot status was lost: the reset is seen from 0x41 below
+
+    def _on_diag(self, out: DecodedMessage, now: float) -> None:
+        if not out.errors and self._diag_event(out) == "went_back":
+            self.conn.restart()  # L10: both directions afresh, our NUMs from 0
+            self._restarted = True
+        super()._on_diag(out, now)
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        out = []
+        for t in super().data_to_send(now):
+            d, _, rsp, num = _header(t)
+            if d == FrameKind.DATA:
+                if self._restarted and num == 0:
+                    self._restarted = False
+                    t = _FRAMES.data_frame(self._last_rsp, 0, t[6:])  # the RSP it last sent
+                else:
+                    self._last_rsp = rsp
+            out.append(t)
+        return out
+
+
 class HostNoRetry(HostEmulator):
     """A MESP request that timed out is never retried (M6: up to 3 attempts, new tag)."""
 
@@ -440,6 +477,9 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
 ADVISED: dict[str, Mutant] = {m.name: m for m in (
     _m("host-versions-every-bring-up", "host", "asks Get Versions at every bring-up",
        {"HOST-VERSIONS"}, host=_host(VersionsEveryBringUp)),
+    _m("host-late-restart", "host", "learns of an EyeQ reset only from 0x41 Main_State and "
+       "then numbers its frames from 0 again, RSP not 0 (L10a)", set(),
+       host=_host(HostLateRestart)),
     _m("host-endless-boot-resets", "host", "resets a failing EyeQ 10 times",
        {"HOST-BOOT-RESETS"}, host_config=_set(boot_strikes=10)),
 )}
