@@ -6,7 +6,9 @@ edited; a host mutant changes an entry action by overriding the method that
 violates; the CI matrix checks that exactly those fail and every other case still passes or
 stays as it is for the correct implementation.
 ``ADVISED`` holds variants that depart only from our recommendations (no rule of the seed or a
-decision): the suite passes them and says so in the case's advice.
+decision): the suite passes them and says so in the case's advice. ``CORRECT`` holds variants
+that differ from ours and break no rule (a host that learns of an EyeQ reset late and numbers
+from 0 again, L10a): every case gets the verdict ours gets.
 """
 
 from __future__ import annotations
@@ -477,20 +479,24 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
 ADVISED: dict[str, Mutant] = {m.name: m for m in (
     _m("host-versions-every-bring-up", "host", "asks Get Versions at every bring-up",
        {"HOST-VERSIONS"}, host=_host(VersionsEveryBringUp)),
+    _m("host-endless-boot-resets", "host", "resets a failing EyeQ 10 times",
+       {"HOST-BOOT-RESETS"}, host_config=_set(boot_strikes=10)),
+)}
+
+# Hosts that differ from ours but break no rule: every case gets the verdict ours gets.
+CORRECT: dict[str, Mutant] = {m.name: m for m in (
     _m("host-late-restart", "host", "learns of an EyeQ reset only from 0x41 Main_State and "
        "then numbers its frames from 0 again, RSP not 0 (L10a)", set(),
        host=_host(HostLateRestart)),
-    _m("host-endless-boot-resets", "host", "resets a failing EyeQ 10 times",
-       {"HOST-BOOT-RESETS"}, host_config=_set(boot_strikes=10)),
 )}
 
 
 def _mutant(name: str | None, dut: str) -> Mutant | None:
     if name is None:
         return None
-    m = MUTANTS.get(name) or ADVISED.get(name)
+    m = MUTANTS.get(name) or ADVISED.get(name) or CORRECT.get(name)
     if m is None or m.dut != dut:
-        known = ", ".join(k for k, v in (MUTANTS | ADVISED).items() if v.dut == dut)
+        known = ", ".join(k for k, v in (MUTANTS | ADVISED | CORRECT).items() if v.dut == dut)
         raise UsageError(f"no {dut} mutant {name!r} (known: {known})")
     return m
 
