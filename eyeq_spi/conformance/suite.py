@@ -149,22 +149,22 @@ def run(opts: Options) -> list[Result]:
             step(i + 1, total)
     if opts.sessions_done is not None:
         opts.sessions_done()
-    out = [Result(c, _judge(c, ctx, opts.sw)) for c in cases]
+    out = [Result(c, _judge(c, ctx)) for c in cases]
     step(total, total)
     return out
 
 
-def _judge(c: Case, ctx: Context, sw: str | None = None) -> Outcome:
+def _judge(c: Case, ctx: Context) -> Outcome:
     name = c.session_for(ctx.dut)
     if name == ALL_SESSIONS:
         if not ctx.traces:
             return skip("no session could run")
         out: Outcome = c.judge(ctx, dict(ctx.traces))
-        return temper(c, out, list(ctx.traces.values()), dut=ctx.dut, sw=sw)
+        return temper(c, out, list(ctx.traces.values()))
     tr = ctx.traces.get(name)
     if tr is None:
         return skip(f"session {name!r} did not run (the host under test did not connect)")
-    return temper(c, c.judge(ctx, tr), [tr], dut=ctx.dut, sw=sw)
+    return temper(c, c.judge(ctx, tr), [tr])
 
 
 def _say(opts: Options, text: str) -> None:

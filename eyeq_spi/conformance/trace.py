@@ -217,6 +217,11 @@ class Trace:
         self._catch_up()
         return [t for t, d in self._restarts if direction is None or d == direction]
 
+    def stalled(self, t0: float, t1: float) -> bool:
+        """True if a stall of our own loop (real time, load.py) overlaps [t0, t1]: our ACKs
+        may have come after the peer's ackTimeout there, and a message of the peer be lost."""
+        return any(a <= t1 and b >= t0 for a, b in self.stalls)
+
     def resets(self) -> list[float]:
         """Every reset: those the script marked (ours, the reset line, soft resets) and every
         restart a receiver saw."""

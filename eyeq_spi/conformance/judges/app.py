@@ -262,9 +262,13 @@ def bring_ups(tr: Trace) -> list[float]:
             if is_request(m) and m.fields.get("ct_stage") == 0x92]
 
 
-def segments(tr: Trace, msgs: list[Msg], period: float) -> list[list[Msg]]:
+def segments(tr: Trace, msgs: list[Msg], period: float, *, lossless: bool = False
+             ) -> list[list[Msg]]:
     """Runs of one stream without a gap of 3 periods, a fault window, a reset or a mode
-    change in between: the spans in which counters and rates must hold."""
+    change in between: the spans in which counters and rates must hold. ``lossless`` (the
+    counters, a content rule): a stall of our own loop in between also ends a run, since our
+    late ACKs may have lost a message there (L7); rates weigh our stalls by their spans
+    instead (load.py)."""
     mode = _mode_at(tr)
     resets = tr.resets() + bring_ups(tr)
     out: list[list[Msg]] = []
@@ -273,6 +277,7 @@ def segments(tr: Trace, msgs: list[Msg], period: float) -> list[list[Msg]]:
         if cur:
             a = cur[-1]
             if (m.t_first - a.t_first > 3 * period or tr.disturbed(a.t_first, m.time)
+                    or (lossless and tr.stalled(a.t_first, m.time))
                     or any(a.t_first <= r <= m.t_first for r in resets)
                     or mode(a.t_first) != mode(m.t_first)):
                 out.append(cur)
@@ -289,7 +294,7 @@ def dasp_counter(ctx: Context, tr: Trace) -> Outcome:
     for m in msgs:
         by_id.setdefault(int(m.header["data_id"]), []).append(m)
     for did, ms in by_id.items():
-        for seg in segments(tr, ms, 1.0):
+        for seg in segments(tr, ms, 1.0, lossless=True):
             for a, b in pairwise(seg):
                 if b.header["counter"] != (a.header["counter"] + 1) & 0xFF:
                     return bad(f"data ID 0x{did:02X}: counter {a.header['counter']} "
@@ -328,7 +333,7 @@ def dasp_e2e(ctx: Context, tr: Trace) -> Outcome:
         plans = [p for p in lay.crc_plan if p.counter_offset is not None]
         if not plans:
             continue
-        for seg in segments(tr, ms, 1.0):
+        for seg in segments(tr, ms, 1.0, lossless=True):
             for a, b in pairwise(seg):
                 for p in plans:
                     o, size = 4 + int(p.counter_offset or 0), p.counter_size

@@ -365,8 +365,12 @@ def link_window(ctx: Context, tr: Trace) -> Outcome:
             outstanding[x.num] = x.time
             worst = max(worst, len(outstanding))
             if len(outstanding) > W:
+                # the measurement: the frames counted, from the oldest; its excess, how much
+                # older the frame that makes W + 1 had to be to leave the count
+                times = sorted(outstanding.values())
+                excess = times[len(times) - W - 1] - horizon
                 return bad(f"{_frame(x)}: {len(outstanding)} DATA frames unacknowledged within "
-                           f"ackTimeout (L7: at most {W})")
+                           f"ackTimeout (L7: at most {W})", [(times[0], x.time, excess)])
     blackout = tr.first_mark("ack_blackout")
     note = f" (ACK blackout at {at(blackout.time)})" if blackout else ""
     if worst < W:
