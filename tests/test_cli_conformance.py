@@ -39,7 +39,7 @@ def _records(stdout: str) -> dict[str, dict[str, Any]]:
     out = {}
     for line in stdout.splitlines():
         rec = json.loads(line)
-        out[rec["id"] if rec["kind"] == "case" else "summary"] = rec
+        out[rec["id"] if rec["kind"] == "case" else rec["kind"]] = rec
     return out
 
 
@@ -47,6 +47,7 @@ def _judge_run(dut: str, code: int, stdout: str, stderr: str) -> None:
     recs = _records(stdout)
     ids = {c.id for c in cases_for(dut)}
     assert ids <= set(recs), (ids - set(recs), stderr[-2000:])
+    assert recs["header"]["dut"] == dut and recs["header"]["time"] == "real"
     assert code == 0, ([(k, r["evidence"]) for k, r in recs.items()
                         if r.get("verdict") == "fail"], stderr[-2000:])
     for k in ids:

@@ -16,6 +16,9 @@ from eyeq_spi.conformance.judges import link as L  # noqa: N812
 from eyeq_spi.conformance.model import ALL_SESSIONS, CONTENT, TIMING, Case
 
 EYEQ, HOST, BOTH = ("eyeq",), ("host",), ("eyeq", "host")
+# the suite's version, stated in every report: raised whenever a case, its rule or the meaning
+# of a verdict changes, so that two signed reports of one version judged the same things
+SUITE_VERSION = "2026.11-4"
 
 # seed sections and requirement IDs of the M3 functions (request / response)
 MESP_REFS = {

@@ -47,6 +47,15 @@ class Case:
 # script sends them (play.host); the judges look for their replies (judges.app, judges.link).
 TAG_EARLY_INIT, TAG_BAD_SWITCH, TAG_BAD_HASH, TAG_UNKNOWN_FN, TAG_UNKNOWN_SVC = 63, 62, 61, 60, 59
 TAG_LIMIT, TAG_CONTROL, TAG_GAP, TAG_SILENCE, TAG_DUP = 58, 57, 56, 55, 54
+# (tag counter, function) of each raw probe request -> the case that judges its answer
+PROBE_CASE = {(TAG_EARLY_INIT, "EventCalibrationTool"): "FLOW-PENDING",
+              (TAG_BAD_SWITCH, "SwitchEyeQApplication"): "MESP-BADPARAM",
+              (TAG_BAD_HASH, "ComputeHash"): "MESP-BADPARAM",
+              (TAG_LIMIT, "GetEyeQVersions"): "TP-LIMIT",
+              (TAG_CONTROL, "GetEyeQVersions"): "TP-ABORT",
+              (TAG_GAP, "GetEyeQVersions"): "TP-ABORT",
+              (TAG_SILENCE, "GetEyeQVersions"): "TP-ABORT",
+              (TAG_DUP, "GetEyeQExtendedState"): "LINK-DUP"}
 
 # the load gauge (load.py): seconds beyond the session loop's SLICE (play.session) before a
 # late loop turn counts as a stall of ours

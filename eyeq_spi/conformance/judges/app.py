@@ -13,7 +13,13 @@ from eyeq_spi.codec.intrinsic import eeprom_crc_ok
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.conformance.judges.link import answers
 from eyeq_spi.conformance.judges.verdict import Context, Outcome, at, bad, ok, skip, unsure
-from eyeq_spi.conformance.model import TAG_EARLY_INIT, TAG_GAP, TAG_LIMIT, TAG_SILENCE
+from eyeq_spi.conformance.model import (
+    PROBE_CASE,
+    TAG_EARLY_INIT,
+    TAG_GAP,
+    TAG_LIMIT,
+    TAG_SILENCE,
+)
 from eyeq_spi.conformance.trace import Msg, Trace
 
 _M = catalog().raw["mesp.yaml"]["mesp"]
@@ -110,9 +116,41 @@ def mesp_function(fn: str) -> Callable[[Context, Trace], Outcome]:
         if not good:
             rets = [ret_of(p.reply) if p.reply else None for p in pairs]
             return bad(f"{len(pairs)} request(s), no successful reply (ret seen: {rets})")
+        others = _not_counted(ctx, tr, [p for p in pairs if p.reply not in good])
         return ok(f"{len(good)} of {len(pairs)} request(s) answered with ret 0 and correct "
-                  f"parameters; first reply #{good[0].indices[-1]} at {at(good[0].time)}")
+                  f"parameters; first reply #{good[0].indices[-1]} at {at(good[0].time)}"
+                  + (f"; the other {len(pairs) - len(good)}: {others}" if others else ""))
     return judge
+
+
+def _not_counted(ctx: Context, tr: Trace, pairs: list[Pair]) -> str:
+    """Why requests of a passing function case did not count: our probes (judged by their own
+    cases), requests the link lost, refusals and replies left to MESP-DEADLINE."""
+    acked = delivered(tr, ctx)
+    probes: dict[str, int] = {}
+    lost = refused = unanswered = 0
+    rets: list[int] = []
+    for p in pairs:
+        req, rep = p.request, p.reply
+        case = PROBE_CASE.get((int(req.header["counter"]), req.name))
+        if case is not None:
+            probes[case] = probes.get(case, 0) + 1
+        elif not all(i in acked for i in req.indices):
+            lost += 1
+        elif rep is None:
+            unanswered += 1
+        else:
+            refused += 1
+            rets.append(ret_of(rep) or 0)
+    parts = [f"{n} of our probe requests, judged by {case}" for case, n in probes.items()]
+    if lost:
+        parts.append(f"{lost} lost on the link (not ACKed: around our faults or resets)")
+    if refused:
+        parts.append(f"{refused} refused in the EyeQ's state of the moment (ret "
+                     f"{', '.join(map(str, sorted(set(rets))))}), as M2 allows")
+    if unanswered:
+        parts.append(f"{unanswered} unanswered, judged by MESP-DEADLINE")
+    return "; ".join(parts)
 
 
 def mesp_tag(ctx: Context, tr: Trace) -> Outcome:

@@ -311,8 +311,8 @@ def link_resync(ctx: Context, tr: Trace) -> Outcome:
         return bad(f"after our reset at {at(mark.time)} none of our frames was ACKed again")
     if naks > RESYNC_NAKS:
         return bad(f"{naks} NAKs 0x001 before resynchronising (L6: at most {RESYNC_NAKS})")
-    return ok(f"our reset at {at(mark.time)}: {naks} NAK(s) 0x001, then ACK #{first_ack.index} "
-              f"at {at(first_ack.time)}")
+    return ok(f"our reset at {at(mark.time)}: {naks} NAK(s) 0x001 (at most {RESYNC_NAKS}, L6), "
+              f"then ACK #{first_ack.index} at {at(first_ack.time)}")
 
 
 def link_noresend(ctx: Context, tr: Trace) -> Outcome:
@@ -332,7 +332,9 @@ def link_noresend(ctx: Context, tr: Trace) -> Outcome:
     if not unacked:
         return skip(f"all {n} DATA frames of the DUT were ACKed within ackTimeout: it never had "
                     "a frame to resend")
-    return ok(f"{n} DATA frames, none resent ({unacked} of them not ACKed within ackTimeout)")
+    return ok(f"{n} DATA frames, none resent: {unacked} of them were not ACKed within "
+              "ackTimeout (our ACK blackout, our probes and resets, or lost on the link), each "
+              "a frame the DUT might have resent, and it resent none (§6, L7)")
 
 
 def _unacked(tr: Trace) -> int:
