@@ -47,8 +47,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     p.add_argument("-k", dest="select", metavar="EXPR",
                    help="select cases: words matched in ID/title/group/section, with and/or/not")
     opt.add_sw(p, "SW release (default: newest)")
-    opt.include(p, opt.json_out("JSON Lines: a header object, one object per case, then the summary "
-                                     "with the overall verdict"))
+    opt.include(p, opt.json_out("JSON Lines: a header object, one object per case, then the "
+                                "summary with the overall verdict"))
     p.add_argument("--junit", metavar="FILE", type=ca.output_file, help="write JUnit XML")
     p.add_argument("--report", metavar="FILE.md|FILE.html", type=ca.output_file,
                    help="write a Markdown or HTML report")
