@@ -15,7 +15,7 @@ from eyeq_spi.conformance import all_cases, cases_for
 from eyeq_spi.conformance.judges.app import unused_masks
 from eyeq_spi.conformance.judges.link import link_noresend, link_size
 from eyeq_spi.conformance.judges.verdict import Context
-from eyeq_spi.conformance.suite import Options, run, selector
+from eyeq_spi.conformance.suite import Options, run, run_report, selector
 from eyeq_spi.conformance.trace import Trace
 from eyeq_spi.link.frame import FrameCodec
 
@@ -81,10 +81,13 @@ def test_cli_list_json_junit_report_and_exit_codes(tmp_path: Path,
                  "--json", "--junit", str(junit), "--report", str(report)])
     assert code == 0
     lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
-    assert [x["kind"] for x in lines] == ["case", "case", "summary"]
-    assert set(lines[0]) == {"kind", "id", "title", "section", "requirement", "decision",
-                             "verdict", "evidence"}
-    assert lines[-1] == {"kind": "summary", "pass": 2, "fail": 0, "skip": 0, "inconclusive": 0}
+    assert [x["kind"] for x in lines] == ["header", "case", "case", "summary"]
+    assert set(lines[0]) == {"kind", "dut", "side_under_test", "address", "sw_release_seen",
+                             "tables_of_release", "time", "tool", "suite", "date"}
+    assert set(lines[1]) == {"kind", "id", "title", "section", "requirement", "decision",
+                             "rule", "verdict", "evidence"}
+    assert {k: v for k, v in lines[-1].items() if k != "meaning"} == {
+        "kind": "summary", "pass": 2, "fail": 0, "skip": 0, "inconclusive": 0, "verdict": "PASS"}
     suite = ET.parse(junit).getroot().find("testsuite")
     assert suite is not None and suite.get("tests") == "2"
     assert "| pass | HOST-VERSIONS |" in report.read_text()
@@ -141,12 +144,13 @@ def test_console_report_keeps_the_whole_evidence_and_fits_a_terminal() -> None:
     """The text report never cuts evidence: full lines for a file, folded for a terminal."""
     from eyeq_spi.conformance.report import console
 
-    results = run(Options(dut="eyeq", builtin=True, select="LINK-CRC or LINK-ACK or DASP-RATE"))
-    full = console(results)
-    for r in results:
+    rep = run_report(Options(dut="eyeq", builtin=True,
+                             select="LINK-CRC or LINK-ACK or DASP-RATE"))
+    full = console(rep)
+    for r in rep.results:
         assert r.outcome.evidence in full and f"§{r.case.section}" in full
-    narrow = console(results, width=80)
+    narrow = console(rep, width=80)
     assert max(len(line) for line in narrow.splitlines()) <= 80, narrow
     words = " ".join(narrow.split())
-    for r in results:
+    for r in rep.results:
         assert " ".join(r.outcome.evidence.split()) in words

@@ -16,7 +16,7 @@ from concurrent.futures import ProcessPoolExecutor
 import pytest
 
 from eyeq_spi.conformance.cases import cases_for
-from eyeq_spi.conformance.mutants import ADVISED, MUTANTS
+from eyeq_spi.conformance.mutants import ADVISED, CORRECT, MUTANTS
 from eyeq_spi.conformance.suite import Options, run
 
 GROUPS = {"link", "transport", "mesp", "dasp", "flows", "host"}
@@ -25,7 +25,7 @@ Verdicts = dict[str, tuple[str, str]]
 
 
 def _run_one(name: str) -> Verdicts:
-    m = MUTANTS.get(name) or ADVISED[name]
+    m = MUTANTS.get(name) or ADVISED.get(name) or CORRECT[name]
     return {r.case.id: (r.outcome.verdict, r.outcome.evidence)
             for r in run(Options(dut=m.dut, builtin=True, mutant=name))}
 
@@ -39,7 +39,7 @@ def _run_clean(dut: str) -> Verdicts:
 def matrix() -> dict[str, Verdicts]:
     """Every mutant, every advised variant and the two correct implementations ("clean-eyeq",
     "clean-host"): the baseline each mutant is compared with."""
-    names = sorted(MUTANTS) + sorted(ADVISED)
+    names = sorted(MUTANTS) + sorted(ADVISED) + sorted(CORRECT)
     ctx = multiprocessing.get_context("fork") if os.name == "posix" else None
     with ProcessPoolExecutor(max_workers=2, mp_context=ctx) as pool:
         futures = {n: pool.submit(_run_one, n) for n in names}
@@ -91,6 +91,19 @@ def test_advised_variants_pass_with_advice(name: str, matrix: dict[str, Verdicts
     for k in m.expected:
         v, ev = verdicts[k]
         assert v == "pass" and "advice:" in ev, (k, v, ev)
+
+
+@pytest.mark.parametrize("name", sorted(CORRECT))
+def test_correct_variants_get_our_verdicts(name: str, matrix: dict[str, Verdicts]) -> None:
+    """A host that differs from ours and breaks no rule gets, case by case, the verdict ours
+    gets: a host that learns of our reset late (its boot status lost, the reset seen from 0x41
+    Main_State) and numbers from 0 again with a stale RSP is accepted by our EyeQ (L10a), and
+    every judge follows what our EyeQ accepted (its requests after the restart, tags 17 on,
+    0x84 and 0x92 included)."""
+    m, verdicts = CORRECT[name], matrix[name]
+    clean = matrix[f"clean-{m.dut}"]
+    assert {k: v for k, (v, _) in verdicts.items()} == {k: v for k, (v, _) in clean.items()}, \
+        {k: verdicts[k] for k in verdicts if verdicts[k][0] != clean[k][0]}
 
 
 def test_clean_implementations_pass_or_say_why_not(matrix: dict[str, Verdicts]) -> None:

@@ -47,7 +47,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     p.add_argument("-k", dest="select", metavar="EXPR",
                    help="select cases: words matched in ID/title/group/section, with and/or/not")
     opt.add_sw(p, "SW release (default: newest)")
-    opt.include(p, opt.json_out("JSON Lines: one object per case, then a summary object"))
+    opt.include(p, opt.json_out("JSON Lines: a header object, one object per case, then the "
+                                "summary with the overall verdict"))
     p.add_argument("--junit", metavar="FILE", type=ca.output_file, help="write JUnit XML")
     p.add_argument("--report", metavar="FILE.md|FILE.html", type=ca.output_file,
                    help="write a Markdown or HTML report")
@@ -72,7 +73,7 @@ def _progress(args: argparse.Namespace) -> Any:
 def run(args: argparse.Namespace) -> int:
     from eyeq_spi.conformance import report
     from eyeq_spi.conformance.cases import all_cases, cases_for
-    from eyeq_spi.conformance.suite import Options, run, selector
+    from eyeq_spi.conformance.suite import Options, run_report, selector
 
     if args.list:
         keep = selector(args.select)
@@ -114,19 +115,19 @@ def run(args: argparse.Namespace) -> int:
             if opts.progress is not None:
                 opts.progress = bar.print
             opts.steps = bar.update
-            results = run(opts)
+            result = run_report(opts)
     finally:
         rt.close()  # never leave a caller (a test, a notebook) at SCHED_FIFO
         if opts.adapter is not None:
             opts.adapter.close()
     title = f"eyeq-spi conformance --dut {args.dut}" + (" --builtin" if args.builtin else "")
     if args.junit:
-        report.write(args.junit, report.junit(results, f"eyeq-spi.conformance.{args.dut}"))
+        report.write(args.junit, report.junit(result, f"eyeq-spi.conformance.{args.dut}"))
     if args.report:
-        report.write_report(args.report, results, title)
+        report.write_report(args.report, result, title)
     width = shutil.get_terminal_size((80, 24)).columns if sys.stdout.isatty() else None
-    print(report.json_lines(results) if args.json else report.console(results, width=width))
-    return report.exit_code(results)
+    print(report.json_lines(result) if args.json else report.console(result, width=width))
+    return report.exit_code(result.results)
 
 
 def _listener(args: argparse.Namespace, opts: Options) -> Any:

@@ -13,9 +13,12 @@ from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.conformance.judges import app as A  # noqa: N812 - short names keep the table
 from eyeq_spi.conformance.judges import flow as F  # noqa: N812
 from eyeq_spi.conformance.judges import link as L  # noqa: N812
-from eyeq_spi.conformance.model import ALL_SESSIONS, Case
+from eyeq_spi.conformance.model import ALL_SESSIONS, CONTENT, TIMING, Case
 
 EYEQ, HOST, BOTH = ("eyeq",), ("host",), ("eyeq", "host")
+# the suite's version, stated in every report: raised whenever a case, its rule or the meaning
+# of a verdict changes, so that two signed reports of one version judged the same things
+SUITE_VERSION = "2026.11-4"
 
 # seed sections and requirement IDs of the M3 functions (request / response)
 MESP_REFS = {
@@ -33,8 +36,8 @@ MESP_STEP = {"SwitchEyeQApplication": "flows", "EventCalibrationTool": "early_in
 
 def _c(id: str, title: str, section: str, req: str | None, dec: str | None, group: str,
        duts: tuple[str, ...], judge: Callable[..., Any], *, session: str = "main",
-       needs: tuple[str, ...] = ()) -> Case:
-    return Case(id, title, section, req, dec, group, duts, judge, session, needs)
+       needs: tuple[str, ...] = (), rule: str = CONTENT) -> Case:
+    return Case(id, title, section, req, dec, group, duts, judge, session, needs, rule)
 
 
 def _static() -> list[Case]:
@@ -46,9 +49,9 @@ def _static() -> list[Case]:
         _c("LINK-CRC", "CRC-16 (DATA: header+data, ACK/NAK: header), D and R valid", "6",
            "MAPC-67290", "L1, L2, L3", "link", BOTH, L.link_crc),
         _c("LINK-NUM", "DATA frames numbered +1 mod 4096, 0 after a reset", "6", "MAPC-67290",
-           "L4", "link", BOTH, L.link_num),
+           "L4, L10", "link", BOTH, L.link_num),
         _c("LINK-ACK", "every accepted DATA frame is ACKed, RSP = its NUM, within ackTimeout", "6",
-           "MAPC-67290", "L5", "link", BOTH, L.link_ack),
+           "MAPC-67290", "L5", "link", BOTH, L.link_ack, rule=TIMING),
         _c("LINK-NAK-CRC", "a frame with a bad CRC is NAKed 0x002", "6", "MAPC-67290", "L5",
            "link", BOTH, L.nak_crc, needs=link),
         _c("LINK-NAK-FORMAT", "a frame with an invalid D or R is NAKed 0x011", "6",
@@ -58,17 +61,17 @@ def _static() -> list[Case]:
         _c("LINK-DUP", "a duplicate frame is ACKed again and dropped", "6", "MAPC-67290",
            "L6, L6a", "link", BOTH, L.link_dup, needs=link),
         _c("LINK-RESYNC", "resynchronises after our simulated reset (at most 3 NAKs)", "6",
-           "MAPC-67290", "L6", "link", BOTH, L.link_resync, needs=link),
+           "MAPC-67290", "L6, L10", "link", BOTH, L.link_resync, needs=link),
         _c("LINK-PAD", "ACK and NAK frames carry 122 pad bytes set to 0", "6", "MAPC-67290",
            "L1", "link", BOTH, L.link_pad),
         _c("LINK-NORESEND", "unacknowledged DATA frames are never resent", "6", "MAPC-67290",
            "L7", "link", BOTH, L.link_noresend, needs=link),
         _c("LINK-WINDOW", "at most W = 8 DATA frames unacknowledged (ACK blackout)", "6",
-           "MAPC-67290", "L7", "link", BOTH, L.link_window, needs=link),
+           "MAPC-67290", "L7", "link", BOTH, L.link_window, needs=link, rule=TIMING),
         _c("LINK-TXTIMEOUT", "the frames of one message span at most transmitTimeout", "6",
-           "MAPC-67290", "L7", "link", BOTH, L.link_txtimeout),
+           "MAPC-67290", "L7", "link", BOTH, L.link_txtimeout, rule=TIMING),
         _c("LINK-GAP", "inter-frame gap >= 200 µs (EyeQ) / 500 µs (host), real time only",
-           "6", "MAPC-67290", "L7", "link", BOTH, L.link_gap),
+           "6", "MAPC-67290", "L7", "link", BOTH, L.link_gap, rule=TIMING),
         # -- transport (§6.1-6.2) ----------------------------------------------------------
         _c("TP-FORMAT", "single, first and consecutive frame formats; no interleaving",
            "6.1, 6.2", "MAPC-67292, MAPC-67294, MAPC-67296", "T1-T5", "transport", BOTH,
@@ -83,7 +86,7 @@ def _static() -> list[Case]:
         _c("MESP-TAG", "replies echo service, function and tag counter, bit 7 set", "7.1.1",
            None, "M1", "mesp", EYEQ, A.mesp_tag),
         _c("MESP-DEADLINE", "every reply within 500 ms", "7.1.1", None, "M6", "mesp", EYEQ,
-           A.mesp_deadline),
+           A.mesp_deadline, rule=TIMING),
         _c("MESP-BADPARAM", "bad parameters give ret != 0", "7.1.1", None, "M2", "mesp", EYEQ,
            A.mesp_bad_params, needs=("mesp",)),
         _c("MESP-UNKNOWN", "an unknown service or function gives ret 2", "7.1.1.1",
@@ -102,7 +105,7 @@ def _static() -> list[Case]:
         _c("DASP-UNUSED", "unused bitfield bits are sent as 1", "7.1.2", "MAPC-67350", "D2",
            "dasp", BOTH, A.dasp_unused),
         _c("DIAG-RATE", "EYEQ_DIAGNOSTIC_MSG (0x41) at 37 Hz (-25/+50 ms)", "7.1.5",
-           "MAPC-67399", None, "dasp", EYEQ, A.diag_rate),
+           "MAPC-67399", None, "dasp", EYEQ, A.diag_rate, rule=TIMING),
         # -- flows ---------------------------------------------------------------------------
         _c("FLOW-BOOT-FIRST", "EYEQ_BOOT_STATUS_MSG is the first message", "7.1.5.3",
            "MAPC-67299, MAPC-67408", None, "flows", EYEQ, F.boot_first),
@@ -126,18 +129,18 @@ def _static() -> list[Case]:
            "MAPC-67299",
            None, "host", HOST, F.host_versions),
         _c("HOST-RETRY", "a request left unanswered is retried with a new tag", "7.1.1", None,
-           "M6", "host", HOST, F.host_retry),
+           "M6", "host", HOST, F.host_retry, rule=TIMING),
         _c("HOST-INIT-ORDER", "0x84 then 0x92 after Pending Vision; DASP after 0x92", "7.1.3",
            "MAPC-67363, MAPC-67299", "M5", "host", HOST, F.host_init_order),
         _c("HOST-FATAL22", "Fatal 22 -> the host reads the EEPROM", "7.1.3", "MAPC-67363",
-           "I2", "host", HOST, F.host_fatal22, session=ALL_SESSIONS),
+           "I2", "host", HOST, F.host_fatal22, session=ALL_SESSIONS, rule=TIMING),
         _c("HOST-EEPROM-BAD", "a bad EEPROM CRC -> the host stops", "7.1.3", "MAPC-67363",
            "I2", "host", HOST, F.host_eeprom_bad, session="eeprom_bad"),
         _c("HOST-BOOT-RESETS", "a failing boot: resets counted (more than 3: advice)", "7.1.5.3",
            "MAPC-67408",
            None, "host", HOST, F.host_boot_resets, session="boot_fail"),
         _c("HOST-EYEQ-RESET", "an EyeQ reset -> the bring-up runs again", "7.1.3",
-           "MAPC-67363, MAPC-67299", None, "host", HOST, F.host_eyeq_reset),
+           "MAPC-67363, MAPC-67299", "L10, L10a", "host", HOST, F.host_eyeq_reset),
         _c("HOST-STALE", "a stale DASP stream is detected", "7.1.4", "MAPC-67370", None, "host",
            HOST, F.host_stale),
     ]
@@ -164,7 +167,8 @@ def _generated(sw: str | None) -> list[Case]:
             out.append(_c(f"DASP-RATE-{mode}-{m.name}",
                           f"{m.name} (0x{m.data_id:02X}) in {mode} at {m.rate_hz} Hz "
                           f"({lo:+g}/{hi:+g} ms)", m.section or "7.1.4", req, "D1",
-                          "dasp", duts, A.dasp_rate(m.name, mode), needs=needs))
+                          "dasp", duts, A.dasp_rate(m.name, mode), needs=needs,
+                          rule=TIMING))
     return out
 
 

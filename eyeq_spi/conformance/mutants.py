@@ -6,7 +6,9 @@ edited; a host mutant changes an entry action by overriding the method that
 violates; the CI matrix checks that exactly those fail and every other case still passes or
 stays as it is for the correct implementation.
 ``ADVISED`` holds variants that depart only from our recommendations (no rule of the seed or a
-decision): the suite passes them and says so in the case's advice.
+decision): the suite passes them and says so in the case's advice. ``CORRECT`` holds variants
+that differ from ours and break no rule (a host that learns of an EyeQ reset late and numbers
+from 0 again, L10a): every case gets the verdict ours gets.
 """
 
 from __future__ import annotations
@@ -16,12 +18,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.catalog.link import link_spec
-from eyeq_spi.codec.message import is_mesp
+from eyeq_spi.codec.message import DecodedMessage, is_mesp
 from eyeq_spi.errors import UsageError
 from eyeq_spi.host import init_seq
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostEvent, HostState
 from eyeq_spi.host.nvm import Nvm
+from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.link.frame import DATA_SIZE, FrameCodec, FrameKind, NakReason
 from eyeq_spi.mesp.replies import MespReply, MespResult
 from eyeq_spi.sim.config import SimConfig
@@ -299,6 +302,42 @@ class HostNoRenumber(HostEmulator):
         self.conn.link.reset(tx_num=num, learn=True)
 
 
+class HostLateRestart(HostEmulator):
+    """Learns of an EyeQ reset late, and then numbers its frames from 0 again (L10, L10a): it
+    takes no link resynchronisation for a reset (so the boot status it NAKed is lost), sees
+    the reset only when 0x41 ``Main_State`` goes back, and restarts its link there. Its first
+    frame after that has NUM 0 and, in RSP, the NUM of the last EyeQ frame its previous frames
+    named (not 0). A correct host: the suite's EyeQ accepts that frame (L10a), and so must
+    every judge."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        self._last_rsp = 0
+        self._restarted = False
+
+    def _on_link_resync(self, ev: Resynchronised, now: float) -> None:
+        return  # the boot status was lost: the reset is seen from 0x41 below
+
+    def _on_diag(self, out: DecodedMessage, now: float) -> None:
+        if not out.errors and self._diag_event(out) == "went_back":
+            self.conn.restart()  # L10: both directions afresh, our NUMs from 0
+            self._restarted = True
+        super()._on_diag(out, now)
+
+    def data_to_send(self, now: float) -> list[bytes]:
+        out = []
+        for t in super().data_to_send(now):
+            d, _, rsp, num = _header(t)
+            if d == FrameKind.DATA:
+                if self._restarted and num == 0:
+                    self._restarted = False
+                    t = _FRAMES.data_frame(self._last_rsp, 0, t[6:])  # the RSP it last sent
+                else:
+                    self._last_rsp = rsp
+            out.append(t)
+        return out
+
+
 class HostNoRetry(HostEmulator):
     """A MESP request that timed out is never retried (M6: up to 3 attempts, new tag)."""
 
@@ -444,13 +483,20 @@ ADVISED: dict[str, Mutant] = {m.name: m for m in (
        {"HOST-BOOT-RESETS"}, host_config=_set(boot_strikes=10)),
 )}
 
+# Hosts that differ from ours but break no rule: every case gets the verdict ours gets.
+CORRECT: dict[str, Mutant] = {m.name: m for m in (
+    _m("host-late-restart", "host", "learns of an EyeQ reset only from 0x41 Main_State and "
+       "then numbers its frames from 0 again, RSP not 0 (L10a)", set(),
+       host=_host(HostLateRestart)),
+)}
+
 
 def _mutant(name: str | None, dut: str) -> Mutant | None:
     if name is None:
         return None
-    m = MUTANTS.get(name) or ADVISED.get(name)
+    m = MUTANTS.get(name) or ADVISED.get(name) or CORRECT.get(name)
     if m is None or m.dut != dut:
-        known = ", ".join(k for k, v in (MUTANTS | ADVISED).items() if v.dut == dut)
+        known = ", ".join(k for k, v in (MUTANTS | ADVISED | CORRECT).items() if v.dut == dut)
         raise UsageError(f"no {dut} mutant {name!r} (known: {known})")
     return m
 

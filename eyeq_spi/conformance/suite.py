@@ -6,9 +6,13 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from typing import Any
 
-from eyeq_spi.conformance.cases import cases_for
+from eyeq_spi import __version__
+from eyeq_spi.catalog.messages import catalog
+from eyeq_spi.conformance.cases import SUITE_VERSION, cases_for
+from eyeq_spi.conformance.judges.app import is_reply, ret_of
 from eyeq_spi.conformance.judges.flow import QUIET_FOR
 from eyeq_spi.conformance.judges.verdict import Context, Outcome, skip
 from eyeq_spi.conformance.load import temper
@@ -41,11 +45,44 @@ class Result:
     def record(self) -> dict[str, Any]:
         c = self.case
         out = {"kind": "case", "id": c.id, "title": c.title, "section": c.section,
-               "requirement": c.requirement, "decision": c.decision,
+               "requirement": c.requirement, "decision": c.decision, "rule": c.rule,
                "verdict": self.outcome.verdict, "evidence": self.outcome.evidence}
         if self.outcome.advice:  # our recommendation beyond the seed: never a failure
             out["advice"] = self.outcome.advice
         return out
+
+
+@dataclass(frozen=True)
+class Header:
+    """What a signed report states before its verdicts: the side under test and where it was
+    reached, the software release it reported, and what judged it, when."""
+
+    dut: str  # "eyeq" or "host"
+    address: str
+    sw_seen: str  # what the implementation under test reported of its release
+    sw: str  # the release whose tables the suite played and decoded (--sw)
+    tool: str
+    suite: str
+    date: str
+    clock: str  # virtual (--builtin) or real time
+
+    def record(self) -> dict[str, str]:
+        """The JSON header: each row under its name in snake case, and ``dut``."""
+        return {"kind": "header", "dut": self.dut,
+                **{key.lower().replace(" ", "_"): value for key, value in self.rows()}}
+
+    def rows(self) -> list[tuple[str, str]]:
+        side = {"eyeq": "EyeQ (we played the host)", "host": "host (we played the EyeQ)"}
+        return [("side under test", side[self.dut]), ("address", self.address),
+                ("SW release seen", self.sw_seen), ("tables of release", self.sw),
+                ("time", self.clock), ("tool", self.tool), ("suite", self.suite),
+                ("date", self.date)]
+
+
+@dataclass(frozen=True)
+class Report:
+    header: Header
+    results: list[Result]
 
 
 @dataclass
@@ -124,6 +161,13 @@ def builtin_plans(opts: Options) -> None:
 
 
 def run(opts: Options) -> list[Result]:
+    return run_report(opts).results
+
+
+def run_report(opts: Options) -> Report:
+    """Run the suite: the verdicts, under the header a signed report needs."""
+    date = datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+    address = _address(opts)
     cases = select_cases(opts)
     if opts.builtin:
         builtin_plans(opts)
@@ -149,22 +193,56 @@ def run(opts: Options) -> list[Result]:
             step(i + 1, total)
     if opts.sessions_done is not None:
         opts.sessions_done()
-    out = [Result(c, _judge(c, ctx, opts.sw)) for c in cases]
+    out = [Result(c, _judge(c, ctx)) for c in cases]
     step(total, total)
-    return out
+    key = catalog().sw(opts.sw)
+    suite = (f"{SUITE_VERSION}, {len(out)} of its {len(cases_for(opts.dut, opts.sw))} cases for "
+             f"{'an EyeQ' if opts.dut == 'eyeq' else 'a host'}")
+    header = Header(opts.dut, address, _sw_seen(ctx, key), key, f"eyeq-spi {__version__}",
+                    suite, date, "virtual (--builtin)" if opts.builtin else "real")
+    return Report(header, out)
 
 
-def _judge(c: Case, ctx: Context, sw: str | None = None) -> Outcome:
+def _address(opts: Options) -> str:
+    if opts.builtin:
+        variant = f", variant {opts.mutant}" if opts.mutant else ""
+        return f"built-in: our own {'simulated EyeQ' if opts.dut == 'eyeq' else 'host'}{variant}"
+    if opts.dut == "eyeq":
+        return opts.port or "-"
+    adapter = opts.adapter
+    where = getattr(adapter, "url", None) or getattr(adapter, "path", None)
+    if opts.reopen is not None:
+        return f"a pty per ignition cycle, the first {where}"
+    return str(where or "-")
+
+
+def _sw_seen(ctx: Context, key: str) -> str:
+    """The release the implementation under test reported: an EyeQ's Get EyeQ Versions reply.
+    A host reports none on the SPI link."""
+    if ctx.dut == "host":
+        return f"none (a host reports no release on the SPI link; we played an EyeQ of {key})"
+    tr = ctx.traces.get("main")
+    replies = [m for m in (tr.dut_msgs("GetEyeQVersions") if tr is not None else [])
+               if is_reply(m) and ret_of(m) == 0 and m.fields]
+    if not replies:
+        return "not reported (no Get EyeQ Versions reply with ret 0)"
+    m, f = replies[0], replies[0].fields
+    return (f"EyeQ SW {f.get('eyeqSwVersionMajor')}.{f.get('eyeqSwVersionMinor')}, MESP API "
+            f"{f.get('apiVersionMajor')}.{f.get('apiVersionMinor')} (Get EyeQ Versions reply "
+            f"#{m.indices[-1]})")
+
+
+def _judge(c: Case, ctx: Context) -> Outcome:
     name = c.session_for(ctx.dut)
     if name == ALL_SESSIONS:
         if not ctx.traces:
             return skip("no session could run")
         out: Outcome = c.judge(ctx, dict(ctx.traces))
-        return temper(c, out, list(ctx.traces.values()), dut=ctx.dut, sw=sw)
+        return temper(c, out, list(ctx.traces.values()))
     tr = ctx.traces.get(name)
     if tr is None:
         return skip(f"session {name!r} did not run (the host under test did not connect)")
-    return temper(c, c.judge(ctx, tr), [tr], dut=ctx.dut, sw=sw)
+    return temper(c, c.judge(ctx, tr), [tr])
 
 
 def _say(opts: Options, text: str) -> None:

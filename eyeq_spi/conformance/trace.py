@@ -5,7 +5,14 @@ script leaves (probes sent, faults injected, resets). Judges read only this (and
 
 Each channel has a passive receiver: a :class:`TransportConnection` in the role of the side that
 receives it, fed with the channel's DATA frames, so a message counts as sent exactly when a
-conformant receiver would have reassembled it. Its own ACK/NAK output goes nowhere.
+conformant receiver would have reassembled it. Its own ACK/NAK output goes nowhere. It is the
+link's own receiver (decisions L6-L10a), restarted where the side we play restarts its own
+(:meth:`Trace.restart_passive`: our resets, L10), so a judge never disagrees with what that
+side accepted: a host that numbers from 0 again, late, with whatever RSP, within 64 frames of
+our reset is taken at once (L10a), as our EyeQ takes it. A DATA frame with NUM 0 and RSP 0 is
+a sender's first after its reset (L4), one we asked for or did not see: both receivers start
+afresh there too. Every restart of a receiver, and every resynchronisation it makes, is a
+restart of that direction for the judges (:meth:`Trace.restarts`).
 """
 
 from __future__ import annotations
@@ -16,7 +23,8 @@ from typing import Any
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
 from eyeq_spi.errors import FrameError
 from eyeq_spi.link.connection import LinkConfig
-from eyeq_spi.link.frame import FRAME_SIZE, SEQ_MODULO, FrameCodec, FrameKind
+from eyeq_spi.link.events import Resynchronised
+from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
@@ -96,14 +104,15 @@ class Trace:
         self.faults: list[tuple[float, float, str]] = []  # windows where we disturb the link
         self.stalls: list[tuple[float, float]] = []  # real time: our own loop came late (load.py)
         self.end = 0.0
-        self._last_num: dict[str, int] = {}  # the last DATA NUM seen on each channel
+        # (time, direction) of each restart of a receiver the frames showed: a NUM 0 and RSP 0
+        # (L4), a resynchronisation (L6, L6a, L10a)
+        self._restarts: list[tuple[float, str]] = []
         self._passive: dict[str, _Passive] = {d: self._new_passive(d) for d in (H2E, E2H)}
 
     @staticmethod
-    def _new_passive(direction: str, *, learn: bool = False) -> _Passive:
-        """A channel's receiver; ``learn``: after a reset, the first DATA frame sets E (L10)."""
-        return _Passive(TransportConnection(LinkConfig(role=RECEIVER[direction],  # type: ignore[arg-type]
-                                                       passive=learn)))
+    def _new_passive(direction: str) -> _Passive:
+        """A channel's receiver as the side that receives it starts: E = 0 (L4)."""
+        return _Passive(TransportConnection(LinkConfig(role=RECEIVER[direction])))  # type: ignore[arg-type]
 
     # -- recording -------------------------------------------------------------------------
     def mark(self, time: float, label: str, **info: Any) -> None:
@@ -113,8 +122,10 @@ class Trace:
         self.faults.append((start, end, label))
 
     def restart_passive(self, direction: str) -> None:
-        """A side's SPI driver restarted (our simulated reset, or the DUT's): start over, once
-        the frames recorded so far are fed (decoding them now would stall a real-time loop)."""
+        """The receiver of ``direction`` restarted (L10: our reset, or the DUT's): it takes the
+        next DATA frame as its start, and for 64 frames a NUM 0 outside its window as the
+        sender's restart (L10a). Applied once the frames recorded so far are fed (decoding them
+        now would stall a real-time loop)."""
         self._unfed.append(direction)
 
     @property
@@ -128,7 +139,7 @@ class Trace:
         unfed, self._unfed = self._unfed, []
         for x in unfed:
             if isinstance(x, str):
-                self._passive[x] = self._new_passive(x, learn=True)
+                self._passive[x].conn.restart()
             else:
                 self._feed(x)
 
@@ -147,13 +158,6 @@ class Trace:
                 kind = k.name if k is not None and f.r == 0 else "BAD"
         x = Xfer(idx, time, direction, bytes(data), kind, rsp, num, crc_ok, probe)
         self.xfers.append(x)
-        if kind == "DATA" and crc_ok and probe is None:
-            last = self._last_num.get(direction)
-            if num == 0 and last is not None and last != SEQ_MODULO - 1:
-                # L10: this side's link started afresh (a reset, an accepted Switch EyeQ
-                # Application, or a reset it detected): the judges treat it as a reset
-                self.mark(time, "link_restart", direction=direction)
-            self._last_num[direction] = num
         if kind in ("DATA", "BAD") and crc_ok:
             self._unfed.append(x)
         return x
@@ -162,13 +166,13 @@ class Trace:
         p = self._passive[x.direction]
         conn = p.conn
         if x.kind == "DATA" and x.num == 0 and x.rsp == 0 and conn.link.expected_num != 0:
-            # L4: NUM 0 and RSP 0 again: that side's driver restarted (a reset we did not see).
-            # L10: a reset starts both directions afresh; each receiver learns E from the next
-            # DATA frame, and nothing after the reset is a duplicate of a frame before it
+            # L4: NUM 0 and RSP 0 again: that side's driver restarted, on a reset we asked for
+            # or did not see. L10: a reset starts both directions afresh; each receiver learns
+            # E from the next DATA frame, and nothing after the reset is a duplicate of a frame
+            # before it
             for d in (H2E, E2H):
-                self._passive[d] = self._new_passive(d, learn=True)
-            p = self._passive[x.direction]
-            conn = p.conn
+                self._passive[d].conn.restart()
+            self._restarts.append((x.time - 1e-9, x.direction))
         timer = conn.get_timer()
         if timer is not None and timer <= x.time:
             conn.handle_timer(x.time)
@@ -182,6 +186,8 @@ class Trace:
                 decoded = self.codec.decode(ev.data)
                 self._msgs.append(Msg(x.direction, ev.data, [i for i, _ in where],
                                      where[0][1], x.time, decoded))
+            elif isinstance(ev, Resynchronised):  # L6, L6a, L10a: the sender started over
+                self._restarts.append((x.time - 1e-9, x.direction))
 
     # -- queries ---------------------------------------------------------------------------
     def dut_msgs(self, name: str | None = None) -> list[Msg]:
@@ -205,10 +211,23 @@ class Trace:
         """True if [t0, t1] touches a fault window (plus ``settle`` seconds after it)."""
         return any(t0 <= end + settle and t1 >= start for start, end, _ in self.faults)
 
+    def restarts(self, direction: str | None = None) -> list[float]:
+        """When a receiver restarted on what the frames showed (a NUM 0 and RSP 0, a
+        resynchronisation): the sender of ``direction`` (of either, if None) started over."""
+        self._catch_up()
+        return [t for t, d in self._restarts if direction is None or d == direction]
+
+    def stalled(self, t0: float, t1: float) -> bool:
+        """True if a stall of our own loop (real time, load.py) overlaps [t0, t1]: our ACKs
+        may have come after the peer's ackTimeout there, and a message of the peer be lost."""
+        return any(a <= t1 and b >= t0 for a, b in self.stalls)
+
     def resets(self) -> list[float]:
+        """Every reset: those the script marked (ours, the reset line, soft resets) and every
+        restart a receiver saw."""
         return [m.time for m in self.marks
-                if m.label in ("our_reset", "reset_line", "soft_reset", "dut_reset",
-                               "link_restart")]
+                if m.label in ("our_reset", "reset_line", "soft_reset", "dut_reset")] \
+            + self.restarts()
 
     def at(self, index: int) -> Xfer:
         return self.xfers[index]

@@ -320,7 +320,8 @@ class LinkConnection:
     def _on_data(self, num: int, data: bytes, transfer: bytes,
                  restart_rsp: int | None = None) -> None:
         """``restart_rsp``: the RSP of a NUM 0 frame that may be the peer's first after a reset
-        (L10): taken as such if its RSP is 0 (L4) or if it lies outside the window."""
+        (L10): taken as such if its RSP is 0 (L4), or whatever its RSP if it lies outside the
+        window and is not a byte-identical copy of the NUM 0 accepted since the reset (L10a)."""
         c, w, m = self.counters, self.config.window, SEQ_MODULO
         if not self._started:  # L9: the first DATA frame a passive receiver sees sets E
             self._started = True
@@ -329,7 +330,7 @@ class LinkConnection:
         behind = (self._expected - num) % m
         resync: str | None = None
         peer_restart = restart_rsp is not None and (
-            restart_rsp == 0 or (ahead >= w and not 1 <= behind <= w))
+            restart_rsp == 0 or (ahead >= w and self._accepted.get(num) != transfer))
         if peer_restart:
             self._expect_restart_until = float("-inf")
             self._expect_restart_frames = 0

@@ -13,7 +13,13 @@ from eyeq_spi.codec.intrinsic import eeprom_crc_ok
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.conformance.judges.link import answers
 from eyeq_spi.conformance.judges.verdict import Context, Outcome, at, bad, ok, skip, unsure
-from eyeq_spi.conformance.model import TAG_EARLY_INIT, TAG_GAP, TAG_LIMIT, TAG_SILENCE
+from eyeq_spi.conformance.model import (
+    PROBE_CASE,
+    TAG_EARLY_INIT,
+    TAG_GAP,
+    TAG_LIMIT,
+    TAG_SILENCE,
+)
 from eyeq_spi.conformance.trace import Msg, Trace
 
 _M = catalog().raw["mesp.yaml"]["mesp"]
@@ -110,9 +116,41 @@ def mesp_function(fn: str) -> Callable[[Context, Trace], Outcome]:
         if not good:
             rets = [ret_of(p.reply) if p.reply else None for p in pairs]
             return bad(f"{len(pairs)} request(s), no successful reply (ret seen: {rets})")
+        others = _not_counted(ctx, tr, [p for p in pairs if p.reply not in good])
         return ok(f"{len(good)} of {len(pairs)} request(s) answered with ret 0 and correct "
-                  f"parameters; first reply #{good[0].indices[-1]} at {at(good[0].time)}")
+                  f"parameters; first reply #{good[0].indices[-1]} at {at(good[0].time)}"
+                  + (f"; the other {len(pairs) - len(good)}: {others}" if others else ""))
     return judge
+
+
+def _not_counted(ctx: Context, tr: Trace, pairs: list[Pair]) -> str:
+    """Why requests of a passing function case did not count: our probes (judged by their own
+    cases), requests the link lost, refusals and replies left to MESP-DEADLINE."""
+    acked = delivered(tr, ctx)
+    probes: dict[str, int] = {}
+    lost = refused = unanswered = 0
+    rets: list[int] = []
+    for p in pairs:
+        req, rep = p.request, p.reply
+        case = PROBE_CASE.get((int(req.header["counter"]), req.name))
+        if case is not None:
+            probes[case] = probes.get(case, 0) + 1
+        elif not all(i in acked for i in req.indices):
+            lost += 1
+        elif rep is None:
+            unanswered += 1
+        else:
+            refused += 1
+            rets.append(ret_of(rep) or 0)
+    parts = [f"{n} of our probe requests, judged by {case}" for case, n in probes.items()]
+    if lost:
+        parts.append(f"{lost} lost on the link (not ACKed: around our faults or resets)")
+    if refused:
+        parts.append(f"{refused} refused in the EyeQ's state of the moment (ret "
+                     f"{', '.join(map(str, sorted(set(rets))))}), as M2 allows")
+    if unanswered:
+        parts.append(f"{unanswered} unanswered, judged by MESP-DEADLINE")
+    return "; ".join(parts)
 
 
 def mesp_tag(ctx: Context, tr: Trace) -> Outcome:
@@ -262,9 +300,13 @@ def bring_ups(tr: Trace) -> list[float]:
             if is_request(m) and m.fields.get("ct_stage") == 0x92]
 
 
-def segments(tr: Trace, msgs: list[Msg], period: float) -> list[list[Msg]]:
+def segments(tr: Trace, msgs: list[Msg], period: float, *, lossless: bool = False
+             ) -> list[list[Msg]]:
     """Runs of one stream without a gap of 3 periods, a fault window, a reset or a mode
-    change in between: the spans in which counters and rates must hold."""
+    change in between: the spans in which counters and rates must hold. ``lossless`` (the
+    counters, a content rule): a stall of our own loop in between also ends a run, since our
+    late ACKs may have lost a message there (L7); rates weigh our stalls by their spans
+    instead (load.py)."""
     mode = _mode_at(tr)
     resets = tr.resets() + bring_ups(tr)
     out: list[list[Msg]] = []
@@ -273,6 +315,7 @@ def segments(tr: Trace, msgs: list[Msg], period: float) -> list[list[Msg]]:
         if cur:
             a = cur[-1]
             if (m.t_first - a.t_first > 3 * period or tr.disturbed(a.t_first, m.time)
+                    or (lossless and tr.stalled(a.t_first, m.time))
                     or any(a.t_first <= r <= m.t_first for r in resets)
                     or mode(a.t_first) != mode(m.t_first)):
                 out.append(cur)
@@ -289,7 +332,7 @@ def dasp_counter(ctx: Context, tr: Trace) -> Outcome:
     for m in msgs:
         by_id.setdefault(int(m.header["data_id"]), []).append(m)
     for did, ms in by_id.items():
-        for seg in segments(tr, ms, 1.0):
+        for seg in segments(tr, ms, 1.0, lossless=True):
             for a, b in pairwise(seg):
                 if b.header["counter"] != (a.header["counter"] + 1) & 0xFF:
                     return bad(f"data ID 0x{did:02X}: counter {a.header['counter']} "
@@ -328,7 +371,7 @@ def dasp_e2e(ctx: Context, tr: Trace) -> Outcome:
         plans = [p for p in lay.crc_plan if p.counter_offset is not None]
         if not plans:
             continue
-        for seg in segments(tr, ms, 1.0):
+        for seg in segments(tr, ms, 1.0, lossless=True):
             for a, b in pairwise(seg):
                 for p in plans:
                     o, size = 4 + int(p.counter_offset or 0), p.counter_size

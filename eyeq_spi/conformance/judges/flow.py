@@ -200,8 +200,10 @@ def host_fatal22(ctx: Context, trs: dict[str, Trace]) -> Outcome:
         reads = [m for m in tr.dut_msgs("FFSReadFile") if is_request(m) and m.time >= t
                  and m.fields.get("filename") == EEPROM_FILE]
         if not reads or reads[0].time - t > 1.0:
+            until = reads[0].time if reads else tr.end
             return bad(f"session {name}: Fatal_Error 22 reported at {at(t)}, no FFS Read File "
-                       f"of {EEPROM_FILE} within 1 s (§7.1.3 step 4)")
+                       f"of {EEPROM_FILE} within 1 s (§7.1.3 step 4)",
+                       [(t, until, max(until - t - 1.0, 0.0) if reads else 1.0)])
         judged.append(f"{name}: Fatal 22 at {at(t)} -> FFS read at {at(reads[0].time)}")
     if not judged:
         return unsure("Fatal 22 was never reported")

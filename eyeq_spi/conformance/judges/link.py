@@ -88,17 +88,10 @@ def link_crc(ctx: Context, tr: Trace) -> Outcome:
 
 
 def _restarted(tr: Trace) -> list[float]:
-    """When the DUT's link started afresh (L10): our resets and every DUT DATA frame with
-    NUM 0 and RSP 0 after its first (L4). A frame after such a restart never repeats one
+    """When the DUT's link started afresh (L10): our resets and every restart the receivers of
+    the trace made (:meth:`Trace.restarts`). A frame after such a restart never repeats one
     before it, even byte for byte (a new boot status at NUM 0 often is identical)."""
-    out = list(tr.resets())
-    first = True
-    for x in tr.xfers:
-        if x.direction == tr.dut_dir and x.kind == "DATA":
-            if x.num == 0 and x.rsp == 0 and not first:
-                out.append(x.time - 1e-9)
-            first = False
-    return sorted(out)
+    return sorted(tr.resets())
 
 
 def _since_restart(tr: Trace) -> Iterator[tuple[Xfer, int]]:
@@ -185,6 +178,8 @@ def link_ack(ctx: Context, tr: Trace) -> Outcome:
             if r is None or _nak_reason(r) == NakReason.OUT_OF_WINDOW:
                 continue
             resyncing_since = None
+        if r is None and x.time + 5 * ACK_TIMEOUT + ctx.slack > tr.end:
+            continue  # sent as the session ended: its ACK had no time to come
         n += 1
         if r is None:
             lost.append(x)
@@ -316,8 +311,8 @@ def link_resync(ctx: Context, tr: Trace) -> Outcome:
         return bad(f"after our reset at {at(mark.time)} none of our frames was ACKed again")
     if naks > RESYNC_NAKS:
         return bad(f"{naks} NAKs 0x001 before resynchronising (L6: at most {RESYNC_NAKS})")
-    return ok(f"our reset at {at(mark.time)}: {naks} NAK(s) 0x001, then ACK #{first_ack.index} "
-              f"at {at(first_ack.time)}")
+    return ok(f"our reset at {at(mark.time)}: {naks} NAK(s) 0x001 (at most {RESYNC_NAKS}, L6), "
+              f"then ACK #{first_ack.index} at {at(first_ack.time)}")
 
 
 def link_noresend(ctx: Context, tr: Trace) -> Outcome:
@@ -337,7 +332,9 @@ def link_noresend(ctx: Context, tr: Trace) -> Outcome:
     if not unacked:
         return skip(f"all {n} DATA frames of the DUT were ACKed within ackTimeout: it never had "
                     "a frame to resend")
-    return ok(f"{n} DATA frames, none resent ({unacked} of them not ACKed within ackTimeout)")
+    return ok(f"{n} DATA frames, none resent: {unacked} of them were not ACKed within "
+              "ackTimeout (our ACK blackout, our probes and resets, or lost on the link), each "
+              "a frame the DUT might have resent, and it resent none (§6, L7)")
 
 
 def _unacked(tr: Trace) -> int:
@@ -370,8 +367,12 @@ def link_window(ctx: Context, tr: Trace) -> Outcome:
             outstanding[x.num] = x.time
             worst = max(worst, len(outstanding))
             if len(outstanding) > W:
+                # the measurement: the frames counted, from the oldest; its excess, how much
+                # older the frame that makes W + 1 had to be to leave the count
+                times = sorted(outstanding.values())
+                excess = times[len(times) - W - 1] - horizon
                 return bad(f"{_frame(x)}: {len(outstanding)} DATA frames unacknowledged within "
-                           f"ackTimeout (L7: at most {W})")
+                           f"ackTimeout (L7: at most {W})", [(times[0], x.time, excess)])
     blackout = tr.first_mark("ack_blackout")
     note = f" (ACK blackout at {at(blackout.time)})" if blackout else ""
     if worst < W:
@@ -480,11 +481,10 @@ def tp_tid(ctx: Context, tr: Trace) -> Outcome:
               and x.ttype == FIRST]
     if len(firsts) < 2:
         return unsure(f"{len(firsts)} multi-frame transfers: nothing to compare")
-    restarts = {x.index for x in tr.xfers if x.direction == tr.dut_dir and x.kind == "DATA"
-                and x.num == 0}
+    restarts = tr.restarts(tr.dut_dir)
     skips = 0
     for a, b in pairwise(firsts):
-        if any(a.index < r <= b.index for r in restarts):
+        if any(a.time < r <= b.time for r in restarts):
             continue
         step = (b.data[7] - a.data[7]) % _T["transfer_id_modulo"]
         # a message that failed before its first frame left consumed its ID (L7): a step of a

@@ -69,6 +69,15 @@ class TesterEyeQ(SimulatedEyeQ):
             if now - t < REARM_WITHIN:
                 self.withhold.add(key)
 
+    def power_up(self, now: float) -> None:
+        """A boot: after the first, our receiver learns the host's numbering again (L10), and
+        so does the trace's receiver of the host's frames, which the judges read: both take
+        the host's late restart at NUM 0 as such (L10a)."""
+        again = self.powered
+        super().power_up(now)
+        if again and self.trace is not None:
+            self.trace.restart_passive(self.trace.dut_dir)
+
     def reset_line(self, now: float) -> None:
         """The host pulled our reset line: it restarts its own SPI driver too (README)."""
         self.reset_times.append(now)
@@ -76,7 +85,6 @@ class TesterEyeQ(SimulatedEyeQ):
         if self.trace is not None:
             self.trace.mark(now, "reset_line")
             self.trace.restart_passive(self.trace.our_dir)
-            self.trace.restart_passive(self.trace.dut_dir)
         self.power_up(now)
 
     def _start_app(self, now: float) -> None:
@@ -100,8 +108,11 @@ class TesterEyeQ(SimulatedEyeQ):
             self.reset_times.append(now)
             self._rearm(now)
             if self.trace is not None:
-                # the host restarts its bring-up, and with it its DASP and E2E counters
+                # the host restarts its bring-up, and with it its DASP and E2E counters; our
+                # link starts afresh (a boot below, or the switch's own restart, L10)
                 self.trace.mark(now, "soft_reset")
+                if self.app_running:
+                    self.trace.restart_passive(self.trace.dut_dir)
             if not self.app_running:
                 if self.trace is not None:
                     self.trace.restart_passive(self.trace.our_dir)
