@@ -323,6 +323,7 @@ def test_link_counts_naks_crc_errors(tmp_path: Path) -> None:
 @pytest.mark.parametrize("argv, words", [
     (["--birdseye", "-o", "x.jpg"], "output must end in"),
     (["--timing", "--at", "1"], "--at and --animate go with --birdseye"),
+    (["--birdseye", "--at", "999"], "--at 999: after the last record read, at 0.9"),
     (["--birdseye", "--animate", "-o", "x.png"], "output must end in"),
     (["--birdseye", "--fps", "-1"], "must be positive"),
 ])
@@ -354,3 +355,15 @@ def test_missing_matplotlib_is_a_typed_error(monkeypatch: pytest.MonkeyPatch) ->
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     with pytest.raises(PlotError, match=r"pip install 'eyeq-spi\[plot\]'"):
         mpl()
+
+
+def test_help_lists_every_capture_format_read(capsys: pytest.CaptureFixture[str]) -> None:
+    """The formats come from the io registry: a reader added there is named here too."""
+    from eyeq_spi import io as formats
+
+    with pytest.raises(SystemExit):
+        main(["plot", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    positional = text.split("positional arguments:")[1].split("options:")[0]
+    for name in formats.readers():
+        assert re.search(rf"\b{name}\b", positional), (name, positional)

@@ -40,8 +40,8 @@ def rich_modules() -> RichModules:
             from rich.table import Table
             from rich.text import Text
         except ImportError:
-            raise MonitorError("the monitor needs rich: pip install 'eyeq-spi[monitor]'"
-                               ) from None
+            raise MonitorError("the monitor needs rich, a dependency of eyeq-spi: "
+                               "reinstall eyeq-spi") from None
         _RICH = RichModules(Console, Live, Table, Text, Group, box)
     return _RICH
 
