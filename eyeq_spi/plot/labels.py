@@ -4,8 +4,8 @@ names).
 A label is tried at positions around its thing, nearest first (right, left, above, below, the
 corners, half-way between, then the same ring farther out); the first position whose box stays
 inside the axes and overlaps no mark (boxes, arrows, rings, the ego vehicle), no lane point and
-no label placed before it wins. A label placed away from its thing gets a thin leader line to it. When no
-position is free, the one with the fewest collisions is taken.
+no label placed before it wins. A label placed away from its thing gets a thin leader line to
+it. When no position is free, the one with the fewest collisions is taken.
 
 Everything is measured in display pixels of the figure's fixed layout, so the placement is the
 same in a PNG, an SVG and every frame of an animation.
