@@ -89,3 +89,17 @@ def test_registered_and_exported(tmp_path: Path) -> None:
 def test_samplerate_words() -> None:
     assert [samplerate_text(x) for x in (20_000_000, 500_000, 1234)] == [
         "20 MHz", "500 kHz", "1234 Hz"]
+
+
+def test_max_idle_shortens_the_pause_and_says_so(tmp_path: Path) -> None:
+    recs = _transfers()
+    path = tmp_path / "short.sr"
+    write_sr(recs, path, SpiOptions(), max_idle=0.0001)
+    meta, samples = _read(path)
+    assert len(samples) < 0.05 * 20e6  # the 0.3 s pause is gone
+    with zipfile.ZipFile(path) as zf:
+        assert "times are not capture times" in zf.read("metadata").decode()
+    probes = {meta["device 1"][f"probe{k}"]: k - 1 for k in range(1, 9)}
+    for d in ("h2e", "e2h"):  # every transfer still there, in order
+        got = [data for _, data in _decode(samples, probes, d, 20e6)]
+        assert got == [r.data for r in recs if r.direction == d]

@@ -25,6 +25,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     e.add_argument("--sr", metavar="OUT.sr", type=ca.output_file,
                    help="SPI waveforms as a sigrok session file (PulseView opens it, sigrok-cli "
                    "-i reads it): 20 MHz samples, deflate-compressed, the suggested form")
+    e.add_argument("--sr-max-idle", type=ca.number(0, 3600, lo_open=True, unit="s"),
+                   metavar="S", help="--sr: shorten every stretch with both channels idle to "
+                   "at most S seconds (idle time costs about 0.1 s of export time per second); "
+                   "default: capture timing")
     e.add_argument("--vcd", metavar="OUT.vcd", type=ca.output_file,
                    help="SPI waveforms, 10 MHz, mode 1 (about 30 bytes per bit sent: the size "
                    "is said before writing)")
@@ -62,6 +66,7 @@ def run_export(args: argparse.Namespace) -> int:
                              unit="transfers", enabled=None if total else False) as bar:
                 summary = export(cap.transfers, source=args.capture, sw=cap.release.key,
                                  vcd=args.vcd, mdf=args.mdf, mcap=args.mcap, sr=args.sr,
+                                 sr_max_idle=args.sr_max_idle,
                                  spi=_spi(args),
                                  vcd_max_idle=args.vcd_max_idle, progress=bar.update)
         else:

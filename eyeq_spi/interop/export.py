@@ -33,7 +33,7 @@ def _checked(path: str) -> str:
 
 def export(records: Iterable[Record], *, source: str, sw: str | None = None,
            vcd: str | None = None, mdf: str | None = None, mcap: str | None = None,
-           sr: str | None = None,
+           sr: str | None = None, sr_max_idle: float | None = None,
            spi: SpiOptions | None = None, vcd_max_idle: float | None = None,
            progress: Callable[[int], None] | None = None) -> dict[str, Any]:
     """Write the outputs asked for in one pass over ``records``; ``progress(transfers)`` is
@@ -47,7 +47,7 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
         if sr:
             from eyeq_spi.logic.sr_write import SrWriter
 
-            sr_w = SrWriter(_checked(sr), spi)
+            sr_w = SrWriter(_checked(sr), spi, max_idle=sr_max_idle)
             stack.callback(sr_w.close)
         if vcd:
             from eyeq_spi.logic.vcd_write import VcdWriter

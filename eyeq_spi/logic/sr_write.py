@@ -21,7 +21,9 @@ CS rises.
 Memory stays bounded: samples are rendered with numpy per transfer into a buffer that starts
 at the first sample a later transfer could still change; everything before it is written out
 in chunks of ``CHUNK`` bytes, idle stretches from one constant block. A long idle stretch
-costs time to compress but deflate shrinks it about a thousandfold.
+costs time to compress (about 0.1 s per second of idle) but deflate shrinks it about a
+thousandfold; ``max_idle`` shortens every stretch with both channels idle to at most that many
+seconds (sample times are then not capture times; the metadata says so).
 """
 
 from __future__ import annotations
@@ -108,7 +110,8 @@ class SrWriter:
     """Write transfers (:meth:`write`) into the session file at ``path``; :meth:`close` ends it."""
 
     def __init__(self, path: str | Path, opts: SpiOptions | None = None, *,
-                 baud_rate: int | None = None, default_direction: str = "h2e") -> None:
+                 baud_rate: int | None = None, default_direction: str = "h2e",
+                 max_idle: float | None = None) -> None:
         spec = bench_spec()
         self.opts = opts or SpiOptions()
         baud = baud_rate or int(spec["spi"]["baud_rate"])
@@ -128,6 +131,9 @@ class SrWriter:
         # the first sample each channel's next transfer may use
         self.free = dict.fromkeys(DIRECTIONS, LEAD)
         self.last_start = dict.fromkeys(DIRECTIONS, -(10**18))
+        # idle stretches longer than this many samples are cut to it; shift: samples cut so far
+        self.max_idle = None if max_idle is None else max(1, round(max_idle * self.samplerate))
+        self.shift = 0
         self.cursor = 0  # samples before this one are written
         self.pending = np.empty(0, dtype=np.uint8)  # samples from the cursor on, still open
         self.count = 0
@@ -144,7 +150,12 @@ class SrWriter:
         else:
             if self.origin is None:
                 self.origin = rec.time
-            wanted = round((rec.time - self.origin) * self.samplerate) + LEAD
+            wanted = round((rec.time - self.origin) * self.samplerate) + LEAD - self.shift
+            if self.max_idle is not None:
+                busy_until = max(self.cursor + len(self.pending), *self.free.values())
+                if wanted - busy_until > self.max_idle:
+                    self.shift += wanted - busy_until - self.max_idle
+                    wanted = busy_until + self.max_idle
         self._flush(wanted)  # no later transfer starts before its capture time
         start = max(wanted, self.free[d], self.cursor)
         if start > wanted and rec.time is not None:
@@ -210,9 +221,13 @@ class SrWriter:
 
     def _metadata(self) -> str:
         probes = [signal_name(d, s) for d in DIRECTIONS for s in SIGNALS]
-        lines = ["[global]", f"sigrok version={__version__} (eyeq-spi)", "",
-                 "[device 1]", "capturefile=logic-1", f"total probes={len(probes)}",
-                 f"samplerate={samplerate_text(self.samplerate)}", "total analog=0"]
+        lines = ["[global]", f"sigrok version={__version__} (eyeq-spi)"]
+        if self.max_idle is not None:  # a GLib key file's comment line starts with #
+            lines.append(f"# idle time compressed: every stretch with both channels idle is at "
+                         f"most {self.max_idle / self.samplerate:g} s; times are not capture "
+                         "times")
+        lines += ["", "[device 1]", "capturefile=logic-1", f"total probes={len(probes)}",
+                  f"samplerate={samplerate_text(self.samplerate)}", "total analog=0"]
         lines += [f"probe{k}={name}" for k, name in enumerate(probes, start=1)]
         lines.append("unitsize=1")
         return "\n".join(lines) + "\n"
