@@ -129,3 +129,15 @@ def test_the_figure_is_fitted_to_its_content(fig: Any) -> None:
     assert parts[0].x0 <= 0.5 * inch
     for part in parts:
         assert part.x1 <= fig.bbox.x1  # nothing cut at the right edge
+
+
+def test_a_thing_outside_a_panel_is_not_named_in_it() -> None:
+    """A zoom fixed for a whole animation can end just before an object of one frame: the
+    zoom names only what it shows."""
+    from eyeq_spi.plot.birdseye import draw_scene, new_axes
+
+    _figure, axes = new_axes(160.0, 12.0, 40.0)
+    draw_scene(axes, SCENE, 160.0, 12.0)  # the CIPV's middle is at 43 m, beyond the zoom
+    assert axes[1].get_ylim()[1] == 40.0
+    names = {t.get_text() for t in _labels(axes[1])}
+    assert "3 CIPV" not in names and "3 CIPV" in {t.get_text() for t in _labels(axes[0])}

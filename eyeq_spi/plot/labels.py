@@ -66,11 +66,13 @@ def place_labels(ax: Any, labels: Sequence[Label], marks: Sequence[Box], points:
     taken: list[Box] = []
     texts = []
     for label in labels:
+        cx, cy = ax.transData.transform(label.at)
+        if not (limits[0] <= cx <= limits[2] and limits[1] <= cy <= limits[3]):
+            continue  # a thing outside the panel is not named in it
         text = ax.text(*label.at, label.text, fontsize=label.fontsize, color=label.colour,
                        ha="center", va="center", zorder=8, clip_on=True)
         size = text.get_window_extent(renderer)
         w, h = size.width + 2, size.height + 2
-        cx, cy = ax.transData.transform(label.at)
         best: tuple[int, float, float, int] | None = None
         for ring in range(RINGS):
             for dx, dy in _DIRECTIONS:
@@ -87,7 +89,7 @@ def place_labels(ax: Any, labels: Sequence[Label], marks: Sequence[Box], points:
                     break
             if best is not None and best[0] == 0:
                 break
-        if best is None:  # the thing is outside the axes: no room for its label either
+        if best is None:  # no room inside the panel
             text.remove()
             continue
         _, x, y, ring = best
