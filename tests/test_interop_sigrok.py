@@ -36,11 +36,11 @@ def _main(*argv: str) -> str:
 @pytest.fixture(scope="module")
 def bench(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("sigrok")
-    cap, vcd = d / "demo.pcapng", d / "demo.vcd"
+    cap, vcd, sr = d / "demo.pcapng", d / "demo.vcd", d / "demo.sr"
     _main("demo", "--virtual-time", "--duration", "0.6", "--capture", str(cap), "--json")
-    _main("export", str(cap), "--vcd", str(vcd))
+    _main("export", str(cap), "--vcd", str(vcd), "--sr", str(sr))
     _main("sigrok-decoder", "--install", str(d / "decoders"))
-    return {"capture": cap, "vcd": vcd, "decoders": d / "decoders"}
+    return {"capture": cap, "vcd": vcd, "sr": sr, "decoders": d / "decoders"}
 
 
 def test_install_writes_the_decoder_and_where_the_project_is(bench: dict[str, Path]) -> None:
@@ -72,12 +72,16 @@ def _expected(records: list[dict[str, Any]], direction: str) -> list[str]:
 
 
 @needs_sigrok
-def test_sigrok_cli_annotations_equal_dissect(bench: dict[str, Path]) -> None:
-    """One sigrok-cli run, one spi+eyeq_spi stack per SPI channel (§5)."""
+@pytest.mark.parametrize("form", ["vcd", "sr"])
+def test_sigrok_cli_annotations_equal_dissect(bench: dict[str, Path], form: str) -> None:
+    """One sigrok-cli run, one spi+eyeq_spi stack per SPI channel (§5), on the VCD and on the
+    session file."""
     assert SIGROK is not None
     records = [json.loads(line) for line in
                _main("dissect", str(bench["capture"]), "--json").splitlines()]
-    cmd = [SIGROK, "-i", str(bench["vcd"]), "-I", "vcd:downsample=5"]  # 20 MHz: 1 sample/edge
+    cmd = [SIGROK, "-i", str(bench[form])]
+    if form == "vcd":
+        cmd += ["-I", "vcd:downsample=5"]  # 20 MHz: 1 sample/edge
     for d in ("h2e", "e2h"):
         cmd += ["-P", f"spi:clk={d}_clk:mosi={d}_mosi:miso={d}_miso:cs={d}_cs:cpol=0:cpha=1,"
                       f"eyeq_spi:direction={d}"]

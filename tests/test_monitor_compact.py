@@ -115,3 +115,52 @@ def test_demo_in_an_80x24_pseudo_terminal() -> None:
     assert re.search(r"objects 10", text) and "transitions" in text
     assert re.search(r"VIS_OBSTACLES\s+1[78]\.\d\s+18 ok", text), text
     assert "--RUNNING_VISION--> RUNNING_VISION" in text
+
+
+def _with_objects() -> object:
+    from eyeq_spi.monitor.model import Snapshot
+    from eyeq_spi.plot.perceived import Scene, SceneObject
+
+    def obj(oid: int, long: float, ttc: float) -> SceneObject:
+        return SceneObject(id=oid, cls=0, cls_name="car", long=long, lat=0.0, width=1.8,
+                           length=4.5, heading=0.0, v_long=10.0, v_lat=0.0, cipv=False, ttc=ttc)
+
+    # behind the car (a TTC there is not a collision ahead), ahead with "none" (7 s, §13.2.2),
+    # ahead and closing
+    scene = Scene(objects=[obj(1, -4.0, 2.5), obj(2, 30.0, 7.0), obj(3, 20.0, 3.2)])
+    return Snapshot("test", 5.0, "host state", "RUNNING_VISION", scene=scene)
+
+
+@pytest.mark.parametrize("size", [(80, 24), (160, 80)])
+def test_ttc_only_for_objects_ahead_and_closing(size: tuple[int, int]) -> None:
+    from eyeq_spi.plot.perceived import NO_TTC
+
+    text = "\n".join(t.plain for t in screen_lines(_with_objects(), *size))  # type: ignore[arg-type]
+    rows = {m.group(1): m.group(0) for m in re.finditer(r"^\s*(\d)\s+car\b.*$", text, re.M)}
+    if size == (80, 24):  # two objects a line: split the line into its cells
+        rows = {}
+        for line in text.splitlines():
+            for m in re.finditer(r"(\d)\s+car\s+\S+\s+\S+\s+\S+\s+(\S+)", line):
+                rows[m.group(1)] = m.group(0)
+    assert set(rows) == {"1", "2", "3"}, text
+    assert rows["1"].split()[-1] == NO_TTC and rows["2"].split()[-1] == NO_TTC, text
+    assert rows["3"].split()[-1] == "3.2", text
+    assert "7.0" not in text and "2.5" not in text
+
+
+def test_a_screen_as_tall_as_the_terminal_keeps_its_title() -> None:
+    """The terminal's last row is the cursor's: a screen exactly as tall as the terminal
+    scrolls its first line away, so it is folded to one row less."""
+    snap = _with_objects()
+    full = screen_lines(snap, 160)  # type: ignore[arg-type]
+    for rows in (len(full), len(full) + 1):
+        lines = screen_lines(snap, 160, rows)  # type: ignore[arg-type]
+        assert len(lines) <= rows - 1, (rows, len(lines))
+        assert lines[0].plain.startswith(full[0].plain[:20])
+
+
+def test_help_asks_for_no_extra(capsys: pytest.CaptureFixture[str]) -> None:
+    """rich is part of the base install: the help does not send the user to an extra."""
+    with pytest.raises(SystemExit):
+        main(["monitor", "--help"])
+    assert "[monitor]" not in capsys.readouterr().out

@@ -18,7 +18,6 @@ from eyeq_spi.plot import PlotError
 from eyeq_spi.plot.birdseye import (
     CIPV_EDGE,
     DPI,
-    FIGSIZE,
     LINE_COLOURS,
     REAR_M,
     SIGN_COLOUR,
@@ -57,8 +56,10 @@ def _image(path: Path) -> Any:
 def _pixel(long: float, lat: float) -> tuple[int, int]:
     """(row, column) of a point in metres in the whole view, computed from the published fixed
     layout alone."""
-    w, h = FIGSIZE[0] * DPI, FIGSIZE[1] * DPI
-    left, bottom, width, height = layout(RANGE, LATERAL)[0]
+    lay = layout(RANGE, LATERAL)
+    assert lay.zoom is None
+    w, h = lay.figsize[0] * DPI, lay.figsize[1] * DPI
+    left, bottom, width, height = lay.main
     x = w * (left + width * (LATERAL - lat) / (2 * LATERAL))  # x axis: +LATERAL .. -LATERAL
     y = h * (bottom + height * (long + REAR_M) / (RANGE + REAR_M))
     return int(h - y), int(x)
@@ -67,14 +68,16 @@ def _pixel(long: float, lat: float) -> tuple[int, int]:
 def test_the_view_is_true_to_scale() -> None:
     """A metre across is as many pixels as a metre along, in the whole view and in the zoom,
     and the zoom appears where the whole view is narrow."""
-    w, h = FIGSIZE[0] * DPI, FIGSIZE[1] * DPI
-    for rng, lat in ((60.0, 12.0), (170.0, 12.0), (40.0, 30.0)):
-        main, zoom, zoom_range = layout(rng, lat)
+    for rng, lat, near in ((60.0, 12.0, None), (170.0, 12.0, None), (40.0, 30.0, None),
+                           (170.0, 12.0, 65.0)):
+        (fw, fh), main, zoom, zoom_range = layout(rng, lat, near)
+        w, h = fw * DPI, fh * DPI
         assert main[2] * w / (2 * lat) == pytest.approx(main[3] * h / (rng + REAR_M))
         if zoom is not None:
             assert zoom[2] * w / (2 * lat) == pytest.approx(zoom[3] * h / (zoom_range + REAR_M))
             assert zoom_range < rng and zoom[0] >= main[0] + main[2]
-    assert layout(170.0, 12.0)[1] is not None
+    assert layout(170.0, 12.0).zoom is not None
+    assert layout(170.0, 12.0, 65.0).zoom_range == 65.0
 
 
 def _close(px: Any, colour: tuple[float, float, float], tol: float = 0.03) -> bool:
@@ -102,7 +105,8 @@ def birdseye_png(capture: Path) -> Path:
 
 def test_boxes_land_where_their_positions_say(birdseye_png: Path) -> None:
     img = _image(birdseye_png)
-    assert img.shape[:2] == (FIGSIZE[1] * DPI, FIGSIZE[0] * DPI)
+    size = layout(RANGE, LATERAL).figsize
+    assert img.shape[:2] == (round(size[1] * DPI), round(size[0] * DPI))
     for oid, cls, lo, la, w, ln, _cipv, _v in OBJECTS:
         colour = _rgb(class_colour(cls))
         # the box spans [long, long + length] ahead of the rear middle, [lat - w/2, lat + w/2]
@@ -117,11 +121,15 @@ def test_boxes_land_where_their_positions_say(birdseye_png: Path) -> None:
 
 
 def test_cipv_is_outlined(birdseye_png: Path) -> None:
+    """A dark ring CIPV_PAD_PX behind the CIPV's rear edge; the box inside keeps its class's
+    colour (test_boxes_land_where_their_positions_say)."""
+    from eyeq_spi.plot.birdseye import CIPV_PAD_PX
+
     img = _image(birdseye_png)
     dark = _rgb(CIPV_EDGE)
     for oid, _cls, lo, la, w, _ln, cipv, _v in OBJECTS:
         row, col = _pixel(lo, la + w / 4)  # on the rear edge
-        assert _near(img, row, col, dark, r=1, tol=0.15) == (cipv == 2), oid
+        assert _near(img, row + round(CIPV_PAD_PX), col, dark, r=1, tol=0.15) == (cipv == 2), oid
 
 
 def test_lanes_pass_where_their_polynomials_say(birdseye_png: Path) -> None:
@@ -323,6 +331,7 @@ def test_link_counts_naks_crc_errors(tmp_path: Path) -> None:
 @pytest.mark.parametrize("argv, words", [
     (["--birdseye", "-o", "x.jpg"], "output must end in"),
     (["--timing", "--at", "1"], "--at and --animate go with --birdseye"),
+    (["--birdseye", "--at", "999"], "--at 999: after the last record read, at 0.9"),
     (["--birdseye", "--animate", "-o", "x.png"], "output must end in"),
     (["--birdseye", "--fps", "-1"], "must be positive"),
 ])
@@ -354,3 +363,15 @@ def test_missing_matplotlib_is_a_typed_error(monkeypatch: pytest.MonkeyPatch) ->
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     with pytest.raises(PlotError, match=r"pip install 'eyeq-spi\[plot\]'"):
         mpl()
+
+
+def test_help_lists_every_capture_format_read(capsys: pytest.CaptureFixture[str]) -> None:
+    """The formats come from the io registry: a reader added there is named here too."""
+    from eyeq_spi import io as formats
+
+    with pytest.raises(SystemExit):
+        main(["plot", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    positional = text.split("positional arguments:")[1].split("options:")[0]
+    for name in formats.readers():
+        assert re.search(rf"\b{name}\b", positional), (name, positional)

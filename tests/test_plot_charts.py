@@ -46,6 +46,38 @@ def test_every_timing_mark_is_in_the_legend(stopped: Path) -> None:
     assert next(iter(axes.values())).figure.axes[-1].get_xlabel() == TIME_LABEL
 
 
+def _extents(fig: object) -> tuple[object, list[object], list[object]]:
+    """The title's, the legends' and the axes' (with their texts) boxes in pixels."""
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+    title = fig._suptitle.get_window_extent(renderer)  # type: ignore[attr-defined]
+    legends = [lg.get_window_extent(renderer) for lg in fig.legends]  # type: ignore[attr-defined]
+    axes = [ax.get_tightbbox(renderer) for ax in fig.axes]  # type: ignore[attr-defined]
+    return title, legends, axes
+
+
+def test_timing_title_legend_and_rows_do_not_overlap(stopped: Path) -> None:
+    """With few rows and with as many as a whole EyeQ sends (the figure grows with them)."""
+    import dataclasses
+
+    col = collect(str(stopped), Collector(MessageCodec(None), Window(), timing=True))
+    many = dataclasses.replace(col, streams=dict(col.streams))
+    first = next(s for s in col.streams.values() if s.period is not None)
+    for k in range(14):
+        many.streams[f"COPY_{k}"] = dataclasses.replace(first, name=f"COPY_{k}")
+    for data in (col, many):
+        _timing_layout_holds(timing_figure(data)[0])
+
+
+def _timing_layout_holds(fig: object) -> None:
+    title, legends, axes = _extents(fig)
+    for box in legends + axes:
+        assert not title.overlaps(box), (title, box)  # type: ignore[attr-defined]
+    for lg in legends:
+        for box in axes:
+            assert not lg.overlaps(box), (lg, box)  # type: ignore[attr-defined]
+        assert lg.y1 <= fig.bbox.y1  # type: ignore[attr-defined]
+
+
 def test_link_lines_do_not_hide_one_another(stopped: Path) -> None:
     col = collect(str(stopped), Collector(MessageCodec(None), Window(), link=True,
                                           link_bin=0.1))

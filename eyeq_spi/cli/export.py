@@ -1,4 +1,4 @@
-"""``eyeq-spi export``: a capture as VCD waveforms, MDF4 or MCAP."""
+"""``eyeq-spi export``: a capture as sigrok session or VCD waveforms, MDF4 or MCAP."""
 
 from __future__ import annotations
 
@@ -17,10 +17,18 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import options as opt
 
     e = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
-                       description="Turn a capture into SPI waveforms for PulseView (--vcd), "
+                       description="Turn a capture into SPI waveforms for PulseView (--sr, "
+                       "a compressed sigrok session file; --vcd for other waveform tools), "
                        "decoded signals for asammdf/CANape (--mdf) or raw transfers and decoded "
                        "messages for Foxglove (--mcap). Several outputs may be given at once.")
     inputs.add_capture_argument(e)
+    e.add_argument("--sr", metavar="OUT.sr", type=ca.output_file,
+                   help="SPI waveforms as a sigrok session file (PulseView opens it, sigrok-cli "
+                   "-i reads it): 20 MHz samples, deflate-compressed, the suggested form")
+    e.add_argument("--sr-max-idle", type=ca.number(0, 3600, lo_open=True, unit="s"),
+                   metavar="S", help="--sr: shorten every stretch with both channels idle to "
+                   "at most S seconds (idle time costs about 0.1 s of export time per second); "
+                   "default: capture timing")
     e.add_argument("--vcd", metavar="OUT.vcd", type=ca.output_file,
                    help="SPI waveforms, 10 MHz, mode 1 (about 30 bytes per bit sent: the size "
                    "is said before writing)")
@@ -46,9 +54,10 @@ def run_export(args: argparse.Namespace) -> int:
     from eyeq_spi.cli.progress import JobProgress
     from eyeq_spi.interop.export import export, export_mdf
 
-    if not (args.vcd or args.mdf or args.mcap):
-        raise UsageError("give at least one of --vcd, --mdf, --mcap")
-    transfers = bool(args.vcd or args.mcap)  # else MDF alone, from the pipeline's records
+    if not (args.sr or args.vcd or args.mdf or args.mcap):
+        raise UsageError("give at least one of --sr, --vcd, --mdf, --mcap")
+    # else MDF alone, from the pipeline's records
+    transfers = bool(args.sr or args.vcd or args.mcap)
     total = _vcd_plan(args) if args.capture != "-" and transfers else None
     cap = inputs.open_input(args, "export")
     try:
@@ -56,7 +65,9 @@ def run_export(args: argparse.Namespace) -> int:
             with JobProgress(f"export {os.path.basename(args.capture)}", total,
                              unit="transfers", enabled=None if total else False) as bar:
                 summary = export(cap.transfers, source=args.capture, sw=cap.release.key,
-                                 vcd=args.vcd, mdf=args.mdf, mcap=args.mcap, spi=_spi(args),
+                                 vcd=args.vcd, mdf=args.mdf, mcap=args.mcap, sr=args.sr,
+                                 sr_max_idle=args.sr_max_idle,
+                                 spi=_spi(args),
                                  vcd_max_idle=args.vcd_max_idle, progress=bar.update)
         else:
             with JobProgress(f"export {os.path.basename(args.capture)}",

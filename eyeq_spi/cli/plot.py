@@ -20,7 +20,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
         description="Draw a capture (read through the dissector) as PNG, SVG or a "
         "self-contained HTML file; --animate writes a GIF or an HTML player. Needs the plot "
         "extra: pip install 'eyeq-spi[plot]'.")
-    p.add_argument("capture", metavar="CAPTURE", help="pcapng, hex or raw capture")
+    p.add_argument("capture", metavar="CAPTURE",
+                   help=f"capture file: {', '.join(opt.FORMATS)} (as eyeq-spi dissect reads)")
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--birdseye", action="store_true",
                       help="objects, lanes and signs seen from above")
@@ -91,6 +92,9 @@ def run(args: argparse.Namespace) -> int:
         data = collect_capture(cf, col)
     finally:
         cf.close()
+    if args.birdseye and args.at is not None and data.has_time and args.at > data.end:
+        raise UsageError(f"--at {args.at:g}: after the last record read, at {data.end:.2f} s "
+                         f"(the capture spans 0 to {data.end:.2f} s since its first record)")
     if name_re is not None:
         data.streams = {k: v for k, v in data.streams.items() if name_re.search(k)}
     title = f"{Path(args.capture).name}: {kind}"

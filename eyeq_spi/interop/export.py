@@ -25,8 +25,15 @@ def _open(path: str, mode: str) -> IO[Any]:
         raise ExportError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
+def _checked(path: str) -> str:
+    """``path``, once a file can be written there (a session file is a zip, opened later)."""
+    _open(path, "wb").close()
+    return path
+
+
 def export(records: Iterable[Record], *, source: str, sw: str | None = None,
            vcd: str | None = None, mdf: str | None = None, mcap: str | None = None,
+           sr: str | None = None, sr_max_idle: float | None = None,
            spi: SpiOptions | None = None, vcd_max_idle: float | None = None,
            progress: Callable[[int], None] | None = None) -> dict[str, Any]:
     """Write the outputs asked for in one pass over ``records``; ``progress(transfers)`` is
@@ -36,7 +43,12 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
 
     codec = MessageCodec(sw)
     with contextlib.ExitStack() as stack:
-        vcd_w = mdf_w = mcap_w = None
+        vcd_w = mdf_w = mcap_w = sr_w = None
+        if sr:
+            from eyeq_spi.logic.sr_write import SrWriter
+
+            sr_w = SrWriter(_checked(sr), spi, max_idle=sr_max_idle)
+            stack.callback(sr_w.close)
         if vcd:
             from eyeq_spi.logic.vcd_write import VcdWriter
 
@@ -55,6 +67,8 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
                 progress(transfers)
             if vcd_w is not None:
                 vcd_w.write(rec)
+            if sr_w is not None:
+                sr_w.write(rec)
             if dis is None:
                 continue
             for r in dis.feed(rec):
@@ -76,6 +90,13 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
             written.append(f"{vcd} ({vcd_w.count} transfers, {vcd_w.delayed} moved to keep "
                            "their channel's gap)")
             summary["vcd"] = {"path": vcd, "transfers": vcd_w.count, "delayed": vcd_w.delayed}
+        if sr_w is not None:
+            sr_w.close()
+            written.append(f"{sr} ({sr_w.count} transfers, {sr_w.delayed} moved to keep "
+                           f"their channel's gap; {sr_w.sink.samples:,} samples at "
+                           f"{sr_w.samplerate / 1e6:g} MHz)")
+            summary["sr"] = {"path": sr, "transfers": sr_w.count, "delayed": sr_w.delayed,
+                             "samples": sr_w.sink.samples, "samplerate": sr_w.samplerate}
         if mdf_w is not None:
             mdf_w.close()
             written.append(f"{mdf} ({len(mdf_w.groups)} channel groups, {mdf_w.messages} "

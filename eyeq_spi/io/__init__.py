@@ -118,6 +118,8 @@ REGISTRY: tuple[Format, ...] = (
            "what demo, host and sim --capture write (crash-safe, streamed)"),
     Format("vcd", CAPTURE_WRITER, (".vcd",), f"{_WRITERS}:write_vcd_file",
            "SPI waveforms for PulseView and sigrok (export --vcd)"),
+    Format("sr", CAPTURE_WRITER, (".sr",), "eyeq_spi.logic.sr_write:write_sr_file",
+           "SPI waveforms as a sigrok session file, compressed (export --sr; PulseView)"),
     Format("hex", CAPTURE_WRITER, (".hex", ".txt"), f"{_PLAIN}:write_hex",
            "one transfer per line: TIME DIRECTION HEX"),
     Format("raw", CAPTURE_WRITER, (".raw", ".bin"), f"{_PLAIN}:write_raw",

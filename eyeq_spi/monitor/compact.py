@@ -17,6 +17,7 @@ from typing import Any
 
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.plot.charts import short
+from eyeq_spi.plot.perceived import NO_TTC, SceneObject
 
 STATUS_STYLE = {"ok": "green", "low": "yellow", "high": "yellow", "stopped": "bold red",
                 "-": "dim"}
@@ -31,6 +32,10 @@ def _fit(text: str, width: int) -> str:
 
 def _num(v: float | None, spec: str) -> str:
     return "-" if v is None or not math.isfinite(v) else format(v, spec)
+
+
+def _ttc(o: SceneObject) -> str:
+    return NO_TTC if o.closing_ttc is None else format(o.closing_ttc, "4.1f")
 
 
 def _two_columns(text_cls: Any, cells: list[Any], col: int, gap: int = 1) -> Lines:
@@ -139,7 +144,7 @@ def _objects(T: Any, snap: Snapshot, width: int) -> Panel:
     for o in objs:
         ident = ("*" if o.cipv else "") + str(o.id)
         t = T(f" {ident:>3} {_fit(o.cls_name, cls_w):<{cls_w}} {_num(o.long, '6.1f'):>6} "
-              f"{_num(o.lat, '5.1f'):>5} {_num(o.v_long, '5.1f'):>5} {_num(o.ttc, '4.1f'):>4}",
+              f"{_num(o.lat, '5.1f'):>5} {_num(o.v_long, '5.1f'):>5} {_ttc(o):>4}",
               style="bold reverse" if o.cipv else "")
         cells.append(t)
     n = len(objs)

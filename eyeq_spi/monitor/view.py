@@ -11,6 +11,7 @@ from typing import Any
 from eyeq_spi.errors import MonitorError as MonitorError
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.plot.charts import short
+from eyeq_spi.plot.perceived import NO_TTC
 
 STATUS_STYLE = {"ok": "green", "low": "yellow", "high": "yellow", "stopped": "bold red",
                 "-": "dim"}
@@ -40,8 +41,8 @@ def rich_modules() -> RichModules:
             from rich.table import Table
             from rich.text import Text
         except ImportError:
-            raise MonitorError("the monitor needs rich: pip install 'eyeq-spi[monitor]'"
-                               ) from None
+            raise MonitorError("the monitor needs rich, a dependency of eyeq-spi: "
+                               "reinstall eyeq-spi") from None
         _RICH = RichModules(Console, Live, Table, Text, Group, box)
     return _RICH
 
@@ -131,7 +132,7 @@ def _objects(snap: Snapshot) -> list[Any]:
     for o in sorted(snap.scene.objects, key=lambda o: o.long):
         cells = [str(o.id), o.cls_name + (" CIPV" if o.cipv else ""), _fmt(o.long),
                  _fmt(o.lat, "5.1f"), _fmt(o.v_long, "5.1f"), _fmt(o.v_lat, "4.1f"),
-                 _fmt(o.ttc, "4.1f")]
+                 NO_TTC if o.closing_ttc is None else _fmt(o.closing_ttc, "4.1f")]
         rows.append(([(c, "") for c in cells], "bold reverse" if o.cipv else ""))
     return _block(f"objects ({len(snap.scene.objects)})", OBJECT_COLS, rows)
 
@@ -206,7 +207,8 @@ def screen_lines(snap: Snapshot, width: int | None = None,
                      width), Text(),
               *_transitions(snap)]
     too_wide = width is not None and max(t.cell_len for t in lines) > width
-    if height is not None and width is not None and (len(lines) > height or too_wide):
+    # the last row is the cursor's: a screen of ``height`` lines scrolls its title away
+    if height is not None and width is not None and (len(lines) > height - 1 or too_wide):
         from eyeq_spi.monitor.compact import compact_lines
 
         lines = compact_lines(snap, head, width, height - 1, Text)  # the cursor's line

@@ -4,13 +4,17 @@ Lateral goes left-to-right as the driver sees it (``lat`` positive = left, so th
 inverted), longitudinal goes up. Both axes have the same scale (a metre is as long across as
 along), so boxes and lanes keep their true shape: the whole view is a tall strip, and where
 that strip is narrow a second panel zooms on the near range at a larger, still equal, scale.
-The layout is fixed (figure size, dpi, and the rectangles :func:`layout` computes from the view
-limits) so a pixel of the written PNG maps back to metres; the tests rely on that.
+The layout is computed (figure size, dpi, and the rectangles :func:`layout` computes from the
+view limits and the zoom's range) so a pixel of the written PNG maps back to metres; the tests
+rely on that. The figure is as wide as its panels and the legend, no wider. The zoom's range
+starts at what fills its panel (:func:`near_base`) and is pushed past every object (box and
+velocity arrow) and sign it would cut (:func:`near_range`).
 
 - an object is a box ``width`` wide and ``length`` long whose rear middle is at
   (``longDistance``, ``latDistance``) (§13.2.5.3: distances are "to the middle of the Rear Left
   and Rear Right corners"), turned by ``heading``, filled with its class's colour, labelled with
-  its ID; the CIPV gets a thick outline;
+  its ID (:mod:`eyeq_spi.plot.labels` places labels clear of every other mark); the CIPV gets
+  a black ring a few pixels outside its box, and "CIPV" in its label;
 - the velocity arrow shows where the absolute velocity carries the object in ARROW_S seconds;
 - lines are drawn from their polynomials over ``[startRange, endRange]``;
 - a sign is a ring at its reported position, with its type's name.
@@ -19,25 +23,33 @@ limits) so a pixel of the written PNG maps back to metres; the tests rely on tha
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
 
 from eyeq_spi.plot.figures import new_figure, plural
+from eyeq_spi.plot.labels import Label, place_labels
 from eyeq_spi.plot.perceived import Scene, SceneLine, SceneObject
 
-FIGSIZE = (10.0, 9.0)  # inches
 DPI = 100
-BOTTOM, HEIGHT = 0.06, 0.86  # of the figure: where the panels stand
-LEFT = 0.07  # the whole view's left edge
-ZOOM_W = 0.36  # the zoom panel's width, when there is one
-GAP = 0.07  # between the panels (room for the zoom's axis labels)
-LEGEND_W = 0.2  # kept free on the right for the legend
+PANEL_IN = 7.7  # the panels' height, inches
+BOTTOM_IN, TOP_IN = 0.55, 0.75  # below the panels (axis labels), above them (titles)
+LEFT_IN = 0.75  # left of the whole view (its axis labels)
+GAP_IN = 0.75  # between the panels (room for the zoom's axis labels)
+LEGEND_IN = 2.8  # right of the last panel, for the legend
+MAIN_MAX_IN = 7.0  # the whole view's widest
+ZOOM_MAX_IN = 3.6  # the zoom's widest
+MIN_HEIGHT_IN = 6.5  # the legend's room when the view is wide and flat
 MAX_SIGN_NAMES = 8  # signs named in the legend (the whole view is too narrow for labels)
 REAR_M = 10.0  # metres shown behind the ego vehicle's origin
+NEAR_MARGIN_M = 2.0  # the zoom ends at least this far from anything drawn
 ARROW_S = 0.5  # velocity arrows show 0.5 s of travel
 EGO = (4.5, 1.8)  # length, width of the ego vehicle drawn behind the origin (not in the data)
+CIPV_PAD_PX = 4.0  # the CIPV's ring stands this far outside its box
 BACKGROUND = "#f2f2f2"
 CIPV_EDGE = "#000000"
+CIPV_WIDTH = 2.0  # points
 LINE_COLOURS = {"marker": "#50509a", "border": "#a0522d", "centre": "#2ca02c"}
 SIGN_COLOUR = "#d00000"
 _TAB10 = ("#1f77b4", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
@@ -69,18 +81,35 @@ def view_limits(scenes: Sequence[Scene], range_m: float | None = None,
     return range_m, lateral_m
 
 
-def box_corners(o: SceneObject) -> list[tuple[float, float]]:
-    """The box's corners as (lat, long), starting at the rear right, counter-clockwise."""
+def box_corners(o: SceneObject, pad: float = 0.0) -> list[tuple[float, float]]:
+    """The box's corners as (lat, long), starting at the rear right, counter-clockwise;
+    ``pad`` metres wider on every side."""
     ch, sh = math.cos(o.heading), math.sin(o.heading)
     fwd = (ch, sh)  # (long, lat) of the object's forward axis
     left = (-sh, ch)
-    hw = o.width / 2.0
+    hw = o.width / 2.0 + pad
     pts = []
-    for along, side in ((0.0, -hw), (o.length, -hw), (o.length, hw), (0.0, hw)):
+    for along, side in ((-pad, -hw), (o.length + pad, -hw), (o.length + pad, hw), (-pad, hw)):
         lo = o.long + along * fwd[0] + side * left[0]
         la = o.lat + along * fwd[1] + side * left[1]
         pts.append((la, lo))
     return pts
+
+
+def _middle(o: SceneObject) -> tuple[float, float]:
+    """(lat, long) of the box's middle."""
+    return (o.lat + math.sin(o.heading) * o.length / 2, o.long + math.cos(o.heading) * o.length / 2)
+
+
+def _arrow_tip(o: SceneObject) -> tuple[float, float]:
+    cx, cy = _middle(o)
+    return cx + o.v_lat * ARROW_S, cy + o.v_long * ARROW_S
+
+
+def _extent(o: SceneObject) -> tuple[float, float]:
+    """The longitudinal span an object's drawing covers: its box and its velocity arrow."""
+    longs = [lo for _, lo in box_corners(o)] + [_arrow_tip(o)[1]]
+    return min(longs), max(longs)
 
 
 def line_points(ln: SceneLine, step: float = 0.5) -> tuple[list[float], list[float]]:
@@ -92,33 +121,73 @@ def line_points(ln: SceneLine, step: float = 0.5) -> tuple[list[float], list[flo
 Rect = tuple[float, float, float, float]  # left, bottom, width, height (figure fractions)
 
 
-def layout(range_m: float, lateral_m: float) -> tuple[Rect, Rect | None, float]:
-    """The whole view's rectangle, the zoom panel's (None when the whole view is wide enough
-    to read) and the zoom's forward range in metres. Both panels have equal scales: the
-    rectangles' pixel sizes are in the ratio of the metres they show."""
-    fw, fh = FIGSIZE[0] * DPI, FIGSIZE[1] * DPI
+class Layout(NamedTuple):
+    """Where the panels stand: the figure's size in inches, the whole view's rectangle, the
+    zoom's (None when the whole view is wide enough to read) and the zoom's forward range."""
+
+    figsize: tuple[float, float]
+    main: Rect
+    zoom: Rect | None
+    zoom_range: float
+
+
+def near_base(lateral_m: float) -> float:
+    """The zoom's forward range when it is as wide as it may be and as tall as the panels."""
+    zoom_ppm = min(ZOOM_MAX_IN * DPI / (2 * lateral_m), PANEL_IN * DPI / (REAR_M + 10.0))
+    return PANEL_IN * DPI / zoom_ppm - REAR_M
+
+
+def near_range(scenes: Sequence[Scene], lateral_m: float) -> float:
+    """The zoom's forward range: :func:`near_base`, pushed past every object (box and arrow)
+    and sign it would cut, with NEAR_MARGIN_M to spare."""
+    spans = [_extent(o) for sc in scenes for o in sc.objects]
+    spans += [(s.long - 1.0, s.long + 1.0) for sc in scenes for s in sc.signs]
+    cut = near_base(lateral_m)
+    moved = True
+    while moved:
+        moved = False
+        for lo, hi in spans:
+            if lo - NEAR_MARGIN_M < cut < hi + NEAR_MARGIN_M:
+                cut, moved = hi + NEAR_MARGIN_M, True
+    return float(math.ceil(cut))
+
+
+def layout(range_m: float, lateral_m: float, near_m: float | None = None) -> Layout:
+    """The figure fitted to its panels and the legend: both panels have equal scales (the
+    rectangles' pixel sizes are in the ratio of the metres they show); the zoom shows
+    ``near_m`` metres ahead (default :func:`near_base`) and is left out when it would not be
+    at least 1.5 times larger than the whole view or reach as far."""
     span = range_m + REAR_M
-    room = (1.0 - LEFT - LEGEND_W) * fw  # pixels across for the whole view alone
-    ppm = min(HEIGHT * fh / span, room / (2 * lateral_m))  # pixels per metre
-    main: Rect = (LEFT, BOTTOM + HEIGHT - span * ppm / fh, 2 * lateral_m * ppm / fw,
-                  span * ppm / fh)
-    zoom_ppm = min(ZOOM_W * fw / (2 * lateral_m), HEIGHT * fh / (REAR_M + 10.0))
-    zoom_range = HEIGHT * fh / zoom_ppm - REAR_M
-    if zoom_ppm < 1.5 * ppm or zoom_range >= range_m:
-        return main, None, range_m
-    zoom: Rect = (LEFT + main[2] + GAP, BOTTOM, 2 * lateral_m * zoom_ppm / fw, HEIGHT)
-    return main, zoom, zoom_range
+    ppm = min(PANEL_IN * DPI / span, MAIN_MAX_IN * DPI / (2 * lateral_m))  # pixels per metre
+    main_w, main_h = 2 * lateral_m * ppm, span * ppm
+    near = near_base(lateral_m) if near_m is None else near_m
+    zoom_ppm = min(PANEL_IN * DPI / (near + REAR_M), ZOOM_MAX_IN * DPI / (2 * lateral_m))
+    with_zoom = zoom_ppm >= 1.5 * ppm and near < range_m
+    zoom_w = 2 * lateral_m * zoom_ppm if with_zoom else 0.0
+    zoom_h = (near + REAR_M) * zoom_ppm if with_zoom else 0.0
+    panels_h = max(main_h, zoom_h)
+    height = max(MIN_HEIGHT_IN * DPI, BOTTOM_IN * DPI + panels_h + TOP_IN * DPI)
+    width = (LEFT_IN * DPI + main_w + (GAP_IN * DPI + zoom_w if with_zoom else 0.0)
+             + LEGEND_IN * DPI)
+    top = (height - TOP_IN * DPI) / height  # panels hang from here
+    main: Rect = (LEFT_IN * DPI / width, top - main_h / height, main_w / width, main_h / height)
+    if not with_zoom:
+        return Layout((width / DPI, height / DPI), main, None, range_m)
+    zoom: Rect = ((LEFT_IN * DPI + main_w + GAP_IN * DPI) / width, top - zoom_h / height,
+                  zoom_w / width, zoom_h / height)
+    return Layout((width / DPI, height / DPI), main, zoom, near)
 
 
-def new_axes(range_m: float, lateral_m: float) -> tuple[Any, list[Any]]:
+def new_axes(range_m: float, lateral_m: float, near_m: float | None = None
+             ) -> tuple[Any, list[Any]]:
     """The figure and its panels: the whole view, and the zoom when :func:`layout` has one."""
-    fig = new_figure(*FIGSIZE, DPI)
-    main, zoom, zoom_range = layout(range_m, lateral_m)
-    axes = [fig.add_axes(main)]
-    if zoom is not None:
-        axes.append(fig.add_axes(zoom))
+    lay = layout(range_m, lateral_m, near_m)
+    fig = new_figure(*lay.figsize, DPI)
+    axes = [fig.add_axes(lay.main)]
+    if lay.zoom is not None:
+        axes.append(fig.add_axes(lay.zoom))
     for k, ax in enumerate(axes):
-        _frame(ax, range_m if k == 0 else zoom_range, lateral_m)
+        _frame(ax, range_m if k == 0 else lay.zoom_range, lateral_m)
     return fig, axes
 
 
@@ -132,65 +201,90 @@ def _frame(ax: Any, range_m: float, lateral_m: float) -> None:
     ax.grid(True, color="#dddddd", linewidth=0.5, zorder=0)
 
 
-def _label_side(lat: float, half: float) -> tuple[float, str]:
-    """Where a label goes beside something at ``lat`` that is ``half`` wide: on the side
-    towards the middle of the view, so it stays inside the axes."""
-    if lat >= 0:  # left half of the view (x inverted): the label runs to the right
-        return lat - half - 0.4, "left"
-    return lat + half + 0.4, "right"
-
-
 def draw_scene(axes: Any, scene: Scene, range_m: float, lateral_m: float,
                title: str | None = None) -> None:
     """Draw ``scene`` into each panel of ``axes`` (one axes or the list from
     :func:`new_axes`); the legend and title go with the figure."""
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import FancyArrowPatch, Patch, Polygon, Rectangle
-
     axes = axes if isinstance(axes, list) else [axes]
-    zoom_range = range_m
+    zoom_range = axes[1].get_ylim()[1] if len(axes) > 1 else range_m
     for k, ax in enumerate(axes):
-        if k:
-            zoom_range = ax.get_ylim()[1]
         ax.clear()
         _frame(ax, range_m if k == 0 else zoom_range, lateral_m)
-        length, width = EGO
-        ax.add_patch(Rectangle((-width / 2, -length), width, length, facecolor="#ffffff",
-                               edgecolor="#000000", hatch="//", linewidth=1.0, zorder=2))
-        for ln in scene.lines:
-            lat, lon = line_points(ln)
-            style = "--" if ln.type_name == "DASHED" else (":" if ln.kind == "centre" else "-")
-            ax.plot(lat, lon, style, color=LINE_COLOURS[ln.kind],
-                    linewidth=2.5 if ln.kind == "border" else 2.0, zorder=3)
-        for o in scene.objects:
-            cx = o.lat + math.sin(o.heading) * o.length / 2
-            cy = o.long + math.cos(o.heading) * o.length / 2
-            if o.v_long or o.v_lat:  # drawn under the box: only the part outside it shows
-                ax.add_patch(FancyArrowPatch(
-                    (cx, cy), (cx + o.v_lat * ARROW_S, cy + o.v_long * ARROW_S), zorder=4,
-                    arrowstyle="-|>", mutation_scale=10, color="#000000", linewidth=1.2))
-            ax.add_patch(Polygon(box_corners(o), closed=True, facecolor=class_colour(o.cls),
-                                 edgecolor=CIPV_EDGE if o.cipv else "#202020",
-                                 linewidth=3.0 if o.cipv else 0.6, zorder=5))
-            x, ha = _label_side(o.lat, o.width / 2)
-            ax.text(x, o.long + o.length / 2, f"{o.id}" + (" CIPV" if o.cipv else ""),
-                    fontsize=7, ha=ha, va="center", zorder=6, clip_on=True)
-        for s in scene.signs:
-            ax.plot([s.lat], [s.long], "o", markersize=9, markerfacecolor="#ffffff",
-                    markeredgecolor=SIGN_COLOUR, markeredgewidth=2.0, zorder=5)
-            if k or len(axes) == 1:  # the narrow whole view has no room: the legend names them
-                x, ha = _label_side(s.lat, 0.6)
-                ax.text(x, s.long, s.name, fontsize=6, color=SIGN_COLOUR, ha=ha, va="center",
-                        zorder=6, clip_on=True)
+        # the whole view beside a zoom names only what the zoom does not show
+        named = (lambda lo: True) if k or len(axes) == 1 else (lambda lo: lo > zoom_range)
+        _draw_panel(ax, scene, lateral_m, named, signs_named=bool(k or len(axes) == 1))
     if len(axes) > 1:  # where the zoom is, on the whole view
+        from matplotlib.patches import Rectangle
+
         axes[0].add_patch(Rectangle((-lateral_m, -REAR_M), 2 * lateral_m, zoom_range + REAR_M,
                                     fill=False, edgecolor="#404040", linestyle="--",
                                     linewidth=1.0, zorder=7))
         axes[1].set_title(f"near range, {zoom_range:.0f} m (zoom)", fontsize=9)
         axes[0].set_title("whole view", fontsize=9)
+    fig = axes[0].figure
+    for old in list(fig.legends):
+        old.remove()
+    right = axes[-1].get_position().x1 + 0.12 / fig.get_figwidth()
+    fig.legend(handles=_legend(scene, len(axes) > 1), loc="upper left",
+               bbox_to_anchor=(right, axes[0].get_position().y1), fontsize=8)
+    when = "end of capture" if scene.time is None else f"t = {scene.time:.2f} s"
+    fig.suptitle(title or f"{when} (s since the capture's first record): "
+                 f"{plural(len(scene.objects), 'object')}, {plural(len(scene.lines), 'line')}, "
+                 f"{plural(len(scene.signs), 'sign')}; equal scales", fontsize=10)
+
+
+def _draw_panel(ax: Any, scene: Scene, lateral_m: float, named: Callable[[float], bool],
+                signs_named: bool) -> None:
+    """One panel's marks, then its labels placed clear of them."""
+    from matplotlib.patches import FancyArrowPatch, Polygon, Rectangle
+
+    ppm = ax.get_window_extent().width / (2 * lateral_m)  # pixels per metre
+    length, width = EGO
+    marks = [ax.add_patch(Rectangle((-width / 2, -length), width, length, facecolor="#ffffff",
+                                    edgecolor="#000000", hatch="//", linewidth=1.0, zorder=2))]
+    lanes = []
+    for ln in scene.lines:
+        lat, lon = line_points(ln)
+        style = "--" if ln.type_name == "DASHED" else (":" if ln.kind == "centre" else "-")
+        lanes += ax.plot(lat, lon, style, color=LINE_COLOURS[ln.kind],
+                         linewidth=2.5 if ln.kind == "border" else 2.0, zorder=3)
+    labels = []
+    for o in scene.objects:
+        if o.v_long or o.v_lat:  # drawn under the box: only the part outside it shows
+            marks.append(ax.add_patch(FancyArrowPatch(
+                _middle(o), _arrow_tip(o), zorder=4, arrowstyle="-|>", mutation_scale=10,
+                color="#000000", linewidth=1.2)))
+        marks.append(ax.add_patch(Polygon(box_corners(o), closed=True, zorder=5,
+                                          facecolor=class_colour(o.cls), edgecolor="#202020",
+                                          linewidth=0.6)))
+        if o.cipv:  # a ring around the box: the box keeps its class's colour
+            marks.append(ax.add_patch(Polygon(
+                box_corners(o, CIPV_PAD_PX / ppm), closed=True, fill=False, zorder=5,
+                edgecolor=CIPV_EDGE, linewidth=CIPV_WIDTH, gid="cipv")))
+        if named(o.long):
+            half = (o.width / 2 * ppm + (CIPV_PAD_PX + 2 if o.cipv else 0),
+                    o.length / 2 * ppm + (CIPV_PAD_PX + 2 if o.cipv else 0))
+            labels.append(Label(f"{o.id}" + (" CIPV" if o.cipv else ""), _middle(o), half))
+    for s in scene.signs:
+        marks += ax.plot([s.lat], [s.long], "o", markersize=9, markerfacecolor="#ffffff",
+                         markeredgecolor=SIGN_COLOUR, markeredgewidth=2.0, zorder=5)
+        if signs_named:  # the narrow whole view has no room: the legend names them
+            labels.append(Label(s.name, (s.lat, s.long), (7.0, 7.0), SIGN_COLOUR, 6.0))
+    renderer = ax.figure.canvas.get_renderer()
+    boxes = [m.get_window_extent(renderer) for m in marks]
+    points = [ln.get_transform().transform(ln.get_xydata()) for ln in lanes]
+    place_labels(ax, labels, [(b.x0, b.y0, b.x1, b.y1) for b in boxes],
+                 np.concatenate(points) if points else np.empty((0, 2)))
+
+
+def _legend(scene: Scene, zoomed: bool) -> list[Any]:
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
     present = sorted({(o.cls, o.cls_name) for o in scene.objects})
     handles: list[Any] = [Patch(facecolor=class_colour(c), label=n) for c, n in present]
-    handles.append(Patch(facecolor="#ffffff", edgecolor=CIPV_EDGE, linewidth=3.0, label="CIPV"))
+    handles.append(Patch(facecolor="#ffffff", edgecolor=CIPV_EDGE, linewidth=CIPV_WIDTH,
+                         label="CIPV: ring around its box"))
     handles.append(Line2D([], [], color="#000000", marker=">", markersize=5, linewidth=1.2,
                           label=f"velocity, {ARROW_S:g} s of travel"))
     handles.append(Patch(facecolor="#ffffff", edgecolor="#000000", hatch="//",
@@ -203,30 +297,21 @@ def draw_scene(axes: Any, scene: Scene, range_m: float, lateral_m: float,
                        label="lane centre")]
     handles.append(Line2D([], [], marker="o", linestyle="", markerfacecolor="#ffffff",
                           markeredgecolor=SIGN_COLOUR, markeredgewidth=2.0, label="sign"))
-    if len(axes) > 1:
+    if zoomed:
         signs = sorted(scene.signs, key=lambda s: s.long)
         handles += [Line2D([], [], linestyle="", label=f"  {s.name}, {s.long:.0f} m")
                     for s in signs[:MAX_SIGN_NAMES]]
         if len(signs) > MAX_SIGN_NAMES:
             handles.append(Line2D([], [], linestyle="",
                                   label=f"  and {len(signs) - MAX_SIGN_NAMES} more"))
-    if len(axes) > 1:
         handles.append(Patch(fill=False, edgecolor="#404040", linestyle="--",
                              label="zoomed area"))
-    fig = axes[0].figure
-    for old in list(fig.legends):
-        old.remove()
-    fig.legend(handles=handles, loc="upper right", bbox_to_anchor=(0.995, BOTTOM + HEIGHT),
-               fontsize=8)
-    when = "end of capture" if scene.time is None else f"t = {scene.time:.2f} s"
-    fig.suptitle(title or f"{when} (s since the capture's first record): "
-                 f"{plural(len(scene.objects), 'object')}, {plural(len(scene.lines), 'line')}, "
-                 f"{plural(len(scene.signs), 'sign')}; equal scales", fontsize=10)
+    return handles
 
 
 def birdseye(scene: Scene, range_m: float | None = None, lateral_m: float | None = None) -> Any:
     r, w = view_limits([scene], range_m, lateral_m)
-    fig, axes = new_axes(r, w)
+    fig, axes = new_axes(r, w, near_range([scene], w))
     draw_scene(axes, scene, r, w)
     return fig
 
@@ -236,7 +321,7 @@ def animation(frames: Sequence[Scene], fps: float, range_m: float | None = None,
     from matplotlib.animation import FuncAnimation
 
     r, w = view_limits(frames, range_m, lateral_m)
-    fig, axes = new_axes(r, w)
+    fig, axes = new_axes(r, w, near_range(frames, w))
 
     def update(i: int) -> list[Any]:
         draw_scene(axes, frames[i], r, w)

@@ -20,6 +20,7 @@ TIME_LABEL = "s since the capture's first record (as eyeq-spi dissect)"
 SERIES_STYLES = (("#1f77b4", "-", 5.0), ("#ff7f0e", "--", 3.2), ("#2ca02c", "-", 1.8),
                  ("#d62728", ":", 1.2), ("#9467bd", "-.", 1.0), ("#8c564b", "-", 0.8))
 ROW_IN = 1.25  # inches per stream in the timing plot
+HEAD_IN = 1.05  # inches above the first row: title, legend, the first row's counts
 WIDTH_IN = 11.0
 DPI = 100
 MAX_BINS = 2000
@@ -40,9 +41,10 @@ def timing_figure(col: Collected) -> tuple[Any, dict[str, Any]]:
     rows = timing_rows(col)
     if not rows:
         raise PlotError("no periodic messages (DASP or 0x41) in the capture window")
-    fig = new_figure(WIDTH_IN, 1.25 + ROW_IN * len(rows), DPI)
+    fig = new_figure(WIDTH_IN, HEAD_IN + 0.45 + ROW_IN * len(rows), DPI)
     axes = fig.subplots(len(rows), 1, sharex=True, squeeze=False)[:, 0]
-    fig.subplots_adjust(left=0.2, right=0.97, top=1 - 1.1 / fig.get_figheight(),
+    height = fig.get_figheight()
+    fig.subplots_adjust(left=0.2, right=0.97, top=1 - HEAD_IN / height,
                         bottom=0.45 / fig.get_figheight(), hspace=0.35)
     end = col.end
     by_name: dict[str, Any] = {}
@@ -51,9 +53,11 @@ def timing_figure(col: Collected) -> tuple[Any, dict[str, Any]]:
         _timing_row(ax, s, end)
     axes[-1].set_xlabel(TIME_LABEL)
     axes[0].set_xlim(col.window.start, max(end, col.window.start + 1e-3))
-    fig.suptitle("inter-arrival time of each message against its nominal period", fontsize=10)
+    # the title on its own line at the top, the legend's rows below it, the rows below both
+    fig.suptitle("inter-arrival time of each message against its nominal period", fontsize=10,
+                 y=1 - 0.1 / height, va="top")
     fig.legend(handles=_timing_legend(), loc="upper center", ncol=3, fontsize=7,
-               bbox_to_anchor=(0.5, 1 - 0.3 / fig.get_figheight()), frameon=False)
+               bbox_to_anchor=(0.5, 1 - 0.4 / height), frameon=False)
     return fig, by_name
 
 

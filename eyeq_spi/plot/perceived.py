@@ -32,6 +32,8 @@ SIGNS = "EYEQ_VIS_TRAFFIC_SIGNS_MSG"
 SCENE_MESSAGES = (OBSTACLES, ROAD, SIGNS)
 POLY_KEYS = frozenset(("a0", "a1", "a2", "a3", "startRange", "endRange"))
 CIPV = "CIPV"  # object_is_cipv value name (§13.2.5)
+TTC_NONE = 7.0  # §13.2.2 ttc_const_vel: "Set to 7 seconds if no valid TTC value"
+NO_TTC = "\u2014"  # what the views show for an object without a time to collision
 
 
 @dataclass(frozen=True)
@@ -48,6 +50,16 @@ class SceneObject:
     v_lat: float
     cipv: bool
     ttc: float | None  # ttc_const_vel (SW5 and later)
+
+    @property
+    def closing_ttc(self) -> float | None:
+        """The time to collision worth showing: only for an object ahead of the car
+        (``longDistance`` > 0) that the EyeQ reports as closing, a ``ttc_const_vel`` below its
+        top of range (TTC_NONE, 7 s, is "none"); else None."""
+        ttc = self.ttc
+        if ttc is None or not 0.0 <= ttc < TTC_NONE or self.long <= 0.0:
+            return None
+        return ttc
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,250 @@
+"""Transfers -> a sigrok session file (``.sr``, what PulseView saves and opens;
+``eyeq-spi export --sr``).
+
+A session file is a zip archive (libsigrok's ``srzip`` format, version 2): a ``version``
+entry holding ``2``; a ``metadata`` entry, an ini file naming the sample rate, the probes and
+the bytes per sample (``unitsize``); and the samples in entries ``logic-1-1``, ``logic-1-2``
+..., each deflate-compressed. Here one sample is one byte: bit k is probe k + 1, the four
+signals of each SPI channel (§5) in the order of ``specs/bench.yaml`` (``h2e_cs``, ``h2e_clk``,
+``h2e_mosi``, ``h2e_miso``, then ``e2h_...``).
+
+The waveforms are those of :mod:`eyeq_spi.logic.vcd_write`: each direction's master drives
+its frame on MOSI at the seed's 10 MHz in the SPI mode and bit order of the options (§6,
+``specs/bench.yaml``), a transfer starts at its capture time (or, without one, its channel's
+frameFlowControl after the previous one), a transfer that would overlap the previous one of
+its channel starts ``min_idle`` after it, and the slave's MISO is left idle. The samples
+begin ``LEAD`` samples before the first transfer: a sample's time is seconds since the
+capture's first record (as ``eyeq-spi dissect`` shows them) plus ``LEAD`` samples. The sample rate
+is two samples per clock period (an edge per sample), 20 MHz for 10 MHz. MOSI returns low when
+CS rises.
+
+Memory stays bounded: samples are rendered with numpy per transfer into a buffer that starts
+at the first sample a later transfer could still change; everything before it is written out
+in chunks of ``CHUNK`` bytes, idle stretches from one constant block. A long idle stretch
+costs time to compress (about 0.1 s per second of idle) but deflate shrinks it about a
+thousandfold; ``max_idle`` shortens every stretch with both channels idle to at most that many
+seconds (sample times are then not capture times; the metadata says so).
+"""
+
+from __future__ import annotations
+
+import zipfile
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from eyeq_spi import __version__
+from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.catalog.link import link_spec
+from eyeq_spi.logic.options import DIRECTIONS, SIGNALS, SpiOptions, bench_spec, signal_name
+
+CHUNK = 4 << 20  # samples (bytes) per logic-1-N entry
+SAMPLES_PER_HALF_CLOCK = 1
+LEAD = 20  # idle samples before the first transfer (1 µs at 20 MHz): its CS edge shows
+_SENDER = {"h2e": "host", "e2h": "eyeq"}
+_Array = np.ndarray[Any, Any]
+
+
+def _bit(direction: str, signal: str) -> int:
+    return DIRECTIONS.index(direction) * len(SIGNALS) + SIGNALS.index(signal)
+
+
+def samplerate_text(hz: int) -> str:
+    """libsigrok's way of writing a sample rate (``20 MHz``, ``500 kHz``)."""
+    for unit, scale in (("GHz", 10**9), ("MHz", 10**6), ("kHz", 10**3)):
+        if hz >= scale and hz % scale == 0:
+            return f"{hz // scale} {unit}"
+    return f"{hz} Hz"
+
+
+class _ChunkSink:
+    """Samples in, ``logic-1-N`` entries of at most CHUNK bytes out."""
+
+    def __init__(self, zf: zipfile.ZipFile) -> None:
+        self.zf = zf
+        self.buf = bytearray()
+        self.entries = 0
+        self.samples = 0
+        self._block: tuple[int, bytes] | None = None
+
+    def array(self, samples: _Array) -> None:
+        self.samples += len(samples)
+        self.buf += samples.tobytes()
+        while len(self.buf) >= CHUNK:
+            self._entry(bytes(self.buf[:CHUNK]))
+            del self.buf[:CHUNK]
+
+    def run(self, value: int, count: int) -> None:
+        """``count`` samples of ``value`` (an idle stretch), without building them all."""
+        if self._block is None or self._block[0] != value:
+            self._block = (value, bytes([value]) * CHUNK)
+        block = self._block[1]
+        self.samples += count
+        room = CHUNK - len(self.buf)
+        if count < room:
+            self.buf += block[:count]
+            return
+        self.buf += block[:room]
+        self._entry(bytes(self.buf))
+        self.buf.clear()
+        count -= room
+        while count >= CHUNK:
+            self._entry(block)
+            count -= CHUNK
+        self.buf += block[:count]
+
+    def close(self) -> None:
+        if self.buf or not self.entries:
+            self._entry(bytes(self.buf))
+            self.buf.clear()
+
+    def _entry(self, data: bytes) -> None:
+        self.entries += 1
+        self.zf.writestr(f"logic-1-{self.entries}", data, compress_type=zipfile.ZIP_DEFLATED,
+                         compresslevel=6)
+
+
+class SrWriter:
+    """Write transfers (:meth:`write`) into the session file at ``path``; :meth:`close` ends it."""
+
+    def __init__(self, path: str | Path, opts: SpiOptions | None = None, *,
+                 baud_rate: int | None = None, default_direction: str = "h2e",
+                 max_idle: float | None = None) -> None:
+        spec = bench_spec()
+        self.opts = opts or SpiOptions()
+        baud = baud_rate or int(spec["spi"]["baud_rate"])
+        self.half = SAMPLES_PER_HALF_CLOCK
+        self.samplerate = 2 * baud * self.half
+        gaps = link_spec()["timing"]["frameFlowControl"]
+        self.gap = {d: round(float(gaps[_SENDER[d]]) * self.samplerate) for d in DIRECTIONS}
+        self.min_idle = max(1, round(float(spec["vcd"]["min_idle"]) * self.samplerate))
+        self.cpol, self.cpha = divmod(self.opts.mode, 2)
+        self.default_direction = default_direction
+        idle_miso = int(spec["vcd"]["idle_miso"])
+        self.idle = 0
+        for d in DIRECTIONS:
+            self.idle |= (1 << _bit(d, "cs")) | (self.cpol << _bit(d, "clk"))
+            self.idle |= idle_miso << _bit(d, "miso")
+        self.origin: float | None = None  # the first capture time: sample LEAD
+        # the first sample each channel's next transfer may use
+        self.free = dict.fromkeys(DIRECTIONS, LEAD)
+        self.last_start = dict.fromkeys(DIRECTIONS, -(10**18))
+        # idle stretches longer than this many samples are cut to it; shift: samples cut so far
+        self.max_idle = None if max_idle is None else max(1, round(max_idle * self.samplerate))
+        self.shift = 0
+        self.cursor = 0  # samples before this one are written
+        self.pending = np.empty(0, dtype=np.uint8)  # samples from the cursor on, still open
+        self.count = 0
+        self.delayed = 0
+        self.closed = False
+        self.zf = zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED)
+        self.zf.writestr("version", "2")
+        self.sink = _ChunkSink(self.zf)
+
+    def write(self, rec: Record) -> None:
+        d = rec.direction or self.default_direction
+        if rec.time is None:
+            wanted = max(self.free[d], self.last_start[d] + self.gap[d])
+        else:
+            if self.origin is None:
+                self.origin = rec.time
+            wanted = round((rec.time - self.origin) * self.samplerate) + LEAD - self.shift
+            if self.max_idle is not None:
+                busy_until = max(self.cursor + len(self.pending), *self.free.values())
+                if wanted - busy_until > self.max_idle:
+                    self.shift += wanted - busy_until - self.max_idle
+                    wanted = busy_until + self.max_idle
+        self._flush(wanted)  # no later transfer starts before its capture time
+        start = max(wanted, self.free[d], self.cursor)
+        if start > wanted and rec.time is not None:
+            self.delayed += 1
+        self.last_start[d] = start
+        lines = self._transfer(d, rec.data)
+        end = start + len(lines)
+        self._extend(end)
+        offset = start - self.cursor
+        mask = np.uint8(sum(1 << _bit(d, s) for s in ("cs", "clk", "mosi")))
+        window = self.pending[offset:offset + len(lines)]
+        window &= ~mask
+        window |= lines
+        self.free[d] = end + self.min_idle
+        self.count += 1
+
+    def _transfer(self, d: str, data: bytes) -> _Array:
+        """The channel's CS, CLK and MOSI bits of one transfer, from CS falling to the sample
+        before CS rises (the frame of :class:`eyeq_spi.logic.vcd_write.VcdWriter`)."""
+        h = self.half
+        order: Literal["big", "little"] = "big" if self.opts.bit_order == "msb_first" \
+            else "little"
+        bits = np.unpackbits(np.frombuffer(data, dtype=np.uint8), bitorder=order)
+        n = len(bits)
+        t = 0 if self.cpha else h  # the first bit's period begins here
+        length = t + 2 * h * n + h
+        rel = np.arange(length) - t  # samples since the first bit's period began
+        bit_no = np.clip((rel - (h if self.cpha else 0)) // (2 * h), -1, n - 1)
+        mosi = np.where(bit_no >= 0, bits[np.maximum(bit_no, 0)] if n else 0, 0)
+        in_bits = (rel >= h) & (rel < h + 2 * h * n)
+        clk = np.where(in_bits & (((rel - h) % (2 * h)) < h), 1 - self.cpol, self.cpol)
+        out = (clk.astype(np.uint8) << _bit(d, "clk")) | (mosi.astype(np.uint8)
+                                                          << _bit(d, "mosi"))
+        return out.astype(np.uint8)  # CS (its bit 0) low throughout
+
+    def _extend(self, end: int) -> None:
+        more = end - self.cursor - len(self.pending)
+        if more > 0:
+            self.pending = np.concatenate((self.pending,
+                                           np.full(more, self.idle, dtype=np.uint8)))
+
+    def _flush(self, limit: int) -> None:
+        """Write every sample before ``limit``."""
+        if limit <= self.cursor:
+            return
+        take = min(limit - self.cursor, len(self.pending))
+        if take:
+            self.sink.array(self.pending[:take])
+            self.pending = self.pending[take:]
+        if limit - self.cursor > take:
+            self.sink.run(self.idle, limit - self.cursor - take)
+        self.cursor = limit
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        # two idle samples after the last change, so a reader sees the last CS rising edge
+        self._flush(self.cursor + len(self.pending) + 2)
+        self.sink.close()
+        self.zf.writestr("metadata", self._metadata())
+        self.zf.close()
+
+    def _metadata(self) -> str:
+        probes = [signal_name(d, s) for d in DIRECTIONS for s in SIGNALS]
+        lines = ["[global]", f"sigrok version={__version__} (eyeq-spi)"]
+        if self.max_idle is not None:  # a GLib key file's comment line starts with #
+            lines.append(f"# idle time compressed: every stretch with both channels idle is at "
+                         f"most {self.max_idle / self.samplerate:g} s; times are not capture "
+                         "times")
+        lines += ["", "[device 1]", "capturefile=logic-1", f"total probes={len(probes)}",
+                  f"samplerate={samplerate_text(self.samplerate)}", "total analog=0"]
+        lines += [f"probe{k}={name}" for k, name in enumerate(probes, start=1)]
+        lines.append("unitsize=1")
+        return "\n".join(lines) + "\n"
+
+
+def write_sr(records: Iterable[Record], path: str | Path, opts: SpiOptions | None = None,
+             **kw: Any) -> SrWriter:
+    w = SrWriter(path, opts, **kw)
+    try:
+        for rec in records:
+            w.write(rec)
+    finally:
+        w.close()
+    return w
+
+
+def write_sr_file(records: Iterable[Record], path: str | Path, **options: Any) -> int:
+    """The io registry's capture-writer signature: ``options`` are :class:`SrWriter`'s keyword
+    arguments, ``opts`` the SPI options; returns the transfers written."""
+    return write_sr(records, path, options.pop("opts", None), **options).count
