@@ -340,3 +340,42 @@ def test_sim_prints_the_exact_url_to_hand_to_host_on_stderr() -> None:
     summary = json.loads(r.stdout)  # the whole of stdout is one JSON object
     assert summary["address"] == url and summary["connections"] == 0
     assert summary["problem"].startswith("no host connected") and r.returncode == 1
+
+
+def test_the_parser_of_one_command_is_the_full_parser_for_that_command() -> None:
+    """main() builds only the command it runs; COMMANDS must list every command with its help, in
+    the order of the full parser, and each command's parser must not depend on the others."""
+    import argparse
+
+    from eyeq_spi.cli import COMMANDS
+
+    def subs(p: argparse.ArgumentParser) -> tuple[dict[str, str], dict[str, str]]:
+        act = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
+        helps = {c.dest: str(c.help) for c in act._choices_actions}
+        return helps, {n: sp.format_help() for n, sp in act.choices.items()}
+
+    full_help, full = subs(build_parser())
+    assert list(full_help.items()) == list(COMMANDS.items())
+    assert build_parser("").format_help() == build_parser().format_help()
+    for name in COMMANDS:
+        helps, one = subs(build_parser(name))
+        assert helps == full_help and one[name] == full[name], name
+
+
+@pytest.mark.parametrize(("given", "expected"), [(None, "1"), ("3", "3")])
+def test_the_cli_keeps_openblas_to_one_thread_unless_the_user_chose(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], given: str | None,
+    expected: str,
+) -> None:
+    """numpy's OpenBLAS starts a spinning thread per core at import, which only burned CPU (no
+    command does linear algebra): main() asks for one before anything imports numpy, and leaves
+    a value the user set."""
+    import os
+
+    if given is None:
+        monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    else:
+        monkeypatch.setenv("OPENBLAS_NUM_THREADS", given)
+    assert main(["spec", "list"]) == 0
+    capsys.readouterr()
+    assert os.environ["OPENBLAS_NUM_THREADS"] == expected

@@ -293,7 +293,6 @@ def _open_or_say(args: argparse.Namespace) -> Any:
 
 
 def run_host(args: argparse.Namespace) -> int:
-    import gc
     import time
 
     from eyeq_spi.host.host import HostEmulator
@@ -304,7 +303,6 @@ def run_host(args: argparse.Namespace) -> int:
     host_cfg, nvm, scenario = opt.host_parts(args)
     host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
     host.warm_up()
-    gc.collect()
 
     def again(until: float) -> Any:
         return reopen(lambda: open_url(args.port), until)

@@ -13,7 +13,6 @@ from __future__ import annotations
 import struct
 from typing import Any
 
-from eyeq_spi.catalog.cache import compile_generated
 from eyeq_spi.codec.layout_types import LayoutShape
 from eyeq_spi.errors import CodecError
 
@@ -31,7 +30,7 @@ class FastCodec:
         self.struct = struct.Struct("<" + "".join(self._fmt))
         if self.struct.size != layout.size:
             raise CodecError(f"fast path of {layout.name}: {self.struct.size} != {layout.size}")
-        exec(compile_generated("\n".join(self._src)), self._env)  # compiled once per command
+        exec("\n".join(self._src), self._env)
         self._decode = self._env[f"d_{top}"]
         self._encode = self._env[f"e_{top}"]
 

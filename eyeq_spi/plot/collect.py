@@ -14,9 +14,10 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
+from eyeq_spi import garbage
 from eyeq_spi.capture.pcapng_io import Tail
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file, paused_gc
+from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.plot import PlotError
 from eyeq_spi.plot.perceived import Labels, Scene, SceneTracker
@@ -210,7 +211,7 @@ def collect_capture(cf: CaptureFile, collector: Collector) -> Collected:
     until the collector is done."""
     items = cf.items
     try:
-        with paused_gc():
+        with garbage.paused():
             for r in items:
                 collector.add(r)
                 if collector.done:
