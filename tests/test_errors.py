@@ -12,7 +12,7 @@ import pytest
 
 import eyeq_spi
 from eyeq_spi import errors
-from eyeq_spi.errors import EyeqError, MalformedParamsError, MespError, RemoteProtocolError
+from eyeq_spi.errors import EyeqError, MespError
 from eyeq_spi.mesp.replies import MespFailure, MespReply, unwrap
 
 PACKAGE = Path(eyeq_spi.__file__).parent
@@ -42,7 +42,6 @@ def test_no_public_error_class_is_defined_outside_errors_py() -> None:
 
 # where each class was defined before it moved to errors.py: the old import keeps working
 OLD_HOMES = {
-    "eyeq_spi.codec.mesp": ["MalformedParamsError"],
     "eyeq_spi.catalog.can_expr": ["ExprError"],
     "eyeq_spi.phy.address": ["AddressError"],
     "eyeq_spi.can.compare": ["CanCompareError"],
@@ -78,12 +77,6 @@ def test_every_error_is_in_the_tree_with_a_docstring() -> None:
     for name in TREE:
         cls = getattr(errors, name)
         assert issubclass(cls, EyeqError) and cls.__doc__, name
-
-
-def test_malformed_params_is_a_remote_protocol_error_and_still_a_value_error() -> None:
-    exc = MalformedParamsError("Error in path (parsing) -> x")
-    assert isinstance(exc, RemoteProtocolError) and isinstance(exc, ValueError)
-    assert str(exc) == "Error in path (parsing) -> x"
 
 
 def test_a_mesp_failure_is_a_plain_value_raised_only_on_request() -> None:

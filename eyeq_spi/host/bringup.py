@@ -14,6 +14,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
+from eyeq_spi.catalog.bringup import EEPROM_FILE, SWITCH_APP
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
 from eyeq_spi.errors import CodecError, SpecError
@@ -21,7 +22,6 @@ from eyeq_spi.host import init_seq
 from eyeq_spi.host.config import (
     APP_IDS,
     DV_STATE,
-    EEPROM_FILE,
     PENDING,
     PENDING_OF,
     PENDING_VISION,
@@ -43,8 +43,6 @@ from eyeq_spi.host.scenario import ConstantDrive, Scenario
 from eyeq_spi.mesp.client import MespClient
 from eyeq_spi.mesp.replies import MespFailure, MespReply, MespResult
 from eyeq_spi.transport.connection import TransportConnection
-
-SWITCH_APP = (0x05, 0x05)  # MESP Switch EyeQ Application (service, function), M3
 
 ResetLine = Callable[[float], None]
 Subscriber = Callable[[DecodedMessage], None]

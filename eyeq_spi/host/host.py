@@ -10,6 +10,7 @@ import math
 from collections.abc import AsyncIterator
 from typing import Any
 
+from eyeq_spi.catalog.bringup import FATAL_INTRINSIC
 from eyeq_spi.catalog.messages import sw_release
 from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.e2e import E2EState
@@ -17,10 +18,9 @@ from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.message import DecodedMessage, classify
 from eyeq_spi.errors import CodecError, EyeqError, LocalProtocolError, SpecError
 from eyeq_spi.host import calibration, init_seq
-from eyeq_spi.host.bringup import SWITCH_APP, HostBringUp, ResetLine, Subscriber
+from eyeq_spi.host.bringup import HostBringUp, ResetLine, Subscriber
 from eyeq_spi.host.config import (
     APP_IDS,
-    FATAL_INTRINSIC,
     PENDING,
     STAGE_OF,
     STALE_CHECK,
@@ -40,7 +40,7 @@ from eyeq_spi.mesp.client import MespCompleted, MespFailed
 from eyeq_spi.transport.events import MessageReceived
 from eyeq_spi.twins import exact
 
-__all__ = ["SWITCH_APP", "HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
+__all__ = ["HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
            "Transition"]
 
 

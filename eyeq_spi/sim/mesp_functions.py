@@ -12,6 +12,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
+from eyeq_spi.catalog.bringup import EEPROM_FILE, FATAL_INTRINSIC
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.errors import CodecError, EyeqError
@@ -23,12 +24,9 @@ from eyeq_spi.transport.connection import TransportConnection
 VEH_STATE_STALE = 3 / 66.67  # three HOST_VEH_STATE periods (§7.1.2.2: 66.67 Hz)
 # M7: in DV the EyeQ reports mainState 0xAA (RUNNING_DV); 0x05 is DV's application ID
 PENDING, RUNNING_VISION, BOOT, DV = 0x01, 0x02, 0x03, 0xAA
-SWITCH_APP = (0x05, 0x05)  # MESP Switch EyeQ Application (service, function), M3
 PENDING_VISION, PENDING_TAC, PENDING_SPC = 0x92, 0x85, 0x82
 RUNNING_TAC, RUNNING_SPC = 0xAC, 0x22
 APP_VISION, APP_TAC, APP_SPC, APP_DV = 0x01, 0x03, 0x04, 0x05
-EEPROM_FILE = "/mesp/eeprom.data1"
-FATAL_INTRINSIC = 22
 MODE_OF_STATE = {RUNNING_VISION: "APP", RUNNING_TAC: "TAC", RUNNING_SPC: "SPC"}
 
 
