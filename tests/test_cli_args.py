@@ -71,12 +71,12 @@ BAD: list[tuple[list[str], tuple[str, ...]]] = [
     (["sim"], ("--listen", "--pty")),
     (["sim", "--listen", "udp://x:1"], ("--listen", "tcp://HOST:PORT")),
     (["sim", "--listen", "127.0.0.1:5000"], ("--listen", "tcp://HOST:PORT")),
-    (["host", "--port", "listen://127.0.0.1:5"], ("--port", "listens", "tcp://HOST:PORT")),
+    (["host", "--port", "listen://127.0.0.1:5"], ("--port", "listen://", "tcp://HOST:PORT")),
     (["host", "--port", "udp://127.0.0.1:5"], ("--port", "udp://", "tcp://HOST:PORT")),
     (["conformance", "--dut", "host", "--listen", "rfc2217://127.0.0.1:5"],
      ("--listen", "rfc2217://", "tcp://HOST:PORT")),
     (["replay", "FILE", "--listen", "tcp://127.0.0.1:99999"], ("--listen", "0..65535")),
-    (["sim", "--port", "socket://127.0.0.1:70000"], ("--port", "0..65535")),
+    (["sim", "--listen", "tcp://127.0.0.1:70000"], ("--listen", "0..65535")),
     (["sim", "--pty", "--listen", "tcp://127.0.0.1:0"], ("--listen", "--pty")),
     (["sim", "--pty", "--accept-timeout", "-1"], ("--accept-timeout", "(0, 86400]")),
     (["sim", "--pty", "--duration", "nan"], ("--duration",)),
@@ -121,11 +121,13 @@ BAD: list[tuple[list[str], tuple[str, ...]]] = [
     (["monitor", "--port", "loop://"], ("--port", "loop://")),
     (["monitor", "--port", "socket://127.0.0.1"], ("--port", "HOST:PORT")),
     (["replay", "FILE", "--port", "loop://"], ("--port", "loop://", "tcp://HOST:PORT")),
-    (["replay", "FILE", "--port", "listen://127.0.0.1:x"], ("--port", "port must be")),
+    (["replay", "FILE", "--port", "listen://127.0.0.1:x"], ("--port", "listen://")),
+    (["sim", "--port", "tcp://127.0.0.1:7"], ("--listen", "--pty")),
+    (["sim", "--listen", "socket://127.0.0.1:7"], ("--listen", "tcp://HOST:PORT")),
+    (["sim", "--listen", "pty"], ("--listen", "tcp://HOST:PORT")),
     (["replay", "FILE", "--into-host", "--duration", "nan"], ("--duration", "(0, 86400]")),
     (["replay", "FILE", "--into-host", "--duration", "-2"], ("--duration", "(0, 86400]")),
     (["replay", "FILE", "--port", "socket://127.0.0.1:1", "--lead", "-1"], ("--lead", "[0, 3600]")),
-    (["sim", "--port", "loop://"], ("--port", "pty")),
     # --sw is checked by every command that takes it; a side's option is refused where it
     # does not run, monitor included; the --jobs ranges at parse time
     (["plot", "FILE", "--link", "--sw", "7.7"], ("--sw", "9.0")),
@@ -233,35 +235,6 @@ def test_one_address_grammar_in_every_command(
     a = _parse(_fill(argv, files))
     assert {k: getattr(a, k) for k in want} == want
     assert capsys.readouterr().err == ""  # the new spelling: no note
-
-
-# old spellings: (argv, what they mean, the new spelling the note gives)
-OLD: list[tuple[list[str], dict[str, object], str]] = [
-    (["sim", "--port", "socket://0.0.0.0:0"], {"listen": "tcp://0.0.0.0:0", "pty": False},
-     "--listen tcp://0.0.0.0:0"),
-    (["sim", "--port", "tcp://127.0.0.1:7"], {"listen": "tcp://127.0.0.1:7"},
-     "--listen tcp://127.0.0.1:7"),
-    (["sim", "--listen", "socket://127.0.0.1:7"], {"listen": "tcp://127.0.0.1:7"},
-     "--listen tcp://127.0.0.1:7"),
-    (["sim", "--port", "pty"], {"listen": None, "pty": True}, "--pty"),
-    (["sim", "--listen", "pty"], {"listen": None, "pty": True}, "--pty"),
-    (["replay", "FILE", "--port", "listen://127.0.0.1:0"],
-     {"listen": "tcp://127.0.0.1:0", "port": None}, "--listen tcp://127.0.0.1:0"),
-    (["conformance", "--dut", "host", "--listen", "socket://127.0.0.1:0"],
-     {"listen": "tcp://127.0.0.1:0"}, "--listen tcp://127.0.0.1:0"),
-]
-
-
-@pytest.mark.parametrize(("argv", "want", "new"), OLD, ids=[" ".join(a) for a, _, _ in OLD])
-def test_old_spellings_work_with_a_one_line_note_giving_the_new_one(
-    argv: list[str], want: dict[str, object], new: str, files: dict[str, str],
-    capsys: pytest.CaptureFixture[str],
-) -> None:
-    a = _parse(_fill(argv, files))
-    assert {k: getattr(a, k) for k in want} == want
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("eyeq-spi: note: "), err
-    assert f"say {new}" in err and "old spelling" in err, err
 
 
 def test_the_listener_prints_a_url_host_can_use() -> None:

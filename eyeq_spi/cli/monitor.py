@@ -16,8 +16,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
         name, help=help,
         description="A live view (rich, plain ANSI, works over SSH): host state and "
         "transitions, message rates against nominal, link counters, E2E and counter errors, "
-        "the current objects, lanes and signs. Ctrl-C stops it. Needs rich: "
-        "pip install 'eyeq-spi[monitor]'.")
+        "the current objects, lanes and signs. Ctrl-C stops it.")
     src = m.add_mutually_exclusive_group(required=True)
     src.add_argument("--demo", action="store_true",
                      help="host emulator against the embedded simulated EyeQ (as demo)")

@@ -40,8 +40,7 @@ def rich_modules() -> RichModules:
             from rich.table import Table
             from rich.text import Text
         except ImportError:
-            raise MonitorError("the monitor needs rich: pip install 'eyeq-spi[monitor]'"
-                               ) from None
+            raise MonitorError("the monitor needs rich: pip install rich") from None
         _RICH = RichModules(Console, Live, Table, Text, Group, box)
     return _RICH
 
