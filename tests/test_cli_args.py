@@ -293,10 +293,11 @@ def test_help_lists_every_command_without_loading_the_catalogue() -> None:
 def test_parquet_without_pyarrow_gives_the_install_hint(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
-    from eyeq_spi.dissect.output import OutputError, TableWriter
+    from eyeq_spi.dissect.output import TableWriter
+    from eyeq_spi.errors import MissingExtra
 
     monkeypatch.setitem(sys.modules, "pyarrow", None)
-    with pytest.raises(OutputError, match=r"eyeq-spi\[parquet\]"):
+    with pytest.raises(MissingExtra, match=r"eyeq-spi\[parquet\]"):
         TableWriter(str(tmp_path / "pq"), "parquet")
 
 

@@ -333,13 +333,14 @@ def connect_address(text: str) -> str:
     eyeq``): ``tcp://HOST:PORT`` (``socket://`` too), ``rfc2217://HOST:PORT`` or a tty/pty path
     (grammar: :mod:`eyeq_spi.phy.address`) -> the URL to open. ``loop://`` echoes our own
     transfers back and has no peer on it: refused."""
-    from eyeq_spi.phy.address import CONNECT_FORMS, AddressError, parse_connect
+    from eyeq_spi.errors import AdapterError
+    from eyeq_spi.phy.address import CONNECT_FORMS, parse_connect
 
     if text.startswith("loop://"):
         _bad(f"loop:// echoes our own transfers back and has no peer on it; give {CONNECT_FORMS}")
     try:
         addr = parse_connect(text)
-    except AddressError as exc:
+    except AdapterError as exc:
         _address_error(exc)
     if "://" in addr.url and not addr.url.startswith(("socket://", "rfc2217://")):
         _bad(f"unsupported scheme {text.split('://', 1)[0]}://; give {CONNECT_FORMS}")
@@ -354,7 +355,8 @@ class Endpoint(argparse.Action):
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: Any, option_string: str | None = None) -> None:
-        from eyeq_spi.phy.address import AddressError, parse_listen
+        from eyeq_spi.errors import AdapterError
+        from eyeq_spi.phy.address import parse_listen
 
         if option_string == "--pty":
             namespace.pty = True
@@ -365,7 +367,7 @@ class Endpoint(argparse.Action):
                 namespace.listen = parse_listen(text).url
             else:
                 namespace.port = connect_address(text)
-        except (AddressError, argparse.ArgumentTypeError) as exc:
+        except (AdapterError, argparse.ArgumentTypeError) as exc:
             raise argparse.ArgumentError(self, str(exc)) from None
 
 

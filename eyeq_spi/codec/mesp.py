@@ -7,7 +7,7 @@ from typing import Any
 
 from eyeq_spi.catalog.messages import Catalog, MespFunction
 from eyeq_spi.codec.types import DecodedMessage
-from eyeq_spi.errors import CodecError
+from eyeq_spi.errors import LocalProtocolError
 
 MESP_PROTOCOL = 0x5E
 REPLY_BIT = 0x80
@@ -72,24 +72,24 @@ class MespCodec:
         try:
             return self.by_name[name]
         except KeyError:
-            raise CodecError(f"unknown MESP function {name}") from None
+            raise LocalProtocolError(f"unknown MESP function {name}") from None
 
     # -- encode ------------------------------------------------------------------------------
     def header(self, f: MespFunction, tag: int) -> bytes:
         if not 0 <= tag <= 0xFF:
-            raise CodecError(f"MESP tag {tag} outside 0..255")
+            raise LocalProtocolError(f"MESP tag {tag} outside 0..255")
         return bytes((f.service, MESP_PROTOCOL, f.service, f.function, tag))
 
     def encode_request(self, name: str, counter: int, params: dict[str, Any]) -> bytes:
         f = self.function(name)
         if not 0 <= counter <= TAG_MASK:
-            raise CodecError(f"MESP tag counter {counter} outside 0..63 (M1)")
+            raise LocalProtocolError(f"MESP tag counter {counter} outside 0..63 (M1)")
         from construct.core import ConstructError
 
         try:
             body = self.params(f, False).build(params)
         except (ConstructError, KeyError, TypeError, ValueError) as exc:
-            raise CodecError(f"{name} request: {exc}") from None
+            raise LocalProtocolError(f"{name} request: {exc}") from None
         return self.header(f, counter) + bytes(body)
 
     def encode_reply(self, name: str, counter: int, ret: int, params: dict[str, Any]) -> bytes:
@@ -102,7 +102,7 @@ class MespCodec:
         try:
             return head + bytes(self.params(f, True).build(params))
         except (ConstructError, KeyError, TypeError, ValueError) as exc:
-            raise CodecError(f"{name} reply: {exc}") from None
+            raise LocalProtocolError(f"{name} reply: {exc}") from None
 
     # -- decode ------------------------------------------------------------------------------
     def decode(self, data: bytes) -> DecodedMessage:

@@ -21,7 +21,7 @@ from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.catalog.bringup import SWITCH_APP_NAME
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import DaspCounters, MessageCodec
-from eyeq_spi.errors import FrameError
+from eyeq_spi.errors import RemoteProtocolError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.events import (
     DuplicateReceived,
@@ -97,7 +97,7 @@ class Dissector:
         else:
             try:
                 f = self.frames.decode(data)
-            except FrameError:
+            except RemoteProtocolError:
                 f = None
             if f is not None:
                 frame_rec["num"], frame_rec["rsp"] = f.num, f.rsp

@@ -35,8 +35,7 @@ from eyeq_spi import garbage
 from eyeq_spi.capture.pcapng_io import Record, Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.release import Capture, Release, open_capture
-from eyeq_spi.errors import EyeqError
-from eyeq_spi.io.plain import InputError
+from eyeq_spi.errors import EyeqError, InputError
 from eyeq_spi.logic.options import SpiOptions
 
 SMALL_INPUT = 256 << 10  # bytes; below this the exact path is quicker than importing numpy

@@ -17,7 +17,7 @@ from typing import Any
 from eyeq_spi.catalog.bringup import EEPROM_FILE, SWITCH_APP
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
-from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.errors import LocalProtocolError, SpecError
 from eyeq_spi.host import init_seq
 from eyeq_spi.host.config import (
     APP_IDS,
@@ -290,7 +290,7 @@ class HostBringUp:
         try:
             req = init_seq.init_request(stage, self.sw, self.codec.cat, self.nvm.data,
                                         self.config.ipb_params)
-        except (CodecError, SpecError) as exc:
+        except (LocalProtocolError, SpecError) as exc:
             self.problem = f"init message 0x{stage:02X} cannot be built: {exc}"
             self._fire(E.INIT_REJECTED, now, self.problem)
             return

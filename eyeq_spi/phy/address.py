@@ -20,7 +20,7 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
-from eyeq_spi.errors import AddressError as AddressError
+from eyeq_spi.errors import AdapterError
 
 CONNECT_FORMS = "tcp://HOST:PORT, socket://HOST:PORT, rfc2217://HOST:PORT or a tty/pty path"
 LISTEN_FORM = "tcp://HOST:PORT (port 0: any free port)"
@@ -49,17 +49,17 @@ class Address:
 def _host_port(text: str, lo_port: int) -> tuple[str, str, int, str]:
     m = _URL.match(text.strip())
     if not m:
-        raise AddressError(f"{text!r} is not SCHEME://HOST:PORT")
+        raise AdapterError(f"{text!r} is not SCHEME://HOST:PORT")
     scheme, host, port_text, rest = m.groups()
     if rest and not rest.startswith("?"):
-        raise AddressError(f"{text!r}: nothing may follow :PORT")
+        raise AdapterError(f"{text!r}: nothing may follow :PORT")
     try:
         port = int(port_text)
     except ValueError:
-        raise AddressError(f"{text!r}: the port must be an integer in {lo_port}..65535, "
+        raise AdapterError(f"{text!r}: the port must be an integer in {lo_port}..65535, "
                            f"got {port_text!r}") from None
     if not lo_port <= port <= 65535:
-        raise AddressError(f"{text!r}: the port must be in {lo_port}..65535")
+        raise AdapterError(f"{text!r}: the port must be in {lo_port}..65535")
     return scheme, host or "127.0.0.1", port, rest
 
 
@@ -70,13 +70,13 @@ def _bare(host: str) -> str:
 def parse_listen(text: str) -> Address:
     """``tcp://HOST:PORT`` to listen on."""
     if "://" not in text:
-        raise AddressError(f"{text!r}: give {LISTEN_FORM}")
+        raise AdapterError(f"{text!r}: give {LISTEN_FORM}")
     scheme = text.split("://", 1)[0].lower()
     if scheme != "tcp":
-        raise AddressError(f"cannot listen on {scheme}://; give {LISTEN_FORM}")
+        raise AdapterError(f"cannot listen on {scheme}://; give {LISTEN_FORM}")
     _, host, port, rest = _host_port(text, 0)
     if rest:
-        raise AddressError(f"{text!r}: a listening address takes no options after :PORT")
+        raise AdapterError(f"{text!r}: a listening address takes no options after :PORT")
     url = f"tcp://{host}:{port}"
     return Address("listen", url, _bare(host), port)
 
@@ -87,7 +87,7 @@ def parse_connect(text: str, *, check_path: bool = True) -> Address:
     passed through for :func:`open_url`'s callers in code."""
     if "://" not in text:
         if check_path and not os.path.exists(text):
-            raise AddressError(f"no such device {text!r}; give {CONNECT_FORMS}")
+            raise AdapterError(f"no such device {text!r}; give {CONNECT_FORMS}")
         return Address("connect", text)
     scheme = text.split("://", 1)[0].lower()
     if scheme in ("tcp", "socket", "rfc2217"):

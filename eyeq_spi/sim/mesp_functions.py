@@ -15,7 +15,7 @@ from typing import Any
 from eyeq_spi.catalog.bringup import EEPROM_FILE, FATAL_INTRINSIC
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
-from eyeq_spi.errors import CodecError, EyeqError
+from eyeq_spi.errors import EyeqError, LocalProtocolError
 from eyeq_spi.mesp.server import RET_BAD_PARAMETERS, RET_FILE_NOT_FOUND, RET_NOT_ALLOWED
 from eyeq_spi.sim.calibration import strip_crc
 from eyeq_spi.sim.flash import FlashImage, hash_request
@@ -139,7 +139,7 @@ class MespFunctions:
         stage, params = p["ct_stage"], p["params"]
         try:
             msg = init_message(stage, self.sw)
-        except (CodecError, EyeqError):
+        except (LocalProtocolError, EyeqError):
             return self._cal_result(stage, RET_BAD_PARAMETERS, p)
         if p["ct_type"] != msg.ct_type:
             return self._cal_result(stage, RET_BAD_PARAMETERS, p)
