@@ -7,7 +7,6 @@ the summary says ``interrupted``."""
 from __future__ import annotations
 
 import contextlib
-import gc
 import time
 from collections.abc import Callable
 from typing import Any
@@ -48,7 +47,6 @@ def serve(eyeq: SimulatedEyeQ, adapter: Any, *, duration: float | None, accept_t
     sim: SimulatedEyeQ | None = None
     served = SimSessions(t0)  # one summary per host served
     interrupted = False
-    gc.freeze()  # the catalogue and layouts live forever: keep collections short
     rt = contextlib.ExitStack()  # real-time scheduling for the live run only
     scheduling = rt.enter_context(realtime(rt_priority))
     try:
@@ -59,8 +57,6 @@ def serve(eyeq: SimulatedEyeQ, adapter: Any, *, duration: float | None, accept_t
             if not adapter.accept(wait):
                 continue
             sim = eyeq
-            gc.collect()
-            gc.freeze()
             runner = RealTimeRunner(sim, adapter)
             runner.tap = capture_tap(capture, t0, "e2h", "h2e")
             sim.power_up(runner.clock())
@@ -121,7 +117,6 @@ def drive(host: HostEmulator, adapter: Any, *, duration: float, address: str,
     runner = RealTimeRunner(host, adapter)
     runner.tap = capture_tap(capture, runner.clock(), "h2e", "e2h")
     can_out = attach(runner) if attach is not None else None
-    gc.freeze()
     start, cpu0 = runner.clock(), time.process_time()
     end = start + duration
     host.start(start)

@@ -12,7 +12,8 @@ import pytest
 
 from eyeq_spi.capture import pcapng_fast
 from eyeq_spi.capture.pcapng_fast import pcapng_chunks
-from eyeq_spi.capture.pcapng_io import CaptureError, CaptureWriter, Tail
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Tail
+from eyeq_spi.errors import InputError
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
@@ -39,7 +40,7 @@ def _capture(path: Path) -> bytes:
 def _read(src: object, tail: Tail | None) -> tuple[str, object]:
     try:
         chunks = list(pcapng_chunks(src, 1000, tail))  # type: ignore[arg-type]
-    except CaptureError as exc:
+    except InputError as exc:
         return "error", str(exc)
     for c in chunks:
         assert all(type(v) is bytes for v in c.odd.values())

@@ -16,9 +16,10 @@ from pathlib import Path
 import pytest
 
 from eyeq_spi.capture.pcapng_fast import pcapng_chunks
-from eyeq_spi.capture.pcapng_io import CaptureError, CaptureWriter, Tail, read_pcapng
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Tail, read_pcapng
 from eyeq_spi.cli import main
-from eyeq_spi.io.plain import InputError, open_records
+from eyeq_spi.errors import InputError
+from eyeq_spi.io.plain import open_records
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
@@ -75,7 +76,7 @@ def test_every_cut_reads_up_to_the_last_whole_block(good: bytes) -> None:
             if cut < bounds[3]:  # not one whole transfer: still a bad input (exit 2)
                 with pytest.raises(InputError, match="without any transfer"):
                     list(open_records(io.BytesIO(good[:cut]), tail=Tail())[1])
-                with pytest.raises(CaptureError, match="without any transfer"):
+                with pytest.raises(InputError, match="without any transfer"):
                     list(pcapng_chunks(io.BytesIO(good[:cut]), tail=Tail()))
                 continue
             got, tail, _ = _both(good[:cut])

@@ -117,7 +117,7 @@ def test_a_time_without_a_timestamp_is_a_capture_error_and_the_rest_is_written(
         tmp_path: Path, blocks: bool) -> None:
     """NaN, infinity or a time past 2**64 µs: one typed error (at the write, or at the flush
     that encodes it in block mode); every other transfer reaches the file."""
-    from eyeq_spi.capture.pcapng_io import CaptureError
+    from eyeq_spi.errors import OutputError
 
     path = tmp_path / "bad.pcapng"
     w = CaptureWriter(path, idle_flush=False, blocks=blocks)
@@ -125,11 +125,11 @@ def test_a_time_without_a_timestamp_is_a_capture_error_and_the_rest_is_written(
     for i, t in enumerate([0.0, 1e-3, float("nan"), 2e-3, float("inf"), 3e-3, 2e14, 4e-3]):
         try:
             w.write("h2e", t, bytes([i]) * 128)
-        except CaptureError as exc:
+        except OutputError as exc:
             errors.append(str(exc))
     try:
         w.close()
-    except CaptureError as exc:
+    except OutputError as exc:
         errors.append(str(exc))
     assert errors and all("has no pcapng timestamp" in e for e in errors)
     got = [r.data[0] for r in _records(path)]

@@ -19,7 +19,8 @@ from eyeq_spi.can.dbc import database, dbc_text  # noqa: E402
 from eyeq_spi.can.decode import CanDecoder  # noqa: E402
 from eyeq_spi.can.gateway import physical_to_raw  # noqa: E402
 from eyeq_spi.catalog.can import _load_docs, can_specs, protocol, validate_can_docs  # noqa: E402
-from eyeq_spi.catalog.can_expr import MISSING, ExprError, compile_expr  # noqa: E402
+from eyeq_spi.catalog.can_expr import MISSING, compile_expr  # noqa: E402
+from eyeq_spi.errors import SpecError  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SEEDS = ROOT.parent / "shared" / "seeds"
@@ -55,7 +56,7 @@ def test_expression_language_refuses_everything_else() -> None:
     names = {"o", "veh"}
     for bad in ("o.__class__", "open('x')", "lambda: 1", "[1 for a in o for b in o]",
                 "o if", "x"):
-        with pytest.raises(ExprError):
+        with pytest.raises(SpecError):
             compile_expr(bad, names, set())
     fn = compile_expr("-o.a.b * 2 if o.a.b > 0 else div(1, 0)", names, set())
     assert fn({"o": {"a": {"b": 1.5}}}) == -3.0

@@ -71,12 +71,12 @@ BAD: list[tuple[list[str], tuple[str, ...]]] = [
     (["sim"], ("--listen", "--pty")),
     (["sim", "--listen", "udp://x:1"], ("--listen", "tcp://HOST:PORT")),
     (["sim", "--listen", "127.0.0.1:5000"], ("--listen", "tcp://HOST:PORT")),
-    (["host", "--port", "listen://127.0.0.1:5"], ("--port", "listens", "tcp://HOST:PORT")),
+    (["host", "--port", "listen://127.0.0.1:5"], ("--port", "listen://", "tcp://HOST:PORT")),
     (["host", "--port", "udp://127.0.0.1:5"], ("--port", "udp://", "tcp://HOST:PORT")),
     (["conformance", "--dut", "host", "--listen", "rfc2217://127.0.0.1:5"],
      ("--listen", "rfc2217://", "tcp://HOST:PORT")),
     (["replay", "FILE", "--listen", "tcp://127.0.0.1:99999"], ("--listen", "0..65535")),
-    (["sim", "--port", "socket://127.0.0.1:70000"], ("--port", "0..65535")),
+    (["sim", "--listen", "tcp://127.0.0.1:70000"], ("--listen", "0..65535")),
     (["sim", "--pty", "--listen", "tcp://127.0.0.1:0"], ("--listen", "--pty")),
     (["sim", "--pty", "--accept-timeout", "-1"], ("--accept-timeout", "(0, 86400]")),
     (["sim", "--pty", "--duration", "nan"], ("--duration",)),
@@ -121,11 +121,13 @@ BAD: list[tuple[list[str], tuple[str, ...]]] = [
     (["monitor", "--port", "loop://"], ("--port", "loop://")),
     (["monitor", "--port", "socket://127.0.0.1"], ("--port", "HOST:PORT")),
     (["replay", "FILE", "--port", "loop://"], ("--port", "loop://", "tcp://HOST:PORT")),
-    (["replay", "FILE", "--port", "listen://127.0.0.1:x"], ("--port", "port must be")),
+    (["replay", "FILE", "--port", "listen://127.0.0.1:x"], ("--port", "listen://")),
+    (["sim", "--port", "tcp://127.0.0.1:7"], ("--listen", "--pty")),
+    (["sim", "--listen", "socket://127.0.0.1:7"], ("--listen", "tcp://HOST:PORT")),
+    (["sim", "--listen", "pty"], ("--listen", "tcp://HOST:PORT")),
     (["replay", "FILE", "--into-host", "--duration", "nan"], ("--duration", "(0, 86400]")),
     (["replay", "FILE", "--into-host", "--duration", "-2"], ("--duration", "(0, 86400]")),
     (["replay", "FILE", "--port", "socket://127.0.0.1:1", "--lead", "-1"], ("--lead", "[0, 3600]")),
-    (["sim", "--port", "loop://"], ("--port", "pty")),
     # --sw is checked by every command that takes it; a side's option is refused where it
     # does not run, monitor included; the --jobs ranges at parse time
     (["plot", "FILE", "--link", "--sw", "7.7"], ("--sw", "9.0")),
@@ -235,35 +237,6 @@ def test_one_address_grammar_in_every_command(
     assert capsys.readouterr().err == ""  # the new spelling: no note
 
 
-# old spellings: (argv, what they mean, the new spelling the note gives)
-OLD: list[tuple[list[str], dict[str, object], str]] = [
-    (["sim", "--port", "socket://0.0.0.0:0"], {"listen": "tcp://0.0.0.0:0", "pty": False},
-     "--listen tcp://0.0.0.0:0"),
-    (["sim", "--port", "tcp://127.0.0.1:7"], {"listen": "tcp://127.0.0.1:7"},
-     "--listen tcp://127.0.0.1:7"),
-    (["sim", "--listen", "socket://127.0.0.1:7"], {"listen": "tcp://127.0.0.1:7"},
-     "--listen tcp://127.0.0.1:7"),
-    (["sim", "--port", "pty"], {"listen": None, "pty": True}, "--pty"),
-    (["sim", "--listen", "pty"], {"listen": None, "pty": True}, "--pty"),
-    (["replay", "FILE", "--port", "listen://127.0.0.1:0"],
-     {"listen": "tcp://127.0.0.1:0", "port": None}, "--listen tcp://127.0.0.1:0"),
-    (["conformance", "--dut", "host", "--listen", "socket://127.0.0.1:0"],
-     {"listen": "tcp://127.0.0.1:0"}, "--listen tcp://127.0.0.1:0"),
-]
-
-
-@pytest.mark.parametrize(("argv", "want", "new"), OLD, ids=[" ".join(a) for a, _, _ in OLD])
-def test_old_spellings_work_with_a_one_line_note_giving_the_new_one(
-    argv: list[str], want: dict[str, object], new: str, files: dict[str, str],
-    capsys: pytest.CaptureFixture[str],
-) -> None:
-    a = _parse(_fill(argv, files))
-    assert {k: getattr(a, k) for k in want} == want
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("eyeq-spi: note: "), err
-    assert f"say {new}" in err and "old spelling" in err, err
-
-
 def test_the_listener_prints_a_url_host_can_use() -> None:
     from eyeq_spi.phy.tcp import TcpListenAdapter
 
@@ -320,10 +293,11 @@ def test_help_lists_every_command_without_loading_the_catalogue() -> None:
 def test_parquet_without_pyarrow_gives_the_install_hint(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
-    from eyeq_spi.dissect.output import OutputError, TableWriter
+    from eyeq_spi.dissect.output import TableWriter
+    from eyeq_spi.errors import MissingExtra
 
     monkeypatch.setitem(sys.modules, "pyarrow", None)
-    with pytest.raises(OutputError, match=r"eyeq-spi\[parquet\]"):
+    with pytest.raises(MissingExtra, match=r"eyeq-spi\[parquet\]"):
         TableWriter(str(tmp_path / "pq"), "parquet")
 
 
@@ -340,3 +314,42 @@ def test_sim_prints_the_exact_url_to_hand_to_host_on_stderr() -> None:
     summary = json.loads(r.stdout)  # the whole of stdout is one JSON object
     assert summary["address"] == url and summary["connections"] == 0
     assert summary["problem"].startswith("no host connected") and r.returncode == 1
+
+
+def test_the_parser_of_one_command_is_the_full_parser_for_that_command() -> None:
+    """main() builds only the command it runs; COMMANDS must list every command with its help, in
+    the order of the full parser, and each command's parser must not depend on the others."""
+    import argparse
+
+    from eyeq_spi.cli import COMMANDS
+
+    def subs(p: argparse.ArgumentParser) -> tuple[dict[str, str], dict[str, str]]:
+        act = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
+        helps = {c.dest: str(c.help) for c in act._choices_actions}
+        return helps, {n: sp.format_help() for n, sp in act.choices.items()}
+
+    full_help, full = subs(build_parser())
+    assert list(full_help.items()) == list(COMMANDS.items())
+    assert build_parser("").format_help() == build_parser().format_help()
+    for name in COMMANDS:
+        helps, one = subs(build_parser(name))
+        assert helps == full_help and one[name] == full[name], name
+
+
+@pytest.mark.parametrize(("given", "expected"), [(None, "1"), ("3", "3")])
+def test_the_cli_keeps_openblas_to_one_thread_unless_the_user_chose(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], given: str | None,
+    expected: str,
+) -> None:
+    """numpy's OpenBLAS starts a spinning thread per core at import, which only burned CPU (no
+    command does linear algebra): main() asks for one before anything imports numpy, and leaves
+    a value the user set."""
+    import os
+
+    if given is None:
+        monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    else:
+        monkeypatch.setenv("OPENBLAS_NUM_THREADS", given)
+    assert main(["spec", "list"]) == 0
+    capsys.readouterr()
+    assert os.environ["OPENBLAS_NUM_THREADS"] == expected

@@ -22,7 +22,7 @@ from eyeq_spi.codec.intrinsic import (
 )
 from eyeq_spi.codec.layout import LayoutCache
 from eyeq_spi.codec.message import MessageCodec, classify
-from eyeq_spi.errors import CodecError
+from eyeq_spi.errors import LocalProtocolError
 from tests.strategies import layout_values, signal_value
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
@@ -108,7 +108,7 @@ def test_bitfield_value_that_does_not_fit_is_a_codec_error() -> None:
     lay = LC.get("eyeq_vision_failsafes_t", "sw6")
     v = layout_values(CAT, lay).example()
     v["outOfCalibTSR"] = 64
-    with pytest.raises(CodecError, match="outOfCalibTSR"):
+    with pytest.raises(LocalProtocolError, match="outOfCalibTSR"):
         lay.build(v)
 
 
@@ -151,7 +151,7 @@ def test_appendix_e_eeprom_example() -> None:
 def test_boot_version_example() -> None:
     assert version_bytes("7.1.23") == bytes.fromhex("07011700")
     assert version_text(bytes.fromhex("07011700")) == "7.1.23"
-    with pytest.raises(CodecError):
+    with pytest.raises(LocalProtocolError):
         version_bytes("7.1.300")
 
 
@@ -161,7 +161,7 @@ def test_num_of_distor_params_is_normalised(raw: int, sent: int) -> None:
 
 
 def test_num_of_distor_params_other_values_are_refused() -> None:
-    with pytest.raises(CodecError):
+    with pytest.raises(LocalProtocolError):
         normalise_num_distor_params(5)
 
 
@@ -223,9 +223,9 @@ def test_a_value_inside_the_range_tolerance_encodes_to_bytes_the_check_accepts(
 
 def test_out_of_range_init_value_names_the_signal_and_range() -> None:
     codec = BitSignalCodec.for_message("Init_Params_Vision")
-    with pytest.raises(CodecError, match=r"cameraHeight = 4.*\[0.5, 3.5\]"):
+    with pytest.raises(LocalProtocolError, match=r"cameraHeight = 4.*\[0.5, 3.5\]"):
         codec.encode({"cameraHeight": 4.0})
-    with pytest.raises(CodecError, match="unknown signal"):
+    with pytest.raises(LocalProtocolError, match="unknown signal"):
         codec.encode({"noSuchSignal": 1})
 
 

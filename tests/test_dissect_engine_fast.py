@@ -16,13 +16,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from eyeq_spi.capture.pcapng_fast import chunks_from_records, pcapng_chunks, raw_chunks
-from eyeq_spi.capture.pcapng_io import CaptureError, CaptureWriter, Record, read_pcapng
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Record, read_pcapng
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import engine
 from eyeq_spi.dissect import engine_fast as batch
 from eyeq_spi.dissect.engine_fast_frames import FrameBlock, frame_arrays
+from eyeq_spi.errors import InputError
 from eyeq_spi.link.frame import FrameCodec, NakReason
 from eyeq_spi.transport.segment import segment
 
@@ -129,15 +130,15 @@ def test_fast_reader_errors_after_the_good_records(tmp_path: Path) -> None:
     path = _pcapng(synthetic(1), tmp_path / "c.pcapng")
     data = path.read_bytes()
     got: list[Record] = []
-    with pytest.raises(CaptureError):
+    with pytest.raises(InputError):
         for c in pcapng_chunks(io.BytesIO(data[:-77]), 4):
             got += _rows([c])
     with open(path, "rb") as fh:
         assert got == list(read_pcapng(fh))[: len(got)] and got
-    with pytest.raises(CaptureError):
+    with pytest.raises(InputError):
         list(pcapng_chunks(io.BytesIO(b"\x0a\x0d\x0d\x0a" + b"\xff" * 50)))
     raw = b"".join(w for _, _, w in synthetic(1))
-    with pytest.raises(CaptureError, match="truncated"):
+    with pytest.raises(InputError, match="truncated"):
         list(raw_chunks(io.BytesIO(raw + b"\x01"), "e2h"))
     assert sum(len(c) for c in raw_chunks(io.BytesIO(raw), "e2h", 5)) == len(raw) // 128
 

@@ -14,7 +14,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from eyeq_spi.capture.pcapng_io import MAX_BLOCK, CaptureWriter
-from eyeq_spi.io.plain import MAX_HEX_LINE, InputError, open_records
+from eyeq_spi.errors import InputError
+from eyeq_spi.io.plain import MAX_HEX_LINE, open_records
 
 
 @pytest.fixture(scope="module")

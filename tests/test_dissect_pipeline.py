@@ -137,7 +137,7 @@ def test_plot_reads_a_saleae_export_like_the_capture(saleae: Path, demo: Path,
 def test_monitor_replays_a_saleae_export_like_the_capture(saleae: Path, demo: Path,
                                                           capsys: pytest.CaptureFixture[str]
                                                           ) -> None:
-    pytest.importorskip("rich", reason="monitor needs rich (the [monitor] extra)")
+    pytest.importorskip("rich", reason="monitor needs rich")
     from eyeq_spi.monitor.sources import DissectSource, ReplaySource
     from tests.test_monitor import _drain
 

@@ -201,7 +201,7 @@ def test_a_fault_still_comes_after_the_transfers_before_it(captures: dict[str, P
     them, as the reader alone would."""
     import io
 
-    from eyeq_spi.io.plain import InputError
+    from eyeq_spi.errors import InputError
 
     data = (captures["8.1"].read_bytes().replace(b"eyeq-spi sw=8.1", b"another tool   "))
     at = 0  # the 40th block among the first transfers gets an impossible length

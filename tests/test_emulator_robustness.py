@@ -29,7 +29,7 @@ S = HostState
 @pytest.mark.parametrize("value", [float("nan"), float("inf"), 1e6])
 def test_crc_valid_eeprom_with_unusable_value_is_a_camera_fault(value: float) -> None:
     """Defect 2: a CRC-valid EEPROM whose CCAM_distorParams_m_0 cannot be encoded sent the host
-    into a CodecError crash in _send_init. Now: FAILED, with a problem naming the field."""
+    into a LocalProtocolError crash in _send_init. Now: FAILED, with a problem naming the field."""
     emu = build()
     sig = eeprom_codec().signals["CCAM_distorParams_m_0"]
     image = bytearray(emu.sim.eeprom)
@@ -206,7 +206,7 @@ def test_a_scenario_value_the_message_cannot_carry_is_a_host_problem_not_a_crash
 def test_both_encoders_refuse_unencodable_values_with_a_codec_error(
     monkeypatch: pytest.MonkeyPatch, exact_path: bool,
 ) -> None:
-    from eyeq_spi.errors import CodecError
+    from eyeq_spi.errors import LocalProtocolError
 
     monkeypatch.setenv("EYEQ_SPI_EXACT", "1" if exact_path else "0")
     codec = MessageCodec()
@@ -215,5 +215,5 @@ def test_both_encoders_refuse_unencodable_values_with_a_codec_error(
                           ("vehIndex", 1 << 40), ("vehicleVelocity", "fast")):
         values = lay.zero_values()
         values["vehStateInfo"][member] = value
-        with pytest.raises(CodecError, match="cannot encode"):
+        with pytest.raises(LocalProtocolError, match="cannot encode"):
             lay.build(values)

@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 
 from eyeq_spi.cli import main
-from eyeq_spi.host.nvm import Nvm, NvmError, alignment_defaults
-from eyeq_spi.host.scenario import ConstantDrive, CsvScenario, ScenarioError
+from eyeq_spi.errors import InputError, OutputError
+from eyeq_spi.host.nvm import Nvm, alignment_defaults
+from eyeq_spi.host.scenario import ConstantDrive, CsvScenario
 
 
 def test_round_trip_and_first_power_up(tmp_path: Path) -> None:
@@ -38,7 +39,7 @@ def test_a_crash_during_save_leaves_the_old_file_and_no_debris(
 
     monkeypatch.setattr(os, "replace", crash)
     nvm.data.ignition_cycles = 2
-    with pytest.raises(NvmError):
+    with pytest.raises(OutputError):
         nvm.save()
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["n.json"]
@@ -67,13 +68,13 @@ def test_csv_scenario_errors_are_typed(tmp_path: Path) -> None:
                       ("time,vehicleVelocity\n0,1,2\n", "3 fields"),
                       ("time,vehicleVelocity\n0,nan\n", "finite")):
         bad.write_text(text)
-        with pytest.raises(ScenarioError, match=msg):
+        with pytest.raises(InputError, match=msg):
             CsvScenario(bad)
-    with pytest.raises(ScenarioError):
+    with pytest.raises(InputError):
         CsvScenario(tmp_path / "missing.csv")
-    with pytest.raises(ScenarioError):
+    with pytest.raises(InputError):
         CsvScenario(_write(tmp_path, "time,noSuchSignal\n0,1\n"), allowed={"vehicleVelocity"})
-    with pytest.raises(ScenarioError):
+    with pytest.raises(InputError):
         ConstantDrive(float("inf"))
 
 

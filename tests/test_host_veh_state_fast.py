@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from eyeq_spi.catalog.messages import catalog, sw_release
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.errors import LocalProtocolError, SpecError
 from eyeq_spi.host.host import HostEmulator
 from eyeq_spi.host.scenario import ConstantDrive
 from eyeq_spi.host.veh_state_fast import NAME, VehStatePacker
@@ -51,8 +51,8 @@ def _reference(codec: MessageCodec, signals: dict[str, Any], now: float, rolling
         values = veh_state_values(codec.layout(msg).zero_values(), signals, now,
                                   sw_release(codec.sw), rolling)
         return codec.encode_dasp(NAME, values, counter, e2e)
-    except CodecError as exc:
-        return f"CodecError: {exc}"
+    except LocalProtocolError as exc:
+        return f"LocalProtocolError: {exc}"
     except (OverflowError, ValueError, TypeError) as exc:
         return type(exc).__name__
 

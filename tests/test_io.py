@@ -22,7 +22,7 @@ import pytest
 
 from eyeq_spi import io as registry
 from eyeq_spi.capture.pcapng_io import Record, read_pcapng
-from eyeq_spi.errors import InputError, MissingExtraError, TruncatedInputError, UnknownFormatError
+from eyeq_spi.errors import InputError, MissingExtra, TruncatedInputError, UnknownFormatError
 from eyeq_spi.io import CAPTURE_READER, CAPTURE_WRITER, RECORD_WRITER, Format
 from eyeq_spi.io.plain import open_records
 
@@ -212,12 +212,12 @@ def test_a_missing_extra_names_the_pip_extra(monkeypatch: pytest.MonkeyPatch) ->
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
                         lambda name, *a: None if name == "asammdf" else real(name, *a))
-    with pytest.raises(MissingExtraError, match=r"pip install 'eyeq-spi\[export\]'") as exc:
+    with pytest.raises(MissingExtra, match=r"pip install 'eyeq-spi\[export\]'") as exc:
         registry.load("mdf4", RECORD_WRITER)
     assert exc.value.extra == "export"
     fake = Format("fake", RECORD_WRITER, (".fake",), "no_such_module_xyz:Writer", "",
                   extra="fake", needs=("no_such_module_xyz",))
-    with pytest.raises(MissingExtraError, match=r"eyeq-spi\[fake\]"):
+    with pytest.raises(MissingExtra, match=r"eyeq-spi\[fake\]"):
         registry.load(fake)
 
 

@@ -5,7 +5,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from eyeq_spi.crc import VARIANTS
-from eyeq_spi.errors import FrameError, LocalProtocolError
+from eyeq_spi.errors import LocalProtocolError, RemoteProtocolError
 from eyeq_spi.link.frame import FRAME_SIZE, BitOrder, Frame, FrameCodec, FrameKind, NakReason
 
 codec = FrameCodec()
@@ -67,7 +67,7 @@ def test_ack_and_nak_crc_cover_the_header_only() -> None:
 
 @pytest.mark.parametrize("length", [0, 1, 127, 129, 256])
 def test_wrong_length_is_a_frame_error(length: int) -> None:
-    with pytest.raises(FrameError):
+    with pytest.raises(RemoteProtocolError):
         codec.decode(bytes(length))
 
 
@@ -122,7 +122,7 @@ def test_judge_agrees_with_decode_and_crc_ok(raw: bytes, order: BitOrder, fix_cr
 
 @pytest.mark.parametrize("length", [0, 127, 129])
 def test_judge_refuses_a_wrong_length(length: int) -> None:
-    with pytest.raises(FrameError):
+    with pytest.raises(RemoteProtocolError):
         FrameCodec().judge(bytes(length))
 
 
@@ -160,7 +160,7 @@ def test_data_nums_read_what_judge_reads(raws: list[bytes], order: BitOrder, fix
     for f in frames:
         try:
             d, r, _, num, ok = codec.judge(f)
-        except FrameError:
+        except RemoteProtocolError:
             want.append(None)
             heads.append(None)
             continue

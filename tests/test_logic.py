@@ -16,7 +16,8 @@ from hypothesis import strategies as st
 
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record, read_pcapng
 from eyeq_spi.cli import main
-from eyeq_spi.io.plain import InputError, detect, open_records
+from eyeq_spi.errors import InputError
+from eyeq_spi.io.plain import detect, open_records
 from eyeq_spi.link.frame import FrameCodec
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.vcd import read_vcd

@@ -14,8 +14,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.errors import InputError
 from eyeq_spi.logic import saleae_fast, vcd_fast
-from eyeq_spi.logic.options import LogicInputError, SpiOptions
+from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.saleae import read_saleae1, read_saleae2
 from eyeq_spi.logic.vcd import read_vcd
 from eyeq_spi.logic.vcd_write import write_vcd
@@ -32,7 +33,7 @@ def _both(read: Reader, data: bytes, opts: SpiOptions, chunk: int
     def run() -> list[Record] | str:
         try:
             return list(read(io.BytesIO(data), opts, chunk_size=chunk))
-        except LogicInputError as exc:
+        except InputError as exc:
             return f"error: {exc}"
 
     fast = run()
@@ -138,7 +139,7 @@ def test_saleae_transfer_without_chip_select_rising_is_bounded(read: Reader, hea
     too, whatever the chunking."""
     data = (head + row * 5000).encode()
     for chunk in (1 << 12, 1 << 20):
-        with pytest.raises(LogicInputError, match=r"line \d+: transfer longer than 4096"):
+        with pytest.raises(InputError, match=r"line \d+: transfer longer than 4096"):
             list(read(io.BytesIO(data), SpiOptions(direction="h2e"), chunk_size=chunk))
 
 
@@ -194,7 +195,7 @@ def test_saleae2_iso8601_timestamps(chunk: int) -> None:
     assert [r.time for r in fast] == pytest.approx([base, base + 3e-4, base + 6e-4], abs=1e-6)
     assert [r.data for r in fast] == [b"\x00", b"\x01", b"\x02"]
     bad = data.replace(b"2026-11-23T15:02:04.5006", b"2026-13-23T15:02:04")
-    with pytest.raises(LogicInputError, match="line 8: bad time"):
+    with pytest.raises(InputError, match="line 8: bad time"):
         list(read_saleae2(io.BytesIO(bad), SpiOptions(), chunk_size=chunk))
 
 
@@ -239,7 +240,7 @@ def test_mutated_captures_read_alike_on_both_paths(case: tuple[str, bytes], chun
         def run() -> list[Record] | str:
             try:
                 return list(read_vcd(io.BytesIO(data), opts, chunk_size=chunk))
-            except LogicInputError as exc:
+            except InputError as exc:
                 return f"error: {exc}"
 
         fast = run()

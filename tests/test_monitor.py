@@ -23,10 +23,11 @@ from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.cli import main
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import build
+from eyeq_spi.errors import UsageError
 from eyeq_spi.monitor.app import run
 from eyeq_spi.monitor.model import RateMeter, Snapshot, band
 from eyeq_spi.monitor.sources import DemoSource, DissectSource, HostSource, ReplaySource
-from eyeq_spi.monitor.view import MonitorError, render
+from eyeq_spi.monitor.view import render
 from eyeq_spi.plot.perceived import OBSTACLES, ROAD
 from tests.test_plot_scene import synthetic_capture
 
@@ -275,7 +276,7 @@ def test_host_source_stops_at_its_duration() -> None:
 
 def test_refresh_limits_and_bad_replay(tmp_path: Path, capsys: pytest.CaptureFixture[str]
                                        ) -> None:
-    with pytest.raises(MonitorError):
+    with pytest.raises(UsageError):
         run(DemoSource(build(), 0.1, realtime=False), refresh=2.0)
     assert main(["monitor", "--replay", str(tmp_path / "nope.pcapng")]) == 2
     assert main(["monitor", "--demo", "--pace", "-1"]) == 2

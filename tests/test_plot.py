@@ -13,8 +13,8 @@ pytest.importorskip("matplotlib", reason="the plot extra (matplotlib) is not ins
 
 from eyeq_spi.cli import main
 from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.errors import MissingExtra
 from eyeq_spi.link.frame import FrameCodec
-from eyeq_spi.plot import PlotError
 from eyeq_spi.plot.birdseye import (
     CIPV_EDGE,
     DPI,
@@ -361,7 +361,7 @@ def test_missing_matplotlib_is_a_typed_error(monkeypatch: pytest.MonkeyPatch) ->
     from eyeq_spi.plot.figures import mpl
 
     monkeypatch.setitem(sys.modules, "matplotlib", None)
-    with pytest.raises(PlotError, match=r"pip install 'eyeq-spi\[plot\]'"):
+    with pytest.raises(MissingExtra, match=r"pip install 'eyeq-spi\[plot\]'"):
         mpl()
 
 

@@ -16,7 +16,7 @@ from eyeq_spi.catalog.messages import MessageDef, catalog
 from eyeq_spi.codec.e2e import E2EState, protect
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import build
-from eyeq_spi.errors import CodecError
+from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.host.host import HostConfig
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import CsvScenario
@@ -127,11 +127,11 @@ def test_views_refuse_what_the_encoder_refuses() -> None:
     m = codec.cat.message("EYEQ_VIS_FAILSAFE_MSG")
     p = DaspPacker(codec.layout(m), m.data_id)
     fs = p.root["visFailsafes"]
-    with pytest.raises(CodecError):
+    with pytest.raises(LocalProtocolError):
         fs["outOfCalibTSR"] = 64  # a 6-bit member
-    with pytest.raises(CodecError):
+    with pytest.raises(LocalProtocolError):
         fs["freeSight"] = 1.5  # a float in an integer member
-    with pytest.raises(CodecError):
+    with pytest.raises(LocalProtocolError):
         p.encode(256, None)
     fs["outOfCalibTSR"] = 1
     assert fs["outOfCalibTSR"] == 1 and "freeSight" in fs and "nope" not in fs

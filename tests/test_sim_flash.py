@@ -12,7 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from eyeq_spi.catalog.messages import catalog
-from eyeq_spi.errors import CodecError
+from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.sim.flash import (
     DATASET_EXPLICIT,
     DATASET_FFS,
@@ -86,7 +86,7 @@ def test_each_region_starts_programmed_then_erased(mb: int) -> None:
 
 @pytest.mark.parametrize("bad", [0, 32, 63, 256])
 def test_unknown_flash_size_is_refused(bad: int) -> None:
-    with pytest.raises(CodecError, match="flash size"):
+    with pytest.raises(LocalProtocolError, match="flash size"):
         FlashImage(bad)
 
 
@@ -102,11 +102,11 @@ def test_128mb_low_range_holds_the_64mb_image(flash64: FlashImage, flash128: Fla
 # -- read -----------------------------------------------------------------------------------
 def test_read_is_bounded(flash64: FlashImage) -> None:
     assert len(flash64.read(0, MIB)) == MIB
-    with pytest.raises(CodecError, match="1 MiB"):
+    with pytest.raises(LocalProtocolError, match="1 MiB"):
         flash64.read(0, MIB + 1)
-    with pytest.raises(CodecError, match="outside"):
+    with pytest.raises(LocalProtocolError, match="outside"):
         flash64.read(flash64.size - 10, 11)
-    with pytest.raises(CodecError, match="outside"):
+    with pytest.raises(LocalProtocolError, match="outside"):
         flash64.read(-1, 4)
     assert flash64.read(flash64.size - 10, 10) != b""
     assert flash64.read(123, 0) == b""
@@ -162,9 +162,9 @@ def test_whole_image_hash_is_stable(mb: int) -> None:
 
 
 def test_hash_refuses_bad_arguments(flash64: FlashImage) -> None:
-    with pytest.raises(CodecError, match="hash type"):
+    with pytest.raises(LocalProtocolError, match="hash type"):
         flash64.hash(2, 0, 16)
-    with pytest.raises(CodecError, match="outside"):
+    with pytest.raises(LocalProtocolError, match="outside"):
         flash64.hash(HASH_CRC32, flash64.size - 1, 2)
 
 
@@ -198,7 +198,7 @@ def test_set_bytes_merges_extents_and_checks_bounds() -> None:
     image.set_bytes(s0 + l0 - 2, b"\x00" * (s1 - (s0 + l0) + 4))  # bridges the gap
     assert len(image.extents) == n - 1
     assert image.read(s0 + l0 - 2, 8) == b"\x00" * 8
-    with pytest.raises(CodecError, match="outside"):
+    with pytest.raises(LocalProtocolError, match="outside"):
         image.set_bytes(image.size - 1, b"ab")
 
 

@@ -19,8 +19,9 @@ from typing import Any
 import pytest
 
 from eyeq_spi import twins
-from eyeq_spi.capture.pcapng_io import CaptureError, Record, read_pcapng
-from eyeq_spi.logic.options import LogicInputError, SpiOptions
+from eyeq_spi.capture.pcapng_io import Record, read_pcapng
+from eyeq_spi.errors import InputError
+from eyeq_spi.logic.options import SpiOptions
 
 pytestmark = pytest.mark.twin
 
@@ -31,7 +32,7 @@ def _outcome(fn: Callable[[], Any]) -> Any:
     """The output, or the error's type and text (both paths must fail alike too)."""
     try:
         return fn()
-    except (LogicInputError, CaptureError) as exc:
+    except InputError as exc:
         return f"{type(exc).__name__}: {exc}"
 
 

@@ -23,6 +23,7 @@ import pytest
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record, read_pcapng
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
+from eyeq_spi.errors import SpecError
 from eyeq_spi.link.frame import FRAME_SIZE, Frame, FrameCodec, FrameKind, NakReason
 from eyeq_spi.transport.segment import (
     CONSECUTIVE,
@@ -568,7 +569,7 @@ def test_one_field_per_member_across_releases() -> None:
     merged = merge("s.x", [old, new])
     assert (merged.ctor, merged.vs, merged.mask, merged.desc) == ("uint16", None, None, "uint16")
     assert merge("s.x", [old, old]) == old
-    with pytest.raises(ValueError, match="cannot share"):
+    with pytest.raises(SpecError, match="cannot share"):
         merge("s.x", [old, MemberField("float", "x", "real32")])
     lua = generate_lua()
     # a member whose mask differs between releases: computed from its container in that layout

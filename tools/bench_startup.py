@@ -113,7 +113,8 @@ def row(label: str, samples: tuple[list[float], list[float]], base: float) -> st
     med = statistics.median(wall)
     lo, hi = min(wall) * 1000, max(wall) * 1000
     return (f"| {label} | {med * 1000:.0f} ms | {lo:.0f}..{hi:.0f} ms | {med / base:.1f}x | "
-            f"{statistics.median(cpu) * 1000:.0f} ms |")
+            f"{statistics.median(cpu) * 1000:.0f} ms | {min(cpu) * 1000:.0f}.."
+            f"{max(cpu) * 1000:.0f} ms |")
 
 
 def main() -> int:
@@ -152,8 +153,8 @@ def main() -> int:
         for name, tree in trees:
             env = {**base_env, "PYTHONPATH": str(tree)}
             print(f"\n{name}: {tree if tree == ROOT else 'git archive'}")
-            print("| command | median wall | spread | / baseline | median CPU |\n"
-                  "|---|---|---|---|---|")
+            print("| command | median wall | spread | / baseline | median CPU | CPU spread |\n"
+                  "|---|---|---|---|---|---|")
             for label, argv in commands(small_hex, small_pcapng, batch):
                 samples = time_one([sys.executable, "-m", "eyeq_spi.cli", *argv], env, args.runs,
                                    tmp)

@@ -137,8 +137,7 @@ def oldest(pytest_args: list[str]) -> int:
 # what the newest Python must pass beyond mypy: the dependency-facing tests (the newest numpy,
 # pyarrow, ... come only for the newest Python) and what leans on the interpreter's own
 # generated text (argparse's help, dataclasses' code)
-NEWEST_TESTS = [*OLDEST_TESTS, "tests/test_cli_reference.py", "tests/test_startup_code_cache.py",
-                "tests/test_sim_scene.py"]
+NEWEST_TESTS = [*OLDEST_TESTS, "tests/test_cli_reference.py", "tests/test_sim_scene.py"]
 
 
 def _python_version(py: str) -> tuple[int, int] | None:

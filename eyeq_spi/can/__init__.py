@@ -2,7 +2,7 @@
 from decoded DASP data, and a CAN log decoder. Sits beside the host and the simulator: it only
 uses the host's public hooks (subscribers, its scenario, the runner's node slot)."""
 
-from eyeq_spi.can.dbc import CanExtraMissingError, build_database, dbc_text
+from eyeq_spi.can.dbc import build_database, dbc_text
 from eyeq_spi.can.gateway import CanFrame, CanGateway
 
-__all__ = ["CanExtraMissingError", "CanFrame", "CanGateway", "build_database", "dbc_text"]
+__all__ = ["CanFrame", "CanGateway", "build_database", "dbc_text"]

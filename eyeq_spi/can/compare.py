@@ -19,7 +19,7 @@ from typing import Any
 
 from eyeq_spi.can.dbc import INVALID_ATTRIBUTE, database, require_cantools
 from eyeq_spi.catalog.can import CanMessage, CanSignal, can_documents, protocol
-from eyeq_spi.errors import CanCompareError as CanCompareError
+from eyeq_spi.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -93,11 +93,11 @@ def _load(path: str) -> Any:
     cantools = require_cantools()
     p = Path(path)
     if not p.is_file():
-        raise CanCompareError(f"{path}: no such file")
+        raise InputError(f"{path}: no such file")
     try:
         return cantools.database.load_file(str(p), strict=False)
     except Exception as exc:  # cantools raises many kinds on a foreign or broken file
-        raise CanCompareError(f"{path}: not a readable DBC: {exc}") from exc
+        raise InputError(f"{path}: not a readable DBC: {exc}") from exc
 
 
 def compare(path: str, proto: str = "extlog2") -> list[Difference]:

@@ -16,8 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.catalog.can import CanMessage, CanProtocol, CanSignal, protocol
-from eyeq_spi.errors import CanExtraMissingError as CanExtraMissingError
-from eyeq_spi.errors import EyeqError, SpecError
+from eyeq_spi.errors import EyeqError, MissingExtra, SpecError
 
 INVALID_ATTRIBUTE = "GenSigInvalidValue"
 
@@ -26,8 +25,7 @@ def require_cantools() -> Any:
     try:
         import cantools
     except ImportError as exc:
-        raise CanExtraMissingError("CAN output needs cantools and python-can: "
-                              "pip install 'eyeq-spi[can]'") from exc
+        raise MissingExtra("can", "CAN output needs cantools and python-can") from exc
     return cantools
 
 

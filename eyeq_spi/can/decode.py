@@ -27,11 +27,11 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
-from eyeq_spi.can.logs import CanLogError, CanLogTruncatedError, read_log
+from eyeq_spi.can.logs import read_log
 from eyeq_spi.catalog.can import CanMessage, CanSignal, protocol
 
-__all__ = ["CanDecoder", "CanLogError", "CanLogTruncatedError", "MessageDecoder",
-           "SignalDecoder", "human_record", "read_log", "table_record"]
+__all__ = ["CanDecoder", "MessageDecoder", "SignalDecoder", "human_record", "read_log",
+           "table_record"]
 
 _F32 = struct.Struct(">f")
 

@@ -6,7 +6,7 @@ an ASC, candump or TRC file cut inside a line gives the frames before the cut an
 after the reader ends, :func:`read_log` checks the file itself: a BLF whose header announces more
 bytes than the file has, a text log whose last line has no line end (or an ASC without its
 ``End TriggerBlock``), an MF4 that cannot be opened although it starts like one. It then raises
-:class:`CanLogTruncatedError`, which says how much was read; the frames before it have been
+:class:`TruncatedInputError`, which says how much was read; the frames before it have been
 yielded (and decoded) already.
 """
 
@@ -20,10 +20,14 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.can.dbc import require_cantools
-from eyeq_spi.errors import CanBusError as CanBusError
-from eyeq_spi.errors import CanLogError as CanLogError
-from eyeq_spi.errors import CanLogTruncatedError as CanLogTruncatedError
-from eyeq_spi.errors import EyeqError, UsageError
+from eyeq_spi.errors import (
+    AdapterError,
+    EyeqError,
+    InputError,
+    MissingExtra,
+    TruncatedInputError,
+    UsageError,
+)
 
 READ_SUFFIXES = (".blf", ".asc", ".log", ".trc", ".mf4", ".csv")
 TEXT_SUFFIXES = (".asc", ".log", ".trc", ".csv")
@@ -86,7 +90,7 @@ def truncation(p: Path, frames: int) -> str | None:
 
 
 def read_log(path: str) -> Iterator[Any]:
-    """python-can messages of one log file, in file order; :class:`CanLogTruncatedError` after
+    """python-can messages of one log file, in file order; :class:`TruncatedInputError` after
     the last frame when the file ends inside a record or container."""
     require_cantools()
     import can
@@ -94,21 +98,20 @@ def read_log(path: str) -> Iterator[Any]:
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in READ_SUFFIXES:
-        raise CanLogError(f"{path}: unknown CAN log format {p.suffix!r} "
-                          f"(one of {', '.join(READ_SUFFIXES)})")
+        raise InputError(f"{path}: unknown CAN log format {p.suffix!r} "
+                         f"(one of {', '.join(READ_SUFFIXES)})")
     if not p.is_file():
-        raise CanLogError(f"{path}: no such file")
+        raise InputError(f"{path}: no such file")
     try:
         reader = _open(can, p)
     except ImportError as exc:
-        raise CanLogError(f"{path}: this format needs {exc.name or exc} "
-                          "(pip install asammdf for .mf4)") from exc
+        raise MissingExtra("export", f"{path}: this format needs {exc.name or exc}") from exc
     except Exception as exc:  # python-can raises many kinds on a foreign file
         if suffix == ".mf4" and _starts_like_mf4(p):
-            raise CanLogTruncatedError(
+            raise TruncatedInputError(
                 f"{path}: truncated or damaged MF4 ({p.stat().st_size} bytes, which asammdf "
-                f"cannot open: {exc}); 0 frames read", 0) from exc
-        raise CanLogError(f"{path}: not a readable {p.suffix} CAN log: {exc}") from exc
+                f"cannot open: {exc}); 0 frames read") from exc
+        raise InputError(f"{path}: not a readable {p.suffix} CAN log: {exc}") from exc
     frames = 0
     try:
         for msg in reader:
@@ -119,16 +122,16 @@ def read_log(path: str) -> Iterator[Any]:
     except Exception as exc:  # cut or corrupt content
         why = truncation(p, frames)
         if why is not None:
-            raise CanLogTruncatedError(why, frames) from exc
-        raise CanLogError(f"{path}: corrupt {p.suffix} CAN log after {frames} frames: "
-                          f"{exc}") from exc
+            raise TruncatedInputError(why, frames=frames) from exc
+        raise InputError(f"{path}: corrupt {p.suffix} CAN log after {frames} frames: "
+                         f"{exc}") from exc
     finally:
         stop = getattr(reader, "stop", None)
         if callable(stop):
             stop()
     why = truncation(p, frames)
     if why is not None:
-        raise CanLogTruncatedError(why, frames)
+        raise TruncatedInputError(why, frames=frames)
 
 
 class _OpenError(Exception):
@@ -175,7 +178,7 @@ def open_bus(target: str) -> Any:
     try:
         return can.Bus(interface=interface, channel=channel, receive_own_messages=False)
     except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:
-        raise CanBusError(f"cannot open CAN bus {target!r}: {exc}") from exc
+        raise AdapterError(f"cannot open CAN bus {target!r}: {exc}") from exc
 
 
 def read_bus(bus: Any, *, duration: float | None = None, count: int | None = None,
@@ -195,7 +198,7 @@ def read_bus(bus: Any, *, duration: float | None = None, count: int | None = Non
         try:
             msg = bus.recv(timeout)
         except (can.CanError, OSError, ValueError) as exc:
-            raise CanBusError(f"CAN bus read failed after {n} frames: {exc}") from exc
+            raise AdapterError(f"CAN bus read failed after {n} frames: {exc}") from exc
         if msg is None:
             if end is not None and clock() >= end:
                 return

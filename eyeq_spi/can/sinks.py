@@ -14,10 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.can.dbc import CanExtraMissingError
 from eyeq_spi.can.gateway import CanFrame, CanGateway, GatewayNode
-from eyeq_spi.errors import CanOutputError as CanOutputError
-from eyeq_spi.errors import UsageError
+from eyeq_spi.errors import AdapterError, MissingExtra, OutputError, UsageError
 
 LOG_SUFFIXES = (".blf", ".asc", ".mf4", ".log", ".trc", ".csv")
 
@@ -26,8 +24,7 @@ def _can() -> Any:
     try:
         import can
     except ImportError as exc:
-        raise CanExtraMissingError("CAN output needs python-can: pip install 'eyeq-spi[can]'") \
-            from exc
+        raise MissingExtra("can", "CAN output needs python-can") from exc
     return can
 
 
@@ -80,10 +77,10 @@ def open_target(target: str) -> CanSink:
         try:
             writer = can.Logger(target)
         except ImportError as exc:
-            raise CanExtraMissingError(f"{target}: {suffix} logs need {exc.name or exc}: "
-                                  "pip install 'eyeq-spi[can]' asammdf") from exc
+            raise MissingExtra("can,export", f"{target}: {suffix} logs need {exc.name or exc}"
+                               ) from exc
         except (OSError, ValueError) as exc:
-            raise CanOutputError(f"cannot write CAN log {target}: {exc}") from exc
+            raise OutputError(f"cannot write CAN log {target}: {exc}") from exc
         return CanSink(target, "log", writer)
     interface, _, channel = target.partition(":")
     if "." in interface or "/" in interface:
@@ -93,7 +90,7 @@ def open_target(target: str) -> CanSink:
         bus = can.Bus(interface=interface, channel=channel or "eyeq-spi",
                       receive_own_messages=False)
     except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:
-        raise CanOutputError(f"cannot open CAN bus {target!r}: {exc}") from exc
+        raise AdapterError(f"cannot open CAN bus {target!r}: {exc}") from exc
     return CanSink(target, "bus", bus)
 
 

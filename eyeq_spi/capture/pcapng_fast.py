@@ -14,7 +14,7 @@ fault, L8) keeps its bytes in ``Chunk.odd`` and a zero row in ``data``.
 - raw: concatenated 128-byte transfers, one ``np.frombuffer`` per chunk.
 - any other stream of :class:`Record`: :func:`chunks_from_records`.
 
-Memory stays bounded by ``chunk``. A malformed or truncated file raises :class:`CaptureError` after
+Memory stays bounded by ``chunk``. A malformed or truncated file raises :class:`InputError` after
 every complete transfer before the fault has been returned; given a :class:`Tail`, a truncated
 one ends after its last whole block instead, and the tail says how many bytes were left.
 """
@@ -32,14 +32,13 @@ import numpy as np
 from eyeq_spi.capture.pcapng_io import (
     DIRECTIONS,
     PCAPNG_MAGIC,
-    CaptureError,
     PeekStream,
     Readable,
     Record,
     Tail,
-    TruncatedCaptureError,
     read_pcapng,
 )
+from eyeq_spi.errors import InputError, TruncatedInputError
 from eyeq_spi.link.frame import FRAME_SIZE
 
 DIR_CODE: dict[str | None, int] = {"h2e": 0, "e2h": 1, None: -1}
@@ -119,8 +118,8 @@ def raw_chunks(stream: Readable, direction: str | None, chunk: int = CHUNK) -> I
                         np.full(n, FRAME_SIZE, np.int64), np.full(n, np.nan),
                         np.full(n, code, np.int8))
         if len(blob) % FRAME_SIZE:
-            raise CaptureError(f"truncated raw capture: {len(blob) % FRAME_SIZE} bytes left over "
-                               "after the last whole 128-byte transfer")
+            raise InputError(f"truncated raw capture: {len(blob) % FRAME_SIZE} bytes left over "
+                             "after the last whole 128-byte transfer")
         if len(blob) < FRAME_SIZE * chunk:
             return
 
@@ -168,7 +167,7 @@ def pcapng_chunks(stream: Readable, chunk: int = CHUNK, tail: Tail | None = None
     """Stream a pcapng capture as chunks; see the module docstring."""
     head = _read_exact(stream, 12)
     if head[:4] != PCAPNG_MAGIC:
-        raise CaptureError("not a pcapng file")
+        raise InputError("not a pcapng file")
     if len(head) < 12 or struct.unpack_from("<I", head, 8)[0] != _BOM:
         # big-endian (or too short to tell): the reference reader handles it
         yield from chunks_from_records(read_pcapng(PeekStream(stream, head=head), tail),  # type: ignore[arg-type]
@@ -269,16 +268,16 @@ class _Walker:
     def run(self) -> Iterator[Chunk]:
         try:
             yield from self._run()
-        except TruncatedCaptureError as exc:
+        except TruncatedInputError as exc:
             if self.n:  # every complete transfer before the fault
                 yield self._flush()
             if self.tail is None:
                 raise
             if not self.packets:
-                raise CaptureError("pcapng capture without any transfer (no whole Enhanced "
-                                   "Packet Block)") from None
+                raise InputError("pcapng capture without any transfer (no whole Enhanced "
+                                 "Packet Block)") from None
             self.tail.take(exc)
-        except CaptureError:
+        except InputError:
             if self.n:  # every complete transfer before the fault, then the error
                 yield self._flush()
             raise
@@ -291,8 +290,8 @@ class _Walker:
                 break
             btype, blen = struct.unpack_from("<II", self.buf, self.pos)
             if blen % 4 or not 12 <= blen <= MAX_BLOCK:
-                raise CaptureError(f"malformed pcapng: block at byte {self.offset + self.pos} has "
-                                   f"length {blen} (a multiple of 4 in 12..{MAX_BLOCK} expected)")
+                raise InputError(f"malformed pcapng: block at byte {self.offset + self.pos} has "
+                                 f"length {blen} (a multiple of 4 in 12..{MAX_BLOCK} expected)")
             if btype == _EPB and self.n < self.chunk:
                 self._fast_run(blen)
                 if self.n >= self.chunk:
@@ -302,11 +301,11 @@ class _Walker:
                 self._truncated()
             body = self.buf[self.pos + 8 : self.pos + blen - 4]
             if struct.unpack_from("<I", self.buf, self.pos + blen - 4)[0] != blen:
-                raise CaptureError("malformed pcapng: block lengths differ")
+                raise InputError("malformed pcapng: block lengths differ")
             if btype == _SHB:
                 if struct.unpack_from("<I", body, 0)[0] != _BOM:
-                    raise CaptureError("malformed pcapng: a big-endian section after a "
-                                       "little-endian one")
+                    raise InputError("malformed pcapng: a big-endian section after a "
+                                     "little-endian one")
             elif btype == _IDB:
                 self.ifaces.add(body)
             elif btype == _EPB:
@@ -317,18 +316,18 @@ class _Walker:
         if self.n:
             yield self._flush()
         if not self.packets:
-            raise CaptureError("pcapng capture without any transfer (no Enhanced Packet Block)")
+            raise InputError("pcapng capture without any transfer (no Enhanced Packet Block)")
 
     def _truncated(self) -> None:
         left, at = len(self.buf) - self.pos, self.offset + self.pos
-        raise TruncatedCaptureError(f"truncated pcapng: the file ends {left} bytes into the block "
-                               f"that starts at byte {at}", left, at)
+        raise TruncatedInputError(f"truncated pcapng: the file ends {left} bytes into the block "
+                                  f"that starts at byte {at}", ignored=left, at=at)
 
     def _one_epb(self, body: bytes | bytearray) -> None:
         iid, hi, lo, cap = struct.unpack_from("<IIII", body, 0)
         data = bytes(body[20 : 20 + cap])
         if len(data) != cap:
-            raise CaptureError("malformed pcapng: packet longer than its block")
+            raise InputError("malformed pcapng: packet longer than its block")
         self._add_meta(iid, (hi << 32) | lo)
         if cap == FRAME_SIZE:
             self.rows.append(np.frombuffer(data, np.uint8).reshape(1, FRAME_SIZE))
@@ -365,7 +364,7 @@ class _Walker:
                 self._truncated()
             body = self.buf[self.pos + 8 : self.pos + blen - 4]
             if struct.unpack_from("<I", self.buf, self.pos + blen - 4)[0] != blen:
-                raise CaptureError("malformed pcapng: block lengths differ")
+                raise InputError("malformed pcapng: block lengths differ")
             self._one_epb(body)
             self.pos += blen
             return

@@ -2,7 +2,7 @@
 
 A file that ends inside a block (a writer killed mid-block by another tool, a copy cut short) is
 read up to its last whole block when the caller passes a :class:`Tail`, which then says how many
-bytes at the end were ignored; without one it raises :class:`TruncatedCaptureError`.
+bytes at the end were ignored; without one it raises :class:`TruncatedInputError`.
 """
 
 from __future__ import annotations
@@ -16,9 +16,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, Protocol
 
 from eyeq_spi.catalog.messages import SwKey, catalog, sw_release_text
-from eyeq_spi.errors import CaptureError as CaptureError
-from eyeq_spi.errors import EyeqError
-from eyeq_spi.errors import TruncatedCaptureError as TruncatedCaptureError
+from eyeq_spi.errors import EyeqError, InputError, OutputError, TruncatedInputError
 from eyeq_spi.twins import exact
 
 if TYPE_CHECKING:
@@ -36,7 +34,7 @@ class Tail:
     ignored: int = 0
     at: int = 0
 
-    def take(self, exc: TruncatedCaptureError) -> None:
+    def take(self, exc: TruncatedInputError) -> None:
         self.ignored, self.at = exc.ignored, exc.at
 
     def note(self, name: str) -> str:
@@ -181,13 +179,13 @@ class CaptureWriter:
         try:
             self.release = sw_release_text(cat.sw(sw))
         except EyeqError as exc:
-            raise CaptureError(str(exc)) from None
+            raise OutputError(str(exc)) from None
         self.comment = str(spec.get("release_comment", SW_COMMENT)).format(release=self.release)
         self.flush_s = float(flush_s or spec.get("flush_interval_s", self.FLUSH_S))
         try:
             self._fh: IO[bytes] = open(path, "wb", buffering=0)  # noqa: SIM115 - see close()
         except OSError as exc:
-            raise CaptureError(f"cannot write capture {path}: {exc}") from exc
+            raise OutputError(f"cannot write capture {path}: {exc}") from exc
         self._clock = clock
         self._ids = {i["name"]: i["id"] for i in spec["interfaces"]}
         self._scale = 10 ** spec["timestamp_resolution"]
@@ -216,7 +214,7 @@ class CaptureWriter:
                         self._clock() - self._last_flush >= self.flush_s:
                     try:
                         self._flush()
-                    except CaptureError:
+                    except OutputError:
                         return  # the next write or close() reports it
 
     def write(self, direction: str, time: float, transfer: bytes) -> None:
@@ -276,11 +274,11 @@ class CaptureWriter:
             return
         # a time the fast encoder cannot take: the reference encodes every other transfer and
         # says what it could not write
-        bad: CaptureError | None = None
+        bad: OutputError | None = None
         for i, t, d in zip(ids, times, data, strict=True):
             try:
                 self._encode_one(i, t, d, b"")
-            except CaptureError as exc:
+            except OutputError as exc:
                 bad = bad or exc
         if bad is not None:
             raise bad
@@ -294,7 +292,7 @@ class CaptureWriter:
 
     def _encode_one(self, iface: int, time: float, data: bytes, opts: bytes) -> None:
         """One Enhanced Packet Block into the buffer (the reference encoder); a time without a
-        pcapng timestamp (not a number, infinite, past 2**64 ticks) is a :class:`CaptureError`
+        pcapng timestamp (not a number, infinite, past 2**64 ticks) is an :class:`OutputError`
         and writes nothing."""
         pad = -len(data) % 4
         size = 32 + len(data) + pad + len(opts)
@@ -303,8 +301,8 @@ class CaptureWriter:
             head = _EPB_HEAD.pack(6, size, iface, ticks >> 32, ticks & 0xFFFFFFFF, len(data),
                                   len(data))
         except (ValueError, OverflowError, TypeError, struct.error):
-            raise CaptureError(f"cannot write capture {self._fh.name}: transfer time {time!r} "
-                               "has no pcapng timestamp") from None
+            raise OutputError(f"cannot write capture {self._fh.name}: transfer time {time!r} "
+                              "has no pcapng timestamp") from None
         self._buf += head
         self._buf += data
         self._buf += b"\0" * pad
@@ -317,10 +315,10 @@ class CaptureWriter:
             self._flush()
 
     def _flush(self) -> None:
-        bad: CaptureError | None = None
+        bad: OutputError | None = None
         try:
             self._encode_pending()
-        except CaptureError as exc:  # the other transfers still go to the file
+        except OutputError as exc:  # the other transfers still go to the file
             bad = exc
         view = memoryview(self._buf)
         try:
@@ -328,7 +326,7 @@ class CaptureWriter:
                 n = self._fh.write(view)
                 view = view[n or 0:]
         except OSError as exc:
-            raise CaptureError(f"cannot write capture {self._fh.name}: {exc}") from None
+            raise OutputError(f"cannot write capture {self._fh.name}: {exc}") from None
         finally:
             view.release()
         self._buf.clear()
@@ -387,7 +385,7 @@ def _idb(link_type: int, name: str, description: str, tsresol: int) -> bytes:
 
 
 def read_pcapng(fh: IO[bytes], tail: Tail | None = None) -> Iterator[Record]:
-    """Stream the transfers of a pcapng capture. Malformed files raise :class:`CaptureError`
+    """Stream the transfers of a pcapng capture. Malformed files raise :class:`InputError`
     (see :class:`PcapngGuard`); a truncated one too, unless ``tail`` is given: then it ends
     after the last whole block and ``tail`` says what was left."""
     from pcapng import FileScanner, blocks
@@ -396,7 +394,7 @@ def read_pcapng(fh: IO[bytes], tail: Tail | None = None) -> Iterator[Record]:
     guard = PcapngGuard(fh)
     try:
         yield from _scan(guard, FileScanner, blocks, PcapngException)
-    except TruncatedCaptureError as exc:
+    except TruncatedInputError as exc:
         if tail is None:
             raise
         tail.take(exc)
@@ -421,12 +419,12 @@ def _scan(guard: PcapngGuard, scanner: Any, blocks: Any, pcapng_error: type[Exce
                 ticks = (block.timestamp_high << 32) | block.timestamp_low
                 yield Record(ticks * scales.get(iid, 1e-6), names.get(iid),
                              bytes(block.packet_data))
-    except CaptureError:
+    except InputError:
         raise
     except (pcapng_error, struct.error, EOFError, ValueError, KeyError) as exc:
-        raise (guard.error or CaptureError(f"malformed pcapng: {exc}")) from None
+        raise (guard.error or InputError(f"malformed pcapng: {exc}")) from None
     except Exception as exc:
-        raise (guard.error or CaptureError(
+        raise (guard.error or InputError(
             f"malformed pcapng ({type(exc).__name__}: {exc})")) from None
     if guard.error is not None:
         raise guard.error
@@ -446,7 +444,7 @@ class PcapngGuard:
         self.hdr = b""
         self.left = 0  # bytes of the current block still to come once its header is known
         self.endian: str | None = None
-        self.error: CaptureError | None = None
+        self.error: InputError | None = None
 
     def tell(self) -> int:
         return self.pos  # python-pcapng checks block alignment with it
@@ -464,13 +462,13 @@ class PcapngGuard:
     def at_end(self) -> None:
         if self.hdr or self.left:
             left = self.pos - self.block_start
-            self.error = self.error or TruncatedCaptureError(
+            self.error = self.error or TruncatedInputError(
                 f"truncated pcapng: the file ends {left} bytes into the block that starts at "
-                f"byte {self.block_start}", left, self.block_start)
+                f"byte {self.block_start}", ignored=left, at=self.block_start)
             raise self.error
 
     def _fail(self, message: str) -> None:
-        self.error = self.error or CaptureError(message)
+        self.error = self.error or InputError(message)
         raise self.error
 
     def _feed(self, data: bytes) -> None:

@@ -11,14 +11,6 @@ Single files of ``specs/`` that code reads directly (``spec_file``: ``link.yaml`
 ``bench.yaml``, ``dasp_header.yaml``...) are cached the same way, each as a ``marshal`` file under
 the same key (:func:`cached_doc`), so a start from the cache never imports yaml.
 
-Generated code is compiled from source text at every start: the methods :mod:`dataclasses`
-writes for every class (``__init__``, ``__repr__``, ``__eq__``, ``__hash__``, ``__setattr__``...;
-about 60 % of the 0.3 ms a class costs, for the 70 classes a ``dissect --stats`` start creates)
-and the fast layout codecs (:mod:`eyeq_spi.codec.layout_fast`). :func:`compiled_code` keeps
-those code objects per command in a ``marshal`` file (``code-*.marshal``) under a key over the
-Python version, and hands out the code compiled from the very same text (same flags, same file
-name), so a class or codec is the one the text makes.
-
 The cache is an optimisation only: an unwritable, missing, corrupt or foreign cache file falls back
 to parsing ``specs/`` (and silently tries to write a fresh one). ``EYEQ_SPI_CACHE_DIR`` moves it;
 ``EYEQ_SPI_NO_CACHE=1`` turns it off. The pickle is read only from a directory of the current user,
@@ -33,9 +25,8 @@ import os
 import re
 import sys
 import zlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
-from types import CodeType
 from typing import Any, TypeVar, cast
 
 T = TypeVar("T")
@@ -127,65 +118,6 @@ def _unmarshal(fh: Any) -> object:
     return marshal.loads(fh.read())
 
 
-_ACTIVE: list[tuple[dict[str, CodeType], dict[str, CodeType]]] = []  # (read, compiled since)
-
-
-def compile_generated(source: str) -> CodeType:
-    """``source`` (generated code) compiled as ``exec(source)`` compiles it, without the
-    ``__future__`` flags of this module; from the active :func:`compiled_code` cache when it holds
-    this exact text (and kept there when it does not)."""
-    try:
-        codes, new = _ACTIVE[-1]
-    except IndexError:  # no cache active (or it ended meanwhile, in another thread's command)
-        return compile(source, "<string>", "exec", dont_inherit=True)
-    code = codes.get(source) or new.get(source)
-    if type(code) is not CodeType:  # not cached (or a foreign file's value: never run)
-        code = new[source] = compile(source, "<string>", "exec", dont_inherit=True)
-    return code
-
-
-@contextlib.contextmanager
-def compiled_code(name: str) -> Iterator[None]:
-    """While active, generated code (the methods :mod:`dataclasses` writes, and what callers
-    compile with :func:`compile_generated`, such as the fast layout codecs) comes from the
-    ``code-<key>-<name>.marshal`` cache when it holds its exact source text (module docstring);
-    what was compiled meanwhile is added to it at the end. ``name`` (a command) keeps one file
-    per command, so that a start reads only the code it uses."""
-    import dataclasses
-
-    if os.environ.get("EYEQ_SPI_NO_CACHE") or _ACTIVE or hasattr(dataclasses, "exec"):
-        yield  # no cache, or one active already (a nested call)
-        return
-    try:
-        import importlib.util
-
-        text = f"{_FORMAT.decode()}\0{sys.version}\0{importlib.util.MAGIC_NUMBER.hex()}"
-        key = f"{zlib.crc32(text.encode()):08x}{zlib.adler32(text.encode()):08x}"
-        path = cache_dir() / f"code-{key}-{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}.marshal"
-    except (OSError, ImportError):
-        yield
-        return
-    cached = _read(path, _unmarshal)
-    codes: dict[str, CodeType] = cached if isinstance(cached, dict) else {}
-    new: dict[str, CodeType] = {}
-
-    def exec_cached(source: Any, globals: Any = None, locals: Any = None) -> None:
-        if isinstance(source, str):  # dataclasses passes the text of its generated functions
-            source = compile_generated(source)
-        exec(source, globals, locals)
-
-    _ACTIVE.append((codes, new))
-    dataclasses.exec = exec_cached  # type: ignore[attr-defined]  # found before the builtin
-    try:
-        yield
-    finally:
-        vars(dataclasses).pop("exec", None)
-        _ACTIVE.pop()
-        if new:
-            _write(path, {**codes, **new} if len(codes) < 4096 else new, marshal.dump,
-                   f"code-{key}-", "code-")
-
-
 def _read(path: Path, reader: Callable[[Any], object] | None = None) -> object | None:
     if reader is None:
         import pickle  # not for the marshal files: a usage error never imports it
@@ -210,9 +142,9 @@ KEEP_KEYS = 16  # other keys' files kept: several installs, checkouts or Pythons
 
 
 def _write(path: Path, value: object, writer: Callable[[Any, Any], object] | None = None,
-           current: str = "", kind: str = "") -> None:
-    """Write atomically; then prune the files of other keys (``catalog-*.pickle``, or the files
-    of ``kind``, by default ``doc-*.marshal``, not starting with ``current``) to the
+           current: str = "") -> None:
+    """Write atomically; then prune the files of other keys (``catalog-*.pickle``, or with a
+    ``writer`` ``doc-*.marshal``, not starting with ``current``) to the
     ``KEEP_KEYS`` newest keys, so that several installs of one user (checkouts, virtual
     environments, Python versions) keep their own caches instead of evicting each other's on
     every start."""
@@ -232,8 +164,7 @@ def _write(path: Path, value: object, writer: Callable[[Any, Any], object] | Non
             else:
                 writer(value, fh)  # marshal: ValueError for a type it cannot hold
         os.replace(tmp, path)
-        _prune(path.parent, kind or ("catalog-" if writer is None else "doc-"),
-               current or path.name)
+        _prune(path.parent, "catalog-" if writer is None else "doc-", current or path.name)
     except Exception:  # a corrupt, foreign or unpicklable cache is never fatal
         with contextlib.suppress(OSError):
             os.unlink(tmp)

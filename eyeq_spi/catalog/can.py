@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
-from eyeq_spi.catalog.can_expr import ExprError, compile_expr
+from eyeq_spi.catalog.can_expr import compile_expr
 from eyeq_spi.catalog.link import specs_dir
 from eyeq_spi.errors import SpecError
 
@@ -307,7 +307,7 @@ def validate_mapping(rel: str, doc: Any, protocols: dict[str, Any]) -> list[str]
             continue
         try:
             compile_expr(str(dm.get("expr")), names, set(tables))
-        except ExprError as exc:
+        except SpecError as exc:
             out.append(f"{rel}: derived {dname}: {exc}")
         names.add(str(dname))
     for pname, msgs in (doc.get("protocols") or {}).items():
@@ -356,7 +356,7 @@ def validate_mapping(rel: str, doc: Any, protocols: dict[str, Any]) -> list[str]
                     out.append(f"{swhere}: every mapping explains its choice (C4): add reason")
                 try:
                     compile_expr(str(sm.get("expr")), names, set(tables))
-                except ExprError as exc:
+                except SpecError as exc:
                     out.append(f"{swhere}: {exc}")
     return out
 

@@ -19,7 +19,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from eyeq_spi.errors import ExprError as ExprError
+from eyeq_spi.errors import SpecError
 
 
 class _Missing:
@@ -94,7 +94,7 @@ def _build(node: ast.AST, names: set[str], tables: set[str]) -> Fn:
         return lambda env: value
     if isinstance(node, ast.Name):
         if node.id not in names:
-            raise ExprError(f"unknown name {node.id!r} (known: {', '.join(sorted(names))})")
+            raise SpecError(f"unknown name {node.id!r} (known: {', '.join(sorted(names))})")
         key = node.id
 
         def name(env: Env) -> Any:
@@ -105,7 +105,7 @@ def _build(node: ast.AST, names: set[str], tables: set[str]) -> Fn:
         return name
     if isinstance(node, ast.Attribute):
         if node.attr.startswith("_"):
-            raise ExprError(f"attribute {node.attr!r} is not allowed")
+            raise SpecError(f"attribute {node.attr!r} is not allowed")
         base, attr = _build(node.value, names, tables), node.attr
 
         def get(env: Env) -> Any:
@@ -169,7 +169,7 @@ def _build(node: ast.AST, names: set[str], tables: set[str]) -> Fn:
     if isinstance(node, ast.ListComp) and len(node.generators) == 1:
         gen = node.generators[0]
         if not isinstance(gen.target, ast.Name) or gen.is_async:
-            raise ExprError("a comprehension binds one plain name")
+            raise SpecError("a comprehension binds one plain name")
         var = gen.target.id
         inner = names | {var}
         it = _build(gen.iter, names, tables)
@@ -189,7 +189,7 @@ def _build(node: ast.AST, names: set[str], tables: set[str]) -> Fn:
         if fname == "table":
             if (len(node.args) != 2 or not isinstance(node.args[0], ast.Constant)
                     or node.args[0].value not in tables):
-                raise ExprError(f"table() takes a table name of {sorted(tables)} and a value")
+                raise SpecError(f"table() takes a table name of {sorted(tables)} and a value")
             tname = str(node.args[0].value)
             arg = _build(node.args[1], names, tables)
 
@@ -199,11 +199,11 @@ def _build(node: ast.AST, names: set[str], tables: set[str]) -> Fn:
                 return t[v] if v in t else t.get("default", MISSING)
             return lookup
         if fname not in FUNCTIONS:
-            raise ExprError(f"unknown function {fname!r} (known: table, "
+            raise SpecError(f"unknown function {fname!r} (known: table, "
                             f"{', '.join(sorted(FUNCTIONS))})")
         fn, args = FUNCTIONS[fname], [_build(a, names, tables) for a in node.args]
         return lambda env: fn(*(a(env) for a in args))
-    raise ExprError(f"{type(node).__name__} is not part of the mapping language")
+    raise SpecError(f"{type(node).__name__} is not part of the mapping language")
 
 
 def compile_expr(text: str, names: set[str], tables: set[str]) -> Callable[[Env], Any]:
@@ -211,7 +211,7 @@ def compile_expr(text: str, names: set[str], tables: set[str]) -> Callable[[Env]
     try:
         tree = ast.parse(text, mode="eval")
     except SyntaxError as exc:
-        raise ExprError(f"{text!r}: {exc.msg}") from None
+        raise SpecError(f"{text!r}: {exc.msg}") from None
     fn = _build(tree.body, names, tables)
 
     def run(env: Env) -> Any:

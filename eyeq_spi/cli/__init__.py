@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import gc
 import os
 import sys
 from collections.abc import Sequence
@@ -107,29 +106,10 @@ BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "1")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run one command line (``sys.argv[1:]`` by default) and return its exit code; the process
-    lives on (tests, scripts), so the collector's state is as it was."""
-    return _main(argv, exiting=False)
-
-
-def console() -> int:
-    """The ``eyeq-spi`` script and ``python -m eyeq_spi.cli``: :func:`main`, after which the
-    process ends. Python's exit runs full collections over every object still alive (modules,
-    catalogue, layouts, numpy): about 45 ms CPU after ``dissect --stats``, more than its reading
-    of a 2 s capture. So at the end the command's own garbage is collected (its finalizers run;
-    the start's objects are still frozen out of that pass) and what is left is frozen: the exit
-    then frees it by reference counts alone. Open files are closed by the commands themselves
-    and the standard streams are flushed by Python as always."""
-    return _main(None, exiting=True)
-
-
-def _main(argv: Sequence[str] | None, exiting: bool) -> int:
+    """Run one command line (``sys.argv[1:]`` by default) and return its exit code: the
+    ``eyeq-spi`` script, ``python -m eyeq_spi.cli``, and a library call from tests and
+    scripts."""
     os.environ.setdefault(*BLAS_THREADS)
-    # The start (parser, command module) makes long-lived objects only: no automatic collection
-    # re-scans them; frozen out of every later collection before the command runs, unfrozen at
-    # the end (as the live views freeze the catalogue).
-    collecting = gc.isenabled()
-    gc.disable()
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
         parser = _parser_for(argv)
@@ -144,13 +124,7 @@ def _main(argv: Sequence[str] | None, exiting: bool) -> int:
                                  f"not {shell!r}")
             return _completion(parser, shell)
         args = parser.parse_args(argv)
-        from eyeq_spi.catalog.cache import compiled_code
-
-        gc.freeze()
-        if collecting:
-            gc.enable()
-        with compiled_code(args.command):
-            return int(command_module(args.command).run(args))
+        return int(command_module(args.command).run(args))
     except UsageError as exc:
         return _fail(f"usage error: {exc}")
     except EyeqError as exc:
@@ -164,14 +138,6 @@ def _main(argv: Sequence[str] | None, exiting: bool) -> int:
         return _fail(f"error:{where}: {exc.strerror or exc}")
     except Exception as exc:
         return _fail(f"internal error: {type(exc).__name__}: {exc} (please report this)", 3)
-    finally:
-        if exiting:
-            gc.collect()  # what the command left (the start stays frozen out of this pass)
-            gc.freeze()
-        else:
-            gc.unfreeze()
-        if collecting:
-            gc.enable()
 
 
 def _fail(message: str, code: int = 2) -> int:

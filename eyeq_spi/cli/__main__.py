@@ -2,6 +2,6 @@
 
 import sys
 
-from eyeq_spi.cli import console
+from eyeq_spi.cli import main
 
-sys.exit(console())
+sys.exit(main())

@@ -333,76 +333,42 @@ def connect_address(text: str) -> str:
     eyeq``): ``tcp://HOST:PORT`` (``socket://`` too), ``rfc2217://HOST:PORT`` or a tty/pty path
     (grammar: :mod:`eyeq_spi.phy.address`) -> the URL to open. ``loop://`` echoes our own
     transfers back and has no peer on it: refused."""
-    from eyeq_spi.phy.address import CONNECT_FORMS, AddressError, parse_connect
+    from eyeq_spi.errors import AdapterError
+    from eyeq_spi.phy.address import CONNECT_FORMS, parse_connect
 
     if text.startswith("loop://"):
         _bad(f"loop:// echoes our own transfers back and has no peer on it; give {CONNECT_FORMS}")
     try:
         addr = parse_connect(text)
-    except AddressError as exc:
+    except AdapterError as exc:
         _address_error(exc)
-    if addr.mode == "listen":
-        _bad(f"{text!r} listens, and this command connects; give {CONNECT_FORMS}")
     if "://" in addr.url and not addr.url.startswith(("socket://", "rfc2217://")):
         _bad(f"unsupported scheme {text.split('://', 1)[0]}://; give {CONNECT_FORMS}")
     return addr.url
-
-
-def note(message: str) -> None:
-    """One line on stderr that does not stop the command (an old spelling, a fallback)."""
-    import sys
-
-    print(f"eyeq-spi: note: {one_line(message)}", file=sys.stderr, flush=True)
 
 
 class Endpoint(argparse.Action):
     """``--listen tcp://HOST:PORT``, ``--port URL`` and ``--pty`` of a command that may listen
     (``sim``, ``replay``, ``conformance``), in the one address grammar of
     :mod:`eyeq_spi.phy.address`. Each sets ``listen`` (``tcp://HOST:PORT``), ``port`` (the URL
-    to connect to) or ``pty`` in the namespace. Old spellings (``sim --port socket://``,
-    ``replay --port listen://``, ``--listen socket://``, ``--listen pty``) still work, with a
-    one-line note on stderr giving the new one. ``port_listens``: the command never connects,
-    so every ``--port`` is an old spelling of ``--listen`` (``sim``)."""
-
-    def __init__(self, option_strings: Sequence[str], dest: str, port_listens: bool = False,
-                 **kwargs: Any) -> None:
-        self.port_listens = port_listens
-        super().__init__(option_strings, dest, **kwargs)
+    to connect to) or ``pty`` in the namespace."""
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: Any, option_string: str | None = None) -> None:
-        from eyeq_spi.phy.address import LISTEN_FORM, AddressError, parse_listen
+        from eyeq_spi.errors import AdapterError
+        from eyeq_spi.phy.address import parse_listen
 
-        command = parser.prog.split()[-1]
         if option_string == "--pty":
             namespace.pty = True
             return
         text = str(values)
         try:
-            if text.strip().lower() == "pty":
-                note(f"{command} {option_string} pty is an old spelling; say --pty")
-                namespace.pty = True
-                return
-            if option_string == "--listen" or self.port_listens:
-                if option_string == "--port" and "://" not in text:
-                    raise AddressError(f"{text!r}: {command} listens: give --listen "
-                                       f"{LISTEN_FORM} or --pty")
-                addr = parse_listen(text)
-                if addr.old or option_string != "--listen":
-                    note(f"{command} {option_string} {text} is an old spelling; say "
-                         f"{addr.spelling}")
-                namespace.listen = addr.url
-                return
-            url = connect_address(text) if not text.startswith("listen://") else None
-            if url is None:
-                addr = parse_listen(text)
-                note(f"{command} {option_string} {text} is an old spelling; say {addr.spelling}")
-                namespace.listen = addr.url
-                return
-            namespace.port = url
-        except (AddressError, argparse.ArgumentTypeError) as exc:
-            hint = " or --pty" if self.port_listens and "--pty" not in str(exc) else ""
-            raise argparse.ArgumentError(self, f"{exc}{hint}") from None
+            if option_string == "--listen":
+                namespace.listen = parse_listen(text).url
+            else:
+                namespace.port = connect_address(text)
+        except (AdapterError, argparse.ArgumentTypeError) as exc:
+            raise argparse.ArgumentError(self, str(exc)) from None
 
 
 def spec_entry(query: str) -> str:

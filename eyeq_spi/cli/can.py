@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.errors import UsageError
+from eyeq_spi.errors import InputError, TruncatedInputError, UsageError
 
 PROTOCOLS = ("extlog2", "me8")
 
@@ -148,13 +148,7 @@ class _JsonLines:
 
 
 def _decode(args: argparse.Namespace) -> int:
-    from eyeq_spi.can.decode import (
-        CanDecoder,
-        CanLogError,
-        CanLogTruncatedError,
-        human_record,
-        table_record,
-    )
+    from eyeq_spi.can.decode import CanDecoder, human_record, table_record
     from eyeq_spi.can.stats import CanStats, human_stats
     from eyeq_spi.dissect.output import JsonWriter, TableWriter
 
@@ -176,7 +170,7 @@ def _decode(args: argparse.Namespace) -> int:
         for source in _sources(args):
             try:
                 stats.add_all(source)
-            except CanLogTruncatedError as exc:
+            except TruncatedInputError as exc:
                 truncated.append(str(exc))
             except KeyboardInterrupt:  # a live bus: stop and report what was received
                 pass
@@ -188,9 +182,9 @@ def _decode(args: argparse.Namespace) -> int:
                              and (name_re is None or name_re.search(r["name"] or ""))]
             bad = sum(r["error_frames"] for r in result["ids"])
         if stats.frames == 0 and not truncated:
-            raise CanLogError("no CAN frames in the input" if channel is None else
-                              f"no CAN frames on channel {channel} (the channels are: "
-                              f"{', '.join(result['channels']) or 'none'})")
+            raise InputError("no CAN frames in the input" if channel is None else
+                             f"no CAN frames on channel {channel} (the channels are: "
+                             f"{', '.join(result['channels']) or 'none'})")
         if args.json:
             JsonWriter(sys.stdout, fast=True).write(result)
         else:
@@ -242,7 +236,7 @@ def _decode(args: argparse.Namespace) -> int:
                     elif errors_only:
                         continue
                     emit(rec)
-            except CanLogTruncatedError as exc:
+            except TruncatedInputError as exc:
                 truncated.append(str(exc))
             except KeyboardInterrupt:  # a live bus: stop, keep what was decoded
                 pass
@@ -252,10 +246,10 @@ def _decode(args: argparse.Namespace) -> int:
         if json_out is not None:
             json_out.flush()
     if index == 0 and not truncated:
-        raise CanLogError("no CAN frames in the input")
+        raise InputError("no CAN frames in the input")
     if kept == 0 and channel is not None and not truncated:
-        raise CanLogError(f"no CAN frames on channel {channel} (the channels are: "
-                          f"{', '.join(sorted(others)) or 'none'})")
+        raise InputError(f"no CAN frames on channel {channel} (the channels are: "
+                         f"{', '.join(sorted(others)) or 'none'})")
     for line in truncated:
         print(f"eyeq-spi can decode: {line}", file=sys.stderr)
     return 1 if bad or truncated else 0

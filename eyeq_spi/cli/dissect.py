@@ -49,27 +49,6 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     opt.add_spi_arguments(d)
 
 
-def run(args: argparse.Namespace) -> int:
-    # The automatic cyclic collector is off for the whole command, not only while records flow
-    # (pipeline.paused_gc): what a start imports and loads (modules, catalogue, layouts) lives
-    # to the end, and the collector kept re-scanning it (65 collections, 5 % of the CPU of a
-    # 2 s capture). Before each file's records it is frozen out of the collections the
-    # dissection makes at its own pace (pipeline.paced_gc), as live views do; the collector is
-    # back on after, and cli.main unfreezes (or, when the process ends, collects only what the
-    # command made: cli.console).
-    # (pipeline.paused_gc does the same, but importing the pipeline before the collector is
-    # off would run collections over the start: test_startup holds that)
-    import gc
-
-    was = gc.isenabled()
-    gc.disable()
-    try:
-        return run_dissect(args)
-    finally:
-        if was:
-            gc.enable()
-
-
 def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
     try:
         name_re = re.compile(args.name) if args.name else None
@@ -98,9 +77,7 @@ def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
     return keep
 
 
-def run_dissect(args: argparse.Namespace) -> int:
-    import gc
-
+def run(args: argparse.Namespace) -> int:
     from eyeq_spi.catalog.messages import catalog
     from eyeq_spi.cli.options import spi_options
     from eyeq_spi.dissect.output import HumanWriter, JsonWriter, TableWriter
@@ -161,7 +138,6 @@ def run_dissect(args: argparse.Namespace) -> int:
             if release.warning:
                 print(f"eyeq-spi dissect: warning: {release.warning}", file=sys.stderr,
                       flush=True)
-            gc.freeze()  # see run()
             _feed(cf.items, keep, plain, stats, writers, path)
             if cf.tail.ignored:
                 stats.ignored_bytes = cf.tail.ignored

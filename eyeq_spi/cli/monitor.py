@@ -129,8 +129,6 @@ def _demo_source(args: argparse.Namespace) -> Any:
 
 
 def _host_source(args: argparse.Namespace) -> Any:
-    import gc
-
     from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.live import capture_tap
     from eyeq_spi.monitor.sources import HostSource
@@ -143,7 +141,6 @@ def _host_source(args: argparse.Namespace) -> Any:
     writer = opt.capture_writer(args)
     runner = RealTimeRunner(host, adapter, max_wait=0.01)
     runner.tap = capture_tap(writer, runner.clock(), "h2e", "e2h")
-    gc.freeze()  # as `host` does: the catalogue and layouts live forever
 
     def close() -> None:
         runner.close()

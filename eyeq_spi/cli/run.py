@@ -46,8 +46,6 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                         help="listen here for the host (port 0: any free port)")
         ep.add_argument("--pty", dest="endpoint", nargs=0, action=ca.Endpoint,
                         help="open a pty and print its path; the host opens it as a serial port")
-        ep.add_argument("--port", dest="endpoint", action=ca.Endpoint, port_listens=True,
-                        help=argparse.SUPPRESS)  # old spelling of --listen / --pty
         p.set_defaults(listen=None, pty=False, port=None)
         p.add_argument("--duration", type=opt.seconds,
                        help="stop after S seconds (default: never)")
@@ -293,7 +291,6 @@ def _open_or_say(args: argparse.Namespace) -> Any:
 
 
 def run_host(args: argparse.Namespace) -> int:
-    import gc
     import time
 
     from eyeq_spi.host.host import HostEmulator
@@ -304,7 +301,6 @@ def run_host(args: argparse.Namespace) -> int:
     host_cfg, nvm, scenario = opt.host_parts(args)
     host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
     host.warm_up()
-    gc.collect()
 
     def again(until: float) -> Any:
         return reopen(lambda: open_url(args.port), until)

@@ -3,7 +3,7 @@
 ``Start`` counts from bit 0 = LSB of byte 0 (Intel order). ``raw = round((physical - offset) /
 factor)`` (or truncated where the spec says ``rounding: truncate``, as Appendix E does for the
 EEPROM), two's complement within ``Len`` for signed signals, IEEE binary32 for float signals.
-An out-of-range physical value raises :class:`CodecError` naming the signal and its range.
+An out-of-range physical value raises :class:`LocalProtocolError` naming the signal and its range.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from eyeq_spi.catalog.messages import (
     SwKey,
     catalog,
 )
-from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.errors import LocalProtocolError, SpecError
 
 _EPS = 1e-9
 
@@ -54,12 +54,12 @@ class BitSignalCodec:
         if isinstance(physical, bool) or not isinstance(physical, (int, float)) or (
             isinstance(physical, float) and math.isnan(physical)
         ):
-            raise CodecError(f"{sig.name}: {physical!r} is not a number")
+            raise LocalProtocolError(f"{sig.name}: {physical!r} is not a number")
         lo, hi = sig.min, sig.max
         tol = max(abs(sig.factor) / 2, _EPS) if not sig.is_float else _EPS
         if physical < lo - tol or physical > hi + tol:
             unit = f" {sig.units}" if sig.units else ""
-            raise CodecError(
+            raise LocalProtocolError(
                 f"{self.message.name}.{sig.name} = {physical}{unit} is outside its range "
                 f"[{lo:g}, {hi:g}]{unit}"
             )
@@ -80,7 +80,7 @@ class BitSignalCodec:
         else:
             rmin, rmax = 0, (1 << bits) - 1
         if not rmin <= raw <= rmax:
-            raise CodecError(
+            raise LocalProtocolError(
                 f"{self.message.name}.{sig.name}: raw {raw} does not fit {bits} "
                 f"{'signed' if sig.signed else 'unsigned'} bits"
             )
@@ -102,7 +102,7 @@ class BitSignalCodec:
         values = dict(values or {})
         unknown = set(values) - set(self.signals)
         if unknown:
-            raise CodecError(f"{self.message.name}: unknown signal(s) {sorted(unknown)}")
+            raise LocalProtocolError(f"{self.message.name}: unknown signal(s) {sorted(unknown)}")
         word = 0
         for sig in self.variant.signals:
             phys = values.get(sig.name, sig.initial)
@@ -111,7 +111,7 @@ class BitSignalCodec:
 
     def decode_raw(self, data: bytes) -> dict[str, int]:
         if len(data) != self.length:
-            raise CodecError(f"{self.message.name} is {self.length} bytes, got {len(data)}")
+            raise LocalProtocolError(f"{self.message.name} is {self.length} bytes, got {len(data)}")
         word = int.from_bytes(data, "little")
         return {s.name: (word >> s.start) & ((1 << s.length) - 1) for s in self.variant.signals}
 
@@ -123,7 +123,7 @@ class BitSignalCodec:
         """Problems with received bytes: wrong length, values outside their ranges."""
         try:
             values = self.decode(data)
-        except CodecError as exc:
+        except LocalProtocolError as exc:
             return [str(exc)]
         out = []
         for s in self.variant.signals:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from eyeq_spi.catalog.messages import Catalog, InitMessageDef, catalog
 from eyeq_spi.codec.bits import BitSignalCodec
-from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.errors import LocalProtocolError, SpecError
 
 
 @dataclass(frozen=True)
@@ -51,4 +51,4 @@ def init_message(stage: int, sw: str | None = None, cat: Catalog | None = None) 
                     raise
                 codec = None
             return InitMessage(d, codec)
-    raise CodecError(f"no init message with ct_stage 0x{stage:02X}")
+    raise LocalProtocolError(f"no init message with ct_stage 0x{stage:02X}")

@@ -7,7 +7,7 @@ from typing import Any
 
 from eyeq_spi.codec.bits import BitSignalCodec
 from eyeq_spi.crc import crc16
-from eyeq_spi.errors import CodecError
+from eyeq_spi.errors import LocalProtocolError
 
 CAL_BLOCK_END = 0x4C  # bytes 0x00..0x4B are the calibration block (I2)
 CRC_SLICE = slice(0x4C, 0x4E)  # its CRC-16, little-endian
@@ -15,7 +15,7 @@ CRC_SLICE = slice(0x4C, 0x4E)  # its CRC-16, little-endian
 
 def eeprom_crc(image: bytes) -> int:
     if len(image) < CRC_SLICE.stop:
-        raise CodecError(f"EEPROM image of {len(image)} bytes has no CRC at 0x4C")
+        raise LocalProtocolError(f"EEPROM image of {len(image)} bytes has no CRC at 0x4C")
     return crc16(image[:CAL_BLOCK_END])
 
 
@@ -39,7 +39,8 @@ def normalise_num_distor_params(n: int) -> int:
         return 7
     if n in (11, 15):
         return 15
-    raise CodecError(f"CCAM_Num_Of_distorParams_m = {n}: the seed defines only 3, 7, 11 and 15")
+    raise LocalProtocolError(f"CCAM_Num_Of_distorParams_m = {n}: the seed defines only 3, 7, 11 "
+                             "and 15")
 
 
 def eeprom_codec() -> BitSignalCodec:
@@ -66,8 +67,8 @@ def intrinsic_params_from_eeprom(image: bytes, sw: str | None = None) -> dict[st
         # (NaN, infinity, out of range): a camera fault that names the field
         try:
             target.to_raw(target.signals[name], v)
-        except CodecError as exc:
-            raise CodecError(f"EEPROM field {name}: {exc}") from None
+        except LocalProtocolError as exc:
+            raise LocalProtocolError(f"EEPROM field {name}: {exc}") from None
     if "CRC_from_EEPROM" in target.signals:
         out["CRC_from_EEPROM"] = int.from_bytes(image[CRC_SLICE], "little")
     return out
@@ -77,17 +78,17 @@ def version_bytes(version: str) -> bytes:
     """§7.1.5.3: "Boot version 7.1.23 -> 0x07 0x01 0x17 0x00" (byte 3 reserved)."""
     parts = version.split(".")
     if len(parts) != 3:
-        raise CodecError(f"version {version!r} is not MAJOR.MINOR.PATCH")
+        raise LocalProtocolError(f"version {version!r} is not MAJOR.MINOR.PATCH")
     try:
         nums = [int(p) for p in parts]
     except ValueError:
-        raise CodecError(f"version {version!r} is not numeric") from None
+        raise LocalProtocolError(f"version {version!r} is not numeric") from None
     if not all(0 <= n <= 255 for n in nums):
-        raise CodecError(f"version {version!r}: each number must be 0..255")
+        raise LocalProtocolError(f"version {version!r}: each number must be 0..255")
     return bytes([*nums, 0])
 
 
 def version_text(data: bytes) -> str:
     if len(data) != 4:
-        raise CodecError("a version field is 4 bytes")
+        raise LocalProtocolError("a version field is 4 bytes")
     return f"{data[0]}.{data[1]}.{data[2]}"

@@ -31,7 +31,7 @@ from eyeq_spi.codec.layout_types import (
     FieldInfo as FieldInfo,  # re-exported: its users import it here
 )
 from eyeq_spi.crc import crc16
-from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.errors import LocalProtocolError, SpecError
 from eyeq_spi.twins import exact
 
 PRIMITIVE = {  # seed type -> (construct field name, bytes)
@@ -115,7 +115,7 @@ class Layout:
                     child = op[2]
                     items = values[op[1]]
                     if len(items) != op[3]:
-                        raise CodecError(
+                        raise LocalProtocolError(
                             f"{self.name}.{op[1]} needs {op[3]} elements, got {len(items)}"
                         )
                     out[op[1]] = [child.pre(x) for x in items]
@@ -124,15 +124,15 @@ class Layout:
                     for name, lo, mask in op[2]:
                         x = values[name]
                         if not isinstance(x, int) or not 0 <= x <= mask:
-                            raise CodecError(
+                            raise LocalProtocolError(
                                 f"{self.name}.{name}: {x!r} does not fit {mask.bit_length()} bit(s)"
                             )
                         v |= x << lo
                     out[op[1]] = v
         except KeyError as exc:
-            raise CodecError(f"{self.name}: missing member {exc.args[0]}") from None
+            raise LocalProtocolError(f"{self.name}: missing member {exc.args[0]}") from None
         except TypeError as exc:
-            raise CodecError(f"{self.name}: {exc}") from None
+            raise LocalProtocolError(f"{self.name}: {exc}") from None
         return out
 
     @property
@@ -163,12 +163,13 @@ class Layout:
             return self.build_construct(values)
         try:
             return self.fast.encode(values)
-        except CodecError as exc:
-            raise CodecError(f"{self.name}: {exc}") from None
+        except LocalProtocolError as exc:
+            raise LocalProtocolError(f"{self.name}: {exc}") from None
 
     def parse(self, data: bytes) -> dict[str, Any]:
         if len(data) != self.size:
-            raise CodecError(f"{self.name} ({self.sw}) is {self.size} bytes, got {len(data)}")
+            raise LocalProtocolError(f"{self.name} ({self.sw}) is {self.size} bytes, "
+                                     f"got {len(data)}")
         if exact():
             return self.post(self.struct.parse(data))
         return self.fast.decode(data)
@@ -181,11 +182,12 @@ class Layout:
             return bytes(self.struct.build(self.pre(values)))
         except (ConstructError, ValueError, OverflowError, TypeError, struct.error) as exc:
             # (construct's compiled builders let struct's own errors through)
-            raise CodecError(f"{self.name}: cannot encode: {exc}") from None
+            raise LocalProtocolError(f"{self.name}: cannot encode: {exc}") from None
 
     def parse_construct(self, data: bytes) -> dict[str, Any]:
         if len(data) != self.size:
-            raise CodecError(f"{self.name} ({self.sw}) is {self.size} bytes, got {len(data)}")
+            raise LocalProtocolError(f"{self.name} ({self.sw}) is {self.size} bytes, "
+                                     f"got {len(data)}")
         return self.post(self.struct.parse(data))
 
     def field(self, name: str) -> FieldInfo:

@@ -13,9 +13,8 @@ from __future__ import annotations
 import struct
 from typing import Any
 
-from eyeq_spi.catalog.cache import compile_generated
 from eyeq_spi.codec.layout_types import LayoutShape
-from eyeq_spi.errors import CodecError
+from eyeq_spi.errors import LocalProtocolError
 
 FMT = {"uint8": "B", "uint16": "H", "uint32": "I", "uint64": "Q", "int8": "b", "int16": "h",
        "int32": "i", "int64": "q", "real32": "f", "real64": "d", "bool": "B"}
@@ -26,12 +25,13 @@ class FastCodec:
         self._fmt: list[str] = []
         self._src: list[str] = []
         self._names: dict[int, str] = {}
-        self._env: dict[str, Any] = {"CodecError": CodecError}
+        self._env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError}
         top = self._gen(layout)
         self.struct = struct.Struct("<" + "".join(self._fmt))
         if self.struct.size != layout.size:
-            raise CodecError(f"fast path of {layout.name}: {self.struct.size} != {layout.size}")
-        exec(compile_generated("\n".join(self._src)), self._env)  # compiled once per command
+            raise LocalProtocolError(f"fast path of {layout.name}: {self.struct.size} != "
+                                     f"{layout.size}")
+        exec("\n".join(self._src), self._env)
         self._decode = self._env[f"d_{top}"]
         self._encode = self._env[f"e_{top}"]
 
@@ -46,9 +46,9 @@ class FastCodec:
             self._encode(values, out)
             return self.struct.pack(*out)
         except KeyError as exc:
-            raise CodecError(f"missing member {exc.args[0]}") from None
+            raise LocalProtocolError(f"missing member {exc.args[0]}") from None
         except (struct.error, TypeError, OverflowError) as exc:  # 1e39 into a real32, ...
-            raise CodecError(f"cannot encode: {exc}") from None
+            raise LocalProtocolError(f"cannot encode: {exc}") from None
 
     # -- generation --------------------------------------------------------------------------
     def _gen(self, lay: LayoutShape) -> str:
@@ -115,10 +115,10 @@ class FastCodec:
 
 def _bits(x: Any, mask: int, name: str) -> int:
     if not isinstance(x, int) or not 0 <= x <= mask:
-        raise CodecError(f"{name}: {x!r} does not fit {mask.bit_length()} bit(s)")
+        raise LocalProtocolError(f"{name}: {x!r} does not fit {mask.bit_length()} bit(s)")
     return x
 
 
 def _count(items: Any, n: int, name: str) -> None:
     if len(items) != n:
-        raise CodecError(f"{name} needs {n} elements, got {len(items)}")
+        raise LocalProtocolError(f"{name} needs {n} elements, got {len(items)}")

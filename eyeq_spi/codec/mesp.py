@@ -7,61 +7,21 @@ from typing import Any
 
 from eyeq_spi.catalog.messages import Catalog, MespFunction
 from eyeq_spi.codec.types import DecodedMessage
-from eyeq_spi.errors import CodecError
-from eyeq_spi.errors import MalformedParamsError as MalformedParamsError
+from eyeq_spi.errors import LocalProtocolError
 
 MESP_PROTOCOL = 0x5E
 REPLY_BIT = 0x80
 TAG_MASK = 0x3F
 
-INT_PARAMS = {"u8": 1, "u16": 2, "u32": 4}  # little-endian unsigned; string and bytes: a u32
-# length, then that many bytes (M3)
-
 
 def param_types() -> dict[str, Any]:
-    """The construct type of each parameter type (M3): the encoders' reference. Built on first
-    use, so that decoding (``dissect``) never imports construct."""
+    """The construct type of each parameter type (M3): little-endian unsigned integers; string
+    and bytes a u32 length, then that many bytes. Built on first use, so that a start that
+    meets no MESP message never imports construct."""
     from construct import GreedyBytes, Int8ul, Int16ul, Int32ul, PascalString, Prefixed
 
     return {"u8": Int8ul, "u16": Int16ul, "u32": Int32ul,
             "string": PascalString(Int32ul, "ascii"), "bytes": Prefixed(Int32ul, GreedyBytes)}
-
-
-def parse_params(params: Any, body: bytes) -> dict[str, Any]:
-    """The parameters ``params`` (``MespParam`` list) of ``body``, in order, then nothing more
-    (M3): the parse of ``Struct(*params, Terminated)`` without construct."""
-    out: dict[str, Any] = {}
-    pos = 0
-    n = len(body)
-    for p in params:
-        size = INT_PARAMS.get(p.type)
-        if size is not None:
-            if pos + size > n:
-                raise MalformedParamsError(f"Error in path (parsing) -> {p.name}")
-            out[p.name] = int.from_bytes(body[pos : pos + size], "little")
-            pos += size
-            continue
-        if pos + 4 > n:
-            raise MalformedParamsError(f"Error in path (parsing) -> {p.name}")
-        length = int.from_bytes(body[pos : pos + 4], "little")
-        pos += 4
-        if pos + length > n:
-            raise MalformedParamsError(f"Error in path (parsing) -> {p.name}")
-        raw = body[pos : pos + length]
-        pos += length
-        if p.type == "string":
-            try:
-                out[p.name] = raw.decode("ascii")
-            except UnicodeDecodeError:
-                raise MalformedParamsError(
-                    f"cannot use encoding 'ascii' to decode {raw!r}") from None
-        elif p.type == "bytes":
-            out[p.name] = raw
-        else:
-            raise MalformedParamsError(f"unknown parameter type {p.type}")
-    if pos != n:
-        raise MalformedParamsError("Error in path (parsing)")
-    return out
 
 
 @dataclass(frozen=True)
@@ -86,48 +46,50 @@ class MespCodec:
         self.functions = {(f.service, f.function): f for f in cat.mesp}
         self.by_name = {f.name: f for f in cat.mesp}
         self.ret_names = cat.mesp_ret
-        self._built: dict[tuple[bool, int, int], Any] = {}  # construct encoders, on first use
+        self._built: dict[tuple[bool, int, int], Any] = {}  # construct Structs, on first use
 
-    def _encoder(self, f: MespFunction, reply: bool) -> Any:
+    def params(self, f: MespFunction, reply: bool) -> Any:
+        """The construct ``Struct`` of the parameters of ``f``'s request or reply (M3), then
+        nothing more: it encodes and decodes them."""
         key = (reply, f.service, f.function)
-        enc = self._built.get(key)
-        if enc is None:
-            from construct import Struct, Terminated  # lazy: decoding never imports construct
+        struct = self._built.get(key)
+        if struct is None:
+            from construct import Struct, Terminated  # lazy: most starts meet no MESP
 
             types = param_types()
-            enc = self._built[key] = Struct(
+            struct = self._built[key] = Struct(
                 *(p.name / types[p.type] for p in (f.reply if reply else f.request)), Terminated)
-        return enc
+        return struct
 
     def warm_up(self) -> None:
-        """Build every function's request and reply encoder now: built on first use, one
+        """Build every function's request and reply Struct now: built on first use, one
         costs milliseconds, enough to make a live peer's 10 ms ackTimeout expire (seed §6)."""
         for f in self.functions.values():
-            self._encoder(f, False)
-            self._encoder(f, True)
+            self.params(f, False)
+            self.params(f, True)
 
     def function(self, name: str) -> MespFunction:
         try:
             return self.by_name[name]
         except KeyError:
-            raise CodecError(f"unknown MESP function {name}") from None
+            raise LocalProtocolError(f"unknown MESP function {name}") from None
 
     # -- encode ------------------------------------------------------------------------------
     def header(self, f: MespFunction, tag: int) -> bytes:
         if not 0 <= tag <= 0xFF:
-            raise CodecError(f"MESP tag {tag} outside 0..255")
+            raise LocalProtocolError(f"MESP tag {tag} outside 0..255")
         return bytes((f.service, MESP_PROTOCOL, f.service, f.function, tag))
 
     def encode_request(self, name: str, counter: int, params: dict[str, Any]) -> bytes:
         f = self.function(name)
         if not 0 <= counter <= TAG_MASK:
-            raise CodecError(f"MESP tag counter {counter} outside 0..63 (M1)")
-        from construct.core import ConstructError  # lazy: only encoders import construct
+            raise LocalProtocolError(f"MESP tag counter {counter} outside 0..63 (M1)")
+        from construct.core import ConstructError
 
         try:
-            body = self._encoder(f, False).build(params)
+            body = self.params(f, False).build(params)
         except (ConstructError, KeyError, TypeError, ValueError) as exc:
-            raise CodecError(f"{name} request: {exc}") from None
+            raise LocalProtocolError(f"{name} request: {exc}") from None
         return self.header(f, counter) + bytes(body)
 
     def encode_reply(self, name: str, counter: int, ret: int, params: dict[str, Any]) -> bytes:
@@ -135,12 +97,12 @@ class MespCodec:
         head = self.header(f, REPLY_BIT | (counter & TAG_MASK)) + ret.to_bytes(4, "little")
         if ret != 0:
             return head
-        from construct.core import ConstructError  # lazy: only encoders import construct
+        from construct.core import ConstructError
 
         try:
-            return head + bytes(self._encoder(f, True).build(params))
+            return head + bytes(self.params(f, True).build(params))
         except (ConstructError, KeyError, TypeError, ValueError) as exc:
-            raise CodecError(f"{name} reply: {exc}") from None
+            raise LocalProtocolError(f"{name} reply: {exc}") from None
 
     # -- decode ------------------------------------------------------------------------------
     def decode(self, data: bytes) -> DecodedMessage:
@@ -164,18 +126,21 @@ class MespCodec:
             return out
         out.name = f.name
         body = data[5:]
+        if hdr.reply:
+            if len(body) < 4:
+                out.errors.append("MESP reply without its 4-byte ret")
+                return out
+            ret = int.from_bytes(body[:4], "little")
+            out.fields["ret"] = ret
+            if ret != 0 and len(body) == 4:
+                return out
+            body = body[4:]
+        from construct.core import ConstructError
+
         try:
-            if hdr.reply:
-                if len(body) < 4:
-                    out.errors.append("MESP reply without its 4-byte ret")
-                    return out
-                ret = int.from_bytes(body[:4], "little")
-                out.fields["ret"] = ret
-                if ret != 0 and len(body) == 4:
-                    return out
-                out.fields.update(parse_params(f.reply, body[4:]))
-            else:
-                out.fields.update(parse_params(f.request, body))
-        except MalformedParamsError as exc:
-            out.errors.append(f"{f.name}: malformed parameters: {exc}")
+            parsed = self.params(f, hdr.reply).parse(body)
+        except ConstructError as exc:  # the first line: construct adds the path below it
+            out.errors.append(f"{f.name}: malformed parameters: {str(exc).splitlines()[0]}")
+            return out
+        out.fields.update((k, v) for k, v in parsed.items() if not k.startswith("_"))
         return out

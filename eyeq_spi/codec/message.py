@@ -14,7 +14,7 @@ from eyeq_spi.codec.e2e import E2EState, protect, verify
 from eyeq_spi.codec.layout import Layout, LayoutCache
 from eyeq_spi.codec.mesp import MESP_PROTOCOL, MespCodec
 from eyeq_spi.codec.types import DecodedMessage as DecodedMessage  # re-exported: the result
-from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.errors import LocalProtocolError, SpecError
 
 DASP_PROTOCOL = dasp_header().protocol  # §7.1.2: 0x65, specs/dasp_header.yaml
 DIAG_ID = 0x41
@@ -127,9 +127,9 @@ class MessageCodec:
     ) -> bytes:
         msg = self.message(name)
         if msg.protocol != "DASP":
-            raise CodecError(f"{name} is not a DASP message")
+            raise LocalProtocolError(f"{name} is not a DASP message")
         if not 0 <= counter <= 255:
-            raise CodecError(f"DASP counter {counter} outside 0..255")
+            raise LocalProtocolError(f"DASP counter {counter} outside 0..255")
         header = bytes((DASP_PROTOCOL, msg.data_id, counter, 0))  # DASP_HEADER (§7.1.2)
         return bytes(header) + self.encode_payload(msg, fields, e2e)
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
-from eyeq_spi.errors import FrameError
+from eyeq_spi.errors import RemoteProtocolError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
@@ -150,7 +150,7 @@ class Trace:
         if len(data) == FRAME_SIZE:
             try:
                 f = self.frames.decode(data)
-            except FrameError:  # pragma: no cover - length checked above
+            except RemoteProtocolError:  # pragma: no cover - length checked above
                 f = None
             if f is not None:
                 rsp, num, crc_ok = f.rsp, f.num, self.frames.crc_ok(data, f)

@@ -17,14 +17,15 @@ from typing import IO, Any
 import numpy as np
 
 from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
-from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Tail
+from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine_fast import BatchDissector
-from eyeq_spi.dissect.engine_fast_frames import BatchUnsupportedError, FrameArrays, FrameBlock
+from eyeq_spi.dissect.engine_fast_frames import FrameArrays, FrameBlock
 from eyeq_spi.dissect.output import JsonWriter
 from eyeq_spi.dissect.release import Release
+from eyeq_spi.errors import InputError
 from eyeq_spi.io import batch_readers
-from eyeq_spi.io.plain import InputError, detect
+from eyeq_spi.io.plain import detect
 from eyeq_spi.twins import exact
 
 Item = dict[str, Any] | FrameBlock
@@ -67,13 +68,8 @@ def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
 def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
            ) -> Iterator[Item]:
     bd = BatchDissector(codec=codec, fields=fields)
-    try:
-        for c in chunks:
-            yield from bd.feed(c)
-    except CaptureError as exc:
-        raise InputError(str(exc)) from None
-    except BatchUnsupportedError as exc:
-        raise InputError(f"{exc}: use the hex format or another CRC variant") from None
+    for c in chunks:
+        yield from bd.feed(c)
     yield from bd.finish()
 
 

@@ -18,9 +18,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.catalog.bringup import SWITCH_APP_NAME
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import DaspCounters, MessageCodec
-from eyeq_spi.errors import FrameError
+from eyeq_spi.errors import RemoteProtocolError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.events import (
     DuplicateReceived,
@@ -44,9 +45,6 @@ def jsonable(v: Any) -> Any:
     if isinstance(v, list | tuple):
         return [jsonable(x) for x in v]
     return v
-
-
-SWITCH_APP = "SwitchEyeQApplication"
 
 
 @dataclass
@@ -99,7 +97,7 @@ class Dissector:
         else:
             try:
                 f = self.frames.decode(data)
-            except FrameError:
+            except RemoteProtocolError:
                 f = None
             if f is not None:
                 frame_rec["num"], frame_rec["rsp"] = f.num, f.rsp
@@ -195,7 +193,7 @@ class Dissector:
 
     def _message(self, direction: str | None, d: _Direction, ev: MessageReceived) -> dict[str, Any]:
         out = self.codec.decode(ev.data, d.e2e if ev.data[:1] == b"\x65" else None)
-        if out.name == SWITCH_APP and out.protocol == "MESP" and not out.header.get("reply"):
+        if out.name == SWITCH_APP_NAME and out.protocol == "MESP" and not out.header.get("reply"):
             # §7.1.1.7: the EyeQ application restarts and judges the sender's E2E rolling
             # counters (D5) afresh, as the simulated EyeQ does; so does a passive observer (a
             # host's counters may start over with its bring-up after this soft reset)

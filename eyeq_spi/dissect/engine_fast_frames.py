@@ -18,7 +18,7 @@ from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.codec.message_fast import crc_word_tables
 from eyeq_spi.dissect.engine import TRANSPORT_NAMES
 from eyeq_spi.dissect.output import json_float
-from eyeq_spi.errors import BatchUnsupportedError as BatchUnsupportedError
+from eyeq_spi.errors import InputError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 
 # frame_type codes
@@ -101,7 +101,8 @@ def validate(data: np.ndarray, length: np.ndarray, codec: FrameCodec
     got = data[:, 4:6].copy().view("<u2")[:, 0]
     table = crc_table(codec)
     if table is None:
-        raise BatchUnsupportedError("the link CRC variant has no 16-bit table form")
+        raise InputError("the link CRC variant has no 16-bit table form: use the hex format or "
+                         "another CRC variant")
     control = (d == FrameKind.ACK) | (d == FrameKind.NAK)
     hdr, crc, rows = _frame_crcs(np.ascontiguousarray(data), control, codec.crc(b""), table)
     full = hdr.copy()  # control frames: the header's CRC only (L3)

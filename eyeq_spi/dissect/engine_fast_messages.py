@@ -40,10 +40,11 @@ from typing import Any
 
 import numpy as np
 
+from eyeq_spi.catalog.bringup import SWITCH_APP_NAME
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import classify
 from eyeq_spi.codec.message_fast import vec_layout
-from eyeq_spi.dissect.engine import SWITCH_APP, Dissector
+from eyeq_spi.dissect.engine import Dissector
 from eyeq_spi.errors import SpecError
 from eyeq_spi.transport.events import MessageReceived
 
@@ -160,7 +161,7 @@ class SpanDecoder:
         if len(data) < 5 or data[1] != MESP_PROTOCOL or data[0] != data[2] or data[4] & 0x80:
             return False
         f = self.codec.mesp.functions.get((data[0], data[3]))
-        return f is not None and f.name == SWITCH_APP
+        return f is not None and f.name == SWITCH_APP_NAME
 
     def _rows(self, msgs: list[SpanMessage], rows: list[int], msg: Any, header: int
               ) -> tuple[Any, Any, list[bytes], Any] | None:

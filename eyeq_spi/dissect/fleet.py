@@ -25,9 +25,8 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.dissect.output import OutputError, flatten, table_name
-from eyeq_spi.errors import EyeqError
-from eyeq_spi.errors import FleetError as FleetError
+from eyeq_spi.dissect.output import flatten, table_name
+from eyeq_spi.errors import AdapterError, EyeqError, InputError, MissingExtra, OutputError
 
 ROWS_PER_GROUP = 4096
 
@@ -38,10 +37,10 @@ def find_captures(root: str | Path) -> list[Path]:
     if p.is_file():
         return [p]
     if not p.is_dir():
-        raise FleetError(f"{root}: no such directory")
+        raise InputError(f"{root}: no such directory")
     found = sorted(q for q in p.rglob("*.pcapng") if q.is_file())
     if not found:
-        raise FleetError(f"{root}: no *.pcapng capture in it")
+        raise InputError(f"{root}: no *.pcapng capture in it")
     return found
 
 
@@ -60,7 +59,7 @@ def _pyarrow() -> tuple[Any, Any]:
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError as exc:
-        raise FleetError("eyeq-spi batch needs pyarrow: pip install 'eyeq-spi[fleet]'") from exc
+        raise MissingExtra("fleet", "eyeq-spi batch needs pyarrow") from exc
     return pa, pq
 
 
@@ -167,7 +166,7 @@ def run_fleet(root: str, out: str, *, sw: str | None = None, jobs: int = 1,
     tasks = [(str(p.resolve()), capture_key(p, rootp)) for p in paths]
     keys = [k for _, k in tasks]
     if len(set(keys)) != len(keys):
-        raise FleetError("two captures map to the same partition name")
+        raise InputError("two captures map to the same partition name")
     try:
         Path(out).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -203,7 +202,7 @@ def _on_dask(tasks: list[tuple[str, str]], out: str, sw: str | None, scheduler: 
         dd: Any = importlib.import_module("distributed")  # partly typed: used as Any
         Client, LocalCluster = dd.Client, dd.LocalCluster
     except ImportError as exc:
-        raise FleetError("--scheduler/--local-cluster need Dask: "
+        raise InputError("--scheduler/--local-cluster need Dask: "
                          "pip install 'eyeq-spi[fleet]'") from exc
     cluster = None
     try:
@@ -214,7 +213,7 @@ def _on_dask(tasks: list[tuple[str, str]], out: str, sw: str | None, scheduler: 
                                    processes=True, dashboard_address=None)
             client = Client(cluster)
     except (OSError, TimeoutError) as exc:
-        raise FleetError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+        raise AdapterError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
     try:
         futs = [client.submit(dissect_capture, p, out, k, sw, key=f"eyeq-spi-{k}", pure=False)
                 for p, k in tasks]

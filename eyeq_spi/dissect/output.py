@@ -9,8 +9,7 @@ from typing import IO, Any
 
 from eyeq_spi import io as formats
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.errors import EyeqError, UnknownFormatError
-from eyeq_spi.errors import OutputError as OutputError
+from eyeq_spi.errors import EyeqError, MissingExtra, OutputError, UnknownFormatError
 
 RESET, DIM, RED, GREEN, CYAN, YELLOW = "\x1b[0m", "\x1b[2m", "\x1b[31m", "\x1b[32m", "\x1b[36m", \
     "\x1b[33m"
@@ -300,8 +299,7 @@ class TableWriter:
                 import pyarrow  # noqa: F401
             except ImportError as exc:
                 extra = formats.get("parquet", formats.RECORD_WRITER).extra
-                raise OutputError(f"--parquet needs pyarrow: pip install 'eyeq-spi[{extra}]'") \
-                    from exc
+                raise MissingExtra(extra or "parquet", "--parquet needs pyarrow") from exc
             hide_pandas()
 
     def write(self, r: dict[str, Any]) -> None:

@@ -25,18 +25,17 @@ records or consume the batch path's frame blocks whole (``dissect``'s writers);
 from __future__ import annotations
 
 import contextlib
-import gc
 import os
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import IO, Any
 
+from eyeq_spi import garbage
 from eyeq_spi.capture.pcapng_io import Record, Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.release import Capture, Release, open_capture
-from eyeq_spi.errors import EyeqError
-from eyeq_spi.io.plain import InputError
+from eyeq_spi.errors import EyeqError, InputError
 from eyeq_spi.logic.options import SpiOptions
 
 SMALL_INPUT = 256 << 10  # bytes; below this the exact path is quicker than importing numpy
@@ -235,7 +234,7 @@ def dissect_captures(paths: Sequence[str], config: DissectConfig | None = None, 
     if br is not None and jobs > 1 and len(paths) > 1 and "-" not in paths:
         par = br.parallel_items(list(paths), jobs, cfg.fmt, cfg.direction, cfg.sw, cfg.fields)
     current: CaptureFile | None = None
-    with paused_gc() if cfg.pace_gc else contextlib.nullcontext():
+    with garbage.paused() if cfg.pace_gc else contextlib.nullcontext():
         try:
             for n, path in enumerate(paths, 1):
                 done = next(par)[1] if par is not None else None
@@ -249,19 +248,6 @@ def dissect_captures(paths: Sequence[str], config: DissectConfig | None = None, 
                 current.close()
             if par is not None:
                 par.close()
-
-
-@contextlib.contextmanager
-def paused_gc() -> Iterator[None]:
-    """The automatic cyclic garbage collector off (items go through :func:`paced_gc`), on
-    again after, if it was on."""
-    was = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was:
-            gc.enable()
 
 
 class Dissection:
@@ -356,7 +342,7 @@ class BlockPosition:
 def paced_gc(items: Iterable[Any]) -> Iterator[Any]:
     """``items``, with the young generations of the cyclic garbage collector collected (when
     they have grown by ``YOUNG`` containers) after each frame block and every ``PACE`` other
-    items, while the automatic collector is off.
+    items, while the automatic collector is off (:mod:`eyeq_spi.garbage`).
 
     Records are trees of dicts and lists freed by reference counting; the default automatic
     collection (every 700 new containers) re-scanned records under construction (1,500
@@ -371,8 +357,7 @@ def paced_gc(items: Iterable[Any]) -> Iterator[Any]:
         n += 1
         if n >= PACE or block:
             n = 0
-            if gc.get_count()[0] >= YOUNG:
-                gc.collect(1)
+            garbage.collect(YOUNG)
 
 
 def _file_size(fh: IO[bytes]) -> int | None:

@@ -206,7 +206,7 @@ def release_of(path: str, sw: str | None = None, fmt: str | None = None,
                direction: str | None = None, spi: SpiOptions | None = None) -> Release:
     """The release to read the capture file ``path`` with (for a reader that needs it before
     it reads the file: its codec builds the plot's or the monitor's labels)."""
-    from eyeq_spi.io.plain import InputError
+    from eyeq_spi.errors import InputError
 
     try:
         fh = open(path, "rb")  # noqa: SIM115 - closed below

@@ -14,14 +14,14 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
+from eyeq_spi.catalog.bringup import EEPROM_FILE, SWITCH_APP
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
-from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.errors import LocalProtocolError, SpecError
 from eyeq_spi.host import init_seq
 from eyeq_spi.host.config import (
     APP_IDS,
     DV_STATE,
-    EEPROM_FILE,
     PENDING,
     PENDING_OF,
     PENDING_VISION,
@@ -43,8 +43,6 @@ from eyeq_spi.host.scenario import ConstantDrive, Scenario
 from eyeq_spi.mesp.client import MespClient
 from eyeq_spi.mesp.replies import MespFailure, MespReply, MespResult
 from eyeq_spi.transport.connection import TransportConnection
-
-SWITCH_APP = (0x05, 0x05)  # MESP Switch EyeQ Application (service, function), M3
 
 ResetLine = Callable[[float], None]
 Subscriber = Callable[[DecodedMessage], None]
@@ -292,7 +290,7 @@ class HostBringUp:
         try:
             req = init_seq.init_request(stage, self.sw, self.codec.cat, self.nvm.data,
                                         self.config.ipb_params)
-        except (CodecError, SpecError) as exc:
+        except (LocalProtocolError, SpecError) as exc:
             self.problem = f"init message 0x{stage:02X} cannot be built: {exc}"
             self._fire(E.INIT_REJECTED, now, self.problem)
             return

@@ -16,8 +16,6 @@ RUNNING_TAC, RUNNING_SPC = 0xAC, 0x22
 APP_IDS = {"VISION": 0x01, "TAC": 0x03, "SPC": 0x04, "DV": 0x05}
 PENDING_OF = {"TAC": PENDING_TAC, "SPC": PENDING_SPC, "VISION": PENDING_VISION}
 STAGE_OF = {"TAC": 0x85, "SPC": 0x82}
-EEPROM_FILE = "/mesp/eeprom.data1"
-FATAL_INTRINSIC = 22
 VALID = 0x69  # host_sync_timestamp_us_valid
 STALE_CHECK = 0.010  # stale streams are looked for every 10 ms
 

@@ -10,17 +10,17 @@ import math
 from collections.abc import AsyncIterator
 from typing import Any
 
+from eyeq_spi.catalog.bringup import FATAL_INTRINSIC
 from eyeq_spi.catalog.messages import sw_release
 from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.message import DecodedMessage, classify
-from eyeq_spi.errors import CodecError, EyeqError, LocalProtocolError, SpecError
+from eyeq_spi.errors import EyeqError, LocalProtocolError, SpecError
 from eyeq_spi.host import calibration, init_seq
-from eyeq_spi.host.bringup import SWITCH_APP, HostBringUp, ResetLine, Subscriber
+from eyeq_spi.host.bringup import HostBringUp, ResetLine, Subscriber
 from eyeq_spi.host.config import (
     APP_IDS,
-    FATAL_INTRINSIC,
     PENDING,
     STAGE_OF,
     STALE_CHECK,
@@ -40,7 +40,7 @@ from eyeq_spi.mesp.client import MespCompleted, MespFailed
 from eyeq_spi.transport.events import MessageReceived
 from eyeq_spi.twins import exact
 
-__all__ = ["SWITCH_APP", "HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
+__all__ = ["HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
            "Transition"]
 
 
@@ -76,7 +76,7 @@ class HostEmulator(HostBringUp):
         if stage is not None:
             try:
                 init_message(stage, self.sw, self.codec.cat)
-            except (SpecError, CodecError) as exc:
+            except (SpecError, LocalProtocolError) as exc:
                 # §7.1.1.7: the mode needs its init message; this release has no table for it
                 raise LocalProtocolError(
                     f"{mode} is not available for SW {self.sw}: {exc}") from None
@@ -487,7 +487,7 @@ class HostEmulator(HostBringUp):
             try:
                 wire = self.codec.encode_dasp(msg.name, values, self._dasp_counter,
                                               self._tx_e2e)
-            except CodecError as exc:
+            except LocalProtocolError as exc:
                 self.problem = f"HOST_VEH_STATE_MSG cannot be encoded: {exc}"
                 self._veh_next = None
                 return

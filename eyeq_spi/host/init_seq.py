@@ -13,7 +13,7 @@ from eyeq_spi.catalog.messages import Catalog
 from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.intrinsic import eeprom_crc_ok, intrinsic_params_from_eeprom, version_text
-from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.errors import LocalProtocolError, SpecError
 from eyeq_spi.host.nvm import NvmData
 
 
@@ -34,7 +34,7 @@ def has_init_table(stage: int, sw: str, cat: Catalog) -> bool:
     """Whether release ``sw`` has init message ``stage`` (0x84 exists from SW6, §7.1.3)."""
     try:
         init_message(stage, sw, cat)
-    except (SpecError, CodecError):
+    except (SpecError, LocalProtocolError):
         return False
     return True
 
@@ -43,7 +43,7 @@ def init_request(stage: int, sw: str, cat: Catalog, nvm: NvmData, opaque: bytes
                  ) -> dict[str, Any]:
     """The EventCalibrationTool request carrying init message ``stage``: its signals from the
     NVM, each clamped into its declared range; ``opaque`` for a stage the seed prints no bit
-    table for (0x78). Raises ``CodecError``/``SpecError`` when it cannot be built."""
+    table for (0x78). Raises ``LocalProtocolError``/``SpecError`` when it cannot be built."""
     msg = init_message(stage, sw, cat)
     if msg.codec is None:
         params = opaque
@@ -64,7 +64,7 @@ def eeprom_intrinsics(image: bytes, sw: str) -> dict[str, float] | str:
         return "camera EEPROM CRC-16 does not match: repair or replace the camera"
     try:
         params = intrinsic_params_from_eeprom(image, sw)
-    except (CodecError, SpecError) as exc:
+    except (LocalProtocolError, SpecError) as exc:
         return f"EEPROM content unusable: {exc}"
     return {k: float(v) for k, v in params.items()}
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.catalog.tables import alignment_nvm
-from eyeq_spi.errors import NvmError as NvmError
+from eyeq_spi.errors import OutputError
 
 
 def alignment_defaults() -> dict[str, float]:
@@ -151,4 +151,4 @@ class Nvm:
             finally:
                 os.close(dfd)
         except OSError as exc:
-            raise NvmError(f"cannot write NVM {self.path}: {exc}") from exc
+            raise OutputError(f"cannot write NVM {self.path}: {exc}") from exc

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Protocol
 
-from eyeq_spi.errors import ScenarioError as ScenarioError
+from eyeq_spi.errors import InputError
 from eyeq_spi.host.config import VALID
 
 
@@ -25,7 +25,7 @@ class Scenario(Protocol):
 class ConstantDrive:
     def __init__(self, speed: float = 25.0, yaw_rate: float = 0.0) -> None:
         if not math.isfinite(speed) or not math.isfinite(yaw_rate):
-            raise ScenarioError("speed and yaw rate must be finite")
+            raise InputError("speed and yaw rate must be finite")
         self.speed = speed
         self.yaw_rate = yaw_rate
 
@@ -39,35 +39,35 @@ class CsvScenario:
         try:
             text = self.path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
-            raise ScenarioError(f"{self.path}: cannot read scenario: {exc}") from exc
+            raise InputError(f"{self.path}: cannot read scenario: {exc}") from exc
         rows = list(csv.reader(text.splitlines()))
         if not rows or "time" not in rows[0]:
-            raise ScenarioError(f"{self.path}: first row must be a header with a 'time' column")
+            raise InputError(f"{self.path}: first row must be a header with a 'time' column")
         header = [h.strip() for h in rows[0]]
         unknown = [h for h in header if h != "time" and allowed is not None and h not in allowed]
         if unknown:
-            raise ScenarioError(f"{self.path}: unknown signal column(s) {unknown}")
+            raise InputError(f"{self.path}: unknown signal column(s) {unknown}")
         self.times: list[float] = []
         self.rows: list[dict[str, float]] = []
         for lineno, row in enumerate(rows[1:], start=2):
             if not row or all(not c.strip() for c in row):
                 continue
             if len(row) != len(header):
-                raise ScenarioError(f"{self.path}:{lineno}: {len(row)} fields, header has "
-                                    f"{len(header)}")
+                raise InputError(f"{self.path}:{lineno}: {len(row)} fields, header has "
+                                 f"{len(header)}")
             try:
                 values = {h: float(c) for h, c in zip(header, row, strict=True)}
             except ValueError as exc:
-                raise ScenarioError(f"{self.path}:{lineno}: {exc}") from None
+                raise InputError(f"{self.path}:{lineno}: {exc}") from None
             if not all(math.isfinite(v) for v in values.values()):
-                raise ScenarioError(f"{self.path}:{lineno}: values must be finite")
+                raise InputError(f"{self.path}:{lineno}: values must be finite")
             t = values.pop("time")
             if self.times and t < self.times[-1]:
-                raise ScenarioError(f"{self.path}:{lineno}: time goes backwards")
+                raise InputError(f"{self.path}:{lineno}: time goes backwards")
             self.times.append(t)
             self.rows.append(values)
         if not self.rows:
-            raise ScenarioError(f"{self.path}: no data rows")
+            raise InputError(f"{self.path}: no data rows")
 
     def signals(self, t: float) -> dict[str, float]:
         i = bisect.bisect_right(self.times, t) - 1

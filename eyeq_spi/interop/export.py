@@ -12,7 +12,7 @@ from typing import IO, Any
 
 from eyeq_spi import io as formats
 from eyeq_spi.capture.pcapng_io import Record
-from eyeq_spi.interop.mdf import ExportError
+from eyeq_spi.errors import OutputError
 from eyeq_spi.logic.options import SpiOptions
 
 
@@ -22,7 +22,7 @@ def _open(path: str, mode: str) -> IO[Any]:
             return open(path, mode)
         return open(path, mode, encoding="utf-8", newline="\n")
     except OSError as exc:
-        raise ExportError(f"cannot write {path}: {exc.strerror or exc}") from None
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def _checked(path: str) -> str:

@@ -19,7 +19,8 @@ from typing import IO, Any
 
 from eyeq_spi import __version__
 from eyeq_spi.capture.pcapng_io import Record
-from eyeq_spi.interop.mdf import ExportError, need
+from eyeq_spi.errors import OutputError
+from eyeq_spi.interop.mdf import need
 
 _TRANSFER_SCHEMA: dict[str, Any] = {
     "type": "object", "title": "eyeq_spi.Transfer",
@@ -114,4 +115,4 @@ class McapWriter:
             self.w.add_metadata(name="eyeq-spi", data={k: str(v) for k, v in self.meta.items()})
             self.w.finish()
         except OSError as exc:
-            raise ExportError(f"cannot write the MCAP file: {exc}") from None
+            raise OutputError(f"cannot write the MCAP file: {exc}") from None

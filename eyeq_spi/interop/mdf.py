@@ -18,8 +18,7 @@ import numpy as np
 
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.output import flatten
-from eyeq_spi.errors import ExportError as ExportError
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import EyeqError, MissingExtra, OutputError
 
 FRAME_KINDS = {0: "INVALID", 1: "DATA", 2: "ACK", 3: "NAK"}
 _KIND_CODE = {v: k for k, v in FRAME_KINDS.items()}
@@ -31,8 +30,7 @@ def need(module: str, what: str) -> Any:
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise ExportError(f"{what} needs {module.split('.')[0]}: pip install 'eyeq-spi[export]'") \
-            from None
+        raise MissingExtra("export", f"{what} needs {module.split('.')[0]}") from None
 
 
 class _Group:
@@ -184,7 +182,7 @@ class MdfWriter:
         try:
             self.mdf.save(Path(self.path), overwrite=True)
         except OSError as exc:
-            raise ExportError(f"cannot write {self.path}: {exc.strerror or exc}") from None
+            raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}") from None
         finally:
             self.mdf.close()
 

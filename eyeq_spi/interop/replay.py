@@ -24,8 +24,7 @@ from typing import Any
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.catalog.messages import sw_release_text as sw_text
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.errors import EyeqError, FrameError
-from eyeq_spi.errors import ReplayError as ReplayError
+from eyeq_spi.errors import AdapterError, EyeqError, InputError, RemoteProtocolError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 from eyeq_spi.transport.connection import TransportConnection
@@ -62,7 +61,7 @@ class ReplayEyeQ:
         self._played_rx = TransportConnection(LinkConfig(role="host")) if count_sent else None
         self._advance()
         if self._next is None:
-            raise ReplayError("the capture has no e2h transfer (EyeQ channel) to replay")
+            raise InputError("the capture has no e2h transfer (EyeQ channel) to replay")
 
     def begin(self, now: float) -> None:
         """Start the replay clock at ``now`` (after slow set-up such as loading the specs)."""
@@ -96,7 +95,7 @@ class ReplayEyeQ:
             return False
         try:
             f = self.frames.decode(data)
-        except FrameError:
+        except RemoteProtocolError:
             return False
         return f.kind in (FrameKind.ACK, FrameKind.NAK) and self.frames.crc_ok(data, f)
 
@@ -242,7 +241,7 @@ def replay_to_port(records: Iterable[Record], url: str, *, listen: bool = False,
             print(f"LISTEN {address}", file=sys.stderr, flush=True)
             print(f"replay: waiting for the host at {address}", file=sys.stderr, flush=True)
             if not adapter.accept(connect_timeout):  # type: ignore[attr-defined]
-                raise ReplayError(f"no host connected to {address} within {connect_timeout} s")
+                raise AdapterError(f"no host connected to {address} within {connect_timeout} s")
         runner = RealTimeRunner(node, adapter)
         t0 = time.monotonic()
         node.begin(t0 + lead)

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 import eyeq_spi
-from eyeq_spi.errors import InstallError as InstallError
+from eyeq_spi.errors import OutputError
 
 DECODER_FILES = ("__init__.py", "pd.py")
 
@@ -52,6 +52,6 @@ def install(directory: str | Path | None = None) -> Path:
         lines += ["]", ""]
         (target / "_site.py").write_text("\n".join(lines), encoding="utf-8")
     except OSError as exc:
-        raise InstallError(f"cannot install the decoder in {dest}: {exc.strerror or exc}") \
+        raise OutputError(f"cannot install the decoder in {dest}: {exc.strerror or exc}") \
             from None
     return target

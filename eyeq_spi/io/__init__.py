@@ -4,7 +4,7 @@ Each :class:`Format` says its name, file suffixes, kind (:data:`CAPTURE_READER`,
 :data:`CAPTURE_WRITER`, :data:`RECORD_WRITER`, :data:`CAN_LOG`), the ``module:callable`` that
 implements it and the optional extra it needs. Registering imports nothing: the callable is
 imported on first use (:func:`load`), so the command line starts as fast with every format
-known, and a missing optional dependency is a :class:`~eyeq_spi.errors.MissingExtraError` that
+known, and a missing optional dependency is a :class:`~eyeq_spi.errors.MissingExtra` that
 names the ``pip install 'eyeq-spi[EXTRA]'`` to run.
 
 Readers are found by name (``--format``), by content (:func:`eyeq_spi.io.plain.detect`: every
@@ -25,7 +25,7 @@ from collections.abc import Callable, Iterator
 from pathlib import PurePath
 from typing import Any, Literal, NamedTuple
 
-from eyeq_spi.errors import MissingExtraError, UnknownFormatError
+from eyeq_spi.errors import MissingExtra, UnknownFormatError
 
 Kind = Literal["capture reader", "capture writer", "record writer", "can log"]
 CAPTURE_READER: Kind = "capture reader"  # a file of SPI transfers -> Record(time, direction, data)
@@ -196,17 +196,16 @@ def missing(fmt: Format) -> str | None:
 
 
 def require(fmt: Format, what: str | None = None) -> None:
-    """Raise :class:`MissingExtraError` naming the pip extra when ``fmt`` cannot work here.
+    """Raise :class:`MissingExtra` naming the pip extra when ``fmt`` cannot work here.
     ``what``: how the user asked for it (``--parquet``), else the format's name."""
     mod = missing(fmt)
     if mod is not None and fmt.extra is not None:
-        raise MissingExtraError(f"{what or fmt.name} needs {mod}: pip install "
-                                f"'eyeq-spi[{fmt.extra}]'", fmt.extra)
+        raise MissingExtra(fmt.extra, f"{what or fmt.name} needs {mod}")
 
 
 def load(fmt: Format | str, kind: Kind = CAPTURE_READER, *,
          what: str | None = None) -> Callable[..., Any]:
-    """``fmt``'s callable, imported now (:class:`MissingExtraError` when its extra is not
+    """``fmt``'s callable, imported now (:class:`MissingExtra` when its extra is not
     installed; ``what``: how the user asked for it, for the message)."""
     f = get(fmt, kind) if isinstance(fmt, str) else fmt
     require(f, what)
@@ -214,8 +213,7 @@ def load(fmt: Format | str, kind: Kind = CAPTURE_READER, *,
         module = importlib.import_module(f.module)
     except ImportError as exc:
         if f.extra is not None and (exc.name or "").split(".")[0] in f.needs:
-            raise MissingExtraError(f"{what or f.name} needs {exc.name}: pip install "
-                                    f"'eyeq-spi[{f.extra}]'", f.extra) from None
+            raise MissingExtra(f.extra, f"{what or f.name} needs {exc.name}") from None
         raise
     obj: Callable[..., Any] = getattr(module, f.callable_name)
     return obj

@@ -23,18 +23,10 @@ from pathlib import Path
 from typing import IO
 
 from eyeq_spi import io as registry
-from eyeq_spi.capture.pcapng_io import (
-    PCAPNG_MAGIC,
-    CaptureError,
-    PeekStream,
-    Record,
-    Tail,
-    TruncatedCaptureError,
-    read_pcapng,
-)
+from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, PeekStream, Record, Tail, read_pcapng
 from eyeq_spi.errors import InputError, TruncatedInputError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec
-from eyeq_spi.logic.options import LogicInputError, SpiOptions
+from eyeq_spi.logic.options import SpiOptions
 
 FORMATS = registry.names(registry.CAPTURE_READER)
 LOGIC_FORMATS = tuple(f.name for f in registry.formats(registry.CAPTURE_READER)
@@ -125,7 +117,7 @@ def _logic(read: Callable[[PeekStream, SpiOptions], Iterator[Record]], peek: Pee
         raise InputError("empty input")
     try:
         yield from read(peek, spi)
-    except LogicInputError as exc:
+    except InputError as exc:
         raise InputError(f"{kind}: {exc}") from None
 
 
@@ -141,14 +133,9 @@ def read_pcapng_input(peek: PeekStream, tail: Tail | None = None) -> Iterator[Re
 
 def _pcapng(peek: PeekStream, tail: Tail | None = None) -> Iterator[Record]:
     n = 0
-    try:
-        for rec in read_pcapng(peek, tail):  # type: ignore[arg-type]
-            n += 1
-            yield rec
-    except TruncatedCaptureError as exc:
-        raise TruncatedInputError(str(exc)) from None
-    except CaptureError as exc:  # block sizes: capture.pcapng_io.PcapngGuard
-        raise InputError(str(exc)) from None
+    for rec in read_pcapng(peek, tail):  # type: ignore[arg-type]
+        n += 1
+        yield rec
     if n == 0:
         raise InputError("pcapng capture without any transfer (no Enhanced Packet Block)")
 

@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from eyeq_spi.catalog.link import link_spec
-from eyeq_spi.errors import FrameError, LocalProtocolError
+from eyeq_spi.errors import LocalProtocolError, RemoteProtocolError
 from eyeq_spi.link.counters import SpiDiagnosticInfo
 from eyeq_spi.link.events import (
     DataReceived,
@@ -285,7 +285,7 @@ class LinkConnection:
             # the header fields and the CRC verdict, without building a Frame (hot path; the
             # same reading as FrameCodec.decode + crc_ok, tests/test_link_frame.py holds them equal)
             d, r, rsp, num, crc_ok = self.codec.judge(transfer)
-        except FrameError as exc:  # L8: the header cannot be trusted, so no NAK
+        except RemoteProtocolError as exc:  # L8: the header cannot be trusted, so no NAK
             c.formatErrorCounter += 1
             c.badLengthTransfers += 1
             self._events.append(FrameRejected(None, None, str(exc)))

@@ -15,7 +15,7 @@ from typing import Any, NewType
 
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.crc import CCITT_FALSE, CrcFunction, CrcVariant, make_crc
-from eyeq_spi.errors import FrameError, LocalProtocolError
+from eyeq_spi.errors import LocalProtocolError, RemoteProtocolError
 
 _SPEC = link_spec()
 FRAME_SIZE: int = _SPEC["frame"]["size"]
@@ -192,10 +192,10 @@ class FrameCodec:
     def decode(self, transfer: bytes) -> Frame:
         """Decode without judging: returns the frame with the CRC found in it.
 
-        Raises ``FrameError`` only for a wrong length (L8); use :meth:`crc_ok` for the CRC.
+        Raises ``RemoteProtocolError`` only for a wrong length (L8); use :meth:`crc_ok` for the CRC.
         """
         if len(transfer) != FRAME_SIZE:
-            raise FrameError(f"transfer is {len(transfer)} bytes, not {FRAME_SIZE}")
+            raise RemoteProtocolError(f"transfer is {len(transfer)} bytes, not {FRAME_SIZE}")
         d, r, rsp, num = self.unpack_header(int.from_bytes(transfer[:4], "little"))
         return Frame(d, r, rsp, num, bytes(transfer[6:]),
                      int.from_bytes(transfer[4:6], "little"))
@@ -204,7 +204,7 @@ class FrameCodec:
         """D, R, RSP, NUM and the CRC verdict of a transfer: :meth:`decode` and :meth:`crc_ok`
         in one step, without a :class:`Frame` (the receiver's hot path)."""
         if len(transfer) != FRAME_SIZE:
-            raise FrameError(f"transfer is {len(transfer)} bytes, not {FRAME_SIZE}")
+            raise RemoteProtocolError(f"transfer is {len(transfer)} bytes, not {FRAME_SIZE}")
         word = int.from_bytes(transfer[:4], "little")
         d = (word >> self._d[0]) & self._d[1]
         crc = int.from_bytes(transfer[4:6], "little")

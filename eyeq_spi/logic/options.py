@@ -9,8 +9,7 @@ from functools import cache
 from typing import Any
 
 from eyeq_spi.catalog.link import spec_file
-from eyeq_spi.errors import LogicInputError as LogicInputError
-from eyeq_spi.errors import UsageError
+from eyeq_spi.errors import InputError, UsageError
 
 DIRECTIONS = ("h2e", "e2h")
 LINES = ("mosi", "miso")
@@ -67,7 +66,7 @@ class SpiOptions:
         if n_channels_hint == 1:
             line = str(chans[self.direction or "h2e"]["line"])
             return [Route(self.direction, line)]
-        raise LogicInputError(
+        raise InputError(
             f"channel {channel!r}: its name says neither h2e nor e2h; give --channel-map "
             f"h2e=NAME[:LINE],e2h=NAME[:LINE]")
 

@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 
 from eyeq_spi.capture.pcapng_io import Record
-from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, Route, SpiOptions
+from eyeq_spi.errors import InputError
+from eyeq_spi.logic.options import MAX_TRANSFER, Route, SpiOptions
 from eyeq_spi.logic.saleae_ref import saleae1_records, saleae2_records
 from eyeq_spi.logic.saleae_types import (
     ByteSource,
@@ -151,7 +152,7 @@ def saleae2_chunk(chunk: bytes, ncols: int, cols: dict[str, int], i_name: int, i
         for u in order:
             if keys[u] not in routes:
                 routes[keys[u]] = opts.routes(keys[u], len(routes) + 1)
-    except LogicInputError:
+    except InputError:
         return None
     r_rows = np.flatnonzero(is_r)
     data: dict[str, np.ndarray[Any, Any]] = {}

@@ -22,7 +22,8 @@ import itertools
 from collections.abc import Callable, Iterator
 
 from eyeq_spi.capture.pcapng_io import Record
-from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, Route, SpiOptions, bench_spec
+from eyeq_spi.errors import InputError
+from eyeq_spi.logic.options import MAX_TRANSFER, Route, SpiOptions, bench_spec
 from eyeq_spi.logic.saleae_types import (
     MAX_LINE,
     ByteSource,
@@ -66,10 +67,10 @@ def _byte(text: str, n: int) -> int | None:
     try:
         v = int(t, 0) if t[:2].lower() in ("0x", "0b") else int(t, 10)
     except ValueError:
-        raise LogicInputError(f"line {n}: {t[:20]!r} is not a byte (export with a hex, "
-                              "decimal or binary radix)") from None
+        raise InputError(f"line {n}: {t[:20]!r} is not a byte (export with a hex, "
+                         "decimal or binary radix)") from None
     if not 0 <= v <= 0xFF:
-        raise LogicInputError(f"line {n}: {v} is not a byte (set the analyzer to 8 bits)")
+        raise InputError(f"line {n}: {v} is not a byte (set the analyzer to 8 bits)")
     return v
 
 
@@ -82,7 +83,7 @@ def _time(text: str, where: str) -> float:
     try:
         return seconds(text)
     except ValueError:
-        raise LogicInputError(f"{where}: bad time {text[:30]!r}") from None
+        raise InputError(f"{where}: bad time {text[:30]!r}") from None
 
 
 def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
@@ -90,7 +91,7 @@ def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
     try:
         yield from _saleae2(src, opts, chunk_size, None)
     except csv.Error as exc:
-        raise LogicInputError(f"not a CSV export: {exc}") from None
+        raise InputError(f"not a CSV export: {exc}") from None
 
 
 def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
@@ -98,7 +99,7 @@ def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
     try:
         yield from _saleae1(src, opts, chunk_size, None)
     except csv.Error as exc:
-        raise LogicInputError(f"not a CSV export: {exc}") from None
+        raise InputError(f"not a CSV export: {exc}") from None
 
 
 def byte_chunks(src: ByteSource, size: int = 1 << 20) -> Iterator[bytes]:
@@ -121,7 +122,7 @@ def byte_chunks(src: ByteSource, size: int = 1 << 20) -> Iterator[bytes]:
         cut = buf.rfind(b"\n") + 1
         rest = buf[cut:]
         if len(rest) > MAX_LINE:
-            raise LogicInputError("line longer than 64 KiB: not a Saleae export")
+            raise InputError("line longer than 64 KiB: not a Saleae export")
         if cut:
             yield buf[:cut]
 
@@ -185,7 +186,7 @@ def saleae2_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
     try:
         yield from _saleae2(src, opts, chunk_size, fast)
     except csv.Error as exc:
-        raise LogicInputError(f"not a CSV export: {exc}") from None
+        raise InputError(f"not a CSV export: {exc}") from None
 
 
 def saleae1_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
@@ -194,7 +195,7 @@ def saleae1_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
     try:
         yield from _saleae1(src, opts, chunk_size, fast)
     except csv.Error as exc:
-        raise LogicInputError(f"not a CSV export: {exc}") from None
+        raise InputError(f"not a CSV export: {exc}") from None
 
 
 def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkReader | None
@@ -205,8 +206,8 @@ def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkRead
         i_name, i_type, i_time = (header.index(c) for c in ("name", "type", "start_time"))
         cols = {line: header.index(line) for line in bench_spec()["saleae2"]["data_columns"]}
     except ValueError:
-        raise LogicInputError("not a Saleae Logic 2 SPI export: the header needs name, type, "
-                              "start_time, mosi and miso") from None
+        raise InputError("not a Saleae Logic 2 SPI export: the header needs name, type, "
+                         "start_time, mosi and miso") from None
     kinds = bench_spec()["saleae2"]["row_types"]
     state = Saleae2State({}, {})
     need = max(i_name, i_type, i_time, *cols.values())
@@ -218,8 +219,8 @@ def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkRead
         lambda chunk, n: _saleae2_rows(csv.reader(_lines(chunk)), n, len(header), need, cols,
                                        (i_name, i_type, i_time), kinds, state, opts))
     if state.results and not state.enables:
-        raise LogicInputError("the SPI analyzer had no Enable (chip select) channel: transfers "
-                              "cannot be framed")
+        raise InputError("the SPI analyzer had no Enable (chip select) channel: transfers "
+                         "cannot be framed")
 
 
 def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
@@ -234,7 +235,7 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
         if not row:
             continue
         if len(row) <= need:
-            raise LogicInputError(f"line {n}: {len(row)} columns, expected {ncols}")
+            raise InputError(f"line {n}: {len(row)} columns, expected {ncols}")
         name, kind = row[i_name], row[i_type]
         if name not in routes:
             routes[name] = opts.routes(name, len(routes) + 1)
@@ -251,8 +252,8 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
                     buf = tr.lines[line]
                     buf.append(v)
                     if len(buf) > MAX_TRANSFER:
-                        raise LogicInputError(f"line {n}: transfer longer than {MAX_TRANSFER} "
-                                              "bytes")
+                        raise InputError(f"line {n}: transfer longer than {MAX_TRANSFER} "
+                                         "bytes")
         elif kind == k_start:
             state.enables += 1
             open_[name] = OpenTransfer(_time(row[i_time], f"line {n}"))
@@ -261,7 +262,7 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
             if tr is not None:
                 yield from _emit(tr, routes[name])
         else:
-            raise LogicInputError(f"line {n}: row type {kind!r} is not enable/result/disable")
+            raise InputError(f"line {n}: row type {kind!r} is not enable/result/disable")
 
 
 def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkReader | None
@@ -272,8 +273,8 @@ def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkRead
     try:
         i_time, i_id, i_mosi, i_miso = (header.index(c) for c in want)
     except ValueError:
-        raise LogicInputError("not a Saleae Logic 1.x SPI export: the header needs "
-                              + ", ".join(want)) from None
+        raise InputError("not a Saleae Logic 1.x SPI export: the header needs "
+                         + ", ".join(want)) from None
     routes = opts.routes("", 1)
     state = Saleae1State()
     where = (i_time, i_id, i_mosi, i_miso)
@@ -296,11 +297,11 @@ def _saleae1_rows(rows: Iterator[list[str]], start: int, ncols: int,
         if not row:
             continue
         if len(row) <= max(where):
-            raise LogicInputError(f"line {n}: {len(row)} columns, expected {ncols}")
+            raise InputError(f"line {n}: {len(row)} columns, expected {ncols}")
         pid = row[i_id].strip()
         if not pid:
-            raise LogicInputError(f"line {n}: no Packet ID: the SPI analyzer had no Enable "
-                                  "(chip select) channel, transfers cannot be framed")
+            raise InputError(f"line {n}: no Packet ID: the SPI analyzer had no Enable "
+                             "(chip select) channel, transfers cannot be framed")
         if pid != state.packet:
             if state.tr is not None:
                 yield from _emit(state.tr, routes)
@@ -312,4 +313,4 @@ def _saleae1_rows(rows: Iterator[list[str]], start: int, ncols: int,
             if v is not None:
                 tr.lines[line].append(v)
         if len(tr.lines["mosi"]) > MAX_TRANSFER or len(tr.lines["miso"]) > MAX_TRANSFER:
-            raise LogicInputError(f"line {n}: transfer longer than {MAX_TRANSFER} bytes")
+            raise InputError(f"line {n}: transfer longer than {MAX_TRANSFER} bytes")

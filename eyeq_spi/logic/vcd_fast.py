@@ -21,7 +21,8 @@ from typing import Any, Literal
 import numpy as np
 
 from eyeq_spi.capture.pcapng_io import Record
-from eyeq_spi.logic.options import MAX_TRANSFER, LogicInputError, SpiOptions
+from eyeq_spi.errors import InputError
+from eyeq_spi.logic.options import MAX_TRANSFER, SpiOptions
 from eyeq_spi.logic.saleae_types import ByteSource
 from eyeq_spi.logic.vcd_ref import vcd_records
 from eyeq_spi.logic.vcd_types import Chan, ReaderState
@@ -159,8 +160,8 @@ def _channel(ch: Chan, by_role: list[np.ndarray[Any, Any]], vals: np.ndarray[Any
             mo = np.concatenate((np.array(_bits_of(ch.mo, ch.nbits, msb), np.uint8), mo))
             mi = np.concatenate((np.array(_bits_of(ch.mi, ch.nbits, msb), np.uint8), mi))
         if len(head_mo) + len(mo) // 8 > MAX_TRANSFER:
-            raise LogicInputError(f"transfer longer than {MAX_TRANSFER} bytes (chip select "
-                                  "never rises?)")
+            raise InputError(f"transfer longer than {MAX_TRANSFER} bytes (chip select "
+                             "never rises?)")
         whole = len(mo) - len(mo) % 8
         return (head_mo + np.packbits(mo[:whole], bitorder=order).tobytes(),
                 head_mi + np.packbits(mi[:whole], bitorder=order).tobytes(),

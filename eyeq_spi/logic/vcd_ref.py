@@ -16,13 +16,8 @@ import re
 from collections.abc import Iterator
 
 from eyeq_spi.capture.pcapng_io import Record
-from eyeq_spi.logic.options import (
-    MAX_TRANSFER,
-    SIGNALS,
-    LogicInputError,
-    SpiOptions,
-    sample_on_rising,
-)
+from eyeq_spi.errors import InputError
+from eyeq_spi.logic.options import MAX_TRANSFER, SIGNALS, SpiOptions, sample_on_rising
 from eyeq_spi.logic.saleae_types import ByteSource
 from eyeq_spi.logic.vcd_types import CLK, MISO, MOSI, Chan, ChunkPathBuilder
 
@@ -62,7 +57,7 @@ def _raw_chunks(src: ByteSource, size: int = 1 << 20) -> Iterator[bytes]:
         if cut < 0:
             rest = buf
             if len(buf) > MAX_HEADER:
-                raise LogicInputError("VCD token longer than 16 MiB")
+                raise InputError("VCD token longer than 16 MiB")
             continue
         rest = buf[cut + 1:]
         yield buf[:cut + 1]
@@ -77,7 +72,7 @@ def _header(tokens: Iterator[bytes]) -> tuple[float, list[tuple[str, bytes, str]
     for tok in tokens:
         count += len(tok) + 1
         if count > MAX_HEADER:
-            raise LogicInputError("VCD header longer than 16 MiB")
+            raise InputError("VCD header longer than 16 MiB")
         body: list[bytes] = []
         for t in tokens:
             if t == b"$end":
@@ -85,7 +80,7 @@ def _header(tokens: Iterator[bytes]) -> tuple[float, list[tuple[str, bytes, str]
             body.append(t)
             count += len(t) + 1
             if count > MAX_HEADER:
-                raise LogicInputError("VCD header longer than 16 MiB")
+                raise InputError("VCD header longer than 16 MiB")
         else:
             break
         if tok == b"$enddefinitions":
@@ -93,7 +88,7 @@ def _header(tokens: Iterator[bytes]) -> tuple[float, list[tuple[str, bytes, str]
         if tok == b"$timescale":
             m = re.fullmatch(rb"(1|10|100)\s*(s|ms|us|ns|ps|fs)", b"".join(body))
             if m is None:
-                raise LogicInputError(f"bad VCD timescale {b' '.join(body)[:30]!r}")
+                raise InputError(f"bad VCD timescale {b' '.join(body)[:30]!r}")
             scale = int(m.group(1)) * _UNITS[m.group(2)]
         elif tok == b"$scope":
             scopes.append(body[-1].decode("utf-8", "replace") if body else "")
@@ -102,11 +97,11 @@ def _header(tokens: Iterator[bytes]) -> tuple[float, list[tuple[str, bytes, str]
                 scopes.pop()
         elif tok == b"$var":
             if len(body) < 4:
-                raise LogicInputError(f"bad VCD $var: {b' '.join(body)[:40]!r}")
+                raise InputError(f"bad VCD $var: {b' '.join(body)[:40]!r}")
             vars_.append((".".join(scopes), body[2], body[3].decode("utf-8", "replace")))
         elif not tok.startswith(b"$"):
-            raise LogicInputError(f"not a VCD file: unexpected {tok[:20]!r} in the header")
-    raise LogicInputError("truncated VCD: no $enddefinitions")
+            raise InputError(f"not a VCD file: unexpected {tok[:20]!r} in the header")
+    raise InputError("truncated VCD: no $enddefinitions")
 
 
 def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
@@ -123,7 +118,7 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
                 if name is None:
                     continue
                 if name.lower() not in by_name:
-                    raise LogicInputError(f"--signals: no VCD signal named {name!r}")
+                    raise InputError(f"--signals: no VCD signal named {name!r}")
                 sigs[sig] = by_name[name.lower()]
             found[chan] = sigs
     else:
@@ -140,8 +135,8 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
             found.setdefault(chan, {}).setdefault(sig, ident)
     found = {c: s for c, s in found.items() if "cs" in s or "clk" in s}
     if not found:
-        raise LogicInputError("no SPI signals in the VCD: name them <channel>_cs, _clk, _mosi, "
-                              "_miso or give --signals CHANNEL=CS,CLK,MOSI[,MISO]")
+        raise InputError("no SPI signals in the VCD: name them <channel>_cs, _clk, _mosi, "
+                         "_miso or give --signals CHANNEL=CS,CLK,MOSI[,MISO]")
     table: dict[bytes, list[tuple[Chan, int]]] = {}
     for name, sigs in found.items():
         ch = Chan(name, opts.routes(name, len(found)))
@@ -151,12 +146,12 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
         missing = sorted(need - set(sigs))
         if missing:
             label = name or "the capture"
-            raise LogicInputError(f"VCD channel {label!r} has no {', '.join(missing)} signal "
-                                  "(a transfer is framed by chip select)")
+            raise InputError(f"VCD channel {label!r} has no {', '.join(missing)} signal "
+                             "(a transfer is framed by chip select)")
         for sig, ident in sigs.items():
             table.setdefault(ident, []).append((ch, SIGNALS.index(sig)))
     if not table:
-        raise LogicInputError("no VCD channel is mapped to h2e or e2h (see --channel-map)")
+        raise InputError("no VCD channel is mapped to h2e or e2h (see --channel-map)")
     return table
 
 
@@ -179,13 +174,13 @@ def vcd_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
         if m is not None:
             break
         if len(head) > MAX_HEADER:
-            raise LogicInputError("VCD header longer than 16 MiB")
+            raise InputError("VCD header longer than 16 MiB")
     else:
         m = re.search(rb"\$enddefinitions\s+\$end", head)
     if m is None:
         if not head.lstrip()[:1] == b"$":  # a VCD starts with a $ keyword ($date, $timescale..)
-            raise LogicInputError("not a VCD file: it does not start with a $ keyword")
-        raise LogicInputError("truncated VCD: no $enddefinitions")
+            raise InputError("not a VCD file: it does not start with a $ keyword")
+        raise InputError("truncated VCD: no $enddefinitions")
     meta = _skip_meta(head[:m.start()])  # only before the definitions end
     head = meta + head[m.start():]
     m = re.search(rb"\$enddefinitions\s+\$end\s?", head)
@@ -244,7 +239,7 @@ class _Reader:
                     try:
                         t = int(tok[1:])
                     except ValueError:
-                        raise LogicInputError(f"bad VCD time {tok[:20]!r}") from None
+                        raise InputError(f"bad VCD time {tok[:20]!r}") from None
                     continue
                 elif c0 == 48 or c0 == 49:  # '0' '1'
                     ident, v = tok[1:], c0 - 48
@@ -264,7 +259,7 @@ class _Reader:
                     vector_value = -1
                     continue
                 else:
-                    raise LogicInputError(f"not a VCD value change: {tok[:20]!r}")
+                    raise InputError(f"not a VCD value change: {tok[:20]!r}")
                 targets = table.get(ident)
                 if targets is None or v < 0:
                     continue
@@ -287,8 +282,8 @@ class _Reader:
                             ch.miso_bytes.append(ch.mi)
                             ch.nbits = ch.mo = ch.mi = 0
                             if len(ch.mosi_bytes) > MAX_TRANSFER:
-                                raise LogicInputError(f"transfer longer than {MAX_TRANSFER} "
-                                                      "bytes (chip select never rises?)")
+                                raise InputError(f"transfer longer than {MAX_TRANSFER} "
+                                                 "bytes (chip select never rises?)")
                     elif role == MOSI:
                         ch.mosi = v
                     elif role == MISO:

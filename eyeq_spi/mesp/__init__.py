@@ -2,8 +2,8 @@
 server dispatch table. Both speak whole application messages; a transport carries them."""
 
 from eyeq_spi.mesp.client import MespClient, MespCompleted, MespFailed, StaleReply
-from eyeq_spi.mesp.replies import MespError, MespFailure, MespReply, MespResult, unwrap
+from eyeq_spi.mesp.replies import MespFailure, MespReply, MespResult, unwrap
 from eyeq_spi.mesp.server import MespServer
 
-__all__ = ["MespClient", "MespCompleted", "MespError", "MespFailed", "MespFailure", "MespReply",
-           "MespResult", "MespServer", "StaleReply", "unwrap"]
+__all__ = ["MespClient", "MespCompleted", "MespFailed", "MespFailure", "MespReply", "MespResult",
+           "MespServer", "StaleReply", "unwrap"]

@@ -2,8 +2,8 @@
 that every dataclass here matches its spec entry, so the two cannot drift apart.
 
 A request ends in a :class:`MespReply` or a :class:`MespFailure`, both plain values
-(``MespResult``); ``MespError`` (the error tree, ``eyeq_spi/errors.py``) is only raised, by
-:func:`unwrap` or from ``MespFailure.exception()``, for a caller that wants an exception.
+(``MespResult``); ``RemoteProtocolError`` (the error tree, ``eyeq_spi/errors.py``) is only
+raised, by :func:`unwrap` or from ``MespFailure.exception()``, for a caller that wants one.
 """
 
 from __future__ import annotations
@@ -11,10 +11,17 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from typing import Any, TypeAlias
 
-from eyeq_spi.errors import MespError
+from eyeq_spi.errors import RemoteProtocolError
 
-__all__ = ["REPLY_TYPES", "MespError", "MespFailure", "MespReply", "MespResult", "typed",
-           "unwrap"]
+__all__ = [
+    "REPLY_TYPES",
+    "MespFailure",
+    "MespReply",
+    "MespResult",
+    "RemoteProtocolError",
+    "typed",
+    "unwrap",
+]
 
 
 @dataclass(frozen=True)
@@ -91,7 +98,7 @@ class MespReply:
 class MespFailure:
     """A failed request, as a value: a reply with non-zero ``ret`` (decision M2; ``ret_name``
     from ``specs/mesp.yaml``), a malformed reply (``ret_name`` says what is wrong), or no reply
-    after every attempt (``ret`` None). ``str()`` reads as the matching :class:`MespError`."""
+    after every attempt (``ret`` None). ``str()`` reads as the error :meth:`exception` gives."""
 
     function: str
     ret: int | None
@@ -99,18 +106,19 @@ class MespFailure:
     attempts: int
 
     def __str__(self) -> str:
-        return str(self.exception())
+        what = f"ret {self.ret} ({self.ret_name})" if self.ret is not None else self.ret_name
+        return f"{self.function}: {what} after {self.attempts} attempt(s)"
 
-    def exception(self) -> MespError:
+    def exception(self) -> RemoteProtocolError:
         """The exception to raise for this failure."""
-        return MespError(self.function, self.ret, self.ret_name, self.attempts)
+        return RemoteProtocolError(str(self))
 
 
 MespResult: TypeAlias = MespReply | MespFailure
 
 
 def unwrap(result: MespResult) -> MespReply:
-    """The reply, or raise :class:`MespError` for a failure."""
+    """The reply, or raise :class:`~eyeq_spi.errors.RemoteProtocolError` for a failure."""
     if isinstance(result, MespFailure):
         raise result.exception()
     return result

@@ -13,7 +13,7 @@ from typing import Any
 from eyeq_spi.catalog.messages import Catalog, catalog
 from eyeq_spi.codec.mesp import MESP_PROTOCOL, REPLY_BIT, TAG_MASK, MespCodec
 from eyeq_spi.codec.message import is_mesp
-from eyeq_spi.errors import CodecError
+from eyeq_spi.errors import LocalProtocolError
 
 Handler = Callable[[dict[str, Any]], tuple[int, dict[str, Any]]]
 
@@ -29,7 +29,7 @@ class MespServer:
         self.codec = MespCodec(cat or catalog())
         unknown = set(handlers) - set(self.codec.by_name)
         if unknown:
-            raise CodecError(f"handlers for unknown MESP functions: {sorted(unknown)}")
+            raise LocalProtocolError(f"handlers for unknown MESP functions: {sorted(unknown)}")
         self.handlers = handlers
         self.requests = 0
         self.malformed = 0
@@ -51,5 +51,5 @@ class MespServer:
         try:
             ret, params = self.handlers[f.name](decoded.fields)
             return self.codec.encode_reply(f.name, counter, ret, params)
-        except CodecError:
+        except LocalProtocolError:
             return self.codec.encode_reply(f.name, counter, RET_GENERAL_FAILURE, {})

@@ -14,8 +14,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from eyeq_spi.errors import UsageError
 from eyeq_spi.monitor.model import Snapshot
-from eyeq_spi.monitor.view import MonitorError, render, rich_modules, save_lines, screen_lines
+from eyeq_spi.monitor.view import render, rich_modules, save_lines, screen_lines
 
 MIN_REFRESH, MAX_REFRESH = 5.0, 30.0
 DEFAULT_REFRESH = 6.0  # a margin over the 5 Hz the monitor promises
@@ -46,8 +47,8 @@ SCREENSHOT_SUFFIXES = (".svg", ".html", ".txt")
 
 def check_screenshot(path: str) -> None:
     if not path.lower().endswith(SCREENSHOT_SUFFIXES):
-        raise MonitorError(f"--screenshot {path}: the file must end in "
-                           + ", ".join(SCREENSHOT_SUFFIXES))
+        raise UsageError(f"--screenshot {path}: the file must end in "
+                         + ", ".join(SCREENSHOT_SUFFIXES))
 
 
 def save_screen(snap: Snapshot, path: str, size: tuple[int, int] | None = None) -> None:
@@ -68,7 +69,7 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
     """Run until the source is done (or Ctrl-C); returns how long drawing took. With
     ``screenshot``, the last screen is also written there (:func:`save_screen`)."""
     if not MIN_REFRESH <= refresh <= MAX_REFRESH:
-        raise MonitorError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
+        raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
     if screenshot is not None:
         check_screenshot(screenshot)
     r = rich_modules()

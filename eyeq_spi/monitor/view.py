@@ -8,7 +8,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from eyeq_spi.errors import MonitorError as MonitorError
+from eyeq_spi.errors import OutputError
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.plot.charts import short
 from eyeq_spi.plot.perceived import NO_TTC
@@ -34,15 +34,12 @@ _RICH: RichModules | None = None
 def rich_modules() -> RichModules:
     global _RICH
     if _RICH is None:
-        try:
-            from rich import box
-            from rich.console import Console, Group
-            from rich.live import Live
-            from rich.table import Table
-            from rich.text import Text
-        except ImportError:
-            raise MonitorError("the monitor needs rich, a dependency of eyeq-spi: "
-                               "reinstall eyeq-spi") from None
+        from rich import box
+        from rich.console import Console, Group
+        from rich.live import Live
+        from rich.table import Table
+        from rich.text import Text
+
         _RICH = RichModules(Console, Live, Table, Text, Group, box)
     return _RICH
 
@@ -223,7 +220,7 @@ def render(snap: Snapshot, width: int | None = None, height: int | None = None) 
 
 def save_lines(lines: list[Any], path: str, title: str) -> None:
     """Rich lines as an SVG picture, an HTML page or plain text (by ``path``'s suffix), as
-    wide as the widest line; :class:`MonitorError` when the file cannot be written."""
+    wide as the widest line; ``OutputError`` when the file cannot be written."""
     import io
 
     r = rich_modules()
@@ -239,4 +236,4 @@ def save_lines(lines: list[Any], path: str, title: str) -> None:
         else:
             con.save_text(path)
     except OSError as exc:
-        raise MonitorError(f"cannot write {path}: {exc.strerror or exc}") from None
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None

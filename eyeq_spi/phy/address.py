@@ -9,9 +9,7 @@ stream the same way:
   pyserial spelling ``socket://HOST:PORT`` (a peer listening on TCP), ``rfc2217://HOST:PORT`` (a
   serial port behind an RFC 2217 server), or the path of a tty or pty.
 
-Older spellings are still understood and reported with the new one (:attr:`Address.old`):
-``listen://HOST:PORT`` and ``socket://HOST:PORT`` given to listen are ``--listen
-tcp://HOST:PORT``. :func:`parse_connect` and :func:`parse_listen` are the only parsers; the CLI
+:func:`parse_connect` and :func:`parse_listen` are the only parsers; the CLI
 (``eyeq_spi.cli.args``) and :func:`eyeq_spi.phy.base.open_url` both use them.
 """
 
@@ -22,7 +20,7 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
-from eyeq_spi.errors import AddressError as AddressError
+from eyeq_spi.errors import AdapterError
 
 CONNECT_FORMS = "tcp://HOST:PORT, socket://HOST:PORT, rfc2217://HOST:PORT or a tty/pty path"
 LISTEN_FORM = "tcp://HOST:PORT (port 0: any free port)"
@@ -33,19 +31,12 @@ _URL = re.compile(r"^([a-z0-9+]+)://(\[[0-9A-Fa-f:.]+\]|[^:/\[\]\s?#]*):([^/?#]*
 @dataclass(frozen=True)
 class Address:
     """A parsed address: ``mode`` says whether we listen or connect; ``url`` is canonical
-    (listen: ``tcp://HOST:PORT``; connect: the pyserial URL or device path we open); ``old`` is
-    the text given when it was an old spelling, else None."""
+    (listen: ``tcp://HOST:PORT``; connect: the pyserial URL or device path we open)."""
 
     mode: Literal["listen", "connect"]
     url: str
     host: str | None = None
     port: int | None = None
-    old: str | None = None
-
-    @property
-    def spelling(self) -> str:
-        """How to say this address now: ``--listen tcp://H:P`` or ``--port URL``."""
-        return f"--{'listen' if self.mode == 'listen' else 'port'} {self.display}"
 
     @property
     def display(self) -> str:
@@ -58,17 +49,17 @@ class Address:
 def _host_port(text: str, lo_port: int) -> tuple[str, str, int, str]:
     m = _URL.match(text.strip())
     if not m:
-        raise AddressError(f"{text!r} is not SCHEME://HOST:PORT")
+        raise AdapterError(f"{text!r} is not SCHEME://HOST:PORT")
     scheme, host, port_text, rest = m.groups()
     if rest and not rest.startswith("?"):
-        raise AddressError(f"{text!r}: nothing may follow :PORT")
+        raise AdapterError(f"{text!r}: nothing may follow :PORT")
     try:
         port = int(port_text)
     except ValueError:
-        raise AddressError(f"{text!r}: the port must be an integer in {lo_port}..65535, "
+        raise AdapterError(f"{text!r}: the port must be an integer in {lo_port}..65535, "
                            f"got {port_text!r}") from None
     if not lo_port <= port <= 65535:
-        raise AddressError(f"{text!r}: the port must be in {lo_port}..65535")
+        raise AdapterError(f"{text!r}: the port must be in {lo_port}..65535")
     return scheme, host or "127.0.0.1", port, rest
 
 
@@ -77,31 +68,28 @@ def _bare(host: str) -> str:
 
 
 def parse_listen(text: str) -> Address:
-    """``tcp://HOST:PORT`` to listen on. ``socket://`` and ``listen://`` are old spellings."""
+    """``tcp://HOST:PORT`` to listen on."""
     if "://" not in text:
-        raise AddressError(f"{text!r}: give {LISTEN_FORM}")
+        raise AdapterError(f"{text!r}: give {LISTEN_FORM}")
     scheme = text.split("://", 1)[0].lower()
-    if scheme not in ("tcp", "socket", "listen"):
-        raise AddressError(f"cannot listen on {scheme}://; give {LISTEN_FORM}")
+    if scheme != "tcp":
+        raise AdapterError(f"cannot listen on {scheme}://; give {LISTEN_FORM}")
     _, host, port, rest = _host_port(text, 0)
     if rest:
-        raise AddressError(f"{text!r}: a listening address takes no options after :PORT")
+        raise AdapterError(f"{text!r}: a listening address takes no options after :PORT")
     url = f"tcp://{host}:{port}"
-    return Address("listen", url, _bare(host), port, None if scheme == "tcp" else text)
+    return Address("listen", url, _bare(host), port)
 
 
 def parse_connect(text: str, *, check_path: bool = True) -> Address:
     """Where to connect: ``tcp://`` or ``socket://HOST:PORT``, ``rfc2217://HOST:PORT``, or a
-    tty/pty path (``check_path``: it must exist). ``listen://HOST:PORT`` is the old spelling of
-    ``--listen tcp://HOST:PORT``: returned as a listening address with ``old`` set. Any other
-    pyserial URL (``loop://``...) is passed through for :func:`open_url`'s callers in code."""
+    tty/pty path (``check_path``: it must exist). Any other pyserial URL (``loop://``...) is
+    passed through for :func:`open_url`'s callers in code."""
     if "://" not in text:
         if check_path and not os.path.exists(text):
-            raise AddressError(f"no such device {text!r}; give {CONNECT_FORMS}")
+            raise AdapterError(f"no such device {text!r}; give {CONNECT_FORMS}")
         return Address("connect", text)
     scheme = text.split("://", 1)[0].lower()
-    if scheme == "listen":
-        return parse_listen(text)
     if scheme in ("tcp", "socket", "rfc2217"):
         _, host, port, rest = _host_port(text, 1)
         url = f"{'rfc2217' if scheme == 'rfc2217' else 'socket'}://{host}:{port}{rest}"

@@ -103,19 +103,13 @@ def adapter_class(name: str) -> type[Adapter]:
     return cls
 
 
-def open_url(url: str, *, timeout: float = 5.0) -> Adapter:
-    """Open an adapter from an address in the grammar of :mod:`eyeq_spi.phy.address`.
-
-    - ``tcp://HOST:PORT``, ``socket://HOST:PORT``, ``rfc2217://HOST:PORT``, a tty or pty path,
-      or any other pyserial URL (``loop://``): connect;
-    - ``listen://HOST:PORT`` (the old spelling of ``--listen tcp://HOST:PORT``): listen, as
-      :func:`open_listener` does.
-    """
+def open_url(url: str) -> Adapter:
+    """Connect an adapter to an address in the grammar of :mod:`eyeq_spi.phy.address`:
+    ``tcp://HOST:PORT``, ``socket://HOST:PORT``, ``rfc2217://HOST:PORT``, a tty or pty path, or
+    any other pyserial URL (``loop://``). :func:`open_listener` listens."""
     from eyeq_spi.phy.address import parse_connect
 
     addr = parse_connect(url, check_path=False)
-    if addr.mode == "listen":
-        return open_listener(addr.url, timeout=timeout)
     return adapter_class("serial")(addr.url)  # type: ignore[call-arg]
 
 

@@ -7,9 +7,3 @@ objects, lane polynomials, signs, timing and link events come from the same code
 needs no plotting library; matplotlib (the ``plot`` extra) is imported only when drawing.
 """
 
-from __future__ import annotations
-
-from eyeq_spi.errors import PlotError
-
-__all__ = ["PlotError"]
-

@@ -6,7 +6,7 @@ import itertools
 from collections import Counter
 from typing import Any
 
-from eyeq_spi.plot import PlotError
+from eyeq_spi.errors import InputError
 from eyeq_spi.plot.collect import GAP_PERIODS, Collected, Stream
 from eyeq_spi.plot.figures import new_figure, plural
 
@@ -40,7 +40,7 @@ def timing_figure(col: Collected) -> tuple[Any, dict[str, Any]]:
     """The figure and its axes by message name."""
     rows = timing_rows(col)
     if not rows:
-        raise PlotError("no periodic messages (DASP or 0x41) in the capture window")
+        raise InputError("no periodic messages (DASP or 0x41) in the capture window")
     fig = new_figure(WIDTH_IN, HEAD_IN + 0.45 + ROW_IN * len(rows), DPI)
     axes = fig.subplots(len(rows), 1, sharex=True, squeeze=False)[:, 0]
     height = fig.get_figheight()
@@ -128,7 +128,7 @@ def _rebinned(col: Collected) -> tuple[float, dict[int, Counter[str]]]:
 def link_figure(col: Collected) -> Any:
     width, bins = _rebinned(col)
     if not bins:
-        raise PlotError("no timestamped frames in the capture window")
+        raise InputError("no timestamped frames in the capture window")
     first, last = min(bins), max(bins)
     xs = [(b + 0.5) * width for b in range(first, last + 1)]
     keys: set[str] = set()

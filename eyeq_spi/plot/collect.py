@@ -14,11 +14,12 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
+from eyeq_spi import garbage
 from eyeq_spi.capture.pcapng_io import Tail
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file, paused_gc
+from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file
+from eyeq_spi.errors import InputError, UsageError
 from eyeq_spi.logic.options import SpiOptions
-from eyeq_spi.plot import PlotError
 from eyeq_spi.plot.perceived import Labels, Scene, SceneTracker
 
 GAP_PERIODS = 3.0  # a stream is stopped after 3 nominal periods of silence, the host's stale rule
@@ -129,8 +130,8 @@ class Collector:
         assert self.fps
         while t >= self._next_frame and self._next_frame <= self.w.end:
             if len(self.out.frames) >= self.max_frames:
-                raise PlotError(f"more than {self.max_frames} animation frames: lower --fps, "
-                                "narrow --start/--end or raise --max-frames")
+                raise UsageError(f"more than {self.max_frames} animation frames: lower --fps, "
+                                 "narrow --start/--end or raise --max-frames")
             snap = self.tracker.snapshot()
             snap.time = self._next_frame
             self.out.frames.append(snap)
@@ -210,7 +211,7 @@ def collect_capture(cf: CaptureFile, collector: Collector) -> Collected:
     until the collector is done."""
     items = cf.items
     try:
-        with paused_gc():
+        with garbage.paused():
             for r in items:
                 collector.add(r)
                 if collector.done:
@@ -222,6 +223,6 @@ def collect_capture(cf: CaptureFile, collector: Collector) -> Collected:
     out = collector.finish()
     at_time = collector.at is not None and math.isfinite(collector.at)
     if not out.has_time and (collector.timing or collector.link or collector.fps or at_time):
-        raise PlotError(f"{cf.path}: the capture has no timestamps (a raw file, or hex without "
-                        "times); this plot needs them")
+        raise InputError(f"{cf.path}: the capture has no timestamps (a raw file, or hex without "
+                         "times); this plot needs them")
     return out

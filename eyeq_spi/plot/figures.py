@@ -8,7 +8,7 @@ import io
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.plot import PlotError
+from eyeq_spi.errors import MissingExtra, OutputError, UsageError
 
 STILL = (".png", ".svg", ".html")
 MOVING = (".gif", ".html")
@@ -20,7 +20,7 @@ def mpl() -> Any:
     try:
         import matplotlib
     except ImportError:
-        raise PlotError(f"plots need matplotlib: {HINT}") from None
+        raise MissingExtra("plot", "plots need matplotlib") from None
     matplotlib.use("Agg", force=True)
     return matplotlib
 
@@ -44,7 +44,7 @@ def check_output(path: str, animated: bool) -> str:
     suffix = Path(path).suffix.lower()
     allowed = MOVING if animated else STILL
     if suffix not in allowed:
-        raise PlotError(f"{path}: output must end in {', '.join(allowed)}")
+        raise UsageError(f"{path}: output must end in {', '.join(allowed)}")
     return suffix
 
 
@@ -61,7 +61,7 @@ def _write(path: str, data: bytes | str) -> None:
         else:
             Path(path).write_bytes(data)
     except OSError as exc:
-        raise PlotError(f"cannot write {path}: {exc.strerror or exc}") from None
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def save_figure(fig: Any, path: str, title: str) -> None:
@@ -88,7 +88,7 @@ def save_animation(anim: Any, path: str, fps: float, title: str) -> None:
         try:
             anim.save(path, writer=PillowWriter(fps=max(1, round(fps))))
         except OSError as exc:
-            raise PlotError(f"cannot write {path}: {exc.strerror or exc}") from None
+            raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
     else:
         _write(path, _page(title, offline(anim.to_jshtml(fps=fps, default_mode="once"))))
 

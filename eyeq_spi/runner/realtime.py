@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import gc
+import contextlib
 import time
 from collections.abc import Callable
 
+from eyeq_spi import garbage
 from eyeq_spi.phy.base import Adapter
 from eyeq_spi.runner.node import Node
 
@@ -33,15 +34,14 @@ class RealTimeRunner:
         self.max_wait = max_wait
         self.tap = tap
         self.start = clock()
-        # Python's cyclic GC can pause for ~10 ms, as long as the peer's ackTimeout. Collect
-        # only when idle (nothing due for IDLE_GC seconds), never in the middle of a burst.
+        # A pass of the cyclic GC can take as long as the peer's ackTimeout (eyeq_spi/garbage.py):
+        # collect only when idle (nothing due for IDLE_GC seconds), never in a burst.
         self.idle_gc = idle_gc
         self._last_gc = clock()
         self._gcs = 0
-        self._gc_was: bool | None = None  # the collector's state to give back on close
+        self._paused = contextlib.ExitStack()  # the collector's state to give back on close
         if idle_gc:
-            self._gc_was = gc.isenabled()
-            gc.disable()
+            self._paused.enter_context(garbage.paused())
 
     def _flush(self, now: float) -> None:
         for out in self.node.data_to_send(now):
@@ -62,7 +62,7 @@ class RealTimeRunner:
         if self.idle_gc and wait >= IDLE_GC and self.clock() - self._last_gc > GC_EVERY:
             self._gcs += 1
             # young generations (well under a millisecond); everything once a minute
-            gc.collect(2 if self._gcs % 120 == 0 else 1)
+            garbage.collect(full=self._gcs % 120 == 0)
             self._last_gc = self.clock()
             wait = 0.0 if timer is None else min(wait, max(0.0, timer - self.clock()))
         t = self.adapter.recv(wait)
@@ -80,10 +80,7 @@ class RealTimeRunner:
         """Give the cyclic GC back to the process as it was before this runner (idempotent).
         Every owner calls it, or uses the runner as a context manager: a runner left open leaves
         the collector off for the rest of the process."""
-        if self._gc_was is not None:
-            if self._gc_was:
-                gc.enable()
-            self._gc_was = None
+        self._paused.close()
 
     def __enter__(self) -> RealTimeRunner:
         return self

@@ -13,9 +13,10 @@ are lists of views) and supports what the fillers do to a dict: ``key in v``, ``
 ``v[key]`` and ``v[key] = x``, ``v.update(...)``. Every offset, ``struct`` format and bitfield
 position comes from the :class:`~eyeq_spi.codec.layout.Layout` (hence from ``specs/``), never by
 hand. Writing a leaf packs it at once, with the errors the dict path's encoder would raise
-(:class:`~eyeq_spi.errors.CodecError`). The fillers' writers in :mod:`eyeq_spi.sim.scene_write`
-notice views: they pack whole rows of an array of structs with generated code (the obstacles
-as numpy columns), bind writers to views once and write constants once.
+(:class:`~eyeq_spi.errors.LocalProtocolError`). The fillers' writers in
+:mod:`eyeq_spi.sim.scene_write` notice views: they pack whole rows of an array of structs with
+generated code (the obstacles as numpy columns), bind writers to views once and write constants
+once.
 
 :meth:`DaspPacker.encode` then fills the rolling counters and CRCs (D5, generated from
 ``Layout.crc_plan`` like :func:`eyeq_spi.codec.e2e.compile_verifier`; same order and values as
@@ -37,7 +38,7 @@ from eyeq_spi.codec.e2e import compile_protector as compile_protector
 from eyeq_spi.codec.layout import INT_RANGE, Layout
 from eyeq_spi.codec.layout_fast import FMT
 from eyeq_spi.codec.message import DASP_PROTOCOL
-from eyeq_spi.errors import CodecError, EyeqError
+from eyeq_spi.errors import EyeqError, LocalProtocolError
 
 # numpy dtypes of the seed's primitive types (little-endian, as layout_fast.FMT's "<" formats)
 NP_FMT = {"uint8": "u1", "uint16": "<u2", "uint32": "<u4", "uint64": "<u8", "int8": "i1",
@@ -147,7 +148,7 @@ class StructView:
                 kid.assign(value)
             elif isinstance(kid, list) and isinstance(value, list):
                 if len(value) != len(kid):
-                    raise CodecError(f"{key} needs {len(kid)} elements, got {len(value)}")
+                    raise LocalProtocolError(f"{key} needs {len(kid)} elements, got {len(value)}")
                 for view, v in zip(kid, value, strict=True):
                     view.assign(v)
             return  # a member this release lacks: the dict path's encoder ignores it too
@@ -157,16 +158,16 @@ class StructView:
                 s.st.pack_into(self.buf, o, value)
             elif s.kind == BITS:  # layout_fast._bits: the same check, then the container's bits
                 if not isinstance(value, int) or not 0 <= value <= s.mask:
-                    raise CodecError(f"{key}: {value!r} does not fit "
-                                     f"{s.mask.bit_length()} bit(s)")
+                    raise LocalProtocolError(f"{key}: {value!r} does not fit "
+                                             f"{s.mask.bit_length()} bit(s)")
                 c = s.st.unpack_from(self.buf, o)[0] & ~(s.mask << s.lo)
                 s.st.pack_into(self.buf, o, c | value << s.lo)
             else:
                 if len(value) != s.count:
-                    raise CodecError(f"{key} needs {s.count} elements, got {len(value)}")
+                    raise LocalProtocolError(f"{key} needs {s.count} elements, got {len(value)}")
                 s.st.pack_into(self.buf, o, *value)
         except (struct.error, TypeError) as exc:
-            raise CodecError(f"{self.layout.name}.{key}: cannot encode: {exc}") from None
+            raise LocalProtocolError(f"{self.layout.name}.{key}: cannot encode: {exc}") from None
         if self.shadow is not None:
             self.shadow[key] = value
 
@@ -178,7 +179,7 @@ class StructView:
         """A whole struct at once (the dict path replaces its sub-dict): every member needed."""
         missing = [k for k in (*self.slots, *self.kids) if k not in values]
         if missing:
-            raise CodecError(f"{self.layout.name}: missing member {missing[0]}")
+            raise LocalProtocolError(f"{self.layout.name}: missing member {missing[0]}")
         self.update(values)
 
     def reset(self) -> None:
@@ -221,6 +222,6 @@ class DaspPacker:
     def encode(self, counter: int, e2e: E2EState | None) -> bytes:
         """§7.1.2 header (protocol, data ID, counter, reserved 0) and the protected payload."""
         if not 0 <= counter <= 255:
-            raise CodecError(f"DASP counter {counter} outside 0..255")
+            raise LocalProtocolError(f"DASP counter {counter} outside 0..255")
         self._protect(self.buf, e2e)
         return self._head + bytes((counter, 0)) + self.buf

@@ -37,6 +37,7 @@ import math
 from collections import Counter, deque
 from typing import Any
 
+from eyeq_spi.catalog.bringup import SWITCH_APP
 from eyeq_spi.catalog.messages import MessageDef, sw_release
 from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.e2e import E2EState
@@ -61,7 +62,6 @@ from eyeq_spi.sim.mesp_functions import (
     PENDING,
     PENDING_VISION,
     RUNNING_VISION,
-    SWITCH_APP,
     VEH_STATE_STALE,
     MespFunctions,
     SimCounters,

@@ -47,7 +47,7 @@ from functools import cache
 from typing import Any, Final
 
 from eyeq_spi.catalog.link import spec_file
-from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.errors import LocalProtocolError, SpecError
 
 # §7.1.1.3 request "Hash type" enum
 HASH_SHA256: Final = 0
@@ -155,7 +155,7 @@ class FlashImage:
     def __init__(self, size_mb: int = 64, seed: int = 1) -> None:
         sizes = flash_sizes_mb()
         if size_mb not in sizes:
-            raise CodecError(
+            raise LocalProtocolError(
                 f"flash size {size_mb} MB is not in APPENDIX F (expected one of {sizes})"
             )
         self.size_mb = size_mb
@@ -175,7 +175,7 @@ class FlashImage:
         for r in self.regions:
             if name in (r.name, r.base_name):
                 return r
-        raise CodecError(f"no region {name!r} in the {self.size_mb}MB flash map")
+        raise LocalProtocolError(f"no region {name!r} in the {self.size_mb}MB flash map")
 
     @property
     def extents(self) -> list[tuple[int, int]]:
@@ -184,7 +184,7 @@ class FlashImage:
 
     def _check_range(self, start: int, size: int, what: str) -> None:
         if start < 0 or size < 0 or start + size > self.size:
-            raise CodecError(
+            raise LocalProtocolError(
                 f"{what} [{start:#x}, {start + size:#x}) is outside the "
                 f"{self.size_mb}MB flash [0x0, {self.size:#x})"
             )
@@ -214,7 +214,7 @@ class FlashImage:
     def read(self, start: int, size: int) -> bytes:
         """``size`` bytes from ``start``; at most 1 MiB (use ``hash()`` for large ranges)."""
         if size > READ_LIMIT:
-            raise CodecError(f"read of {size:#x} bytes refused: read() is limited to 1 MiB")
+            raise LocalProtocolError(f"read of {size:#x} bytes refused: read() is limited to 1 MiB")
         self._check_range(start, size, "read")
         return b"".join(bytes(s) for s in self._segments(start, start + size))
 
@@ -232,7 +232,7 @@ class FlashImage:
             for seg in segments:
                 h.update(seg)
             return h.digest()
-        raise CodecError(f"unknown hash type {hash_type} (0 SHA-256, 1 CRC32)")
+        raise LocalProtocolError(f"unknown hash type {hash_type} (0 SHA-256, 1 CRC32)")
 
     def set_bytes(self, offset: int, data: bytes) -> None:
         """Overwrite ``data`` at ``offset`` (fault injection, tests); merges touched extents."""

@@ -12,9 +12,10 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
+from eyeq_spi.catalog.bringup import EEPROM_FILE, FATAL_INTRINSIC
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
-from eyeq_spi.errors import CodecError, EyeqError
+from eyeq_spi.errors import EyeqError, LocalProtocolError
 from eyeq_spi.mesp.server import RET_BAD_PARAMETERS, RET_FILE_NOT_FOUND, RET_NOT_ALLOWED
 from eyeq_spi.sim.calibration import strip_crc
 from eyeq_spi.sim.flash import FlashImage, hash_request
@@ -23,12 +24,9 @@ from eyeq_spi.transport.connection import TransportConnection
 VEH_STATE_STALE = 3 / 66.67  # three HOST_VEH_STATE periods (§7.1.2.2: 66.67 Hz)
 # M7: in DV the EyeQ reports mainState 0xAA (RUNNING_DV); 0x05 is DV's application ID
 PENDING, RUNNING_VISION, BOOT, DV = 0x01, 0x02, 0x03, 0xAA
-SWITCH_APP = (0x05, 0x05)  # MESP Switch EyeQ Application (service, function), M3
 PENDING_VISION, PENDING_TAC, PENDING_SPC = 0x92, 0x85, 0x82
 RUNNING_TAC, RUNNING_SPC = 0xAC, 0x22
 APP_VISION, APP_TAC, APP_SPC, APP_DV = 0x01, 0x03, 0x04, 0x05
-EEPROM_FILE = "/mesp/eeprom.data1"
-FATAL_INTRINSIC = 22
 MODE_OF_STATE = {RUNNING_VISION: "APP", RUNNING_TAC: "TAC", RUNNING_SPC: "SPC"}
 
 
@@ -141,7 +139,7 @@ class MespFunctions:
         stage, params = p["ct_stage"], p["params"]
         try:
             msg = init_message(stage, self.sw)
-        except (CodecError, EyeqError):
+        except (LocalProtocolError, EyeqError):
             return self._cal_result(stage, RET_BAD_PARAMETERS, p)
         if p["ct_type"] != msg.ct_type:
             return self._cal_result(stage, RET_BAD_PARAMETERS, p)

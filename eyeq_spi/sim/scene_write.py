@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from eyeq_spi.errors import CodecError
+from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.sim.dasp_fast import BITS, NP_FMT, SCALAR, StructView
 from eyeq_spi.sim.scene_layout import FArr, IArr, _Leaf, _Node, _ObjPlan
 
@@ -68,7 +68,7 @@ def _compile_puts(d: StructView, n: _Node, keys: tuple[str, ...]
     """:func:`_puts` into view ``d`` as generated code: per key the same clamp expression as
     :meth:`_Leaf.clamp` and a ``pack_into`` at the member's offset from the layout (a bitfield
     read, masked and written back). None if a key names a struct or an array: the loop runs."""
-    env: dict[str, Any] = {"CodecError": CodecError, "StructError": struct.error}
+    env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
     body: list[str] = []
     for i, key in enumerate(keys):
         leaf = n.members.get(key)
@@ -86,14 +86,15 @@ def _compile_puts(d: StructView, n: _Node, keys: tuple[str, ...]
         else:
             keep = ((1 << (8 * s.st.size)) - 1) & ~(s.mask << s.lo)
             body += [f"if not isinstance(x, int) or not 0 <= x <= {s.mask}:",
-                     f"    raise CodecError(f'{{K{i}}}: {{x!r}} does not fit "
+                     f"    raise LocalProtocolError(f'{{K{i}}}: {{x!r}} does not fit "
                      f"{s.mask.bit_length()} bit(s)')",
                      f"S{i}.pack_into(b, {o}, S{i}.unpack_from(b, {o})[0] & {keep} | x << {s.lo})"]
         if d.shadow is not None:
             body.append(f"sh[K{i}] = x")
     src = ["def _w(b, sh, v):", "    try:"] + [f"        {line}" for line in body or ["pass"]]
     src += ["    except (StructError, TypeError) as exc:",
-            f"        raise CodecError(f'{d.layout.name}: cannot encode: {{exc}}') from None"]
+            "        raise LocalProtocolError(",
+            f"            f'{d.layout.name}: cannot encode: {{exc}}') from None"]
     exec("\n".join(src), env)
     fn: Callable[[bytearray, Any, dict[str, float]], None] = env["_w"]
     return fn
@@ -167,7 +168,7 @@ def _compile_rows(elems: list[StructView], n: _Node, rkeys: tuple[str, ...],
     lo, hi = np.full(len(rkeys), -np.inf), np.full(len(rkeys), np.inf)
     ints: list[int] = []
     clamped: list[str] = []  # the expressions of :meth:`_Leaf.clamp`
-    env: dict[str, Any] = {"CodecError": CodecError, "StructError": struct.error}
+    env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
     for j, key in enumerate(rkeys + keys):
         leaf = n.members.get(key)
         if not isinstance(leaf, _Leaf) or key not in first:
@@ -230,7 +231,8 @@ def _rows_writer(first: StructView, stride: int, put: list[tuple[int, str, str]]
     body += [f"            o += {stride}", "        for a, e in Z[len(rows)]:",
              "            b[a:e] = bytes(e - a)",
              "    except (StructError, TypeError, OverflowError) as exc:",
-             f"        raise CodecError(f'{first.layout.name}: cannot encode: {{exc}}') from None"]
+             "        raise LocalProtocolError(",
+             f"            f'{first.layout.name}: cannot encode: {{exc}}') from None"]
     exec("\n".join(body), env)
     fn: Callable[[bytearray, list[Any]], None] = env.pop("_w")
     return fn

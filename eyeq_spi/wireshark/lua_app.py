@@ -34,7 +34,7 @@ from eyeq_spi.catalog.messages import MespParam, MessageDef, SwKey
 from eyeq_spi.codec.layout import FieldInfo, Layout
 from eyeq_spi.codec.mesp import REPLY_BIT, TAG_MASK
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import EyeqError, SpecError
 from eyeq_spi.wireshark.lua_common import (
     FLOAT_FIELD,
     INT_FIELD,
@@ -80,7 +80,8 @@ def merge(key: str, specs: list[MemberField]) -> MemberField:
     if len(ctors) > 1:
         kinds = {c.rstrip("0123456789") for c in ctors}
         if len(kinds) != 1 or kinds.pop() not in ("uint", "int"):
-            raise ValueError(f"field eyeq_spi.{key}: types {sorted(ctors)} cannot share a field")
+            raise SpecError(f"specs/structs field eyeq_spi.{key}: types {sorted(ctors)} cannot "
+                            "share a Wireshark field")
         ctor = max(ctors, key=lambda c: _INT_WIDTH[c.lstrip("uint")])
     masks = {s.mask for s in specs}
     vss = {s.vs for s in specs}
@@ -88,7 +89,8 @@ def merge(key: str, specs: list[MemberField]) -> MemberField:
     for s in specs:  # every release's flags get a field; a row adds its own release's
         for flag in s.flags:
             if flags.setdefault(flag[0], flag) != flag:
-                raise ValueError(f"flag field eyeq_spi.{flag[0]} differs between releases")
+                raise SpecError(f"specs/structs flag field eyeq_spi.{flag[0]}: differs between "
+                                "releases")
     return MemberField(ctor, specs[-1].label, specs[-1].desc,
                        vss.pop() if len(vss) == 1 else None,
                        masks.pop() if len(masks) == 1 else None, tuple(flags.values()))
@@ -152,10 +154,11 @@ class AppGenerator:
         m = f.member
         if f.type in FLOAT_FIELD:
             if f.bits is not None:
-                raise ValueError(f"{lay.name}.{f.name}: a float cannot be a bitfield")
+                raise SpecError(f"specs/structs {lay.name}.{f.name}: a float cannot be a bitfield")
             return MemberField(FLOAT_FIELD[f.type][0], f.name, self._desc(f))
         if f.type not in INT_FIELD:
-            raise ValueError(f"{lay.name}.{f.name}: no Wireshark field type for {f.type}")
+            raise SpecError(f"specs/structs {lay.name}.{f.name}: no Wireshark field type for "
+                            f"{f.type}")
         mask = None
         width = 8 * INT_SIZE[f.type]
         lo = 0
@@ -323,7 +326,8 @@ class AppGenerator:
         counter_mask = (1 << int(raw["tag_counter_bits"])) - 1
         reply_mask = 1 << int(raw["tag_reply_bit"])
         if counter_mask != TAG_MASK or reply_mask != REPLY_BIT:  # the codec must agree
-            raise ValueError("specs/mesp.yaml tag bits disagree with eyeq_spi.codec.mesp")
+            raise SpecError("specs/mesp.yaml mesp.tag_counter_bits, tag_reply_bit: disagree with "
+                            "eyeq_spi.codec.mesp")
         add = self.fields.add
         add("mesp.service", "uint8", lua_str("Service"), "base.HEX")
         add("mesp.protocol", "uint8", lua_str("Protocol"), "base.HEX")
@@ -368,7 +372,7 @@ class AppGenerator:
             return self.fields.add(key, "string", lua_str(prm.name))
         if prm.type == "bytes":
             return self.fields.add(key, "bytes", lua_str(prm.name))
-        raise ValueError(f"MESP parameter {prm.name}: unknown type {prm.type}")
+        raise SpecError(f"specs/mesp.yaml parameter {prm.name}: unknown type {prm.type}")
 
 
 def value_table_int(values: dict[int, int]) -> str:

@@ -9,6 +9,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
+from eyeq_spi.errors import SpecError
+
 PROTO = "eyeq_spi"
 """The protocol's filter name; every field is ``eyeq_spi.<something>``."""
 
@@ -79,12 +81,13 @@ class FieldRegistry:
         """
         abbrev = f"{PROTO}.{key}"
         if not _ABBREV_OK.match(abbrev):
-            raise ValueError(f"not a valid Wireshark filter name: {abbrev!r}")
+            raise SpecError(f"specs/: {abbrev!r} is not a valid Wireshark filter name")
         call = f"ProtoField.{ctor}({', '.join([lua_str(abbrev), *args])})"
         old = self.abbrevs.get(key)
         if old is not None:
             if old != call:
-                raise ValueError(f"field {abbrev} defined twice differently:\n{old}\n{call}")
+                raise SpecError(f"specs/: field {abbrev} defined twice differently: {old} and "
+                                f"{call}")
             return self.ref(key)
         self.abbrevs[key] = call
         self.lines.append(f"F[{lua_str(key)}] = pf({call})")
@@ -109,7 +112,7 @@ class ValueStrings:
         table = value_table(values)
         old = self.known.get(name)
         if old is not None and old != table:
-            raise ValueError(f"value_string {name} defined twice differently")
+            raise SpecError(f"specs/: value_string {name} defined twice differently")
         if old is None:
             self.known[name] = table
             self.lines.append(f"E[{lua_str(name)}] = {table}")

@@ -30,6 +30,7 @@ from eyeq_spi.catalog.messages import SwKey, sw_release_text
 from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import DASP_PROTOCOL, MessageCodec
+from eyeq_spi.errors import SpecError
 from eyeq_spi.wireshark.lua_app import MESP_PARAM_FIELD, AppGenerator
 from eyeq_spi.wireshark.lua_common import (
     FieldRegistry,
@@ -66,7 +67,7 @@ def header_expr(word: str, shift: int, mask: int) -> str:
     a mask of low bits: exact in Lua 5.2's doubles and with no call into the ``bit`` library,
     which costs a C call per operation in every frame."""
     if mask & (mask + 1):
-        raise ValueError(f"header mask 0x{mask:X} is not a run of low bits")
+        raise SpecError(f"specs/link.yaml frame.header: mask 0x{mask:X} is not a run of low bits")
     value = word if shift == 0 else f"({word} - {word} % {1 << shift}) / {1 << shift}"
     return f"{value} % {mask + 1}"
 
@@ -87,19 +88,22 @@ def _header_fields(frame: dict[str, Any]) -> dict[str, tuple[int, int]]:
     """name -> (shift, mask) of the header word (L1), as eyeq_spi.link.frame computes them."""
     header = frame["header"]
     if header["word"] != "uint32le":
-        raise ValueError(f"header word {header['word']!r}: only uint32le is supported")
+        raise SpecError(f"specs/link.yaml frame.header.word: {header['word']!r}: the Lua "
+                        "generator reads uint32le only")
     fields = [(str(n), int(w)) for n, w in header["fields"]]
     if header["bit_order"] == "msb_first":
         fields = fields[::-1]
     elif header["bit_order"] != "lsb_first":
-        raise ValueError(f"unknown header bit order {header['bit_order']!r}")
+        raise SpecError(f"specs/link.yaml frame.header.bit_order: unknown order "
+                        f"{header['bit_order']!r}")
     out: dict[str, tuple[int, int]] = {}
     pos = 0
     for name, width in fields:
         out[name] = (pos, (1 << width) - 1)
         pos += width
     if pos != 32 or set(out) != {"D", "R", "RSP", "NUM"}:
-        raise ValueError("the header word must hold exactly D, R, RSP and NUM in 32 bits")
+        raise SpecError("specs/link.yaml frame.header.fields: the header word must hold "
+                        "exactly D, R, RSP and NUM in 32 bits")
     return out
 
 
@@ -143,7 +147,8 @@ class LuaGenerator:
             where[prm.name] = off
             off += MESP_PARAM_FIELD[prm.type][1]
         if SW_MAJOR not in where or SW_MINOR not in where:
-            raise ValueError(f"{fn.name}: the reply does not lead with {SW_MAJOR}/{SW_MINOR}")
+            raise SpecError(f"specs/mesp.yaml {fn.name}: the reply does not lead with "
+                            f"{SW_MAJOR}/{SW_MINOR}")
         lines.append(f"local VERSIONS = {{key = {lua_int(fn.service * 256 + fn.function)}, "
                      f"major = {where[SW_MAJOR]}, minor = {where[SW_MINOR]}}}")
         boot = self.cat.message(BOOT_MESSAGE)
@@ -157,7 +162,8 @@ class LuaGenerator:
                 f = {x.name: x.offset for x in codec.layout(diag).fields}
                 diag_at.add((4 + f[SW_MAJOR], 4 + f[SW_MINOR]))
         if len(diag_at) != 1:
-            raise ValueError(f"{BASE_DIAG_MESSAGE}: the release bytes move between releases")
+            raise SpecError(f"specs/structs {BASE_DIAG_MESSAGE}: {SW_MAJOR}/{SW_MINOR} move "
+                            "between releases")
         major, minor = diag_at.pop()
         lines.append(f"local BOOT = {{id = {lua_int(boot.data_id)}, at = "
                      + "{" + ", ".join(f"[{n}] = {o}" for n, o in sorted(boot_at.items()))
@@ -171,9 +177,11 @@ class LuaGenerator:
         s = self.spec
         frame, crc, tr = s["frame"], s["crc"], s["transport"]
         if crc["reflect"]:
-            raise ValueError("a reflected CRC is not supported by the Lua generator")
+            raise SpecError("specs/link.yaml crc.reflect: the Lua generator computes an "
+                            "unreflected CRC only")
         if int(crc["poly"]) > 0xFFFF or int(crc["init"]) > 0xFFFF:
-            raise ValueError("the Lua generator computes a CRC-16 only")
+            raise SpecError("specs/link.yaml crc.poly, crc.init: the Lua generator computes a "
+                            "CRC-16 only")
         d = int(frame["data_offset"])
         types = tr["types"]
         c = {
@@ -203,12 +211,13 @@ class LuaGenerator:
         }
         if c["CRC_OFFSET"] != 4 or c["HEAD"] != CRC_HEAD or c["NEXT_DATA"] != CRC_HEAD \
                 or c["SINGLE_DATA"] != CRC_HEAD:  # the runtime reads them with one call
-            raise ValueError("the Lua dissector expects the CRC right after the 4-byte header, "
-                             "then transport type and argument, then the data")
+            raise SpecError("specs/link.yaml frame: the Lua dissector expects the CRC right "
+                            "after the 4-byte header, then transport type and argument, then "
+                            "the data")
         if c["FIRST_DATA"] + c["FIRST_CHUNK"] > c["FRAME_SIZE"]:
-            raise ValueError("first_chunk does not fit the frame")
+            raise SpecError("specs/link.yaml transport.first_chunk: does not fit the frame")
         if c["NEXT_DATA"] + c["CONSECUTIVE_CHUNK"] > c["FRAME_SIZE"]:
-            raise ValueError("consecutive_chunk does not fit the frame")
+            raise SpecError("specs/link.yaml transport.consecutive_chunk: does not fit the frame")
         lines = ["local C = {"]
         lines += [f"  {k} = {lua_int(v) if k.startswith('CRC_') else v}," for k, v in c.items()]
         timeout = repr(float(tr["reassembly_timeout"]))
@@ -225,7 +234,8 @@ class LuaGenerator:
         lines.append("local TTYPE = " + value_table({int(v): str(k) for k, v in types.items()}))
         dirs = {int(i["id"]): str(i["name"]) for i in self.capture["interfaces"]}
         if set(dirs.values()) != set(RECEIVER):
-            raise ValueError(f"capture interfaces {sorted(dirs.values())} are not h2e/e2h")
+            raise SpecError(f"specs/capture.yaml capture.interfaces: {sorted(dirs.values())} "
+                            "are not h2e/e2h")
         lines.append(f"local DIRS = {value_table(dirs)}")
         lines.append('local DIRTEXT = {["?"] = ""}  -- the Info column\'s prefix per direction')
         lines.append("for _, name in pairs(DIRS) do DIRTEXT[name] = name .. \" \" end")
@@ -235,7 +245,7 @@ class LuaGenerator:
         lines.append(f"local DASP_PROTOCOL = {lua_int(DASP_PROTOCOL)}")
         mesp_protocol = int(self.cat.raw["mesp.yaml"]["mesp"]["protocol"])
         if mesp_protocol != MESP_PROTOCOL:
-            raise ValueError("specs/mesp.yaml protocol disagrees with eyeq_spi.codec.mesp")
+            raise SpecError("specs/mesp.yaml mesp.protocol: disagrees with eyeq_spi.codec.mesp")
         lines.append(f"local MESP_PROTOCOL = {lua_int(mesp_protocol)}")
         widths = ", ".join(f"{k} = {w}" for k, (_, w) in MESP_PARAM_FIELD.items())
         lines.append(f"local MESP_WIDTH = {{{widths}}}")
@@ -303,7 +313,8 @@ class LuaGenerator:
         link_type = int(self.capture["link_type"])
         user = link_type - LINKTYPE_USER0
         if not 0 <= user <= 15:
-            raise ValueError(f"link type {link_type} is not LINKTYPE_USER0..15")
+            raise SpecError(f"specs/capture.yaml capture.link_type: {link_type} is not "
+                            "LINKTYPE_USER0..15 (147..162)")
         return f'DissectorTable.get("wtap_encap"):add(wtap.USER{user}, p)'
 
     # -- whole file ----------------------------------------------------------------------------

@@ -3,8 +3,9 @@ and the host's and the simulated EyeQ's message handlers.
 
 Oracles: decoders and handlers never raise for a peer's bytes (a problem is a counted event or a
 ``DecodedMessage.errors`` entry); the init codec either encodes a value (and its own check then
-passes) or raises ``CodecError``, for any float (NaN, inf, huge); no input makes a step run over
-its time limit; the host ends a CRC-valid EEPROM in Running Vision or FAILED with a problem.
+passes) or raises ``LocalProtocolError``, for any float (NaN, inf, huge); no input makes a step
+run over its time limit; the host ends a CRC-valid EEPROM in Running Vision or FAILED with a
+problem.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.intrinsic import eeprom_codec, intrinsic_params_from_eeprom, seal_eeprom
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import Emulation
-from eyeq_spi.errors import CodecError, SpecError
+from eyeq_spi.errors import LocalProtocolError, SpecError
 from eyeq_spi.faults.rig import Scene, rig
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.mesp.client import MespClient
@@ -112,7 +113,7 @@ def _init_codec(r: Reader, sw: str) -> BitSignalCodec | None:
         return eeprom_codec()
     try:
         return init_message(d.id, sw).codec
-    except (CodecError, SpecError):
+    except (LocalProtocolError, SpecError):
         return None
 
 
@@ -127,7 +128,7 @@ def init_codec(data: bytes) -> None:
     FIGURES["messages"] += 1
     try:
         wire = codec.encode(values)
-    except CodecError:
+    except LocalProtocolError:
         wire = None
     if wire is not None:
         if len(wire) != codec.length or codec.check(wire):
@@ -139,7 +140,7 @@ def init_codec(data: bytes) -> None:
     codec.check(raw)
     if codec.message.name == "EEPROM_DATA":
         # SpecError: the release has no 0x84 table
-        with contextlib.suppress(CodecError, SpecError):
+        with contextlib.suppress(LocalProtocolError, SpecError):
             intrinsic_params_from_eeprom(seal_eeprom(raw + bytes(64)), sw)
 
 
@@ -205,7 +206,7 @@ def _veh_state(r: Reader, codec: MessageCodec) -> bytes:
             vs[k] = r.number()
     try:
         return codec.encode_dasp(msg.name, values, r.u8(), None)
-    except (CodecError, ValueError, OverflowError, struct.error):
+    except (LocalProtocolError, ValueError, OverflowError, struct.error):
         return bytes((0x65, msg.data_id, r.u8(), 0)) + _payload(r, codec.layout(msg).size)
 
 

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from eyeq_spi.catalog.bringup import EEPROM_FILE, FATAL_INTRINSIC
 from eyeq_spi.conformance.judges.app import DEADLINE, is_reply, is_request, mesp_pairs, ret_of
 from eyeq_spi.conformance.judges.verdict import Context, Outcome, advise, at, bad, ok, skip, unsure
 from eyeq_spi.conformance.trace import Msg, Trace
 
 PENDING, RUNNING_VISION, PENDING_VISION = 0x01, 0x02, 0x92
-FATAL_INTRINSIC = 22
-EEPROM_FILE = "/mesp/eeprom.data1"
 
 
 def _state_reports(tr: Trace, msgs: list[Msg]) -> list[tuple[float, int, int, int, Msg]]:
