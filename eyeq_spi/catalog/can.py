@@ -303,7 +303,7 @@ def validate_protocol(rel: str, doc: Any) -> list[str]:
         if not snames:
             out.append(f"{where}: needs signals")
         if m.get("quality") is not None:
-            by_name = {x.get("name"): x for x in msgs if isinstance(x, dict)}
+            by_name = {str(x.get("name")): x for x in msgs if isinstance(x, dict)}
             out += _check_quality(where, m["quality"], m, by_name)
     return out
 
