@@ -34,12 +34,14 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     k = cs.add_parser("compare", help="compare a vendor's DBC with ours, signal by signal",
                       description="A DBC you hold (vendor, public) against the DBC built from "
                       "specs/can/: ID, DLC, cycle and each signal's start, length, byte order, "
-                      "sign, scale, offset, range, invalid value, with our reason (seed line, "
-                      "decision) where they differ. Exit 0 the same, 1 differences, 2 bad "
-                      "input.")
+                      "sign, scale, offset, unit, range, invalid value and choices. Each "
+                      "difference says what differs, ours -> theirs, and where ours comes from; "
+                      "the same difference in every slot is one line. Exit 0 the same, 1 "
+                      "differences, 2 bad input.")
     k.add_argument("dbc", metavar="OTHER.dbc", help="the DBC file to compare")
-    k.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
-                   help="our protocol to compare with (default extlog2)")
+    k.add_argument("--protocol", choices=PROTOCOLS,
+                   help="our protocol to compare with (default: the one whose IDs the DBC "
+                   "holds most of)")
     opt.include(k, opt.json_out("the differences as a JSON list"))
     x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
                       "or a live bus",
@@ -80,15 +82,23 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from eyeq_spi.can.compare import as_json, compare, human
+    from eyeq_spi.can.compare import as_json, compare, detect, grouped, human
+    from eyeq_spi.errors import CanCompareError
 
-    diffs = compare(args.dbc, args.protocol)
+    proto, detected = args.protocol, ""
+    if proto is None:
+        proto, share = detect(args.dbc)
+        if proto is None:
+            raise CanCompareError(f"{args.dbc}: none of its frame IDs is a message of "
+                                  f"{' or '.join(PROTOCOLS)}: give --protocol")
+        detected = share
+    diffs = grouped(compare(args.dbc, proto), proto)
     if args.json:
         import json
 
         print(json.dumps(as_json(diffs), indent=1))
     else:
-        print(human(diffs, args.dbc, args.protocol))
+        print(human(diffs, args.dbc, proto, detected))
     return 1 if diffs else 0
 
 
