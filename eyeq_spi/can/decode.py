@@ -3,9 +3,15 @@ protocols of ``specs/can/``, into the record shape of ``eyeq-spi dissect --json`
 
 A record is ``{"kind": "message", "protocol": "CAN", "name", "length", "direction": null,
 "time", "frames": [index], "header": {"id", "channel"}, "fields": {signal: physical},
-"labels": {signal: enum label}, "invalid": [signals at their invalid value], "short_dlc": bool,
-"errors": [...]}``; ``errors`` lists an unknown ID, a DLC that is not the spec's and values
-outside a signal's range.
+"units": {signal: unit}, "labels": {signal: enum label}, "invalid": [signals at their invalid
+value], "short_dlc": bool, "errors": [...]}``; ``errors`` lists a DLC that is not the spec's
+and values outside a signal's range. Values are rounded to the decimals their scale and offset
+have (-1.88, not -1.8800000000000001).
+
+Decision C10: a frame whose ID the protocol does not define is another node's (name None, no
+error). Decision C11: while a lane's quality is low, the signals its rule (``quality`` in the
+spec) governs are invalid, not errors; a "B" frame takes the quality of the latest "A" frame of
+its lane on its channel.
 
 Decision C8: a frame shorter than its spec's DLC that still holds every defined signal (the LKA
 "B" frames a production camera sends with DLC 4) is decoded and flagged ``short_dlc``, not an
@@ -298,8 +304,7 @@ class CanDecoder:
             "fields": fields, "units": _NO_UNITS, "labels": labels, "invalid": invalid,
             "short_dlc": False, "errors": errors,
         }
-        if dec is None:
-            errors.append(_unknown(fid))
+        if dec is None:  # another node's frame (C10): no message of ours, not an error
             return rec
         if reference:
             dec.decode_slow(bytes(data), rec)
@@ -327,11 +332,6 @@ class CanDecoder:
 
 
 _NO_UNITS: dict[str, str] = {}
-
-
-@cache
-def _unknown(fid: int) -> str:
-    return f"unknown ID 0x{fid:X}"
 
 
 def column_name(signal: str, unit: str | None) -> str:

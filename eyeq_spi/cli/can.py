@@ -45,10 +45,12 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     opt.include(k, opt.json_out("the differences as a JSON list"))
     x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
                       "or a live bus",
-                      description="Decode CAN logs with the protocols of specs/can/. Exit 0 "
-                      "clean, 1 frames with errors (unknown ID, wrong DLC, value out of range) "
-                      "or a truncated log, 2 bad input or usage. Cycle-time deviations and "
-                      "short DLCs that hold every signal are shown, not errors.")
+                      description="Decode CAN logs with the protocols of specs/can/, each log "
+                      "on its own. Exit 0 clean, 1 frames with errors (wrong DLC, value out of "
+                      "range) or a truncated log, 2 bad input or usage. Other nodes' frames "
+                      "(IDs the protocol does not define, or the protocol's IDs on channels "
+                      "other than the camera's), cycle-time deviations, short DLCs that hold "
+                      "every signal and invalid values are shown, not errors.")
     x.add_argument("logs", nargs="*", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
                    ".mf4 .csv)")
     x.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
