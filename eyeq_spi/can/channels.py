@@ -16,7 +16,7 @@ from typing import Any
 
 from eyeq_spi.can.decode import CanDecoder
 
-PREFIX_FRAMES = 20_000  # frames of a log looked at to find the camera before decoding it
+PREFIX_FRAMES = 5_000  # frames of a log looked at to find the camera before decoding it
 
 
 @dataclass(frozen=True)

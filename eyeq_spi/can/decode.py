@@ -76,8 +76,9 @@ class SignalDecoder:
                    None if s.min is None else s.min - 1e-9 * abs(s.min),
                    None if s.max is None else s.max + 1e-9 * abs(s.max),
                    s.reported_invalid, enums.get(s.enum) if s.enum else None,
-                   s.covered_bytes(), None if integer or s.is_float else
-                   max(_decimals(s.scale), _decimals(s.offset)))
+                   s.covered_bytes(), None if integer or s.is_float or (
+                       _exact(s.scale) and _exact(s.offset))
+                   else max(_decimals(s.scale), _decimals(s.offset)))
 
     def raw(self, le: int, be: int) -> int:
         r = ((be if self.big_endian else le) >> self.shift) & self.mask
@@ -91,7 +92,14 @@ class SignalDecoder:
             return v if math.isfinite(v) else None
         if self.integer:
             return raw * int(self.scale) + int(self.offset)
-        return round(raw * self.scale + self.offset, self.digits)
+        value = raw * self.scale + self.offset
+        return value if self.digits is None else round(value, self.digits)
+
+
+def _exact(x: float) -> bool:
+    """Whether ``x`` as written is exactly its binary value (0.0625, 2**-10): a raw integer
+    times such a scale plus such an offset needs no rounding."""
+    return Decimal(x) == Decimal(repr(x))
 
 
 def _decimals(x: float) -> int:
@@ -143,6 +151,8 @@ class MessageDecoder:
                 x = "r" if s.scale == 1 and s.offset == 0 else \
                     f"r * {int(s.scale)} + {int(s.offset)}"
                 body.append(f"    x = {x}")
+            elif s.digits is None:  # binary-exact scale and offset: nothing to round
+                body.append(f"    x = r * {s.scale!r} + {s.offset!r}")
             else:
                 body.append(f"    x = round(r * {s.scale!r} + {s.offset!r}, {s.digits})")
             body.append(f"    fields[{name!r}] = x")
