@@ -41,6 +41,7 @@ __all__ = ["CanDecoder", "CanLogError", "CanLogTruncatedError", "MessageDecoder"
            "SignalDecoder", "human_record", "read_log", "table_record"]
 
 _F32 = struct.Struct(">f")
+SHORT_DECIMALS = 6  # a scale such as 0.01 or 0.0002: integer arithmetic, one division
 
 
 @dataclass(frozen=True)
@@ -92,8 +93,20 @@ class SignalDecoder:
             return v if math.isfinite(v) else None
         if self.integer:
             return raw * int(self.scale) + int(self.offset)
-        value = raw * self.scale + self.offset
-        return value if self.digits is None else round(value, self.digits)
+        if self.digits is None:
+            return raw * self.scale + self.offset
+        if self.digits > SHORT_DECIMALS:
+            return round(raw * self.scale + self.offset, self.digits)
+        num, off, den = self.decimal()
+        return (raw * num + off) / den
+
+    def decimal(self) -> tuple[int, int, int]:
+        """(scale, offset, divisor) as integers: ``(raw * scale + offset) / divisor`` is the
+        value at the signal's resolution, one correctly rounded division (for a scale and an
+        offset of at most ``SHORT_DECIMALS`` decimals, which these integers hold exactly)."""
+        den = 10 ** (self.digits or 0)
+        return (int(Decimal(repr(self.scale)) * den), int(Decimal(repr(self.offset)) * den),
+                den)
 
 
 def _exact(x: float) -> bool:
@@ -154,7 +167,11 @@ class MessageDecoder:
             elif s.digits is None:  # binary-exact scale and offset: nothing to round
                 body.append(f"    x = r * {s.scale!r} + {s.offset!r}")
             else:
-                body.append(f"    x = round(r * {s.scale!r} + {s.offset!r}, {s.digits})")
+                if s.digits > SHORT_DECIMALS:
+                    body.append(f"    x = round(r * {s.scale!r} + {s.offset!r}, {s.digits})")
+                else:
+                    num, off, den = s.decimal()
+                    body.append(f"    x = (r * {num} + {off}) / {den}")
             body.append(f"    fields[{name!r}] = x")
             if s.labels is not None:
                 env[f"_L{k}"] = s.labels
