@@ -188,7 +188,12 @@ def _decode_args(args: argparse.Namespace) -> re.Pattern[str] | None:
 
 
 def _warn(text: str) -> None:
-    print(f"eyeq-spi can decode: {text}", file=sys.stderr)
+    """A note on stderr, folded to 80 columns (an error stays one line: the CLI's)."""
+    import textwrap
+
+    print("\n".join(textwrap.wrap(f"eyeq-spi can decode: {text}", 80,
+                                   subsequent_indent="    ", break_on_hyphens=False)),
+          file=sys.stderr)
 
 
 def _decode_stats(args: argparse.Namespace, decoder: Any,
@@ -234,8 +239,8 @@ def _decode_stats(args: argparse.Namespace, decoder: Any,
     for r in results:
         if r.get("warning"):
             _warn(f"{r['file']}: warning: {r['warning']}")
-    for line in truncated:
-        _warn(line)
+    for line in truncated:  # one line each, as an error is
+        print(f"eyeq-spi can decode: {line}", file=sys.stderr)
     return 1 if any(r["error_frames"] for r in results) or truncated else 0
 
 
@@ -296,8 +301,8 @@ def _camera(args: argparse.Namespace, label: str) -> str | None:
     if best is None or len(census.channels_with_ids()) < 2:
         return None
     others = ", ".join(c for c in census.channels_with_ids() if c != best.channel)
-    _warn(f"{label}: camera on channel {best.channel} ({best.describe()}); protocol IDs on "
-          f"channel(s) {others}: other nodes' traffic")
+    _warn(f"{label}: camera on channel {best.channel} ({best.describe()}); the protocol's "
+          f"IDs on channel(s) {others} are other nodes' traffic")
     return best.channel
 
 
@@ -370,8 +375,8 @@ def _decode_records(args: argparse.Namespace, decoder: Any,
         more = f" and {len(run.other) - 8} more" if len(run.other) > 8 else ""
         _warn(f"other nodes' traffic, not decoded: {sum(run.other.values())} frames "
               f"(IDs {ids}{more}; --stats lists them)")
-    for line in run.truncated:
-        _warn(line)
+    for line in run.truncated:  # one line each, as an error is
+        print(f"eyeq-spi can decode: {line}", file=sys.stderr)
     return 1 if run.bad or run.truncated else 0
 
 
