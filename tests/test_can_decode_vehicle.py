@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
-import os
+import random
 import struct
 from pathlib import Path
 from typing import Any
@@ -55,6 +55,9 @@ def test_two_logs_give_records_of_each_file(two_logs: tuple[Path, Path],
                                             capsys: pytest.CaptureFixture[str]) -> None:
     a, b = two_logs
     capsys.readouterr()
+    assert main(["can", "decode", str(a), str(b), "--channel", "1", "--name", "^Lane$"]) == 0
+    human = capsys.readouterr().out.splitlines()
+    assert human[0] == f"=== {a}" and f"=== {b}" in human
     assert main(["can", "decode", str(a), str(b), "--json", "--channel", "1"]) == 0
     recs = _json(capsys)
     by_file = {str(a): [r for r in recs if r["file"] == str(a)],
@@ -212,7 +215,7 @@ FORMATS = {".blf": "not a BLF log", ".asc": "not an ASC log", ".log": "not a can
 def test_random_bytes_are_not_a_log_of_that_format(tmp_path: Path, suffix: str,
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / f"random{suffix}"
-    path.write_bytes(os.urandom(4096))
+    path.write_bytes(random.Random(7).randbytes(4096))
     capsys.readouterr()
     assert main(["can", "decode", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
