@@ -323,10 +323,11 @@ def human_total(s: dict[str, Any]) -> str:
             f"invalid values {s['invalid_values']} (as sent: not errors)"], indent=4)])
 
 
-def human_stats(s: dict[str, Any]) -> str:
+def human_stats(s: dict[str, Any], heading: bool = False) -> str:
+    """One file's statistics, to 80 columns; ``heading``: ``=== FILE`` first."""
     chans = ", ".join(f"{k}: {v}" for k, v in s["channels"].items())
     span = "-" if s["duration_s"] is None else f"{s['duration_s']:.3f}"
-    lines = [f"=== {s['file']}"] if s.get("file") is not None and s.get("several_files") else []
+    lines = [f"=== {s['file']}"] if heading else []
     lines += [f"{s['frames']} frames over {span} s, protocol {s['protocol']}"
               + (f", channel {s['channel']}" if s["channel"] is not None else ""),
               f"channels (all frames in the log): {chans or 'none'}"]

@@ -218,7 +218,6 @@ def _decode_stats(args: argparse.Namespace, decoder: Any,
                              if (args.id is None or r["id"] == args.id)
                              and (name_re is None or name_re.search(r["name"] or ""))]
             result["error_frames"] = sum(r["error_frames"] for r in result["ids"])
-        result["several_files"] = several
         results.append(result)
     if sum(r["frames"] for r in results) == 0 and not truncated:
         channels = sorted({c for r in results for c in r["channels"]})
@@ -227,15 +226,14 @@ def _decode_stats(args: argparse.Namespace, decoder: Any,
                           f"{', '.join(channels) or 'none'})")
     blocks = [*results, total(results)] if several else results
     for block in blocks:
-        block.pop("several_files", None)
         if args.json:
             from eyeq_spi.dissect.output import JsonWriter
 
             JsonWriter(sys.stdout, fast=True).write(block)
+        elif "files" in block:
+            print(human_total(block))
         else:
-            block["several_files"] = several
-            print(human_stats(block) if block.get("file") is not None or not several
-                  else human_total(block))
+            print(human_stats(block, heading=several))
     for r in results:
         if r.get("warning"):
             _warn(f"{r['file']}: warning: {r['warning']}")
