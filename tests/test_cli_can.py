@@ -50,7 +50,7 @@ def test_decode_human_json_and_stats(demo_log: Path, capsys: pytest.CaptureFixtu
     assert recs[0]["labels"]["Obstacle_Type"] in ("Vehicle", "Truck", "Bike", "Ped", "Bicycle")
     assert main(["can", "decode", str(demo_log), "--stats", "--json"]) == 0
     stats = json.loads(capsys.readouterr().out)
-    assert stats["kind"] == "stats" and stats["unknown_ids"] == {}
+    assert stats["kind"] == "stats" and stats["other_ids"] == {}
     by_id = {r["id"]: r for r in stats["ids"]}
     assert by_id[0x738]["median_cycle_ms"] == pytest.approx(66.0, abs=0.01)
     assert by_id[0x669]["cycle_deviation_pct"] == pytest.approx(0.0, abs=0.01)
@@ -71,16 +71,16 @@ def test_decode_tables(demo_log: Path, tmp_path: Path, fmt: str) -> None:
     assert {"Lane", "Obstacle_Status", "Obstacle_Data_A_0"} <= files
     if fmt == "csv":
         header = (out / "Lane.csv").read_text().splitlines()[0].split(",")
-        assert {"frame_index", "time", "header.id", "fields.Lane_Curvature"} <= set(header) or \
-            {"frame_index", "time", "header.id", "Lane_Curvature"} <= set(header)
+        assert {"file", "frame_index", "time", "header.id", "Lane_Curvature [1/m]"} <= \
+            set(header)
     else:
         import pyarrow.parquet as pq
 
         t = pq.read_table(str(out / "Lane.parquet"))
-        assert t.num_rows > 10 and "Lane_Curvature" in t.column_names
+        assert t.num_rows > 10 and "Lane_Curvature [1/m]" in t.column_names
 
 
-def test_decode_reports_unknown_ids_wrong_dlc_and_out_of_range(
+def test_decode_reports_wrong_dlc_and_out_of_range_and_other_ids_apart(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "bad.log"
     w = can.Logger(str(path))
@@ -96,19 +96,24 @@ def test_decode_reports_unknown_ids_wrong_dlc_and_out_of_range(
     capsys.readouterr()
     assert main(["can", "decode", str(path), "--json"]) == 1
     recs = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
-    assert recs[0]["errors"] == ["unknown ID 0x123"]
-    assert recs[1]["errors"] == ["DLC 7, spec 6"]
-    assert any("Obstacle_Length" in e for e in recs[2]["errors"])
-    assert set(recs[2]["invalid"]) >= {"Radar_Pos_X", "Radar_Vel_X", "Matched_Radar_ID"}
+    # C10: 0x123 is another node's frame: counted apart (stderr, --stats), not a record
+    assert [r["header"]["id"] for r in recs] == [0x738, 0x73A]
+    assert [r["frames"] for r in recs] == [[1], [2]]
+    assert recs[0]["errors"] == ["DLC 7, spec 6"]
+    assert any("Obstacle_Length" in e for e in recs[1]["errors"])
+    assert set(recs[1]["invalid"]) >= {"Radar_Pos_X", "Radar_Vel_X", "Matched_Radar_ID"}
     assert main(["can", "decode", str(path), "--stats", "--json"]) == 1
     stats = json.loads(capsys.readouterr().out)
-    assert stats["unknown_ids"] == {"0x123": 1} and stats["out_of_range_values"] == 1
+    assert stats["other_ids"] == {"0x123": 1} and stats["out_of_range_values"] == 1
+    assert stats["error_frames"] == 2
 
 
 @pytest.mark.parametrize(("argv", "needle"), [
     (["can", "decode", "/nonexistent/x.blf"], "no such file"),
     (["can", "decode", "x.xyz"], "unknown CAN log format"),
-    (["can", "decode", "GARBAGE.blf"], "not a readable .blf CAN log"),
+    (["can", "decode", "GARBAGE.blf"], "not a BLF log"),
+    (["can", "decode", "."], "a directory, not a CAN log"),
+    (["can", "decode", "EMPTY.asc", "--id", "foo"], "invalid CAN ID 'foo'"),
     (["can", "decode", "EMPTY.asc"], "no CAN frames"),
     (["demo", "--virtual-time", "--duration", "0.1", "--can-out", "out.xyz"], "suffixes"),
     (["demo", "--virtual-time", "--duration", "0.1", "--can-out", "nosuchif:x"], "CAN bus"),

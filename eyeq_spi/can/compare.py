@@ -1,8 +1,9 @@
 """``eyeq-spi can compare OTHER.dbc``: a user's (vendor's, public) DBC against the DBC built from
 ``specs/can/``, message by message and signal by signal: ID, DLC, cycle, and each signal's start
-bit, length, byte order, sign, scale, offset, range, invalid value and float type. Every
-difference carries our reason: the seed line, the reading recorded in ``specs/can/`` and the
-decision it follows.
+bit, length, byte order, sign, scale, offset, unit, range, invalid value, float type and
+value table (choices). Each difference names what differs, ours -> theirs, and where our value
+comes from (the seed line, the signal's own recorded reading, the decision); a difference that
+is the same in every slot of a repeated message is one difference (``Obstacle_Data_B_0..12``).
 
 Messages are matched by frame ID, signals by name (case, ``_`` and spaces ignored) and, for a
 name we do not have, by the bits they share with ours.
@@ -27,10 +28,11 @@ class Difference:
     id: int
     message: str
     signal: str | None
-    field: str  # id | dlc | cycle | missing | extra | start | length | byte_order | ...
+    field: str  # dlc | cycle | missing | extra | overlap | start | length | unit | choices ...
     ours: Any
     theirs: Any
     reason: str
+    ids: tuple[int, ...] = ()  # every frame ID the difference is in (the slots), id first
 
 
 def _norm(name: str) -> str:
@@ -60,11 +62,19 @@ def _reasons(proto: str) -> dict[tuple[str, str | None], str]:
 def _why(proto: str, m: CanMessage, s: CanSignal | None) -> str:
     seed = (s.seed if s is not None else None) or m.seed or protocol(proto).seed
     line = s.seed_line if s is not None else m.seed_line
-    own = _reasons(proto).get((m.name, s.name if s is not None else None), "")
-    if s is not None and not own:
-        own = _reasons(proto).get((m.name, None), "")
     where = f"seed {seed} line {line}"
-    return f"{where}: {own}" if own else where
+    if s is None:
+        return where
+    own = _reasons(proto).get((m.name, s.name), "")  # the signal's own reading, never the
+    return f"{where}: {own}" if own else where      # message's long notes
+
+
+def _about(proto: str, m: CanMessage, word: str) -> str:
+    """The seed line of ``m`` and the sentences of its recorded reading that mention
+    ``word`` (DLC): the reason for a message-level difference, not the whole reading."""
+    text = _reasons(proto).get((m.name, None), "")
+    hits = [x.strip() for x in re.split(r"(?<=[.;])\s+", text) if word.lower() in x.lower()]
+    return "; ".join([_why(proto, m, None), *hits])
 
 
 def _attr(sig: Any, name: str) -> Any:
@@ -127,11 +137,11 @@ def _message(proto: str, m: CanMessage, om: Any, tm: Any, fid: int,
     out: list[Difference] = []
     why = _why(proto, m, None)
     if tm.length != om.length:
-        out.append(Difference(fid, name, None, "dlc", om.length, tm.length, why))
+        out.append(Difference(fid, name, None, "dlc", om.length, tm.length,
+                              _about(proto, m, "DLC")))
     if tm.cycle_time is not None and tm.cycle_time != om.cycle_time:
         out.append(Difference(fid, name, None, "cycle", om.cycle_time, tm.cycle_time,
-                              f"{why} (decision C3: the lower end of the printed range; C9: a "
-                              "real camera's 75-81 ms is a deviation, not a different cycle)"))
+                              f"{why}; decision C3 (a printed range's lower end)"))
     theirs = {_norm(s.name): s for s in tm.signals}
     matched: set[str] = set()
     for s in m.signals:
@@ -180,6 +190,17 @@ def _signal(proto: str, m: CanMessage, s: CanSignal, os_: Any, ts: Any, fid: int
     if ts.minimum is not None or ts.maximum is not None:
         pairs.append(("range", [os_.minimum, os_.maximum], [ts.minimum, ts.maximum],
                       _close(os_.minimum, ts.minimum) and _close(os_.maximum, ts.maximum)))
+    if ts.unit and (os_.unit or "") != ts.unit:
+        pairs.append(("unit", os_.unit, ts.unit, False))
+    if ts.choices:
+        mine_c = {int(k): str(v) for k, v in (os_.choices or {}).items()}
+        theirs_c = {int(k): str(v) for k, v in ts.choices.items()}
+        if mine_c != theirs_c:
+            keys = sorted(set(mine_c) | set(theirs_c))
+            pairs.append(("choices", {k: mine_c.get(k) for k in keys
+                                      if mine_c.get(k) != theirs_c.get(k)},
+                          {k: theirs_c.get(k) for k in keys
+                           if mine_c.get(k) != theirs_c.get(k)}, False))
     their_invalid = _attr(ts, INVALID_ATTRIBUTE)
     if their_invalid is not None:
         mine = s.reported_invalid
@@ -195,19 +216,95 @@ def _signal(proto: str, m: CanMessage, s: CanSignal, os_: Any, ts: Any, fid: int
     return out
 
 
-def human(diffs: list[Difference], path: str, proto: str) -> str:
-    if not diffs:
-        return f"{path}: the same as our {proto} DBC (every message, signal and value)"
-    lines = [f"{path} against our {proto} DBC: {len(diffs)} differences"]
+def grouped(diffs: list[Difference], proto: str) -> list[Difference]:
+    """The same difference in several slots of a repeated message as one (its ``ids`` lists
+    them, its message reads ``Obstacle_Data_B_0..12``), in the order of their first slot."""
+    base: dict[int, tuple[str, int, int]] = {}  # frame ID -> (definition, slot, slot count)
+    for m in protocol(proto).messages:
+        for slot, fid, _ in m.instances():
+            base[fid] = (m.name, slot if slot is not None else -1,
+                         m.slots.count if m.slots else 0)
+    groups: dict[tuple[Any, ...], list[Difference]] = {}
     for d in diffs:
-        where = f"0x{d.id:03X} {d.message}" + (f".{d.signal}" if d.signal else "")
-        if d.field == "missing":
-            what = "not in theirs"
-        elif d.field in ("extra", "overlap"):
-            what = f"only in theirs: {d.theirs}" if d.field == "extra" else str(d.theirs)
-        else:
-            what = f"{d.field}: ours {d.ours!r}, theirs {d.theirs!r}"
-        lines.append(f"  {where}: {what}\n      our reason: {d.reason}")
+        mname, slot, _ = base.get(d.id, (d.message, -1, 0))
+        key = (mname if slot >= 0 else d.message, d.signal, d.field, repr(d.ours),
+               repr(d.theirs))
+        groups.setdefault(key, []).append(d)
+    out = []
+    for (mname, *_), ds in groups.items():
+        first = ds[0]
+        if len(ds) == 1:
+            out.append(Difference(**{**asdict(first), "ids": (first.id,)}))
+            continue
+        slots = [base[d.id][1] for d in ds]
+        count = base[first.id][2]
+        span = (f"{slots[0]}..{slots[-1]}" if slots == list(range(slots[0], slots[-1] + 1))
+                else ",".join(map(str, slots)))
+        label = f"{mname}_{span}" + ("" if len(slots) == count else f" ({len(slots)} of "
+                                                                   f"{count} slots)")
+        out.append(Difference(first.id, label, first.signal, first.field, first.ours,
+                              first.theirs, first.reason.replace(first.message, mname),
+                              tuple(d.id for d in ds)))
+    return out
+
+
+def detect(path: str) -> tuple[str | None, str]:
+    """The protocol whose frame IDs a DBC holds most of, and how much of it (a hint when
+    none)."""
+    theirs = {m.frame_id for m in _load(path).messages if not m.is_extended_frame}
+    best, text, score = None, "", 0.0
+    for name in ("extlog2", "me8"):
+        ids = {fid for m in protocol(name).messages for _, fid, _ in m.instances()}
+        share = len(ids & theirs) / len(ids)
+        if share > score:
+            best, score = name, share
+            text = f"{len(ids & theirs)} of its {len(ids)} IDs"
+    return best, text
+
+
+def _value(field: str, value: Any) -> str:
+    if field == "choices" and isinstance(value, dict):
+        return "{" + ", ".join(f"{k}: {v}" for k, v in value.items()) + "}"
+    if isinstance(value, float):
+        return f"{value:.10g}"
+    return "-" if value is None else str(value)
+
+
+def _what(d: Difference) -> str:
+    if d.field == "missing":
+        return "not in theirs"
+    if d.field == "extra":
+        return f"only in theirs: {d.theirs}"
+    if d.field == "overlap":
+        return str(d.theirs)
+    name = {"dlc": "DLC", "start": "start bit", "signed": "sign", "byte_order": "byte order",
+            "invalid": "invalid value"}.get(d.field, d.field)
+    return f"{name} {_value(d.field, d.ours)} -> {_value(d.field, d.theirs)}"
+
+
+def human(diffs: list[Difference], path: str, proto: str, detected: str = "") -> str:
+    """One line per difference (``grouped`` ones), what differs ours -> theirs, then where
+    ours comes from, folded to 80 columns."""
+    import textwrap
+
+    how = f" (detected: {detected})" if detected else ""
+    if not diffs:
+        return f"{path}: the same as our {proto} DBC{how} (every message, signal and value)"
+    lines = [*textwrap.wrap(f"{path} against our {proto} DBC{how}: {len(diffs)} differences",
+                            80, subsequent_indent="  "),
+             "(each: what differs, ours -> theirs; then where ours comes from)"]
+    entries: dict[tuple[str, str], list[str]] = {}  # one entry per signal and reason
+    for d in diffs:
+        ids = f"0x{d.ids[0]:03X}..0x{d.ids[-1]:03X}" if len(d.ids) > 1 else f"0x{d.id:03X}"
+        where = f"{ids} {d.message}" + (f".{d.signal}" if d.signal else "")
+        reason = d.reason.split(" (theirs is ")[0] if d.field == "scale" else d.reason
+        what = _what(d) + (f" ({d.reason.split(' (')[-1]}" if reason != d.reason else "")
+        entries.setdefault((where, reason), []).append(what)
+    for (where, reason), whats in entries.items():
+        lines += textwrap.wrap(f"{where}: {'; '.join(whats)}", 80, initial_indent="  ",
+                               subsequent_indent="      ")
+        lines += textwrap.wrap(f"ours: {reason}", 80, initial_indent="      ",
+                               subsequent_indent="      ")
     return "\n".join(lines)
 
 

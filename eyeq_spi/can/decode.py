@@ -3,9 +3,15 @@ protocols of ``specs/can/``, into the record shape of ``eyeq-spi dissect --json`
 
 A record is ``{"kind": "message", "protocol": "CAN", "name", "length", "direction": null,
 "time", "frames": [index], "header": {"id", "channel"}, "fields": {signal: physical},
-"labels": {signal: enum label}, "invalid": [signals at their invalid value], "short_dlc": bool,
-"errors": [...]}``; ``errors`` lists an unknown ID, a DLC that is not the spec's and values
-outside a signal's range.
+"units": {signal: unit}, "labels": {signal: enum label}, "invalid": [signals at their invalid
+value], "short_dlc": bool, "errors": [...]}``; ``errors`` lists a DLC that is not the spec's
+and values outside a signal's range. Values are rounded to the decimals their scale and offset
+have (-1.88, not -1.8800000000000001).
+
+Decision C10: a frame whose ID the protocol does not define is another node's (name None, no
+error). Decision C11: while a lane's quality is low, the signals its rule (``quality`` in the
+spec) governs are invalid, not errors; a "B" frame takes the quality of the latest "A" frame of
+its lane on its channel.
 
 Decision C8: a frame shorter than its spec's DLC that still holds every defined signal (the LKA
 "B" frames a production camera sends with DLC 4) is decoded and flagged ``short_dlc``, not an
@@ -24,6 +30,7 @@ import math
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
+from decimal import Decimal
 from functools import cache
 from typing import Any
 
@@ -34,6 +41,7 @@ __all__ = ["CanDecoder", "MessageDecoder", "SignalDecoder", "human_record", "rea
            "table_record"]
 
 _F32 = struct.Struct(">f")
+SHORT_DECIMALS = 6  # a scale such as 0.01 or 0.0002: integer arithmetic, one division
 
 
 @dataclass(frozen=True)
@@ -53,6 +61,7 @@ class SignalDecoder:
     invalid: int | None  # the raw value reported invalid (C8: none when also a normal state)
     labels: dict[int, str] | None
     nbytes: int  # leading payload bytes that hold the signal
+    digits: int | None  # decimals the scale and offset imply (values rounded to them)
 
     @classmethod
     def build(cls, s: CanSignal, dlc: int, enums: dict[str, dict[int, str]]) -> SignalDecoder:
@@ -68,7 +77,9 @@ class SignalDecoder:
                    None if s.min is None else s.min - 1e-9 * abs(s.min),
                    None if s.max is None else s.max + 1e-9 * abs(s.max),
                    s.reported_invalid, enums.get(s.enum) if s.enum else None,
-                   s.covered_bytes())
+                   s.covered_bytes(), None if integer or s.is_float or (
+                       _exact(s.scale) and _exact(s.offset))
+                   else max(_decimals(s.scale), _decimals(s.offset)))
 
     def raw(self, le: int, be: int) -> int:
         r = ((be if self.big_endian else le) >> self.shift) & self.mask
@@ -82,18 +93,51 @@ class SignalDecoder:
             return v if math.isfinite(v) else None
         if self.integer:
             return raw * int(self.scale) + int(self.offset)
-        return raw * self.scale + self.offset
+        if self.digits is None:
+            return raw * self.scale + self.offset
+        if self.digits > SHORT_DECIMALS:
+            return round(raw * self.scale + self.offset, self.digits)
+        num, off, den = self.decimal()
+        return (raw * num + off) / den
+
+    def decimal(self) -> tuple[int, int, int]:
+        """(scale, offset, divisor) as integers: ``(raw * scale + offset) / divisor`` is the
+        value at the signal's resolution, one correctly rounded division (for a scale and an
+        offset of at most ``SHORT_DECIMALS`` decimals, which these integers hold exactly)."""
+        den = 10 ** (self.digits or 0)
+        return (int(Decimal(repr(self.scale)) * den), int(Decimal(repr(self.offset)) * den),
+                den)
+
+
+def _exact(x: float) -> bool:
+    """Whether ``x`` as written is exactly its binary value (0.0625, 2**-10): a raw integer
+    times such a scale plus such an offset needs no rounding."""
+    return Decimal(x) == Decimal(repr(x))
+
+
+def _decimals(x: float) -> int:
+    """How many decimals ``x`` has as written (0.02: 2, 9.765625e-07: 12): a value
+    ``raw * scale + offset`` has no more, so rounding to them removes only binary noise
+    (-1.8800000000000001 is -1.88)."""
+    exponent = Decimal(repr(x)).as_tuple().exponent
+    return max(0, -exponent) if isinstance(exponent, int) else 0
 
 
 class MessageDecoder:
     """Decoder of one frame ID, compiled from its spec message."""
 
-    def __init__(self, spec: CanMessage, name: str, enums: dict[str, dict[int, str]]) -> None:
+    def __init__(self, spec: CanMessage, name: str, enums: dict[str, dict[int, str]],
+                 quality_source: int | None = None) -> None:
         self.spec = spec
         self.name = name
         self.dlc = spec.dlc
         self.signals = [SignalDecoder.build(s, spec.dlc, enums) for s in spec.signals]
         self.needed = max(s.nbytes for s in self.signals)  # C8: the shortest complete frame
+        self.units = {s.name: s.unit for s in spec.signals if s.unit}
+        # decision C11: the frame ID whose quality signal governs some of this one's signals
+        self.quality = spec.quality
+        self.quality_source = quality_source
+        self.governed = frozenset(spec.quality.governs) if spec.quality else frozenset()
         self._fast = self._compile()
 
     def _compile(self) -> Any:
@@ -120,8 +164,14 @@ class MessageDecoder:
                 x = "r" if s.scale == 1 and s.offset == 0 else \
                     f"r * {int(s.scale)} + {int(s.offset)}"
                 body.append(f"    x = {x}")
-            else:
+            elif s.digits is None:  # binary-exact scale and offset: nothing to round
                 body.append(f"    x = r * {s.scale!r} + {s.offset!r}")
+            else:
+                if s.digits > SHORT_DECIMALS:
+                    body.append(f"    x = round(r * {s.scale!r} + {s.offset!r}, {s.digits})")
+                else:
+                    num, off, den = s.decimal()
+                    body.append(f"    x = (r * {num} + {off}) / {den}")
             body.append(f"    fields[{name!r}] = x")
             if s.labels is not None:
                 env[f"_L{k}"] = s.labels
@@ -199,8 +249,28 @@ def _out_of_range(name: str, value: float, lo: float | None, hi: float | None) -
 def _message_decoders(proto: str) -> dict[int, MessageDecoder]:
     """The compiled decoders of a protocol, by frame ID (built once per process)."""
     p = protocol(proto)
-    return {fid: MessageDecoder(m, name, p.enums) for m in p.messages
-            for _, fid, name in m.instances()}
+    out = {}
+    for m in p.messages:
+        source = m if m.quality is None or m.quality.message is None else \
+            p.message(m.quality.message)
+        for slot, fid, name in m.instances():
+            src = source.instances()[slot or 0][1] if m.quality is not None else None
+            out[fid] = MessageDecoder(m, name, p.enums, src)
+    return out
+
+
+def quality_marks(dec: MessageDecoder, quality: int | None, fields: dict[str, Any],
+                  invalid: list[str], errors: list[str]) -> None:
+    """Decision C11: below its quality, a lane's measurement signals are invalid (shown as
+    sent, flagged), never errors."""
+    rule = dec.quality
+    if rule is None or quality is None or quality >= rule.valid_from:
+        return
+    for name in rule.governs:
+        if name in fields and name not in invalid:
+            invalid.append(name)
+    if errors:
+        errors[:] = [e for e in errors if e.split(" ", 1)[0] not in dec.governed]
 
 
 class CanDecoder:
@@ -211,10 +281,15 @@ class CanDecoder:
         self.by_id: dict[int, MessageDecoder] = _message_decoders(self.protocol.name)
         self._channels: dict[Any, str | None] = {None: None}  # Message.channel -> its text
         self._names: dict[str, MessageDecoder] | None = None
+        self._quality: dict[tuple[str | None, int], int] = {}  # the latest quality (C11)
+
+    def reset(self) -> None:
+        """Forget what earlier frames said (a new log file starts)."""
+        self._quality.clear()
 
     def column_type(self, table: str, column: str) -> str | None:
         """The Arrow type of a decoded table's column (for a column NULL in its first rows)."""
-        if column in ("time",):
+        if column in ("time",):  # seconds: relative to the log's first frame by default
             return "float64"
         if column in ("frame_index", "header.id"):
             return "int64"
@@ -224,7 +299,7 @@ class CanDecoder:
             self._names = {d.name: d for d in self.by_id.values()}
         dec = self._names.get(table)
         for s in dec.signals if dec is not None else ():
-            if s.spec.name == column:
+            if column_name(s.spec.name, s.spec.unit) == column:
                 return "int64" if s.integer else "float64"
         return None
 
@@ -232,7 +307,9 @@ class CanDecoder:
         hit = self.by_id.get(frame_id)
         return hit.spec if hit else None
 
-    def decode(self, msg: Any, index: int) -> dict[str, Any]:
+    def decode(self, msg: Any, index: int, reference: bool = False) -> dict[str, Any]:
+        """The record of one python-can message; ``reference`` decodes with the generic loop
+        instead of the compiled decoder (the same result, for tests)."""
         fid = msg.arbitration_id
         data = msg.data
         ch = msg.channel
@@ -251,15 +328,29 @@ class CanDecoder:
             "kind": "message", "protocol": "CAN", "name": None if dec is None else dec.name,
             "length": len(data), "direction": None, "time": msg.timestamp, "frames": [index],
             "header": {"id": fid, "channel": chs},
-            "fields": fields, "labels": labels, "invalid": invalid, "short_dlc": False,
-            "errors": errors,
+            "fields": fields, "units": _NO_UNITS, "labels": labels, "invalid": invalid,
+            "short_dlc": False, "errors": errors,
         }
-        if dec is None:
-            errors.append(_unknown(fid))
+        if dec is None:  # another node's frame (C10): no message of ours, not an error
+            return rec
+        if reference:
+            dec.decode_slow(bytes(data), rec)
         elif len(data) == dec.dlc:
             dec._fast(data, fields, labels, invalid, errors)
         else:
             dec.decode_into(bytes(data), rec)
+        rule = dec.quality
+        if rule is not None:
+            rec["units"] = dec.units
+            if dec.quality_source == fid:
+                quality = fields.get(rule.signal)
+                if quality is not None:
+                    self._quality[(chs, fid)] = quality
+            else:
+                quality = self._quality.get((chs, dec.quality_source or 0))
+            quality_marks(dec, quality, fields, invalid, errors)
+        elif dec.units:
+            rec["units"] = dec.units
         return rec
 
     def decode_all(self, messages: Iterator[Any]) -> Iterator[dict[str, Any]]:
@@ -267,19 +358,24 @@ class CanDecoder:
             yield self.decode(m, i)
 
 
-@cache
-def _unknown(fid: int) -> str:
-    return f"unknown ID 0x{fid:X}"
+_NO_UNITS: dict[str, str] = {}
+
+
+def column_name(signal: str, unit: str | None) -> str:
+    """A table column: the signal, with its unit from the spec (``View_Range [m]``)."""
+    return f"{signal} [{unit}]" if unit else signal
 
 
 def table_record(rec: dict[str, Any], raw_invalid: bool = False) -> dict[str, Any]:
-    """``rec`` for ``--csv``/``--parquet``: a value at its invalid value is empty (NULL), as the
-    ``invalid`` list marks it in JSON; ``raw_invalid`` keeps the decoded number."""
-    if raw_invalid or not rec["invalid"]:
+    """``rec`` for ``--csv``/``--parquet``: columns named with their units; a value at its
+    invalid value is empty (NULL), as the ``invalid`` list marks it in JSON; ``raw_invalid``
+    keeps the decoded number."""
+    units = rec.get("units") or _NO_UNITS
+    if (raw_invalid or not rec["invalid"]) and not units:
         return rec
-    fields = dict(rec["fields"])
-    for name in rec["invalid"]:
-        fields[name] = None
+    invalid = () if raw_invalid else rec["invalid"]
+    fields = {column_name(k, units.get(k)): None if k in invalid else v
+              for k, v in rec["fields"].items()}
     return {**rec, "fields": fields}
 
 
@@ -287,8 +383,11 @@ def human_record(r: dict[str, Any]) -> str:
     t = "-" if r["time"] is None else f"{r['time']:.6f}"
     head = f"{r['frames'][0]:8d} {t:>14s} 0x{r['header']['id']:03X} {r['name'] or '?':24s}"
     parts = []
+    units = r.get("units") or _NO_UNITS
     for k, v in r["fields"].items():
         text = f"{v:.6g}" if isinstance(v, float) else str(v)
+        if k in units:
+            text += f" {units[k]}"
         label = r["labels"].get(k)
         if label:
             text += f" ({label})"

@@ -13,6 +13,7 @@ yielded (and decoded) already.
 from __future__ import annotations
 
 import gc
+import re
 import struct
 import sys
 from collections.abc import Callable, Iterator
@@ -31,6 +32,53 @@ from eyeq_spi.errors import (
 
 READ_SUFFIXES = (".blf", ".asc", ".log", ".trc", ".mf4", ".csv")
 TEXT_SUFFIXES = (".asc", ".log", ".trc", ".csv")
+FORMAT_NAMES = {".blf": "BLF", ".asc": "ASC", ".log": "candump", ".trc": "TRC", ".mf4": "MF4",
+                ".csv": "python-can CSV"}
+# how each format's file begins: a file that does not begin so never was that format (exit 2);
+# one that does and then ends inside a record is truncated (exit 1). The text formats are judged
+# on their first line, which a cut file keeps (or keeps the start of).
+_ASC_HEAD = re.compile(rb"(date|base|internal events|begin triggerblock|//|\s*\d+\.\d+\s)",
+                       re.I)
+_CANDUMP_HEAD = re.compile(rb"\(\d")
+_TRC_HEAD = re.compile(rb"(;|\s*\d+\)?\s+\d)")
+_CSV_HEAD = b"timestamp,arbitration_id"
+
+
+def _looks_like(head: bytes, suffix: str) -> bool:
+    """Whether ``head`` (the file's first bytes) begins as a ``suffix`` log."""
+    if suffix == ".blf":
+        return head[:4] == b"LOGG"
+    if suffix == ".mf4":
+        return head[:8] in (b"MDF     ", b"UnFinMF ")
+    if b"\0" in head:  # the text formats: never a NUL byte
+        return False
+    first = head.lstrip(b"\xef\xbb\xbf").lstrip(b"\r\n")
+    if suffix == ".asc":
+        return _ASC_HEAD.match(first) is not None
+    if suffix == ".log":
+        return _CANDUMP_HEAD.match(first) is not None
+    if suffix == ".trc":
+        return _TRC_HEAD.match(first) is not None
+    return _CSV_HEAD.startswith(first[:len(_CSV_HEAD)]) or first.startswith(_CSV_HEAD)
+
+
+def _check_format(p: Path, suffix: str) -> None:
+    """:class:`InputError` for a directory, a missing file or one that never was ``suffix``'s
+    format (an empty file passes: it holds no frames)."""
+    if p.is_dir():
+        raise InputError(f"{p}: a directory, not a CAN log (give its log files, e.g. "
+                          f"{p}/*.blf)")
+    if not p.is_file():
+        raise InputError(f"{p}: no such file")
+    try:
+        with p.open("rb") as fh:
+            head = fh.read(512)
+    except OSError as exc:
+        raise InputError(f"{p}: cannot read: {exc.strerror or exc}") from exc
+    if head and not _looks_like(head, suffix):
+        name = FORMAT_NAMES[suffix]
+        raise InputError(f"{p}: not {'an' if name[0] in 'AM' else 'a'} {name} log (it does "
+                          f"not begin as one)")
 
 
 def _blf_announced_size(p: Path) -> int | None:
@@ -97,11 +145,11 @@ def read_log(path: str) -> Iterator[Any]:
 
     p = Path(path)
     suffix = p.suffix.lower()
-    if suffix not in READ_SUFFIXES:
-        raise InputError(f"{path}: unknown CAN log format {p.suffix!r} "
-                         f"(one of {', '.join(READ_SUFFIXES)})")
-    if not p.is_file():
-        raise InputError(f"{path}: no such file")
+    if suffix not in READ_SUFFIXES and not p.is_dir():
+        what = f"suffix {p.suffix!r}" if p.suffix else "no suffix"
+        raise InputError(f"{path}: unknown CAN log format ({what}; one of "
+                          f"{', '.join(READ_SUFFIXES)})")
+    _check_format(p, suffix)
     try:
         reader = _open(can, p)
     except ImportError as exc:

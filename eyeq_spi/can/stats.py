@@ -13,6 +13,7 @@ from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from typing import Any
 
+from eyeq_spi.can.channels import ChannelCensus
 from eyeq_spi.can.decode import CanDecoder, MessageDecoder, pack
 
 CHUNK = 1 << 15  # frames per (channel, ID) decoded at once: memory stays bounded
@@ -30,6 +31,8 @@ class _Key:
     n_intervals: int = 0
     invalid: Counter[str] = field(default_factory=Counter)
     out_of_range: Counter[str] = field(default_factory=Counter)
+    sizes: set[int] = field(default_factory=set)  # DLCs seen
+    quality: list[tuple[Any, Any]] = field(default_factory=list)  # (times, quality) (C11)
 
 
 class CanStats:
@@ -37,14 +40,16 @@ class CanStats:
 
     MAX_INTERVALS = 100_000  # per ID
 
-    def __init__(self, decoder: CanDecoder, channel: str | None = None) -> None:
+    def __init__(self, decoder: CanDecoder, channel: str | None = None,
+                 file: str | None = None) -> None:
         self.decoder = decoder
         self.channel = channel
+        self.file = file
         # (times, payloads, times.append, payloads.append) per (channel, ID, extended)
         self._buf: dict[tuple[Any, int, bool], tuple[list[float], list[bytes], Any, Any]] = {}
         self._keys: dict[tuple[str | None, int], _Key] = {}
         self.per_channel: Counter[str | None] = Counter()
-        self.unknown: Counter[int] = Counter()
+        self.unknown: Counter[tuple[str | None, int]] = Counter()  # other traffic (C10)
         self.first: float | None = None
         self.last: float | None = None
 
@@ -84,7 +89,7 @@ class CanStats:
         self.last = hi if self.last is None else max(self.last, hi)
         dec = None if ext else self.decoder.by_id.get(fid)
         if dec is None:
-            self.unknown[fid] += n
+            self.unknown[(ch, fid)] += n
             return
         st = self._keys.setdefault((ch, fid), _Key(dec.name))
         st.frames += n
@@ -94,13 +99,44 @@ class CanStats:
             st.intervals.append(iv)
             st.n_intervals += len(iv)
         st.last = float(t[-1])
-        self._decode(dec, datas, st)
+        source = dec.quality_source
+        if source is not None and source != fid and (ch_raw, source, False) in self._buf:
+            self._flush((ch_raw, source, False))  # its qualities up to now come first (C11)
+        self._decode(dec, datas, st, t, ch)
 
-    def _decode(self, dec: MessageDecoder, datas: list[bytes], st: _Key) -> None:
+    def _low_quality(self, dec: MessageDecoder, ch: str | None, t: Any, le: Any, be: Any,
+                     pad: int, st: _Key) -> Any:
+        """Decision C11: which frames' governed signals are invalid (their lane's quality, in
+        this frame or the latest frame of the message that carries it, is low); None if no
+        rule."""
+        import numpy as np
+
+        rule = dec.quality
+        if rule is None:
+            return None
+        if dec.quality_source == dec.spec.id or dec.quality_source is None or \
+                self.decoder.by_id[dec.quality_source] is dec:
+            q = next(s for s in dec.signals if s.spec.name == rule.signal)
+            word = be if q.big_endian else le
+            shift = q.shift + pad if q.big_endian else q.shift
+            quality = ((word >> np.uint64(shift)) & np.uint64(q.mask)).astype(np.int64)
+            st.quality.append((t, quality))
+            return quality < rule.valid_from
+        src = self._keys.get((ch, dec.quality_source))
+        if src is None or not src.quality:
+            return np.zeros(len(t), dtype=bool)
+        times = np.concatenate([x[0] for x in src.quality])
+        values = np.concatenate([x[1] for x in src.quality])
+        at = np.searchsorted(times, t, side="right") - 1
+        return (at >= 0) & (values[np.maximum(at, 0)] < rule.valid_from)
+
+    def _decode(self, dec: MessageDecoder, datas: list[bytes], st: _Key, t: Any,
+                ch: str | None) -> None:
         import numpy as np
 
         n = len(datas)
         sizes = set(map(len, datas))
+        st.sizes |= sizes
         if len(sizes) == 1:  # the usual case: one length per ID (8, or the camera's short 4)
             size = sizes.pop()
             lens = np.full(n, size, dtype=np.int64)
@@ -122,13 +158,16 @@ class CanStats:
         be = full.view(">u8").ravel().astype(np.uint64)
         pad = (8 - dec.dlc) * 8
         err = bad_dlc.copy()
+        low = self._low_quality(dec, ch, t, le, be, pad, st)
         with np.errstate(invalid="ignore", over="ignore"):  # NaN floats: not finite, skipped
             for s in dec.signals:
-                self._signal(s, le, be, pad, have, st, err)
+                self._signal(s, le, be, pad, have, st, err,
+                             low if s.spec.name in dec.governed else None)
         st.error_frames += int(err.sum())
 
     @staticmethod
-    def _signal(s: Any, le: Any, be: Any, pad: int, have: Any, st: _Key, err: Any) -> None:
+    def _signal(s: Any, le: Any, be: Any, pad: int, have: Any, st: _Key, err: Any,
+                low: Any) -> None:
         import numpy as np
 
         n = len(le)
@@ -145,13 +184,13 @@ class CanStats:
             if s.sign_bit:
                 raw = np.where(raw & s.sign_bit, raw - (s.mask + 1), raw)
             phys = raw * float(s.scale) + float(s.offset)
-        if s.invalid is not None:
-            inv = present & (raw == s.invalid)
-            k = int(inv.sum())
-            if k:
-                st.invalid[s.spec.name] += k
-        else:
-            inv = np.zeros(n, dtype=bool)
+        inv = present & (raw == s.invalid) if s.invalid is not None else \
+            np.zeros(n, dtype=bool)
+        if low is not None:
+            inv |= present & low
+        k = int(inv.sum())
+        if k:
+            st.invalid[s.spec.name] += k
         oor = np.zeros(n, dtype=bool)
         if s.low is not None:
             oor |= phys < s.low
@@ -165,72 +204,149 @@ class CanStats:
 
     def finish(self) -> None:
         for key in list(self._buf):
-            self._flush(key)
+            if key in self._buf:  # a lane's A frames go before its B frames (C11)
+                self._flush(key)
 
     @property
     def frames(self) -> int:
         return sum(s.frames for s in self._keys.values()) + sum(self.unknown.values())
 
-    @property
-    def error_frames(self) -> int:
-        """Frames with an error (unknown ID, bad DLC, a value out of range): exit 1."""
-        return sum(s.error_frames for s in self._keys.values()) + sum(self.unknown.values())
+    def census(self) -> ChannelCensus:
+        """Which protocol IDs each channel carries, and at which DLCs (C10)."""
+        out = ChannelCensus(self.decoder)
+        for (ch, fid), st in self._keys.items():
+            for size in st.sizes:
+                out.add(ch, fid, size, count=0)
+            out.frames[ch] += st.frames
+        for (ch, _), n in self.unknown.items():
+            out.frames[ch] += n
+        return out
 
     def result(self) -> dict[str, Any]:
-        import numpy as np
-
+        """The statistics of what was read: per ID of the camera's channel (the one given, or
+        the one that looks most like a camera when the protocol's IDs are on several), and the
+        other nodes' traffic apart (C10)."""
         self.finish()
+        census = self.census()
+        verdict = census.verdict(self.channel) if self.channel is not None else census.camera()
+        several = len(census.channels_with_ids()) > 1
+        camera = verdict.channel if verdict is not None and several else None
         per_id: list[dict[str, Any]] = []
+        other: Counter[int] = Counter({fid: n for (_, fid), n in self.unknown.items()})
         id_channels: defaultdict[int, list[str | None]] = defaultdict(list)
         for (ch, fid), st in sorted(self._keys.items(), key=lambda kv: (kv[0][1], str(kv[0][0]))):
             id_channels[fid].append(ch)
-            spec = self.decoder.spec_for(fid)
-            cyc = spec.cycle_ms if spec else None
-            iv = np.concatenate(st.intervals)[:self.MAX_INTERVALS] if st.intervals else None
-            med = float(np.median(iv)) if iv is not None and len(iv) else None
-            mean = float(np.mean(iv)) if iv is not None and len(iv) else None
-            per_id.append({
-                "id": fid, "channel": ch, "name": st.name, "frames": st.frames,
-                "spec_cycle_ms": cyc,
-                "median_cycle_ms": None if med is None else round(med, 3),
-                "mean_cycle_ms": None if mean is None else round(mean, 3),
-                "cycle_deviation_pct": None if med is None or not cyc
-                else round(100.0 * (med - cyc) / cyc, 2),
-                "invalid": dict(st.invalid), "out_of_range": dict(st.out_of_range),
-                "dlc_errors": st.dlc_errors, "short_dlc": st.short_dlc,
-                "error_frames": st.error_frames,
-            })
+            if camera is not None and ch != camera:
+                other[fid] += st.frames
+                continue
+            per_id.append(self._id_row(ch, fid, st))
         shared = {f"0x{fid:X}": sorted(str(c) for c in chs)
                   for fid, chs in sorted(id_channels.items()) if len(chs) > 1}
-        return {"kind": "stats", "protocol": self.decoder.protocol.name, "frames": self.frames,
-                "channel": self.channel,
+        warning = None
+        if verdict is not None and self.channel is not None and not verdict.looks_like_camera:
+            warning = (f"channel {self.channel} does not look like a camera: "
+                       f"{verdict.describe()} of {self.decoder.protocol.name}")
+        return {"kind": "stats", "file": self.file, "protocol": self.decoder.protocol.name,
+                "frames": self.frames, "channel": self.channel,
                 "channels": {str(k): v for k, v in sorted(self.per_channel.items(),
                                                           key=lambda kv: str(kv[0]))},
+                "camera_channel": None if verdict is None else verdict.channel,
+                "camera_evidence": None if verdict is None else verdict.describe(),
+                "warning": warning,
                 "ids_on_several_channels": shared,
                 "duration_s": None if self.first is None or self.last is None
                 else round(self.last - self.first, 6),
-                "unknown_ids": {f"0x{k:X}": v for k, v in sorted(self.unknown.items())},
-                "error_frames": self.error_frames,
+                "other_frames": sum(other.values()),
+                "other_ids": {f"0x{k:X}": v for k, v in sorted(other.items())},
+                "error_frames": sum(r["error_frames"] for r in per_id),
                 "dlc_errors": sum(r["dlc_errors"] for r in per_id),
                 "short_dlc": sum(r["short_dlc"] for r in per_id),
                 "invalid_values": sum(sum(r["invalid"].values()) for r in per_id),
                 "out_of_range_values": sum(sum(r["out_of_range"].values()) for r in per_id),
                 "ids": per_id}
 
+    def _id_row(self, ch: str | None, fid: int, st: _Key) -> dict[str, Any]:
+        import numpy as np
 
-def human_stats(s: dict[str, Any]) -> str:
+        spec = self.decoder.spec_for(fid)
+        cyc = spec.cycle_ms if spec else None
+        iv = np.concatenate(st.intervals)[:self.MAX_INTERVALS] if st.intervals else None
+        med = float(np.median(iv)) if iv is not None and len(iv) else None
+        mean = float(np.mean(iv)) if iv is not None and len(iv) else None
+        return {
+            "id": fid, "channel": ch, "name": st.name, "frames": st.frames,
+            "spec_cycle_ms": cyc,
+            "median_cycle_ms": None if med is None else round(med, 3),
+            "mean_cycle_ms": None if mean is None else round(mean, 3),
+            "cycle_deviation_pct": None if med is None or not cyc
+            else round(100.0 * (med - cyc) / cyc, 2),
+            "invalid": dict(st.invalid), "out_of_range": dict(st.out_of_range),
+            "dlc_errors": st.dlc_errors, "short_dlc": st.short_dlc,
+            "error_frames": st.error_frames,
+        }
+
+
+TOTAL_KEYS = ("frames", "other_frames", "error_frames", "dlc_errors", "short_dlc",
+              "invalid_values", "out_of_range_values")
+
+
+def total(results: list[dict[str, Any]]) -> dict[str, Any]:
+    """The counts of several files' statistics added up (``"file": null``, ``"files": N``); per
+    ID its frames and errors only: a cycle time never spans two files."""
+    ids: dict[tuple[int, str | None], dict[str, Any]] = {}
+    for r in results:
+        for row in r["ids"]:
+            t = ids.setdefault((row["id"], row["channel"]), {
+                "id": row["id"], "channel": row["channel"], "name": row["name"], "frames": 0,
+                "error_frames": 0})
+            t["frames"] += row["frames"]
+            t["error_frames"] += row["error_frames"]
+    other: Counter[str] = Counter()
+    for r in results:
+        other.update(r["other_ids"])
+    return {"kind": "stats", "file": None, "files": len(results),
+            "protocol": results[0]["protocol"] if results else None,
+            **{k: sum(r[k] for r in results) for k in TOTAL_KEYS},
+            "other_ids": dict(sorted(other.items())),
+            "ids": [ids[k] for k in sorted(ids, key=lambda k: (k[0], str(k[1])))]}
+
+
+def human_total(s: dict[str, Any]) -> str:
+    return "\n".join([
+        f"=== total of {s['files']} files",
+        f"{s['frames']} frames, protocol {s['protocol']}; other nodes' traffic "
+        f"{s['other_frames']} frames",
+        pack(f"errors: {s['error_frames']} frames", [
+            f"(DLC errors {s['dlc_errors']},",
+            f"values out of range {s['out_of_range_values']});",
+            f"short DLCs {s['short_dlc']} (accepted);",
+            f"invalid values {s['invalid_values']} (as sent: not errors)"], indent=4)])
+
+
+def human_stats(s: dict[str, Any], heading: bool = False) -> str:
+    """One file's statistics, to 80 columns; ``heading``: ``=== FILE`` first."""
     chans = ", ".join(f"{k}: {v}" for k, v in s["channels"].items())
     span = "-" if s["duration_s"] is None else f"{s['duration_s']:.3f}"
-    lines = [f"{s['frames']} frames over {span} s, protocol {s['protocol']}"
-             + (f", channel {s['channel']}" if s["channel"] is not None else ""),
-             f"channels (all frames in the log): {chans or 'none'}"]
+    lines = [f"=== {s['file']}"] if heading else []
+    lines += [f"{s['frames']} frames over {span} s, protocol {s['protocol']}"
+              + (f", channel {s['channel']}" if s["channel"] is not None else ""),
+              f"channels (all frames in the log): {chans or 'none'}"]
+    if s["camera_channel"] is not None and s["channel"] is None:
+        lines.append(pack(f"camera on channel {s['camera_channel']}:",
+                          f"{s['camera_evidence']} (--channel {s['camera_channel']})".split(),
+                          indent=4))
     if s["ids_on_several_channels"] and s["channel"] is None:
         ids = "; ".join(f"{k} on {', '.join(v)}" for k, v in s["ids_on_several_channels"].items())
         lines.append(pack("note: protocol IDs on several channels", [
-            *f"({ids}):".split(" "), "pick", "the", "camera's", "with", "--channel"], indent=6))
-    unknown = [f"{k} x{v}," for k, v in s["unknown_ids"].items()] or ["none,"]
+            *f"({ids}):".split(" "), "those", "off", "the", "camera's", "channel", "are",
+            "other", "traffic"], indent=6))
+    other = [f"{k} x{v}," for k, v in s["other_ids"].items()]
+    if other:
+        other[-1] = other[-1].rstrip(",") + ")"
+        lines.append(pack(f"other nodes' traffic: {s['other_frames']} frames (IDs",
+                          other, indent=4))
     lines.append(pack(f"errors: {s['error_frames']} frames", [
-        f"(unknown IDs {unknown[0]}", *unknown[1:], f"DLC errors {s['dlc_errors']},",
+        f"(DLC errors {s['dlc_errors']},",
         f"values out of range {s['out_of_range_values']});",
         f"short DLCs {s['short_dlc']} (accepted);",
         f"invalid values {s['invalid_values']} (as sent: not errors)"], indent=4))

@@ -19,12 +19,14 @@ from eyeq_spi.errors import SpecError
 PROTOCOL_KEYS = frozenset({"name", "title", "seeds", "bitrate", "seed", "seed_line", "enums",
                            "messages"})
 MESSAGE_KEYS = frozenset({"name", "id", "dlc", "cycle_ms", "slots", "section", "seed",
-                          "seed_line", "signals", "reconstruction", "differences", "description"})
+                          "seed_line", "signals", "reconstruction", "differences", "description",
+                          "quality"})
 SIGNAL_KEYS = frozenset({"name", "start", "length", "byte_order", "signed", "scale", "offset",
                          "unit", "min", "max", "invalid", "invalid_means", "out_of_range", "enum",
                          "float", "seed", "seed_line", "seed_form", "description",
                          "reconstruction", "invented"})
 SLOT_KEYS = frozenset({"count", "stride", "seed_line", "rule"})
+QUALITY_KEYS = frozenset({"message", "signal", "valid_from", "governs", "seed_line", "decision"})
 MAPPING_KEYS = frozenset({"expr", "reason", "seed_line"})
 MESSAGE_MAPPING_KEYS = frozenset({"signals", "slots", "unmapped"})
 
@@ -95,6 +97,18 @@ class SlotRule:
 
 
 @dataclass(frozen=True)
+class QualityRule:
+    """Decision C11: the signals ``governs`` are valid only while ``signal`` (of ``message``,
+    the same slot; this message when None) is at least ``valid_from``."""
+
+    signal: str
+    valid_from: int
+    governs: tuple[str, ...]
+    message: str | None = None
+    seed_line: int = 0
+
+
+@dataclass(frozen=True)
 class CanMessage:
     name: str
     id: int
@@ -105,6 +119,7 @@ class CanMessage:
     section: str | None = None
     seed_line: int = 0
     seed: str | None = None  # the seed seed_line counts in, when not the protocol's
+    quality: QualityRule | None = None  # decision C11
 
     def instances(self) -> list[tuple[int | None, int, str]]:
         """(slot, frame ID, DBC message name): one per repeated slot, else one."""
@@ -287,6 +302,9 @@ def validate_protocol(rel: str, doc: Any) -> list[str]:
                 used[b] = s["name"]
         if not snames:
             out.append(f"{where}: needs signals")
+        if m.get("quality") is not None:
+            by_name = {str(x.get("name")): x for x in msgs if isinstance(x, dict)}
+            out += _check_quality(where, m["quality"], m, by_name)
     return out
 
 
@@ -390,6 +408,33 @@ def _signal(s: dict[str, Any]) -> CanSignal:
     )
 
 
+def _quality(q: dict[str, Any]) -> QualityRule:
+    return QualityRule(str(q["signal"]), int(q["valid_from"]), tuple(q["governs"]),
+                       str(q["message"]) if q.get("message") else None,
+                       int(q.get("seed_line", 0)))
+
+
+def _check_quality(where: str, q: Any, m: dict[str, Any],
+                   by_name: dict[str, dict[str, Any]]) -> list[str]:
+    """A C11 rule names a signal of its own (or of ``message``, slotted alike) and signals of
+    its own message."""
+    if not isinstance(q, dict) or set(q) - QUALITY_KEYS or not isinstance(
+            q.get("valid_from"), int) or not isinstance(q.get("governs"), list):
+        return [f"{where}: quality needs signal, valid_from (int) and governs (a list)"]
+    src = by_name.get(str(q["message"])) if q.get("message") else m
+    if src is None:
+        return [f"{where}: quality: no message {q['message']!r}"]
+    if (src.get("slots") or {}).get("count") != (m.get("slots") or {}).get("count"):
+        return [f"{where}: quality: {src['name']} has other slots"]
+    out = []
+    if q.get("signal") not in {s.get("name") for s in src.get("signals") or []}:
+        out.append(f"{where}: quality: {src['name']} has no signal {q.get('signal')!r}")
+    own = {s.get("name") for s in m.get("signals") or []}
+    out += [f"{where}: quality governs {g!r}, not a signal of it" for g in q["governs"]
+            if g not in own]
+    return out
+
+
 def _protocol(doc: dict[str, Any]) -> CanProtocol:
     msgs = []
     for m in doc["messages"]:
@@ -400,6 +445,7 @@ def _protocol(doc: dict[str, Any]) -> CanProtocol:
             slots=SlotRule(int(sl["count"]), int(sl["stride"]), str(sl.get("rule", "")))
             if sl else None, section=m.get("section"), seed_line=int(m["seed_line"]),
             seed=str(m["seed"]) if m.get("seed") is not None else None,
+            quality=_quality(m["quality"]) if m.get("quality") else None,
         ))
     enums = {k: {int(v): str(n) for v, n in e["values"].items()}
              for k, e in (doc.get("enums") or {}).items()}

@@ -89,121 +89,170 @@ Fn = Callable[[Env], Any]
 
 
 def _build(node: ast.AST, names: set[str], tables: set[str]) -> Fn:
-    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float, str)):
-        value = node.value
-        return lambda env: value
-    if isinstance(node, ast.Name):
-        if node.id not in names:
-            raise SpecError(f"unknown name {node.id!r} (known: {', '.join(sorted(names))})")
-        key = node.id
+    """The evaluator of one node of a mapping expression (each node kind has its builder)."""
+    builder = _BUILDERS.get(type(node))
+    fn = builder(node, names, tables) if builder is not None else None
+    if fn is None:
+        raise SpecError(f"{type(node).__name__} is not part of the mapping language")
+    return fn
 
-        def name(env: Env) -> Any:
-            v = env.get(key)
-            if v is None or v is MISSING:
-                raise _AbsentError
-            return v
-        return name
-    if isinstance(node, ast.Attribute):
-        if node.attr.startswith("_"):
-            raise SpecError(f"attribute {node.attr!r} is not allowed")
-        base, attr = _build(node.value, names, tables), node.attr
 
-        def get(env: Env) -> Any:
-            obj = base(env)
-            if not isinstance(obj, dict) or attr not in obj:
-                raise _AbsentError
-            return obj[attr]
-        return get
-    if isinstance(node, ast.Subscript):
-        base, index = _build(node.value, names, tables), _build(node.slice, names, tables)
+def _constant(node: Any, names: set[str], tables: set[str]) -> Fn | None:
+    value = node.value
+    if not isinstance(value, (int, float, str)):
+        return None
+    return lambda env: value
 
-        def sub(env: Env) -> Any:
-            try:
-                return base(env)[index(env)]
-            except (IndexError, KeyError, TypeError):
-                raise _AbsentError from None
-        return sub
-    if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.Not, ast.UAdd)):
-        operand, op = _build(node.operand, names, tables), node.op
-        if isinstance(op, ast.USub):
-            return lambda env: -operand(env)
-        if isinstance(op, ast.Not):
-            return lambda env: not operand(env)
-        return operand
-    if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
-        left, right, fn = (_build(node.left, names, tables), _build(node.right, names, tables),
-                           _BINOPS[type(node.op)])
 
-        def binop(env: Env) -> Any:
-            try:
-                return fn(left(env), right(env))
-            except ZeroDivisionError:
-                raise _AbsentError from None
-        return binop
-    if isinstance(node, ast.BoolOp):
-        parts = [_build(v, names, tables) for v in node.values]
-        if isinstance(node.op, ast.And):
-            return lambda env: all(p(env) for p in parts)
-        return lambda env: any(p(env) for p in parts)
-    if isinstance(node, ast.Compare) and all(type(o) in _CMPOPS for o in node.ops):
-        first = _build(node.left, names, tables)
-        rest = [(_CMPOPS[type(o)], _build(c, names, tables))
-                for o, c in zip(node.ops, node.comparators, strict=True)]
+def _name(node: Any, names: set[str], tables: set[str]) -> Fn:
+    if node.id not in names:
+        raise SpecError(f"unknown name {node.id!r} (known: {', '.join(sorted(names))})")
+    key = node.id
 
-        def compare(env: Env) -> bool:
-            a = first(env)
-            for fn, c in rest:
-                b = c(env)
-                if not fn(a, b):
-                    return False
-                a = b
-            return True
-        return compare
-    if isinstance(node, ast.IfExp):
-        test, body, orelse = (_build(node.test, names, tables), _build(node.body, names, tables),
-                              _build(node.orelse, names, tables))
-        return lambda env: body(env) if test(env) else orelse(env)
-    if isinstance(node, (ast.Tuple, ast.List)):
-        items = [_build(e, names, tables) for e in node.elts]
-        return lambda env: [i(env) for i in items]
-    if isinstance(node, ast.ListComp) and len(node.generators) == 1:
-        gen = node.generators[0]
-        if not isinstance(gen.target, ast.Name) or gen.is_async:
-            raise SpecError("a comprehension binds one plain name")
-        var = gen.target.id
-        inner = names | {var}
-        it = _build(gen.iter, names, tables)
-        conds = [_build(c, inner, tables) for c in gen.ifs]
-        elt = _build(node.elt, inner, tables)
+    def name(env: Env) -> Any:
+        v = env.get(key)
+        if v is None or v is MISSING:
+            raise _AbsentError
+        return v
+    return name
 
-        def comp(env: Env) -> list[Any]:
-            out = []
-            for item in it(env):
-                local = {**env, var: item}
-                if all(c(local) for c in conds):
-                    out.append(elt(local))
-            return out
-        return comp
-    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and not node.keywords:
-        fname = node.func.id
-        if fname == "table":
-            if (len(node.args) != 2 or not isinstance(node.args[0], ast.Constant)
-                    or node.args[0].value not in tables):
-                raise SpecError(f"table() takes a table name of {sorted(tables)} and a value")
-            tname = str(node.args[0].value)
-            arg = _build(node.args[1], names, tables)
 
-            def lookup(env: Env) -> Any:
-                t = env["__tables__"][tname]
-                v = arg(env)
-                return t[v] if v in t else t.get("default", MISSING)
-            return lookup
-        if fname not in FUNCTIONS:
-            raise SpecError(f"unknown function {fname!r} (known: table, "
-                            f"{', '.join(sorted(FUNCTIONS))})")
-        fn, args = FUNCTIONS[fname], [_build(a, names, tables) for a in node.args]
-        return lambda env: fn(*(a(env) for a in args))
-    raise SpecError(f"{type(node).__name__} is not part of the mapping language")
+def _attribute(node: Any, names: set[str], tables: set[str]) -> Fn:
+    if node.attr.startswith("_"):
+        raise SpecError(f"attribute {node.attr!r} is not allowed")
+    base, attr = _build(node.value, names, tables), node.attr
+
+    def get(env: Env) -> Any:
+        obj = base(env)
+        if not isinstance(obj, dict) or attr not in obj:
+            raise _AbsentError
+        return obj[attr]
+    return get
+
+
+def _subscript(node: Any, names: set[str], tables: set[str]) -> Fn:
+    base, index = _build(node.value, names, tables), _build(node.slice, names, tables)
+
+    def sub(env: Env) -> Any:
+        try:
+            return base(env)[index(env)]
+        except (IndexError, KeyError, TypeError):
+            raise _AbsentError from None
+    return sub
+
+
+def _unary(node: Any, names: set[str], tables: set[str]) -> Fn | None:
+    if not isinstance(node.op, (ast.USub, ast.Not, ast.UAdd)):
+        return None
+    operand, op = _build(node.operand, names, tables), node.op
+    if isinstance(op, ast.USub):
+        return lambda env: -operand(env)
+    if isinstance(op, ast.Not):
+        return lambda env: not operand(env)
+    return operand
+
+
+def _binary(node: Any, names: set[str], tables: set[str]) -> Fn | None:
+    if type(node.op) not in _BINOPS:
+        return None
+    left, right, fn = (_build(node.left, names, tables), _build(node.right, names, tables),
+                       _BINOPS[type(node.op)])
+
+    def binop(env: Env) -> Any:
+        try:
+            return fn(left(env), right(env))
+        except ZeroDivisionError:
+            raise _AbsentError from None
+    return binop
+
+
+def _boolean(node: Any, names: set[str], tables: set[str]) -> Fn:
+    parts = [_build(v, names, tables) for v in node.values]
+    if isinstance(node.op, ast.And):
+        return lambda env: all(p(env) for p in parts)
+    return lambda env: any(p(env) for p in parts)
+
+
+def _compare(node: Any, names: set[str], tables: set[str]) -> Fn | None:
+    if not all(type(o) in _CMPOPS for o in node.ops):
+        return None
+    first = _build(node.left, names, tables)
+    rest = [(_CMPOPS[type(o)], _build(c, names, tables))
+            for o, c in zip(node.ops, node.comparators, strict=True)]
+
+    def compare(env: Env) -> bool:
+        a = first(env)
+        for fn, c in rest:
+            b = c(env)
+            if not fn(a, b):
+                return False
+            a = b
+        return True
+    return compare
+
+
+def _if(node: Any, names: set[str], tables: set[str]) -> Fn:
+    test, body, orelse = (_build(node.test, names, tables), _build(node.body, names, tables),
+                          _build(node.orelse, names, tables))
+    return lambda env: body(env) if test(env) else orelse(env)
+
+
+def _sequence(node: Any, names: set[str], tables: set[str]) -> Fn:
+    items = [_build(e, names, tables) for e in node.elts]
+    return lambda env: [i(env) for i in items]
+
+
+def _comprehension(node: Any, names: set[str], tables: set[str]) -> Fn | None:
+    if len(node.generators) != 1:
+        return None
+    gen = node.generators[0]
+    if not isinstance(gen.target, ast.Name) or gen.is_async:
+        raise SpecError("a comprehension binds one plain name")
+    var = gen.target.id
+    inner = names | {var}
+    it = _build(gen.iter, names, tables)
+    conds = [_build(c, inner, tables) for c in gen.ifs]
+    elt = _build(node.elt, inner, tables)
+
+    def comp(env: Env) -> list[Any]:
+        out = []
+        for item in it(env):
+            local = {**env, var: item}
+            if all(c(local) for c in conds):
+                out.append(elt(local))
+        return out
+    return comp
+
+
+def _call(node: Any, names: set[str], tables: set[str]) -> Fn | None:
+    if not isinstance(node.func, ast.Name) or node.keywords:
+        return None
+    fname = node.func.id
+    if fname == "table":
+        if (len(node.args) != 2 or not isinstance(node.args[0], ast.Constant)
+                or node.args[0].value not in tables):
+            raise SpecError(f"table() takes a table name of {sorted(tables)} and a value")
+        tname = str(node.args[0].value)
+        arg = _build(node.args[1], names, tables)
+
+        def lookup(env: Env) -> Any:
+            t = env["__tables__"][tname]
+            v = arg(env)
+            return t[v] if v in t else t.get("default", MISSING)
+        return lookup
+    if fname not in FUNCTIONS:
+        raise SpecError(f"unknown function {fname!r} (known: table, "
+                        f"{', '.join(sorted(FUNCTIONS))})")
+    fn, args = FUNCTIONS[fname], [_build(a, names, tables) for a in node.args]
+    return lambda env: fn(*(a(env) for a in args))
+
+
+_BUILDERS: dict[type, Callable[[Any, set[str], set[str]], Fn | None]] = {
+    ast.Constant: _constant, ast.Name: _name, ast.Attribute: _attribute,
+    ast.Subscript: _subscript, ast.UnaryOp: _unary, ast.BinOp: _binary, ast.BoolOp: _boolean,
+    ast.Compare: _compare, ast.IfExp: _if, ast.Tuple: _sequence, ast.List: _sequence,
+    ast.ListComp: _comprehension, ast.Call: _call,
+}
 
 
 def compile_expr(text: str, names: set[str], tables: set[str]) -> Callable[[Env], Any]:

@@ -6,9 +6,11 @@ follow ``eyeq-spi dissect`` (human, ``--json`` lines, ``--csv``/``--parquet`` ta
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 import sys
-from collections.abc import Callable
+from collections import Counter
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,19 +34,23 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     k = cs.add_parser("compare", help="compare a vendor's DBC with ours, signal by signal",
                       description="A DBC you hold (vendor, public) against the DBC built from "
                       "specs/can/: ID, DLC, cycle and each signal's start, length, byte order, "
-                      "sign, scale, offset, range, invalid value, with our reason (seed line, "
-                      "decision) where they differ. Exit 0 the same, 1 differences, 2 bad "
-                      "input.")
+                      "sign, scale, offset, unit, range, invalid value and choices. Each "
+                      "difference says what differs, ours -> theirs, and where ours comes from; "
+                      "the same difference in every slot is one line. Exit 0 the same, 1 "
+                      "differences, 2 bad input.")
     k.add_argument("dbc", metavar="OTHER.dbc", help="the DBC file to compare")
-    k.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
-                   help="our protocol to compare with (default extlog2)")
+    k.add_argument("--protocol", choices=PROTOCOLS,
+                   help="our protocol to compare with (default: the one whose IDs the DBC "
+                   "holds most of)")
     opt.include(k, opt.json_out("the differences as a JSON list"))
     x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
                       "or a live bus",
-                      description="Decode CAN logs with the protocols of specs/can/. Exit 0 "
-                      "clean, 1 frames with errors (unknown ID, wrong DLC, value out of range) "
-                      "or a truncated log, 2 bad input or usage. Cycle-time deviations and "
-                      "short DLCs that hold every signal are shown, not errors.")
+                      description="Decode CAN logs with the protocols of specs/can/, each log "
+                      "on its own. Exit 0 clean, 1 frames with errors (wrong DLC, value out of "
+                      "range) or a truncated log, 2 bad input or usage. Other nodes' frames "
+                      "(IDs the protocol does not define, or the protocol's IDs on channels "
+                      "other than the camera's), cycle-time deviations, short DLCs that hold "
+                      "every signal and invalid values are shown, not errors.")
     x.add_argument("logs", nargs="*", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
                    ".mf4 .csv)")
     x.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
@@ -67,7 +73,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     x.add_argument("--raw-invalid", action="store_true",
                    help="--csv/--parquet: write the decoded number of a value at its invalid "
                    "value (default: empty / NULL)")
-    x.add_argument("--id", metavar="ID", type=lambda s: int(s, 0),
+    x.add_argument("--absolute-time", action="store_true",
+                   help="times as the log records them (default: seconds since the log's "
+                   "first frame)")
+    x.add_argument("--id", metavar="ID", type=can_id,
                    help="only frames with this arbitration ID (0x739)")
     x.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
     x.add_argument("--errors-only", action="store_true",
@@ -75,15 +84,22 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from eyeq_spi.can.compare import as_json, compare, human
+    from eyeq_spi.can.compare import as_json, compare, detect, grouped, human
 
-    diffs = compare(args.dbc, args.protocol)
+    proto, detected = args.protocol, ""
+    if proto is None:
+        proto, share = detect(args.dbc)
+        if proto is None:
+            raise InputError(f"{args.dbc}: none of its frame IDs is a message of "
+                                  f"{' or '.join(PROTOCOLS)}: give --protocol")
+        detected = share
+    diffs = grouped(compare(args.dbc, proto), proto)
     if args.json:
         import json
 
         print(json.dumps(as_json(diffs), indent=1))
     else:
-        print(human(diffs, args.dbc, args.protocol))
+        print(human(diffs, args.dbc, proto, detected))
     return 1 if diffs else 0
 
 
@@ -102,56 +118,61 @@ def _dbc(args: argparse.Namespace) -> int:
     return 0
 
 
-def _sources(args: argparse.Namespace) -> Any:
-    """One iterator of python-can messages per log file, or the live bus (shut down after)."""
+def can_id(text: str) -> int:
+    """``--id``: an 11- or 29-bit CAN ID, hexadecimal (0x739) or decimal."""
+    try:
+        value = int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid CAN ID {text!r} (give it as 0x739 or "
+                                         "1849)") from None
+    if not 0 <= value < 1 << 29:
+        raise argparse.ArgumentTypeError(f"invalid CAN ID {text!r} (0 to 0x1FFFFFFF)")
+    return value
+
+
+def _sources(args: argparse.Namespace) -> Iterator[tuple[str, Any]]:
+    """(name, python-can messages) per log file, or for the live bus (shut down after)."""
     from eyeq_spi.can.logs import open_bus, read_bus, read_log
 
     if not args.bus:
         for path in args.logs:
-            yield read_log(path)
+            yield path, read_log(path)
         return
     bus = open_bus(args.bus)
     try:
-        yield read_bus(bus, duration=args.duration, count=args.count)
+        yield args.bus, read_bus(bus, duration=args.duration, count=args.count)
     finally:
         bus.shutdown()
 
 
-class _JsonLines:
-    """JSON Lines with orjson, written in blocks (``dissect --json``'s fast spelling)."""
+def _json_lines() -> tuple[Callable[[dict[str, Any]], None], Callable[[], None]]:
+    """JSON Lines on stdout: (write one record, flush). orjson, written in blocks."""
+    import orjson
 
-    def __init__(self) -> None:
-        import orjson
+    dumps, opt = orjson.dumps, orjson.OPT_APPEND_NEWLINE
+    out = getattr(sys.stdout, "buffer", None)
+    block: list[bytes] = []
+    add = block.append
 
-        self._dumps = orjson.dumps
-        self._opt = orjson.OPT_APPEND_NEWLINE
-        self._out = getattr(sys.stdout, "buffer", None)
-        self._block: list[bytes] = []
-        dumps, opt, block = self._dumps, self._opt, self._block
-        add = block.append
-
-        def write(rec: dict[str, Any]) -> None:  # the hot path: locals only
-            add(dumps(rec, option=opt))
-            if len(block) >= 512:
-                self.flush()
-
-        self.write: Callable[[dict[str, Any]], None] = write
-
-    def flush(self) -> None:
-        data = b"".join(self._block)
-        self._block.clear()
-        if self._out is not None:
+    def flush() -> None:
+        data = b"".join(block)
+        block.clear()
+        if out is not None:
             sys.stdout.flush()
-            self._out.write(data)
+            out.write(data)
         else:  # a text stream without a buffer (tests capture into StringIO)
             sys.stdout.write(data.decode())
 
+    def write(rec: dict[str, Any]) -> None:  # the hot path: locals only
+        add(dumps(rec, option=opt))
+        if len(block) >= 512:
+            flush()
 
-def _decode(args: argparse.Namespace) -> int:
-    from eyeq_spi.can.decode import CanDecoder, human_record, table_record
-    from eyeq_spi.can.stats import CanStats, human_stats
-    from eyeq_spi.dissect.output import JsonWriter, TableWriter
+    return write, flush
 
+
+def _decode_args(args: argparse.Namespace) -> re.Pattern[str] | None:
+    """Usage checks of ``can decode``; the compiled ``--name``."""
     if args.csv and args.parquet:
         raise UsageError("give --csv or --parquet, not both")
     try:
@@ -162,97 +183,206 @@ def _decode(args: argparse.Namespace) -> int:
         raise UsageError("give CAN log files or --bus INTERFACE:CHANNEL (one of them)")
     if not args.bus and (args.count is not None or args.duration is not None):
         raise UsageError("--count and --duration apply to --bus")
-    decoder = CanDecoder(args.protocol)
-    channel = args.channel
-    truncated: list[str] = []
-    if args.stats:
-        stats = CanStats(decoder, channel)
-        for source in _sources(args):
-            try:
-                stats.add_all(source)
-            except TruncatedInputError as exc:
-                truncated.append(str(exc))
-            except KeyboardInterrupt:  # a live bus: stop and report what was received
-                pass
+    return name_re
+
+
+def _warn(text: str) -> None:
+    """A note on stderr, folded to 80 columns (an error stays one line: the CLI's)."""
+    import textwrap
+
+    print("\n".join(textwrap.wrap(f"eyeq-spi can decode: {text}", 80,
+                                   subsequent_indent="    ", break_on_hyphens=False)),
+          file=sys.stderr)
+
+
+def _decode_stats(args: argparse.Namespace, decoder: Any,
+                  name_re: re.Pattern[str] | None) -> int:
+    """``--stats``: one block per file (cycles never span two files), then a total."""
+    from eyeq_spi.can.stats import CanStats, human_stats, human_total, total
+
+    results, truncated = [], []
+    several = len(args.logs) > 1
+    for label, source in _sources(args):
+        stats = CanStats(decoder, args.channel, label)
+        try:
+            stats.add_all(source)
+        except TruncatedInputError as exc:
+            truncated.append(str(exc))
+        except KeyboardInterrupt:  # a live bus: stop and report what was received
+            pass
         result = stats.result()
-        bad = stats.error_frames
         if args.id is not None or name_re is not None:  # only the IDs asked for
             result["ids"] = [r for r in result["ids"]
                              if (args.id is None or r["id"] == args.id)
                              and (name_re is None or name_re.search(r["name"] or ""))]
-            bad = sum(r["error_frames"] for r in result["ids"])
-        if stats.frames == 0 and not truncated:
-            raise InputError("no CAN frames in the input" if channel is None else
-                             f"no CAN frames on channel {channel} (the channels are: "
-                             f"{', '.join(result['channels']) or 'none'})")
+            result["error_frames"] = sum(r["error_frames"] for r in result["ids"])
+        results.append(result)
+    if sum(r["frames"] for r in results) == 0 and not truncated:
+        channels = sorted({c for r in results for c in r["channels"]})
+        raise InputError("no CAN frames in the input" if args.channel is None else
+                          f"no CAN frames on channel {args.channel} (the channels are: "
+                          f"{', '.join(channels) or 'none'})")
+    blocks = [*results, total(results)] if several else results
+    for block in blocks:
         if args.json:
-            JsonWriter(sys.stdout, fast=True).write(result)
-        else:
-            print(human_stats(result))
-        for line in truncated:
-            print(f"eyeq-spi can decode: {line}", file=sys.stderr)
-        return 1 if bad or truncated else 0
+            from eyeq_spi.dissect.output import JsonWriter
 
-    table = None
+            JsonWriter(sys.stdout, fast=True).write(block)
+        elif "files" in block:
+            print(human_total(block))
+        else:
+            print(human_stats(block, heading=several))
+    for r in results:
+        if r.get("warning"):
+            _warn(f"{r['file']}: warning: {r['warning']}")
+    for line in truncated:  # one line each, as an error is
+        print(f"eyeq-spi can decode: {line}", file=sys.stderr)
+    return 1 if any(r["error_frames"] for r in results) or truncated else 0
+
+
+class _Run:
+    """What a records run has seen, over every file."""
+
+    def __init__(self) -> None:
+        self.frames = 0
+        self.kept = 0
+        self.bad = 0
+        self.other: Counter[int] = Counter()
+        self.skipped_channels: set[str] = set()
+        self.truncated: list[str] = []
+
+
+def _record_sink(args: argparse.Namespace, decoder: Any) -> tuple[Any, Callable[[], None]]:
+    """(emit one record, close) for the human view, ``--json`` or the tables."""
+    from eyeq_spi.can.decode import human_record, table_record
+
     if args.csv or args.parquet:
+        from eyeq_spi.dissect.output import TableWriter
+
         table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet",
                             column_type=decoder.column_type)
-    json_out = _JsonLines() if args.json else None
-    bad = 0
-    index = 0
-    kept = 0
-    emit: Any
-    if table is not None:
         raw_invalid = args.raw_invalid
         tw = table.write
 
         def emit(rec: dict[str, Any]) -> None:
             tw(table_record(rec, raw_invalid))
-    elif json_out is not None:
-        emit = json_out.write
-    else:
-        def emit(rec: dict[str, Any]) -> None:
-            print(human_record(rec))
-    want_id = args.id
-    errors_only = args.errors_only
-    others: set[str] = set()  # channels skipped by --channel, named if none matched
-    decode = decoder.decode
+        return emit, table.close
+    if args.json:
+        return _json_lines()
+
+    def show(rec: dict[str, Any]) -> None:
+        print(human_record(rec))
+    return show, lambda: None
+
+
+def _camera(args: argparse.Namespace, label: str) -> str | None:
+    """The camera's channel of a log whose protocol IDs are on several channels (C10), from its
+    first frames; warns when a chosen channel does not look like a camera."""
+    from eyeq_spi.can.channels import ChannelCensus
+    from eyeq_spi.can.decode import CanDecoder
+    from eyeq_spi.can.logs import read_log
+
+    if args.bus:
+        return None
+    census = ChannelCensus(CanDecoder(args.protocol))
+    with contextlib.suppress(InputError):  # the decoding pass reports it
+        census.add_messages(read_log(label))
+    if args.channel is not None:
+        verdict = census.verdict(args.channel)
+        if census.frames.get(args.channel) and not verdict.looks_like_camera:
+            _warn(f"{label}: warning: channel {args.channel} does not look like a camera: "
+                  f"{verdict.describe()} of {args.protocol}")
+        return None
+    best = census.camera()
+    if best is None or len(census.channels_with_ids()) < 2:
+        return None
+    others = ", ".join(c for c in census.channels_with_ids() if c != best.channel)
+    _warn(f"{label}: camera on channel {best.channel} ({best.describe()}); the protocol's "
+          f"IDs on channel(s) {others} are other nodes' traffic")
+    return best.channel
+
+
+def _decode_file(args: argparse.Namespace, decoder: Any, label: str, source: Any,
+                 emit: Any, run: _Run, name_re: re.Pattern[str] | None) -> None:
+    """One log's records: ``frame_index`` and (unless ``--absolute-time``) ``time`` count
+    from the file's start; frames of other nodes are counted, not decoded (C10)."""
+    camera = _camera(args, label)
+    channel, want_id, errors_only = args.channel, args.id, args.errors_only
+    absolute = args.absolute_time
+    decode, known, other = decoder.decode, decoder.by_id, run.other
+    decoder.reset()
+    origin: float | None = None
+    index = -1
+    for msg in source:
+        index += 1
+        if origin is None:
+            origin = msg.timestamp
+        ch = str(msg.channel)
+        if channel is not None and ch != channel:
+            run.skipped_channels.add(ch)
+            continue
+        fid = msg.arbitration_id
+        if want_id is not None and fid != want_id:
+            continue
+        run.kept += 1
+        if msg.is_extended_id or fid not in known or (camera is not None and ch != camera):
+            other[fid] += 1
+            continue
+        rec = decode(msg, index)
+        if name_re is not None and not name_re.search(rec["name"]):
+            continue
+        if rec["errors"]:
+            run.bad += 1
+        elif errors_only:
+            continue
+        if not absolute and rec["time"] is not None and origin is not None:
+            rec["time"] = round(rec["time"] - origin, 6)
+        rec["file"] = label
+        emit(rec)
+    run.frames += index + 1
+
+
+def _decode_records(args: argparse.Namespace, decoder: Any,
+                    name_re: re.Pattern[str] | None) -> int:
+
+    emit, close = _record_sink(args, decoder)
+    run = _Run()
+    several = len(args.logs) > 1
     try:
-        for source in _sources(args):
+        for label, source in _sources(args):
+            if several and not (args.json or args.csv or args.parquet):
+                print(f"=== {label}")
             try:
-                for msg in source:
-                    index += 1
-                    if channel is not None and str(msg.channel) != channel:
-                        others.add(str(msg.channel))
-                        continue
-                    if want_id is not None and msg.arbitration_id != want_id:
-                        continue
-                    rec = decode(msg, index - 1)
-                    kept += 1
-                    if name_re is not None and not name_re.search(rec["name"] or ""):
-                        continue
-                    if rec["errors"]:
-                        bad += 1
-                    elif errors_only:
-                        continue
-                    emit(rec)
+                _decode_file(args, decoder, label, source, emit, run, name_re)
             except TruncatedInputError as exc:
-                truncated.append(str(exc))
+                run.truncated.append(str(exc))
             except KeyboardInterrupt:  # a live bus: stop, keep what was decoded
                 pass
     finally:
-        if table is not None:
-            table.close()
-        if json_out is not None:
-            json_out.flush()
-    if index == 0 and not truncated:
+        close()
+    if run.frames == 0 and not run.truncated:
         raise InputError("no CAN frames in the input")
-    if kept == 0 and channel is not None and not truncated:
-        raise InputError(f"no CAN frames on channel {channel} (the channels are: "
-                         f"{', '.join(sorted(others)) or 'none'})")
-    for line in truncated:
+    if run.kept == 0 and args.channel is not None and not run.truncated:
+        raise InputError(f"no CAN frames on channel {args.channel} (the channels are: "
+                          f"{', '.join(sorted(run.skipped_channels)) or 'none'})")
+    if run.other:
+        ids = ", ".join(f"0x{k:X}" for k in sorted(run.other)[:8])
+        more = f" and {len(run.other) - 8} more" if len(run.other) > 8 else ""
+        _warn(f"other nodes' traffic, not decoded: {sum(run.other.values())} frames "
+              f"(IDs {ids}{more}; --stats lists them)")
+    for line in run.truncated:  # one line each, as an error is
         print(f"eyeq-spi can decode: {line}", file=sys.stderr)
-    return 1 if bad or truncated else 0
+    return 1 if run.bad or run.truncated else 0
+
+
+def _decode(args: argparse.Namespace) -> int:
+    from eyeq_spi.can.decode import CanDecoder
+
+    name_re = _decode_args(args)
+    decoder = CanDecoder(args.protocol)
+    if args.stats:
+        return _decode_stats(args, decoder, name_re)
+    return _decode_records(args, decoder, name_re)
 
 
 def run(args: argparse.Namespace) -> int:
