@@ -210,39 +210,6 @@ def test_dissect_leaves_the_collector_as_it_found_it(files: list[tuple[Path, lis
     capsys.readouterr()
 
 
-_HIDE_PANDAS = """
-import sys
-from eyeq_spi.dissect import output
-assert "pandas" not in sys.modules
-w = output.TableWriter(sys.argv[1], "parquet")
-try:
-    __import__("pandas")
-except ImportError:
-    pass
-else:
-    raise SystemExit("pandas importable while a Parquet writer lives")
-w.close()
-assert output._NoPandas not in sys.meta_path
-try:
-    import pandas
-except ImportError:
-    print("no pandas")
-else:
-    print("pandas back")
-"""
-
-
-def test_parquet_writer_hides_pandas_only_while_it_lives(tmp_path: Path) -> None:
-    """In a fresh process (this one may have imported pandas already)."""
-    pytest.importorskip("pyarrow", reason="--parquet needs pyarrow (extra)")
-    r = subprocess.run([sys.executable, "-c", _HIDE_PANDAS, str(tmp_path)],
-                       capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr[-1500:]
-    if r.stdout.strip() == "no pandas":
-        pytest.skip("pandas is not installed: only the hiding was checked")
-    assert r.stdout.strip() == "pandas back"
-
-
 def test_parquet_dictionaries_only_for_words(tmp_path: Path) -> None:
     pq = pytest.importorskip("pyarrow.parquet", reason="--parquet needs pyarrow (extra)")
     w = output.TableWriter(str(tmp_path), "parquet")

@@ -103,7 +103,8 @@ def run_dissect(args: argparse.Namespace) -> int:
 
     from eyeq_spi.catalog.messages import catalog
     from eyeq_spi.cli.options import spi_options
-    from eyeq_spi.dissect.output import HumanWriter, JsonWriter, TableWriter
+    from eyeq_spi.dissect.output import HumanWriter, TableWriter
+    from eyeq_spi.io.jsonl import JsonLinesWriter
     from eyeq_spi.dissect.pipeline import (
         DissectConfig,
         codec_for,
@@ -129,7 +130,7 @@ def run_dissect(args: argparse.Namespace) -> int:
     if args.stats:
         pass  # statistics only (as text, or one JSON object per file with --json)
     elif args.json:
-        writers.append(JsonWriter(out, fast=True))
+        writers.append(JsonLinesWriter(out, fast=True))
     elif not table:
         human = HumanWriter(out, codec_for(cat.default_sw), color=out.isatty(),
                             tree=not args.no_tree)
@@ -175,7 +176,7 @@ def run_dissect(args: argparse.Namespace) -> int:
         shown = [*per_file, combine(per_file)] if len(per_file) > 1 else per_file
         for st in shown:
             if args.json:
-                JsonWriter(out, fast=True).write(st.as_dict())
+                JsonLinesWriter(out, fast=True).write(st.as_dict())
             else:
                 out.write(st.render() + "\n")
     return 1 if any(st.protocol_errors or st.ignored_bytes for st in per_file) else 0

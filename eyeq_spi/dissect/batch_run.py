@@ -21,7 +21,7 @@ from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine_fast import BatchDissector
 from eyeq_spi.dissect.engine_fast_frames import BatchUnsupportedError, FrameArrays, FrameBlock
-from eyeq_spi.dissect.output import JsonWriter
+from eyeq_spi.io.jsonl import JsonLinesWriter
 from eyeq_spi.dissect.release import Release
 from eyeq_spi.io import batch_readers
 from eyeq_spi.io.plain import InputError, detect
@@ -96,18 +96,20 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
         return
     item.add_to(stats)
     for w in writers:
-        if type(w) is JsonWriter:
+        if type(w) is JsonLinesWriter:
             item.write_json(w.fh, w.write, w.fast, file)
         elif hasattr(w, "write_block"):
             w.write_block(item)
         elif getattr(w, "messages_only", False) or type(w).__name__ == "TableWriter":
             tables = iter(item.tables)
             nxt = next(tables, None)
+            covered = {id(r) for g in item.tables for r in g.covered}
             for i, (_, r) in enumerate(item.messages):
                 while nxt is not None and nxt.first == i:  # a group's rows, from its columns
                     w.write_columns(nxt.name, nxt.columns)
                     nxt = next(tables, None)
-                w.write(r)  # a group's own records have no fields: the writer skips them
+                if id(r) not in covered:  # a group's own records: their rows are columns
+                    w.write(r)
             while nxt is not None:  # lean blocks: groups after the last record
                 w.write_columns(nxt.name, nxt.columns)
                 nxt = next(tables, None)

@@ -17,7 +17,7 @@ import numpy as np
 from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.codec.message_fast import crc_word_tables
 from eyeq_spi.dissect.engine import TRANSPORT_NAMES
-from eyeq_spi.dissect.output import json_float
+from eyeq_spi.io.jsonl import json_float
 from eyeq_spi.errors import BatchUnsupportedError as BatchUnsupportedError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 
@@ -229,7 +229,7 @@ class FrameBlock:
                    file: str | None = None) -> None:
         """The JSON Lines of :meth:`records`: frame lines formatted straight from the arrays
         (what ``json.dumps(record, separators=(",", ":"))`` prints for them, or orjson with
-        ``fast``: only float spelling differs, :func:`~.output.json_float`) go to ``fh``;
+        ``fast``: only float spelling differs, :func:`~eyeq_spi.io.jsonl.json_float`) go to ``fh``;
         each message goes to ``write_message`` (the JSON writer's own), in order. ``file``:
         the ``file`` member every frame line ends with (the messages carry their own)."""
         import json

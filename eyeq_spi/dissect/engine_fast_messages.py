@@ -35,7 +35,7 @@ blocks.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -90,6 +90,9 @@ class ColumnGroup:
     first: int
     name: str
     columns: dict[str, Any]
+    # the records of the group's messages that exist (all of them, or in the lean modes those
+    # with errors): their rows are in ``columns``, so a table writer skips them
+    covered: list[dict[str, Any]] = field(default_factory=list)
 
 
 class SpanDecoder:
@@ -197,11 +200,13 @@ class SpanDecoder:
         parse = lay.fast.decode if self.fields == "dict" or (
             self.fields == "columns" and not columns) else None
         name = msg.name
+        group = None
         if columns:
-            self.tables.append(ColumnGroup(rows[0], name, self._columns(
+            group = ColumnGroup(rows[0], name, self._columns(
                 *_last_and_times(msgs, rows), direction,
                 {"header.data_id": [data_id] * len(rows), "header.counter": counters},
-                vl.columns(payloads))))
+                vl.columns(payloads)))
+            self.tables.append(group)
         check = d.dasp_counters.check
         for k, i in enumerate(rows):
             m = msgs[i]
@@ -219,6 +224,8 @@ class SpanDecoder:
                 "fields": parse(datas[k][4:]) if parse is not None else {},
                 "errors": errors,
             }
+        if group is not None:
+            group.covered = [out[i] for i in rows]  # type: ignore[misc]
         return True
 
     def _other(self, msgs: list[SpanMessage], rows: list[int], direction: str | None,
@@ -237,10 +244,12 @@ class SpanDecoder:
         enums = vl.enum_errors(payloads, msg.name, np.array([not e for e in e2e], bool))
         parse = lay.fast.decode if self.fields == "dict" or (
             self.fields == "columns" and not columns) else None
+        group = None
         if columns:
-            self.tables.append(ColumnGroup(rows[0], msg.name, self._columns(
+            group = ColumnGroup(rows[0], msg.name, self._columns(
                 *_last_and_times(msgs, rows), direction, {"header.id": ids},
-                vl.columns(payloads))))
+                vl.columns(payloads)))
+            self.tables.append(group)
         for k, i in enumerate(rows):
             m = msgs[i]
             out[i] = {
@@ -250,6 +259,8 @@ class SpanDecoder:
                 "fields": parse(datas[k][1:]) if parse is not None else {},
                 "errors": e2e[k] + enums.get(k, []),
             }
+        if group is not None:
+            group.covered = [out[i] for i in rows]  # type: ignore[misc]
         return True
 
     @staticmethod
@@ -361,7 +372,7 @@ class SpanDecoder:
             tl = times.tolist()
             table = ColumnGroup(rows[0], name, self._columns(
                 last, [None if t != t else t for t in tl], direction, head,
-                vl.columns(payloads)))
+                vl.columns(payloads)), [rec for _, rec in recs])
         return recs, count, table
 
 

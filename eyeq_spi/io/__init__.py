@@ -122,7 +122,7 @@ REGISTRY: tuple[Format, ...] = (
            "one transfer per line: TIME DIRECTION HEX"),
     Format("raw", CAPTURE_WRITER, (".raw", ".bin"), f"{_PLAIN}:write_raw",
            "the transfers of one channel, concatenated"),
-    Format("jsonl", RECORD_WRITER, (".jsonl", ".ndjson"), "eyeq_spi.dissect.output:JsonWriter",
+    Format("jsonl", RECORD_WRITER, (".jsonl", ".ndjson"), "eyeq_spi.io.jsonl:JsonLinesWriter",
            "JSON Lines: every record (dissect --json)"),
     Format("csv", RECORD_WRITER, (".csv",), "eyeq_spi.dissect.output:TableWriter",
            "a directory of tables, one CSV file per message type (dissect --csv)"),
