@@ -94,7 +94,7 @@ class BatchDissector:
         self.base = 0
         self.dirs: dict[int, Dir] = {}
         self.deadline: float | None = None
-        self._rows: dict[int, list[int]] = {}
+        self.rows: dict[int, list[int]] = {}
 
     # -- driving -----------------------------------------------------------------------------
     def feed(self, chunk: Chunk) -> Iterator[Item]:
@@ -117,15 +117,15 @@ class BatchDissector:
         n = len(fa)
         codes, first = np.unique(fa.chunk.direction, return_index=True)
         plans: dict[int, _Plan] = {}
-        self._rows = {}
+        self.rows = {}
         for code in [int(c) for c in codes[np.argsort(first)]]:
             name = DIR_NAME[code]
-            self.dis._dir(name)  # directions exist in the order the engine would create them
+            self.dis.open_direction(name)  # receivers made in the order feed() would
             st = self.dirs.setdefault(code, Dir(name, code))
             plans[code] = self._plan(fa, st)
         for code, st in self.dirs.items():
             pl = plans.setdefault(code, _empty_plan())
-            self._rows[code] = pl.P
+            self.rows[code] = pl.P
             if st.batch:
                 self._walk(fa, st, pl, 0, fresh=False)
         times = fa.chunk.time
@@ -149,7 +149,7 @@ class BatchDissector:
                 break
             if why == 3:  # the engine's timers first, as feed() would run them
                 self.dis.index = fa.base + nxt + 1
-                yield from self.dis._timers(float(times[nxt]))
+                yield from self.dis.run_timers(float(times[nxt]))
                 self._update_deadline()
                 yield self._emit(fa, nxt, nxt + 1)
                 pos = nxt + 1
@@ -180,8 +180,7 @@ class BatchDissector:
                 self._carry(fa, st, plans[st.code])
 
     def _update_deadline(self) -> None:
-        ts = [t for d in self.dis._dirs.values() if (t := d.conn.get_timer()) is not None]
-        self.deadline = min(ts) if ts else None
+        self.deadline = self.dis.next_deadline()
 
     # -- planning ------------------------------------------------------------------------------
     def _plan(self, fa: FrameArrays, st: Dir) -> _Plan:
@@ -307,8 +306,7 @@ class BatchDissector:
         return k - k0
 
     def _try_span(self, fa: FrameArrays, st: Dir, pl: _Plan, k: int) -> bool:
-        conn = self.dis._dirs[st.name].conn
-        if int(fa.num[pl.P[k]]) != conn.link.expected_num:
+        if int(fa.num[pl.P[k]]) != self.dis.expected_num(st.name):
             return False
         st.carried, st.hist, st.last_first = None, [], None
         if self._walk(fa, st, pl, k, fresh=True) < MIN_SPAN:
@@ -323,7 +321,7 @@ class BatchDissector:
         for st in self.dirs.values():
             if not st.batch:
                 continue
-            P = self._rows[st.code]
+            P = self.rows[st.code]
             while st.ui < len(st.units):
                 u = st.units[st.ui]
                 row = P[u.ke - 1]
@@ -347,7 +345,7 @@ class BatchDissector:
 
     def _frames(self, fa: FrameArrays, st: Dir, ks: int, ke: int) -> list[Frame]:
         """Frames P[ks:ke] of this chunk (ks = -1: after the carried open transfer)."""
-        P = self._rows[st.code]
+        P = self.rows[st.code]
         times, nums = fa.lst("time"), fa.lst("num")
         out: list[Frame] = list(st.carried or []) if ks == -1 else []
         data = fa.chunk.data
@@ -362,9 +360,9 @@ class BatchDissector:
         """The messages of ``done`` (in order), cut from one copy of all their rows' transport
         payloads (a transfer's frames are consecutive there, so a multi-frame message is one
         slice); the receivers' NUM -> index maps end as the engine's sequential updates leave
-        them. A transfer carried in from the previous chunk goes through :meth:`_message`."""
+        them. A transfer carried in from the previous chunk goes through :meth:`message`."""
         out: list[SpanMessage] = []
-        P_of = {st.code: self._rows[st.code] for _, st, _ in done}
+        P_of = {st.code: self.rows[st.code] for _, st, _ in done}
         local = [u.ks >= 0 for _, _, u in done]
         rows: list[int] = []
         for (_, st, u), ok in zip(done, local, strict=True):
@@ -376,18 +374,20 @@ class BatchDissector:
         tid_col, nums, tfill = fa.lst("tid"), fa.lst("num"), fa.lst("tfill")
         base = fa.base
         pos = 0  # next row of ``rows``
-        maps = {st.code: self.dis._dirs[st.name].index_of_num for _, st, _ in done}
+        noted: dict[str | None, tuple[list[int], list[int]]] = {}  # NUMs, indices in order
         for (row, st, u), ok in zip(done, local, strict=True):
             if not ok:
-                out.append(self._message(fa, st, u, row))
+                out.append(self.message(fa, st, u, row))
                 continue
             t = tfill[row]
             o = pos * width
+            seen = noted.setdefault(st.name, ([], []))
             if not u.first:  # byte 7 of a single frame: its size
                 r = P_of[st.code][u.ks]
                 pos += 1
                 num, idx = nums[r], base + r
-                maps[st.code][num] = idx
+                seen[0].append(num)
+                seen[1].append(idx)
                 out.append(SpanMessage(st.name, blob[o : o + tid_col[r]], (num,), None,
                                        None if t != t else t, [idx]))
                 continue
@@ -397,15 +397,18 @@ class BatchDissector:
             total = int.from_bytes(blob[o : o + 4], "little")
             msg = blob[o + 4 : min(o + 4 + total, pos * width)]
             fnums = tuple([nums[r] for r in mine])
-            idxs: list[int | None] = [base + r for r in mine]
-            maps[st.code].update(zip(fnums, idxs, strict=True))  # type: ignore[arg-type]
+            idxs = [base + r for r in mine]
+            seen[0].extend(fnums)
+            seen[1].extend(idxs)
             out.append(SpanMessage(st.name, msg, fnums, tid_col[mine[0]],
-                                   None if t != t else t, idxs))
+                                   None if t != t else t, list(idxs)))
+        for name, (fnums_all, idxs_all) in noted.items():
+            self.dis.note_frames(name, fnums_all, idxs_all)
         return out
 
-    def _message(self, fa: FrameArrays, st: Dir, u: Unit, row: int) -> SpanMessage:
+    def message(self, fa: FrameArrays, st: Dir, u: Unit, row: int) -> SpanMessage:
         tid: int | None = None
-        P = self._rows[st.code]
+        P = self.rows[st.code]
         data = fa.chunk.data
         base = fa.base
         if u.first and u.ks >= 0:  # all its frames in this chunk: cut from the array
@@ -431,13 +434,12 @@ class BatchDissector:
             size = fa.lst("tid")[r]  # byte 7: a single frame's size
             msg = data[r, 8 : 8 + size].tobytes()
             nums, idxs = (fa.lst("num")[r],), [base + r]
-        dobj = self.dis._dirs[st.name]
-        index_of_num = dobj.index_of_num
-        index_of_num.update(zip(nums, idxs, strict=True))
+        self.dis.note_frames(st.name, nums, idxs)
         t = fa.lst("tfill")[row]
         # NUMs of one transfer are distinct (fewer frames than SEQ_MODULO), so each maps to its
-        # own index, as the exact engine's lookup gives
-        frames_idx = idxs if len(idxs) < SEQ_MODULO else [index_of_num.get(n) for n in nums]
+        # own index, as the reference's lookup gives; else each NUM to its last frame
+        last = dict(zip(nums, idxs, strict=True))
+        frames_idx = idxs if len(idxs) < SEQ_MODULO else [last[n] for n in nums]
         return SpanMessage(st.name, msg, nums, tid, None if t != t else t,
                            list(frames_idx))
 
@@ -476,30 +478,13 @@ class BatchDissector:
         return units, last_first, opened
 
     def _to_exact(self, st: Dir, fa: FrameArrays | None) -> None:
-        """Reset the direction's receiver and feed it the span's tail again (output dropped)."""
+        """The reference takes the direction up again where the run ended (its receiver is
+        given the run's last transfers: :meth:`.engine.Dissector.resume`)."""
         units, last_first, opened = self._state(st, fa)
         st.batch = st.canonical = False
-        dobj = self.dis._dirs[st.name]
-        conn = dobj.conn
-        tail = units + ([opened] if opened else [])
-        if last_first is not None and not any(_is_first(u[0][0]) for u in tail):
-            self._replay(conn, [last_first])
-        if tail:
-            self._replay(conn, tail)
-        if opened:
-            dobj.index_of_num.update((f[2], f[3]) for f in opened)
+        self.dis.resume(st.name, last_first, units, opened)
         st.carried, st.hist, st.last_first = None, [], None
         self._update_deadline()
-
-    @staticmethod
-    def _replay(conn: Any, units: list[list[Frame]]) -> None:
-        conn.reset(expected=units[0][0][2])
-        for u in units:
-            for data, t, _, _ in u:
-                conn.receive_data(data, 0.0 if t is None else t)
-                conn.data_to_send(float("inf"))
-        while conn.next_event() is not None:
-            pass
 
     def _carry(self, fa: FrameArrays, st: Dir, pl: _Plan) -> None:
         """End of a chunk in batch mode: keep the open transfer, the last units and the NUM."""
@@ -519,10 +504,6 @@ class BatchDissector:
 
 def _empty_plan() -> _Plan:
     return _Plan([], [], [], [], [], [], [], [0])
-
-
-def _is_first(transfer: bytes) -> bool:
-    return transfer[6] == FIRST
 
 
 def iter_items(chunks: Iterable[Chunk], *, sw: str | None = None,

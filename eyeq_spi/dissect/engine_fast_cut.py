@@ -72,7 +72,7 @@ def lean_messages(bd: BatchState, fa: FrameArrays, done: Done
     P_np: dict[int, np.ndarray] = {}
     start = np.zeros(m, np.int64)
     for code in sorted(set(codes.tolist())):  # not np.unique: it imports numpy.ma (13 ms)
-        P_np[code] = np.asarray(bd._rows[code], np.int64)
+        P_np[code] = np.asarray(bd.rows[code], np.int64)
         sel = codes == code
         start[sel] = P_np[code][ks[sel]]
     # T2 / T3: a single frame's size is byte 7, a first frame's total bytes 8..11
@@ -97,7 +97,7 @@ def lean_messages(bd: BatchState, fa: FrameArrays, done: Done
     loose_keys: dict[tuple[int, int], int] = {}  # at most one per direction: its first unit
     for j in carried:
         row, st, u = done[j]
-        msg = bd._message(fa, st, u, row)
+        msg = bd.message(fa, st, u, row)
         if dec.is_barrier(msg.data):
             return None
         loose[j] = msg
@@ -131,7 +131,7 @@ def lean_messages(bd: BatchState, fa: FrameArrays, done: Done
             grows = rows[ix] if jc is None else np.concatenate([[done[jc][0]], rows[ix]])
             gks = [0] * (jc is not None) + ks[ix].tolist()
             gke = [0] * (jc is not None) + ke[ix].tolist()
-            P = bd._rows[code]
+            P = bd.rows[code]
             carried_frames = None if jc is None else loose[jc].frames
             last = (base + grows).tolist()
             if carried_frames is not None:
@@ -156,7 +156,7 @@ def lean_messages(bd: BatchState, fa: FrameArrays, done: Done
     exact = [loc[i] for i in np.flatnonzero(kind < 0).tolist()]
     exact += [j for key, j in loose_keys.items() if key[1] < 0]
     fallback = sorted(fallback + exact, key=lambda j: done[j][0])
-    msgs = [loose[j] if j in loose else bd._message(fa, done[j][1], done[j][2], done[j][0])
+    msgs = [loose[j] if j in loose else bd.message(fa, done[j][1], done[j][2], done[j][0])
             for j in fallback]
     _bulk_maps(bd, fa, codes, ks, ke, P_np)
     fb_rows = [done[j][0] for j in fallback]
@@ -206,5 +206,4 @@ def _bulk_maps(bd: BatchState, fa: FrameArrays, codes: np.ndarray, ks: np.ndarra
         if len(rr) > SEQ_MODULO:  # only each NUM's last frame stays in the map
             last, at = np.unique(nums[::-1], return_index=True)
             rr, nums = rr[len(rr) - 1 - at], last
-        bd.dis._dirs[DIR_NAME[code]].index_of_num.update(
-            zip(nums.tolist(), (fa.base + rr).tolist(), strict=True))
+        bd.dis.note_frames(DIR_NAME[code], nums.tolist(), (fa.base + rr).tolist())

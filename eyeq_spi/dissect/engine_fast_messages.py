@@ -45,7 +45,6 @@ from eyeq_spi.codec.message import classify
 from eyeq_spi.codec.message_fast import vec_layout
 from eyeq_spi.dissect.engine import SWITCH_APP, Dissector
 from eyeq_spi.errors import SpecError
-from eyeq_spi.transport.events import MessageReceived
 
 
 class SpanMessage:
@@ -58,11 +57,6 @@ class SpanMessage:
                  tid: int | None, time: float | None, frames: list[int | None]) -> None:
         self.direction, self.data, self.nums, self.tid = direction, data, nums, tid
         self.time, self.frames = time, frames
-
-    @property
-    def ev(self) -> MessageReceived:
-        """The transport event the exact engine would have delivered."""
-        return MessageReceived(self.data, self.nums, self.tid)
 
 
 FIELD_MODES = ("dict", "none", "count", "columns")
@@ -150,10 +144,8 @@ class SpanDecoder:
         """The exact engine's records of ``msgs``, one by one."""
         out = []
         for m in msgs:
-            self.dis.last_time = m.time
-            rec = self.dis._message(m.direction, self.dis._dirs[m.direction], m.ev)
-            rec["frames"] = m.frames
-            out.append(rec)
+            out.append(self.dis.accept_clean(m.direction, m.data, m.nums, m.tid, m.frames,
+                                             m.time))
         return out
 
     def is_barrier(self, data: bytes) -> bool:
@@ -190,11 +182,11 @@ class SpanDecoder:
             return False
         lay, vl, datas, arr = got
         length = arr.shape[1]
-        d = self.dis._dirs[direction]
+        e2e_state, dasp_counters = self.dis.message_state(direction)
         payloads = arr[:, 4:]
         reserved = arr[:, 3].tolist()
         counters = arr[:, 2].tolist()
-        e2e = vl.verify(payloads, d.e2e)
+        e2e = vl.verify(payloads, e2e_state)
         clean = np.array([not e and not r for e, r in zip(e2e, reserved, strict=True)], bool)
         enums = vl.enum_errors(payloads, msg.name, clean)
         parse = lay.fast.decode if self.fields == "dict" or (
@@ -207,7 +199,7 @@ class SpanDecoder:
                 {"header.data_id": [data_id] * len(rows), "header.counter": counters},
                 vl.columns(payloads)))
             self.tables.append(group)
-        check = d.dasp_counters.check
+        check = dasp_counters.check
         for k, i in enumerate(rows):
             m = msgs[i]
             counter = counters[k]
@@ -232,7 +224,7 @@ class SpanDecoder:
                proto: str, out: list[dict[str, Any] | None], columns: bool) -> bool:
         """A 0x41 (DIAG) or 0x10 (BOOT) group: the ID byte, then the seed's table; no E2E
         state (the engine decodes them without one) and no counters."""
-        msg = self.codec._other.get(proto)
+        msg = self.codec.other_message(proto)
         got = None if msg is None else self._rows(msgs, rows, msg, 1)
         if msg is None or got is None:
             return False
@@ -298,7 +290,7 @@ class SpanDecoder:
         :meth:`_other` make them, ``"fields": {}``) with their rows, the count of the others,
         and with ``columns`` every message's table row. None: the group needs the exact path."""
         dasp = isinstance(key, int)
-        msg = self.codec.dasp_message(key) if isinstance(key, int) else self.codec._other.get(key)
+        msg = self.codec.dasp_message(key) if isinstance(key, int) else self.codec.other_message(key)
         hdr = 4 if dasp else 1
         if msg is None:
             return None
@@ -312,8 +304,8 @@ class SpanDecoder:
         vl = vec_layout(lay, self.codec.cat)
         payloads = arr[:, hdr:]
         name = msg.name
-        d = self.dis._dirs[direction]
-        e2e = vl.verify(payloads, d.e2e if dasp else None)
+        e2e_state, dc = self.dis.message_state(direction)
+        e2e = vl.verify(payloads, e2e_state if dasp else None)
         clean = ~np.fromiter(map(bool, e2e), bool, n)
         head: dict[str, list[int]]
         if isinstance(key, int):
@@ -321,7 +313,6 @@ class SpanDecoder:
             clean &= reserved == 0
             counters = arr[:, 2].astype(np.int64)
             # D1: each counter against the one before it (the receiver's last for row 0)
-            dc = d.dasp_counters
             before = dc.last(key)
             prev = np.empty(n, np.int64)
             prev[0] = -1 if before is None else before

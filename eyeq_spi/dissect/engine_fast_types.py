@@ -56,6 +56,6 @@ class BatchState(Protocol):
 
     dis: Dissector
     decode: SpanDecoder
-    _rows: dict[int, list[int]]
+    rows: dict[int, list[int]]
 
-    def _message(self, fa: FrameArrays, st: Dir, u: Unit, row: int) -> SpanMessage: ...
+    def message(self, fa: FrameArrays, st: Dir, u: Unit, row: int) -> SpanMessage: ...

@@ -112,7 +112,7 @@ class HumanWriter:
     def _walk(self, values: Any, lay: Any, depth: int) -> None:
         pad = "  " * depth
         for k, v in values.items():
-            f = lay.field(k) if lay is not None and k in lay._by_name else None
+            f = _field(lay, k)
             child = lay.children.get(k) if lay is not None else None
             if isinstance(v, dict):
                 self.fh.write(f"{pad}{k}\n")
@@ -139,6 +139,16 @@ class HumanWriter:
                 if isinstance(v, float):
                     v = f"{v:.6g}"
                 self.fh.write(f"{pad}{k} = {v}{extra}\n")
+
+
+def _field(lay: Any, name: str) -> Any:
+    """The layout's member ``name``, or None (no layout, or a name it does not have)."""
+    if lay is None:
+        return None
+    try:
+        return lay.field(name)
+    except KeyError:
+        return None
 
 
 def _as_list(v: Any) -> list[Any]:

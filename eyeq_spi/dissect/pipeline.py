@@ -110,7 +110,7 @@ class CaptureFile:
     _fh: IO[bytes] | None = None
     _cap: Capture | None = None
 
-    def _open(self) -> Capture:
+    def open(self) -> Capture:
         if self._cap is None:
             cfg = self.config
             self._fh = open_stream(self.path)
@@ -129,13 +129,13 @@ class CaptureFile:
     def release(self) -> Release:
         if self._done is not None:
             return self._done[1]
-        return self._open().release
+        return self.open().release
 
     @property
     def tail(self) -> Tail:
         if self._done is not None:
             return self._done[2]
-        return self._open().tail
+        return self.open().tail
 
     @property
     def codec(self) -> MessageCodec:
@@ -144,7 +144,7 @@ class CaptureFile:
     @property
     def transfers(self) -> Iterator[Record]:
         """The capture's transfers as read (no dissection)."""
-        return self._open().records
+        return self.open().records
 
     @property
     def items(self) -> Iterator[Any]:
@@ -159,7 +159,7 @@ class CaptureFile:
             return
         from eyeq_spi.dissect.engine import Dissector
 
-        cap = self._open()
+        cap = self.open()
         fh = self._fh
         assert fh is not None
         try:
@@ -301,7 +301,7 @@ def open_capture_file(path: str, config: DissectConfig | None = None) -> Capture
     :class:`.inputs.InputError` now); read its :attr:`~CaptureFile.transfers` or
     :attr:`~CaptureFile.items`, then :meth:`~CaptureFile.close` it."""
     cf = CaptureFile(path, config or DissectConfig(), AUTO)
-    cf._open()
+    cf.open()
     return cf
 
 
