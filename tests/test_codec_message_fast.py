@@ -26,7 +26,7 @@ from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.codec.message_fast import crc_rows, vec_layout
 from eyeq_spi.crc import crc16
-from eyeq_spi.dissect import batch_run, engine, pipeline
+from eyeq_spi.dissect import engine, pipeline, pipeline_fast
 from eyeq_spi.dissect import engine_fast as batch
 from eyeq_spi.dissect.engine import _check_enums
 from eyeq_spi.dissect.engine_fast_frames import FrameBlock
@@ -201,7 +201,7 @@ def test_float_columns_keep_binary32_values() -> None:
     assert vl.columns(arr)[leaf.name][0].item() == struct.unpack("<f", struct.pack("<f", 0.1))[0]
 
 
-# -- the batch dissector's span messages (dissect/engine_fast_messages.py) ---------------------
+# -- the fast path's span messages (dissect/engine_fast_messages.py) ---------------------
 def _capture(faults: list[tuple[int, int]]) -> list[Record]:
     """e2h DASP traffic (failsafe, obstacles, SRP, light sensor, timesync) in single and
     multi-frame transfers, each data ID's counters and E2E stepping; ``faults`` (message index,
@@ -319,7 +319,7 @@ def test_no_two_dasp_messages_share_a_layout() -> None:
 
 
 def _tables(tmp: Path, fmt: str, recs: list[Record], chunk: int | None) -> Path:
-    """The tables of the exact engine (chunk None) or of the batch path in columns mode."""
+    """The tables of the exact engine (chunk None) or of the fast path in columns mode."""
     out = tmp / f"{fmt}-{chunk}"
     w = TableWriter(str(out), fmt, batch=3)  # small batches: column and dict rows interleave
     if chunk is None:
@@ -328,7 +328,7 @@ def _tables(tmp: Path, fmt: str, recs: list[Record], chunk: int | None) -> Path:
     else:
         for item in batch.iter_items(chunks_from_records(recs, chunk), fields="columns"):
             if isinstance(item, FrameBlock):
-                batch_run.consume(item, lambda r: True, True, Stats(CAT), [w])
+                pipeline_fast.consume(item, lambda r: True, True, Stats(CAT), [w])
             else:
                 w.write(item)
     w.close()

@@ -1,4 +1,4 @@
-"""The batch dissector's lean modes (``dissect --stats`` alone, one table writer): a group's
+"""The fast path's lean modes (``dissect --stats`` alone, one table writer): a group's
 messages cut from the chunk at once (dissect/engine_fast_cut.py), records only for messages with
 errors, the others counted. ``--stats`` (text and JSON, key order included), the tables and the exit
 code are those of the exact engine on clean, link-faulty and application-faulty captures; and
@@ -9,7 +9,6 @@ from __future__ import annotations
 import gc
 import io
 import json
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -23,7 +22,7 @@ from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect import batch_run, engine, output, pipeline
+from eyeq_spi.dissect import engine, output, pipeline, pipeline_fast
 from eyeq_spi.dissect import engine_fast as batch
 from eyeq_spi.dissect.engine_fast_frames import FrameBlock
 from eyeq_spi.dissect.stats import Stats
@@ -56,7 +55,7 @@ def lean_stats(recs: list[Record], chunk: int) -> tuple[tuple[str, str], int, in
     with_rec = counted = 0
     for item in batch.iter_items(chunks_from_records(recs, chunk), fields="count"):
         if isinstance(item, FrameBlock):
-            batch_run.consume(item, lambda r: True, True, st, [])
+            pipeline_fast.consume(item, lambda r: True, True, st, [])
             with_rec += len(item.messages)
             counted += sum(g.n for g in item.counts)
         else:
@@ -144,7 +143,7 @@ def _run(args: list[str], capsys: pytest.CaptureFixture[str], stdin: bytes | Non
 def test_cli_batch_and_exact_print_the_same(files: list[tuple[Path, list[str]]],
                                             mode: list[str], capsys: pytest.CaptureFixture[str],
                                             monkeypatch: pytest.MonkeyPatch) -> None:
-    """The test captures are small: SMALL_INPUT 0 sends them through the batch path."""
+    """The test captures are small: SMALL_INPUT 0 sends them through the fast path."""
     monkeypatch.setattr(pipeline, "SMALL_INPUT", 0)
     for path, extra in files:
         rc, out = _run(["dissect", str(path), *extra, *mode], capsys)
@@ -226,7 +225,7 @@ def test_parquet_dictionaries_only_for_words(tmp_path: Path) -> None:
 
 def test_no_group_is_judged_across_a_switch_application_request() -> None:
     """§7.1.1.1.4: after a SwitchEyeQApplication request the host's E2E rolling counters may
-    start over; the exact engine may judge the messages after it afresh, so the batch path
+    start over; the exact engine may judge the messages after it afresh, so the fast path
     (records and lean counts) judges the messages on each side of it apart, in order."""
     mc = MessageCodec()
     fc = batch.Dissector().frames
@@ -250,7 +249,7 @@ def test_no_group_is_judged_across_a_switch_application_request() -> None:
     for chunk in (7, 1 << 15):
         assert list(batch.iter_records(chunks_from_records(recs, chunk))) == want
         assert lean_stats(recs, chunk)[0] == exact_stats(recs)
-    dec = batch.BatchDissector().decode
+    dec = batch.ChunkFeeder().decode
     assert dec.is_barrier(mc.mesp.encode_request("SwitchEyeQApplication", 1,
                                                  {"applicationId": 1}))
     assert not dec.is_barrier(mc.mesp.encode_reply("SwitchEyeQApplication", 1, 0,

@@ -190,8 +190,8 @@ def test_every_entry_imports(fmt: Format) -> None:
     assert callable(registry.load(fmt))
     if fmt.sniff is not None:
         assert any(name == fmt.sniff for name, _ in registry.sniffers(text=True))
-    if fmt.batch is not None:
-        mod, _, name = fmt.batch.partition(":")
+    if fmt.fast is not None:
+        mod, _, name = fmt.fast.partition(":")
         assert callable(getattr(importlib.import_module(mod), name))
     assert fmt.suffixes or fmt.kind == registry.CAN_LOG
     assert all(s.startswith(".") and s == s.lower() for s in fmt.suffixes)
@@ -234,15 +234,14 @@ def records(capture: list[Record]) -> list[dict[str, Any]]:
 
 
 def _rows(records: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
-    """The table rows of the messages with fields (``docs/dissector.md`` tables), every field
-    kept: a table per message name, a MESP reply in ``NAME.reply``; a row with a column its
+    """The table rows of every message (``docs/dissector.md`` tables), every field kept: a table per message name, a MESP reply in ``NAME.reply``; a row with a column its
     table's header lacks goes in the next part (``NAME.2``) whose header holds it."""
     from eyeq_spi.dissect.output import flatten, table_name
 
     out: dict[str, list[dict[str, Any]]] = {}
     headers: dict[str, list[list[str]]] = {}
     for r in records:
-        if r["kind"] == "message" and r["fields"]:
+        if r["kind"] == "message":
             row = {"file": None, "frame_index": r["frames"][-1], "time": r["time"],
                    "direction": r["direction"],
                    **{f"header.{k}": v for k, v in r["header"].items()}, **flatten(r["fields"])}

@@ -267,7 +267,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
     from eyeq_spi.capture.pcapng_io import CaptureWriter
     from eyeq_spi.codec.layout_fast import FastCodec
     from eyeq_spi.codec.message import MessageCodec
-    from eyeq_spi.dissect import batch_run, engine_fast_messages
+    from eyeq_spi.dissect import engine_fast_messages, pipeline_fast
     from eyeq_spi.emulator import build
     from eyeq_spi.host import veh_state_fast
     from eyeq_spi.host.host import HostEmulator
@@ -295,7 +295,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
         return [lay.parse(lay.build(lay.zero_values()))]
 
     def batch() -> Any:
-        items = batch_run.batch_items(pcap.open("rb"), None, None, codec)
+        items = pipeline_fast.fast_items(pcap.open("rb"), None, None, codec)
         return None if items is None else list(items)
 
     def dasp() -> Any:
@@ -333,8 +333,8 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
         "codec.layout": ([(FastCodec, "decode", _poison), (FastCodec, "encode", _poison)],
                          dasp_layout),
         "codec.message": ([(engine_fast_messages, "vec_layout", _poison)], batch),
-        "dissect.engine": ([(batch_run, "BatchDissector", _poison)], batch),
-        "capture.pcapng": ([(batch_run, "pcapng_chunks", _poison),
+        "dissect.engine": ([(pipeline_fast, "ChunkFeeder", _poison)], batch),
+        "capture.pcapng": ([(pipeline_fast, "pcapng_chunks", _poison),
                             (pcapng_fast, "pcapng_chunks", _poison)], batch),
         "capture.write": ([(pcapng_write_fast, "encode_blocks", _poison)], capture),
         "sim.dasp": ([(dasp_fast.DaspPacker, "build", classmethod(_poison))], dasp),

@@ -104,14 +104,15 @@ def run_dissect(args: argparse.Namespace) -> int:
     from eyeq_spi.catalog.messages import catalog
     from eyeq_spi.cli.options import spi_options
     from eyeq_spi.dissect.output import HumanWriter, TableWriter
-    from eyeq_spi.io.jsonl import JsonLinesWriter
     from eyeq_spi.dissect.pipeline import (
         DissectConfig,
         codec_for,
+        deliver,
         dissect_captures,
         fields_mode,
     )
     from eyeq_spi.dissect.stats import Stats, combine
+    from eyeq_spi.io.jsonl import JsonLinesWriter
 
     if args.csv and args.parquet:
         raise UsageError("give --csv or --parquet, not both")
@@ -163,7 +164,7 @@ def run_dissect(args: argparse.Namespace) -> int:
                 print(f"eyeq-spi dissect: warning: {release.warning}", file=sys.stderr,
                       flush=True)
             gc.freeze()  # see run()
-            _feed(cf.items, keep, plain, stats, writers, path)
+            deliver(cf.items, stats, writers, keep=None if plain else keep, path=path)
             if cf.tail.ignored:
                 stats.ignored_bytes = cf.tail.ignored
                 print(f"eyeq-spi dissect: {cf.tail.note(path)}", file=sys.stderr, flush=True)
@@ -180,22 +181,6 @@ def run_dissect(args: argparse.Namespace) -> int:
             else:
                 out.write(st.render() + "\n")
     return 1 if any(st.protocol_errors or st.ignored_bytes for st in per_file) else 0
-
-
-def _feed(items: Any, keep: Callable[[dict[str, Any]], bool], plain: bool,
-          stats: Any, writers: list[Any], path: str) -> None:
-    for r in items:
-        if not isinstance(r, dict):  # a frame block of the batch path
-            from eyeq_spi.dissect.batch_run import consume
-
-            consume(r, keep, plain, stats, writers, path)
-        else:
-            r["file"] = path
-            if keep(r):  # --stats describes exactly what the filters keep
-                stats.add(r)
-                for w in writers:
-                    w.write(r)
-        r = None  # paced_gc: the block is garbage now
 
 
 class _Bars:

@@ -1,4 +1,4 @@
-"""The batch dissector: numpy over whole chunks, the exact engine wherever anything is unusual.
+"""The fast path: numpy over whole chunks, the exact engine wherever anything is unusual.
 
 Theory of operation
 -------------------
@@ -9,13 +9,13 @@ pass is in one of two modes:
 
 - **exact**: each transfer goes through the exact sans-IO engine
   (:class:`~.engine.Dissector.feed`), which is the reference for everything;
-- **batch**: a *span* of clean frames, taken without the engine: every frame is 128 bytes, has
+- **fast**: a *span* of clean frames, taken without the engine: every frame is 128 bytes, has
   a good CRC, D = DATA, R = 0, a valid transport header, and NUM = the previous NUM + 1; the
   frames form whole transfers (single frames, or a first frame and all its consecutive frames with
   its transfer ID, each within the reassembly timeout of the one before, counting every record
   of the capture in between), except that the last transfer may still be open.
 
-A direction enters batch mode only where the exact engine's state is known without looking inside
+A direction enters fast mode only where the exact engine's state is known without looking inside
 it: the engine has just delivered a message with the previous DATA frame of that direction (so no
 transfer is open, E = that NUM + 1, and no NAKs are counted), and the span starting at E has at
 least ``MIN_SPAN`` frames. Messages of a span are reassembled from the arrays and decoded by the
@@ -84,7 +84,7 @@ class _Plan:
     ip: int = 0  # next row (index into P) for the exact engine
 
 
-class BatchDissector:
+class ChunkFeeder:
     """Chunks in, records (dicts) and :class:`FrameBlock` items out, in capture order."""
 
     def __init__(self, sw: str | None = None, codec: MessageCodec | None = None,
@@ -107,7 +107,7 @@ class BatchDissector:
 
     def finish(self) -> Iterator[Item]:
         for st in self.dirs.values():
-            if st.batch:
+            if st.fast:
                 self._to_exact(st, None)
         self.dis.index = self.base
         yield from self.dis.finish()
@@ -126,7 +126,7 @@ class BatchDissector:
         for code, st in self.dirs.items():
             pl = plans.setdefault(code, _empty_plan())
             self.rows[code] = pl.P
-            if st.batch:
+            if st.fast:
                 self._walk(fa, st, pl, 0, fresh=False)
         times = fa.chunk.time
         pos = 0
@@ -134,7 +134,7 @@ class BatchDissector:
             nxt, why, which = n, 0, -1
             for code, st in self.dirs.items():
                 pl = plans[code]
-                if st.batch:
+                if st.fast:
                     if st.switch_row < nxt:
                         nxt, why, which = st.switch_row, 1, code
                 elif pl.ip < len(pl.P) and pl.P[pl.ip] < nxt:
@@ -176,7 +176,7 @@ class BatchDissector:
         t_end = fa.tfill[n - 1]
         self.dis.last_time = None if t_end != t_end else float(t_end)
         for st in self.dirs.values():
-            if st.batch:
+            if st.fast:
                 self._carry(fa, st, plans[st.code])
 
     def _update_deadline(self) -> None:
@@ -200,7 +200,7 @@ class BatchDissector:
         num = fa.num[sel]
         prev = np.empty_like(num)
         prev[1:] = num[:-1]
-        prev[0] = st.last_num if st.batch else -2
+        prev[0] = st.last_num if st.fast else -2
         cont = num == (prev + 1) % SEQ_MODULO
         # the reassembly deadline each fed frame sets, against the latest time of any record
         # after it up to and including the next fed frame (the engine runs its timers first)
@@ -211,7 +211,7 @@ class BatchDissector:
         seg_max = np.maximum.reduceat(np.append(tm, -np.inf), np.append(0, sel + 1))
         gap = np.empty(sel.size, bool)
         gap[1:] = seg_max[1:-1] < dl[:-1]
-        carried = st.carried if st.batch else None
+        carried = st.carried if st.fast else None
         first_dl = np.inf if not carried else (carried[-1][1] or 0.0) + REASSEMBLY_TIMEOUT
         gap[0] = seg_max[0] < first_dl
         tid = data[sel, 7].astype(np.int64)
@@ -311,7 +311,7 @@ class BatchDissector:
         st.carried, st.hist, st.last_first = None, [], None
         if self._walk(fa, st, pl, k, fresh=True) < MIN_SPAN:
             return False
-        st.batch = True
+        st.fast = True
         return True
 
     # -- output ------------------------------------------------------------------------------
@@ -319,7 +319,7 @@ class BatchDissector:
         block = FrameBlock(fa, lo, hi)
         done: list[tuple[int, Dir, Unit]] = []
         for st in self.dirs.values():
-            if not st.batch:
+            if not st.fast:
                 continue
             P = self.rows[st.code]
             while st.ui < len(st.units):
@@ -481,13 +481,13 @@ class BatchDissector:
         """The reference takes the direction up again where the run ended (its receiver is
         given the run's last transfers: :meth:`.engine.Dissector.resume`)."""
         units, last_first, opened = self._state(st, fa)
-        st.batch = st.canonical = False
+        st.fast = st.canonical = False
         self.dis.resume(st.name, last_first, units, opened)
         st.carried, st.hist, st.last_first = None, [], None
         self._update_deadline()
 
     def _carry(self, fa: FrameArrays, st: Dir, pl: _Plan) -> None:
-        """End of a chunk in batch mode: keep the open transfer, the last units and the NUM."""
+        """End of a chunk in fast mode: keep the open transfer, the last units and the NUM."""
         units, last_first, opened = self._state(st, fa)
         if opened is not None:
             head = opened[0][0]
@@ -508,7 +508,7 @@ def _empty_plan() -> _Plan:
 
 def iter_items(chunks: Iterable[Chunk], *, sw: str | None = None,
                codec: MessageCodec | None = None, fields: str = "dict") -> Iterator[Item]:
-    bd = BatchDissector(sw, codec, fields=fields)
+    bd = ChunkFeeder(sw, codec, fields=fields)
     for c in chunks:
         yield from bd.feed(c)
     yield from bd.finish()

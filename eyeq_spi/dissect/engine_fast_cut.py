@@ -1,7 +1,7 @@
-"""The lean modes of the batch dissector (``--stats`` or one table writer, no filter): a block's
+"""The lean modes of the fast path (``--stats`` or one table writer, no filter): a block's
 messages cut a group at a time straight from the chunk's array, no bytes object per message.
 
-:meth:`.engine_fast.BatchDissector._emit` gives the transfers (units) of the spans that complete in
+:meth:`.engine_fast.ChunkFeeder._emit` gives the transfers (units) of the spans that complete in
 a block. Here every unit whose frames are all in this chunk is located with numpy: its first row,
 its message length (byte 7 of a single frame, T2; the total of a first frame, T3) and its first
 four message bytes, which rule A (decision A) classifies. The units of one (direction, data ID)
@@ -29,7 +29,7 @@ from eyeq_spi.codec.mesp import MESP_PROTOCOL
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, DIAG_ID, classify
 from eyeq_spi.dissect.engine_fast_frames import FrameArrays
 from eyeq_spi.dissect.engine_fast_messages import ColumnGroup, GroupCount, SpanMessage
-from eyeq_spi.dissect.engine_fast_types import BatchState, Dir, Unit
+from eyeq_spi.dissect.engine_fast_types import Dir, FeederState, Unit
 from eyeq_spi.link.frame import SEQ_MODULO
 
 DIAG_KEY, BOOT_KEY = 256, 257  # group keys of 0x41 / 0x10 messages beside DASP data IDs 0..255
@@ -45,7 +45,7 @@ def _key_of(data: bytes) -> int:
     return {"DIAG": DIAG_KEY, "BOOT": BOOT_KEY}.get(proto, -1)
 
 
-def lean_messages(bd: BatchState, fa: FrameArrays, done: Done
+def lean_messages(bd: FeederState, fa: FrameArrays, done: Done
                   ) -> tuple[list[tuple[int, dict[str, Any]]], list[ColumnGroup],
                              list[GroupCount]] | None:
     """(row, record) of the messages that get a record, in row order; the column groups
@@ -195,7 +195,7 @@ def _gather(data: np.ndarray, P: np.ndarray | None, first: np.ndarray, ks: np.nd
     return out[:, :size]
 
 
-def _bulk_maps(bd: BatchState, fa: FrameArrays, codes: np.ndarray, ks: np.ndarray,
+def _bulk_maps(bd: FeederState, fa: FrameArrays, codes: np.ndarray, ks: np.ndarray,
                ke: np.ndarray, P_np: dict[int, np.ndarray]) -> None:
     """Every frame of the block's local units into its receiver's NUM -> index map, in order
     (a direction's units are consecutive in its rows, so their frames are one range)."""

@@ -17,8 +17,8 @@ import numpy as np
 from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.codec.message_fast import crc_word_tables
 from eyeq_spi.dissect.engine import TRANSPORT_NAMES
-from eyeq_spi.io.jsonl import json_float
 from eyeq_spi.errors import BatchUnsupportedError as BatchUnsupportedError
+from eyeq_spi.io.jsonl import json_float
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 
 # frame_type codes
@@ -31,7 +31,7 @@ def crc_table(codec: FrameCodec) -> np.ndarray | None:
     """T[v] = the CRC register after two more bytes, for every 16-bit value ``v`` of (register
     XOR the two bytes), built from the codec's own CRC function (so it is the codec's variant).
     Only a non-reflected CRC-16 with xorout 0 has this form (L3's CCITT-FALSE does); for any other
-    the table fails its check and None is returned: the batch path then is not used."""
+    the table fails its check and None is returned: the fast path then is not used."""
     key = id(codec.crc)
     if key in _TABLES:
         return _TABLES[key]
@@ -45,14 +45,14 @@ def crc_table(codec: FrameCodec) -> np.ndarray | None:
         # cost 20 ms of start-up to import)
         msg = bytes((i * 167 + 13 * n) & 0xFF for i in range(n))
         words = np.frombuffer(msg, ">u2").reshape(-1, 1)
-        if int(batch_crc(words, init, table, n // 2)[0]) != codec.crc(msg):
+        if int(crc_of_words(words, init, table, n // 2)[0]) != codec.crc(msg):
             _TABLES[key] = None
             return None
     _TABLES[key] = table
     return table
 
 
-def batch_crc(words: np.ndarray, init: int, table: np.ndarray, steps: int) -> np.ndarray:
+def crc_of_words(words: np.ndarray, init: int, table: np.ndarray, steps: int) -> np.ndarray:
     """CRC of the first ``steps`` big-endian 16-bit words of every row of ``words`` (k, n)."""
     crc = np.full(words.shape[1], init, np.uint16)
     for j in range(steps):
@@ -95,7 +95,7 @@ class FrameArrays:
 def validate(data: np.ndarray, length: np.ndarray, codec: FrameCodec
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Header fields (D, R, RSP, NUM) and CRC verdict (L3 coverage by D) of every row of an
-    ``(N, 128)`` array: the batch frame validation."""
+    ``(N, 128)`` array: the vectorised frame check."""
     word = data[:, 0:4].copy().view("<u4")[:, 0].astype(np.int64)
     d, r, rsp, num = (np.asarray(x) for x in codec.unpack_header(word))  # type: ignore[arg-type]
     got = data[:, 4:6].copy().view("<u2")[:, 0]

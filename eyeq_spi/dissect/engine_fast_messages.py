@@ -1,6 +1,6 @@
-"""The messages of a batch span, decoded a group at a time (:mod:`eyeq_spi.codec.message_fast`).
+"""The messages of a clean span, decoded a group at a time (:mod:`eyeq_spi.codec.message_fast`).
 
-The batch dissector (:mod:`.batch`) reassembles a block's messages from its arrays; here they
+The fast path (:mod:`.engine_fast`) reassembles a block's messages from its arrays; here they
 become message records. DASP messages are grouped by (direction, data ID): a group whose every
 message has the layout's length is judged at once — E2E CRCs and rolling counters
 (:meth:`VecLayout.verify`, D5), undefined enum values (:meth:`VecLayout.enum_errors`) — and its
@@ -24,7 +24,7 @@ makes (``tests/test_dissect_engine_fast.py`` holds them to it record for record)
   (``frame_index``, ``time``, ``direction``, ``header.*``, then the flattened fields, the row a
   :class:`~.output.TableWriter` makes of the exact record, value for value). Also lean.
 
-Lean modes (``"count"``, ``"columns"``): the batch dissector cuts a group's messages straight into
+Lean modes (``"count"``, ``"columns"``): the fast path cuts a group's messages straight into
 an array (:mod:`.engine_fast_cut`) and :meth:`SpanDecoder.lean_group` judges it as :meth:`_group`
 would, but makes a record only for a message with an error; the others are one :class:`GroupCount`
 (how many, the rows and times of the first and last with a time), which is all ``--stats`` reads of
@@ -290,7 +290,8 @@ class SpanDecoder:
         :meth:`_other` make them, ``"fields": {}``) with their rows, the count of the others,
         and with ``columns`` every message's table row. None: the group needs the exact path."""
         dasp = isinstance(key, int)
-        msg = self.codec.dasp_message(key) if isinstance(key, int) else self.codec.other_message(key)
+        msg = (self.codec.dasp_message(key) if isinstance(key, int)
+               else self.codec.other_message(key))
         hdr = 4 if dasp else 1
         if msg is None:
             return None

@@ -1,4 +1,4 @@
-"""The batch dissector's vocabulary (:mod:`eyeq_spi.dissect.engine_fast`, the fast twin of
+"""The fast path's vocabulary (:mod:`eyeq_spi.dissect.engine_fast`, the fast twin of
 :class:`~eyeq_spi.dissect.engine.Dissector`): the items it yields, a direction's span state and
 the transfers of a span, and the state the message cutter (:mod:`eyeq_spi.dissect.engine_fast_cut`)
 reads from it. Kept apart so the cutter does not import the dissector that calls it."""
@@ -27,11 +27,11 @@ class Unit:
 
 @dataclass
 class Dir:
-    """One direction's mode (exact or batch) and its span's state."""
+    """One direction's mode (reference or fast) and its span's state."""
 
     name: str | None
     code: int
-    batch: bool = False
+    fast: bool = False
     canonical: bool = False  # exact mode: the last fed frame completed a message
     # the span in the current chunk
     units: list[Unit] = field(default_factory=list)
@@ -39,7 +39,7 @@ class Dir:
     stop_k: int = 0  # index into P of the first frame not in the span
     open_ks: int = -1  # index into P of the open transfer's first frame, -1: none or carried
     switch_row: int = 0
-    # carried across chunks in batch mode
+    # carried across chunks in fast mode
     last_num: int = -1
     hist: list[list[Frame]] = field(default_factory=list)  # last complete units, oldest first
     last_first: list[Frame] | None = None  # the span's last complete multi-frame transfer
@@ -49,8 +49,8 @@ class Dir:
     carried_last_take: int = 0  # message bytes in its last frame (T6a: zeros after them)
 
 
-class BatchState(Protocol):
-    """What the message cutter reads from the batch dissector: its decoder, its exact
+class FeederState(Protocol):
+    """What the message cutter reads from the fast path: its decoder, its exact
     dissector (whose NUM maps it fills), each direction's fed rows in the current chunk, and
     the one-message cut it falls back to."""
 

@@ -165,7 +165,7 @@ def _arrow(pa: Any, v: Any) -> Any:
     type, same values, and pyarrow's masked-array check does not import numpy.ma (13 ms)."""
     kind = getattr(v, "dtype", None)
     if kind is not None and kind.kind in "if" and kind.itemsize == 8 and v.ndim == 1:
-        import numpy as np  # loaded already: only the batch path makes numpy columns
+        import numpy as np  # loaded already: only the fast path makes numpy columns
 
         v = np.ascontiguousarray(v)
         return pa.Array.from_buffers(pa.from_numpy_dtype(v.dtype), len(v),
@@ -263,7 +263,7 @@ class TableWriter:
 
     def write_columns(self, name: str, columns: dict[str, Any]) -> None:
         """Rows given as columns (numpy arrays or lists, equal lengths, in the order of the
-        row :meth:`write` makes): the batch dissector's vectorised groups. Same tables."""
+        row :meth:`write` makes): the fast path's vectorised groups. Same tables."""
         n = len(columns["frame_index"])
         if not n:
             return

@@ -52,8 +52,8 @@ class Format(NamedTuple):  # a NamedTuple: dataclasses would cost the CLI's star
     file cut short gives: ``error`` (:class:`~eyeq_spi.errors.TruncatedInputError`), ``drop``
     (the transfer the cut ends is dropped, as a logic analyzer stopped mid-transfer) or
     ``short`` (the format marks no transfer's end: the last transfer is read as far as it
-    goes). A text format cut inside a row or line says so, naming the line. ``batch``: the
-    ``module:callable`` reading the format in chunks for the batch dissector (else only the
+    goes). A text format cut inside a row or line says so, naming the line. ``fast``: the
+    ``module:callable`` reading the format in chunks for the fast path (else only the
     exact reader reads it).
 
     Capture writers are called ``target(records, path, **options) -> transfers written``.
@@ -73,7 +73,7 @@ class Format(NamedTuple):  # a NamedTuple: dataclasses would cost the CLI's star
     resolution: float | None = None
     channels: int = 2
     truncation: Truncation = ""
-    batch: str | None = None  # readers: the batch (numpy) path's chunk reader, if it has one
+    fast: str | None = None  # readers: the fast (numpy) path's chunk reader, if it has one
 
     @property
     def module(self) -> str:
@@ -93,7 +93,7 @@ REGISTRY: tuple[Format, ...] = (
     Format("pcapng", CAPTURE_READER, (".pcapng",), f"{_PLAIN}:read_pcapng_input",
            "our captures: one interface per SPI channel (specs/capture.yaml)",
            sniff=f"{_PLAIN}:sniff_pcapng", takes="tail", resolution=1e-6, truncation="error",
-           batch="eyeq_spi.capture.pcapng_fast:pcapng_chunks"),
+           fast="eyeq_spi.capture.pcapng_fast:pcapng_chunks"),
     Format("saleae2", CAPTURE_READER, (".csv",), "eyeq_spi.logic.saleae:read_saleae2",
            "Saleae Logic 2 SPI analyzer export table (one analyzer per channel)",
            sniff="eyeq_spi.logic.saleae:sniff", text=True, takes="spi", resolution=0.0,
@@ -113,7 +113,7 @@ REGISTRY: tuple[Format, ...] = (
     Format("raw", CAPTURE_READER, (".raw", ".bin"), f"{_PLAIN}:read_raw",
            "concatenated 128-byte transfers of one channel, no times",
            sniff=f"{_PLAIN}:sniff_raw", takes="direction", channels=1, truncation="error",
-           batch="eyeq_spi.capture.pcapng_fast:raw_chunks"),
+           fast="eyeq_spi.capture.pcapng_fast:raw_chunks"),
     Format("pcapng", CAPTURE_WRITER, (".pcapng",), f"{_WRITERS}:write_pcapng",
            "what demo, host and sim --capture write (crash-safe, streamed)"),
     Format("vcd", CAPTURE_WRITER, (".vcd",), f"{_WRITERS}:write_vcd_file",
@@ -151,9 +151,9 @@ def readers() -> tuple[str, ...]:
     return names(CAPTURE_READER)
 
 
-def batch_readers() -> tuple[str, ...]:
-    """The capture readers the batch dissector reads (the others take the exact path)."""
-    return tuple(f.name for f in formats(CAPTURE_READER) if f.batch)
+def fast_readers() -> tuple[str, ...]:
+    """The capture readers the fast path reads (the others take the exact path)."""
+    return tuple(f.name for f in formats(CAPTURE_READER) if f.fast)
 
 
 def formats(kind: Kind) -> tuple[Format, ...]:
@@ -259,6 +259,23 @@ def markdown_table() -> str:
     return "\n".join(rows) + "\n"
 
 
-__all__ = ["CAN_LOG", "CAPTURE_READER", "CAPTURE_WRITER", "KINDS", "RECORD_WRITER", "REGISTRY",
-           "Format", "batch_readers", "by_suffix", "formats", "get", "load", "markdown_table",
-           "missing", "names", "readers", "require", "sniffers"]
+__all__ = [
+    "CAN_LOG",
+    "CAPTURE_READER",
+    "CAPTURE_WRITER",
+    "KINDS",
+    "RECORD_WRITER",
+    "REGISTRY",
+    "Format",
+    "by_suffix",
+    "fast_readers",
+    "formats",
+    "get",
+    "load",
+    "markdown_table",
+    "missing",
+    "names",
+    "readers",
+    "require",
+    "sniffers",
+]

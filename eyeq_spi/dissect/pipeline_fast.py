@@ -1,9 +1,9 @@
-"""``eyeq-spi dissect`` on the batch path: which inputs take it, how its items reach the writers,
+"""``eyeq-spi dissect`` on the fast path: which inputs take it, how its items reach the writers,
 and ``--jobs N`` (files dissected in worker processes, output identical to a serial run).
 
-pcapng and raw files take the batch path (:mod:`.batch`); hex text, logic-analyzer captures and
-stdin keep the exact engine's record stream. Either way the records are the exact engine's (the
-agreement tests hold the batch path to that), so writers, filters and ``--stats`` see the same.
+pcapng and raw files take the fast path (:mod:`.engine_fast`); hex text, logic-analyzer captures and
+stdin keep the reference's record stream. Either way the records are the reference's (the
+agreement tests hold the fast path to that), so writers, filters and ``--stats`` see the same.
 """
 
 from __future__ import annotations
@@ -19,29 +19,26 @@ import numpy as np
 from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
 from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Tail
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.engine_fast import BatchDissector
+from eyeq_spi.dissect.engine_fast import ChunkFeeder
 from eyeq_spi.dissect.engine_fast_frames import BatchUnsupportedError, FrameArrays, FrameBlock
-from eyeq_spi.io.jsonl import JsonLinesWriter
 from eyeq_spi.dissect.release import Release
-from eyeq_spi.io import batch_readers
+from eyeq_spi.io import fast_readers
+from eyeq_spi.io.jsonl import JsonLinesWriter
 from eyeq_spi.io.plain import InputError, detect
-from eyeq_spi.twins import exact
 
 Item = dict[str, Any] | FrameBlock
-__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "parallel_items"]
+__all__ = ["FrameBlock", "consume", "default_jobs", "fast_items", "parallel_items"]
 
 
-def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
-                codec: MessageCodec, *, fields: str = "dict", tail: Tail | None = None
+def fast_items(fh: IO[bytes], fmt: str | None, direction: str | None,
+               codec: MessageCodec, *, fields: str = "dict", tail: Tail | None = None
                 ) -> Iterator[Item] | None:
-    """The batch path's items for a seekable pcapng or raw file (read from its start), else
-    None: the exact path goes on, ``fh`` at the position it had. ``fields``: what the span
+    """The fast path's items for a seekable pcapng or raw file (read from its start), else
+    None: the reference goes on, ``fh`` at the position it had. ``fields``: what the span
     messages carry (:class:`~.engine_fast_messages.SpanDecoder`: "dict", "none" for ``--stats``
     alone, "columns" for a table writer alone). ``tail``: a pcapng file that ends inside a block is
     read up to its last whole block, as :func:`~.inputs.open_records` does. With
-    ``EYEQ_SPI_EXACT=1`` always None: the exact :class:`~.engine.Dissector` reads everything."""
-    if exact():
-        return None
+    The caller has chosen the fast path (:func:`.pipeline.fast_module`)."""
     try:
         if not fh.seekable():
             return None
@@ -53,7 +50,7 @@ def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
     try:
         kind = fmt or detect(head)
     except InputError:
-        kind = None  # the exact path reports it, with its own words
+        kind = None  # the reference reports it, with its own words
     if kind == "pcapng" and head[:4] == PCAPNG_MAGIC:
         fh.seek(0)
         return _items(pcapng_chunks(fh, tail=tail), codec, fields)
@@ -66,7 +63,7 @@ def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
 
 def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
            ) -> Iterator[Item]:
-    bd = BatchDissector(codec=codec, fields=fields)
+    bd = ChunkFeeder(codec=codec, fields=fields)
     try:
         for c in chunks:
             yield from bd.feed(c)
@@ -145,15 +142,15 @@ def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,
             try:
                 kind = fmt or detect(head)
             except InputError:
-                kind = None  # the exact path reports it, with its own words
-            if kind not in batch_readers():
-                return ("exact", "")
+                kind = None  # the reference reports it, with its own words
+            if kind not in fast_readers():
+                return ("reference", "")
             fh.seek(0)
             cap = open_capture(fh, fmt, direction, sw=sw, name=path)
-            items = batch_items(fh, fmt, direction, _codec(cap.release.key), fields=fields,
+            items = fast_items(fh, fmt, direction, _codec(cap.release.key), fields=fields,
                                 tail=cap.tail)
             if items is None:
-                return ("exact", "")
+                return ("reference", "")
             return ([_compact(i) if isinstance(i, FrameBlock) else i for i in items],
                     cap.release, cap.tail)
     except InputError as exc:
@@ -175,7 +172,7 @@ def parallel_items(paths: list[str], jobs: int, fmt: str | None, direction: str 
                    sw: str | None, fields: str = "dict"
                    ) -> Iterator[tuple[str, tuple[list[Item], Release, Tail] | None]]:
     """(path, (items, release, tail)) in the order of ``paths``, dissected ``jobs`` files at a
-    time in worker processes; None: the file is not a batch input (the caller runs the exact
+    time in worker processes; None: the file is not a fast-path input (the caller runs the reference
     path).
     At most ``jobs`` finished files wait in memory ahead of the one being written."""
     from concurrent.futures import ProcessPoolExecutor  # 6 ms of start-up a serial run saves
