@@ -234,7 +234,8 @@ def records(capture: list[Record]) -> list[dict[str, Any]]:
 
 
 def _rows(records: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
-    """The table rows of every message (``docs/dissector.md`` tables), every field kept: a table per message name, a MESP reply in ``NAME.reply``; a row with a column its
+    """The table rows of every message (``docs/dissector.md`` tables), every field kept: a
+    table per message name, a MESP reply in ``NAME.reply``; a row with a column its
     table's header lacks goes in the next part (``NAME.2``) whose header holds it."""
     from eyeq_spi.dissect.output import flatten, table_name
 

@@ -26,7 +26,6 @@ from typing import Any
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import DaspCounters, MessageCodec
-from eyeq_spi.errors import FrameError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.events import (
     DuplicateReceived,
@@ -41,6 +40,38 @@ from eyeq_spi.transport.segment import FIRST
 
 TRANSPORT_NAMES = {0x00: "single", 0x01: "first", 0x02: "consecutive"}
 RECEIVER = {"h2e": "eyeq", "e2h": "host", None: "host"}
+
+
+KIND_NAMES = {int(k): k.name for k in FrameKind}
+
+
+def frame_record(index: int, time: float | None, direction: str | None, length: int,
+                 header: tuple[int, int, int, int] | None = None, crc_ok: bool = False,
+                 transport: tuple[int, int] = (0, 0)) -> dict[str, Any]:
+    """The ``--json`` record of one transfer (docs/dissector.md): ``length`` bytes; for a
+    128-byte frame its ``header`` fields (D, R, RSP, NUM; L1), CRC verdict (L3) and
+    ``transport`` bytes 6 and 7 (T1: the transport type, then a single frame's size or a
+    transfer ID). The frame type is INVALID unless D is a known kind and R is 0 (L2)."""
+    rec: dict[str, Any] = {
+        "kind": "frame", "index": index, "time": time, "direction": direction,
+        "frame_type": "INVALID", "num": None, "rsp": None, "crc_ok": False,
+        "transport": None, "transfer_id": None, "nak_reason": None,
+    }
+    if length != FRAME_SIZE or header is None:
+        rec["length"] = length
+        return rec
+    dfield, rfield, rsp, num = header
+    rec["num"], rec["rsp"], rec["crc_ok"] = num, rsp, crc_ok
+    if rfield == 0 and dfield in KIND_NAMES:
+        rec["frame_type"] = KIND_NAMES[dfield]
+    if dfield == FrameKind.NAK:
+        rec["nak_reason"] = num
+    elif dfield != FrameKind.ACK:  # DATA, or a D of no known kind
+        name = TRANSPORT_NAMES.get(transport[0])
+        rec["transport"] = name
+        if name in ("first", "consecutive"):
+            rec["transfer_id"] = transport[1]
+    return rec
 
 
 def jsonable(v: Any) -> Any:
@@ -163,34 +194,15 @@ class Dissector:
         if t is not None:
             yield from self._timers(t)
             self.last_time = t
-        frame_rec: dict[str, Any] = {
-            "kind": "frame", "index": idx, "time": t, "direction": rec.direction,
-            "frame_type": "INVALID", "num": None, "rsp": None, "crc_ok": False,
-            "transport": None, "transfer_id": None, "nak_reason": None,
-        }
         data = rec.data
-        if len(data) != FRAME_SIZE:
-            frame_rec["length"] = len(data)
+        if len(data) == FRAME_SIZE:
+            dfield, rfield, rsp, num, crc_ok = self.frames.judge(data)
+            frame_rec = frame_record(idx, t, rec.direction, FRAME_SIZE,
+                                     (dfield, rfield, rsp, num), crc_ok, (data[6], data[7]))
+            if dfield == FrameKind.DATA:
+                d.index_of_num[num] = idx
         else:
-            try:
-                f = self.frames.decode(data)
-            except FrameError:
-                f = None
-            if f is not None:
-                frame_rec["num"], frame_rec["rsp"] = f.num, f.rsp
-                frame_rec["crc_ok"] = self.frames.crc_ok(data, f)
-                kind = f.kind
-                if kind is not None and f.r == 0:
-                    frame_rec["frame_type"] = kind.name
-                if kind is FrameKind.NAK:
-                    frame_rec["nak_reason"] = f.num
-                elif kind is FrameKind.DATA or kind is None:
-                    tname = TRANSPORT_NAMES.get(data[6])
-                    frame_rec["transport"] = tname
-                    if tname in ("first", "consecutive"):
-                        frame_rec["transfer_id"] = data[7]
-                if kind is FrameKind.DATA:
-                    d.index_of_num[f.num] = idx
+            frame_rec = frame_record(idx, t, rec.direction, len(data))
         yield frame_rec
         if frame_rec["frame_type"] in ("ACK", "NAK"):
             return  # acknowledgements of the other channel's frames: nothing to reassemble

@@ -16,9 +16,8 @@ import numpy as np
 
 from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.codec.message_fast import crc_word_tables
-from eyeq_spi.dissect.engine import TRANSPORT_NAMES
+from eyeq_spi.dissect.engine import frame_record
 from eyeq_spi.errors import BatchUnsupportedError as BatchUnsupportedError
-from eyeq_spi.io.jsonl import json_float
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 
 # frame_type codes
@@ -73,6 +72,7 @@ class FrameArrays:
     d: np.ndarray  # D field
     fed: np.ndarray  # bool: goes to the passive receiver (everything but ACK/NAK frame types)
     tfill: np.ndarray  # float64: time of the last record with a time at or before each row
+    r: np.ndarray  # R field
     _lists: dict[str, list[Any]] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -169,7 +169,7 @@ def frame_arrays(chunk: Chunk, codec: FrameCodec, base: int, last_time: float | 
     np.maximum.accumulate(pos, out=pos)
     first = np.nan if last_time is None else last_time
     tfill = np.where(pos >= 0, t[np.maximum(pos, 0)], first)
-    return FrameArrays(chunk, base, ftype, num, rsp, crc_ok, d, fed, tfill)
+    return FrameArrays(chunk, base, ftype, num, rsp, crc_ok, d, fed, tfill, r)
 
 
 @dataclass
@@ -188,31 +188,14 @@ class FrameBlock:
     counts: list[Any] = field(default_factory=list)
 
     def frame(self, i: int) -> dict[str, Any]:
+        """The frame record of row ``i`` (:func:`.engine.frame_record`)."""
         fa = self.fa
         L = fa.lst
         t = L("time")[i]
         length = L("length")[i]
-        rec: dict[str, Any] = {
-            "kind": "frame", "index": fa.base + i, "time": None if t != t else t,
-            "direction": DIR_NAME[L("direction")[i]], "frame_type": "INVALID", "num": None,
-            "rsp": None, "crc_ok": False, "transport": None, "transfer_id": None,
-            "nak_reason": None,
-        }
-        if length != FRAME_SIZE:
-            rec["length"] = length
-            return rec
-        d = L("d")[i]
-        rec["num"], rec["rsp"] = L("num")[i], L("rsp")[i]
-        rec["crc_ok"] = bool(L("crc_ok")[i])
-        rec["frame_type"] = TYPE_NAMES[L("ftype")[i]]
-        if d == FrameKind.NAK:
-            rec["nak_reason"] = rec["num"]
-        elif d == FrameKind.DATA or d not in (FrameKind.ACK, FrameKind.NAK):
-            tname = TRANSPORT_NAMES.get(L("ttype")[i])
-            rec["transport"] = tname
-            if tname in ("first", "consecutive"):
-                rec["transfer_id"] = L("tid")[i]
-        return rec
+        return frame_record(fa.base + i, None if t != t else t, DIR_NAME[L("direction")[i]],
+                            length, (L("d")[i], L("r")[i], L("rsp")[i], L("num")[i]),
+                            bool(L("crc_ok")[i]), (L("ttype")[i], L("tid")[i]))
 
     def records(self) -> list[dict[str, Any]]:
         out: list[dict[str, Any]] = []
@@ -224,59 +207,6 @@ class FrameBlock:
                 out.append(nxt[1])
                 nxt = next(msgs, None)
         return out
-
-    def write_json(self, fh: Any, write_message: Any, fast: bool = False,
-                   file: str | None = None) -> None:
-        """The JSON Lines of :meth:`records`: frame lines formatted straight from the arrays
-        (what ``json.dumps(record, separators=(",", ":"))`` prints for them, or orjson with
-        ``fast``: only float spelling differs, :func:`~eyeq_spi.io.jsonl.json_float`) go to ``fh``;
-        each message goes to ``write_message`` (the JSON writer's own), in order. ``file``:
-        the ``file`` member every frame line ends with (the messages carry their own)."""
-        import json
-
-        end = "}\n" if file is None else f',"file":{json.dumps(file, ensure_ascii=False)}}}\n'
-        fa = self.fa
-        L = fa.lst
-        times, dirs, lengths = L("time"), L("direction"), L("length")
-        ds, nums, rsps, oks = L("d"), L("num"), L("rsp"), L("crc_ok")
-        ftypes, ttypes, tids = L("ftype"), L("ttype"), L("tid")
-        dname = {0: '"h2e"', 1: '"e2h"', -1: "null"}
-        tnames = {0: '"single"', 1: '"first"', 2: '"consecutive"'}
-        base = fa.base
-        parts: list[str] = []
-        msgs = self.messages
-        mi = 0
-        for i in range(self.lo, self.hi):
-            t = times[i]
-            ts = "null" if t != t else repr(t)
-            if fast and "e" in ts:
-                ts = json_float(t, fast)
-            if lengths[i] != FRAME_SIZE:
-                parts.append(f'{{"kind":"frame","index":{base + i},"time":{ts},"direction":'
-                             f'{dname[dirs[i]]},"frame_type":"INVALID","num":null,"rsp":null,'
-                             f'"crc_ok":false,"transport":null,"transfer_id":null,'
-                             f'"nak_reason":null,"length":{lengths[i]}{end}')
-            else:
-                d = ds[i]
-                tr = tid = nak = "null"
-                if d == FrameKind.NAK:
-                    nak = str(nums[i])
-                elif d != FrameKind.ACK:  # DATA, or a D of no known kind
-                    tt = ttypes[i]
-                    tr = tnames.get(tt, "null")
-                    if tt == 1 or tt == 2:
-                        tid = str(tids[i])
-                parts.append(f'{{"kind":"frame","index":{base + i},"time":{ts},"direction":'
-                             f'{dname[dirs[i]]},"frame_type":"{TYPE_NAMES[ftypes[i]]}",'
-                             f'"num":{nums[i]},"rsp":{rsps[i]},'
-                             f'"crc_ok":{"true" if oks[i] else "false"},"transport":{tr},'
-                             f'"transfer_id":{tid},"nak_reason":{nak}{end}')
-            while mi < len(msgs) and msgs[mi][0] == i:
-                fh.write("".join(parts))
-                parts.clear()
-                write_message(msgs[mi][1])
-                mi += 1
-        fh.write("".join(parts))
 
     def add_to(self, stats: Any) -> None:
         """Count this block's frames and messages into a :class:`~.stats.Stats`."""

@@ -313,7 +313,7 @@ def fields_mode(writers: list[Any], plain: bool) -> str:
     if not writers:
         return "count" if plain else "none"
     if (plain and len(writers) == 1 and type(writers[0]).__name__ == "TableWriter"
-            and not writers[0].errors):
+            and not getattr(writers[0], "errors", False)):
         return "columns"
     return "dict"
 

@@ -23,7 +23,6 @@ from eyeq_spi.dissect.engine_fast import ChunkFeeder
 from eyeq_spi.dissect.engine_fast_frames import BatchUnsupportedError, FrameArrays, FrameBlock
 from eyeq_spi.dissect.release import Release
 from eyeq_spi.io import fast_readers
-from eyeq_spi.io.jsonl import JsonLinesWriter
 from eyeq_spi.io.plain import InputError, detect
 
 Item = dict[str, Any] | FrameBlock
@@ -93,9 +92,7 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
         return
     item.add_to(stats)
     for w in writers:
-        if type(w) is JsonLinesWriter:
-            item.write_json(w.fh, w.write, w.fast, file)
-        elif hasattr(w, "write_block"):
+        if hasattr(w, "write_block"):
             w.write_block(item)
         elif getattr(w, "messages_only", False) or type(w).__name__ == "TableWriter":
             tables = iter(item.tables)
@@ -112,6 +109,8 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
                 nxt = next(tables, None)
         else:
             for r in item.records():
+                if file is not None:
+                    r["file"] = file
                 w.write(r)
 
 
@@ -124,7 +123,7 @@ def _compact(block: FrameBlock) -> FrameBlock:
                   c.time[lo:hi].copy(), c.direction[lo:hi].copy())
     small = FrameArrays(chunk, fa.base + lo, fa.ftype[lo:hi].copy(), fa.num[lo:hi].copy(),
                         fa.rsp[lo:hi].copy(), fa.crc_ok[lo:hi].copy(), fa.d[lo:hi].copy(),
-                        fa.fed[lo:hi].copy(), fa.tfill[lo:hi].copy())
+                        fa.fed[lo:hi].copy(), fa.tfill[lo:hi].copy(), fa.r[lo:hi].copy())
     counts = [replace(g, first_row=g.first_row - lo if g.first_row >= 0 else -1,
                       last_row=g.last_row - lo if g.last_row >= 0 else -1)
               for g in block.counts]

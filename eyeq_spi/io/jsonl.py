@@ -3,7 +3,7 @@
 ``JsonLinesWriter(fh, fast=False).write(record)`` writes ``record`` (a dict of JSON values) as one
 line. With ``fast``, orjson encodes, which spells some floats its own way (``2.5e-7`` for
 ``2.5e-07``, ``0.00005`` for ``5e-05``; the spelling depends on orjson's version, the number does
-not: :func:`json_float`). NaN and infinities are ``null`` either way (JSON has no spelling for
+not). NaN and infinities are ``null`` either way (JSON has no spelling for
 them); an integer over 64 bits is written by the standard library's encoder.
 """
 
@@ -38,17 +38,6 @@ class JsonLinesWriter:
         except ValueError:  # NaN/Infinity are not JSON: they become null
             text = json.dumps(_finite(record), separators=(",", ":"), allow_nan=False)
         self.fh.write(text + "\n")
-
-
-def json_float(value: float, fast: bool) -> str:
-    """A finite float as :class:`JsonLinesWriter` prints it: ``repr`` (json.dumps), or orjson's
-    spelling, which differs only where either uses an exponent."""
-    text = repr(value)
-    if fast and "e" in text:
-        import orjson
-
-        return str(orjson.dumps(value).decode())
-    return text
 
 
 def _finite(value: Any) -> Any:
