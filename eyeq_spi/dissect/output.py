@@ -9,7 +9,9 @@ from eyeq_spi import io as formats
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.errors import EyeqError, UnknownFormatError
 from eyeq_spi.errors import OutputError as OutputError
-from eyeq_spi.io.jsonl import JsonLinesWriter as JsonWriter  # noqa: F401 - cli/can.py imports it here
+from eyeq_spi.io.jsonl import JsonLinesWriter
+
+JsonWriter = JsonLinesWriter  # the one JSON Lines writer, under the name cli/can.py imports
 
 RESET, DIM, RED, GREEN, CYAN, YELLOW = "\x1b[0m", "\x1b[2m", "\x1b[31m", "\x1b[32m", "\x1b[36m", \
     "\x1b[33m"
