@@ -36,6 +36,7 @@ from eyeq_spi.capture.pcapng_io import Record, Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.release import Capture, Release, open_capture
 from eyeq_spi.errors import EyeqError
+from eyeq_spi.io import can_log_hint
 from eyeq_spi.io.plain import InputError
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.twins import exact
@@ -213,6 +214,13 @@ def _naming(exc: EyeqError, path: str) -> EyeqError:
     several files the user knows which one; the same class, so callers catch it as before."""
     name = "stdin" if path == "-" else path
     text = str(exc)
+    hint = can_log_hint(path) if path != "-" else None
+    if hint is not None and isinstance(exc, InputError):
+        text = f"{text}; {hint}"
+        try:
+            exc = type(exc)(text)
+        except TypeError:
+            pass
     if text.startswith(f"{name}:") or text.startswith(f"{path}:"):
         return exc
     try:

@@ -135,7 +135,8 @@ REGISTRY: tuple[Format, ...] = (
     Format("mcap", RECORD_WRITER, (".mcap",), "eyeq_spi.interop.mcap_out:McapWriter",
            "raw transfers and decoded messages for Foxglove (export --mcap)",
            extra="export", needs=("mcap", "zstandard")),
-    Format("can-log", CAN_LOG, (), "eyeq_spi.can.logs:read_log",
+    Format("can-log", CAN_LOG, (".blf", ".asc", ".log", ".trc", ".mf4", ".csv"),
+           "eyeq_spi.can.logs:read_log",
            "CAN logs: python-can's own registry reads them by suffix (eyeq-spi can)",
            extra="can", needs=("can", "cantools")),
 )
@@ -179,6 +180,17 @@ def by_suffix(path: str | PurePath, kind: Kind) -> Format:
     known = ", ".join(f"{f.name} ({' '.join(f.suffixes)})" for f in formats(kind) if f.suffixes)
     raise UnknownFormatError(f"{path}: unknown {kind} suffix {suffix or '(none)'!r}; known: "
                              f"{known}")
+
+
+def can_log_hint(path: str | PurePath) -> str | None:
+    """For a file a capture reader refused: the command that reads it when its suffix is a CAN
+    log's and no capture reader's (``drive.blf``), else None."""
+    suffix = PurePath(path).suffix.lower()
+    if not suffix or any(suffix in f.suffixes for f in formats(CAPTURE_READER)):
+        return None
+    if any(suffix in f.suffixes for f in formats(CAN_LOG)):
+        return f"a CAN log ({suffix}) is read by: eyeq-spi can decode {path}"
+    return None
 
 
 def missing(fmt: Format) -> str | None:
@@ -261,6 +273,7 @@ def markdown_table() -> str:
 
 __all__ = [
     "CAN_LOG",
+    "can_log_hint",
     "CAPTURE_READER",
     "CAPTURE_WRITER",
     "KINDS",
