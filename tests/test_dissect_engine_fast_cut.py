@@ -29,8 +29,8 @@ from eyeq_spi.dissect.stats import Stats
 from eyeq_spi.io import plain as inputs
 from eyeq_spi.transport.segment import segment
 from tests.test_codec_message_fast import _capture
-from tests.test_dissect_pipeline_fast import _Pipe
 from tests.test_dissect_engine_fast import BASE, MUTATIONS, Rec, _as_records, synthetic
+from tests.test_dissect_pipeline_fast import _Pipe
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 

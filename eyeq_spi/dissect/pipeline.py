@@ -211,20 +211,19 @@ class CaptureFile:
 
 def _naming(exc: EyeqError, path: str) -> EyeqError:
     """``exc`` with the file it is about in front (``a.pcapng: empty input``), so that with
-    several files the user knows which one; the same class, so callers catch it as before."""
+    several files the user knows which one, and for a CAN log refused as a capture the command
+    that reads it; the same class, so callers catch it as before."""
     name = "stdin" if path == "-" else path
     text = str(exc)
-    hint = can_log_hint(path) if path != "-" else None
-    if hint is not None and isinstance(exc, InputError):
+    hint = can_log_hint(path) if path != "-" and isinstance(exc, InputError) else None
+    if hint is not None:
         text = f"{text}; {hint}"
-        try:
-            exc = type(exc)(text)
-        except TypeError:
-            pass
-    if text.startswith(f"{name}:") or text.startswith(f"{path}:"):
+    if not (text.startswith(f"{name}:") or text.startswith(f"{path}:")):
+        text = f"{name}: {text}"
+    elif hint is None:
         return exc
     try:
-        named = type(exc)(f"{name}: {text}")
+        named = type(exc)(text)
     except TypeError:  # an error class with other arguments: as it is
         return exc
     return named

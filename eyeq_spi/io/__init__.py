@@ -273,7 +273,6 @@ def markdown_table() -> str:
 
 __all__ = [
     "CAN_LOG",
-    "can_log_hint",
     "CAPTURE_READER",
     "CAPTURE_WRITER",
     "KINDS",
@@ -281,6 +280,7 @@ __all__ = [
     "REGISTRY",
     "Format",
     "by_suffix",
+    "can_log_hint",
     "fast_readers",
     "formats",
     "get",
