@@ -117,8 +117,11 @@ class CaptureFile:
             cfg = self.config
             self._fh = open_stream(self.path)
             try:
-                self._cap = open_capture(self._fh, cfg.fmt, cfg.direction, cfg.spi,
-                                         sw=cfg.sw, name=self.path)
+                fast = fast_module([self.path]) if self.fast is AUTO else self.fast
+                cap = (fast.open_fast(self._fh, cfg.fmt, cfg.direction, sw=cfg.sw,
+                                      name=self.path) if fast is not None else None)
+                self._cap = cap or open_capture(self._fh, cfg.fmt, cfg.direction, cfg.spi,
+                                                sw=cfg.sw, name=self.path)
             except EyeqError as exc:
                 self.close()
                 raise _naming(exc, self.path) from None
@@ -165,11 +168,12 @@ class CaptureFile:
         fh = self._fh
         assert fh is not None
         try:
-            br = fast_module([self.path]) if self.fast is AUTO else self.fast
-            fast = (br.fast_items(fh, self.config.fmt, self.config.direction, self.codec,
-                                      fields=self.config.fields, tail=cap.tail)
-                       if br is not None else None)
-            items = fast or _all(Dissector(codec=self.codec), cap.records)
+            if cap.chunks is not None:  # opened by the fast path (open): numpy is loaded
+                from eyeq_spi.dissect.pipeline_fast import chunk_items
+
+                items = chunk_items(cap.chunks, self.codec, self.config.fields)
+            else:
+                items = _all(Dissector(codec=self.codec), cap.records)
             yield from self._tracked(items, fh)
         except EyeqError as exc:
             raise _naming(exc, self.path) from None

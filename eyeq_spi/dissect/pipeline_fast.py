@@ -17,47 +17,100 @@ from typing import IO, Any
 import numpy as np
 
 from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
-from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, CaptureError, Tail
+from eyeq_spi.capture.pcapng_io import (
+    PCAPNG_MAGIC,
+    CaptureError,
+    Record,
+    Tail,
+    recorded_release,
+    release_sniff_transfers,
+)
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine_fast import ChunkFeeder
 from eyeq_spi.dissect.engine_fast_frames import BatchUnsupportedError, FrameArrays, FrameBlock
-from eyeq_spi.dissect.release import Release
-from eyeq_spi.io import fast_readers
-from eyeq_spi.io.plain import InputError, detect
+from eyeq_spi.dissect.release import (
+    RECORDED,
+    Capture,
+    Release,
+    choose_release,
+    infer_release,
+    then,
+)
+from eyeq_spi.errors import EyeqError
+from eyeq_spi.io.plain import InputError, detect, sniff_raw
 
 Item = dict[str, Any] | FrameBlock
-__all__ = ["FrameBlock", "consume", "default_jobs", "fast_items", "parallel_items"]
+__all__ = ["FrameBlock", "chunk_items", "consume", "default_jobs", "open_fast", "parallel_items"]
 
 
-def fast_items(fh: IO[bytes], fmt: str | None, direction: str | None,
-               codec: MessageCodec, *, fields: str = "dict", tail: Tail | None = None
-                ) -> Iterator[Item] | None:
-    """The fast path's items for a seekable pcapng or raw file (read from its start), else
-    None: the reference goes on, ``fh`` at the position it had. ``fields``: what the span
-    messages carry (:class:`~.engine_fast_messages.SpanDecoder`: "dict", "none" for ``--stats``
-    alone, "columns" for a table writer alone). ``tail``: a pcapng file that ends inside a block is
-    read up to its last whole block, as :func:`~.inputs.open_records` does. With
-    The caller has chosen the fast path (:func:`.pipeline.fast_module`)."""
+def open_fast(fh: IO[bytes], fmt: str | None, direction: str | None, *, sw: str | None,
+              name: str) -> Capture | None:
+    """A seekable pcapng or raw file (read from its start) opened for the fast path, its release
+    found in the same pass as its transfers (:func:`.release.open_capture`'s order: ``sw``, the
+    recorded release, then what the first transfers show); None: the reference reads it (another
+    format, stdin, or not a capture: the reference says so in its own words)."""
     try:
         if not fh.seekable():
             return None
-        pos = fh.tell()
         fh.seek(0)
         head = fh.read(4096)
+        fh.seek(0)
     except (OSError, ValueError):
         return None
     try:
         kind = fmt or detect(head)
     except InputError:
-        kind = None  # the reference reports it, with its own words
+        return None
+    tail = Tail()
     if kind == "pcapng" and head[:4] == PCAPNG_MAGIC:
-        fh.seek(0)
-        return _items(pcapng_chunks(fh, tail=tail), codec, fields)
-    if kind == "raw" and head:
-        fh.seek(0)
-        return _items(raw_chunks(fh, direction), codec, fields)
-    fh.seek(pos)
-    return None
+        chunks = pcapng_chunks(fh, tail=tail)
+    elif kind == "raw" and sniff_raw(head) is not None:
+        chunks = raw_chunks(fh, direction)
+    else:
+        return None
+    recorded = recorded_release(head)
+    if recorded is not None:
+        release = choose_release(sw, (recorded, RECORDED), name)
+    else:
+        first, fault = _first_chunks(chunks, release_sniff_transfers())
+        rows = [c.record(i) for c in first for i in range(len(c))]
+        release = choose_release(sw, infer_release(rows[: release_sniff_transfers()]), name)
+        chunks = then(first, fault, chunks)
+    return Capture(kind, _records(chunks), release, tail, chunks)
+
+
+def _first_chunks(chunks: Iterator[Chunk], rows: int
+                  ) -> tuple[list[Chunk], EyeqError | None]:
+    """The chunks that hold the first ``rows`` transfers, and the error that ended the file
+    before them (raised after them, as the reader would)."""
+    first: list[Chunk] = []
+    try:
+        while sum(len(c) for c in first) < rows:
+            nxt = next(chunks, None)
+            if nxt is None:
+                break
+            first.append(nxt)
+    except CaptureError as exc:
+        return first, InputError(str(exc))
+    return first, None
+
+
+def _records(chunks: Iterator[Chunk]) -> Iterator[Record]:
+    """The transfers of ``chunks`` one by one (a caller that wants the transfers)."""
+    try:
+        for chunk in chunks:
+            for i in range(len(chunk)):
+                yield chunk.record(i)
+    except CaptureError as exc:
+        raise InputError(str(exc)) from None
+
+
+def chunk_items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
+                ) -> Iterator[Item]:
+    """The records of a capture's chunks (frame blocks, and dicts where the reference reads):
+    ``fields`` is what the clean spans' messages carry (:class:`.engine_fast_messages.SpanDecoder`:
+    "dict", "none" for ``--stats`` alone, "columns" for a table writer alone)."""
+    return _items(chunks, codec, fields)
 
 
 def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
@@ -133,23 +186,12 @@ def _compact(block: FrameBlock) -> FrameBlock:
 
 def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,
             fields: str = "dict") -> tuple[list[Item], Release, Tail] | tuple[str, str]:
-    from eyeq_spi.dissect.release import open_capture
-
     try:
         with open(path, "rb") as fh:
-            head = fh.read(4096)
-            try:
-                kind = fmt or detect(head)
-            except InputError:
-                kind = None  # the reference reports it, with its own words
-            if kind not in fast_readers():
+            cap = open_fast(fh, fmt, direction, sw=sw, name=path)
+            if cap is None or cap.chunks is None:
                 return ("reference", "")
-            fh.seek(0)
-            cap = open_capture(fh, fmt, direction, sw=sw, name=path)
-            items = fast_items(fh, fmt, direction, _codec(cap.release.key), fields=fields,
-                                tail=cap.tail)
-            if items is None:
-                return ("reference", "")
+            items = chunk_items(cap.chunks, _codec(cap.release.key), fields)
             return ([_compact(i) if isinstance(i, FrameBlock) else i for i in items],
                     cap.release, cap.tail)
     except InputError as exc:
