@@ -45,64 +45,18 @@ def _key_of(data: bytes) -> int:
     return {"DIAG": DIAG_KEY, "BOOT": BOOT_KEY}.get(proto, -1)
 
 
-def lean_messages(bd: FeederState, fa: FrameArrays, done: Done
-                  ) -> tuple[list[tuple[int, dict[str, Any]]], list[ColumnGroup],
-                             list[GroupCount]] | None:
+Lean = tuple[list[tuple[int, dict[str, Any]]], list[ColumnGroup], list[GroupCount]]
+
+
+def lean_messages(bd: FeederState, fa: FrameArrays, done: Done) -> Lean | None:
     """(row, record) of the messages that get a record, in row order; the column groups
     (``first``: their position among those records); the counts of the others. None: the
     block has a barrier message (:meth:`.engine_fast_messages.SpanDecoder.is_barrier`): the
     caller takes the non-lean path, which judges the messages on each side of it apart."""
-    dec = bd.decode
-    data = fa.chunk.data
-    base = fa.base
-    columns_mode = dec.fields == "columns"
-    loc: list[int] = []
-    carried: list[int] = []
-    cols: list[tuple[int, int, int, int, bool]] = []
-    for j, (row, st, u) in enumerate(done):
-        if u.ks >= 0:
-            loc.append(j)
-            cols.append((row, st.code, u.ks, u.ke, u.first))
-        else:
-            carried.append(j)
-    m = len(loc)
-    table = np.array(cols, np.int64).reshape(m, 5)
-    rows, codes, ks, ke = table[:, 0], table[:, 1], table[:, 2], table[:, 3]
-    first = table[:, 4].astype(bool)
-    P_np: dict[int, np.ndarray] = {}
-    start = np.zeros(m, np.int64)
-    for code in sorted(set(codes.tolist())):  # not np.unique: it imports numpy.ma (13 ms)
-        P_np[code] = np.asarray(bd.rows[code], np.int64)
-        sel = codes == code
-        start[sel] = P_np[code][ks[sel]]
-    # T2 / T3: a single frame's size is byte 7, a first frame's total bytes 8..11
-    total = np.ascontiguousarray(data[start, 8:12]).view("<u4")[:, 0].astype(np.int64)
-    length = np.where(first, total, data[start, 7].astype(np.int64))
-    col = np.where(first, 12, 8)
-    b = data[start[:, None], col[:, None] + np.arange(5)].astype(np.int64)
-    # rule A (codec.message.classify), in its order
-    mesp = (length >= 3) & (b[:, 1] == MESP_PROTOCOL) & (b[:, 0] == b[:, 2])
-    kind = np.full(m, -1, np.int64)
-    other = ~mesp & (length >= 1)
-    dasp = other & (b[:, 0] == DASP_PROTOCOL) & (length >= 4)
-    kind[dasp] = b[dasp, 1]
-    kind[other & (b[:, 0] == DIAG_ID)] = DIAG_KEY
-    kind[other & (b[:, 0] == BOOT_ID)] = BOOT_KEY
-    # a MESP request of a barrier function (its service and function, reply bit clear)
-    req = mesp & (length >= 5) & ((b[:, 4] & 0x80) == 0)
-    if req.any() and any(dec.is_barrier(bytes(x)) for x in b[req].astype(np.uint8).tolist()):
+    block = _Block(bd, fa, done)
+    if not block.classify() or not block.take_carried():
         return None
-    # the carried transfers (frames from the previous chunk) as span messages
-    loose: dict[int, SpanMessage] = {}
-    loose_keys: dict[tuple[int, int], int] = {}  # at most one per direction: its first unit
-    for j in carried:
-        row, st, u = done[j]
-        msg = bd.message(fa, st, u, row)
-        if dec.is_barrier(msg.data):
-            return None
-        loose[j] = msg
-        loose_keys[(st.code, _key_of(msg.data))] = j
-    keys = set(zip(codes.tolist(), kind.tolist(), strict=True)) | set(loose_keys)
+    keys = set(zip(block.codes.tolist(), block.kind.tolist(), strict=True)) | set(block.loose_keys)
     dirs_of: dict[int, int] = {}
     for _, k in keys:
         dirs_of[k] = dirs_of.get(k, 0) + 1
@@ -110,41 +64,10 @@ def lean_messages(bd: FeederState, fa: FrameArrays, done: Done
     recs: list[tuple[int, dict[str, Any]]] = []
     tables: list[tuple[int, ColumnGroup]] = []
     counts: list[GroupCount] = []
-    tfill = fa.tfill
     for code, k in sorted(keys):
         if k < 0:
             continue
-        ix = np.flatnonzero((codes == code) & (kind == k))
-        jc = loose_keys.get((code, k))  # a carried transfer: the group's first message
-        members = ([] if jc is None else [jc]) + [loc[i] for i in ix.tolist()]
-        got = None
-        arr = None
-        if not (columns_mode and dirs_of[k] > 1):
-            arr = _gather(data, P_np.get(code), first[ix], ks[ix], ke[ix], start[ix],
-                          length[ix]) if ix.size else np.zeros((0, 0), np.uint8)
-        if arr is not None and jc is not None:
-            head = np.frombuffer(loose[jc].data, np.uint8)
-            arr = (head[None, :] if not ix.size else
-                   np.concatenate([head[None, :], arr]) if len(head) == arr.shape[1] else None)
-        if arr is not None:
-            st = done[members[0]][1]
-            grows = rows[ix] if jc is None else np.concatenate([[done[jc][0]], rows[ix]])
-            gks = [0] * (jc is not None) + ks[ix].tolist()
-            gke = [0] * (jc is not None) + ke[ix].tolist()
-            P = bd.rows[code]
-            carried_frames = None if jc is None else loose[jc].frames
-            last = (base + grows).tolist()
-            if carried_frames is not None:
-                last[0] = carried_frames[-1] if carried_frames else None
-
-            def frames_of(i: int, gks: list[int] = gks, gke: list[int] = gke, P: list[int] = P,
-                          cf: list[int | None] | None = carried_frames) -> list[int | None]:
-                if i == 0 and cf is not None:
-                    return list(cf)
-                return [base + r for r in P[gks[i] : gke[i]]]
-
-            got = dec.lean_group(st.name, _PROTO.get(k, k), arr, grows.tolist(), tfill[grows],
-                                 last, frames_of, columns_mode and dirs_of[k] == 1)
+        members, got = block.group(code, k, dirs_of[k])
         if got is None:
             fallback += members
             continue
@@ -153,15 +76,9 @@ def lean_messages(bd: FeederState, fa: FrameArrays, done: Done
             counts.append(got[1])
         if got[2] is not None:
             tables.append((got[2].first, got[2]))
-    exact = [loc[i] for i in np.flatnonzero(kind < 0).tolist()]
-    exact += [j for key, j in loose_keys.items() if key[1] < 0]
-    fallback = sorted(fallback + exact, key=lambda j: done[j][0])
-    msgs = [loose[j] if j in loose else bd.message(fa, done[j][1], done[j][2], done[j][0])
-            for j in fallback]
-    _bulk_maps(bd, fa, codes, ks, ke, P_np)
-    fb_rows = [done[j][0] for j in fallback]
-    recs += list(zip(fb_rows, dec.records(msgs), strict=True))
-    tables += [(fb_rows[g.first], g) for g in dec.tables]
+    fb_recs, fb_tables = block.reference(fallback)
+    recs += fb_recs
+    tables += fb_tables
     recs.sort(key=lambda x: x[0])
     at = [r for r, _ in recs]
     out_tables = []
@@ -169,6 +86,125 @@ def lean_messages(bd: FeederState, fa: FrameArrays, done: Done
         g.first = bisect.bisect_left(at, row)
         out_tables.append(g)
     return recs, out_tables, counts
+
+
+class _Block:
+    """The units (transfers) that complete in one block, located in the chunk's array."""
+
+    def __init__(self, bd: FeederState, fa: FrameArrays, done: Done) -> None:
+        self.bd, self.fa, self.done = bd, fa, done
+        self.dec = bd.decode
+        self.loc: list[int] = []  # indices into done of the units wholly in this chunk
+        self.carried: list[int] = []  # of a unit carried in from the previous chunk
+        cols: list[tuple[int, int, int, int, bool]] = []
+        for j, (row, st, u) in enumerate(done):
+            if u.ks >= 0:
+                self.loc.append(j)
+                cols.append((row, st.code, u.ks, u.ke, u.first))
+            else:
+                self.carried.append(j)
+        table = np.array(cols, np.int64).reshape(len(self.loc), 5)
+        self.rows, self.codes, self.ks, self.ke = (table[:, i] for i in range(4))
+        self.first = table[:, 4].astype(bool)
+        self.P_np: dict[int, np.ndarray] = {}
+        self.start = np.zeros(len(self.loc), np.int64)
+        for code in sorted(set(self.codes.tolist())):  # not np.unique: imports numpy.ma (13 ms)
+            self.P_np[code] = np.asarray(bd.rows[code], np.int64)
+            sel = self.codes == code
+            self.start[sel] = self.P_np[code][self.ks[sel]]
+        self.loose: dict[int, SpanMessage] = {}
+        self.loose_keys: dict[tuple[int, int], int] = {}  # one per direction: its first unit
+
+    def classify(self) -> bool:
+        """Each local unit's message length and group key (rule A); False: a barrier."""
+        data, start, first = self.fa.chunk.data, self.start, self.first
+        # T2 / T3: a single frame's size is byte 7, a first frame's total bytes 8..11
+        total = np.ascontiguousarray(data[start, 8:12]).view("<u4")[:, 0].astype(np.int64)
+        length = np.where(first, total, data[start, 7].astype(np.int64))
+        col = np.where(first, 12, 8)
+        b = data[start[:, None], col[:, None] + np.arange(5)].astype(np.int64)
+        # rule A (codec.message.classify), in its order
+        mesp = (length >= 3) & (b[:, 1] == MESP_PROTOCOL) & (b[:, 0] == b[:, 2])
+        kind = np.full(len(length), -1, np.int64)
+        other = ~mesp & (length >= 1)
+        dasp = other & (b[:, 0] == DASP_PROTOCOL) & (length >= 4)
+        kind[dasp] = b[dasp, 1]
+        kind[other & (b[:, 0] == DIAG_ID)] = DIAG_KEY
+        kind[other & (b[:, 0] == BOOT_ID)] = BOOT_KEY
+        self.length, self.kind = length, kind
+        # a MESP request of a barrier function (its service and function, reply bit clear)
+        req = mesp & (length >= 5) & ((b[:, 4] & 0x80) == 0)
+        return not (req.any() and any(self.dec.is_barrier(bytes(x))
+                                      for x in b[req].astype(np.uint8).tolist()))
+
+    def take_carried(self) -> bool:
+        """The carried transfers (frames from the previous chunk) as span messages; False: a
+        barrier among them."""
+        for j in self.carried:
+            row, st, u = self.done[j]
+            msg = self.bd.message(self.fa, st, u, row)
+            if self.dec.is_barrier(msg.data):
+                return False
+            self.loose[j] = msg
+            self.loose_keys[(st.code, _key_of(msg.data))] = j
+        return True
+
+    def group(self, code: int, key: int, directions: int
+              ) -> tuple[list[int], tuple[Any, Any, Any] | None]:
+        """One (direction, key) group's members (indices into done) and what
+        :meth:`~.engine_fast_messages.SpanDecoder.lean_group` made of them (None: the
+        reference judges them)."""
+        ix = np.flatnonzero((self.codes == code) & (self.kind == key))
+        jc = self.loose_keys.get((code, key))  # a carried transfer: the group's first message
+        members = ([] if jc is None else [jc]) + [self.loc[i] for i in ix.tolist()]
+        columns_mode = self.dec.fields == "columns"
+        if columns_mode and directions > 1:
+            return members, None
+        arr = (_gather(self.fa.chunk.data, self.P_np.get(code), self.first[ix], self.ks[ix],
+                       self.ke[ix], self.start[ix], self.length[ix])
+               if ix.size else np.zeros((0, 0), np.uint8))
+        if arr is not None and jc is not None:
+            head = np.frombuffer(self.loose[jc].data, np.uint8)
+            arr = (head[None, :] if not ix.size else
+                   np.concatenate([head[None, :], arr]) if len(head) == arr.shape[1] else None)
+        if arr is None:
+            return members, None
+        base = self.fa.base
+        grows = self.rows[ix] if jc is None else np.concatenate([[self.done[jc][0]],
+                                                                 self.rows[ix]])
+        gks = [0] * (jc is not None) + self.ks[ix].tolist()
+        gke = [0] * (jc is not None) + self.ke[ix].tolist()
+        P = self.bd.rows[code]
+        carried_frames = None if jc is None else self.loose[jc].frames
+        last = (base + grows).tolist()
+        if carried_frames is not None:
+            last[0] = carried_frames[-1] if carried_frames else None
+
+        def frames_of(i: int) -> list[int | None]:
+            if i == 0 and carried_frames is not None:
+                return list(carried_frames)
+            return [base + r for r in P[gks[i] : gke[i]]]
+
+        st = self.done[members[0]][1]
+        return members, self.dec.lean_group(st.name, _PROTO.get(key, key), arr, grows.tolist(),
+                                            self.fa.tfill[grows], last, frames_of,
+                                            columns_mode and directions == 1)
+
+    def reference(self, fallback: list[int]
+                  ) -> tuple[list[tuple[int, dict[str, Any]]], list[tuple[int, ColumnGroup]]]:
+        """The records (and column groups) of the units no lean group took, and of those
+        without a group key, in row order; the receivers' NUM maps brought up to date."""
+        done = self.done
+        exact = [self.loc[i] for i in np.flatnonzero(self.kind < 0).tolist()]
+        exact += [j for key, j in self.loose_keys.items() if key[1] < 0]
+        order = sorted(fallback + exact, key=lambda j: done[j][0])
+        msgs = [self.loose[j] if j in self.loose
+                else self.bd.message(self.fa, done[j][1], done[j][2], done[j][0])
+                for j in order]
+        _bulk_maps(self.bd, self.fa, self.codes, self.ks, self.ke, self.P_np)
+        rows = [done[j][0] for j in order]
+        recs = list(zip(rows, self.dec.records(msgs), strict=True))
+        return recs, [(rows[g.first], g) for g in self.dec.tables]
 
 
 def _gather(data: np.ndarray, P: np.ndarray | None, first: np.ndarray, ks: np.ndarray,
