@@ -111,7 +111,7 @@ def run_dissect(args: argparse.Namespace) -> int:
         dissect_captures,
         fields_mode,
     )
-    from eyeq_spi.dissect.stats import Stats, combine
+    from eyeq_spi.dissect.stats import Stats
     from eyeq_spi.io.jsonl import JsonLinesWriter
 
     if args.csv and args.parquet:
@@ -174,13 +174,21 @@ def run_dissect(args: argparse.Namespace) -> int:
         if table is not None:
             table.close()
     if args.stats:
-        shown = [*per_file, combine(per_file)] if len(per_file) > 1 else per_file
-        for st in shown:
-            if args.json:
-                JsonLinesWriter(out, fast=True).write(st.as_dict())
-            else:
-                out.write(st.render() + "\n")
+        _print_stats(per_file, out, as_json=args.json)
     return 1 if any(st.protocol_errors or st.ignored_bytes for st in per_file) else 0
+
+
+def _print_stats(per_file: list[Any], out: Any, *, as_json: bool) -> None:
+    """Each file's statistics, then their total when there are several."""
+    from eyeq_spi.dissect.stats import combine
+    from eyeq_spi.io.jsonl import JsonLinesWriter
+
+    shown = [*per_file, combine(per_file)] if len(per_file) > 1 else per_file
+    for st in shown:
+        if as_json:
+            JsonLinesWriter(out, fast=True).write(st.as_dict())
+        else:
+            out.write(st.render() + "\n")
 
 
 class _Bars:

@@ -350,15 +350,7 @@ class SpanDecoder:
                 "direction": direction, "time": None if t != t else t, "frames": frames_of(k),
                 "header": header, "fields": {}, "errors": errors,
             }))
-        count = None
-        ok = ~bad
-        if ok.any():
-            timed = np.flatnonzero(ok & ~np.isnan(times))
-            lo, hi = (int(timed[0]), int(timed[-1])) if timed.size else (-1, -1)
-            count = GroupCount(name, int(ok.sum()), rows[lo] if lo >= 0 else -1,
-                               float(times[lo]) if lo >= 0 else None,
-                               rows[hi] if hi >= 0 else -1,
-                               float(times[hi]) if hi >= 0 else None)
+        count = _count(name, ~bad, rows, times)
         table = None
         if columns:
             tl = times.tolist()
@@ -366,6 +358,17 @@ class SpanDecoder:
                 last, [None if t != t else t for t in tl], direction, head,
                 vl.columns(payloads)), [rec for _, rec in recs])
         return recs, count, table
+
+
+def _count(name: str, ok: np.ndarray, rows: list[int], times: np.ndarray) -> GroupCount | None:
+    """The messages of a lean group without errors (``ok``), counted; None: there are none."""
+    if not ok.any():
+        return None
+    timed = np.flatnonzero(ok & ~np.isnan(times))
+    lo, hi = (int(timed[0]), int(timed[-1])) if timed.size else (-1, -1)
+    return GroupCount(name, int(ok.sum()), rows[lo] if lo >= 0 else -1,
+                      float(times[lo]) if lo >= 0 else None, rows[hi] if hi >= 0 else -1,
+                      float(times[hi]) if hi >= 0 else None)
 
 
 def _last_and_times(msgs: list[SpanMessage], rows: list[int]
