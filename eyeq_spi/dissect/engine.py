@@ -369,9 +369,10 @@ def _check_enums(codec: MessageCodec, lay: Any, values: dict[str, Any], path: st
             errs.append(f"bad enum value {v} for {path}.{name} ({enum.name})")
 
 
-def iter_records(records: Iterable[Record], *, sw: str | None = None) -> Iterator[dict[str, Any]]:
+def iter_records(records: Iterable[Record], *, sw: str | None = None,
+                 codec: MessageCodec | None = None) -> Iterator[dict[str, Any]]:
     """All records of a capture, in order, ending with the end-of-capture aborts."""
-    dis = Dissector(sw)
+    dis = Dissector(sw, codec)
     for rec in records:
         yield from dis.feed(rec)
     yield from dis.finish()

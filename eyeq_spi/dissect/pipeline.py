@@ -162,7 +162,7 @@ class CaptureFile:
         if self._done is not None:
             yield from self._done[0]
             return
-        from eyeq_spi.dissect.engine import Dissector
+        from eyeq_spi.dissect.engine import iter_records
 
         cap = self.open()
         fh = self._fh
@@ -173,7 +173,7 @@ class CaptureFile:
 
                 items = chunk_items(cap.chunks, self.codec, self.config.fields)
             else:
-                items = _all(Dissector(codec=self.codec), cap.records)
+                items = iter_records(cap.records, codec=self.codec)
             yield from self._tracked(items, fh)
         except EyeqError as exc:
             raise _naming(exc, self.path) from None
@@ -426,7 +426,3 @@ def _every(record: dict[str, Any]) -> bool:
     return True
 
 
-def _all(dis: Any, records: Iterator[Record]) -> Iterator[dict[str, Any]]:
-    for rec in records:
-        yield from dis.feed(rec)
-    yield from dis.finish()
