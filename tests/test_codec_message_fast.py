@@ -357,7 +357,7 @@ def test_columns_mode_really_writes_columns() -> None:
     items = list(batch.iter_items(chunks_from_records(recs, 1 << 15), fields="columns"))
     groups = [g for b in items if isinstance(b, FrameBlock) for g in b.tables]
     assert {g.name for g in groups} >= {"EYEQ_VIS_OBSTACLES_MSG", "EYEQ_VIS_FAILSAFE_MSG"}
-    assert pipeline.fields_mode([], True) == "count"
+    assert pipeline.fields_mode([], True) == "none"
     assert pipeline.fields_mode([], False) == "none"
     assert pipeline.fields_mode([TableWriter.__new__(TableWriter)], True) == "columns"
     assert pipeline.fields_mode([TableWriter.__new__(TableWriter)], False) == "dict"

@@ -46,7 +46,6 @@ from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.dissect.engine_fast_cut import lean_messages
 from eyeq_spi.dissect.engine_fast_frames import DATA, FrameArrays, FrameBlock, frame_arrays
 from eyeq_spi.dissect.engine_fast_messages import SpanDecoder, SpanMessage
 from eyeq_spi.dissect.engine_fast_types import Dir, Frame, Item, Unit
@@ -94,7 +93,7 @@ class ChunkFeeder:
         self.base = 0
         self.dirs: dict[int, Dir] = {}
         self.deadline: float | None = None
-        self.rows: dict[int, list[int]] = {}
+        self._rows: dict[int, list[int]] = {}
 
     # -- driving -----------------------------------------------------------------------------
     def feed(self, chunk: Chunk) -> Iterator[Item]:
@@ -117,7 +116,7 @@ class ChunkFeeder:
         n = len(fa)
         codes, first = np.unique(fa.chunk.direction, return_index=True)
         plans: dict[int, _Plan] = {}
-        self.rows = {}
+        self._rows = {}
         for code in [int(c) for c in codes[np.argsort(first)]]:
             name = DIR_NAME[code]
             self.dis.open_direction(name)  # receivers made in the order feed() would
@@ -125,7 +124,7 @@ class ChunkFeeder:
             plans[code] = self._plan(fa, st)
         for code, st in self.dirs.items():
             pl = plans.setdefault(code, _empty_plan())
-            self.rows[code] = pl.P
+            self._rows[code] = pl.P
             if st.fast:
                 self._walk(fa, st, pl, 0, fresh=False)
         times = fa.chunk.time
@@ -321,7 +320,7 @@ class ChunkFeeder:
         for st in self.dirs.values():
             if not st.fast:
                 continue
-            P = self.rows[st.code]
+            P = self._rows[st.code]
             while st.ui < len(st.units):
                 u = st.units[st.ui]
                 row = P[u.ke - 1]
@@ -331,21 +330,17 @@ class ChunkFeeder:
                 st.ui += 1
         if len(done) > 1:
             done.sort(key=lambda x: x[0])
-        lean = lean_messages(self, fa, done) if self.decode.lean else None  # engine_fast_cut
-        if lean is not None:  # --stats or one table writer, no filter
-            block.messages, block.tables, block.counts = lean
-        else:
-            msgs = self._messages(fa, done)
-            for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
-                block.messages.append((row, rec))
-            block.tables = self.decode.tables
+        msgs = self._messages(fa, done)
+        for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
+            block.messages.append((row, rec))
+        block.tables = self.decode.tables
         t = fa.tfill[hi - 1]
         self.dis.last_time = None if t != t else float(t)
         return block
 
     def _frames(self, fa: FrameArrays, st: Dir, ks: int, ke: int) -> list[Frame]:
         """Frames P[ks:ke] of this chunk (ks = -1: after the carried open transfer)."""
-        P = self.rows[st.code]
+        P = self._rows[st.code]
         times, nums = fa.lst("time"), fa.lst("num")
         out: list[Frame] = list(st.carried or []) if ks == -1 else []
         data = fa.chunk.data
@@ -360,9 +355,9 @@ class ChunkFeeder:
         """The messages of ``done`` (in order), cut from one copy of all their rows' transport
         payloads (a transfer's frames are consecutive there, so a multi-frame message is one
         slice); the receivers' NUM -> index maps end as the engine's sequential updates leave
-        them. A transfer carried in from the previous chunk goes through :meth:`message`."""
+        them. A transfer carried in from the previous chunk goes through :meth:`_message`."""
         out: list[SpanMessage] = []
-        P_of = {st.code: self.rows[st.code] for _, st, _ in done}
+        P_of = {st.code: self._rows[st.code] for _, st, _ in done}
         local = [u.ks >= 0 for _, _, u in done]
         rows: list[int] = []
         for (_, st, u), ok in zip(done, local, strict=True):
@@ -377,7 +372,7 @@ class ChunkFeeder:
         noted: dict[str | None, tuple[list[int], list[int]]] = {}  # NUMs, indices in order
         for (row, st, u), ok in zip(done, local, strict=True):
             if not ok:
-                out.append(self.message(fa, st, u, row))
+                out.append(self._message(fa, st, u, row))
                 continue
             t = tfill[row]
             o = pos * width
@@ -406,9 +401,9 @@ class ChunkFeeder:
             self.dis.note_frames(name, fnums_all, idxs_all)
         return out
 
-    def message(self, fa: FrameArrays, st: Dir, u: Unit, row: int) -> SpanMessage:
+    def _message(self, fa: FrameArrays, st: Dir, u: Unit, row: int) -> SpanMessage:
         tid: int | None = None
-        P = self.rows[st.code]
+        P = self._rows[st.code]
         data = fa.chunk.data
         base = fa.base
         if u.first and u.ks >= 0:  # all its frames in this chunk: cut from the array

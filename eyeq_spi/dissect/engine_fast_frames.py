@@ -183,9 +183,6 @@ class FrameBlock:
     messages: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
     # engine_fast_messages.ColumnGroup, "columns" mode
     tables: list[Any] = field(default_factory=list)
-    # engine_fast_messages.GroupCount, lean modes: messages without a record (plain consumers
-    # only)
-    counts: list[Any] = field(default_factory=list)
 
     def frame(self, i: int) -> dict[str, Any]:
         """The frame record of row ``i`` (:func:`.engine.frame_record`)."""
@@ -226,23 +223,5 @@ class FrameBlock:
             vals, cnt = np.unique(fa.num[lo:hi][naks], return_counts=True)
             for v, c in zip(vals.tolist(), cnt.tolist(), strict=True):
                 stats.nak_reasons[f"0x{v:03X}"] += c
-        if not self.counts:
-            for _, rec in self.messages:
-                stats.add(rec)
-            return
-        # lean: the counted messages' first and last times (Stats._message) at their rows, in
-        # capture order with the records
-        marks: list[tuple[int, int, Any]] = [(r, 0, rec) for r, rec in self.messages]
-        for g in self.counts:
-            stats.messages[g.name] += g.n
-            if g.first_row >= 0:
-                marks.append((g.first_row, 1, (g.name, g.t_first)))
-                marks.append((g.last_row, 1, (g.name, g.t_last)))
-        marks.sort(key=lambda x: x[0])
-        for _, is_mark, x in marks:
-            if not is_mark:
-                stats.add(x)
-                continue
-            name, t = x
-            stats.first.setdefault(name, t)
-            stats.last[name] = t
+        for _, rec in self.messages:
+            stats.add(rec)

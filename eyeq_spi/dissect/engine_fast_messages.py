@@ -6,35 +6,26 @@ message has the layout's length is judged at once — E2E CRCs and rolling count
 (:meth:`VecLayout.verify`, D5), undefined enum values (:meth:`VecLayout.enum_errors`) — and its
 DASP counters (D1) and fields row by row. 0x41 and 0x10 messages (rule A: an ID byte and one
 layout each, no E2E state, no counters) are grouped by (direction, protocol) the same way. Any
-other message (MESP, unknown IDs, a group with a wrong length in it) goes through the exact
-engine's ``_message``. The receivers'
+other message (MESP, unknown IDs, a group with a wrong length in it) goes to the reference
+(:meth:`.engine.Dissector.accept_clean`). The receivers'
 state is per (direction, data ID) for DASP (decision D1; E2E counters are keyed by the message's
 own layout, and no two DASP messages of a release share one, which the tests check), so groups
-are independent and each is judged in capture order: every record is the one the exact engine
+are independent and each is judged in capture order: every record is the one the reference
 makes (``tests/test_dissect_engine_fast.py`` holds them to it record for record).
 
 ``fields`` says what the records of the vectorised groups carry:
 
-- ``"dict"``: the fields as the exact engine decodes them (the generated ``struct`` path);
-- ``"none"`` (``dissect --stats`` with a filter and no other output): ``"fields": {}``; everything
-  ``--stats`` and the filters read is there;
-- ``"count"`` (``dissect --stats``, no filter, no other output): *lean*, see below;
+- ``"dict"``: the fields as the reference decodes them (the generated ``struct`` path);
+- ``"none"`` (``dissect --stats`` and no other output): ``"fields": {}``; everything ``--stats``
+  and the filters read is there;
 - ``"columns"`` (``--csv``/``--parquet`` with no filter and no other output): ``"fields": {}``,
   and each group's table rows as columns straight from the arrays in :attr:`SpanDecoder.tables`
   (``frame_index``, ``time``, ``direction``, ``header.*``, then the flattened fields, the row a
-  :class:`~.output.TableWriter` makes of the exact record, value for value). Also lean.
-
-Lean modes (``"count"``, ``"columns"``): the fast path cuts a group's messages straight into
-an array (:mod:`.engine_fast_cut`) and :meth:`SpanDecoder.lean_group` judges it as :meth:`_group`
-would, but makes a record only for a message with an error; the others are one :class:`GroupCount`
-(how many, the rows and times of the first and last with a time), which is all ``--stats`` reads of
-them (:meth:`.engine_fast_frames.FrameBlock.add_to`). Only plain consumers (no filter) take lean
-blocks.
+  :class:`~.output.TableWriter` makes of the reference's record, value for value).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -59,21 +50,7 @@ class SpanMessage:
         self.time, self.frames = time, frames
 
 
-FIELD_MODES = ("dict", "none", "count", "columns")
-LEAN_MODES = ("count", "columns")
-
-
-@dataclass
-class GroupCount:
-    """A lean group's messages without errors: ``n`` of them; the capture rows (in the chunk)
-    and times of the first and the last that have a time (rows -1: none has)."""
-
-    name: str
-    n: int
-    first_row: int
-    t_first: float | None
-    last_row: int
-    t_last: float | None
+FIELD_MODES = ("dict", "none", "columns")
 
 
 @dataclass
@@ -97,7 +74,6 @@ class SpanDecoder:
         self.codec = dis.codec
         self.fields = fields
         self.tables: list[ColumnGroup] = []  # of the last records() call, by first position
-        self.lean = fields in LEAN_MODES
 
     def records(self, msgs: list[SpanMessage]) -> list[dict[str, Any]]:
         """The message records of ``msgs`` (in capture order), in that order."""
@@ -276,99 +252,6 @@ class SpanDecoder:
             else:  # uint64: Python ints, as the exact row has them
                 out[k] = col.tolist()
         return out
-
-    # -- lean modes ----------------------------------------------------------------------------
-    def lean_group(self, direction: str | None, key: int | str, arr: np.ndarray,
-                   rows: list[int], times: np.ndarray, last: list[int | None],
-                   frames_of: Callable[[int], list[int | None]], columns: bool
-                   ) -> tuple[list[tuple[int, dict[str, Any]]], GroupCount | None,
-                              ColumnGroup | None] | None:
-        """A (direction, data ID) DASP group (``key`` an int) or a 0x41/0x10 group (``key``
-        "DIAG"/"BOOT") whose messages are the rows of ``arr`` (header + payload), completed at
-        chunk ``rows`` with ``times`` (NaN: none) and ``last`` frame indices; ``frames_of(k)``:
-        row k's frame indices. The records of the messages with errors (as :meth:`_group` /
-        :meth:`_other` make them, ``"fields": {}``) with their rows, the count of the others,
-        and with ``columns`` every message's table row. None: the group needs the exact path."""
-        dasp = isinstance(key, int)
-        msg = (self.codec.dasp_message(key) if isinstance(key, int)
-               else self.codec.other_message(key))
-        hdr = 4 if dasp else 1
-        if msg is None:
-            return None
-        try:
-            lay = self.codec.layout(msg)
-        except SpecError:
-            return None
-        n, length = arr.shape
-        if length != hdr + lay.size or not n:
-            return None
-        vl = vec_layout(lay, self.codec.cat)
-        payloads = arr[:, hdr:]
-        name = msg.name
-        e2e_state, dc = self.dis.message_state(direction)
-        e2e = vl.verify(payloads, e2e_state if dasp else None)
-        clean = ~np.fromiter(map(bool, e2e), bool, n)
-        head: dict[str, list[int]]
-        if isinstance(key, int):
-            reserved = arr[:, 3]
-            clean &= reserved == 0
-            counters = arr[:, 2].astype(np.int64)
-            # D1: each counter against the one before it (the receiver's last for row 0)
-            before = dc.last(key)
-            prev = np.empty(n, np.int64)
-            prev[0] = -1 if before is None else before
-            prev[1:] = counters[:-1]
-            expected = (prev + 1) & 0xFF
-            gap = (prev >= 0) & (counters != expected)
-            dc.learn(key, int(counters[-1]))
-            bad = ~clean | gap
-            head = {"header.data_id": [key] * n, "header.counter": counters.tolist()}
-        else:
-            bad = ~clean
-            head = {"header.id": arr[:, 0].tolist()}
-        enums = vl.enum_errors(payloads, name, clean)
-        if enums:
-            bad[list(enums)] = True
-        proto = "DASP" if dasp else str(key)
-        recs: list[tuple[int, dict[str, Any]]] = []
-        for k in np.flatnonzero(bad).tolist():
-            t = float(times[k])
-            if dasp:
-                counter = head["header.counter"][k]
-                r = int(reserved[k])
-                errors = [f"DASP reserved byte is 0x{r:02X}, not 0"] if r else []
-                errors += e2e[k]
-                if gap[k]:
-                    errors.append(f"DASP counter gap: expected {int(expected[k])}, got {counter}")
-                header: dict[str, int] = {"data_id": key, "counter": counter}  # type: ignore[dict-item]
-            else:
-                errors = list(e2e[k])
-                header = {"id": head["header.id"][k]}
-            errors += enums.get(k, ())
-            recs.append((rows[k], {
-                "kind": "message", "protocol": proto, "name": name, "length": length,
-                "direction": direction, "time": None if t != t else t, "frames": frames_of(k),
-                "header": header, "fields": {}, "errors": errors,
-            }))
-        count = _count(name, ~bad, rows, times)
-        table = None
-        if columns:
-            tl = times.tolist()
-            table = ColumnGroup(rows[0], name, self._columns(
-                last, [None if t != t else t for t in tl], direction, head,
-                vl.columns(payloads)), [rec for _, rec in recs])
-        return recs, count, table
-
-
-def _count(name: str, ok: np.ndarray, rows: list[int], times: np.ndarray) -> GroupCount | None:
-    """The messages of a lean group without errors (``ok``), counted; None: there are none."""
-    if not ok.any():
-        return None
-    timed = np.flatnonzero(ok & ~np.isnan(times))
-    lo, hi = (int(timed[0]), int(timed[-1])) if timed.size else (-1, -1)
-    return GroupCount(name, int(ok.sum()), rows[lo] if lo >= 0 else -1,
-                      float(times[lo]) if lo >= 0 else None, rows[hi] if hi >= 0 else -1,
-                      float(times[hi]) if hi >= 0 else None)
 
 
 def _last_and_times(msgs: list[SpanMessage], rows: list[int]

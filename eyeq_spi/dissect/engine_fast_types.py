@@ -1,16 +1,13 @@
-"""The fast path's vocabulary (:mod:`eyeq_spi.dissect.engine_fast`, the fast twin of
+"""The fast path's vocabulary (:mod:`eyeq_spi.dissect.engine_fast`, in front of
 :class:`~eyeq_spi.dissect.engine.Dissector`): the items it yields, a direction's span state and
-the transfers of a span, and the state the message cutter (:mod:`eyeq_spi.dissect.engine_fast_cut`)
-reads from it. Kept apart so the cutter does not import the dissector that calls it."""
+the transfers of a span."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
-from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.dissect.engine_fast_frames import FrameArrays, FrameBlock
-from eyeq_spi.dissect.engine_fast_messages import SpanDecoder, SpanMessage
+from eyeq_spi.dissect.engine_fast_frames import FrameBlock
 
 Item = dict[str, Any] | FrameBlock
 Frame = tuple[bytes, float | None, int, int]  # transfer, time, NUM, capture index
@@ -47,15 +44,3 @@ class Dir:
     carried_tid: int = 0
     carried_need: int = 0  # consecutive frames it still needs
     carried_last_take: int = 0  # message bytes in its last frame (T6a: zeros after them)
-
-
-class FeederState(Protocol):
-    """What the message cutter reads from the fast path: its decoder, its exact
-    dissector (whose NUM maps it fills), each direction's fed rows in the current chunk, and
-    the one-message cut it falls back to."""
-
-    dis: Dissector
-    decode: SpanDecoder
-    rows: dict[int, list[int]]
-
-    def message(self, fa: FrameArrays, st: Dir, u: Unit, row: int) -> SpanMessage: ...

@@ -318,11 +318,11 @@ def open_capture_file(path: str, config: DissectConfig | None = None) -> Capture
 
 
 def fields_mode(writers: list[Any], plain: bool) -> str:
-    """What the fast path's messages must carry for these writers (vmessages.SpanDecoder):
-    counts only for statistics alone with no filter, no fields with a filter, columns for one
-    table writer and no filter, else the fields."""
+    """What the fast path's messages must carry for these writers
+    (:class:`.engine_fast_messages.SpanDecoder`): no fields for statistics alone, columns for
+    one table writer and no filter, else the fields."""
     if not writers:
-        return "count" if plain else "none"
+        return "none"
     if (plain and len(writers) == 1 and type(writers[0]).__name__ == "TableWriter"
             and not getattr(writers[0], "errors", False)):
         return "columns"

@@ -11,7 +11,6 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import replace
 from typing import IO, Any
 
 import numpy as np
@@ -177,11 +176,8 @@ def _compact(block: FrameBlock) -> FrameBlock:
     small = FrameArrays(chunk, fa.base + lo, fa.ftype[lo:hi].copy(), fa.num[lo:hi].copy(),
                         fa.rsp[lo:hi].copy(), fa.crc_ok[lo:hi].copy(), fa.d[lo:hi].copy(),
                         fa.fed[lo:hi].copy(), fa.tfill[lo:hi].copy(), fa.r[lo:hi].copy())
-    counts = [replace(g, first_row=g.first_row - lo if g.first_row >= 0 else -1,
-                      last_row=g.last_row - lo if g.last_row >= 0 else -1)
-              for g in block.counts]
     return FrameBlock(small, 0, hi - lo, [(r - lo, m) for r, m in block.messages],
-                      block.tables, counts)
+                      block.tables)
 
 
 def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,

@@ -60,7 +60,7 @@ def detect(head: bytes) -> str:
 def _detect(head: bytes, text: bool) -> str:
     """``text``: try the text formats (logic-analyzer exports, hex). A head that starts with a
     byte of ``_BINARY_LEAD`` can be none of them, so a raw capture skips their sniffers (and the
-    import of eyeq_spi.logic): the answer is the same (tests/test_dissect_engine_fast_cut.py)."""
+    import of eyeq_spi.logic): the answer is the same (tests/test_dissect_stats_fast.py)."""
     if not head:
         raise InputError("empty input")
     for _, sniff in registry.sniffers(text):
