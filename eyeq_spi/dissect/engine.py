@@ -146,8 +146,8 @@ class Dissector:
         """The record of a whole message that a clean run of frames delivered on
         ``direction`` (every frame 128 bytes, CRC good, DATA, its NUM the one expected, its
         transfer whole and in time), completed at ``time`` by the frames at capture indices
-        ``frames``: what :meth:`feed` of those frames would give. The run's frames are
-        noted with :meth:`note_frames`."""
+        ``frames``: what :meth:`feed` of those frames would give. The caller notes the run's
+        frames with :meth:`note_frames`."""
         self.last_time = time
         rec = self._message(direction, self._dir(direction),
                             MessageReceived(data, nums, transfer_id))
@@ -166,7 +166,8 @@ class Dissector:
         oldest frame given and takes these frames again, output dropped, so that it stands as
         :meth:`feed` of the whole run would leave it. ``tail``: the run's last whole
         transfers (at least a window of frames, L6a); ``last_first``: the run's last
-        multi-frame transfer when ``tail`` has none (T: a straggler's transfer ID);
+        multi-frame transfer when ``tail`` has none (the transport judges a straggler of it by
+        its transfer ID);
         ``open_transfer``: the transfer still open at the run's end (with its deadline)."""
         d = self._dir(direction)
         units = tail + ([open_transfer] if open_transfer else [])
