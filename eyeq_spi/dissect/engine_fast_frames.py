@@ -2,7 +2,7 @@
 
 The header word is split with the :class:`FrameCodec`'s own shifts (L1, bit order configurable)
 and the CRC (L3) runs two bytes per step through a 65536-entry table built from the codec's CRC
-function, so both follow the codec's configuration. Everything a frame record of the exact engine
+function, so both follow the codec's configuration. Everything a frame record of the reference
 holds (``engine.Dissector.feed``) comes out as arrays; :class:`FrameBlock` turns a range of them
 into records, JSON Lines or ``--stats`` counts.
 """

@@ -40,7 +40,7 @@ from eyeq_spi.errors import SpecError
 
 class SpanMessage:
     """A reassembled message of a span: its direction, bytes, NUMs, transfer ID, time and
-    capture indices of its frames (taken when it completed, as the exact engine takes them)."""
+    capture indices of its frames (taken when it completed, as the reference takes them)."""
 
     __slots__ = ("data", "direction", "frames", "nums", "tid", "time")
 
@@ -56,7 +56,7 @@ FIELD_MODES = ("dict", "none", "columns")
 @dataclass
 class ColumnGroup:
     """The table rows of a group's messages: ``first`` is the position (in the block's
-    messages) of its first message; ``columns`` in the order of the exact table row."""
+    messages) of its first message; ``columns`` in the order of the reference's table row."""
 
     first: int
     name: str
@@ -81,7 +81,7 @@ class SpanDecoder:
         if cut is not None:  # the messages before it, it, then the ones after it
             head = self.records(msgs[:cut])
             tables = self.tables
-            mid = self.records_exact(msgs[cut : cut + 1])
+            mid = self.records_reference(msgs[cut : cut + 1])
             tail = self.records(msgs[cut + 1 :])
             for g in self.tables:
                 g.first += cut + 1
@@ -90,7 +90,7 @@ class SpanDecoder:
         out: list[dict[str, Any] | None] = [None] * len(msgs)
         self.tables = []
         groups: dict[tuple[str | None, int | str], list[int]] = {}
-        exact: list[int] = []
+        reference: list[int] = []
         for i, m in enumerate(msgs):
             data = m.data
             proto = classify(data) if data else "UNKNOWN"
@@ -99,7 +99,7 @@ class SpanDecoder:
             elif proto in ("DIAG", "BOOT"):  # 0x41 / 0x10: one layout each (rule A)
                 groups.setdefault((m.direction, proto), []).append(i)
             else:
-                exact.append(i)
+                reference.append(i)
         ids = [k[1] for k in groups]
         for (direction, data_id), rows in groups.items():
             # a data ID in both directions: two groups of one table, rows as dicts
@@ -108,16 +108,16 @@ class SpanDecoder:
                   if isinstance(data_id, int) else
                   self._other(msgs, rows, direction, data_id, out, columns))
             if not ok:
-                exact += rows
+                reference += rows
         if len(self.tables) > 1:
             self.tables.sort(key=lambda g: g.first)
-        for i, rec in zip(sorted(exact), self.records_exact([msgs[i] for i in sorted(exact)]),
-                          strict=True):
+        order = sorted(reference)
+        for i, rec in zip(order, self.records_reference([msgs[i] for i in order]), strict=True):
             out[i] = rec
         return out  # type: ignore[return-value]
 
-    def records_exact(self, msgs: list[SpanMessage]) -> list[dict[str, Any]]:
-        """The exact engine's records of ``msgs``, one by one."""
+    def records_reference(self, msgs: list[SpanMessage]) -> list[dict[str, Any]]:
+        """The reference's records of ``msgs``, one by one."""
         out = []
         for m in msgs:
             out.append(self.dis.accept_clean(m.direction, m.data, m.nums, m.tid, m.frames,
@@ -125,7 +125,7 @@ class SpanDecoder:
         return out
 
     def is_barrier(self, data: bytes) -> bool:
-        """A MESP SwitchEyeQApplication request (§7.1.1.1.4): the exact engine may reset the
+        """A MESP SwitchEyeQApplication request (§7.1.1.1.4): the reference may reset the
         direction's E2E state on it (the application restarts), so no group is judged across
         it: the messages before it, it, and those after it are judged in that order."""
         if len(data) < 5 or data[1] != MESP_PROTOCOL or data[0] != data[2] or data[4] & 0x80:
@@ -136,7 +136,7 @@ class SpanDecoder:
     def _rows(self, msgs: list[SpanMessage], rows: list[int], msg: Any, header: int
               ) -> tuple[Any, Any, list[bytes], Any] | None:
         """A group's layout, vectorised layout, message bytes and (rows, header + payload)
-        array; None when the group needs the exact path (no layout, or a length that is not the
+        array; None when the group needs the reference (no layout, or a length that is not the
         layout's)."""
         try:
             lay = self.codec.layout(msg)
@@ -151,7 +151,7 @@ class SpanDecoder:
 
     def _group(self, msgs: list[SpanMessage], rows: list[int], direction: str | None,
                data_id: int, out: list[dict[str, Any] | None], columns: bool) -> bool:
-        """Judge one (direction, data ID) group at once; False: it needs the exact path."""
+        """Judge one (direction, data ID) group at once; False: it needs the reference."""
         msg = self.codec.dasp_message(data_id)
         got = None if msg is None else self._rows(msgs, rows, msg, 4)
         if msg is None or got is None:
@@ -249,7 +249,7 @@ class SpanDecoder:
                 out[k] = col.astype(np.float64)
             elif kind == "i" or (kind == "u" and col.dtype.itemsize < 8):
                 out[k] = col.astype(np.int64)
-            else:  # uint64: Python ints, as the exact row has them
+            else:  # uint64: Python ints, as the reference's row has them
                 out[k] = col.tolist()
         return out
 

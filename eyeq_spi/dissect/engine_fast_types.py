@@ -17,7 +17,7 @@ Frame = tuple[bytes, float | None, int, int]  # transfer, time, NUM, capture ind
 class Unit:
     """One transfer of a span: its first and last index into the direction's rows."""
 
-    ks: int  # first index into P, -1: the open transfer carried in from the previous chunk
+    ks: int  # first index into P
     ke: int  # one past the last
     first: bool
 
@@ -29,18 +29,10 @@ class Dir:
     name: str | None
     code: int
     fast: bool = False
-    canonical: bool = False  # exact mode: the last fed frame completed a message
+    canonical: bool = False  # reference mode: the last fed frame completed a message
     # the span in the current chunk
     units: list[Unit] = field(default_factory=list)
     ui: int = 0  # next unit to emit
     stop_k: int = 0  # index into P of the first frame not in the span
-    open_ks: int = -1  # index into P of the open transfer's first frame, -1: none or carried
+    open_ks: int = -1  # index into P of the open transfer's first frame, -1: none
     switch_row: int = 0
-    # carried across chunks in fast mode
-    last_num: int = -1
-    hist: list[list[Frame]] = field(default_factory=list)  # last complete units, oldest first
-    last_first: list[Frame] | None = None  # the span's last complete multi-frame transfer
-    carried: list[Frame] | None = None  # the open transfer at the start of the chunk
-    carried_tid: int = 0
-    carried_need: int = 0  # consecutive frames it still needs
-    carried_last_take: int = 0  # message bytes in its last frame (T6a: zeros after them)
