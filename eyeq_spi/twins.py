@@ -30,7 +30,10 @@ FAMILIES: dict[str, tuple[str, str]] = {
     "logic.vcd": ("eyeq_spi.logic.vcd_ref", "eyeq_spi.logic.vcd_fast"),
     "codec.layout": ("construct codec (Layout.parse_construct)", "eyeq_spi.codec.layout_fast"),
     "codec.message": ("Layout.parse per message", "eyeq_spi.codec.message_fast"),
+    # the one Dissector (feed); the fast leaf checks frames over arrays and hands clean runs'
+    # messages to Dissector.accept_clean; eyeq_spi.dissect.pipeline.fast_module chooses
     "dissect.engine": ("eyeq_spi.dissect.engine", "eyeq_spi.dissect.engine_fast"),
+    # python-pcapng, or array chunks read once with the release (pipeline_fast.open_fast)
     "capture.pcapng": ("eyeq_spi.capture.pcapng_io", "eyeq_spi.capture.pcapng_fast"),
     "capture.write": ("CaptureWriter, one block per write",
                       "eyeq_spi.capture.pcapng_write_fast"),

@@ -119,10 +119,10 @@ def test_json_is_pure_json_lines(capture: Path, capsys: pytest.CaptureFixture[st
 
 
 def test_json_writer_turns_non_finite_floats_into_null() -> None:
-    from eyeq_spi.dissect.output import JsonWriter
+    from eyeq_spi.io.jsonl import JsonLinesWriter
 
     buf = io.StringIO()
-    JsonWriter(buf).write({"kind": "message", "fields": {"a": float("nan"), "b": [1.5, float(
+    JsonLinesWriter(buf).write({"kind": "message", "fields": {"a": float("nan"), "b": [1.5, float(
         "inf")], "c": {"d": -float("inf")}}})
     assert _strict(buf.getvalue()) == {"kind": "message", "fields": {"a": None,
                                        "b": [1.5, None], "c": {"d": None}}}

@@ -3,8 +3,6 @@ codec: every DASP message at every SW release, value for value and error for err
 
 from __future__ import annotations
 
-import io
-import json
 import math
 import struct
 import tempfile
@@ -12,7 +10,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import orjson
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -26,11 +23,11 @@ from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.codec.message_fast import crc_rows, vec_layout
 from eyeq_spi.crc import crc16
-from eyeq_spi.dissect import batch_run, engine, pipeline
+from eyeq_spi.dissect import engine, pipeline, pipeline_fast
 from eyeq_spi.dissect import engine_fast as batch
 from eyeq_spi.dissect.engine import _check_enums
 from eyeq_spi.dissect.engine_fast_frames import FrameBlock
-from eyeq_spi.dissect.output import JsonWriter, TableWriter, flatten
+from eyeq_spi.dissect.output import TableWriter, flatten
 from eyeq_spi.dissect.stats import Stats
 from eyeq_spi.link.frame import FrameCodec
 from eyeq_spi.transport.segment import segment
@@ -201,7 +198,7 @@ def test_float_columns_keep_binary32_values() -> None:
     assert vl.columns(arr)[leaf.name][0].item() == struct.unpack("<f", struct.pack("<f", 0.1))[0]
 
 
-# -- the batch dissector's span messages (dissect/engine_fast_messages.py) ---------------------
+# -- the fast path's span messages (dissect/engine_fast_messages.py) ---------------------
 def _capture(faults: list[tuple[int, int]]) -> list[Record]:
     """e2h DASP traffic (failsafe, obstacles, SRP, light sensor, timesync) in single and
     multi-frame transfers, each data ID's counters and E2E stepping; ``faults`` (message index,
@@ -319,7 +316,7 @@ def test_no_two_dasp_messages_share_a_layout() -> None:
 
 
 def _tables(tmp: Path, fmt: str, recs: list[Record], chunk: int | None) -> Path:
-    """The tables of the exact engine (chunk None) or of the batch path in columns mode."""
+    """The tables of the exact engine (chunk None) or of the fast path in columns mode."""
     out = tmp / f"{fmt}-{chunk}"
     w = TableWriter(str(out), fmt, batch=3)  # small batches: column and dict rows interleave
     if chunk is None:
@@ -328,7 +325,7 @@ def _tables(tmp: Path, fmt: str, recs: list[Record], chunk: int | None) -> Path:
     else:
         for item in batch.iter_items(chunks_from_records(recs, chunk), fields="columns"):
             if isinstance(item, FrameBlock):
-                batch_run.consume(item, lambda r: True, True, Stats(CAT), [w])
+                pipeline_fast.consume(item, lambda r: True, True, Stats(CAT), [w])
             else:
                 w.write(item)
     w.close()
@@ -360,43 +357,10 @@ def test_columns_mode_really_writes_columns() -> None:
     items = list(batch.iter_items(chunks_from_records(recs, 1 << 15), fields="columns"))
     groups = [g for b in items if isinstance(b, FrameBlock) for g in b.tables]
     assert {g.name for g in groups} >= {"EYEQ_VIS_OBSTACLES_MSG", "EYEQ_VIS_FAILSAFE_MSG"}
-    assert pipeline.fields_mode([], True) == "count"
+    assert pipeline.fields_mode([], True) == "none"
     assert pipeline.fields_mode([], False) == "none"
     assert pipeline.fields_mode([TableWriter.__new__(TableWriter)], True) == "columns"
     assert pipeline.fields_mode([TableWriter.__new__(TableWriter)], False) == "dict"
-
-
-def test_json_frame_lines_spell_floats_as_the_fast_writer() -> None:
-    """Frame lines formatted from the arrays and orjson's records agree byte for byte, also for
-    times where orjson and json.dumps spell floats differently."""
-    recs = _capture([(3, 1)])
-    odd = [5e-05, 2.5e-07, 1e16, 1e-5, 123.25, float("nan")]
-    recs = [Record(odd[i] if i < len(odd) else r.time, r.direction, r.data)
-            for i, r in enumerate(recs)]
-    items = list(batch.iter_items(chunks_from_records(recs, 1 << 15)))
-    for fast in (False, True):
-        got, want = io.StringIO(), io.StringIO()
-        w = JsonWriter(got, fast=fast)
-        ref = JsonWriter(want, fast=fast)
-        for item in items:
-            if isinstance(item, FrameBlock):
-                item.write_json(got, w.write, fast)
-                for r in item.records():
-                    ref.write(r)
-            else:
-                w.write(item)
-                ref.write(item)
-        assert got.getvalue() == want.getvalue()
-        lines = got.getvalue().splitlines()
-        assert all(json.loads(x) for x in lines)
-        text = got.getvalue()
-        # the contract is the numbers (any JSON parser reads the same floats), not one
-        # library version's exponent spelling: each writer spells a float as its encoder does
-        times = [json.loads(x)["time"] for x in lines if '"kind":"frame"' in x]
-        assert times[:5] == odd[:5]
-        for t in odd[:5]:
-            spelled = orjson.dumps(t).decode() if fast else repr(t)
-            assert f'"time":{spelled},' in text, (fast, t, spelled)
 
 
 def test_jobs_tables_are_the_serial_tables(tmp_path: Path) -> None:

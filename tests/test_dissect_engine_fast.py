@@ -1,4 +1,4 @@
-"""The batch dissector agrees with the exact engine record for record, on every test capture:
+"""The fast path agrees with the exact engine record for record, on every test capture:
 demo captures, hand-built faults, hypothesis-mutated captures (CRC errors, gaps, duplicates,
 resets, aborts, wrong lengths, late frames, cut starts and ends), at several chunk sizes."""
 

@@ -178,7 +178,7 @@ def _mdf_content(path: Path) -> dict[str, Any]:
 def test_export_mdf_from_the_pipeline_equals_the_transfer_pass(
         saleae: Path, demo: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
         monkeypatch: pytest.MonkeyPatch) -> None:
-    """--mdf alone takes the pipeline (the batch path for a big pcapng); with --mcap it rides
+    """--mdf alone takes the pipeline (the fast path for a big pcapng); with --mcap it rides
     on the pass over the transfers. The MDF holds the same either way, and the Saleae export's
     MDF is the capture's."""
     pytest.importorskip("mcap", reason="--mcap needs mcap (the [export] extra)")

@@ -156,6 +156,46 @@ def test_a_cut_file_gives_its_documented_result(fmt: Format, capture: list[Recor
             assert fmt.truncation == "short" and orig.data.startswith(last.data)
 
 
+RANDOM = bytes((i * 7919 + (i >> 3) * 104729 + 0x5A) & 0xFF for i in range(3000))
+"""Bytes that never were a capture (a fixed pattern: no two runs differ)."""
+
+
+@pytest.mark.parametrize("fmt", READERS, ids=lambda f: f.name)
+def test_a_file_that_never_was_the_format_is_not_it(fmt: Format, tmp_path: Path) -> None:
+    """Read as this format (``--format``): "not a ..." (an input error, exit 2), never
+    "truncated", which only a file that began as its format is; detected: not a capture.
+    Through the command line too, named with the format's suffix."""
+    from eyeq_spi.cli import main
+
+    for head in (RANDOM, RANDOM[:100]):
+        with pytest.raises(InputError) as exc:
+            _read(fmt, head, fmt.name)
+        assert not isinstance(exc.value, TruncatedInputError), exc.value
+        assert "not a" in str(exc.value) and "\n" not in str(exc.value), exc.value
+        assert str(exc.value).isprintable(), exc.value  # no binary bytes echoed
+    with pytest.raises(InputError, match="not an EyeQ SPI capture"):
+        _read(fmt, RANDOM)
+    path = tmp_path / f"random{fmt.suffixes[0]}"
+    path.write_bytes(RANDOM)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        assert main(["dissect", str(path)]) == 2
+        assert main(["dissect", "--format", fmt.name, str(path)]) == 2
+    assert "truncated" not in err.getvalue() and "not a" in err.getvalue()
+
+
+def test_a_can_log_given_to_dissect_names_can_decode(tmp_path: Path) -> None:
+    from eyeq_spi.cli import main
+
+    path = tmp_path / "drive.blf"
+    path.write_bytes(b"LOGG" + RANDOM)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["dissect", str(path)]) == 2
+    assert f"eyeq-spi can decode {path}" in err.getvalue()
+    assert len(err.getvalue().strip().splitlines()) == 1
+
+
 @pytest.mark.parametrize("fmt", READERS, ids=lambda f: f.name)
 def test_an_empty_file_is_a_clear_error(fmt: Format) -> None:
     with pytest.raises(InputError, match="empty input"):
@@ -190,8 +230,8 @@ def test_every_entry_imports(fmt: Format) -> None:
     assert callable(registry.load(fmt))
     if fmt.sniff is not None:
         assert any(name == fmt.sniff for name, _ in registry.sniffers(text=True))
-    if fmt.batch is not None:
-        mod, _, name = fmt.batch.partition(":")
+    if fmt.fast is not None:
+        mod, _, name = fmt.fast.partition(":")
         assert callable(getattr(importlib.import_module(mod), name))
     assert fmt.suffixes or fmt.kind == registry.CAN_LOG
     assert all(s.startswith(".") and s == s.lower() for s in fmt.suffixes)
@@ -234,15 +274,15 @@ def records(capture: list[Record]) -> list[dict[str, Any]]:
 
 
 def _rows(records: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
-    """The table rows of the messages with fields (``docs/dissector.md`` tables), every field
-    kept: a table per message name, a MESP reply in ``NAME.reply``; a row with a column its
+    """The table rows of every message (``docs/dissector.md`` tables), every field kept: a
+    table per message name, a MESP reply in ``NAME.reply``; a row with a column its
     table's header lacks goes in the next part (``NAME.2``) whose header holds it."""
     from eyeq_spi.dissect.output import flatten, table_name
 
     out: dict[str, list[dict[str, Any]]] = {}
     headers: dict[str, list[list[str]]] = {}
     for r in records:
-        if r["kind"] == "message" and r["fields"]:
+        if r["kind"] == "message":
             row = {"file": None, "frame_index": r["frames"][-1], "time": r["time"],
                    "direction": r["direction"],
                    **{f"header.{k}": v for k, v in r["header"].items()}, **flatten(r["fields"])}

@@ -268,7 +268,8 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
     from eyeq_spi.capture.pcapng_io import CaptureWriter
     from eyeq_spi.codec.layout_fast import FastCodec
     from eyeq_spi.codec.message import MessageCodec
-    from eyeq_spi.dissect import batch_run, engine_fast_messages
+    from eyeq_spi.dissect import engine_fast_messages, pipeline_fast
+    from eyeq_spi.dissect.pipeline import SMALL_INPUT, dissect_files
     from eyeq_spi.emulator import build
     from eyeq_spi.host import veh_state_fast
     from eyeq_spi.host.host import HostEmulator
@@ -284,10 +285,15 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
     write_vcd([Record(0.0, "h2e", b"\x01\x02")], buf, SpiOptions())
     vcd_bytes = buf.getvalue().encode()
     pcap = tmp_path / "c.pcapng"
+    records = _capture([])
     with CaptureWriter(pcap) as w:
-        for r in _capture([]):
-            assert r.direction is not None and r.time is not None
-            w.write(r.direction, r.time, r.data)
+        span = 0.0
+        while pcap.stat().st_size < SMALL_INPUT:  # big enough for the pipeline's fast path
+            for r in records:
+                assert r.direction is not None and r.time is not None
+                w.write(r.direction, span + r.time, r.data)
+            span += (records[-1].time or 0.0) + 1.0
+            w.flush()
     codec = MessageCodec()
 
     def dasp_layout() -> Any:
@@ -296,8 +302,7 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
         return [lay.parse(lay.build(lay.zero_values()))]
 
     def batch() -> Any:
-        items = batch_run.batch_items(pcap.open("rb"), None, None, codec)
-        return None if items is None else list(items)
+        return list(dissect_files([str(pcap)]))
 
     def dasp() -> Any:
         sim = SimulatedEyeQ(SimConfig())
@@ -334,8 +339,8 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
         "codec.layout": ([(FastCodec, "decode", _poison), (FastCodec, "encode", _poison)],
                          dasp_layout),
         "codec.message": ([(engine_fast_messages, "vec_layout", _poison)], batch),
-        "dissect.engine": ([(batch_run, "BatchDissector", _poison)], batch),
-        "capture.pcapng": ([(batch_run, "pcapng_chunks", _poison),
+        "dissect.engine": ([(pipeline_fast, "ChunkFeeder", _poison)], batch),
+        "capture.pcapng": ([(pipeline_fast, "pcapng_chunks", _poison),
                             (pcapng_fast, "pcapng_chunks", _poison)], batch),
         "capture.write": ([(pcapng_write_fast, "encode_blocks", _poison)], capture),
         "sim.dasp": ([(dasp_fast.DaspPacker, "build", classmethod(_poison))], dasp),

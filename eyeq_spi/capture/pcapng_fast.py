@@ -1,4 +1,4 @@
-"""Captures read into arrays, many transfers at a time (the batch dissector's input).
+"""Captures read into arrays, many transfers at a time (the fast path's input).
 
 A :class:`Chunk` holds up to ``chunk`` transfers: an ``(n, 128)`` byte array, their lengths, times
 (NaN when a transfer has none) and direction codes. A transfer that is not 128 bytes (a chip-select

@@ -15,7 +15,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import options as opt
 
     b = sub.add_parser(name, help=help,
-                       description="Dissect every *.pcapng under DIR with the batch dissector "
+                       description="Dissect every *.pcapng under DIR as dissect does "
                        "and write one Parquet dataset partitioned by capture and message "
                        "(OUT/capture=NAME/message=NAME/part-0.parquet). Prints one JSON "
                        "summary per capture. Exit 0 all captures read, 1 some could not be "

@@ -146,29 +146,10 @@ def _sources(args: argparse.Namespace) -> Iterator[tuple[str, Any]]:
 
 
 def _json_lines() -> tuple[Callable[[dict[str, Any]], None], Callable[[], None]]:
-    """JSON Lines on stdout: (write one record, flush). orjson, written in blocks."""
-    import orjson
+    """JSON Lines on stdout through the one JSON Lines writer: (write one record, flush)."""
+    from eyeq_spi.io.jsonl import JsonLinesWriter
 
-    dumps, opt = orjson.dumps, orjson.OPT_APPEND_NEWLINE
-    out = getattr(sys.stdout, "buffer", None)
-    block: list[bytes] = []
-    add = block.append
-
-    def flush() -> None:
-        data = b"".join(block)
-        block.clear()
-        if out is not None:
-            sys.stdout.flush()
-            out.write(data)
-        else:  # a text stream without a buffer (tests capture into StringIO)
-            sys.stdout.write(data.decode())
-
-    def write(rec: dict[str, Any]) -> None:  # the hot path: locals only
-        add(dumps(rec, option=opt))
-        if len(block) >= 512:
-            flush()
-
-    return write, flush
+    return JsonLinesWriter(sys.stdout, fast=True).write, sys.stdout.flush
 
 
 def _decode_args(args: argparse.Namespace) -> re.Pattern[str] | None:
@@ -225,9 +206,9 @@ def _decode_stats(args: argparse.Namespace, decoder: Any,
     blocks = [*results, total(results)] if several else results
     for block in blocks:
         if args.json:
-            from eyeq_spi.dissect.output import JsonWriter
+            from eyeq_spi.io.jsonl import JsonLinesWriter
 
-            JsonWriter(sys.stdout, fast=True).write(block)
+            JsonLinesWriter(sys.stdout, fast=True).write(block)
         elif "files" in block:
             print(human_total(block))
         else:

@@ -80,14 +80,16 @@ def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
 def run(args: argparse.Namespace) -> int:
     from eyeq_spi.catalog.messages import catalog
     from eyeq_spi.cli.options import spi_options
-    from eyeq_spi.dissect.output import HumanWriter, JsonWriter, TableWriter
+    from eyeq_spi.dissect.output import HumanWriter, TableWriter
     from eyeq_spi.dissect.pipeline import (
         DissectConfig,
         codec_for,
+        deliver,
         dissect_captures,
         fields_mode,
     )
-    from eyeq_spi.dissect.stats import Stats, combine
+    from eyeq_spi.dissect.stats import Stats
+    from eyeq_spi.io.jsonl import JsonLinesWriter
 
     if args.csv and args.parquet:
         raise UsageError("give --csv or --parquet, not both")
@@ -106,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     if args.stats:
         pass  # statistics only (as text, or one JSON object per file with --json)
     elif args.json:
-        writers.append(JsonWriter(out, fast=True))
+        writers.append(JsonLinesWriter(out, fast=True))
     elif not table:
         human = HumanWriter(out, codec_for(cat.default_sw), color=out.isatty(),
                             tree=not args.no_tree)
@@ -138,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
             if release.warning:
                 print(f"eyeq-spi dissect: warning: {release.warning}", file=sys.stderr,
                       flush=True)
-            _feed(cf.items, keep, plain, stats, writers, path)
+            deliver(cf.items, stats, writers, keep=None if plain else keep, path=path)
             if cf.tail.ignored:
                 stats.ignored_bytes = cf.tail.ignored
                 print(f"eyeq-spi dissect: {cf.tail.note(path)}", file=sys.stderr, flush=True)
@@ -148,29 +150,21 @@ def run(args: argparse.Namespace) -> int:
         if table is not None:
             table.close()
     if args.stats:
-        shown = [*per_file, combine(per_file)] if len(per_file) > 1 else per_file
-        for st in shown:
-            if args.json:
-                JsonWriter(out, fast=True).write(st.as_dict())
-            else:
-                out.write(st.render() + "\n")
+        _print_stats(per_file, out, as_json=args.json)
     return 1 if any(st.protocol_errors or st.ignored_bytes for st in per_file) else 0
 
 
-def _feed(items: Any, keep: Callable[[dict[str, Any]], bool], plain: bool,
-          stats: Any, writers: list[Any], path: str) -> None:
-    for r in items:
-        if not isinstance(r, dict):  # a frame block of the batch path
-            from eyeq_spi.dissect.batch_run import consume
+def _print_stats(per_file: list[Any], out: Any, *, as_json: bool) -> None:
+    """Each file's statistics, then their total when there are several."""
+    from eyeq_spi.dissect.stats import combine
+    from eyeq_spi.io.jsonl import JsonLinesWriter
 
-            consume(r, keep, plain, stats, writers, path)
+    shown = [*per_file, combine(per_file)] if len(per_file) > 1 else per_file
+    for st in shown:
+        if as_json:
+            JsonLinesWriter(out, fast=True).write(st.as_dict())
         else:
-            r["file"] = path
-            if keep(r):  # --stats describes exactly what the filters keep
-                stats.add(r)
-                for w in writers:
-                    w.write(r)
-        r = None  # paced_gc: the block is garbage now
+            out.write(st.render() + "\n")
 
 
 class _Bars:

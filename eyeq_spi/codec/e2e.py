@@ -30,13 +30,13 @@ class E2EState:
         return value
 
 
-def _key(layout: Layout, plan: CrcPlan) -> tuple[str, str]:
+def counter_key(layout: Layout, plan: CrcPlan) -> tuple[str, str]:
     # one rolling counter per CRC: eyeq_road_info_t (SW8.1+) has two CRCs, each with its own
     # counter, at the same path (found by the conformance suite: both stepped +2)
     return (layout.name, f"{plan.path}#{plan.field}")
 
 
-def _label(layout: Layout, plan: CrcPlan) -> str:
+def crc_label(layout: Layout, plan: CrcPlan) -> str:
     return f"{layout.name}.{plan.path}" if plan.path else layout.name
 
 
@@ -44,7 +44,7 @@ def protect(buf: bytearray, layout: Layout, state: E2EState | None, base: int = 
     """Fill every rolling counter (when ``state`` is given) and every CRC, inner first."""
     for plan in layout.crc_plan:
         if state is not None and plan.counter_offset is not None:
-            value = state.next_counter(_key(layout, plan), plan.counter_size)
+            value = state.next_counter(counter_key(layout, plan), plan.counter_size)
             o = base + plan.counter_offset
             buf[o : o + plan.counter_size] = value.to_bytes(plan.counter_size, "little")
         shifted = plan if base == 0 else CrcPlan(
@@ -96,7 +96,7 @@ def compile_protector(layout: Layout) -> Protector:
         for i in batch:
             plan = plans[i]
             if plan.counter_offset is not None:
-                env[f"K{i}"] = _key(layout, plan)
+                env[f"K{i}"] = counter_key(layout, plan)
                 c, n = plan.counter_offset, plan.counter_size
                 lines += ["    if state is not None:",
                           f"        b[{c}:{c + n}] = state.next_counter(K{i}, {n})"
@@ -146,8 +146,8 @@ def compile_verifier(layout: Layout) -> Verifier:
     env: dict[str, Any] = {"h": binascii.crc_hqx}
     lines = ["def _verify(d, state):", "    errors = []"]
     for i, plan in enumerate(layout.crc_plan):
-        label = _label(layout, plan)
-        env[f"K{i}"] = _key(layout, plan)
+        label = crc_label(layout, plan)
+        env[f"K{i}"] = counter_key(layout, plan)
         env[f"C{i}"] = f"E2E CRC mismatch in {label}: {plan.field}=0x"
         env[f"J{i}"] = f"E2E counter jump in {label}: expected "
         expr = "65535"
@@ -190,18 +190,18 @@ def verify_reference(data: bytes, layout: Layout, state: E2EState | None) -> lis
         got = int.from_bytes(data[o : o + 2], "little")
         want = compute_crc(data, plan)
         if got != want:
-            errors.append(f"E2E CRC mismatch in {_label(layout, plan)}: "
+            errors.append(f"E2E CRC mismatch in {crc_label(layout, plan)}: "
                           f"{plan.field}=0x{got:04X}, computed 0x{want:04X}")
             if state is not None:
                 state.crc_errors += 1
         if state is not None and plan.counter_offset is not None:
             c = plan.counter_offset
             value = int.from_bytes(data[c : c + plan.counter_size], "little")
-            key = _key(layout, plan)
+            key = counter_key(layout, plan)
             last = state.seen.get(key)
             modulo = 1 << (8 * plan.counter_size)
             if last is not None and value != (last + 1) % modulo:
-                errors.append(f"E2E counter jump in {_label(layout, plan)}: "
+                errors.append(f"E2E counter jump in {crc_label(layout, plan)}: "
                               f"expected {(last + 1) % modulo}, got {value}")
                 state.counter_errors += 1
             state.seen[key] = value

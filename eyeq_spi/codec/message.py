@@ -95,6 +95,10 @@ class MessageCodec:
         self._other = {m.protocol: m for m in self.cat.messages if m.protocol in ("DIAG", "BOOT")}
         self._dasp: dict[int, MessageDef | None] = {}  # data ID -> message in self.sw
 
+    def other_message(self, protocol: str) -> MessageDef | None:
+        """The one message of a 0x41 (``DIAG``) or 0x10 (``BOOT``) protocol (rule A)."""
+        return self._other.get(protocol)
+
     # -- layouts -----------------------------------------------------------------------------
     def layout(self, msg: MessageDef) -> Layout:
         return self.layouts.get(msg.payload, self.sw)

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from eyeq_spi.codec.e2e import E2EState, _key, _label
+from eyeq_spi.codec.e2e import E2EState, counter_key, crc_label
 from eyeq_spi.crc import crc16
 
 if TYPE_CHECKING:
@@ -182,8 +182,8 @@ class VecLayout:
             _Plan(i, p.crc_offset, np.array([o + k for o, s in p.ranges for k in range(s)],
                                             np.intp),
                   None if p.counter_offset is None else (p.counter_offset, p.counter_size),
-                  _key(lay, p), f"E2E CRC mismatch in {_label(lay, p)}: {p.field}=0x",
-                  f"E2E counter jump in {_label(lay, p)}: expected ")
+                  counter_key(lay, p), f"E2E CRC mismatch in {crc_label(lay, p)}: {p.field}=0x",
+                  f"E2E counter jump in {crc_label(lay, p)}: expected ")
             for i, p in enumerate(lay.crc_plan)
         ]
 

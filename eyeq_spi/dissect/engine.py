@@ -9,6 +9,12 @@ transfer still open at the end of the input is ``incomplete_at_end``; neither is
 Frame records come out in capture order; a message record follows the frame that
 completed it. Memory stays bounded: only the current transfer of each direction and the last
 index of each NUM are kept.
+
+:meth:`Dissector.feed` takes one transfer. A caller that has checked a run of frames itself
+(the vectorised frame check, :mod:`.engine_fast`) hands the run's whole messages over with
+:meth:`Dissector.accept_clean` and, before it feeds a transfer again, gives the receiver the
+run's last transfers with :meth:`Dissector.resume`: the receiver then stands where ``feed`` of
+every frame of the run would have left it.
 """
 
 from __future__ import annotations
@@ -21,7 +27,6 @@ from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.catalog.bringup import SWITCH_APP_NAME
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import DaspCounters, MessageCodec
-from eyeq_spi.errors import RemoteProtocolError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.events import (
     DuplicateReceived,
@@ -32,9 +37,42 @@ from eyeq_spi.link.events import (
 from eyeq_spi.link.frame import FRAME_SIZE, SEQ_MODULO, FrameCodec, FrameKind
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived, TransferAborted, TransferIncomplete
+from eyeq_spi.transport.segment import FIRST
 
 TRANSPORT_NAMES = {0x00: "single", 0x01: "first", 0x02: "consecutive"}
 RECEIVER = {"h2e": "eyeq", "e2h": "host", None: "host"}
+
+
+KIND_NAMES = {int(k): k.name for k in FrameKind}
+
+
+def frame_record(index: int, time: float | None, direction: str | None, length: int,
+                 header: tuple[int, int, int, int] | None = None, crc_ok: bool = False,
+                 transport: tuple[int, int] = (0, 0)) -> dict[str, Any]:
+    """The ``--json`` record of one transfer (docs/dissector.md): ``length`` bytes; for a
+    128-byte frame its ``header`` fields (D, R, RSP, NUM; L1), CRC verdict (L3) and
+    ``transport`` bytes 6 and 7 (T1: the transport type, then a single frame's size or a
+    transfer ID). The frame type is INVALID unless D is a known kind and R is 0 (L2)."""
+    rec: dict[str, Any] = {
+        "kind": "frame", "index": index, "time": time, "direction": direction,
+        "frame_type": "INVALID", "num": None, "rsp": None, "crc_ok": False,
+        "transport": None, "transfer_id": None, "nak_reason": None,
+    }
+    if length != FRAME_SIZE or header is None:
+        rec["length"] = length
+        return rec
+    dfield, rfield, rsp, num = header
+    rec["num"], rec["rsp"], rec["crc_ok"] = num, rsp, crc_ok
+    if rfield == 0 and dfield in KIND_NAMES:
+        rec["frame_type"] = KIND_NAMES[dfield]
+    if dfield == FrameKind.NAK:
+        rec["nak_reason"] = num
+    elif dfield != FrameKind.ACK:  # DATA, or a D of no known kind
+        name = TRANSPORT_NAMES.get(transport[0])
+        rec["transport"] = name
+        if name in ("first", "consecutive"):
+            rec["transfer_id"] = transport[1]
+    return rec
 
 
 def jsonable(v: Any) -> Any:
@@ -45,6 +83,10 @@ def jsonable(v: Any) -> Any:
     if isinstance(v, list | tuple):
         return [jsonable(x) for x in v]
     return v
+
+
+Transfer = list[tuple[bytes, "float | None", int, int]]
+"""The frames of one transfer: (bytes, time, NUM, capture index) each."""
 
 
 @dataclass
@@ -69,6 +111,71 @@ class Dissector:
         self.index = 0
         self.last_time: float | None = None
 
+    # -- the public API of a caller that checks clean runs of frames itself ----------------------
+    def open_direction(self, direction: str | None) -> None:
+        """Make the receiver of ``direction`` now (receivers are made in the order they are
+        first seen, which the order of their end-of-capture records follows)."""
+        self._dir(direction)
+
+    def expected_num(self, direction: str | None) -> int:
+        """The NUM the receiver of ``direction`` expects next."""
+        return self._dir(direction).conn.link.expected_num
+
+    def next_deadline(self) -> float | None:
+        """The earliest timer of any receiver (an open transfer's reassembly deadline)."""
+        times = [t for d in self._dirs.values() if (t := d.conn.get_timer()) is not None]
+        return min(times) if times else None
+
+    def run_timers(self, now: float) -> Iterator[dict[str, Any]]:
+        """The records of every receiver timer due at ``now``, as :meth:`feed` runs them
+        before a transfer of that time."""
+        return self._timers(now)
+
+    def message_state(self, direction: str | None) -> tuple[E2EState, DaspCounters]:
+        """The E2E rolling counters (D5) and DASP counters (D1) the messages received on
+        ``direction`` are judged against; a caller that judges many messages at once
+        (:mod:`eyeq_spi.codec.message_fast`) reads and advances them."""
+        d = self._dir(direction)
+        return d.e2e, d.dasp_counters
+
+    def accept_clean(self, direction: str | None, data: bytes, nums: tuple[int, ...],
+                     transfer_id: int | None, frames: list[int | None],
+                     time: float | None) -> dict[str, Any]:
+        """The record of a whole message that a clean run of frames delivered on
+        ``direction`` (every frame 128 bytes, CRC good, DATA, its NUM the one expected, its
+        transfer whole and in time), completed at ``time`` by the frames at capture indices
+        ``frames``: what :meth:`feed` of those frames would give. The caller notes the run's
+        frames with :meth:`note_frames`."""
+        self.last_time = time
+        rec = self._message(direction, self._dir(direction),
+                            MessageReceived(data, nums, transfer_id))
+        rec["frames"] = frames
+        return rec
+
+    def note_frames(self, direction: str | None, nums: Iterable[int],
+                    indices: Iterable[int]) -> None:
+        """DATA frames of a clean run on ``direction``, in order: their NUMs and capture
+        indices (the message records of later frames name their frames by them)."""
+        self._dir(direction).index_of_num.update(zip(nums, indices, strict=True))
+
+    def resume(self, direction: str | None, last_first: Transfer | None,
+               tail: list[Transfer], open_transfer: Transfer | None) -> None:
+        """After a clean run on ``direction``: its receiver starts over at the NUM of the
+        oldest frame given and takes these frames again, output dropped, so that it stands as
+        :meth:`feed` of the whole run would leave it. ``tail``: the run's last whole
+        transfers (at least a window of frames, L6a); ``last_first``: the run's last
+        multi-frame transfer when ``tail`` has none (the transport judges a straggler of it by
+        its transfer ID);
+        ``open_transfer``: the transfer still open at the run's end (with its deadline)."""
+        d = self._dir(direction)
+        units = tail + ([open_transfer] if open_transfer else [])
+        if last_first is not None and not any(u[0][0][6] == FIRST for u in units):
+            _replay(d.conn, [last_first])
+        if units:
+            _replay(d.conn, units)
+        if open_transfer:
+            d.index_of_num.update((f[2], f[3]) for f in open_transfer)
+
     def _dir(self, direction: str | None) -> _Direction:
         d = self._dirs.get(direction)
         if d is None:
@@ -86,34 +193,15 @@ class Dissector:
         if t is not None:
             yield from self._timers(t)
             self.last_time = t
-        frame_rec: dict[str, Any] = {
-            "kind": "frame", "index": idx, "time": t, "direction": rec.direction,
-            "frame_type": "INVALID", "num": None, "rsp": None, "crc_ok": False,
-            "transport": None, "transfer_id": None, "nak_reason": None,
-        }
         data = rec.data
-        if len(data) != FRAME_SIZE:
-            frame_rec["length"] = len(data)
+        if len(data) == FRAME_SIZE:
+            dfield, rfield, rsp, num, crc_ok = self.frames.judge(data)
+            frame_rec = frame_record(idx, t, rec.direction, FRAME_SIZE,
+                                     (dfield, rfield, rsp, num), crc_ok, (data[6], data[7]))
+            if dfield == FrameKind.DATA:
+                d.index_of_num[num] = idx
         else:
-            try:
-                f = self.frames.decode(data)
-            except RemoteProtocolError:
-                f = None
-            if f is not None:
-                frame_rec["num"], frame_rec["rsp"] = f.num, f.rsp
-                frame_rec["crc_ok"] = self.frames.crc_ok(data, f)
-                kind = f.kind
-                if kind is not None and f.r == 0:
-                    frame_rec["frame_type"] = kind.name
-                if kind is FrameKind.NAK:
-                    frame_rec["nak_reason"] = f.num
-                elif kind is FrameKind.DATA or kind is None:
-                    tname = TRANSPORT_NAMES.get(data[6])
-                    frame_rec["transport"] = tname
-                    if tname in ("first", "consecutive"):
-                        frame_rec["transfer_id"] = data[7]
-                if kind is FrameKind.DATA:
-                    d.index_of_num[f.num] = idx
+            frame_rec = frame_record(idx, t, rec.direction, len(data))
         yield frame_rec
         if frame_rec["frame_type"] in ("ACK", "NAK"):
             return  # acknowledgements of the other channel's frames: nothing to reassemble
@@ -228,6 +316,17 @@ class Dissector:
         return errs[:10]
 
 
+def _replay(conn: TransportConnection, units: list[Transfer]) -> None:
+    """``conn`` reset to the first frame's NUM and fed ``units`` again, output dropped."""
+    conn.reset(expected=units[0][0][2])
+    for unit in units:
+        for data, t, _, _ in unit:
+            conn.receive_data(data, 0.0 if t is None else t)
+            conn.data_to_send(float("inf"))
+    while conn.next_event() is not None:
+        pass
+
+
 _ENUM_PLANS: dict[int, tuple[Any, list[tuple[str, Any, Any, bool]]]] = {}
 
 
@@ -269,9 +368,10 @@ def _check_enums(codec: MessageCodec, lay: Any, values: dict[str, Any], path: st
             errs.append(f"bad enum value {v} for {path}.{name} ({enum.name})")
 
 
-def iter_records(records: Iterable[Record], *, sw: str | None = None) -> Iterator[dict[str, Any]]:
+def iter_records(records: Iterable[Record], *, sw: str | None = None,
+                 codec: MessageCodec | None = None) -> Iterator[dict[str, Any]]:
     """All records of a capture, in order, ending with the end-of-capture aborts."""
-    dis = Dissector(sw)
+    dis = Dissector(sw, codec)
     for rec in records:
         yield from dis.feed(rec)
     yield from dis.finish()

@@ -1,36 +1,37 @@
-"""The batch dissector: numpy over whole chunks, the exact engine wherever anything is unusual.
+"""The fast path in front of the one :class:`~.engine.Dissector`: numpy over whole chunks, the
+dissector's own per-transfer path wherever anything is unusual.
 
 Theory of operation
 -------------------
 :func:`~.engine_fast_frames.frame_arrays` judges a chunk of transfers at once (header fields, CRC,
 frame type). Frame records depend on nothing but the transfer, so every frame record comes from
-these arrays. What the passive receivers do with the DATA frames is stateful; per direction the
-pass is in one of two modes:
+these arrays (:func:`.engine.frame_record`). What the passive receivers do with the DATA frames
+is the dissector's state; per direction the pass is in one of two modes:
 
-- **exact**: each transfer goes through the exact sans-IO engine
-  (:class:`~.engine.Dissector.feed`), which is the reference for everything;
-- **batch**: a *span* of clean frames, taken without the engine: every frame is 128 bytes, has
-  a good CRC, D = DATA, R = 0, a valid transport header, and NUM = the previous NUM + 1; the
-  frames form whole transfers (single frames, or a first frame and all its consecutive frames with
-  its transfer ID, each within the reassembly timeout of the one before, counting every record
-  of the capture in between), except that the last transfer may still be open.
+- **reference**: each transfer goes through :meth:`.engine.Dissector.feed`;
+- **fast**: a *span* of clean frames inside one chunk: every frame is 128 bytes, has a good CRC,
+  D = DATA, R = 0, a valid transport header, and NUM = the previous NUM + 1; the frames form
+  whole transfers (single frames, or a first frame and all its consecutive frames with its
+  transfer ID, each within the reassembly timeout of the one before, counting every record of
+  the capture in between), except that the last transfer may still be open.
 
-A direction enters batch mode only where the exact engine's state is known without looking inside
-it: the engine has just delivered a message with the previous DATA frame of that direction (so no
-transfer is open, E = that NUM + 1, and no NAKs are counted), and the span starting at E has at
-least ``MIN_SPAN`` frames. Messages of a span are reassembled from the arrays and decoded by the
-engine's own ``_message`` (same decoder, same E2E and DASP counter state), so message records are
-the engine's by construction.
+A direction enters fast mode only where the dissector's state is known through its public API:
+it has just delivered a message with the previous DATA frame of that direction (so no transfer
+is open and no NAKs are counted), its receiver expects the span's first NUM
+(:meth:`~.engine.Dissector.expected_num`), and the span has at least ``MIN_SPAN`` frames.
+Messages of a span are cut from the arrays and handed to the dissector
+(:meth:`~.engine.Dissector.accept_clean`, or judged a group at a time against its
+:meth:`~.engine.Dissector.message_state`), so message records are the dissector's by
+construction.
 
-A span ends at the first frame that is not clean (or at the first record at or past the open
-transfer's reassembly deadline). There the direction goes back to exact mode: its receiver is
-reset to E = the NUM of a frame some transfers back and the last transfers of the span are fed to
-it again, output discarded (at least W frames, so the L6a window history is the real one; the
-span's last first frame, so the transport's straggler and L9 state are the real ones; and the
-open transfer, with its deadline). From then on the engine judges the fault itself.
+A span ends at the first frame that is not clean, at the first record at or past the open
+transfer's reassembly deadline, or at the end of its chunk. There the dissector takes the
+direction up again (:meth:`~.engine.Dissector.resume`: its receiver is given the span's last
+transfers, at least W frames, the span's last multi-frame transfer and the open transfer) and
+judges what follows itself. Nothing of a span is carried from one chunk to the next.
 
-Timers of exact directions (an open transfer's reassembly deadline) are honoured: the first record
-at or past the earliest deadline runs the engine's timers before it, as ``feed`` would.
+Timers of reference directions (an open transfer's reassembly deadline) are honoured: the first
+record at or past the earliest deadline runs the dissector's timers before it, as ``feed`` would.
 """
 
 from __future__ import annotations
@@ -46,7 +47,6 @@ from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.dissect.engine_fast_cut import lean_messages
 from eyeq_spi.dissect.engine_fast_frames import DATA, FrameArrays, FrameBlock, frame_arrays
 from eyeq_spi.dissect.engine_fast_messages import SpanDecoder, SpanMessage
 from eyeq_spi.dissect.engine_fast_types import Dir, Frame, Item, Unit
@@ -81,10 +81,10 @@ class _Plan:
     cont: list[bool]
     gap: list[bool]
     B: list[int]  # B[i] = rows among [0, i) that cannot continue a transfer
-    ip: int = 0  # next row (index into P) for the exact engine
+    ip: int = 0  # next row (index into P) for the reference
 
 
-class BatchDissector:
+class ChunkFeeder:
     """Chunks in, records (dicts) and :class:`FrameBlock` items out, in capture order."""
 
     def __init__(self, sw: str | None = None, codec: MessageCodec | None = None,
@@ -106,9 +106,6 @@ class BatchDissector:
         self.dis.index = self.base
 
     def finish(self) -> Iterator[Item]:
-        for st in self.dirs.values():
-            if st.batch:
-                self._to_exact(st, None)
         self.dis.index = self.base
         yield from self.dis.finish()
 
@@ -120,21 +117,18 @@ class BatchDissector:
         self._rows = {}
         for code in [int(c) for c in codes[np.argsort(first)]]:
             name = DIR_NAME[code]
-            self.dis._dir(name)  # directions exist in the order the engine would create them
+            self.dis.open_direction(name)  # receivers made in the order feed() would
             st = self.dirs.setdefault(code, Dir(name, code))
             plans[code] = self._plan(fa, st)
-        for code, st in self.dirs.items():
-            pl = plans.setdefault(code, _empty_plan())
-            self._rows[code] = pl.P
-            if st.batch:
-                self._walk(fa, st, pl, 0, fresh=False)
+        for code in self.dirs:
+            self._rows[code] = plans.setdefault(code, _empty_plan()).P
         times = fa.chunk.time
         pos = 0
         while pos < n:
             nxt, why, which = n, 0, -1
             for code, st in self.dirs.items():
                 pl = plans[code]
-                if st.batch:
+                if st.fast:
                     if st.switch_row < nxt:
                         nxt, why, which = st.switch_row, 1, code
                 elif pl.ip < len(pl.P) and pl.P[pl.ip] < nxt:
@@ -149,14 +143,14 @@ class BatchDissector:
                 break
             if why == 3:  # the engine's timers first, as feed() would run them
                 self.dis.index = fa.base + nxt + 1
-                yield from self.dis._timers(float(times[nxt]))
+                yield from self.dis.run_timers(float(times[nxt]))
                 self._update_deadline()
                 yield self._emit(fa, nxt, nxt + 1)
                 pos = nxt + 1
                 continue
             st, pl = self.dirs[which], plans[which]
             if why == 1:
-                self._to_exact(st, fa)
+                self._to_reference(st, fa)
                 pl.ip = st.stop_k
                 pos = nxt
                 continue
@@ -175,13 +169,12 @@ class BatchDissector:
         self.dis.index = fa.base + n
         t_end = fa.tfill[n - 1]
         self.dis.last_time = None if t_end != t_end else float(t_end)
-        for st in self.dirs.values():
-            if st.batch:
-                self._carry(fa, st, plans[st.code])
+        for st in self.dirs.values():  # a span ends with its chunk: the reference takes up
+            if st.fast:
+                self._to_reference(st, fa)
 
     def _update_deadline(self) -> None:
-        ts = [t for d in self.dis._dirs.values() if (t := d.conn.get_timer()) is not None]
-        self.deadline = min(ts) if ts else None
+        self.deadline = self.dis.next_deadline()
 
     # -- planning ------------------------------------------------------------------------------
     def _plan(self, fa: FrameArrays, st: Dir) -> _Plan:
@@ -201,7 +194,7 @@ class BatchDissector:
         num = fa.num[sel]
         prev = np.empty_like(num)
         prev[1:] = num[:-1]
-        prev[0] = st.last_num if st.batch else -2
+        prev[0] = -2  # a span starts inside its chunk (its first NUM is checked against E)
         cont = num == (prev + 1) % SEQ_MODULO
         # the reassembly deadline each fed frame sets, against the latest time of any record
         # after it up to and including the next fed frame (the engine runs its timers first)
@@ -212,26 +205,23 @@ class BatchDissector:
         seg_max = np.maximum.reduceat(np.append(tm, -np.inf), np.append(0, sel + 1))
         gap = np.empty(sel.size, bool)
         gap[1:] = seg_max[1:-1] < dl[:-1]
-        carried = st.carried if st.batch else None
-        first_dl = np.inf if not carried else (carried[-1][1] or 0.0) + REASSEMBLY_TIMEOUT
-        gap[0] = seg_max[0] < first_dl
+        gap[0] = True
         tid = data[sel, 7].astype(np.int64)
         link = okf & (tt == CONSECUTIVE) & cont & gap
         link[1:] &= tid[1:] == tid[:-1]
-        link[0] &= bool(carried) and int(tid[0]) == st.carried_tid
+        link[0] = False
         need = np.where(tt == FIRST,
                         -(-(np.maximum(total, FIRST_TOTAL_MIN) - FIRST_CHUNK)
                           // CONSECUTIVE_CHUNK), 0)
-        self._padding(data, sel, tt, total, need, link, st if carried else None)
+        self._padding(data, sel, tt, total, need, link)
         bad = np.concatenate([[0], np.cumsum(~link)])
         return _Plan(sel.tolist(), okf.tolist(), tt.tolist(), tid.tolist(), need.tolist(),
                      cont.tolist(), gap.tolist(), bad.tolist())
 
     @staticmethod
-    def _padding(data: Any, sel: Any, tt: Any, total: Any, need: Any, link: Any,
-                 carried: Dir | None) -> None:
+    def _padding(data: Any, sel: Any, tt: Any, total: Any, need: Any, link: Any) -> None:
         """T6a: the last consecutive frame of a transfer carries zeros after the message's last
-        byte. Where it does not, that frame is no link of a clean span, so the exact engine
+        byte. Where it does not, that frame is no link of a clean span, so the reference
         judges it (it NAKs the frame 0x011 and aborts the transfer as ``bad_padding``)."""
         fk = np.flatnonzero(tt == FIRST)
         m = need[fk]
@@ -239,81 +229,58 @@ class BatchDissector:
         takes = total[fk] - FIRST_CHUNK - (m - 1) * CONSECUTIVE_CHUNK
         inside = last < sel.size
         lasts, takes = last[inside], takes[inside]
-        if carried is not None and 1 <= carried.carried_need <= sel.size:
-            lasts = np.append(lasts, carried.carried_need - 1)
-            takes = np.append(takes, carried.carried_last_take)
         if not lasts.size:
             return
         rows = data[sel[lasts]]
         pad = np.arange(rows.shape[1])[None, :] >= (8 + takes)[:, None]
         link[lasts[((rows != 0) & pad).any(axis=1)]] = False
 
-    def _walk(self, fa: FrameArrays, st: Dir, pl: _Plan, k0: int, *, fresh: bool) -> int:
-        """The span from P[k0]: complete units, open transfer, stop index and switch row.
-        ``fresh``: a new span (its first NUM was checked against E), else one carried in.
-        Returns the number of this chunk's frames it covers."""
+    def _walk(self, fa: FrameArrays, st: Dir, pl: _Plan, k0: int) -> int:
+        """The span from P[k0] (its first NUM was checked against E): complete units, open
+        transfer, stop index and switch row. Returns the number of frames it covers."""
         P, okf, tt, need, cont, B = pl.P, pl.okf, pl.ttype, pl.need, pl.cont, pl.B
         n = len(P)
         units: list[Unit] = []
         k = k0
         st.open_ks = -1
-        open_carried = False
-        if st.carried is not None and not fresh:
-            rest = st.carried_need
-            e = min(rest, n)
-            if B[e] - B[0] == 0:
-                if rest <= n:
-                    units.append(Unit(-1, rest, True))
-                    k = rest
-                else:
-                    k, open_carried = n, True
+        while k < n and okf[k] and (k == k0 or cont[k]):
+            t = tt[k]
+            if t == SINGLE:
+                units.append(Unit(k, k + 1, False))
+                k += 1
+            elif t == FIRST:
+                m = need[k]
+                e = min(k + m, n - 1)
+                nbad = B[e + 1] - B[k + 1]
+                if nbad == 0 and k + m < n:
+                    units.append(Unit(k, k + m + 1, True))
+                    k += m + 1
+                    continue
+                st.open_ks = k
+                k = n if nbad == 0 else bisect.bisect_left(B, B[k + 1] + 1) - 1
+                break
             else:
-                k, open_carried = bisect.bisect_left(B, 1) - 1, True
-        if not open_carried:
-            while k < n and okf[k] and ((fresh and k == k0) or cont[k]):
-                t = tt[k]
-                if t == SINGLE:
-                    units.append(Unit(k, k + 1, False))
-                    k += 1
-                elif t == FIRST:
-                    m = need[k]
-                    e = min(k + m, n - 1)
-                    nbad = B[e + 1] - B[k + 1]
-                    if nbad == 0 and k + m < n:
-                        units.append(Unit(k, k + m + 1, True))
-                        k += m + 1
-                        continue
-                    st.open_ks = k
-                    k = n if nbad == 0 else bisect.bisect_left(B, B[k + 1] + 1) - 1
-                    break
-                else:
-                    break
+                break
         st.units, st.ui, st.stop_k = units, 0, k
         # switch at the first frame outside the span, or before it at the first record at or
         # past the open transfer's reassembly deadline
         row = P[k] if k < n else len(fa)
-        last: tuple[int, float] | None = None
-        if st.open_ks >= 0 or (open_carried and k > 0):
+        if st.open_ks >= 0:
             r = P[k - 1]
             tr = float(fa.chunk.time[r])
-            last = (r, (0.0 if tr != tr else tr) + REASSEMBLY_TIMEOUT)
-        elif open_carried and st.carried:
-            last = (-1, (st.carried[-1][1] or 0.0) + REASSEMBLY_TIMEOUT)
-        if last is not None:
-            late = np.flatnonzero(fa.chunk.time[last[0] + 1 : row] >= last[1])
+            late = np.flatnonzero(fa.chunk.time[r + 1 : row]
+                                  >= (0.0 if tr != tr else tr) + REASSEMBLY_TIMEOUT)
             if late.size:
-                row = last[0] + 1 + int(late[0])
+                row = r + 1 + int(late[0])
         st.switch_row = row
         return k - k0
 
     def _try_span(self, fa: FrameArrays, st: Dir, pl: _Plan, k: int) -> bool:
-        conn = self.dis._dirs[st.name].conn
-        if int(fa.num[pl.P[k]]) != conn.link.expected_num:
+        if int(fa.num[pl.P[k]]) != self.dis.expected_num(st.name):
             return False
-        st.carried, st.hist, st.last_first = None, [], None
-        if self._walk(fa, st, pl, k, fresh=True) < MIN_SPAN:
+        if self._walk(fa, st, pl, k) < MIN_SPAN:
             return False
-        st.batch = True
+        st.fast = True
         return True
 
     # -- output ------------------------------------------------------------------------------
@@ -321,7 +288,7 @@ class BatchDissector:
         block = FrameBlock(fa, lo, hi)
         done: list[tuple[int, Dir, Unit]] = []
         for st in self.dirs.values():
-            if not st.batch:
+            if not st.fast:
                 continue
             P = self._rows[st.code]
             while st.ui < len(st.units):
@@ -333,25 +300,21 @@ class BatchDissector:
                 st.ui += 1
         if len(done) > 1:
             done.sort(key=lambda x: x[0])
-        lean = lean_messages(self, fa, done) if self.decode.lean else None  # engine_fast_cut
-        if lean is not None:  # --stats or one table writer, no filter
-            block.messages, block.tables, block.counts = lean
-        else:
-            msgs = self._messages(fa, done)
-            for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
-                block.messages.append((row, rec))
-            block.tables = self.decode.tables
+        msgs = self._messages(fa, done)
+        for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
+            block.messages.append((row, rec))
+        block.tables = self.decode.tables
         t = fa.tfill[hi - 1]
         self.dis.last_time = None if t != t else float(t)
         return block
 
     def _frames(self, fa: FrameArrays, st: Dir, ks: int, ke: int) -> list[Frame]:
-        """Frames P[ks:ke] of this chunk (ks = -1: after the carried open transfer)."""
+        """Frames P[ks:ke] of this chunk."""
         P = self._rows[st.code]
         times, nums = fa.lst("time"), fa.lst("num")
-        out: list[Frame] = list(st.carried or []) if ks == -1 else []
         data = fa.chunk.data
-        for k in range(max(ks, 0), ke):
+        out: list[Frame] = []
+        for k in range(ks, ke):
             r = P[k]
             t = times[r]
             out.append((data[r].tobytes(), None if t != t else t, nums[r], fa.base + r))
@@ -361,33 +324,30 @@ class BatchDissector:
                   ) -> list[SpanMessage]:
         """The messages of ``done`` (in order), cut from one copy of all their rows' transport
         payloads (a transfer's frames are consecutive there, so a multi-frame message is one
-        slice); the receivers' NUM -> index maps end as the engine's sequential updates leave
-        them. A transfer carried in from the previous chunk goes through :meth:`_message`."""
+        slice); the receivers' NUM -> index maps end as the reference's sequential updates
+        leave them."""
         out: list[SpanMessage] = []
         P_of = {st.code: self._rows[st.code] for _, st, _ in done}
-        local = [u.ks >= 0 for _, _, u in done]
         rows: list[int] = []
-        for (_, st, u), ok in zip(done, local, strict=True):
-            if ok:
-                rows += P_of[st.code][u.ks : u.ke]
+        for _, st, u in done:
+            rows += P_of[st.code][u.ks : u.ke]
         data = fa.chunk.data
         width = data.shape[1] - 8
         blob = data[rows, 8:].tobytes() if rows else b""
         tid_col, nums, tfill = fa.lst("tid"), fa.lst("num"), fa.lst("tfill")
         base = fa.base
         pos = 0  # next row of ``rows``
-        maps = {st.code: self.dis._dirs[st.name].index_of_num for _, st, _ in done}
-        for (row, st, u), ok in zip(done, local, strict=True):
-            if not ok:
-                out.append(self._message(fa, st, u, row))
-                continue
+        noted: dict[str | None, tuple[list[int], list[int]]] = {}  # NUMs, indices in order
+        for row, st, u in done:
             t = tfill[row]
             o = pos * width
+            seen = noted.setdefault(st.name, ([], []))
             if not u.first:  # byte 7 of a single frame: its size
                 r = P_of[st.code][u.ks]
                 pos += 1
                 num, idx = nums[r], base + r
-                maps[st.code][num] = idx
+                seen[0].append(num)
+                seen[1].append(idx)
                 out.append(SpanMessage(st.name, blob[o : o + tid_col[r]], (num,), None,
                                        None if t != t else t, [idx]))
                 continue
@@ -397,137 +357,53 @@ class BatchDissector:
             total = int.from_bytes(blob[o : o + 4], "little")
             msg = blob[o + 4 : min(o + 4 + total, pos * width)]
             fnums = tuple([nums[r] for r in mine])
-            idxs: list[int | None] = [base + r for r in mine]
-            maps[st.code].update(zip(fnums, idxs, strict=True))  # type: ignore[arg-type]
+            idxs = [base + r for r in mine]
+            seen[0].extend(fnums)
+            seen[1].extend(idxs)
             out.append(SpanMessage(st.name, msg, fnums, tid_col[mine[0]],
-                                   None if t != t else t, idxs))
+                                   None if t != t else t, list(idxs)))
+        for name, (fnums_all, idxs_all) in noted.items():
+            self.dis.note_frames(name, fnums_all, idxs_all)
         return out
 
-    def _message(self, fa: FrameArrays, st: Dir, u: Unit, row: int) -> SpanMessage:
-        tid: int | None = None
-        P = self._rows[st.code]
-        data = fa.chunk.data
-        base = fa.base
-        if u.first and u.ks >= 0:  # all its frames in this chunk: cut from the array
-            rows = P[u.ks : u.ke]
-            block = data[rows]
-            head = block[0]
-            total = int.from_bytes(head[8:12].tobytes(), "little")
-            msg = (head[12:].tobytes() + block[1:, 8:].tobytes())[:total]
-            all_nums = fa.lst("num")
-            nums: tuple[int, ...] = tuple(all_nums[r] for r in rows)
-            idxs = [base + r for r in rows]
-            tid = int(head[7])
-        elif u.first:
-            frames = self._frames(fa, st, u.ks, u.ke)
-            head_b = frames[0][0]
-            total = int.from_bytes(head_b[8:12], "little")
-            msg = (head_b[12:] + b"".join(f[0][8:] for f in frames[1:]))[:total]
-            nums = tuple(f[2] for f in frames)
-            idxs = [f[3] for f in frames]
-            tid = head_b[7]
-        else:
-            r = P[u.ks]
-            size = fa.lst("tid")[r]  # byte 7: a single frame's size
-            msg = data[r, 8 : 8 + size].tobytes()
-            nums, idxs = (fa.lst("num")[r],), [base + r]
-        dobj = self.dis._dirs[st.name]
-        index_of_num = dobj.index_of_num
-        index_of_num.update(zip(nums, idxs, strict=True))
-        t = fa.lst("tfill")[row]
-        # NUMs of one transfer are distinct (fewer frames than SEQ_MODULO), so each maps to its
-        # own index, as the exact engine's lookup gives
-        frames_idx = idxs if len(idxs) < SEQ_MODULO else [index_of_num.get(n) for n in nums]
-        return SpanMessage(st.name, msg, nums, tid, None if t != t else t,
-                           list(frames_idx))
-
     # -- span state: what the receiver would hold --------------------------------------------
-    def _state(self, st: Dir, fa: FrameArrays | None
+    def _state(self, st: Dir, fa: FrameArrays
                ) -> tuple[list[list[Frame]], list[Frame] | None, list[Frame] | None]:
         """(last complete units with at least W frames, oldest first; the last complete
         multi-frame transfer; the open transfer) of the span so far."""
-        opened: list[Frame] | None = None
+        opened = self._frames(fa, st, st.open_ks, st.stop_k) if st.open_ks >= 0 else None
         units: list[list[Frame]] = []
-        last_first = st.last_first
-        if fa is None:  # between chunks: _carry already saved it
-            return list(st.hist), last_first, st.carried
-        if st.open_ks >= 0:
-            opened = self._frames(fa, st, st.open_ks, st.stop_k)
-        elif st.carried is not None and not (st.units and st.units[0].ks == -1):
-            opened = st.carried + self._frames(fa, st, 0, st.stop_k)
+        last_first: list[Frame] | None = None
         count = 0
-        found_first = False
         for u in reversed(st.units):
-            if count >= W and found_first:
+            if count >= W and last_first is not None:
                 break
             if count < W or u.first:
                 fr = self._frames(fa, st, u.ks, u.ke)
                 if count < W:
                     units.append(fr)
                     count += len(fr)
-                if u.first and not found_first:
-                    found_first, last_first = True, fr
-        for fr in reversed(st.hist):
-            if count >= W:
-                break
-            units.append(fr)
-            count += len(fr)
+                if u.first and last_first is None:
+                    last_first = fr
         units.reverse()
         return units, last_first, opened
 
-    def _to_exact(self, st: Dir, fa: FrameArrays | None) -> None:
-        """Reset the direction's receiver and feed it the span's tail again (output dropped)."""
+    def _to_reference(self, st: Dir, fa: FrameArrays) -> None:
+        """The reference takes the direction up again where the span ended (its receiver is
+        given the span's last transfers: :meth:`.engine.Dissector.resume`)."""
         units, last_first, opened = self._state(st, fa)
-        st.batch = st.canonical = False
-        dobj = self.dis._dirs[st.name]
-        conn = dobj.conn
-        tail = units + ([opened] if opened else [])
-        if last_first is not None and not any(_is_first(u[0][0]) for u in tail):
-            self._replay(conn, [last_first])
-        if tail:
-            self._replay(conn, tail)
-        if opened:
-            dobj.index_of_num.update((f[2], f[3]) for f in opened)
-        st.carried, st.hist, st.last_first = None, [], None
+        st.fast = st.canonical = False
+        self.dis.resume(st.name, last_first, units, opened)
         self._update_deadline()
-
-    @staticmethod
-    def _replay(conn: Any, units: list[list[Frame]]) -> None:
-        conn.reset(expected=units[0][0][2])
-        for u in units:
-            for data, t, _, _ in u:
-                conn.receive_data(data, 0.0 if t is None else t)
-                conn.data_to_send(float("inf"))
-        while conn.next_event() is not None:
-            pass
-
-    def _carry(self, fa: FrameArrays, st: Dir, pl: _Plan) -> None:
-        """End of a chunk in batch mode: keep the open transfer, the last units and the NUM."""
-        units, last_first, opened = self._state(st, fa)
-        if opened is not None:
-            head = opened[0][0]
-            total = int.from_bytes(head[8:12], "little")
-            st.carried_tid = head[7]
-            frames = -(-(total - FIRST_CHUNK) // CONSECUTIVE_CHUNK)
-            st.carried_need = frames - (len(opened) - 1)
-            st.carried_last_take = total - FIRST_CHUNK - (frames - 1) * CONSECUTIVE_CHUNK
-        st.carried, st.hist, st.last_first = opened, units, last_first
-        st.units, st.ui = [], 0
-        if pl.P and st.stop_k > 0:
-            st.last_num = int(fa.num[pl.P[st.stop_k - 1]])
 
 
 def _empty_plan() -> _Plan:
     return _Plan([], [], [], [], [], [], [], [0])
 
 
-def _is_first(transfer: bytes) -> bool:
-    return transfer[6] == FIRST
-
-
 def iter_items(chunks: Iterable[Chunk], *, sw: str | None = None,
                codec: MessageCodec | None = None, fields: str = "dict") -> Iterator[Item]:
-    bd = BatchDissector(sw, codec, fields=fields)
+    bd = ChunkFeeder(sw, codec, fields=fields)
     for c in chunks:
         yield from bd.feed(c)
     yield from bd.finish()

@@ -2,7 +2,7 @@
 
 The header word is split with the :class:`FrameCodec`'s own shifts (L1, bit order configurable)
 and the CRC (L3) runs two bytes per step through a 65536-entry table built from the codec's CRC
-function, so both follow the codec's configuration. Everything a frame record of the exact engine
+function, so both follow the codec's configuration. Everything a frame record of the reference
 holds (``engine.Dissector.feed``) comes out as arrays; :class:`FrameBlock` turns a range of them
 into records, JSON Lines or ``--stats`` counts.
 """
@@ -16,8 +16,7 @@ import numpy as np
 
 from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.codec.message_fast import crc_word_tables
-from eyeq_spi.dissect.engine import TRANSPORT_NAMES
-from eyeq_spi.dissect.output import json_float
+from eyeq_spi.dissect.engine import frame_record
 from eyeq_spi.errors import InputError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 
@@ -31,7 +30,7 @@ def crc_table(codec: FrameCodec) -> np.ndarray | None:
     """T[v] = the CRC register after two more bytes, for every 16-bit value ``v`` of (register
     XOR the two bytes), built from the codec's own CRC function (so it is the codec's variant).
     Only a non-reflected CRC-16 with xorout 0 has this form (L3's CCITT-FALSE does); for any other
-    the table fails its check and None is returned: the batch path then is not used."""
+    the table fails its check and None is returned: the fast path then is not used."""
     key = id(codec.crc)
     if key in _TABLES:
         return _TABLES[key]
@@ -45,14 +44,14 @@ def crc_table(codec: FrameCodec) -> np.ndarray | None:
         # cost 20 ms of start-up to import)
         msg = bytes((i * 167 + 13 * n) & 0xFF for i in range(n))
         words = np.frombuffer(msg, ">u2").reshape(-1, 1)
-        if int(batch_crc(words, init, table, n // 2)[0]) != codec.crc(msg):
+        if int(crc_of_words(words, init, table, n // 2)[0]) != codec.crc(msg):
             _TABLES[key] = None
             return None
     _TABLES[key] = table
     return table
 
 
-def batch_crc(words: np.ndarray, init: int, table: np.ndarray, steps: int) -> np.ndarray:
+def crc_of_words(words: np.ndarray, init: int, table: np.ndarray, steps: int) -> np.ndarray:
     """CRC of the first ``steps`` big-endian 16-bit words of every row of ``words`` (k, n)."""
     crc = np.full(words.shape[1], init, np.uint16)
     for j in range(steps):
@@ -73,6 +72,7 @@ class FrameArrays:
     d: np.ndarray  # D field
     fed: np.ndarray  # bool: goes to the passive receiver (everything but ACK/NAK frame types)
     tfill: np.ndarray  # float64: time of the last record with a time at or before each row
+    r: np.ndarray  # R field
     _lists: dict[str, list[Any]] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -95,7 +95,7 @@ class FrameArrays:
 def validate(data: np.ndarray, length: np.ndarray, codec: FrameCodec
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Header fields (D, R, RSP, NUM) and CRC verdict (L3 coverage by D) of every row of an
-    ``(N, 128)`` array: the batch frame validation."""
+    ``(N, 128)`` array: the vectorised frame check."""
     word = data[:, 0:4].copy().view("<u4")[:, 0].astype(np.int64)
     d, r, rsp, num = (np.asarray(x) for x in codec.unpack_header(word))  # type: ignore[arg-type]
     got = data[:, 4:6].copy().view("<u2")[:, 0]
@@ -170,7 +170,7 @@ def frame_arrays(chunk: Chunk, codec: FrameCodec, base: int, last_time: float | 
     np.maximum.accumulate(pos, out=pos)
     first = np.nan if last_time is None else last_time
     tfill = np.where(pos >= 0, t[np.maximum(pos, 0)], first)
-    return FrameArrays(chunk, base, ftype, num, rsp, crc_ok, d, fed, tfill)
+    return FrameArrays(chunk, base, ftype, num, rsp, crc_ok, d, fed, tfill, r)
 
 
 @dataclass
@@ -184,36 +184,16 @@ class FrameBlock:
     messages: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
     # engine_fast_messages.ColumnGroup, "columns" mode
     tables: list[Any] = field(default_factory=list)
-    # engine_fast_messages.GroupCount, lean modes: messages without a record (plain consumers
-    # only)
-    counts: list[Any] = field(default_factory=list)
 
     def frame(self, i: int) -> dict[str, Any]:
+        """The frame record of row ``i`` (:func:`.engine.frame_record`)."""
         fa = self.fa
         L = fa.lst
         t = L("time")[i]
         length = L("length")[i]
-        rec: dict[str, Any] = {
-            "kind": "frame", "index": fa.base + i, "time": None if t != t else t,
-            "direction": DIR_NAME[L("direction")[i]], "frame_type": "INVALID", "num": None,
-            "rsp": None, "crc_ok": False, "transport": None, "transfer_id": None,
-            "nak_reason": None,
-        }
-        if length != FRAME_SIZE:
-            rec["length"] = length
-            return rec
-        d = L("d")[i]
-        rec["num"], rec["rsp"] = L("num")[i], L("rsp")[i]
-        rec["crc_ok"] = bool(L("crc_ok")[i])
-        rec["frame_type"] = TYPE_NAMES[L("ftype")[i]]
-        if d == FrameKind.NAK:
-            rec["nak_reason"] = rec["num"]
-        elif d == FrameKind.DATA or d not in (FrameKind.ACK, FrameKind.NAK):
-            tname = TRANSPORT_NAMES.get(L("ttype")[i])
-            rec["transport"] = tname
-            if tname in ("first", "consecutive"):
-                rec["transfer_id"] = L("tid")[i]
-        return rec
+        return frame_record(fa.base + i, None if t != t else t, DIR_NAME[L("direction")[i]],
+                            length, (L("d")[i], L("r")[i], L("rsp")[i], L("num")[i]),
+                            bool(L("crc_ok")[i]), (L("ttype")[i], L("tid")[i]))
 
     def records(self) -> list[dict[str, Any]]:
         out: list[dict[str, Any]] = []
@@ -225,59 +205,6 @@ class FrameBlock:
                 out.append(nxt[1])
                 nxt = next(msgs, None)
         return out
-
-    def write_json(self, fh: Any, write_message: Any, fast: bool = False,
-                   file: str | None = None) -> None:
-        """The JSON Lines of :meth:`records`: frame lines formatted straight from the arrays
-        (what ``json.dumps(record, separators=(",", ":"))`` prints for them, or orjson with
-        ``fast``: only float spelling differs, :func:`~.output.json_float`) go to ``fh``;
-        each message goes to ``write_message`` (the JSON writer's own), in order. ``file``:
-        the ``file`` member every frame line ends with (the messages carry their own)."""
-        import json
-
-        end = "}\n" if file is None else f',"file":{json.dumps(file, ensure_ascii=False)}}}\n'
-        fa = self.fa
-        L = fa.lst
-        times, dirs, lengths = L("time"), L("direction"), L("length")
-        ds, nums, rsps, oks = L("d"), L("num"), L("rsp"), L("crc_ok")
-        ftypes, ttypes, tids = L("ftype"), L("ttype"), L("tid")
-        dname = {0: '"h2e"', 1: '"e2h"', -1: "null"}
-        tnames = {0: '"single"', 1: '"first"', 2: '"consecutive"'}
-        base = fa.base
-        parts: list[str] = []
-        msgs = self.messages
-        mi = 0
-        for i in range(self.lo, self.hi):
-            t = times[i]
-            ts = "null" if t != t else repr(t)
-            if fast and "e" in ts:
-                ts = json_float(t, fast)
-            if lengths[i] != FRAME_SIZE:
-                parts.append(f'{{"kind":"frame","index":{base + i},"time":{ts},"direction":'
-                             f'{dname[dirs[i]]},"frame_type":"INVALID","num":null,"rsp":null,'
-                             f'"crc_ok":false,"transport":null,"transfer_id":null,'
-                             f'"nak_reason":null,"length":{lengths[i]}{end}')
-            else:
-                d = ds[i]
-                tr = tid = nak = "null"
-                if d == FrameKind.NAK:
-                    nak = str(nums[i])
-                elif d != FrameKind.ACK:  # DATA, or a D of no known kind
-                    tt = ttypes[i]
-                    tr = tnames.get(tt, "null")
-                    if tt == 1 or tt == 2:
-                        tid = str(tids[i])
-                parts.append(f'{{"kind":"frame","index":{base + i},"time":{ts},"direction":'
-                             f'{dname[dirs[i]]},"frame_type":"{TYPE_NAMES[ftypes[i]]}",'
-                             f'"num":{nums[i]},"rsp":{rsps[i]},'
-                             f'"crc_ok":{"true" if oks[i] else "false"},"transport":{tr},'
-                             f'"transfer_id":{tid},"nak_reason":{nak}{end}')
-            while mi < len(msgs) and msgs[mi][0] == i:
-                fh.write("".join(parts))
-                parts.clear()
-                write_message(msgs[mi][1])
-                mi += 1
-        fh.write("".join(parts))
 
     def add_to(self, stats: Any) -> None:
         """Count this block's frames and messages into a :class:`~.stats.Stats`."""
@@ -297,23 +224,5 @@ class FrameBlock:
             vals, cnt = np.unique(fa.num[lo:hi][naks], return_counts=True)
             for v, c in zip(vals.tolist(), cnt.tolist(), strict=True):
                 stats.nak_reasons[f"0x{v:03X}"] += c
-        if not self.counts:
-            for _, rec in self.messages:
-                stats.add(rec)
-            return
-        # lean: the counted messages' first and last times (Stats._message) at their rows, in
-        # capture order with the records
-        marks: list[tuple[int, int, Any]] = [(r, 0, rec) for r, rec in self.messages]
-        for g in self.counts:
-            stats.messages[g.name] += g.n
-            if g.first_row >= 0:
-                marks.append((g.first_row, 1, (g.name, g.t_first)))
-                marks.append((g.last_row, 1, (g.name, g.t_last)))
-        marks.sort(key=lambda x: x[0])
-        for _, is_mark, x in marks:
-            if not is_mark:
-                stats.add(x)
-                continue
-            name, t = x
-            stats.first.setdefault(name, t)
-            stats.last[name] = t
+        for _, rec in self.messages:
+            stats.add(rec)

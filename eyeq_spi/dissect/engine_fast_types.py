@@ -1,16 +1,13 @@
-"""The batch dissector's vocabulary (:mod:`eyeq_spi.dissect.engine_fast`, the fast twin of
+"""The fast path's vocabulary (:mod:`eyeq_spi.dissect.engine_fast`, in front of
 :class:`~eyeq_spi.dissect.engine.Dissector`): the items it yields, a direction's span state and
-the transfers of a span, and the state the message cutter (:mod:`eyeq_spi.dissect.engine_fast_cut`)
-reads from it. Kept apart so the cutter does not import the dissector that calls it."""
+the transfers of a span."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
-from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.dissect.engine_fast_frames import FrameArrays, FrameBlock
-from eyeq_spi.dissect.engine_fast_messages import SpanDecoder, SpanMessage
+from eyeq_spi.dissect.engine_fast_frames import FrameBlock
 
 Item = dict[str, Any] | FrameBlock
 Frame = tuple[bytes, float | None, int, int]  # transfer, time, NUM, capture index
@@ -20,42 +17,22 @@ Frame = tuple[bytes, float | None, int, int]  # transfer, time, NUM, capture ind
 class Unit:
     """One transfer of a span: its first and last index into the direction's rows."""
 
-    ks: int  # first index into P, -1: the open transfer carried in from the previous chunk
+    ks: int  # first index into P
     ke: int  # one past the last
     first: bool
 
 
 @dataclass
 class Dir:
-    """One direction's mode (exact or batch) and its span's state."""
+    """One direction's mode (reference or fast) and its span's state."""
 
     name: str | None
     code: int
-    batch: bool = False
-    canonical: bool = False  # exact mode: the last fed frame completed a message
+    fast: bool = False
+    canonical: bool = False  # reference mode: the last fed frame completed a message
     # the span in the current chunk
     units: list[Unit] = field(default_factory=list)
     ui: int = 0  # next unit to emit
     stop_k: int = 0  # index into P of the first frame not in the span
-    open_ks: int = -1  # index into P of the open transfer's first frame, -1: none or carried
+    open_ks: int = -1  # index into P of the open transfer's first frame, -1: none
     switch_row: int = 0
-    # carried across chunks in batch mode
-    last_num: int = -1
-    hist: list[list[Frame]] = field(default_factory=list)  # last complete units, oldest first
-    last_first: list[Frame] | None = None  # the span's last complete multi-frame transfer
-    carried: list[Frame] | None = None  # the open transfer at the start of the chunk
-    carried_tid: int = 0
-    carried_need: int = 0  # consecutive frames it still needs
-    carried_last_take: int = 0  # message bytes in its last frame (T6a: zeros after them)
-
-
-class BatchState(Protocol):
-    """What the message cutter reads from the batch dissector: its decoder, its exact
-    dissector (whose NUM maps it fills), each direction's fed rows in the current chunk, and
-    the one-message cut it falls back to."""
-
-    dis: Dissector
-    decode: SpanDecoder
-    _rows: dict[int, list[int]]
-
-    def _message(self, fa: FrameArrays, st: Dir, u: Unit, row: int) -> SpanMessage: ...

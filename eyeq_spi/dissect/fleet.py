@@ -1,12 +1,12 @@
 """Many captures into one partitioned Parquet dataset (``eyeq-spi batch``).
 
-Each capture is one task: the batch dissector (:mod:`.batch`) reads it and every message becomes
+Each capture is one task: the pipeline (:mod:`.pipeline`, as ``dissect`` reads it) dissects it
+and the table writer of ``dissect --parquet`` (:class:`~.output.TableWriter`) makes every message
 a row of the table of its type (its name, or its protocol when it has none), under
 ``OUT/capture=<capture>/message=<name>/``. Columns are those of ``dissect --parquet``
-(``frame_index``, ``time``, ``direction``, ``header.*`` and the flattened fields) plus ``errors``
-(the record's errors joined by "; "); unlike ``dissect --parquet``, a message with no fields (a
-MESP request without parameters, a payload of the wrong length) is a row too, so the row counts
-are ``dissect --stats``'s message counts. The partition directories add ``capture`` and
+(``frame_index``, ``time``, ``direction``, ``header.*`` and the flattened fields) with
+``errors`` (the record's errors joined by "; ") and without ``file``; the row counts are
+``dissect --stats``'s message counts. The partition directories add ``capture`` and
 ``message``: the whole fleet is one Hive-partitioned dataset for pyarrow, DuckDB or pandas.
 
 Tasks run in this process, in a local process pool, or on Dask (``distributed``: a scheduler
@@ -25,7 +25,6 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.dissect.output import flatten, table_name
 from eyeq_spi.errors import AdapterError, EyeqError, InputError, MissingExtra, OutputError
 
 ROWS_PER_GROUP = 4096
@@ -65,87 +64,40 @@ def _pyarrow() -> tuple[Any, Any]:
 
 def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
                     ) -> dict[str, Any]:
-    """One task: ``path`` into ``out/capture=<capture>/message=<name>/part-0.parquet``.
-    Returns a JSON-ready summary (never raises for a bad capture)."""
-    from eyeq_spi.codec.message import MessageCodec
-    from eyeq_spi.dissect.batch_run import batch_items
-    from eyeq_spi.dissect.engine import Dissector
-    from eyeq_spi.dissect.engine_fast_frames import FrameBlock
-    from eyeq_spi.dissect.release import open_capture
+    """One task: ``path`` through the pipeline into the tables of
+    ``out/capture=<capture>/message=<name>/part-N.parquet``. Returns a JSON-ready summary (never
+    raises for a bad capture)."""
+    from eyeq_spi.catalog.messages import catalog
+    from eyeq_spi.dissect.output import TableWriter
+    from eyeq_spi.dissect.pipeline import DissectConfig, deliver, dissect_captures
+    from eyeq_spi.dissect.stats import Stats
 
-    pa, pq = _pyarrow()
+    _pyarrow()
     summary: dict[str, Any] = {"capture": capture, "path": path, "frames": 0, "messages": {},
                                "events": 0, "error": None}
-    writers: dict[str, list[Any]] = {}  # each table's Parquet parts
-    rows: dict[str, list[dict[str, Any]]] = {}
     base = Path(out) / f"capture={capture}"
-
-    def flush(name: str) -> None:
-        batch = rows.get(name)
-        if not batch:
-            return
-        keys = list(dict.fromkeys(k for r in batch for k in r))  # every row's columns
-        table = pa.table({k: [r.get(k) for r in batch] for k in keys})
-        parts = writers.setdefault(name, [])
-        for w in parts:  # the first part with every column of these rows (the rest NULL)
-            if set(keys) <= set(w.schema.names):
-                w.write_table(pa.table({f.name: table.column(f.name) if f.name in keys
-                                        else pa.nulls(table.num_rows, f.type)
-                                        for f in w.schema}).cast(w.schema))
-                break
-        else:  # a column no part has (another release's struct variant): a new part
-            d = base / f"message={name}"
-            d.mkdir(parents=True, exist_ok=True)
-            w = pq.ParquetWriter(str(d / f"part-{len(parts)}.parquet"), table.schema)
-            parts.append(w)
-            w.write_table(table)
-        batch.clear()
-
-    def message(r: dict[str, Any]) -> None:
-        name = r["name"] or r["protocol"]
-        summary["messages"][name] = summary["messages"].get(name, 0) + 1
-        name = table_name(r)  # the partition: a MESP reply beside its request
-        row = {"frame_index": r["frames"][-1] if r["frames"] else None, "time": r["time"],
-               "direction": r["direction"], "errors": "; ".join(r["errors"]),
-               **{f"header.{k}": v for k, v in r["header"].items()}, **flatten(r["fields"])}
-        batch = rows.setdefault(name, [])
-        batch.append(row)
-        if len(batch) >= ROWS_PER_GROUP:
-            flush(name)
-
+    stats = Stats(catalog(), file=path)
+    writer: TableWriter | None = None
+    config = DissectConfig(fmt="pcapng", sw=sw, fields="dict", blocks=True)
     try:
-        with open(path, "rb") as fh:
-            cap = open_capture(fh, "pcapng", sw=sw, name=path)
-            summary.update(cap.release.as_dict())
-            if cap.release.warning:
-                summary["warning"] = cap.release.warning
-            codec = MessageCodec(cap.release.key)
-            items: Iterator[Any] | None = batch_items(fh, "pcapng", None, codec, tail=cap.tail)
-            if items is None:  # the exact engine (EYEQ_SPI_EXACT=1): the same records
-                items = _exact(Dissector(codec=codec), cap.records)
-            for item in items:
-                if isinstance(item, FrameBlock):
-                    summary["frames"] += item.hi - item.lo
-                    for _, r in item.messages:
-                        message(r)
-                elif item["kind"] == "frame":
-                    summary["frames"] += 1
-                elif item["kind"] == "message":
-                    message(item)
-                else:
-                    summary["events"] += 1
-        for name in list(rows):
-            flush(name)
-        if cap.tail.ignored:  # the dataset keeps what was whole; the summary says what was not
-            summary["ignored_bytes"] = cap.tail.ignored
-            summary["error"] = cap.tail.note(path)
-            summary["partial"] = True
+        for cf in dissect_captures([path], config):
+            summary.update(cf.release.as_dict())
+            if cf.release.warning:
+                summary["warning"] = cf.release.warning
+            writer = TableWriter(str(base), "parquet", ROWS_PER_GROUP, errors=True, hive=True)
+            deliver(cf.items, stats, [writer], path=path)
+            if cf.tail.ignored:  # the dataset keeps what was whole; the summary says what not
+                summary["ignored_bytes"] = cf.tail.ignored
+                summary["error"] = cf.tail.note(path)
+                summary["partial"] = True
     except (EyeqError, OSError) as exc:
         summary["error"] = str(exc)
     finally:
-        for parts in writers.values():
-            for w in parts:
-                w.close()
+        if writer is not None:
+            writer.close()
+    summary["frames"] = sum(stats.frames.values())
+    summary["messages"] = dict(stats.messages)
+    summary["events"] = sum(stats.events.values())
     if summary["error"] is not None and not summary.get("partial"):  # whole captures only
         shutil.rmtree(base, ignore_errors=True)
     return summary
@@ -222,10 +174,3 @@ def _on_dask(tasks: list[tuple[str, str]], out: str, sw: str | None, scheduler: 
         client.close()
         if cluster is not None:
             cluster.close()
-
-
-def _exact(dis: Any, records: Iterator[Any]) -> Iterator[dict[str, Any]]:
-    """Every record of the exact engine over ``records``, with the end-of-capture aborts."""
-    for rec in records:
-        yield from dis.feed(rec)
-    yield from dis.finish()

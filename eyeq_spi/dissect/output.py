@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-import sys
 from pathlib import Path
 from typing import IO, Any
 
@@ -112,7 +110,7 @@ class HumanWriter:
     def _walk(self, values: Any, lay: Any, depth: int) -> None:
         pad = "  " * depth
         for k, v in values.items():
-            f = lay.field(k) if lay is not None and k in lay._by_name else None
+            f = _field(lay, k)
             child = lay.children.get(k) if lay is not None else None
             if isinstance(v, dict):
                 self.fh.write(f"{pad}{k}\n")
@@ -141,56 +139,14 @@ class HumanWriter:
                 self.fh.write(f"{pad}{k} = {v}{extra}\n")
 
 
-class JsonWriter:
-    """One JSON object per line. ``fast`` (``dissect --json``): orjson encodes, which spells
-    some floats its own way (``2.5e-7`` for ``2.5e-07``, ``0.00005`` for ``5e-05``; the exact
-    spelling depends on orjson's version, the number does not: :func:`json_float`); NaN and
-    infinities are ``null`` either way."""
-
-    def __init__(self, fh: IO[str], *, fast: bool = False) -> None:
-        import orjson  # here, not at start-up: --stats and the tables never need it
-
-        self.fh = fh
-        self.fast = fast
-        self._dumps = orjson.dumps
-        self._opt = orjson.OPT_APPEND_NEWLINE
-
-    def write(self, r: dict[str, Any]) -> None:
-        if self.fast:
-            try:
-                self.fh.write(self._dumps(r, option=self._opt).decode())
-                return
-            except TypeError:  # an int over 64 bits: json.dumps writes it (same in both paths)
-                pass
-        import json
-
-        try:
-            text = json.dumps(r, separators=(",", ":"), allow_nan=False)
-        except ValueError:  # NaN/Infinity are not JSON: they become null (README contract)
-            text = json.dumps(_finite(r), separators=(",", ":"), allow_nan=False)
-        self.fh.write(text + "\n")
-
-
-def json_float(t: float, fast: bool) -> str:
-    """A finite float as the JSON writer prints it: ``repr`` (json.dumps), or orjson's spelling,
-    which differs only where either uses an exponent."""
-    s = repr(t)
-    if fast and "e" in s:
-        import orjson
-
-        return str(orjson.dumps(t).decode())
-    return s
-
-
-def _finite(v: Any) -> Any:
-    """``v`` with every non-finite float replaced by None."""
-    if isinstance(v, float):
-        return v if math.isfinite(v) else None
-    if isinstance(v, dict):
-        return {k: _finite(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_finite(x) for x in v]
-    return v
+def _field(lay: Any, name: str) -> Any:
+    """The layout's member ``name``, or None (no layout, or a name it does not have)."""
+    if lay is None:
+        return None
+    try:
+        return lay.field(name)
+    except KeyError:
+        return None
 
 
 def _as_list(v: Any) -> list[Any]:
@@ -202,39 +158,12 @@ def _item(v: Any, i: int) -> Any:
     return x.item() if hasattr(x, "item") else x
 
 
-class _NoPandas:
-    """A meta path finder that fails every import of pandas (see :func:`hide_pandas`)."""
-
-    @staticmethod
-    def find_spec(name: str, path: Any = None, target: Any = None) -> None:
-        if name == "pandas" or name.startswith("pandas."):
-            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
-
-
-def hide_pandas() -> None:
-    """Until :func:`show_pandas`, imports of pandas fail (unless it is loaded already).
-
-    pyarrow imports pandas, when it is installed, on its first conversion of anything (its
-    "is this a pandas Series?" check, and the C++ converter of Python lists looking for pd.NA):
-    0.15 CPU-s, more than writing the tables of a 90 s capture takes. No table of ours comes
-    from pandas, so a :class:`TableWriter` writing Parquet hides it while it lives; the values
-    and files are the same. Afterwards anything that really needs pandas (``to_pandas``,
-    ``from_pandas``) imports it: pyarrow tries again then."""
-    if "pandas" not in sys.modules and _NoPandas not in sys.meta_path:
-        sys.meta_path.insert(0, _NoPandas)
-
-
-def show_pandas() -> None:
-    while _NoPandas in sys.meta_path:
-        sys.meta_path.remove(_NoPandas)
-
-
 def _arrow(pa: Any, v: Any) -> Any:
     """``pa.array(v)``; a numpy int64/float64 column (no nulls) wraps its buffer instead: same
     type, same values, and pyarrow's masked-array check does not import numpy.ma (13 ms)."""
     kind = getattr(v, "dtype", None)
     if kind is not None and kind.kind in "if" and kind.itemsize == 8 and v.ndim == 1:
-        import numpy as np  # loaded already: only the batch path makes numpy columns
+        import numpy as np  # loaded already: only the fast path makes numpy columns
 
         v = np.ascontiguousarray(v)
         return pa.Array.from_buffers(pa.from_numpy_dtype(v.dtype), len(v),
@@ -266,14 +195,20 @@ class TableWriter:
     A table's columns are those of its first row. A later row with a column the table lacks
     (another release's variant of a struct, in a run over several captures) starts a new part,
     ``NAME.2.csv`` (``NAME.2.parquet``), rather than losing that column; readers of the
-    directory (pyarrow and DuckDB with ``union_by_name``) join the parts."""
+    directory (pyarrow and DuckDB with ``union_by_name``) join the parts.
+
+    Every message is a row, one without fields too (a MESP request without parameters, a
+    payload of the wrong length): a table's row count is ``--stats``'s count of its messages."""
 
     def __init__(self, directory: str, fmt: str, batch: int = 2000,
-                 column_type: Any = None) -> None:
+                 column_type: Any = None, *, errors: bool = False, hive: bool = False) -> None:
         """``column_type(table, column)`` may name the Arrow type ("float64", "int64",
         "string") of a column whose first rows are all empty (NULL): a Parquet file's schema is
         fixed by its first row group, which must not say ``null`` for a column that has values
-        later (a CAN signal at its invalid value until the first measurement)."""
+        later (a CAN signal at its invalid value until the first measurement). ``errors``: an
+        ``errors`` column (the record's errors joined by "; ") after ``direction``. ``hive``:
+        a Hive-partitioned layout, ``DIR/message=NAME/part-N.parquet`` with no ``file`` column
+        (the directory above names the capture), else ``DIR/NAME.parquet``."""
         tables = [f.name for f in formats.formats(formats.RECORD_WRITER)
                   if f.target == f"{__name__}:TableWriter"]
         if fmt not in tables:
@@ -286,6 +221,7 @@ class TableWriter:
             raise OutputError(f"cannot create {self.dir}: {exc}") from exc
         self.fmt = fmt
         self.batch = batch
+        self.errors, self.hive = errors, hive
         self.file: str | None = None  # the capture being written: every row's first column
         self._csv: dict[str, tuple[IO[str], Any, list[str]]] = {}  # each table's first part
         self._parts: dict[str, list[tuple[IO[str], Any, list[str]]]] = {}  # and every part
@@ -300,17 +236,18 @@ class TableWriter:
             except ImportError as exc:
                 extra = formats.get("parquet", formats.RECORD_WRITER).extra
                 raise MissingExtra(extra or "parquet", "--parquet needs pyarrow") from exc
-            hide_pandas()
 
     def write(self, r: dict[str, Any]) -> None:
-        if r["kind"] != "message" or not r["fields"]:
+        if r["kind"] != "message":
             return
         name = table_name(r)
-        row = {"file": r.get("file", self.file),
-               "frame_index": r["frames"][-1] if r["frames"] else None, "time": r.get("time"),
-               "direction": r.get("direction"), **{f"header.{k}": v for k, v in
-                                                    r["header"].items()},
-               **flatten(r["fields"])}
+        row: dict[str, Any] = {} if self.hive else {"file": r.get("file", self.file)}
+        row.update({"frame_index": r["frames"][-1] if r["frames"] else None,
+                    "time": r.get("time"), "direction": r.get("direction")})
+        if self.errors:
+            row["errors"] = "; ".join(r["errors"])
+        row.update({f"header.{k}": v for k, v in r["header"].items()})
+        row.update(flatten(r["fields"]))
         if self.fmt == "csv":
             self._write_csv(name, row)
         else:
@@ -323,11 +260,12 @@ class TableWriter:
 
     def write_columns(self, name: str, columns: dict[str, Any]) -> None:
         """Rows given as columns (numpy arrays or lists, equal lengths, in the order of the
-        row :meth:`write` makes): the batch dissector's vectorised groups. Same tables."""
+        row :meth:`write` makes): the fast path's vectorised groups. Same tables."""
         n = len(columns["frame_index"])
         if not n:
             return
-        columns = {"file": [self.file] * n, **columns}
+        if not self.hive:
+            columns = {"file": [self.file] * n, **columns}
         if self.fmt == "csv":
             entry = self._csv_part(name, list(columns))
             cols = [_as_list(columns[c]) if c in columns else [""] * n for c in entry[2]]
@@ -373,9 +311,8 @@ class TableWriter:
                     table = table.cast(w.schema)
                 w.write_table(table)
                 return
-        stem = name if not parts else f"{name}.{len(parts) + 1}"
         schema = self._schema(name, table.schema)  # all-NULL columns typed where known
-        w = _parquet_writer(pq, self.dir / f"{stem}.parquet", schema)
+        w = _parquet_writer(pq, self._path(name, len(parts), "parquet"), schema)
         parts.append(w)
         self._pq.setdefault(name, w)
         w.write_table(table if table.schema.equals(schema) else table.cast(schema))
@@ -408,11 +345,11 @@ class TableWriter:
             if want <= set(entry[2]):
                 self._last[name] = (keys, entry)
                 return entry
-        stem = name if not parts else f"{name}.{len(parts) + 1}"
+        path = self._path(name, len(parts), "csv")
         try:
-            fh = open(self.dir / f"{stem}.csv", "w", newline="", encoding="utf-8")  # noqa: SIM115
+            fh = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115
         except OSError as exc:
-            raise OutputError(f"cannot write {self.dir / stem}.csv: {exc}") from exc
+            raise OutputError(f"cannot write {path}: {exc}") from exc
         import csv
 
         w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")  # a row never has more
@@ -422,6 +359,17 @@ class TableWriter:
         self._last[name] = (keys, entry)
         self._csv.setdefault(name, entry)
         return entry
+
+    def _path(self, name: str, part: int, suffix: str) -> Path:
+        """The file of a table's part ``part`` (0: the first)."""
+        if not self.hive:
+            return self.dir / (f"{name}.{suffix}" if not part else f"{name}.{part + 1}.{suffix}")
+        where = self.dir / f"message={name}"
+        try:
+            where.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"cannot create {where}: {exc}") from exc
+        return where / f"part-{part}.{suffix}"
 
     def _flush(self, name: str) -> None:
         import pyarrow as pa
@@ -436,17 +384,13 @@ class TableWriter:
         rows.clear()
 
     def close(self) -> None:
-        try:
-            for parts in self._parts.values():
-                for fh, _, _ in parts:
-                    fh.close()
-            for name in list(self._rows):
-                self._flush(name)
-            for name in list(self._tables):
-                self._flush_tables(name)
-            for ws in self._pq_parts.values():
-                for w in ws:
-                    w.close()
-        finally:
-            if self.fmt == "parquet":
-                show_pandas()
+        for parts in self._parts.values():
+            for fh, _, _ in parts:
+                fh.close()
+        for name in list(self._rows):
+            self._flush(name)
+        for name in list(self._tables):
+            self._flush_tables(name)
+        for ws in self._pq_parts.values():
+            for w in ws:
+                w.close()

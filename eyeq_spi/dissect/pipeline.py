@@ -8,17 +8,17 @@ caller's ``sw`` with the one warning line of :attr:`.Release.warning`), reads a 
 inside a block up to its last whole block (:attr:`CaptureFile.tail` says what was ignored), and
 gets the fast path where it applies:
 
-- a seekable pcapng or raw file of at least :data:`SMALL_INPUT` bytes takes the batch path
-  (:mod:`.batch_run`; numpy costs more than it saves below that), anything else (hex, logic
-  captures, stdin, small files) the exact engine (:class:`.engine.Dissector`); the records are
-  the same either way (the agreement tests hold the batch path to the engine);
+- a seekable pcapng or raw file of at least :data:`SMALL_INPUT` bytes takes the fast path
+  (:mod:`.pipeline_fast`; numpy costs more than it saves below that), anything else (hex, logic
+  captures, stdin, small files) the reference (:class:`.engine.Dissector`); the records are
+  the same either way (the agreement tests hold the fast path to the engine);
 - ``jobs`` > 1 and several files: files are dissected in worker processes, in the order given;
 - the cyclic garbage collector is paced (:func:`paced_gc`) instead of running every 700 new
   containers.
 
 :func:`dissect_files` hands out plain records (each with its ``file``); :func:`dissect_captures`
 hands out one :class:`CaptureFile` per file, for callers that need the release before the
-records or consume the batch path's frame blocks whole (``dissect``'s writers);
+records or consume the fast path's frame blocks whole (``dissect``'s writers);
 :func:`open_capture_file` opens one capture for its transfers (``replay``, ``export --vcd``).
 """
 
@@ -35,10 +35,13 @@ from eyeq_spi import garbage
 from eyeq_spi.capture.pcapng_io import Record, Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.release import Capture, Release, open_capture
-from eyeq_spi.errors import EyeqError, InputError
+from eyeq_spi.errors import EyeqError
+from eyeq_spi.io import can_log_hint
+from eyeq_spi.io.plain import InputError
 from eyeq_spi.logic.options import SpiOptions
+from eyeq_spi.twins import exact
 
-SMALL_INPUT = 256 << 10  # bytes; below this the exact path is quicker than importing numpy
+SMALL_INPUT = 256 << 10  # bytes; below this the reference is quicker than importing numpy
 PACE = 4096  # records between two looks at the young generation
 YOUNG = 20_000  # containers it must have grown by to be collected
 
@@ -55,10 +58,10 @@ class DissectConfig:
     """How captures are read. ``fmt``, ``direction``, ``spi``: the input format (None: detect
     it), the channel of a raw or hex file without directions, the logic-analyzer options.
     ``sw``: read every capture as this release (None: each capture's own). ``jobs``: files
-    dissected at a time in worker processes (0: one per CPU). ``fields``: what the batch path's
-    messages carry (:func:`fields_mode`). ``blocks``: hand out the batch path's
+    dissected at a time in worker processes (0: one per CPU). ``fields``: what the fast path's
+    messages carry (:func:`fields_mode`). ``blocks``: hand out the fast path's
     frame blocks whole (a consumer that writes them straight from their arrays,
-    :func:`.batch_run.consume`) instead of their records. ``pace_gc``: the automatic collector
+    :func:`.pipeline_fast.consume`) instead of their records. ``pace_gc``: the automatic collector
     is off while records are handed out, collections paced by :func:`paced_gc` (off for a
     consumer that holds the iterator for long between records, such as a live view)."""
 
@@ -102,20 +105,23 @@ class CaptureFile:
 
     path: str
     config: DissectConfig = field(default_factory=DissectConfig)
-    batch: Any = None  # eyeq_spi.dissect.batch_run when the batch path may be taken, AUTO:
-    # when the file is big enough (batch_module)
+    fast: Any = None  # eyeq_spi.dissect.pipeline_fast when the fast path may be taken, AUTO:
+    # when the file is big enough (fast_module)
     progress: Progress | None = None
     _done: tuple[list[Any], Release, Tail] | None = None  # from a worker process
     _fh: IO[bytes] | None = None
     _cap: Capture | None = None
 
-    def _open(self) -> Capture:
+    def open(self) -> Capture:
         if self._cap is None:
             cfg = self.config
             self._fh = open_stream(self.path)
             try:
-                self._cap = open_capture(self._fh, cfg.fmt, cfg.direction, cfg.spi,
-                                         sw=cfg.sw, name=self.path)
+                fast = fast_module([self.path]) if self.fast is AUTO else self.fast
+                cap = (fast.open_fast(self._fh, cfg.fmt, cfg.direction, sw=cfg.sw,
+                                      name=self.path) if fast is not None else None)
+                self._cap = cap or open_capture(self._fh, cfg.fmt, cfg.direction, cfg.spi,
+                                                sw=cfg.sw, name=self.path)
             except EyeqError as exc:
                 self.close()
                 raise _naming(exc, self.path) from None
@@ -128,13 +134,13 @@ class CaptureFile:
     def release(self) -> Release:
         if self._done is not None:
             return self._done[1]
-        return self._open().release
+        return self.open().release
 
     @property
     def tail(self) -> Tail:
         if self._done is not None:
             return self._done[2]
-        return self._open().tail
+        return self.open().tail
 
     @property
     def codec(self) -> MessageCodec:
@@ -143,11 +149,11 @@ class CaptureFile:
     @property
     def transfers(self) -> Iterator[Record]:
         """The capture's transfers as read (no dissection)."""
-        return self._open().records
+        return self.open().records
 
     @property
     def items(self) -> Iterator[Any]:
-        """The dissector's records in order (with :attr:`DissectConfig.blocks`, the batch
+        """The dissector's records in order (with :attr:`DissectConfig.blocks`, the fast
         path's frame blocks whole, the other records as dicts), GC paced when configured."""
         items = self._items()
         return self._expand(paced_gc(items) if self.config.pace_gc else items)
@@ -156,17 +162,18 @@ class CaptureFile:
         if self._done is not None:
             yield from self._done[0]
             return
-        from eyeq_spi.dissect.engine import Dissector
+        from eyeq_spi.dissect.engine import iter_records
 
-        cap = self._open()
+        cap = self.open()
         fh = self._fh
         assert fh is not None
         try:
-            br = batch_module([self.path]) if self.batch is AUTO else self.batch
-            batched = (br.batch_items(fh, self.config.fmt, self.config.direction, self.codec,
-                                      fields=self.config.fields, tail=cap.tail)
-                       if br is not None else None)
-            items = batched or _all(Dissector(codec=self.codec), cap.records)
+            if cap.chunks is not None:  # opened by the fast path (open): numpy is loaded
+                from eyeq_spi.dissect.pipeline_fast import chunk_items
+
+                items = chunk_items(cap.chunks, self.codec, self.config.fields)
+            else:
+                items = iter_records(cap.records, codec=self.codec)
             yield from self._tracked(items, fh)
         except EyeqError as exc:
             raise _naming(exc, self.path) from None
@@ -208,13 +215,19 @@ class CaptureFile:
 
 def _naming(exc: EyeqError, path: str) -> EyeqError:
     """``exc`` with the file it is about in front (``a.pcapng: empty input``), so that with
-    several files the user knows which one; the same class, so callers catch it as before."""
+    several files the user knows which one, and for a CAN log refused as a capture the command
+    that reads it; the same class, so callers catch it as before."""
     name = "stdin" if path == "-" else path
     text = str(exc)
-    if text.startswith(f"{name}:") or text.startswith(f"{path}:"):
+    hint = can_log_hint(path) if path != "-" and isinstance(exc, InputError) else None
+    if hint is not None:
+        text = f"{text}; {hint}"
+    if not (text.startswith(f"{name}:") or text.startswith(f"{path}:")):
+        text = f"{name}: {text}"
+    elif hint is None:
         return exc
     try:
-        named = type(exc)(f"{name}: {text}")
+        named = type(exc)(text)
     except TypeError:  # an error class with other arguments: as it is
         return exc
     return named
@@ -228,7 +241,7 @@ def dissect_captures(paths: Sequence[str], config: DissectConfig | None = None, 
     cfg = config or DissectConfig()
     if cfg.jobs < 0:
         raise ValueError(f"jobs must be 0 or more, not {cfg.jobs}")
-    br = batch_module(paths, cfg.jobs)
+    br = fast_module(paths, cfg.jobs)
     jobs = cfg.jobs or (br.default_jobs() if br is not None else 1)
     par = None
     if br is not None and jobs > 1 and len(paths) > 1 and "-" not in paths:
@@ -287,24 +300,27 @@ def open_capture_file(path: str, config: DissectConfig | None = None) -> Capture
     :class:`.inputs.InputError` now); read its :attr:`~CaptureFile.transfers` or
     :attr:`~CaptureFile.items`, then :meth:`~CaptureFile.close` it."""
     cf = CaptureFile(path, config or DissectConfig(), AUTO)
-    cf._open()
+    cf.open()
     return cf
 
 
 def fields_mode(writers: list[Any], plain: bool) -> str:
-    """What the batch path's messages must carry for these writers (vmessages.SpanDecoder):
-    counts only for statistics alone with no filter, no fields with a filter, columns for one
-    table writer and no filter, else the fields."""
+    """What the fast path's messages must carry for these writers
+    (:class:`.engine_fast_messages.SpanDecoder`): no fields for statistics alone, columns for
+    one table writer and no filter, else the fields."""
     if not writers:
-        return "count" if plain else "none"
-    if plain and len(writers) == 1 and type(writers[0]).__name__ == "TableWriter":
+        return "none"
+    if (plain and len(writers) == 1 and type(writers[0]).__name__ == "TableWriter"
+            and not getattr(writers[0], "errors", False)):
         return "columns"
     return "dict"
 
 
-def batch_module(paths: Sequence[str], jobs: int = 1) -> Any:
-    """:mod:`eyeq_spi.dissect.batch_run`, or None when no input is big enough for the batch
+def fast_module(paths: Sequence[str], jobs: int = 1) -> Any:
+    """:mod:`eyeq_spi.dissect.pipeline_fast`, or None when no input is big enough for the fast
     path (nor several files for ``jobs``): start-up of small runs stays under 300 ms."""
+    if exact():  # EYEQ_SPI_EXACT=1: the references read everything
+        return None
     several = jobs != 1 and len(paths) > 1 and "-" not in paths
     big = False
     for path in paths:
@@ -315,13 +331,13 @@ def batch_module(paths: Sequence[str], jobs: int = 1) -> Any:
                 big = True  # let the readers report it
     if not (big or several):
         return None
-    from eyeq_spi.dissect import batch_run
+    from eyeq_spi.dissect import pipeline_fast
 
-    return batch_run
+    return pipeline_fast
 
 
 class BlockPosition:
-    """Where in the file a frame block of the batch path stands: its chunk was read between
+    """Where in the file a frame block of the fast path stands: its chunk was read between
     the positions seen at this chunk's first block and the previous chunk's, and the block
     ends ``hi`` rows into it (the reader reads a whole chunk before the first block)."""
 
@@ -371,7 +387,28 @@ def _file_size(fh: IO[bytes]) -> int | None:
     return st.st_size if stat.S_ISREG(st.st_mode) else None
 
 
-def _all(dis: Any, records: Iterator[Record]) -> Iterator[dict[str, Any]]:
-    for rec in records:
-        yield from dis.feed(rec)
-    yield from dis.finish()
+def deliver(items: Iterable[Any], stats: Any, writers: list[Any], *,
+            keep: Callable[[dict[str, Any]], bool] | None = None, path: str | None = None
+            ) -> None:
+    """A capture's items (:attr:`CaptureFile.items`, frame blocks whole) to its
+    :class:`~.stats.Stats` and the writers: the records ``keep`` keeps (None: every record),
+    each with its ``file`` member ``path``."""
+    for item in items:
+        if not isinstance(item, dict):  # a frame block of the fast path
+            from eyeq_spi.dissect.pipeline_fast import consume
+
+            consume(item, keep or _every, keep is None, stats, writers, path)
+        else:
+            if path is not None:
+                item["file"] = path
+            if keep is None or keep(item):  # --stats describes exactly what is kept
+                stats.add(item)
+                for w in writers:
+                    w.write(item)
+        item = None  # paced_gc: the block is garbage now
+
+
+def _every(record: dict[str, Any]) -> bool:
+    return True
+
+

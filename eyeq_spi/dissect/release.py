@@ -170,6 +170,9 @@ class Capture:
     records: Iterator[Record]
     release: Release
     tail: Tail = field(default_factory=Tail)
+    # the fast path's chunks of transfers (:mod:`eyeq_spi.capture.pcapng_fast`), which
+    # ``records`` are read from: a caller reads one or the other; None for the reference readers
+    chunks: Iterator[Any] | None = None
 
 
 def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | None = None,
@@ -191,11 +194,10 @@ def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | Non
     except EyeqError as exc:  # raised after the transfers before it, as the reader would
         fault = exc
     found = infer_release(head)
-    return Capture(kind, _then(head, fault, records), choose_release(sw, found, name), tail)
+    return Capture(kind, then(head, fault, records), choose_release(sw, found, name), tail)
 
 
-def _then(head: list[Record], fault: EyeqError | None, rest: Iterator[Record]
-          ) -> Iterator[Record]:
+def then(head: list[Any], fault: EyeqError | None, rest: Iterator[Any]) -> Iterator[Any]:
     yield from head
     if fault is not None:
         raise fault

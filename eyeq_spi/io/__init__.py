@@ -52,8 +52,8 @@ class Format(NamedTuple):  # a NamedTuple: dataclasses would cost the CLI's star
     file cut short gives: ``error`` (:class:`~eyeq_spi.errors.TruncatedInputError`), ``drop``
     (the transfer the cut ends is dropped, as a logic analyzer stopped mid-transfer) or
     ``short`` (the format marks no transfer's end: the last transfer is read as far as it
-    goes). A text format cut inside a row or line says so, naming the line. ``batch``: the
-    ``module:callable`` reading the format in chunks for the batch dissector (else only the
+    goes). A text format cut inside a row or line says so, naming the line. ``fast``: the
+    ``module:callable`` reading the format in chunks for the fast path (else only the
     exact reader reads it).
 
     Capture writers are called ``target(records, path, **options) -> transfers written``.
@@ -73,7 +73,7 @@ class Format(NamedTuple):  # a NamedTuple: dataclasses would cost the CLI's star
     resolution: float | None = None
     channels: int = 2
     truncation: Truncation = ""
-    batch: str | None = None  # readers: the batch (numpy) path's chunk reader, if it has one
+    fast: str | None = None  # readers: the fast (numpy) path's chunk reader, if it has one
 
     @property
     def module(self) -> str:
@@ -93,7 +93,7 @@ REGISTRY: tuple[Format, ...] = (
     Format("pcapng", CAPTURE_READER, (".pcapng",), f"{_PLAIN}:read_pcapng_input",
            "our captures: one interface per SPI channel (specs/capture.yaml)",
            sniff=f"{_PLAIN}:sniff_pcapng", takes="tail", resolution=1e-6, truncation="error",
-           batch="eyeq_spi.capture.pcapng_fast:pcapng_chunks"),
+           fast="eyeq_spi.capture.pcapng_fast:pcapng_chunks"),
     Format("saleae2", CAPTURE_READER, (".csv",), "eyeq_spi.logic.saleae:read_saleae2",
            "Saleae Logic 2 SPI analyzer export table (one analyzer per channel)",
            sniff="eyeq_spi.logic.saleae:sniff", text=True, takes="spi", resolution=0.0,
@@ -113,7 +113,7 @@ REGISTRY: tuple[Format, ...] = (
     Format("raw", CAPTURE_READER, (".raw", ".bin"), f"{_PLAIN}:read_raw",
            "concatenated 128-byte transfers of one channel, no times",
            sniff=f"{_PLAIN}:sniff_raw", takes="direction", channels=1, truncation="error",
-           batch="eyeq_spi.capture.pcapng_fast:raw_chunks"),
+           fast="eyeq_spi.capture.pcapng_fast:raw_chunks"),
     Format("pcapng", CAPTURE_WRITER, (".pcapng",), f"{_WRITERS}:write_pcapng",
            "what demo, host and sim --capture write (crash-safe, streamed)"),
     Format("vcd", CAPTURE_WRITER, (".vcd",), f"{_WRITERS}:write_vcd_file",
@@ -124,7 +124,7 @@ REGISTRY: tuple[Format, ...] = (
            "one transfer per line: TIME DIRECTION HEX"),
     Format("raw", CAPTURE_WRITER, (".raw", ".bin"), f"{_PLAIN}:write_raw",
            "the transfers of one channel, concatenated"),
-    Format("jsonl", RECORD_WRITER, (".jsonl", ".ndjson"), "eyeq_spi.dissect.output:JsonWriter",
+    Format("jsonl", RECORD_WRITER, (".jsonl", ".ndjson"), "eyeq_spi.io.jsonl:JsonLinesWriter",
            "JSON Lines: every record (dissect --json)"),
     Format("csv", RECORD_WRITER, (".csv",), "eyeq_spi.dissect.output:TableWriter",
            "a directory of tables, one CSV file per message type (dissect --csv)"),
@@ -137,7 +137,8 @@ REGISTRY: tuple[Format, ...] = (
     Format("mcap", RECORD_WRITER, (".mcap",), "eyeq_spi.interop.mcap_out:McapWriter",
            "raw transfers and decoded messages for Foxglove (export --mcap)",
            extra="export", needs=("mcap", "zstandard")),
-    Format("can-log", CAN_LOG, (), "eyeq_spi.can.logs:read_log",
+    Format("can-log", CAN_LOG, (".blf", ".asc", ".log", ".trc", ".mf4", ".csv"),
+           "eyeq_spi.can.logs:read_log",
            "CAN logs: python-can's own registry reads them by suffix (eyeq-spi can)",
            extra="can", needs=("can", "cantools")),
 )
@@ -153,9 +154,9 @@ def readers() -> tuple[str, ...]:
     return names(CAPTURE_READER)
 
 
-def batch_readers() -> tuple[str, ...]:
-    """The capture readers the batch dissector reads (the others take the exact path)."""
-    return tuple(f.name for f in formats(CAPTURE_READER) if f.batch)
+def fast_readers() -> tuple[str, ...]:
+    """The capture readers the fast path reads (the others take the exact path)."""
+    return tuple(f.name for f in formats(CAPTURE_READER) if f.fast)
 
 
 def formats(kind: Kind) -> tuple[Format, ...]:
@@ -181,6 +182,17 @@ def by_suffix(path: str | PurePath, kind: Kind) -> Format:
     known = ", ".join(f"{f.name} ({' '.join(f.suffixes)})" for f in formats(kind) if f.suffixes)
     raise UnknownFormatError(f"{path}: unknown {kind} suffix {suffix or '(none)'!r}; known: "
                              f"{known}")
+
+
+def can_log_hint(path: str | PurePath) -> str | None:
+    """For a file a capture reader refused: the command that reads it when its suffix is a CAN
+    log's and no capture reader's (``drive.blf``), else None."""
+    suffix = PurePath(path).suffix.lower()
+    if not suffix or any(suffix in f.suffixes for f in formats(CAPTURE_READER)):
+        return None
+    if any(suffix in f.suffixes for f in formats(CAN_LOG)):
+        return f"a CAN log ({suffix}) is read by: eyeq-spi can decode {path}"
+    return None
 
 
 def missing(fmt: Format) -> str | None:
@@ -259,6 +271,24 @@ def markdown_table() -> str:
     return "\n".join(rows) + "\n"
 
 
-__all__ = ["CAN_LOG", "CAPTURE_READER", "CAPTURE_WRITER", "KINDS", "RECORD_WRITER", "REGISTRY",
-           "Format", "batch_readers", "by_suffix", "formats", "get", "load", "markdown_table",
-           "missing", "names", "readers", "require", "sniffers"]
+__all__ = [
+    "CAN_LOG",
+    "CAPTURE_READER",
+    "CAPTURE_WRITER",
+    "KINDS",
+    "RECORD_WRITER",
+    "REGISTRY",
+    "Format",
+    "by_suffix",
+    "can_log_hint",
+    "fast_readers",
+    "formats",
+    "get",
+    "load",
+    "markdown_table",
+    "missing",
+    "names",
+    "readers",
+    "require",
+    "sniffers",
+]

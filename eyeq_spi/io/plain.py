@@ -52,7 +52,7 @@ def detect(head: bytes) -> str:
 def _detect(head: bytes, text: bool) -> str:
     """``text``: try the text formats (logic-analyzer exports, hex). A head that starts with a
     byte of ``_BINARY_LEAD`` can be none of them, so a raw capture skips their sniffers (and the
-    import of eyeq_spi.logic): the answer is the same (tests/test_dissect_engine_fast_cut.py)."""
+    import of eyeq_spi.logic): the answer is the same (tests/test_dissect_stats_fast.py)."""
     if not head:
         raise InputError("empty input")
     for _, sniff in registry.sniffers(text):
@@ -141,9 +141,13 @@ def _pcapng(peek: PeekStream, tail: Tail | None = None) -> Iterator[Record]:
 
 
 def read_raw(peek: PeekStream, direction: str | None = None) -> Iterator[Record]:
-    """128-byte transfers of one channel (``direction``), without times."""
+    """128-byte transfers of one channel (``direction``), without times. A file none of whose
+    first transfers is a link frame with a good CRC never was a raw capture."""
     if not peek.head:
         raise InputError("empty input")
+    if sniff_raw(peek.head) is None:
+        raise InputError("not a raw capture: no link frame with a good CRC in its first "
+                         f"{min(len(peek.head) // FRAME_SIZE, 8)} transfers of 128 bytes")
     return _raw(peek, direction)
 
 
@@ -165,7 +169,15 @@ def _raw(peek: PeekStream, direction: str | None) -> Iterator[Record]:
 
 
 def read_hex(peek: PeekStream, direction: str | None = None) -> Iterator[Record]:
-    """One transfer per line; ``direction`` for lines that do not name theirs."""
+    """One transfer per line; ``direction`` for lines that do not name theirs. A file whose
+    first lines are not such lines never was a hex capture."""
+    if peek.head and sniff_hex(peek.head) is None:
+        raise InputError("not a hex capture: its first lines are not transfers in hex "
+                         "([TIME] [h2e|e2h] HEX BYTES)")
+    return _hex(peek, direction)
+
+
+def _hex(peek: PeekStream, direction: str | None) -> Iterator[Record]:
     buf = b""
     lineno = 0
     seen = False
@@ -210,7 +222,8 @@ def _hex_line(raw_line: bytes, lineno: int, direction: str | None) -> Record | N
     try:
         data = binascii.unhexlify(text)
     except (binascii.Error, ValueError):
-        raise InputError(f"line {lineno}: not hex bytes: {text[:40]!r}") from None
+        shown = "".join(c if c.isprintable() else "?" for c in text[:40])
+        raise InputError(f"line {lineno}: not hex bytes: {shown!r}") from None
     if not data:
         raise InputError(f"line {lineno}: no bytes")
     return Record(t, dirn, data)

@@ -1,15 +1,13 @@
-"""The batch dissector's lean modes (``dissect --stats`` alone, one table writer): a group's
-messages cut from the chunk at once (dissect/engine_fast_cut.py), records only for messages with
-errors, the others counted. ``--stats`` (text and JSON, key order included), the tables and the exit
-code are those of the exact engine on clean, link-faulty and application-faulty captures; and
-what the CLI does around it: the paced garbage collector, pandas kept out of Parquet writing."""
+"""The fast path's records for ``dissect --stats`` alone (no fields) and one table writer
+(columns): ``--stats`` (text and JSON, key order included), the tables and the exit code are
+those of the reference on clean, link-faulty and application-faulty captures; and what the CLI
+does around it: the paced garbage collector, the Parquet writer's dictionaries."""
 
 from __future__ import annotations
 
 import gc
 import io
 import json
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -23,15 +21,15 @@ from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect import batch_run, engine, output, pipeline
+from eyeq_spi.dissect import engine, output, pipeline, pipeline_fast
 from eyeq_spi.dissect import engine_fast as batch
 from eyeq_spi.dissect.engine_fast_frames import FrameBlock
 from eyeq_spi.dissect.stats import Stats
 from eyeq_spi.io import plain as inputs
 from eyeq_spi.transport.segment import segment
 from tests.test_codec_message_fast import _capture
-from tests.test_dissect_batch_run import _Pipe
 from tests.test_dissect_engine_fast import BASE, MUTATIONS, Rec, _as_records, synthetic
+from tests.test_dissect_pipeline_fast import _Pipe
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
@@ -50,34 +48,29 @@ def exact_stats(recs: list[Record]) -> tuple[str, str]:
     return _stats_text(st)
 
 
-def lean_stats(recs: list[Record], chunk: int) -> tuple[tuple[str, str], int, int]:
-    """--stats from count-mode blocks; also (messages with a record, messages counted)."""
+def lean_stats(recs: list[Record], chunk: int) -> tuple[str, str]:
+    """--stats from the fast path's blocks, in the mode ``dissect --stats`` takes (no fields)."""
     st = Stats(CAT)
-    with_rec = counted = 0
-    for item in batch.iter_items(chunks_from_records(recs, chunk), fields="count"):
+    fields = pipeline.fields_mode([], True)
+    for item in batch.iter_items(chunks_from_records(recs, chunk), fields=fields):
         if isinstance(item, FrameBlock):
-            batch_run.consume(item, lambda r: True, True, st, [])
-            with_rec += len(item.messages)
-            counted += sum(g.n for g in item.counts)
+            pipeline_fast.consume(item, lambda r: True, True, st, [])
         else:
             st.add(item)
-    return _stats_text(st), with_rec, counted
+    return _stats_text(st)
 
 
 @pytest.mark.parametrize("chunk", [5, 64, 1 << 15])
-def test_lean_stats_of_a_clean_capture_count_instead_of_records(chunk: int) -> None:
+def test_lean_stats_of_a_clean_capture(chunk: int) -> None:
     recs = _as_records(synthetic(12))
-    got, with_rec, counted = lean_stats(recs, chunk)
-    assert got == exact_stats(recs)
-    if chunk == 1 << 15:  # one span: the DASP messages are counted, MESP ones get records
-        assert counted >= 2 * 12 - 2 and with_rec >= 5 * 12 - 2
+    assert lean_stats(recs, chunk) == exact_stats(recs)
 
 
 @pytest.mark.parametrize("name", sorted(MUTATIONS))
 def test_lean_stats_under_each_link_fault(name: str) -> None:
     for i, chunk in ((40, 1 << 15), (150, 16)):
         recs = _as_records(MUTATIONS[name](BASE, min(i, len(BASE) - 1)))
-        assert lean_stats(recs, chunk)[0] == exact_stats(recs), (name, i, chunk)
+        assert lean_stats(recs, chunk) == exact_stats(recs), (name, i, chunk)
 
 
 @settings(max_examples=20, deadline=None)
@@ -88,7 +81,7 @@ def test_lean_stats_under_application_faults(faults: list[tuple[int, int]], chun
     """E2E, counter gaps, reserved bytes, bad enums, wrong lengths, unknown IDs: the records
     of the faulty messages and the counts of the others give the exact statistics."""
     recs = _capture(faults)
-    assert lean_stats(recs, chunk)[0] == exact_stats(recs)
+    assert lean_stats(recs, chunk) == exact_stats(recs)
 
 
 @settings(max_examples=10, deadline=None)
@@ -102,7 +95,7 @@ def test_lean_stats_under_mixed_link_faults(ops: list[tuple[str, int]], chunk: i
             break
         items = MUTATIONS[name](items, where % len(items))
     recs = _as_records(items)
-    assert lean_stats(recs, chunk)[0] == exact_stats(recs)
+    assert lean_stats(recs, chunk) == exact_stats(recs)
 
 
 # -- the CLI: file (batch path) against stdin (exact path) ------------------------------------
@@ -144,7 +137,7 @@ def _run(args: list[str], capsys: pytest.CaptureFixture[str], stdin: bytes | Non
 def test_cli_batch_and_exact_print_the_same(files: list[tuple[Path, list[str]]],
                                             mode: list[str], capsys: pytest.CaptureFixture[str],
                                             monkeypatch: pytest.MonkeyPatch) -> None:
-    """The test captures are small: SMALL_INPUT 0 sends them through the batch path."""
+    """The test captures are small: SMALL_INPUT 0 sends them through the fast path."""
     monkeypatch.setattr(pipeline, "SMALL_INPUT", 0)
     for path, extra in files:
         rc, out = _run(["dissect", str(path), *extra, *mode], capsys)
@@ -210,39 +203,6 @@ def test_dissect_leaves_the_collector_as_it_found_it(files: list[tuple[Path, lis
     capsys.readouterr()
 
 
-_HIDE_PANDAS = """
-import sys
-from eyeq_spi.dissect import output
-assert "pandas" not in sys.modules
-w = output.TableWriter(sys.argv[1], "parquet")
-try:
-    __import__("pandas")
-except ImportError:
-    pass
-else:
-    raise SystemExit("pandas importable while a Parquet writer lives")
-w.close()
-assert output._NoPandas not in sys.meta_path
-try:
-    import pandas
-except ImportError:
-    print("no pandas")
-else:
-    print("pandas back")
-"""
-
-
-def test_parquet_writer_hides_pandas_only_while_it_lives(tmp_path: Path) -> None:
-    """In a fresh process (this one may have imported pandas already)."""
-    pytest.importorskip("pyarrow", reason="--parquet needs pyarrow (extra)")
-    r = subprocess.run([sys.executable, "-c", _HIDE_PANDAS, str(tmp_path)],
-                       capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr[-1500:]
-    if r.stdout.strip() == "no pandas":
-        pytest.skip("pandas is not installed: only the hiding was checked")
-    assert r.stdout.strip() == "pandas back"
-
-
 def test_parquet_dictionaries_only_for_words(tmp_path: Path) -> None:
     pq = pytest.importorskip("pyarrow.parquet", reason="--parquet needs pyarrow (extra)")
     w = output.TableWriter(str(tmp_path), "parquet")
@@ -259,7 +219,7 @@ def test_parquet_dictionaries_only_for_words(tmp_path: Path) -> None:
 
 def test_no_group_is_judged_across_a_switch_application_request() -> None:
     """§7.1.1.1.4: after a SwitchEyeQApplication request the host's E2E rolling counters may
-    start over; the exact engine may judge the messages after it afresh, so the batch path
+    start over; the exact engine may judge the messages after it afresh, so the fast path
     (records and lean counts) judges the messages on each side of it apart, in order."""
     mc = MessageCodec()
     fc = batch.Dissector().frames
@@ -282,8 +242,8 @@ def test_no_group_is_judged_across_a_switch_application_request() -> None:
     want = list(engine.iter_records(recs))
     for chunk in (7, 1 << 15):
         assert list(batch.iter_records(chunks_from_records(recs, chunk))) == want
-        assert lean_stats(recs, chunk)[0] == exact_stats(recs)
-    dec = batch.BatchDissector().decode
+        assert lean_stats(recs, chunk) == exact_stats(recs)
+    dec = batch.ChunkFeeder().decode
     assert dec.is_barrier(mc.mesp.encode_request("SwitchEyeQApplication", 1,
                                                  {"applicationId": 1}))
     assert not dec.is_barrier(mc.mesp.encode_reply("SwitchEyeQApplication", 1, 0,

@@ -1,9 +1,9 @@
-"""``eyeq-spi dissect`` on the batch path: which inputs take it, how its items reach the writers,
+"""``eyeq-spi dissect`` on the fast path: which inputs take it, how its items reach the writers,
 and ``--jobs N`` (files dissected in worker processes, output identical to a serial run).
 
-pcapng and raw files take the batch path (:mod:`.batch`); hex text, logic-analyzer captures and
-stdin keep the exact engine's record stream. Either way the records are the exact engine's (the
-agreement tests hold the batch path to that), so writers, filters and ``--stats`` see the same.
+pcapng and raw files take the fast path (:mod:`.engine_fast`); hex text, logic-analyzer captures and
+stdin keep the reference's record stream. Either way the records are the reference's (the
+agreement tests hold the fast path to that), so writers, filters and ``--stats`` see the same.
 """
 
 from __future__ import annotations
@@ -11,63 +11,106 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import replace
 from typing import IO, Any
 
 import numpy as np
 
 from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
-from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, Tail
+from eyeq_spi.capture.pcapng_io import (
+    PCAPNG_MAGIC,
+    Record,
+    Tail,
+    recorded_release,
+    release_sniff_transfers,
+)
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.engine_fast import BatchDissector
+from eyeq_spi.dissect.engine_fast import ChunkFeeder
 from eyeq_spi.dissect.engine_fast_frames import FrameArrays, FrameBlock
-from eyeq_spi.dissect.output import JsonWriter
-from eyeq_spi.dissect.release import Release
-from eyeq_spi.errors import InputError
-from eyeq_spi.io import batch_readers
-from eyeq_spi.io.plain import detect
-from eyeq_spi.twins import exact
+from eyeq_spi.dissect.release import (
+    RECORDED,
+    Capture,
+    Release,
+    choose_release,
+    infer_release,
+    then,
+)
+from eyeq_spi.errors import EyeqError
+from eyeq_spi.io.plain import InputError, detect, sniff_raw
 
 Item = dict[str, Any] | FrameBlock
-__all__ = ["FrameBlock", "batch_items", "consume", "default_jobs", "parallel_items"]
+__all__ = ["FrameBlock", "chunk_items", "consume", "default_jobs", "open_fast", "parallel_items"]
 
 
-def batch_items(fh: IO[bytes], fmt: str | None, direction: str | None,
-                codec: MessageCodec, *, fields: str = "dict", tail: Tail | None = None
-                ) -> Iterator[Item] | None:
-    """The batch path's items for a seekable pcapng or raw file (read from its start), else
-    None: the exact path goes on, ``fh`` at the position it had. ``fields``: what the span
-    messages carry (:class:`~.engine_fast_messages.SpanDecoder`: "dict", "none" for ``--stats``
-    alone, "columns" for a table writer alone). ``tail``: a pcapng file that ends inside a block is
-    read up to its last whole block, as :func:`~.inputs.open_records` does. With
-    ``EYEQ_SPI_EXACT=1`` always None: the exact :class:`~.engine.Dissector` reads everything."""
-    if exact():
-        return None
+def open_fast(fh: IO[bytes], fmt: str | None, direction: str | None, *, sw: str | None,
+              name: str) -> Capture | None:
+    """A seekable pcapng or raw file (read from its start) opened for the fast path, its release
+    found in the same pass as its transfers (:func:`.release.open_capture`'s order: ``sw``, the
+    recorded release, then what the first transfers show); None: the reference reads it (another
+    format, stdin, or not a capture: the reference says so in its own words)."""
     try:
         if not fh.seekable():
             return None
-        pos = fh.tell()
         fh.seek(0)
         head = fh.read(4096)
+        fh.seek(0)
     except (OSError, ValueError):
         return None
     try:
         kind = fmt or detect(head)
     except InputError:
-        kind = None  # the exact path reports it, with its own words
+        return None
+    tail = Tail()
     if kind == "pcapng" and head[:4] == PCAPNG_MAGIC:
-        fh.seek(0)
-        return _items(pcapng_chunks(fh, tail=tail), codec, fields)
-    if kind == "raw" and head:
-        fh.seek(0)
-        return _items(raw_chunks(fh, direction), codec, fields)
-    fh.seek(pos)
-    return None
+        chunks = pcapng_chunks(fh, tail=tail)
+    elif kind == "raw" and sniff_raw(head) is not None:
+        chunks = raw_chunks(fh, direction)
+    else:
+        return None
+    recorded = recorded_release(head)
+    if recorded is not None:
+        release = choose_release(sw, (recorded, RECORDED), name)
+    else:
+        first, fault = _first_chunks(chunks, release_sniff_transfers())
+        rows = [c.record(i) for c in first for i in range(len(c))]
+        release = choose_release(sw, infer_release(rows[: release_sniff_transfers()]), name)
+        chunks = then(first, fault, chunks)
+    return Capture(kind, _records(chunks), release, tail, chunks)
+
+
+def _first_chunks(chunks: Iterator[Chunk], rows: int
+                  ) -> tuple[list[Chunk], EyeqError | None]:
+    """The chunks that hold the first ``rows`` transfers, and the error that ended the file
+    before them (raised after them, as the reader would)."""
+    first: list[Chunk] = []
+    try:
+        while sum(len(c) for c in first) < rows:
+            nxt = next(chunks, None)
+            if nxt is None:
+                break
+            first.append(nxt)
+    except InputError as exc:
+        return first, exc
+    return first, None
+
+
+def _records(chunks: Iterator[Chunk]) -> Iterator[Record]:
+    """The transfers of ``chunks`` one by one (a caller that wants the transfers)."""
+    for chunk in chunks:
+        for i in range(len(chunk)):
+            yield chunk.record(i)
+
+
+def chunk_items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
+                ) -> Iterator[Item]:
+    """The records of a capture's chunks (frame blocks, and dicts where the reference reads):
+    ``fields`` is what the clean spans' messages carry (:class:`.engine_fast_messages.SpanDecoder`:
+    "dict", "none" for ``--stats`` alone, "columns" for a table writer alone)."""
+    return _items(chunks, codec, fields)
 
 
 def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
            ) -> Iterator[Item]:
-    bd = BatchDissector(codec=codec, fields=fields)
+    bd = ChunkFeeder(codec=codec, fields=fields)
     for c in chunks:
         yield from bd.feed(c)
     yield from bd.finish()
@@ -92,23 +135,25 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
         return
     item.add_to(stats)
     for w in writers:
-        if type(w) is JsonWriter:
-            item.write_json(w.fh, w.write, w.fast, file)
-        elif hasattr(w, "write_block"):
+        if hasattr(w, "write_block"):
             w.write_block(item)
         elif getattr(w, "messages_only", False) or type(w).__name__ == "TableWriter":
             tables = iter(item.tables)
             nxt = next(tables, None)
+            covered = {id(r) for g in item.tables for r in g.covered}
             for i, (_, r) in enumerate(item.messages):
                 while nxt is not None and nxt.first == i:  # a group's rows, from its columns
                     w.write_columns(nxt.name, nxt.columns)
                     nxt = next(tables, None)
-                w.write(r)  # a group's own records have no fields: the writer skips them
+                if id(r) not in covered:  # a group's own records: their rows are columns
+                    w.write(r)
             while nxt is not None:  # lean blocks: groups after the last record
                 w.write_columns(nxt.name, nxt.columns)
                 nxt = next(tables, None)
         else:
             for r in item.records():
+                if file is not None:
+                    r["file"] = file
                 w.write(r)
 
 
@@ -121,33 +166,19 @@ def _compact(block: FrameBlock) -> FrameBlock:
                   c.time[lo:hi].copy(), c.direction[lo:hi].copy())
     small = FrameArrays(chunk, fa.base + lo, fa.ftype[lo:hi].copy(), fa.num[lo:hi].copy(),
                         fa.rsp[lo:hi].copy(), fa.crc_ok[lo:hi].copy(), fa.d[lo:hi].copy(),
-                        fa.fed[lo:hi].copy(), fa.tfill[lo:hi].copy())
-    counts = [replace(g, first_row=g.first_row - lo if g.first_row >= 0 else -1,
-                      last_row=g.last_row - lo if g.last_row >= 0 else -1)
-              for g in block.counts]
+                        fa.fed[lo:hi].copy(), fa.tfill[lo:hi].copy(), fa.r[lo:hi].copy())
     return FrameBlock(small, 0, hi - lo, [(r - lo, m) for r, m in block.messages],
-                      block.tables, counts)
+                      block.tables)
 
 
 def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,
             fields: str = "dict") -> tuple[list[Item], Release, Tail] | tuple[str, str]:
-    from eyeq_spi.dissect.release import open_capture
-
     try:
         with open(path, "rb") as fh:
-            head = fh.read(4096)
-            try:
-                kind = fmt or detect(head)
-            except InputError:
-                kind = None  # the exact path reports it, with its own words
-            if kind not in batch_readers():
-                return ("exact", "")
-            fh.seek(0)
-            cap = open_capture(fh, fmt, direction, sw=sw, name=path)
-            items = batch_items(fh, fmt, direction, _codec(cap.release.key), fields=fields,
-                                tail=cap.tail)
-            if items is None:
-                return ("exact", "")
+            cap = open_fast(fh, fmt, direction, sw=sw, name=path)
+            if cap is None or cap.chunks is None:
+                return ("reference", "")
+            items = chunk_items(cap.chunks, _codec(cap.release.key), fields)
             return ([_compact(i) if isinstance(i, FrameBlock) else i for i in items],
                     cap.release, cap.tail)
     except InputError as exc:
@@ -169,7 +200,7 @@ def parallel_items(paths: list[str], jobs: int, fmt: str | None, direction: str 
                    sw: str | None, fields: str = "dict"
                    ) -> Iterator[tuple[str, tuple[list[Item], Release, Tail] | None]]:
     """(path, (items, release, tail)) in the order of ``paths``, dissected ``jobs`` files at a
-    time in worker processes; None: the file is not a batch input (the caller runs the exact
+    time in worker processes; None: the file is not a fast-path input (the caller runs the reference
     path).
     At most ``jobs`` finished files wait in memory ahead of the one being written."""
     from concurrent.futures import ProcessPoolExecutor  # 6 ms of start-up a serial run saves

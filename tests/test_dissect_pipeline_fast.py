@@ -1,4 +1,4 @@
-"""`eyeq-spi dissect` on the batch path prints what the exact path prints (--json, --stats,
+"""`eyeq-spi dissect` on the fast path prints what the exact path prints (--json, --stats,
 --csv, --parquet, filters), and `--jobs N` prints what a serial run prints."""
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def _exact(args: list[str], data: bytes, capsys: pytest.CaptureFixture[str],
 def test_file_and_stdin_print_the_same(captures: list[Path], mode: list[str],
                                        capsys: pytest.CaptureFixture[str],
                                        monkeypatch: pytest.MonkeyPatch) -> None:
-    """A file takes the batch path; stdin cannot seek and takes the exact one."""
+    """A file takes the fast path; stdin cannot seek and takes the exact one."""
     for path, extra in ((captures[1], []), (captures[2], ["--direction", "e2h"])):
         capsys.readouterr()
         rc = main(["dissect", str(path), *extra, *mode])
