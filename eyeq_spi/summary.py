@@ -18,6 +18,7 @@ summaries", describes every field).
 from __future__ import annotations
 
 from collections import Counter
+from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.catalog.messages import sw_release_text
@@ -35,13 +36,13 @@ KEYS = (
     "connections", "interrupted", "received", "sent", "link", "ack_latency_ms",
     "transport_aborts", "e2e_errors", "dasp_counter_gaps", "decode_errors", "stale_streams",
     "mesp", "eyeq_resets", "versions", "boot", "transitions", "running_vision_since",
-    "sessions", "link_lost", "scheduling", "replay", "can",
+    "sessions", "link_lost", "left_at_link_loss", "scheduling", "replay", "can",
 )
 # a sim session: the summary of one host served, without what belongs to the whole run
 SESSION_KEYS = ("began_s", "ended_s", "ok", "problem", "state", "received", "sent", "link",
                 "ack_latency_ms", "transport_aborts", "e2e_errors", "dasp_counter_gaps",
                 "decode_errors", "stale_streams", "mesp", "eyeq_resets", "versions", "boot",
-                "running_vision_since", "link_lost")
+                "running_vision_since", "link_lost", "left_at_link_loss")
 MESP_KEYS = ("requests", "retries", "timeouts", "abandoned", "stale_replies")
 
 
@@ -107,6 +108,53 @@ def host_mesp(host: HostEmulator, eyeq: SimulatedEyeQ | None = None) -> dict[str
             "abandoned": c.abandoned, "stale_replies": c.stale_replies}
 
 
+@dataclass
+class LeftAtLinkLoss:
+    """What lost connections left behind on our side (L10: a new connection is a new EyeQ,
+    whose link and transport start afresh): ``messages`` queued or in flight, never ACKed, and
+    ``transfers`` half received. They belong to the connection that was lost, so they are
+    reported apart (``left_at_link_loss``), neither as send failures or transport aborts of the
+    next connection nor dropped without a word."""
+
+    messages: int = 0
+    transfers: int = 0
+
+    def view(self) -> dict[str, int]:
+        return {"messages": self.messages, "transfers": self.transfers}
+
+
+def _dropped(host: HostEmulator) -> tuple[int, int]:
+    """Messages and transfers a reset of the host's link and transport drops (counted there
+    as send failures and ``reset`` aborts)."""
+    return (host.conn.link.counters.sendFailedErrorCounter,
+            host.conn.counters.transferAborts["reset"])
+
+
+def new_connection(host: HostEmulator, now: float, left: LeftAtLinkLoss) -> None:
+    """The host on a new connection to its EyeQ (:meth:`HostEmulator.link_restarted`), with
+    what the old connection left counted in ``left``."""
+    messages, transfers = _dropped(host)
+    host.link_restarted(now)
+    after = _dropped(host)
+    left.messages += after[0] - messages
+    left.transfers += after[1] - transfers
+
+
+def _without_left(s: dict[str, Any], left: LeftAtLinkLoss | None) -> None:
+    """Take what lost connections left out of the counts of the connections that followed."""
+    if left is None:
+        return
+    link = s["link"]
+    if "sendFailedErrorCounter" in link:
+        link["sendFailedErrorCounter"] = max(0, link["sendFailedErrorCounter"] - left.messages)
+    aborts = s["transport_aborts"]
+    if "reset" in aborts:
+        aborts["reset"] = max(0, aborts["reset"] - left.transfers)
+        if not aborts["reset"]:
+            del aborts["reset"]
+    s["left_at_link_loss"] = left.view()
+
+
 class RunningVision:
     """Whether the host reached Running Vision and held it: when it entered (``since``, None
     while outside) and every time it left (``left``). The one judge of "reached and held" that
@@ -135,10 +183,12 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
                  link_lost: str | None = None, connections: int = 1,
                  interrupted: bool = False, t0: float = 0.0, address: str | None = None,
                  scheduling: str | None = None,
-                 eyeq: SimulatedEyeQ | None = None) -> dict[str, Any]:
+                 eyeq: SimulatedEyeQ | None = None,
+                 left: LeftAtLinkLoss | None = None) -> dict[str, Any]:
     """The summary of a host emulator run (``demo``, ``host``, ``replay --into-host``). Times
     are seconds since ``t0``, the start of the run on the host's clock. ``eyeq``: the simulated
-    EyeQ of an in-process run (``demo``), whose dropped replies are timeouts too."""
+    EyeQ of an in-process run (``demo``), whose dropped replies are timeouts too. ``left``: what
+    lost connections left behind (:func:`new_connection`), reported apart."""
     names = [m.name for m in host.codec.cat.messages
              if m.direction == "e2h" and (m.exists_in(host.sw) or m.protocol != "DASP")]
     received = {n: int(host.counters.received.get(n, 0)) for n in names}
@@ -168,6 +218,7 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "running_vision_since": None if running_since is None else round(running_since, 4),
         "link_lost": link_lost, "scheduling": scheduling,
     }
+    _without_left(s, left)
     first = None
     gave_up = host.state in (HostState.FAILED, HostState.BOOT_FAILED)  # why, not "link lost"
     if link_lost and not (gave_up and host.problem):
@@ -233,9 +284,10 @@ class SimSessions:
         self._begun = (sim, _sim_counts(sim))
 
     def add(self, sim: SimulatedEyeQ, *, began: float, ended: float,
-            link_lost: str | None) -> dict[str, Any]:
+            link_lost: str | None, not_taken: int = 0) -> dict[str, Any]:
         """Close the session of the host that was just served (``began``/``ended``: seconds
-        since the run started) and return its summary."""
+        since the run started) and return its summary. ``not_taken``: transfers the host
+        sent that the adapter dropped with its connection (never handed to the EyeQ)."""
         now = _sim_counts(sim)
         d = now if self._last is None or self._last[0] is not sim \
             else _minus(now, self._last[1])
@@ -263,6 +315,10 @@ class SimSessions:
             "running_vision_since": (None if sim.running_since is None
                                      else round(sim.running_since - self.t0, 4)),
             "link_lost": link_lost,
+            # what the host left when it went: our frames it never ACKed, its transfers that
+            # arrived after the EyeQ last read (null: the session did not end by link loss)
+            "left_at_link_loss": None if link_lost is None else {
+                "frames": sim.conn.link.in_flight, "transfers": not_taken},
         }
         # the host leaving ends a session; it is not a loss on the EyeQ side (it serves the next)
         s["problem"] = _losses(s)
@@ -313,6 +369,8 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
         s["state"], s["versions"] = sess["state"], sess["versions"]
         s["running_vision_since"] = sess["running_vision_since"]
         s["link_lost"] = sess["link_lost"]
+    for gauge in GAUGES & set(s["link"]):  # a level of the last host, not a sum over hosts
+        s["link"][gauge] = sessions[-1]["link"].get(gauge, 0) if sessions else 0
     s["ack_latency_ms"] = ack_latency_ms(hist)
     s["sessions"] = [{k: sess[k] for k in SESSION_KEYS} for sess in sessions]
     return finish(s, problem)
@@ -400,16 +458,17 @@ def format_summary(out: dict[str, Any]) -> str:
                  f"{', '.join(out['stale_streams']) or 'none'}, MESP timeouts {timeouts}"
                  + (f" ({mesp['abandoned']} requests abandoned at EyeQ resets)"
                     if mesp.get("abandoned") else ""))
+    left = out.get("left_at_link_loss")
+    if left and any(left.values()):
+        lines.append(f"  left at link loss (the lost connection's, not an error): "
+                     f"{left['messages']} messages unsent or not ACKed, "
+                     f"{left['transfers']} transfers half received")
     if out.get("scheduling"):  # host, sim and replay to a port; the in-process demo has none
         lines.append(f"  scheduling: {out['scheduling']}")
     lines.append(f"  received: {_counts(out['received'])}")
     lines.append(f"  sent: {_counts(out['sent'])}")
     for i, sess in enumerate(out["sessions"], 1):
-        verdict = "OK" if sess["ok"] else f"NOT OK ({sess['problem']})"
-        lines.append(f"  host {i}: {sess['began_s']:.2f}-{sess['ended_s']:.2f} s, {verdict}, "
-                     f"received {sum(sess['received'].values())}, sent "
-                     f"{sum(sess['sent'].values())}"
-                     + (f", link lost: {sess['link_lost']}" if sess["link_lost"] else ""))
+        lines.append(_session_line(i, sess))
     c = out.get("can")
     if c:
         over = ", ".join(f"{k} {v}" for k, v in c["slot_overflow"].items())
@@ -422,6 +481,23 @@ def format_summary(out: dict[str, Any]) -> str:
                      f"{'' if rep['complete'] else ' (not to the end)'}, host ACKs "
                      f"{rep['host_acks']}, host NAKs {sum(rep['host_naks'].values())}")
     return "\n".join(_wrap(line) for line in lines)
+
+
+def _session_line(i: int, sess: dict[str, Any]) -> str:
+    """One host a ``sim`` served: its verdict and, when its connection broke off (the link
+    has no goodbye: a host that ends and one that vanishes both just go), when and what it
+    left in flight."""
+    verdict = "OK" if sess["ok"] else f"NOT OK ({sess['problem']})"
+    line = (f"  host {i}: {sess['began_s']:.2f}-{sess['ended_s']:.2f} s, {verdict}, "
+            f"received {sum(sess['received'].values())}, sent {sum(sess['sent'].values())}")
+    left = sess.get("left_at_link_loss")
+    if sess["link_lost"] is None:
+        return line + ", served to the end of the run"
+    line += f", the host went away at {sess['ended_s']:.2f} s ({sess['link_lost']})"
+    if left and (left["frames"] or left["transfers"]):
+        line += (f", mid-session: it left {left['frames']} of our frames not ACKed and "
+                 f"{left['transfers']} of its transfers unread")
+    return line
 
 
 def _wrap(line: str, width: int = 80) -> str:
