@@ -152,6 +152,8 @@ class Stats:
             out.append(f"=== total of {self.files} files")
         elif self.file is not None:
             src = f" (SW {d['sw']}: {d['sw_source']})" if "sw" in d else ""
+            if "clock" in d:  # what the timestamps were read from (docs/captures.md)
+                src += f", clock: {d['clock'] or 'not recorded'}"
             out.append(f"=== {self.file}{src}")
         if self.ignored_bytes:
             out.append(f"  ignored {self.ignored_bytes} bytes of an incomplete last block")
