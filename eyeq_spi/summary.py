@@ -35,21 +35,31 @@ KEYS = (
     "side", "ok", "problem", "address", "state", "sw", "elapsed_s", "wall_s", "cpu_s",
     "connections", "interrupted", "received", "sent", "link", "ack_latency_ms",
     "transport_aborts", "e2e_errors", "dasp_counter_gaps", "decode_errors", "stale_streams",
-    "mesp", "eyeq_resets", "versions", "boot", "transitions", "running_vision_since",
-    "sessions", "link_lost", "left_at_link_loss", "scheduling", "replay", "can",
+    "mesp", "eyeq_resets", "eyeq_reset_causes", "versions", "boot", "transitions",
+    "running_vision_since", "sessions", "link_lost", "left_at_link_loss", "scheduling",
+    "replay", "can",
 )
 # a sim session: the summary of one host served, without what belongs to the whole run
 SESSION_KEYS = ("began_s", "ended_s", "ok", "problem", "state", "received", "sent", "link",
                 "ack_latency_ms", "transport_aborts", "e2e_errors", "dasp_counter_gaps",
-                "decode_errors", "stale_streams", "mesp", "eyeq_resets", "versions", "boot",
-                "running_vision_since", "link_lost", "left_at_link_loss")
+                "decode_errors", "stale_streams", "mesp", "eyeq_resets", "eyeq_reset_causes",
+                "versions", "boot", "running_vision_since", "link_lost", "left_at_link_loss")
 MESP_KEYS = ("requests", "retries", "timeouts", "abandoned", "stale_replies")
 
 
-def link_view(c: SpiDiagnosticInfo) -> dict[str, int]:
+def link_view(c: SpiDiagnosticInfo, restarts_answered: int = 0) -> dict[str, int]:
+    """The link's counters. ``restarts_answered``: resynchronisations that were the peer's
+    restart after a reset we asked for (L10: its first frame numbered from 0 again), which is
+    the reset itself (counted in ``eyeq_resets``), not a resynchronisation."""
     out = c.seed_view()
     out.update({k: int(getattr(c, k)) for k in LINK_EXTRA})
+    out["resynchronisations"] = max(0, out["resynchronisations"] - restarts_answered)
     return out
+
+
+def reset_causes(asked: int, not_asked: int) -> dict[str, int]:
+    """``eyeq_reset_causes``: every reset of the EyeQ by cause (``eyeq_resets`` is the sum)."""
+    return {"asked_by_host": asked, "not_asked": not_asked}
 
 
 def ack_latency_ms(hist: Counter[int]) -> dict[str, float | int]:
@@ -201,7 +211,7 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "connections": connections, "interrupted": interrupted,
         "received": dict(sorted(received.items())),
         "sent": {k: int(v) for k, v in sorted(host.counters.sent.items())},
-        "link": link_view(host.conn.link.counters),
+        "link": link_view(host.conn.link.counters, host.counters.restarts_answered),
         "ack_latency_ms": ack_latency_ms(host.conn.link.ack_latency),
         "transport_aborts": _aborts(host.conn),
         "e2e_errors": host.counters.e2e_errors,
@@ -209,7 +219,10 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "decode_errors": host.counters.decode_errors,
         "stale_streams": stale,
         "mesp": host_mesp(host, eyeq),
-        "eyeq_resets": host.counters.eyeq_resets,
+        # the host's own resets (EEPROM, boot failures) and those it detected
+        "eyeq_resets": host.counters.eyeq_resets + host.counters.eyeq_resets_asked,
+        "eyeq_reset_causes": reset_causes(host.counters.eyeq_resets_asked,
+                                          host.counters.eyeq_resets),
         "versions": host.versions, "boot": host.boot_info,
         "transitions": [
             {"t": round(t.time - t0, 4), "from": t.src.value, "event": t.event.value,
@@ -246,7 +259,8 @@ def _sim_counts(sim: SimulatedEyeQ) -> dict[str, Any]:
         "decode_errors": c.bad_hdr_total, "stale": c.veh_state_stale,
         "mesp": {"requests": c.mesp_requests,
                  "timeouts": c.mesp_replies_dropped + c.mesp_replies_late},
-        "boots": c.boots, "hist": Counter(sim.conn.link.ack_latency),
+        "boots": c.boots, "self_resets": c.self_resets, "vision_switches": c.vision_switches,
+        "hist": Counter(sim.conn.link.ack_latency),
     }
 
 
@@ -308,7 +322,12 @@ class SimSessions:
             "mesp": {"requests": d["mesp"]["requests"], "retries": None,
                      "timeouts": d["mesp"]["timeouts"], "abandoned": None,
                      "stale_replies": None},
-            "eyeq_resets": max(0, d["boots"] - 1),  # the connection's own power-up is no reset
+            # the connection's own power-up is no reset; its own resets (reset_at) no host
+            # asked for; every other boot, and every accepted Switch to Vision (L10), it did
+            "eyeq_resets": max(0, d["boots"] - 1) + d["vision_switches"],
+            "eyeq_reset_causes": reset_causes(
+                max(0, d["boots"] - 1 - d["self_resets"]) + d["vision_switches"],
+                d["self_resets"]),
             "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
                          "eyeqSwVersionMinor": sim.sw_version[1]},
             "boot": {"boots": d["boots"]},
@@ -352,7 +371,8 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
         "connections": len(sessions), "interrupted": interrupted,
         "received": {}, "sent": {}, "link": link_view(SpiDiagnosticInfo()),
         "transport_aborts": {}, "e2e_errors": 0, "dasp_counter_gaps": 0, "decode_errors": 0,
-        "stale_streams": [], "eyeq_resets": 0, "transitions": [],
+        "stale_streams": [], "eyeq_resets": 0, "eyeq_reset_causes": reset_causes(0, 0),
+        "transitions": [],
         "mesp": {"requests": 0, "retries": None, "timeouts": 0, "abandoned": None,
                  "stale_replies": None},
         "state": f"0x{sim.main_state:02X}", "running_vision_since": None,
@@ -363,7 +383,8 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
     for sess in sessions:
         hist.update(sess.pop("_ack_hist", Counter()))
         for k in ("received", "sent", "link", "transport_aborts", "e2e_errors",
-                  "dasp_counter_gaps", "decode_errors", "eyeq_resets", "mesp", "boot"):
+                  "dasp_counter_gaps", "decode_errors", "eyeq_resets", "eyeq_reset_causes",
+                  "mesp", "boot"):
             s[k] = _add(s[k], sess[k])
         s["stale_streams"] = sorted(set(s["stale_streams"]) | set(sess["stale_streams"]))
         s["state"], s["versions"] = sess["state"], sess["versions"]
@@ -397,7 +418,9 @@ def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cp
         "stale_streams": [],
         "mesp": {"requests": None, "retries": None, "timeouts": None, "abandoned": None,
                  "stale_replies": None},
-        "eyeq_resets": replay["reset_line_pulls"], "versions": None, "boot": None,
+        "eyeq_resets": replay["reset_line_pulls"],
+        "eyeq_reset_causes": reset_causes(replay["reset_line_pulls"], 0),
+        "versions": None, "boot": None,
         "transitions": [], "running_vision_since": None, "link_lost": link_lost,
         "scheduling": scheduling, "replay": replay,
     }
@@ -463,6 +486,10 @@ def format_summary(out: dict[str, Any]) -> str:
         lines.append(f"  left at link loss (the lost connection's, not an error): "
                      f"{left['messages']} messages unsent or not ACKed, "
                      f"{left['transfers']} transfers half received")
+    causes = out.get("eyeq_reset_causes")
+    if out.get("eyeq_resets") and causes:
+        lines.append(f"  EyeQ resets {out['eyeq_resets']}: asked by the host "
+                     f"{causes['asked_by_host']}, not asked {causes['not_asked']}")
     if out.get("scheduling"):  # host, sim and replay to a port; the in-process demo has none
         lines.append(f"  scheduling: {out['scheduling']}")
     lines.append(f"  received: {_counts(out['received'])}")

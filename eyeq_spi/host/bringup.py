@@ -336,6 +336,7 @@ class HostBringUp:
     def _reset_eyeq(self, now: float, *, bringup: bool = True) -> None:
         """Reset the EyeQ; ``bringup`` counts it against ``max_resets`` (EEPROM-driven)."""
         self._cancel_requests()
+        self.counters.eyeq_resets_asked += 1
         if bringup:
             self._bringups += 1
         self._enter(S.POWER_UP, now)

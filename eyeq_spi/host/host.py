@@ -401,6 +401,7 @@ class HostEmulator(HostBringUp):
             # L10: the EyeQ took our Switch EyeQ Application and started its link afresh, as
             # we did ours: the switch, not a reset of its own
             self._switch_at = None
+            self.counters.restarts_answered += 1
             return
         if self.state in (S.POWER_UP, S.FAILED, S.BOOT_FAILED):
             return  # a boot status is awaited anyway (with its timeout), or we gave up
