@@ -89,3 +89,41 @@ def test_a_listener_never_hands_a_new_peer_what_the_old_one_sent() -> None:
         new.close()
     finally:
         listener.close()
+
+
+def _remote(seconds: float) -> tuple[HostEmulator, SimulatedEyeQ, RunningVision]:
+    """A host and an EyeQ as ``host`` and ``sim`` run them: no reset line between them."""
+    host, sim = HostEmulator(), SimulatedEyeQ()
+    a, b = memory_pair()
+    runner = VirtualRunner([(host, a), (sim, b)])
+    sim.power_up(0.0)
+    host.start(0.0)
+    vision = RunningVision()
+    while runner.now < seconds:
+        runner.run_until(runner.now + 0.01)
+        vision.update(host, runner.now)
+    return host, sim, vision
+
+
+def test_a_first_connection_has_no_resynchronisation() -> None:
+    """The empty NVM's soft reset (Switch EyeQ Application, L10): the EyeQ's link restarts
+    because the host asked; that is the reset, counted as asked, not a resynchronisation."""
+    host, _, vision = _remote(2.0)
+    out = host_summary(host, side="host", elapsed=2.0, wall=0.0, cpu=0.0,
+                       running_since=vision.since, left_running=vision.left)
+    assert out["ok"], out["problem"]
+    assert out["link"]["resynchronisations"] == 0, out["link"]
+    assert out["eyeq_reset_causes"] == {"asked_by_host": 1, "not_asked": 0}
+
+
+def test_the_sim_says_when_a_host_went_away_and_what_it_left() -> None:
+    from eyeq_spi.summary import SimSessions, format_summary, sim_summary
+
+    _, sim, _ = _remote(2.0)
+    sim.conn.send(bytes(300), 2.0)  # a message the host will never ACK: it vanished
+    sim.data_to_send(2.0)
+    served = SimSessions()
+    served.add(sim, began=0.0, ended=2.0, link_lost="peer of tcp://x went away")
+    text = format_summary(sim_summary(sim, served.sessions, elapsed=3.0, wall=3.0, cpu=0.0))
+    assert "the host went away at 2.00 s" in text and "mid-session" in text, text
+    assert "not ACKed" in text, text
