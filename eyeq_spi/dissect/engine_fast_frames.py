@@ -305,6 +305,7 @@ class FrameBlock:
         marks: list[tuple[int, int, Any]] = [(r, 0, rec) for r, rec in self.messages]
         for g in self.counts:
             stats.messages[g.name] += g.n
+            stats.times.setdefault(g.name, []).extend(g.times)
             if g.first_row >= 0:
                 marks.append((g.first_row, 1, (g.name, g.t_first)))
                 marks.append((g.last_row, 1, (g.name, g.t_last)))

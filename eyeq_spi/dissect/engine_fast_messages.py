@@ -80,6 +80,7 @@ class GroupCount:
     t_first: float | None
     last_row: int
     t_last: float | None
+    times: list[float]  # of every one with a time: a stream's rate is over its active spans
 
 
 @dataclass
@@ -355,7 +356,7 @@ class SpanDecoder:
             count = GroupCount(name, int(ok.sum()), rows[lo] if lo >= 0 else -1,
                                float(times[lo]) if lo >= 0 else None,
                                rows[hi] if hi >= 0 else -1,
-                               float(times[hi]) if hi >= 0 else None)
+                               float(times[hi]) if hi >= 0 else None, times[timed].tolist())
         table = None
         if columns:
             tl = times.tolist()
