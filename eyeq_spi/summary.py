@@ -23,6 +23,7 @@ from typing import Any
 
 from eyeq_spi.catalog.messages import sw_release_text
 from eyeq_spi.host.host import HostEmulator
+from eyeq_spi.host.link_health import with_link_cause
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.counters import SpiDiagnosticInfo
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
@@ -242,6 +243,8 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         first = f"Running Vision not reached (state {host.state.value})"
     elif left_running:
         first = f"left Running Vision at {left_running[0]:.3f} s"
+    if first is not None and first != "link lost":  # a bad link is not a bad camera
+        first = with_link_cause(first, host.conn.link.counters)
     return finish(s, first)
 
 
