@@ -525,7 +525,7 @@ def _session_line(i: int, sess: dict[str, Any]) -> str:
         return line + ", served to the end of the run"
     line += f", the host went away at {sess['ended_s']:.2f} s ({sess['link_lost']})"
     if left and (left["frames"] or left["transfers"]):
-        line += (f", mid-session: it left {left['frames']} of our frames not ACKed and "
+        line += (f", mid-session, leaving {left['frames']} of our frames not ACKed and "
                  f"{left['transfers']} of its transfers unread")
     return line
 
