@@ -18,6 +18,7 @@ summaries", describes every field).
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +27,7 @@ from eyeq_spi.host.host import HostEmulator
 from eyeq_spi.host.link_health import with_link_cause
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.counters import SpiDiagnosticInfo
+from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.transport.connection import TransportConnection
 
@@ -164,6 +166,33 @@ def _without_left(s: dict[str, Any], left: LeftAtLinkLoss | None) -> None:
         if not aborts["reset"]:
             del aborts["reset"]
     s["left_at_link_loss"] = left.view()
+
+
+class ClockedAcks:
+    """A tap of an in-process run (``tap(node, t, transfer)``, node 0 the host) that reads
+    the send -> ACK latency of the host's DATA frames on ``clock`` when each transfer is handed
+    over, instead of on the run's schedule: the ``ack_latency_ms`` of a real-time ``demo``.
+    ``then``: another tap every transfer goes on to (the capture)."""
+
+    def __init__(self, clock: Callable[[], float], then: Any = None) -> None:
+        self.clock = clock
+        self.then = then
+        self.codec = FrameCodec()
+        self.sent: dict[int, float] = {}  # NUM -> the clock when the host handed it over
+        self.hist: Counter[int] = Counter()  # 10 µs bin -> frames ACKed, as the link's
+
+    def __call__(self, node: int, t: float, transfer: bytes) -> None:
+        if self.then is not None:
+            self.then(node, t, transfer)
+        if len(transfer) != FRAME_SIZE:
+            return
+        kind, _, rsp, num, crc_ok = self.codec.judge(transfer)
+        if not crc_ok:
+            return
+        if node == 0 and kind == FrameKind.DATA:
+            self.sent[num] = self.clock()
+        elif node == 1 and kind == FrameKind.ACK and (sent := self.sent.pop(rsp, None)):
+            self.hist[int((self.clock() - sent) * 1e5)] += 1
 
 
 class RunningVision:

@@ -237,8 +237,15 @@ def run_demo(args: argparse.Namespace) -> int:
         emu.host.warm_up()
         emu.sim.warm_up()
     collector = contextlib.ExitStack()
+    acks = None
     if not args.virtual_time:
         collector.enter_context(_young_collections_only())
+        import time
+
+        from eyeq_spi.summary import ClockedAcks
+
+        # in real time, the summary's ACK latencies are readings of the clock too
+        acks = emu.runner.tap = ClockedAcks(time.monotonic, then=emu.runner.tap)
     can_out = opt.can_output(args, emu.host, emu.runner)  # --can-out: the CAN gateway
     from eyeq_spi.cli.progress import JobProgress
 
@@ -269,6 +276,10 @@ def run_demo(args: argparse.Namespace) -> int:
         if can_out is not None:
             can_out.close()  # a log file is complete when the command returns
     out = summary(emu, interrupted=interrupted)
+    if acks is not None:
+        from eyeq_spi.summary import ack_latency_ms
+
+        out["ack_latency_ms"] = ack_latency_ms(acks.hist)
     if can_out is not None:
         out["can"] = can_out.summary()
     print_summary(out, args.json)
