@@ -4,6 +4,7 @@ The reset line of the host is wired to the simulator's power input."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -28,6 +29,9 @@ class Emulation:
     sim: SimulatedEyeQ
     runner: VirtualRunner
     vision: RunningVision = field(default_factory=RunningVision)
+    # real time: (perf_counter, virtual time) at the first paced slice; every later slice is
+    # paced from it, so the run keeps up with the clock over its whole length
+    pace_origin: tuple[float, float] | None = None
 
     @property
     def running_since(self) -> float | None:
@@ -44,9 +48,11 @@ class Emulation:
         """Advance ``seconds`` of simulated time in 10 ms slices, tracking Running Vision."""
         end = self.runner.now + seconds
         driven = True  # the first slice: code may have driven a node since the last call
+        if realtime and self.pace_origin is None:
+            self.pace_origin = (time.perf_counter(), self.runner.now)
         while self.runner.now < end - 1e-12 and not (stop is not None and stop()):
             self.runner.run_until(min(end, self.runner.now + 0.01), realtime=realtime,
-                                  driven=driven)
+                                  driven=driven, pace_origin=self.pace_origin)
             self.vision.update(self.host, self.runner.now)
             # the next slice keeps the runner's caches: in between, only the host's state was
             # read (a ``stop`` condition may drive a node: then every slice starts afresh)

@@ -16,7 +16,14 @@ from eyeq_spi.host.host import HostEmulator
 from eyeq_spi.runner.realtime import RealTimeRunner
 from eyeq_spi.runner.sched import realtime
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
-from eyeq_spi.summary import RunningVision, SimSessions, host_summary, sim_summary
+from eyeq_spi.summary import (
+    LeftAtLinkLoss,
+    RunningVision,
+    SimSessions,
+    host_summary,
+    new_connection,
+    sim_summary,
+)
 
 Tap = Callable[[str, float, bytes], None]
 """``tap(kind, t, transfer)``: every transfer, ``kind`` "tx" or "rx", as the runner sees it."""
@@ -63,13 +70,15 @@ def serve(eyeq: SimulatedEyeQ, adapter: Any, *, duration: float | None, accept_t
             served.begin(sim)
             began = clock()
             lost = None
+            not_taken = adapter.stats.left_at_link_loss
             try:
                 runner.run(None if end is None else max(0.0, end - clock()))
             except LinkLostError as exc:
                 lost = str(exc)
             finally:
                 runner.close()
-            served.add(sim, began=began - t0, ended=clock() - t0, link_lost=lost)
+            served.add(sim, began=began - t0, ended=clock() - t0, link_lost=lost,
+                       not_taken=adapter.stats.left_at_link_loss - not_taken)
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -123,6 +132,7 @@ def drive(host: HostEmulator, adapter: Any, *, duration: float, address: str,
     vision = RunningVision()
     link_lost: str | None = None
     connections = 1
+    left = LeftAtLinkLoss()  # what each lost connection left: its own, not the next one's
     interrupted = False
     rt = contextlib.ExitStack()  # real-time scheduling for the live run only
     scheduling = rt.enter_context(realtime(rt_priority))
@@ -139,7 +149,7 @@ def drive(host: HostEmulator, adapter: Any, *, duration: float, address: str,
                 link_lost = None
                 connections += 1
                 runner.adapter = adapter
-                host.link_restarted(runner.clock())
+                new_connection(host, runner.clock(), left)
                 vision.reset()  # judged again on the new connection
                 continue
             now = runner.clock()
@@ -165,7 +175,7 @@ def drive(host: HostEmulator, adapter: Any, *, duration: float, address: str,
                        cpu=time.process_time() - cpu0, running_since=vision.since,
                        left_running=vision.left, link_lost=link_lost, connections=connections,
                        interrupted=interrupted, t0=start, address=address,
-                       scheduling=scheduling)
+                       scheduling=scheduling, left=left if connections > 1 else None)
     if can_out is not None:
         out["can"] = can_out.summary()
     return out

@@ -18,12 +18,16 @@ summaries", describes every field).
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.catalog.messages import sw_release_text
 from eyeq_spi.host.host import HostEmulator
+from eyeq_spi.host.link_health import with_link_cause
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.counters import SpiDiagnosticInfo
+from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.transport.connection import TransportConnection
 
@@ -34,21 +38,31 @@ KEYS = (
     "side", "ok", "problem", "address", "state", "sw", "elapsed_s", "wall_s", "cpu_s",
     "connections", "interrupted", "received", "sent", "link", "ack_latency_ms",
     "transport_aborts", "e2e_errors", "dasp_counter_gaps", "decode_errors", "stale_streams",
-    "mesp", "eyeq_resets", "versions", "boot", "transitions", "running_vision_since",
-    "sessions", "link_lost", "scheduling", "replay", "can",
+    "mesp", "eyeq_resets", "eyeq_reset_causes", "versions", "boot", "transitions",
+    "running_vision_since", "sessions", "link_lost", "left_at_link_loss", "scheduling",
+    "replay", "can",
 )
 # a sim session: the summary of one host served, without what belongs to the whole run
 SESSION_KEYS = ("began_s", "ended_s", "ok", "problem", "state", "received", "sent", "link",
                 "ack_latency_ms", "transport_aborts", "e2e_errors", "dasp_counter_gaps",
-                "decode_errors", "stale_streams", "mesp", "eyeq_resets", "versions", "boot",
-                "running_vision_since", "link_lost")
+                "decode_errors", "stale_streams", "mesp", "eyeq_resets", "eyeq_reset_causes",
+                "versions", "boot", "running_vision_since", "link_lost", "left_at_link_loss")
 MESP_KEYS = ("requests", "retries", "timeouts", "abandoned", "stale_replies")
 
 
-def link_view(c: SpiDiagnosticInfo) -> dict[str, int]:
+def link_view(c: SpiDiagnosticInfo, restarts_answered: int = 0) -> dict[str, int]:
+    """The link's counters. ``restarts_answered``: resynchronisations that were the peer's
+    restart after a reset we asked for (L10: its first frame numbered from 0 again), which is
+    the reset itself (counted in ``eyeq_resets``), not a resynchronisation."""
     out = c.seed_view()
     out.update({k: int(getattr(c, k)) for k in LINK_EXTRA})
+    out["resynchronisations"] = max(0, out["resynchronisations"] - restarts_answered)
     return out
+
+
+def reset_causes(asked: int, not_asked: int) -> dict[str, int]:
+    """``eyeq_reset_causes``: every reset of the EyeQ by cause (``eyeq_resets`` is the sum)."""
+    return {"asked_by_host": asked, "not_asked": not_asked}
 
 
 def ack_latency_ms(hist: Counter[int]) -> dict[str, float | int]:
@@ -107,6 +121,80 @@ def host_mesp(host: HostEmulator, eyeq: SimulatedEyeQ | None = None) -> dict[str
             "abandoned": c.abandoned, "stale_replies": c.stale_replies}
 
 
+@dataclass
+class LeftAtLinkLoss:
+    """What lost connections left behind on our side (L10: a new connection is a new EyeQ,
+    whose link and transport start afresh): ``messages`` queued or in flight, never ACKed, and
+    ``transfers`` half received. They belong to the connection that was lost, so they are
+    reported apart (``left_at_link_loss``), neither as send failures or transport aborts of the
+    next connection nor dropped without a word."""
+
+    messages: int = 0
+    transfers: int = 0
+
+    def view(self) -> dict[str, int]:
+        return {"messages": self.messages, "transfers": self.transfers}
+
+
+def _dropped(host: HostEmulator) -> tuple[int, int]:
+    """Messages and transfers a reset of the host's link and transport drops (counted there
+    as send failures and ``reset`` aborts)."""
+    return (host.conn.link.counters.sendFailedErrorCounter,
+            host.conn.counters.transferAborts["reset"])
+
+
+def new_connection(host: HostEmulator, now: float, left: LeftAtLinkLoss) -> None:
+    """The host on a new connection to its EyeQ (:meth:`HostEmulator.link_restarted`), with
+    what the old connection left counted in ``left``."""
+    messages, transfers = _dropped(host)
+    host.link_restarted(now)
+    after = _dropped(host)
+    left.messages += after[0] - messages
+    left.transfers += after[1] - transfers
+
+
+def _without_left(s: dict[str, Any], left: LeftAtLinkLoss | None) -> None:
+    """Take what lost connections left out of the counts of the connections that followed."""
+    if left is None:
+        return
+    link = s["link"]
+    if "sendFailedErrorCounter" in link:
+        link["sendFailedErrorCounter"] = max(0, link["sendFailedErrorCounter"] - left.messages)
+    aborts = s["transport_aborts"]
+    if "reset" in aborts:
+        aborts["reset"] = max(0, aborts["reset"] - left.transfers)
+        if not aborts["reset"]:
+            del aborts["reset"]
+    s["left_at_link_loss"] = left.view()
+
+
+class ClockedAcks:
+    """A tap of an in-process run (``tap(node, t, transfer)``, node 0 the host) that reads
+    the send -> ACK latency of the host's DATA frames on ``clock`` when each transfer is handed
+    over, instead of on the run's schedule: the ``ack_latency_ms`` of a real-time ``demo``.
+    ``then``: another tap every transfer goes on to (the capture)."""
+
+    def __init__(self, clock: Callable[[], float], then: Any = None) -> None:
+        self.clock = clock
+        self.then = then
+        self.codec = FrameCodec()
+        self.sent: dict[int, float] = {}  # NUM -> the clock when the host handed it over
+        self.hist: Counter[int] = Counter()  # 10 µs bin -> frames ACKed, as the link's
+
+    def __call__(self, node: int, t: float, transfer: bytes) -> None:
+        if self.then is not None:
+            self.then(node, t, transfer)
+        if len(transfer) != FRAME_SIZE:
+            return
+        kind, _, rsp, num, crc_ok = self.codec.judge(transfer)
+        if not crc_ok:
+            return
+        if node == 0 and kind == FrameKind.DATA:
+            self.sent[num] = self.clock()
+        elif node == 1 and kind == FrameKind.ACK and (sent := self.sent.pop(rsp, None)):
+            self.hist[int((self.clock() - sent) * 1e5)] += 1
+
+
 class RunningVision:
     """Whether the host reached Running Vision and held it: when it entered (``since``, None
     while outside) and every time it left (``left``). The one judge of "reached and held" that
@@ -135,10 +223,12 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
                  link_lost: str | None = None, connections: int = 1,
                  interrupted: bool = False, t0: float = 0.0, address: str | None = None,
                  scheduling: str | None = None,
-                 eyeq: SimulatedEyeQ | None = None) -> dict[str, Any]:
+                 eyeq: SimulatedEyeQ | None = None,
+                 left: LeftAtLinkLoss | None = None) -> dict[str, Any]:
     """The summary of a host emulator run (``demo``, ``host``, ``replay --into-host``). Times
     are seconds since ``t0``, the start of the run on the host's clock. ``eyeq``: the simulated
-    EyeQ of an in-process run (``demo``), whose dropped replies are timeouts too."""
+    EyeQ of an in-process run (``demo``), whose dropped replies are timeouts too. ``left``: what
+    lost connections left behind (:func:`new_connection`), reported apart."""
     names = [m.name for m in host.codec.cat.messages
              if m.direction == "e2h" and (m.exists_in(host.sw) or m.protocol != "DASP")]
     received = {n: int(host.counters.received.get(n, 0)) for n in names}
@@ -151,7 +241,7 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "connections": connections, "interrupted": interrupted,
         "received": dict(sorted(received.items())),
         "sent": {k: int(v) for k, v in sorted(host.counters.sent.items())},
-        "link": link_view(host.conn.link.counters),
+        "link": link_view(host.conn.link.counters, host.counters.restarts_answered),
         "ack_latency_ms": ack_latency_ms(host.conn.link.ack_latency),
         "transport_aborts": _aborts(host.conn),
         "e2e_errors": host.counters.e2e_errors,
@@ -159,7 +249,10 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "decode_errors": host.counters.decode_errors,
         "stale_streams": stale,
         "mesp": host_mesp(host, eyeq),
-        "eyeq_resets": host.counters.eyeq_resets,
+        # the host's own resets (EEPROM, boot failures) and those it detected
+        "eyeq_resets": host.counters.eyeq_resets + host.counters.eyeq_resets_asked,
+        "eyeq_reset_causes": reset_causes(host.counters.eyeq_resets_asked,
+                                          host.counters.eyeq_resets),
         "versions": host.versions, "boot": host.boot_info,
         "transitions": [
             {"t": round(t.time - t0, 4), "from": t.src.value, "event": t.event.value,
@@ -168,6 +261,7 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "running_vision_since": None if running_since is None else round(running_since, 4),
         "link_lost": link_lost, "scheduling": scheduling,
     }
+    _without_left(s, left)
     first = None
     gave_up = host.state in (HostState.FAILED, HostState.BOOT_FAILED)  # why, not "link lost"
     if link_lost and not (gave_up and host.problem):
@@ -178,6 +272,8 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         first = f"Running Vision not reached (state {host.state.value})"
     elif left_running:
         first = f"left Running Vision at {left_running[0]:.3f} s"
+    if first is not None and first != "link lost":  # a bad link is not a bad camera
+        first = with_link_cause(first, host.conn.link.counters)
     return finish(s, first)
 
 
@@ -195,7 +291,8 @@ def _sim_counts(sim: SimulatedEyeQ) -> dict[str, Any]:
         "decode_errors": c.bad_hdr_total, "stale": c.veh_state_stale,
         "mesp": {"requests": c.mesp_requests,
                  "timeouts": c.mesp_replies_dropped + c.mesp_replies_late},
-        "boots": c.boots, "hist": Counter(sim.conn.link.ack_latency),
+        "boots": c.boots, "self_resets": c.self_resets, "vision_switches": c.vision_switches,
+        "hist": Counter(sim.conn.link.ack_latency),
     }
 
 
@@ -233,9 +330,10 @@ class SimSessions:
         self._begun = (sim, _sim_counts(sim))
 
     def add(self, sim: SimulatedEyeQ, *, began: float, ended: float,
-            link_lost: str | None) -> dict[str, Any]:
+            link_lost: str | None, not_taken: int = 0) -> dict[str, Any]:
         """Close the session of the host that was just served (``began``/``ended``: seconds
-        since the run started) and return its summary."""
+        since the run started) and return its summary. ``not_taken``: transfers the host
+        sent that the adapter dropped with its connection (never handed to the EyeQ)."""
         now = _sim_counts(sim)
         d = now if self._last is None or self._last[0] is not sim \
             else _minus(now, self._last[1])
@@ -256,13 +354,22 @@ class SimSessions:
             "mesp": {"requests": d["mesp"]["requests"], "retries": None,
                      "timeouts": d["mesp"]["timeouts"], "abandoned": None,
                      "stale_replies": None},
-            "eyeq_resets": max(0, d["boots"] - 1),  # the connection's own power-up is no reset
+            # the connection's own power-up is no reset; its own resets (reset_at) no host
+            # asked for; every other boot, and every accepted Switch to Vision (L10), it did
+            "eyeq_resets": max(0, d["boots"] - 1) + d["vision_switches"],
+            "eyeq_reset_causes": reset_causes(
+                max(0, d["boots"] - 1 - d["self_resets"]) + d["vision_switches"],
+                d["self_resets"]),
             "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
                          "eyeqSwVersionMinor": sim.sw_version[1]},
             "boot": {"boots": d["boots"]},
             "running_vision_since": (None if sim.running_since is None
                                      else round(sim.running_since - self.t0, 4)),
             "link_lost": link_lost,
+            # what the host left when it went: our frames it never ACKed, its transfers that
+            # arrived after the EyeQ last read (null: the session did not end by link loss)
+            "left_at_link_loss": None if link_lost is None else {
+                "frames": sim.conn.link.in_flight, "transfers": not_taken},
         }
         # the host leaving ends a session; it is not a loss on the EyeQ side (it serves the next)
         s["problem"] = _losses(s)
@@ -296,7 +403,8 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
         "connections": len(sessions), "interrupted": interrupted,
         "received": {}, "sent": {}, "link": link_view(SpiDiagnosticInfo()),
         "transport_aborts": {}, "e2e_errors": 0, "dasp_counter_gaps": 0, "decode_errors": 0,
-        "stale_streams": [], "eyeq_resets": 0, "transitions": [],
+        "stale_streams": [], "eyeq_resets": 0, "eyeq_reset_causes": reset_causes(0, 0),
+        "transitions": [],
         "mesp": {"requests": 0, "retries": None, "timeouts": 0, "abandoned": None,
                  "stale_replies": None},
         "state": f"0x{sim.main_state:02X}", "running_vision_since": None,
@@ -307,12 +415,15 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
     for sess in sessions:
         hist.update(sess.pop("_ack_hist", Counter()))
         for k in ("received", "sent", "link", "transport_aborts", "e2e_errors",
-                  "dasp_counter_gaps", "decode_errors", "eyeq_resets", "mesp", "boot"):
+                  "dasp_counter_gaps", "decode_errors", "eyeq_resets", "eyeq_reset_causes",
+                  "mesp", "boot"):
             s[k] = _add(s[k], sess[k])
         s["stale_streams"] = sorted(set(s["stale_streams"]) | set(sess["stale_streams"]))
         s["state"], s["versions"] = sess["state"], sess["versions"]
         s["running_vision_since"] = sess["running_vision_since"]
         s["link_lost"] = sess["link_lost"]
+    for gauge in GAUGES & set(s["link"]):  # a level of the last host, not a sum over hosts
+        s["link"][gauge] = sessions[-1]["link"].get(gauge, 0) if sessions else 0
     s["ack_latency_ms"] = ack_latency_ms(hist)
     s["sessions"] = [{k: sess[k] for k in SESSION_KEYS} for sess in sessions]
     return finish(s, problem)
@@ -339,7 +450,9 @@ def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cp
         "stale_streams": [],
         "mesp": {"requests": None, "retries": None, "timeouts": None, "abandoned": None,
                  "stale_replies": None},
-        "eyeq_resets": replay["reset_line_pulls"], "versions": None, "boot": None,
+        "eyeq_resets": replay["reset_line_pulls"],
+        "eyeq_reset_causes": reset_causes(replay["reset_line_pulls"], 0),
+        "versions": None, "boot": None,
         "transitions": [], "running_vision_since": None, "link_lost": link_lost,
         "scheduling": scheduling, "replay": replay,
     }
@@ -400,16 +513,21 @@ def format_summary(out: dict[str, Any]) -> str:
                  f"{', '.join(out['stale_streams']) or 'none'}, MESP timeouts {timeouts}"
                  + (f" ({mesp['abandoned']} requests abandoned at EyeQ resets)"
                     if mesp.get("abandoned") else ""))
+    left = out.get("left_at_link_loss")
+    if left and any(left.values()):
+        lines.append(f"  left at link loss (the lost connection's, not an error): "
+                     f"{left['messages']} messages unsent or not ACKed, "
+                     f"{left['transfers']} transfers half received")
+    causes = out.get("eyeq_reset_causes")
+    if out.get("eyeq_resets") and causes:
+        lines.append(f"  EyeQ resets {out['eyeq_resets']}: asked by the host "
+                     f"{causes['asked_by_host']}, not asked {causes['not_asked']}")
     if out.get("scheduling"):  # host, sim and replay to a port; the in-process demo has none
         lines.append(f"  scheduling: {out['scheduling']}")
     lines.append(f"  received: {_counts(out['received'])}")
     lines.append(f"  sent: {_counts(out['sent'])}")
     for i, sess in enumerate(out["sessions"], 1):
-        verdict = "OK" if sess["ok"] else f"NOT OK ({sess['problem']})"
-        lines.append(f"  host {i}: {sess['began_s']:.2f}-{sess['ended_s']:.2f} s, {verdict}, "
-                     f"received {sum(sess['received'].values())}, sent "
-                     f"{sum(sess['sent'].values())}"
-                     + (f", link lost: {sess['link_lost']}" if sess["link_lost"] else ""))
+        lines.append(_session_line(i, sess))
     c = out.get("can")
     if c:
         over = ", ".join(f"{k} {v}" for k, v in c["slot_overflow"].items())
@@ -422,6 +540,23 @@ def format_summary(out: dict[str, Any]) -> str:
                      f"{'' if rep['complete'] else ' (not to the end)'}, host ACKs "
                      f"{rep['host_acks']}, host NAKs {sum(rep['host_naks'].values())}")
     return "\n".join(_wrap(line) for line in lines)
+
+
+def _session_line(i: int, sess: dict[str, Any]) -> str:
+    """One host a ``sim`` served: its verdict and, when its connection broke off (the link
+    has no goodbye: a host that ends and one that vanishes both just go), when and what it
+    left in flight."""
+    verdict = "OK" if sess["ok"] else f"NOT OK ({sess['problem']})"
+    line = (f"  host {i}: {sess['began_s']:.2f}-{sess['ended_s']:.2f} s, {verdict}, "
+            f"received {sum(sess['received'].values())}, sent {sum(sess['sent'].values())}")
+    left = sess.get("left_at_link_loss")
+    if sess["link_lost"] is None:
+        return line + ", served to the end of the run"
+    line += f", the host went away at {sess['ended_s']:.2f} s ({sess['link_lost']})"
+    if left and (left["frames"] or left["transfers"]):
+        line += (f", mid-session, leaving {left['frames']} of our frames not ACKed and "
+                 f"{left['transfers']} of its transfers unread")
+    return line
 
 
 def _wrap(line: str, width: int = 80) -> str:

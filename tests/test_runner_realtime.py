@@ -148,3 +148,27 @@ def test_replay_to_a_host_leaves_the_collector_on() -> None:
         srv.close()
         t.join(5)
     assert gc.isenabled()
+
+
+def test_an_ack_that_arrived_during_a_stall_is_taken_before_its_deadline() -> None:
+    """Virtual clock, memory pair: our frame's ACK reaches the adapter in time, then our
+    process stalls past the frame's ackTimeout. The next step takes the ACK first: no send
+    failure (the ACK came in time; only we were late to read it)."""
+    from eyeq_spi.link import LinkConnection
+    from eyeq_spi.phy.memory import memory_pair
+
+    ours, theirs = memory_pair()
+    sender, peer = LinkConnection(LinkConfig(role="host")), LinkConnection(LinkConfig(role="eyeq"))
+    clock = [0.0]
+    runner = RealTimeRunner(sender, ours, clock=lambda: clock[0], max_wait=0.0, idle_gc=False)
+    sender.send(b"hello", 1, 0.0)
+    runner.step()  # the frame goes out at t = 0
+    frame = theirs.recv(0)
+    assert frame is not None
+    peer.receive_data(frame, 0.0001)
+    for ack in peer.data_to_send(0.0001):
+        theirs.send(ack)  # in our adapter at 0.1 ms, well within ackTimeout
+    clock[0] = 0.030  # a 30 ms stall before our next step
+    runner.step()
+    assert sender.counters.sendFailedErrorCounter == 0
+    assert sender.counters.framesAcked == 1

@@ -57,26 +57,47 @@ def release_from_comment(text: str) -> SwKey | None:
         return None
 
 
-def recorded_release(head: bytes) -> SwKey | None:
-    """The release recorded in the Section Header Block at the start of ``head`` (the first
-    bytes of a pcapng file), or None."""
+def _shb_comments(head: bytes) -> list[str]:
+    """The ``opt_comment`` options of the Section Header Block at the start of ``head`` (the
+    first bytes of a pcapng file)."""
     if len(head) < 28 or head[:4] != PCAPNG_MAGIC:
-        return None
+        return []
     endian = {b"\x4d\x3c\x2b\x1a": "<", b"\x1a\x2b\x3c\x4d": ">"}.get(head[8:12])
     if endian is None:
-        return None
+        return []
     length = struct.unpack_from(f"{endian}I", head, 4)[0]
     end = min(length - 4, len(head))
     pos = 24  # type, length, byte-order magic, version, section length
+    out: list[str] = []
     while pos + 4 <= end:
         code, size = struct.unpack_from(f"{endian}HH", head, pos)
         if code == 0:
             break
         if code == 1:
-            key = release_from_comment(head[pos + 4 : pos + 4 + size].decode("utf-8", "replace"))
-            if key is not None:
-                return key
+            out.append(head[pos + 4 : pos + 4 + size].decode("utf-8", "replace"))
         pos += 4 + size + (-size % 4)
+    return out
+
+
+def recorded_release(head: bytes) -> SwKey | None:
+    """The release recorded in the Section Header Block at the start of ``head`` (the first
+    bytes of a pcapng file), or None."""
+    for text in _shb_comments(head):
+        key = release_from_comment(text)
+        if key is not None:
+            return key
+    return None
+
+
+def recorded_clock(head: bytes) -> str | None:
+    """The clock a capture's timestamps were read from, as its Section Header Block records it
+    (``specs/capture.yaml`` ``clock_comment``): ``"virtual"`` or ``"monotonic"``; None when it
+    does not say (a capture written before the comment existed, or by another tool)."""
+    prefix = str(_spec()["clock_comment"]).split("{clock}")[0]
+    for text in _shb_comments(head):
+        m = re.search(re.escape(prefix) + r"(\S+)", text)
+        if m is not None and m.group(1) in _spec()["clocks"]:
+            return m.group(1)
     return None
 
 
@@ -164,7 +185,8 @@ class CaptureWriter:
 
     def __init__(self, path: str | Path, sw: str | None = None, *,
                  clock: Callable[[], float] = time.monotonic, idle_flush: bool = True,
-                 flush_s: float | None = None, blocks: bool | None = None) -> None:
+                 flush_s: float | None = None, blocks: bool | None = None,
+                 time_base: str | None = None) -> None:
         spec = _spec()
         self.blocks = not exact() if blocks is None else blocks
         if self.blocks:  # numpy now, not at the first write: readers of captures start without it
@@ -189,7 +211,14 @@ class CaptureWriter:
         self._clock = clock
         self._ids = {i["name"]: i["id"] for i in spec["interfaces"]}
         self._scale = 10 ** spec["timestamp_resolution"]
-        self._buf = bytearray(_shb(spec["application"], self.comment))
+        if time_base is not None and time_base not in spec["clocks"]:
+            raise OutputError(f"unknown capture clock {time_base!r} "
+                               f"(known: {', '.join(spec['clocks'])})")
+        self.time_base = time_base
+        comments = [self.comment]
+        if time_base is not None:  # what the timestamps were read from
+            comments.append(str(spec["clock_comment"]).format(clock=time_base))
+        self._buf = bytearray(_shb(spec["application"], comments))
         for iface in sorted(spec["interfaces"], key=lambda i: int(i["id"])):
             self._buf += _idb(spec["link_type"], iface["name"], iface["description"],
                               spec["timestamp_resolution"])
@@ -370,11 +399,12 @@ def _block(btype: int, body: bytes) -> bytes:
     return struct.pack("<II", btype, size) + body + struct.pack("<I", size)
 
 
-def _shb(application: str, comment: str) -> bytes:
-    # byte-order magic, version 1.0, section length unknown (-1); opt_comment, shb_userappl
+def _shb(application: str, comments: list[str]) -> bytes:
+    # byte-order magic, version 1.0, section length unknown (-1); opt_comments, shb_userappl
     return _block(int.from_bytes(PCAPNG_MAGIC, "little"),
                   struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1)
-                  + _options([(1, comment.encode()), (4, application.encode())]))
+                  + _options([(1, c.encode()) for c in comments]
+                             + [(4, application.encode())]))
 
 
 def _idb(link_type: int, name: str, description: str, tsresol: int) -> bytes:

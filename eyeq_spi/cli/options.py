@@ -17,7 +17,8 @@ never ignored, where that side is not run: :func:`refuse_inapplicable` is the on
 from __future__ import annotations
 
 import argparse
-from collections.abc import Collection, Sequence
+import time
+from collections.abc import Callable, Collection, Sequence
 from typing import Any
 
 from eyeq_spi import io as formats
@@ -345,7 +346,9 @@ def capture_writer(args: argparse.Namespace) -> Any:
         return None
     from eyeq_spi.capture.pcapng_io import CaptureWriter
 
-    return CaptureWriter(args.capture, getattr(args, "sw", None))
+    # a virtual-time demo stamps the simulation's schedule; every other run reads the clock
+    time_base = "virtual" if getattr(args, "virtual_time", False) else "monotonic"
+    return CaptureWriter(args.capture, getattr(args, "sw", None), time_base=time_base)
 
 
 def can_output(args: argparse.Namespace, host: Any, runner: Any) -> Any:
@@ -361,17 +364,32 @@ def can_output(args: argparse.Namespace, host: Any, runner: Any) -> Any:
 
 class CaptureTap:
     """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``. A
-    message handed over in one step reaches the writer in one call (``many``)."""
+    message handed over in one step reaches the writer in one call (``many``).
+
+    ``clock`` (a real-time run): every transfer is stamped with the clock's reading when the
+    emulator handed it over, since the first one (which keeps its time on the schedule), not
+    with the schedule's instant; None: the schedule (virtual time)."""
 
     DIRECTIONS = ("h2e", "e2h")
 
-    def __init__(self, writer: Any) -> None:
+    def __init__(self, writer: Any, clock: Callable[[], float] | None = None) -> None:
         self.writer = writer
+        self.clock = clock
+        self.origin: float | None = None  # the clock's reading at the schedule's 0
 
     def __call__(self, node: int, t: float, transfer: bytes) -> None:
+        if self.clock is not None:
+            now = self.clock()
+            if self.origin is None:
+                self.origin = now - t
+            t = now - self.origin
         self.writer.write(self.DIRECTIONS[node], t, transfer)
 
     def many(self, transfers: list[tuple[int, float, bytes]]) -> None:
+        if self.clock is not None:
+            for node, t, b in transfers:
+                self(node, t, b)
+            return
         d = self.DIRECTIONS
         self.writer.write_many((d[node], t, b) for node, t, b in transfers)
 
@@ -383,7 +401,9 @@ def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
 
     host_cfg, nvm, scenario_ = host_parts(args)
     writer = capture_writer(args)
-    tap = None if writer is None else CaptureTap(writer)
+    # real time: the capture says when each transfer happened (its clock is in the file)
+    realtime = not getattr(args, "virtual_time", False)
+    tap = None if writer is None else CaptureTap(writer, time.monotonic if realtime else None)
     emu = build(sim_config=sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario_,
                 keep_rx_times=False, tap=tap)
     return emu, writer

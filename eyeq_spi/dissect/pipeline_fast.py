@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from typing import IO, Any
 
 import numpy as np
@@ -20,6 +21,7 @@ from eyeq_spi.capture.pcapng_io import (
     PCAPNG_MAGIC,
     Record,
     Tail,
+    recorded_clock,
     recorded_release,
     release_sniff_transfers,
 )
@@ -74,6 +76,7 @@ def open_fast(fh: IO[bytes], fmt: str | None, direction: str | None, *, sw: str 
         rows = [c.record(i) for c in first for i in range(len(c))]
         release = choose_release(sw, infer_release(rows[: release_sniff_transfers()]), name)
         chunks = then(first, fault, chunks)
+    release = replace(release, clock=recorded_clock(head))
     return Capture(kind, _records(chunks), release, tail, chunks)
 
 

@@ -21,10 +21,16 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import IO, Any
 
-from eyeq_spi.capture.pcapng_io import Record, Tail, recorded_release, release_sniff_transfers
+from eyeq_spi.capture.pcapng_io import (
+    Record,
+    Tail,
+    recorded_clock,
+    recorded_release,
+    release_sniff_transfers,
+)
 from eyeq_spi.catalog.messages import Catalog, SwKey, catalog, sw_release_text
 from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, MessageCodec, classify
@@ -47,13 +53,14 @@ class Release:
     found: SwKey | None = None  # what the capture says (recorded or inferred), None: nothing
     found_source: str | None = None
     warning: str | None = None
+    clock: str | None = None  # what the capture's timestamps were read from, None: not said
 
     @property
     def text(self) -> str:
         return sw_release_text(self.key)
 
     def as_dict(self) -> dict[str, Any]:
-        return {"sw": self.text, "sw_source": self.source}
+        return {"sw": self.text, "sw_source": self.source, "clock": self.clock}
 
 
 class _Sniffer(Dissector):
@@ -183,10 +190,11 @@ def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | Non
     transfers looked at to infer the release are kept and come first in ``records``."""
     tail = Tail()
     peek = stream if isinstance(stream, PeekStream) else PeekStream(stream)
-    recorded = recorded_release(peek.head)
+    recorded, clock = recorded_release(peek.head), recorded_clock(peek.head)
     kind, records = open_records(peek, fmt, direction, spi, tail)  # type: ignore[arg-type]
     if recorded is not None:
-        return Capture(kind, records, choose_release(sw, (recorded, RECORDED), name), tail)
+        release = choose_release(sw, (recorded, RECORDED), name)
+        return Capture(kind, records, replace(release, clock=clock), tail)
     head: list[Record] = []
     fault: EyeqError | None = None
     try:
@@ -194,7 +202,8 @@ def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | Non
     except EyeqError as exc:  # raised after the transfers before it, as the reader would
         fault = exc
     found = infer_release(head)
-    return Capture(kind, then(head, fault, records), choose_release(sw, found, name), tail)
+    release = replace(choose_release(sw, found, name), clock=clock)
+    return Capture(kind, then(head, fault, records), release, tail)
 
 
 def then(head: list[Any], fault: EyeqError | None, rest: Iterator[Any]) -> Iterator[Any]:

@@ -1,7 +1,8 @@
 """``eyeq-spi dissect --stats``: what a capture contains and what went wrong in it.
 
 One :class:`Stats` per file; :func:`combine` adds several up into a total whose mean rates are
-each file's message intervals over each file's time span, so a rate never spans two files.
+each file's message intervals over each file's active spans (eyeq_spi/stream_rate.py), so a
+rate never spans two files, nor a gap in a stream.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.catalog.messages import Catalog
+from eyeq_spi.stream_rate import stream_rate
 
 MESP_DEADLINE = 0.5  # M6
 
@@ -30,6 +32,7 @@ class Stats:
     messages: Counter[str] = field(default_factory=Counter)
     first: dict[str, float] = field(default_factory=dict)
     last: dict[str, float] = field(default_factory=dict)
+    times: dict[str, list[float]] = field(default_factory=dict)  # of each stream's messages
     counter_gaps: Counter[str] = field(default_factory=Counter)
     e2e_errors: Counter[str] = field(default_factory=Counter)
     message_errors: int = 0
@@ -69,6 +72,7 @@ class Stats:
         if t is not None:
             self.first.setdefault(name, t)
             self.last[name] = t
+            self.times.setdefault(name, []).append(t)
         for e in r["errors"]:
             if e.startswith("DASP counter gap"):
                 self.counter_gaps[name] += 1
@@ -110,10 +114,12 @@ class Stats:
     def as_dict(self) -> dict[str, Any]:
         rates: dict[str, Any] = {}
         for name, n in sorted(self.messages.items()):
+            gaps = 0
             if self.files:
                 span, steps = self.spans.get(name, 0.0), self.steps.get(name, 0)
-            else:
-                span, steps = self.last.get(name, 0.0) - self.first.get(name, 0.0), n - 1
+            else:  # over the stream's active spans (eyeq_spi/stream_rate.py)
+                rate = stream_rate(sorted(self.times.get(name, [])))
+                span, steps, gaps = rate.active_s, rate.steps, len(rate.gaps)
             nominal = None
             try:
                 nominal = self.cat.message(name).rate_hz
@@ -121,7 +127,7 @@ class Stats:
                 nominal = None
             periodic = nominal is not None and span > 0 and steps > 0
             rates[name] = {"count": n, "mean_hz": round(steps / span, 3) if periodic else None,
-                           "nominal_hz": nominal}
+                           "nominal_hz": nominal, "gaps": gaps if periodic else 0}
         lat = {
             name: {"count": len(v), "min_ms": round(min(v) * 1e3, 3),
                    "median_ms": round(_median(v) * 1e3, 3),
@@ -152,6 +158,8 @@ class Stats:
             out.append(f"=== total of {self.files} files")
         elif self.file is not None:
             src = f" (SW {d['sw']}: {d['sw_source']})" if "sw" in d else ""
+            if "clock" in d:  # what the timestamps were read from (docs/captures.md)
+                src += f", clock: {d['clock'] or 'not recorded'}"
             out.append(f"=== {self.file}{src}")
         if self.ignored_bytes:
             out.append(f"  ignored {self.ignored_bytes} bytes of an incomplete last block")
@@ -166,7 +174,9 @@ class Stats:
         for name, r in d["messages"].items():
             mean = "-" if r["mean_hz"] is None else f"{r['mean_hz']:.2f} Hz"
             nom = "" if r["nominal_hz"] is None else f" / {r['nominal_hz']:g} Hz"
-            out.append(f"  {name:34s} {r['count']:8d}  {mean}{nom}")
+            gaps = r.get("gaps") or 0
+            out.append(f"  {name:34s} {r['count']:8d}  {mean}{nom}"
+                       + (f"  ({gaps} gap{'s' if gaps > 1 else ''})" if gaps else ""))
         out.append(f"== DASP counter gaps {d['dasp_counter_gaps'] or 'none'}; "
                    f"E2E errors {d['e2e_errors'] or 'none'}; other message errors "
                    f"{d['message_errors']}")
@@ -191,10 +201,10 @@ def combine(parts: list[Stats]) -> Stats:
         for name in ("bad_length", "crc_errors", "message_errors", "mesp_unmatched",
                      "ignored_bytes"):
             setattr(total, name, getattr(total, name) + getattr(p, name))
-        for name, n in p.messages.items():
-            if name in p.first:
-                total.spans[name] = total.spans.get(name, 0.0) + p.last[name] - p.first[name]
-                total.steps[name] += n - 1
+        for name, times in p.times.items():
+            rate = stream_rate(sorted(times))  # each file's active spans, never across two
+            total.spans[name] = total.spans.get(name, 0.0) + rate.active_s
+            total.steps[name] += rate.steps
         for name, v in p.mesp_latency.items():
             total.mesp_latency.setdefault(name, []).extend(v)
     return total

@@ -63,3 +63,14 @@ def adapters(emu: Emulation) -> tuple[MemoryAdapter, MemoryAdapter]:
     host_end, sim_end = ends
     assert isinstance(host_end, MemoryAdapter) and isinstance(sim_end, MemoryAdapter)
     return host_end, sim_end
+
+
+def noisy_link(emu: Emulation, ber: float, seed: int = 1) -> None:
+    """Flip the bits of every transfer in both directions with probability ``ber`` each (no
+    other fault): a bad cable or connector under an otherwise healthy host and EyeQ."""
+    from eyeq_spi.faults.channel import FaultProfile, FaultyChannel
+
+    profile = FaultProfile(ber=ber, drop=0.0, duplicate=0.0, reorder=0.0, truncate=0.0)
+    host_end, sim_end = adapters(emu)
+    host_end.mangle = FaultyChannel(profile, seed * 2)
+    sim_end.mangle = FaultyChannel(profile, seed * 2 + 1)

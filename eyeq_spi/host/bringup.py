@@ -37,6 +37,7 @@ from eyeq_spi.host.config import (
     Transition,
     link_config,
 )
+from eyeq_spi.host.link_health import with_link_cause
 from eyeq_spi.host.machine import ENTRY_ACTIONS, HostEvent, HostState, next_state
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import ConstantDrive, Scenario
@@ -299,7 +300,8 @@ class HostBringUp:
         def done(result: MespResult) -> None:
             self._init_busy = False
             if isinstance(result, MespFailure):
-                self.problem = f"init message 0x{stage:02X} rejected: {result}"
+                self.problem = with_link_cause(f"init message 0x{stage:02X} rejected: {result}",
+                                               self.conn.link.counters)
                 self._fire(E.INIT_REJECTED, self.now, self.problem)
             elif mode_init:
                 self._fire(E.MODE_PARAMS_ACCEPTED, self.now)
@@ -334,6 +336,7 @@ class HostBringUp:
     def _reset_eyeq(self, now: float, *, bringup: bool = True) -> None:
         """Reset the EyeQ; ``bringup`` counts it against ``max_resets`` (EEPROM-driven)."""
         self._cancel_requests()
+        self.counters.eyeq_resets_asked += 1
         if bringup:
             self._bringups += 1
         self._enter(S.POWER_UP, now)

@@ -44,7 +44,9 @@ class HostCounters:
     decode_errors: int = 0
     stale_events: Counter[str] = field(default_factory=Counter)
     ignored_events: int = 0
-    eyeq_resets: int = 0
+    eyeq_resets: int = 0  # resets of the EyeQ the host did not ask for (detected)
+    eyeq_resets_asked: int = 0  # the host reset it: reset line, or a soft reset (Switch)
+    restarts_answered: int = 0  # the EyeQ's link restarts that answered our own reset (L10)
     boot_failures: int = 0
     rx_times: dict[str, list[float]] = field(default_factory=dict)
     tx_times: list[float] = field(default_factory=list)

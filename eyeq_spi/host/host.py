@@ -30,6 +30,7 @@ from eyeq_spi.host.config import (
     S,
     Transition,
 )
+from eyeq_spi.host.link_health import with_link_cause
 from eyeq_spi.host.machine import next_state
 from eyeq_spi.host.scenario import veh_state_values
 from eyeq_spi.host.veh_state_fast import VehStatePacker
@@ -353,7 +354,8 @@ class HostEmulator(HostBringUp):
         self._strikes += 1
         self.counters.boot_failures += 1
         if self._strikes >= self.config.boot_strikes:
-            self.problem = f"EyeQ boot failed {self._strikes} times in a row ({why})"
+            self.problem = with_link_cause(
+                f"EyeQ boot failed {self._strikes} times in a row ({why})", self.conn.link.counters)
             self._fire(E.BOOT_STRIKE_OUT, now, self.problem)
             return
         self._fire(E.BOOT_BAD, now, why)
@@ -401,6 +403,7 @@ class HostEmulator(HostBringUp):
             # L10: the EyeQ took our Switch EyeQ Application and started its link afresh, as
             # we did ours: the switch, not a reset of its own
             self._switch_at = None
+            self.counters.restarts_answered += 1
             return
         if self.state in (S.POWER_UP, S.FAILED, S.BOOT_FAILED):
             return  # a boot status is awaited anyway (with its timeout), or we gave up

@@ -74,7 +74,9 @@ class _HostView:
             link[f"abort: {reason}"] = int(n)
         c = host.counters
         errors = {"E2E errors": c.e2e_errors, "DASP counter gaps": c.dasp_counter_gaps,
-                  "decode errors": c.decode_errors, "EyeQ resets": c.eyeq_resets,
+                  "decode errors": c.decode_errors,
+                  # every reset: the host's own and those it detected (the summary splits them)
+                  "EyeQ resets": c.eyeq_resets_asked + c.eyeq_resets,
                   "MESP timeouts": host.mesp.counters.timeouts}
         trans = [(t.time - self.origin, t.src.value, t.event.value, t.dst.value)
                  for t in host.transitions[-8:]]

@@ -24,6 +24,7 @@ class AdapterStats:
     bytes_sent: int = 0
     bytes_received: int = 0
     decode_errors: int = 0  # stream framing that could not be decoded (dropped, counted)
+    left_at_link_loss: int = 0  # transfers received from a peer that left, never taken
 
 
 class Adapter(ABC):

@@ -61,6 +61,14 @@ class StreamAdapter(Adapter):
                 self.stats.decode_errors = self._decoder.errors
         return self._ready.pop(0) if self._ready else None
 
+    def discard_pending(self) -> int:
+        """Drop the transfers received but not yet taken and any partial one (the peer that
+        sent them left); returns how many whole transfers were dropped."""
+        dropped = len(self._ready)
+        self._ready.clear()
+        self._decoder = CobsDecoder()
+        return dropped
+
     def _write(self, data: bytes) -> None:
         raise NotImplementedError
 

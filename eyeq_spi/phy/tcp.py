@@ -15,7 +15,7 @@ import socket
 
 from eyeq_spi.errors import AdapterError, LinkLostError
 from eyeq_spi.phy.address import listen_url
-from eyeq_spi.phy.stream import CobsDecoder, StreamAdapter
+from eyeq_spi.phy.stream import StreamAdapter
 
 
 class TcpListenAdapter(StreamAdapter):
@@ -47,7 +47,7 @@ class TcpListenAdapter(StreamAdapter):
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         conn.settimeout(self.write_timeout)
         self.conn = conn
-        self._decoder = CobsDecoder()
+        self.discard_pending()
         return True
 
     def _write(self, data: bytes) -> None:
@@ -80,6 +80,9 @@ class TcpListenAdapter(StreamAdapter):
         if self.conn is not None:
             self.conn.close()
             self.conn = None
+        # transfers of the peer that left, received but not yet taken, go with it: the next
+        # peer is a new connection and never receives them (counted, not dropped silently)
+        self.stats.left_at_link_loss += self.discard_pending()
 
     def _close_internal(self) -> None:
         self._drop()

@@ -314,6 +314,7 @@ class SimulatedEyeQ(MespFunctions):
         cfg = self.config
         if cfg.reset_at is not None and not self._reset_done and now >= cfg.reset_at:
             self._reset_done = True
+            self.counters.self_resets += 1
             self.power_up(now)
         self.conn.handle_timer(now)
         if self._boot_at is not None and now >= self._boot_at:

@@ -53,6 +53,8 @@ class SimCounters:
     edr_triggers: list[dict[str, Any]] = field(default_factory=list)
     calibration_events: list[tuple[int, int]] = field(default_factory=list)  # (stage, ret)
     boots: int = 0
+    self_resets: int = 0  # resets of its own (SimConfig.reset_at), no host asked for them
+    vision_switches: int = 0  # accepted Switch EyeQ Application to Vision: a reset (L10)
     sent: Counter[str] = field(default_factory=Counter)
 
 
@@ -102,6 +104,7 @@ class MespFunctions:
             except EyeqError:  # this release has no init table for the mode (§7.1.1.7)
                 return RET_NOT_ALLOWED, {}
         if app == APP_VISION:
+            self.counters.vision_switches += 1
             self.fatal_error = 0  # a restart of the vision application (the host's soft reset)
         self.main_state, self.sub_state = target
         # the application restarts: it judges the host's E2E rolling counters afresh, as the

@@ -21,6 +21,7 @@ from eyeq_spi.conformance.model import (
     TAG_SILENCE,
 )
 from eyeq_spi.conformance.trace import Msg, Trace
+from eyeq_spi.stream_rate import combined_rate, stream_rate
 
 _M = catalog().raw["mesp.yaml"]["mesp"]
 DEADLINE = float(_M["reply_deadline"])
@@ -438,13 +439,17 @@ def _rate(ctx: Context, tr: Trace, msgs: list[Msg], hz: float, tol: tuple[float,
     lo, hi = period + tol[0] / 1e3, period + tol[1] / 1e3
     slack = 0.002 if ctx.realtime else 1e-9
     periods: list[tuple[float, Msg]] = []
+    rates = []
     for seg in segments(tr, msgs, period):
+        rates.append(stream_rate([m.t_first for m in seg]))
         for a, b in pairwise(seg):
             periods.append((b.t_first - a.t_first, b))
     if len(periods) < 5:
         return unsure(f"{len(periods)} periods of {what} observed (need 5)")
     outside = [(p, m) for p, m in periods if not lo - slack <= p <= hi + slack]
-    mean = sum(p for p, _ in periods) / len(periods)
+    # the stream's rate while it runs (eyeq_spi/stream_rate.py); a gap is judged as a period
+    running = combined_rate(rates)
+    mean = 1.0 / running if running else sum(p for p, _ in periods) / len(periods)
     # each violation with its time span and by how much it misses (load.py weighs our stalls
     # against exactly these): a period outside the tolerance, and the mean rate, whose excess
     # is the time the whole run of periods is off the nearest rate allowed
