@@ -11,7 +11,7 @@ import pytest
 
 from eyeq_spi.capture.pcapng_io import CaptureWriter, recorded_clock
 from eyeq_spi.cli import main
-from eyeq_spi.errors import CaptureError
+from eyeq_spi.errors import OutputError
 
 
 def _demo(tmp_path: Path, capsys: pytest.CaptureFixture[str], *extra: str
@@ -55,5 +55,5 @@ def test_a_capture_without_the_comment_does_not_say(tmp_path: Path) -> None:
     with CaptureWriter(path, idle_flush=False) as writer:
         writer.write("h2e", 0.0, bytes(128))
     assert recorded_clock(path.read_bytes()) is None
-    with pytest.raises(CaptureError, match="unknown capture clock"):
+    with pytest.raises(OutputError, match="unknown capture clock"):
         CaptureWriter(tmp_path / "x.pcapng", time_base="sundial", idle_flush=False)
