@@ -40,6 +40,7 @@ from eyeq_spi.transport.events import MessageReceived, TransferAborted, Transfer
 from eyeq_spi.transport.segment import FIRST
 
 TRANSPORT_NAMES = {0x00: "single", 0x01: "first", 0x02: "consecutive"}
+OTHER_DIRECTION: dict[str | None, str | None] = {"h2e": "e2h", "e2h": "h2e"}
 RECEIVER = {"h2e": "eyeq", "e2h": "host", None: "host"}
 
 
@@ -101,6 +102,7 @@ class _Direction:
     # L10: the NUM of a Switch EyeQ Application request's last frame; its sender may number
     # its next frame from 0 (the reset it asked for starts its link afresh)
     restart_after: int | None = None
+    clean_frames: int = 0  # DATA frames of clean runs since the receiver last took a frame
 
 
 class Dissector:
@@ -156,7 +158,10 @@ class Dissector:
                     indices: Iterable[int]) -> None:
         """DATA frames of a clean run on ``direction``, in order: their NUMs and capture
         indices (the message records of later frames name their frames by them)."""
-        self._dir(direction).index_of_num.update(zip(nums, indices, strict=True))
+        d = self._dir(direction)
+        nums = list(nums)
+        d.index_of_num.update(zip(nums, indices, strict=True))
+        d.clean_frames += len(nums)  # the receiver did not see them: L10a's span runs on
 
     def resume(self, direction: str | None, last_first: Transfer | None,
                tail: list[Transfer], open_transfer: Transfer | None) -> None:
@@ -169,10 +174,16 @@ class Dissector:
         ``open_transfer``: the transfer still open at the run's end (with its deadline)."""
         d = self._dir(direction)
         units = tail + ([open_transfer] if open_transfer else [])
+        replays = [units] if units else []
         if last_first is not None and not any(u[0][0][6] == FIRST for u in units):
-            _replay(d.conn, [last_first])
-        if units:
-            _replay(d.conn, units)
+            replays.insert(0, [last_first])
+        # L10a: the restart span stands where feeding the whole run would have left it (the
+        # run's frames count against it; the replayed ones are counted by the replay itself)
+        left = max(0, d.conn.link.restart_span - d.clean_frames)
+        d.clean_frames = 0
+        for unit_list in replays:
+            replayed = sum(len(unit) for unit in unit_list)
+            _replay(d.conn, unit_list, left + replayed if left else 0)
         if open_transfer:
             d.index_of_num.update((f[2], f[3]) for f in open_transfer)
 
@@ -222,6 +233,12 @@ class Dissector:
             d = self._reset_direction(rec.direction)
             yield {"kind": "event", "type": "driver_reset", "direction": rec.direction,
                    "index": idx}
+            # L10/L10a: the side that restarted starts its own receiver over too, so for its
+            # first 64 frames it takes a NUM 0 of the other side as that side's (late) restart,
+            # whatever its RSP, as the real receiver does
+            other = self._dirs.get(OTHER_DIRECTION.get(rec.direction))
+            if other is not None:
+                other.conn.link.restart()
         conn = d.conn
         conn.receive_data(data, t if t is not None else 0.0)
         conn.data_to_send(float("inf"))  # our passive receiver's ACK/NAKs go nowhere
@@ -316,9 +333,10 @@ class Dissector:
         return errs[:10]
 
 
-def _replay(conn: TransportConnection, units: list[Transfer]) -> None:
-    """``conn`` reset to the first frame's NUM and fed ``units`` again, output dropped."""
-    conn.reset(expected=units[0][0][2])
+def _replay(conn: TransportConnection, units: list[Transfer], restart_span: int) -> None:
+    """``conn`` reset to the first frame's NUM (with L10a's ``restart_span``) and fed
+    ``units`` again, output dropped."""
+    conn.reset(expected=units[0][0][2], restart_span=restart_span)
     for unit in units:
         for data, t, _, _ in unit:
             conn.receive_data(data, 0.0 if t is None else t)

@@ -132,12 +132,16 @@ class LinkConnection:
         self.reset()
 
     # -- state ------------------------------------------------------------------------------
-    def reset(self, *, tx_num: int = 0, expected: int = 0, learn: bool = False) -> None:
+    def reset(self, *, tx_num: int = 0, expected: int = 0, learn: bool = False,
+              restart_span: int = 0) -> None:
         """Power-up state: NUM and E back to 0 (L4). Queues and in-flight frames are lost.
 
         ``learn``: the receiver takes the first DATA frame's NUM as E (L10: after a reset the
         peer's numbering is not known; as L9's passive receivers do).
         ``tx_num``/``expected`` start elsewhere, for conformance tests of the 4095 -> 0 wrap.
+        ``restart_span``: without ``learn``, the DATA frames for which a NUM 0 outside the
+        window is still the peer's restart (L10a; :attr:`restart_span`), for a passive
+        receiver that is set back to a point it had reached.
         """
         if not (0 <= tx_num < SEQ_MODULO and 0 <= expected < SEQ_MODULO):
             raise LocalProtocolError("start NUMs must be 0..4095")
@@ -146,7 +150,8 @@ class LinkConnection:
         self._started = not (self.config.passive or learn)  # L9, L10: the receiver learns E
         # L10: frames the peer sent before it learnt of the reset may still arrive and be
         # learned; its first frame after it restarted (NUM 0, L4) then takes E back to 0
-        self._expect_restart_frames = RESTART_HORIZON * self.config.window if learn else 0
+        self._expect_restart_frames = (RESTART_HORIZON * self.config.window if learn
+                                       else restart_span)
         self._accepted: OrderedDict[int, bytes] = OrderedDict()  # L6a: last W accepted
         self._last_accepted = 0
         self._restart_tag: int | None = None  # L10: number from 0 once this tag's frames left
@@ -185,6 +190,12 @@ class LinkConnection:
         still accepted and its first one after is not NAKed as out of window."""
         self._restart_tag = tag
         self._expect_restart_until = now + expect_for
+
+    @property
+    def restart_span(self) -> int:
+        """L10a: how many more DATA frames may bring a NUM 0 outside the window that is taken
+        as the peer's restart (64 after our own reset, counting down)."""
+        return self._expect_restart_frames
 
     @property
     def expected_num(self) -> int:

@@ -117,14 +117,15 @@ class TransportConnection:
         return self.link.config.role
 
     def reset(self, *, tx_num: int = 0, expected: int = 0, transfer_id: int = 0,
-              learn: bool = False) -> None:
+              learn: bool = False, restart_span: int = 0) -> None:
         """Power-up state of both layers (the link's pending messages fail). ``learn``: the
         receiver takes the first DATA frame's NUM as E (L10). The start values exist for
         conformance tests of the wraps."""
         if not 0 <= transfer_id < seg.ID_MODULO:
             raise ValueError("transfer_id must be 0..255")
         self._abort("reset")
-        self.link.reset(tx_num=tx_num, expected=expected, learn=learn)
+        self.link.reset(tx_num=tx_num, expected=expected, learn=learn,
+                        restart_span=restart_span)
         self._next_transfer_id = transfer_id
         self._drain_link(0.0)
 
