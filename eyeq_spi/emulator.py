@@ -12,8 +12,7 @@ from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import Scenario
 from eyeq_spi.phy.memory import memory_pair
-from eyeq_spi.runner.virtual import VirtualRunner
-from eyeq_spi.runner.virtual_types import Tap
+from eyeq_spi.runner.virtual import Tap, VirtualRunner
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.summary import RunningVision
@@ -43,14 +42,9 @@ class Emulation:
                 stop: Callable[[], bool] | None = None) -> None:
         """Advance ``seconds`` of simulated time in 10 ms slices, tracking Running Vision."""
         end = self.runner.now + seconds
-        driven = True  # the first slice: code may have driven a node since the last call
         while self.runner.now < end - 1e-12 and not (stop is not None and stop()):
-            self.runner.run_until(min(end, self.runner.now + 0.01), realtime=realtime,
-                                  driven=driven)
+            self.runner.run_until(min(end, self.runner.now + 0.01), realtime=realtime)
             self.vision.update(self.host, self.runner.now)
-            # the next slice keeps the runner's caches: in between, only the host's state was
-            # read (a ``stop`` condition may drive a node: then every slice starts afresh)
-            driven = stop is not None
 
 
 def build(

@@ -1,6 +1,6 @@
 """The exact/fast switch shared by every twin family.
 
-Where a hot path has a faster twin (numpy, ``struct``, a packed buffer, an express loop), the
+Where a hot path has a faster twin (numpy, ``struct``, a packed buffer), the
 pure-Python one is the reference: it is what the seed says, and the fast one is held to give
 the same output (``tests/test_twins.py``). A facade picks the fast twin unless
 ``EYEQ_SPI_EXACT=1`` is set in the environment; then every family runs its reference.
@@ -37,5 +37,4 @@ FAMILIES: dict[str, tuple[str, str]] = {
     "sim.dasp": ("the dict path (MessageCodec.encode)", "eyeq_spi.sim.dasp_fast"),
     "host.veh_state": ("the dict path (veh_state_values, MessageCodec.encode_dasp)",
                        "eyeq_spi.host.veh_state_fast"),
-    "runner.virtual": ("eyeq_spi.runner.virtual", "eyeq_spi.runner.virtual_fast"),
 }

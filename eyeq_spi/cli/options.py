@@ -360,8 +360,7 @@ def can_output(args: argparse.Namespace, host: Any, runner: Any) -> Any:
 
 
 class CaptureTap:
-    """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``. A
-    message handed over in one step reaches the writer in one call (``many``)."""
+    """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``."""
 
     DIRECTIONS = ("h2e", "e2h")
 
@@ -370,10 +369,6 @@ class CaptureTap:
 
     def __call__(self, node: int, t: float, transfer: bytes) -> None:
         self.writer.write(self.DIRECTIONS[node], t, transfer)
-
-    def many(self, transfers: list[tuple[int, float, bytes]]) -> None:
-        d = self.DIRECTIONS
-        self.writer.write_many((d[node], t, b) for node, t, b in transfers)
 
 
 def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:

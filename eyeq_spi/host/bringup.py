@@ -92,8 +92,6 @@ class HostBringUp:
         self.versions: dict[str, int] | None = None
         self.boot_info: dict[str, Any] = {}
         self.last_diag: dict[str, Any] = {}
-        # a message the express paths decoded to judge it, with its decoding (host.py _quiet)
-        self._decoded: tuple[bytes, Any] | None = None
         self.calibration_result: dict[str, Any] | None = None
         self._subscribers: list[Subscriber] = []
         self._e2e = E2EState()  # D5: the EyeQ's rolling counters, judged afresh per boot

@@ -6,7 +6,6 @@ receive path, stale detection and HOST_VEH_STATE_MSG.
 
 from __future__ import annotations
 
-import math
 from collections.abc import AsyncIterator
 from typing import Any
 
@@ -14,7 +13,7 @@ from eyeq_spi.catalog.messages import sw_release
 from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
-from eyeq_spi.codec.message import DecodedMessage, classify
+from eyeq_spi.codec.message import DecodedMessage
 from eyeq_spi.errors import CodecError, EyeqError, LocalProtocolError, SpecError
 from eyeq_spi.host import calibration, init_seq
 from eyeq_spi.host.bringup import SWITCH_APP, HostBringUp, ResetLine, Subscriber
@@ -34,8 +33,6 @@ from eyeq_spi.host.machine import next_state
 from eyeq_spi.host.scenario import veh_state_values
 from eyeq_spi.host.veh_state_fast import VehStatePacker
 from eyeq_spi.link.events import Resynchronised
-from eyeq_spi.link.frame import SEQ_MODULO
-from eyeq_spi.link.run import DataRun
 from eyeq_spi.mesp.client import MespCompleted, MespFailed
 from eyeq_spi.transport.events import MessageReceived
 from eyeq_spi.twins import exact
@@ -136,111 +133,6 @@ class HostEmulator(HostBringUp):
         self._flush_mesp(now)
         return self.conn.data_to_send(now)
 
-    def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
-        """runner/virtual_fast.py: ``receive_data``, then ``handle_timer`` and ``data_to_send`` at
-        the same ``now`` (as a runner calls them for a DATA frame, whose ACK makes the timer
-        due), in one step, when no timer of the host is due and the frame continues a message
-        and completes nothing: the ACK. In Running Vision with nobody subscribed, also for a
-        frame that completes a DASP message (handled as ``receive_data`` handles it: counters,
-        E2E, stale bookkeeping) and for the ACK of the last frame of one of our messages
-        (nothing to send then). None, with nothing changed, otherwise."""
-        if now >= self._absorb_until():
-            return None
-        conn = self.conn
-        whole = not self._subscribers and self.state is S.RUNNING_VISION
-        if whole:  # most frames that arrive alone complete a message
-            message = conn.absorb_last(transfer, now, self._quiet)
-            if message is not None:
-                self.now = now
-                self._on_message(message, now)
-                return [conn.link.codec.ack((conn.link.expected_num - 1) % SEQ_MODULO)]
-        ack = conn.absorb(transfer, now)
-        if ack is not None:
-            self.now = now
-            return [ack]
-        if not whole or not conn.absorb_ack(transfer, now, last=True):
-            return None
-        self.now = now
-        self._pump(now)
-        return []
-
-    def express_take(self, frames: list[bytes], times: list[float], acks: list[bytes]) -> int:
-        """runner/virtual_fast.py: :meth:`express_absorb` of ``frames[k]`` at ``times[k]``
-        (rising), frame after frame, up to the first it would decline or whose ACK would not
-        be ``acks[k]``: how many it took. The last of ``frames`` may complete a DASP message
-        (taken as :meth:`express_absorb` takes it)."""
-        until = self._absorb_until()
-        n = 0
-        while n < len(frames) and times[n] < until:
-            n += 1
-        whole = not self._subscribers and self.state is S.RUNNING_VISION
-        n, message = self.conn.absorb_message(frames[:n], times, acks,
-                                              self._quiet if whole else None)
-        if n:
-            self.now = times[n - 1]
-        if message is not None:  # a message whole, as express_absorb takes it
-            self._on_message(message, self.now)
-        return n
-
-    def express_run(self, now: float) -> DataRun | None:
-        """runner/virtual_fast.py: the rest of the message whose frame went out at ``now``, to
-        be handed over in one step before anything of ours other than its frames is due (as
-        :meth:`_absorb_until` tells); None when our link cannot tell."""
-        run = self.conn.data_run(now)
-        if run is not None:
-            until = self._absorb_until()
-            if until < run.until:
-                run.until = until
-        return run
-
-    def express_run_take(self, run: DataRun, released: list[float], acked: list[float]) -> None:
-        """The frames of ``run`` released at ``released`` and the ACKs taken at ``acked``, as the
-        runner's calls at those times would (:meth:`TransportConnection.take_run`; the last
-        ACK's events go through :meth:`_pump`, as ``receive_data`` sends them)."""
-        self.conn.take_run(run, released, acked)
-        if acked:
-            self.now = acked[-1]
-            self._pump(self.now)
-
-    def _quiet(self, message: bytes) -> bool:
-        """A message the express paths may take whole in Running Vision (nobody subscribed):
-        DASP, or a 0x41 that starts no state event (:meth:`_diag_event`): what the host does
-        with either changes no deadline and sends nothing. A 0x41 is decoded here (without E2E
-        state: nothing changes) and the result kept for :meth:`_on_message`."""
-        kind = classify(message[:5])
-        if kind == "DASP":
-            return True
-        if kind != "DIAG":
-            return False
-        out = self.codec.decode(message)
-        if not out.errors and self._diag_event(out) is not None:
-            return False
-        self._decoded = (message, out)
-        return True
-
-    def _absorb_until(self) -> float:
-        """The first time at which :meth:`express_absorb` leaves a frame to the ordinary calls
-        for the host's own sake: a request to hand over, a stale check, a timer due."""
-        mesp = self.mesp
-        if mesp.waiting:
-            return -math.inf
-        until = self._next_stale_check if self.state is S.RUNNING_VISION else math.inf
-        # asked for every message handed over: straight comparisons, no temporary tuple
-        if mesp.outstanding:
-            t = mesp.get_timer()
-            if t is not None and t < until:
-                until = t
-        t = self._boot_deadline
-        if t is not None and t < until:
-            until = t
-        t = self._next_poll
-        if t is not None and t < until:
-            until = t
-        t = self._veh_next
-        if t is not None and t < until:
-            until = t
-        return until
-
     def get_timer(self) -> float | None:
         # asked after every event (runner/virtual.py): no temporary lists here
         best = self.conn.get_timer()
@@ -306,15 +198,11 @@ class HostEmulator(HostBringUp):
         if self.mesp.receive_message(data, now):
             return
         dasp = data[:1] == b"\x65"
-        decoded, self._decoded = self._decoded, None
-        if decoded is not None and decoded[0] is data:
-            out = decoded[1]  # a 0x41 that _quiet decoded
-        else:
-            # field values only when someone reads them: subscribers (async iterators too), a
-            # TAC/SPC result; E2E, counters and lengths are checked either way
-            fields = not dasp or bool(self._subscribers) \
-                or self.state in (S.RUNNING_TAC, S.RUNNING_SPC)
-            out = self.codec.decode(data, self._e2e if dasp else None, fields=fields)
+        # field values only when someone reads them: subscribers (async iterators too), a
+        # TAC/SPC result; E2E, counters and lengths are checked either way
+        fields = not dasp or bool(self._subscribers) \
+            or self.state in (S.RUNNING_TAC, S.RUNNING_SPC)
+        out = self.codec.decode(data, self._e2e if dasp else None, fields=fields)
         name = out.name or out.protocol
         self.counters.received[name] += 1
         if self.keep_rx_times:

@@ -24,9 +24,9 @@ from collections.abc import Callable
 
 from eyeq_spi.phy.base import Adapter
 from eyeq_spi.runner.node import Node
-from eyeq_spi.runner.virtual_fast import Express
-from eyeq_spi.runner.virtual_types import Tap
-from eyeq_spi.twins import exact
+
+Tap = Callable[[int, float, bytes], None]
+"""Called for every transfer a node puts on the wire: (node index, time, transfer)."""
 
 
 class VirtualRunner:
@@ -48,7 +48,6 @@ class VirtualRunner:
         tap: Tap | None = None,
         max_steps_per_instant: int = 100_000,
         self_contained: frozenset[int] = frozenset(),
-        express: bool | None = None,
     ) -> None:
         self.nodes = nodes
         self.latency = latency
@@ -72,10 +71,6 @@ class VirtualRunner:
         # only outside effect (the host's reset line) to call :meth:`touch_all`
         self._alone = [vars(type(node)).get("SELF_CONTAINED") is True or i in self_contained
                        for i, (node, _) in enumerate(nodes)]
-        # express instants (runner/virtual_fast.py) where they apply; ``express=False`` or
-        # EYEQ_SPI_EXACT=1: the general loop only (the reference)
-        self.express = (not exact()) if express is None else express
-        self._express: Express | None = None
 
     # -- caches -----------------------------------------------------------------------------
     def touch_all(self) -> None:
@@ -191,21 +186,15 @@ class VirtualRunner:
     # -- running ----------------------------------------------------------------------------
     def run_until(
         self, t_end: float, *, stop: Callable[[], bool] | None = None, realtime: bool = False,
-        driven: bool = True,
     ) -> float:
         """Advance to ``t_end`` (or until ``stop()`` is true). Returns the time reached.
 
         ``realtime`` paces virtual time to the wall clock (sleeping ahead of each event), so an
         in-process emulation runs at the speed of a real bench.
-        ``driven=False``: the caller promises that nothing drove a node or fed an adapter since
-        the last ``run_until`` returned (the emulator's slices only read the host in between),
-        so the caches it left stay valid: the express instants go on from where they stopped
-        without a round of the general loop at the start (with ``EYEQ_SPI_EXACT=1`` or
-        ``express=False`` the caches are dropped all the same, the reference).
         """
         w0, c0 = time.perf_counter(), time.process_time()
         try:
-            return self._run(t_end, stop, (w0, self.now) if realtime else None, driven)
+            return self._run(t_end, stop, (w0, self.now) if realtime else None)
         finally:
             self.wall_s += time.perf_counter() - w0
             self.cpu_s += time.process_time() - c0
@@ -230,20 +219,12 @@ class VirtualRunner:
 
     def _run(
         self, t_end: float, stop: Callable[[], bool] | None, pace: tuple[float, float] | None,
-        driven: bool = True,
     ) -> float:
-        if driven or not self.express or self.verify:
-            self.touch_all()  # nodes may have been driven from outside since the last call
-            self._pump(drain_all=True)
-        fast = None
-        if self.express and stop is None and pace is None and not self.verify \
-                and Express.eligible(self):
-            fast = self._express = self._express or Express(self)
+        self.touch_all()  # nodes may have been driven from outside since the last call
+        self._pump(drain_all=True)
         while stop is None or not stop():
             if stop is not None:
                 self.touch_all()
-            if fast is not None:
-                fast.run(t_end)
             nxt = self._next()
             if nxt is None or nxt > t_end:
                 if pace is not None:  # a quiet stretch takes its wall time too

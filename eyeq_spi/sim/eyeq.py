@@ -49,7 +49,6 @@ from eyeq_spi.codec.intrinsic import (
 from eyeq_spi.codec.message import DaspCounters, MessageCodec, is_mesp
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.link.connection import LinkConfig
-from eyeq_spi.link.run import DataRun
 from eyeq_spi.mesp.server import MespServer
 from eyeq_spi.sim.calibration import fill_calibration, strip_crc
 from eyeq_spi.sim.config import SimConfig
@@ -226,54 +225,6 @@ class SimulatedEyeQ(MespFunctions):
 
     def data_to_send(self, now: float) -> list[bytes]:
         return self.conn.data_to_send(now) if self.powered else []
-
-    def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
-        """runner/virtual_fast.py: ``receive_data`` and ``data_to_send`` at the same ``now`` in one
-        step for an ACK that settles a frame of a message still going out and lets no frame go
-        (what they hand over: nothing). None, with nothing changed, for anything else. Called
-        only while :meth:`get_timer` is later than ``now`` (the runner's promise)."""
-        if not self.powered or not self.conn.absorb_ack(transfer, now):
-            return None
-        self.now = now
-        return []
-
-    def express_take(self, frames: list[bytes], times: list[float], acks: list[bytes]) -> int:
-        """runner/virtual_fast.py: ``receive_data``, ``handle_timer`` and ``data_to_send`` of
-        ``frames[k]`` at ``times[k]`` (rising) in one step, frame after frame, while each
-        continues a message and its ACK is ``acks[k]``
-        (:meth:`TransportConnection.absorb_run`); in Running Vision the last may complete a DASP
-        message of the host's, which is handled as ``receive_data`` handles it (it changes no
-        deadline of ours). How many it took. Called only with ``times`` before our deadline
-        (the runner's promise): ``handle_timer`` then has nothing to do."""
-        if not self.powered:
-            return 0
-        n, message = self.conn.absorb_message(
-            frames, times, acks, _is_dasp if self.main_state == RUNNING_VISION else None)
-        if n:
-            self.now = times[n - 1]
-        if message is not None:
-            self._on_message(message, self.now)
-        return n
-
-    def express_run(self, now: float) -> DataRun | None:
-        """runner/virtual_fast.py: the rest of the message whose frame went out at ``now``, to
-        be handed over in one step before anything of ours other than its frames is due
-        (``until``); None when our link cannot tell (:meth:`TransportConnection.data_run`)."""
-        run = self.conn.data_run(now) if self.powered else None
-        if run is not None:
-            own = self._own_timer()
-            if own is not None and own < run.until:
-                run.until = own
-        return run
-
-    def express_run_take(self, run: DataRun, released: list[float], acked: list[float]) -> None:
-        """The frames of ``run`` released at ``released`` and the ACKs taken at ``acked``, as the
-        runner's calls at those times would (:meth:`TransportConnection.take_run`; the ACK of
-        the message's last frame completes it, and its ``MessageSent`` is drained)."""
-        self.conn.take_run(run, released, acked)
-        if acked:
-            self.now = acked[-1]
-            self._drain(self.now)
 
     def get_timer(self) -> float | None:
         if not self.powered:
@@ -559,7 +510,3 @@ class SimulatedEyeQ(MespFunctions):
     def calibration_done(self, now: float) -> bool:
         return self._cal_started is not None and now - self._cal_started >= self.config.tac_duration
 
-
-def _is_dasp(head: bytes) -> bool:
-    """A message that starts with ``head`` goes to ``_on_dasp`` (see ``_on_message``)."""
-    return head[:1] == b"\x65"
