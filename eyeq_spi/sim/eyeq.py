@@ -33,6 +33,7 @@ boot status, 0x41 and DASP.
 
 from __future__ import annotations
 
+import enum
 import math
 from collections import Counter, deque
 from typing import Any
@@ -70,6 +71,20 @@ from eyeq_spi.sim.schedule import DueHeap
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 from eyeq_spi.twins import exact
+
+
+class Phase(enum.Enum):
+    """Where the EyeQ is between power and its application; each phase but the last two
+    ends at ``SimulatedEyeQ.phase_due`` (``handle_timer`` moves it on)."""
+
+    OFF = "off"  # no power: it hears and says nothing
+    BOOTING = "booting"  # the boot status goes out at phase_due
+    STARTING = "starting"  # the boot passed: the application starts at phase_due
+    HALTED = "halted"  # the boot failed: nothing more until the next reset
+    RUNNING = "running"  # the application: 0x41, MESP, DASP in the mode of main_state
+
+
+TIMED_PHASES = frozenset({Phase.BOOTING, Phase.STARTING})
 
 
 class SimulatedEyeQ(MespFunctions):
@@ -131,18 +146,15 @@ class SimulatedEyeQ(MespFunctions):
         self._due = DueHeap()  # _next_dasp as a heap (sim/schedule.py)
         self._packers: dict[str, DaspPacker | None] = {}  # None: this message takes the dict path
         self.dasp_paths: Counter[str] = Counter()  # debug stat: messages sent "packed" / "dict"
-        self.powered = False
-        self.app_running = False
+        self.phase = Phase.OFF
+        self.phase_due: float | None = None  # when a TIMED_PHASES phase ends
         self.now = 0.0
-        self._reset_done = False
-        self._boot_at: float | None = None
-        self._app_at: float | None = None
+        self._reset_done = False  # the configured reset (SimConfig.reset_at) happened
         self.main_state = 0
         self.sub_state = 0
         self.fatal_error = 0
         self._boot_number = 0
-        self._init_ok = False
-        self._veh_state_seen = False
+        self._init_ok = False  # 0x92 accepted in Pending Vision
         self._cal_started: float | None = None
         self._next_diag = 0.0
         self._next_dasp: dict[str, float] = {}
@@ -187,18 +199,15 @@ class SimulatedEyeQ(MespFunctions):
         # L10: after a reset of ours the host's numbering is unknown: its first DATA frame
         # after the boot sets E. At the first power-up both sides start together at 0 (L4).
         self.conn.reset(learn=self.powered)
-        self.powered = True
         while self.conn.next_event() is not None:
             pass
         # a reset loses the delayed replies: the host never gets them (late ones are counted)
         self.counters.mesp_replies_dropped += sum(not late for _, _, late in self._replies)
         self._replies.clear()
-        self._boot_at = now + self.config.boot_delay
-        self._app_at = None
-        self.app_running = False
+        self.phase, self.phase_due = Phase.BOOTING, now + self.config.boot_delay
         self.main_state = self.sub_state = 0
         self.fatal_error = 0
-        self._init_ok = self._veh_state_seen = False
+        self._init_ok = False
         self._cal_started = None
         self._rx_counter.clear()
         self._rx_e2e = E2EState()
@@ -208,26 +217,37 @@ class SimulatedEyeQ(MespFunctions):
 
     reset = power_up
 
+    @property
+    def powered(self) -> bool:
+        return self.phase is not Phase.OFF
+
+    @property
+    def app_running(self) -> bool:
+        return self.phase is Phase.RUNNING
+
+    def _phase_over(self, now: float) -> bool:
+        due = self.phase_due
+        return due is not None and now >= due
+
     def _start_app(self, now: float) -> None:
-        self._app_at = None
-        self.app_running = True
+        self.phase, self.phase_due = Phase.RUNNING, None
         self.main_state, self.sub_state = PENDING, PENDING_VISION
-        self._init_ok = self._veh_state_seen = False
+        self._init_ok = False
         self._next_diag = now
 
     # -- node interface ---------------------------------------------------------------------
     def receive_data(self, transfer: bytes, now: float) -> None:
-        if not self.powered:
+        if self.phase is Phase.OFF:
             return
         self.now = now
         self.conn.receive_data(transfer, now)
         self._drain(now)
 
     def data_to_send(self, now: float) -> list[bytes]:
-        return self.conn.data_to_send(now) if self.powered else []
+        return [] if self.phase is Phase.OFF else self.conn.data_to_send(now)
 
     def get_timer(self) -> float | None:
-        if not self.powered:
+        if self.phase is Phase.OFF:
             return None
         # asked after every event (runner/virtual.py): no temporary lists here
         best = self.conn.get_timer()
@@ -237,10 +257,7 @@ class SimulatedEyeQ(MespFunctions):
     def _own_timer(self) -> float | None:
         """The deadline of the EyeQ itself, its link's and transport's apart."""
         # asked after every event: straight comparisons, no temporary tuple
-        best = self._boot_at
-        t = self._app_at
-        if t is not None and (best is None or t < best):
-            best = t
+        best = self.phase_due
         if not self._reset_done:
             t = self.config.reset_at
             if t is not None and (best is None or t < best):
@@ -249,7 +266,7 @@ class SimulatedEyeQ(MespFunctions):
             t = self._replies[0][0]
             if best is None or t < best:
                 best = t
-        if self.app_running:
+        if self.phase is Phase.RUNNING:
             if best is None or self._next_diag < best:
                 best = self._next_diag
             if self._dasp_mode() is not None:
@@ -259,7 +276,7 @@ class SimulatedEyeQ(MespFunctions):
         return best
 
     def handle_timer(self, now: float) -> None:
-        if not self.powered:
+        if self.phase is Phase.OFF:
             return
         self.now = now
         cfg = self.config
@@ -267,14 +284,13 @@ class SimulatedEyeQ(MespFunctions):
             self._reset_done = True
             self.power_up(now)
         self.conn.handle_timer(now)
-        if self._boot_at is not None and now >= self._boot_at:
-            self._boot_at = None
+        if self.phase is Phase.BOOTING and self._phase_over(now):
             self._send_boot_status(now)
-        if self._app_at is not None and now >= self._app_at:
+        if self.phase is Phase.STARTING and self._phase_over(now):
             self._start_app(now)
         while self._replies and self._replies[0][0] <= now:
             self._send(self._replies.popleft()[1], now)
-        if self.app_running:
+        if self.phase is Phase.RUNNING:
             if now >= self._next_diag:
                 self._send_diag(now)
                 self._next_diag = max(self._next_diag + 1.0 / cfg.diag_rate, now)
@@ -331,7 +347,6 @@ class SimulatedEyeQ(MespFunctions):
         if out.name == "HOST_VEH_STATE_MSG":
             self.counters.msg20_rx = (self.counters.msg20_rx + 1) & 0xFFFF
             self.counters.rolling_count_echo = int(out.fields.get("SPI_Rolling_Count", 0))
-            self._veh_state_seen = True
             if self.main_state == RUNNING_VISION and self._last_veh is not None \
                     and now - self._last_veh > VEH_STATE_STALE:
                 self.counters.veh_state_stale += 1
@@ -385,9 +400,11 @@ class SimulatedEyeQ(MespFunctions):
         })
         self._send(self.codec.encode_other("BOOT", values), now)
         self.counters.sent["EYEQ_BOOT_STATUS_MSG"] += 1
-        if not failing:
+        if failing:
+            self.phase, self.phase_due = Phase.HALTED, None
+        else:
             self.main_state, self.sub_state = BOOT, 0  # MESP answers while the app starts
-            self._app_at = now + cfg.app_start_delay
+            self.phase, self.phase_due = Phase.STARTING, now + cfg.app_start_delay
 
     def _send_diag(self, now: float) -> None:
         cfg = self.config
