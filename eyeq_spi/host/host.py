@@ -1,54 +1,127 @@
 """The Aurix host emulator: brings an EyeQ4 up and runs it in vision mode (and TAC/SPC/DV) over
-the real link and transport. Sans-IO; the state machine is the table in ``machine.py``, run with
-its entry actions by the base class in ``bringup.py``; this module adds the node interface, the
-receive path, stale detection and HOST_VEH_STATE_MSG.
+the real link and transport (seed 004 §6 message flow, §7.1.1.1.4, §7.1.3). Sans-IO: every
+method takes ``now``.
+
+The host's states are the table of ``machine.py``: ``TRANSITIONS`` says where each event
+leads, and ``ENTRY_ACTIONS`` names the handler run on entering a state (the ``entry_*``
+methods below). A subclass changes one by overriding that method (the conformance mutants do);
+a subclass that defines an ``entry_*`` method the table does not name, or a method in the old
+``_on_<state>`` style, fails at class creation. What the states drive is grouped by job: the
+init messages and MESP replies of the bring-up here, HOST_VEH_STATE_MSG in
+:class:`~eyeq_spi.host.vehicle_state.VehicleStateSender`, stale detection in
+:class:`~eyeq_spi.host.streams.StreamWatch`, the messages in the receive path below.
 """
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
+from collections import deque
+from collections.abc import AsyncIterator, Callable
 from typing import Any
 
-from eyeq_spi.catalog.messages import sw_release
 from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.e2e import E2EState
-from eyeq_spi.codec.init_params import init_message
-from eyeq_spi.codec.message import DecodedMessage
-from eyeq_spi.errors import CodecError, EyeqError, LocalProtocolError, SpecError
+from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
+from eyeq_spi.errors import CodecError, LocalProtocolError, SpecError
 from eyeq_spi.host import calibration, init_seq
-from eyeq_spi.host.bringup import SWITCH_APP, HostBringUp, ResetLine, Subscriber
 from eyeq_spi.host.config import (
     APP_IDS,
-    FATAL_INTRINSIC,
-    PENDING,
+    EEPROM_FILE,
     STAGE_OF,
-    STALE_CHECK,
     E,
     HostConfig,
     HostCounters,
     S,
     Transition,
+    link_config,
 )
-from eyeq_spi.host.machine import next_state
-from eyeq_spi.host.scenario import veh_state_values
-from eyeq_spi.host.veh_state_fast import VehStatePacker
+from eyeq_spi.host.events import VERSION_FIELDS, StatePoll, diag_event, state_reply_event
+from eyeq_spi.host.machine import (
+    ENTRY_ACTIONS,
+    HostEvent,
+    HostState,
+    check_entry_handlers,
+    next_state,
+)
+from eyeq_spi.host.nvm import Nvm
+from eyeq_spi.host.scenario import ConstantDrive, Scenario
+from eyeq_spi.host.streams import StreamWatch, expected_streams
+from eyeq_spi.host.vehicle_state import VehicleStateSender
 from eyeq_spi.link.events import Resynchronised
-from eyeq_spi.mesp.client import MespCompleted, MespFailed
+from eyeq_spi.mesp.client import MespClient, MespCompleted, MespFailed
+from eyeq_spi.mesp.replies import MespFailure, MespReply, MespResult
+from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
-from eyeq_spi.twins import exact
 
 __all__ = ["SWITCH_APP", "HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
            "Transition"]
 
+SWITCH_APP = (0x05, 0x05)  # MESP Switch EyeQ Application (service, function), M3
 
-class HostEmulator(HostBringUp):
-    """The host emulator as a sans-IO node: the public API, the receive path, stale detection
-    and HOST_VEH_STATE_MSG. Its state and bring-up are :class:`HostBringUp`."""
+ResetLine = Callable[[float], None]
+Subscriber = Callable[[DecodedMessage], None]
+EntryAction = Callable[[float], None]
+
+
+class HostEmulator:
+    """The host emulator as a sans-IO node (``receive_data``, ``data_to_send``,
+    ``get_timer``, ``handle_timer``): its state table's handlers, the bring-up they drive and
+    the receive path."""
+
+    def __init_subclass__(cls, **kw: Any) -> None:
+        super().__init_subclass__(**kw)
+        check_entry_handlers(cls, subclass=True)
+
+    def __init__(
+        self,
+        config: HostConfig | None = None,
+        *,
+        nvm: Nvm | None = None,
+        scenario: Scenario | None = None,
+        reset_line: ResetLine | None = None,
+        keep_rx_times: bool = True,
+    ) -> None:
+        self.config = config or HostConfig()
+        self.codec = MessageCodec(self.config.sw)
+        self.sw = self.codec.sw
+        self.conn = TransportConnection(link_config("host", self.config.ack_timeout,
+                                                     self.config.transmit_timeout))
+        self.mesp = MespClient(self.codec.cat)
+        self.nvm = nvm or Nvm()
+        self.nvm.load()
+        self.scenario = scenario or ConstantDrive()
+        self.reset_line = reset_line
+        self.counters = HostCounters()
+        self.keep_rx_times = keep_rx_times
+        self.state = S.POWER_UP
+        self.transitions: list[Transition] = []
+        self.problem: str | None = self.nvm.load_problem
+        self.versions: dict[str, int] | None = None
+        self.boot_info: dict[str, Any] = {}
+        self.last_diag: dict[str, Any] = {}
+        self.calibration_result: dict[str, Any] | None = None
+        self._subscribers: list[Subscriber] = []
+        self._e2e = E2EState()  # D5: the EyeQ's rolling counters, judged afresh per boot
+        self._rx_counters = DaspCounters()
+        self.veh_state = VehicleStateSender(self.codec, self.config)
+        self.streams = StreamWatch()
+        self._strikes = 0
+        self._bringups = 0
+        self._boot_deadline: float | None = None
+        self.poll = StatePoll(self.config.poll_interval)
+        self._init_queue: deque[int] = deque()
+        self._init_busy = False
+        self._target_mode = "VISION"
+        self._versions_asked = False
+        self._versions_ok = False  # a positive Get EyeQ Versions reply in this ignition cycle
+        self._switch_at: float | None = None  # when the last one was sent, until its ACK
+        self.now = 0.0
+        # ENTRY_ACTIONS bound once: a subclass's override of a named method is what runs
+        self._entry_actions: dict[HostState, EntryAction] = {
+            state: getattr(self, name) for state, name in ENTRY_ACTIONS.items()}
 
     # -- public API -------------------------------------------------------------------------
     def start(self, now: float) -> None:
         """Ignition on: count the cycle, wait for the EyeQ's boot status."""
-        self._started = True
         self.nvm.data.ignition_cycles += 1
         self._enter(S.POWER_UP, now)
 
@@ -69,14 +142,9 @@ class HostEmulator(HostBringUp):
             raise LocalProtocolError(f"unknown mode {mode!r}: use VISION, TAC, SPC or DV")
         if self.state not in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC, S.DV):
             raise LocalProtocolError(f"cannot switch mode in state {self.state.value}")
-        stage = STAGE_OF.get(mode)
-        if stage is not None:
-            try:
-                init_message(stage, self.sw, self.codec.cat)
-            except (SpecError, CodecError) as exc:
-                # §7.1.1.7: the mode needs its init message; this release has no table for it
-                raise LocalProtocolError(
-                    f"{mode} is not available for SW {self.sw}: {exc}") from None
+        missing = init_seq.mode_unavailable(mode, self.sw, self.codec.cat)
+        if missing is not None:
+            raise LocalProtocolError(f"{mode} is not available for SW {self.sw}: {missing}")
         self._target_mode = mode
         self._fire(E.SWITCH, now, mode)
 
@@ -104,8 +172,7 @@ class HostEmulator(HostBringUp):
         self._target_mode = "VISION"
         self.problem = None
         self.calibration_result = None
-        self._tx_e2e = E2EState()
-        self._dasp_counter = self._rolling = 0
+        self.veh_state.new_cycle()
         self.nvm.data.ignition_cycles += 1
         self._fire(E.IGNITION, now, why)
 
@@ -118,8 +185,7 @@ class HostEmulator(HostBringUp):
                 lay = self.codec.layout(m)
                 self.codec.decode(self.codec.encode_dasp(m.name, lay.zero_values(), 0, e2e),
                                   E2EState())
-        msg = self.codec.message("HOST_VEH_STATE_MSG")
-        self.codec.encode_dasp(msg.name, self.codec.layout(msg).zero_values(), 0, E2EState())
+        self.veh_state.warm_up()
         self.mesp.codec.warm_up()  # MESP requests we send, replies we read
         self.codec.mesp.warm_up()
 
@@ -143,14 +209,14 @@ class HostEmulator(HostBringUp):
         t = self._boot_deadline
         if t is not None and (best is None or t < best):
             best = t
-        t = self._next_poll
+        t = self.poll.next_due
         if t is not None and (best is None or t < best):
             best = t
-        t = self._veh_next
+        t = self.veh_state.next_due
         if t is not None and (best is None or t < best):
             best = t
-        if self.state is S.RUNNING_VISION and self._last_rx:
-            t = self._next_stale_check
+        if self.state is S.RUNNING_VISION and self.streams.last_rx:
+            t = self.streams.next_check
             if best is None or t < best:
                 best = t
         return best
@@ -162,19 +228,204 @@ class HostEmulator(HostBringUp):
         if self._boot_deadline is not None and now >= self._boot_deadline:
             self._boot_deadline = None
             self._boot_failed(now, "no boot status within the timeout")
-        if self._next_poll is not None and now >= self._next_poll and not self._poll_busy:
-            self._next_poll = None
-            self._poll_busy = True
+        if self.poll.due(now):
+            self.poll.asked()
             self.mesp.request("GetEyeQExtendedState", now=now)
-        if self._veh_next is not None and now >= self._veh_next:
+        if self.veh_state.due(now):
             self._send_veh_state(now)
-            if self._veh_next is not None:  # None: the message could not be encoded (problem)
-                period = 1.0 / self.config.veh_state_rate
-                self._veh_next = max(self._veh_next + period, now)
-        if self.state is S.RUNNING_VISION and now >= self._next_stale_check:
-            self._next_stale_check = now + STALE_CHECK
-            self._check_stale(now)
+            self.veh_state.advance(now)  # unless it could not be encoded (a problem)
+        if self.state is S.RUNNING_VISION and now >= self.streams.next_check:
+            self.streams.check(now, self.counters.stale_events)
         self._pump(now)
+
+    # -- state machine and entry actions (ENTRY_ACTIONS in machine.py) --------------------
+    def _fire(self, event: HostEvent, now: float, detail: str = "") -> None:
+        dst = next_state(self.state, event)
+        if dst is None:
+            self.counters.ignored_events += 1
+            return
+        self.transitions.append(Transition(now, self.state, event, dst, detail))
+        self._enter(dst, now)
+
+    def _enter(self, state: HostState, now: float) -> None:
+        self.state = state
+        self.poll.stop()
+        action = self._entry_actions.get(state)
+        if action is not None:
+            action(now)
+
+    def entry_await_boot(self, now: float) -> None:
+        self.veh_state.next_due = None
+        self._boot_deadline = now + self.config.boot_timeout
+        self._init_queue.clear()
+        self._init_busy = False
+        self._e2e = E2EState()
+        self._rx_counters.clear()
+        self.streams.clear()
+
+    def entry_poll_state(self, now: float) -> None:
+        self.poll.start(now)
+
+    def entry_send_init(self, now: float) -> None:
+        self._init_queue = deque(init_seq.stages(self.sw, self.codec.cat,
+                                                 self.config.camera_only_aeb))
+        self._init_busy = False
+        self._send_next_init(now)
+
+    def entry_read_eeprom(self, now: float) -> None:
+        self.veh_state.next_due = None
+        self.mesp.request("FFSReadFile", {"filename": EEPROM_FILE}, now=now,
+                          callback=lambda r: self._on_eeprom(r, self.now))
+
+    def entry_start_vehicle_state(self, now: float) -> None:
+        self.veh_state.next_due = now
+        if not self._versions_asked:
+            self._versions_asked = True  # once per ignition cycle (§6 flow step 12)
+            self.mesp.request("GetEyeQVersions", now=now, callback=self._on_versions)
+        self.poll.start(now)
+
+    def entry_watch_streams(self, now: float) -> None:
+        self.streams.watch(expected_streams(self.codec.cat, self.sw, "APP"),
+                           self.config.stale_periods, now)
+
+    def entry_stop_watching(self, now: float) -> None:
+        self.streams.stop()  # a fatal EyeQ sends no DASP
+
+    def entry_request_switch(self, now: float) -> None:
+        self.veh_state.next_due = None  # stop DASP first (§6 flow step 16)
+        self.streams.stop()
+        self.calibration_result = None
+        self.mesp.request("SwitchEyeQApplication", {"applicationId": APP_IDS[self._target_mode]},
+                          now=now, callback=self._on_switch_reply)
+
+    def entry_send_mode_init(self, now: float) -> None:
+        stage = STAGE_OF[self._target_mode]
+        self._send_init(stage, now, mode_init=True)
+
+    # -- MESP results -----------------------------------------------------------------------
+    def _flush_mesp(self, now: float) -> None:
+        if not self.mesp.waiting:
+            return
+        for m in self.mesp.data_to_send():
+            sid = self.conn.send(m, now)  # the link's tag of its frames
+            self.counters.sent["MESP"] += 1
+            if (m[0], m[3]) == SWITCH_APP:
+                # L10: the EyeQ that takes it starts over, and so does our link to it: our
+                # frames after it are numbered from 0, its first frame after (NUM 0, RSP 0)
+                # restarts our receiver
+                self.conn.link.restart_after(sid, now, self.mesp.deadline)
+                self._switch_at = now
+
+    def _on_state_reply(self, reply: MespReply) -> None:
+        now = self.now
+        event = state_reply_event(self.state, self._target_mode, reply.value.mainState,
+                                  reply.value.subState)
+        if event is not None:
+            self._fire(event, now)
+        self.poll.answered(self.state, now)
+
+    def _on_versions(self, result: MespResult) -> None:
+        if isinstance(result, MespReply):
+            self.versions = {name: getattr(result.value, name) for name in VERSION_FIELDS}
+            self.nvm.data.versions = dict(self.versions)
+            self._versions_ok = True
+        else:
+            self._versions_asked = False  # ask again on the next bring-up
+
+    def _on_switch_reply(self, result: MespResult) -> None:
+        if isinstance(result, MespReply):
+            self._fire(E.SWITCH_ACCEPTED, self.now)
+        else:
+            self.problem = str(result)
+            self._fire(E.SWITCH_REJECTED, self.now, str(result))
+
+    def _on_eeprom(self, result: MespResult, now: float) -> None:
+        if self.state is not S.READ_EEPROM:
+            return
+        if isinstance(result, MespFailure):
+            self.problem = f"EEPROM read failed: {result}"
+            self._fire(E.EEPROM_BAD, now, self.problem)
+            return
+        params = init_seq.eeprom_intrinsics(result.value.data, self.sw)
+        if isinstance(params, str):
+            self.problem = params
+            self._fire(E.EEPROM_BAD, now, self.problem)
+            return
+        if self._bringups >= self.config.max_resets:
+            self.problem = (f"intrinsic calibration still mismatched after {self._bringups} "
+                            "EyeQ resets: repair or replace the camera")
+            self._fire(E.EEPROM_BAD, now, self.problem)
+            return
+        self.nvm.data.intrinsic = params
+        self.nvm.save()
+        self._fire(E.EEPROM_OK, now, "NVM updated from EEPROM; resetting the EyeQ")
+        self._reset_eyeq(now)
+
+    # -- init messages ----------------------------------------------------------------------
+    def _send_next_init(self, now: float) -> None:
+        if self._init_busy:
+            return
+        if not self._init_queue:
+            self._fire(E.INIT_DONE, now)
+            return
+        self._send_init(self._init_queue.popleft(), now, mode_init=False)
+
+    def _send_init(self, stage: int, now: float, *, mode_init: bool) -> None:
+        try:
+            req = init_seq.init_request(stage, self.sw, self.codec.cat, self.nvm.data,
+                                        self.config.ipb_params)
+        except (CodecError, SpecError) as exc:
+            self.problem = f"init message 0x{stage:02X} cannot be built: {exc}"
+            self._fire(E.INIT_REJECTED, now, self.problem)
+            return
+        self._init_busy = True
+
+        def done(result: MespResult) -> None:
+            self._init_busy = False
+            if isinstance(result, MespFailure):
+                self.problem = f"init message 0x{stage:02X} rejected: {result}"
+                self._fire(E.INIT_REJECTED, self.now, self.problem)
+            elif mode_init:
+                self._fire(E.MODE_PARAMS_ACCEPTED, self.now)
+            elif self.state is S.INIT:
+                self._send_next_init(self.now)
+
+        self.mesp.request("EventCalibrationTool", req, now=now, callback=done)
+
+    # -- resets and streams -----------------------------------------------------------------
+    def _cancel_requests(self) -> None:
+        """An EyeQ reset: outstanding MESP requests are lost. Get EyeQ Versions is asked again
+        at the next bring-up unless it was answered (§6 flow step 12: once per ignition cycle,
+        after a positive response)."""
+        self.mesp.cancel_all()
+        if not self._versions_ok:
+            self._versions_asked = False
+
+    def _restart_driver(self) -> None:
+        """Our SPI driver starts over: NUM 0 (L4), and the EyeQ's first DATA frame after the
+        reset sets E (L10); what was pending is dropped."""
+        self._switch_at = None
+        self.conn.reset(learn=True)
+        while self.conn.next_event() is not None:
+            pass
+
+    def _reset_eyeq(self, now: float, *, bringup: bool = True) -> None:
+        """Reset the EyeQ; ``bringup`` counts it against ``max_resets`` (EEPROM-driven)."""
+        self._cancel_requests()
+        if bringup:
+            self._bringups += 1
+        self._enter(S.POWER_UP, now)
+        if self.reset_line is not None:
+            # Both SPI drivers start over together: NUM 0, E 0 on each side (L4). Without this
+            # the reset EyeQ's first frames (its boot status) fall outside our receive window.
+            self._restart_driver()
+            self.reset_line(now)
+        else:
+            # no reset line (a remote EyeQ): a soft reset by switching to the vision app
+            self.mesp.request("SwitchEyeQApplication", {"applicationId": APP_IDS["VISION"]},
+                              now=now)
+            self._boot_deadline = None
+            self._fire(E.BOOT_OK, now, "soft reset (no reset line)")
 
     # -- receive ----------------------------------------------------------------------------
     def _pump(self, now: float) -> None:
@@ -185,13 +436,9 @@ class HostEmulator(HostBringUp):
                 self._on_link_resync(ev, now)
         while (mev := self.mesp.next_event()) is not None:
             if isinstance(mev, MespCompleted) and mev.reply.function == "GetEyeQExtendedState":
-                self._poll_busy = False
                 self._on_state_reply(mev.reply)
             elif isinstance(mev, MespFailed) and mev.failure.function == "GetEyeQExtendedState":
-                self._poll_busy = False
-                if self._next_poll is None and self.state in (
-                        S.WAIT_PENDING, S.WAIT_RUNNING, S.WAIT_MODE_PENDING, S.WAIT_MODE_RUNNING):
-                    self._next_poll = now + self.config.poll_interval
+                self.poll.answered(self.state, now)
         self._flush_mesp(now)
 
     def _on_message(self, data: bytes, now: float) -> None:
@@ -247,28 +494,11 @@ class HostEmulator(HostBringUp):
         self._fire(E.BOOT_BAD, now, why)
         self._reset_eyeq(now)
 
-    def _diag_event(self, out: DecodedMessage) -> str | None:
-        """What a good 0x41 starts (before the host keeps it as ``last_diag``):
-        ``"fatal_22"``, ``"fatal"``, ``"went_back"``, or None (it is only kept)."""
-        main, fatal = out.fields["Main_State"], out.fields["Fatal_Error"]
-        before_vision = self.state in (S.WAIT_PENDING, S.INIT, S.WAIT_RUNNING)
-        if fatal == FATAL_INTRINSIC and before_vision:
-            return "fatal_22"
-        if fatal and self.state not in (S.FATAL, S.READ_EEPROM, S.FAILED, S.POWER_UP):
-            return "fatal"
-        # A running EyeQ never reports boot or pending again without a reset. Compare with the
-        # mode, not with the previous 0x41: the host can reach Running Vision by a Get State
-        # reply before any 0x41 has reported it (found by the reset campaign, faults/resets.py).
-        if (self.state in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC)
-                and main in (0, PENDING) and self.last_diag.get("Main_State") is not None):
-            return "went_back"
-        return None
-
     def _on_diag(self, out: DecodedMessage, now: float) -> None:
         if out.errors:
             self.counters.decode_errors += 1
             return
-        event = self._diag_event(out)
+        event = diag_event(self.state, out.fields, self.last_diag.get("Main_State") is not None)
         self.last_diag = out.fields
         if event == "fatal_22":
             self._fire(E.FATAL_22, now, "0x41 Fatal_Error 22")
@@ -323,8 +553,7 @@ class HostEmulator(HostBringUp):
                 self.counters.decode_errors += 1
             return  # a rejected structure is never delivered (D5)
         if out.name is not None:
-            self._last_rx[out.name] = now
-            self._stale.discard(out.name)
+            self.streams.received(out.name, now)
         if self.state is S.RUNNING_TAC and out.name == "EYEQ_TAC_CAL_MSG":
             self._on_cal_result("TAC", out.fields["tacCalParams"], now)
         elif self.state is S.RUNNING_SPC and out.name == "EYEQ_DYNAMIC_CAL_MSG":
@@ -335,12 +564,10 @@ class HostEmulator(HostBringUp):
     def _on_cal_result(self, mode: str, cal: dict[str, Any], now: float) -> None:
         if self.calibration_result is not None:
             return
-        ok = calibration.outcome(self.codec.cat, self.sw, mode, cal)
-        if ok is None:
-            return  # still running
-        self.calibration_result = {"mode": mode, "ok": ok, "time": now, **{
-            k: cal[k] for k in ("distYaw", "distPitch", "roll", "phYaw", "phPitch") if k in cal}}
-        if ok:  # §21: "update ... only when TAC, SPC or Autofix is successfully completed"
+        result = self.calibration_result = calibration.result(self.codec.cat, self.sw, mode,
+                                                               cal, now)
+        # §21: "update ... only when TAC, SPC or Autofix is successfully completed"
+        if result is not None and result["ok"]:
             self.nvm.data.alignment = alignment_nvm().apply(mode, self.nvm.data.alignment, cal)
             self.nvm.save()
 
@@ -348,51 +575,22 @@ class HostEmulator(HostBringUp):
         for cb in self._subscribers:
             cb(out)
 
-    # -- stale detection --------------------------------------------------------------------
-    def _check_stale(self, now: float) -> None:
-        for name, t in self._last_rx.items():
-            limit = self._stale_limits.get(name)
-            if limit is not None and name not in self._stale and now - t > limit:
-                self._stale.add(name)
-                self.counters.stale_events[name] += 1
-
     @property
     def stale_streams(self) -> set[str]:
-        return set(self._stale)
+        return set(self.streams.stale)
 
     # -- transmit ---------------------------------------------------------------------------
     def _send_veh_state(self, now: float) -> None:
-        self._rolling = (self._rolling + 1) & 0xFFFF
-        signals = self.scenario.signals(now)
-        # the fast twin (host/veh_state_fast.py) where it can say, else the dict path
-        packer = None if exact() else self._veh_packer()
-        wire = None if packer is None else packer.encode(
-            signals, now, self._rolling, self._dasp_counter, self._tx_e2e)
-        if wire is None:
-            msg = self.codec.message("HOST_VEH_STATE_MSG")
-            values = veh_state_values(self.codec.layout(msg).zero_values(), signals, now,
-                                      sw_release(self.sw), self._rolling)
-            try:
-                wire = self.codec.encode_dasp(msg.name, values, self._dasp_counter,
-                                              self._tx_e2e)
-            except CodecError as exc:
-                self.problem = f"HOST_VEH_STATE_MSG cannot be encoded: {exc}"
-                self._veh_next = None
-                return
-        self._dasp_counter = (self._dasp_counter + 1) & 0xFF
+        try:
+            wire = self.veh_state.encode(self.scenario, now)
+        except CodecError as exc:
+            self.problem = f"HOST_VEH_STATE_MSG cannot be encoded: {exc}"
+            self.veh_state.next_due = None
+            return
         self.conn.send(wire, now)
         self.counters.sent["HOST_VEH_STATE_MSG"] += 1
         if self.keep_rx_times:
             self.counters.tx_times.append(now)
 
-    def _veh_packer(self) -> VehStatePacker | None:
-        """The template of HOST_VEH_STATE_MSG for our codec (built on first use), None where
-        it cannot be built (the dict path then encodes, or reports why not)."""
-        built = self._veh_packed
-        if built is None or built[0] is not self.codec:
-            try:
-                packer: VehStatePacker | None = VehStatePacker(self.codec, sw_release(self.sw))
-            except (EyeqError, ValueError, KeyError):
-                packer = None
-            built = self._veh_packed = (self.codec, packer)
-        return built[1]
+
+check_entry_handlers(HostEmulator, subclass=False)
