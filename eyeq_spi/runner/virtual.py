@@ -19,6 +19,7 @@ fault campaign) is seen.
 from __future__ import annotations
 
 import heapq
+import math
 import time
 from collections.abc import Callable
 
@@ -222,9 +223,13 @@ class VirtualRunner:
     ) -> float:
         self.touch_all()  # nodes may have been driven from outside since the last call
         self._pump(drain_all=True)
+        lone = stop is None and pace is None and not self.verify and len(self.nodes) == 2 \
+            and all(self._alone) and self.latency > 0
         while stop is None or not stop():
             if stop is not None:
                 self.touch_all()
+            if lone:
+                self._lone_instants(t_end)
             nxt = self._next()
             if nxt is None or nxt > t_end:
                 if pace is not None:  # a quiet stretch takes its wall time too
@@ -242,5 +247,88 @@ class VirtualRunner:
             self._pump()
         return self.now
 
+    def _lone_instants(self, t_end: float) -> None:
+        """Run the instants up to ``t_end`` at which exactly one thing happens (one transfer
+        arrives, or one node's deadline comes) for two self-contained nodes, while both are
+        quiet with known deadlines: the calls ``_pump`` would make on the one node concerned,
+        in its order, without its rounds over both nodes. Returns at the first other instant
+        (the general loop takes it), with the caches as ``_pump`` would have left them."""
+        quiet, known, fresh, timers, transit = (self._quiet, self._known, self._fresh,
+                                                self._timer, self._transit)
+        if not (quiet[0] and quiet[1] and known[0] and known[1]) or fresh[0] or fresh[1]:
+            return
+        nodes, inf = self.nodes, math.inf
+        while True:
+            t0 = inf if timers[0] is None else timers[0]
+            t1 = inf if timers[1] is None else timers[1]
+            arrival = transit[0][0] if transit else inf
+            t = min(t0, t1, arrival, inf)
+            if t > t_end or t == inf or t < self.now \
+                    or (t0 == t) + (t1 == t) + (arrival == t) != 1 \
+                    or (arrival == t and len(transit) > 1 and _second(transit) <= t):
+                return  # nothing more to do here, or more than one thing at t
+            self.now = t
+            if arrival == t:
+                _, _, j, transfer = heapq.heappop(transit)
+                node = nodes[j][0]
+                node.receive_data(transfer, t)
+                if not known[1 - j]:  # it acted on the other node (the reset line)
+                    self._finish_instant(t, 0)
+                    return
+                timer = node.get_timer()
+                known_j = timer is None or timer > t
+                if not known_j:
+                    node.handle_timer(t)
+                    if not known[1 - j]:
+                        self._finish_instant(t, j + 1)
+                        return
+                touched = True  # asked for data in the next round
+            else:
+                j = 0 if t0 == t else 1
+                node, timer, known_j, touched = nodes[j][0], timers[j], True, False
+            for _ in range(self._max_steps):  # _pump's rounds for node j alone
+                outs = node.data_to_send(t)
+                if outs:
+                    known_j = False
+                    adapter = nodes[j][1]
+                    for out in outs:
+                        if self.tap is not None:
+                            self.tap(j, t, out)
+                        adapter.send(out)
+                    self._drain(j)
+                elif touched:
+                    known_j = False
+                touched = False
+                if not known_j:
+                    timer, known_j = node.get_timer(), True
+                if timer is not None and timer <= t:
+                    node.handle_timer(t)
+                    if not known[1 - j]:
+                        self._finish_instant(t, j + 1)
+                        return
+                    known_j, touched = False, True
+                    continue
+                break
+            else:
+                raise RuntimeError(f"no quiescence at t={t}: a node keeps asking for work")
+            timers[j] = timer
+
+    def _finish_instant(self, t: float, first: int) -> None:
+        """A node's call acted on the other node (``touch_all``, as the host's reset line
+        does): finish the instant as ``_pump`` would from its timer checks at node ``first``."""
+        for i in range(first, len(self.nodes)):
+            timer = self._deadline(i)
+            if timer is not None and timer <= t:
+                self.nodes[i][0].handle_timer(t)
+                self._touch(i)
+        self._pump()
+
     def run_for(self, duration: float, *, stop: Callable[[], bool] | None = None) -> float:
         return self.run_until(self.now + duration, stop=stop)
+
+
+def _second(transit: list[tuple[float, int, int, bytes]]) -> float:
+    """The arrival time of the second transfer in flight (a heap's second smallest)."""
+    if len(transit) == 2:
+        return transit[1][0]
+    return min(transit[1][0], transit[2][0])
