@@ -67,9 +67,9 @@ def build(
 
     host = HostEmulator(host_config, nvm=nvm, scenario=scenario, reset_line=reset_line,
                         keep_rx_times=keep_rx_times)
-    a, b = memory_pair()
+    host_end, sim_end = memory_pair()
     # the host's only effect on another node is the reset line, which tells the runner
-    runner = VirtualRunner([(host, a), (sim, b)], tap=tap, self_contained=HOST_ALONE)
+    runner = VirtualRunner([(host, host_end), (sim, sim_end)], tap=tap, self_contained=HOST_ALONE)
     sim.power_up(0.0)
     host.start(0.0)
     made.append(Emulation(host, sim, runner))

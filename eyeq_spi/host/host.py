@@ -180,10 +180,10 @@ class HostEmulator:
         """Decode one message of each kind the EyeQ sends and encode HOST_VEH_STATE once, so
         that no first-time codec build delays an ACK in real time."""
         e2e = E2EState()
-        for m in self.codec.cat.messages:
-            if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw):
-                lay = self.codec.layout(m)
-                self.codec.decode(self.codec.encode_dasp(m.name, lay.zero_values(), 0, e2e),
+        for msg in self.codec.cat.messages:
+            if msg.protocol == "DASP" and msg.direction == "e2h" and msg.exists_in(self.sw):
+                lay = self.codec.layout(msg)
+                self.codec.decode(self.codec.encode_dasp(msg.name, lay.zero_values(), 0, e2e),
                                   E2EState())
         self.veh_state.warm_up()
         self.mesp.codec.warm_up()  # MESP requests we send, replies we read
@@ -203,22 +203,22 @@ class HostEmulator:
         # asked after every event (runner/virtual.py): no temporary lists here
         best = self.conn.get_timer()
         if self.mesp.outstanding:
-            t = self.mesp.get_timer()
-            if t is not None and (best is None or t < best):
-                best = t
-        t = self._boot_deadline
-        if t is not None and (best is None or t < best):
-            best = t
-        t = self.poll.next_due
-        if t is not None and (best is None or t < best):
-            best = t
-        t = self.veh_state.next_due
-        if t is not None and (best is None or t < best):
-            best = t
+            due = self.mesp.get_timer()
+            if due is not None and (best is None or due < best):
+                best = due
+        due = self._boot_deadline
+        if due is not None and (best is None or due < best):
+            best = due
+        due = self.poll.next_due
+        if due is not None and (best is None or due < best):
+            best = due
+        due = self.veh_state.next_due
+        if due is not None and (best is None or due < best):
+            best = due
         if self.state is S.RUNNING_VISION and self.streams.last_rx:
-            t = self.streams.next_check
-            if best is None or t < best:
-                best = t
+            due = self.streams.next_check
+            if best is None or due < best:
+                best = due
         return best
 
     def handle_timer(self, now: float) -> None:
@@ -306,10 +306,10 @@ class HostEmulator:
     def _flush_mesp(self, now: float) -> None:
         if not self.mesp.waiting:
             return
-        for m in self.mesp.data_to_send():
-            sid = self.conn.send(m, now)  # the link's tag of its frames
+        for request in self.mesp.data_to_send():
+            sid = self.conn.send(request, now)  # the link's tag of its frames
             self.counters.sent["MESP"] += 1
-            if (m[0], m[3]) == SWITCH_APP:
+            if (request[0], request[3]) == SWITCH_APP:
                 # L10: the EyeQ that takes it starts over, and so does our link to it: our
                 # frames after it are numbered from 0, its first frame after (NUM 0, RSP 0)
                 # restarts our receiver
@@ -467,8 +467,8 @@ class HostEmulator:
         if out.errors:
             self.counters.decode_errors += 1
             return
-        f = out.fields
-        self.boot_info = init_seq.boot_info(f)
+        fields = out.fields
+        self.boot_info = init_seq.boot_info(fields)
         if self.state is not S.POWER_UP:
             # a boot status we did not ask for: the EyeQ reset (by itself, or on our soft
             # reset); our link to it starts over in both directions (L10), and no request
@@ -478,8 +478,8 @@ class HostEmulator:
             self.counters.eyeq_resets += 1
             self._fire(E.EYEQ_RESET, now, "unexpected boot status")
         self._boot_deadline = None
-        if f["TestResults"]:
-            self._boot_failed(now, f"boot test bits 0x{f['TestResults']:04X}")
+        if fields["TestResults"]:
+            self._boot_failed(now, f"boot test bits 0x{fields['TestResults']:04X}")
         else:
             self._strikes = 0
             self._fire(E.BOOT_OK, now)

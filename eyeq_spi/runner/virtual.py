@@ -60,11 +60,11 @@ class VirtualRunner:
         self._max_steps = max_steps_per_instant
         self.wall_s = 0.0  # wall-clock and CPU time spent in run_until
         self.cpu_s = 0.0
-        n = len(nodes)
-        self._timer: list[float | None] = [None] * n  # cached get_timer()
-        self._known = [False] * n  # _timer[i] is still what get_timer() would say
-        self._quiet = [False] * n  # data_to_send(now) gave nothing and nothing touched it since
-        self._fresh = [True] * n  # touched since its last data_to_send
+        count = len(nodes)
+        self._timer: list[float | None] = [None] * count  # cached get_timer()
+        self._known = [False] * count  # _timer[i] is still what get_timer() would say
+        self._quiet = [False] * count  # data_to_send(now) gave nothing and nothing touched it since
+        self._fresh = [True] * count  # touched since its last data_to_send
         # nodes that promise SELF_CONTAINED (see Node): touching them leaves the others' caches
         # (declared by the node's own class: a subclass that rewrites the output, such as a
         # conformance mutant withholding ACKs, does not inherit the promise)
@@ -78,10 +78,10 @@ class VirtualRunner:
         """Forget every node's cached deadline and quiet state: after code drove a node from
         outside, or for a call that acts on another node from inside a node (the emulator's
         reset line powers the simulated EyeQ up)."""
-        n = len(self.nodes)
-        self._known[:] = [False] * n
-        self._quiet[:] = [False] * n
-        self._fresh[:] = [True] * n
+        count = len(self.nodes)
+        self._known[:] = [False] * count
+        self._quiet[:] = [False] * count
+        self._fresh[:] = [True] * count
 
     def _touch(self, i: int) -> None:
         """Node ``i`` received a transfer or handled a timer."""
@@ -94,14 +94,15 @@ class VirtualRunner:
     def _deadline(self, i: int) -> float | None:
         if not self._known[i]:
             self._known[i] = True
-            t = self._timer[i] = self.nodes[i][0].get_timer()
-            return t
-        t = self._timer[i]
+            timer = self._timer[i] = self.nodes[i][0].get_timer()
+            return timer
+        timer = self._timer[i]
         if self.verify:
             fresh = self.nodes[i][0].get_timer()
-            if fresh != t:
-                raise AssertionError(f"node {i}: cached deadline {t} but get_timer() is {fresh}")
-        return t
+            if fresh != timer:
+                raise AssertionError(f"node {i}: cached deadline {timer} but get_timer() is "
+                                     f"{fresh}")
+        return timer
 
     def _drain(self, sender: int) -> None:
         """Put what reached the other nodes' adapters in flight, to arrive ``latency`` later."""
@@ -109,10 +110,10 @@ class VirtualRunner:
         for j, (_, other) in enumerate(self.nodes):
             if j == sender:
                 continue
-            while (t := other.recv(0)) is not None:
+            while (transfer := other.recv(0)) is not None:
                 # a memory pair delivers to exactly one peer, so attribute it to `j`
                 self._seq += 1
-                heapq.heappush(self._transit, (at, self._seq, j, t))
+                heapq.heappush(self._transit, (at, self._seq, j, transfer))
 
     # -- one instant ------------------------------------------------------------------------
     def _pump(self, drain_all: bool = False) -> None:
@@ -121,10 +122,10 @@ class VirtualRunner:
         nodes, now, transit, tap = self.nodes, self.now, self._transit, self.tap
         quiet, known, fresh, alone = self._quiet, self._known, self._fresh, self._alone
         timers, cached = self._timer, not self.verify
-        n = len(nodes)
+        count = len(nodes)
         for _ in range(self._max_steps):
             progress = False
-            for i in range(n):
+            for i in range(count):
                 if quiet[i]:
                     if drain_all:
                         self._drain(i)
@@ -161,7 +162,7 @@ class VirtualRunner:
                 nodes[to][0].receive_data(transfer, now)
                 self._touch(to)
                 progress = True
-            for i in range(n):
+            for i in range(count):
                 timer = timers[i] if cached and known[i] else self._deadline(i)
                 if timer is not None and timer <= now:
                     nodes[i][0].handle_timer(now)
@@ -174,9 +175,9 @@ class VirtualRunner:
     def _next(self) -> float | None:
         best = self._transit[0][0] if self._transit else None
         for i in range(len(self.nodes)):
-            t = self._deadline(i)
-            if t is not None and (best is None or t < best):
-                best = t
+            due = self._deadline(i)
+            if due is not None and (best is None or due < best):
+                best = due
         return best
 
     def next_time(self) -> float | None:

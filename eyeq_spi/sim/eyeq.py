@@ -259,20 +259,20 @@ class SimulatedEyeQ(MespFunctions):
         # asked after every event: straight comparisons, no temporary tuple
         best = self.phase_due
         if not self._reset_done:
-            t = self.config.reset_at
-            if t is not None and (best is None or t < best):
-                best = t
+            due = self.config.reset_at
+            if due is not None and (best is None or due < best):
+                best = due
         if self._replies:
-            t = self._replies[0][0]
-            if best is None or t < best:
-                best = t
+            due = self._replies[0][0]
+            if best is None or due < best:
+                best = due
         if self.phase is Phase.RUNNING:
             if best is None or self._next_diag < best:
                 best = self._next_diag
             if self._dasp_mode() is not None:
-                t = self._dasp_min if self._next_dasp else self.now
-                if t < best:
-                    best = t
+                due = self._dasp_min if self._next_dasp else self.now
+                if due < best:
+                    best = due
         return best
 
     def handle_timer(self, now: float) -> None:
@@ -367,16 +367,16 @@ class SimulatedEyeQ(MespFunctions):
     def _vehicle_signal(self, vs: dict[str, Any], name: str) -> float | None:
         """A host signal the scene may use: flagged valid, finite and inside the seed's range
         (§7.1.2.2 host_vehicle_state_t); otherwise None (the scene keeps its last value)."""
-        v = vs.get(name)
+        value = vs.get(name)
         valid = vs.get(f"{name}Validity", 1)
         lo, hi = self._veh_ranges.get(name, (-math.inf, math.inf))
-        if v is None:
+        if value is None:
             return None
-        if valid != 1 or not isinstance(v, int | float) or not math.isfinite(v) \
-                or not lo <= v <= hi:
+        if valid != 1 or not isinstance(value, int | float) or not math.isfinite(value) \
+                or not lo <= value <= hi:
             self.counters.rejected_values += 1
             return None
-        return float(v)
+        return float(value)
 
     # -- transmit ---------------------------------------------------------------------------
     def _send(self, message: bytes, now: float) -> None:
@@ -427,11 +427,11 @@ class SimulatedEyeQ(MespFunctions):
         return MODE_OF_STATE.get(self.main_state)
 
     def _template(self, name: str, payload: str) -> dict[str, Any]:
-        t = self._templates.get(name)
-        if t is None:
-            t = self.codec.layouts.get(payload, self.sw).zero_values()
-            self._templates[name] = t
-        return t
+        template = self._templates.get(name)
+        if template is None:
+            template = self.codec.layouts.get(payload, self.sw).zero_values()
+            self._templates[name] = template
+        return template
 
     def _send_due_dasp(self, now: float) -> None:
         mode = self._dasp_mode()
