@@ -34,7 +34,7 @@ FAMILIES: dict[str, tuple[str, str]] = {
     "capture.pcapng": ("eyeq_spi.capture.pcapng_io", "eyeq_spi.capture.pcapng_fast"),
     "capture.write": ("CaptureWriter, one block per write",
                       "eyeq_spi.capture.pcapng_write_fast"),
-    "sim.dasp": ("the dict path (MessageCodec.encode)", "eyeq_spi.sim.dasp_fast"),
-    "host.veh_state": ("the dict path (veh_state_values, MessageCodec.encode_dasp)",
+    "sim.dasp": ("a value dict through MessageCodec.encode_dasp", "eyeq_spi.sim.dasp_fast"),
+    "host.veh_state": ("veh_state_values through MessageCodec.encode_dasp",
                        "eyeq_spi.host.veh_state_fast"),
 }

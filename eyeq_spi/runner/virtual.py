@@ -253,7 +253,7 @@ class VirtualRunner:
         arrives, or one node's deadline comes) for two self-contained nodes, while both are
         quiet with known deadlines: the calls ``_pump`` would make on the one node concerned,
         in its order, without its rounds over both nodes. Returns at the first other instant
-        (the general loop takes it), with the caches as ``_pump`` would have left them."""
+        (``_pump`` takes it), with the caches as ``_pump`` would have left them."""
         quiet, known, fresh, timers, transit = (self._quiet, self._known, self._fresh,
                                                 self._timer, self._transit)
         if not (quiet[0] and quiet[1] and known[0] and known[1]) or fresh[0] or fresh[1]:

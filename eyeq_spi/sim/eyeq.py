@@ -144,7 +144,7 @@ class SimulatedEyeQ(MespFunctions):
         self._scene_frame: int | None = None  # the camera frame the scene was last stepped to
         self._dasp_min = 0.0  # min(_next_dasp.values()) when _next_dasp is not empty
         self._due = DueHeap()  # _next_dasp as a heap (sim/schedule.py)
-        self._packers: dict[str, DaspPacker | None] = {}  # None: this message takes the dict path
+        self._packers: dict[str, DaspPacker | None] = {}  # None: this message takes the reference
         self.dasp_paths: Counter[str] = Counter()  # debug stat: messages sent "packed" / "dict"
         self.phase = Phase.OFF
         self.phase_due: float | None = None  # when a TIMED_PHASES phase ends
@@ -477,7 +477,7 @@ class SimulatedEyeQ(MespFunctions):
         self._dasp_min = due.earliest(self._next_dasp, now)
 
     def _packer(self, m: MessageDef) -> DaspPacker | None:
-        """The message's packer; None: the dict path (switched off, by the config or, when the
+        """The message's packer; None: the reference (switched off, by the config or, when the
         config leaves it open, by ``EYEQ_SPI_EXACT=1``; or no packer for it)."""
         if m.name not in self._packers:
             packed = self.config.dasp_packer
@@ -488,7 +488,7 @@ class SimulatedEyeQ(MespFunctions):
         return self._packers[m.name]
 
     def _dasp_bytes(self, m: MessageDef, counter: int, now: float) -> bytes:
-        """One DASP message: packed in place, or by the dict path (the reference)."""
+        """One DASP message: packed in place, or by the reference."""
         packer = self._packer(m)
         if packer is not None:
             self._fill(m.name, packer.root, now)  # type: ignore[arg-type]
