@@ -26,7 +26,6 @@ LONGER = {
     "eyeq_spi/logic/vcd_fast.py:_channel",
     "eyeq_spi/plot/birdseye.py:draw_scene",
     "eyeq_spi/sim/scene.py:_columns",
-    "eyeq_spi/sim/scene_write.py:_objects_plan",
 }
 
 
