@@ -25,7 +25,6 @@ LONGER = {
     "eyeq_spi/logic/saleae_fast.py:saleae2_chunk",
     "eyeq_spi/logic/vcd_fast.py:_channel",
     "eyeq_spi/plot/birdseye.py:draw_scene",
-    "eyeq_spi/sim/scene.py:_columns",
 }
 
 
