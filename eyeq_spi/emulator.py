@@ -13,8 +13,7 @@ from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import Scenario
 from eyeq_spi.phy.memory import memory_pair
-from eyeq_spi.runner.virtual import VirtualRunner
-from eyeq_spi.runner.virtual_types import Tap
+from eyeq_spi.runner.virtual import Tap, VirtualRunner
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.summary import RunningVision
@@ -47,16 +46,12 @@ class Emulation:
                 stop: Callable[[], bool] | None = None) -> None:
         """Advance ``seconds`` of simulated time in 10 ms slices, tracking Running Vision."""
         end = self.runner.now + seconds
-        driven = True  # the first slice: code may have driven a node since the last call
         if realtime and self.pace_origin is None:
             self.pace_origin = (time.perf_counter(), self.runner.now)
         while self.runner.now < end - 1e-12 and not (stop is not None and stop()):
             self.runner.run_until(min(end, self.runner.now + 0.01), realtime=realtime,
-                                  driven=driven, pace_origin=self.pace_origin)
+                                  pace_origin=self.pace_origin)
             self.vision.update(self.host, self.runner.now)
-            # the next slice keeps the runner's caches: in between, only the host's state was
-            # read (a ``stop`` condition may drive a node: then every slice starts afresh)
-            driven = stop is not None
 
 
 def build(
@@ -79,9 +74,9 @@ def build(
 
     host = HostEmulator(host_config, nvm=nvm, scenario=scenario, reset_line=reset_line,
                         keep_rx_times=keep_rx_times)
-    a, b = memory_pair()
+    host_end, sim_end = memory_pair()
     # the host's only effect on another node is the reset line, which tells the runner
-    runner = VirtualRunner([(host, a), (sim, b)], tap=tap, self_contained=HOST_ALONE)
+    runner = VirtualRunner([(host, host_end), (sim, sim_end)], tap=tap, self_contained=HOST_ALONE)
     sim.power_up(0.0)
     host.start(0.0)
     made.append(Emulation(host, sim, runner))

@@ -1,6 +1,6 @@
 """The exact/fast switch shared by every twin family.
 
-Where a hot path has a faster twin (numpy, ``struct``, a packed buffer, an express loop), the
+Where a hot path has a faster twin (numpy, ``struct``, a packed buffer), the
 pure-Python one is the reference: it is what the seed says, and the fast one is held to give
 the same output (``tests/test_twins.py``). A facade picks the fast twin unless
 ``EYEQ_SPI_EXACT=1`` is set in the environment; then every family runs its reference.
@@ -37,8 +37,7 @@ FAMILIES: dict[str, tuple[str, str]] = {
     "capture.pcapng": ("eyeq_spi.capture.pcapng_io", "eyeq_spi.capture.pcapng_fast"),
     "capture.write": ("CaptureWriter, one block per write",
                       "eyeq_spi.capture.pcapng_write_fast"),
-    "sim.dasp": ("the dict path (MessageCodec.encode)", "eyeq_spi.sim.dasp_fast"),
-    "host.veh_state": ("the dict path (veh_state_values, MessageCodec.encode_dasp)",
+    "sim.dasp": ("a value dict through MessageCodec.encode_dasp", "eyeq_spi.sim.dasp_fast"),
+    "host.veh_state": ("veh_state_values through MessageCodec.encode_dasp",
                        "eyeq_spi.host.veh_state_fast"),
-    "runner.virtual": ("eyeq_spi.runner.virtual", "eyeq_spi.runner.virtual_fast"),
 }

@@ -234,7 +234,7 @@ def test_base_diag_reflects_what_the_sim_received(running) -> None:  # type: ign
     # the snapshot was taken when 0xA0 was sent; the live counter may have moved on since
     assert 0 < last["eyeqSPIMsg20RxCtr"] <= running.sim.counters.msg20_rx
     assert running.sim.counters.msg20_rx - last["eyeqSPIMsg20RxCtr"] <= 4  # 66.67 vs 18 Hz
-    assert abs(last["SPI_Rolling_Count_Echo"] - running.host._rolling) <= 5
+    assert abs(last["SPI_Rolling_Count_Echo"] - running.host.veh_state.rolling) <= 5
     assert last["eyeqSPIMsgRxBadHdrCtr"] == 0 and last["eyeqSPIMsgRxBadSeqCtr"] == 0
 
 

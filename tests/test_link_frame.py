@@ -134,38 +134,3 @@ def test_data_frame_is_encode_of_a_data_frame(rsp: int, num: int, data: bytes, o
     c = FrameCodec(bit_order=order, crc=VARIANTS[crc])
     assert c.data_frame(rsp, num, data) == c.encode(
         Frame(FrameKind.DATA, 0, rsp, num, data.ljust(122, b"\0")))
-
-
-@given(st.lists(st.binary(min_size=FRAME_SIZE, max_size=FRAME_SIZE), max_size=4),
-       st.sampled_from(list(BitOrder)), st.booleans(), st.sampled_from([0, 127, 128]),
-       st.sampled_from(["CRC-16/CCITT-FALSE", "CRC-16/KERMIT"]))
-def test_data_nums_read_what_judge_reads(raws: list[bytes], order: BitOrder, fix_crc: bool,
-                                         length: int, crc: str) -> None:
-    """FrameCodec.data_nums (a receiver's run of frames): the NUM exactly where judge reads a
-    DATA frame with R 0 and a good CRC, for random frames, good ones and wrong lengths, with
-    the seed's CRC (chained ``crc_hqx``) and another variant (the general path)."""
-    codec = FrameCodec(bit_order=order, crc=VARIANTS[crc])
-    frames = []
-    for raw in raws:
-        if fix_crc:
-            word = codec.pack_header(8, 0, 0, 0) if raw[0] & 1 else int.from_bytes(raw[:4],
-                                                                                      "little")
-            head = word.to_bytes(4, "little")
-            d = codec.unpack_header(word)[0]
-            raw = head + codec.compute_crc(d, head, raw[6:]).to_bytes(2, "little") + raw[6:]
-        frames.append(raw)
-    frames.append(bytes(length))
-    want: list[int | None] = []
-    heads: list[int | None] = []  # data_header_num: the same header reading, CRC unjudged
-    for f in frames:
-        try:
-            d, r, _, num, ok = codec.judge(f)
-        except RemoteProtocolError:
-            want.append(None)
-            heads.append(None)
-            continue
-        heads.append(num if d == FrameKind.DATA and r == 0 else None)
-        want.append(heads[-1] if ok else None)
-    assert codec.data_nums(frames) == want
-    assert [codec.data_num(f) for f in frames] == want
-    assert [codec.data_header_num(f) for f in frames] == heads

@@ -22,7 +22,7 @@ from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import CsvScenario
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.dasp_fast import DaspPacker, compile_protector
-from eyeq_spi.sim.eyeq import SimulatedEyeQ
+from eyeq_spi.sim.eyeq import Phase, SimulatedEyeQ
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
@@ -173,7 +173,7 @@ def test_due_heap_sends_as_the_scan_did() -> None:
     """The heap sends the due messages in catalogue order and get_timer stays exact: the next
     due time is the earliest of them, and a cleared schedule is staggered afresh."""
     sim = SimulatedEyeQ(SimConfig())
-    sim.app_running, sim.main_state, sim.powered = True, 0x02, True  # Running Vision
+    sim.phase, sim.main_state = Phase.RUNNING, 0x02  # Running Vision
     sent: list[str] = []
     sim._send = lambda message, now: sent.append(  # type: ignore[method-assign]
         sim.codec.decode(message).name or "")
@@ -206,7 +206,7 @@ def test_every_message_of_every_release_at_full_load(sw: str) -> None:
 def _stream(sim: SimulatedEyeQ, seconds: float) -> list[tuple[float, bytes]]:
     """What ``_send_due_dasp`` sends in Running Vision over ``seconds`` (the link stubbed)."""
     out: list[tuple[float, bytes]] = []
-    sim.powered, sim.app_running, sim.main_state = True, True, 0x02  # Running Vision
+    sim.phase, sim.main_state = Phase.RUNNING, 0x02  # Running Vision
     sim._send = lambda message, now: out.append((now, message))  # type: ignore[method-assign]
     sim._send_due_dasp(0.0)
     while sim._dasp_min < seconds:

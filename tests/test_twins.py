@@ -3,8 +3,7 @@ inputs, and ``EYEQ_SPI_EXACT=1`` makes every facade pick the reference.
 
 One case per family (``eyeq_spi.twins.FAMILIES``); the inputs are the ones the families' own
 tests use (the capture generators of ``test_codec_message_fast``, ``test_capture_pcapng_fast``,
-``test_logic_saleae_fast``, the emulations of ``test_runner_virtual_fast`` and
-``test_sim_dasp_fast``),
+``test_logic_saleae_fast``, the emulations of ``test_sim_dasp_fast``),
 taken here at fixed seeds; those modules keep their randomised and fault-specific checks."""
 
 from __future__ import annotations
@@ -212,19 +211,6 @@ def _veh_state() -> Pair:
     return ref, fast
 
 
-def _runner() -> Pair:
-    from eyeq_spi.sim.config import SimConfig
-    from tests.test_runner_virtual_fast import _emulation, _state
-
-    out = []
-    for express in (False, True):
-        emu, trace = _emulation(express, SimConfig(objects=15, signs=20, light_spots=15))
-        emu.run_for(1.5)
-        assert emu.runner._express is None or emu.runner._express.instants > 0
-        out.append((trace, _state(emu)))
-    return out[0], out[1]
-
-
 CONTRACT: dict[str, Callable[[Path], Pair]] = {
     "logic.saleae (Logic 2)": lambda _: _saleae("2"),
     "logic.saleae (Logic 1.x)": lambda _: _saleae("1"),
@@ -235,7 +221,6 @@ CONTRACT: dict[str, Callable[[Path], Pair]] = {
     "capture.write": _capture_write,
     "sim.dasp": lambda _: _dasp(),
     "host.veh_state": lambda _: _veh_state(),
-    "runner.virtual": lambda _: _runner(),
 }
 
 
@@ -270,12 +255,10 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.dissect import engine_fast_messages, pipeline_fast
     from eyeq_spi.dissect.pipeline import SMALL_INPUT, dissect_files
-    from eyeq_spi.emulator import build
     from eyeq_spi.host import veh_state_fast
     from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.logic import saleae, saleae_fast, vcd, vcd_fast
     from eyeq_spi.logic.vcd_write import write_vcd
-    from eyeq_spi.runner import virtual_fast
     from eyeq_spi.sim import dasp_fast
     from eyeq_spi.sim.config import SimConfig
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
@@ -328,9 +311,6 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
         host._send_veh_state(0.5)
         return sent
 
-    def emulate() -> Any:
-        build(sim_config=SimConfig(dasp_packer=False)).run_for(0.3)
-
     return {
         "logic.saleae": ([(saleae_fast, "saleae2_chunk", _poison)], lambda: list(
             saleae.read_saleae2(io.BytesIO(_saleae2_export(1)), SpiOptions()))),
@@ -345,8 +325,6 @@ def _through_facades(tmp_path: Path) -> dict[str, tuple[list[tuple[Any, str, Any
         "capture.write": ([(pcapng_write_fast, "encode_blocks", _poison)], capture),
         "sim.dasp": ([(dasp_fast.DaspPacker, "build", classmethod(_poison))], dasp),
         "host.veh_state": ([(veh_state_fast.VehStatePacker, "encode", _poison)], veh_state),
-        "runner.virtual": ([(virtual_fast.Express, "eligible", staticmethod(_poison))],
-                           emulate),
     }
 
 

@@ -249,26 +249,6 @@ class _TimedNode:
         self.cpu += time.thread_time() - c
         self.calls += 1
 
-    def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
-        """The node's express hook (runner/virtual_fast.py), timed, where its class has one."""
-        if "express_absorb" not in vars(type(self.node)):
-            return None
-        c = time.thread_time()
-        out: list[bytes] | None = self.node.express_absorb(transfer, now)
-        self.cpu += time.thread_time() - c
-        self.calls += 1
-        return out
-
-    def express_take(self, frames: list[bytes], times: list[float], acks: list[bytes]) -> int:
-        """The node's part in a message handover (runner/virtual_fast.py), timed."""
-        if "express_take" not in vars(type(self.node)):
-            return 0
-        c = time.thread_time()
-        n: int = self.node.express_take(frames, times, acks)
-        self.cpu += time.thread_time() - c
-        self.calls += 1
-        return n
-
     def corrected(self) -> float:
         empty = _TimedNode(None)
         n = 100_000
@@ -289,7 +269,7 @@ def crc_baseline_us() -> float:
 
 
 def _one_demo(virtual_s: float, full: bool, timed_host: bool,
-              dasp_packer: bool = True, express: bool = True) -> dict[str, float]:
+              dasp_packer: bool = True) -> dict[str, float]:
     from eyeq_spi.emulator import build
     from eyeq_spi.host.machine import HostState
     from eyeq_spi.sim.config import SimConfig
@@ -297,7 +277,6 @@ def _one_demo(virtual_s: float, full: bool, timed_host: bool,
     cfg = SimConfig(objects=15, signs=20, light_spots=15, dasp_packer=dasp_packer) if full \
         else SimConfig(dasp_packer=dasp_packer)
     emu = build(sim_config=cfg, keep_rx_times=False)
-    emu.runner.express = express  # False: the per-frame reference loop (EYEQ_SPI_EXACT=1)
     host = None
     if timed_host:
         host = _TimedNode(emu.host)
@@ -316,15 +295,13 @@ def emulator_bench(runs: int = 3, long_s: float = 0.0, dasp_packer: bool = True
     per 60 s of virtual time, CPU-s per simulated second for host + simulated EyeQ and for the
     host alone (CPU inside the host's node calls), median and spread of ``runs`` runs, and each
     as a ratio to the in-run CRC baseline (how many 128-byte ``crc_hqx`` calls the same CPU
-    time buys). Each round also runs the per-frame reference loop (``EYEQ_SPI_EXACT=1``) for
-    the ratio of both paths. ``long_s``: one more run of that many virtual seconds (600 s for
+    time buys). ``long_s``: one more run of that many virtual seconds (600 s for
     the ten-minute figure)."""
     out: dict[str, float] = {}
     crc = [crc_baseline_us()]
-    rows, exact = [], []
+    rows = []
     for _ in range(runs):
         rows.append(_one_demo(60.0, True, False, dasp_packer))
-        exact.append(_one_demo(60.0, True, False, dasp_packer, express=False)["cpu_per_sim_s"])
         rows.append({**_one_demo(10.0, True, True, dasp_packer), "wall_s": math.nan})
         crc.append(crc_baseline_us())
     base = statistics.median(crc)
@@ -341,11 +318,6 @@ def emulator_bench(runs: int = 3, long_s: float = 0.0, dasp_packer: bool = True
         if key != "wall_s":
             out[label + "_in_crc_calls"] = statistics.median(vals) / (base * 1e-6)
     out["emulator_full_x_real_time"] = 60.0 / out["emulator_full_wall_s_per_60s_virtual"]
-    out["emulator_exact_cpu_s_per_sim_s"] = statistics.median(exact)
-    out["emulator_exact_cpu_s_per_sim_s_min"] = min(exact)
-    out["emulator_exact_cpu_s_per_sim_s_max"] = max(exact)
-    out["emulator_exact_over_express"] = (statistics.median(exact)
-                                          / out["emulator_full_cpu_s_per_sim_s"])
     if long_s:
         r = _one_demo(long_s, True, False, dasp_packer)
         out[f"emulator_full_wall_s_per_{long_s:g}s_virtual"] = r["wall_s"]
@@ -357,12 +329,12 @@ def _dasp_cpu_per_sim_s(packer: bool, virtual_s: float) -> float:
     """CPU-s per simulated second of the simulated EyeQ's DASP generation alone at full load
     (``_send_due_dasp``: due heap, scene step, fill, pack, E2E; the link's ``_send`` stubbed)."""
     from eyeq_spi.sim.config import SimConfig
-    from eyeq_spi.sim.eyeq import SimulatedEyeQ
+    from eyeq_spi.sim.eyeq import Phase, SimulatedEyeQ
     from eyeq_spi.sim.mesp_functions import RUNNING_VISION
 
     sim = SimulatedEyeQ(SimConfig(objects=15, signs=20, light_spots=15, dasp_packer=packer))
     sim.warm_up()
-    sim.powered, sim.app_running, sim.main_state = True, True, RUNNING_VISION
+    sim.phase, sim.main_state = Phase.RUNNING, RUNNING_VISION
     sim._send = lambda message, now: None  # type: ignore[method-assign]
     sim._send_due_dasp(0.0)
     c = time.thread_time()

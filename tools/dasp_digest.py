@@ -28,7 +28,7 @@ def digests(seconds: float) -> list[str]:
     """``release seed path digest`` lines, one per release and path (dict, packer)."""
     from eyeq_spi.catalog.messages import catalog
     from eyeq_spi.sim.config import SimConfig
-    from eyeq_spi.sim.eyeq import SimulatedEyeQ
+    from eyeq_spi.sim.eyeq import Phase, SimulatedEyeQ
 
     out: list[str] = []
     for sw in catalog().sw_versions:
@@ -37,7 +37,7 @@ def digests(seconds: float) -> list[str]:
                                           light_spots=15, dasp_packer=packer))
             sim.warm_up()
             h = hashlib.sha256()
-            sim.powered, sim.app_running, sim.main_state = True, True, 0x02  # Running Vision
+            sim.phase, sim.main_state = Phase.RUNNING, 0x02  # Running Vision
 
             def send(message: bytes, now: float, h: Any = h) -> None:
                 h.update(message)

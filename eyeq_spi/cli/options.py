@@ -363,8 +363,7 @@ def can_output(args: argparse.Namespace, host: Any, runner: Any) -> Any:
 
 
 class CaptureTap:
-    """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``. A
-    message handed over in one step reaches the writer in one call (``many``).
+    """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``.
 
     ``clock`` (a real-time run): every transfer is stamped with the clock's reading when the
     emulator handed it over, since the first one (which keeps its time on the schedule), not
@@ -384,14 +383,6 @@ class CaptureTap:
                 self.origin = now - t
             t = now - self.origin
         self.writer.write(self.DIRECTIONS[node], t, transfer)
-
-    def many(self, transfers: list[tuple[int, float, bytes]]) -> None:
-        if self.clock is not None:
-            for node, t, b in transfers:
-                self(node, t, b)
-            return
-        d = self.DIRECTIONS
-        self.writer.write_many((d[node], t, b) for node, t, b in transfers)
 
 
 def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:

@@ -21,6 +21,7 @@ from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import DecodedMessage, is_mesp
 from eyeq_spi.errors import UsageError
 from eyeq_spi.host import init_seq
+from eyeq_spi.host.events import diag_event
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostEvent, HostState
 from eyeq_spi.host.nvm import Nvm
@@ -319,7 +320,9 @@ class HostLateRestart(HostEmulator):
         return  # the boot status was lost: the reset is seen from 0x41 below
 
     def _on_diag(self, out: DecodedMessage, now: float) -> None:
-        if not out.errors and self._diag_event(out) == "went_back":
+        if not out.errors and diag_event(self.state, out.fields,
+                                         self.last_diag.get("Main_State") is not None
+                                         ) == "went_back":
             self.conn.restart()  # L10: both directions afresh, our NUMs from 0
             self._restarted = True
         super()._on_diag(out, now)

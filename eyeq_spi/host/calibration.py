@@ -40,3 +40,15 @@ def outcome(cat: Catalog, sw: SwKey, mode: str, cal: Mapping[str, Any]) -> bool 
     source = alignment_nvm().source(mode)
     return all(cal.get(member) == member_value(cat, sw, source.result, member, name)
                for member, name in source.success.items())
+
+
+def result(cat: Catalog, sw: SwKey, mode: str, cal: Mapping[str, Any],
+           now: float) -> dict[str, Any] | None:
+    """None while the ``mode`` run is still going; else what the host reports of it
+    (``HostEmulator.calibration_result``): the mode, whether it succeeded, when, and the angles
+    the result carries."""
+    ok = outcome(cat, sw, mode, cal)
+    if ok is None:
+        return None
+    return {"mode": mode, "ok": ok, "time": now, **{
+        k: cal[k] for k in ("distYaw", "distPitch", "roll", "phYaw", "phPitch") if k in cal}}

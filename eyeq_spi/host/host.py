@@ -1,58 +1,126 @@
 """The Aurix host emulator: brings an EyeQ4 up and runs it in vision mode (and TAC/SPC/DV) over
-the real link and transport. Sans-IO; the state machine is the table in ``machine.py``, run with
-its entry actions by the base class in ``bringup.py``; this module adds the node interface, the
-receive path, stale detection and HOST_VEH_STATE_MSG.
+the real link and transport (seed 004 §6 message flow, §7.1.1.1.4, §7.1.3). Sans-IO: every
+method takes ``now``.
+
+The host's states are the table of ``machine.py``: ``TRANSITIONS`` says where each event
+leads, and ``ENTRY_ACTIONS`` names the handler run on entering a state (the ``entry_*``
+methods below). A subclass changes one by overriding that method (the conformance mutants do);
+a subclass that defines an ``entry_*`` method the table does not name, or a method in the old
+``_on_<state>`` style, fails at class creation. What the states drive is grouped by job: the
+init messages and MESP replies of the bring-up here, HOST_VEH_STATE_MSG in
+:class:`~eyeq_spi.host.vehicle_state.VehicleStateSender`, stale detection in
+:class:`~eyeq_spi.host.streams.StreamWatch`, the messages in the receive path below.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import AsyncIterator
+from collections import deque
+from collections.abc import AsyncIterator, Callable
 from typing import Any
 
-from eyeq_spi.catalog.bringup import FATAL_INTRINSIC
-from eyeq_spi.catalog.messages import sw_release
+from eyeq_spi.catalog.bringup import EEPROM_FILE, SWITCH_APP
 from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.e2e import E2EState
-from eyeq_spi.codec.init_params import init_message
-from eyeq_spi.codec.message import DecodedMessage, classify
-from eyeq_spi.errors import EyeqError, LocalProtocolError, SpecError
+from eyeq_spi.codec.message import DaspCounters, DecodedMessage, MessageCodec
+from eyeq_spi.errors import LocalProtocolError, SpecError
 from eyeq_spi.host import calibration, init_seq
-from eyeq_spi.host.bringup import HostBringUp, ResetLine, Subscriber
 from eyeq_spi.host.config import (
     APP_IDS,
-    PENDING,
     STAGE_OF,
-    STALE_CHECK,
     E,
     HostConfig,
     HostCounters,
     S,
     Transition,
+    link_config,
 )
+from eyeq_spi.host.events import VERSION_FIELDS, StatePoll, diag_event, state_reply_event
 from eyeq_spi.host.link_health import with_link_cause
-from eyeq_spi.host.machine import next_state
-from eyeq_spi.host.scenario import veh_state_values
-from eyeq_spi.host.veh_state_fast import VehStatePacker
+from eyeq_spi.host.machine import (
+    ENTRY_ACTIONS,
+    HostEvent,
+    HostState,
+    check_entry_handlers,
+    next_state,
+)
+from eyeq_spi.host.nvm import Nvm
+from eyeq_spi.host.scenario import ConstantDrive, Scenario
+from eyeq_spi.host.streams import StreamWatch, expected_streams
+from eyeq_spi.host.vehicle_state import VehicleStateSender
 from eyeq_spi.link.events import Resynchronised
-from eyeq_spi.link.frame import SEQ_MODULO
-from eyeq_spi.link.run import DataRun
-from eyeq_spi.mesp.client import MespCompleted, MespFailed
+from eyeq_spi.mesp.client import MespClient, MespCompleted, MespFailed
+from eyeq_spi.mesp.replies import MespFailure, MespReply, MespResult
+from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
-from eyeq_spi.twins import exact
 
 __all__ = ["HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscriber",
            "Transition"]
 
+ResetLine = Callable[[float], None]
+Subscriber = Callable[[DecodedMessage], None]
+EntryAction = Callable[[float], None]
 
-class HostEmulator(HostBringUp):
-    """The host emulator as a sans-IO node: the public API, the receive path, stale detection
-    and HOST_VEH_STATE_MSG. Its state and bring-up are :class:`HostBringUp`."""
+
+class HostEmulator:
+    """The host emulator as a sans-IO node (``receive_data``, ``data_to_send``,
+    ``get_timer``, ``handle_timer``): its state table's handlers, the bring-up they drive and
+    the receive path."""
+
+    def __init_subclass__(cls, **kw: Any) -> None:
+        super().__init_subclass__(**kw)
+        check_entry_handlers(cls, subclass=True)
+
+    def __init__(
+        self,
+        config: HostConfig | None = None,
+        *,
+        nvm: Nvm | None = None,
+        scenario: Scenario | None = None,
+        reset_line: ResetLine | None = None,
+        keep_rx_times: bool = True,
+    ) -> None:
+        self.config = config or HostConfig()
+        self.codec = MessageCodec(self.config.sw)
+        self.sw = self.codec.sw
+        self.conn = TransportConnection(link_config("host", self.config.ack_timeout,
+                                                     self.config.transmit_timeout))
+        self.mesp = MespClient(self.codec.cat)
+        self.nvm = nvm or Nvm()
+        self.nvm.load()
+        self.scenario = scenario or ConstantDrive()
+        self.reset_line = reset_line
+        self.counters = HostCounters()
+        self.keep_rx_times = keep_rx_times
+        self.state = S.POWER_UP
+        self.transitions: list[Transition] = []
+        self.problem: str | None = self.nvm.load_problem
+        self.versions: dict[str, int] | None = None
+        self.boot_info: dict[str, Any] = {}
+        self.last_diag: dict[str, Any] = {}
+        self.calibration_result: dict[str, Any] | None = None
+        self._subscribers: list[Subscriber] = []
+        self._e2e = E2EState()  # D5: the EyeQ's rolling counters, judged afresh per boot
+        self._rx_counters = DaspCounters()
+        self.veh_state = VehicleStateSender(self.codec, self.config)
+        self.streams = StreamWatch()
+        self._strikes = 0
+        self._bringups = 0
+        self._boot_deadline: float | None = None
+        self.poll = StatePoll(self.config.poll_interval)
+        self._init_queue: deque[int] = deque()
+        self._init_busy = False
+        self._target_mode = "VISION"
+        self._versions_asked = False
+        self._versions_ok = False  # a positive Get EyeQ Versions reply in this ignition cycle
+        self._switch_at: float | None = None  # when the last one was sent, until its ACK
+        self.now = 0.0
+        # ENTRY_ACTIONS bound once: a subclass's override of a named method is what runs
+        self._entry_actions: dict[HostState, EntryAction] = {
+            state: getattr(self, name) for state, name in ENTRY_ACTIONS.items()}
 
     # -- public API -------------------------------------------------------------------------
     def start(self, now: float) -> None:
         """Ignition on: count the cycle, wait for the EyeQ's boot status."""
-        self._started = True
         self.nvm.data.ignition_cycles += 1
         self._enter(S.POWER_UP, now)
 
@@ -73,14 +141,9 @@ class HostEmulator(HostBringUp):
             raise LocalProtocolError(f"unknown mode {mode!r}: use VISION, TAC, SPC or DV")
         if self.state not in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC, S.DV):
             raise LocalProtocolError(f"cannot switch mode in state {self.state.value}")
-        stage = STAGE_OF.get(mode)
-        if stage is not None:
-            try:
-                init_message(stage, self.sw, self.codec.cat)
-            except (SpecError, LocalProtocolError) as exc:
-                # §7.1.1.7: the mode needs its init message; this release has no table for it
-                raise LocalProtocolError(
-                    f"{mode} is not available for SW {self.sw}: {exc}") from None
+        missing = init_seq.mode_unavailable(mode, self.sw, self.codec.cat)
+        if missing is not None:
+            raise LocalProtocolError(f"{mode} is not available for SW {self.sw}: {missing}")
         self._target_mode = mode
         self._fire(E.SWITCH, now, mode)
 
@@ -108,8 +171,7 @@ class HostEmulator(HostBringUp):
         self._target_mode = "VISION"
         self.problem = None
         self.calibration_result = None
-        self._tx_e2e = E2EState()
-        self._dasp_counter = self._rolling = 0
+        self.veh_state.new_cycle()
         self.nvm.data.ignition_cycles += 1
         self._fire(E.IGNITION, now, why)
 
@@ -117,13 +179,12 @@ class HostEmulator(HostBringUp):
         """Decode one message of each kind the EyeQ sends and encode HOST_VEH_STATE once, so
         that no first-time codec build delays an ACK in real time."""
         e2e = E2EState()
-        for m in self.codec.cat.messages:
-            if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw):
-                lay = self.codec.layout(m)
-                self.codec.decode(self.codec.encode_dasp(m.name, lay.zero_values(), 0, e2e),
+        for msg in self.codec.cat.messages:
+            if msg.protocol == "DASP" and msg.direction == "e2h" and msg.exists_in(self.sw):
+                lay = self.codec.layout(msg)
+                self.codec.decode(self.codec.encode_dasp(msg.name, lay.zero_values(), 0, e2e),
                                   E2EState())
-        msg = self.codec.message("HOST_VEH_STATE_MSG")
-        self.codec.encode_dasp(msg.name, self.codec.layout(msg).zero_values(), 0, E2EState())
+        self.veh_state.warm_up()
         self.mesp.codec.warm_up()  # MESP requests we send, replies we read
         self.codec.mesp.warm_up()
 
@@ -137,131 +198,26 @@ class HostEmulator(HostBringUp):
         self._flush_mesp(now)
         return self.conn.data_to_send(now)
 
-    def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
-        """runner/virtual_fast.py: ``receive_data``, then ``handle_timer`` and ``data_to_send`` at
-        the same ``now`` (as a runner calls them for a DATA frame, whose ACK makes the timer
-        due), in one step, when no timer of the host is due and the frame continues a message
-        and completes nothing: the ACK. In Running Vision with nobody subscribed, also for a
-        frame that completes a DASP message (handled as ``receive_data`` handles it: counters,
-        E2E, stale bookkeeping) and for the ACK of the last frame of one of our messages
-        (nothing to send then). None, with nothing changed, otherwise."""
-        if now >= self._absorb_until():
-            return None
-        conn = self.conn
-        whole = not self._subscribers and self.state is S.RUNNING_VISION
-        if whole:  # most frames that arrive alone complete a message
-            message = conn.absorb_last(transfer, now, self._quiet)
-            if message is not None:
-                self.now = now
-                self._on_message(message, now)
-                return [conn.link.codec.ack((conn.link.expected_num - 1) % SEQ_MODULO)]
-        ack = conn.absorb(transfer, now)
-        if ack is not None:
-            self.now = now
-            return [ack]
-        if not whole or not conn.absorb_ack(transfer, now, last=True):
-            return None
-        self.now = now
-        self._pump(now)
-        return []
-
-    def express_take(self, frames: list[bytes], times: list[float], acks: list[bytes]) -> int:
-        """runner/virtual_fast.py: :meth:`express_absorb` of ``frames[k]`` at ``times[k]``
-        (rising), frame after frame, up to the first it would decline or whose ACK would not
-        be ``acks[k]``: how many it took. The last of ``frames`` may complete a DASP message
-        (taken as :meth:`express_absorb` takes it)."""
-        until = self._absorb_until()
-        n = 0
-        while n < len(frames) and times[n] < until:
-            n += 1
-        whole = not self._subscribers and self.state is S.RUNNING_VISION
-        n, message = self.conn.absorb_message(frames[:n], times, acks,
-                                              self._quiet if whole else None)
-        if n:
-            self.now = times[n - 1]
-        if message is not None:  # a message whole, as express_absorb takes it
-            self._on_message(message, self.now)
-        return n
-
-    def express_run(self, now: float) -> DataRun | None:
-        """runner/virtual_fast.py: the rest of the message whose frame went out at ``now``, to
-        be handed over in one step before anything of ours other than its frames is due (as
-        :meth:`_absorb_until` tells); None when our link cannot tell."""
-        run = self.conn.data_run(now)
-        if run is not None:
-            until = self._absorb_until()
-            if until < run.until:
-                run.until = until
-        return run
-
-    def express_run_take(self, run: DataRun, released: list[float], acked: list[float]) -> None:
-        """The frames of ``run`` released at ``released`` and the ACKs taken at ``acked``, as the
-        runner's calls at those times would (:meth:`TransportConnection.take_run`; the last
-        ACK's events go through :meth:`_pump`, as ``receive_data`` sends them)."""
-        self.conn.take_run(run, released, acked)
-        if acked:
-            self.now = acked[-1]
-            self._pump(self.now)
-
-    def _quiet(self, message: bytes) -> bool:
-        """A message the express paths may take whole in Running Vision (nobody subscribed):
-        DASP, or a 0x41 that starts no state event (:meth:`_diag_event`): what the host does
-        with either changes no deadline and sends nothing. A 0x41 is decoded here (without E2E
-        state: nothing changes) and the result kept for :meth:`_on_message`."""
-        kind = classify(message[:5])
-        if kind == "DASP":
-            return True
-        if kind != "DIAG":
-            return False
-        out = self.codec.decode(message)
-        if not out.errors and self._diag_event(out) is not None:
-            return False
-        self._decoded = (message, out)
-        return True
-
-    def _absorb_until(self) -> float:
-        """The first time at which :meth:`express_absorb` leaves a frame to the ordinary calls
-        for the host's own sake: a request to hand over, a stale check, a timer due."""
-        mesp = self.mesp
-        if mesp.waiting:
-            return -math.inf
-        until = self._next_stale_check if self.state is S.RUNNING_VISION else math.inf
-        # asked for every message handed over: straight comparisons, no temporary tuple
-        if mesp.outstanding:
-            t = mesp.get_timer()
-            if t is not None and t < until:
-                until = t
-        t = self._boot_deadline
-        if t is not None and t < until:
-            until = t
-        t = self._next_poll
-        if t is not None and t < until:
-            until = t
-        t = self._veh_next
-        if t is not None and t < until:
-            until = t
-        return until
-
     def get_timer(self) -> float | None:
         # asked after every event (runner/virtual.py): no temporary lists here
         best = self.conn.get_timer()
         if self.mesp.outstanding:
-            t = self.mesp.get_timer()
-            if t is not None and (best is None or t < best):
-                best = t
-        t = self._boot_deadline
-        if t is not None and (best is None or t < best):
-            best = t
-        t = self._next_poll
-        if t is not None and (best is None or t < best):
-            best = t
-        t = self._veh_next
-        if t is not None and (best is None or t < best):
-            best = t
-        if self.state is S.RUNNING_VISION and self._last_rx:
-            t = self._next_stale_check
-            if best is None or t < best:
-                best = t
+            due = self.mesp.get_timer()
+            if due is not None and (best is None or due < best):
+                best = due
+        due = self._boot_deadline
+        if due is not None and (best is None or due < best):
+            best = due
+        due = self.poll.next_due
+        if due is not None and (best is None or due < best):
+            best = due
+        due = self.veh_state.next_due
+        if due is not None and (best is None or due < best):
+            best = due
+        if self.state is S.RUNNING_VISION and self.streams.last_rx:
+            due = self.streams.next_check
+            if best is None or due < best:
+                best = due
         return best
 
     def handle_timer(self, now: float) -> None:
@@ -271,19 +227,206 @@ class HostEmulator(HostBringUp):
         if self._boot_deadline is not None and now >= self._boot_deadline:
             self._boot_deadline = None
             self._boot_failed(now, "no boot status within the timeout")
-        if self._next_poll is not None and now >= self._next_poll and not self._poll_busy:
-            self._next_poll = None
-            self._poll_busy = True
+        if self.poll.due(now):
+            self.poll.asked()
             self.mesp.request("GetEyeQExtendedState", now=now)
-        if self._veh_next is not None and now >= self._veh_next:
+        if self.veh_state.due(now):
             self._send_veh_state(now)
-            if self._veh_next is not None:  # None: the message could not be encoded (problem)
-                period = 1.0 / self.config.veh_state_rate
-                self._veh_next = max(self._veh_next + period, now)
-        if self.state is S.RUNNING_VISION and now >= self._next_stale_check:
-            self._next_stale_check = now + STALE_CHECK
-            self._check_stale(now)
+            self.veh_state.advance(now)  # unless it could not be encoded (a problem)
+        if self.state is S.RUNNING_VISION and now >= self.streams.next_check:
+            self.streams.check(now, self.counters.stale_events)
         self._pump(now)
+
+    # -- state machine and entry actions (ENTRY_ACTIONS in machine.py) --------------------
+    def _fire(self, event: HostEvent, now: float, detail: str = "") -> None:
+        dst = next_state(self.state, event)
+        if dst is None:
+            self.counters.ignored_events += 1
+            return
+        self.transitions.append(Transition(now, self.state, event, dst, detail))
+        self._enter(dst, now)
+
+    def _enter(self, state: HostState, now: float) -> None:
+        self.state = state
+        self.poll.stop()
+        action = self._entry_actions.get(state)
+        if action is not None:
+            action(now)
+
+    def entry_await_boot(self, now: float) -> None:
+        self.veh_state.next_due = None
+        self._boot_deadline = now + self.config.boot_timeout
+        self._init_queue.clear()
+        self._init_busy = False
+        self._e2e = E2EState()
+        self._rx_counters.clear()
+        self.streams.clear()
+
+    def entry_poll_state(self, now: float) -> None:
+        self.poll.start(now)
+
+    def entry_send_init(self, now: float) -> None:
+        self._init_queue = deque(init_seq.stages(self.sw, self.codec.cat,
+                                                 self.config.camera_only_aeb))
+        self._init_busy = False
+        self._send_next_init(now)
+
+    def entry_read_eeprom(self, now: float) -> None:
+        self.veh_state.next_due = None
+        self.mesp.request("FFSReadFile", {"filename": EEPROM_FILE}, now=now,
+                          callback=lambda r: self._on_eeprom(r, self.now))
+
+    def entry_start_vehicle_state(self, now: float) -> None:
+        self.veh_state.next_due = now
+        if not self._versions_asked:
+            self._versions_asked = True  # once per ignition cycle (§6 flow step 12)
+            self.mesp.request("GetEyeQVersions", now=now, callback=self._on_versions)
+        self.poll.start(now)
+
+    def entry_watch_streams(self, now: float) -> None:
+        self.streams.watch(expected_streams(self.codec.cat, self.sw, "APP"),
+                           self.config.stale_periods, now)
+
+    def entry_stop_watching(self, now: float) -> None:
+        self.streams.stop()  # a fatal EyeQ sends no DASP
+
+    def entry_request_switch(self, now: float) -> None:
+        self.veh_state.next_due = None  # stop DASP first (§6 flow step 16)
+        self.streams.stop()
+        self.calibration_result = None
+        self.mesp.request("SwitchEyeQApplication", {"applicationId": APP_IDS[self._target_mode]},
+                          now=now, callback=self._on_switch_reply)
+
+    def entry_send_mode_init(self, now: float) -> None:
+        stage = STAGE_OF[self._target_mode]
+        self._send_init(stage, now, mode_init=True)
+
+    # -- MESP results -----------------------------------------------------------------------
+    def _flush_mesp(self, now: float) -> None:
+        if not self.mesp.waiting:
+            return
+        for request in self.mesp.data_to_send():
+            sid = self.conn.send(request, now)  # the link's tag of its frames
+            self.counters.sent["MESP"] += 1
+            if (request[0], request[3]) == SWITCH_APP:
+                # L10: the EyeQ that takes it starts over, and so does our link to it: our
+                # frames after it are numbered from 0, its first frame after (NUM 0, RSP 0)
+                # restarts our receiver
+                self.conn.link.restart_after(sid, now, self.mesp.deadline)
+                self._switch_at = now
+
+    def _on_state_reply(self, reply: MespReply) -> None:
+        now = self.now
+        event = state_reply_event(self.state, self._target_mode, reply.value.mainState,
+                                  reply.value.subState)
+        if event is not None:
+            self._fire(event, now)
+        self.poll.answered(self.state, now)
+
+    def _on_versions(self, result: MespResult) -> None:
+        if isinstance(result, MespReply):
+            self.versions = {name: getattr(result.value, name) for name in VERSION_FIELDS}
+            self.nvm.data.versions = dict(self.versions)
+            self._versions_ok = True
+        else:
+            self._versions_asked = False  # ask again on the next bring-up
+
+    def _on_switch_reply(self, result: MespResult) -> None:
+        if isinstance(result, MespReply):
+            self._fire(E.SWITCH_ACCEPTED, self.now)
+        else:
+            self.problem = str(result)
+            self._fire(E.SWITCH_REJECTED, self.now, str(result))
+
+    def _on_eeprom(self, result: MespResult, now: float) -> None:
+        if self.state is not S.READ_EEPROM:
+            return
+        if isinstance(result, MespFailure):
+            self.problem = f"EEPROM read failed: {result}"
+            self._fire(E.EEPROM_BAD, now, self.problem)
+            return
+        params = init_seq.eeprom_intrinsics(result.value.data, self.sw)
+        if isinstance(params, str):
+            self.problem = params
+            self._fire(E.EEPROM_BAD, now, self.problem)
+            return
+        if self._bringups >= self.config.max_resets:
+            self.problem = (f"intrinsic calibration still mismatched after {self._bringups} "
+                            "EyeQ resets: repair or replace the camera")
+            self._fire(E.EEPROM_BAD, now, self.problem)
+            return
+        self.nvm.data.intrinsic = params
+        self.nvm.save()
+        self._fire(E.EEPROM_OK, now, "NVM updated from EEPROM; resetting the EyeQ")
+        self._reset_eyeq(now)
+
+    # -- init messages ----------------------------------------------------------------------
+    def _send_next_init(self, now: float) -> None:
+        if self._init_busy:
+            return
+        if not self._init_queue:
+            self._fire(E.INIT_DONE, now)
+            return
+        self._send_init(self._init_queue.popleft(), now, mode_init=False)
+
+    def _send_init(self, stage: int, now: float, *, mode_init: bool) -> None:
+        try:
+            req = init_seq.init_request(stage, self.sw, self.codec.cat, self.nvm.data,
+                                        self.config.ipb_params)
+        except (LocalProtocolError, SpecError) as exc:
+            self.problem = f"init message 0x{stage:02X} cannot be built: {exc}"
+            self._fire(E.INIT_REJECTED, now, self.problem)
+            return
+        self._init_busy = True
+
+        def done(result: MespResult) -> None:
+            self._init_busy = False
+            if isinstance(result, MespFailure):
+                self.problem = with_link_cause(f"init message 0x{stage:02X} rejected: {result}",
+                                               self.conn.link.counters)
+                self._fire(E.INIT_REJECTED, self.now, self.problem)
+            elif mode_init:
+                self._fire(E.MODE_PARAMS_ACCEPTED, self.now)
+            elif self.state is S.INIT:
+                self._send_next_init(self.now)
+
+        self.mesp.request("EventCalibrationTool", req, now=now, callback=done)
+
+    # -- resets and streams -----------------------------------------------------------------
+    def _cancel_requests(self) -> None:
+        """An EyeQ reset: outstanding MESP requests are lost. Get EyeQ Versions is asked again
+        at the next bring-up unless it was answered (§6 flow step 12: once per ignition cycle,
+        after a positive response)."""
+        self.mesp.cancel_all()
+        if not self._versions_ok:
+            self._versions_asked = False
+
+    def _restart_driver(self) -> None:
+        """Our SPI driver starts over: NUM 0 (L4), and the EyeQ's first DATA frame after the
+        reset sets E (L10); what was pending is dropped."""
+        self._switch_at = None
+        self.conn.reset(learn=True)
+        while self.conn.next_event() is not None:
+            pass
+
+    def _reset_eyeq(self, now: float, *, bringup: bool = True) -> None:
+        """Reset the EyeQ; ``bringup`` counts it against ``max_resets`` (EEPROM-driven)."""
+        self._cancel_requests()
+        self.counters.eyeq_resets_asked += 1
+        if bringup:
+            self._bringups += 1
+        self._enter(S.POWER_UP, now)
+        if self.reset_line is not None:
+            # Both SPI drivers start over together: NUM 0, E 0 on each side (L4). Without this
+            # the reset EyeQ's first frames (its boot status) fall outside our receive window.
+            self._restart_driver()
+            self.reset_line(now)
+        else:
+            # no reset line (a remote EyeQ): a soft reset by switching to the vision app
+            self.mesp.request("SwitchEyeQApplication", {"applicationId": APP_IDS["VISION"]},
+                              now=now)
+            self._boot_deadline = None
+            self._fire(E.BOOT_OK, now, "soft reset (no reset line)")
 
     # -- receive ----------------------------------------------------------------------------
     def _pump(self, now: float) -> None:
@@ -294,28 +437,20 @@ class HostEmulator(HostBringUp):
                 self._on_link_resync(ev, now)
         while (mev := self.mesp.next_event()) is not None:
             if isinstance(mev, MespCompleted) and mev.reply.function == "GetEyeQExtendedState":
-                self._poll_busy = False
                 self._on_state_reply(mev.reply)
             elif isinstance(mev, MespFailed) and mev.failure.function == "GetEyeQExtendedState":
-                self._poll_busy = False
-                if self._next_poll is None and self.state in (
-                        S.WAIT_PENDING, S.WAIT_RUNNING, S.WAIT_MODE_PENDING, S.WAIT_MODE_RUNNING):
-                    self._next_poll = now + self.config.poll_interval
+                self.poll.answered(self.state, now)
         self._flush_mesp(now)
 
     def _on_message(self, data: bytes, now: float) -> None:
         if self.mesp.receive_message(data, now):
             return
         dasp = data[:1] == b"\x65"
-        decoded, self._decoded = self._decoded, None
-        if decoded is not None and decoded[0] is data:
-            out = decoded[1]  # a 0x41 that _quiet decoded
-        else:
-            # field values only when someone reads them: subscribers (async iterators too), a
-            # TAC/SPC result; E2E, counters and lengths are checked either way
-            fields = not dasp or bool(self._subscribers) \
-                or self.state in (S.RUNNING_TAC, S.RUNNING_SPC)
-            out = self.codec.decode(data, self._e2e if dasp else None, fields=fields)
+        # field values only when someone reads them: subscribers (async iterators too), a
+        # TAC/SPC result; E2E, counters and lengths are checked either way
+        fields = not dasp or bool(self._subscribers) \
+            or self.state in (S.RUNNING_TAC, S.RUNNING_SPC)
+        out = self.codec.decode(data, self._e2e if dasp else None, fields=fields)
         name = out.name or out.protocol
         self.counters.received[name] += 1
         if self.keep_rx_times:
@@ -333,8 +468,8 @@ class HostEmulator(HostBringUp):
         if out.errors:
             self.counters.decode_errors += 1
             return
-        f = out.fields
-        self.boot_info = init_seq.boot_info(f)
+        fields = out.fields
+        self.boot_info = init_seq.boot_info(fields)
         if self.state is not S.POWER_UP:
             # a boot status we did not ask for: the EyeQ reset (by itself, or on our soft
             # reset); our link to it starts over in both directions (L10), and no request
@@ -344,8 +479,8 @@ class HostEmulator(HostBringUp):
             self.counters.eyeq_resets += 1
             self._fire(E.EYEQ_RESET, now, "unexpected boot status")
         self._boot_deadline = None
-        if f["TestResults"]:
-            self._boot_failed(now, f"boot test bits 0x{f['TestResults']:04X}")
+        if fields["TestResults"]:
+            self._boot_failed(now, f"boot test bits 0x{fields['TestResults']:04X}")
         else:
             self._strikes = 0
             self._fire(E.BOOT_OK, now)
@@ -361,28 +496,11 @@ class HostEmulator(HostBringUp):
         self._fire(E.BOOT_BAD, now, why)
         self._reset_eyeq(now)
 
-    def _diag_event(self, out: DecodedMessage) -> str | None:
-        """What a good 0x41 starts (before the host keeps it as ``last_diag``):
-        ``"fatal_22"``, ``"fatal"``, ``"went_back"``, or None (it is only kept)."""
-        main, fatal = out.fields["Main_State"], out.fields["Fatal_Error"]
-        before_vision = self.state in (S.WAIT_PENDING, S.INIT, S.WAIT_RUNNING)
-        if fatal == FATAL_INTRINSIC and before_vision:
-            return "fatal_22"
-        if fatal and self.state not in (S.FATAL, S.READ_EEPROM, S.FAILED, S.POWER_UP):
-            return "fatal"
-        # A running EyeQ never reports boot or pending again without a reset. Compare with the
-        # mode, not with the previous 0x41: the host can reach Running Vision by a Get State
-        # reply before any 0x41 has reported it (found by the reset campaign, faults/resets.py).
-        if (self.state in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC)
-                and main in (0, PENDING) and self.last_diag.get("Main_State") is not None):
-            return "went_back"
-        return None
-
     def _on_diag(self, out: DecodedMessage, now: float) -> None:
         if out.errors:
             self.counters.decode_errors += 1
             return
-        event = self._diag_event(out)
+        event = diag_event(self.state, out.fields, self.last_diag.get("Main_State") is not None)
         self.last_diag = out.fields
         if event == "fatal_22":
             self._fire(E.FATAL_22, now, "0x41 Fatal_Error 22")
@@ -438,8 +556,7 @@ class HostEmulator(HostBringUp):
                 self.counters.decode_errors += 1
             return  # a rejected structure is never delivered (D5)
         if out.name is not None:
-            self._last_rx[out.name] = now
-            self._stale.discard(out.name)
+            self.streams.received(out.name, now)
         if self.state is S.RUNNING_TAC and out.name == "EYEQ_TAC_CAL_MSG":
             self._on_cal_result("TAC", out.fields["tacCalParams"], now)
         elif self.state is S.RUNNING_SPC and out.name == "EYEQ_DYNAMIC_CAL_MSG":
@@ -450,12 +567,10 @@ class HostEmulator(HostBringUp):
     def _on_cal_result(self, mode: str, cal: dict[str, Any], now: float) -> None:
         if self.calibration_result is not None:
             return
-        ok = calibration.outcome(self.codec.cat, self.sw, mode, cal)
-        if ok is None:
-            return  # still running
-        self.calibration_result = {"mode": mode, "ok": ok, "time": now, **{
-            k: cal[k] for k in ("distYaw", "distPitch", "roll", "phYaw", "phPitch") if k in cal}}
-        if ok:  # §21: "update ... only when TAC, SPC or Autofix is successfully completed"
+        result = self.calibration_result = calibration.result(self.codec.cat, self.sw, mode,
+                                                               cal, now)
+        # §21: "update ... only when TAC, SPC or Autofix is successfully completed"
+        if result is not None and result["ok"]:
             self.nvm.data.alignment = alignment_nvm().apply(mode, self.nvm.data.alignment, cal)
             self.nvm.save()
 
@@ -463,51 +578,22 @@ class HostEmulator(HostBringUp):
         for cb in self._subscribers:
             cb(out)
 
-    # -- stale detection --------------------------------------------------------------------
-    def _check_stale(self, now: float) -> None:
-        for name, t in self._last_rx.items():
-            limit = self._stale_limits.get(name)
-            if limit is not None and name not in self._stale and now - t > limit:
-                self._stale.add(name)
-                self.counters.stale_events[name] += 1
-
     @property
     def stale_streams(self) -> set[str]:
-        return set(self._stale)
+        return set(self.streams.stale)
 
     # -- transmit ---------------------------------------------------------------------------
     def _send_veh_state(self, now: float) -> None:
-        self._rolling = (self._rolling + 1) & 0xFFFF
-        signals = self.scenario.signals(now)
-        # the fast twin (host/veh_state_fast.py) where it can say, else the dict path
-        packer = None if exact() else self._veh_packer()
-        wire = None if packer is None else packer.encode(
-            signals, now, self._rolling, self._dasp_counter, self._tx_e2e)
-        if wire is None:
-            msg = self.codec.message("HOST_VEH_STATE_MSG")
-            values = veh_state_values(self.codec.layout(msg).zero_values(), signals, now,
-                                      sw_release(self.sw), self._rolling)
-            try:
-                wire = self.codec.encode_dasp(msg.name, values, self._dasp_counter,
-                                              self._tx_e2e)
-            except LocalProtocolError as exc:
-                self.problem = f"HOST_VEH_STATE_MSG cannot be encoded: {exc}"
-                self._veh_next = None
-                return
-        self._dasp_counter = (self._dasp_counter + 1) & 0xFF
+        try:
+            wire = self.veh_state.encode(self.scenario, now)
+        except LocalProtocolError as exc:
+            self.problem = f"HOST_VEH_STATE_MSG cannot be encoded: {exc}"
+            self.veh_state.next_due = None
+            return
         self.conn.send(wire, now)
         self.counters.sent["HOST_VEH_STATE_MSG"] += 1
         if self.keep_rx_times:
             self.counters.tx_times.append(now)
 
-    def _veh_packer(self) -> VehStatePacker | None:
-        """The template of HOST_VEH_STATE_MSG for our codec (built on first use), None where
-        it cannot be built (the dict path then encodes, or reports why not)."""
-        built = self._veh_packed
-        if built is None or built[0] is not self.codec:
-            try:
-                packer: VehStatePacker | None = VehStatePacker(self.codec, sw_release(self.sw))
-            except (EyeqError, ValueError, KeyError):
-                packer = None
-            built = self._veh_packed = (self.codec, packer)
-        return built[1]
+
+check_entry_handlers(HostEmulator, subclass=False)

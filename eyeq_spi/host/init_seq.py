@@ -14,6 +14,7 @@ from eyeq_spi.catalog.tables import alignment_nvm
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.intrinsic import eeprom_crc_ok, intrinsic_params_from_eeprom, version_text
 from eyeq_spi.errors import LocalProtocolError, SpecError
+from eyeq_spi.host.config import STAGE_OF
 from eyeq_spi.host.nvm import NvmData
 
 
@@ -37,6 +38,29 @@ def has_init_table(stage: int, sw: str, cat: Catalog) -> bool:
     except (SpecError, LocalProtocolError):
         return False
     return True
+
+
+def mode_unavailable(mode: str, sw: str, cat: Catalog) -> str | None:
+    """Why ``mode`` (TAC, SPC) cannot be run in release ``sw``: it needs its init message
+    and the release has no table for it (§7.1.1.7). None where it can (or needs none)."""
+    stage = STAGE_OF.get(mode)
+    if stage is None:
+        return None
+    try:
+        init_message(stage, sw, cat)
+    except (SpecError, LocalProtocolError) as exc:
+        return str(exc)
+    return None
+
+
+def stages(sw: str, cat: Catalog, camera_only_aeb: bool) -> list[int]:
+    """The init messages of the bring-up in order (§6 flow): 0x84 from NVM where the release
+    has its table, 0x78 and 0x79 for a camera-only AEB configuration, then 0x92."""
+    out = [0x84] if has_init_table(0x84, sw, cat) else []
+    if camera_only_aeb:
+        out += [0x78, 0x79]
+    out.append(0x92)
+    return out
 
 
 def init_request(stage: int, sw: str, cat: Catalog, nvm: NvmData, opaque: bytes

@@ -114,7 +114,7 @@ for _state in HostState:
         TRANSITIONS.setdefault((_state, E.FATAL), S.FATAL)
 
 
-# The host method run on entering each state (host/bringup.py). States that share a name share
+# The host method run on entering each state (host/host.py). States that share a name share
 # the action: the three waits poll Get Extended State.
 ENTRY_ACTIONS: dict[HostState, str] = {
     S.POWER_UP: "entry_await_boot",  # §7.1.1.1.4: wait for EYEQ_BOOT_STATUS_MSG, fresh counters
@@ -142,6 +142,28 @@ def _check_entry_actions() -> None:
 
 
 _check_entry_actions()
+
+
+_OLD_STYLE = frozenset(f"_on_{state.value.lower()}" for state in HostState)
+
+
+def check_entry_handlers(cls: type, *, subclass: bool) -> None:
+    """Every method ``ENTRY_ACTIONS`` names exists on ``cls`` (a renamed or removed action
+    fails at import); a ``subclass`` defines no ``entry_*`` method the table does not name and
+    no entry action of the old naming, ``_on_<state>`` (it would never run)."""
+    named = set(ENTRY_ACTIONS.values())
+    if not subclass:
+        missing = [n for n in sorted(named) if not callable(getattr(cls, n, None))]
+        if missing:
+            raise RuntimeError(f"ENTRY_ACTIONS names {', '.join(missing)}, which "
+                               f"{cls.__name__} lacks")
+        return
+    stray = [n for n in vars(cls) if (n.startswith("entry_") and n not in named)
+             or n in _OLD_STYLE]
+    if stray:
+        raise TypeError(
+            f"{cls.__name__} defines {', '.join(stray)}, which no state runs: entry actions "
+            f"are the methods named in host/machine.py ENTRY_ACTIONS ({', '.join(sorted(named))})")
 
 
 def next_state(state: HostState, event: HostEvent) -> HostState | None:

@@ -1,6 +1,6 @@
-"""HOST_VEH_STATE_MSG packed from a template: the fast twin of the dict path.
+"""HOST_VEH_STATE_MSG packed from a template: the fast twin of the reference.
 
-The dict path (the reference, ``HostEmulator._send_veh_state`` with ``EYEQ_SPI_EXACT=1``) fills a
+The reference (``VehicleStateSender.encode`` with ``EYEQ_SPI_EXACT=1``) fills a
 fresh ``zero_values()`` dict with :func:`~eyeq_spi.host.scenario.veh_state_values` at every
 period (§7.1.2.2: 66.67 Hz) and encodes the whole message. Most of it never changes: every
 validity flag but the OBS ones, our API version, the sync flag. :class:`VehStatePacker` encodes
@@ -14,7 +14,7 @@ rolling counter and CRC (D5) with the generated protector
 Whatever the template cannot say for certain it leaves to the reference: a signal that is a
 bitfield (an OBS validity flag), an array or a struct, or a value its leaf's format refuses
 (wrong type, out of range). :meth:`VehStatePacker.encode` then returns None having changed
-nothing, and the caller runs the dict path, which encodes it or reports the problem as it
+nothing, and the caller runs the reference, which encodes it or reports the problem as it
 always has. ``tests/test_host_veh_state_fast.py`` holds both to the same bytes.
 """
 
@@ -31,8 +31,8 @@ from eyeq_spi.codec.message import DASP_PROTOCOL, MessageCodec
 from eyeq_spi.host.scenario import veh_state_values
 
 NAME = "HOST_VEH_STATE_MSG"
-_SKIP = None  # a signal the dict path overwrites before it encodes: never packed
-_REFERENCE = False  # a signal the template cannot pack: the dict path encodes the message
+_SKIP = None  # a signal the reference overwrites before it encodes: never packed
+_REFERENCE = False  # a signal the template cannot pack: the reference encodes the message
 _Slot = tuple[struct.Struct, int] | None | bool
 
 
@@ -75,7 +75,7 @@ class VehStatePacker:
                e2e: E2EState | None) -> bytes | None:
         """The message ``encode_dasp(NAME, veh_state_values(zero_values(), signals, now, api,
         rolling), counter, e2e)`` gives, or None (nothing changed, ``e2e`` included) where the
-        template leaves it to the dict path."""
+        template leaves it to the reference."""
         buf = bytearray(self._template)
         table = self._signals
         try:
@@ -94,7 +94,7 @@ class VehStatePacker:
             if self._rolling is not None:
                 self._rolling[0].pack_into(buf, self._rolling[1], rolling)
         except (struct.error, TypeError, ValueError, OverflowError):
-            return None  # the dict path raises or reports it
+            return None  # the reference raises or reports it
         if not 0 <= counter <= 255:
             return None
         self._protect(buf, e2e)

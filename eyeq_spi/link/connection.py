@@ -40,7 +40,6 @@ The connection never reads a clock: every call takes ``now`` (seconds, any epoch
 
 from __future__ import annotations
 
-import math
 from collections import Counter, OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -61,7 +60,6 @@ from eyeq_spi.link.events import (
     UnexpectedAck,
 )
 from eyeq_spi.link.frame import DATA_SIZE, SEQ_MODULO, FrameCodec, FrameKind, NakReason
-from eyeq_spi.link.run import DataRun
 
 Role = Literal["host", "eyeq"]
 PayloadCheck = Callable[[int, bytes], "NakReason | None"]
@@ -455,89 +453,6 @@ class LinkConnection:
             if not entry[1]:
                 self._events.append(Sent(tag))
 
-    # -- express path (runner/virtual_fast.py) ---------------------------------------------------
-    def in_order(self, frames: list[bytes], times: list[float]) -> int:
-        """How many of ``frames`` (arriving at ``times``, rising), from the first, are good DATA
-        frames with the expected NUMs that this connection accepts and answers at once, each
-        after the ones before it were accepted (:meth:`accept_in_order`): nothing of its own
-        queued, nothing due, the ACK free to go (``control_gap`` passed), no
-        resynchronisation pending. Changes nothing."""
-        if (self._control or self._queue or not self._started or self.payload_check is None
-                or self._naks_in_row >= self.config.resync_after_naks):
-            return 0
-        due = next(iter(self._inflight.values())).deadline if self._inflight else math.inf
-        m, gap = SEQ_MODULO, self.config.control_gap
-        expected, free = self._expected, self._next_ctl
-        # L10: after a reset a NUM 0 frame may be the peer's restart (receive_data judges it)
-        left, until = self._expect_restart_frames, self._expect_restart_until
-        for k, num in enumerate(self.codec.data_nums(frames)):
-            now = times[k]
-            if now < free or due <= now or num != expected or (
-                    num == 0 and (left > k or now <= until)):
-                return k
-            expected, free = (expected + 1) % m, now + gap
-        return len(frames)
-
-    def data_run(self, now: float) -> DataRun | None:
-        """The message this sender is in the middle of, if its rest can be handed over in one
-        step: frames of it in flight and none of another, the rest of it (if any) queued at the
-        head of the queue, the next release after ``now`` if anything is queued, no ACK/NAK of
-        ours waiting, no reset request going out (L10). None otherwise. Changes nothing."""
-        gap = float(self.config.frame_gap or 0.0)
-        queue, inflight = self._queue, self._inflight
-        if (gap <= 0 or not inflight or self._control or (queue and self._next_tx <= now)
-                or self._restart_tag is not None):
-            return None
-        tag, m = next(iter(inflight.values())).tag, SEQ_MODULO
-        num = (self._tx_num - len(inflight)) % m
-        nums, sent = [], []
-        for n, f in inflight.items():
-            if f.tag != tag or n != num:
-                return None  # another message's frame, or a gap
-            nums.append(n)
-            sent.append(f.sent)
-            num = (num + 1) % m
-        datas = []
-        for q in queue:
-            if q.tag != tag:
-                break
-            datas.append(q.data)
-            nums.append(num)
-            num = (num + 1) % m
-        return DataRun(nums, sent, datas, self.codec.acks(nums), self._next_tx, gap,
-                       self.config.ack_timeout, self.config.window,
-                       queue[0].deadline if queue else math.inf, len(datas) < len(queue),
-                       self._last_accepted, self.codec)
-
-    def take_run(self, run: DataRun, released: list[float], acked: list[float]) -> None:
-        """What ``data_to_send`` at each of ``released`` (the queued frames of ``run``, one per
-        call) and ``receive_data`` of the ACKs at each of ``acked`` (frames 0..) do, in one
-        step: the caller (runner/virtual_fast.py) computed these times so that nothing else
-        happens in between, every frame is released in its turn and every ACK settles a frame
-        of the message and comes before its ackTimeout. The ACK of the message's last frame
-        queues ``Sent`` (or nothing, for a message that failed), as ``receive_data`` does."""
-        cfg, queue, inflight = self.config, self._queue, self._inflight
-        m = SEQ_MODULO
-        for s in released:
-            q = queue.popleft()
-            num = self._tx_num
-            self._tx_num = (num + 1) % m
-            inflight[num] = _InFlight(q.tag, s + cfg.ack_timeout, s)
-            self._next_tx = s + run.gap
-        if acked:
-            tag = inflight[run.nums[0]].tag
-            entry = self._tags[tag]
-            latency = self.ack_latency
-            for num, c in zip(run.nums, acked, strict=False):
-                latency[int((c - inflight.pop(num).sent) * 1e5)] += 1
-            self.counters.framesAcked += len(acked)
-            entry[0] -= len(acked)
-            if entry[0] <= 0:  # the message's last ACK, as _settle takes it
-                del self._tags[tag]
-                if not entry[1]:
-                    self._events.append(Sent(tag))
-        self.counters.busyFrames = len(inflight)
-
     def _accepted_frame(self, num: int, transfer: bytes) -> None:
         """A DATA frame accepted (L6): E moves past it, and it joins the last W accepted
         frames L6a tells duplicates from peer resets by."""
@@ -551,58 +466,3 @@ class LinkConnection:
         while acc and (self._expected - next(iter(acc))) % m > self.config.window:
             acc.popitem(last=False)  # only [E-W, E) can be a duplicate
         self.counters.framesReceived += 1
-
-    def accept_in_order(self, frames: list[bytes], times: list[float]) -> None:
-        """What ``receive_data``, ``handle_timer`` and ``data_to_send`` at each of ``times`` do
-        with the frames :meth:`in_order` counted, once the layer above checked their payloads:
-        accept them (L6, as :meth:`_accepted_frame` does one by one) and release their ACKs
-        (``codec.ack`` of each NUM). The payloads go to the caller, not into the event
-        queue."""
-        m, w = SEQ_MODULO, self.config.window
-        acc = self._accepted
-        num = self._expected
-        for transfer in frames:
-            acc.pop(num, None)
-            acc[num] = bytes(transfer)
-            num = (num + 1) % m
-        # only [E-W, E) can be a duplicate: trimmed once for the run, which leaves what a trim
-        # after each frame leaves (a NUM's distance behind E only grows while E moves on, and
-        # a NUM that E reaches again is taken out and put back above)
-        while acc and (num - next(iter(acc))) % m > w:
-            acc.popitem(last=False)
-        self._naks_in_row = 0
-        self._expected = num
-        self._last_accepted = (num - 1) % m
-        # L10: each DATA frame received counts down the frames that may still be the peer's
-        self._expect_restart_frames = max(0, self._expect_restart_frames - len(frames))
-        self.counters.framesReceived += len(frames)
-        self.counters.busyFrames = len(self._inflight)
-        self._next_ctl = times[len(frames) - 1] + self.config.control_gap
-
-    def ack_in_flight(self, transfer: bytes, now: float, last: bool = False) -> bool:
-        """``receive_data`` of a good ACK for a frame in flight whose message has more frames
-        to settle, where nothing is due at ``now`` (no frame to send, no timeout): settle the
-        frame and return True. False, with nothing changed, for any other frame or state.
-        ``last``: also the last frame of its message (``Sent``, or the end of a failure, then
-        goes to the event queue as in ``receive_data``)."""
-        if len(transfer) != 128 or (self._control and self._next_ctl <= now):
-            return False
-        if self._queue and (self._next_tx <= now or self._queue[0].deadline <= now):
-            return False
-        if self._inflight and next(iter(self._inflight.values())).deadline <= now:
-            return False  # an ACK timeout is due first
-        d, r, rsp, _, crc_ok = self.codec.judge(transfer)
-        if d != _ACK or r != 0 or not crc_ok:
-            return False
-        f = self._inflight.get(rsp)
-        if f is None:
-            return False
-        entry = self._tags.get(f.tag)
-        if entry is None or (entry[0] <= 1 and not last):
-            return False  # the last frame of its message: Sent or the end of a failure
-        del self._inflight[rsp]
-        self.ack_latency[int((now - f.sent) * 1e5)] += 1
-        self.counters.busyFrames = len(self._inflight)
-        self.counters.framesAcked += 1
-        self._settle(f.tag)
-        return True

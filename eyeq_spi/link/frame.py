@@ -106,7 +106,6 @@ class Frame:
 
 
 _ZERO_DATA = bytes(DATA_SIZE)
-_DATA_KIND = int(FrameKind.DATA)
 
 
 class FrameCodec:
@@ -180,11 +179,6 @@ class FrameCodec:
             frame = self._acks[num] = self.encode(Frame(FrameKind.ACK, 0, num, 0))
         return frame
 
-    def acks(self, nums: list[int]) -> list[bytes]:
-        """:meth:`ack` of each NUM."""
-        cache, ack = self._acks, self.ack
-        return [cache.get(n) or ack(n) for n in nums]
-
     def nak(self, num: int, reason: NakReason) -> bytes:
         """L5: a NAK's RSP is the rejected frame's NUM, its NUM holds the reason."""
         return self.encode(Frame(FrameKind.NAK, 0, num, int(reason)))
@@ -214,49 +208,6 @@ class FrameCodec:
             ok = self.crc(transfer[:4] + transfer[6:]) == crc
         return (d, (word >> self._r[0]) & self._r[1], (word >> self._rsp[0]) & self._rsp[1],
                 (word >> self._num[0]) & self._num[1], ok)
-
-    def data_nums(self, transfers: list[bytes]) -> list[int | None]:
-        """For each transfer, its NUM if it is a 128-byte DATA frame with R 0 and a good CRC,
-        else None (what :meth:`judge` reads, for a receiver's run of frames in order)."""
-        crc, d, r, n = self.crc, self._d, self._r, self._num
-        out: list[int | None] = []
-        if self._hqx:  # CCITT-FALSE: crc_hqx chained over header and data, nothing joined
-            h, dmask, rmask, data_word = binascii.crc_hqx, d[1] << d[0], r[1] << r[0], \
-                self._data_word
-            for t in transfers:
-                if len(t) != FRAME_SIZE:
-                    out.append(None)
-                    continue
-                word = int.from_bytes(t[:4], "little")
-                ok = (word & dmask == data_word and not word & rmask
-                      and h(t[6:], h(t[:4], 0xFFFF)) == t[4] | t[5] << 8)
-                out.append((word >> n[0]) & n[1] if ok else None)
-            return out
-        for t in transfers:
-            if len(t) != FRAME_SIZE:
-                out.append(None)
-                continue
-            word = int.from_bytes(t[:4], "little")
-            ok = ((word >> d[0]) & d[1] == _DATA_KIND and not (word >> r[0]) & r[1]
-                  and crc(t[:4] + t[6:]) == int.from_bytes(t[4:6], "little"))
-            out.append((word >> n[0]) & n[1] if ok else None)
-        return out
-
-    def data_header_num(self, transfer: bytes) -> int | None:
-        """The NUM of a 128-byte transfer whose header says DATA with R 0, else None: what
-        :meth:`data_num` reads, the CRC left unjudged (the runner's handover tells its frames
-        in flight by their NUMs; the receiver judges each when it takes it)."""
-        if len(transfer) != FRAME_SIZE:
-            return None
-        word = int.from_bytes(transfer[:4], "little")
-        d, r, n = self._d, self._r, self._num
-        if (word >> d[0]) & d[1] != _DATA_KIND or (word >> r[0]) & r[1]:
-            return None
-        return (word >> n[0]) & n[1]
-
-    def data_num(self, transfer: bytes) -> int | None:
-        """:meth:`data_nums` of one transfer."""
-        return self.data_nums([transfer])[0]
 
     def crc_ok(self, transfer: bytes, frame: Frame) -> bool:
         return self.compute_crc(frame.d, transfer[:4], transfer[6:]) == frame.crc

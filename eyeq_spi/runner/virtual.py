@@ -19,14 +19,15 @@ fault campaign) is seen.
 from __future__ import annotations
 
 import heapq
+import math
 import time
 from collections.abc import Callable
 
 from eyeq_spi.phy.base import Adapter
 from eyeq_spi.runner.node import Node
-from eyeq_spi.runner.virtual_fast import Express
-from eyeq_spi.runner.virtual_types import Tap
-from eyeq_spi.twins import exact
+
+Tap = Callable[[int, float, bytes], None]
+"""Called for every transfer a node puts on the wire: (node index, time, transfer)."""
 
 
 class VirtualRunner:
@@ -48,7 +49,6 @@ class VirtualRunner:
         tap: Tap | None = None,
         max_steps_per_instant: int = 100_000,
         self_contained: frozenset[int] = frozenset(),
-        express: bool | None = None,
     ) -> None:
         self.nodes = nodes
         self.latency = latency
@@ -60,11 +60,11 @@ class VirtualRunner:
         self._max_steps = max_steps_per_instant
         self.wall_s = 0.0  # wall-clock and CPU time spent in run_until
         self.cpu_s = 0.0
-        n = len(nodes)
-        self._timer: list[float | None] = [None] * n  # cached get_timer()
-        self._known = [False] * n  # _timer[i] is still what get_timer() would say
-        self._quiet = [False] * n  # data_to_send(now) gave nothing and nothing touched it since
-        self._fresh = [True] * n  # touched since its last data_to_send
+        count = len(nodes)
+        self._timer: list[float | None] = [None] * count  # cached get_timer()
+        self._known = [False] * count  # _timer[i] is still what get_timer() would say
+        self._quiet = [False] * count  # data_to_send(now) gave nothing and nothing touched it since
+        self._fresh = [True] * count  # touched since its last data_to_send
         # nodes that promise SELF_CONTAINED (see Node): touching them leaves the others' caches
         # (declared by the node's own class: a subclass that rewrites the output, such as a
         # conformance mutant withholding ACKs, does not inherit the promise)
@@ -72,20 +72,16 @@ class VirtualRunner:
         # only outside effect (the host's reset line) to call :meth:`touch_all`
         self._alone = [vars(type(node)).get("SELF_CONTAINED") is True or i in self_contained
                        for i, (node, _) in enumerate(nodes)]
-        # express instants (runner/virtual_fast.py) where they apply; ``express=False`` or
-        # EYEQ_SPI_EXACT=1: the general loop only (the reference)
-        self.express = (not exact()) if express is None else express
-        self._express: Express | None = None
 
     # -- caches -----------------------------------------------------------------------------
     def touch_all(self) -> None:
         """Forget every node's cached deadline and quiet state: after code drove a node from
         outside, or for a call that acts on another node from inside a node (the emulator's
         reset line powers the simulated EyeQ up)."""
-        n = len(self.nodes)
-        self._known[:] = [False] * n
-        self._quiet[:] = [False] * n
-        self._fresh[:] = [True] * n
+        count = len(self.nodes)
+        self._known[:] = [False] * count
+        self._quiet[:] = [False] * count
+        self._fresh[:] = [True] * count
 
     def _touch(self, i: int) -> None:
         """Node ``i`` received a transfer or handled a timer."""
@@ -98,14 +94,15 @@ class VirtualRunner:
     def _deadline(self, i: int) -> float | None:
         if not self._known[i]:
             self._known[i] = True
-            t = self._timer[i] = self.nodes[i][0].get_timer()
-            return t
-        t = self._timer[i]
+            timer = self._timer[i] = self.nodes[i][0].get_timer()
+            return timer
+        timer = self._timer[i]
         if self.verify:
             fresh = self.nodes[i][0].get_timer()
-            if fresh != t:
-                raise AssertionError(f"node {i}: cached deadline {t} but get_timer() is {fresh}")
-        return t
+            if fresh != timer:
+                raise AssertionError(f"node {i}: cached deadline {timer} but get_timer() is "
+                                     f"{fresh}")
+        return timer
 
     def _drain(self, sender: int) -> None:
         """Put what reached the other nodes' adapters in flight, to arrive ``latency`` later."""
@@ -113,10 +110,10 @@ class VirtualRunner:
         for j, (_, other) in enumerate(self.nodes):
             if j == sender:
                 continue
-            while (t := other.recv(0)) is not None:
+            while (transfer := other.recv(0)) is not None:
                 # a memory pair delivers to exactly one peer, so attribute it to `j`
                 self._seq += 1
-                heapq.heappush(self._transit, (at, self._seq, j, t))
+                heapq.heappush(self._transit, (at, self._seq, j, transfer))
 
     # -- one instant ------------------------------------------------------------------------
     def _pump(self, drain_all: bool = False) -> None:
@@ -125,10 +122,10 @@ class VirtualRunner:
         nodes, now, transit, tap = self.nodes, self.now, self._transit, self.tap
         quiet, known, fresh, alone = self._quiet, self._known, self._fresh, self._alone
         timers, cached = self._timer, not self.verify
-        n = len(nodes)
+        count = len(nodes)
         for _ in range(self._max_steps):
             progress = False
-            for i in range(n):
+            for i in range(count):
                 if quiet[i]:
                     if drain_all:
                         self._drain(i)
@@ -165,7 +162,7 @@ class VirtualRunner:
                 nodes[to][0].receive_data(transfer, now)
                 self._touch(to)
                 progress = True
-            for i in range(n):
+            for i in range(count):
                 timer = timers[i] if cached and known[i] else self._deadline(i)
                 if timer is not None and timer <= now:
                     nodes[i][0].handle_timer(now)
@@ -178,9 +175,9 @@ class VirtualRunner:
     def _next(self) -> float | None:
         best = self._transit[0][0] if self._transit else None
         for i in range(len(self.nodes)):
-            t = self._deadline(i)
-            if t is not None and (best is None or t < best):
-                best = t
+            due = self._deadline(i)
+            if due is not None and (best is None or due < best):
+                best = due
         return best
 
     def next_time(self) -> float | None:
@@ -191,17 +188,12 @@ class VirtualRunner:
     # -- running ----------------------------------------------------------------------------
     def run_until(
         self, t_end: float, *, stop: Callable[[], bool] | None = None, realtime: bool = False,
-        driven: bool = True, pace_origin: tuple[float, float] | None = None,
+        pace_origin: tuple[float, float] | None = None,
     ) -> float:
         """Advance to ``t_end`` (or until ``stop()`` is true). Returns the time reached.
 
         ``realtime`` paces virtual time to the wall clock (sleeping ahead of each event), so an
         in-process emulation runs at the speed of a real bench.
-        ``driven=False``: the caller promises that nothing drove a node or fed an adapter since
-        the last ``run_until`` returned (the emulator's slices only read the host in between),
-        so the caches it left stay valid: the express instants go on from where they stopped
-        without a round of the general loop at the start (with ``EYEQ_SPI_EXACT=1`` or
-        ``express=False`` the caches are dropped all the same, the reference).
         ``pace_origin``: ``(perf_counter, virtual time)`` of one instant that paces every call
         of a run made of many (default: this call's start), so the time spent between calls
         does not add up into a run slower than the clock.
@@ -209,7 +201,7 @@ class VirtualRunner:
         w0, c0 = time.perf_counter(), time.process_time()
         pace = (pace_origin or (w0, self.now)) if realtime else None
         try:
-            return self._run(t_end, stop, pace, driven)
+            return self._run(t_end, stop, pace)
         finally:
             self.wall_s += time.perf_counter() - w0
             self.cpu_s += time.process_time() - c0
@@ -234,20 +226,16 @@ class VirtualRunner:
 
     def _run(
         self, t_end: float, stop: Callable[[], bool] | None, pace: tuple[float, float] | None,
-        driven: bool = True,
     ) -> float:
-        if driven or not self.express or self.verify:
-            self.touch_all()  # nodes may have been driven from outside since the last call
-            self._pump(drain_all=True)
-        fast = None
-        if self.express and stop is None and pace is None and not self.verify \
-                and Express.eligible(self):
-            fast = self._express = self._express or Express(self)
+        self.touch_all()  # nodes may have been driven from outside since the last call
+        self._pump(drain_all=True)
+        lone = stop is None and pace is None and not self.verify and len(self.nodes) == 2 \
+            and all(self._alone) and self.latency > 0
         while stop is None or not stop():
             if stop is not None:
                 self.touch_all()
-            if fast is not None:
-                fast.run(t_end)
+            if lone:
+                self._lone_instants(t_end)
             nxt = self._next()
             if nxt is None or nxt > t_end:
                 if pace is not None:  # a quiet stretch takes its wall time too
@@ -265,5 +253,88 @@ class VirtualRunner:
             self._pump()
         return self.now
 
+    def _lone_instants(self, t_end: float) -> None:
+        """Run the instants up to ``t_end`` at which exactly one thing happens (one transfer
+        arrives, or one node's deadline comes) for two self-contained nodes, while both are
+        quiet with known deadlines: the calls ``_pump`` would make on the one node concerned,
+        in its order, without its rounds over both nodes. Returns at the first other instant
+        (``_pump`` takes it), with the caches as ``_pump`` would have left them."""
+        quiet, known, fresh, timers, transit = (self._quiet, self._known, self._fresh,
+                                                self._timer, self._transit)
+        if not (quiet[0] and quiet[1] and known[0] and known[1]) or fresh[0] or fresh[1]:
+            return
+        nodes, inf = self.nodes, math.inf
+        while True:
+            t0 = inf if timers[0] is None else timers[0]
+            t1 = inf if timers[1] is None else timers[1]
+            arrival = transit[0][0] if transit else inf
+            t = min(t0, t1, arrival, inf)
+            if t > t_end or t == inf or t < self.now \
+                    or (t0 == t) + (t1 == t) + (arrival == t) != 1 \
+                    or (arrival == t and len(transit) > 1 and _second(transit) <= t):
+                return  # nothing more to do here, or more than one thing at t
+            self.now = t
+            if arrival == t:
+                _, _, j, transfer = heapq.heappop(transit)
+                node = nodes[j][0]
+                node.receive_data(transfer, t)
+                if not known[1 - j]:  # it acted on the other node (the reset line)
+                    self._finish_instant(t, 0)
+                    return
+                timer = node.get_timer()
+                known_j = timer is None or timer > t
+                if not known_j:
+                    node.handle_timer(t)
+                    if not known[1 - j]:
+                        self._finish_instant(t, j + 1)
+                        return
+                touched = True  # asked for data in the next round
+            else:
+                j = 0 if t0 == t else 1
+                node, timer, known_j, touched = nodes[j][0], timers[j], True, False
+            for _ in range(self._max_steps):  # _pump's rounds for node j alone
+                outs = node.data_to_send(t)
+                if outs:
+                    known_j = False
+                    adapter = nodes[j][1]
+                    for out in outs:
+                        if self.tap is not None:
+                            self.tap(j, t, out)
+                        adapter.send(out)
+                    self._drain(j)
+                elif touched:
+                    known_j = False
+                touched = False
+                if not known_j:
+                    timer, known_j = node.get_timer(), True
+                if timer is not None and timer <= t:
+                    node.handle_timer(t)
+                    if not known[1 - j]:
+                        self._finish_instant(t, j + 1)
+                        return
+                    known_j, touched = False, True
+                    continue
+                break
+            else:
+                raise RuntimeError(f"no quiescence at t={t}: a node keeps asking for work")
+            timers[j] = timer
+
+    def _finish_instant(self, t: float, first: int) -> None:
+        """A node's call acted on the other node (``touch_all``, as the host's reset line
+        does): finish the instant as ``_pump`` would from its timer checks at node ``first``."""
+        for i in range(first, len(self.nodes)):
+            timer = self._deadline(i)
+            if timer is not None and timer <= t:
+                self.nodes[i][0].handle_timer(t)
+                self._touch(i)
+        self._pump()
+
     def run_for(self, duration: float, *, stop: Callable[[], bool] | None = None) -> float:
         return self.run_until(self.now + duration, stop=stop)
+
+
+def _second(transit: list[tuple[float, int, int, bytes]]) -> float:
+    """The arrival time of the second transfer in flight (a heap's second smallest)."""
+    if len(transit) == 2:
+        return transit[1][0]
+    return min(transit[1][0], transit[2][0])

@@ -20,9 +20,9 @@ class SimConfig:
     sw_version: tuple[int, int] | None = None  # None: the release of ``sw``
     # rates (§7.1.4, §7.1.5)
     dasp_rate: float = 18.0
-    # DASP payloads packed in place (sim/dasp_fast.py); False: the dict path
-    # (Scene.fill + MessageCodec.encode_dasp), the reference it is tested against; None: packed
-    # unless EYEQ_SPI_EXACT=1 asks for the references
+    # DASP payloads packed in place (sim/dasp_fast.py); False: the reference (Scene.fill +
+    # MessageCodec.encode_dasp), which the packer is tested against; None: packed unless
+    # EYEQ_SPI_EXACT=1 asks for the references
     dasp_packer: bool | None = None
     diag_rate: float = 37.0
     # scene (numpy model)

@@ -5,14 +5,14 @@ Theory of operation
 -------------------
 A :class:`DaspPacker` holds the payload of one DASP message at one SW release as a ``bytearray``
 that starts as ``Layout.build(zero_values())`` (so bitfield containers carry their unused bits set,
-D2) and is reused from frame to frame, exactly as the dict path reuses its value dict: a member
+D2) and is reused from frame to frame, exactly as the reference reuses its value dict: a member
 nobody writes keeps its last value.
 
 Its :class:`StructView` tree mirrors that value dict (nested structs are views, arrays of structs
 are lists of views) and supports what the fillers do to a dict: ``key in v``, ``v.get(key)``,
 ``v[key]`` and ``v[key] = x``, ``v.update(...)``. Every offset, ``struct`` format and bitfield
 position comes from the :class:`~eyeq_spi.codec.layout.Layout` (hence from ``specs/``), never by
-hand. Writing a leaf packs it at once, with the errors the dict path's encoder would raise
+hand. Writing a leaf packs it at once, with the errors the reference's encoder would raise
 (:class:`~eyeq_spi.errors.LocalProtocolError`). The fillers' writers in
 :mod:`eyeq_spi.sim.scene_write` notice views: they pack whole rows of an array of structs with
 generated code (the obstacles as numpy columns), bind writers to views once and write constants
@@ -21,7 +21,7 @@ once.
 :meth:`DaspPacker.encode` then fills the rolling counters and CRCs (D5, generated from
 ``Layout.crc_plan`` like :func:`eyeq_spi.codec.e2e.compile_verifier`; same order and values as
 :func:`eyeq_spi.codec.e2e.protect`) and prepends the §7.1.2 DASP header, as
-``MessageCodec.encode_dasp`` does. The dict path stays the reference the tests hold this to.
+``MessageCodec.encode_dasp`` does. The reference stays what the tests hold this to.
 """
 
 from __future__ import annotations
@@ -98,7 +98,7 @@ class StructView:
     def __init__(self, buf: bytearray, lay: Layout, base: int, keep: bool,
                  cache: dict[Any, Any]) -> None:
         self.buf, self.layout, self.base, self.cache = buf, lay, base, cache
-        self.template: dict[str, Any] | None = None  # the root's: the dict path's template
+        self.template: dict[str, Any] | None = None  # the root's: the reference's template
         self.writers: dict[Any, Any] = {}  # scene_write._puts' generated writers for this view
         self.done: set[Any] = set()  # scene_write._puts_once: constants written since reset
         key = ("slots", id(lay))
@@ -151,7 +151,7 @@ class StructView:
                     raise LocalProtocolError(f"{key} needs {len(kid)} elements, got {len(value)}")
                 for view, v in zip(kid, value, strict=True):
                     view.assign(v)
-            return  # a member this release lacks: the dict path's encoder ignores it too
+            return  # a member this release lacks: the reference's encoder ignores it too
         o = self.base + s.offset
         try:
             if s.kind == SCALAR:
@@ -176,7 +176,7 @@ class StructView:
             self[k] = v
 
     def assign(self, values: Mapping[str, Any]) -> None:
-        """A whole struct at once (the dict path replaces its sub-dict): every member needed."""
+        """A whole struct at once (the reference replaces its sub-dict): every member needed."""
         missing = [k for k in (*self.slots, *self.kids) if k not in values]
         if missing:
             raise LocalProtocolError(f"{self.layout.name}: missing member {missing[0]}")
@@ -196,7 +196,7 @@ class DaspPacker:
 
     def __init__(self, layout: Layout, data_id: int) -> None:
         self.layout = layout
-        self.template = layout.zero_values()  # the dict path's template: its shape picks ranges
+        self.template = layout.zero_values()  # the reference's template: its shape picks ranges
         self._zero = layout.build(self.template)
         self.buf = bytearray(self._zero)
         self.cache: dict[Any, Any] = {}
@@ -215,7 +215,7 @@ class DaspPacker:
             return None
 
     def reset(self) -> None:
-        """Back to the zero template (as the dict path's fresh ``zero_values()`` dict)."""
+        """Back to the zero template (as the reference's fresh ``zero_values()`` dict)."""
         self.buf[:] = self._zero
         self.root.reset()
 

@@ -33,6 +33,7 @@ boot status, 0x41 and DASP.
 
 from __future__ import annotations
 
+import enum
 import math
 from collections import Counter, deque
 from typing import Any
@@ -50,7 +51,6 @@ from eyeq_spi.codec.intrinsic import (
 from eyeq_spi.codec.message import DaspCounters, MessageCodec, is_mesp
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.link.connection import LinkConfig
-from eyeq_spi.link.run import DataRun
 from eyeq_spi.mesp.server import MespServer
 from eyeq_spi.sim.calibration import fill_calibration, strip_crc
 from eyeq_spi.sim.config import SimConfig
@@ -71,6 +71,20 @@ from eyeq_spi.sim.schedule import DueHeap
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 from eyeq_spi.twins import exact
+
+
+class Phase(enum.Enum):
+    """Where the EyeQ is between power and its application; each phase but the last two
+    ends at ``SimulatedEyeQ.phase_due`` (``handle_timer`` moves it on)."""
+
+    OFF = "off"  # no power: it hears and says nothing
+    BOOTING = "booting"  # the boot status goes out at phase_due
+    STARTING = "starting"  # the boot passed: the application starts at phase_due
+    HALTED = "halted"  # the boot failed: nothing more until the next reset
+    RUNNING = "running"  # the application: 0x41, MESP, DASP in the mode of main_state
+
+
+TIMED_PHASES = frozenset({Phase.BOOTING, Phase.STARTING})
 
 
 class SimulatedEyeQ(MespFunctions):
@@ -130,20 +144,17 @@ class SimulatedEyeQ(MespFunctions):
         self._scene_frame: int | None = None  # the camera frame the scene was last stepped to
         self._dasp_min = 0.0  # min(_next_dasp.values()) when _next_dasp is not empty
         self._due = DueHeap()  # _next_dasp as a heap (sim/schedule.py)
-        self._packers: dict[str, DaspPacker | None] = {}  # None: this message takes the dict path
+        self._packers: dict[str, DaspPacker | None] = {}  # None: this message takes the reference
         self.dasp_paths: Counter[str] = Counter()  # debug stat: messages sent "packed" / "dict"
-        self.powered = False
-        self.app_running = False
+        self.phase = Phase.OFF
+        self.phase_due: float | None = None  # when a TIMED_PHASES phase ends
         self.now = 0.0
-        self._reset_done = False
-        self._boot_at: float | None = None
-        self._app_at: float | None = None
+        self._reset_done = False  # the configured reset (SimConfig.reset_at) happened
         self.main_state = 0
         self.sub_state = 0
         self.fatal_error = 0
         self._boot_number = 0
-        self._init_ok = False
-        self._veh_state_seen = False
+        self._init_ok = False  # 0x92 accepted in Pending Vision
         self._cal_started: float | None = None
         self._next_diag = 0.0
         self._next_dasp: dict[str, float] = {}
@@ -188,18 +199,15 @@ class SimulatedEyeQ(MespFunctions):
         # L10: after a reset of ours the host's numbering is unknown: its first DATA frame
         # after the boot sets E. At the first power-up both sides start together at 0 (L4).
         self.conn.reset(learn=self.powered)
-        self.powered = True
         while self.conn.next_event() is not None:
             pass
         # a reset loses the delayed replies: the host never gets them (late ones are counted)
         self.counters.mesp_replies_dropped += sum(not late for _, _, late in self._replies)
         self._replies.clear()
-        self._boot_at = now + self.config.boot_delay
-        self._app_at = None
-        self.app_running = False
+        self.phase, self.phase_due = Phase.BOOTING, now + self.config.boot_delay
         self.main_state = self.sub_state = 0
         self.fatal_error = 0
-        self._init_ok = self._veh_state_seen = False
+        self._init_ok = False
         self._cal_started = None
         self._rx_counter.clear()
         self._rx_e2e = E2EState()
@@ -209,74 +217,37 @@ class SimulatedEyeQ(MespFunctions):
 
     reset = power_up
 
+    @property
+    def powered(self) -> bool:
+        return self.phase is not Phase.OFF
+
+    @property
+    def app_running(self) -> bool:
+        return self.phase is Phase.RUNNING
+
+    def _phase_over(self, now: float) -> bool:
+        due = self.phase_due
+        return due is not None and now >= due
+
     def _start_app(self, now: float) -> None:
-        self._app_at = None
-        self.app_running = True
+        self.phase, self.phase_due = Phase.RUNNING, None
         self.main_state, self.sub_state = PENDING, PENDING_VISION
-        self._init_ok = self._veh_state_seen = False
+        self._init_ok = False
         self._next_diag = now
 
     # -- node interface ---------------------------------------------------------------------
     def receive_data(self, transfer: bytes, now: float) -> None:
-        if not self.powered:
+        if self.phase is Phase.OFF:
             return
         self.now = now
         self.conn.receive_data(transfer, now)
         self._drain(now)
 
     def data_to_send(self, now: float) -> list[bytes]:
-        return self.conn.data_to_send(now) if self.powered else []
-
-    def express_absorb(self, transfer: bytes, now: float) -> list[bytes] | None:
-        """runner/virtual_fast.py: ``receive_data`` and ``data_to_send`` at the same ``now`` in one
-        step for an ACK that settles a frame of a message still going out and lets no frame go
-        (what they hand over: nothing). None, with nothing changed, for anything else. Called
-        only while :meth:`get_timer` is later than ``now`` (the runner's promise)."""
-        if not self.powered or not self.conn.absorb_ack(transfer, now):
-            return None
-        self.now = now
-        return []
-
-    def express_take(self, frames: list[bytes], times: list[float], acks: list[bytes]) -> int:
-        """runner/virtual_fast.py: ``receive_data``, ``handle_timer`` and ``data_to_send`` of
-        ``frames[k]`` at ``times[k]`` (rising) in one step, frame after frame, while each
-        continues a message and its ACK is ``acks[k]``
-        (:meth:`TransportConnection.absorb_run`); in Running Vision the last may complete a DASP
-        message of the host's, which is handled as ``receive_data`` handles it (it changes no
-        deadline of ours). How many it took. Called only with ``times`` before our deadline
-        (the runner's promise): ``handle_timer`` then has nothing to do."""
-        if not self.powered:
-            return 0
-        n, message = self.conn.absorb_message(
-            frames, times, acks, _is_dasp if self.main_state == RUNNING_VISION else None)
-        if n:
-            self.now = times[n - 1]
-        if message is not None:
-            self._on_message(message, self.now)
-        return n
-
-    def express_run(self, now: float) -> DataRun | None:
-        """runner/virtual_fast.py: the rest of the message whose frame went out at ``now``, to
-        be handed over in one step before anything of ours other than its frames is due
-        (``until``); None when our link cannot tell (:meth:`TransportConnection.data_run`)."""
-        run = self.conn.data_run(now) if self.powered else None
-        if run is not None:
-            own = self._own_timer()
-            if own is not None and own < run.until:
-                run.until = own
-        return run
-
-    def express_run_take(self, run: DataRun, released: list[float], acked: list[float]) -> None:
-        """The frames of ``run`` released at ``released`` and the ACKs taken at ``acked``, as the
-        runner's calls at those times would (:meth:`TransportConnection.take_run`; the ACK of
-        the message's last frame completes it, and its ``MessageSent`` is drained)."""
-        self.conn.take_run(run, released, acked)
-        if acked:
-            self.now = acked[-1]
-            self._drain(self.now)
+        return [] if self.phase is Phase.OFF else self.conn.data_to_send(now)
 
     def get_timer(self) -> float | None:
-        if not self.powered:
+        if self.phase is Phase.OFF:
             return None
         # asked after every event (runner/virtual.py): no temporary lists here
         best = self.conn.get_timer()
@@ -286,29 +257,26 @@ class SimulatedEyeQ(MespFunctions):
     def _own_timer(self) -> float | None:
         """The deadline of the EyeQ itself, its link's and transport's apart."""
         # asked after every event: straight comparisons, no temporary tuple
-        best = self._boot_at
-        t = self._app_at
-        if t is not None and (best is None or t < best):
-            best = t
+        best = self.phase_due
         if not self._reset_done:
-            t = self.config.reset_at
-            if t is not None and (best is None or t < best):
-                best = t
+            due = self.config.reset_at
+            if due is not None and (best is None or due < best):
+                best = due
         if self._replies:
-            t = self._replies[0][0]
-            if best is None or t < best:
-                best = t
-        if self.app_running:
+            due = self._replies[0][0]
+            if best is None or due < best:
+                best = due
+        if self.phase is Phase.RUNNING:
             if best is None or self._next_diag < best:
                 best = self._next_diag
             if self._dasp_mode() is not None:
-                t = self._dasp_min if self._next_dasp else self.now
-                if t < best:
-                    best = t
+                due = self._dasp_min if self._next_dasp else self.now
+                if due < best:
+                    best = due
         return best
 
     def handle_timer(self, now: float) -> None:
-        if not self.powered:
+        if self.phase is Phase.OFF:
             return
         self.now = now
         cfg = self.config
@@ -317,14 +285,13 @@ class SimulatedEyeQ(MespFunctions):
             self.counters.self_resets += 1
             self.power_up(now)
         self.conn.handle_timer(now)
-        if self._boot_at is not None and now >= self._boot_at:
-            self._boot_at = None
+        if self.phase is Phase.BOOTING and self._phase_over(now):
             self._send_boot_status(now)
-        if self._app_at is not None and now >= self._app_at:
+        if self.phase is Phase.STARTING and self._phase_over(now):
             self._start_app(now)
         while self._replies and self._replies[0][0] <= now:
             self._send(self._replies.popleft()[1], now)
-        if self.app_running:
+        if self.phase is Phase.RUNNING:
             if now >= self._next_diag:
                 self._send_diag(now)
                 self._next_diag = max(self._next_diag + 1.0 / cfg.diag_rate, now)
@@ -381,7 +348,6 @@ class SimulatedEyeQ(MespFunctions):
         if out.name == "HOST_VEH_STATE_MSG":
             self.counters.msg20_rx = (self.counters.msg20_rx + 1) & 0xFFFF
             self.counters.rolling_count_echo = int(out.fields.get("SPI_Rolling_Count", 0))
-            self._veh_state_seen = True
             if self.main_state == RUNNING_VISION and self._last_veh is not None \
                     and now - self._last_veh > VEH_STATE_STALE:
                 self.counters.veh_state_stale += 1
@@ -402,16 +368,16 @@ class SimulatedEyeQ(MespFunctions):
     def _vehicle_signal(self, vs: dict[str, Any], name: str) -> float | None:
         """A host signal the scene may use: flagged valid, finite and inside the seed's range
         (§7.1.2.2 host_vehicle_state_t); otherwise None (the scene keeps its last value)."""
-        v = vs.get(name)
+        value = vs.get(name)
         valid = vs.get(f"{name}Validity", 1)
         lo, hi = self._veh_ranges.get(name, (-math.inf, math.inf))
-        if v is None:
+        if value is None:
             return None
-        if valid != 1 or not isinstance(v, int | float) or not math.isfinite(v) \
-                or not lo <= v <= hi:
+        if valid != 1 or not isinstance(value, int | float) or not math.isfinite(value) \
+                or not lo <= value <= hi:
             self.counters.rejected_values += 1
             return None
-        return float(v)
+        return float(value)
 
     # -- transmit ---------------------------------------------------------------------------
     def _send(self, message: bytes, now: float) -> None:
@@ -435,9 +401,11 @@ class SimulatedEyeQ(MespFunctions):
         })
         self._send(self.codec.encode_other("BOOT", values), now)
         self.counters.sent["EYEQ_BOOT_STATUS_MSG"] += 1
-        if not failing:
+        if failing:
+            self.phase, self.phase_due = Phase.HALTED, None
+        else:
             self.main_state, self.sub_state = BOOT, 0  # MESP answers while the app starts
-            self._app_at = now + cfg.app_start_delay
+            self.phase, self.phase_due = Phase.STARTING, now + cfg.app_start_delay
 
     def _send_diag(self, now: float) -> None:
         cfg = self.config
@@ -460,11 +428,11 @@ class SimulatedEyeQ(MespFunctions):
         return MODE_OF_STATE.get(self.main_state)
 
     def _template(self, name: str, payload: str) -> dict[str, Any]:
-        t = self._templates.get(name)
-        if t is None:
-            t = self.codec.layouts.get(payload, self.sw).zero_values()
-            self._templates[name] = t
-        return t
+        template = self._templates.get(name)
+        if template is None:
+            template = self.codec.layouts.get(payload, self.sw).zero_values()
+            self._templates[name] = template
+        return template
 
     def _send_due_dasp(self, now: float) -> None:
         mode = self._dasp_mode()
@@ -510,7 +478,7 @@ class SimulatedEyeQ(MespFunctions):
         self._dasp_min = due.earliest(self._next_dasp, now)
 
     def _packer(self, m: MessageDef) -> DaspPacker | None:
-        """The message's packer; None: the dict path (switched off, by the config or, when the
+        """The message's packer; None: the reference (switched off, by the config or, when the
         config leaves it open, by ``EYEQ_SPI_EXACT=1``; or no packer for it)."""
         if m.name not in self._packers:
             packed = self.config.dasp_packer
@@ -521,7 +489,7 @@ class SimulatedEyeQ(MespFunctions):
         return self._packers[m.name]
 
     def _dasp_bytes(self, m: MessageDef, counter: int, now: float) -> bytes:
-        """One DASP message: packed in place, or by the dict path (the reference)."""
+        """One DASP message: packed in place, or by the reference."""
         packer = self._packer(m)
         if packer is not None:
             self._fill(m.name, packer.root, now)  # type: ignore[arg-type]
@@ -560,7 +528,3 @@ class SimulatedEyeQ(MespFunctions):
     def calibration_done(self, now: float) -> bool:
         return self._cal_started is not None and now - self._cal_started >= self.config.tac_duration
 
-
-def _is_dasp(head: bytes) -> bool:
-    """A message that starts with ``head`` goes to ``_on_dasp`` (see ``_on_message``)."""
-    return head[:1] == b"\x65"

@@ -76,7 +76,6 @@ class MespFunctions:
     _rx_e2e: E2EState
     _last_veh: float | None
     _init_ok: bool
-    _veh_state_seen: bool
     _cal_started: float | None
     _next_dasp: dict[str, float]
 
@@ -111,7 +110,7 @@ class MespFunctions:
         # host's restarted bring-up starts them afresh (found by tools/soak_live.py)
         self._rx_e2e = E2EState()
         self._last_veh = None
-        self._init_ok = self._veh_state_seen = False
+        self._init_ok = False
         self._cal_started = None
         self._next_dasp.clear()
         # L10: the host takes an accepted switch for a reset of ours; both link directions

@@ -123,16 +123,10 @@ class Scene(SceneWorld):
             at[4], ang_std, at[5], ang_std, side, ang_std,
             mid, ang_std, -(ss * vy - y * vrel) / (ss * ss + y * y), sd[7],
             conf, ttc], dtype=np.float64)
-        # image: origin at the image centre, x right, y down (the rect is for visualisation);
-        # -FOCAL_PX * (y + w/2), -FOCAL_PX * (y - w/2), FOCAL_PX * (CAM_HEIGHT - hgt)
         vis = s > 0.5
-        px = np.array((y + hw, y - hw, CAM_HEIGHT - hgt)) * _PX
-        u_l, u_r, v_t = px / ss
-        v_b = FOCAL_PX * CAM_HEIGHT / ss
         side_vis = vis & (on_left | on_right)
-        u_s, v_ts, v_bs = np.where(side_vis, np.array((
-            np.where(on_left, px[1], px[0]), px[2], np.full(len(idx), FOCAL_PX * CAM_HEIGHT)))
-            / far, 0.0)
+        u_l, u_r, v_t, v_b, u_s, v_ts, v_bs = _image_rects(y, hw, hgt, ss, far, on_left,
+                                                           on_right, side_vis)
         zero = np.zeros(len(idx))
         lane = self._lane_index(d)
         lanes = _lane_codes()
@@ -578,3 +572,19 @@ class Scene(SceneWorld):
             "status": _code("dynamic_cal_status", "SUCCESS" if progress >= 100 else "INIT",
                             1 if progress >= 100 else 0),
             "error": _code("dynamic_cal_error", "OK", 3), "overallProgress": progress})
+
+
+def _image_rects(y: FArr, hw: FArr, hgt: FArr, ss: FArr, far: FArr, on_left: Any,
+                 on_right: Any, side_vis: Any) -> tuple[FArr, ...]:
+    """The objects' rectangles in the image (origin at the image centre, x right, y down; the
+    rectangles are for visualisation): left, right, top and bottom of the rear, and the
+    visible side's column, top and bottom (0 where no side is seen).
+    -FOCAL_PX * (y + w/2), -FOCAL_PX * (y - w/2), FOCAL_PX * (CAM_HEIGHT - hgt) over the
+    distance."""
+    px = np.array((y + hw, y - hw, CAM_HEIGHT - hgt)) * _PX
+    u_l, u_r, v_t = px / ss
+    v_b = FOCAL_PX * CAM_HEIGHT / ss
+    u_s, v_ts, v_bs = np.where(side_vis, np.array((
+        np.where(on_left, px[1], px[0]), px[2], np.full(len(y), FOCAL_PX * CAM_HEIGHT)))
+        / far, 0.0)
+    return u_l, u_r, v_t, v_b, u_s, v_ts, v_bs

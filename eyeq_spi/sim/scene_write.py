@@ -271,14 +271,14 @@ def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n
     return True
 
 
-def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | None:
-    """Per (wire type, source) the rows of the column arrays, the payload byte indices they go
-    to and a reused array; the integer rows' bounds; per container type the bit columns."""
-    first = objs[0]
-    count = len(objs)
-    stride = objs[1].base - first.base if count > 1 else first.layout.size
-    if any(e.base != first.base + k * stride for k, e in enumerate(objs)):
-        return None
+def _objects_slots(first: StructView, plan: _ObjPlan) -> tuple[
+        dict[tuple[str, bool], list[tuple[int, int]]],
+        dict[int, tuple[str, list[tuple[int, int, int]]]],
+        list[tuple[int, float, float]]] | None:
+    """For the first object of a run, where each planned row goes: per (wire type, source) the
+    (row, offset) of its scalars, per container offset its bit fields, and the rows whose
+    values are clamped to their wire range. None where a row's member is not a plain scalar
+    or bit field (the loop writes such objects)."""
     by_type: dict[tuple[str, bool], list[tuple[int, int]]] = {}
     bits: dict[int, tuple[str, list[tuple[int, int, int]]]] = {}
     check: list[tuple[int, float, float]] = []
@@ -304,6 +304,21 @@ def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | N
             by_type.setdefault((s.type, real), []).append((row, rel))
             if not real and not s.real:
                 check.append((row, *s.wire))
+    return by_type, bits, check
+
+
+def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | None:
+    """Per (wire type, source) the rows of the column arrays, the payload byte indices they go
+    to and a reused array; the integer rows' bounds; per container type the bit columns."""
+    first = objs[0]
+    count = len(objs)
+    stride = objs[1].base - first.base if count > 1 else first.layout.size
+    if any(e.base != first.base + k * stride for k, e in enumerate(objs)):
+        return None
+    slots = _objects_slots(first, plan)
+    if slots is None:
+        return None
+    by_type, bits, check = slots
     u8 = np.frombuffer(first.buf, dtype=np.uint8)
 
     def index(typ: str, rels: list[int]) -> tuple[np.dtype[Any], Any]:

@@ -44,14 +44,12 @@ passed through unchanged, so one ``next_event()`` loop sees everything.
 from __future__ import annotations
 
 from collections import Counter, deque
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.link.connection import LinkConfig, LinkConnection, Role
 from eyeq_spi.link.events import DataReceived, LinkEvent, Resynchronised, SendFailed, Sent
 from eyeq_spi.link.frame import SEQ_MODULO, NakReason
-from eyeq_spi.link.run import DataRun
 from eyeq_spi.transport import segment as seg
 from eyeq_spi.transport.events import (
     MessageReceived,
@@ -283,154 +281,3 @@ class TransportConnection:
         self._dead_id = o.transfer_id
         self.counters.transferAborts[reason] += 1
         self._events.append(TransferAborted(reason, o.transfer_id, len(o.buf), o.total))
-
-    # -- express path (runner/virtual_fast.py) ---------------------------------------------------
-    def absorb(self, transfer: bytes, now: float) -> bytes | None:
-        """``receive_data``, ``handle_timer`` and ``data_to_send`` at ``now`` in one step, for a
-        DATA frame that the link accepts in order (:meth:`LinkConnection.in_order`) and whose
-        payload opens or continues the transfer and completes nothing: returns the ACK as
-        sent. None, with nothing changed, for any other frame or state (the caller then takes
-        the ordinary path)."""
-        if not self.absorb_run([transfer], [now]):
-            return None
-        return self.link.codec.ack((self.link.expected_num - 1) % SEQ_MODULO)
-
-    def absorb_run(self, frames: list[bytes], times: list[float],
-                   acks: list[bytes] | None = None) -> int:
-        """:meth:`absorb` of ``frames[k]`` at ``times[k]`` (rising), frame after frame, up to the
-        first it declines or, with ``acks``, the first whose ACK would not be ``acks[k]``: how
-        many it took. Their ACKs are the link's ``codec.ack`` of their NUMs."""
-        return self.absorb_message(frames, times, acks)[0]
-
-    def absorb_message(self, frames: list[bytes], times: list[float],
-                       acks: list[bytes] | None = None,
-                       want: Callable[[bytes], bool] | None = None) -> tuple[int, bytes | None]:
-        """:meth:`absorb_run`, and with ``want``, :meth:`absorb_last` of the last of ``frames``
-        once all before it were taken, in one pass: how many it took, and the message that
-        frame completed (None if it took no such frame)."""
-        link = self.link
-        n = link.in_order(frames, times)
-        if not n:
-            return 0, None
-        num, m = link.expected_num, SEQ_MODULO
-        ack = link.codec.ack
-        limit = self.config.receive_limit or seg.MAX_TOTAL
-        timeout = self.config.reassembly_timeout
-        o = self._open
-        message: bytes | None = None
-        for k in range(n):
-            transfer, now = frames[k], times[k]
-            if (o is not None and o.deadline <= now) or (acks is not None
-                                                         and ack(num) != acks[k]):
-                n = k  # T6: the silence ended before this frame; or another ACK
-                break
-            ttype, tid = transfer[6], transfer[7]
-            if ttype == seg.FIRST:
-                total = int.from_bytes(transfer[8:12], "little")
-                if o is not None or not seg.FIRST_TOTAL_MIN <= total <= limit:
-                    n = k
-                    break
-                # as _on_payload opens a transfer
-                self._dead_id = None
-                self._seen_first = True
-                o = self._open = _Open(tid, total, bytearray(transfer[12 : 12 + seg.FIRST_CHUNK]),
-                                       num, now + timeout, [num])
-            elif (ttype == seg.CONSECUTIVE and o is not None and tid == o.transfer_id
-                  and num == (o.last_num + 1) % m
-                  and o.total - len(o.buf) > seg.CONSECUTIVE_CHUNK):
-                o.buf += transfer[8 : 8 + seg.CONSECUTIVE_CHUNK]
-                o.last_num = num
-                o.nums.append(num)
-                o.deadline = now + timeout
-            else:  # a single frame, no transfer to continue, or a frame that ends it
-                if want is not None and k == len(frames) - 1:
-                    message = self._complete(transfer, num, want)
-                    if message is not None:
-                        n = k + 1
-                        break
-                n = k
-                break
-            num = (num + 1) % m
-        if n:
-            link.accept_in_order(frames[:n], times)
-        if message is not None:
-            self.counters.messagesReceived += 1
-        return n, message
-
-    def _complete(self, transfer: bytes, num: int, want: Callable[[bytes], bool]) -> bytes | None:
-        """The message a DATA frame in order (NUM ``num``) completes, as :meth:`absorb_last`
-        judges it (the open transfer closed with it), if ``want`` takes it; else None, with
-        nothing changed."""
-        o = self._open
-        ttype = transfer[6]
-        if ttype == seg.SINGLE:
-            size = transfer[7]
-            if o is not None or not 1 <= size <= seg.SINGLE_MAX:
-                return None
-            message = transfer[8 : 8 + size]
-            return message if want(message) else None
-        if ttype == seg.CONSECUTIVE and o is not None and transfer[7] == o.transfer_id \
-                and num == (o.last_num + 1) % SEQ_MODULO:
-            remaining = o.total - len(o.buf)
-            if remaining > seg.CONSECUTIVE_CHUNK or any(transfer[8 + remaining :]):
-                return None  # more to come, or another transfer's frame (T4: NAKed)
-            tail = transfer[8 : 8 + remaining]
-            message = bytes(o.buf) + tail
-            if not want(message):
-                return None
-            o.buf += tail
-            o.last_num = num
-            o.nums.append(num)
-            self._open = None
-            return message
-        return None
-
-    def absorb_last(self, transfer: bytes, now: float,
-                    want: Callable[[bytes], bool]) -> bytes | None:
-        """:meth:`absorb` for the DATA frame that completes a message (a single frame, or the
-        consecutive frame that ends the open transfer with zero padding, T4): the link accepts
-        it in order and ACKs it, and the message is returned instead of queued as
-        ``MessageReceived`` (the caller handles it as its event loop would). ``want`` sees the
-        message before anything changes (the same object is returned). None, with nothing
-        changed, for any other frame or state, or a message ``want`` declines."""
-        link = self.link
-        o = self._open
-        if (o is not None and o.deadline <= now) or not link.in_order([transfer], [now]):
-            return None
-        message = self._complete(transfer, link.expected_num, want)
-        if message is None:
-            return None
-        link.accept_in_order([transfer], [now])
-        self.counters.messagesReceived += 1
-        return message
-
-    def data_run(self, now: float) -> DataRun | None:
-        """:meth:`LinkConnection.data_run`, due no later than the open transfer's silence
-        deadline (T6: an ACK arriving after it takes the ordinary path)."""
-        run = self.link.data_run(now)
-        o = self._open
-        if run is not None and o is not None and o.deadline < run.until:
-            run.until = o.deadline
-        return run
-
-    def take_run(self, run: DataRun, released: list[float], acked: list[float]) -> None:
-        """:meth:`LinkConnection.take_run`, and what ``receive_data`` of the last of ``acked``
-        does with the link's ``Sent`` when that ACK completes the message (``MessageSent``)."""
-        self.link.take_run(run, released, acked)
-        if acked:
-            self._drain_link(acked[-1])
-
-    def absorb_ack(self, transfer: bytes, now: float, last: bool = False) -> bool:
-        """``receive_data`` and ``data_to_send`` at ``now`` in one step for an ACK that settles
-        a frame of a message with more frames in flight or queued, when it lets no frame go at
-        ``now`` (:meth:`LinkConnection.ack_in_flight`): True. False, with nothing changed,
-        otherwise. ``last``: also the ACK of a message's last frame (its ``MessageSent`` or
-        ``MessageSendFailed`` is then queued, as ``receive_data`` queues it)."""
-        o = self._open
-        if o is not None and o.deadline <= now:
-            return False
-        if not self.link.ack_in_flight(transfer, now, last):
-            return False
-        if last:
-            self._drain_link(now)
-        return True

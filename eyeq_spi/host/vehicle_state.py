@@ -1,0 +1,89 @@
+"""HOST_VEH_STATE_MSG (seed 004 §7.1.2.2): the host's one periodic DASP message, at
+``HostConfig.veh_state_rate`` (66.67 Hz) from Wait Running on. Its period, its counters and its
+encoding live here; the host decides when it starts and stops (its entry actions).
+
+The reference encodes a fresh ``zero_values()`` dict filled by
+:func:`~eyeq_spi.host.scenario.veh_state_values`; the packed template
+(:mod:`eyeq_spi.host.veh_state_fast`) gives the same bytes where it can, unless
+``EYEQ_SPI_EXACT=1`` asks for the reference.
+"""
+
+from __future__ import annotations
+
+from eyeq_spi.catalog.messages import sw_release
+from eyeq_spi.codec.e2e import E2EState
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.errors import EyeqError
+from eyeq_spi.host.config import HostConfig
+from eyeq_spi.host.scenario import Scenario, veh_state_values
+from eyeq_spi.host.veh_state_fast import VehStatePacker
+from eyeq_spi.twins import exact
+
+NAME = "HOST_VEH_STATE_MSG"
+
+
+class VehicleStateSender:
+    """When the next HOST_VEH_STATE_MSG is due, and its bytes. ``next_due`` is None while the
+    host sends none (before Wait Running, after a fatal error, during a mode switch).
+
+    Our rolling counter (``SPI_Rolling_Count``), DASP counter and E2E counters run on across
+    EyeQ resets: a capture of the whole run then shows one unbroken sequence (the EyeQ's
+    restarted application takes whatever comes first); only a new ignition cycle starts them
+    afresh (:meth:`new_cycle`)."""
+
+    def __init__(self, codec: MessageCodec, config: HostConfig) -> None:
+        self.codec = codec
+        self.config = config
+        self.next_due: float | None = None
+        self.rolling = 0
+        self.dasp_counter = 0
+        self.e2e = E2EState()
+        self._packer_tried = False
+        self._packer: VehStatePacker | None = None
+
+    def new_cycle(self) -> None:
+        """A new ignition cycle: the counters start afresh."""
+        self.e2e = E2EState()
+        self.dasp_counter = self.rolling = 0
+
+    def warm_up(self) -> None:
+        """Encode the message once by the reference (its codec built before real time)."""
+        msg = self.codec.message(NAME)
+        self.codec.encode_dasp(msg.name, self.codec.layout(msg).zero_values(), 0, E2EState())
+
+    def due(self, now: float) -> bool:
+        return self.next_due is not None and now >= self.next_due
+
+    def advance(self, now: float) -> None:
+        """One period on from the message just sent (never into the past)."""
+        if self.next_due is not None:
+            period = 1.0 / self.config.veh_state_rate
+            self.next_due = max(self.next_due + period, now)
+
+    def encode(self, scenario: Scenario, now: float) -> bytes:
+        """The next message, with the scenario's signals at ``now``. Raises
+        :class:`~eyeq_spi.errors.LocalProtocolError` when it cannot be encoded (the rolling counter
+        has moved on all the same, as the message's period has)."""
+        self.rolling = (self.rolling + 1) & 0xFFFF
+        signals = scenario.signals(now)
+        packer = None if exact() else self.packer()
+        wire = None if packer is None else packer.encode(
+            signals, now, self.rolling, self.dasp_counter, self.e2e)
+        if wire is None:  # the reference
+            msg = self.codec.message(NAME)
+            values = veh_state_values(self.codec.layout(msg).zero_values(), signals, now,
+                                      sw_release(self.codec.sw), self.rolling)
+            wire = self.codec.encode_dasp(msg.name, values, self.dasp_counter, self.e2e)
+        self.dasp_counter = (self.dasp_counter + 1) & 0xFF
+        return wire
+
+    def packer(self) -> VehStatePacker | None:
+        """The template of HOST_VEH_STATE_MSG (built on first use), None where it cannot be
+        built (the reference then encodes, or reports why not)."""
+        if not self._packer_tried:
+            self._packer_tried = True
+            try:
+                self._packer = VehStatePacker(self.codec, sw_release(self.codec.sw))
+            except (EyeqError, ValueError, KeyError):
+                self._packer = None
+        return self._packer
