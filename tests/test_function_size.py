@@ -13,18 +13,11 @@ LIMIT = 80
 PACKAGE = Path(eyeq_spi.__file__).parent
 
 LONGER = {
-    "eyeq_spi/catalog/can_expr.py:_build",
     "eyeq_spi/catalog/schema.py:validate_tree",
-    "eyeq_spi/cli/can.py:_decode",
-    "eyeq_spi/cli/dissect.py:run_dissect",
     "eyeq_spi/codec/layout.py:_compile",
     "eyeq_spi/conformance/cases.py:_static",
-    "eyeq_spi/dissect/engine_fast_cut.py:lean_messages",
-    "eyeq_spi/dissect/engine_fast_messages.py:lean_group",
-    "eyeq_spi/dissect/fleet.py:dissect_capture",
     "eyeq_spi/logic/saleae_fast.py:saleae2_chunk",
     "eyeq_spi/logic/vcd_fast.py:_channel",
-    "eyeq_spi/plot/birdseye.py:draw_scene",
 }
 
 
