@@ -18,9 +18,6 @@ ALLOWED: dict[str, str] = {
     "eyeq_spi/cli/can.py": "owned by another helper",
     "eyeq_spi/cli/help.py": "owned by another helper",
     "eyeq_spi/cli/options.py": "owned by another helper",
-    # owned by another helper: a layout's private index, the express runner's private state
-    "eyeq_spi/host/veh_state_fast.py": "owned by another helper",
-    "eyeq_spi/runner/virtual_fast.py": "owned by another helper",
     # owned by another helper: private names imported from a sibling module
     "eyeq_spi/sim/scene.py": "owned by another helper",
     "eyeq_spi/sim/scene_world.py": "owned by another helper",

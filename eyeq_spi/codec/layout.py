@@ -193,6 +193,10 @@ class Layout:
     def field(self, name: str) -> FieldInfo:
         return self._by_name[name]
 
+    def find_field(self, name: str) -> FieldInfo | None:
+        """The member ``name``, or None where this release's layout has none."""
+        return self._by_name.get(name)
+
     # -- E2E ---------------------------------------------------------------------------------
     def resolve(self, path: str, base: int = 0) -> list[tuple[int, int]]:
         """Byte ranges of a covered signal: a member, a dotted path, a whole struct or array."""

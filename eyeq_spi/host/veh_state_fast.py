@@ -38,7 +38,7 @@ _Slot = tuple[struct.Struct, int] | None | bool
 
 def _scalar(lay: Layout, name: str, base: int = 0) -> tuple[struct.Struct, int] | None:
     """The format and absolute offset of a plain (not bitfield, not array) primitive leaf."""
-    f = lay._by_name.get(name)
+    f = lay.find_field(name)
     if f is None or f.bits is not None or f.count or f.name in lay.children \
             or f.type not in FMT:
         return None
@@ -54,20 +54,21 @@ class VehStatePacker:
         self._template = lay.build(veh_state_values(lay.zero_values(), {}, 0.0, api, 0))
         self._head = bytes((DASP_PROTOCOL, msg.data_id))
         self._protect = compile_protector(lay)
-        vs_field = lay._by_name["vehStateInfo"]
+        vs_field = lay.field("vehStateInfo")
         vs = lay.children["vehStateInfo"]
         # what veh_state_values writes after the signals, over them: never a signal's value
-        overwritten = {k for k in vs._by_name if k.endswith("Validity") and not k.startswith("OBS")}
+        members = [f.name for f in vs.fields]
+        overwritten = {k for k in members if k.endswith("Validity") and not k.startswith("OBS")}
         overwritten |= {"timestamp_us", "apiVersionMajor", "apiVersionMinor"}
         self._signals: dict[str, _Slot] = {
             k: _SKIP if k in overwritten else (_scalar(vs, k, vs_field.offset) or _REFERENCE)
-            for k in vs._by_name}
+            for k in members}
         stamps = [_scalar(vs, "timestamp_us", vs_field.offset),
                   _scalar(lay, "host_sync_timestamp_us")
-                  if "host_sync_timestamp_us_valid" in lay._by_name else None]
+                  if lay.find_field("host_sync_timestamp_us_valid") is not None else None]
         self._stamps = [s for s in stamps if s is not None]
-        if ("timestamp_us" in vs._by_name and stamps[0] is None) or (
-                "host_sync_timestamp_us_valid" in lay._by_name and stamps[1] is None):
+        if (vs.find_field("timestamp_us") is not None and stamps[0] is None) or (
+                lay.find_field("host_sync_timestamp_us_valid") is not None and stamps[1] is None):
             raise ValueError(f"{NAME}: a time stamp is not a plain integer")
         self._rolling = _scalar(lay, "SPI_Rolling_Count")
 
