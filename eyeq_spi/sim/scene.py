@@ -117,22 +117,12 @@ class Scene(SceneWorld):
         # the standard deviations a + b·|s| (_STD) in two numpy steps for all of them: the same
         # multiplication and addition per element as one row at a time
         sd = _STD[:, :1] + _STD[:, 1:] * a_s
-        f = np.array([
+        floats = np.array([
             w, sd[0], length, sd[1], hgt, sd[0], vx, sd[2], vy, sd[3], ax, sd[4], ay, sd[5],
             s, 0.05 + 0.01 * a_s + 5e-5 * s * s, y, sd[6], heading,
             at[4], ang_std, at[5], ang_std, side, ang_std,
             mid, ang_std, -(ss * vy - y * vrel) / (ss * ss + y * y), sd[7],
             conf, ttc], dtype=np.float64)
-        # image: origin at the image centre, x right, y down (the rect is for visualisation);
-        # -FOCAL_PX * (y + w/2), -FOCAL_PX * (y - w/2), FOCAL_PX * (CAM_HEIGHT - hgt)
-        vis = s > 0.5
-        px = np.array((y + hw, y - hw, CAM_HEIGHT - hgt)) * _PX
-        u_l, u_r, v_t = px / ss
-        v_b = FOCAL_PX * CAM_HEIGHT / ss
-        side_vis = vis & (on_left | on_right)
-        u_s, v_ts, v_bs = np.where(side_vis, np.array((
-            np.where(on_left, px[1], px[0]), px[2], np.full(len(idx), FOCAL_PX * CAM_HEIGHT)))
-            / far, 0.0)
         zero = np.zeros(len(idx))
         lane = self._lane_index(d)
         lanes = _lane_codes()
@@ -146,21 +136,40 @@ class Scene(SceneWorld):
             cipv[int(np.argmin(np.where(ahead, s, np.inf)))] = _code("object_is_cipv", "CIPV", 2)
         err = dtgt - d
         signal = kind == VEHICLE
-        i = np.array([
+        ints = np.array([
+            *self._image(s, y, hw, hgt, ss, far, vx, on_left, on_right),
+            *self._motion(s, vx, vy, vrel, lane, kind, speed, moving, d, dtgt),
+            zero, oid, self._cls_code[cls], cipv, lane_code,
+            vehicle, signal & (ax < -1.0), signal & (err < -0.5), signal & (err > 0.5),
+            zero, np.abs(d) < 3 * HALF_LANE + 0.5, (s < 3.0) & (np.abs(y) < 3.0)],
+            dtype=np.float64)
+        self._cols = (floats, np.rint(ints).astype(np.int64), birth)
+        return self._cols
+
+    @staticmethod
+    def _image(s: FArr, y: FArr, hw: FArr, hgt: FArr, ss: FArr, far: FArr, vx: FArr,
+               on_left: npt.NDArray[np.bool_], on_right: npt.NDArray[np.bool_]) -> list[FArr]:
+        """The image rows: bounding rect, back/front and side rects with their visibility,
+        which rect and which side is seen. Image origin at the centre, x right, y down (the
+        rect is for visualisation); -FOCAL_PX * (y + w/2), -FOCAL_PX * (y - w/2),
+        FOCAL_PX * (CAM_HEIGHT - hgt)."""
+        vis = s > 0.5
+        px = np.array((y + hw, y - hw, CAM_HEIGHT - hgt)) * _PX
+        u_l, u_r, v_t = px / ss
+        v_b = FOCAL_PX * CAM_HEIGHT / ss
+        side_vis = vis & (on_left | on_right)
+        u_s, v_ts, v_bs = np.where(side_vis, np.array((
+            np.where(on_left, px[1], px[0]), px[2], np.full(len(s), FOCAL_PX * CAM_HEIGHT)))
+            / far, 0.0)
+        zero = np.zeros(len(s))
+        return [
             u_l, u_r, v_t, v_b,
             u_l, v_t, v_b, zero, vis, u_r, v_t, v_b, zero, vis,
             u_s, v_ts, v_bs, zero, side_vis, zero, zero, zero, zero, zero,
             np.where(vis, np.where(vx < -0.5, _code("object_visible_rect", "Front", 1),
                                    _code("object_visible_rect", "Back", 2)), 0),
             np.where(vis & on_left, _code("object_visible_side", "Right", 1),
-                     np.where(vis & on_right, _code("object_visible_side", "Left", 2), 0)),
-            *self._motion(s, vx, vy, vrel, lane, kind, speed, moving, d, dtgt),
-            zero, oid, self._cls_code[cls], cipv, lane_code,
-            vehicle, signal & (ax < -1.0), signal & (err < -0.5), signal & (err > 0.5),
-            zero, np.abs(d) < 3 * HALF_LANE + 0.5, (s < 3.0) & (np.abs(y) < 3.0)],
-            dtype=np.float64)
-        self._cols = (f, np.rint(i).astype(np.int64), birth)
-        return self._cols
+                     np.where(vis & on_right, _code("object_visible_side", "Left", 2), 0))]
 
     @staticmethod
     def _motion(s: FArr, vx: FArr, vy: FArr, vrel: FArr, lane: IArr, kind: IArr, speed: FArr,

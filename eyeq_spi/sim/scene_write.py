@@ -277,82 +277,108 @@ def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | N
     first = objs[0]
     count = len(objs)
     stride = objs[1].base - first.base if count > 1 else first.layout.size
-    if any(e.base != first.base + k * stride for k, e in enumerate(objs)):
+    if any(obj.base != first.base + k * stride for k, obj in enumerate(objs)):
         return None
-    by_type: dict[tuple[str, bool], list[tuple[int, int]]] = {}
-    bits: dict[int, tuple[str, list[tuple[int, int, int]]]] = {}
-    check: list[tuple[int, float, float]] = []
-    for path, items in plan.groups:
-        probe: Any = first
-        for p in path:
-            ok = (isinstance(probe, StructView) and isinstance(p, str) and p in probe) or (
-                isinstance(probe, list) and isinstance(p, int) and p < len(probe))
-            probe = probe[p] if ok else None
-        if not isinstance(probe, StructView):
-            continue
-        for key, real, row in items:
-            if key not in probe:
-                continue
-            s = probe.slots.get(key)
-            if s is None or s.kind not in (SCALAR, BITS) or (real and not s.real):
-                return None
-            rel = probe.base - first.base + s.offset
-            if s.kind == BITS:
-                bits.setdefault(rel, (s.type, []))[1].append((row, s.lo, s.mask))
-                check.append((row, 0, s.mask))
-                continue
-            by_type.setdefault((s.type, real), []).append((row, rel))
-            if not real and not s.real:
-                check.append((row, *s.wire))
+    slots = _object_slots(first, plan)
+    if slots is None:
+        return None
+    by_type, bits, check = slots
     u8 = np.frombuffer(first.buf, dtype=np.uint8)
-
-    def index(typ: str, rels: list[int]) -> tuple[np.dtype[Any], Any]:
-        dt = np.dtype(NP_FMT[typ])
-        r = np.array(rels)
-        # (column, element, byte) -> payload index, in the order of v.view(uint8).ravel()
-        return dt, (first.base + r[:, None, None] + stride * np.arange(count)[None, :, None]
-                    + np.arange(dt.itemsize)[None, None, :]).ravel()
-
     # each group's values live in one byte array (widest types first: aligned), scattered into
     # the payload at once by the concatenation of the groups' indices
     order = sorted(by_type.items(), key=lambda kv: -np.dtype(NP_FMT[kv[0][0]]).itemsize)
     groups = []
     for (typ, real), cols in order:
-        dt, idx = index(typ, [r for _, r in cols])
-        groups.append((real, np.array([r for r, _ in cols]), idx,
+        dt, idx = _byte_index(first, stride, count, typ, [rel for _, rel in cols])
+        groups.append((real, np.array([row for row, _ in cols]), idx,
                        np.zeros((len(cols), count), dtype=dt)))
+    bitgroups = _bit_containers(first, stride, count, bits)
+    bounds = (np.array([row for row, _, _ in check], dtype=np.intp),
+              np.array([lo for _, lo, _ in check], dtype=np.float64)[:, None],
+              np.array([hi for _, _, hi in check], dtype=np.float64)[:, None])
+    arrays = [g[3] for g in groups] + [b[5] for b in bitgroups]
+    raw = np.zeros(sum(a.nbytes for a in arrays), dtype=np.uint8)
+    views, at = [], 0
+    for array in arrays:
+        views.append(raw[at:at + array.nbytes].view(array.dtype).reshape(array.shape))
+        at += array.nbytes
+    for number, bitgroup in enumerate(bitgroups):  # the containers as the payload holds them
+        views[len(groups) + number][:] = bitgroup[3]
+    everywhere = np.concatenate([g[2] for g in groups] + [b[4] for b in bitgroups])
+    return (u8, [(g[0], g[1], v) for g, v in zip(groups, views, strict=False)], bounds,
+            [(*b[:4], v) for b, v in zip(bitgroups, views[len(groups):], strict=True)], raw,
+            everywhere)
+
+
+_Bits = dict[int, tuple[str, list[tuple[int, int, int]]]]
+
+
+def _object_slots(first: StructView, plan: _ObjPlan
+                  ) -> tuple[dict[tuple[str, bool], list[tuple[int, int]]], _Bits,
+                             list[tuple[int, float, float]]] | None:
+    """Where the first object puts each column row: per (wire type, real) the rows and their
+    offsets from the first object, per bit container offset its type and bit fields, and the
+    bounds to check the integer rows against. None when a row has no plain slot."""
+    by_type: dict[tuple[str, bool], list[tuple[int, int]]] = {}
+    bits: _Bits = {}
+    check: list[tuple[int, float, float]] = []
+    for path, items in plan.groups:
+        probe: Any = first
+        for step in path:
+            ok = (isinstance(probe, StructView) and isinstance(step, str) and step in probe) or (
+                isinstance(probe, list) and isinstance(step, int) and step < len(probe))
+            probe = probe[step] if ok else None
+        if not isinstance(probe, StructView):
+            continue
+        for key, real, row in items:
+            if key not in probe:
+                continue
+            slot = probe.slots.get(key)
+            if slot is None or slot.kind not in (SCALAR, BITS) or (real and not slot.real):
+                return None
+            rel = probe.base - first.base + slot.offset
+            if slot.kind == BITS:
+                bits.setdefault(rel, (slot.type, []))[1].append((row, slot.lo, slot.mask))
+                check.append((row, 0, slot.mask))
+                continue
+            by_type.setdefault((slot.type, real), []).append((row, rel))
+            if not real and not slot.real:
+                check.append((row, *slot.wire))
+    return by_type, bits, check
+
+
+def _byte_index(first: StructView, stride: int, count: int, typ: str, rels: list[int]
+                ) -> tuple[np.dtype[Any], Any]:
+    """The dtype of ``typ`` and the payload index of every (column, object, byte), in the
+    order of ``values.view(uint8).ravel()``."""
+    dt = np.dtype(NP_FMT[typ])
+    offsets = np.array(rels)
+    return dt, (first.base + offsets[:, None, None] + stride * np.arange(count)[None, :, None]
+                + np.arange(dt.itemsize)[None, None, :]).ravel()
+
+
+def _bit_containers(first: StructView, stride: int, count: int, bits: _Bits) -> list[Any]:
+    """Per container type: the rows, shifts and starts to OR the bit columns together, each
+    container's bits that the objects do not write, its byte index and a reused array."""
     bitgroups = []
-    for typ in sorted({t for t, _ in bits.values()}):
-        rels = [r for r, (t, _) in bits.items() if t == typ]
-        dt, idx = index(typ, rels)
+    for typ in sorted({typ for typ, _ in bits.values()}):
+        rels = [rel for rel, (rel_type, _) in bits.items() if rel_type == typ]
+        dt, idx = _byte_index(first, stride, count, typ, rels)
         brows: list[int] = []
         shift: list[int] = []
         starts: list[int] = []
         base = np.zeros((len(rels), count), dtype=dt)
-        for c, rel in enumerate(rels):
+        for number, rel in enumerate(rels):
             starts.append(len(brows))
             used = 0
             for row, lo, mask in bits[rel][1]:
                 brows.append(row)
                 shift.append(lo)
                 used |= mask << lo
-            for k in range(count):  # the container as it stands, less the bits written here
-                o = first.base + rel + k * stride
-                base[c, k] = int.from_bytes(first.buf[o:o + dt.itemsize], "little") & ~used
+            for obj in range(count):  # the container as it stands, less the bits written here
+                off = first.base + rel + obj * stride
+                base[number, obj] = int.from_bytes(first.buf[off:off + dt.itemsize],
+                                                   "little") & ~used
         bitgroups.append((np.array(brows), np.array(shift)[:, None], np.array(starts), base,
                           idx, np.zeros_like(base)))
-    bounds = (np.array([r for r, _, _ in check], dtype=np.intp),
-              np.array([x for _, x, _ in check], dtype=np.float64)[:, None],
-              np.array([x for _, _, x in check], dtype=np.float64)[:, None])
-    arrays = [g[3] for g in groups] + [b[5] for b in bitgroups]
-    raw = np.zeros(sum(a.nbytes for a in arrays), dtype=np.uint8)
-    views, at = [], 0
-    for a in arrays:
-        views.append(raw[at:at + a.nbytes].view(a.dtype).reshape(a.shape))
-        at += a.nbytes
-    for k, b in enumerate(bitgroups):  # the containers as the payload holds them now
-        views[len(groups) + k][:] = b[3]
-    everywhere = np.concatenate([g[2] for g in groups] + [b[4] for b in bitgroups])
-    return (u8, [(g[0], g[1], v) for g, v in zip(groups, views, strict=False)], bounds,
-            [(*b[:4], v) for b, v in zip(bitgroups, views[len(groups):], strict=True)], raw,
-            everywhere)
+    return bitgroups
