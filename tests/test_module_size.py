@@ -1,7 +1,6 @@
 """No module of the package is over 600 lines and no function over 80 (docs/STYLE.md): a longer
-module is split along a seam
-(as the host's bring-up sits beside its receive path, and the simulated EyeQ's MESP answers beside
-its boot and DASP)."""
+module is split along a seam (as the host's bring-up sits beside its receive path, and the
+simulated EyeQ's MESP answers beside its boot and DASP), a longer function by job."""
 
 from __future__ import annotations
 
