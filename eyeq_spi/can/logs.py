@@ -35,8 +35,8 @@ TEXT_SUFFIXES = (".asc", ".log", ".trc", ".csv")
 FORMAT_NAMES = {".blf": "BLF", ".asc": "ASC", ".log": "candump", ".trc": "TRC", ".mf4": "MF4",
                 ".csv": "python-can CSV"}
 # how each format's file begins: a file that does not begin so never was that format (exit 2);
-# one that does and then ends inside a record is truncated (exit 1). The text formats are judged
-# on their first line, which a cut file keeps (or keeps the start of).
+# one that does and then ends inside a record is truncated (exit 1). The text formats are recognised
+# by their first line, which a cut file keeps (or keeps the start of).
 _ASC_HEAD = re.compile(rb"(date|base|internal events|begin triggerblock|//|\s*\d+\.\d+\s)",
                        re.I)
 _CANDUMP_HEAD = re.compile(rb"\(\d")
@@ -111,7 +111,7 @@ def _text_cut(p: Path, suffix: str) -> str | None:
         return "its last line has no line end"
     if suffix == ".asc" and b"begin triggerblock" in head.lower():
         # Vector's block: a file that opens it ends with it (converters that write neither,
-        # as can-utils' log2asc, are judged by their last line only)
+        # as can-utils' log2asc, are checked by their last line only)
         last = tail.rstrip().rsplit(b"\n", 1)[-1].strip().lower()
         if not last.startswith(b"end triggerblock"):
             return "it has no 'End TriggerBlock'"

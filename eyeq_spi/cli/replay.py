@@ -21,8 +21,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                        "frames (--listen: the host connects to us; --port: we connect to the "
                        "host), or (--into-host) to the built-in host emulator in virtual time. "
                        "Ends with the run summary demo, host and sim print. Exit 0 when the run "
-                       "is ok: played to the end with nothing lost (--into-host: judged as "
-                       "host judges, Running Vision reached and held), else 1.")
+                       "is ok: played to the end with nothing lost (--into-host: checked as "
+                       "host checks, Running Vision reached and held), else 1.")
     inputs.add_capture_argument(r)
     where = r.add_mutually_exclusive_group(required=True)
     where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,

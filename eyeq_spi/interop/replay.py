@@ -5,12 +5,12 @@
 capture time, byte for byte, except the EyeQ's ACK/NAK frames: those answered the recorded host,
 so the node answers the host in front of it instead, through a real :class:`TransportConnection`
 in the EyeQ role (ACK every accepted frame, NAK per L5, reassemble the host's messages to count
-them). The host's ACK/NAK frames for the played frames are counted, not judged: the recorded
+them). The host's ACK/NAK frames for the played frames are counted, not checked: the recorded
 frames are never resent (L7).
 
 Time: the replay clock is the capture's time minus its first transfer's time, plus the moment
 the replay starts. ``replay_into_host`` runs it against the built-in host emulator on the
-:class:`VirtualRunner` (virtual time, no reset line: the host's own logic judges states, E2E,
+:class:`VirtualRunner` (virtual time, no reset line: the host's own logic checks states, E2E,
 DASP counters and stale streams); ``replay_to_port`` runs it on the :class:`RealTimeRunner`
 against a host under test at a pyserial URL. The capture is read lazily: memory stays bounded.
 """
@@ -186,7 +186,7 @@ def host_bench(records: Iterable[Record], *, sw: str | None = None,
 def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
                      duration: float | None = None) -> dict[str, Any]:
     """Feed the capture's EyeQ channel to the built-in host emulator in virtual time; the run
-    summary (:mod:`eyeq_spi.summary`) judges it as ``host`` judges a live run: Running Vision
+    summary (:mod:`eyeq_spi.summary`) checks it as ``host`` checks a live run: Running Vision
     reached and held, nothing lost (E2E, DASP counters, stale streams, MESP timeouts)."""
     import time
 

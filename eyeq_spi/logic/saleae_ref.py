@@ -226,7 +226,7 @@ def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkRead
 def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
                   cols: dict[str, int], where: tuple[int, int, int], kinds: dict[str, str],
                   state: Saleae2State, opts: SpiOptions) -> Iterator[Record]:
-    """The csv loop: exact for any shape, reports errors with their line."""
+    """The csv loop (the reference): reads any shape, reports errors with their line."""
     i_name, i_type, i_time = where
     k_start, k_byte = kinds["start"], kinds["byte"]
     open_, routes = state.open_, state.routes

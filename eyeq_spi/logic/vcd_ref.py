@@ -196,7 +196,7 @@ def vcd_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
 class _Reader:
     """Value changes -> transfers. A fast twin's chunk reader (``vcd_fast``: one-character
     identifiers, one change per line, what sigrok, PulseView and our writer produce) reads the
-    chunks it can take; anything else goes through the exact token loop below. Both keep their
+    chunks it can take; anything else goes through the reference token loop below. Both keep their
     state in the same :class:`Chan` objects, so they can take turns."""
 
     def __init__(self, table: dict[bytes, list[tuple[Chan, int]]], scale: float,

@@ -12,7 +12,7 @@ from eyeq_spi.plot.collect import GAP_PERIODS
 from eyeq_spi.plot.perceived import Scene
 
 RATE_WINDOW = 2.0  # seconds of history behind each rate
-MIN_SPAN = 0.75  # s of a stream's history before its rate is judged low or high (13 counts
+MIN_SPAN = 0.75  # s of a stream's history before its rate is called low or high (13 counts
 # at 18 Hz: one message more or less is 7 %, well inside the §7.1.4 tolerance band of 15 %)
 
 
