@@ -73,8 +73,8 @@ def _refs(c: Case) -> str:
 
 # -- JSON Lines -------------------------------------------------------------------------------
 def json_lines(report: Report) -> str:
-    lines = [json.dumps(report.header.record(), ensure_ascii=False)]
-    lines += [json.dumps(r.record(), ensure_ascii=False) for r in report.results]
+    lines = [json.dumps(report.header.as_json(), ensure_ascii=False)]
+    lines += [json.dumps(result.as_json(), ensure_ascii=False) for result in report.results]
     verdict = overall(report.results)
     lines.append(json.dumps({**summary(report.results), "verdict": verdict,
                              "meaning": meaning(report.results)}, ensure_ascii=False))

@@ -42,7 +42,7 @@ class Result:
     case: Case
     outcome: Outcome
 
-    def record(self) -> dict[str, Any]:
+    def as_json(self) -> dict[str, Any]:
         c = self.case
         out = {"kind": "case", "id": c.id, "title": c.title, "section": c.section,
                "requirement": c.requirement, "decision": c.decision, "rule": c.rule,
@@ -66,7 +66,7 @@ class Header:
     date: str
     clock: str  # virtual (--builtin) or real time
 
-    def record(self) -> dict[str, str]:
+    def as_json(self) -> dict[str, str]:
         """The JSON header: each row under its name in snake case, and ``dut``."""
         return {"kind": "header", "dut": self.dut,
                 **{key.lower().replace(" ", "_"): value for key, value in self.rows()}}

@@ -143,7 +143,7 @@ class Trace:
             else:
                 self._feed(x)
 
-    def record(self, direction: str, time: float, data: bytes, probe: str | None = None) -> Xfer:
+    def add(self, direction: str, time: float, data: bytes, probe: str | None = None) -> Xfer:
         idx = len(self.xfers)
         self.end = max(self.end, time)
         kind, rsp, num, crc_ok = "LEN", -1, -1, False

@@ -61,14 +61,14 @@ class Shim:
 
     # -- node interface --------------------------------------------------------------------
     def receive_data(self, transfer: bytes, now: float) -> None:
-        self.trace.record(self.trace.dut_dir, now, transfer)
+        self.trace.add(self.trace.dut_dir, now, transfer)
         self.node.receive_data(transfer, now)
 
     def data_to_send(self, now: float) -> list[bytes]:
         out: list[bytes] = []
         while self._inject:
             raw, injected = self._inject.popleft()
-            self.trace.record(self.trace.our_dir, now, raw, injected)
+            self.trace.add(self.trace.our_dir, now, raw, injected)
             out.append(raw)
         for t in self.node.data_to_send(now):
             label: str | None = None
@@ -86,12 +86,12 @@ class Shim:
                             self.trace.mark(now, "dropped", probe=label)
                             t = b""
                         elif rule.action == "duplicate":
-                            self.trace.record(self.trace.our_dir, now, t)  # the original
+                            self.trace.add(self.trace.our_dir, now, t)  # the original
                             out.append(t)
                         break
                 if not t:
                     continue
-            self.trace.record(self.trace.our_dir, now, t, label)
+            self.trace.add(self.trace.our_dir, now, t, label)
             out.append(t)
         return out
 
