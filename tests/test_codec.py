@@ -354,7 +354,7 @@ def test_every_mesp_function_round_trips(fn: str) -> None:
 def test_diag_and_boot_carry_their_id_byte() -> None:
     codec = MessageCodec()
     for proto, ident in (("DIAG", 0x41), ("BOOT", 0x10)):
-        msg = codec._other[proto]
+        msg = next(m for m in CAT.messages if m.protocol == proto)
         values = layout_values(CAT, codec.layout(msg)).example()
         wire = codec.encode_other(proto, values)
         assert wire[0] == ident
