@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Iterator
 from dataclasses import dataclass
 from decimal import Decimal
 from functools import cache
@@ -352,11 +351,6 @@ class CanDecoder:
         elif dec.units:
             rec["units"] = dec.units
         return rec
-
-    def decode_all(self, messages: Iterator[Any]) -> Iterator[dict[str, Any]]:
-        for i, m in enumerate(messages):
-            yield self.decode(m, i)
-
 
 _NO_UNITS: dict[str, str] = {}
 

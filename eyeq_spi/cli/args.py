@@ -15,7 +15,7 @@ import argparse
 import math
 import os
 import re
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable
 from typing import Any, NamedTuple, NoReturn
 
 from eyeq_spi.errors import EyeqError
@@ -271,18 +271,6 @@ def regex(text: str) -> str:
     except re.error as exc:
         _bad(f"bad regular expression {text!r}: {exc}")
     return text
-
-
-def upper_choice(choices: Sequence[str]) -> Type:
-    """One of ``choices``, any case."""
-
-    def parse(text: str) -> str:
-        if text.upper() in choices:
-            return text.upper()
-        _bad(f"must be one of {', '.join(choices)}, got {text!r}{did_you_mean(text, choices)}")
-
-    parse.__name__ = "choice"
-    return parse
 
 
 # -- files and endpoints -------------------------------------------------------------------------

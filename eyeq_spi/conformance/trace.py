@@ -239,9 +239,5 @@ class Trace:
         return out
 
 
-def is_data(xfer: Xfer) -> bool:
-    return xfer.kind == "DATA"
-
-
 def is_control(xfer: Xfer) -> bool:
     return xfer.kind in (FrameKind.ACK.name, FrameKind.NAK.name)
