@@ -290,7 +290,7 @@ def _host_session(opts: Options, name: str, wanted: set[str], ctx: Context, *,
             raise UsageError("--dut host needs --listen tcp://HOST:PORT or --pty (or --builtin)")
         accept: Any = getattr(adapter, "accept", None)
         if not first:
-            drop: Any = getattr(adapter, "_drop", None)
+            drop: Any = getattr(adapter, "drop", None)
             if drop is not None:
                 drop()  # end the ignition cycle: the host under test reconnects
             elif opts.reopen is not None:
