@@ -108,6 +108,10 @@ class Options:
     # scheduling there: judging is CPU-bound and must not hold a core at SCHED_FIFO)
     sessions_done: Callable[[], None] | None = None
 
+    def __post_init__(self) -> None:
+        if self.builtin:  # the caller may still change the plans before the run
+            builtin_plans(self)
+
 
 _TOKEN = re.compile(r"\(|\)|[^\s()]+")
 
@@ -169,8 +173,6 @@ def run_report(opts: Options) -> Report:
     date = datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
     address = _address(opts)
     cases = select_cases(opts)
-    if opts.builtin:
-        builtin_plans(opts)
     wanted = {n for c in cases for n in c.needs}
     ctx = Context(opts.dut, realtime=not opts.builtin)
     sessions: list[str] = ["main"]
