@@ -25,7 +25,7 @@ from eyeq_spi.codec.message import MessageCodec, classify
 from eyeq_spi.errors import LocalProtocolError
 from tests.strategies import layout_values, signal_value
 
-pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
 CAT = catalog()
 LC = LayoutCache(CAT)

@@ -26,7 +26,7 @@ from eyeq_spi.errors import InputError, MissingExtra, TruncatedInputError, Unkno
 from eyeq_spi.io import CAPTURE_READER, CAPTURE_WRITER, RECORD_WRITER, Format
 from eyeq_spi.io.plain import open_records
 
-pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
 ROOT = Path(__file__).resolve().parents[1]
 READERS = registry.formats(CAPTURE_READER)

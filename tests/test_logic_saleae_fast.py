@@ -1,4 +1,4 @@
-"""The vectorised paths of the logic-analyzer readers against their exact loops: the
+"""The vectorised paths of the logic-analyzer readers against their reference loops: the
 Saleae readers against the csv loops on random exports, the VCD reader against the token loop
 on waveforms in sigrok's layout, all cut into random chunks; bounded memory and line-numbered
 errors on either path."""

@@ -1,5 +1,5 @@
 """The packer's writers of the scene (eyeq_spi/sim/scene_write.py, the road plan of
-eyeq_spi/sim/scene.py) against the dict path, the reference: arrays of structs written by the
+eyeq_spi/sim/scene.py) against the reference (the value dicts): arrays of structs written by the
 generated row writers (values clamped in Python for small tables, by numpy for large ones; the
 elements past the rows zeroed by slices), and the road's moving members written through bound
 writers only while the constants written once are in place."""
@@ -32,7 +32,7 @@ from eyeq_spi.sim.scene_layout import (
 from eyeq_spi.sim.scene_layout import _node_for as node_for
 from eyeq_spi.sim.scene_write import _MIN_NUMPY, _write_table
 
-pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
 SWS = catalog().sw_versions
 # (message, struct member, array member, columns)
@@ -62,7 +62,7 @@ def test_generated_row_writers_give_the_dict_paths_bytes(sw: str, table: Any,
                                                          data: st.DataObject) -> None:
     """Rows of any length (the numpy clamp from :data:`_MIN_NUMPY` values on, the Python clamp
     below), values out of range, then fewer rows: the emptied elements are zeroed as the
-    dict path zeroes them."""
+    reference zeroes them."""
     name, member, array, keys = table
     codec = MessageCodec(sw)
     msg = codec.cat.message(name)
@@ -115,7 +115,7 @@ def test_full_tables_of_extreme_values_then_fewer_rows(sw: str, table: Any,
 @pytest.mark.parametrize("sw", ["sw4", SWS[-1]])
 def test_the_road_writes_its_constants_again_after_a_reset(sw: str) -> None:
     """The road's plan writes only what moves once its constants are in place; after the
-    packer's reset (zeros) they are written again, as the dict path's fresh template gets
+    packer's reset (zeros) they are written again, as the reference's fresh template gets
     them."""
     ref = SimulatedEyeQ(SimConfig(sw=sw, seed=4, objects=15, dasp_packer=False))
     new = SimulatedEyeQ(SimConfig(sw=sw, seed=4, objects=15, dasp_packer=True))
