@@ -124,10 +124,10 @@ def export_mdf(records: Iterable[dict[str, Any]], mdf: str, *, source: str,
     codec = MessageCodec(sw)
     mdf_w = MdfWriter(mdf, codec, source=source)
     transfers = 0
-    for r in records:
-        if r["kind"] == "frame":
+    for record in records:
+        if record["kind"] == "frame":
             transfers += 1  # one frame record per transfer
-        mdf_w.write(r)
+        mdf_w.write(record)
     mdf_w.close()
     return {"transfers": transfers, "sw": codec.sw,
             "mdf": {"path": mdf, "groups": len(mdf_w.groups), "messages": mdf_w.messages},

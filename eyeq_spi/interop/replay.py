@@ -79,10 +79,10 @@ class ReplayEyeQ:
             if self._is_control(rec.data):
                 self.skipped_acks += 1  # they answered the recorded host, not this one
                 continue
-            t = self._last_at if rec.time is None else rec.time
+            time = self._last_at if rec.time is None else rec.time
             if self.offset is None:
-                self.offset = self.start - t
-            at = max(t + self.offset, self._last_at)
+                self.offset = self.start - time
+            at = max(time + self.offset, self._last_at)
             if self.duration is not None and at > self.start + self.duration:
                 break
             self._next, self._next_at = rec, at
@@ -94,19 +94,19 @@ class ReplayEyeQ:
         if len(data) != FRAME_SIZE:
             return False
         try:
-            f = self.frames.decode(data)
+            frame = self.frames.decode(data)
         except RemoteProtocolError:
             return False
-        return f.kind in (FrameKind.ACK, FrameKind.NAK) and self.frames.crc_ok(data, f)
+        return frame.kind in (FrameKind.ACK, FrameKind.NAK) and self.frames.crc_ok(data, frame)
 
     # -- Node ---------------------------------------------------------------------------
     def receive_data(self, transfer: bytes, now: float) -> None:
         if self._is_control(transfer):
-            f = self.frames.decode(transfer)
-            if f.kind is FrameKind.ACK:
+            frame = self.frames.decode(transfer)
+            if frame.kind is FrameKind.ACK:
                 self.host_acks += 1
             else:
-                self.host_naks[f.num] += 1
+                self.host_naks[frame.num] += 1
             return
         self.conn.receive_data(transfer, now)
         while (ev := self.conn.next_event()) is not None:
@@ -145,8 +145,8 @@ class ReplayEyeQ:
         return min(timers) if timers else None
 
     def handle_timer(self, now: float) -> None:
-        t = self.conn.get_timer()
-        if t is not None and t <= now:
+        timer = self.conn.get_timer()
+        if timer is not None and timer <= now:
             self.conn.handle_timer(now)
 
     def reset_line(self, now: float) -> None:
@@ -177,8 +177,8 @@ def host_bench(records: Iterable[Record], *, sw: str | None = None,
 
     node = ReplayEyeQ(records, duration=duration, sw=sw)
     host = HostEmulator(HostConfig(sw=sw), keep_rx_times=False, reset_line=node.reset_line)
-    a, b = memory_pair()
-    runner = VirtualRunner([(host, a), (node, b)])
+    host_end, node_end = memory_pair()
+    runner = VirtualRunner([(host, host_end), (node, node_end)])
     host.start(0.0)
     return node, host, runner
 

@@ -71,8 +71,8 @@ class RateMeter:
     def _nominal_of(self, name: str) -> tuple[float | None, tuple[float, float] | None]:
         if name not in self._nominal:
             try:
-                m = self.cat.message(name)
-                self._nominal[name] = (m.rate_hz, m.tolerance_ms)
+                msg = self.cat.message(name)
+                self._nominal[name] = (msg.rate_hz, msg.tolerance_ms)
             except Exception:
                 self._nominal[name] = (None, None)
         return self._nominal[name]
@@ -111,7 +111,7 @@ class RateMeter:
             if first is not None and first[0] > t0:
                 ts, cs = first
             hz = (c1[name] - cs) / (t1 - ts) if t1 > ts else None
-            b = band(nominal, tol)
+            limits = band(nominal, tol)
             status = "-"
             if nominal and hz is not None:
                 silent = t1 - self._last_change.get(name, t1)
@@ -121,11 +121,11 @@ class RateMeter:
                     status, hz = "stopped", 0.0
                 elif t1 - ts < MIN_SPAN:
                     status = "-"  # too few messages yet to call the rate low or high
-                elif b is not None and hz < b[0]:
+                elif limits is not None and hz < limits[0]:
                     status = "low"
-                elif b is not None and hz > b[1]:
+                elif limits is not None and hz > limits[1]:
                     status = "high"
                 else:
                     status = "ok"
-            out.append(RateRow(name, c1[name], hz, nominal, b, status))
+            out.append(RateRow(name, c1[name], hz, nominal, limits, status))
         return out
