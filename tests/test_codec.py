@@ -25,7 +25,7 @@ from eyeq_spi.codec.message import MessageCodec, classify
 from eyeq_spi.errors import LocalProtocolError
 from tests.strategies import layout_values, signal_value
 
-pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
 CAT = catalog()
 LC = LayoutCache(CAT)
@@ -354,7 +354,7 @@ def test_every_mesp_function_round_trips(fn: str) -> None:
 def test_diag_and_boot_carry_their_id_byte() -> None:
     codec = MessageCodec()
     for proto, ident in (("DIAG", 0x41), ("BOOT", 0x10)):
-        msg = codec._other[proto]
+        msg = next(m for m in CAT.messages if m.protocol == proto)
         values = layout_values(CAT, codec.layout(msg)).example()
         wire = codec.encode_other(proto, values)
         assert wire[0] == ident

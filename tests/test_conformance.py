@@ -114,7 +114,7 @@ def test_connection_error_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
 def _trace_with(frames: list[tuple[float, bytes]]) -> Trace:
     tr = Trace("eyeq")
     for t, raw in frames:
-        tr.record(tr.dut_dir, t, raw)
+        tr.add(tr.dut_dir, t, raw)
     return tr
 
 

@@ -5,27 +5,18 @@ tester EyeQ against our host in virtual time, the eeprom_bad ignition cycle only
 
 from __future__ import annotations
 
-import pytest
-
-from eyeq_spi.conformance import suite
 from eyeq_spi.conformance.judges.app import DEADLINE
 from eyeq_spi.conformance.judges.flow import QUIET_FOR
 from eyeq_spi.conformance.judges.verdict import Outcome
 from eyeq_spi.conformance.suite import Options, run
 
 
-def _eeprom_bad(monkeypatch: pytest.MonkeyPatch, watch: float,
-                mutant: str | None = None) -> Outcome:
+def _eeprom_bad(watch: float, mutant: str | None = None) -> Outcome:
     """HOST-EEPROM-BAD after watching the host for ``watch`` s past the EEPROM reply (+ the
     script's 0.05 s)."""
-    plans = suite.builtin_plans
-
-    def short(opts: Options) -> None:
-        plans(opts)
-        opts.eyeq_plan.eeprom_watch = watch
-
-    monkeypatch.setattr(suite, "builtin_plans", short)
-    [res] = run(Options(dut="host", builtin=True, select="HOST-EEPROM-BAD", mutant=mutant))
+    opts = Options(dut="host", builtin=True, select="HOST-EEPROM-BAD", mutant=mutant)
+    opts.eyeq_plan.eeprom_watch = watch
+    [res] = run(opts)
     return res.outcome
 
 
@@ -34,26 +25,24 @@ def test_the_quiet_window_is_the_mesp_deadline_and_half_a_second() -> None:
     assert QUIET_FOR == DEADLINE + 0.5
 
 
-def test_a_host_watched_less_than_the_window_is_inconclusive(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    out = _eeprom_bad(monkeypatch, 0.3)
+def test_a_host_watched_less_than_the_window_is_inconclusive() -> None:
+    out = _eeprom_bad(0.3)
     assert out.verdict == "inconclusive", out
     assert "0.35 s later" in out.evidence and "1.0 s" in out.evidence, out
 
 
-def test_a_host_quiet_for_the_window_passes(monkeypatch: pytest.MonkeyPatch) -> None:
-    out = _eeprom_bad(monkeypatch, QUIET_FOR)
+def test_a_host_quiet_for_the_window_passes() -> None:
+    out = _eeprom_bad(QUIET_FOR)
     assert out.verdict == "pass", out
     assert "for 1.05 s, at least 1.0 s" in out.evidence, out
 
 
-def test_a_host_that_carries_on_fails(monkeypatch: pytest.MonkeyPatch) -> None:
-    out = _eeprom_bad(monkeypatch, QUIET_FOR, mutant="host-ignores-bad-eeprom")
+def test_a_host_that_carries_on_fails() -> None:
+    out = _eeprom_bad(QUIET_FOR, mutant="host-ignores-bad-eeprom")
     assert out.verdict == "fail", out
     assert "reset us" in out.evidence, out
 
 
-def test_a_host_that_carries_on_fails_even_in_a_short_watch(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_host_that_carries_on_fails_even_in_a_short_watch() -> None:
     """What the host did is judged before how long it was watched."""
-    assert _eeprom_bad(monkeypatch, 0.3, mutant="host-ignores-bad-eeprom").verdict == "fail"
+    assert _eeprom_bad(0.3, mutant="host-ignores-bad-eeprom").verdict == "fail"

@@ -48,7 +48,7 @@ def _acked(latencies: list[float], *, realtime: bool) -> Trace:
         events.append((t, tr.our_dir, CODEC.data_frame(0, i, b"\x00\x01\x41")))
         events.append((t + lat, tr.dut_dir, CODEC.ack(i)))
     for t, d, raw in sorted(events, key=lambda e: e[0]):
-        tr.record(d, t, raw)
+        tr.add(d, t, raw)
     return tr
 
 
@@ -69,12 +69,12 @@ def test_every_ack_latency_is_judged_also_in_real_time() -> None:
 
 def test_ack_and_nak_pad_bytes_must_be_zero() -> None:
     tr = Trace("host")
-    tr.record(tr.dut_dir, 0.0, CODEC.ack(3))
-    tr.record(tr.dut_dir, 0.1, CODEC.nak(4, NakReason.CRC_MISMATCH))
+    tr.add(tr.dut_dir, 0.0, CODEC.ack(3))
+    tr.add(tr.dut_dir, 0.1, CODEC.nak(4, NakReason.CRC_MISMATCH))
     ctx = Context("host", realtime=False)
     assert link_pad(ctx, tr).verdict == "pass"
     dirty = CODEC.ack(5)[:6] + b"\xaa" * 122  # L3: the CRC covers the header only
-    tr.record(tr.dut_dir, 0.2, dirty)
+    tr.add(tr.dut_dir, 0.2, dirty)
     out = link_pad(ctx, tr)
     assert out.verdict == "fail" and "byte 6 = 0xAA" in out.evidence and "1 of 3" in out.evidence
     assert link_pad(ctx, Trace("eyeq")).verdict == "skip"
@@ -83,8 +83,8 @@ def test_ack_and_nak_pad_bytes_must_be_zero() -> None:
 def test_rules_never_exercised_skip_with_the_reason() -> None:
     tr = Trace("eyeq")
     for i in range(20):  # single frames 15 ms apart, each ACKed at once
-        tr.record(tr.dut_dir, 0.015 * i, CODEC.data_frame(0, i, b"\x00\x01\x41"))
-        tr.record(tr.our_dir, 0.015 * i + 0.0005, CODEC.ack(i))
+        tr.add(tr.dut_dir, 0.015 * i, CODEC.data_frame(0, i, b"\x00\x01\x41"))
+        tr.add(tr.our_dir, 0.015 * i + 0.0005, CODEC.ack(i))
     ctx = Context("eyeq", realtime=False)
     out = link_txtimeout(ctx, tr)
     assert out.verdict == "skip" and "no multi-frame transfer" in out.evidence

@@ -121,7 +121,7 @@ def _dasp_trace(counters: list[int], stalls: list[tuple[float, float]]) -> Trace
     for k, counter in enumerate(counters):
         msg = codec.encode_dasp("HOST_VEH_STATE_MSG", values, counter)
         [payload] = segment(msg, 0)
-        tr.record("h2e", 0.1 + 0.015 * k, frames.data_frame(0, k, payload))
+        tr.add("h2e", 0.1 + 0.015 * k, frames.data_frame(0, k, payload))
     return tr
 
 

@@ -17,7 +17,7 @@ import pytest
 from eyeq_spi.cli import main
 from eyeq_spi.interop.annotate import event_text, link_text, message_text, transport_text
 
-pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
 SIGROK = shutil.which("sigrok-cli")
 needs_sigrok = pytest.mark.skipif(

@@ -1,4 +1,4 @@
-"""The vectorised paths of the logic-analyzer readers against their exact loops: the
+"""The vectorised paths of the logic-analyzer readers against their reference loops: the
 Saleae readers against the csv loops on random exports, the VCD reader against the token loop
 on waveforms in sigrok's layout, all cut into random chunks; bounded memory and line-numbered
 errors on either path."""
@@ -15,36 +15,33 @@ from hypothesis import strategies as st
 
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.errors import InputError
-from eyeq_spi.logic import saleae_fast, vcd_fast
+from eyeq_spi.logic import saleae_fast, saleae_ref, vcd_fast, vcd_ref
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.saleae import read_saleae1, read_saleae2
-from eyeq_spi.logic.vcd import read_vcd
 from eyeq_spi.logic.vcd_write import write_vcd
 
-pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
 Reader = Callable[..., Iterator[Record]]
 
 
-def _both(read: Reader, data: bytes, opts: SpiOptions, chunk: int
+def _both(pair: tuple[Reader, Reader], data: bytes, opts: SpiOptions, chunk: int
           ) -> tuple[list[Record] | str, list[Record] | str]:
     """(vectorised, csv loop): the records, or the error's text."""
 
-    def run() -> list[Record] | str:
+    def run(read: Reader) -> list[Record] | str:
         try:
             return list(read(io.BytesIO(data), opts, chunk_size=chunk))
         except InputError as exc:
             return f"error: {exc}"
 
-    fast = run()
-    keep = saleae_fast.saleae2_chunk, saleae_fast.saleae1_chunk
-    try:
-        saleae_fast.saleae2_chunk = saleae_fast.saleae1_chunk = (  # type: ignore[assignment]
-            lambda *a, **k: None)
-        slow = run()
-    finally:
-        saleae_fast.saleae2_chunk, saleae_fast.saleae1_chunk = keep
-    return fast, slow
+    return run(pair[0]), run(pair[1])
+
+
+# (vectorised twin, reference) of each reader, through their modules' public readers
+SALEAE2 = (saleae_fast.read_saleae2, saleae_ref.read_saleae2)
+SALEAE1 = (saleae_fast.read_saleae1, saleae_ref.read_saleae1)
+VCD = (vcd_fast.read_vcd, vcd_ref.read_vcd)
 
 
 def _cell(draw: Any, v: int | None) -> str:
@@ -100,7 +97,7 @@ def saleae1_exports(draw: Any) -> bytes:
 @settings(max_examples=50, deadline=None)
 @given(saleae2_exports(), st.integers(min_value=5, max_value=3000))
 def test_saleae2_fast_path_equals_the_csv_loop(data: bytes, chunk: int) -> None:
-    fast, slow = _both(read_saleae2, data, SpiOptions(), chunk)
+    fast, slow = _both(SALEAE2, data, SpiOptions(), chunk)
     assert fast == slow
 
 
@@ -108,7 +105,7 @@ def test_saleae2_fast_path_equals_the_csv_loop(data: bytes, chunk: int) -> None:
 @given(saleae1_exports(), st.integers(min_value=5, max_value=3000),
        st.sampled_from(["h2e", "e2h"]))
 def test_saleae1_fast_path_equals_the_csv_loop(data: bytes, chunk: int, direction: str) -> None:
-    fast, slow = _both(read_saleae1, data, SpiOptions(direction=direction), chunk)
+    fast, slow = _both(SALEAE1, data, SpiOptions(direction=direction), chunk)
     assert fast == slow
 
 
@@ -118,14 +115,12 @@ def test_fast_path_takes_the_common_shape() -> None:
     rows += [f'"h2e","result",0.5,8e-07,0x{b:02X},0xFF' for b in range(128)]
     rows.append('"h2e","disable",0.6,2e-08,,')
     body = ("\n".join(rows[1:]) + "\n").encode()
-    state = saleae_fast.Saleae2State({}, {})
-    from eyeq_spi.logic.saleae_types import OpenTransfer
+    from eyeq_spi.logic.saleae_types import OpenTransfer, Saleae2State
 
     recs = saleae_fast.saleae2_chunk(body, 6, {"mosi": 4, "miso": 5}, 0, 1, 2,
                                      {"start": "enable", "byte": "result", "end": "disable"},
-                                     state, SpiOptions(), OpenTransfer)
-    assert recs == [Record(0.5, "h2e", bytes(range(128)))]
-    assert state.results == 128 and state.enables == 1
+                                     Saleae2State({}, {}), SpiOptions(), OpenTransfer)
+    assert recs == [Record(0.5, "h2e", bytes(range(128)))]  # not None: not declined
 
 
 @pytest.mark.parametrize("read,head,row", [
@@ -169,11 +164,9 @@ def test_vcd_fast_path_equals_the_token_loop_in_sigrok_layout(
     buf = io.StringIO()
     write_vcd(recs, buf, opts)
     raw = _sigrok_layout(buf.getvalue(), joins).encode()
-    fast = list(read_vcd(io.BytesIO(raw), opts, chunk_size=chunk))
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(vcd_fast.FastPath, "build", classmethod(lambda cls, table: None))
-        slow = list(read_vcd(io.BytesIO(raw), opts, chunk_size=chunk))
+    fast, slow = _both(VCD, raw, opts, chunk)
     assert fast == slow
+    assert isinstance(fast, list)
     assert [r.data for r in fast] == [r.data for r in sorted(recs, key=lambda r: r.time or 0)]
 
 
@@ -188,7 +181,7 @@ def test_saleae2_iso8601_timestamps(chunk: int) -> None:
         rows.append(f'"h2e","result",{stamp},8e-07,0x{i:02X},0xFF')
         rows.append(f'"h2e","disable",{stamp},2e-08,,')
     data = ("\n".join(rows) + "\n").encode()
-    fast, slow = _both(read_saleae2, data, SpiOptions(), chunk)
+    fast, slow = _both(SALEAE2, data, SpiOptions(), chunk)
     assert fast == slow
     assert isinstance(fast, list)
     base = 1795446124.5  # 2026-11-23T15:02:04.5Z
@@ -232,21 +225,10 @@ def _mutated(draw: Any) -> tuple[str, bytes]:
 @settings(max_examples=80, deadline=None)
 @given(_mutated(), st.integers(min_value=5, max_value=2000))
 def test_mutated_captures_read_alike_on_both_paths(case: tuple[str, bytes], chunk: int) -> None:
-    """Damaged captures: each vectorised path gives what its exact loop gives, records or the
+    """Damaged captures: each vectorised path gives what its reference loop gives, records or the
     same typed error, never another exception."""
     fmt, data = case
     opts = SpiOptions(direction="e2h")
-    if fmt == "vcd":
-        def run() -> list[Record] | str:
-            try:
-                return list(read_vcd(io.BytesIO(data), opts, chunk_size=chunk))
-            except InputError as exc:
-                return f"error: {exc}"
-
-        fast = run()
-        with pytest.MonkeyPatch.context() as mp:
-            mp.setattr(vcd_fast.FastPath, "build", classmethod(lambda cls, table: None))
-            slow = run()
-    else:
-        fast, slow = _both(read_saleae2 if fmt == "saleae2" else read_saleae1, data, opts, chunk)
+    pair = {"vcd": VCD, "saleae2": SALEAE2, "saleae1": SALEAE1}[fmt]
+    fast, slow = _both(pair, data, opts, chunk)
     assert fast == slow

@@ -15,7 +15,7 @@ from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.vcd import read_vcd
 from eyeq_spi.logic.vcd_write import estimate_size, write_vcd
 
-pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
 
 @pytest.fixture(scope="module")

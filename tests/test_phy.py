@@ -36,9 +36,30 @@ def _tcp() -> Iterator[Ends]:
     client.close(), server.close()
 
 
-@pytest.fixture(params=["memory", "loop", "tcp"])
+def _pty() -> Iterator[Ends]:
+    from eyeq_spi.phy.pty import PtyAdapter
+
+    ours = PtyAdapter()
+    peer = open_url(ours.path)  # the peer opens the slave side as an ordinary serial port
+    assert ours.accept(5.0)
+    yield ours, peer
+    ours.close(), peer.close()
+
+
+# a pair of connected ends for every adapter of the registry (the serial adapter over pyserial's
+# loop://); a new adapter without one fails test_every_registered_adapter_has_a_pair
+PAIRS = {"memory": _memory, "serial": _loop, "tcp-listen": _tcp, "pty": _pty}
+
+
+def test_every_registered_adapter_has_a_pair() -> None:
+    assert set(PAIRS) == set(ADAPTERS)
+
+
+@pytest.fixture(params=sorted(ADAPTERS))
 def ends(request: pytest.FixtureRequest) -> Iterator[Ends]:
-    yield from {"memory": _memory, "loop": _loop, "tcp": _tcp}[request.param]()
+    if request.param not in PAIRS:
+        pytest.fail(f"adapter {request.param!r} has no pair in PAIRS")
+    yield from PAIRS[request.param]()
 
 
 def recv_wait(a: Adapter, timeout: float = 2.0) -> bytes | None:

@@ -1,5 +1,5 @@
-"""DASP payloads packed in place (eyeq_spi/sim/dasp_fast.py) against the dict path
-(Scene.fill + MessageCodec.encode_dasp), the reference: identical bytes, message by message and
+"""DASP payloads packed in place (eyeq_spi/sim/dasp_fast.py) against the reference
+(Scene.fill + MessageCodec.encode_dasp): identical bytes, message by message and
 transfer by transfer; and the due heap of SimulatedEyeQ._send_due_dasp."""
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.dasp_fast import DaspPacker, compile_protector
 from eyeq_spi.sim.eyeq import Phase, SimulatedEyeQ
 
-pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
 SWS = catalog().sw_versions
 

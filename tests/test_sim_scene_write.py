@@ -1,5 +1,5 @@
 """The packer's writers of the scene (eyeq_spi/sim/scene_write.py, the road plan of
-eyeq_spi/sim/scene.py) against the dict path, the reference: arrays of structs written by the
+eyeq_spi/sim/scene.py) against the reference (the value dicts): arrays of structs written by the
 generated row writers (values clamped in Python for small tables, by numpy for large ones; the
 elements past the rows zeroed by slices), and the road's moving members written through bound
 writers only while the constants written once are in place."""
@@ -20,27 +20,27 @@ from eyeq_spi.sim.dasp_fast import DaspPacker
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.sim.scene import Scene
 from eyeq_spi.sim.scene_layout import (
-    _REFLECT_KEYS,
-    _SIGN_KEYS,
-    _SPOT_KEYS,
     ONCOMING,
+    REFLECT_KEYS,
+    SIGN_KEYS,
+    SPOT_KEYS,
     VEHICLE,
-    _child,
-    _code,
-    _elements,
+    child_struct,
+    enum_code,
+    struct_elements,
 )
-from eyeq_spi.sim.scene_layout import _node_for as node_for
-from eyeq_spi.sim.scene_write import _MIN_NUMPY, _write_table
+from eyeq_spi.sim.scene_layout import layout_node_for as node_for
+from eyeq_spi.sim.scene_write import _MIN_NUMPY, write_table
 
-pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
+pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
 SWS = catalog().sw_versions
 # (message, struct member, array member, columns)
 TABLES = [("EYEQ_VIS_LIGHT_SENSOR_DATA_MSG", "activeLightSensorInfo", "activeLightSpots",
-           _SPOT_KEYS),
+           SPOT_KEYS),
           ("EYEQ_VIS_LIGHT_SENSOR_DATA_MSG", "activeLightSensorInfo", "reflectiveSigns",
-           _REFLECT_KEYS),
-          ("EYEQ_VIS_TRAFFIC_SIGNS_MSG", "tsrInfo", "trafficSigns", _SIGN_KEYS)]
+           REFLECT_KEYS),
+          ("EYEQ_VIS_TRAFFIC_SIGNS_MSG", "tsrInfo", "trafficSigns", SIGN_KEYS)]
 # finite values well past every member's range (float32's included) and integral ones
 VALUE = st.one_of(st.floats(-1e40, 1e40, allow_nan=False), st.integers(-300, 70000),
                   st.sampled_from([0.5, 1.5, 2.5, -0.5, 254.5]))
@@ -50,10 +50,10 @@ def _write(values: dict[str, Any], name: str, member: str, array: str, keys: tup
            rows: list[tuple[Any, ...]]) -> None:
     node = node_for(name, getattr(values, "template", None) or values)
     assert node is not None
-    info = _child(values, node, member)
+    info = child_struct(values, node, member)
     assert info is not None
-    elems, en = _elements(*info, array)
-    _write_table(elems, en, keys, rows, keys)
+    elems, en = struct_elements(*info, array)
+    write_table(elems, en, keys, rows, keys)
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -62,7 +62,7 @@ def test_generated_row_writers_give_the_dict_paths_bytes(sw: str, table: Any,
                                                          data: st.DataObject) -> None:
     """Rows of any length (the numpy clamp from :data:`_MIN_NUMPY` values on, the Python clamp
     below), values out of range, then fewer rows: the emptied elements are zeroed as the
-    dict path zeroes them."""
+    reference zeroes them."""
     name, member, array, keys = table
     codec = MessageCodec(sw)
     msg = codec.cat.message(name)
@@ -71,8 +71,8 @@ def test_generated_row_writers_give_the_dict_paths_bytes(sw: str, table: Any,
     lay = codec.layout(msg)
     packer = DaspPacker(lay, msg.data_id)
     ref = lay.zero_values()
-    info = _child(ref, node_for(name, ref), member)  # type: ignore[arg-type]
-    count = len(_elements(*info, array)[0]) if info else 0
+    info = child_struct(ref, node_for(name, ref), member)  # type: ignore[arg-type]
+    count = len(struct_elements(*info, array)[0]) if info else 0
     if not count:
         return
     row = st.tuples(*[VALUE] * len(keys))
@@ -97,9 +97,9 @@ def test_full_tables_of_extreme_values_then_fewer_rows(sw: str, table: Any,
     lay = codec.layout(msg)
     packer = DaspPacker(lay, msg.data_id)
     ref = lay.zero_values()
-    info = _child(ref, node_for(name, ref), member)  # type: ignore[arg-type]
+    info = child_struct(ref, node_for(name, ref), member)  # type: ignore[arg-type]
     assert info is not None
-    elems, en = _elements(*info, array)
+    elems, en = struct_elements(*info, array)
     count = len(elems)
     assert count * len(keys) >= _MIN_NUMPY > 2 * len(keys)
     reals = [-1e40, 1e40, 0.4, -0.5, 1e6, -3.5]
@@ -115,7 +115,7 @@ def test_full_tables_of_extreme_values_then_fewer_rows(sw: str, table: Any,
 @pytest.mark.parametrize("sw", ["sw4", SWS[-1]])
 def test_the_road_writes_its_constants_again_after_a_reset(sw: str) -> None:
     """The road's plan writes only what moves once its constants are in place; after the
-    packer's reset (zeros) they are written again, as the dict path's fresh template gets
+    packer's reset (zeros) they are written again, as the reference's fresh template gets
     them."""
     ref = SimulatedEyeQ(SimConfig(sw=sw, seed=4, objects=15, dasp_packer=False))
     new = SimulatedEyeQ(SimConfig(sw=sw, seed=4, objects=15, dasp_packer=True))
@@ -137,7 +137,7 @@ def _motion_reference(s: float, vx: float, vy: float, vrel: float, lane: int, ki
                       speed: float, d: float, dtgt: float) -> tuple[int, int, int]:
     """The object motion rules one object at a time, first true condition wins (§13.2.2)."""
     def c(enum: str, name: str, v: int) -> int:
-        return _code(f"object_motion_{enum}", name, v)
+        return enum_code(f"object_motion_{enum}", name, v)
 
     moving, vehicle, changing = speed >= 0.3, kind <= ONCOMING, kind == VEHICLE
     status = (c("status", "moving", 1) if speed >= 2.0 else

@@ -45,36 +45,36 @@ def _reasons(proto: str) -> dict[tuple[str, str | None], str]:
     differences) from the YAML of ``specs/can/``."""
     out: dict[tuple[str, str | None], str] = {}
     for doc in can_documents().values():
-        p = doc.get("can_protocol") if isinstance(doc, dict) else None
-        if not isinstance(p, dict) or p.get("name") != proto:
+        spec = doc.get("can_protocol") if isinstance(doc, dict) else None
+        if not isinstance(spec, dict) or spec.get("name") != proto:
             continue
-        for m in p["messages"]:
-            parts = [str(m.get("reconstruction", ""))]
-            parts += [str(d.get("text", "")) for d in m.get("differences") or []]
-            out[(m["name"], None)] = " ".join(x for x in parts if x).strip()
-            for s in m["signals"]:
-                text = " ".join(str(s.get(k, "")) for k in ("description", "reconstruction")
-                                if s.get(k))
-                out[(m["name"], s["name"])] = text.strip()
+        for msg in spec["messages"]:
+            parts = [str(msg.get("reconstruction", ""))]
+            parts += [str(d.get("text", "")) for d in msg.get("differences") or []]
+            out[(msg["name"], None)] = " ".join(x for x in parts if x).strip()
+            for sig in msg["signals"]:
+                text = " ".join(str(sig.get(k, "")) for k in ("description", "reconstruction")
+                                if sig.get(k))
+                out[(msg["name"], sig["name"])] = text.strip()
     return out
 
 
-def _why(proto: str, m: CanMessage, s: CanSignal | None) -> str:
-    seed = (s.seed if s is not None else None) or m.seed or protocol(proto).seed
-    line = s.seed_line if s is not None else m.seed_line
+def _why(proto: str, msg: CanMessage, sig: CanSignal | None) -> str:
+    seed = (sig.seed if sig is not None else None) or msg.seed or protocol(proto).seed
+    line = sig.seed_line if sig is not None else msg.seed_line
     where = f"seed {seed} line {line}"
-    if s is None:
+    if sig is None:
         return where
-    own = _reasons(proto).get((m.name, s.name), "")  # the signal's own reading, never the
+    own = _reasons(proto).get((msg.name, sig.name), "")  # the signal's own reading, never the
     return f"{where}: {own}" if own else where      # message's long notes
 
 
-def _about(proto: str, m: CanMessage, word: str) -> str:
+def _about(proto: str, msg: CanMessage, word: str) -> str:
     """The seed line of ``m`` and the sentences of its recorded reading that mention
     ``word`` (DLC): the reason for a message-level difference, not the whole reading."""
-    text = _reasons(proto).get((m.name, None), "")
+    text = _reasons(proto).get((msg.name, None), "")
     hits = [x.strip() for x in re.split(r"(?<=[.;])\s+", text) if word.lower() in x.lower()]
-    return "; ".join([_why(proto, m, None), *hits])
+    return "; ".join([_why(proto, msg, None), *hits])
 
 
 def _attr(sig: Any, name: str) -> Any:
@@ -101,11 +101,11 @@ def _close(a: float | None, b: float | None) -> bool:
 
 def _load(path: str) -> Any:
     cantools = require_cantools()
-    p = Path(path)
-    if not p.is_file():
+    target = Path(path)
+    if not target.is_file():
         raise InputError(f"{path}: no such file")
     try:
-        return cantools.database.load_file(str(p), strict=False)
+        return cantools.database.load_file(str(target), strict=False)
     except Exception as exc:  # cantools raises many kinds on a foreign or broken file
         raise InputError(f"{path}: not a readable DBC: {exc}") from exc
 
@@ -115,69 +115,69 @@ def compare(path: str, proto: str = "extlog2") -> list[Difference]:
     theirs = _load(path)
     ours = database(proto)
     spec = protocol(proto)
-    by_id = {m.frame_id: m for m in theirs.messages if not m.is_extended_frame}
+    by_id = {msg.frame_id: msg for msg in theirs.messages if not msg.is_extended_frame}
     out: list[Difference] = []
-    for m in spec.messages:
-        for _, fid, name in m.instances():
+    for msg in spec.messages:
+        for _, fid, name in msg.instances():
             om = ours.get_message_by_frame_id(fid)
             tm = by_id.pop(fid, None)
             if tm is None:
                 out.append(Difference(fid, name, None, "missing", name, None,
-                                      _why(proto, m, None)))
+                                      _why(proto, msg, None)))
                 continue
-            out += _message(proto, m, om, tm, fid, name)
+            out += _message(proto, msg, om, tm, fid, name)
     for fid, tm in sorted(by_id.items()):
         out.append(Difference(fid, tm.name, None, "extra", None, tm.name,
                               f"no message 0x{fid:X} in {spec.title}"))
     return out
 
 
-def _message(proto: str, m: CanMessage, om: Any, tm: Any, fid: int,
+def _message(proto: str, msg: CanMessage, om: Any, tm: Any, fid: int,
              name: str) -> list[Difference]:
     out: list[Difference] = []
-    why = _why(proto, m, None)
+    why = _why(proto, msg, None)
     if tm.length != om.length:
         out.append(Difference(fid, name, None, "dlc", om.length, tm.length,
-                              _about(proto, m, "DLC")))
+                              _about(proto, msg, "DLC")))
     if tm.cycle_time is not None and tm.cycle_time != om.cycle_time:
         out.append(Difference(fid, name, None, "cycle", om.cycle_time, tm.cycle_time,
                               f"{why}; decision C3 (a printed range's lower end)"))
-    theirs = {_norm(s.name): s for s in tm.signals}
+    theirs = {_norm(sig.name): sig for sig in tm.signals}
     matched: set[str] = set()
-    for s in m.signals:
-        os_ = om.get_signal_by_name(s.name)
-        ts = theirs.get(_norm(s.name))
+    for sig in msg.signals:
+        os_ = om.get_signal_by_name(sig.name)
+        ts = theirs.get(_norm(sig.name))
         if ts is None:
-            out.append(Difference(fid, name, s.name, "missing", s.name, None,
-                                  _why(proto, m, s)))
+            out.append(Difference(fid, name, sig.name, "missing", sig.name, None,
+                                  _why(proto, msg, sig)))
             continue
-        matched.add(_norm(s.name))
-        out += _signal(proto, m, s, os_, ts, fid, name)
-        covered = sorted(o.name for o in m.signals if o.name != s.name
+        matched.add(_norm(sig.name))
+        out += _signal(proto, msg, sig, os_, ts, fid, name)
+        covered = sorted(o.name for o in msg.signals if o.name != sig.name
                          and _bits(om.get_signal_by_name(o.name)) & _bits(ts))
         if covered:  # their field runs over other signals of ours (a 13-bit Failsafe)
             lo, hi = min(_bits(ts)), max(_bits(ts))
             out.append(Difference(
-                fid, name, s.name, "overlap", None,
+                fid, name, sig.name, "overlap", None,
                 f"their {ts.name} (bits {lo}..{hi}) also covers our {', '.join(covered)}",
-                "; ".join(_why(proto, m, m.signal(c)) for c in covered)))
+                "; ".join(_why(proto, msg, msg.signal(c)) for c in covered)))
     for key, ts in theirs.items():
         if key in matched:
             continue
-        hit = sorted(s.name for s in m.signals
-                     if _bits(om.get_signal_by_name(s.name)) & _bits(ts))
+        hit = sorted(sig.name for sig in msg.signals
+                     if _bits(om.get_signal_by_name(sig.name)) & _bits(ts))
         lo, hi = min(_bits(ts)), max(_bits(ts))
         text = (f"their {ts.name} (bits {lo}..{hi}, {ts.length} bits) covers our "
                 f"{', '.join(hit)}" if hit else f"their {ts.name} (bits {lo}..{hi}) is not "
                 "a signal in our reading")
-        reasons = "; ".join(_why(proto, m, m.signal(h)) for h in hit) or why
+        reasons = "; ".join(_why(proto, msg, msg.signal(h)) for h in hit) or why
         out.append(Difference(fid, name, ts.name, "extra", None, text, reasons))
     return out
 
 
-def _signal(proto: str, m: CanMessage, s: CanSignal, os_: Any, ts: Any, fid: int,
+def _signal(proto: str, msg: CanMessage, sig: CanSignal, os_: Any, ts: Any, fid: int,
             name: str) -> list[Difference]:
-    why = _why(proto, m, s)
+    why = _why(proto, msg, sig)
     pairs: list[tuple[str, Any, Any, bool]] = [
         ("start", os_.start, ts.start, os_.start == ts.start),
         ("length", os_.length, ts.length, os_.length == ts.length),
@@ -203,16 +203,16 @@ def _signal(proto: str, m: CanMessage, s: CanSignal, os_: Any, ts: Any, fid: int
                            if mine_c.get(k) != theirs_c.get(k)}, False))
     their_invalid = _attr(ts, INVALID_ATTRIBUTE)
     if their_invalid is not None:
-        mine = s.reported_invalid
+        mine = sig.reported_invalid
         pairs.append(("invalid", mine, their_invalid, mine == their_invalid))
     out = []
-    for field, a, b, same in pairs:
+    for field, ours, theirs, same in pairs:
         if same:
             continue
         extra = ""
-        if field == "scale" and b and a:
-            extra = f" (theirs is {100.0 * (b - a) / a:+.1f}% off ours)"
-        out.append(Difference(fid, name, s.name, field, a, b, why + extra))
+        if field == "scale" and theirs and ours:
+            extra = f" (theirs is {100.0 * (theirs - ours) / ours:+.1f}% off ours)"
+        out.append(Difference(fid, name, sig.name, field, ours, theirs, why + extra))
     return out
 
 
@@ -220,23 +220,23 @@ def grouped(diffs: list[Difference], proto: str) -> list[Difference]:
     """The same difference in several slots of a repeated message as one (its ``ids`` lists
     them, its message reads ``Obstacle_Data_B_0..12``), in the order of their first slot."""
     base: dict[int, tuple[str, int, int]] = {}  # frame ID -> (definition, slot, slot count)
-    for m in protocol(proto).messages:
-        for slot, fid, _ in m.instances():
-            base[fid] = (m.name, slot if slot is not None else -1,
-                         m.slots.count if m.slots else 0)
+    for msg in protocol(proto).messages:
+        for slot, fid, _ in msg.instances():
+            base[fid] = (msg.name, slot if slot is not None else -1,
+                         msg.slots.count if msg.slots else 0)
     groups: dict[tuple[Any, ...], list[Difference]] = {}
-    for d in diffs:
-        mname, slot, _ = base.get(d.id, (d.message, -1, 0))
-        key = (mname if slot >= 0 else d.message, d.signal, d.field, repr(d.ours),
-               repr(d.theirs))
-        groups.setdefault(key, []).append(d)
+    for diff in diffs:
+        mname, slot, _ = base.get(diff.id, (diff.message, -1, 0))
+        key = (mname if slot >= 0 else diff.message, diff.signal, diff.field, repr(diff.ours),
+               repr(diff.theirs))
+        groups.setdefault(key, []).append(diff)
     out = []
     for (mname, *_), ds in groups.items():
         first = ds[0]
         if len(ds) == 1:
             out.append(Difference(**{**asdict(first), "ids": (first.id,)}))
             continue
-        slots = [base[d.id][1] for d in ds]
+        slots = [base[diff.id][1] for diff in ds]
         count = base[first.id][2]
         span = (f"{slots[0]}..{slots[-1]}" if slots == list(range(slots[0], slots[-1] + 1))
                 else ",".join(map(str, slots)))
@@ -244,7 +244,7 @@ def grouped(diffs: list[Difference], proto: str) -> list[Difference]:
                                                                    f"{count} slots)")
         out.append(Difference(first.id, label, first.signal, first.field, first.ours,
                               first.theirs, first.reason.replace(first.message, mname),
-                              tuple(d.id for d in ds)))
+                              tuple(diff.id for diff in ds)))
     return out
 
 
@@ -270,16 +270,16 @@ def _value(field: str, value: Any) -> str:
     return "-" if value is None else str(value)
 
 
-def _what(d: Difference) -> str:
-    if d.field == "missing":
+def _what(diff: Difference) -> str:
+    if diff.field == "missing":
         return "not in theirs"
-    if d.field == "extra":
-        return f"only in theirs: {d.theirs}"
-    if d.field == "overlap":
-        return str(d.theirs)
+    if diff.field == "extra":
+        return f"only in theirs: {diff.theirs}"
+    if diff.field == "overlap":
+        return str(diff.theirs)
     name = {"dlc": "DLC", "start": "start bit", "signed": "sign", "byte_order": "byte order",
-            "invalid": "invalid value"}.get(d.field, d.field)
-    return f"{name} {_value(d.field, d.ours)} -> {_value(d.field, d.theirs)}"
+            "invalid": "invalid value"}.get(diff.field, diff.field)
+    return f"{name} {_value(diff.field, diff.ours)} -> {_value(diff.field, diff.theirs)}"
 
 
 def human(diffs: list[Difference], path: str, proto: str, detected: str = "") -> str:
@@ -294,11 +294,12 @@ def human(diffs: list[Difference], path: str, proto: str, detected: str = "") ->
                             80, subsequent_indent="  "),
              "(each: what differs, ours -> theirs; then where ours comes from)"]
     entries: dict[tuple[str, str], list[str]] = {}  # one entry per signal and reason
-    for d in diffs:
-        ids = f"0x{d.ids[0]:03X}..0x{d.ids[-1]:03X}" if len(d.ids) > 1 else f"0x{d.id:03X}"
-        where = f"{ids} {d.message}" + (f".{d.signal}" if d.signal else "")
-        reason = d.reason.split(" (theirs is ")[0] if d.field == "scale" else d.reason
-        what = _what(d) + (f" ({d.reason.split(' (')[-1]}" if reason != d.reason else "")
+    for diff in diffs:
+        ids = (f"0x{diff.ids[0]:03X}..0x{diff.ids[-1]:03X}" if len(diff.ids) > 1
+               else f"0x{diff.id:03X}")
+        where = f"{ids} {diff.message}" + (f".{diff.signal}" if diff.signal else "")
+        reason = diff.reason.split(" (theirs is ")[0] if diff.field == "scale" else diff.reason
+        what = _what(diff) + (f" ({diff.reason.split(' (')[-1]}" if reason != diff.reason else "")
         entries.setdefault((where, reason), []).append(what)
     for (where, reason), whats in entries.items():
         lines += textwrap.wrap(f"{where}: {'; '.join(whats)}", 80, initial_indent="  ",

@@ -53,7 +53,7 @@ def _invalid_definition() -> Any:
                                   minimum=-(1 << 31), maximum=(1 << 31) - 1)
 
 
-def _signal(s: CanSignal, enums: dict[str, dict[int, str]], seed: str,
+def _signal(sig: CanSignal, enums: dict[str, dict[int, str]], seed: str,
             invalid_def: Any) -> Any:
     from collections import OrderedDict
 
@@ -62,49 +62,49 @@ def _signal(s: CanSignal, enums: dict[str, dict[int, str]], seed: str,
 
     attribute, _, specifics_cls = _dbc_classes()
 
-    choices: Any = OrderedDict(sorted(enums[s.enum].items())) if s.enum else None
-    notes = [f"seed {seed} line {s.seed_line}"]
-    if s.description:
-        notes.append(s.description)
+    choices: Any = OrderedDict(sorted(enums[sig.enum].items())) if sig.enum else None
+    notes = [f"seed {seed} line {sig.seed_line}"]
+    if sig.description:
+        notes.append(sig.description)
     specifics = None
-    if s.invalid is not None and s.invalid_means is not None:
+    if sig.invalid is not None and sig.invalid_means is not None:
         # C8: the printed invalid value is also a normal state, so no invalid attribute
-        notes.append(f"printed invalid raw 0x{s.invalid:X} also means {s.invalid_means}: "
+        notes.append(f"printed invalid raw 0x{sig.invalid:X} also means {sig.invalid_means}: "
                      "not an invalid marker")
-    elif s.invalid is not None:
-        notes.append(f"invalid raw 0x{s.invalid:X}")
+    elif sig.invalid is not None:
+        notes.append(f"invalid raw 0x{sig.invalid:X}")
         specifics = specifics_cls(attributes=OrderedDict(
-            {INVALID_ATTRIBUTE: attribute(s.raw_invalid, invalid_def)}))
+            {INVALID_ATTRIBUTE: attribute(sig.raw_invalid, invalid_def)}))
     return Signal(
-        name=s.name, start=s.start, length=s.length,
-        byte_order="big_endian" if s.byte_order == "big_endian" else "little_endian",
-        is_signed=s.signed, raw_invalid=s.reported_invalid,
-        conversion=BaseConversion.factory(scale=s.scale, offset=s.offset, choices=choices,
-                                          is_float=s.is_float),
-        minimum=s.min, maximum=s.max, unit=s.unit, comment="; ".join(notes),
+        name=sig.name, start=sig.start, length=sig.length,
+        byte_order="big_endian" if sig.byte_order == "big_endian" else "little_endian",
+        is_signed=sig.signed, raw_invalid=sig.reported_invalid,
+        conversion=BaseConversion.factory(scale=sig.scale, offset=sig.offset, choices=choices,
+                                          is_float=sig.is_float),
+        minimum=sig.min, maximum=sig.max, unit=sig.unit, comment="; ".join(notes),
         dbc_specifics=specifics,
     )
 
 
-def _message(m: CanMessage, slot: int | None, fid: int, name: str, proto: CanProtocol,
+def _message(msg: CanMessage, slot: int | None, fid: int, name: str, proto: CanProtocol,
              invalid_def: Any) -> Any:
     from cantools.database.can import Message
 
-    seed = m.seed or proto.seed  # the seed the line numbers count in
-    where = f"seed {seed} section {m.section} line {m.seed_line}"
-    if slot is not None and m.slots is not None:
-        where += f"; slot {slot} of {m.slots.rule}"
-    return Message(frame_id=fid, name=name, length=m.dlc,
+    seed = msg.seed or proto.seed  # the seed the line numbers count in
+    where = f"seed {seed} section {msg.section} line {msg.seed_line}"
+    if slot is not None and msg.slots is not None:
+        where += f"; slot {slot} of {msg.slots.rule}"
+    return Message(frame_id=fid, name=name, length=msg.dlc,
                    signals=[_signal(s, proto.enums, s.seed or seed, invalid_def)
-                            for s in m.signals],
-                   cycle_time=round(m.cycle_ms), comment=where, senders=["EyeQ_Gateway"],
+                            for s in msg.signals],
+                   cycle_time=round(msg.cycle_ms), comment=where, senders=["EyeQ_Gateway"],
                    strict=True)
 
 
 def build_database(proto: CanProtocol | str) -> Any:
     """A cantools ``Database`` of every message instance of ``proto``."""
     cantools = require_cantools()
-    p = protocol(proto) if isinstance(proto, str) else proto
+    spec = protocol(proto) if isinstance(proto, str) else proto
     from collections import OrderedDict
 
     from cantools.database.can import Bus, Node
@@ -112,17 +112,17 @@ def build_database(proto: CanProtocol | str) -> Any:
     _, _, specifics_cls = _dbc_classes()
 
     invalid_def = _invalid_definition()
-    msgs = [_message(m, slot, fid, name, p, invalid_def) for m in p.messages
+    msgs = [_message(m, slot, fid, name, spec, invalid_def) for m in spec.messages
             for slot, fid, name in m.instances()]
     try:
         db = cantools.database.can.Database(
-            messages=msgs, nodes=[Node("EyeQ_Gateway")], version=f"eyeq-spi {p.name}",
-            buses=[Bus(p.name, baudrate=p.bitrate)],
+            messages=msgs, nodes=[Node("EyeQ_Gateway")], version=f"eyeq-spi {spec.name}",
+            buses=[Bus(spec.name, baudrate=spec.bitrate)],
             dbc_specifics=specifics_cls(attribute_definitions=OrderedDict(
                 {INVALID_ATTRIBUTE: invalid_def})))
         db.refresh()
     except Exception as exc:  # cantools rejects an inconsistent layout: a spec error
-        raise SpecError(f"specs/can/{p.name}.yaml does not build a DBC: {exc}") from exc
+        raise SpecError(f"specs/can/{spec.name}.yaml does not build a DBC: {exc}") from exc
     return db
 
 

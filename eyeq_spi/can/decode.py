@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Iterator
 from dataclasses import dataclass
 from decimal import Decimal
 from functools import cache
@@ -64,22 +63,22 @@ class SignalDecoder:
     digits: int | None  # decimals the scale and offset imply (values rounded to them)
 
     @classmethod
-    def build(cls, s: CanSignal, dlc: int, enums: dict[str, dict[int, str]]) -> SignalDecoder:
-        big = s.byte_order == "big_endian"
+    def build(cls, sig: CanSignal, dlc: int, enums: dict[str, dict[int, str]]) -> SignalDecoder:
+        big = sig.byte_order == "big_endian"
         if big:  # Motorola: start is the MSB's bit in DBC numbering; count from the left
-            msb = (s.start // 8) * 8 + (7 - s.start % 8)
-            shift = dlc * 8 - 1 - (msb + s.length - 1)
+            msb = (sig.start // 8) * 8 + (7 - sig.start % 8)
+            shift = dlc * 8 - 1 - (msb + sig.length - 1)
         else:
-            shift = s.start
-        integer = isinstance(s.scale, int) and isinstance(s.offset, int) and not s.is_float
-        return cls(s, big, shift, (1 << s.length) - 1,
-                   1 << (s.length - 1) if s.signed else 0, s.scale, s.offset, integer,
-                   None if s.min is None else s.min - 1e-9 * abs(s.min),
-                   None if s.max is None else s.max + 1e-9 * abs(s.max),
-                   s.reported_invalid, enums.get(s.enum) if s.enum else None,
-                   s.covered_bytes(), None if integer or s.is_float or (
-                       _exact(s.scale) and _exact(s.offset))
-                   else max(_decimals(s.scale), _decimals(s.offset)))
+            shift = sig.start
+        integer = isinstance(sig.scale, int) and isinstance(sig.offset, int) and not sig.is_float
+        return cls(sig, big, shift, (1 << sig.length) - 1,
+                   1 << (sig.length - 1) if sig.signed else 0, sig.scale, sig.offset, integer,
+                   None if sig.min is None else sig.min - 1e-9 * abs(sig.min),
+                   None if sig.max is None else sig.max + 1e-9 * abs(sig.max),
+                   sig.reported_invalid, enums.get(sig.enum) if sig.enum else None,
+                   sig.covered_bytes(), None if integer or sig.is_float or (
+                       _exact(sig.scale) and _exact(sig.offset))
+                   else max(_decimals(sig.scale), _decimals(sig.offset)))
 
     def raw(self, le: int, be: int) -> int:
         r = ((be if self.big_endian else le) >> self.shift) & self.mask
@@ -145,99 +144,99 @@ class MessageDecoder:
         decoder built once from the spec (the loop of :meth:`decode_into` is its reference)."""
         env: dict[str, Any] = {"_F32": _F32.unpack, "_finite": math.isfinite,
                                "_fmt": _out_of_range}
-        big = any(s.big_endian for s in self.signals)
+        big = any(sig.big_endian for sig in self.signals)
         body = ["def _decode(data, fields, labels, invalid, errors):",
                 "    le = int.from_bytes(data, 'little')"]
         if big:
             body.append("    be = int.from_bytes(data, 'big')")
-        for k, s in enumerate(self.signals):
-            word = "be" if s.big_endian else "le"
-            name = s.spec.name
-            body.append(f"    r = ({word} >> {s.shift}) & {s.mask}" if s.shift else
-                        f"    r = {word} & {s.mask}")
-            if s.sign_bit:
-                body.append(f"    if r & {s.sign_bit}: r -= {s.mask + 1}")
-            if s.spec.is_float:
+        for index, sig in enumerate(self.signals):
+            word = "be" if sig.big_endian else "le"
+            name = sig.spec.name
+            body.append(f"    r = ({word} >> {sig.shift}) & {sig.mask}" if sig.shift else
+                        f"    r = {word} & {sig.mask}")
+            if sig.sign_bit:
+                body.append(f"    if r & {sig.sign_bit}: r -= {sig.mask + 1}")
+            if sig.spec.is_float:
                 body += ["    x = _F32(r.to_bytes(4, 'big'))[0]",
                          "    if not _finite(x): x = None"]
-            elif s.integer:
-                x = "r" if s.scale == 1 and s.offset == 0 else \
-                    f"r * {int(s.scale)} + {int(s.offset)}"
-                body.append(f"    x = {x}")
-            elif s.digits is None:  # binary-exact scale and offset: nothing to round
-                body.append(f"    x = r * {s.scale!r} + {s.offset!r}")
+            elif sig.integer:
+                expr = "r" if sig.scale == 1 and sig.offset == 0 else \
+                    f"r * {int(sig.scale)} + {int(sig.offset)}"
+                body.append(f"    x = {expr}")
+            elif sig.digits is None:  # binary-exact scale and offset: nothing to round
+                body.append(f"    x = r * {sig.scale!r} + {sig.offset!r}")
             else:
-                if s.digits > SHORT_DECIMALS:
-                    body.append(f"    x = round(r * {s.scale!r} + {s.offset!r}, {s.digits})")
+                if sig.digits > SHORT_DECIMALS:
+                    body.append(f"    x = round(r * {sig.scale!r} + {sig.offset!r}, {sig.digits})")
                 else:
-                    num, off, den = s.decimal()
+                    num, off, den = sig.decimal()
                     body.append(f"    x = (r * {num} + {off}) / {den}")
             body.append(f"    fields[{name!r}] = x")
-            if s.labels is not None:
-                env[f"_L{k}"] = s.labels
-                body.append(f"    labels[{name!r}] = _L{k}.get(r)")
+            if sig.labels is not None:
+                env[f"_L{index}"] = sig.labels
+                body.append(f"    labels[{name!r}] = _L{index}.get(r)")
             checks = []
-            if s.low is not None:
-                checks.append(f"x < {s.low!r}")
-            if s.high is not None:
-                checks.append(f"x > {s.high!r}")
+            if sig.low is not None:
+                checks.append(f"x < {sig.low!r}")
+            if sig.high is not None:
+                checks.append(f"x > {sig.high!r}")
             cond = " or ".join(checks)
-            if s.spec.is_float and cond:
+            if sig.spec.is_float and cond:
                 cond = f"x is not None and ({cond})"
-            if s.invalid is not None:
-                body.append(f"    if r == {s.invalid}: invalid.append({name!r})")
+            if sig.invalid is not None:
+                body.append(f"    if r == {sig.invalid}: invalid.append({name!r})")
                 if cond:
                     body.append(f"    elif {cond}: errors.append(_fmt({name!r}, x, "
-                                f"{s.spec.min!r}, {s.spec.max!r}))")
+                                f"{sig.spec.min!r}, {sig.spec.max!r}))")
             elif cond:
-                body.append(f"    if {cond}: errors.append(_fmt({name!r}, x, {s.spec.min!r}, "
-                            f"{s.spec.max!r}))")
+                body.append(f"    if {cond}: errors.append(_fmt({name!r}, x, {sig.spec.min!r}, "
+                            f"{sig.spec.max!r}))")
         exec(compile("\n".join(body), f"<decoder {self.name}>", "exec"), env)
         return env["_decode"]
 
     def decode_into(self, data: bytes, rec: dict[str, Any]) -> None:
-        n = len(data)
-        if n == self.dlc:
+        count = len(data)
+        if count == self.dlc:
             self._fast(data, rec["fields"], rec["labels"], rec["invalid"], rec["errors"])
             return
-        if self.needed <= n < self.dlc:  # C8: short, every signal inside
+        if self.needed <= count < self.dlc:  # C8: short, every signal inside
             rec["short_dlc"] = True
-            self._fast(data + bytes(self.dlc - n), rec["fields"], rec["labels"],
+            self._fast(data + bytes(self.dlc - count), rec["fields"], rec["labels"],
                        rec["invalid"], rec["errors"])
             return
         self.decode_slow(data, rec)
 
     def decode_slow(self, data: bytes, rec: dict[str, Any]) -> None:
         """The reference loop (any DLC): a wrong DLC is an error, the signals it holds decoded."""
-        n = len(data)
+        count = len(data)
         fields, labels, invalid, errors = rec["fields"], rec["labels"], rec["invalid"], \
             rec["errors"]
         have = self.dlc
-        if n != self.dlc:
-            if self.needed <= n < self.dlc:
+        if count != self.dlc:
+            if self.needed <= count < self.dlc:
                 rec["short_dlc"] = True
             else:
-                errors.append(f"DLC {n}, spec {self.dlc}")
-                have = min(n, self.dlc)
+                errors.append(f"DLC {count}, spec {self.dlc}")
+                have = min(count, self.dlc)
             data = (data + bytes(self.dlc))[:self.dlc]
         le = int.from_bytes(data, "little")
         be = int.from_bytes(data, "big")
-        for s in self.signals:
-            if s.nbytes > have:
+        for sig in self.signals:
+            if sig.nbytes > have:
                 continue  # not in this (too short) frame
-            r = ((be if s.big_endian else le) >> s.shift) & s.mask
-            if s.sign_bit and r & s.sign_bit:
-                r -= s.mask + 1
-            value = s.physical(r)
-            name = s.spec.name
+            r = ((be if sig.big_endian else le) >> sig.shift) & sig.mask
+            if sig.sign_bit and r & sig.sign_bit:
+                r -= sig.mask + 1
+            value = sig.physical(r)
+            name = sig.spec.name
             fields[name] = value
-            if s.labels is not None:
-                labels[name] = s.labels.get(r)
-            if r == s.invalid:
+            if sig.labels is not None:
+                labels[name] = sig.labels.get(r)
+            if r == sig.invalid:
                 invalid.append(name)
-            elif value is not None and ((s.low is not None and value < s.low)
-                                        or (s.high is not None and value > s.high)):
-                errors.append(_out_of_range(name, value, s.spec.min, s.spec.max))
+            elif value is not None and ((sig.low is not None and value < sig.low)
+                                        or (sig.high is not None and value > sig.high)):
+                errors.append(_out_of_range(name, value, sig.spec.min, sig.spec.max))
 
 
 def _out_of_range(name: str, value: float, lo: float | None, hi: float | None) -> str:
@@ -248,14 +247,14 @@ def _out_of_range(name: str, value: float, lo: float | None, hi: float | None) -
 @cache
 def _message_decoders(proto: str) -> dict[int, MessageDecoder]:
     """The compiled decoders of a protocol, by frame ID (built once per process)."""
-    p = protocol(proto)
+    spec = protocol(proto)
     out = {}
-    for m in p.messages:
-        source = m if m.quality is None or m.quality.message is None else \
-            p.message(m.quality.message)
-        for slot, fid, name in m.instances():
-            src = source.instances()[slot or 0][1] if m.quality is not None else None
-            out[fid] = MessageDecoder(m, name, p.enums, src)
+    for msg in spec.messages:
+        source = msg if msg.quality is None or msg.quality.message is None else \
+            spec.message(msg.quality.message)
+        for slot, fid, name in msg.instances():
+            src = source.instances()[slot or 0][1] if msg.quality is not None else None
+            out[fid] = MessageDecoder(msg, name, spec.enums, src)
     return out
 
 
@@ -298,9 +297,9 @@ class CanDecoder:
         if self._names is None:
             self._names = {d.name: d for d in self.by_id.values()}
         dec = self._names.get(table)
-        for s in dec.signals if dec is not None else ():
-            if column_name(s.spec.name, s.spec.unit) == column:
-                return "int64" if s.integer else "float64"
+        for sig in dec.signals if dec is not None else ():
+            if column_name(sig.spec.name, sig.spec.unit) == column:
+                return "int64" if sig.integer else "float64"
         return None
 
     def spec_for(self, frame_id: int) -> CanMessage | None:
@@ -353,11 +352,6 @@ class CanDecoder:
             rec["units"] = dec.units
         return rec
 
-    def decode_all(self, messages: Iterator[Any]) -> Iterator[dict[str, Any]]:
-        for i, m in enumerate(messages):
-            yield self.decode(m, i)
-
-
 _NO_UNITS: dict[str, str] = {}
 
 
@@ -379,25 +373,26 @@ def table_record(rec: dict[str, Any], raw_invalid: bool = False) -> dict[str, An
     return {**rec, "fields": fields}
 
 
-def human_record(r: dict[str, Any]) -> str:
-    t = "-" if r["time"] is None else f"{r['time']:.6f}"
-    head = f"{r['frames'][0]:8d} {t:>14s} 0x{r['header']['id']:03X} {r['name'] or '?':24s}"
+def human_record(record: dict[str, Any]) -> str:
+    time = "-" if record["time"] is None else f"{record['time']:.6f}"
+    head = (f"{record['frames'][0]:8d} {time:>14s} 0x{record['header']['id']:03X} "
+            f"{record['name'] or '?':24s}")
     parts = []
-    units = r.get("units") or _NO_UNITS
-    for k, v in r["fields"].items():
-        text = f"{v:.6g}" if isinstance(v, float) else str(v)
-        if k in units:
-            text += f" {units[k]}"
-        label = r["labels"].get(k)
+    units = record.get("units") or _NO_UNITS
+    for name, value in record["fields"].items():
+        text = f"{value:.6g}" if isinstance(value, float) else str(value)
+        if name in units:
+            text += f" {units[name]}"
+        label = record["labels"].get(name)
         if label:
             text += f" ({label})"
-        if k in r["invalid"]:
+        if name in record["invalid"]:
             text += " (invalid)"
-        parts.append(f"{k}={text}")
-    if r.get("short_dlc"):
-        parts.append(f"(short DLC {r['length']})")
-    if r["errors"]:
-        parts.append(f"!! {'; '.join(r['errors'])}")
+        parts.append(f"{name}={text}")
+    if record.get("short_dlc"):
+        parts.append(f"(short DLC {record['length']})")
+    if record["errors"]:
+        parts.append(f"!! {'; '.join(record['errors'])}")
     return pack(head.rstrip(), parts)
 
 

@@ -170,8 +170,8 @@ class CanGateway:
     def start(self, now: float) -> None:
         """Start the cycles (done by the first ``handle_timer`` after a DASP message)."""
         self._started = True
-        for p in self._plans:
-            p.due = now
+        for plan in self._plans:
+            plan.due = now
 
     # -- timer ------------------------------------------------------------------------------
     def get_timer(self) -> float | None:
@@ -189,16 +189,16 @@ class CanGateway:
             self.poll(now)
             if not self._started:
                 return
-        due = [p for p in self._plans if p.due <= now + 1e-12]
+        due = [plan for plan in self._plans if plan.due <= now + 1e-12]
         if not due:
             return
         env = self._environment(now)
-        for p in due:
-            self._emit(p, env, now)
-            p.sent += 1
-            p.due += p.period
-            if p.due <= now:  # fell behind (a stalled real-time loop): skip, never burst
-                p.due = now + p.period
+        for plan in due:
+            self._emit(plan, env, now)
+            plan.sent += 1
+            plan.due += plan.period
+            if plan.due <= now:  # fell behind (a stalled real-time loop): skip, never burst
+                plan.due = now + plan.period
 
     def frames(self) -> list[CanFrame]:
         out, self._queue = self._queue, []
@@ -218,24 +218,24 @@ class CanGateway:
             env[dname] = fn(env)
         return env
 
-    def _emit(self, p: _Plan, env: dict[str, Any], now: float) -> None:
-        env["n"] = p.sent
-        if p.slots is None:
+    def _emit(self, plan: _Plan, env: dict[str, Any], now: float) -> None:
+        env["n"] = plan.sent
+        if plan.slots is None:
             items: list[Any] = [None]
         else:
-            got = p.slots(env)
+            got = plan.slots(env)
             items = list(got) if isinstance(got, list) else []
-            if len(items) > len(p.db_messages):
-                self.counters.slot_overflow[p.message.name] += len(items) - len(p.db_messages)
-                items = items[: len(p.db_messages)]
-        for i, item in enumerate(items):
-            env["i"], env["o"] = i, item
+            if len(items) > len(plan.db_messages):
+                self.counters.slot_overflow[plan.message.name] += len(items) - len(plan.db_messages)
+                items = items[: len(plan.db_messages)]
+        for index, item in enumerate(items):
+            env["i"], env["o"] = index, item
             # an unmapped signal (mapping.yaml `unmapped`, C4) sends its invalid value or
             # physical 0 by design: not counted as missing
             raw = {s.name: physical_to_raw(s, fn(env), self.counters) if fn is not None
                    else physical_to_raw(s, MISSING)
-                   for s, fn in p.signals}
-            dbm = p.db_messages[i]
+                   for s, fn in plan.signals}
+            dbm = plan.db_messages[index]
             data = dbm.encode(raw, scaling=False, padding=False, strict=False)
             self._queue.append(CanFrame(now - self.epoch, dbm.frame_id, bytes(data), dbm.name))
             self.counters.frames[dbm.name] += 1
@@ -267,8 +267,8 @@ class GatewayNode:
         if t is not None and t <= now:
             self.inner.handle_timer(now)
         self.gateway.poll(now)
-        g = self.gateway.get_timer()
-        if g is not None and g <= now:
+        gateway_timer = self.gateway.get_timer()
+        if gateway_timer is not None and gateway_timer <= now:
             self.gateway.handle_timer(now)
-            for f in self.gateway.frames():
-                self.sink(f)
+            for frame in self.gateway.frames():
+                self.sink(frame)

@@ -35,8 +35,8 @@ TEXT_SUFFIXES = (".asc", ".log", ".trc", ".csv")
 FORMAT_NAMES = {".blf": "BLF", ".asc": "ASC", ".log": "candump", ".trc": "TRC", ".mf4": "MF4",
                 ".csv": "python-can CSV"}
 # how each format's file begins: a file that does not begin so never was that format (exit 2);
-# one that does and then ends inside a record is truncated (exit 1). The text formats are judged
-# on their first line, which a cut file keeps (or keeps the start of).
+# one that does and then ends inside a record is truncated (exit 1). The text formats are recognised
+# by their first line, which a cut file keeps (or keeps the start of).
 _ASC_HEAD = re.compile(rb"(date|base|internal events|begin triggerblock|//|\s*\d+\.\d+\s)",
                        re.I)
 _CANDUMP_HEAD = re.compile(rb"\(\d")
@@ -62,29 +62,29 @@ def _looks_like(head: bytes, suffix: str) -> bool:
     return _CSV_HEAD.startswith(first[:len(_CSV_HEAD)]) or first.startswith(_CSV_HEAD)
 
 
-def _check_format(p: Path, suffix: str) -> None:
+def _check_format(path: Path, suffix: str) -> None:
     """:class:`InputError` for a directory, a missing file or one that never was ``suffix``'s
     format (an empty file passes: it holds no frames)."""
-    if p.is_dir():
-        raise InputError(f"{p}: a directory, not a CAN log (give its log files, e.g. "
-                          f"{p}/*.blf)")
-    if not p.is_file():
-        raise InputError(f"{p}: no such file")
+    if path.is_dir():
+        raise InputError(f"{path}: a directory, not a CAN log (give its log files, e.g. "
+                          f"{path}/*.blf)")
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
     try:
-        with p.open("rb") as fh:
+        with path.open("rb") as fh:
             head = fh.read(512)
     except OSError as exc:
-        raise InputError(f"{p}: cannot read: {exc.strerror or exc}") from exc
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from exc
     if head and not _looks_like(head, suffix):
         name = FORMAT_NAMES[suffix]
-        raise InputError(f"{p}: not {'an' if name[0] in 'AM' else 'a'} {name} log (it does "
+        raise InputError(f"{path}: not {'an' if name[0] in 'AM' else 'a'} {name} log (it does "
                           f"not begin as one)")
 
 
-def _blf_announced_size(p: Path) -> int | None:
+def _blf_announced_size(path: Path) -> int | None:
     """The file size a BLF header announces (0/None when the writer never finished it)."""
     try:
-        with p.open("rb") as fh:
+        with path.open("rb") as fh:
             head = fh.read(48)
     except OSError:
         return None
@@ -95,10 +95,10 @@ def _blf_announced_size(p: Path) -> int | None:
     return size or None
 
 
-def _text_cut(p: Path, suffix: str) -> str | None:
+def _text_cut(path: Path, suffix: str) -> str | None:
     """Why a text log looks cut, or None."""
     try:
-        with p.open("rb") as fh:
+        with path.open("rb") as fh:
             head = fh.read(4096)
             size = fh.seek(0, 2)
             if size == 0:
@@ -111,29 +111,29 @@ def _text_cut(p: Path, suffix: str) -> str | None:
         return "its last line has no line end"
     if suffix == ".asc" and b"begin triggerblock" in head.lower():
         # Vector's block: a file that opens it ends with it (converters that write neither,
-        # as can-utils' log2asc, are judged by their last line only)
+        # as can-utils' log2asc, are checked by their last line only)
         last = tail.rstrip().rsplit(b"\n", 1)[-1].strip().lower()
         if not last.startswith(b"end triggerblock"):
             return "it has no 'End TriggerBlock'"
     return None
 
 
-def truncation(p: Path, frames: int) -> str | None:
+def truncation(path: Path, frames: int) -> str | None:
     """A one-line description of how ``p`` is truncated after ``frames`` frames, or None."""
-    suffix = p.suffix.lower()
+    suffix = path.suffix.lower()
     try:
-        size = p.stat().st_size
+        size = path.stat().st_size
     except OSError:
         return None
     if suffix == ".blf":
-        want = _blf_announced_size(p)
+        want = _blf_announced_size(path)
         if want is not None and size < want:
-            return (f"{p}: truncated BLF: the file has {size} of the {want} bytes its header "
+            return (f"{path}: truncated BLF: the file has {size} of the {want} bytes its header "
                     f"announces; {frames} frames read")
     elif suffix in TEXT_SUFFIXES:
-        why = _text_cut(p, suffix)
+        why = _text_cut(path, suffix)
         if why is not None:
-            return f"{p}: truncated {suffix} log ({why}); {frames} frames read, {size} bytes"
+            return f"{path}: truncated {suffix} log ({why}); {frames} frames read, {size} bytes"
     return None
 
 
@@ -186,16 +186,16 @@ class _OpenError(Exception):
     pass
 
 
-def _open(can: Any, p: Path) -> Any:
+def _open(can: Any, path: Path) -> Any:
     """python-can's reader for ``p``. asammdf leaves a half-built object whose ``__del__``
     raises when an MF4 cannot be opened: it is collected here, its noise swallowed."""
-    if p.suffix.lower() != ".mf4":
-        return can.LogReader(str(p))
+    if path.suffix.lower() != ".mf4":
+        return can.LogReader(str(path))
     hook = sys.unraisablehook
     sys.unraisablehook = lambda _u: None
     try:
         try:
-            return can.LogReader(str(p))
+            return can.LogReader(str(path))
         except ImportError:
             raise
         except Exception as exc:
@@ -206,9 +206,9 @@ def _open(can: Any, p: Path) -> Any:
         sys.unraisablehook = hook
 
 
-def _starts_like_mf4(p: Path) -> bool:
+def _starts_like_mf4(path: Path) -> bool:
     try:
-        with p.open("rb") as fh:
+        with path.open("rb") as fh:
             return fh.read(8) in (b"MDF     ", b"UnFinMF ")
     except OSError:
         return False

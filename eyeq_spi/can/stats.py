@@ -79,8 +79,8 @@ class CanStats:
         times, datas, _, _ = self._buf.pop(key)
         ch_raw, fid, ext = key
         ch = None if ch_raw is None else str(ch_raw)
-        n = len(times)
-        self.per_channel[ch] += n
+        count = len(times)
+        self.per_channel[ch] += count
         if self.channel is not None and ch != self.channel:
             return
         t = np.asarray(times, dtype=np.float64)
@@ -89,10 +89,10 @@ class CanStats:
         self.last = hi if self.last is None else max(self.last, hi)
         dec = None if ext else self.decoder.by_id.get(fid)
         if dec is None:
-            self.unknown[(ch, fid)] += n
+            self.unknown[(ch, fid)] += count
             return
         st = self._keys.setdefault((ch, fid), _Key(dec.name))
-        st.frames += n
+        st.frames += count
         if st.n_intervals < self.MAX_INTERVALS:
             prev = t if st.last is None else np.concatenate(([st.last], t))
             iv = np.diff(prev) * 1000.0
@@ -134,25 +134,25 @@ class CanStats:
                 ch: str | None) -> None:
         import numpy as np
 
-        n = len(datas)
+        count = len(datas)
         sizes = set(map(len, datas))
         st.sizes |= sizes
         if len(sizes) == 1:  # the usual case: one length per ID (8, or the camera's short 4)
             size = sizes.pop()
-            lens = np.full(n, size, dtype=np.int64)
-            arr = np.frombuffer(b"".join(datas), dtype=np.uint8).reshape(n, size)[:, :dec.dlc]
+            lens = np.full(count, size, dtype=np.int64)
+            arr = np.frombuffer(b"".join(datas), dtype=np.uint8).reshape(count, size)[:, :dec.dlc]
             if size < dec.dlc:
                 arr = np.pad(arr, ((0, 0), (0, dec.dlc - size)))
         else:
-            lens = np.fromiter(map(len, datas), dtype=np.int64, count=n)
+            lens = np.fromiter(map(len, datas), dtype=np.int64, count=count)
             arr = np.frombuffer(b"".join(bytes(d[:dec.dlc]).ljust(dec.dlc, b"\0") for d in datas),
-                                dtype=np.uint8).reshape(n, dec.dlc)
+                                dtype=np.uint8).reshape(count, dec.dlc)
         short = (lens < dec.dlc) & (lens >= dec.needed)
         bad_dlc = (lens != dec.dlc) & ~short
         have = np.where(bad_dlc, np.minimum(lens, dec.dlc), dec.dlc)
         st.short_dlc += int(short.sum())
         st.dlc_errors += int(bad_dlc.sum())
-        full = np.zeros((n, 8), dtype=np.uint8)
+        full = np.zeros((count, 8), dtype=np.uint8)
         full[:, :dec.dlc] = arr
         le = full.view("<u8").ravel()
         be = full.view(">u8").ravel().astype(np.uint64)
@@ -160,46 +160,46 @@ class CanStats:
         err = bad_dlc.copy()
         low = self._low_quality(dec, ch, t, le, be, pad, st)
         with np.errstate(invalid="ignore", over="ignore"):  # NaN floats: not finite, skipped
-            for s in dec.signals:
-                self._signal(s, le, be, pad, have, st, err,
-                             low if s.spec.name in dec.governed else None)
+            for sig in dec.signals:
+                self._signal(sig, le, be, pad, have, st, err,
+                             low if sig.spec.name in dec.governed else None)
         st.error_frames += int(err.sum())
 
     @staticmethod
-    def _signal(s: Any, le: Any, be: Any, pad: int, have: Any, st: _Key, err: Any,
+    def _signal(sig: Any, le: Any, be: Any, pad: int, have: Any, st: _Key, err: Any,
                 low: Any) -> None:
         import numpy as np
 
-        n = len(le)
-        present = have >= s.nbytes
-        word = be if s.big_endian else le
-        shift = s.shift + pad if s.big_endian else s.shift
-        raw_u = (word >> np.uint64(shift)) & np.uint64(s.mask)
+        count = len(le)
+        present = have >= sig.nbytes
+        word = be if sig.big_endian else le
+        shift = sig.shift + pad if sig.big_endian else sig.shift
+        raw_u = (word >> np.uint64(shift)) & np.uint64(sig.mask)
         phys: Any
-        if s.spec.is_float:
+        if sig.spec.is_float:
             phys = raw_u.astype(np.uint32).view(np.float32).astype(np.float64)
             raw = raw_u.astype(np.int64)
         else:
             raw = raw_u.astype(np.int64)
-            if s.sign_bit:
-                raw = np.where(raw & s.sign_bit, raw - (s.mask + 1), raw)
-            phys = raw * float(s.scale) + float(s.offset)
-        inv = present & (raw == s.invalid) if s.invalid is not None else \
-            np.zeros(n, dtype=bool)
+            if sig.sign_bit:
+                raw = np.where(raw & sig.sign_bit, raw - (sig.mask + 1), raw)
+            phys = raw * float(sig.scale) + float(sig.offset)
+        inv = present & (raw == sig.invalid) if sig.invalid is not None else \
+            np.zeros(count, dtype=bool)
         if low is not None:
             inv |= present & low
-        k = int(inv.sum())
-        if k:
-            st.invalid[s.spec.name] += k
-        oor = np.zeros(n, dtype=bool)
-        if s.low is not None:
-            oor |= phys < s.low
-        if s.high is not None:
-            oor |= phys > s.high
+        invalid = int(inv.sum())
+        if invalid:
+            st.invalid[sig.spec.name] += invalid
+        oor = np.zeros(count, dtype=bool)
+        if sig.low is not None:
+            oor |= phys < sig.low
+        if sig.high is not None:
+            oor |= phys > sig.high
         oor &= present & ~inv & np.isfinite(phys)
-        k = int(oor.sum())
-        if k:
-            st.out_of_range[s.spec.name] += k
+        out_of_range = int(oor.sum())
+        if out_of_range:
+            st.out_of_range[sig.spec.name] += out_of_range
             err |= oor
 
     def finish(self) -> None:
@@ -218,8 +218,8 @@ class CanStats:
             for size in st.sizes:
                 out.add(ch, fid, size, count=0)
             out.frames[ch] += st.frames
-        for (ch, _), n in self.unknown.items():
-            out.frames[ch] += n
+        for (ch, _), count in self.unknown.items():
+            out.frames[ch] += count
         return out
 
     def result(self) -> dict[str, Any]:
@@ -294,79 +294,82 @@ def total(results: list[dict[str, Any]]) -> dict[str, Any]:
     """The counts of several files' statistics added up (``"file": null``, ``"files": N``); per
     ID its frames and errors only: a cycle time never spans two files."""
     ids: dict[tuple[int, str | None], dict[str, Any]] = {}
-    for r in results:
-        for row in r["ids"]:
-            t = ids.setdefault((row["id"], row["channel"]), {
+    for result in results:
+        for row in result["ids"]:
+            entry = ids.setdefault((row["id"], row["channel"]), {
                 "id": row["id"], "channel": row["channel"], "name": row["name"], "frames": 0,
                 "error_frames": 0})
-            t["frames"] += row["frames"]
-            t["error_frames"] += row["error_frames"]
+            entry["frames"] += row["frames"]
+            entry["error_frames"] += row["error_frames"]
     other: Counter[str] = Counter()
-    for r in results:
-        other.update(r["other_ids"])
+    for result in results:
+        other.update(result["other_ids"])
     return {"kind": "stats", "file": None, "files": len(results),
             "protocol": results[0]["protocol"] if results else None,
-            **{k: sum(r[k] for r in results) for k in TOTAL_KEYS},
+            **{k: sum(result[k] for result in results) for k in TOTAL_KEYS},
             "other_ids": dict(sorted(other.items())),
             "ids": [ids[k] for k in sorted(ids, key=lambda k: (k[0], str(k[1])))]}
 
 
-def human_total(s: dict[str, Any]) -> str:
+def human_total(stats: dict[str, Any]) -> str:
     return "\n".join([
-        f"=== total of {s['files']} files",
-        f"{s['frames']} frames, protocol {s['protocol']}; other nodes' traffic "
-        f"{s['other_frames']} frames",
-        pack(f"errors: {s['error_frames']} frames", [
-            f"(DLC errors {s['dlc_errors']},",
-            f"values out of range {s['out_of_range_values']});",
-            f"short DLCs {s['short_dlc']} (accepted);",
-            f"invalid values {s['invalid_values']} (as sent: not errors)"], indent=4)])
+        f"=== total of {stats['files']} files",
+        f"{stats['frames']} frames, protocol {stats['protocol']}; other nodes' traffic "
+        f"{stats['other_frames']} frames",
+        pack(f"errors: {stats['error_frames']} frames", [
+            f"(DLC errors {stats['dlc_errors']},",
+            f"values out of range {stats['out_of_range_values']});",
+            f"short DLCs {stats['short_dlc']} (accepted);",
+            f"invalid values {stats['invalid_values']} (as sent: not errors)"], indent=4)])
 
 
-def human_stats(s: dict[str, Any], heading: bool = False) -> str:
+def human_stats(stats: dict[str, Any], heading: bool = False) -> str:
     """One file's statistics, to 80 columns; ``heading``: ``=== FILE`` first."""
-    chans = ", ".join(f"{k}: {v}" for k, v in s["channels"].items())
-    span = "-" if s["duration_s"] is None else f"{s['duration_s']:.3f}"
-    lines = [f"=== {s['file']}"] if heading else []
-    lines += [f"{s['frames']} frames over {span} s, protocol {s['protocol']}"
-              + (f", channel {s['channel']}" if s["channel"] is not None else ""),
+    chans = ", ".join(f"{k}: {v}" for k, v in stats["channels"].items())
+    span = "-" if stats["duration_s"] is None else f"{stats['duration_s']:.3f}"
+    lines = [f"=== {stats['file']}"] if heading else []
+    lines += [f"{stats['frames']} frames over {span} s, protocol {stats['protocol']}"
+              + (f", channel {stats['channel']}" if stats["channel"] is not None else ""),
               f"channels (all frames in the log): {chans or 'none'}"]
-    if s["camera_channel"] is not None and s["channel"] is None:
-        lines.append(pack(f"camera on channel {s['camera_channel']}:",
-                          f"{s['camera_evidence']} (--channel {s['camera_channel']})".split(),
-                          indent=4))
-    if s["ids_on_several_channels"] and s["channel"] is None:
-        ids = "; ".join(f"{k} on {', '.join(v)}" for k, v in s["ids_on_several_channels"].items())
+    if stats["camera_channel"] is not None and stats["channel"] is None:
+        camera = stats["camera_channel"]
+        lines.append(pack(f"camera on channel {camera}:",
+                          f"{stats['camera_evidence']} (--channel {camera})".split(), indent=4))
+    if stats["ids_on_several_channels"] and stats["channel"] is None:
+        ids = "; ".join(f"{k} on {', '.join(v)}"
+                        for k, v in stats["ids_on_several_channels"].items())
         lines.append(pack("note: protocol IDs on several channels", [
             *f"({ids}):".split(" "), "those", "off", "the", "camera's", "channel", "are",
             "other", "traffic"], indent=6))
-    other = [f"{k} x{v}," for k, v in s["other_ids"].items()]
+    other = [f"{k} x{v}," for k, v in stats["other_ids"].items()]
     if other:
         other[-1] = other[-1].rstrip(",") + ")"
-        lines.append(pack(f"other nodes' traffic: {s['other_frames']} frames (IDs",
+        lines.append(pack(f"other nodes' traffic: {stats['other_frames']} frames (IDs",
                           other, indent=4))
-    lines.append(pack(f"errors: {s['error_frames']} frames", [
-        f"(DLC errors {s['dlc_errors']},",
-        f"values out of range {s['out_of_range_values']});",
-        f"short DLCs {s['short_dlc']} (accepted);",
-        f"invalid values {s['invalid_values']} (as sent: not errors)"], indent=4))
-    several = any(r["channel"] != s["ids"][0]["channel"] for r in s["ids"]) if s["ids"] else False
+    lines.append(pack(f"errors: {stats['error_frames']} frames", [
+        f"(DLC errors {stats['dlc_errors']},",
+        f"values out of range {stats['out_of_range_values']});",
+        f"short DLCs {stats['short_dlc']} (accepted);",
+        f"invalid values {stats['invalid_values']} (as sent: not errors)"], indent=4))
+    rows = stats["ids"]
+    several = any(entry["channel"] != rows[0]["channel"] for entry in rows) if rows else False
     lines.append(f"{'ID':>6s} {'ch':>3s} {'message':26s} {'frames':>7s} {'cycle ms':>9s} "
                  f"{'spec':>5s} {'dev %':>7s}"
                  if several else
                  f"{'ID':>6s} {'message':26s} {'frames':>7s} {'cycle ms':>9s} {'spec':>5s} "
                  f"{'dev %':>7s}")
-    for r in s["ids"]:
-        med = "-" if r["median_cycle_ms"] is None else f"{r['median_cycle_ms']:.1f}"
-        d = r["cycle_deviation_pct"]
-        dev = "-" if d is None else ("0.0" if abs(d) < 0.05 else f"{d:+.1f}")
-        probs = ([f"DLC errors x{r['dlc_errors']}"] if r["dlc_errors"] else []) \
-            + ([f"short DLC x{r['short_dlc']}"] if r["short_dlc"] else []) \
-            + [f"{k} invalid x{v}" for k, v in r["invalid"].items()] \
-            + [f"{k} out of range x{v}" for k, v in r["out_of_range"].items()]
-        ch = f" {r['channel'] or '-':>3s}" if several else ""
-        spec = "-" if r["spec_cycle_ms"] is None else f"{r['spec_cycle_ms']:g}"
-        row = (f"0x{r['id']:04X}{ch} {r['name']:26s} {r['frames']:7d} {med:>9s} "
+    for entry in stats["ids"]:
+        med = "-" if entry["median_cycle_ms"] is None else f"{entry['median_cycle_ms']:.1f}"
+        deviation = entry["cycle_deviation_pct"]
+        dev = ("-" if deviation is None
+               else "0.0" if abs(deviation) < 0.05 else f"{deviation:+.1f}")
+        probs = ([f"DLC errors x{entry['dlc_errors']}"] if entry["dlc_errors"] else []) \
+            + ([f"short DLC x{entry['short_dlc']}"] if entry["short_dlc"] else []) \
+            + [f"{k} invalid x{v}" for k, v in entry["invalid"].items()] \
+            + [f"{k} out of range x{v}" for k, v in entry["out_of_range"].items()]
+        ch = f" {entry['channel'] or '-':>3s}" if several else ""
+        spec = "-" if entry["spec_cycle_ms"] is None else f"{entry['spec_cycle_ms']:g}"
+        row = (f"0x{entry['id']:04X}{ch} {entry['name']:26s} {entry['frames']:7d} {med:>9s} "
                f"{spec:>5s} {dev:>7s}")
         # the findings of a row fold under it, between findings, to 80 columns
         lines.append(pack(row, [p + "," for p in probs[:-1]] + probs[-1:], indent=8)

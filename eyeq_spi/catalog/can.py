@@ -129,9 +129,9 @@ class CanMessage:
                 for i in range(self.slots.count)]
 
     def signal(self, name: str) -> CanSignal:
-        for s in self.signals:
-            if s.name == name:
-                return s
+        for sig in self.signals:
+            if sig.name == name:
+                return sig
         raise SpecError(f"{self.name} has no signal {name}")
 
 
@@ -146,9 +146,9 @@ class CanProtocol:
     seed: str = ""  # the seed whose line numbers the messages give (extlog2: 001)
 
     def message(self, name: str) -> CanMessage:
-        for m in self.messages:
-            if m.name == name:
-                return m
+        for msg in self.messages:
+            if msg.name == name:
+                return msg
         raise SpecError(f"protocol {self.name} has no message {name}")
 
 
@@ -182,24 +182,24 @@ MAPPING_DOC_KEYS = frozenset({"vehicle", "sources", "tables", "derived", "protoc
 
 def _table(raw: Any) -> dict[Any, int]:
     out: dict[Any, int] = {}
-    for k, v in (raw or {}).items():
-        if k == "identity":
-            out.update({int(x): int(x) for x in v})
-        elif k == "default":
-            out["default"] = int(v)
+    for key, value in (raw or {}).items():
+        if key == "identity":
+            out.update({int(x): int(x) for x in value})
+        elif key == "default":
+            out["default"] = int(value)
         else:
-            out[int(k)] = int(v)
+            out[int(key)] = int(value)
     return out
 
 
-def _num(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+def _num(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _check_signal(where: str, s: Any, dlc: int, enums: dict[str, Any]) -> list[str]:
     if not isinstance(s, dict):
         return [f"{where}: signal must be a mapping"]
-    out = [f"{where}: unknown key {k!r}" for k in sorted(set(s) - SIGNAL_KEYS)]
+    out = [f"{where}: unknown key {key!r}" for key in sorted(set(s) - SIGNAL_KEYS)]
     if not isinstance(s.get("name"), str) or not s["name"].isidentifier():
         out.append(f"{where}: bad name {s.get('name')!r}")
     if not isinstance(s.get("start"), int) or not isinstance(s.get("length"), int) \
@@ -207,9 +207,9 @@ def _check_signal(where: str, s: Any, dlc: int, enums: dict[str, Any]) -> list[s
         return [*out, f"{where}: needs int start >= 0 and length 1..64"]
     if not isinstance(s.get("seed_line"), int):
         out.append(f"{where}: needs an int seed_line")
-    for k in ("scale", "offset", "min", "max"):
-        if k in s and not _num(s[k]):
-            out.append(f"{where}: {k} must be a number")
+    for key in ("scale", "offset", "min", "max"):
+        if key in s and not _num(s[key]):
+            out.append(f"{where}: {key} must be a number")
     if s.get("scale") == 0:
         out.append(f"{where}: scale 0")
     if s.get("byte_order", "little_endian") not in ("little_endian", "big_endian"):
@@ -242,8 +242,8 @@ def validate_protocol(rel: str, doc: Any) -> list[str]:
     if not isinstance(doc.get("name"), str):
         out.append(f"{rel}: needs a name")
     enums = doc.get("enums") or {}
-    for ename, e in enums.items():
-        vals = e.get("values") if isinstance(e, dict) else None
+    for ename, enum in enums.items():
+        vals = enum.get("values") if isinstance(enum, dict) else None
         if not isinstance(vals, dict) or not all(isinstance(k, int) and isinstance(v, str)
                                                  for k, v in vals.items()):
             out.append(f"{rel}: enum {ename}: values must map ints to names")
@@ -252,23 +252,23 @@ def validate_protocol(rel: str, doc: Any) -> list[str]:
     msgs = doc.get("messages")
     if not isinstance(msgs, list) or not msgs:
         return [*out, f"{rel}: needs a messages list"]
-    for m in msgs:
-        where = f"{rel}: message {m.get('name') if isinstance(m, dict) else m!r}"
-        if not isinstance(m, dict):
+    for msg in msgs:
+        where = f"{rel}: message {msg.get('name') if isinstance(msg, dict) else msg!r}"
+        if not isinstance(msg, dict):
             out.append(f"{where}: must be a mapping")
             continue
-        out += [f"{where}: unknown key {k!r}" for k in sorted(set(m) - MESSAGE_KEYS)]
-        if not isinstance(m.get("id"), int) or not 0 <= m["id"] <= 0x7FF:
+        out += [f"{where}: unknown key {k!r}" for k in sorted(set(msg) - MESSAGE_KEYS)]
+        if not isinstance(msg.get("id"), int) or not 0 <= msg["id"] <= 0x7FF:
             out.append(f"{where}: id must be an 11-bit int")
             continue
-        if not isinstance(m.get("dlc"), int) or not 1 <= m["dlc"] <= 8:
+        if not isinstance(msg.get("dlc"), int) or not 1 <= msg["dlc"] <= 8:
             out.append(f"{where}: dlc must be 1..8")
             continue
-        if not _num(m.get("cycle_ms")) or m["cycle_ms"] <= 0:
+        if not _num(msg.get("cycle_ms")) or msg["cycle_ms"] <= 0:
             out.append(f"{where}: cycle_ms must be positive")
-        if not isinstance(m.get("seed_line"), int):
+        if not isinstance(msg.get("seed_line"), int):
             out.append(f"{where}: needs an int seed_line")
-        slots = m.get("slots")
+        slots = msg.get("slots")
         if slots is not None and (not isinstance(slots, dict) or set(slots) - SLOT_KEYS
                                   or not isinstance(slots.get("count"), int)
                                   or not isinstance(slots.get("stride"), int)
@@ -276,35 +276,35 @@ def validate_protocol(rel: str, doc: Any) -> list[str]:
             out.append(f"{where}: slots needs int count and stride >= 1")
             continue
         count, stride = (slots["count"], slots["stride"]) if slots else (1, 1)
-        for i in range(count):
-            fid = m["id"] + i * stride
+        for slot in range(count):
+            fid = msg["id"] + slot * stride
             if fid in ids:
                 out.append(f"{where}: ID 0x{fid:03X} also used by {ids[fid]}")
-            ids[fid] = str(m.get("name"))
-        if m.get("name") in names:
+            ids[fid] = str(msg.get("name"))
+        if msg.get("name") in names:
             out.append(f"{where}: duplicate name")
-        names.add(str(m.get("name")))
+        names.add(str(msg.get("name")))
         used: dict[int, str] = {}
         snames: set[str] = set()
-        for s in m.get("signals") or []:
-            swhere = f"{where} signal {s.get('name') if isinstance(s, dict) else s!r}"
-            problems = _check_signal(swhere, s, m["dlc"], enums)
+        for sig in msg.get("signals") or []:
+            swhere = f"{where} signal {sig.get('name') if isinstance(sig, dict) else sig!r}"
+            problems = _check_signal(swhere, sig, msg["dlc"], enums)
             out += problems
             if problems:
                 continue
-            if s["name"] in snames:
+            if sig["name"] in snames:
                 out.append(f"{swhere}: duplicate name")
-            snames.add(s["name"])
-            for b in _signal(s).bits():
-                if b in used:
-                    out.append(f"{swhere}: bit {b} overlaps {used[b]}")
+            snames.add(sig["name"])
+            for bit in _signal(sig).bits():
+                if bit in used:
+                    out.append(f"{swhere}: bit {bit} overlaps {used[bit]}")
                     break
-                used[b] = s["name"]
+                used[bit] = sig["name"]
         if not snames:
             out.append(f"{where}: needs signals")
-        if m.get("quality") is not None:
+        if msg.get("quality") is not None:
             by_name = {str(x.get("name")): x for x in msgs if isinstance(x, dict)}
-            out += _check_quality(where, m["quality"], m, by_name)
+            out += _check_quality(where, msg["quality"], msg, by_name)
     return out
 
 
@@ -314,9 +314,9 @@ def validate_mapping(rel: str, doc: Any, protocols: dict[str, Any]) -> list[str]
     out = [f"{rel}: unknown key {k!r}" for k in sorted(set(doc) - MAPPING_DOC_KEYS)]
     names = set(BASE_NAMES) | set(doc.get("sources") or {})
     tables = doc.get("tables") or {}
-    for tname, t in tables.items():
+    for tname, table in tables.items():
         try:
-            _table(t)
+            _table(table)
         except (TypeError, ValueError, AttributeError):
             out.append(f"{rel}: table {tname}: int -> int, identity: [ints], default: int")
     for dname, dm in (doc.get("derived") or {}).items():
@@ -394,24 +394,24 @@ def validate_can_docs(docs: dict[str, Any]) -> list[str]:
     return out
 
 
-def _signal(s: dict[str, Any]) -> CanSignal:
+def _signal(raw: dict[str, Any]) -> CanSignal:
     return CanSignal(
-        name=s["name"], start=int(s["start"]), length=int(s["length"]),
-        byte_order=s.get("byte_order", "little_endian"), signed=bool(s.get("signed", False)),
-        scale=s.get("scale", 1), offset=s.get("offset", 0), unit=s.get("unit"),
-        min=s.get("min"), max=s.get("max"), invalid=s.get("invalid"),
-        invalid_means=s.get("invalid_means"),
-        out_of_range=s.get("out_of_range", "clamp"), enum=s.get("enum"),
-        is_float=bool(s.get("float", False)), seed_line=int(s.get("seed_line", 0)),
-        description=s.get("description"),
-        seed=str(s["seed"]) if s.get("seed") is not None else None,
+        name=raw["name"], start=int(raw["start"]), length=int(raw["length"]),
+        byte_order=raw.get("byte_order", "little_endian"), signed=bool(raw.get("signed", False)),
+        scale=raw.get("scale", 1), offset=raw.get("offset", 0), unit=raw.get("unit"),
+        min=raw.get("min"), max=raw.get("max"), invalid=raw.get("invalid"),
+        invalid_means=raw.get("invalid_means"),
+        out_of_range=raw.get("out_of_range", "clamp"), enum=raw.get("enum"),
+        is_float=bool(raw.get("float", False)), seed_line=int(raw.get("seed_line", 0)),
+        description=raw.get("description"),
+        seed=str(raw["seed"]) if raw.get("seed") is not None else None,
     )
 
 
-def _quality(q: dict[str, Any]) -> QualityRule:
-    return QualityRule(str(q["signal"]), int(q["valid_from"]), tuple(q["governs"]),
-                       str(q["message"]) if q.get("message") else None,
-                       int(q.get("seed_line", 0)))
+def _quality(raw: dict[str, Any]) -> QualityRule:
+    return QualityRule(str(raw["signal"]), int(raw["valid_from"]), tuple(raw["governs"]),
+                       str(raw["message"]) if raw.get("message") else None,
+                       int(raw.get("seed_line", 0)))
 
 
 def _check_quality(where: str, q: Any, m: dict[str, Any],
@@ -437,15 +437,15 @@ def _check_quality(where: str, q: Any, m: dict[str, Any],
 
 def _protocol(doc: dict[str, Any]) -> CanProtocol:
     msgs = []
-    for m in doc["messages"]:
-        sl = m.get("slots")
+    for msg in doc["messages"]:
+        sl = msg.get("slots")
         msgs.append(CanMessage(
-            name=m["name"], id=int(m["id"]), dlc=int(m["dlc"]), cycle_ms=m["cycle_ms"],
-            signals=tuple(_signal(s) for s in m["signals"]),
+            name=msg["name"], id=int(msg["id"]), dlc=int(msg["dlc"]), cycle_ms=msg["cycle_ms"],
+            signals=tuple(_signal(s) for s in msg["signals"]),
             slots=SlotRule(int(sl["count"]), int(sl["stride"]), str(sl.get("rule", "")))
-            if sl else None, section=m.get("section"), seed_line=int(m["seed_line"]),
-            seed=str(m["seed"]) if m.get("seed") is not None else None,
-            quality=_quality(m["quality"]) if m.get("quality") else None,
+            if sl else None, section=msg.get("section"), seed_line=int(msg["seed_line"]),
+            seed=str(msg["seed"]) if msg.get("seed") is not None else None,
+            quality=_quality(msg["quality"]) if msg.get("quality") else None,
         ))
     enums = {k: {int(v): str(n) for v, n in e["values"].items()}
              for k, e in (doc.get("enums") or {}).items()}
@@ -481,12 +481,12 @@ def can_specs() -> tuple[dict[str, CanProtocol], CanMapping]:
     problems = validate_can_docs(docs)
     if problems:
         raise SpecError(f"specs/can: {len(problems)} schema problem(s), first: {problems[0]}")
-    protocols = {p.name: p for p in (_protocol(d["can_protocol"]) for d in docs.values()
-                                     if isinstance(d, dict) and "can_protocol" in d)}
+    protocols = {p.name: p for p in (_protocol(doc["can_protocol"]) for doc in docs.values()
+                                     if isinstance(doc, dict) and "can_protocol" in doc)}
     mapping = CanMapping({}, {}, {})
-    for d in docs.values():
-        if isinstance(d, dict) and "can_mapping" in d:
-            mp = d["can_mapping"]
+    for doc in docs.values():
+        if isinstance(doc, dict) and "can_mapping" in doc:
+            mp = doc["can_mapping"]
             prot: dict[str, dict[str, MessageMapping]] = {}
             for pname, msgs in (mp.get("protocols") or {}).items():
                 prot[pname] = {}

@@ -114,15 +114,15 @@ class EnumDef:
     def label(self, value: int) -> str | None:
         if self.kind == "flags":
             names = []
-            for bit, f in sorted(self.values.items()):
-                part = value >> bit & ((1 << f.width) - 1)
-                if part and f.width == 1:
-                    names.append(f.name)
+            for bit, flag in sorted(self.values.items()):
+                part = value >> bit & ((1 << flag.width) - 1)
+                if part and flag.width == 1:
+                    names.append(flag.name)
                 elif part:
-                    names.append(f"{f.name}={(f.fields or {}).get(part, part)}")
+                    names.append(f"{flag.name}={(flag.fields or {}).get(part, part)}")
             return "|".join(names) if names else None
-        v = self.values.get(value)
-        return v.name if v else None
+        entry = self.values.get(value)
+        return entry.name if entry else None
 
 
 @dataclass(frozen=True)
@@ -235,15 +235,15 @@ class Catalog:
         return table[keys[-1]]
 
     def message(self, name: str) -> MessageDef:
-        for m in self.messages:
-            if m.name == name:
-                return m
+        for msg in self.messages:
+            if msg.name == name:
+                return msg
         raise SpecError(f"unknown message {name}")
 
     def dasp_by_id(self, data_id: int, sw: SwKey) -> MessageDef | None:
-        for m in self.messages:
-            if m.protocol == "DASP" and m.data_id == data_id and m.exists_in(sw):
-                return m
+        for msg in self.messages:
+            if msg.protocol == "DASP" and msg.data_id == data_id and msg.exists_in(sw):
+                return msg
         return None
 
     def sw(self, text: str | None) -> SwKey:
@@ -287,21 +287,21 @@ class RawDocs(Mapping[str, Any]):
         return (RawDocs, (self._root,))
 
 
-def _member(m: dict[str, Any]) -> Member:
-    bits = m.get("bits")
-    values = m.get("values")
+def _member(raw: dict[str, Any]) -> Member:
+    bits = raw.get("bits")
+    values = raw.get("values")
     return Member(
-        name=m["name"],
-        type=m.get("type", "uint8"),
-        array=m.get("array"),
+        name=raw["name"],
+        type=raw.get("type", "uint8"),
+        array=raw.get("array"),
         bits=(int(bits[0]), int(bits[1])) if bits else None,
-        enum=m.get("enum"),
+        enum=raw.get("enum"),
         values={int(k): str(v) for k, v in values.items()} if isinstance(values, dict) else None,
-        units=m.get("units"),
-        min=m.get("min"),
-        max=m.get("max"),
-        seed_line=int(m.get("seed_line", 0)),
-        description=m.get("description"),
+        units=raw.get("units"),
+        min=raw.get("min"),
+        max=raw.get("max"),
+        seed_line=int(raw.get("seed_line", 0)),
+        description=raw.get("description"),
     )
 
 
@@ -312,20 +312,20 @@ def _crcs(raw: Any) -> tuple[Crc, ...]:
     return tuple(Crc(c["field"], c.get("counter"), tuple(c["covers"])) for c in items)
 
 
-def _num(x: Any) -> float:
+def _num(value: Any) -> float:
     """Keep ints exact (a 128-bit fuse ID does not survive a float); floats stay floats."""
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
-        raise SpecError(f"not a number: {x!r}")
-    return x
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SpecError(f"not a number: {value!r}")
+    return value
 
 
-def _signal(s: dict[str, Any]) -> InitSignal:
+def _signal(raw: dict[str, Any]) -> InitSignal:
     return InitSignal(
-        name=str(s["name"]), start=int(s["start"]), length=int(s["length"]),
-        signed=bool(s.get("signed", False)), factor=_num(s["factor"]),
-        offset=_num(s["offset"]), min=_num(s["min"]), max=_num(s["max"]),
-        initial=_num(s.get("initial", 0)), units=s.get("units"),
-        is_float=bool(s.get("float", False)), seed_line=int(s.get("seed_line", 0)),
+        name=str(raw["name"]), start=int(raw["start"]), length=int(raw["length"]),
+        signed=bool(raw.get("signed", False)), factor=_num(raw["factor"]),
+        offset=_num(raw["offset"]), min=_num(raw["min"]), max=_num(raw["max"]),
+        initial=_num(raw.get("initial", 0)), units=raw.get("units"),
+        is_float=bool(raw.get("float", False)), seed_line=int(raw.get("seed_line", 0)),
     )
 
 
@@ -392,11 +392,11 @@ def load_catalog(root: Path) -> Catalog:
             inits[name] = InitMessageDef(
                 name, int(im["id"]), im.get("ct_type"), im.get("rounding", "round"), variants_i
             )
-        for f in doc.get("mesp_functions") or []:
+        for function in doc.get("mesp_functions") or []:
             mesp.append(MespFunction(
-                f["name"], int(f["service"]), int(f["function"]),
-                tuple(MespParam(p["name"], p["type"]) for p in f.get("request") or []),
-                tuple(MespParam(p["name"], p["type"]) for p in f.get("reply") or []),
+                function["name"], int(function["service"]), int(function["function"]),
+                tuple(MespParam(p["name"], p["type"]) for p in function.get("request") or []),
+                tuple(MespParam(p["name"], p["type"]) for p in function.get("reply") or []),
             ))
         for code, ret in (doc.get("mesp_ret") or {}).items():
             mesp_ret[int(code)] = str(ret["name"] if isinstance(ret, dict) else ret)

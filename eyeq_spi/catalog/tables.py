@@ -63,9 +63,9 @@ class DaspHeader:
     bad_length_counter: str
 
     def field(self, name: str) -> DaspHeaderField:
-        for f in self.fields:
-            if f.name == name:
-                return f
+        for entry in self.fields:
+            if entry.name == name:
+                return entry
         raise SpecError(f"dasp_header.yaml has no field {name}")
 
     @property
@@ -108,10 +108,10 @@ class GpioGroup:
 
     def levels(self, code: int) -> dict[str, int]:
         """The pin levels that encode ``code`` (inverse of :meth:`code`)."""
-        n = len(self.encoding)
-        if not 0 <= code < 1 << n:
-            raise SpecError(f"GPIO {self.name}: {code} does not fit {n} pin(s)")
-        return {label: code >> (n - 1 - i) & 1 for i, label in enumerate(self.encoding)}
+        count = len(self.encoding)
+        if not 0 <= code < 1 << count:
+            raise SpecError(f"GPIO {self.name}: {code} does not fit {count} pin(s)")
+        return {label: code >> (count - 1 - i) & 1 for i, label in enumerate(self.encoding)}
 
 
 @dataclass(frozen=True)
@@ -148,11 +148,11 @@ class AlignmentNvm:
     sources: tuple[NvmSource, ...]
 
     def source(self, name: str) -> NvmSource:
-        for s in self.sources:
-            if s.name.lower() == name.lower():
-                return s
+        for source in self.sources:
+            if source.name.lower() == name.lower():
+                return source
         raise SpecError(f"§21 has no calibration source {name!r} "
-                        f"(known: {', '.join(s.name for s in self.sources)})")
+                        f"(known: {', '.join(source.name for source in self.sources)})")
 
     def defaults(self) -> dict[str, float]:
         return {p.name: p.default for p in self.parameters}
@@ -162,18 +162,20 @@ class AlignmentNvm:
         """The NVM after a *successful* run of ``source``: each cell of its row applied to
         ``stored`` with the run's ``measured`` result members."""
         row = self.source(source)
-        out = {p.name: float(stored.get(p.name, p.default)) for p in self.parameters}
-        for p in self.parameters:
-            action = row.actions[p.name]
+        out = {param.name: float(stored.get(param.name, param.default))
+               for param in self.parameters}
+        for param in self.parameters:
+            action = row.actions[param.name]
             if action == "set_zero":
-                out[p.name] = 0.0
+                out[param.name] = 0.0
             elif action == "update":
-                if p.source is None:
-                    out[p.name] = float(p.value_on_update if p.value_on_update is not None else 1)
-                elif p.source not in measured:
-                    raise SpecError(f"{row.name} result lacks {p.source} (for {p.name})")
+                if param.source is None:
+                    on_update = param.value_on_update
+                    out[param.name] = float(on_update if on_update is not None else 1)
+                elif param.source not in measured:
+                    raise SpecError(f"{row.name} result lacks {param.source} (for {param.name})")
                 else:
-                    out[p.name] = float(measured[p.source])
+                    out[param.name] = float(measured[param.source])
         return out
 
     def init_values(self, stored: Mapping[str, float]) -> dict[str, float]:
@@ -200,14 +202,14 @@ def decisions() -> dict[str, Decision]:
 
 @cache
 def dasp_header() -> DaspHeader:
-    h = _checked("dasp_header.yaml", "dasp_header")
+    header = _checked("dasp_header.yaml", "dasp_header")
     return DaspHeader(
-        int(h["size"]),
+        int(header["size"]),
         tuple(DaspHeaderField(str(f["name"]), int(f["offset"]), f.get("value"),
-                              int(f["seed_line"])) for f in h["fields"]),
-        frozenset(int(x) for x in h.get("reserved_data_ids") or ()),
-        int(h["counter"]["modulo"]), int(h["unused_bits"]),
-        str(h["counter"]["diag_counter"]), str(h["bad_length"]["diag_counter"]),
+                              int(f["seed_line"])) for f in header["fields"]),
+        frozenset(int(x) for x in header.get("reserved_data_ids") or ()),
+        int(header["counter"]["modulo"]), int(header["unused_bits"]),
+        str(header["counter"]["diag_counter"]), str(header["bad_length"]["diag_counter"]),
     )
 
 
@@ -228,58 +230,59 @@ def gpio_groups() -> dict[str, GpioGroup]:
 def alignment_nvm() -> AlignmentNvm:
     """The §21 Alignment NVM table of ``specs/nvm.yaml`` (cross-checked against the catalogue
     by :func:`validate_tables` when the whole tree is validated)."""
-    t = _checked("nvm.yaml", "alignment_nvm")
+    table = _checked("nvm.yaml", "alignment_nvm")
     params = tuple(
         NvmParameter(str(p["name"]), str(p["type"]), float(p["default"]), p.get("source"),
                      str(p["init_signal"]), float(p.get("init_factor", 1.0)),
                      p.get("value_on_update"))
-        for p in t["parameters"]
+        for p in table["parameters"]
     )
     sources = tuple(
         NvmSource(str(s["name"]), str(s["mode"]), str(s["message"]), str(s["result"]),
                   s.get("run_mode"), dict(s.get("success") or {}), dict(s["actions"]))
-        for s in t["sources"]
+        for s in table["sources"]
     )
     return AlignmentNvm(params, sources)
 
 
 # -- validation ----------------------------------------------------------------------------------
-def _is_int(v: Any) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
-def flag_field_problems(v: dict[str, Any], seen: set[int]) -> list[str]:
+def flag_field_problems(entry: dict[str, Any], seen: set[int]) -> list[str]:
     """A multi-bit field of a ``kind: flags`` enum: ``{bits: [lo, hi], name, values: {0: ..}}``."""
-    bits = v.get("bits")
-    if (not isinstance(bits, list) or len(bits) != 2 or not all(_is_int(b) for b in bits)
+    bits = entry.get("bits")
+    if (not isinstance(bits, list) or len(bits) != 2 or not all(_is_int(bit) for bit in bits)
             or not 0 <= bits[0] <= bits[1] < 64):
-        return [f"flag field {v.get('name')!r}: bits must be [lo, hi] within 0..63"]
+        return [f"flag field {entry.get('name')!r}: bits must be [lo, hi] within 0..63"]
     problems = []
-    if not isinstance(v.get("name"), str) or not v["name"]:
+    if not isinstance(entry.get("name"), str) or not entry["name"]:
         problems.append(f"flag field bits {bits} without a name")
-    values = v.get("values")
+    values = entry.get("values")
     if values is not None and (not isinstance(values, dict) or not all(
             _is_int(k) and 0 <= k < 1 << (bits[1] - bits[0] + 1) and isinstance(n, str)
             for k, n in values.items())):
-        problems.append(f"flag field {v.get('name')}: values must map field values to names")
-    for b in range(bits[0], bits[1] + 1):
-        if b in seen:
-            problems.append(f"flag field {v.get('name')}: bit {b} repeated")
-        seen.add(b)
+        problems.append(f"flag field {entry.get('name')}: values must map field values to names")
+    for bit in range(bits[0], bits[1] + 1):
+        if bit in seen:
+            problems.append(f"flag field {entry.get('name')}: bit {bit} repeated")
+        seen.add(bit)
     return problems
 
 
 def _walk_decisions(node: Any, where: str, out: list[tuple[str, str]]) -> None:
     if isinstance(node, dict):
-        d = node.get("decision")
-        if isinstance(d, str) and DECISION_ID.match(d):
-            out.append((where, d))
-        for k, v in node.items():
-            _walk_decisions(v, f"{where}/{node.get('name', k) if k == 'values' else k}", out)
+        decision = node.get("decision")
+        if isinstance(decision, str) and DECISION_ID.match(decision):
+            out.append((where, decision))
+        for key, value in node.items():
+            label = node.get("name", key) if key == "values" else key
+            _walk_decisions(value, f"{where}/{label}", out)
     elif isinstance(node, list):
-        for i, v in enumerate(node):
-            label = v.get("name", v.get("id", i)) if isinstance(v, dict) else i
-            _walk_decisions(v, f"{where}[{label}]", out)
+        for index, value in enumerate(node):
+            label = value.get("name", value.get("id", index)) if isinstance(value, dict) else index
+            _walk_decisions(value, f"{where}[{label}]", out)
 
 
 def _check_decisions(docs: dict[str, Any], _ctx: dict[str, Any]) -> list[str]:
@@ -288,62 +291,62 @@ def _check_decisions(docs: dict[str, Any], _ctx: dict[str, Any]) -> list[str]:
     if not isinstance(items, list):
         return ["decisions.yaml: needs a 'decisions' list"]
     ids: set[str] = set()
-    for d in items:
-        if not isinstance(d, dict) or not isinstance(d.get("id"), str) \
-                or not DECISION_ID.match(d["id"]):
-            problems.append(f"decisions.yaml: entry without a decision id: {d!r}")
+    for item in items:
+        if not isinstance(item, dict) or not isinstance(item.get("id"), str) \
+                or not DECISION_ID.match(item["id"]):
+            problems.append(f"decisions.yaml: entry without a decision id: {item!r}")
             continue
-        if d["id"] in ids:
-            problems.append(f"decisions.yaml: {d['id']} listed twice")
-        ids.add(d["id"])
-        for k in ("title", "text"):
-            if not isinstance(d.get(k), str) or not d[k].strip():
-                problems.append(f"decisions.yaml: {d['id']} needs a {k}")
+        if item["id"] in ids:
+            problems.append(f"decisions.yaml: {item['id']} listed twice")
+        ids.add(item["id"])
+        for key in ("title", "text"):
+            if not isinstance(item.get(key), str) or not item[key].strip():
+                problems.append(f"decisions.yaml: {item['id']} needs a {key}")
     return problems
 
 
 def _check_dasp_header(docs: dict[str, Any], _ctx: dict[str, Any]) -> list[str]:
-    h = (docs.get("dasp_header.yaml") or {}).get("dasp_header")
-    if not isinstance(h, dict):
+    header = (docs.get("dasp_header.yaml") or {}).get("dasp_header")
+    if not isinstance(header, dict):
         return ["dasp_header.yaml: needs a 'dasp_header' mapping"]
     problems = []
-    size = h.get("size")
-    fields = h.get("fields")
+    size = header.get("size")
+    fields = header.get("fields")
     if not isinstance(size, int) or not isinstance(fields, list):
         return ["dasp_header.yaml: needs an int size and a fields list"]
     offsets = []
-    for f in fields:
-        if not isinstance(f, dict) or not isinstance(f.get("name"), str) \
-                or not _is_int(f.get("offset")) or not _is_int(f.get("seed_line")):
-            problems.append(f"dasp_header.yaml: field needs name, int offset, seed_line: {f!r}")
+    for entry in fields:
+        if not isinstance(entry, dict) or not isinstance(entry.get("name"), str) \
+                or not _is_int(entry.get("offset")) or not _is_int(entry.get("seed_line")):
+            problems.append(f"dasp_header.yaml: field needs name, int offset, seed_line: {entry!r}")
             continue
-        if f.get("type") not in UINT8_TYPES:
-            problems.append(f"dasp_header.yaml: {f['name']}: header fields are uint8")
-        if "value" in f and not (_is_int(f["value"]) and 0 <= f["value"] <= 255):
-            problems.append(f"dasp_header.yaml: {f['name']}: value must be 0..255")
-        offsets.append(f["offset"])
+        if entry.get("type") not in UINT8_TYPES:
+            problems.append(f"dasp_header.yaml: {entry['name']}: header fields are uint8")
+        if "value" in entry and not (_is_int(entry["value"]) and 0 <= entry["value"] <= 255):
+            problems.append(f"dasp_header.yaml: {entry['name']}: value must be 0..255")
+        offsets.append(entry["offset"])
     if sorted(offsets) != list(range(size)):
         problems.append(f"dasp_header.yaml: field offsets {offsets} do not cover 0..{size - 1}")
-    names = {f.get("name") for f in fields if isinstance(f, dict)}
+    names = {entry.get("name") for entry in fields if isinstance(entry, dict)}
     if "Protocol" not in names:
         problems.append("dasp_header.yaml: needs a Protocol field")
-    for k, sub in (("counter", ("modulo", "diag_counter")), ("bad_length", ("diag_counter",))):
-        if not isinstance(h.get(k), dict) or any(s not in h[k] for s in sub):
-            problems.append(f"dasp_header.yaml: {k} needs {', '.join(sub)}")
-    if not all(_is_int(x) for x in h.get("reserved_data_ids") or []):
+    for key, sub in (("counter", ("modulo", "diag_counter")), ("bad_length", ("diag_counter",))):
+        if not isinstance(header.get(key), dict) or any(s not in header[key] for s in sub):
+            problems.append(f"dasp_header.yaml: {key} needs {', '.join(sub)}")
+    if not all(_is_int(x) for x in header.get("reserved_data_ids") or []):
         problems.append("dasp_header.yaml: reserved_data_ids must be ints")
-    if h.get("unused_bits") not in (0, 1):
+    if header.get("unused_bits") not in (0, 1):
         problems.append("dasp_header.yaml: unused_bits must be 0 or 1")
     return problems
 
 
 def _check_gpio(docs: dict[str, Any], _ctx: dict[str, Any]) -> list[str]:
-    g = (docs.get("gpio.yaml") or {}).get("gpio")
-    if not isinstance(g, dict) or not isinstance(g.get("groups"), list):
+    gpio = (docs.get("gpio.yaml") or {}).get("gpio")
+    if not isinstance(gpio, dict) or not isinstance(gpio.get("groups"), list):
         return ["gpio.yaml: needs gpio.groups"]
     problems: list[str] = []
     names: set[str] = set()
-    for grp in g["groups"]:
+    for grp in gpio["groups"]:
         where = f"gpio.yaml: group {grp.get('name') if isinstance(grp, dict) else grp!r}"
         if not isinstance(grp, dict) or not isinstance(grp.get("name"), str):
             problems.append(f"{where}: needs a name")
@@ -354,24 +357,25 @@ def _check_gpio(docs: dict[str, Any], _ctx: dict[str, Any]) -> list[str]:
         if grp.get("direction") not in GPIO_DIRECTIONS:
             problems.append(f"{where}: direction must be one of {sorted(GPIO_DIRECTIONS)}")
         labels = set()
-        for p in grp.get("pins") or []:
-            if not isinstance(p, dict) or not isinstance(p.get("label"), str) \
-                    or not isinstance(p.get("ball"), str) or not _is_int(p.get("seed_line")):
-                problems.append(f"{where}: pin needs label, ball and seed_line: {p!r}")
+        for pin in grp.get("pins") or []:
+            if not isinstance(pin, dict) or not isinstance(pin.get("label"), str) \
+                    or not isinstance(pin.get("ball"), str) or not _is_int(pin.get("seed_line")):
+                problems.append(f"{where}: pin needs label, ball and seed_line: {pin!r}")
                 continue
-            if p.get("gpio") is None and not p.get("reconstruction"):
-                problems.append(f"{where}: pin {p['label']} without gpio needs a reconstruction")
-            labels.add(p["label"])
+            if pin.get("gpio") is None and not pin.get("reconstruction"):
+                problems.append(f"{where}: pin {pin['label']} without gpio needs a reconstruction")
+            labels.add(pin["label"])
         enc = grp.get("encoding")
         if not isinstance(enc, list) or not enc or not set(enc) <= labels:
             problems.append(f"{where}: encoding must list pins of the group")
             continue
-        for v in grp.get("values") or []:
-            if not isinstance(v, dict) or not _is_int(v.get("value")) \
-                    or not isinstance(v.get("name"), str) or not _is_int(v.get("seed_line")):
-                problems.append(f"{where}: value needs int value, name, seed_line: {v!r}")
-            elif not 0 <= v["value"] < 1 << len(enc):
-                problems.append(f"{where}: value {v['value']} does not fit {len(enc)} pin(s)")
+        for value in grp.get("values") or []:
+            if (not isinstance(value, dict) or not _is_int(value.get("value"))
+                    or not isinstance(value.get("name"), str)
+                    or not _is_int(value.get("seed_line"))):
+                problems.append(f"{where}: value needs int value, name, seed_line: {value!r}")
+            elif not 0 <= value["value"] < 1 << len(enc):
+                problems.append(f"{where}: value {value['value']} does not fit {len(enc)} pin(s)")
     return problems
 
 
@@ -380,42 +384,43 @@ def _members(structs: dict[str, Any], name: str) -> dict[str, dict[str, Any]]:
     out: dict[str, dict[str, Any]] = {}
     variants = (structs.get(name) or {}).get("variants") or {}
     for key in sorted(variants, key=lambda k: tuple(int(x) for x in k[2:].split("_"))):
-        for m in variants[key].get("members") or []:
-            if isinstance(m, dict) and "name" in m:
-                out[m["name"]] = m
+        for member in variants[key].get("members") or []:
+            if isinstance(member, dict) and "name" in member:
+                out[member["name"]] = member
     return out
 
 
 def _check_nvm(docs: dict[str, Any], ctx: dict[str, Any]) -> list[str]:
-    t = (docs.get("nvm.yaml") or {}).get("alignment_nvm")
-    if not isinstance(t, dict) or not isinstance(t.get("parameters"), list) \
-            or not isinstance(t.get("sources"), list):
+    table = (docs.get("nvm.yaml") or {}).get("alignment_nvm")
+    if not isinstance(table, dict) or not isinstance(table.get("parameters"), list) \
+            or not isinstance(table.get("sources"), list):
         return ["nvm.yaml: needs alignment_nvm.parameters and .sources"]
     problems: list[str] = []
     params: dict[str, dict[str, Any]] = {}
-    for p in t["parameters"]:
-        if not isinstance(p, dict) or not isinstance(p.get("name"), str):
-            problems.append(f"nvm.yaml: parameter without a name: {p!r}")
+    for param in table["parameters"]:
+        if not isinstance(param, dict) or not isinstance(param.get("name"), str):
+            problems.append(f"nvm.yaml: parameter without a name: {param!r}")
             continue
-        where = f"nvm.yaml: parameter {p['name']}"
-        if p["name"] in params:
+        where = f"nvm.yaml: parameter {param['name']}"
+        if param["name"] in params:
             problems.append(f"{where}: listed twice")
-        params[p["name"]] = p
-        if not isinstance(p.get("default"), (int, float)) or not isinstance(
-                p.get("init_signal"), str) or not _is_int(p.get("seed_line")):
+        params[param["name"]] = param
+        if not isinstance(param.get("default"), (int, float)) or not isinstance(
+                param.get("init_signal"), str) or not _is_int(param.get("seed_line")):
             problems.append(f"{where}: needs default, init_signal and seed_line")
-        factor = p.get("init_factor", 1.0)
+        factor = param.get("init_factor", 1.0)
         if not isinstance(factor, (int, float)) or not math.isfinite(factor) or factor == 0:
             problems.append(f"{where}: init_factor must be a non-zero number")
         init = ctx.get("init_signals")
-        if init is not None and p.get("init_signal") not in init:
-            problems.append(f"{where}: {p.get('init_signal')!r} is no Init_Params_Vision signal")
-    for s in t["sources"]:
-        if not isinstance(s, dict) or not isinstance(s.get("name"), str):
-            problems.append(f"nvm.yaml: source without a name: {s!r}")
+        if init is not None and param.get("init_signal") not in init:
+            problems.append(f"{where}: {param.get('init_signal')!r} is no Init_Params_Vision "
+                            "signal")
+    for source in table["sources"]:
+        if not isinstance(source, dict) or not isinstance(source.get("name"), str):
+            problems.append(f"nvm.yaml: source without a name: {source!r}")
             continue
-        where = f"nvm.yaml: source {s['name']}"
-        actions = s.get("actions")
+        where = f"nvm.yaml: source {source['name']}"
+        actions = source.get("actions")
         if not isinstance(actions, dict) or set(actions) != set(params):
             problems.append(f"{where}: actions must name every parameter once")
         elif not set(actions.values()) <= NVM_ACTIONS:
@@ -423,18 +428,19 @@ def _check_nvm(docs: dict[str, Any], ctx: dict[str, Any]) -> list[str]:
         structs, enums = ctx.get("structs"), ctx.get("enums")
         if structs is None or enums is None:
             continue
-        if s.get("message") not in ctx["messages"]:
-            problems.append(f"{where}: unknown message {s.get('message')!r}")
-        members = _members(structs, str(s.get("result")))
+        if source.get("message") not in ctx["messages"]:
+            problems.append(f"{where}: unknown message {source.get('message')!r}")
+        members = _members(structs, str(source.get("result")))
         if not members:
-            problems.append(f"{where}: unknown result struct {s.get('result')!r}")
+            problems.append(f"{where}: unknown result struct {source.get('result')!r}")
             continue
-        for pname, p in params.items():
-            if p.get("source") is not None and p["source"] not in members:
-                problems.append(f"{where}: {s['result']} has no {p['source']} (for {pname})")
-        checks = dict(s.get("success") or {})
-        if s.get("run_mode") is not None:
-            checks["runMode"] = s["run_mode"]
+        for pname, param in params.items():
+            if param.get("source") is not None and param["source"] not in members:
+                problems.append(f"{where}: {source['result']} has no {param['source']} "
+                                f"(for {pname})")
+        checks = dict(source.get("success") or {})
+        if source.get("run_mode") is not None:
+            checks["runMode"] = source["run_mode"]
         for member, value in checks.items():
             enum = enums.get(str((members.get(member) or {}).get("enum")))
             names = {v.get("name") for v in (enum or {}).get("values") or []}
@@ -456,17 +462,18 @@ def _check_mesp(docs: dict[str, Any], _ctx: dict[str, Any]) -> list[str]:
             problems.append(f"mesp.yaml: ret {code} needs a name and a seed_line or decision")
         elif not isinstance(ret, (dict, str)):
             problems.append(f"mesp.yaml: ret {code} must be a name or a mapping")
-    for f in doc.get("mesp_functions") or []:
-        fname = f.get("name") if isinstance(f, dict) else f
+    for function in doc.get("mesp_functions") or []:
+        fname = function.get("name") if isinstance(function, dict) else function
         for side in ("request", "reply"):
-            for p in (f.get(side) if isinstance(f, dict) else None) or []:
-                where = f"mesp.yaml: {fname} {side} {p.get('name') if isinstance(p, dict) else p}"
-                if not isinstance(p, dict) or p.get("type") not in MESP_TYPES:
+            for param in (function.get(side) if isinstance(function, dict) else None) or []:
+                label = param.get("name") if isinstance(param, dict) else param
+                where = f"mesp.yaml: {fname} {side} {label}"
+                if not isinstance(param, dict) or param.get("type") not in MESP_TYPES:
                     problems.append(f"{where}: type must be one of {sorted(MESP_TYPES)}")
                     continue
-                for k in set(p) - MESP_PARAM_KEYS:
-                    problems.append(f"{where}: unknown key {k!r}")
-                if "seed_line" not in p and "decision" not in p:
+                for key in set(param) - MESP_PARAM_KEYS:
+                    problems.append(f"{where}: unknown key {key!r}")
+                if "seed_line" not in param and "decision" not in param:
                     problems.append(f"{where}: needs a seed_line or a decision")
     return problems
 

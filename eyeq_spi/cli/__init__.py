@@ -56,19 +56,19 @@ def command_module(name: str) -> Any:
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The whole parser; with ``only``, the options of that command alone (every other command
     is its name and help line from :data:`TABLE`, enough for ``--help`` and usage errors)."""
-    p = _Parser(prog="eyeq-spi")
-    p.add_argument("--version", action="version", version=f"eyeq-spi {__version__}")
-    p.add_argument("--print-completion", choices=("bash", "zsh", "tcsh"), metavar="SHELL",
+    parser = _Parser(prog="eyeq-spi")
+    parser.add_argument("--version", action="version", version=f"eyeq-spi {__version__}")
+    parser.add_argument("--print-completion", choices=("bash", "zsh", "tcsh"), metavar="SHELL",
                    help="print the shell completion script for SHELL (bash, zsh, tcsh; "
                    "docs/cli.md says where to put it)")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser,
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser,
                            title="commands", metavar="COMMAND")
     for name, (_, line) in TABLE.items():
         if only is None or only == name:
             command_module(name).add_parser(sub, name, line)
         else:
             sub.add_parser(name, help=line)
-    return p
+    return parser
 
 
 def _command(argv: Sequence[str]) -> str:
@@ -81,12 +81,12 @@ def _command(argv: Sequence[str]) -> str:
 def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     """The parser ``main`` needs: one command's options; with help asked for (or nothing
     given), descriptions and examples too; for a completion script, every command's."""
-    p = build_parser(only=None if "--print-completion" in argv else _command(argv))
+    parser = build_parser(only=None if "--print-completion" in argv else _command(argv))
     if not argv or "-h" in argv or "--help" in argv:
         from eyeq_spi.cli.help import finish
 
-        finish(p)
-    return p
+        finish(parser)
+    return parser
 
 
 def _completion(parser: argparse.ArgumentParser, shell: str) -> int:
@@ -117,8 +117,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             sys.stdout.write(parser.format_help())
             return 0
         if "--print-completion" in argv and _command(argv) == "":
-            k = argv.index("--print-completion") + 1
-            shell = argv[k] if k < len(argv) else ""
+            index = argv.index("--print-completion") + 1
+            shell = argv[index] if index < len(argv) else ""
             if shell not in ("bash", "zsh", "tcsh"):
                 raise UsageError(f"argument --print-completion: give bash, zsh or tcsh, "
                                  f"not {shell!r}")

@@ -15,7 +15,7 @@ import argparse
 import math
 import os
 import re
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable
 from typing import Any, NamedTuple, NoReturn
 
 from eyeq_spi.errors import EyeqError
@@ -27,7 +27,7 @@ def _bad(message: str) -> NoReturn:
     raise argparse.ArgumentTypeError(message)
 
 
-def _cat() -> Any:
+def catalogue() -> Any:
     from eyeq_spi.catalog.messages import catalog
 
     try:
@@ -66,7 +66,7 @@ def _index() -> dict[str, Any]:
 
 
 def _build_index() -> dict[str, Any]:
-    cat = _cat()
+    cat = catalogue()
     return {
         "sw_versions": list(cat.sw_versions), "default_sw": cat.default_sw,
         "messages": [[m.name, m.data_id, m.protocol, m.direction] for m in cat.messages],
@@ -273,18 +273,6 @@ def regex(text: str) -> str:
     return text
 
 
-def upper_choice(choices: Sequence[str]) -> Type:
-    """One of ``choices``, any case."""
-
-    def parse(text: str) -> str:
-        if text.upper() in choices:
-            return text.upper()
-        _bad(f"must be one of {', '.join(choices)}, got {text!r}{did_you_mean(text, choices)}")
-
-    parse.__name__ = "choice"
-    return parse
-
-
 # -- files and endpoints -------------------------------------------------------------------------
 
 def input_file(text: str) -> str:
@@ -375,7 +363,7 @@ def spec_entry(query: str) -> str:
     """``spec show``'s NAME: an exact name in any case, a data ID (``0xE4``: DASP, 0x41, 0x10;
     init messages by ID too), ``SERVICE/FUNCTION`` of a MESP function, or a unique part of a
     name (messages first, then init messages, MESP functions, structs, enums)."""
-    cat = _cat()
+    cat = catalogue()
     kinds: list[list[str]] = [list(dict.fromkeys(names)) for names in (
         [m.name for m in cat.messages], list(cat.init_messages), [f.name for f in cat.mesp],
         list(cat.structs), list(cat.enums),

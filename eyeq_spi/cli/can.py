@@ -22,28 +22,28 @@ PROTOCOLS = ("extlog2", "me8")
 def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import options as opt
 
-    c = sub.add_parser(name, help=help,
+    parser = sub.add_parser(name, help=help,
                        description="The Mobileye CAN protocols of specs/can/: ExtLogData2/AWS/"
                        "LKA (extlog2, seeds 000/001) and Mobileye 8 Connect (me8, seed 003).")
-    cs = c.add_subparsers(dest="can_command", required=True, parser_class=sub._parser_class)
-    d = cs.add_parser("dbc", help="write DBC files built with cantools from specs/can/")
-    d.add_argument("--protocol", choices=(*PROTOCOLS, "all"), default="all",
+    cs = parser.add_subparsers(dest="can_command", required=True, parser_class=sub._parser_class)
+    dbc = cs.add_parser("dbc", help="write DBC files built with cantools from specs/can/")
+    dbc.add_argument("--protocol", choices=(*PROTOCOLS, "all"), default="all",
                    help="which protocol (default all)")
-    d.add_argument("--output", "-o", metavar="DIR", default=".",
+    dbc.add_argument("--output", "-o", metavar="DIR", default=".",
                    help="directory for PROTOCOL.dbc (default .); - prints one protocol")
-    k = cs.add_parser("compare", help="compare a vendor's DBC with ours, signal by signal",
+    compare = cs.add_parser("compare", help="compare a vendor's DBC with ours, signal by signal",
                       description="A DBC you hold (vendor, public) against the DBC built from "
                       "specs/can/: ID, DLC, cycle and each signal's start, length, byte order, "
                       "sign, scale, offset, unit, range, invalid value and choices. Each "
                       "difference says what differs, ours -> theirs, and where ours comes from; "
                       "the same difference in every slot is one line. Exit 0 the same, 1 "
                       "differences, 2 bad input.")
-    k.add_argument("dbc", metavar="OTHER.dbc", help="the DBC file to compare")
-    k.add_argument("--protocol", choices=PROTOCOLS,
+    compare.add_argument("dbc", metavar="OTHER.dbc", help="the DBC file to compare")
+    compare.add_argument("--protocol", choices=PROTOCOLS,
                    help="our protocol to compare with (default: the one whose IDs the DBC "
                    "holds most of)")
-    opt.include(k, opt.json_out("the differences as a JSON list"))
-    x = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
+    opt.include(compare, opt.json_out("the differences as a JSON list"))
+    decode = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
                       "or a live bus",
                       description="Decode CAN logs with the protocols of specs/can/, each log "
                       "on its own. Exit 0 clean, 1 frames with errors (wrong DLC, value out of "
@@ -51,35 +51,35 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                       "(IDs the protocol does not define, or the protocol's IDs on channels "
                       "other than the camera's), cycle-time deviations, short DLCs that hold "
                       "every signal and invalid values are shown, not errors.")
-    x.add_argument("logs", nargs="*", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
+    decode.add_argument("logs", nargs="*", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
                    ".mf4 .csv)")
-    x.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
+    decode.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
                    help="protocol of the log (default extlog2)")
-    opt.include(x, opt.json_out("JSON Lines, one object per frame"))
-    x.add_argument("--csv", metavar="DIR", help="one CSV table per message")
-    x.add_argument("--parquet", metavar="DIR", help="one Parquet table per message")
-    x.add_argument("--stats", action="store_true",
+    opt.include(decode, opt.json_out("JSON Lines, one object per frame"))
+    decode.add_argument("--csv", metavar="DIR", help="one CSV table per message")
+    decode.add_argument("--parquet", metavar="DIR", help="one Parquet table per message")
+    decode.add_argument("--stats", action="store_true",
                    help="only statistics: frames per channel, per ID the cycle time against "
                    "the spec, DLC errors, short DLCs, invalid and out-of-range values per "
                    "signal (one JSON object with --json)")
-    x.add_argument("--bus", metavar="INTERFACE:CHANNEL",
+    decode.add_argument("--bus", metavar="INTERFACE:CHANNEL",
                    help="decode a live python-can bus instead of logs (virtual:NAME, "
                    "socketcan:can0, ...) until --count, --duration or Ctrl-C")
-    x.add_argument("--count", type=int, metavar="N", help="--bus: stop after N frames")
-    x.add_argument("--duration", type=float, metavar="S", help="--bus: stop after S seconds")
-    x.add_argument("--channel", metavar="N",
+    decode.add_argument("--count", type=int, metavar="N", help="--bus: stop after N frames")
+    decode.add_argument("--duration", type=float, metavar="S", help="--bus: stop after S seconds")
+    decode.add_argument("--channel", metavar="N",
                    help="only frames of this channel (python-can Message.channel, as --stats "
                    "lists them)")
-    x.add_argument("--raw-invalid", action="store_true",
+    decode.add_argument("--raw-invalid", action="store_true",
                    help="--csv/--parquet: write the decoded number of a value at its invalid "
                    "value (default: empty / NULL)")
-    x.add_argument("--absolute-time", action="store_true",
+    decode.add_argument("--absolute-time", action="store_true",
                    help="times as the log records them (default: seconds since the log's "
                    "first frame)")
-    x.add_argument("--id", metavar="ID", type=can_id,
+    decode.add_argument("--id", metavar="ID", type=can_id,
                    help="only frames with this arbitration ID (0x739)")
-    x.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
-    x.add_argument("--errors-only", action="store_true",
+    decode.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
+    decode.add_argument("--errors-only", action="store_true",
                    help="only frames with errors (not with --stats, which counts them)")
 
 
@@ -112,8 +112,8 @@ def _dbc(args: argparse.Namespace) -> int:
             raise UsageError("--output - prints one protocol: add --protocol extlog2 or me8")
         sys.stdout.write(dbc_text(names[0]))
         return 0
-    for n in names:
-        path = write_dbc(n, Path(args.output))
+    for name in names:
+        path = write_dbc(name, Path(args.output))
         print(path)
     return 0
 

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import options as opt
 
-    p = sub.add_parser(
+    parser = sub.add_parser(
         name, help=help,
         description="Play the host against an EyeQ under test (--dut eyeq --port URL) or the "
         "EyeQ against a host under test (--dut host --listen tcp://HOST:PORT or --pty), judge "
@@ -27,8 +27,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
         "with evidence. --builtin runs the suite against our own simulated EyeQ or host in "
         "virtual time. Exit 0 when no case fails, 1 when one fails, 2 for usage or connection "
         "errors.")
-    p.add_argument("--dut", choices=("eyeq", "host"), help="the implementation under test")
-    where = p.add_mutually_exclusive_group()
+    parser.add_argument("--dut", choices=("eyeq", "host"), help="the implementation under test")
+    where = parser.add_mutually_exclusive_group()
     where.add_argument("--port", dest="endpoint", action=ca.Endpoint, metavar="URL",
                        help="--dut eyeq: connect to the EyeQ at tcp://HOST:PORT (socket:// too), "
                        "rfc2217://HOST:PORT or a tty/pty path")
@@ -39,25 +39,25 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     where.add_argument("--pty", dest="endpoint", nargs=0, action=ca.Endpoint,
                        help="--dut host: open a pty per ignition cycle, print each path; the "
                        "host opens each in turn")
-    p.set_defaults(port=None, listen=None, pty=False)
+    parser.set_defaults(port=None, listen=None, pty=False)
     where.add_argument("--builtin", action="store_true",
                        help="test our own simulated EyeQ / host emulator, in virtual time")
-    p.add_argument("--list", action="store_true",
+    parser.add_argument("--list", action="store_true",
                    help="print every case (ID, DUT, seed section, requirement, decision, title)")
-    p.add_argument("-k", dest="select", metavar="EXPR",
+    parser.add_argument("-k", dest="select", metavar="EXPR",
                    help="select cases: words matched in ID/title/group/section, with and/or/not")
-    opt.add_sw(p, "SW release (default: newest)")
-    opt.include(p, opt.json_out("JSON Lines: a header object, one object per case, then the "
+    opt.add_sw(parser, "SW release (default: newest)")
+    opt.include(parser, opt.json_out("JSON Lines: a header object, one object per case, then the "
                                 "summary with the overall verdict"))
-    p.add_argument("--junit", metavar="FILE", type=ca.output_file, help="write JUnit XML")
-    p.add_argument("--report", metavar="FILE.md|FILE.html", type=ca.output_file,
+    parser.add_argument("--junit", metavar="FILE", type=ca.output_file, help="write JUnit XML")
+    parser.add_argument("--report", metavar="FILE.md|FILE.html", type=ca.output_file,
                    help="write a Markdown or HTML report")
-    p.add_argument("--accept-timeout", type=ca.number(0, 3600, lo_open=True, unit="s"),
+    parser.add_argument("--accept-timeout", type=ca.number(0, 3600, lo_open=True, unit="s"),
                    default=30.0, help="seconds to wait for the host under test (default 30)")
-    p.add_argument("--mode-timeout", type=ca.number(0, 3600, lo_open=True, unit="s"),
+    parser.add_argument("--mode-timeout", type=ca.number(0, 3600, lo_open=True, unit="s"),
                    default=None, help="seconds to wait for TAC/SPC results and mode changes")
-    opt.include(p, opt.rt_priority("our ACKs"))
-    p.add_argument("--mutant", help=argparse.SUPPRESS)  # test-only: a broken built-in variant
+    opt.include(parser, opt.rt_priority("our ACKs"))
+    parser.add_argument("--mutant", help=argparse.SUPPRESS)  # test-only: a broken built-in variant
 
 
 def _progress(args: argparse.Namespace) -> Any:

@@ -16,34 +16,34 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
-    e = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
+    parser = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
                        description="Turn a capture into SPI waveforms for PulseView (--sr, "
                        "a compressed sigrok session file; --vcd for other waveform tools), "
                        "decoded signals for asammdf/CANape (--mdf) or raw transfers and decoded "
                        "messages for Foxglove (--mcap). Several outputs may be given at once.")
-    inputs.add_capture_argument(e)
-    e.add_argument("--sr", metavar="OUT.sr", type=ca.output_file,
+    inputs.add_capture_argument(parser)
+    parser.add_argument("--sr", metavar="OUT.sr", type=ca.output_file,
                    help="SPI waveforms as a sigrok session file (PulseView opens it, sigrok-cli "
                    "-i reads it): 20 MHz samples, deflate-compressed, the suggested form")
-    e.add_argument("--sr-max-idle", type=ca.number(0, 3600, lo_open=True, unit="s"),
+    parser.add_argument("--sr-max-idle", type=ca.number(0, 3600, lo_open=True, unit="s"),
                    metavar="S", help="--sr: shorten every stretch with both channels idle to "
                    "at most S seconds (idle time costs about 0.1 s of export time per second); "
                    "default: capture timing")
-    e.add_argument("--vcd", metavar="OUT.vcd", type=ca.output_file,
+    parser.add_argument("--vcd", metavar="OUT.vcd", type=ca.output_file,
                    help="SPI waveforms, 10 MHz, mode 1 (about 30 bytes per bit sent: the size "
                    "is said before writing)")
-    e.add_argument("--vcd-max-idle", type=ca.number(0, 3600, lo_open=True, unit="s"),
+    parser.add_argument("--vcd-max-idle", type=ca.number(0, 3600, lo_open=True, unit="s"),
                    metavar="S", help="--vcd: shorten every stretch with both channels idle to "
                    "at most S seconds (smaller timestamps, and sigrok samples no idle time); "
                    "default: capture timing")
-    e.add_argument("--vcd-max-size", type=ca.number(0, 1e6, lo_open=True, unit="MB"),
+    parser.add_argument("--vcd-max-size", type=ca.number(0, 1e6, lo_open=True, unit="MB"),
                    default=2000.0, metavar="MB", help="--vcd: refuse, before writing, a VCD "
                    "estimated larger than this (default 2000 MB)")
-    e.add_argument("--mdf", metavar="OUT.mf4", type=ca.output_file,
+    parser.add_argument("--mdf", metavar="OUT.mf4", type=ca.output_file,
                    help="decoded signals (needs the [export] extra)")
-    e.add_argument("--mcap", metavar="OUT.mcap", type=ca.output_file,
+    parser.add_argument("--mcap", metavar="OUT.mcap", type=ca.output_file,
                    help="raw transfers and decoded messages (needs the [export] extra)")
-    opt.include(e, opt.json_out("end with one JSON summary object"))
+    opt.include(parser, opt.json_out("end with one JSON summary object"))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,11 +92,11 @@ def _vcd_plan(args: argparse.Namespace) -> int:
     from eyeq_spi.logic.vcd_write import estimate_size
 
     cap = inputs.open_input(args, "export", quiet=True)
-    n = nbytes = 0
+    count = nbytes = 0
     t0 = t1 = None
     try:
         for rec in cap.transfers:
-            n += 1
+            count += 1
             nbytes += len(rec.data)
             if rec.time is not None:
                 t0 = rec.time if t0 is None else t0
@@ -104,19 +104,19 @@ def _vcd_plan(args: argparse.Namespace) -> int:
     finally:
         cap.close()
     if args.vcd:
-        span = (t1 - t0) if t0 is not None and t1 is not None else n * 5e-4
+        span = (t1 - t0) if t0 is not None and t1 is not None else count * 5e-4
         if args.vcd_max_idle is not None:
-            span = min(span, n * (args.vcd_max_idle + 15e-6))
-        size = estimate_size(n, nbytes, span)
+            span = min(span, count * (args.vcd_max_idle + 15e-6))
+        size = estimate_size(count, nbytes, span)
         mb = size / 1e6
         capture = os.path.getsize(args.capture) / 1e6
         if mb > args.vcd_max_size:
             raise UsageError(f"the VCD of {args.capture} would be about {mb:,.0f} MB "
-                             f"({n:,} transfers, {nbytes * 8:,} bits; a VCD holds every clock "
+                             f"({count:,} transfers, {nbytes * 8:,} bits; a VCD holds every clock "
                              f"edge); raise --vcd-max-size or export part of the capture")
         print(f"eyeq-spi: {os.path.basename(args.vcd)} will be about {mb:,.0f} MB "
               f"({capture:,.1f} MB capture; a VCD holds every clock edge)", file=sys.stderr)
-    return n
+    return count
 
 
 def _spi(args: argparse.Namespace) -> Any:

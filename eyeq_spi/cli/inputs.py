@@ -16,8 +16,8 @@ def capture_parents() -> list[Any]:
     return [opt.capture_input(direction_help="channel of an input without directions")]
 
 
-def add_capture_argument(p: Any) -> None:
-    p.add_argument("capture", metavar="CAPTURE",
+def add_capture_argument(parser: Any) -> None:
+    parser.add_argument("capture", metavar="CAPTURE",
                    help="a capture in any format dissect reads (pcapng, raw, hex, Saleae, VCD)")
 
 

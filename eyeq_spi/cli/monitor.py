@@ -12,12 +12,12 @@ from eyeq_spi.errors import UsageError
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
-    m = sub.add_parser(
+    parser = sub.add_parser(
         name, help=help,
         description="A live view (rich, plain ANSI, works over SSH): host state and "
         "transitions, message rates against nominal, link counters, E2E and counter errors, "
         "the current objects, lanes and signs. Ctrl-C stops it.")
-    src = m.add_mutually_exclusive_group(required=True)
+    src = parser.add_mutually_exclusive_group(required=True)
     src.add_argument("--demo", action="store_true",
                      help="host emulator against the embedded simulated EyeQ (as demo)")
     from eyeq_spi.cli.args import connect_address
@@ -31,36 +31,37 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                      help="a live Mobileye CAN bus (virtual:NAME, socketcan:can0): one line per "
                      "ID with its cycle and newest signals, as cantools monitor (protocol: "
                      "--can-protocol)")
-    m.add_argument("--duration", type=float, help="seconds (default: 10 for --demo, no limit "
+    parser.add_argument("--duration", type=float, help="seconds (default: 10 for --demo, no limit "
                    "for --port and --can-bus, the whole capture for --replay)")
-    m.add_argument("--virtual-time", action="store_true", help="--demo as fast as the CPU allows")
-    m.add_argument("--pace", type=float, default=1.0, metavar="X",
+    parser.add_argument("--virtual-time", action="store_true", help="--demo as fast as the CPU "
+                                                                    "allows")
+    parser.add_argument("--pace", type=float, default=1.0, metavar="X",
                    help="--replay: X times real time (default 1; 0 = as fast as possible)")
-    m.add_argument("--passive", action="store_true",
+    parser.add_argument("--passive", action="store_true",
                    help="--replay: show both channels as recorded, through the dissector, "
                    "instead of replaying into the host (a capture without the bring-up)")
-    m.add_argument("--refresh", type=float, default=6.0, metavar="HZ",
+    parser.add_argument("--refresh", type=float, default=6.0, metavar="HZ",
                    help="screen redraws per second, 5..30 (default 6)")
-    m.add_argument("--screenshot", metavar="FILE",
+    parser.add_argument("--screenshot", metavar="FILE",
                    help="also write the last screen to FILE.svg (a picture), .html or .txt")
-    m.add_argument("--screenshot-size", metavar="COLSxROWS", type=_size,
+    parser.add_argument("--screenshot-size", metavar="COLSxROWS", type=_size,
                    help="--screenshot: the screen as a terminal of that size shows it, e.g. "
                    "80x24 (default: the whole screen)")
-    m.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
-    opt.include(m, opt.capture_input(opt.FORMATS, format_help="--replay: skip detection",
+    parser.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
+    opt.include(parser, opt.capture_input(opt.FORMATS, format_help="--replay: skip detection",
                                      direction_help="--replay: channel of an input without "
                                      "directions", sw_help=None))
-    opt.include(m, opt.scenario("monitor"))
+    opt.include(parser, opt.scenario("monitor"))
 
 
 
 
 def _size(text: str) -> tuple[int, int]:
     """``COLSxROWS`` of a terminal, at least 80x24."""
-    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
-    if not m or int(m.group(1)) < 80 or int(m.group(2)) < 24:
+    match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    if not match or int(match.group(1)) < 80 or int(match.group(2)) < 24:
         raise argparse.ArgumentTypeError(f"give COLSxROWS of at least 80x24, not {text!r}")
-    return int(m.group(1)), int(m.group(2))
+    return int(match.group(1)), int(match.group(2))
 
 
 def run(args: argparse.Namespace) -> int:

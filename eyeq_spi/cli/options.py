@@ -272,7 +272,7 @@ def scenario(side: str = "demo") -> argparse.ArgumentParser:
 
 def _speed(text: str) -> float:
     """``--speed``: within host_vehicle_state_t.vehicleVelocity's range in specs/."""
-    cat = ca._cat()
+    cat = ca.catalogue()
     var = cat.structs["host_vehicle_state_t"].variant_for(cat.default_sw)
     lo, hi = -20.0, 100.0
     for m in var.members if var else ():

@@ -15,39 +15,40 @@ from eyeq_spi.errors import UsageError
 def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import options as opt
 
-    p = sub.add_parser(
+    parser = sub.add_parser(
         name, help=help,
         description="Draw a capture (read through the dissector) as PNG, SVG or a "
         "self-contained HTML file; --animate writes a GIF or an HTML player. Needs the plot "
         "extra: pip install 'eyeq-spi[plot]'.")
-    p.add_argument("capture", metavar="CAPTURE",
+    parser.add_argument("capture", metavar="CAPTURE",
                    help=f"capture file: {', '.join(opt.FORMATS)} (as eyeq-spi dissect reads)")
-    what = p.add_mutually_exclusive_group(required=True)
+    what = parser.add_mutually_exclusive_group(required=True)
     what.add_argument("--birdseye", action="store_true",
                       help="objects, lanes and signs seen from above")
     what.add_argument("--timing", action="store_true",
                       help="inter-arrival time of each message against its nominal rate")
     what.add_argument("--link", action="store_true",
                       help="frames/s by kind, NAKs by reason, CRC errors and aborts over time")
-    p.add_argument("-o", "--output", metavar="FILE",
+    parser.add_argument("-o", "--output", metavar="FILE",
                    help="FILE.png, .svg or .html (--animate: .gif or .html); default: "
                    "CAPTURE_<kind>.png (.gif when animated) beside the capture")
-    p.add_argument("--at", type=float, metavar="T",
+    parser.add_argument("--at", type=float, metavar="T",
                    help="--birdseye: the scene at T s from the capture start (default: the end)")
-    p.add_argument("--animate", action="store_true", help="--birdseye over the whole window")
-    p.add_argument("--fps", type=float, default=5.0, help="--animate: frames per capture second")
-    p.add_argument("--max-frames", type=int, default=600, help="--animate: at most N frames")
-    p.add_argument("--range", dest="range_m", type=float, metavar="M",
+    parser.add_argument("--animate", action="store_true", help="--birdseye over the whole window")
+    parser.add_argument("--fps", type=float, default=5.0, help="--animate: frames per capture "
+                                                               "second")
+    parser.add_argument("--max-frames", type=int, default=600, help="--animate: at most N frames")
+    parser.add_argument("--range", dest="range_m", type=float, metavar="M",
                    help="--birdseye: metres ahead (default: fitted)")
-    p.add_argument("--lateral", dest="lateral_m", type=float, metavar="M",
+    parser.add_argument("--lateral", dest="lateral_m", type=float, metavar="M",
                    help="--birdseye: metres to each side (default: fitted)")
-    p.add_argument("--name", metavar="REGEX",
+    parser.add_argument("--name", metavar="REGEX",
                    help="--timing: only messages whose name matches (default: all periodic)")
-    p.add_argument("--bin", dest="bin_ms", type=float, default=100.0, metavar="MS",
+    parser.add_argument("--bin", dest="bin_ms", type=float, default=100.0, metavar="MS",
                    help="--link: time bin (default 100 ms)")
-    p.add_argument("--start", type=float, default=0.0, metavar="S", help="window start, s")
-    p.add_argument("--end", type=float, default=math.inf, metavar="S", help="window end, s")
-    opt.include(p, opt.capture_input(opt.FORMATS,
+    parser.add_argument("--start", type=float, default=0.0, metavar="S", help="window start, s")
+    parser.add_argument("--end", type=float, default=math.inf, metavar="S", help="window end, s")
+    opt.include(parser, opt.capture_input(opt.FORMATS,
                                      direction_help="channel of an input without directions"))
 
 
@@ -68,8 +69,8 @@ def run(args: argparse.Namespace) -> int:
     if args.at is not None and args.animate:
         raise UsageError("give --at or --animate, not both")
     for name in ("fps", "bin_ms", "range_m", "lateral_m"):
-        v = getattr(args, name)
-        if v is not None and not (0 < v < 1e6):
+        value = getattr(args, name)
+        if value is not None and not (0 < value < 1e6):
             raise UsageError(f"--{name.split('_')[0]} must be positive")
     if args.max_frames < 1 or args.start < 0 or not args.end > args.start:
         raise UsageError("need --max-frames >= 1 and 0 <= --start < --end")
@@ -96,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--at {args.at:g}: after the last record read, at {data.end:.2f} s "
                          f"(the capture spans 0 to {data.end:.2f} s since its first record)")
     if name_re is not None:
-        data.streams = {k: v for k, v in data.streams.items() if name_re.search(k)}
+        data.streams = {k: value for k, value in data.streams.items() if name_re.search(k)}
     title = f"{Path(args.capture).name}: {kind}"
     if args.birdseye:
         from eyeq_spi.plot.birdseye import animation, birdseye

@@ -17,11 +17,9 @@ import os
 import stat
 import sys
 import time
-from collections.abc import Callable, Iterable, Iterator
 from types import TracebackType
-from typing import IO, Any, TypeVar
+from typing import IO, Any
 
-T = TypeVar("T")
 LABEL = 28  # characters of the label: the bar fits an 80-column terminal
 REFRESH = 0.1  # s between two updates of the bar (rich redraws at most this often anyway)
 
@@ -126,28 +124,6 @@ class JobProgress:
             with contextlib.suppress(OSError, ValueError):  # stderr gone: nothing to clear
                 self._progress.stop()
             self._progress = None
-
-
-def track_file(items: Iterable[T], fh: IO[bytes], bar: JobProgress,
-               where: Callable[[T, int], float] | None = None) -> Iterator[T]:
-    """``items``, with ``bar`` following the position of ``fh`` (read by the items' reader).
-    Looks at the position every 32 items and at every item that is not a dict (a block of
-    many records). ``where(item, position)``: the file position the item stands for, when the
-    reader reads far ahead of what it hands out (a chunk of many blocks)."""
-    if not bar.enabled:
-        yield from items
-        return
-    n = 0
-    for item in items:
-        n += 1
-        if n >= 32 or not isinstance(item, dict):
-            n = 0
-            with contextlib.suppress(OSError, ValueError):
-                pos = fh.tell()
-                bar.update(pos if where is None else where(item, pos))
-        yield item
-    if bar.total is not None:
-        bar.update(bar.total)
 
 
 def file_size(fh: IO[bytes]) -> int | None:

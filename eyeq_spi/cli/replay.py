@@ -15,16 +15,16 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
-    r = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
+    parser = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
                        description="Play the EyeQ channel (e2h) of a capture to a host under "
                        "test in real time, keeping the capture's timing and ACKing the host's "
                        "frames (--listen: the host connects to us; --port: we connect to the "
                        "host), or (--into-host) to the built-in host emulator in virtual time. "
                        "Ends with the run summary demo, host and sim print. Exit 0 when the run "
-                       "is ok: played to the end with nothing lost (--into-host: judged as "
-                       "host judges, Running Vision reached and held), else 1.")
-    inputs.add_capture_argument(r)
-    where = r.add_mutually_exclusive_group(required=True)
+                       "is ok: played to the end with nothing lost (--into-host: checked as "
+                       "host checks, Running Vision reached and held), else 1.")
+    inputs.add_capture_argument(parser)
+    where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
                        metavar="tcp://HOST:PORT",
                        help="listen here for the host under test (port 0: any free port); "
@@ -34,13 +34,13 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                        "rfc2217://HOST:PORT or a tty/pty path")
     where.add_argument("--into-host", action="store_true",
                        help="feed the built-in host emulator in virtual time")
-    r.set_defaults(port=None, listen=None, pty=False)
-    r.add_argument("--duration", type=opt.seconds,
+    parser.set_defaults(port=None, listen=None, pty=False)
+    parser.add_argument("--duration", type=opt.seconds,
                    help="stop after S seconds of capture time, (0, 86400]")
-    r.add_argument("--lead", type=ca.number(0, 3600, unit="s"), default=0.5, metavar="S",
+    parser.add_argument("--lead", type=ca.number(0, 3600, unit="s"), default=0.5, metavar="S",
                    help="--port: seconds between the host connecting and the first frame "
                    "(default 0.5)")
-    opt.include(r, opt.json_out())
+    opt.include(parser, opt.json_out())
 
 
 def run(args: argparse.Namespace) -> int:

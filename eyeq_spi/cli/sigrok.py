@@ -9,10 +9,10 @@ from eyeq_spi.errors import UsageError
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
-    s = sub.add_parser(name, help=help,
+    parser = sub.add_parser(name, help=help,
                        description="Write the eyeq_spi protocol decoder (stacked on sigrok's "
                        "spi) where libsigrokdecode looks for decoders.")
-    s.add_argument("--install", metavar="DIR", nargs="?", const="",
+    parser.add_argument("--install", metavar="DIR", nargs="?", const="",
                    help="decoders folder (default ~/.local/share/libsigrokdecode/decoders; "
                    "any other needs SIGROKDECODE_DIR=DIR)")
 

@@ -13,10 +13,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
-    w = sub.add_parser(name, help=help)
-    w.add_argument("--output", "-o", metavar="FILE.lua", type=ca.output_file,
+    parser = sub.add_parser(name, help=help)
+    parser.add_argument("--output", "-o", metavar="FILE.lua", type=ca.output_file,
                    help="write the dissector here (default: standard output)")
-    opt.add_sw(w, "read every capture as this SW release: the default of the dissector's "
+    opt.add_sw(parser, "read every capture as this SW release: the default of the dissector's "
                "eyeq_spi.sw preference (default: auto, each capture's own release)")
 
 

@@ -25,7 +25,7 @@ import struct
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.catalog.messages import Catalog, Member, SwKey
+from eyeq_spi.catalog.messages import Catalog, Crc, Member, StructVariant, SwKey
 from eyeq_spi.codec.layout_fast import FastCodec
 from eyeq_spi.codec.layout_types import (
     FieldInfo as FieldInfo,  # re-exported: its users import it here
@@ -81,24 +81,24 @@ class Layout:
     _verify: Any = None  # the generated E2E verifier (codec.e2e.compile_verifier)
 
     # -- values ----------------------------------------------------------------------------
-    def post(self, c: Any) -> dict[str, Any]:
+    def post(self, parsed: Any) -> dict[str, Any]:
         """construct Container -> plain dict with bitfields split."""
         out: dict[str, Any] = {}
         for op in self._decode_ops:
             kind = op[0]
             if kind == 0:
-                out[op[1]] = c[op[1]]
+                out[op[1]] = parsed[op[1]]
             elif kind == 1:
-                out[op[1]] = list(c[op[1]])
+                out[op[1]] = list(parsed[op[1]])
             elif kind == 2:
-                out[op[1]] = op[2].post(c[op[1]])
+                out[op[1]] = op[2].post(parsed[op[1]])
             elif kind == 3:
                 child = op[2]
-                out[op[1]] = [child.post(x) for x in c[op[1]]]
+                out[op[1]] = [child.post(item) for item in parsed[op[1]]]
             else:
-                v = c[op[1]]
+                word = parsed[op[1]]
                 for name, lo, mask in op[2]:
-                    out[name] = (v >> lo) & mask
+                    out[name] = (word >> lo) & mask
         return out
 
     def pre(self, values: dict[str, Any]) -> dict[str, Any]:
@@ -118,17 +118,16 @@ class Layout:
                         raise LocalProtocolError(
                             f"{self.name}.{op[1]} needs {op[3]} elements, got {len(items)}"
                         )
-                    out[op[1]] = [child.pre(x) for x in items]
+                    out[op[1]] = [child.pre(item) for item in items]
                 else:
-                    v = op[3]  # unused bits set
+                    word = op[3]  # unused bits set
                     for name, lo, mask in op[2]:
-                        x = values[name]
-                        if not isinstance(x, int) or not 0 <= x <= mask:
-                            raise LocalProtocolError(
-                                f"{self.name}.{name}: {x!r} does not fit {mask.bit_length()} bit(s)"
-                            )
-                        v |= x << lo
-                    out[op[1]] = v
+                        value = values[name]
+                        if not isinstance(value, int) or not 0 <= value <= mask:
+                            raise LocalProtocolError(f"{self.name}.{name}: {value!r} does not fit"
+                                                     f" {mask.bit_length()} bit(s)")
+                        word |= value << lo
+                    out[op[1]] = word
         except KeyError as exc:
             raise LocalProtocolError(f"{self.name}: missing member {exc.args[0]}") from None
         except TypeError as exc:
@@ -139,13 +138,14 @@ class Layout:
     def struct(self) -> Any:
         """The compiled construct ``Struct`` (built, with its children's, on first use)."""
         if self._struct is None:
-            import construct as c
+            import construct
 
             subcons: list[Any] = []
             for key, prim, count, child in self._cons:
-                con = getattr(c, prim) if prim is not None else child.struct  # type: ignore[union-attr]
-                subcons.append(key / (con if count is None else c.Array(count, con)))
-            struct = c.Struct(*subcons)
+                con = (getattr(construct, prim) if prim is not None
+                       else child.struct)  # type: ignore[union-attr]
+                subcons.append(key / (con if count is None else construct.Array(count, con)))
+            struct = construct.Struct(*subcons)
             with contextlib.suppress(Exception):  # construct cannot compile it: run uncompiled
                 struct = struct.compile()
             self._struct = struct
@@ -201,33 +201,33 @@ class Layout:
     def resolve(self, path: str, base: int = 0) -> list[tuple[int, int]]:
         """Byte ranges of a covered signal: a member, a dotted path, a whole struct or array."""
         head, _, rest = path.partition(".")
-        f = self._by_name.get(head)
-        if f is None:
+        info = self._by_name.get(head)
+        if info is None:
             raise SpecError(f"{self.name}: CRC covers unknown signal {path!r}")
-        start = base + f.offset
+        start = base + info.offset
         if not rest:
-            return [(start, f.size)]
+            return [(start, info.size)]
         child = self.children.get(head)
         if child is None:
             raise SpecError(f"{self.name}: {head} is not a struct, cannot resolve {path!r}")
         out: list[tuple[int, int]] = []
-        for i in range(f.count or 1):
-            out += child.resolve(rest, start + i * child.size)
+        for element in range(info.count or 1):
+            out += child.resolve(rest, start + element * child.size)
         return out
 
     def zero_values(self) -> dict[str, Any]:
         """A complete value dict of zeros (0.0 for floats) in this layout's shape."""
         out: dict[str, Any] = {}
-        for f in self.fields:
-            child = self.children.get(f.name)
+        for info in self.fields:
+            child = self.children.get(info.name)
             if child is not None:
-                out[f.name] = (
-                    [child.zero_values() for _ in range(f.count)] if f.count
+                out[info.name] = (
+                    [child.zero_values() for _ in range(info.count)] if info.count
                     else child.zero_values()
                 )
                 continue
-            zero: Any = 0.0 if f.type in ("real32", "real64") else 0
-            out[f.name] = [zero] * f.count if f.count else zero
+            zero: Any = 0.0 if info.type in ("real32", "real64") else 0
+            out[info.name] = [zero] * info.count if info.count else zero
         return out
 
 
@@ -256,14 +256,14 @@ class LayoutCache:
             self._cache[key] = lay
         return lay
 
-    def _count(self, m: Member, sw: SwKey) -> int | None:
-        if m.array is None:
+    def _count(self, member: Member, sw: SwKey) -> int | None:
+        if member.array is None:
             return None
-        if isinstance(m.array, int):
-            return m.array
-        return self.cat.constant(m.array, sw)
+        if isinstance(member.array, int):
+            return member.array
+        return self.cat.constant(member.array, sw)
 
-    def _compile(self, name: str, sw: SwKey, stack: tuple[str, ...]) -> Layout:
+    def _variant(self, name: str, sw: SwKey, stack: tuple[str, ...]) -> StructVariant:
         if name in stack:
             raise SpecError(f"struct {name} contains itself: {' -> '.join(stack)}")
         sdef = self.cat.structs.get(name)
@@ -272,103 +272,138 @@ class LayoutCache:
         var = sdef.variant_for(sw)
         if var is None:
             raise SpecError(f"struct {name} has no layout for {sw}")
-        subcons: list[tuple[str, str | None, int | None, Layout | None]] = []
-        fields: list[FieldInfo] = []
-        children: dict[str, Layout] = {}
-        dec: list[tuple[Any, ...]] = []
-        enc: list[tuple[Any, ...]] = []
-        offset = 0
+        return var
+
+    def _compile(self, name: str, sw: SwKey, stack: tuple[str, ...]) -> Layout:
+        var = self._variant(name, sw, stack)
+        plan = _LayoutPlan()
         members = list(var.members)
-        i = 0
-        ngroup = 0
-        while i < len(members):
-            m = members[i]
-            if m.bits is not None:
-                ctype = m.type if m.type in PRIMITIVE else "uint8"
-                con, csize = PRIMITIVE[ctype]
-                group = [m]
-                j = i + 1
-                while (
-                    j < len(members)
-                    and members[j].bits is not None
-                    and (members[j].type if members[j].type in PRIMITIVE else "uint8") == ctype
-                    and members[j].bits[0] > group[-1].bits[1]  # type: ignore[index]
-                ):
-                    group.append(members[j])
-                    j += 1
-                key = f"_bits{ngroup}"
-                ngroup += 1
-                subcons.append((key, con, None, None))
-                used = 0
-                parts = []
-                for g in group:
-                    lo, hi = g.bits  # type: ignore[misc]
-                    mask = (1 << (hi - lo + 1)) - 1
-                    used |= mask << lo
-                    parts.append((g.name, lo, mask))
-                    fields.append(FieldInfo(g.name, offset, csize, ctype, None, g.bits, g))
-                full = (1 << (8 * csize)) - 1
-                dec.append((4, key, tuple(parts)))
-                enc.append((4, key, tuple(parts), full & ~used))
-                offset += csize
-                i = j
+        index = 0
+        while index < len(members):
+            member = members[index]
+            if member.bits is not None:
+                group = _bit_group(members, index)
+                plan.add_bit_group(group)
+                index += len(group)
                 continue
-            count = self._count(m, sw)
-            if m.type in PRIMITIVE:
-                con, size = PRIMITIVE[m.type]
-                subcons.append((m.name, con, count, None))
-                if count is None:
-                    dec.append((0, m.name))
-                    enc.append((0, m.name))
-                else:
-                    dec.append((1, m.name))
-                    enc.append((1, m.name))
-                    size *= count
-            else:
-                child = self._compile(m.type, sw, (*stack, name))
-                children[m.name] = child
-                subcons.append((m.name, None, count, child))
-                if count is None:
-                    dec.append((2, m.name, child))
-                    enc.append((2, m.name, child))
-                    size = child.size
-                else:
-                    dec.append((3, m.name, child))
-                    enc.append((3, m.name, child, count))
-                    size = child.size * count
-            fields.append(FieldInfo(m.name, offset, size, m.type, count, None, m))
-            offset += size
-            i += 1
-        lay = Layout(name, sw, var.key, offset, fields, children)
-        lay._cons, lay._decode_ops, lay._encode_ops = subcons, dec, enc
-        lay._by_name = {f.name: f for f in fields}
+            child = (None if member.type in PRIMITIVE
+                     else self._compile(member.type, sw, (*stack, name)))
+            plan.add_member(member, self._count(member, sw), child)
+            index += 1
+        lay = Layout(name, sw, var.key, plan.offset, plan.fields, plan.children)
+        lay._cons, lay._decode_ops, lay._encode_ops = plan.subcons, plan.dec, plan.enc
+        lay._by_name = {info.name: info for info in plan.fields}
         # E2E plan: children first (their CRCs are inside ours), then our own.
-        for f in fields:
-            sub = children.get(f.name)
-            if sub is None or not sub.crc_plan:
-                continue
-            for k in range(f.count or 1):
-                base = f.offset + k * sub.size
-                label = f.name if f.count is None else f"{f.name}[{k}]"
-                for p in sub.crc_plan:
-                    lay.crc_plan.append(CrcPlan(
-                        f"{label}.{p.path}" if p.path else label, p.field,
-                        base + p.crc_offset,
-                        None if p.counter_offset is None else base + p.counter_offset,
-                        p.counter_size, tuple((base + o, s) for o, s in p.ranges),
-                    ))
-        for crc in var.crcs:
-            ranges: list[tuple[int, int]] = []
-            for sig in crc.covers:
-                ranges += lay.resolve(sig)
-            cf = lay.field(crc.field)
-            counter = lay.field(crc.counter) if crc.counter else None
-            lay.crc_plan.append(CrcPlan(
-                "", crc.field, cf.offset, counter.offset if counter else None,
-                counter.size if counter else 0, _merge(ranges),
-            ))
+        lay.crc_plan += _child_crc_plans(lay)
+        lay.crc_plan += [_own_crc_plan(lay, crc) for crc in var.crcs]
         return lay
 
 
+def _container(member: Member) -> str:
+    """The seed type of a bitfield member's container (uint8 when the spec names none)."""
+    return member.type if member.type in PRIMITIVE else "uint8"
+
+
+def _bit_group(members: list[Member], first: int) -> list[Member]:
+    """The bitfield members from ``first`` on that share one container (D2): same container
+    type, bits rising."""
+    group = [members[first]]
+    for member in members[first + 1:]:
+        if (member.bits is None or _container(member) != _container(group[0])
+                or member.bits[0] <= group[-1].bits[1]):  # type: ignore[index]
+            break
+        group.append(member)
+    return group
+
+
+@dataclass
+class _LayoutPlan:
+    """A layout's parts gathered member by member: construct fields, field infos, children and
+    the decode/encode operation lists that :meth:`Layout.post` and :meth:`Layout.pre` run."""
+
+    subcons: list[tuple[str, str | None, int | None, Layout | None]] = field(
+        default_factory=list)
+    fields: list[FieldInfo] = field(default_factory=list)
+    children: dict[str, Layout] = field(default_factory=dict)
+    dec: list[tuple[Any, ...]] = field(default_factory=list)
+    enc: list[tuple[Any, ...]] = field(default_factory=list)
+    offset: int = 0
+    groups: int = 0
+
+    def add_bit_group(self, group: list[Member]) -> None:
+        """One container integer holding ``group``'s bitfields; unused bits are encoded as 1."""
+        ctype = _container(group[0])
+        con, csize = PRIMITIVE[ctype]
+        key = f"_bits{self.groups}"
+        self.groups += 1
+        self.subcons.append((key, con, None, None))
+        used = 0
+        parts = []
+        for member in group:
+            lo, hi = member.bits  # type: ignore[misc]
+            mask = (1 << (hi - lo + 1)) - 1
+            used |= mask << lo
+            parts.append((member.name, lo, mask))
+            self.fields.append(FieldInfo(member.name, self.offset, csize, ctype, None,
+                                         member.bits, member))
+        full = (1 << (8 * csize)) - 1
+        self.dec.append((4, key, tuple(parts)))
+        self.enc.append((4, key, tuple(parts), full & ~used))
+        self.offset += csize
+
+    def add_member(self, member: Member, count: int | None, child: Layout | None) -> None:
+        """A primitive member (``child`` None) or a nested struct, alone or ``count`` of them."""
+        if child is None:
+            con, size = PRIMITIVE[member.type]
+            self.subcons.append((member.name, con, count, None))
+            kind = 0 if count is None else 1
+            self.dec.append((kind, member.name))
+            self.enc.append((kind, member.name))
+            size *= 1 if count is None else count
+        else:
+            self.children[member.name] = child
+            self.subcons.append((member.name, None, count, child))
+            if count is None:
+                self.dec.append((2, member.name, child))
+                self.enc.append((2, member.name, child))
+            else:
+                self.dec.append((3, member.name, child))
+                self.enc.append((3, member.name, child, count))
+            size = child.size * (1 if count is None else count)
+        self.fields.append(FieldInfo(member.name, self.offset, size, member.type, count, None,
+                                     member))
+        self.offset += size
+
+
+def _child_crc_plans(lay: Layout) -> list[CrcPlan]:
+    """The E2E checks inside ``lay``'s child structs, moved to their absolute offsets."""
+    plans: list[CrcPlan] = []
+    for info in lay.fields:
+        sub = lay.children.get(info.name)
+        if sub is None or not sub.crc_plan:
+            continue
+        for element in range(info.count or 1):
+            base = info.offset + element * sub.size
+            label = info.name if info.count is None else f"{info.name}[{element}]"
+            plans += [CrcPlan(
+                f"{label}.{inner.path}" if inner.path else label, inner.field,
+                base + inner.crc_offset,
+                None if inner.counter_offset is None else base + inner.counter_offset,
+                inner.counter_size, tuple((base + off, size) for off, size in inner.ranges),
+            ) for inner in sub.crc_plan]
+    return plans
+
+
+def _own_crc_plan(lay: Layout, crc: Crc) -> CrcPlan:
+    """One E2E check of ``lay`` itself: its CRC and counter fields and the bytes it covers."""
+    ranges: list[tuple[int, int]] = []
+    for signal in crc.covers:
+        ranges += lay.resolve(signal)
+    crc_field = lay.field(crc.field)
+    counter = lay.field(crc.counter) if crc.counter else None
+    return CrcPlan("", crc.field, crc_field.offset, counter.offset if counter else None,
+                   counter.size if counter else 0, _merge(ranges))
+
+
 def compute_crc(buf: bytes | bytearray, plan: CrcPlan) -> int:
-    return crc16(b"".join(bytes(buf[o : o + s]) for o, s in plan.ranges))
+    return crc16(b"".join(bytes(buf[off : off + size]) for off, size in plan.ranges))

@@ -61,8 +61,8 @@ class DaspCounters:
         return self._last.get(data_id)
 
     def learn(self, data_id: int, counter: int) -> None:
-        """Take ``counter`` as the last one seen: the end of a run that the batch dissector
-        judged at once (``dissect.engine_fast_messages``), as :meth:`check` row by row would
+        """Take ``counter`` as the last one seen: the end of a run that the vectorised dissector
+        checked at once (``dissect.engine_fast_messages``), as :meth:`check` row by row would
         leave it."""
         self._last[data_id] = counter
 

@@ -41,8 +41,8 @@ def builtin_eyeq_config(sw: str | None) -> SimConfig:
     return SimConfig(sw=sw, objects=1, signs=1, light_spots=1, tac_duration=0.3)
 
 
-def _header(t: bytes) -> tuple[int, int, int, int]:
-    return _FRAMES.unpack_header(int.from_bytes(t[:4], "little"))
+def _header(transfer: bytes) -> tuple[int, int, int, int]:
+    return _FRAMES.unpack_header(int.from_bytes(transfer[:4], "little"))
 
 
 # -- EyeQ mutants -----------------------------------------------------------------------------
@@ -51,38 +51,38 @@ class _LinkOutput(SimulatedEyeQ):
 
     def data_to_send(self, now: float) -> list[bytes]:
         out = []
-        for t in super().data_to_send(now):
-            d, _, rsp, num = _header(t)
+        for transfer in super().data_to_send(now):
+            d, _, rsp, num = _header(transfer)
             if d in (FrameKind.ACK, FrameKind.NAK):
-                t = self.control(t, d, rsp, num)
-            if t:
-                out.append(t)
+                transfer = self.control(transfer, d, rsp, num)
+            if transfer:
+                out.append(transfer)
         return out
 
-    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
-        return t
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
+        return transfer
 
 
 class NoAck(_LinkOutput):
-    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
-        return b"" if d == FrameKind.ACK and rsp % 4 == 3 else t  # every 4th ACK is lost
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
+        return b"" if d == FrameKind.ACK and rsp % 4 == 3 else transfer  # every 4th ACK is lost
 
 
 class WrongRsp(_LinkOutput):
-    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
-        return _FRAMES.ack((rsp + 1) % 4096) if d == FrameKind.ACK else t
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
+        return _FRAMES.ack((rsp + 1) % 4096) if d == FrameKind.ACK else transfer
 
 
 class SilentOnBadCrc(_LinkOutput):
-    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
         # a frame with a bad CRC is dropped without its NAK 0x002 (L5)
-        return b"" if d == FrameKind.NAK and num == NakReason.CRC_MISMATCH else t
+        return b"" if d == FrameKind.NAK and num == NakReason.CRC_MISMATCH else transfer
 
 
 class AckCrcRange(_LinkOutput):
-    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
-        crc = _FRAMES.crc(t[:4] + bytes(DATA_SIZE))  # pad included: L3 says header only
-        return t[:4] + crc.to_bytes(2, "little") + t[6:]
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
+        crc = _FRAMES.crc(transfer[:4] + bytes(DATA_SIZE))  # pad included: L3 says header only
+        return transfer[:4] + crc.to_bytes(2, "little") + transfer[6:]
 
 
 class Resends(SimulatedEyeQ):
@@ -101,21 +101,21 @@ class Resends(SimulatedEyeQ):
 
     def data_to_send(self, now: float) -> list[bytes]:
         out = super().data_to_send(now)
-        for t in out:
-            if _header(t)[0] == FrameKind.DATA and t[6] == 0x00:  # single frames
-                self._unacked[_header(t)[3]] = (now, t)
-        for num, (sent, t) in list(self._unacked.items()):
+        for transfer in out:
+            if _header(transfer)[0] == FrameKind.DATA and transfer[6] == 0x00:  # single frames
+                self._unacked[_header(transfer)[3]] = (now, transfer)
+        for num, (sent, transfer) in list(self._unacked.items()):
             if now - sent >= 0.011:
                 del self._unacked[num]
-                out.append(t)
+                out.append(transfer)
         return out
 
     def get_timer(self) -> float | None:
-        t = super().get_timer()
+        timer = super().get_timer()
         if self._unacked:
             due = min(s for s, _ in self._unacked.values()) + 0.011
-            t = due if t is None else min(t, due)
-        return t
+            timer = due if timer is None else min(timer, due)
+        return timer
 
 
 class StretchedReplies(SimulatedEyeQ):
@@ -177,8 +177,8 @@ class E2eWrong(_MessageOutput):
         if message[:2] != b"\x65\xe3":
             return message
         lay = self.codec.layout(self.codec.cat.message("EYEQ_VIS_AEB_INFO_MSG"))
-        o = 4 + lay.crc_plan[0].crc_offset
-        return message[:o] + bytes((message[o] ^ 0xFF,)) + message[o + 1:]
+        offset = 4 + lay.crc_plan[0].crc_offset
+        return message[:offset] + bytes((message[offset] ^ 0xFF,)) + message[offset + 1:]
 
 
 class TagNotEchoed(SimulatedEyeQ):
@@ -210,16 +210,16 @@ class UnknownRet1(SimulatedEyeQ):
 
 
 class InitBeforePending(SimulatedEyeQ):
-    def _calibration(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-        if self.main_state == BOOT and p["ct_stage"] == 0x92:
-            return self._cal_result(0x92, 0, p)  # accepted while still booting
-        return super()._calibration(p)
+    def _calibration(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        if self.main_state == BOOT and params["ct_stage"] == 0x92:
+            return self._cal_result(0x92, 0, params)  # accepted while still booting
+        return super()._calibration(params)
 
 
 class RunningWithoutVehState(SimulatedEyeQ):
-    def _calibration(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-        ret, out = super()._calibration(p)
-        if p["ct_stage"] == 0x92 and ret == 0 and not self.fatal_error:
+    def _calibration(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        ret, out = super()._calibration(params)
+        if params["ct_stage"] == 0x92 and ret == 0 and not self.fatal_error:
             self.main_state, self.sub_state = RUNNING_VISION, 0  # no HOST_VEH_STATE_MSG needed
             self._next_dasp.clear()
         return ret, out
@@ -232,8 +232,8 @@ class ReceiveLimit(SimulatedEyeQ):
 
 
 class AckPad(_LinkOutput):
-    def control(self, t: bytes, d: int, rsp: int, num: int) -> bytes:
-        return t[:6] + b"\xaa" * DATA_SIZE  # §6: "122 pad bytes set to 0"; CRC covers H only
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
+        return transfer[:6] + b"\xaa" * DATA_SIZE  # §6: "122 pad bytes set to 0"; CRC covers H only
 
 
 # -- host mutants -----------------------------------------------------------------------------
@@ -245,41 +245,41 @@ class _HostLinkOutput(HostEmulator):
         self._held: list[tuple[float, bytes]] = []
 
     def data_to_send(self, now: float) -> list[bytes]:
-        out = [t for due, t in self._held if due <= now]
-        self._held = [(due, t) for due, t in self._held if due > now]
-        for t in super().data_to_send(now):
-            d, _, rsp, num = _header(t)
+        out = [transfer for due, transfer in self._held if due <= now]
+        self._held = [(due, transfer) for due, transfer in self._held if due > now]
+        for transfer in super().data_to_send(now):
+            d, _, rsp, num = _header(transfer)
             delay = 0.0
             if d in (FrameKind.ACK, FrameKind.NAK):
-                t, delay = self.control(t, d, rsp, num)
+                transfer, delay = self.control(transfer, d, rsp, num)
             if delay > 0:
-                self._held.append((now + delay, t))
+                self._held.append((now + delay, transfer))
             else:
-                out.append(t)
+                out.append(transfer)
         return out
 
     def get_timer(self) -> float | None:
-        t = super().get_timer()
+        timer = super().get_timer()
         if self._held:
             due = min(d for d, _ in self._held)
-            t = due if t is None else min(t, due)
-        return t
+            timer = due if timer is None else min(timer, due)
+        return timer
 
-    def control(self, t: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
-        return t, 0.0
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
+        return transfer, 0.0
 
 
 class HostLateAcks(_HostLinkOutput):
     """Every other ACK leaves 12 ms late (§6 ackTimeout is 10 ms: the EyeQ has given the
     frame up by then, L7)."""
 
-    def control(self, t: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
-        return t, (0.012 if d == FrameKind.ACK and rsp % 2 else 0.0)
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
+        return transfer, (0.012 if d == FrameKind.ACK and rsp % 2 else 0.0)
 
 
 class HostAckPad(_HostLinkOutput):
-    def control(self, t: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
-        return t[:6] + b"\xaa" * DATA_SIZE, 0.0  # §6: "122 pad bytes set to 0"
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
+        return transfer[:6] + b"\xaa" * DATA_SIZE, 0.0  # §6: "122 pad bytes set to 0"
 
 
 class HostNoRenumber(HostEmulator):
@@ -329,15 +329,16 @@ class HostLateRestart(HostEmulator):
 
     def data_to_send(self, now: float) -> list[bytes]:
         out = []
-        for t in super().data_to_send(now):
-            d, _, rsp, num = _header(t)
+        for transfer in super().data_to_send(now):
+            d, _, rsp, num = _header(transfer)
             if d == FrameKind.DATA:
                 if self._restarted and num == 0:
                     self._restarted = False
-                    t = _FRAMES.data_frame(self._last_rsp, 0, t[6:])  # the RSP it last sent
+                    # the RSP it last sent
+                    transfer = _FRAMES.data_frame(self._last_rsp, 0, transfer[6:])
                 else:
                     self._last_rsp = rsp
-            out.append(t)
+            out.append(transfer)
         return out
 
 
@@ -382,11 +383,11 @@ class HostE2eWrong(HostEmulator):
         super().__init__(*args, **kw)
         send = self.conn.send
         lay = self.codec.layout(self.codec.message("HOST_VEH_STATE_MSG"))
-        o = 4 + lay.crc_plan[0].crc_offset
+        offset = 4 + lay.crc_plan[0].crc_offset
 
         def wrapped(message: bytes, now: float) -> int:
             if message[:2] == b"\x65\x20":
-                message = message[:o] + bytes((message[o] ^ 0x01,)) + message[o + 1:]
+                message = message[:offset] + bytes((message[offset] ^ 0x01,)) + message[offset + 1:]
             return send(message, now)
         self.conn.send = wrapped  # type: ignore[method-assign]
 
@@ -411,8 +412,8 @@ def _m(name: str, dut: str, bug: str, expected: set[str], **kw: Any) -> Mutant:
 
 def _set(**values: Any) -> Callable[[Any], None]:
     def apply(cfg: Any) -> None:
-        for k, v in values.items():
-            setattr(cfg, k, v)
+        for key, value in values.items():
+            setattr(cfg, key, value)
     return apply
 
 
@@ -497,29 +498,29 @@ CORRECT: dict[str, Mutant] = {m.name: m for m in (
 def _mutant(name: str | None, dut: str) -> Mutant | None:
     if name is None:
         return None
-    m = MUTANTS.get(name) or ADVISED.get(name) or CORRECT.get(name)
-    if m is None or m.dut != dut:
+    mutant = MUTANTS.get(name) or ADVISED.get(name) or CORRECT.get(name)
+    if mutant is None or mutant.dut != dut:
         known = ", ".join(k for k, v in (MUTANTS | ADVISED | CORRECT).items() if v.dut == dut)
         raise UsageError(f"no {dut} mutant {name!r} (known: {known})")
-    return m
+    return mutant
 
 
 def build_eyeq(name: str | None, sw: str | None) -> SimulatedEyeQ:
-    m = _mutant(name, "eyeq")
+    mutant = _mutant(name, "eyeq")
     cfg = builtin_eyeq_config(sw)
-    if m is not None and m.sim_config is not None:
-        m.sim_config(cfg)
-    if m is not None and m.eyeq is not None:
-        return m.eyeq(cfg)
+    if mutant is not None and mutant.sim_config is not None:
+        mutant.sim_config(cfg)
+    if mutant is not None and mutant.eyeq is not None:
+        return mutant.eyeq(cfg)
     return SimulatedEyeQ(cfg)
 
 
 def build_host(name: str | None, sw: str | None, reset_line: Callable[[float], None],
                nvm: Nvm | None) -> HostEmulator:
-    m = _mutant(name, "host")
+    mutant = _mutant(name, "host")
     cfg = HostConfig(sw=sw)
-    if m is not None and m.host_config is not None:
-        m.host_config(cfg)
-    if m is not None and m.host is not None:
-        return m.host(cfg, nvm, reset_line)
+    if mutant is not None and mutant.host_config is not None:
+        mutant.host_config(cfg)
+    if mutant is not None and mutant.host is not None:
+        return mutant.host(cfg, nvm, reset_line)
     return HostEmulator(cfg, nvm=nvm, reset_line=reset_line, keep_rx_times=False)

@@ -33,16 +33,16 @@ MEANING = {
 
 def summary(results: Sequence[Result]) -> dict[str, Any]:
     out: dict[str, Any] = {"kind": "summary"}
-    for v in VERDICTS:
-        out[v] = sum(r.outcome.verdict == v for r in results)
+    for verdict in VERDICTS:
+        out[verdict] = sum(r.outcome.verdict == verdict for r in results)
     return out
 
 
 def overall(results: Sequence[Result]) -> str:
     """PASS, FAIL or INCONCLUSIVE: a fail anywhere fails the run; else an inconclusive case
     leaves it open."""
-    s = summary(results)
-    return "FAIL" if s["fail"] else "INCONCLUSIVE" if s["inconclusive"] else "PASS"
+    totals = summary(results)
+    return "FAIL" if totals["fail"] else "INCONCLUSIVE" if totals["inconclusive"] else "PASS"
 
 
 def exit_code(results: Sequence[Result]) -> int:
@@ -50,31 +50,31 @@ def exit_code(results: Sequence[Result]) -> int:
 
 
 def verdict_line(results: Sequence[Result]) -> str:
-    s = summary(results)
-    counts = ", ".join(f"{s[v]} {v}" for v in VERDICTS)
+    totals = summary(results)
+    counts = ", ".join(f"{totals[verdict]} {verdict}" for verdict in VERDICTS)
     return f"VERDICT: {overall(results)} ({counts}; {len(results)} cases)"
 
 
 def meaning(results: Sequence[Result]) -> str:
     """What the overall verdict means for signing, and which cases it turns on."""
     text = MEANING[overall(results)]
-    for v in ("fail", "inconclusive", "skip"):
-        ids = [r.case.id for r in results if r.outcome.verdict == v]
+    for verdict in ("fail", "inconclusive", "skip"):
+        ids = [r.case.id for r in results if r.outcome.verdict == verdict]
         if ids:
-            text += f". {v.capitalize()}: {', '.join(ids)}"
+            text += f". {verdict.capitalize()}: {', '.join(ids)}"
     return text + "."
 
 
-def _refs(c: Case) -> str:
+def _refs(case: Case) -> str:
     """The seed section, requirement and decisions a case judges, and its kind of rule."""
-    decisions = f"decisions {c.decision}" if c.decision else "no decision"
-    return f"§{c.section} · {c.requirement or 'no MAPC ID'} · {decisions} · {c.rule} rule"
+    decisions = f"decisions {case.decision}" if case.decision else "no decision"
+    return f"§{case.section} · {case.requirement or 'no MAPC ID'} · {decisions} · {case.rule} rule"
 
 
 # -- JSON Lines -------------------------------------------------------------------------------
 def json_lines(report: Report) -> str:
-    lines = [json.dumps(report.header.record(), ensure_ascii=False)]
-    lines += [json.dumps(r.record(), ensure_ascii=False) for r in report.results]
+    lines = [json.dumps(report.header.as_json(), ensure_ascii=False)]
+    lines += [json.dumps(result.as_json(), ensure_ascii=False) for result in report.results]
     verdict = overall(report.results)
     lines.append(json.dumps({**summary(report.results), "verdict": verdict,
                              "meaning": meaning(report.results)}, ensure_ascii=False))
@@ -107,12 +107,12 @@ def console(report: Report, *, width: int | None = None) -> str:
     rows.append("")
     verdict = [*_fold(verdict_line(results), width, 2, 0), *_fold(meaning(results), width, 2)]
     rows += verdict
-    for r in results:
-        c = r.case
+    for result in results:
+        case = result.case
         rows.append("")
-        rows += _fold(f"{r.outcome.verdict.upper()}  {c.id}  {c.title}", width, 4, 0)
-        rows += _fold(_refs(c), width, 4)
-        rows += _fold(r.outcome.evidence, width, 4)
+        rows += _fold(f"{result.outcome.verdict.upper()}  {case.id}  {case.title}", width, 4, 0)
+        rows += _fold(_refs(case), width, 4)
+        rows += _fold(result.outcome.evidence, width, 4)
     rows.append("")
     rows += verdict  # again at the end, where a terminal leaves the reader
     return "\n".join(rows)
@@ -121,41 +121,43 @@ def console(report: Report, *, width: int | None = None) -> str:
 def listing(cases: Sequence[Case]) -> str:
     rows = [f"{'ID':42s} {'DUT':9s} {'SECTION':10s} {'REQUIREMENT':24s} {'DECISION':9s} "
             f"{'RULE':7s} TITLE"]
-    for c in cases:
-        rows.append(f"{c.id:42s} {'/'.join(c.duts):9s} §{c.section:9s} "
-                    f"{(c.requirement or '-'):24s} {(c.decision or '-'):9s} {c.rule:7s} "
-                    f"{c.title}")
+    for case in cases:
+        rows.append(f"{case.id:42s} {'/'.join(case.duts):9s} §{case.section:9s} "
+                    f"{(case.requirement or '-'):24s} {(case.decision or '-'):9s} {case.rule:7s} "
+                    f"{case.title}")
     return "\n".join(rows)
 
 
 # -- JUnit ------------------------------------------------------------------------------------
 def junit(report: Report, suite: str) -> bytes:
     results = report.results
-    s = summary(results)
+    totals = summary(results)
     root = ET.Element("testsuites")
     ts = ET.SubElement(root, "testsuite", name=suite, tests=str(len(results)),
-                       failures=str(s["fail"]), skipped=str(s["skip"] + s["inconclusive"]),
+                       failures=str(totals["fail"]),
+                       skipped=str(totals["skip"] + totals["inconclusive"]),
                        errors="0", timestamp=report.header.date)
     props = ET.SubElement(ts, "properties")
     for key, value in report.header.rows():
         ET.SubElement(props, "property", name=key, value=value)
     ET.SubElement(props, "property", name="verdict", value=overall(results))
     ET.SubElement(props, "property", name="meaning", value=meaning(results))
-    for r in results:
-        c = r.case
-        tc = ET.SubElement(ts, "testcase", classname=f"{suite}.{c.group}", name=c.id)
+    for result in results:
+        case = result.case
+        tc = ET.SubElement(ts, "testcase", classname=f"{suite}.{case.group}", name=case.id)
         cprops = ET.SubElement(tc, "properties")
-        for k, v in (("title", c.title), ("section", c.section),
-                     ("requirement", c.requirement or ""), ("decision", c.decision or ""),
-                     ("rule", c.rule), ("verdict", r.outcome.verdict)):
-            ET.SubElement(cprops, "property", name=k, value=v)
-        v = r.outcome.verdict
-        if v == "fail":
-            ET.SubElement(tc, "failure", message=r.outcome.evidence[:200]).text = \
-                r.outcome.evidence
-        elif v in ("skip", "inconclusive"):
-            ET.SubElement(tc, "skipped", message=f"{v}: {r.outcome.evidence}"[:400])
-        ET.SubElement(tc, "system-out").text = f"{v}: {r.outcome.evidence}"
+        for prop, text in (("title", case.title), ("section", case.section),
+                           ("requirement", case.requirement or ""),
+                           ("decision", case.decision or ""),
+                           ("rule", case.rule), ("verdict", result.outcome.verdict)):
+            ET.SubElement(cprops, "property", name=prop, value=text)
+        verdict = result.outcome.verdict
+        if verdict == "fail":
+            ET.SubElement(tc, "failure", message=result.outcome.evidence[:200]).text = \
+                result.outcome.evidence
+        elif verdict in ("skip", "inconclusive"):
+            ET.SubElement(tc, "skipped", message=f"{verdict}: {result.outcome.evidence}"[:400])
+        ET.SubElement(tc, "system-out").text = f"{verdict}: {result.outcome.evidence}"
     ET.SubElement(ts, "system-out").text = f"{verdict_line(results)}\n{meaning(results)}"
     return bytes(ET.tostring(root, encoding="utf-8", xml_declaration=True))
 
@@ -164,10 +166,10 @@ def junit(report: Report, suite: str) -> bytes:
 _COLUMNS = ("verdict", "case", "title", "§", "requirement", "decisions", "rule", "evidence")
 
 
-def _cells(r: Result) -> list[str]:
-    c = r.case
-    return [r.outcome.verdict, c.id, c.title, c.section, c.requirement or "", c.decision or "",
-            c.rule, r.outcome.evidence]
+def _cells(result: Result) -> list[str]:
+    case = result.case
+    return [result.outcome.verdict, case.id, case.title, case.section, case.requirement or "",
+            case.decision or "", case.rule, result.outcome.evidence]
 
 
 def _md(text: str) -> str:
@@ -180,8 +182,8 @@ def markdown(report: Report, title: str) -> str:
     out += ["| " + " | ".join(_md(x) for x in row) + " |" for row in report.header.rows()]
     out += ["", f"**{verdict_line(results)}**", "", meaning(results), "",
             "| " + " | ".join(_COLUMNS) + " |", "|" + "---|" * len(_COLUMNS)]
-    for r in results:
-        out.append("| " + " | ".join(_md(x) for x in _cells(r)) + " |")
+    for result in results:
+        out.append("| " + " | ".join(_md(x) for x in _cells(result)) + " |")
     return "\n".join(out) + "\n"
 
 
@@ -192,9 +194,9 @@ def html_report(report: Report, title: str) -> str:
     head = "".join(f"<tr><th align=left>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
                    for k, v in report.header.rows())
     rows = []
-    for r in results:
-        tds = "".join(f"<td>{html.escape(x)}</td>" for x in _cells(r))
-        rows.append(f'<tr style="background:{colour[r.outcome.verdict]}">{tds}</tr>')
+    for result in results:
+        tds = "".join(f"<td>{html.escape(x)}</td>" for x in _cells(result))
+        rows.append(f'<tr style="background:{colour[result.outcome.verdict]}">{tds}</tr>')
     ths = "".join(f"<th>{h}</th>" for h in _COLUMNS)
     return (f"<!doctype html><meta charset=utf-8><title>{html.escape(title)}</title>"
             f"<h1>{html.escape(title)}</h1><table>{head}</table>"
@@ -206,11 +208,11 @@ def html_report(report: Report, title: str) -> str:
 
 def write(path: str, data: str | bytes) -> None:
     try:
-        p = Path(path)
+        target = Path(path)
         if isinstance(data, bytes):
-            p.write_bytes(data)
+            target.write_bytes(data)
         else:
-            p.write_text(data, encoding="utf-8")
+            target.write_text(data, encoding="utf-8")
     except OSError as exc:
         raise EyeqError(f"cannot write {path}: {exc}") from None
 

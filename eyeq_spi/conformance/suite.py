@@ -42,7 +42,7 @@ class Result:
     case: Case
     outcome: Outcome
 
-    def record(self) -> dict[str, Any]:
+    def as_json(self) -> dict[str, Any]:
         c = self.case
         out = {"kind": "case", "id": c.id, "title": c.title, "section": c.section,
                "requirement": c.requirement, "decision": c.decision, "rule": c.rule,
@@ -66,7 +66,7 @@ class Header:
     date: str
     clock: str  # virtual (--builtin) or real time
 
-    def record(self) -> dict[str, str]:
+    def as_json(self) -> dict[str, str]:
         """The JSON header: each row under its name in snake case, and ``dut``."""
         return {"kind": "header", "dut": self.dut,
                 **{key.lower().replace(" ", "_"): value for key, value in self.rows()}}
@@ -108,6 +108,10 @@ class Options:
     # scheduling there: judging is CPU-bound and must not hold a core at SCHED_FIFO)
     sessions_done: Callable[[], None] | None = None
 
+    def __post_init__(self) -> None:
+        if self.builtin:  # the caller may still change the plans before the run
+            builtin_plans(self)
+
 
 _TOKEN = re.compile(r"\(|\)|[^\s()]+")
 
@@ -120,23 +124,23 @@ def selector(expr: str | None) -> Callable[[Case], bool]:
     tokens = _TOKEN.findall(expr)
     parts: list[str] = []
     words: list[str] = []
-    for t in tokens:
-        low = t.lower()
+    for token in tokens:
+        low = token.lower()
         if low in ("and", "or", "not", "(", ")"):
             parts.append(low)
-        elif re.fullmatch(r"[\w.\-:/]+", t):
+        elif re.fullmatch(r"[\w.\-:/]+", token):
             parts.append(f"_w[{len(words)}] in _h")
             words.append(low)
         else:
-            raise UsageError(f"-k: unexpected {t!r}")
+            raise UsageError(f"-k: unexpected {token!r}")
     code_text = " ".join(parts)
     try:
         code = compile(code_text, "<-k>", "eval")
     except SyntaxError:
         raise UsageError(f"-k: cannot parse {expr!r}") from None
 
-    def match(c: Case) -> bool:
-        hay = " ".join((c.id, c.title, c.group, c.section)).lower()
+    def match(case: Case) -> bool:
+        hay = " ".join((case.id, case.title, case.group, case.section)).lower()
         return bool(eval(code, {"__builtins__": {}}, {"_w": words, "_h": hay}))
     return match
 
@@ -169,8 +173,6 @@ def run_report(opts: Options) -> Report:
     date = datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
     address = _address(opts)
     cases = select_cases(opts)
-    if opts.builtin:
-        builtin_plans(opts)
     wanted = {n for c in cases for n in c.needs}
     ctx = Context(opts.dut, realtime=not opts.builtin)
     sessions: list[str] = ["main"]
@@ -186,11 +188,11 @@ def run_report(opts: Options) -> Report:
         ctx.traces["main"] = _eyeq_session(opts, wanted, ctx)
         step(1, total)
     else:
-        for i, name in enumerate(sessions):
-            tr = _host_session(opts, name, wanted, ctx, first=i == 0)
+        for number, name in enumerate(sessions):
+            tr = _host_session(opts, name, wanted, ctx, first=number == 0)
             if tr is not None:
                 ctx.traces[name] = tr
-            step(i + 1, total)
+            step(number + 1, total)
     if opts.sessions_done is not None:
         opts.sessions_done()
     out = [Result(c, _judge(c, ctx)) for c in cases]
@@ -222,27 +224,27 @@ def _sw_seen(ctx: Context, key: str) -> str:
     if ctx.dut == "host":
         return f"none (a host reports no release on the SPI link; we played an EyeQ of {key})"
     tr = ctx.traces.get("main")
-    replies = [m for m in (tr.dut_msgs("GetEyeQVersions") if tr is not None else [])
-               if is_reply(m) and ret_of(m) == 0 and m.fields]
+    replies = [reply for reply in (tr.dut_msgs("GetEyeQVersions") if tr is not None else [])
+               if is_reply(reply) and ret_of(reply) == 0 and reply.fields]
     if not replies:
         return "not reported (no Get EyeQ Versions reply with ret 0)"
-    m, f = replies[0], replies[0].fields
-    return (f"EyeQ SW {f.get('eyeqSwVersionMajor')}.{f.get('eyeqSwVersionMinor')}, MESP API "
-            f"{f.get('apiVersionMajor')}.{f.get('apiVersionMinor')} (Get EyeQ Versions reply "
-            f"#{m.indices[-1]})")
+    reply, fields = replies[0], replies[0].fields
+    return (f"EyeQ SW {fields.get('eyeqSwVersionMajor')}.{fields.get('eyeqSwVersionMinor')}, "
+            f"MESP API {fields.get('apiVersionMajor')}.{fields.get('apiVersionMinor')} "
+            f"(Get EyeQ Versions reply #{reply.indices[-1]})")
 
 
-def _judge(c: Case, ctx: Context) -> Outcome:
-    name = c.session_for(ctx.dut)
+def _judge(case: Case, ctx: Context) -> Outcome:
+    name = case.session_for(ctx.dut)
     if name == ALL_SESSIONS:
         if not ctx.traces:
             return skip("no session could run")
-        out: Outcome = c.judge(ctx, dict(ctx.traces))
-        return temper(c, out, list(ctx.traces.values()))
+        out: Outcome = case.judge(ctx, dict(ctx.traces))
+        return temper(case, out, list(ctx.traces.values()))
     tr = ctx.traces.get(name)
     if tr is None:
         return skip(f"session {name!r} did not run (the host under test did not connect)")
-    return temper(c, c.judge(ctx, tr), [tr])
+    return temper(case, case.judge(ctx, tr), [tr])
 
 
 def _say(opts: Options, text: str) -> None:
@@ -256,20 +258,20 @@ def _eyeq_session(opts: Options, wanted: set[str], ctx: Context) -> Trace:
     trace = Trace("eyeq", opts.sw, realtime=ctx.realtime)
     tester = make_tester(opts.sw, plan)
     if opts.builtin:
-        s = Session(trace, tester, dut=build_eyeq(opts.mutant, opts.sw))
-        s.dut.power_up(0.0)
+        session = Session(trace, tester, dut=build_eyeq(opts.mutant, opts.sw))
+        session.dut.power_up(0.0)
     else:
         if opts.port is None:
             raise UsageError("--dut eyeq needs --port URL (or --builtin)")
         tester.warm_up()  # no first-time codec build may stall our loop (load.py)
-        s = Session(trace, tester, adapter=open_url(opts.port))
+        session = Session(trace, tester, adapter=open_url(opts.port))
     _say(opts, "session main: we play the host")
     try:
-        HostScript(s, tester, plan, wanted).run()
+        HostScript(session, tester, plan, wanted).run()
     finally:
-        s.finish()
-        if s.adapter is not None:
-            s.adapter.close()
+        session.finish()
+        if session.adapter is not None:
+            session.adapter.close()
     return trace
 
 
@@ -282,7 +284,7 @@ def _host_session(opts: Options, name: str, wanted: set[str], ctx: Context, *,
     if opts.builtin:
         nvm = ctx.builtin.setdefault("nvm", EcuNvm())  # one ECU: its NVM outlives the cycle
         dut = build_host(opts.mutant, opts.sw, tester.reset_line, nvm)
-        s = Session(trace, tester, dut=dut)
+        session = Session(trace, tester, dut=dut)
         dut.start(0.0)
     else:
         adapter = opts.adapter
@@ -290,7 +292,7 @@ def _host_session(opts: Options, name: str, wanted: set[str], ctx: Context, *,
             raise UsageError("--dut host needs --listen tcp://HOST:PORT or --pty (or --builtin)")
         accept: Any = getattr(adapter, "accept", None)
         if not first:
-            drop: Any = getattr(adapter, "_drop", None)
+            drop: Any = getattr(adapter, "drop", None)
             if drop is not None:
                 drop()  # end the ignition cycle: the host under test reconnects
             elif opts.reopen is not None:
@@ -309,14 +311,14 @@ def _host_session(opts: Options, name: str, wanted: set[str], ctx: Context, *,
                  f"{opts.accept_timeout:g} s; the cases judged on this session are skipped")
             return None
         tester.warm_up()  # no first-time codec build may stall our loop (load.py)
-        s = Session(trace, tester, adapter=adapter)
+        session = Session(trace, tester, adapter=adapter)
     _say(opts, f"session {name}: we play the EyeQ")
     try:
-        EyeqScript(s, tester, plan, name, wanted).run()
+        EyeqScript(session, tester, plan, name, wanted).run()
     except EyeqError as exc:
         if first:
             raise
-        trace.mark(s.now, "session_error", error=str(exc))
+        trace.mark(session.now, "session_error", error=str(exc))
     finally:
-        s.finish()
+        session.finish()
     return trace

@@ -137,57 +137,57 @@ class Trace:
 
     def _catch_up(self) -> None:
         unfed, self._unfed = self._unfed, []
-        for x in unfed:
-            if isinstance(x, str):
-                self._passive[x].conn.restart()
+        for xfer in unfed:
+            if isinstance(xfer, str):
+                self._passive[xfer].conn.restart()
             else:
-                self._feed(x)
+                self._feed(xfer)
 
-    def record(self, direction: str, time: float, data: bytes, probe: str | None = None) -> Xfer:
+    def add(self, direction: str, time: float, data: bytes, probe: str | None = None) -> Xfer:
         idx = len(self.xfers)
         self.end = max(self.end, time)
         kind, rsp, num, crc_ok = "LEN", -1, -1, False
         if len(data) == FRAME_SIZE:
             try:
-                f = self.frames.decode(data)
+                frame = self.frames.decode(data)
             except RemoteProtocolError:  # pragma: no cover - length checked above
-                f = None
-            if f is not None:
-                rsp, num, crc_ok = f.rsp, f.num, self.frames.crc_ok(data, f)
-                k = f.kind
-                kind = k.name if k is not None and f.r == 0 else "BAD"
+                frame = None
+            if frame is not None:
+                rsp, num, crc_ok = frame.rsp, frame.num, self.frames.crc_ok(data, frame)
+                frame_kind = frame.kind
+                kind = frame_kind.name if frame_kind is not None and frame.r == 0 else "BAD"
         x = Xfer(idx, time, direction, bytes(data), kind, rsp, num, crc_ok, probe)
         self.xfers.append(x)
         if kind in ("DATA", "BAD") and crc_ok:
             self._unfed.append(x)
         return x
 
-    def _feed(self, x: Xfer) -> None:
-        p = self._passive[x.direction]
-        conn = p.conn
-        if x.kind == "DATA" and x.num == 0 and x.rsp == 0 and conn.link.expected_num != 0:
+    def _feed(self, xfer: Xfer) -> None:
+        passive = self._passive[xfer.direction]
+        conn = passive.conn
+        if xfer.kind == "DATA" and xfer.num == 0 and xfer.rsp == 0 and conn.link.expected_num != 0:
             # L4: NUM 0 and RSP 0 again: that side's driver restarted, on a reset we asked for
             # or did not see. L10: a reset starts both directions afresh; each receiver learns
             # E from the next DATA frame, and nothing after the reset is a duplicate of a frame
             # before it
-            for d in (H2E, E2H):
-                self._passive[d].conn.restart()
-            self._restarts.append((x.time - 1e-9, x.direction))
+            for direction in (H2E, E2H):
+                self._passive[direction].conn.restart()
+            self._restarts.append((xfer.time - 1e-9, xfer.direction))
         timer = conn.get_timer()
-        if timer is not None and timer <= x.time:
-            conn.handle_timer(x.time)
-        if x.kind == "DATA":
-            p.index_of_num[x.num] = (x.index, x.time)
-        conn.receive_data(x.data, x.time)
+        if timer is not None and timer <= xfer.time:
+            conn.handle_timer(xfer.time)
+        if xfer.kind == "DATA":
+            passive.index_of_num[xfer.num] = (xfer.index, xfer.time)
+        conn.receive_data(xfer.data, xfer.time)
         conn.data_to_send(float("inf"))
         while (ev := conn.next_event()) is not None:
             if isinstance(ev, MessageReceived):
-                where = [p.index_of_num.get(n, (x.index, x.time)) for n in ev.frames]
+                where = [passive.index_of_num.get(n, (xfer.index, xfer.time)) for n in ev.frames]
                 decoded = self.codec.decode(ev.data)
-                self._msgs.append(Msg(x.direction, ev.data, [i for i, _ in where],
-                                     where[0][1], x.time, decoded))
+                self._msgs.append(Msg(xfer.direction, ev.data, [i for i, _ in where],
+                                     where[0][1], xfer.time, decoded))
             elif isinstance(ev, Resynchronised):  # L6, L6a, L10a: the sender started over
-                self._restarts.append((x.time - 1e-9, x.direction))
+                self._restarts.append((xfer.time - 1e-9, xfer.direction))
 
     # -- queries ---------------------------------------------------------------------------
     def dut_msgs(self, name: str | None = None) -> list[Msg]:
@@ -202,9 +202,9 @@ class Trace:
         return [m for m in self.marks if m.label == label]
 
     def first_mark(self, label: str) -> Mark | None:
-        for m in self.marks:
-            if m.label == label:
-                return m
+        for mark in self.marks:
+            if mark.label == label:
+                return mark
         return None
 
     def disturbed(self, t0: float, t1: float, settle: float = 0.15) -> bool:
@@ -234,14 +234,10 @@ class Trace:
 
     def kinds(self) -> dict[str, int]:
         out: dict[str, int] = {}
-        for x in self.xfers:
-            out[x.kind] = out.get(x.kind, 0) + 1
+        for xfer in self.xfers:
+            out[xfer.kind] = out.get(xfer.kind, 0) + 1
         return out
 
 
-def is_data(x: Xfer) -> bool:
-    return x.kind == "DATA"
-
-
-def is_control(x: Xfer) -> bool:
-    return x.kind in (FrameKind.ACK.name, FrameKind.NAK.name)
+def is_control(xfer: Xfer) -> bool:
+    return xfer.kind in (FrameKind.ACK.name, FrameKind.NAK.name)

@@ -16,32 +16,32 @@ LINK, TRANSPORT, MESSAGE, EVENT = range(4)
 _KEEP = 256  # transfers whose sample span is remembered (a message spans at most 70)
 
 
-def link_text(r: dict[str, Any]) -> str:
-    if "length" in r:
-        return f"INVALID length {r['length']}"
-    crc = "ok" if r["crc_ok"] else "BAD"
-    text = f"{r['frame_type']} NUM={r['num']} RSP={r['rsp']} CRC {crc}"
-    if r["nak_reason"] is not None:
-        text += f" reason=0x{r['nak_reason']:03X}"
+def link_text(record: dict[str, Any]) -> str:
+    if "length" in record:
+        return f"INVALID length {record['length']}"
+    crc = "ok" if record["crc_ok"] else "BAD"
+    text = f"{record['frame_type']} NUM={record['num']} RSP={record['rsp']} CRC {crc}"
+    if record["nak_reason"] is not None:
+        text += f" reason=0x{record['nak_reason']:03X}"
     return text
 
 
-def transport_text(r: dict[str, Any]) -> str | None:
-    if r["frame_type"] != "DATA" or r["transport"] is None:
+def transport_text(record: dict[str, Any]) -> str | None:
+    if record["frame_type"] != "DATA" or record["transport"] is None:
         return None
-    tid = r["transfer_id"]
-    return str(r["transport"]) + ("" if tid is None else f" id={tid}")
+    tid = record["transfer_id"]
+    return str(record["transport"]) + ("" if tid is None else f" id={tid}")
 
 
-def message_text(r: dict[str, Any]) -> str:
-    text = f"{r['protocol']} {r['name'] or '?'} {r['length']} B"
-    if r["errors"]:
-        text += f" ({len(r['errors'])} errors: {r['errors'][0]})"
+def message_text(record: dict[str, Any]) -> str:
+    text = f"{record['protocol']} {record['name'] or '?'} {record['length']} B"
+    if record["errors"]:
+        text += f" ({len(record['errors'])} errors: {record['errors'][0]})"
     return text
 
 
-def event_text(r: dict[str, Any]) -> str:
-    return str(r["type"])
+def event_text(record: dict[str, Any]) -> str:
+    return str(record["type"])
 
 
 Annotation = tuple[int, int, int, str]
@@ -71,16 +71,16 @@ class Annotator:
         index = self.dis.index
         self._spans[index] = (ss, es)
         self._spans.pop(index - _KEEP, None)
-        for r in self.dis.feed(Record(time, self.direction, bytes(data))):
-            kind = r["kind"]
+        for record in self.dis.feed(Record(time, self.direction, bytes(data))):
+            kind = record["kind"]
             if kind == "frame":
-                out.append((ss, es, LINK, link_text(r)))
-                t = transport_text(r)
-                if t is not None:
-                    out.append((ss, es, TRANSPORT, t))
+                out.append((ss, es, LINK, link_text(record)))
+                text = transport_text(record)
+                if text is not None:
+                    out.append((ss, es, TRANSPORT, text))
             elif kind == "message":
-                first = next((f for f in r["frames"] if f in self._spans), index)
-                out.append((self._spans[first][0], es, MESSAGE, message_text(r)))
+                first = next((f for f in record["frames"] if f in self._spans), index)
+                out.append((self._spans[first][0], es, MESSAGE, message_text(record)))
             else:
-                out.append((ss, es, EVENT, event_text(r)))
+                out.append((ss, es, EVENT, event_text(record)))
         return out

@@ -71,18 +71,18 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
                 sr_w.write(rec)
             if dis is None:
                 continue
-            for r in dis.feed(rec):
+            for record in dis.feed(rec):
                 if mcap_w is not None:
-                    if r["kind"] == "frame" and r["index"] == transfers - 1:
-                        mcap_w.transfer(rec, r)
+                    if record["kind"] == "frame" and record["index"] == transfers - 1:
+                        mcap_w.transfer(rec, record)
                     else:
-                        mcap_w.record(r)
+                        mcap_w.write(record)
                 if mdf_w is not None:
-                    mdf_w.write(r)
+                    mdf_w.write(record)
         if dis is not None:
-            for r in dis.finish():
+            for record in dis.finish():
                 if mcap_w is not None:
-                    mcap_w.record(r)
+                    mcap_w.write(record)
         written = []
         summary: dict[str, Any] = {"transfers": transfers, "sw": codec.sw}
         if vcd_w is not None:
@@ -124,10 +124,10 @@ def export_mdf(records: Iterable[dict[str, Any]], mdf: str, *, source: str,
     codec = MessageCodec(sw)
     mdf_w = MdfWriter(mdf, codec, source=source)
     transfers = 0
-    for r in records:
-        if r["kind"] == "frame":
+    for record in records:
+        if record["kind"] == "frame":
             transfers += 1  # one frame record per transfer
-        mdf_w.write(r)
+        mdf_w.write(record)
     mdf_w.close()
     return {"transfers": transfers, "sw": codec.sw,
             "mdf": {"path": mdf, "groups": len(mdf_w.groups), "messages": mdf_w.messages},

@@ -96,19 +96,21 @@ class McapWriter:
         self._put(cid, rec.time, frame["index"], body)
         self.last_time = rec.time if rec.time is not None else self.last_time
 
-    def record(self, r: dict[str, Any]) -> None:
-        if r["kind"] == "message":
-            name = r["name"] or r["protocol"]
-            body = {k: r[k] for k in ("time", "direction", "protocol", "name", "length", "frames",
-                                      "header", "fields", "errors")}
-            topic = f"/eyeq/{r['direction'] or 'unknown'}/{name}"
+    def write(self, record: dict[str, Any]) -> None:
+        """One of the dissector's message or event records."""
+        if record["kind"] == "message":
+            name = record["name"] or record["protocol"]
+            body = {key: record[key] for key in ("time", "direction", "protocol", "name",
+                                                  "length", "frames", "header", "fields",
+                                                  "errors")}
+            topic = f"/eyeq/{record['direction'] or 'unknown'}/{name}"
             cid = self._channel(topic, json_schema(body), f"eyeq_spi.{name}")
-            last = next((f for f in reversed(r["frames"]) if f is not None), 0)
-            self._put(cid, r["time"], last, body)
+            last = next((f for f in reversed(record["frames"]) if f is not None), 0)
+            self._put(cid, record["time"], last, body)
             self.messages += 1
-        elif r["kind"] == "event":
+        elif record["kind"] == "event":
             cid = self._channel("/spi/events", _EVENT_SCHEMA, "eyeq_spi.Event")
-            self._put(cid, self.last_time, r["index"], r)
+            self._put(cid, self.last_time, record["index"], record)
 
     def close(self) -> None:
         try:

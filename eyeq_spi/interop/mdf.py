@@ -58,17 +58,17 @@ class MdfWriter:
         self.messages = 0
 
     # -- layout metadata ------------------------------------------------------------------
-    def _columns(self, r: dict[str, Any]) -> list[tuple[str, Any, str, Any]]:
+    def _columns(self, record: dict[str, Any]) -> list[tuple[str, Any, str, Any]]:
         info: dict[str, tuple[str, Any]] = {}
         lay = None
-        if r["protocol"] in ("DASP", "DIAG", "BOOT") and r["name"]:
+        if record["protocol"] in ("DASP", "DIAG", "BOOT") and record["name"]:
             try:
-                lay = self.codec.layout(self.codec.cat.message(r["name"]))
+                lay = self.codec.layout(self.codec.cat.message(record["name"]))
             except EyeqError:
                 lay = None
-        self._walk(r["fields"], lay, "", info)
+        self._walk(record["fields"], lay, "", info)
         cols: list[tuple[str, Any, str, Any]] = []
-        for name, value in flatten(r["fields"]).items():
+        for name, value in flatten(record["fields"]).items():
             if isinstance(value, bool):
                 dtype: Any = np.uint8
             elif isinstance(value, int):
@@ -84,21 +84,21 @@ class MdfWriter:
     def _walk(self, values: Any, lay: Any, prefix: str, out: dict[str, tuple[str, Any]]) -> None:
         if not isinstance(values, dict):
             return
-        for k, v in values.items():
-            name = f"{prefix}.{k}" if prefix else k
-            child = lay.children.get(k) if lay is not None else None
+        for key, value in values.items():
+            name = f"{prefix}.{key}" if prefix else key
+            child = lay.children.get(key) if lay is not None else None
             try:
-                member = lay.field(k).member if lay is not None else None
+                member = lay.field(key).member if lay is not None else None
             except KeyError:
                 member = None
-            if isinstance(v, dict):
-                self._walk(v, child, name, out)
-            elif isinstance(v, list):
-                for i, item in enumerate(v):
+            if isinstance(value, dict):
+                self._walk(value, child, name, out)
+            elif isinstance(value, list):
+                for index, item in enumerate(value):
                     if isinstance(item, dict):
-                        self._walk(item, child, f"{name}[{i}]", out)
+                        self._walk(item, child, f"{name}[{index}]", out)
                     else:
-                        out[f"{name}[{i}]"] = self._meta(member)
+                        out[f"{name}[{index}]"] = self._meta(member)
             else:
                 out[name] = self._meta(member)
 
@@ -115,70 +115,70 @@ class MdfWriter:
         return unit, _conversion(labels) if labels else None
 
     # -- rows ---------------------------------------------------------------------------
-    def write(self, r: dict[str, Any]) -> None:
-        if r["kind"] == "frame":
-            self._frame(r)
-        elif r["kind"] == "message" and r["fields"]:
-            self._message(r)
+    def write(self, record: dict[str, Any]) -> None:
+        if record["kind"] == "frame":
+            self._frame(record)
+        elif record["kind"] == "message" and record["fields"]:
+            self._message(record)
 
-    def _frame(self, r: dict[str, Any]) -> None:
-        key = f"link {r['direction'] or '-'}"
-        g = self.groups.get(key)
-        if g is None:
-            g = _Group(key, "link frames (L1, L2, L5)", [
+    def _frame(self, record: dict[str, Any]) -> None:
+        key = f"link {record['direction'] or '-'}"
+        group = self.groups.get(key)
+        if group is None:
+            group = _Group(key, "link frames (L1, L2, L5)", [
                 ("frame_type", np.uint8, "", _conversion(FRAME_KINDS)),
                 ("NUM", np.int16, "", None), ("RSP", np.int16, "", None),
                 ("crc_ok", np.uint8, "", _conversion({0: "CRC BAD", 1: "CRC ok"})),
                 ("length", np.int32, "byte", None)])
-            self.groups[key] = g
-        self._row(g, r["time"], r["index"], [_KIND_CODE.get(r["frame_type"], 0),
-                                 -1 if r["num"] is None else r["num"],
-                                 -1 if r["rsp"] is None else r["rsp"],
-                                 int(r["crc_ok"]), r.get("length", 128)])
+            self.groups[key] = group
+        self._row(group, record["time"], record["index"], [_KIND_CODE.get(record["frame_type"], 0),
+                                 -1 if record["num"] is None else record["num"],
+                                 -1 if record["rsp"] is None else record["rsp"],
+                                 int(record["crc_ok"]), record.get("length", 128)])
 
-    def _message(self, r: dict[str, Any]) -> None:
-        key = f"{r['name'] or r['protocol']} {r['direction'] or '-'}"
-        g = self.groups.get(key)
-        if g is None:
-            g = _Group(key, f"{r['protocol']} {r['name']}", self._columns(r))
-            self.groups[key] = g
-        flat = flatten(r["fields"])
+    def _message(self, record: dict[str, Any]) -> None:
+        key = f"{record['name'] or record['protocol']} {record['direction'] or '-'}"
+        group = self.groups.get(key)
+        if group is None:
+            group = _Group(key, f"{record['protocol']} {record['name']}", self._columns(record))
+            self.groups[key] = group
+        flat = flatten(record["fields"])
         self.messages += 1
-        last = next((f for f in reversed(r["frames"]) if f is not None), 0)
-        self._row(g, r["time"], last, [flat.get(c[0], 0) for c in g.columns])
+        last = next((f for f in reversed(record["frames"]) if f is not None), 0)
+        self._row(group, record["time"], last, [flat.get(c[0], 0) for c in group.columns])
 
-    def _row(self, g: _Group, time: float | None, index: int, values: list[Any]) -> None:
-        g.times.append(float(index) if time is None else time)  # no time: the frame index
-        for col, v in zip(g.rows, values, strict=True):
-            col.append(v if isinstance(v, int | float) else 0)
-        if len(g.times) >= self.batch:
-            self._flush(g)
+    def _row(self, group: _Group, time: float | None, index: int, values: list[Any]) -> None:
+        group.times.append(float(index) if time is None else time)  # no time: the frame index
+        for col, value in zip(group.rows, values, strict=True):
+            col.append(value if isinstance(value, int | float) else 0)
+        if len(group.times) >= self.batch:
+            self._flush(group)
 
-    def _flush(self, g: _Group) -> None:
-        if not g.times:
+    def _flush(self, group: _Group) -> None:
+        if not group.times:
             return
-        t = np.asarray(g.times, dtype=np.float64)
-        data = [np.asarray(col, dtype=dtype) for col, (_, dtype, _, _) in zip(g.rows, g.columns,
-                                                                               strict=True)]
-        if g.index is None:
+        t = np.asarray(group.times, dtype=np.float64)
+        data = [np.asarray(col, dtype=dtype)
+                for col, (_, dtype, _, _) in zip(group.rows, group.columns, strict=True)]
+        if group.index is None:
             signals = [self.asammdf.Signal(samples=d, timestamps=t, name=name, unit=unit,
                                            conversion=conv)
-                       for d, (name, _, unit, conv) in zip(data, g.columns, strict=True)]
+                       for d, (name, _, unit, conv) in zip(data, group.columns, strict=True)]
             if not signals:
                 signals = [self.asammdf.Signal(samples=np.zeros(len(t), np.uint8),
                                                timestamps=t, name="present")]
-            self.mdf.append(signals, acq_name=g.name, comment=g.comment)
-            g.index = len(self.mdf.groups) - 1
+            self.mdf.append(signals, acq_name=group.name, comment=group.comment)
+            group.index = len(self.mdf.groups) - 1
         else:
             cols = data or [np.zeros(len(t), np.uint8)]
-            self.mdf.extend(g.index, [(t, None), *((d, None) for d in cols)])
-        g.times.clear()
-        for col in g.rows:
+            self.mdf.extend(group.index, [(t, None), *((d, None) for d in cols)])
+        group.times.clear()
+        for col in group.rows:
             col.clear()
 
     def close(self) -> None:
-        for g in self.groups.values():
-            self._flush(g)
+        for group in self.groups.values():
+            self._flush(group)
         try:
             self.mdf.save(Path(self.path), overwrite=True)
         except OSError as exc:

@@ -5,12 +5,12 @@
 capture time, byte for byte, except the EyeQ's ACK/NAK frames: those answered the recorded host,
 so the node answers the host in front of it instead, through a real :class:`TransportConnection`
 in the EyeQ role (ACK every accepted frame, NAK per L5, reassemble the host's messages to count
-them). The host's ACK/NAK frames for the played frames are counted, not judged: the recorded
+them). The host's ACK/NAK frames for the played frames are counted, not checked: the recorded
 frames are never resent (L7).
 
 Time: the replay clock is the capture's time minus its first transfer's time, plus the moment
 the replay starts. ``replay_into_host`` runs it against the built-in host emulator on the
-:class:`VirtualRunner` (virtual time, no reset line: the host's own logic judges states, E2E,
+:class:`VirtualRunner` (virtual time, no reset line: the host's own logic checks states, E2E,
 DASP counters and stale streams); ``replay_to_port`` runs it on the :class:`RealTimeRunner`
 against a host under test at a pyserial URL. The capture is read lazily: memory stays bounded.
 """
@@ -79,10 +79,10 @@ class ReplayEyeQ:
             if self._is_control(rec.data):
                 self.skipped_acks += 1  # they answered the recorded host, not this one
                 continue
-            t = self._last_at if rec.time is None else rec.time
+            time = self._last_at if rec.time is None else rec.time
             if self.offset is None:
-                self.offset = self.start - t
-            at = max(t + self.offset, self._last_at)
+                self.offset = self.start - time
+            at = max(time + self.offset, self._last_at)
             if self.duration is not None and at > self.start + self.duration:
                 break
             self._next, self._next_at = rec, at
@@ -94,19 +94,19 @@ class ReplayEyeQ:
         if len(data) != FRAME_SIZE:
             return False
         try:
-            f = self.frames.decode(data)
+            frame = self.frames.decode(data)
         except RemoteProtocolError:
             return False
-        return f.kind in (FrameKind.ACK, FrameKind.NAK) and self.frames.crc_ok(data, f)
+        return frame.kind in (FrameKind.ACK, FrameKind.NAK) and self.frames.crc_ok(data, frame)
 
     # -- Node ---------------------------------------------------------------------------
     def receive_data(self, transfer: bytes, now: float) -> None:
         if self._is_control(transfer):
-            f = self.frames.decode(transfer)
-            if f.kind is FrameKind.ACK:
+            frame = self.frames.decode(transfer)
+            if frame.kind is FrameKind.ACK:
                 self.host_acks += 1
             else:
-                self.host_naks[f.num] += 1
+                self.host_naks[frame.num] += 1
             return
         self.conn.receive_data(transfer, now)
         while (ev := self.conn.next_event()) is not None:
@@ -145,8 +145,8 @@ class ReplayEyeQ:
         return min(timers) if timers else None
 
     def handle_timer(self, now: float) -> None:
-        t = self.conn.get_timer()
-        if t is not None and t <= now:
+        timer = self.conn.get_timer()
+        if timer is not None and timer <= now:
             self.conn.handle_timer(now)
 
     def reset_line(self, now: float) -> None:
@@ -177,8 +177,8 @@ def host_bench(records: Iterable[Record], *, sw: str | None = None,
 
     node = ReplayEyeQ(records, duration=duration, sw=sw)
     host = HostEmulator(HostConfig(sw=sw), keep_rx_times=False, reset_line=node.reset_line)
-    a, b = memory_pair()
-    runner = VirtualRunner([(host, a), (node, b)])
+    host_end, node_end = memory_pair()
+    runner = VirtualRunner([(host, host_end), (node, node_end)])
     host.start(0.0)
     return node, host, runner
 
@@ -186,7 +186,7 @@ def host_bench(records: Iterable[Record], *, sw: str | None = None,
 def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
                      duration: float | None = None) -> dict[str, Any]:
     """Feed the capture's EyeQ channel to the built-in host emulator in virtual time; the run
-    summary (:mod:`eyeq_spi.summary`) judges it as ``host`` judges a live run: Running Vision
+    summary (:mod:`eyeq_spi.summary`) checks it as ``host`` checks a live run: Running Vision
     reached and held, nothing lost (E2E, DASP counters, stale streams, MESP timeouts)."""
     import time
 

@@ -56,13 +56,13 @@ class SpiOptions:
         named after a direction takes its master's line (MOSI, ``specs/bench.yaml``); a single
         unnamed channel goes to ``direction``."""
         if self.channel_map:
-            return [Route(d, line) for d, (name, line) in self.channel_map.items()
+            return [Route(direction, line) for direction, (name, line) in self.channel_map.items()
                     if name.lower() == channel.lower() or (name == "" and n_channels_hint == 1)]
         low = channel.lower()
         chans = bench_spec()["channels"]
-        for d in DIRECTIONS:
-            if d in low:
-                return [Route(d, str(chans[d]["line"]))]
+        for direction in DIRECTIONS:
+            if direction in low:
+                return [Route(direction, str(chans[direction]["line"]))]
         if n_channels_hint == 1:
             line = str(chans[self.direction or "h2e"]["line"])
             return [Route(self.direction, line)]
@@ -77,17 +77,17 @@ def parse_channel_map(text: str) -> dict[str, tuple[str, str]]:
     full-duplex bus)."""
     out: dict[str, tuple[str, str]] = {}
     for part in text.split(","):
-        d, eq, rest = part.partition("=")
-        d = d.strip()
-        if not eq or d not in DIRECTIONS:
+        direction, eq, rest = part.partition("=")
+        direction = direction.strip()
+        if not eq or direction not in DIRECTIONS:
             raise UsageError(f"--channel-map: {part!r} is not h2e=NAME[:LINE] or e2h=NAME[:LINE]")
         name, _, line = rest.rpartition(":") if ":" in rest else (rest, "", "")
-        line = line.strip().lower() or str(bench_spec()["channels"][d]["line"])
+        line = line.strip().lower() or str(bench_spec()["channels"][direction]["line"])
         if line not in LINES:
             raise UsageError(f"--channel-map: line {line!r} is not mosi or miso")
-        if d in out:
-            raise UsageError(f"--channel-map: {d} given twice")
-        out[d] = (name.strip(), line)
+        if direction in out:
+            raise UsageError(f"--channel-map: {direction} given twice")
+        out[direction] = (name.strip(), line)
     return out
 
 

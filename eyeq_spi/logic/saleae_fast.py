@@ -130,63 +130,111 @@ def table(chunk: bytes, ncols: int) -> Table | None:
 def saleae2_chunk(chunk: bytes, ncols: int, cols: dict[str, int], i_name: int, i_type: int,
                   i_time: int, kinds: dict[str, str], state: Saleae2State, opts: SpiOptions,
                   make_open: Any) -> list[Record] | None:
-    t = table(chunk, ncols)
-    if t is None:
+    tab = table(chunk, ncols)
+    if tab is None:
         return None
-    rows = len(t.lo)
-    types = t.strings(i_type, 8)
-    names = t.strings(i_name, _MAX_NAME)
+    types = tab.strings(i_type, 8)
+    names = tab.strings(i_name, _MAX_NAME)
     if types is None or names is None:
         return None
-    k_start, k_byte, k_end = (kinds[k].encode() for k in ("start", "byte", "end"))
+    k_start, k_byte, k_end = (kinds[kind].encode() for kind in ("start", "byte", "end"))
     is_e, is_r, is_d = types == k_start, types == k_byte, types == k_end
     if not (is_e | is_r | is_d).all():
         return None
-    uniq, first, inv = np.unique(names, return_index=True, return_inverse=True)
-    order = np.argsort(first)
-    keys = [bytes(uniq[u]).decode("utf-8", "replace") for u in range(len(uniq))]
+    analyzers = _analyzers(names, state, opts)
+    if analyzers is None:
+        return None
+    keys, name_index, routes = analyzers
+    r_rows = np.flatnonzero(is_r)
+    per_name = [np.flatnonzero(name_index[r_rows] == idx) for idx in range(len(keys))]
+    cells = _cells(tab, cols, r_rows, per_name)
+    if cells is None:
+        return None
+    framing = _frame_rows(tab, is_e, is_r, name_index, keys, i_time, state, make_open)
+    if framing is None:
+        return None
+    open_, jobs, emits = framing
+    if jobs and not _fill(jobs, per_name, r_rows, cells):
+        return None
+    out = [Record(tr.time, route.direction, bytes(tr.lines[route.line]))
+           for tr, key in emits for route in routes[key]]
+    state.open_.clear()
+    state.open_.update(open_)
+    state.routes.update(routes)
+    state.results += len(r_rows)
+    state.enables += int(is_e.sum())
+    return out
+
+
+def _analyzers(names: np.ndarray[Any, Any], state: Saleae2State, opts: SpiOptions
+               ) -> tuple[list[str], np.ndarray[Any, Any], dict[str, list[Route]]] | None:
+    """The chunk's analyzer names (in order of first use), each row's index into them, and the
+    routes of every name (new names routed as the csv loop would); None when two names differ
+    only in bytes that are not UTF-8 or a name has no route."""
+    uniq, first, name_index = np.unique(names, return_index=True, return_inverse=True)
+    keys = [bytes(uniq[idx]).decode("utf-8", "replace") for idx in range(len(uniq))]
     if len(set(keys)) != len(keys):
-        return None  # two names that only differ in bytes that are not UTF-8
+        return None
     routes = dict(state.routes)
     try:
-        for u in order:
-            if keys[u] not in routes:
-                routes[keys[u]] = opts.routes(keys[u], len(routes) + 1)
+        for idx in np.argsort(first):
+            if keys[idx] not in routes:
+                routes[keys[idx]] = opts.routes(keys[idx], len(routes) + 1)
     except InputError:
         return None
-    r_rows = np.flatnonzero(is_r)
+    return keys, name_index, routes
+
+
+_Cells = list[dict[str, tuple[np.ndarray[Any, Any], np.ndarray[Any, Any], bytes | None]]]
+
+
+def _cells(tab: Table, cols: dict[str, int], r_rows: np.ndarray[Any, Any],
+           per_name: list[np.ndarray[Any, Any]]) -> _Cells | None:
+    """Per name and line: its data bytes in row order, which of them are present, and the bytes
+    as one ``bytes`` when none is empty."""
     data: dict[str, np.ndarray[Any, Any]] = {}
     for name, col in cols.items():
-        vals = t.bytes_of(col, r_rows)
+        vals = tab.bytes_of(col, r_rows)
         if vals is None:
             return None
         data[name] = vals
-    r_name = inv[r_rows]
-    per_name = [np.flatnonzero(r_name == u) for u in range(len(uniq))]
-    # per name and line: its data bytes in row order (as bytes when no field is empty)
-    cells: list[dict[str, tuple[np.ndarray[Any, Any], np.ndarray[Any, Any], bytes | None]]] = []
+    cells: _Cells = []
     for sel in per_name:
         by_line = {}
         for line, vals in data.items():
             u8, full = vals[sel].astype(np.uint8), vals[sel] >= 0
             by_line[line] = (u8, full, u8.tobytes() if full.all() else None)
         cells.append(by_line)
+    return cells
+
+
+_Job = tuple[int, OpenTransfer, int, int]  # name, transfer, the rows its bytes lie between
+
+
+def _frame_rows(tab: Table, is_e: np.ndarray[Any, Any], is_r: np.ndarray[Any, Any],
+                name_index: np.ndarray[Any, Any], keys: list[str], i_time: int,
+                state: Saleae2State, make_open: Any
+                ) -> tuple[dict[str, OpenTransfer | None], list[_Job],
+                           list[tuple[OpenTransfer, str]]] | None:
+    """Walk the enable/disable rows: the transfers open at the end, the byte runs to append to
+    each transfer, and the transfers closed (in order). Transfers open before the chunk are
+    copied, so the state stays as it was if the chunk is given up."""
     open_: dict[str, OpenTransfer | None] = dict(state.open_)
     opened_at: dict[str, int] = {}
-    jobs: list[tuple[int, OpenTransfer, int, int]] = []  # name, transfer, its bytes between rows
+    jobs: list[_Job] = []
     emits: list[tuple[OpenTransfer, str]] = []
-    kind_of, name_of = is_e.tolist(), inv.tolist()
+    kind_of, name_of = is_e.tolist(), name_index.tolist()
     for row in np.flatnonzero(~is_r).tolist():
-        u = name_of[row]
-        key = keys[u]
+        idx = name_of[row]
+        key = keys[idx]
         if kind_of[row]:
             prev = open_.get(key)
             if prev is not None:  # reopened: the csv loop would still check its length
                 if key not in opened_at:
                     prev = _copy(prev, make_open)
-                jobs.append((u, prev, opened_at.get(key, -1), row))
+                jobs.append((idx, prev, opened_at.get(key, -1), row))
             try:
-                time = seconds(t.text(row, i_time))
+                time = seconds(tab.text(row, i_time))
             except ValueError:
                 return None
             open_[key] = make_open(time)
@@ -197,39 +245,38 @@ def saleae2_chunk(chunk: bytes, ncols: int, cols: dict[str, int], i_name: int, i
             continue
         if key not in opened_at:
             tr = _copy(tr, make_open)  # open before this chunk: the state stays as it was
-        jobs.append((u, tr, opened_at.pop(key, -1), row))
+        jobs.append((idx, tr, opened_at.pop(key, -1), row))
         emits.append((tr, key))
-    index = {key: u for u, key in enumerate(keys)}
+    index = {key: idx for idx, key in enumerate(keys)}
     for key, tr in open_.items():
         if tr is None or key not in index:
             continue
         if key not in opened_at:
             tr = open_[key] = _copy(tr, make_open)
-        jobs.append((index[key], tr, opened_at.get(key, -1), rows))
-    if jobs:
-        names_j = np.array([j[0] for j in jobs])
-        after = np.array([j[2] for j in jobs])
-        before = np.array([j[3] for j in jobs])
-        a_all = np.empty(len(jobs), dtype=np.int64)
-        b_all = np.empty(len(jobs), dtype=np.int64)
-        for u, sel in enumerate(per_name):
-            m = names_j == u
-            a_all[m] = np.searchsorted(r_rows[sel], after[m], "right")
-            b_all[m] = np.searchsorted(r_rows[sel], before[m], "left")
-        for (u, tr, _, _), a, b in zip(jobs, a_all.tolist(), b_all.tolist(), strict=True):
-            for line, (u8, full, blob) in cells[u].items():
-                buf = tr.lines[line]
-                buf += blob[a:b] if blob is not None else u8[a:b][full[a:b]].tobytes()
-                if len(buf) > MAX_TRANSFER:
-                    return None
-    out = [Record(tr.time, r.direction, bytes(tr.lines[r.line]))
-           for tr, key in emits for r in routes[key]]
-    state.open_.clear()
-    state.open_.update(open_)
-    state.routes.update(routes)
-    state.results += len(r_rows)
-    state.enables += int(is_e.sum())
-    return out
+        jobs.append((index[key], tr, opened_at.get(key, -1), len(tab.lo)))
+    return open_, jobs, emits
+
+
+def _fill(jobs: list[_Job], per_name: list[np.ndarray[Any, Any]], r_rows: np.ndarray[Any, Any],
+          cells: _Cells) -> bool:
+    """Append each job's data bytes to its transfer; False when one grows over the limit."""
+    job_names = np.array([job[0] for job in jobs])
+    after = np.array([job[2] for job in jobs])
+    before = np.array([job[3] for job in jobs])
+    starts = np.empty(len(jobs), dtype=np.int64)
+    stops = np.empty(len(jobs), dtype=np.int64)
+    for idx, sel in enumerate(per_name):
+        mine = job_names == idx
+        starts[mine] = np.searchsorted(r_rows[sel], after[mine], "right")
+        stops[mine] = np.searchsorted(r_rows[sel], before[mine], "left")
+    for (idx, tr, _, _), start, stop in zip(jobs, starts.tolist(), stops.tolist(), strict=True):
+        for line, (u8, full, blob) in cells[idx].items():
+            buf = tr.lines[line]
+            buf += (blob[start:stop] if blob is not None
+                    else u8[start:stop][full[start:stop]].tobytes())
+            if len(buf) > MAX_TRANSFER:
+                return False
+    return True
 
 
 def _copy(tr: OpenTransfer, make_open: Any) -> OpenTransfer:

@@ -57,26 +57,26 @@ def sniff(head: bytes) -> str | None:
 _BYTES = {f"0x{v:02X}": v for v in range(256)} | {f"0x{v:02x}": v for v in range(256)}
 
 
-def _byte(text: str, n: int) -> int | None:
-    v = _BYTES.get(text)  # the usual hex radix, without parsing
-    if v is not None:
-        return v
-    t = text.strip().strip('"')
-    if not t:
+def _byte(text: str, line: int) -> int | None:
+    value = _BYTES.get(text)  # the usual hex radix, without parsing
+    if value is not None:
+        return value
+    token = text.strip().strip('"')
+    if not token:
         return None
     try:
-        v = int(t, 0) if t[:2].lower() in ("0x", "0b") else int(t, 10)
+        value = int(token, 0) if token[:2].lower() in ("0x", "0b") else int(token, 10)
     except ValueError:
-        raise InputError(f"line {n}: {t[:20]!r} is not a byte (export with a hex, "
+        raise InputError(f"line {line}: {token[:20]!r} is not a byte (export with a hex, "
                          "decimal or binary radix)") from None
-    if not 0 <= v <= 0xFF:
-        raise InputError(f"line {n}: {v} is not a byte (set the analyzer to 8 bits)")
-    return v
+    if not 0 <= value <= 0xFF:
+        raise InputError(f"line {line}: {value} is not a byte (set the analyzer to 8 bits)")
+    return value
 
 
 def _emit(tr: OpenTransfer, routes: list[Route]) -> Iterator[Record]:
-    for r in routes:
-        yield Record(tr.time, r.direction, bytes(tr.lines[r.line]))
+    for route in routes:
+        yield Record(tr.time, route.direction, bytes(tr.lines[route.line]))
 
 
 def _time(text: str, where: str) -> float:
@@ -164,7 +164,7 @@ def _by_chunk(body: bytes, chunks: Iterator[bytes],
               rows: Callable[[bytes, int], Iterator[Record]]) -> Iterator[Record]:
     """Each chunk through the vectorised reader while it keeps succeeding (``_Tries``), else
     through the csv row loop, which is told the chunk's first line number (the header is 1)."""
-    n = 2
+    line = 2
     tries = _Tries()
     for chunk in itertools.chain([body], chunks):
         if not chunk:
@@ -175,8 +175,8 @@ def _by_chunk(body: bytes, chunks: Iterator[bytes],
         if recs is not None:
             yield from recs
         else:
-            yield from rows(chunk, n)
-        n += _line_count(chunk)
+            yield from rows(chunk, line)
+        line += _line_count(chunk)
 
 
 def saleae2_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
@@ -226,7 +226,7 @@ def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int, fast: ChunkRead
 def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
                   cols: dict[str, int], where: tuple[int, int, int], kinds: dict[str, str],
                   state: Saleae2State, opts: SpiOptions) -> Iterator[Record]:
-    """The csv loop: exact for any shape, reports errors with their line."""
+    """The csv loop (the reference): reads any shape, reports errors with their line."""
     i_name, i_type, i_time = where
     k_start, k_byte = kinds["start"], kinds["byte"]
     open_, routes = state.open_, state.routes
@@ -247,10 +247,10 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
             if tr is None:
                 continue  # a transfer cut by the start of the capture
             for line, col in col_list:
-                v = _byte(row[col], n)
-                if v is not None:
+                value = _byte(row[col], n)
+                if value is not None:
                     buf = tr.lines[line]
-                    buf.append(v)
+                    buf.append(value)
                     if len(buf) > MAX_TRANSFER:
                         raise InputError(f"line {n}: transfer longer than {MAX_TRANSFER} "
                                          "bytes")
@@ -309,8 +309,8 @@ def _saleae1_rows(rows: Iterator[list[str]], start: int, ncols: int,
         tr = state.tr
         assert tr is not None
         for line, col in (("mosi", i_mosi), ("miso", i_miso)):
-            v = _byte(row[col], n)
-            if v is not None:
-                tr.lines[line].append(v)
+            value = _byte(row[col], n)
+            if value is not None:
+                tr.lines[line].append(value)
         if len(tr.lines["mosi"]) > MAX_TRANSFER or len(tr.lines["miso"]) > MAX_TRANSFER:
             raise InputError(f"line {n}: transfer longer than {MAX_TRANSFER} bytes")

@@ -118,15 +118,16 @@ class SrWriter:
         self.half = SAMPLES_PER_HALF_CLOCK
         self.samplerate = 2 * baud * self.half
         gaps = link_spec()["timing"]["frameFlowControl"]
-        self.gap = {d: round(float(gaps[_SENDER[d]]) * self.samplerate) for d in DIRECTIONS}
+        self.gap = {direction: round(float(gaps[_SENDER[direction]]) * self.samplerate)
+                    for direction in DIRECTIONS}
         self.min_idle = max(1, round(float(spec["vcd"]["min_idle"]) * self.samplerate))
         self.cpol, self.cpha = divmod(self.opts.mode, 2)
         self.default_direction = default_direction
         idle_miso = int(spec["vcd"]["idle_miso"])
         self.idle = 0
-        for d in DIRECTIONS:
-            self.idle |= (1 << _bit(d, "cs")) | (self.cpol << _bit(d, "clk"))
-            self.idle |= idle_miso << _bit(d, "miso")
+        for direction in DIRECTIONS:
+            self.idle |= (1 << _bit(direction, "cs")) | (self.cpol << _bit(direction, "clk"))
+            self.idle |= idle_miso << _bit(direction, "miso")
         self.origin: float | None = None  # the first capture time: sample LEAD
         # the first sample each channel's next transfer may use
         self.free = dict.fromkeys(DIRECTIONS, LEAD)
@@ -144,9 +145,9 @@ class SrWriter:
         self.sink = _ChunkSink(self.zf)
 
     def write(self, rec: Record) -> None:
-        d = rec.direction or self.default_direction
+        direction = rec.direction or self.default_direction
         if rec.time is None:
-            wanted = max(self.free[d], self.last_start[d] + self.gap[d])
+            wanted = max(self.free[direction], self.last_start[direction] + self.gap[direction])
         else:
             if self.origin is None:
                 self.origin = rec.time
@@ -157,38 +158,38 @@ class SrWriter:
                     self.shift += wanted - busy_until - self.max_idle
                     wanted = busy_until + self.max_idle
         self._flush(wanted)  # no later transfer starts before its capture time
-        start = max(wanted, self.free[d], self.cursor)
+        start = max(wanted, self.free[direction], self.cursor)
         if start > wanted and rec.time is not None:
             self.delayed += 1
-        self.last_start[d] = start
-        lines = self._transfer(d, rec.data)
+        self.last_start[direction] = start
+        lines = self._transfer(direction, rec.data)
         end = start + len(lines)
         self._extend(end)
         offset = start - self.cursor
-        mask = np.uint8(sum(1 << _bit(d, s) for s in ("cs", "clk", "mosi")))
+        mask = np.uint8(sum(1 << _bit(direction, s) for s in ("cs", "clk", "mosi")))
         window = self.pending[offset:offset + len(lines)]
         window &= ~mask
         window |= lines
-        self.free[d] = end + self.min_idle
+        self.free[direction] = end + self.min_idle
         self.count += 1
 
-    def _transfer(self, d: str, data: bytes) -> _Array:
+    def _transfer(self, direction: str, data: bytes) -> _Array:
         """The channel's CS, CLK and MOSI bits of one transfer, from CS falling to the sample
         before CS rises (the frame of :class:`eyeq_spi.logic.vcd_write.VcdWriter`)."""
         h = self.half
         order: Literal["big", "little"] = "big" if self.opts.bit_order == "msb_first" \
             else "little"
         bits = np.unpackbits(np.frombuffer(data, dtype=np.uint8), bitorder=order)
-        n = len(bits)
+        count = len(bits)
         t = 0 if self.cpha else h  # the first bit's period begins here
-        length = t + 2 * h * n + h
+        length = t + 2 * h * count + h
         rel = np.arange(length) - t  # samples since the first bit's period began
-        bit_no = np.clip((rel - (h if self.cpha else 0)) // (2 * h), -1, n - 1)
-        mosi = np.where(bit_no >= 0, bits[np.maximum(bit_no, 0)] if n else 0, 0)
-        in_bits = (rel >= h) & (rel < h + 2 * h * n)
+        bit_no = np.clip((rel - (h if self.cpha else 0)) // (2 * h), -1, count - 1)
+        mosi = np.where(bit_no >= 0, bits[np.maximum(bit_no, 0)] if count else 0, 0)
+        in_bits = (rel >= h) & (rel < h + 2 * h * count)
         clk = np.where(in_bits & (((rel - h) % (2 * h)) < h), 1 - self.cpol, self.cpol)
-        out = (clk.astype(np.uint8) << _bit(d, "clk")) | (mosi.astype(np.uint8)
-                                                          << _bit(d, "mosi"))
+        out = (clk.astype(np.uint8) << _bit(direction, "clk")) | (mosi.astype(np.uint8)
+                                                          << _bit(direction, "mosi"))
         return out.astype(np.uint8)  # CS (its bit 0) low throughout
 
     def _extend(self, end: int) -> None:
@@ -235,13 +236,13 @@ class SrWriter:
 
 def write_sr(records: Iterable[Record], path: str | Path, opts: SpiOptions | None = None,
              **kw: Any) -> SrWriter:
-    w = SrWriter(path, opts, **kw)
+    writer = SrWriter(path, opts, **kw)
     try:
         for rec in records:
-            w.write(rec)
+            writer.write(rec)
     finally:
-        w.close()
-    return w
+        writer.close()
+    return writer
 
 
 def write_sr_file(records: Iterable[Record], path: str | Path, **options: Any) -> int:

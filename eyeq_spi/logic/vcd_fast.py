@@ -98,22 +98,22 @@ class FastPath:
             return [t_before if k < 0 else int(chunk[t_pos[k] + 1:t_end[k]]) for k in ks]
 
         out: list[tuple[int, Record]] = []
-        for c, ch in enumerate(self.chans):
-            out += _channel(ch, [np.flatnonzero(sig == c * 4 + role) for role in range(4)],
+        for number, ch in enumerate(self.chans):
+            out += _channel(ch, [np.flatnonzero(sig == number * 4 + role) for role in range(4)],
                             vals, v_pos, time_at, reader)
         if len(t_pos):
             reader.t = int(chunk[t_pos[-1] + 1:t_end[-1]])
-        out.sort(key=lambda x: x[0])
-        return [r for _, r in out]
+        out.sort(key=lambda item: item[0])
+        return [record for _, record in out]
 
 
 def _level_at(changes: np.ndarray[Any, Any], vals: np.ndarray[Any, Any],
               at: np.ndarray[Any, Any], init: int) -> np.ndarray[Any, Any]:
     """The level of a line (changing at ``changes``) just before each index of ``at``."""
-    k = np.searchsorted(changes, at) - 1
+    last = np.searchsorted(changes, at) - 1
     if len(changes) == 0:
         return np.full(len(at), init, dtype=np.uint8)
-    return np.where(k >= 0, vals[changes][np.maximum(k, 0)], init).astype(np.uint8)
+    return np.where(last >= 0, vals[changes][np.maximum(last, 0)], init).astype(np.uint8)
 
 
 def _bits_of(value: int, n: int, msb: bool) -> list[int]:
@@ -130,81 +130,110 @@ def _channel(ch: Chan, by_role: list[np.ndarray[Any, Any]], vals: np.ndarray[Any
     cs_i, clk_i, mo_i, mi_i = by_role
     if not (len(cs_i) or len(clk_i) or len(mo_i) or len(mi_i)):
         return []
-    msb = reader.msb
     cs_v = vals[cs_i]
-    cs_prev = np.concatenate(([ch.cs], cs_v[:-1]))
-    edge = cs_v != cs_prev
+    edge = cs_v != np.concatenate(([ch.cs], cs_v[:-1]))
     edge_i, edge_fall = cs_i[edge], cs_v[edge] == 0
     fall_i = edge_i[edge_fall]
-    clk_v = vals[clk_i]
-    clk_prev = np.concatenate(([ch.clk], clk_v[:-1]))
-    cand = clk_i[(clk_v != clk_prev) & (clk_v == reader.sample_level)]
-    k = np.searchsorted(edge_i, cand) - 1  # the last chip select edge before a clock edge
-    active = np.where(k >= 0, edge_fall[np.maximum(k, 0)] if len(edge_i) else False,
-                      ch.active)
-    s_idx = cand[active]
-    s_seg = np.searchsorted(fall_i, s_idx)  # 0: the transfer open before this chunk
-    s_mo = _level_at(mo_i, vals, s_idx, ch.mosi)
-    s_mi = _level_at(mi_i, vals, s_idx, ch.miso)
-    order: Literal["big", "little"] = "big" if msb else "little"
-
-    # the samples of transfer k (0: the one open before this chunk) are s_*[at[k]:at[k + 1]]
-    at = np.searchsorted(s_seg, np.arange(len(fall_i) + 2)).tolist()
-
-    def segment(k: int) -> tuple[bytes, bytes, np.ndarray[Any, Any], np.ndarray[Any, Any]]:
-        lo, hi = at[k], at[k + 1]
-        mo, mi = s_mo[lo:hi], s_mi[lo:hi]
-        head_mo = head_mi = b""
-        if k == 0:  # the transfer open before this chunk
-            head_mo, head_mi = bytes(ch.mosi_bytes), bytes(ch.miso_bytes)
-            mo = np.concatenate((np.array(_bits_of(ch.mo, ch.nbits, msb), np.uint8), mo))
-            mi = np.concatenate((np.array(_bits_of(ch.mi, ch.nbits, msb), np.uint8), mi))
-        if len(head_mo) + len(mo) // 8 > MAX_TRANSFER:
-            raise InputError(f"transfer longer than {MAX_TRANSFER} bytes (chip select "
-                             "never rises?)")
-        whole = len(mo) - len(mo) % 8
-        return (head_mo + np.packbits(mo[:whole], bitorder=order).tobytes(),
-                head_mi + np.packbits(mi[:whole], bitorder=order).tobytes(),
-                mo[whole:], mi[whole:])
-
+    samples = _Samples.take(ch, by_role, vals, edge_i, edge_fall, reader)
     out: list[tuple[int, Record]] = []
     before = np.concatenate(([ch.active], edge_fall[:-1]))  # active before each edge
     fall_t = [ch.t0, *time_at(lines[fall_i])]  # start time of transfer k
     rises = edge_i[~edge_fall & before]
-    for e, k in zip(lines[rises].tolist(), np.searchsorted(fall_i, rises).tolist(),
-                    strict=True):
-        mo_b, mi_b, _, _ = segment(k)
-        t0 = fall_t[k] * reader.scale
-        for r in ch.routes:
-            out.append((e, Record(t0, r.direction, mo_b if r.line == "mosi" else mi_b)))
-    last = len(fall_i)
+    for line, seg in zip(lines[rises].tolist(), np.searchsorted(fall_i, rises).tolist(),
+                         strict=True):
+        mo_b, mi_b, _, _ = samples.segment(ch, seg)
+        start = fall_t[seg] * reader.scale
+        out += [(line, Record(start, route.direction, mo_b if route.line == "mosi" else mi_b))
+                for route in ch.routes]
     ch.t0 = fall_t[-1]
     end_active = bool(edge_fall[-1]) if len(edge_i) else ch.active
     if end_active:
-        mo_b, mi_b, rest_mo, rest_mi = segment(last)
-        ch.mosi_bytes, ch.miso_bytes = bytearray(mo_b), bytearray(mi_b)
-        ch.nbits = len(rest_mo)
-        ch.mo = ch.mi = 0
-        for i in range(ch.nbits):
-            if msb:
-                ch.mo, ch.mi = (ch.mo << 1) | int(rest_mo[i]), (ch.mi << 1) | int(rest_mi[i])
-            else:
-                ch.mo |= int(rest_mo[i]) << i
-                ch.mi |= int(rest_mi[i]) << i
+        _keep_open(ch, samples.segment(ch, len(fall_i)), reader.msb)
     else:
         ch.nbits = ch.mo = ch.mi = 0
         ch.mosi_bytes.clear()
         ch.miso_bytes.clear()
+    _keep_levels(ch, by_role, vals)
+    ch.active = end_active
+    return out
+
+
+_Segment = tuple[bytes, bytes, np.ndarray[Any, Any], np.ndarray[Any, Any]]
+
+
+class _Samples:
+    """The MOSI and MISO levels at a channel's sampling clock edges while chip select is low,
+    grouped by transfer: those of transfer k (0: the one open before this chunk) are
+    ``mosi[at[k]:at[k + 1]]``."""
+
+    def __init__(self, mosi: np.ndarray[Any, Any], miso: np.ndarray[Any, Any], at: list[int],
+                 msb: bool) -> None:
+        self.mosi, self.miso, self.at, self.msb = mosi, miso, at, msb
+
+    @classmethod
+    def take(cls, ch: Chan, by_role: list[np.ndarray[Any, Any]], vals: np.ndarray[Any, Any],
+             edge_i: np.ndarray[Any, Any], edge_fall: np.ndarray[Any, Any],
+             reader: ReaderState) -> _Samples:
+        _, clk_i, mo_i, mi_i = by_role
+        clk_v = vals[clk_i]
+        clk_prev = np.concatenate(([ch.clk], clk_v[:-1]))
+        cand = clk_i[(clk_v != clk_prev) & (clk_v == reader.sample_level)]
+        last_edge = np.searchsorted(edge_i, cand) - 1  # the last chip select edge before it
+        active = np.where(last_edge >= 0,
+                          edge_fall[np.maximum(last_edge, 0)] if len(edge_i) else False,
+                          ch.active)
+        s_idx = cand[active]
+        fall_i = edge_i[edge_fall]
+        s_seg = np.searchsorted(fall_i, s_idx)  # 0: the transfer open before this chunk
+        at = np.searchsorted(s_seg, np.arange(len(fall_i) + 2)).tolist()
+        return cls(_level_at(mo_i, vals, s_idx, ch.mosi), _level_at(mi_i, vals, s_idx, ch.miso),
+                   at, reader.msb)
+
+    def segment(self, ch: Chan, seg: int) -> _Segment:
+        """Transfer ``seg``'s whole bytes on MOSI and MISO, and the bits left over."""
+        lo, hi = self.at[seg], self.at[seg + 1]
+        mo, mi = self.mosi[lo:hi], self.miso[lo:hi]
+        head_mo = head_mi = b""
+        if seg == 0:  # the transfer open before this chunk
+            head_mo, head_mi = bytes(ch.mosi_bytes), bytes(ch.miso_bytes)
+            mo = np.concatenate((np.array(_bits_of(ch.mo, ch.nbits, self.msb), np.uint8), mo))
+            mi = np.concatenate((np.array(_bits_of(ch.mi, ch.nbits, self.msb), np.uint8), mi))
+        if len(head_mo) + len(mo) // 8 > MAX_TRANSFER:
+            raise InputError(f"transfer longer than {MAX_TRANSFER} bytes (chip select "
+                             "never rises?)")
+        whole = len(mo) - len(mo) % 8
+        order: Literal["big", "little"] = "big" if self.msb else "little"
+        return (head_mo + np.packbits(mo[:whole], bitorder=order).tobytes(),
+                head_mi + np.packbits(mi[:whole], bitorder=order).tobytes(),
+                mo[whole:], mi[whole:])
+
+
+def _keep_open(ch: Chan, segment: _Segment, msb: bool) -> None:
+    """Carry the transfer still open at the end of the chunk in the channel's state."""
+    mo_b, mi_b, rest_mo, rest_mi = segment
+    ch.mosi_bytes, ch.miso_bytes = bytearray(mo_b), bytearray(mi_b)
+    ch.nbits = len(rest_mo)
+    ch.mo = ch.mi = 0
+    for bit in range(ch.nbits):
+        if msb:
+            ch.mo, ch.mi = (ch.mo << 1) | int(rest_mo[bit]), (ch.mi << 1) | int(rest_mi[bit])
+        else:
+            ch.mo |= int(rest_mo[bit]) << bit
+            ch.mi |= int(rest_mi[bit]) << bit
+
+
+def _keep_levels(ch: Chan, by_role: list[np.ndarray[Any, Any]],
+                 vals: np.ndarray[Any, Any]) -> None:
+    """Each line's last level in the chunk, for the next chunk to start from."""
+    cs_i, clk_i, mo_i, mi_i = by_role
     if len(cs_i):
-        ch.cs = int(cs_v[-1])
+        ch.cs = int(vals[cs_i[-1]])
     if len(clk_i):
-        ch.clk = int(clk_v[-1])
+        ch.clk = int(vals[clk_i[-1]])
     if len(mo_i):
         ch.mosi = int(vals[mo_i[-1]])
     if len(mi_i):
         ch.miso = int(vals[mi_i[-1]])
-    ch.active = end_active
-    return out
 
 
 def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20

@@ -74,11 +74,11 @@ def _header(tokens: Iterator[bytes]) -> tuple[float, list[tuple[str, bytes, str]
         if count > MAX_HEADER:
             raise InputError("VCD header longer than 16 MiB")
         body: list[bytes] = []
-        for t in tokens:
-            if t == b"$end":
+        for token in tokens:
+            if token == b"$end":
                 break
-            body.append(t)
-            count += len(t) + 1
+            body.append(token)
+            count += len(token) + 1
             if count > MAX_HEADER:
                 raise InputError("VCD header longer than 16 MiB")
         else:
@@ -86,10 +86,10 @@ def _header(tokens: Iterator[bytes]) -> tuple[float, list[tuple[str, bytes, str]
         if tok == b"$enddefinitions":
             return scale, vars_
         if tok == b"$timescale":
-            m = re.fullmatch(rb"(1|10|100)\s*(s|ms|us|ns|ps|fs)", b"".join(body))
-            if m is None:
+            match = re.fullmatch(rb"(1|10|100)\s*(s|ms|us|ns|ps|fs)", b"".join(body))
+            if match is None:
                 raise InputError(f"bad VCD timescale {b' '.join(body)[:30]!r}")
-            scale = int(m.group(1)) * _UNITS[m.group(2)]
+            scale = int(match.group(1)) * _UNITS[match.group(2)]
         elif tok == b"$scope":
             scopes.append(body[-1].decode("utf-8", "replace") if body else "")
         elif tok == b"$upscope":
@@ -123,9 +123,9 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
             found[chan] = sigs
     else:
         for scope, ident, ref in vars_:
-            m = _NAME.match(ref)
-            if m is not None:
-                chan, sig = m.group("channel"), _ALIASES[m.group("signal").lower()]
+            match = _NAME.match(ref)
+            if match is not None:
+                chan, sig = match.group("channel"), _ALIASES[match.group("signal").lower()]
             elif ref.lower() in _ALIASES:
                 leaf = scope.rsplit(".", 1)[-1]
                 chan = leaf if any(d in leaf.lower() for d in ("h2e", "e2h")) else ""
@@ -170,25 +170,25 @@ def vcd_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
     head = b""
     for chunk in chunks:
         head += chunk
-        m = re.search(rb"\$enddefinitions\s+\$end\s", head)
-        if m is not None:
+        match = re.search(rb"\$enddefinitions\s+\$end\s", head)
+        if match is not None:
             break
         if len(head) > MAX_HEADER:
             raise InputError("VCD header longer than 16 MiB")
     else:
-        m = re.search(rb"\$enddefinitions\s+\$end", head)
-    if m is None:
+        match = re.search(rb"\$enddefinitions\s+\$end", head)
+    if match is None:
         if not head.lstrip()[:1] == b"$":  # a VCD starts with a $ keyword ($date, $timescale..)
             raise InputError("not a VCD file: it does not start with a $ keyword")
         raise InputError("truncated VCD: no $enddefinitions")
-    meta = _skip_meta(head[:m.start()])  # only before the definitions end
-    head = meta + head[m.start():]
-    m = re.search(rb"\$enddefinitions\s+\$end\s?", head)
-    assert m is not None
-    scale, vars_ = _header(iter(head[:m.end()].split()))
+    meta = _skip_meta(head[:match.start()])  # only before the definitions end
+    head = meta + head[match.start():]
+    match = re.search(rb"\$enddefinitions\s+\$end\s?", head)
+    assert match is not None
+    scale, vars_ = _header(iter(head[:match.end()].split()))
     table = _channels(vars_, opts)
     reader = _Reader(table, scale, opts, fast)
-    yield from reader.feed(head[m.end():])
+    yield from reader.feed(head[match.end():])
     for chunk in chunks:
         yield from reader.feed(chunk)
 
@@ -196,7 +196,7 @@ def vcd_records(src: ByteSource, opts: SpiOptions, chunk_size: int,
 class _Reader:
     """Value changes -> transfers. A fast twin's chunk reader (``vcd_fast``: one-character
     identifiers, one change per line, what sigrok, PulseView and our writer produce) reads the
-    chunks it can take; anything else goes through the exact token loop below. Both keep their
+    chunks it can take; anything else goes through the reference token loop below. Both keep their
     state in the same :class:`Chan` objects, so they can take turns."""
 
     def __init__(self, table: dict[bytes, list[tuple[Chan, int]]], scale: float,

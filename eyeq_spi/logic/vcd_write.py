@@ -83,33 +83,35 @@ class VcdWriter:
         self._header()
 
     def _header(self) -> None:
-        w = self.fh.write
-        w(f"$date {_dt.datetime.now(_dt.UTC).isoformat(timespec='seconds')} $end\n")
-        w(f"$version eyeq-spi {__version__} $end\n")
-        w(f"$comment EyeQ4 SPI, two channels (seed 004 §5), mode {self.opts.mode}, "
-          f"{self.opts.bit_order} $end\n")
+        write = self.fh.write
+        write(f"$date {_dt.datetime.now(_dt.UTC).isoformat(timespec='seconds')} $end\n")
+        write(f"$version eyeq-spi {__version__} $end\n")
+        write(f"$comment EyeQ4 SPI, two channels (seed 004 §5), mode {self.opts.mode}, "
+              f"{self.opts.bit_order} $end\n")
         if self.max_idle is not None:
-            w(f"$comment idle time compressed: every stretch with both channels idle is at most "
-              f"{self.max_idle * self.scale:g} s; times are not capture times $end\n")
-        w(f"$timescale {self.timescale} $end\n$scope module eyeq_spi $end\n")
-        for d in DIRECTIONS:
-            for s in SIGNALS:
-                w(f"$var wire 1 {self.ids[d][s]} {signal_name(d, s)} $end\n")
-        w("$upscope $end\n$enddefinitions $end\n#0\n$dumpvars\n")
+            write("$comment idle time compressed: every stretch with both channels idle is at "
+                  f"most {self.max_idle * self.scale:g} s; times are not capture times $end\n")
+        write(f"$timescale {self.timescale} $end\n$scope module eyeq_spi $end\n")
+        for direction in DIRECTIONS:
+            for signal in SIGNALS:
+                write(f"$var wire 1 {self.ids[direction][signal]} {signal_name(direction, signal)} "
+                      "$end\n")
+        write("$upscope $end\n$enddefinitions $end\n#0\n$dumpvars\n")
         idle_miso = int(bench_spec()["vcd"]["idle_miso"])
-        for d in DIRECTIONS:
-            i = self.ids[d]
-            w(f"1{i['cs']}\n{self.cpol}{i['clk']}\n0{i['mosi']}\n{idle_miso}{i['miso']}\n")
-        w("$end\n")
+        for direction in DIRECTIONS:
+            i = self.ids[direction]
+            write(f"1{i['cs']}\n{self.cpol}{i['clk']}\n0{i['mosi']}\n{idle_miso}{i['miso']}\n")
+        write("$end\n")
         self.last_tick = 0
 
-    def _code(self, d: str, signal: str, value: int) -> int:
-        return ((DIRECTIONS.index(d) * 4 + SIGNALS.index(signal)) << 1) | value
+    def _code(self, direction: str, signal: str, value: int) -> int:
+        return ((DIRECTIONS.index(direction) * 4 + SIGNALS.index(signal)) << 1) | value
 
     def write(self, rec: Record) -> None:
-        d = rec.direction or self.default_direction
+        direction = rec.direction or self.default_direction
         if rec.time is None:
-            ticks = max(self.free[d], self.last_start[d] + self.gap[d], self.last_tick + 1)
+            ticks = max(self.free[direction], self.last_start[direction] + self.gap[direction],
+                        self.last_tick + 1)
         else:
             ticks = round(rec.time / self.scale) - self.shift
             if self.max_idle is not None:
@@ -118,8 +120,8 @@ class VcdWriter:
                     self.shift += ticks - busy_until - self.max_idle
                     ticks = busy_until + self.max_idle
         self._flush(ticks)
-        start = max(ticks, self.free[d], self.last_tick + 1)
-        self.last_start[d] = start
+        start = max(ticks, self.free[direction], self.last_tick + 1)
+        self.last_start[direction] = start
         if start > ticks and rec.time is not None:
             self.delayed += 1
         h = self.half
@@ -128,23 +130,24 @@ class VcdWriter:
             else "little"
         bits = np.unpackbits(np.frombuffer(rec.data, dtype=np.uint8), bitorder=order
                              ).astype(np.int64)
-        n = len(bits)
-        base = t + 2 * h * np.arange(n, dtype=np.int64)
-        prev = np.concatenate(([self.level[d]], bits[:-1]))
+        count = len(bits)
+        base = t + 2 * h * np.arange(count, dtype=np.int64)
+        prev = np.concatenate(([self.level[direction]], bits[:-1]))
         change = bits != prev  # MOSI moves only when the bit differs from the line
         set_at = (base + h if self.cpha else base)[change]  # CPHA 1: on the leading edge
-        end = t + 2 * h * n + h
+        end = t + 2 * h * count + h
         lead, trail = 1 - self.cpol, self.cpol
         at = np.concatenate(([start], set_at, base + h, base + 2 * h, [end]))
         codes = np.concatenate((
-            [self._code(d, "cs", 0)], self._code(d, "mosi", 0) + bits[change],
-            np.full(n, self._code(d, "clk", lead)), np.full(n, self._code(d, "clk", trail)),
-            [self._code(d, "cs", 1)]))
+            [self._code(direction, "cs", 0)], self._code(direction, "mosi", 0) + bits[change],
+            np.full(count, self._code(direction, "clk", lead)),
+            np.full(count, self._code(direction, "clk", trail)),
+            [self._code(direction, "cs", 1)]))
         o = np.argsort(at, kind="stable")
         self.pending.append((at[o], codes[o]))
-        if n:
-            self.level[d] = int(bits[-1])
-        self.free[d] = end + self.min_idle
+        if count:
+            self.level[direction] = int(bits[-1])
+        self.free[direction] = end + self.min_idle
         self.count += 1
 
     def _flush(self, limit: int | None) -> None:
@@ -185,8 +188,8 @@ class VcdWriter:
 
 def write_vcd(records: Iterable[Record], fh: IO[str], opts: SpiOptions | None = None,
               **kw: object) -> VcdWriter:
-    w = VcdWriter(fh, opts, **kw)  # type: ignore[arg-type]
+    writer = VcdWriter(fh, opts, **kw)  # type: ignore[arg-type]
     for rec in records:
-        w.write(rec)
-    w.close()
-    return w
+        writer.write(rec)
+    writer.close()
+    return writer

@@ -97,12 +97,13 @@ class MespClient:
         callback: Callback | None = None,
     ) -> int:
         """Queue a request; returns its id (carried by the completion event)."""
-        f = self.codec.function(function)
+        definition = self.codec.function(function)
         rid = self._next_id
         self._next_id += 1
         self.counters.requests += 1
-        p = _Pending(rid, f.name, dict(params or {}), 0, (0, 0, 0), now, now, 0, callback)
-        self._send(p, now)
+        pending = _Pending(rid, definition.name, dict(params or {}), 0, (0, 0, 0), now, now, 0,
+                           callback)
+        self._send(pending, now)
         return rid
 
     @property
@@ -137,14 +138,15 @@ class MespClient:
         return min((p.deadline for p in self._pending.values()), default=None)
 
     def handle_timer(self, now: float) -> None:
-        for key in [k for k, p in self._pending.items() if p.deadline <= now]:
-            p = self._pending.pop(key)
+        for key in [k for k, pending in self._pending.items() if pending.deadline <= now]:
+            pending = self._pending.pop(key)
             self.counters.timeouts += 1
-            if p.attempts < self.max_attempts:
+            if pending.attempts < self.max_attempts:
                 self.counters.retries += 1
-                self._send(p, now)
+                self._send(pending, now)
             else:
-                self._finish(p, MespFailure(p.function, None, "no reply (timeout)", p.attempts))
+                self._finish(pending, MespFailure(pending.function, None, "no reply (timeout)",
+                                                  pending.attempts))
 
     # -- receive ----------------------------------------------------------------------------
     def receive_message(self, data: bytes, now: float) -> bool:
@@ -152,8 +154,8 @@ class MespClient:
         if not is_mesp(data) or not data[4] & REPLY_BIT:
             return False
         key = (data[0], data[3], data[4] & TAG_MASK)
-        p = self._pending.pop(key, None)
-        if p is None:
+        pending = self._pending.pop(key, None)
+        if pending is None:
             self.counters.stale_replies += 1
             self._events.append(StaleReply(data[0], data[3], data[4]))
             return True
@@ -161,16 +163,18 @@ class MespClient:
         ret = decoded.fields.get("ret")
         if decoded.errors or ret is None:
             err = "; ".join(decoded.errors) or "reply without ret"
-            self._finish(p, MespFailure(p.function, ret, f"malformed reply: {err}", p.attempts))
+            self._finish(pending, MespFailure(pending.function, ret, f"malformed reply: {err}",
+                                              pending.attempts))
         elif ret != 0:
             name = self.codec.ret_names.get(ret, "unknown ret")
-            self._finish(p, MespFailure(p.function, ret, name, p.attempts))
+            self._finish(pending, MespFailure(pending.function, ret, name, pending.attempts))
         else:
             values = {k: v for k, v in decoded.fields.items() if k != "ret"}
-            latency = now - p.first_sent
-            self.counters.latencies.setdefault(p.function, []).append(latency)
-            self._finish(p, MespReply(p.function, data[4], typed(p.function, values),
-                                      p.attempts, latency))
+            latency = now - pending.first_sent
+            self.counters.latencies.setdefault(pending.function, []).append(latency)
+            self._finish(pending, MespReply(pending.function, data[4],
+                                            typed(pending.function, values),
+                                            pending.attempts, latency))
         return True
 
     # -- internals --------------------------------------------------------------------------
@@ -182,20 +186,21 @@ class MespClient:
                 return c
         raise LocalProtocolError("64 requests of one function outstanding: no free tag")
 
-    def _send(self, p: _Pending, now: float) -> None:
-        f = self.codec.function(p.function)
-        p.counter = self._next_counter(f.service, f.function)
-        p.key = (f.service, f.function, p.counter)
-        p.attempts += 1
-        p.deadline = now + self.deadline
-        self._pending[p.key] = p
-        self._out.append(self.codec.encode_request(p.function, p.counter, p.params))
+    def _send(self, pending: _Pending, now: float) -> None:
+        definition = self.codec.function(pending.function)
+        pending.counter = self._next_counter(definition.service, definition.function)
+        pending.key = (definition.service, definition.function, pending.counter)
+        pending.attempts += 1
+        pending.deadline = now + self.deadline
+        self._pending[pending.key] = pending
+        self._out.append(self.codec.encode_request(pending.function, pending.counter,
+                                                   pending.params))
 
-    def _finish(self, p: _Pending, result: MespResult) -> None:
+    def _finish(self, pending: _Pending, result: MespResult) -> None:
         if isinstance(result, MespFailure):
             self.counters.failures += 1
-            self._events.append(MespFailed(p.request_id, result))
+            self._events.append(MespFailed(pending.request_id, result))
         else:
-            self._events.append(MespCompleted(p.request_id, result))
-        if p.callback is not None:
-            p.callback(result)
+            self._events.append(MespCompleted(pending.request_id, result))
+        if pending.callback is not None:
+            pending.callback(result)

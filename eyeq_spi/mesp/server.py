@@ -40,16 +40,16 @@ class MespServer:
             return None
         self.requests += 1
         service, function, counter = data[0], data[3], data[4] & TAG_MASK
-        f = self.codec.functions.get((service, function))
-        if f is None or f.name not in self.handlers:
+        definition = self.codec.functions.get((service, function))
+        if definition is None or definition.name not in self.handlers:
             return bytes((service, MESP_PROTOCOL, service, function, REPLY_BIT | counter)) + \
                 RET_UNKNOWN_FUNCTION.to_bytes(4, "little")
         decoded = self.codec.decode(data)
         if decoded.errors:
             self.malformed += 1
-            return self.codec.encode_reply(f.name, counter, RET_BAD_PARAMETERS, {})
+            return self.codec.encode_reply(definition.name, counter, RET_BAD_PARAMETERS, {})
         try:
-            ret, params = self.handlers[f.name](decoded.fields)
-            return self.codec.encode_reply(f.name, counter, ret, params)
+            ret, params = self.handlers[definition.name](decoded.fields)
+            return self.codec.encode_reply(definition.name, counter, ret, params)
         except LocalProtocolError:
-            return self.codec.encode_reply(f.name, counter, RET_GENERAL_FAILURE, {})
+            return self.codec.encode_reply(definition.name, counter, RET_GENERAL_FAILURE, {})

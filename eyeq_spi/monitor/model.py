@@ -12,7 +12,7 @@ from eyeq_spi.plot.collect import GAP_PERIODS
 from eyeq_spi.plot.perceived import Scene
 
 RATE_WINDOW = 2.0  # seconds of history behind each rate
-MIN_SPAN = 0.75  # s of a stream's history before its rate is judged low or high (13 counts
+MIN_SPAN = 0.75  # s of a stream's history before its rate is called low or high (13 counts
 # at 18 Hz: one message more or less is 7 %, well inside the §7.1.4 tolerance band of 15 %)
 
 
@@ -71,8 +71,8 @@ class RateMeter:
     def _nominal_of(self, name: str) -> tuple[float | None, tuple[float, float] | None]:
         if name not in self._nominal:
             try:
-                m = self.cat.message(name)
-                self._nominal[name] = (m.rate_hz, m.tolerance_ms)
+                msg = self.cat.message(name)
+                self._nominal[name] = (msg.rate_hz, msg.tolerance_ms)
             except Exception:
                 self._nominal[name] = (None, None)
         return self._nominal[name]
@@ -111,7 +111,7 @@ class RateMeter:
             if first is not None and first[0] > t0:
                 ts, cs = first
             hz = (c1[name] - cs) / (t1 - ts) if t1 > ts else None
-            b = band(nominal, tol)
+            limits = band(nominal, tol)
             status = "-"
             if nominal and hz is not None:
                 silent = t1 - self._last_change.get(name, t1)
@@ -121,11 +121,11 @@ class RateMeter:
                     status, hz = "stopped", 0.0
                 elif t1 - ts < MIN_SPAN:
                     status = "-"  # too few messages yet to call the rate low or high
-                elif b is not None and hz < b[0]:
+                elif limits is not None and hz < limits[0]:
                     status = "low"
-                elif b is not None and hz > b[1]:
+                elif limits is not None and hz > limits[1]:
                     status = "high"
                 else:
                     status = "ok"
-            out.append(RateRow(name, c1[name], hz, nominal, b, status))
+            out.append(RateRow(name, c1[name], hz, nominal, limits, status))
         return out

@@ -251,10 +251,10 @@ class DissectSource:
 
     def advance(self, deadline: float) -> None:
         while not self.done and self.clock() < deadline:
-            r = self._next()
-            if r is None:
+            record = self._next()
+            if record is None:
                 return
-            t = r.get("time")
+            t = record.get("time")
             if t is not None:
                 if self._t0 is None:
                     self._t0 = t
@@ -265,35 +265,36 @@ class DissectSource:
                     continue
                 self.now = rel
             self._pending = None
-            self._add(r)
+            self._add(record)
 
-    def _add(self, r: dict[str, Any]) -> None:
-        kind = r["kind"]
+    def _add(self, record: dict[str, Any]) -> None:
+        kind = record["kind"]
         if kind == "frame":
-            self.link[f"{r['direction'] or '?'} {r['frame_type']}"] += 1
-            if "length" in r:
+            self.link[f"{record['direction'] or '?'} {record['frame_type']}"] += 1
+            if "length" in record:
                 self.link["wrong length"] += 1
-            elif not r["crc_ok"]:
+            elif not record["crc_ok"]:
                 self.link["CRC errors"] += 1
-            elif r["frame_type"] == "NAK":
-                self.link[f"NAK 0x{r['nak_reason']:03X}"] += 1
+            elif record["frame_type"] == "NAK":
+                self.link[f"NAK 0x{record['nak_reason']:03X}"] += 1
         elif kind == "event":
-            key = f"abort: {r['reason']}" if r["type"] == "transfer_aborted" else r["type"]
+            key = (f"abort: {record['reason']}" if record["type"] == "transfer_aborted"
+                   else record["type"])
             self.link[key] += 1
         else:
-            name = r["name"] or r["protocol"]
+            name = record["name"] or record["protocol"]
             self.counts[name] += 1
-            for e in r["errors"]:
-                key = ("E2E errors" if e.startswith("E2E") else "DASP counter gaps"
-                       if e.startswith("DASP counter") else "decode errors")
+            for error in record["errors"]:
+                key = ("E2E errors" if error.startswith("E2E") else "DASP counter gaps"
+                       if error.startswith("DASP counter") else "decode errors")
                 self.errors[key] += 1
-            self.tracker.update(r["name"], r["fields"], self.now, r["errors"])
-            if r["name"] == MAIN_STATE_MSG and not r["errors"]:
-                self._main_state(r["fields"])
+            self.tracker.update(record["name"], record["fields"], self.now, record["errors"])
+            if record["name"] == MAIN_STATE_MSG and not record["errors"]:
+                self._main_state(record["fields"])
 
     def _main_state(self, fields: dict[str, Any]) -> None:
-        v = fields.get("Main_State")
-        label = self._main.label(MAIN_STATE_MSG, ("Main_State",), v)
+        state = fields.get("Main_State")
+        label = self._main.label(MAIN_STATE_MSG, ("Main_State",), state)
         if label != self.state:
             self.transitions.append((self.now, self.state, "0x41", label))
             self.transitions = self.transitions[-8:]

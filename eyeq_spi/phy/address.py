@@ -47,10 +47,10 @@ class Address:
 
 
 def _host_port(text: str, lo_port: int) -> tuple[str, str, int, str]:
-    m = _URL.match(text.strip())
-    if not m:
+    match = _URL.match(text.strip())
+    if not match:
         raise AdapterError(f"{text!r} is not SCHEME://HOST:PORT")
-    scheme, host, port_text, rest = m.groups()
+    scheme, host, port_text, rest = match.groups()
     if rest and not rest.startswith("?"):
         raise AdapterError(f"{text!r}: nothing may follow :PORT")
     try:

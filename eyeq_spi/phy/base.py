@@ -48,11 +48,11 @@ class Adapter(ABC):
         """The next transfer, or None if none arrives within ``timeout`` seconds (0 = poll)."""
         if self.closed:
             raise AdapterError("adapter is closed")
-        t = self._recv_internal(timeout)
-        if t is not None:
+        transfer = self._recv_internal(timeout)
+        if transfer is not None:
             self.stats.transfers_received += 1
-            self.stats.bytes_received += len(t)
-        return t
+            self.stats.bytes_received += len(transfer)
+        return transfer
 
     def close(self) -> None:
         if not self.closed:

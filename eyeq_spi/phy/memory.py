@@ -32,6 +32,6 @@ class MemoryAdapter(Adapter):
 
 def memory_pair() -> tuple[MemoryAdapter, MemoryAdapter]:
     """Two connected ends: what ``a`` sends, ``b`` receives and vice versa."""
-    a, b = MemoryAdapter(), MemoryAdapter()
-    a.peer, b.peer = b, a
-    return a, b
+    left, right = MemoryAdapter(), MemoryAdapter()
+    left.peer, right.peer = right, left
+    return left, right

@@ -60,12 +60,12 @@ class PtyAdapter(StreamAdapter):
         poller.register(self.master, select.POLLOUT | select.POLLHUP)
         while view:
             try:
-                n = os.write(self.master, view)
+                written = os.write(self.master, view)
             except BlockingIOError:
-                n = 0
+                written = 0
             except OSError as exc:
                 raise self._gone(f"write failed: {exc}") from exc
-            view = view[n:]
+            view = view[written:]
             if not view:
                 return
             left = deadline - time.monotonic()

@@ -57,7 +57,7 @@ class TcpListenAdapter(StreamAdapter):
         try:
             self.conn.sendall(data)
         except OSError as exc:  # reset, broken pipe, or a peer that reads nothing (timeout)
-            self._drop()
+            self.drop()
             raise LinkLostError(f"peer of {self.url} went away: {exc}") from exc
 
     def _read(self, timeout: float | None) -> bytes:
@@ -72,11 +72,12 @@ class TcpListenAdapter(StreamAdapter):
         except OSError:
             data = b""
         if not data:  # the peer closed or reset: report it; the next call waits for a new one
-            self._drop()
+            self.drop()
             raise LinkLostError(f"peer of {self.url} went away")
         return data
 
-    def _drop(self) -> None:
+    def drop(self) -> None:
+        """Close the connection to the peer (if any) and keep listening for the next one."""
         if self.conn is not None:
             self.conn.close()
             self.conn = None
@@ -85,5 +86,5 @@ class TcpListenAdapter(StreamAdapter):
         self.stats.left_at_link_loss += self.discard_pending()
 
     def _close_internal(self) -> None:
-        self._drop()
+        self.drop()
         self.server.close()

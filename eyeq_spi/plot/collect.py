@@ -57,10 +57,10 @@ class Stream:
 
     def gaps(self, end: float) -> list[tuple[float, float]]:
         """Silences longer than GAP_PERIODS periods, the one before ``end`` included."""
-        p = self.period
-        if p is None or not self.times:
+        period = self.period
+        if period is None or not self.times:
             return []
-        limit = GAP_PERIODS * p
+        limit = GAP_PERIODS * period
         out = [(a, b) for a, b in itertools.pairwise(self.times) if b - a > limit]
         if end - self.times[-1] > limit:
             out.append((self.times[-1], end))
@@ -96,9 +96,9 @@ class Collector:
         self._last_t: float | None = None
         self.done = False
 
-    def add(self, r: dict[str, Any]) -> None:
-        t = self.w.rel(r.get("time"))
-        if t is None and r["kind"] == "event":
+    def add(self, record: dict[str, Any]) -> None:
+        t = self.w.rel(record.get("time"))
+        if t is None and record["kind"] == "event":
             t = self._last_t  # an event names the frame that caused it (index), not its time
         elif t is not None:
             self._last_t = t
@@ -111,14 +111,14 @@ class Collector:
                 return
             self.out.end = max(self.out.end, t)
             if t < self.w.start:
-                if self.tracker is not None and r["kind"] == "message":
-                    self.tracker.update(r["name"], r["fields"], t, r["errors"])
+                if self.tracker is not None and record["kind"] == "message":
+                    self.tracker.update(record["name"], record["fields"], t, record["errors"])
                 return
-        kind = r["kind"]
+        kind = record["kind"]
         if kind == "message":
-            self._message(r, t)
+            self._message(record, t)
         elif self.link and t is not None:
-            self._link(r, t)
+            self._link(record, t)
 
     def _frames(self, t: float) -> None:
         assert self.tracker is not None
@@ -137,28 +137,28 @@ class Collector:
             self.out.frames.append(snap)
             self._next_frame += 1.0 / self.fps
 
-    def _message(self, r: dict[str, Any], t: float | None) -> None:
-        name = r["name"]
+    def _message(self, record: dict[str, Any], t: float | None) -> None:
+        name = record["name"]
         if self.tracker is not None:
-            self.tracker.update(name, r["fields"], t, r["errors"])
-        if not self.timing or t is None or r["protocol"] not in ("DASP", "DIAG"):
+            self.tracker.update(name, record["fields"], t, record["errors"])
+        if not self.timing or t is None or record["protocol"] not in ("DASP", "DIAG"):
             return
-        s = self.out.streams.get(name)
-        if s is None:
+        stream = self.out.streams.get(name)
+        if stream is None:
             try:
-                m = self.cat.message(name)
+                msg = self.cat.message(name)
             except Exception:
                 return
-            s = Stream(name, r["direction"], m.rate_hz, m.tolerance_ms)
-            self.out.streams[name] = s
-        s.times.append(t)
-        for e in r["errors"]:
-            if e.startswith("DASP counter gap"):
-                s.counter_jumps.append(t)
-            elif e.startswith("E2E"):
-                s.e2e_errors.append(t)
+            stream = Stream(name, record["direction"], msg.rate_hz, msg.tolerance_ms)
+            self.out.streams[name] = stream
+        stream.times.append(t)
+        for error in record["errors"]:
+            if error.startswith("DASP counter gap"):
+                stream.counter_jumps.append(t)
+            elif error.startswith("E2E"):
+                stream.e2e_errors.append(t)
         if self.link:
-            self._count(t, "E2E errors", sum(e.startswith("E2E") for e in r["errors"]))
+            self._count(t, "E2E errors", sum(error.startswith("E2E") for error in record["errors"]))
 
     def _count(self, t: float, key: str, n: int = 1) -> None:
         if n:
@@ -168,18 +168,18 @@ class Collector:
                 counts = self.out.link[b] = Counter()
             counts[key] += n
 
-    def _link(self, r: dict[str, Any], t: float) -> None:
-        if r["kind"] == "frame":
-            d = r["direction"] or "?"
-            self._count(t, f"{d} {r['frame_type']}")
-            if "length" in r:
+    def _link(self, record: dict[str, Any], t: float) -> None:
+        if record["kind"] == "frame":
+            direction = record["direction"] or "?"
+            self._count(t, f"{direction} {record['frame_type']}")
+            if "length" in record:
                 self._count(t, "wrong length")
-            elif not r["crc_ok"]:
+            elif not record["crc_ok"]:
                 self._count(t, "CRC errors")
-            elif r["frame_type"] == "NAK":
-                self._count(t, f"NAK 0x{r['nak_reason']:03X}")
-        elif r["type"] == "transfer_aborted":
-            self._count(t, f"abort: {r['reason']}")
+            elif record["frame_type"] == "NAK":
+                self._count(t, f"NAK 0x{record['nak_reason']:03X}")
+        elif record["type"] == "transfer_aborted":
+            self._count(t, f"abort: {record['reason']}")
 
     def finish(self) -> Collected:
         if self.tracker is not None:
@@ -212,8 +212,8 @@ def collect_capture(cf: CaptureFile, collector: Collector) -> Collected:
     items = cf.items
     try:
         with garbage.paused():
-            for r in items:
-                collector.add(r)
+            for record in items:
+                collector.add(record)
                 if collector.done:
                     break
     finally:

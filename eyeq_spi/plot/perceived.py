@@ -125,13 +125,13 @@ class Labels:
         return self.codec.cat.enums.get(member.enum or "")
 
     def label(self, message: str, path: tuple[str, ...], value: Any) -> str:
-        e = self.enum(message, path)
-        if e is None or not isinstance(value, int):
+        enum = self.enum(message, path)
+        if enum is None or not isinstance(value, int):
             return str(value)
-        v = e.values.get(value)
-        if v is None:
+        entry = enum.values.get(value)
+        if entry is None:
             return f"{value}?"
-        return v.semantic or v.name
+        return entry.semantic or entry.name
 
 
 def _constant(codec: MessageCodec, name: str, default: int) -> int:
@@ -154,9 +154,9 @@ def _walk(v: Any, path: tuple[str, ...] = ()) -> Iterator[tuple[tuple[str, ...],
                 yield from _walk(x, path)
 
 
-def _f(d: dict[str, Any], key: str, default: float = 0.0) -> float:
-    v = d.get(key, default)
-    return float(v) if isinstance(v, int | float) else default
+def _f(fields: dict[str, Any], key: str, default: float = 0.0) -> float:
+    value = fields.get(key, default)
+    return float(value) if isinstance(value, int | float) else default
 
 
 def objects(fields: dict[str, Any], labels: Labels) -> list[SceneObject]:
@@ -224,13 +224,13 @@ def signs(fields: dict[str, Any], labels: Labels) -> list[SceneSign]:
             continue
         n = d.get("numberTrafficSigns")
         count = int(n) if isinstance(n, int) else len(elems)
-        for s in elems[:max(0, count)]:
-            if not isinstance(s, dict):
+        for sign in elems[:max(0, count)]:
+            if not isinstance(sign, dict):
                 continue
-            st = int(s.get("signType", 0))
+            st = int(sign.get("signType", 0))
             out.append(SceneSign(
-                long=_f(s, "signLongPosition"), lat=-_f(s, "signLatPosition"),  # §16: right +
-                height=_f(s, "signHeight"), type=st,
+                long=_f(sign, "signLongPosition"), lat=-_f(sign, "signLatPosition"),  # §16: right +
+                height=_f(sign, "signHeight"), type=st,
                 name=labels.label(SIGNS, (*path, "trafficSigns", "signType"), st)))
     return out
 

@@ -18,49 +18,49 @@ import numpy.typing as npt
 
 from eyeq_spi.sim.dasp_fast import StructView
 from eyeq_spi.sim.scene_layout import (
-    _AGE_ROW,
-    _BIT_WEIGHTS,
-    _BORDER_OFFSET,
-    _FILLERS,
-    _HEADER_KEYS,
-    _PAIR_LAMPS,
-    _PX,
-    _REFLECT_KEYS,
-    _SIGN_KEYS,
-    _SPOT_KEYS,
-    _STD,
-    _TRUCK,
+    AGE_ROW,
+    BIT_WEIGHTS,
+    BORDER_OFFSET,
     CAM_HEIGHT,
     CLASSES,
     CYCLIST,
+    FILLERS,
     FOCAL_PX,
     HALF_LANE,
+    HEADER_KEYS,
     IMAGE_H,
     IMAGE_W,
     ONCOMING,
+    PAIR_LAMPS,
+    PX,
+    REFLECT_KEYS,
+    SIGN_KEYS,
+    SPOT_KEYS,
+    STD,
+    TRUCK,
     TTC_NONE,
     VEHICLE,
     FArr,
     IArr,
-    _child,
-    _code,
-    _elements,
-    _frame,
-    _lane_codes,
-    _motion_tables,
-    _Node,
-    _node_for,
-    _obj_plan,
-    _struct_members,
+    LayoutNode,
+    child_struct,
     clip,
+    enum_code,
+    frame_index,
+    lane_codes,
+    layout_node_for,
+    motion_tables,
+    obj_plan,
+    struct_elements,
+    struct_members,
 )
 from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
 from eyeq_spi.sim.scene_write import (
-    _bound_puts,
-    _puts,
-    _puts_once,
-    _write_objects_packed,
-    _write_table,
+    bound_puts,
+    put_values,
+    puts_once,
+    write_objects_packed,
+    write_table,
 )
 
 __all__ = ["CLASSES", "Scene", "SceneConfig", "SceneWorld"]
@@ -114,61 +114,77 @@ class Scene(SceneWorld):
         age = self._frame_now - birth + 1
         conf = clip(0.97 - 0.0015 * a_s + cbias
                     - 0.2 * np.exp(-np.maximum(age, 1) / 6.0), 0.5, 1.0)
-        # the standard deviations a + b·|s| (_STD) in two numpy steps for all of them: the same
+        # the standard deviations a + b·|s| (STD) in two numpy steps for all of them: the same
         # multiplication and addition per element as one row at a time
-        sd = _STD[:, :1] + _STD[:, 1:] * a_s
-        f = np.array([
+        sd = STD[:, :1] + STD[:, 1:] * a_s
+        floats = np.array([
             w, sd[0], length, sd[1], hgt, sd[0], vx, sd[2], vy, sd[3], ax, sd[4], ay, sd[5],
             s, 0.05 + 0.01 * a_s + 5e-5 * s * s, y, sd[6], heading,
             at[4], ang_std, at[5], ang_std, side, ang_std,
             mid, ang_std, -(ss * vy - y * vrel) / (ss * ss + y * y), sd[7],
             conf, ttc], dtype=np.float64)
-        vis = s > 0.5
-        side_vis = vis & (on_left | on_right)
-        u_l, u_r, v_t, v_b, u_s, v_ts, v_bs = _image_rects(y, hw, hgt, ss, far, on_left,
-                                                           on_right, side_vis)
         zero = np.zeros(len(idx))
         lane = self._lane_index(d)
-        lanes = _lane_codes()
-        lane_code = np.where(np.abs(lane) > 2, _code("object_lane_assignment", "UNKNOWN", 3),
+        lanes = lane_codes()
+        lane_code = np.where(np.abs(lane) > 2, enum_code("object_lane_assignment", "UNKNOWN", 3),
                              lanes[clip(lane, -2, 2) + 2])
         vehicle = kind <= ONCOMING
-        cipv = np.where(vehicle | (kind == CYCLIST), _code("object_is_cipv", "no_CIPV", 1),
-                        _code("object_is_cipv", "not_relevant", 0))
+        cipv = np.where(vehicle | (kind == CYCLIST), enum_code("object_is_cipv", "no_CIPV", 1),
+                        enum_code("object_is_cipv", "not_relevant", 0))
         ahead = (lane == 0) & (s > 0.0)
         if ahead.any():
-            cipv[int(np.argmin(np.where(ahead, s, np.inf)))] = _code("object_is_cipv", "CIPV", 2)
+            cipv[int(np.argmin(np.where(ahead, s, np.inf)))] = enum_code("object_is_cipv", "CIPV",
+                                                                          2)
         err = dtgt - d
         signal = kind == VEHICLE
-        i = np.array([
-            u_l, u_r, v_t, v_b,
-            u_l, v_t, v_b, zero, vis, u_r, v_t, v_b, zero, vis,
-            u_s, v_ts, v_bs, zero, side_vis, zero, zero, zero, zero, zero,
-            np.where(vis, np.where(vx < -0.5, _code("object_visible_rect", "Front", 1),
-                                   _code("object_visible_rect", "Back", 2)), 0),
-            np.where(vis & on_left, _code("object_visible_side", "Right", 1),
-                     np.where(vis & on_right, _code("object_visible_side", "Left", 2), 0)),
+        ints = np.array([
+            *self._image(s, y, hw, hgt, ss, far, vx, on_left, on_right),
             *self._motion(s, vx, vy, vrel, lane, kind, speed, moving, d, dtgt),
             zero, oid, self._cls_code[cls], cipv, lane_code,
             vehicle, signal & (ax < -1.0), signal & (err < -0.5), signal & (err > 0.5),
             zero, np.abs(d) < 3 * HALF_LANE + 0.5, (s < 3.0) & (np.abs(y) < 3.0)],
             dtype=np.float64)
-        self._cols = (f, np.rint(i).astype(np.int64), birth)
+        self._cols = (floats, np.rint(ints).astype(np.int64), birth)
         return self._cols
+
+    @staticmethod
+    def _image(s: FArr, y: FArr, hw: FArr, hgt: FArr, ss: FArr, far: FArr, vx: FArr,
+               on_left: npt.NDArray[np.bool_], on_right: npt.NDArray[np.bool_]) -> list[FArr]:
+        """The image rows: bounding rect, back/front and side rects with their visibility,
+        which rect and which side is seen. Image origin at the centre, x right, y down (the
+        rect is for visualisation); -FOCAL_PX * (y + w/2), -FOCAL_PX * (y - w/2),
+        FOCAL_PX * (CAM_HEIGHT - hgt)."""
+        vis = s > 0.5
+        px = np.array((y + hw, y - hw, CAM_HEIGHT - hgt)) * PX
+        u_l, u_r, v_t = px / ss
+        v_b = FOCAL_PX * CAM_HEIGHT / ss
+        side_vis = vis & (on_left | on_right)
+        u_s, v_ts, v_bs = np.where(side_vis, np.array((
+            np.where(on_left, px[1], px[0]), px[2], np.full(len(s), FOCAL_PX * CAM_HEIGHT)))
+            / far, 0.0)
+        zero = np.zeros(len(s))
+        return [
+            u_l, u_r, v_t, v_b,
+            u_l, v_t, v_b, zero, vis, u_r, v_t, v_b, zero, vis,
+            u_s, v_ts, v_bs, zero, side_vis, zero, zero, zero, zero, zero,
+            np.where(vis, np.where(vx < -0.5, enum_code("object_visible_rect", "Front", 1),
+                                   enum_code("object_visible_rect", "Back", 2)), 0),
+            np.where(vis & on_left, enum_code("object_visible_side", "Right", 1),
+                     np.where(vis & on_right, enum_code("object_visible_side", "Left", 2), 0))]
 
     @staticmethod
     def _motion(s: FArr, vx: FArr, vy: FArr, vrel: FArr, lane: IArr, kind: IArr, speed: FArr,
                 moving: npt.NDArray[np.bool_], d: FArr, dtgt: FArr) -> IArr:
         """motionStatus, motionCategory and motionOrientation (rows): each object's conditions
-        as the bits of one index into the rule tables of :func:`_motion_tables`."""
+        as the bits of one index into the rule tables of :func:`motion_tables`."""
         changing = kind == VEHICLE
-        bits = _BIT_WEIGHTS @ np.array((  # CROSSING .. VEHICLE_KIND
+        bits = BIT_WEIGHTS @ np.array((  # CROSSING .. VEHICLE_KIND
             np.abs(vy) > np.maximum(np.abs(vx), 0.5), vx < -1.0, moving, vy > 0, vy > 0.3,
             vy < -0.3, changing & (np.abs(dtgt) < np.abs(d) - 0.5),
             changing & (np.abs(dtgt) > np.abs(d) + 0.5), (lane == 0) & (s > 0.0) & (vx > 0.5),
             (lane != 0) & (vrel > 1.0) & changing, speed >= 2.0, kind <= ONCOMING),
             dtype=np.int64)
-        out: IArr = _motion_tables()[:, bits]
+        out: IArr = motion_tables()[:, bits]
         return out
 
     # -- payloads ----------------------------------------------------------------------------
@@ -181,18 +197,18 @@ class Scene(SceneWorld):
         if last is not None and last[0] is values:  # the caller reuses its dict: same layout
             node, heads, method = last[1], last[2], last[3]
         else:
-            filler = _FILLERS.get(name)
+            filler = FILLERS.get(name)
             if filler is None:
                 return
             method = filler
             # a packer's view has the shape of its template dict (the same ranges)
             shape = values.template if isinstance(values, StructView) else values
-            node = None if shape is None else _node_for(name, shape)
+            node = None if shape is None else layout_node_for(name, shape)
             # a packer's views never change: their headers' writers are bound once
             heads = None if node is None or not isinstance(values, StructView) else [
-                _bound_puts(values, node, _HEADER_KEYS), *(
-                    _bound_puts(values[key], sub, _HEADER_KEYS)
-                    for key, sub in _struct_members(node)
+                bound_puts(values, node, HEADER_KEYS), *(
+                    bound_puts(values[key], sub, HEADER_KEYS)
+                    for key, sub in struct_members(node)
                     if isinstance(values.get(key), StructView))]
             self._nodes[name] = (values, node, heads, method)
         if node is None:
@@ -204,7 +220,7 @@ class Scene(SceneWorld):
                 put(vals)
         else:
             self._fill_header(values, node, t)
-            for key, sub in _struct_members(node):
+            for key, sub in struct_members(node):
                 if isinstance(values.get(key), dict | StructView):
                     self._fill_header(values[key], sub, t)
         getattr(self, method)(values, node, t)
@@ -213,36 +229,36 @@ class Scene(SceneWorld):
         """The values of every header of instant ``t`` (kept for the next message)."""
         last = self._header
         if last is None or last[0] != t or last[1] != self._veh_index:
-            frame = _frame(t)
+            frame = frame_index(t)
             last = self._header = (t, self._veh_index, {
                 "timestamp_ms": int(t * 1000) & 0xFFFFFFFF,
                 "timestamp_us": max(0, round(t * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
                 "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
         return last[2]
 
-    def _fill_header(self, d: dict[str, Any], n: _Node, t: float) -> None:
-        _puts(d, n, self._header_values(t))  # the same values for every header of one instant
+    def _fill_header(self, d: dict[str, Any], n: LayoutNode, t: float) -> None:
+        put_values(d, n, self._header_values(t))  # the same values for every header of one instant
 
-    def _fill_nothing(self, values: dict[str, Any], node: _Node, t: float) -> None:
+    def _fill_nothing(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
         """Headers only (EYEQ_SAFETY_MSG: no safety fault, no challenge)."""
 
-    def _fill_obstacles(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        vis = _child(values, node, "visObjects")
+    def _fill_obstacles(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+        vis = child_struct(values, node, "visObjects")
         if vis is None:
             return
-        objs, elem = _elements(*vis, "visObs")
+        objs, elem = struct_elements(*vis, "visObs")
         if not objs:
             return
         plan = self._plans.get(id(elem))
         if plan is None:
-            plan = self._plans[id(elem)] = _obj_plan(elem)
+            plan = self._plans[id(elem)] = obj_plan(elem)
         f, i, birth = self._columns()
         n = min(f.shape[1], len(objs))
         i = i[:, :n].copy()
-        i[_AGE_ROW] = np.maximum(_frame(t) - birth[:n] + 1, 1)
+        i[AGE_ROW] = np.maximum(frame_index(t) - birth[:n] + 1, 1)
         fa = clip(f[:, :n], plan.flo[:, None], plan.fhi[:, None])
         ia = clip(i, plan.ilo[:, None], plan.ihi[:, None])
-        if isinstance(objs[0], StructView) and _write_objects_packed(objs, plan, fa, ia, n):
+        if isinstance(objs[0], StructView) and write_objects_packed(objs, plan, fa, ia, n):
             return
         fl, il = fa.tolist(), ia.tolist()
         for path, items in plan.groups:
@@ -270,37 +286,38 @@ class Scene(SceneWorld):
         return {"a0": c0 + offset, "a1": c1, "a2": c2, "a3": c3, "startRange": 5.0,
                 "endRange": end}
 
-    def _fill_marker(self, md: dict[str, Any], mn: _Node,
+    def _fill_marker(self, md: dict[str, Any], mn: LayoutNode,
                      spec: tuple[float, str, float, float] | None) -> None:
-        poly, conf = _child(md, mn, "laneMarker"), _child(md, mn, "laneMarkerConf")
+        poly, conf = child_struct(md, mn, "laneMarker"), child_struct(md, mn, "laneMarkerConf")
         lmt = "lane_marker_type"
         # each marker's spec is None or of one kind for good: its constants are written once
         if spec is None:  # §10.6: only seen with a wide separation between lanes
             if poly:
-                _puts_once(*poly, "none", lambda: dict.fromkeys(self._poly_values(0.0, 0.0), 0.0))
+                puts_once(*poly, "none", lambda: dict.fromkeys(self._poly_values(0.0, 0.0), 0.0))
             if conf:
-                _puts_once(*conf, "none", lambda: {"sfConf": 0.0, "confidence": 0})
-            _puts_once(md, mn, "none", lambda: {
+                puts_once(*conf, "none", lambda: {"sfConf": 0.0, "confidence": 0})
+            puts_once(md, mn, "none", lambda: {
                 "measuredViewRange": 0.0, "laneMarkerWidth": 0.0,
-                "laneMarkerType": _code(lmt, "INVALID", 6), "dlmType": 0, "decelType": 0,
+                "laneMarkerType": enum_code(lmt, "INVALID", 6), "dlmType": 0, "decelType": 0,
                 "laneMarkerColor": 0})
             return
         offset, kind, view, phase = spec
         if poly:
-            _puts(*poly, self._poly_values(offset, view))
+            put_values(*poly, self._poly_values(offset, view))
         if conf:
-            _puts(*conf, {"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase)})
-            _puts_once(*conf, "seen", lambda: {
-                "confidence": _code("road_confidence_level", "Detected lanemark", 3)})
-        _puts(md, mn, {"measuredViewRange": view * (0.85 if kind == "DASHED" else 0.95)})
-        _puts_once(md, mn, kind, lambda: {
+            put_values(*conf, {"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase)})
+            puts_once(*conf, "seen", lambda: {
+                "confidence": enum_code("road_confidence_level", "Detected lanemark", 3)})
+        put_values(md, mn, {"measuredViewRange": view * (0.85 if kind == "DASHED" else 0.95)})
+        puts_once(md, mn, kind, lambda: {
             "laneMarkerWidth": 0.12 if kind == "DASHED" else 0.15,
-            "laneMarkerType": _code(lmt, kind, 0), "dlmType": _code("dlm_type", "NOTDLM", 0),
-            "decelType": _code("decel_type", "NOTDECEL", 0),
-            "laneMarkerColor": _code("lane_marker_color", "White", 1)})
+            "laneMarkerType": enum_code(lmt, kind, 0),
+            "dlmType": enum_code("dlm_type", "NOTDLM", 0),
+            "decelType": enum_code("decel_type", "NOTDECEL", 0),
+            "laneMarkerColor": enum_code("lane_marker_color", "White", 1)})
 
-    def _fill_road(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        info = _child(values, node, "roadInfo")
+    def _fill_road(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+        info = child_struct(values, node, "roadInfo")
         if info is None:
             return
         rd, rn = info
@@ -319,73 +336,73 @@ class Scene(SceneWorld):
             if plan is not None and plan[0] is rn and ("road", id(rn)) in rd.done:
                 self._fill_road_moving(plan[1], markers, view)
                 return
-        mi = _child(rd, rn, "roadMarkerInfo")
+        mi = child_struct(rd, rn, "roadMarkerInfo")
         if mi:
             for key, spec in markers.items():
-                m = _child(*mi, key)
+                m = child_struct(*mi, key)
                 if m:
                     self._fill_marker(*m, spec)
-            _puts_once(*mi, "road", lambda: {
+            puts_once(*mi, "road", lambda: {
                 "ambiguousLinePatternLeft": 0, "ambiguousLinePatternRight": 0,
                 "constructionArea": 0, "roadPredictionLeft": 0, "roadPredictionRight": 0})
-        bi = _child(rd, rn, "roadBorderInfo")
-        borders = (("leftRoadBorder", _BORDER_OFFSET["leftRoadBorder"], "Barrier", 4, 0.8),
-                   ("rightRoadBorder", _BORDER_OFFSET["rightRoadBorder"], "Curb", 3, 0.15))
+        bi = child_struct(rd, rn, "roadBorderInfo")
+        borders = (("leftRoadBorder", BORDER_OFFSET["leftRoadBorder"], "Barrier", 4, 0.8),
+                   ("rightRoadBorder", BORDER_OFFSET["rightRoadBorder"], "Curb", 3, 0.15))
         for key, offset, kind, default, height in borders if bi else ():
-            b = _child(*bi, key) if bi else None
+            b = child_struct(*bi, key) if bi else None
             if b is None:
                 continue
-            poly, conf = _child(*b, "roadBorder"), _child(*b, "roadBorderConf")
+            poly, conf = child_struct(*b, "roadBorder"), child_struct(*b, "roadBorderConf")
             if poly:
-                _puts(*poly, self._poly_values(offset, 0.6 * view))
+                put_values(*poly, self._poly_values(offset, 0.6 * view))
             if conf:
-                _puts_once(*conf, "border", lambda: {"sfConf": 0.8, "confidence": _code(
+                puts_once(*conf, "border", lambda: {"sfConf": 0.8, "confidence": enum_code(
                     "road_confidence_level", "Detected lanemark", 3)})
-            _puts_once(*b, "border", lambda h=height, k=kind, v=default: {  # type: ignore[misc]
-                "roadBorderHeight": h, "roadBorderType": _code("road_border_type", k, v)})
-        hpp = _child(rd, rn, "roadHppFusionInfo")
+            puts_once(*b, "border", lambda h=height, k=kind, v=default: {  # type: ignore[misc]
+                "roadBorderHeight": h, "roadBorderType": enum_code("road_border_type", k, v)})
+        hpp = child_struct(rd, rn, "roadHppFusionInfo")
         if hpp:
-            centre = _child(*hpp, "laneCenter")
+            centre = child_struct(*hpp, "laneCenter")
             if centre:
-                _puts(*centre, self._poly_values(0.0, view))
-            _puts_once(*hpp, "hpp", lambda: {
+                put_values(*centre, self._poly_values(0.0, view))
+            puts_once(*hpp, "hpp", lambda: {
                 "roadFusionConf": 0.92, "halfWidth": HALF_LANE, "hppLeftWeight": 0.5,
                 "hppCenterWeight": 0.0, "hppRightWeight": 0.5, "roadLeftWeight": 0.5,
                 "roadRightWeight": 0.5})
-        _puts_once(rd, rn, "road", lambda: {
-            "drivingSide": _code("road_driving_side", "Right Side", 0),
-            "laneChange": _code("road_lane_change", "No lane change", 0)})
+        puts_once(rd, rn, "road", lambda: {
+            "drivingSide": enum_code("road_driving_side", "Right Side", 0),
+            "laneChange": enum_code("road_lane_change", "No lane change", 0)})
         if isinstance(rd, StructView):  # the constants are in place until the packer's reset
             rd.writers[("road", id(rn))] = (rn, self._road_plan(rd, rn, markers))
             rd.done.add(("road", id(rn)))
 
     @staticmethod
-    def _road_plan(rd: dict[str, Any], rn: _Node,
+    def _road_plan(rd: dict[str, Any], rn: LayoutNode,
                    markers: dict[str, tuple[float, str, float, float] | None]
                    ) -> list[tuple[str, Any, Any]]:
         """What :meth:`_fill_road` writes that changes from frame to frame, as bound writers:
         (marker key or border offset, the polynomial's writer, the marker's two writers)."""
         out: list[tuple[str, Any, Any]] = []
         poly_keys = ("a0", "a1", "a2", "a3", "startRange", "endRange")
-        mi = _child(rd, rn, "roadMarkerInfo")
+        mi = child_struct(rd, rn, "roadMarkerInfo")
         for key, spec in markers.items() if mi else ():
-            m = _child(*mi, key) if mi else None
+            m = child_struct(*mi, key) if mi else None
             if m is None or spec is None:
                 continue
-            poly, conf = _child(*m, "laneMarker"), _child(*m, "laneMarkerConf")
-            out.append((key, poly and _bound_puts(*poly, poly_keys), (
-                conf and _bound_puts(*conf, ("sfConf",)),
-                _bound_puts(*m, ("measuredViewRange",)))))
-        bi = _child(rd, rn, "roadBorderInfo")
+            poly, conf = child_struct(*m, "laneMarker"), child_struct(*m, "laneMarkerConf")
+            out.append((key, poly and bound_puts(*poly, poly_keys), (
+                conf and bound_puts(*conf, ("sfConf",)),
+                bound_puts(*m, ("measuredViewRange",)))))
+        bi = child_struct(rd, rn, "roadBorderInfo")
         for key in ("leftRoadBorder", "rightRoadBorder") if bi else ():
-            b = _child(*bi, key) if bi else None
-            poly = _child(*b, "roadBorder") if b else None
+            b = child_struct(*bi, key) if bi else None
+            poly = child_struct(*b, "roadBorder") if b else None
             if poly:
-                out.append((key, _bound_puts(*poly, poly_keys), None))
-        hpp = _child(rd, rn, "roadHppFusionInfo")
-        centre = _child(*hpp, "laneCenter") if hpp else None
+                out.append((key, bound_puts(*poly, poly_keys), None))
+        hpp = child_struct(rd, rn, "roadHppFusionInfo")
+        centre = child_struct(*hpp, "laneCenter") if hpp else None
         if centre:
-            out.append(("laneCenter", _bound_puts(*centre, poly_keys), None))
+            out.append(("laneCenter", bound_puts(*centre, poly_keys), None))
         return out
 
     def _fill_road_moving(self, plan: list[tuple[str, Any, Any]],
@@ -405,7 +422,7 @@ class Scene(SceneWorld):
             elif key == "laneCenter":
                 poly(self._poly_values(0.0, view))
             else:
-                poly(self._poly_values(_BORDER_OFFSET[key], 0.6 * view))
+                poly(self._poly_values(BORDER_OFFSET[key], 0.6 * view))
 
     def _visible_signs(self) -> tuple[IArr, FArr]:
         """Signs ahead, nearest first, and their lateral distances; once per step (both sign
@@ -419,38 +436,39 @@ class Scene(SceneWorld):
         self._signs_seen = (self._cols, out)
         return out
 
-    def _fill_signs(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        tsr = _child(values, node, "tsrInfo")
+    def _fill_signs(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+        tsr = child_struct(values, node, "tsrInfo")
         if tsr is None:
             return
-        elems, en = _elements(*tsr, "trafficSigns")
+        elems, en = struct_elements(*tsr, "trafficSigns")
         idx, y_all = self._visible_signs()
         n = min(len(elems), len(idx))
         rows: list[tuple[float, ...]] = []
         s_l, z_l, bias, lat, typ, sid = (a[idx[:n]].tolist() for a in (
             self._sg_s, self._sg_z, self._sg_bias, self._sg_lat, self._sg_type, self._sg_id))
-        decision = _code("tsr_sign_relevant_decision", "RELEVANT_SIGN", 0)
-        filt = _code("tsr_sign_filter_type", "NO_SLI_FILTER", 0)
+        decision = enum_code("tsr_sign_relevant_decision", "RELEVANT_SIGN", 0)
+        filt = enum_code("tsr_sign_filter_type", "NO_SLI_FILTER", 0)
         for k, y in enumerate(y_all[:n].tolist()):
             s, z = s_l[k], z_l[k]
             ss = max(s, 1.0)
             u, v = IMAGE_W / 2 - FOCAL_PX * y / ss, IMAGE_H / 2 - FOCAL_PX * (z - CAM_HEIGHT) / ss
             half = FOCAL_PX * 0.35 / ss
-            rows.append((  # _SIGN_KEYS; §16: "a positive value indicates the sign is on the right"
+            rows.append((  # SIGN_KEYS; §16: "a positive value indicates the sign is on the right"
                 s, -y, z, min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[k]), 0.0, 0.0,
                 0.95 if lat[k] < 0.0 else 0.85, v + half, u - half, u + half, v - half,
                 typ[k], 0, 0, sid[k], decision, filt))
-        _write_table(elems, en, _SIGN_KEYS, rows, _SIGN_KEYS)
-        _puts(*tsr, {"numberTrafficSigns": len(rows)})
-        _puts_once(*tsr, "tsr", lambda: {"currentMarket": _code("tsr_current_market", "EUROPE", 1)})
-        marks = _child(*tsr, "roadMarkings")
+        write_table(elems, en, SIGN_KEYS, rows, SIGN_KEYS)
+        put_values(*tsr, {"numberTrafficSigns": len(rows)})
+        puts_once(*tsr, "tsr",
+                  lambda: {"currentMarket": enum_code("tsr_current_market", "EUROPE", 1)})
+        marks = child_struct(*tsr, "roadMarkings")
         if marks:
-            _puts_once(*marks, "none", lambda: dict.fromkeys((
+            puts_once(*marks, "none", lambda: dict.fromkeys((
                 "numberOfArrowsMarkings", "numberOfStopLinesMarkings",
                 "numberOfSpeedLimitMarkings", "numberOfCrossingMarkings"), 0))
 
     def _spot_rows(self, count: int) -> tuple[list[tuple[float, ...]], bool]:
-        """The light spots' rows (tuples in the order of :data:`_SPOT_KEYS`), nearest first,
+        """The light spots' rows (tuples in the order of :data:`SPOT_KEYS`), nearest first,
         and whether an oncoming vehicle is among them."""
         lit = (self._alive & (self._kind <= CYCLIST) & (self._s > 3.0)).nonzero()[0]
         lit = lit[self._s[lit].argsort(kind="stable")][:min(self._n_spots, count)]
@@ -462,8 +480,8 @@ class Scene(SceneWorld):
         y_l = self._lateral(self._s[lit], self._d[lit]).tolist()
         atan2, tan = math.atan2, math.tan
         c = "light_spot_classification"
-        codes = (_code(c, "Pair of Headlamps", 3), _code(c, "Pair of Tail-lamps", 4),
-                 _code(c, "Tail-lamp", 2))
+        codes = (enum_code(c, "Pair of Headlamps", 3), enum_code(c, "Pair of Tail-lamps", 4),
+                 enum_code(c, "Tail-lamp", 2))
         for s, y, w, ci, kind, oid in zip(s_l, y_l, w_l, cls_l, kind_l, oid_l, strict=True):
             half = max(w / 2 - 0.15, 0.0)
             # §15 light spots: "angles to the right of the sensor coordinate system are
@@ -471,16 +489,16 @@ class Scene(SceneWorld):
             # before it (line 3257); pixels from the image's left bottom corner
             left, right = atan2(-y - half, s), atan2(half - y, s)
             top, bottom = atan2(CAM_HEIGHT - 1.0, s), atan2(CAM_HEIGHT - 0.6, s)
-            rows.append((  # _SPOT_KEYS
+            rows.append((  # SPOT_KEYS
                 left, right, vsign * top, vsign * bottom, oid, oid, s,
                 IMAGE_H / 2 - FOCAL_PX * tan(top), IMAGE_H / 2 - FOCAL_PX * tan(bottom),
                 IMAGE_W / 2 + FOCAL_PX * tan(left), IMAGE_W / 2 + FOCAL_PX * tan(right),
-                codes[0] if kind == ONCOMING else codes[1] if _PAIR_LAMPS[ci] else codes[2],
-                float(ci == _TRUCK)))
+                codes[0] if kind == ONCOMING else codes[1] if PAIR_LAMPS[ci] else codes[2],
+                float(ci == TRUCK)))
         return rows, ONCOMING in kind_l
 
     def _reflect_rows(self, count: int) -> list[tuple[float, ...]]:
-        """The reflective signs' rows (tuples in the order of :data:`_REFLECT_KEYS`)."""
+        """The reflective signs' rows (tuples in the order of :data:`REFLECT_KEYS`)."""
         idx, y_all = self._visible_signs()
         idx = idx[:count]
         out: list[tuple[float, ...]] = []
@@ -494,97 +512,81 @@ class Scene(SceneWorld):
                 float(sid), s, min(100.0, glare + 10.0), glare))
         return out
 
-    def _fill_lights(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        info = _child(values, node, "activeLightSensorInfo")
+    def _fill_lights(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+        info = child_struct(values, node, "activeLightSensorInfo")
         if info is None:
             return
         ld, ln = info
-        spots, sn = _elements(ld, ln, "activeLightSpots")
+        spots, sn = struct_elements(ld, ln, "activeLightSpots")
         rows, oncoming_seen = self._spot_rows(len(spots))
-        _write_table(spots, sn, _SPOT_KEYS, rows, _SPOT_KEYS)
-        signs, gn = _elements(ld, ln, "reflectiveSigns")
+        write_table(spots, sn, SPOT_KEYS, rows, SPOT_KEYS)
+        signs, gn = struct_elements(ld, ln, "reflectiveSigns")
         refl = self._reflect_rows(len(signs))
-        _write_table(signs, gn, _REFLECT_KEYS, refl, _REFLECT_KEYS)
+        write_table(signs, gn, REFLECT_KEYS, refl, REFLECT_KEYS)
         lit = len(rows) > 0
-        _puts(ld, ln, {
+        put_values(ld, ln, {
             "numOfActiveLightSpots": len(rows), "numOfReflectiveSigns": len(refl),
-            "clearFieldOfView": _code("ahbc_clear_field_of_view", "No Clear Field-Of-View", 1)
-            if lit else _code("ahbc_clear_field_of_view", "Clear Field-Of-View", 2),
-            "beamRequest": _code("ahbc_beam_request", "OFF" if lit else "ON", 0 if lit else 1),
+            "clearFieldOfView": enum_code("ahbc_clear_field_of_view", "No Clear Field-Of-View", 1)
+            if lit else enum_code("ahbc_clear_field_of_view", "Clear Field-Of-View", 2),
+            "beamRequest": enum_code("ahbc_beam_request", "OFF" if lit else "ON", 0 if lit else 1),
             "oncomingLaneNotDark": int(oncoming_seen)})
-        _puts_once(ld, ln, "ahbc", lambda: {
-            "ahbcAvailable": _code("ahbc_available", "Full", 2),
-            "gridFrequency": _code("ahbc_grid_frequency", "50 Hz", 1),
-            "inTunnel": _code("ahbc_in_tunnel", "FALSE", 1), "eventsDetected": 0,
+        puts_once(ld, ln, "ahbc", lambda: {
+            "ahbcAvailable": enum_code("ahbc_available", "Full", 2),
+            "gridFrequency": enum_code("ahbc_grid_frequency", "50 Hz", 1),
+            "inTunnel": enum_code("ahbc_in_tunnel", "FALSE", 1), "eventsDetected": 0,
             "fogDetected": 0, "highwayDetected": 1, "villageDetected": 0,
             "approachingJunction": 0, "lightNoisyScene": 0, "lightCone": 0})
 
-    def _fill_aeb(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        aeb = _child(values, node, "visAEB")
+    def _fill_aeb(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+        aeb = child_struct(values, node, "visAEB")
         if aeb:  # vision-only AEB stays quiet: the ego never closes in dangerously
-            _puts_once(*aeb, "quiet", lambda: {
+            puts_once(*aeb, "quiet", lambda: {
                 **{k: 0 for k in aeb[1].members if k.startswith("visOnly")},
-                "roadFreeDetection": _code("aeb_road_free_detection", "NO_PENETRATION_DETECTED",
+                "roadFreeDetection": enum_code("aeb_road_free_detection", "NO_PENETRATION_DETECTED",
                                            0)})
 
-    def _fill_failsafe(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        fs = _child(values, node, "visFailsafes")
+    def _fill_failsafe(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+        fs = child_struct(values, node, "visFailsafes")
         if fs:
-            none = _code("failsafe_severity", "NONE", 1)
-            _puts_once(*fs, "none", lambda: {
+            none = enum_code("failsafe_severity", "NONE", 1)
+            puts_once(*fs, "none", lambda: {
                 **{k: none for k in fs[1].members if k.endswith("SeverityLevel")},
-                "freeSight": _code("free_sight", "TRUE", 1), "outOfCalibTSR": 0})
+                "freeSight": enum_code("free_sight", "TRUE", 1), "outOfCalibTSR": 0})
 
-    def _fill_srp(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        srp = _child(values, node, "visSRP")
+    def _fill_srp(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+        srp = child_struct(values, node, "visSRP")
         if srp is None:
             return
         two_pi, sin, s_e = 2 * math.pi, math.sin, self._s_e
         for key, phase in (("leftWheelDataPoints", float(self._phase[0])),
                            ("rightWheelDataPoints", float(self._phase[1]))):
-            elems, en = _elements(*srp, key)
+            elems, en = struct_elements(*srp, key)
             # road profile under each wheel, 5..32 m ahead
             pos = [s_e + 5.0 + 3.0 * k for k in range(len(elems))]
-            _write_table(elems, en, ("height", "conf"), [
+            write_table(elems, en, ("height", "conf"), [
                 (0.8 * sin(two_pi * p / 37.0 + phase) + 0.4 * sin(two_pi * p / 11.3 + 2 * phase),
                  15 - k) for k, p in enumerate(pos)], ("height", "conf"))
-        _puts(*srp, {"vehicleVelocity": self._v, "frameValid": 1})
+        put_values(*srp, {"vehicleVelocity": self._v, "frameValid": 1})
 
-    def _fill_timesync(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        ts = _child(values, node, "timeSyncData")
+    def _fill_timesync(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+        ts = child_struct(values, node, "timeSyncData")
         if ts:
-            _puts(*ts, {"Frame_MCU_TS_Start": max(0, round((t - 0.03) * 1e6)),
+            put_values(*ts, {"Frame_MCU_TS_Start": max(0, round((t - 0.03) * 1e6)),
                         "Last_MCU_Sync_TS": math.floor(t) * 1_000_000,
                         "Last_Clock_Sync_Skew": 0})
 
-    def _fill_dynamic_cal(self, values: dict[str, Any], node: _Node, t: float) -> None:
-        cal = _child(values, node, "dynamicCalParams")
+    def _fill_dynamic_cal(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+        cal = child_struct(values, node, "dynamicCalParams")
         if cal is None:
             return
         progress = min(100.0, 10.0 * self._tau)
         yaw = 0.25 + 0.02 * math.sin(0.05 * self._tau)
         pitch = -0.4 + 0.02 * math.sin(0.07 * self._tau + 1.0)
-        _puts(*cal, {
+        put_values(*cal, {
             "phYaw": yaw, "phPitch": pitch, "roll": 0.1, "camHeight": CAM_HEIGHT,
             "reserved": CAM_HEIGHT, "distYaw": FOCAL_PX * math.tan(math.radians(yaw)),
             "distPitch": FOCAL_PX * math.tan(math.radians(pitch)),
-            "runMode": _code("dynamic_cal_run_mode", "AUTOFIX", 4),
-            "status": _code("dynamic_cal_status", "SUCCESS" if progress >= 100 else "INIT",
+            "runMode": enum_code("dynamic_cal_run_mode", "AUTOFIX", 4),
+            "status": enum_code("dynamic_cal_status", "SUCCESS" if progress >= 100 else "INIT",
                             1 if progress >= 100 else 0),
-            "error": _code("dynamic_cal_error", "OK", 3), "overallProgress": progress})
-
-
-def _image_rects(y: FArr, hw: FArr, hgt: FArr, ss: FArr, far: FArr, on_left: Any,
-                 on_right: Any, side_vis: Any) -> tuple[FArr, ...]:
-    """The objects' rectangles in the image (origin at the image centre, x right, y down; the
-    rectangles are for visualisation): left, right, top and bottom of the rear, and the
-    visible side's column, top and bottom (0 where no side is seen).
-    -FOCAL_PX * (y + w/2), -FOCAL_PX * (y - w/2), FOCAL_PX * (CAM_HEIGHT - hgt) over the
-    distance."""
-    px = np.array((y + hw, y - hw, CAM_HEIGHT - hgt)) * _PX
-    u_l, u_r, v_t = px / ss
-    v_b = FOCAL_PX * CAM_HEIGHT / ss
-    u_s, v_ts, v_bs = np.where(side_vis, np.array((
-        np.where(on_left, px[1], px[0]), px[2], np.full(len(y), FOCAL_PX * CAM_HEIGHT)))
-        / far, 0.0)
-    return u_l, u_r, v_t, v_b, u_s, v_ts, v_bs
+            "error": enum_code("dynamic_cal_error", "OK", 3), "overallProgress": progress})

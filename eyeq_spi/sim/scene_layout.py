@@ -45,7 +45,7 @@ CLASSES: tuple[tuple[str, float, float, float, float, int], ...] = (
     ("bicycle", 0.08, 0.60, 1.8, 1.70, CYCLIST),
     ("pedestrian", 0.13, 0.60, 0.6, 1.75, PEDESTRIAN),
 )
-_CLASS_DEFAULT = {"car": 0, "truck": 1, "bike": 2, "bicycle": 3, "pedestrian": 4,
+CLASS_DEFAULT = {"car": 0, "truck": 1, "bike": 2, "bicycle": 3, "pedestrian": 4,
                   "uncertain_vehicle": 7}
 # traffic_sign names and weights: mostly speed limits (§ traffic_sign enum, SLI_Explicit)
 SIGNS: tuple[tuple[str, float], ...] = (
@@ -68,7 +68,7 @@ _REAL = ("real32", "real64")
 
 
 @dataclass(frozen=True)
-class _Leaf:
+class LayoutLeaf:
     lo: float
     hi: float
     real: bool
@@ -84,32 +84,32 @@ class _Leaf:
 
 
 @dataclass
-class _Node:
-    members: dict[str, _Node | _Leaf]
+class LayoutNode:
+    members: dict[str, LayoutNode | LayoutLeaf]
     count: int | None = None  # element count when the member is an array of structs
 
 
-def _leaf(m: Member) -> _Leaf:
+def _leaf(m: Member) -> LayoutLeaf:
     if m.type in _REAL and m.bits is None:
         lo = -_F32_MAX if m.min is None else float(m.min)
         hi = _F32_MAX if m.max is None else float(m.max)
-        return _Leaf(lo, hi, True) if lo <= hi else _Leaf(-_F32_MAX, _F32_MAX, True)
+        return LayoutLeaf(lo, hi, True) if lo <= hi else LayoutLeaf(-_F32_MAX, _F32_MAX, True)
     if m.bits is not None:
         wlo, whi = 0, (1 << (m.bits[1] - m.bits[0] + 1)) - 1
     else:
         wlo, whi = _WIRE.get(m.type, (0, 0xFF))
     lo = wlo if m.min is None else max(wlo, math.ceil(m.min))
     hi = whi if m.max is None else min(whi, math.floor(m.max))
-    return _Leaf(lo, hi, False) if lo <= hi else _Leaf(wlo, whi, False)
+    return LayoutLeaf(lo, hi, False) if lo <= hi else LayoutLeaf(wlo, whi, False)
 
 
-def _build(cat: Catalog, name: str, sw: SwKey) -> tuple[_Node, Any]:
+def _build(cat: Catalog, name: str, sw: SwKey) -> tuple[LayoutNode, Any]:
     """The range tree of struct ``name`` at ``sw`` and its shape (as :func:`_shape` gives it)."""
     sdef = cat.structs.get(name)
     var = sdef.variant_for(sw) if sdef else None
     if var is None:
         raise SpecError(f"struct {name} has no layout for {sw}")
-    members: dict[str, _Node | _Leaf] = {}
+    members: dict[str, LayoutNode | LayoutLeaf] = {}
     shape: list[tuple[str, Any]] = []
     for m in var.members:
         count = None if m.array is None else (
@@ -117,11 +117,11 @@ def _build(cat: Catalog, name: str, sw: SwKey) -> tuple[_Node, Any]:
         sub: Any = ""
         if m.bits is None and m.type not in _WIRE and m.type not in _REAL:
             child, sub = _build(cat, m.type, sw)
-            members[m.name] = _Node(child.members, count)
+            members[m.name] = LayoutNode(child.members, count)
         else:
             members[m.name] = _leaf(m)
         shape.append((m.name, sub if count is None else ("L", count, sub if count else "")))
-    return _Node(members), tuple(shape)
+    return LayoutNode(members), tuple(shape)
 
 
 def _shape(v: Any) -> Any:
@@ -132,31 +132,31 @@ def _shape(v: Any) -> Any:
     return ""
 
 
-def _merge(a: _Node | _Leaf, b: _Node | _Leaf) -> _Node | _Leaf:
+def _merge(a: LayoutNode | LayoutLeaf, b: LayoutNode | LayoutLeaf) -> LayoutNode | LayoutLeaf:
     """Ranges valid for both: intersection of leaves, union of members."""
-    if isinstance(a, _Leaf) and isinstance(b, _Leaf):
+    if isinstance(a, LayoutLeaf) and isinstance(b, LayoutLeaf):
         real = a.real and b.real
         lo, hi = max(a.lo, b.lo), min(a.hi, b.hi)
         if not real:
             lo, hi = math.ceil(lo), math.floor(hi)
-        return _Leaf(lo, hi, real) if lo <= hi else a
-    if isinstance(a, _Node) and isinstance(b, _Node):
+        return LayoutLeaf(lo, hi, real) if lo <= hi else a
+    if isinstance(a, LayoutNode) and isinstance(b, LayoutNode):
         members = dict(a.members)
         for k, v in b.members.items():
             members[k] = _merge(members[k], v) if k in members else v
-        return _Node(members, a.count if a.count is not None else b.count)
+        return LayoutNode(members, a.count if a.count is not None else b.count)
     return a
 
 
 @cache
-def _candidates(name: str) -> tuple[dict[Any, _Node], _Node] | None:
+def _candidates(name: str) -> tuple[dict[Any, LayoutNode], LayoutNode] | None:
     """Range trees of DASP message ``name`` per distinct shape over all releases, and all merged."""
     cat = catalog()
     try:
         msg = cat.message(name)
     except SpecError:
         return None
-    by_shape: dict[Any, _Node] = {}
+    by_shape: dict[Any, LayoutNode] = {}
     for sw in cat.sw_versions:
         if msg.protocol != "DASP" or not msg.exists_in(sw):
             continue
@@ -166,18 +166,18 @@ def _candidates(name: str) -> tuple[dict[Any, _Node], _Node] | None:
             continue
         old = by_shape.get(shape)
         merged = node if old is None else _merge(old, node)
-        assert isinstance(merged, _Node)
+        assert isinstance(merged, LayoutNode)
         by_shape[shape] = merged
     if not by_shape:
         return None
-    everything: _Node | _Leaf = _Node({})
+    everything: LayoutNode | LayoutLeaf = LayoutNode({})
     for node in by_shape.values():
         everything = _merge(everything, node)
-    assert isinstance(everything, _Node)
+    assert isinstance(everything, LayoutNode)
     return by_shape, everything
 
 
-def _node_for(name: str, values: dict[str, Any]) -> _Node | None:
+def layout_node_for(name: str, values: dict[str, Any]) -> LayoutNode | None:
     cands = _candidates(name)
     if cands is None:
         return None
@@ -187,43 +187,47 @@ def _node_for(name: str, values: dict[str, Any]) -> _Node | None:
     return by_shape.get(_shape(values), everything)
 
 
-def _child(d: dict[str, Any], n: _Node, key: str) -> tuple[dict[str, Any], _Node] | None:
+def child_struct(d: dict[str, Any], n: LayoutNode, key: str
+                 ) -> tuple[dict[str, Any], LayoutNode] | None:
     if isinstance(d, StructView):  # a packer's views never change: the answer is kept
         got = d.writers.get(("child", id(n), key))
         if got is None or got[0] is not n:
             got = d.writers[("child", id(n), key)] = (n, _child_of(d, n, key))
-        out: tuple[dict[str, Any], _Node] | None = got[1]
+        out: tuple[dict[str, Any], LayoutNode] | None = got[1]
         return out
     return _child_of(d, n, key)
 
 
-def _child_of(d: dict[str, Any], n: _Node, key: str) -> tuple[dict[str, Any], _Node] | None:
+def _child_of(d: dict[str, Any], n: LayoutNode, key: str
+              ) -> tuple[dict[str, Any], LayoutNode] | None:
     sub, v = n.members.get(key), d.get(key)
-    if isinstance(sub, _Node) and isinstance(v, dict | StructView):
+    if isinstance(sub, LayoutNode) and isinstance(v, dict | StructView):
         return cast("dict[str, Any]", v), sub  # a packer's view serves as the dict
     return None
 
 
-def _elements(d: dict[str, Any], n: _Node, key: str) -> tuple[list[dict[str, Any]], _Node]:
+def struct_elements(d: dict[str, Any], n: LayoutNode, key: str
+                    ) -> tuple[list[dict[str, Any]], LayoutNode]:
     if isinstance(d, StructView):  # a packer's views never change: the list is kept
         got = d.writers.get(("elements", id(n), key))
         if got is not None and got[0] is n:
-            return cast("tuple[list[dict[str, Any]], _Node]", got[1])
+            return cast("tuple[list[dict[str, Any]], LayoutNode]", got[1])
         out = _element_list(d, n, key)
         d.writers[("elements", id(n), key)] = (n, out)
         return out
     return _element_list(d, n, key)
 
 
-def _element_list(d: dict[str, Any], n: _Node, key: str) -> tuple[list[dict[str, Any]], _Node]:
+def _element_list(d: dict[str, Any], n: LayoutNode, key: str
+                  ) -> tuple[list[dict[str, Any]], LayoutNode]:
     sub, v = n.members.get(key), d.get(key)
-    if isinstance(sub, _Node) and isinstance(v, list):
+    if isinstance(sub, LayoutNode) and isinstance(v, list):
         return [cast("dict[str, Any]", x) for x in v if isinstance(x, dict | StructView)], sub
-    return [], _Node({})
+    return [], LayoutNode({})
 
 
 @cache
-def _code(enum: str, name: str, default: int) -> int:
+def enum_code(enum: str, name: str, default: int) -> int:
     """Value of ``name`` in enum ``enum`` of specs/, ``default`` if the catalogue lacks it."""
     e = catalog().enums.get(enum)
     if e is not None:
@@ -255,13 +259,13 @@ _OBJ_I: tuple[tuple[tuple[str | int, ...], str], ...] = tuple(
     + [((), k) for k in ("age", "id", "classification", "isCipv", "laneAssignment")]
     + [(("lightIndicators",), k) for k in ("valid", "brake", "turnRight", "turnLeft")]
     + [((), k) for k in ("isPredicted", "isInDrivableArea", "isVeryClose")])
-_AGE_ROW = _OBJ_I.index(((), "age"))
+AGE_ROW = _OBJ_I.index(((), "age"))
 
 Group = tuple[tuple[str | int, ...], list[tuple[str, bool, int]]]
 
 
 @dataclass
-class _ObjPlan:
+class ObjectPlan:
     flo: FArr
     fhi: FArr
     ilo: IArr
@@ -269,21 +273,21 @@ class _ObjPlan:
     groups: list[Group]
 
 
-def _resolve(node: _Node, path: tuple[str | int, ...], key: str) -> _Leaf | None:
+def _resolve(node: LayoutNode, path: tuple[str | int, ...], key: str) -> LayoutLeaf | None:
     for p in path:
         if isinstance(p, int):
             if node.count is None or p >= node.count:
                 return None
             continue
         sub = node.members.get(p)
-        if not isinstance(sub, _Node):
+        if not isinstance(sub, LayoutNode):
             return None
         node = sub
     leaf = node.members.get(key)
-    return leaf if isinstance(leaf, _Leaf) else None
+    return leaf if isinstance(leaf, LayoutLeaf) else None
 
 
-def _obj_plan(elem: _Node) -> _ObjPlan:
+def obj_plan(elem: LayoutNode) -> ObjectPlan:
     flo, fhi = np.full(len(_OBJ_F), -np.inf), np.full(len(_OBJ_F), np.inf)
     ilo, ihi = np.full(len(_OBJ_I), _INT64[0]), np.full(len(_OBJ_I), _INT64[1])
     groups: dict[tuple[str | int, ...], list[tuple[str, bool, int]]] = {}
@@ -298,7 +302,7 @@ def _obj_plan(elem: _Node) -> _ObjPlan:
                 ilo[row] = max(math.ceil(leaf.lo), _INT64[0])
                 ihi[row] = min(math.floor(leaf.hi), _INT64[1])
             groups.setdefault(path, []).append((key, real, row))
-    return _ObjPlan(flo, fhi, ilo.astype(np.int64), ihi.astype(np.int64), list(groups.items()))
+    return ObjectPlan(flo, fhi, ilo.astype(np.int64), ihi.astype(np.int64), list(groups.items()))
 
 
 # -- object motion: ordered rules over conditions that are bits of one index --------------------
@@ -313,14 +317,14 @@ def _rules(enum: str, rules: list[tuple[int, str, int]], default: tuple[str, int
     (mask, name, fallback value) whose mask bits are all set picks its code, else ``default``
     (the ``np.select`` of the conditions, as a table)."""
     index = np.arange(1 << MOTION_BITS)
-    out = np.full(1 << MOTION_BITS, _code(enum, *default), dtype=np.int64)
+    out = np.full(1 << MOTION_BITS, enum_code(enum, *default), dtype=np.int64)
     for mask, name, v in reversed(rules):  # the first rule last: it wins where it holds
-        out[index & mask == mask] = _code(enum, name, v)
+        out[index & mask == mask] = enum_code(enum, name, v)
     return out
 
 
 @cache
-def _motion_tables() -> IArr:
+def motion_tables() -> IArr:
     """motionStatus, motionCategory and motionOrientation (rows) per condition index."""
     status = _rules("object_motion_status", [
         (FAST, "moving", 1), (MOVING, "Moving_slowly", 4), (VEHICLE_KIND, "Stopped", 3)],
@@ -339,7 +343,7 @@ def _motion_tables() -> IArr:
     return np.array((status, category, orientation))
 
 
-_BIT_WEIGHTS = np.array([1 << k for k in range(MOTION_BITS)], dtype=np.int64)
+BIT_WEIGHTS = np.array([1 << k for k in range(MOTION_BITS)], dtype=np.int64)
 
 
 def _clip_ufunc() -> Any:
@@ -356,26 +360,26 @@ def _clip_ufunc() -> Any:
 clip = _clip_ufunc()
 
 
-def _frame(t: float) -> int:
+def frame_index(t: float) -> int:
     return max(0, math.floor(t * FRAME_RATE + 1e-6))
 
 
-_CLASS_P = np.array([c[1] for c in CLASSES]) / sum(c[1] for c in CLASSES)
-_XS = np.linspace(0.0, 100.0, 21)  # road-fit sample points ahead
-_DXS = np.diff(_XS)
-_PINV = np.linalg.pinv(np.stack([_XS**2, _XS**3], axis=1))
-_SIGN_KEYS = (
+CLASS_P = np.array([c[1] for c in CLASSES]) / sum(c[1] for c in CLASSES)
+XS = np.linspace(0.0, 100.0, 21)  # road-fit sample points ahead
+DXS = np.diff(XS)
+PINV = np.linalg.pinv(np.stack([XS**2, XS**3], axis=1))
+SIGN_KEYS = (
     "signLongPosition", "signLatPosition", "signHeight", "signConfidence", "signSuppConfidence1",
     "signSuppConfidence2", "relevancyConfidence", "signPositionBottom", "signPositionLeft",
     "signPositionRight", "signPositionTop", "signType", "signSupplementalType1",
     "signSupplementalType2", "signID", "signRelevantDecision", "signFilterType")
-_SPOT_KEYS = (
+SPOT_KEYS = (
     "leftAngle", "rightAngle", "topAngle", "bottomAngle", "id", "vdID", "longPos", "pixelTop",
     "pixelBottom", "pixelLeft", "pixelRight", "classification", "isTruck")
-_REFLECT_KEYS = (
+REFLECT_KEYS = (
     "lightSignLeftAngle", "lightSignRightAngle", "lightSignBottomAngle", "lightSignTopAngle",
     "lightSignID", "lightSignDistance", "lightSignGlareLevelMax", "lightSignGlareLevelCurrent")
-_FILLERS = {
+FILLERS = {
     "EYEQ_VIS_OBSTACLES_MSG": "_fill_obstacles", "EYEQ_VIS_ROAD_DATA_MSG": "_fill_road",
     "EYEQ_VIS_TRAFFIC_SIGNS_MSG": "_fill_signs", "EYEQ_VIS_LIGHT_SENSOR_DATA_MSG": "_fill_lights",
     "EYEQ_VIS_AEB_INFO_MSG": "_fill_aeb", "EYEQ_VIS_FAILSAFE_MSG": "_fill_failsafe",
@@ -385,43 +389,43 @@ _FILLERS = {
 
 
 @cache
-def _sign_table() -> tuple[tuple[str, ...], tuple[int, ...], FArr]:
-    rows = [(n, _code("traffic_sign", n, -1), w) for n, w in SIGNS]
+def sign_table() -> tuple[tuple[str, ...], tuple[int, ...], FArr]:
+    rows = [(n, enum_code("traffic_sign", n, -1), w) for n, w in SIGNS]
     rows = [r for r in rows if r[1] >= 0] or [("e_std_80", 7, 1.0)]
     p = np.array([r[2] for r in rows])
     return tuple(r[0] for r in rows), tuple(r[1] for r in rows), p / p.sum()
 
 
-def _cumtrapz(y: FArr, dx: FArr) -> FArr:
+def cumtrapz(y: FArr, dx: FArr) -> FArr:
     """The cumulative trapezoid integral of ``y`` over steps ``dx`` (``np.diff`` of x)."""
     return np.concatenate(([0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * dx)))
 
 
 # -- what the scene's writer shares between frames ---------------------------------------------
 @cache
-def _lane_codes() -> IArr:
-    return np.array([_code("object_lane_assignment", n, v) for n, v in (
+def lane_codes() -> IArr:
+    return np.array([enum_code("object_lane_assignment", n, v) for n, v in (
         ("RIGHT_NEXT_NEXT", 2), ("RIGHT_NEXT", 1), ("EGO_LANE", 0), ("LEFT_NEXT", -1),
         ("LEFT_NEXT_NEXT", -2))])
 
 
 # (a, b) of the obstacles' standard deviations a + b·|longDistance| (physicalState, angularState)
-_STD = np.array([(0.05, 0.002), (0.2, 0.01), (0.1, 0.01), (0.1, 0.005), (0.2, 0.004),
+STD = np.array([(0.05, 0.002), (0.2, 0.01), (0.1, 0.01), (0.1, 0.005), (0.2, 0.004),
                  (0.2, 0.002), (0.05, 0.003), (0.005, 1e-4)])
 # light spots: a pair of lamps unless a two-wheeler; the truck flag
-_PAIR_LAMPS = tuple(c[0] not in ("bike", "bicycle") for c in CLASSES)
-_TRUCK = next(k for k, c in enumerate(CLASSES) if c[0] == "truck")
-_BORDER_OFFSET = {"leftRoadBorder": 3 * HALF_LANE + 0.8, "rightRoadBorder": -3 * HALF_LANE - 0.6}
-_HEADER_KEYS = ("timestamp_ms", "timestamp_us", "frameIndex", "imageIndex", "vehIndexUsed")
-_PX = np.array([[-FOCAL_PX], [-FOCAL_PX], [FOCAL_PX]])  # the image rows' factors
-_STRUCTS: dict[int, tuple[_Node, list[tuple[str, _Node]]]] = {}
+PAIR_LAMPS = tuple(c[0] not in ("bike", "bicycle") for c in CLASSES)
+TRUCK = next(k for k, c in enumerate(CLASSES) if c[0] == "truck")
+BORDER_OFFSET = {"leftRoadBorder": 3 * HALF_LANE + 0.8, "rightRoadBorder": -3 * HALF_LANE - 0.6}
+HEADER_KEYS = ("timestamp_ms", "timestamp_us", "frameIndex", "imageIndex", "vehIndexUsed")
+PX = np.array([[-FOCAL_PX], [-FOCAL_PX], [FOCAL_PX]])  # the image rows' factors
+_STRUCTS: dict[int, tuple[LayoutNode, list[tuple[str, LayoutNode]]]] = {}
 
 
-def _struct_members(node: _Node) -> list[tuple[str, _Node]]:
+def struct_members(node: LayoutNode) -> list[tuple[str, LayoutNode]]:
     """The members of ``node`` that are one struct (not an array of them): where
     :meth:`Scene.fill` writes a header too. Kept per node (range trees live for the process)."""
     got = _STRUCTS.get(id(node))
     if got is None or got[0] is not node:
         got = _STRUCTS[id(node)] = (node, [(k, sub) for k, sub in node.members.items()
-                                        if isinstance(sub, _Node) and sub.count is None])
+                                        if isinstance(sub, LayoutNode) and sub.count is None])
     return got[1]

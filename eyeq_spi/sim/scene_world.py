@@ -32,13 +32,11 @@ from typing import Any
 import numpy as np
 
 from eyeq_spi.sim.scene_layout import (
-    _CLASS_DEFAULT,
-    _CLASS_P,
-    _DXS,
-    _PINV,
-    _XS,
+    CLASS_DEFAULT,
+    CLASS_P,
     CLASSES,
     CYCLIST,
+    DXS,
     EGO_LENGTH,
     EGO_SPEED_MAX,
     EGO_SPEED_MIN,
@@ -51,16 +49,18 @@ from eyeq_spi.sim.scene_layout import (
     MAX_SUBSTEP,
     ONCOMING,
     PEDESTRIAN,
+    PINV,
     VEHICLE,
+    XS,
     FArr,
     IArr,
-    _code,
-    _cumtrapz,
-    _frame,
-    _Node,
-    _ObjPlan,
-    _sign_table,
+    LayoutNode,
+    ObjectPlan,
     clip,
+    cumtrapz,
+    enum_code,
+    frame_index,
+    sign_table,
 )
 
 # per kind (VEHICLE, ONCOMING, CYCLIST, PEDESTRIAN): where an object leaves, behind and ahead
@@ -114,7 +114,7 @@ class SceneWorld:
             np.zeros(n) for _ in range(6))
         self._free_ids: deque[int] = deque(range(1, MAX_OBJECTS + 1))
         self._cls_code = np.array(
-            [_code("object_classification", c[0], _CLASS_DEFAULT[c[0]]) for c in CLASSES])
+            [enum_code("object_classification", c[0], CLASS_DEFAULT[c[0]]) for c in CLASSES])
         m = MAX_SIGNS
         self._sg_alive = np.zeros(m, dtype=bool)
         self._sg_id, self._sg_type = np.zeros(m, np.int64), np.zeros(m, np.int64)
@@ -125,10 +125,10 @@ class SceneWorld:
             self._spawn(initial=True, first=k == 0)
         self._update_road(None, 0.0)
         self._cols: tuple[FArr, IArr, IArr] | None = None
-        self._plans: dict[int, _ObjPlan] = {}
+        self._plans: dict[int, ObjectPlan] = {}
         # per message: the value dict or view last filled, its range tree, its headers' writers
         # (views only) and the filler's name
-        self._nodes: dict[str, tuple[dict[str, Any], _Node | None, list[Any] | None, str]] = {}
+        self._nodes: dict[str, tuple[dict[str, Any], LayoutNode | None, list[Any] | None, str]] = {}
 
     def unanchor(self) -> None:
         """Forget the time of the last step (after a warm-up): the next step anchors the scene
@@ -149,7 +149,7 @@ class SceneWorld:
         v_target = self._v_host if self._v_host is not None else float(self.config.ego_speed)
         yaw = None if yaw_rate is None or not math.isfinite(yaw_rate) else float(yaw_rate)
         if self._t is None:  # the first step anchors the scene in time
-            self._t, self._frame_now, self._v = t, _frame(t), v_target
+            self._t, self._frame_now, self._v = t, frame_index(t), v_target
             self._birth[self._alive] += self._frame_now
             self._update_road(yaw, 0.0)
             self._cols = None
@@ -168,7 +168,7 @@ class SceneWorld:
             self._integrate(h, va, vb)
             self._tau += h
             self._v = vb
-            self._frame_now = _frame(self._t + skip + (i + 1) * h)
+            self._frame_now = frame_index(self._t + skip + (i + 1) * h)
             self._update_road(yaw, h)
             self._decide(h)
         self._t = t
@@ -217,7 +217,7 @@ class SceneWorld:
 
     def _update_road(self, yaw_rate: float | None, h: float) -> None:
         self._extend_road()
-        k = np.interp(self._s_e + _XS, self._knot_s, self._knot_k)
+        k = np.interp(self._s_e + XS, self._knot_s, self._knot_k)
         if yaw_rate is not None and abs(self._v) > 1.0:
             # the host's yaw rate says how the road bends where the ego is
             target = min(max(yaw_rate / self._v, -0.008), 0.008)  # np.clip of one float
@@ -227,8 +227,8 @@ class SceneWorld:
             k = k - k[0] + kh
         else:
             self._k_host = None
-        y = _cumtrapz(_cumtrapz(k, _DXS), _DXS)
-        c2, c3 = (float(c) for c in _PINV @ y)
+        y = cumtrapz(cumtrapz(k, DXS), DXS)
+        c2, c3 = (float(c) for c in PINV @ y)
         p, tau = self._phase, self._tau
         w1, w2 = 2 * math.pi / 14.0, 2 * math.pi / 4.3
         self._e = 0.15 * math.sin(w1 * tau + p[0]) + 0.05 * math.sin(w2 * tau + p[1])
@@ -292,7 +292,7 @@ class SceneWorld:
         if len(free) == 0 or not self._free_ids:
             return False
         i, rng = int(free[0]), self._rng
-        ci = 0 if first else int(rng.choice(len(CLASSES), p=_CLASS_P))
+        ci = 0 if first else int(rng.choice(len(CLASSES), p=CLASS_P))
         kind = CLASSES[ci][5]
         if kind == VEHICLE and ci <= 1 and not first and rng.random() < 0.12:
             kind = ONCOMING
@@ -408,7 +408,7 @@ class SceneWorld:
 
     def _spawn_signs(self) -> None:
         rng = self._rng
-        names, codes, p = _sign_table()
+        names, codes, p = sign_table()
         k = int(rng.choice(len(names), p=p))
         s = rng.uniform(70.0, 100.0)
         if names[k].startswith("e_lgt_"):  # electronic signs hang on a gantry over the lanes

@@ -1,7 +1,7 @@
-"""How the scene's values reach a payload: :func:`_puts` of one struct's members (clamped as
-:meth:`~eyeq_spi.sim.scene_layout._Leaf.clamp` says, generated writers into a packer's views),
-writers bound once to a view (:func:`_bound_puts`), constants written once per packer
-(:func:`_puts_once`), and the arrays of structs as rows (:func:`_write_table`: generated row
+"""How the scene's values reach a payload: :func:`put_values` of one struct's members (clamped as
+:meth:`~eyeq_spi.sim.scene_layout.LayoutLeaf.clamp` says, generated writers into a packer's views),
+writers bound once to a view (:func:`bound_puts`), constants written once per packer
+(:func:`puts_once`), and the arrays of structs as rows (:func:`write_table`: generated row
 writers) or, for the obstacles, numpy columns (split out of :mod:`eyeq_spi.sim.scene_layout`)."""
 
 from __future__ import annotations
@@ -15,16 +15,16 @@ import numpy as np
 
 from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.sim.dasp_fast import BITS, NP_FMT, SCALAR, StructView
-from eyeq_spi.sim.scene_layout import FArr, IArr, _Leaf, _Node, _ObjPlan
+from eyeq_spi.sim.scene_layout import FArr, IArr, LayoutLeaf, LayoutNode, ObjectPlan
 
 
-def _put(d: dict[str, Any], n: _Node, key: str, x: float) -> None:
+def _put(d: dict[str, Any], n: LayoutNode, key: str, x: float) -> None:
     leaf = n.members.get(key)
-    if isinstance(leaf, _Leaf) and key in d:
+    if isinstance(leaf, LayoutLeaf) and key in d:
         d[key] = leaf.clamp(x)
 
 
-def _puts(d: dict[str, Any], n: _Node, vals: dict[str, float]) -> None:
+def put_values(d: dict[str, Any], n: LayoutNode, vals: dict[str, float]) -> None:
     if isinstance(d, StructView):
         keys = tuple(vals)
         got = d.writers.get((id(n), keys))
@@ -37,42 +37,42 @@ def _puts(d: dict[str, Any], n: _Node, vals: dict[str, float]) -> None:
         _put(d, n, key, x)
 
 
-def _bound_puts(d: dict[str, Any], n: _Node, keys: tuple[str, ...]
+def bound_puts(d: dict[str, Any], n: LayoutNode, keys: tuple[str, ...]
                 ) -> Callable[[dict[str, float]], None]:
-    """:func:`_puts` of values with ``keys`` into ``d`` as one callable: for a packer's view
+    """:func:`put_values` of values with ``keys`` into ``d`` as one callable: for a packer's view
     its generated writer bound to the view's buffer (views never change)."""
     if isinstance(d, StructView):
         fn = _compile_puts(d, n, keys)
         if fn is not None:
             return functools.partial(fn, d.buf, d.shadow)
-    return functools.partial(_puts, d, n)
+    return functools.partial(put_values, d, n)
 
 
-def _puts_once(d: dict[str, Any], n: _Node, key: str,
+def puts_once(d: dict[str, Any], n: LayoutNode, key: str,
                make: Callable[[], dict[str, float]]) -> None:
-    """:func:`_puts` of values that never change (``make()``, the same every call): a packer's
+    """:func:`put_values` of values that never change (``make()``, the same every call): a packer's
     view keeps its bytes from frame to frame and no other write touches these members, so they
     are written once after each reset; a dict gets them every time (the reference)."""
     if isinstance(d, StructView):
         k = (id(n), key)
         if k in d.done:
             return
-        _puts(d, n, make())
+        put_values(d, n, make())
         d.done.add(k)
         return
-    _puts(d, n, make())
+    put_values(d, n, make())
 
 
-def _compile_puts(d: StructView, n: _Node, keys: tuple[str, ...]
+def _compile_puts(d: StructView, n: LayoutNode, keys: tuple[str, ...]
                   ) -> Callable[[bytearray, Any, dict[str, float]], None] | None:
-    """:func:`_puts` into view ``d`` as generated code: per key the same clamp expression as
-    :meth:`_Leaf.clamp` and a ``pack_into`` at the member's offset from the layout (a bitfield
+    """:func:`put_values` into view ``d`` as generated code: per key the same clamp expression as
+    :meth:`LayoutLeaf.clamp` and a ``pack_into`` at the member's offset from the layout (a bitfield
     read, masked and written back). None if a key names a struct or an array: the loop runs."""
     env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
     body: list[str] = []
     for i, key in enumerate(keys):
         leaf = n.members.get(key)
-        if not isinstance(leaf, _Leaf) or key not in d:
+        if not isinstance(leaf, LayoutLeaf) or key not in d:
             continue
         s = d.slots.get(key)
         if s is None or s.kind not in (SCALAR, BITS):
@@ -101,16 +101,16 @@ def _compile_puts(d: StructView, n: _Node, keys: tuple[str, ...]
 
 
 
-def _write_rows(elems: list[dict[str, Any]], n: _Node, rows: list[dict[str, float]],
+def _write_rows(elems: list[dict[str, Any]], n: LayoutNode, rows: list[dict[str, float]],
                 keys: tuple[str, ...]) -> None:
     """Rows into the first elements of an array of structs; ``keys`` of the rest zeroed."""
     for j, e in enumerate(elems):
         if j < len(rows):
-            _puts(e, n, rows[j])
+            put_values(e, n, rows[j])
             continue
         for k in keys:
             leaf = n.members.get(k)
-            if isinstance(leaf, _Leaf) and k in e:
+            if isinstance(leaf, LayoutLeaf) and k in e:
                 e[k] = leaf.zero
 
 
@@ -118,7 +118,7 @@ _EXACT = 2.0**53  # ints below this survive float64 exactly
 _MIN_NUMPY = 80  # values per table from which numpy clamps them (measured: numpy's ~17 µs)
 
 
-def _write_table(elems: list[dict[str, Any]], n: _Node, rkeys: tuple[str, ...],
+def write_table(elems: list[dict[str, Any]], n: LayoutNode, rkeys: tuple[str, ...],
                  rows: list[tuple[float, ...]] | FArr, keys: tuple[str, ...]) -> None:
     """:func:`_write_rows` of rows given as tuples in the order of ``rkeys`` (or a float64
     matrix of such rows): a packer's views take them as one float64 matrix, clamped by numpy and
@@ -150,12 +150,12 @@ def _write_table(elems: list[dict[str, Any]], n: _Node, rkeys: tuple[str, ...],
     _write_rows(elems, n, [dict(zip(rkeys, row, strict=True)) for row in rows], keys)
 
 
-def _compile_rows(elems: list[StructView], n: _Node, rkeys: tuple[str, ...],
+def _compile_rows(elems: list[StructView], n: LayoutNode, rkeys: tuple[str, ...],
                   keys: tuple[str, ...]) -> tuple[FArr, FArr, Any, Any, Any] | None:
-    """:func:`_write_table` into a packer's views: the bounds of the ``rkeys`` columns, the
+    """:func:`write_table` into a packer's views: the bounds of the ``rkeys`` columns, the
     integer ones, and two generated writers that pack rows with one ``pack_into`` per run of
     adjacent members and zero ``keys`` of the elements past the rows by slices: one for rows
-    numpy has clamped and rounded, one that clamps each value with :meth:`_Leaf.clamp`'s
+    numpy has clamped and rounded, one that clamps each value with :meth:`LayoutLeaf.clamp`'s
     expression. None (the loop runs) for elements not evenly spaced, a bitfield or struct
     member, a real into an integer or an integer range wider than its wire type."""
     first = elems[0]
@@ -167,11 +167,11 @@ def _compile_rows(elems: list[StructView], n: _Node, rkeys: tuple[str, ...],
     zero: list[tuple[int, int]] = []  # (offset, size) of the members zeroed past the rows
     lo, hi = np.full(len(rkeys), -np.inf), np.full(len(rkeys), np.inf)
     ints: list[int] = []
-    clamped: list[str] = []  # the expressions of :meth:`_Leaf.clamp`
+    clamped: list[str] = []  # the expressions of :meth:`LayoutLeaf.clamp`
     env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
     for j, key in enumerate(rkeys + keys):
         leaf = n.members.get(key)
-        if not isinstance(leaf, _Leaf) or key not in first:
+        if not isinstance(leaf, LayoutLeaf) or key not in first:
             continue
         s = first.slots.get(key)
         if s is None or s.kind != SCALAR or (leaf.real and not s.real):
@@ -238,7 +238,7 @@ def _rows_writer(first: StructView, stride: int, put: list[tuple[int, str, str]]
     return fn
 
 
-def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n: int) -> bool:
+def write_objects_packed(objs: list[Any], plan: ObjectPlan, fl: FArr, il: IArr, n: int) -> bool:
     """The object loop of ``Scene._fill_obstacles`` into a packer's views: the same clamped
     arrays, cast per wire type into one byte array and scattered into the payload bytes at once
     (slots past ``n`` get 0). False (nothing written) when the loop must run."""
@@ -271,103 +271,114 @@ def _write_objects_packed(objs: list[Any], plan: _ObjPlan, fl: FArr, il: IArr, n
     return True
 
 
-def _objects_slots(first: StructView, plan: _ObjPlan) -> tuple[
-        dict[tuple[str, bool], list[tuple[int, int]]],
-        dict[int, tuple[str, list[tuple[int, int, int]]]],
-        list[tuple[int, float, float]]] | None:
-    """For the first object of a run, where each planned row goes: per (wire type, source) the
-    (row, offset) of its scalars, per container offset its bit fields, and the rows whose
-    values are clamped to their wire range. None where a row's member is not a plain scalar
-    or bit field (the loop writes such objects)."""
-    by_type: dict[tuple[str, bool], list[tuple[int, int]]] = {}
-    bits: dict[int, tuple[str, list[tuple[int, int, int]]]] = {}
-    check: list[tuple[int, float, float]] = []
-    for path, items in plan.groups:
-        probe: Any = first
-        for p in path:
-            ok = (isinstance(probe, StructView) and isinstance(p, str) and p in probe) or (
-                isinstance(probe, list) and isinstance(p, int) and p < len(probe))
-            probe = probe[p] if ok else None
-        if not isinstance(probe, StructView):
-            continue
-        for key, real, row in items:
-            if key not in probe:
-                continue
-            s = probe.slots.get(key)
-            if s is None or s.kind not in (SCALAR, BITS) or (real and not s.real):
-                return None
-            rel = probe.base - first.base + s.offset
-            if s.kind == BITS:
-                bits.setdefault(rel, (s.type, []))[1].append((row, s.lo, s.mask))
-                check.append((row, 0, s.mask))
-                continue
-            by_type.setdefault((s.type, real), []).append((row, rel))
-            if not real and not s.real:
-                check.append((row, *s.wire))
-    return by_type, bits, check
-
-
-def _objects_plan(objs: list[StructView], plan: _ObjPlan) -> tuple[Any, ...] | None:
+def _objects_plan(objs: list[StructView], plan: ObjectPlan) -> tuple[Any, ...] | None:
     """Per (wire type, source) the rows of the column arrays, the payload byte indices they go
     to and a reused array; the integer rows' bounds; per container type the bit columns."""
     first = objs[0]
     count = len(objs)
     stride = objs[1].base - first.base if count > 1 else first.layout.size
-    if any(e.base != first.base + k * stride for k, e in enumerate(objs)):
+    if any(obj.base != first.base + k * stride for k, obj in enumerate(objs)):
         return None
-    slots = _objects_slots(first, plan)
+    slots = _object_slots(first, plan)
     if slots is None:
         return None
     by_type, bits, check = slots
     u8 = np.frombuffer(first.buf, dtype=np.uint8)
-
-    def index(typ: str, rels: list[int]) -> tuple[np.dtype[Any], Any]:
-        dt = np.dtype(NP_FMT[typ])
-        r = np.array(rels)
-        # (column, element, byte) -> payload index, in the order of v.view(uint8).ravel()
-        return dt, (first.base + r[:, None, None] + stride * np.arange(count)[None, :, None]
-                    + np.arange(dt.itemsize)[None, None, :]).ravel()
-
     # each group's values live in one byte array (widest types first: aligned), scattered into
     # the payload at once by the concatenation of the groups' indices
     order = sorted(by_type.items(), key=lambda kv: -np.dtype(NP_FMT[kv[0][0]]).itemsize)
     groups = []
     for (typ, real), cols in order:
-        dt, idx = index(typ, [r for _, r in cols])
-        groups.append((real, np.array([r for r, _ in cols]), idx,
+        dt, idx = _byte_index(first, stride, count, typ, [rel for _, rel in cols])
+        groups.append((real, np.array([row for row, _ in cols]), idx,
                        np.zeros((len(cols), count), dtype=dt)))
+    bitgroups = _bit_containers(first, stride, count, bits)
+    bounds = (np.array([row for row, _, _ in check], dtype=np.intp),
+              np.array([lo for _, lo, _ in check], dtype=np.float64)[:, None],
+              np.array([hi for _, _, hi in check], dtype=np.float64)[:, None])
+    arrays = [g[3] for g in groups] + [b[5] for b in bitgroups]
+    raw = np.zeros(sum(a.nbytes for a in arrays), dtype=np.uint8)
+    views, at = [], 0
+    for array in arrays:
+        views.append(raw[at:at + array.nbytes].view(array.dtype).reshape(array.shape))
+        at += array.nbytes
+    for number, bitgroup in enumerate(bitgroups):  # the containers as the payload holds them
+        views[len(groups) + number][:] = bitgroup[3]
+    everywhere = np.concatenate([g[2] for g in groups] + [b[4] for b in bitgroups])
+    return (u8, [(g[0], g[1], v) for g, v in zip(groups, views, strict=False)], bounds,
+            [(*b[:4], v) for b, v in zip(bitgroups, views[len(groups):], strict=True)], raw,
+            everywhere)
+
+
+_Bits = dict[int, tuple[str, list[tuple[int, int, int]]]]
+
+
+def _object_slots(first: StructView, plan: ObjectPlan
+                  ) -> tuple[dict[tuple[str, bool], list[tuple[int, int]]], _Bits,
+                             list[tuple[int, float, float]]] | None:
+    """Where the first object puts each column row: per (wire type, real) the rows and their
+    offsets from the first object, per bit container offset its type and bit fields, and the
+    bounds to check the integer rows against. None when a row has no plain slot."""
+    by_type: dict[tuple[str, bool], list[tuple[int, int]]] = {}
+    bits: _Bits = {}
+    check: list[tuple[int, float, float]] = []
+    for path, items in plan.groups:
+        probe: Any = first
+        for step in path:
+            ok = (isinstance(probe, StructView) and isinstance(step, str) and step in probe) or (
+                isinstance(probe, list) and isinstance(step, int) and step < len(probe))
+            probe = probe[step] if ok else None
+        if not isinstance(probe, StructView):
+            continue
+        for key, real, row in items:
+            if key not in probe:
+                continue
+            slot = probe.slots.get(key)
+            if slot is None or slot.kind not in (SCALAR, BITS) or (real and not slot.real):
+                return None
+            rel = probe.base - first.base + slot.offset
+            if slot.kind == BITS:
+                bits.setdefault(rel, (slot.type, []))[1].append((row, slot.lo, slot.mask))
+                check.append((row, 0, slot.mask))
+                continue
+            by_type.setdefault((slot.type, real), []).append((row, rel))
+            if not real and not slot.real:
+                check.append((row, *slot.wire))
+    return by_type, bits, check
+
+
+def _byte_index(first: StructView, stride: int, count: int, typ: str, rels: list[int]
+                ) -> tuple[np.dtype[Any], Any]:
+    """The dtype of ``typ`` and the payload index of every (column, object, byte), in the
+    order of ``values.view(uint8).ravel()``."""
+    dt = np.dtype(NP_FMT[typ])
+    offsets = np.array(rels)
+    return dt, (first.base + offsets[:, None, None] + stride * np.arange(count)[None, :, None]
+                + np.arange(dt.itemsize)[None, None, :]).ravel()
+
+
+def _bit_containers(first: StructView, stride: int, count: int, bits: _Bits) -> list[Any]:
+    """Per container type: the rows, shifts and starts to OR the bit columns together, each
+    container's bits that the objects do not write, its byte index and a reused array."""
     bitgroups = []
-    for typ in sorted({t for t, _ in bits.values()}):
-        rels = [r for r, (t, _) in bits.items() if t == typ]
-        dt, idx = index(typ, rels)
+    for typ in sorted({typ for typ, _ in bits.values()}):
+        rels = [rel for rel, (rel_type, _) in bits.items() if rel_type == typ]
+        dt, idx = _byte_index(first, stride, count, typ, rels)
         brows: list[int] = []
         shift: list[int] = []
         starts: list[int] = []
         base = np.zeros((len(rels), count), dtype=dt)
-        for c, rel in enumerate(rels):
+        for number, rel in enumerate(rels):
             starts.append(len(brows))
             used = 0
             for row, lo, mask in bits[rel][1]:
                 brows.append(row)
                 shift.append(lo)
                 used |= mask << lo
-            for k in range(count):  # the container as it stands, less the bits written here
-                o = first.base + rel + k * stride
-                base[c, k] = int.from_bytes(first.buf[o:o + dt.itemsize], "little") & ~used
+            for obj in range(count):  # the container as it stands, less the bits written here
+                off = first.base + rel + obj * stride
+                base[number, obj] = int.from_bytes(first.buf[off:off + dt.itemsize],
+                                                   "little") & ~used
         bitgroups.append((np.array(brows), np.array(shift)[:, None], np.array(starts), base,
                           idx, np.zeros_like(base)))
-    bounds = (np.array([r for r, _, _ in check], dtype=np.intp),
-              np.array([x for _, x, _ in check], dtype=np.float64)[:, None],
-              np.array([x for _, _, x in check], dtype=np.float64)[:, None])
-    arrays = [g[3] for g in groups] + [b[5] for b in bitgroups]
-    raw = np.zeros(sum(a.nbytes for a in arrays), dtype=np.uint8)
-    views, at = [], 0
-    for a in arrays:
-        views.append(raw[at:at + a.nbytes].view(a.dtype).reshape(a.shape))
-        at += a.nbytes
-    for k, b in enumerate(bitgroups):  # the containers as the payload holds them now
-        views[len(groups) + k][:] = b[3]
-    everywhere = np.concatenate([g[2] for g in groups] + [b[4] for b in bitgroups])
-    return (u8, [(g[0], g[1], v) for g, v in zip(groups, views, strict=False)], bounds,
-            [(*b[:4], v) for b, v in zip(bitgroups, views[len(groups):], strict=True)], raw,
-            everywhere)
+    return bitgroups

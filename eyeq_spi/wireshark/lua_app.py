@@ -75,7 +75,7 @@ def merge(key: str, specs: list[MemberField]) -> MemberField:
     """One definition for all releases (``specs`` oldest first): the widest integer type, the
     mask and enum only where every release has the same, the newest description, the flag
     fields of every release."""
-    ctors = {s.ctor for s in specs}
+    ctors = {spec.ctor for spec in specs}
     ctor = specs[-1].ctor
     if len(ctors) > 1:
         kinds = {c.rstrip("0123456789") for c in ctors}
@@ -83,11 +83,11 @@ def merge(key: str, specs: list[MemberField]) -> MemberField:
             raise SpecError(f"specs/structs field eyeq_spi.{key}: types {sorted(ctors)} cannot "
                             "share a Wireshark field")
         ctor = max(ctors, key=lambda c: _INT_WIDTH[c.lstrip("uint")])
-    masks = {s.mask for s in specs}
-    vss = {s.vs for s in specs}
+    masks = {spec.mask for spec in specs}
+    vss = {spec.vs for spec in specs}
     flags: dict[str, tuple[str, str, int, int]] = {}
-    for s in specs:  # every release's flags get a field; a row adds its own release's
-        for flag in s.flags:
+    for spec in specs:  # every release's flags get a field; a row adds its own release's
+        for flag in spec.flags:
             if flags.setdefault(flag[0], flag) != flag:
                 raise SpecError(f"specs/structs flag field eyeq_spi.{flag[0]}: differs between "
                                 "releases")
@@ -132,86 +132,87 @@ class AppGenerator:
 
     # -- member fields --------------------------------------------------------------------------
     @staticmethod
-    def _desc(f: FieldInfo, type_name: str | None = None) -> str:
+    def _desc(info: FieldInfo, type_name: str | None = None) -> str:
         """The field's blurb: type, bits, units, enum."""
-        parts = [type_name or f.type]
-        if f.count:
-            parts[0] += f"[{f.count}]"
-        if f.bits is not None:
-            parts.append(f"bits {f.bits[0]}-{f.bits[1]}")
-        m = f.member
-        if m.units:
-            parts.append(f"units {m.units}")
-        if m.enum:
-            parts.append(f"enum {m.enum}")
-        if m.description:
-            parts.append(m.description)
+        parts = [type_name or info.type]
+        if info.count:
+            parts[0] += f"[{info.count}]"
+        if info.bits is not None:
+            parts.append(f"bits {info.bits[0]}-{info.bits[1]}")
+        member = info.member
+        if member.units:
+            parts.append(f"units {member.units}")
+        if member.enum:
+            parts.append(f"enum {member.enum}")
+        if member.description:
+            parts.append(member.description)
         return ", ".join(parts)
 
-    def _member(self, lay: Layout, f: FieldInfo, child: Layout | None) -> MemberField:
+    def _member(self, lay: Layout, info: FieldInfo, child: Layout | None) -> MemberField:
         if child is not None:
-            return MemberField("none", f.name, self._desc(f, child.name))
-        m = f.member
-        if f.type in FLOAT_FIELD:
-            if f.bits is not None:
-                raise SpecError(f"specs/structs {lay.name}.{f.name}: a float cannot be a bitfield")
-            return MemberField(FLOAT_FIELD[f.type][0], f.name, self._desc(f))
-        if f.type not in INT_FIELD:
-            raise SpecError(f"specs/structs {lay.name}.{f.name}: no Wireshark field type for "
-                            f"{f.type}")
+            return MemberField("none", info.name, self._desc(info, child.name))
+        member = info.member
+        if info.type in FLOAT_FIELD:
+            if info.bits is not None:
+                raise SpecError(f"specs/structs {lay.name}.{info.name}: a float cannot be a "
+                                "bitfield")
+            return MemberField(FLOAT_FIELD[info.type][0], info.name, self._desc(info))
+        if info.type not in INT_FIELD:
+            raise SpecError(f"specs/structs {lay.name}.{info.name}: no Wireshark field type for "
+                            f"{info.type}")
         mask = None
-        width = 8 * INT_SIZE[f.type]
+        width = 8 * INT_SIZE[info.type]
         lo = 0
-        if f.bits is not None:
-            lo, hi = f.bits
+        if info.bits is not None:
+            lo, hi = info.bits
             width = hi - lo + 1
             mask = ((1 << width) - 1) << lo
         vs: str | None = None
         flags: tuple[tuple[str, str, int, int], ...] = ()
-        key = f"{name_part(lay.name)}.{name_part(f.name)}"
-        if m.enum:
-            enum = self.cat.enums[m.enum]
+        key = f"{name_part(lay.name)}.{name_part(info.name)}"
+        if member.enum:
+            enum = self.cat.enums[member.enum]
             if enum.kind == "flags":
-                flags = self._flags(key, f, lo, width)
+                flags = self._flags(key, info, lo, width)
             else:
-                vs = self.vs.add(m.enum, {k: v.name for k, v in enum.values.items()})
-        elif m.values:
-            vs = self.vs.add(key, dict(m.values))
-        elif f.type == "bool":
+                vs = self.vs.add(member.enum, {k: v.name for k, v in enum.values.items()})
+        elif member.values:
+            vs = self.vs.add(key, dict(member.values))
+        elif info.type == "bool":
             vs = self.vs.add("bool", {0: "false", 1: "true"})
-        return MemberField(INT_FIELD[f.type], f.name, self._desc(f), vs, mask, flags)
+        return MemberField(INT_FIELD[info.type], info.name, self._desc(info), vs, mask, flags)
 
-    def _flags(self, key: str, f: FieldInfo, lo: int,
+    def _flags(self, key: str, info: FieldInfo, lo: int,
                width: int) -> tuple[tuple[str, str, int, int], ...]:
         """One boolean field per flag of a ``kind: flags`` enum, on the member's container."""
-        enum = self.cat.enums[f.member.enum or ""]
-        container_bits = 8 * INT_SIZE[f.type]
+        enum = self.cat.enums[info.member.enum or ""]
+        container_bits = 8 * INT_SIZE[info.type]
         out: list[tuple[str, str, int, int]] = []
         used: set[str] = set()
-        for bit, v in sorted(enum.values.items()):
-            if bit + v.width > width:
+        for bit, entry in sorted(enum.values.items()):
+            if bit + entry.width > width:
                 continue
-            sub = name_part(v.name)
+            sub = name_part(entry.name)
             while sub in used:
                 sub += "_"
             used.add(sub)
             # a multi-bit field: any bit set
-            out.append((f"{key}.{sub}", v.name, container_bits,
-                        ((1 << v.width) - 1) << (lo + bit)))
+            out.append((f"{key}.{sub}", entry.name, container_bits,
+                        ((1 << entry.width) - 1) << (lo + bit)))
         return tuple(out)
 
     def _collect(self, lay: Layout) -> list[_Row]:
         rows = []
-        for f in lay.fields:
-            child = lay.children.get(f.name)
+        for info in lay.fields:
+            child = lay.children.get(info.name)
             if child is not None:
                 self._collect(child)
-            key = f"{name_part(lay.name)}.{name_part(f.name)}"
-            spec = self._member(lay, f, child)
+            key = f"{name_part(lay.name)}.{name_part(info.name)}"
+            spec = self._member(lay, info, child)
             specs = self._specs.setdefault(key, [])
             if spec not in specs:
                 specs.append(spec)
-            rows.append(_Row(f, key, child, spec))
+            rows.append(_Row(info, key, child, spec))
         return rows
 
     def _register(self, key: str) -> Merged:
@@ -238,21 +239,22 @@ class AppGenerator:
         if known is not None:
             return known
         rows: list[str] = []
-        for r in self._collect(lay):
-            f = r.fi
-            count = f.count or 0
-            elem = f.size // count if count else f.size
-            merged = self._register(r.key)
-            target = lua_str(self.struct(r.child)) if r.child is not None else "false"
-            cells = [str(f.offset), str(elem), str(count), merged.ref, target, lua_str(f.name)]
+        for row in self._collect(lay):
+            info = row.fi
+            count = info.count or 0
+            elem = info.size // count if count else info.size
+            merged = self._register(row.key)
+            target = lua_str(self.struct(row.child)) if row.child is not None else "false"
+            cells = [str(info.offset), str(elem), str(count), merged.ref, target,
+                     lua_str(info.name)]
             extra = ["nil", "nil", "nil"]
-            if r.spec.flags:
-                extra[0] = "{" + ", ".join(self.fields.ref(k) for k, *_ in r.spec.flags) + "}"
-            if r.spec.mask is not None and merged.spec.mask is None:
-                lo = (r.spec.mask & -r.spec.mask).bit_length() - 1
-                extra[1] = f"{{{lo}, {lua_int(r.spec.mask >> lo)}}}"
-            if r.spec.vs is not None and merged.spec.vs is None:
-                extra[2] = r.spec.vs
+            if row.spec.flags:
+                extra[0] = "{" + ", ".join(self.fields.ref(k) for k, *_ in row.spec.flags) + "}"
+            if row.spec.mask is not None and merged.spec.mask is None:
+                lo = (row.spec.mask & -row.spec.mask).bit_length() - 1
+                extra[1] = f"{{{lo}, {lua_int(row.spec.mask >> lo)}}}"
+            if row.spec.vs is not None and merged.spec.vs is None:
+                extra[2] = row.spec.vs
             while extra and extra[-1] == "nil":
                 extra.pop()
             cells += extra

@@ -76,8 +76,8 @@ def inline_constants(text: str, inline: dict[str, str]) -> str:
     """The fixed Lua ``text`` with every constant of ``inline`` (``C.NAME``, ``@HDR.X@``)
     written as its value: a literal costs nothing per frame, a look-up in ``C`` a hashed
     table access."""
-    def value(m: re.Match[str]) -> str:
-        key = m.group(0)
+    def value(match: re.Match[str]) -> str:
+        key = match.group(0)
         if key not in inline:
             raise ValueError(f"the Lua runtime uses {key}, which the generator does not define")
         return inline[key]
@@ -139,7 +139,7 @@ class LuaGenerator:
         choices = ['{1, "auto", 0}'] + [
             f"{{{i + 1}, {lua_str(r)}, {i}}}" for i, r in enumerate(rel, 1)]
         lines.append("local PREF_CHOICES = {" + ", ".join(choices) + "}")
-        fn = next(f for f in self.cat.mesp if f.name == VERSIONS_FUNCTION)
+        fn = next(offsets for offsets in self.cat.mesp if offsets.name == VERSIONS_FUNCTION)
         off, where = 0, {}
         for prm in fn.reply:
             if prm.type not in MESP_PARAM_FIELD:
@@ -157,10 +157,11 @@ class LuaGenerator:
         diag_at: set[tuple[int, int]] = set()
         for codec in self.codecs.values():
             lay = codec.layout(boot)
-            boot_at[1 + lay.size] = 1 + next(f.offset for f in lay.fields if f.name == BOOT_VERSION)
+            boot_at[1 + lay.size] = 1 + next(info.offset for info in lay.fields
+                                             if info.name == BOOT_VERSION)
             if diag.exists_in(codec.sw):
-                f = {x.name: x.offset for x in codec.layout(diag).fields}
-                diag_at.add((4 + f[SW_MAJOR], 4 + f[SW_MINOR]))
+                offsets = {x.name: x.offset for x in codec.layout(diag).fields}
+                diag_at.add((4 + offsets[SW_MAJOR], 4 + offsets[SW_MINOR]))
         if len(diag_at) != 1:
             raise SpecError(f"specs/structs {BASE_DIAG_MESSAGE}: {SW_MAJOR}/{SW_MINOR} move "
                             "between releases")
@@ -174,8 +175,8 @@ class LuaGenerator:
 
     # -- constants ---------------------------------------------------------------------------
     def constants(self) -> list[str]:
-        s = self.spec
-        frame, crc, tr = s["frame"], s["crc"], s["transport"]
+        spec = self.spec
+        frame, crc, tr = spec["frame"], spec["crc"], spec["transport"]
         if crc["reflect"]:
             raise SpecError("specs/link.yaml crc.reflect: the Lua generator computes an "
                             "unreflected CRC only")
@@ -191,7 +192,7 @@ class LuaGenerator:
             "CRC_INIT": int(crc["init"]),
             "CRC_XOROUT": int(crc["xorout"]),
             "CRC_CHECK": int(crc["check"]),
-            "SEQ_MODULO": int(s["sequence"]["modulo"]),
+            "SEQ_MODULO": int(spec["sequence"]["modulo"]),
             # T1-T4: byte 6 type, byte 7 size or ID, a first frame's total is a uint32 LE
             "T_TYPE": d,
             "T_ARG": d + 1,
@@ -227,10 +228,10 @@ class LuaGenerator:
         self.inline = {f"C.{k}": str(v) for k, v in c.items()}
         self.inline["C.REASSEMBLY_TIMEOUT"] = timeout
         self.inline.update({f"@HDR.{k}@": header_expr("h", sh, m) for k, (sh, m) in hdr.items()})
-        kinds = {int(v): str(k) for k, v in s["kinds"].items()}
+        kinds = {int(v): str(k) for k, v in spec["kinds"].items()}
         lines.append(f"local KIND = {value_table(kinds)}")
         lines.append("local NAK_REASONS = " + value_table(
-            {int(k): str(v["name"]) for k, v in s["nak_reasons"].items()}))
+            {int(k): str(v["name"]) for k, v in spec["nak_reasons"].items()}))
         lines.append("local TTYPE = " + value_table({int(v): str(k) for k, v in types.items()}))
         dirs = {int(i["id"]): str(i["name"]) for i in self.capture["interfaces"]}
         if set(dirs.values()) != set(RECEIVER):
@@ -261,11 +262,11 @@ class LuaGenerator:
     # -- fixed fields --------------------------------------------------------------------------
     def link_fields(self) -> None:
         add = self.fields.add
-        s = self.spec
-        hdr = _header_fields(s["frame"])
-        kinds = {int(v): str(k) for k, v in s["kinds"].items()}
-        naks = {int(k): str(v["name"]) for k, v in s["nak_reasons"].items()}
-        types = {int(v): str(k) for k, v in s["transport"]["types"].items()}
+        spec = self.spec
+        hdr = _header_fields(spec["frame"])
+        kinds = {int(v): str(k) for k, v in spec["kinds"].items()}
+        naks = {int(k): str(v["name"]) for k, v in spec["nak_reasons"].items()}
+        types = {int(v): str(k) for k, v in spec["transport"]["types"].items()}
         add("dir", "string", lua_str("Direction"))
         add("bad_length", "bool", lua_str("Bad length"))
         add("length", "uint32", lua_str("Transfer length"), "base.DEC")

@@ -30,16 +30,16 @@ MODE_OF_MAIN = {0x02: "APP", 0xAC: "TAC", 0x22: "SPC"}
 RATE_MEAN_TOLERANCE = 0.05  # our reading: the tolerance bounds each period, the rate the mean
 
 
-def ret_of(m: Msg) -> int | None:
-    return int.from_bytes(m.data[5:9], "little") if len(m.data) >= 9 else None
+def ret_of(msg: Msg) -> int | None:
+    return int.from_bytes(msg.data[5:9], "little") if len(msg.data) >= 9 else None
 
 
-def is_request(m: Msg) -> bool:
-    return m.decoded.protocol == "MESP" and not m.header.get("reply")
+def is_request(msg: Msg) -> bool:
+    return msg.decoded.protocol == "MESP" and not msg.header.get("reply")
 
 
-def is_reply(m: Msg) -> bool:
-    return m.decoded.protocol == "MESP" and bool(m.header.get("reply"))
+def is_reply(msg: Msg) -> bool:
+    return msg.decoded.protocol == "MESP" and bool(msg.header.get("reply"))
 
 
 @dataclass
@@ -85,9 +85,9 @@ def _reply_ok(fn: str, req: dict[str, Any], rep: dict[str, Any]) -> str | None:
             "SendParamsToCalibrationTool": ("edr_type", "edr_policy", "edr_function"),
             "EventCalibrationTool": ("ct_type", "ct_stage", "ct_version"),
             "ComputeHash": ("hashType", "datasetType")}.get(fn, ())
-    for k in echo:
-        if rep.get(k) != req.get(k):
-            return f"{k} {rep.get(k)!r}, request had {req.get(k)!r}"
+    for key in echo:
+        if rep.get(key) != req.get(key):
+            return f"{key} {rep.get(key)!r}, request had {req.get(key)!r}"
     if fn == "ComputeHash":
         want = 4 if req.get("hashType") == 1 else 32
         if len(rep.get("result", b"")) != want:
@@ -100,24 +100,25 @@ def _reply_ok(fn: str, req: dict[str, Any], rep: dict[str, Any]) -> str | None:
 
 def mesp_function(fn: str) -> Callable[[Context, Trace], Outcome]:
     def judge(ctx: Context, tr: Trace) -> Outcome:
-        pairs = [p for p in mesp_pairs(tr) if p.request.name == fn]
+        pairs = [pair for pair in mesp_pairs(tr) if pair.request.name == fn]
         if not pairs:
             return unsure(f"no {fn} request was made in this run")
         good = []
-        for p in pairs:
-            r = p.reply
-            if r is None or ret_of(r) != 0:
+        for pair in pairs:
+            reply = pair.reply
+            if reply is None or ret_of(reply) != 0:
                 continue
-            if r.decoded.errors:
-                return bad(f"reply #{r.indices[-1]} at {at(r.time)}: {r.decoded.errors[0]}")
-            wrong = _reply_ok(fn, p.request.fields, r.fields)
+            if reply.decoded.errors:
+                return bad(f"reply #{reply.indices[-1]} at {at(reply.time)}: "
+                           f"{reply.decoded.errors[0]}")
+            wrong = _reply_ok(fn, pair.request.fields, reply.fields)
             if wrong is not None:
-                return bad(f"reply #{r.indices[-1]} at {at(r.time)}: {wrong}")
-            good.append(r)
+                return bad(f"reply #{reply.indices[-1]} at {at(reply.time)}: {wrong}")
+            good.append(reply)
         if not good:
-            rets = [ret_of(p.reply) if p.reply else None for p in pairs]
+            rets = [ret_of(pair.reply) if pair.reply else None for pair in pairs]
             return bad(f"{len(pairs)} request(s), no successful reply (ret seen: {rets})")
-        others = _not_counted(ctx, tr, [p for p in pairs if p.reply not in good])
+        others = _not_counted(ctx, tr, [pair for pair in pairs if pair.reply not in good])
         return ok(f"{len(good)} of {len(pairs)} request(s) answered with ret 0 and correct "
                   f"parameters; first reply #{good[0].indices[-1]} at {at(good[0].time)}"
                   + (f"; the other {len(pairs) - len(good)}: {others}" if others else ""))
@@ -131,8 +132,8 @@ def _not_counted(ctx: Context, tr: Trace, pairs: list[Pair]) -> str:
     probes: dict[str, int] = {}
     lost = refused = unanswered = 0
     rets: list[int] = []
-    for p in pairs:
-        req, rep = p.request, p.reply
+    for pair in pairs:
+        req, rep = pair.request, pair.reply
         case = PROBE_CASE.get((int(req.header["counter"]), req.name))
         if case is not None:
             probes[case] = probes.get(case, 0) + 1
@@ -155,45 +156,48 @@ def _not_counted(ctx: Context, tr: Trace, pairs: list[Pair]) -> str:
 
 
 def mesp_tag(ctx: Context, tr: Trace) -> Outcome:
-    n = 0
-    for p in mesp_pairs(tr):
-        if p.reply is None:
+    count = 0
+    for pair in mesp_pairs(tr):
+        if pair.reply is None:
             continue
-        n += 1
-        want = 0x80 | (p.request.header["tag"] & 0x3F)
-        got = p.reply.header["tag"]
+        count += 1
+        want = 0x80 | (pair.request.header["tag"] & 0x3F)
+        got = pair.reply.header["tag"]
         if got != want:
-            return bad(f"{p.request.name} request tag 0x{p.request.header['tag']:02X} "
-                       f"(#{p.request.indices[0]}): reply #{p.reply.indices[-1]} tag 0x{got:02X},"
+            return bad(f"{pair.request.name} request tag 0x{pair.request.header['tag']:02X} "
+                       f"(#{pair.request.indices[0]}): reply #{pair.reply.indices[-1]} tag "
+                       f"0x{got:02X},"
                        f" expected 0x{want:02X} (M1)")
-    return ok(f"{n} replies echo service, function and tag counter with bit 7 set") if n else \
-        unsure("no replies")
+    if not count:
+        return unsure("no replies")
+    return ok(f"{count} replies echo service, function and tag counter with bit 7 set")
 
 
 def mesp_deadline(ctx: Context, tr: Trace) -> Outcome:
     acked = delivered(tr, ctx)
     skip_tags = _probe_tags()
     worst = 0.0
-    n = 0
-    for p in mesp_pairs(tr):
-        req = p.request
+    count = 0
+    for pair in mesp_pairs(tr):
+        req = pair.request
         if req.header["counter"] in skip_tags and req.name in (
                 "GetEyeQVersions", "EventCalibrationTool"):
             continue
         if not all(i in acked for i in req.indices) or tr.end - req.time < DEADLINE:
             continue
-        n += 1
-        if p.reply is None:
+        count += 1
+        if pair.reply is None:
             return bad(f"{req.name} request #{req.indices[0]} at {at(req.time)} never answered",
                        [(req.time, tr.end, max(tr.end - req.time - DEADLINE, DEADLINE))])
-        dt = p.reply.time - req.time
+        dt = pair.reply.time - req.time
         worst = max(worst, dt)
         if dt > DEADLINE + ctx.slack:
             return bad(f"{req.name} request #{req.indices[0]} at {at(req.time)}: reply "
-                       f"#{p.reply.indices[-1]} after {1e3 * dt:.1f} ms (> 500 ms, §7.1.1, M6)",
-                       [(req.time, p.reply.time, dt - DEADLINE)])
-    return ok(f"{n} delivered requests answered, slowest in {1e3 * worst:.2f} ms") if n else \
-        unsure("no delivered requests")
+                       f"#{pair.reply.indices[-1]} after {1e3 * dt:.1f} ms (> 500 ms, §7.1.1, M6)",
+                       [(req.time, pair.reply.time, dt - DEADLINE)])
+    if not count:
+        return unsure("no delivered requests")
+    return ok(f"{count} delivered requests answered, slowest in {1e3 * worst:.2f} ms")
 
 
 def _probe_replies(tr: Trace, label: str) -> list[tuple[Any, int | None]]:
@@ -235,13 +239,13 @@ def mesp_unknown(ctx: Context, tr: Trace) -> Outcome:
 # -- MESP, the host as client -----------------------------------------------------------------
 def mesp_request_tags(ctx: Context, tr: Trace) -> Outcome:
     last: int | None = None
-    reqs = [m for m in tr.dut_msgs() if is_request(m)]
-    for m in reqs:
-        tag = m.header["tag"]
+    reqs = [msg for msg in tr.dut_msgs() if is_request(msg)]
+    for msg in reqs:
+        tag = msg.header["tag"]
         if tag & 0xC0:
-            return bad(f"request #{m.indices[0]} tag 0x{tag:02X}: bits 6 and 7 must be 0 (M1)")
+            return bad(f"request #{msg.indices[0]} tag 0x{tag:02X}: bits 6 and 7 must be 0 (M1)")
         if last is not None and tag != (last + 1) & 0x3F:
-            return bad(f"request #{m.indices[0]} at {at(m.time)}: tag counter {tag}, expected "
+            return bad(f"request #{msg.indices[0]} at {at(msg.time)}: tag counter {tag}, expected "
                        f"{(last + 1) & 0x3F} (+1 per request, M1)")
         last = tag
     return ok(f"{len(reqs)} requests, tag counter +1 each") if reqs else unsure("no requests")
@@ -273,11 +277,11 @@ def _mode_at(tr: Trace) -> Callable[[float], str | None]:
             for m in tr.dut_msgs("EYEQ_DIAGNOSTIC_MSG") if m.fields]
     times = [t for t, _ in diag]
 
-    def mode(t: float) -> str | None:
-        i = bisect.bisect_right(times, t)
-        if i == 0 or i == len(diag):
+    def mode(time: float) -> str | None:
+        index = bisect.bisect_right(times, time)
+        if index == 0 or index == len(diag):
             return None
-        before, after = diag[i - 1][1], diag[i][1]
+        before, after = diag[index - 1][1], diag[index][1]
         return before if before == after else None
     return mode
 
@@ -312,16 +316,16 @@ def segments(tr: Trace, msgs: list[Msg], period: float, *, lossless: bool = Fals
     resets = tr.resets() + bring_ups(tr)
     out: list[list[Msg]] = []
     cur: list[Msg] = []
-    for m in msgs:
+    for msg in msgs:
         if cur:
-            a = cur[-1]
-            if (m.t_first - a.t_first > 3 * period or tr.disturbed(a.t_first, m.time)
-                    or (lossless and tr.stalled(a.t_first, m.time))
-                    or any(a.t_first <= r <= m.t_first for r in resets)
-                    or mode(a.t_first) != mode(m.t_first)):
+            last = cur[-1]
+            if (msg.t_first - last.t_first > 3 * period or tr.disturbed(last.t_first, msg.time)
+                    or (lossless and tr.stalled(last.t_first, msg.time))
+                    or any(last.t_first <= r <= msg.t_first for r in resets)
+                    or mode(last.t_first) != mode(msg.t_first)):
                 out.append(cur)
                 cur = []
-        cur.append(m)
+        cur.append(msg)
     if cur:
         out.append(cur)
     return out
@@ -330,15 +334,16 @@ def segments(tr: Trace, msgs: list[Msg], period: float, *, lossless: bool = Fals
 def dasp_counter(ctx: Context, tr: Trace) -> Outcome:
     msgs = dasp_msgs(tr)
     by_id: dict[int, list[Msg]] = {}
-    for m in msgs:
-        by_id.setdefault(int(m.header["data_id"]), []).append(m)
+    for msg in msgs:
+        by_id.setdefault(int(msg.header["data_id"]), []).append(msg)
     for did, ms in by_id.items():
         for seg in segments(tr, ms, 1.0, lossless=True):
-            for a, b in pairwise(seg):
-                if b.header["counter"] != (a.header["counter"] + 1) & 0xFF:
-                    return bad(f"data ID 0x{did:02X}: counter {a.header['counter']} "
-                               f"(#{a.indices[0]}) then {b.header['counter']} (#{b.indices[0]}, "
-                               f"{at(b.time)}), expected +1 (D1)")
+            for earlier, later in pairwise(seg):
+                if later.header["counter"] != (earlier.header["counter"] + 1) & 0xFF:
+                    return bad(f"data ID 0x{did:02X}: counter {earlier.header['counter']} "
+                               f"(#{earlier.indices[0]}) then {later.header['counter']} "
+                               f"(#{later.indices[0]}, "
+                               f"{at(later.time)}), expected +1 (D1)")
     ids = f"{len(by_id)} data ID{'' if len(by_id) == 1 else 's'}"
     return ok(f"{len(msgs)} DASP messages, {ids}, counters +1") if msgs else \
         unsure("no DASP messages")
@@ -346,10 +351,10 @@ def dasp_counter(ctx: Context, tr: Trace) -> Outcome:
 
 def dasp_length(ctx: Context, tr: Trace) -> Outcome:
     msgs = dasp_msgs(tr)
-    for m in msgs:
-        hdr = [e for e in m.decoded.errors if e.startswith("BadHdr")]
+    for msg in msgs:
+        hdr = [e for e in msg.decoded.errors if e.startswith("BadHdr")]
         if hdr:
-            return bad(f"message #{m.indices[0]} at {at(m.time)}: {hdr[0]} (D3)")
+            return bad(f"message #{msg.indices[0]} at {at(msg.time)}: {hdr[0]} (D3)")
     return ok(f"{len(msgs)} DASP messages, payload lengths of {tr.codec.sw}") if msgs else \
         unsure("no DASP messages")
 
@@ -358,30 +363,31 @@ def dasp_e2e(ctx: Context, tr: Trace) -> Outcome:
     msgs = dasp_msgs(tr)
     checked = 0
     streams: dict[str, list[Msg]] = {}
-    for m in msgs:
-        crc = [e for e in m.decoded.errors if e.startswith("E2E")]
+    for msg in msgs:
+        crc = [e for e in msg.decoded.errors if e.startswith("E2E")]
         if crc:
-            return bad(f"{m.name} #{m.indices[0]} at {at(m.time)}: {crc[0]} (D5)")
-        streams.setdefault(m.name, []).append(m)
-    defs = {d.name: d for d in _defs(tr).values()}
+            return bad(f"{msg.name} #{msg.indices[0]} at {at(msg.time)}: {crc[0]} (D5)")
+        streams.setdefault(msg.name, []).append(msg)
+    defs = {definition.name: definition for definition in _defs(tr).values()}
     for name, ms in streams.items():
-        d = defs.get(name)
-        if d is None:
+        definition = defs.get(name)
+        if definition is None:
             continue
-        lay = tr.codec.layout(d)
-        plans = [p for p in lay.crc_plan if p.counter_offset is not None]
+        lay = tr.codec.layout(definition)
+        plans = [plan for plan in lay.crc_plan if plan.counter_offset is not None]
         if not plans:
             continue
         for seg in segments(tr, ms, 1.0, lossless=True):
-            for a, b in pairwise(seg):
-                for p in plans:
-                    o, size = 4 + int(p.counter_offset or 0), p.counter_size
-                    va = int.from_bytes(a.data[o:o + size], "little")
-                    vb = int.from_bytes(b.data[o:o + size], "little")
+            for earlier, later in pairwise(seg):
+                for plan in plans:
+                    offset, size = 4 + int(plan.counter_offset or 0), plan.counter_size
+                    va = int.from_bytes(earlier.data[offset:offset + size], "little")
+                    vb = int.from_bytes(later.data[offset:offset + size], "little")
                     checked += 1
                     if vb != (va + 1) % (1 << (8 * size)):
-                        return bad(f"{name}.{p.path or p.field}: rollingFrameCount {va} "
-                                   f"(#{a.indices[0]}) then {vb} (#{b.indices[0]}, {at(b.time)})"
+                        return bad(f"{name}.{plan.path or plan.field}: rollingFrameCount {va} "
+                                   f"(#{earlier.indices[0]}) then {vb} (#{later.indices[0]}, "
+                                   f"{at(later.time)})"
                                    ", expected +1 (D5)")
     if not msgs:
         return unsure("no DASP messages")
@@ -392,16 +398,16 @@ def unused_masks(lay: Layout, base: int = 0) -> list[tuple[int, int, int]]:
     """(absolute offset, size, mask of unused bits) of every bitfield container (D2)."""
     out: list[tuple[int, int, int]] = []
     used: dict[int, tuple[int, int]] = {}
-    for f in lay.fields:
-        if f.bits is not None:
-            lo, hi = f.bits
+    for info in lay.fields:
+        if info.bits is not None:
+            lo, hi = info.bits
             mask = ((1 << (hi - lo + 1)) - 1) << lo
-            size, prev = used.get(f.offset, (f.size, 0))
-            used[f.offset] = (size, prev | mask)
-        child = lay.children.get(f.name)
+            size, prev = used.get(info.offset, (info.size, 0))
+            used[info.offset] = (size, prev | mask)
+        child = lay.children.get(info.name)
         if child is not None:
-            for k in range(f.count or 1):
-                out += unused_masks(child, base + f.offset + k * child.size)
+            for element in range(info.count or 1):
+                out += unused_masks(child, base + info.offset + element * child.size)
     for off, (size, mask) in used.items():
         unused = ((1 << (8 * size)) - 1) & ~mask
         if unused:
@@ -410,21 +416,21 @@ def unused_masks(lay: Layout, base: int = 0) -> list[tuple[int, int, int]]:
 
 
 def dasp_unused(ctx: Context, tr: Trace) -> Outcome:
-    defs = {d.name: d for d in _defs(tr).values()}
+    defs = {definition.name: definition for definition in _defs(tr).values()}
     sampled: dict[str, int] = {}
     containers = 0
-    for m in dasp_msgs(tr):
-        d = defs.get(m.name)
+    for msg in dasp_msgs(tr):
+        definition = defs.get(msg.name)
         # an E2E error (D5, judged by DASP-E2E) leaves the bitfields readable: judge them too
-        broken = [e for e in m.decoded.errors if not e.startswith("E2E ")]
-        if d is None or sampled.get(m.name, 0) >= 3 or broken:
+        broken = [e for e in msg.decoded.errors if not e.startswith("E2E ")]
+        if definition is None or sampled.get(msg.name, 0) >= 3 or broken:
             continue
-        sampled[m.name] = sampled.get(m.name, 0) + 1
-        for off, size, mask in unused_masks(tr.codec.layout(d)):
+        sampled[msg.name] = sampled.get(msg.name, 0) + 1
+        for off, size, mask in unused_masks(tr.codec.layout(definition)):
             containers += 1
-            value = int.from_bytes(m.data[4 + off:4 + off + size], "little")
+            value = int.from_bytes(msg.data[4 + off:4 + off + size], "little")
             if value & mask != mask:
-                return bad(f"{m.name} #{m.indices[0]}: container at payload byte {off} is "
+                return bad(f"{msg.name} #{msg.indices[0]}: container at payload byte {off} is "
                            f"0x{value:0{2 * size}X}, unused bits 0x{mask:0{2 * size}X} must be 1 "
                            "(§7.1.2, D2)")
     if not sampled:
@@ -446,26 +452,26 @@ def _rate(ctx: Context, tr: Trace, msgs: list[Msg], hz: float, tol: tuple[float,
             periods.append((b.t_first - a.t_first, b))
     if len(periods) < 5:
         return unsure(f"{len(periods)} periods of {what} observed (need 5)")
-    outside = [(p, m) for p, m in periods if not lo - slack <= p <= hi + slack]
+    outside = [(p, msg) for p, msg in periods if not lo - slack <= p <= hi + slack]
     # the stream's rate while it runs (eyeq_spi/stream_rate.py); a gap is judged as a period
     running = combined_rate(rates)
     mean = 1.0 / running if running else sum(p for p, _ in periods) / len(periods)
     # each violation with its time span and by how much it misses (load.py weighs our stalls
     # against exactly these): a period outside the tolerance, and the mean rate, whose excess
     # is the time the whole run of periods is off the nearest rate allowed
-    spans = [(m.t_first - p, m.t_first, (lo - p) if p < lo else (p - hi)) for p, m in outside]
+    spans = [(msg.t_first - p, msg.t_first, (lo - p) if p < lo else (p - hi)) for p, msg in outside]
     fast, slow = 1.0 / ((1 + RATE_MEAN_TOLERANCE) * hz), 1.0 / ((1 - RATE_MEAN_TOLERANCE) * hz)
     mean_off = abs(1.0 / mean - hz) > RATE_MEAN_TOLERANCE * hz
     if mean_off:
-        t0 = min(m.t_first - p for p, m in periods)
-        t1 = max(m.t_first for _, m in periods)
+        t0 = min(msg.t_first - p for p, msg in periods)
+        t1 = max(msg.t_first for _, msg in periods)
         total = sum(p for p, _ in periods)
         spans.append((t0, t1, max(total - len(periods) * slow, len(periods) * fast - total)))
     if outside:
-        p, m = outside[0]
+        p, msg = outside[0]
         return bad(f"{what}: {len(outside)} of {len(periods)} periods outside "
                    f"{1e3 * lo:.1f}..{1e3 * hi:.1f} ms, first {1e3 * p:.2f} ms before "
-                   f"#{m.indices[0]} at {at(m.t_first)}; mean rate {1 / mean:.2f} Hz", spans)
+                   f"#{msg.indices[0]} at {at(msg.t_first)}; mean rate {1 / mean:.2f} Hz", spans)
     if mean_off:
         return bad(f"{what}: mean rate {1 / mean:.2f} Hz over {len(periods)} periods, "
                    f"nominal {hz} Hz (±{100 * RATE_MEAN_TOLERANCE:.0f} %)", spans)
@@ -475,16 +481,18 @@ def _rate(ctx: Context, tr: Trace, msgs: list[Msg], hz: float, tol: tuple[float,
 
 def dasp_rate(name: str, mode: str) -> Callable[[Context, Trace], Outcome]:
     def judge(ctx: Context, tr: Trace) -> Outcome:
-        d = tr.codec.cat.message(name)
-        if d.rate_hz is None or d.tolerance_ms is None:
+        definition = tr.codec.cat.message(name)
+        if definition.rate_hz is None or definition.tolerance_ms is None:
             return skip(f"{name} has no periodic rate")
         at_mode = _mode_at(tr)
         msgs = [m for m in tr.dut_msgs(name) if at_mode(m.t_first) == mode]
-        return _rate(ctx, tr, msgs, float(d.rate_hz), d.tolerance_ms, f"{name} in {mode}")
+        return _rate(ctx, tr, msgs, float(definition.rate_hz), definition.tolerance_ms,
+                     f"{name} in {mode}")
     return judge
 
 
 def diag_rate(ctx: Context, tr: Trace) -> Outcome:
-    d = tr.codec.cat.message("EYEQ_DIAGNOSTIC_MSG")
-    assert d.rate_hz is not None and d.tolerance_ms is not None
-    return _rate(ctx, tr, tr.dut_msgs(d.name), float(d.rate_hz), d.tolerance_ms, d.name)
+    definition = tr.codec.cat.message("EYEQ_DIAGNOSTIC_MSG")
+    assert definition.rate_hz is not None and definition.tolerance_ms is not None
+    return _rate(ctx, tr, tr.dut_msgs(definition.name), float(definition.rate_hz),
+                 definition.tolerance_ms, definition.name)

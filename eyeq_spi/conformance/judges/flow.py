@@ -16,22 +16,24 @@ PENDING, RUNNING_VISION, PENDING_VISION = 0x01, 0x02, 0x92
 def _state_reports(tr: Trace, msgs: list[Msg]) -> list[tuple[float, int, int, int, Msg]]:
     """(time, mainState, subState, Fatal_Error) from 0x41 and Get Extended State replies."""
     out = []
-    for m in msgs:
-        if m.name == "EYEQ_DIAGNOSTIC_MSG" and m.fields:
-            f = m.fields
-            out.append((m.time, int(f["Main_State"]), int(f["Sub_State"]),
-                        int(f["Fatal_Error"]), m))
-        elif m.name == "GetEyeQExtendedState" and is_reply(m) and ret_of(m) == 0 and m.fields:
-            out.append((m.time, int(m.fields["mainState"]), int(m.fields["subState"]), 0, m))
+    for msg in msgs:
+        if msg.name == "EYEQ_DIAGNOSTIC_MSG" and msg.fields:
+            fields = msg.fields
+            out.append((msg.time, int(fields["Main_State"]), int(fields["Sub_State"]),
+                        int(fields["Fatal_Error"]), msg))
+        elif (msg.name == "GetEyeQExtendedState" and is_reply(msg) and ret_of(msg) == 0
+              and msg.fields):
+            fields = msg.fields
+            out.append((msg.time, int(fields["mainState"]), int(fields["subState"]), 0, msg))
     return out
 
 
 def _ect_replies(tr: Trace, stage: int | None = None) -> list[tuple[Msg, Msg]]:
     out = []
-    for p in mesp_pairs(tr):
-        if p.request.name == "EventCalibrationTool" and p.reply is not None \
-                and (stage is None or p.request.fields.get("ct_stage") == stage):
-            out.append((p.request, p.reply))
+    for pair in mesp_pairs(tr):
+        if pair.request.name == "EventCalibrationTool" and pair.reply is not None \
+                and (stage is None or pair.request.fields.get("ct_stage") == stage):
+            out.append((pair.request, pair.reply))
     return out
 
 
@@ -92,22 +94,22 @@ def mode_round_trip(mode: str) -> Callable[[Context, Trace], Outcome]:
         done = [m for m in tr.marks_of("mode_done") if m.info["mode"] == mode]
         if not done:
             return skip(f"{mode} was not tried (an earlier flow stopped the script)")
-        d = done[0].info
-        if not d["ok"]:
-            if d.get("problem"):
-                return bad(f"{mode}: {d['problem']} (state {d['state']} at "
+        info = done[0].info
+        if not info["ok"]:
+            if info.get("problem"):
+                return bad(f"{mode}: {info['problem']} (state {info['state']} at "
                            f"{at(done[0].time)})")
             return unsure(f"{mode} not reached or no result within the timeout (state "
-                          f"{d['state']})")
+                          f"{info['state']})")
         back = [m for m in tr.marks_of("mode_back") if m.info["mode"] == mode]
         if not back or not back[0].info["ok"]:
-            return bad(f"{mode} reached at {at(d['entered'])} but Running Vision did not come "
+            return bad(f"{mode} reached at {at(info['entered'])} but Running Vision did not come "
                        "back after Switch EyeQ Application (vision)")
-        res = d.get("result") or {}
+        res = info.get("result") or {}
         if mode != "DV" and not res.get("ok"):
             return bad(f"{mode} finished with an error: {res}")
         detail = "" if mode == "DV" else f", result {res.get('mode')} ok"
-        return ok(f"{mode} entered at {at(d['entered'])}{detail}, back in Running Vision at "
+        return ok(f"{mode} entered at {at(info['entered'])}{detail}, back in Running Vision at "
                   f"{at(back[0].time)}")
     return judge
 
@@ -164,28 +166,30 @@ def host_retry(ctx: Context, tr: Trace) -> Outcome:
         return skip("the host sent no Get EyeQ Versions request, so no reply was withheld")
     # a reset soon after a withheld reply starts the host's requests over: the next request's
     # reply is withheld instead (play.eyeq), and that one is judged
-    usable = [m for m in marks if not any(
-        m.time < r <= m.time + RETRY_WITHIN + ctx.slack for r in tr.resets())]
+    usable = [msg for msg in marks if not any(
+        msg.time < r <= msg.time + RETRY_WITHIN + ctx.slack for r in tr.resets())]
     if not usable:
         return skip(f"a reset followed each of the {len(marks)} withheld replies within "
                     f"{RETRY_WITHIN:.1f} s")
     mark = usable[0]
-    t, tag = mark.time, int(mark.info["tag"])
-    end = t + RETRY_WITHIN + ctx.slack
+    time, tag = mark.time, int(mark.info["tag"])
+    end = time + RETRY_WITHIN + ctx.slack
     if tr.end < end:
-        return skip(f"the session ended {tr.end - t:.2f} s after the withheld reply at {at(t)}")
-    again = [m for m in tr.dut_msgs("GetEyeQVersions") if is_request(m) and t < m.time <= end]
+        return skip(f"the session ended {tr.end - time:.2f} s after the withheld reply at "
+                    f"{at(time)}")
+    again = [msg for msg in tr.dut_msgs("GetEyeQVersions")
+             if is_request(msg) and time < msg.time <= end]
     if not again:
-        return bad(f"the reply to Get EyeQ Versions (tag {tag}) sent at {at(t)} was withheld; "
+        return bad(f"the reply to Get EyeQ Versions (tag {tag}) sent at {at(time)} was withheld; "
                    f"the host did not retry within {RETRY_WITHIN:.1f} s (M6: a timed-out "
-                   "request is retried with a new tag)", [(t, end, RETRY_WITHIN)])
-    m = again[0]
-    new_tag = int(m.header.get("counter", -1))
+                   "request is retried with a new tag)", [(time, end, RETRY_WITHIN)])
+    msg = again[0]
+    new_tag = int(msg.header.get("counter", -1))
     if new_tag == tag:
-        return bad(f"Get EyeQ Versions retried at {at(m.time)} with the same tag {tag} "
+        return bad(f"Get EyeQ Versions retried at {at(msg.time)} with the same tag {tag} "
                    "(M6: a new tag)")
-    return ok(f"the reply to Get EyeQ Versions (tag {tag}) at {at(t)} was withheld; retried "
-              f"{1e3 * (m.time - t):.0f} ms later with tag {new_tag}")
+    return ok(f"the reply to Get EyeQ Versions (tag {tag}) at {at(time)} was withheld; retried "
+              f"{1e3 * (msg.time - time):.0f} ms later with tag {new_tag}")
 
 
 def host_fatal22(ctx: Context, trs: dict[str, Trace]) -> Outcome:
@@ -195,15 +199,15 @@ def host_fatal22(ctx: Context, trs: dict[str, Trace]) -> Outcome:
                  if m.fields.get("Fatal_Error") == FATAL_INTRINSIC]
         if not fatal:
             continue
-        t = fatal[0].time
-        reads = [m for m in tr.dut_msgs("FFSReadFile") if is_request(m) and m.time >= t
+        time = fatal[0].time
+        reads = [m for m in tr.dut_msgs("FFSReadFile") if is_request(m) and m.time >= time
                  and m.fields.get("filename") == EEPROM_FILE]
-        if not reads or reads[0].time - t > 1.0:
+        if not reads or reads[0].time - time > 1.0:
             until = reads[0].time if reads else tr.end
-            return bad(f"session {name}: Fatal_Error 22 reported at {at(t)}, no FFS Read File "
+            return bad(f"session {name}: Fatal_Error 22 reported at {at(time)}, no FFS Read File "
                        f"of {EEPROM_FILE} within 1 s (§7.1.3 step 4)",
-                       [(t, until, max(until - t - 1.0, 0.0) if reads else 1.0)])
-        judged.append(f"{name}: Fatal 22 at {at(t)} -> FFS read at {at(reads[0].time)}")
+                       [(time, until, max(until - time - 1.0, 0.0) if reads else 1.0)])
+        judged.append(f"{name}: Fatal 22 at {at(time)} -> FFS read at {at(reads[0].time)}")
     if not judged:
         return unsure("Fatal 22 was never reported")
     return ok("; ".join(judged))
@@ -226,26 +230,28 @@ def host_eeprom_bad(ctx: Context, tr: Trace) -> Outcome:
     served = [m for m in tr.our_msgs("FFSReadFile") if is_reply(m)]
     if not served:
         return unsure("the host did not read the EEPROM, so its reaction to a bad CRC is unknown")
-    t = served[0].time
-    later = [m for m in tr.dut_msgs() if m.time > t and (
+    time = served[0].time
+    later = [m for m in tr.dut_msgs() if m.time > time and (
         m.name in ("EventCalibrationTool", "SwitchEyeQApplication", "HOST_VEH_STATE_MSG"))]
-    resets = [r.time for r in tr.marks_of("reset_line") if r.time > t]
+    resets = [r.time for r in tr.marks_of("reset_line") if r.time > time]
     if later:
-        return bad(f"EEPROM with a bad CRC-16 served at {at(t)}, yet the host sent {later[0].name}"
+        return bad(f"EEPROM with a bad CRC-16 served at {at(time)}, yet the host sent "
+                   f"{later[0].name}"
                    f" at {at(later[0].time)} (§7.1.3 step 6: the unit is failed)")
     if resets:
-        return bad(f"EEPROM with a bad CRC-16 served at {at(t)}, yet the host reset us at "
+        return bad(f"EEPROM with a bad CRC-16 served at {at(time)}, yet the host reset us at "
                    f"{at(resets[0])}")
-    watched = tr.end - t
+    watched = tr.end - time
     if watched < QUIET_FOR - 1e-9:
         left = tr.first_mark("peer_left")
         why = (f"the host closed the link at {at(left.time)}" if left is not None
                else "the session ended")
-        return unsure(f"EEPROM with a bad CRC-16 served at {at(t)}; {why} {watched:.2f} s later, "
+        return unsure(f"EEPROM with a bad CRC-16 served at {at(time)}; {why} {watched:.2f} s "
+                      "later, "
                       f"before the {QUIET_FOR:.1f} s a host must be watched to show it stopped "
                       "(a MESP reply deadline, 500 ms, and half a second: M6); a host that "
                       "stops keeps its port open")
-    return ok(f"EEPROM with a bad CRC-16 served at {at(t)}; the host stopped (no init, switch, "
+    return ok(f"EEPROM with a bad CRC-16 served at {at(time)}; the host stopped (no init, switch, "
               f"reset or HOST_VEH_STATE_MSG for {watched:.2f} s, at least {QUIET_FOR:.1f} s)")
 
 
@@ -270,17 +276,17 @@ def host_eyeq_reset(ctx: Context, tr: Trace) -> Outcome:
     mark = tr.first_mark("our_reset")
     if mark is None:
         return skip("we did not reset")
-    t = mark.time
-    inits = [m for m in tr.dut_msgs("EventCalibrationTool") if is_request(m) and m.time > t]
+    time = mark.time
+    inits = [m for m in tr.dut_msgs("EventCalibrationTool") if is_request(m) and m.time > time]
     stages = [m.fields.get("ct_stage") for m in inits]
     if 0x92 not in stages:
-        return bad(f"we reset at {at(t)}; the host sent no Init_Params_Vision (0x92) afterwards "
+        return bad(f"we reset at {at(time)}; the host sent no Init_Params_Vision (0x92) afterwards "
                    f"(init stages seen: {stages})")
     t92 = inits[stages.index(0x92)].time
     veh = [m for m in tr.dut_msgs("HOST_VEH_STATE_MSG") if m.time > t92]
     if not veh:
-        return bad(f"after our reset at {at(t)} and 0x92 at {at(t92)}, no HOST_VEH_STATE_MSG")
-    return ok(f"we reset at {at(t)}; init {', '.join(f'0x{s:02X}' for s in stages)} again, "
+        return bad(f"after our reset at {at(time)} and 0x92 at {at(t92)}, no HOST_VEH_STATE_MSG")
+    return ok(f"we reset at {at(time)}; init {', '.join(f'0x{s:02X}' for s in stages)} again, "
               f"HOST_VEH_STATE_MSG from {at(veh[0].time)}")
 
 

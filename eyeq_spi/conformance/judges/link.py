@@ -25,8 +25,8 @@ ACK_SLACK_REALTIME = 0.002  # a byte stream between processes: delivery and our 
 RESET_SETTLE = 0.3  # seconds after a reset in which frames may be lost or NAKed 0x001
 
 
-def _frame(x: Xfer) -> str:
-    return f"frame #{x.index} ({x.direction}, {at(x.time)}, NUM {x.num})"
+def _frame(xfer: Xfer) -> str:
+    return f"frame #{xfer.index} ({xfer.direction}, {at(xfer.time)}, NUM {xfer.num})"
 
 
 @dataclass
@@ -40,50 +40,51 @@ def answers(tr: Trace, slack: float) -> list[Answer]:
     pending: dict[int, list[Xfer]] = {}
     out: dict[int, Answer] = {}
     limit = 5 * ACK_TIMEOUT + slack
-    for x in tr.xfers:
-        if x.direction == tr.our_dir and x.kind in ("DATA", "BAD"):
-            pending.setdefault(x.num, []).append(x)
-            out[x.index] = Answer(x, None)
-        elif x.direction == tr.dut_dir and x.kind in ("ACK", "NAK"):
-            queue = pending.get(x.rsp)
-            while queue and (x.time - queue[0].time > limit or (
-                    x.kind == "ACK" and (queue[0].kind == "BAD" or not queue[0].crc_ok))):
+    for xfer in tr.xfers:
+        if xfer.direction == tr.our_dir and xfer.kind in ("DATA", "BAD"):
+            pending.setdefault(xfer.num, []).append(xfer)
+            out[xfer.index] = Answer(xfer, None)
+        elif xfer.direction == tr.dut_dir and xfer.kind in ("ACK", "NAK"):
+            queue = pending.get(xfer.rsp)
+            while queue and (xfer.time - queue[0].time > limit or (
+                    xfer.kind == "ACK" and (queue[0].kind == "BAD" or not queue[0].crc_ok))):
                 queue.pop(0)  # too old, or a frame no receiver may ACK (bad CRC, D or R: L5)
             if queue:
-                out[queue.pop(0).index].reply = x
+                out[queue.pop(0).index].reply = xfer
     return list(out.values())
 
 
-def _near_reset(tr: Trace, t: float) -> bool:
-    return any(r - 0.05 <= t <= r + RESET_SETTLE for r in tr.resets())
+def _near_reset(tr: Trace, time: float) -> bool:
+    return any(r - 0.05 <= time <= r + RESET_SETTLE for r in tr.resets())
 
 
-def _nak_reason(x: Xfer | None) -> int | None:
-    return x.num if x is not None and x.kind == "NAK" else None
+def _nak_reason(xfer: Xfer | None) -> int | None:
+    return xfer.num if xfer is not None and xfer.kind == "NAK" else None
 
 
 # -- link -------------------------------------------------------------------------------------
 def link_size(ctx: Context, tr: Trace) -> Outcome:
-    dut = [x for x in tr.xfers if x.direction == tr.dut_dir]
-    badlen = [x for x in dut if x.kind == "LEN"]
+    dut = [xfer for xfer in tr.xfers if xfer.direction == tr.dut_dir]
+    badlen = [xfer for xfer in dut if xfer.kind == "LEN"]
     if badlen:
-        x = badlen[0]
+        xfer = badlen[0]
         return bad(f"{len(badlen)} of {len(dut)} transfers are not 128 bytes; first: "
-                   f"#{x.index} at {at(x.time)} is {len(x.data)} bytes")
+                   f"#{xfer.index} at {at(xfer.time)} is {len(xfer.data)} bytes")
     if not dut:
         return unsure("the DUT sent nothing")
     return ok(f"all {len(dut)} transfers from the DUT are 128 bytes")
 
 
 def link_crc(ctx: Context, tr: Trace) -> Outcome:
-    dut = [x for x in tr.xfers if x.direction == tr.dut_dir and x.kind != "LEN"]
-    broken = [x for x in dut if not x.crc_ok or x.kind == "BAD"]
+    dut = [xfer for xfer in tr.xfers if xfer.direction == tr.dut_dir and xfer.kind != "LEN"]
+    broken = [xfer for xfer in dut if not xfer.crc_ok or xfer.kind == "BAD"]
     if broken:
-        x = broken[0]
-        f = tr.frames.decode(x.data)
-        want = tr.frames.compute_crc(f.d, x.data[:4], x.data[6:])
-        return bad(f"{len(broken)} of {len(dut)} frames invalid; first: {_frame(x)} D=0x{f.d:X} "
-                   f"R=0x{f.r:X} CRC 0x{f.crc:04X}, expected 0x{want:04X}")
+        xfer = broken[0]
+        frame = tr.frames.decode(xfer.data)
+        want = tr.frames.compute_crc(frame.d, xfer.data[:4], xfer.data[6:])
+        return bad(f"{len(broken)} of {len(dut)} frames invalid; first: {_frame(xfer)} "
+                   f"D=0x{frame.d:X} "
+                   f"R=0x{frame.r:X} CRC 0x{frame.crc:04X}, expected 0x{want:04X}")
     return ok(f"{len(dut)} frames: CRC (L3 coverage), D and R valid")
 
 
@@ -97,12 +98,12 @@ def _restarted(tr: Trace) -> list[float]:
 def _since_restart(tr: Trace) -> Iterator[tuple[Xfer, int]]:
     """The DUT's DATA frames, each with the number of restarts (L10) before it."""
     restarts = _restarted(tr)
-    k = 0
-    for x in tr.xfers:
-        if x.direction == tr.dut_dir and x.kind == "DATA":
-            while k < len(restarts) and restarts[k] < x.time:
-                k += 1
-            yield x, k
+    count = 0
+    for xfer in tr.xfers:
+        if xfer.direction == tr.dut_dir and xfer.kind == "DATA":
+            while count < len(restarts) and restarts[count] < xfer.time:
+                count += 1
+            yield xfer, count
 
 
 def _repeats(tr: Trace) -> set[int]:
@@ -110,10 +111,10 @@ def _repeats(tr: Trace) -> set[int]:
     restart (resends: judged by LINK-NORESEND alone)."""
     seen: dict[tuple[bytes, int], float] = {}
     out: set[int] = set()
-    for x, era in _since_restart(tr):
-        if x.time - seen.get((x.data, era), -10.0) < 1.0:
-            out.add(x.index)
-        seen[(x.data, era)] = x.time
+    for xfer, era in _since_restart(tr):
+        if xfer.time - seen.get((xfer.data, era), -10.0) < 1.0:
+            out.add(xfer.index)
+        seen[(xfer.data, era)] = xfer.time
     return out
 
 
@@ -131,83 +132,86 @@ def link_num(ctx: Context, tr: Trace) -> Outcome:
     """L4: +1 per DATA frame mod 4096, 0 after a reset. L10: a host that resets the EyeQ (a
     reset-line pulse, Switch EyeQ Application) numbers its frames from 0 again."""
     last: int | None = None
-    n = 0
-    for x in _dut_data(tr):
-        n += 1
-        if last is not None and x.num not in ((last + 1) % SEQ_MODULO, 0):
-            return bad(f"{_frame(x)}: expected NUM {(last + 1) % SEQ_MODULO} (or 0 after a "
-                       f"reset), saw {x.num}")
-        last = x.num
-    if not n:
+    count = 0
+    for xfer in _dut_data(tr):
+        count += 1
+        if last is not None and xfer.num not in ((last + 1) % SEQ_MODULO, 0):
+            return bad(f"{_frame(xfer)}: expected NUM {(last + 1) % SEQ_MODULO} (or 0 after a "
+                       f"reset), saw {xfer.num}")
+        last = xfer.num
+    if not count:
         return unsure("no DATA frames")
     restarts = 0
     if tr.dut == "host":
-        data = [x for x in tr.xfers if x.direction == tr.dut_dir and x.kind == "DATA"]
-        for m in tr.marks:
-            if m.label not in ("reset_line", "soft_reset"):
+        data = [xfer for xfer in tr.xfers if xfer.direction == tr.dut_dir and xfer.kind == "DATA"]
+        for mark in tr.marks:
+            if mark.label not in ("reset_line", "soft_reset"):
                 continue
-            after = [x for x in data if m.time < x.time <= m.time + RENUMBER_WITHIN]
-            if after and m.time + RENUMBER_WITHIN <= tr.end \
-                    and not any(x.num == 0 for x in after):
-                return bad(f"the host reset us at {at(m.time)} ({m.label}); its {len(after)} "
+            after = [xfer for xfer in data if mark.time < xfer.time <= mark.time + RENUMBER_WITHIN]
+            if after and mark.time + RENUMBER_WITHIN <= tr.end \
+                    and not any(xfer.num == 0 for xfer in after):
+                return bad(f"the host reset us at {at(mark.time)} ({mark.label}); its {len(after)} "
                            f"DATA frames in the next {RENUMBER_WITHIN:.0f} s, from "
                            f"{_frame(after[0])}, never number from 0 again (L10: a reset "
                            "starts both link directions afresh)")
             restarts += bool(after)
     extra = f"; numbered from 0 again after each of {restarts} resets (L10)" if restarts else ""
-    return ok(f"{n} DATA frames numbered +1 mod 4096{extra}")
+    return ok(f"{count} DATA frames numbered +1 mod 4096{extra}")
 
 
 def link_ack(ctx: Context, tr: Trace) -> Outcome:
     """L5, §6 ackTimeout: every DATA frame we sent is ACKed with RSP = its NUM, and every ACK's
     latency is judged against ackTimeout (count, worst, the frames). After a reset, frames may
     be NAKed 0x001 (or lost) until the first ACK: LINK-RESYNC judges that stretch."""
-    n = 0
+    count = 0
     resets = sorted(tr.resets())
     resyncing_since: float | None = None
     limit = ACK_TIMEOUT + ack_slack(ctx)
     late: list[tuple[Xfer, Xfer]] = []
     lost: list[Xfer] = []
-    for a in answers(tr, ctx.slack):
-        x, r = a.frame, a.reply
-        while resets and resets[0] <= x.time:
+    for answer in answers(tr, ctx.slack):
+        xfer, reply = answer.frame, answer.reply
+        while resets and resets[0] <= xfer.time:
             resyncing_since = resets.pop(0)
-        if x.probe is not None or _near_reset(tr, x.time):
+        if xfer.probe is not None or _near_reset(tr, xfer.time):
             continue
         if resyncing_since is not None:
-            if r is None or _nak_reason(r) == NakReason.OUT_OF_WINDOW:
+            if reply is None or _nak_reason(reply) == NakReason.OUT_OF_WINDOW:
                 continue
             resyncing_since = None
-        if r is None and x.time + 5 * ACK_TIMEOUT + ctx.slack > tr.end:
+        if reply is None and xfer.time + 5 * ACK_TIMEOUT + ctx.slack > tr.end:
             continue  # sent as the session ended: its ACK had no time to come
-        n += 1
-        if r is None:
-            lost.append(x)
-        elif r.kind != "ACK" or r.num != 0:
-            return bad(f"{_frame(x)} answered by {r.kind} #{r.index} NUM/reason {r.num}, "
+        count += 1
+        if reply is None:
+            lost.append(xfer)
+        elif reply.kind != "ACK" or reply.num != 0:
+            return bad(f"{_frame(xfer)} answered by {reply.kind} #{reply.index} NUM/reason "
+                       f"{reply.num}, "
                        "expected an ACK with NUM 0")
-        elif r.time - x.time > limit:
-            late.append((x, r))
-    if not n:
+        elif reply.time - xfer.time > limit:
+            late.append((xfer, reply))
+    if not count:
         return unsure("none of our frames could be judged")
     if lost or late:
         parts = []
         spans: list[Span] = []
         if lost:
-            parts.append(f"{len(lost)} of {n} DATA frames never answered (no ACK with their "
+            parts.append(f"{len(lost)} of {count} DATA frames never answered (no ACK with their "
                          f"NUM within {1e3 * 5 * ACK_TIMEOUT:.0f} ms), first {_frame(lost[0])}")
-            spans += [(x.time, x.time + 5 * ACK_TIMEOUT, 4 * ACK_TIMEOUT) for x in lost]
+            spans += [(xfer.time, xfer.time + 5 * ACK_TIMEOUT, 4 * ACK_TIMEOUT) for xfer in lost]
         if late:
             worst = max(late, key=lambda p: p[1].time - p[0].time)
-            frames = ", ".join(f"#{x.index}->#{r.index} {1e3 * (r.time - x.time):.2f} ms"
-                               for x, r in late[:5])
-            parts.append(f"{len(late)} of {n} ACKs later than ackTimeout "
+            frames = ", ".join(f"#{xfer.index}->#{reply.index} "
+                               f"{1e3 * (reply.time - xfer.time):.2f} ms"
+                               for xfer, reply in late[:5])
+            parts.append(f"{len(late)} of {count} ACKs later than ackTimeout "
                          f"{1e3 * ACK_TIMEOUT:.0f} ms (§6, L7), worst "
                          f"{1e3 * (worst[1].time - worst[0].time):.2f} ms for {_frame(worst[0])}"
                          f"; first: {frames}")
-            spans += [(x.time, r.time, r.time - x.time - ACK_TIMEOUT) for x, r in late]
+            spans += [(xfer.time, reply.time, reply.time - xfer.time - ACK_TIMEOUT)
+                      for xfer, reply in late]
         return bad("; ".join(parts), spans)
-    return ok(f"{n} DATA frames ACKed with RSP = NUM within ackTimeout "
+    return ok(f"{count} DATA frames ACKed with RSP = NUM within ackTimeout "
               f"{1e3 * ACK_TIMEOUT:.0f} ms")
 
 
@@ -221,33 +225,36 @@ def ack_slack(ctx: Context) -> float:
 def link_pad(ctx: Context, tr: Trace) -> Outcome:
     """§6 and L1: an ACK or NAK frame carries "122 pad bytes set to 0". L3 lets a receiver
     ignore them; a sender must still send zeros."""
-    ctl = [x for x in tr.xfers if x.direction == tr.dut_dir and x.kind in ("ACK", "NAK")]
-    dirty = [x for x in ctl if any(x.data[6:])]
+    ctl = [xfer for xfer in tr.xfers
+           if xfer.direction == tr.dut_dir and xfer.kind in ("ACK", "NAK")]
+    dirty = [xfer for xfer in ctl if any(xfer.data[6:])]
     if dirty:
-        x = dirty[0]
-        pos = next(i for i in range(6, len(x.data)) if x.data[i])
+        xfer = dirty[0]
+        pos = next(i for i in range(6, len(xfer.data)) if xfer.data[i])
         return bad(f"{len(dirty)} of {len(ctl)} ACK/NAK frames have non-zero pad bytes; first: "
-                   f"{x.kind} #{x.index} at {at(x.time)}, byte {pos} = 0x{x.data[pos]:02X} "
+                   f"{xfer.kind} #{xfer.index} at {at(xfer.time)}, byte {pos} = "
+                   f"0x{xfer.data[pos]:02X} "
                    "(§6: 122 pad bytes set to 0)")
-    kinds = {k: sum(1 for x in ctl if x.kind == k) for k in ("ACK", "NAK")}
+    kinds = {k: sum(1 for xfer in ctl if xfer.kind == k) for k in ("ACK", "NAK")}
     if not ctl:
         return skip("the DUT sent no ACK or NAK frame")
     return ok(f"{kinds['ACK']} ACK and {kinds['NAK']} NAK frames, every pad byte 0")
 
 
 def _probe_nak(ctx: Context, tr: Trace, labels: tuple[str, ...], reason: NakReason) -> Outcome:
-    found = [a for a in answers(tr, ctx.slack) if a.frame.probe in labels]
+    found = [answer for answer in answers(tr, ctx.slack) if answer.frame.probe in labels]
     if not found:
         return skip("the probe was not sent (its step did not run)")
     parts = []
-    for a in found:
-        got = _nak_reason(a.reply)
-        if got != int(reason) or a.reply is None:
-            seen = "nothing" if a.reply is None else \
-                f"{a.reply.kind} #{a.reply.index} RSP {a.reply.rsp} NUM/reason 0x{a.reply.num:03X}"
-            return bad(f"probe {a.frame.probe} {_frame(a.frame)}: expected NAK 0x{reason:03X} "
-                       f"with RSP {a.frame.num}, saw {seen}")
-        parts.append(f"{a.frame.probe} #{a.frame.index} -> NAK #{a.reply.index}")
+    for answer in found:
+        got = _nak_reason(answer.reply)
+        if got != int(reason) or answer.reply is None:
+            reply = answer.reply
+            seen = "nothing" if reply is None else \
+                f"{reply.kind} #{reply.index} RSP {reply.rsp} NUM/reason 0x{reply.num:03X}"
+            return bad(f"probe {answer.frame.probe} {_frame(answer.frame)}: expected NAK "
+                       f"0x{reason:03X} with RSP {answer.frame.num}, saw {seen}")
+        parts.append(f"{answer.frame.probe} #{answer.frame.index} -> NAK #{answer.reply.index}")
     return ok("; ".join(parts))
 
 
@@ -264,17 +271,19 @@ def nak_window(ctx: Context, tr: Trace) -> Outcome:
 
 
 def link_dup(ctx: Context, tr: Trace) -> Outcome:
-    pair = [a for a in answers(tr, ctx.slack) if a.frame.probe == "dup"]
+    pair = [answer for answer in answers(tr, ctx.slack) if answer.frame.probe == "dup"]
     if not pair:
         return skip("the duplicate was not sent")
-    a = pair[0]
-    if a.reply is None or a.reply.kind != "ACK":
-        seen = "nothing" if a.reply is None else f"{a.reply.kind} #{a.reply.index}"
-        return bad(f"duplicate {_frame(a.frame)}: expected an ACK with RSP {a.frame.num} (L6), "
+    answer = pair[0]
+    if answer.reply is None or answer.reply.kind != "ACK":
+        seen = "nothing" if answer.reply is None else f"{answer.reply.kind} #{answer.reply.index}"
+        return bad(f"duplicate {_frame(answer.frame)}: expected an ACK with RSP {answer.frame.num} "
+                   "(L6), "
                    f"saw {seen}")
     mark = tr.first_mark("dup_request")
     if tr.dut == "host" or mark is None:
-        return ok(f"duplicate {_frame(a.frame)} ACKed again by #{a.reply.index}; whether the "
+        return ok(f"duplicate {_frame(answer.frame)} ACKed again by #{answer.reply.index}; whether "
+                  "the "
                   "host dropped its payload is not observable on the link")
     tag = int(mark.info["tag"])
     replies = [m for m in tr.dut_msgs() if m.decoded.protocol == "MESP"
@@ -282,9 +291,9 @@ def link_dup(ctx: Context, tr: Trace) -> Outcome:
                and m.header.get("function") == mark.info["function"]
                and mark.time <= m.time <= mark.time + 1.0]
     if len(replies) != 1:
-        return bad(f"duplicate {_frame(a.frame)} ACKed, but the request was answered "
+        return bad(f"duplicate {_frame(answer.frame)} ACKed, but the request was answered "
                    f"{len(replies)} times (expected once: the duplicate is dropped)")
-    return ok(f"duplicate {_frame(a.frame)} ACKed again by #{a.reply.index} and dropped "
+    return ok(f"duplicate {_frame(answer.frame)} ACKed again by #{answer.reply.index} and dropped "
               f"(one reply, #{replies[0].indices[-1]})")
 
 
@@ -294,19 +303,19 @@ def link_resync(ctx: Context, tr: Trace) -> Outcome:
         return skip("our reset was not simulated")
     naks = 0
     first_ack: Xfer | None = None
-    for a in answers(tr, ctx.slack):
-        if a.frame.time < mark.time or a.frame.probe is not None:
+    for answer in answers(tr, ctx.slack):
+        if answer.frame.time < mark.time or answer.frame.probe is not None:
             continue
-        if a.reply is None:
+        if answer.reply is None:
             continue
-        if a.reply.kind == "ACK":
-            first_ack = a.reply
+        if answer.reply.kind == "ACK":
+            first_ack = answer.reply
             break
-        if _nak_reason(a.reply) == NakReason.OUT_OF_WINDOW:
+        if _nak_reason(answer.reply) == NakReason.OUT_OF_WINDOW:
             naks += 1
         else:
-            return bad(f"after our reset at {at(mark.time)}, {_frame(a.frame)} got "
-                       f"NAK 0x{a.reply.num:03X} (only 0x001 is expected before resync)")
+            return bad(f"after our reset at {at(mark.time)}, {_frame(answer.frame)} got "
+                       f"NAK 0x{answer.reply.num:03X} (only 0x001 is expected before resync)")
     if first_ack is None:
         return bad(f"after our reset at {at(mark.time)} none of our frames was ACKed again")
     if naks > RESYNC_NAKS:
@@ -317,22 +326,23 @@ def link_resync(ctx: Context, tr: Trace) -> Outcome:
 
 def link_noresend(ctx: Context, tr: Trace) -> Outcome:
     seen: dict[int, tuple[float, bytes, int, int]] = {}
-    n = 0
-    for x, era in _since_restart(tr):  # L10: never a repeat of a frame before a reset
-        n += 1
-        prev = seen.get(x.num)
-        if prev is not None and prev[1] == x.data and x.time - prev[0] < 1.0 \
+    count = 0
+    for xfer, era in _since_restart(tr):  # L10: never a repeat of a frame before a reset
+        count += 1
+        prev = seen.get(xfer.num)
+        if prev is not None and prev[1] == xfer.data and xfer.time - prev[0] < 1.0 \
                 and prev[3] == era:
-            return bad(f"{_frame(x)} repeats frame #{prev[2]} byte for byte "
-                       f"{1e3 * (x.time - prev[0]):.1f} ms later: a resend (§6, L7)")
-        seen[x.num] = (x.time, x.data, x.index, era)
-    if not n:
+            return bad(f"{_frame(xfer)} repeats frame #{prev[2]} byte for byte "
+                       f"{1e3 * (xfer.time - prev[0]):.1f} ms later: a resend (§6, L7)")
+        seen[xfer.num] = (xfer.time, xfer.data, xfer.index, era)
+    if not count:
         return unsure("no DATA frames")
     unacked = _unacked(tr)
     if not unacked:
-        return skip(f"all {n} DATA frames of the DUT were ACKed within ackTimeout: it never had "
+        return skip(f"all {count} DATA frames of the DUT were ACKed within ackTimeout: it never "
+                    "had "
                     "a frame to resend")
-    return ok(f"{n} DATA frames, none resent: {unacked} of them were not ACKed within "
+    return ok(f"{count} DATA frames, none resent: {unacked} of them were not ACKed within "
               "ackTimeout (our ACK blackout, our probes and resets, or lost on the link), each "
               "a frame the DUT might have resent, and it resent none (§6, L7)")
 
@@ -340,13 +350,13 @@ def link_noresend(ctx: Context, tr: Trace) -> Outcome:
 def _unacked(tr: Trace) -> int:
     """DUT DATA frames that no ACK of ours with their NUM followed within ackTimeout."""
     acks: dict[int, list[float]] = {}
-    for x in tr.xfers:
-        if x.direction == tr.our_dir and x.kind == "ACK":
-            acks.setdefault(x.rsp, []).append(x.time)
+    for xfer in tr.xfers:
+        if xfer.direction == tr.our_dir and xfer.kind == "ACK":
+            acks.setdefault(xfer.rsp, []).append(xfer.time)
     out = 0
-    for x in tr.xfers:
-        if x.direction == tr.dut_dir and x.kind == "DATA" and not any(
-                x.time <= t <= x.time + ACK_TIMEOUT for t in acks.get(x.num, ())):
+    for xfer in tr.xfers:
+        if xfer.direction == tr.dut_dir and xfer.kind == "DATA" and not any(
+                xfer.time <= t <= xfer.time + ACK_TIMEOUT for t in acks.get(xfer.num, ())):
             out += 1
     return out
 
@@ -357,22 +367,22 @@ def link_window(ctx: Context, tr: Trace) -> Outcome:
     outstanding: dict[int, float] = {}
     worst = 0
     repeats = _repeats(tr)
-    for x in tr.xfers:
-        if x.direction == tr.our_dir and x.kind in ("ACK", "NAK"):
-            outstanding.pop(x.rsp, None)
-        elif x.direction == tr.dut_dir and x.kind == "DATA" and x.index not in repeats:
-            horizon = x.time - (ACK_TIMEOUT - 0.0005) + (0.0 if not ctx.realtime else 0.005)
+    for xfer in tr.xfers:
+        if xfer.direction == tr.our_dir and xfer.kind in ("ACK", "NAK"):
+            outstanding.pop(xfer.rsp, None)
+        elif xfer.direction == tr.dut_dir and xfer.kind == "DATA" and xfer.index not in repeats:
+            horizon = xfer.time - (ACK_TIMEOUT - 0.0005) + (0.0 if not ctx.realtime else 0.005)
             for num in [n for n, t in outstanding.items() if t <= horizon]:
                 del outstanding[num]
-            outstanding[x.num] = x.time
+            outstanding[xfer.num] = xfer.time
             worst = max(worst, len(outstanding))
             if len(outstanding) > W:
                 # the measurement: the frames counted, from the oldest; its excess, how much
                 # older the frame that makes W + 1 had to be to leave the count
                 times = sorted(outstanding.values())
                 excess = times[len(times) - W - 1] - horizon
-                return bad(f"{_frame(x)}: {len(outstanding)} DATA frames unacknowledged within "
-                           f"ackTimeout (L7: at most {W})", [(times[0], x.time, excess)])
+                return bad(f"{_frame(xfer)}: {len(outstanding)} DATA frames unacknowledged within "
+                           f"ackTimeout (L7: at most {W})", [(times[0], xfer.time, excess)])
     blackout = tr.first_mark("ack_blackout")
     note = f" (ACK blackout at {at(blackout.time)})" if blackout else ""
     if worst < W:
@@ -386,16 +396,16 @@ def _transfers(tr: Trace) -> list[tuple[Xfer, Xfer, int]]:
     """(first frame, last frame seen, frames) of each multi-frame transfer the DUT sent."""
     out: list[tuple[Xfer, Xfer, int]] = []
     cur: list[Xfer] = []
-    for x in tr.xfers:
-        if x.direction != tr.dut_dir or x.kind != "DATA":
+    for xfer in tr.xfers:
+        if xfer.direction != tr.dut_dir or xfer.kind != "DATA":
             continue
-        t = x.ttype
-        if t == FIRST:
+        ttype = xfer.ttype
+        if ttype == FIRST:
             if cur:
                 out.append((cur[0], cur[-1], len(cur)))
-            cur = [x]
-        elif t == CONSECUTIVE and cur and x.data[7] == cur[0].data[7]:
-            cur.append(x)
+            cur = [xfer]
+        elif ttype == CONSECUTIVE and cur and xfer.data[7] == cur[0].data[7]:
+            cur.append(xfer)
     if cur:
         out.append((cur[0], cur[-1], len(cur)))
     return out
@@ -404,11 +414,11 @@ def _transfers(tr: Trace) -> list[tuple[Xfer, Xfer, int]]:
 def link_txtimeout(ctx: Context, tr: Trace) -> Outcome:
     slack = 0.001 if not ctx.realtime else 0.010
     ts = _transfers(tr)
-    for first, last, n in ts:
+    for first, last, count in ts:
         if last.time - first.time > TX_TIMEOUT + slack:
             excess = last.time - first.time - TX_TIMEOUT
             return bad(f"transfer ID {first.data[7]}: first frame #{first.index} at "
-                       f"{at(first.time)}, frame {n} #{last.index} at {at(last.time)}: "
+                       f"{at(first.time)}, frame {count} #{last.index} at {at(last.time)}: "
                        f"{1e3 * (last.time - first.time):.1f} ms > transmitTimeout "
                        f"{1e3 * TX_TIMEOUT:.0f} ms", [(first.time, last.time, excess)])
     if not ts:
@@ -446,33 +456,33 @@ def tp_format(ctx: Context, tr: Trace) -> Outcome:
     limit = int(_T["receive_limit"]["host" if tr.dut == "eyeq" else "eyeq"])
     open_id: int | None = None
     interloper: Xfer | None = None
-    n = 0
-    for x in _dut_data(tr):
-        n += 1
-        d, t = x.data, x.ttype
-        if t == SINGLE:
-            size = d[7]
-            if not 1 <= size <= _T["single_max"] or any(d[8 + size:]):
-                return bad(f"{_frame(x)}: single frame size {size}, pad not zero or size out "
+    count = 0
+    for xfer in _dut_data(tr):
+        count += 1
+        data, ttype = xfer.data, xfer.ttype
+        if ttype == SINGLE:
+            size = data[7]
+            if not 1 <= size <= _T["single_max"] or any(data[8 + size:]):
+                return bad(f"{_frame(xfer)}: single frame size {size}, pad not zero or size out "
                            "of 1..120 (T2)")
             if open_id is not None:
-                interloper = x
-        elif t == FIRST:
-            total = int.from_bytes(d[8:12], "little")
+                interloper = xfer
+        elif ttype == FIRST:
+            total = int.from_bytes(data[8:12], "little")
             if not _T["first_total_min"] <= total <= limit:
-                return bad(f"{_frame(x)}: first frame total {total} outside "
+                return bad(f"{_frame(xfer)}: first frame total {total} outside "
                            f"{_T['first_total_min']}..{limit} (T3)")
-            open_id, interloper = d[7], None
-        elif t == CONSECUTIVE:
-            if open_id is None or d[7] != open_id:
-                return bad(f"{_frame(x)}: consecutive frame ID {d[7]}, open transfer "
+            open_id, interloper = data[7], None
+        elif ttype == CONSECUTIVE:
+            if open_id is None or data[7] != open_id:
+                return bad(f"{_frame(xfer)}: consecutive frame ID {data[7]}, open transfer "
                            f"{open_id} (T4)")
             if interloper is not None:
-                return bad(f"{_frame(x)} continues transfer {open_id} after "
+                return bad(f"{_frame(xfer)} continues transfer {open_id} after "
                            f"frame #{interloper.index} interleaved (T5)")
         else:
-            return bad(f"{_frame(x)}: transport type 0x{t:02X} (T1)")
-    return ok(f"{n} DATA frames with valid single/first/consecutive headers") if n else \
+            return bad(f"{_frame(xfer)}: transport type 0x{ttype:02X} (T1)")
+    return ok(f"{count} DATA frames with valid single/first/consecutive headers") if count else \
         unsure("no DATA frames")
 
 
@@ -483,15 +493,16 @@ def tp_tid(ctx: Context, tr: Trace) -> Outcome:
         return unsure(f"{len(firsts)} multi-frame transfers: nothing to compare")
     restarts = tr.restarts(tr.dut_dir)
     skips = 0
-    for a, b in pairwise(firsts):
-        if any(a.time < r <= b.time for r in restarts):
+    for earlier, later in pairwise(firsts):
+        if any(earlier.time < r <= later.time for r in restarts):
             continue
-        step = (b.data[7] - a.data[7]) % _T["transfer_id_modulo"]
+        step = (later.data[7] - earlier.data[7]) % _T["transfer_id_modulo"]
         # a message that failed before its first frame left consumed its ID (L7): a step of a
         # few is allowed where the link was disturbed, never 0 or backwards
-        lost_ok = tr.disturbed(a.time, b.time) or tr.realtime
+        lost_ok = tr.disturbed(earlier.time, later.time) or tr.realtime
         if step != 1 and not (lost_ok and 1 < step <= 2 * W):
-            return bad(f"transfer ID {a.data[7]} (#{a.index}) then {b.data[7]} (#{b.index}): "
+            return bad(f"transfer ID {earlier.data[7]} (#{earlier.index}) then {later.data[7]} "
+                       f"(#{later.index}): "
                        "expected +1 (T3)")
         skips += step != 1
     extra = f" ({skips} steps over IDs of messages lost on a disturbed link)" if skips else ""
@@ -502,12 +513,12 @@ def _reply_to(tr: Trace, tag: int, since: float, function: int = 0x04) -> list[i
     """``ret`` of every DUT reply to (0x05, ``function``) with counter ``tag`` within 1 s after
     ``since`` (our probes use Get EyeQ Versions unless told otherwise)."""
     out = []
-    for m in tr.dut_msgs():
-        h = m.header
-        if m.decoded.protocol == "MESP" and h.get("reply") and h.get("counter") == tag \
-                and h.get("function") == function and since <= m.time <= since + 1.0 \
-                and len(m.data) >= 9:
-            out.append(int.from_bytes(m.data[5:9], "little"))
+    for msg in tr.dut_msgs():
+        header = msg.header
+        if msg.decoded.protocol == "MESP" and header.get("reply") and header.get("counter") == tag \
+                and header.get("function") == function and since <= msg.time <= since + 1.0 \
+                and len(msg.data) >= 9:
+            out.append(int.from_bytes(msg.data[5:9], "little"))
     return out
 
 
@@ -525,16 +536,16 @@ def tp_limit(ctx: Context, tr: Trace) -> Outcome:
 
 
 def tp_abort(ctx: Context, tr: Trace) -> Outcome:
-    marks = {m.label: m for m in tr.marks if m.label.startswith("abort_")}
+    marks = {mark.label: mark for mark in tr.marks if mark.label.startswith("abort_")}
     if "abort_control" not in marks:
         return skip("the transport probes were not sent")
     if not _reply_to(tr, TAG_CONTROL, marks["abort_control"].time):
         return unsure("the complete 300-byte control request got no reply either")
     for label, tag in (("abort_gap", TAG_GAP), ("abort_silence", TAG_SILENCE)):
-        m = marks.get(label)
-        if m is not None and _reply_to(tr, tag, m.time):
+        mark = marks.get(label)
+        if mark is not None and _reply_to(tr, tag, mark.time):
             why = "a NUM gap" if label == "abort_gap" else "25 ms of silence"
-            return bad(f"the request broken by {why} at {at(m.time)} was answered: the "
+            return bad(f"the request broken by {why} at {at(mark.time)} was answered: the "
                        "transfer was not aborted (T6)")
     return ok("control request answered; the one with a NUM gap and the one with 40 ms of "
               "silence were aborted (no reply)")

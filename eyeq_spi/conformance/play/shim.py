@@ -61,38 +61,38 @@ class Shim:
 
     # -- node interface --------------------------------------------------------------------
     def receive_data(self, transfer: bytes, now: float) -> None:
-        self.trace.record(self.trace.dut_dir, now, transfer)
+        self.trace.add(self.trace.dut_dir, now, transfer)
         self.node.receive_data(transfer, now)
 
     def data_to_send(self, now: float) -> list[bytes]:
         out: list[bytes] = []
         while self._inject:
             raw, injected = self._inject.popleft()
-            self.trace.record(self.trace.our_dir, now, raw, injected)
+            self.trace.add(self.trace.our_dir, now, raw, injected)
             out.append(raw)
-        for t in self.node.data_to_send(now):
+        for transfer in self.node.data_to_send(now):
             label: str | None = None
-            kind = self.frames.unpack_header(int.from_bytes(t[:4], "little"))[0]
+            kind = self.frames.unpack_header(int.from_bytes(transfer[:4], "little"))[0]
             if kind in (FrameKind.ACK, FrameKind.NAK) and now < self.hold_acks_until:
                 self.withheld += 1
                 continue
             if kind == FrameKind.DATA and self._rules:
-                body = t[6:]
+                body = transfer[6:]
                 for rule in self._rules:
                     if rule.payload == body:
                         self._rules.remove(rule)
                         label = rule.label
                         if rule.action == "drop":
                             self.trace.mark(now, "dropped", probe=label)
-                            t = b""
+                            transfer = b""
                         elif rule.action == "duplicate":
-                            self.trace.record(self.trace.our_dir, now, t)  # the original
-                            out.append(t)
+                            self.trace.add(self.trace.our_dir, now, transfer)  # the original
+                            out.append(transfer)
                         break
-                if not t:
+                if not transfer:
                     continue
-            self.trace.record(self.trace.our_dir, now, t, label)
-            out.append(t)
+            self.trace.add(self.trace.our_dir, now, transfer, label)
+            out.append(transfer)
         return out
 
     def get_timer(self) -> float | None:
