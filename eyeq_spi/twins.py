@@ -1,4 +1,4 @@
-"""The exact/fast switch shared by every twin family.
+"""The reference/fast switch shared by every family of fast leaves.
 
 Where a hot path has a faster twin (numpy, ``struct``, a packed buffer), the
 pure-Python one is the reference: it is what the seed says, and the fast one is held to give

@@ -65,7 +65,7 @@ class Chunk:
         return int(self.length.shape[0])
 
     def record(self, i: int) -> Record:
-        """Row ``i`` as the exact engine's input."""
+        """Row ``i`` as the reference dissector's input."""
         t = float(self.time[i])
         data = self.odd.get(i)
         if data is None:

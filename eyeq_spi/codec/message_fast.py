@@ -13,10 +13,10 @@ A :class:`VecLayout` is built once per :class:`~eyeq_spi.codec.layout.Layout` fr
   Long plans with few rows go through ``binascii.crc_hqx`` row by row, which is cheaper there.
   Rolling counters are checked against the previous row of the group and the ``E2EState``;
 - the enum checks of the dissector (complete ``values`` enums on scalar members, in the order the
-  exact engine visits them, at most ten per message).
+  reference dissector visits them, at most ten per message).
 
 ``verify`` and ``enum_errors`` give, row by row, the same strings as
-:func:`eyeq_spi.codec.e2e.verify` and the exact engine's enum check, and update the
+:func:`eyeq_spi.codec.e2e.verify` and the reference dissector's enum check, and update the
 ``E2EState`` the same way; the tests hold them to that for every struct variant.
 """
 
@@ -40,7 +40,7 @@ NP_TYPE = {"uint8": "u1", "uint16": "<u2", "uint32": "<u4", "uint64": "<u8", "in
            "int16": "<i2", "int32": "<i4", "int64": "<i8", "real32": "<f4", "real64": "<f8",
            "bool": "u1"}
 INT_TYPES = {"uint8", "uint16", "uint32", "uint64", "int8", "int16", "int32", "int64", "bool"}
-MAX_ENUM_ERRORS = 10  # the exact engine keeps the first ten (engine._enum_errors)
+MAX_ENUM_ERRORS = 10  # the reference dissector keeps the first ten (engine._enum_errors)
 
 
 def crc_word_tables(crc: Callable[[bytes], int]) -> tuple[np.ndarray, np.ndarray]:
@@ -48,7 +48,7 @@ def crc_word_tables(crc: Callable[[bytes], int]) -> tuple[np.ndarray, np.ndarray
     from 0, for a CRC-16 function ``crc`` of the form CRC-16/CCITT-FALSE has (not reflected,
     xorout 0, so linear in the register). ``crc`` starts at ``init``; its two big-endian bytes
     bring the register to 0, so ``crc(init_bytes + bytes([b]))`` is T1[b]; T2 is composed from
-    T1. Built once per function (the frame CRC of the dissector's batch path, L3, and the E2E
+    T1. Built once per function (the frame CRC of the dissector's fast path, L3, and the E2E
     CRCs here are the same ``crc16``); a caller with another function checks the tables."""
     got = _WORD_TABLES.get(crc)
     if got is None:
@@ -376,7 +376,7 @@ class VecLayout:
                 bad &= rows
             if bad.any():
                 found[i] = (bad, col)
-        for i in sorted(found):  # in the exact engine's order of the leaves
+        for i in sorted(found):  # in the reference dissector's order of the leaves
             bad, col = found[i]
             e = self.enums[i]
             for r in np.flatnonzero(bad).tolist():

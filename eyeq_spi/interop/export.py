@@ -1,7 +1,7 @@
 """One pass over a capture feeding every export asked for: VCD waveforms (raw transfers, no
 decoding), MDF4 and MCAP (through the dissector engine, so they hold exactly what ``eyeq-spi
 dissect`` decodes). MDF4 alone is written from the dissect pipeline's records
-(:func:`export_mdf`: the batch path where it applies); VCD and MCAP need the raw transfers
+(:func:`export_mdf`: the fast path where it applies); VCD and MCAP need the raw transfers
 (:func:`export`)."""
 
 from __future__ import annotations

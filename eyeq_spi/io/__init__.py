@@ -155,7 +155,7 @@ def readers() -> tuple[str, ...]:
 
 
 def fast_readers() -> tuple[str, ...]:
-    """The capture readers the fast path reads (the others take the exact path)."""
+    """The capture readers the fast path reads (the others take the reference)."""
     return tuple(f.name for f in formats(CAPTURE_READER) if f.fast)
 
 

@@ -207,7 +207,7 @@ def collect(path: str, collector: Collector, *, fmt: str | None = None,
 
 
 def collect_capture(cf: CaptureFile, collector: Collector) -> Collected:
-    """An opened capture's records through ``collector`` (the batch path where it applies),
+    """An opened capture's records through ``collector`` (the fast path where it applies),
     until the collector is done."""
     items = cf.items
     try:
