@@ -25,7 +25,7 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import build
 from eyeq_spi.errors import UsageError
 from eyeq_spi.monitor.app import run
-from eyeq_spi.monitor.model import RateMeter, Snapshot, band
+from eyeq_spi.monitor.model import RateMeter, RateRow, Snapshot, band
 from eyeq_spi.monitor.sources import DemoSource, DissectSource, HostSource, ReplaySource
 from eyeq_spi.monitor.view import render
 from eyeq_spi.plot.perceived import OBSTACLES, ROAD
@@ -90,6 +90,16 @@ def test_a_reset_gap_inside_the_window_is_not_averaged_in() -> None:
     _feed(wide, {name: _every(0.015, 0.0, 1.0) + _every(0.015, 3.0, 4.0)}, [4.0])
     row = {r.name: r for r in wide.rows()}[name]
     assert row.hz == pytest.approx(66.67, abs=0.05) and row.gaps == 1
+
+
+def test_the_screen_says_when_a_gap_was_left_out() -> None:
+    rows = [RateRow("HOST_VEH_STATE_MSG", 90, 66.67, 66.67, (50.0, 100.0), "ok", 1),
+            RateRow(OBSTACLES, 20, 18.0, 18.0, (15.0, 21.0), "ok", 0)]
+    text = _text(render(Snapshot("demo", 2.6, "host state", "RUNNING_VISION", rates=rows)))
+    assert "messages (Hz over 2 s; 1 gap left out)" in text
+    rows[0] = RateRow("HOST_VEH_STATE_MSG", 90, 66.67, 66.67, (50.0, 100.0), "ok", 0)
+    text = _text(render(Snapshot("demo", 2.6, "host state", "RUNNING_VISION", rates=rows)))
+    assert "messages (Hz over 2 s)" in text
 
 
 @pytest.fixture(scope="module")
