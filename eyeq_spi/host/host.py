@@ -130,10 +130,8 @@ class HostEmulator:
         self._subscribers.append(callback)
 
     def subscribe_traffic(self, callback: TrafficSubscriber) -> None:
-        """``callback(name, now)`` for each message as the host counts it in
-        ``counters.received`` (every one received, delivered or not) and for each
-        HOST_VEH_STATE_MSG it sends (``counters.sent``), whatever ``keep_rx_times`` says: the
-        times a monitor takes its rates from."""
+        """``callback(name, now)`` as the host counts a message received (delivered or not)
+        or a HOST_VEH_STATE_MSG sent, whatever ``keep_rx_times`` says (a monitor's rates)."""
         self._traffic_subscribers.append(callback)
 
     def messages(self) -> AsyncIterator[DecodedMessage]:
