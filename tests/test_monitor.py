@@ -25,7 +25,7 @@ from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import build
 from eyeq_spi.errors import UsageError
 from eyeq_spi.monitor.app import run
-from eyeq_spi.monitor.model import RateMeter, Snapshot, band
+from eyeq_spi.monitor.model import RateMeter, RateRow, Snapshot, band
 from eyeq_spi.monitor.sources import DemoSource, DissectSource, HostSource, ReplaySource
 from eyeq_spi.monitor.view import render
 from eyeq_spi.plot.perceived import OBSTACLES, ROAD
@@ -40,22 +40,66 @@ def _text(renderable: Any, width: int = 150) -> str:
     return con.export_text()
 
 
+def _feed(meter: RateMeter, streams: dict[str, list[float]], ticks: list[float]) -> None:
+    """Arrivals of each stream, with a redraw (tick) at each of ``ticks``."""
+    arrivals = sorted((t, name) for name, times in streams.items() for t in times)
+    counts: dict[str, int] = dict.fromkeys(streams, 0)
+    k = 0
+    for now in ticks:
+        while k < len(arrivals) and arrivals[k][0] <= now:
+            t, name = arrivals[k]
+            meter.arrived(name, t)
+            counts[name] += 1
+            k += 1
+        meter.tick(now, counts)
+
+
+def _every(period: float, start: float, stop: float) -> list[float]:
+    return [start + k * period for k in range(int((stop - start) / period + 1e-9) + 1)]
+
+
+TICKS = [k * 0.1 for k in range(1, 31)]  # 3 s of 10 Hz redraws
+
+
 def test_rates_against_nominal_in_virtual_time() -> None:
     meter = RateMeter(catalog())
-    counts = {OBSTACLES: 0, ROAD: 0, "HOST_VEH_STATE_MSG": 0}
-    for k in range(1, 31):  # 3 s of 10 Hz ticks
-        t = k * 0.1
-        counts[OBSTACLES] = int(t * 18)          # nominal
-        counts[ROAD] = int(min(t, 1.5) * 18)     # stops at 1.5 s
-        counts["HOST_VEH_STATE_MSG"] = int(t * 40)  # too slow (66.67 Hz nominal)
-        meter.tick(t, counts)
+    _feed(meter, {OBSTACLES: _every(1 / 18, 0.0, 3.0),  # nominal
+                  ROAD: _every(1 / 18, 0.0, 1.5),  # stops at 1.5 s
+                  "HOST_VEH_STATE_MSG": _every(1 / 40, 0.0, 3.0)},  # too slow (66.67 nominal)
+          TICKS)
     rows = {r.name: r for r in meter.rows()}
-    assert rows[OBSTACLES].hz == pytest.approx(18, abs=0.6) and rows[OBSTACLES].status == "ok"
+    assert rows[OBSTACLES].hz == pytest.approx(18, abs=0.01) and rows[OBSTACLES].status == "ok"
     assert rows[ROAD].status == "stopped" and rows[ROAD].hz == 0.0  # not 4.5: 9 in 2 s
+    assert rows[ROAD].count == 28
     assert rows["HOST_VEH_STATE_MSG"].status == "low"
     lo, hi = band(18, (-10, 10)) or (0, 0)
     assert lo == pytest.approx(1000 / (1000 / 18 + 10)) and hi == pytest.approx(
         1000 / (1000 / 18 - 10))
+
+
+def test_a_reset_gap_inside_the_window_is_not_averaged_in() -> None:
+    """The EyeQ's reset at bring-up silences its streams for a while: the rate is the rate
+    while the stream runs (stream_rate), with the gap counted, not the count over the window
+    (which read 26.7 Hz for a 66.7 Hz stream silent for 1.2 s of its 2 s window)."""
+    name = "HOST_VEH_STATE_MSG"
+    meter = RateMeter(catalog())
+    _feed(meter, {name: _every(0.015, 0.0, 1.0) + _every(0.015, 2.2, 2.6)}, [2.6])
+    row = {r.name: r for r in meter.rows()}[name]
+    assert row.hz == pytest.approx(66.67, abs=0.05) and row.status == "ok" and row.gaps == 1
+    wide = RateMeter(catalog(), window=4.0)  # a 2 s reset inside a 4 s window
+    _feed(wide, {name: _every(0.015, 0.0, 1.0) + _every(0.015, 3.0, 4.0)}, [4.0])
+    row = {r.name: r for r in wide.rows()}[name]
+    assert row.hz == pytest.approx(66.67, abs=0.05) and row.gaps == 1
+
+
+def test_the_screen_says_when_a_gap_was_left_out() -> None:
+    rows = [RateRow("HOST_VEH_STATE_MSG", 90, 66.67, 66.67, (50.0, 100.0), "ok", 1),
+            RateRow(OBSTACLES, 20, 18.0, 18.0, (15.0, 21.0), "ok", 0)]
+    text = _text(render(Snapshot("demo", 2.6, "host state", "RUNNING_VISION", rates=rows)))
+    assert "messages (Hz over 2 s; 1 gap left out)" in text
+    rows[0] = RateRow("HOST_VEH_STATE_MSG", 90, 66.67, 66.67, (50.0, 100.0), "ok", 0)
+    text = _text(render(Snapshot("demo", 2.6, "host state", "RUNNING_VISION", rates=rows)))
+    assert "messages (Hz over 2 s)" in text
 
 
 @pytest.fixture(scope="module")
@@ -393,11 +437,8 @@ def test_a_stream_that_stopped_between_sparse_redraws_reads_stopped() -> None:
     saw the count change (which read 'low' for a stopped stream)."""
     cat = MessageCodec().cat
     srp = "EYEQ_VIS_SRP_MSG"
-    sparse = RateMeter(cat)
-    sparse.tick(0.0, {srp: 0})
-    sparse.tick(1.4, {srp: 8})
-    assert {r.name: r.status for r in sparse.rows()}[srp] == "low"  # dated 1.4: not silent
-    dated = RateMeter(cat)
-    dated.tick(0.0, {srp: 0})
-    dated.tick(1.4, {srp: 8}, last_seen={srp: 0.99})
-    assert {r.name: r.status for r in dated.rows()}[srp] == "stopped"
+    sparse = RateMeter(cat)  # arrivals every 1/18 s until 1.0 s, one redraw at 1.4 s
+    _feed(sparse, {srp: _every(1 / 18, 0.0, 1.0)}, [0.0, 1.4])
+    assert {r.name: r.status for r in sparse.rows()}[srp] == "stopped"
+    _feed(sparse, {srp: [1.6]}, [1.61])
+    assert {r.name: r.status for r in sparse.rows()}[srp] != "stopped"  # it runs again

@@ -80,21 +80,22 @@ def test_a_stream_that_began_late_is_not_low() -> None:
     18 Hz and ok, not 9 Hz "low" over a 2 s window that holds the bring-up."""
     meter = RateMeter(catalog())
     name = "EYEQ_VIS_OBSTACLES_MSG"
-    for k in range(0, 16):  # ticks every 0.1 s; the stream starts at 0.5 s
-        t = k * 0.1
-        counts = {"HOST_VEH_STATE_MSG": int(t * 66.67)}
-        if t >= 0.5:
-            counts[name] = int((t - 0.5) * 18) + 1
-        meter.tick(t, counts)
+    arrivals = [(0.5 + k / 18, name) for k in range(19)] + [
+        (k * 0.015, "HOST_VEH_STATE_MSG") for k in range(101)]
+    counts: dict[str, int] = {}
+    for t, msg in sorted(arrivals):
+        meter.arrived(msg, t)
+        counts[msg] = counts.get(msg, 0) + 1
+    meter.tick(1.5, counts)
     row = {r.name: r for r in meter.rows()}[name]
-    assert row.hz == pytest.approx(18, abs=1.2) and row.status == "ok"
+    assert row.hz == pytest.approx(18, abs=0.01) and row.status == "ok"
 
 
 def test_a_fresh_stream_is_not_judged_yet() -> None:
     meter = RateMeter(catalog())
     name = "EYEQ_VIS_OBSTACLES_MSG"
-    meter.tick(0.0, {})
-    meter.tick(0.1, {name: 2})
+    for k in range(5):
+        meter.arrived(name, 0.05 + k / 18)
     meter.tick(0.3, {name: 5})
     assert {r.name: r for r in meter.rows()}[name].status == "-"
 

@@ -95,6 +95,16 @@ def test_link_lines_do_not_hide_one_another(stopped: Path) -> None:
     assert re.search(r"link: \d+ frames, 0 NAKs, 0 errors", fig._suptitle.get_text())
 
 
+def test_each_timing_row_states_its_rate_while_it_runs(stopped: Path) -> None:
+    """The row's rate is stream_rate's (as dissect --stats and monitor): ROAD's 0.4 s silence
+    is a gap left out, not averaged in (which would read about 14.5 Hz)."""
+    col = collect(str(stopped), Collector(MessageCodec(None), Window(), timing=True))
+    _fig, axes = timing_figure(col)
+    texts = {name: " ".join(t.get_text() for t in ax.texts) for name, ax in axes.items()}
+    assert "rate 18.0 Hz (1 gap left out)," in texts[ROAD], texts[ROAD]
+    assert re.match(r"rate 18\.0 Hz, \d+ messages", texts[OBSTACLES]), texts[OBSTACLES]
+
+
 def test_titles_count_in_words() -> None:
     scene = Scene(time=1.0, signs=[SceneSign(long=30.0, lat=-5.0, height=1.0, type=1,
                                              name="Speed Limit 50")])

@@ -58,6 +58,7 @@ __all__ = ["HostConfig", "HostCounters", "HostEmulator", "ResetLine", "Subscribe
 
 ResetLine = Callable[[float], None]
 Subscriber = Callable[[DecodedMessage], None]
+TrafficSubscriber = Callable[[str, float], None]  # (message name, when it was counted)
 EntryAction = Callable[[float], None]
 
 
@@ -99,6 +100,7 @@ class HostEmulator:
         self.last_diag: dict[str, Any] = {}
         self.calibration_result: dict[str, Any] | None = None
         self._subscribers: list[Subscriber] = []
+        self._traffic_subscribers: list[TrafficSubscriber] = []
         self._e2e = E2EState()  # D5: the EyeQ's rolling counters, judged afresh per boot
         self._rx_counters = DaspCounters()
         self.veh_state = VehicleStateSender(self.codec, self.config)
@@ -126,6 +128,11 @@ class HostEmulator:
 
     def subscribe(self, callback: Subscriber) -> None:
         self._subscribers.append(callback)
+
+    def subscribe_traffic(self, callback: TrafficSubscriber) -> None:
+        """``callback(name, now)`` as the host counts a message received (delivered or not)
+        or a HOST_VEH_STATE_MSG sent, whatever ``keep_rx_times`` says (a monitor's rates)."""
+        self._traffic_subscribers.append(callback)
 
     def messages(self) -> AsyncIterator[DecodedMessage]:
         """Async iterator over delivered messages (one queue per iterator): the asyncio
@@ -455,6 +462,8 @@ class HostEmulator:
         self.counters.received[name] += 1
         if self.keep_rx_times:
             self.counters.rx_times.setdefault(name, []).append(now)
+        for callback in self._traffic_subscribers:
+            callback(name, now)
         if out.protocol == "BOOT":
             self._on_boot(out, now)
         elif out.protocol == "DIAG":
@@ -594,6 +603,8 @@ class HostEmulator:
         self.counters.sent["HOST_VEH_STATE_MSG"] += 1
         if self.keep_rx_times:
             self.counters.tx_times.append(now)
+        for callback in self._traffic_subscribers:
+            callback("HOST_VEH_STATE_MSG", now)
 
 
 check_entry_handlers(HostEmulator, subclass=False)

@@ -1,5 +1,6 @@
 """What the monitor shows, independent of where it comes from: rates against nominal over a
-sliding window, link counters, errors, state transitions and the current scene."""
+sliding window (by the one definition of a stream's rate, docs/dissector.md "Rates"), link
+counters, errors, state transitions and the current scene."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from dataclasses import dataclass, field
 from eyeq_spi.catalog.messages import Catalog
 from eyeq_spi.plot.collect import GAP_PERIODS
 from eyeq_spi.plot.perceived import Scene
+from eyeq_spi.stream_rate import stream_rate
 
 RATE_WINDOW = 2.0  # seconds of history behind each rate
 MIN_SPAN = 0.75  # s of a stream's history before its rate is called low or high (13 counts
@@ -20,10 +22,11 @@ MIN_SPAN = 0.75  # s of a stream's history before its rate is called low or high
 class RateRow:
     name: str
     count: int
-    hz: float | None  # None until the window has two snapshots
+    hz: float | None  # None until the window holds two messages
     nominal_hz: float | None
     band_hz: tuple[float, float] | None  # the rates the period tolerance allows
     status: str  # "ok" | "low" | "high" | "stopped" | "-"
+    gaps: int = 0  # gaps inside the window, left out of the rate (stream_rate)
 
 
 @dataclass
@@ -58,14 +61,17 @@ def band(rate_hz: float | None, tolerance_ms: tuple[float, float] | None
 
 
 class RateMeter:
-    """Message rates from cumulative counts sampled at each tick (no per-message cost)."""
+    """Message rates over the last ``window`` seconds, by the one definition of a stream's rate
+    (:func:`eyeq_spi.stream_rate.stream_rate`: over its active spans, a gap left out and
+    counted). Each message's arrival is given to :meth:`arrived`; the meter keeps, per message,
+    the arrival times inside its window (a deque each: memory bounded by rate x window)."""
 
     def __init__(self, cat: Catalog, window: float = RATE_WINDOW) -> None:
         self.cat = cat
         self.window = window
-        self._hist: deque[tuple[float, dict[str, int]]] = deque()
-        self._last_change: dict[str, float] = {}
-        self._first: dict[str, tuple[float, int]] = {}  # tick before a message's first arrival
+        self._times: dict[str, deque[float]] = {}
+        self._counts: dict[str, int] = {}
+        self._now = 0.0
         self._nominal: dict[str, tuple[float | None, tuple[float, float] | None]] = {}
 
     def _nominal_of(self, name: str) -> tuple[float | None, tuple[float, float] | None]:
@@ -77,49 +83,40 @@ class RateMeter:
                 self._nominal[name] = (None, None)
         return self._nominal[name]
 
-    def tick(self, now: float, counts: Mapping[str, int],
-             last_seen: Mapping[str, float] | None = None) -> None:
-        """``last_seen``: when each message last arrived, where the source knows it; without
-        it a change is dated at the tick that saw it, which is coarse when ticks are sparse (a
-        replay at 4x redraws every 0.7 s of capture time, longer than a stream's stop gap)."""
-        snap = dict(counts)
-        prev = self._hist[-1][1] if self._hist else {}
-        for k, v in snap.items():
-            if k not in self._first and v:  # counted from the last tick that knew it (at 0),
-                # else from the first that saw it
-                self._first[k] = (self._hist[-1][0], prev[k]) if k in prev else (now, v)
-            if v != prev.get(k, 0) or k not in self._last_change:
-                self._last_change[k] = now
-        if last_seen:
-            self._last_change.update(last_seen)
-        self._hist.append((now, snap))
-        while len(self._hist) > 2 and now - self._hist[1][0] >= self.window:
-            self._hist.popleft()
+    def arrived(self, name: str, time: float) -> None:
+        """A message ``name`` arrived (or was sent) at ``time`` (source seconds, rising)."""
+        times = self._times.get(name)
+        if times is None:
+            times = self._times[name] = deque()
+        times.append(time)
+        while times[0] < time - self.window:
+            times.popleft()
+
+    def tick(self, now: float, counts: Mapping[str, int]) -> None:
+        """The source's time at a redraw, and the messages it counted since its start."""
+        self._now = now
+        self._counts = dict(counts)
 
     def rows(self) -> list[RateRow]:
-        if not self._hist:
-            return []
-        t1, c1 = self._hist[-1]
-        t0, c0 = self._hist[0]
+        now = self._now
         out = []
-        for name in sorted(c1):
+        for name in sorted(set(self._counts) | set(self._times)):
+            times = self._times.get(name, deque())
+            while times and times[0] < now - self.window:
+                times.popleft()  # the last arrival stays while the window holds it
             nominal, tol = self._nominal_of(name)
-            # the window starts at the tick that first saw the message, if later: a stream
-            # that began 1 s ago is not at half its rate over a 2 s window
-            ts, cs = t0, c0.get(name, 0)
-            first = self._first.get(name)
-            if first is not None and first[0] > t0:
-                ts, cs = first
-            hz = (c1[name] - cs) / (t1 - ts) if t1 > ts else None
+            rate = stream_rate(times)
+            hz = rate.rate_hz
             limits = band(nominal, tol)
             status = "-"
-            if nominal and hz is not None:
-                silent = t1 - self._last_change.get(name, t1)
-                if silent > GAP_PERIODS / nominal:
-                    # its rate now is 0: the 2 s average would still read up to the nominal
-                    # rate beside "stopped" (a "17.9 Hz" stream that stopped 0.2 s ago)
+            if not times and name in self._times:
+                hz = 0.0  # nothing inside the window
+            if nominal and name in self._times:
+                last = times[-1] if times else None
+                if last is None or now - last > GAP_PERIODS / nominal:
+                    # its rate now is 0, whatever it was earlier in the window
                     status, hz = "stopped", 0.0
-                elif t1 - ts < MIN_SPAN:
+                elif hz is None or rate.active_s < MIN_SPAN:
                     status = "-"  # too few messages yet to call the rate low or high
                 elif limits is not None and hz < limits[0]:
                     status = "low"
@@ -127,5 +124,6 @@ class RateMeter:
                     status = "high"
                 else:
                     status = "ok"
-            out.append(RateRow(name, c1[name], hz, nominal, limits, status))
+            out.append(RateRow(name, self._counts.get(name, 0), hz, nominal, limits, status,
+                               len(rate.gaps)))
         return out

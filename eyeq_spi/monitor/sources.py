@@ -15,7 +15,8 @@ deadline (the next redraw) and then describes itself as a :class:`Snapshot`.
   the replayed host would never get past.
 
 Demo, host and replay read the host only through its public face: ``subscribe`` (decoded DASP
-messages, delivered as the host delivers them), ``state``/``transitions`` and its counters.
+messages, delivered as the host delivers them), ``subscribe_traffic`` (when each message was
+received or sent: the rates' times), ``state``/``transitions`` and its counters.
 """
 
 from __future__ import annotations
@@ -49,23 +50,24 @@ class _HostView:
         self.rates = RateMeter(host.codec.cat)
         self.tracker = SceneTracker(Labels(host.codec))
         self._latest: dict[str, DecodedMessage] = {}
-        self._seen: dict[str, float] = {}  # message -> when it last arrived (host time)
         self._now = 0.0
         host.subscribe(self._on_message)
+        host.subscribe_traffic(self._on_traffic)
 
     def _on_message(self, out: DecodedMessage) -> None:
         # keep only the latest scene message of each kind; decoding it into a scene waits for
-        # the next redraw, so the link path pays two dict stores per message
+        # the next redraw, so the link path pays one dict store per message
         if out.name in SCENE_MESSAGES:
             self._latest[out.name] = out
-        if out.name is not None:
-            self._seen[out.name] = self.host.now - self.origin
+
+    def _on_traffic(self, name: str, now: float) -> None:
+        self.rates.arrived(name, now - self.origin)  # received, or sent by the host
 
     def snapshot(self, now: float, done: bool) -> Snapshot:
         host = self.host
         counts: Counter[str] = Counter(host.counters.received)
         counts["HOST_VEH_STATE_MSG"] = host.counters.sent.get("HOST_VEH_STATE_MSG", 0)
-        self.rates.tick(now, counts, self._seen)
+        self.rates.tick(now, counts)
         for name, out in self._latest.items():
             self.tracker.update(name, out.fields, now, out.errors)
         self._latest.clear()
@@ -284,6 +286,7 @@ class DissectSource:
         else:
             name = record["name"] or record["protocol"]
             self.counts[name] += 1
+            self.rates.arrived(name, self.now)
             for error in record["errors"]:
                 key = ("E2E errors" if error.startswith("E2E") else "DASP counter gaps"
                        if error.startswith("DASP counter") else "decode errors")

@@ -11,6 +11,7 @@ from typing import Any
 from eyeq_spi.errors import OutputError
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.plot.charts import short
+from eyeq_spi.plot.figures import plural
 from eyeq_spi.plot.perceived import NO_TTC
 
 STATUS_STYLE = {"ok": "green", "low": "yellow", "high": "yellow", "stopped": "bold red",
@@ -103,7 +104,10 @@ def _rates(snap: Snapshot) -> list[Any]:
         nom = "" if row.nominal_hz is None else f"{row.nominal_hz:g}"
         rows.append(([(short(row.name), ""), (str(row.count), ""), (hz, ""), (nom, ""),
                       (row.status, STATUS_STYLE.get(row.status, ""))], ""))
-    return _block("messages (Hz over 2 s)", RATE_COLS, rows)
+    # a gap (a silence over 4 median periods) is left out of the rate, not averaged in
+    gaps = sum(row.gaps for row in snap.rates)
+    title = "messages (Hz over 2 s" + (f"; {plural(gaps, 'gap')} left out)" if gaps else ")")
+    return _block(title, RATE_COLS, rows)
 
 
 def _link(snap: Snapshot) -> list[Any]:

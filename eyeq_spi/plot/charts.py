@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import itertools
 from collections import Counter
+from collections.abc import Sequence
 from typing import Any
 
 from eyeq_spi.errors import InputError
 from eyeq_spi.plot.collect import GAP_PERIODS, Collected, Stream
 from eyeq_spi.plot.figures import new_figure, plural
+from eyeq_spi.stream_rate import stream_rate
 
 GAP_COLOUR = "#d62728"
 BAND_COLOUR = "#2ca02c"
@@ -77,6 +79,15 @@ def _timing_legend() -> list[Any]:
     ]
 
 
+def rate_label(times: Sequence[float]) -> str:
+    """The stream's rate by the one definition (``dissect --stats``, ``monitor``,
+    ``conformance``): over its active spans, a gap left out and counted."""
+    rate = stream_rate(times)
+    hz = "-" if rate.rate_hz is None else f"{rate.rate_hz:.1f}"
+    left_out = f" ({plural(len(rate.gaps), 'gap')} left out)" if rate.gaps else ""
+    return f"rate {hz} Hz{left_out}"
+
+
 def _timing_row(ax: Any, s: Stream, end: float) -> None:
     period = s.period
     assert period is not None
@@ -103,10 +114,11 @@ def _timing_row(ax: Any, s: Stream, end: float) -> None:
                 color=GAP_COLOUR, zorder=4)
     ax.set_ylim(0, top)
     late = sum(1 for d in dts if not p_ms + lo <= d <= p_ms + hi)
-    ax.set_ylabel(f"{short(s.name)}\n{s.rate_hz:g} Hz · ms", fontsize=7)
+    ax.set_ylabel(f"{short(s.name)}\nms · nominal {s.rate_hz:g} Hz", fontsize=7)
     ax.tick_params(labelsize=7)
-    ax.text(1.0, 1.0, f"{plural(len(t), 'message')}, {late} outside tolerance, "
-            f"{plural(len(gaps), 'gap')}, {plural(len(s.counter_jumps), 'counter jump')}",
+    ax.text(1.0, 1.0, f"{rate_label(t)}, {plural(len(t), 'message')}, {late} outside "
+            f"tolerance, {plural(len(gaps), 'silence')}, "
+            f"{plural(len(s.counter_jumps), 'counter jump')}",
             transform=ax.transAxes, fontsize=7,
             ha="right", va="bottom")
 
