@@ -348,18 +348,9 @@ class HostEmulator:
     def _on_eeprom(self, result: MespResult, now: float) -> None:
         if self.state is not S.READ_EEPROM:
             return
-        if isinstance(result, MespFailure):
-            self.problem = f"EEPROM read failed: {result}"
-            self._fire(E.EEPROM_BAD, now, self.problem)
-            return
-        params = init_seq.eeprom_intrinsics(result.value.data, self.sw)
+        params = init_seq.eeprom_verdict(result, self.sw, self._bringups, self.config.max_resets)
         if isinstance(params, str):
             self.problem = params
-            self._fire(E.EEPROM_BAD, now, self.problem)
-            return
-        if self._bringups >= self.config.max_resets:
-            self.problem = (f"intrinsic calibration still mismatched after {self._bringups} "
-                            "EyeQ resets: repair or replace the camera")
             self._fire(E.EEPROM_BAD, now, self.problem)
             return
         self.nvm.data.intrinsic = params
@@ -571,7 +562,8 @@ class HostEmulator:
         elif self.state is S.RUNNING_SPC and out.name == "EYEQ_DYNAMIC_CAL_MSG":
             self._on_cal_result("SPC", out.fields["dynamicCalParams"], now)
         if self.state in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC):
-            self._deliver(out)
+            for callback in self._subscribers:
+                callback(out)
 
     def _on_cal_result(self, mode: str, cal: dict[str, Any], now: float) -> None:
         if self.calibration_result is not None:
@@ -582,10 +574,6 @@ class HostEmulator:
         if result is not None and result["ok"]:
             self.nvm.data.alignment = alignment_nvm().apply(mode, self.nvm.data.alignment, cal)
             self.nvm.save()
-
-    def _deliver(self, out: DecodedMessage) -> None:
-        for cb in self._subscribers:
-            cb(out)
 
     @property
     def stale_streams(self) -> set[str]:

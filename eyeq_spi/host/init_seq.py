@@ -16,6 +16,7 @@ from eyeq_spi.codec.intrinsic import eeprom_crc_ok, intrinsic_params_from_eeprom
 from eyeq_spi.errors import LocalProtocolError, SpecError
 from eyeq_spi.host.config import STAGE_OF
 from eyeq_spi.host.nvm import NvmData
+from eyeq_spi.mesp.replies import MespFailure, MespResult
 
 
 def init_values(stage: int, nvm: NvmData) -> dict[str, float]:
@@ -99,3 +100,19 @@ def boot_info(fields: dict[str, Any]) -> dict[str, Any]:
     return {"TestResults": fields["TestResults"], "EyeQID": fields["EyeQID"],
             "BootVersion": version_text(bytes(fields["BootVersion"])),
             "ApplicationVersion": version_text(bytes(fields["ApplicationVersion"]))}
+
+
+def eeprom_verdict(result: MespResult, sw: str, resets: int, max_resets: int
+                   ) -> dict[str, float] | str:
+    """What the host makes of its read of the camera's EEPROM file (§7.1.3): the intrinsic
+    parameters for its NVM, or why it cannot use them (the read failed, the image is bad, or
+    ``resets`` EyeQ resets have not cleared the mismatch)."""
+    if isinstance(result, MespFailure):
+        return f"EEPROM read failed: {result}"
+    params = eeprom_intrinsics(result.value.data, sw)
+    if isinstance(params, str):
+        return params
+    if resets >= max_resets:
+        return (f"intrinsic calibration still mismatched after {resets} EyeQ resets: repair "
+                "or replace the camera")
+    return params
