@@ -1,6 +1,6 @@
 #!/bin/sh
 # The README's pictures, made by the project's own commands (run from the repository root;
-# needs pip install -e '.[plot,monitor]'). The capture is 8 s of the emulator in virtual time
+# needs pip install -e '.[plot]'). The capture is 8 s of the emulator in virtual time
 # (deterministic: seed 1); SRP stops at 5 s, so the timing plot and the monitor show a stale
 # stream.
 set -eu
