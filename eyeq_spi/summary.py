@@ -186,7 +186,7 @@ class ClockedAcks:
             self.then(node, t, transfer)
         if len(transfer) != FRAME_SIZE:
             return
-        kind, _, rsp, num, crc_ok = self.codec.judge(transfer)
+        kind, _, rsp, num, crc_ok = self.codec.check(transfer)
         if not crc_ok:
             return
         if node == 0 and kind == FrameKind.DATA:

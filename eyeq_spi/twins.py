@@ -18,7 +18,7 @@ EXACT_ENV = "EYEQ_SPI_EXACT"
 """Set to 1 (any value but empty or 0): every facade picks its reference."""
 
 
-def exact() -> bool:
+def references_only() -> bool:
     """True when the environment asks for the references. Read at each call (cheap), so a
     test or a tool may set the variable for one run."""
     return os.environ.get(EXACT_ENV, "").strip() not in ("", "0")

@@ -115,15 +115,15 @@ def test_judge_agrees_with_decode_and_crc_ok(raw: bytes, order: BitOrder, fix_cr
         crc = codec.compute_crc(d, raw[:4], raw[6:])
         raw = raw[:4] + crc.to_bytes(2, "little") + raw[6:]
     frame = codec.decode(raw)
-    assert codec.judge(raw) == (frame.d, frame.r, frame.rsp, frame.num, codec.crc_ok(raw, frame))
+    assert codec.check(raw) == (frame.d, frame.r, frame.rsp, frame.num, codec.crc_ok(raw, frame))
     if fix_crc:
-        assert codec.judge(raw)[4]
+        assert codec.check(raw)[4]
 
 
 @pytest.mark.parametrize("length", [0, 127, 129])
 def test_judge_refuses_a_wrong_length(length: int) -> None:
     with pytest.raises(RemoteProtocolError):
-        FrameCodec().judge(bytes(length))
+        FrameCodec().check(bytes(length))
 
 
 @given(st.integers(0, 4095), st.integers(0, 4095), st.binary(max_size=122),

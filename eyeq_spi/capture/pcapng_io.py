@@ -17,7 +17,7 @@ from typing import IO, TYPE_CHECKING, Any, Protocol
 
 from eyeq_spi.catalog.messages import SwKey, catalog, sw_release_text
 from eyeq_spi.errors import EyeqError, InputError, OutputError, TruncatedInputError
-from eyeq_spi.twins import exact
+from eyeq_spi.twins import references_only
 
 if TYPE_CHECKING:
     import threading
@@ -188,7 +188,7 @@ class CaptureWriter:
                  flush_s: float | None = None, blocks: bool | None = None,
                  time_base: str | None = None) -> None:
         spec = _spec()
-        self.blocks = not exact() if blocks is None else blocks
+        self.blocks = not references_only() if blocks is None else blocks
         if self.blocks:  # numpy now, not at the first write: readers of captures start without it
             import eyeq_spi.capture.pcapng_write_fast  # noqa: F401
         # block mode: (interface id, time, transfer) kept since the last encoding (None before

@@ -32,7 +32,7 @@ from eyeq_spi.codec.layout_types import (
 )
 from eyeq_spi.crc import crc16
 from eyeq_spi.errors import LocalProtocolError, SpecError
-from eyeq_spi.twins import exact
+from eyeq_spi.twins import references_only
 
 PRIMITIVE = {  # seed type -> (construct field name, bytes)
     "uint8": ("Int8ul", 1), "uint16": ("Int16ul", 2), "uint32": ("Int32ul", 4),
@@ -159,7 +159,7 @@ class Layout:
         return self._fast
 
     def build(self, values: dict[str, Any]) -> bytes:
-        if exact():
+        if references_only():
             return self.build_construct(values)
         try:
             return self.fast.encode(values)
@@ -170,7 +170,7 @@ class Layout:
         if len(data) != self.size:
             raise LocalProtocolError(f"{self.name} ({self.sw}) is {self.size} bytes, "
                                      f"got {len(data)}")
-        if exact():
+        if references_only():
             return self.post(self.struct.parse(data))
         return self.fast.decode(data)
 

@@ -206,7 +206,7 @@ class Dissector:
             self.last_time = t
         data = rec.data
         if len(data) == FRAME_SIZE:
-            dfield, rfield, rsp, num, crc_ok = self.frames.judge(data)
+            dfield, rfield, rsp, num, crc_ok = self.frames.check(data)
             frame_rec = frame_record(idx, t, rec.direction, FRAME_SIZE,
                                      (dfield, rfield, rsp, num), crc_ok, (data[6], data[7]))
             if dfield == FrameKind.DATA:

@@ -39,7 +39,7 @@ from eyeq_spi.errors import EyeqError
 from eyeq_spi.io import can_log_hint
 from eyeq_spi.io.plain import InputError
 from eyeq_spi.logic.options import SpiOptions
-from eyeq_spi.twins import exact
+from eyeq_spi.twins import references_only
 
 SMALL_INPUT = 256 << 10  # bytes; below this the reference is quicker than importing numpy
 PACE = 4096  # records between two looks at the young generation
@@ -319,7 +319,7 @@ def fields_mode(writers: list[Any], plain: bool) -> str:
 def fast_module(paths: Sequence[str], jobs: int = 1) -> Any:
     """:mod:`eyeq_spi.dissect.pipeline_fast`, or None when no input is big enough for the fast
     path (nor several files for ``jobs``): start-up of small runs stays under 300 ms."""
-    if exact():  # EYEQ_SPI_EXACT=1: the references read everything
+    if references_only():  # EYEQ_SPI_EXACT=1: the references read everything
         return None
     several = jobs != 1 and len(paths) > 1 and "-" not in paths
     big = False

@@ -17,7 +17,7 @@ from eyeq_spi.errors import EyeqError
 from eyeq_spi.host.config import HostConfig
 from eyeq_spi.host.scenario import Scenario, veh_state_values
 from eyeq_spi.host.veh_state_fast import VehStatePacker
-from eyeq_spi.twins import exact
+from eyeq_spi.twins import references_only
 
 NAME = "HOST_VEH_STATE_MSG"
 
@@ -66,7 +66,7 @@ class VehicleStateSender:
         has moved on all the same, as the message's period has)."""
         self.rolling = (self.rolling + 1) & 0xFFFF
         signals = scenario.signals(now)
-        packer = None if exact() else self.packer()
+        packer = None if references_only() else self.packer()
         wire = None if packer is None else packer.encode(
             signals, now, self.rolling, self.dasp_counter, self.e2e)
         if wire is None:  # the reference

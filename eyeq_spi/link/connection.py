@@ -293,7 +293,7 @@ class LinkConnection:
         try:
             # the header fields and the CRC verdict, without building a Frame (hot path; the
             # same reading as FrameCodec.decode + crc_ok, tests/test_link_frame.py holds them equal)
-            d, r, rsp, num, crc_ok = self.codec.judge(transfer)
+            d, r, rsp, num, crc_ok = self.codec.check(transfer)
         except RemoteProtocolError as exc:  # L8: the header cannot be trusted, so no NAK
             c.formatErrorCounter += 1
             c.badLengthTransfers += 1

@@ -194,7 +194,7 @@ class FrameCodec:
         return Frame(d, r, rsp, num, bytes(transfer[6:]),
                      int.from_bytes(transfer[4:6], "little"))
 
-    def judge(self, transfer: bytes) -> tuple[int, int, int, int, bool]:
+    def check(self, transfer: bytes) -> tuple[int, int, int, int, bool]:
         """D, R, RSP, NUM and the CRC verdict of a transfer: :meth:`decode` and :meth:`crc_ok`
         in one step, without a :class:`Frame` (the receiver's hot path)."""
         if len(transfer) != FRAME_SIZE:

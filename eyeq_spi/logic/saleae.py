@@ -13,7 +13,7 @@ from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.saleae_ref import sniff
 from eyeq_spi.logic.saleae_types import ByteSource
-from eyeq_spi.twins import exact
+from eyeq_spi.twins import references_only
 
 __all__ = ["ByteSource", "read_saleae1", "read_saleae2", "sniff"]
 
@@ -23,7 +23,7 @@ def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
     """Logic 2 "Export table" rows -> one record per transfer and direction."""
     from eyeq_spi.logic import saleae_fast, saleae_ref  # numpy only when a file is read
 
-    if exact():
+    if references_only():
         return saleae_ref.read_saleae2(src, opts, chunk_size=chunk_size)
     return saleae_fast.read_saleae2(src, opts, chunk_size=chunk_size)
 
@@ -33,6 +33,6 @@ def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
     """Logic 1.x rows (one Packet ID per transfer) -> one record per transfer and direction."""
     from eyeq_spi.logic import saleae_fast, saleae_ref
 
-    if exact():
+    if references_only():
         return saleae_ref.read_saleae1(src, opts, chunk_size=chunk_size)
     return saleae_fast.read_saleae1(src, opts, chunk_size=chunk_size)

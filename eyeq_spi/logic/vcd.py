@@ -13,7 +13,7 @@ from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.saleae_types import ByteSource
 from eyeq_spi.logic.vcd_ref import sniff
-from eyeq_spi.twins import exact
+from eyeq_spi.twins import references_only
 
 __all__ = ["read_vcd", "sniff"]
 
@@ -23,6 +23,6 @@ def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
     """Value changes -> one record per transfer and direction."""
     from eyeq_spi.logic import vcd_fast, vcd_ref  # numpy only when a file is read
 
-    if exact():
+    if references_only():
         return vcd_ref.read_vcd(src, opts, chunk_size=chunk_size)
     return vcd_fast.read_vcd(src, opts, chunk_size=chunk_size)

@@ -70,7 +70,7 @@ from eyeq_spi.sim.scene import Scene, SceneConfig
 from eyeq_spi.sim.schedule import DueHeap
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
-from eyeq_spi.twins import exact
+from eyeq_spi.twins import references_only
 
 
 class Phase(enum.Enum):
@@ -483,7 +483,7 @@ class SimulatedEyeQ(MespFunctions):
         if m.name not in self._packers:
             packed = self.config.dasp_packer
             if packed is None:
-                packed = not exact()
+                packed = not references_only()
             self._packers[m.name] = DaspPacker.build(self.codec.layout(m), m.data_id) \
                 if packed else None
         return self._packers[m.name]
