@@ -24,10 +24,15 @@ from collections.abc import Iterator
 
 
 @contextlib.contextmanager
-def paused() -> Iterator[None]:
+def paused(*, freeze: bool = False) -> Iterator[None]:
     """The automatic collector off while the block runs; on again after, if it was on (nested
-    blocks and a caller that had it off keep their state)."""
+    blocks and a caller that had it off keep their state). ``freeze``: first collect, then move
+    everything built so far out of every later collection (the catalogue, codecs and scene of a
+    real-time demo), so the young collections between slices stay short."""
     was = gc.isenabled()
+    if freeze:
+        gc.collect()
+        gc.freeze()
     gc.disable()
     try:
         yield

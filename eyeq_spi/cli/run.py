@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import gc
 import json
 import sys
 from collections import Counter
-from collections.abc import Iterator
 from typing import Any
 
+from eyeq_spi import garbage
 from eyeq_spi.cli import args as ca
 from eyeq_spi.cli import options as opt
 from eyeq_spi.errors import UsageError
@@ -207,21 +206,6 @@ def print_summary(out: dict[str, Any], as_json: bool) -> None:
 LONG_DEMO_S = 20.0  # demos this long or longer show a progress bar on a terminal
 
 
-@contextlib.contextmanager
-def _young_collections_only() -> Iterator[None]:
-    """The cyclic GC off (the caller collects the young generations between slices), what
-    was built before frozen out of every collection; the collector as it was afterwards."""
-    was = gc.isenabled()
-    gc.collect()
-    gc.freeze()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was:
-            gc.enable()
-
-
 def run_demo(args: argparse.Namespace) -> int:
     from eyeq_spi.emulator import summary
 
@@ -237,7 +221,7 @@ def run_demo(args: argparse.Namespace) -> int:
     collector = contextlib.ExitStack()
     acks = None
     if not args.virtual_time:
-        collector.enter_context(_young_collections_only())
+        collector.enter_context(garbage.paused(freeze=True))
         import time
 
         from eyeq_spi.summary import ClockedAcks
@@ -260,7 +244,7 @@ def run_demo(args: argparse.Namespace) -> int:
                 step = min(0.25, args.duration - t)
                 emu.run_for(step, realtime=not args.virtual_time)
                 if not args.virtual_time:
-                    gc.collect(1)  # the young generations, well under a millisecond
+                    garbage.collect()  # the young generations, well under a millisecond
                 t += step
                 view.update(emu.host, emu.runner.now)
                 bar.update(round(t, 2))
