@@ -28,8 +28,10 @@ def paused(*, freeze: bool = False) -> Iterator[None]:
     """The automatic collector off while the block runs; on again after, if it was on (nested
     blocks and a caller that had it off keep their state). ``freeze``: first collect, then move
     everything built so far out of every later collection (the catalogue, codecs and scene of a
-    real-time demo), so the young collections between slices stay short."""
+    real-time run), so that no later pass, not even a full one, walks them. The outermost
+    freezing block gives them back to the collector when it ends."""
     was = gc.isenabled()
+    thaw = freeze and gc.get_freeze_count() == 0
     if freeze:
         gc.collect()
         gc.freeze()
@@ -37,6 +39,8 @@ def paused(*, freeze: bool = False) -> Iterator[None]:
     try:
         yield
     finally:
+        if thaw:
+            gc.unfreeze()
         if was:
             gc.enable()
 

@@ -101,17 +101,22 @@ def test_two_processes_exchange_1000_messages_over_tcp() -> None:
 
 
 def test_the_runner_gives_the_collector_back_as_it_found_it() -> None:
-    """The runner turns the cyclic GC off while it runs; closing it (or leaving its ``with``
-    block) restores the state it found, once, however often it is closed."""
+    """The runner turns the cyclic GC off while it runs and moves what was built before it
+    (catalogue, codecs, scene) out of every pass, so that its once-a-minute full pass walks
+    only what the run made; closing it (or leaving its ``with`` block) restores the state it
+    found, once, however often it is closed."""
     import gc
 
     from eyeq_spi.phy.memory import memory_pair
 
     a, _ = memory_pair()
     assert gc.isenabled()
+    assert gc.get_freeze_count() == 0
     with RealTimeRunner(TransportConnection(LinkConfig()), a) as runner:
         assert not gc.isenabled()
+        assert gc.get_freeze_count() > 1000  # this test process's modules and objects
     assert gc.isenabled()
+    assert gc.get_freeze_count() == 0
     runner.close()
     assert gc.isenabled()
     gc.disable()

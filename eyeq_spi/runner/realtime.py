@@ -35,13 +35,15 @@ class RealTimeRunner:
         self.tap = tap
         self.start = clock()
         # A pass of the cyclic GC can take as long as the peer's ackTimeout (eyeq_spi/garbage.py):
-        # collect only when idle (nothing due for IDLE_GC seconds), never in a burst.
+        # collect only when idle (nothing due for IDLE_GC seconds), never in a burst, and never
+        # walk what was built before the run (the catalogue, the codecs, the scene: a full pass
+        # over them took 9 ms on a quiet machine and several times that on a loaded one).
         self.idle_gc = idle_gc
         self._last_gc = clock()
         self._gcs = 0
         self._paused = contextlib.ExitStack()  # the collector's state to give back on close
         if idle_gc:
-            self._paused.enter_context(garbage.paused())
+            self._paused.enter_context(garbage.paused(freeze=True))
 
     def _flush(self, now: float) -> None:
         for out in self.node.data_to_send(now):
