@@ -328,9 +328,9 @@ def emulator_bench(runs: int = 3, long_s: float = 0.0, dasp_packer: bool = True
 def _dasp_cpu_per_sim_s(packer: bool, virtual_s: float) -> float:
     """CPU-s per simulated second of the simulated EyeQ's DASP generation alone at full load
     (``_send_due_dasp``: due heap, scene step, fill, pack, E2E; the link's ``_send`` stubbed)."""
+    from eyeq_spi.catalog.bringup import RUNNING_VISION
     from eyeq_spi.sim.config import SimConfig
     from eyeq_spi.sim.eyeq import Phase, SimulatedEyeQ
-    from eyeq_spi.sim.mesp_functions import RUNNING_VISION
 
     sim = SimulatedEyeQ(SimConfig(objects=15, signs=20, light_spots=15, dasp_packer=packer))
     sim.warm_up()

@@ -29,7 +29,21 @@ def _read() -> tuple[tuple[int, int], str, int]:
             int(intrinsic["value"]))
 
 
+def _values(enum: str, *names: str) -> tuple[int, ...]:
+    """The values of ``names`` in ``enum`` of ``specs/enums/eyeq_states.yaml``."""
+    table = spec_file("enums/eyeq_states.yaml")["enums"][enum]["values"]
+    return tuple(int(_entry("enums/eyeq_states.yaml", table, "name", n)["value"]) for n in names)
+
+
 SWITCH_APP, EEPROM_FILE, FATAL_INTRINSIC = _read()
 """``SWITCH_APP``: (service, function) of Switch EyeQ Application; ``EEPROM_FILE``: the file
 the host reads with FFS Read File when the EyeQ reports ``FATAL_INTRINSIC`` (Fatal_Error 22,
 the camera EEPROM does not match the intrinsic calibration sent: §7.1.3 steps 4-7)."""
+
+# mainState of Get EyeQ Extended State and Main_State of 0x41 (§7.1.5, M7: DV reports 0xAA)
+(PENDING, RUNNING_VISION, BOOT, RUNNING_DV, RUNNING_TAC, RUNNING_SPC, PENDING_VISION, PENDING_TAC,
+ PENDING_SPC) = _values("main_state", "PENDING", "RUNNING_VISION", "BOOT", "RUNNING_DV",
+                        "RUNNING_TAC", "RUNNING_SPC", "PENDING_VISION", "PENDING_TAC",
+                        "PENDING_SPC")
+# applicationId of Switch EyeQ Application (§7.1.1.1.4)
+APP_VISION, APP_TAC, APP_SPC, APP_DV = _values("eyeq_application", "VISION", "TAC", "SPC", "DV")

@@ -6,14 +6,20 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 
+from eyeq_spi.catalog.bringup import (
+    APP_DV,
+    APP_SPC,
+    APP_TAC,
+    APP_VISION,
+    PENDING_SPC,
+    PENDING_TAC,
+    PENDING_VISION,
+)
 from eyeq_spi.host.machine import HostEvent, HostState
 from eyeq_spi.link.connection import LinkConfig
 
 S, E = HostState, HostEvent
-PENDING, RUNNING_VISION, DV_STATE = 0x01, 0x02, 0xAA  # M7: RUNNING_DV is 0xAA
-PENDING_VISION, PENDING_TAC, PENDING_SPC = 0x92, 0x85, 0x82
-RUNNING_TAC, RUNNING_SPC = 0xAC, 0x22
-APP_IDS = {"VISION": 0x01, "TAC": 0x03, "SPC": 0x04, "DV": 0x05}
+APP_IDS = {"VISION": APP_VISION, "TAC": APP_TAC, "SPC": APP_SPC, "DV": APP_DV}
 PENDING_OF = {"TAC": PENDING_TAC, "SPC": PENDING_SPC, "VISION": PENDING_VISION}
 STAGE_OF = {"TAC": 0x85, "SPC": 0x82}
 VALID = 0x69  # host_sync_timestamp_us_valid

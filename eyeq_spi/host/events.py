@@ -8,18 +8,16 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from eyeq_spi.catalog.bringup import FATAL_INTRINSIC
-from eyeq_spi.host.config import (
-    DV_STATE,
+from eyeq_spi.catalog.bringup import (
+    FATAL_INTRINSIC,
     PENDING,
-    PENDING_OF,
     PENDING_VISION,
+    RUNNING_DV,
     RUNNING_SPC,
     RUNNING_TAC,
     RUNNING_VISION,
-    E,
-    S,
 )
+from eyeq_spi.host.config import PENDING_OF, E, S
 from eyeq_spi.host.machine import HostEvent, HostState
 
 POLLING = frozenset({S.WAIT_PENDING, S.WAIT_RUNNING, S.WAIT_MODE_PENDING, S.WAIT_MODE_RUNNING})
@@ -41,7 +39,7 @@ def state_reply_event(state: HostState, target_mode: str, main: int,
     if state is S.WAIT_RUNNING:
         return E.RUNNING_VISION if main == RUNNING_VISION else None
     if state is S.WAIT_MODE_PENDING:
-        if target_mode == "DV" and main == DV_STATE:
+        if target_mode == "DV" and main == RUNNING_DV:
             return E.MODE_DV
         if main == PENDING and sub == PENDING_OF.get(target_mode):
             return E.MODE_VISION_PENDING if target_mode == "VISION" else E.MODE_PENDING

@@ -38,7 +38,7 @@ import math
 from collections import Counter, deque
 from typing import Any
 
-from eyeq_spi.catalog.bringup import SWITCH_APP
+from eyeq_spi.catalog.bringup import BOOT, PENDING, PENDING_VISION, RUNNING_VISION, SWITCH_APP
 from eyeq_spi.catalog.messages import MessageDef, sw_release
 from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.e2e import E2EState
@@ -57,11 +57,7 @@ from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.dasp_fast import DaspPacker
 from eyeq_spi.sim.flash import FlashImage
 from eyeq_spi.sim.mesp_functions import (
-    BOOT,
     MODE_OF_STATE,
-    PENDING,
-    PENDING_VISION,
-    RUNNING_VISION,
     VEH_STATE_STALE,
     MespFunctions,
     SimCounters,

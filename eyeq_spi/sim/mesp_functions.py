@@ -12,7 +12,22 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.catalog.bringup import EEPROM_FILE, FATAL_INTRINSIC
+from eyeq_spi.catalog.bringup import (
+    APP_DV,
+    APP_SPC,
+    APP_TAC,
+    APP_VISION,
+    EEPROM_FILE,
+    FATAL_INTRINSIC,
+    PENDING,
+    PENDING_SPC,
+    PENDING_TAC,
+    PENDING_VISION,
+    RUNNING_DV,
+    RUNNING_SPC,
+    RUNNING_TAC,
+    RUNNING_VISION,
+)
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.errors import EyeqError, LocalProtocolError
@@ -22,11 +37,6 @@ from eyeq_spi.sim.flash import FlashImage, hash_request
 from eyeq_spi.transport.connection import TransportConnection
 
 VEH_STATE_STALE = 3 / 66.67  # three HOST_VEH_STATE periods (§7.1.2.2: 66.67 Hz)
-# M7: in DV the EyeQ reports mainState 0xAA (RUNNING_DV); 0x05 is DV's application ID
-PENDING, RUNNING_VISION, BOOT, DV = 0x01, 0x02, 0x03, 0xAA
-PENDING_VISION, PENDING_TAC, PENDING_SPC = 0x92, 0x85, 0x82
-RUNNING_TAC, RUNNING_SPC = 0xAC, 0x22
-APP_VISION, APP_TAC, APP_SPC, APP_DV = 0x01, 0x03, 0x04, 0x05
 MODE_OF_STATE = {RUNNING_VISION: "APP", RUNNING_TAC: "TAC", RUNNING_SPC: "SPC"}
 
 
@@ -91,7 +101,7 @@ class MespFunctions:
     def _switch_app(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         app = p["applicationId"]
         target = {APP_VISION: (PENDING, PENDING_VISION), APP_TAC: (PENDING, PENDING_TAC),
-                  APP_SPC: (PENDING, PENDING_SPC), APP_DV: (DV, 0)}.get(app)
+                  APP_SPC: (PENDING, PENDING_SPC), APP_DV: (RUNNING_DV, 0)}.get(app)
         if target is None:
             return RET_BAD_PARAMETERS, {}
         if self.fatal_error and app != APP_VISION:
