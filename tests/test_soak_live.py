@@ -1,9 +1,15 @@
 """Bounded live soak: host and simulated EyeQ as two processes in real time at full load over TCP
-and over a pty, 20 s each in CI and 8 s in a local run (``EYEQ_SOAK_S`` changes it), asserting
-zero losses on both sides. Both processes take SCHED_FIFO by default (``--rt-priority``,
-``eyeq_spi/runner/sched.py``), which is what keeps their ACKs inside the 10 ms ackTimeout while
-other work loads the machine. The 10-minute version is ``python3 tools/soak_live.py --duration
-600`` (figures in docs/emulator.md)."""
+and over a pty, 20 s each in CI and 8 s in a local run (``EYEQ_SOAK_S`` changes it).
+
+What a test can hold on any machine is the accounting, not the schedule: Running Vision reached
+and held on both sides, losses a tiny fraction, and every loss one side reports explained by a
+send failure of the other (a frame not ACKed within the 10 ms ackTimeout, L7), so that nothing
+is lost silently and nothing accepted is corrupted. Zero loss itself depends on the machine: both
+processes take SCHED_FIFO (``--rt-priority``, ``eyeq_spi/runner/sched.py``), but the kernel
+delivers loopback TCP in softirq context and a pty write from a worker thread, both at ordinary
+priority, and other CPU-bound work can delay them past the ackTimeout (over TCP about one run in
+ten lost one frame on a 2-core machine at load 4; over a pty more). The zero-loss figure is the
+benchmark's: ``python3 tools/soak_live.py --duration 600`` (figures in docs/emulator.md)."""
 
 from __future__ import annotations
 
@@ -11,6 +17,7 @@ import json
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -36,35 +43,70 @@ def _fifo_allowed() -> bool:
     return True
 
 
+def every_loss_accounted(run: dict[str, Any]) -> None:
+    """Both sides held Running Vision; each side's send failures are a tiny fraction of its
+    frames; each side's summary says ``ok`` exactly when it lost nothing and names the loss
+    otherwise; and what a side lost on receive is explained by the other side's send failures:
+    none of them, no loss at all; otherwise at most one transfer abort and one DASP counter gap
+    per failure, and E2E rejections only after a gap (D5: the next structure's rolling counter
+    jumps)."""
+    for side, peer in (("host", "sim"), ("sim", "host")):
+        mine, theirs = run[side], run[peer]
+        # the whole figures as text (a dict in the message would be cut to 240 characters):
+        # a loss here is rare and must be readable from the CI log alone
+        said = f"{side}: {json.dumps(mine, default=str)}; {peer}: {json.dumps(theirs, default=str)}"
+        assert mine["state"] in ("RUNNING_VISION", "0x02"), said
+        assert mine["send_failures"] <= max(5, mine["ack_latency_ms"]["n"] // 1000), said
+        assert mine["ok"] == soak_live.lossless(mine), said
+        assert (mine["problem"] is None) == mine["ok"], said
+        failed = theirs["send_failures"]
+        aborts = sum(mine["transport_aborts"].values())
+        if failed == 0:
+            assert not (mine["e2e_errors"] or mine["dasp_counter_gaps"] or aborts
+                        or mine["stale_streams"]), said
+        assert aborts <= failed and mine["dasp_counter_gaps"] <= failed, said
+        assert mine["e2e_errors"] == 0 or mine["dasp_counter_gaps"] > 0, said
+    assert run["host_problem"] is None or "Running Vision" not in run["host_problem"], run
+
+
 @pytest.mark.realtime
 @pytest.mark.skipif(not _fifo_allowed(),
                     reason="SCHED_FIFO is refused here (not root, no CAP_SYS_NICE or "
                     "RLIMIT_RTPRIO): without it the kernel may leave a woken process waiting "
-                    "past the 10 ms ackTimeout on a busy machine, so zero loss cannot be asserted")
-def test_live_run_over_tcp_loses_nothing() -> None:
-    r = soak_live.soak(_seconds(), "tcp")
+                    "past the 10 ms ackTimeout on any busy machine, and the losses are not "
+                    "the rare event this test bounds")
+def test_live_run_over_tcp_accounts_for_every_loss() -> None:
+    run = soak_live.soak(_seconds(), "tcp")
     for side in ("host", "sim"):
-        assert r[side]["scheduling"].startswith("SCHED_FIFO"), r[side]["scheduling"]
-        assert r[side]["state"] in ("RUNNING_VISION", "0x02"), r
-        # the whole figures as text (a dict in the message would be cut to 240 characters):
-        # a loss here is rare and must be readable from the CI log alone
-        assert soak_live.lossless(r[side]), f"{side}: {json.dumps(r[side], default=str)}"
+        assert run[side]["scheduling"].startswith("SCHED_FIFO"), run[side]["scheduling"]
+    every_loss_accounted(run)
 
 
 @pytest.mark.realtime
-def test_live_run_over_a_pty_holds_vision_and_reports_every_loss() -> None:
-    """Over a pty the kernel moves each write to the reader from a worker thread at ordinary
-    priority, which other CPU-bound work can delay past the 10 ms ackTimeout whatever our
-    priority (600 s lost nothing on a quiet machine, 23 frames of 700,000 at load 0.5-3.6;
-    README, Live runs), and CI machines are not always quiet. So this run asserts what must hold
-    anyway: Running Vision reached and held on both sides, losses a tiny fraction, and every loss
-    counted and named in `problem` (summaries tell the truth)."""
-    r = soak_live.soak(_seconds(), "pty")
-    for side in ("host", "sim"):
-        x = r[side]
-        assert x["state"] in ("RUNNING_VISION", "0x02"), r
-        frames = x["ack_latency_ms"]["n"]
-        assert x["send_failures"] <= max(5, frames // 1000), (side, x)
-        assert x["ok"] == soak_live.lossless(x), (side, x)
-        assert (x["problem"] is None) == x["ok"], (side, x)
-    assert r["host_problem"] is None or "Running Vision" not in r["host_problem"], r
+def test_live_run_over_a_pty_accounts_for_every_loss() -> None:
+    every_loss_accounted(soak_live.soak(_seconds(), "pty"))
+
+
+def _side(send_failures: int = 0, gaps: int = 0, e2e: int = 0,
+          aborts: dict[str, int] | None = None) -> dict[str, Any]:
+    side = {"state": "RUNNING_VISION", "send_failures": send_failures,
+            "ack_latency_ms": {"n": 20000}, "e2e_errors": e2e, "dasp_counter_gaps": gaps,
+            "transport_aborts": aborts or {}, "stale_streams": [], "mesp_timeouts": 0}
+    side["ok"] = soak_live.lossless(side)
+    side["problem"] = None if side["ok"] else "lost"
+    return side
+
+
+def test_the_accounting_tells_an_explained_loss_from_a_silent_one() -> None:
+    """The figures of a real TCP run that lost one frame (the sim's frame not ACKed in time; the
+    host's transfer aborted, one DASP gap, the next obstacles message's 16 structures rejected)
+    pass; the same host figures without the sim's failure, and a rejection without a gap, fail."""
+    explained = {"host": _side(gaps=1, e2e=16, aborts={"interleaved": 1}),
+                 "sim": _side(send_failures=1), "host_problem": None}
+    every_loss_accounted(explained)
+    silent = {**explained, "sim": _side()}
+    with pytest.raises(AssertionError):
+        every_loss_accounted(silent)
+    corrupt = {"host": _side(e2e=16), "sim": _side(send_failures=1), "host_problem": None}
+    with pytest.raises(AssertionError):
+        every_loss_accounted(corrupt)
