@@ -84,21 +84,28 @@ def ack_latency_ms(hist: Counter[int]) -> dict[str, float | int]:
 
 
 def _losses(s: dict[str, Any]) -> str | None:
-    """The first data loss, corruption or missed deadline in a summary, in words."""
+    """Every data loss, corruption or missed deadline in a summary, in words, causes before
+    their consequences: a frame not ACKed in time loses its transfer (a transport abort), whose
+    message then leaves a DASP counter gap, and the next message of that stream has its
+    protected structures rejected, since their rolling counters jumped (D5). Saying only the
+    last ("16 E2E errors") would send a reader looking for corrupt data."""
     link = s["link"]
     mesp = s["mesp"]
     timeouts = mesp.get("timeouts") or 0
+    aborts = sum(s["transport_aborts"].values())
     checks: list[tuple[bool, str]] = [
-        (s["e2e_errors"] > 0, f"{s['e2e_errors']} E2E errors"),
         (link.get("sendFailedErrorCounter", 0) > 0,
          f"{link.get('sendFailedErrorCounter')} send failures (frames not ACKed in time)"),
-        (sum(s["transport_aborts"].values()) > 0,
-         f"transport aborts {s['transport_aborts']}"),
+        (aborts > 0, f"transport aborts {s['transport_aborts']}"),
         (s["dasp_counter_gaps"] > 0, f"{s['dasp_counter_gaps']} DASP counter gaps"),
+        (s["e2e_errors"] > 0, f"{s['e2e_errors']} E2E errors"
+         + (" (after the gaps: D5 rejects a structure whose rolling counter jumped)"
+            if s["dasp_counter_gaps"] > 0 else "")),
         (bool(s["stale_streams"]), f"stale streams: {', '.join(s['stale_streams'])}"),
         (timeouts > 0, f"{timeouts} MESP timeouts"),
     ]
-    return next((why for bad, why in checks if bad), None)
+    said = [why for bad, why in checks if bad]
+    return "; ".join(said) if said else None
 
 
 def finish(s: dict[str, Any], first_problem: str | None) -> dict[str, Any]:

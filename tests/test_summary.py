@@ -9,7 +9,7 @@ from typing import Any
 from eyeq_spi.emulator import build, summary
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.sim.config import SimConfig
-from eyeq_spi.summary import KEYS, SimSessions, format_summary, sim_summary
+from eyeq_spi.summary import KEYS, SimSessions, finish, format_summary, sim_summary
 
 
 def _sim_view(cfg: SimConfig, tmp_path: Path) -> dict[str, Any]:
@@ -184,3 +184,19 @@ def test_frames_a_leaving_host_left_in_flight_are_no_loss_of_the_next_session(
     second = served.add(emu.sim, began=emu.runner.now, ended=emu.runner.now, link_lost=None)
     assert second["link"]["sendFailedErrorCounter"] == 0 and second["ok"], second["problem"]
     assert second["link"]["busyFrames"] == link.counters.busyFrames >= 0
+
+
+def test_a_lost_frame_is_named_before_what_it_caused() -> None:
+    """The figures of a live run that lost one frame: the transfer aborted, its message left a
+    DASP gap, the next obstacles message's 16 structures were rejected (D5). The problem names
+    the loss first and says the E2E errors followed it; E2E errors alone stay plain."""
+    base = {"link": {"sendFailedErrorCounter": 0}, "mesp": {"timeouts": 0},
+            "stale_streams": []}
+    lost = finish({**base, "transport_aborts": {"interleaved": 1}, "dasp_counter_gaps": 1,
+                   "e2e_errors": 16}, None)
+    assert lost["problem"] == ("transport aborts {'interleaved': 1}; 1 DASP counter gaps; "
+                               "16 E2E errors (after the gaps: D5 rejects a structure whose "
+                               "rolling counter jumped)"), lost["problem"]
+    corrupt = finish({**base, "transport_aborts": {}, "dasp_counter_gaps": 0,
+                      "e2e_errors": 2}, None)
+    assert corrupt["problem"] == "2 E2E errors" and not corrupt["ok"]
