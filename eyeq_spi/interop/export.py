@@ -35,9 +35,12 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
            vcd: str | None = None, mdf: str | None = None, mcap: str | None = None,
            sr: str | None = None, sr_max_idle: float | None = None,
            spi: SpiOptions | None = None, vcd_max_idle: float | None = None,
-           progress: Callable[[int], None] | None = None) -> dict[str, Any]:
+           progress: Callable[[int], None] | None = None,
+           mcap_extra: Callable[[Any, Any], Any] | None = None) -> dict[str, Any]:
     """Write the outputs asked for in one pass over ``records``; ``progress(transfers)`` is
-    called after each transfer (a progress bar's update)."""
+    called after each transfer (a progress bar's update). ``mcap_extra(writer, codec)``: more
+    topics for the MCAP file (the Foxglove scene), an object whose ``add(record)`` takes every
+    dissector record and whose ``summary()`` joins the MCAP's."""
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.dissect.engine import Dissector
 
@@ -59,6 +62,7 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
         if mcap:
             mcap_w = formats.load("mcap", formats.RECORD_WRITER, what="--mcap")(
                 stack.enter_context(_open(mcap, "wb")), sw=codec.sw, source=source)
+        extra = mcap_extra(mcap_w, codec) if mcap_w is not None and mcap_extra else None
         dis = Dissector(codec=codec) if (mdf_w or mcap_w) else None
         transfers = 0
         for rec in records:
@@ -77,12 +81,16 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
                         mcap_w.transfer(rec, record)
                     else:
                         mcap_w.write(record)
+                if extra is not None:
+                    extra.add(record)
                 if mdf_w is not None:
                     mdf_w.write(record)
         if dis is not None:
             for record in dis.finish():
                 if mcap_w is not None:
                     mcap_w.write(record)
+                if extra is not None:
+                    extra.add(record)
         written = []
         summary: dict[str, Any] = {"transfers": transfers, "sw": codec.sw}
         if vcd_w is not None:
@@ -109,6 +117,9 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
                            "decoded messages)")
             summary["mcap"] = {"path": mcap, "topics": len(mcap_w.channels),
                                "messages": mcap_w.messages}
+            if extra is not None:
+                summary["mcap"].update(extra.summary())
+                written.extend(extra.written())
         summary["written"] = written
         return summary
 
