@@ -54,6 +54,16 @@ def _find(fields: Any, key: str) -> float | None:
     return None
 
 
+def schemas() -> dict[str, Any]:
+    """Every topic with its schema: a ``foxglove.messages`` class or a JSON Schema (what a live
+    server advertises before the first message)."""
+    m = fg()
+    out: dict[str, Any] = dict.fromkeys(topics.SCENE_TOPICS.values(), m.SceneUpdate)
+    out.update({topics.TF: m.FrameTransform, topics.LOG: m.Log, topics.EGO: topics.EGO_SCHEMA,
+                topics.STREAMS: topics.STREAMS_SCHEMA, topics.ACK_LATENCY: topics.ACK_SCHEMA})
+    return out
+
+
 class DeadReckoning:
     """The vehicle's pose in ``odom`` from its speed and yaw rate (x, y in m, yaw in rad)."""
 
@@ -205,14 +215,12 @@ class RecordFeed:
             self._frame(record, t)
 
     def _frame(self, record: dict[str, Any], t: float) -> None:
-        direction, num = record["direction"], record["num"]
-        if num is None:
-            return
-        if record["frame_type"] == "DATA":
-            self.sent[(direction, num)] = t
-        elif record["frame_type"] == "ACK":
+        direction = record["direction"]
+        if record["frame_type"] == "DATA" and record["num"] is not None:
+            self.sent[(direction, record["num"])] = t
+        elif record["frame_type"] == "ACK" and record["rsp"] is not None:  # RSP: the NUM ACKed
             other = {"h2e": "e2h", "e2h": "h2e"}.get(direction or "")
-            sent = self.sent.pop((other, num), None)
+            sent = self.sent.pop((other, record["rsp"]), None)
             if sent is not None and t >= sent:
                 self.feed.ack(t - sent, t)
 

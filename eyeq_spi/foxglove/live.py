@@ -16,7 +16,7 @@ from collections import Counter
 from typing import Any
 
 from eyeq_spi.codec.message import DecodedMessage
-from eyeq_spi.foxglove.feed import Feed
+from eyeq_spi.foxglove.feed import Feed, schemas
 from eyeq_spi.foxglove.topics import SCENE_TOPICS, Sink
 
 DASP_PERIOD_S = 1.0 / 18.0  # the scene streams' nominal rate (seed 004's message table)
@@ -37,6 +37,9 @@ class HostFeed:
         self.link_seen = self._link_counts()
         self.acks_seen: Counter[int] = Counter(host.conn.link.ack_latency)
         self.publishes = 0
+        advertise = getattr(sink, "advertise", None)
+        if advertise is not None:  # a client sees every topic as soon as it connects
+            advertise(schemas())
         host.subscribe(self._on_message)
         host.subscribe_traffic(self._on_traffic)
 
@@ -96,3 +99,8 @@ class HostFeed:
                               "link")
         self.link_seen = counts
 
+    def describe(self) -> str:
+        """What was published, one line."""
+        scenes = sum(n for topic, n in self.feed.published.items() if topic.startswith("/scene/"))
+        return (f"{scenes} scene updates and {self.feed.published['/log']} log lines in "
+                f"{self.publishes} publishes")
