@@ -1,13 +1,16 @@
-"""A running host's view on a Foxglove sink (``demo``, ``host``, ``replay``, ``monitor`` with
-``--foxglove``), through the host's public face only: ``subscribe`` (decoded DASP messages),
-``subscribe_traffic`` (every message received or sent, with its time), ``transitions``, its
-counters and its link's ACK latency histogram.
+"""A live run on a Foxglove sink (``demo``, ``host``, ``replay``, ``monitor`` with
+``--foxglove``).
 
-The link path pays one dict store per scene message and one counter per message: the host's
-subscriber keeps the latest message of each scene kind, and the traffic callback publishes
-what is new at most once per DASP period (1/18 s), so the scene goes out at the DASP rate
-whatever the link does. A sink that says nobody is subscribed (:meth:`ServerSink.subscribed`)
-gets no scene built at all.
+- :class:`HostFeed`: a running host through its public face only: ``subscribe`` (decoded DASP
+  messages), ``subscribe_traffic`` (every message received or sent, with its time),
+  ``transitions``, its counters and its link's ACK latency histogram;
+- :class:`MessageFeed`: decoded messages handed over one by one (a replay's played messages);
+- :class:`RecordsFeed`: a capture's dissector records (``monitor --passive``).
+
+The link path pays one dict store per scene message and one counter per message: the latest
+message of each scene kind is kept, and what is new is published at most once per DASP period
+(1/18 s), so the scene goes out at the DASP rate whatever the link does. A sink that says
+nobody is subscribed (:meth:`ServerSink.subscribed`) gets no scene built at all.
 """
 
 from __future__ import annotations
@@ -16,55 +19,78 @@ from collections import Counter
 from typing import Any
 
 from eyeq_spi.codec.message import DecodedMessage
-from eyeq_spi.foxglove.feed import Feed, schemas
+from eyeq_spi.foxglove.feed import Feed, RecordFeed, schemas
 from eyeq_spi.foxglove.topics import SCENE_TOPICS, Sink
 
 DASP_PERIOD_S = 1.0 / 18.0  # the scene streams' nominal rate (seed 004's message table)
 BAD_STATES = ("FAILED", "BOOT_FAILED", "FATAL")
 
 
-class HostFeed:
-    """Publishes ``host``'s scene, transitions, link events and figures to ``sink``."""
+class MessageFeed:
+    """Decoded messages of a live run (:meth:`message`) published to ``sink`` at most once per
+    ``period`` of their own clock: the latest message of each scene kind, every message
+    counted for ``/streams``."""
 
-    def __init__(self, host: Any, sink: Sink, *, period: float = DASP_PERIOD_S) -> None:
-        self.host = host
+    def __init__(self, codec: Any, sink: Sink, *, period: float = DASP_PERIOD_S) -> None:
         self.sink = sink
-        self.feed = Feed(host.codec, sink)
+        self.feed = Feed(codec, sink)
         self.period = period
         self.latest: dict[str, DecodedMessage] = {}
         self.due: float | None = None
-        self.shown = len(host.transitions)
-        self.link_seen = self._link_counts()
-        self.acks_seen: Counter[int] = Counter(host.conn.link.ack_latency)
         self.publishes = 0
         advertise = getattr(sink, "advertise", None)
         if advertise is not None:  # a client sees every topic as soon as it connects
             advertise(schemas())
-        host.subscribe(self._on_message)
-        host.subscribe_traffic(self._on_traffic)
 
-    def _on_message(self, out: DecodedMessage) -> None:
+    def message(self, out: DecodedMessage, now: float) -> None:
+        """One message received (or played) at ``now``."""
         if out.name in SCENE_TOPICS:
             self.latest[out.name] = out
+        self.traffic(out.name or out.protocol, now)
 
-    def _on_traffic(self, name: str, now: float) -> None:
+    def traffic(self, name: str, now: float) -> None:
+        """A message counted at ``now``; what is due is published."""
         self.feed.received(name, now)
         if self.due is None or now >= self.due:
             self.due = now + self.period
             self.publish(now)
 
     def publish(self, now: float) -> None:
-        """What changed since the last publish, at ``now`` (the host's clock)."""
+        """The latest scene messages, at ``now``: built only when a client looks."""
         self.publishes += 1
+        subscribed = getattr(self.sink, "subscribed", None)
+        if subscribed is None or subscribed():
+            for name, out in self.latest.items():
+                self.feed.message(name, out.fields, now, out.errors)
+        self.latest.clear()
+
+    def describe(self) -> str:
+        """What was published, one line."""
+        scenes = sum(n for topic, n in self.feed.published.items() if topic.startswith("/scene/"))
+        return (f"{scenes} scene updates and {self.feed.published['/log']} log lines in "
+                f"{self.publishes} publishes")
+
+
+class HostFeed(MessageFeed):
+    """Publishes ``host``'s scene, transitions, link events and figures to ``sink``."""
+
+    def __init__(self, host: Any, sink: Sink, *, period: float = DASP_PERIOD_S) -> None:
+        super().__init__(host.codec, sink, period=period)
+        self.host = host
+        self.shown = len(host.transitions)
+        self.link_seen = self._link_counts()
+        self.acks_seen: Counter[int] = Counter(host.conn.link.ack_latency)
+        host.subscribe(self._on_message)
+        host.subscribe_traffic(self.traffic)
+
+    def _on_message(self, out: DecodedMessage) -> None:
+        if out.name in SCENE_TOPICS:  # counted by the traffic callback, published there
+            self.latest[out.name] = out
+
+    def publish(self, now: float) -> None:
         self._transitions()
         self._link(now)
-        subscribed = getattr(self.sink, "subscribed", None)
-        if subscribed is not None and not subscribed():
-            self.latest.clear()  # nobody looks: build nothing
-            return
-        for name, out in self.latest.items():
-            self.feed.message(name, out.fields, now, out.errors)
-        self.latest.clear()
+        super().publish(now)
         scenario = getattr(self.host, "scenario", None)
         if scenario is not None:
             signals = scenario.signals(now)
@@ -99,8 +125,22 @@ class HostFeed:
                               "link")
         self.link_seen = counts
 
+
+class RecordsFeed:
+    """A capture's dissector records published as they are read (``monitor --replay FILE
+    --passive``): every record through a :class:`~eyeq_spi.foxglove.feed.RecordFeed`."""
+
+    def __init__(self, codec: Any, sink: Sink) -> None:
+        self.sink = sink
+        self.feed = Feed(codec, sink)
+        self.records = RecordFeed(self.feed)
+        advertise = getattr(sink, "advertise", None)
+        if advertise is not None:
+            advertise(schemas())
+
+    def add(self, record: dict[str, Any]) -> None:
+        self.records.add(record)
+
     def describe(self) -> str:
-        """What was published, one line."""
         scenes = sum(n for topic, n in self.feed.published.items() if topic.startswith("/scene/"))
-        return (f"{scenes} scene updates and {self.feed.published['/log']} log lines in "
-                f"{self.publishes} publishes")
+        return f"{scenes} scene updates and {self.feed.published['/log']} log lines"
