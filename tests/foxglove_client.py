@@ -50,9 +50,10 @@ class Client:
         from websockets.typing import Subprotocol
 
         self.stack = contextlib.ExitStack()
-        self.ws = self.stack.enter_context(connect(url, subprotocols=[Subprotocol(name) for name in SUBPROTOCOLS], open_timeout=timeout,
-                          max_size=None, proxy=None,  # loopback, never through a proxy
-                          compression=None))
+        offered = [Subprotocol(name) for name in SUBPROTOCOLS]
+        self.ws = self.stack.enter_context(connect(
+            url, subprotocols=offered, open_timeout=timeout, max_size=None,
+            proxy=None, compression=None))  # loopback, never through a proxy
         self.channels: dict[str, dict[str, Any]] = {}  # topic -> advertised channel
         self.subscriptions: dict[int, dict[str, Any]] = {}
 

@@ -15,13 +15,13 @@ import pytest
 pytest.importorskip("foxglove", reason="the [foxglove] extra (foxglove-sdk) is not installed")
 pytest.importorskip("google.protobuf", reason="protobuf (the test extra) decodes the scene")
 
-import foxglove.messages as fgm  # noqa: E402
+import foxglove.messages as fgm
 
-from eyeq_spi.cli import main  # noqa: E402
-from eyeq_spi.codec.message import MessageCodec  # noqa: E402
-from eyeq_spi.foxglove.feed import Feed  # noqa: E402
-from eyeq_spi.plot.vehicle_frame import CAMERA_HEIGHT_M  # noqa: E402
-from tests.foxglove_client import message_class  # noqa: E402
+from eyeq_spi.cli import main
+from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.foxglove.feed import Feed
+from eyeq_spi.plot.vehicle_frame import CAMERA_HEIGHT_M
+from tests.foxglove_client import message_class
 
 OBSTACLES = "EYEQ_VIS_OBSTACLES_MSG"
 ROAD = "EYEQ_VIS_ROAD_DATA_MSG"

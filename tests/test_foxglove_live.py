@@ -14,8 +14,8 @@ import pytest
 pytest.importorskip("foxglove", reason="the [foxglove] extra (foxglove-sdk) is not installed")
 pytest.importorskip("websockets", reason="the websockets client is not installed (test extra)")
 
-from tests.foxglove_client import Client  # noqa: E402
-from tests.sim_proc import CLI, ROOT  # noqa: E402
+from tests.foxglove_client import Client
+from tests.sim_proc import CLI, ROOT
 
 LISTEN_S = 3.0
 DASP_HZ = 18.0

@@ -111,7 +111,7 @@ class HostFeed(MessageFeed):
         self.shown = len(self.host.transitions)
 
     def _link_counts(self) -> dict[str, int]:
-        link = self.host.conn.link.counters.seed_view()
+        link: dict[str, int] = dict(self.host.conn.link.counters.seed_view())
         for reason, count in dict(self.host.conn.counters.transferAborts).items():
             link[f"transfer aborted: {reason}"] = int(count)
         return link

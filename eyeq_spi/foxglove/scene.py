@@ -101,8 +101,9 @@ class SceneMessages:
         ids = {eid for eid, _ in parts}
         gone = sorted(self.shown[kind] - ids)
         self.shown[kind] = ids
-        deletions = [m.SceneEntityDeletion(timestamp=stamp, type=m.SceneEntityDeletionType.MatchingId,
-                                           id=eid) for eid in gone]
+        matching = m.SceneEntityDeletionType.MatchingId
+        deletions = [m.SceneEntityDeletion(timestamp=stamp, type=matching, id=eid)
+                     for eid in gone]
         return m.SceneUpdate(deletions=deletions, entities=entities)
 
     def _obstacles(self, scene: Scene) -> Iterable[tuple[str, dict[str, Any]]]:

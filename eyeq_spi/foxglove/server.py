@@ -15,7 +15,7 @@ import json
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 from eyeq_spi.errors import AdapterError, MissingExtra, UsageError
 from eyeq_spi.foxglove.topics import FoxgloveMessage
@@ -73,7 +73,8 @@ class ServerSink:
         try:
             self.server = foxglove.start_server(
                 name=name, host=host, port=port, context=self.context,
-                server_listener=self.listener, message_backlog_size=BACKLOG)
+                # the SDK calls the listener's methods it has (two of its protocol's)
+                server_listener=cast(Any, self.listener), message_backlog_size=BACKLOG)
         except Exception as exc:  # the SDK raises its own error for a port in use
             raise AdapterError(f"--foxglove {address}: cannot serve there ({exc})") from None
         self.host = host
