@@ -9,7 +9,8 @@
 
 The link path pays one dict store per scene message and one counter per message: the latest
 message of each scene kind is kept, and what is new is published at most once per DASP period
-(1/18 s), so the scene goes out at the DASP rate whatever the link does. A sink that says
+(1/18 s) and kind, one kind per call, so the scene goes out at the DASP rate whatever the link
+does and no single call pays for the whole scene (``tools/bench_foxglove.py`` measures it). A sink that says
 nobody is subscribed (:meth:`ServerSink.subscribed`) gets no scene built at all.
 """
 
@@ -37,6 +38,7 @@ class MessageFeed:
         self.period = period
         self.latest: dict[str, DecodedMessage] = {}
         self.due: float | None = None
+        self.scene_due: dict[str, float] = {}  # scene kind -> when it may go out again
         self.publishes = 0
         advertise = getattr(sink, "advertise", None)
         if advertise is not None:  # a client sees every topic as soon as it connects
@@ -49,20 +51,32 @@ class MessageFeed:
         self.traffic(out.name or out.protocol, now)
 
     def traffic(self, name: str, now: float) -> None:
-        """A message counted at ``now``; what is due is published."""
+        """A message counted at ``now``; what is due is published: the once-a-period topics,
+        or one scene kind (never more in one call, so no call costs the loop a whole scene)."""
         self.feed.received(name, now)
         if self.due is None or now >= self.due:
             self.due = now + self.period
             self.publish(now)
+        elif self.latest:
+            self.scene(now)
 
     def publish(self, now: float) -> None:
-        """The latest scene messages, at ``now``: built only when a client looks."""
+        """The once-a-period topics at ``now``, and one scene kind if one is due."""
         self.publishes += 1
+        self.scene(now)
+
+    def scene(self, now: float) -> None:
+        """The oldest due scene message's SceneUpdate (at most one per kind and period), built
+        only when a client looks."""
+        due = [name for name in self.latest if self.scene_due.get(name, now) <= now]
+        if not due:
+            return
+        name = min(due, key=lambda kind: self.scene_due.get(kind, now))
+        out = self.latest.pop(name)
+        self.scene_due[name] = now + self.period
         subscribed = getattr(self.sink, "subscribed", None)
         if subscribed is None or subscribed():
-            for name, out in self.latest.items():
-                self.feed.message(name, out.fields, now, out.errors)
-        self.latest.clear()
+            self.feed.message(name, out.fields, now, out.errors)
 
     def describe(self) -> str:
         """What was published, one line."""
