@@ -13,19 +13,17 @@ Prints median and spread (p10, p90, max) in ms, and the ratio of the medians.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import statistics
 import sys
 import threading
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from eyeq_spi import emulator  # noqa: E402
-from eyeq_spi.codec.message import DecodedMessage  # noqa: E402
-from eyeq_spi.foxglove.live import MessageFeed  # noqa: E402
-from eyeq_spi.foxglove.server import ServerSink  # noqa: E402
-from eyeq_spi.plot.perceived import SCENE_MESSAGES  # noqa: E402
+from eyeq_spi import emulator
+from eyeq_spi.codec.message import DecodedMessage
+from eyeq_spi.foxglove.live import MessageFeed
+from eyeq_spi.foxglove.server import ServerSink
+from eyeq_spi.plot.perceived import SCENE_MESSAGES
 
 
 def _scene_messages() -> tuple[dict[str, DecodedMessage], dict[str, bytes]]:
@@ -59,10 +57,8 @@ def _client(url: str, stop: threading.Event) -> threading.Thread:
             ws.send(json.dumps({"op": "subscribe", "subscriptions": [
                 {"id": k, "channelId": cid} for k, cid in enumerate(channels)]}))
             while not stop.is_set():
-                try:
+                with contextlib.suppress(TimeoutError):
                     ws.recv(timeout=0.1)
-                except TimeoutError:
-                    pass
 
     thread = threading.Thread(target=run, daemon=True)
     thread.start()

@@ -10,8 +10,8 @@
 The link path pays one dict store per scene message and one counter per message: the latest
 message of each scene kind is kept, and what is new is published at most once per DASP period
 (1/18 s) and kind, one kind per call, so the scene goes out at the DASP rate whatever the link
-does and no single call pays for the whole scene (``tools/bench_foxglove.py`` measures it). A sink that says
-nobody is subscribed (:meth:`ServerSink.subscribed`) gets no scene built at all.
+does and no single call pays for the whole scene (``tools/bench_foxglove.py`` measures it). A
+sink that says nobody is subscribed (:meth:`ServerSink.subscribed`) gets no scene built.
 """
 
 from __future__ import annotations
