@@ -73,24 +73,10 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
                 vcd_w.write(rec)
             if sr_w is not None:
                 sr_w.write(rec)
-            if dis is None:
-                continue
-            for record in dis.feed(rec):
-                if mcap_w is not None:
-                    if record["kind"] == "frame" and record["index"] == transfers - 1:
-                        mcap_w.transfer(rec, record)
-                    else:
-                        mcap_w.write(record)
-                if extra is not None:
-                    extra.add(record)
-                if mdf_w is not None:
-                    mdf_w.write(record)
-        if dis is not None:
-            for record in dis.finish():
-                if mcap_w is not None:
-                    mcap_w.write(record)
-                if extra is not None:
-                    extra.add(record)
+            if dis is not None:
+                _deliver(dis.feed(rec), rec, transfers - 1, mcap_w, extra, mdf_w)
+        if dis is not None:  # what the dissector held at the end: MCAP only, as before
+            _deliver(dis.finish(), None, -1, mcap_w, extra, None)
         written = []
         summary: dict[str, Any] = {"transfers": transfers, "sw": codec.sw}
         if vcd_w is not None:
@@ -122,6 +108,22 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
                 written.extend(extra.written())
         summary["written"] = written
         return summary
+
+
+def _deliver(records: Iterable[dict[str, Any]], rec: Record | None, index: int, mcap_w: Any,
+             extra: Any, mdf_w: Any) -> None:
+    """The dissector's records to every writer that takes them; the frame record of ``rec``
+    (the transfer at ``index``) goes to the MCAP with its raw bytes."""
+    for record in records:
+        if mcap_w is not None:
+            if rec is not None and record["kind"] == "frame" and record["index"] == index:
+                mcap_w.transfer(rec, record)
+            else:
+                mcap_w.write(record)
+        if extra is not None:
+            extra.add(record)
+        if mdf_w is not None:
+            mdf_w.write(record)
 
 
 def export_mdf(records: Iterable[dict[str, Any]], mdf: str, *, source: str,
