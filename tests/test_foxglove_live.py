@@ -21,7 +21,7 @@ from typing import Any
 from tests.foxglove_client import Client
 from tests.sim_proc import CLI, ROOT, start_sim
 
-LISTEN_S = 3.0
+LISTEN_S = 2.0
 DASP_HZ = 18.0
 
 
@@ -86,7 +86,7 @@ def _summary(run: subprocess.Popen[str]) -> dict[str, Any]:
 
 @pytest.mark.realtime
 def test_demo_serves_scene_updates_at_the_dasp_rate() -> None:
-    demo = subprocess.Popen([*CLI, "demo", "--duration", "6", "--foxglove", "127.0.0.1:0",
+    demo = subprocess.Popen([*CLI, "demo", "--duration", "5", "--foxglove", "127.0.0.1:0",
                              "--json"], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
@@ -107,7 +107,7 @@ def test_host_against_sim_serves_its_scene_and_keeps_its_link() -> None:
     sim, url = start_sim("--listen", "tcp://127.0.0.1:0", "--duration", "30",
                          "--accept-timeout", "30", "--json")
     try:
-        host = subprocess.Popen([*CLI, "host", "--port", url, "--duration", "6", "--foxglove",
+        host = subprocess.Popen([*CLI, "host", "--port", url, "--duration", "5", "--foxglove",
                                  "127.0.0.1:0", "--json"], cwd=ROOT, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, text=True)
         try:
