@@ -5,6 +5,7 @@ schemas, in the counts ``dissect --stats`` gives; the layout opens the scene, pl
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from pathlib import Path
@@ -246,3 +247,44 @@ def test_export_mcap_writes_the_scene_beside_its_topics(tmp_path: Path,
     assert '"panelType": "ThreeDee"' in text and '"panelType": "Log"' in text
     assert text.count('"panelType": "Plot"') == 3
     assert all(topic in text for topic in ("/scene/obstacles", "/ego.speed", "/log"))
+
+
+def test_a_live_host_is_published_at_most_once_per_dasp_period_and_kind() -> None:
+    from eyeq_spi import emulator
+    from eyeq_spi.foxglove.live import HostFeed
+
+    emu = emulator.build()
+    sink = ListSink()
+    live = HostFeed(emu.host, sink)
+    emu.run_for(3.0)  # virtual time: the same schedule on any machine
+    times: dict[str, list[int]] = {}
+    for topic, _, _, t in sink.got:
+        times.setdefault(topic, []).append(t)
+    running = next(t.time for t in emu.host.transitions if t.dst.value == "RUNNING_VISION")
+    for topic in ("/scene/obstacles", "/scene/lanes", "/scene/signs", "/scene/lights"):
+        stamps = times[topic]
+        gaps = [b - a for a, b in itertools.pairwise(stamps)]
+        assert min(gaps) >= 1e9 / 18 - 1, topic  # never faster than the DASP rate
+        # and not slower: every message of the stream since Running Vision, give or take one
+        assert len(stamps) >= (3.0 - running) * 18 - 2, (topic, len(stamps))
+    log = message_class("foxglove.Log", fgm.Log.get_schema().data)
+    lines = [log.FromString(data).message for topic, _, data, _ in sink.got if topic == "/log"]
+    assert any("--RUNNING_VISION--> RUNNING_VISION" in line for line in lines), lines
+    assert times["/ego"] and times["/streams"] and times["/link/ack_latency"]
+    assert "scene updates" in live.describe()
+
+
+def test_foxglove_option_errors_are_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    from eyeq_spi.foxglove.server import ServerSink
+
+    assert main(["demo", "--virtual-time", "--foxglove", "localhost:port"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "HOST:PORT" in err
+    taken = ServerSink("127.0.0.1:0")
+    try:
+        assert main(["demo", "--virtual-time", "--duration", "0.1", "--foxglove",
+                     f"127.0.0.1:{taken.port}"]) == 2
+    finally:
+        taken.close()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot serve there" in err, err

@@ -70,7 +70,7 @@ def draw(shown: dict[str, dict[str, Any]], out: str, *, title: str) -> None:
     fig, ax = plt.subplots(figsize=(6.4, 9.0), dpi=100)
     ax.set_facecolor("#f2f2f2")
     for topic in SCENE_TOPICS:
-        for eid, entity in shown[topic].items():
+        for entity in shown[topic].values():
             for line in entity.lines:
                 px, py = line.pose.position.x, line.pose.position.y
                 yaw = _yaw(line.pose.orientation)

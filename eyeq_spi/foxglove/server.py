@@ -35,9 +35,9 @@ def parse_address(text: str) -> tuple[str, int]:
     try:
         number = int(port)
     except ValueError:
-        raise UsageError(f"--foxglove {text}: the port must be a number (HOST:PORT)") from None
+        raise UsageError(f"{text}: give HOST:PORT, the port a number") from None
     if not 0 <= number <= 65535:
-        raise UsageError(f"--foxglove {text}: the port must be 0..65535")
+        raise UsageError(f"{text}: the port must be 0..65535")
     return host, number
 
 
