@@ -288,3 +288,12 @@ def test_foxglove_option_errors_are_one_line(capsys: pytest.CaptureFixture[str])
         taken.close()
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot serve there" in err, err
+
+
+def test_the_layout_in_docs_is_the_one_export_writes() -> None:
+    from eyeq_spi.foxglove.layout import layout_json
+
+    docs = Path(__file__).resolve().parents[1] / "docs" / "foxglove.layout.json"
+    assert docs.read_text(encoding="utf-8") == layout_json() + "\n", (
+        "regenerate it: python -c 'from eyeq_spi.foxglove.layout import layout_json; "
+        "print(layout_json())' > docs/foxglove.layout.json")

@@ -141,8 +141,8 @@ def serve_foxglove(args: argparse.Namespace) -> Any:
 
     sink = ServerSink(address, name=f"eyeq-spi {args.command}")
     print(f"FOXGLOVE {sink.url} (in Foxglove: Open connection, Foxglove WebSocket, this URL; "
-          "the layout: the .layout.json that export --mcap writes)", file=sys.stderr,
-          flush=True)
+          "the layout: the .layout.json that export --mcap writes, or "
+          "docs/foxglove.layout.json)", file=sys.stderr, flush=True)
     return sink
 
 
