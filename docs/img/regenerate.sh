@@ -14,6 +14,10 @@ eyeq_spi plot "$cap" --birdseye --animate --start 3 --end 5 --fps 5 -o docs/img/
 eyeq_spi plot "$cap" --timing --name 'OBSTACLES|ROAD|SRP|DIAGNOSTIC|HOST_VEH' \
     -o docs/img/timing.png
 eyeq_spi plot "$cap" --link -o docs/img/link.png
+# the Foxglove scene's SceneUpdate messages drawn from above (needs '.[foxglove,test]')
+eyeq_spi export "$cap" --mcap "${cap%.pcapng}.mcap" > /dev/null
+python3 tools/foxglove_picture.py "${cap%.pcapng}.mcap" --at 4 -o docs/img/foxglove-scene.png \
+    > /dev/null
 eyeq_spi monitor --replay "$cap" --pace 0 --screenshot docs/img/monitor.svg > /dev/null
 eyeq_spi monitor --replay "$cap" --pace 0 --screenshot docs/img/monitor-80x24.svg \
     --screenshot-size 80x24 > /dev/null

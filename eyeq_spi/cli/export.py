@@ -42,7 +42,9 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     parser.add_argument("--mdf", metavar="OUT.mf4", type=ca.output_file,
                    help="decoded signals (needs the [export] extra)")
     parser.add_argument("--mcap", metavar="OUT.mcap", type=ca.output_file,
-                   help="raw transfers and decoded messages (needs the [export] extra)")
+                   help="raw transfers and decoded messages (needs the [export] extra), and "
+                   "with the [foxglove] extra the 3D scene, plots and log for Foxglove, with "
+                   "its layout in OUT.layout.json beside it")
     opt.include(parser, opt.json_out("end with one JSON summary object"))
 
 
@@ -68,7 +70,8 @@ def run_export(args: argparse.Namespace) -> int:
                                  vcd=args.vcd, mdf=args.mdf, mcap=args.mcap, sr=args.sr,
                                  sr_max_idle=args.sr_max_idle,
                                  spi=_spi(args),
-                                 vcd_max_idle=args.vcd_max_idle, progress=bar.update)
+                                 vcd_max_idle=args.vcd_max_idle, progress=bar.update,
+                                 mcap_extra=_foxglove_scene(args.mcap))
         else:
             with JobProgress(f"export {os.path.basename(args.capture)}",
                              enabled=None if args.capture != "-" else False) as bar:
@@ -83,6 +86,22 @@ def run_export(args: argparse.Namespace) -> int:
         for line in summary["written"]:
             print(f"wrote {line}")
     return inputs.tail_note("export", args.capture, cap.tail)
+
+
+def _foxglove_scene(mcap: str | None) -> Any:
+    """``--mcap``: the Foxglove scene's topics and layout, when the [foxglove] extra is there
+    (without it the MCAP holds today's topics, and stderr says what the extra would add)."""
+    if not mcap:
+        return None
+    import importlib.util
+
+    if importlib.util.find_spec("foxglove") is None:
+        print("eyeq-spi export: no 3D scene in the MCAP: pip install 'eyeq-spi[foxglove]' adds "
+              "it (and a Foxglove layout)", file=sys.stderr)
+        return None
+    from eyeq_spi.foxglove.mcap_sink import McapScene, layout_path
+
+    return lambda writer, codec: McapScene(writer, codec, layout_path(mcap))
 
 
 def _vcd_plan(args: argparse.Namespace) -> int:

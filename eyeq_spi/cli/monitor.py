@@ -51,7 +51,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     opt.include(parser, opt.capture_input(opt.FORMATS, format_help="--replay: skip detection",
                                      direction_help="--replay: channel of an input without "
                                      "directions", sw_help=None))
-    opt.include(parser, opt.scenario("monitor"))
+    opt.include(parser, opt.scenario("monitor"), opt.foxglove())
 
 
 
@@ -88,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
 
         if not MIN_REFRESH <= args.refresh <= MAX_REFRESH:
             raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
+        if args.foxglove:
+            raise UsageError("--foxglove serves the EyeQ's scene: not with --can-bus")
         run_can_monitor(args.can_bus, args.can_protocol, duration=args.duration,
                         refresh=args.refresh, screenshot=args.screenshot)
         return 0
@@ -113,9 +115,27 @@ def run(args: argparse.Namespace) -> int:
         source = _demo_source(args)
     else:
         source = _host_source(args)
-    run_app(source, refresh=args.refresh, screenshot=args.screenshot,
-        screenshot_size=args.screenshot_size)
+    live = _foxglove(args, source)
+    try:
+        run_app(source, refresh=args.refresh, screenshot=args.screenshot,
+                screenshot_size=args.screenshot_size)
+    finally:
+        opt.foxglove_close(live)
     return inputs.tail_note("monitor", args.replay, getattr(source, "tail", None))
+
+
+def _foxglove(args: argparse.Namespace, source: Any) -> Any:
+    """``--foxglove``: the source's host (or, ``--passive``, its records) served live."""
+    if not args.foxglove:
+        return None
+    view = getattr(source, "view", None)
+    if view is not None:
+        return opt.foxglove_feed(args, view.host)
+    from eyeq_spi.foxglove.live import RecordsFeed
+
+    live = RecordsFeed(source.codec, opt.serve_foxglove(args))
+    source.on_record = live.add
+    return live
 
 
 def _demo_source(args: argparse.Namespace) -> Any:

@@ -17,13 +17,14 @@ never ignored, where that side is not run: :func:`refuse_inapplicable` is the on
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections.abc import Callable, Collection, Sequence
 from typing import Any
 
 from eyeq_spi import io as formats
 from eyeq_spi.cli import args as ca
-from eyeq_spi.errors import UsageError
+from eyeq_spi.errors import EyeqError, UsageError
 
 # -- capture formats (the one list: dissect, export, replay, plot, monitor) ---------------------
 FORMATS = formats.readers()  # the io registry's capture readers, in detection order
@@ -89,6 +90,60 @@ def json_out(help: str = "end with one JSON object") -> argparse.ArgumentParser:
     p = _parent()
     p.add_argument("--json", action="store_true", help=help)
     return p
+
+
+def _foxglove_address(text: str) -> str:
+    from eyeq_spi.foxglove.server import parse_address
+
+    try:
+        host, port = parse_address(text)
+    except EyeqError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return f"{host}:{port}"
+
+
+def foxglove() -> argparse.ArgumentParser:
+    """``--foxglove [HOST:PORT]``: serve the run live to Foxglove (the [foxglove] extra)."""
+    p = _parent()
+    p.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", type=_foxglove_address,
+                   metavar="HOST:PORT", help="serve the EyeQ's scene, plots and log live to "
+                   "Foxglove over a WebSocket (default 127.0.0.1:8765; port 0: any free port; "
+                   "the address is printed on stderr; needs the [foxglove] extra)")
+    return p
+
+
+def foxglove_feed(args: argparse.Namespace, host: Any) -> Any:
+    """``--foxglove``: a started server with ``host`` published to it (a
+    :class:`~eyeq_spi.foxglove.live.HostFeed`), or None."""
+    sink = serve_foxglove(args)
+    if sink is None:
+        return None
+    from eyeq_spi.foxglove.live import HostFeed
+
+    return HostFeed(host, sink)
+
+
+def foxglove_close(live: Any) -> None:
+    """Stop ``--foxglove``'s server; say on stderr what it published."""
+    if live is None:
+        return
+    live.sink.close()
+    print(f"FOXGLOVE {live.sink.url}: {live.describe()}", file=sys.stderr, flush=True)
+
+
+def serve_foxglove(args: argparse.Namespace) -> Any:
+    """``--foxglove``: the started server (a Foxglove sink), its address said on stderr; or
+    None."""
+    address = getattr(args, "foxglove", None)
+    if not address:
+        return None
+    from eyeq_spi.foxglove.server import ServerSink
+
+    sink = ServerSink(address, name=f"eyeq-spi {args.command}")
+    print(f"FOXGLOVE {sink.url} (in Foxglove: Open connection, Foxglove WebSocket, this URL; "
+          "the layout: the .layout.json that export --mcap writes, or "
+          "docs/foxglove.layout.json)", file=sys.stderr, flush=True)
+    return sink
 
 
 def rt_priority(what: str = "ACKs") -> argparse.ArgumentParser:

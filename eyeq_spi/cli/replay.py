@@ -33,14 +33,15 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                        help="connect to the host under test at tcp://HOST:PORT (socket:// too), "
                        "rfc2217://HOST:PORT or a tty/pty path")
     where.add_argument("--into-host", action="store_true",
-                       help="feed the built-in host emulator in virtual time")
+                       help="feed the built-in host emulator in virtual time (with "
+                       "--foxglove: at the capture's pace)")
     parser.set_defaults(port=None, listen=None, pty=False)
     parser.add_argument("--duration", type=opt.seconds,
                    help="stop after S seconds of capture time, (0, 86400]")
     parser.add_argument("--lead", type=ca.number(0, 3600, unit="s"), default=0.5, metavar="S",
                    help="--port: seconds between the host connecting and the first frame "
                    "(default 0.5)")
-    opt.include(parser, opt.json_out())
+    opt.include(parser, opt.json_out(), opt.foxglove())
 
 
 def run(args: argparse.Namespace) -> int:
@@ -48,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_replay(args: argparse.Namespace) -> int:
+    from eyeq_spi.cli import options as opt
     from eyeq_spi.interop.replay import replay_into_host, replay_to_port
     from eyeq_spi.summary import format_summary
 
@@ -55,18 +57,38 @@ def run_replay(args: argparse.Namespace) -> int:
         raise UsageError("--duration must be positive")
     if args.pty:
         raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
+    if not args.into_host and args.lead < 0:
+        raise UsageError("--lead must not be negative")
     cap = inputs.open_input(args, "replay")
+    sink = opt.serve_foxglove(args)
+    live: Any = None
     try:
         if args.into_host:
-            summary = replay_into_host(cap.transfers, sw=cap.release.key, duration=args.duration)
+            def watch(host: Any) -> None:  # --foxglove: the replayed host, at the capture's pace
+                from eyeq_spi.foxglove.live import HostFeed
+
+                nonlocal live
+                live = HostFeed(host, sink)
+
+            summary = replay_into_host(cap.transfers, sw=cap.release.key, duration=args.duration,
+                                       realtime=sink is not None,
+                                       on_host=watch if sink is not None else None)
         else:
-            if args.lead < 0:
-                raise UsageError("--lead must not be negative")
+            if sink is not None:  # --foxglove: the messages as they are played
+                from eyeq_spi.codec.message import MessageCodec
+                from eyeq_spi.foxglove.live import MessageFeed
+
+                live = MessageFeed(MessageCodec(cap.release.key), sink)
             summary = replay_to_port(cap.transfers, args.listen or args.port,
                                      listen=bool(args.listen), duration=args.duration,
-                                     lead=args.lead, sw=cap.release.key)
+                                     lead=args.lead, sw=cap.release.key,
+                                     on_message=live.message if live is not None else None)
     finally:
         cap.close()
+        if live is not None:
+            opt.foxglove_close(live)
+        elif sink is not None:
+            sink.close()
     if args.json:
         print(json.dumps(summary, sort_keys=True), flush=True)
     else:

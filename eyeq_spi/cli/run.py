@@ -66,6 +66,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                        help="wait for the EyeQ at the start and whenever the link is lost, "
                        "and run the bring-up again")
     opt.include(p, opt.json_out())
+    if name != "sim":
+        opt.include(p, opt.foxglove())
     if name != "demo":
         opt.include(p, opt.rt_priority())
     opt.include(p, opt.scenario(name))
@@ -229,6 +231,7 @@ def run_demo(args: argparse.Namespace) -> int:
         # in real time, the summary's ACK latencies are readings of the clock too
         acks = emu.runner.tap = ClockedAcks(time.monotonic, then=emu.runner.tap)
     can_out = opt.can_output(args, emu.host, emu.runner)  # --can-out: the CAN gateway
+    live = opt.foxglove_feed(args, emu.host)
     from eyeq_spi.cli.progress import JobProgress
 
     _on_sigterm()
@@ -257,6 +260,7 @@ def run_demo(args: argparse.Namespace) -> int:
             writer.close()
         if can_out is not None:
             can_out.close()  # a log file is complete when the command returns
+        opt.foxglove_close(live)
     out = summary(emu, interrupted=interrupted)
     if acks is not None:
         from eyeq_spi.summary import ack_latency_ms
@@ -334,12 +338,16 @@ def run_host(args: argparse.Namespace) -> int:
                     or _open_or_say(args))
     _on_sigterm()
     view = LiveView(sys.stderr.isatty() and not args.json)
-    out = drive(host, adapter, duration=args.duration,
-                address=parse_connect(args.port, check_path=False).display,
-                reopen_adapter=again if args.reconnect else None,
-                exit_when_running=args.exit_when_running, rt_priority=args.rt_priority,
-                capture=opt.capture_writer(args),
-                attach=lambda runner: opt.can_output(args, host, runner),
-                on_step=view.update)
+    live = opt.foxglove_feed(args, host)
+    try:
+        out = drive(host, adapter, duration=args.duration,
+                    address=parse_connect(args.port, check_path=False).display,
+                    reopen_adapter=again if args.reconnect else None,
+                    exit_when_running=args.exit_when_running, rt_priority=args.rt_priority,
+                    capture=opt.capture_writer(args),
+                    attach=lambda runner: opt.can_output(args, host, runner),
+                    on_step=view.update)
+    finally:
+        opt.foxglove_close(live)
     print_summary(out, args.json)
     return 0 if out["ok"] else 1

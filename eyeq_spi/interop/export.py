@@ -35,9 +35,12 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
            vcd: str | None = None, mdf: str | None = None, mcap: str | None = None,
            sr: str | None = None, sr_max_idle: float | None = None,
            spi: SpiOptions | None = None, vcd_max_idle: float | None = None,
-           progress: Callable[[int], None] | None = None) -> dict[str, Any]:
+           progress: Callable[[int], None] | None = None,
+           mcap_extra: Callable[[Any, Any], Any] | None = None) -> dict[str, Any]:
     """Write the outputs asked for in one pass over ``records``; ``progress(transfers)`` is
-    called after each transfer (a progress bar's update)."""
+    called after each transfer (a progress bar's update). ``mcap_extra(writer, codec)``: more
+    topics for the MCAP file (the Foxglove scene), an object whose ``add(record)`` takes every
+    dissector record and whose ``summary()`` joins the MCAP's."""
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.dissect.engine import Dissector
 
@@ -59,6 +62,7 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
         if mcap:
             mcap_w = formats.load("mcap", formats.RECORD_WRITER, what="--mcap")(
                 stack.enter_context(_open(mcap, "wb")), sw=codec.sw, source=source)
+        extra = mcap_extra(mcap_w, codec) if mcap_w is not None and mcap_extra else None
         dis = Dissector(codec=codec) if (mdf_w or mcap_w) else None
         transfers = 0
         for rec in records:
@@ -69,20 +73,10 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
                 vcd_w.write(rec)
             if sr_w is not None:
                 sr_w.write(rec)
-            if dis is None:
-                continue
-            for record in dis.feed(rec):
-                if mcap_w is not None:
-                    if record["kind"] == "frame" and record["index"] == transfers - 1:
-                        mcap_w.transfer(rec, record)
-                    else:
-                        mcap_w.write(record)
-                if mdf_w is not None:
-                    mdf_w.write(record)
-        if dis is not None:
-            for record in dis.finish():
-                if mcap_w is not None:
-                    mcap_w.write(record)
+            if dis is not None:
+                _deliver(dis.feed(rec), rec, transfers - 1, mcap_w, extra, mdf_w)
+        if dis is not None:  # what the dissector held at the end: MCAP only, as before
+            _deliver(dis.finish(), None, -1, mcap_w, extra, None)
         written = []
         summary: dict[str, Any] = {"transfers": transfers, "sw": codec.sw}
         if vcd_w is not None:
@@ -109,8 +103,27 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
                            "decoded messages)")
             summary["mcap"] = {"path": mcap, "topics": len(mcap_w.channels),
                                "messages": mcap_w.messages}
+            if extra is not None:
+                summary["mcap"].update(extra.summary())
+                written.extend(extra.written())
         summary["written"] = written
         return summary
+
+
+def _deliver(records: Iterable[dict[str, Any]], rec: Record | None, index: int, mcap_w: Any,
+             extra: Any, mdf_w: Any) -> None:
+    """The dissector's records to every writer that takes them; the frame record of ``rec``
+    (the transfer at ``index``) goes to the MCAP with its raw bytes."""
+    for record in records:
+        if mcap_w is not None:
+            if rec is not None and record["kind"] == "frame" and record["index"] == index:
+                mcap_w.transfer(rec, record)
+            else:
+                mcap_w.write(record)
+        if extra is not None:
+            extra.add(record)
+        if mdf_w is not None:
+            mdf_w.write(record)
 
 
 def export_mdf(records: Iterable[dict[str, Any]], mdf: str, *, source: str,

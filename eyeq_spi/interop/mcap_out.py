@@ -73,18 +73,32 @@ class McapWriter:
     def _channel(self, topic: str, schema: dict[str, Any], title: str) -> int:
         cid = self.channels.get(topic)
         if cid is None:
-            sid = self.w.register_schema(name=title, encoding="jsonschema",
-                                         data=json.dumps({**schema, "title": title}).encode())
-            cid = self.w.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+            cid = self.register(topic, schema_name=title, schema_encoding="jsonschema",
+                                schema=json.dumps({**schema, "title": title}).encode(),
+                                message_encoding="json")
+        return cid
+
+    def register(self, topic: str, *, schema_name: str, schema_encoding: str, schema: bytes,
+                 message_encoding: str) -> int:
+        """The channel of ``topic`` (registered with its schema on first use): for topics in
+        other encodings than this module's JSON (Foxglove's protobuf schemas)."""
+        cid = self.channels.get(topic)
+        if cid is None:
+            sid = self.w.register_schema(name=schema_name, encoding=schema_encoding, data=schema)
+            cid = self.w.register_channel(topic=topic, message_encoding=message_encoding,
+                                          schema_id=sid)
             self.channels[topic] = cid
         return int(cid)
 
+    def add(self, cid: int, log_time_ns: int, data: bytes) -> None:
+        """One message, already encoded, on a channel of :meth:`register`."""
+        self.seq += 1
+        self.w.add_message(channel_id=cid, log_time=max(0, log_time_ns),
+                           publish_time=max(0, log_time_ns), sequence=self.seq, data=data)
+
     def _put(self, cid: int, time: float | None, index: int, body: dict[str, Any]) -> None:
         ns = round(time * 1e9) if time is not None else index * 1000
-        self.seq += 1
-        self.w.add_message(channel_id=cid, log_time=max(0, ns), publish_time=max(0, ns),
-                           sequence=self.seq,
-                           data=json.dumps(body, separators=(",", ":")).encode())
+        self.add(cid, ns, json.dumps(body, separators=(",", ":")).encode())
 
     def transfer(self, rec: Record, frame: dict[str, Any]) -> None:
         topic = f"/spi/{rec.direction or 'unknown'}/transfers"

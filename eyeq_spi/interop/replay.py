@@ -18,12 +18,12 @@ against a host under test at a pyserial URL. The capture is read lazily: memory 
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 from eyeq_spi.capture.pcapng_io import Record
 from eyeq_spi.catalog.messages import sw_release_text as sw_text
-from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.codec.message import DecodedMessage, MessageCodec
 from eyeq_spi.errors import AdapterError, EyeqError, InputError, RemoteProtocolError
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
@@ -59,6 +59,8 @@ class ReplayEyeQ:
         self.sent: Counter[str] = Counter()
         self.decode_errors = 0
         self._played_rx = TransportConnection(LinkConfig(role="host")) if count_sent else None
+        # on_message(message, now): every played message, decoded (count_sent only)
+        self.on_message: Callable[[DecodedMessage, float], None] | None = None
         self._advance()
         if self._next is None:
             raise InputError("the capture has no e2h transfer (EyeQ channel) to replay")
@@ -137,6 +139,8 @@ class ReplayEyeQ:
                 if isinstance(ev, MessageReceived):
                     out = self.codec.decode(ev.data)
                     self.sent[out.name or out.protocol] += 1
+                    if self.on_message is not None:
+                        self.on_message(out, now)
         except EyeqError:
             self.decode_errors += 1
 
@@ -184,10 +188,14 @@ def host_bench(records: Iterable[Record], *, sw: str | None = None,
 
 
 def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
-                     duration: float | None = None) -> dict[str, Any]:
+                     duration: float | None = None, realtime: bool = False,
+                     on_host: Callable[[Any], None] | None = None) -> dict[str, Any]:
     """Feed the capture's EyeQ channel to the built-in host emulator in virtual time; the run
     summary (:mod:`eyeq_spi.summary`) checks it as ``host`` checks a live run: Running Vision
-    reached and held, nothing lost (E2E, DASP counters, stale streams, MESP timeouts)."""
+    reached and held, nothing lost (E2E, DASP counters, stale streams, MESP timeouts).
+    ``realtime``: at the capture's pace (virtual time kept on the wall clock) instead of as
+    fast as possible; ``on_host(host)``: called once with the host before the replay starts (a
+    live view subscribes to it)."""
     import time
 
     from eyeq_spi.host.machine import HostState
@@ -196,10 +204,13 @@ def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
     cpu0 = time.process_time()
     wall0 = time.monotonic()
     node, host, runner = host_bench(records, sw=sw, duration=duration)
+    if on_host is not None:
+        on_host(host)
+    pace = (time.perf_counter(), runner.now) if realtime else None
     reached: float | None = None
     left: list[float] = []
     while not node.done:
-        runner.run_until(runner.now + 0.01)
+        runner.run_until(runner.now + 0.01, realtime=realtime, pace_origin=pace)
         running = host.state is HostState.RUNNING_VISION
         if running and reached is None:
             reached = runner.now
@@ -216,11 +227,14 @@ def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
 
 def replay_to_port(records: Iterable[Record], url: str, *, listen: bool = False,
                    duration: float | None = None, connect_timeout: float = 30.0,
-                   lead: float = 0.5, sw: str | None = None) -> dict[str, Any]:
+                   lead: float = 0.5, sw: str | None = None,
+                   on_message: Callable[[DecodedMessage, float], None] | None = None,
+                   ) -> dict[str, Any]:
     """Play the capture's EyeQ channel to a host under test in real time: connect to it at
     ``url`` (``listen``: listen on ``url``, ``tcp://HOST:PORT``, and wait for it), starting
     ``lead`` seconds after the connection: a host opening its port may discard what arrives
-    meanwhile (pyserial's ``socket://`` resets its input buffer on open)."""
+    meanwhile (pyserial's ``socket://`` resets its input buffer on open).
+    ``on_message(message, now)``: every message played, decoded (a live view)."""
     import sys
     import time
 
@@ -230,6 +244,7 @@ def replay_to_port(records: Iterable[Record], url: str, *, listen: bool = False,
     from eyeq_spi.summary import link_view, replay_port_summary
 
     node = ReplayEyeQ(records, duration=duration, sw=sw, count_sent=True)
+    node.on_message = on_message
     adapter = open_listener(url, timeout=connect_timeout) if listen else open_url(url)
     address = getattr(adapter, "url", url)
     lost: str | None = None

@@ -243,6 +243,7 @@ class DissectSource:
         self.transitions: list[tuple[float, str, str, str]] = []
         self.transitions_seen = 0
         self._main = Labels(codec)
+        self.on_record: Callable[[dict[str, Any]], None] | None = None  # every record, as read
 
     def _next(self) -> dict[str, Any] | None:
         if self._pending is None:
@@ -270,6 +271,8 @@ class DissectSource:
             self._add(record)
 
     def _add(self, record: dict[str, Any]) -> None:
+        if self.on_record is not None:
+            self.on_record(record)
         kind = record["kind"]
         if kind == "frame":
             self.link[f"{record['direction'] or '?'} {record['frame_type']}"] += 1

@@ -31,6 +31,7 @@ import numpy as np
 from eyeq_spi.plot.figures import new_figure, plural
 from eyeq_spi.plot.labels import Label, place_labels
 from eyeq_spi.plot.perceived import Scene, SceneLine, SceneObject
+from eyeq_spi.plot.vehicle_frame import box_centre
 
 DPI = 100
 PANEL_IN = 7.7  # the panels' height, inches
@@ -98,7 +99,8 @@ def box_corners(o: SceneObject, pad: float = 0.0) -> list[tuple[float, float]]:
 
 def _middle(o: SceneObject) -> tuple[float, float]:
     """(lat, long) of the box's middle."""
-    return (o.lat + math.sin(o.heading) * o.length / 2, o.long + math.cos(o.heading) * o.length / 2)
+    x, y = box_centre(o.long, o.lat, o.length, o.heading)
+    return y, x
 
 
 def _arrow_tip(o: SceneObject) -> tuple[float, float]:

@@ -3,8 +3,9 @@
 Pure data, no plotting library: the bird's-eye plot and the live monitor both read the scene
 from here, and both get their fields from the same decoder as ``eyeq-spi dissect``.
 
-Coordinates are the seed's vehicle frame: ``long`` forward, ``lat`` to the left (the host's left
-lane marker has a positive ``a0``, §10). Structures are found by their members, not by a path
+Coordinates are the vehicle frame of :mod:`eyeq_spi.plot.vehicle_frame` (``long`` forward,
+``lat`` to the left: the host's left lane marker has a positive ``a0``, §10), which also turns
+the members the seed gives right positive. Structures are found by their members, not by a path
 written per SW version, so every release's variant of a message works:
 
 - an object is an element of an array of structs with ``physicalState`` (§13.2.5); it is valid
@@ -13,7 +14,8 @@ written per SW version, so every release's variant of a message works:
   ``y = a0 + a1*x + a2*x^2 + a3*x^3``, §10.4); it is drawn over ``[startRange, endRange]`` and
   skipped when that range is empty (the sim and the seed's defaults send zeros for "none") or
   its type is INVALID;
-- signs are the first ``numberTrafficSigns`` elements of ``trafficSigns`` (§11).
+- signs are the first ``numberTrafficSigns`` elements of ``trafficSigns`` (§12);
+- light spots are the first ``numOfActiveLightSpots`` elements of ``activeLightSpots`` (§11).
 """
 
 from __future__ import annotations
@@ -25,11 +27,13 @@ from typing import Any
 from eyeq_spi.catalog.messages import EnumDef
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import MessageCodec
+from eyeq_spi.plot import vehicle_frame
 
 OBSTACLES = "EYEQ_VIS_OBSTACLES_MSG"
 ROAD = "EYEQ_VIS_ROAD_DATA_MSG"
 SIGNS = "EYEQ_VIS_TRAFFIC_SIGNS_MSG"
-SCENE_MESSAGES = (OBSTACLES, ROAD, SIGNS)
+LIGHTS = "EYEQ_VIS_LIGHT_SENSOR_DATA_MSG"
+SCENE_MESSAGES = (OBSTACLES, ROAD, SIGNS, LIGHTS)
 POLY_KEYS = frozenset(("a0", "a1", "a2", "a3", "startRange", "endRange"))
 CIPV = "CIPV"  # object_is_cipv value name (§13.2.5)
 TTC_NONE = 7.0  # §13.2.2 ttc_const_vel: "Set to 7 seconds if no valid TTC value"
@@ -50,6 +54,7 @@ class SceneObject:
     v_lat: float
     cipv: bool
     ttc: float | None  # ttc_const_vel (SW5 and later)
+    height: float = 0.0  # 0: not reported
 
     @property
     def closing_ttc(self) -> float | None:
@@ -79,10 +84,22 @@ class SceneLine:
 @dataclass(frozen=True)
 class SceneSign:
     long: float
-    lat: float
-    height: float
+    lat: float  # left positive (C5: signLatPosition is right positive on the wire)
+    height: float  # relative to the sensor
     type: int
     name: str
+    known: bool = True  # False: the EyeQ does not know where it is (§12.2)
+
+
+@dataclass(frozen=True)
+class SceneSpot:
+    """An active light spot (§11.2) at its position in the vehicle frame."""
+
+    id: int
+    long: float
+    lat: float
+    cls: int
+    cls_name: str
 
 
 @dataclass
@@ -91,6 +108,7 @@ class Scene:
     objects: list[SceneObject] = field(default_factory=list)
     lines: list[SceneLine] = field(default_factory=list)
     signs: list[SceneSign] = field(default_factory=list)
+    spots: list[SceneSpot] = field(default_factory=list)
     times: dict[str, float | None] = field(default_factory=dict)  # message -> its time
 
 
@@ -174,7 +192,7 @@ def objects(fields: dict[str, Any], labels: Labels) -> list[SceneObject]:
         out.append(SceneObject(
             id=oid, cls=cls, cls_name=labels.label(OBSTACLES, (*path, "classification"), cls),
             long=_f(ps, "longDistance"), lat=_f(ps, "latDistance"), width=_f(ps, "width"),
-            length=_f(ps, "length"), heading=_f(ps, "heading"),
+            length=_f(ps, "length"), heading=_f(ps, "heading"), height=_f(ps, "height"),
             v_long=_f(ps, "absoluteLongVelocity"), v_lat=_f(ps, "absoluteLatVelocity"),
             cipv=cipv, ttc=float(ttc) if isinstance(ttc, int | float) else None))
     return out
@@ -228,10 +246,34 @@ def signs(fields: dict[str, Any], labels: Labels) -> list[SceneSign]:
             if not isinstance(sign, dict):
                 continue
             st = int(sign.get("signType", 0))
+            long, lat = _f(sign, "signLongPosition"), _f(sign, "signLatPosition")
             out.append(SceneSign(
-                long=_f(sign, "signLongPosition"), lat=-_f(sign, "signLatPosition"),  # §16: right +
+                long=long, lat=vehicle_frame.left_positive(lat),
+                known=vehicle_frame.sign_known(long, lat),
                 height=_f(sign, "signHeight"), type=st,
                 name=labels.label(SIGNS, (*path, "trafficSigns", "signType"), st)))
+    return out
+
+
+def spots(fields: dict[str, Any], labels: Labels) -> list[SceneSpot]:
+    out: list[SceneSpot] = []
+    for path, d in _walk(fields):
+        elems = d.get("activeLightSpots")
+        if not isinstance(elems, list):
+            continue
+        n = d.get("numOfActiveLightSpots")
+        count = int(n) if isinstance(n, int) else len(elems)
+        for spot in elems[:max(0, count)]:
+            if not isinstance(spot, dict):
+                continue
+            x, y = vehicle_frame.light_spot_position(
+                _f(spot, "longPos"), _f(spot, "leftAngle"), _f(spot, "rightAngle"))
+            cls = int(spot.get("classification", 0))
+            oid = spot.get("id", 0)
+            out.append(SceneSpot(
+                id=int(oid) if isinstance(oid, int) else 0, long=x, lat=y, cls=cls,
+                cls_name=labels.label(LIGHTS, (*path, "activeLightSpots", "classification"),
+                                      cls)))
     return out
 
 
@@ -255,12 +297,15 @@ class SceneTracker:
             sc.objects = objects(fields, self.labels)
         elif name == ROAD:
             sc.lines = lines(fields, self.labels)
-        else:
+        elif name == SIGNS:
             sc.signs = signs(fields, self.labels)
+        else:
+            sc.spots = spots(fields, self.labels)
         sc.times[name] = t
         sc.time = t
         return True
 
     def snapshot(self) -> Scene:
         sc = self.scene
-        return Scene(sc.time, list(sc.objects), list(sc.lines), list(sc.signs), dict(sc.times))
+        return Scene(sc.time, list(sc.objects), list(sc.lines), list(sc.signs), list(sc.spots),
+                     dict(sc.times))
