@@ -7,7 +7,8 @@ the same output (``tests/test_twins.py``). A facade picks the fast twin unless
 
 The convention (``docs/STYLE.md``): ``<name>_ref.py`` the reference, ``<name>_fast.py`` the
 fast twin, ``<name>_types.py`` the vocabulary both share, and ``<name>.py`` the facade the rest
-of the code imports. :data:`FAMILIES` lists them.
+of the code imports. :data:`FAMILIES` lists them; each is here because a floor of
+``docs/performance.md`` needs it (the emulator's real-time factor, ``dissect --stats``).
 """
 
 from __future__ import annotations
