@@ -172,3 +172,22 @@ def test_exact_switch_runs_dissect_on_the_references(exact: str, tmp_path: Path)
     assert count > 1000
     fast = {"engine_fast", "pcapng_fast", "pipeline_fast", "message_fast"}
     assert fast & set(loaded) == (set() if exact == "1" else fast)
+
+
+@pytest.mark.parametrize("exact", ["0", "1"])
+def test_exact_switch_runs_the_layouts_on_construct(exact: str) -> None:
+    """``EYEQ_SPI_EXACT=1``: a layout encodes and decodes through construct (the reference),
+    which the generated ``struct`` codec never imports; the values are the same."""
+    import subprocess
+    import sys
+
+    code = ("import json, sys\n"
+            "from eyeq_spi.codec.message import MessageCodec\n"
+            "c = MessageCodec()\n"
+            "m = next(m for m in c.cat.messages if m.protocol == 'DASP' and m.exists_in(c.sw))\n"
+            "lay = c.layout(m)\n"
+            "values = lay.parse(lay.build(lay.zero_values()))\n"
+            "print(json.dumps([values == lay.zero_values(), 'construct' in sys.modules]))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, check=True, env={**os.environ, twins.EXACT_ENV: exact})
+    assert json.loads(out.stdout) == [True, exact == "1"]
