@@ -7,7 +7,8 @@ the same output (``tests/test_twins.py``). A facade picks the fast twin unless
 
 The convention (``docs/STYLE.md``): ``<name>_ref.py`` the reference, ``<name>_fast.py`` the
 fast twin, ``<name>_types.py`` the vocabulary both share, and ``<name>.py`` the facade the rest
-of the code imports. :data:`FAMILIES` lists them.
+of the code imports. :data:`FAMILIES` lists them; each is here because a floor of
+``docs/performance.md`` needs it (the emulator's real-time factor, ``dissect --stats``).
 """
 
 from __future__ import annotations
@@ -26,8 +27,6 @@ def references_only() -> bool:
 
 FAMILIES: dict[str, tuple[str, str]] = {
     # family: (reference, fast twin); the facade is the family's module
-    "logic.saleae": ("eyeq_spi.logic.saleae_ref", "eyeq_spi.logic.saleae_fast"),
-    "logic.vcd": ("eyeq_spi.logic.vcd_ref", "eyeq_spi.logic.vcd_fast"),
     "codec.layout": ("construct codec (Layout.parse_construct)", "eyeq_spi.codec.layout_fast"),
     "codec.message": ("Layout.parse per message", "eyeq_spi.codec.message_fast"),
     # the one Dissector (feed); the fast leaf checks frames over arrays and hands clean runs'
@@ -35,9 +34,5 @@ FAMILIES: dict[str, tuple[str, str]] = {
     "dissect.engine": ("eyeq_spi.dissect.engine", "eyeq_spi.dissect.engine_fast"),
     # python-pcapng, or array chunks read once with the release (pipeline_fast.open_fast)
     "capture.pcapng": ("eyeq_spi.capture.pcapng_io", "eyeq_spi.capture.pcapng_fast"),
-    "capture.write": ("CaptureWriter, one block per write",
-                      "eyeq_spi.capture.pcapng_write_fast"),
     "sim.dasp": ("a value dict through MessageCodec.encode_dasp", "eyeq_spi.sim.dasp_fast"),
-    "host.veh_state": ("veh_state_values through MessageCodec.encode_dasp",
-                       "eyeq_spi.host.veh_state_fast"),
 }

@@ -1,6 +1,6 @@
-"""The pcapng reader's buffer refills (``capture.pcapng_fast``): read into a new buffer after what
-is left (``readinto``) or joined (a stream with ``read`` only), the chunks are the same, whole or
-cut anywhere (with a ``Tail``), with refills inside blocks and runs."""
+"""The pcapng reader's buffer refills (``capture.pcapng_fast``): a file, or a stream that gives
+short reads (a pipe), reads into the same chunks, whole or cut anywhere (with a ``Tail``), with
+refills inside blocks and runs."""
 
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from eyeq_spi.capture import pcapng_fast
 from eyeq_spi.capture.pcapng_fast import pcapng_chunks
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Tail
 from eyeq_spi.errors import InputError
@@ -18,14 +17,15 @@ from eyeq_spi.errors import InputError
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
 
-class _ReadOnly:
-    """A stream with ``read`` only (no ``readinto``), in short reads."""
+class _Short:
+    """A stream that gives at most ``most`` bytes a read, as a pipe may."""
 
-    def __init__(self, blob: bytes) -> None:
+    def __init__(self, blob: bytes, most: int) -> None:
         self.f = io.BytesIO(blob)
+        self.most = most
 
     def read(self, n: int = -1) -> bytes:
-        return self.f.read(min(n, 777) if n >= 0 else n)
+        return self.f.read(min(n, self.most) if n >= 0 else self.most)
 
 
 def _capture(path: Path) -> bytes:
@@ -51,12 +51,10 @@ def _read(src: object, tail: Tail | None) -> tuple[str, object]:
                   [sorted(c.odd.items()) for c in chunks])
 
 
-@pytest.mark.parametrize("read_size", [pcapng_fast.READ_SIZE, 5000, 100])
+@pytest.mark.parametrize("most", [5000, 777, 100])
 @pytest.mark.parametrize("cut", [None, 60, 1000, 160 * 700 + 13, -1, -4])
-def test_refills_read_the_same_with_readinto_or_read(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, read_size: int, cut: int | None
-) -> None:
-    monkeypatch.setattr(pcapng_fast, "READ_SIZE", read_size)
+def test_short_reads_read_the_same_as_the_file(tmp_path: Path, most: int, cut: int | None
+                                               ) -> None:
     blob = _capture(tmp_path / "c.pcapng")
     short = blob if cut is None else blob[:cut]
     path = tmp_path / "cut.pcapng"
@@ -65,7 +63,7 @@ def test_refills_read_the_same_with_readinto_or_read(
         t_file, t_ref = (tail_kind(), tail_kind()) if tail_kind else (None, None)
         with path.open("rb") as fh:
             got = _read(fh, t_file)
-        assert got == _read(_ReadOnly(short), t_ref)
+        assert got == _read(_Short(short, most), t_ref)
         assert t_file == t_ref
         if cut is None:
             assert got[0] == "ok"

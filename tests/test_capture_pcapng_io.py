@@ -18,6 +18,7 @@ import pytest
 from eyeq_spi.capture.pcapng_fast import pcapng_chunks
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Tail, read_pcapng
 from eyeq_spi.cli import main
+from eyeq_spi.dissect.pipeline import SMALL_INPUT
 from eyeq_spi.errors import InputError
 from eyeq_spi.io.plain import open_records
 
@@ -87,19 +88,23 @@ def test_every_cut_reads_up_to_the_last_whole_block(good: bytes) -> None:
 
 
 def test_the_cli_readers_say_it_in_one_line_and_exit_1(good: bytes, tmp_path: Path,
-                                                       capsys: pytest.CaptureFixture[str],
-                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
     cut = tmp_path / "cut.pcapng"
     cut.write_bytes(good[:-8])  # 8 bytes into the last block, as the killed demo left it
-    for small in (1 << 40, 0):  # the exact and the batch path
-        monkeypatch.setattr("eyeq_spi.dissect.pipeline.SMALL_INPUT", small)
-        for argv in (["dissect", str(cut), "--json"], ["dissect", str(cut), "--stats"],
-                     ["dissect", "-j", "2", str(cut), str(cut), "--stats", "--json"]):
+    big = tmp_path / "big.pcapng"  # big enough for dissect's fast path
+    with CaptureWriter(big, "8.1") as w:
+        for i in range(SMALL_INPUT // 160 + 10):
+            w.write("h2e" if i % 2 else "e2h", i * 1e-3, bytes([i & 0xFF]) * 128)
+    big.write_bytes(big.read_bytes()[:-8])
+    assert big.stat().st_size >= SMALL_INPUT
+    for path in (str(cut), str(big)):  # the references, and the fast path
+        for argv in (["dissect", path, "--json"], ["dissect", path, "--stats"],
+                     ["dissect", "-j", "2", path, path, "--stats", "--json"]):
             capsys.readouterr()
             rc = main(argv)
             out, err = capsys.readouterr()
             lines = err.splitlines()
-            assert rc == 1 and out and len(lines) == argv.count(str(cut)), (argv, err)
+            assert rc == 1 and out and len(lines) == argv.count(path), (argv, err)
             assert all("ignored the last" in x and "Traceback" not in x for x in lines)
     bounds = _boundaries(good)
     left = len(good) - 8 - bounds[-2]  # the last block, but for the 8 bytes cut off

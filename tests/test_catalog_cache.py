@@ -4,8 +4,11 @@ and the libyaml loader reads ``specs/`` as the pure-Python one does."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
+import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -61,7 +64,6 @@ def test_an_edited_spec_file_misses_the_cache(
     specs_copy: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv("EYEQ_SPI_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(cache, "KEEP_KEYS", 0)
     calls, load = _counting_loader()
     before = cache.cached_catalog(specs_copy, load)  # type: ignore[arg-type]
     path = specs_copy / "sw_versions.yaml"
@@ -69,7 +71,7 @@ def test_an_edited_spec_file_misses_the_cache(
     after = cache.cached_catalog(specs_copy, load)  # type: ignore[arg-type]
     assert len(calls) == 2
     assert before.default_sw == "sw9" and after.default_sw == "sw8_1"  # type: ignore[attr-defined]
-    assert len(list((tmp_path / "cache").glob("catalog-*.pickle"))) == 1  # old key removed
+    assert len(list((tmp_path / "cache").glob("catalog-*.pickle"))) == 2  # a new key beside
 
 
 def test_several_installs_keep_their_own_caches(
@@ -78,21 +80,23 @@ def test_several_installs_keep_their_own_caches(
     """Two checkouts (or virtual environments) of one user, started in turn, each read their
     own cached catalogue; past KEEP_KEYS other keys, the oldest key's files go."""
     monkeypatch.setenv("EYEQ_SPI_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(cache, "KEEP_KEYS", 2)
-    trees = [Path(shutil.copytree(specs_dir(), tmp_path / f"specs{i}")) for i in range(4)]
+    keep = cache.KEEP_KEYS
+    trees = [Path(shutil.copytree(specs_dir(), tmp_path / f"specs{i}")) for i in range(keep + 2)]
+    keys = [cache.specs_digest(t)[:16] for t in trees]
     calls, load = _counting_loader()
     for _ in range(3):  # a, b, a, b, ...: each parsed once
         for tree in trees[:2]:
             cache.cached_catalog(tree, load)  # type: ignore[arg-type]
     assert calls == trees[:2]
-    for tree in trees[2:]:  # two more keys: the oldest (trees[0]) is pruned
+    for k, tree in enumerate(trees[2:], start=3):  # more keys: past keep, trees[0] goes
         for p in (tmp_path / "cache").glob("catalog-*.pickle"):  # distinct ages, oldest first
-            key = p.name.split("-")[1].split(".")[0]
-            age = [cache.specs_digest(t)[:16] for t in trees].index(key)
+            age = keys.index(p.name.split("-")[1].split(".")[0][:16])
             os.utime(p, (1000.0 + age, 1000.0 + age))
         cache.cached_catalog(tree, load)  # type: ignore[arg-type]
-        assert len(list((tmp_path / "cache").glob("catalog-*.pickle"))) == 3
+        assert len(list((tmp_path / "cache").glob("catalog-*.pickle"))) == min(k, keep + 1)
     calls.clear()
+    cache.cached_catalog(trees[1], load)  # type: ignore[arg-type]
+    assert calls == []  # the second oldest is still there
     cache.cached_catalog(trees[0], load)  # type: ignore[arg-type]
     assert calls == [trees[0]]
 
@@ -164,33 +168,45 @@ def _doc_loader() -> tuple[list[Path], object]:
     return calls, load
 
 
+def _doc_start(root: Path, cache_dir: Path) -> tuple[bool, dict[str, object]]:
+    """A new process reads ``link.yaml`` of ``root`` through the cache: (parsed it, the doc)."""
+    code = ("import json, sys, yaml\n"
+            "from pathlib import Path\n"
+            "from eyeq_spi.catalog import cache\n"
+            "parsed = []\n"
+            "def load(path):\n"
+            "    parsed.append(path)\n"
+            "    return yaml.safe_load(path.read_text())\n"
+            "doc = cache.cached_doc(Path(sys.argv[1]), 'link.yaml', load)\n"
+            "print(json.dumps([bool(parsed), doc]))\n")
+    env = {k: v for k, v in os.environ.items() if k != "EYEQ_SPI_NO_CACHE"}
+    out = subprocess.run([sys.executable, "-c", code, str(root)], capture_output=True,
+                         text=True, timeout=120, check=True,
+                         env={**env, "EYEQ_SPI_CACHE_DIR": str(cache_dir)})
+    parsed, doc = json.loads(out.stdout)
+    return parsed, doc
+
+
 def test_a_single_spec_file_is_read_from_the_cache_on_the_next_start(
-    specs_copy: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    specs_copy: Path, tmp_path: Path
 ) -> None:
-    monkeypatch.setenv("EYEQ_SPI_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.delenv("EYEQ_SPI_NO_CACHE", raising=False)
-    monkeypatch.setattr(cache, "_DIGESTS", {})
-    monkeypatch.setattr(cache, "KEEP_KEYS", 0)
-    calls, load = _doc_loader()
-    first = cache.cached_doc(specs_copy, "link.yaml", load)  # type: ignore[arg-type]
-    second = cache.cached_doc(specs_copy, "link.yaml", load)  # type: ignore[arg-type]
-    assert len(calls) == 1 and first == second == yaml.safe_load(
-        (specs_copy / "link.yaml").read_text())
-    (marshalled,) = (tmp_path / "cache").glob("doc-*-link.yaml.marshal")
+    folder = tmp_path / "cache"
+    first, second = _doc_start(specs_copy, folder), _doc_start(specs_copy, folder)
+    want = json.loads(json.dumps(yaml.safe_load((specs_copy / "link.yaml").read_text())))
+    assert first == (True, want)
+    assert second == (False, first[1])
+    (marshalled,) = folder.glob("doc-*-link.yaml.marshal")
     assert marshalled.stat().st_mode & 0o077 == 0
 
-    path = specs_copy / "link.yaml"  # a new start after an edit: a new key, old file removed
+    path = specs_copy / "link.yaml"  # a new start after an edit: a new key
     path.write_text(path.read_text() + "\nextra_key_for_the_test: 1\n")
-    monkeypatch.setattr(cache, "_DIGESTS", {})
-    third = cache.cached_doc(specs_copy, "link.yaml", load)  # type: ignore[arg-type]
-    assert len(calls) == 2 and third["extra_key_for_the_test"] == 1
-    assert len(list((tmp_path / "cache").glob("doc-*-link.yaml.marshal"))) == 1
+    parsed, third = _doc_start(specs_copy, folder)
+    assert parsed and third["extra_key_for_the_test"] == 1
 
-    (marshalled,) = (tmp_path / "cache").glob("doc-*-link.yaml.marshal")
+    key = cache.specs_digest(specs_copy)[:32]
+    (marshalled,) = folder.glob(f"doc-{key}-link.yaml.marshal")
     marshalled.write_bytes(b"\xffnot marshal")  # corrupt: parsed again, never fatal
-    monkeypatch.setattr(cache, "_DIGESTS", {})
-    assert cache.cached_doc(specs_copy, "link.yaml", load) == third  # type: ignore[arg-type]
-    assert len(calls) == 3
+    assert _doc_start(specs_copy, folder) == (True, third)
 
 
 def test_a_doc_marshal_cannot_hold_is_returned_uncached(
@@ -199,7 +215,6 @@ def test_a_doc_marshal_cannot_hold_is_returned_uncached(
     import datetime
 
     monkeypatch.setenv("EYEQ_SPI_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(cache, "_DIGESTS", {})
     calls: list[Path] = []
 
     def load(path: Path) -> dict[str, object]:

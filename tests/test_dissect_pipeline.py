@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 
+from eyeq_spi import twins
 from eyeq_spi.capture.pcapng_io import Record, read_pcapng
 from eyeq_spi.cli import main
 from eyeq_spi.codec.message import MessageCodec
@@ -35,10 +36,12 @@ def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """0.8 s of the emulator (boot, Running Vision at 0.53 s) as pcapng."""
+    """1.5 s of the emulator (boot, Running Vision at 0.53 s) as pcapng: big enough for the
+    fast path (unless ``EYEQ_SPI_EXACT=1``)."""
     path = tmp_path_factory.mktemp("pipe") / "demo.pcapng"
-    assert main(["demo", "--virtual-time", "--duration", "0.8", "--capture", str(path),
+    assert main(["demo", "--virtual-time", "--duration", "1.5", "--capture", str(path),
                  "--json"]) == 0
+    assert path.stat().st_size >= pipeline.SMALL_INPUT
     return path
 
 
@@ -66,11 +69,11 @@ def _json(capsys: pytest.CaptureFixture[str], *argv: str) -> list[dict[str, Any]
 
 
 # -- the library -------------------------------------------------------------------------------
-@pytest.mark.parametrize("small", [1 << 40, 0], ids=["exact", "batch"])
-def test_dissect_files_hands_out_what_dissect_prints(demo: Path, small: int,
+@pytest.mark.parametrize("exact", ["1", "0"], ids=["reference", "fast"])
+def test_dissect_files_hands_out_what_dissect_prints(demo: Path, exact: str,
                                                      capsys: pytest.CaptureFixture[str],
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(pipeline, "SMALL_INPUT", small)
+    monkeypatch.setenv(twins.EXACT_ENV, exact)
     want = _json(capsys, str(demo), str(demo))
     run = dissect_files([str(demo), str(demo)])
     got = json.loads(json.dumps(list(run)))  # tuples and floats as the JSON writer spells them
@@ -91,8 +94,8 @@ def test_dissect_files_reports_progress_and_a_cut_tail(demo: Path, tmp_path: Pat
                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     cut = tmp_path / "cut.pcapng"
     cut.write_bytes(demo.read_bytes()[:-8])
-    for small in (1 << 40, 0):
-        monkeypatch.setattr(pipeline, "SMALL_INPUT", small)
+    for exact in ("1", "0"):  # the references, then the fast path
+        monkeypatch.setenv(twins.EXACT_ENV, exact)
         seen: list[tuple[str | None, float, float | None]] = []
         run = dissect_files([str(cut)], progress=_recorder(seen))
         n = sum(1 for _ in run)
@@ -176,13 +179,11 @@ def _mdf_content(path: Path) -> dict[str, Any]:
 
 
 def test_export_mdf_from_the_pipeline_equals_the_transfer_pass(
-        saleae: Path, demo: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
-        monkeypatch: pytest.MonkeyPatch) -> None:
+        saleae: Path, demo: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """--mdf alone takes the pipeline (the fast path for a big pcapng); with --mcap it rides
     on the pass over the transfers. The MDF holds the same either way, and the Saleae export's
     MDF is the capture's."""
     pytest.importorskip("mcap", reason="--mcap needs mcap (the [export] extra)")
-    monkeypatch.setattr(pipeline, "SMALL_INPUT", 0)
     runs = {}
     for name, path, extra in (("alone", demo, []),
                               ("with-mcap", demo, ["--mcap", str(tmp_path / "x.mcap")]),

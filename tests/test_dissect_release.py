@@ -15,6 +15,8 @@ from eyeq_spi.capture.pcapng_io import CaptureWriter, read_pcapng, recorded_rele
 from eyeq_spi.catalog.messages import catalog, sw_release_text
 from eyeq_spi.cli import main
 from eyeq_spi.dissect import release as rel
+from eyeq_spi.dissect.pipeline import SMALL_INPUT
+from eyeq_spi.twins import EXACT_ENV
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
@@ -74,13 +76,14 @@ def test_the_writer_records_the_release_on_the_shb_and_the_first_packet(tmp_path
         (0.0, "e2h", bytes(128)), (0.001, "h2e", bytes(128)), (0.002, "e2h", bytes(128))]
 
 
-@pytest.mark.parametrize("batch", [False, True], ids=["exact", "batch"])
-def test_a_capture_of_every_release_dissects_clean(captures: dict[str, Path], batch: bool,
+@pytest.mark.parametrize("exact", ["1", "0"], ids=["reference", "fast"])
+def test_a_capture_of_every_release_dissects_clean(captures: dict[str, Path], exact: str,
                                                    capsys: pytest.CaptureFixture[str],
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """Before captures carried their release, every release but the newest read as broken."""
-    monkeypatch.setattr("eyeq_spi.dissect.pipeline.SMALL_INPUT", 0 if batch else 1 << 40)
+    monkeypatch.setenv(EXACT_ENV, exact)
     for r, path in captures.items():
+        assert path.stat().st_size >= SMALL_INPUT  # the fast path reads it unless exact
         rc, out, err = _run(capsys, "dissect", str(path), "--stats", "--json")
         st = json.loads(out)
         assert (rc, st["protocol_errors"], st["sw"], st["sw_source"], err) == \
@@ -92,8 +95,8 @@ def test_both_paths_give_the_same_records(captures: dict[str, Path],
                                           monkeypatch: pytest.MonkeyPatch) -> None:
     for r, path in captures.items():
         outs = []
-        for small in (1 << 40, 0):  # the exact path, then the batch path
-            monkeypatch.setattr("eyeq_spi.dissect.pipeline.SMALL_INPUT", small)
+        for exact in ("1", "0"):  # the references, then the fast path
+            monkeypatch.setenv(EXACT_ENV, exact)
             outs.append(_run(capsys, "dissect", str(path), "--json")[:2])
         assert outs[0] == outs[1] and outs[0][0] == 0, r
 
@@ -189,8 +192,8 @@ def test_jobs_print_what_one_file_at_a_time_prints(captures: dict[str, Path], mo
                                                    capsys: pytest.CaptureFixture[str],
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     files = [str(captures[r]) for r in ("8.1", "9.0", "5.0")]
-    for small in (1 << 40, 0):  # small files: the exact path serially, workers for --jobs
-        monkeypatch.setattr("eyeq_spi.dissect.pipeline.SMALL_INPUT", small)
+    for exact in ("1", "0"):  # the references serially, or the fast path (workers for --jobs)
+        monkeypatch.setenv(EXACT_ENV, exact)
         serial = _run(capsys, "dissect", *files, *mode)
         assert serial[0] == 0
         assert _run(capsys, "dissect", "--jobs", "2", *files, *mode) == serial

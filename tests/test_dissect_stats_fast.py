@@ -9,6 +9,7 @@ import gc
 import io
 import json
 import sys
+import weakref
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from eyeq_spi import garbage
 from eyeq_spi.capture.pcapng_fast import chunks_from_records
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
 from eyeq_spi.cli import main
@@ -99,10 +101,23 @@ def test_lean_stats_under_mixed_link_faults(ops: list[tuple[str, int]], chunk: i
 
 
 # -- the CLI: file (batch path) against stdin (exact path) ------------------------------------
+def _big(recs: list[Record], transfers: int) -> list[Record]:
+    """``recs`` again and again, each time later than the last, until ``transfers`` transfers:
+    a file that big takes the fast path (``dissect``'s threshold is ``pipeline.SMALL_INPUT``)."""
+    out: list[Record] = []
+    span = max(r.time or 0.0 for r in recs) + 1.0
+    while len(out) < transfers:
+        shift = len(out) // len(recs) * span
+        out += [Record(None if r.time is None else r.time + shift, r.direction, r.data)
+                for r in recs]
+    return out
+
+
 def _pcapng(recs: list[Record], path: Path) -> Path:
     with CaptureWriter(path) as w:
-        for r in recs:
+        for r in _big(recs, pipeline.SMALL_INPUT // 150):  # 160 bytes a 128-byte transfer
             w.write(r.direction, r.time, r.data)
+    assert path.stat().st_size >= pipeline.SMALL_INPUT
     return path
 
 
@@ -114,7 +129,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[Path, list[str
         faulty = MUTATIONS[name](faulty, where)
     app = _capture([(3, 1), (8, 2), (12, 4), (17, 5), (21, 7)])
     raw = tmp / "e2h.bin"
-    raw.write_bytes(b"".join(r.data for r in app))
+    raw.write_bytes(b"".join(r.data for r in _big(app, pipeline.SMALL_INPUT // 128)))
     return [(_pcapng(_as_records(faulty), tmp / "faulty.pcapng"), []),
             (_pcapng(app, tmp / "app.pcapng"), []), (raw, ["--direction", "e2h"])]
 
@@ -137,8 +152,8 @@ def _run(args: list[str], capsys: pytest.CaptureFixture[str], stdin: bytes | Non
 def test_cli_batch_and_exact_print_the_same(files: list[tuple[Path, list[str]]],
                                             mode: list[str], capsys: pytest.CaptureFixture[str],
                                             monkeypatch: pytest.MonkeyPatch) -> None:
-    """The test captures are small: SMALL_INPUT 0 sends them through the fast path."""
-    monkeypatch.setattr(pipeline, "SMALL_INPUT", 0)
+    """Files big enough for the fast path, against the same bytes from a pipe (the
+    reference)."""
     for path, extra in files:
         rc, out = _run(["dissect", str(path), *extra, *mode], capsys)
         got = (rc, out.replace(str(path), "-"))  # every record's file
@@ -151,7 +166,6 @@ def test_cli_tables_batch_and_exact(files: list[tuple[Path, list[str]]], tmp_pat
                                     capsys: pytest.CaptureFixture[str],
                                     monkeypatch: pytest.MonkeyPatch) -> None:
     pq = pytest.importorskip("pyarrow.parquet", reason="--parquet needs pyarrow (extra)")
-    monkeypatch.setattr(pipeline, "SMALL_INPUT", 0)
     for k, (path, extra) in enumerate(files):
         for fmt in ("csv", "parquet"):
             b, e = tmp_path / f"{k}{fmt}b", tmp_path / f"{k}{fmt}e"
@@ -174,16 +188,30 @@ def test_cli_tables_batch_and_exact(files: list[tuple[Path, list[str]]], tmp_pat
 
 
 # -- around it -------------------------------------------------------------------------------
-def test_paced_gc_collects_per_block_and_every_pace(monkeypatch: pytest.MonkeyPatch) -> None:
-    calls: list[int] = []
-    young = iter([5, 50, 60, 70])  # what the young generation has grown by at each look
-    monkeypatch.setattr(gc, "collect", lambda gen=2: calls.append(gen) or 0)
-    monkeypatch.setattr(gc, "get_count", lambda: (next(young), 0, 0))
-    monkeypatch.setattr(pipeline, "PACE", 3)
-    monkeypatch.setattr(pipeline, "YOUNG", 10)
-    items: list[Any] = [{"kind": "frame"}] * 7 + [object()] + [{"kind": "frame"}] * 3
-    assert list(pipeline.paced_gc(iter(items))) == items
-    assert calls == [1, 1, 1]  # looks after records 3 (too young) and 6, the block, 3 more
+class _Node:
+    other: Any
+
+
+def test_paced_gc_frees_cycles_while_the_collector_is_off() -> None:
+    """With the automatic collector off, as during a read, cycles made while records stream
+    are still freed as the records go by: memory stays bounded."""
+    refs: list[weakref.ref[_Node]] = []
+
+    def records() -> Any:
+        for _ in range(4 * pipeline.PACE):
+            a, b = _Node(), _Node()
+            a.other, b.other = b, [a, [[] for _ in range(8)]]  # a cycle of a dozen containers
+            refs.append(weakref.ref(a))
+            del a, b
+            yield {"kind": "frame"}
+
+    alive = -1
+    with garbage.paused():
+        for n, _ in enumerate(pipeline.paced_gc(records())):
+            if n == 3 * pipeline.PACE:
+                alive = sum(r() is not None for r in refs[: pipeline.PACE])
+        gc.collect()
+    assert alive == 0
 
 
 def test_dissect_leaves_the_collector_as_it_found_it(files: list[tuple[Path, list[str]]],

@@ -120,10 +120,9 @@ def test_sigrok_decoder_without_the_project_says_why(tmp_path: Path) -> None:
 def test_dissect_reads_a_vcd_written_by_sigrok_cli(bench: dict[str, Path], tmp_path: Path
                                                    ) -> None:
     """sigrok's own VCD layout ("#time 1! 0\\"" lines, its header and names) read by
-    ``dissect``, through the vectorised path: the same records as our waveforms."""
-    from eyeq_spi.logic import vcd_fast
+    ``dissect``: the same records as our waveforms."""
     from eyeq_spi.logic.options import SpiOptions
-    from eyeq_spi.logic.vcd_fast import read_vcd  # the fast twin itself, whatever the switch
+    from eyeq_spi.logic.vcd import read_vcd
 
     assert SIGROK is not None
     out = tmp_path / "sigrok.vcd"
@@ -139,19 +138,8 @@ def test_dissect_reads_a_vcd_written_by_sigrok_cli(bench: dict[str, Path], tmp_p
         text = text.split(b"\n", 1)[1]
     assert b"\n#15000045 1& 1'\n" in text  # sigrok's layout: a time and its changes on one line
     ours = list(read_vcd(bench["vcd"].open("rb"), SpiOptions()))
-    taken: list[bool] = []
-    run = vcd_fast.FastPath.run
-
-    def spy(self: vcd_fast.FastPath, reader: Any, chunk: bytes) -> Any:
-        done = run(self, reader, chunk)
-        taken.append(isinstance(done, list))
-        return done
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(vcd_fast.FastPath, "run", spy)
-        theirs = list(read_vcd(io.BytesIO(text), SpiOptions(), chunk_size=1 << 18))
+    theirs = list(read_vcd(io.BytesIO(text), SpiOptions(), chunk_size=1 << 18))
     assert len(ours) > 200 and theirs == ours
-    assert len(taken) > 10 and all(taken[1:])  # all but the $dumpvars chunk vectorised
     # the file exactly as sigrok-cli wrote it, META line and all, is detected and read alike
     from eyeq_spi.logic.vcd import sniff
 

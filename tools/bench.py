@@ -421,14 +421,13 @@ def _tapped(virtual_s: float) -> list[tuple[str, float, bytes]]:
     return out
 
 
-def _capture_cpu_per_sim_s(records: list[tuple[str, float, bytes]], blocks: bool,
-                           virtual_s: float) -> float:
+def _capture_cpu_per_sim_s(records: list[tuple[str, float, bytes]], virtual_s: float) -> float:
     import tempfile
 
     from eyeq_spi.capture.pcapng_io import CaptureWriter
 
     with tempfile.TemporaryDirectory() as d:
-        w = CaptureWriter(Path(d) / "c.pcapng", idle_flush=False, blocks=blocks)
+        w = CaptureWriter(Path(d) / "c.pcapng", idle_flush=False)
         write = w.write
         c = time.thread_time()  # from the first write to the file closed
         for direction, t, x in records:
@@ -439,22 +438,16 @@ def _capture_cpu_per_sim_s(records: list[tuple[str, float, bytes]], blocks: bool
 
 def capture_bench(runs: int = 3, virtual_s: float = 20.0) -> dict[str, float]:
     """``--capture`` in a full-load virtual-time run: CPU per simulated second of writing its
-    transfers (the tap's ``CaptureWriter.write`` calls, encoding and file writes), one
-    encoding per transfer against block mode, interleaved, median and spread, and each in
-    128-byte ``crc_hqx`` calls of the in-run baseline."""
+    transfers (the tap's ``CaptureWriter.write`` calls, encoding and file writes), median and
+    spread, and in 128-byte ``crc_hqx`` calls of the in-run baseline."""
     records = _tapped(virtual_s)
-    rows: dict[bool, list[float]] = {False: [], True: []}
-    crc = [crc_baseline_us()]
-    for _ in range(runs):
-        for blocks in (False, True):
-            rows[blocks].append(_capture_cpu_per_sim_s(records, blocks, virtual_s))
-        crc.append(crc_baseline_us())
-    out = {"capture_transfers_per_sim_s": len(records) / virtual_s,
-           **_pair_summary(rows, ("capture_per_transfer", "capture_blocks"),
-                           statistics.median(crc))}
-    out["capture_per_transfer_over_blocks"] = (out["capture_per_transfer_cpu_ms_per_sim_s"]
-                                               / out["capture_blocks_cpu_ms_per_sim_s"])
-    return out
+    rows = [_capture_cpu_per_sim_s(records, virtual_s) for _ in range(runs)]
+    base = statistics.median([crc_baseline_us() for _ in range(3)])
+    med = statistics.median(rows)
+    return {"capture_transfers_per_sim_s": len(records) / virtual_s,
+            "capture_cpu_ms_per_sim_s": med * 1e3, "capture_cpu_ms_per_sim_s_min": min(rows) * 1e3,
+            "capture_cpu_ms_per_sim_s_max": max(rows) * 1e3,
+            "capture_in_crc_calls": med / (base * 1e-6)}
 
 
 def main() -> int:
@@ -469,7 +462,7 @@ def main() -> int:
                     help="emulator runs with the simulated EyeQ's DASP dict path (the reference "
                          "the packer is held to) instead of the packer")
     ap.add_argument("--capture-only", action="store_true",
-                    help="only the --capture writer: per-transfer encoding against blocks")
+                    help="only the --capture writer")
     ap.add_argument("--dasp-before", metavar="REV",
                     help="only the DASP generation, this tree against git revision REV in "
                          "alternating fresh processes (--runs rounds; --dasp-dict: the dict path)")

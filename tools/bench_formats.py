@@ -5,9 +5,8 @@ an in-run baseline: reading the same transfers from our own pcapng captures.
 A demo capture (virtual time) is converted in memory to raw, hex, pcapng, Saleae Logic 2,
 Saleae Logic 1.x and VCD (our layout, one change per line, and sigrok's/PulseView's, a time and
 its changes on one line); each is read ``--repeat`` times through ``open_records`` (reading
-only), the logic formats once more through their exact loops alone (the csv loops, the VCD
-token loop: the readers without their vectorised paths), and once more through the dissector
-engine (reading + decoding). Export speeds (VCD, MDF4, MCAP writers) close the table.
+only), and once more through the dissector engine (reading + decoding). Export speeds (VCD,
+MDF4, MCAP writers) close the table.
 Figures: median and spread (min-max) of the repeats, and the ratio to the baseline's median.
 
     python tools/bench_formats.py [--duration 2] [--repeat 5]
@@ -23,7 +22,7 @@ import statistics
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 from eyeq_spi.capture.pcapng_io import Record, read_pcapng
@@ -33,7 +32,6 @@ from eyeq_spi.logic.vcd_write import write_vcd
 
 
 def _demo(duration: float, path: Path) -> list[Record]:
-    import contextlib
 
     from eyeq_spi.cli import main
 
@@ -82,23 +80,6 @@ def _sigrok_layout(text: str) -> str:
         else:
             out.append(line)
     return head + "$enddefinitions $end\n" + "\n".join(out)
-
-
-@contextlib.contextmanager
-def _exact_loops() -> Iterator[None]:
-    """The readers without their vectorised paths: the csv loops and the VCD token loop (what
-    the logic formats ran before the vectorised paths, except our own VCD layout, which had a
-    slower vectorised path)."""
-    from eyeq_spi.logic import saleae_fast, vcd_fast
-
-    keep = saleae_fast.saleae2_chunk, saleae_fast.saleae1_chunk, vcd_fast.FastPath.build
-    saleae_fast.saleae2_chunk = saleae_fast.saleae1_chunk = lambda *a, **k: None  # type: ignore[assignment]
-    vcd_fast.FastPath.build = classmethod(lambda cls, table: None)  # type: ignore[method-assign, assignment]
-    try:
-        yield
-    finally:
-        saleae_fast.saleae2_chunk, saleae_fast.saleae1_chunk, build = keep
-        vcd_fast.FastPath.build = build  # type: ignore[method-assign]
 
 
 def _time(fn: Callable[[], int], repeat: int) -> tuple[list[float], int]:
@@ -154,12 +135,6 @@ def main() -> int:
             times, n = _time(lambda data=data, fmt=fmt, kw=kw: _read(data, fmt, kw),  # type: ignore[misc]
                              args.repeat)
             print(_row(f"read {fmt}", times, n, base))
-        with _exact_loops():
-            for fmt in ("saleae2", "saleae1", "vcd", "vcd-sigrok"):
-                data, kw = formats[fmt]
-                times, n = _time(lambda data=data, fmt=fmt, kw=kw: _read(data, fmt, kw),  # type: ignore[misc]
-                                 args.repeat)
-                print(_row(f"read {fmt}, exact loop", times, n, base))
         for fmt, (data, kw) in formats.items():
             times, n = _time(lambda data=data, fmt=fmt, kw=kw: _dissect(data, fmt, kw),  # type: ignore[misc]
                              max(1, args.repeat // 2))

@@ -21,8 +21,6 @@ one ends after its last whole block instead, and the tail says how many bytes we
 
 from __future__ import annotations
 
-import os
-import stat
 import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -45,7 +43,7 @@ DIR_CODE: dict[str | None, int] = {"h2e": 0, "e2h": 1, None: -1}
 DIR_NAME: dict[int, str | None] = {v: k for k, v in DIR_CODE.items()}
 CHUNK = 1 << 15
 MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
-READ_SIZE = 8 << 20  # bytes read at a time (what is left of the buffer is copied before them)
+READ_SIZE = 8 << 20  # bytes read at a time
 _EPB, _IDB = 6, 1
 _SHB = int.from_bytes(PCAPNG_MAGIC, "little")
 _BOM = 0x1A2B3C4D
@@ -176,18 +174,6 @@ def pcapng_chunks(stream: Readable, chunk: int = CHUNK, tail: Tail | None = None
     yield from _Walker(stream, head, chunk, tail).run()
 
 
-def _bytes_left(stream: Readable) -> int | None:
-    """The bytes a regular file holds after the stream's position (None: unknown, as for a
-    pipe). Only sizes the read buffer."""
-    try:
-        st = os.fstat(stream.fileno())  # type: ignore[attr-defined]
-        if not stat.S_ISREG(st.st_mode):
-            return None
-        return max(st.st_size - int(stream.tell()), 0)  # type: ignore[attr-defined]
-    except (AttributeError, OSError, ValueError):
-        return None
-
-
 class _Walker:
     def __init__(self, stream: Readable, head: bytes, chunk: int, tail: Tail | None = None
                  ) -> None:
@@ -219,40 +205,16 @@ class _Walker:
             self.lengths, self.times, self.dirs = [], [], []
 
     def _fill(self, need: int) -> bool:
-        """At least ``need`` bytes after ``pos`` in ``buf``; False at end of file."""
+        """At least ``need`` bytes after ``pos`` in ``buf``; False at end of file. What is left
+        of the buffer and the new bytes become one new buffer (the chunks handed out may still
+        view the old one)."""
         while len(self.buf) - self.pos < need and not self.eof:
-            into = getattr(self.stream, "readinto", None)
-            if into is None:
-                more = self.stream.read(max(READ_SIZE, need))
-                if not more:
-                    self.eof = True
-                    break
-                self.offset += self.pos
-                self.buf = bytes(self.buf[self.pos :]) + more
-                self.pos = 0
-                continue
-            # read straight after what is left, into a new buffer (earlier views keep the old)
-            rest = len(self.buf) - self.pos
-            size = max(READ_SIZE, need)
-            left = _bytes_left(self.stream)  # asked afresh: a file may grow while it is read
-            if left is not None:  # a short file: no 8 MiB buffer to zero and fault in
-                size = max(min(size, left), 1)  # (1: the read that finds the end)
-            buf = bytearray(rest + size)
-            buf[:rest] = memoryview(self.buf)[self.pos :]
-            with memoryview(buf) as mv:
-                got = rest
-                while got < len(buf):
-                    n = into(mv[got:])
-                    if not n:
-                        break
-                    got += n
-            if got == rest:
+            more = self.stream.read(max(READ_SIZE, need))
+            if not more:
                 self.eof = True
                 break
-            if got < len(buf):
-                del buf[got:]
             self.offset += self.pos
-            self.buf, self.pos = buf, 0
+            self.buf, self.pos = b"".join((memoryview(self.buf)[self.pos :], more)), 0
         return len(self.buf) - self.pos >= need
 
     def _flush(self) -> Chunk:

@@ -10,14 +10,13 @@ from __future__ import annotations
 import re
 import struct
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, Protocol
 
 from eyeq_spi.catalog.messages import SwKey, catalog, sw_release_text
 from eyeq_spi.errors import EyeqError, InputError, OutputError, TruncatedInputError
-from eyeq_spi.twins import references_only
 
 if TYPE_CHECKING:
     import threading
@@ -172,31 +171,15 @@ class CaptureWriter:
     (readers read up to the last whole block, :class:`Tail`). The release of the traffic
     (``sw``, a ``specs/`` key or release text; default the newest) is recorded as an
     ``opt_comment`` ``eyeq-spi sw=<release>`` on the Section Header Block and on the first
-    Enhanced Packet Block.
-
-    ``blocks`` (default: on unless ``EYEQ_SPI_EXACT=1``): ``write`` only keeps the transfer,
-    and the kept transfers are encoded many at a time (``capture/pcapng_write_fast.py``) when
-    the buffer is due to be written, by the same rules; the file gets the same bytes as with
-    one encoding per transfer. ``flush``, ``close`` and the idle thread write every transfer
-    handed over so far."""
+    Enhanced Packet Block."""
 
     FLUSH_BYTES = 1 << 16
     FLUSH_S = 1.0
 
     def __init__(self, path: str | Path, sw: str | None = None, *,
                  clock: Callable[[], float] = time.monotonic, idle_flush: bool = True,
-                 flush_s: float | None = None, blocks: bool | None = None,
-                 time_base: str | None = None) -> None:
+                 flush_s: float | None = None, time_base: str | None = None) -> None:
         spec = _spec()
-        self.blocks = not references_only() if blocks is None else blocks
-        if self.blocks:  # numpy now, not at the first write: readers of captures start without it
-            import eyeq_spi.capture.pcapng_write_fast  # noqa: F401
-        # block mode: (interface id, time, transfer) kept since the last encoding (None before
-        # the first transfer), the bytes they will take at most (block size with 3 bytes of
-        # padding each) and what the buffer may take before it is written
-        self._pending: list[tuple[int, float, bytes]] | None = None
-        self._p_bytes = 0
-        self._room = self.FLUSH_BYTES
         cat = catalog()
         try:
             self.release = sw_release_text(cat.sw(sw))
@@ -239,7 +222,7 @@ class CaptureWriter:
         """What waits in the buffer goes to the file when no transfer came to write it."""
         while not self._stop.wait(self.flush_s / 2):
             with self._lock:
-                if (self._buf or self._pending) and not self._fh.closed and \
+                if self._buf and not self._fh.closed and \
                         self._clock() - self._last_flush >= self.flush_s:
                     try:
                         self._flush()
@@ -248,69 +231,7 @@ class CaptureWriter:
 
     def write(self, direction: str, time: float, transfer: bytes) -> None:
         with self._lock:
-            pending = self._pending
-            if pending is None:  # one block per write, or the first (it carries the comment)
-                self._write(direction, time, transfer)
-                if self.blocks:
-                    self._pending, self._room = [], self.FLUSH_BYTES - len(self._buf)
-                return
-            self._keep(direction, time, transfer)
-            if self._p_bytes >= self._room or self._clock() - self._last_flush >= self.flush_s:
-                self._flush()
-
-    def write_many(self, transfers: Iterable[tuple[str, float, bytes]]) -> None:
-        """``write`` of each (direction, time, transfer) in order, under one lock; in block mode
-        the flush rules are checked once, after the last (the file gets the same bytes)."""
-        items = iter(transfers)
-        with self._lock:
-            if self._pending is None:  # one block per write, or the first: one at a time
-                for direction, time, transfer in items:
-                    if self._pending is None:
-                        self._write(direction, time, transfer)
-                        if self.blocks:
-                            self._pending, self._room = [], self.FLUSH_BYTES - len(self._buf)
-                    else:
-                        self._keep(direction, time, transfer)
-            else:  # block mode: all kept at once, as _keep keeps each
-                ids = self._ids
-                kept = [(ids[direction], time, bytes(transfer))
-                        for direction, time, transfer in items]
-                self._pending.extend(kept)
-                self.count += len(kept)
-                self._p_bytes += 35 * len(kept) + sum(len(k[2]) for k in kept)
-            if self._pending and (self._p_bytes >= self._room
-                                  or self._clock() - self._last_flush >= self.flush_s):
-                self._flush()
-
-    def _keep(self, direction: str, time: float, transfer: bytes) -> None:
-        data = bytes(transfer)
-        assert self._pending is not None  # block mode, after the first transfer
-        self._pending.append((self._ids[direction], time, data))
-        self.count += 1
-        self._p_bytes += 35 + len(data)
-
-    def _encode_pending(self) -> None:
-        """The kept transfers into the buffer, as ``_write`` encodes them one by one."""
-        if not self._pending:
-            return
-        from eyeq_spi.capture.pcapng_write_fast import encode_blocks, ticks_of  # loaded
-
-        ids, times, data = zip(*self._pending, strict=True)
-        self._pending, self._p_bytes, self._room = [], 0, self.FLUSH_BYTES
-        ticks = ticks_of(times, self._scale)
-        if ticks is not None:
-            self._buf += encode_blocks(ids, ticks, data)
-            return
-        # a time the fast encoder cannot take: the reference encodes every other transfer and
-        # says what it could not write
-        bad: OutputError | None = None
-        for i, t, d in zip(ids, times, data, strict=True):
-            try:
-                self._encode_one(i, t, d, b"")
-            except OutputError as exc:
-                bad = bad or exc
-        if bad is not None:
-            raise bad
+            self._write(direction, time, transfer)
 
     def _write(self, direction: str, time: float, transfer: bytes) -> None:
         opts = _options([(1, self.comment.encode())]) if self.count == 0 else b""
@@ -320,7 +241,7 @@ class CaptureWriter:
             self._flush()
 
     def _encode_one(self, iface: int, time: float, data: bytes, opts: bytes) -> None:
-        """One Enhanced Packet Block into the buffer (the reference encoder); a time without a
+        """One Enhanced Packet Block into the buffer; a time without a
         pcapng timestamp (not a number, infinite, past 2**64 ticks) is an :class:`OutputError`
         and writes nothing."""
         pad = -len(data) % 4
@@ -344,11 +265,6 @@ class CaptureWriter:
             self._flush()
 
     def _flush(self) -> None:
-        bad: OutputError | None = None
-        try:
-            self._encode_pending()
-        except OutputError as exc:  # the other transfers still go to the file
-            bad = exc
         view = memoryview(self._buf)
         try:
             while view:
@@ -359,10 +275,7 @@ class CaptureWriter:
         finally:
             view.release()
         self._buf.clear()
-        self._room = self.FLUSH_BYTES
         self._last_flush = self._clock()
-        if bad is not None:
-            raise bad
 
     def close(self) -> None:
         import threading

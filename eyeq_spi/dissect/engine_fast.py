@@ -25,7 +25,9 @@ Messages of a span are cut from the arrays and handed to the dissector
 construction.
 
 A span ends at the first frame that is not clean, at the first record at or past the open
-transfer's reassembly deadline, or at the end of its chunk. There the dissector takes the
+transfer's reassembly deadline, before the other direction's first DATA frame with NUM 0 and
+RSP 0 (L4: the reference starts this direction's receiver over there too, so it must have seen
+the span's frames before it), or at the end of its chunk. There the dissector takes the
 direction up again (:meth:`~.engine.Dissector.resume`: its receiver is given the span's last
 transfers, at least W frames, the span's last multi-frame transfer and the open transfer) and
 judges what follows itself. Nothing of a span is carried from one chunk to the next.
@@ -95,6 +97,7 @@ class ChunkFeeder:
         self.dirs: dict[int, Dir] = {}
         self.deadline: float | None = None
         self._rows: dict[int, list[int]] = {}
+        self._restarts: tuple[np.ndarray, np.ndarray] = (np.zeros(0, np.int64),) * 2
 
     # -- driving -----------------------------------------------------------------------------
     def feed(self, chunk: Chunk) -> Iterator[Item]:
@@ -122,14 +125,18 @@ class ChunkFeeder:
             plans[code] = self._plan(fa, st)
         for code in self.dirs:
             self._rows[code] = plans.setdefault(code, _empty_plan()).P
+        # L4 frames (DATA, NUM 0, RSP 0, CRC good): the rows and their directions
+        l4 = np.flatnonzero(fa.fed & fa.crc_ok & (fa.ftype == DATA) & (fa.num == 0)
+                            & (fa.rsp == 0))
+        self._restarts = (l4, fa.chunk.direction[l4])
         times = fa.chunk.time
         pos = 0
         while pos < n:
             nxt, why, which = n, 0, -1
             for code, st in self.dirs.items():
                 pl = plans[code]
-                if st.fast:
-                    if st.switch_row < nxt:
+                if st.fast:  # at a tie, the span ends before the other direction's record
+                    if st.switch_row <= nxt:
                         nxt, why, which = st.switch_row, 1, code
                 elif pl.ip < len(pl.P) and pl.P[pl.ip] < nxt:
                     nxt, why, which = pl.P[pl.ip], 2, code
@@ -235,11 +242,12 @@ class ChunkFeeder:
         pad = np.arange(rows.shape[1])[None, :] >= (8 + takes)[:, None]
         link[lasts[((rows != 0) & pad).any(axis=1)]] = False
 
-    def _walk(self, fa: FrameArrays, st: Dir, pl: _Plan, k0: int) -> int:
-        """The span from P[k0] (its first NUM was checked against E): complete units, open
-        transfer, stop index and switch row. Returns the number of frames it covers."""
+    def _walk(self, fa: FrameArrays, st: Dir, pl: _Plan, k0: int, limit: int) -> int:
+        """The span from P[k0] (its first NUM was checked against E) up to row ``limit``:
+        complete units, open transfer, stop index and switch row. Returns the number of frames
+        it covers."""
         P, okf, tt, need, cont, B = pl.P, pl.okf, pl.ttype, pl.need, pl.cont, pl.B
-        n = len(P)
+        n = bisect.bisect_left(P, limit)
         units: list[Unit] = []
         k = k0
         st.open_ks = -1
@@ -264,7 +272,7 @@ class ChunkFeeder:
         st.units, st.ui, st.stop_k = units, 0, k
         # switch at the first frame outside the span, or before it at the first record at or
         # past the open transfer's reassembly deadline
-        row = P[k] if k < n else len(fa)
+        row = P[k] if k < n else limit
         if st.open_ks >= 0:
             r = P[k - 1]
             tr = float(fa.chunk.time[r])
@@ -278,7 +286,9 @@ class ChunkFeeder:
     def _try_span(self, fa: FrameArrays, st: Dir, pl: _Plan, k: int) -> bool:
         if int(fa.num[pl.P[k]]) != self.dis.expected_num(st.name):
             return False
-        if self._walk(fa, st, pl, k) < MIN_SPAN:
+        rows, codes = self._restarts
+        later = rows[(rows > pl.P[k]) & (codes != st.code)]
+        if self._walk(fa, st, pl, k, int(later[0]) if later.size else len(fa)) < MIN_SPAN:
             return False
         st.fast = True
         return True

@@ -1,38 +1,261 @@
-"""Saleae SPI analyzer exports: the readers the rest of the code imports.
+"""Saleae SPI analyzer exports (``specs/bench.yaml`` ``saleae2``/``saleae1``), streamed.
 
-``read_saleae2``/``read_saleae1`` are the numpy twins of :mod:`eyeq_spi.logic.saleae_fast`
-(the reference's csv loop reads any chunk they decline), or with ``EYEQ_SPI_EXACT=1`` the
-reference of :mod:`eyeq_spi.logic.saleae_ref` alone.
+- Logic 2 "Export table": ``name,type,start_time,duration,"mosi","miso"``; per analyzer
+  (``name``) an ``enable`` row (CS falls), one ``result`` row per byte, a ``disable`` row (CS
+  rises). Several analyzers (one per SPI channel) may share one file.
+- Logic 1.x: ``Time [s],Packet ID,MOSI,MISO``; the rows of one ``Packet ID`` are one transfer.
+
+A transfer is the bytes between CS falling and rising (§6), so a chip-select fault is a transfer
+of the wrong length (L8). Bytes before a channel's first ``enable`` belong to a transfer the
+capture cut: they are dropped, as is a transfer still open at the end. Record times are the
+capture's (the ``enable`` row, or the first byte in Logic 1.x).
+
+The csv module reads any shape of export; errors name their line.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import csv
+import itertools
+from collections.abc import Callable, Iterator
 
 from eyeq_spi.capture.pcapng_io import Record
-from eyeq_spi.logic.options import SpiOptions
-from eyeq_spi.logic.saleae_ref import sniff
-from eyeq_spi.logic.saleae_types import ByteSource
-from eyeq_spi.twins import references_only
+from eyeq_spi.errors import InputError
+from eyeq_spi.logic.options import MAX_TRANSFER, Route, SpiOptions, bench_spec
+from eyeq_spi.logic.saleae_types import (
+    MAX_LINE,
+    ByteSource,
+    OpenTransfer,
+    Saleae1State,
+    Saleae2State,
+    seconds,
+)
 
-__all__ = ["ByteSource", "read_saleae1", "read_saleae2", "sniff"]
+
+def _norm(cells: list[str]) -> list[str]:
+    return [c.strip().strip('"').strip().lower() for c in cells]
+
+
+def sniff(head: bytes) -> str | None:
+    line = head.removeprefix(b"\xef\xbb\xbf").split(b"\n", 1)[0].decode("utf-8", "replace")
+    cells = _norm(line.split(","))
+    s2 = [h.lower() for h in bench_spec()["saleae2"]["header"]]
+    s1 = [h.lower() for h in bench_spec()["saleae1"]["header"]]
+    if cells[:len(s2)] == s2:
+        return "saleae2"
+    if cells[:2] == s1[:2]:
+        return "saleae1"
+    return None
+
+
+_BYTES = {f"0x{v:02X}": v for v in range(256)} | {f"0x{v:02x}": v for v in range(256)}
+
+
+def _byte(text: str, line: int) -> int | None:
+    value = _BYTES.get(text)  # the usual hex radix, without parsing
+    if value is not None:
+        return value
+    token = text.strip().strip('"')
+    if not token:
+        return None
+    try:
+        value = int(token, 0) if token[:2].lower() in ("0x", "0b") else int(token, 10)
+    except ValueError:
+        raise InputError(f"line {line}: {token[:20]!r} is not a byte (export with a hex, "
+                         "decimal or binary radix)") from None
+    if not 0 <= value <= 0xFF:
+        raise InputError(f"line {line}: {value} is not a byte (set the analyzer to 8 bits)")
+    return value
+
+
+def _emit(tr: OpenTransfer, routes: list[Route]) -> Iterator[Record]:
+    for route in routes:
+        yield Record(tr.time, route.direction, bytes(tr.lines[route.line]))
+
+
+def _time(text: str, where: str) -> float:
+    try:
+        return seconds(text)
+    except ValueError:
+        raise InputError(f"{where}: bad time {text[:30]!r}") from None
 
 
 def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
                  ) -> Iterator[Record]:
-    """Logic 2 "Export table" rows -> one record per transfer and direction."""
-    from eyeq_spi.logic import saleae_fast, saleae_ref  # numpy only when a file is read
-
-    if references_only():
-        return saleae_ref.read_saleae2(src, opts, chunk_size=chunk_size)
-    return saleae_fast.read_saleae2(src, opts, chunk_size=chunk_size)
+    try:
+        yield from _saleae2(src, opts, chunk_size)
+    except csv.Error as exc:
+        raise InputError(f"not a CSV export: {exc}") from None
 
 
 def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
-                 ) -> Iterator[Record]:
-    """Logic 1.x rows (one Packet ID per transfer) -> one record per transfer and direction."""
-    from eyeq_spi.logic import saleae_fast, saleae_ref
+                  ) -> Iterator[Record]:
+    try:
+        yield from _saleae1(src, opts, chunk_size)
+    except csv.Error as exc:
+        raise InputError(f"not a CSV export: {exc}") from None
 
-    if references_only():
-        return saleae_ref.read_saleae1(src, opts, chunk_size=chunk_size)
-    return saleae_fast.read_saleae1(src, opts, chunk_size=chunk_size)
+
+def byte_chunks(src: ByteSource, size: int = 1 << 20) -> Iterator[bytes]:
+    """The stream in chunks of whole lines (the last may lack its newline), the UTF-8 BOM
+    dropped, bounded memory: a line longer than 64 KiB is an error."""
+    rest = b""
+    bom = True
+    while True:
+        data = src.read(size)
+        buf = rest + data
+        if bom:
+            if len(buf) < 3 and data:
+                rest = buf
+                continue
+            buf, bom = buf.removeprefix(b"\xef\xbb\xbf"), False
+        if not data:
+            if buf:
+                yield buf
+            return
+        cut = buf.rfind(b"\n") + 1
+        rest = buf[cut:]
+        if len(rest) > MAX_LINE:
+            raise InputError("line longer than 64 KiB: not a Saleae export")
+        if cut:
+            yield buf[:cut]
+
+
+def _lines(chunk: bytes) -> list[str]:
+    parts = chunk.split(b"\n")
+    if not parts[-1]:
+        parts.pop()
+    return [p.rstrip(b"\r").decode("utf-8", "replace") for p in parts]
+
+
+def _head(chunks: Iterator[bytes]) -> tuple[list[str], bytes]:
+    """The normalised header cells and the rest of the first chunk."""
+    line0, _, body = next(chunks, b"").partition(b"\n")
+    text = line0.rstrip(b"\r").decode("utf-8", "replace")
+    return _norm(next(csv.reader([text]), [])), body
+
+
+def _line_count(chunk: bytes) -> int:
+    return chunk.count(b"\n") + (not chunk.endswith(b"\n"))
+
+
+def _by_chunk(body: bytes, chunks: Iterator[bytes],
+              rows: Callable[[bytes, int], Iterator[Record]]) -> Iterator[Record]:
+    """Each chunk through the csv row loop, which is told the chunk's first line number (the
+    header is 1)."""
+    line = 2
+    for chunk in itertools.chain([body], chunks):
+        if chunk:
+            yield from rows(chunk, line)
+            line += _line_count(chunk)
+
+
+def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Record]:
+    chunks = byte_chunks(src, chunk_size)
+    header, body = _head(chunks)
+    try:
+        i_name, i_type, i_time = (header.index(c) for c in ("name", "type", "start_time"))
+        cols = {line: header.index(line) for line in bench_spec()["saleae2"]["data_columns"]}
+    except ValueError:
+        raise InputError("not a Saleae Logic 2 SPI export: the header needs name, type, "
+                         "start_time, mosi and miso") from None
+    kinds = bench_spec()["saleae2"]["row_types"]
+    state = Saleae2State({}, {})
+    need = max(i_name, i_type, i_time, *cols.values())
+    yield from _by_chunk(
+        body, chunks,
+        lambda chunk, n: _saleae2_rows(csv.reader(_lines(chunk)), n, len(header), need, cols,
+                                       (i_name, i_type, i_time), kinds, state, opts))
+    if state.results and not state.enables:
+        raise InputError("the SPI analyzer had no Enable (chip select) channel: transfers "
+                         "cannot be framed")
+
+
+def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
+                  cols: dict[str, int], where: tuple[int, int, int], kinds: dict[str, str],
+                  state: Saleae2State, opts: SpiOptions) -> Iterator[Record]:
+    """The csv loop: reads any shape, reports errors with their line."""
+    i_name, i_type, i_time = where
+    k_start, k_byte = kinds["start"], kinds["byte"]
+    open_, routes = state.open_, state.routes
+    col_list = list(cols.items())
+    for n, row in enumerate(rows, start=start):
+        if not row:
+            continue
+        if len(row) <= need:
+            raise InputError(f"line {n}: {len(row)} columns, expected {ncols}")
+        name, kind = row[i_name], row[i_type]
+        if name not in routes:
+            routes[name] = opts.routes(name, len(routes) + 1)
+        if kind != k_byte and kind != k_start:
+            kind = kind.strip().lower()
+        if kind == k_byte:
+            state.results += 1
+            tr = open_.get(name)
+            if tr is None:
+                continue  # a transfer cut by the start of the capture
+            for line, col in col_list:
+                value = _byte(row[col], n)
+                if value is not None:
+                    buf = tr.lines[line]
+                    buf.append(value)
+                    if len(buf) > MAX_TRANSFER:
+                        raise InputError(f"line {n}: transfer longer than {MAX_TRANSFER} "
+                                         "bytes")
+        elif kind == k_start:
+            state.enables += 1
+            open_[name] = OpenTransfer(_time(row[i_time], f"line {n}"))
+        elif kind == kinds["end"]:
+            tr = open_.pop(name, None)
+            if tr is not None:
+                yield from _emit(tr, routes[name])
+        else:
+            raise InputError(f"line {n}: row type {kind!r} is not enable/result/disable")
+
+
+def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Record]:
+    chunks = byte_chunks(src, chunk_size)
+    header, body = _head(chunks)
+    want = [h.lower() for h in bench_spec()["saleae1"]["header"]]
+    try:
+        i_time, i_id, i_mosi, i_miso = (header.index(c) for c in want)
+    except ValueError:
+        raise InputError("not a Saleae Logic 1.x SPI export: the header needs "
+                         + ", ".join(want)) from None
+    routes = opts.routes("", 1)
+    state = Saleae1State()
+    where = (i_time, i_id, i_mosi, i_miso)
+    yield from _by_chunk(
+        body, chunks,
+        lambda chunk, n: _saleae1_rows(csv.reader(_lines(chunk)), n, len(header), where, state,
+                                       routes))
+    if state.tr is not None:
+        # Logic 1.x marks no CS rising edge: the last packet ends with the file
+        yield from _emit(state.tr, routes)
+
+
+def _saleae1_rows(rows: Iterator[list[str]], start: int, ncols: int,
+                  where: tuple[int, int, int, int], state: Saleae1State, routes: list[Route]
+                  ) -> Iterator[Record]:
+    i_time, i_id, i_mosi, i_miso = where
+    for n, row in enumerate(rows, start=start):
+        if not row:
+            continue
+        if len(row) <= max(where):
+            raise InputError(f"line {n}: {len(row)} columns, expected {ncols}")
+        pid = row[i_id].strip()
+        if not pid:
+            raise InputError(f"line {n}: no Packet ID: the SPI analyzer had no Enable "
+                             "(chip select) channel, transfers cannot be framed")
+        if pid != state.packet:
+            if state.tr is not None:
+                yield from _emit(state.tr, routes)
+            state.tr, state.packet = OpenTransfer(_time(row[i_time], f"line {n}")), pid
+        tr = state.tr
+        assert tr is not None
+        for line, col in (("mosi", i_mosi), ("miso", i_miso)):
+            value = _byte(row[col], n)
+            if value is not None:
+                tr.lines[line].append(value)
+        if len(tr.lines["mosi"]) > MAX_TRANSFER or len(tr.lines["miso"]) > MAX_TRANSFER:
+            raise InputError(f"line {n}: transfer longer than {MAX_TRANSFER} bytes")

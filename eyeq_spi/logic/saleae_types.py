@@ -1,6 +1,6 @@
-"""What the Saleae readers' reference (:mod:`eyeq_spi.logic.saleae_ref`, the csv loops) and
-fast twin (:mod:`eyeq_spi.logic.saleae_fast`, numpy) share: the byte source, a transfer being
-read, the reading state carried from chunk to chunk, and the capture's time format."""
+"""The Saleae readers' vocabulary (:mod:`eyeq_spi.logic.saleae`, also used by the VCD reader):
+the byte source, a transfer being read, the reading state carried from chunk to chunk, and the
+capture's time format."""
 
 from __future__ import annotations
 

@@ -63,7 +63,6 @@ from eyeq_spi.sim.mesp_functions import (
     SimCounters,
 )
 from eyeq_spi.sim.scene import Scene, SceneConfig
-from eyeq_spi.sim.schedule import DueHeap
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 from eyeq_spi.twins import references_only
@@ -139,7 +138,6 @@ class SimulatedEyeQ(MespFunctions):
         self._dasp_msgs: dict[str, list[MessageDef]] = {}  # mode -> the DASP messages it sends
         self._scene_frame: int | None = None  # the camera frame the scene was last stepped to
         self._dasp_min = 0.0  # min(_next_dasp.values()) when _next_dasp is not empty
-        self._due = DueHeap()  # _next_dasp as a heap (sim/schedule.py)
         self._packers: dict[str, DaspPacker | None] = {}  # None: this message takes the reference
         self.dasp_paths: Counter[str] = Counter()  # debug stat: messages sent "packed" / "dict"
         self.phase = Phase.OFF
@@ -442,7 +440,6 @@ class SimulatedEyeQ(MespFunctions):
                 and mode in m.modes]
         rate = self.config.dasp_rate
         period = 1.0 / rate
-        due = self._due
         if not self._next_dasp:
             # The streams (re)start (Running Vision after a boot or another mode): the scene
             # resumes from where it stood instead of catching up the whole pause in one step,
@@ -452,18 +449,16 @@ class SimulatedEyeQ(MespFunctions):
             # for longer than transmitTimeout
             for i, m in enumerate(msgs):
                 self._next_dasp[m.name] = now + i * period / max(1, len(msgs))
-            due.invalidate()
-        due.sync(msgs, self._next_dasp, now)
-        for t, i in due.pop_due(now):
-            m = msgs[i]
+        # the messages due now, in catalogue order (a message not yet scheduled is due now)
+        due = [(t, m) for m in msgs if (t := self._next_dasp.get(m.name, now)) <= now]
+        for t, m in due:
             # §7.1.4: the scene moves once per camera frame (at the frame's start), and every
             # message of that frame reads the same state
             frame = math.floor(now * rate + 1e-6)
             if frame != self._scene_frame:
                 self._scene_frame = frame
                 self.scene.step(min(now, frame * period), *self._ego)
-            nxt = self._next_dasp[m.name] = max(t + period, now)
-            due.push(nxt, i)
+            self._next_dasp[m.name] = max(t + period, now)
             stop = self.config.stop_dasp.get(m.name)
             if stop is not None and now >= stop:
                 continue
@@ -471,7 +466,7 @@ class SimulatedEyeQ(MespFunctions):
             self._dasp_counter[m.data_id] = (counter + 1) & 0xFF
             self._send(self._dasp_bytes(m, counter, now), now)
             self.counters.sent[m.name] += 1
-        self._dasp_min = due.earliest(self._next_dasp, now)
+        self._dasp_min = min(self._next_dasp.values(), default=now)
 
     def _packer(self, m: MessageDef) -> DaspPacker | None:
         """The message's packer; None: the reference (switched off, by the config or, when the
