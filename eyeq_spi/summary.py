@@ -424,8 +424,8 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
     for sess in sessions:
         hist.update(sess.pop("_ack_hist", Counter()))
         for key in ("received", "sent", "link", "transport_aborts", "e2e_errors",
-                  "dasp_counter_gaps", "decode_errors", "eyeq_resets", "eyeq_reset_causes",
-                  "mesp", "boot"):
+                    "dasp_counter_gaps", "decode_errors", "eyeq_resets", "eyeq_reset_causes",
+                    "mesp", "boot"):
             summary[key] = _add(summary[key], sess[key])
         stale = set(summary["stale_streams"]) | set(sess["stale_streams"])
         summary["stale_streams"] = sorted(stale)

@@ -116,7 +116,7 @@ def compile_protector(layout: Layout) -> Protector:
             env["np"] = np
             index = batch[0]
             env[f"G{index}"] = np.array([[o + k for o, s in plans[j].ranges for k in range(s)]
-                                     for j in batch], dtype=np.intp)
+                                         for j in batch], dtype=np.intp)
             env[f"O{index}"] = [plans[j].crc_offset for j in batch]
             lines += [f"    g = np.frombuffer(b, dtype=np.uint8)[G{index}]",
                       f"    for r, o in zip(g, O{index}):",

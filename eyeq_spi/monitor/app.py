@@ -79,7 +79,7 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
     start = clock()
     live_screen = console.is_terminal
     live = rich.Live(console=console, auto_refresh=False, transient=False,
-                  vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
+                     vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
     snap: Snapshot | None = None
     try:
         if live_screen:

@@ -112,7 +112,7 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
     view = CanBusView(proto, target)
     bus = open_bus(target)
     live = rich.Live(console=console, auto_refresh=False, transient=False,
-                  vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
+                     vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
     start = clock()
     period = 1.0 / refresh
     on_terminal = console.is_terminal

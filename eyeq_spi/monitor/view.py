@@ -229,7 +229,7 @@ def save_lines(lines: list[Any], path: str, title: str) -> None:
 
     rich = rich_modules()
     con = rich.Console(file=io.StringIO(), record=True, force_terminal=True,
-                    color_system="truecolor", width=max(t.cell_len for t in lines))
+                       color_system="truecolor", width=max(t.cell_len for t in lines))
     con.print(rich.Group(*lines))
     suffix = path.lower().rsplit(".", 1)[-1]
     try:
