@@ -120,21 +120,21 @@ class FaultyChannel:
             return [transfer, held]
         if not self.enabled:
             return [transfer]
-        p = self.profile
-        u = self.rng.random()
-        if u < p.drop:
+        profile = self.profile
+        draw = self.rng.random()
+        if draw < profile.drop:
             self._note(index, "drop", transfer)
             return []
-        u -= p.drop
-        if u < p.duplicate:
+        draw -= profile.drop
+        if draw < profile.duplicate:
             self._note(index, "duplicate", transfer)
             return [transfer, transfer]
-        u -= p.duplicate
-        if u < p.reorder:
+        draw -= profile.duplicate
+        if draw < profile.reorder:
             self._held = (index, transfer)
             return []
-        u -= p.reorder
-        if u < p.truncate:
+        draw -= profile.reorder
+        if draw < profile.truncate:
             length = self.rng.randrange(1, len(transfer))
             self._note(index, "truncate", transfer, length=length)
             return [transfer[:length]]
@@ -145,8 +145,8 @@ class FaultyChannel:
         """Bits until the next flip: geometric with parameter ``ber`` (inf when 0)."""
         if self.profile.ber <= 0:
             return 1 << 62
-        u = 1.0 - self.rng.random()  # (0, 1]
-        return int(math.log(u) / math.log1p(-self.profile.ber))
+        draw = 1.0 - self.rng.random()  # (0, 1]
+        return int(math.log(draw) / math.log1p(-self.profile.ber))
 
     def _flip(self, index: int, transfer: bytes) -> bytes:
         nbits = len(transfer) * 8
