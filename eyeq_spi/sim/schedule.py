@@ -45,8 +45,8 @@ class DueHeap:
         out.sort(key=lambda x: x[1])
         return out
 
-    def push(self, t: float, i: int) -> None:
-        heapq.heappush(self.heap, (t, i))
+    def push(self, due_at: float, index: int) -> None:
+        heapq.heappush(self.heap, (due_at, index))
 
     def earliest(self, due: dict[str, float], now: float) -> float:
         """``min(due.values(), default=now)``: the heap's top when it holds every due time,
