@@ -14,7 +14,7 @@ that each injected fault maps to exactly one receiver reaction):
   geometric gap between flips, so the process is exactly Bernoulli per bit over the run).
 
 Each injection is recorded as an :class:`Injected` with what the receiver must make of it under
-L3/L5/L6/L8, so that a soak can compare the record with the receiver's counters.
+L3/L5/L6/L8, so that a soak can compare that list (``injected``) with the receiver's counters.
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ class FaultyChannel:
         self.codec = codec or FrameCodec()
         self.enabled = True
         self.stats = ChannelStats()
-        self.record: list[Injected] = []
+        self.injected: list[Injected] = []
         self._held: tuple[int, bytes] | None = None
         self._to_flip = self._gap()
 
@@ -186,18 +186,18 @@ class FaultyChannel:
             frame = FrameKind(d).name
         except ValueError:
             frame = "?"
-        self.record.append(Injected(index, kind, frame, num, rsp, bits, length, crc_covered,
-                                    after))
+        self.injected.append(Injected(index, kind, frame, num, rsp, bits, length, crc_covered,
+                                      after))
         self.stats.injected[kind] += 1
 
     def header_flips(self) -> int:
         """Flipped transfers with a flip in the header word (bytes 0..3, L1)."""
-        return sum(1 for r in self.record if r.kind == "flip" and min(r.bits) < 32)
+        return sum(1 for r in self.injected if r.kind == "flip" and min(r.bits) < 32)
 
     def count(self, kind: str, frame: str | None = None, *, after: str | None = None,
               crc_covered: bool | None = None) -> int:
         """How many injections of ``kind`` match the filters."""
-        return sum(1 for r in self.record if r.kind == kind
+        return sum(1 for r in self.injected if r.kind == kind
                    and (frame is None or r.frame == frame)
                    and (after is None or r.after == after)
                    and (crc_covered is None or r.crc_covered == crc_covered))

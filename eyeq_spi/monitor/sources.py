@@ -166,8 +166,8 @@ class HostSource:
 class _ReplayBench:
     """The replay's node, host and virtual runner with the ``emu`` face DemoSource drives."""
 
-    def __init__(self, records: Iterable[Any], sw: str | None, duration: float | None) -> None:
-        self.node, self.host, self.runner = host_bench(records, sw=sw, duration=duration)
+    def __init__(self, transfers: Iterable[Any], sw: str | None, duration: float | None) -> None:
+        self.node, self.host, self.runner = host_bench(transfers, sw=sw, duration=duration)
 
     def run_for(self, dt: float) -> None:
         self.runner.run_until(self.runner.now + dt)
