@@ -50,12 +50,12 @@ SESSION_KEYS = ("began_s", "ended_s", "ok", "problem", "state", "received", "sen
 MESP_KEYS = ("requests", "retries", "timeouts", "abandoned", "stale_replies")
 
 
-def link_view(c: SpiDiagnosticInfo, restarts_answered: int = 0) -> dict[str, int]:
+def link_view(counters: SpiDiagnosticInfo, restarts_answered: int = 0) -> dict[str, int]:
     """The link's counters. ``restarts_answered``: resynchronisations that were the peer's
     restart after a reset we asked for (L10: its first frame numbered from 0 again), which is
     the reset itself (counted in ``eyeq_resets``), not a resynchronisation."""
-    out = c.seed_view()
-    out.update({k: int(getattr(c, k)) for k in LINK_EXTRA})
+    out = counters.seed_view()
+    out.update({k: int(getattr(counters, k)) for k in LINK_EXTRA})
     out["resynchronisations"] = max(0, out["resynchronisations"] - restarts_answered)
     return out
 
@@ -67,54 +67,54 @@ def reset_causes(asked: int, not_asked: int) -> dict[str, int]:
 
 def ack_latency_ms(hist: Counter[int]) -> dict[str, float | int]:
     """p50, p99.9 and max of a link's send -> ACK latency histogram (10 µs bins), in ms."""
-    n = sum(hist.values())
-    if not n:
+    total = sum(hist.values())
+    if not total:
         return {"n": 0}
-    out: dict[str, float | int] = {"n": n}
+    out: dict[str, float | int] = {"n": total}
     bins = sorted(hist.items())
-    for name, q in (("p50", 0.5), ("p99_9", 0.999)):
-        seen, rank = 0, q * n
-        for b, c in bins:
-            seen += c
+    for name, quantile in (("p50", 0.5), ("p99_9", 0.999)):
+        seen, rank = 0, quantile * total
+        for latency_bin, count in bins:
+            seen += count
             if seen >= rank:
-                out[name] = round(b / 100, 2)
+                out[name] = round(latency_bin / 100, 2)
                 break
     out["max"] = round(bins[-1][0] / 100, 2)
     return out
 
 
-def _losses(s: dict[str, Any]) -> str | None:
+def _losses(summary: dict[str, Any]) -> str | None:
     """Every data loss, corruption or missed deadline in a summary, in words, causes before
     their consequences: a frame not ACKed in time loses its transfer (a transport abort), whose
     message then leaves a DASP counter gap, and the next message of that stream has its
     protected structures rejected, since their rolling counters jumped (D5). Saying only the
     last ("16 E2E errors") would send a reader looking for corrupt data."""
-    link = s["link"]
-    mesp = s["mesp"]
+    link = summary["link"]
+    mesp = summary["mesp"]
     timeouts = mesp.get("timeouts") or 0
-    aborts = sum(s["transport_aborts"].values())
+    aborts = sum(summary["transport_aborts"].values())
     checks: list[tuple[bool, str]] = [
         (link.get("sendFailedErrorCounter", 0) > 0,
          f"{link.get('sendFailedErrorCounter')} send failures (frames not ACKed in time)"),
-        (aborts > 0, f"transport aborts {s['transport_aborts']}"),
-        (s["dasp_counter_gaps"] > 0, f"{s['dasp_counter_gaps']} DASP counter gaps"),
-        (s["e2e_errors"] > 0, f"{s['e2e_errors']} E2E errors"
+        (aborts > 0, f"transport aborts {summary['transport_aborts']}"),
+        (summary["dasp_counter_gaps"] > 0, f"{summary['dasp_counter_gaps']} DASP counter gaps"),
+        (summary["e2e_errors"] > 0, f"{summary['e2e_errors']} E2E errors"
          + (" (after the gaps: D5 rejects a structure whose rolling counter jumped)"
-            if s["dasp_counter_gaps"] > 0 else "")),
-        (bool(s["stale_streams"]), f"stale streams: {', '.join(s['stale_streams'])}"),
+            if summary["dasp_counter_gaps"] > 0 else "")),
+        (bool(summary["stale_streams"]), f"stale streams: {', '.join(summary['stale_streams'])}"),
         (timeouts > 0, f"{timeouts} MESP timeouts"),
     ]
     said = [why for bad, why in checks if bad]
     return "; ".join(said) if said else None
 
 
-def finish(s: dict[str, Any], first_problem: str | None) -> dict[str, Any]:
+def finish(summary: dict[str, Any], first_problem: str | None) -> dict[str, Any]:
     """Judge a summary (``problem``, ``ok``) and give it exactly the keys of :data:`KEYS`."""
-    s["problem"] = first_problem or _losses(s)
-    s["ok"] = s["problem"] is None
-    return {k: s.get(k) for k in KEYS} | {
-        "sessions": s.get("sessions") or [], "received": s.get("received") or {},
-        "sent": s.get("sent") or {}}
+    summary["problem"] = first_problem or _losses(summary)
+    summary["ok"] = summary["problem"] is None
+    return {k: summary.get(k) for k in KEYS} | {
+        "sessions": summary.get("sessions") or [], "received": summary.get("received") or {},
+        "sent": summary.get("sent") or {}}
 
 
 def _aborts(conn: TransportConnection) -> dict[str, int]:
@@ -122,10 +122,11 @@ def _aborts(conn: TransportConnection) -> dict[str, int]:
 
 
 def host_mesp(host: HostEmulator, eyeq: SimulatedEyeQ | None = None) -> dict[str, int]:
-    c = host.mesp.counters
+    counters = host.mesp.counters
     dropped = 0 if eyeq is None else eyeq.counters.mesp_replies_dropped
-    return {"requests": c.requests, "retries": c.retries, "timeouts": max(c.timeouts, dropped),
-            "abandoned": c.abandoned, "stale_replies": c.stale_replies}
+    return {"requests": counters.requests, "retries": counters.retries,
+            "timeouts": max(counters.timeouts, dropped), "abandoned": counters.abandoned,
+            "stale_replies": counters.stale_replies}
 
 
 @dataclass
@@ -160,19 +161,19 @@ def new_connection(host: HostEmulator, now: float, left: LeftAtLinkLoss) -> None
     left.transfers += after[1] - transfers
 
 
-def _without_left(s: dict[str, Any], left: LeftAtLinkLoss | None) -> None:
+def _without_left(summary: dict[str, Any], left: LeftAtLinkLoss | None) -> None:
     """Take what lost connections left out of the counts of the connections that followed."""
     if left is None:
         return
-    link = s["link"]
+    link = summary["link"]
     if "sendFailedErrorCounter" in link:
         link["sendFailedErrorCounter"] = max(0, link["sendFailedErrorCounter"] - left.messages)
-    aborts = s["transport_aborts"]
+    aborts = summary["transport_aborts"]
     if "reset" in aborts:
         aborts["reset"] = max(0, aborts["reset"] - left.transfers)
         if not aborts["reset"]:
             del aborts["reset"]
-    s["left_at_link_loss"] = left.view()
+    summary["left_at_link_loss"] = left.view()
 
 
 class ClockedAcks:
@@ -188,9 +189,9 @@ class ClockedAcks:
         self.sent: dict[int, float] = {}  # NUM -> the clock when the host handed it over
         self.hist: Counter[int] = Counter()  # 10 µs bin -> frames ACKed, as the link's
 
-    def __call__(self, node: int, t: float, transfer: bytes) -> None:
+    def __call__(self, node: int, time_s: float, transfer: bytes) -> None:
         if self.then is not None:
-            self.then(node, t, transfer)
+            self.then(node, time_s, transfer)
         if len(transfer) != FRAME_SIZE:
             return
         kind, _, rsp, num, crc_ok = self.codec.check(transfer)
@@ -211,13 +212,13 @@ class RunningVision:
         self.since: float | None = None
         self.left: list[float] = []
 
-    def update(self, host: HostEmulator, t: float) -> None:
+    def update(self, host: HostEmulator, time_s: float) -> None:
         """Look at ``host`` at time ``t`` (seconds on the run's clock)."""
         running = host.state is HostState.RUNNING_VISION
         if running and self.since is None:
-            self.since = t
+            self.since = time_s
         elif not running and self.since is not None:
-            self.left.append(t)
+            self.left.append(time_s)
             self.since = None
 
     def reset(self) -> None:
@@ -241,7 +242,7 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
     received = {n: int(host.counters.received.get(n, 0)) for n in names}
     received.update({k: int(v) for k, v in host.counters.received.items()})
     stale = sorted(set(host.counters.stale_events) | host.stale_streams)
-    s: dict[str, Any] = {
+    summary: dict[str, Any] = {
         "side": side, "address": address, "state": host.state.value,
         "sw": sw_release_text(host.sw),
         "elapsed_s": round(elapsed, 6), "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
@@ -268,7 +269,7 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "running_vision_since": None if running_since is None else round(running_since, 4),
         "link_lost": link_lost, "scheduling": scheduling,
     }
-    _without_left(s, left)
+    _without_left(summary, left)
     first = None
     gave_up = host.state in (HostState.FAILED, HostState.BOOT_FAILED)  # why, not "link lost"
     if link_lost and not (gave_up and host.problem):
@@ -281,24 +282,25 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         first = f"left Running Vision at {left_running[0]:.3f} s"
     if first is not None and first != "link lost":  # a bad link is not a bad camera
         first = with_link_cause(first, host.conn.link.counters)
-    return finish(s, first)
+    return finish(summary, first)
 
 
 # -- sim: per host served and in total -------------------------------------------------------
 
 def _sim_counts(sim: SimulatedEyeQ) -> dict[str, Any]:
     """The simulator's counts since it was made (they run on across power-ups)."""
-    c = sim.counters
+    counters = sim.counters
     return {
-        "received": {k: int(v) for k, v in c.received.items()},
-        "sent": {k: int(v) for k, v in c.sent.items()},
+        "received": {k: int(v) for k, v in counters.received.items()},
+        "sent": {k: int(v) for k, v in counters.sent.items()},
         "link": link_view(sim.conn.link.counters),
         "transport_aborts": {k: int(v) for k, v in sim.conn.counters.transferAborts.items()},
-        "e2e_errors": c.e2e_errors, "dasp_counter_gaps": c.counter_gaps,
-        "decode_errors": c.bad_hdr_total, "stale": c.veh_state_stale,
-        "mesp": {"requests": c.mesp_requests,
-                 "timeouts": c.mesp_replies_dropped + c.mesp_replies_late},
-        "boots": c.boots, "self_resets": c.self_resets, "vision_switches": c.vision_switches,
+        "e2e_errors": counters.e2e_errors, "dasp_counter_gaps": counters.counter_gaps,
+        "decode_errors": counters.bad_hdr_total, "stale": counters.veh_state_stale,
+        "mesp": {"requests": counters.mesp_requests,
+                 "timeouts": counters.mesp_replies_dropped + counters.mesp_replies_late},
+        "boots": counters.boots, "self_resets": counters.self_resets,
+        "vision_switches": counters.vision_switches,
         "hist": Counter(sim.conn.link.ack_latency),
     }
 
@@ -313,8 +315,8 @@ def _minus(now: Any, before: Any) -> Any:
     return now - (before or 0)
 
 
-def _nonzero(d: dict[str, int]) -> dict[str, int]:
-    return {k: v for k, v in sorted(d.items()) if v}
+def _nonzero(counts: dict[str, int]) -> dict[str, int]:
+    return {k: v for k, v in sorted(counts.items()) if v}
 
 
 class SimSessions:
@@ -342,34 +344,34 @@ class SimSessions:
         since the run started) and return its summary. ``not_taken``: transfers the host
         sent that the adapter dropped with its connection (never handed to the EyeQ)."""
         now = _sim_counts(sim)
-        d = now if self._last is None or self._last[0] is not sim \
+        counts = now if self._last is None or self._last[0] is not sim \
             else _minus(now, self._last[1])
         if self._begun is not None and self._begun[0] is sim:  # link counts from the power-up
             for key in ("link", "transport_aborts"):
-                d[key] = _minus(now[key], self._begun[1][key])
+                counts[key] = _minus(now[key], self._begun[1][key])
         self._last, self._begun = (sim, now), None
-        s: dict[str, Any] = {
+        session: dict[str, Any] = {
             "began_s": round(began, 3), "ended_s": round(ended, 3),
             "state": f"0x{sim.main_state:02X}",
-            "received": _nonzero(d["received"]), "sent": _nonzero(d["sent"]),
-            "link": d["link"], "ack_latency_ms": ack_latency_ms(d["hist"]),
-            "transport_aborts": _nonzero(d["transport_aborts"]),
-            "e2e_errors": d["e2e_errors"], "dasp_counter_gaps": d["dasp_counter_gaps"],
-            "decode_errors": d["decode_errors"],
-            "stale_streams": ["HOST_VEH_STATE_MSG"] if d["stale"] else [],
+            "received": _nonzero(counts["received"]), "sent": _nonzero(counts["sent"]),
+            "link": counts["link"], "ack_latency_ms": ack_latency_ms(counts["hist"]),
+            "transport_aborts": _nonzero(counts["transport_aborts"]),
+            "e2e_errors": counts["e2e_errors"], "dasp_counter_gaps": counts["dasp_counter_gaps"],
+            "decode_errors": counts["decode_errors"],
+            "stale_streams": ["HOST_VEH_STATE_MSG"] if counts["stale"] else [],
             # what the host waited for in vain; retries and stale replies are the host's count
-            "mesp": {"requests": d["mesp"]["requests"], "retries": None,
-                     "timeouts": d["mesp"]["timeouts"], "abandoned": None,
+            "mesp": {"requests": counts["mesp"]["requests"], "retries": None,
+                     "timeouts": counts["mesp"]["timeouts"], "abandoned": None,
                      "stale_replies": None},
             # the connection's own power-up is no reset; its own resets (reset_at) no host
             # asked for; every other boot, and every accepted Switch to Vision (L10), it did
-            "eyeq_resets": max(0, d["boots"] - 1) + d["vision_switches"],
+            "eyeq_resets": max(0, counts["boots"] - 1) + counts["vision_switches"],
             "eyeq_reset_causes": reset_causes(
-                max(0, d["boots"] - 1 - d["self_resets"]) + d["vision_switches"],
-                d["self_resets"]),
+                max(0, counts["boots"] - 1 - counts["self_resets"]) + counts["vision_switches"],
+                counts["self_resets"]),
             "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
                          "eyeqSwVersionMinor": sim.sw_version[1]},
-            "boot": {"boots": d["boots"]},
+            "boot": {"boots": counts["boots"]},
             "running_vision_since": (None if sim.running_since is None
                                      else round(sim.running_since - self.t0, 4)),
             "link_lost": link_lost,
@@ -379,19 +381,19 @@ class SimSessions:
                 "frames": sim.conn.link.in_flight, "transfers": not_taken},
         }
         # the host leaving ends a session; it is not a loss on the EyeQ side (it serves the next)
-        s["problem"] = _losses(s)
-        s["ok"] = s["problem"] is None
-        s["_ack_hist"] = d["hist"]  # for the totals; sim_summary drops it
-        self.sessions.append(s)
-        return s
+        session["problem"] = _losses(session)
+        session["ok"] = session["problem"] is None
+        session["_ack_hist"] = counts["hist"]  # for the totals; sim_summary drops it
+        self.sessions.append(session)
+        return session
 
 
 def _add(total: Any, part: Any) -> Any:
     """Counts summed key by key (None: not counted on this side)."""
     if isinstance(part, dict):
         out = dict(total or {})
-        for k, v in part.items():
-            out[k] = _add(out.get(k), v)
+        for key, value in part.items():
+            out[key] = _add(out.get(key), value)
         return out
     if part is None:
         return total
@@ -404,7 +406,7 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
     """The summary of a ``sim`` run: every host served in ``sessions`` (from
     :class:`SimSessions`) and their totals; ``sim`` is the last one served (or an idle one)."""
     hist: Counter[int] = Counter()
-    s: dict[str, Any] = {
+    summary: dict[str, Any] = {
         "side": "sim", "address": address, "sw": sw_release_text(sim.sw),
         "elapsed_s": round(elapsed, 6), "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
         "connections": len(sessions), "interrupted": interrupted,
@@ -421,19 +423,20 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
     }
     for sess in sessions:
         hist.update(sess.pop("_ack_hist", Counter()))
-        for k in ("received", "sent", "link", "transport_aborts", "e2e_errors",
-                  "dasp_counter_gaps", "decode_errors", "eyeq_resets", "eyeq_reset_causes",
-                  "mesp", "boot"):
-            s[k] = _add(s[k], sess[k])
-        s["stale_streams"] = sorted(set(s["stale_streams"]) | set(sess["stale_streams"]))
-        s["state"], s["versions"] = sess["state"], sess["versions"]
-        s["running_vision_since"] = sess["running_vision_since"]
-        s["link_lost"] = sess["link_lost"]
-    for gauge in GAUGES & set(s["link"]):  # a level of the last host, not a sum over hosts
-        s["link"][gauge] = sessions[-1]["link"].get(gauge, 0) if sessions else 0
-    s["ack_latency_ms"] = ack_latency_ms(hist)
-    s["sessions"] = [{k: sess[k] for k in SESSION_KEYS} for sess in sessions]
-    return finish(s, problem)
+        for key in ("received", "sent", "link", "transport_aborts", "e2e_errors",
+                    "dasp_counter_gaps", "decode_errors", "eyeq_resets", "eyeq_reset_causes",
+                    "mesp", "boot"):
+            summary[key] = _add(summary[key], sess[key])
+        stale = set(summary["stale_streams"]) | set(sess["stale_streams"])
+        summary["stale_streams"] = sorted(stale)
+        summary["state"], summary["versions"] = sess["state"], sess["versions"]
+        summary["running_vision_since"] = sess["running_vision_since"]
+        summary["link_lost"] = sess["link_lost"]
+    for gauge in GAUGES & set(summary["link"]):  # a level of the last host, not a sum over hosts
+        summary["link"][gauge] = sessions[-1]["link"].get(gauge, 0) if sessions else 0
+    summary["ack_latency_ms"] = ack_latency_ms(hist)
+    summary["sessions"] = [{k: sess[k] for k in SESSION_KEYS} for sess in sessions]
+    return finish(summary, problem)
 
 
 # -- replay: a capture's EyeQ channel played to a host -----------------------------------------
@@ -447,7 +450,7 @@ def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cp
     to the end, the link held, every played frame answered, no frame NAKed."""
     naks = sum(replay["host_naks"].values())
     unanswered = replay["played"] - replay["host_acks"] - naks
-    s: dict[str, Any] = {
+    summary: dict[str, Any] = {
         "side": "replay", "address": address, "state": None, "sw": replay.get("sw"),
         "elapsed_s": round(wall, 6), "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
         "connections": connections, "interrupted": interrupted,
@@ -474,7 +477,7 @@ def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cp
         first = f"the host NAKed {naks} played frames: {replay['host_naks']}"
     elif unanswered > 0:
         first = f"{unanswered} of {replay['played']} played frames not ACKed by the host"
-    return finish(s, first)
+    return finish(summary, first)
 
 
 # -- text ---------------------------------------------------------------------------------------
@@ -533,13 +536,14 @@ def format_summary(out: dict[str, Any]) -> str:
         lines.append(f"  scheduling: {out['scheduling']}")
     lines.append(f"  received: {_counts(out['received'])}")
     lines.append(f"  sent: {_counts(out['sent'])}")
-    for i, sess in enumerate(out["sessions"], 1):
-        lines.append(_session_line(i, sess))
-    c = out.get("can")
-    if c:
-        over = ", ".join(f"{k} {v}" for k, v in c["slot_overflow"].items())
-        lines.append(f"  CAN {c['protocol']} -> {c['target']}: {c['frames']} frames, send errors "
-                     f"{c['send_errors']}, clamped {c['clamped']}, sent invalid {c['invalid']}"
+    for number, sess in enumerate(out["sessions"], 1):
+        lines.append(_session_line(number, sess))
+    can = out.get("can")
+    if can:
+        over = ", ".join(f"{k} {v}" for k, v in can["slot_overflow"].items())
+        lines.append(f"  CAN {can['protocol']} -> {can['target']}: {can['frames']} frames, "
+                     f"send errors {can['send_errors']}, clamped {can['clamped']}, "
+                     f"sent invalid {can['invalid']}"
                      + (f", objects beyond the slots (not sent) {over}" if over else ""))
     rep = out.get("replay")
     if rep:
@@ -549,12 +553,12 @@ def format_summary(out: dict[str, Any]) -> str:
     return "\n".join(_wrap(line) for line in lines)
 
 
-def _session_line(i: int, sess: dict[str, Any]) -> str:
+def _session_line(number: int, sess: dict[str, Any]) -> str:
     """One host a ``sim`` served: its verdict and, when its connection broke off (the link
     has no goodbye: a host that ends and one that vanishes both just go), when and what it
     left in flight."""
     verdict = "OK" if sess["ok"] else f"NOT OK ({sess['problem']})"
-    line = (f"  host {i}: {sess['began_s']:.2f}-{sess['ended_s']:.2f} s, {verdict}, "
+    line = (f"  host {number}: {sess['began_s']:.2f}-{sess['ended_s']:.2f} s, {verdict}, "
             f"received {sum(sess['received'].values())}, sent {sum(sess['sent'].values())}")
     left = sess.get("left_at_link_loss")
     if sess["link_lost"] is None:

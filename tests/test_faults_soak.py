@@ -79,12 +79,12 @@ def test_channel_is_seeded_and_its_rates_match_the_profile() -> None:
     for kind in ("drop", "duplicate", "reorder", "truncate"):
         got = ch.stats.injected[kind]
         assert abs(got - 0.01 * n) < 5 * math.sqrt(0.01 * n), (kind, got)
-    flips = sum(len(r.bits) for r in ch.record if r.kind == "flip")
+    flips = sum(len(r.bits) for r in ch.injected if r.kind == "flip")
     expected = 1e-5 * ch.stats.bits
     assert abs(flips - expected) < 5 * math.sqrt(expected), (flips, expected)
     # the pad of an ACK is outside its CRC (L3): such a flip is recorded as not covered
     assert all(r.crc_covered == (r.frame == "DATA" or min(r.bits) < 48)
-               for r in ch.record if r.kind == "flip")
+               for r in ch.injected if r.kind == "flip")
 
 
 def test_loss_profile_and_bad_profiles() -> None:

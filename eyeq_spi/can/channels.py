@@ -57,8 +57,8 @@ class ChannelCensus:
         (self.good if dec.needed <= dlc <= dec.dlc else self.bad)[channel].add(fid)
 
     def add_messages(self, messages: Any, limit: int = PREFIX_FRAMES) -> None:
-        for n, msg in enumerate(messages):
-            if n >= limit:
+        for count, msg in enumerate(messages):
+            if count >= limit:
                 break
             ch = None if msg.channel is None else str(msg.channel)
             self.add(ch, msg.arbitration_id, len(msg.data), msg.is_extended_id)

@@ -81,15 +81,15 @@ class SignalDecoder:
                    else max(_decimals(sig.scale), _decimals(sig.offset)))
 
     def raw(self, le: int, be: int) -> int:
-        r = ((be if self.big_endian else le) >> self.shift) & self.mask
-        if self.sign_bit and r & self.sign_bit:
-            r -= self.mask + 1
-        return r
+        raw = ((be if self.big_endian else le) >> self.shift) & self.mask
+        if self.sign_bit and raw & self.sign_bit:
+            raw -= self.mask + 1
+        return raw
 
     def physical(self, raw: int) -> float | int | None:
         if self.spec.is_float:
-            v: float = _F32.unpack((raw & 0xFFFFFFFF).to_bytes(4, "big"))[0]
-            return v if math.isfinite(v) else None
+            value: float = _F32.unpack((raw & 0xFFFFFFFF).to_bytes(4, "big"))[0]
+            return value if math.isfinite(value) else None
         if self.integer:
             return raw * int(self.scale) + int(self.offset)
         if self.digits is None:
@@ -108,17 +108,17 @@ class SignalDecoder:
                 den)
 
 
-def _exact(x: float) -> bool:
-    """Whether ``x`` as written is exactly its binary value (0.0625, 2**-10): a raw integer
+def _exact(value: float) -> bool:
+    """Whether ``value`` as written is exactly its binary value (0.0625, 2**-10): a raw integer
     times such a scale plus such an offset needs no rounding."""
-    return Decimal(x) == Decimal(repr(x))
+    return Decimal(value) == Decimal(repr(value))
 
 
-def _decimals(x: float) -> int:
-    """How many decimals ``x`` has as written (0.02: 2, 9.765625e-07: 12): a value
+def _decimals(value: float) -> int:
+    """How many decimals ``value`` has as written (0.02: 2, 9.765625e-07: 12): a value
     ``raw * scale + offset`` has no more, so rounding to them removes only binary noise
     (-1.8800000000000001 is -1.88)."""
-    exponent = Decimal(repr(x)).as_tuple().exponent
+    exponent = Decimal(repr(value)).as_tuple().exponent
     return max(0, -exponent) if isinstance(exponent, int) else 0
 
 
@@ -224,15 +224,15 @@ class MessageDecoder:
         for sig in self.signals:
             if sig.nbytes > have:
                 continue  # not in this (too short) frame
-            r = ((be if sig.big_endian else le) >> sig.shift) & sig.mask
-            if sig.sign_bit and r & sig.sign_bit:
-                r -= sig.mask + 1
-            value = sig.physical(r)
+            raw = ((be if sig.big_endian else le) >> sig.shift) & sig.mask
+            if sig.sign_bit and raw & sig.sign_bit:
+                raw -= sig.mask + 1
+            value = sig.physical(raw)
             name = sig.spec.name
             fields[name] = value
             if sig.labels is not None:
-                labels[name] = sig.labels.get(r)
-            if r == sig.invalid:
+                labels[name] = sig.labels.get(raw)
+            if raw == sig.invalid:
                 invalid.append(name)
             elif value is not None and ((sig.low is not None and value < sig.low)
                                         or (sig.high is not None and value > sig.high)):

@@ -83,24 +83,24 @@ def physical_to_raw(sig: CanSignal, value: Any, counters: GatewayCounters | None
             return sig.raw_invalid
         value = 0.0
     try:
-        v = float(value)
+        number = float(value)
     except (TypeError, ValueError):
         note("missing")
         return sig.raw_invalid if sig.raw_invalid is not None else 0
-    if not math.isfinite(v):
+    if not math.isfinite(number):
         note("missing")
         return sig.raw_invalid if sig.raw_invalid is not None else 0
     lo = sig.min if sig.min is not None else -math.inf
     hi = sig.max if sig.max is not None else math.inf
-    if not lo <= v <= hi:
+    if not lo <= number <= hi:
         if sig.out_of_range == "invalid" and sig.raw_invalid is not None:
             note("invalid")
             return sig.raw_invalid
         note("clamped")
-        v = min(max(v, lo), hi)
+        number = min(max(number, lo), hi)
     if sig.is_float:
-        return v
-    raw = round((v - sig.offset) / sig.scale)
+        return number
+    raw = round((number - sig.offset) / sig.scale)
     # rounding must not leave the printed range (127.93 -> 127.9375): one raw step back
     step = 1 if sig.scale > 0 else -1
     if sig.max is not None and raw * sig.scale + sig.offset > sig.max + 1e-12:
@@ -115,7 +115,7 @@ def physical_to_raw(sig: CanSignal, value: Any, counters: GatewayCounters | None
         # a measured value that rounds onto the printed invalid raw value (0x729's 12-bit
         # boundaries: FFh = 5.5 deg, inside -20..20) would read as invalid: one raw step
         # towards the value instead, within one raw step as C4 allows
-        away = 1 if (v - sig.offset) / sig.scale >= raw else -1
+        away = 1 if (number - sig.offset) / sig.scale >= raw else -1
         raw = raw + away if rlo <= raw + away <= rhi else raw - away
         note("stepped")
     return raw
@@ -145,15 +145,15 @@ class CanGateway:
         db = database(self.protocol.name)
         pm = mapping.protocols.get(self.protocol.name, {})
         self._plans: list[_Plan] = []
-        for m in self.protocol.messages:
-            mm = pm.get(m.name)
+        for message in self.protocol.messages:
+            mm = pm.get(message.name)
             sigs = [(s, compile_expr(mm.signals[s.name].expr, names, tables)
-                     if mm is not None and s.name in mm.signals else None) for s in m.signals]
+                     if mm is not None and s.name in mm.signals else None) for s in message.signals]
             slots = compile_expr(mm.slots.expr, names, tables) \
                 if mm is not None and mm.slots is not None else None
-            self._plans.append(_Plan(m, m.cycle_ms / 1000.0, slots, sigs,
+            self._plans.append(_Plan(message, message.cycle_ms / 1000.0, slots, sigs,
                                      [db.get_message_by_frame_id(fid)
-                                      for _, fid, _ in m.instances()]))
+                                      for _, fid, _ in message.instances()]))
         self._latest: dict[str, dict[str, Any]] = {}
         self._queue: list[CanFrame] = []
         self._started = False
@@ -206,14 +206,14 @@ class CanGateway:
 
     # -- evaluation -------------------------------------------------------------------------
     def _environment(self, now: float) -> dict[str, Any]:
-        t = now - self.epoch
-        env: dict[str, Any] = {"t": t, "__tables__": self._tables}
+        elapsed = now - self.epoch
+        env: dict[str, Any] = {"t": elapsed, "__tables__": self._tables}
         env["veh"] = dict(self.vehicle(now)) if self.vehicle is not None else {}
         for alias, (msg, path) in self._sources.items():
-            v: Any = self._latest.get(msg)
+            value: Any = self._latest.get(msg)
             for part in path:
-                v = v.get(part) if isinstance(v, dict) else None
-            env[alias] = v
+                value = value.get(part) if isinstance(value, dict) else None
+            env[alias] = value
         for dname, fn in self._derived:
             env[dname] = fn(env)
         return env
@@ -263,8 +263,8 @@ class GatewayNode:
         return min(times) if times else None
 
     def handle_timer(self, now: float) -> None:
-        t = self.inner.get_timer()
-        if t is not None and t <= now:
+        due = self.inner.get_timer()
+        if due is not None and due <= now:
             self.inner.handle_timer(now)
         self.gateway.poll(now)
         gateway_timer = self.gateway.get_timer()

@@ -143,23 +143,23 @@ def read_log(path: str) -> Iterator[Any]:
     require_cantools()
     import can
 
-    p = Path(path)
-    suffix = p.suffix.lower()
-    if suffix not in READ_SUFFIXES and not p.is_dir():
-        what = f"suffix {p.suffix!r}" if p.suffix else "no suffix"
+    file_path = Path(path)
+    suffix = file_path.suffix.lower()
+    if suffix not in READ_SUFFIXES and not file_path.is_dir():
+        what = f"suffix {file_path.suffix!r}" if file_path.suffix else "no suffix"
         raise InputError(f"{path}: unknown CAN log format ({what}; one of "
                           f"{', '.join(READ_SUFFIXES)})")
-    _check_format(p, suffix)
+    _check_format(file_path, suffix)
     try:
-        reader = _open(can, p)
+        reader = _open(can, file_path)
     except ImportError as exc:
         raise MissingExtra("export", f"{path}: this format needs {exc.name or exc}") from exc
     except Exception as exc:  # python-can raises many kinds on a foreign file
-        if suffix == ".mf4" and _starts_like_mf4(p):
+        if suffix == ".mf4" and _starts_like_mf4(file_path):
             raise TruncatedInputError(
-                f"{path}: truncated or damaged MF4 ({p.stat().st_size} bytes, which asammdf "
-                f"cannot open: {exc}); 0 frames read") from exc
-        raise InputError(f"{path}: not a readable {p.suffix} CAN log: {exc}") from exc
+                f"{path}: truncated or damaged MF4 ({file_path.stat().st_size} bytes, which "
+                f"asammdf cannot open: {exc}); 0 frames read") from exc
+        raise InputError(f"{path}: not a readable {file_path.suffix} CAN log: {exc}") from exc
     frames = 0
     try:
         for msg in reader:
@@ -168,16 +168,16 @@ def read_log(path: str) -> Iterator[Any]:
     except EyeqError:
         raise
     except Exception as exc:  # cut or corrupt content
-        why = truncation(p, frames)
+        why = truncation(file_path, frames)
         if why is not None:
             raise TruncatedInputError(why, frames=frames) from exc
-        raise InputError(f"{path}: corrupt {p.suffix} CAN log after {frames} frames: "
+        raise InputError(f"{path}: corrupt {file_path.suffix} CAN log after {frames} frames: "
                          f"{exc}") from exc
     finally:
         stop = getattr(reader, "stop", None)
         if callable(stop):
             stop()
-    why = truncation(p, frames)
+    why = truncation(file_path, frames)
     if why is not None:
         raise TruncatedInputError(why, frames=frames)
 
@@ -240,18 +240,18 @@ def read_bus(bus: Any, *, duration: float | None = None, count: int | None = Non
 
     clock = now or time.monotonic
     end = None if duration is None else clock() + duration
-    n = 0
-    while count is None or n < count:
+    received = 0
+    while count is None or received < count:
         timeout = poll if end is None else max(0.0, min(poll, end - clock()))
         try:
             msg = bus.recv(timeout)
         except (can.CanError, OSError, ValueError) as exc:
-            raise AdapterError(f"CAN bus read failed after {n} frames: {exc}") from exc
+            raise AdapterError(f"CAN bus read failed after {received} frames: {exc}") from exc
         if msg is None:
             if end is not None and clock() >= end:
                 return
             continue
         if msg.is_error_frame or msg.is_remote_frame:
             continue
-        n += 1
+        received += 1
         yield msg

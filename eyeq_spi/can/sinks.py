@@ -104,12 +104,13 @@ class CanOutput:
         self.sink.close()
 
     def summary(self) -> dict[str, Any]:
-        c = self.gateway.counters
+        counters = self.gateway.counters
         return {"target": self.sink.target, "protocol": self.gateway.protocol.name,
-                "frames": sum(c.frames.values()), "send_errors": self.sink.errors,
-                "clamped": sum(c.clamped.values()), "invalid": sum(c.invalid.values()),
+                "frames": sum(counters.frames.values()), "send_errors": self.sink.errors,
+                "clamped": sum(counters.clamped.values()),
+                "invalid": sum(counters.invalid.values()),
                 # objects beyond the 13 ExtLogData2 obstacle slots (C7), not sent
-                "slot_overflow": dict(c.slot_overflow)}
+                "slot_overflow": dict(counters.slot_overflow)}
 
 
 def attach(host: Any, runner: Any, *, target: str, protocol: str) -> CanOutput:

@@ -83,8 +83,8 @@ class CanStats:
         self.per_channel[ch] += count
         if self.channel is not None and ch != self.channel:
             return
-        t = np.asarray(times, dtype=np.float64)
-        lo, hi = float(np.min(t)), float(np.max(t))
+        stamps = np.asarray(times, dtype=np.float64)
+        lo, hi = float(np.min(stamps)), float(np.max(stamps))
         self.first = lo if self.first is None else min(self.first, lo)
         self.last = hi if self.last is None else max(self.last, hi)
         dec = None if ext else self.decoder.by_id.get(fid)
@@ -94,17 +94,17 @@ class CanStats:
         st = self._keys.setdefault((ch, fid), _Key(dec.name))
         st.frames += count
         if st.n_intervals < self.MAX_INTERVALS:
-            prev = t if st.last is None else np.concatenate(([st.last], t))
+            prev = stamps if st.last is None else np.concatenate(([st.last], stamps))
             iv = np.diff(prev) * 1000.0
             st.intervals.append(iv)
             st.n_intervals += len(iv)
-        st.last = float(t[-1])
+        st.last = float(stamps[-1])
         source = dec.quality_source
         if source is not None and source != fid and (ch_raw, source, False) in self._buf:
             self._flush((ch_raw, source, False))  # its qualities up to now come first (C11)
-        self._decode(dec, datas, st, t, ch)
+        self._decode(dec, datas, st, stamps, ch)
 
-    def _low_quality(self, dec: MessageDecoder, ch: str | None, t: Any, le: Any, be: Any,
+    def _low_quality(self, dec: MessageDecoder, ch: str | None, stamps: Any, le: Any, be: Any,
                      pad: int, st: _Key) -> Any:
         """Decision C11: which frames' governed signals are invalid (their lane's quality, in
         this frame or the latest frame of the message that carries it, is low); None if no
@@ -116,21 +116,21 @@ class CanStats:
             return None
         if dec.quality_source == dec.spec.id or dec.quality_source is None or \
                 self.decoder.by_id[dec.quality_source] is dec:
-            q = next(s for s in dec.signals if s.spec.name == rule.signal)
-            word = be if q.big_endian else le
-            shift = q.shift + pad if q.big_endian else q.shift
-            quality = ((word >> np.uint64(shift)) & np.uint64(q.mask)).astype(np.int64)
-            st.quality.append((t, quality))
+            quality_sig = next(s for s in dec.signals if s.spec.name == rule.signal)
+            word = be if quality_sig.big_endian else le
+            shift = quality_sig.shift + pad if quality_sig.big_endian else quality_sig.shift
+            quality = ((word >> np.uint64(shift)) & np.uint64(quality_sig.mask)).astype(np.int64)
+            st.quality.append((stamps, quality))
             return quality < rule.valid_from
         src = self._keys.get((ch, dec.quality_source))
         if src is None or not src.quality:
-            return np.zeros(len(t), dtype=bool)
+            return np.zeros(len(stamps), dtype=bool)
         times = np.concatenate([x[0] for x in src.quality])
         values = np.concatenate([x[1] for x in src.quality])
-        at = np.searchsorted(times, t, side="right") - 1
+        at = np.searchsorted(times, stamps, side="right") - 1
         return (at >= 0) & (values[np.maximum(at, 0)] < rule.valid_from)
 
-    def _decode(self, dec: MessageDecoder, datas: list[bytes], st: _Key, t: Any,
+    def _decode(self, dec: MessageDecoder, datas: list[bytes], st: _Key, stamps: Any,
                 ch: str | None) -> None:
         import numpy as np
 
@@ -158,7 +158,7 @@ class CanStats:
         be = full.view(">u8").ravel().astype(np.uint64)
         pad = (8 - dec.dlc) * 8
         err = bad_dlc.copy()
-        low = self._low_quality(dec, ch, t, le, be, pad, st)
+        low = self._low_quality(dec, ch, stamps, le, be, pad, st)
         with np.errstate(invalid="ignore", over="ignore"):  # NaN floats: not finite, skipped
             for sig in dec.signals:
                 self._signal(sig, le, be, pad, have, st, err,

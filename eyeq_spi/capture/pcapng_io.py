@@ -47,11 +47,11 @@ def release_from_comment(text: str) -> SwKey | None:
     """The ``specs/`` key of an ``eyeq-spi sw=<release>`` comment (None: no such comment, or a
     release ``specs/`` does not know)."""
     prefix = str(_spec().get("release_comment", SW_COMMENT)).split("{release}")[0]
-    m = re.search(re.escape(prefix) + r"(\S+)", text)
-    if m is None:
+    match = re.search(re.escape(prefix) + r"(\S+)", text)
+    if match is None:
         return None
     try:
-        return catalog().sw(m.group(1))
+        return catalog().sw(match.group(1))
     except EyeqError:
         return None
 
@@ -94,9 +94,9 @@ def recorded_clock(head: bytes) -> str | None:
     does not say (a capture written before the comment existed, or by another tool)."""
     prefix = str(_spec()["clock_comment"]).split("{clock}")[0]
     for text in _shb_comments(head):
-        m = re.search(re.escape(prefix) + r"(\S+)", text)
-        if m is not None and m.group(1) in _spec()["clocks"]:
-            return m.group(1)
+        match = re.search(re.escape(prefix) + r"(\S+)", text)
+        if match is not None and match.group(1) in _spec()["clocks"]:
+            return match.group(1)
     return None
 
 
@@ -124,36 +124,36 @@ PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
 
 
 class Readable(Protocol):
-    def read(self, n: int = -1, /) -> bytes: ...
+    def read(self, size: int = -1, /) -> bytes: ...
 
 
 class PeekStream:
-    """A binary stream with its first bytes already read (stdin cannot seek): ``n`` bytes read
-    here, or the ``head`` a caller already read."""
+    """A binary stream with its first bytes already read (stdin cannot seek):
+    ``peek_size`` bytes read here, or the ``head`` a caller already read."""
 
-    def __init__(self, fh: Readable, n: int = 4096, head: bytes | None = None) -> None:
+    def __init__(self, fh: Readable, peek_size: int = 4096, head: bytes | None = None) -> None:
         self.fh = fh
-        self.head = fh.read(n) if head is None else head
+        self.head = fh.read(peek_size) if head is None else head
         self.pos = 0
 
     def tell(self) -> int:
         return self.pos
 
-    def read(self, n: int = -1) -> bytes:
-        out = self._read(n)
+    def read(self, size: int = -1) -> bytes:
+        out = self._read(size)
         self.pos += len(out)
         return out
 
-    def _read(self, n: int) -> bytes:
+    def _read(self, size: int) -> bytes:
         if self.head:
-            if n < 0:
+            if size < 0:
                 out, self.head = self.head + self.fh.read(), b""
                 return out
-            out, self.head = self.head[:n], self.head[n:]
-            if len(out) < n:
-                out += self.fh.read(n - len(out))
+            out, self.head = self.head[:size], self.head[size:]
+            if len(out) < size:
+                out += self.fh.read(size - len(out))
             return out
-        return self.fh.read(n)
+        return self.fh.read(size)
 
 
 MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
@@ -268,8 +268,8 @@ class CaptureWriter:
         view = memoryview(self._buf)
         try:
             while view:
-                n = self._fh.write(view)
-                view = view[n or 0:]
+                written = self._fh.write(view)
+                view = view[written or 0:]
         except OSError as exc:
             raise OutputError(f"cannot write capture {self._fh.name}: {exc}") from None
         finally:
@@ -392,13 +392,13 @@ class PcapngGuard:
     def tell(self) -> int:
         return self.pos  # python-pcapng checks block alignment with it
 
-    def read(self, n: int = -1) -> bytes:
-        if n < 0 or n > MAX_BLOCK:
-            self._fail(f"malformed pcapng: a block of {n} bytes at byte {self.block_start} is "
+    def read(self, size: int = -1) -> bytes:
+        if size < 0 or size > MAX_BLOCK:
+            self._fail(f"malformed pcapng: a block of {size} bytes at byte {self.block_start} is "
                        f"over the {MAX_BLOCK >> 20} MiB limit")
-        data = self.stream.read(n)
+        data = self.stream.read(size)
         self._feed(data)
-        if len(data) < n:
+        if len(data) < size:
             self.at_end()
         return data
 
@@ -415,21 +415,21 @@ class PcapngGuard:
         raise self.error
 
     def _feed(self, data: bytes) -> None:
-        i, n = 0, len(data)
-        while i < n:
+        pos, length = 0, len(data)
+        while pos < length:
             if self.left == 0:
-                take = min(12 - len(self.hdr), n - i)
-                self.hdr += data[i:i + take]
-                i += take
+                take = min(12 - len(self.hdr), length - pos)
+                self.hdr += data[pos:pos + take]
+                pos += take
                 if len(self.hdr) == 12:
                     self._header()
             else:
-                step = min(self.left, n - i)
+                step = min(self.left, length - pos)
                 self.left -= step
-                i += step
+                pos += step
             if self.left == 0 and not self.hdr:
-                self.block_start = self.pos + i
-        self.pos += n
+                self.block_start = self.pos + pos
+        self.pos += length
 
     def _header(self) -> None:
         hdr, self.hdr = self.hdr, b""

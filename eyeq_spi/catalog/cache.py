@@ -58,13 +58,13 @@ def specs_digest(root: Path) -> str:
 def _stat_tree(top: Path, suffix: str) -> list[str]:
     out: list[str] = []
     with os.scandir(top) as it:
-        for e in it:
-            if e.is_dir(follow_symlinks=False):
-                if e.name != "__pycache__":
-                    out += _stat_tree(Path(e.path), suffix)
-            elif e.name.endswith(suffix):
-                st = e.stat()
-                out.append(f"{e.path}\1{st.st_size}\1{st.st_mtime_ns}")
+        for entry in it:
+            if entry.is_dir(follow_symlinks=False):
+                if entry.name != "__pycache__":
+                    out += _stat_tree(Path(entry.path), suffix)
+            elif entry.name.endswith(suffix):
+                st = entry.stat()
+                out.append(f"{entry.path}\1{st.st_size}\1{st.st_mtime_ns}")
     return sorted(out)
 
 
@@ -176,14 +176,14 @@ def _prune(folder: Path, kind: str, current: str) -> None:
     ``current``."""
     newest: dict[str, float] = {}
     files: dict[str, list[Path]] = {}
-    for p in folder.glob(f"{kind}*"):
-        if p.name.startswith(current):
+    for path in folder.glob(f"{kind}*"):
+        if path.name.startswith(current):
             continue
-        key = p.name[len(kind) : len(kind) + 32].split("-")[0].split(".")[0]
+        key = path.name[len(kind) : len(kind) + 32].split("-")[0].split(".")[0]
         with contextlib.suppress(OSError):
-            newest[key] = max(newest.get(key, 0.0), p.stat().st_mtime)
-            files.setdefault(key, []).append(p)
+            newest[key] = max(newest.get(key, 0.0), path.stat().st_mtime)
+            files.setdefault(key, []).append(path)
     for key in sorted(newest, key=newest.__getitem__, reverse=True)[KEEP_KEYS:]:
-        for p in files[key]:
+        for path in files[key]:
             with contextlib.suppress(OSError):
-                p.unlink()
+                path.unlink()

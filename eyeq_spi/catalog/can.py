@@ -196,40 +196,41 @@ def _num(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def _check_signal(where: str, s: Any, dlc: int, enums: dict[str, Any]) -> list[str]:
-    if not isinstance(s, dict):
+def _check_signal(where: str, signal: Any, dlc: int, enums: dict[str, Any]) -> list[str]:
+    if not isinstance(signal, dict):
         return [f"{where}: signal must be a mapping"]
-    out = [f"{where}: unknown key {key!r}" for key in sorted(set(s) - SIGNAL_KEYS)]
-    if not isinstance(s.get("name"), str) or not s["name"].isidentifier():
-        out.append(f"{where}: bad name {s.get('name')!r}")
-    if not isinstance(s.get("start"), int) or not isinstance(s.get("length"), int) \
-            or not 1 <= s["length"] <= 64 or s["start"] < 0:
+    out = [f"{where}: unknown key {key!r}" for key in sorted(set(signal) - SIGNAL_KEYS)]
+    if not isinstance(signal.get("name"), str) or not signal["name"].isidentifier():
+        out.append(f"{where}: bad name {signal.get('name')!r}")
+    if not isinstance(signal.get("start"), int) or not isinstance(signal.get("length"), int) \
+            or not 1 <= signal["length"] <= 64 or signal["start"] < 0:
         return [*out, f"{where}: needs int start >= 0 and length 1..64"]
-    if not isinstance(s.get("seed_line"), int):
+    if not isinstance(signal.get("seed_line"), int):
         out.append(f"{where}: needs an int seed_line")
     for key in ("scale", "offset", "min", "max"):
-        if key in s and not _num(s[key]):
+        if key in signal and not _num(signal[key]):
             out.append(f"{where}: {key} must be a number")
-    if s.get("scale") == 0:
+    if signal.get("scale") == 0:
         out.append(f"{where}: scale 0")
-    if s.get("byte_order", "little_endian") not in ("little_endian", "big_endian"):
+    if signal.get("byte_order", "little_endian") not in ("little_endian", "big_endian"):
         out.append(f"{where}: byte_order must be little_endian or big_endian")
-    if s.get("out_of_range", "clamp") not in ("clamp", "invalid"):
+    if signal.get("out_of_range", "clamp") not in ("clamp", "invalid"):
         out.append(f"{where}: out_of_range must be clamp or invalid")
-    if s.get("out_of_range") == "invalid" and "invalid" not in s:
+    if signal.get("out_of_range") == "invalid" and "invalid" not in signal:
         out.append(f"{where}: out_of_range invalid needs an invalid value")
-    if "invalid" in s and (not isinstance(s["invalid"], int) or
-                           not 0 <= s["invalid"] < 1 << s["length"]):
-        out.append(f"{where}: invalid must be a raw value that fits {s['length']} bits")
-    if "invalid_means" in s and ("invalid" not in s or not isinstance(s["invalid_means"], str)):
+    if "invalid" in signal and (not isinstance(signal["invalid"], int) or
+                                not 0 <= signal["invalid"] < 1 << signal["length"]):
+        out.append(f"{where}: invalid must be a raw value that fits {signal['length']} bits")
+    if "invalid_means" in signal and (
+            "invalid" not in signal or not isinstance(signal["invalid_means"], str)):
         out.append(f"{where}: invalid_means names the state an invalid value also means")
-    if "enum" in s and s["enum"] not in enums:
-        out.append(f"{where}: unknown enum {s['enum']!r}")
-    if s.get("float") and s["length"] != 32:
+    if "enum" in signal and signal["enum"] not in enums:
+        out.append(f"{where}: unknown enum {signal['enum']!r}")
+    if signal.get("float") and signal["length"] != 32:
         out.append(f"{where}: a float signal is 32 bits")
-    if (s.get("invented") or "seed_form" in s) and not s.get("reconstruction"):
+    if (signal.get("invented") or "seed_form" in signal) and not signal.get("reconstruction"):
         out.append(f"{where}: invented/seed_form needs a reconstruction note")
-    sig = _signal(s)
+    sig = _signal(signal)
     if max(sig.bits()) >= dlc * 8 or min(sig.bits()) < 0:
         out.append(f"{where}: bits {min(sig.bits())}..{max(sig.bits())} exceed DLC {dlc}")
     return out
@@ -414,23 +415,23 @@ def _quality(raw: dict[str, Any]) -> QualityRule:
                        int(raw.get("seed_line", 0)))
 
 
-def _check_quality(where: str, q: Any, m: dict[str, Any],
+def _check_quality(where: str, rule: Any, message: dict[str, Any],
                    by_name: dict[str, dict[str, Any]]) -> list[str]:
     """A C11 rule names a signal of its own (or of ``message``, slotted alike) and signals of
     its own message."""
-    if not isinstance(q, dict) or set(q) - QUALITY_KEYS or not isinstance(
-            q.get("valid_from"), int) or not isinstance(q.get("governs"), list):
+    if not isinstance(rule, dict) or set(rule) - QUALITY_KEYS or not isinstance(
+            rule.get("valid_from"), int) or not isinstance(rule.get("governs"), list):
         return [f"{where}: quality needs signal, valid_from (int) and governs (a list)"]
-    src = by_name.get(str(q["message"])) if q.get("message") else m
+    src = by_name.get(str(rule["message"])) if rule.get("message") else message
     if src is None:
-        return [f"{where}: quality: no message {q['message']!r}"]
-    if (src.get("slots") or {}).get("count") != (m.get("slots") or {}).get("count"):
+        return [f"{where}: quality: no message {rule['message']!r}"]
+    if (src.get("slots") or {}).get("count") != (message.get("slots") or {}).get("count"):
         return [f"{where}: quality: {src['name']} has other slots"]
     out = []
-    if q.get("signal") not in {s.get("name") for s in src.get("signals") or []}:
-        out.append(f"{where}: quality: {src['name']} has no signal {q.get('signal')!r}")
-    own = {s.get("name") for s in m.get("signals") or []}
-    out += [f"{where}: quality governs {g!r}, not a signal of it" for g in q["governs"]
+    if rule.get("signal") not in {s.get("name") for s in src.get("signals") or []}:
+        out.append(f"{where}: quality: {src['name']} has no signal {rule.get('signal')!r}")
+    own = {s.get("name") for s in message.get("signals") or []}
+    out += [f"{where}: quality governs {g!r}, not a signal of it" for g in rule["governs"]
             if g not in own]
     return out
 

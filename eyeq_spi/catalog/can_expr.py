@@ -54,8 +54,8 @@ def _div(a: float, b: float) -> float:
     return a / b
 
 
-def _take(items: list[Any], n: int) -> list[Any]:
-    return list(items[: max(int(n), 0)])
+def _take(items: list[Any], count: int) -> list[Any]:
+    return list(items[: max(int(count), 0)])
 
 
 def _atan(x: float) -> float:
@@ -110,10 +110,10 @@ def _name(node: Any, names: set[str], tables: set[str]) -> Fn:
     key = node.id
 
     def name(env: Env) -> Any:
-        v = env.get(key)
-        if v is None or v is MISSING:
+        value = env.get(key)
+        if value is None or value is MISSING:
             raise _AbsentError
-        return v
+        return value
     return name
 
 
@@ -181,12 +181,12 @@ def _compare(node: Any, names: set[str], tables: set[str]) -> Fn | None:
             for o, c in zip(node.ops, node.comparators, strict=True)]
 
     def compare(env: Env) -> bool:
-        a = first(env)
-        for fn, c in rest:
-            b = c(env)
-            if not fn(a, b):
+        left = first(env)
+        for fn, operand in rest:
+            right = operand(env)
+            if not fn(left, right):
                 return False
-            a = b
+            left = right
         return True
     return compare
 
@@ -236,9 +236,9 @@ def _call(node: Any, names: set[str], tables: set[str]) -> Fn | None:
         arg = _build(node.args[1], names, tables)
 
         def lookup(env: Env) -> Any:
-            t = env["__tables__"][tname]
-            v = arg(env)
-            return t[v] if v in t else t.get("default", MISSING)
+            table = env["__tables__"][tname]
+            value = arg(env)
+            return table[value] if value in table else table.get("default", MISSING)
         return lookup
     if fname not in FUNCTIONS:
         raise SpecError(f"unknown function {fname!r} (known: table, "
@@ -265,10 +265,10 @@ def compile_expr(text: str, names: set[str], tables: set[str]) -> Callable[[Env]
 
     def run(env: Env) -> Any:
         try:
-            v = fn(env)
+            value = fn(env)
         except _AbsentError:
             return MISSING
         except (TypeError, ValueError, OverflowError):
             return MISSING
-        return v
+        return value
     return run

@@ -351,44 +351,49 @@ def load_catalog(root: Path) -> Catalog:
     for doc in docs.values():
         for name, table in (doc.get("constants") or {}).items():
             constants[name] = {k: int(v) for k, v in table.items() if k.startswith("sw")}
-        for name, s in (doc.get("structs") or {}).items():
+        for name, struct in (doc.get("structs") or {}).items():
             variants = {
                 str(k): StructVariant(
                     str(k), int(v["seed_line"]), tuple(_member(m) for m in v["members"]),
                     _crcs(v.get("crc")),
                 )
-                for k, v in s["variants"].items()
+                for k, v in struct["variants"].items()
             }
-            structs[name] = StructDef(name, s.get("section"), s.get("description"), variants)
-        for name, e in (doc.get("enums") or {}).items():
-            flags = e.get("kind") == "flags"
+            structs[name] = StructDef(name, struct.get("section"), struct.get("description"),
+                                      variants)
+        for name, enum in (doc.get("enums") or {}).items():
+            flags = enum.get("kind") == "flags"
             vals: dict[int, EnumValue] = {}
-            for v in e["values"]:
+            for entry in enum["values"]:
                 key = "bit" if flags else "value"
-                lo, hi = v["bits"] if flags and "bits" in v else [v[key], v[key]]
+                lo, hi = entry["bits"] if flags and "bits" in entry else [entry[key], entry[key]]
                 vals[int(lo)] = EnumValue(
-                    int(lo), str(v["name"]), v.get("family"), v.get("semantic"),
-                    v.get("seed_line"), int(hi) - int(lo) + 1,
-                    {int(k): str(n) for k, n in v["values"].items()} if "values" in v else None,
+                    int(lo), str(entry["name"]), entry.get("family"), entry.get("semantic"),
+                    entry.get("seed_line"), int(hi) - int(lo) + 1,
+                    ({int(k): str(n) for k, n in entry["values"].items()}
+                     if "values" in entry else None),
                 )
             enums[name] = EnumDef(name, "flags" if flags else "values", vals,
-                                  bool(e.get("complete", True)))
+                                  bool(enum.get("complete", True)))
         for group, protocol in (("dasp", "DASP"), ("other", None)):
-            for m in doc.get(group) or []:
-                proto = protocol or ("DIAG" if m["data_id"] == 0x41 else "BOOT")
-                tol = m.get("tolerance_ms")
+            for msg in doc.get(group) or []:
+                proto = protocol or ("DIAG" if msg["data_id"] == 0x41 else "BOOT")
+                tol = msg.get("tolerance_ms")
                 messages.append(MessageDef(
-                    m["name"], int(m["data_id"]), m.get("direction", "e2h"), m.get("rate_hz"),
-                    (float(tol[0]), float(tol[1])) if tol else None, tuple(m.get("modes") or ()),
-                    m.get("since") or versions[0], m.get("until"), m["payload"],
-                    m.get("section"), proto,
+                    msg["name"], int(msg["data_id"]), msg.get("direction", "e2h"),
+                    msg.get("rate_hz"), (float(tol[0]), float(tol[1])) if tol else None,
+                    tuple(msg.get("modes") or ()),
+                    msg.get("since") or versions[0], msg.get("until"), msg["payload"],
+                    msg.get("section"), proto,
                 ))
         for name, im in (doc.get("init_messages") or {}).items():
             variants_i: dict[SwKey, InitVariant] = {}
-            for k, v in (im.get("variants") or {}).items():
-                sigs = tuple(sorted((_signal(s) for s in v["signals"]), key=lambda s: s.start))
-                nbytes = v.get("length_bytes") or -(-max(s.start + s.length for s in sigs) // 8)
-                variants_i[str(k)] = InitVariant(str(k), sigs, int(nbytes))
+            for release, variant in (im.get("variants") or {}).items():
+                signals = (_signal(s) for s in variant["signals"])
+                sigs = tuple(sorted(signals, key=lambda s: s.start))
+                nbytes = (variant.get("length_bytes")
+                          or -(-max(s.start + s.length for s in sigs) // 8))
+                variants_i[str(release)] = InitVariant(str(release), sigs, int(nbytes))
             inits[name] = InitMessageDef(
                 name, int(im["id"]), im.get("ct_type"), im.get("rounding", "round"), variants_i
             )

@@ -68,11 +68,11 @@ class BitSignalCodec:
         if _exact(sig) and isinstance(physical, int):
             raw = physical - int(sig.offset)  # integer signal: no float on the way (128-bit IDs)
         else:
-            q = (physical - sig.offset) / sig.factor
+            scaled = (physical - sig.offset) / sig.factor
             if self.message.rounding == "truncate":
-                raw = math.trunc(q + (_EPS if q >= 0 else -_EPS))
+                raw = math.trunc(scaled + (_EPS if scaled >= 0 else -_EPS))
             else:
-                raw = round(q)
+                raw = round(scaled)
             raw = _into_range(raw, (lo - sig.offset) / sig.factor, (hi - sig.offset) / sig.factor)
         bits = sig.length
         if sig.signed:
@@ -126,11 +126,13 @@ class BitSignalCodec:
         except LocalProtocolError as exc:
             return [str(exc)]
         out = []
-        for s in self.variant.signals:
-            v = values[s.name]
-            tol = max(abs(s.factor) / 2, _EPS)
-            if (isinstance(v, float) and math.isnan(v)) or v < s.min - tol or v > s.max + tol:
-                out.append(f"{self.message.name}.{s.name} = {v:g} outside [{s.min:g}, {s.max:g}]")
+        for sig in self.variant.signals:
+            value = values[sig.name]
+            tol = max(abs(sig.factor) / 2, _EPS)
+            if ((isinstance(value, float) and math.isnan(value))
+                    or value < sig.min - tol or value > sig.max + tol):
+                out.append(f"{self.message.name}.{sig.name} = {value:g} "
+                           f"outside [{sig.min:g}, {sig.max:g}]")
         return out
 
 

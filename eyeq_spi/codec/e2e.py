@@ -45,8 +45,9 @@ def protect(buf: bytearray, layout: Layout, state: E2EState | None, base: int = 
     for plan in layout.crc_plan:
         if state is not None and plan.counter_offset is not None:
             value = state.next_counter(counter_key(layout, plan), plan.counter_size)
-            o = base + plan.counter_offset
-            buf[o : o + plan.counter_size] = value.to_bytes(plan.counter_size, "little")
+            counter_at = base + plan.counter_offset
+            size = plan.counter_size
+            buf[counter_at : counter_at + size] = value.to_bytes(size, "little")
         shifted = plan if base == 0 else CrcPlan(
             plan.path, plan.field, plan.crc_offset + base,
             plan.counter_offset, plan.counter_size,
@@ -61,27 +62,27 @@ def _batches(plans: list[CrcPlan]) -> list[list[int]]:
     array) none of which covers another's CRC or counter: their counters can all be stepped
     first, in order, and their covered bytes gathered at once (same values as one by one)."""
     out: list[list[int]] = []
-    for i, p in enumerate(plans):
-        shape = (tuple(s for _, s in p.ranges), p.counter_size, p.counter_offset is None)
+    for index, plan in enumerate(plans):
+        shape = (tuple(s for _, s in plan.ranges), plan.counter_size, plan.counter_offset is None)
         prev = out[-1] if out else None
         if prev is not None and shape == _shape_of(plans[prev[0]]) and all(
-                _apart(plans[j], p) and _apart(p, plans[j]) for j in prev):
-            prev.append(i)
+                _apart(plans[j], plan) and _apart(plan, plans[j]) for j in prev):
+            prev.append(index)
         else:
-            out.append([i])
+            out.append([index])
     return out
 
 
-def _shape_of(p: CrcPlan) -> tuple[Any, ...]:
-    return (tuple(s for _, s in p.ranges), p.counter_size, p.counter_offset is None)
+def _shape_of(plan: CrcPlan) -> tuple[Any, ...]:
+    return (tuple(s for _, s in plan.ranges), plan.counter_size, plan.counter_offset is None)
 
 
-def _apart(a: CrcPlan, b: CrcPlan) -> bool:
+def _apart(plan: CrcPlan, other: CrcPlan) -> bool:
     """``a`` covers neither ``b``'s CRC nor its counter."""
-    fields = [(b.crc_offset, 2)]
-    if b.counter_offset is not None:
-        fields.append((b.counter_offset, b.counter_size))
-    return not any(o < fo + fs and fo < o + s for o, s in a.ranges for fo, fs in fields)
+    fields = [(other.crc_offset, 2)]
+    if other.counter_offset is not None:
+        fields.append((other.counter_offset, other.counter_size))
+    return not any(o < fo + fs and fo < o + s for o, s in plan.ranges for fo, fs in fields)
 
 
 def compile_protector(layout: Layout) -> Protector:
@@ -93,31 +94,32 @@ def compile_protector(layout: Layout) -> Protector:
     lines = ["def _protect(b, state):"]
     plans = layout.crc_plan
     for batch in _batches(plans):
-        for i in batch:
-            plan = plans[i]
+        for index in batch:
+            plan = plans[index]
             if plan.counter_offset is not None:
-                env[f"K{i}"] = counter_key(layout, plan)
-                c, n = plan.counter_offset, plan.counter_size
+                env[f"K{index}"] = counter_key(layout, plan)
+                counter_at, counter_size = plan.counter_offset, plan.counter_size
                 lines += ["    if state is not None:",
-                          f"        b[{c}:{c + n}] = state.next_counter(K{i}, {n})"
-                          f".to_bytes({n}, 'little')"]
+                          f"        b[{counter_at}:{counter_at + counter_size}] = "
+                          f"state.next_counter(K{index}, {counter_size})"
+                          f".to_bytes({counter_size}, 'little')"]
             if len(batch) > 1:
                 continue
             expr = "65535"
-            for o, s in plan.ranges:
-                expr = f"h(b[{o}:{o + s}], {expr})"
-            o = plan.crc_offset
-            lines.append(f"    b[{o}:{o + 2}] = ({expr}).to_bytes(2, 'little')")
+            for offset, size in plan.ranges:
+                expr = f"h(b[{offset}:{offset + size}], {expr})"
+            crc_at = plan.crc_offset
+            lines.append(f"    b[{crc_at}:{crc_at + 2}] = ({expr}).to_bytes(2, 'little')")
         if len(batch) > 1:
             import numpy as np  # only for arrays of protected structs (DASP generation)
 
             env["np"] = np
-            i = batch[0]
-            env[f"G{i}"] = np.array([[o + k for o, s in plans[j].ranges for k in range(s)]
-                                     for j in batch], dtype=np.intp)
-            env[f"O{i}"] = [plans[j].crc_offset for j in batch]
-            lines += [f"    g = np.frombuffer(b, dtype=np.uint8)[G{i}]",
-                      f"    for r, o in zip(g, O{i}):",
+            index = batch[0]
+            env[f"G{index}"] = np.array([[o + k for o, s in plans[j].ranges for k in range(s)]
+                                         for j in batch], dtype=np.intp)
+            env[f"O{index}"] = [plans[j].crc_offset for j in batch]
+            lines += [f"    g = np.frombuffer(b, dtype=np.uint8)[G{index}]",
+                      f"    for r, o in zip(g, O{index}):",
                       "        b[o:o + 2] = h(r, 65535).to_bytes(2, 'little')"]
     lines.append("    return None")
     exec("\n".join(lines), env)
@@ -145,36 +147,37 @@ def compile_verifier(layout: Layout) -> Verifier:
     (``crc16`` is ``crc_hqx`` seeded 0xFFFF, decision D5)."""
     env: dict[str, Any] = {"h": binascii.crc_hqx}
     lines = ["def _verify(d, state):", "    errors = []"]
-    for i, plan in enumerate(layout.crc_plan):
+    for index, plan in enumerate(layout.crc_plan):
         label = crc_label(layout, plan)
-        env[f"K{i}"] = counter_key(layout, plan)
-        env[f"C{i}"] = f"E2E CRC mismatch in {label}: {plan.field}=0x"
-        env[f"J{i}"] = f"E2E counter jump in {label}: expected "
+        env[f"K{index}"] = counter_key(layout, plan)
+        env[f"C{index}"] = f"E2E CRC mismatch in {label}: {plan.field}=0x"
+        env[f"J{index}"] = f"E2E counter jump in {label}: expected "
         expr = "65535"
-        for o, s in plan.ranges:
-            expr = f"h(d[{o}:{o + s}], {expr})"
-        o = plan.crc_offset
+        for offset, size in plan.ranges:
+            expr = f"h(d[{offset}:{offset + size}], {expr})"
+        crc_at = plan.crc_offset
         lines += [
             f"    c = {expr}",
-            f"    g = d[{o}] | d[{o + 1}] << 8",
+            f"    g = d[{crc_at}] | d[{crc_at + 1}] << 8",
             "    if g != c:",
-            f"        errors.append(f'{{C{i}}}{{g:04X}}, computed 0x{{c:04X}}')",
+            f"        errors.append(f'{{C{index}}}{{g:04X}}, computed 0x{{c:04X}}')",
             "        if state is not None:",
             "            state.crc_errors += 1",
         ]
         if plan.counter_offset is None:
             continue
-        c, n = plan.counter_offset, plan.counter_size
-        modulo = 1 << (8 * n)
-        value = " | ".join(f"d[{c + k}] << {8 * k}" for k in range(n)) if n else "0"
+        counter_at, counter_size = plan.counter_offset, plan.counter_size
+        modulo = 1 << (8 * counter_size)
+        terms = (f"d[{counter_at + k}] << {8 * k}" for k in range(counter_size))
+        value = " | ".join(terms) if counter_size else "0"
         lines += [
             "    if state is not None:",
             f"        v = {value}",
-            f"        last = state.seen.get(K{i})",
+            f"        last = state.seen.get(K{index})",
             f"        if last is not None and v != (last + 1) % {modulo}:",
-            f"            errors.append(f'{{J{i}}}{{(last + 1) % {modulo}}}, got {{v}}')",
+            f"            errors.append(f'{{J{index}}}{{(last + 1) % {modulo}}}, got {{v}}')",
             "            state.counter_errors += 1",
-            f"        state.seen[K{i}] = v",
+            f"        state.seen[K{index}] = v",
         ]
     lines.append("    return errors")
     exec("\n".join(lines), env)
@@ -186,8 +189,8 @@ def verify_reference(data: bytes, layout: Layout, state: E2EState | None) -> lis
     """The plain loop over ``layout.crc_plan``: the reference for the generated verifier."""
     errors: list[str] = []
     for plan in layout.crc_plan:
-        o = plan.crc_offset
-        got = int.from_bytes(data[o : o + 2], "little")
+        crc_at = plan.crc_offset
+        got = int.from_bytes(data[crc_at : crc_at + 2], "little")
         want = compute_crc(data, plan)
         if got != want:
             errors.append(f"E2E CRC mismatch in {crc_label(layout, plan)}: "
@@ -195,8 +198,8 @@ def verify_reference(data: bytes, layout: Layout, state: E2EState | None) -> lis
             if state is not None:
                 state.crc_errors += 1
         if state is not None and plan.counter_offset is not None:
-            c = plan.counter_offset
-            value = int.from_bytes(data[c : c + plan.counter_size], "little")
+            counter_at = plan.counter_offset
+            value = int.from_bytes(data[counter_at : counter_at + plan.counter_size], "little")
             key = counter_key(layout, plan)
             last = state.seen.get(key)
             modulo = 1 << (8 * plan.counter_size)

@@ -42,13 +42,13 @@ class InitMessage:
 
 def init_message(stage: int, sw: str | None = None, cat: Catalog | None = None) -> InitMessage:
     cat = cat or catalog()
-    for d in cat.init_messages.values():
-        if d.id == stage and d.name != "EEPROM_DATA":
+    for definition in cat.init_messages.values():
+        if definition.id == stage and definition.name != "EEPROM_DATA":
             try:
-                codec: BitSignalCodec | None = BitSignalCodec.for_message(d.name, sw, cat)
+                codec: BitSignalCodec | None = BitSignalCodec.for_message(definition.name, sw, cat)
             except SpecError:
-                if d.variants:
+                if definition.variants:
                     raise
                 codec = None
-            return InitMessage(d, codec)
+            return InitMessage(definition, codec)
     raise LocalProtocolError(f"no init message with ct_stage 0x{stage:02X}")

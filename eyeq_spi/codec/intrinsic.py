@@ -28,19 +28,19 @@ def eeprom_crc_ok(image: bytes) -> bool:
 
 def seal_eeprom(image: bytes) -> bytes:
     """Write the correct CRC-16 at 0x4C."""
-    b = bytearray(image)
-    b[CRC_SLICE] = eeprom_crc(image).to_bytes(2, "little")
-    return bytes(b)
+    sealed = bytearray(image)
+    sealed[CRC_SLICE] = eeprom_crc(image).to_bytes(2, "little")
+    return bytes(sealed)
 
 
-def normalise_num_distor_params(n: int) -> int:
+def normalise_num_distor_params(count: int) -> int:
     """§7.1.3: 3 or 7 read from EEPROM is stored and sent as 7; 11 or 15 as 15."""
-    if n in (3, 7):
+    if count in (3, 7):
         return 7
-    if n in (11, 15):
+    if count in (11, 15):
         return 15
-    raise LocalProtocolError(f"CCAM_Num_Of_distorParams_m = {n}: the seed defines only 3, 7, 11 "
-                             "and 15")
+    raise LocalProtocolError(f"CCAM_Num_Of_distorParams_m = {count}: the seed defines only "
+                             "3, 7, 11 and 15")
 
 
 def eeprom_codec() -> BitSignalCodec:
@@ -60,13 +60,13 @@ def intrinsic_params_from_eeprom(image: bytes, sw: str | None = None) -> dict[st
     for name in target.signals:
         if name in ee and not name.startswith("Reserved"):
             out[name] = ee[name]
-    n = int(out.get("CCAM_Num_Of_distorParams_m", 0))
-    out["CCAM_Num_Of_distorParams_m"] = normalise_num_distor_params(n)
-    for name, v in out.items():
+    count = int(out.get("CCAM_Num_Of_distorParams_m", 0))
+    out["CCAM_Num_Of_distorParams_m"] = normalise_num_distor_params(count)
+    for name, value in out.items():
         # §7.1.3: a CRC-valid EEPROM can still hold values the 0x84 message cannot carry
         # (NaN, infinity, out of range): a camera fault that names the field
         try:
-            target.to_raw(target.signals[name], v)
+            target.to_raw(target.signals[name], value)
         except LocalProtocolError as exc:
             raise LocalProtocolError(f"EEPROM field {name}: {exc}") from None
     if "CRC_from_EEPROM" in target.signals:

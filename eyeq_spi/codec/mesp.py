@@ -48,25 +48,26 @@ class MespCodec:
         self.ret_names = cat.mesp_ret
         self._built: dict[tuple[bool, int, int], Any] = {}  # construct Structs, on first use
 
-    def params(self, f: MespFunction, reply: bool) -> Any:
+    def params(self, function: MespFunction, reply: bool) -> Any:
         """The construct ``Struct`` of the parameters of ``f``'s request or reply (M3), then
         nothing more: it encodes and decodes them."""
-        key = (reply, f.service, f.function)
+        key = (reply, function.service, function.function)
         struct = self._built.get(key)
         if struct is None:
             from construct import Struct, Terminated  # lazy: most starts meet no MESP
 
             types = param_types()
             struct = self._built[key] = Struct(
-                *(p.name / types[p.type] for p in (f.reply if reply else f.request)), Terminated)
+                *(p.name / types[p.type]
+                  for p in (function.reply if reply else function.request)), Terminated)
         return struct
 
     def warm_up(self) -> None:
         """Build every function's request and reply Struct now: built on first use, one
         costs milliseconds, enough to make a live peer's 10 ms ackTimeout expire (seed §6)."""
-        for f in self.functions.values():
-            self.params(f, False)
-            self.params(f, True)
+        for function in self.functions.values():
+            self.params(function, False)
+            self.params(function, True)
 
     def function(self, name: str) -> MespFunction:
         try:
@@ -75,32 +76,32 @@ class MespCodec:
             raise LocalProtocolError(f"unknown MESP function {name}") from None
 
     # -- encode ------------------------------------------------------------------------------
-    def header(self, f: MespFunction, tag: int) -> bytes:
+    def header(self, function: MespFunction, tag: int) -> bytes:
         if not 0 <= tag <= 0xFF:
             raise LocalProtocolError(f"MESP tag {tag} outside 0..255")
-        return bytes((f.service, MESP_PROTOCOL, f.service, f.function, tag))
+        return bytes((function.service, MESP_PROTOCOL, function.service, function.function, tag))
 
     def encode_request(self, name: str, counter: int, params: dict[str, Any]) -> bytes:
-        f = self.function(name)
+        function = self.function(name)
         if not 0 <= counter <= TAG_MASK:
             raise LocalProtocolError(f"MESP tag counter {counter} outside 0..63 (M1)")
         from construct.core import ConstructError
 
         try:
-            body = self.params(f, False).build(params)
+            body = self.params(function, False).build(params)
         except (ConstructError, KeyError, TypeError, ValueError) as exc:
             raise LocalProtocolError(f"{name} request: {exc}") from None
-        return self.header(f, counter) + bytes(body)
+        return self.header(function, counter) + bytes(body)
 
     def encode_reply(self, name: str, counter: int, ret: int, params: dict[str, Any]) -> bytes:
-        f = self.function(name)
-        head = self.header(f, REPLY_BIT | (counter & TAG_MASK)) + ret.to_bytes(4, "little")
+        function = self.function(name)
+        head = self.header(function, REPLY_BIT | (counter & TAG_MASK)) + ret.to_bytes(4, "little")
         if ret != 0:
             return head
         from construct.core import ConstructError
 
         try:
-            return head + bytes(self.params(f, True).build(params))
+            return head + bytes(self.params(function, True).build(params))
         except (ConstructError, KeyError, TypeError, ValueError) as exc:
             raise LocalProtocolError(f"{name} reply: {exc}") from None
 
@@ -118,13 +119,13 @@ class MespCodec:
                       "counter": hdr.counter, "reply": hdr.reply}
         if hdr.tag & 0x40:
             out.errors.append("MESP tag bit 6 is set (M1 says 0)")
-        f = self.functions.get((hdr.service, hdr.function))
-        if f is None:
+        function = self.functions.get((hdr.service, hdr.function))
+        if function is None:
             out.errors.append(
                 f"unknown MESP service/function 0x{hdr.service:02X}/0x{hdr.function:02X}"
             )
             return out
-        out.name = f.name
+        out.name = function.name
         body = data[5:]
         if hdr.reply:
             if len(body) < 4:
@@ -138,9 +139,9 @@ class MespCodec:
         from construct.core import ConstructError
 
         try:
-            parsed = self.params(f, hdr.reply).parse(body)
+            parsed = self.params(function, hdr.reply).parse(body)
         except ConstructError as exc:  # the first line: construct adds the path below it
-            out.errors.append(f"{f.name}: malformed parameters: {str(exc).splitlines()[0]}")
+            out.errors.append(f"{function.name}: malformed parameters: {str(exc).splitlines()[0]}")
             return out
         out.fields.update((k, v) for k, v in parsed.items() if not k.startswith("_"))
         return out

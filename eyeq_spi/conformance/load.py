@@ -57,9 +57,9 @@ def excused(span: Span, stalls: list[tuple[float, float]]) -> float:
     messages that arrived during it were recorded late, so the next period begins late)."""
     t0, t1, _ = span
     total = 0.0
-    for a, b in stalls:
-        if a <= t1 and b >= t0 - (b - a):
-            total += b - a
+    for stall_start, stall_end in stalls:
+        if stall_start <= t1 and stall_end >= t0 - (stall_end - stall_start):
+            total += stall_end - stall_start
     return total
 
 

@@ -43,9 +43,9 @@ class Result:
     outcome: Outcome
 
     def as_json(self) -> dict[str, Any]:
-        c = self.case
-        out = {"kind": "case", "id": c.id, "title": c.title, "section": c.section,
-               "requirement": c.requirement, "decision": c.decision, "rule": c.rule,
+        case = self.case
+        out = {"kind": "case", "id": case.id, "title": case.title, "section": case.section,
+               "requirement": case.requirement, "decision": case.decision, "rule": case.rule,
                "verdict": self.outcome.verdict, "evidence": self.outcome.evidence}
         if self.outcome.advice:  # our recommendation beyond the seed: never a failure
             out["advice"] = self.outcome.advice

@@ -156,11 +156,11 @@ class Trace:
                 rsp, num, crc_ok = frame.rsp, frame.num, self.frames.crc_ok(data, frame)
                 frame_kind = frame.kind
                 kind = frame_kind.name if frame_kind is not None and frame.r == 0 else "BAD"
-        x = Xfer(idx, time, direction, bytes(data), kind, rsp, num, crc_ok, probe)
-        self.xfers.append(x)
+        xfer = Xfer(idx, time, direction, bytes(data), kind, rsp, num, crc_ok, probe)
+        self.xfers.append(xfer)
         if kind in ("DATA", "BAD") and crc_ok:
-            self._unfed.append(x)
-        return x
+            self._unfed.append(xfer)
+        return xfer
 
     def _feed(self, xfer: Xfer) -> None:
         passive = self._passive[xfer.direction]

@@ -76,14 +76,14 @@ def frame_record(index: int, time: float | None, direction: str | None, length: 
     return rec
 
 
-def jsonable(v: Any) -> Any:
-    if isinstance(v, bytes | bytearray):
-        return v.hex()
-    if isinstance(v, dict):
-        return {k: jsonable(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [jsonable(x) for x in v]
-    return v
+def jsonable(value: Any) -> Any:
+    if isinstance(value, bytes | bytearray):
+        return value.hex()
+    if isinstance(value, dict):
+        return {k: jsonable(x) for k, x in value.items()}
+    if isinstance(value, list | tuple):
+        return [jsonable(x) for x in value]
+    return value
 
 
 Transfer = list[tuple[bytes, "float | None", int, int]]
@@ -125,7 +125,8 @@ class Dissector:
 
     def next_deadline(self) -> float | None:
         """The earliest timer of any receiver (an open transfer's reassembly deadline)."""
-        times = [t for d in self._dirs.values() if (t := d.conn.get_timer()) is not None]
+        timers = (receiver.conn.get_timer() for receiver in self._dirs.values())
+        times = [at for at in timers if at is not None]
         return min(times) if times else None
 
     def run_timers(self, now: float) -> Iterator[dict[str, Any]]:
@@ -137,8 +138,8 @@ class Dissector:
         """The E2E rolling counters (D5) and DASP counters (D1) the messages received on
         ``direction`` are judged against; a caller that judges many messages at once
         (:mod:`eyeq_spi.codec.message_fast`) reads and advances them."""
-        d = self._dir(direction)
-        return d.e2e, d.dasp_counters
+        receiver = self._dir(direction)
+        return receiver.e2e, receiver.dasp_counters
 
     def accept_clean(self, direction: str | None, data: bytes, nums: tuple[int, ...],
                      transfer_id: int | None, frames: list[int | None],
@@ -158,10 +159,10 @@ class Dissector:
                     indices: Iterable[int]) -> None:
         """DATA frames of a clean run on ``direction``, in order: their NUMs and capture
         indices (the message records of later frames name their frames by them)."""
-        d = self._dir(direction)
+        receiver = self._dir(direction)
         nums = list(nums)
-        d.index_of_num.update(zip(nums, indices, strict=True))
-        d.clean_frames += len(nums)  # the receiver did not see them: L10a's span runs on
+        receiver.index_of_num.update(zip(nums, indices, strict=True))
+        receiver.clean_frames += len(nums)  # the receiver did not see them: L10a's span runs on
 
     def resume(self, direction: str | None, last_first: Transfer | None,
                tail: list[Transfer], open_transfer: Transfer | None) -> None:
@@ -172,65 +173,65 @@ class Dissector:
         multi-frame transfer when ``tail`` has none (the transport judges a straggler of it by
         its transfer ID);
         ``open_transfer``: the transfer still open at the run's end (with its deadline)."""
-        d = self._dir(direction)
+        receiver = self._dir(direction)
         units = tail + ([open_transfer] if open_transfer else [])
         replays = [units] if units else []
         if last_first is not None and not any(u[0][0][6] == FIRST for u in units):
             replays.insert(0, [last_first])
         # L10a: the restart span stands where feeding the whole run would have left it (the
         # run's frames count against it; the replayed ones are counted by the replay itself)
-        left = max(0, d.conn.link.restart_span - d.clean_frames)
-        d.clean_frames = 0
+        left = max(0, receiver.conn.link.restart_span - receiver.clean_frames)
+        receiver.clean_frames = 0
         for unit_list in replays:
             replayed = sum(len(unit) for unit in unit_list)
-            _replay(d.conn, unit_list, left + replayed if left else 0)
+            _replay(receiver.conn, unit_list, left + replayed if left else 0)
         if open_transfer:
-            d.index_of_num.update((f[2], f[3]) for f in open_transfer)
+            receiver.index_of_num.update((f[2], f[3]) for f in open_transfer)
 
     def _dir(self, direction: str | None) -> _Direction:
-        d = self._dirs.get(direction)
-        if d is None:
+        receiver = self._dirs.get(direction)
+        if receiver is None:
             role = RECEIVER[direction]
-            d = _Direction(TransportConnection(
+            receiver = _Direction(TransportConnection(
                 LinkConfig(role=role, passive=True)))  # type: ignore[arg-type]
-            self._dirs[direction] = d
-        return d
+            self._dirs[direction] = receiver
+        return receiver
 
     def feed(self, rec: Record) -> Iterator[dict[str, Any]]:
         idx = self.index
         self.index += 1
-        t = rec.time
-        d = self._dir(rec.direction)
-        if t is not None:
-            yield from self._timers(t)
-            self.last_time = t
+        time_s = rec.time
+        receiver = self._dir(rec.direction)
+        if time_s is not None:
+            yield from self._timers(time_s)
+            self.last_time = time_s
         data = rec.data
         if len(data) == FRAME_SIZE:
             dfield, rfield, rsp, num, crc_ok = self.frames.check(data)
-            frame_rec = frame_record(idx, t, rec.direction, FRAME_SIZE,
+            frame_rec = frame_record(idx, time_s, rec.direction, FRAME_SIZE,
                                      (dfield, rfield, rsp, num), crc_ok, (data[6], data[7]))
             if dfield == FrameKind.DATA:
-                d.index_of_num[num] = idx
+                receiver.index_of_num[num] = idx
         else:
-            frame_rec = frame_record(idx, t, rec.direction, len(data))
+            frame_rec = frame_record(idx, time_s, rec.direction, len(data))
         yield frame_rec
         if frame_rec["frame_type"] in ("ACK", "NAK"):
             return  # acknowledgements of the other channel's frames: nothing to reassemble
-        after = d.restart_after
+        after = receiver.restart_after
         if after is not None and frame_rec["frame_type"] == "DATA" and frame_rec["crc_ok"]:
-            d.restart_after = None
+            receiver.restart_after = None
             if frame_rec["num"] == 0 and after != SEQ_MODULO - 1:
                 # L10: the host asked for a reset (Switch EyeQ Application) and numbers its
                 # frames after it from 0: a receiver takes this one as its start
-                d = self._reset_direction(rec.direction)
+                receiver = self._reset_direction(rec.direction)
                 yield {"kind": "event", "type": "driver_reset", "direction": rec.direction,
                        "index": idx}
         if (frame_rec["frame_type"] == "DATA" and frame_rec["num"] == 0 and frame_rec["rsp"] == 0
-                and frame_rec["crc_ok"] and d.conn.link.expected_num != 0):
+                and frame_rec["crc_ok"] and receiver.conn.link.expected_num != 0):
             # L4: NUM is 0 after a reset. The real receiver was reset with its peer (both SPI
             # drivers restart together), so the passive one must start over too, or it would
             # NAK frames the real one accepted.
-            d = self._reset_direction(rec.direction)
+            receiver = self._reset_direction(rec.direction)
             yield {"kind": "event", "type": "driver_reset", "direction": rec.direction,
                    "index": idx}
             # L10/L10a: the side that restarted starts its own receiver over too, so for its
@@ -239,39 +240,39 @@ class Dissector:
             other = self._dirs.get(OTHER_DIRECTION.get(rec.direction))
             if other is not None:
                 other.conn.link.restart()
-        conn = d.conn
-        conn.receive_data(data, t if t is not None else 0.0)
+        conn = receiver.conn
+        conn.receive_data(data, time_s if time_s is not None else 0.0)
         conn.data_to_send(float("inf"))  # our passive receiver's ACK/NAKs go nowhere
-        yield from self._events(rec.direction, d)
+        yield from self._events(rec.direction, receiver)
 
     def _reset_direction(self, direction: str | None) -> _Direction:
         old = self._dirs.pop(direction)
-        d = self._dir(direction)
-        d.index_of_num = old.index_of_num
-        return d
+        receiver = self._dir(direction)
+        receiver.index_of_num = old.index_of_num
+        return receiver
 
-    def _timers(self, t: float) -> Iterator[dict[str, Any]]:
-        for direction, d in self._dirs.items():
-            timer = d.conn.get_timer()
-            while timer is not None and timer <= t:
-                d.conn.handle_timer(timer)
-                d.conn.data_to_send(float("inf"))
-                yield from self._events(direction, d)
-                nxt = d.conn.get_timer()
+    def _timers(self, now: float) -> Iterator[dict[str, Any]]:
+        for direction, receiver in self._dirs.items():
+            timer = receiver.conn.get_timer()
+            while timer is not None and timer <= now:
+                receiver.conn.handle_timer(timer)
+                receiver.conn.data_to_send(float("inf"))
+                yield from self._events(direction, receiver)
+                nxt = receiver.conn.get_timer()
                 if nxt == timer:
                     break
                 timer = nxt
 
     def finish(self) -> Iterator[dict[str, Any]]:
         """End of capture: a transfer still open is incomplete, not timed out (L9)."""
-        for direction, d in self._dirs.items():
-            d.conn.finish()
-            yield from self._events(direction, d)
+        for direction, receiver in self._dirs.items():
+            receiver.conn.finish()
+            yield from self._events(direction, receiver)
 
-    def _events(self, direction: str | None, d: _Direction) -> Iterator[dict[str, Any]]:
-        while (ev := d.conn.next_event()) is not None:
+    def _events(self, direction: str | None, receiver: _Direction) -> Iterator[dict[str, Any]]:
+        while (ev := receiver.conn.next_event()) is not None:
             if isinstance(ev, MessageReceived):
-                yield self._message(direction, d, ev)
+                yield self._message(direction, receiver, ev)
             elif isinstance(ev, TransferAborted):
                 yield {"kind": "event", "type": "transfer_aborted", "direction": direction,
                        "reason": ev.reason, "transfer_id": ev.transfer_id,
@@ -296,27 +297,28 @@ class Dissector:
                                 count=ev.count)
                 yield body
 
-    def _message(self, direction: str | None, d: _Direction, ev: MessageReceived) -> dict[str, Any]:
-        out = self.codec.decode(ev.data, d.e2e if ev.data[:1] == b"\x65" else None)
+    def _message(self, direction: str | None, receiver: _Direction,
+                 ev: MessageReceived) -> dict[str, Any]:
+        out = self.codec.decode(ev.data, receiver.e2e if ev.data[:1] == b"\x65" else None)
         if out.name == SWITCH_APP_NAME and out.protocol == "MESP" and not out.header.get("reply"):
             # §7.1.1.7: the EyeQ application restarts and judges the sender's E2E rolling
             # counters (D5) afresh, as the simulated EyeQ does; so does a passive observer (a
             # host's counters may start over with its bring-up after this soft reset)
-            d.e2e.seen.clear()
+            receiver.e2e.seen.clear()
             if ev.frames:
-                d.restart_after = ev.frames[-1]
+                receiver.restart_after = ev.frames[-1]
         errors = list(out.errors)
         data_id = out.header.get("data_id") if out.protocol == "DASP" else None
         if data_id is not None:
             counter = out.header["counter"]
-            expected = d.dasp_counters.check(data_id, counter)
+            expected = receiver.dasp_counters.check(data_id, counter)
             if expected is not None:
                 errors.append(f"DASP counter gap: expected {expected}, got {counter}")
         errors += self._enum_errors(out)
         return {
             "kind": "message", "protocol": out.protocol, "name": out.name,
             "length": len(ev.data), "direction": direction, "time": self.last_time,
-            "frames": [d.index_of_num.get(n) for n in ev.frames],
+            "frames": [receiver.index_of_num.get(n) for n in ev.frames],
             # only MESP carries bytes (byte[] and string parameters); struct fields never do
             "header": out.header,
             "fields": jsonable(out.fields) if out.protocol == "MESP" else out.fields,
@@ -338,8 +340,8 @@ def _replay(conn: TransportConnection, units: list[Transfer], restart_span: int)
     ``units`` again, output dropped."""
     conn.reset(expected=units[0][0][2], restart_span=restart_span)
     for unit in units:
-        for data, t, _, _ in unit:
-            conn.receive_data(data, 0.0 if t is None else t)
+        for data, time_s, _, _ in unit:
+            conn.receive_data(data, 0.0 if time_s is None else time_s)
             conn.data_to_send(float("inf"))
     while conn.next_event() is not None:
         pass
@@ -357,17 +359,18 @@ def _enum_plan(codec: MessageCodec, lay: Any) -> list[tuple[str, Any, Any, bool]
     plan = hit[1] if hit is not None and hit[0] is lay else None
     if plan is None:
         plan = []
-        for f in lay.fields:
-            child = lay.children.get(f.name)
+        for layout_field in lay.fields:
+            child = lay.children.get(layout_field.name)
             if child is not None:
                 if _enum_plan(codec, child):
-                    plan.append((f.name, None, child, bool(f.count)))
+                    plan.append((layout_field.name, None, child, bool(layout_field.count)))
                 continue
-            e = codec.cat.enums.get(f.member.enum or "")
+            enum = codec.cat.enums.get(layout_field.member.enum or "")
             # an incomplete enum (complete: false in specs/) lists only the values the seed
             # lets us read: any other value is not an error
-            if e is not None and e.kind != "flags" and e.complete and not f.count:
-                plan.append((f.name, e, None, False))
+            if (enum is not None and enum.kind != "flags" and enum.complete
+                    and not layout_field.count):
+                plan.append((layout_field.name, enum, None, False))
         _ENUM_PLANS[key] = (lay, plan)
     return plan
 
@@ -375,15 +378,15 @@ def _enum_plan(codec: MessageCodec, lay: Any) -> list[tuple[str, Any, Any, bool]
 def _check_enums(codec: MessageCodec, lay: Any, values: dict[str, Any], path: str,
                  errs: list[str]) -> None:
     for name, enum, child, is_array in _enum_plan(codec, lay):
-        v = values.get(name)
+        value = values.get(name)
         if child is not None:
             if is_array:
-                for i, item in enumerate(v or []):
-                    _check_enums(codec, child, item, f"{path}.{name}[{i}]", errs)
+                for index, item in enumerate(value or []):
+                    _check_enums(codec, child, item, f"{path}.{name}[{index}]", errs)
             else:
-                _check_enums(codec, child, v or {}, f"{path}.{name}", errs)
-        elif isinstance(v, int) and v not in enum.values:
-            errs.append(f"bad enum value {v} for {path}.{name} ({enum.name})")
+                _check_enums(codec, child, value or {}, f"{path}.{name}", errs)
+        elif isinstance(value, int) and value not in enum.values:
+            errs.append(f"bad enum value {value} for {path}.{name} ({enum.name})")
 
 
 def iter_records(records: Iterable[Record], *, sw: str | None = None,

@@ -16,11 +16,11 @@ RESET, DIM, RED, GREEN, CYAN, YELLOW = "\x1b[0m", "\x1b[2m", "\x1b[31m", "\x1b[3
 def flatten(values: Any, prefix: str = "") -> dict[str, Any]:
     out: dict[str, Any] = {}
     if isinstance(values, dict):
-        for k, v in values.items():
-            out.update(flatten(v, f"{prefix}.{k}" if prefix else k))
+        for key, value in values.items():
+            out.update(flatten(value, f"{prefix}.{key}" if prefix else key))
     elif isinstance(values, list):
-        for i, v in enumerate(values):
-            out.update(flatten(v, f"{prefix}[{i}]"))
+        for index, value in enumerate(values):
+            out.update(flatten(value, f"{prefix}[{index}]"))
     else:
         out[prefix] = values
     return out
@@ -42,101 +42,104 @@ class HumanWriter:
     def _c(self, code: str, text: str) -> str:
         return f"{code}{text}{RESET}" if self.color else text
 
-    def see(self, r: dict[str, Any]) -> None:
+    def see(self, record: dict[str, Any]) -> None:
         """Note a record the filters may drop: the time origin is the file's first timestamped
         record, whatever is printed."""
-        f = r.get("file")
-        if f != self._file:
-            self._file, self._origin = f, None
+        file_name = record.get("file")
+        if file_name != self._file:
+            self._file, self._origin = file_name, None
         if self._origin is None:
-            self._origin = r.get("time")
+            self._origin = record.get("time")
 
-    def _when(self, r: dict[str, Any]) -> str:
+    def _when(self, record: dict[str, Any]) -> str:
         """Seconds since the first timestamped record of the record's file (the origin of
         ``eyeq-spi plot``'s time axis); ``-`` for a record without a time (raw, plain hex)."""
-        self.see(r)
-        t = r.get("time")
-        if t is None or self._origin is None:
+        self.see(record)
+        time_s = record.get("time")
+        if time_s is None or self._origin is None:
             return "-"
-        return f"{t - self._origin:.6f}"
+        return f"{time_s - self._origin:.6f}"
 
-    def write(self, r: dict[str, Any]) -> None:
-        kind = r["kind"]
-        t = self._when(r) if kind != "stats" else "-"
+    def write(self, record: dict[str, Any]) -> None:
+        kind = record["kind"]
+        when = self._when(record) if kind != "stats" else "-"
         if kind == "frame":
-            ok = self._c(GREEN, "crc ok") if r["crc_ok"] else self._c(RED, "CRC BAD")
-            if "length" in r:
-                ok = self._c(RED, f"bad length {r['length']}")
-            ft = r["frame_type"]
+            ok = self._c(GREEN, "crc ok") if record["crc_ok"] else self._c(RED, "CRC BAD")
+            if "length" in record:
+                ok = self._c(RED, f"bad length {record['length']}")
+            ft = record["frame_type"]
             tr = ""
-            if r["transport"]:
-                tid = r["transfer_id"]
-                tr = r["transport"] + ("" if tid is None else f" id={tid}")
-            nak = f" reason=0x{r['nak_reason']:03X}" if r["nak_reason"] is not None else ""
-            num = "-" if r["num"] is None else r["num"]
-            rsp = "-" if r["rsp"] is None else r["rsp"]
+            if record["transport"]:
+                tid = record["transfer_id"]
+                tr = record["transport"] + ("" if tid is None else f" id={tid}")
+            reason = record["nak_reason"]
+            nak = f" reason=0x{reason:03X}" if reason is not None else ""
+            num = "-" if record["num"] is None else record["num"]
+            rsp = "-" if record["rsp"] is None else record["rsp"]
             self._wide = True
-            self.fh.write(f"{r['index']:8d} {t:>14s} {r['direction'] or '-':3s} {ft:7s} "
+            direction = record["direction"] or "-"
+            self.fh.write(f"{record['index']:8d} {when:>14s} {direction:3s} {ft:7s} "
                           f"NUM={num!s:>4s} RSP={rsp!s:>4s} {ok} {tr}{nak}\n")
         elif kind == "message":
-            name = r["name"] or "?"
-            head = " ".join(f"{k}={v}" for k, v in r["header"].items())
-            errs = "" if not r["errors"] else " " + self._c(RED, "; ".join(r["errors"][:3]))
-            self.fh.write(f"{self._lead(t)} {r.get('direction') or '-':3s} "
-                          f"{self._c(CYAN, r['protocol'])} {self._c(CYAN, name)} "
-                          f"{r['length']} bytes {head}{errs}\n")
-            if self.tree and r["fields"]:
-                self._tree(r)
+            name = record["name"] or "?"
+            head = " ".join(f"{k}={v}" for k, v in record["header"].items())
+            errors = record["errors"]
+            errs = "" if not errors else " " + self._c(RED, "; ".join(errors[:3]))
+            self.fh.write(f"{self._lead(when)} {record.get('direction') or '-':3s} "
+                          f"{self._c(CYAN, record['protocol'])} {self._c(CYAN, name)} "
+                          f"{record['length']} bytes {head}{errs}\n")
+            if self.tree and record["fields"]:
+                self._tree(record)
         elif kind == "event":
-            rest = " ".join(f"{k}={v}" for k, v in r.items()
+            rest = " ".join(f"{k}={v}" for k, v in record.items()
                             if k not in ("kind", "type", "time", "direction", "file"))
-            self.fh.write(f"{self._lead(t)} {r.get('direction') or '-':3s} "
-                          + self._c(YELLOW, f"event {r['type']}") + f" {rest}\n")
+            self.fh.write(f"{self._lead(when)} {record.get('direction') or '-':3s} "
+                          + self._c(YELLOW, f"event {record['type']}") + f" {rest}\n")
         elif kind == "stats":
             pass
 
-    def _lead(self, t: str) -> str:
-        return f"{'':8s} {t:>14s}" if self._wide else f"{t:>12s}"
+    def _lead(self, when: str) -> str:
+        return f"{'':8s} {when:>14s}" if self._wide else f"{when:>12s}"
 
-    def _tree(self, r: dict[str, Any]) -> None:
+    def _tree(self, record: dict[str, Any]) -> None:
         lay = None
-        if r["protocol"] in ("DASP", "DIAG", "BOOT") and r["name"]:
+        if record["protocol"] in ("DASP", "DIAG", "BOOT") and record["name"]:
             try:
-                lay = self.codec.layout(self.codec.cat.message(r["name"]))
+                lay = self.codec.layout(self.codec.cat.message(record["name"]))
             except EyeqError:
                 lay = None
-        self._walk(r["fields"], lay, 2)
+        self._walk(record["fields"], lay, 2)
 
     def _walk(self, values: Any, lay: Any, depth: int) -> None:
         pad = "  " * depth
-        for k, v in values.items():
-            f = _field(lay, k)
-            child = lay.children.get(k) if lay is not None else None
-            if isinstance(v, dict):
-                self.fh.write(f"{pad}{k}\n")
-                self._walk(v, child, depth + 1)
-            elif isinstance(v, list) and v and isinstance(v[0], dict):
-                for i, item in enumerate(v):
-                    self.fh.write(f"{pad}{k}[{i}]\n")
+        for key, value in values.items():
+            field = _field(lay, key)
+            child = lay.children.get(key) if lay is not None else None
+            if isinstance(value, dict):
+                self.fh.write(f"{pad}{key}\n")
+                self._walk(value, child, depth + 1)
+            elif isinstance(value, list) and value and isinstance(value[0], dict):
+                for index, item in enumerate(value):
+                    self.fh.write(f"{pad}{key}[{index}]\n")
                     self._walk(item, child, depth + 1)
             else:
                 extra = ""
-                if f is not None:
-                    m = f.member
-                    enum = self.codec.cat.enums.get(m.enum or "")
-                    if enum is not None and isinstance(v, int):
-                        label = enum.label(v)
+                if field is not None:
+                    member = field.member
+                    enum = self.codec.cat.enums.get(member.enum or "")
+                    if enum is not None and isinstance(value, int):
+                        label = enum.label(value)
                         if label:
                             extra = f" ({label})"
                         elif enum.kind != "flags" and enum.complete:  # flags 0: no bit set
                             extra = self._c(RED, " (undefined)")
-                    elif m.values and isinstance(v, int) and v in m.values:
-                        extra = f" ({m.values[v]})"
-                    if m.units and m.units not in ("n/a", "NA"):
-                        extra += f" {m.units}"
-                if isinstance(v, float):
-                    v = f"{v:.6g}"
-                self.fh.write(f"{pad}{k} = {v}{extra}\n")
+                    elif member.values and isinstance(value, int) and value in member.values:
+                        extra = f" ({member.values[value]})"
+                    if member.units and member.units not in ("n/a", "NA"):
+                        extra += f" {member.units}"
+                if isinstance(value, float):
+                    value = f"{value:.6g}"
+                self.fh.write(f"{pad}{key} = {value}{extra}\n")
 
 
 def _field(lay: Any, name: str) -> Any:
@@ -149,26 +152,26 @@ def _field(lay: Any, name: str) -> Any:
         return None
 
 
-def _as_list(v: Any) -> list[Any]:
-    return v.tolist() if hasattr(v, "tolist") else list(v)
+def _as_list(column: Any) -> list[Any]:
+    return column.tolist() if hasattr(column, "tolist") else list(column)
 
 
-def _item(v: Any, i: int) -> Any:
-    x = v[i]
-    return x.item() if hasattr(x, "item") else x
+def _item(column: Any, index: int) -> Any:
+    item = column[index]
+    return item.item() if hasattr(item, "item") else item
 
 
-def _arrow(pa: Any, v: Any) -> Any:
+def _arrow(pa: Any, column: Any) -> Any:
     """``pa.array(v)``; a numpy int64/float64 column (no nulls) wraps its buffer instead: same
     type, same values, and pyarrow's masked-array check does not import numpy.ma (13 ms)."""
-    kind = getattr(v, "dtype", None)
-    if kind is not None and kind.kind in "if" and kind.itemsize == 8 and v.ndim == 1:
+    kind = getattr(column, "dtype", None)
+    if kind is not None and kind.kind in "if" and kind.itemsize == 8 and column.ndim == 1:
         import numpy as np  # loaded already: only the fast path makes numpy columns
 
-        v = np.ascontiguousarray(v)
-        return pa.Array.from_buffers(pa.from_numpy_dtype(v.dtype), len(v),
-                                     [None, pa.py_buffer(v)])
-    return pa.array(v)
+        column = np.ascontiguousarray(column)
+        return pa.Array.from_buffers(pa.from_numpy_dtype(column.dtype), len(column),
+                                     [None, pa.py_buffer(column)])
+    return pa.array(column)
 
 
 def _parquet_writer(pq: Any, path: Path, schema: Any) -> Any:
@@ -182,11 +185,11 @@ def _parquet_writer(pq: Any, path: Path, schema: Any) -> Any:
     return pq.ParquetWriter(str(path), schema, use_dictionary=words)
 
 
-def table_name(r: dict[str, Any]) -> str:
+def table_name(record: dict[str, Any]) -> str:
     """The table a message record goes in: its name; a MESP reply in ``NAME.reply`` (a request
     and its reply share a name but not their fields)."""
-    name: str = r["name"] or r["protocol"]
-    return f"{name}.reply" if r["header"].get("reply") is True else name
+    name: str = record["name"] or record["protocol"]
+    return f"{name}.reply" if record["header"].get("reply") is True else name
 
 
 class TableWriter:
@@ -237,17 +240,17 @@ class TableWriter:
                 extra = formats.get("parquet", formats.RECORD_WRITER).extra
                 raise MissingExtra(extra or "parquet", "--parquet needs pyarrow") from exc
 
-    def write(self, r: dict[str, Any]) -> None:
-        if r["kind"] != "message":
+    def write(self, record: dict[str, Any]) -> None:
+        if record["kind"] != "message":
             return
-        name = table_name(r)
-        row: dict[str, Any] = {} if self.hive else {"file": r.get("file", self.file)}
-        row.update({"frame_index": r["frames"][-1] if r["frames"] else None,
-                    "time": r.get("time"), "direction": r.get("direction")})
+        name = table_name(record)
+        row: dict[str, Any] = {} if self.hive else {"file": record.get("file", self.file)}
+        row.update({"frame_index": record["frames"][-1] if record["frames"] else None,
+                    "time": record.get("time"), "direction": record.get("direction")})
         if self.errors:
-            row["errors"] = "; ".join(r["errors"])
-        row.update({f"header.{k}": v for k, v in r["header"].items()})
-        row.update(flatten(r["fields"]))
+            row["errors"] = "; ".join(record["errors"])
+        row.update({f"header.{k}": v for k, v in record["header"].items()})
+        row.update(flatten(record["fields"]))
         if self.fmt == "csv":
             self._write_csv(name, row)
         else:
@@ -261,14 +264,14 @@ class TableWriter:
     def write_columns(self, name: str, columns: dict[str, Any]) -> None:
         """Rows given as columns (numpy arrays or lists, equal lengths, in the order of the
         row :meth:`write` makes): the fast path's vectorised groups. Same tables."""
-        n = len(columns["frame_index"])
-        if not n:
+        count = len(columns["frame_index"])
+        if not count:
             return
         if not self.hive:
-            columns = {"file": [self.file] * n, **columns}
+            columns = {"file": [self.file] * count, **columns}
         if self.fmt == "csv":
             entry = self._csv_part(name, list(columns))
-            cols = [_as_list(columns[c]) if c in columns else [""] * n for c in entry[2]]
+            cols = [_as_list(columns[c]) if c in columns else [""] * count for c in entry[2]]
             start = 0
             import csv  # here: --stats and Parquet never need it
 
@@ -303,19 +306,19 @@ class TableWriter:
         import pyarrow as pa
 
         parts = self._pq_parts.setdefault(name, [])
-        for w in parts:
-            if set(table.column_names) <= set(w.schema.names):
-                if not table.schema.equals(w.schema):
+        for writer in parts:
+            if set(table.column_names) <= set(writer.schema.names):
+                if not table.schema.equals(writer.schema):
                     table = pa.table({f.name: table.column(f.name) if f.name in table.column_names
-                                      else pa.nulls(table.num_rows, f.type) for f in w.schema})
-                    table = table.cast(w.schema)
-                w.write_table(table)
+                                      else pa.nulls(table.num_rows, f.type) for f in writer.schema})
+                    table = table.cast(writer.schema)
+                writer.write_table(table)
                 return
         schema = self._schema(name, table.schema)  # all-NULL columns typed where known
-        w = _parquet_writer(pq, self._path(name, len(parts), "parquet"), schema)
-        parts.append(w)
-        self._pq.setdefault(name, w)
-        w.write_table(table if table.schema.equals(schema) else table.cast(schema))
+        writer = _parquet_writer(pq, self._path(name, len(parts), "parquet"), schema)
+        parts.append(writer)
+        self._pq.setdefault(name, writer)
+        writer.write_table(table if table.schema.equals(schema) else table.cast(schema))
 
     def _schema(self, name: str, schema: Any) -> Any:
         """``schema`` with its all-NULL columns typed by ``column_type`` where it knows them."""
@@ -323,11 +326,11 @@ class TableWriter:
 
         if self.column_type is None:
             return schema
-        for i, f in enumerate(schema):
-            if pa.types.is_null(f.type):
-                alias = self.column_type(name, f.name)
+        for index, field in enumerate(schema):
+            if pa.types.is_null(field.type):
+                alias = self.column_type(name, field.name)
                 if alias is not None:
-                    schema = schema.set(i, pa.field(f.name, pa.type_for_alias(alias)))
+                    schema = schema.set(index, pa.field(field.name, pa.type_for_alias(alias)))
         return schema
 
     def _write_csv(self, name: str, row: dict[str, Any]) -> None:
@@ -352,9 +355,9 @@ class TableWriter:
             raise OutputError(f"cannot write {path}: {exc}") from exc
         import csv
 
-        w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")  # a row never has more
-        w.writeheader()
-        entry = (fh, w, keys)
+        writer = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")  # a row never has more
+        writer.writeheader()
+        entry = (fh, writer, keys)
         parts.append(entry)
         self._last[name] = (keys, entry)
         self._csv.setdefault(name, entry)
@@ -391,6 +394,6 @@ class TableWriter:
             self._flush(name)
         for name in list(self._tables):
             self._flush_tables(name)
-        for ws in self._pq_parts.values():
-            for w in ws:
-                w.close()
+        for writers in self._pq_parts.values():
+            for writer in writers:
+                writer.close()

@@ -47,57 +47,57 @@ class Stats:
     spans: dict[str, float] = field(default_factory=dict)  # a total: sum of per-file spans
     steps: Counter[str] = field(default_factory=Counter)  # a total: sum of per-file intervals
 
-    def add(self, r: dict[str, Any]) -> None:
-        kind = r["kind"]
+    def add(self, record: dict[str, Any]) -> None:
+        kind = record["kind"]
         if kind == "frame":
-            ft = r["frame_type"]
+            ft = record["frame_type"]
             self.frames[ft] += 1
-            if "length" in r:
+            if "length" in record:
                 self.bad_length += 1
-            elif not r["crc_ok"]:
+            elif not record["crc_ok"]:
                 self.crc_errors += 1
-            if ft == "NAK" and r["crc_ok"]:
-                self.nak_reasons[f"0x{r['nak_reason']:03X}"] += 1
+            if ft == "NAK" and record["crc_ok"]:
+                self.nak_reasons[f"0x{record['nak_reason']:03X}"] += 1
         elif kind == "event":
-            self.events[r["type"]] += 1
-            if r["type"] == "transfer_aborted":
-                self.aborts[r["reason"]] += 1
+            self.events[record["type"]] += 1
+            if record["type"] == "transfer_aborted":
+                self.aborts[record["reason"]] += 1
         elif kind == "message":
-            self._message(r)
+            self._message(record)
 
-    def _message(self, r: dict[str, Any]) -> None:
-        name = r["name"] or r["protocol"]
+    def _message(self, record: dict[str, Any]) -> None:
+        name = record["name"] or record["protocol"]
         self.messages[name] += 1
-        t = r.get("time")
-        if t is not None:
-            self.first.setdefault(name, t)
-            self.last[name] = t
-            self.times.setdefault(name, []).append(t)
-        for e in r["errors"]:
-            if e.startswith("DASP counter gap"):
+        time_s = record.get("time")
+        if time_s is not None:
+            self.first.setdefault(name, time_s)
+            self.last[name] = time_s
+            self.times.setdefault(name, []).append(time_s)
+        for error in record["errors"]:
+            if error.startswith("DASP counter gap"):
                 self.counter_gaps[name] += 1
-            elif e.startswith("E2E"):
+            elif error.startswith("E2E"):
                 self.e2e_errors[name] += 1
             else:
                 self.message_errors += 1
-        if r["protocol"] == "MESP" and r["header"] and t is not None:
-            h = r["header"]
-            key = (h["service"], h["function"], h["counter"])
-            if not h["reply"]:
-                self._expire(t)
-                self.mesp_pending[key] = (t, name)
+        if record["protocol"] == "MESP" and record["header"] and time_s is not None:
+            header = record["header"]
+            key = (header["service"], header["function"], header["counter"])
+            if not header["reply"]:
+                self._expire(time_s)
+                self.mesp_pending[key] = (time_s, name)
             else:
                 sent = self.mesp_pending.pop(key, None)
                 if sent is None:
                     self.mesp_unmatched += 1
-                elif t - sent[0] > MESP_DEADLINE:
+                elif time_s - sent[0] > MESP_DEADLINE:
                     self.mesp_timeouts[name] += 1
                 else:
-                    self.mesp_latency.setdefault(name, []).append(t - sent[0])
+                    self.mesp_latency.setdefault(name, []).append(time_s - sent[0])
 
     def _expire(self, now: float) -> None:
-        for key, (t, name) in list(self.mesp_pending.items()):
-            if now - t > MESP_DEADLINE:
+        for key, (sent_at, name) in list(self.mesp_pending.items()):
+            if now - sent_at > MESP_DEADLINE:
                 del self.mesp_pending[key]
                 self.mesp_timeouts[name] += 1
 
@@ -113,7 +113,7 @@ class Stats:
 
     def as_dict(self) -> dict[str, Any]:
         rates: dict[str, Any] = {}
-        for name, n in sorted(self.messages.items()):
+        for name, count in sorted(self.messages.items()):
             gaps = 0
             if self.files:
                 span, steps = self.spans.get(name, 0.0), self.steps.get(name, 0)
@@ -126,7 +126,7 @@ class Stats:
             except Exception:
                 nominal = None
             periodic = nominal is not None and span > 0 and steps > 0
-            rates[name] = {"count": n, "mean_hz": round(steps / span, 3) if periodic else None,
+            rates[name] = {"count": count, "mean_hz": round(steps / span, 3) if periodic else None,
                            "nominal_hz": nominal, "gaps": gaps if periodic else 0}
         lat = {
             name: {"count": len(v), "min_ms": round(min(v) * 1e3, 3),
@@ -134,8 +134,8 @@ class Stats:
                    "max_ms": round(max(v) * 1e3, 3), "timeouts": self.mesp_timeouts.get(name, 0)}
             for name, v in sorted(self.mesp_latency.items())
         }
-        for name, n in self.mesp_timeouts.items():
-            lat.setdefault(name, {"count": 0, "timeouts": n})
+        for name, count in self.mesp_timeouts.items():
+            lat.setdefault(name, {"count": 0, "timeouts": count})
         head: dict[str, Any] = {"kind": "stats", "file": self.file}
         if self.files:
             head["files"] = self.files
@@ -152,70 +152,72 @@ class Stats:
         }
 
     def render(self) -> str:
-        d = self.as_dict()
+        view = self.as_dict()
         out = []
         if self.files:
             out.append(f"=== total of {self.files} files")
         elif self.file is not None:
-            src = f" (SW {d['sw']}: {d['sw_source']})" if "sw" in d else ""
-            if "clock" in d:  # what the timestamps were read from (docs/captures.md)
-                src += f", clock: {d['clock'] or 'not recorded'}"
+            src = f" (SW {view['sw']}: {view['sw_source']})" if "sw" in view else ""
+            if "clock" in view:  # what the timestamps were read from (docs/captures.md)
+                src += f", clock: {view['clock'] or 'not recorded'}"
             out.append(f"=== {self.file}{src}")
         if self.ignored_bytes:
             out.append(f"  ignored {self.ignored_bytes} bytes of an incomplete last block")
-        out += ["== frames", "  " + "  ".join(f"{k} {v}" for k, v in sorted(d["frames"].items())),
-               f"  CRC errors {d['crc_errors']}, wrong length {d['bad_length']}, NAK reasons "
-               f"{d['nak_reasons'] or 'none'}, "
-               f"aborted transfers {d['aborted_transfers'] or 'none'}",
+        frames = "  ".join(f"{k} {v}" for k, v in sorted(view["frames"].items()))
+        out += ["== frames", "  " + frames,
+               f"  CRC errors {view['crc_errors']}, wrong length {view['bad_length']}, NAK reasons "
+               f"{view['nak_reasons'] or 'none'}, "
+               f"aborted transfers {view['aborted_transfers'] or 'none'}",
                # L9: cut by the capture's start or end, not a protocol error
-               f"  incomplete transfers: at start {d['events'].get('incomplete_at_start', 0)}, "
-               f"at end {d['events'].get('incomplete_at_end', 0)}",
+               f"  incomplete transfers: at start {view['events'].get('incomplete_at_start', 0)}, "
+               f"at end {view['events'].get('incomplete_at_end', 0)}",
                "== messages (count, mean rate / nominal)"]
-        for name, r in d["messages"].items():
-            mean = "-" if r["mean_hz"] is None else f"{r['mean_hz']:.2f} Hz"
-            nom = "" if r["nominal_hz"] is None else f" / {r['nominal_hz']:g} Hz"
-            gaps = r.get("gaps") or 0
-            out.append(f"  {name:34s} {r['count']:8d}  {mean}{nom}"
+        for name, row in view["messages"].items():
+            mean = "-" if row["mean_hz"] is None else f"{row['mean_hz']:.2f} Hz"
+            nom = "" if row["nominal_hz"] is None else f" / {row['nominal_hz']:g} Hz"
+            gaps = row.get("gaps") or 0
+            out.append(f"  {name:34s} {row['count']:8d}  {mean}{nom}"
                        + (f"  ({gaps} gap{'s' if gaps > 1 else ''})" if gaps else ""))
-        out.append(f"== DASP counter gaps {d['dasp_counter_gaps'] or 'none'}; "
-                   f"E2E errors {d['e2e_errors'] or 'none'}; other message errors "
-                   f"{d['message_errors']}")
+        out.append(f"== DASP counter gaps {view['dasp_counter_gaps'] or 'none'}; "
+                   f"E2E errors {view['e2e_errors'] or 'none'}; other message errors "
+                   f"{view['message_errors']}")
         out.append("== MESP request -> reply latency, ms (min / median / max)")
-        for name, r in d["mesp_latency"].items():
-            if r.get("count"):  # 80 columns wide
-                out.append(f"  {name:30s} n={r['count']:<5d} {r['min_ms']:.3f} / "
-                           f"{r['median_ms']:.3f} / {r['max_ms']:.3f}  timeouts {r['timeouts']}")
+        for name, row in view["mesp_latency"].items():
+            if row.get("count"):  # 80 columns wide
+                out.append(f"  {name:30s} n={row['count']:<5d} {row['min_ms']:.3f} / "
+                           f"{row['median_ms']:.3f} / {row['max_ms']:.3f}  "
+                           f"timeouts {row['timeouts']}")
             else:
-                out.append(f"  {name:30s} timeouts {r['timeouts']}")
-        out.append(f"== protocol errors: {d['protocol_errors']}")
+                out.append(f"  {name:30s} timeouts {row['timeouts']}")
+        out.append(f"== protocol errors: {view['protocol_errors']}")
         return "\n".join(out)
 
 
 def combine(parts: list[Stats]) -> Stats:
     """The total of several files' finished statistics."""
     total = Stats(parts[0].cat, files=len(parts))
-    for p in parts:
+    for part in parts:
         for name in ("frames", "nak_reasons", "aborts", "events", "messages", "counter_gaps",
                      "e2e_errors", "mesp_timeouts"):
-            getattr(total, name).update(getattr(p, name))
+            getattr(total, name).update(getattr(part, name))
         for name in ("bad_length", "crc_errors", "message_errors", "mesp_unmatched",
                      "ignored_bytes"):
-            setattr(total, name, getattr(total, name) + getattr(p, name))
-        for name, times in p.times.items():
+            setattr(total, name, getattr(total, name) + getattr(part, name))
+        for name, times in part.times.items():
             rate = stream_rate(sorted(times))  # each file's active spans, never across two
             total.spans[name] = total.spans.get(name, 0.0) + rate.active_s
             total.steps[name] += rate.steps
-        for name, v in p.mesp_latency.items():
-            total.mesp_latency.setdefault(name, []).extend(v)
+        for name, latencies in part.mesp_latency.items():
+            total.mesp_latency.setdefault(name, []).extend(latencies)
     return total
 
 
-def _median(v: list[float]) -> float:
+def _median(values: list[float]) -> float:
     """``statistics.median`` (the mean of the two middle values of an even count) without
     importing statistics, which brings decimal and fractions (7-9 ms of start-up)."""
-    s = sorted(v)
-    n = len(s)
-    if not n:
+    ordered = sorted(values)
+    count = len(ordered)
+    if not count:
         raise ValueError("no median of no values")
-    mid = n // 2
-    return float(s[mid]) if n % 2 else (s[mid - 1] + s[mid]) / 2
+    mid = count // 2
+    return float(ordered[mid]) if count % 2 else (ordered[mid - 1] + ordered[mid]) / 2

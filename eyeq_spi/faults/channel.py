@@ -14,7 +14,7 @@ that each injected fault maps to exactly one receiver reaction):
   geometric gap between flips, so the process is exactly Bernoulli per bit over the run).
 
 Each injection is recorded as an :class:`Injected` with what the receiver must make of it under
-L3/L5/L6/L8, so that a soak can compare the record with the receiver's counters.
+L3/L5/L6/L8, so that a soak can compare that list (``injected``) with the receiver's counters.
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ class FaultyChannel:
         self.codec = codec or FrameCodec()
         self.enabled = True
         self.stats = ChannelStats()
-        self.record: list[Injected] = []
+        self.injected: list[Injected] = []
         self._held: tuple[int, bytes] | None = None
         self._to_flip = self._gap()
 
@@ -120,21 +120,21 @@ class FaultyChannel:
             return [transfer, held]
         if not self.enabled:
             return [transfer]
-        p = self.profile
-        u = self.rng.random()
-        if u < p.drop:
+        profile = self.profile
+        draw = self.rng.random()
+        if draw < profile.drop:
             self._note(index, "drop", transfer)
             return []
-        u -= p.drop
-        if u < p.duplicate:
+        draw -= profile.drop
+        if draw < profile.duplicate:
             self._note(index, "duplicate", transfer)
             return [transfer, transfer]
-        u -= p.duplicate
-        if u < p.reorder:
+        draw -= profile.duplicate
+        if draw < profile.reorder:
             self._held = (index, transfer)
             return []
-        u -= p.reorder
-        if u < p.truncate:
+        draw -= profile.reorder
+        if draw < profile.truncate:
             length = self.rng.randrange(1, len(transfer))
             self._note(index, "truncate", transfer, length=length)
             return [transfer[:length]]
@@ -145,8 +145,8 @@ class FaultyChannel:
         """Bits until the next flip: geometric with parameter ``ber`` (inf when 0)."""
         if self.profile.ber <= 0:
             return 1 << 62
-        u = 1.0 - self.rng.random()  # (0, 1]
-        return int(math.log(u) / math.log1p(-self.profile.ber))
+        draw = 1.0 - self.rng.random()  # (0, 1]
+        return int(math.log(draw) / math.log1p(-self.profile.ber))
 
     def _flip(self, index: int, transfer: bytes) -> bytes:
         nbits = len(transfer) * 8
@@ -186,18 +186,18 @@ class FaultyChannel:
             frame = FrameKind(d).name
         except ValueError:
             frame = "?"
-        self.record.append(Injected(index, kind, frame, num, rsp, bits, length, crc_covered,
-                                    after))
+        self.injected.append(Injected(index, kind, frame, num, rsp, bits, length, crc_covered,
+                                      after))
         self.stats.injected[kind] += 1
 
     def header_flips(self) -> int:
         """Flipped transfers with a flip in the header word (bytes 0..3, L1)."""
-        return sum(1 for r in self.record if r.kind == "flip" and min(r.bits) < 32)
+        return sum(1 for r in self.injected if r.kind == "flip" and min(r.bits) < 32)
 
     def count(self, kind: str, frame: str | None = None, *, after: str | None = None,
               crc_covered: bool | None = None) -> int:
         """How many injections of ``kind`` match the filters."""
-        return sum(1 for r in self.record if r.kind == kind
+        return sum(1 for r in self.injected if r.kind == kind
                    and (frame is None or r.frame == frame)
                    and (after is None or r.after == after)
                    and (crc_covered is None or r.crc_covered == crc_covered))

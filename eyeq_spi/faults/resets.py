@@ -73,9 +73,9 @@ def _timestamp_ms(fields: dict[str, Any]) -> int | None:
     """The EyeQ timestamp of a DASP payload (top level or one struct down), if it has one."""
     if "timestamp_ms" in fields:
         return int(fields["timestamp_ms"])
-    for v in fields.values():
-        if isinstance(v, dict) and "timestamp_ms" in v:
-            return int(v["timestamp_ms"])
+    for value in fields.values():
+        if isinstance(value, dict) and "timestamp_ms" in value:
+            return int(value["timestamp_ms"])
     return None
 
 
@@ -91,8 +91,8 @@ def run_reset(seed: int, config: ResetConfig | None = None) -> ResetOutcome:
                             f"no Running Vision before the reset: {host.problem}")
     delivered: list[tuple[float, int | None, HostState]] = []
 
-    def on_message(m: DecodedMessage) -> None:
-        delivered.append((emu.runner.now, _timestamp_ms(m.fields), host.state))
+    def on_message(msg: DecodedMessage) -> None:
+        delivered.append((emu.runner.now, _timestamp_ms(msg.fields), host.state))
 
     host.subscribe(on_message)
     emu.run_for(offset)
@@ -105,11 +105,11 @@ def run_reset(seed: int, config: ResetConfig | None = None) -> ResetOutcome:
                      if t.event is HostEvent.EYEQ_RESET), None)
 
     def back() -> float | None:
-        n = noticed()
-        if n is None:
+        noticed_at = noticed()
+        if noticed_at is None:
             return None
         return next((t.time for t in host.transitions[seen:]
-                     if t.dst is HostState.RUNNING_VISION and t.time >= n), None)
+                     if t.dst is HostState.RUNNING_VISION and t.time >= noticed_at), None)
 
     emu.run_for(cfg.recovery_limit, stop=lambda: back() is not None)
     back_at = back()

@@ -113,9 +113,9 @@ class SoakReport:
         return out
 
 
-def _counts(c: SpiDiagnosticInfo) -> dict[str, int]:
-    out = {n: int(getattr(c, n)) for n in COUNTERS if n != "formatNaks"}
-    out["formatNaks"] = int(c.naksSent.get(FORMAT_ERROR, 0))
+def _counts(counters: SpiDiagnosticInfo) -> dict[str, int]:
+    out = {n: int(getattr(counters, n)) for n in COUNTERS if n != "formatNaks"}
+    out["formatNaks"] = int(counters.naksSent.get(FORMAT_ERROR, 0))
     return out
 
 
@@ -126,7 +126,7 @@ def account(into: FaultyChannel, out_of: FaultyChannel, before: dict[str, int],
     ch = into
     observed = {n: after[n] - before[n] for n in COUNTERS}
     observed["skippedMinusLate"] = observed["skippedFrames"] - observed["lateFrames"]
-    f = observed["formatNaks"]
+    format_naks = observed["formatNaks"]
     late = ch.count("reorder", "DATA", after="DATA")
     lost = ch.count("drop", "DATA") + ch.count("truncate", "DATA") + ch.count("flip", "DATA")
     control_dups = ch.count("duplicate", "ACK") + ch.count("duplicate", "NAK")
@@ -138,11 +138,11 @@ def account(into: FaultyChannel, out_of: FaultyChannel, before: dict[str, int],
         "dataCRCErrorCounter": ch.count("flip", crc_covered=True),
         "duplicateFrames": ch.count("duplicate", "DATA"),
         "resynchronisations": 0,
-        "skippedMinusLate": lost + f,
+        "skippedMinusLate": lost + format_naks,
         "lateFrames": late,
         "unexpectedAckCounter": control_dups,
     }
-    bounds = {"lateFrames": (max(0, late - f), late),
+    bounds = {"lateFrames": (max(0, late - format_naks), late),
               "unexpectedAckCounter": (control_dups, control_dups + control_late)}
     return Accounting(dict(ch.stats.injected), expected, observed, bounds)
 
@@ -197,10 +197,11 @@ def _ledger_figures(book: MessageLedger) -> dict[str, int]:
 
 
 def _host_figures(emu: Emulation) -> dict[str, Any]:
-    h = emu.host
-    return {"eyeq_resets": h.counters.eyeq_resets, "boot_failures": h.counters.boot_failures,
-            "mesp_retries": h.mesp.counters.retries, "mesp_failures": h.mesp.counters.failures,
-            "e2e_errors": h.counters.e2e_errors, "dasp_counter_gaps": h.counters.dasp_counter_gaps,
-            "stale_events": sum(h.counters.stale_events.values()),
-            "transport_aborts": sum(h.conn.counters.transferAborts.values()),
-            "problem": h.problem, "transitions": [t.dst.value for t in h.transitions]}
+    host = emu.host
+    counters, mesp = host.counters, host.mesp.counters
+    return {"eyeq_resets": counters.eyeq_resets, "boot_failures": counters.boot_failures,
+            "mesp_retries": mesp.retries, "mesp_failures": mesp.failures,
+            "e2e_errors": counters.e2e_errors, "dasp_counter_gaps": counters.dasp_counter_gaps,
+            "stale_events": sum(host.counters.stale_events.values()),
+            "transport_aborts": sum(host.conn.counters.transferAborts.values()),
+            "problem": host.problem, "transitions": [t.dst.value for t in host.transitions]}

@@ -15,19 +15,19 @@ from eyeq_spi.errors import SpecError
 
 
 def enum_value(cat: Catalog, enum: str, name: str) -> int:
-    for v in cat.enums[enum].values.values():
-        if v.name == name:
-            return v.value
+    for entry in cat.enums[enum].values.values():
+        if entry.name == name:
+            return entry.value
     raise SpecError(f"enum {enum} has no value {name}")
 
 
 def member_value(cat: Catalog, sw: SwKey, struct: str, member: str, name: str) -> int:
     """The value of enum value ``name`` of ``struct.member`` in release ``sw``."""
     var = cat.structs[struct].variant_for(sw)
-    m = next((m for m in var.members if m.name == member), None) if var else None
-    if m is None or m.enum is None:
+    member_def = next((m for m in var.members if m.name == member), None) if var else None
+    if member_def is None or member_def.enum is None:
         raise SpecError(f"{struct}.{member} is not an enum in SW {sw}")
-    return enum_value(cat, m.enum, name)
+    return enum_value(cat, member_def.enum, name)
 
 
 def outcome(cat: Catalog, sw: SwKey, mode: str, cal: Mapping[str, Any]) -> bool | None:

@@ -18,7 +18,6 @@ from eyeq_spi.catalog.bringup import (
 from eyeq_spi.host.machine import HostEvent, HostState
 from eyeq_spi.link.connection import LinkConfig
 
-S, E = HostState, HostEvent
 APP_IDS = {"VISION": APP_VISION, "TAC": APP_TAC, "SPC": APP_SPC, "DV": APP_DV}
 PENDING_OF = {"TAC": PENDING_TAC, "SPC": PENDING_SPC, "VISION": PENDING_VISION}
 STAGE_OF = {"TAC": 0x85, "SPC": 0x82}

@@ -17,34 +17,37 @@ from eyeq_spi.catalog.bringup import (
     RUNNING_TAC,
     RUNNING_VISION,
 )
-from eyeq_spi.host.config import PENDING_OF, E, S
+from eyeq_spi.host.config import PENDING_OF
 from eyeq_spi.host.machine import HostEvent, HostState
 
-POLLING = frozenset({S.WAIT_PENDING, S.WAIT_RUNNING, S.WAIT_MODE_PENDING, S.WAIT_MODE_RUNNING})
+POLLING = frozenset({HostState.WAIT_PENDING, HostState.WAIT_RUNNING,
+                     HostState.WAIT_MODE_PENDING, HostState.WAIT_MODE_RUNNING})
 """The states that poll Get Extended State until the EyeQ reaches the mode they wait for."""
 
 VERSION_FIELDS = ("apiVersionMajor", "apiVersionMinor", "eyeqSwVersionMajor",
                   "eyeqSwVersionMinor")
 """What the host keeps of a Get EyeQ Versions reply (``HostEmulator.versions``, the NVM)."""
 
-_MODE_RUNNING = {RUNNING_TAC: E.RUNNING_TAC, RUNNING_SPC: E.RUNNING_SPC}
+_MODE_RUNNING = {RUNNING_TAC: HostEvent.RUNNING_TAC, RUNNING_SPC: HostEvent.RUNNING_SPC}
 
 
 def state_reply_event(state: HostState, target_mode: str, main: int,
                       sub: int) -> HostEvent | None:
     """The event a Get Extended State reply (``mainState``, ``subState``) starts in ``state``
     while the host heads for ``target_mode``, or None (it polls on)."""
-    if state is S.WAIT_PENDING:
-        return E.PENDING_VISION if (main, sub) == (PENDING, PENDING_VISION) else None
-    if state is S.WAIT_RUNNING:
-        return E.RUNNING_VISION if main == RUNNING_VISION else None
-    if state is S.WAIT_MODE_PENDING:
+    if state is HostState.WAIT_PENDING:
+        return HostEvent.PENDING_VISION if (main, sub) == (PENDING, PENDING_VISION) else None
+    if state is HostState.WAIT_RUNNING:
+        return HostEvent.RUNNING_VISION if main == RUNNING_VISION else None
+    if state is HostState.WAIT_MODE_PENDING:
         if target_mode == "DV" and main == RUNNING_DV:
-            return E.MODE_DV
+            return HostEvent.MODE_DV
         if main == PENDING and sub == PENDING_OF.get(target_mode):
-            return E.MODE_VISION_PENDING if target_mode == "VISION" else E.MODE_PENDING
+            if target_mode == "VISION":
+                return HostEvent.MODE_VISION_PENDING
+            return HostEvent.MODE_PENDING
         return None
-    if state is S.WAIT_MODE_RUNNING:
+    if state is HostState.WAIT_MODE_RUNNING:
         return _MODE_RUNNING.get(main)
     return None
 
@@ -55,14 +58,16 @@ def diag_event(state: HostState, fields: Mapping[str, Any], reported_before: boo
     pending again: it reset), or None (it is only kept). ``reported_before``: an earlier 0x41
     reported a Main_State."""
     main, fatal = fields["Main_State"], fields["Fatal_Error"]
-    if fatal == FATAL_INTRINSIC and state in (S.WAIT_PENDING, S.INIT, S.WAIT_RUNNING):
+    if fatal == FATAL_INTRINSIC and state in (HostState.WAIT_PENDING, HostState.INIT,
+                                              HostState.WAIT_RUNNING):
         return "fatal_22"
-    if fatal and state not in (S.FATAL, S.READ_EEPROM, S.FAILED, S.POWER_UP):
+    if fatal and state not in (HostState.FATAL, HostState.READ_EEPROM, HostState.FAILED,
+                               HostState.POWER_UP):
         return "fatal"
     # A running EyeQ never reports boot or pending again without a reset. Compare with the
     # mode, not with the previous 0x41: the host can reach Running Vision by a Get State
     # reply before any 0x41 has reported it (found by the reset campaign, faults/resets.py).
-    if (state in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC)
+    if (state in (HostState.RUNNING_VISION, HostState.RUNNING_TAC, HostState.RUNNING_SPC)
             and main in (0, PENDING) and reported_before):
         return "went_back"
     return None

@@ -27,10 +27,8 @@ from eyeq_spi.host import calibration, init_seq
 from eyeq_spi.host.config import (
     APP_IDS,
     STAGE_OF,
-    E,
     HostConfig,
     HostCounters,
-    S,
     Transition,
     link_config,
 )
@@ -92,7 +90,7 @@ class HostEmulator:
         self.reset_line = reset_line
         self.counters = HostCounters()
         self.keep_rx_times = keep_rx_times
-        self.state = S.POWER_UP
+        self.state = HostState.POWER_UP
         self.transitions: list[Transition] = []
         self.problem: str | None = self.nvm.load_problem
         self.versions: dict[str, int] | None = None
@@ -124,7 +122,7 @@ class HostEmulator:
     def start(self, now: float) -> None:
         """Ignition on: count the cycle, wait for the EyeQ's boot status."""
         self.nvm.data.ignition_cycles += 1
-        self._enter(S.POWER_UP, now)
+        self._enter(HostState.POWER_UP, now)
 
     def subscribe(self, callback: Subscriber) -> None:
         self._subscribers.append(callback)
@@ -146,13 +144,14 @@ class HostEmulator:
         mode = mode.upper()
         if mode not in APP_IDS:
             raise LocalProtocolError(f"unknown mode {mode!r}: use VISION, TAC, SPC or DV")
-        if self.state not in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC, S.DV):
+        if self.state not in (HostState.RUNNING_VISION, HostState.RUNNING_TAC,
+                              HostState.RUNNING_SPC, HostState.DV):
             raise LocalProtocolError(f"cannot switch mode in state {self.state.value}")
         missing = init_seq.mode_unavailable(mode, self.sw, self.codec.cat)
         if missing is not None:
             raise LocalProtocolError(f"{mode} is not available for SW {self.sw}: {missing}")
         self._target_mode = mode
-        self._fire(E.SWITCH, now, mode)
+        self._fire(HostEvent.SWITCH, now, mode)
 
     def link_restarted(self, now: float) -> None:
         """The byte stream to the EyeQ was re-established (a new connection is a power-up):
@@ -161,10 +160,10 @@ class HostEmulator:
         cycle (:meth:`_next_ignition_cycle`)."""
         self._cancel_requests()
         self._restart_driver()
-        if self.state in (S.FAILED, S.BOOT_FAILED):
+        if self.state in (HostState.FAILED, HostState.BOOT_FAILED):
             self._next_ignition_cycle(now, "new connection after the host gave up")
         else:  # every other state takes an EyeQ reset (machine.py)
-            self._fire(E.EYEQ_RESET, now, "link re-established")
+            self._fire(HostEvent.EYEQ_RESET, now, "link re-established")
 
     def _next_ignition_cycle(self, now: float, why: str) -> None:
         """Ignition off and on after the host gave up (FAILED, BOOT_FAILED; §7.1.3 step 6: the
@@ -180,7 +179,7 @@ class HostEmulator:
         self.calibration_result = None
         self.veh_state.new_cycle()
         self.nvm.data.ignition_cycles += 1
-        self._fire(E.IGNITION, now, why)
+        self._fire(HostEvent.IGNITION, now, why)
 
     def warm_up(self) -> None:
         """Decode one message of each kind the EyeQ sends and encode HOST_VEH_STATE once, so
@@ -221,7 +220,7 @@ class HostEmulator:
         due = self.veh_state.next_due
         if due is not None and (best is None or due < best):
             best = due
-        if self.state is S.RUNNING_VISION and self.streams.last_rx:
+        if self.state is HostState.RUNNING_VISION and self.streams.last_rx:
             due = self.streams.next_check
             if best is None or due < best:
                 best = due
@@ -240,7 +239,7 @@ class HostEmulator:
         if self.veh_state.due(now):
             self._send_veh_state(now)
             self.veh_state.advance(now)  # unless it could not be encoded (a problem)
-        if self.state is S.RUNNING_VISION and now >= self.streams.next_check:
+        if self.state is HostState.RUNNING_VISION and now >= self.streams.next_check:
             self.streams.check(now, self.counters.stale_events)
         self._pump(now)
 
@@ -340,22 +339,22 @@ class HostEmulator:
 
     def _on_switch_reply(self, result: MespResult) -> None:
         if isinstance(result, MespReply):
-            self._fire(E.SWITCH_ACCEPTED, self.now)
+            self._fire(HostEvent.SWITCH_ACCEPTED, self.now)
         else:
             self.problem = str(result)
-            self._fire(E.SWITCH_REJECTED, self.now, str(result))
+            self._fire(HostEvent.SWITCH_REJECTED, self.now, str(result))
 
     def _on_eeprom(self, result: MespResult, now: float) -> None:
-        if self.state is not S.READ_EEPROM:
+        if self.state is not HostState.READ_EEPROM:
             return
         params = init_seq.eeprom_verdict(result, self.sw, self._bringups, self.config.max_resets)
         if isinstance(params, str):
             self.problem = params
-            self._fire(E.EEPROM_BAD, now, self.problem)
+            self._fire(HostEvent.EEPROM_BAD, now, self.problem)
             return
         self.nvm.data.intrinsic = params
         self.nvm.save()
-        self._fire(E.EEPROM_OK, now, "NVM updated from EEPROM; resetting the EyeQ")
+        self._fire(HostEvent.EEPROM_OK, now, "NVM updated from EEPROM; resetting the EyeQ")
         self._reset_eyeq(now)
 
     # -- init messages ----------------------------------------------------------------------
@@ -363,7 +362,7 @@ class HostEmulator:
         if self._init_busy:
             return
         if not self._init_queue:
-            self._fire(E.INIT_DONE, now)
+            self._fire(HostEvent.INIT_DONE, now)
             return
         self._send_init(self._init_queue.popleft(), now, mode_init=False)
 
@@ -373,7 +372,7 @@ class HostEmulator:
                                         self.config.ipb_params)
         except (LocalProtocolError, SpecError) as exc:
             self.problem = f"init message 0x{stage:02X} cannot be built: {exc}"
-            self._fire(E.INIT_REJECTED, now, self.problem)
+            self._fire(HostEvent.INIT_REJECTED, now, self.problem)
             return
         self._init_busy = True
 
@@ -382,10 +381,10 @@ class HostEmulator:
             if isinstance(result, MespFailure):
                 self.problem = with_link_cause(f"init message 0x{stage:02X} rejected: {result}",
                                                self.conn.link.counters)
-                self._fire(E.INIT_REJECTED, self.now, self.problem)
+                self._fire(HostEvent.INIT_REJECTED, self.now, self.problem)
             elif mode_init:
-                self._fire(E.MODE_PARAMS_ACCEPTED, self.now)
-            elif self.state is S.INIT:
+                self._fire(HostEvent.MODE_PARAMS_ACCEPTED, self.now)
+            elif self.state is HostState.INIT:
                 self._send_next_init(self.now)
 
         self.mesp.request("EventCalibrationTool", req, now=now, callback=done)
@@ -413,7 +412,7 @@ class HostEmulator:
         self.counters.eyeq_resets_asked += 1
         if bringup:
             self._bringups += 1
-        self._enter(S.POWER_UP, now)
+        self._enter(HostState.POWER_UP, now)
         if self.reset_line is not None:
             # Both SPI drivers start over together: NUM 0, E 0 on each side (L4). Without this
             # the reset EyeQ's first frames (its boot status) fall outside our receive window.
@@ -424,7 +423,7 @@ class HostEmulator:
             self.mesp.request("SwitchEyeQApplication", {"applicationId": APP_IDS["VISION"]},
                               now=now)
             self._boot_deadline = None
-            self._fire(E.BOOT_OK, now, "soft reset (no reset line)")
+            self._fire(HostEvent.BOOT_OK, now, "soft reset (no reset line)")
 
     # -- receive ----------------------------------------------------------------------------
     def _pump(self, now: float) -> None:
@@ -447,7 +446,7 @@ class HostEmulator:
         # field values only when someone reads them: subscribers (async iterators too), a
         # TAC/SPC result; E2E, counters and lengths are checked either way
         fields = not dasp or bool(self._subscribers) \
-            or self.state in (S.RUNNING_TAC, S.RUNNING_SPC)
+            or self.state in (HostState.RUNNING_TAC, HostState.RUNNING_SPC)
         out = self.codec.decode(data, self._e2e if dasp else None, fields=fields)
         name = out.name or out.protocol
         self.counters.received[name] += 1
@@ -470,20 +469,20 @@ class HostEmulator:
             return
         fields = out.fields
         self.boot_info = init_seq.boot_info(fields)
-        if self.state is not S.POWER_UP:
+        if self.state is not HostState.POWER_UP:
             # a boot status we did not ask for: the EyeQ reset (by itself, or on our soft
             # reset); our link to it starts over in both directions (L10), and no request
             # from before the reset will be answered
             self.conn.restart()
             self._cancel_requests()
             self.counters.eyeq_resets += 1
-            self._fire(E.EYEQ_RESET, now, "unexpected boot status")
+            self._fire(HostEvent.EYEQ_RESET, now, "unexpected boot status")
         self._boot_deadline = None
         if fields["TestResults"]:
             self._boot_failed(now, f"boot test bits 0x{fields['TestResults']:04X}")
         else:
             self._strikes = 0
-            self._fire(E.BOOT_OK, now)
+            self._fire(HostEvent.BOOT_OK, now)
 
     def _boot_failed(self, now: float, why: str) -> None:
         self._strikes += 1
@@ -491,9 +490,9 @@ class HostEmulator:
         if self._strikes >= self.config.boot_strikes:
             self.problem = with_link_cause(
                 f"EyeQ boot failed {self._strikes} times in a row ({why})", self.conn.link.counters)
-            self._fire(E.BOOT_STRIKE_OUT, now, self.problem)
+            self._fire(HostEvent.BOOT_STRIKE_OUT, now, self.problem)
             return
-        self._fire(E.BOOT_BAD, now, why)
+        self._fire(HostEvent.BOOT_BAD, now, why)
         self._reset_eyeq(now)
 
     def _on_diag(self, out: DecodedMessage, now: float) -> None:
@@ -503,13 +502,13 @@ class HostEmulator:
         event = diag_event(self.state, out.fields, self.last_diag.get("Main_State") is not None)
         self.last_diag = out.fields
         if event == "fatal_22":
-            self._fire(E.FATAL_22, now, "0x41 Fatal_Error 22")
+            self._fire(HostEvent.FATAL_22, now, "0x41 Fatal_Error 22")
         elif event == "fatal":
             self.problem = f"EyeQ fatal error {out.fields['Fatal_Error']}"
-            self._fire(E.FATAL, now, self.problem)
+            self._fire(HostEvent.FATAL, now, self.problem)
         elif event == "went_back":
             self.counters.eyeq_resets += 1
-            self._fire(E.EYEQ_RESET, now,
+            self._fire(HostEvent.EYEQ_RESET, now,
                        f"0x41 Main_State went back to {out.fields['Main_State']}")
             self._enter_after_app_restart(now)
 
@@ -523,12 +522,12 @@ class HostEmulator:
             self._switch_at = None
             self.counters.restarts_answered += 1
             return
-        if self.state in (S.POWER_UP, S.FAILED, S.BOOT_FAILED):
+        if self.state in (HostState.POWER_UP, HostState.FAILED, HostState.BOOT_FAILED):
             return  # a boot status is awaited anyway (with its timeout), or we gave up
         self.counters.eyeq_resets += 1
-        if next_state(self.state, E.EYEQ_RESET) is None:
+        if next_state(self.state, HostEvent.EYEQ_RESET) is None:
             return
-        self._fire(E.EYEQ_RESET, now, f"EyeQ link restarted at NUM {ev.num} ({ev.cause})")
+        self._fire(HostEvent.EYEQ_RESET, now, f"EyeQ link restarted at NUM {ev.num} ({ev.cause})")
         if self.reset_line is not None:
             # a clean power-up: both SPI drivers start over, the boot status arrives in window
             self._reset_eyeq(now, bringup=False)
@@ -539,9 +538,9 @@ class HostEmulator:
 
     def _enter_after_app_restart(self, now: float) -> None:
         # the application restarted without a boot status: skip the boot wait
-        if self.state is S.POWER_UP:
+        if self.state is HostState.POWER_UP:
             self._boot_deadline = None
-            self._fire(E.BOOT_OK, now, "application restarted")
+            self._fire(HostEvent.BOOT_OK, now, "application restarted")
 
     def _on_dasp(self, out: DecodedMessage, data: bytes, now: float) -> None:
         data_id = out.header.get("data_id")
@@ -557,11 +556,11 @@ class HostEmulator:
             return  # a rejected structure is never delivered (D5)
         if out.name is not None:
             self.streams.received(out.name, now)
-        if self.state is S.RUNNING_TAC and out.name == "EYEQ_TAC_CAL_MSG":
+        if self.state is HostState.RUNNING_TAC and out.name == "EYEQ_TAC_CAL_MSG":
             self._on_cal_result("TAC", out.fields["tacCalParams"], now)
-        elif self.state is S.RUNNING_SPC and out.name == "EYEQ_DYNAMIC_CAL_MSG":
+        elif self.state is HostState.RUNNING_SPC and out.name == "EYEQ_DYNAMIC_CAL_MSG":
             self._on_cal_result("SPC", out.fields["dynamicCalParams"], now)
-        if self.state in (S.RUNNING_VISION, S.RUNNING_TAC, S.RUNNING_SPC):
+        if self.state in (HostState.RUNNING_VISION, HostState.RUNNING_TAC, HostState.RUNNING_SPC):
             for callback in self._subscribers:
                 callback(out)
 

@@ -74,10 +74,10 @@ def init_request(stage: int, sw: str, cat: Catalog, nvm: NvmData, opaque: bytes
         params = opaque
     else:
         clamped = {}
-        for k, v in init_values(stage, nvm).items():
-            sig = msg.codec.signals.get(k)
-            if sig is not None and math.isfinite(v):
-                clamped[k] = min(max(v, sig.min), sig.max)
+        for key, value in init_values(stage, nvm).items():
+            sig = msg.codec.signals.get(key)
+            if sig is not None and math.isfinite(value):
+                clamped[key] = min(max(value, sig.min), sig.max)
         params = msg.codec.encode(clamped)
     return {"ct_type": msg.ct_type, "ct_stage": stage, "ct_version": msg.ct_version(params),
             "params": params}

@@ -18,22 +18,23 @@ CORRUPT_MIN = 5  # and at least this many: a stray error or two is no pattern
 LIKELY = "the SPI link is the likely cause, not the EyeQ"
 
 
-def link_suspect(c: SpiDiagnosticInfo) -> str | None:
+def link_suspect(counters: SpiDiagnosticInfo) -> str | None:
     """The words that name the link as the likely cause, with its figures; None when its
     counters do not explain a failure."""
-    corrupt = c.dataCRCErrorCounter + c.formatErrorCounter
-    received = c.framesReceived + corrupt
+    corrupt = counters.dataCRCErrorCounter + counters.formatErrorCounter
+    received = counters.framesReceived + corrupt
     if corrupt < CORRUPT_MIN or corrupt < CORRUPT_SHARE * received:
         return None
-    naks = sum(c.naksReceived.values())
+    naks = sum(counters.naksReceived.values())
     return (f"{LIKELY}: {corrupt} of {received} frames "
-            f"received corrupt ({100 * corrupt / received:.0f} %; CRC {c.dataCRCErrorCounter}, "
-            f"format {c.formatErrorCounter}), {naks} of our frames NAKed, "
-            f"{c.sendFailedErrorCounter} messages not ACKed in time (a clean link has none)")
+            f"received corrupt ({100 * corrupt / received:.0f} %; "
+            f"CRC {counters.dataCRCErrorCounter}, "
+            f"format {counters.formatErrorCounter}), {naks} of our frames NAKed, "
+            f"{counters.sendFailedErrorCounter} messages not ACKed in time (a clean link has none)")
 
 
-def with_link_cause(problem: str, c: SpiDiagnosticInfo) -> str:
+def with_link_cause(problem: str, counters: SpiDiagnosticInfo) -> str:
     """``problem``, followed by the link's figures when they explain it (once: a problem that
     already names the link keeps the figures of the moment it was found)."""
-    suspect = link_suspect(c)
+    suspect = link_suspect(counters)
     return problem if suspect is None or LIKELY in problem else f"{problem}; {suspect}"

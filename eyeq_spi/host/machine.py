@@ -71,65 +71,65 @@ class HostEvent(enum.Enum):
     IGNITION = "IGNITION"
 
 
-S, E = HostState, HostEvent
-
 TRANSITIONS: dict[tuple[HostState, HostEvent], HostState] = {
-    (S.POWER_UP, E.BOOT_OK): S.WAIT_PENDING,
-    (S.POWER_UP, E.BOOT_BAD): S.POWER_UP,
-    (S.POWER_UP, E.BOOT_STRIKE_OUT): S.BOOT_FAILED,
-    (S.WAIT_PENDING, E.PENDING_VISION): S.INIT,
-    (S.INIT, E.INIT_DONE): S.WAIT_RUNNING,
-    (S.INIT, E.INIT_REJECTED): S.FAILED,
-    (S.INIT, E.FATAL_22): S.READ_EEPROM,
-    (S.WAIT_RUNNING, E.FATAL_22): S.READ_EEPROM,
-    (S.WAIT_PENDING, E.FATAL_22): S.READ_EEPROM,
-    (S.READ_EEPROM, E.EEPROM_OK): S.POWER_UP,
-    (S.READ_EEPROM, E.EEPROM_BAD): S.FAILED,
-    (S.WAIT_RUNNING, E.RUNNING_VISION): S.RUNNING_VISION,
-    (S.WAIT_RUNNING, E.FATAL): S.FATAL,
-    (S.RUNNING_VISION, E.FATAL): S.FATAL,
-    (S.RUNNING_VISION, E.SWITCH): S.SWITCHING,
-    (S.RUNNING_TAC, E.SWITCH): S.SWITCHING,
-    (S.RUNNING_SPC, E.SWITCH): S.SWITCHING,
-    (S.DV, E.SWITCH): S.SWITCHING,
-    (S.SWITCHING, E.SWITCH_ACCEPTED): S.WAIT_MODE_PENDING,
-    (S.SWITCHING, E.SWITCH_REJECTED): S.FAILED,
-    (S.WAIT_MODE_PENDING, E.MODE_PENDING): S.MODE_INIT,
-    (S.WAIT_MODE_PENDING, E.MODE_VISION_PENDING): S.INIT,
-    (S.WAIT_MODE_PENDING, E.MODE_DV): S.DV,
-    (S.MODE_INIT, E.MODE_PARAMS_ACCEPTED): S.WAIT_MODE_RUNNING,
-    (S.MODE_INIT, E.INIT_REJECTED): S.FAILED,
-    (S.WAIT_MODE_RUNNING, E.RUNNING_TAC): S.RUNNING_TAC,
-    (S.WAIT_MODE_RUNNING, E.RUNNING_SPC): S.RUNNING_SPC,
+    (HostState.POWER_UP, HostEvent.BOOT_OK): HostState.WAIT_PENDING,
+    (HostState.POWER_UP, HostEvent.BOOT_BAD): HostState.POWER_UP,
+    (HostState.POWER_UP, HostEvent.BOOT_STRIKE_OUT): HostState.BOOT_FAILED,
+    (HostState.WAIT_PENDING, HostEvent.PENDING_VISION): HostState.INIT,
+    (HostState.INIT, HostEvent.INIT_DONE): HostState.WAIT_RUNNING,
+    (HostState.INIT, HostEvent.INIT_REJECTED): HostState.FAILED,
+    (HostState.INIT, HostEvent.FATAL_22): HostState.READ_EEPROM,
+    (HostState.WAIT_RUNNING, HostEvent.FATAL_22): HostState.READ_EEPROM,
+    (HostState.WAIT_PENDING, HostEvent.FATAL_22): HostState.READ_EEPROM,
+    (HostState.READ_EEPROM, HostEvent.EEPROM_OK): HostState.POWER_UP,
+    (HostState.READ_EEPROM, HostEvent.EEPROM_BAD): HostState.FAILED,
+    (HostState.WAIT_RUNNING, HostEvent.RUNNING_VISION): HostState.RUNNING_VISION,
+    (HostState.WAIT_RUNNING, HostEvent.FATAL): HostState.FATAL,
+    (HostState.RUNNING_VISION, HostEvent.FATAL): HostState.FATAL,
+    (HostState.RUNNING_VISION, HostEvent.SWITCH): HostState.SWITCHING,
+    (HostState.RUNNING_TAC, HostEvent.SWITCH): HostState.SWITCHING,
+    (HostState.RUNNING_SPC, HostEvent.SWITCH): HostState.SWITCHING,
+    (HostState.DV, HostEvent.SWITCH): HostState.SWITCHING,
+    (HostState.SWITCHING, HostEvent.SWITCH_ACCEPTED): HostState.WAIT_MODE_PENDING,
+    (HostState.SWITCHING, HostEvent.SWITCH_REJECTED): HostState.FAILED,
+    (HostState.WAIT_MODE_PENDING, HostEvent.MODE_PENDING): HostState.MODE_INIT,
+    (HostState.WAIT_MODE_PENDING, HostEvent.MODE_VISION_PENDING): HostState.INIT,
+    (HostState.WAIT_MODE_PENDING, HostEvent.MODE_DV): HostState.DV,
+    (HostState.MODE_INIT, HostEvent.MODE_PARAMS_ACCEPTED): HostState.WAIT_MODE_RUNNING,
+    (HostState.MODE_INIT, HostEvent.INIT_REJECTED): HostState.FAILED,
+    (HostState.WAIT_MODE_RUNNING, HostEvent.RUNNING_TAC): HostState.RUNNING_TAC,
+    (HostState.WAIT_MODE_RUNNING, HostEvent.RUNNING_SPC): HostState.RUNNING_SPC,
 }
 # An EyeQ reset re-runs the bring-up from every state except the terminal ones: a host that
 # gave up (§7.1.3 step 6: "the unit is failed") stays quiet until the next ignition cycle.
-TERMINAL = frozenset({S.BOOT_FAILED, S.FAILED})
+TERMINAL = frozenset({HostState.BOOT_FAILED, HostState.FAILED})
 for _state in HostState:
     if _state not in TERMINAL:
-        TRANSITIONS[(_state, E.EYEQ_RESET)] = S.POWER_UP
+        TRANSITIONS[(_state, HostEvent.EYEQ_RESET)] = HostState.POWER_UP
     else:
-        TRANSITIONS[(_state, E.IGNITION)] = S.POWER_UP
-    if _state not in TERMINAL and _state is not S.READ_EEPROM:
-        TRANSITIONS.setdefault((_state, E.FATAL), S.FATAL)
+        TRANSITIONS[(_state, HostEvent.IGNITION)] = HostState.POWER_UP
+    if _state not in TERMINAL and _state is not HostState.READ_EEPROM:
+        TRANSITIONS.setdefault((_state, HostEvent.FATAL), HostState.FATAL)
 
 
 # The host method run on entering each state (host/host.py). States that share a name share
 # the action: the three waits poll Get Extended State.
 ENTRY_ACTIONS: dict[HostState, str] = {
-    S.POWER_UP: "entry_await_boot",  # §7.1.1.1.4: wait for EYEQ_BOOT_STATUS_MSG, fresh counters
-    S.WAIT_PENDING: "entry_poll_state",
-    S.INIT: "entry_send_init",  # 0x84, 0x78/0x79 (camera-only AEB), 0x92
-    S.READ_EEPROM: "entry_read_eeprom",  # §7.1.3
-    S.WAIT_RUNNING: "entry_start_vehicle_state",  # HOST_VEH_STATE_MSG, Get Versions, poll
-    S.RUNNING_VISION: "entry_watch_streams",  # stale detection of the DASP streams
-    S.FATAL: "entry_stop_watching",
-    S.SWITCHING: "entry_request_switch",  # §6 flow step 16
-    S.WAIT_MODE_PENDING: "entry_poll_state",
-    S.MODE_INIT: "entry_send_mode_init",
-    S.WAIT_MODE_RUNNING: "entry_poll_state",
+    # §7.1.1.1.4: wait for EYEQ_BOOT_STATUS_MSG, fresh counters
+    HostState.POWER_UP: "entry_await_boot",
+    HostState.WAIT_PENDING: "entry_poll_state",
+    HostState.INIT: "entry_send_init",  # 0x84, 0x78/0x79 (camera-only AEB), 0x92
+    HostState.READ_EEPROM: "entry_read_eeprom",  # §7.1.3
+    HostState.WAIT_RUNNING: "entry_start_vehicle_state",  # HOST_VEH_STATE_MSG, Get Versions, poll
+    HostState.RUNNING_VISION: "entry_watch_streams",  # stale detection of the DASP streams
+    HostState.FATAL: "entry_stop_watching",
+    HostState.SWITCHING: "entry_request_switch",  # §6 flow step 16
+    HostState.WAIT_MODE_PENDING: "entry_poll_state",
+    HostState.MODE_INIT: "entry_send_mode_init",
+    HostState.WAIT_MODE_RUNNING: "entry_poll_state",
 }
-NO_ENTRY_ACTION = frozenset({S.BOOT_FAILED, S.FAILED, S.RUNNING_TAC, S.RUNNING_SPC, S.DV})
+NO_ENTRY_ACTION = frozenset({HostState.BOOT_FAILED, HostState.FAILED, HostState.RUNNING_TAC,
+                             HostState.RUNNING_SPC, HostState.DV})
 
 
 def _check_entry_actions() -> None:
@@ -174,7 +174,8 @@ def diagram() -> str:
     """The transition table as a Mermaid state diagram (README, docs)."""
     lines = ["stateDiagram-v2", "    [*] --> POWER_UP"]
     for (src, ev), dst in TRANSITIONS.items():
-        if ev in (E.EYEQ_RESET, E.FATAL) and src not in (S.RUNNING_VISION, S.WAIT_RUNNING):
+        if ev in (HostEvent.EYEQ_RESET, HostEvent.FATAL) and src not in (
+                HostState.RUNNING_VISION, HostState.WAIT_RUNNING):
             continue  # drawn once below
         lines.append(f"    {src.value} --> {dst.value}: {ev.value}")
     lines.append("    note right of POWER_UP: EYEQ_RESET from any non-terminal state")

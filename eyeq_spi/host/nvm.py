@@ -78,8 +78,8 @@ def remove_stale_temp_files(path: Path) -> int:
         candidates = list(path.parent.glob(f"{glob.escape(prefix)}*"))
     except OSError:
         return 0
-    for f in candidates:
-        rest = f.name[len(prefix):]
+    for candidate in candidates:
+        rest = candidate.name[len(prefix):]
         if rest.endswith(TEMP_SUFFIX):
             pid_text = rest.split(".", 1)[0]
             if pid_text.isdigit() and _alive(int(pid_text)):
@@ -87,7 +87,7 @@ def remove_stale_temp_files(path: Path) -> int:
         elif not _OLD_TEMP.fullmatch(rest):
             continue
         with contextlib.suppress(OSError):
-            f.unlink()
+            candidate.unlink()
             removed += 1
     return removed
 

@@ -19,7 +19,7 @@ from eyeq_spi.host.config import VALID
 
 
 class Scenario(Protocol):
-    def signals(self, t: float) -> dict[str, float]: ...
+    def signals(self, time_s: float) -> dict[str, float]: ...
 
 
 class ConstantDrive:
@@ -29,7 +29,7 @@ class ConstantDrive:
         self.speed = speed
         self.yaw_rate = yaw_rate
 
-    def signals(self, t: float) -> dict[str, float]:
+    def signals(self, time_s: float) -> dict[str, float]:
         return {"vehicleVelocity": self.speed, "vehicleYawRate": self.yaw_rate}
 
 
@@ -61,17 +61,17 @@ class CsvScenario:
                 raise InputError(f"{self.path}:{lineno}: {exc}") from None
             if not all(math.isfinite(v) for v in values.values()):
                 raise InputError(f"{self.path}:{lineno}: values must be finite")
-            t = values.pop("time")
-            if self.times and t < self.times[-1]:
+            time_s = values.pop("time")
+            if self.times and time_s < self.times[-1]:
                 raise InputError(f"{self.path}:{lineno}: time goes backwards")
-            self.times.append(t)
+            self.times.append(time_s)
             self.rows.append(values)
         if not self.rows:
             raise InputError(f"{self.path}: no data rows")
 
-    def signals(self, t: float) -> dict[str, float]:
-        i = bisect.bisect_right(self.times, t) - 1
-        return dict(self.rows[max(i, 0)])
+    def signals(self, time_s: float) -> dict[str, float]:
+        row = bisect.bisect_right(self.times, time_s) - 1
+        return dict(self.rows[max(row, 0)])
 
 
 def veh_state_values(values: dict[str, Any], signals: Mapping[str, float], now: float,
@@ -80,12 +80,12 @@ def veh_state_values(values: dict[str, Any], signals: Mapping[str, float], now: 
     signals, every validity flag but the OBS ones set, the time stamps, our API version and
     ``SPI_Rolling_Count`` (echoed by the EyeQ in 0xA0)."""
     vs = values["vehStateInfo"]
-    for k, v in signals.items():
-        if k in vs:
-            vs[k] = v
-    for k in list(vs):
-        if k.endswith("Validity") and not k.startswith("OBS"):
-            vs[k] = 1
+    for key, value in signals.items():
+        if key in vs:
+            vs[key] = value
+    for key in list(vs):
+        if key.endswith("Validity") and not key.startswith("OBS"):
+            vs[key] = 1
     if "timestamp_us" in vs:
         vs["timestamp_us"] = int(now * 1e6)
     if "apiVersionMajor" in vs:

@@ -52,8 +52,8 @@ class StreamWatch:
         """The streams silent for longer than their limit become stale (counted once each in
         ``events``); the next check is ``STALE_CHECK`` later."""
         self.next_check = now + STALE_CHECK
-        for name, t in self.last_rx.items():
+        for name, last in self.last_rx.items():
             limit = self.limits.get(name)
-            if limit is not None and name not in self.stale and now - t > limit:
+            if limit is not None and name not in self.stale and now - last > limit:
                 self.stale.add(name)
                 events[name] += 1

@@ -165,9 +165,9 @@ def formats(kind: Kind) -> tuple[Format, ...]:
 
 def get(name: str, kind: Kind = CAPTURE_READER) -> Format:
     """The format ``name`` of ``kind``; an unknown name lists the known ones."""
-    for f in REGISTRY:
-        if f.kind == kind and f.name == name:
-            return f
+    for entry in REGISTRY:
+        if entry.kind == kind and entry.name == name:
+            return entry
     raise UnknownFormatError(f"unknown {kind} format {name!r} (one of "
                              f"{', '.join(names(kind))})")
 
@@ -176,9 +176,9 @@ def by_suffix(path: str | PurePath, kind: Kind) -> Format:
     """The first format of ``kind`` whose suffixes hold ``path``'s (case-insensitive); an
     unknown suffix lists the known names and suffixes."""
     suffix = PurePath(path).suffix.lower()
-    for f in REGISTRY:
-        if f.kind == kind and suffix in f.suffixes:
-            return f
+    for entry in REGISTRY:
+        if entry.kind == kind and suffix in entry.suffixes:
+            return entry
     known = ", ".join(f"{f.name} ({' '.join(f.suffixes)})" for f in formats(kind) if f.suffixes)
     raise UnknownFormatError(f"{path}: unknown {kind} suffix {suffix or '(none)'!r}; known: "
                              f"{known}")
@@ -219,15 +219,15 @@ def load(fmt: Format | str, kind: Kind = CAPTURE_READER, *,
          what: str | None = None) -> Callable[..., Any]:
     """``fmt``'s callable, imported now (:class:`MissingExtra` when its extra is not
     installed; ``what``: how the user asked for it, for the message)."""
-    f = get(fmt, kind) if isinstance(fmt, str) else fmt
-    require(f, what)
+    entry = get(fmt, kind) if isinstance(fmt, str) else fmt
+    require(entry, what)
     try:
-        module = importlib.import_module(f.module)
+        module = importlib.import_module(entry.module)
     except ImportError as exc:
-        if f.extra is not None and (exc.name or "").split(".")[0] in f.needs:
-            raise MissingExtra(f.extra, f"{what or f.name} needs {exc.name}") from None
+        if entry.extra is not None and (exc.name or "").split(".")[0] in entry.needs:
+            raise MissingExtra(entry.extra, f"{what or entry.name} needs {exc.name}") from None
         raise
-    obj: Callable[..., Any] = getattr(module, f.callable_name)
+    obj: Callable[..., Any] = getattr(module, entry.callable_name)
     return obj
 
 
@@ -236,12 +236,12 @@ def sniffers(text: bool) -> Iterator[tuple[str, Callable[[bytes], str | None]]]:
     the caller gets that far (a pcapng file, sniffed first, imports no logic-analyzer reader);
     ``text=False`` leaves out the text formats'."""
     seen: set[str] = set()
-    for f in formats(CAPTURE_READER):
-        if f.sniff is None or f.sniff in seen or (f.text and not text):
+    for entry in formats(CAPTURE_READER):
+        if entry.sniff is None or entry.sniff in seen or (entry.text and not text):
             continue
-        seen.add(f.sniff)
-        mod, _, fn = f.sniff.partition(":")
-        yield f.sniff, getattr(importlib.import_module(mod), fn)
+        seen.add(entry.sniff)
+        mod, _, fn = entry.sniff.partition(":")
+        yield entry.sniff, getattr(importlib.import_module(mod), fn)
 
 
 _CUT = {"error": "error", "drop": "cut transfer dropped", "short": "last transfer as cut"}
@@ -251,23 +251,23 @@ def markdown_table() -> str:
     """The table of formats in ``docs/captures.md``."""
     rows = ["| Format | Kind | Suffixes | Needs | Channels | Times | A cut file | What |",
             "|---|---|---|---|---|---|---|---|"]
-    for f in REGISTRY:
-        extra = f"`eyeq-spi[{f.extra}]`" if f.extra else "-"
-        suffixes = " ".join(f"`{s}`" for s in f.suffixes) or "python-can's"
+    for entry in REGISTRY:
+        extra = f"`eyeq-spi[{entry.extra}]`" if entry.extra else "-"
+        suffixes = " ".join(f"`{s}`" for s in entry.suffixes) or "python-can's"
         times = channels = cut = "-"
-        if f.kind == CAPTURE_READER:
-            channels = "both" if f.channels == 2 else "one"
-            cut = _CUT[f.truncation]
-            if f.resolution is None:
+        if entry.kind == CAPTURE_READER:
+            channels = "both" if entry.channels == 2 else "one"
+            cut = _CUT[entry.truncation]
+            if entry.resolution is None:
                 times = "none"
-            elif f.resolution == 0:
+            elif entry.resolution == 0:
                 times = "as written"
-            elif f.resolution >= 1e-6:
-                times = f"{f.resolution * 1e6:g} µs"
+            elif entry.resolution >= 1e-6:
+                times = f"{entry.resolution * 1e6:g} µs"
             else:
-                times = f"{f.resolution * 1e9:g} ns"
-        rows.append(f"| `{f.name}` | {f.kind} | {suffixes} | {extra} | {channels} | {times} | "
-                    f"{cut} | {f.summary} |")
+                times = f"{entry.resolution * 1e9:g} ns"
+        rows.append(f"| `{entry.name}` | {entry.kind} | {suffixes} | {extra} | {channels} | "
+                    f"{times} | {cut} | {entry.summary} |")
     return "\n".join(rows) + "\n"
 
 

@@ -86,9 +86,9 @@ def sniff_raw(head: bytes) -> str | None:
     if head[:4] in (b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4"):
         raise InputError("classic pcap is not supported: convert with editcap -F pcapng")
     codec = FrameCodec()
-    for i in range(min(len(head) // FRAME_SIZE, 8)):
-        t = head[i * FRAME_SIZE:(i + 1) * FRAME_SIZE]
-        if codec.crc_ok(t, codec.decode(t)):
+    for index in range(min(len(head) // FRAME_SIZE, 8)):
+        transfer = head[index * FRAME_SIZE:(index + 1) * FRAME_SIZE]
+        if codec.crc_ok(transfer, codec.decode(transfer)):
             return "raw"
     return None
 
@@ -132,11 +132,11 @@ def read_pcapng_input(peek: PeekStream, tail: Tail | None = None) -> Iterator[Re
 
 
 def _pcapng(peek: PeekStream, tail: Tail | None = None) -> Iterator[Record]:
-    n = 0
+    count = 0
     for rec in read_pcapng(peek, tail):  # type: ignore[arg-type]
-        n += 1
+        count += 1
         yield rec
-    if n == 0:
+    if count == 0:
         raise InputError("pcapng capture without any transfer (no Enhanced Packet Block)")
 
 
@@ -157,8 +157,8 @@ def _raw(peek: PeekStream, direction: str | None) -> Iterator[Record]:
         if not chunk:
             return
         full = len(chunk) - len(chunk) % FRAME_SIZE
-        for i in range(0, full, FRAME_SIZE):
-            yield Record(None, direction, chunk[i:i + FRAME_SIZE])
+        for start in range(0, full, FRAME_SIZE):
+            yield Record(None, direction, chunk[start:start + FRAME_SIZE])
         if full != len(chunk):
             rest = chunk[full:] + peek.read(FRAME_SIZE - (len(chunk) - full))
             if len(rest) == FRAME_SIZE:
@@ -211,11 +211,11 @@ def _hex_line(raw_line: bytes, lineno: int, direction: str | None) -> Record | N
     if not line:
         return None
     tokens = line.decode("ascii", "replace").split()
-    t: float | None = None
+    time_s: float | None = None
     dirn = direction
     if len(tokens) > 1 and re.fullmatch(r"[+-]?\d+(\.\d*)?([eE][+-]?\d+)?", tokens[0]) and \
             not re.fullmatch(r"[0-9A-Fa-f]{16,}", tokens[0]):
-        t = float(tokens.pop(0))
+        time_s = float(tokens.pop(0))
     if tokens and tokens[0] in ("h2e", "e2h"):
         dirn = tokens.pop(0)
     text = "".join(tokens).replace(":", "")
@@ -226,28 +226,28 @@ def _hex_line(raw_line: bytes, lineno: int, direction: str | None) -> Record | N
         raise InputError(f"line {lineno}: not hex bytes: {shown!r}") from None
     if not data:
         raise InputError(f"line {lineno}: no bytes")
-    return Record(t, dirn, data)
+    return Record(time_s, dirn, data)
 
 
 def write_raw(records: Iterable[Record], path: str | Path, *, direction: str = "e2h") -> int:
     """The transfers of ``direction`` (the raw format holds one channel and no times)."""
-    n = 0
+    count = 0
     with open(path, "wb") as fh:
         for rec in records:
             if rec.direction in (direction, None):
                 fh.write(rec.data)
-                n += 1
-    return n
+                count += 1
+    return count
 
 
 def write_hex(records: Iterable[Record], path: str | Path) -> int:
     """One line per transfer: its time (as Python prints the float: it reads back the same),
     direction and bytes in hex; a field the record lacks is left out."""
-    n = 0
+    count = 0
     with open(path, "w", encoding="ascii", newline="\n") as fh:
         for rec in records:
             head = ([] if rec.time is None else [repr(rec.time)]) + \
                 ([] if rec.direction is None else [rec.direction])
             fh.write(" ".join([*head, binascii.hexlify(rec.data).decode()]) + "\n")
-            n += 1
-    return n
+            count += 1
+    return count

@@ -15,14 +15,14 @@ def write_pcapng(records: Iterable[Record], path: str | Path, *, sw: str | None 
     """A pcapng capture (``specs/capture.yaml``); ``sw`` is recorded as the traffic's release.
     A transfer without a time gets the previous one's; one without a direction goes to
     ``default_direction``."""
-    n = 0
+    count = 0
     last = 0.0
-    with CaptureWriter(path, sw, idle_flush=False) as w:
+    with CaptureWriter(path, sw, idle_flush=False) as writer:
         for rec in records:
             last = rec.time if rec.time is not None else last
-            w.write(rec.direction or default_direction, last, rec.data)
-            n += 1
-    return n
+            writer.write(rec.direction or default_direction, last, rec.data)
+            count += 1
+    return count
 
 
 def write_vcd_file(records: Iterable[Record], path: str | Path, **options: Any) -> int:
@@ -31,5 +31,5 @@ def write_vcd_file(records: Iterable[Record], path: str | Path, **options: Any) 
     from eyeq_spi.logic.vcd_write import write_vcd
 
     with open(path, "w", encoding="utf-8", newline="\n") as fh:
-        w = write_vcd(records, fh, options.pop("opts", None), **options)
-    return int(w.count)
+        writer = write_vcd(records, fh, options.pop("opts", None), **options)
+    return int(writer.count)

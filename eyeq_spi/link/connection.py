@@ -244,13 +244,14 @@ class LinkConnection:
                     self._queue[0].waited = True
                     self.counters.fifoNonEmptyCounter += 1
                 break
-            q = self._queue.popleft()
+            queued = self._queue.popleft()
             num = self._tx_num
             self._tx_num = (num + 1) % SEQ_MODULO
-            if q.tag == self._restart_tag and not any(r.tag == q.tag for r in self._queue):
+            last_of_reset = not any(r.tag == queued.tag for r in self._queue)
+            if queued.tag == self._restart_tag and last_of_reset:
                 self._tx_num, self._restart_tag = 0, None  # L10: after the reset request
-            out.append(self.codec.data_frame(self._last_accepted, num, q.data))
-            self._inflight[num] = _InFlight(q.tag, now + cfg.ack_timeout, now)
+            out.append(self.codec.data_frame(self._last_accepted, num, queued.data))
+            self._inflight[num] = _InFlight(queued.tag, now + cfg.ack_timeout, now)
             self.counters.busyFrames = len(self._inflight)
             self._next_tx = now + gap
             if gap > 0:
@@ -263,52 +264,52 @@ class LinkConnection:
         best: float | None = self._next_ctl if self._control else None
         queue, inflight = self._queue, self._inflight
         if queue:
-            t = queue[0].deadline
-            if len(inflight) < self.config.window and self._next_tx < t:
-                t = self._next_tx
-            if best is None or t < best:
-                best = t
+            due = queue[0].deadline
+            if len(inflight) < self.config.window and self._next_tx < due:
+                due = self._next_tx
+            if best is None or due < best:
+                best = due
         if inflight:
             # frames enter in send order with deadline = sent + ack_timeout: the oldest is due
             # first
-            t = next(iter(inflight.values())).deadline
-            if best is None or t < best:
-                best = t
+            due = next(iter(inflight.values())).deadline
+            if best is None or due < best:
+                best = due
         return best
 
     def handle_timer(self, now: float) -> None:
         for num in [n for n, f in self._inflight.items() if f.deadline <= now]:
-            f = self._inflight.pop(num)
-            self._fail(f.tag, num, "ack_timeout")
-            self._settle(f.tag)
+            inflight = self._inflight.pop(num)
+            self._fail(inflight.tag, num, "ack_timeout")
+            self._settle(inflight.tag)
         self.counters.busyFrames = len(self._inflight)
         while self._queue and self._queue[0].deadline <= now:
-            q = self._queue.popleft()
-            self._fail(q.tag, None, "transmit_timeout")
-            self._settle(q.tag)
+            queued = self._queue.popleft()
+            self._fail(queued.tag, None, "transmit_timeout")
+            self._settle(queued.tag)
 
     # -- receive path -----------------------------------------------------------------------
     def receive_data(self, transfer: bytes, now: float) -> None:
-        c = self.counters
+        counters = self.counters
         try:
             # the header fields and the CRC verdict, without building a Frame (hot path; the
             # same reading as FrameCodec.decode + crc_ok, tests/test_link_frame.py holds them equal)
             d, r, rsp, num, crc_ok = self.codec.check(transfer)
         except RemoteProtocolError as exc:  # L8: the header cannot be trusted, so no NAK
-            c.formatErrorCounter += 1
-            c.badLengthTransfers += 1
+            counters.formatErrorCounter += 1
+            counters.badLengthTransfers += 1
             self._events.append(FrameRejected(None, None, str(exc)))
             return
         is_control = d in (_ACK, _NAK)
         if not crc_ok:
-            c.dataCRCErrorCounter += 1
+            counters.dataCRCErrorCounter += 1
             if is_control:
                 self._events.append(FrameRejected(None, rsp, "CRC mismatch in ACK/NAK"))
             else:
                 self._reject(num, NakReason.CRC_MISMATCH, "CRC mismatch")
             return
         if r != 0 or not (is_control or d == _DATA):
-            c.formatErrorCounter += 1
+            counters.formatErrorCounter += 1
             detail = f"invalid header D=0x{d:X} R=0x{r:X}"
             if is_control:
                 self._events.append(FrameRejected(None, rsp, detail))
@@ -331,15 +332,15 @@ class LinkConnection:
         """``restart_rsp``: the RSP of a NUM 0 frame that may be the peer's first after a reset
         (L10): taken as such if its RSP is 0 (L4), or whatever its RSP if it lies outside the
         window and is not a byte-identical copy of the NUM 0 accepted since the reset (L10a)."""
-        c, w, m = self.counters, self.config.window, SEQ_MODULO
+        counters, window, modulo = self.counters, self.config.window, SEQ_MODULO
         if not self._started:  # L9: the first DATA frame a passive receiver sees sets E
             self._started = True
             self._expected = num
-        ahead = (num - self._expected) % m
-        behind = (self._expected - num) % m
+        ahead = (num - self._expected) % modulo
+        behind = (self._expected - num) % modulo
         resync: str | None = None
         peer_restart = restart_rsp is not None and (
-            restart_rsp == 0 or (ahead >= w and self._accepted.get(num) != transfer))
+            restart_rsp == 0 or (ahead >= window and self._accepted.get(num) != transfer))
         if peer_restart:
             self._expect_restart_until = float("-inf")
             self._expect_restart_frames = 0
@@ -347,24 +348,24 @@ class LinkConnection:
                 resync = "peer_restart"  # L10: the peer's first frame after its reset
         elif self._naks_in_row >= self.config.resync_after_naks:
             resync = "nak_limit"  # L6: take this frame's NUM as the new E
-        elif ahead >= w:
-            if 1 <= behind <= w:
+        elif ahead >= window:
+            if 1 <= behind <= window:
                 seen = self._accepted.get(num)
                 if seen is None:  # L6a: a late frame, skipped over earlier
-                    c.sequenceErrorCounter += 1
-                    c.lateFrames += 1
+                    counters.sequenceErrorCounter += 1
+                    counters.lateFrames += 1
                     self._reject(num, NakReason.OUT_OF_WINDOW,
                                  f"late frame NUM {num}: skipped at E={self._expected}")
                     return
                 if seen == transfer:  # L6a: a true duplicate
-                    c.duplicateFrames += 1
+                    counters.duplicateFrames += 1
                     self._naks_in_row = 0
                     self._control.append(self.codec.ack(num))
                     self._events.append(DuplicateReceived(num))
                     return
                 resync = "peer_reset"  # L6a: same NUM, other bytes: the peer started over
             else:
-                c.sequenceErrorCounter += 1
+                counters.sequenceErrorCounter += 1
                 self._naks_in_row += 1
                 detail = f"NUM {num} outside window at E={self._expected}"
                 self._reject(num, NakReason.OUT_OF_WINDOW, detail)
@@ -372,7 +373,7 @@ class LinkConnection:
         if resync is not None:
             # Nothing received before this frame may be joined with it (L6a): the transport
             # aborts its open transfer on this event before it sees the frame.
-            c.resynchronisations += 1
+            counters.resynchronisations += 1
             self._accepted.clear()
             self._expected = num
             ahead = 0
@@ -381,27 +382,27 @@ class LinkConnection:
             reason = self.payload_check(num, data)
             if reason is not None:
                 if reason is NakReason.FORMAT_ERROR:
-                    c.formatErrorCounter += 1
+                    counters.formatErrorCounter += 1
                 self._reject(num, reason, "payload header rejected by the transport")
                 return
         if ahead:
-            c.skippedFrames += ahead
+            counters.skippedFrames += ahead
             self._events.append(FramesSkipped(self._expected, num, ahead))
         self._accepted_frame(num, transfer)
         self._control.append(self.codec.ack(num))
         self._events.append(DataReceived(num, data))
 
     def _on_ack(self, rsp: int, now: float) -> None:
-        f = self._inflight.pop(rsp, None)
-        if f is None:
+        inflight = self._inflight.pop(rsp, None)
+        if inflight is None:
             self.counters.unexpectedAckCounter += 1
             self._events.append(UnexpectedAck("ACK", rsp))
             return
         # send -> ACK latency in 10 µs bins (bounded memory for any run length)
-        self.ack_latency[int((now - f.sent) * 1e5)] += 1
+        self.ack_latency[int((now - inflight.sent) * 1e5)] += 1
         self.counters.busyFrames = len(self._inflight)
         self.counters.framesAcked += 1
-        self._settle(f.tag)
+        self._settle(inflight.tag)
 
     def _on_nak(self, rsp: int, reason_code: int) -> None:
         try:
@@ -409,14 +410,14 @@ class LinkConnection:
         except ValueError:
             reason = None
         self.counters.naksReceived[reason_code] = self.counters.naksReceived.get(reason_code, 0) + 1
-        f = self._inflight.pop(rsp, None)
-        if f is None:
+        inflight = self._inflight.pop(rsp, None)
+        if inflight is None:
             self.counters.unexpectedAckCounter += 1
             self._events.append(UnexpectedAck("NAK", rsp))
             return
         self.counters.busyFrames = len(self._inflight)
-        self._fail(f.tag, rsp, "nak", reason)
-        self._settle(f.tag)
+        self._fail(inflight.tag, rsp, "nak", reason)
+        self._settle(inflight.tag)
 
     def _reject(self, num: int, reason: NakReason, detail: str) -> None:
         self.counters.naksSent[int(reason)] = self.counters.naksSent.get(int(reason), 0) + 1
@@ -434,11 +435,11 @@ class LinkConnection:
         self.counters.sendFailedErrorCounter += 1
         self._events.append(SendFailed(tag, num, why, nak))
         kept: deque[_Queued] = deque()
-        for q in self._queue:
-            if q.tag == tag:
+        for queued in self._queue:
+            if queued.tag == tag:
                 entry[0] -= 1
             else:
-                kept.append(q)
+                kept.append(queued)
         self._queue = kept
         if entry[0] <= 0:
             del self._tags[tag]
@@ -456,13 +457,13 @@ class LinkConnection:
     def _accepted_frame(self, num: int, transfer: bytes) -> None:
         """A DATA frame accepted (L6): E moves past it, and it joins the last W accepted
         frames L6a tells duplicates from peer resets by."""
-        m = SEQ_MODULO
+        modulo = SEQ_MODULO
         self._naks_in_row = 0
-        self._expected = (num + 1) % m
+        self._expected = (num + 1) % modulo
         self._last_accepted = num
         acc = self._accepted
         acc.pop(num, None)
         acc[num] = bytes(transfer)
-        while acc and (self._expected - next(iter(acc))) % m > self.config.window:
+        while acc and (self._expected - next(iter(acc))) % modulo > self.config.window:
             acc.popitem(last=False)  # only [E-W, E) can be a duplicate
         self.counters.framesReceived += 1

@@ -119,8 +119,9 @@ class FrameCodec:
     ) -> None:
         self.crc: CrcFunction = make_crc(crc) if isinstance(crc, CrcVariant) else crc
         self.bit_order = BitOrder(bit_order)
-        s = _field_shifts(self.bit_order)
-        self._d, self._r, self._rsp, self._num = s["D"], s["R"], s["RSP"], s["NUM"]
+        shifts = _field_shifts(self.bit_order)
+        self._d, self._r = shifts["D"], shifts["R"]
+        self._rsp, self._num = shifts["RSP"], shifts["NUM"]
         self._acks: dict[int, bytes] = {}  # NUM -> ACK frame: built once (hot path)
         self._data_word = int(FrameKind.DATA) << self._d[0]
         self._hqx = self.crc is make_crc(CCITT_FALSE)  # binascii.crc_hqx seeded 0xFFFF (L3)

@@ -180,10 +180,10 @@ class MespClient:
     # -- internals --------------------------------------------------------------------------
     def _next_counter(self, service: int, function: int) -> int:
         for _ in range(TAG_MASK + 1):
-            c = self._counter
-            self._counter = (c + 1) & TAG_MASK
-            if (service, function, c) not in self._pending:
-                return c
+            counter = self._counter
+            self._counter = (counter + 1) & TAG_MASK
+            if (service, function, counter) not in self._pending:
+                return counter
         raise LocalProtocolError("64 requests of one function outstanding: no free tag")
 
     def _send(self, pending: _Pending, now: float) -> None:

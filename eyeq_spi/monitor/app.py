@@ -72,14 +72,14 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
     if screenshot is not None:
         check_screenshot(screenshot)
-    r = rich_modules()
-    console = console or r.Console()
+    rich = rich_modules()
+    console = console or rich.Console()
     period = 1.0 / refresh
     stats = RunStats()
     start = clock()
     live_screen = console.is_terminal
-    live = r.Live(console=console, auto_refresh=False, transient=False,
-                  vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
+    live = rich.Live(console=console, auto_refresh=False, transient=False,
+                     vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
     snap: Snapshot | None = None
     try:
         if live_screen:
@@ -120,5 +120,5 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         # a pipe: the whole final screen, as wide as it is (the console's default is 80)
         lines = screen_lines(snap)
         console.width = max(console.width, *(t.cell_len for t in lines))
-        console.print(r.Group(*lines))
+        console.print(rich.Group(*lines))
     return stats

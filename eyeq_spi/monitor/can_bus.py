@@ -51,11 +51,11 @@ class CanBusView:
         if row is None:
             spec = self.decoder.spec_for(key[1])
             row = self.rows[key] = _Row(rec["name"], spec_ms=spec.cycle_ms if spec else None)
-        t = float(msg.timestamp) if msg.timestamp else now
-        if row.last is not None and t > row.last:
-            dt = (t - row.last) * 1000.0
+        at = float(msg.timestamp) if msg.timestamp else now
+        if row.last is not None and at > row.last:
+            dt = (at - row.last) * 1000.0
             row.cycle_ms = dt if row.cycle_ms is None else 0.8 * row.cycle_ms + 0.2 * dt
-        row.last = t
+        row.last = at
         row.count += 1
         row.rec = rec
         if rec["errors"]:
@@ -80,13 +80,13 @@ class CanBusView:
                         f"{cyc:>6s} {spec:>4s}  ")
             if rec["errors"]:  # first: a narrow terminal crops the signals, not the errors
                 line.append("; ".join(rec["errors"]) + "  ", style="red")
-            for k, v in rec["fields"].items():
-                text = f"{v:.4g}" if isinstance(v, float) else str(v)
-                label = rec["labels"].get(k)
+            for key, value in rec["fields"].items():
+                text = f"{value:.4g}" if isinstance(value, float) else str(value)
+                label = rec["labels"].get(key)
                 if label:
                     text = label
-                line.append(f"{k}=")
-                line.append(text, style="dim" if k in rec["invalid"] else "cyan")
+                line.append(f"{key}=")
+                line.append(text, style="dim" if key in rec["invalid"] else "cyan")
                 line.append(" ")
             line.truncate(width, overflow="crop")
             out.append(line)
@@ -107,12 +107,12 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
 
     if screenshot is not None:
         check_screenshot(screenshot)
-    r = rich_modules()
-    console = console or r.Console()
+    rich = rich_modules()
+    console = console or rich.Console()
     view = CanBusView(proto, target)
     bus = open_bus(target)
-    live = r.Live(console=console, auto_refresh=False, transient=False,
-                  vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
+    live = rich.Live(console=console, auto_refresh=False, transient=False,
+                     vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
     start = clock()
     period = 1.0 / refresh
     on_terminal = console.is_terminal
@@ -127,19 +127,19 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
             for msg in read_bus(bus, duration=slot, now=clock, poll=min(0.05, slot)):
                 view.add(msg, clock() - start)
             if on_terminal:
-                live.update(r.Group(*view.lines(console.width, console.height)), refresh=True)
+                live.update(rich.Group(*view.lines(console.width, console.height)), refresh=True)
     except KeyboardInterrupt:  # Ctrl-C ends a live view normally
         pass
     finally:
         bus.shutdown()
         view.done = True
         if on_terminal:
-            live.update(r.Group(*view.lines(console.width, console.height)), refresh=True)
+            live.update(rich.Group(*view.lines(console.width, console.height)), refresh=True)
             live.stop()
     if not on_terminal:  # a pipe: the final screen once, as wide as it is
         lines = view.lines(width=400)
         console.width = max(console.width, *(t.cell_len for t in lines))
-        console.print(r.Group(*lines))
+        console.print(rich.Group(*lines))
     if screenshot is not None:
         _save(view, screenshot)
     return view

@@ -30,23 +30,23 @@ def _fit(text: str, width: int) -> str:
     return text if len(text) <= width else text[:width - 1] + "\u2026"
 
 
-def _num(v: float | None, spec: str) -> str:
-    return "-" if v is None or not math.isfinite(v) else format(v, spec)
+def _num(value: float | None, spec: str) -> str:
+    return "-" if value is None or not math.isfinite(value) else format(value, spec)
 
 
-def _ttc(o: SceneObject) -> str:
-    return NO_TTC if o.closing_ttc is None else format(o.closing_ttc, "4.1f")
+def _ttc(obj: SceneObject) -> str:
+    return NO_TTC if obj.closing_ttc is None else format(obj.closing_ttc, "4.1f")
 
 
 def _two_columns(text_cls: Any, cells: list[Any], col: int, gap: int = 1) -> Lines:
     """Cells (Text of ``col`` cells each) in two columns, filled down then across."""
     rows = -(-len(cells) // 2)
     out = []
-    for k in range(rows):
-        left = cells[k].copy()
+    for row in range(rows):
+        left = cells[row].copy()
         left.set_length(col)
-        if k + rows < len(cells):
-            out.append(text_cls.assemble(left, " " * gap, cells[k + rows]))
+        if row + rows < len(cells):
+            out.append(text_cls.assemble(left, " " * gap, cells[row + rows]))
         else:
             out.append(left)
     return out
@@ -81,7 +81,7 @@ class Panel:
         self.partial = partial  # the panel in n lines (n < len(lines)), where it can shrink
 
 
-def _rates(T: Any, snap: Snapshot, width: int) -> Panel:
+def _rates(text_cls: Any, snap: Snapshot, width: int) -> Panel:
     col = (width - 1) // 2
     name_w = col - 21
     head = f" {'message':<{name_w}} {'Hz':>5} {'nom.':>5} {'state':<7}"
@@ -89,13 +89,13 @@ def _rates(T: Any, snap: Snapshot, width: int) -> Panel:
     for row in snap.rates:
         hz = "-" if row.hz is None else f"{row.hz:5.1f}"
         nom = "" if row.nominal_hz is None else f"{row.nominal_hz:g}"
-        t = T(f" {_fit(short(row.name), name_w):<{name_w}} {hz:>5} {nom:>5} ")
-        t.append(f"{row.status:<7}", style=STATUS_STYLE.get(row.status, "") or None)
-        cells.append(t)
+        cell = text_cls(f" {_fit(short(row.name), name_w):<{name_w}} {hz:>5} {nom:>5} ")
+        cell.append(f"{row.status:<7}", style=STATUS_STYLE.get(row.status, "") or None)
+        cells.append(cell)
     bad = [r for r in snap.rates if r.status in ("stopped", "low", "high")]
-    header = T(_fit(head + (" " + head if len(cells) > 1 else ""), width), style="bold")
-    lines = [header, *_two_columns(T, cells, col)]
-    folded = T(f"messages {len(snap.rates)}: ", style="italic")
+    header = text_cls(_fit(head + (" " + head if len(cells) > 1 else ""), width), style="bold")
+    lines = [header, *_two_columns(text_cls, cells, col)]
+    folded = text_cls(f"messages {len(snap.rates)}: ", style="italic")
     folded.append(", ".join(f"{short(r.name)} {r.status}" for r in bad) or "all at nominal",
                   style="bold red" if bad else "green")
     return Panel(lines, folded)
@@ -105,73 +105,76 @@ def _is_error(key: str) -> bool:
     return not key.endswith((" DATA", " ACK")) and key not in ("duplicate", "driver_reset")
 
 
-def _link(T: Any, snap: Snapshot, width: int) -> Panel:
+def _link(text_cls: Any, snap: Snapshot, width: int) -> Panel:
     items = [(f"{k} {v}", "red" if v and _is_error(k) else "") for k, v in
              sorted(snap.link.items())]
     items += [(f"{k} {v}", "bold red" if v else "green") for k, v in snap.errors.items()]
     stale = ", ".join(short(s) for s in snap.stale) or "none"
     items.append((f"stale streams: {stale}", "bold red" if snap.stale else "green"))
-    lines = _flow(T, "link: ", items, width)
+    lines = _flow(text_cls, "link: ", items, width)
     errors = sum(v for k, v in snap.link.items() if _is_error(k)) + sum(snap.errors.values())
-    folded = T("link: ", style="italic")
+    folded = text_cls("link: ", style="italic")
     folded.append(f"{errors} errors, stale {stale}",
                   style="bold red" if errors or snap.stale else "green")
     return Panel(lines, folded)
 
 
-def _transitions(T: Any, snap: Snapshot, width: int) -> Panel:
-    rows = [T(_fit(f" {tt:8.3f}  {a} --{ev}--> {b}", width))
+def _transitions(text_cls: Any, snap: Snapshot, width: int) -> Panel:
+    rows = [text_cls(_fit(f" {tt:8.3f}  {a} --{ev}--> {b}", width))
             for tt, a, ev, b in snap.transitions[-6:]]
     total = snap.transitions_total
-    title = T(f"transitions (s since the start, last {len(rows)} of {total})", style="italic")
+    title = text_cls(f"transitions (s since the start, last {len(rows)} of {total})",
+                     style="italic")
 
-    def partial(n: int) -> Lines:
-        return [T(f"transitions (last {n - 1} of {total})", style="italic"),
-                *rows[len(rows) - (n - 1):]] if n > 1 else [title]
+    def partial(room: int) -> Lines:
+        return [text_cls(f"transitions (last {room - 1} of {total})", style="italic"),
+                *rows[len(rows) - (room - 1):]] if room > 1 else [title]
 
     last = snap.transitions[-1] if snap.transitions else None
-    folded = T("transitions: " + (f"{total}, last {last[0]:.3f} s -> "
-                                  f"{last[3]}" if last else "none"), style="italic")
+    said = f"{total}, last {last[0]:.3f} s -> {last[3]}" if last else "none"
+    folded = text_cls("transitions: " + said, style="italic")
     return Panel([title, *rows], folded, partial)
 
 
-def _objects(T: Any, snap: Snapshot, width: int) -> Panel:
+def _objects(text_cls: Any, snap: Snapshot, width: int) -> Panel:
     col = (width - 1) // 2
     cls_w = col - 29
     head = f" {'ID':>3} {'class':<{cls_w}} {'long':>6} {'lat':>5} {'v':>5} {'TTC':>4}"
     objs = sorted(snap.scene.objects, key=lambda o: o.long)
     cells = []
-    for o in objs:
-        ident = ("*" if o.cipv else "") + str(o.id)
-        t = T(f" {ident:>3} {_fit(o.cls_name, cls_w):<{cls_w}} {_num(o.long, '6.1f'):>6} "
-              f"{_num(o.lat, '5.1f'):>5} {_num(o.v_long, '5.1f'):>5} {_ttc(o):>4}",
-              style="bold reverse" if o.cipv else "")
-        cells.append(t)
-    n = len(objs)
-    title = T(f"objects {n} (nearest first; * CIPV; m, m/s, s)", style="italic")
-    header = T(_fit(head + (" " + head if n > 1 else ""), width), style="bold")
+    for obj in objs:
+        ident = ("*" if obj.cipv else "") + str(obj.id)
+        cell = text_cls(f" {ident:>3} {_fit(obj.cls_name, cls_w):<{cls_w}} "
+                        f"{_num(obj.long, '6.1f'):>6} {_num(obj.lat, '5.1f'):>5} "
+                        f"{_num(obj.v_long, '5.1f'):>5} {_ttc(obj):>4}",
+                        style="bold reverse" if obj.cipv else "")
+        cells.append(cell)
+    count = len(objs)
+    title = text_cls(f"objects {count} (nearest first; * CIPV; m, m/s, s)", style="italic")
+    header = text_cls(_fit(head + (" " + head if count > 1 else ""), width), style="bold")
 
     def partial(rows: int) -> Lines:
         shown = max(0, (rows - 2) * 2)
         if shown <= 0:
             return [folded]
-        return [T(f"objects {n}: nearest {shown} shown, {n - shown} more (* CIPV)",
-                  style="italic"), header, *_two_columns(T, cells[:shown], col)]
+        said = f"objects {count}: nearest {shown} shown, {count - shown} more (* CIPV)"
+        return [text_cls(said, style="italic"), header,
+                *_two_columns(text_cls, cells[:shown], col)]
 
     cipv = next((o for o in objs if o.cipv), None)
-    folded = T(f"objects {n}" + (f": CIPV {cipv.id} at {cipv.long:.1f} m" if cipv else ""),
-               style="italic")
-    return Panel([title, header, *_two_columns(T, cells, col)], folded, partial)
+    nearest = f": CIPV {cipv.id} at {cipv.long:.1f} m" if cipv else ""
+    folded = text_cls(f"objects {count}" + nearest, style="italic")
+    return Panel([title, header, *_two_columns(text_cls, cells, col)], folded, partial)
 
 
-def _road(T: Any, snap: Snapshot, width: int) -> Panel:
+def _road(text_cls: Any, snap: Snapshot, width: int) -> Panel:
     sc = snap.scene
     items = [(f"{ln.name} {ln.type_name or ln.kind} {_num(ln.coeffs[0], '.2f')} m "
               f"{ln.start:.0f}-{ln.end:.0f} m", "") for ln in sc.lines]
     items += [(f"sign {s.name} at {s.long:.0f} m, {_num(s.lat, '.1f')} m", "red")
               for s in sorted(sc.signs, key=lambda s: s.long)]
-    lines = _flow(T, f"lanes {len(sc.lines)}, signs {len(sc.signs)}: ", items, width)
-    folded = T(f"lanes {len(sc.lines)}, signs {len(sc.signs)}", style="italic")
+    lines = _flow(text_cls, f"lanes {len(sc.lines)}, signs {len(sc.signs)}: ", items, width)
+    folded = text_cls(f"lanes {len(sc.lines)}, signs {len(sc.signs)}", style="italic")
     return Panel(lines, folded)
 
 
@@ -186,23 +189,22 @@ def compact_lines(snap: Snapshot, head: Lines, width: int, height: int, text_cls
     """The screen in ``width`` x ``height`` cells: ``head`` (header and problem lines), then
     the panels in their screen order (rates, link, objects, lanes and signs, transitions),
     each as full as the rows left allow."""
-    T = text_cls
     width = max(width, MIN_WIDTH)
-    panels = [make(T, snap, width) for make in PANELS]
+    panels = [make(text_cls, snap, width) for make in PANELS]
     left = height - len(head) - len(panels)  # every panel has at least its folded line
     shown: list[Lines] = [[p.folded] for p in panels]
     for cap in (FIRST_ROWS, (10**6,) * len(panels)):  # first a share each, then the rest
-        for k, p in enumerate(panels):  # unfold in priority order while rows are left
-            want = min(len(p.lines), cap[k])
-            extra = want - len(shown[k])
+        for index, panel in enumerate(panels):  # unfold in priority order while rows are left
+            want = min(len(panel.lines), cap[index])
+            extra = want - len(shown[index])
             if extra <= 0 or left <= 0:
                 continue
-            if want == len(p.lines) and extra <= left:
-                shown[k], left = p.lines, left - extra
-            elif p.partial is not None:
-                part = p.partial(min(want, len(shown[k]) + left))
-                if len(part) > len(shown[k]):
-                    left -= len(part) - len(shown[k])
-                    shown[k] = part
+            if want == len(panel.lines) and extra <= left:
+                shown[index], left = panel.lines, left - extra
+            elif panel.partial is not None:
+                part = panel.partial(min(want, len(shown[index]) + left))
+                if len(part) > len(shown[index]):
+                    left -= len(part) - len(shown[index])
+                    shown[index] = part
     rates, link, objects, transitions, road = shown
     return [*head, *rates, *link, *objects, *road, *transitions]

@@ -72,13 +72,14 @@ class _HostView:
             self.tracker.update(name, out.fields, now, out.errors)
         self._latest.clear()
         link = dict(host.conn.link.counters.seed_view())
-        for reason, n in dict(host.conn.counters.transferAborts).items():
-            link[f"abort: {reason}"] = int(n)
-        c = host.counters
-        errors = {"E2E errors": c.e2e_errors, "DASP counter gaps": c.dasp_counter_gaps,
-                  "decode errors": c.decode_errors,
+        for reason, count in dict(host.conn.counters.transferAborts).items():
+            link[f"abort: {reason}"] = int(count)
+        counters = host.counters
+        errors = {"E2E errors": counters.e2e_errors,
+                  "DASP counter gaps": counters.dasp_counter_gaps,
+                  "decode errors": counters.decode_errors,
                   # every reset: the host's own and those it detected (the summary splits them)
-                  "EyeQ resets": c.eyeq_resets_asked + c.eyeq_resets,
+                  "EyeQ resets": counters.eyeq_resets_asked + counters.eyeq_resets,
                   "MESP timeouts": host.mesp.counters.timeouts}
         trans = [(t.time - self.origin, t.src.value, t.event.value, t.dst.value)
                  for t in host.transitions[-8:]]
@@ -165,8 +166,8 @@ class HostSource:
 class _ReplayBench:
     """The replay's node, host and virtual runner with the ``emu`` face DemoSource drives."""
 
-    def __init__(self, records: Iterable[Any], sw: str | None, duration: float | None) -> None:
-        self.node, self.host, self.runner = host_bench(records, sw=sw, duration=duration)
+    def __init__(self, transfers: Iterable[Any], sw: str | None, duration: float | None) -> None:
+        self.node, self.host, self.runner = host_bench(transfers, sw=sw, duration=duration)
 
     def run_for(self, dt: float) -> None:
         self.runner.run_until(self.runner.now + dt)
@@ -257,11 +258,11 @@ class DissectSource:
             record = self._next()
             if record is None:
                 return
-            t = record.get("time")
-            if t is not None:
+            time_s = record.get("time")
+            if time_s is not None:
                 if self._t0 is None:
-                    self._t0 = t
-                rel = t - self._t0
+                    self._t0 = time_s
+                rel = time_s - self._t0
                 if self.speed > 0 and rel > (self.clock() - self.start) * self.speed:
                     wait = self.start + rel / self.speed - self.clock()
                     time.sleep(max(0.0, min(wait, deadline - self.clock(), 0.01)))

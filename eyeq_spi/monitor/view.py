@@ -76,12 +76,12 @@ def _block(title: str, cols: list[Col], rows: list[tuple[list[Cell], str]]) -> l
     lines = [Text(title, style="italic"), Text(head, style="bold"),
              Text(" " + "\u2500" * (_width(cols) - 1), style="dim")]
     for cells, row_style in rows:
-        t = Text(" ", style=row_style)
-        for k, ((text, style), (_, w, j)) in enumerate(zip(cells, cols, strict=True)):
-            if k:
-                t.append(GAP)
-            t.append(_cell(text, w, j), style=style or None)
-        lines.append(t)
+        line = Text(" ", style=row_style)
+        for index, ((text, style), (_, width, justify)) in enumerate(zip(cells, cols, strict=True)):
+            if index:
+                line.append(GAP)
+            line.append(_cell(text, width, justify), style=style or None)
+        lines.append(line)
     return lines
 
 
@@ -124,17 +124,17 @@ def _is_error(key: str) -> bool:
     return not key.endswith((" DATA", " ACK")) and key not in ("duplicate", "driver_reset")
 
 
-def _fmt(v: float | None, spec: str = "6.1f") -> str:
-    return "-" if v is None or not math.isfinite(v) else format(v, spec)
+def _fmt(value: float | None, spec: str = "6.1f") -> str:
+    return "-" if value is None or not math.isfinite(value) else format(value, spec)
 
 
 def _objects(snap: Snapshot) -> list[Any]:
     rows = []
-    for o in sorted(snap.scene.objects, key=lambda o: o.long):
-        cells = [str(o.id), o.cls_name + (" CIPV" if o.cipv else ""), _fmt(o.long),
-                 _fmt(o.lat, "5.1f"), _fmt(o.v_long, "5.1f"), _fmt(o.v_lat, "4.1f"),
-                 NO_TTC if o.closing_ttc is None else _fmt(o.closing_ttc, "4.1f")]
-        rows.append(([(c, "") for c in cells], "bold reverse" if o.cipv else ""))
+    for obj in sorted(snap.scene.objects, key=lambda o: o.long):
+        cells = [str(obj.id), obj.cls_name + (" CIPV" if obj.cipv else ""), _fmt(obj.long),
+                 _fmt(obj.lat, "5.1f"), _fmt(obj.v_long, "5.1f"), _fmt(obj.v_lat, "4.1f"),
+                 NO_TTC if obj.closing_ttc is None else _fmt(obj.closing_ttc, "4.1f")]
+        rows.append(([(c, "") for c in cells], "bold reverse" if obj.cipv else ""))
     return _block(f"objects ({len(snap.scene.objects)})", OBJECT_COLS, rows)
 
 
@@ -158,10 +158,10 @@ def _transitions(snap: Snapshot) -> list[Any]:
 def _side_by_side(left: list[Any], lw: int, right: list[Any]) -> list[Any]:
     Text = _rich().Text
     out = []
-    for k in range(max(len(left), len(right))):
-        a = left[k].copy() if k < len(left) else Text()
-        a.set_length(lw)
-        out.append(Text.assemble(a, SIDE_GAP, right[k]) if k < len(right) else a)
+    for row in range(max(len(left), len(right))):
+        line = left[row].copy() if row < len(left) else Text()
+        line.set_length(lw)
+        out.append(Text.assemble(line, SIDE_GAP, right[row]) if row < len(right) else line)
     return out
 
 
@@ -213,8 +213,8 @@ def screen_lines(snap: Snapshot, width: int | None = None,
         from eyeq_spi.monitor.compact import compact_lines
 
         lines = compact_lines(snap, head, width, height - 1, Text)  # the cursor's line
-    for t in lines:
-        t.no_wrap, t.overflow, t.end = True, "crop", "\n"
+    for line in lines:
+        line.no_wrap, line.overflow, line.end = True, "crop", "\n"
     return lines
 
 
@@ -227,10 +227,10 @@ def save_lines(lines: list[Any], path: str, title: str) -> None:
     wide as the widest line; ``OutputError`` when the file cannot be written."""
     import io
 
-    r = rich_modules()
-    con = r.Console(file=io.StringIO(), record=True, force_terminal=True,
-                    color_system="truecolor", width=max(t.cell_len for t in lines))
-    con.print(r.Group(*lines))
+    rich = rich_modules()
+    con = rich.Console(file=io.StringIO(), record=True, force_terminal=True,
+                       color_system="truecolor", width=max(t.cell_len for t in lines))
+    con.print(rich.Group(*lines))
     suffix = path.lower().rsplit(".", 1)[-1]
     try:
         if suffix == "svg":

@@ -82,41 +82,41 @@ def view_limits(scenes: Sequence[Scene], range_m: float | None = None,
     return range_m, lateral_m
 
 
-def box_corners(o: SceneObject, pad: float = 0.0) -> list[tuple[float, float]]:
+def box_corners(obj: SceneObject, pad: float = 0.0) -> list[tuple[float, float]]:
     """The box's corners as (lat, long), starting at the rear right, counter-clockwise;
     ``pad`` metres wider on every side."""
-    ch, sh = math.cos(o.heading), math.sin(o.heading)
+    ch, sh = math.cos(obj.heading), math.sin(obj.heading)
     fwd = (ch, sh)  # (long, lat) of the object's forward axis
     left = (-sh, ch)
-    hw = o.width / 2.0 + pad
+    hw = obj.width / 2.0 + pad
     pts = []
-    for along, side in ((-pad, -hw), (o.length + pad, -hw), (o.length + pad, hw), (-pad, hw)):
-        lo = o.long + along * fwd[0] + side * left[0]
-        la = o.lat + along * fwd[1] + side * left[1]
+    for along, side in ((-pad, -hw), (obj.length + pad, -hw), (obj.length + pad, hw), (-pad, hw)):
+        lo = obj.long + along * fwd[0] + side * left[0]
+        la = obj.lat + along * fwd[1] + side * left[1]
         pts.append((la, lo))
     return pts
 
 
-def _middle(o: SceneObject) -> tuple[float, float]:
+def _middle(obj: SceneObject) -> tuple[float, float]:
     """(lat, long) of the box's middle."""
-    x, y = box_centre(o.long, o.lat, o.length, o.heading)
+    x, y = box_centre(obj.long, obj.lat, obj.length, obj.heading)
     return y, x
 
 
-def _arrow_tip(o: SceneObject) -> tuple[float, float]:
-    cx, cy = _middle(o)
-    return cx + o.v_lat * ARROW_S, cy + o.v_long * ARROW_S
+def _arrow_tip(obj: SceneObject) -> tuple[float, float]:
+    cx, cy = _middle(obj)
+    return cx + obj.v_lat * ARROW_S, cy + obj.v_long * ARROW_S
 
 
-def _extent(o: SceneObject) -> tuple[float, float]:
+def _extent(obj: SceneObject) -> tuple[float, float]:
     """The longitudinal span an object's drawing covers: its box and its velocity arrow."""
-    longs = [lo for _, lo in box_corners(o)] + [_arrow_tip(o)[1]]
+    longs = [lo for _, lo in box_corners(obj)] + [_arrow_tip(obj)[1]]
     return min(longs), max(longs)
 
 
 def line_points(ln: SceneLine, step: float = 0.5) -> tuple[list[float], list[float]]:
-    n = max(2, int((ln.end - ln.start) / step) + 1)
-    xs = [ln.start + (ln.end - ln.start) * i / (n - 1) for i in range(n)]
+    points = max(2, int((ln.end - ln.start) / step) + 1)
+    xs = [ln.start + (ln.end - ln.start) * i / (points - 1) for i in range(points)]
     return [ln.lateral(x) for x in xs], xs
 
 
@@ -188,8 +188,8 @@ def new_axes(range_m: float, lateral_m: float, near_m: float | None = None
     axes = [fig.add_axes(lay.main)]
     if lay.zoom is not None:
         axes.append(fig.add_axes(lay.zoom))
-    for k, ax in enumerate(axes):
-        _frame(ax, range_m if k == 0 else lay.zoom_range, lateral_m)
+    for index, ax in enumerate(axes):
+        _frame(ax, range_m if index == 0 else lay.zoom_range, lateral_m)
     return fig, axes
 
 
@@ -209,12 +209,12 @@ def draw_scene(axes: Any, scene: Scene, range_m: float, lateral_m: float,
     :func:`new_axes`); the legend and title go with the figure."""
     axes = axes if isinstance(axes, list) else [axes]
     zoom_range = axes[1].get_ylim()[1] if len(axes) > 1 else range_m
-    for k, ax in enumerate(axes):
+    for index, ax in enumerate(axes):
         ax.clear()
-        _frame(ax, range_m if k == 0 else zoom_range, lateral_m)
+        _frame(ax, range_m if index == 0 else zoom_range, lateral_m)
         # the whole view beside a zoom names only what the zoom does not show
-        named = (lambda lo: True) if k or len(axes) == 1 else (lambda lo: lo > zoom_range)
-        _draw_panel(ax, scene, lateral_m, named, signs_named=bool(k or len(axes) == 1))
+        named = (lambda lo: True) if index or len(axes) == 1 else (lambda lo: lo > zoom_range)
+        _draw_panel(ax, scene, lateral_m, named, signs_named=bool(index or len(axes) == 1))
     if len(axes) > 1:  # where the zoom is, on the whole view
         from matplotlib.patches import Rectangle
 
@@ -251,27 +251,27 @@ def _draw_panel(ax: Any, scene: Scene, lateral_m: float, named: Callable[[float]
         lanes += ax.plot(lat, lon, style, color=LINE_COLOURS[ln.kind],
                          linewidth=2.5 if ln.kind == "border" else 2.0, zorder=3)
     labels = []
-    for o in scene.objects:
-        if o.v_long or o.v_lat:  # drawn under the box: only the part outside it shows
+    for obj in scene.objects:
+        if obj.v_long or obj.v_lat:  # drawn under the box: only the part outside it shows
             marks.append(ax.add_patch(FancyArrowPatch(
-                _middle(o), _arrow_tip(o), zorder=4, arrowstyle="-|>", mutation_scale=10,
+                _middle(obj), _arrow_tip(obj), zorder=4, arrowstyle="-|>", mutation_scale=10,
                 color="#000000", linewidth=1.2)))
-        marks.append(ax.add_patch(Polygon(box_corners(o), closed=True, zorder=5,
-                                          facecolor=class_colour(o.cls), edgecolor="#202020",
+        marks.append(ax.add_patch(Polygon(box_corners(obj), closed=True, zorder=5,
+                                          facecolor=class_colour(obj.cls), edgecolor="#202020",
                                           linewidth=0.6)))
-        if o.cipv:  # a ring around the box: the box keeps its class's colour
+        if obj.cipv:  # a ring around the box: the box keeps its class's colour
             marks.append(ax.add_patch(Polygon(
-                box_corners(o, CIPV_PAD_PX / ppm), closed=True, fill=False, zorder=5,
+                box_corners(obj, CIPV_PAD_PX / ppm), closed=True, fill=False, zorder=5,
                 edgecolor=CIPV_EDGE, linewidth=CIPV_WIDTH, gid="cipv")))
-        if named(o.long):
-            half = (o.width / 2 * ppm + (CIPV_PAD_PX + 2 if o.cipv else 0),
-                    o.length / 2 * ppm + (CIPV_PAD_PX + 2 if o.cipv else 0))
-            labels.append(Label(f"{o.id}" + (" CIPV" if o.cipv else ""), _middle(o), half))
-    for s in scene.signs:
-        marks += ax.plot([s.lat], [s.long], "o", markersize=9, markerfacecolor="#ffffff",
+        if named(obj.long):
+            half = (obj.width / 2 * ppm + (CIPV_PAD_PX + 2 if obj.cipv else 0),
+                    obj.length / 2 * ppm + (CIPV_PAD_PX + 2 if obj.cipv else 0))
+            labels.append(Label(f"{obj.id}" + (" CIPV" if obj.cipv else ""), _middle(obj), half))
+    for sign in scene.signs:
+        marks += ax.plot([sign.lat], [sign.long], "o", markersize=9, markerfacecolor="#ffffff",
                          markeredgecolor=SIGN_COLOUR, markeredgewidth=2.0, zorder=5)
         if signs_named:  # the narrow whole view has no room: the legend names them
-            labels.append(Label(s.name, (s.lat, s.long), (7.0, 7.0), SIGN_COLOUR, 6.0))
+            labels.append(Label(sign.name, (sign.lat, sign.long), (7.0, 7.0), SIGN_COLOUR, 6.0))
     renderer = ax.figure.canvas.get_renderer()
     boxes = [m.get_window_extent(renderer) for m in marks]
     points = [ln.get_transform().transform(ln.get_xydata()) for ln in lanes]
@@ -312,9 +312,9 @@ def _legend(scene: Scene, zoomed: bool) -> list[Any]:
 
 
 def birdseye(scene: Scene, range_m: float | None = None, lateral_m: float | None = None) -> Any:
-    r, w = view_limits([scene], range_m, lateral_m)
-    fig, axes = new_axes(r, w, near_range([scene], w))
-    draw_scene(axes, scene, r, w)
+    forward, half_width = view_limits([scene], range_m, lateral_m)
+    fig, axes = new_axes(forward, half_width, near_range([scene], half_width))
+    draw_scene(axes, scene, forward, half_width)
     return fig
 
 
@@ -322,11 +322,11 @@ def animation(frames: Sequence[Scene], fps: float, range_m: float | None = None,
               lateral_m: float | None = None) -> Any:
     from matplotlib.animation import FuncAnimation
 
-    r, w = view_limits(frames, range_m, lateral_m)
-    fig, axes = new_axes(r, w, near_range(frames, w))
+    forward, half_width = view_limits(frames, range_m, lateral_m)
+    fig, axes = new_axes(forward, half_width, near_range(frames, half_width))
 
-    def update(i: int) -> list[Any]:
-        draw_scene(axes, frames[i], r, w)
+    def update(index: int) -> list[Any]:
+        draw_scene(axes, frames[index], forward, half_width)
         return []
 
     return FuncAnimation(fig, update, frames=len(frames), interval=1000.0 / fps, blit=False,

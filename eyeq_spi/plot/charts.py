@@ -50,9 +50,9 @@ def timing_figure(col: Collected) -> tuple[Any, dict[str, Any]]:
                         bottom=0.45 / fig.get_figheight(), hspace=0.35)
     end = col.end
     by_name: dict[str, Any] = {}
-    for ax, s in zip(axes, rows, strict=True):
-        by_name[s.name] = ax
-        _timing_row(ax, s, end)
+    for ax, stream in zip(axes, rows, strict=True):
+        by_name[stream.name] = ax
+        _timing_row(ax, stream, end)
     axes[-1].set_xlabel(TIME_LABEL)
     axes[0].set_xlim(col.window.start, max(end, col.window.start + 1e-3))
     # the title on its own line at the top, the legend's rows below it, the rows below both
@@ -88,20 +88,20 @@ def rate_label(times: Sequence[float]) -> str:
     return f"rate {hz} Hz{left_out}"
 
 
-def _timing_row(ax: Any, s: Stream, end: float) -> None:
-    period = s.period
+def _timing_row(ax: Any, stream: Stream, end: float) -> None:
+    period = stream.period
     assert period is not None
     p_ms = period * 1e3
-    lo, hi = s.tolerance_ms or (0.0, 0.0)
+    lo, hi = stream.tolerance_ms or (0.0, 0.0)
     top = p_ms * (GAP_PERIODS + 1.0)
     ax.axhspan(p_ms + lo, p_ms + hi, color=BAND_COLOUR, alpha=0.25, linewidth=0, zorder=1)
     ax.axhline(p_ms, color=BAND_COLOUR, linewidth=1.0, zorder=2)
-    gaps = s.gaps(end)
-    for a, b in gaps:
-        ax.axvspan(a, b, color=GAP_COLOUR, alpha=0.35, linewidth=0, zorder=0)
-    t = list(s.times)
-    dts = [(b - a) * 1e3 for a, b in itertools.pairwise(t)]
-    xs = t[1:]
+    gaps = stream.gaps(end)
+    for gap_start, gap_end in gaps:
+        ax.axvspan(gap_start, gap_end, color=GAP_COLOUR, alpha=0.35, linewidth=0, zorder=0)
+    times = list(stream.times)
+    dts = [(b - a) * 1e3 for a, b in itertools.pairwise(times)]
+    xs = times[1:]
     inside = [(x, d) for x, d in zip(xs, dts, strict=True) if d <= top]
     above = [x for x, d in zip(xs, dts, strict=True) if d > top]
     if inside:
@@ -109,16 +109,16 @@ def _timing_row(ax: Any, s: Stream, end: float) -> None:
                 color=DOT_COLOUR, zorder=3)
     if above:
         ax.plot(above, [top * 0.97] * len(above), "^", markersize=4, color=GAP_COLOUR, zorder=3)
-    if s.counter_jumps:
-        ax.plot(s.counter_jumps, [top * 0.85] * len(s.counter_jumps), "x", markersize=6,
+    if stream.counter_jumps:
+        ax.plot(stream.counter_jumps, [top * 0.85] * len(stream.counter_jumps), "x", markersize=6,
                 color=GAP_COLOUR, zorder=4)
     ax.set_ylim(0, top)
     late = sum(1 for d in dts if not p_ms + lo <= d <= p_ms + hi)
-    ax.set_ylabel(f"{short(s.name)}\nms · nominal {s.rate_hz:g} Hz", fontsize=7)
+    ax.set_ylabel(f"{short(stream.name)}\nms · nominal {stream.rate_hz:g} Hz", fontsize=7)
     ax.tick_params(labelsize=7)
-    ax.text(1.0, 1.0, f"{rate_label(t)}, {plural(len(t), 'message')}, {late} outside "
+    ax.text(1.0, 1.0, f"{rate_label(times)}, {plural(len(times), 'message')}, {late} outside "
             f"tolerance, {plural(len(gaps), 'silence')}, "
-            f"{plural(len(s.counter_jumps), 'counter jump')}",
+            f"{plural(len(stream.counter_jumps), 'counter jump')}",
             transform=ax.transAxes, fontsize=7,
             ha="right", va="bottom")
 
@@ -132,8 +132,8 @@ def _rebinned(col: Collected) -> tuple[float, dict[int, Counter[str]]]:
     if factor == 1:
         return width, bins
     out: dict[int, Counter[str]] = {}
-    for b, c in bins.items():
-        out.setdefault(b // factor, Counter()).update(c)
+    for link_bin, counts in bins.items():
+        out.setdefault(link_bin // factor, Counter()).update(counts)
     return width * factor, out
 
 
@@ -144,8 +144,8 @@ def link_figure(col: Collected) -> Any:
     first, last = min(bins), max(bins)
     xs = [(b + 0.5) * width for b in range(first, last + 1)]
     keys: set[str] = set()
-    for c in bins.values():
-        keys.update(c)
+    for counts in bins.values():
+        keys.update(counts)
 
     def series(key: str) -> list[float]:
         return [bins.get(b, Counter()).get(key, 0) / width for b in range(first, last + 1)]
@@ -162,8 +162,8 @@ def link_figure(col: Collected) -> Any:
                "host \u2192 EyeQ\nframes/s"),
               (axes[2], naks, "NAKs/s by reason"), (axes[3], errors, "errors/s"))
     for ax, ks, label in panels:
-        for k, (colour, style, lw) in zip(ks, itertools.cycle(SERIES_STYLES)):
-            ax.plot(xs, series(k), drawstyle="steps-mid", linewidth=lw, label=k,
+        for name, (colour, style, lw) in zip(ks, itertools.cycle(SERIES_STYLES)):
+            ax.plot(xs, series(name), drawstyle="steps-mid", linewidth=lw, label=name,
                     color=colour, linestyle=style, alpha=0.9)
         if not ks:
             ax.text(0.5, 0.5, "none", transform=ax.transAxes, ha="center", va="center",
@@ -178,8 +178,8 @@ def link_figure(col: Collected) -> Any:
         ax.grid(True, color="#e0e0e0", linewidth=0.5)
     axes[-1].set_xlabel(f"{TIME_LABEL}, bins of {width * 1e3:g} ms")
     totals = Counter[str]()
-    for c in bins.values():
-        totals.update(c)
+    for counts in bins.values():
+        totals.update(counts)
     n_nak = sum(totals[k] for k in naks)
     n_err = sum(totals[k] for k in errors)
     fig.suptitle(f"link: {plural(sum(totals[k] for k in frames), 'frame')}, "

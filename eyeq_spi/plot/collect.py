@@ -33,12 +33,12 @@ class Window:
     end: float = math.inf
     t0: float | None = None  # absolute time of the capture's first timestamp
 
-    def rel(self, t: float | None) -> float | None:
-        if t is None:
+    def rel(self, time_s: float | None) -> float | None:
+        if time_s is None:
             return None
         if self.t0 is None:
-            self.t0 = t
-        return t - self.t0
+            self.t0 = time_s
+        return time_s - self.t0
 
 
 @dataclass
@@ -87,7 +87,7 @@ class Collector:
                  fps: float | None = None, max_frames: int = 600) -> None:
         self.codec = codec
         self.cat = codec.cat
-        self.w = window
+        self.window = window
         self.timing, self.link = timing, link
         self.at, self.fps, self.max_frames = at, fps, max_frames
         self.tracker = SceneTracker(Labels(codec)) if (at is not None or fps) else None
@@ -97,38 +97,38 @@ class Collector:
         self.done = False
 
     def add(self, record: dict[str, Any]) -> None:
-        t = self.w.rel(record.get("time"))
-        if t is None and record["kind"] == "event":
-            t = self._last_t  # an event names the frame that caused it (index), not its time
-        elif t is not None:
-            self._last_t = t
-        if t is not None:
+        time_s = self.window.rel(record.get("time"))
+        if time_s is None and record["kind"] == "event":
+            time_s = self._last_t  # an event names the frame that caused it (index), not its time
+        elif time_s is not None:
+            self._last_t = time_s
+        if time_s is not None:
             self.out.has_time = True
             if self.tracker is not None:
-                self._frames(t)
-            if t > self.w.end:
+                self._frames(time_s)
+            if time_s > self.window.end:
                 self.done = True
                 return
-            self.out.end = max(self.out.end, t)
-            if t < self.w.start:
+            self.out.end = max(self.out.end, time_s)
+            if time_s < self.window.start:
                 if self.tracker is not None and record["kind"] == "message":
-                    self.tracker.update(record["name"], record["fields"], t, record["errors"])
+                    self.tracker.update(record["name"], record["fields"], time_s, record["errors"])
                 return
         kind = record["kind"]
         if kind == "message":
-            self._message(record, t)
-        elif self.link and t is not None:
-            self._link(record, t)
+            self._message(record, time_s)
+        elif self.link and time_s is not None:
+            self._link(record, time_s)
 
-    def _frames(self, t: float) -> None:
+    def _frames(self, time_s: float) -> None:
         assert self.tracker is not None
         if self.at is not None:
-            if t > self.at and self.out.scene is None:
+            if time_s > self.at and self.out.scene is None:
                 self.out.scene = self.tracker.snapshot()
                 self.done = not (self.timing or self.link)
             return
         assert self.fps
-        while t >= self._next_frame and self._next_frame <= self.w.end:
+        while time_s >= self._next_frame and self._next_frame <= self.window.end:
             if len(self.out.frames) >= self.max_frames:
                 raise UsageError(f"more than {self.max_frames} animation frames: lower --fps, "
                                  "narrow --start/--end or raise --max-frames")
@@ -137,11 +137,11 @@ class Collector:
             self.out.frames.append(snap)
             self._next_frame += 1.0 / self.fps
 
-    def _message(self, record: dict[str, Any], t: float | None) -> None:
+    def _message(self, record: dict[str, Any], time_s: float | None) -> None:
         name = record["name"]
         if self.tracker is not None:
-            self.tracker.update(name, record["fields"], t, record["errors"])
-        if not self.timing or t is None or record["protocol"] not in ("DASP", "DIAG"):
+            self.tracker.update(name, record["fields"], time_s, record["errors"])
+        if not self.timing or time_s is None or record["protocol"] not in ("DASP", "DIAG"):
             return
         stream = self.out.streams.get(name)
         if stream is None:
@@ -151,35 +151,36 @@ class Collector:
                 return
             stream = Stream(name, record["direction"], msg.rate_hz, msg.tolerance_ms)
             self.out.streams[name] = stream
-        stream.times.append(t)
+        stream.times.append(time_s)
         for error in record["errors"]:
             if error.startswith("DASP counter gap"):
-                stream.counter_jumps.append(t)
+                stream.counter_jumps.append(time_s)
             elif error.startswith("E2E"):
-                stream.e2e_errors.append(t)
+                stream.e2e_errors.append(time_s)
         if self.link:
-            self._count(t, "E2E errors", sum(error.startswith("E2E") for error in record["errors"]))
+            e2e = sum(error.startswith("E2E") for error in record["errors"])
+            self._count(time_s, "E2E errors", e2e)
 
-    def _count(self, t: float, key: str, n: int = 1) -> None:
-        if n:
-            b = int(t // self.out.link_bin)
-            counts = self.out.link.get(b)
+    def _count(self, time_s: float, key: str, count: int = 1) -> None:
+        if count:
+            link_bin = int(time_s // self.out.link_bin)
+            counts = self.out.link.get(link_bin)
             if counts is None:  # not setdefault: a Counter built per frame cost a tenth
-                counts = self.out.link[b] = Counter()
-            counts[key] += n
+                counts = self.out.link[link_bin] = Counter()
+            counts[key] += count
 
-    def _link(self, record: dict[str, Any], t: float) -> None:
+    def _link(self, record: dict[str, Any], time_s: float) -> None:
         if record["kind"] == "frame":
             direction = record["direction"] or "?"
-            self._count(t, f"{direction} {record['frame_type']}")
+            self._count(time_s, f"{direction} {record['frame_type']}")
             if "length" in record:
-                self._count(t, "wrong length")
+                self._count(time_s, "wrong length")
             elif not record["crc_ok"]:
-                self._count(t, "CRC errors")
+                self._count(time_s, "CRC errors")
             elif record["frame_type"] == "NAK":
-                self._count(t, f"NAK 0x{record['nak_reason']:03X}")
+                self._count(time_s, f"NAK 0x{record['nak_reason']:03X}")
         elif record["type"] == "transfer_aborted":
-            self._count(t, f"abort: {record['reason']}")
+            self._count(time_s, f"abort: {record['reason']}")
 
     def finish(self) -> Collected:
         if self.tracker is not None:

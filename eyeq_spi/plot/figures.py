@@ -25,9 +25,9 @@ def mpl() -> Any:
     return matplotlib
 
 
-def plural(n: int, word: str) -> str:
+def plural(count: int, word: str) -> str:
     """``1 sign``, ``3 signs`` (the words the plots use take an s)."""
-    return f"{n} {word}" if n == 1 else f"{n} {word}s"
+    return f"{count} {word}" if count == 1 else f"{count} {word}s"
 
 
 def new_figure(width_in: float, height_in: float, dpi: int) -> Any:

@@ -39,8 +39,8 @@ class Label:
 Box = tuple[float, float, float, float]  # x0, y0, x1, y1 in display pixels
 
 
-def _overlaps(a: Box, b: Box) -> bool:
-    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+def _overlaps(box: Box, other: Box) -> bool:
+    return box[0] < other[2] and other[0] < box[2] and box[1] < other[3] and other[1] < box[3]
 
 
 def _inside(inner: Box, outer: Box) -> bool:

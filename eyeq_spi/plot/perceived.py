@@ -159,17 +159,18 @@ def _constant(codec: MessageCodec, name: str, default: int) -> int:
         return default
 
 
-def _walk(v: Any, path: tuple[str, ...] = ()) -> Iterator[tuple[tuple[str, ...], dict[str, Any]]]:
+def _walk(value: Any, path: tuple[str, ...] = ()
+          ) -> Iterator[tuple[tuple[str, ...], dict[str, Any]]]:
     """Every dict in a decoded value with its path of member names (array indices dropped)."""
-    if isinstance(v, dict):
-        yield path, v
-        for k, x in v.items():
-            if isinstance(x, dict | list):
-                yield from _walk(x, (*path, k))
-    elif isinstance(v, list):
-        for x in v:
-            if isinstance(x, dict):
-                yield from _walk(x, path)
+    if isinstance(value, dict):
+        yield path, value
+        for key, member in value.items():
+            if isinstance(member, dict | list):
+                yield from _walk(member, (*path, key))
+    elif isinstance(value, list):
+        for member in value:
+            if isinstance(member, dict):
+                yield from _walk(member, path)
 
 
 def _f(fields: dict[str, Any], key: str, default: float = 0.0) -> float:
@@ -179,16 +180,16 @@ def _f(fields: dict[str, Any], key: str, default: float = 0.0) -> float:
 
 def objects(fields: dict[str, Any], labels: Labels) -> list[SceneObject]:
     out: list[SceneObject] = []
-    for path, d in _walk(fields):
-        ps = d.get("physicalState")
-        if not isinstance(ps, dict) or "id" not in d:
+    for path, struct in _walk(fields):
+        ps = struct.get("physicalState")
+        if not isinstance(ps, dict) or "id" not in struct:
             continue
-        oid = d["id"]
+        oid = struct["id"]
         if not isinstance(oid, int) or not 1 <= oid <= labels.max_objects:
             continue
-        cls = int(d.get("classification", 0))
-        cipv = labels.label(OBSTACLES, (*path, "isCipv"), d.get("isCipv", 0)) == CIPV
-        ttc = d.get("ttc_const_vel")
+        cls = int(struct.get("classification", 0))
+        cipv = labels.label(OBSTACLES, (*path, "isCipv"), struct.get("isCipv", 0)) == CIPV
+        ttc = struct.get("ttc_const_vel")
         out.append(SceneObject(
             id=oid, cls=cls, cls_name=labels.label(OBSTACLES, (*path, "classification"), cls),
             long=_f(ps, "longDistance"), lat=_f(ps, "latDistance"), width=_f(ps, "width"),
@@ -209,11 +210,11 @@ def _line_kind(name: str) -> str:
 def lines(fields: dict[str, Any], labels: Labels) -> list[SceneLine]:
     out: list[SceneLine] = []
     parents: dict[tuple[str, ...], dict[str, Any]] = {}
-    for path, d in _walk(fields):
-        parents[path] = d
-        if not d.keys() >= POLY_KEYS:
+    for path, struct in _walk(fields):
+        parents[path] = struct
+        if not struct.keys() >= POLY_KEYS:
             continue
-        start, end = _f(d, "startRange"), _f(d, "endRange")
+        start, end = _f(struct, "startRange"), _f(struct, "endRange")
         if not end > start:
             continue
         parent = parents.get(path[:-1], {})
@@ -221,27 +222,27 @@ def lines(fields: dict[str, Any], labels: Labels) -> list[SceneLine]:
         # hostLeftMarker.laneMarker -> hostLeftMarker; roadHppFusionInfo.laneCenter -> laneCenter
         name = path[-2] if len(path) >= 2 and own in ("laneMarker", "roadBorder") else own
         type_name = None
-        for k, v in parent.items():
-            if k.endswith(("MarkerType", "BorderType")) and isinstance(v, int):
-                type_name = labels.label(ROAD, (*path[:-1], k), v)
+        for key, value in parent.items():
+            if key.endswith(("MarkerType", "BorderType")) and isinstance(value, int):
+                type_name = labels.label(ROAD, (*path[:-1], key), value)
                 break
         if type_name in ("INVALID", "Invalid"):
             continue  # lane_marker_type 6, road_border_type 1 (SW7+)
         out.append(SceneLine(
             name=name, kind=_line_kind(name),
-            coeffs=(_f(d, "a0"), _f(d, "a1"), _f(d, "a2"), _f(d, "a3")),
+            coeffs=(_f(struct, "a0"), _f(struct, "a1"), _f(struct, "a2"), _f(struct, "a3")),
             start=start, end=end, type_name=type_name))
     return out
 
 
 def signs(fields: dict[str, Any], labels: Labels) -> list[SceneSign]:
     out: list[SceneSign] = []
-    for path, d in _walk(fields):
-        elems = d.get("trafficSigns")
+    for path, struct in _walk(fields):
+        elems = struct.get("trafficSigns")
         if not isinstance(elems, list):
             continue
-        n = d.get("numberTrafficSigns")
-        count = int(n) if isinstance(n, int) else len(elems)
+        declared = struct.get("numberTrafficSigns")
+        count = int(declared) if isinstance(declared, int) else len(elems)
         for sign in elems[:max(0, count)]:
             if not isinstance(sign, dict):
                 continue
@@ -284,7 +285,7 @@ class SceneTracker:
         self.labels = labels
         self.scene = Scene()
 
-    def update(self, name: str | None, fields: dict[str, Any] | None, t: float | None,
+    def update(self, name: str | None, fields: dict[str, Any] | None, time_s: float | None,
                errors: list[str] | tuple[str, ...] = ()) -> bool:
         """True when the message changed the scene. A message with decode errors is skipped,
         as the host skips it (D5); E2E and counter errors alone do not hide it from a view."""
@@ -301,8 +302,8 @@ class SceneTracker:
             sc.signs = signs(fields, self.labels)
         else:
             sc.spots = spots(fields, self.labels)
-        sc.times[name] = t
-        sc.time = t
+        sc.times[name] = time_s
+        sc.time = time_s
         return True
 
     def snapshot(self) -> Scene:

@@ -83,37 +83,37 @@ class VirtualRunner:
         self._quiet[:] = [False] * count
         self._fresh[:] = [True] * count
 
-    def _touch(self, i: int) -> None:
-        """Node ``i`` received a transfer or handled a timer."""
-        if self._alone[i]:
-            self._known[i] = self._quiet[i] = False
-            self._fresh[i] = True
+    def _touch(self, index: int) -> None:
+        """Node ``index`` received a transfer or handled a timer."""
+        if self._alone[index]:
+            self._known[index] = self._quiet[index] = False
+            self._fresh[index] = True
         else:  # it may have acted on another node (the host's reset line powers the EyeQ up)
             self.touch_all()
 
-    def _deadline(self, i: int) -> float | None:
-        if not self._known[i]:
-            self._known[i] = True
-            timer = self._timer[i] = self.nodes[i][0].get_timer()
+    def _deadline(self, index: int) -> float | None:
+        if not self._known[index]:
+            self._known[index] = True
+            timer = self._timer[index] = self.nodes[index][0].get_timer()
             return timer
-        timer = self._timer[i]
+        timer = self._timer[index]
         if self.verify:
-            fresh = self.nodes[i][0].get_timer()
+            fresh = self.nodes[index][0].get_timer()
             if fresh != timer:
-                raise AssertionError(f"node {i}: cached deadline {timer} but get_timer() is "
+                raise AssertionError(f"node {index}: cached deadline {timer} but get_timer() is "
                                      f"{fresh}")
         return timer
 
     def _drain(self, sender: int) -> None:
         """Put what reached the other nodes' adapters in flight, to arrive ``latency`` later."""
         at = self.now + self.latency
-        for j, (_, other) in enumerate(self.nodes):
-            if j == sender:
+        for peer, (_, other) in enumerate(self.nodes):
+            if peer == sender:
                 continue
             while (transfer := other.recv(0)) is not None:
-                # a memory pair delivers to exactly one peer, so attribute it to `j`
+                # a memory pair delivers to exactly one peer, so attribute it to `peer`
                 self._seq += 1
-                heapq.heappush(self._transit, (at, self._seq, j, transfer))
+                heapq.heappush(self._transit, (at, self._seq, peer, transfer))
 
     # -- one instant ------------------------------------------------------------------------
     def _pump(self, drain_all: bool = False) -> None:
@@ -125,48 +125,48 @@ class VirtualRunner:
         count = len(nodes)
         for _ in range(self._max_steps):
             progress = False
-            for i in range(count):
-                if quiet[i]:
+            for index in range(count):
+                if quiet[index]:
                     if drain_all:
-                        self._drain(i)
+                        self._drain(index)
                     continue
-                node, adapter = nodes[i]
+                node, adapter = nodes[index]
                 outs = node.data_to_send(now)
                 if outs:
                     progress = True
-                    known[i] = False
+                    known[index] = False
                     for out in outs:
                         if tap is not None:
-                            tap(i, now, out)
+                            tap(index, now, out)
                         adapter.send(out)
-                    if alone[i]:
+                    if alone[index]:
                         # a SELF_CONTAINED node hands over all that is due in one call
-                        quiet[i] = True
+                        quiet[index] = True
                         if self.verify and node.data_to_send(now):
-                            raise AssertionError(f"node {i}: more to send at {now} after a "
+                            raise AssertionError(f"node {index}: more to send at {now} after a "
                                                  "call that handed over")
                 else:
                     # handing over nothing can still move a deadline: a request queued behind
                     # a full window, a wrapper that withholds what its node hands over (the
                     # conformance shim holding ACKs back); a SELF_CONTAINED node promises
                     # that only the first call after a touch can
-                    if fresh[i] or not alone[i]:
-                        known[i] = False
-                    quiet[i] = True
-                fresh[i] = False
+                    if fresh[index] or not alone[index]:
+                        known[index] = False
+                    quiet[index] = True
+                fresh[index] = False
                 if outs or drain_all:
-                    self._drain(i)
+                    self._drain(index)
             drain_all = False
             while transit and transit[0][0] <= now:
                 _, _, to, transfer = heapq.heappop(transit)
                 nodes[to][0].receive_data(transfer, now)
                 self._touch(to)
                 progress = True
-            for i in range(count):
-                timer = timers[i] if cached and known[i] else self._deadline(i)
+            for index in range(count):
+                timer = timers[index] if cached and known[index] else self._deadline(index)
                 if timer is not None and timer <= now:
-                    nodes[i][0].handle_timer(now)
-                    self._touch(i)
+                    nodes[index][0].handle_timer(now)
+                    self._touch(index)
                     progress = True
             if not progress:
                 return
@@ -174,8 +174,8 @@ class VirtualRunner:
 
     def _next(self) -> float | None:
         best = self._transit[0][0] if self._transit else None
-        for i in range(len(self.nodes)):
-            due = self._deadline(i)
+        for index in range(len(self.nodes)):
+            due = self._deadline(index)
             if due is not None and (best is None or due < best):
                 best = due
         return best
@@ -206,23 +206,23 @@ class VirtualRunner:
             self.wall_s += time.perf_counter() - w0
             self.cpu_s += time.process_time() - c0
 
-    def _new_instant(self, t: float) -> None:
-        """Move the clock to ``t``. A node stays quiet (is not asked ``data_to_send``) when
+    def _new_instant(self, at: float) -> None:
+        """Move the clock to ``at``. A node stays quiet (is not asked ``data_to_send``) when
         nothing touched it since it last handed over nothing and its deadline is later than
-        ``t``: what a node sends becomes due only through a touch or its own timer (the Node
+        ``at``: what a node sends becomes due only through a touch or its own timer (the Node
         contract); ``verify`` checks it."""
-        if t == self.now:
+        if at == self.now:
             return
-        self.now = t
+        self.now = at
         quiet, known, fresh, timers = self._quiet, self._known, self._fresh, self._timer
-        for i in range(len(quiet)):
-            if quiet[i]:
-                timer = timers[i]
-                if fresh[i] or not known[i] or (timer is not None and timer <= t):
-                    quiet[i] = False
-                elif self.verify and self.nodes[i][0].data_to_send(t):
-                    raise AssertionError(f"node {i}: quiet with deadline {timer} but has "
-                                         f"something to send at {t}")
+        for index in range(len(quiet)):
+            if quiet[index]:
+                timer = timers[index]
+                if fresh[index] or not known[index] or (timer is not None and timer <= at):
+                    quiet[index] = False
+                elif self.verify and self.nodes[index][0].data_to_send(at):
+                    raise AssertionError(f"node {index}: quiet with deadline {timer} but has "
+                                         f"something to send at {at}")
 
     def _run(
         self, t_end: float, stop: Callable[[], bool] | None, pace: tuple[float, float] | None,
@@ -268,65 +268,65 @@ class VirtualRunner:
             t0 = inf if timers[0] is None else timers[0]
             t1 = inf if timers[1] is None else timers[1]
             arrival = transit[0][0] if transit else inf
-            t = min(t0, t1, arrival, inf)
-            if t > t_end or t == inf or t < self.now \
-                    or (t0 == t) + (t1 == t) + (arrival == t) != 1 \
-                    or (arrival == t and len(transit) > 1 and _second(transit) <= t):
+            at = min(t0, t1, arrival, inf)
+            if at > t_end or at == inf or at < self.now \
+                    or (t0 == at) + (t1 == at) + (arrival == at) != 1 \
+                    or (arrival == at and len(transit) > 1 and _second(transit) <= at):
                 return  # nothing more to do here, or more than one thing at t
-            self.now = t
-            if arrival == t:
-                _, _, j, transfer = heapq.heappop(transit)
-                node = nodes[j][0]
-                node.receive_data(transfer, t)
-                if not known[1 - j]:  # it acted on the other node (the reset line)
-                    self._finish_instant(t, 0)
+            self.now = at
+            if arrival == at:
+                _, _, side, transfer = heapq.heappop(transit)
+                node = nodes[side][0]
+                node.receive_data(transfer, at)
+                if not known[1 - side]:  # it acted on the other node (the reset line)
+                    self._finish_instant(at, 0)
                     return
                 timer = node.get_timer()
-                known_j = timer is None or timer > t
-                if not known_j:
-                    node.handle_timer(t)
-                    if not known[1 - j]:
-                        self._finish_instant(t, j + 1)
+                known_side = timer is None or timer > at
+                if not known_side:
+                    node.handle_timer(at)
+                    if not known[1 - side]:
+                        self._finish_instant(at, side + 1)
                         return
                 touched = True  # asked for data in the next round
             else:
-                j = 0 if t0 == t else 1
-                node, timer, known_j, touched = nodes[j][0], timers[j], True, False
-            for _ in range(self._max_steps):  # _pump's rounds for node j alone
-                outs = node.data_to_send(t)
+                side = 0 if t0 == at else 1
+                node, timer, known_side, touched = nodes[side][0], timers[side], True, False
+            for _ in range(self._max_steps):  # _pump's rounds for node `side` alone
+                outs = node.data_to_send(at)
                 if outs:
-                    known_j = False
-                    adapter = nodes[j][1]
+                    known_side = False
+                    adapter = nodes[side][1]
                     for out in outs:
                         if self.tap is not None:
-                            self.tap(j, t, out)
+                            self.tap(side, at, out)
                         adapter.send(out)
-                    self._drain(j)
+                    self._drain(side)
                 elif touched:
-                    known_j = False
+                    known_side = False
                 touched = False
-                if not known_j:
-                    timer, known_j = node.get_timer(), True
-                if timer is not None and timer <= t:
-                    node.handle_timer(t)
-                    if not known[1 - j]:
-                        self._finish_instant(t, j + 1)
+                if not known_side:
+                    timer, known_side = node.get_timer(), True
+                if timer is not None and timer <= at:
+                    node.handle_timer(at)
+                    if not known[1 - side]:
+                        self._finish_instant(at, side + 1)
                         return
-                    known_j, touched = False, True
+                    known_side, touched = False, True
                     continue
                 break
             else:
-                raise RuntimeError(f"no quiescence at t={t}: a node keeps asking for work")
-            timers[j] = timer
+                raise RuntimeError(f"no quiescence at t={at}: a node keeps asking for work")
+            timers[side] = timer
 
-    def _finish_instant(self, t: float, first: int) -> None:
+    def _finish_instant(self, at: float, first: int) -> None:
         """A node's call acted on the other node (``touch_all``, as the host's reset line
         does): finish the instant as ``_pump`` would from its timer checks at node ``first``."""
-        for i in range(first, len(self.nodes)):
-            timer = self._deadline(i)
-            if timer is not None and timer <= t:
-                self.nodes[i][0].handle_timer(t)
-                self._touch(i)
+        for index in range(first, len(self.nodes)):
+            timer = self._deadline(index)
+            if timer is not None and timer <= at:
+                self.nodes[index][0].handle_timer(at)
+                self._touch(index)
         self._pump()
 
     def run_for(self, duration: float, *, stop: Callable[[], bool] | None = None) -> float:

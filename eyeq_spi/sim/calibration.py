@@ -29,10 +29,10 @@ def fill_calibration(name: str, values: dict[str, Any], now: float, started: flo
         cal["status"] = 1 if done else 0  # SUCCESS / INIT
         cal["error"] = 3 if done else 0  # OK when done, as scene.py's SPC results (§9.9)
         cal["overallProgress"] = int(frac * 100)
-    h = zlib.crc32(f"{seed}-{name}".encode())
-    cal["distYaw"] = (h & 0x3F) - 32 if done else 0
-    cal["distPitch"] = ((h >> 6) & 0x3F) - 32 if done else 0
-    cal["roll"] = ((h >> 12) & 0xFF) / 1000.0 - 0.128 if done else 0.0
+    digest = zlib.crc32(f"{seed}-{name}".encode())
+    cal["distYaw"] = (digest & 0x3F) - 32 if done else 0
+    cal["distPitch"] = ((digest >> 6) & 0x3F) - 32 if done else 0
+    cal["roll"] = ((digest >> 12) & 0xFF) / 1000.0 - 0.128 if done else 0.0
     cal["phYaw"] = cal["distYaw"] * 0.05
     cal["phPitch"] = cal["distPitch"] * 0.05
     if "camHeight" in cal:
@@ -48,6 +48,6 @@ def strip_crc(codec: BitSignalCodec, params: bytes) -> bytes:
     raw = codec.decode_raw(params)
     raw["CRC_from_EEPROM"] = 0
     word = 0
-    for s in codec.variant.signals:
-        word |= raw[s.name] << s.start
+    for sig in codec.variant.signals:
+        word |= raw[sig.name] << sig.start
     return word.to_bytes(codec.length, "little")

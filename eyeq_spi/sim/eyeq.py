@@ -161,24 +161,24 @@ class SimulatedEyeQ(MespFunctions):
         self._veh_ranges: dict[str, tuple[float, float]] = {}
         if host_struct is not None:
             var = host_struct.variant_for(self.sw)
-            for m in (var.members if var is not None else ()):
-                if m.min is not None and m.max is not None:
-                    self._veh_ranges[m.name] = (float(m.min), float(m.max))
+            for member in (var.members if var is not None else ()):
+                if member.min is not None and member.max is not None:
+                    self._veh_ranges[member.name] = (float(member.min), float(member.max))
 
     def warm_up(self) -> None:
         """Build every template, fill plan and codec path once, before real time starts: the
         first message of each kind costs several milliseconds, enough for the peer's 10 ms
         ackTimeout to expire on frames we have not ACKed yet (live-run finding)."""
         e2e = E2EState()
-        for m in self.codec.cat.messages:
-            if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw):
-                values = dict(self._template(m.name, m.payload))
+        for msg in self.codec.cat.messages:
+            if msg.protocol == "DASP" and msg.direction == "e2h" and msg.exists_in(self.sw):
+                values = dict(self._template(msg.name, msg.payload))
                 self.scene.step(0.0, *self._ego)
-                self._fill(m.name, values, 0.0)
-                self.codec.decode(self.codec.encode_dasp(m.name, values, 0, e2e))
-                packer = self._packer(m)
+                self._fill(msg.name, values, 0.0)
+                self.codec.decode(self.codec.encode_dasp(msg.name, values, 0, e2e))
+                packer = self._packer(msg)
                 if packer is not None:
-                    self._fill(m.name, packer.root, 0.0)  # type: ignore[arg-type]
+                    self._fill(msg.name, packer.root, 0.0)  # type: ignore[arg-type]
                     packer.encode(0, e2e)
                     packer.reset()  # as the templates: the first real message starts from zeros
         self.server.codec.warm_up()  # MESP requests we read, replies we send
@@ -447,66 +447,67 @@ class SimulatedEyeQ(MespFunctions):
             self.scene.unanchor()
             # stagger the messages over one period so that no message waits behind the others
             # for longer than transmitTimeout
-            for i, m in enumerate(msgs):
-                self._next_dasp[m.name] = now + i * period / max(1, len(msgs))
+            for index, msg in enumerate(msgs):
+                self._next_dasp[msg.name] = now + index * period / max(1, len(msgs))
         # the messages due now, in catalogue order (a message not yet scheduled is due now)
-        due = [(t, m) for m in msgs if (t := self._next_dasp.get(m.name, now)) <= now]
-        for t, m in due:
+        due = [(due_at, msg) for msg in msgs
+               if (due_at := self._next_dasp.get(msg.name, now)) <= now]
+        for due_at, msg in due:
             # §7.1.4: the scene moves once per camera frame (at the frame's start), and every
             # message of that frame reads the same state
             frame = math.floor(now * rate + 1e-6)
             if frame != self._scene_frame:
                 self._scene_frame = frame
                 self.scene.step(min(now, frame * period), *self._ego)
-            self._next_dasp[m.name] = max(t + period, now)
-            stop = self.config.stop_dasp.get(m.name)
+            self._next_dasp[msg.name] = max(due_at + period, now)
+            stop = self.config.stop_dasp.get(msg.name)
             if stop is not None and now >= stop:
                 continue
-            counter = self._dasp_counter[m.data_id]
-            self._dasp_counter[m.data_id] = (counter + 1) & 0xFF
-            self._send(self._dasp_bytes(m, counter, now), now)
-            self.counters.sent[m.name] += 1
+            counter = self._dasp_counter[msg.data_id]
+            self._dasp_counter[msg.data_id] = (counter + 1) & 0xFF
+            self._send(self._dasp_bytes(msg, counter, now), now)
+            self.counters.sent[msg.name] += 1
         self._dasp_min = min(self._next_dasp.values(), default=now)
 
-    def _packer(self, m: MessageDef) -> DaspPacker | None:
+    def _packer(self, msg: MessageDef) -> DaspPacker | None:
         """The message's packer; None: the reference (switched off, by the config or, when the
         config leaves it open, by ``EYEQ_SPI_EXACT=1``; or no packer for it)."""
-        if m.name not in self._packers:
+        if msg.name not in self._packers:
             packed = self.config.dasp_packer
             if packed is None:
                 packed = not references_only()
-            self._packers[m.name] = DaspPacker.build(self.codec.layout(m), m.data_id) \
+            self._packers[msg.name] = DaspPacker.build(self.codec.layout(msg), msg.data_id) \
                 if packed else None
-        return self._packers[m.name]
+        return self._packers[msg.name]
 
-    def _dasp_bytes(self, m: MessageDef, counter: int, now: float) -> bytes:
+    def _dasp_bytes(self, msg: MessageDef, counter: int, now: float) -> bytes:
         """One DASP message: packed in place, or by the reference."""
-        packer = self._packer(m)
+        packer = self._packer(msg)
         if packer is not None:
-            self._fill(m.name, packer.root, now)  # type: ignore[arg-type]
+            self._fill(msg.name, packer.root, now)  # type: ignore[arg-type]
             self.dasp_paths["packed"] += 1
             return packer.encode(counter, self.e2e)
-        values = self._template(m.name, m.payload)
-        self._fill(m.name, values, now)
+        values = self._template(msg.name, msg.payload)
+        self._fill(msg.name, values, now)
         self.dasp_paths["dict"] += 1
-        return self.codec.encode_dasp(m.name, values, counter, self.e2e)
+        return self.codec.encode_dasp(msg.name, values, counter, self.e2e)
 
     def _fill(self, name: str, values: dict[str, Any], now: float) -> None:
         if "timestamp_ms" in values:
             values["timestamp_ms"] = int(now * 1000) & 0xFFFFFFFF
         if name == "EYEQ_BASE_DIAG_STATUS_MSG":
-            c = self.counters
+            counters = self.counters
             values.update({"apiVersionMajor": self.api_version[0],
                            "apiVersionMinor": self.api_version[1],
                            "eyeqSwVersionMajor": self.sw_version[0],
                            "eyeqSwVersionMinor": self.sw_version[1],
-                           "SPI_Rolling_Count_Echo": c.rolling_count_echo & 0xFFFF,
-                           "eyeqSPIMsgTxCtr": c.msg_tx & 0xFFFF,
-                           "eyeqSPIMsgRxBadHdrCtr": c.bad_hdr & 0xFF,
-                           "eyeqSPIMsgRxBadSeqCtr": c.bad_seq & 0xFF})
+                           "SPI_Rolling_Count_Echo": counters.rolling_count_echo & 0xFFFF,
+                           "eyeqSPIMsgTxCtr": counters.msg_tx & 0xFFFF,
+                           "eyeqSPIMsgRxBadHdrCtr": counters.bad_hdr & 0xFF,
+                           "eyeqSPIMsgRxBadSeqCtr": counters.bad_seq & 0xFF})
             for key in ("eyeqSPIMsg20RxCtr", "eyeqSPIMsg10RxCtr"):
                 if key in values:
-                    values[key] = c.msg20_rx & 0xFFFF
+                    values[key] = counters.msg20_rx & 0xFFFF
             if "spiDiagnosticInfo" in values:
                 values["spiDiagnosticInfo"] = self.conn.link.counters.seed_view()
             return

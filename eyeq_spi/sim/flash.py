@@ -127,10 +127,11 @@ def flash_regions(size_mb: int) -> tuple[FlashRegion, ...]:
     )
     total = size_mb * MIB
     pos = 0
-    for r in regions:
-        if r.size <= 0 or r.start < pos or r.end > total:
-            raise SpecError(f"flash_map.yaml: {size_mb}MB region {r.name!r} overlaps or overflows")
-        pos = r.end
+    for region in regions:
+        if region.size <= 0 or region.start < pos or region.end > total:
+            raise SpecError(f"flash_map.yaml: {size_mb}MB region {region.name!r} overlaps or "
+                            "overflows")
+        pos = region.end
     return tuple(regions)
 
 
@@ -165,16 +166,16 @@ class FlashImage:
         # sorted, non-overlapping, non-adjacent (start, content) extents
         self._starts: list[int] = []
         self._data: list[bytearray] = []
-        for r in self.regions:
-            self._starts.append(r.start)
-            self._data.append(bytearray(_content(seed, r)))
+        for region in self.regions:
+            self._starts.append(region.start)
+            self._data.append(bytearray(_content(seed, region)))
 
     # -- lookup ------------------------------------------------------------------------------
     def region(self, name: str) -> FlashRegion:
         """The first region called ``name`` (exactly, or ignoring the camera qualifier)."""
-        for r in self.regions:
-            if name in (r.name, r.base_name):
-                return r
+        for region in self.regions:
+            if name in (region.name, region.base_name):
+                return region
         raise LocalProtocolError(f"no region {name!r} in the {self.size_mb}MB flash map")
 
     @property
@@ -191,24 +192,24 @@ class FlashImage:
 
     def _segments(self, start: int, end: int) -> Iterator[bytes | memoryview]:
         """The bytes of ``[start, end)`` as a stream of extent slices and erased blocks."""
-        i = max(0, bisect.bisect_right(self._starts, start) - 1)
+        extent = max(0, bisect.bisect_right(self._starts, start) - 1)
         pos = start
         while pos < end:
-            if i < len(self._starts) and self._starts[i] + len(self._data[i]) <= pos:
-                i += 1  # extent wholly before pos
+            if extent < len(self._starts) and self._starts[extent] + len(self._data[extent]) <= pos:
+                extent += 1  # extent wholly before pos
                 continue
-            if i < len(self._starts) and self._starts[i] <= pos:
-                ext_start, data = self._starts[i], self._data[i]
+            if extent < len(self._starts) and self._starts[extent] <= pos:
+                ext_start, data = self._starts[extent], self._data[extent]
                 stop = min(end, ext_start + len(data))
                 yield memoryview(data)[pos - ext_start : stop - ext_start]
                 pos = stop
-                i += 1
+                extent += 1
                 continue
-            gap_end = min(end, self._starts[i]) if i < len(self._starts) else end
+            gap_end = min(end, self._starts[extent]) if extent < len(self._starts) else end
             while pos < gap_end:
-                n = min(MIB, gap_end - pos)
-                yield _ERASED_BLOCK if n == MIB else memoryview(_ERASED_BLOCK)[:n]
-                pos += n
+                size = min(MIB, gap_end - pos)
+                yield _ERASED_BLOCK if size == MIB else memoryview(_ERASED_BLOCK)[:size]
+                pos += size
 
     # -- access ------------------------------------------------------------------------------
     def read(self, start: int, size: int) -> bytes:
@@ -228,10 +229,10 @@ class FlashImage:
                 crc = zlib.crc32(seg, crc)
             return crc.to_bytes(4, "little")
         if hash_type == HASH_SHA256:
-            h = hashlib.sha256()
+            digest = hashlib.sha256()
             for seg in segments:
-                h.update(seg)
-            return h.digest()
+                digest.update(seg)
+            return digest.digest()
         raise LocalProtocolError(f"unknown hash type {hash_type} (0 SHA-256, 1 CRC32)")
 
     def set_bytes(self, offset: int, data: bytes) -> None:
@@ -249,8 +250,8 @@ class FlashImage:
         new_start = min([offset, *starts])
         new_end = max([end, *(s + len(d) for s, d in zip(starts, datas, strict=True))])
         merged = bytearray([_ERASED]) * (new_end - new_start)
-        for s, d in zip(starts, datas, strict=True):
-            merged[s - new_start : s - new_start + len(d)] = d
+        for ext_start, ext_data in zip(starts, datas, strict=True):
+            merged[ext_start - new_start : ext_start - new_start + len(ext_data)] = ext_data
         merged[offset - new_start : end - new_start] = data
         self._starts[lo:hi] = [new_start]
         self._data[lo:hi] = [merged]

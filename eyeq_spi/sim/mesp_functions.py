@@ -89,17 +89,17 @@ class MespFunctions:
     _cal_started: float | None
     _next_dasp: dict[str, float]
 
-    def _get_state(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+    def _get_state(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         return 0, {"mainState": self.main_state, "subState": self.sub_state}
 
-    def _get_versions(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+    def _get_versions(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         return 0, {"apiVersionMajor": self.api_version[0],
                    "apiVersionMinor": self.api_version[1],
                    "eyeqSwVersionMajor": self.sw_version[0],
                    "eyeqSwVersionMinor": self.sw_version[1]}
 
-    def _switch_app(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-        app = p["applicationId"]
+    def _switch_app(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        app = params["applicationId"]
         target = {APP_VISION: (PENDING, PENDING_VISION), APP_TAC: (PENDING, PENDING_TAC),
                   APP_SPC: (PENDING, PENDING_SPC), APP_DV: (RUNNING_DV, 0)}.get(app)
         if target is None:
@@ -128,39 +128,40 @@ class MespFunctions:
         self.conn.restart()
         return 0, {"applicationId": app}
 
-    def _ffs_read(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-        if p["filename"] != EEPROM_FILE:
+    def _ffs_read(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        if params["filename"] != EEPROM_FILE:
             return RET_FILE_NOT_FOUND, {}
         return 0, {"lastModified": 0, "flags": 0, "desc": "camera EEPROM",
                    "data": bytes(self.eeprom)}
 
-    def _compute_hash(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-        ret, result = hash_request(self.flash, p["hashType"], p["datasetType"], p["start"],
-                                   p["size"])
+    def _compute_hash(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        ret, result = hash_request(self.flash, params["hashType"], params["datasetType"],
+                                   params["start"], params["size"])
         if ret:
             return ret, {}
-        return 0, {"hashType": p["hashType"], "datasetType": p["datasetType"], "result": result}
+        return 0, {"hashType": params["hashType"], "datasetType": params["datasetType"],
+                   "result": result}
 
-    def _edr(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-        if p["edr_type"] != 6 or p["edr_params_num"] != len(p["params"]):
+    def _edr(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        if params["edr_type"] != 6 or params["edr_params_num"] != len(params["params"]):
             return RET_BAD_PARAMETERS, {}
-        self.counters.edr_triggers.append({**p, "time": self.now})
-        return 0, {k: p[k] for k in ("edr_type", "edr_policy", "edr_function")}
+        self.counters.edr_triggers.append({**params, "time": self.now})
+        return 0, {k: params[k] for k in ("edr_type", "edr_policy", "edr_function")}
 
-    def _calibration(self, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-        stage, params = p["ct_stage"], p["params"]
+    def _calibration(self, request: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        stage, params = request["ct_stage"], request["params"]
         try:
             msg = init_message(stage, self.sw)
         except (LocalProtocolError, EyeqError):
-            return self._cal_result(stage, RET_BAD_PARAMETERS, p)
-        if p["ct_type"] != msg.ct_type:
-            return self._cal_result(stage, RET_BAD_PARAMETERS, p)
+            return self._cal_result(stage, RET_BAD_PARAMETERS, request)
+        if request["ct_type"] != msg.ct_type:
+            return self._cal_result(stage, RET_BAD_PARAMETERS, request)
         if msg.codec is not None and (len(params) != msg.codec.length or msg.check(params)):
-            return self._cal_result(stage, RET_BAD_PARAMETERS, p)
+            return self._cal_result(stage, RET_BAD_PARAMETERS, request)
         allowed = {0x84: PENDING_VISION, 0x78: PENDING_VISION, 0x79: PENDING_VISION,
                    0x92: PENDING_VISION, 0x85: PENDING_TAC, 0x82: PENDING_SPC}
         if self.main_state != PENDING or self.sub_state != allowed.get(stage):
-            return self._cal_result(stage, RET_NOT_ALLOWED, p)
+            return self._cal_result(stage, RET_NOT_ALLOWED, request)
         if stage == 0x84:
             assert msg.codec is not None
             if (self._expected_0x84_no_crc is not None
@@ -172,8 +173,9 @@ class MespFunctions:
             self.main_state, self.sub_state = (RUNNING_TAC if stage == 0x85 else RUNNING_SPC), 0
             self._cal_started = self.now
             self._next_dasp.clear()
-        return self._cal_result(stage, 0, p)
+        return self._cal_result(stage, 0, request)
 
-    def _cal_result(self, stage: int, ret: int, p: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+    def _cal_result(self, stage: int, ret: int, request: dict[str, Any]
+                    ) -> tuple[int, dict[str, Any]]:
         self.counters.calibration_events.append((stage, ret))
-        return ret, {k: p[k] for k in ("ct_type", "ct_stage", "ct_version")}
+        return ret, {k: request[k] for k in ("ct_type", "ct_stage", "ct_version")}

@@ -188,7 +188,7 @@ class Scene(SceneWorld):
         return out
 
     # -- payloads ----------------------------------------------------------------------------
-    def fill(self, name: str, values: dict[str, Any], t: float) -> None:
+    def fill(self, name: str, values: dict[str, Any], now: float) -> None:
         """Write the scene into a ``zero_values()`` dict of DASP message ``name`` (any SW
         version), or into a :class:`~eyeq_spi.sim.dasp_fast.DaspPacker`'s root view (the same
         writes, packed in place); members the layout lacks are skipped, unknown messages are
@@ -213,36 +213,37 @@ class Scene(SceneWorld):
             self._nodes[name] = (values, node, heads, method)
         if node is None:
             return
-        t = float(t)
+        now = float(now)
         if heads is not None:
-            vals = self._header_values(t)
+            vals = self._header_values(now)
             for put in heads:
                 put(vals)
         else:
-            self._fill_header(values, node, t)
+            self._fill_header(values, node, now)
             for key, sub in struct_members(node):
                 if isinstance(values.get(key), dict | StructView):
-                    self._fill_header(values[key], sub, t)
-        getattr(self, method)(values, node, t)
+                    self._fill_header(values[key], sub, now)
+        getattr(self, method)(values, node, now)
 
-    def _header_values(self, t: float) -> dict[str, float]:
-        """The values of every header of instant ``t`` (kept for the next message)."""
+    def _header_values(self, now: float) -> dict[str, float]:
+        """The values of every header of instant ``now`` (kept for the next message)."""
         last = self._header
-        if last is None or last[0] != t or last[1] != self._veh_index:
-            frame = frame_index(t)
-            last = self._header = (t, self._veh_index, {
-                "timestamp_ms": int(t * 1000) & 0xFFFFFFFF,
-                "timestamp_us": max(0, round(t * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
+        if last is None or last[0] != now or last[1] != self._veh_index:
+            frame = frame_index(now)
+            last = self._header = (now, self._veh_index, {
+                "timestamp_ms": int(now * 1000) & 0xFFFFFFFF,
+                "timestamp_us": max(0, round(now * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
                 "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
         return last[2]
 
-    def _fill_header(self, d: dict[str, Any], n: LayoutNode, t: float) -> None:
-        put_values(d, n, self._header_values(t))  # the same values for every header of one instant
+    def _fill_header(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
+        # the same values for every header of one instant
+        put_values(values, node, self._header_values(now))
 
-    def _fill_nothing(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+    def _fill_nothing(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         """Headers only (EYEQ_SAFETY_MSG: no safety fault, no challenge)."""
 
-    def _fill_obstacles(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+    def _fill_obstacles(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         vis = child_struct(values, node, "visObjects")
         if vis is None:
             return
@@ -252,32 +253,32 @@ class Scene(SceneWorld):
         plan = self._plans.get(id(elem))
         if plan is None:
             plan = self._plans[id(elem)] = obj_plan(elem)
-        f, i, birth = self._columns()
-        n = min(f.shape[1], len(objs))
-        i = i[:, :n].copy()
-        i[AGE_ROW] = np.maximum(frame_index(t) - birth[:n] + 1, 1)
-        fa = clip(f[:, :n], plan.flo[:, None], plan.fhi[:, None])
-        ia = clip(i, plan.ilo[:, None], plan.ihi[:, None])
-        if isinstance(objs[0], StructView) and write_objects_packed(objs, plan, fa, ia, n):
+        floats, ints, birth = self._columns()
+        count = min(floats.shape[1], len(objs))
+        ints = ints[:, :count].copy()
+        ints[AGE_ROW] = np.maximum(frame_index(now) - birth[:count] + 1, 1)
+        fa = clip(floats[:, :count], plan.flo[:, None], plan.fhi[:, None])
+        ia = clip(ints, plan.ilo[:, None], plan.ihi[:, None])
+        if isinstance(objs[0], StructView) and write_objects_packed(objs, plan, fa, ia, count):
             return
         fl, il = fa.tolist(), ia.tolist()
         for path, items in plan.groups:
             probe: Any = objs[0]
-            for p in path:
-                ok = (isinstance(probe, dict) and p in probe) or (
-                    isinstance(probe, list) and isinstance(p, int) and p < len(probe))
-                probe = probe[p] if ok else None
+            for step in path:
+                ok = (isinstance(probe, dict) and step in probe) or (
+                    isinstance(probe, list) and isinstance(step, int) and step < len(probe))
+                probe = probe[step] if ok else None
             if not isinstance(probe, dict):
                 continue
             cols = [(key, (fl if real else il)[row]) for key, real, row in items if key in probe]
             zeros = {key: 0.0 if real else 0 for key, real, _ in items if key in probe}
-            for j, obj in enumerate(objs):
+            for index, obj in enumerate(objs):
                 target: Any = obj
-                for p in path:
-                    target = target[p]
-                if j < n:
+                for step in path:
+                    target = target[step]
+                if index < count:
                     for key, col in cols:
-                        target[key] = col[j]
+                        target[key] = col[index]
                 else:  # no object: id 0 marks the slot invalid (§13.2.2)
                     target.update(zeros)
 
@@ -316,20 +317,20 @@ class Scene(SceneWorld):
             "decelType": enum_code("decel_type", "NOTDECEL", 0),
             "laneMarkerColor": enum_code("lane_marker_color", "White", 1)})
 
-    def _fill_road(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+    def _fill_road(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         info = child_struct(values, node, "roadInfo")
         if info is None:
             return
         rd, rn = info
-        p = self._phase
+        phase = self._phase
         # min(max()) is np.clip on one float (NaN kept), without numpy's call overhead
-        view = float(min(max(min(105.0 + 12.0 * math.sin(0.2 * self._tau + p[2]),
+        view = float(min(max(min(105.0 + 12.0 * math.sin(0.2 * self._tau + phase[2]),
                                  self._cipv_distance() + 25.0), 20.0), 128.0))
         markers: dict[str, tuple[float, str, float, float] | None] = {
-            "hostLeftMarker": (HALF_LANE, "DASHED", view, p[3]),
-            "hostRightMarker": (-HALF_LANE, "DASHED", view, p[4]),
-            "nextLeftLeftMarker": (3 * HALF_LANE, "SOLID", 0.75 * view, p[5]),
-            "nextRightRightMarker": (-3 * HALF_LANE, "SOLID", 0.75 * view, p[6]),
+            "hostLeftMarker": (HALF_LANE, "DASHED", view, phase[3]),
+            "hostRightMarker": (-HALF_LANE, "DASHED", view, phase[4]),
+            "nextLeftLeftMarker": (3 * HALF_LANE, "SOLID", 0.75 * view, phase[5]),
+            "nextRightRightMarker": (-3 * HALF_LANE, "SOLID", 0.75 * view, phase[6]),
             "nextLeftRightMarker": None, "nextRightLeftMarker": None}
         if isinstance(rd, StructView):
             plan = rd.writers.get(("road", id(rn)))
@@ -339,9 +340,9 @@ class Scene(SceneWorld):
         mi = child_struct(rd, rn, "roadMarkerInfo")
         if mi:
             for key, spec in markers.items():
-                m = child_struct(*mi, key)
-                if m:
-                    self._fill_marker(*m, spec)
+                marker = child_struct(*mi, key)
+                if marker:
+                    self._fill_marker(*marker, spec)
             puts_once(*mi, "road", lambda: {
                 "ambiguousLinePatternLeft": 0, "ambiguousLinePatternRight": 0,
                 "constructionArea": 0, "roadPredictionLeft": 0, "roadPredictionRight": 0})
@@ -349,16 +350,17 @@ class Scene(SceneWorld):
         borders = (("leftRoadBorder", BORDER_OFFSET["leftRoadBorder"], "Barrier", 4, 0.8),
                    ("rightRoadBorder", BORDER_OFFSET["rightRoadBorder"], "Curb", 3, 0.15))
         for key, offset, kind, default, height in borders if bi else ():
-            b = child_struct(*bi, key) if bi else None
-            if b is None:
+            border = child_struct(*bi, key) if bi else None
+            if border is None:
                 continue
-            poly, conf = child_struct(*b, "roadBorder"), child_struct(*b, "roadBorderConf")
+            poly = child_struct(*border, "roadBorder")
+            conf = child_struct(*border, "roadBorderConf")
             if poly:
                 put_values(*poly, self._poly_values(offset, 0.6 * view))
             if conf:
                 puts_once(*conf, "border", lambda: {"sfConf": 0.8, "confidence": enum_code(
                     "road_confidence_level", "Detected lanemark", 3)})
-            puts_once(*b, "border", lambda h=height, k=kind, v=default: {  # type: ignore[misc]
+            puts_once(*border, "border", lambda h=height, k=kind, v=default: {  # type: ignore[misc]
                 "roadBorderHeight": h, "roadBorderType": enum_code("road_border_type", k, v)})
         hpp = child_struct(rd, rn, "roadHppFusionInfo")
         if hpp:
@@ -386,17 +388,18 @@ class Scene(SceneWorld):
         poly_keys = ("a0", "a1", "a2", "a3", "startRange", "endRange")
         mi = child_struct(rd, rn, "roadMarkerInfo")
         for key, spec in markers.items() if mi else ():
-            m = child_struct(*mi, key) if mi else None
-            if m is None or spec is None:
+            marker = child_struct(*mi, key) if mi else None
+            if marker is None or spec is None:
                 continue
-            poly, conf = child_struct(*m, "laneMarker"), child_struct(*m, "laneMarkerConf")
+            poly = child_struct(*marker, "laneMarker")
+            conf = child_struct(*marker, "laneMarkerConf")
             out.append((key, poly and bound_puts(*poly, poly_keys), (
                 conf and bound_puts(*conf, ("sfConf",)),
-                bound_puts(*m, ("measuredViewRange",)))))
+                bound_puts(*marker, ("measuredViewRange",)))))
         bi = child_struct(rd, rn, "roadBorderInfo")
         for key in ("leftRoadBorder", "rightRoadBorder") if bi else ():
-            b = child_struct(*bi, key) if bi else None
-            poly = child_struct(*b, "roadBorder") if b else None
+            border = child_struct(*bi, key) if bi else None
+            poly = child_struct(*border, "roadBorder") if border else None
             if poly:
                 out.append((key, bound_puts(*poly, poly_keys), None))
         hpp = child_struct(rd, rn, "roadHppFusionInfo")
@@ -436,27 +439,27 @@ class Scene(SceneWorld):
         self._signs_seen = (self._cols, out)
         return out
 
-    def _fill_signs(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+    def _fill_signs(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         tsr = child_struct(values, node, "tsrInfo")
         if tsr is None:
             return
         elems, en = struct_elements(*tsr, "trafficSigns")
         idx, y_all = self._visible_signs()
-        n = min(len(elems), len(idx))
+        count = min(len(elems), len(idx))
         rows: list[tuple[float, ...]] = []
-        s_l, z_l, bias, lat, typ, sid = (a[idx[:n]].tolist() for a in (
+        s_l, z_l, bias, lat, typ, sid = (a[idx[:count]].tolist() for a in (
             self._sg_s, self._sg_z, self._sg_bias, self._sg_lat, self._sg_type, self._sg_id))
         decision = enum_code("tsr_sign_relevant_decision", "RELEVANT_SIGN", 0)
         filt = enum_code("tsr_sign_filter_type", "NO_SLI_FILTER", 0)
-        for k, y in enumerate(y_all[:n].tolist()):
-            s, z = s_l[k], z_l[k]
+        for index, y in enumerate(y_all[:count].tolist()):
+            s, z = s_l[index], z_l[index]
             ss = max(s, 1.0)
             u, v = IMAGE_W / 2 - FOCAL_PX * y / ss, IMAGE_H / 2 - FOCAL_PX * (z - CAM_HEIGHT) / ss
             half = FOCAL_PX * 0.35 / ss
             rows.append((  # SIGN_KEYS; §16: "a positive value indicates the sign is on the right"
-                s, -y, z, min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[k]), 0.0, 0.0,
-                0.95 if lat[k] < 0.0 else 0.85, v + half, u - half, u + half, v - half,
-                typ[k], 0, 0, sid[k], decision, filt))
+                s, -y, z, min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[index]), 0.0, 0.0,
+                0.95 if lat[index] < 0.0 else 0.85, v + half, u - half, u + half, v - half,
+                typ[index], 0, 0, sid[index], decision, filt))
         write_table(elems, en, SIGN_KEYS, rows, SIGN_KEYS)
         put_values(*tsr, {"numberTrafficSigns": len(rows)})
         puts_once(*tsr, "tsr",
@@ -479,9 +482,10 @@ class Scene(SceneWorld):
             self._s, self._w, self._cls, self._kind, self._oid))
         y_l = self._lateral(self._s[lit], self._d[lit]).tolist()
         atan2, tan = math.atan2, math.tan
-        c = "light_spot_classification"
-        codes = (enum_code(c, "Pair of Headlamps", 3), enum_code(c, "Pair of Tail-lamps", 4),
-                 enum_code(c, "Tail-lamp", 2))
+        spot_enum = "light_spot_classification"
+        codes = (enum_code(spot_enum, "Pair of Headlamps", 3),
+                 enum_code(spot_enum, "Pair of Tail-lamps", 4),
+                 enum_code(spot_enum, "Tail-lamp", 2))
         for s, y, w, ci, kind, oid in zip(s_l, y_l, w_l, cls_l, kind_l, oid_l, strict=True):
             half = max(w / 2 - 0.15, 0.0)
             # §15 light spots: "angles to the right of the sensor coordinate system are
@@ -512,7 +516,7 @@ class Scene(SceneWorld):
                 float(sid), s, min(100.0, glare + 10.0), glare))
         return out
 
-    def _fill_lights(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+    def _fill_lights(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         info = child_struct(values, node, "activeLightSensorInfo")
         if info is None:
             return
@@ -537,7 +541,7 @@ class Scene(SceneWorld):
             "fogDetected": 0, "highwayDetected": 1, "villageDetected": 0,
             "approachingJunction": 0, "lightNoisyScene": 0, "lightCone": 0})
 
-    def _fill_aeb(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+    def _fill_aeb(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         aeb = child_struct(values, node, "visAEB")
         if aeb:  # vision-only AEB stays quiet: the ego never closes in dangerously
             puts_once(*aeb, "quiet", lambda: {
@@ -545,7 +549,7 @@ class Scene(SceneWorld):
                 "roadFreeDetection": enum_code("aeb_road_free_detection", "NO_PENETRATION_DETECTED",
                                            0)})
 
-    def _fill_failsafe(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+    def _fill_failsafe(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         fs = child_struct(values, node, "visFailsafes")
         if fs:
             none = enum_code("failsafe_severity", "NONE", 1)
@@ -553,7 +557,7 @@ class Scene(SceneWorld):
                 **{k: none for k in fs[1].members if k.endswith("SeverityLevel")},
                 "freeSight": enum_code("free_sight", "TRUE", 1), "outOfCalibTSR": 0})
 
-    def _fill_srp(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+    def _fill_srp(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         srp = child_struct(values, node, "visSRP")
         if srp is None:
             return
@@ -568,14 +572,14 @@ class Scene(SceneWorld):
                  15 - k) for k, p in enumerate(pos)], ("height", "conf"))
         put_values(*srp, {"vehicleVelocity": self._v, "frameValid": 1})
 
-    def _fill_timesync(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+    def _fill_timesync(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         ts = child_struct(values, node, "timeSyncData")
         if ts:
-            put_values(*ts, {"Frame_MCU_TS_Start": max(0, round((t - 0.03) * 1e6)),
-                        "Last_MCU_Sync_TS": math.floor(t) * 1_000_000,
+            put_values(*ts, {"Frame_MCU_TS_Start": max(0, round((now - 0.03) * 1e6)),
+                        "Last_MCU_Sync_TS": math.floor(now) * 1_000_000,
                         "Last_Clock_Sync_Skew": 0})
 
-    def _fill_dynamic_cal(self, values: dict[str, Any], node: LayoutNode, t: float) -> None:
+    def _fill_dynamic_cal(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         cal = child_struct(values, node, "dynamicCalParams")
         if cal is None:
             return

@@ -73,10 +73,10 @@ class LayoutLeaf:
     hi: float
     real: bool
 
-    def clamp(self, x: float) -> float | int:
+    def clamp(self, value: float) -> float | int:
         if self.real:
-            return float(min(max(x, self.lo), self.hi))
-        return int(min(max(round(x), self.lo), self.hi))
+            return float(min(max(value, self.lo), self.hi))
+        return int(min(max(round(value), self.lo), self.hi))
 
     @property
     def zero(self) -> float | int:
@@ -89,17 +89,17 @@ class LayoutNode:
     count: int | None = None  # element count when the member is an array of structs
 
 
-def _leaf(m: Member) -> LayoutLeaf:
-    if m.type in _REAL and m.bits is None:
-        lo = -_F32_MAX if m.min is None else float(m.min)
-        hi = _F32_MAX if m.max is None else float(m.max)
+def _leaf(member: Member) -> LayoutLeaf:
+    if member.type in _REAL and member.bits is None:
+        lo = -_F32_MAX if member.min is None else float(member.min)
+        hi = _F32_MAX if member.max is None else float(member.max)
         return LayoutLeaf(lo, hi, True) if lo <= hi else LayoutLeaf(-_F32_MAX, _F32_MAX, True)
-    if m.bits is not None:
-        wlo, whi = 0, (1 << (m.bits[1] - m.bits[0] + 1)) - 1
+    if member.bits is not None:
+        wlo, whi = 0, (1 << (member.bits[1] - member.bits[0] + 1)) - 1
     else:
-        wlo, whi = _WIRE.get(m.type, (0, 0xFF))
-    lo = wlo if m.min is None else max(wlo, math.ceil(m.min))
-    hi = whi if m.max is None else min(whi, math.floor(m.max))
+        wlo, whi = _WIRE.get(member.type, (0, 0xFF))
+    lo = wlo if member.min is None else max(wlo, math.ceil(member.min))
+    hi = whi if member.max is None else min(whi, math.floor(member.max))
     return LayoutLeaf(lo, hi, False) if lo <= hi else LayoutLeaf(wlo, whi, False)
 
 
@@ -111,41 +111,42 @@ def _build(cat: Catalog, name: str, sw: SwKey) -> tuple[LayoutNode, Any]:
         raise SpecError(f"struct {name} has no layout for {sw}")
     members: dict[str, LayoutNode | LayoutLeaf] = {}
     shape: list[tuple[str, Any]] = []
-    for m in var.members:
-        count = None if m.array is None else (
-            m.array if isinstance(m.array, int) else cat.constant(m.array, sw))
+    for member in var.members:
+        count = None if member.array is None else (
+            member.array if isinstance(member.array, int) else cat.constant(member.array, sw))
         sub: Any = ""
-        if m.bits is None and m.type not in _WIRE and m.type not in _REAL:
-            child, sub = _build(cat, m.type, sw)
-            members[m.name] = LayoutNode(child.members, count)
+        if member.bits is None and member.type not in _WIRE and member.type not in _REAL:
+            child, sub = _build(cat, member.type, sw)
+            members[member.name] = LayoutNode(child.members, count)
         else:
-            members[m.name] = _leaf(m)
-        shape.append((m.name, sub if count is None else ("L", count, sub if count else "")))
+            members[member.name] = _leaf(member)
+        shape.append((member.name, sub if count is None else ("L", count, sub if count else "")))
     return LayoutNode(members), tuple(shape)
 
 
-def _shape(v: Any) -> Any:
-    if isinstance(v, dict):
-        return tuple((k, _shape(x)) for k, x in v.items())
-    if isinstance(v, list):
-        return ("L", len(v), _shape(v[0]) if v else "")
+def _shape(value: Any) -> Any:
+    if isinstance(value, dict):
+        return tuple((k, _shape(x)) for k, x in value.items())
+    if isinstance(value, list):
+        return ("L", len(value), _shape(value[0]) if value else "")
     return ""
 
 
-def _merge(a: LayoutNode | LayoutLeaf, b: LayoutNode | LayoutLeaf) -> LayoutNode | LayoutLeaf:
+def _merge(first: LayoutNode | LayoutLeaf, second: LayoutNode | LayoutLeaf
+           ) -> LayoutNode | LayoutLeaf:
     """Ranges valid for both: intersection of leaves, union of members."""
-    if isinstance(a, LayoutLeaf) and isinstance(b, LayoutLeaf):
-        real = a.real and b.real
-        lo, hi = max(a.lo, b.lo), min(a.hi, b.hi)
+    if isinstance(first, LayoutLeaf) and isinstance(second, LayoutLeaf):
+        real = first.real and second.real
+        lo, hi = max(first.lo, second.lo), min(first.hi, second.hi)
         if not real:
             lo, hi = math.ceil(lo), math.floor(hi)
-        return LayoutLeaf(lo, hi, real) if lo <= hi else a
-    if isinstance(a, LayoutNode) and isinstance(b, LayoutNode):
-        members = dict(a.members)
-        for k, v in b.members.items():
-            members[k] = _merge(members[k], v) if k in members else v
-        return LayoutNode(members, a.count if a.count is not None else b.count)
-    return a
+        return LayoutLeaf(lo, hi, real) if lo <= hi else first
+    if isinstance(first, LayoutNode) and isinstance(second, LayoutNode):
+        members = dict(first.members)
+        for key, member in second.members.items():
+            members[key] = _merge(members[key], member) if key in members else member
+        return LayoutNode(members, first.count if first.count is not None else second.count)
+    return first
 
 
 @cache
@@ -187,53 +188,53 @@ def layout_node_for(name: str, values: dict[str, Any]) -> LayoutNode | None:
     return by_shape.get(_shape(values), everything)
 
 
-def child_struct(d: dict[str, Any], n: LayoutNode, key: str
+def child_struct(target: dict[str, Any], node: LayoutNode, key: str
                  ) -> tuple[dict[str, Any], LayoutNode] | None:
-    if isinstance(d, StructView):  # a packer's views never change: the answer is kept
-        got = d.writers.get(("child", id(n), key))
-        if got is None or got[0] is not n:
-            got = d.writers[("child", id(n), key)] = (n, _child_of(d, n, key))
+    if isinstance(target, StructView):  # a packer's views never change: the answer is kept
+        got = target.writers.get(("child", id(node), key))
+        if got is None or got[0] is not node:
+            got = target.writers[("child", id(node), key)] = (node, _child_of(target, node, key))
         out: tuple[dict[str, Any], LayoutNode] | None = got[1]
         return out
-    return _child_of(d, n, key)
+    return _child_of(target, node, key)
 
 
-def _child_of(d: dict[str, Any], n: LayoutNode, key: str
+def _child_of(target: dict[str, Any], node: LayoutNode, key: str
               ) -> tuple[dict[str, Any], LayoutNode] | None:
-    sub, v = n.members.get(key), d.get(key)
-    if isinstance(sub, LayoutNode) and isinstance(v, dict | StructView):
-        return cast("dict[str, Any]", v), sub  # a packer's view serves as the dict
+    sub, value = node.members.get(key), target.get(key)
+    if isinstance(sub, LayoutNode) and isinstance(value, dict | StructView):
+        return cast("dict[str, Any]", value), sub  # a packer's view serves as the dict
     return None
 
 
-def struct_elements(d: dict[str, Any], n: LayoutNode, key: str
+def struct_elements(target: dict[str, Any], node: LayoutNode, key: str
                     ) -> tuple[list[dict[str, Any]], LayoutNode]:
-    if isinstance(d, StructView):  # a packer's views never change: the list is kept
-        got = d.writers.get(("elements", id(n), key))
-        if got is not None and got[0] is n:
+    if isinstance(target, StructView):  # a packer's views never change: the list is kept
+        got = target.writers.get(("elements", id(node), key))
+        if got is not None and got[0] is node:
             return cast("tuple[list[dict[str, Any]], LayoutNode]", got[1])
-        out = _element_list(d, n, key)
-        d.writers[("elements", id(n), key)] = (n, out)
+        out = _element_list(target, node, key)
+        target.writers[("elements", id(node), key)] = (node, out)
         return out
-    return _element_list(d, n, key)
+    return _element_list(target, node, key)
 
 
-def _element_list(d: dict[str, Any], n: LayoutNode, key: str
+def _element_list(target: dict[str, Any], node: LayoutNode, key: str
                   ) -> tuple[list[dict[str, Any]], LayoutNode]:
-    sub, v = n.members.get(key), d.get(key)
-    if isinstance(sub, LayoutNode) and isinstance(v, list):
-        return [cast("dict[str, Any]", x) for x in v if isinstance(x, dict | StructView)], sub
+    sub, value = node.members.get(key), target.get(key)
+    if isinstance(sub, LayoutNode) and isinstance(value, list):
+        return [cast("dict[str, Any]", x) for x in value if isinstance(x, dict | StructView)], sub
     return [], LayoutNode({})
 
 
 @cache
 def enum_code(enum: str, name: str, default: int) -> int:
     """Value of ``name`` in enum ``enum`` of specs/, ``default`` if the catalogue lacks it."""
-    e = catalog().enums.get(enum)
-    if e is not None:
-        for v in e.values.values():
-            if v.name == name:
-                return v.value
+    enum_def = catalog().enums.get(enum)
+    if enum_def is not None:
+        for entry in enum_def.values.values():
+            if entry.name == name:
+                return entry.value
     return default
 
 
@@ -274,12 +275,12 @@ class ObjectPlan:
 
 
 def _resolve(node: LayoutNode, path: tuple[str | int, ...], key: str) -> LayoutLeaf | None:
-    for p in path:
-        if isinstance(p, int):
-            if node.count is None or p >= node.count:
+    for step in path:
+        if isinstance(step, int):
+            if node.count is None or step >= node.count:
                 return None
             continue
-        sub = node.members.get(p)
+        sub = node.members.get(step)
         if not isinstance(sub, LayoutNode):
             return None
         node = sub
@@ -318,8 +319,8 @@ def _rules(enum: str, rules: list[tuple[int, str, int]], default: tuple[str, int
     (the ``np.select`` of the conditions, as a table)."""
     index = np.arange(1 << MOTION_BITS)
     out = np.full(1 << MOTION_BITS, enum_code(enum, *default), dtype=np.int64)
-    for mask, name, v in reversed(rules):  # the first rule last: it wins where it holds
-        out[index & mask == mask] = enum_code(enum, name, v)
+    for mask, name, fallback in reversed(rules):  # the first rule last: it wins where it holds
+        out[index & mask == mask] = enum_code(enum, name, fallback)
     return out
 
 
@@ -360,8 +361,8 @@ def _clip_ufunc() -> Any:
 clip = _clip_ufunc()
 
 
-def frame_index(t: float) -> int:
-    return max(0, math.floor(t * FRAME_RATE + 1e-6))
+def frame_index(time_s: float) -> int:
+    return max(0, math.floor(time_s * FRAME_RATE + 1e-6))
 
 
 CLASS_P = np.array([c[1] for c in CLASSES]) / sum(c[1] for c in CLASSES)
@@ -392,8 +393,8 @@ FILLERS = {
 def sign_table() -> tuple[tuple[str, ...], tuple[int, ...], FArr]:
     rows = [(n, enum_code("traffic_sign", n, -1), w) for n, w in SIGNS]
     rows = [r for r in rows if r[1] >= 0] or [("e_std_80", 7, 1.0)]
-    p = np.array([r[2] for r in rows])
-    return tuple(r[0] for r in rows), tuple(r[1] for r in rows), p / p.sum()
+    weights = np.array([r[2] for r in rows])
+    return tuple(r[0] for r in rows), tuple(r[1] for r in rows), weights / weights.sum()
 
 
 def cumtrapz(y: FArr, dx: FArr) -> FArr:

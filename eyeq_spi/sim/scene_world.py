@@ -106,23 +106,26 @@ class SceneWorld:
         self._poly = (0.0, 0.0, 0.0, 0.0)
         self._knot_s, self._knot_k = [-200.0, 0.0], [0.0, 0.0]
         self._extend_road()
-        n = MAX_OBJECTS
-        self._alive = np.zeros(n, dtype=bool)
-        self._oid, self._cls, self._kind, self._birth = (np.zeros(n, np.int64) for _ in range(4))
-        self._s, self._d, self._vx, self._vy, self._ax, self._ay = (np.zeros(n) for _ in range(6))
+        slots = MAX_OBJECTS
+        self._alive = np.zeros(slots, dtype=bool)
+        self._oid, self._cls, self._kind, self._birth = (
+            np.zeros(slots, np.int64) for _ in range(4))
+        self._s, self._d, self._vx, self._vy, self._ax, self._ay = (
+            np.zeros(slots) for _ in range(6))
         self._w, self._l, self._h, self._vdes, self._dtgt, self._cbias = (
-            np.zeros(n) for _ in range(6))
+            np.zeros(slots) for _ in range(6))
         self._free_ids: deque[int] = deque(range(1, MAX_OBJECTS + 1))
         self._cls_code = np.array(
             [enum_code("object_classification", c[0], CLASS_DEFAULT[c[0]]) for c in CLASSES])
-        m = MAX_SIGNS
-        self._sg_alive = np.zeros(m, dtype=bool)
-        self._sg_id, self._sg_type = np.zeros(m, np.int64), np.zeros(m, np.int64)
-        self._sg_s, self._sg_lat, self._sg_z, self._sg_bias = (np.zeros(m) for _ in range(4))
+        sign_slots = MAX_SIGNS
+        self._sg_alive = np.zeros(sign_slots, dtype=bool)
+        self._sg_id, self._sg_type = (np.zeros(sign_slots, np.int64) for _ in range(2))
+        self._sg_s, self._sg_lat, self._sg_z, self._sg_bias = (
+            np.zeros(sign_slots) for _ in range(4))
         self._free_sign_ids: deque[int] = deque(range(MAX_SIGNS))
         self._next_sign = float(rng.exponential(60.0)) + 20.0
-        for k in range(self._n_obj):
-            self._spawn(initial=True, first=k == 0)
+        for index in range(self._n_obj):
+            self._spawn(initial=True, first=index == 0)
         self._update_road(None, 0.0)
         self._cols: tuple[FArr, IArr, IArr] | None = None
         self._plans: dict[int, ObjectPlan] = {}
@@ -159,16 +162,16 @@ class SceneWorld:
         if dt <= 0.0:
             return
         skip = max(0.0, dt - MAX_GAP)
-        n = max(1, math.ceil((dt - skip) / MAX_SUBSTEP - 1e-9))
-        h, v0 = (dt - skip) / n, self._v
+        substeps = max(1, math.ceil((dt - skip) / MAX_SUBSTEP - 1e-9))
+        h, v0 = (dt - skip) / substeps, self._v
         self._tau += skip
-        for i in range(n):
-            va = v0 + (v_target - v0) * i / n
-            vb = v0 + (v_target - v0) * (i + 1) / n
+        for substep in range(substeps):
+            va = v0 + (v_target - v0) * substep / substeps
+            vb = v0 + (v_target - v0) * (substep + 1) / substeps
             self._integrate(h, va, vb)
             self._tau += h
             self._v = vb
-            self._frame_now = frame_index(self._t + skip + (i + 1) * h)
+            self._frame_now = frame_index(self._t + skip + (substep + 1) * h)
             self._update_road(yaw, h)
             self._decide(h)
         self._t = t
@@ -291,7 +294,7 @@ class SceneWorld:
         free = (~self._alive).nonzero()[0]
         if len(free) == 0 or not self._free_ids:
             return False
-        i, rng = int(free[0]), self._rng
+        slot, rng = int(free[0]), self._rng
         ci = 0 if first else int(rng.choice(len(CLASSES), p=CLASS_P))
         kind = CLASSES[ci][5]
         if kind == VEHICLE and ci <= 1 and not first and rng.random() < 0.12:
@@ -304,18 +307,18 @@ class SceneWorld:
             if self._clear(s, d, CLASSES[ci][3]):
                 break
         name, _, w, length, hgt, _ = CLASSES[ci]
-        self._alive[i] = True
-        self._oid[i] = self._free_ids.popleft()
-        self._cls[i], self._kind[i] = ci, kind
-        self._s[i], self._d[i], self._dtgt[i] = s, d, d
-        self._vx[i], self._vdes[i] = vdes, vdes
-        self._vy[i] = self._ax[i] = self._ay[i] = 0.0
-        self._w[i] = float(np.clip(w * rng.normal(1.0, 0.04), 0.45, 2.9))
-        self._l[i] = float(np.clip(length * rng.normal(1.0, 0.2 if name == "truck" else 0.06),
-                                   0.45, 18.5))
-        self._h[i] = float(np.clip(hgt * rng.normal(1.0, 0.04), 0.5, 4.0))
-        self._cbias[i] = rng.normal(0.0, 0.015)
-        self._birth[i] = self._frame_now - (int(rng.integers(0, 300)) if initial else 0)
+        self._alive[slot] = True
+        self._oid[slot] = self._free_ids.popleft()
+        self._cls[slot], self._kind[slot] = ci, kind
+        self._s[slot], self._d[slot], self._dtgt[slot] = s, d, d
+        self._vx[slot], self._vdes[slot] = vdes, vdes
+        self._vy[slot] = self._ax[slot] = self._ay[slot] = 0.0
+        self._w[slot] = float(np.clip(w * rng.normal(1.0, 0.04), 0.45, 2.9))
+        self._l[slot] = float(np.clip(length * rng.normal(1.0, 0.2 if name == "truck" else 0.06),
+                                      0.45, 18.5))
+        self._h[slot] = float(np.clip(hgt * rng.normal(1.0, 0.04), 0.5, 4.0))
+        self._cbias[slot] = rng.normal(0.0, 0.015)
+        self._birth[slot] = self._frame_now - (int(rng.integers(0, 300)) if initial else 0)
         return True
 
     def _despawn(self) -> None:
@@ -323,23 +326,23 @@ class SceneWorld:
         far = (s < _BEHIND[kind]) | (s > _AHEAD[kind])  # leaves the range of its kind
         # an object the ego drives into is lost rather than driven through
         hit = (np.abs(self._d - self._e) < 1.6) & (s > -EGO_LENGTH - 1.0) & (s < 1.0)
-        for i in np.flatnonzero(self._alive & (far | (hit & (kind != ONCOMING)))):
-            self._alive[i] = False
-            self._free_ids.append(int(self._oid[i]))
-            self._oid[i] = 0
+        for slot in np.flatnonzero(self._alive & (far | (hit & (kind != ONCOMING)))):
+            self._alive[slot] = False
+            self._free_ids.append(int(self._oid[slot]))
+            self._oid[slot] = 0
 
-    def _change_lane(self, i: int, lane: int, escape: bool = False) -> bool:
-        s, target = float(self._s[i]), lane * LANE_WIDTH
+    def _change_lane(self, slot: int, lane: int, escape: bool = False) -> bool:
+        s, target = float(self._s[slot]), lane * LANE_WIDTH
         if not -1 <= lane <= 1 or (lane == 0 and not escape and -40.0 < s < 30.0):
             return False
         others = self._alive.copy()
-        others[i] = False
+        others[slot] = False
         there = (np.abs(self._d - target) < 2.5) | (np.abs(self._dtgt - target) < 0.5)
-        gap = (6.0 if escape else 15.0) + np.maximum(self._l[i], self._l)
+        gap = (6.0 if escape else 15.0) + np.maximum(self._l[slot], self._l)
         busy = others & there & (np.abs(self._s - s) < gap)
         if busy.any():
             return False
-        self._dtgt[i] = target
+        self._dtgt[slot] = target
         return True
 
     def _lane_changes(self, h: float) -> None:
@@ -350,16 +353,16 @@ class SceneWorld:
         # the ego closes in on it: it gets out of the way or speeds up
         escape = steady & (lane == 0) & (s > -1.0) & (closing > 0.5) & (
             (s < 10.0 * closing) | (s < 0.8 * v_e + 5.0))
-        u = rng.random((3, MAX_OBJECTS))
-        for i in (int(k) for k in escape.nonzero()[0]):
-            if not (self._change_lane(i, -1, True) or self._change_lane(i, 1, True)):
+        draws = rng.random((3, MAX_OBJECTS))
+        for slot in (int(k) for k in escape.nonzero()[0]):
+            if not (self._change_lane(slot, -1, True) or self._change_lane(slot, 1, True)):
                 # boxed in: the whole ego lane ahead speeds up
                 platoon = self._alive & (self._kind == VEHICLE) & (s > -1.0) & (
                     (lane == 0) | (self._lane_index(self._d) == 0))
                 self._vdes[platoon] = np.maximum(self._vdes[platoon], v_e + 3.0)
-        for i in (int(k) for k in (steady & ~escape & (u[0] < 0.03 * h)).nonzero()[0]):
-            self._change_lane(i, int(lane[i]) + (1 if u[1, i] < 0.5 else -1))
-        drift = u[2] < 0.1 * h
+        for slot in (int(k) for k in (steady & ~escape & (draws[0] < 0.03 * h)).nonzero()[0]):
+            self._change_lane(slot, int(lane[slot]) + (1 if draws[1, slot] < 0.5 else -1))
+        drift = draws[2] < 0.1 * h
         if drift.any():
             self._vdes[drift] *= rng.uniform(0.95, 1.05, int(drift.sum()))
 
@@ -397,9 +400,9 @@ class SceneWorld:
     def _signs(self) -> None:
         s = self._sg_s
         gone = self._sg_alive & ((s < 8.0) | (s < np.abs(self._sg_lat) / math.tan(0.7)))
-        for i in gone.nonzero()[0]:
-            self._sg_alive[i] = False
-            self._free_sign_ids.append(int(self._sg_id[i]))
+        for slot in gone.nonzero()[0]:
+            self._sg_alive[slot] = False
+            self._free_sign_ids.append(int(self._sg_id[slot]))
         if self._s_e - self._next_sign > 1000.0:
             self._next_sign = self._s_e  # bounded: one sign, not one per 100 m skipped
         while self._s_e >= self._next_sign:  # a new sign every ~100 m: every 4 s at 25 m/s
@@ -408,24 +411,24 @@ class SceneWorld:
 
     def _spawn_signs(self) -> None:
         rng = self._rng
-        names, codes, p = sign_table()
-        k = int(rng.choice(len(names), p=p))
+        names, codes, weights = sign_table()
+        choice = int(rng.choice(len(names), p=weights))
         s = rng.uniform(70.0, 100.0)
-        if names[k].startswith("e_lgt_"):  # electronic signs hang on a gantry over the lanes
+        if names[choice].startswith("e_lgt_"):  # electronic signs hang on a gantry over the lanes
             places = [(rng.uniform(-LANE_WIDTH, LANE_WIDTH), 5.5)]
         else:
             places = [(-(3 * HALF_LANE + rng.uniform(1.0, 2.5)), rng.uniform(1.8, 2.6))]
-            if names[k][6:].isdigit() and rng.random() < 0.4:  # speed limits often in pairs
+            if names[choice][6:].isdigit() and rng.random() < 0.4:  # speed limits often in pairs
                 places.append((3 * HALF_LANE + rng.uniform(0.8, 1.5), places[0][1]))
         for lat, z in places:
             free = (~self._sg_alive).nonzero()[0]
             if int(self._sg_alive.sum()) >= self._n_signs or len(free) == 0:
                 return
-            i = int(free[0])
-            self._sg_alive[i] = True
-            self._sg_id[i], self._sg_type[i] = self._free_sign_ids.popleft(), codes[k]
-            self._sg_s[i], self._sg_lat[i], self._sg_z[i] = s, lat, z
-            self._sg_bias[i] = rng.normal(0.0, 0.03)
+            slot = int(free[0])
+            self._sg_alive[slot] = True
+            self._sg_id[slot], self._sg_type[slot] = self._free_sign_ids.popleft(), codes[choice]
+            self._sg_s[slot], self._sg_lat[slot], self._sg_z[slot] = s, lat, z
+            self._sg_bias[slot] = rng.normal(0.0, 0.03)
 
     # -- derived obstacle state --------------------------------------------------------------
     def _lane_index(self, d: FArr) -> IArr:

@@ -18,139 +18,141 @@ from eyeq_spi.sim.dasp_fast import BITS, NP_FMT, SCALAR, StructView
 from eyeq_spi.sim.scene_layout import FArr, IArr, LayoutLeaf, LayoutNode, ObjectPlan
 
 
-def _put(d: dict[str, Any], n: LayoutNode, key: str, x: float) -> None:
-    leaf = n.members.get(key)
-    if isinstance(leaf, LayoutLeaf) and key in d:
-        d[key] = leaf.clamp(x)
+def _put(target: dict[str, Any], node: LayoutNode, key: str, value: float) -> None:
+    leaf = node.members.get(key)
+    if isinstance(leaf, LayoutLeaf) and key in target:
+        target[key] = leaf.clamp(value)
 
 
-def put_values(d: dict[str, Any], n: LayoutNode, vals: dict[str, float]) -> None:
-    if isinstance(d, StructView):
+def put_values(target: dict[str, Any], node: LayoutNode, vals: dict[str, float]) -> None:
+    if isinstance(target, StructView):
         keys = tuple(vals)
-        got = d.writers.get((id(n), keys))
-        if got is None or got[0] is not n:
-            got = d.writers[(id(n), keys)] = (n, _compile_puts(d, n, keys))
+        got = target.writers.get((id(node), keys))
+        if got is None or got[0] is not node:
+            got = target.writers[(id(node), keys)] = (node, _compile_puts(target, node, keys))
         if got[1] is not None:
-            got[1](d.buf, d.shadow, vals)
+            got[1](target.buf, target.shadow, vals)
             return
-    for key, x in vals.items():
-        _put(d, n, key, x)
+    for key, value in vals.items():
+        _put(target, node, key, value)
 
 
-def bound_puts(d: dict[str, Any], n: LayoutNode, keys: tuple[str, ...]
+def bound_puts(target: dict[str, Any], node: LayoutNode, keys: tuple[str, ...]
                 ) -> Callable[[dict[str, float]], None]:
-    """:func:`put_values` of values with ``keys`` into ``d`` as one callable: for a packer's view
-    its generated writer bound to the view's buffer (views never change)."""
-    if isinstance(d, StructView):
-        fn = _compile_puts(d, n, keys)
+    """:func:`put_values` of values with ``keys`` into ``target`` as one callable: for a
+    packer's view its generated writer bound to the view's buffer (views never change)."""
+    if isinstance(target, StructView):
+        fn = _compile_puts(target, node, keys)
         if fn is not None:
-            return functools.partial(fn, d.buf, d.shadow)
-    return functools.partial(put_values, d, n)
+            return functools.partial(fn, target.buf, target.shadow)
+    return functools.partial(put_values, target, node)
 
 
-def puts_once(d: dict[str, Any], n: LayoutNode, key: str,
+def puts_once(target: dict[str, Any], node: LayoutNode, key: str,
                make: Callable[[], dict[str, float]]) -> None:
     """:func:`put_values` of values that never change (``make()``, the same every call): a packer's
     view keeps its bytes from frame to frame and no other write touches these members, so they
     are written once after each reset; a dict gets them every time (the reference)."""
-    if isinstance(d, StructView):
-        k = (id(n), key)
-        if k in d.done:
+    if isinstance(target, StructView):
+        done_key = (id(node), key)
+        if done_key in target.done:
             return
-        put_values(d, n, make())
-        d.done.add(k)
+        put_values(target, node, make())
+        target.done.add(done_key)
         return
-    put_values(d, n, make())
+    put_values(target, node, make())
 
 
-def _compile_puts(d: StructView, n: LayoutNode, keys: tuple[str, ...]
+def _compile_puts(view: StructView, node: LayoutNode, keys: tuple[str, ...]
                   ) -> Callable[[bytearray, Any, dict[str, float]], None] | None:
-    """:func:`put_values` into view ``d`` as generated code: per key the same clamp expression as
+    """:func:`put_values` into ``view`` as generated code: per key the same clamp expression as
     :meth:`LayoutLeaf.clamp` and a ``pack_into`` at the member's offset from the layout (a bitfield
     read, masked and written back). None if a key names a struct or an array: the loop runs."""
     env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
     body: list[str] = []
-    for i, key in enumerate(keys):
-        leaf = n.members.get(key)
-        if not isinstance(leaf, LayoutLeaf) or key not in d:
+    for index, key in enumerate(keys):
+        leaf = node.members.get(key)
+        if not isinstance(leaf, LayoutLeaf) or key not in view:
             continue
-        s = d.slots.get(key)
-        if s is None or s.kind not in (SCALAR, BITS):
+        slot = view.slots.get(key)
+        if slot is None or slot.kind not in (SCALAR, BITS):
             return None
-        env[f"K{i}"], env[f"L{i}"], env[f"H{i}"], env[f"S{i}"] = key, leaf.lo, leaf.hi, s.st
-        o = d.base + s.offset
-        body.append(f"x = float(min(max(v[K{i}], L{i}), H{i}))" if leaf.real
-                    else f"x = int(min(max(round(v[K{i}]), L{i}), H{i}))")
-        if s.kind == SCALAR:
-            body.append(f"S{i}.pack_into(b, {o}, x)")
+        env[f"K{index}"], env[f"S{index}"] = key, slot.st
+        env[f"L{index}"], env[f"H{index}"] = leaf.lo, leaf.hi
+        offset = view.base + slot.offset
+        body.append(f"x = float(min(max(v[K{index}], L{index}), H{index}))" if leaf.real
+                    else f"x = int(min(max(round(v[K{index}]), L{index}), H{index}))")
+        if slot.kind == SCALAR:
+            body.append(f"S{index}.pack_into(b, {offset}, x)")
         else:
-            keep = ((1 << (8 * s.st.size)) - 1) & ~(s.mask << s.lo)
-            body += [f"if not isinstance(x, int) or not 0 <= x <= {s.mask}:",
-                     f"    raise LocalProtocolError(f'{{K{i}}}: {{x!r}} does not fit "
-                     f"{s.mask.bit_length()} bit(s)')",
-                     f"S{i}.pack_into(b, {o}, S{i}.unpack_from(b, {o})[0] & {keep} | x << {s.lo})"]
-        if d.shadow is not None:
-            body.append(f"sh[K{i}] = x")
+            keep = ((1 << (8 * slot.st.size)) - 1) & ~(slot.mask << slot.lo)
+            body += [f"if not isinstance(x, int) or not 0 <= x <= {slot.mask}:",
+                     f"    raise LocalProtocolError(f'{{K{index}}}: {{x!r}} does not fit "
+                     f"{slot.mask.bit_length()} bit(s)')",
+                     f"S{index}.pack_into(b, {offset}, "
+                     f"S{index}.unpack_from(b, {offset})[0] & {keep} | x << {slot.lo})"]
+        if view.shadow is not None:
+            body.append(f"sh[K{index}] = x")
     src = ["def _w(b, sh, v):", "    try:"] + [f"        {line}" for line in body or ["pass"]]
     src += ["    except (StructError, TypeError) as exc:",
             "        raise LocalProtocolError(",
-            f"            f'{d.layout.name}: cannot encode: {{exc}}') from None"]
+            f"            f'{view.layout.name}: cannot encode: {{exc}}') from None"]
     exec("\n".join(src), env)
     fn: Callable[[bytearray, Any, dict[str, float]], None] = env["_w"]
     return fn
 
 
 
-def _write_rows(elems: list[dict[str, Any]], n: LayoutNode, rows: list[dict[str, float]],
+def _write_rows(elems: list[dict[str, Any]], node: LayoutNode, rows: list[dict[str, float]],
                 keys: tuple[str, ...]) -> None:
     """Rows into the first elements of an array of structs; ``keys`` of the rest zeroed."""
-    for j, e in enumerate(elems):
-        if j < len(rows):
-            put_values(e, n, rows[j])
+    for index, elem in enumerate(elems):
+        if index < len(rows):
+            put_values(elem, node, rows[index])
             continue
-        for k in keys:
-            leaf = n.members.get(k)
-            if isinstance(leaf, LayoutLeaf) and k in e:
-                e[k] = leaf.zero
+        for key in keys:
+            leaf = node.members.get(key)
+            if isinstance(leaf, LayoutLeaf) and key in elem:
+                elem[key] = leaf.zero
 
 
 _EXACT = 2.0**53  # ints below this survive float64 exactly
 _MIN_NUMPY = 80  # values per table from which numpy clamps them (measured: numpy's ~17 µs)
 
 
-def write_table(elems: list[dict[str, Any]], n: LayoutNode, rkeys: tuple[str, ...],
+def write_table(elems: list[dict[str, Any]], node: LayoutNode, rkeys: tuple[str, ...],
                  rows: list[tuple[float, ...]] | FArr, keys: tuple[str, ...]) -> None:
     """:func:`_write_rows` of rows given as tuples in the order of ``rkeys`` (or a float64
     matrix of such rows): a packer's views take them as one float64 matrix, clamped by numpy and
     packed by generated code (:func:`_compile_rows`); otherwise the rows become dicts."""
     if elems and isinstance(elems[0], StructView):
-        ck = ("table", id(n), rkeys, keys, len(elems))
+        ck = ("table", id(node), rkeys, keys, len(elems))
         got = elems[0].cache.get(ck)
-        if got is None or got[0] is not n:
-            got = elems[0].cache[ck] = (n, _compile_rows(elems, n, rkeys, keys))
+        if got is None or got[0] is not node:
+            got = elems[0].cache[ck] = (node, _compile_rows(elems, node, rkeys, keys))
         if got[1] is not None:
             lo, hi, ints, write, clamp_write = got[1]
-            r = min(len(rows), len(elems))
-            if r * len(rkeys) < _MIN_NUMPY:
-                clamp_write(elems[0].buf, rows[:r])
+            count = min(len(rows), len(elems))
+            if count * len(rkeys) < _MIN_NUMPY:
+                clamp_write(elems[0].buf, rows[:count])
                 return
-            m = np.array(rows[:r], dtype=np.float64).reshape(r, len(rkeys))
-            if r and len(ints):
-                x = m[:, ints]
-                if not np.abs(x).max() < _EXACT:  # NaN compares False too
+            matrix = np.array(rows[:count], dtype=np.float64).reshape(count, len(rkeys))
+            if count and len(ints):
+                int_columns = matrix[:, ints]
+                if not np.abs(int_columns).max() < _EXACT:  # NaN compares False too
                     ints = None  # round() would raise, or float64 would not hold the int
                 else:
-                    m[:, ints] = np.rint(x)  # round(): half to even
+                    matrix[:, ints] = np.rint(int_columns)  # round(): half to even
             if ints is not None:
-                m = np.where(lo > m, lo, m)  # min(max(x, lo), hi), NaN kept
-                write(elems[0].buf, np.where(hi < m, hi, m).tolist())
+                matrix = np.where(lo > matrix, lo, matrix)  # min(max(x, lo), hi), NaN kept
+                write(elems[0].buf, np.where(hi < matrix, hi, matrix).tolist())
                 return
     if isinstance(rows, np.ndarray):
         rows = rows.tolist()
-    _write_rows(elems, n, [dict(zip(rkeys, row, strict=True)) for row in rows], keys)
+    _write_rows(elems, node, [dict(zip(rkeys, row, strict=True)) for row in rows], keys)
 
 
-def _compile_rows(elems: list[StructView], n: LayoutNode, rkeys: tuple[str, ...],
+def _compile_rows(elems: list[StructView], node: LayoutNode, rkeys: tuple[str, ...],
                   keys: tuple[str, ...]) -> tuple[FArr, FArr, Any, Any, Any] | None:
     """:func:`write_table` into a packer's views: the bounds of the ``rkeys`` columns, the
     integer ones, and two generated writers that pack rows with one ``pack_into`` per run of
@@ -169,25 +171,27 @@ def _compile_rows(elems: list[StructView], n: LayoutNode, rkeys: tuple[str, ...]
     ints: list[int] = []
     clamped: list[str] = []  # the expressions of :meth:`LayoutLeaf.clamp`
     env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
-    for j, key in enumerate(rkeys + keys):
-        leaf = n.members.get(key)
+    for column, key in enumerate(rkeys + keys):
+        leaf = node.members.get(key)
         if not isinstance(leaf, LayoutLeaf) or key not in first:
             continue
-        s = first.slots.get(key)
-        if s is None or s.kind != SCALAR or (leaf.real and not s.real):
+        slot = first.slots.get(key)
+        if slot is None or slot.kind != SCALAR or (leaf.real and not slot.real):
             return None
-        if not leaf.real and not s.real and not s.wire[0] <= leaf.lo <= leaf.hi <= s.wire[1]:
+        if (not leaf.real and not slot.real
+                and not slot.wire[0] <= leaf.lo <= leaf.hi <= slot.wire[1]):
             return None
-        if j >= len(rkeys):
-            zero.append((s.offset, s.st.size))
+        if column >= len(rkeys):
+            zero.append((slot.offset, slot.st.size))
             continue
-        lo[j], hi[j] = leaf.lo, leaf.hi
+        lo[column], hi[column] = leaf.lo, leaf.hi
         if not leaf.real:
-            ints.append(j)
-        put.append((s.offset, s.st.format[1:], f"r[{j}]" if leaf.real else f"int(r[{j}])"))
-        clamped.append(f"float(min(max(r[{j}], L{j}), H{j}))" if leaf.real
-                       else f"int(min(max(round(r[{j}]), L{j}), H{j}))")
-        env[f"L{j}"], env[f"H{j}"] = leaf.lo, leaf.hi
+            ints.append(column)
+        expr = f"r[{column}]" if leaf.real else f"int(r[{column}])"
+        put.append((slot.offset, slot.st.format[1:], expr))
+        clamped.append(f"float(min(max(r[{column}], L{column}), H{column}))" if leaf.real
+                       else f"int(min(max(round(r[{column}]), L{column}), H{column}))")
+        env[f"L{column}"], env[f"H{column}"] = leaf.lo, leaf.hi
     env["Z"] = _zero_spans(first.base, stride, count, zero)
     return (lo, hi, np.array(ints, dtype=np.intp), _rows_writer(first, stride, put, env),
             _rows_writer(first, stride, [(o, c, e) for (o, c, _), e in zip(put, clamped,
@@ -199,15 +203,15 @@ def _zero_spans(base: int, stride: int, count: int, zero: list[tuple[int, int]]
     """Per number of rows, the byte ranges (merged) of the members zeroed past them."""
     spans = sorted((base + k * stride + off, size) for k in range(count) for off, size in zero)
     out = []
-    for r in range(count + 1):
+    for rows in range(count + 1):
         merged: list[tuple[int, int]] = []
-        for a, size in spans:
-            if a < base + r * stride:
+        for start, size in spans:
+            if start < base + rows * stride:
                 continue
-            if merged and merged[-1][1] == a:
-                merged[-1] = (merged[-1][0], a + size)
+            if merged and merged[-1][1] == start:
+                merged[-1] = (merged[-1][0], start + size)
             else:
-                merged.append((a, a + size))
+                merged.append((start, start + size))
         out.append(merged)
     return out
 
@@ -225,9 +229,9 @@ def _rows_writer(first: StructView, stride: int, put: list[tuple[int, str, str]]
         else:
             runs.append((off, code, [expr]))
     body = ["def _w(b, rows):", "    try:", f"        o = {first.base}", "        for r in rows:"]
-    for k, (off, code, exprs) in enumerate(runs):
-        env[f"S{k}"] = struct.Struct("<" + code)
-        body.append(f"            S{k}.pack_into(b, o + {off}, {', '.join(exprs)})")
+    for run, (off, code, exprs) in enumerate(runs):
+        env[f"S{run}"] = struct.Struct("<" + code)
+        body.append(f"            S{run}.pack_into(b, o + {off}, {', '.join(exprs)})")
     body += [f"            o += {stride}", "        for a, e in Z[len(rows)]:",
              "            b[a:e] = bytes(e - a)",
              "    except (StructError, TypeError, OverflowError) as exc:",
@@ -238,35 +242,37 @@ def _rows_writer(first: StructView, stride: int, put: list[tuple[int, str, str]]
     return fn
 
 
-def write_objects_packed(objs: list[Any], plan: ObjectPlan, fl: FArr, il: IArr, n: int) -> bool:
+def write_objects_packed(objs: list[Any], plan: ObjectPlan, fl: FArr, il: IArr,
+                         filled: int) -> bool:
     """The object loop of ``Scene._fill_obstacles`` into a packer's views: the same clamped
     arrays, cast per wire type into one byte array and scattered into the payload bytes at once
-    (slots past ``n`` get 0). False (nothing written) when the loop must run."""
+    (slots past ``filled`` get 0). False (nothing written) when the loop must run."""
     first = objs[0]
     ck = ("objs", id(plan), len(objs))
     got = first.cache.get(ck)
     if got is None or got[0] is not plan:
         got = first.cache[ck] = (plan, _objects_plan(objs, plan))
-    p = got[1]
-    if p is None:
+    compiled = got[1]
+    if compiled is None:
         return False
-    u8, groups, check, bitgroups, raw, everywhere = p
+    u8, groups, check, bitgroups, raw, everywhere = compiled
     rows, lo, hi = check
-    if n and len(rows):  # one range check for every integer column (wire type or bit width)
-        x = il[rows]
-        if (x < lo).any() or (x > hi).any():
+    if filled and len(rows):  # one range check for every integer column (wire type or bit width)
+        int_rows = il[rows]
+        if (int_rows < lo).any() or (int_rows > hi).any():
             return False  # the encoder would refuse it: let the loop raise
     count = len(objs)
-    for real, rows, v in groups:
-        v[:, :n] = fl[rows] if real else il[rows]
-        if n < count:
-            v[:, n:] = 0
-    for brows, shift, starts, base, v in bitgroups:
+    for real, rows, scratch in groups:
+        scratch[:, :filled] = fl[rows] if real else il[rows]
+        if filled < count:
+            scratch[:, filled:] = 0
+    for brows, shift, starts, base, scratch in bitgroups:
         # a container holds the bits the objects do not write as they are (D2 unused bits set)
-        if n < count:
-            v[:, n:] = base[:, n:]
-        if n:
-            v[:, :n] = base[:, :n] | np.bitwise_or.reduceat(il[brows] << shift, starts, axis=0)
+        if filled < count:
+            scratch[:, filled:] = base[:, filled:]
+        if filled:
+            bits = np.bitwise_or.reduceat(il[brows] << shift, starts, axis=0)
+            scratch[:, :filled] = base[:, :filled] | bits
     u8[everywhere] = raw  # every group's bytes in one scatter
     return True
 

@@ -144,8 +144,8 @@ class TransportConnection:
             self._next_transfer_id = (tid + 1) % seg.ID_MODULO
         mid = self._next_message_id
         self._next_message_id += 1
-        for p in payloads:
-            self.link.send(p, mid, now)
+        for payload in payloads:
+            self.link.send(payload, mid, now)
         return mid
 
     def data_to_send(self, now: float) -> list[bytes]:
@@ -153,10 +153,10 @@ class TransportConnection:
 
     # -- timers -----------------------------------------------------------------------------
     def get_timer(self) -> float | None:
-        t = self.link.get_timer()
-        if self._open is not None and (t is None or self._open.deadline < t):
-            t = self._open.deadline
-        return t
+        due = self.link.get_timer()
+        if self._open is not None and (due is None or self._open.deadline < due):
+            due = self._open.deadline
+        return due
 
     def handle_timer(self, now: float) -> None:
         self.link.handle_timer(now)
@@ -186,12 +186,12 @@ class TransportConnection:
                 return NakReason.FORMAT_ERROR
             return None if seg.FIRST_TOTAL_MIN <= total <= limit else NakReason.FORMAT_ERROR
         if ttype == seg.CONSECUTIVE:
-            o = self._open
-            if o is not None and data[1] != o.transfer_id:
+            transfer = self._open
+            if transfer is not None and data[1] != transfer.transfer_id:
                 self._abort("wrong_id")
                 return NakReason.FORMAT_ERROR
-            if o is not None and num == (o.last_num + 1) % SEQ_MODULO:
-                remaining = o.total - len(o.buf)
+            if transfer is not None and num == (transfer.last_num + 1) % SEQ_MODULO:
+                remaining = transfer.total - len(transfer.buf)
                 if remaining < seg.CONSECUTIVE_CHUNK and any(data[2 + remaining :]):
                     self._abort("bad_padding")  # T4: the rest is zero; this is another transfer
                     return NakReason.FORMAT_ERROR
@@ -234,8 +234,8 @@ class TransportConnection:
             )
             return
         # consecutive (the header check let only these through)
-        o = self._open
-        if o is None:
+        transfer = self._open
+        if transfer is None:
             if data[1] == self._dead_id:
                 self.counters.framesDiscarded += 1
                 return
@@ -247,37 +247,39 @@ class TransportConnection:
             self.counters.transferAborts["no_open_transfer"] += 1
             self._events.append(TransferAborted("no_open_transfer", data[1], 0, None))
             return
-        if num != (o.last_num + 1) % SEQ_MODULO:
+        if num != (transfer.last_num + 1) % SEQ_MODULO:
             self._abort("num_gap")
             return
-        take = min(seg.CONSECUTIVE_CHUNK, o.total - len(o.buf))
-        o.buf += data[2 : 2 + take]
-        o.last_num = num
-        o.nums.append(num)
-        o.deadline = now + self.config.reassembly_timeout
-        if len(o.buf) >= o.total:
+        take = min(seg.CONSECUTIVE_CHUNK, transfer.total - len(transfer.buf))
+        transfer.buf += data[2 : 2 + take]
+        transfer.last_num = num
+        transfer.nums.append(num)
+        transfer.deadline = now + self.config.reassembly_timeout
+        if len(transfer.buf) >= transfer.total:
             self._open = None
-            self._deliver(bytes(o.buf), tuple(o.nums), o.transfer_id)
+            self._deliver(bytes(transfer.buf), tuple(transfer.nums), transfer.transfer_id)
 
     def finish(self) -> None:
         """End of a passive receiver's input (L9): an open transfer is incomplete, not timed
         out."""
-        o = self._open
-        if o is None:
+        transfer = self._open
+        if transfer is None:
             return
         self._open = None
         self.counters.incompleteTransfers += 1
-        self._events.append(TransferIncomplete("end", o.transfer_id, len(o.buf), o.total))
+        self._events.append(TransferIncomplete("end", transfer.transfer_id, len(transfer.buf),
+                                               transfer.total))
 
     def _deliver(self, message: bytes, nums: tuple[int, ...], tid: int | None) -> None:
         self.counters.messagesReceived += 1
         self._events.append(MessageReceived(message, nums, tid))
 
     def _abort(self, reason: str) -> None:
-        o = self._open
-        if o is None:
+        transfer = self._open
+        if transfer is None:
             return
         self._open = None
-        self._dead_id = o.transfer_id
+        self._dead_id = transfer.transfer_id
         self.counters.transferAborts[reason] += 1
-        self._events.append(TransferAborted(reason, o.transfer_id, len(o.buf), o.total))
+        self._events.append(TransferAborted(reason, transfer.transfer_id, len(transfer.buf),
+                                            transfer.total))

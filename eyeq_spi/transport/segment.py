@@ -26,17 +26,17 @@ TransferId = NewType("TransferId", int)
 
 def segment(message: bytes, transfer_id: int) -> list[bytes]:
     """Split ``message`` (1..8191 bytes) into single or first+consecutive payloads."""
-    n = len(message)
-    if not 1 <= n <= MAX_TOTAL:
-        raise LocalProtocolError(f"a message is 1..{MAX_TOTAL} bytes, got {n}")
-    if n <= SINGLE_MAX:  # §6.1 / T2
-        return [bytes((SINGLE, n)) + message]
+    total = len(message)
+    if not 1 <= total <= MAX_TOTAL:
+        raise LocalProtocolError(f"a message is 1..{MAX_TOTAL} bytes, got {total}")
+    if total <= SINGLE_MAX:  # §6.1 / T2
+        return [bytes((SINGLE, total)) + message]
     if not 0 <= transfer_id < ID_MODULO:
         raise LocalProtocolError(f"transfer ID {transfer_id} outside 0..{ID_MODULO - 1}")
     # §6.2.1 / T3: type, ID, total (uint32 LE), first 116 bytes
-    out = [bytes((FIRST, transfer_id)) + n.to_bytes(4, "little") + message[:FIRST_CHUNK]]
+    out = [bytes((FIRST, transfer_id)) + total.to_bytes(4, "little") + message[:FIRST_CHUNK]]
     # §6.2.2 / T4: type, ID, next min(120, remaining) bytes
-    for pos in range(FIRST_CHUNK, n, CONSECUTIVE_CHUNK):
+    for pos in range(FIRST_CHUNK, total, CONSECUTIVE_CHUNK):
         out.append(bytes((CONSECUTIVE, transfer_id)) + message[pos : pos + CONSECUTIVE_CHUNK])
     return out
 

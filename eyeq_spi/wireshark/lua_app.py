@@ -260,11 +260,11 @@ class AppGenerator:
             cells += extra
             rows.append("{" + ", ".join(cells) + "}")
         body = ",\n  ".join(rows)
-        n = self._count.get(lay.name, 0)
+        seen = self._count.get(lay.name, 0)
         skey = self._struct_keys.get(lay.name + "\n" + body)
         if skey is None:
-            skey = f"{lay.name}#{n}"
-            self._count[lay.name] = n + 1
+            skey = f"{lay.name}#{seen}"
+            self._count[lay.name] = seen + 1
             self._struct_keys[lay.name + "\n" + body] = skey
             self.out.structs.append(
                 f"-- {lay.name}: {lay.size} bytes (layout {lay.variant})\n"

@@ -32,15 +32,15 @@ INT_SIZE = {
 def lua_str(text: str) -> str:
     """A double-quoted Lua string literal; anything outside printable ASCII as ``\\ddd``."""
     out = ['"']
-    for b in text.encode("utf-8"):
-        if b == 0x22:
+    for byte in text.encode("utf-8"):
+        if byte == 0x22:
             out.append('\\"')
-        elif b == 0x5C:
+        elif byte == 0x5C:
             out.append("\\\\")
-        elif 0x20 <= b < 0x7F:
-            out.append(chr(b))
+        elif 0x20 <= byte < 0x7F:
+            out.append(chr(byte))
         else:
-            out.append(f"\\{b:03d}")
+            out.append(f"\\{byte:03d}")
     out.append('"')
     return "".join(out)
 

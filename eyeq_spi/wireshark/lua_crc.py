@@ -25,9 +25,9 @@ SHORT = 32
 def _segments(ranges: list[tuple[int, int]]) -> list[tuple[int, int, int]]:
     """(start, end, position in the covered stream) of each range."""
     out, pos = [], 0
-    for a, b in ranges:
-        out.append((a, b, pos))
-        pos += b - a
+    for start, stop in ranges:
+        out.append((start, stop, pos))
+        pos += stop - start
     return out
 
 
@@ -36,18 +36,18 @@ def _blocks(segments: list[tuple[int, int, int]], limit: int, indent: str) -> li
     below HEAD from the arguments h1..h8, the rest CHUNK bytes per string.byte call on
     ``tail``."""
     lines = []
-    for a, b, pos in segments:
-        start, b = a, min(b, limit)
-        while start < b:
+    for seg_start, seg_end, pos in segments:
+        start, seg_end = seg_start, min(seg_end, limit)
+        while start < seg_end:
             if start < HEAD:  # bytes the caller passes
-                end = min(b, HEAD)
-                terms = [f"P[h{start + i} + {(pos + start - a + i - 1) * 256 + 1}]"
+                end = min(seg_end, HEAD)
+                terms = [f"P[h{start + i} + {(pos + start - seg_start + i - 1) * 256 + 1}]"
                          for i in range(1, end - start + 1)]
                 lines.append(f"{indent}acc = bxor(acc, {', '.join(terms)})")
             else:
-                end = min(b, start + CHUNK)
+                end = min(seg_end, start + CHUNK)
                 names = [f"b{i}" for i in range(1, end - start + 1)]
-                terms = [f"P[b{i} + {(pos + start - a + i - 1) * 256 + 1}]"
+                terms = [f"P[b{i} + {(pos + start - seg_start + i - 1) * 256 + 1}]"
                          for i in range(1, end - start + 1)]
                 lines += [f"{indent}do",
                           f"{indent}  local {', '.join(names)} = "

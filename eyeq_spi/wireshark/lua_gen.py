@@ -183,9 +183,9 @@ class LuaGenerator:
         if int(crc["poly"]) > 0xFFFF or int(crc["init"]) > 0xFFFF:
             raise SpecError("specs/link.yaml crc.poly, crc.init: the Lua generator computes a "
                             "CRC-16 only")
-        d = int(frame["data_offset"])
+        data_offset = int(frame["data_offset"])
         types = tr["types"]
-        c = {
+        consts = {
             "FRAME_SIZE": int(frame["size"]),
             "CRC_OFFSET": int(frame["crc_offset"]),
             "CRC_POLY": int(crc["poly"]),
@@ -194,13 +194,13 @@ class LuaGenerator:
             "CRC_CHECK": int(crc["check"]),
             "SEQ_MODULO": int(spec["sequence"]["modulo"]),
             # T1-T4: byte 6 type, byte 7 size or ID, a first frame's total is a uint32 LE
-            "T_TYPE": d,
-            "T_ARG": d + 1,
-            "T_TOTAL": d + 2,
-            "HEAD": d + 2,  # bytes read before the rest of a frame (lua_crc.HEAD)
-            "SINGLE_DATA": d + 2,
-            "FIRST_DATA": d + 6,
-            "NEXT_DATA": d + 2,
+            "T_TYPE": data_offset,
+            "T_ARG": data_offset + 1,
+            "T_TOTAL": data_offset + 2,
+            "HEAD": data_offset + 2,  # bytes read before the rest of a frame (lua_crc.HEAD)
+            "SINGLE_DATA": data_offset + 2,
+            "FIRST_DATA": data_offset + 6,
+            "NEXT_DATA": data_offset + 2,
             "T_SINGLE": int(types["single"]),
             "T_FIRST": int(types["first"]),
             "T_CONSECUTIVE": int(types["consecutive"]),
@@ -210,22 +210,24 @@ class LuaGenerator:
             "FIRST_TOTAL_MIN": int(tr["first_total_min"]),
             "MAX_TOTAL": int(tr["max_total"]),
         }
-        if c["CRC_OFFSET"] != 4 or c["HEAD"] != CRC_HEAD or c["NEXT_DATA"] != CRC_HEAD \
-                or c["SINGLE_DATA"] != CRC_HEAD:  # the runtime reads them with one call
+        # the runtime reads these with one call
+        if consts["CRC_OFFSET"] != 4 or consts["HEAD"] != CRC_HEAD \
+                or consts["NEXT_DATA"] != CRC_HEAD or consts["SINGLE_DATA"] != CRC_HEAD:
             raise SpecError("specs/link.yaml frame: the Lua dissector expects the CRC right "
                             "after the 4-byte header, then transport type and argument, then "
                             "the data")
-        if c["FIRST_DATA"] + c["FIRST_CHUNK"] > c["FRAME_SIZE"]:
+        if consts["FIRST_DATA"] + consts["FIRST_CHUNK"] > consts["FRAME_SIZE"]:
             raise SpecError("specs/link.yaml transport.first_chunk: does not fit the frame")
-        if c["NEXT_DATA"] + c["CONSECUTIVE_CHUNK"] > c["FRAME_SIZE"]:
+        if consts["NEXT_DATA"] + consts["CONSECUTIVE_CHUNK"] > consts["FRAME_SIZE"]:
             raise SpecError("specs/link.yaml transport.consecutive_chunk: does not fit the frame")
         lines = ["local C = {"]
-        lines += [f"  {k} = {lua_int(v) if k.startswith('CRC_') else v}," for k, v in c.items()]
+        lines += [f"  {k} = {lua_int(v) if k.startswith('CRC_') else v},"
+                  for k, v in consts.items()]
         timeout = repr(float(tr["reassembly_timeout"]))
         lines.append(f"  REASSEMBLY_TIMEOUT = {timeout},")
         lines.append("}")
         hdr = _header_fields(frame)
-        self.inline = {f"C.{k}": str(v) for k, v in c.items()}
+        self.inline = {f"C.{k}": str(v) for k, v in consts.items()}
         self.inline["C.REASSEMBLY_TIMEOUT"] = timeout
         self.inline.update({f"@HDR.{k}@": header_expr("h", sh, m) for k, (sh, m) in hdr.items()})
         kinds = {int(v): str(k) for k, v in spec["kinds"].items()}

@@ -448,8 +448,8 @@ def _rate(ctx: Context, tr: Trace, msgs: list[Msg], hz: float, tol: tuple[float,
     rates = []
     for seg in segments(tr, msgs, period):
         rates.append(stream_rate([m.t_first for m in seg]))
-        for a, b in pairwise(seg):
-            periods.append((b.t_first - a.t_first, b))
+        for earlier, later in pairwise(seg):
+            periods.append((later.t_first - earlier.t_first, later))
     if len(periods) < 5:
         return unsure(f"{len(periods)} periods of {what} observed (need 5)")
     outside = [(p, msg) for p, msg in periods if not lo - slack <= p <= hi + slack]
@@ -468,9 +468,9 @@ def _rate(ctx: Context, tr: Trace, msgs: list[Msg], hz: float, tol: tuple[float,
         total = sum(p for p, _ in periods)
         spans.append((t0, t1, max(total - len(periods) * slow, len(periods) * fast - total)))
     if outside:
-        p, msg = outside[0]
+        spacing, msg = outside[0]
         return bad(f"{what}: {len(outside)} of {len(periods)} periods outside "
-                   f"{1e3 * lo:.1f}..{1e3 * hi:.1f} ms, first {1e3 * p:.2f} ms before "
+                   f"{1e3 * lo:.1f}..{1e3 * hi:.1f} ms, first {1e3 * spacing:.2f} ms before "
                    f"#{msg.indices[0]} at {at(msg.t_first)}; mean rate {1 / mean:.2f} Hz", spans)
     if mean_off:
         return bad(f"{what}: mean rate {1 / mean:.2f} Hz over {len(periods)} periods, "

@@ -61,5 +61,5 @@ class Context:
         return 0.05 if self.realtime else 1e-6
 
 
-def at(t: float) -> str:
-    return f"t={t:.4f}s"
+def at(time_s: float) -> str:
+    return f"t={time_s:.4f}s"

@@ -65,8 +65,8 @@ class TesterEyeQ(SimulatedEyeQ):
     def _rearm(self, now: float) -> None:
         """A reset right after a withheld reply leaves nothing to judge (the host's requests
         start over): withhold the next one instead."""
-        for t, key in self._withheld:
-            if now - t < REARM_WITHIN:
+        for due, key in self._withheld:
+            if now - due < REARM_WITHIN:
                 self.withhold.add(key)
 
     def power_up(self, now: float) -> None:
@@ -135,96 +135,98 @@ def tester_config(session: str, sw: str | None, fast: bool) -> SimConfig:
 
 
 class EyeqScript:
-    def __init__(self, s: Session, eyeq: TesterEyeQ, plan: EyeqPlan, session: str,
+    def __init__(self, session: Session, eyeq: TesterEyeQ, plan: EyeqPlan, kind: str,
                  wanted: set[str]) -> None:
-        self.s, self.eyeq, self.plan, self.session, self.wanted = s, eyeq, plan, session, wanted
-        self.trace = s.trace
+        self.session, self.eyeq, self.plan = session, eyeq, plan
+        self.kind, self.wanted = kind, wanted
+        self.trace = session.trace
 
     def host_running(self) -> bool:
         return self.eyeq.main_state == 0x02
 
     def run(self) -> None:
-        s, eyeq, trace = self.s, self.eyeq, self.trace
-        trace.mark(s.now, "start", session=self.session)
-        eyeq.power_up(s.now)
-        if self.session == "normal":
+        session, eyeq, trace = self.session, self.eyeq, self.trace
+        trace.mark(session.now, "start", session=self.kind)
+        eyeq.power_up(session.now)
+        if self.kind == "normal":
             self.normal()
-        elif self.session == "eeprom_bad":
-            s.run(0.3)
-            trace.mark(s.now, "fatal22", forced=True)
-            s.wait(lambda: any(r[1:3] == (0x03, 0x02) for r in eyeq.requests), 5.0)
-            s.run(0.05)
-            trace.mark(s.now, "eeprom_served")
-            s.run(self.plan.eeprom_watch)
+        elif self.kind == "eeprom_bad":
+            session.run(0.3)
+            trace.mark(session.now, "fatal22", forced=True)
+            session.wait(lambda: any(r[1:3] == (0x03, 0x02) for r in eyeq.requests), 5.0)
+            session.run(0.05)
+            trace.mark(session.now, "eeprom_served")
+            session.run(self.plan.eeprom_watch)
         else:
-            s.run(self.plan.boot_fail_watch)
-        trace.mark(s.now, "resets", times=list(eyeq.reset_times))
+            session.run(self.plan.boot_fail_watch)
+        trace.mark(session.now, "resets", times=list(eyeq.reset_times))
 
     def normal(self) -> None:
-        s, eyeq, trace, plan = self.s, self.eyeq, self.trace, self.plan
+        session, eyeq, trace, plan = self.session, self.eyeq, self.trace, self.plan
         eyeq.withhold.add(VERSIONS)  # HOST-RETRY (M6)
         # an unmatched reply while we boot (M1): claims Pending Vision with a tag never used
-        if s.wait(lambda: eyeq.main_state == 0x03, 5.0):
+        if session.wait(lambda: eyeq.main_state == 0x03, 5.0):
             polls = [r for r in eyeq.requests if r[1:3] == (0x05, 0x03)]
             tag = ((polls[-1][3] + 32) & 0x3F) if polls else 0x2A
             bogus = eyeq.server.codec.encode_reply("GetEyeQExtendedState", tag, 0,
                                                    {"mainState": 0x01, "subState": 0x92})
-            eyeq.conn.send(bogus, s.now)
-            trace.mark(s.now, "unmatched_reply", tag=tag)
-        if not s.wait(self.host_running, plan.bring_up_timeout):
-            trace.mark(s.now, "bring_up_failed")
+            eyeq.conn.send(bogus, session.now)
+            trace.mark(session.now, "unmatched_reply", tag=tag)
+        if not session.wait(self.host_running, plan.bring_up_timeout):
+            trace.mark(session.now, "bring_up_failed")
             return
-        trace.mark(s.now, "running")
-        s.run(plan.steady)
-        trace.mark(s.now, "steady_end")
+        trace.mark(session.now, "running")
+        session.run(plan.steady)
+        trace.mark(session.now, "steady_end")
         if "link" in self.wanted:
             self.link_probes()
-        t = s.now
-        eyeq.config.stop_dasp[STALE_STREAM] = t
-        trace.mark(t, "stale_start", stream=STALE_STREAM)
-        s.run(plan.stale_for)
+        at = session.now
+        eyeq.config.stop_dasp[STALE_STREAM] = at
+        trace.mark(at, "stale_start", stream=STALE_STREAM)
+        session.run(plan.stale_for)
         detected = None
-        if self.s.dut is not None:  # --builtin: our host's public view
-            detected = STALE_STREAM in self.s.dut.stale_streams
-        trace.mark(s.now, "stale_end", stream=STALE_STREAM, detected=detected)
+        if self.session.dut is not None:  # --builtin: our host's public view
+            detected = STALE_STREAM in self.session.dut.stale_streams
+        trace.mark(session.now, "stale_end", stream=STALE_STREAM, detected=detected)
         del eyeq.config.stop_dasp[STALE_STREAM]
-        s.run(0.3)
-        t = s.now
-        trace.mark(t, "our_reset")
-        eyeq.power_up(t)
+        session.run(0.3)
+        at = session.now
+        trace.mark(at, "our_reset")
+        eyeq.power_up(at)
         trace.restart_passive(trace.our_dir)
         # HOST-EYEQ-RESET needs 0x92 and HOST_VEH_STATE_MSG again: once we are back in Running
         # Vision (which needs both) a short watch suffices; a host that never gets there is
         # watched for the whole ``after_reset``
-        if s.wait(self.host_running, plan.after_reset):
-            s.run(plan.after_running)
-        trace.mark(s.now, "after_reset_end")
+        if session.wait(self.host_running, plan.after_reset):
+            session.run(plan.after_running)
+        trace.mark(session.now, "after_reset_end")
 
     def link_probes(self) -> None:
-        s, shim, trace, link = self.s, self.s.shim, self.trace, self.eyeq.conn.link
-        t0 = s.now
-        s.nak_probes(link)
+        session, shim, trace = self.session, self.session.shim, self.trace
+        link = self.eyeq.conn.link
+        t0 = session.now
+        session.nak_probes(link)
         # a stale MESP reply (tag never used): harmless to a host, single frame, duplicated
         stale = self.eyeq.server.codec.encode_reply("GetEyeQVersions", 0x3F, 0, {
             "apiVersionMajor": 0, "apiVersionMinor": 0, "eyeqSwVersionMajor": 0,
             "eyeqSwVersionMinor": 0})
         first = segment(stale, 0)[0]
         shim.watch(first, "dup", "duplicate")
-        link.send(first, PROBE_LINK_TAG, s.now)
-        trace.mark(s.now, "dup_request")
-        s.run(0.05)
+        link.send(first, PROBE_LINK_TAG, session.now)
+        trace.mark(session.now, "dup_request")
+        session.run(0.05)
         limit = int(_T["receive_limit"][trace.dut])
         # a first frame announcing one byte more than the host may receive (T6: NAK 0x011)
         over = bytes([_T["types"]["first"], 0xC1]) + (limit + 1).to_bytes(4, "little") \
             + bytes(_T["first_chunk"])
         shim.watch(over, "limit_over#0")
-        link.send(over, PROBE_LINK_TAG + 1, s.now)
-        trace.mark(s.now, "limit_over")
-        s.run(0.05)
-        trace.fault(t0, s.now, "probes")
-        t1 = s.now
+        link.send(over, PROBE_LINK_TAG + 1, session.now)
+        trace.mark(session.now, "limit_over")
+        session.run(0.05)
+        trace.fault(t0, session.now, "probes")
+        t1 = session.now
         shim.hold_acks_until = t1 + 0.06
         trace.mark(t1, "ack_blackout", until=t1 + 0.06)
-        s.run(0.2)
+        session.run(0.2)
         trace.fault(t1, t1 + 0.06, "ack_blackout")
 

@@ -40,7 +40,6 @@ from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.transport.segment import segment
 
-S = HostState
 _T = link_spec()["transport"]
 
 PROBE_LINK_TAG = 1 << 40  # link tags of raw probe frames: far above any transport message id
@@ -82,9 +81,10 @@ def make_tester(sw: str | None, plan: HostPlan) -> TesterHost:
 
 
 class HostScript:
-    def __init__(self, s: Session, host: TesterHost, plan: HostPlan, wanted: set[str]) -> None:
-        self.s, self.host, self.plan, self.wanted = s, host, plan, wanted
-        self.trace = s.trace
+    def __init__(self, session: Session, host: TesterHost, plan: HostPlan,
+                 wanted: set[str]) -> None:
+        self.session, self.host, self.plan, self.wanted = session, host, plan, wanted
+        self.trace = session.trace
         self.codec = host.mesp.codec
 
     # -- helpers ---------------------------------------------------------------------------
@@ -93,42 +93,44 @@ class HostScript:
         return self.codec.encode_request(function, tag, params or {}) + extra
 
     def send_raw(self, label: str, message: bytes) -> None:
-        self.trace.mark(self.s.now, label, tag=message[4], service=message[0],
+        self.trace.mark(self.session.now, label, tag=message[4], service=message[0],
                         function=message[3])
-        self.host.conn.send(message, self.s.now)
+        self.host.conn.send(message, self.session.now)
 
     def link_payloads(self, label: str, payloads: list[bytes], *, drop: int | None = None
                       ) -> None:
         """Queue transport payloads straight on our link (our NUMs, our pacing)."""
-        for i, p in enumerate(payloads):
-            self.s.shim.watch(p, f"{label}#{i}", "drop" if i == drop else "label")
-            self.host.conn.link.send(p, PROBE_LINK_TAG + len(self.trace.marks), self.s.now)
-        self.trace.mark(self.s.now, label, frames=len(payloads))
+        for index, payload in enumerate(payloads):
+            how = "drop" if index == drop else "label"
+            self.session.shim.watch(payload, f"{label}#{index}", how)
+            tag = PROBE_LINK_TAG + len(self.trace.marks)
+            self.host.conn.link.send(payload, tag, self.session.now)
+        self.trace.mark(self.session.now, label, frames=len(payloads))
 
     def seen_boot(self) -> bool:
         return bool(self.host.boot_info)  # cheap: no decoding of the trace while we wait
 
     # -- the script ------------------------------------------------------------------------
     def run(self) -> None:
-        s, host, plan = self.s, self.host, self.plan
-        self.trace.mark(s.now, "start")
-        host.start(s.now)
-        if s.wait(self.seen_boot, 5.0) and "early_init" in self.wanted:
+        session, host, plan = self.session, self.host, self.plan
+        self.trace.mark(session.now, "start")
+        host.start(session.now)
+        if session.wait(self.seen_boot, 5.0) and "early_init" in self.wanted:
             params = init_message(0x92, host.sw, host.codec.cat)
             assert params.codec is not None
             body = params.codec.encode({})
             self.send_raw("early_init", self.raw("EventCalibrationTool", TAG_EARLY_INIT, {
                 "ct_type": params.ct_type, "ct_stage": 0x92,
                 "ct_version": params.ct_version(body), "params": body}))
-        running = s.wait(lambda: host.state is S.RUNNING_VISION or host.state is S.FAILED,
-                         plan.bring_up_timeout)
-        if not running or host.state is not S.RUNNING_VISION:
-            self.trace.mark(s.now, "bring_up_failed", state=host.state.value,
+        running = session.wait(lambda: host.state in (HostState.RUNNING_VISION, HostState.FAILED),
+                               plan.bring_up_timeout)
+        if not running or host.state is not HostState.RUNNING_VISION:
+            self.trace.mark(session.now, "bring_up_failed", state=host.state.value,
                             problem=host.problem)
             return
-        self.trace.mark(s.now, "running")
-        s.run(plan.steady)
-        self.trace.mark(s.now, "steady_end")
+        self.trace.mark(session.now, "running")
+        session.run(plan.steady)
+        self.trace.mark(session.now, "steady_end")
         if "mesp" in self.wanted:
             self.mesp_probes()
         if "link" in self.wanted:
@@ -139,7 +141,7 @@ class HostScript:
                     break
 
     def mesp_probes(self) -> None:
-        s, host = self.s, self.host
+        session, host = self.session, self.host
         requests: list[tuple[str, dict[str, Any]]] = [
             ("GetEyeQExtendedState", {}), ("GetEyeQVersions", {}),
             ("FFSReadFile", {"filename": "/mesp/eeprom.data1"}),
@@ -148,100 +150,102 @@ class HostScript:
             ("SendParamsToCalibrationTool", EDR_EXAMPLE),
         ]
         for fn, params in requests:
-            host.mesp.request(fn, params, now=s.now)
-            s.run(0.06)
+            host.mesp.request(fn, params, now=session.now)
+            session.run(0.06)
         self.send_raw("bad_params", self.raw("SwitchEyeQApplication", TAG_BAD_SWITCH,
                                              {"applicationId": 0x7E}))
-        s.run(0.06)
+        session.run(0.06)
         hash_req = self.raw("ComputeHash", TAG_BAD_HASH,
                             {"hashType": 1, "datasetType": 0, "start": 0, "size": 16})
         self.send_raw("bad_params", hash_req[:-6])  # truncated: start and size cut short
-        s.run(0.06)
+        session.run(0.06)
         self.send_raw("unknown_function", bytes((0x05, 0x5E, 0x05, 0x7F, TAG_UNKNOWN_FN)))
-        s.run(0.06)
+        session.run(0.06)
         self.send_raw("unknown_service", bytes((0x09, 0x5E, 0x09, 0x01, TAG_UNKNOWN_SVC)))
-        s.run(0.1)
+        session.run(0.1)
 
     def link_probes(self) -> None:
-        s, host, shim, trace = self.s, self.host, self.s.shim, self.trace
+        session, host, shim, trace = self.session, self.host, self.session.shim, self.trace
         link = host.conn.link
-        t0 = s.now
-        s.nak_probes(link)
+        t0 = session.now
+        session.nak_probes(link)
         dup = self.raw("GetEyeQExtendedState", TAG_DUP)
         shim.watch(segment(dup, 0)[0], "dup", "duplicate")
         self.send_raw("dup_request", dup)
-        s.run(0.1)
+        session.run(0.1)
         limit = int(_T["receive_limit"][trace.dut])
         junk = bytes(range(256)) * 40
         over = self.raw("GetEyeQVersions", TAG_LIMIT) + junk
         self.link_payloads("limit_over", segment(over[: limit + 1], 0xC1)[:1])
-        s.run(0.05)
+        session.run(0.05)
         self.link_payloads("limit_at", segment(over[:limit], 0xC2))
-        s.run(0.15)
+        session.run(0.15)
         for label, tag, tid, drop in (("abort_control", TAG_CONTROL, 0xC3, None),
                                       ("abort_gap", TAG_GAP, 0xC4, 1)):
             msg = (self.raw("GetEyeQVersions", tag) + junk)[:300]
             self.link_payloads(label, segment(msg, tid), drop=drop)
-            s.run(0.2)
+            session.run(0.2)
         msg = (self.raw("GetEyeQVersions", TAG_SILENCE) + junk)[:300]
         parts = segment(msg, 0xC5)
         self.link_payloads("abort_silence", parts[:2])
-        s.run(0.04)  # > 25 ms of silence (T6)
+        session.run(0.04)  # > 25 ms of silence (T6)
         self.link_payloads("abort_silence_tail", parts[2:])
-        s.run(0.2)
-        trace.fault(t0, s.now, "probes")
+        session.run(0.2)
+        trace.fault(t0, session.now, "probes")
         # ACK blackout: we ACK nothing for 100 ms, an 18 Hz cycle (L7 window, no resend)
-        t1 = s.now
+        t1 = session.now
         shim.hold_acks_until = t1 + 0.1
         trace.mark(t1, "ack_blackout", until=t1 + 0.1)
-        s.run(0.2)
+        session.run(0.2)
         trace.fault(t1, t1 + 0.1, "ack_blackout")
         # our own driver reset, as the DUT's receiver sees it: our NUMs start again at 0 (L4,
         # L6). Our receive window is kept, so our host does not take the DUT for reset.
-        t2 = s.now
+        t2 = session.now
         link.reset(tx_num=0, expected=link.expected_num)
         trace.restart_passive(trace.our_dir)
         trace.mark(t2, "our_reset")
-        s.run(0.15)
-        host.mesp.request("GetEyeQExtendedState", now=s.now)
-        trace.mark(s.now, "after_reset_request")
-        s.run(0.2)
-        trace.fault(t2, s.now, "our_reset")
+        session.run(0.15)
+        host.mesp.request("GetEyeQExtendedState", now=session.now)
+        trace.mark(session.now, "after_reset_request")
+        session.run(0.2)
+        trace.fault(t2, session.now, "our_reset")
 
     def mode_round_trip(self, mode: str) -> bool:
-        s, host, plan, trace = self.s, self.host, self.plan, self.trace
-        target = {"TAC": S.RUNNING_TAC, "SPC": S.RUNNING_SPC, "DV": S.DV}[mode]
-        t0 = s.now
+        session, host, plan, trace = self.session, self.host, self.plan, self.trace
+        target = {"TAC": HostState.RUNNING_TAC, "SPC": HostState.RUNNING_SPC,
+                  "DV": HostState.DV}[mode]
+        t0 = session.now
         trace.mark(t0, "switch", mode=mode)
         # our host may be bringing the DUT up again (it took something for a reset): wait
-        s.wait(lambda: host.state in (S.RUNNING_VISION, S.FAILED), plan.mode_timeout)
+        settled = (HostState.RUNNING_VISION, HostState.FAILED)
+        session.wait(lambda: host.state in settled, plan.mode_timeout)
         try:
-            host.switch_mode(mode, s.now)
+            host.switch_mode(mode, session.now)
         except LocalProtocolError as exc:
-            trace.mark(s.now, "mode_done", mode=mode, ok=False, entered=s.now,
+            trace.mark(session.now, "mode_done", mode=mode, ok=False, entered=session.now,
                        state=host.state.value, result={}, problem=f"not switched: {exc}")
             return False
 
         def reached() -> bool:
-            if host.state is S.FAILED:
+            if host.state is HostState.FAILED:
                 return True
             if mode == "DV":
-                return host.state is S.DV
+                return host.state is HostState.DV
             return host.state is target and host.calibration_result is not None
 
-        ok = s.wait(reached, plan.mode_timeout) and host.state is not S.FAILED
-        entered = s.now
+        ok = session.wait(reached, plan.mode_timeout) and host.state is not HostState.FAILED
+        entered = session.now
         if ok:
-            s.run(plan.mode_hold if mode != "DV" else 0.2)
+            session.run(plan.mode_hold if mode != "DV" else 0.2)
         result = dict(host.calibration_result or {})
-        trace.mark(s.now, "mode_done", mode=mode, ok=ok, entered=entered,
+        trace.mark(session.now, "mode_done", mode=mode, ok=ok, entered=entered,
                    state=host.state.value, result=result, problem=host.problem)
         if not ok:
             return False
-        host.switch_mode("VISION", s.now)
-        back = s.wait(lambda: host.state in (S.RUNNING_VISION, S.FAILED), plan.mode_timeout)
-        back = back and host.state is S.RUNNING_VISION
-        trace.mark(s.now, "mode_back", mode=mode, ok=back, state=host.state.value)
+        host.switch_mode("VISION", session.now)
+        back = session.wait(lambda: host.state in settled, plan.mode_timeout)
+        back = back and host.state is HostState.RUNNING_VISION
+        trace.mark(session.now, "mode_back", mode=mode, ok=back, state=host.state.value)
         if back:
-            s.run(0.2)
+            session.run(0.2)
         return back

@@ -37,8 +37,8 @@ class Session:
         self._last_turn: float | None = None  # real time: when the loop last came round
         self.peer_left: float | None = None  # real time: when the peer closed the link
         if dut is not None:
-            a, b = memory_pair()
-            self._virtual = VirtualRunner([(self.shim, a), (dut, b)])
+            shim_end, dut_end = memory_pair()
+            self._virtual = VirtualRunner([(self.shim, shim_end), (dut, dut_end)])
         else:
             assert adapter is not None
             t0 = time.monotonic()
