@@ -117,8 +117,7 @@ def open_url(url: str) -> Adapter:
     any other pyserial URL (``loop://``), or one side on SPI lines
     (``MASTER_URL,SLAVE_URL`` of ``spidev://`` / ``ft4222://`` channels, or a ``bench.toml``:
     :mod:`eyeq_spi.phy.bench`). :func:`open_listener` listens."""
-    from eyeq_spi.phy.address import parse_connect
-    from eyeq_spi.phy.address import is_spi
+    from eyeq_spi.phy.address import is_spi, parse_connect
 
     if is_spi(url):
         return adapter_class("spi")(url)  # type: ignore[call-arg]
@@ -130,8 +129,7 @@ def open_listener(url: str, *, timeout: float = 5.0) -> Adapter:
     """A TCP listener on ``tcp://HOST:PORT`` (port 0: any free port) that serves one peer at a
     time; ``timeout`` bounds the wait for a peer on the first send or receive. One side on SPI
     lines (as :func:`open_url` takes it) is there at once: the peer is on the wires."""
-    from eyeq_spi.phy.address import parse_listen
-    from eyeq_spi.phy.address import is_spi
+    from eyeq_spi.phy.address import is_spi, parse_listen
 
     if is_spi(url):
         return adapter_class("spi")(url)  # type: ignore[call-arg]

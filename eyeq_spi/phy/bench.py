@@ -18,6 +18,7 @@ or as a bench file, ``bench.toml`` (read with :mod:`tomllib`)::
     bit_order = "msb_first"
     gap_us = 0            # chip select high between two of our transfers, at least
     queue = 1024          # received transfers held for the link before one is an overrun
+    silence_ms = 1000     # a peer heard and then silent this long is gone (link lost)
 
 Every key is checked; a wrong one is an :class:`~eyeq_spi.errors.UsageError` naming the file.
 """
@@ -34,7 +35,10 @@ from eyeq_spi.errors import AdapterError, UsageError
 from eyeq_spi.phy.address import SPI_FORMS, SPI_SCHEMES
 from eyeq_spi.phy.spi import SpiAdapter, SpiSettings
 
-_SPI_KEYS: dict[str, type | tuple[type, ...]] = {"clock_hz": int, "mode": int, "bit_order": str, "gap_us": (int, float), "queue": int}
+_SPI_KEYS: dict[str, type | tuple[type, ...]] = {
+    "clock_hz": int, "mode": int, "bit_order": str, "gap_us": (int, float), "queue": int,
+    "silence_ms": (int, float),
+}
 
 
 def default_settings() -> SpiSettings:
@@ -80,7 +84,8 @@ def _settings(table: Any, where: str) -> SpiSettings:
                            mode=table.get("mode", base.mode),
                            bit_order=table.get("bit_order", base.bit_order),
                            gap=float(table.get("gap_us", 0)) / 1e6,
-                           queue=table.get("queue", base.queue))
+                           queue=table.get("queue", base.queue),
+                           silence=float(table.get("silence_ms", base.silence * 1e3)) / 1e3)
     except AdapterError as exc:
         raise UsageError(f"{where}: [spi] {exc}") from None
 

@@ -13,6 +13,10 @@ What the adapter adds, and nothing else (the link's timers stay the link's):
 - a minimum chip-select-high time between two transfers of the master channel (``gap``);
 - a reader thread blocked in the slave channel's read, so that a frame is in the adapter as soon
   as the driver has it and the link's ACK leaves at once (no polling sleep of ours);
+- the end of a peer: SPI lines have no disconnect, so a peer that has been heard and then
+  sends nothing for ``silence`` seconds is gone (:class:`LinkLostError`, once); its next
+  transfer is a new peer (:meth:`SpiAdapter.accept`). A channel whose driver fails (a USB
+  adapter unplugged) loses the link for good;
 - counted events: transfers lost because nobody took them in time (``overruns``), and the
   reply latency: from a transfer read on the slave channel to the first master transfer written
   after the link took it (the ACK of a DATA frame), the figure the peer's ackTimeout judges.
@@ -23,7 +27,9 @@ The drivers (``spidev``, ``ft4222``) sit behind the small :class:`MasterChannel`
 
 from __future__ import annotations
 
+import contextlib
 import queue
+import sys
 import threading
 import time
 from collections import Counter
@@ -36,6 +42,11 @@ from eyeq_spi.phy.base import Adapter
 
 FRAME_LEN = 128  # §6: a frame ends after 128 bytes or at the rising edge of chip select
 BIN_S = 1e-5  # reply latency histogram: 10 µs bins, as the run summary's ACK latency
+# The reader thread hands a transfer to the link's thread through the interpreter lock; at
+# Python's default 5 ms switch interval a busy link thread (encoding a burst) could hold a
+# received frame for half the peer's ackTimeout. While an SPI adapter is open, the interpreter
+# switches threads at least this often.
+SWITCH_INTERVAL = 0.0002
 
 
 def _reverse_bits(value: int) -> int:
@@ -50,13 +61,15 @@ REVERSED = bytes(_reverse_bits(b) for b in range(256))
 class SpiSettings:
     """How a channel drives or samples the lines: clock (Hz), SPI mode (CPOL*2 + CPHA),
     ``bit_order`` of each byte on the wire, ``gap`` (s of chip select high between two master
-    transfers), ``queue`` (received transfers held for the link before one is an overrun)."""
+    transfers), ``queue`` (received transfers held for the link before one is an overrun),
+    ``silence`` (s without a transfer from a peer that was heard: it is gone)."""
 
     clock_hz: int = 10_000_000
     mode: int = 1
     bit_order: str = "msb_first"
     gap: float = 0.0
     queue: int = 1024
+    silence: float = 1.0
 
     def __post_init__(self) -> None:
         if self.mode not in (0, 1, 2, 3):
@@ -64,8 +77,8 @@ class SpiSettings:
         if self.bit_order not in ("msb_first", "lsb_first"):
             raise AdapterError(f"bit order must be msb_first or lsb_first, not "
                                f"{self.bit_order!r}")
-        if self.clock_hz <= 0 or self.gap < 0 or self.queue < 1:
-            raise AdapterError("clock, gap and queue must be positive")
+        if self.clock_hz <= 0 or self.gap < 0 or self.queue < 1 or self.silence <= 0:
+            raise AdapterError("clock, gap, queue and silence must be positive")
 
 
 class MasterChannel(Protocol):
@@ -139,10 +152,14 @@ class SpiAdapter(Adapter):
         self.last_arrival = 0.0  # the clock when the transfer ``recv`` returned last was read
         self._wanted_lsb = settings.bit_order == "lsb_first"
         self._ready: queue.Queue[tuple[float, bytes]] = queue.Queue(settings.queue)
-        self._lost: str | None = None
+        self._lost: str | None = None  # the channels failed: for good
+        self._heard: float | None = None  # when the peer's last transfer was read
+        self._quiet = False  # the peer went silent: the next transfer is a new peer
         self._last_write = float("-inf")
         self._pending_reply: float | None = None  # arrival of the transfer taken last
         self._stop = threading.Event()
+        self._switch_interval = sys.getswitchinterval()
+        sys.setswitchinterval(min(SWITCH_INTERVAL, self._switch_interval))
         self._reader = threading.Thread(target=self._read_loop, name=f"spi-slave {slave.name}",
                                         daemon=True)
         self._reader.start()
@@ -152,7 +169,15 @@ class SpiAdapter(Adapter):
         return self.name
 
     def accept(self, timeout: float | None = None) -> bool:
-        """SPI lines are always there: a peer is "connected" while the channels work."""
+        """A peer on the lines: at once on a fresh adapter (the lines are there, whoever is
+        on them), and after a peer went silent as soon as a transfer comes again (within
+        ``timeout`` s, None: at once or not at all). False once the channels failed."""
+        end = self.clock() + (timeout or 0.0)
+        while self._quiet and self._ready.empty():
+            if self._lost is not None or self.clock() >= end:
+                return False
+            time.sleep(0.01)
+        self._quiet = False
         return self._lost is None
 
     # -- the slave channel ----------------------------------------------------------------
@@ -179,11 +204,15 @@ class SpiAdapter(Adapter):
         except queue.Empty:
             if self._lost is not None:
                 raise LinkLostError(f"link lost: {self._lost}") from None
+            if self._heard is not None and self.clock() - self._heard > self.settings.silence:
+                self._heard, self._quiet = None, True
+                raise LinkLostError(f"link lost: nothing from the peer on {self.slave.name} "
+                                    f"for {self.settings.silence:g} s") from None
             # the last transfer taken made no reply before the link asked for more (an ACK
             # received): a later write answers a timer, not it
             self._pending_reply = None
             return None
-        self.last_arrival = arrived
+        self.last_arrival = self._heard = arrived
         self._pending_reply = arrived
         return transfer
 
@@ -214,11 +243,10 @@ class SpiAdapter(Adapter):
     def _close_internal(self) -> None:
         self._stop.set()
         for channel in (self.master, self.slave):
-            try:
+            with contextlib.suppress(AdapterError, OSError):
                 channel.close()
-            except (AdapterError, OSError):
-                pass
         self._reader.join(0.5)
+        sys.setswitchinterval(self._switch_interval)
 
 
 def _pause(seconds: float) -> None:

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 REVERSED = bytes(int(f"{b:08b}"[::-1], 2) for b in range(256))
-WIRE_TIME_S = 128 * 8 / 10_000_000  # a 128-byte frame at 10 MHz
+WIRE_TIME_S = float(os.environ.get("SIMWIRE_WT", 128 * 8 / 10_000_000))  # 128 bytes at 10 MHz
 
 
 def directory() -> Path:
@@ -58,6 +58,14 @@ def settings_of(name: str) -> dict[str, Any] | None:
         return dict(json.loads((directory() / f"{name}.conf").read_text()))
     except (OSError, ValueError):
         return None
+
+
+def count_overrun(name: str) -> None:
+    """A transfer the slave ``name`` lost because its buffer stayed full (tests read
+    ``DIR/NAME.overruns``)."""
+    path = directory() / f"{name}.overruns"
+    with path.open("a") as out:
+        out.write("1\n")
 
 
 def usb_delay(cfg: dict[str, Any]) -> float:
@@ -90,7 +98,9 @@ class Sender:
         self.peer = self.cfg["links"].get(name)
         self.sent = 0
         self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-        self.sock.setblocking(False)
+        # a slave's buffer holds a few transfers (the datagram queue); one that stays full
+        # this long has overrun and loses the transfer
+        self.sock.settimeout(0.005)
 
     def transfer(self, data: bytes, mode: int, lsb_first: bool) -> None:
         cfg = self.cfg
@@ -110,8 +120,10 @@ class Sender:
                 data = (int.from_bytes(data, "big") >> 1).to_bytes(len(data), "big")
             try:
                 self.sock.sendto(data, str(directory() / f"{self.peer}.sock"))
+            except TimeoutError:
+                count_overrun(self.peer)
             except OSError:
-                pass  # nobody listening, or its buffer full: lost on the wire
+                pass  # nobody listening: lost on the wire, as on real lines
         time.sleep(WIRE_TIME_S + usb_delay(cfg))  # clocked out, then the completion
 
     def close(self) -> None:

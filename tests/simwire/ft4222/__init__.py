@@ -9,10 +9,10 @@ delivers it) on the wire ``links`` of ``wire.json`` say.
 from __future__ import annotations
 
 import enum
-import socket
 from typing import Any
 
 import simwire
+
 from ft4222 import SPI, SPIMaster, SPISlave
 
 __all__ = ["SPI", "SPIMaster", "SPISlave"]
@@ -108,7 +108,7 @@ class FT4222:
         while True:
             try:
                 self._stream += self._endpoint.sock.recv(65536)
-            except (BlockingIOError, socket.timeout):
+            except (TimeoutError, BlockingIOError):
                 return len(self._stream)
 
     def spiSlave_Read(self, bytesToRead: int) -> bytes:

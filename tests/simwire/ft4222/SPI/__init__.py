@@ -3,6 +3,7 @@
 
 from enum import IntEnum
 
+
 class DrivingStrength(IntEnum):
     """SPI Driving Strength
 

@@ -3,6 +3,7 @@
 
 from enum import IntEnum
 
+
 class Mode(IntEnum):
     """SPIMaster Mode
 

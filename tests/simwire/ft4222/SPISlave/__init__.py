@@ -3,6 +3,7 @@
 
 from enum import IntEnum
 
+
 class Protocol(IntEnum):
     """SPI SLAVE protocol
 
