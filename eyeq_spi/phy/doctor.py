@@ -93,7 +93,7 @@ def _exchange(sender: SpiAdapter, receiver: SpiAdapter, index: int, tally: Tally
     if got is None:
         return
     receiver.send(reply)  # at once, as the link's ACK
-    tally.reply.append(time.monotonic() - receiver.last_arrival)
+    tally.reply.append(receiver.wait_sent() - receiver.last_arrival)
     back = sender.recv(ANSWER_WAIT)
     if back is not None:
         tally.round_trip.append(sender.last_arrival - start)

@@ -33,7 +33,7 @@ except ImportError:  # pragma: no cover - the [bench] extra
     HAVE_FT4222 = False
 
 SYSTEM_CLOCK_HZ = 80_000_000
-POLL = 0.0002  # s between two looks at the slave's receive count
+POLL = 0.0005  # s between two looks at the slave's receive count
 IDLE = 0.002  # s of silence that end a short transfer in raw slave mode
 
 

@@ -12,7 +12,8 @@ What the adapter adds, and nothing else (the link's timers stay the link's):
   controller where it can (the channel says so), by a 256-entry table otherwise;
 - a minimum chip-select-high time between two transfers of the master channel (``gap``);
 - a reader thread blocked in the slave channel's read, so that a frame is in the adapter as soon
-  as the driver has it and the link's ACK leaves at once (no polling sleep of ours);
+  as the driver has it, and a writer thread for the master channel, so that the link's loop
+  hands an ACK over and goes on (it never waits for a USB round trip);
 - the end of a peer: SPI lines have no disconnect, so a peer that has been heard and then
   sends nothing for ``silence`` seconds is gone (:class:`LinkLostError`, once); its next
   transfer is a new peer (:meth:`SpiAdapter.accept`). A channel whose driver fails (a USB
@@ -162,7 +163,13 @@ class SpiAdapter(Adapter):
         sys.setswitchinterval(min(SWITCH_INTERVAL, self._switch_interval))
         self._reader = threading.Thread(target=self._read_loop, name=f"spi-slave {slave.name}",
                                         daemon=True)
-        self._reader.start()
+        self._outgoing: queue.SimpleQueue[tuple[bytes, float | None] | None] = (
+            queue.SimpleQueue())
+        self._written = threading.Condition()
+        self._queued = self._done = 0
+        self._writer = threading.Thread(target=self._write_loop,
+                                        name=f"spi-master {master.name}", daemon=True)
+        self._started = False
 
     @property
     def url(self) -> str:
@@ -172,6 +179,7 @@ class SpiAdapter(Adapter):
         """A peer on the lines: at once on a fresh adapter (the lines are there, whoever is
         on them), and after a peer went silent as soon as a transfer comes again (within
         ``timeout`` s, None: at once or not at all). False once the channels failed."""
+        self._start()
         end = self.clock() + (timeout or 0.0)
         while self._quiet and self._ready.empty():
             if self._lost is not None or self.clock() >= end:
@@ -179,6 +187,15 @@ class SpiAdapter(Adapter):
             time.sleep(0.01)
         self._quiet = False
         return self._lost is None
+
+    def _start(self) -> None:
+        """Start the reader and writer threads on first use, not when opened: a new thread
+        takes the scheduling policy of the thread that starts it, so they run at the
+        real-time priority the run's loop took (``--rt-priority``) once it took it."""
+        if not self._started:
+            self._started = True
+            self._reader.start()
+            self._writer.start()
 
     # -- the slave channel ----------------------------------------------------------------
     def _read_loop(self) -> None:
@@ -198,6 +215,7 @@ class SpiAdapter(Adapter):
                 self.overruns += 1
 
     def _recv_internal(self, timeout: float | None) -> bytes | None:
+        self._start()
         try:
             arrived, transfer = (self._ready.get_nowait() if not timeout
                                  else self._ready.get(timeout=timeout))
@@ -218,22 +236,44 @@ class SpiAdapter(Adapter):
 
     # -- the master channel ---------------------------------------------------------------
     def _send_internal(self, transfer: bytes) -> None:
+        """Hand ``transfer`` to the writer thread: the link's loop never waits for a USB
+        round trip (it goes on reading ACKs and sending what falls due)."""
+        self._start()
         if self._lost is not None:
             raise LinkLostError(f"link lost: {self._lost}")
         if self.master.lsb_first != self._wanted_lsb:
             transfer = transfer.translate(REVERSED)
-        wait = self._last_write + self.settings.gap - self.clock()
-        if wait > 0:
-            _pause(wait)
-        try:
-            self.master.write(transfer)
-        except (AdapterError, OSError) as exc:
-            self._lost = f"{self.master.name}: {exc}"
-            raise LinkLostError(f"link lost: {self._lost}") from exc
-        self._last_write = self.clock()
-        if self._pending_reply is not None:
-            self.reply.add(self._last_write - self._pending_reply)
-            self._pending_reply = None
+        with self._written:
+            self._queued += 1
+        self._outgoing.put((transfer, self._pending_reply))
+        self._pending_reply = None
+
+    def _write_loop(self) -> None:
+        while (item := self._outgoing.get()) is not None:
+            transfer, answers = item
+            wait = self._last_write + self.settings.gap - self.clock()
+            if wait > 0:
+                _pause(wait)
+            if self._lost is None:
+                try:
+                    self.master.write(transfer)
+                except (AdapterError, OSError) as exc:
+                    self._lost = f"{self.master.name}: {exc}"
+            done = self._last_write = self.clock()
+            if answers is not None and self._lost is None:
+                self.reply.add(done - answers)
+            with self._written:
+                self._done += 1
+                self._written.notify_all()
+
+    def wait_sent(self, timeout: float = 1.0) -> float:
+        """Wait until every transfer handed to ``send`` is on the wire; the clock when the
+        last one was (:class:`LinkLostError` if the master channel failed)."""
+        with self._written:
+            self._written.wait_for(lambda: self._done >= self._queued, timeout)
+        if self._lost is not None:
+            raise LinkLostError(f"link lost: {self._lost}")
+        return self._last_write
 
     def line_report(self) -> dict[str, Any]:
         """What the run summary reports of the lines: reply latency and overruns."""
@@ -242,10 +282,14 @@ class SpiAdapter(Adapter):
 
     def _close_internal(self) -> None:
         self._stop.set()
+        self._outgoing.put(None)
+        if self._started:
+            self._writer.join(1.0)  # what the link handed over goes out before the lines close
         for channel in (self.master, self.slave):
             with contextlib.suppress(AdapterError, OSError):
                 channel.close()
-        self._reader.join(0.5)
+        if self._started:
+            self._reader.join(0.5)
         sys.setswitchinterval(self._switch_interval)
 
 

@@ -12,9 +12,10 @@ The wire lives in the directory ``$EYEQ_SPI_SIMWIRE``. Its ``wire.json``::
      "spidev_lsbfirst": true}                          # whether the spidev controller can
 
 A device is named by its spidev path's last part (``spidev0.0``) or its FTDI serial. A slave
-receives on the datagram socket ``DIR/NAME.sock``; one datagram is one transfer between a
-falling and a rising edge of chip select. A master whose slave is not there sends into the
-void, as on a real wire. Each side publishes its mode and bit order in ``DIR/NAME.conf``; the
+receives on a UDP socket on the loopback interface (its buffer holds a few thousand
+transfers, as a driver's would); one datagram is one transfer between a falling and a rising
+edge of chip select. A master whose slave is not there sends into the void, as on a real wire.
+Each side publishes its mode, bit order (and a slave its port) in ``DIR/NAME.conf``; the
 sender applies what the lines would do to them: bits reversed when the two bit orders differ,
 the bit stream one bit late when the modes differ. ``DIR/NAME.unplugged`` unplugs a device:
 every call on it fails as the real library's does.
@@ -22,6 +23,7 @@ every call on it fails as the real library's does.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import random
@@ -31,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 REVERSED = bytes(int(f"{b:08b}"[::-1], 2) for b in range(256))
-WIRE_TIME_S = float(os.environ.get("SIMWIRE_WT", 128 * 8 / 10_000_000))  # 128 bytes at 10 MHz
+WIRE_TIME_S = 128 * 8 / 10_000_000  # a 128-byte frame at 10 MHz
 
 
 def directory() -> Path:
@@ -46,10 +48,10 @@ def unplugged(name: str) -> bool:
     return (directory() / f"{name}.unplugged").exists()
 
 
-def publish(name: str, mode: int, lsb_first: bool) -> None:
+def publish(name: str, mode: int, lsb_first: bool, port: int | None = None) -> None:
     path = directory() / f"{name}.conf"
     tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps({"mode": mode, "lsb_first": lsb_first}))
+    tmp.write_text(json.dumps({"mode": mode, "lsb_first": lsb_first, "port": port}))
     tmp.replace(path)
 
 
@@ -60,33 +62,18 @@ def settings_of(name: str) -> dict[str, Any] | None:
         return None
 
 
-def count_overrun(name: str) -> None:
-    """A transfer the slave ``name`` lost because its buffer stayed full (tests read
-    ``DIR/NAME.overruns``)."""
-    path = directory() / f"{name}.overruns"
-    with path.open("a") as out:
-        out.write("1\n")
-
-
-def usb_delay(cfg: dict[str, Any]) -> float:
-    """Half a modelled USB round trip: latency / 2 plus up to the jitter."""
-    return (cfg.get("latency_us", 0) / 2 + random.uniform(0, cfg.get("jitter_us", 0))) / 1e6
-
-
 class Endpoint:
     """The slave's receiving socket."""
 
     def __init__(self, name: str) -> None:
         self.name = name
-        self.path = directory() / f"{name}.sock"
-        self.path.unlink(missing_ok=True)
-        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
-        self.sock.bind(str(self.path))
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
+        self.sock.bind(("127.0.0.1", 0))
+        self.port = int(self.sock.getsockname()[1])
 
     def close(self) -> None:
         self.sock.close()
-        self.path.unlink(missing_ok=True)
 
 
 class Sender:
@@ -97,14 +84,22 @@ class Sender:
         self.cfg = config()
         self.peer = self.cfg["links"].get(name)
         self.sent = 0
-        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-        # a slave's buffer holds a few transfers (the datagram queue); one that stays full
-        # this long has overrun and loses the transfer
-        self.sock.settimeout(0.005)
+        self._peer: dict[str, Any] | None = None
+        self._read_at = float("-inf")
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+
+    def peer_settings(self) -> dict[str, Any] | None:
+        """The slave's published settings, read again at most every 50 ms."""
+        now = time.monotonic()
+        if self.peer and now - self._read_at > 0.05:
+            self._peer, self._read_at = settings_of(self.peer), now
+        return self._peer
 
     def transfer(self, data: bytes, mode: int, lsb_first: bool) -> None:
+        """One transfer: on the wire at once; the call returns after a modelled USB round
+        trip (latency plus up to the jitter) and the frame's time on the wire."""
         cfg = self.cfg
-        time.sleep(usb_delay(cfg))  # the transfer reaches the adapter over USB
+        began = time.perf_counter()
         self.sent += 1
         short = cfg.get("cs_short_every", 0)
         if short and self.sent % short == 0:
@@ -112,19 +107,18 @@ class Sender:
         overrun = cfg.get("overrun_every", 0)
         if overrun and self.sent % overrun == 0:
             data = data[:40] + data[88:]  # the slave's FIFO overflowed: 48 bytes lost
-        peer = settings_of(self.peer) if self.peer else None
-        if peer is not None and data:
+        peer = self.peer_settings()
+        if peer is not None and peer.get("port") and data:
             if bool(peer["lsb_first"]) != lsb_first:
                 data = data.translate(REVERSED)
             if int(peer["mode"]) != mode:  # sampled on the other edge: one bit late
                 data = (int.from_bytes(data, "big") >> 1).to_bytes(len(data), "big")
-            try:
-                self.sock.sendto(data, str(directory() / f"{self.peer}.sock"))
-            except TimeoutError:
-                count_overrun(self.peer)
-            except OSError:
-                pass  # nobody listening: lost on the wire, as on real lines
-        time.sleep(WIRE_TIME_S + usb_delay(cfg))  # clocked out, then the completion
+            with contextlib.suppress(OSError):  # nobody listening: lost, as on real lines
+                self.sock.sendto(data, ("127.0.0.1", int(peer["port"])))
+        usb = (cfg.get("latency_us", 0) + random.uniform(0, cfg.get("jitter_us", 0))) / 1e6
+        rest = usb + WIRE_TIME_S - (time.perf_counter() - began)
+        if rest > 0:
+            time.sleep(rest)
 
     def close(self) -> None:
         self.sock.close()

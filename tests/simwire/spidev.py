@@ -40,7 +40,11 @@ class SpiDev:
             raise FileNotFoundError(errno.ENOENT, "No such file or directory")
         self._name = name
         self._check()
-        simwire.publish(name, self._mode, self._lsb)
+        self._publish()
+
+    def _publish(self) -> None:
+        port = self._endpoint.port if self._endpoint is not None else None
+        simwire.publish(str(self._name), self._mode, self._lsb, port)
 
     def _check(self) -> None:
         if self._name is None:
@@ -56,7 +60,7 @@ class SpiDev:
     def mode(self, value: int) -> None:
         self._check()
         self._mode = value
-        simwire.publish(str(self._name), self._mode, self._lsb)
+        self._publish()
 
     @property
     def lsbfirst(self) -> bool:
@@ -68,7 +72,7 @@ class SpiDev:
         if value and not simwire.config().get("spidev_lsbfirst", True):
             raise OSError(errno.EINVAL, "Invalid argument")
         self._lsb = bool(value)
-        simwire.publish(str(self._name), self._mode, self._lsb)
+        self._publish()
 
     def writebytes2(self, values: Any) -> None:
         self._check()

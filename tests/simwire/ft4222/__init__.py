@@ -67,6 +67,10 @@ class FT4222:
         self._stream = bytearray()
         self._check()
 
+    def _publish(self) -> None:
+        port = self._endpoint.port if self._endpoint is not None else None
+        simwire.publish(self._name, self._mode, False, port)
+
     def _check(self) -> None:
         if self._name is None or simwire.unplugged(self._name):
             raise FT4222DeviceError(DEVICE_NOT_OPENED)
@@ -79,7 +83,7 @@ class FT4222:
         self._check()
         self._mode = int(cpol) * 2 + int(cpha)
         self._sender = simwire.Sender(self._name)
-        simwire.publish(self._name, self._mode, False)
+        self._publish()
 
     def spiMaster_SingleWrite(self, data: int | bytes | bytearray,
                               isEndTransaction: bool) -> int:
@@ -94,12 +98,12 @@ class FT4222:
         self._check()
         self._endpoint = simwire.Endpoint(self._name)
         self._endpoint.sock.setblocking(False)
-        simwire.publish(self._name, self._mode, False)
+        self._publish()
 
     def spiSlave_SetMode(self, cpol: SPI.Cpol, cpha: SPI.Cpha) -> None:
         self._check()
         self._mode = int(cpol) * 2 + int(cpha)
-        simwire.publish(self._name, self._mode, False)
+        self._publish()
 
     def spiSlave_GetRxStatus(self) -> int:
         self._check()
