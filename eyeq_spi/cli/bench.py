@@ -30,14 +30,17 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                      "slave): frames go both ways")
     doc.add_argument("--frames", type=ca.integer(1, 100_000), default=200,
                      help="frames per direction (default 200)")
-    opt.include(doc, opt.json_out())
+    opt.include(doc, opt.json_out(), opt.rt_priority("the replies"))
 
 
 def run(args: argparse.Namespace) -> int:
     from eyeq_spi.phy.base import open_url
     from eyeq_spi.phy.doctor import examine, verdict_line
+    from eyeq_spi.runner.sched import realtime
 
     with contextlib.ExitStack() as stack:
+        # as a live run would: the adapters' threads start under this policy
+        stack.enter_context(realtime(args.rt_priority))
         side = stack.enter_context(open_url(args.side))
         peer = stack.enter_context(open_url(args.peer)) if args.peer else None
         report = examine(side, peer, frames=args.frames)  # type: ignore[arg-type]

@@ -96,10 +96,14 @@ class Sender:
         return self._peer
 
     def transfer(self, data: bytes, mode: int, lsb_first: bool) -> None:
-        """One transfer: on the wire at once; the call returns after a modelled USB round
-        trip (latency plus up to the jitter) and the frame's time on the wire."""
+        """One transfer: on the wire after half a modelled USB round trip (latency plus up
+        to the jitter); the call returns after the whole round trip and the frame's time on
+        the wire."""
         cfg = self.cfg
         began = time.perf_counter()
+        usb = (cfg.get("latency_us", 0) + random.uniform(0, cfg.get("jitter_us", 0))) / 1e6
+        if usb:
+            time.sleep(usb / 2)  # the transfer reaches the adapter over USB
         self.sent += 1
         short = cfg.get("cs_short_every", 0)
         if short and self.sent % short == 0:
@@ -115,7 +119,6 @@ class Sender:
                 data = (int.from_bytes(data, "big") >> 1).to_bytes(len(data), "big")
             with contextlib.suppress(OSError):  # nobody listening: lost, as on real lines
                 self.sock.sendto(data, ("127.0.0.1", int(peer["port"])))
-        usb = (cfg.get("latency_us", 0) + random.uniform(0, cfg.get("jitter_us", 0))) / 1e6
         rest = usb + WIRE_TIME_S - (time.perf_counter() - began)
         if rest > 0:
             time.sleep(rest)

@@ -1,0 +1,210 @@
+"""The three jobs and ``bench doctor`` on SPI adapters over a **simulated wire**, not hardware.
+
+Each command runs as its own process with ``tests/simwire`` first on ``PYTHONPATH``, so the
+product imports the simulated ``spidev`` and ``ft4222`` modules there instead of the real
+packages (the product is not patched and does not know). The simulated wire carries each
+transfer between processes as one UDP datagram on the loopback interface, with a modelled USB
+latency and jitter, chip-select framing and injected faults (tests/simwire/simwire.py).
+What it cannot show: a real controller's timing, a real FT4222H or spi-slave driver, real
+signal integrity; the ``hardware`` tests (tests/test_phy_hardware.py) are for that.
+
+Bounded wall-clock tests (``realtime``). The timing on the simulated wire is that of Python
+threads on a possibly loaded machine, not a rig's: the job tests judge the bring-up, the rates
+(no stream goes stale) and the integrity of what was received; the conformance runs require
+every case that does not turn on the schedule to pass.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from eyeq_spi.conformance.cases import cases_for
+from eyeq_spi.conformance.model import TIMING
+
+ROOT = Path(__file__).resolve().parents[1]
+SIMWIRE = ROOT / "tests" / "simwire"
+CLI = [sys.executable, "-m", "eyeq_spi.cli"]
+LIGHT = ["--objects", "1", "--signs", "1", "--light-spots", "1"]
+# the host emulator's SPI side (spidev) and the simulated EyeQ's (two FT4222H), wired to
+# each other: each master to the other side's slave
+HOST_SIDE = "spidev:///dev/spidev0.0,spidev:///dev/spidev0.1"
+EYEQ_SIDE = "ft4222://0,ft4222://1"
+EYEQ_SPIDEV = "spidev:///dev/spidev1.1,spidev:///dev/spidev1.0"
+LINKS = {"spidev0.0": "ES", "EM": "spidev0.1", "spidev1.1": "spidev0.1",
+         "spidev0.0x": "spidev1.0"}
+# a long run in CI (the issue's 30 s), a short one locally (the README's test command)
+DEMO_S = 30 if os.environ.get("CI") else 6
+
+pytestmark = pytest.mark.realtime
+
+
+class Wire:
+    """One simulated wire: its directory, its settings, and commands run on it."""
+
+    def __init__(self, path: Path, **settings: Any) -> None:
+        self.path = path
+        conf = {"links": {"spidev0.0": "ES", "EM": "spidev0.1"}, "ft4222": ["EM", "ES"],
+                "latency_us": 50, "jitter_us": 50}
+        conf.update(settings)
+        (path / "wire.json").write_text(json.dumps(conf))
+        self.env = dict(os.environ, EYEQ_SPI_SIMWIRE=str(path),
+                        PYTHONPATH=os.pathsep.join([str(SIMWIRE), str(ROOT)]))
+
+    def run(self, *args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([*CLI, *args], cwd=ROOT, env=self.env, capture_output=True,
+                              text=True, timeout=timeout)
+
+    def start(self, *args: str) -> subprocess.Popen[str]:
+        return subprocess.Popen([*CLI, *args], cwd=ROOT, env=self.env, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+
+    def wait_open(self, device: str, timeout: float = 60) -> None:
+        """Until ``device`` is open (a slow machine takes a while to import and warm up)."""
+        deadline = time.monotonic() + timeout
+        while not (self.path / f"{device}.conf").exists():
+            assert time.monotonic() < deadline, f"{device} not opened within {timeout} s"
+            time.sleep(0.05)
+
+    def unplug(self, device: str) -> None:
+        (self.path / f"{device}.unplugged").touch()
+
+
+def _finish(proc: subprocess.Popen[str], timeout: float) -> tuple[int, str, str]:
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        pytest.fail(f"did not end within {timeout} s: {err[-2000:]}")
+    return proc.returncode, out, err
+
+
+# -- bench doctor ----------------------------------------------------------------------------
+def test_the_doctor_finds_a_loop_of_simulated_spidev_fit(tmp_path: Path) -> None:
+    wire = Wire(tmp_path, links={"spidev0.0": "spidev0.1"}, latency_us=100, jitter_us=100)
+    res = wire.run("bench", "doctor", "spidev:///dev/spidev0.0,spidev:///dev/spidev0.1")
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert res.stdout.startswith("bench doctor: FIT for a live EyeQ: 400 transfers intact")
+
+
+def test_the_doctor_says_no_to_a_rig_slower_than_the_ack_timeout(tmp_path: Path) -> None:
+    wire = Wire(tmp_path, links={"HM": "ES", "EM": "HS"}, ft4222=["HM", "HS", "EM", "ES"],
+                latency_us=12_000, jitter_us=500)
+    res = wire.run("bench", "doctor", "ft4222://0,ft4222://1", "--peer",
+                   "ft4222://2,ft4222://3", "--frames", "10", "--json")
+    assert res.returncode == 1, res.stdout + res.stderr
+    report = json.loads(res.stdout)
+    assert not report["fit"] and report["outcomes"] == {"intact": 40}
+    assert report["round_trip_ms"]["p50"] > 10.0
+    assert any("not under the 10 ms ackTimeout" in r for r in report["reasons"])
+
+
+def test_the_doctor_says_no_when_the_two_ends_disagree_on_the_spi_mode(tmp_path: Path) -> None:
+    wire = Wire(tmp_path, links={"HM": "ES", "EM": "HS"}, ft4222=["HM", "HS", "EM", "ES"])
+    bench = tmp_path / "peer.toml"
+    bench.write_text('[master]\nurl = "ft4222://2"\n[slave]\nurl = "ft4222://3"\n'
+                     "[spi]\nmode = 0\n")
+    res = wire.run("bench", "doctor", "ft4222://0,ft4222://1", "--peer", str(bench),
+                   "--frames", "5")
+    assert res.returncode == 1, res.stdout + res.stderr
+    assert "NOT FIT" in res.stdout and "disagree on the SPI mode" in res.stdout
+
+
+# -- the three jobs --------------------------------------------------------------------------
+def test_host_and_simulated_eyeq_on_their_own_simulated_adapters_reach_running_vision(
+        tmp_path: Path) -> None:
+    wire = Wire(tmp_path)
+    host = wire.start("host", "--port", HOST_SIDE, "--duration", str(DEMO_S), "--json")
+    wire.wait_open("spidev0.1")
+    sim = wire.start("sim", "--listen", EYEQ_SIDE, "--duration", str(DEMO_S + 30), "--json",
+                     *LIGHT)
+    code, out, err = _finish(host, DEMO_S + 60)
+    s = json.loads(out)
+    _, sim_out, _ = _finish(sim, 60)  # it sees the host fall silent and ends its session
+    assert s["running_vision_since"] is not None, (s["problem"], err[-2000:])
+    assert s["transitions"][-1]["to"] == "RUNNING_VISION"  # reached and held to the end
+    assert s["stale_streams"] == [] and s["link_lost"] is None, s["problem"]
+    assert s["link"]["dataCRCErrorCounter"] == s["link"]["formatErrorCounter"] == 0
+    assert s["decode_errors"] == 0
+    assert s["spi"]["adapter"] == HOST_SIDE and s["spi"]["reply_latency_ms"]["n"] > 100
+    served = json.loads(sim_out)["sessions"]
+    assert len(served) == 1 and "nothing from the peer" in served[0]["link_lost"]
+    assert served[0]["running_vision_since"] is not None
+
+
+def test_an_unplugged_adapter_ends_the_run_with_link_lost_and_exit_1(tmp_path: Path) -> None:
+    wire = Wire(tmp_path)
+    host = wire.start("host", "--port", HOST_SIDE, "--duration", "60")
+    wire.wait_open("spidev0.1")
+    sim = wire.start("sim", "--listen", EYEQ_SIDE, "--duration", "60", *LIGHT)
+    try:
+        time.sleep(4.0)  # up and running on a quiet machine after about one second
+        wire.unplug("spidev0.0")  # the host's master channel: its USB adapter pulled out
+        code, out, err = _finish(host, 30)
+    finally:
+        sim.kill()
+        sim.communicate()
+    assert code == 1, out + err[-2000:]
+    assert "NOT OK" in out and "link lost" in out
+    assert "dataCRCErrorCounter" not in out and "formatErrorCounter" not in out  # nothing bad
+
+
+def _verdicts(stdout: str) -> dict[str, dict[str, Any]]:
+    return {r["id"]: r for r in map(json.loads, stdout.splitlines()) if r["kind"] == "case"}
+
+
+def _judge(dut: str, stdout: str, stderr: str, not_run: set[str]) -> None:
+    """Every case judged; every case that does not turn on the schedule passes (or, for the
+    sessions an SPI rig cannot start, skips saying so)."""
+    recs = _verdicts(stdout)
+    cases = {c.id: c for c in cases_for(dut)}
+    assert set(cases) <= set(recs), (set(cases) - set(recs), stderr[-2000:])
+    for case_id, case in cases.items():
+        verdict, evidence = recs[case_id]["verdict"], recs[case_id]["evidence"]
+        if case.rule == TIMING or case_id in {"HOST-STALE", "LINK-WINDOW", "LINK-TXTIMEOUT",
+                                              "LINK-GAP"}:
+            continue  # the simulation's schedule, not a rig's; printed by the suite
+        if case_id in not_run:
+            assert verdict == "skip" and "did not run" in evidence, (case_id, evidence)
+            continue
+        assert verdict == "pass", (case_id, verdict, evidence)
+
+
+def test_the_eyeq_suite_against_a_simulated_eyeq_on_simulated_adapters(tmp_path: Path) -> None:
+    wire = Wire(tmp_path, links={"spidev0.0": "spidev1.0", "spidev1.1": "spidev0.1"},
+                latency_us=0, jitter_us=0)
+    conf = wire.start("conformance", "--dut", "eyeq", "--port", HOST_SIDE, "--json")
+    wire.wait_open("spidev0.1")
+    sim = wire.start("sim", "--listen", EYEQ_SPIDEV, "--duration", "90", *LIGHT)
+    try:
+        _, out, err = _finish(conf, 120)
+    finally:
+        sim.kill()
+        sim.communicate()
+    _judge("eyeq", out, err, set())
+
+
+def test_the_host_suite_against_the_host_emulator_on_simulated_adapters(tmp_path: Path) -> None:
+    wire = Wire(tmp_path, links={"spidev0.0": "spidev1.0", "spidev1.1": "spidev0.1"},
+                latency_us=0, jitter_us=0)
+    host = wire.start("host", "--port", HOST_SIDE, "--duration", "90",
+                      "--nvm", str(tmp_path / "nvm.json"))
+    wire.wait_open("spidev0.1")
+    conf = wire.start("conformance", "--dut", "host", "--listen", EYEQ_SPIDEV, "--json",
+                      "--accept-timeout", "30")
+    try:
+        _, out, err = _finish(conf, 120)
+    finally:
+        host.kill()
+        host.communicate()
+    # SPI lines cannot end the host's ignition cycle (no disconnect, no reset line here):
+    # the suite's later ignition cycles do not run, and their cases say so
+    _judge("host", out, err, {"HOST-EEPROM-BAD", "HOST-BOOT-RESETS"})
