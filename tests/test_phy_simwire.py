@@ -10,8 +10,8 @@ signal integrity; the ``hardware`` tests (tests/test_phy_hardware.py) are for th
 
 Bounded wall-clock tests (``realtime``). The timing on the simulated wire is that of Python
 threads on a possibly loaded machine, not a rig's: the job tests judge the bring-up, the rates
-(no stream goes stale) and the integrity of what was received; the conformance runs require
-every case that does not turn on the schedule to pass.
+(no stream goes stale) and the integrity of what was received. The conformance suite over the
+simulated wire: tests/test_phy_simwire_conformance.py.
 """
 
 from __future__ import annotations
@@ -26,9 +26,6 @@ from typing import Any
 
 import pytest
 
-from eyeq_spi.conformance.cases import cases_for
-from eyeq_spi.conformance.model import TIMING
-
 ROOT = Path(__file__).resolve().parents[1]
 SIMWIRE = ROOT / "tests" / "simwire"
 CLI = [sys.executable, "-m", "eyeq_spi.cli"]
@@ -38,8 +35,7 @@ LIGHT = ["--objects", "1", "--signs", "1", "--light-spots", "1"]
 HOST_SIDE = "spidev:///dev/spidev0.0,spidev:///dev/spidev0.1"
 EYEQ_SIDE = "ft4222://0,ft4222://1"
 EYEQ_SPIDEV = "spidev:///dev/spidev1.1,spidev:///dev/spidev1.0"
-LINKS = {"spidev0.0": "ES", "EM": "spidev0.1", "spidev1.1": "spidev0.1",
-         "spidev0.0x": "spidev1.0"}
+
 # a long run in CI (the issue's 30 s), a short one locally (the README's test command)
 DEMO_S = 30 if os.environ.get("CI") else 6
 
@@ -77,7 +73,7 @@ class Wire:
         (self.path / f"{device}.unplugged").touch()
 
 
-def _finish(proc: subprocess.Popen[str], timeout: float) -> tuple[int, str, str]:
+def finish(proc: subprocess.Popen[str], timeout: float) -> tuple[int, str, str]:
     try:
         out, err = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -124,11 +120,13 @@ def test_host_and_simulated_eyeq_on_their_own_simulated_adapters_reach_running_v
     wire = Wire(tmp_path)
     host = wire.start("host", "--port", HOST_SIDE, "--duration", str(DEMO_S), "--json")
     wire.wait_open("spidev0.1")
-    sim = wire.start("sim", "--listen", EYEQ_SIDE, "--duration", str(DEMO_S + 30), "--json",
+    # the simulated EyeQ outlives the host by a little: the host holds Running Vision to its
+    # end, and the EyeQ ends its session when the host falls silent
+    sim = wire.start("sim", "--listen", EYEQ_SIDE, "--duration", str(DEMO_S + 3), "--json",
                      *LIGHT)
-    code, out, err = _finish(host, DEMO_S + 60)
+    _, out, err = finish(host, DEMO_S + 60)
     s = json.loads(out)
-    _, sim_out, _ = _finish(sim, 60)  # it sees the host fall silent and ends its session
+    _, sim_out, _ = finish(sim, 60)  # it sees the host fall silent and ends its session
     assert s["running_vision_since"] is not None, (s["problem"], err[-2000:])
     assert s["transitions"][-1]["to"] == "RUNNING_VISION"  # reached and held to the end
     assert s["stale_streams"] == [] and s["link_lost"] is None, s["problem"]
@@ -148,63 +146,10 @@ def test_an_unplugged_adapter_ends_the_run_with_link_lost_and_exit_1(tmp_path: P
     try:
         time.sleep(4.0)  # up and running on a quiet machine after about one second
         wire.unplug("spidev0.0")  # the host's master channel: its USB adapter pulled out
-        code, out, err = _finish(host, 30)
+        code, out, err = finish(host, 30)
     finally:
         sim.kill()
         sim.communicate()
     assert code == 1, out + err[-2000:]
     assert "NOT OK" in out and "link lost" in out
     assert "dataCRCErrorCounter" not in out and "formatErrorCounter" not in out  # nothing bad
-
-
-def _verdicts(stdout: str) -> dict[str, dict[str, Any]]:
-    return {r["id"]: r for r in map(json.loads, stdout.splitlines()) if r["kind"] == "case"}
-
-
-def _judge(dut: str, stdout: str, stderr: str, not_run: set[str]) -> None:
-    """Every case judged; every case that does not turn on the schedule passes (or, for the
-    sessions an SPI rig cannot start, skips saying so)."""
-    recs = _verdicts(stdout)
-    cases = {c.id: c for c in cases_for(dut)}
-    assert set(cases) <= set(recs), (set(cases) - set(recs), stderr[-2000:])
-    for case_id, case in cases.items():
-        verdict, evidence = recs[case_id]["verdict"], recs[case_id]["evidence"]
-        if case.rule == TIMING or case_id in {"HOST-STALE", "LINK-WINDOW", "LINK-TXTIMEOUT",
-                                              "LINK-GAP"}:
-            continue  # the simulation's schedule, not a rig's; printed by the suite
-        if case_id in not_run:
-            assert verdict == "skip" and "did not run" in evidence, (case_id, evidence)
-            continue
-        assert verdict == "pass", (case_id, verdict, evidence)
-
-
-def test_the_eyeq_suite_against_a_simulated_eyeq_on_simulated_adapters(tmp_path: Path) -> None:
-    wire = Wire(tmp_path, links={"spidev0.0": "spidev1.0", "spidev1.1": "spidev0.1"},
-                latency_us=0, jitter_us=0)
-    conf = wire.start("conformance", "--dut", "eyeq", "--port", HOST_SIDE, "--json")
-    wire.wait_open("spidev0.1")
-    sim = wire.start("sim", "--listen", EYEQ_SPIDEV, "--duration", "90", *LIGHT)
-    try:
-        _, out, err = _finish(conf, 120)
-    finally:
-        sim.kill()
-        sim.communicate()
-    _judge("eyeq", out, err, set())
-
-
-def test_the_host_suite_against_the_host_emulator_on_simulated_adapters(tmp_path: Path) -> None:
-    wire = Wire(tmp_path, links={"spidev0.0": "spidev1.0", "spidev1.1": "spidev0.1"},
-                latency_us=0, jitter_us=0)
-    host = wire.start("host", "--port", HOST_SIDE, "--duration", "90",
-                      "--nvm", str(tmp_path / "nvm.json"))
-    wire.wait_open("spidev0.1")
-    conf = wire.start("conformance", "--dut", "host", "--listen", EYEQ_SPIDEV, "--json",
-                      "--accept-timeout", "30")
-    try:
-        _, out, err = _finish(conf, 120)
-    finally:
-        host.kill()
-        host.communicate()
-    # SPI lines cannot end the host's ignition cycle (no disconnect, no reset line here):
-    # the suite's later ignition cycles do not run, and their cases say so
-    _judge("host", out, err, {"HOST-EEPROM-BAD", "HOST-BOOT-RESETS"})
