@@ -29,8 +29,8 @@ class SpiDev:
     def open(self, bus: int, device: int) -> None:
         self.open_path(f"/dev/spidev{bus}.{device}")
 
-    def open_path(self, path: str) -> None:
-        name = os.path.basename(path)
+    def open_path(self, spidev_path: str) -> None:
+        name = os.path.basename(spidev_path)
         cfg = simwire.config()
         if name in cfg["links"]:
             self._sender = simwire.Sender(name)

@@ -13,7 +13,7 @@ from typing import Any
 
 import simwire
 
-from ft4222 import SPI, SPIMaster, SPISlave
+from . import SPI, SPIMaster, SPISlave
 
 __all__ = ["SPI", "SPIMaster", "SPISlave"]
 
