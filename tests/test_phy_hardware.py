@@ -89,4 +89,4 @@ def test_the_host_suite_on_the_wires() -> None:
     finally:
         host.kill()
         host.wait()
-    assert "FAIL" not in res.stdout.splitlines()[-1], res.stdout[-4000:]
+    assert res.returncode == 0, res.stdout[-4000:]

@@ -43,16 +43,29 @@ def _need() -> None:
 
 
 def open_chip(target: str) -> ft4222.FT4222:
-    """The FT4222H with serial number ``target``, or the ``target``-th FTDI device."""
+    """The FT4222H with serial number ``target``, or the ``target``-th FTDI device. Only a
+    device the driver lists is opened (``libft4222`` crashes the process on a serial number
+    that is not attached)."""
     _need()
     try:
-        if target.isdigit():
-            count = ft4222.createDeviceInfoList()
-            if int(target) >= count:
-                raise AdapterError(f"ft4222://{target}: only {count} FTDI devices attached")
-            serial = ft4222.getDeviceInfoDetail(int(target), False)["serial"]
-            return ft4222.openBySerial(serial)
-        return ft4222.openBySerial(target)
+        count = ft4222.createDeviceInfoList()
+        serials = [ft4222.getDeviceInfoDetail(i, False)["serial"] for i in range(count)]
+    except ft4222.FT2XXDeviceError as exc:
+        raise AdapterError(f"cannot open ft4222://{target}: the FTDI driver lists no device "
+                           f"({exc}): is an FT4222H attached, and may this user open it?") \
+            from exc
+    names = [s.decode(errors="replace") if isinstance(s, bytes) else str(s) for s in serials]
+    if target.isdigit():
+        if int(target) >= count:
+            raise AdapterError(f"ft4222://{target}: only {count} FTDI devices attached")
+        serial = serials[int(target)]
+    elif target in names:
+        serial = serials[names.index(target)]
+    else:
+        raise AdapterError(f"ft4222://{target}: no FTDI device with that serial number "
+                           f"(attached: {', '.join(names) or 'none'})")
+    try:
+        return ft4222.openBySerial(serial)
     except ft4222.FT2XXDeviceError as exc:
         raise AdapterError(f"cannot open ft4222://{target}: {exc}") from exc
 
