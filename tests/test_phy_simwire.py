@@ -37,7 +37,7 @@ EYEQ_SIDE = "ft4222://0,ft4222://1"
 EYEQ_SPIDEV = "spidev:///dev/spidev1.1,spidev:///dev/spidev1.0"
 
 # a long run in CI (the 30 s), a short one locally (the README's test command)
-DEMO_S = 30 if os.environ.get("CI") else 6
+DEMO_S = 30 if os.environ.get("CI") else 5
 
 pytestmark = pytest.mark.realtime
 
