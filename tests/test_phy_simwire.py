@@ -114,6 +114,18 @@ def test_the_doctor_says_no_when_the_two_ends_disagree_on_the_spi_mode(tmp_path:
     assert "NOT FIT" in res.stdout and "disagree on the SPI mode" in res.stdout
 
 
+def test_the_doctor_names_transfers_cut_short(tmp_path: Path) -> None:
+    # every 5th transfer: chip select rises early; every 7th: the slave loses bytes (overrun)
+    wire = Wire(tmp_path, links={"spidev0.0": "spidev0.1"}, cs_short_every=5,
+                overrun_every=7)
+    res = wire.run("bench", "doctor", "spidev:///dev/spidev0.0,spidev:///dev/spidev0.1",
+                   "--frames", "35", "--json")
+    assert res.returncode == 1, res.stdout + res.stderr
+    report = json.loads(res.stdout)
+    assert report["outcomes"]["short"] == 70 // 5 + 70 // 7 - 70 // 35
+    assert any("short (chip select rose early)" in r for r in report["reasons"])
+
+
 # -- the three jobs --------------------------------------------------------------------------
 def test_host_and_simulated_eyeq_on_their_own_simulated_adapters_reach_running_vision(
         tmp_path: Path) -> None:
@@ -138,9 +150,11 @@ def test_host_and_simulated_eyeq_on_their_own_simulated_adapters_reach_running_v
     assert served[0]["running_vision_since"] is not None
 
 
-def test_an_unplugged_adapter_ends_the_run_with_link_lost_and_exit_1(tmp_path: Path) -> None:
-    wire = Wire(tmp_path)
-    host = wire.start("host", "--port", HOST_SIDE, "--duration", "60")
+def test_short_transfers_are_counted_and_an_unplug_ends_the_run_with_link_lost(
+        tmp_path: Path) -> None:
+    # every 40th transfer on the wire: chip select rises after 60 bytes
+    wire = Wire(tmp_path, cs_short_every=40, cs_short_len=60)
+    host = wire.start("host", "--port", HOST_SIDE, "--duration", "60", "--json")
     wire.wait_open("spidev0.1")
     sim = wire.start("sim", "--listen", EYEQ_SIDE, "--duration", "60", *LIGHT)
     try:
@@ -151,5 +165,8 @@ def test_an_unplugged_adapter_ends_the_run_with_link_lost_and_exit_1(tmp_path: P
         sim.kill()
         sim.communicate()
     assert code == 1, out + err[-2000:]
-    assert "NOT OK" in out and "link lost" in out
-    assert "dataCRCErrorCounter" not in out and "formatErrorCounter" not in out  # nothing bad
+    s = json.loads(out)
+    assert not s["ok"] and "link lost" in s["link_lost"] and "spidev0.0" in s["link_lost"]
+    assert s["link"]["formatErrorCounter"] > 0  # the short transfers, counted (L8)
+    assert s["link"]["dataCRCErrorCounter"] == 0 and s["decode_errors"] == 0  # nothing bad
+    assert s["running_vision_since"] is not None

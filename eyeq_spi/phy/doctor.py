@@ -10,8 +10,8 @@ What is checked: every byte of every frame and reply; a frame that arrives bit-r
 two ends disagree on the bit order), one bit late (they disagree on the SPI mode), short (chip
 select rose early) or not at all. What is measured: the reply latency, from a frame read on a
 slave channel to its reply written on the master channel (median, p99, p99.9), and the round
-trip, from a frame's write to its reply's read. The peer's ackTimeout (seed 004 §6, 10 ms)
-judges the round trip; the reply has to fit in half of it, the rest being the peer's.
+trip, from a frame's write to its reply's read: what the peer's ackTimeout (seed 004 §6,
+10 ms) judges, with the rig's adapters on both ends of it.
 """
 
 from __future__ import annotations
@@ -125,8 +125,9 @@ def examine(side: SpiAdapter, peer: SpiAdapter | None = None, *,
 
 
 def judge(tally: Tally, *, wiring: str, adapters: list[str]) -> dict[str, Any]:
-    """The report and its verdict: fit when every frame and reply came through intact, the
-    round trip's p99.9 is under ackTimeout and the reply's p99.9 under half of it."""
+    """The report and its verdict: fit when every frame and reply came through intact and
+    the round trip's p99.9 is under ackTimeout (the reply latency is reported: it is the
+    part of the round trip the PC adds)."""
     budget = float(spec_file("link.yaml")["timing"]["ackTimeout"])
     reply = quantiles_ms(tally.reply)
     trip = quantiles_ms(tally.round_trip)
@@ -143,9 +144,6 @@ def judge(tally: Tally, *, wiring: str, adapters: list[str]) -> dict[str, Any]:
     if trip.get("p99_9", 0.0) >= limit_ms:
         reasons.append(f"round trip p99.9 {trip['p99_9']:.2f} ms is not under the "
                        f"{limit_ms:g} ms ackTimeout")
-    if reply.get("p99_9", 0.0) >= limit_ms / 2:
-        reasons.append(f"reply latency p99.9 {reply['p99_9']:.2f} ms is not under half the "
-                       f"ackTimeout ({limit_ms / 2:g} ms)")
     if not tally.round_trip:
         reasons.append("no reply came back")
     return {"fit": not reasons, "reasons": reasons, "wiring": wiring, "adapters": adapters,
