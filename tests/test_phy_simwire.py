@@ -26,6 +26,8 @@ from typing import Any
 
 import pytest
 
+from eyeq_spi.catalog.messages import catalog
+
 ROOT = Path(__file__).resolve().parents[1]
 SIMWIRE = ROOT / "tests" / "simwire"
 CLI = [sys.executable, "-m", "eyeq_spi.cli"]
@@ -40,6 +42,9 @@ EYEQ_SPIDEV = "spidev:///dev/spidev1.1,spidev:///dev/spidev1.0"
 DEMO_S = 30 if os.environ.get("CI") else 5
 
 pytestmark = pytest.mark.realtime
+# the EyeQ's vision streams and their rates, Hz (seed 004's message table)
+RATES = {m.name: m.rate_hz for m in catalog().messages
+         if m.rate_hz and m.name.startswith("EYEQ_VIS_")}
 
 
 class Wire:
@@ -129,7 +134,8 @@ def test_the_doctor_names_transfers_cut_short(tmp_path: Path) -> None:
 # -- the three jobs --------------------------------------------------------------------------
 def test_host_and_simulated_eyeq_on_their_own_simulated_adapters_reach_running_vision(
         tmp_path: Path) -> None:
-    wire = Wire(tmp_path)
+    # a short modelled USB round trip: the doctor's tests take the slow ones
+    wire = Wire(tmp_path, latency_us=0, jitter_us=50)
     host = wire.start("host", "--port", HOST_SIDE, "--duration", str(DEMO_S), "--json")
     wire.wait_open("spidev0.1")
     # the simulated EyeQ outlives the host by a little: the host holds Running Vision to its
@@ -141,7 +147,14 @@ def test_host_and_simulated_eyeq_on_their_own_simulated_adapters_reach_running_v
     _, sim_out, _ = finish(sim, 60)  # it sees the host fall silent and ends its session
     assert s["running_vision_since"] is not None, (s["problem"], err[-2000:])
     assert s["transitions"][-1]["to"] == "RUNNING_VISION"  # reached and held to the end
-    assert s["stale_streams"] == [] and s["link_lost"] is None, s["problem"]
+    assert s["link_lost"] is None, s["problem"]
+    # the rates held: every stream of the vision app arrived at 80 % of its rate or more from
+    # Running Vision to the end (a frame that misses ackTimeout on a loaded machine costs its
+    # message, counted in the summary, and the test prints the summary's problem)
+    running = s["elapsed_s"] - s["running_vision_since"]
+    for name, rate in RATES.items():
+        got = s["received"].get(name, 0)
+        assert got >= 0.8 * rate * running, (name, got, rate, running, s["problem"])
     assert s["link"]["dataCRCErrorCounter"] == s["link"]["formatErrorCounter"] == 0
     assert s["decode_errors"] == 0
     assert s["spi"]["adapter"] == HOST_SIDE and s["spi"]["reply_latency_ms"]["n"] > 100

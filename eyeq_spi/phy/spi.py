@@ -180,9 +180,9 @@ class SpiAdapter(Adapter):
         on them), and after a peer went silent as soon as a transfer comes again (within
         ``timeout`` s, None: at once or not at all). False once the channels failed."""
         self._start()
-        end = self.clock() + (timeout or 0.0)
+        end = time.monotonic() + (timeout or 0.0)
         while self._quiet and self._ready.empty():
-            if self._lost is not None or self.clock() >= end:
+            if self._lost is not None or time.monotonic() >= end:
                 return False
             time.sleep(0.01)
         self._quiet = False

@@ -34,6 +34,7 @@ from typing import Any
 
 REVERSED = bytes(int(f"{b:08b}"[::-1], 2) for b in range(256))
 WIRE_TIME_S = 128 * 8 / 10_000_000  # a 128-byte frame at 10 MHz
+QUEUED_S = 0.001  # transfers a driver holds queued before a write blocks
 
 
 def directory() -> Path:
@@ -85,6 +86,7 @@ class Sender:
         self.peer = self.cfg["links"].get(name)
         self.sent = 0
         self._peer: dict[str, Any] | None = None
+        self.busy_until = 0.0  # perf_counter when the lines finish what was handed over
         self._read_at = float("-inf")
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 
@@ -96,14 +98,15 @@ class Sender:
         return self._peer
 
     def transfer(self, data: bytes, mode: int, lsb_first: bool) -> None:
-        """One transfer: on the wire after half a modelled USB round trip (latency plus up
-        to the jitter); the call returns after the whole round trip and the frame's time on
-        the wire."""
+        """One transfer. Its time on the lines (a modelled USB round trip of latency plus up
+        to the jitter, and 128 bytes at 10 MHz) is accounted on the wire; the call blocks when
+        more than ``QUEUED_S`` of it is ahead, as a driver with a transfer queue does (a round
+        trip of a millisecond or more: the transfer also reaches the lines that much later)."""
         cfg = self.cfg
-        began = time.perf_counter()
         usb = (cfg.get("latency_us", 0) + random.uniform(0, cfg.get("jitter_us", 0))) / 1e6
-        if usb:
-            time.sleep(usb / 2)  # the transfer reaches the adapter over USB
+        if usb >= QUEUED_S:
+            time.sleep(usb / 2)  # a slow USB: the transfer reaches the adapter late
+            usb /= 2
         self.sent += 1
         short = cfg.get("cs_short_every", 0)
         if short and self.sent % short == 0:
@@ -119,9 +122,10 @@ class Sender:
                 data = (int.from_bytes(data, "big") >> 1).to_bytes(len(data), "big")
             with contextlib.suppress(OSError):  # nobody listening: lost, as on real lines
                 self.sock.sendto(data, ("127.0.0.1", int(peer["port"])))
-        rest = usb + WIRE_TIME_S - (time.perf_counter() - began)
-        if rest > 0:
-            time.sleep(rest)
+        now = time.perf_counter()
+        self.busy_until = max(now, self.busy_until) + usb + WIRE_TIME_S
+        if self.busy_until - now > QUEUED_S:
+            time.sleep(self.busy_until - now - QUEUED_S / 2)
 
     def close(self) -> None:
         self.sock.close()
