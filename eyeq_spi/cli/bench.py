@@ -28,7 +28,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     doc.add_argument("--peer", metavar="SIDE", type=ca.spi_side,
                      help="a second side wired to the first (each master to the other's "
                      "slave): frames go both ways")
-    doc.add_argument("--frames", type=ca.integer(1, 100_000), default=200,
+    doc.add_argument("--frames", type=ca.integer(1, 100_000), default=200, metavar="N",
                      help="frames per direction (default 200)")
     opt.include(doc, opt.json_out(), opt.rt_priority("the replies"))
 
