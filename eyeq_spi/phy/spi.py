@@ -29,6 +29,7 @@ The drivers (``spidev``, ``ft4222``) sit behind the small :class:`MasterChannel`
 from __future__ import annotations
 
 import contextlib
+import os
 import queue
 import sys
 import threading
@@ -170,6 +171,7 @@ class SpiAdapter(Adapter):
         self._writer = threading.Thread(target=self._write_loop,
                                         name=f"spi-master {master.name}", daemon=True)
         self._started = False
+        self._policy: tuple[int, int] | None = None
 
     @property
     def url(self) -> str:
@@ -189,16 +191,19 @@ class SpiAdapter(Adapter):
         return self._lost is None
 
     def _start(self) -> None:
-        """Start the reader and writer threads on first use, not when opened: a new thread
-        takes the scheduling policy of the thread that starts it, so they run at the
-        real-time priority the run's loop took (``--rt-priority``) once it took it."""
+        """Start the reader and writer threads on first use, not when opened, and at the
+        scheduling policy the run's loop took by then (``--rt-priority``): the ACK path goes
+        through them. (A real-time policy taken with SCHED_RESET_ON_FORK is not inherited by
+        a new thread, so each thread takes it itself.)"""
         if not self._started:
             self._started = True
+            self._policy = _policy_of_caller()
             self._reader.start()
             self._writer.start()
 
     # -- the slave channel ----------------------------------------------------------------
     def _read_loop(self) -> None:
+        _take_policy(self._policy)
         while not self._stop.is_set():
             try:
                 transfer = self.slave.read(0.1)
@@ -249,6 +254,7 @@ class SpiAdapter(Adapter):
         self._pending_reply = None
 
     def _write_loop(self) -> None:
+        _take_policy(self._policy)
         while (item := self._outgoing.get()) is not None:
             transfer, answers = item
             wait = self._last_write + self.settings.gap - self.clock()
@@ -291,6 +297,22 @@ class SpiAdapter(Adapter):
         if self._started:
             self._reader.join(0.5)
         sys.setswitchinterval(self._switch_interval)
+
+
+def _policy_of_caller() -> tuple[int, int] | None:
+    """The calling thread's scheduling policy and priority (None where the OS has none)."""
+    try:
+        return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    except (AttributeError, OSError):
+        return None
+
+
+def _take_policy(policy: tuple[int, int] | None) -> None:
+    """Run the calling thread at ``policy`` (as far as the OS grants it)."""
+    if policy is None:
+        return
+    with contextlib.suppress(AttributeError, OSError):
+        os.sched_setscheduler(0, policy[0], os.sched_param(policy[1]))
 
 
 def _pause(seconds: float) -> None:
