@@ -40,7 +40,7 @@ KEYS = (
     "transport_aborts", "e2e_errors", "dasp_counter_gaps", "decode_errors", "stale_streams",
     "mesp", "eyeq_resets", "eyeq_reset_causes", "versions", "boot", "transitions",
     "running_vision_since", "sessions", "link_lost", "left_at_link_loss", "scheduling",
-    "replay", "can",
+    "replay", "can", "spi",
 )
 # a sim session: the summary of one host served, without what belongs to the whole run
 SESSION_KEYS = ("began_s", "ended_s", "ok", "problem", "state", "received", "sent", "link",
@@ -545,12 +545,32 @@ def format_summary(out: dict[str, Any]) -> str:
                      f"send errors {can['send_errors']}, clamped {can['clamped']}, "
                      f"sent invalid {can['invalid']}"
                      + (f", objects beyond the slots (not sent) {over}" if over else ""))
+    spi = out.get("spi")
+    if spi:
+        lines.append(_spi_line(spi))
     rep = out.get("replay")
     if rep:
         lines.append(f"  replay: played {rep['played']} frames"
                      f"{'' if rep['complete'] else ' (not to the end)'}, host ACKs "
                      f"{rep['host_acks']}, host NAKs {sum(rep['host_naks'].values())}")
     return "\n".join(_wrap(line) for line in lines)
+
+
+def _spi_line(spi: dict[str, Any]) -> str:
+    """The SPI lines of a run (``--port``/``--listen`` on an SPI side): the measured reply
+    latency, slave read to master write (the ACK path the peer's ackTimeout judges)."""
+    from eyeq_spi.catalog.link import spec_file
+
+    budget_ms = float(spec_file("link.yaml")["timing"]["ackTimeout"]) * 1e3
+    lat = spi["reply_latency_ms"]
+    line = f"  SPI {spi['adapter']}: overruns {spi['overruns']}, reply latency "
+    if not lat["n"]:
+        return line + "not measured (no transfer answered)"
+    line += (f"p50 {lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms, p99.9 {lat['p99_9']:.2f} ms, "
+             f"max {lat['max']:.2f} ms over {lat['n']} replies")
+    if lat["p99_9"] >= budget_ms:
+        line += f" (p99.9 at or above the {budget_ms:g} ms ackTimeout: this rig is too slow)"
+    return line
 
 
 def _session_line(number: int, sess: dict[str, Any]) -> str:

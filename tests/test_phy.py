@@ -48,7 +48,21 @@ def _pty() -> Iterator[Ends]:
 
 # a pair of connected ends for every adapter of the registry (the serial adapter over pyserial's
 # loop://); a new adapter without one fails test_every_registered_adapter_has_a_pair
-PAIRS = {"memory": _memory, "serial": _loop, "tcp-listen": _tcp, "pty": _pty}
+def _spi() -> Iterator[Ends]:
+    """Two SPI sides wired to each other over in-memory channels (each master to the other's
+    slave); tests/test_phy_simwire.py runs the drivers' side over a simulated wire."""
+    from eyeq_spi.phy.spi import SpiAdapter, SpiSettings
+    from tests.test_phy_spi import Master, Slave
+
+    a_master, a_slave, b_master, b_slave = Master(), Slave(), Master(), Slave()
+    b_slave.lines, a_slave.lines = a_master.wire, b_master.wire
+    a = SpiAdapter(a_master, a_slave, SpiSettings())  # type: ignore[arg-type]
+    b = SpiAdapter(b_master, b_slave, SpiSettings())  # type: ignore[arg-type]
+    yield a, b
+    a.close(), b.close()
+
+
+PAIRS = {"memory": _memory, "serial": _loop, "tcp-listen": _tcp, "pty": _pty, "spi": _spi}
 
 
 def test_every_registered_adapter_has_a_pair() -> None:

@@ -41,6 +41,7 @@ TABLE: dict[str, tuple[str, str]] = {
     "sigrok-decoder": ("sigrok", "install the eyeq_spi decoder for sigrok/PulseView"),
     "conformance": ("conformance", "protocol conformance suite: verdict per requirement"),
     "spec": ("spec", "browse the message catalogue built from specs/"),
+    "bench": ("bench", "check a rig of SPI adapters before a run (bench doctor)"),
 }
 COMMANDS: dict[str, str] = {name: line for name, (_, line) in TABLE.items()}
 """Command -> its one-line help (a view of :data:`TABLE`)."""

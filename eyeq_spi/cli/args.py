@@ -322,8 +322,10 @@ def connect_address(text: str) -> str:
     (grammar: :mod:`eyeq_spi.phy.address`) -> the URL to open. ``loop://`` echoes our own
     transfers back and has no peer on it: refused."""
     from eyeq_spi.errors import AdapterError
-    from eyeq_spi.phy.address import CONNECT_FORMS, parse_connect
+    from eyeq_spi.phy.address import CONNECT_FORMS, is_spi, parse_connect
 
+    if is_spi(text):
+        return spi_side(text)
     if text.startswith("loop://"):
         _bad(f"loop:// echoes our own transfers back and has no peer on it; give {CONNECT_FORMS}")
     try:
@@ -335,6 +337,19 @@ def connect_address(text: str) -> str:
     return addr.url
 
 
+def spi_side(text: str) -> str:
+    """One side on SPI lines (``MASTER_URL,SLAVE_URL`` or a bench file), checked now (the
+    devices are opened by the command)."""
+    from eyeq_spi.errors import EyeqError
+    from eyeq_spi.phy.bench import parse_side
+
+    try:
+        parse_side(text)
+    except EyeqError as exc:
+        _bad(str(exc))
+    return text
+
+
 class Endpoint(argparse.Action):
     """``--listen tcp://HOST:PORT``, ``--port URL`` and ``--pty`` of a command that may listen
     (``sim``, ``replay``, ``conformance``), in the one address grammar of
@@ -344,14 +359,16 @@ class Endpoint(argparse.Action):
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: Any, option_string: str | None = None) -> None:
         from eyeq_spi.errors import AdapterError
-        from eyeq_spi.phy.address import parse_listen
+        from eyeq_spi.phy.address import is_spi, parse_listen
 
         if option_string == "--pty":
             namespace.pty = True
             return
         text = str(values)
         try:
-            if option_string == "--listen":
+            if option_string == "--listen" and is_spi(text):
+                namespace.listen = spi_side(text)  # our slave channel waits on the lines
+            elif option_string == "--listen":
                 namespace.listen = parse_listen(text).url
             else:
                 namespace.port = connect_address(text)

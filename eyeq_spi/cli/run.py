@@ -44,7 +44,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
         ep = p.add_mutually_exclusive_group(required=True)
         ep.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
                         metavar="tcp://HOST:PORT",
-                        help="listen here for the host (port 0: any free port)")
+                        help="listen here for the host (port 0: any free port); or our SPI "
+                        "channels, MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)")
         ep.add_argument("--pty", dest="endpoint", nargs=0, action=ca.Endpoint,
                         help="open a pty and print its path; the host opens it as a serial port")
         p.set_defaults(listen=None, pty=False, port=None)
@@ -55,7 +56,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     else:
         p.add_argument("--port", required=True, metavar="URL", type=ca.connect_address,
                        help="the EyeQ: tcp://HOST:PORT as eyeq-spi sim prints it (socket:// "
-                       "too), rfc2217://HOST:PORT, or a tty or pty path")
+                       "too), rfc2217://HOST:PORT, a tty or pty path, or our SPI channels, "
+                       "MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)")
         p.add_argument("--nvm", metavar="FILE", type=ca.output_file,
                        help="NVM file, JSON, written atomically (default: in memory)")
         p.add_argument("--duration", type=opt.seconds, default=10.0,
@@ -277,6 +279,7 @@ def run_sim(args: argparse.Namespace) -> int:
     simulated EyeQ, and every new connection powers it up (boot status first; ``--boot-fail N``
     counts boots across connections)."""
     from eyeq_spi.live import serve
+    from eyeq_spi.phy.address import is_spi
     from eyeq_spi.phy.base import open_listener
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
 
@@ -295,11 +298,16 @@ def run_sim(args: argparse.Namespace) -> int:
         adapter = open_listener(args.listen, timeout=args.accept_timeout)
         address = adapter.url
         print(f"LISTEN {address}", file=sys.stderr, flush=True)
-    _connect_hint(address)
+    if is_spi(address):  # the host is on the wires already: nothing to hand over
+        print("eyeq-spi sim: on the SPI lines; the host runs on the other side's channels",
+              file=sys.stderr, flush=True)
+    else:
+        _connect_hint(address)
     _on_sigterm()
     out = serve(eyeq, adapter, duration=args.duration, accept_timeout=args.accept_timeout,
                 address=address, rt_priority=args.rt_priority,
                 capture=opt.capture_writer(args))
+    out["spi"] = adapter.line_report()  # on SPI lines: the reply latency measured
     print_summary(out, args.json)
     return 0 if out["ok"] else 1
 
@@ -338,16 +346,24 @@ def run_host(args: argparse.Namespace) -> int:
                     or _open_or_say(args))
     _on_sigterm()
     view = LiveView(sys.stderr.isatty() and not args.json)
+    used = [adapter]  # every adapter of the run, the reconnected ones too
+
+    def again_kept(until: float) -> Any:
+        fresh = again(until)
+        used.append(fresh)
+        return fresh
+
     live = opt.foxglove_feed(args, host)
     try:
         out = drive(host, adapter, duration=args.duration,
                     address=parse_connect(args.port, check_path=False).display,
-                    reopen_adapter=again if args.reconnect else None,
+                    reopen_adapter=again_kept if args.reconnect else None,
                     exit_when_running=args.exit_when_running, rt_priority=args.rt_priority,
                     capture=opt.capture_writer(args),
                     attach=lambda runner: opt.can_output(args, host, runner),
                     on_step=view.update)
     finally:
         opt.foxglove_close(live)
+    out["spi"] = used[-1].line_report() if used[-1] is not None else None
     print_summary(out, args.json)
     return 0 if out["ok"] else 1

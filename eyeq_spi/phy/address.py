@@ -8,6 +8,10 @@ stream the same way:
 - ``--port URL``: we connect to a peer that is already there: ``tcp://HOST:PORT`` or its
   pyserial spelling ``socket://HOST:PORT`` (a peer listening on TCP), ``rfc2217://HOST:PORT`` (a
   serial port behind an RFC 2217 server), or the path of a tty or pty.
+- On SPI lines (``--port`` or ``--listen``): our master and slave channel,
+  ``MASTER_URL,SLAVE_URL`` of ``spidev:///dev/spidevB.C`` or ``ft4222://SERIAL_OR_INDEX``, or a
+  ``bench.toml`` naming them (:mod:`eyeq_spi.phy.bench`). The lines need no listening: the peer
+  is on the wires.
 
 :func:`parse_connect` and :func:`parse_listen` are the only parsers; the CLI
 (``eyeq_spi.cli.args``) and :func:`eyeq_spi.phy.base.open_url` both use them.
@@ -95,6 +99,18 @@ def parse_connect(text: str, *, check_path: bool = True) -> Address:
         url = f"{'rfc2217' if scheme == 'rfc2217' else 'socket'}://{host}:{port}{rest}"
         return Address("connect", url, _bare(host), port)
     return Address("connect", text)
+
+
+SPI_SCHEMES = ("spidev", "ft4222")
+SPI_FORMS = ("MASTER_URL,SLAVE_URL (spidev:///dev/spidevB.C, ft4222://SERIAL_OR_INDEX) "
+             "or a bench.toml")
+
+
+def is_spi(text: str) -> bool:
+    """Whether ``text`` names one side on SPI lines: a pair of ``spidev://`` or ``ft4222://``
+    channels, or a bench file (:mod:`eyeq_spi.phy.bench`)."""
+    first = text.split(",", 1)[0]
+    return first.split("://", 1)[0].lower() in SPI_SCHEMES or text.endswith(".toml")
 
 
 def listen_url(host: str, port: int) -> str:

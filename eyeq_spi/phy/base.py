@@ -13,6 +13,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from types import TracebackType
+from typing import Any
 
 from eyeq_spi.errors import AdapterError
 
@@ -76,6 +77,11 @@ class Adapter(ABC):
     def _close_internal(self) -> None:  # noqa: B027 - optional hook
         pass
 
+    def line_report(self) -> dict[str, Any] | None:
+        """What a run summary reports of the lines under the adapter (SPI adapters: the
+        measured reply latency and overruns); None when there is nothing to say."""
+        return None
+
 
 # name -> (module, class). Extend with entry points in group "eyeq_spi.adapters".
 ADAPTERS: dict[str, tuple[str, str]] = {
@@ -83,6 +89,7 @@ ADAPTERS: dict[str, tuple[str, str]] = {
     "serial": ("eyeq_spi.phy.serial", "SerialAdapter"),
     "tcp-listen": ("eyeq_spi.phy.tcp", "TcpListenAdapter"),
     "pty": ("eyeq_spi.phy.pty", "PtyAdapter"),
+    "spi": ("eyeq_spi.phy.bench", "BenchAdapter"),  # spidev:// and ft4222:// channel pairs
 }
 
 
@@ -107,17 +114,25 @@ def adapter_class(name: str) -> type[Adapter]:
 def open_url(url: str) -> Adapter:
     """Connect an adapter to an address in the grammar of :mod:`eyeq_spi.phy.address`:
     ``tcp://HOST:PORT``, ``socket://HOST:PORT``, ``rfc2217://HOST:PORT``, a tty or pty path, or
-    any other pyserial URL (``loop://``). :func:`open_listener` listens."""
-    from eyeq_spi.phy.address import parse_connect
+    any other pyserial URL (``loop://``), or one side on SPI lines
+    (``MASTER_URL,SLAVE_URL`` of ``spidev://`` / ``ft4222://`` channels, or a ``bench.toml``:
+    :mod:`eyeq_spi.phy.bench`). :func:`open_listener` listens."""
+    from eyeq_spi.phy.address import is_spi, parse_connect
 
+    if is_spi(url):
+        return adapter_class("spi")(url)  # type: ignore[call-arg]
     addr = parse_connect(url, check_path=False)
     return adapter_class("serial")(addr.url)  # type: ignore[call-arg]
 
 
 def open_listener(url: str, *, timeout: float = 5.0) -> Adapter:
     """A TCP listener on ``tcp://HOST:PORT`` (port 0: any free port) that serves one peer at a
-    time; ``timeout`` bounds the wait for a peer on the first send or receive."""
-    from eyeq_spi.phy.address import parse_listen
+    time; ``timeout`` bounds the wait for a peer on the first send or receive. One side on SPI
+    lines (as :func:`open_url` takes it) is there at once: the peer is on the wires."""
+    from eyeq_spi.phy.address import is_spi, parse_listen
+
+    if is_spi(url):
+        return adapter_class("spi")(url)  # type: ignore[call-arg]
 
     addr = parse_listen(url)
     assert addr.host is not None and addr.port is not None
