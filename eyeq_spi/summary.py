@@ -547,30 +547,17 @@ def format_summary(out: dict[str, Any]) -> str:
                      + (f", objects beyond the slots (not sent) {over}" if over else ""))
     spi = out.get("spi")
     if spi:
-        lines.append(_spi_line(spi))
+        from eyeq_spi.catalog.link import spec_file
+        from eyeq_spi.phy.spi import report_text
+
+        ack_timeout_ms = float(spec_file("link.yaml")["timing"]["ackTimeout"]) * 1e3
+        lines.append(report_text(spi, ack_timeout_ms))
     rep = out.get("replay")
     if rep:
         lines.append(f"  replay: played {rep['played']} frames"
                      f"{'' if rep['complete'] else ' (not to the end)'}, host ACKs "
                      f"{rep['host_acks']}, host NAKs {sum(rep['host_naks'].values())}")
     return "\n".join(_wrap(line) for line in lines)
-
-
-def _spi_line(spi: dict[str, Any]) -> str:
-    """The SPI lines of a run (``--port``/``--listen`` on an SPI side): the measured reply
-    latency, slave read to master write (the ACK path the peer's ackTimeout judges)."""
-    from eyeq_spi.catalog.link import spec_file
-
-    budget_ms = float(spec_file("link.yaml")["timing"]["ackTimeout"]) * 1e3
-    lat = spi["reply_latency_ms"]
-    line = f"  SPI {spi['adapter']}: overruns {spi['overruns']}, reply latency "
-    if not lat["n"]:
-        return line + "not measured (no transfer answered)"
-    line += (f"p50 {lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms, p99.9 {lat['p99_9']:.2f} ms, "
-             f"max {lat['max']:.2f} ms over {lat['n']} replies")
-    if lat["p99_9"] >= budget_ms:
-        line += f" (p99.9 at or above the {budget_ms:g} ms ackTimeout: this rig is too slow)"
-    return line
 
 
 def _session_line(number: int, sess: dict[str, Any]) -> str:

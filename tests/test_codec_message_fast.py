@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from eyeq_spi.capture.pcapng_fast import chunks_from_records
-from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Transfer
 from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState, protect, verify, verify_reference
@@ -199,7 +199,7 @@ def test_float_columns_keep_binary32_values() -> None:
 
 
 # -- the fast path's span messages (dissect/engine_fast_messages.py) ---------------------
-def _capture(faults: list[tuple[int, int]]) -> list[Record]:
+def _capture(faults: list[tuple[int, int]]) -> list[Transfer]:
     """e2h DASP traffic (failsafe, obstacles, SRP, light sensor, timesync) in single and
     multi-frame transfers, each data ID's counters and E2E stepping; ``faults`` (message index,
     kind) break messages at the application layer only (the link frames stay good)."""
@@ -210,7 +210,7 @@ def _capture(faults: list[tuple[int, int]]) -> list[Record]:
     zero = {n: codec.layout(codec.message(n)).zero_values() for n in names}
     diag = codec.layout(codec.message("EYEQ_DIAGNOSTIC_MSG")).zero_values()
     kinds = dict(faults)
-    out: list[Record] = []
+    out: list[Transfer] = []
     num, tid, t = 0, 0, 0.0
     counters = dict.fromkeys(names, 0)
     for i in range(40):
@@ -264,7 +264,7 @@ def _capture(faults: list[tuple[int, int]]) -> list[Record]:
         elif kind == 7:  # an unknown data ID
             wire[1] = 0xFE
         for part in segment(bytes(wire), tid):
-            out.append(Record(round(t, 6), "e2h", FC.data_frame(0, num, part)))
+            out.append(Transfer(round(t, 6), "e2h", FC.data_frame(0, num, part)))
             num = (num + 1) % 4096
             t += 0.0003
         tid = (tid + 1) % 256
@@ -302,7 +302,7 @@ def test_application_faults_reach_the_vectorised_groups() -> None:
     assert want_equal(recs)
 
 
-def want_equal(recs: list[Record]) -> bool:
+def want_equal(recs: list[Transfer]) -> bool:
     return list(engine.iter_records(recs)) == list(batch.iter_records(
         chunks_from_records(recs, 1 << 15)))
 
@@ -315,7 +315,7 @@ def test_no_two_dasp_messages_share_a_layout() -> None:
         assert len(payloads) == len(set(payloads)), sw
 
 
-def _tables(tmp: Path, fmt: str, recs: list[Record], chunk: int | None) -> Path:
+def _tables(tmp: Path, fmt: str, recs: list[Transfer], chunk: int | None) -> Path:
     """The tables of the exact engine (chunk None) or of the fast path in columns mode."""
     out = tmp / f"{fmt}-{chunk}"
     w = TableWriter(str(out), fmt, batch=3)  # small batches: column and dict rows interleave

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Transfer
 from eyeq_spi.cli import main
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.engine import iter_records
@@ -62,7 +62,7 @@ def test_no_splice_across_a_fast_peer_reset_at_the_num_wrap() -> None:
 
 
 def capture(start: int, messages: list[bytes], *, skip_head: int = 0,
-            cut_tail: int = 0) -> list[Record]:
+            cut_tail: int = 0) -> list[Transfer]:
     """e2h DATA frames numbered from ``start``, dropping ``skip_head`` frames at the start and
     ``cut_tail`` at the end (a capture that begins or ends inside a transfer)."""
     frames: list[bytes] = []
@@ -72,7 +72,7 @@ def capture(start: int, messages: list[bytes], *, skip_head: int = 0,
         if len(parts) > 1:
             tid = (tid + 1) % 256
         frames += parts
-    recs = [Record(i * 0.0002, "e2h", FC.data_frame(0, (start + i) % 4096, p))
+    recs = [Transfer(i * 0.0002, "e2h", FC.data_frame(0, (start + i) % 4096, p))
             for i, p in enumerate(frames)]
     return recs[skip_head:len(recs) - cut_tail]
 

@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from eyeq_spi.capture.pcapng_fast import chunks_from_records, pcapng_chunks, raw_chunks
-from eyeq_spi.capture.pcapng_io import CaptureWriter, Record, read_pcapng
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Transfer, read_pcapng
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
@@ -79,12 +79,12 @@ def synthetic(n_rounds: int = 6, *, t0: float = 0.0) -> list[Rec]:
     return out
 
 
-def records(items: list[Rec]) -> list[Record]:
-    return [Record(t, d, w) for d, t, w in items]
+def records(items: list[Rec]) -> list[Transfer]:
+    return [Transfer(t, d, w) for d, t, w in items]
 
 
-def agree(items: list[Rec] | list[Record], chunk: int = 1 << 15) -> list[dict[str, Any]]:
-    recs = [r if isinstance(r, Record) else Record(r[1], r[0], r[2]) for r in items]
+def agree(items: list[Rec] | list[Transfer], chunk: int = 1 << 15) -> list[dict[str, Any]]:
+    recs = [r if isinstance(r, Transfer) else Transfer(r[1], r[0], r[2]) for r in items]
     want = list(engine.iter_records(recs))
     got = list(batch.iter_records(chunks_from_records(recs, chunk)))
     for i, (a, b) in enumerate(zip(want, got, strict=False)):
@@ -94,7 +94,7 @@ def agree(items: list[Rec] | list[Record], chunk: int = 1 << 15) -> list[dict[st
 
 
 @pytest.fixture(scope="module")
-def demo_items(tmp_path_factory: pytest.TempPathFactory) -> list[Record]:
+def demo_items(tmp_path_factory: pytest.TempPathFactory) -> list[Transfer]:
     path = tmp_path_factory.mktemp("demo") / "demo.pcapng"
     assert main(["demo", "--virtual-time", "--duration", "1.5", "--objects", "15",
                  "--capture", str(path)]) == 0
@@ -110,7 +110,7 @@ def _pcapng(items: list[Rec], path: Path) -> Path:
     return path
 
 
-def _rows(chunks: Any) -> list[Record]:
+def _rows(chunks: Any) -> list[Transfer]:
     return [c.record(i) for c in chunks for i in range(len(c))]
 
 
@@ -129,7 +129,7 @@ def test_fast_pcapng_reader_matches_python_pcapng(tmp_path: Path) -> None:
 def test_fast_reader_errors_after_the_good_records(tmp_path: Path) -> None:
     path = _pcapng(synthetic(1), tmp_path / "c.pcapng")
     data = path.read_bytes()
-    got: list[Record] = []
+    got: list[Transfer] = []
     with pytest.raises(InputError):
         for c in pcapng_chunks(io.BytesIO(data[:-77]), 4):
             got += _rows([c])
@@ -147,7 +147,7 @@ def test_frame_arrays_match_the_frame_codec() -> None:
     rng = np.random.default_rng(5)
     rows = [bytes(rng.integers(0, 256, 128, np.uint8)) for _ in range(200)]
     rows += [FC.ack(7), FC.nak(9, NakReason.CRC_MISMATCH), FC.data_frame(1, 2, b"\x00\x05hello")]
-    fa = frame_arrays(next(chunks_from_records([Record(None, "e2h", r) for r in rows])), FC, 0,
+    fa = frame_arrays(next(chunks_from_records([Transfer(None, "e2h", r) for r in rows])), FC, 0,
                       None)
     for i, r in enumerate(rows):
         f = FC.decode(r)
@@ -162,7 +162,7 @@ def test_clean_synthetic_capture(chunk: int) -> None:
     assert sum(r["kind"] == "message" for r in recs) == 6 * 7
 
 
-def test_demo_capture_agrees(demo_items: list[Record]) -> None:
+def test_demo_capture_agrees(demo_items: list[Transfer]) -> None:
     for chunk in (333, 1 << 15):
         agree(demo_items, chunk)
 
@@ -245,8 +245,8 @@ MUTATIONS = _mutations()
 BASE = synthetic(8)
 
 
-def _as_records(items: list[Rec]) -> list[Record]:
-    return [Record(None if t != t else t, d, w) for d, t, w in items]
+def _as_records(items: list[Rec]) -> list[Transfer]:
+    return [Transfer(None if t != t else t, d, w) for d, t, w in items]
 
 
 @pytest.mark.parametrize("name", sorted(MUTATIONS))
@@ -268,7 +268,7 @@ def test_hypothesis_faults_agree(ops: list[tuple[str, int]], chunk: int) -> None
     agree(_as_records(items), chunk)
 
 
-def test_faults_in_a_demo_capture_agree(demo_items: list[Record]) -> None:
+def test_faults_in_a_demo_capture_agree(demo_items: list[Transfer]) -> None:
     items = [(r.direction or "e2h", r.time or 0.0, r.data) for r in demo_items]
     rng = np.random.default_rng(11)
     for name in sorted(MUTATIONS):

@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from eyeq_spi.capture.pcapng_fast import chunks_from_records
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import engine
@@ -21,7 +21,7 @@ MC = MessageCodec()
 VEH = "HOST_VEH_STATE_MSG"
 
 
-def _capture(switch: bool, rounds: int = 40) -> list[Record]:
+def _capture(switch: bool, rounds: int = 40) -> list[Transfer]:
     """The host sends HOST_VEH_STATE_MSG, then (``switch``) Switch EyeQ Application to vision,
     then starts its E2E counters over; the EyeQ ACKs and answers."""
     wire = Wire()
@@ -41,7 +41,7 @@ def _capture(switch: bool, rounds: int = 40) -> list[Record]:
                                                {"applicationId": 1}))
             send("e2h", MC.mesp.encode_reply("SwitchEyeQApplication", 7, 0,
                                              {"applicationId": 1}))
-    return [Record(t, d, w) for d, t, w in wire.out]
+    return [Transfer(t, d, w) for d, t, w in wire.out]
 
 
 def _e2e_errors(recs: list[dict[str, Any]]) -> list[str]:

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from eyeq_spi.capture.pcapng_fast import chunks_from_records
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import engine
 from eyeq_spi.dissect import engine_fast as fast
@@ -25,12 +25,12 @@ MC = MessageCodec()
 REQ = "GetEyeQExtendedState"
 
 
-def _capture(late_restart_rsp: int) -> list[Record]:
+def _capture(late_restart_rsp: int) -> list[Transfer]:
     """The host sends requests numbered 0..19, each answered; the EyeQ boots again (its first
     frame at NUM 0, RSP 0); the host, not yet aware, sends 3 more frames in its old numbering,
     then learns of the reset and numbers from 0 with RSP ``late_restart_rsp``. Every DATA
     frame is ACKed."""
-    out: list[Record] = []
+    out: list[Transfer] = []
     t = 0.0
     nums = {"h2e": 0, "e2h": 0}
 
@@ -38,8 +38,8 @@ def _capture(late_restart_rsp: int) -> list[Record]:
         nonlocal t
         other = "e2h" if direction == "h2e" else "h2e"
         for part in segment(msg, 0):
-            out.append(Record(round(t, 6), direction, FC.data_frame(rsp, nums[direction], part)))
-            out.append(Record(round(t + 0.0001, 6), other, FC.ack(nums[direction])))
+            out.append(Transfer(round(t, 6), direction, FC.data_frame(rsp, nums[direction], part)))
+            out.append(Transfer(round(t + 0.0001, 6), other, FC.ack(nums[direction])))
             nums[direction] = (nums[direction] + 1) % 4096
             t += 0.001
 

@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 
 from eyeq_spi import twins
-from eyeq_spi.capture.pcapng_io import Record, read_pcapng
+from eyeq_spi.capture.pcapng_io import Transfer, read_pcapng
 from eyeq_spi.cli import main
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import pipeline
@@ -46,13 +46,13 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def demo_records(demo: Path) -> list[Record]:
+def demo_records(demo: Path) -> list[Transfer]:
     with demo.open("rb") as fh:
         return list(read_pcapng(fh))
 
 
 @pytest.fixture(scope="module")
-def saleae(demo: Path, demo_records: list[Record]) -> Path:
+def saleae(demo: Path, demo_records: list[Transfer]) -> Path:
     """The same transfers as a Saleae Logic 2 export of two analyzers not named after their
     direction, under the same file name (plots and screens name the file)."""
     d = demo.parent / "saleae"

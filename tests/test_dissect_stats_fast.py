@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from eyeq_spi import garbage
 from eyeq_spi.capture.pcapng_fast import chunks_from_records
-from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Transfer
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
@@ -43,14 +43,14 @@ def _stats_text(st: Stats) -> tuple[str, str]:
     return json.dumps(st.as_dict()), st.render()  # json.dumps keeps the key order
 
 
-def exact_stats(recs: list[Record]) -> tuple[str, str]:
+def exact_stats(recs: list[Transfer]) -> tuple[str, str]:
     st = Stats(CAT)
     for r in engine.iter_records(recs):
         st.add(r)
     return _stats_text(st)
 
 
-def lean_stats(recs: list[Record], chunk: int) -> tuple[str, str]:
+def lean_stats(recs: list[Transfer], chunk: int) -> tuple[str, str]:
     """--stats from the fast path's blocks, in the mode ``dissect --stats`` takes (no fields)."""
     st = Stats(CAT)
     fields = pipeline.fields_mode([], True)
@@ -101,19 +101,19 @@ def test_lean_stats_under_mixed_link_faults(ops: list[tuple[str, int]], chunk: i
 
 
 # -- the CLI: file (batch path) against stdin (exact path) ------------------------------------
-def _big(recs: list[Record], transfers: int) -> list[Record]:
+def _big(recs: list[Transfer], transfers: int) -> list[Transfer]:
     """``recs`` again and again, each time later than the last, until ``transfers`` transfers:
     a file that big takes the fast path (``dissect``'s threshold is ``pipeline.SMALL_INPUT``)."""
-    out: list[Record] = []
+    out: list[Transfer] = []
     span = max(r.time or 0.0 for r in recs) + 1.0
     while len(out) < transfers:
         shift = len(out) // len(recs) * span
-        out += [Record(None if r.time is None else r.time + shift, r.direction, r.data)
+        out += [Transfer(None if r.time is None else r.time + shift, r.direction, r.data)
                 for r in recs]
     return out
 
 
-def _pcapng(recs: list[Record], path: Path) -> Path:
+def _pcapng(recs: list[Transfer], path: Path) -> Path:
     with CaptureWriter(path) as w:
         for r in _big(recs, pipeline.SMALL_INPUT // 150):  # 160 bytes a 128-byte transfer
             w.write(r.direction, r.time, r.data)
@@ -253,13 +253,13 @@ def test_no_group_is_judged_across_a_switch_application_request() -> None:
     fc = batch.Dissector().frames
     e2e = {"a": E2EState(), "b": E2EState()}
     zero = mc.layout(mc.message("HOST_VEH_STATE_MSG")).zero_values()
-    recs: list[Record] = []
+    recs: list[Transfer] = []
     num, t = 0, 0.0
 
     def put(msg: bytes) -> None:
         nonlocal num, t
         for part in segment(msg, 0):
-            recs.append(Record(round(t, 6), "h2e", fc.data_frame(0, num, part)))
+            recs.append(Transfer(round(t, 6), "h2e", fc.data_frame(0, num, part)))
             num, t = (num + 1) % 4096, t + 0.0003
 
     for i in range(30):

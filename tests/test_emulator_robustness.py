@@ -149,7 +149,7 @@ def test_a_soft_reset_leaves_the_host_rolling_counters_unbroken_for_a_passive_re
     Application. Its HOST_VEH_STATE E2E rolling counters used to restart there while its DASP
     counter ran on, so `dissect` of a normal first-ignition capture reported an E2E counter jump.
     Our own counters now run on across EyeQ resets, as the DASP counter does."""
-    from eyeq_spi.capture.pcapng_io import Record
+    from eyeq_spi.capture.pcapng_io import Transfer
     from eyeq_spi.dissect.engine import Dissector
     from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.phy.memory import memory_pair
@@ -158,9 +158,9 @@ def test_a_soft_reset_leaves_the_host_rolling_counters_unbroken_for_a_passive_re
     sim = SimulatedEyeQ(SimConfig())
     host = HostEmulator(HostConfig(), nvm=Nvm())  # no reset line: a remote EyeQ
     a, b = memory_pair()
-    seen: list[Record] = []
+    seen: list[Transfer] = []
     runner = VirtualRunner([(host, a), (sim, b)], tap=lambda node, t, x: seen.append(
-        Record(t, "h2e" if node == 0 else "e2h", x)))
+        Transfer(t, "h2e" if node == 0 else "e2h", x)))
     sim.power_up(0.0)
     host.start(0.0)
     runner.run_until(2.0)

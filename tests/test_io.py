@@ -21,7 +21,7 @@ from typing import Any
 import pytest
 
 from eyeq_spi import io as registry
-from eyeq_spi.capture.pcapng_io import Record, read_pcapng
+from eyeq_spi.capture.pcapng_io import Transfer, read_pcapng
 from eyeq_spi.errors import InputError, MissingExtra, TruncatedInputError, UnknownFormatError
 from eyeq_spi.io import CAPTURE_READER, CAPTURE_WRITER, RECORD_WRITER, Format
 from eyeq_spi.io.plain import open_records
@@ -34,7 +34,7 @@ ONE_CHANNEL = "e2h"  # the direction a one-channel format is written and read wi
 
 
 @pytest.fixture(scope="module")
-def capture(tmp_path_factory: pytest.TempPathFactory) -> list[Record]:
+def capture(tmp_path_factory: pytest.TempPathFactory) -> list[Transfer]:
     """0.3 s of the emulator in virtual time (the bring-up: both channels, DATA and ACK frames;
     the run is judged not finished, exit 1)."""
     from eyeq_spi.cli import main
@@ -49,11 +49,11 @@ def capture(tmp_path_factory: pytest.TempPathFactory) -> list[Record]:
     # one transfer every 250 us, in capture order: no transfer overlaps another (a VCD writer
     # moves one that would overlap its channel's previous transfer, as an ACK handed over with
     # a DATA frame; tests/test_logic.py covers that)
-    return [Record(round(0.15 + i * 250e-6, 6), r.direction, r.data) for i, r in enumerate(recs)]
+    return [Transfer(round(0.15 + i * 250e-6, 6), r.direction, r.data) for i, r in enumerate(recs)]
 
 
 # Formats we read but do not write (a logic analyzer writes them): the test writes them.
-def _saleae2(records: list[Record], path: Path) -> None:
+def _saleae2(records: list[Transfer], path: Path) -> None:
     lines = ['name,type,start_time,duration,"mosi","miso"']
     for r in records:
         t = r.time or 0.0
@@ -64,7 +64,7 @@ def _saleae2(records: list[Record], path: Path) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def _saleae1(records: list[Record], path: Path) -> None:
+def _saleae1(records: list[Transfer], path: Path) -> None:
     lines = ["Time [s],Packet ID,MOSI,MISO"]
     for pid, r in enumerate(x for x in records if x.direction == ONE_CHANNEL):
         t = r.time or 0.0
@@ -72,11 +72,11 @@ def _saleae1(records: list[Record], path: Path) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-ENCODERS: dict[str, Callable[[list[Record], Path], None]] = {"saleae2": _saleae2,
+ENCODERS: dict[str, Callable[[list[Transfer], Path], None]] = {"saleae2": _saleae2,
                                                             "saleae1": _saleae1}
 
 
-def _write(fmt: Format, records: list[Record], path: Path) -> None:
+def _write(fmt: Format, records: list[Transfer], path: Path) -> None:
     writer = next((w for w in registry.formats(CAPTURE_WRITER) if w.name == fmt.name), None)
     if writer is not None:
         kw = {"direction": ONE_CHANNEL} if fmt.channels == 1 else {}
@@ -87,20 +87,20 @@ def _write(fmt: Format, records: list[Record], path: Path) -> None:
         ENCODERS[fmt.name](records, path)
 
 
-def _expected(fmt: Format, records: list[Record]) -> list[Record]:
+def _expected(fmt: Format, records: list[Transfer]) -> list[Transfer]:
     if fmt.channels == 1:
         records = [r for r in records if r.direction == ONE_CHANNEL]
     return records
 
 
-def _read(fmt: Format, data: bytes, name: str | None = None) -> tuple[str, list[Record]]:
+def _read(fmt: Format, data: bytes, name: str | None = None) -> tuple[str, list[Transfer]]:
     direction = ONE_CHANNEL if fmt.channels == 1 else None
     kind, it = open_records(io.BytesIO(data), name, direction)
     return kind, list(it)
 
 
 @pytest.mark.parametrize("fmt", READERS, ids=lambda f: f.name)
-def test_reader_reads_back_the_capture(fmt: Format, capture: list[Record],
+def test_reader_reads_back_the_capture(fmt: Format, capture: list[Transfer],
                                        tmp_path: Path) -> None:
     """Found by content, the transfers (direction, bytes, time within the format's resolution)
     come back in order; by name too."""
@@ -127,7 +127,7 @@ WRITTEN_ELSEWHERE = {"sr": "tests/test_logic_sr_write.py::"
 
 
 @pytest.mark.parametrize("fmt", registry.formats(CAPTURE_WRITER), ids=lambda f: f.name)
-def test_capture_writer_reads_back(fmt: Format, capture: list[Record], tmp_path: Path) -> None:
+def test_capture_writer_reads_back(fmt: Format, capture: list[Transfer], tmp_path: Path) -> None:
     """Every capture writer's file gives back the transfers it was given: through the reader
     of the same name, or through the decoder of the test that reads that format."""
     if fmt.name in WRITTEN_ELSEWHERE:
@@ -143,7 +143,7 @@ def test_capture_writer_reads_back(fmt: Format, capture: list[Record], tmp_path:
 
 
 @pytest.mark.parametrize("fmt", READERS, ids=lambda f: f.name)
-def test_a_cut_file_gives_its_documented_result(fmt: Format, capture: list[Record],
+def test_a_cut_file_gives_its_documented_result(fmt: Format, capture: list[Transfer],
                                                 tmp_path: Path) -> None:
     """Cut in the middle of a transfer: a typed truncation error (``error``); or the transfers
     before it (``drop``: a logic analyzer stopped mid-transfer); or the last transfer as far as
@@ -284,7 +284,7 @@ def test_a_missing_extra_names_the_pip_extra(monkeypatch: pytest.MonkeyPatch) ->
 
 # -- record writers --------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def records(capture: list[Record]) -> list[dict[str, Any]]:
+def records(capture: list[Transfer]) -> list[dict[str, Any]]:
     from eyeq_spi.dissect.engine import Dissector
 
     dis = Dissector()

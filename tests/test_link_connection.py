@@ -5,7 +5,7 @@ last one byte for byte, and the dissector (engine and batch path agree). Virtual
 from __future__ import annotations
 
 from eyeq_spi.capture.pcapng_fast import chunks_from_records
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import engine
@@ -114,7 +114,7 @@ def test_mode_switch_restarts_both_links_without_a_nak() -> None:
         assert link.counters.sequenceErrorCounter == 0
 
 
-def _switch_capture() -> list[Record]:
+def _switch_capture() -> list[Transfer]:
     """HOST_VEH_STATE_MSG both ways of a Switch EyeQ Application; after it the host numbers its
     frames from 0 (RSP not 0: it has accepted EyeQ frames), and the EyeQ's reply is its NUM 0."""
     wire = Wire()
@@ -131,7 +131,7 @@ def _switch_capture() -> list[Record]:
             wire.send("e2h", MC.mesp.encode_reply("SwitchEyeQApplication", 7, 0,
                                                   {"applicationId": 1}))
             e2e = E2EState()
-    return [Record(t, d, w) for d, t, w in wire.out]
+    return [Transfer(t, d, w) for d, t, w in wire.out]
 
 
 def test_the_dissector_follows_a_reset_request_in_both_paths() -> None:

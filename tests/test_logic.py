@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from eyeq_spi.capture.pcapng_io import CaptureWriter, Record, read_pcapng
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Transfer, read_pcapng
 from eyeq_spi.cli import main
 from eyeq_spi.errors import InputError
 from eyeq_spi.io.plain import detect, open_records
@@ -57,7 +57,7 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def demo_records(demo: Path) -> list[Record]:
+def demo_records(demo: Path) -> list[Transfer]:
     with demo.open("rb") as fh:
         return list(read_pcapng(fh))
 
@@ -95,7 +95,7 @@ def test_vcd_export_round_trips_through_dissect(demo: Path, demo_json: list[dict
 def test_vcd_signals_and_timing(tmp_path: Path) -> None:
     """10 MHz, mode 1: clock idles low, data set on the rising edge, 128 bytes in 102.4 µs."""
     buf = io.StringIO()
-    write_vcd([Record(0.001, "e2h", b"\xa5" + bytes(127))], buf)
+    write_vcd([Transfer(0.001, "e2h", b"\xa5" + bytes(127))], buf)
     text = buf.getvalue()
     assert "$timescale 10ns $end" in text and "e2h_mosi" in text and "h2e_cs" in text
     body = text.split("$enddefinitions $end")[1]
@@ -111,7 +111,7 @@ transfers = st.lists(st.tuples(st.sampled_from(["h2e", "e2h"]),
 def test_vcd_writer_and_reader_agree_in_every_mode(items: list[tuple[str, bytes]], mode: int,
                                                    order: str) -> None:
     opts = SpiOptions(mode=mode, bit_order=order)
-    recs = [Record(None if i % 2 else i * 1e-3, d, data) for i, (d, data) in enumerate(items)]
+    recs = [Transfer(None if i % 2 else i * 1e-3, d, data) for i, (d, data) in enumerate(items)]
     buf = io.StringIO()
     write_vcd(recs, buf, opts)
     got = list(read_vcd(io.BytesIO(buf.getvalue().encode()), opts))
@@ -127,7 +127,7 @@ def test_vcd_reads_alike_in_any_chunks(items: list[tuple[str, bytes]], mode: int
     """Any waveform, cut anywhere (a chip select that rises in the middle of a byte too), gives
     the same transfers whatever the reader's chunk size."""
     opts = SpiOptions(mode=mode, bit_order=order)
-    recs = [Record(i * 1e-3, d, payload) for i, (d, payload) in enumerate(items)]
+    recs = [Transfer(i * 1e-3, d, payload) for i, (d, payload) in enumerate(items)]
     buf = io.StringIO()
     write_vcd(recs, buf, opts)
     text = buf.getvalue()
@@ -149,7 +149,7 @@ def test_chip_select_fault_is_a_wrong_length_transfer(tmp_path: Path,
     good = frames.data_frame(0, 0, bytes([0, 4]) + b"\x5e\x01\x5e\x02" + bytes(116))
     path = tmp_path / "cs.vcd"
     with path.open("w") as fh:
-        write_vcd([Record(0.0, "h2e", good), Record(0.001, "h2e", good[:77])], fh)
+        write_vcd([Transfer(0.0, "h2e", good), Transfer(0.001, "h2e", good[:77])], fh)
     _, out, _ = _run(capsys, "dissect", str(path), "--json", "--format", "vcd")
     frames_out = [r for r in _jsonl(out) if r["kind"] == "frame"]
     assert frames_out[0]["frame_type"] == "DATA" and frames_out[0]["crc_ok"]
@@ -161,7 +161,7 @@ def test_vcd_with_other_signal_names(tmp_path: Path, capsys: pytest.CaptureFixtu
     """A PulseView export names channels D0..D3: --signals maps them, --channel-map or the
     channel's name gives the direction."""
     buf = io.StringIO()
-    write_vcd([Record(0.0, "h2e", b"\x01\x02\x03")], buf)
+    write_vcd([Transfer(0.0, "h2e", b"\x01\x02\x03")], buf)
     text = buf.getvalue()
     for sig, new in (("h2e_cs", "D0"), ("h2e_clk", "D1"), ("h2e_mosi", "D2"),
                      ("h2e_miso", "D3")):
@@ -178,7 +178,7 @@ def test_vcd_with_other_signal_names(tmp_path: Path, capsys: pytest.CaptureFixtu
 
 
 # -- Saleae ---------------------------------------------------------------------------------
-def _saleae2(records: list[Record], names: dict[str, str]) -> str:
+def _saleae2(records: list[Transfer], names: dict[str, str]) -> str:
     lines = ['name,type,start_time,duration,"mosi","miso"']
     lines.append(f'"{names["h2e"]}","result",0.0,8e-07,0x11,0xFF')  # cut by the capture start
     for r in records:
@@ -191,7 +191,7 @@ def _saleae2(records: list[Record], names: dict[str, str]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def test_saleae2_export_reads_like_the_capture(demo_records: list[Record],
+def test_saleae2_export_reads_like_the_capture(demo_records: list[Transfer],
                                                demo_json: list[dict[str, Any]], tmp_path: Path,
                                                capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "logic2.csv"
@@ -213,7 +213,7 @@ def test_saleae2_export_reads_like_the_capture(demo_records: list[Record],
         Counter(r.direction for r in demo_records[:20])
 
 
-def test_saleae1_export_with_packet_ids(demo_records: list[Record], tmp_path: Path,
+def test_saleae1_export_with_packet_ids(demo_records: list[Transfer], tmp_path: Path,
                                         capsys: pytest.CaptureFixture[str]) -> None:
     recs = [r for r in demo_records if r.direction == "e2h"][:40]
     lines = ["Time [s],Packet ID,MOSI,MISO"]
@@ -416,7 +416,7 @@ def test_replay_into_host_judges_as_host_does(tmp_path: Path,
 
 
 def test_replay_into_host_judges_a_corrupted_capture(
-        demo_records: list[Record], demo_json: list[dict[str, Any]], tmp_path: Path,
+        demo_records: list[Transfer], demo_json: list[dict[str, Any]], tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:
     """A payload byte of every obstacles message flipped, link CRC recomputed: the frames pass
     the link, the host's E2E check (D5) catches them."""
@@ -495,7 +495,7 @@ def test_missing_bench_extra_gives_the_pip_hint(demo: Path, tmp_path: Path,
         assert rc == 2 and "pip install 'eyeq-spi[export]'" in err and err.count("\n") == 1
 
 
-def test_replay_needs_an_eyeq_channel(demo_records: list[Record], tmp_path: Path,
+def test_replay_needs_an_eyeq_channel(demo_records: list[Transfer], tmp_path: Path,
                                       capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "h2e.raw"
     path.write_bytes(b"".join(r.data for r in demo_records if r.direction == "h2e")[:128 * 20])

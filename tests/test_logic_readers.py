@@ -12,22 +12,22 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.errors import InputError
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.saleae import read_saleae1, read_saleae2
 from eyeq_spi.logic.vcd import read_vcd
 from eyeq_spi.logic.vcd_write import write_vcd
 
-Reader = Callable[..., Iterator[Record]]
+Reader = Callable[..., Iterator[Transfer]]
 
 
 def _both(read: Reader, data: bytes, opts: SpiOptions, chunk: int
-          ) -> tuple[list[Record] | str, list[Record] | str]:
+          ) -> tuple[list[Transfer] | str, list[Transfer] | str]:
     """(read in chunks of ``chunk`` bytes, read in 1 MiB chunks): the records, or the error's
     text."""
 
-    def run(size: int) -> list[Record] | str:
+    def run(size: int) -> list[Transfer] | str:
         try:
             return list(read(io.BytesIO(data), opts, chunk_size=size))
         except InputError as exc:
@@ -141,7 +141,7 @@ def _sigrok_layout(text: str, joins: list[bool]) -> str:
 def test_vcd_in_sigrok_layout_reads_back_alike_in_any_chunks(
         items: list[tuple[str, bytes]], mode: int, joins: list[bool], chunk: int) -> None:
     opts = SpiOptions(mode=mode)
-    recs = [Record(i * 1e-4, d, payload) for i, (d, payload) in enumerate(items)]
+    recs = [Transfer(i * 1e-4, d, payload) for i, (d, payload) in enumerate(items)]
     buf = io.StringIO()
     write_vcd(recs, buf, opts)
     raw = _sigrok_layout(buf.getvalue(), joins).encode()
@@ -184,7 +184,7 @@ def _mutated(draw: Any) -> tuple[str, bytes]:
         data = draw(saleae1_exports())
     else:
         buf = io.StringIO()
-        write_vcd([Record(i * 1e-4, d, p) for i, (d, p) in enumerate(
+        write_vcd([Transfer(i * 1e-4, d, p) for i, (d, p) in enumerate(
             draw(st.lists(st.tuples(st.sampled_from(["h2e", "e2h"]), st.binary(max_size=6)),
                           min_size=1, max_size=3)))], buf)
         data = buf.getvalue().encode()

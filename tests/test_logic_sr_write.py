@@ -11,20 +11,20 @@ import numpy as np
 import pytest
 
 from eyeq_spi import io as formats
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.cli import main
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.sr_write import CHUNK, LEAD, samplerate_text, write_sr
 
 
-def _transfers() -> list[Record]:
+def _transfers() -> list[Transfer]:
     rng = np.random.default_rng(7)
     recs = []
     for k in range(40):
         d = "h2e" if k % 2 == 0 else "e2h"
         # the two channels overlap in time; a pause of 0.3 s spans several chunks
         t = 1000.0 + 0.001 * (k // 2) + (0.3 if k >= 20 else 0.0) + (0.00002 if d == "e2h" else 0.0)
-        recs.append(Record(t, d, rng.integers(0, 256, 128, dtype=np.uint8).tobytes()))
+        recs.append(Transfer(t, d, rng.integers(0, 256, 128, dtype=np.uint8).tobytes()))
     return recs
 
 

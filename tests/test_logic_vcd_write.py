@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.cli import main
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.vcd import read_vcd
@@ -47,8 +47,8 @@ def test_a_vcd_over_the_limit_is_refused_before_writing(demo: Path, tmp_path: Pa
 
 
 def test_idle_time_is_compressed_and_said() -> None:
-    recs = [Record(0.001, "h2e", bytes(range(128))), Record(2.0, "e2h", bytes(128)),
-            Record(2.0002, "h2e", b"\x55" * 128)]
+    recs = [Transfer(0.001, "h2e", bytes(range(128))), Transfer(2.0, "e2h", bytes(128)),
+            Transfer(2.0002, "h2e", b"\x55" * 128)]
     plain, short = io.StringIO(), io.StringIO()
     write_vcd(recs, plain)
     write_vcd(recs, short, max_idle=150e-6)  # the 2 s gap is cut, the 0.1 ms one kept

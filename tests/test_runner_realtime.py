@@ -134,7 +134,7 @@ def test_replay_to_a_host_leaves_the_collector_on() -> None:
     import socket
     import threading
 
-    from eyeq_spi.capture.pcapng_io import Record
+    from eyeq_spi.capture.pcapng_io import Transfer
     from eyeq_spi.interop.replay import replay_to_port
 
     srv = socket.create_server(("127.0.0.1", 0))
@@ -148,7 +148,7 @@ def test_replay_to_a_host_leaves_the_collector_on() -> None:
     t.start()
     assert gc.isenabled()
     try:
-        replay_to_port([Record(0.0, "e2h", bytes(128))], f"tcp://127.0.0.1:{port}", lead=0.05)
+        replay_to_port([Transfer(0.0, "e2h", bytes(128))], f"tcp://127.0.0.1:{port}", lead=0.05)
     finally:
         srv.close()
         t.join(5)

@@ -20,7 +20,7 @@ from typing import Any
 
 import pytest
 
-from eyeq_spi.capture.pcapng_io import CaptureWriter, Record, read_pcapng
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Transfer, read_pcapng
 from eyeq_spi.codec.layout import Layout
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
 from eyeq_spi.errors import SpecError
@@ -132,7 +132,7 @@ def write_lua(tmp_path: Path) -> Path:
 
 
 # -- the Python reference -------------------------------------------------------------------------
-def expected_link(records: list[Record]) -> list[dict[str, str]]:
+def expected_link(records: list[Transfer]) -> list[dict[str, str]]:
     """Per frame, what tshark must print for LINK_FIELDS[1:12]."""
     fc = FrameCodec()
     out = []
@@ -163,7 +163,7 @@ def expected_link(records: list[Record]) -> list[dict[str, str]]:
     return out
 
 
-def reassemble(records: list[Record]) -> dict[int, bytes]:
+def reassemble(records: list[Transfer]) -> dict[int, bytes]:
     """Frame number (1-based) -> the message that frame completed (T1-T6a, trusted frames only)."""
     fc = FrameCodec()
     open_: dict[str | None, dict[str, Any] | None] = {}

@@ -25,13 +25,13 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from eyeq_spi.capture.pcapng_io import Record, read_pcapng
+from eyeq_spi.capture.pcapng_io import Transfer, read_pcapng
 from eyeq_spi.dissect.engine import Dissector
 from eyeq_spi.io.plain import open_records
 from eyeq_spi.logic.vcd_write import write_vcd
 
 
-def _demo(duration: float, path: Path) -> list[Record]:
+def _demo(duration: float, path: Path) -> list[Transfer]:
 
     from eyeq_spi.cli import main
 
@@ -44,7 +44,7 @@ def _demo(duration: float, path: Path) -> list[Record]:
         return list(read_pcapng(fh))
 
 
-def _formats(recs: list[Record], pcapng: bytes) -> dict[str, tuple[bytes, dict[str, str]]]:
+def _formats(recs: list[Transfer], pcapng: bytes) -> dict[str, tuple[bytes, dict[str, str]]]:
     raw = b"".join(r.data for r in recs if r.direction == "e2h" and len(r.data) == 128)
     hex_ = "".join(f"{r.time:.6f} {r.direction} {binascii.hexlify(r.data).decode()}\n"
                    for r in recs).encode()

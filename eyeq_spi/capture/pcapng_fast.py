@@ -12,7 +12,7 @@ fault, L8) keeps its bytes in ``Chunk.odd`` and a zero row in ``data``.
   hold both to the same records. Interface numbering, names and ``if_tsresol`` follow
   :func:`read_pcapng` exactly.
 - raw: concatenated 128-byte transfers, one ``np.frombuffer`` per chunk.
-- any other stream of :class:`Record`: :func:`chunks_from_records`.
+- any other stream of :class:`Transfer`: :func:`chunks_from_records`.
 
 Memory stays bounded by ``chunk``. A malformed or truncated file raises :class:`InputError` after
 every complete transfer before the fault has been returned; given a :class:`Tail`, a truncated
@@ -32,8 +32,8 @@ from eyeq_spi.capture.pcapng_io import (
     PCAPNG_MAGIC,
     PeekStream,
     Readable,
-    Record,
     Tail,
+    Transfer,
     read_pcapng,
 )
 from eyeq_spi.errors import InputError, TruncatedInputError
@@ -62,13 +62,13 @@ class Chunk:
     def __len__(self) -> int:
         return int(self.length.shape[0])
 
-    def record(self, i: int) -> Record:
+    def record(self, i: int) -> Transfer:
         """Row ``i`` as the reference dissector's input."""
         t = float(self.time[i])
         data = self.odd.get(i)
         if data is None:
             data = self.data[i].tobytes()
-        return Record(None if t != t else t, DIR_NAME[int(self.direction[i])], data)
+        return Transfer(None if t != t else t, DIR_NAME[int(self.direction[i])], data)
 
 
 def _chunk(rows: list[np.ndarray], lengths: list[int], times: list[float], dirs: list[int],
@@ -78,8 +78,8 @@ def _chunk(rows: list[np.ndarray], lengths: list[int], times: list[float], dirs:
                  np.asarray(dirs, np.int8), odd)
 
 
-def chunks_from_records(records: Iterable[Record], chunk: int = CHUNK) -> Iterator[Chunk]:
-    """The general path: any :class:`Record` stream (hex text, python-pcapng) as chunks."""
+def chunks_from_records(records: Iterable[Transfer], chunk: int = CHUNK) -> Iterator[Chunk]:
+    """The general path: any :class:`Transfer` stream (hex text, python-pcapng) as chunks."""
     buf = bytearray()
     lengths: list[int] = []
     times: list[float] = []

@@ -112,7 +112,7 @@ def release_sniff_transfers() -> int:
 
 
 @dataclass(frozen=True, slots=True)
-class Record:
+class Transfer:
     """One transfer as read from a capture: time, direction, bytes."""
 
     time: float | None
@@ -327,7 +327,7 @@ def _idb(link_type: int, name: str, description: str, tsresol: int) -> bytes:
 
 
 
-def read_pcapng(fh: IO[bytes], tail: Tail | None = None) -> Iterator[Record]:
+def read_pcapng(fh: IO[bytes], tail: Tail | None = None) -> Iterator[Transfer]:
     """Stream the transfers of a pcapng capture. Malformed files raise :class:`InputError`
     (see :class:`PcapngGuard`); a truncated one too, unless ``tail`` is given: then it ends
     after the last whole block and ``tail`` says what was left."""
@@ -344,7 +344,7 @@ def read_pcapng(fh: IO[bytes], tail: Tail | None = None) -> Iterator[Record]:
 
 
 def _scan(guard: PcapngGuard, scanner: Any, blocks: Any, pcapng_error: type[Exception]
-          ) -> Iterator[Record]:
+          ) -> Iterator[Transfer]:
     names: dict[int, str | None] = {}
     scales: dict[int, float] = {}
     try:
@@ -360,7 +360,7 @@ def _scan(guard: PcapngGuard, scanner: Any, blocks: Any, pcapng_error: type[Exce
             elif isinstance(block, blocks.EnhancedPacket):
                 iid = block.interface_id
                 ticks = (block.timestamp_high << 32) | block.timestamp_low
-                yield Record(ticks * scales.get(iid, 1e-6), names.get(iid),
+                yield Transfer(ticks * scales.get(iid, 1e-6), names.get(iid),
                              bytes(block.packet_data))
     except InputError:
         raise

@@ -106,6 +106,15 @@ EXAMPLES: dict[str, list[str]] = {
         "eyeq-spi spec show EYEQ_VIS_OBSTACLES_MSG",
         "eyeq-spi spec show 0xE4 --sw 8.1",
     ],
+    "bench": [
+        "eyeq-spi bench doctor ft4222://0,ft4222://1     # master looped to slave",
+        "eyeq-spi bench doctor ft4222://0,ft4222://1 --peer ft4222://2,ft4222://3",
+    ],
+    "bench doctor": [
+        "eyeq-spi bench doctor spidev:///dev/spidev0.0,spidev:///dev/spidev1.0",
+        "eyeq-spi bench doctor ft4222://0,ft4222://1 --frames 1000 --json",
+        "eyeq-spi bench doctor ft4222://0,ft4222://1 --peer ft4222://2,ft4222://3",
+    ],
 }
 
 

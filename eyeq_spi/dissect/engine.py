@@ -23,7 +23,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.catalog.bringup import SWITCH_APP_NAME
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import DaspCounters, MessageCodec
@@ -86,7 +86,7 @@ def jsonable(value: Any) -> Any:
     return value
 
 
-Transfer = list[tuple[bytes, "float | None", int, int]]
+TransferFrames = list[tuple[bytes, "float | None", int, int]]
 """The frames of one transfer: (bytes, time, NUM, capture index) each."""
 
 
@@ -164,8 +164,8 @@ class Dissector:
         receiver.index_of_num.update(zip(nums, indices, strict=True))
         receiver.clean_frames += len(nums)  # the receiver did not see them: L10a's span runs on
 
-    def resume(self, direction: str | None, last_first: Transfer | None,
-               tail: list[Transfer], open_transfer: Transfer | None) -> None:
+    def resume(self, direction: str | None, last_first: TransferFrames | None,
+               tail: list[TransferFrames], open_transfer: TransferFrames | None) -> None:
         """After a clean run on ``direction``: its receiver starts over at the NUM of the
         oldest frame given and takes these frames again, output dropped, so that it stands as
         :meth:`feed` of the whole run would leave it. ``tail``: the run's last whole
@@ -197,7 +197,7 @@ class Dissector:
             self._dirs[direction] = receiver
         return receiver
 
-    def feed(self, rec: Record) -> Iterator[dict[str, Any]]:
+    def feed(self, rec: Transfer) -> Iterator[dict[str, Any]]:
         idx = self.index
         self.index += 1
         time_s = rec.time
@@ -335,7 +335,7 @@ class Dissector:
         return errs[:10]
 
 
-def _replay(conn: TransportConnection, units: list[Transfer], restart_span: int) -> None:
+def _replay(conn: TransportConnection, units: list[TransferFrames], restart_span: int) -> None:
     """``conn`` reset to the first frame's NUM (with L10a's ``restart_span``) and fed
     ``units`` again, output dropped."""
     conn.reset(expected=units[0][0][2], restart_span=restart_span)
@@ -389,7 +389,7 @@ def _check_enums(codec: MessageCodec, lay: Any, values: dict[str, Any], path: st
             errs.append(f"bad enum value {value} for {path}.{name} ({enum.name})")
 
 
-def iter_records(records: Iterable[Record], *, sw: str | None = None,
+def iter_records(records: Iterable[Transfer], *, sw: str | None = None,
                  codec: MessageCodec | None = None) -> Iterator[dict[str, Any]]:
     """All records of a capture, in order, ending with the end-of-capture aborts."""
     dis = Dissector(sw, codec)

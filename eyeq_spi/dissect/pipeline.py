@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from typing import IO, Any
 
 from eyeq_spi import garbage
-from eyeq_spi.capture.pcapng_io import Record, Tail
+from eyeq_spi.capture.pcapng_io import Tail, Transfer
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.release import Capture, Release, open_capture
 from eyeq_spi.errors import EyeqError
@@ -147,7 +147,7 @@ class CaptureFile:
         return codec_for(self.release.key)
 
     @property
-    def transfers(self) -> Iterator[Record]:
+    def transfers(self) -> Iterator[Transfer]:
         """The capture's transfers as read (no dissection)."""
         return self.open().records
 

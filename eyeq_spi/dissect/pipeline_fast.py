@@ -19,8 +19,8 @@ import numpy as np
 from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
 from eyeq_spi.capture.pcapng_io import (
     PCAPNG_MAGIC,
-    Record,
     Tail,
+    Transfer,
     recorded_clock,
     recorded_release,
     release_sniff_transfers,
@@ -96,7 +96,7 @@ def _first_chunks(chunks: Iterator[Chunk], rows: int
     return first, None
 
 
-def _records(chunks: Iterator[Chunk]) -> Iterator[Record]:
+def _records(chunks: Iterator[Chunk]) -> Iterator[Transfer]:
     """The transfers of ``chunks`` one by one (a caller that wants the transfers)."""
     for chunk in chunks:
         for i in range(len(chunk)):

@@ -25,8 +25,8 @@ from dataclasses import dataclass, field, replace
 from typing import IO, Any
 
 from eyeq_spi.capture.pcapng_io import (
-    Record,
     Tail,
+    Transfer,
     recorded_clock,
     recorded_release,
     release_sniff_transfers,
@@ -125,7 +125,7 @@ def _fitting(cat: Catalog, lengths: set[tuple[int, int]]) -> list[SwKey]:
     return [k for k in cat.sw_versions if best and score[k] == best]
 
 
-def infer_release(records: Iterable[Record], cat: Catalog | None = None
+def infer_release(records: Iterable[Transfer], cat: Catalog | None = None
                   ) -> tuple[SwKey, str] | None:
     """The release the traffic shows (steps 3 and 4 of the module docstring), with where it was
     seen, or None when nothing in ``records`` tells."""
@@ -174,7 +174,7 @@ class Capture:
     was left unread at its end (filled once ``records`` is exhausted)."""
 
     kind: str
-    records: Iterator[Record]
+    records: Iterator[Transfer]
     release: Release
     tail: Tail = field(default_factory=Tail)
     # the fast path's chunks of transfers (:mod:`eyeq_spi.capture.pcapng_fast`), which
@@ -195,7 +195,7 @@ def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | Non
     if recorded is not None:
         release = choose_release(sw, (recorded, RECORDED), name)
         return Capture(kind, records, replace(release, clock=clock), tail)
-    head: list[Record] = []
+    head: list[Transfer] = []
     fault: EyeqError | None = None
     try:
         head.extend(itertools.islice(records, release_sniff_transfers()))

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.dissect.engine import Dissector
 
 ROWS = (("link", "Link frame"), ("transport", "Transport"), ("message", "Message"),
@@ -71,7 +71,7 @@ class Annotator:
         index = self.dis.index
         self._spans[index] = (ss, es)
         self._spans.pop(index - _KEEP, None)
-        for record in self.dis.feed(Record(time, self.direction, bytes(data))):
+        for record in self.dis.feed(Transfer(time, self.direction, bytes(data))):
             kind = record["kind"]
             if kind == "frame":
                 out.append((ss, es, LINK, link_text(record)))

@@ -11,7 +11,7 @@ from collections.abc import Callable, Iterable
 from typing import IO, Any
 
 from eyeq_spi import io as formats
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.errors import OutputError
 from eyeq_spi.logic.options import SpiOptions
 
@@ -31,7 +31,7 @@ def _checked(path: str) -> str:
     return path
 
 
-def export(records: Iterable[Record], *, source: str, sw: str | None = None,
+def export(records: Iterable[Transfer], *, source: str, sw: str | None = None,
            vcd: str | None = None, mdf: str | None = None, mcap: str | None = None,
            sr: str | None = None, sr_max_idle: float | None = None,
            spi: SpiOptions | None = None, vcd_max_idle: float | None = None,
@@ -110,7 +110,7 @@ def export(records: Iterable[Record], *, source: str, sw: str | None = None,
         return summary
 
 
-def _deliver(records: Iterable[dict[str, Any]], rec: Record | None, index: int, mcap_w: Any,
+def _deliver(records: Iterable[dict[str, Any]], rec: Transfer | None, index: int, mcap_w: Any,
              extra: Any, mdf_w: Any) -> None:
     """The dissector's records to every writer that takes them; the frame record of ``rec``
     (the transfer at ``index``) goes to the MCAP with its raw bytes."""

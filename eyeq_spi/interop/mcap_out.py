@@ -18,7 +18,7 @@ import json
 from typing import IO, Any
 
 from eyeq_spi import __version__
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.errors import OutputError
 from eyeq_spi.interop.mdf import need
 
@@ -100,7 +100,7 @@ class McapWriter:
         ns = round(time * 1e9) if time is not None else index * 1000
         self.add(cid, ns, json.dumps(body, separators=(",", ":")).encode())
 
-    def transfer(self, rec: Record, frame: dict[str, Any]) -> None:
+    def transfer(self, rec: Transfer, frame: dict[str, Any]) -> None:
         topic = f"/spi/{rec.direction or 'unknown'}/transfers"
         cid = self._channel(topic, _TRANSFER_SCHEMA, "eyeq_spi.Transfer")
         body = {k: frame[k] for k in ("index", "time", "direction", "frame_type", "num", "rsp",

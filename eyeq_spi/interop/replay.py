@@ -21,7 +21,7 @@ from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.catalog.messages import sw_release_text as sw_text
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
 from eyeq_spi.errors import AdapterError, EyeqError, InputError, RemoteProtocolError
@@ -32,17 +32,17 @@ from eyeq_spi.transport.events import MessageReceived
 
 
 class ReplayEyeQ:
-    def __init__(self, records: Iterable[Record], *, start: float = 0.0,
+    def __init__(self, records: Iterable[Transfer], *, start: float = 0.0,
                  duration: float | None = None, sw: str | None = None,
                  count_sent: bool = False) -> None:
-        self._src: Iterator[Record] = (r for r in records if r.direction == "e2h")
+        self._src: Iterator[Transfer] = (r for r in records if r.direction == "e2h")
         self.start = start
         self.duration = duration
         self.frames = FrameCodec()
         self.conn = TransportConnection(LinkConfig(role="eyeq"))
         self.codec = MessageCodec(sw)
         self.offset: float | None = None
-        self._next: Record | None = None
+        self._next: Transfer | None = None
         self._next_at: float | None = None
         self._last_at = start
         self.played = 0
@@ -170,7 +170,7 @@ class ReplayEyeQ:
                 "decode_errors": self.decode_errors}
 
 
-def host_bench(records: Iterable[Record], *, sw: str | None = None,
+def host_bench(records: Iterable[Transfer], *, sw: str | None = None,
                duration: float | None = None) -> tuple[ReplayEyeQ, Any, Any]:
     """The capture's EyeQ channel wired to a started built-in host emulator on a
     :class:`VirtualRunner` (virtual time = capture time from its first transfer): (node, host,
@@ -187,7 +187,7 @@ def host_bench(records: Iterable[Record], *, sw: str | None = None,
     return node, host, runner
 
 
-def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
+def replay_into_host(records: Iterable[Transfer], *, sw: str | None = None,
                      duration: float | None = None, realtime: bool = False,
                      on_host: Callable[[Any], None] | None = None) -> dict[str, Any]:
     """Feed the capture's EyeQ channel to the built-in host emulator in virtual time; the run
@@ -225,7 +225,7 @@ def replay_into_host(records: Iterable[Record], *, sw: str | None = None,
     return out
 
 
-def replay_to_port(records: Iterable[Record], url: str, *, listen: bool = False,
+def replay_to_port(records: Iterable[Transfer], url: str, *, listen: bool = False,
                    duration: float | None = None, connect_timeout: float = 30.0,
                    lead: float = 0.5, sw: str | None = None,
                    on_message: Callable[[DecodedMessage, float], None] | None = None,

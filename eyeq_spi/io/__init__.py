@@ -28,8 +28,8 @@ from typing import Any, Literal, NamedTuple
 from eyeq_spi.errors import MissingExtra, UnknownFormatError
 
 Kind = Literal["capture reader", "capture writer", "record writer", "can log"]
-CAPTURE_READER: Kind = "capture reader"  # a file of SPI transfers -> Record(time, direction, data)
-CAPTURE_WRITER: Kind = "capture writer"  # Records -> a file of SPI transfers
+CAPTURE_READER: Kind = "capture reader"  # a file of SPI transfers -> Transfer(time, dir, data)
+CAPTURE_WRITER: Kind = "capture writer"  # Transfers -> a file of SPI transfers
 RECORD_WRITER: Kind = "record writer"  # the dissector's records (docs/dissector.md) -> a file
 CAN_LOG: Kind = "can log"  # a CAN log python-can reads (its own registry, by suffix)
 KINDS: tuple[Kind, ...] = (CAPTURE_READER, CAPTURE_WRITER, RECORD_WRITER, CAN_LOG)

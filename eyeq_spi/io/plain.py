@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import IO
 
 from eyeq_spi import io as registry
-from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, PeekStream, Record, Tail, read_pcapng
+from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, PeekStream, Tail, Transfer, read_pcapng
 from eyeq_spi.errors import InputError, TruncatedInputError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec
 from eyeq_spi.logic.options import SpiOptions
@@ -95,7 +95,7 @@ def sniff_raw(head: bytes) -> str | None:
 
 def open_records(stream: IO[bytes], fmt: str | None = None,
                  direction: str | None = None, spi: SpiOptions | None = None,
-                 tail: Tail | None = None) -> tuple[str, Iterator[Record]]:
+                 tail: Tail | None = None) -> tuple[str, Iterator[Transfer]]:
     """The format and the transfers of a capture, by any capture reader of the registry.
     ``fmt``: the reader's name (else :func:`detect`); ``direction``: the channel of an input
     that holds one; ``spi``: how a logic-analyzer export maps onto the channels; ``tail``: a
@@ -110,8 +110,8 @@ def open_records(stream: IO[bytes], fmt: str | None = None,
     return kind, read(peek, tail if entry.takes == "tail" else direction)
 
 
-def _logic(read: Callable[[PeekStream, SpiOptions], Iterator[Record]], peek: PeekStream,
-           spi: SpiOptions, kind: str) -> Iterator[Record]:
+def _logic(read: Callable[[PeekStream, SpiOptions], Iterator[Transfer]], peek: PeekStream,
+           spi: SpiOptions, kind: str) -> Iterator[Transfer]:
     """A logic-analyzer reader's transfers; its errors as :class:`InputError`."""
     if not peek.head:
         raise InputError("empty input")
@@ -124,14 +124,14 @@ def _logic(read: Callable[[PeekStream, SpiOptions], Iterator[Record]], peek: Pee
 MAX_HEX_LINE = 1 << 14  # characters; a 128-byte transfer with time and separators needs ~420
 
 
-def read_pcapng_input(peek: PeekStream, tail: Tail | None = None) -> Iterator[Record]:
+def read_pcapng_input(peek: PeekStream, tail: Tail | None = None) -> Iterator[Transfer]:
     """The transfers of a pcapng capture; its errors as :class:`InputError`."""
     if peek.head[:4] != PCAPNG_MAGIC:
         raise InputError("not a pcapng file")
     return _pcapng(peek, tail)
 
 
-def _pcapng(peek: PeekStream, tail: Tail | None = None) -> Iterator[Record]:
+def _pcapng(peek: PeekStream, tail: Tail | None = None) -> Iterator[Transfer]:
     count = 0
     for rec in read_pcapng(peek, tail):  # type: ignore[arg-type]
         count += 1
@@ -140,7 +140,7 @@ def _pcapng(peek: PeekStream, tail: Tail | None = None) -> Iterator[Record]:
         raise InputError("pcapng capture without any transfer (no Enhanced Packet Block)")
 
 
-def read_raw(peek: PeekStream, direction: str | None = None) -> Iterator[Record]:
+def read_raw(peek: PeekStream, direction: str | None = None) -> Iterator[Transfer]:
     """128-byte transfers of one channel (``direction``), without times. A file none of whose
     first transfers is a link frame with a good CRC never was a raw capture."""
     if not peek.head:
@@ -151,24 +151,24 @@ def read_raw(peek: PeekStream, direction: str | None = None) -> Iterator[Record]
     return _raw(peek, direction)
 
 
-def _raw(peek: PeekStream, direction: str | None) -> Iterator[Record]:
+def _raw(peek: PeekStream, direction: str | None) -> Iterator[Transfer]:
     while True:
         chunk = peek.read(FRAME_SIZE * 512)
         if not chunk:
             return
         full = len(chunk) - len(chunk) % FRAME_SIZE
         for start in range(0, full, FRAME_SIZE):
-            yield Record(None, direction, chunk[start:start + FRAME_SIZE])
+            yield Transfer(None, direction, chunk[start:start + FRAME_SIZE])
         if full != len(chunk):
             rest = chunk[full:] + peek.read(FRAME_SIZE - (len(chunk) - full))
             if len(rest) == FRAME_SIZE:
-                yield Record(None, direction, rest)
+                yield Transfer(None, direction, rest)
                 continue
             raise TruncatedInputError(f"truncated raw capture: {len(rest)} bytes left over "
                                       "after the last whole 128-byte transfer")
 
 
-def read_hex(peek: PeekStream, direction: str | None = None) -> Iterator[Record]:
+def read_hex(peek: PeekStream, direction: str | None = None) -> Iterator[Transfer]:
     """One transfer per line; ``direction`` for lines that do not name theirs. A file whose
     first lines are not such lines never was a hex capture."""
     if peek.head and sniff_hex(peek.head) is None:
@@ -177,7 +177,7 @@ def read_hex(peek: PeekStream, direction: str | None = None) -> Iterator[Record]
     return _hex(peek, direction)
 
 
-def _hex(peek: PeekStream, direction: str | None) -> Iterator[Record]:
+def _hex(peek: PeekStream, direction: str | None) -> Iterator[Transfer]:
     buf = b""
     lineno = 0
     seen = False
@@ -206,7 +206,7 @@ def _hex(peek: PeekStream, direction: str | None) -> Iterator[Record]:
             return
 
 
-def _hex_line(raw_line: bytes, lineno: int, direction: str | None) -> Record | None:
+def _hex_line(raw_line: bytes, lineno: int, direction: str | None) -> Transfer | None:
     line = raw_line.split(b"#", 1)[0].strip()
     if not line:
         return None
@@ -226,10 +226,10 @@ def _hex_line(raw_line: bytes, lineno: int, direction: str | None) -> Record | N
         raise InputError(f"line {lineno}: not hex bytes: {shown!r}") from None
     if not data:
         raise InputError(f"line {lineno}: no bytes")
-    return Record(time_s, dirn, data)
+    return Transfer(time_s, dirn, data)
 
 
-def write_raw(records: Iterable[Record], path: str | Path, *, direction: str = "e2h") -> int:
+def write_raw(records: Iterable[Transfer], path: str | Path, *, direction: str = "e2h") -> int:
     """The transfers of ``direction`` (the raw format holds one channel and no times)."""
     count = 0
     with open(path, "wb") as fh:
@@ -240,7 +240,7 @@ def write_raw(records: Iterable[Record], path: str | Path, *, direction: str = "
     return count
 
 
-def write_hex(records: Iterable[Record], path: str | Path) -> int:
+def write_hex(records: Iterable[Transfer], path: str | Path) -> int:
     """One line per transfer: its time (as Python prints the float: it reads back the same),
     direction and bytes in hex; a field the record lacks is left out."""
     count = 0

@@ -7,10 +7,10 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.capture.pcapng_io import CaptureWriter, Record
+from eyeq_spi.capture.pcapng_io import CaptureWriter, Transfer
 
 
-def write_pcapng(records: Iterable[Record], path: str | Path, *, sw: str | None = None,
+def write_pcapng(records: Iterable[Transfer], path: str | Path, *, sw: str | None = None,
                  default_direction: str = "h2e") -> int:
     """A pcapng capture (``specs/capture.yaml``); ``sw`` is recorded as the traffic's release.
     A transfer without a time gets the previous one's; one without a direction goes to
@@ -25,7 +25,7 @@ def write_pcapng(records: Iterable[Record], path: str | Path, *, sw: str | None 
     return count
 
 
-def write_vcd_file(records: Iterable[Record], path: str | Path, **options: Any) -> int:
+def write_vcd_file(records: Iterable[Transfer], path: str | Path, **options: Any) -> int:
     """SPI waveforms (:class:`eyeq_spi.logic.vcd_write.VcdWriter`; ``options`` are its
     keyword arguments, ``opts`` the SPI options)."""
     from eyeq_spi.logic.vcd_write import write_vcd

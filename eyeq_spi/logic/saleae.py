@@ -7,7 +7,7 @@
 
 A transfer is the bytes between CS falling and rising (§6), so a chip-select fault is a transfer
 of the wrong length (L8). Bytes before a channel's first ``enable`` belong to a transfer the
-capture cut: they are dropped, as is a transfer still open at the end. Record times are the
+capture cut: they are dropped, as is a transfer still open at the end. Transfer times are the
 capture's (the ``enable`` row, or the first byte in Logic 1.x).
 
 The csv module reads any shape of export; errors name their line.
@@ -19,7 +19,7 @@ import csv
 import itertools
 from collections.abc import Callable, Iterator
 
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.errors import InputError
 from eyeq_spi.logic.options import MAX_TRANSFER, Route, SpiOptions, bench_spec
 from eyeq_spi.logic.saleae_types import (
@@ -68,9 +68,9 @@ def _byte(text: str, line: int) -> int | None:
     return value
 
 
-def _emit(tr: OpenTransfer, routes: list[Route]) -> Iterator[Record]:
+def _emit(tr: OpenTransfer, routes: list[Route]) -> Iterator[Transfer]:
     for route in routes:
-        yield Record(tr.time, route.direction, bytes(tr.lines[route.line]))
+        yield Transfer(tr.time, route.direction, bytes(tr.lines[route.line]))
 
 
 def _time(text: str, where: str) -> float:
@@ -81,7 +81,7 @@ def _time(text: str, where: str) -> float:
 
 
 def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
-                 ) -> Iterator[Record]:
+                 ) -> Iterator[Transfer]:
     try:
         yield from _saleae2(src, opts, chunk_size)
     except csv.Error as exc:
@@ -89,7 +89,7 @@ def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
 
 
 def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
-                  ) -> Iterator[Record]:
+                  ) -> Iterator[Transfer]:
     try:
         yield from _saleae1(src, opts, chunk_size)
     except csv.Error as exc:
@@ -140,7 +140,7 @@ def _line_count(chunk: bytes) -> int:
 
 
 def _by_chunk(body: bytes, chunks: Iterator[bytes],
-              rows: Callable[[bytes, int], Iterator[Record]]) -> Iterator[Record]:
+              rows: Callable[[bytes, int], Iterator[Transfer]]) -> Iterator[Transfer]:
     """Each chunk through the csv row loop, which is told the chunk's first line number (the
     header is 1)."""
     line = 2
@@ -150,7 +150,7 @@ def _by_chunk(body: bytes, chunks: Iterator[bytes],
             line += _line_count(chunk)
 
 
-def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Record]:
+def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
     chunks = byte_chunks(src, chunk_size)
     header, body = _head(chunks)
     try:
@@ -173,7 +173,7 @@ def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Rec
 
 def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
                   cols: dict[str, int], where: tuple[int, int, int], kinds: dict[str, str],
-                  state: Saleae2State, opts: SpiOptions) -> Iterator[Record]:
+                  state: Saleae2State, opts: SpiOptions) -> Iterator[Transfer]:
     """The csv loop: reads any shape, reports errors with their line."""
     i_name, i_type, i_time = where
     k_start, k_byte = kinds["start"], kinds["byte"]
@@ -213,7 +213,7 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
             raise InputError(f"line {n}: row type {kind!r} is not enable/result/disable")
 
 
-def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Record]:
+def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
     chunks = byte_chunks(src, chunk_size)
     header, body = _head(chunks)
     want = [h.lower() for h in bench_spec()["saleae1"]["header"]]
@@ -236,7 +236,7 @@ def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Rec
 
 def _saleae1_rows(rows: Iterator[list[str]], start: int, ncols: int,
                   where: tuple[int, int, int, int], state: Saleae1State, routes: list[Route]
-                  ) -> Iterator[Record]:
+                  ) -> Iterator[Transfer]:
     i_time, i_id, i_mosi, i_miso = where
     for n, row in enumerate(rows, start=start):
         if not row:

@@ -36,7 +36,7 @@ from typing import Any, Literal
 import numpy as np
 
 from eyeq_spi import __version__
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.logic.options import DIRECTIONS, SIGNALS, SpiOptions, bench_spec, signal_name
 
@@ -144,7 +144,7 @@ class SrWriter:
         self.zf.writestr("version", "2")
         self.sink = _ChunkSink(self.zf)
 
-    def write(self, rec: Record) -> None:
+    def write(self, rec: Transfer) -> None:
         direction = rec.direction or self.default_direction
         if rec.time is None:
             wanted = max(self.free[direction], self.last_start[direction] + self.gap[direction])
@@ -234,7 +234,7 @@ class SrWriter:
         return "\n".join(lines) + "\n"
 
 
-def write_sr(records: Iterable[Record], path: str | Path, opts: SpiOptions | None = None,
+def write_sr(records: Iterable[Transfer], path: str | Path, opts: SpiOptions | None = None,
              **kw: Any) -> SrWriter:
     writer = SrWriter(path, opts, **kw)
     try:
@@ -245,7 +245,7 @@ def write_sr(records: Iterable[Record], path: str | Path, opts: SpiOptions | Non
     return writer
 
 
-def write_sr_file(records: Iterable[Record], path: str | Path, **options: Any) -> int:
+def write_sr_file(records: Iterable[Transfer], path: str | Path, **options: Any) -> int:
     """The io registry's capture-writer signature: ``options`` are :class:`SrWriter`'s keyword
     arguments, ``opts`` the SPI options; returns the transfers written."""
     return write_sr(records, path, options.pop("opts", None), **options).count

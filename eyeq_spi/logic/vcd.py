@@ -15,7 +15,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.errors import InputError
 from eyeq_spi.logic.options import MAX_TRANSFER, SIGNALS, SpiOptions, sample_on_rising
 from eyeq_spi.logic.saleae_types import ByteSource
@@ -156,7 +156,7 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
 
 
 def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
-             ) -> Iterator[Record]:
+             ) -> Iterator[Transfer]:
     """Value changes -> one record per transfer and direction."""
     chunks = _raw_chunks(src, chunk_size)
     head = b""
@@ -199,10 +199,10 @@ class _Reader:
         self.vector_value: int | None = None
         self.in_comment = False
 
-    def feed(self, chunk: bytes) -> Iterator[Record]:
+    def feed(self, chunk: bytes) -> Iterator[Transfer]:
         yield from self._tokens(chunk.split())
 
-    def _tokens(self, batch: list[bytes]) -> Iterator[Record]:
+    def _tokens(self, batch: list[bytes]) -> Iterator[Transfer]:
         table, scale, msb = self.table, self.scale, self.msb
         sample_level = self.sample_level
         t = self.t

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.logic.options import Route
 
 CS, CLK, MOSI, MISO = range(4)
@@ -29,7 +29,7 @@ class Chan:
         self.miso_bytes = bytearray()
         self.t0 = 0
 
-    def emit(self, time: float) -> Iterator[Record]:
+    def emit(self, time: float) -> Iterator[Transfer]:
         for r in self.routes:
             data = self.mosi_bytes if r.line == "mosi" else self.miso_bytes
-            yield Record(time, r.direction, bytes(data))
+            yield Transfer(time, r.direction, bytes(data))

@@ -26,7 +26,7 @@ from typing import IO, Any, Literal
 import numpy as np
 
 from eyeq_spi import __version__
-from eyeq_spi.capture.pcapng_io import Record
+from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.logic.options import DIRECTIONS, SIGNALS, SpiOptions, bench_spec, signal_name
 
@@ -107,7 +107,7 @@ class VcdWriter:
     def _code(self, direction: str, signal: str, value: int) -> int:
         return ((DIRECTIONS.index(direction) * 4 + SIGNALS.index(signal)) << 1) | value
 
-    def write(self, rec: Record) -> None:
+    def write(self, rec: Transfer) -> None:
         direction = rec.direction or self.default_direction
         if rec.time is None:
             ticks = max(self.free[direction], self.last_start[direction] + self.gap[direction],
@@ -186,7 +186,7 @@ class VcdWriter:
         self.fh.write(f"#{self.last_tick}\n")
 
 
-def write_vcd(records: Iterable[Record], fh: IO[str], opts: SpiOptions | None = None,
+def write_vcd(records: Iterable[Transfer], fh: IO[str], opts: SpiOptions | None = None,
               **kw: object) -> VcdWriter:
     writer = VcdWriter(fh, opts, **kw)  # type: ignore[arg-type]
     for rec in records:

@@ -323,3 +323,18 @@ def _pause(seconds: float) -> None:
         time.sleep(seconds - 0.0002)
     while time.perf_counter() < end:
         pass
+
+
+def report_text(spi: dict[str, Any], budget_ms: float) -> str:
+    """The SPI lines of a run (``--port``/``--listen`` on an SPI side): the measured reply
+    latency, slave read to master write (the ACK path the peer's ackTimeout, ``budget_ms``,
+    judges), for the run summary's text."""
+    lat = spi["reply_latency_ms"]
+    line = f"  SPI {spi['adapter']}: overruns {spi['overruns']}, reply latency "
+    if not lat["n"]:
+        return line + "not measured (no transfer answered)"
+    line += (f"p50 {lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms, p99.9 {lat['p99_9']:.2f} ms, "
+             f"max {lat['max']:.2f} ms over {lat['n']} replies")
+    if lat["p99_9"] >= budget_ms:
+        line += f" (p99.9 at or above the {budget_ms:g} ms ackTimeout: this rig is too slow)"
+    return line
