@@ -1,4 +1,4 @@
-"""The terminal side of the CLI: human dissect lines (time since the first record, direction),
+"""The terminal side of the CLI: human dissect lines (time since the first transfer, direction),
 the shared progress bar (stderr a terminal only, never between records on stdout), help,
 version and shell completion."""
 
@@ -30,7 +30,7 @@ def demo_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_human_dissect_lines_carry_time_and_direction(
         demo_capture: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """``dissect --id 0xE4``: every line says when (s since the capture's first record, the
+    """``dissect --id 0xE4``: every line says when (s since the capture's first transfer, the
     origin of plot's time axis, whatever the filter drops) and which direction."""
     assert main(["dissect", str(demo_capture), "--json"]) == 0
     records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]

@@ -141,3 +141,17 @@ def test_a_thing_outside_a_panel_is_not_named_in_it() -> None:
     assert axes[1].get_ylim()[1] == 40.0
     names = {t.get_text() for t in _labels(axes[1])}
     assert "3 CIPV" not in names and "3 CIPV" in {t.get_text() for t in _labels(axes[0])}
+
+
+def test_a_sign_the_eyeq_cannot_place_is_listed_not_drawn() -> None:
+    """A sign whose distance the EyeQ does not know (§12.2: its position at the field's limit)
+    has no place on the road: it is not drawn, does not stretch the view to 127 m, and the
+    legend names it as unplaced."""
+    scene = Scene(time=1.0, objects=[_obj(3, 0, 30.0, 0.0)],
+                  signs=[SceneSign(127.5, 0.0, 0.0, 1, "Speed Limit 80", known=False)])
+    figure = birdseye(scene)
+    figure.canvas.draw()
+    assert figure.axes[0].get_ylim()[1] < 100  # fitted to the object at 30 m
+    assert not [ln for ax in figure.axes for ln in ax.lines if ln.get_marker() == "o"]
+    texts = [t.get_text() for legend in figure.legends for t in legend.get_texts()]
+    assert any("Speed Limit 80, position unknown" in t for t in texts), texts

@@ -114,7 +114,7 @@ def test_titles_count_in_words() -> None:
 
 
 def test_plot_time_is_dissect_time(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """The same origin: the capture's first record. The demo's first record is at 0.15 s of
+    """The same origin: the capture's first transfer. The demo's first transfer is at 0.15 s of
     its own clock; both views put it at 0."""
     cap = tmp_path / "d.pcapng"
     main(["demo", "--virtual-time", "--duration", "1.2", "--capture", str(cap), "--json"])

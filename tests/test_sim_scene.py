@@ -433,6 +433,10 @@ def test_traffic_signs_come_and_go() -> None:
         for s in tsr["trafficSigns"][:n]:
             pos = now[s["signID"]] = s["signLongPosition"]
             assert 0 < pos <= 127
+            # "height of sign relative to the sensor": the camera 1.3 m up, signs on posts
+            # 1.8-2.6 m, electronic ones on a gantry at 5.5 m
+            height = s["signHeight"]
+            assert 0.5 - 1e-6 <= height <= 1.3 + 1e-6 or abs(height - 4.2) < 1e-6, height
             if s["signID"] in last_pos:
                 assert pos < last_pos[s["signID"]]  # approaching
             seen.add((s["signID"], s["signType"]))

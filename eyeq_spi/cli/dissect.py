@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
                             tree=not args.no_tree)
         writers.append(human)
         if not plain:  # the filters drop records: the human view still dates from
-            kept = keep  # the file's first record, as plot does
+            kept = keep  # the file's first transfer, as plot does
 
             def keep(r: dict[str, Any]) -> bool:
                 human.see(r)

@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
         cf.close()
     if args.birdseye and args.at is not None and data.has_time and args.at > data.end:
         raise UsageError(f"--at {args.at:g}: after the last record read, at {data.end:.2f} s "
-                         f"(the capture spans 0 to {data.end:.2f} s since its first record)")
+                         f"(the capture spans 0 to {data.end:.2f} s since its first transfer)")
     if name_re is not None:
         data.streams = {k: value for k, value in data.streams.items() if name_re.search(k)}
     title = f"{Path(args.capture).name}: {kind}"

@@ -24,7 +24,7 @@ Messages of a span are cut from the arrays and handed to the dissector
 :meth:`~.engine.Dissector.message_state`), so message records are the dissector's by
 construction.
 
-A span ends at the first frame that is not clean, at the first record at or past the open
+A span ends at the first frame that is not clean, at the first transfer at or past the open
 transfer's reassembly deadline, before the other direction's first DATA frame with NUM 0 and
 RSP 0 (L4: the reference starts this direction's receiver over there too, so it must have seen
 the span's frames before it), or at the end of its chunk. There the dissector takes the
@@ -270,7 +270,7 @@ class ChunkFeeder:
             else:
                 break
         st.units, st.ui, st.stop_k = units, 0, k
-        # switch at the first frame outside the span, or before it at the first record at or
+        # switch at the first frame outside the span, or before it at the first transfer at or
         # past the open transfer's reassembly deadline
         row = P[k] if k < n else limit
         if st.open_ks >= 0:

@@ -14,7 +14,7 @@ its frame on MOSI at the seed's 10 MHz in the SPI mode and bit order of the opti
 frameFlowControl after the previous one), a transfer that would overlap the previous one of
 its channel starts ``min_idle`` after it, and the slave's MISO is left idle. The samples
 begin ``LEAD`` samples before the first transfer: a sample's time is seconds since the
-capture's first record (as ``eyeq-spi dissect`` shows them) plus ``LEAD`` samples. The sample rate
+capture's first transfer (as ``eyeq-spi dissect`` shows them) plus ``LEAD`` samples. The sample rate
 is two samples per clock period (an edge per sample), 20 MHz for 10 MHz. MOSI returns low when
 CS rises.
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from eyeq_spi.plot.figures import new_figure, plural
 from eyeq_spi.plot.labels import Label, place_labels
-from eyeq_spi.plot.perceived import Scene, SceneLine, SceneObject
+from eyeq_spi.plot.perceived import Scene, SceneLine, SceneObject, SceneSign
 from eyeq_spi.plot.vehicle_frame import box_centre
 
 DPI = 100
@@ -62,6 +62,11 @@ def class_colour(cls: int) -> str:
     return _TAB10[cls % len(_TAB10)]
 
 
+def placed(scene: Scene) -> list[SceneSign]:
+    """The signs whose position the EyeQ knows (§12.2): the others have no place to draw."""
+    return [sign for sign in scene.signs if sign.known]
+
+
 def view_limits(scenes: Sequence[Scene], range_m: float | None = None,
                 lateral_m: float | None = None) -> tuple[float, float]:
     """(forward range, lateral half-width) in metres: given, or fitted to what is drawn."""
@@ -69,13 +74,13 @@ def view_limits(scenes: Sequence[Scene], range_m: float | None = None,
         far = 40.0
         for sc in scenes:
             far = max(far, *(o.long + o.length for o in sc.objects), *(ln.end for ln in sc.lines),
-                      *(s.long for s in sc.signs), 0.0)
+                      *(s.long for s in placed(sc)), 0.0)
         range_m = min(250.0, math.ceil((far + 5.0) / 10.0) * 10.0)
     if lateral_m is None:
         wide = 10.0
         for sc in scenes:
             wide = max(wide, *(abs(o.lat) + o.width for o in sc.objects),
-                       *(abs(s.lat) + 1.0 for s in sc.signs), 0.0)
+                       *(abs(s.lat) + 1.0 for s in placed(sc)), 0.0)
             for ln in sc.lines:
                 wide = max(wide, abs(ln.lateral(ln.start)), abs(ln.lateral(ln.end)))
         lateral_m = min(100.0, math.ceil(wide + 2.0))
@@ -143,7 +148,7 @@ def near_range(scenes: Sequence[Scene], lateral_m: float) -> float:
     """The zoom's forward range: :func:`near_base`, pushed past every object (box and arrow)
     and sign it would cut, with NEAR_MARGIN_M to spare."""
     spans = [_extent(o) for sc in scenes for o in sc.objects]
-    spans += [(s.long - 1.0, s.long + 1.0) for sc in scenes for s in sc.signs]
+    spans += [(s.long - 1.0, s.long + 1.0) for sc in scenes for s in placed(sc)]
     cut = near_base(lateral_m)
     moved = True
     while moved:
@@ -230,7 +235,7 @@ def draw_scene(axes: Any, scene: Scene, range_m: float, lateral_m: float,
     fig.legend(handles=_legend(scene, len(axes) > 1), loc="upper left",
                bbox_to_anchor=(right, axes[0].get_position().y1), fontsize=8)
     when = "end of capture" if scene.time is None else f"t = {scene.time:.2f} s"
-    fig.suptitle(title or f"{when} (s since the capture's first record): "
+    fig.suptitle(title or f"{when} (s since the capture's first transfer): "
                  f"{plural(len(scene.objects), 'object')}, {plural(len(scene.lines), 'line')}, "
                  f"{plural(len(scene.signs), 'sign')}; equal scales", fontsize=10)
 
@@ -267,7 +272,7 @@ def _draw_panel(ax: Any, scene: Scene, lateral_m: float, named: Callable[[float]
             half = (obj.width / 2 * ppm + (CIPV_PAD_PX + 2 if obj.cipv else 0),
                     obj.length / 2 * ppm + (CIPV_PAD_PX + 2 if obj.cipv else 0))
             labels.append(Label(f"{obj.id}" + (" CIPV" if obj.cipv else ""), _middle(obj), half))
-    for sign in scene.signs:
+    for sign in placed(scene):
         marks += ax.plot([sign.lat], [sign.long], "o", markersize=9, markerfacecolor="#ffffff",
                          markeredgecolor=SIGN_COLOUR, markeredgewidth=2.0, zorder=5)
         if signs_named:  # the narrow whole view has no room: the legend names them
@@ -299,13 +304,16 @@ def _legend(scene: Scene, zoomed: bool) -> list[Any]:
                        label="lane centre")]
     handles.append(Line2D([], [], marker="o", linestyle="", markerfacecolor="#ffffff",
                           markeredgecolor=SIGN_COLOUR, markeredgewidth=2.0, label="sign"))
+    signs = sorted(scene.signs, key=lambda s: (not s.known, s.long))
+    if not zoomed:  # one panel names the placed signs beside their marks
+        signs = [s for s in signs if not s.known]
+    handles += [Line2D([], [], linestyle="", label=f"  {s.name}, {s.long:.0f} m" if s.known
+                       else f"  {s.name}, position unknown (not drawn)")
+                for s in signs[:MAX_SIGN_NAMES]]
+    if len(signs) > MAX_SIGN_NAMES:
+        handles.append(Line2D([], [], linestyle="",
+                              label=f"  and {len(signs) - MAX_SIGN_NAMES} more"))
     if zoomed:
-        signs = sorted(scene.signs, key=lambda s: s.long)
-        handles += [Line2D([], [], linestyle="", label=f"  {s.name}, {s.long:.0f} m")
-                    for s in signs[:MAX_SIGN_NAMES]]
-        if len(signs) > MAX_SIGN_NAMES:
-            handles.append(Line2D([], [], linestyle="",
-                                  label=f"  and {len(signs) - MAX_SIGN_NAMES} more"))
         handles.append(Patch(fill=False, edgecolor="#404040", linestyle="--",
                              label="zoomed area"))
     return handles

@@ -16,7 +16,7 @@ GAP_COLOUR = "#d62728"
 BAND_COLOUR = "#2ca02c"
 DOT_COLOUR = "#1f77b4"
 # the origin of every time axis: the capture's first timestamped record, as dissect's lines
-TIME_LABEL = "s since the capture's first record (as eyeq-spi dissect)"
+TIME_LABEL = "s since the capture's first transfer (as eyeq-spi dissect)"
 # series of one panel: each its own colour and style, the first drawn widest so that series
 # with equal values show as nested stripes instead of hiding one another
 SERIES_STYLES = (("#1f77b4", "-", 5.0), ("#ff7f0e", "--", 3.2), ("#2ca02c", "-", 1.8),

@@ -456,8 +456,10 @@ class Scene(SceneWorld):
             ss = max(s, 1.0)
             u, v = IMAGE_W / 2 - FOCAL_PX * y / ss, IMAGE_H / 2 - FOCAL_PX * (z - CAM_HEIGHT) / ss
             half = FOCAL_PX * 0.35 / ss
-            rows.append((  # SIGN_KEYS; §16: "a positive value indicates the sign is on the right"
-                s, -y, z, min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[index]), 0.0, 0.0,
+            # SIGN_KEYS; §16: "a positive value indicates the sign is on the right", and
+            # signHeight is the "height of sign relative to the sensor"
+            rows.append((
+                s, -y, z - CAM_HEIGHT, min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[index]), 0.0, 0.0,
                 0.95 if lat[index] < 0.0 else 0.85, v + half, u - half, u + half, v - half,
                 typ[index], 0, 0, sid[index], decision, filt))
         write_table(elems, en, SIGN_KEYS, rows, SIGN_KEYS)
