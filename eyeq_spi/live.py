@@ -41,6 +41,20 @@ def capture_tap(writer: Any, start: float, tx: str, rx: str) -> Tap | None:
     return tap
 
 
+def _heard(sim: SimulatedEyeQ, tap: Tap | None) -> tuple[Tap, list[int | None]]:
+    """A tap that notes the link's send failures whenever the host is heard (then calls
+    ``tap``), and the cell it notes them in: what failed after the host was last heard went to
+    a host that was gone (:meth:`SimSessions.add`)."""
+    cell: list[int | None] = [None]
+
+    def noted(kind: str, at: float, transfer: bytes) -> None:
+        if kind == "rx":  # (a power-up makes a new link: looked up each time)
+            cell[0] = sim.conn.link.counters.sendFailedErrorCounter
+        if tap is not None:
+            tap(kind, at, transfer)
+    return noted, cell
+
+
 def serve(eyeq: SimulatedEyeQ, adapter: Any, *, duration: float | None, accept_timeout: float,
           address: str, rt_priority: int = 0, capture: Any = None,
           clock: Callable[[], float] = time.monotonic) -> dict[str, Any]:
@@ -65,7 +79,7 @@ def serve(eyeq: SimulatedEyeQ, adapter: Any, *, duration: float | None, accept_t
                 continue
             sim = eyeq
             runner = RealTimeRunner(sim, adapter)
-            runner.tap = capture_tap(capture, t0, "e2h", "h2e")
+            runner.tap, heard = _heard(sim, capture_tap(capture, t0, "e2h", "h2e"))
             sim.power_up(runner.clock())
             served.begin(sim)
             began = clock()
@@ -78,7 +92,8 @@ def serve(eyeq: SimulatedEyeQ, adapter: Any, *, duration: float | None, accept_t
             finally:
                 runner.close()
             served.add(sim, began=began - t0, ended=clock() - t0, link_lost=lost,
-                       not_taken=adapter.stats.left_at_link_loss - not_taken)
+                       not_taken=adapter.stats.left_at_link_loss - not_taken,
+                       failed_when_heard=heard[0])
     except KeyboardInterrupt:
         interrupted = True
     finally:

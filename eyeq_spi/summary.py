@@ -320,10 +320,9 @@ def _nonzero(counts: dict[str, int]) -> dict[str, int]:
 
 
 class SimSessions:
-    """The summaries of the hosts a ``sim`` run serves, one per connection. Each holds that
-    host's counts only, whether the serve loop makes a new :class:`SimulatedEyeQ` for each
-    connection or powers the same one up again (then the counts before it are subtracted).
-    Every time is in seconds since the run started, ``t0`` on the simulator's clock."""
+    """The summaries of the hosts a ``sim`` run serves, one per connection, each with that
+    host's counts only (a :class:`SimulatedEyeQ` powered up again has the counts before it
+    subtracted). Times are seconds since the run started, ``t0`` on the simulator's clock."""
 
     def __init__(self, t0: float = 0.0) -> None:
         self.t0 = t0
@@ -339,10 +338,13 @@ class SimSessions:
         self._begun = (sim, _sim_counts(sim))
 
     def add(self, sim: SimulatedEyeQ, *, began: float, ended: float,
-            link_lost: str | None, not_taken: int = 0) -> dict[str, Any]:
+            link_lost: str | None, not_taken: int = 0,
+            failed_when_heard: int | None = None) -> dict[str, Any]:
         """Close the session of the host that was just served (``began``/``ended``: seconds
         since the run started) and return its summary. ``not_taken``: transfers the host
-        sent that the adapter dropped with its connection (never handed to the EyeQ)."""
+        sent that the adapter dropped with its connection (never handed to the EyeQ).
+        ``failed_when_heard``: send failures when the host was last heard; later ones went to a
+        host that was gone (SPI lines only fall silent): what it left, not a loss."""
         now = _sim_counts(sim)
         counts = now if self._last is None or self._last[0] is not sim \
             else _minus(now, self._last[1])
@@ -350,6 +352,9 @@ class SimSessions:
             for key in ("link", "transport_aborts"):
                 counts[key] = _minus(now[key], self._begun[1][key])
         self._last, self._begun = (sim, now), None
+        gone = 0 if link_lost is None or failed_when_heard is None else max(
+            0, sim.conn.link.counters.sendFailedErrorCounter - failed_when_heard)
+        counts["link"]["sendFailedErrorCounter"] -= gone
         session: dict[str, Any] = {
             "began_s": round(began, 3), "ended_s": round(ended, 3),
             "state": f"0x{sim.main_state:02X}",
@@ -375,10 +380,10 @@ class SimSessions:
             "running_vision_since": (None if sim.running_since is None
                                      else round(sim.running_since - self.t0, 4)),
             "link_lost": link_lost,
-            # what the host left when it went: our frames it never ACKed, its transfers that
-            # arrived after the EyeQ last read (null: the session did not end by link loss)
+            # what the host left: our frames it never ACKed, its transfers the EyeQ never read
+            # (null: the session did not end by link loss)
             "left_at_link_loss": None if link_lost is None else {
-                "frames": sim.conn.link.in_flight, "transfers": not_taken},
+                "frames": sim.conn.link.in_flight + gone, "transfers": not_taken},
         }
         # the host leaving ends a session; it is not a loss on the EyeQ side (it serves the next)
         session["problem"] = _losses(session)
@@ -593,6 +598,3 @@ def _wrap(line: str, width: int = 80) -> str:
                          break_on_hyphens=False)
     return text.replace("\u00a0", " ")
 
-
-def running_state(host: HostEmulator) -> bool:
-    return host.state is HostState.RUNNING_VISION

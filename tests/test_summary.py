@@ -200,3 +200,31 @@ def test_a_lost_frame_is_named_before_what_it_caused() -> None:
     corrupt = finish({**base, "transport_aborts": {}, "dasp_counter_gaps": 0,
                       "e2e_errors": 2}, None)
     assert corrupt["problem"] == "2 E2E errors" and not corrupt["ok"]
+
+
+def test_frames_sent_to_a_host_that_fell_silent_are_what_it_left(tmp_path: Path) -> None:
+    """SPI lines have no hang-up: a host that goes away falls silent, and the EyeQ keeps
+    sending until the silence says the link is lost. The frames that failed after the host
+    was last heard went to nobody: they are what the host left, not send failures of the
+    session (which ran clean)."""
+    emu = build(nvm=Nvm(tmp_path / "nvm.json"))
+    emu.run_for(3.0)
+    sim, now = emu.sim, emu.runner.now
+    heard = sim.conn.link.counters.sendFailedErrorCounter
+    end = now + 1.0
+    while now < end:  # the host is gone: the EyeQ's frames are never ACKed
+        timer = sim.get_timer()
+        now = min(end, timer if timer is not None else end)
+        sim.handle_timer(now)
+        sim.data_to_send(now)
+        now += 1e-4
+    failed = sim.conn.link.counters.sendFailedErrorCounter - heard
+    assert failed > 10
+    session = SimSessions().add(sim, began=0.0, ended=now, link_lost="the peer fell silent",
+                                failed_when_heard=heard)
+    assert session["link"]["sendFailedErrorCounter"] == heard, session["link"]
+    assert session["left_at_link_loss"]["frames"] >= failed
+    assert session["ok"] == (heard == 0), session["problem"]
+    unheard = SimSessions().add(sim, began=0.0, ended=now, link_lost="the peer fell silent")
+    assert unheard["link"]["sendFailedErrorCounter"] == heard + failed
+    assert not unheard["ok"] and "send failures" in unheard["problem"]
