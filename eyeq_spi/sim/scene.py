@@ -459,7 +459,8 @@ class Scene(SceneWorld):
             # SIGN_KEYS; §16: "a positive value indicates the sign is on the right", and
             # signHeight is the "height of sign relative to the sensor"
             rows.append((
-                s, -y, z - CAM_HEIGHT, min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[index]), 0.0, 0.0,
+                s, -y, z - CAM_HEIGHT,
+                min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[index]), 0.0, 0.0,
                 0.95 if lat[index] < 0.0 else 0.85, v + half, u - half, u + half, v - half,
                 typ[index], 0, 0, sid[index], decision, filt))
         write_table(elems, en, SIGN_KEYS, rows, SIGN_KEYS)
