@@ -95,6 +95,8 @@ def _foxglove_scene(mcap: str | None) -> Any:
         return None
     import importlib.util
 
+    if importlib.util.find_spec("mcap") is None:
+        return None  # no MCAP at all: the export says which extra that needs
     if importlib.util.find_spec("foxglove") is None:
         print("eyeq-spi export: no 3D scene in the MCAP: pip install 'eyeq-spi[foxglove]' adds "
               "it (and a Foxglove layout)", file=sys.stderr)
