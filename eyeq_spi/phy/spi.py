@@ -49,6 +49,7 @@ BIN_S = 1e-5  # reply latency histogram: 10 µs bins, as the run summary's ACK l
 # received frame for half the peer's ackTimeout. While an SPI adapter is open, the interpreter
 # switches threads at least this often.
 SWITCH_INTERVAL = 0.0002
+DROP_SILENCES = 1.5  # drop(): silent this many of the peer's silence limits, to be sure
 
 
 def _reverse_bits(value: int) -> int:
@@ -189,6 +190,21 @@ class SpiAdapter(Adapter):
             time.sleep(0.01)
         self._quiet = False
         return self._lost is None
+
+    def drop(self) -> None:
+        """End the peer's session the only way SPI lines can (they have no hang-up): say
+        nothing for longer than ``silence`` (after which a peer takes the link as lost, as we
+        do), and drop what it sends meanwhile (it belongs to the session that ended). Then the
+        lines are fresh again: :meth:`accept` takes them at once, since a host that started
+        over waits for the EyeQ's boot status and sends nothing first."""
+        self._start()
+        with contextlib.suppress(LinkLostError):
+            self.wait_sent()
+        end = self.clock() + DROP_SILENCES * self.settings.silence
+        while (left := end - self.clock()) > 0:
+            with contextlib.suppress(queue.Empty):
+                self._ready.get(timeout=min(0.05, left))
+        self._heard, self._quiet, self._pending_reply = None, False, None
 
     def _start(self) -> None:
         """Start the reader and writer threads on first use, not when opened, and at the
