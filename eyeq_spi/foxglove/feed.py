@@ -154,7 +154,7 @@ class Feed:
         lvl = {"debug": sdk.LogLevel.Debug, "info": sdk.LogLevel.Info,
                "warning": sdk.LogLevel.Warning, "error": sdk.LogLevel.Error}[level]
         self._put(topics.LOG, sdk.Log(timestamp=timestamp(stamp), level=lvl, message=text,
-                                    name=name), stamp)
+                                      name=name), stamp)
 
     def tick(self, time_s: float) -> None:
         """Publish the once-a-second topics when their second is over."""

@@ -71,7 +71,7 @@ def pose(x: float, y: float, z: float, yaw: float = 0.0) -> Any:
 def _text(text: str, x: float, y: float, z: float) -> Any:
     sdk = fg()
     return sdk.TextPrimitive(pose=pose(x, y, z), billboard=True, font_size=LABEL_SIZE,
-                           scale_invariant=True, color=colour("#000000"), text=text)
+                             scale_invariant=True, color=colour("#000000"), text=text)
 
 
 def _meta(**values: Any) -> list[Any]:
@@ -97,7 +97,7 @@ class SceneMessages:
                  LIGHTS: self._lights}[kind]
         parts = list(build(scene))
         entities = [sdk.SceneEntity(timestamp=stamp, frame_id=FRAME, id=eid, lifetime=lifetime,
-                                  **primitives) for eid, primitives in parts]
+                                    **primitives) for eid, primitives in parts]
         ids = {eid for eid, _ in parts}
         gone = sorted(self.shown[kind] - ids)
         self.shown[kind] = ids
@@ -203,12 +203,13 @@ def frame_transforms(ns: int, odom: tuple[float, float, float] | None,
     stamp = timestamp(ns)
     unit = sdk.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
     out = [sdk.FrameTransform(timestamp=stamp, parent_frame_id=FRAME, child_frame_id=CAMERA_FRAME,
-                            translation=sdk.Vector3(x=0.0, y=0.0, z=camera_height), rotation=unit)]
+                              translation=sdk.Vector3(x=0.0, y=0.0, z=camera_height),
+                              rotation=unit)]
     if odom is not None:
         x, y, yaw = odom
         qx, qy, qz, qw = yaw_quaternion(yaw)
         out.append(sdk.FrameTransform(
             timestamp=stamp, parent_frame_id=WORLD_FRAME, child_frame_id=FRAME,
             translation=sdk.Vector3(x=x, y=y, z=0.0), rotation=sdk.Quaternion(x=qx, y=qy, z=qz,
-                                                                          w=qw)))
+                                                                              w=qw)))
     return out
