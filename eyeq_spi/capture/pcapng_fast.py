@@ -87,16 +87,16 @@ def chunks_from_records(records: Iterable[Transfer], chunk: int = CHUNK) -> Iter
     dirs: list[int] = []
     odd: dict[int, bytes] = {}
     zero = bytes(FRAME_SIZE)
-    for rec in records:
-        size = len(rec.data)
+    for transfer in records:
+        size = len(transfer.data)
         if size == FRAME_SIZE:
-            buf += rec.data
+            buf += transfer.data
         else:
-            odd[len(lengths)] = rec.data
+            odd[len(lengths)] = transfer.data
             buf += zero
         lengths.append(size)
-        times.append(float("nan") if rec.time is None else rec.time)
-        dirs.append(DIR_CODE[rec.direction])
+        times.append(float("nan") if transfer.time is None else transfer.time)
+        dirs.append(DIR_CODE[transfer.direction])
         if len(lengths) >= chunk:
             yield _chunk([np.frombuffer(bytes(buf), np.uint8).reshape(-1, FRAME_SIZE)], lengths,
                          times, dirs, odd)
