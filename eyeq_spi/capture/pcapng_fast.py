@@ -62,13 +62,14 @@ class Chunk:
     def __len__(self) -> int:
         return int(self.length.shape[0])
 
-    def record(self, i: int) -> Transfer:
+    def record(self, index: int) -> Transfer:
         """Row ``i`` as the reference dissector's input."""
-        t = float(self.time[i])
-        data = self.odd.get(i)
+        time_s = float(self.time[index])
+        data = self.odd.get(index)
         if data is None:
-            data = self.data[i].tobytes()
-        return Transfer(None if t != t else t, DIR_NAME[int(self.direction[i])], data)
+            data = self.data[index].tobytes()
+        return Transfer(None if time_s != time_s else time_s,
+                        DIR_NAME[int(self.direction[index])], data)
 
 
 def _chunk(rows: list[np.ndarray], lengths: list[int], times: list[float], dirs: list[int],
@@ -86,16 +87,16 @@ def chunks_from_records(records: Iterable[Transfer], chunk: int = CHUNK) -> Iter
     dirs: list[int] = []
     odd: dict[int, bytes] = {}
     zero = bytes(FRAME_SIZE)
-    for rec in records:
-        n = len(rec.data)
-        if n == FRAME_SIZE:
-            buf += rec.data
+    for transfer in records:
+        size = len(transfer.data)
+        if size == FRAME_SIZE:
+            buf += transfer.data
         else:
-            odd[len(lengths)] = rec.data
+            odd[len(lengths)] = transfer.data
             buf += zero
-        lengths.append(n)
-        times.append(float("nan") if rec.time is None else rec.time)
-        dirs.append(DIR_CODE[rec.direction])
+        lengths.append(size)
+        times.append(float("nan") if transfer.time is None else transfer.time)
+        dirs.append(DIR_CODE[transfer.direction])
         if len(lengths) >= chunk:
             yield _chunk([np.frombuffer(bytes(buf), np.uint8).reshape(-1, FRAME_SIZE)], lengths,
                          times, dirs, odd)
@@ -110,11 +111,12 @@ def raw_chunks(stream: Readable, direction: str | None, chunk: int = CHUNK) -> I
     code = DIR_CODE[direction]
     while True:
         blob = _read_exact(stream, FRAME_SIZE * chunk)
-        n = len(blob) // FRAME_SIZE
-        if n:
-            yield Chunk(np.frombuffer(blob[: n * FRAME_SIZE], np.uint8).reshape(n, FRAME_SIZE),
-                        np.full(n, FRAME_SIZE, np.int64), np.full(n, np.nan),
-                        np.full(n, code, np.int8))
+        count = len(blob) // FRAME_SIZE
+        if count:
+            yield Chunk(np.frombuffer(blob[: count * FRAME_SIZE], np.uint8)
+                        .reshape(count, FRAME_SIZE),
+                        np.full(count, FRAME_SIZE, np.int64), np.full(count, np.nan),
+                        np.full(count, code, np.int8))
         if len(blob) % FRAME_SIZE:
             raise InputError(f"truncated raw capture: {len(blob) % FRAME_SIZE} bytes left over "
                              "after the last whole 128-byte transfer")
@@ -122,15 +124,15 @@ def raw_chunks(stream: Readable, direction: str | None, chunk: int = CHUNK) -> I
             return
 
 
-def _read_exact(stream: Readable, n: int) -> bytes:
+def _read_exact(stream: Readable, size: int) -> bytes:
     parts: list[bytes] = []
     got = 0
-    while got < n:
-        b = stream.read(n - got)
-        if not b:
+    while got < size:
+        part = stream.read(size - got)
+        if not part:
             break
-        parts.append(b)
-        got += len(b)
+        parts.append(part)
+        got += len(part)
     return b"".join(parts)
 
 
@@ -195,7 +197,7 @@ class _Walker:
         self.dirs: list[int] = []
         self.runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # whole columns
         self.odd: dict[int, bytes] = {}
-        self.n = 0
+        self.count = 0
 
     def _seal(self) -> None:
         """The blocks read one at a time so far as one segment of columns."""
@@ -223,15 +225,15 @@ class _Walker:
         data = np.concatenate(self.rows) if self.rows else np.zeros((0, FRAME_SIZE), np.uint8)
         length, time, direction = (runs[0][i] if len(runs) == 1
                                    else np.concatenate([r[i] for r in runs]) for i in range(3))
-        c = Chunk(data, length, time, direction, self.odd)
+        chunk = Chunk(data, length, time, direction, self.odd)
         self._reset()
-        return c
+        return chunk
 
     def run(self) -> Iterator[Chunk]:
         try:
             yield from self._run()
         except TruncatedInputError as exc:
-            if self.n:  # every complete transfer before the fault
+            if self.count:  # every complete transfer before the fault
                 yield self._flush()
             if self.tail is None:
                 raise
@@ -240,7 +242,7 @@ class _Walker:
                                  "Packet Block)") from None
             self.tail.take(exc)
         except InputError:
-            if self.n:  # every complete transfer before the fault, then the error
+            if self.count:  # every complete transfer before the fault, then the error
                 yield self._flush()
             raise
 
@@ -254,9 +256,9 @@ class _Walker:
             if blen % 4 or not 12 <= blen <= MAX_BLOCK:
                 raise InputError(f"malformed pcapng: block at byte {self.offset + self.pos} has "
                                  f"length {blen} (a multiple of 4 in 12..{MAX_BLOCK} expected)")
-            if btype == _EPB and self.n < self.chunk:
+            if btype == _EPB and self.count < self.chunk:
                 self._fast_run(blen)
-                if self.n >= self.chunk:
+                if self.count >= self.chunk:
                     yield self._flush()
                 continue
             if not self._fill(blen):
@@ -273,9 +275,9 @@ class _Walker:
             elif btype == _EPB:
                 self._one_epb(body)
             self.pos += blen
-            if self.n >= self.chunk:
+            if self.count >= self.chunk:
                 yield self._flush()
-        if self.n:
+        if self.count:
             yield self._flush()
         if not self.packets:
             raise InputError("pcapng capture without any transfer (no Enhanced Packet Block)")
@@ -294,10 +296,10 @@ class _Walker:
         if cap == FRAME_SIZE:
             self.rows.append(np.frombuffer(data, np.uint8).reshape(1, FRAME_SIZE))
         else:
-            self.odd[self.n] = data
+            self.odd[self.count] = data
             self.rows.append(np.zeros((1, FRAME_SIZE), np.uint8))
         self.lengths.append(cap)
-        self.n += 1
+        self.count += 1
         self.packets += 1
 
     def _add_meta(self, iid: int, ticks: int) -> None:
@@ -308,20 +310,20 @@ class _Walker:
 
     def _fast_run(self, blen: int) -> None:
         """A run of EPBs of ``blen`` bytes carrying 128 bytes each, as one array view."""
-        want = self.chunk - self.n
+        want = self.chunk - self.count
         self._fill(min(want, 4096) * blen)
         avail = (len(self.buf) - self.pos) // blen
-        k = min(avail, want)
-        if blen != FRAME_SIZE + 32 or k == 0:
-            k = 0
-        if k:
-            blocks = np.frombuffer(self.buf, np.uint8, k * blen, self.pos).reshape(k, blen)
+        plain = min(avail, want)
+        if blen != FRAME_SIZE + 32 or plain == 0:
+            plain = 0
+        if plain:
+            blocks = np.frombuffer(self.buf, np.uint8, plain * blen, self.pos).reshape(plain, blen)
             words = blocks[:, :28].copy().view("<u4")  # type, len, iid, ts hi, ts lo, cap, orig
             good = ((words[:, 0] == _EPB) & (words[:, 1] == blen) & (words[:, 5] == FRAME_SIZE)
                     & (blocks[:, -4:].copy().view("<u4")[:, 0] == blen)
                     & (words[:, 2] < len(self.ifaces.names)))
-            k = int(np.argmin(good)) if not good.all() else k
-        if k == 0:  # not a plain block: one at a time
+            plain = int(np.argmin(good)) if not good.all() else plain
+        if plain == 0:  # not a plain block: one at a time
             if not self._fill(blen):
                 self._truncated()
             body = self.buf[self.pos + 8 : self.pos + blen - 4]
@@ -330,16 +332,16 @@ class _Walker:
             self._one_epb(body)
             self.pos += blen
             return
-        w = words[:k]
-        iid = w[:, 2].astype(np.int64)
-        ticks = (w[:, 3].astype(np.uint64) << np.uint64(32)) | w[:, 4].astype(np.uint64)
+        head = words[:plain]
+        iid = head[:, 2].astype(np.int64)
+        ticks = (head[:, 3].astype(np.uint64) << np.uint64(32)) | head[:, 4].astype(np.uint64)
         scales = np.asarray(self.ifaces.scales, np.float64)[iid]
         # int * float in Python rounds the int to a double first: do the same
         times = ticks.astype(np.float64) * scales
         codes = np.asarray([DIR_CODE[nm] for nm in self.ifaces.names], np.int8)[iid]
-        self.rows.append(blocks[:k, 28 : 28 + FRAME_SIZE])
+        self.rows.append(blocks[:plain, 28 : 28 + FRAME_SIZE])
         self._seal()
-        self.runs.append((np.full(k, FRAME_SIZE, np.int64), times, codes))
-        self.n += k
-        self.packets += k
-        self.pos += k * blen
+        self.runs.append((np.full(plain, FRAME_SIZE, np.int64), times, codes))
+        self.count += plain
+        self.packets += plain
+        self.pos += plain * blen

@@ -81,10 +81,10 @@ def did_you_mean(word: str, candidates: Iterable[str]) -> str:
     import difflib
 
     by_upper = {c.upper(): c for c in candidates}
-    w = word.strip().upper()
-    close = [c for c in by_upper if w and w in c][:3] if len(w) >= 3 else []
+    wanted = word.strip().upper()
+    close = [c for c in by_upper if wanted and wanted in c][:3] if len(wanted) >= 3 else []
     if not close:
-        close = difflib.get_close_matches(w, list(by_upper), n=3, cutoff=0.6)
+        close = difflib.get_close_matches(wanted, list(by_upper), n=3, cutoff=0.6)
     if not close:
         return ""
     return f" (did you mean {' or '.join(by_upper[c] for c in close)}?)"
@@ -103,12 +103,12 @@ def number(lo: float, hi: float, *, lo_open: bool = False, unit: str = "") -> Ty
 
     def parse(text: str) -> float:
         try:
-            v = float(text)
+            value = float(text)
         except ValueError:
             _bad(f"must be a number in {span}, got {text!r}")
-        if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
+        if not math.isfinite(value) or value < lo or value > hi or (lo_open and value == lo):
             _bad(f"must be a number in {span}, got {text!r}")
-        return v
+        return value
 
     parse.__name__ = "number"
     return parse
@@ -119,12 +119,12 @@ def integer(lo: int, hi: int, *, what: str = "an integer") -> Type:
 
     def parse(text: str) -> int:
         try:
-            v = _int(text)
+            value = _int(text)
         except ValueError:
             _bad(f"must be {what} in {lo}..{hi}, got {text!r}")
-        if not lo <= v <= hi:
+        if not lo <= value <= hi:
             _bad(f"must be {what} in {lo}..{hi}, got {text!r}")
-        return v
+        return value
 
     parse.__name__ = "integer"
     return parse
@@ -151,19 +151,19 @@ def sw_release(text: str) -> str:
 def _named(text: str, entries: dict[str, Any], ids: dict[int, str], what: str,
            listing: str) -> str:
     """The entry named ``text`` (any case) or with the numeric ID ``text``."""
-    t = text.strip()
+    stripped = text.strip()
     by_upper = {n.upper(): n for n in entries}
-    if t.upper() in by_upper:
-        return by_upper[t.upper()]
+    if stripped.upper() in by_upper:
+        return by_upper[stripped.upper()]
     try:
-        ident = _int(t)
+        ident = _int(stripped)
     except ValueError:
         ident = None
     if ident is not None:
         if ident in ids:
             return ids[ident]
-        _bad(f"no {what} with ID {t}; {listing}")
-    _bad(f"unknown {what} {t!r}{did_you_mean(t, entries)}; {listing}")
+        _bad(f"no {what} with ID {stripped}; {listing}")
+    _bad(f"unknown {what} {stripped!r}{did_you_mean(stripped, entries)}; {listing}")
 
 
 def _messages(pred: Callable[[Any], bool]) -> tuple[dict[str, Any], dict[int, str]]:
@@ -182,13 +182,13 @@ def message_id(text: str) -> int:
     """A data ID (0..255, ``0xE4``) or a message name (any case) -> its data ID."""
     names, ids = _messages(lambda m: True)
     try:
-        v = _int(text)
+        value = _int(text)
     except ValueError:
         return int(names[_named(text, names, ids, "message", "eyeq-spi spec list shows them")]
                    .data_id)
-    if not 0 <= v <= 0xFF:
+    if not 0 <= value <= 0xFF:
         _bad(f"must be a data ID in 0..255 (0x00..0xFF) or a message name, got {text!r}")
-    return v
+    return value
 
 
 def mesp_function(text: str) -> str:
@@ -202,13 +202,13 @@ def mesp_function(text: str) -> str:
             key = (_int(pair.group(1)), _int(pair.group(2)))
         except ValueError:
             key = None
-        for f in fns.values():
-            if (f.service, f.function) == key:
-                return str(f.name)
+        for entry in fns.values():
+            if (entry.service, entry.function) == key:
+                return str(entry.name)
         _bad(f"no MESP function {text.strip()}; {listing}")
     by_fn: dict[int, list[str]] = {}
-    for f in fns.values():
-        by_fn.setdefault(f.function, []).append(f.name)
+    for entry in fns.values():
+        by_fn.setdefault(entry.function, []).append(entry.name)
     unique = {k: v[0] for k, v in by_fn.items() if len(v) == 1}
     return _named(text, fns, unique, "MESP function", listing)
 
@@ -254,15 +254,15 @@ def boot_test_bits(text: str) -> int:
     values: dict[int, str] = _index()["enums"]["boot_test_result"]
     bits = {n: 1 << k for k, n in values.items()}
     try:
-        v = _int(text)
+        value = _int(text)
     except ValueError:
-        v = 0
+        value = 0
         for part in re.split(r"[|,+]", text):
             name = _named(part, bits, {}, "TestResults bit", "bits: " + ", ".join(bits))
-            v |= bits[name]
-    if not 1 <= v <= 0xFFFF:
+            value |= bits[name]
+    if not 1 <= value <= 0xFFFF:
         _bad(f"must be TestResults bits in 0x0001..0xFFFF or bit names, got {text!r}")
-    return v
+    return value
 
 
 def regex(text: str) -> str:
@@ -385,20 +385,20 @@ def spec_entry(query: str) -> str:
         [m.name for m in cat.messages], list(cat.init_messages), [f.name for f in cat.mesp],
         list(cat.structs), list(cat.enums),
     )]
-    q = query.strip()
+    stripped = query.strip()
     every = [n for names in kinds for n in names]
-    exact = [n for n in every if n.upper() == q.upper()]
+    exact = [n for n in every if n.upper() == stripped.upper()]
     if exact:
         return exact[0]
-    pair = re.fullmatch(r"(\w+)\s*/\s*(\w+)", q)
+    pair = re.fullmatch(r"(\w+)\s*/\s*(\w+)", stripped)
     try:
         if pair:
             key = (_int(pair.group(1)), _int(pair.group(2)))
-            for f in cat.mesp:
-                if (f.service, f.function) == key:
-                    return str(f.name)
-            _bad(f"no MESP function {q}; eyeq-spi spec list shows them")
-        ident = _int(q)
+            for entry in cat.mesp:
+                if (entry.service, entry.function) == key:
+                    return str(entry.name)
+            _bad(f"no MESP function {stripped}; eyeq-spi spec list shows them")
+        ident = _int(stripped)
     except ValueError:
         ident = None
     if ident is not None:
@@ -406,16 +406,16 @@ def spec_entry(query: str) -> str:
         hits += [n for n, im in cat.init_messages.items() if im.id == ident]
         if hits:
             return str(hits[0])
-        _bad(f"no message or init message with ID {q}; eyeq-spi spec list shows them")
+        _bad(f"no message or init message with ID {stripped}; eyeq-spi spec list shows them")
     for names in kinds:
-        part = [n for n in names if q.upper() in n.upper()]
+        part = [n for n in names if stripped.upper() in n.upper()]
         if len(part) == 1:
             return part[0]
         if part:
             more = "" if len(part) <= 8 else f" and {len(part) - 8} more"
-            _bad(f"{q!r} matches {', '.join(part[:8])}{more}: give more of the name")
-    _bad(f"no message, struct, init message, MESP function or enum named {q!r}"
-         f"{did_you_mean(q, every)}; eyeq-spi spec list shows them")
+            _bad(f"{stripped!r} matches {', '.join(part[:8])}{more}: give more of the name")
+    _bad(f"no message, struct, init message, MESP function or enum named {stripped!r}"
+         f"{did_you_mean(stripped, every)}; eyeq-spi spec list shows them")
 
 
 def one_line(message: str) -> str:

@@ -81,15 +81,15 @@ def add_sw(group: Any, help: str = SW_HELP) -> None:
 
 
 def sw(help: str = SW_HELP) -> argparse.ArgumentParser:
-    p = _parent()
-    add_sw(p, help)
-    return p
+    parser = _parent()
+    add_sw(parser, help)
+    return parser
 
 
 def json_out(help: str = "end with one JSON object") -> argparse.ArgumentParser:
-    p = _parent()
-    p.add_argument("--json", action="store_true", help=help)
-    return p
+    parser = _parent()
+    parser.add_argument("--json", action="store_true", help=help)
+    return parser
 
 
 def _foxglove_address(text: str) -> str:
@@ -104,12 +104,12 @@ def _foxglove_address(text: str) -> str:
 
 def foxglove() -> argparse.ArgumentParser:
     """``--foxglove [HOST:PORT]``: serve the run live to Foxglove (the [foxglove] extra)."""
-    p = _parent()
-    p.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", type=_foxglove_address,
-                   metavar="HOST:PORT", help="serve the EyeQ's scene, plots and log live to "
-                   "Foxglove over a WebSocket (default 127.0.0.1:8765; port 0: any free port; "
-                   "the address is printed on stderr; needs the [foxglove] extra)")
-    return p
+    parser = _parent()
+    parser.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", type=_foxglove_address,
+                        metavar="HOST:PORT", help="serve the EyeQ's scene, plots and log live to "
+                        "Foxglove over a WebSocket (default 127.0.0.1:8765; port 0: any free port; "
+                        "the address is printed on stderr; needs the [foxglove] extra)")
+    return parser
 
 
 def foxglove_feed(args: argparse.Namespace, host: Any) -> Any:
@@ -149,12 +149,12 @@ def serve_foxglove(args: argparse.Namespace) -> Any:
 def rt_priority(what: str = "ACKs") -> argparse.ArgumentParser:
     """``--rt-priority N``: SCHED_FIFO for the live run (``eyeq_spi.runner.sched``)."""
     lo, hi = LIMITS["rt_priority"]
-    p = _parent()
-    p.add_argument("--rt-priority", type=limited("rt_priority"), default=10, metavar="N",
-                   help=f"SCHED_FIFO priority {lo + 1}..{hi} so that {what} meet the 10 ms "
-                   "ackTimeout on a busy machine; 0: ordinary scheduling (default 10; falls "
-                   "back when refused)")
-    return p
+    parser = _parent()
+    parser.add_argument("--rt-priority", type=limited("rt_priority"), default=10, metavar="N",
+                        help=f"SCHED_FIFO priority {lo + 1}..{hi} so that {what} meet the 10 ms "
+                        "ackTimeout on a busy machine; 0: ordinary scheduling (default 10; falls "
+                        "back when refused)")
+    return parser
 
 
 # -- capture input ------------------------------------------------------------------------------
@@ -164,29 +164,30 @@ def capture_input(formats: Sequence[str] = FORMATS, *, spi: bool = True,
                   format_help: str = "skip detection",
                   sw_help: str | None = SW_HELP) -> argparse.ArgumentParser:
     """``--format``, ``--direction``, ``--sw`` and (``spi``) the logic-analyzer options."""
-    p = _parent()
-    p.add_argument("--format", choices=tuple(formats), help=format_help)
-    p.add_argument("--direction", choices=DIRECTIONS, help=direction_help)
+    parser = _parent()
+    parser.add_argument("--format", choices=tuple(formats), help=format_help)
+    parser.add_argument("--direction", choices=DIRECTIONS, help=direction_help)
     if sw_help is not None:
-        add_sw(p, sw_help)
+        add_sw(parser, sw_help)
     if spi:
-        add_spi_arguments(p)
-    return p
+        add_spi_arguments(parser)
+    return parser
 
 
 def add_spi_arguments(parser: Any) -> None:
     """How a logic-analyzer capture maps onto the two SPI channels (``logic.options``)."""
-    g = parser.add_argument_group("logic-analyzer inputs (saleae2, saleae1, vcd)")
-    g.add_argument("--spi-mode", type=int, choices=(0, 1, 2, 3),
-                   help="SPI mode (default 1: §6 POLARITY_0_PHASE_1)")
-    g.add_argument("--bit-order", choices=("msb_first", "lsb_first"),
-                   help="bit order of each byte on the wire (default msb_first)")
-    g.add_argument("--channel-map", metavar="MAP",
-                   help="which capture channel carries each direction: h2e=NAME[:LINE],"
-                   "e2h=NAME[:LINE] (NAME: Saleae analyzer name or VCD channel prefix, empty "
-                   "for the only one; LINE mosi|miso). Default: channels named h2e/e2h, MOSI")
-    g.add_argument("--signals", action="append", default=[], metavar="CHANNEL=CS,CLK,MOSI[,MISO]",
-                   help="VCD signal names of a channel (repeatable; default <channel>_cs ...)")
+    group = parser.add_argument_group("logic-analyzer inputs (saleae2, saleae1, vcd)")
+    group.add_argument("--spi-mode", type=int, choices=(0, 1, 2, 3),
+                       help="SPI mode (default 1: §6 POLARITY_0_PHASE_1)")
+    group.add_argument("--bit-order", choices=("msb_first", "lsb_first"),
+                       help="bit order of each byte on the wire (default msb_first)")
+    group.add_argument("--channel-map", metavar="MAP",
+                       help="which capture channel carries each direction: h2e=NAME[:LINE],"
+                       "e2h=NAME[:LINE] (NAME: Saleae analyzer name or VCD channel prefix, empty "
+                       "for the only one; LINE mosi|miso). Default: channels named h2e/e2h, MOSI")
+    group.add_argument("--signals", action="append", default=[],
+                       metavar="CHANNEL=CS,CLK,MOSI[,MISO]",
+                       help="VCD signal names of a channel (repeatable; default <channel>_cs ...)")
 
 
 def spi_options(args: argparse.Namespace) -> Any:
@@ -267,62 +268,62 @@ def scenario(side: str = "demo") -> argparse.ArgumentParser:
         raise ValueError(f"side must be demo, sim, host or monitor, not {side!r}")
     eyeq, host = side != "host", side != "sim"
     both = (EYEQ, HOST)
-    p = _parent()
-    g = p.add_argument_group("scenario")
+    parser = _parent()
+    group = parser.add_argument_group("scenario")
     lim = LIMITS
-    _side_option(g, [EYEQ], eyeq, "--seed", type=limited("seed"), default=1,
+    _side_option(group, [EYEQ], eyeq, "--seed", type=limited("seed"), default=1,
                  help="random seed of the scene, 0..2^32-1 (default 1)")
-    add_sw(g, "SW release both sides speak, e.g. 9.0 or 8.1 (default: newest in specs/)")
-    _side_option(g, [HOST], host, "--speed", type=_speed, default=25.0, metavar="M_S",
+    add_sw(group, "SW release both sides speak, e.g. 9.0 or 8.1 (default: newest in specs/)")
+    _side_option(group, [HOST], host, "--speed", type=_speed, default=25.0, metavar="M_S",
                  help="constant drive speed, m/s, in vehicleVelocity's range (default 25)")
-    _side_option(g, [HOST], host, "--scenario", metavar="CSV", type=ca.input_file,
+    _side_option(group, [HOST], host, "--scenario", metavar="CSV", type=ca.input_file,
                  help="vehicle signals from a CSV: time and host_vehicle_state_t members")
     for dest, default, what in (("objects", 8, "tracked objects"), ("signs", 4, "traffic signs"),
                                 ("light_spots", 4, "light spots")):
-        _side_option(g, [EYEQ], eyeq, "--" + dest.replace("_", "-"), type=limited(dest),
+        _side_option(group, [EYEQ], eyeq, "--" + dest.replace("_", "-"), type=limited(dest),
                      default=default, help=f"{what}, {lim[dest][0]}..{lim[dest][1]} "
                      f"(default {default})")
-    _side_option(g, [HOST], host, "--camera-only-aeb", action="store_true",
+    _side_option(group, [HOST], host, "--camera-only-aeb", action="store_true",
                  help="send IPB/PCW (0x78/0x79)")
     span = f"(0, {LINK_TIMEOUT_MS:g}]"
-    _side_option(g, both, True, "--ack-timeout", type=link_ms, metavar="MS",
+    _side_option(group, both, True, "--ack-timeout", type=link_ms, metavar="MS",
                  help=f"link ackTimeout in ms, {span} (default 10, seed §6); raise it for slow "
                  "bridges")
-    _side_option(g, both, True, "--transmit-timeout", type=link_ms, metavar="MS",
+    _side_option(group, both, True, "--transmit-timeout", type=link_ms, metavar="MS",
                  help=f"link transmitTimeout in ms, {span} (default 25, §6)")
-    _side_option(g, both, True, "--capture", metavar="FILE.pcapng", type=ca.output_file,
+    _side_option(group, both, True, "--capture", metavar="FILE.pcapng", type=ca.output_file,
                  help="write every SPI transfer of both channels to a pcapng capture")
-    _side_option(g, [HOST], host, "--can-out", metavar="TARGET",
+    _side_option(group, [HOST], host, "--can-out", metavar="TARGET",
                  help="Mobileye CAN output from the decoded DASP data: virtual, "
                  "INTERFACE:CHANNEL (socketcan:vcan0) or a .blf/.asc/.mf4/.log/.trc file")
-    _side_option(g, [HOST], host, "--can-protocol", choices=("extlog2", "me8"),
+    _side_option(group, [HOST], host, "--can-protocol", choices=("extlog2", "me8"),
                  default="extlog2", help="CAN protocol of --can-out (default extlog2)")
-    f = p.add_argument_group("faults (simulated EyeQ)") if eyeq else g
+    faults = parser.add_argument_group("faults (simulated EyeQ)") if eyeq else group
     lo, hi = lim["boot_fail"]
-    _side_option(f, [EYEQ], eyeq, "--boot-fail", type=limited("boot_fail"), default=0,
+    _side_option(faults, [EYEQ], eyeq, "--boot-fail", type=limited("boot_fail"), default=0,
                  metavar="N", help=f"the first N boots ({lo}..{hi}) report failing test bits")
-    _side_option(f, [EYEQ], eyeq, "--boot-test-bits", type=ca.boot_test_bits, default=0x0002,
+    _side_option(faults, [EYEQ], eyeq, "--boot-test-bits", type=ca.boot_test_bits, default=0x0002,
                  metavar="BITS", help="TestResults of a failing boot: 0x0001..0xFFFF or bit "
                  "names joined with | (default 0x0002)")
-    _side_option(f, [EYEQ], eyeq, "--corrupt-eeprom", action="store_true",
+    _side_option(faults, [EYEQ], eyeq, "--corrupt-eeprom", action="store_true",
                  help="EEPROM CRC does not match")
-    _side_option(f, [EYEQ], eyeq, "--fatal", type=ca.fatal_code, metavar="CODE",
+    _side_option(faults, [EYEQ], eyeq, "--fatal", type=ca.fatal_code, metavar="CODE",
                  help="force Fatal_Error CODE in 0x41: a number or name of enum fatal_error "
                  "(22 = INTRINSIC_CALIBRATION_MISMATCH)")
-    _side_option(f, [EYEQ], eyeq, "--reply-delay", type=ca.number(0, REPLY_DELAY_S, unit="s"),
+    _side_option(faults, [EYEQ], eyeq, "--reply-delay", type=ca.number(0, REPLY_DELAY_S, unit="s"),
                  default=0.0, metavar="S",
                  help=f"delay every MESP reply by S seconds, 0..{REPLY_DELAY_S:g}")
-    _side_option(f, [EYEQ], eyeq, "--drop-reply", action="append", default=[],
+    _side_option(faults, [EYEQ], eyeq, "--drop-reply", action="append", default=[],
                  type=ca.drop_reply, metavar="FUNCTION[:N]",
                  help="drop the first N (default 1) replies to a MESP function (name, any case, "
                  "or SERVICE/FUNCTION such as 0x05/0x04)")
-    _side_option(f, [EYEQ], eyeq, "--reset-at", type=seconds, metavar="T",
+    _side_option(faults, [EYEQ], eyeq, "--reset-at", type=seconds, metavar="T",
                  help=f"the EyeQ resets at time T s, (0, {DAY_S:g}]")
-    _side_option(f, [EYEQ], eyeq, "--stop-dasp", action="append", default=[],
+    _side_option(faults, [EYEQ], eyeq, "--stop-dasp", action="append", default=[],
                  type=ca.stop_dasp, metavar="MESSAGE[@T]",
                  help="stop sending a DASP message (name, any case, or data ID such as 0xE4) "
                  "at T s (default 0)")
-    return p
+    return parser
 
 
 def _speed(text: str) -> float:
@@ -330,9 +331,9 @@ def _speed(text: str) -> float:
     cat = ca.catalogue()
     var = cat.structs["host_vehicle_state_t"].variant_for(cat.default_sw)
     lo, hi = -20.0, 100.0
-    for m in var.members if var else ():
-        if m.name == "vehicleVelocity" and m.min is not None and m.max is not None:
-            lo, hi = float(m.min), float(m.max)
+    for member in var.members if var else ():
+        if member.name == "vehicleVelocity" and member.min is not None and member.max is not None:
+            lo, hi = float(member.min), float(member.max)
     return float(ca.number(lo, hi, unit="m/s")(text))
 
 
@@ -348,9 +349,9 @@ def _ms(value: float | None, name: str) -> float | None:
 
 def _check_limits(args: argparse.Namespace) -> None:
     for dest, (lo, hi) in SCENARIO_LIMITS.items():
-        v = getattr(args, dest, None)
-        if v is not None and not lo <= v <= hi:
-            raise UsageError(f"--{dest.replace('_', '-')} must be {lo}..{hi}, got {v}")
+        value = getattr(args, dest, None)
+        if value is not None and not lo <= value <= hi:
+            raise UsageError(f"--{dest.replace('_', '-')} must be {lo}..{hi}, got {value}")
 
 
 def sim_config(args: argparse.Namespace) -> Any:
@@ -359,8 +360,8 @@ def sim_config(args: argparse.Namespace) -> Any:
 
     _check_limits(args)
     drops: dict[str, int] = {}
-    for fn, n in args.drop_reply:  # (name, N) from args.drop_reply
-        drops[fn] = drops.get(fn, 0) + n
+    for fn, count in args.drop_reply:  # (name, N) from args.drop_reply
+        drops[fn] = drops.get(fn, 0) + count
     stops: dict[str, float] = dict(args.stop_dasp)  # (name, T) from args.stop_dasp
     return SimConfig(
         sw=args.sw, seed=args.seed, objects=args.objects, signs=args.signs,
@@ -431,13 +432,13 @@ class CaptureTap:
         self.clock = clock
         self.origin: float | None = None  # the clock's reading at the schedule's 0
 
-    def __call__(self, node: int, t: float, transfer: bytes) -> None:
+    def __call__(self, node: int, time_s: float, transfer: bytes) -> None:
         if self.clock is not None:
             now = self.clock()
             if self.origin is None:
-                self.origin = now - t
-            t = now - self.origin
-        self.writer.write(self.DIRECTIONS[node], t, transfer)
+                self.origin = now - time_s
+            time_s = now - self.origin
+        self.writer.write(self.DIRECTIONS[node], time_s, transfer)
 
 
 def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:

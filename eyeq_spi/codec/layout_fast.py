@@ -36,8 +36,8 @@ class FastCodec:
         self._encode = self._env[f"e_{top}"]
 
     def decode(self, data: bytes) -> dict[str, Any]:
-        t = self.struct.unpack(data)
-        out: dict[str, Any] = self._decode(t, 0)
+        flat = self.struct.unpack(data)
+        out: dict[str, Any] = self._decode(flat, 0)
         return out
 
     def encode(self, values: dict[str, Any]) -> bytes:
@@ -54,71 +54,72 @@ class FastCodec:
     def _gen(self, lay: LayoutShape) -> str:
         """Generate d_<n>(t, o) and e_<n>(v, out) for ``lay``; returns <n>. Leaves are appended
         to the format in byte order, so a struct's leaves are one contiguous run."""
-        n = str(len(self._names))
-        self._names[id(lay)] = n
+        suffix = str(len(self._names))
+        self._names[id(lay)] = suffix
         first = len(self._fmt)
         dec: list[str] = []
         enc: list[str] = []
         seen_groups: set[int] = set()
-        for f in lay.fields:
-            if f.bits is not None:
-                key = f.offset
+        for field in lay.fields:
+            if field.bits is not None:
+                key = field.offset
                 if key not in seen_groups:
                     seen_groups.add(key)
                     idx = len(self._fmt) - first
-                    self._fmt.append(FMT[f.type])
+                    self._fmt.append(FMT[field.type])
                     group = [g for g in lay.fields if g.bits is not None and g.offset == key]
                     used = 0
                     parts = []
-                    for g in group:
-                        assert g.bits is not None
-                        lo, hi = g.bits
+                    for member in group:
+                        assert member.bits is not None
+                        lo, hi = member.bits
                         mask = (1 << (hi - lo + 1)) - 1
                         used |= mask << lo
-                        dec.append(f"{g.name!r}: (t[o+{idx}] >> {lo}) & {mask}")
-                        parts.append(f"_b(v[{g.name!r}], {mask}, {g.name!r}) << {lo}")
-                    unused = ((1 << (8 * f.size)) - 1) & ~used
+                        dec.append(f"{member.name!r}: (t[o+{idx}] >> {lo}) & {mask}")
+                        parts.append(f"_b(v[{member.name!r}], {mask}, {member.name!r}) << {lo}")
+                    unused = ((1 << (8 * field.size)) - 1) & ~used
                     enc.append(f"out.append({unused} | " + " | ".join(parts) + ")")
                 continue
-            child = lay.children.get(f.name)
+            child = lay.children.get(field.name)
             idx = len(self._fmt) - first
             if child is None:
-                count = f.count or 1
-                self._fmt.extend(FMT[f.type] * count)  # one entry per tuple item
-                if f.count:
-                    dec.append(f"{f.name!r}: list(t[o+{idx}:o+{idx + count}])")
-                    enc.append(f"_n(v[{f.name!r}], {count}, {f.name!r}); "
-                               f"out.extend(v[{f.name!r}])")
+                count = field.count or 1
+                self._fmt.extend(FMT[field.type] * count)  # one entry per tuple item
+                if field.count:
+                    dec.append(f"{field.name!r}: list(t[o+{idx}:o+{idx + count}])")
+                    enc.append(f"_n(v[{field.name!r}], {count}, {field.name!r}); "
+                               f"out.extend(v[{field.name!r}])")
                 else:
-                    dec.append(f"{f.name!r}: t[o+{idx}]")
-                    enc.append(f"out.append(v[{f.name!r}])")
+                    dec.append(f"{field.name!r}: t[o+{idx}]")
+                    enc.append(f"out.append(v[{field.name!r}])")
                 continue
             before = len(self._fmt)
             cn = self._gen(child)
             per = len(self._fmt) - before  # tuple items of one element
-            if f.count:
+            if field.count:
                 # the child generated one element; repeat its formats for the others
-                self._fmt.extend(self._fmt[before:] * (f.count - 1))
-                dec.append(f"{f.name!r}: [d_{cn}(t, o+{idx}+i*{per}) for i in range({f.count})]")
-                enc.append(f"_n(v[{f.name!r}], {f.count}, {f.name!r})")
-                enc.append(f"for x in v[{f.name!r}]: e_{cn}(x, out)")
+                self._fmt.extend(self._fmt[before:] * (field.count - 1))
+                dec.append(f"{field.name!r}: [d_{cn}(t, o+{idx}+i*{per}) "
+                           f"for i in range({field.count})]")
+                enc.append(f"_n(v[{field.name!r}], {field.count}, {field.name!r})")
+                enc.append(f"for x in v[{field.name!r}]: e_{cn}(x, out)")
             else:
-                dec.append(f"{f.name!r}: d_{cn}(t, o+{idx})")
-                enc.append(f"e_{cn}(v[{f.name!r}], out)")
-        self._src.append(f"def d_{n}(t, o):\n    return {{" + ", ".join(dec) + "}")
-        self._src.append(f"def e_{n}(v, out):\n" + "".join(f"    {e}\n" for e in enc)
+                dec.append(f"{field.name!r}: d_{cn}(t, o+{idx})")
+                enc.append(f"e_{cn}(v[{field.name!r}], out)")
+        self._src.append(f"def d_{suffix}(t, o):\n    return {{" + ", ".join(dec) + "}")
+        self._src.append(f"def e_{suffix}(v, out):\n" + "".join(f"    {e}\n" for e in enc)
                          + "    return None")
         self._env.setdefault("_b", _bits)
         self._env.setdefault("_n", _count)
-        return n
+        return suffix
 
 
-def _bits(x: Any, mask: int, name: str) -> int:
-    if not isinstance(x, int) or not 0 <= x <= mask:
-        raise LocalProtocolError(f"{name}: {x!r} does not fit {mask.bit_length()} bit(s)")
-    return x
+def _bits(value: Any, mask: int, name: str) -> int:
+    if not isinstance(value, int) or not 0 <= value <= mask:
+        raise LocalProtocolError(f"{name}: {value!r} does not fit {mask.bit_length()} bit(s)")
+    return value
 
 
-def _count(items: Any, n: int, name: str) -> None:
-    if len(items) != n:
-        raise LocalProtocolError(f"{name} needs {n} elements, got {len(items)}")
+def _count(items: Any, count: int, name: str) -> None:
+    if len(items) != count:
+        raise LocalProtocolError(f"{name} needs {count} elements, got {len(items)}")

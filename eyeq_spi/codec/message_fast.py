@@ -54,9 +54,9 @@ def crc_word_tables(crc: Callable[[bytes], int]) -> tuple[np.ndarray, np.ndarray
     if got is None:
         lead = crc(b"").to_bytes(2, "big")
         t1 = np.array([crc(lead + bytes([b])) & 0xFFFF for b in range(256)], np.uint32)
-        v = np.arange(65536, dtype=np.uint32)
-        r1 = t1[v >> 8]
-        t2 = ((r1 << 8) & 0xFFFF) ^ t1[(r1 >> 8) ^ (v & 0xFF)]
+        word = np.arange(65536, dtype=np.uint32)
+        r1 = t1[word >> 8]
+        t2 = ((r1 << 8) & 0xFFFF) ^ t1[(r1 >> 8) ^ (word & 0xFF)]
         got = _WORD_TABLES[crc] = (t1.astype(np.uint16), t2.astype(np.uint16))
     return got
 
@@ -64,20 +64,20 @@ def crc_word_tables(crc: Callable[[bytes], int]) -> tuple[np.ndarray, np.ndarray
 _WORD_TABLES: dict[Callable[[bytes], int], tuple[np.ndarray, np.ndarray]] = {}
 
 
-def crc_rows(g: np.ndarray, init: int = 0xFFFF) -> np.ndarray:
+def crc_rows(data: np.ndarray, init: int = 0xFFFF) -> np.ndarray:
     """CRC-16 (``crc16``'s variant) of every row of the uint8 array ``g`` (n, L)."""
     t1, t2 = crc_word_tables(crc16)
-    n, length = g.shape
-    c = np.full(n, init, np.uint16)
+    count, length = data.shape
+    crc = np.full(count, init, np.uint16)
     half = length // 2
     if half:
-        w = g[:, : 2 * half].astype(np.uint16)
-        words = np.ascontiguousarray(((w[:, 0::2] << 8) | w[:, 1::2]).T)
-        for j in range(half):
-            c = t2[c ^ words[j]]
+        wide = data[:, : 2 * half].astype(np.uint16)
+        words = np.ascontiguousarray(((wide[:, 0::2] << 8) | wide[:, 1::2]).T)
+        for step in range(half):
+            crc = t2[crc ^ words[step]]
     if length % 2:
-        c = ((c << 8) & 0xFFFF).astype(np.uint16) ^ t1[(c >> 8) ^ g[:, -1]]
-    return c
+        crc = ((crc << 8) & 0xFFFF).astype(np.uint16) ^ t1[(crc >> 8) ^ data[:, -1]]
+    return crc
 
 
 class _Leaf(NamedTuple):  # a tuple: a layout has thousands, built at every start
@@ -151,13 +151,14 @@ def _fields(lay: Layout, cat: Catalog, enums: bool) -> list[_FieldRow]:
     if hit is not None and hit[0] is lay:
         return hit[1]
     rows: list[_FieldRow] = []
-    for f in lay.fields:
-        e = cat.enums.get(f.member.enum or "")
-        check = (enums and e is not None and e.kind != "flags" and e.complete
-                 and not f.count and f.type in INT_TYPES)
-        rows.append((f.name, f.offset, f.size, f.type, f.count, f.bits,
-                     lay.children.get(f.name),
-                     (e.name, tuple(sorted(e.values))) if check and e is not None else None))
+    for field in lay.fields:
+        enum = cat.enums.get(field.member.enum or "")
+        check = (enums and enum is not None and enum.kind != "flags" and enum.complete
+                 and not field.count and field.type in INT_TYPES)
+        rows.append((field.name, field.offset, field.size, field.type, field.count, field.bits,
+                     lay.children.get(field.name),
+                     (enum.name, tuple(sorted(enum.values)))
+                     if check and enum is not None else None))
     _FIELDS[(id(lay), enums)] = (lay, rows)
     return rows
 
@@ -191,7 +192,7 @@ class VecLayout:
               formats: list[str], offsets: list[int], enums: bool) -> None:
         seen: set[int] = set()
         leaves = self.leaves
-        for name, off, size, typ, count, bits, child, e in _fields(lay, cat, enums):
+        for name, off, size, typ, count, bits, child, enum_check in _fields(lay, cat, enums):
             path = f"{prefix}.{name}" if prefix else name
             if bits is not None:
                 cont = f"{prefix}#bits@{off}"
@@ -203,13 +204,13 @@ class VecLayout:
                 lo, hi = bits
                 leaf = _new_leaf(_Leaf, (path, cont, lo, (1 << (hi - lo + 1)) - 1, typ))
                 leaves.append(leaf)
-                if e is not None:
-                    self.enums.append(_enum_leaf(leaf, path, e[1], e[0]))
+                if enum_check is not None:
+                    self.enums.append(_enum_leaf(leaf, path, enum_check[1], enum_check[0]))
                 continue
             if child is not None:
-                for i in range(count or 1):
-                    sub = f"{path}[{i}]" if count else path
-                    self._walk(child, cat, sub, base + off + i * child.size, names,
+                for element in range(count or 1):
+                    sub = f"{path}[{element}]" if count else path
+                    self._walk(child, cat, sub, base + off + element * child.size, names,
                                formats, offsets, enums)
                 continue
             at = base + off
@@ -226,8 +227,8 @@ class VecLayout:
             offsets.append(at)
             leaf = _new_leaf(_Leaf, (path, path, 0, None, typ))
             leaves.append(leaf)
-            if e is not None:
-                self.enums.append(_enum_leaf(leaf, path, e[1], e[0]))
+            if enum_check is not None:
+                self.enums.append(_enum_leaf(leaf, path, enum_check[1], enum_check[0]))
 
     # -- values ----------------------------------------------------------------------------
     def records(self, payloads: np.ndarray) -> np.ndarray:
@@ -249,70 +250,70 @@ class VecLayout:
     # -- E2E -------------------------------------------------------------------------------
     def crc_ok(self, payloads: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(got, computed) CRC fields as (n, plans) uint16 arrays and got == computed."""
-        n = len(payloads)
-        k = len(self.plans)
-        got = np.zeros((n, k), np.uint16)
-        want = np.zeros((n, k), np.uint16)
+        row_count = len(payloads)
+        plan_count = len(self.plans)
+        got = np.zeros((row_count, plan_count), np.uint16)
+        want = np.zeros((row_count, plan_count), np.uint16)
         by_len: dict[int, list[_Plan]] = {}
-        for p in self.plans:
-            got[:, p.index] = payloads[:, p.crc_offset].astype(np.uint16) | (
-                payloads[:, p.crc_offset + 1].astype(np.uint16) << 8)
-            by_len.setdefault(len(p.idx), []).append(p)
+        for plan in self.plans:
+            got[:, plan.index] = payloads[:, plan.crc_offset].astype(np.uint16) | (
+                payloads[:, plan.crc_offset + 1].astype(np.uint16) << 8)
+            by_len.setdefault(len(plan.idx), []).append(plan)
         for length, plans in by_len.items():
-            rows = n * len(plans)
+            rows = row_count * len(plans)
             # numpy: ~length/2 steps of fixed cost; crc_hqx: a call per row and range in C
             if length // 2 * 1.5 > rows * (0.3 + length / 1500):
-                for p in plans:
-                    want[:, p.index] = _crc_loop(payloads, p.idx)
+                for plan in plans:
+                    want[:, plan.index] = _crc_loop(payloads, plan.idx)
                 continue
-            idx = np.stack([p.idx for p in plans])  # (P, L)
-            g = payloads[:, idx].reshape(rows, length)
-            c = crc_rows(g).reshape(n, len(plans))
-            for j, p in enumerate(plans):
-                want[:, p.index] = c[:, j]
+            idx = np.stack([plan.idx for plan in plans])  # (P, L)
+            gathered = payloads[:, idx].reshape(rows, length)
+            crcs = crc_rows(gathered).reshape(row_count, len(plans))
+            for position, plan in enumerate(plans):
+                want[:, plan.index] = crcs[:, position]
         return got, want, got == want
 
     def verify(self, payloads: np.ndarray, state: E2EState | None) -> list[list[str]]:
         """Per row, what :func:`eyeq_spi.codec.e2e.verify` reports for it when the rows are
         verified in order with ``state``; ``state`` ends as it would."""
-        n = len(payloads)
-        errs: list[list[str]] = [[] for _ in range(n)]
-        if not self.plans or not n:
+        row_count = len(payloads)
+        errs: list[list[str]] = [[] for _ in range(row_count)]
+        if not self.plans or not row_count:
             return errs
         got, want, ok = self.crc_ok(payloads)
         bad_any = ~ok.all(axis=1)
         jumps: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         if state is not None:
             state.crc_errors += int((~ok).sum())
-            for p in self.plans:
-                if p.counter is None:
+            for plan in self.plans:
+                if plan.counter is None:
                     continue
-                o, size = p.counter
-                v = np.zeros(n, np.int64)
-                for b in range(size):
-                    v |= payloads[:, o + b].astype(np.int64) << (8 * b)
+                offset, size = plan.counter
+                counters = np.zeros(row_count, np.int64)
+                for byte in range(size):
+                    counters |= payloads[:, offset + byte].astype(np.int64) << (8 * byte)
                 modulo = 1 << (8 * size)
-                last = state.seen.get(p.key)
-                prev = np.empty(n, np.int64)
+                last = state.seen.get(plan.key)
+                prev = np.empty(row_count, np.int64)
                 prev[0] = -1 if last is None else last
-                prev[1:] = v[:-1]
+                prev[1:] = counters[:-1]
                 expected = (prev + 1) % modulo
-                jump = (prev >= 0) & (v != expected)
-                state.seen[p.key] = int(v[-1])
+                jump = (prev >= 0) & (counters != expected)
+                state.seen[plan.key] = int(counters[-1])
                 if jump.any():
                     state.counter_errors += int(jump.sum())
                     bad_any |= jump
-                    jumps[p.index] = (jump, np.stack([expected, v], axis=1))
-        for r in np.flatnonzero(bad_any).tolist():
-            out = errs[r]
-            for p in self.plans:
-                if not ok[r, p.index]:
-                    out.append(f"{p.crc_text}{int(got[r, p.index]):04X}, computed "
-                               f"0x{int(want[r, p.index]):04X}")
-                j = jumps.get(p.index)
-                if j is not None and j[0][r]:
-                    exp, val = j[1][r].tolist()
-                    out.append(f"{p.jump_text}{exp}, got {val}")
+                    jumps[plan.index] = (jump, np.stack([expected, counters], axis=1))
+        for row in np.flatnonzero(bad_any).tolist():
+            out = errs[row]
+            for plan in self.plans:
+                if not ok[row, plan.index]:
+                    out.append(f"{plan.crc_text}{int(got[row, plan.index]):04X}, computed "
+                               f"0x{int(want[row, plan.index]):04X}")
+                jump_entry = jumps.get(plan.index)
+                if jump_entry is not None and jump_entry[0][row]:
+                    exp, val = jump_entry[1][row].tolist()
+                    out.append(f"{plan.jump_text}{exp}, got {val}")
         return errs
 
     # -- enums -----------------------------------------------------------------------------
@@ -325,12 +326,14 @@ class VecLayout:
             groups: dict[tuple[str, int, int, int], list[int]] = {}  # the table is the enum's
             fields = self.dtype.fields  # read once: a mapping proxy per access
             assert fields is not None
-            for i, e in enumerate(self.enums):
-                if e.table is None:
+            for index, check in enumerate(self.enums):
+                if check.table is None:
                     continue
-                dt = fields[e.leaf.field][0]
-                mask = e.leaf.mask if e.leaf.mask is not None else (1 << 8 * dt.itemsize) - 1
-                groups.setdefault((e.enum, dt.itemsize, e.leaf.shift, mask), []).append(i)
+                dt = fields[check.leaf.field][0]
+                mask = (check.leaf.mask if check.leaf.mask is not None
+                        else (1 << 8 * dt.itemsize) - 1)
+                groups.setdefault((check.enum, dt.itemsize, check.leaf.shift, mask),
+                                  []).append(index)
             out = []
             for (_, width, shift, mask), members in groups.items():
                 offs = np.array([fields[self.enums[i].leaf.field][1] for i in members],
@@ -353,8 +356,8 @@ class VecLayout:
             col = payloads[:, offs]
             if width > 1:  # little-endian fields of ``width`` bytes
                 col = col.astype(np.uint64)
-                for b in range(1, width):
-                    col |= payloads[:, offs + b].astype(np.uint64) << np.uint64(8 * b)
+                for byte in range(1, width):
+                    col |= payloads[:, offs + byte].astype(np.uint64) << np.uint64(8 * byte)
             if shift or mask != (1 << 8 * width) - 1:
                 col = (col >> shift) & mask
             bad = table[col]
@@ -362,27 +365,28 @@ class VecLayout:
                 bad &= rows[:, None]
             hit = bad.any(axis=0)
             if hit.any():
-                for j in np.flatnonzero(hit).tolist():
-                    found[members[j]] = (bad[:, j], col[:, j])
+                for position in np.flatnonzero(hit).tolist():
+                    found[members[position]] = (bad[:, position], col[:, position])
         rec = None
-        for i, e in enumerate(self.enums):
-            if i in grouped:
+        for index, check in enumerate(self.enums):
+            if index in grouped:
                 continue
             if rec is None:
                 rec = self.records(payloads)
-            col = self.column(rec, e.leaf)
-            bad = e.bad(col)
+            col = self.column(rec, check.leaf)
+            bad = check.bad(col)
             if rows is not None:
                 bad &= rows
             if bad.any():
-                found[i] = (bad, col)
-        for i in sorted(found):  # in the reference dissector's order of the leaves
-            bad, col = found[i]
-            e = self.enums[i]
-            for r in np.flatnonzero(bad).tolist():
-                lst = out.setdefault(r, [])
+                found[index] = (bad, col)
+        for index in sorted(found):  # in the reference dissector's order of the leaves
+            bad, col = found[index]
+            check = self.enums[index]
+            for row in np.flatnonzero(bad).tolist():
+                lst = out.setdefault(row, [])
                 if len(lst) < MAX_ENUM_ERRORS:
-                    lst.append(f"bad enum value {int(col[r])} for {name}.{e.label} ({e.enum})")
+                    lst.append(f"bad enum value {int(col[row])} for {name}.{check.label} "
+                               f"({check.enum})")
         return out
 
 
@@ -390,22 +394,22 @@ def _crc_loop(payloads: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """``crc16`` of the bytes ``idx`` of every row through ``binascii.crc_hqx`` (in C), chaining
     over the contiguous runs of ``idx``."""
     runs: list[tuple[int, int]] = []
-    for o in idx.tolist():
-        if runs and runs[-1][1] == o:
-            runs[-1] = (runs[-1][0], o + 1)
+    for offset in idx.tolist():
+        if runs and runs[-1][1] == offset:
+            runs[-1] = (runs[-1][0], offset + 1)
         else:
-            runs.append((o, o + 1))
+            runs.append((offset, offset + 1))
     init = crc16(b"")
-    h = binascii.crc_hqx
+    crc_hqx = binascii.crc_hqx
     width = payloads.shape[1]
     buf = memoryview(np.ascontiguousarray(payloads).tobytes())
     out = np.empty(len(payloads), np.uint16)
-    for r in range(len(payloads)):
-        base = r * width
-        c = init
-        for a, b in runs:
-            c = h(buf[base + a : base + b], c)
-        out[r] = c
+    for row in range(len(payloads)):
+        base = row * width
+        crc = init
+        for start, end in runs:
+            crc = crc_hqx(buf[base + start : base + end], crc)
+        out[row] = crc
     return out
 
 

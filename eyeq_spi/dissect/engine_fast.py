@@ -29,7 +29,7 @@ transfer's reassembly deadline, before the other direction's first DATA frame wi
 RSP 0 (L4: the reference starts this direction's receiver over there too, so it must have seen
 the span's frames before it), or at the end of its chunk. There the dissector takes the
 direction up again (:meth:`~.engine.Dissector.resume`: its receiver is given the span's last
-transfers, at least W frames, the span's last multi-frame transfer and the open transfer) and
+transfers, at least WINDOW frames, the span's last multi-frame transfer and the open transfer) and
 judges what follows itself. Nothing of a span is carried from one chunk to the next.
 
 Timers of reference directions (an open transfer's reassembly deadline) are honoured: the first
@@ -65,8 +65,8 @@ from eyeq_spi.transport.segment import (
 )
 
 _T = link_spec()["transport"]
-W: int = LinkConfig().window
-MIN_SPAN = 2 * W
+WINDOW: int = LinkConfig().window
+MIN_SPAN = 2 * WINDOW
 REASSEMBLY_TIMEOUT: float = _T["reassembly_timeout"]
 RECEIVE_LIMIT = {"h2e": int(_T["receive_limit"]["eyeq"]), "e2h": int(_T["receive_limit"]["host"]),
                  None: int(_T["receive_limit"]["host"])}
@@ -75,15 +75,15 @@ RECEIVE_LIMIT = {"h2e": int(_T["receive_limit"]["eyeq"]), "e2h": int(_T["receive
 class _Plan:
     """One direction's fed rows in the current chunk and their per-row checks (as lists)."""
 
-    P: list[int]
+    rows: list[int]
     okf: list[bool]
     ttype: list[int]
     tid: list[int]
     need: list[int]  # consecutive frames a first frame needs
     cont: list[bool]
     gap: list[bool]
-    B: list[int]  # B[i] = rows among [0, i) that cannot continue a transfer
-    ip: int = 0  # next row (index into P) for the reference
+    breaks: list[int]  # breaks[i] = rows among [0, i) that cannot continue a transfer
+    ip: int = 0  # next row (index into rows) for the reference
 
 
 class ChunkFeeder:
@@ -114,7 +114,7 @@ class ChunkFeeder:
 
     # -- one chunk -----------------------------------------------------------------------------
     def _chunk(self, fa: FrameArrays) -> Iterator[Item]:
-        n = len(fa)
+        row_count = len(fa)
         codes, first = np.unique(fa.chunk.direction, return_index=True)
         plans: dict[int, _Plan] = {}
         self._rows = {}
@@ -124,29 +124,29 @@ class ChunkFeeder:
             st = self.dirs.setdefault(code, Dir(name, code))
             plans[code] = self._plan(fa, st)
         for code in self.dirs:
-            self._rows[code] = plans.setdefault(code, _empty_plan()).P
+            self._rows[code] = plans.setdefault(code, _empty_plan()).rows
         # L4 frames (DATA, NUM 0, RSP 0, CRC good): the rows and their directions
         l4 = np.flatnonzero(fa.fed & fa.crc_ok & (fa.ftype == DATA) & (fa.num == 0)
                             & (fa.rsp == 0))
         self._restarts = (l4, fa.chunk.direction[l4])
         times = fa.chunk.time
         pos = 0
-        while pos < n:
-            nxt, why, which = n, 0, -1
+        while pos < row_count:
+            nxt, why, which = row_count, 0, -1
             for code, st in self.dirs.items():
                 pl = plans[code]
                 if st.fast:  # at a tie, the span ends before the other direction's record
                     if st.switch_row <= nxt:
                         nxt, why, which = st.switch_row, 1, code
-                elif pl.ip < len(pl.P) and pl.P[pl.ip] < nxt:
-                    nxt, why, which = pl.P[pl.ip], 2, code
+                elif pl.ip < len(pl.rows) and pl.rows[pl.ip] < nxt:
+                    nxt, why, which = pl.rows[pl.ip], 2, code
             if self.deadline is not None and nxt > pos:
                 late = np.flatnonzero(times[pos:nxt] >= self.deadline)
                 if late.size:
                     nxt, why = pos + int(late[0]), 3
             if nxt > pos:
                 yield self._emit(fa, pos, nxt)
-            if nxt >= n:
+            if nxt >= row_count:
                 break
             if why == 3:  # the engine's timers first, as feed() would run them
                 self.dis.index = fa.base + nxt + 1
@@ -173,8 +173,8 @@ class ChunkFeeder:
             pl.ip += 1
             self._update_deadline()
             pos = nxt + 1
-        self.dis.index = fa.base + n
-        t_end = fa.tfill[n - 1]
+        self.dis.index = fa.base + row_count
+        t_end = fa.tfill[row_count - 1]
         self.dis.last_time = None if t_end != t_end else float(t_end)
         for st in self.dirs.values():  # a span ends with its chunk: the reference takes up
             if st.fast:
@@ -205,10 +205,10 @@ class ChunkFeeder:
         cont = num == (prev + 1) % SEQ_MODULO
         # the reassembly deadline each fed frame sets, against the latest time of any record
         # after it up to and including the next fed frame (the engine runs its timers first)
-        t = fa.chunk.time
-        t_sel = t[sel]
+        times = fa.chunk.time
+        t_sel = times[sel]
         dl = np.where(np.isnan(t_sel), 0.0, t_sel) + REASSEMBLY_TIMEOUT
-        tm = np.where(np.isnan(t), -np.inf, t)
+        tm = np.where(np.isnan(times), -np.inf, times)
         seg_max = np.maximum.reduceat(np.append(tm, -np.inf), np.append(0, sel + 1))
         gap = np.empty(sel.size, bool)
         gap[1:] = seg_max[1:-1] < dl[:-1]
@@ -231,9 +231,9 @@ class ChunkFeeder:
         byte. Where it does not, that frame is no link of a clean span, so the reference
         judges it (it NAKs the frame 0x011 and aborts the transfer as ``bad_padding``)."""
         fk = np.flatnonzero(tt == FIRST)
-        m = need[fk]
-        last = fk + m
-        takes = total[fk] - FIRST_CHUNK - (m - 1) * CONSECUTIVE_CHUNK
+        needs = need[fk]
+        last = fk + needs
+        takes = total[fk] - FIRST_CHUNK - (needs - 1) * CONSECUTIVE_CHUNK
         inside = last < sel.size
         lasts, takes = last[inside], takes[inside]
         if not lasts.size:
@@ -243,52 +243,54 @@ class ChunkFeeder:
         link[lasts[((rows != 0) & pad).any(axis=1)]] = False
 
     def _walk(self, fa: FrameArrays, st: Dir, pl: _Plan, k0: int, limit: int) -> int:
-        """The span from P[k0] (its first NUM was checked against E) up to row ``limit``:
+        """The span from rows[k0] (its first NUM was checked against E) up to row ``limit``:
         complete units, open transfer, stop index and switch row. Returns the number of frames
         it covers."""
-        P, okf, tt, need, cont, B = pl.P, pl.okf, pl.ttype, pl.need, pl.cont, pl.B
-        n = bisect.bisect_left(P, limit)
+        rows, okf, tt, need, cont, breaks = (pl.rows, pl.okf, pl.ttype, pl.need, pl.cont,
+                                             pl.breaks)
+        end = bisect.bisect_left(rows, limit)
         units: list[Unit] = []
-        k = k0
+        index = k0
         st.open_ks = -1
-        while k < n and okf[k] and (k == k0 or cont[k]):
-            t = tt[k]
-            if t == SINGLE:
-                units.append(Unit(k, k + 1, False))
-                k += 1
-            elif t == FIRST:
-                m = need[k]
-                e = min(k + m, n - 1)
-                nbad = B[e + 1] - B[k + 1]
-                if nbad == 0 and k + m < n:
-                    units.append(Unit(k, k + m + 1, True))
-                    k += m + 1
+        while index < end and okf[index] and (index == k0 or cont[index]):
+            kind = tt[index]
+            if kind == SINGLE:
+                units.append(Unit(index, index + 1, False))
+                index += 1
+            elif kind == FIRST:
+                needed = need[index]
+                last = min(index + needed, end - 1)
+                nbad = breaks[last + 1] - breaks[index + 1]
+                if nbad == 0 and index + needed < end:
+                    units.append(Unit(index, index + needed + 1, True))
+                    index += needed + 1
                     continue
-                st.open_ks = k
-                k = n if nbad == 0 else bisect.bisect_left(B, B[k + 1] + 1) - 1
+                st.open_ks = index
+                index = (end if nbad == 0
+                         else bisect.bisect_left(breaks, breaks[index + 1] + 1) - 1)
                 break
             else:
                 break
-        st.units, st.ui, st.stop_k = units, 0, k
+        st.units, st.ui, st.stop_k = units, 0, index
         # switch at the first frame outside the span, or before it at the first transfer at or
         # past the open transfer's reassembly deadline
-        row = P[k] if k < n else limit
+        row = rows[index] if index < end else limit
         if st.open_ks >= 0:
-            r = P[k - 1]
-            tr = float(fa.chunk.time[r])
-            late = np.flatnonzero(fa.chunk.time[r + 1 : row]
+            last_row = rows[index - 1]
+            tr = float(fa.chunk.time[last_row])
+            late = np.flatnonzero(fa.chunk.time[last_row + 1 : row]
                                   >= (0.0 if tr != tr else tr) + REASSEMBLY_TIMEOUT)
             if late.size:
-                row = r + 1 + int(late[0])
+                row = last_row + 1 + int(late[0])
         st.switch_row = row
-        return k - k0
+        return index - k0
 
-    def _try_span(self, fa: FrameArrays, st: Dir, pl: _Plan, k: int) -> bool:
-        if int(fa.num[pl.P[k]]) != self.dis.expected_num(st.name):
+    def _try_span(self, fa: FrameArrays, st: Dir, pl: _Plan, index: int) -> bool:
+        if int(fa.num[pl.rows[index]]) != self.dis.expected_num(st.name):
             return False
         rows, codes = self._restarts
-        later = rows[(rows > pl.P[k]) & (codes != st.code)]
-        if self._walk(fa, st, pl, k, int(later[0]) if later.size else len(fa)) < MIN_SPAN:
+        later = rows[(rows > pl.rows[index]) & (codes != st.code)]
+        if self._walk(fa, st, pl, index, int(later[0]) if later.size else len(fa)) < MIN_SPAN:
             return False
         st.fast = True
         return True
@@ -300,13 +302,13 @@ class ChunkFeeder:
         for st in self.dirs.values():
             if not st.fast:
                 continue
-            P = self._rows[st.code]
+            rows = self._rows[st.code]
             while st.ui < len(st.units):
-                u = st.units[st.ui]
-                row = P[u.ke - 1]
+                unit = st.units[st.ui]
+                row = rows[unit.ke - 1]
                 if row >= hi:
                     break
-                done.append((row, st, u))
+                done.append((row, st, unit))
                 st.ui += 1
         if len(done) > 1:
             done.sort(key=lambda x: x[0])
@@ -314,20 +316,21 @@ class ChunkFeeder:
         for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
             block.messages.append((row, rec))
         block.tables = self.decode.tables
-        t = fa.tfill[hi - 1]
-        self.dis.last_time = None if t != t else float(t)
+        time_s = fa.tfill[hi - 1]
+        self.dis.last_time = None if time_s != time_s else float(time_s)
         return block
 
     def _frames(self, fa: FrameArrays, st: Dir, ks: int, ke: int) -> list[Frame]:
-        """Frames P[ks:ke] of this chunk."""
-        P = self._rows[st.code]
+        """Frames rows[ks:ke] of this chunk."""
+        rows = self._rows[st.code]
         times, nums = fa.lst("time"), fa.lst("num")
         data = fa.chunk.data
         out: list[Frame] = []
-        for k in range(ks, ke):
-            r = P[k]
-            t = times[r]
-            out.append((data[r].tobytes(), None if t != t else t, nums[r], fa.base + r))
+        for index in range(ks, ke):
+            row = rows[index]
+            time_s = times[row]
+            out.append((data[row].tobytes(), None if time_s != time_s else time_s, nums[row],
+                        fa.base + row))
         return out
 
     def _messages(self, fa: FrameArrays, done: list[tuple[int, Dir, Unit]]
@@ -339,8 +342,8 @@ class ChunkFeeder:
         out: list[SpanMessage] = []
         P_of = {st.code: self._rows[st.code] for _, st, _ in done}
         rows: list[int] = []
-        for _, st, u in done:
-            rows += P_of[st.code][u.ks : u.ke]
+        for _, st, unit in done:
+            rows += P_of[st.code][unit.ks : unit.ke]
         data = fa.chunk.data
         width = data.shape[1] - 8
         blob = data[rows, 8:].tobytes() if rows else b""
@@ -348,30 +351,30 @@ class ChunkFeeder:
         base = fa.base
         pos = 0  # next row of ``rows``
         noted: dict[str | None, tuple[list[int], list[int]]] = {}  # NUMs, indices in order
-        for row, st, u in done:
-            t = tfill[row]
-            o = pos * width
+        for row, st, unit in done:
+            time_s = tfill[row]
+            offset = pos * width
             seen = noted.setdefault(st.name, ([], []))
-            if not u.first:  # byte 7 of a single frame: its size
-                r = P_of[st.code][u.ks]
+            if not unit.first:  # byte 7 of a single frame: its size
+                fed_row = P_of[st.code][unit.ks]
                 pos += 1
-                num, idx = nums[r], base + r
+                num, idx = nums[fed_row], base + fed_row
                 seen[0].append(num)
                 seen[1].append(idx)
-                out.append(SpanMessage(st.name, blob[o : o + tid_col[r]], (num,), None,
-                                       None if t != t else t, [idx]))
+                out.append(SpanMessage(st.name, blob[offset : offset + tid_col[fed_row]], (num,),
+                                       None, None if time_s != time_s else time_s, [idx]))
                 continue
-            mine = P_of[st.code][u.ks : u.ke]
+            mine = P_of[st.code][unit.ks : unit.ke]
             pos += len(mine)
             # bytes 8..11 of the first frame: the total (transport header)
-            total = int.from_bytes(blob[o : o + 4], "little")
-            msg = blob[o + 4 : min(o + 4 + total, pos * width)]
-            fnums = tuple([nums[r] for r in mine])
-            idxs = [base + r for r in mine]
+            total = int.from_bytes(blob[offset : offset + 4], "little")
+            msg = blob[offset + 4 : min(offset + 4 + total, pos * width)]
+            fnums = tuple([nums[fed_row] for fed_row in mine])
+            idxs = [base + fed_row for fed_row in mine]
             seen[0].extend(fnums)
             seen[1].extend(idxs)
             out.append(SpanMessage(st.name, msg, fnums, tid_col[mine[0]],
-                                   None if t != t else t, list(idxs)))
+                                   None if time_s != time_s else time_s, list(idxs)))
         for name, (fnums_all, idxs_all) in noted.items():
             self.dis.note_frames(name, fnums_all, idxs_all)
         return out
@@ -379,21 +382,21 @@ class ChunkFeeder:
     # -- span state: what the receiver would hold --------------------------------------------
     def _state(self, st: Dir, fa: FrameArrays
                ) -> tuple[list[list[Frame]], list[Frame] | None, list[Frame] | None]:
-        """(last complete units with at least W frames, oldest first; the last complete
+        """(last complete units with at least WINDOW frames, oldest first; the last complete
         multi-frame transfer; the open transfer) of the span so far."""
         opened = self._frames(fa, st, st.open_ks, st.stop_k) if st.open_ks >= 0 else None
         units: list[list[Frame]] = []
         last_first: list[Frame] | None = None
         count = 0
-        for u in reversed(st.units):
-            if count >= W and last_first is not None:
+        for unit in reversed(st.units):
+            if count >= WINDOW and last_first is not None:
                 break
-            if count < W or u.first:
-                fr = self._frames(fa, st, u.ks, u.ke)
-                if count < W:
+            if count < WINDOW or unit.first:
+                fr = self._frames(fa, st, unit.ks, unit.ke)
+                if count < WINDOW:
                     units.append(fr)
                     count += len(fr)
-                if u.first and last_first is None:
+                if unit.first and last_first is None:
                     last_first = fr
         units.reverse()
         return units, last_first, opened
@@ -414,8 +417,8 @@ def _empty_plan() -> _Plan:
 def iter_items(chunks: Iterable[Chunk], *, sw: str | None = None,
                codec: MessageCodec | None = None, fields: str = "dict") -> Iterator[Item]:
     bd = ChunkFeeder(sw, codec, fields=fields)
-    for c in chunks:
-        yield from bd.feed(c)
+    for chunk in chunks:
+        yield from bd.feed(chunk)
     yield from bd.finish()
 
 

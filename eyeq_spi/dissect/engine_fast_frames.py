@@ -39,12 +39,12 @@ def crc_table(codec: FrameCodec) -> np.ndarray | None:
     # the codec's function is crc16); the checks below hold whatever comes out to the codec's
     # function
     table: np.ndarray = crc_word_tables(codec.crc)[1]
-    for n in (2, 4, 126):
+    for size in (2, 4, 126):
         # a fixed byte pattern that reaches every bit of the table's index (numpy.random would
         # cost 20 ms of start-up to import)
-        msg = bytes((i * 167 + 13 * n) & 0xFF for i in range(n))
+        msg = bytes((i * 167 + 13 * size) & 0xFF for i in range(size))
         words = np.frombuffer(msg, ">u2").reshape(-1, 1)
-        if int(crc_of_words(words, init, table, n // 2)[0]) != codec.crc(msg):
+        if int(crc_of_words(words, init, table, size // 2)[0]) != codec.crc(msg):
             _TABLES[key] = None
             return None
     _TABLES[key] = table
@@ -54,8 +54,8 @@ def crc_table(codec: FrameCodec) -> np.ndarray | None:
 def crc_of_words(words: np.ndarray, init: int, table: np.ndarray, steps: int) -> np.ndarray:
     """CRC of the first ``steps`` big-endian 16-bit words of every row of ``words`` (k, n)."""
     crc = np.full(words.shape[1], init, np.uint16)
-    for j in range(steps):
-        crc = table[crc ^ words[j]]
+    for step in range(steps):
+        crc = table[crc ^ words[step]]
     return crc
 
 
@@ -97,18 +97,18 @@ def validate(data: np.ndarray, length: np.ndarray, codec: FrameCodec
     """Header fields (D, R, RSP, NUM) and CRC verdict (L3 coverage by D) of every row of an
     ``(N, 128)`` array: the vectorised frame check."""
     word = data[:, 0:4].copy().view("<u4")[:, 0].astype(np.int64)
-    d, r, rsp, num = (np.asarray(x) for x in codec.unpack_header(word))  # type: ignore[arg-type]
+    d_field, r_field, rsp, num = (np.asarray(x) for x in codec.unpack_header(word))  # type: ignore[arg-type]
     got = data[:, 4:6].copy().view("<u2")[:, 0]
     table = crc_table(codec)
     if table is None:
         raise InputError("the link CRC variant has no 16-bit table form: use the hex format or "
                          "another CRC variant")
-    control = (d == FrameKind.ACK) | (d == FrameKind.NAK)
+    control = (d_field == FrameKind.ACK) | (d_field == FrameKind.NAK)
     hdr, crc, rows = _frame_crcs(np.ascontiguousarray(data), control, codec.crc(b""), table)
     full = hdr.copy()  # control frames: the header's CRC only (L3)
     full[rows] = crc
     crc_ok = np.where(control, hdr == got, full == got) & (length == FRAME_SIZE)
-    return d, r, rsp, num, crc_ok
+    return d_field, r_field, rsp, num, crc_ok
 
 
 _SWAPPED: dict[int, np.ndarray] = {}
@@ -135,42 +135,42 @@ def _frame_crcs(data: np.ndarray, control: np.ndarray, init: int, table: np.ndar
     stepped through. Words are transposed a block of rows at a time."""
     sw = _swapped(table)
     words = data.view("<u2")  # (n, 64): 0-1 the header, 2 the CRC field, 3.. the data
-    n = len(words)
-    s = np.full(n, ((init >> 8) | (init << 8)) & 0xFFFF, np.uint16)
-    for j in (0, 1):
-        s = sw[s ^ words[:, j]]
+    row_count = len(words)
+    swapped = np.full(row_count, ((init >> 8) | (init << 8)) & 0xFFFF, np.uint16)
+    for step in (0, 1):
+        swapped = sw[swapped ^ words[:, step]]
     rows = np.flatnonzero(~control)
-    dw = words[:, 3:] if rows.size == n else words[rows, 3:]
-    out = s[rows]
+    dw = words[:, 3:] if rows.size == row_count else words[rows, 3:]
+    out = swapped[rows]
     tmp = np.empty(min(len(rows), BLOCK_ROWS), np.uint16)
     for b0 in range(0, len(rows), BLOCK_ROWS):
         wt = np.ascontiguousarray(dw[b0 : b0 + BLOCK_ROWS].T)
-        c = out[b0 : b0 + BLOCK_ROWS]
-        t = tmp[: len(c)]
-        for j in range(len(wt)):
-            np.bitwise_xor(c, wt[j], out=t)
-            np.take(sw, t, out=c)
-    return s.byteswap(), out.byteswap(), rows
+        block = out[b0 : b0 + BLOCK_ROWS]
+        scratch = tmp[: len(block)]
+        for step in range(len(wt)):
+            np.bitwise_xor(block, wt[step], out=scratch)
+            np.take(sw, scratch, out=block)
+    return swapped.byteswap(), out.byteswap(), rows
 
 
 def frame_arrays(chunk: Chunk, codec: FrameCodec, base: int, last_time: float | None
                  ) -> FrameArrays:
-    n = len(chunk)
-    d, r, rsp, num, crc_ok = validate(chunk.data, chunk.length, codec)
+    row_count = len(chunk)
+    d_field, r_field, rsp, num, crc_ok = validate(chunk.data, chunk.length, codec)
     ok128 = chunk.length == FRAME_SIZE
-    ftype = np.full(n, INVALID, np.int8)
-    valid = ok128 & (r == 0)
-    ftype[valid & (d == FrameKind.DATA)] = DATA
-    ftype[valid & (d == FrameKind.ACK)] = ACK
-    ftype[valid & (d == FrameKind.NAK)] = NAK
+    ftype = np.full(row_count, INVALID, np.int8)
+    valid = ok128 & (r_field == 0)
+    ftype[valid & (d_field == FrameKind.DATA)] = DATA
+    ftype[valid & (d_field == FrameKind.ACK)] = ACK
+    ftype[valid & (d_field == FrameKind.NAK)] = NAK
     fed = (ftype != ACK) & (ftype != NAK)
-    t = chunk.time
-    has = ~np.isnan(t)
-    pos = np.where(has, np.arange(n), -1)
+    times = chunk.time
+    has = ~np.isnan(times)
+    pos = np.where(has, np.arange(row_count), -1)
     np.maximum.accumulate(pos, out=pos)
     first = np.nan if last_time is None else last_time
-    tfill = np.where(pos >= 0, t[np.maximum(pos, 0)], first)
-    return FrameArrays(chunk, base, ftype, num, rsp, crc_ok, d, fed, tfill, r)
+    tfill = np.where(pos >= 0, times[np.maximum(pos, 0)], first)
+    return FrameArrays(chunk, base, ftype, num, rsp, crc_ok, d_field, fed, tfill, r_field)
 
 
 @dataclass
@@ -185,23 +185,26 @@ class FrameBlock:
     # engine_fast_messages.ColumnGroup, "columns" mode
     tables: list[Any] = field(default_factory=list)
 
-    def frame(self, i: int) -> dict[str, Any]:
+    def frame(self, index: int) -> dict[str, Any]:
         """The frame record of row ``i`` (:func:`.engine.frame_record`)."""
         fa = self.fa
-        L = fa.lst
-        t = L("time")[i]
-        length = L("length")[i]
-        return frame_record(fa.base + i, None if t != t else t, DIR_NAME[L("direction")[i]],
-                            length, (L("d")[i], L("r")[i], L("rsp")[i], L("num")[i]),
-                            bool(L("crc_ok")[i]), (L("ttype")[i], L("tid")[i]))
+        column = fa.lst
+        time_s = column("time")[index]
+        length = column("length")[index]
+        return frame_record(fa.base + index, None if time_s != time_s else time_s,
+                            DIR_NAME[column("direction")[index]], length,
+                            (column("d")[index], column("r")[index],
+                             column("rsp")[index], column("num")[index]),
+                            bool(column("crc_ok")[index]),
+                            (column("ttype")[index], column("tid")[index]))
 
     def records(self) -> list[dict[str, Any]]:
         out: list[dict[str, Any]] = []
         msgs = iter(self.messages)
         nxt = next(msgs, None)
-        for i in range(self.lo, self.hi):
-            out.append(self.frame(i))
-            while nxt is not None and nxt[0] == i:
+        for row in range(self.lo, self.hi):
+            out.append(self.frame(row))
+            while nxt is not None and nxt[0] == row:
                 out.append(nxt[1])
                 nxt = next(msgs, None)
         return out
@@ -212,9 +215,9 @@ class FrameBlock:
         lo, hi = self.lo, self.hi
         ft = fa.ftype[lo:hi]
         counts = np.bincount(ft, minlength=4)
-        for code, c in enumerate(counts.tolist()):
-            if c:
-                stats.frames[TYPE_NAMES[code]] += c
+        for code, count in enumerate(counts.tolist()):
+            if count:
+                stats.frames[TYPE_NAMES[code]] += count
         bad_len = fa.chunk.length[lo:hi] != FRAME_SIZE
         stats.bad_length += int(bad_len.sum())
         ok = fa.crc_ok[lo:hi]
@@ -222,7 +225,7 @@ class FrameBlock:
         naks = (ft == NAK) & ok
         if naks.any():
             vals, cnt = np.unique(fa.num[lo:hi][naks], return_counts=True)
-            for v, c in zip(vals.tolist(), cnt.tolist(), strict=True):
-                stats.nak_reasons[f"0x{v:03X}"] += c
+            for value, count in zip(vals.tolist(), cnt.tolist(), strict=True):
+                stats.nak_reasons[f"0x{value:03X}"] += count
         for _, rec in self.messages:
             stats.add(rec)

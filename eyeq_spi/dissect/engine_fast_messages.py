@@ -84,23 +84,23 @@ class SpanDecoder:
             tables = self.tables
             mid = self.records_reference(msgs[cut : cut + 1])
             tail = self.records(msgs[cut + 1 :])
-            for g in self.tables:
-                g.first += cut + 1
+            for table in self.tables:
+                table.first += cut + 1
             self.tables = tables + self.tables
             return head + mid + tail
         out: list[dict[str, Any] | None] = [None] * len(msgs)
         self.tables = []
         groups: dict[tuple[str | None, int | str], list[int]] = {}
         reference: list[int] = []
-        for i, m in enumerate(msgs):
-            data = m.data
+        for index, msg in enumerate(msgs):
+            data = msg.data
             proto = classify(data) if data else "UNKNOWN"
             if proto == "DASP" and len(data) >= 4:
-                groups.setdefault((m.direction, data[1]), []).append(i)
+                groups.setdefault((msg.direction, data[1]), []).append(index)
             elif proto in ("DIAG", "BOOT"):  # 0x41 / 0x10: one layout each (rule A)
-                groups.setdefault((m.direction, proto), []).append(i)
+                groups.setdefault((msg.direction, proto), []).append(index)
             else:
-                reference.append(i)
+                reference.append(index)
         ids = [k[1] for k in groups]
         for (direction, data_id), rows in groups.items():
             # a data ID in both directions: two groups of one table, rows as dicts
@@ -113,16 +113,17 @@ class SpanDecoder:
         if len(self.tables) > 1:
             self.tables.sort(key=lambda g: g.first)
         order = sorted(reference)
-        for i, rec in zip(order, self.records_reference([msgs[i] for i in order]), strict=True):
-            out[i] = rec
+        for index, rec in zip(order, self.records_reference([msgs[i] for i in order]),
+                              strict=True):
+            out[index] = rec
         return out  # type: ignore[return-value]
 
     def records_reference(self, msgs: list[SpanMessage]) -> list[dict[str, Any]]:
         """The reference's records of ``msgs``, one by one."""
         out = []
-        for m in msgs:
-            out.append(self.dis.accept_clean(m.direction, m.data, m.nums, m.tid, m.frames,
-                                             m.time))
+        for msg in msgs:
+            out.append(self.dis.accept_clean(msg.direction, msg.data, msg.nums, msg.tid, msg.frames,
+                                             msg.time))
         return out
 
     def is_barrier(self, data: bytes) -> bool:
@@ -131,8 +132,8 @@ class SpanDecoder:
         it: the messages before it, it, and those after it are judged in that order."""
         if len(data) < 5 or data[1] != MESP_PROTOCOL or data[0] != data[2] or data[4] & 0x80:
             return False
-        f = self.codec.mesp.functions.get((data[0], data[3]))
-        return f is not None and f.name == SWITCH_APP_NAME
+        function = self.codec.mesp.functions.get((data[0], data[3]))
+        return function is not None and function.name == SWITCH_APP_NAME
 
     def _rows(self, msgs: list[SpanMessage], rows: list[int], msg: Any, header: int
               ) -> tuple[Any, Any, list[bytes], Any] | None:
@@ -177,20 +178,21 @@ class SpanDecoder:
                 vl.columns(payloads)))
             self.tables.append(group)
         check = dasp_counters.check
-        for k, i in enumerate(rows):
-            m = msgs[i]
-            counter = counters[k]
-            errors = [f"DASP reserved byte is 0x{reserved[k]:02X}, not 0"] if reserved[k] else []
-            errors += e2e[k]
+        for position, index in enumerate(rows):
+            span_msg = msgs[index]
+            counter = counters[position]
+            errors = ([f"DASP reserved byte is 0x{reserved[position]:02X}, not 0"]
+                      if reserved[position] else [])
+            errors += e2e[position]
             expected = check(data_id, counter)
             if expected is not None:
                 errors.append(f"DASP counter gap: expected {expected}, got {counter}")
-            errors += enums.get(k, ())
-            out[i] = {
+            errors += enums.get(position, ())
+            out[index] = {
                 "kind": "message", "protocol": "DASP", "name": name, "length": length,
-                "direction": direction, "time": m.time, "frames": m.frames,
+                "direction": direction, "time": span_msg.time, "frames": span_msg.frames,
                 "header": {"data_id": data_id, "counter": counter},
-                "fields": parse(datas[k][4:]) if parse is not None else {},
+                "fields": parse(datas[position][4:]) if parse is not None else {},
                 "errors": errors,
             }
         if group is not None:
@@ -219,14 +221,14 @@ class SpanDecoder:
                 *_last_and_times(msgs, rows), direction, {"header.id": ids},
                 vl.columns(payloads)))
             self.tables.append(group)
-        for k, i in enumerate(rows):
-            m = msgs[i]
-            out[i] = {
+        for position, index in enumerate(rows):
+            span_msg = msgs[index]
+            out[index] = {
                 "kind": "message", "protocol": proto, "name": msg.name, "length": length,
-                "direction": direction, "time": m.time, "frames": m.frames,
-                "header": {"id": ids[k]},
-                "fields": parse(datas[k][1:]) if parse is not None else {},
-                "errors": e2e[k] + enums.get(k, []),
+                "direction": direction, "time": span_msg.time, "frames": span_msg.frames,
+                "header": {"id": ids[position]},
+                "fields": parse(datas[position][1:]) if parse is not None else {},
+                "errors": e2e[position] + enums.get(position, []),
             }
         if group is not None:
             group.covered = [out[i] for i in rows]  # type: ignore[misc]
@@ -237,21 +239,21 @@ class SpanDecoder:
                  header: dict[str, list[int]], fields: dict[str, np.ndarray]) -> dict[str, Any]:
         """The TableWriter row of each message as columns: numpy arrays where pyarrow infers
         from them what it infers from the Python values (int64, double), lists elsewhere."""
-        n = len(last)
+        count = len(last)
         out: dict[str, Any] = {
             "frame_index": last,
             "time": times,
-            "direction": [direction] * n,
+            "direction": [direction] * count,
             **header,
         }
-        for k, col in fields.items():
+        for name, col in fields.items():
             kind = col.dtype.kind
             if kind == "f":
-                out[k] = col.astype(np.float64)
+                out[name] = col.astype(np.float64)
             elif kind == "i" or (kind == "u" and col.dtype.itemsize < 8):
-                out[k] = col.astype(np.int64)
+                out[name] = col.astype(np.int64)
             else:  # uint64: Python ints, as the reference's row has them
-                out[k] = col.tolist()
+                out[name] = col.tolist()
         return out
 
 

@@ -17,7 +17,7 @@ Frame = tuple[bytes, float | None, int, int]  # transfer, time, NUM, capture ind
 class Unit:
     """One transfer of a span: its first and last index into the direction's rows."""
 
-    ks: int  # first index into P
+    ks: int  # first index into the plan's rows
     ke: int  # one past the last
     first: bool
 
@@ -33,6 +33,6 @@ class Dir:
     # the span in the current chunk
     units: list[Unit] = field(default_factory=list)
     ui: int = 0  # next unit to emit
-    stop_k: int = 0  # index into P of the first frame not in the span
-    open_ks: int = -1  # index into P of the open transfer's first frame, -1: none
+    stop_k: int = 0  # index into the plan's rows of the first frame not in the span
+    open_ks: int = -1  # index into the plan's rows of the open transfer's first frame, -1: none
     switch_row: int = 0

@@ -197,11 +197,11 @@ class CaptureFile:
         if not size or self.progress is None:
             yield from items
             return
-        report, where, n = self.progress, BlockPosition(), 0
+        report, where, since_report = self.progress, BlockPosition(), 0
         for item in items:
-            n += 1
-            if n >= 32 or not isinstance(item, dict):
-                n = 0
+            since_report += 1
+            if since_report >= 32 or not isinstance(item, dict):
+                since_report = 0
                 with contextlib.suppress(OSError, ValueError):
                     report(self.path, where(item, fh.tell()), size)
             yield item
@@ -249,13 +249,13 @@ def dissect_captures(paths: Sequence[str], config: DissectConfig | None = None, 
     current: CaptureFile | None = None
     with garbage.paused() if cfg.pace_gc else contextlib.nullcontext():
         try:
-            for n, path in enumerate(paths, 1):
+            for number, path in enumerate(paths, 1):
                 done = next(par)[1] if par is not None else None
                 current = CaptureFile(path, cfg, br, progress, done)
                 yield current
                 current.close()
                 if par is not None and progress is not None:
-                    progress(None, n, len(paths))
+                    progress(None, number, len(paths))
         finally:
             if current is not None:
                 current.close()
@@ -278,9 +278,9 @@ class Dissection:
             raise ValueError("dissect_files hands out records: use dissect_captures for blocks")
         for cf in dissect_captures(self.paths, cfg, progress=self.progress):
             self.files.append(cf)
-            for r in cf.items:
-                r["file"] = cf.path
-                yield r
+            for record in cf.items:
+                record["file"] = cf.path
+                yield record
 
     @property
     def ignored(self) -> int:
@@ -291,7 +291,7 @@ class Dissection:
 def dissect_files(paths: Sequence[str], config: DissectConfig | None = None, *,
                   progress: Progress | None = None) -> Dissection:
     """The dissector's records of the files ``paths`` in order (docs/dissector.md JSON
-    contract), each with its ``file`` member: ``for r in dissect_files(["a.pcapng"])``."""
+    contract), each with its ``file`` member: ``for record in dissect_files(["a.pcapng"])``."""
     return Dissection(list(paths), config, progress)
 
 
@@ -365,14 +365,14 @@ def paced_gc(items: Iterable[Any]) -> Iterator[Any]:
     containers in one obstacles message) and spent 0.6 of 2.1 CPU-s of ``dissect --json`` on a
     90 s capture. Here a collection sees only what is alive between two blocks, and any cycle is
     still freed within a block, so memory stays bounded."""
-    n = 0
+    since_pace = 0
     for item in items:
         block = not isinstance(item, dict)
         yield item
         del item  # the caller drops its own reference before it asks for the next one
-        n += 1
-        if n >= PACE or block:
-            n = 0
+        since_pace += 1
+        if since_pace >= PACE or block:
+            since_pace = 0
             garbage.collect(YOUNG)
 
 
@@ -403,8 +403,8 @@ def deliver(items: Iterable[Any], stats: Any, writers: list[Any], *,
                 item["file"] = path
             if keep is None or keep(item):  # --stats describes exactly what is kept
                 stats.add(item)
-                for w in writers:
-                    w.write(item)
+                for writer in writers:
+                    writer.write(item)
         item = None  # paced_gc: the block is garbage now
 
 

@@ -99,8 +99,8 @@ def _first_chunks(chunks: Iterator[Chunk], rows: int
 def _records(chunks: Iterator[Chunk]) -> Iterator[Transfer]:
     """The transfers of ``chunks`` one by one (a caller that wants the transfers)."""
     for chunk in chunks:
-        for i in range(len(chunk)):
-            yield chunk.record(i)
+        for index in range(len(chunk)):
+            yield chunk.record(index)
 
 
 def chunk_items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
@@ -114,8 +114,8 @@ def chunk_items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dic
 def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
            ) -> Iterator[Item]:
     bd = ChunkFeeder(codec=codec, fields=fields)
-    for c in chunks:
-        yield from bd.feed(c)
+    for chunk in chunks:
+        yield from bd.feed(chunk)
     yield from bd.finish()
 
 
@@ -125,48 +125,48 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
     record is kept), so frames are counted and printed straight from the arrays. ``file``:
     every record's ``file`` member."""
     if file is not None:
-        for _, m in item.messages:
-            m["file"] = file
+        for _, msg in item.messages:
+            msg["file"] = file
     if not plain:
-        for r in item.records():
+        for record in item.records():
             if file is not None:
-                r["file"] = file
-            if keep(r):
-                stats.add(r)
-                for w in writers:
-                    w.write(r)
+                record["file"] = file
+            if keep(record):
+                stats.add(record)
+                for writer in writers:
+                    writer.write(record)
         return
     item.add_to(stats)
-    for w in writers:
-        if hasattr(w, "write_block"):
-            w.write_block(item)
-        elif getattr(w, "messages_only", False) or type(w).__name__ == "TableWriter":
+    for writer in writers:
+        if hasattr(writer, "write_block"):
+            writer.write_block(item)
+        elif getattr(writer, "messages_only", False) or type(writer).__name__ == "TableWriter":
             tables = iter(item.tables)
             nxt = next(tables, None)
-            covered = {id(r) for g in item.tables for r in g.covered}
-            for i, (_, r) in enumerate(item.messages):
-                while nxt is not None and nxt.first == i:  # a group's rows, from its columns
-                    w.write_columns(nxt.name, nxt.columns)
+            covered = {id(record) for g in item.tables for record in g.covered}
+            for index, (_, record) in enumerate(item.messages):
+                while nxt is not None and nxt.first == index:  # a group's rows, from its columns
+                    writer.write_columns(nxt.name, nxt.columns)
                     nxt = next(tables, None)
-                if id(r) not in covered:  # a group's own records: their rows are columns
-                    w.write(r)
+                if id(record) not in covered:  # a group's own records: their rows are columns
+                    writer.write(record)
             while nxt is not None:  # lean blocks: groups after the last record
-                w.write_columns(nxt.name, nxt.columns)
+                writer.write_columns(nxt.name, nxt.columns)
                 nxt = next(tables, None)
         else:
-            for r in item.records():
+            for record in item.records():
                 if file is not None:
-                    r["file"] = file
-                w.write(r)
+                    record["file"] = file
+                writer.write(record)
 
 
 # -- --jobs N -------------------------------------------------------------------------------------
 def _compact(block: FrameBlock) -> FrameBlock:
     """The block's rows only, and only the bytes its records read (header and transport)."""
     fa, lo, hi = block.fa, block.lo, block.hi
-    c = fa.chunk
-    chunk = Chunk(np.ascontiguousarray(c.data[lo:hi, :8]), c.length[lo:hi].copy(),
-                  c.time[lo:hi].copy(), c.direction[lo:hi].copy())
+    source = fa.chunk
+    chunk = Chunk(np.ascontiguousarray(source.data[lo:hi, :8]), source.length[lo:hi].copy(),
+                  source.time[lo:hi].copy(), source.direction[lo:hi].copy())
     small = FrameArrays(chunk, fa.base + lo, fa.ftype[lo:hi].copy(), fa.num[lo:hi].copy(),
                         fa.rsp[lo:hi].copy(), fa.crc_ok[lo:hi].copy(), fa.d[lo:hi].copy(),
                         fa.fed[lo:hi].copy(), fa.tfill[lo:hi].copy(), fa.r[lo:hi].copy())
@@ -212,12 +212,12 @@ def parallel_items(paths: list[str], jobs: int, fmt: str | None, direction: str 
         pending: list[Any] = [pool.submit(_worker, p, fmt, direction, sw, fields)
                               for p in paths[:jobs]]
         nxt = len(pending)
-        for i, path in enumerate(paths):
-            res = pending[i].result()
+        for index, path in enumerate(paths):
+            res = pending[index].result()
             if nxt < len(paths):
                 pending.append(pool.submit(_worker, paths[nxt], fmt, direction, sw, fields))
                 nxt += 1
-            pending[i] = None
+            pending[index] = None
             if isinstance(res[0], str):
                 if res[0] == "error":
                     raise InputError(str(res[1]))

@@ -30,8 +30,8 @@ STATS_PERIOD_S = 1.0
 LEVELS = ("debug", "info", "warning", "error")
 
 
-def ns(t: float) -> int:
-    return max(0, round(t * 1e9))
+def ns(time_s: float) -> int:
+    return max(0, round(time_s * 1e9))
 
 
 def _find(fields: Any, key: str) -> float | None:
@@ -56,9 +56,9 @@ def _find(fields: Any, key: str) -> float | None:
 def schemas() -> dict[str, Any]:
     """Every topic with its schema: a ``foxglove.messages`` class or a JSON Schema (what a live
     server advertises before the first message)."""
-    m = fg()
-    out: dict[str, Any] = dict.fromkeys(topics.SCENE_TOPICS.values(), m.SceneUpdate)
-    out.update({topics.TF: m.FrameTransform, topics.LOG: m.Log, topics.EGO: topics.EGO_SCHEMA,
+    sdk = fg()
+    out: dict[str, Any] = dict.fromkeys(topics.SCENE_TOPICS.values(), sdk.SceneUpdate)
+    out.update({topics.TF: sdk.FrameTransform, topics.LOG: sdk.Log, topics.EGO: topics.EGO_SCHEMA,
                 topics.STREAMS: topics.STREAMS_SCHEMA, topics.ACK_LATENCY: topics.ACK_SCHEMA})
     return out
 
@@ -70,13 +70,13 @@ class DeadReckoning:
         self.x = self.y = self.yaw = 0.0
         self.last: float | None = None
 
-    def step(self, t: float, speed: float, yaw_rate: float) -> None:
-        if self.last is not None and 0.0 < t - self.last < 1.0:  # a gap or a jump: hold
-            dt = t - self.last
+    def step(self, time_s: float, speed: float, yaw_rate: float) -> None:
+        if self.last is not None and 0.0 < time_s - self.last < 1.0:  # a gap or a jump: hold
+            dt = time_s - self.last
             self.yaw = math.remainder(self.yaw + yaw_rate * dt, math.tau)
             self.x += speed * math.cos(self.yaw) * dt
             self.y += speed * math.sin(self.yaw) * dt
-        self.last = t
+        self.last = time_s
 
     def pose(self) -> tuple[float, float, float] | None:
         return None if self.last is None else (self.x, self.y, self.yaw)
@@ -103,84 +103,84 @@ class Feed:
         self.next_stats: float | None = None
         self.published: Counter[str] = Counter()  # topic -> messages written
 
-    def message(self, name: str | None, fields: dict[str, Any] | None, t: float | None,
+    def message(self, name: str | None, fields: dict[str, Any] | None, time_s: float | None,
                 errors: list[str] | tuple[str, ...] = ()) -> None:
         """One decoded message, as the host or the dissector delivered it."""
-        if t is None or name is None:
+        if time_s is None or name is None:
             return
         if name == VEH_STATE and fields and not errors:
-            self._ego(fields, t)
-        elif name in topics.SCENE_TOPICS and self.tracker.update(name, fields, t, errors):
-            self._scene(name, t)
-        self.tick(t)
+            self._ego(fields, time_s)
+        elif name in topics.SCENE_TOPICS and self.tracker.update(name, fields, time_s, errors):
+            self._scene(name, time_s)
+        self.tick(time_s)
 
-    def _scene(self, name: str, t: float) -> None:
-        stamp = ns(t)
+    def _scene(self, name: str, time_s: float) -> None:
+        stamp = ns(time_s)
         self._put(topics.SCENE_TOPICS[name],
                   self.scenes.update(name, self.tracker.scene, stamp), stamp)
         if name == OBSTACLES:
             for tf in frame_transforms(stamp, self.odom.pose(), self.camera_height):
                 self._put(topics.TF, tf, stamp)
 
-    def _ego(self, fields: dict[str, Any], t: float) -> None:
+    def _ego(self, fields: dict[str, Any], time_s: float) -> None:
         speed, yaw_rate = _find(fields, "vehicleVelocity"), _find(fields, "vehicleYawRate")
         if speed is None or yaw_rate is None:
             return
-        self.ego(speed, yaw_rate, t)
+        self.ego(speed, yaw_rate, time_s)
 
-    def ego(self, speed: float, yaw_rate: float, t: float) -> None:
-        """The ego vehicle's speed (m/s) and yaw rate (rad/s, left positive) at ``t``."""
-        self.odom.step(t, speed, yaw_rate)
-        self._values(topics.EGO, topics.EGO_SCHEMA, {"speed": speed, "yaw_rate": yaw_rate}, t)
+    def ego(self, speed: float, yaw_rate: float, time_s: float) -> None:
+        """The ego vehicle's speed (m/s) and yaw rate (rad/s, left positive) at ``time_s``."""
+        self.odom.step(time_s, speed, yaw_rate)
+        self._values(topics.EGO, topics.EGO_SCHEMA, {"speed": speed, "yaw_rate": yaw_rate}, time_s)
 
-    def received(self, name: str, t: float) -> None:
+    def received(self, name: str, time_s: float) -> None:
         """A message counted for ``/streams`` without its fields (a live host's traffic)."""
         self.counts[name] += 1
-        self.tick(t)
+        self.tick(time_s)
 
-    def ack(self, latency: float, t: float) -> None:
+    def ack(self, latency: float, time_s: float) -> None:
         """One DATA frame's send -> ACK time, seconds."""
         self.acks[int(latency * 1e5)] += 1
-        self.tick(t)
+        self.tick(time_s)
 
-    def ack_bins(self, bins: Counter[int], t: float) -> None:
+    def ack_bins(self, bins: Counter[int], time_s: float) -> None:
         """ACK latencies as a link counts them (10 µs bins)."""
         self.acks.update(bins)
-        self.tick(t)
+        self.tick(time_s)
 
-    def log(self, text: str, t: float, level: str = "info", name: str = "eyeq-spi") -> None:
-        m = fg()
-        stamp = ns(t)
-        lvl = {"debug": m.LogLevel.Debug, "info": m.LogLevel.Info,
-               "warning": m.LogLevel.Warning, "error": m.LogLevel.Error}[level]
-        self._put(topics.LOG, m.Log(timestamp=timestamp(stamp), level=lvl, message=text,
-                                    name=name), stamp)
+    def log(self, text: str, time_s: float, level: str = "info", name: str = "eyeq-spi") -> None:
+        sdk = fg()
+        stamp = ns(time_s)
+        lvl = {"debug": sdk.LogLevel.Debug, "info": sdk.LogLevel.Info,
+               "warning": sdk.LogLevel.Warning, "error": sdk.LogLevel.Error}[level]
+        self._put(topics.LOG, sdk.Log(timestamp=timestamp(stamp), level=lvl, message=text,
+                                      name=name), stamp)
 
-    def tick(self, t: float) -> None:
+    def tick(self, time_s: float) -> None:
         """Publish the once-a-second topics when their second is over."""
         if self.next_stats is None:
-            self.next_stats = t + STATS_PERIOD_S
-        if t < self.next_stats:
+            self.next_stats = time_s + STATS_PERIOD_S
+        if time_s < self.next_stats:
             return
-        span = STATS_PERIOD_S + max(0.0, t - self.next_stats)
+        span = STATS_PERIOD_S + max(0.0, time_s - self.next_stats)
         if self.counts:
             self._values(topics.STREAMS, topics.STREAMS_SCHEMA,
-                         {k: round(v / span, 2) for k, v in sorted(self.counts.items())}, t)
+                         {k: round(v / span, 2) for k, v in sorted(self.counts.items())}, time_s)
         if self.acks:
             stats = ack_latency_ms(self.acks)
             self._values(topics.ACK_LATENCY, topics.ACK_SCHEMA,
-                         {"p50_ms": stats["p50"], "max_ms": stats["max"], "n": stats["n"]}, t)
+                         {"p50_ms": stats["p50"], "max_ms": stats["max"], "n": stats["n"]}, time_s)
         self.counts.clear()
         self.acks.clear()
-        self.next_stats = t + STATS_PERIOD_S
+        self.next_stats = time_s + STATS_PERIOD_S
 
     def _put(self, topic: str, msg: Any, stamp: int) -> None:
         self.sink.message(topic, msg, stamp)
         self.published[topic] += 1
 
     def _values(self, topic: str, schema: dict[str, Any], body: dict[str, Any],
-                t: float) -> None:
-        self.sink.values(topic, schema, body, ns(t))
+                time_s: float) -> None:
+        self.sink.values(topic, schema, body, ns(time_s))
         self.published[topic] += 1
 
 
@@ -196,32 +196,32 @@ class RecordFeed:
 
     def add(self, record: dict[str, Any]) -> None:
         kind = record["kind"]
-        t = record.get("time")
-        if t is not None:
-            self.last_time = t
+        time_s = record.get("time")
+        if time_s is not None:
+            self.last_time = time_s
         if kind == "message":
-            if t is not None:
-                self.feed.received(record["name"] or record["protocol"], t)
-            self.feed.message(record["name"], record["fields"], t, record["errors"])
+            if time_s is not None:
+                self.feed.received(record["name"] or record["protocol"], time_s)
+            self.feed.message(record["name"], record["fields"], time_s, record["errors"])
             for error in record["errors"]:
-                if t is not None:
-                    self.feed.log(f"{record['name'] or record['protocol']}: {error}", t,
+                if time_s is not None:
+                    self.feed.log(f"{record['name'] or record['protocol']}: {error}", time_s,
                                   "warning", f"{record['direction'] or '?'} message")
         elif kind == "event" and self.last_time is not None:
             self.feed.log(_event_text(record), self.last_time, "warning",
                           f"{record.get('direction') or '?'} link")
-        elif kind == "frame" and t is not None and record.get("crc_ok"):
-            self._frame(record, t)
+        elif kind == "frame" and time_s is not None and record.get("crc_ok"):
+            self._frame(record, time_s)
 
-    def _frame(self, record: dict[str, Any], t: float) -> None:
+    def _frame(self, record: dict[str, Any], time_s: float) -> None:
         direction = record["direction"]
         if record["frame_type"] == "DATA" and record["num"] is not None:
-            self.sent[(direction, record["num"])] = t
+            self.sent[(direction, record["num"])] = time_s
         elif record["frame_type"] == "ACK" and record["rsp"] is not None:  # RSP: the NUM ACKed
             other = {"h2e": "e2h", "e2h": "h2e"}.get(direction or "")
             sent = self.sent.pop((other, record["rsp"]), None)
-            if sent is not None and t >= sent:
-                self.feed.ack(t - sent, t)
+            if sent is not None and time_s >= sent:
+                self.feed.ack(time_s - sent, time_s)
 
 
 def _event_text(record: dict[str, Any]) -> str:

@@ -62,16 +62,16 @@ def timestamp(ns: int) -> Any:
 
 
 def pose(x: float, y: float, z: float, yaw: float = 0.0) -> Any:
-    m = fg()
+    sdk = fg()
     qx, qy, qz, qw = yaw_quaternion(yaw)
-    return m.Pose(position=m.Vector3(x=x, y=y, z=z), orientation=m.Quaternion(x=qx, y=qy, z=qz,
-                                                                               w=qw))
+    return sdk.Pose(position=sdk.Vector3(x=x, y=y, z=z),
+                    orientation=sdk.Quaternion(x=qx, y=qy, z=qz, w=qw))
 
 
 def _text(text: str, x: float, y: float, z: float) -> Any:
-    m = fg()
-    return m.TextPrimitive(pose=pose(x, y, z), billboard=True, font_size=LABEL_SIZE,
-                           scale_invariant=True, color=colour("#000000"), text=text)
+    sdk = fg()
+    return sdk.TextPrimitive(pose=pose(x, y, z), billboard=True, font_size=LABEL_SIZE,
+                             scale_invariant=True, color=colour("#000000"), text=text)
 
 
 def _meta(**values: Any) -> list[Any]:
@@ -89,58 +89,60 @@ class SceneMessages:
 
     def update(self, kind: str, scene: Scene, ns: int) -> Any:
         """The SceneUpdate of ``kind`` (one of :data:`KINDS`) for ``scene`` at ``ns``."""
-        m = fg()
+        sdk = fg()
         stamp = timestamp(ns)
         period = 1.0 / (self.rates.get(kind) or DEFAULT_RATE_HZ)
-        lifetime = m.Duration.from_secs(LIFETIME_PERIODS * period)
+        lifetime = sdk.Duration.from_secs(LIFETIME_PERIODS * period)
         build = {OBSTACLES: self._obstacles, ROAD: self._lanes, SIGNS: self._signs,
                  LIGHTS: self._lights}[kind]
         parts = list(build(scene))
-        entities = [m.SceneEntity(timestamp=stamp, frame_id=FRAME, id=eid, lifetime=lifetime,
-                                  **primitives) for eid, primitives in parts]
+        entities = [sdk.SceneEntity(timestamp=stamp, frame_id=FRAME, id=eid, lifetime=lifetime,
+                                    **primitives) for eid, primitives in parts]
         ids = {eid for eid, _ in parts}
         gone = sorted(self.shown[kind] - ids)
         self.shown[kind] = ids
-        matching = m.SceneEntityDeletionType.MatchingId
-        deletions = [m.SceneEntityDeletion(timestamp=stamp, type=matching, id=eid)
+        matching = sdk.SceneEntityDeletionType.MatchingId
+        deletions = [sdk.SceneEntityDeletion(timestamp=stamp, type=matching, id=eid)
                      for eid in gone]
-        return m.SceneUpdate(deletions=deletions, entities=entities)
+        return sdk.SceneUpdate(deletions=deletions, entities=entities)
 
     def _obstacles(self, scene: Scene) -> Iterable[tuple[str, dict[str, Any]]]:
-        m = fg()
+        sdk = fg()
         ego_length, ego_width = birdseye.EGO
-        yield "ego", {"cubes": [m.CubePrimitive(
-            pose=pose(-ego_length / 2.0, 0.0, OBJECT_HEIGHT_M / 2.0), size=m.Vector3(
+        yield "ego", {"cubes": [sdk.CubePrimitive(
+            pose=pose(-ego_length / 2.0, 0.0, OBJECT_HEIGHT_M / 2.0), size=sdk.Vector3(
                 x=ego_length, y=ego_width, z=OBJECT_HEIGHT_M), color=colour("#404040", 0.6))]}
-        for o in scene.objects:
-            x, y = box_centre(o.long, o.lat, o.length, o.heading)
-            height = o.height or OBJECT_HEIGHT_M
-            length, width = max(o.length, 0.3), max(o.width, 0.3)
-            size = m.Vector3(x=length, y=width, z=height)
-            cubes = [m.CubePrimitive(pose=pose(x, y, height / 2.0, o.heading), size=size,
-                                     color=colour(birdseye.class_colour(o.cls), 0.8))]
-            label = f"{o.id} {o.cls_name} {math.hypot(o.long, o.lat):.1f} m"
+        for obstacle in scene.objects:
+            x, y = box_centre(obstacle.long, obstacle.lat, obstacle.length, obstacle.heading)
+            height = obstacle.height or OBJECT_HEIGHT_M
+            length, width = max(obstacle.length, 0.3), max(obstacle.width, 0.3)
+            size = sdk.Vector3(x=length, y=width, z=height)
+            cubes = [sdk.CubePrimitive(pose=pose(x, y, height / 2.0, obstacle.heading), size=size,
+                                       color=colour(birdseye.class_colour(obstacle.cls), 0.8))]
+            label = (f"{obstacle.id} {obstacle.cls_name} "
+                     f"{math.hypot(obstacle.long, obstacle.lat):.1f} m")
             lines = []
-            if o.cipv:
+            if obstacle.cipv:
                 label = f"CIPV {label}"
-                lines.append(self._ring(x, y, o.heading, length + 0.6, width + 0.6))
-            ttc = o.closing_ttc
-            yield f"obstacle/{o.id}", {
+                lines.append(self._ring(x, y, obstacle.heading, length + 0.6, width + 0.6))
+            ttc = obstacle.closing_ttc
+            yield f"obstacle/{obstacle.id}", {
                 "cubes": cubes, "lines": lines,
                 "texts": [_text(label, x, y, height + 0.6)],
-                "metadata": _meta(id=o.id, classification=o.cls_name, long_m=round(o.long, 2),
-                                  lat_m=round(o.lat, 2), heading_rad=round(o.heading, 3),
-                                  v_long=round(o.v_long, 2), v_lat=round(o.v_lat, 2),
-                                  cipv=o.cipv, ttc_s="-" if ttc is None else round(ttc, 2))}
+                "metadata": _meta(id=obstacle.id, classification=obstacle.cls_name,
+                                  long_m=round(obstacle.long, 2), lat_m=round(obstacle.lat, 2),
+                                  heading_rad=round(obstacle.heading, 3),
+                                  v_long=round(obstacle.v_long, 2), v_lat=round(obstacle.v_lat, 2),
+                                  cipv=obstacle.cipv, ttc_s="-" if ttc is None else round(ttc, 2))}
 
     def _ring(self, x: float, y: float, yaw: float, length: float, width: float) -> Any:
         """The CIPV's mark: a loop on the road around its box."""
-        m = fg()
+        sdk = fg()
         corners = [(length / 2, width / 2), (-length / 2, width / 2), (-length / 2, -width / 2),
                    (length / 2, -width / 2)]
-        return m.LinePrimitive(
-            type=m.LinePrimitiveLineType.LineLoop, pose=pose(x, y, 0.05, yaw), thickness=0.2,
-            points=[m.Point3(x=a, y=b, z=0.0) for a, b in corners],
+        return sdk.LinePrimitive(
+            type=sdk.LinePrimitiveLineType.LineLoop, pose=pose(x, y, 0.05, yaw), thickness=0.2,
+            points=[sdk.Point3(x=a, y=b, z=0.0) for a, b in corners],
             color=colour(birdseye.CIPV_EDGE))
 
     def _lanes(self, scene: Scene) -> Iterable[tuple[str, dict[str, Any]]]:
@@ -152,25 +154,25 @@ class SceneMessages:
                                   a3=line.coeffs[3], start_m=line.start, end_m=line.end)}
 
     def _signs(self, scene: Scene) -> Iterable[tuple[str, dict[str, Any]]]:
-        m = fg()
-        for k, sign in enumerate(scene.signs):
+        sdk = fg()
+        for index, sign in enumerate(scene.signs):
             if not sign.known:
                 continue
             x, y, z = sign.long, sign.lat, above_road(sign.height, self.camera_height)
-            yield f"sign/{k}", {
-                "cubes": [m.CubePrimitive(pose=pose(x, y, z), size=m.Vector3(
+            yield f"sign/{index}", {
+                "cubes": [sdk.CubePrimitive(pose=pose(x, y, z), size=sdk.Vector3(
                     x=0.05, y=SIGN_SIZE_M, z=SIGN_SIZE_M), color=colour(birdseye.SIGN_COLOUR))],
                 "texts": [_text(sign.name, x, y, z + SIGN_SIZE_M)],
                 "metadata": _meta(type=sign.type, name=sign.name, long_m=round(x, 2),
                                   lat_m=round(y, 2), height_m=round(sign.height, 2))}
 
     def _lights(self, scene: Scene) -> Iterable[tuple[str, dict[str, Any]]]:
-        m = fg()
+        sdk = fg()
         for spot in scene.spots:
             head = "head" in spot.cls_name.lower()
-            size = m.Vector3(x=2 * SPOT_RADIUS_M, y=2 * SPOT_RADIUS_M, z=2 * SPOT_RADIUS_M)
+            size = sdk.Vector3(x=2 * SPOT_RADIUS_M, y=2 * SPOT_RADIUS_M, z=2 * SPOT_RADIUS_M)
             yield f"light/{spot.id}", {
-                "spheres": [m.SpherePrimitive(
+                "spheres": [sdk.SpherePrimitive(
                     pose=pose(spot.long, spot.lat, SPOT_HEIGHT_M), size=size,
                     color=colour(SPOT_COLOURS["head" if head else "tail"]))],
                 "metadata": _meta(id=spot.id, classification=spot.cls_name,
@@ -186,10 +188,10 @@ def line_points(line: SceneLine) -> list[tuple[float, float]]:
 
 
 def line_strip(line: SceneLine) -> Any:
-    m = fg()
-    return m.LinePrimitive(
-        type=m.LinePrimitiveLineType.LineStrip, pose=pose(0.0, 0.0, 0.02),
-        thickness=LINE_WIDTH_M, points=[m.Point3(x=x, y=y, z=0.0) for x, y in line_points(line)],
+    sdk = fg()
+    return sdk.LinePrimitive(
+        type=sdk.LinePrimitiveLineType.LineStrip, pose=pose(0.0, 0.0, 0.02),
+        thickness=LINE_WIDTH_M, points=[sdk.Point3(x=x, y=y, z=0.0) for x, y in line_points(line)],
         color=colour(birdseye.LINE_COLOURS[line.kind]))
 
 
@@ -197,16 +199,17 @@ def frame_transforms(ns: int, odom: tuple[float, float, float] | None,
                      camera_height: float = CAMERA_HEIGHT_M) -> list[Any]:
     """``vehicle`` -> ``camera`` (the sensor above the frame's origin) and, when the vehicle's
     dead-reckoned pose (x, y, yaw) is known, ``odom`` -> ``vehicle``."""
-    m = fg()
+    sdk = fg()
     stamp = timestamp(ns)
-    unit = m.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
-    out = [m.FrameTransform(timestamp=stamp, parent_frame_id=FRAME, child_frame_id=CAMERA_FRAME,
-                            translation=m.Vector3(x=0.0, y=0.0, z=camera_height), rotation=unit)]
+    unit = sdk.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+    out = [sdk.FrameTransform(timestamp=stamp, parent_frame_id=FRAME, child_frame_id=CAMERA_FRAME,
+                              translation=sdk.Vector3(x=0.0, y=0.0, z=camera_height),
+                              rotation=unit)]
     if odom is not None:
         x, y, yaw = odom
         qx, qy, qz, qw = yaw_quaternion(yaw)
-        out.append(m.FrameTransform(
+        out.append(sdk.FrameTransform(
             timestamp=stamp, parent_frame_id=WORLD_FRAME, child_frame_id=FRAME,
-            translation=m.Vector3(x=x, y=y, z=0.0), rotation=m.Quaternion(x=qx, y=qy, z=qz,
-                                                                          w=qw)))
+            translation=sdk.Vector3(x=x, y=y, z=0.0), rotation=sdk.Quaternion(x=qx, y=qy, z=qz,
+                                                                              w=qw)))
     return out

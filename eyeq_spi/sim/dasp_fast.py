@@ -73,19 +73,20 @@ class Slot:
 
 def _slots(lay: Layout) -> dict[str, Slot]:
     out: dict[str, Slot] = {}
-    for f in lay.fields:
-        if f.name in lay.children:
+    for field in lay.fields:
+        if field.name in lay.children:
             continue
-        fmt = FMT[f.type]
-        if f.bits is not None:
-            lo, hi = f.bits
-            out[f.name] = Slot(f.name, BITS, f.offset, f.type, struct.Struct("<" + fmt), lo,
-                               (1 << (hi - lo + 1)) - 1)
-        elif f.count:
-            out[f.name] = Slot(f.name, ARRAY, f.offset, f.type,
-                               struct.Struct("<" + fmt * f.count), count=f.count)
+        fmt = FMT[field.type]
+        if field.bits is not None:
+            lo, hi = field.bits
+            out[field.name] = Slot(field.name, BITS, field.offset, field.type,
+                                   struct.Struct("<" + fmt), lo, (1 << (hi - lo + 1)) - 1)
+        elif field.count:
+            out[field.name] = Slot(field.name, ARRAY, field.offset, field.type,
+                                   struct.Struct("<" + fmt * field.count), count=field.count)
         else:
-            out[f.name] = Slot(f.name, SCALAR, f.offset, f.type, struct.Struct("<" + fmt))
+            out[field.name] = Slot(field.name, SCALAR, field.offset, field.type,
+                                   struct.Struct("<" + fmt))
     return out
 
 
@@ -109,14 +110,15 @@ class StructView:
         # elements of arrays keep none (only numpy columns write them) and read the buffer
         self.shadow: dict[str, Any] | None = {} if keep else None
         self.kids: dict[str, StructView | list[StructView]] = {}
-        for f in lay.fields:
-            child = lay.children.get(f.name)
+        for field in lay.fields:
+            child = lay.children.get(field.name)
             if child is None:
                 continue
-            o = base + f.offset
-            self.kids[f.name] = (
-                [StructView(buf, child, o + k * child.size, False, cache) for k in range(f.count)]
-                if f.count else StructView(buf, child, o, keep, cache))
+            offset = base + field.offset
+            self.kids[field.name] = (
+                [StructView(buf, child, offset + k * child.size, False, cache)
+                 for k in range(field.count)]
+                if field.count else StructView(buf, child, offset, keep, cache))
 
     # -- the dict interface the fillers use --------------------------------------------------
     def __contains__(self, key: object) -> bool:
@@ -134,46 +136,46 @@ class StructView:
             return kid
         if self.shadow is not None and key in self.shadow:
             return self.shadow[key]
-        s = self.slots[key]
-        if s.kind == ARRAY:
-            return list(s.st.unpack_from(self.buf, self.base + s.offset))
-        v = s.st.unpack_from(self.buf, self.base + s.offset)[0]
-        return (v >> s.lo) & s.mask if s.kind == BITS else v
+        slot = self.slots[key]
+        if slot.kind == ARRAY:
+            return list(slot.st.unpack_from(self.buf, self.base + slot.offset))
+        raw = slot.st.unpack_from(self.buf, self.base + slot.offset)[0]
+        return (raw >> slot.lo) & slot.mask if slot.kind == BITS else raw
 
     def __setitem__(self, key: str, value: Any) -> None:
-        s = self.slots.get(key)
-        if s is None:
+        slot = self.slots.get(key)
+        if slot is None:
             kid = self.kids.get(key)
             if isinstance(kid, StructView) and isinstance(value, Mapping):
                 kid.assign(value)
             elif isinstance(kid, list) and isinstance(value, list):
                 if len(value) != len(kid):
                     raise LocalProtocolError(f"{key} needs {len(kid)} elements, got {len(value)}")
-                for view, v in zip(kid, value, strict=True):
-                    view.assign(v)
+                for view, item in zip(kid, value, strict=True):
+                    view.assign(item)
             return  # a member this release lacks: the reference's encoder ignores it too
-        o = self.base + s.offset
+        offset = self.base + slot.offset
         try:
-            if s.kind == SCALAR:
-                s.st.pack_into(self.buf, o, value)
-            elif s.kind == BITS:  # layout_fast._bits: the same check, then the container's bits
-                if not isinstance(value, int) or not 0 <= value <= s.mask:
+            if slot.kind == SCALAR:
+                slot.st.pack_into(self.buf, offset, value)
+            elif slot.kind == BITS:  # layout_fast._bits: the same check, then the container's bits
+                if not isinstance(value, int) or not 0 <= value <= slot.mask:
                     raise LocalProtocolError(f"{key}: {value!r} does not fit "
-                                             f"{s.mask.bit_length()} bit(s)")
-                c = s.st.unpack_from(self.buf, o)[0] & ~(s.mask << s.lo)
-                s.st.pack_into(self.buf, o, c | value << s.lo)
+                                             f"{slot.mask.bit_length()} bit(s)")
+                container = slot.st.unpack_from(self.buf, offset)[0] & ~(slot.mask << slot.lo)
+                slot.st.pack_into(self.buf, offset, container | value << slot.lo)
             else:
-                if len(value) != s.count:
-                    raise LocalProtocolError(f"{key} needs {s.count} elements, got {len(value)}")
-                s.st.pack_into(self.buf, o, *value)
+                if len(value) != slot.count:
+                    raise LocalProtocolError(f"{key} needs {slot.count} elements, got {len(value)}")
+                slot.st.pack_into(self.buf, offset, *value)
         except (struct.error, TypeError) as exc:
             raise LocalProtocolError(f"{self.layout.name}.{key}: cannot encode: {exc}") from None
         if self.shadow is not None:
             self.shadow[key] = value
 
     def update(self, values: Mapping[str, Any]) -> None:
-        for k, v in values.items():
-            self[k] = v
+        for key, value in values.items():
+            self[key] = value
 
     def assign(self, values: Mapping[str, Any]) -> None:
         """A whole struct at once (the reference replaces its sub-dict): every member needed."""
@@ -187,8 +189,8 @@ class StructView:
             self.shadow.clear()
         self.done.clear()
         for kid in self.kids.values():
-            for v in kid if isinstance(kid, list) else (kid,):
-                v.reset()
+            for view in kid if isinstance(kid, list) else (kid,):
+                view.reset()
 
 
 class DaspPacker:
