@@ -35,8 +35,8 @@ def capture_tap(writer: Any, start: float, tx: str, rx: str) -> Tap | None:
     if writer is None:
         return None
 
-    def tap(kind: str, t: float, transfer: bytes) -> None:
-        writer.write(tx if kind == "tx" else rx, t - start, transfer)
+    def tap(kind: str, time_s: float, transfer: bytes) -> None:
+        writer.write(tx if kind == "tx" else rx, time_s - start, transfer)
 
     return tap
 

@@ -14,17 +14,17 @@ from eyeq_spi.errors import UsageError
 def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import options as opt
 
-    b = sub.add_parser(name, help=help,
+    parser = sub.add_parser(name, help=help,
                        description="Dissect every *.pcapng under DIR as dissect does "
                        "and write one Parquet dataset partitioned by capture and message "
                        "(OUT/capture=NAME/message=NAME/part-0.parquet). Prints one JSON "
                        "summary per capture. Exit 0 all captures read, 1 some could not be "
                        "read, 2 bad usage.")
-    b.add_argument("dir", metavar="DIR", help="a directory of captures (searched recursively) "
+    parser.add_argument("dir", metavar="DIR", help="a directory of captures (searched recursively) "
                    "or one capture")
-    b.add_argument("--parquet", required=True, metavar="OUT", help="dataset directory")
-    opt.add_sw(b, "SW release of the traffic (default newest)")
-    where = b.add_mutually_exclusive_group()
+    parser.add_argument("--parquet", required=True, metavar="OUT", help="dataset directory")
+    opt.add_sw(parser, "SW release of the traffic (default newest)")
+    where = parser.add_mutually_exclusive_group()
     where.add_argument("--jobs", "-j", type=opt.limited("batch_jobs"), default=1, metavar="N",
                        help="captures at a time in local worker processes (default 1)")
     where.add_argument("--scheduler", metavar="tcp://HOST:PORT",
@@ -47,6 +47,6 @@ def run(args: argparse.Namespace) -> int:
         summaries = run_fleet(args.dir, args.parquet, sw=args.sw, jobs=args.jobs,
                               scheduler=args.scheduler, local_cluster=args.local_cluster,
                               progress=bar.update)
-    for s in summaries:
-        sys.stdout.write(json.dumps(s, separators=(",", ":")) + "\n")
+    for summary in summaries:
+        sys.stdout.write(json.dumps(summary, separators=(",", ":")) + "\n")
     return 1 if any(s["error"] for s in summaries) else 0

@@ -213,9 +213,9 @@ def _decode_stats(args: argparse.Namespace, decoder: Any,
             print(human_total(block))
         else:
             print(human_stats(block, heading=several))
-    for r in results:
-        if r.get("warning"):
-            _warn(f"{r['file']}: warning: {r['warning']}")
+    for result in results:
+        if result.get("warning"):
+            _warn(f"{result['file']}: warning: {result['warning']}")
     for line in truncated:  # one line each, as an error is
         print(f"eyeq-spi can decode: {line}", file=sys.stderr)
     return 1 if any(r["error_frames"] for r in results) or truncated else 0

@@ -16,7 +16,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
-    d = sub.add_parser(name, help=help,
+    parser = sub.add_parser(name, help=help,
                        description="Decode SPI transfers: frames, reassembled messages with "
                        "their fields, link events. Exit 0 clean, 1 protocol errors found, "
                        "2 bad input or usage.",
@@ -24,29 +24,29 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                            sw_help="SW release of the traffic (default: the one each capture "
                            "records or shows, else the newest)", spi=False),
                            opt.json_out("JSON Lines, one object per line")])
-    d.add_argument("files", nargs="+", metavar="FILE", type=ca.input_file,
+    parser.add_argument("files", nargs="+", metavar="FILE", type=ca.input_file,
                    help="capture files, or - for stdin")
-    d.add_argument("--csv", metavar="DIR", type=ca.output_dir,
+    parser.add_argument("--csv", metavar="DIR", type=ca.output_dir,
                    help="one CSV table per message type")
-    d.add_argument("--parquet", metavar="DIR", type=ca.output_dir,
+    parser.add_argument("--parquet", metavar="DIR", type=ca.output_dir,
                    help="one Parquet table per message type (needs the [parquet] extra)")
-    d.add_argument("--stats", action="store_true",
+    parser.add_argument("--stats", action="store_true",
                    help="print only summary statistics of the records the filters keep "
                    "(one JSON object with --json)")
-    d.add_argument("--protocol", type=str.upper, choices=("MESP", "DASP", "DIAG", "BOOT",
+    parser.add_argument("--protocol", type=str.upper, choices=("MESP", "DASP", "DIAG", "BOOT",
                    "UNKNOWN"), help="only messages of this protocol (any case)")
-    d.add_argument("--id", type=ca.message_id, metavar="ID",
+    parser.add_argument("--id", type=ca.message_id, metavar="ID",
                    help="only messages with this data ID, 0..255 (0xE4; 0x41 and 0x10 work "
                    "too) or message name")
-    d.add_argument("--name", metavar="REGEX", type=ca.regex,
+    parser.add_argument("--name", metavar="REGEX", type=ca.regex,
                    help="only messages whose name matches")
-    d.add_argument("--errors-only", action="store_true",
+    parser.add_argument("--errors-only", action="store_true",
                    help="only bad frames, link events and messages with errors")
-    d.add_argument("--no-tree", action="store_true", help="no field tree in the human view")
-    d.add_argument("--jobs", "-j", type=opt.limited("dissect_jobs"), default=1, metavar="N",
+    parser.add_argument("--no-tree", action="store_true", help="no field tree in the human view")
+    parser.add_argument("--jobs", "-j", type=opt.limited("dissect_jobs"), default=1, metavar="N",
                    help="dissect N files at a time in worker processes (same output as one "
                    "at a time; 0: one per CPU)")
-    opt.add_spi_arguments(d)
+    opt.add_spi_arguments(parser)
 
 
 def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
@@ -56,23 +56,23 @@ def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
         raise UsageError(f"--name: bad regular expression: {exc}") from None
     message_filter = bool(args.protocol or args.id is not None or name_re)
 
-    def keep(r: dict[str, Any]) -> bool:
-        kind = r["kind"]
+    def keep(record: dict[str, Any]) -> bool:
+        kind = record["kind"]
         if kind == "frame":
             if args.errors_only:
-                return bool(not r["crc_ok"] or r["frame_type"] in ("NAK", "INVALID"))
+                return bool(not record["crc_ok"] or record["frame_type"] in ("NAK", "INVALID"))
             return not message_filter
         if kind == "event":
             return not message_filter or args.errors_only
-        if args.protocol and r["protocol"] != args.protocol:
+        if args.protocol and record["protocol"] != args.protocol:
             return False
         if args.id is not None:
-            ident = r["header"].get("data_id", r["header"].get("id"))
+            ident = record["header"].get("data_id", record["header"].get("id"))
             if ident != args.id:
                 return False
-        if name_re and not name_re.search(r["name"] or ""):
+        if name_re and not name_re.search(record["name"] or ""):
             return False
-        return not args.errors_only or bool(r["errors"])
+        return not args.errors_only or bool(record["errors"])
 
     return keep
 
@@ -116,9 +116,9 @@ def run(args: argparse.Namespace) -> int:
         if not plain:  # the filters drop records: the human view still dates from
             kept = keep  # the file's first transfer, as plot does
 
-            def keep(r: dict[str, Any]) -> bool:
-                human.see(r)
-                return kept(r)
+            def keep(record: dict[str, Any]) -> bool:
+                human.see(record)
+                return kept(record)
     config = DissectConfig(fmt=args.format, direction=args.direction,
                            spi=spi_options(args), sw=args.sw, jobs=args.jobs,
                            fields=fields_mode(writers, plain), blocks=True)

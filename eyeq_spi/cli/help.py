@@ -163,17 +163,17 @@ def _usage_units(text: str) -> list[str]:
     """``text`` split at the spaces outside brackets and parentheses."""
     units: list[str] = []
     depth, start = 0, None
-    for i, ch in enumerate(text + " "):
+    for index, ch in enumerate(text + " "):
         if ch in "[(":
             depth += 1
         elif ch in "])":
             depth = max(0, depth - 1)
         if ch == " " and depth == 0:
             if start is not None:
-                units.append(text[start:i])
+                units.append(text[start:index])
                 start = None
         elif start is None:
-            start = i
+            start = index
     return units
 
 

@@ -30,49 +30,49 @@ _DAY = f"(0, {opt.DAY_S:g}]"
 
 def add_parser(sub: Any, name: str, help: str) -> None:
     """``demo``, ``sim`` or ``host``."""
-    p = sub.add_parser(name, help=help, description=DESCRIPTIONS.get(name))
+    parser = sub.add_parser(name, help=help, description=DESCRIPTIONS.get(name))
     if name == "demo":
-        p.add_argument("--duration", type=opt.seconds, default=10.0,
+        parser.add_argument("--duration", type=opt.seconds, default=10.0,
                        help=f"seconds, {_DAY} (default 10)")
-        p.add_argument("--virtual-time", action="store_true",
+        parser.add_argument("--virtual-time", action="store_true",
                        help="run as fast as the CPU allows instead of in real time")
-        p.add_argument("--nvm", metavar="FILE", type=ca.output_file,
+        parser.add_argument("--nvm", metavar="FILE", type=ca.output_file,
                        help="the host's NVM as a JSON file, read at the start and written "
                        "atomically: the next run starts with the calibration it learned "
                        "(default: in memory, empty)")
     elif name == "sim":
-        ep = p.add_mutually_exclusive_group(required=True)
+        ep = parser.add_mutually_exclusive_group(required=True)
         ep.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
                         metavar="tcp://HOST:PORT",
                         help="listen here for the host (port 0: any free port); or our SPI "
                         "channels, MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)")
         ep.add_argument("--pty", dest="endpoint", nargs=0, action=ca.Endpoint,
                         help="open a pty and print its path; the host opens it as a serial port")
-        p.set_defaults(listen=None, pty=False, port=None)
-        p.add_argument("--duration", type=opt.seconds,
+        parser.set_defaults(listen=None, pty=False, port=None)
+        parser.add_argument("--duration", type=opt.seconds,
                        help="stop after S seconds (default: never)")
-        p.add_argument("--accept-timeout", type=opt.seconds, default=60.0,
+        parser.add_argument("--accept-timeout", type=opt.seconds, default=60.0,
                        help=f"seconds to wait for the host, {_DAY} (default 60)")
     else:
-        p.add_argument("--port", required=True, metavar="URL", type=ca.connect_address,
+        parser.add_argument("--port", required=True, metavar="URL", type=ca.connect_address,
                        help="the EyeQ: tcp://HOST:PORT as eyeq-spi sim prints it (socket:// "
                        "too), rfc2217://HOST:PORT, a tty or pty path, or our SPI channels, "
                        "MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)")
-        p.add_argument("--nvm", metavar="FILE", type=ca.output_file,
+        parser.add_argument("--nvm", metavar="FILE", type=ca.output_file,
                        help="NVM file, JSON, written atomically (default: in memory)")
-        p.add_argument("--duration", type=opt.seconds, default=10.0,
+        parser.add_argument("--duration", type=opt.seconds, default=10.0,
                        help=f"seconds, {_DAY} (default 10)")
-        p.add_argument("--exit-when-running", action="store_true",
+        parser.add_argument("--exit-when-running", action="store_true",
                        help="stop as soon as Running Vision is reached")
-        p.add_argument("--reconnect", action="store_true",
+        parser.add_argument("--reconnect", action="store_true",
                        help="wait for the EyeQ at the start and whenever the link is lost, "
                        "and run the bring-up again")
-    opt.include(p, opt.json_out())
+    opt.include(parser, opt.json_out())
     if name != "sim":
-        opt.include(p, opt.foxglove())
+        opt.include(parser, opt.foxglove())
     if name != "demo":
-        opt.include(p, opt.rt_priority())
-    opt.include(p, opt.scenario(name))
+        opt.include(parser, opt.rt_priority())
+    opt.include(parser, opt.scenario(name))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -152,11 +152,11 @@ class LiveView:
         if self.origin is None and host_now:  # the host has seen its first event
             self.origin = host_now - now if abs(host_now - now) > 1.0 else 0.0
         origin = self.origin or 0.0
-        for t in host.transitions[self.shown:]:
-            detail = f"  {t.detail}" if getattr(t, "detail", "") else ""
-            self._print(f"[{t.time - origin:8.3f}] {t.src.value:>17s} --{t.event.value}--> "
-                        f"{t.dst.value}{detail}")
-            if t.event.value == "FATAL_22" and not self.explained:
+        for transition in host.transitions[self.shown:]:
+            detail = f"  {transition.detail}" if getattr(transition, "detail", "") else ""
+            self._print(f"[{transition.time - origin:8.3f}] {transition.src.value:>17s} "
+                        f"--{transition.event.value}--> {transition.dst.value}{detail}")
+            if transition.event.value == "FATAL_22" and not self.explained:
                 self.explained = True
                 self._print(" " * 11 + FATAL_22_NOTE)
         self.shown = len(host.transitions)
@@ -237,7 +237,7 @@ def run_demo(args: argparse.Namespace) -> int:
     from eyeq_spi.cli.progress import JobProgress
 
     _on_sigterm()
-    t = 0.0
+    done_s = 0.0
     interrupted = False
     # a long demo shows how far it is (run time, s); the live lines print above the bar
     long_run = args.duration >= LONG_DEMO_S and not args.json
@@ -245,14 +245,14 @@ def run_demo(args: argparse.Namespace) -> int:
         with JobProgress("demo", args.duration, unit="s of run time",
                          enabled=None if long_run else False) as bar:
             view = LiveView(sys.stderr.isatty() and not args.json, out=bar.lines())
-            while t < args.duration:
-                step = min(0.25, args.duration - t)
+            while done_s < args.duration:
+                step = min(0.25, args.duration - done_s)
                 emu.run_for(step, realtime=not args.virtual_time)
                 if not args.virtual_time:
                     garbage.collect()  # the young generations, well under a millisecond
-                t += step
+                done_s += step
                 view.update(emu.host, emu.runner.now)
-                bar.update(round(t, 2))
+                bar.update(round(done_s, 2))
     except KeyboardInterrupt:
         interrupted = True
     finally:

@@ -32,12 +32,12 @@ ROWS_PER_GROUP = 4096
 
 def find_captures(root: str | Path) -> list[Path]:
     """Every ``*.pcapng`` under ``root`` (sorted), or ``root`` itself if it is one."""
-    p = Path(root)
-    if p.is_file():
-        return [p]
-    if not p.is_dir():
+    path = Path(root)
+    if path.is_file():
+        return [path]
+    if not path.is_dir():
         raise InputError(f"{root}: no such directory")
-    found = sorted(q for q in p.rglob("*.pcapng") if q.is_file())
+    found = sorted(q for q in path.rglob("*.pcapng") if q.is_file())
     if not found:
         raise InputError(f"{root}: no *.pcapng capture in it")
     return found
@@ -124,25 +124,25 @@ def run_fleet(root: str, out: str, *, sw: str | None = None, jobs: int = 1,
     except OSError as exc:
         raise OutputError(f"cannot create {out}: {exc}") from exc
     outp = str(Path(out).resolve())
-    n = len(tasks)
+    count = len(tasks)
     tick = progress or (lambda done, total: None)
-    tick(0, n)
+    tick(0, count)
     if scheduler or local_cluster:
         results = _on_dask(tasks, outp, sw, scheduler, local_cluster)
-        tick(n, n)
+        tick(count, count)
         return results
-    if jobs > 1 and n > 1:
+    if jobs > 1 and count > 1:
         from concurrent.futures import as_completed
 
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             futs = [pool.submit(dissect_capture, p, outp, k, sw) for p, k in tasks]
             for done, _ in enumerate(as_completed(futs), 1):
-                tick(done, n)
+                tick(done, count)
             return [f.result() for f in futs]
     results = []
-    for p, k in tasks:
-        results.append(dissect_capture(p, outp, k, sw))
-        tick(len(results), n)
+    for path, key in tasks:
+        results.append(dissect_capture(path, outp, key, sw))
+        tick(len(results), count)
     return results
 
 

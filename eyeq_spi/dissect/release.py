@@ -70,7 +70,7 @@ class _Sniffer(Dissector):
         super().__init__(codec=MessageCodec(cat=cat))
         self.messages: list[bytes] = []
 
-    def _message(self, direction: str | None, d: Any, ev: Any) -> dict[str, Any]:
+    def _message(self, direction: str | None, receiver: Any, ev: Any) -> dict[str, Any]:
         self.messages.append(bytes(ev.data))
         return {"kind": "message"}
 
@@ -88,10 +88,10 @@ def _reported(cat: Catalog, codec: MessageCodec, data: bytes) -> tuple[SwKey, st
     kind = classify(data)
     if kind == "MESP":
         out = codec.mesp.decode(data)
-        f = out.fields
+        fields = out.fields
         if out.name == "GetEyeQVersions" and out.header.get("reply") and not out.errors \
-                and "eyeqSwVersionMajor" in f:
-            key = _known(cat, int(f["eyeqSwVersionMajor"]), int(f["eyeqSwVersionMinor"]))
+                and "eyeqSwVersionMajor" in fields:
+            key = _known(cat, int(fields["eyeqSwVersionMajor"]), int(fields["eyeqSwVersionMinor"]))
             return (key, "GetEyeQVersions reply") if key else None
     elif kind == "BOOT" and data[:1] == bytes([BOOT_ID]):
         out = codec.decode(data)
@@ -110,17 +110,17 @@ def _fitting(cat: Catalog, lengths: set[tuple[int, int]]) -> list[SwKey]:
     codecs = {k: MessageCodec(k, cat) for k in cat.sw_versions}
     score: dict[SwKey, int] = {}
     for key, codec in codecs.items():
-        n = 0
+        fitting = 0
         for data_id, length in lengths:
             msg = codec.dasp_message(data_id)
             if msg is None:
                 continue
             try:
                 if codec.layout(msg).size == length - 4:
-                    n += 1
+                    fitting += 1
             except EyeqError:  # a layout this release cannot build does not fit
                 continue
-        score[key] = n
+        score[key] = fitting
     best = max(score.values(), default=0)
     return [k for k in cat.sw_versions if best and score[k] == best]
 

@@ -61,8 +61,8 @@ class McapWriter:
     def __init__(self, fh: IO[bytes], *, sw: str, source: str) -> None:
         writer_mod = need("mcap.writer", "--mcap")
         need("zstandard", "--mcap")
-        self.w = writer_mod.Writer(fh, compression=writer_mod.CompressionType.ZSTD)
-        self.w.start(profile="", library=f"eyeq-spi {__version__}")
+        self.mcap = writer_mod.Writer(fh, compression=writer_mod.CompressionType.ZSTD)
+        self.mcap.start(profile="", library=f"eyeq-spi {__version__}")
         self.meta = {"sw_release": sw, "capture_source": source,
                      "eyeq_spi_version": __version__}
         self.channels: dict[str, int] = {}
@@ -84,8 +84,8 @@ class McapWriter:
         other encodings than this module's JSON (Foxglove's protobuf schemas)."""
         cid = self.channels.get(topic)
         if cid is None:
-            sid = self.w.register_schema(name=schema_name, encoding=schema_encoding, data=schema)
-            cid = self.w.register_channel(topic=topic, message_encoding=message_encoding,
+            sid = self.mcap.register_schema(name=schema_name, encoding=schema_encoding, data=schema)
+            cid = self.mcap.register_channel(topic=topic, message_encoding=message_encoding,
                                           schema_id=sid)
             self.channels[topic] = cid
         return int(cid)
@@ -93,7 +93,7 @@ class McapWriter:
     def add(self, cid: int, log_time_ns: int, data: bytes) -> None:
         """One message, already encoded, on a channel of :meth:`register`."""
         self.seq += 1
-        self.w.add_message(channel_id=cid, log_time=max(0, log_time_ns),
+        self.mcap.add_message(channel_id=cid, log_time=max(0, log_time_ns),
                            publish_time=max(0, log_time_ns), sequence=self.seq, data=data)
 
     def _put(self, cid: int, time: float | None, index: int, body: dict[str, Any]) -> None:
@@ -128,7 +128,7 @@ class McapWriter:
 
     def close(self) -> None:
         try:
-            self.w.add_metadata(name="eyeq-spi", data={k: str(v) for k, v in self.meta.items()})
-            self.w.finish()
+            self.mcap.add_metadata(name="eyeq-spi", data={k: str(v) for k, v in self.meta.items()})
+            self.mcap.finish()
         except OSError as exc:
             raise OutputError(f"cannot write the MCAP file: {exc}") from None

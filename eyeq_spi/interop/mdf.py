@@ -157,21 +157,21 @@ class MdfWriter:
     def _flush(self, group: _Group) -> None:
         if not group.times:
             return
-        t = np.asarray(group.times, dtype=np.float64)
+        times = np.asarray(group.times, dtype=np.float64)
         data = [np.asarray(col, dtype=dtype)
                 for col, (_, dtype, _, _) in zip(group.rows, group.columns, strict=True)]
         if group.index is None:
-            signals = [self.asammdf.Signal(samples=d, timestamps=t, name=name, unit=unit,
+            signals = [self.asammdf.Signal(samples=d, timestamps=times, name=name, unit=unit,
                                            conversion=conv)
                        for d, (name, _, unit, conv) in zip(data, group.columns, strict=True)]
             if not signals:
-                signals = [self.asammdf.Signal(samples=np.zeros(len(t), np.uint8),
-                                               timestamps=t, name="present")]
+                signals = [self.asammdf.Signal(samples=np.zeros(len(times), np.uint8),
+                                               timestamps=times, name="present")]
             self.mdf.append(signals, acq_name=group.name, comment=group.comment)
             group.index = len(self.mdf.groups) - 1
         else:
-            cols = data or [np.zeros(len(t), np.uint8)]
-            self.mdf.extend(group.index, [(t, None), *((d, None) for d in cols)])
+            cols = data or [np.zeros(len(times), np.uint8)]
+            self.mdf.extend(group.index, [(times, None), *((d, None) for d in cols)])
         group.times.clear()
         for col in group.rows:
             col.clear()
@@ -189,7 +189,7 @@ class MdfWriter:
 
 def _conversion(labels: dict[int, str]) -> dict[str, Any]:
     conv: dict[str, Any] = {}
-    for i, (value, text) in enumerate(sorted(labels.items())):
-        conv[f"val_{i}"] = value
-        conv[f"text_{i}"] = text
+    for index, (value, text) in enumerate(sorted(labels.items())):
+        conv[f"val_{index}"] = value
+        conv[f"text_{index}"] = text
     return conv

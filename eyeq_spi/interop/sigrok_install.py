@@ -31,9 +31,9 @@ def import_paths() -> list[str]:
     project's dependencies), for the embedded interpreter of libsigrokdecode."""
     out = [str(Path(eyeq_spi.__file__).resolve().parent.parent)]
     sites = [*site.getsitepackages(), site.getusersitepackages()]
-    for p in sites:
-        if p not in out and os.path.isdir(p):
-            out.append(p)
+    for site_dir in sites:
+        if site_dir not in out and os.path.isdir(site_dir):
+            out.append(site_dir)
     return out
 
 

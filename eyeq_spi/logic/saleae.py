@@ -179,11 +179,11 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
     k_start, k_byte = kinds["start"], kinds["byte"]
     open_, routes = state.open_, state.routes
     col_list = list(cols.items())
-    for n, row in enumerate(rows, start=start):
+    for line_no, row in enumerate(rows, start=start):
         if not row:
             continue
         if len(row) <= need:
-            raise InputError(f"line {n}: {len(row)} columns, expected {ncols}")
+            raise InputError(f"line {line_no}: {len(row)} columns, expected {ncols}")
         name, kind = row[i_name], row[i_type]
         if name not in routes:
             routes[name] = opts.routes(name, len(routes) + 1)
@@ -195,22 +195,22 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
             if tr is None:
                 continue  # a transfer cut by the start of the capture
             for line, col in col_list:
-                value = _byte(row[col], n)
+                value = _byte(row[col], line_no)
                 if value is not None:
                     buf = tr.lines[line]
                     buf.append(value)
                     if len(buf) > MAX_TRANSFER:
-                        raise InputError(f"line {n}: transfer longer than {MAX_TRANSFER} "
+                        raise InputError(f"line {line_no}: transfer longer than {MAX_TRANSFER} "
                                          "bytes")
         elif kind == k_start:
             state.enables += 1
-            open_[name] = OpenTransfer(_time(row[i_time], f"line {n}"))
+            open_[name] = OpenTransfer(_time(row[i_time], f"line {line_no}"))
         elif kind == kinds["end"]:
             tr = open_.pop(name, None)
             if tr is not None:
                 yield from _emit(tr, routes[name])
         else:
-            raise InputError(f"line {n}: row type {kind!r} is not enable/result/disable")
+            raise InputError(f"line {line_no}: row type {kind!r} is not enable/result/disable")
 
 
 def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
@@ -238,24 +238,24 @@ def _saleae1_rows(rows: Iterator[list[str]], start: int, ncols: int,
                   where: tuple[int, int, int, int], state: Saleae1State, routes: list[Route]
                   ) -> Iterator[Transfer]:
     i_time, i_id, i_mosi, i_miso = where
-    for n, row in enumerate(rows, start=start):
+    for line_no, row in enumerate(rows, start=start):
         if not row:
             continue
         if len(row) <= max(where):
-            raise InputError(f"line {n}: {len(row)} columns, expected {ncols}")
+            raise InputError(f"line {line_no}: {len(row)} columns, expected {ncols}")
         pid = row[i_id].strip()
         if not pid:
-            raise InputError(f"line {n}: no Packet ID: the SPI analyzer had no Enable "
+            raise InputError(f"line {line_no}: no Packet ID: the SPI analyzer had no Enable "
                              "(chip select) channel, transfers cannot be framed")
         if pid != state.packet:
             if state.tr is not None:
                 yield from _emit(state.tr, routes)
-            state.tr, state.packet = OpenTransfer(_time(row[i_time], f"line {n}")), pid
+            state.tr, state.packet = OpenTransfer(_time(row[i_time], f"line {line_no}")), pid
         tr = state.tr
         assert tr is not None
         for line, col in (("mosi", i_mosi), ("miso", i_miso)):
-            value = _byte(row[col], n)
+            value = _byte(row[col], line_no)
             if value is not None:
                 tr.lines[line].append(value)
         if len(tr.lines["mosi"]) > MAX_TRANSFER or len(tr.lines["miso"]) > MAX_TRANSFER:
-            raise InputError(f"line {n}: transfer longer than {MAX_TRANSFER} bytes")
+            raise InputError(f"line {line_no}: transfer longer than {MAX_TRANSFER} bytes")

@@ -14,7 +14,7 @@ MAX_LINE = 1 << 16
 
 
 class ByteSource(Protocol):
-    def read(self, n: int = -1) -> bytes: ...
+    def read(self, size: int = -1) -> bytes: ...
 
 
 class OpenTransfer:
@@ -35,10 +35,10 @@ def seconds(text: str) -> float:
         return float(text)
     except ValueError:
         pass
-    t = text.strip().strip('"')
-    if len(t) < 10 or t[4:5] != "-":
+    stamp_text = text.strip().strip('"')
+    if len(stamp_text) < 10 or stamp_text[4:5] != "-":
         raise ValueError(text)
-    stamp = datetime.fromisoformat(t)
+    stamp = datetime.fromisoformat(stamp_text)
     if stamp.tzinfo is None:
         stamp = stamp.replace(tzinfo=UTC)
     return stamp.timestamp()

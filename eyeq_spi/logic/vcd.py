@@ -195,7 +195,7 @@ class _Reader:
         self.scale = scale
         self.sample_level = 1 if sample_on_rising(opts.mode) else 0
         self.msb = opts.bit_order == "msb_first"
-        self.t = 0
+        self.tick = 0
         self.vector_value: int | None = None
         self.in_comment = False
 
@@ -205,23 +205,23 @@ class _Reader:
     def _tokens(self, batch: list[bytes]) -> Iterator[Transfer]:
         table, scale, msb = self.table, self.scale, self.msb
         sample_level = self.sample_level
-        t = self.t
+        tick = self.tick
         vector_value = self.vector_value
         in_comment = self.in_comment
         try:
             for tok in batch:
                 c0 = tok[0]
                 if vector_value is not None:
-                    ident, v = tok, vector_value
+                    ident, level = tok, vector_value
                     vector_value = None
                 elif c0 == 35:  # '#'
                     try:
-                        t = int(tok[1:])
+                        tick = int(tok[1:])
                     except ValueError:
                         raise InputError(f"bad VCD time {tok[:20]!r}") from None
                     continue
                 elif c0 == 48 or c0 == 49:  # '0' '1'
-                    ident, v = tok[1:], c0 - 48
+                    ident, level = tok[1:], c0 - 48
                 elif c0 == 36:  # '$'
                     if tok == b"$comment":
                         in_comment = True
@@ -240,14 +240,14 @@ class _Reader:
                 else:
                     raise InputError(f"not a VCD value change: {tok[:20]!r}")
                 targets = table.get(ident)
-                if targets is None or v < 0:
+                if targets is None or level < 0:
                     continue
                 for ch, role in targets:
                     if role == CLK:
-                        if v == ch.clk:
+                        if level == ch.clk:
                             continue
-                        ch.clk = v
-                        if v != sample_level or not ch.active:
+                        ch.clk = level
+                        if level != sample_level or not ch.active:
                             continue
                         if msb:
                             ch.mo = (ch.mo << 1) | ch.mosi
@@ -264,14 +264,14 @@ class _Reader:
                                 raise InputError(f"transfer longer than {MAX_TRANSFER} "
                                                  "bytes (chip select never rises?)")
                     elif role == MOSI:
-                        ch.mosi = v
+                        ch.mosi = level
                     elif role == MISO:
-                        ch.miso = v
-                    elif v != ch.cs:
-                        ch.cs = v
-                        if v == 0:
+                        ch.miso = level
+                    elif level != ch.cs:
+                        ch.cs = level
+                        if level == 0:
                             ch.active = True
-                            ch.t0 = t
+                            ch.t0 = tick
                             ch.nbits = ch.mo = ch.mi = 0
                             ch.mosi_bytes.clear()
                             ch.miso_bytes.clear()
@@ -279,4 +279,4 @@ class _Reader:
                             ch.active = False
                             yield from ch.emit(ch.t0 * scale)
         finally:
-            self.t, self.vector_value, self.in_comment = t, vector_value, in_comment
+            self.tick, self.vector_value, self.in_comment = tick, vector_value, in_comment

@@ -30,6 +30,6 @@ class Chan:
         self.t0 = 0
 
     def emit(self, time: float) -> Iterator[Transfer]:
-        for r in self.routes:
-            data = self.mosi_bytes if r.line == "mosi" else self.miso_bytes
-            yield Transfer(time, r.direction, bytes(data))
+        for route in self.routes:
+            data = self.mosi_bytes if route.line == "mosi" else self.miso_bytes
+            yield Transfer(time, route.direction, bytes(data))

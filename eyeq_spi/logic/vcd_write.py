@@ -99,8 +99,8 @@ class VcdWriter:
         write("$upscope $end\n$enddefinitions $end\n#0\n$dumpvars\n")
         idle_miso = int(bench_spec()["vcd"]["idle_miso"])
         for direction in DIRECTIONS:
-            i = self.ids[direction]
-            write(f"1{i['cs']}\n{self.cpol}{i['clk']}\n0{i['mosi']}\n{idle_miso}{i['miso']}\n")
+            ids = self.ids[direction]
+            write(f"1{ids['cs']}\n{self.cpol}{ids['clk']}\n0{ids['mosi']}\n{idle_miso}{ids['miso']}\n")
         write("$end\n")
         self.last_tick = 0
 
@@ -143,8 +143,8 @@ class VcdWriter:
             np.full(count, self._code(direction, "clk", lead)),
             np.full(count, self._code(direction, "clk", trail)),
             [self._code(direction, "cs", 1)]))
-        o = np.argsort(at, kind="stable")
-        self.pending.append((at[o], codes[o]))
+        by_time = np.argsort(at, kind="stable")
+        self.pending.append((at[by_time], codes[by_time]))
         if count:
             self.level[direction] = int(bits[-1])
         self.free[direction] = end + self.min_idle
@@ -155,19 +155,19 @@ class VcdWriter:
         parts_t, parts_c = [], []
         keep: list[tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
         for ticks, codes in self.pending:
-            n = len(ticks) if limit is None else int(np.searchsorted(ticks, limit, "left"))
-            if n:
-                parts_t.append(ticks[:n])
-                parts_c.append(codes[:n])
-            if n < len(ticks):
-                keep.append((ticks[n:], codes[n:]))
+            due = len(ticks) if limit is None else int(np.searchsorted(ticks, limit, "left"))
+            if due:
+                parts_t.append(ticks[:due])
+                parts_c.append(codes[:due])
+            if due < len(ticks):
+                keep.append((ticks[due:], codes[due:]))
         self.pending = keep
         if not parts_t:
             return
         ticks, codes = np.concatenate(parts_t), np.concatenate(parts_c)
         if len(parts_t) > 1:  # two channels overlap: merge, each keeping its own order
-            o = np.argsort(ticks, kind="stable")
-            ticks, codes = ticks[o], codes[o]
+            order = np.argsort(ticks, kind="stable")
+            ticks, codes = ticks[order], codes[order]
         new = np.empty(len(ticks), dtype=bool)
         new[0] = ticks[0] != self.last_tick
         new[1:] = ticks[1:] != ticks[:-1]

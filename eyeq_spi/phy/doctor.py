@@ -61,8 +61,8 @@ def quantiles_ms(values: list[float]) -> dict[str, float | int]:
         return {"n": 0}
     ordered = sorted(values)
 
-    def rank(q: float) -> float:
-        return ordered[min(len(ordered) - 1, int(q * len(ordered)))] * 1e3
+    def rank(share: float) -> float:
+        return ordered[min(len(ordered) - 1, int(share * len(ordered)))] * 1e3
 
     return {"n": len(ordered), "p50": round(statistics.median(ordered) * 1e3, 3),
             "p99": round(rank(0.99), 3), "p99_9": round(rank(0.999), 3),

@@ -122,17 +122,17 @@ class ReplyLatency:
 
     def summary(self) -> dict[str, float | int]:
         """``n`` and the p50, p99, p99.9 and max in ms."""
-        n = sum(self.hist.values())
-        if not n:
+        count = sum(self.hist.values())
+        if not count:
             return {"n": 0}
-        out: dict[str, float | int] = {"n": n}
+        out: dict[str, float | int] = {"n": count}
         bins = sorted(self.hist.items())
-        for name, q in (("p50", 0.5), ("p99", 0.99), ("p99_9", 0.999)):
-            seen, rank = 0, q * n
-            for b, c in bins:
-                seen += c
+        for name, share in (("p50", 0.5), ("p99", 0.99), ("p99_9", 0.999)):
+            seen, rank = 0, share * count
+            for slot, hits in bins:
+                seen += hits
                 if seen >= rank:
-                    out[name] = round(b * BIN_S * 1e3, 2)
+                    out[name] = round(slot * BIN_S * 1e3, 2)
                     break
         out["max"] = round(bins[-1][0] * BIN_S * 1e3, 2)
         return out

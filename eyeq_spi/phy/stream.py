@@ -27,9 +27,9 @@ class CobsDecoder:
     def feed(self, data: bytes) -> list[bytes]:
         self._buf += data
         out: list[bytes] = []
-        while (i := self._buf.find(DELIMITER)) >= 0:
-            chunk = bytes(self._buf[:i])
-            del self._buf[: i + 1]
+        while (end := self._buf.find(DELIMITER)) >= 0:
+            chunk = bytes(self._buf[:end])
+            del self._buf[: end + 1]
             if not chunk:
                 continue  # idle delimiters are allowed between frames
             try:

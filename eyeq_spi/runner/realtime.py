@@ -76,16 +76,16 @@ class RealTimeRunner:
     def _receive(self, wait: float) -> None:
         """Hand the node every transfer the adapter holds, waiting up to ``wait`` s for the
         first, and send what each one makes due at once."""
-        t = self.adapter.recv(wait)
-        while t is not None:
+        transfer = self.adapter.recv(wait)
+        while transfer is not None:
             now = self.clock()
             if self.tap is not None:
-                self.tap("rx", now, t)
-            self.node.receive_data(t, now)
+                self.tap("rx", now, transfer)
+            self.node.receive_data(transfer, now)
             # send the ACK (and anything else due) at once: the peer's ackTimeout is 10 ms,
             # and decoding the rest of a burst could take longer than that
             self._flush(self.clock())
-            t = self.adapter.recv(0)
+            transfer = self.adapter.recv(0)
 
     def close(self) -> None:
         """Give the cyclic GC back to the process as it was before this runner (idempotent).
