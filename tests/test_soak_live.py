@@ -1,5 +1,5 @@
 """Bounded live soak: host and simulated EyeQ as two processes in real time at full load over TCP
-and over a pty, 20 s each in CI and 8 s in a local run (``EYEQ_SOAK_S`` changes it).
+and over a pty, 20 s each in CI and 5 s in a local run (``EYEQ_SOAK_S`` changes it).
 
 What a test can hold on any machine is the accounting, not the schedule: Running Vision reached
 and held on both sides, losses a tiny fraction, and every loss one side reports explained by a
@@ -26,9 +26,9 @@ import soak_live
 
 
 def _seconds() -> float:
-    """How long each soak runs: ``EYEQ_SOAK_S``, else 20 s in CI and 8 s locally (bring-up and
+    """How long each soak runs: ``EYEQ_SOAK_S``, else 20 s in CI and 5 s locally (bring-up and
     several seconds at full load either way)."""
-    return float(os.environ.get("EYEQ_SOAK_S") or (20 if os.environ.get("CI") else 8))
+    return float(os.environ.get("EYEQ_SOAK_S") or (20 if os.environ.get("CI") else 5))
 
 
 def _fifo_allowed() -> bool:
