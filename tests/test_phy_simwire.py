@@ -74,6 +74,15 @@ class Wire:
             assert time.monotonic() < deadline, f"{device} not opened within {timeout} s"
             time.sleep(0.05)
 
+    def wait_sent(self, device: str, transfers: int, timeout: float = 60) -> None:
+        """Until the master ``device`` has sent ``transfers`` transfers (its count is published
+        every 100): progress on the wire, which a loaded machine slows as much as the run."""
+        deadline = time.monotonic() + timeout
+        sent = self.path / f"{device}.sent"
+        while not (sent.exists() and int(sent.read_text() or 0) >= transfers):
+            assert time.monotonic() < deadline, f"{device} sent < {transfers} in {timeout} s"
+            time.sleep(0.05)
+
     def unplug(self, device: str) -> None:
         (self.path / f"{device}.unplugged").touch()
 
@@ -171,7 +180,9 @@ def test_short_transfers_are_counted_and_an_unplug_ends_the_run_with_link_lost(
     wire.wait_open("spidev0.1")
     sim = wire.start("sim", "--listen", EYEQ_SIDE, "--duration", "60", *LIGHT)
     try:
-        time.sleep(4.0)  # up and running on a quiet machine after about one second
+        # Running Vision comes after about 700 of the EyeQ's transfers (0.6 s on a quiet
+        # machine); 3,000 leave it time to hold there however loaded the machine is
+        wire.wait_sent("EM", 3000)
         wire.unplug("spidev0.0")  # the host's master channel: its USB adapter pulled out
         code, out, err = finish(host, 30)
     finally:

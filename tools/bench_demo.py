@@ -23,7 +23,7 @@ import tempfile
 from pathlib import Path
 
 from bench import crc_baseline_us
-from bench_startup import trees_to_time
+from bench_startup import timing_env, trees_to_time
 
 FULL = ["--objects", "15", "--signs", "20", "--light-spots", "15"]
 
@@ -47,10 +47,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         trees = trees_to_time(args.before, tmp)
-        env = {**os.environ, "EYEQ_SPI_CACHE_DIR": str(tmp / "cache"),
-               "PYTHONPYCACHEPREFIX": str(tmp / "pycache")}
-        env.pop("EYEQ_SPI_NO_CACHE", None)
-        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env = timing_env(tmp)
         demo = [sys.executable, "-m", "eyeq_spi.cli", "demo", "--virtual-time", "--json",
                 "--duration", f"{args.duration:g}", *FULL]
         variants = {"demo": demo, "demo --capture": [*demo, "--capture", str(tmp / "c.pcapng")]}

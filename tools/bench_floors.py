@@ -28,7 +28,7 @@ import tempfile
 from pathlib import Path
 
 from bench_demo import FULL, cpu_of
-from bench_startup import trees_to_time
+from bench_startup import timing_env, trees_to_time
 
 from eyeq_spi.capture.pcapng_io import read_pcapng
 
@@ -64,10 +64,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         trees = trees_to_time(args.before, tmp)
-        env = {**os.environ, "EYEQ_SPI_CACHE_DIR": str(tmp / "cache"),
-               "PYTHONPYCACHEPREFIX": str(tmp / "pycache")}
-        for key in ("EYEQ_SPI_NO_CACHE", "PYTHONDONTWRITEBYTECODE", "EYEQ_SPI_EXACT"):
-            env.pop(key, None)
+        env = timing_env(tmp)
         files = _inputs(tmp, env)
         eyeq = [sys.executable, "-m", "eyeq_spi.cli"]
         demo = [*eyeq, "demo", "--virtual-time", "--json", "--duration", "60", *FULL]

@@ -108,6 +108,16 @@ def trees_to_time(before: str | None, tmp: Path) -> list[tuple[str, Path]]:
     return trees
 
 
+def timing_env(tmp: Path) -> dict[str, str]:
+    """The environment of a timed run of whole commands: this run's own catalogue cache and
+    bytecode under ``tmp`` (warmed by an untimed run), and the references off."""
+    env = {**os.environ, "EYEQ_SPI_CACHE_DIR": str(tmp / "cache"),
+           "PYTHONPYCACHEPREFIX": str(tmp / "pycache")}
+    for key in ("EYEQ_SPI_NO_CACHE", "PYTHONDONTWRITEBYTECODE", "EYEQ_SPI_EXACT"):
+        env.pop(key, None)
+    return env
+
+
 def row(label: str, samples: tuple[list[float], list[float]], base: float) -> str:
     wall, cpu = samples
     med = statistics.median(wall)

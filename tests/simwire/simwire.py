@@ -63,6 +63,13 @@ def settings_of(name: str) -> dict[str, Any] | None:
         return None
 
 
+def close(*ends: Endpoint | Sender | None) -> None:
+    """Close a device's receiving and sending ends (either may be absent)."""
+    for end in ends:
+        if end is not None:
+            end.close()
+
+
 class Endpoint:
     """The slave's receiving socket."""
 
@@ -108,6 +115,8 @@ class Sender:
             time.sleep(usb / 2)  # a slow USB: the transfer reaches the adapter late
             usb /= 2
         self.sent += 1
+        if self.sent % 100 == 0:  # progress a test waits on: DIR/NAME.sent
+            (directory() / f"{self.name}.sent").write_text(str(self.sent))
         short = cfg.get("cs_short_every", 0)
         if short and self.sent % short == 0:
             data = data[: cfg.get("cs_short_len", 60)]  # chip select rose early

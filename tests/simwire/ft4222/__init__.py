@@ -122,8 +122,5 @@ class FT4222:
         return out
 
     def close(self) -> None:
-        if self._endpoint is not None:
-            self._endpoint.close()
-        if self._sender is not None:
-            self._sender.close()
+        simwire.close(self._endpoint, self._sender)
         self._endpoint = self._sender = None
