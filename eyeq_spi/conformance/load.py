@@ -1,28 +1,6 @@
-"""The load gauge of a real-time run: our own scheduling, measured in the same run, tells a
-timing verdict the implementation under test earned from one a loaded machine made.
-
-A real-time session's loop (:meth:`Session.wait`) should come round every ``SLICE``; whenever
-it comes round later than ``SLICE + STALL_MIN`` we record a stall (start, end) in the trace. A
-stall of ours shifts the receive times of everything that arrived during it (they bunch), delays
-our ACKs past the peer's ackTimeout (§6: a frame not ACKed in 10 ms is lost, L7, so its message
-and its counters go missing), and tells that the machine, which the peer shares when it runs
-beside us, was short of CPU.
-
-Each case declares its rule (``Case.rule`` in the cases table). A *content* rule (counters,
-lengths, CRCs, tags, padding, order) is never excused: no stall of ours makes a counter repeat
-or a CRC wrong. (Where a stall of ours can lose a message, by delaying our ACK past the peer's
-ackTimeout, the counter judges leave the pairs around our stalls unjudged, as they leave those
-around our injected faults: judges.app.segments.)
-
-A *timing* judge that fails names each violating measurement: its time span and by how much it
-missed its limit (``Outcome.spans``: a late ACK, a period outside its tolerance, a mean rate
-off over the whole run, a late MESP reply, a retry or a read that came late). In real time such
-a ``fail`` becomes ``inconclusive`` only if every violation is overlapped by stalls of ours at
-least as long as its excess; otherwise it stays a ``fail`` and says which violation no stall
-explains. A stall thus excuses only the measurements it overlaps, and only by its size. A
-timing fail that names no measurement is not excused either. A ``pass`` of a timing case keeps
-its verdict and states our worst stall. In virtual time nothing changes.
-"""
+"""The load gauge of a real-time run: a timing fail is excused only by stalls of our own loop
+that overlap each of its violating measurements by at least its excess; a content fail never
+is (docs/conformance.md, "Real time on a loaded machine")."""
 
 from __future__ import annotations
 
@@ -31,11 +9,6 @@ from dataclasses import replace
 from eyeq_spi.conformance.judges.verdict import Outcome, Span, at, unsure
 from eyeq_spi.conformance.model import TIMING, Case
 from eyeq_spi.conformance.trace import Trace
-
-
-def stalls_of(traces: list[Trace]) -> list[tuple[float, float]]:
-    return [s for tr in traces for s in tr.stalls]
-
 
 # A fail our own stalls do not explain: the delay arose in the implementation under test or on
 # its way to us. Where that runs (a process on this machine, a device behind a bridge) the suite
@@ -56,24 +29,17 @@ def excused(span: Span, stalls: list[tuple[float, float]]) -> float:
     overlap it in time. A stall ending just before the measurement starts counts too (the
     messages that arrived during it were recorded late, so the next period begins late)."""
     t0, t1, _ = span
-    total = 0.0
-    for stall_start, stall_end in stalls:
-        if stall_start <= t1 and stall_end >= t0 - (stall_end - stall_start):
-            total += stall_end - stall_start
-    return total
+    return sum(end - start for start, end in stalls if start <= t1 and end >= t0 - (end - start))
 
 
 def temper(case: Case, outcome: Outcome, traces: list[Trace]) -> Outcome:
-    """A real-time verdict of a timing case, weighed against our own stalls in the same run. A
-    fail is excused only if each of its violating measurements (``Outcome.spans``) is
-    overlapped by stalls of ours at least as long as its excess: an 8 ms stall cannot explain
-    a mean rate 40 % off, nor a late ACK half a second later. Content cases are returned as
-    they are."""
+    """A real-time verdict of a timing case, weighed against our own stalls in the same run;
+    content cases are returned as they are."""
     if not traces or not all(tr.realtime for tr in traces):
         return outcome
     if case.rule != TIMING or outcome.verdict not in ("pass", "fail"):
         return outcome
-    stalls = stalls_of(traces)
+    stalls = [stall for tr in traces for stall in tr.stalls]
     gauge = describe(stalls)
     if outcome.verdict == "pass":
         return replace(outcome, evidence=f"{outcome.evidence} ({gauge})")

@@ -1,14 +1,9 @@
 """Deliberately broken variants of our own simulated EyeQ and host: the proof that the suite
-can fail. Test-only (``--builtin --mutant NAME``). Each is a subclass, a wrapper of the link's
-output or of one message, or a configuration value: host and simulator internals are not
-edited; a host mutant changes an entry action by overriding the method that
-``host/machine.py ENTRY_ACTIONS`` names for the state. ``expected`` names the cases its bug
-violates; the CI matrix checks that exactly those fail and every other case still passes or
-stays as it is for the correct implementation.
-``ADVISED`` holds variants that depart only from our recommendations (no rule of the seed or a
-decision): the suite passes them and says so in the case's advice. ``CORRECT`` holds variants
-that differ from ours and break no rule (a host that learns of an EyeQ reset late and numbers
-from 0 again, L10a): every case gets the verdict ours gets.
+can fail. Test-only (``--builtin --mutant NAME``). Each is a subclass, a rewrite of the link's
+output or of one message, or a configuration value. ``expected`` names the cases its bug
+violates; tests/test_conformance_mutants.py checks that exactly those fail. ``ADVISED`` variants
+depart only from our recommendations (the cases pass with advice); ``CORRECT`` ones break no
+rule (every case gets the verdict ours gets).
 """
 
 from __future__ import annotations
@@ -45,44 +40,58 @@ def _header(transfer: bytes) -> tuple[int, int, int, int]:
     return _FRAMES.unpack_header(int.from_bytes(transfer[:4], "little"))
 
 
+Control = Callable[[bytes, int, int, int], tuple[bytes, float]]
+
+
+def _controls(out: list[bytes], now: float, control: Control,
+              held: list[tuple[float, bytes]]) -> list[bytes]:
+    """The link's output with every ACK/NAK passed through ``control(transfer, D, RSP, NUM)``,
+    which returns the transfer to send (empty: dropped) and how long to hold it back."""
+    ready = [transfer for due, transfer in held if due <= now]
+    held[:] = [(due, transfer) for due, transfer in held if due > now]
+    for transfer in out:
+        d, _, rsp, num = _header(transfer)
+        delay = 0.0
+        if d in (FrameKind.ACK, FrameKind.NAK):
+            transfer, delay = control(transfer, d, rsp, num)
+        if delay > 0:
+            held.append((now + delay, transfer))
+        elif transfer:
+            ready.append(transfer)
+    return ready
+
+
 # -- EyeQ mutants -----------------------------------------------------------------------------
 class _LinkOutput(SimulatedEyeQ):
-    """Rewrites the link's output transfers (ACK/NAK here) without touching the link."""
+    """Rewrites the link's ACK/NAK output without touching the link."""
 
     def data_to_send(self, now: float) -> list[bytes]:
-        out = []
-        for transfer in super().data_to_send(now):
-            d, _, rsp, num = _header(transfer)
-            if d in (FrameKind.ACK, FrameKind.NAK):
-                transfer = self.control(transfer, d, rsp, num)
-            if transfer:
-                out.append(transfer)
-        return out
+        return _controls(super().data_to_send(now), now, self.control, [])
 
-    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
-        return transfer
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
+        return transfer, 0.0
 
 
 class NoAck(_LinkOutput):
-    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
-        return b"" if d == FrameKind.ACK and rsp % 4 == 3 else transfer  # every 4th ACK is lost
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
+        return (b"" if d == FrameKind.ACK and rsp % 4 == 3 else transfer), 0.0  # every 4th lost
 
 
 class WrongRsp(_LinkOutput):
-    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
-        return _FRAMES.ack((rsp + 1) % 4096) if d == FrameKind.ACK else transfer
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
+        return (_FRAMES.ack((rsp + 1) % 4096) if d == FrameKind.ACK else transfer), 0.0
 
 
 class SilentOnBadCrc(_LinkOutput):
-    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
         # a frame with a bad CRC is dropped without its NAK 0x002 (L5)
-        return b"" if d == FrameKind.NAK and num == NakReason.CRC_MISMATCH else transfer
+        return (b"" if d == FrameKind.NAK and num == NakReason.CRC_MISMATCH else transfer), 0.0
 
 
 class AckCrcRange(_LinkOutput):
-    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
         crc = _FRAMES.crc(transfer[:4] + bytes(DATA_SIZE))  # pad included: L3 says header only
-        return transfer[:4] + crc.to_bytes(2, "little") + transfer[6:]
+        return transfer[:4] + crc.to_bytes(2, "little") + transfer[6:], 0.0
 
 
 class Resends(SimulatedEyeQ):
@@ -181,32 +190,24 @@ class E2eWrong(_MessageOutput):
         return message[:offset] + bytes((message[offset] ^ 0xFF,)) + message[offset + 1:]
 
 
-class TagNotEchoed(SimulatedEyeQ):
-    def __init__(self, config: SimConfig | None = None) -> None:
-        super().__init__(config)
-        handle = self.server.handle
-
-        def wrapped(data: bytes) -> bytes | None:
-            reply = handle(data)
-            if reply is not None and reply[0] == 0x05 and reply[3] == 0x04:
-                reply = reply[:4] + bytes((0x80 | ((reply[4] + 1) & 0x3F),)) + reply[5:]
-            return reply
-        self.server.handle = wrapped  # type: ignore[method-assign]
+def _is_reply(message: bytes) -> bool:
+    return is_mesp(message) and bool(message[4] & 0x80)
 
 
-class UnknownRet1(SimulatedEyeQ):
+class TagNotEchoed(_MessageOutput):
+    def rewrite(self, message: bytes) -> bytes:
+        if _is_reply(message) and message[0] == 0x05 and message[3] == 0x04:
+            return message[:4] + bytes((0x80 | ((message[4] + 1) & 0x3F),)) + message[5:]
+        return message
+
+
+class UnknownRet1(_MessageOutput):
     """Answers an unknown service or function with ret 1 instead of 2 (M2)."""
 
-    def __init__(self, config: SimConfig | None = None) -> None:
-        super().__init__(config)
-        handle = self.server.handle
-
-        def wrapped(data: bytes) -> bytes | None:
-            reply = handle(data)
-            if reply is not None and len(reply) >= 9 and reply[5:9] == (2).to_bytes(4, "little"):
-                reply = reply[:5] + (1).to_bytes(4, "little") + reply[9:]
-            return reply
-        self.server.handle = wrapped  # type: ignore[method-assign]
+    def rewrite(self, message: bytes) -> bytes:
+        if _is_reply(message) and message[5:9] == (2).to_bytes(4, "little"):
+            return message[:5] + (1).to_bytes(4, "little") + message[9:]
+        return message
 
 
 class InitBeforePending(SimulatedEyeQ):
@@ -232,8 +233,8 @@ class ReceiveLimit(SimulatedEyeQ):
 
 
 class AckPad(_LinkOutput):
-    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> bytes:
-        return transfer[:6] + b"\xaa" * DATA_SIZE  # §6: "122 pad bytes set to 0"; CRC covers H only
+    def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
+        return transfer[:6] + b"\xaa" * DATA_SIZE, 0.0  # §6: "122 pad bytes set to 0"
 
 
 # -- host mutants -----------------------------------------------------------------------------
@@ -245,18 +246,7 @@ class _HostLinkOutput(HostEmulator):
         self._held: list[tuple[float, bytes]] = []
 
     def data_to_send(self, now: float) -> list[bytes]:
-        out = [transfer for due, transfer in self._held if due <= now]
-        self._held = [(due, transfer) for due, transfer in self._held if due > now]
-        for transfer in super().data_to_send(now):
-            d, _, rsp, num = _header(transfer)
-            delay = 0.0
-            if d in (FrameKind.ACK, FrameKind.NAK):
-                transfer, delay = self.control(transfer, d, rsp, num)
-            if delay > 0:
-                self._held.append((now + delay, transfer))
-            else:
-                out.append(transfer)
-        return out
+        return _controls(super().data_to_send(now), now, self.control, self._held)
 
     def get_timer(self) -> float | None:
         timer = super().get_timer()

@@ -3,15 +3,10 @@ as frames; the messages a passive receiver reassembles from each channel; and th
 script leaves (probes sent, faults injected, resets). Judges read only this (and, for
 ``--builtin``, the public state of our own implementations).
 
-Each channel has a passive receiver: a :class:`TransportConnection` in the role of the side that
-receives it, fed with the channel's DATA frames, so a message counts as sent exactly when a
-conformant receiver would have reassembled it. Its own ACK/NAK output goes nowhere. It is the
-link's own receiver (decisions L6-L10a), restarted where the side we play restarts its own
-(:meth:`Trace.restart_passive`: our resets, L10), so a judge never disagrees with what that
-side accepted: a host that numbers from 0 again, late, with whatever RSP, within 64 frames of
-our reset is taken at once (L10a), as our EyeQ takes it. A DATA frame with NUM 0 and RSP 0 is
-a sender's first after its reset (L4), one we asked for or did not see: both receivers start
-afresh there too. Every restart of a receiver, and every resynchronisation it makes, is a
+Each channel's passive receiver is a :class:`TransportConnection` in the role of the side that
+receives it, so a message counts as sent exactly when a conformant receiver would reassemble it
+(decisions L6-L10a). It restarts where the side we play restarts its own (our resets, L10) and
+on a DATA frame with NUM 0 and RSP 0 (L4); each such restart, and each resynchronisation, is a
 restart of that direction for the judges (:meth:`Trace.restarts`).
 """
 
@@ -21,15 +16,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
-from eyeq_spi.errors import RemoteProtocolError
-from eyeq_spi.link.connection import LinkConfig
+from eyeq_spi.link.connection import LinkConfig, Role
 from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
 
 H2E, E2H = "h2e", "e2h"
-RECEIVER = {H2E: "eyeq", E2H: "host"}
+RECEIVER: dict[str, Role] = {H2E: "eyeq", E2H: "host"}
+_KIND_NAMES = {int(kind): kind.name for kind in FrameKind}
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,12 +102,8 @@ class Trace:
         # (time, direction) of each restart of a receiver the frames showed: a NUM 0 and RSP 0
         # (L4), a resynchronisation (L6, L6a, L10a)
         self._restarts: list[tuple[float, str]] = []
-        self._passive: dict[str, _Passive] = {d: self._new_passive(d) for d in (H2E, E2H)}
-
-    @staticmethod
-    def _new_passive(direction: str) -> _Passive:
-        """A channel's receiver as the side that receives it starts: E = 0 (L4)."""
-        return _Passive(TransportConnection(LinkConfig(role=RECEIVER[direction])))  # type: ignore[arg-type]
+        self._passive = {direction: _Passive(TransportConnection(LinkConfig(role=role)))
+                         for direction, role in RECEIVER.items()}
 
     # -- recording -------------------------------------------------------------------------
     def mark(self, time: float, label: str, **info: Any) -> None:
@@ -148,14 +139,8 @@ class Trace:
         self.end = max(self.end, time)
         kind, rsp, num, crc_ok = "LEN", -1, -1, False
         if len(data) == FRAME_SIZE:
-            try:
-                frame = self.frames.decode(data)
-            except RemoteProtocolError:  # pragma: no cover - length checked above
-                frame = None
-            if frame is not None:
-                rsp, num, crc_ok = frame.rsp, frame.num, self.frames.crc_ok(data, frame)
-                frame_kind = frame.kind
-                kind = frame_kind.name if frame_kind is not None and frame.r == 0 else "BAD"
+            d, r, rsp, num, crc_ok = self.frames.check(data)
+            kind = _KIND_NAMES.get(d, "BAD") if r == 0 else "BAD"
         xfer = Xfer(idx, time, direction, bytes(data), kind, rsp, num, crc_ok, probe)
         self.xfers.append(xfer)
         if kind in ("DATA", "BAD") and crc_ok:
@@ -202,10 +187,7 @@ class Trace:
         return [m for m in self.marks if m.label == label]
 
     def first_mark(self, label: str) -> Mark | None:
-        for mark in self.marks:
-            if mark.label == label:
-                return mark
-        return None
+        return next((mark for mark in self.marks if mark.label == label), None)
 
     def disturbed(self, t0: float, t1: float, settle: float = 0.15) -> bool:
         """True if [t0, t1] touches a fault window (plus ``settle`` seconds after it)."""
@@ -228,16 +210,3 @@ class Trace:
         return [m.time for m in self.marks
                 if m.label in ("our_reset", "reset_line", "soft_reset", "dut_reset")] \
             + self.restarts()
-
-    def at(self, index: int) -> Xfer:
-        return self.xfers[index]
-
-    def kinds(self) -> dict[str, int]:
-        out: dict[str, int] = {}
-        for xfer in self.xfers:
-            out[xfer.kind] = out.get(xfer.kind, 0) + 1
-        return out
-
-
-def is_control(xfer: Xfer) -> bool:
-    return xfer.kind in (FrameKind.ACK.name, FrameKind.NAK.name)
