@@ -183,6 +183,13 @@ class Trace:
         return [m for m in self.msgs if m.direction == self.our_dir
                 and (name is None or m.name == name)]
 
+    def replies(self, tag: int, function: int, since: float) -> list[Msg]:
+        """The DUT's MESP replies to ``function`` with tag counter ``tag`` within 1 s of
+        ``since``: the answers to one of our probes."""
+        return [m for m in self.dut_msgs() if m.decoded.protocol == "MESP"
+                and m.header.get("reply") and m.header.get("counter") == tag
+                and m.header.get("function") == function and since <= m.time <= since + 1.0]
+
     def marks_of(self, label: str) -> list[Mark]:
         return [m for m in self.marks if m.label == label]
 

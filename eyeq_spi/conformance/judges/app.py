@@ -48,11 +48,13 @@ class Pair:
     reply: Msg | None
 
 
-def mesp_pairs(tr: Trace) -> list[Pair]:
-    """Requests we sent paired with the DUT's replies by service and function, in order, so
-    that a reply with a wrong tag is still found (and judged by the tag case alone)."""
-    pairs = [Pair(m, None) for m in tr.our_msgs() if is_request(m)]
-    for rep in tr.dut_msgs():
+def mesp_pairs(tr: Trace, *, dut_asks: bool = False) -> list[Pair]:
+    """Requests we sent (the DUT sent, with ``dut_asks``) paired with the other side's replies
+    by service and function, in order, so that a reply with a wrong tag is still found (and
+    judged by the tag case alone)."""
+    asking, answering = (tr.dut_msgs, tr.our_msgs) if dut_asks else (tr.our_msgs, tr.dut_msgs)
+    pairs = [Pair(m, None) for m in asking() if is_request(m)]
+    for rep in answering():
         if not is_reply(rep):
             continue
         key = (rep.header["service"], rep.header["function"])
@@ -72,10 +74,6 @@ def delivered(tr: Trace, ctx: Context) -> set[int]:
     """Trace indices of our frames the DUT ACKed."""
     return {a.frame.index for a in answers(tr, ctx.slack)
             if a.reply is not None and a.reply.kind == "ACK"}
-
-
-def _probe_tags() -> set[int]:
-    return {TAG_EARLY_INIT, TAG_GAP, TAG_SILENCE, TAG_LIMIT}
 
 
 # -- MESP, the EyeQ as server -----------------------------------------------------------------
@@ -166,8 +164,7 @@ def mesp_tag(ctx: Context, tr: Trace) -> Outcome:
         if got != want:
             return bad(f"{pair.request.name} request tag 0x{pair.request.header['tag']:02X} "
                        f"(#{pair.request.indices[0]}): reply #{pair.reply.indices[-1]} tag "
-                       f"0x{got:02X},"
-                       f" expected 0x{want:02X} (M1)")
+                       f"0x{got:02X}, expected 0x{want:02X} (M1)")
     if not count:
         return unsure("no replies")
     return ok(f"{count} replies echo service, function and tag counter with bit 7 set")
@@ -175,7 +172,7 @@ def mesp_tag(ctx: Context, tr: Trace) -> Outcome:
 
 def mesp_deadline(ctx: Context, tr: Trace) -> Outcome:
     acked = delivered(tr, ctx)
-    skip_tags = _probe_tags()
+    skip_tags = {TAG_EARLY_INIT, TAG_GAP, TAG_SILENCE, TAG_LIMIT}
     worst = 0.0
     count = 0
     for pair in mesp_pairs(tr):
@@ -201,13 +198,11 @@ def mesp_deadline(ctx: Context, tr: Trace) -> Outcome:
 
 
 def _probe_replies(tr: Trace, label: str) -> list[tuple[Any, int | None]]:
+    """Each probe ``label`` with the ``ret`` of its first reply (None: no reply)."""
     out: list[tuple[Any, int | None]] = []
     for mark in tr.marks_of(label):
-        rets = [ret_of(m) for m in tr.dut_msgs() if is_reply(m)
-                and mark.time <= m.time <= mark.time + 2 * DEADLINE
-                and m.header["counter"] == mark.info["tag"]
-                and m.header["function"] == mark.info["function"]]
-        out.append((mark, rets[0] if rets else None))
+        replies = tr.replies(mark.info["tag"], mark.info["function"], mark.time)
+        out.append((mark, ret_of(replies[0]) if replies else None))
     return out
 
 
@@ -290,8 +285,8 @@ def dasp_msgs(tr: Trace) -> list[Msg]:
     return [m for m in tr.dut_msgs() if m.decoded.protocol == "DASP"]
 
 
-def _defs(tr: Trace) -> dict[int, MessageDef]:
-    return {m.data_id: m for m in tr.codec.cat.messages if m.protocol == "DASP"
+def _defs(tr: Trace) -> dict[str, MessageDef]:
+    return {m.name: m for m in tr.codec.cat.messages if m.protocol == "DASP"
             and m.exists_in(tr.codec.sw)}
 
 
@@ -342,8 +337,7 @@ def dasp_counter(ctx: Context, tr: Trace) -> Outcome:
                 if later.header["counter"] != (earlier.header["counter"] + 1) & 0xFF:
                     return bad(f"data ID 0x{did:02X}: counter {earlier.header['counter']} "
                                f"(#{earlier.indices[0]}) then {later.header['counter']} "
-                               f"(#{later.indices[0]}, "
-                               f"{at(later.time)}), expected +1 (D1)")
+                               f"(#{later.indices[0]}, {at(later.time)}), expected +1 (D1)")
     ids = f"{len(by_id)} data ID{'' if len(by_id) == 1 else 's'}"
     return ok(f"{len(msgs)} DASP messages, {ids}, counters +1") if msgs else \
         unsure("no DASP messages")
@@ -368,7 +362,7 @@ def dasp_e2e(ctx: Context, tr: Trace) -> Outcome:
         if crc:
             return bad(f"{msg.name} #{msg.indices[0]} at {at(msg.time)}: {crc[0]} (D5)")
         streams.setdefault(msg.name, []).append(msg)
-    defs = {definition.name: definition for definition in _defs(tr).values()}
+    defs = _defs(tr)
     for name, ms in streams.items():
         definition = defs.get(name)
         if definition is None:
@@ -387,8 +381,7 @@ def dasp_e2e(ctx: Context, tr: Trace) -> Outcome:
                     if vb != (va + 1) % (1 << (8 * size)):
                         return bad(f"{name}.{plan.path or plan.field}: rollingFrameCount {va} "
                                    f"(#{earlier.indices[0]}) then {vb} (#{later.indices[0]}, "
-                                   f"{at(later.time)})"
-                                   ", expected +1 (D5)")
+                                   f"{at(later.time)}), expected +1 (D5)")
     if not msgs:
         return unsure("no DASP messages")
     return ok(f"{len(msgs)} DASP messages: every crc_16 right, {checked} rollingFrameCount steps")
@@ -416,7 +409,7 @@ def unused_masks(lay: Layout, base: int = 0) -> list[tuple[int, int, int]]:
 
 
 def dasp_unused(ctx: Context, tr: Trace) -> Outcome:
-    defs = {definition.name: definition for definition in _defs(tr).values()}
+    defs = _defs(tr)
     sampled: dict[str, int] = {}
     containers = 0
     for msg in dasp_msgs(tr):

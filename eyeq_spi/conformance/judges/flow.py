@@ -28,9 +28,10 @@ def _state_reports(tr: Trace, msgs: list[Msg]) -> list[tuple[float, int, int, in
     return out
 
 
-def _ect_replies(tr: Trace, stage: int | None = None) -> list[tuple[Msg, Msg]]:
+def _ect_replies(tr: Trace, stage: int | None = None, *, dut_asks: bool = False
+                 ) -> list[tuple[Msg, Msg]]:
     out = []
-    for pair in mesp_pairs(tr):
+    for pair in mesp_pairs(tr, dut_asks=dut_asks):
         if pair.request.name == "EventCalibrationTool" and pair.reply is not None \
                 and (stage is None or pair.request.fields.get("ct_stage") == stage):
             out.append((pair.request, pair.reply))
@@ -137,7 +138,7 @@ def host_versions(ctx: Context, tr: Trace) -> Outcome:
     """MAPC-67299 step 12: the host asks Get EyeQ Versions during the power-on init sequence;
     asking "only once per ignition cycle (after positive response)" is said to be sufficient,
     not required, so a repeat is advice, never a failure."""
-    reqs = [p for p in mesp_pairs(_swap(tr)) if p.request.name == "GetEyeQVersions"]
+    reqs = [p for p in mesp_pairs(tr, dut_asks=True) if p.request.name == "GetEyeQVersions"]
     if not reqs:
         return bad("the host never asked Get EyeQ Versions in this ignition cycle "
                    "(MAPC-67299 step 12: send it during the power-on init sequence)")
@@ -291,18 +292,17 @@ def host_eyeq_reset(ctx: Context, tr: Trace) -> Outcome:
 
 
 def host_stale(ctx: Context, tr: Trace) -> Outcome:
-    mark = tr.first_mark("stale_end")
-    if mark is None:
+    mark, start = tr.first_mark("stale_end"), tr.first_mark("stale_start")
+    if mark is None or start is None:
         return skip("no DASP stream was stopped")
     detected = mark.info["detected"]
     stream = mark.info["stream"]
     if detected is None:
-        return unsure(f"{stream} stopped at {at(tr.first_mark('stale_start').time)}: a host "  # type: ignore[union-attr]
-                      "under test reports stale streams off the SPI link, so this is not "
-                      "observable here")
+        return unsure(f"{stream} stopped at {at(start.time)}: a host under test reports stale "
+                      "streams off the SPI link, so this is not observable here")
     if not detected:
-        return bad(f"{stream} silent for {mark.time - tr.first_mark('stale_start').time:.2f} s "  # type: ignore[union-attr]
-                   "and the host did not flag it as stale")
+        return bad(f"{stream} silent for {mark.time - start.time:.2f} s and the host did not "
+                   "flag it as stale")
     return ok(f"{stream} stopped; flagged stale by {at(mark.time)}")
 
 
@@ -317,7 +317,7 @@ def host_init_order(ctx: Context, tr: Trace) -> Outcome:
     stages = [m.fields.get("ct_stage") for m in reqs]
     if 0x84 in stages and 0x92 in stages and stages.index(0x92) < stages.index(0x84):
         return bad(f"0x92 sent before 0x84 (order {stages}; §7.1.3 steps 1-2)")
-    accepted = [rep.time for req, rep in _ect_replies(_swap(tr), 0x92) if ret_of(rep) == 0]
+    accepted = [rep.time for req, rep in _ect_replies(tr, 0x92, dut_asks=True) if ret_of(rep) == 0]
     veh = tr.dut_msgs("HOST_VEH_STATE_MSG")
     if veh and (not accepted or veh[0].time < accepted[0]):
         return bad(f"HOST_VEH_STATE_MSG #{veh[0].indices[0]} at {at(veh[0].time)} before 0x92 "
@@ -325,11 +325,3 @@ def host_init_order(ctx: Context, tr: Trace) -> Outcome:
     return ok(f"init after Pending Vision, order {[f'0x{s:02X}' for s in stages[:4]]}, "
               "HOST_VEH_STATE_MSG only after 0x92 was accepted")
 
-
-def _swap(tr: Trace) -> Trace:
-    """The same trace seen from the other side (requests from the DUT, replies from us), for
-    the MESP pairing helpers."""
-    view = Trace.__new__(Trace)
-    view.__dict__.update(tr.__dict__)
-    view.dut_dir, view.our_dir = tr.our_dir, tr.dut_dir
-    return view

@@ -4,7 +4,7 @@ values."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from itertools import pairwise
 
@@ -22,6 +22,7 @@ TX_TIMEOUT = float(_L["timing"]["transmitTimeout"])
 RESYNC_NAKS = int(_L["window"]["resync_after_naks"])
 SINGLE, FIRST, CONSECUTIVE = (int(_T["types"][k]) for k in ("single", "first", "consecutive"))
 ACK_SLACK_REALTIME = 0.002  # a byte stream between processes: delivery and our read turn
+VERSIONS = 0x04  # the function of our transport probes: Get EyeQ Versions
 RESET_SETTLE = 0.3  # seconds after a reset in which frames may be lost or NAKed 0x001
 
 
@@ -83,21 +84,14 @@ def link_crc(ctx: Context, tr: Trace) -> Outcome:
         frame = tr.frames.decode(xfer.data)
         want = tr.frames.compute_crc(frame.d, xfer.data[:4], xfer.data[6:])
         return bad(f"{len(broken)} of {len(dut)} frames invalid; first: {_frame(xfer)} "
-                   f"D=0x{frame.d:X} "
-                   f"R=0x{frame.r:X} CRC 0x{frame.crc:04X}, expected 0x{want:04X}")
+                   f"D=0x{frame.d:X} R=0x{frame.r:X} CRC 0x{frame.crc:04X}, expected 0x{want:04X}")
     return ok(f"{len(dut)} frames: CRC (L3 coverage), D and R valid")
 
 
-def _restarted(tr: Trace) -> list[float]:
-    """When the DUT's link started afresh (L10): our resets and every restart the receivers of
-    the trace made (:meth:`Trace.restarts`). A frame after such a restart never repeats one
-    before it, even byte for byte (a new boot status at NUM 0 often is identical)."""
-    return sorted(tr.resets())
-
-
 def _since_restart(tr: Trace) -> Iterator[tuple[Xfer, int]]:
-    """The DUT's DATA frames, each with the number of restarts (L10) before it."""
-    restarts = _restarted(tr)
+    """The DUT's DATA frames, each with the number of resets (L10) before it: a frame after a
+    reset never repeats one before it, even byte for byte (a new boot status often is)."""
+    restarts = sorted(tr.resets())
     count = 0
     for xfer in tr.xfers:
         if xfer.direction == tr.dut_dir and xfer.kind == "DATA":
@@ -166,7 +160,9 @@ def link_ack(ctx: Context, tr: Trace) -> Outcome:
     count = 0
     resets = sorted(tr.resets())
     resyncing_since: float | None = None
-    limit = ACK_TIMEOUT + ack_slack(ctx)
+    # a byte stream between processes adds far less to an ACK than the 50 ms other deadlines
+    # get (a host ACKing 18 ms late must fail); our own stalls are weighed per ACK (load.py)
+    limit = ACK_TIMEOUT + (ACK_SLACK_REALTIME if ctx.realtime else 1e-6)
     late: list[tuple[Xfer, Xfer]] = []
     lost: list[Xfer] = []
     for answer in answers(tr, ctx.slack):
@@ -186,8 +182,7 @@ def link_ack(ctx: Context, tr: Trace) -> Outcome:
             lost.append(xfer)
         elif reply.kind != "ACK" or reply.num != 0:
             return bad(f"{_frame(xfer)} answered by {reply.kind} #{reply.index} NUM/reason "
-                       f"{reply.num}, "
-                       "expected an ACK with NUM 0")
+                       f"{reply.num}, expected an ACK with NUM 0")
         elif reply.time - xfer.time > limit:
             late.append((xfer, reply))
     if not count:
@@ -215,13 +210,6 @@ def link_ack(ctx: Context, tr: Trace) -> Outcome:
               f"{1e3 * ACK_TIMEOUT:.0f} ms")
 
 
-def ack_slack(ctx: Context) -> float:
-    """What a byte stream between processes adds to an ACK's measured latency: far less than
-    the 50 ms other deadlines get (a host ACKing 18 ms late must fail), and our own stalls are
-    weighed per ACK (load.py)."""
-    return ACK_SLACK_REALTIME if ctx.realtime else 1e-6
-
-
 def link_pad(ctx: Context, tr: Trace) -> Outcome:
     """§6 and L1: an ACK or NAK frame carries "122 pad bytes set to 0". L3 lets a receiver
     ignore them; a sender must still send zeros."""
@@ -233,8 +221,7 @@ def link_pad(ctx: Context, tr: Trace) -> Outcome:
         pos = next(i for i in range(6, len(xfer.data)) if xfer.data[i])
         return bad(f"{len(dirty)} of {len(ctl)} ACK/NAK frames have non-zero pad bytes; first: "
                    f"{xfer.kind} #{xfer.index} at {at(xfer.time)}, byte {pos} = "
-                   f"0x{xfer.data[pos]:02X} "
-                   "(§6: 122 pad bytes set to 0)")
+                   f"0x{xfer.data[pos]:02X} (§6: 122 pad bytes set to 0)")
     kinds = {k: sum(1 for xfer in ctl if xfer.kind == k) for k in ("ACK", "NAK")}
     if not ctl:
         return skip("the DUT sent no ACK or NAK frame")
@@ -258,16 +245,9 @@ def _probe_nak(ctx: Context, tr: Trace, labels: tuple[str, ...], reason: NakReas
     return ok("; ".join(parts))
 
 
-def nak_crc(ctx: Context, tr: Trace) -> Outcome:
-    return _probe_nak(ctx, tr, ("nak_crc",), NakReason.CRC_MISMATCH)
-
-
-def nak_format(ctx: Context, tr: Trace) -> Outcome:
-    return _probe_nak(ctx, tr, ("nak_format_d", "nak_format_r"), NakReason.FORMAT_ERROR)
-
-
-def nak_window(ctx: Context, tr: Trace) -> Outcome:
-    return _probe_nak(ctx, tr, ("nak_window",), NakReason.OUT_OF_WINDOW)
+def nak_probe(reason: NakReason, *labels: str) -> Callable[[Context, Trace], Outcome]:
+    """The judge of the probes ``labels``: each must be NAKed with ``reason`` (L5)."""
+    return lambda ctx, tr: _probe_nak(ctx, tr, labels, reason)
 
 
 def link_dup(ctx: Context, tr: Trace) -> Outcome:
@@ -278,18 +258,12 @@ def link_dup(ctx: Context, tr: Trace) -> Outcome:
     if answer.reply is None or answer.reply.kind != "ACK":
         seen = "nothing" if answer.reply is None else f"{answer.reply.kind} #{answer.reply.index}"
         return bad(f"duplicate {_frame(answer.frame)}: expected an ACK with RSP {answer.frame.num} "
-                   "(L6), "
-                   f"saw {seen}")
+                   f"(L6), saw {seen}")
     mark = tr.first_mark("dup_request")
     if tr.dut == "host" or mark is None:
         return ok(f"duplicate {_frame(answer.frame)} ACKed again by #{answer.reply.index}; whether "
-                  "the "
-                  "host dropped its payload is not observable on the link")
-    tag = int(mark.info["tag"])
-    replies = [m for m in tr.dut_msgs() if m.decoded.protocol == "MESP"
-               and m.header.get("reply") and m.header.get("counter") == tag
-               and m.header.get("function") == mark.info["function"]
-               and mark.time <= m.time <= mark.time + 1.0]
+                  "the host dropped its payload is not observable on the link")
+    replies = tr.replies(int(mark.info["tag"]), mark.info["function"], mark.time)
     if len(replies) != 1:
         return bad(f"duplicate {_frame(answer.frame)} ACKed, but the request was answered "
                    f"{len(replies)} times (expected once: the duplicate is dropped)")
@@ -340,8 +314,7 @@ def link_noresend(ctx: Context, tr: Trace) -> Outcome:
     unacked = _unacked(tr)
     if not unacked:
         return skip(f"all {count} DATA frames of the DUT were ACKed within ackTimeout: it never "
-                    "had "
-                    "a frame to resend")
+                    "had a frame to resend")
     return ok(f"{count} DATA frames, none resent: {unacked} of them were not ACKed within "
               "ackTimeout (our ACK blackout, our probes and resets, or lost on the link), each "
               "a frame the DUT might have resent, and it resent none (§6, L7)")
@@ -502,24 +475,15 @@ def tp_tid(ctx: Context, tr: Trace) -> Outcome:
         lost_ok = tr.disturbed(earlier.time, later.time) or tr.realtime
         if step != 1 and not (lost_ok and 1 < step <= 2 * W):
             return bad(f"transfer ID {earlier.data[7]} (#{earlier.index}) then {later.data[7]} "
-                       f"(#{later.index}): "
-                       "expected +1 (T3)")
+                       f"(#{later.index}): expected +1 (T3)")
         skips += step != 1
     extra = f" ({skips} steps over IDs of messages lost on a disturbed link)" if skips else ""
     return ok(f"{len(firsts)} transfer IDs, each +1 mod 256{extra}")
 
 
-def _reply_to(tr: Trace, tag: int, since: float, function: int = 0x04) -> list[int]:
-    """``ret`` of every DUT reply to (0x05, ``function``) with counter ``tag`` within 1 s after
-    ``since`` (our probes use Get EyeQ Versions unless told otherwise)."""
-    out = []
-    for msg in tr.dut_msgs():
-        header = msg.header
-        if msg.decoded.protocol == "MESP" and header.get("reply") and header.get("counter") == tag \
-                and header.get("function") == function and since <= msg.time <= since + 1.0 \
-                and len(msg.data) >= 9:
-            out.append(int.from_bytes(msg.data[5:9], "little"))
-    return out
+def _answered(tr: Trace, tag: int, since: float) -> bool:
+    """A reply with ``ret`` to our Get EyeQ Versions probe ``tag`` came within 1 s."""
+    return any(len(msg.data) >= 9 for msg in tr.replies(tag, VERSIONS, since))
 
 
 def tp_limit(ctx: Context, tr: Trace) -> Outcome:
@@ -529,7 +493,7 @@ def tp_limit(ctx: Context, tr: Trace) -> Outcome:
     at_limit = tr.first_mark("limit_at")
     if at_limit is None:
         return base
-    if not _reply_to(tr, TAG_LIMIT, at_limit.time):
+    if not _answered(tr, TAG_LIMIT, at_limit.time):
         return bad(f"{base.evidence}; but the {_T['receive_limit']['eyeq']}-byte request sent "
                    f"at {at(at_limit.time)} was never answered (the limit itself must pass)")
     return ok(f"{base.evidence}; a message of exactly the limit was reassembled and answered")
@@ -539,11 +503,11 @@ def tp_abort(ctx: Context, tr: Trace) -> Outcome:
     marks = {mark.label: mark for mark in tr.marks if mark.label.startswith("abort_")}
     if "abort_control" not in marks:
         return skip("the transport probes were not sent")
-    if not _reply_to(tr, TAG_CONTROL, marks["abort_control"].time):
+    if not _answered(tr, TAG_CONTROL, marks["abort_control"].time):
         return unsure("the complete 300-byte control request got no reply either")
     for label, tag in (("abort_gap", TAG_GAP), ("abort_silence", TAG_SILENCE)):
         mark = marks.get(label)
-        if mark is not None and _reply_to(tr, tag, mark.time):
+        if mark is not None and _answered(tr, tag, mark.time):
             why = "a NUM gap" if label == "abort_gap" else "25 ms of silence"
             return bad(f"the request broken by {why} at {at(mark.time)} was answered: the "
                        "transfer was not aborted (T6)")
