@@ -20,7 +20,6 @@ from eyeq_spi.transport import (
     TransportConnection,
     segment,
 )
-from eyeq_spi.transport.segment import frames_needed
 from tests.conftest import Pair
 
 codec = FrameCodec()
@@ -54,7 +53,7 @@ def test_single_first_and_consecutive_layouts() -> None:
     assert parts[0][6:] == msg[:116]
     assert [p[:2] for p in parts[1:]] == [b"\x02\x07"] * 4
     assert b"".join(p[2:] for p in parts[1:]) == msg[116:]
-    assert len(parts) == frames_needed(512) == 5
+    assert len(parts) == 5
     assert len(segment(bytes(120), 0)) == 1 and len(segment(bytes(121), 0)) == 2
 
 
@@ -71,7 +70,7 @@ def test_any_message_up_to_8191_round_trips_eyeq_to_host(msg: bytes) -> None:
     pair.run(1.0)
     got = of(pair.events("host"), MessageReceived)
     assert [g.data for g in got] == [msg]
-    assert len(got[0].frames) == frames_needed(len(msg))
+    assert len(got[0].frames) == len(segment(msg, 0))
     assert of(pair.events("eyeq"), MessageSent)
 
 

@@ -1,4 +1,4 @@
-"""Sans-IO link connection, one per side (seed 004 §6, decisions L4-L8).
+"""Sans-IO link connection, one per side (seed 004 §6, decisions L4-L10).
 
 Theory of operation
 -------------------
@@ -9,33 +9,21 @@ Theory of operation
    a broken ACK/NAK is never answered;
 3. D and R (L2): invalid -> ``formatErrorCounter``, NAK 0x011 (not for ACK/NAK);
 4. ACK/NAK frames settle the sender's in-flight frames;
-5. DATA frames go through the receive window (L6, refined by L6a): a NUM in ``[E-W, E)`` is
-   - a duplicate if that NUM was accepted and this transfer is byte-identical: ACK again, drop;
-   - a peer reset if that NUM was accepted and this transfer differs: resynchronise (E = NUM+1,
-     ``Resynchronised(cause="peer_reset")``, which makes the transport abort any open transfer)
-     and accept it;
-   - a late frame if that NUM was skipped (never accepted): NAK 0x001 and drop, so its sender
-     learns that it was lost instead of believing that it arrived.
-   To tell these apart the receiver keeps the last W accepted transfers. Out of window -> NAK
-   0x001 (resynchronise after 3 in a row), else the payload check of the layer above (transport
-   header, NAK 0x011), then accept: ACK, ``DataReceived``.
+5. DATA frames go through the receive window (L6, L6a). A NUM in ``[E-W, E)`` is a duplicate
+   if that NUM was accepted with the same bytes (ACK again, drop), a peer reset if it was
+   accepted with other bytes (``Resynchronised(cause="peer_reset")``, then accept), a late
+   frame if it was skipped (NAK 0x001, drop); the last W accepted transfers tell them apart.
+   Out of window -> NAK 0x001 (resynchronise after 3 in a row), else the transport's payload
+   check (NAK 0x011), then accept: ACK, ``DataReceived``.
 
-A passive receiver (``LinkConfig.passive``, decision L9: a dissector that did not see the link
-start) takes the NUM of the first DATA frame it sees as E. So does every receiver after a reset
-(decision L10: ``reset(learn=True)``, or :meth:`LinkConnection.restart`, which keeps what is
-queued and in flight): both directions start afresh, and a frame received after the reset is
-never a duplicate of one received before it.
+A passive receiver (L9) and every receiver after a reset (L10: ``reset(learn=True)``,
+:meth:`LinkConnection.restart`) take the NUM of the next DATA frame as E.
 
-``send(data, tag, now)`` queues one DATA frame. ``data_to_send(now)`` releases transfers: control
-frames (ACK/NAK) first, then DATA frames while fewer than W are in flight (L7), never closer than
-``frame_gap`` (frameFlowControl) apart. The gap paces DATA frames only: pacing ACKs at 500 µs too
-would cap the EyeQ's throughput at one frame per 500 µs, and an 8191-byte (70-frame) message could
-then never finish within ``transmit_timeout``. ACK/NAK frames have their own ``control_gap``.
-``handle_timer(now)`` expires frames not ACKed within ``ack_timeout`` and
-frames not sent within ``transmit_timeout``; a lost frame is never resent, its tag fails once
-(``sendFailedErrorCounter``) and the tag's remaining queued frames are dropped.
-
-The connection never reads a clock: every call takes ``now`` (seconds, any epoch).
+``send(data, tag, now)`` queues one DATA frame. ``data_to_send(now)`` releases ACK/NAK frames
+(``control_gap`` apart), then DATA frames while fewer than W are in flight (L7), ``frame_gap``
+(frameFlowControl) apart: pacing ACKs too would cap the peer's throughput. ``handle_timer(now)``
+fails frames not ACKed within ``ack_timeout`` and frames not sent within ``transmit_timeout``; a
+lost frame is never resent, its tag fails once and its queued frames are dropped.
 """
 
 from __future__ import annotations
@@ -132,22 +120,15 @@ class LinkConnection:
     # -- state ------------------------------------------------------------------------------
     def reset(self, *, tx_num: int = 0, expected: int = 0, learn: bool = False,
               restart_span: int = 0) -> None:
-        """Power-up state: NUM and E back to 0 (L4). Queues and in-flight frames are lost.
-
-        ``learn``: the receiver takes the first DATA frame's NUM as E (L10: after a reset the
-        peer's numbering is not known; as L9's passive receivers do).
-        ``tx_num``/``expected`` start elsewhere, for conformance tests of the 4095 -> 0 wrap.
-        ``restart_span``: without ``learn``, the DATA frames for which a NUM 0 outside the
-        window is still the peer's restart (L10a; :attr:`restart_span`), for a passive
-        receiver that is set back to a point it had reached.
-        """
+        """Power-up state: NUM and E back to 0 (L4); queued and in-flight frames are lost.
+        ``learn``: E is the next DATA frame's NUM (L10). ``tx_num``/``expected``: other starts,
+        for tests of the 4095 -> 0 wrap. ``restart_span``: see :attr:`restart_span`."""
         if not (0 <= tx_num < SEQ_MODULO and 0 <= expected < SEQ_MODULO):
             raise LocalProtocolError("start NUMs must be 0..4095")
         self._tx_num = tx_num
         self._expected = expected
         self._started = not (self.config.passive or learn)  # L9, L10: the receiver learns E
-        # L10: frames the peer sent before it learnt of the reset may still arrive and be
-        # learned; its first frame after it restarted (NUM 0, L4) then takes E back to 0
+        # L10a: the peer's first frame after its own restart (NUM 0) takes E back to 0
         self._expect_restart_frames = (RESTART_HORIZON * self.config.window if learn
                                        else restart_span)
         self._accepted: OrderedDict[int, bytes] = OrderedDict()  # L6a: last W accepted
@@ -168,11 +149,9 @@ class LinkConnection:
         self.counters.busyFrames = 0
 
     def restart(self) -> None:
-        """L10: a reset starts both directions afresh, without dropping what is queued or in
-        flight. Frames released from now on are numbered from 0 (RSP 0 until a frame is
-        accepted), the next DATA frame received sets E, and no frame received from now on
-        is a duplicate of one received before, even byte-identical (a new boot status at
-        NUM 0 often is)."""
+        """L10: both directions start afresh, keeping what is queued or in flight: our frames
+        are numbered from 0, the next DATA frame received sets E, and none is a duplicate of
+        one received before."""
         self._tx_num = 0
         self._started = False
         self._accepted.clear()
@@ -181,18 +160,16 @@ class LinkConnection:
         self._expect_restart_frames = RESTART_HORIZON * self.config.window
 
     def restart_after(self, tag: int, now: float, expect_for: float = 1.0) -> None:
-        """L10 for a message that resets the peer (Switch EyeQ Application): our frames
-        released after the last frame of ``tag`` are numbered from 0; and for ``expect_for``
-        seconds a DATA frame with NUM 0 and RSP 0 (the peer's first after its reset, L4) is
-        taken as the new E wherever E stands, so the peer's frames from before its reset are
-        still accepted and its first one after is not NAKed as out of window."""
+        """L10 for a message that resets the peer (Switch EyeQ Application): our frames after
+        the last of ``tag`` are numbered from 0, and for ``expect_for`` seconds a DATA frame
+        with NUM 0 and RSP 0 (the peer's first after its reset) is taken as the new E."""
         self._restart_tag = tag
         self._expect_restart_until = now + expect_for
 
     @property
     def restart_span(self) -> int:
-        """L10a: how many more DATA frames may bring a NUM 0 outside the window that is taken
-        as the peer's restart (64 after our own reset, counting down)."""
+        """L10a: for how many more DATA frames a NUM 0 outside the window is the peer's restart
+        (64 after our own reset, counting down)."""
         return self._expect_restart_frames
 
     @property
@@ -260,7 +237,6 @@ class LinkConnection:
 
     # -- timers -----------------------------------------------------------------------------
     def get_timer(self) -> float | None:
-        # asked after every event (runner/virtual.py): no temporary lists here
         best: float | None = self._next_ctl if self._control else None
         queue, inflight = self._queue, self._inflight
         if queue:
@@ -270,8 +246,7 @@ class LinkConnection:
             if best is None or due < best:
                 best = due
         if inflight:
-            # frames enter in send order with deadline = sent + ack_timeout: the oldest is due
-            # first
+            # frames enter in send order: the oldest is due first
             due = next(iter(inflight.values())).deadline
             if best is None or due < best:
                 best = due
@@ -292,8 +267,6 @@ class LinkConnection:
     def receive_data(self, transfer: bytes, now: float) -> None:
         counters = self.counters
         try:
-            # the header fields and the CRC verdict, without building a Frame (hot path; the
-            # same reading as FrameCodec.decode + crc_ok, tests/test_link_frame.py holds them equal)
             d, r, rsp, num, crc_ok = self.codec.check(transfer)
         except RemoteProtocolError as exc:  # L8: the header cannot be trusted, so no NAK
             counters.formatErrorCounter += 1
@@ -329,9 +302,9 @@ class LinkConnection:
 
     def _on_data(self, num: int, data: bytes, transfer: bytes,
                  restart_rsp: int | None = None) -> None:
-        """``restart_rsp``: the RSP of a NUM 0 frame that may be the peer's first after a reset
-        (L10): taken as such if its RSP is 0 (L4), or whatever its RSP if it lies outside the
-        window and is not a byte-identical copy of the NUM 0 accepted since the reset (L10a)."""
+        """``restart_rsp``: the RSP of a NUM 0 frame that may be the peer's first after a reset:
+        it is if its RSP is 0 (L10), or if it lies outside the window and is not a copy of the
+        NUM 0 accepted since the reset (L10a)."""
         counters, window, modulo = self.counters, self.config.window, SEQ_MODULO
         if not self._started:  # L9: the first DATA frame a passive receiver sees sets E
             self._started = True
@@ -371,8 +344,7 @@ class LinkConnection:
                 self._reject(num, NakReason.OUT_OF_WINDOW, detail)
                 return
         if resync is not None:
-            # Nothing received before this frame may be joined with it (L6a): the transport
-            # aborts its open transfer on this event before it sees the frame.
+            # the transport aborts its open transfer on this event before it sees the frame
             counters.resynchronisations += 1
             self._accepted.clear()
             self._expected = num
@@ -398,7 +370,7 @@ class LinkConnection:
             self.counters.unexpectedAckCounter += 1
             self._events.append(UnexpectedAck("ACK", rsp))
             return
-        # send -> ACK latency in 10 µs bins (bounded memory for any run length)
+        # send -> ACK latency in 10 µs bins
         self.ack_latency[int((now - inflight.sent) * 1e5)] += 1
         self.counters.busyFrames = len(self._inflight)
         self.counters.framesAcked += 1

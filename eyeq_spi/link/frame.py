@@ -1,10 +1,6 @@
-"""Link frame codec (seed 004 §6, decisions L1-L3).
-
-A frame is exactly 128 bytes: a uint32 LE header word (D/R/RSP/NUM), a CRC-16 LE, and 122 data
-bytes. The byte layout is a compiled construct Struct (``FRAME_LAYOUT``, built on first use;
-the codec packs and unpacks with ``struct``); the header word is split by shifts whose
-positions come from ``specs/link.yaml`` (LSB-first by default, MSB-first configurable).
-"""
+"""Link frame codec (seed 004 §6, decisions L1-L3): a uint32 LE header word (D/R/RSP/NUM, bit
+positions from ``specs/link.yaml``), a CRC-16 LE and 122 data bytes; ``FRAME_LAYOUT`` is the
+byte layout as a construct Struct, the reference the codec is tested against."""
 
 from __future__ import annotations
 
@@ -47,11 +43,8 @@ class BitOrder(enum.Enum):
     MSB_FIRST = "msb_first"
 
 
-
-
 def __getattr__(name: str) -> Any:
-    """``FRAME_LAYOUT``, the frame's byte layout as a construct Struct (the reference the codec's
-    ``struct`` path is tested against), built on first use so that no reader imports construct."""
+    """``FRAME_LAYOUT``, built on first use so that no reader imports construct."""
     if name == "FRAME_LAYOUT":
         from construct import Bytes, Int16ul, Int32ul, Struct
 
@@ -126,7 +119,6 @@ class FrameCodec:
         self._data_word = int(FrameKind.DATA) << self._d[0]
         self._hqx = self.crc is make_crc(CCITT_FALSE)  # binascii.crc_hqx seeded 0xFFFF (L3)
 
-    # -- header word -------------------------------------------------------------------------
     def pack_header(self, d: int, r: int, rsp: int, num: int) -> int:
         return (
             (d << self._d[0]) | (r << self._r[0]) | (rsp << self._rsp[0]) | (num << self._num[0])
@@ -140,16 +132,13 @@ class FrameCodec:
             (word >> self._num[0]) & self._num[1],
         )
 
-    # -- CRC coverage (L3) --------------------------------------------------------------------
+    # L3: DATA frames cover header and data, ACK/NAK the header only
     def compute_crc(self, d: int, header: bytes, data: bytes) -> int:
         if d in (FrameKind.ACK, FrameKind.NAK):
             return self.crc(header)
         return self.crc(header + data)
 
-    # -- encode / decode ----------------------------------------------------------------------
     def encode(self, frame: Frame) -> bytes:
-        # FRAME_LAYOUT (construct) is the reference layout; this is its hot-path equivalent,
-        # and tests/test_link_frame.py checks that both give the same bytes.
         word = self.pack_header(frame.d, frame.r, frame.rsp, frame.num)
         header = word.to_bytes(4, "little")
         data = frame.data if frame.d not in (FrameKind.ACK, FrameKind.NAK) else _ZERO_DATA
@@ -157,9 +146,8 @@ class FrameCodec:
         return header + crc.to_bytes(2, "little") + data
 
     def data_frame(self, rsp: int, num: int, data: bytes) -> bytes:
-        """Encode a DATA frame, zero-padding ``data`` to 122 bytes (§6 pad bytes): what
-        ``encode(Frame(DATA, 0, rsp, num, data))`` gives, without building the Frame (every
-        frame a sender releases; tests/test_link_frame.py holds both equal)."""
+        """``encode(Frame(DATA, 0, rsp, num, data))`` without building the Frame (every frame a
+        sender releases), ``data`` zero-padded to 122 bytes (§6 pad bytes)."""
         if len(data) > DATA_SIZE:
             raise LocalProtocolError(f"data field holds {DATA_SIZE} bytes, got {len(data)}")
         if not (0 <= rsp < SEQ_MODULO and 0 <= num < SEQ_MODULO):
@@ -185,10 +173,8 @@ class FrameCodec:
         return self.encode(Frame(FrameKind.NAK, 0, num, int(reason)))
 
     def decode(self, transfer: bytes) -> Frame:
-        """Decode without judging: returns the frame with the CRC found in it.
-
-        Raises ``RemoteProtocolError`` only for a wrong length (L8); use :meth:`crc_ok` for the CRC.
-        """
+        """The frame with the CRC found in it, unjudged (:meth:`crc_ok`); ``RemoteProtocolError``
+        for a wrong length (L8)."""
         if len(transfer) != FRAME_SIZE:
             raise RemoteProtocolError(f"transfer is {len(transfer)} bytes, not {FRAME_SIZE}")
         d, r, rsp, num = self.unpack_header(int.from_bytes(transfer[:4], "little"))
@@ -196,19 +182,14 @@ class FrameCodec:
                      int.from_bytes(transfer[4:6], "little"))
 
     def check(self, transfer: bytes) -> tuple[int, int, int, int, bool]:
-        """D, R, RSP, NUM and the CRC verdict of a transfer: :meth:`decode` and :meth:`crc_ok`
-        in one step, without a :class:`Frame` (the receiver's hot path)."""
+        """D, R, RSP, NUM and the CRC verdict: :meth:`decode` and :meth:`crc_ok` without a
+        :class:`Frame` (the receiver's hot path)."""
         if len(transfer) != FRAME_SIZE:
             raise RemoteProtocolError(f"transfer is {len(transfer)} bytes, not {FRAME_SIZE}")
-        word = int.from_bytes(transfer[:4], "little")
-        d = (word >> self._d[0]) & self._d[1]
-        crc = int.from_bytes(transfer[4:6], "little")
-        if d == FrameKind.ACK or d == FrameKind.NAK:
-            ok = self.crc(transfer[:4]) == crc
-        else:
-            ok = self.crc(transfer[:4] + transfer[6:]) == crc
-        return (d, (word >> self._r[0]) & self._r[1], (word >> self._rsp[0]) & self._rsp[1],
-                (word >> self._num[0]) & self._num[1], ok)
+        d, r, rsp, num = self.unpack_header(int.from_bytes(transfer[:4], "little"))
+        covered = transfer[:4] if d == FrameKind.ACK or d == FrameKind.NAK else \
+            transfer[:4] + transfer[6:]
+        return d, r, rsp, num, self.crc(covered) == int.from_bytes(transfer[4:6], "little")
 
     def crc_ok(self, transfer: bytes, frame: Frame) -> bool:
         return self.compute_crc(frame.d, transfer[:4], transfer[6:]) == frame.crc

@@ -91,7 +91,6 @@ class MespClient:
         self._out: deque[bytes] = deque()
         self._events: deque[MespEvent] = deque()
 
-    # -- API --------------------------------------------------------------------------------
     def request(
         self, function: str, params: dict[str, Any] | None = None, *, now: float,
         callback: Callback | None = None,
@@ -111,12 +110,8 @@ class MespClient:
         return len(self._pending)
 
     def cancel_all(self) -> None:
-        """Forget every outstanding request (EyeQ reset); late replies will count as stale.
-
-        A reset EyeQ answers nothing it was asked before: each outstanding request is
-        ``abandoned`` (reported, not retried; the bring-up asks again what it still needs). It
-        is not a timeout: no deadline passed, and a host that resets the EyeQ on purpose (a
-        failed boot, the EEPROM) abandons requests as part of a correct bring-up."""
+        """Forget every outstanding request (the EyeQ reset, so none will be answered): counted
+        ``abandoned``, not timed out nor retried; late replies count as stale."""
         self.counters.abandoned += len(self._pending)
         self._pending.clear()
 
@@ -177,7 +172,6 @@ class MespClient:
                                             pending.attempts, latency))
         return True
 
-    # -- internals --------------------------------------------------------------------------
     def _next_counter(self, service: int, function: int) -> int:
         for _ in range(TAG_MASK + 1):
             counter = self._counter

@@ -1,10 +1,6 @@
-"""Typed MESP results. Field names are the reply parameters of ``specs/mesp.yaml``; a test checks
-that every dataclass here matches its spec entry, so the two cannot drift apart.
-
-A request ends in a :class:`MespReply` or a :class:`MespFailure`, both plain values
-(``MespResult``); ``RemoteProtocolError`` (the error tree, ``eyeq_spi/errors.py``) is only
-raised, by :func:`unwrap` or from ``MespFailure.exception()``, for a caller that wants one.
-"""
+"""Typed MESP results, named as the reply parameters of ``specs/mesp.yaml`` (a test holds them
+equal). A request ends in a :class:`MespReply` or a :class:`MespFailure`, both plain values;
+:func:`unwrap` raises ``RemoteProtocolError`` for a caller that wants an exception."""
 
 from __future__ import annotations
 
@@ -12,16 +8,6 @@ from dataclasses import dataclass, fields
 from typing import Any, TypeAlias
 
 from eyeq_spi.errors import RemoteProtocolError
-
-__all__ = [
-    "REPLY_TYPES",
-    "MespFailure",
-    "MespReply",
-    "MespResult",
-    "RemoteProtocolError",
-    "typed",
-    "unwrap",
-]
 
 
 @dataclass(frozen=True)

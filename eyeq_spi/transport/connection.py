@@ -3,42 +3,29 @@
 Theory of operation
 -------------------
 ``send(message, now)`` splits a message (T1-T4) and queues all its frames on the link under one
-tag, back to back, so that one sender's transfers never interleave (T5). The link reports the tag
-as ``Sent`` or ``SendFailed``; they become ``MessageSent`` / ``MessageSendFailed``.
+tag, back to back, so that one sender's transfers never interleave (T5). The link's ``Sent`` or
+``SendFailed`` for the tag become ``MessageSent`` / ``MessageSendFailed``.
 
-On receive, the link asks :meth:`_check_header` about every in-window DATA frame before it ACKs it.
-Static header faults (unknown transport type, single size 0 or > 120, first-frame total outside
+The link asks :meth:`_check_header` about every in-window DATA frame before it ACKs it. Static
+header faults (unknown transport type, single size 0 or > 120, first-frame total outside
 117..limit, a consecutive frame whose ID differs from the open transfer's) are NAKed 0x011; a
-total above the receive limit also counts ``rcvOverflowErrors``. Accepted frames then drive the
-reassembly; a NUM gap, a consecutive frame with no open transfer, 25 ms of silence or a new first
-frame abort the open transfer (T6) — reported as ``TransferAborted`` and counted, never raised.
-The remaining consecutive frames of an aborted transfer are discarded quietly (``framesDiscarded``)
-so that one lost frame gives one abort, not one per straggler.
-A single frame arriving inside an open transfer breaks T5; it is delivered and the open transfer
-is aborted as ``interleaved``.
+total above the receive limit also counts ``rcvOverflowErrors``. A NUM gap, a consecutive frame
+with no open transfer, 25 ms of silence or a new first frame abort the open transfer (T6):
+``TransferAborted``, counted, never raised; the aborted transfer's later frames are dropped
+quietly (``framesDiscarded``). A single frame inside an open transfer breaks T5: it is delivered
+and the open transfer aborted as ``interleaved``.
 
-A ``Resynchronised`` link event (3 out-of-window NAKs, or a peer reset recognised by L6a) aborts
-the open transfer as ``resynchronised`` before the frame that caused it is reassembled, so no
-message ever joins frames from both sides of a reset. Two more rules (decision T6a) keep frames
-of two transfers apart where the NUMs alone cannot (fuzz findings; L6a: "no reassembly may ever
-join frames sent before and after a peer reset"):
-- **Silence is judged on arrival too.** A frame that arrives after the open transfer's 25 ms
-  deadline (T6) finds the transfer already aborted (``timeout``), even when no timer ran in
-  between. A peer reset takes longer than 25 ms, so a reset whose first frame was lost cannot
-  continue a transfer begun before it.
-- **The last consecutive frame's padding is zero (T4).** A consecutive frame that should end the
-  open transfer but carries non-zero bytes after the transfer's last byte belongs to another
-  transfer: it is NAKed 0x011 and the open transfer is aborted as ``bad_padding``.
-These rules assume a channel that keeps frames in order, as SPI and byte streams do. A channel that
-reorders frames across a peer reset (a fault model, not a wire) can make an old first frame look
-like the reset itself, and then no receiver rule can tell which frames continue it (T6a).
+A ``Resynchronised`` link event aborts the open transfer before the frame that caused it is
+reassembled, so no message joins frames from both sides of a reset. Decision T6a adds two rules
+for a channel that keeps frames in order (SPI, byte streams): silence is judged on arrival too
+(a frame after the 25 ms deadline finds the transfer aborted, timer or not), and a last
+consecutive frame with non-zero padding (T4) belongs to another transfer (NAK 0x011, abort
+``bad_padding``).
 
-A passive receiver (``LinkConfig.passive``, L9) reports consecutive frames seen before any first
-frame as ``TransferIncomplete("start")``, and :meth:`finish` reports a transfer still open at
-the end of the input as ``TransferIncomplete("end")``; neither is an error.
-
-Link events that are not about messages (rejected frames, duplicates, resynchronisation) are
-passed through unchanged, so one ``next_event()`` loop sees everything.
+A passive receiver (L9) reports consecutive frames before any first frame as
+``TransferIncomplete("start")``, and :meth:`finish` a transfer still open at the end of the input
+as ``TransferIncomplete("end")``. Other link events pass through, so one ``next_event()`` loop
+sees everything.
 """
 
 from __future__ import annotations
@@ -116,9 +103,8 @@ class TransportConnection:
 
     def reset(self, *, tx_num: int = 0, expected: int = 0, transfer_id: int = 0,
               learn: bool = False, restart_span: int = 0) -> None:
-        """Power-up state of both layers (the link's pending messages fail). ``learn``: the
-        receiver takes the first DATA frame's NUM as E (L10). The start values exist for
-        conformance tests of the wraps."""
+        """Power-up state of both layers (the link's pending messages fail); the arguments are
+        :meth:`LinkConnection.reset`'s, and the first transfer ID."""
         if not 0 <= transfer_id < seg.ID_MODULO:
             raise ValueError("transfer_id must be 0..255")
         self._abort("reset")
@@ -128,9 +114,8 @@ class TransportConnection:
         self._drain_link(0.0)
 
     def restart(self) -> None:
-        """L10: the peer reset (or we reset it): both link directions start afresh
-        (:meth:`LinkConnection.restart`); a transfer still open is aborted, since no reassembly
-        may join frames from before and after a reset (L6a)."""
+        """L10: both link directions start afresh (:meth:`LinkConnection.restart`) and a
+        transfer still open is aborted (L6a)."""
         self._abort("reset")
         self._dead_id = None
         self.link.restart()
@@ -260,8 +245,7 @@ class TransportConnection:
             self._deliver(bytes(transfer.buf), tuple(transfer.nums), transfer.transfer_id)
 
     def finish(self) -> None:
-        """End of a passive receiver's input (L9): an open transfer is incomplete, not timed
-        out."""
+        """End of a passive receiver's input (L9): an open transfer is incomplete."""
         transfer = self._open
         if transfer is None:
             return

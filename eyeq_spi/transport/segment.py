@@ -40,8 +40,3 @@ def segment(message: bytes, transfer_id: int) -> list[bytes]:
         out.append(bytes((CONSECUTIVE, transfer_id)) + message[pos : pos + CONSECUTIVE_CHUNK])
     return out
 
-
-def frames_needed(length: int) -> int:
-    if length <= SINGLE_MAX:
-        return 1
-    return 1 + -(-(length - FIRST_CHUNK) // CONSECUTIVE_CHUNK)
