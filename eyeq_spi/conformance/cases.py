@@ -1,8 +1,5 @@
-"""The cases, as data: ID, title, seed 004 section, requirement ID (MAPC-…), decision, group,
-which implementation under test it applies to, the session whose trace it reads, the script
-steps it needs, and its judge. DASP rate cases and MESP function cases are generated from
-``specs/`` (one per message and mode, one per M3 function), so a release's table is its suite.
-"""
+"""The cases, as data. DASP rate cases and MESP function cases are generated from ``specs/`` (one
+per message and mode, one per M3 function), so a release's table is its suite."""
 
 from __future__ import annotations
 

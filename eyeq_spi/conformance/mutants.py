@@ -9,7 +9,7 @@ rule (every case gets the verdict ours gets).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi.catalog.link import link_spec
@@ -390,25 +390,13 @@ class Mutant:
     expected: frozenset[str]  # the cases this bug violates
     # cases whose precondition the bug removes: skip or inconclusive, never pass or fail
     masks: frozenset[str] = frozenset()
-    eyeq: Callable[[SimConfig], SimulatedEyeQ] | None = None
-    host: Callable[[HostConfig, Nvm | None, Callable[[float], None]], HostEmulator] | None = None
-    sim_config: Callable[[SimConfig], None] | None = None
-    host_config: Callable[[HostConfig], None] | None = None
+    eyeq: type[SimulatedEyeQ] = SimulatedEyeQ
+    host: type[HostEmulator] = HostEmulator
+    config: dict[str, Any] = field(default_factory=dict)  # set on its SimConfig or HostConfig
 
 
 def _m(name: str, dut: str, bug: str, expected: set[str], **kw: Any) -> Mutant:
     return Mutant(name, dut, bug, frozenset(expected), **kw)
-
-
-def _set(**values: Any) -> Callable[[Any], None]:
-    def apply(cfg: Any) -> None:
-        for key, value in values.items():
-            setattr(cfg, key, value)
-    return apply
-
-
-def _host(cls: type[HostEmulator]) -> Callable[..., HostEmulator]:
-    return lambda cfg, nvm, line: cls(cfg, nvm=nvm, reset_line=line, keep_rx_times=False)
 
 
 MUTANTS: dict[str, Mutant] = {m.name: m for m in (
@@ -433,35 +421,35 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
        # TP-ABORT tells "aborted" from "answered" by Get Versions replies matched by tag
        masks=frozenset({"TP-ABORT"})),
     _m("eyeq-reply-600ms", "eyeq", "Get Versions replies leave after 600 ms",
-       {"MESP-DEADLINE"}, sim_config=_set(delay_replies={"GetEyeQVersions": 0.6})),
+       {"MESP-DEADLINE"}, config={"delay_replies": {"GetEyeQVersions": 0.6}}),
     _m("eyeq-dasp-counter-stuck", "eyeq", "the counter of 0xA0 stays 0", {"DASP-COUNTER"},
        eyeq=DaspCounterStuck),
     _m("eyeq-e2e-wrong", "eyeq", "crc_16 of EYEQ_VIS_AEB_INFO_MSG is wrong", {"DASP-E2E"},
        eyeq=E2eWrong),
-    _m("eyeq-diag-30hz", "eyeq", "0x41 at 30 Hz", {"DIAG-RATE"}, sim_config=_set(diag_rate=30)),
+    _m("eyeq-diag-30hz", "eyeq", "0x41 at 30 Hz", {"DIAG-RATE"}, config={"diag_rate": 30}),
     _m("eyeq-init-before-pending", "eyeq", "0x92 accepted while still booting",
        {"FLOW-PENDING"}, eyeq=InitBeforePending),
     _m("eyeq-running-without-veh-state", "eyeq",
        "Running Vision right after 0x92, before any HOST_VEH_STATE_MSG", {"FLOW-RUNNING"},
        eyeq=RunningWithoutVehState),
     _m("host-veh-50hz", "host", "HOST_VEH_STATE_MSG at 50 Hz",
-       {"DASP-RATE-APP-HOST_VEH_STATE_MSG"}, host_config=_set(veh_state_rate=50.0)),
+       {"DASP-RATE-APP-HOST_VEH_STATE_MSG"}, config={"veh_state_rate": 50.0}),
     _m("host-no-eeprom-reread", "host", "on Fatal 22 with a calibration in NVM it gives up "
-       "without reading the EEPROM", {"HOST-FATAL22"}, host=_host(NoEepromReread),
+       "without reading the EEPROM", {"HOST-FATAL22"}, host=NoEepromReread,
        # in the eeprom_bad cycle it never reads the EEPROM either: its bad CRC goes unseen
        masks=frozenset({"HOST-EEPROM-BAD"})),
     _m("host-ignores-bad-eeprom", "host", "an EEPROM with a bad CRC-16 is taken as good: the "
-       "host resets the EyeQ and carries on", {"HOST-EEPROM-BAD"}, host=_host(IgnoresEepromCrc)),
+       "host resets the EyeQ and carries on", {"HOST-EEPROM-BAD"}, host=IgnoresEepromCrc),
     _m("host-late-acks", "host", "every other ACK leaves 12 ms late (ackTimeout 10 ms)",
-       {"LINK-ACK"}, host=_host(HostLateAcks)),
+       {"LINK-ACK"}, host=HostLateAcks),
     _m("host-ack-pad", "host", "ACK and NAK pad bytes are 0xAA", {"LINK-PAD"},
-       host=_host(HostAckPad)),
+       host=HostAckPad),
     _m("host-no-renumber", "host", "after resetting the EyeQ its frames keep their old "
-       "numbering (L10)", {"LINK-NUM"}, host=_host(HostNoRenumber)),
+       "numbering (L10)", {"LINK-NUM"}, host=HostNoRenumber),
     _m("host-no-retry", "host", "a timed-out MESP request is never retried",
-       {"HOST-RETRY"}, host=_host(HostNoRetry)),
+       {"HOST-RETRY"}, host=HostNoRetry),
     _m("host-e2e-wrong", "host", "crc_16 of host_vehicle_state_t is wrong", {"DASP-E2E"},
-       host=_host(HostE2eWrong),
+       host=HostE2eWrong,
        # our EyeQ, like a real one, does not enter Running Vision on a HOST_VEH_STATE_MSG that
        # fails E2E: the probes, the stale stream and our reset that need it never run
        masks=frozenset({"LINK-NAK-CRC", "LINK-NAK-FORMAT", "LINK-NAK-WINDOW", "LINK-DUP",
@@ -472,22 +460,22 @@ MUTANTS: dict[str, Mutant] = {m.name: m for m in (
 # Hosts that depart only from our recommendations: every case passes, with advice.
 ADVISED: dict[str, Mutant] = {m.name: m for m in (
     _m("host-versions-every-bring-up", "host", "asks Get Versions at every bring-up",
-       {"HOST-VERSIONS"}, host=_host(VersionsEveryBringUp)),
+       {"HOST-VERSIONS"}, host=VersionsEveryBringUp),
     _m("host-endless-boot-resets", "host", "resets a failing EyeQ 10 times",
-       {"HOST-BOOT-RESETS"}, host_config=_set(boot_strikes=10)),
+       {"HOST-BOOT-RESETS"}, config={"boot_strikes": 10}),
 )}
 
 # Hosts that differ from ours but break no rule: every case gets the verdict ours gets.
 CORRECT: dict[str, Mutant] = {m.name: m for m in (
     _m("host-late-restart", "host", "learns of an EyeQ reset only from 0x41 Main_State and "
        "then numbers its frames from 0 again, RSP not 0 (L10a)", set(),
-       host=_host(HostLateRestart)),
+       host=HostLateRestart),
 )}
 
 
-def _mutant(name: str | None, dut: str) -> Mutant | None:
+def _mutant(name: str | None, dut: str) -> Mutant:
     if name is None:
-        return None
+        return Mutant("", dut, "", frozenset())
     mutant = MUTANTS.get(name) or ADVISED.get(name) or CORRECT.get(name)
     if mutant is None or mutant.dut != dut:
         known = ", ".join(k for k, v in (MUTANTS | ADVISED | CORRECT).items() if v.dut == dut)
@@ -498,19 +486,15 @@ def _mutant(name: str | None, dut: str) -> Mutant | None:
 def build_eyeq(name: str | None, sw: str | None) -> SimulatedEyeQ:
     mutant = _mutant(name, "eyeq")
     cfg = builtin_eyeq_config(sw)
-    if mutant is not None and mutant.sim_config is not None:
-        mutant.sim_config(cfg)
-    if mutant is not None and mutant.eyeq is not None:
-        return mutant.eyeq(cfg)
-    return SimulatedEyeQ(cfg)
+    for key, value in mutant.config.items():
+        setattr(cfg, key, value)
+    return mutant.eyeq(cfg)
 
 
 def build_host(name: str | None, sw: str | None, reset_line: Callable[[float], None],
                nvm: Nvm | None) -> HostEmulator:
     mutant = _mutant(name, "host")
     cfg = HostConfig(sw=sw)
-    if mutant is not None and mutant.host_config is not None:
-        mutant.host_config(cfg)
-    if mutant is not None and mutant.host is not None:
-        return mutant.host(cfg, nvm, reset_line)
-    return HostEmulator(cfg, nvm=nvm, reset_line=reset_line, keep_rx_times=False)
+    for key, value in mutant.config.items():
+        setattr(cfg, key, value)
+    return mutant.host(cfg, nvm=nvm, reset_line=reset_line, keep_rx_times=False)

@@ -1,8 +1,5 @@
 """Reporters: console text, JSON Lines, JUnit XML, Markdown and HTML, with the same content in
-each: the header (side under test, address, SW release seen, tool, suite, date), one overall
-verdict with its counts and what it means for signing, then every case with its title, seed
-section, requirement, decisions, rule (timing or content), verdict and evidence
-(docs/conformance.md)."""
+each (docs/conformance.md, "Contract")."""
 
 from __future__ import annotations
 

@@ -1,20 +1,7 @@
 """We play the EyeQ against a host under test: our :class:`SimulatedEyeQ` with the faults each
-session needs. A host session is one ignition cycle; a host behind a port reconnects for each.
-
-Sessions:
-
-- ``normal``: the reply to the host's first Get EyeQ Versions is withheld (M6: it must retry);
-  the host brings us up (an empty NVM meets our EEPROM: Fatal 22 and the §7.1.3
-  flow); while we boot, an unsolicited Get Extended State reply claiming Pending Vision is sent
-  (M1: it must be ignored); in Running Vision we probe the host's link, stop one DASP stream for
-  a while (stale detection) and finally reset ourselves (the host must bring us up again);
-- ``eeprom_bad``: Fatal 22 is reported and the EEPROM we serve has a bad CRC-16: the host must
-  read it and stop (§7.1.3 step 6);
-- ``boot_fail``: every boot reports failing test bits: at most 3 resets, then the host stops.
-
-A reset is either a pulse on the reset line (``--builtin`` wires it) or, for a host without one,
-Switch EyeQ Application to vision (the project's soft reset, README "Readings").
-"""
+session needs, one session per ignition cycle: ``normal``, ``eeprom_bad`` and ``boot_fail``
+(docs/conformance.md, "Sessions"). A reset is a reset-line pulse (``--builtin``) or, for a host
+without one, Switch EyeQ Application to vision (the project's soft reset)."""
 
 from __future__ import annotations
 
@@ -22,7 +9,7 @@ from dataclasses import dataclass
 
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import is_mesp
-from eyeq_spi.conformance.play.session import Session
+from eyeq_spi.conformance.play.session import PROBE_LINK_TAG, Session
 from eyeq_spi.conformance.trace import Trace
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
@@ -34,7 +21,6 @@ VERSIONS = (0x05, 0x04)
 REARM_WITHIN = 1.5  # s: a reset this soon after a withheld reply withholds the next one
 APP_VISION = 0x01
 STALE_STREAM = "EYEQ_VIS_SRP_MSG"
-PROBE_LINK_TAG = 1 << 40
 
 
 @dataclass
@@ -56,7 +42,6 @@ class TesterEyeQ(SimulatedEyeQ):
         super().__init__(config)
         self.trace = trace
         self.reset_times: list[float] = []
-        self.app_started: list[float] = []
         self.requests: list[tuple[float, int, int, int]] = []  # (time, service, function, tag)
         # (service, function) of requests whose first occurrence we leave unanswered (M6)
         self.withhold: set[tuple[int, int]] = set()
@@ -86,10 +71,6 @@ class TesterEyeQ(SimulatedEyeQ):
             self.trace.mark(now, "reset_line")
             self.trace.restart_passive(self.trace.our_dir)
         self.power_up(now)
-
-    def _start_app(self, now: float) -> None:
-        self.app_started.append(now)
-        super()._start_app(now)
 
     def _on_message(self, data: bytes, now: float) -> None:
         if is_mesp(data) and not data[4] & 0x80:
@@ -224,9 +205,5 @@ class EyeqScript:
         trace.mark(session.now, "limit_over")
         session.run(0.05)
         trace.fault(t0, session.now, "probes")
-        t1 = session.now
-        shim.hold_acks_until = t1 + 0.06
-        trace.mark(t1, "ack_blackout", until=t1 + 0.06)
-        session.run(0.2)
-        trace.fault(t1, t1 + 0.06, "ack_blackout")
+        session.ack_blackout(0.06, 0.2)
 

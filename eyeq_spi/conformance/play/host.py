@@ -1,19 +1,8 @@
 """We play the host against an EyeQ under test: our :class:`HostEmulator` brings it up, and the
-script below adds the probes the cases judge. Every probe leaves a mark in the trace.
-
-Script (each step only when the cases that need it are selected):
-
-1. bring-up: ignition on with an empty NVM, so a conformant EyeQ reports Fatal 22 for the
-   zero 0x84 and the §7.1.3 flow runs; an EventCalibrationTool 0x92 is sent as soon as the boot
-   status arrives (before Pending Vision: it must be refused); HOST_VEH_STATE_MSG is held back for
-   ``hold_veh`` after init, so Running Vision must wait for it (MAPC-67299 step 11);
-2. steady Running Vision (rates, counters, E2E);
-3. MESP: every M3 function, bad parameters, an unknown function and service;
-4. link and transport: bad CRC, invalid D and R, a NUM outside the window, a duplicate, a first
-   frame above the receive limit and one at it, a multi-frame request with a NUM gap and one with
-   25 ms of silence, an ACK blackout, our own driver reset;
-5. flows: TAC, SPC and DV round trips (holding each mode for its DASP rates).
-"""
+script adds the probes the cases judge, each step only when a selected case needs it: bring-up
+with an empty NVM (the §7.1.3 flow runs; a 0x92 sent while it boots must be refused), steady
+Running Vision, MESP probes, link and transport probes, then the TAC, SPC and DV round trips.
+Every probe leaves a mark in the trace."""
 
 from __future__ import annotations
 
@@ -34,7 +23,7 @@ from eyeq_spi.conformance.model import (
     TAG_UNKNOWN_FN,
     TAG_UNKNOWN_SVC,
 )
-from eyeq_spi.conformance.play.session import Session
+from eyeq_spi.conformance.play.session import PROBE_LINK_TAG, Session
 from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostState
@@ -42,7 +31,6 @@ from eyeq_spi.transport.segment import segment
 
 _T = link_spec()["transport"]
 
-PROBE_LINK_TAG = 1 << 40  # link tags of raw probe frames: far above any transport message id
 EDR_EXAMPLE = {"edr_type": 6, "edr_policy": 1, "edr_function": 4, "edr_params_num": 1,
                "params": b"\x01"}  # M4, the seed's "Trigger LB1" example
 
@@ -192,12 +180,7 @@ class HostScript:
         self.link_payloads("abort_silence_tail", parts[2:])
         session.run(0.2)
         trace.fault(t0, session.now, "probes")
-        # ACK blackout: we ACK nothing for 100 ms, an 18 Hz cycle (L7 window, no resend)
-        t1 = session.now
-        shim.hold_acks_until = t1 + 0.1
-        trace.mark(t1, "ack_blackout", until=t1 + 0.1)
-        session.run(0.2)
-        trace.fault(t1, t1 + 0.1, "ack_blackout")
+        session.ack_blackout(0.1, 0.2)  # 100 ms: an 18 Hz cycle
         # our own driver reset, as the DUT's receiver sees it: our NUMs start again at 0 (L4,
         # L6). Our receive window is kept, so our host does not take the DUT for reset.
         t2 = session.now

@@ -20,6 +20,7 @@ from eyeq_spi.runner.realtime import RealTimeRunner
 from eyeq_spi.runner.virtual import VirtualRunner
 
 SLICE = 0.002  # how often a waiting script looks at the trace (seconds of session time)
+PROBE_LINK_TAG = 1 << 40  # link tags of raw probe frames: far above any transport message id
 
 
 class Session:
@@ -69,6 +70,15 @@ class Session:
             self.run(0.03)
         self.shim.probe("nak_window", num=link.next_num + 2048)
         self.run(0.03)
+
+    def ack_blackout(self, seconds: float, watch: float) -> None:
+        """We ACK nothing for ``seconds`` (L7: the DUT's window fills, and it must not resend),
+        then watch until ``watch`` seconds have passed."""
+        start = self.now
+        self.shim.hold_acks_until = start + seconds
+        self.trace.mark(start, "ack_blackout", until=start + seconds)
+        self.run(watch)
+        self.trace.fault(start, start + seconds, "ack_blackout")
 
     def wait(self, cond: Callable[[], bool], timeout: float) -> bool:
         """Advance until ``cond()`` holds (True) or ``timeout`` seconds pass (False). Once the

@@ -1,11 +1,7 @@
-"""The fault-injecting link shim: a node wrapper between our own implementation (the tester) and
-the wire. Everything that crosses it is recorded in the trace; on the way out it can withhold
-our ACKs, drop or duplicate chosen DATA frames, and inject frames we crafted (bad CRC, invalid
-header, NUM outside the window) to provoke the error handling of the implementation under test.
-
-It never changes what our own stack believes: a dropped frame is simply never ACKed, so our link
-fails it after ackTimeout as it would on a real wire (L7).
-"""
+"""The fault-injecting link shim between our tester node and the wire: it records both channels
+in the trace, and can withhold our ACKs, drop or duplicate chosen DATA frames, and inject
+crafted frames. It never changes what our own stack believes: a dropped frame is simply never
+ACKed, so our link fails it after ackTimeout (L7)."""
 
 from __future__ import annotations
 
@@ -32,10 +28,8 @@ class Shim:
         self.trace = trace
         self.frames = FrameCodec()
         self.hold_acks_until = float("-inf")
-        self.withheld = 0
         self._inject: deque[tuple[bytes, str]] = deque()
         self._rules: list[_Rule] = []
-        self.dup_next_mesp = False
 
     # -- scripting -------------------------------------------------------------------------
     def watch(self, payload: bytes, label: str, action: str = "label") -> None:
@@ -74,7 +68,6 @@ class Shim:
             label: str | None = None
             kind = self.frames.unpack_header(int.from_bytes(transfer[:4], "little"))[0]
             if kind in (FrameKind.ACK, FrameKind.NAK) and now < self.hold_acks_until:
-                self.withheld += 1
                 continue
             if kind == FrameKind.DATA and self._rules:
                 body = transfer[6:]
