@@ -168,7 +168,7 @@ class MespClient:
             latency = now - pending.first_sent
             self.counters.latencies.setdefault(pending.function, []).append(latency)
             self._finish(pending, MespReply(pending.function, data[4],
-                                            typed(pending.function, values),
+                                            typed(self.codec.function(pending.function), values),
                                             pending.attempts, latency))
         return True
 

@@ -1,72 +1,15 @@
-"""Typed MESP results, named as the reply parameters of ``specs/mesp.yaml`` (a test holds them
-equal). A request ends in a :class:`MespReply` or a :class:`MespFailure`, both plain values;
-:func:`unwrap` raises ``RemoteProtocolError`` for a caller that wants an exception."""
+"""Typed MESP results: the reply parameters of ``specs/mesp.yaml`` as dataclasses. A request
+ends in a :class:`MespReply` or a :class:`MespFailure`, both plain values; :func:`unwrap`
+raises ``RemoteProtocolError`` for a caller that wants an exception."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, make_dataclass
+from functools import cache
 from typing import Any, TypeAlias
 
+from eyeq_spi.catalog.messages import MespFunction
 from eyeq_spi.errors import RemoteProtocolError
-
-
-@dataclass(frozen=True)
-class ExtendedState:
-    mainState: int
-    subState: int
-
-
-@dataclass(frozen=True)
-class Versions:
-    apiVersionMajor: int
-    apiVersionMinor: int
-    eyeqSwVersionMajor: int
-    eyeqSwVersionMinor: int
-
-
-@dataclass(frozen=True)
-class ApplicationSwitched:
-    applicationId: int
-
-
-@dataclass(frozen=True)
-class FileContents:
-    lastModified: int
-    flags: int
-    desc: str
-    data: bytes
-
-
-@dataclass(frozen=True)
-class HashResult:
-    hashType: int
-    datasetType: int
-    result: bytes
-
-
-@dataclass(frozen=True)
-class EdrAccepted:
-    edr_type: int
-    edr_policy: int
-    edr_function: int
-
-
-@dataclass(frozen=True)
-class CalibrationAccepted:
-    ct_type: int
-    ct_stage: int
-    ct_version: int
-
-
-REPLY_TYPES: dict[str, type] = {
-    "GetEyeQExtendedState": ExtendedState,
-    "GetEyeQVersions": Versions,
-    "SwitchEyeQApplication": ApplicationSwitched,
-    "FFSReadFile": FileContents,
-    "ComputeHash": HashResult,
-    "SendParamsToCalibrationTool": EdrAccepted,
-    "EventCalibrationTool": CalibrationAccepted,
-}
 
 
 @dataclass(frozen=True)
@@ -110,9 +53,17 @@ def unwrap(result: MespResult) -> MespReply:
     return result
 
 
-def typed(function: str, values: dict[str, Any]) -> Any:
-    cls = REPLY_TYPES.get(function)
-    if cls is None:
-        return dict(values)
+_TYPES = {"string": str, "bytes": bytes}  # every other parameter type is an integer
+
+
+@cache
+def reply_type(function: MespFunction) -> type:
+    """The reply parameters of ``function`` (``specs/mesp.yaml``) as a frozen dataclass."""
+    return make_dataclass(function.name, [(param.name, _TYPES.get(param.type, int))
+                                          for param in function.reply], frozen=True)
+
+
+def typed(function: MespFunction, values: dict[str, Any]) -> Any:
+    cls = reply_type(function)
     names = {f.name for f in fields(cls)}
     return cls(**{k: v for k, v in values.items() if k in names})
