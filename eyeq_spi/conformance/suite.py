@@ -30,8 +30,7 @@ HOST_SESSIONS = ("normal", "eeprom_bad", "boot_fail")
 
 
 class EcuNvm(Nvm):
-    """An in-memory NVM that survives the host's restart between ignition cycles (a plain
-    in-memory :class:`Nvm` starts empty at every load)."""
+    """An in-memory NVM that survives the host's restart between ignition cycles."""
 
     def load(self) -> NvmData:
         return self.data
@@ -54,8 +53,7 @@ class Result:
 
 @dataclass(frozen=True)
 class Header:
-    """What a signed report states before its verdicts: the side under test and where it was
-    reached, the software release it reported, and what judged it, when."""
+    """What a signed report states before its verdicts."""
 
     dut: str  # "eyeq" or "host"
     address: str
@@ -92,8 +90,7 @@ class Options:
     builtin: bool = False
     port: str | None = None  # --dut eyeq: pyserial URL of the EyeQ
     adapter: Adapter | None = None  # --dut host: a listener or pty the host connects to
-    # --dut host --pty: a fresh pty for each ignition cycle after the first (a pty cannot
-    # tell a new host from the old one); it closes the old adapter and prints the new path
+    # --dut host --pty: closes the old adapter, opens a fresh pty for the next ignition cycle
     reopen: Callable[[], Adapter] | None = None
     accept_timeout: float = 30.0
     select: str | None = None  # -k EXPR
@@ -101,11 +98,9 @@ class Options:
     host_plan: HostPlan = field(default_factory=HostPlan)
     eyeq_plan: EyeqPlan = field(default_factory=EyeqPlan)
     progress: Callable[[str], None] | None = None
-    # steps done of all (each session run, then the judging, one step): a progress bar's
-    # update; sessions take the time, so the steps are sessions
+    # a progress bar's update: steps done of all (each session, then the judging)
     steps: Callable[[int, int], None] | None = None
-    # called once the live sessions are over, before judging (the CLI gives back real-time
-    # scheduling there: judging is CPU-bound and must not hold a core at SCHED_FIFO)
+    # called before judging (the CLI leaves SCHED_FIFO there: judging is CPU-bound)
     sessions_done: Callable[[], None] | None = None
 
     def __post_init__(self) -> None:
@@ -182,17 +177,14 @@ def run_report(opts: Options) -> Report:
             needed |= {"normal", "eeprom_bad"}
         sessions = [s for s in HOST_SESSIONS if s in needed]
     total = len(sessions) + 1
-    step = opts.steps or (lambda done, all_: None)
+    step = opts.steps or (lambda done, of: None)
     step(0, total)
-    if opts.dut == "eyeq":
-        ctx.traces["main"] = _eyeq_session(opts, wanted, ctx)
-        step(1, total)
-    else:
-        for number, name in enumerate(sessions):
-            tr = _host_session(opts, name, wanted, ctx, first=number == 0)
-            if tr is not None:
-                ctx.traces[name] = tr
-            step(number + 1, total)
+    for number, name in enumerate(sessions):
+        tr = (_eyeq_session(opts, wanted, ctx) if opts.dut == "eyeq"
+              else _host_session(opts, name, wanted, ctx, first=number == 0))
+        if tr is not None:
+            ctx.traces[name] = tr
+        step(number + 1, total)
     if opts.sessions_done is not None:
         opts.sessions_done()
     out = [Result(c, _judge(c, ctx)) for c in cases]

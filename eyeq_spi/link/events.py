@@ -1,5 +1,4 @@
-"""Events the link layer reports: small frozen dataclasses that check themselves
-(docs/STYLE.md §4)."""
+"""Events the link layer reports (docs/STYLE.md §4)."""
 
 from __future__ import annotations
 
@@ -66,11 +65,9 @@ class DuplicateReceived:
 
 @dataclass(frozen=True, slots=True)
 class Resynchronised:
-    """The receiver took ``num`` as the new E: after ``resync_after_naks`` out-of-window NAKs
-    (L6, ``cause="nak_limit"``) or because a frame repeated an accepted NUM with other bytes
-    (L6a, ``cause="peer_reset"``), or because the peer we had asked to reset sent its first
-    frame after the reset, NUM 0 and RSP 0 (L10, ``cause="peer_restart"``). Nothing received
-    before it may join what follows."""
+    """The receiver took ``num`` as the new E: after out-of-window NAKs (L6, ``nak_limit``), an
+    accepted NUM with other bytes (L6a, ``peer_reset``) or the reset peer's first frame (L10,
+    ``peer_restart``). Nothing received before it may join what follows."""
 
     num: int
     cause: str = "nak_limit"

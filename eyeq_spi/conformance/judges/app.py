@@ -62,8 +62,7 @@ def mesp_pairs(tr: Trace, *, dut_asks: bool = False) -> list[Pair]:
                  and (p.request.header["service"], p.request.header["function"]) == key]
         if not open_:
             continue
-        # the request with the reply's counter (a request lost on the link, around a reset for
-        # instance, has no reply); else the oldest open one, so a wrong tag is still judged
+        # the request with the reply's counter, else the oldest open one (a wrong tag)
         counter = rep.header["tag"] & 0x3F
         same = [p for p in open_ if p.request.header["tag"] & 0x3F == counter]
         (same[-1] if same else open_[0]).reply = rep
@@ -124,8 +123,7 @@ def mesp_function(fn: str) -> Callable[[Context, Trace], Outcome]:
 
 
 def _not_counted(ctx: Context, tr: Trace, pairs: list[Pair]) -> str:
-    """Why requests of a passing function case did not count: our probes (judged by their own
-    cases), requests the link lost, refusals and replies left to MESP-DEADLINE."""
+    """Why requests of a passing function case did not count."""
     acked = delivered(tr, ctx)
     probes: dict[str, int] = {}
     lost = refused = unanswered = 0
@@ -291,9 +289,8 @@ def _defs(tr: Trace) -> dict[str, MessageDef]:
 
 
 def bring_ups(tr: Trace) -> list[float]:
-    """When the implementation under test started its application again: an EyeQ's boot
-    status, a host's Init_Params_Vision (0x92). Its counters may start afresh there: after one
-    of our resets it keeps counting until it notices the reset (real time), then restarts."""
+    """When the implementation under test started its application again (an EyeQ's boot
+    status, a host's 0x92): its counters may start afresh there."""
     if tr.dut == "eyeq":
         return [m.time for m in tr.dut_msgs("EYEQ_BOOT_STATUS_MSG")]
     return [m.time for m in tr.dut_msgs("EventCalibrationTool")
@@ -303,10 +300,8 @@ def bring_ups(tr: Trace) -> list[float]:
 def segments(tr: Trace, msgs: list[Msg], period: float, *, lossless: bool = False
              ) -> list[list[Msg]]:
     """Runs of one stream without a gap of 3 periods, a fault window, a reset or a mode
-    change in between: the spans in which counters and rates must hold. ``lossless`` (the
-    counters, a content rule): a stall of our own loop in between also ends a run, since our
-    late ACKs may have lost a message there (L7); rates weigh our stalls by their spans
-    instead (load.py)."""
+    change in between: the spans in which counters and rates must hold. ``lossless``
+    (counters): a stall of ours also ends a run, since our late ACKs may have lost a message."""
     mode = _mode_at(tr)
     resets = tr.resets() + bring_ups(tr)
     out: list[list[Msg]] = []
@@ -449,9 +444,8 @@ def _rate(ctx: Context, tr: Trace, msgs: list[Msg], hz: float, tol: tuple[float,
     # the stream's rate while it runs (eyeq_spi/stream_rate.py); a gap is judged as a period
     running = combined_rate(rates)
     mean = 1.0 / running if running else sum(p for p, _ in periods) / len(periods)
-    # each violation with its time span and by how much it misses (load.py weighs our stalls
-    # against exactly these): a period outside the tolerance, and the mean rate, whose excess
-    # is the time the whole run of periods is off the nearest rate allowed
+    # each violation with its span and excess (load.py): a period outside the tolerance, and
+    # the mean rate, whose excess is how far the whole run is off the nearest rate allowed
     spans = [(msg.t_first - p, msg.t_first, (lo - p) if p < lo else (p - hi)) for p, msg in outside]
     fast, slow = 1.0 / ((1 + RATE_MEAN_TOLERANCE) * hz), 1.0 / ((1 - RATE_MEAN_TOLERANCE) * hz)
     mean_off = abs(1.0 / mean - hz) > RATE_MEAN_TOLERANCE * hz

@@ -135,9 +135,8 @@ def fatal22_flow(ctx: Context, tr: Trace) -> Outcome:
 
 # -- the host under test ----------------------------------------------------------------------
 def host_versions(ctx: Context, tr: Trace) -> Outcome:
-    """MAPC-67299 step 12: the host asks Get EyeQ Versions during the power-on init sequence;
-    asking "only once per ignition cycle (after positive response)" is said to be sufficient,
-    not required, so a repeat is advice, never a failure."""
+    """MAPC-67299 step 12: Get EyeQ Versions during the power-on init; "once per ignition cycle"
+    is said to be sufficient, not required, so a repeat is advice."""
     reqs = [p for p in mesp_pairs(tr, dut_asks=True) if p.request.name == "GetEyeQVersions"]
     if not reqs:
         return bad("the host never asked Get EyeQ Versions in this ignition cycle "
@@ -159,14 +158,12 @@ RETRY_WITHIN = DEADLINE + 0.5  # the request's 500 ms deadline (M6), then half a
 
 
 def host_retry(ctx: Context, tr: Trace) -> Outcome:
-    """M6: a request whose reply does not come within 500 ms is retried with a new tag. We
-    withhold the reply to the host's first Get EyeQ Versions (a request every host makes,
-    MAPC-67299 step 12) and look for the retry."""
+    """M6: a request not answered within 500 ms is retried with a new tag; we withhold the
+    reply to the host's first Get EyeQ Versions (MAPC-67299 step 12)."""
     marks = tr.marks_of("reply_withheld")
     if not marks:
         return skip("the host sent no Get EyeQ Versions request, so no reply was withheld")
-    # a reset soon after a withheld reply starts the host's requests over: the next request's
-    # reply is withheld instead (play.eyeq), and that one is judged
+    # a reset soon after a withheld reply starts the host's requests over (play.eyeq)
     usable = [msg for msg in marks if not any(
         msg.time < r <= msg.time + RETRY_WITHIN + ctx.slack for r in tr.resets())]
     if not usable:
@@ -215,19 +212,14 @@ def host_fatal22(ctx: Context, trs: dict[str, Trace]) -> Outcome:
 
 
 # How long a host must be watched, quiet, after a bad EEPROM before "it stopped" means anything:
-# every step of the §7.1.3 flow is a reaction the host makes at once, and the longest the seed's
-# timing lets a host wait before its next message is a MESP request's reply deadline (500 ms,
-# §7.1.1, M6), after which it retries. A host that carried on (stored the calibration, reset us,
-# sent 0x84 again, §7.1.3 step 7) or never saw the reply (a retry) shows itself within that
-# deadline plus the half second HOST-RETRY grants: the same 1 s.
+# a host that carried on or retries shows itself within a reply deadline (M6) and half a second
 QUIET_FOR = RETRY_WITHIN
 
 
 def host_eeprom_bad(ctx: Context, tr: Trace) -> Outcome:
-    """§7.1.3 step 6: after a bad EEPROM CRC "the unit is failed": the host sends no init, no
-    switch, no reset and no HOST_VEH_STATE_MSG. A pass needs the host watched, quiet and
-    connected, for :data:`QUIET_FOR` after the reply; a host that left sooner (closed its port)
-    is inconclusive."""
+    """§7.1.3 step 6: after a bad EEPROM CRC "the unit is failed": no init, switch, reset or
+    HOST_VEH_STATE_MSG for :data:`QUIET_FOR` after the reply (a host that left sooner is
+    inconclusive)."""
     served = [m for m in tr.our_msgs("FFSReadFile") if is_reply(m)]
     if not served:
         return unsure("the host did not read the EEPROM, so its reaction to a bad CRC is unknown")
@@ -257,8 +249,7 @@ def host_eeprom_bad(ctx: Context, tr: Trace) -> Outcome:
 
 
 def host_boot_resets(ctx: Context, tr: Trace) -> Outcome:
-    """§7.1.5.3 defines EYEQ_BOOT_STATUS_MSG and its test bits, and states no reaction to a
-    failing boot: the number of resets is our recommendation (advice), never a failure."""
+    """§7.1.5.3 states no reaction to a failing boot: the number of resets is advice."""
     mark = tr.first_mark("resets")
     if mark is None:
         return skip("the boot-failure session did not run")

@@ -1,6 +1,4 @@
-"""Judges of the link (§6, L1-L8, L6a) and transport (§6.1-6.2, T1-T6) cases. Each reads the
-trace of one session and returns a verdict with evidence: frame indices, times, expected and seen
-values."""
+"""Judges of the link (§6, L1-L10) and transport (§6.1-6.2, T1-T6) cases."""
 
 from __future__ import annotations
 
@@ -154,14 +152,12 @@ def link_num(ctx: Context, tr: Trace) -> Outcome:
 
 
 def link_ack(ctx: Context, tr: Trace) -> Outcome:
-    """L5, §6 ackTimeout: every DATA frame we sent is ACKed with RSP = its NUM, and every ACK's
-    latency is judged against ackTimeout (count, worst, the frames). After a reset, frames may
-    be NAKed 0x001 (or lost) until the first ACK: LINK-RESYNC judges that stretch."""
+    """L5, §6 ackTimeout: every DATA frame we sent is ACKed with RSP = its NUM within
+    ackTimeout. From a reset to the first ACK LINK-RESYNC judges instead."""
     count = 0
     resets = sorted(tr.resets())
     resyncing_since: float | None = None
-    # a byte stream between processes adds far less to an ACK than the 50 ms other deadlines
-    # get (a host ACKing 18 ms late must fail); our own stalls are weighed per ACK (load.py)
+    # a byte stream adds far less to an ACK than the 50 ms other deadlines get (load.py)
     limit = ACK_TIMEOUT + (ACK_SLACK_REALTIME if ctx.realtime else 1e-6)
     late: list[tuple[Xfer, Xfer]] = []
     lost: list[Xfer] = []
@@ -211,8 +207,8 @@ def link_ack(ctx: Context, tr: Trace) -> Outcome:
 
 
 def link_pad(ctx: Context, tr: Trace) -> Outcome:
-    """§6 and L1: an ACK or NAK frame carries "122 pad bytes set to 0". L3 lets a receiver
-    ignore them; a sender must still send zeros."""
+    """§6 and L1: an ACK or NAK frame carries "122 pad bytes set to 0" (L3 lets a receiver
+    ignore them, not a sender send others)."""
     ctl = [xfer for xfer in tr.xfers
            if xfer.direction == tr.dut_dir and xfer.kind in ("ACK", "NAK")]
     dirty = [xfer for xfer in ctl if any(xfer.data[6:])]
@@ -336,7 +332,7 @@ def _unacked(tr: Trace) -> int:
 
 def link_window(ctx: Context, tr: Trace) -> Outcome:
     """L7: at most W DATA frames unacknowledged, counting only frames younger than ackTimeout
-    (older ones are lost to the sender). Our answers are what the DUT sees."""
+    (older ones are lost to the sender)."""
     outstanding: dict[int, float] = {}
     worst = 0
     repeats = _repeats(tr)
@@ -350,8 +346,7 @@ def link_window(ctx: Context, tr: Trace) -> Outcome:
             outstanding[xfer.num] = xfer.time
             worst = max(worst, len(outstanding))
             if len(outstanding) > W:
-                # the measurement: the frames counted, from the oldest; its excess, how much
-                # older the frame that makes W + 1 had to be to leave the count
+                # excess: how much older the frame that makes W + 1 had to be to leave the count
                 times = sorted(outstanding.values())
                 excess = times[len(times) - W - 1] - horizon
                 return bad(f"{_frame(xfer)}: {len(outstanding)} DATA frames unacknowledged within "
@@ -405,8 +400,7 @@ def link_gap(ctx: Context, tr: Trace) -> Outcome:
     if not ctx.realtime:
         return skip("judged on real time only (virtual time proves nothing about the wire)")
     gap = float(_L["timing"]["frameFlowControl"][tr.dut])
-    # frames the DUT had queued together: the frames of its multi-frame transfers (a DUT that
-    # sends single frames far apart never shows its pacing)
+    # frames the DUT had queued together: those of its multi-frame transfers
     data = [x for first, last, _ in _transfers(tr) for x in tr.xfers[first.index:last.index + 1]
             if x.direction == tr.dut_dir and x.kind == "DATA"]
     span = 50  # a byte stream may deliver frames in bursts: judge the spacing of 50 frames
@@ -470,8 +464,8 @@ def tp_tid(ctx: Context, tr: Trace) -> Outcome:
         if any(earlier.time < r <= later.time for r in restarts):
             continue
         step = (later.data[7] - earlier.data[7]) % _T["transfer_id_modulo"]
-        # a message that failed before its first frame left consumed its ID (L7): a step of a
-        # few is allowed where the link was disturbed, never 0 or backwards
+        # a message lost before its first frame left consumed its ID (L7): a step of a few is
+        # allowed where the link was disturbed, never 0 or backwards
         lost_ok = tr.disturbed(earlier.time, later.time) or tr.realtime
         if step != 1 and not (lost_ok and 1 < step <= 2 * W):
             return bad(f"transfer ID {earlier.data[7]} (#{earlier.index}) then {later.data[7]} "

@@ -25,7 +25,6 @@ STALE_STREAM = "EYEQ_VIS_SRP_MSG"
 
 @dataclass
 class EyeqPlan:
-    accept_timeout: float = 30.0
     bring_up_timeout: float = 15.0
     steady: float = 1.5
     stale_for: float = 0.6
