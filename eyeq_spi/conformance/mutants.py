@@ -95,8 +95,6 @@ class AckCrcRange(_LinkOutput):
 
 
 class Resends(SimulatedEyeQ):
-    """Resends a DATA frame once when its ACK is late (the seed forbids it, §6)."""
-
     def __init__(self, config: SimConfig | None = None) -> None:
         super().__init__(config)
         self._unacked: dict[int, tuple[float, bytes]] = {}
@@ -128,11 +126,9 @@ class Resends(SimulatedEyeQ):
 
 
 class StretchedReplies(SimulatedEyeQ):
-    """transmitTimeout not enforced (§6, L7): a multi-frame MESP reply handed to an idle link
-    before Running Vision (the §7.1.3 EEPROM read) goes out one frame per ``STALL`` seconds
-    and is never failed, so its frames span more than 25 ms. Each pause stays under the
-    receiver's 25 ms silence abort (T6), so the message still arrives: only the span is wrong.
-    """
+    """transmitTimeout not enforced (§6, L7): a long MESP reply before Running Vision (the
+    EEPROM read) goes out one frame per ``STALL`` seconds, under the receiver's 25 ms silence
+    abort (T6), so the message arrives but its frames span more than 25 ms."""
 
     STALL = 0.015
 
@@ -202,8 +198,6 @@ class TagNotEchoed(_MessageOutput):
 
 
 class UnknownRet1(_MessageOutput):
-    """Answers an unknown service or function with ret 1 instead of 2 (M2)."""
-
     def rewrite(self, message: bytes) -> bytes:
         if _is_reply(message) and message[5:9] == (2).to_bytes(4, "little"):
             return message[:5] + (1).to_bytes(4, "little") + message[9:]
@@ -260,9 +254,6 @@ class _HostLinkOutput(HostEmulator):
 
 
 class HostLateAcks(_HostLinkOutput):
-    """Every other ACK leaves 12 ms late (§6 ackTimeout is 10 ms: the EyeQ has given the
-    frame up by then, L7)."""
-
     def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
         return transfer, (0.012 if d == FrameKind.ACK and rsp % 2 else 0.0)
 
@@ -273,8 +264,6 @@ class HostAckPad(_HostLinkOutput):
 
 
 class HostNoRenumber(HostEmulator):
-    """Ignores L10: after resetting the EyeQ its frames keep their old numbering."""
-
     def __init__(self, *args: Any, **kw: Any) -> None:
         super().__init__(*args, **kw)
         link = self.conn.link
@@ -294,12 +283,8 @@ class HostNoRenumber(HostEmulator):
 
 
 class HostLateRestart(HostEmulator):
-    """Learns of an EyeQ reset late, and then numbers its frames from 0 again (L10, L10a): it
-    takes no link resynchronisation for a reset (so the boot status it NAKed is lost), sees
-    the reset only when 0x41 ``Main_State`` goes back, and restarts its link there. Its first
-    frame after that has NUM 0 and, in RSP, the NUM of the last EyeQ frame its previous frames
-    named (not 0). A correct host: the suite's EyeQ accepts that frame (L10a), and so must
-    every judge."""
+    """Sees an EyeQ reset only when 0x41 ``Main_State`` goes back (no link resynchronisation),
+    then restarts its link: its first frame has NUM 0 and its old RSP, not 0 (L10a)."""
 
     def __init__(self, *args: Any, **kw: Any) -> None:
         super().__init__(*args, **kw)
@@ -324,7 +309,6 @@ class HostLateRestart(HostEmulator):
             if d == FrameKind.DATA:
                 if self._restarted and num == 0:
                     self._restarted = False
-                    # the RSP it last sent
                     transfer = _FRAMES.data_frame(self._last_rsp, 0, transfer[6:])
                 else:
                     self._last_rsp = rsp
@@ -333,8 +317,6 @@ class HostLateRestart(HostEmulator):
 
 
 class HostNoRetry(HostEmulator):
-    """A MESP request that timed out is never retried (M6: up to 3 attempts, new tag)."""
-
     def __init__(self, *args: Any, **kw: Any) -> None:
         super().__init__(*args, **kw)
         self.mesp.max_attempts = 1
@@ -350,9 +332,6 @@ class NoEepromReread(HostEmulator):
 
 
 class IgnoresEepromCrc(HostEmulator):
-    """An EEPROM whose CRC-16 does not match is taken as good: the host resets the EyeQ and
-    carries on (§7.1.3 step 6: the unit is failed)."""
-
     def _on_eeprom(self, result: MespResult, now: float) -> None:
         if self.state is HostState.READ_EEPROM and isinstance(result, MespReply) \
                 and isinstance(init_seq.eeprom_intrinsics(result.value.data, self.sw), str):

@@ -35,9 +35,10 @@ class EyeqPlan:
 
 
 class TesterEyeQ(SimulatedEyeQ):
-    """Our simulated EyeQ, counting reset requests: reset-line pulses and soft resets."""
+    """Our simulated EyeQ, recording the host's requests and its resets: reset-line pulses and
+    soft resets."""
 
-    def __init__(self, config: SimConfig | None = None, trace: Trace | None = None) -> None:
+    def __init__(self, config: SimConfig, trace: Trace) -> None:
         super().__init__(config)
         self.trace = trace
         self.reset_times: list[float] = []
@@ -46,58 +47,48 @@ class TesterEyeQ(SimulatedEyeQ):
         self.withhold: set[tuple[int, int]] = set()
         self._withheld: list[tuple[float, tuple[int, int]]] = []
 
-    def _rearm(self, now: float) -> None:
+    def _reset_asked(self, now: float, label: str) -> None:
         """A reset right after a withheld reply leaves nothing to judge (the host's requests
         start over): withhold the next one instead."""
+        self.reset_times.append(now)
+        self.trace.mark(now, label)
         for due, key in self._withheld:
             if now - due < REARM_WITHIN:
                 self.withhold.add(key)
 
     def power_up(self, now: float) -> None:
-        """A boot: after the first, our receiver learns the host's numbering again (L10), and
-        so does the trace's receiver of the host's frames, which the judges read: both take
-        the host's late restart at NUM 0 as such (L10a)."""
+        """A boot: after the first, our receiver and the trace's receiver of the host's frames
+        learn the host's numbering again (L10, L10a)."""
         again = self.powered
         super().power_up(now)
-        if again and self.trace is not None:
+        if again:
             self.trace.restart_passive(self.trace.dut_dir)
 
     def reset_line(self, now: float) -> None:
-        """The host pulled our reset line: it restarts its own SPI driver too (README)."""
-        self.reset_times.append(now)
-        self._rearm(now)
-        if self.trace is not None:
-            self.trace.mark(now, "reset_line")
-            self.trace.restart_passive(self.trace.our_dir)
+        """The host pulled our reset line: it restarts its own SPI driver too."""
+        self._reset_asked(now, "reset_line")
+        self.trace.restart_passive(self.trace.our_dir)
         self.power_up(now)
 
     def _on_message(self, data: bytes, now: float) -> None:
-        if is_mesp(data) and not data[4] & 0x80:
+        key = (data[0], data[3]) if is_mesp(data) and not data[4] & 0x80 else None
+        if key is not None:
             self.requests.append((now, data[0], data[3], data[4]))
-            if (data[0], data[3]) in self.withhold:
-                # the request arrived (the link ACKed it) but its reply never leaves: the host
-                # must retry after its 500 ms deadline (M6)
-                self.withhold.discard((data[0], data[3]))
-                self._withheld.append((now, (data[0], data[3])))
-                if self.trace is not None:
-                    self.trace.mark(now, "reply_withheld", service=data[0], function=data[3],
-                                    tag=data[4] & 0x3F)
-                return
-        if is_mesp(data) and (data[0], data[3]) == SWITCH and not data[4] & 0x80 \
-                and data[5:6] == bytes([APP_VISION]):
-            self.reset_times.append(now)
-            self._rearm(now)
-            if self.trace is not None:
-                # the host restarts its bring-up, and with it its DASP and E2E counters; our
-                # link starts afresh (a boot below, or the switch's own restart, L10)
-                self.trace.mark(now, "soft_reset")
-                if self.app_running:
-                    self.trace.restart_passive(self.trace.dut_dir)
+        if key is not None and key in self.withhold:
+            # the link ACKed the request but its reply never leaves: the host must retry (M6)
+            self.withhold.discard(key)
+            self._withheld.append((now, key))
+            self.trace.mark(now, "reply_withheld", service=data[0], function=data[3],
+                            tag=data[4] & 0x3F)
+            return
+        if key == SWITCH and data[5:6] == bytes([APP_VISION]):
+            # the host restarts its bring-up and its counters; our link starts afresh (L10)
+            self._reset_asked(now, "soft_reset")
             if not self.app_running:
-                if self.trace is not None:
-                    self.trace.restart_passive(self.trace.our_dir)
+                self.trace.restart_passive(self.trace.our_dir)
                 self.power_up(now)  # a soft reset while booting: boot again
                 return
+            self.trace.restart_passive(self.trace.dut_dir)
         super()._on_message(data, now)
 
 
