@@ -19,10 +19,11 @@ from eyeq_spi.conformance.load import temper
 from eyeq_spi.conformance.model import ALL_SESSIONS, Case
 from eyeq_spi.conformance.mutants import build_eyeq, build_host
 from eyeq_spi.conformance.play.eyeq import EyeqPlan, EyeqScript, TesterEyeQ, tester_config
-from eyeq_spi.conformance.play.host import HostPlan, HostScript, make_tester
+from eyeq_spi.conformance.play.host import HostPlan, HostScript, TesterHost
 from eyeq_spi.conformance.play.session import Session
 from eyeq_spi.conformance.trace import Trace
 from eyeq_spi.errors import AdapterError, EyeqError, UsageError
+from eyeq_spi.host.host import HostConfig
 from eyeq_spi.host.nvm import Nvm, NvmData
 from eyeq_spi.phy.base import Adapter, open_url
 
@@ -231,8 +232,7 @@ def _judge(case: Case, ctx: Context) -> Outcome:
     if name == ALL_SESSIONS:
         if not ctx.traces:
             return skip("no session could run")
-        out: Outcome = case.judge(ctx, dict(ctx.traces))
-        return temper(case, out, list(ctx.traces.values()))
+        return temper(case, case.judge(ctx, dict(ctx.traces)), list(ctx.traces.values()))
     tr = ctx.traces.get(name)
     if tr is None:
         return skip(f"session {name!r} did not run (the host under test did not connect)")
@@ -248,7 +248,7 @@ def _say(opts: Options, text: str) -> None:
 def _eyeq_session(opts: Options, wanted: set[str], ctx: Context) -> Trace:
     plan = opts.host_plan
     trace = Trace("eyeq", opts.sw, realtime=ctx.realtime)
-    tester = make_tester(opts.sw, plan)
+    tester = TesterHost(HostConfig(sw=opts.sw), hold=plan.hold_veh)
     if opts.builtin:
         session = Session(trace, tester, dut=build_eyeq(opts.mutant, opts.sw))
         session.dut.power_up(0.0)

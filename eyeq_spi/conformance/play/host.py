@@ -25,7 +25,7 @@ from eyeq_spi.conformance.model import (
 )
 from eyeq_spi.conformance.play.session import PROBE_LINK_TAG, Session
 from eyeq_spi.errors import LocalProtocolError
-from eyeq_spi.host.host import HostConfig, HostEmulator
+from eyeq_spi.host.host import HostEmulator
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.transport.segment import segment
 
@@ -64,10 +64,6 @@ class TesterHost(HostEmulator):
             super()._send_veh_state(now)
 
 
-def make_tester(sw: str | None, plan: HostPlan) -> TesterHost:
-    return TesterHost(HostConfig(sw=sw), hold=plan.hold_veh)
-
-
 class HostScript:
     def __init__(self, session: Session, host: TesterHost, plan: HostPlan,
                  wanted: set[str]) -> None:
@@ -75,10 +71,8 @@ class HostScript:
         self.trace = session.trace
         self.codec = host.mesp.codec
 
-    # -- helpers ---------------------------------------------------------------------------
-    def raw(self, function: str, tag: int, params: dict[str, Any] | None = None,
-            extra: bytes = b"") -> bytes:
-        return self.codec.encode_request(function, tag, params or {}) + extra
+    def raw(self, function: str, tag: int, params: dict[str, Any] | None = None) -> bytes:
+        return self.codec.encode_request(function, tag, params or {})
 
     def send_raw(self, label: str, message: bytes) -> None:
         self.trace.mark(self.session.now, label, tag=message[4], service=message[0],
@@ -209,12 +203,9 @@ class HostScript:
                        state=host.state.value, result={}, problem=f"not switched: {exc}")
             return False
 
-        def reached() -> bool:
-            if host.state is HostState.FAILED:
-                return True
-            if mode == "DV":
-                return host.state is HostState.DV
-            return host.state is target and host.calibration_result is not None
+        def reached() -> bool:  # DV, or TAC/SPC with their results
+            return host.state is HostState.FAILED or (host.state is target and (
+                mode == "DV" or host.calibration_result is not None))
 
         ok = session.wait(reached, plan.mode_timeout) and host.state is not HostState.FAILED
         entered = session.now
