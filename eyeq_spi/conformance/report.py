@@ -29,10 +29,8 @@ MEANING = {
 
 
 def summary(results: Sequence[Result]) -> dict[str, Any]:
-    out: dict[str, Any] = {"kind": "summary"}
-    for verdict in VERDICTS:
-        out[verdict] = sum(r.outcome.verdict == verdict for r in results)
-    return out
+    return {"kind": "summary",
+            **{verdict: sum(r.outcome.verdict == verdict for r in results) for verdict in VERDICTS}}
 
 
 def overall(results: Sequence[Result]) -> str:

@@ -29,7 +29,6 @@ class Session:
         if (dut is None) == (adapter is None):
             raise ValueError("a session has either a built-in DUT node or an adapter")
         self.trace = trace
-        self.tester = tester
         self.shim = Shim(tester, trace)
         self.dut: Any = dut
         self.adapter = adapter
@@ -45,10 +44,6 @@ class Session:
             t0 = time.monotonic()
             self._rt = RealTimeRunner(self.shim, adapter, clock=lambda: time.monotonic() - t0,
                                       max_wait=SLICE)
-
-    @property
-    def realtime(self) -> bool:
-        return self._rt is not None
 
     @property
     def now(self) -> float:
