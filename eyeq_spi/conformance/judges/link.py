@@ -123,15 +123,12 @@ RENUMBER_WITHIN = 1.0  # s after a reset the host asked for, to number from 0 ag
 def link_num(ctx: Context, tr: Trace) -> Outcome:
     """L4: +1 per DATA frame mod 4096, 0 after a reset. L10: a host that resets the EyeQ (a
     reset-line pulse, Switch EyeQ Application) numbers its frames from 0 again."""
-    last: int | None = None
-    count = 0
-    for xfer in _dut_data(tr):
-        count += 1
-        if last is not None and xfer.num not in ((last + 1) % SEQ_MODULO, 0):
-            return bad(f"{_frame(xfer)}: expected NUM {(last + 1) % SEQ_MODULO} (or 0 after a "
-                       f"reset), saw {xfer.num}")
-        last = xfer.num
-    if not count:
+    frames = list(_dut_data(tr))
+    for earlier, xfer in pairwise(frames):
+        if xfer.num not in ((earlier.num + 1) % SEQ_MODULO, 0):
+            return bad(f"{_frame(xfer)}: expected NUM {(earlier.num + 1) % SEQ_MODULO} (or 0 "
+                       f"after a reset), saw {xfer.num}")
+    if not frames:
         return unsure("no DATA frames")
     restarts = 0
     if tr.dut == "host":
@@ -148,7 +145,7 @@ def link_num(ctx: Context, tr: Trace) -> Outcome:
                            "starts both link directions afresh)")
             restarts += bool(after)
     extra = f"; numbered from 0 again after each of {restarts} resets (L10)" if restarts else ""
-    return ok(f"{count} DATA frames numbered +1 mod 4096{extra}")
+    return ok(f"{len(frames)} DATA frames numbered +1 mod 4096{extra}")
 
 
 def link_ack(ctx: Context, tr: Trace) -> Outcome:
@@ -274,9 +271,8 @@ def link_resync(ctx: Context, tr: Trace) -> Outcome:
     naks = 0
     first_ack: Xfer | None = None
     for answer in answers(tr, ctx.slack):
-        if answer.frame.time < mark.time or answer.frame.probe is not None:
-            continue
-        if answer.reply is None:
+        if answer.frame.time < mark.time or answer.frame.probe is not None \
+                or answer.reply is None:
             continue
         if answer.reply.kind == "ACK":
             first_ack = answer.reply
@@ -322,12 +318,9 @@ def _unacked(tr: Trace) -> int:
     for xfer in tr.xfers:
         if xfer.direction == tr.our_dir and xfer.kind == "ACK":
             acks.setdefault(xfer.rsp, []).append(xfer.time)
-    out = 0
-    for xfer in tr.xfers:
-        if xfer.direction == tr.dut_dir and xfer.kind == "DATA" and not any(
-                xfer.time <= t <= xfer.time + ACK_TIMEOUT for t in acks.get(xfer.num, ())):
-            out += 1
-    return out
+    return sum(1 for xfer in tr.xfers if xfer.direction == tr.dut_dir and xfer.kind == "DATA"
+               and not any(xfer.time <= t <= xfer.time + ACK_TIMEOUT
+                           for t in acks.get(xfer.num, ())))
 
 
 def link_window(ctx: Context, tr: Trace) -> Outcome:
