@@ -113,16 +113,13 @@ class Trace:
         self.faults.append((start, end, label))
 
     def restart_passive(self, direction: str) -> None:
-        """The receiver of ``direction`` restarted (L10: our reset, or the DUT's): it takes the
-        next DATA frame as its start, and for 64 frames a NUM 0 outside its window as the
-        sender's restart (L10a). Applied once the frames recorded so far are fed (decoding them
-        now would stall a real-time loop)."""
+        """The receiver of ``direction`` restarted (L10, L10a), once the frames recorded so far
+        are fed (decoding them now would stall a real-time loop)."""
         self._unfed.append(direction)
 
     @property
     def msgs(self) -> list[Msg]:
-        """Every reassembled message so far. Decoding is deferred to here, so that recording
-        stays cheap while a real-time session runs."""
+        """Every reassembled message so far (decoded only when asked for)."""
         self._catch_up()
         return self._msgs
 
@@ -151,10 +148,8 @@ class Trace:
         passive = self._passive[xfer.direction]
         conn = passive.conn
         if xfer.kind == "DATA" and xfer.num == 0 and xfer.rsp == 0 and conn.link.expected_num != 0:
-            # L4: NUM 0 and RSP 0 again: that side's driver restarted, on a reset we asked for
-            # or did not see. L10: a reset starts both directions afresh; each receiver learns
-            # E from the next DATA frame, and nothing after the reset is a duplicate of a frame
-            # before it
+            # L4: NUM 0 and RSP 0 again: that side's driver restarted; L10: both directions
+            # start afresh
             for direction in (H2E, E2H):
                 self._passive[direction].conn.restart()
             self._restarts.append((xfer.time - 1e-9, xfer.direction))

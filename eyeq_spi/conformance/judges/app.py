@@ -152,20 +152,17 @@ def _not_counted(ctx: Context, tr: Trace, pairs: list[Pair]) -> str:
 
 
 def mesp_tag(ctx: Context, tr: Trace) -> Outcome:
-    count = 0
-    for pair in mesp_pairs(tr):
-        if pair.reply is None:
-            continue
-        count += 1
-        want = 0x80 | (pair.request.header["tag"] & 0x3F)
-        got = pair.reply.header["tag"]
+    answered = [(pair.request, pair.reply) for pair in mesp_pairs(tr) if pair.reply is not None]
+    for request, reply in answered:
+        want = 0x80 | (request.header["tag"] & 0x3F)
+        got = reply.header["tag"]
         if got != want:
-            return bad(f"{pair.request.name} request tag 0x{pair.request.header['tag']:02X} "
-                       f"(#{pair.request.indices[0]}): reply #{pair.reply.indices[-1]} tag "
+            return bad(f"{request.name} request tag 0x{request.header['tag']:02X} "
+                       f"(#{request.indices[0]}): reply #{reply.indices[-1]} tag "
                        f"0x{got:02X}, expected 0x{want:02X} (M1)")
-    if not count:
+    if not answered:
         return unsure("no replies")
-    return ok(f"{count} replies echo service, function and tag counter with bit 7 set")
+    return ok(f"{len(answered)} replies echo service, function and tag counter with bit 7 set")
 
 
 def mesp_deadline(ctx: Context, tr: Trace) -> Outcome:
