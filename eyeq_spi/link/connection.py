@@ -224,8 +224,8 @@ class LinkConnection:
             queued = self._queue.popleft()
             num = self._tx_num
             self._tx_num = (num + 1) % SEQ_MODULO
-            last_of_reset = not any(r.tag == queued.tag for r in self._queue)
-            if queued.tag == self._restart_tag and last_of_reset:
+            if queued.tag == self._restart_tag and not any(
+                    later.tag == queued.tag for later in self._queue):
                 self._tx_num, self._restart_tag = 0, None  # L10: after the reset request
             out.append(self.codec.data_frame(self._last_accepted, num, queued.data))
             self._inflight[num] = _InFlight(queued.tag, now + cfg.ack_timeout, now)

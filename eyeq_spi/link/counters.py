@@ -3,18 +3,8 @@ finer counts that the seed does not name (kept apart so that the §9.2 view stay
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
-
-SEED_COUNTERS = (
-    "sequenceErrorCounter",
-    "dataCRCErrorCounter",
-    "formatErrorCounter",
-    "sendFailedErrorCounter",
-    "fifoNonEmptyCounter",
-    "busyFrames",
-    "rcvOverflowErrors",
-)
 
 
 @dataclass
@@ -40,8 +30,12 @@ class SpiDiagnosticInfo:
     naksReceived: dict[int, int] = field(default_factory=dict)
 
     def seed_view(self) -> dict[str, int]:
-        """The §9.2 structure, as it would be sent in EYEQ_BASE_DIAG_STATUS_MSG (0xA0)."""
+        """The §9.2 structure (the first seven fields), as EYEQ_BASE_DIAG_STATUS_MSG (0xA0) would
+        send it."""
         return {name: int(getattr(self, name)) & 0xFFFFFFFF for name in SEED_COUNTERS}
 
     def snapshot(self) -> dict[str, Any]:
         return asdict(self)
+
+
+SEED_COUNTERS = tuple(member.name for member in fields(SpiDiagnosticInfo))[:7]  # §9.2
