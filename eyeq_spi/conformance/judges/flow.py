@@ -13,10 +13,11 @@ from eyeq_spi.conformance.trace import Msg, Trace
 PENDING, RUNNING_VISION, PENDING_VISION = 0x01, 0x02, 0x92
 
 
-def _state_reports(tr: Trace, msgs: list[Msg]) -> list[tuple[float, int, int, int, Msg]]:
-    """(time, mainState, subState, Fatal_Error) from 0x41 and Get Extended State replies."""
+def _state_reports(tr: Trace) -> list[tuple[float, int, int, int, Msg]]:
+    """(time, mainState, subState, Fatal_Error) from the DUT's 0x41 and Get Extended State
+    replies."""
     out = []
-    for msg in msgs:
+    for msg in tr.dut_msgs():
         if msg.name == "EYEQ_DIAGNOSTIC_MSG" and msg.fields:
             fields = msg.fields
             out.append((msg.time, int(fields["Main_State"]), int(fields["Sub_State"]),
@@ -30,12 +31,9 @@ def _state_reports(tr: Trace, msgs: list[Msg]) -> list[tuple[float, int, int, in
 
 def _ect_replies(tr: Trace, stage: int | None = None, *, dut_asks: bool = False
                  ) -> list[tuple[Msg, Msg]]:
-    out = []
-    for pair in mesp_pairs(tr, dut_asks=dut_asks):
-        if pair.request.name == "EventCalibrationTool" and pair.reply is not None \
-                and (stage is None or pair.request.fields.get("ct_stage") == stage):
-            out.append((pair.request, pair.reply))
-    return out
+    return [(pair.request, pair.reply) for pair in mesp_pairs(tr, dut_asks=dut_asks)
+            if pair.request.name == "EventCalibrationTool" and pair.reply is not None
+            and (stage is None or pair.request.fields.get("ct_stage") == stage)]
 
 
 # -- the EyeQ under test ----------------------------------------------------------------------
@@ -51,7 +49,7 @@ def boot_first(ctx: Context, tr: Trace) -> Outcome:
 
 
 def pending_before_init(ctx: Context, tr: Trace) -> Outcome:
-    reports = _state_reports(tr, tr.dut_msgs())
+    reports = _state_reports(tr)
     pending = [r for r in reports if r[1] == PENDING and r[2] == PENDING_VISION]
     t_pending = pending[0][0] if pending else None
     for req, rep in _ect_replies(tr):
@@ -70,7 +68,7 @@ def pending_before_init(ctx: Context, tr: Trace) -> Outcome:
 
 
 def running_after_init(ctx: Context, tr: Trace) -> Outcome:
-    reports = _state_reports(tr, tr.dut_msgs())
+    reports = _state_reports(tr)
     running = [r for r in reports if r[1] == RUNNING_VISION]
     if not running:
         return unsure("the DUT never reported Running Vision")
@@ -116,20 +114,20 @@ def mode_round_trip(mode: str) -> Callable[[Context, Trace], Outcome]:
 
 
 def fatal22_flow(ctx: Context, tr: Trace) -> Outcome:
-    reports = _state_reports(tr, tr.dut_msgs())
+    reports = _state_reports(tr)
     fatal = [r for r in reports if r[3] == FATAL_INTRINSIC]
     if not fatal:
         return unsure("no Fatal_Error 22 was reported for the 0x84 of an empty NVM")
     t_fatal = fatal[0][0]
-    reads = [p for p in mesp_pairs(tr) if p.request.name == "FFSReadFile"
+    reads = [p.reply for p in mesp_pairs(tr) if p.request.name == "FFSReadFile"
              and p.request.time >= t_fatal and p.reply is not None]
-    if not reads or ret_of(reads[0].reply) != 0:  # type: ignore[arg-type]
+    if not reads or ret_of(reads[0]) != 0:
         return bad(f"Fatal 22 at {at(t_fatal)}, but FFS Read File of {EEPROM_FILE} failed")
     running = [r for r in reports if r[1] == RUNNING_VISION and r[0] > t_fatal and r[3] == 0]
     if not running:
         return bad(f"Fatal 22 at {at(t_fatal)}: after the NVM update and restart Running "
                    "Vision was not reached")
-    return ok(f"Fatal 22 at {at(t_fatal)}, EEPROM read (reply #{reads[0].reply.indices[-1]}), "  # type: ignore[union-attr]
+    return ok(f"Fatal 22 at {at(t_fatal)}, EEPROM read (reply #{reads[0].indices[-1]}), "
               f"Running Vision with the new 0x84 at {at(running[0][0])}")
 
 
