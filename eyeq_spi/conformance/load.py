@@ -10,9 +10,7 @@ from eyeq_spi.conformance.judges.verdict import Outcome, Span, at, unsure
 from eyeq_spi.conformance.model import TIMING, Case
 from eyeq_spi.conformance.trace import Trace
 
-# A fail our own stalls do not explain: the delay arose in the implementation under test or on
-# its way to us. Where that runs (a process on this machine, a device behind a bridge) the suite
-# cannot see, so it says no more than that.
+# a fail our own stalls do not explain: the suite cannot see where the DUT or its link runs
 NOT_OURS = "not caused by our side: the implementation under test or its link"
 
 

@@ -89,9 +89,8 @@ def _fold(text: str, width: int | None, indent: int, first: int | None = None) -
 
 
 def console(report: Report, *, width: int | None = None) -> str:
-    """The header, the overall verdict and what it means, then each case: verdict, ID and
-    title; the references it judges; its evidence in full. With ``width`` (a terminal's
-    columns) every line folds between words; without it (a file, a pipe) nothing folds."""
+    """The console report; with ``width`` (a terminal's columns) every line folds between
+    words, without it (a file, a pipe) nothing folds."""
     results = report.results
     rows = ["eyeq-spi conformance report"]
     keyw = max(len(k) for k, _ in report.header.rows())

@@ -212,8 +212,7 @@ def _address(opts: Options) -> str:
 
 
 def _sw_seen(ctx: Context, key: str) -> str:
-    """The release the implementation under test reported: an EyeQ's Get EyeQ Versions reply.
-    A host reports none on the SPI link."""
+    """The release the implementation under test reported: an EyeQ's Get EyeQ Versions reply."""
     if ctx.dut == "host":
         return f"none (a host reports no release on the SPI link; we played an EyeQ of {key})"
     tr = ctx.traces.get("main")

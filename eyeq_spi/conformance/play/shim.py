@@ -56,26 +56,20 @@ class Shim:
             self.trace.add(self.trace.our_dir, now, raw, injected)
             out.append(raw)
         for transfer in self.node.data_to_send(now):
-            label: str | None = None
             kind = self.frames.unpack_header(int.from_bytes(transfer[:4], "little"))[0]
             if kind in (FrameKind.ACK, FrameKind.NAK) and now < self.hold_acks_until:
                 continue
-            if kind == FrameKind.DATA and self._rules:
-                body = transfer[6:]
-                for rule in self._rules:
-                    if rule.payload == body:
-                        self._rules.remove(rule)
-                        label = rule.label
-                        if rule.action == "drop":
-                            self.trace.mark(now, "dropped", probe=label)
-                            transfer = b""
-                        elif rule.action == "duplicate":
-                            self.trace.add(self.trace.our_dir, now, transfer)  # the original
-                            out.append(transfer)
-                        break
-                if not transfer:
+            rule = next((rule for rule in self._rules if rule.payload == transfer[6:]), None) \
+                if kind == FrameKind.DATA else None
+            if rule is not None:
+                self._rules.remove(rule)
+                if rule.action == "drop":
+                    self.trace.mark(now, "dropped", probe=rule.label)
                     continue
-            self.trace.add(self.trace.our_dir, now, transfer, label)
+                if rule.action == "duplicate":
+                    self.trace.add(self.trace.our_dir, now, transfer)  # the original
+                    out.append(transfer)
+            self.trace.add(self.trace.our_dir, now, transfer, None if rule is None else rule.label)
             out.append(transfer)
         return out
 
