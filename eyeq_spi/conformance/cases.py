@@ -95,7 +95,7 @@ STATIC_CASES: tuple[Case, ...] = (
     Case("DASP-UNUSED", "unused bitfield bits are sent as 1", "7.1.2", "MAPC-67350", "D2",
          "dasp", BOTH, app.dasp_unused),
     Case("DIAG-RATE", "EYEQ_DIAGNOSTIC_MSG (0x41) at 37 Hz (-25/+50 ms)", "7.1.5",
-         "MAPC-67399", None, "dasp", EYEQ, app.diag_rate, rule=TIMING),
+         "MAPC-67399", None, "dasp", EYEQ, app.dasp_rate("EYEQ_DIAGNOSTIC_MSG"), rule=TIMING),
     # -- flows ---------------------------------------------------------------------------
     Case("FLOW-BOOT-FIRST", "EYEQ_BOOT_STATUS_MSG is the first message", "7.1.5.3",
          "MAPC-67299, MAPC-67408", None, "flows", EYEQ, flow.boot_first),

@@ -97,10 +97,6 @@ class TransportConnection:
         self._next_message_id = 0
         self._next_transfer_id = 0
 
-    @property
-    def role(self) -> Role:
-        return self.link.config.role
-
     def reset(self, *, tx_num: int = 0, expected: int = 0, transfer_id: int = 0,
               learn: bool = False, restart_span: int = 0) -> None:
         """Power-up state of both layers (the link's pending messages fail); the arguments are

@@ -463,20 +463,14 @@ def _rate(ctx: Context, tr: Trace, msgs: list[Msg], hz: float, tol: tuple[float,
               f"{1e3 * max(p for p, _ in periods):.2f} ms, mean {1 / mean:.2f} Hz")
 
 
-def dasp_rate(name: str, mode: str) -> Callable[[Context, Trace], Outcome]:
+def dasp_rate(name: str, mode: str | None = None) -> Callable[[Context, Trace], Outcome]:
+    """The rate of ``name`` while the DUT is in ``mode`` (None: always)."""
     def judge(ctx: Context, tr: Trace) -> Outcome:
         definition = tr.codec.cat.message(name)
         if definition.rate_hz is None or definition.tolerance_ms is None:
             return skip(f"{name} has no periodic rate")
         at_mode = _mode_at(tr)
-        msgs = [m for m in tr.dut_msgs(name) if at_mode(m.t_first) == mode]
+        msgs = [m for m in tr.dut_msgs(name) if mode is None or at_mode(m.t_first) == mode]
         return _rate(ctx, tr, msgs, float(definition.rate_hz), definition.tolerance_ms,
-                     f"{name} in {mode}")
+                     name if mode is None else f"{name} in {mode}")
     return judge
-
-
-def diag_rate(ctx: Context, tr: Trace) -> Outcome:
-    definition = tr.codec.cat.message("EYEQ_DIAGNOSTIC_MSG")
-    assert definition.rate_hz is not None and definition.tolerance_ms is not None
-    return _rate(ctx, tr, tr.dut_msgs(definition.name), float(definition.rate_hz),
-                 definition.tolerance_ms, definition.name)
