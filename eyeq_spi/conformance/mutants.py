@@ -12,7 +12,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import DecodedMessage, is_mesp
 from eyeq_spi.errors import UsageError
 from eyeq_spi.host import init_seq
@@ -27,7 +26,6 @@ from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
 
 _FRAMES = FrameCodec()
-_LINK = link_spec()
 BOOT, RUNNING_VISION = 0x03, 0x02
 
 
@@ -40,7 +38,15 @@ def _header(transfer: bytes) -> tuple[int, int, int, int]:
     return _FRAMES.unpack_header(int.from_bytes(transfer[:4], "little"))
 
 
+def _is_reply(message: bytes) -> bool:
+    return is_mesp(message) and bool(message[4] & 0x80)
+
+
 Control = Callable[[bytes, int, int, int], tuple[bytes, float]]
+
+
+def _earliest(timer: float | None, *dues: float) -> float | None:
+    return min((due for due in (timer, *dues) if due is not None), default=None)
 
 
 def _controls(out: list[bytes], now: float, control: Control,
@@ -118,11 +124,7 @@ class Resends(SimulatedEyeQ):
         return out
 
     def get_timer(self) -> float | None:
-        timer = super().get_timer()
-        if self._unacked:
-            due = min(s for s, _ in self._unacked.values()) + 0.011
-            timer = due if timer is None else min(timer, due)
-        return timer
+        return _earliest(super().get_timer(), *(sent + 0.011 for sent, _ in self._unacked.values()))
 
 
 class StretchedReplies(SimulatedEyeQ):
@@ -135,13 +137,13 @@ class StretchedReplies(SimulatedEyeQ):
     def __init__(self, config: SimConfig | None = None) -> None:
         super().__init__(config)
         self._gap = self.conn.link.config.frame_gap
+        self._timeout = self.conn.link.config.transmit_timeout
         self._left = 0  # DATA frames still to go at the stretched pace
 
     def _send(self, message: bytes, now: float) -> None:
         link = self.conn.link
         idle = not link.queued and not link.in_flight and self.main_state != RUNNING_VISION
-        stretch = idle and is_mesp(message) and bool(message[4] & 0x80) \
-            and len(message) > 2 * DATA_SIZE
+        stretch = idle and _is_reply(message) and len(message) > 2 * DATA_SIZE
         if stretch:
             link.config.transmit_timeout = 3600.0  # the queue deadline is set at send time
         super()._send(message, now)
@@ -156,7 +158,7 @@ class StretchedReplies(SimulatedEyeQ):
             if self._left <= 0:
                 link = self.conn.link
                 link.config.frame_gap = self._gap
-                link.config.transmit_timeout = float(_LINK["timing"]["transmitTimeout"])
+                link.config.transmit_timeout = self._timeout
         return out
 
 
@@ -184,10 +186,6 @@ class E2eWrong(_MessageOutput):
         lay = self.codec.layout(self.codec.cat.message("EYEQ_VIS_AEB_INFO_MSG"))
         offset = 4 + lay.crc_plan[0].crc_offset
         return message[:offset] + bytes((message[offset] ^ 0xFF,)) + message[offset + 1:]
-
-
-def _is_reply(message: bytes) -> bool:
-    return is_mesp(message) and bool(message[4] & 0x80)
 
 
 class TagNotEchoed(_MessageOutput):
@@ -243,11 +241,7 @@ class _HostLinkOutput(HostEmulator):
         return _controls(super().data_to_send(now), now, self.control, self._held)
 
     def get_timer(self) -> float | None:
-        timer = super().get_timer()
-        if self._held:
-            due = min(d for d, _ in self._held)
-            timer = due if timer is None else min(timer, due)
-        return timer
+        return _earliest(super().get_timer(), *(due for due, _ in self._held))
 
     def control(self, transfer: bytes, d: int, rsp: int, num: int) -> tuple[bytes, float]:
         return transfer, 0.0
