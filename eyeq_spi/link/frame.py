@@ -186,10 +186,15 @@ class FrameCodec:
         :class:`Frame` (the receiver's hot path)."""
         if len(transfer) != FRAME_SIZE:
             raise RemoteProtocolError(f"transfer is {len(transfer)} bytes, not {FRAME_SIZE}")
-        d, r, rsp, num = self.unpack_header(int.from_bytes(transfer[:4], "little"))
-        covered = transfer[:4] if d == FrameKind.ACK or d == FrameKind.NAK else \
-            transfer[:4] + transfer[6:]
-        return d, r, rsp, num, self.crc(covered) == int.from_bytes(transfer[4:6], "little")
+        word = int.from_bytes(transfer[:4], "little")
+        d = (word >> self._d[0]) & self._d[1]
+        crc = int.from_bytes(transfer[4:6], "little")
+        if d == FrameKind.ACK or d == FrameKind.NAK:
+            ok = self.crc(transfer[:4]) == crc
+        else:
+            ok = self.crc(transfer[:4] + transfer[6:]) == crc
+        return (d, (word >> self._r[0]) & self._r[1], (word >> self._rsp[0]) & self._rsp[1],
+                (word >> self._num[0]) & self._num[1], ok)
 
     def crc_ok(self, transfer: bytes, frame: Frame) -> bool:
         return self.compute_crc(frame.d, transfer[:4], transfer[6:]) == frame.crc
