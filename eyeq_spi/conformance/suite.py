@@ -117,21 +117,19 @@ def selector(expr: str | None) -> Callable[[Case], bool]:
     with ``and``, ``or``, ``not`` and parentheses (pytest's -k, without its keywords)."""
     if not expr:
         return lambda c: True
-    tokens = _TOKEN.findall(expr)
-    parts: list[str] = []
     words: list[str] = []
-    for token in tokens:
+
+    def term(token: str) -> str:
         low = token.lower()
         if low in ("and", "or", "not", "(", ")"):
-            parts.append(low)
-        elif re.fullmatch(r"[\w.\-:/]+", token):
-            parts.append(f"_w[{len(words)}] in _h")
-            words.append(low)
-        else:
+            return low
+        if not re.fullmatch(r"[\w.\-:/]+", token):
             raise UsageError(f"-k: unexpected {token!r}")
-    code_text = " ".join(parts)
+        words.append(low)
+        return f"_w[{len(words) - 1}] in _h"
+
     try:
-        code = compile(code_text, "<-k>", "eval")
+        code = compile(" ".join(map(term, _TOKEN.findall(expr))), "<-k>", "eval")
     except SyntaxError:
         raise UsageError(f"-k: cannot parse {expr!r}") from None
 
