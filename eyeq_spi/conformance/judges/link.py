@@ -353,38 +353,33 @@ def link_window(ctx: Context, tr: Trace) -> Outcome:
     return ok(f"at most {worst} DATA frames unacknowledged{note}")
 
 
-def _transfers(tr: Trace) -> list[tuple[Xfer, Xfer, int]]:
-    """(first frame, last frame seen, frames) of each multi-frame transfer the DUT sent."""
-    out: list[tuple[Xfer, Xfer, int]] = []
-    cur: list[Xfer] = []
+def _transfers(tr: Trace) -> list[list[Xfer]]:
+    """The frames seen of each multi-frame transfer the DUT sent."""
+    out: list[list[Xfer]] = []
     for xfer in tr.xfers:
         if xfer.direction != tr.dut_dir or xfer.kind != "DATA":
             continue
-        ttype = xfer.ttype
-        if ttype == FIRST:
-            if cur:
-                out.append((cur[0], cur[-1], len(cur)))
-            cur = [xfer]
-        elif ttype == CONSECUTIVE and cur and xfer.data[7] == cur[0].data[7]:
-            cur.append(xfer)
-    if cur:
-        out.append((cur[0], cur[-1], len(cur)))
+        if xfer.ttype == FIRST:
+            out.append([xfer])
+        elif xfer.ttype == CONSECUTIVE and out and xfer.data[7] == out[-1][0].data[7]:
+            out[-1].append(xfer)
     return out
 
 
 def link_txtimeout(ctx: Context, tr: Trace) -> Outcome:
     slack = 0.001 if not ctx.realtime else 0.010
     ts = _transfers(tr)
-    for first, last, count in ts:
+    for frames in ts:
+        first, last = frames[0], frames[-1]
         if last.time - first.time > TX_TIMEOUT + slack:
             excess = last.time - first.time - TX_TIMEOUT
             return bad(f"transfer ID {first.data[7]}: first frame #{first.index} at "
-                       f"{at(first.time)}, frame {count} #{last.index} at {at(last.time)}: "
+                       f"{at(first.time)}, frame {len(frames)} #{last.index} at {at(last.time)}: "
                        f"{1e3 * (last.time - first.time):.1f} ms > transmitTimeout "
                        f"{1e3 * TX_TIMEOUT:.0f} ms", [(first.time, last.time, excess)])
     if not ts:
         return skip("the DUT sent no multi-frame transfer: every message fitted one frame")
-    worst = max(last.time - first.time for first, last, _ in ts)
+    worst = max(frames[-1].time - frames[0].time for frames in ts)
     return ok(f"{len(ts)} multi-frame transfers, longest {1e3 * worst:.2f} ms "
               f"(transmitTimeout {1e3 * TX_TIMEOUT:.0f} ms)")
 
@@ -394,7 +389,7 @@ def link_gap(ctx: Context, tr: Trace) -> Outcome:
         return skip("judged on real time only (virtual time proves nothing about the wire)")
     gap = float(_L["timing"]["frameFlowControl"][tr.dut])
     # frames the DUT had queued together: those of its multi-frame transfers
-    data = [x for first, last, _ in _transfers(tr) for x in tr.xfers[first.index:last.index + 1]
+    data = [x for frames in _transfers(tr) for x in tr.xfers[frames[0].index:frames[-1].index + 1]
             if x.direction == tr.dut_dir and x.kind == "DATA"]
     span = 50  # a byte stream may deliver frames in bursts: judge the spacing of 50 frames
     if len(data) <= span:
