@@ -99,8 +99,7 @@ class Trace:
         self.faults: list[tuple[float, float, str]] = []  # windows where we disturb the link
         self.stalls: list[tuple[float, float]] = []  # real time: our own loop came late (load.py)
         self.end = 0.0
-        # (time, direction) of each restart of a receiver the frames showed: a NUM 0 and RSP 0
-        # (L4), a resynchronisation (L6, L6a, L10a)
+        # (time, direction) of each restart the frames showed (L4, L6, L6a, L10a)
         self._restarts: list[tuple[float, str]] = []
         self._passive = {direction: _Passive(TransportConnection(LinkConfig(role=role)))
                          for direction, role in RECEIVER.items()}

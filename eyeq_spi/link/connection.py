@@ -54,9 +54,8 @@ PayloadCheck = Callable[[int, bytes], "NakReason | None"]
 
 _SPEC = link_spec()
 _DATA, _ACK, _NAK = int(FrameKind.DATA), int(FrameKind.ACK), int(FrameKind.NAK)
-# L10: after a learning reset, a NUM 0 is taken as the peer's restart within this many windows
-# of frames (the peer keeps its old numbering until it learns of the reset: a boot status, or
-# three NAKs of its frames at 15-30 ms each)
+# L10a: after a learning reset, a NUM 0 is taken as the peer's restart within this many windows
+# of frames (the peer numbers on until it learns of the reset)
 RESTART_HORIZON = 8
 
 

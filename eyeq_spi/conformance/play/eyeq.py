@@ -165,9 +165,7 @@ class EyeqScript:
         trace.mark(at, "our_reset")
         eyeq.power_up(at)
         trace.restart_passive(trace.our_dir)
-        # HOST-EYEQ-RESET needs 0x92 and HOST_VEH_STATE_MSG again: once we are back in Running
-        # Vision (which needs both) a short watch suffices; a host that never gets there is
-        # watched for the whole ``after_reset``
+        # HOST-EYEQ-RESET: Running Vision again needs both 0x92 and HOST_VEH_STATE_MSG
         if session.wait(self.host_running, plan.after_reset):
             session.run(plan.after_running)
         trace.mark(session.now, "after_reset_end")

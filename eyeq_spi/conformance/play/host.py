@@ -175,8 +175,7 @@ class HostScript:
         session.run(0.2)
         trace.fault(t0, session.now, "probes")
         session.ack_blackout(0.1, 0.2)  # 100 ms: an 18 Hz cycle
-        # our own driver reset, as the DUT's receiver sees it: our NUMs start again at 0 (L4,
-        # L6). Our receive window is kept, so our host does not take the DUT for reset.
+        # our driver reset: our NUMs from 0 again (L4, L6); our receive window is kept
         t2 = session.now
         link.reset(tx_num=0, expected=link.expected_num)
         trace.restart_passive(trace.our_dir)
