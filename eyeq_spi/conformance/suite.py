@@ -105,8 +105,15 @@ class Options:
     sessions_done: Callable[[], None] | None = None
 
     def __post_init__(self) -> None:
-        if self.builtin:  # the caller may still change the plans before the run
-            builtin_plans(self)
+        """Our own implementations answer at once: shorter watches keep the mutant matrix fast
+        (every rate still gets >= 9 periods); the caller may still change the plans."""
+        if self.builtin:
+            hp, ep = self.host_plan, self.eyeq_plan
+            hp.bring_up_timeout = hp.mode_timeout = 10.0
+            hp.steady, hp.mode_hold = 0.8, 0.5
+            ep.steady, ep.stale_for, ep.after_reset = 0.8, 0.5, 2.5
+            # the eeprom_bad watch: HOST-EEPROM-BAD's window (the script adds 0.05 s after it)
+            ep.boot_fail_watch, ep.eeprom_watch = 3.0, QUIET_FOR
 
 
 _TOKEN = re.compile(r"\(|\)|[^\s()]+")
@@ -145,17 +152,6 @@ def select_cases(opts: Options) -> list[Case]:
     if not chosen:
         raise UsageError(f"-k {opts.select!r} selects no case for --dut {opts.dut}")
     return chosen
-
-
-def builtin_plans(opts: Options) -> None:
-    """Our own implementations answer at once: shorter watches keep the mutant matrix fast
-    (every rate still gets >= 9 periods)."""
-    hp, ep = opts.host_plan, opts.eyeq_plan
-    hp.bring_up_timeout = hp.mode_timeout = 10.0
-    hp.steady, hp.mode_hold = 0.8, 0.5
-    ep.steady, ep.stale_for, ep.after_reset = 0.8, 0.5, 2.5
-    # the eeprom_bad watch: HOST-EEPROM-BAD's window (the script adds 0.05 s after the request)
-    ep.boot_fail_watch, ep.eeprom_watch = 3.0, QUIET_FOR
 
 
 def run(opts: Options) -> list[Result]:
