@@ -26,7 +26,7 @@ class Case:
     judge: Callable[..., Any]
     session: str = "main"  # the host suite: normal | eeprom_bad | boot_fail | *
     needs: tuple[str, ...] = ()  # script steps: early_init, mesp, link, flows
-    rule: str = "content"  # TIMING (a stall of ours may excuse a miss, load.py) or CONTENT
+    rule: str = CONTENT  # TIMING (a stall of ours may excuse a miss, load.py) or CONTENT
 
     def session_for(self, dut: str) -> str:
         if dut == "eyeq":

@@ -172,7 +172,7 @@ def run_report(opts: Options) -> Report:
             needed |= {"normal", "eeprom_bad"}
         sessions = [s for s in HOST_SESSIONS if s in needed]
     total = len(sessions) + 1
-    step = opts.steps or (lambda done, of: None)
+    step = opts.steps or (lambda *_: None)
     step(0, total)
     for number, name in enumerate(sessions):
         tr = (_eyeq_session(opts, wanted, ctx) if opts.dut == "eyeq"
