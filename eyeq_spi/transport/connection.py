@@ -34,7 +34,7 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 
 from eyeq_spi.catalog.link import link_spec
-from eyeq_spi.link.connection import LinkConfig, LinkConnection, Role
+from eyeq_spi.link.connection import LinkConfig, LinkConnection
 from eyeq_spi.link.events import DataReceived, LinkEvent, Resynchronised, SendFailed, Sent
 from eyeq_spi.link.frame import SEQ_MODULO, NakReason
 from eyeq_spi.transport import segment as seg
@@ -56,10 +56,6 @@ Event = TransportEvent | LinkEvent
 class TransportConfig:
     receive_limit: int | None = None  # None: the role's limit (8191 host, 512 EyeQ)
     reassembly_timeout: float = _T["reassembly_timeout"]
-
-    def resolve(self, role: Role) -> None:
-        if self.receive_limit is None:
-            self.receive_limit = int(_T["receive_limit"][role])
 
 
 @dataclass
@@ -88,7 +84,8 @@ class TransportConnection:
     ) -> None:
         self.link = LinkConnection(link_config, payload_check=self._check_header)
         self.config = config or TransportConfig()
-        self.config.resolve(self.link.config.role)
+        if self.config.receive_limit is None:
+            self.config.receive_limit = int(_T["receive_limit"][self.link.config.role])
         self.counters = TransportCounters()
         self._events: deque[Event] = deque()
         self._open: _Open | None = None
