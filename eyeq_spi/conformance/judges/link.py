@@ -292,15 +292,15 @@ def link_resync(ctx: Context, tr: Trace) -> Outcome:
 
 def link_noresend(ctx: Context, tr: Trace) -> Outcome:
     seen: dict[int, tuple[float, bytes, int, int]] = {}
-    count = 0
-    for xfer, era in _since_restart(tr):  # L10: never a repeat of a frame before a reset
-        count += 1
+    frames = list(_since_restart(tr))  # L10: never a repeat of a frame before a reset
+    for xfer, era in frames:
         prev = seen.get(xfer.num)
         if prev is not None and prev[1] == xfer.data and xfer.time - prev[0] < 1.0 \
                 and prev[3] == era:
             return bad(f"{_frame(xfer)} repeats frame #{prev[2]} byte for byte "
                        f"{1e3 * (xfer.time - prev[0]):.1f} ms later: a resend (§6, L7)")
         seen[xfer.num] = (xfer.time, xfer.data, xfer.index, era)
+    count = len(frames)
     if not count:
         return unsure("no DATA frames")
     unacked = _unacked(tr)
@@ -411,9 +411,8 @@ def tp_format(ctx: Context, tr: Trace) -> Outcome:
     limit = int(_T["receive_limit"]["host" if tr.dut == "eyeq" else "eyeq"])
     open_id: int | None = None
     interloper: Xfer | None = None
-    count = 0
-    for xfer in _dut_data(tr):
-        count += 1
+    frames = list(_dut_data(tr))
+    for xfer in frames:
         data, ttype = xfer.data, xfer.ttype
         if ttype == SINGLE:
             size = data[7]
@@ -437,8 +436,8 @@ def tp_format(ctx: Context, tr: Trace) -> Outcome:
                            f"frame #{interloper.index} interleaved (T5)")
         else:
             return bad(f"{_frame(xfer)}: transport type 0x{ttype:02X} (T1)")
-    return ok(f"{count} DATA frames with valid single/first/consecutive headers") if count else \
-        unsure("no DATA frames")
+    return ok(f"{len(frames)} DATA frames with valid single/first/consecutive headers") \
+        if frames else unsure("no DATA frames")
 
 
 def tp_tid(ctx: Context, tr: Trace) -> Outcome:
