@@ -139,7 +139,6 @@ class SimulatedEyeQ(MespFunctions):
         self._scene_frame: int | None = None  # the camera frame the scene was last stepped to
         self._dasp_min = 0.0  # min(_next_dasp.values()) when _next_dasp is not empty
         self._packers: dict[str, DaspPacker | None] = {}  # None: this message takes the reference
-        self.dasp_paths: Counter[str] = Counter()  # debug stat: messages sent "packed" / "dict"
         self.phase = Phase.OFF
         self.phase_due: float | None = None  # when a TIMED_PHASES phase ends
         self.now = 0.0
@@ -485,11 +484,9 @@ class SimulatedEyeQ(MespFunctions):
         packer = self._packer(msg)
         if packer is not None:
             self._fill(msg.name, packer.root, now)  # type: ignore[arg-type]
-            self.dasp_paths["packed"] += 1
             return packer.encode(counter, self.e2e)
         values = self._template(msg.name, msg.payload)
         self._fill(msg.name, values, now)
-        self.dasp_paths["dict"] += 1
         return self.codec.encode_dasp(msg.name, values, counter, self.e2e)
 
     def _fill(self, name: str, values: dict[str, Any], now: float) -> None:
