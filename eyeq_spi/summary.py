@@ -47,7 +47,6 @@ SESSION_KEYS = ("began_s", "ended_s", "ok", "problem", "state", "received", "sen
                 "ack_latency_ms", "transport_aborts", "e2e_errors", "dasp_counter_gaps",
                 "decode_errors", "stale_streams", "mesp", "eyeq_resets", "eyeq_reset_causes",
                 "versions", "boot", "running_vision_since", "link_lost", "left_at_link_loss")
-MESP_KEYS = ("requests", "retries", "timeouts", "abandoned", "stale_replies")
 
 
 def link_view(counters: SpiDiagnosticInfo, restarts_answered: int = 0) -> dict[str, int]:

@@ -180,11 +180,6 @@ class VirtualRunner:
                 best = due
         return best
 
-    def next_time(self) -> float | None:
-        """The next deadline of any node or transfer (asks every node afresh)."""
-        self.touch_all()
-        return self._next()
-
     # -- running ----------------------------------------------------------------------------
     def run_until(
         self, t_end: float, *, stop: Callable[[], bool] | None = None, realtime: bool = False,

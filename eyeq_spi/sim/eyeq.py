@@ -79,9 +79,6 @@ class Phase(enum.Enum):
     RUNNING = "running"  # the application: 0x41, MESP, DASP in the mode of main_state
 
 
-TIMED_PHASES = frozenset({Phase.BOOTING, Phase.STARTING})
-
-
 class SimulatedEyeQ(MespFunctions):
     # runner/node.py: our calls act on nothing but this EyeQ, and a data_to_send that hands
     # over nothing leaves the deadline alone (the link's ACK/DATA queues only shrink by output)
@@ -140,7 +137,7 @@ class SimulatedEyeQ(MespFunctions):
         self._dasp_min = 0.0  # min(_next_dasp.values()) when _next_dasp is not empty
         self._packers: dict[str, DaspPacker | None] = {}  # None: this message takes the reference
         self.phase = Phase.OFF
-        self.phase_due: float | None = None  # when a TIMED_PHASES phase ends
+        self.phase_due: float | None = None  # when BOOTING or STARTING ends
         self.now = 0.0
         self._reset_done = False  # the configured reset (SimConfig.reset_at) happened
         self.main_state = 0
@@ -513,7 +510,4 @@ class SimulatedEyeQ(MespFunctions):
                              self.config.seed, self.config.tac_error)
             return
         self.scene.fill(name, values, now)
-
-    def calibration_done(self, now: float) -> bool:
-        return self._cal_started is not None and now - self._cal_started >= self.config.tac_duration
 

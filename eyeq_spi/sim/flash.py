@@ -58,7 +58,6 @@ HASH_LENGTHS: Final = {HASH_SHA256: 32, HASH_CRC32: 4}
 DATASET_EXPLICIT: Final = 0
 DATASET_USER: Final = 1
 DATASET_FFS: Final = 2
-DATASET_TYPES: Final = (DATASET_EXPLICIT, DATASET_USER, DATASET_FFS)
 
 # decision M2 (specs/mesp.yaml `mesp_ret`)
 RET_SUCCESS: Final = 0
@@ -165,10 +164,10 @@ class FlashImage:
         self.regions: list[FlashRegion] = list(flash_regions(size_mb))
         # sorted, non-overlapping, non-adjacent (start, content) extents
         self._starts: list[int] = []
-        self._data: list[bytearray] = []
+        self._data: list[bytes] = []
         for region in self.regions:
             self._starts.append(region.start)
-            self._data.append(bytearray(_content(seed, region)))
+            self._data.append(_content(seed, region))
 
     # -- lookup ------------------------------------------------------------------------------
     def region(self, name: str) -> FlashRegion:
@@ -234,27 +233,6 @@ class FlashImage:
                 digest.update(seg)
             return digest.digest()
         raise LocalProtocolError(f"unknown hash type {hash_type} (0 SHA-256, 1 CRC32)")
-
-    def set_bytes(self, offset: int, data: bytes) -> None:
-        """Overwrite ``data`` at ``offset`` (fault injection, tests); merges touched extents."""
-        self._check_range(offset, len(data), "write")
-        if not data:
-            return
-        end = offset + len(data)
-        # extents overlapping or adjacent to [offset, end)
-        lo = bisect.bisect_right(self._starts, offset) - 1
-        if lo < 0 or self._starts[lo] + len(self._data[lo]) < offset:
-            lo += 1
-        hi = bisect.bisect_right(self._starts, end)  # first extent starting after end
-        starts, datas = self._starts[lo:hi], self._data[lo:hi]
-        new_start = min([offset, *starts])
-        new_end = max([end, *(s + len(d) for s, d in zip(starts, datas, strict=True))])
-        merged = bytearray([_ERASED]) * (new_end - new_start)
-        for ext_start, ext_data in zip(starts, datas, strict=True):
-            merged[ext_start - new_start : ext_start - new_start + len(ext_data)] = ext_data
-        merged[offset - new_start : end - new_start] = data
-        self._starts[lo:hi] = [new_start]
-        self._data[lo:hi] = [merged]
 
 
 # -- MESP Compute Hash ----------------------------------------------------------------------
