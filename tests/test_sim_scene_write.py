@@ -114,9 +114,8 @@ def test_full_tables_of_extreme_values_then_fewer_rows(sw: str, table: Any,
 
 @pytest.mark.parametrize("sw", ["sw4", SWS[-1]])
 def test_the_road_writes_its_constants_again_after_a_reset(sw: str) -> None:
-    """The road's plan writes only what moves once its constants are in place; after the
-    packer's reset (zeros) they are written again, as the reference's fresh template gets
-    them."""
+    """The road's constants are written once per packer; after the packer's reset (zeros)
+    they are written again, as the reference's fresh template gets them."""
     ref = SimulatedEyeQ(SimConfig(sw=sw, seed=4, objects=15, dasp_packer=False))
     new = SimulatedEyeQ(SimConfig(sw=sw, seed=4, objects=15, dasp_packer=True))
     m = ref.codec.cat.message("EYEQ_VIS_ROAD_DATA_MSG")

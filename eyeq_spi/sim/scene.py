@@ -332,11 +332,6 @@ class Scene(SceneWorld):
             "nextLeftLeftMarker": (3 * HALF_LANE, "SOLID", 0.75 * view, phase[5]),
             "nextRightRightMarker": (-3 * HALF_LANE, "SOLID", 0.75 * view, phase[6]),
             "nextLeftRightMarker": None, "nextRightLeftMarker": None}
-        if isinstance(rd, StructView):
-            plan = rd.writers.get(("road", id(rn)))
-            if plan is not None and plan[0] is rn and ("road", id(rn)) in rd.done:
-                self._fill_road_moving(plan[1], markers, view)
-                return
         mi = child_struct(rd, rn, "roadMarkerInfo")
         if mi:
             for key, spec in markers.items():
@@ -374,58 +369,6 @@ class Scene(SceneWorld):
         puts_once(rd, rn, "road", lambda: {
             "drivingSide": enum_code("road_driving_side", "Right Side", 0),
             "laneChange": enum_code("road_lane_change", "No lane change", 0)})
-        if isinstance(rd, StructView):  # the constants are in place until the packer's reset
-            rd.writers[("road", id(rn))] = (rn, self._road_plan(rd, rn, markers))
-            rd.done.add(("road", id(rn)))
-
-    @staticmethod
-    def _road_plan(rd: dict[str, Any], rn: LayoutNode,
-                   markers: dict[str, tuple[float, str, float, float] | None]
-                   ) -> list[tuple[str, Any, Any]]:
-        """What :meth:`_fill_road` writes that changes from frame to frame, as bound writers:
-        (marker key or border offset, the polynomial's writer, the marker's two writers)."""
-        out: list[tuple[str, Any, Any]] = []
-        poly_keys = ("a0", "a1", "a2", "a3", "startRange", "endRange")
-        mi = child_struct(rd, rn, "roadMarkerInfo")
-        for key, spec in markers.items() if mi else ():
-            marker = child_struct(*mi, key) if mi else None
-            if marker is None or spec is None:
-                continue
-            poly = child_struct(*marker, "laneMarker")
-            conf = child_struct(*marker, "laneMarkerConf")
-            out.append((key, poly and bound_puts(*poly, poly_keys), (
-                conf and bound_puts(*conf, ("sfConf",)),
-                bound_puts(*marker, ("measuredViewRange",)))))
-        bi = child_struct(rd, rn, "roadBorderInfo")
-        for key in ("leftRoadBorder", "rightRoadBorder") if bi else ():
-            border = child_struct(*bi, key) if bi else None
-            poly = child_struct(*border, "roadBorder") if border else None
-            if poly:
-                out.append((key, bound_puts(*poly, poly_keys), None))
-        hpp = child_struct(rd, rn, "roadHppFusionInfo")
-        centre = child_struct(*hpp, "laneCenter") if hpp else None
-        if centre:
-            out.append(("laneCenter", bound_puts(*centre, poly_keys), None))
-        return out
-
-    def _fill_road_moving(self, plan: list[tuple[str, Any, Any]],
-                          markers: dict[str, tuple[float, str, float, float] | None],
-                          view: float) -> None:
-        """The writes of :meth:`_fill_road` that change, in its order, through its plan."""
-        for key, poly, extra in plan:
-            if extra is not None:  # a marker: see _fill_marker
-                spec = markers[key]
-                assert spec is not None
-                offset, kind, mview, phase = spec
-                if poly:
-                    poly(self._poly_values(offset, mview))
-                if extra[0]:
-                    extra[0]({"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase)})
-                extra[1]({"measuredViewRange": mview * (0.85 if kind == "DASHED" else 0.95)})
-            elif key == "laneCenter":
-                poly(self._poly_values(0.0, view))
-            else:
-                poly(self._poly_values(BORDER_OFFSET[key], 0.6 * view))
 
     def _visible_signs(self) -> tuple[IArr, FArr]:
         """Signs ahead, nearest first, and their lateral distances; once per step (both sign
