@@ -27,7 +27,6 @@ from eyeq_spi.sim.scene_layout import (
     FILLERS,
     FOCAL_PX,
     HALF_LANE,
-    HEADER_KEYS,
     IMAGE_H,
     IMAGE_W,
     ONCOMING,
@@ -56,7 +55,6 @@ from eyeq_spi.sim.scene_layout import (
 )
 from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
 from eyeq_spi.sim.scene_write import (
-    bound_puts,
     put_values,
     puts_once,
     write_objects_packed,
@@ -194,36 +192,23 @@ class Scene(SceneWorld):
         writes, packed in place); members the layout lacks are skipped, unknown messages are
         left unchanged."""
         last = self._nodes.get(name)
-        if last is not None and last[0] is values:  # the caller reuses its dict: same layout
-            node, heads, method = last[1], last[2], last[3]
-        else:
-            filler = FILLERS.get(name)
-            if filler is None:
+        if last is None or last[0] is not values:  # a new dict or view: find its layout
+            method = FILLERS.get(name)
+            if method is None:
                 return
-            method = filler
             # a packer's view has the shape of its template dict (the same ranges)
             shape = values.template if isinstance(values, StructView) else values
-            node = None if shape is None else layout_node_for(name, shape)
-            # a packer's views never change: their headers' writers are bound once
-            heads = None if node is None or not isinstance(values, StructView) else [
-                bound_puts(values, node, HEADER_KEYS), *(
-                    bound_puts(values[key], sub, HEADER_KEYS)
-                    for key, sub in struct_members(node)
-                    if isinstance(values.get(key), StructView))]
-            self._nodes[name] = (values, node, heads, method)
+            last = self._nodes[name] = (
+                values, None if shape is None else layout_node_for(name, shape), method)
+        node = last[1]
         if node is None:
             return
         now = float(now)
-        if heads is not None:
-            vals = self._header_values(now)
-            for put in heads:
-                put(vals)
-        else:
-            self._fill_header(values, node, now)
-            for key, sub in struct_members(node):
-                if isinstance(values.get(key), dict | StructView):
-                    self._fill_header(values[key], sub, now)
-        getattr(self, method)(values, node, now)
+        self._fill_header(values, node, now)
+        for key, sub in struct_members(node):
+            if isinstance(values.get(key), dict | StructView):
+                self._fill_header(values[key], sub, now)
+        getattr(self, last[2])(values, node, now)
 
     def _header_values(self, now: float) -> dict[str, float]:
         """The values of every header of instant ``now`` (kept for the next message)."""

@@ -190,17 +190,6 @@ def layout_node_for(name: str, values: dict[str, Any]) -> LayoutNode | None:
 
 def child_struct(target: dict[str, Any], node: LayoutNode, key: str
                  ) -> tuple[dict[str, Any], LayoutNode] | None:
-    if isinstance(target, StructView):  # a packer's views never change: the answer is kept
-        got = target.writers.get(("child", id(node), key))
-        if got is None or got[0] is not node:
-            got = target.writers[("child", id(node), key)] = (node, _child_of(target, node, key))
-        out: tuple[dict[str, Any], LayoutNode] | None = got[1]
-        return out
-    return _child_of(target, node, key)
-
-
-def _child_of(target: dict[str, Any], node: LayoutNode, key: str
-              ) -> tuple[dict[str, Any], LayoutNode] | None:
     sub, value = node.members.get(key), target.get(key)
     if isinstance(sub, LayoutNode) and isinstance(value, dict | StructView):
         return cast("dict[str, Any]", value), sub  # a packer's view serves as the dict
@@ -209,18 +198,6 @@ def _child_of(target: dict[str, Any], node: LayoutNode, key: str
 
 def struct_elements(target: dict[str, Any], node: LayoutNode, key: str
                     ) -> tuple[list[dict[str, Any]], LayoutNode]:
-    if isinstance(target, StructView):  # a packer's views never change: the list is kept
-        got = target.writers.get(("elements", id(node), key))
-        if got is not None and got[0] is node:
-            return cast("tuple[list[dict[str, Any]], LayoutNode]", got[1])
-        out = _element_list(target, node, key)
-        target.writers[("elements", id(node), key)] = (node, out)
-        return out
-    return _element_list(target, node, key)
-
-
-def _element_list(target: dict[str, Any], node: LayoutNode, key: str
-                  ) -> tuple[list[dict[str, Any]], LayoutNode]:
     sub, value = node.members.get(key), target.get(key)
     if isinstance(sub, LayoutNode) and isinstance(value, list):
         return [cast("dict[str, Any]", x) for x in value if isinstance(x, dict | StructView)], sub
@@ -417,7 +394,6 @@ STD = np.array([(0.05, 0.002), (0.2, 0.01), (0.1, 0.01), (0.1, 0.005), (0.2, 0.0
 PAIR_LAMPS = tuple(c[0] not in ("bike", "bicycle") for c in CLASSES)
 TRUCK = next(k for k, c in enumerate(CLASSES) if c[0] == "truck")
 BORDER_OFFSET = {"leftRoadBorder": 3 * HALF_LANE + 0.8, "rightRoadBorder": -3 * HALF_LANE - 0.6}
-HEADER_KEYS = ("timestamp_ms", "timestamp_us", "frameIndex", "imageIndex", "vehIndexUsed")
 PX = np.array([[-FOCAL_PX], [-FOCAL_PX], [FOCAL_PX]])  # the image rows' factors
 _STRUCTS: dict[int, tuple[LayoutNode, list[tuple[str, LayoutNode]]]] = {}
 

@@ -129,9 +129,8 @@ class SceneWorld:
         self._update_road(None, 0.0)
         self._cols: tuple[FArr, IArr, IArr] | None = None
         self._plans: dict[int, ObjectPlan] = {}
-        # per message: the value dict or view last filled, its range tree, its headers' writers
-        # (views only) and the filler's name
-        self._nodes: dict[str, tuple[dict[str, Any], LayoutNode | None, list[Any] | None, str]] = {}
+        # per message: the value dict or view last filled, its range tree and its filler's name
+        self._nodes: dict[str, tuple[dict[str, Any], LayoutNode | None, str]] = {}
 
     def unanchor(self) -> None:
         """Forget the time of the last step (after a warm-up): the next step anchors the scene

@@ -1,12 +1,10 @@
 """How the scene's values reach a payload: :func:`put_values` of one struct's members (clamped as
-:meth:`~eyeq_spi.sim.scene_layout.LayoutLeaf.clamp` says, generated writers into a packer's views),
-writers bound once to a view (:func:`bound_puts`), constants written once per packer
-(:func:`puts_once`), and the arrays of structs as rows (:func:`write_table`: generated row
-writers) or, for the obstacles, numpy columns (split out of :mod:`eyeq_spi.sim.scene_layout`)."""
+:meth:`~eyeq_spi.sim.scene_layout.LayoutLeaf.clamp` says; generated writers into a packer's
+views), constants written once per packer (:func:`puts_once`), and arrays of structs as rows
+(:func:`write_table`) or, for the obstacles, numpy columns."""
 
 from __future__ import annotations
 
-import functools
 import struct
 from collections.abc import Callable
 from typing import Any
@@ -35,17 +33,6 @@ def put_values(target: dict[str, Any], node: LayoutNode, vals: dict[str, float])
             return
     for key, value in vals.items():
         _put(target, node, key, value)
-
-
-def bound_puts(target: dict[str, Any], node: LayoutNode, keys: tuple[str, ...]
-                ) -> Callable[[dict[str, float]], None]:
-    """:func:`put_values` of values with ``keys`` into ``target`` as one callable: for a
-    packer's view its generated writer bound to the view's buffer (views never change)."""
-    if isinstance(target, StructView):
-        fn = _compile_puts(target, node, keys)
-        if fn is not None:
-            return functools.partial(fn, target.buf, target.shadow)
-    return functools.partial(put_values, target, node)
 
 
 def puts_once(target: dict[str, Any], node: LayoutNode, key: str,
