@@ -103,60 +103,38 @@ def _write_rows(elems: list[dict[str, Any]], node: LayoutNode, rows: list[dict[s
                 elem[key] = leaf.zero
 
 
-_EXACT = 2.0**53  # ints below this survive float64 exactly
-_MIN_NUMPY = 80  # values per table from which numpy clamps them (measured: numpy's ~17 µs)
-
-
 def write_table(elems: list[dict[str, Any]], node: LayoutNode, rkeys: tuple[str, ...],
                  rows: list[tuple[float, ...]] | FArr, keys: tuple[str, ...]) -> None:
     """:func:`_write_rows` of rows given as tuples in the order of ``rkeys`` (or a float64
-    matrix of such rows): a packer's views take them as one float64 matrix, clamped by numpy and
-    packed by generated code (:func:`_compile_rows`); otherwise the rows become dicts."""
+    matrix of such rows): into a packer's views by a generated writer (:func:`_compile_rows`);
+    otherwise the rows become dicts."""
+    if isinstance(rows, np.ndarray):
+        rows = rows.tolist()
     if elems and isinstance(elems[0], StructView):
         ck = ("table", id(node), rkeys, keys, len(elems))
         got = elems[0].cache.get(ck)
         if got is None or got[0] is not node:
             got = elems[0].cache[ck] = (node, _compile_rows(elems, node, rkeys, keys))
         if got[1] is not None:
-            lo, hi, ints, write, clamp_write = got[1]
-            count = min(len(rows), len(elems))
-            if count * len(rkeys) < _MIN_NUMPY:
-                clamp_write(elems[0].buf, rows[:count])
-                return
-            matrix = np.array(rows[:count], dtype=np.float64).reshape(count, len(rkeys))
-            if count and len(ints):
-                int_columns = matrix[:, ints]
-                if not np.abs(int_columns).max() < _EXACT:  # NaN compares False too
-                    ints = None  # round() would raise, or float64 would not hold the int
-                else:
-                    matrix[:, ints] = np.rint(int_columns)  # round(): half to even
-            if ints is not None:
-                matrix = np.where(lo > matrix, lo, matrix)  # min(max(x, lo), hi), NaN kept
-                write(elems[0].buf, np.where(hi < matrix, hi, matrix).tolist())
-                return
-    if isinstance(rows, np.ndarray):
-        rows = rows.tolist()
+            got[1](elems[0].buf, rows[:len(elems)])
+            return
     _write_rows(elems, node, [dict(zip(rkeys, row, strict=True)) for row in rows], keys)
 
 
 def _compile_rows(elems: list[StructView], node: LayoutNode, rkeys: tuple[str, ...],
-                  keys: tuple[str, ...]) -> tuple[FArr, FArr, Any, Any, Any] | None:
-    """:func:`write_table` into a packer's views: the bounds of the ``rkeys`` columns, the
-    integer ones, and two generated writers that pack rows with one ``pack_into`` per run of
-    adjacent members and zero ``keys`` of the elements past the rows by slices: one for rows
-    numpy has clamped and rounded, one that clamps each value with :meth:`LayoutLeaf.clamp`'s
-    expression. None (the loop runs) for elements not evenly spaced, a bitfield or struct
-    member, a real into an integer or an integer range wider than its wire type."""
+                  keys: tuple[str, ...]) -> Callable[[bytearray, Any], None] | None:
+    """:func:`write_table` into a packer's views: a generated writer that clamps each value
+    with :meth:`LayoutLeaf.clamp`'s expression, packs rows with one ``pack_into`` per run of
+    adjacent members and zeroes ``keys`` of the elements past the rows by slices. None (the
+    loop runs) for elements not evenly spaced, a bitfield or struct member, a real into an
+    integer or an integer range wider than its wire type."""
     first = elems[0]
     count = len(elems)
     stride = elems[1].base - first.base if count > 1 else first.layout.size
     if any(e.base != first.base + k * stride for k, e in enumerate(elems)):
         return None
-    put: list[tuple[int, str, str]] = []  # (offset, struct code, expression)
+    put: list[tuple[int, str, str]] = []  # (offset, struct code, clamped expression)
     zero: list[tuple[int, int]] = []  # (offset, size) of the members zeroed past the rows
-    lo, hi = np.full(len(rkeys), -np.inf), np.full(len(rkeys), np.inf)
-    ints: list[int] = []
-    clamped: list[str] = []  # the expressions of :meth:`LayoutLeaf.clamp`
     env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
     for column, key in enumerate(rkeys + keys):
         leaf = node.members.get(key)
@@ -171,18 +149,12 @@ def _compile_rows(elems: list[StructView], node: LayoutNode, rkeys: tuple[str, .
         if column >= len(rkeys):
             zero.append((slot.offset, slot.st.size))
             continue
-        lo[column], hi[column] = leaf.lo, leaf.hi
-        if not leaf.real:
-            ints.append(column)
-        expr = f"r[{column}]" if leaf.real else f"int(r[{column}])"
-        put.append((slot.offset, slot.st.format[1:], expr))
-        clamped.append(f"float(min(max(r[{column}], L{column}), H{column}))" if leaf.real
-                       else f"int(min(max(round(r[{column}]), L{column}), H{column}))")
+        put.append((slot.offset, slot.st.format[1:],
+                    f"float(min(max(r[{column}], L{column}), H{column}))" if leaf.real
+                    else f"int(min(max(round(r[{column}]), L{column}), H{column}))"))
         env[f"L{column}"], env[f"H{column}"] = leaf.lo, leaf.hi
     env["Z"] = _zero_spans(first.base, stride, count, zero)
-    return (lo, hi, np.array(ints, dtype=np.intp), _rows_writer(first, stride, put, env),
-            _rows_writer(first, stride, [(o, c, e) for (o, c, _), e in zip(put, clamped,
-                                                                            strict=True)], env))
+    return _rows_writer(first, stride, put, env)
 
 
 def _zero_spans(base: int, stride: int, count: int, zero: list[tuple[int, int]]
