@@ -15,8 +15,7 @@ position comes from the :class:`~eyeq_spi.codec.layout.Layout` (hence from ``spe
 hand. Writing a leaf packs it at once, with the errors the reference's encoder would raise
 (:class:`~eyeq_spi.errors.LocalProtocolError`). The fillers' writers in
 :mod:`eyeq_spi.sim.scene_write` notice views: they pack whole rows of an array of structs with
-generated code (the obstacles as numpy columns), bind writers to views once and write constants
-once.
+generated code (the obstacles as numpy columns) and write constants once.
 
 :meth:`DaspPacker.encode` then fills the rolling counters and CRCs (D5, generated from
 ``Layout.crc_plan`` like :func:`eyeq_spi.codec.e2e.compile_verifier`; same order and values as
@@ -93,14 +92,12 @@ def _slots(lay: Layout) -> dict[str, Slot]:
 class StructView:
     """One struct of a :class:`DaspPacker`'s payload, used like its value dict."""
 
-    __slots__ = ("base", "buf", "cache", "done", "kids", "layout", "shadow", "slots", "template",
-                 "writers")
+    __slots__ = ("base", "buf", "cache", "done", "kids", "layout", "shadow", "slots", "template")
 
     def __init__(self, buf: bytearray, lay: Layout, base: int, keep: bool,
                  cache: dict[Any, Any]) -> None:
         self.buf, self.layout, self.base, self.cache = buf, lay, base, cache
         self.template: dict[str, Any] | None = None  # the root's: the reference's template
-        self.writers: dict[Any, Any] = {}  # scene_write._puts' generated writers for this view
         self.done: set[Any] = set()  # scene_write._puts_once: constants written since reset
         key = ("slots", id(lay))
         if key not in cache:

@@ -1,7 +1,7 @@
-"""How the scene's values reach a payload: :func:`put_values` of one struct's members (clamped as
-:meth:`~eyeq_spi.sim.scene_layout.LayoutLeaf.clamp` says; generated writers into a packer's
-views), constants written once per packer (:func:`puts_once`), and arrays of structs as rows
-(:func:`write_table`) or, for the obstacles, numpy columns."""
+"""How the scene's values reach a payload: :func:`put_values` of one struct's members (clamped
+as :meth:`~eyeq_spi.sim.scene_layout.LayoutLeaf.clamp` says), constants written once per packer
+(:func:`puts_once`), and arrays of structs as rows (:func:`write_table`) or, for the obstacles,
+numpy columns."""
 
 from __future__ import annotations
 
@@ -23,14 +23,6 @@ def _put(target: dict[str, Any], node: LayoutNode, key: str, value: float) -> No
 
 
 def put_values(target: dict[str, Any], node: LayoutNode, vals: dict[str, float]) -> None:
-    if isinstance(target, StructView):
-        keys = tuple(vals)
-        got = target.writers.get((id(node), keys))
-        if got is None or got[0] is not node:
-            got = target.writers[(id(node), keys)] = (node, _compile_puts(target, node, keys))
-        if got[1] is not None:
-            got[1](target.buf, target.shadow, vals)
-            return
     for key, value in vals.items():
         _put(target, node, key, value)
 
@@ -48,46 +40,6 @@ def puts_once(target: dict[str, Any], node: LayoutNode, key: str,
         target.done.add(done_key)
         return
     put_values(target, node, make())
-
-
-def _compile_puts(view: StructView, node: LayoutNode, keys: tuple[str, ...]
-                  ) -> Callable[[bytearray, Any, dict[str, float]], None] | None:
-    """:func:`put_values` into ``view`` as generated code: per key the same clamp expression as
-    :meth:`LayoutLeaf.clamp` and a ``pack_into`` at the member's offset from the layout (a bitfield
-    read, masked and written back). None if a key names a struct or an array: the loop runs."""
-    env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
-    body: list[str] = []
-    for index, key in enumerate(keys):
-        leaf = node.members.get(key)
-        if not isinstance(leaf, LayoutLeaf) or key not in view:
-            continue
-        slot = view.slots.get(key)
-        if slot is None or slot.kind not in (SCALAR, BITS):
-            return None
-        env[f"K{index}"], env[f"S{index}"] = key, slot.st
-        env[f"L{index}"], env[f"H{index}"] = leaf.lo, leaf.hi
-        offset = view.base + slot.offset
-        body.append(f"x = float(min(max(v[K{index}], L{index}), H{index}))" if leaf.real
-                    else f"x = int(min(max(round(v[K{index}]), L{index}), H{index}))")
-        if slot.kind == SCALAR:
-            body.append(f"S{index}.pack_into(b, {offset}, x)")
-        else:
-            keep = ((1 << (8 * slot.st.size)) - 1) & ~(slot.mask << slot.lo)
-            body += [f"if not isinstance(x, int) or not 0 <= x <= {slot.mask}:",
-                     f"    raise LocalProtocolError(f'{{K{index}}}: {{x!r}} does not fit "
-                     f"{slot.mask.bit_length()} bit(s)')",
-                     f"S{index}.pack_into(b, {offset}, "
-                     f"S{index}.unpack_from(b, {offset})[0] & {keep} | x << {slot.lo})"]
-        if view.shadow is not None:
-            body.append(f"sh[K{index}] = x")
-    src = ["def _w(b, sh, v):", "    try:"] + [f"        {line}" for line in body or ["pass"]]
-    src += ["    except (StructError, TypeError) as exc:",
-            "        raise LocalProtocolError(",
-            f"            f'{view.layout.name}: cannot encode: {{exc}}') from None"]
-    exec("\n".join(src), env)
-    fn: Callable[[bytearray, Any, dict[str, float]], None] = env["_w"]
-    return fn
-
 
 
 def _write_rows(elems: list[dict[str, Any]], node: LayoutNode, rows: list[dict[str, float]],
