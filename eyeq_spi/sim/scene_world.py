@@ -13,13 +13,8 @@ when far behind or ahead and new ones spawn at once, so the number of objects st
 The road is a clothoid (seed 002 §7.2): curvature is piecewise linear in arc length, drifting
 between straights and gentle curves. Each step fits ``c2 x^2 + c3 x^3`` to the road centre over
 the next 100 m; ``c0``/``c1`` come from the ego's wander inside its lane. Lane markers, borders,
-objects and signs all use that one polynomial, so they agree with each other.
-
-All randomness is drawn in :meth:`Scene.step` from one ``np.random.Generator``; :meth:`Scene.fill`
-only reads state, so the same seed and the same step times give the same payloads. ``fill`` knows
-nothing of the SW version: it recognises the layout from the shape of the value dict and clamps
-each value into the member's declared range and wire type (the intersection over every release
-with that shape).
+objects and signs all use that one polynomial, so they agree with each other. All randomness
+is drawn in :meth:`SceneWorld.step` from one ``np.random.Generator``.
 """
 
 from __future__ import annotations
@@ -82,7 +77,6 @@ class SceneConfig:
     spot_angles_up: bool = True
 
 
-# -- member ranges, recognised from the shape of a value dict ------------------------------------
 class SceneWorld:
     """The world (objects, road, signs) and its dynamics; :class:`eyeq_spi.sim.scene.Scene` adds
     the writer of its DASP payloads."""

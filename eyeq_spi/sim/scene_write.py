@@ -29,9 +29,8 @@ def put_values(target: dict[str, Any], node: LayoutNode, vals: dict[str, float])
 
 def puts_once(target: dict[str, Any], node: LayoutNode, key: str,
                make: Callable[[], dict[str, float]]) -> None:
-    """:func:`put_values` of values that never change (``make()``, the same every call): a packer's
-    view keeps its bytes from frame to frame and no other write touches these members, so they
-    are written once after each reset; a dict gets them every time (the reference)."""
+    """:func:`put_values` of values that never change: a packer's view keeps its bytes from
+    frame to frame, so they are written once after each reset; a dict gets them every time."""
     if isinstance(target, StructView):
         done_key = (id(node), key)
         if done_key in target.done:
@@ -75,11 +74,9 @@ def write_table(elems: list[dict[str, Any]], node: LayoutNode, rkeys: tuple[str,
 
 def _compile_rows(elems: list[StructView], node: LayoutNode, rkeys: tuple[str, ...],
                   keys: tuple[str, ...]) -> Callable[[bytearray, Any], None] | None:
-    """:func:`write_table` into a packer's views: a generated writer that clamps each value
-    with :meth:`LayoutLeaf.clamp`'s expression, packs rows with one ``pack_into`` per run of
-    adjacent members and zeroes ``keys`` of the elements past the rows by slices. None (the
-    loop runs) for elements not evenly spaced, a bitfield or struct member, a real into an
-    integer or an integer range wider than its wire type."""
+    """:func:`write_table` into a packer's views: a generated writer that clamps each value as
+    :meth:`LayoutLeaf.clamp` does, packs rows with one ``pack_into`` per run of adjacent members
+    and zeroes ``keys`` past the rows; None (the loop runs) when the layout does not allow it."""
     first = elems[0]
     count = len(elems)
     stride = elems[1].base - first.base if count > 1 else first.layout.size
