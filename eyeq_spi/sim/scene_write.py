@@ -153,8 +153,8 @@ def _rows_writer(first: StructView, stride: int, put: list[tuple[int, str, str]]
 def write_objects_packed(objs: list[Any], plan: ObjectPlan, fl: FArr, il: IArr,
                          filled: int) -> bool:
     """The object loop of ``Scene._fill_obstacles`` into a packer's views: the same clamped
-    arrays, cast per wire type into one byte array and scattered into the payload bytes at once
-    (slots past ``filled`` get 0). False (nothing written) when the loop must run."""
+    arrays, cast per wire type and scattered into the payload bytes (slots past ``filled`` get
+    0). False (nothing written) when the loop must run."""
     first = objs[0]
     ck = ("objs", id(plan), len(objs))
     got = first.cache.get(ck)
@@ -163,25 +163,26 @@ def write_objects_packed(objs: list[Any], plan: ObjectPlan, fl: FArr, il: IArr,
     compiled = got[1]
     if compiled is None:
         return False
-    u8, groups, check, bitgroups, raw, everywhere = compiled
+    u8, groups, check, bitgroups = compiled
     rows, lo, hi = check
     if filled and len(rows):  # one range check for every integer column (wire type or bit width)
         int_rows = il[rows]
         if (int_rows < lo).any() or (int_rows > hi).any():
             return False  # the encoder would refuse it: let the loop raise
     count = len(objs)
-    for real, rows, scratch in groups:
+    for real, rows, where, scratch in groups:
         scratch[:, :filled] = fl[rows] if real else il[rows]
         if filled < count:
             scratch[:, filled:] = 0
-    for brows, shift, starts, base, scratch in bitgroups:
+        u8[where] = scratch.view(np.uint8).ravel()
+    for brows, shift, starts, base, where, scratch in bitgroups:
         # a container holds the bits the objects do not write as they are (D2 unused bits set)
         if filled < count:
             scratch[:, filled:] = base[:, filled:]
         if filled:
             bits = np.bitwise_or.reduceat(il[brows] << shift, starts, axis=0)
             scratch[:, :filled] = base[:, :filled] | bits
-    u8[everywhere] = raw  # every group's bytes in one scatter
+        u8[where] = scratch.view(np.uint8).ravel()
     return True
 
 
@@ -198,11 +199,8 @@ def _objects_plan(objs: list[StructView], plan: ObjectPlan) -> tuple[Any, ...] |
         return None
     by_type, bits, check = slots
     u8 = np.frombuffer(first.buf, dtype=np.uint8)
-    # each group's values live in one byte array (widest types first: aligned), scattered into
-    # the payload at once by the concatenation of the groups' indices
-    order = sorted(by_type.items(), key=lambda kv: -np.dtype(NP_FMT[kv[0][0]]).itemsize)
     groups = []
-    for (typ, real), cols in order:
+    for (typ, real), cols in by_type.items():
         dt, idx = _byte_index(first, stride, count, typ, [rel for _, rel in cols])
         groups.append((real, np.array([row for row, _ in cols]), idx,
                        np.zeros((len(cols), count), dtype=dt)))
@@ -210,18 +208,7 @@ def _objects_plan(objs: list[StructView], plan: ObjectPlan) -> tuple[Any, ...] |
     bounds = (np.array([row for row, _, _ in check], dtype=np.intp),
               np.array([lo for _, lo, _ in check], dtype=np.float64)[:, None],
               np.array([hi for _, _, hi in check], dtype=np.float64)[:, None])
-    arrays = [g[3] for g in groups] + [b[5] for b in bitgroups]
-    raw = np.zeros(sum(a.nbytes for a in arrays), dtype=np.uint8)
-    views, at = [], 0
-    for array in arrays:
-        views.append(raw[at:at + array.nbytes].view(array.dtype).reshape(array.shape))
-        at += array.nbytes
-    for number, bitgroup in enumerate(bitgroups):  # the containers as the payload holds them
-        views[len(groups) + number][:] = bitgroup[3]
-    everywhere = np.concatenate([g[2] for g in groups] + [b[4] for b in bitgroups])
-    return (u8, [(g[0], g[1], v) for g, v in zip(groups, views, strict=False)], bounds,
-            [(*b[:4], v) for b, v in zip(bitgroups, views[len(groups):], strict=True)], raw,
-            everywhere)
+    return u8, groups, bounds, bitgroups
 
 
 _Bits = dict[int, tuple[str, list[tuple[int, int, int]]]]
