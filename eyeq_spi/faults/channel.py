@@ -1,21 +1,11 @@
 """A seeded lossy SPI channel for the memory pair's fault hook (``MemoryAdapter.mangle``).
 
-Theory of operation
--------------------
-Every transfer one side puts on the wire passes through :meth:`FaultyChannel.__call__`, which
-returns what the peer receives. Per transfer, one fault class is drawn (they are exclusive, so
-that each injected fault maps to exactly one receiver reaction):
-
-- ``drop`` (probability ``profile.drop``): the peer receives nothing;
-- ``duplicate``: the peer receives the transfer twice, back to back;
-- ``reorder``: the transfer is held and delivered right after the next one (which passes clean);
-- ``truncate``: the peer receives the first 1..127 bytes (chip select rose early, L8);
-- otherwise the bits are flipped independently with probability ``profile.ber`` per bit (a
-  geometric gap between flips, so the process is exactly Bernoulli per bit over the run).
-
-Each injection is recorded as an :class:`Injected` with what the receiver must make of it under
-L3/L5/L6/L8, so that a soak can compare that list (``injected``) with the receiver's counters.
-"""
+Per transfer one exclusive fault class is drawn, so that each injected fault maps to exactly one
+receiver reaction: ``drop`` (nothing arrives), ``duplicate`` (twice, back to back), ``reorder``
+(held and delivered right after the next transfer), ``truncate`` (the first 1..127 bytes: chip
+select rose early, L8), otherwise independent bit flips at ``profile.ber`` per bit (geometric
+gaps: exactly Bernoulli per bit over the run). Each injection is recorded as an
+:class:`Injected`, which a soak compares with the receiver's counters (L3/L5/L6/L8)."""
 
 from __future__ import annotations
 
