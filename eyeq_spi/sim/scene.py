@@ -43,7 +43,6 @@ from eyeq_spi.sim.scene_layout import (
     IArr,
     LayoutNode,
     child_struct,
-    clip,
     enum_code,
     frame_index,
     lane_codes,
@@ -110,7 +109,7 @@ class Scene(SceneWorld):
         ttc = np.where((s > 0.0) & (closing > 0.1),
                        np.minimum(s / np.maximum(closing, 0.1), TTC_NONE), TTC_NONE)
         age = self._frame_now - birth + 1
-        conf = clip(0.97 - 0.0015 * a_s + cbias
+        conf = np.clip(0.97 - 0.0015 * a_s + cbias
                     - 0.2 * np.exp(-np.maximum(age, 1) / 6.0), 0.5, 1.0)
         # the standard deviations a + b·|s| (STD) in two numpy steps for all of them: the same
         # multiplication and addition per element as one row at a time
@@ -125,7 +124,7 @@ class Scene(SceneWorld):
         lane = self._lane_index(d)
         lanes = lane_codes()
         lane_code = np.where(np.abs(lane) > 2, enum_code("object_lane_assignment", "UNKNOWN", 3),
-                             lanes[clip(lane, -2, 2) + 2])
+                             lanes[np.clip(lane, -2, 2) + 2])
         vehicle = kind <= ONCOMING
         cipv = np.where(vehicle | (kind == CYCLIST), enum_code("object_is_cipv", "no_CIPV", 1),
                         enum_code("object_is_cipv", "not_relevant", 0))
@@ -242,8 +241,8 @@ class Scene(SceneWorld):
         count = min(floats.shape[1], len(objs))
         ints = ints[:, :count].copy()
         ints[AGE_ROW] = np.maximum(frame_index(now) - birth[:count] + 1, 1)
-        fa = clip(floats[:, :count], plan.flo[:, None], plan.fhi[:, None])
-        ia = clip(ints, plan.ilo[:, None], plan.ihi[:, None])
+        fa = np.clip(floats[:, :count], plan.flo[:, None], plan.fhi[:, None])
+        ia = np.clip(ints, plan.ilo[:, None], plan.ihi[:, None])
         if isinstance(objs[0], StructView) and write_objects_packed(objs, plan, fa, ia, count):
             return
         fl, il = fa.tolist(), ia.tolist()

@@ -4,7 +4,6 @@ declared range and wire type (split out of :mod:`eyeq_spi.sim.scene`)."""
 
 from __future__ import annotations
 
-import importlib
 import math
 from dataclasses import dataclass
 from functools import cache
@@ -14,6 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from eyeq_spi.catalog.messages import Catalog, Member, SwKey, catalog
+from eyeq_spi.codec.layout import INT_RANGE
 from eyeq_spi.errors import SpecError
 from eyeq_spi.sim.dasp_fast import StructView
 
@@ -58,12 +58,8 @@ SIGNS: tuple[tuple[str, float], ...] = (
 
 
 _F32_MAX = 3.4028234663852886e38
-_INT64 = (-(1 << 63), (1 << 63) - 1)
-_WIRE = {
-    "uint8": (0, 0xFF), "uint16": (0, 0xFFFF), "uint32": (0, 0xFFFFFFFF),
-    "uint64": (0, 0xFFFFFFFFFFFFFFFF), "int8": (-0x80, 0x7F), "int16": (-0x8000, 0x7FFF),
-    "int32": (-0x80000000, 0x7FFFFFFF), "int64": _INT64, "bool": (0, 1),
-}
+_INT64 = INT_RANGE["int64"]
+_WIRE = {**INT_RANGE, "bool": (0, 1)}  # a bool member holds 0 or 1
 _REAL = ("real32", "real64")
 
 
@@ -323,19 +319,6 @@ def motion_tables() -> IArr:
 
 BIT_WEIGHTS = np.array([1 << k for k in range(MOTION_BITS)], dtype=np.int64)
 
-
-def _clip_ufunc() -> Any:
-    """numpy's ``clip`` ufunc, which ``np.clip`` of a float array (or with bounds inside an
-    integer array's type) ends in, without its Python wrapper (a few microseconds a call)."""
-    for mod in ("numpy._core.umath", "numpy.core.umath"):
-        try:
-            return importlib.import_module(mod).clip
-        except (ImportError, AttributeError):
-            continue
-    return np.clip  # pragma: no cover
-
-
-clip = _clip_ufunc()
 
 
 def frame_index(time_s: float) -> int:

@@ -51,7 +51,6 @@ from eyeq_spi.sim.scene_layout import (
     IArr,
     LayoutNode,
     ObjectPlan,
-    clip,
     cumtrapz,
     enum_code,
     frame_index,
@@ -379,13 +378,13 @@ class SceneWorld:
         hurry = (self._lane_index(d) == 0) & (s > 0.0) & (vx < self._v + 1.0)
         a_max, headway = np.where(hurry, 2.5, 1.2), np.where(hurry, 0.9, 1.3)
         s_star = 3.0 + np.maximum(0.0, headway * v + v * (v - v_lead) / (2 * np.sqrt(a_max * 2.0)))
-        a_idm = clip(a_max * (1 - (v / v0) ** 4 - (s_star / np.maximum(gap, 0.5)) ** 2), -6, 2.5)
+        a_idm = np.clip(a_max * (1 - (v / v0) ** 4 - (s_star / np.maximum(gap, 0.5)) ** 2), -6, 2.5)
         a_idm = np.maximum(a_idm, -v / max(h, 1e-3))  # stop, never reverse
-        ax = np.where(kind == VEHICLE, a_idm, clip(
+        ax = np.where(kind == VEHICLE, a_idm, np.clip(
             np.where(kind == ONCOMING, 0.3, 0.5) * (self._vdes - vx), -1.0, 1.0))
         err = self._dtgt - d
-        ay = np.where(kind <= ONCOMING, clip(0.8 * err - 1.6 * vy, -1.5, 1.5),
-                      clip(0.5 * err - 1.0 * vy, -0.5, 0.5))
+        ay = np.where(kind <= ONCOMING, np.clip(0.8 * err - 1.6 * vy, -1.5, 1.5),
+                      np.clip(0.5 * err - 1.0 * vy, -0.5, 0.5))
         self._ax = np.where(alive, ax, 0.0)
         self._ay = np.where(alive, ay, 0.0)
 
