@@ -234,9 +234,7 @@ class Scene(SceneWorld):
         objs, elem = struct_elements(*vis, "visObs")
         if not objs:
             return
-        plan = self._plans.get(id(elem))
-        if plan is None:
-            plan = self._plans[id(elem)] = obj_plan(elem)
+        plan = obj_plan(elem)
         floats, ints, birth = self._columns()
         count = min(floats.shape[1], len(objs))
         ints = ints[:, :count].copy()

@@ -79,7 +79,7 @@ class LayoutLeaf:
         return 0.0 if self.real else 0
 
 
-@dataclass
+@dataclass(eq=False)  # a node is itself (hashable by identity): range trees live for the process
 class LayoutNode:
     members: dict[str, LayoutNode | LayoutLeaf]
     count: int | None = None  # element count when the member is an array of structs
@@ -261,6 +261,7 @@ def _resolve(node: LayoutNode, path: tuple[str | int, ...], key: str) -> LayoutL
     return leaf if isinstance(leaf, LayoutLeaf) else None
 
 
+@cache
 def obj_plan(elem: LayoutNode) -> ObjectPlan:
     flo, fhi = np.full(len(_OBJ_F), -np.inf), np.full(len(_OBJ_F), np.inf)
     ilo, ihi = np.full(len(_OBJ_I), _INT64[0]), np.full(len(_OBJ_I), _INT64[1])
@@ -378,14 +379,11 @@ PAIR_LAMPS = tuple(c[0] not in ("bike", "bicycle") for c in CLASSES)
 TRUCK = next(k for k, c in enumerate(CLASSES) if c[0] == "truck")
 BORDER_OFFSET = {"leftRoadBorder": 3 * HALF_LANE + 0.8, "rightRoadBorder": -3 * HALF_LANE - 0.6}
 PX = np.array([[-FOCAL_PX], [-FOCAL_PX], [FOCAL_PX]])  # the image rows' factors
-_STRUCTS: dict[int, tuple[LayoutNode, list[tuple[str, LayoutNode]]]] = {}
 
 
+@cache
 def struct_members(node: LayoutNode) -> list[tuple[str, LayoutNode]]:
     """The members of ``node`` that are one struct (not an array of them): where
-    :meth:`Scene.fill` writes a header too. Kept per node (range trees live for the process)."""
-    got = _STRUCTS.get(id(node))
-    if got is None or got[0] is not node:
-        got = _STRUCTS[id(node)] = (node, [(k, sub) for k, sub in node.members.items()
-                                        if isinstance(sub, LayoutNode) and sub.count is None])
-    return got[1]
+    :meth:`Scene.fill` writes a header too."""
+    return [(k, sub) for k, sub in node.members.items()
+            if isinstance(sub, LayoutNode) and sub.count is None]

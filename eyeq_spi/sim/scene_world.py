@@ -50,7 +50,6 @@ from eyeq_spi.sim.scene_layout import (
     FArr,
     IArr,
     LayoutNode,
-    ObjectPlan,
     cumtrapz,
     enum_code,
     frame_index,
@@ -121,7 +120,6 @@ class SceneWorld:
             self._spawn(initial=True, first=index == 0)
         self._update_road(None, 0.0)
         self._cols: tuple[FArr, IArr, IArr] | None = None
-        self._plans: dict[int, ObjectPlan] = {}
         # per message: the value dict or view last filled, its range tree and its filler's name
         self._nodes: dict[str, tuple[dict[str, Any], LayoutNode | None, str]] = {}
 
