@@ -238,7 +238,7 @@ AGE_ROW = _OBJ_I.index(((), "age"))
 Group = tuple[tuple[str | int, ...], list[tuple[str, bool, int]]]
 
 
-@dataclass
+@dataclass(eq=False)
 class ObjectPlan:
     flo: FArr
     fhi: FArr

@@ -62,12 +62,11 @@ def write_table(elems: list[dict[str, Any]], node: LayoutNode, rkeys: tuple[str,
     if isinstance(rows, np.ndarray):
         rows = rows.tolist()
     if elems and isinstance(elems[0], StructView):
-        ck = ("table", id(node), rkeys, keys, len(elems))
-        got = elems[0].cache.get(ck)
-        if got is None or got[0] is not node:
-            got = elems[0].cache[ck] = (node, _compile_rows(elems, node, rkeys, keys))
-        if got[1] is not None:
-            got[1](elems[0].buf, rows[:len(elems)])
+        cache, key = elems[0].cache, ("table", node, rkeys, keys, len(elems))
+        if key not in cache:
+            cache[key] = _compile_rows(elems, node, rkeys, keys)
+        if cache[key] is not None:
+            cache[key](elems[0].buf, rows[:len(elems)])
             return
     _write_rows(elems, node, [dict(zip(rkeys, row, strict=True)) for row in rows], keys)
 
@@ -156,11 +155,10 @@ def write_objects_packed(objs: list[Any], plan: ObjectPlan, fl: FArr, il: IArr,
     arrays, cast per wire type and scattered into the payload bytes (slots past ``filled`` get
     0). False (nothing written) when the loop must run."""
     first = objs[0]
-    ck = ("objs", id(plan), len(objs))
-    got = first.cache.get(ck)
-    if got is None or got[0] is not plan:
-        got = first.cache[ck] = (plan, _objects_plan(objs, plan))
-    compiled = got[1]
+    key = ("objs", plan, len(objs))
+    if key not in first.cache:
+        first.cache[key] = _objects_plan(objs, plan)
+    compiled = first.cache[key]
     if compiled is None:
         return False
     u8, groups, check, bitgroups = compiled
