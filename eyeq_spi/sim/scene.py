@@ -1,12 +1,9 @@
 """A seeded, reproducible driving scene that fills the simulated EyeQ's DASP payloads (§7.1.4).
 
-The world and its dynamics (road, objects, signs, the step) are :class:`SceneWorld` in
-:mod:`eyeq_spi.sim.scene_world`; this module adds what the EyeQ reports of it: the object columns
-and :meth:`Scene.fill`, which writes one DASP message's values. ``fill`` only reads state, so the
-same seed and the same step times give the same payloads. It knows nothing of the SW version: it
-recognises the layout from the shape of the value dict and clamps each value into the member's
-declared range and wire type (the intersection over every release with that shape).
-"""
+:class:`Scene` adds to the world of :mod:`eyeq_spi.sim.scene_world` what the EyeQ reports of it.
+:meth:`Scene.fill` only reads state, so the same seed and step times give the same payloads, and
+knows nothing of the SW version: it recognises the layout from the shape of the value dict and
+clamps each value into the member's declared range and wire type."""
 
 from __future__ import annotations
 
@@ -203,10 +200,11 @@ class Scene(SceneWorld):
         if node is None:
             return
         now = float(now)
-        self._fill_header(values, node, now)
+        header = self._header_values(now)  # the same for every header of one instant
+        put_values(values, node, header)
         for key, sub in struct_members(node):
             if isinstance(values.get(key), dict | StructView):
-                self._fill_header(values[key], sub, now)
+                put_values(values[key], sub, header)
         getattr(self, last[2])(values, node, now)
 
     def _header_values(self, now: float) -> dict[str, float]:
@@ -219,10 +217,6 @@ class Scene(SceneWorld):
                 "timestamp_us": max(0, round(now * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
                 "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
         return last[2]
-
-    def _fill_header(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
-        # the same values for every header of one instant
-        put_values(values, node, self._header_values(now))
 
     def _fill_nothing(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         """Headers only (EYEQ_SAFETY_MSG: no safety fault, no challenge)."""
