@@ -18,6 +18,7 @@ from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 
 CRC_COVERED_CONTROL = 6  # L3: an ACK/NAK's CRC covers bytes 0..3; bytes 4..5 are the CRC itself
 KINDS = ("flip", "drop", "duplicate", "reorder", "truncate")
+FRAME_NAMES = {kind.value: kind.name for kind in FrameKind}
 
 
 @dataclass(frozen=True)
@@ -160,22 +161,17 @@ class FaultyChannel:
 
     # -- bookkeeping ------------------------------------------------------------------------
     def _kind(self, transfer: bytes) -> str:
-        if len(transfer) != FRAME_SIZE:
-            return "?"
-        d = self.codec.unpack_header(int.from_bytes(transfer[:4], "little"))[0]
-        try:
-            return FrameKind(d).name
-        except ValueError:
-            return "?"
+        return self._header(transfer)[0] if len(transfer) == FRAME_SIZE else "?"
+
+    def _header(self, transfer: bytes) -> tuple[str, int, int]:
+        """D (as the frame kind's name, ``?`` if none), RSP and NUM of a transfer."""
+        d, _, rsp, num = self.codec.unpack_header(int.from_bytes(transfer[:4], "little"))
+        return FRAME_NAMES.get(d, "?"), rsp, num
 
     def _note(self, index: int, kind: str, transfer: bytes, *, bits: tuple[int, ...] = (),
               length: int = FRAME_SIZE, crc_covered: bool = False, after: str | None = None
               ) -> None:
-        d, _, rsp, num = self.codec.unpack_header(int.from_bytes(transfer[:4], "little"))
-        try:
-            frame = FrameKind(d).name
-        except ValueError:
-            frame = "?"
+        frame, rsp, num = self._header(transfer)
         self.injected.append(Injected(index, kind, frame, num, rsp, bits, length, crc_covered,
                                       after))
         self.stats.injected[kind] += 1
