@@ -63,9 +63,6 @@ __all__ = ["CLASSES", "Scene", "SceneConfig", "SceneWorld"]
 class Scene(SceneWorld):
     """The world (objects, road, signs) and the writer of its DASP payloads."""
 
-    _signs_seen: tuple[object, tuple[IArr, FArr]] | None = None
-    _header: tuple[float, int, dict[str, float]] | None = None  # the last header's values
-
     def _after_step(self) -> None:
         self._columns()  # the vectorised part of filling EYEQ_VIS_OBSTACLES_MSG
 
@@ -208,15 +205,11 @@ class Scene(SceneWorld):
         getattr(self, last[2])(values, node, now)
 
     def _header_values(self, now: float) -> dict[str, float]:
-        """The values of every header of instant ``now`` (kept for the next message)."""
-        last = self._header
-        if last is None or last[0] != now or last[1] != self._veh_index:
-            frame = frame_index(now)
-            last = self._header = (now, self._veh_index, {
-                "timestamp_ms": int(now * 1000) & 0xFFFFFFFF,
+        """The values of every header of instant ``now``."""
+        frame = frame_index(now)
+        return {"timestamp_ms": int(now * 1000) & 0xFFFFFFFF,
                 "timestamp_us": max(0, round(now * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
-                "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
-        return last[2]
+                "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF}
 
     def _fill_nothing(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         """Headers only (EYEQ_SAFETY_MSG: no safety fault, no challenge)."""
@@ -347,16 +340,10 @@ class Scene(SceneWorld):
             "laneChange": enum_code("road_lane_change", "No lane change", 0)})
 
     def _visible_signs(self) -> tuple[IArr, FArr]:
-        """Signs ahead, nearest first, and their lateral distances; once per step (both sign
-        messages read it; ``_lateral`` is elementwise arithmetic, the same per sign or at once)."""
-        cached = self._signs_seen
-        if cached is not None and cached[0] is self._cols and cached[0] is not None:
-            return cached[1]
+        """Signs ahead, nearest first, and their lateral distances."""
         idx = (self._sg_alive & (self._sg_s > 0.0)).nonzero()[0]
         idx = idx[self._sg_s[idx].argsort(kind="stable")]
-        out = (idx, self._lateral(self._sg_s[idx], self._sg_lat[idx]))
-        self._signs_seen = (self._cols, out)
-        return out
+        return idx, self._lateral(self._sg_s[idx], self._sg_lat[idx])
 
     def _fill_signs(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         tsr = child_struct(values, node, "tsrInfo")
