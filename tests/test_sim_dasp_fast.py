@@ -123,10 +123,9 @@ def test_slots_emptied_between_frames_are_cleared_as_the_reference_clears_them(s
     twins.compare([0.5, 1.0])
     for kill in (slice(0, None, 2), slice(None)):
         for scene in twins.scenes:
-            scene._alive[kill] = False
-            scene._sg_alive[kill] = False
-            scene._cols = None
-            scene._after_step()
+            scene.world.alive[kill] = False
+            scene.world.sg_alive[kill] = False
+            scene._cols = None  # the obstacle columns again, from the world as it now is
         ref, packed = twins.messages_at(1.0, 0)
         assert ref == packed
 
