@@ -13,9 +13,7 @@ from hypothesis import strategies as st
 
 from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.dasp_fast import DaspPacker
-from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.sim.scene import Scene
 from eyeq_spi.sim.scene_layout import (
     ONCOMING,
@@ -29,6 +27,7 @@ from eyeq_spi.sim.scene_layout import (
 )
 from eyeq_spi.sim.scene_layout import layout_node_for as node_for
 from eyeq_spi.sim.scene_write import write_table
+from tests.test_sim_dasp_fast import Twins
 
 pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
@@ -111,19 +110,16 @@ def test_full_tables_of_extreme_values_then_fewer_rows(sw: str, table: Any,
 def test_the_road_writes_its_constants_again_after_a_reset(sw: str) -> None:
     """The road's constants are written once per packer; after the packer's reset (zeros)
     they are written again, as the reference's fresh template gets them."""
-    ref = SimulatedEyeQ(SimConfig(sw=sw, seed=4, objects=15, dasp_packer=False))
-    new = SimulatedEyeQ(SimConfig(sw=sw, seed=4, objects=15, dasp_packer=True))
-    m = ref.codec.cat.message("EYEQ_VIS_ROAD_DATA_MSG")
+    twins = Twins(sw, seed=4, objects=15)
+    road = "EYEQ_VIS_ROAD_DATA_MSG"
     for k in range(6):
         t = 1.0 + k / 18
-        for sim in (ref, new):
-            sim.scene.step(t)
+        twins.step(t)
         if k == 3:
-            packer = new._packer(m)
-            assert packer is not None
-            packer.reset()
-            ref._templates.pop(m.name, None)
-        assert ref._dasp_bytes(m, k, t) == new._dasp_bytes(m, k, t), k
+            twins.packers[road].reset()
+            twins.values[road] = twins.codec.layout(twins.codec.cat.message(road)).zero_values()
+        ref, packed = twins.messages_at(t, k)
+        assert ref == packed, k
 
 
 def _motion_reference(s: float, vx: float, vy: float, vrel: float, lane: int, kind: int,
