@@ -134,6 +134,9 @@ class SimulatedEyeQ:
         self._dasp_counter: Counter[int] = Counter()
         self._rx_counter = DaspCounters()
         self._templates: dict[str, dict[str, Any]] = {}
+        self._dasp_sent = [  # the DASP messages it sends, in every mode
+            m for m in self.codec.cat.messages
+            if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw)]
         self._dasp_msgs: dict[str, list[MessageDef]] = {}  # mode -> the DASP messages it sends
         self._scene_frame: int | None = None  # the camera frame the scene was last stepped to
         self._dasp_min = 0.0  # min(_next_dasp.values()) when _next_dasp is not empty
@@ -156,28 +159,26 @@ class SimulatedEyeQ:
         self._last_veh: float | None = None
         self.running_since: float | None = None  # first Running Vision of this power-up
         host_struct = self.codec.cat.structs.get("host_vehicle_state_t")
-        self._veh_ranges: dict[str, tuple[float, float]] = {}
-        if host_struct is not None:
-            var = host_struct.variant_for(self.sw)
-            for member in (var.members if var is not None else ()):
-                if member.min is not None and member.max is not None:
-                    self._veh_ranges[member.name] = (float(member.min), float(member.max))
+        var = host_struct.variant_for(self.sw) if host_struct is not None else None
+        self._veh_ranges = {  # §7.1.2.2: the signals' declared ranges
+            member.name: (float(member.min), float(member.max))
+            for member in (var.members if var is not None else ())
+            if member.min is not None and member.max is not None}
 
     def warm_up(self) -> None:
         """Build every template and codec path once before real time starts: the first message
         of each kind costs milliseconds, enough for the peer's 10 ms ackTimeout to expire."""
         e2e = E2EState()
-        for msg in self.codec.cat.messages:
-            if msg.protocol == "DASP" and msg.direction == "e2h" and msg.exists_in(self.sw):
-                values = dict(self._template(msg.name, msg.payload))
-                self.scene.step(0.0, *self._ego)
-                self._fill(msg.name, values, 0.0)
-                self.codec.decode(self.codec.encode_dasp(msg.name, values, 0, e2e))
-                packer = self._packer(msg)
-                if packer is not None:
-                    self._fill(msg.name, packer.root, 0.0)  # type: ignore[arg-type]
-                    packer.encode(0, e2e)
-                    packer.reset()  # as the templates: the first real message starts from zeros
+        for msg in self._dasp_sent:
+            values = dict(self._template(msg.name, msg.payload))
+            self.scene.step(0.0, *self._ego)
+            self._fill(msg.name, values, 0.0)
+            self.codec.decode(self.codec.encode_dasp(msg.name, values, 0, e2e))
+            packer = self._packer(msg)
+            if packer is not None:
+                self._fill(msg.name, packer.root, 0.0)  # type: ignore[arg-type]
+                packer.encode(0, e2e)
+                packer.reset()  # as the templates: the first real message starts from zeros
         self.server.codec.warm_up()  # MESP requests we read, replies we send
         self.codec.mesp.warm_up()
         self._templates.clear()
@@ -435,10 +436,7 @@ class SimulatedEyeQ:
             return
         msgs = self._dasp_msgs.get(mode)
         if msgs is None:
-            msgs = self._dasp_msgs[mode] = [
-                m for m in self.codec.cat.messages
-                if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw)
-                and mode in m.modes]
+            msgs = self._dasp_msgs[mode] = [m for m in self._dasp_sent if mode in m.modes]
         rate = self.config.dasp_rate
         period = 1.0 / rate
         if not self._next_dasp:
