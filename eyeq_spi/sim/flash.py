@@ -100,20 +100,10 @@ def flash_sizes_mb() -> tuple[int, ...]:
 @cache
 def flash_regions(size_mb: int) -> tuple[FlashRegion, ...]:
     """APPENDIX F for one flash size, sorted by address and checked to tile inside the flash."""
-    regions = sorted(
-        (
-            FlashRegion(
-                name=str(r["name"]),
-                start=int(r["start"]),
-                size=int(r["size"]),
-                description=str(r.get("description", "")),
-                seed_line=r.get("seed_line"),
-            )
-            for r in _flash_map().get("regions", ())
-            if int(r.get("flash_mb", 0)) == size_mb
-        ),
-        key=lambda r: r.start,
-    )
+    regions = sorted((FlashRegion(str(r["name"]), int(r["start"]), int(r["size"]),
+                                  str(r.get("description", "")), r.get("seed_line"))
+                      for r in _flash_map().get("regions", ())
+                      if int(r.get("flash_mb", 0)) == size_mb), key=lambda r: r.start)
     total = size_mb * MIB
     pos = 0
     for region in regions:
