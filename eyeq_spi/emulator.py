@@ -54,11 +54,13 @@ def build(
     keep_rx_times: bool = True,
 ) -> Emulation:
     sim = SimulatedEyeQ(sim_config)
+    made: list[Emulation] = []
 
     def reset_line(now: float) -> None:
-        # the host acts on the EyeQ: the runner must ask both afresh
+        # the host acts on the EyeQ: whatever runner drives them must ask both afresh
         sim.power_up(now)
-        runner.touch_all()
+        for emu in made:
+            emu.runner.touch_all()
 
     host = HostEmulator(host_config, nvm=nvm, scenario=scenario, reset_line=reset_line,
                         keep_rx_times=keep_rx_times)
@@ -67,7 +69,8 @@ def build(
     runner = VirtualRunner([(host, host_end), (sim, sim_end)], tap=tap, self_contained=HOST_ALONE)
     sim.power_up(0.0)
     host.start(0.0)
-    return Emulation(host, sim, runner)
+    made.append(Emulation(host, sim, runner))
+    return made[0]
 
 
 def summary(emu: Emulation, *, interrupted: bool = False) -> dict[str, Any]:
