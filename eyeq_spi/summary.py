@@ -390,10 +390,10 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
         "transitions": [],
         "mesp": {"requests": 0, "retries": None, "timeouts": 0, "abandoned": None,
                  "stale_replies": None},
-        "state": f"0x{sim.main_state:02X}", "running_vision_since": None,
+        "state": f"0x{sim.main_state:02X}",
         "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
                      "eyeqSwVersionMinor": sim.sw_version[1]},
-        "boot": {"boots": 0}, "scheduling": scheduling, "link_lost": None,
+        "boot": {"boots": 0}, "scheduling": scheduling,
     }
     for sess in sessions:
         hist.update(sess.pop("_ack_hist", Counter()))
@@ -424,7 +424,7 @@ def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cp
     naks = sum(replay["host_naks"].values())
     unanswered = replay["played"] - replay["host_acks"] - naks
     summary: dict[str, Any] = {
-        "side": "replay", "address": address, "state": None, "sw": replay.get("sw"),
+        "side": "replay", "address": address, "sw": replay.get("sw"),
         "elapsed_s": round(wall, 6), "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
         "connections": connections, "interrupted": interrupted,
         "received": replay["host_messages"], "sent": sent, "link": link,
@@ -434,11 +434,9 @@ def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cp
         "mesp": {"requests": None, "retries": None, "timeouts": None, "abandoned": None,
                  "stale_replies": None},
         "eyeq_resets": replay["reset_line_pulls"],
-        "eyeq_reset_causes": reset_causes(replay["reset_line_pulls"], 0),
-        "versions": None, "boot": None,
-        "transitions": [], "running_vision_since": None, "link_lost": link_lost,
-        "scheduling": scheduling, "replay": replay,
-    }
+        "eyeq_reset_causes": reset_causes(replay["reset_line_pulls"], 0), "transitions": [],
+        "link_lost": link_lost, "scheduling": scheduling, "replay": replay,
+    }  # state, versions, boot, running_vision_since: none to report (null)
     first = None
     if interrupted:
         first = "interrupted"
