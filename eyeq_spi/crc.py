@@ -55,11 +55,9 @@ def _crc_hqx_ccitt_false(data: bytes) -> int:
 
 
 def make_crc(variant: CrcVariant = CCITT_FALSE, *, engine: str = "auto") -> CrcFunction:
-    """Return a ``bytes -> int`` CRC function for ``variant``.
-
-    ``engine`` is ``"binascii"`` (CCITT-FALSE only), ``"crcmod"`` or ``"auto"`` (binascii where it
-    applies, else crcmod). Asking for crcmod when its C extension is missing warns once.
-    """
+    """A ``bytes -> int`` CRC function for ``variant``; ``engine`` is ``"binascii"``
+    (CCITT-FALSE only), ``"crcmod"`` or ``"auto"`` (binascii where it applies, else crcmod).
+    Asking for crcmod without its C extension warns."""
     if engine not in ("auto", "binascii", "crcmod"):
         raise ValueError(f"unknown CRC engine {engine!r}")
     hqx_ok = (variant.poly, variant.init, variant.reflect, variant.xorout) == (

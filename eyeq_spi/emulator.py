@@ -32,16 +32,6 @@ class Emulation:
     # paced from it, so the run keeps up with the clock over its whole length
     pace_origin: tuple[float, float] | None = None
 
-    @property
-    def running_since(self) -> float | None:
-        """When the host entered Running Vision (None while outside it)."""
-        return self.vision.since
-
-    @property
-    def left_running(self) -> list[float]:
-        """Every time the host left Running Vision."""
-        return self.vision.left
-
     def run_for(self, seconds: float, *, realtime: bool = False,
                 stop: Callable[[], bool] | None = None) -> None:
         """Advance ``seconds`` of simulated time in 10 ms slices, tracking Running Vision."""
@@ -88,6 +78,6 @@ def summary(emu: Emulation, *, interrupted: bool = False) -> dict[str, Any]:
     from eyeq_spi.summary import host_summary
 
     return host_summary(emu.host, side="demo", elapsed=emu.runner.now, wall=emu.runner.wall_s,
-                        cpu=emu.runner.cpu_s, running_since=emu.running_since,
-                        left_running=emu.left_running, interrupted=interrupted,
+                        cpu=emu.runner.cpu_s, running_since=emu.vision.since,
+                        left_running=emu.vision.left, interrupted=interrupted,
                         eyeq=emu.sim)

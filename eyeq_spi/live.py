@@ -1,8 +1,6 @@
-"""The live runs in real time over a real adapter: :func:`serve` (the simulated EyeQ serving one
-host after another, ``eyeq-spi sim``) and :func:`drive` (the host emulator against an EyeQ,
-``eyeq-spi host``). Each returns one run summary in the schema of :mod:`eyeq_spi.summary`, the
-same that ``demo`` and ``replay`` print. Ctrl-C (``KeyboardInterrupt``) ends a run cleanly:
-the summary says ``interrupted``."""
+"""The live runs in real time over a real adapter: :func:`serve` (``eyeq-spi sim``) and
+:func:`drive` (``eyeq-spi host``), each returning one run summary (:mod:`eyeq_spi.summary`).
+Ctrl-C ends a run cleanly: the summary says ``interrupted``."""
 
 from __future__ import annotations
 
@@ -43,8 +41,7 @@ def capture_tap(writer: Any, start: float, tx: str, rx: str) -> Tap | None:
 
 def _heard(sim: SimulatedEyeQ, tap: Tap | None) -> tuple[Tap, list[int | None]]:
     """A tap that notes the link's send failures whenever the host is heard (then calls
-    ``tap``), and the cell it notes them in: what failed after the host was last heard went to
-    a host that was gone (:meth:`SimSessions.add`)."""
+    ``tap``), and the cell it notes them in (:meth:`SimSessions.add`)."""
     cell: list[int | None] = [None]
 
     def noted(kind: str, at: float, transfer: bytes) -> None:
@@ -58,11 +55,9 @@ def _heard(sim: SimulatedEyeQ, tap: Tap | None) -> tuple[Tap, list[int | None]]:
 def serve(eyeq: SimulatedEyeQ, adapter: Any, *, duration: float | None, accept_timeout: float,
           address: str, rt_priority: int = 0, capture: Any = None,
           clock: Callable[[], float] = time.monotonic) -> dict[str, Any]:
-    """Serve one host after another on ``adapter`` (a listener or a pty) until ``duration`` s
-    end (None: until interrupted), or ``accept_timeout`` s pass without any host. One EyeQ for
-    the whole run: every connection powers it up again (a new boot, counted against its boot
-    failures), as the reset line would. ``capture``: a writer of both channels. Closes
-    ``adapter`` and ``capture``."""
+    """Serve one host after another on ``adapter`` until ``duration`` s end (None: until
+    interrupted) or ``accept_timeout`` s pass without any host; every connection powers ``eyeq``
+    up again, as the reset line would. Closes ``adapter`` and ``capture``."""
     t0, cpu0 = clock(), time.process_time()
     end = None if duration is None else t0 + duration
     sim: SimulatedEyeQ | None = None
@@ -127,16 +122,11 @@ def drive(host: HostEmulator, adapter: Any, *, duration: float, address: str,
           rt_priority: int = 0, capture: Any = None,
           attach: Callable[[Any], Any] | None = None,
           on_step: Callable[[HostEmulator, float], None] | None = None) -> dict[str, Any]:
-    """Run ``host`` against the EyeQ on ``adapter`` for ``duration`` s, and judge it: Running
-    Vision reached and held. ``reopen_adapter(until)``: when the link is lost, a new adapter
-    (None: give up), and the bring-up runs again on it; without it a lost link ends the run.
-    A host that gives up (FAILED, BOOT_FAILED) stays connected and quiet (§7.1.3 step 6: the
-    unit is failed for this ignition cycle) until the link is lost or ``duration`` ends; with
-    ``reopen_adapter`` the next connection is its next ignition cycle
-    (:meth:`HostEmulator.link_restarted`).
-    ``exit_when_running``: stop as soon as Running Vision is reached. ``attach(runner)``: a CAN
-    output put on the runner (its ``summary()`` joins the result as ``can``; closed at the end).
-    ``on_step(host, t)``: after every step, ``t`` seconds since the start (a live view).
+    """Run ``host`` against the EyeQ on ``adapter`` for ``duration`` s and judge it (Running
+    Vision reached and held). ``reopen_adapter(until)``: a new adapter when the link is lost (None:
+    give up), on which the bring-up runs again (a host that gave up starts its next ignition
+    cycle). ``exit_when_running``: stop once in Running Vision. ``attach(runner)``: a CAN output
+    (its ``summary()`` joins the result as ``can``). ``on_step(host, t)``: after every step.
     Closes ``adapter`` and ``capture`` and saves the host's NVM."""
     runner = RealTimeRunner(host, adapter)
     runner.tap = capture_tap(capture, runner.clock(), "h2e", "e2h")

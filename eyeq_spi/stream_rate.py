@@ -1,15 +1,8 @@
 """The one definition of a stream's rate, for ``dissect --stats``, ``monitor``, ``plot`` and
-``conformance`` (docs/dissector.md, "Rates"). Stateless: a function of the times a stream's
-messages were seen.
-
-A stream's rate is taken over its active spans only. Between two messages, a period longer
-than :data:`GAP_FACTOR` times the stream's median period is a gap (an EyeQ reset at bring-up,
-a mode switch, a stall): it ends one span and starts the next, and is reported as a gap, not
-averaged into the rate. The rate is the number of periods inside spans over their total
-duration. Four median periods: a stream that misses one, two or three messages in a row is
-still running (a late or lost message is a fault of the stream the rate should show), while a
-restart (the EyeQ's boot takes well over a second against periods of 15-100 ms) is not.
-"""
+``conformance`` (docs/dissector.md, "Rates"): a function of the times a stream's messages were
+seen, over its active spans only. A period longer than :data:`GAP_FACTOR` median periods is a
+gap (an EyeQ reset, a mode switch, a stall), reported apart rather than averaged into the rate;
+a stream that misses up to three messages in a row is still running."""
 
 from __future__ import annotations
 

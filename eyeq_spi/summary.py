@@ -1,25 +1,14 @@
 """One closing summary for every run: ``demo``, ``host``, ``sim`` and ``replay`` print the same
-JSON object (the same keys, :data:`KEYS`), with ``ok`` false and ``problem`` naming the first
-cause whenever data was lost or corrupted or a deadline was missed (docs/emulator.md, "Run
-summaries", describes every field).
-
-- ``received`` and ``sent`` are apart: what this side received from its peer and what it sent,
-  per message name (MESP requests or replies as ``MESP``).
-- ``sim`` serves one host after another: ``sessions`` holds one object per host served (the
-  same fields as the totals, for that host only), the top level holds the totals over all of
-  them (counts summed; state, versions and boot of the last).
-- A MESP reply that never came is a timeout on every side that can know it (M6): the host
-  counts its deadline expiries; the simulated EyeQ counts the replies it dropped or sent past
-  the deadline; ``demo``, which holds both, reports the larger of the two, so a dropped reply
-  is a timeout even when a reset cut the host's wait short. Requests an EyeQ reset left
-  unanswered are ``mesp.abandoned``: reported, not a loss (the bring-up asks again).
-"""
+JSON object (the keys of :data:`KEYS`, described in docs/emulator.md, "Run summaries"), with
+``ok`` false and ``problem`` naming the first cause whenever data was lost or corrupted or a
+deadline was missed. A MESP reply that never came is a timeout on every side that can know it
+(M6); requests an EyeQ reset left unanswered are ``mesp.abandoned``, not a loss."""
 
 from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from eyeq_spi.catalog.messages import sw_release_text
@@ -47,13 +36,11 @@ SESSION_KEYS = ("began_s", "ended_s", "ok", "problem", "state", "received", "sen
                 "ack_latency_ms", "transport_aborts", "e2e_errors", "dasp_counter_gaps",
                 "decode_errors", "stale_streams", "mesp", "eyeq_resets", "eyeq_reset_causes",
                 "versions", "boot", "running_vision_since", "link_lost", "left_at_link_loss")
-MESP_KEYS = ("requests", "retries", "timeouts", "abandoned", "stale_replies")
 
 
 def link_view(counters: SpiDiagnosticInfo, restarts_answered: int = 0) -> dict[str, int]:
-    """The link's counters. ``restarts_answered``: resynchronisations that were the peer's
-    restart after a reset we asked for (L10: its first frame numbered from 0 again), which is
-    the reset itself (counted in ``eyeq_resets``), not a resynchronisation."""
+    """The link's counters; ``restarts_answered``: resynchronisations that were the peer's
+    restart after a reset we asked for (L10), counted in ``eyeq_resets`` instead."""
     out = counters.seed_view()
     out.update({k: int(getattr(counters, k)) for k in LINK_EXTRA})
     out["resynchronisations"] = max(0, out["resynchronisations"] - restarts_answered)
@@ -85,10 +72,8 @@ def ack_latency_ms(hist: Counter[int]) -> dict[str, float | int]:
 
 def _losses(summary: dict[str, Any]) -> str | None:
     """Every data loss, corruption or missed deadline in a summary, in words, causes before
-    their consequences: a frame not ACKed in time loses its transfer (a transport abort), whose
-    message then leaves a DASP counter gap, and the next message of that stream has its
-    protected structures rejected, since their rolling counters jumped (D5). Saying only the
-    last ("16 E2E errors") would send a reader looking for corrupt data."""
+    their consequences (a send failure aborts a transfer, which leaves a DASP counter gap, after
+    which D5 rejects the next protected structure)."""
     link = summary["link"]
     mesp = summary["mesp"]
     timeouts = mesp.get("timeouts") or 0
@@ -131,29 +116,22 @@ def host_mesp(host: HostEmulator, eyeq: SimulatedEyeQ | None = None) -> dict[str
 
 @dataclass
 class LeftAtLinkLoss:
-    """What lost connections left behind on our side (L10: a new connection is a new EyeQ,
-    whose link and transport start afresh): ``messages`` queued or in flight, never ACKed, and
-    ``transfers`` half received. They belong to the connection that was lost, so they are
-    reported apart (``left_at_link_loss``), neither as send failures or transport aborts of the
-    next connection nor dropped without a word."""
+    """What lost connections left behind on our side (L10: a new connection is a new EyeQ):
+    messages never ACKed and transfers half received, reported apart (``left_at_link_loss``)."""
 
     messages: int = 0
     transfers: int = 0
 
-    def view(self) -> dict[str, int]:
-        return {"messages": self.messages, "transfers": self.transfers}
-
 
 def _dropped(host: HostEmulator) -> tuple[int, int]:
-    """Messages and transfers a reset of the host's link and transport drops (counted there
-    as send failures and ``reset`` aborts)."""
+    """Messages and transfers a reset of the host's link and transport drops."""
     return (host.conn.link.counters.sendFailedErrorCounter,
             host.conn.counters.transferAborts["reset"])
 
 
 def new_connection(host: HostEmulator, now: float, left: LeftAtLinkLoss) -> None:
-    """The host on a new connection to its EyeQ (:meth:`HostEmulator.link_restarted`), with
-    what the old connection left counted in ``left``."""
+    """The host on a new connection (:meth:`HostEmulator.link_restarted`), with what the old
+    one left counted in ``left``."""
     messages, transfers = _dropped(host)
     host.link_restarted(now)
     after = _dropped(host)
@@ -173,14 +151,13 @@ def _without_left(summary: dict[str, Any], left: LeftAtLinkLoss | None) -> None:
         aborts["reset"] = max(0, aborts["reset"] - left.transfers)
         if not aborts["reset"]:
             del aborts["reset"]
-    summary["left_at_link_loss"] = left.view()
+    summary["left_at_link_loss"] = asdict(left)
 
 
 class ClockedAcks:
-    """A tap of an in-process run (``tap(node, t, transfer)``, node 0 the host) that reads
-    the send -> ACK latency of the host's DATA frames on ``clock`` when each transfer is handed
-    over, instead of on the run's schedule: the ``ack_latency_ms`` of a real-time ``demo``.
-    ``then``: another tap every transfer goes on to (the capture)."""
+    """A tap of an in-process run (node 0 the host) that reads the send -> ACK latency of the
+    host's DATA frames on ``clock`` as each transfer is handed over: the ``ack_latency_ms`` of a
+    real-time ``demo``. ``then``: another tap every transfer goes on to (the capture)."""
 
     def __init__(self, clock: Callable[[], float], then: Any = None) -> None:
         self.clock = clock
@@ -205,15 +182,13 @@ class ClockedAcks:
 
 class RunningVision:
     """Whether the host reached Running Vision and held it: when it entered (``since``, None
-    while outside) and every time it left (``left``). The one judge of "reached and held" that
-    :func:`host_summary` reports, for every run (in one process, live, replayed)."""
+    while outside) and every time it left (``left``), for every kind of run."""
 
     def __init__(self) -> None:
         self.since: float | None = None
         self.left: list[float] = []
 
     def update(self, host: HostEmulator, time_s: float) -> None:
-        """Look at ``host`` at time ``t`` (seconds on the run's clock)."""
         running = host.state is HostState.RUNNING_VISION
         if running and self.since is None:
             self.since = time_s
@@ -233,10 +208,9 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
                  scheduling: str | None = None,
                  eyeq: SimulatedEyeQ | None = None,
                  left: LeftAtLinkLoss | None = None) -> dict[str, Any]:
-    """The summary of a host emulator run (``demo``, ``host``, ``replay --into-host``). Times
-    are seconds since ``t0``, the start of the run on the host's clock. ``eyeq``: the simulated
-    EyeQ of an in-process run (``demo``), whose dropped replies are timeouts too. ``left``: what
-    lost connections left behind (:func:`new_connection`), reported apart."""
+    """The summary of a host emulator run (``demo``, ``host``, ``replay --into-host``); times
+    are seconds since ``t0``. ``eyeq``: the simulated EyeQ of an in-process run, whose dropped
+    replies are timeouts too. ``left``: what lost connections left (:func:`new_connection`)."""
     names = [m.name for m in host.codec.cat.messages
              if m.direction == "e2h" and (m.exists_in(host.sw) or m.protocol != "DASP")]
     received = {n: int(host.counters.received.get(n, 0)) for n in names}
@@ -321,8 +295,7 @@ def _nonzero(counts: dict[str, int]) -> dict[str, int]:
 
 class SimSessions:
     """The summaries of the hosts a ``sim`` run serves, one per connection, each with that
-    host's counts only (a :class:`SimulatedEyeQ` powered up again has the counts before it
-    subtracted). Times are seconds since the run started, ``t0`` on the simulator's clock."""
+    host's counts only; times are seconds since ``t0`` on the simulator's clock."""
 
     def __init__(self, t0: float = 0.0) -> None:
         self.t0 = t0
@@ -331,20 +304,16 @@ class SimSessions:
         self._begun: tuple[SimulatedEyeQ, dict[str, Any]] | None = None
 
     def begin(self, sim: SimulatedEyeQ) -> None:
-        """A host connected and ``sim`` was powered up for it. The power-up's reset (L10) drops
-        what the link and transport still held for the host that left before, counted as send
-        failures and aborts: the last host's leaving, no loss of this session (nor of the last,
-        which ended when its host left), so this session's link counts start here."""
+        """A host connected and ``sim`` was powered up for it; the power-up's reset (L10) drops what
+        the link still held for the host before, which is no loss of this session."""
         self._begun = (sim, _sim_counts(sim))
 
     def add(self, sim: SimulatedEyeQ, *, began: float, ended: float,
             link_lost: str | None, not_taken: int = 0,
             failed_when_heard: int | None = None) -> dict[str, Any]:
-        """Close the session of the host that was just served (``began``/``ended``: seconds
-        since the run started) and return its summary. ``not_taken``: transfers the host
-        sent that the adapter dropped with its connection (never handed to the EyeQ).
-        ``failed_when_heard``: send failures when the host was last heard; later ones went to a
-        host that was gone (SPI lines only fall silent): what it left, not a loss."""
+        """Close the session of the host just served and return its summary. ``not_taken``:
+        transfers the adapter dropped with its connection; ``failed_when_heard``: send failures when
+        the host was last heard (later ones went to a host that was gone: not a loss)."""
         now = _sim_counts(sim)
         counts = now if self._last is None or self._last[0] is not sim \
             else _minus(now, self._last[1])
@@ -408,8 +377,8 @@ def _add(total: Any, part: Any) -> Any:
 def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: float,
                 wall: float, cpu: float, interrupted: bool = False, address: str | None = None,
                 scheduling: str | None = None, problem: str | None = None) -> dict[str, Any]:
-    """The summary of a ``sim`` run: every host served in ``sessions`` (from
-    :class:`SimSessions`) and their totals; ``sim`` is the last one served (or an idle one)."""
+    """The summary of a ``sim`` run: every host served (from :class:`SimSessions`) and their
+    totals; ``sim`` is the last one served (or an idle one)."""
     hist: Counter[int] = Counter()
     summary: dict[str, Any] = {
         "side": "sim", "address": address, "sw": sw_release_text(sim.sw),
@@ -421,10 +390,10 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
         "transitions": [],
         "mesp": {"requests": 0, "retries": None, "timeouts": 0, "abandoned": None,
                  "stale_replies": None},
-        "state": f"0x{sim.main_state:02X}", "running_vision_since": None,
+        "state": f"0x{sim.main_state:02X}",
         "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
                      "eyeqSwVersionMinor": sim.sw_version[1]},
-        "boot": {"boots": 0}, "scheduling": scheduling, "link_lost": None,
+        "boot": {"boots": 0}, "scheduling": scheduling,
     }
     for sess in sessions:
         hist.update(sess.pop("_ack_hist", Counter()))
@@ -450,13 +419,12 @@ def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cp
                         link: dict[str, int], link_lost: str | None, sent: dict[str, int],
                         interrupted: bool = False, connections: int = 1,
                         scheduling: str | None = None) -> dict[str, Any]:
-    """The summary of ``replay --port``/``--listen``: the capture played to a host under test
-    in real time. The host keeps its own state; we judge what we can see: the capture played
-    to the end, the link held, every played frame answered, no frame NAKed."""
+    """The summary of ``replay --port``/``--listen``: judged on what we see (the capture played
+    to the end, the link held, every played frame ACKed, none NAKed)."""
     naks = sum(replay["host_naks"].values())
     unanswered = replay["played"] - replay["host_acks"] - naks
     summary: dict[str, Any] = {
-        "side": "replay", "address": address, "state": None, "sw": replay.get("sw"),
+        "side": "replay", "address": address, "sw": replay.get("sw"),
         "elapsed_s": round(wall, 6), "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
         "connections": connections, "interrupted": interrupted,
         "received": replay["host_messages"], "sent": sent, "link": link,
@@ -466,11 +434,9 @@ def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cp
         "mesp": {"requests": None, "retries": None, "timeouts": None, "abandoned": None,
                  "stale_replies": None},
         "eyeq_resets": replay["reset_line_pulls"],
-        "eyeq_reset_causes": reset_causes(replay["reset_line_pulls"], 0),
-        "versions": None, "boot": None,
-        "transitions": [], "running_vision_since": None, "link_lost": link_lost,
-        "scheduling": scheduling, "replay": replay,
-    }
+        "eyeq_reset_causes": reset_causes(replay["reset_line_pulls"], 0), "transitions": [],
+        "link_lost": link_lost, "scheduling": scheduling, "replay": replay,
+    }  # state, versions, boot, running_vision_since: none to report (null)
     first = None
     if interrupted:
         first = "interrupted"
@@ -496,8 +462,8 @@ def _counts(counts: dict[str, int]) -> str:
 
 
 def _state_text(state: str) -> str:
-    """A host state as it is (``RUNNING_VISION``); the EyeQ's Main_State (``0x02``, the JSON's
-    value) with its name from specs/ (§7.1.5: ``0x02 RUNNING_VISION``)."""
+    """A host state as it is; the EyeQ's Main_State with its name from specs/ (``0x02
+    RUNNING_VISION``)."""
     if not state.startswith("0x"):
         return state
     from eyeq_spi.catalog.messages import catalog
@@ -566,9 +532,8 @@ def format_summary(out: dict[str, Any]) -> str:
 
 
 def _session_line(number: int, sess: dict[str, Any]) -> str:
-    """One host a ``sim`` served: its verdict and, when its connection broke off (the link
-    has no goodbye: a host that ends and one that vanishes both just go), when and what it
-    left in flight."""
+    """One host a ``sim`` served: its verdict and, when its connection broke off, when and what
+    it left in flight."""
     verdict = "OK" if sess["ok"] else f"NOT OK ({sess['problem']})"
     line = (f"  host {number}: {sess['began_s']:.2f}-{sess['ended_s']:.2f} s, {verdict}, "
             f"received {sum(sess['received'].values())}, sent {sum(sess['sent'].values())}")
@@ -583,8 +548,7 @@ def _session_line(number: int, sess: dict[str, Any]) -> str:
 
 
 def _wrap(line: str, width: int = 80) -> str:
-    """A summary line folded between words to fit an 80-column terminal, continuation lines
-    indented under their topic."""
+    """A summary line folded between words to fit 80 columns, continuation lines indented."""
     import re
     import textwrap
 

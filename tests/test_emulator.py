@@ -188,8 +188,8 @@ def test_rates_over_60_seconds(tmp_path: Path) -> None:
     build(nvm=Nvm(tmp_path / "nvm.json")).run_for(3.0)
     emu = build(nvm=Nvm(tmp_path / "nvm.json"))
     emu.run_for(63.0)
-    assert emu.host.state is S.RUNNING_VISION and not emu.left_running
-    t0 = emu.running_since
+    assert emu.host.state is S.RUNNING_VISION and not emu.vision.left
+    t0 = emu.vision.since
     assert t0 is not None
     rx = emu.host.counters.rx_times
     for name in ("EYEQ_VIS_OBSTACLES_MSG", "EYEQ_BASE_DIAG_STATUS_MSG", "EYEQ_VIS_ROAD_DATA_MSG"):

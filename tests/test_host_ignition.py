@@ -38,7 +38,7 @@ def test_a_failed_host_stays_quiet_then_the_next_connection_is_a_new_ignition_cy
     assert (last.src, last.event, last.dst) == (S.FAILED, HostEvent.IGNITION, S.POWER_UP)
     assert emu.host.problem is None
     assert emu.host.nvm.data.ignition_cycles == cycles + 1
-    emu.run_for(4.0, stop=lambda: emu.running_since is not None)
+    emu.run_for(4.0, stop=lambda: emu.vision.since is not None)
     assert emu.host.state is S.RUNNING_VISION, emu.host.problem
 
 
@@ -51,8 +51,8 @@ def test_boot_strikes_start_afresh_in_the_next_ignition_cycle() -> None:
     assert emu.host.state is S.BOOT_FAILED and emu.sim.counters.boots == 3
     _new_connection(emu)
     assert emu.host.transitions[-1].dst is S.POWER_UP and emu.host.problem is None
-    emu.run_for(6.0, stop=lambda: emu.running_since is not None)
-    assert emu.running_since is not None, (emu.host.problem, emu.host.transitions[-3:])
+    emu.run_for(6.0, stop=lambda: emu.vision.since is not None)
+    assert emu.vision.since is not None, (emu.host.problem, emu.host.transitions[-3:])
     events = [t.event for t in emu.host.transitions]
     cycle = events[events.index(HostEvent.IGNITION):]
     assert cycle[:3] == [HostEvent.IGNITION, HostEvent.BOOT_BAD, HostEvent.BOOT_OK], cycle

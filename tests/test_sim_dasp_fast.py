@@ -1,6 +1,6 @@
-"""DASP payloads packed in place (eyeq_spi/sim/dasp_fast.py) against the reference
-(Scene.fill + MessageCodec.encode_dasp): identical bytes, message by message and
-transfer by transfer; and the due heap of SimulatedEyeQ._send_due_dasp."""
+"""DASP payloads packed in place (eyeq_spi/sim/dasp_fast.py) against the reference (a value
+dict filled by ``Scene.fill`` and packed by ``MessageCodec.encode_dasp``): identical bytes,
+message by message through the public API of both, and transfer by transfer on the wire."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from eyeq_spi.catalog.messages import MessageDef, catalog
+from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.e2e import E2EState, protect
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import build
@@ -20,48 +21,71 @@ from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.host.host import HostConfig
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import CsvScenario
+from eyeq_spi.sim.calibration import fill_calibration
 from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.dasp_fast import DaspPacker, compile_protector
-from eyeq_spi.sim.eyeq import Phase, SimulatedEyeQ
+from eyeq_spi.sim.scene import Scene, SceneConfig
 
 pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
 SWS = catalog().sw_versions
+CALIBRATED = ("EYEQ_TAC_CAL_MSG", "EYEQ_DYNAMIC_CAL_MSG")
 
 
-def _dasp(sim: SimulatedEyeQ) -> list[MessageDef]:
-    return [m for m in sim.codec.cat.messages
-            if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(sim.sw)]
+def dasp_messages(codec: MessageCodec) -> list[MessageDef]:
+    """Every DASP message an EyeQ of the codec's release sends, in every mode."""
+    return [m for m in codec.cat.messages
+            if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(codec.sw)]
 
 
-def _pair(**kw: Any) -> tuple[SimulatedEyeQ, SimulatedEyeQ]:
-    ref = SimulatedEyeQ(SimConfig(dasp_packer=False, **kw))
-    new = SimulatedEyeQ(SimConfig(dasp_packer=True, **kw))
-    for sim in (ref, new):
-        sim.warm_up()
-    return ref, new
+class Twins:
+    """One scene, written twice: into the reference's value dicts and into packers."""
 
+    def __init__(self, sw: str | None, **scene: Any) -> None:
+        self.codec = MessageCodec(sw)
+        config = SceneConfig(**scene, spot_angles_up=sw_key(self.codec.sw) >= sw_key("sw4"))
+        self.scenes = (Scene(config), Scene(config))
+        self.messages = dasp_messages(self.codec)
+        self.values = {m.name: self.codec.layout(m).zero_values() for m in self.messages}
+        self.packers = {m.name: DaspPacker(self.codec.layout(m), m.data_id)
+                        for m in self.messages}
+        self.e2e = (E2EState(), E2EState())
 
-def _compare(ref: SimulatedEyeQ, new: SimulatedEyeQ, times: list[float],
-             ego: tuple[float | None, float | None] = (None, None),
-             calibrating_from: float | None = None) -> int:
-    """Step both scenes to each time and encode every DASP message of the release (every mode's)
-    with both paths: the bytes must be identical. Returns the messages compared."""
-    msgs = _dasp(ref)
-    n = 0
-    for k, t in enumerate(times):
-        for sim in (ref, new):
-            sim.scene.step(t, *ego)
-            sim._cal_started = calibrating_from if calibrating_from is not None \
-                and t >= calibrating_from else None
-        for m in msgs:
-            a = ref._dasp_bytes(m, k & 0xFF, t)
-            b = new._dasp_bytes(m, k & 0xFF, t)
-            assert a == b, (ref.sw, m.name, t, [i for i in range(len(a)) if a[i] != b[i]][:8])
-            n += 1
-    assert ref.dasp_paths["packed"] == 0 and new.dasp_paths["dict"] == 0
-    assert new.dasp_paths["packed"] == n
-    return n
+    def step(self, time_s: float, speed: float | None = None, yaw: float | None = None) -> None:
+        for scene in self.scenes:
+            scene.step(time_s, speed, yaw)
+
+    def messages_at(self, time_s: float, counter: int,
+                    calibrating_from: float | None = None) -> tuple[list[bytes], list[bytes]]:
+        """Every message of the release at ``time_s``, by the reference and packed."""
+        ref: list[bytes] = []
+        packed: list[bytes] = []
+        for msg in self.messages:
+            packer = self.packers[msg.name]
+            for values, scene in ((self.values[msg.name], self.scenes[0]),
+                                  (packer.root, self.scenes[1])):
+                if calibrating_from is not None and msg.name in CALIBRATED:
+                    fill_calibration(msg.name, values, time_s,  # type: ignore[arg-type]
+                                     calibrating_from, 0.5, 3, None)
+                else:
+                    scene.fill(msg.name, values, time_s)  # type: ignore[arg-type]
+            ref.append(self.codec.encode_dasp(msg.name, self.values[msg.name], counter,
+                                              self.e2e[0]))
+            packed.append(packer.encode(counter, self.e2e[1]))
+        return ref, packed
+
+    def compare(self, times: list[float], ego: tuple[float | None, float | None] = (None, None),
+                calibrating_from: float | None = None) -> int:
+        """Step to each time and compare every message; returns the messages compared."""
+        compared = 0
+        for index, time_s in enumerate(times):
+            self.step(time_s, *ego)
+            ref, packed = self.messages_at(time_s, index & 0xFF, calibrating_from)
+            for msg, a, b in zip(self.messages, ref, packed, strict=True):
+                assert a == b, (self.codec.sw, msg.name, time_s,
+                                [i for i in range(len(a)) if a[i] != b[i]][:8])
+            compared += len(ref)
+        return compared
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -71,46 +95,62 @@ def _compare(ref: SimulatedEyeQ, new: SimulatedEyeQ, times: list[float],
        steps=st.lists(st.floats(0.0, 0.5), min_size=1, max_size=5),
        speed=st.one_of(st.none(), st.floats(-20.0, 100.0)),
        yaw=st.one_of(st.none(), st.floats(-0.5, 0.5)))
-def test_packer_bytes_equal_the_dict_path(seed: int, sw: str, objects: int, signs: int,
+def test_packed_bytes_equal_the_reference(seed: int, sw: str, objects: int, signs: int,
                                           spots: int, steps: list[float], speed: float | None,
                                           yaw: float | None) -> None:
-    ref, new = _pair(sw=sw, seed=seed, objects=objects, signs=signs, light_spots=spots)
-    times, t = [], 0.0
-    for dt in steps:
-        t += dt
-        times.append(t)
-    assert _compare(ref, new, times, (speed, yaw)) > 0
+    twins = Twins(sw, seed=seed, objects=objects, signs=signs, light_spots=spots)
+    times, time_s = [], 0.0
+    for delta in steps:
+        time_s += delta
+        times.append(time_s)
+    assert twins.compare(times, (speed, yaw)) > 0
 
 
 @pytest.mark.parametrize("sw", [SWS[0], "sw5", SWS[-1]])
 def test_full_load_over_many_frames_and_calibration(sw: str) -> None:
-    ref, new = _pair(sw=sw, seed=11, objects=15, signs=20, light_spots=15)
-    _compare(ref, new, [k / 18 for k in range(40)])
-    # TAC/SPC results in progress, then done (sim.calibration.fill_calibration reads a member back)
-    ref2, new2 = _pair(sw=sw, seed=3, objects=15, signs=20, light_spots=15, tac_duration=0.5)
-    _compare(ref2, new2, [2.0 + k / 18 for k in range(20)], calibrating_from=2.0)
+    Twins(sw, seed=11, objects=15, signs=20, light_spots=15).compare(
+        [k / 18 for k in range(40)])
+    # TAC/SPC results in progress, then done (fill_calibration reads a member back)
+    Twins(sw, seed=3, objects=15, signs=20, light_spots=15).compare(
+        [2.0 + k / 18 for k in range(20)], calibrating_from=2.0)
 
 
 @pytest.mark.parametrize("sw", ["sw4", SWS[-1]])
-def test_slots_emptied_between_frames_are_cleared_as_the_dict_path_clears_them(sw: str) -> None:
+def test_slots_emptied_between_frames_are_cleared_as_the_reference_clears_them(sw: str) -> None:
     """Objects, signs and light spots that vanish leave slots the next frame must zero (stale
     values, bitfields included, would differ): kill some in both scenes between frames."""
-    ref, new = _pair(sw=sw, seed=5, objects=15, signs=20, light_spots=15)
-    _compare(ref, new, [0.5, 1.0])
+    twins = Twins(sw, seed=5, objects=15, signs=20, light_spots=15)
+    twins.compare([0.5, 1.0])
     for kill in (slice(0, None, 2), slice(None)):
-        for sim in (ref, new):
-            sim.scene._alive[kill] = False
-            sim.scene._sg_alive[kill] = False
-            sim.scene._cols = None
-            sim.scene._after_step()
-        msgs = _dasp(ref)
-        for m in msgs:
-            assert ref._dasp_bytes(m, 0, 1.0) == new._dasp_bytes(m, 0, 1.0), m.name
+        for scene in twins.scenes:
+            scene.world.alive[kill] = False
+            scene.world.sg_alive[kill] = False
+            scene._cols = None  # the obstacle columns again, from the world as it now is
+        ref, packed = twins.messages_at(1.0, 0)
+        assert ref == packed
+
+
+@pytest.mark.parametrize("sw", SWS)
+def test_every_message_of_every_release_at_full_load(sw: str) -> None:
+    twins = Twins(sw, seed=23, objects=15, signs=20, light_spots=15)
+    assert twins.compare([0.4 + k / 18 for k in range(6)], (27.0, 0.01)) \
+        == 6 * len(twins.messages)
+
+
+@pytest.mark.parametrize("sw", [SWS[0], "sw5", SWS[-1]])
+def test_a_long_run_wraps_every_counter_alike(sw: str) -> None:
+    """300 frames: the DASP header counters and the E2E rolling counters (D5; none before the
+    releases with CRCs) wrap, on both paths alike, byte for byte."""
+    twins = Twins(sw, seed=29, objects=15, signs=20, light_spots=15)
+    twins.compare([k / 18 for k in range(300)])
+    assert twins.e2e[0].sent == twins.e2e[1].sent
+    assert all(v < 64 for v in twins.e2e[1].sent.values())  # 300 sent: wrapped past 255
+    assert bool(twins.e2e[1].sent) or sw == SWS[0]
 
 
 def test_the_protector_is_protect() -> None:
     codec = MessageCodec("sw9")
-    for m in _dasp(SimulatedEyeQ(SimConfig(sw="sw9"))):
+    for m in dasp_messages(codec):
         lay = codec.layout(m)
         data = bytearray(lay.build(lay.zero_values()))
         data[::7] = bytes(len(data[::7]))
@@ -147,8 +187,6 @@ def _trace(tmp_path: Path, packer: bool, *, host: HostConfig | None = None,
                 tap=lambda node, t, data: out.append(f"{node} {t:.9f} "
                                                      + hashlib.sha256(data).hexdigest()))
     emu.run_for(seconds)
-    assert emu.sim.dasp_paths["dict" if not packer else "packed"] > 0
-    assert emu.sim.dasp_paths["packed" if not packer else "dict"] == 0
     return out
 
 
@@ -169,63 +207,16 @@ def test_wire_trace_is_identical(tmp_path: Path, case: str) -> None:
     assert ref == new
 
 
-def test_due_heap_sends_as_the_scan_did() -> None:
-    """The heap sends the due messages in catalogue order and get_timer stays exact: the next
-    due time is the earliest of them, and a cleared schedule is staggered afresh."""
-    sim = SimulatedEyeQ(SimConfig())
-    sim.phase, sim.main_state = Phase.RUNNING, 0x02  # Running Vision
-    sent: list[str] = []
-    sim._send = lambda message, now: sent.append(  # type: ignore[method-assign]
-        sim.codec.decode(message).name or "")
-    sim._send_due_dasp(0.0)
-    msgs = [m.name for m in _dasp(sim) if "APP" in m.modes]
-    assert sent == msgs[:1]
-    assert sim._dasp_min == min(sim._next_dasp.values())
-    t = 0.0
-    for _ in range(200):
-        t = sim._dasp_min
-        sim._send_due_dasp(t)
-        assert sim._dasp_min == min(sim._next_dasp.values()) > t
-    assert sorted(set(sent)) == sorted(msgs)
-    assert max(sent.count(n) for n in msgs) - min(sent.count(n) for n in msgs) <= 1
-    sim._next_dasp.clear()  # e.g. a mode change: the schedule starts over
-    sent.clear()
-    sim._send_due_dasp(t + 0.01)
-    assert sent == msgs[:1] and len(sim._next_dasp) == len(msgs)
-
-
-@pytest.mark.parametrize("sw", SWS)
-def test_every_message_of_every_release_at_full_load(sw: str) -> None:
-    """Every DASP message the simulated EyeQ sends at every release, packed and by the dict
-    path, over a few frames of a full scene (objects, signs and light spots at their maxima)."""
-    ref, new = _pair(sw=sw, seed=23, objects=15, signs=20, light_spots=15)
-    assert _compare(ref, new, [0.4 + k / 18 for k in range(6)], (27.0, 0.01)) \
-        == 6 * len(_dasp(ref))
-
-
-def _stream(sim: SimulatedEyeQ, seconds: float) -> list[tuple[float, bytes]]:
-    """What ``_send_due_dasp`` sends in Running Vision over ``seconds`` (the link stubbed)."""
-    out: list[tuple[float, bytes]] = []
-    sim.phase, sim.main_state = Phase.RUNNING, 0x02  # Running Vision
-    sim._send = lambda message, now: out.append((now, message))  # type: ignore[method-assign]
-    sim._send_due_dasp(0.0)
-    while sim._dasp_min < seconds:
-        sim._send_due_dasp(sim._dasp_min)
-    return out
-
-
-@pytest.mark.parametrize("sw", [SWS[0], "sw5", SWS[-1]])
-def test_a_long_run_wraps_every_counter_alike(sw: str) -> None:
-    """Over 16 simulated seconds each message is sent more than 256 times: the DASP header
-    counters and the E2E rolling counters (D5; none before the releases with CRCs) wrap, on
-    both paths alike, byte for byte."""
-    ref, new = _pair(sw=sw, seed=29, objects=15, signs=20, light_spots=15)
-    a, b = _stream(ref, 16.0), _stream(new, 16.0)
-    assert len(a) == len(b) > 256 * 10
-    for k, (x, y) in enumerate(zip(a, b, strict=True)):
-        assert x == y, (sw, k, x[0])
-    assert new.dasp_paths["dict"] == 0 and ref.dasp_paths["packed"] == 0
-    assert min(new.counters.sent.values()) > 256
-    assert max(new._dasp_counter.values()) < 64  # 289 or 290 sent: wrapped past 255
-    assert all(v < 64 for v in new.e2e.sent.values())
-    assert new.e2e.sent == ref.e2e.sent and (bool(new.e2e.sent) or sw == SWS[0])
+def test_the_streams_are_sent_alike_and_staggered(tmp_path: Path) -> None:
+    """In Running Vision every DASP stream of the mode is sent at the same rate (within one
+    message), the first of each at a different instant (staggered over one period)."""
+    emu = build(nvm=Nvm(tmp_path / "nvm.json"))
+    emu.run_for(2.0)  # the first power-up writes the NVM (fatal 22, reset)
+    emu = build(nvm=Nvm(tmp_path / "nvm.json"))
+    emu.run_for(4.0)
+    names = [m.name for m in dasp_messages(emu.host.codec) if "APP" in m.modes]
+    times = emu.host.counters.rx_times
+    counts = [len(times[name]) for name in names]
+    assert min(counts) > 18 and max(counts) - min(counts) <= 1
+    firsts = [times[name][0] for name in names]
+    assert len(set(firsts)) == len(firsts) and max(firsts) - min(firsts) < 1 / 18

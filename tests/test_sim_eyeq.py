@@ -26,7 +26,7 @@ def test_scene_steps_once_per_camera_frame_and_messages_share_it() -> None:
         step(t, ego_speed, yaw_rate)
 
     def recording_fill(name: str, values: dict[str, Any], now: float) -> None:
-        fills.append((now, scene._t))
+        fills.append((now, scene.world._t))
         fill(name, values, now)
 
     scene.step = counting_step  # type: ignore[method-assign]

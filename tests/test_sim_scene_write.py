@@ -1,8 +1,6 @@
-"""The packer's writers of the scene (eyeq_spi/sim/scene_write.py, the road plan of
-eyeq_spi/sim/scene.py) against the reference (the value dicts): arrays of structs written by the
-generated row writers (values clamped in Python for small tables, by numpy for large ones; the
-elements past the rows zeroed by slices), and the road's moving members written through bound
-writers only while the constants written once are in place."""
+"""The packer's writers of the scene (eyeq_spi/sim/scene_write.py) against the reference (the
+value dicts): arrays of structs written by the generated row writers (the elements past the rows
+zeroed by slices), and constants written once per packer."""
 
 from __future__ import annotations
 
@@ -15,9 +13,7 @@ from hypothesis import strategies as st
 
 from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.sim.config import SimConfig
 from eyeq_spi.sim.dasp_fast import DaspPacker
-from eyeq_spi.sim.eyeq import SimulatedEyeQ
 from eyeq_spi.sim.scene import Scene
 from eyeq_spi.sim.scene_layout import (
     ONCOMING,
@@ -30,7 +26,8 @@ from eyeq_spi.sim.scene_layout import (
     struct_elements,
 )
 from eyeq_spi.sim.scene_layout import layout_node_for as node_for
-from eyeq_spi.sim.scene_write import _MIN_NUMPY, write_table
+from eyeq_spi.sim.scene_write import write_table
+from tests.test_sim_dasp_fast import Twins
 
 pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
 
@@ -60,9 +57,8 @@ def _write(values: dict[str, Any], name: str, member: str, array: str, keys: tup
 @given(sw=st.sampled_from(SWS), table=st.sampled_from(TABLES), data=st.data())
 def test_generated_row_writers_give_the_dict_paths_bytes(sw: str, table: Any,
                                                          data: st.DataObject) -> None:
-    """Rows of any length (the numpy clamp from :data:`_MIN_NUMPY` values on, the Python clamp
-    below), values out of range, then fewer rows: the emptied elements are zeroed as the
-    reference zeroes them."""
+    """Rows of any length, values out of range, then fewer rows: the emptied elements are
+    zeroed as the reference zeroes them."""
     name, member, array, keys = table
     codec = MessageCodec(sw)
     msg = codec.cat.message(name)
@@ -83,14 +79,13 @@ def test_generated_row_writers_give_the_dict_paths_bytes(sw: str, table: Any,
         assert codec.encode_dasp(name, ref, 7, None) == packer.encode(7, None), (n, rows)
 
 
-@pytest.mark.parametrize("huge_ints", [False, True], ids=["numpy", "loop"])
+@pytest.mark.parametrize("huge_ints", [False, True], ids=["float64", "huge"])
 @pytest.mark.parametrize("sw", [SWS[0], "sw4", SWS[-1]])
 @pytest.mark.parametrize("table", TABLES, ids=lambda t: t[2])
 def test_full_tables_of_extreme_values_then_fewer_rows(sw: str, table: Any,
                                                        huge_ints: bool) -> None:
-    """Every element written (the numpy clamp: at least :data:`_MIN_NUMPY` values), values
-    beyond every range on both sides, then a few rows (the Python clamp) and none. Integers
-    beyond what float64 holds exactly send the whole table through the loop instead."""
+    """Every element written, values beyond every range on both sides, then a few rows and
+    none; integers beyond what float64 holds exactly too."""
     name, member, array, keys = table
     codec = MessageCodec(sw)
     msg = codec.cat.message(name)
@@ -101,7 +96,6 @@ def test_full_tables_of_extreme_values_then_fewer_rows(sw: str, table: Any,
     assert info is not None
     elems, en = struct_elements(*info, array)
     count = len(elems)
-    assert count * len(keys) >= _MIN_NUMPY > 2 * len(keys)
     reals = [-1e40, 1e40, 0.4, -0.5, 1e6, -3.5]
     ints = [-300, 70000, 2.5, -0.5, 1e6, -1e6, 3.5] + ([1e40] if huge_ints else [])
     for n in (count, 2, 0):
@@ -114,23 +108,18 @@ def test_full_tables_of_extreme_values_then_fewer_rows(sw: str, table: Any,
 
 @pytest.mark.parametrize("sw", ["sw4", SWS[-1]])
 def test_the_road_writes_its_constants_again_after_a_reset(sw: str) -> None:
-    """The road's plan writes only what moves once its constants are in place; after the
-    packer's reset (zeros) they are written again, as the reference's fresh template gets
-    them."""
-    ref = SimulatedEyeQ(SimConfig(sw=sw, seed=4, objects=15, dasp_packer=False))
-    new = SimulatedEyeQ(SimConfig(sw=sw, seed=4, objects=15, dasp_packer=True))
-    m = ref.codec.cat.message("EYEQ_VIS_ROAD_DATA_MSG")
+    """The road's constants are written once per packer; after the packer's reset (zeros)
+    they are written again, as the reference's fresh template gets them."""
+    twins = Twins(sw, seed=4, objects=15)
+    road = "EYEQ_VIS_ROAD_DATA_MSG"
     for k in range(6):
         t = 1.0 + k / 18
-        for sim in (ref, new):
-            sim.scene.step(t)
+        twins.step(t)
         if k == 3:
-            packer = new._packer(m)
-            assert packer is not None
-            packer.reset()
-            ref._templates.pop(m.name, None)
-        assert ref._dasp_bytes(m, k, t) == new._dasp_bytes(m, k, t), k
-    assert new.dasp_paths["packed"] == 6
+            twins.packers[road].reset()
+            twins.values[road] = twins.codec.layout(twins.codec.cat.message(road)).zero_values()
+        ref, packed = twins.messages_at(t, k)
+        assert ref == packed, k
 
 
 def _motion_reference(s: float, vx: float, vy: float, vrel: float, lane: int, kind: int,

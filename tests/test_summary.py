@@ -134,8 +134,8 @@ def test_running_vision_is_judged_once_for_every_run() -> None:
     assert (watch.since, watch.left) == (None, [])
     emu = build(sim_config=SimConfig(reset_at=4.0), keep_rx_times=False)
     emu.run_for(8.0)
-    assert emu.vision.left and emu.left_running is emu.vision.left
-    assert summary(emu)["running_vision_since"] == round(emu.running_since or -1, 4)
+    assert emu.vision.left and emu.vision.left
+    assert summary(emu)["running_vision_since"] == round(emu.vision.since or -1, 4)
 
 
 def test_the_sim_text_names_the_main_state_the_json_gives_as_its_value(tmp_path: Path) -> None:

@@ -107,18 +107,16 @@ def _pcapng(tmp_path: Path) -> Pair:
 
 # -- sim and runner ------------------------------------------------------------------------------
 def _dasp() -> Pair:
-    from tests.test_sim_dasp_fast import _dasp, _pair
+    from tests.test_sim_dasp_fast import Twins
 
-    ref_sim, fast_sim = _pair(seed=5, objects=15, signs=20, light_spots=15)
+    twins = Twins(None, seed=5, objects=15, signs=20, light_spots=15)
     ref: list[bytes] = []
     fast: list[bytes] = []
     for k, t in enumerate((0.05, 0.4, 1.3)):
-        for sim in (ref_sim, fast_sim):
-            sim.scene.step(t, 12.0, 0.02)
-        for m in _dasp(ref_sim):
-            ref.append(ref_sim._dasp_bytes(m, k, t))
-            fast.append(fast_sim._dasp_bytes(m, k, t))
-    assert fast_sim.dasp_paths["packed"] == len(fast) and ref_sim.dasp_paths["packed"] == 0
+        twins.step(t, 12.0, 0.02)
+        ref_now, fast_now = twins.messages_at(t, k)
+        ref += ref_now
+        fast += fast_now
     return ref, fast
 
 

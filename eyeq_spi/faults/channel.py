@@ -1,21 +1,11 @@
 """A seeded lossy SPI channel for the memory pair's fault hook (``MemoryAdapter.mangle``).
 
-Theory of operation
--------------------
-Every transfer one side puts on the wire passes through :meth:`FaultyChannel.__call__`, which
-returns what the peer receives. Per transfer, one fault class is drawn (they are exclusive, so
-that each injected fault maps to exactly one receiver reaction):
-
-- ``drop`` (probability ``profile.drop``): the peer receives nothing;
-- ``duplicate``: the peer receives the transfer twice, back to back;
-- ``reorder``: the transfer is held and delivered right after the next one (which passes clean);
-- ``truncate``: the peer receives the first 1..127 bytes (chip select rose early, L8);
-- otherwise the bits are flipped independently with probability ``profile.ber`` per bit (a
-  geometric gap between flips, so the process is exactly Bernoulli per bit over the run).
-
-Each injection is recorded as an :class:`Injected` with what the receiver must make of it under
-L3/L5/L6/L8, so that a soak can compare that list (``injected``) with the receiver's counters.
-"""
+Per transfer one exclusive fault class is drawn, so that each injected fault maps to exactly one
+receiver reaction: ``drop`` (nothing arrives), ``duplicate`` (twice, back to back), ``reorder``
+(held and delivered right after the next transfer), ``truncate`` (the first 1..127 bytes: chip
+select rose early, L8), otherwise independent bit flips at ``profile.ber`` per bit (geometric
+gaps: exactly Bernoulli per bit over the run). Each injection is recorded as an
+:class:`Injected`, which a soak compares with the receiver's counters (L3/L5/L6/L8)."""
 
 from __future__ import annotations
 
@@ -28,6 +18,7 @@ from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 
 CRC_COVERED_CONTROL = 6  # L3: an ACK/NAK's CRC covers bytes 0..3; bytes 4..5 are the CRC itself
 KINDS = ("flip", "drop", "duplicate", "reorder", "truncate")
+FRAME_NAMES = {kind.value: kind.name for kind in FrameKind}
 
 
 @dataclass(frozen=True)
@@ -170,22 +161,17 @@ class FaultyChannel:
 
     # -- bookkeeping ------------------------------------------------------------------------
     def _kind(self, transfer: bytes) -> str:
-        if len(transfer) != FRAME_SIZE:
-            return "?"
-        d = self.codec.unpack_header(int.from_bytes(transfer[:4], "little"))[0]
-        try:
-            return FrameKind(d).name
-        except ValueError:
-            return "?"
+        return self._header(transfer)[0] if len(transfer) == FRAME_SIZE else "?"
+
+    def _header(self, transfer: bytes) -> tuple[str, int, int]:
+        """D (as the frame kind's name, ``?`` if none), RSP and NUM of a transfer."""
+        d, _, rsp, num = self.codec.unpack_header(int.from_bytes(transfer[:4], "little"))
+        return FRAME_NAMES.get(d, "?"), rsp, num
 
     def _note(self, index: int, kind: str, transfer: bytes, *, bits: tuple[int, ...] = (),
               length: int = FRAME_SIZE, crc_covered: bool = False, after: str | None = None
               ) -> None:
-        d, _, rsp, num = self.codec.unpack_header(int.from_bytes(transfer[:4], "little"))
-        try:
-            frame = FrameKind(d).name
-        except ValueError:
-            frame = "?"
+        frame, rsp, num = self._header(transfer)
         self.injected.append(Injected(index, kind, frame, num, rsp, bits, length, crc_covered,
                                       after))
         self.stats.injected[kind] += 1

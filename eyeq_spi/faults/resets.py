@@ -1,21 +1,10 @@
-"""Reset campaign: the simulated EyeQ resets at a seeded random moment of Running Vision; the
-host must notice, bring it up again and deliver no stale data.
-
-One run (seed ``s``):
-
-1. host and EyeQ come up to Running Vision (NVM already matched, :mod:`eyeq_spi.faults.rig`);
-2. after ``offset`` seconds (drawn from the seed, see :func:`reset_offset`) the EyeQ is reset
-   through its public ``power_up`` (what the host's reset line does), without telling the host;
-3. within ``recovery_limit`` the host must report the reset (an ``EYEQ_RESET`` transition) and
-   reach Running Vision again, and then hold it for ``hold`` seconds with the EyeQ in Running
-   Vision too and no stale DASP stream;
-4. no stale data: after the host's ``EYEQ_RESET``, no message it delivers to its subscribers may
-   carry an EyeQ ``timestamp_ms`` from before the reset, and nothing is delivered outside a
-   running state.
-
-The offsets favour the first 50 ms of Running Vision (a quarter of the runs), where a reset meets
-messages and 0x41s still in flight; the rest are uniform over ``max_offset``.
-"""
+"""Reset campaign: the simulated EyeQ resets at a seeded random moment of Running Vision (through
+its public ``power_up``, as the reset line would, without telling the host); within
+``recovery_limit`` the host must report the reset (an ``EYEQ_RESET`` transition), reach Running
+Vision again and hold it for ``hold`` seconds with no stale DASP stream, and deliver no message
+with an EyeQ ``timestamp_ms`` from before the reset, nor any outside a running state. A quarter
+of the offsets fall in the first 50 ms of Running Vision, where a reset meets messages still in
+flight; the rest are uniform over ``max_offset``."""
 
 from __future__ import annotations
 

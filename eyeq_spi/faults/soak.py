@@ -181,7 +181,7 @@ def run_soak(config: SoakConfig | None = None) -> SoakReport:
                 "faults_from_start": cfg.faults_from_start, "sw": emu.host.sw},
         virtual_s=round(emu.runner.now, 6), wall_s=round(emu.runner.wall_s, 3),
         reached_vision_at=reached,
-        held=reached is not None and not emu.left_running and in_vision(),
+        held=reached is not None and not emu.vision.left and in_vision(),
         final_state=emu.host.state.value,
         frames={"host_to_eyeq": h2e.stats.transfers, "eyeq_to_host": e2h.stats.transfers},
         messages={k: _ledger_figures(v) for k, v in ledgers.items()},

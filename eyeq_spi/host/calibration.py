@@ -1,8 +1,5 @@
-"""When a TAC or SPC run has finished, and whether it succeeded (§9.9, §9.11, §21).
-
-What "successfully completed" means per run is the ``success`` row of the §21 Alignment NVM table
-in ``specs/nvm.yaml``: member -> enum value name of the run's result struct, all must hold.
-"""
+"""When a TAC or SPC run has finished, and whether it succeeded (§9.9, §9.11, §21): the
+``success`` row of the §21 Alignment NVM table in ``specs/nvm.yaml``."""
 
 from __future__ import annotations
 

@@ -1,16 +1,7 @@
 """The Aurix host emulator: brings an EyeQ4 up and runs it in vision mode (and TAC/SPC/DV) over
 the real link and transport (seed 004 §6 message flow, §7.1.1.1.4, §7.1.3). Sans-IO: every
-method takes ``now``.
-
-The host's states are the table of ``machine.py``: ``TRANSITIONS`` says where each event
-leads, and ``ENTRY_ACTIONS`` names the handler run on entering a state (the ``entry_*``
-methods below). A subclass changes one by overriding that method (the conformance mutants do);
-a subclass that defines an ``entry_*`` method the table does not name, or a method in the old
-``_on_<state>`` style, fails at class creation. What the states drive is grouped by job: the
-init messages and MESP replies of the bring-up here, HOST_VEH_STATE_MSG in
-:class:`~eyeq_spi.host.vehicle_state.VehicleStateSender`, stale detection in
-:class:`~eyeq_spi.host.streams.StreamWatch`, the messages in the receive path below.
-"""
+method takes ``now``. Its states are the table of ``machine.py``; the ``entry_*`` methods are
+the entry actions it names (a subclass overrides one, as the conformance mutants do)."""
 
 from __future__ import annotations
 
@@ -61,9 +52,8 @@ EntryAction = Callable[[float], None]
 
 
 class HostEmulator:
-    """The host emulator as a sans-IO node (``receive_data``, ``data_to_send``,
-    ``get_timer``, ``handle_timer``): its state table's handlers, the bring-up they drive and
-    the receive path."""
+    """The host emulator as a sans-IO node: its state table's handlers, the bring-up they
+    drive and the receive path."""
 
     def __init_subclass__(cls, **kw: Any) -> None:
         super().__init_subclass__(**kw)
@@ -155,9 +145,8 @@ class HostEmulator:
 
     def link_restarted(self, now: float) -> None:
         """The byte stream to the EyeQ was re-established (a new connection is a power-up):
-        restart our SPI driver and run the bring-up again. A host that had given up (FAILED,
-        BOOT_FAILED) stayed quiet on the old connection; the new one is its next ignition
-        cycle (:meth:`_next_ignition_cycle`)."""
+        restart our SPI driver and run the bring-up again; a host that had given up starts its next
+        ignition cycle."""
         self._cancel_requests()
         self._restart_driver()
         if self.state in (HostState.FAILED, HostState.BOOT_FAILED):
@@ -166,11 +155,8 @@ class HostEmulator:
             self._fire(HostEvent.EYEQ_RESET, now, "link re-established")
 
     def _next_ignition_cycle(self, now: float, why: str) -> None:
-        """Ignition off and on after the host gave up (FAILED, BOOT_FAILED; §7.1.3 step 6: the
-        unit is failed for this ignition cycle): what a new host with the same NVM would be.
-        The per-cycle state starts afresh (boot strikes, EyeQ resets for the EEPROM, Get EyeQ
-        Versions asked once per ignition cycle, the problem, our DASP counters); the run's
-        counters and transitions go on."""
+        """Ignition off and on after the host gave up (§7.1.3 step 6: failed for this ignition
+        cycle): the per-cycle state starts afresh; the run's counters and transitions go on."""
         self._cancel_requests()
         self._versions_asked = self._versions_ok = False
         self._strikes = self._bringups = 0
@@ -391,9 +377,8 @@ class HostEmulator:
 
     # -- resets and streams -----------------------------------------------------------------
     def _cancel_requests(self) -> None:
-        """An EyeQ reset: outstanding MESP requests are lost. Get EyeQ Versions is asked again
-        at the next bring-up unless it was answered (§6 flow step 12: once per ignition cycle,
-        after a positive response)."""
+        """An EyeQ reset loses the outstanding MESP requests; Get EyeQ Versions is asked again
+        unless answered (§6 flow step 12: once per ignition cycle)."""
         self.mesp.cancel_all()
         if not self._versions_ok:
             self._versions_asked = False

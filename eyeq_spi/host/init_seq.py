@@ -1,8 +1,6 @@
 """What the host sends in INIT and reads at boot (seed 004 §7.1.3, §8.2, §21): the init
 messages' parameters from the NVM, the intrinsic parameters of an EEPROM image, and the boot
-status it keeps.
-Pure functions; the host's state machine (``host.py``) decides when.
-"""
+status it keeps; pure functions, the state machine decides when."""
 
 from __future__ import annotations
 

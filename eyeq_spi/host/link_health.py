@@ -1,13 +1,8 @@
 """Whether the link's own counters explain a failed bring-up: a bad link is not a bad camera.
 
-A host that gives up (three failed boots, an init message rejected three times) names the
-EyeQ in its words. When the link's counters at that moment are far above a clean link's, the
-likely cause is the link (a loose connector, a noisy or overlong cable, a wrong clock), and the
-host's transition and the run summary say so, with the figures.
-
-A clean link corrupts no frame: a bit error rate of 1e-9 hits one 128-byte frame in about a
-million. So :data:`CORRUPT_SHARE` of the frames received arriving corrupt (CRC or format
-errors, §9.2), at least :data:`CORRUPT_MIN` of them, is far above a clean link's figures."""
+A clean link corrupts no frame (a bit error rate of 1e-9 hits one 128-byte frame in about a
+million), so :data:`CORRUPT_SHARE` of the frames received arriving corrupt (CRC or format
+errors, §9.2), at least :data:`CORRUPT_MIN` of them, names the link as the likely cause."""
 
 from __future__ import annotations
 

@@ -14,11 +14,8 @@ runs again. FAILED and BOOT_FAILED are terminal for the ignition cycle: only the
 (IGNITION) starts the bring-up afresh. A mode switch stops DASP, switches the application and,
 for TAC/SPC, sends the mode's init message and waits for the results.
 
-``TRANSITIONS`` maps (state, event) to the next state; a pair that is not in the table is ignored
-and counted. ``ENTRY_ACTIONS`` names the host method run on entering a state (every state is either
-there or in ``NO_ENTRY_ACTION``, checked at import); the host checks at import that each name is one
-of its methods. A subclass changes an entry action by overriding the method the table names.
-"""
+``TRANSITIONS`` maps (state, event) to the next state (a pair not in it is ignored and counted);
+``ENTRY_ACTIONS`` names the host method run on entering a state, checked at import."""
 
 from __future__ import annotations
 
@@ -148,9 +145,8 @@ _OLD_STYLE = frozenset(f"_on_{state.value.lower()}" for state in HostState)
 
 
 def check_entry_handlers(cls: type, *, subclass: bool) -> None:
-    """Every method ``ENTRY_ACTIONS`` names exists on ``cls`` (a renamed or removed action
-    fails at import); a ``subclass`` defines no ``entry_*`` method the table does not name and
-    no entry action of the old naming, ``_on_<state>`` (it would never run)."""
+    """Every method ``ENTRY_ACTIONS`` names exists on ``cls``; a ``subclass`` defines no
+    ``entry_*`` method the table does not name, nor an ``_on_<state>`` one (it would never run)."""
     named = set(ENTRY_ACTIONS.values())
     if not subclass:
         missing = [n for n in sorted(named) if not callable(getattr(cls, n, None))]

@@ -1,9 +1,6 @@
-"""Vehicle signals for HOST_VEH_STATE_MSG: a constant-speed drive, or a CSV of signals.
-
-CSV format: a header row with ``time`` (seconds) and any ``host_vehicle_state_t`` member names
-(``vehicleVelocity``, ``vehicleYawRate``, ...). Values hold until the next row (zero-order hold);
-the last row holds forever.
-"""
+"""Vehicle signals for HOST_VEH_STATE_MSG: a constant-speed drive, or a CSV of signals (a
+``time`` column in seconds and ``host_vehicle_state_t`` member names; each row holds until the
+next, the last forever)."""
 
 from __future__ import annotations
 

@@ -1,11 +1,7 @@
 """HOST_VEH_STATE_MSG (seed 004 §7.1.2.2): the host's one periodic DASP message, at
-``HostConfig.veh_state_rate`` (66.67 Hz) from Wait Running on. Its period, its counters and its
-encoding live here; the host decides when it starts and stops (its entry actions).
-
-Each message is a fresh ``zero_values()`` dict filled by
-:func:`~eyeq_spi.host.scenario.veh_state_values` and encoded by the codec (about 22 µs, 1.5
-CPU-ms per simulated second).
-"""
+``HostConfig.veh_state_rate`` (66.67 Hz) from Wait Running on: its period, counters and
+encoding (a fresh ``zero_values()`` dict filled by
+:func:`~eyeq_spi.host.scenario.veh_state_values`); the host's entry actions start and stop it."""
 
 from __future__ import annotations
 
@@ -19,13 +15,9 @@ NAME = "HOST_VEH_STATE_MSG"
 
 
 class VehicleStateSender:
-    """When the next HOST_VEH_STATE_MSG is due, and its bytes. ``next_due`` is None while the
-    host sends none (before Wait Running, after a fatal error, during a mode switch).
-
-    Our rolling counter (``SPI_Rolling_Count``), DASP counter and E2E counters run on across
-    EyeQ resets: a capture of the whole run then shows one unbroken sequence (the EyeQ's
-    restarted application takes whatever comes first); only a new ignition cycle starts them
-    afresh (:meth:`new_cycle`)."""
+    """When the next HOST_VEH_STATE_MSG is due (``next_due``, None while the host sends none),
+    and its bytes. The rolling, DASP and E2E counters run on across EyeQ resets (one unbroken
+    sequence in a capture); only a new ignition cycle starts them afresh (:meth:`new_cycle`)."""
 
     def __init__(self, codec: MessageCodec, config: HostConfig) -> None:
         self.codec = codec
@@ -55,9 +47,9 @@ class VehicleStateSender:
             self.next_due = max(self.next_due + period, now)
 
     def encode(self, scenario: Scenario, now: float) -> bytes:
-        """The next message, with the scenario's signals at ``now``. Raises
+        """The next message, with the scenario's signals at ``now``; raises
         :class:`~eyeq_spi.errors.LocalProtocolError` when it cannot be encoded (the rolling counter
-        has moved on all the same, as the message's period has)."""
+        has moved on all the same)."""
         self.rolling = (self.rolling + 1) & 0xFFFF
         msg = self.codec.message(NAME)
         values = veh_state_values(self.codec.layout(msg).zero_values(), scenario.signals(now),

@@ -16,9 +16,7 @@ Subscribe = Callable[[Callable[[T], None]], None]
 
 def message_stream(subscribe: Subscribe[T]) -> AsyncIterator[T]:
     """An async iterator over every message delivered from now on, e.g.
-    ``message_stream(host.subscribe)``. Each iterator has its own unbounded queue, filled as
-    the node delivers (in the same thread, from the runner's calls) and drained by ``async for``.
-    """
+    ``message_stream(host.subscribe)``, with its own unbounded queue filled by the node's calls."""
     queue: asyncio.Queue[T] = asyncio.Queue()
     subscribe(queue.put_nowait)
 

@@ -6,16 +6,12 @@ from typing import Protocol
 
 
 class Node(Protocol):
-    """A node may also declare ``SELF_CONTAINED = True`` (an attribute of its own class, not
-    inherited; read once by :class:`~eyeq_spi.runner.virtual.VirtualRunner`): its calls act on
-    nothing but itself, and once ``data_to_send`` has been called after a ``receive_data`` or
-    ``handle_timer``, a call that hands over nothing leaves ``get_timer()`` unchanged; one
-    ``data_to_send(now)`` call hands over everything due at ``now``. The runner then re-asks only
-    this node after touching it; without it, every node.
-
-    Every node: ``data_to_send(now)`` hands over nothing unless the node was touched since its
-    last call or ``get_timer()`` is at most ``now`` (the runner does not ask it otherwise).
-    ``VirtualRunner.verify`` checks both promises."""
+    """A node may also declare ``SELF_CONTAINED = True`` (on its own class, not inherited): its
+    calls act on nothing but itself, one ``data_to_send(now)`` hands over everything due at
+    ``now``, and one that hands over nothing after the first call since a touch leaves
+    ``get_timer()`` unchanged. Every node: ``data_to_send(now)`` hands over nothing unless it was
+    touched since its last call or ``get_timer()`` is at most ``now``. ``VirtualRunner.verify``
+    checks both promises."""
 
     def receive_data(self, transfer: bytes, now: float) -> None: ...
 

@@ -34,10 +34,8 @@ class RealTimeRunner:
         self.max_wait = max_wait
         self.tap = tap
         self.start = clock()
-        # A pass of the cyclic GC can take as long as the peer's ackTimeout (eyeq_spi/garbage.py):
-        # collect only when idle (nothing due for IDLE_GC seconds), never in a burst, and never
-        # walk what was built before the run (the catalogue, the codecs, the scene: a full pass
-        # over them took 9 ms on a quiet machine and several times that on a loaded one).
+        # a GC pass can take as long as the peer's ackTimeout (eyeq_spi/garbage.py): collect
+        # only when idle, and never walk what was built before the run
         self.idle_gc = idle_gc
         self._last_gc = clock()
         self._gcs = 0
@@ -52,9 +50,8 @@ class RealTimeRunner:
             self.adapter.send(out)
 
     def step(self) -> None:
-        # What arrived while we were away (a stall, a collection, a slow step) arrived before
-        # the deadlines we are about to judge: an ACK waiting in the adapter is taken before
-        # its frame's ackTimeout is, never after (a frame whose ACK came in time is no loss).
+        # what arrived while we were away arrived before the deadlines we are about to judge
+        # (an ACK waiting in the adapter is taken before its frame's ackTimeout is)
         self._receive(0.0)
         now = self.clock()
         timer = self.node.get_timer()
@@ -82,15 +79,13 @@ class RealTimeRunner:
             if self.tap is not None:
                 self.tap("rx", now, transfer)
             self.node.receive_data(transfer, now)
-            # send the ACK (and anything else due) at once: the peer's ackTimeout is 10 ms,
-            # and decoding the rest of a burst could take longer than that
+            # the ACK goes at once: decoding the rest of a burst could outlast ackTimeout
             self._flush(self.clock())
             transfer = self.adapter.recv(0)
 
     def close(self) -> None:
-        """Give the cyclic GC back to the process as it was before this runner (idempotent).
-        Every owner calls it, or uses the runner as a context manager: a runner left open leaves
-        the collector off for the rest of the process."""
+        """Give the cyclic GC back to the process as it was before this runner (idempotent;
+        a runner left open leaves the collector off for the rest of the process)."""
         self._paused.close()
 
     def __enter__(self) -> RealTimeRunner:

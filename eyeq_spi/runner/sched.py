@@ -1,19 +1,11 @@
 """Real-time scheduling for a live link process.
 
-The link answers every DATA frame within the peer's 10 ms ``ackTimeout`` (L7, §6). On a machine
-whose cores are busy with other work, the kernel's ordinary time-sharing (``SCHED_OTHER``) can
-leave a woken process waiting longer than that: a live run at load average 8-9 on 2 cores lost
-186 frames in 30 s to late ACKs, every one of them a process that was ready but not running
-(``tools/soak_live.py``; the README has the figures). A bench emulator is a real-time program, so
-``host`` and ``sim`` ask for the ``SCHED_FIFO`` policy at a modest priority, which makes the
-kernel run them as soon as they are woken. The processes sleep in ``select`` between frames (about
-0.2 CPU-s per second at full load), and Linux keeps 5 % of every core for ordinary tasks
-(``sched_rt_runtime_us``), so the rest of the machine is not starved.
-
-Without permission (not root, no ``CAP_SYS_NICE``, no ``RLIMIT_RTPRIO``) the process falls
-back to the highest ``nice`` it may take, and then to ordinary scheduling; the policy obtained is
-reported in the run summary, never an error.
-"""
+The link answers every DATA frame within the peer's 10 ms ``ackTimeout`` (L7, §6); under load
+the kernel's time-sharing can leave a woken process waiting longer (a live run at load 8-9 on 2
+cores lost 186 frames in 30 s, ``tools/soak_live.py``). So ``host`` and ``sim`` ask for
+``SCHED_FIFO`` at a modest priority (they sleep in ``select`` between frames, and Linux keeps 5 %
+of every core for ordinary tasks); without permission they fall back to the highest ``nice``
+they may take, then to ordinary scheduling, reported in the run summary."""
 
 from __future__ import annotations
 
@@ -26,10 +18,9 @@ DEFAULT_PRIORITY = 10
 
 
 def request_realtime(priority: int = DEFAULT_PRIORITY) -> str:
-    """Ask for ``SCHED_FIFO`` at ``priority`` (0: leave scheduling alone). Returns what was
-    obtained: ``"SCHED_FIFO 10"``, ``"nice -10"`` or ``"SCHED_OTHER"`` (with the reason).
-    Children forked afterwards start with ordinary scheduling (``SCHED_RESET_ON_FORK``).
-    Prefer :func:`realtime`, which gives the policy back when the live run ends."""
+    """Ask for ``SCHED_FIFO`` at ``priority`` (0: leave scheduling alone); returns what was
+    obtained (``"SCHED_FIFO 10"``, ``"nice -10"`` or ``"SCHED_OTHER"`` with the reason). Forked
+    children start with ordinary scheduling (``SCHED_RESET_ON_FORK``)."""
     if priority <= 0:
         return "SCHED_OTHER (not requested)"
     if not hasattr(os, "sched_setscheduler"):  # not Linux
@@ -52,10 +43,8 @@ def request_realtime(priority: int = DEFAULT_PRIORITY) -> str:
 
 @contextlib.contextmanager
 def realtime(priority: int = DEFAULT_PRIORITY) -> Iterator[str]:
-    """:func:`request_realtime` for the duration of a live run, then the process's previous
-    policy and nice value again. A process that runs ``host`` or ``sim`` in-process (a test,
-    a notebook) must not stay real-time afterwards: a CPU-bound task at ``SCHED_FIFO`` holds its
-    core until it sleeps, which starves every ordinary task and other real-time links."""
+    """:func:`request_realtime` for a live run, then the previous policy and nice value again (a
+    process left at ``SCHED_FIFO`` would starve every ordinary task while it computes)."""
     if priority <= 0 or not hasattr(os, "sched_getscheduler"):
         yield request_realtime(priority)
         return

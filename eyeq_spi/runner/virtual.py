@@ -1,20 +1,11 @@
 """Virtual-clock runner: jumps from one deadline to the next, so a minute of protocol runs in
-however long the CPU needs. Used by the tests and the simulation.
+however long the CPU needs (tests, ``demo --virtual-time``, the campaigns).
 
-Event-driven: transfers in flight wait in a deadline heap, and each node's deadline is
-kept between events; a node is asked ``get_timer()`` again only after it was touched (it received
-a transfer, handled a timer, or was asked for data), and ``data_to_send`` again only when it was
-touched, handed something over, or the clock moved. The calls that remain are the ones a polling
-loop would make that can change something, in the same order, so the transfers and their times
-are those of polling (``tests/test_runner_virtual.py`` compares both, transfer by transfer).
-
-What counts as a touch is deliberately broad: ``receive_data`` and ``handle_timer`` on a node
-invalidate every node's cached deadline, because a node may act on another one inside those calls
-(the host emulator's reset line powers the simulated EyeQ up), unless the node declares
-``SELF_CONTAINED = True`` (see :class:`~eyeq_spi.runner.node.Node`). Between ``run_until`` calls and
-after every ``stop()`` the caches are dropped, so code that drives a node from outside (a test, a
-fault campaign) is seen.
-"""
+Event-driven, through the nodes' public calls only: transfers in flight wait in a deadline heap,
+each node's deadline is cached until the node is touched, and the calls that remain are those a
+polling loop would make that can change something, in the same order
+(``tests/test_runner_virtual.py`` compares both; docs/performance.md, "The emulator in virtual
+time", says what counts as a touch and what ``SELF_CONTAINED`` promises)."""
 
 from __future__ import annotations
 
@@ -31,11 +22,9 @@ Tap = Callable[[int, float, bytes], None]
 
 
 class VirtualRunner:
-    """Runs nodes, each bound to an adapter (normally the two ends of a memory pair).
-
-    ``latency`` is the time from a node handing over a transfer to the peer receiving it; the
-    default is the wire time of 128 bytes at the seed's 10 MHz SPI clock.
-    """
+    """Runs nodes, each bound to an adapter (normally the two ends of a memory pair);
+    ``latency``: from a node handing over a transfer to the peer receiving it (128 bytes at the
+    seed's 10 MHz SPI clock)."""
 
     verify = False
     """Tests set this: every cached deadline is checked against a fresh ``get_timer()``."""
@@ -65,19 +54,15 @@ class VirtualRunner:
         self._known = [False] * count  # _timer[i] is still what get_timer() would say
         self._quiet = [False] * count  # data_to_send(now) gave nothing and nothing touched it since
         self._fresh = [True] * count  # touched since its last data_to_send
-        # nodes that promise SELF_CONTAINED (see Node): touching them leaves the others' caches
-        # (declared by the node's own class: a subclass that rewrites the output, such as a
-        # conformance mutant withholding ACKs, does not inherit the promise)
-        # ``self_contained``: indices of nodes the caller declares so, because it wired their
-        # only outside effect (the host's reset line) to call :meth:`touch_all`
+        # SELF_CONTAINED nodes (see Node; a subclass does not inherit the promise) and those the
+        # caller declares so (it wired their one outside effect, the reset line, to touch_all)
         self._alone = [vars(type(node)).get("SELF_CONTAINED") is True or i in self_contained
                        for i, (node, _) in enumerate(nodes)]
 
     # -- caches -----------------------------------------------------------------------------
     def touch_all(self) -> None:
-        """Forget every node's cached deadline and quiet state: after code drove a node from
-        outside, or for a call that acts on another node from inside a node (the emulator's
-        reset line powers the simulated EyeQ up)."""
+        """Forget every node's cached deadline and quiet state (after code drove a node from
+        outside, or a node acted on another: the emulator's reset line)."""
         count = len(self.nodes)
         self._known[:] = [False] * count
         self._quiet[:] = [False] * count
@@ -146,10 +131,8 @@ class VirtualRunner:
                             raise AssertionError(f"node {index}: more to send at {now} after a "
                                                  "call that handed over")
                 else:
-                    # handing over nothing can still move a deadline: a request queued behind
-                    # a full window, a wrapper that withholds what its node hands over (the
-                    # conformance shim holding ACKs back); a SELF_CONTAINED node promises
-                    # that only the first call after a touch can
+                    # handing over nothing can still move a deadline (a request queued behind a
+                    # full window); a SELF_CONTAINED node promises only the first call can
                     if fresh[index] or not alone[index]:
                         known[index] = False
                     quiet[index] = True
@@ -180,24 +163,14 @@ class VirtualRunner:
                 best = due
         return best
 
-    def next_time(self) -> float | None:
-        """The next deadline of any node or transfer (asks every node afresh)."""
-        self.touch_all()
-        return self._next()
-
     # -- running ----------------------------------------------------------------------------
     def run_until(
         self, t_end: float, *, stop: Callable[[], bool] | None = None, realtime: bool = False,
         pace_origin: tuple[float, float] | None = None,
     ) -> float:
-        """Advance to ``t_end`` (or until ``stop()`` is true). Returns the time reached.
-
-        ``realtime`` paces virtual time to the wall clock (sleeping ahead of each event), so an
-        in-process emulation runs at the speed of a real bench.
-        ``pace_origin``: ``(perf_counter, virtual time)`` of one instant that paces every call
-        of a run made of many (default: this call's start), so the time spent between calls
-        does not add up into a run slower than the clock.
-        """
+        """Advance to ``t_end`` (or until ``stop()`` is true); returns the time reached.
+        ``realtime`` paces virtual time to the wall clock from ``pace_origin`` (``(perf_counter,
+        virtual time)``, default: this call's start), so a run made of many calls keeps up."""
         w0, c0 = time.perf_counter(), time.process_time()
         pace = (pace_origin or (w0, self.now)) if realtime else None
         try:
@@ -207,10 +180,8 @@ class VirtualRunner:
             self.cpu_s += time.process_time() - c0
 
     def _new_instant(self, at: float) -> None:
-        """Move the clock to ``at``. A node stays quiet (is not asked ``data_to_send``) when
-        nothing touched it since it last handed over nothing and its deadline is later than
-        ``at``: what a node sends becomes due only through a touch or its own timer (the Node
-        contract); ``verify`` checks it."""
+        """Move the clock to ``at``. A quiet node (nothing to send, untouched since) whose deadline
+        is later stays quiet: it is not asked ``data_to_send`` (the Node contract)."""
         if at == self.now:
             return
         self.now = at
@@ -255,10 +226,9 @@ class VirtualRunner:
 
     def _lone_instants(self, t_end: float) -> None:
         """Run the instants up to ``t_end`` at which exactly one thing happens (one transfer
-        arrives, or one node's deadline comes) for two self-contained nodes, while both are
-        quiet with known deadlines: the calls ``_pump`` would make on the one node concerned,
-        in its order, without its rounds over both nodes. Returns at the first other instant
-        (``_pump`` takes it), with the caches as ``_pump`` would have left them."""
+        arrives, or one node's deadline comes) for two self-contained quiet nodes: the calls
+        ``_pump`` would make on the one node concerned, in its order. Returns at the first other
+        instant, with the caches as ``_pump`` would have left them."""
         quiet, known, fresh, timers, transit = (self._quiet, self._known, self._fresh,
                                                 self._timer, self._transit)
         if not (quiet[0] and quiet[1] and known[0] and known[1]) or fresh[0] or fresh[1]:
@@ -320,8 +290,8 @@ class VirtualRunner:
             timers[side] = timer
 
     def _finish_instant(self, at: float, first: int) -> None:
-        """A node's call acted on the other node (``touch_all``, as the host's reset line
-        does): finish the instant as ``_pump`` would from its timer checks at node ``first``."""
+        """A node's call acted on the other node (the reset line): finish the instant as ``_pump``
+        would from its timer checks at node ``first``."""
         for index in range(first, len(self.nodes)):
             timer = self._deadline(index)
             if timer is not None and timer <= at:

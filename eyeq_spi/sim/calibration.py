@@ -9,6 +9,9 @@ import zlib
 from typing import Any
 
 from eyeq_spi.codec.bits import BitSignalCodec
+from eyeq_spi.codec.init_params import init_message
+from eyeq_spi.codec.intrinsic import intrinsic_params_from_eeprom
+from eyeq_spi.errors import EyeqError
 
 
 def fill_calibration(name: str, values: dict[str, Any], now: float, started: float,
@@ -51,3 +54,16 @@ def strip_crc(codec: BitSignalCodec, params: bytes) -> bytes:
     for sig in codec.variant.signals:
         word |= raw[sig.name] << sig.start
     return word.to_bytes(codec.length, "little")
+
+
+def expected_intrinsics(eeprom: bytes, sw: str) -> bytes | None:
+    """The 0x84 parameters (without their CRC) the host must send for this camera EEPROM;
+    None when the release has no 0x84 table (§7.1.3)."""
+    try:
+        expected = init_message(0x84, sw)
+    except EyeqError:
+        return None
+    if expected.codec is None:
+        return None
+    return strip_crc(expected.codec, expected.codec.encode(
+        intrinsic_params_from_eeprom(eeprom, sw)))

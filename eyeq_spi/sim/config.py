@@ -1,8 +1,12 @@
-"""Configuration and fault hooks of the simulated EyeQ."""
+"""Configuration, fault hooks and counters of the simulated EyeQ."""
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
+from typing import Any
+
+from eyeq_spi.catalog.bringup import RUNNING_SPC, RUNNING_TAC, RUNNING_VISION
 
 
 @dataclass
@@ -44,3 +48,35 @@ class SimConfig:
     reset_at: float | None = None  # the EyeQ resets itself at this time (seconds)
     stop_dasp: dict[str, float] = field(default_factory=dict)  # message -> time it stops
     tac_error: int | None = None  # TAC finishes with this tac_error instead of NO_ERROR
+
+
+VEH_STATE_STALE = 3 / 66.67  # three HOST_VEH_STATE periods (§7.1.2.2: 66.67 Hz)
+MODE_OF_STATE = {RUNNING_VISION: "APP", RUNNING_TAC: "TAC", RUNNING_SPC: "SPC"}
+
+
+@dataclass
+class SimCounters:
+    """What the simulator really received (reported in 0xA0)."""
+
+    msg20_rx: int = 0
+    bad_hdr: int = 0
+    bad_seq: int = 0
+    msg_tx: int = 0
+    rolling_count_echo: int = 0
+    e2e_errors: int = 0  # HOST_VEH_STATE structures rejected by their CRC or counter (D5)
+    counter_gaps: int = 0  # DASP counter steps other than +1 (D1), not wrapped like bad_seq
+    bad_hdr_total: int = 0  # bad_hdr, not wrapped
+    veh_state_stale: int = 0  # HOST_VEH_STATE silent > 3 periods in Running Vision (§7.1.2.2)
+    mesp_requests: int = 0
+    # MESP replies the host waits for in vain (M6: no reply within the deadline is a timeout):
+    # dropped (--drop-reply, or still delayed when the EyeQ reset) or sent past the deadline
+    mesp_replies_dropped: int = 0
+    mesp_replies_late: int = 0
+    received: Counter[str] = field(default_factory=Counter)
+    rejected_values: int = 0  # vehicle signals not valid, not finite or outside the seed range
+    edr_triggers: list[dict[str, Any]] = field(default_factory=list)
+    calibration_events: list[tuple[int, int]] = field(default_factory=list)  # (stage, ret)
+    boots: int = 0
+    self_resets: int = 0  # resets of its own (SimConfig.reset_at), no host asked for them
+    vision_switches: int = 0  # accepted Switch EyeQ Application to Vision: a reset (L10)
+    sent: Counter[str] = field(default_factory=Counter)

@@ -4,25 +4,13 @@ scene writes straight into, instead of a value dict that ``MessageCodec.encode_d
 Theory of operation
 -------------------
 A :class:`DaspPacker` holds the payload of one DASP message at one SW release as a ``bytearray``
-that starts as ``Layout.build(zero_values())`` (so bitfield containers carry their unused bits set,
-D2) and is reused from frame to frame, exactly as the reference reuses its value dict: a member
-nobody writes keeps its last value.
-
-Its :class:`StructView` tree mirrors that value dict (nested structs are views, arrays of structs
-are lists of views) and supports what the fillers do to a dict: ``key in v``, ``v.get(key)``,
-``v[key]`` and ``v[key] = x``, ``v.update(...)``. Every offset, ``struct`` format and bitfield
-position comes from the :class:`~eyeq_spi.codec.layout.Layout` (hence from ``specs/``), never by
-hand. Writing a leaf packs it at once, with the errors the reference's encoder would raise
-(:class:`~eyeq_spi.errors.LocalProtocolError`). The fillers' writers in
-:mod:`eyeq_spi.sim.scene_write` notice views: they pack whole rows of an array of structs with
-generated code (the obstacles as numpy columns), bind writers to views once and write constants
-once.
-
-:meth:`DaspPacker.encode` then fills the rolling counters and CRCs (D5, generated from
-``Layout.crc_plan`` like :func:`eyeq_spi.codec.e2e.compile_verifier`; same order and values as
-:func:`eyeq_spi.codec.e2e.protect`) and prepends the §7.1.2 DASP header, as
-``MessageCodec.encode_dasp`` does. The reference stays what the tests hold this to.
-"""
+that starts as ``Layout.build(zero_values())`` (bitfield containers with their unused bits set,
+D2) and is reused from frame to frame, as the reference reuses its value dict. Its
+:class:`StructView` tree mirrors that dict (``in``, ``get``, ``[]``, ``update``); offsets,
+formats and bit positions come from the :class:`~eyeq_spi.codec.layout.Layout`, and a write
+packs at once with the errors the reference's encoder raises. :meth:`DaspPacker.encode` fills
+the rolling counters and CRCs (D5, as :func:`eyeq_spi.codec.e2e.protect`) and prepends the
+§7.1.2 DASP header, as ``MessageCodec.encode_dasp`` does."""
 
 from __future__ import annotations
 
@@ -93,14 +81,12 @@ def _slots(lay: Layout) -> dict[str, Slot]:
 class StructView:
     """One struct of a :class:`DaspPacker`'s payload, used like its value dict."""
 
-    __slots__ = ("base", "buf", "cache", "done", "kids", "layout", "shadow", "slots", "template",
-                 "writers")
+    __slots__ = ("base", "buf", "cache", "done", "kids", "layout", "shadow", "slots", "template")
 
     def __init__(self, buf: bytearray, lay: Layout, base: int, keep: bool,
                  cache: dict[Any, Any]) -> None:
         self.buf, self.layout, self.base, self.cache = buf, lay, base, cache
         self.template: dict[str, Any] | None = None  # the root's: the reference's template
-        self.writers: dict[Any, Any] = {}  # scene_write._puts' generated writers for this view
         self.done: set[Any] = set()  # scene_write._puts_once: constants written since reset
         key = ("slots", id(lay))
         if key not in cache:

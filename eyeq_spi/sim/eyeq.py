@@ -1,13 +1,12 @@
-"""Simulated EyeQ4: boot status, 0x41 at 37 Hz, the application modes, the seven MESP functions,
-periodic DASP at 18 Hz filled from a seeded numpy scene, and fault hooks. Sans-IO: a runner feeds
-it transfers and ``now``.
+"""Simulated EyeQ4: boot status, 0x41 at 37 Hz, the application modes, the seven MESP functions
+(§7.1.1, M3), periodic DASP at 18 Hz filled from a seeded numpy scene, and fault hooks. Sans-IO:
+a runner feeds it transfers and ``now``.
 
 Theory of operation
 -------------------
-``power_up(now)`` (or a reset) starts the boot: after ``boot_delay`` the EyeQ sends
-EYEQ_BOOT_STATUS_MSG (0x10). A boot with failure bits stays there; otherwise the application
-starts ``app_start_delay`` later in Pending Vision (Main_State PENDING, Sub_State
-PENDING_VISION) and sends EYEQ_DIAGNOSTIC_MSG (0x41) at 37 Hz.
+``power_up(now)`` (or a reset) starts the boot (:class:`Phase`): after ``boot_delay`` the EyeQ
+sends EYEQ_BOOT_STATUS_MSG (0x10). A boot with failure bits stays there; otherwise the application
+starts ``app_start_delay`` later in Pending Vision and sends EYEQ_DIAGNOSTIC_MSG (0x41) at 37 Hz.
 
 Modes (§7.1.1.1.1, §7.1.1.1.4, the 0x41 enums):
 
@@ -24,11 +23,8 @@ DV                 DV                     Switch Application
 =================  =====================  ======================================================
 
 Intrinsic calibration (§7.1.3, I2): the EyeQ compares the 0x84 it receives with its camera
-EEPROM; on a mismatch it reports Fatal_Error 22 in 0x41 and will not enter vision.
-
-The mode values, the counters and the answers to the MESP functions are in ``mesp_functions.py``
-(the base class :class:`MespFunctions`); this module powers the EyeQ up, receives, and sends the
-boot status, 0x41 and DASP.
+EEPROM; on a mismatch it reports Fatal_Error 22 in 0x41 and will not enter vision. A subclass
+changes a MESP answer by overriding its handler (the conformance mutants do).
 """
 
 from __future__ import annotations
@@ -38,30 +34,45 @@ import math
 from collections import Counter, deque
 from typing import Any
 
-from eyeq_spi.catalog.bringup import BOOT, PENDING, PENDING_VISION, RUNNING_VISION, SWITCH_APP
+from eyeq_spi.catalog.bringup import (
+    APP_DV,
+    APP_SPC,
+    APP_TAC,
+    APP_VISION,
+    BOOT,
+    EEPROM_FILE,
+    FATAL_INTRINSIC,
+    PENDING,
+    PENDING_SPC,
+    PENDING_TAC,
+    PENDING_VISION,
+    RUNNING_DV,
+    RUNNING_SPC,
+    RUNNING_TAC,
+    RUNNING_VISION,
+    SWITCH_APP,
+)
 from eyeq_spi.catalog.messages import MessageDef, sw_release
 from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.init_params import init_message
 from eyeq_spi.codec.intrinsic import (
     default_eeprom_image,
-    intrinsic_params_from_eeprom,
     version_bytes,
 )
 from eyeq_spi.codec.message import DaspCounters, MessageCodec, is_mesp
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import EyeqError, LocalProtocolError
 from eyeq_spi.link.connection import LinkConfig
-from eyeq_spi.mesp.server import MespServer
-from eyeq_spi.sim.calibration import fill_calibration, strip_crc
-from eyeq_spi.sim.config import SimConfig
-from eyeq_spi.sim.dasp_fast import DaspPacker
-from eyeq_spi.sim.flash import FlashImage
-from eyeq_spi.sim.mesp_functions import (
-    MODE_OF_STATE,
-    VEH_STATE_STALE,
-    MespFunctions,
-    SimCounters,
+from eyeq_spi.mesp.server import (
+    RET_BAD_PARAMETERS,
+    RET_FILE_NOT_FOUND,
+    RET_NOT_ALLOWED,
+    MespServer,
 )
+from eyeq_spi.sim.calibration import expected_intrinsics, fill_calibration, strip_crc
+from eyeq_spi.sim.config import MODE_OF_STATE, VEH_STATE_STALE, SimConfig, SimCounters
+from eyeq_spi.sim.dasp_fast import DaspPacker
+from eyeq_spi.sim.flash import FlashImage, hash_request
 from eyeq_spi.sim.scene import Scene, SceneConfig
 from eyeq_spi.transport.connection import TransportConnection
 from eyeq_spi.transport.events import MessageReceived
@@ -79,13 +90,8 @@ class Phase(enum.Enum):
     RUNNING = "running"  # the application: 0x41, MESP, DASP in the mode of main_state
 
 
-TIMED_PHASES = frozenset({Phase.BOOTING, Phase.STARTING})
-
-
-class SimulatedEyeQ(MespFunctions):
-    # runner/node.py: our calls act on nothing but this EyeQ, and a data_to_send that hands
-    # over nothing leaves the deadline alone (the link's ACK/DATA queues only shrink by output)
-    SELF_CONTAINED = True
+class SimulatedEyeQ:
+    SELF_CONTAINED = True  # runner/node.py: its calls act on nothing but this EyeQ
 
     def __init__(self, config: SimConfig | None = None) -> None:
         self.config = config or SimConfig()
@@ -121,27 +127,22 @@ class SimulatedEyeQ(MespFunctions):
             "SendParamsToCalibrationTool": self._edr,
             "EventCalibrationTool": self._calibration,
         }, self.codec.cat)
-        self._expected_0x84_no_crc: bytes | None = None
-        try:
-            expected = init_message(0x84, self.sw)
-        except EyeqError:
-            expected = None  # §7.1.3 intrinsic calibration: no 0x84 table in this release
-        if expected is not None and expected.codec is not None:
-            self._expected_0x84_no_crc = strip_crc(expected.codec, expected.codec.encode(
-                intrinsic_params_from_eeprom(bytes(self.eeprom), self.sw)))
+        self._expected_0x84_no_crc = expected_intrinsics(bytes(self.eeprom), self.sw)
         self._replies: deque[tuple[float, bytes, bool]] = deque()  # (due, reply, late)
         self._dropped: Counter[str] = Counter()
         self._reply_deadline = float(self.codec.cat.raw["mesp.yaml"]["mesp"]["reply_deadline"])
         self._dasp_counter: Counter[int] = Counter()
         self._rx_counter = DaspCounters()
         self._templates: dict[str, dict[str, Any]] = {}
+        self._dasp_sent = [  # the DASP messages it sends, in every mode
+            m for m in self.codec.cat.messages
+            if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw)]
         self._dasp_msgs: dict[str, list[MessageDef]] = {}  # mode -> the DASP messages it sends
         self._scene_frame: int | None = None  # the camera frame the scene was last stepped to
         self._dasp_min = 0.0  # min(_next_dasp.values()) when _next_dasp is not empty
         self._packers: dict[str, DaspPacker | None] = {}  # None: this message takes the reference
-        self.dasp_paths: Counter[str] = Counter()  # debug stat: messages sent "packed" / "dict"
         self.phase = Phase.OFF
-        self.phase_due: float | None = None  # when a TIMED_PHASES phase ends
+        self.phase_due: float | None = None  # when BOOTING or STARTING ends
         self.now = 0.0
         self._reset_done = False  # the configured reset (SimConfig.reset_at) happened
         self.main_state = 0
@@ -158,29 +159,26 @@ class SimulatedEyeQ(MespFunctions):
         self._last_veh: float | None = None
         self.running_since: float | None = None  # first Running Vision of this power-up
         host_struct = self.codec.cat.structs.get("host_vehicle_state_t")
-        self._veh_ranges: dict[str, tuple[float, float]] = {}
-        if host_struct is not None:
-            var = host_struct.variant_for(self.sw)
-            for member in (var.members if var is not None else ()):
-                if member.min is not None and member.max is not None:
-                    self._veh_ranges[member.name] = (float(member.min), float(member.max))
+        var = host_struct.variant_for(self.sw) if host_struct is not None else None
+        self._veh_ranges = {  # §7.1.2.2: the signals' declared ranges
+            member.name: (float(member.min), float(member.max))
+            for member in (var.members if var is not None else ())
+            if member.min is not None and member.max is not None}
 
     def warm_up(self) -> None:
-        """Build every template, fill plan and codec path once, before real time starts: the
-        first message of each kind costs several milliseconds, enough for the peer's 10 ms
-        ackTimeout to expire on frames we have not ACKed yet (live-run finding)."""
+        """Build every template and codec path once before real time starts: the first message
+        of each kind costs milliseconds, enough for the peer's 10 ms ackTimeout to expire."""
         e2e = E2EState()
-        for msg in self.codec.cat.messages:
-            if msg.protocol == "DASP" and msg.direction == "e2h" and msg.exists_in(self.sw):
-                values = dict(self._template(msg.name, msg.payload))
-                self.scene.step(0.0, *self._ego)
-                self._fill(msg.name, values, 0.0)
-                self.codec.decode(self.codec.encode_dasp(msg.name, values, 0, e2e))
-                packer = self._packer(msg)
-                if packer is not None:
-                    self._fill(msg.name, packer.root, 0.0)  # type: ignore[arg-type]
-                    packer.encode(0, e2e)
-                    packer.reset()  # as the templates: the first real message starts from zeros
+        for msg in self._dasp_sent:
+            values = dict(self._template(msg.name, msg.payload))
+            self.scene.step(0.0, *self._ego)
+            self._fill(msg.name, values, 0.0)
+            self.codec.decode(self.codec.encode_dasp(msg.name, values, 0, e2e))
+            packer = self._packer(msg)
+            if packer is not None:
+                self._fill(msg.name, packer.root, 0.0)  # type: ignore[arg-type]
+                packer.encode(0, e2e)
+                packer.reset()  # as the templates: the first real message starts from zeros
         self.server.codec.warm_up()  # MESP requests we read, replies we send
         self.codec.mesp.warm_up()
         self._templates.clear()
@@ -201,15 +199,18 @@ class SimulatedEyeQ(MespFunctions):
         self.phase, self.phase_due = Phase.BOOTING, now + self.config.boot_delay
         self.main_state = self.sub_state = 0
         self.fatal_error = 0
-        self._init_ok = False
-        self._cal_started = None
         self._rx_counter.clear()
+        self.running_since = None
+        self._restart_app()
+
+    def _restart_app(self) -> None:
+        """The application starts afresh: it judges the host's E2E rolling counters anew (as
+        the host's restarted bring-up starts them anew), waits for 0x92 and restarts DASP."""
         self._rx_e2e = E2EState()
         self._last_veh = None
-        self.running_since = None
+        self._init_ok = False
+        self._cal_started = None
         self._next_dasp.clear()
-
-    reset = power_up
 
     @property
     def powered(self) -> bool:
@@ -243,14 +244,13 @@ class SimulatedEyeQ(MespFunctions):
     def get_timer(self) -> float | None:
         if self.phase is Phase.OFF:
             return None
-        # asked after every event (runner/virtual.py): no temporary lists here
         best = self.conn.get_timer()
         own = self._own_timer()
         return own if best is None or (own is not None and own < best) else best
 
     def _own_timer(self) -> float | None:
-        """The deadline of the EyeQ itself, its link's and transport's apart."""
-        # asked after every event: straight comparisons, no temporary tuple
+        """The deadline of the EyeQ itself, its link's and transport's apart (asked after
+        every event: straight comparisons, no temporary tuple)."""
         best = self.phase_due
         if not self._reset_done:
             due = self.config.reset_at
@@ -310,8 +310,7 @@ class SimulatedEyeQ(MespFunctions):
             return
         reply = self.server.handle(data)
         if reply is None:
-            self.counters.bad_hdr = (self.counters.bad_hdr + 1) & 0xFF
-            self.counters.bad_hdr_total += 1
+            self._bad_header()
             return
         self.counters.mesp_requests += 1
         self.counters.received["MESP"] += 1
@@ -332,8 +331,7 @@ class SimulatedEyeQ(MespFunctions):
     def _on_dasp(self, data: bytes, now: float) -> None:
         out = self.codec.decode(data, self._rx_e2e)
         if out.name is None or any(e.startswith("BadHdr") for e in out.errors):
-            self.counters.bad_hdr = (self.counters.bad_hdr + 1) & 0xFF
-            self.counters.bad_hdr_total += 1
+            self._bad_header()
             return
         self.counters.received[out.name] += 1
         if self._rx_counter.check(int(out.header["data_id"]), out.header["counter"]) is not None:
@@ -358,6 +356,10 @@ class SimulatedEyeQ(MespFunctions):
                 if self.running_since is None:
                     self.running_since = round(now, 4)
                 self._next_dasp.clear()
+
+    def _bad_header(self) -> None:
+        self.counters.bad_hdr = (self.counters.bad_hdr + 1) & 0xFF
+        self.counters.bad_hdr_total += 1
 
     def _vehicle_signal(self, vs: dict[str, Any], name: str) -> float | None:
         """A host signal the scene may use: flagged valid, finite and inside the seed's range
@@ -434,19 +436,14 @@ class SimulatedEyeQ(MespFunctions):
             return
         msgs = self._dasp_msgs.get(mode)
         if msgs is None:
-            msgs = self._dasp_msgs[mode] = [
-                m for m in self.codec.cat.messages
-                if m.protocol == "DASP" and m.direction == "e2h" and m.exists_in(self.sw)
-                and mode in m.modes]
+            msgs = self._dasp_msgs[mode] = [m for m in self._dasp_sent if mode in m.modes]
         rate = self.config.dasp_rate
         period = 1.0 / rate
         if not self._next_dasp:
-            # The streams (re)start (Running Vision after a boot or another mode): the scene
-            # resumes from where it stood instead of catching up the whole pause in one step,
-            # which held the loop for several milliseconds, past the host's 10 ms ackTimeout.
+            # the streams (re)start: the scene resumes where it stood (catching up the whole
+            # pause in one step held the loop past the host's 10 ms ackTimeout), and the
+            # messages are staggered over one period (none waits past transmitTimeout)
             self.scene.unanchor()
-            # stagger the messages over one period so that no message waits behind the others
-            # for longer than transmitTimeout
             for index, msg in enumerate(msgs):
                 self._next_dasp[msg.name] = now + index * period / max(1, len(msgs))
         # the messages due now, in catalogue order (a message not yet scheduled is due now)
@@ -474,8 +471,7 @@ class SimulatedEyeQ(MespFunctions):
         config leaves it open, by ``EYEQ_SPI_EXACT=1``; or no packer for it)."""
         if msg.name not in self._packers:
             packed = self.config.dasp_packer
-            if packed is None:
-                packed = not references_only()
+            packed = not references_only() if packed is None else packed
             self._packers[msg.name] = DaspPacker.build(self.codec.layout(msg), msg.data_id) \
                 if packed else None
         return self._packers[msg.name]
@@ -485,11 +481,9 @@ class SimulatedEyeQ(MespFunctions):
         packer = self._packer(msg)
         if packer is not None:
             self._fill(msg.name, packer.root, now)  # type: ignore[arg-type]
-            self.dasp_paths["packed"] += 1
             return packer.encode(counter, self.e2e)
         values = self._template(msg.name, msg.payload)
         self._fill(msg.name, values, now)
-        self.dasp_paths["dict"] += 1
         return self.codec.encode_dasp(msg.name, values, counter, self.e2e)
 
     def _fill(self, name: str, values: dict[str, Any], now: float) -> None:
@@ -517,6 +511,87 @@ class SimulatedEyeQ(MespFunctions):
             return
         self.scene.fill(name, values, now)
 
-    def calibration_done(self, now: float) -> bool:
-        return self._cal_started is not None and now - self._cal_started >= self.config.tac_duration
+    # -- MESP functions (§7.1.1, M3) -------------------------------------------------------
+    def _get_state(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        return 0, {"mainState": self.main_state, "subState": self.sub_state}
 
+    def _get_versions(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        return 0, {"apiVersionMajor": self.api_version[0],
+                   "apiVersionMinor": self.api_version[1],
+                   "eyeqSwVersionMajor": self.sw_version[0],
+                   "eyeqSwVersionMinor": self.sw_version[1]}
+
+    def _switch_app(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        app = params["applicationId"]
+        target = {APP_VISION: (PENDING, PENDING_VISION), APP_TAC: (PENDING, PENDING_TAC),
+                  APP_SPC: (PENDING, PENDING_SPC), APP_DV: (RUNNING_DV, 0)}.get(app)
+        if target is None:
+            return RET_BAD_PARAMETERS, {}
+        if self.fatal_error and app != APP_VISION:
+            return RET_NOT_ALLOWED, {}
+        stage = {APP_TAC: 0x85, APP_SPC: 0x82}.get(app)
+        if stage is not None:
+            try:
+                init_message(stage, self.sw)
+            except EyeqError:  # this release has no init table for the mode (§7.1.1.7)
+                return RET_NOT_ALLOWED, {}
+        if app == APP_VISION:
+            self.counters.vision_switches += 1
+            self.fatal_error = 0  # a restart of the vision application (the host's soft reset)
+        self.main_state, self.sub_state = target
+        self._restart_app()
+        # L10: the host takes an accepted switch for a reset of ours; both link directions
+        # start afresh (the reply is our first frame numbered from 0)
+        self.conn.restart()
+        return 0, {"applicationId": app}
+
+    def _ffs_read(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        if params["filename"] != EEPROM_FILE:
+            return RET_FILE_NOT_FOUND, {}
+        return 0, {"lastModified": 0, "flags": 0, "desc": "camera EEPROM",
+                   "data": bytes(self.eeprom)}
+
+    def _compute_hash(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        ret, result = hash_request(self.flash, params["hashType"], params["datasetType"],
+                                   params["start"], params["size"])
+        if ret:
+            return ret, {}
+        return 0, {"hashType": params["hashType"], "datasetType": params["datasetType"],
+                   "result": result}
+
+    def _edr(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        if params["edr_type"] != 6 or params["edr_params_num"] != len(params["params"]):
+            return RET_BAD_PARAMETERS, {}
+        self.counters.edr_triggers.append({**params, "time": self.now})
+        return 0, {k: params[k] for k in ("edr_type", "edr_policy", "edr_function")}
+
+    def _calibration(self, request: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+        stage, params = request["ct_stage"], request["params"]
+        try:
+            msg = init_message(stage, self.sw)
+        except (LocalProtocolError, EyeqError):
+            msg = None
+        if msg is None or request["ct_type"] != msg.ct_type or (msg.codec is not None and (
+                len(params) != msg.codec.length or msg.check(params))):
+            return self._cal_result(stage, RET_BAD_PARAMETERS, request)
+        allowed = {0x84: PENDING_VISION, 0x78: PENDING_VISION, 0x79: PENDING_VISION,
+                   0x92: PENDING_VISION, 0x85: PENDING_TAC, 0x82: PENDING_SPC}
+        if self.main_state != PENDING or self.sub_state != allowed.get(stage):
+            return self._cal_result(stage, RET_NOT_ALLOWED, request)
+        if stage == 0x84:
+            assert msg.codec is not None
+            if (self._expected_0x84_no_crc is not None
+                    and strip_crc(msg.codec, params) != self._expected_0x84_no_crc):
+                self.fatal_error = FATAL_INTRINSIC  # §7.1.3: NVM does not match the EEPROM
+        elif stage == 0x92:
+            self._init_ok = True
+        elif stage in (0x85, 0x82):
+            self.main_state, self.sub_state = (RUNNING_TAC if stage == 0x85 else RUNNING_SPC), 0
+            self._cal_started = self.now
+            self._next_dasp.clear()
+        return self._cal_result(stage, 0, request)
+
+    def _cal_result(self, stage: int, ret: int, request: dict[str, Any]
+                    ) -> tuple[int, dict[str, Any]]:
+        self.counters.calibration_events.append((stage, ret))
+        return ret, {k: request[k] for k in ("ct_type", "ct_stage", "ct_version")}

@@ -1,15 +1,10 @@
 """The simulated EyeQ's serial flash and MESP Compute Hash (0x03/0x11, §7.1.1.3, decision M3).
 
-Theory of operation
--------------------
-The flash is 64 MB or 128 MB laid out as APPENDIX F (``specs/flash_map.yaml``). It is never
-materialised: ``FlashImage`` keeps a sorted list of populated extents over an erased background of
-0xFF. Each region of the map gets one extent at its start, a few KB to 256 KB of deterministic
-pseudo-random content derived from ``seed`` and the region's name and address (SHAKE-256), so
-the same seed always gives the same image, and the 128 MB flash's low range (the 52 deg camera)
-holds the same bytes as a 64 MB flash. ``hash()`` streams over the extents and the erased gaps
-between them, feeding gaps from one cached 1 MiB block of 0xFF into ``zlib.crc32`` or
-``hashlib.sha256`` incrementally; the whole 128 MB hashes in well under a second.
+The flash is 64 MB or 128 MB laid out as APPENDIX F (``specs/flash_map.yaml``), never
+materialised: each region holds one extent of deterministic pseudo-random content at its start
+(SHAKE-256 of ``seed``, the region's name and address; the 128 MB flash's low range holds the
+64 MB flash's bytes) over an erased background of 0xFF, and ``hash()`` streams over extents and
+gaps, so the whole 128 MB hashes in well under a second.
 
 The "size" field of an EXPLICIT request (decision, recorded in ``specs/flash_map.yaml``)
 ---------------------------------------------------------------------------------------
@@ -20,21 +15,16 @@ Example B ``start 0x4000000, size 0x7FFFFFF`` (the last byte of a 128 MB flash).
 only mean one thing, so ``explicit_range`` resolves ``(start, size)`` like this:
 
 1. ``size == 0`` or ``start`` outside the flash: bad parameters (ret 3).
-2. ``start + size <= flash size``: the table's reading, ``size`` bytes from ``start``. Example A is
-   in range, so it hashes 0x3DFFFFF bytes, 0x0..0x3DFFFFE, one byte short of the customer sector's
-   end. A host that wants the whole low range sends ``size 0x3E00000``.
-3. Otherwise, if ``start <= size < flash size``, the value is an address inside the flash at or
-   after ``start`` and is read as the inclusive end address: ``size + 1 - start`` bytes. This is
-   what Example B clearly means (0x4000000..0x7FFFFFF, 0x4000000 bytes, on a 128 MB flash).
-4. Anything else runs past the flash: bad parameters. Example B on a 64 MB flash is one (its
-   start is past the end).
+2. ``start + size <= flash size``: the table's reading, ``size`` bytes from ``start`` (Example A
+   hashes 0x0..0x3DFFFFE, one byte short of the customer sector's end).
+3. Otherwise, if ``start <= size < flash size``, ``size`` is read as the inclusive end address:
+   ``size + 1 - start`` bytes (Example B on a 128 MB flash).
+4. Anything else runs past the flash: bad parameters (Example B on a 64 MB flash).
 
-Other datasets (line 633: "USER_DATASET: predefined set, FFS_DATASET: flash file system block")
-ignore ``start`` and ``size`` ("Relevant only for EXPLICIT_DATASET"). The seed does not say what
-the predefined set is; the simulated EyeQ uses the low range Example A means, from address 0 up to
-the first EDR region. FFS_DATASET is the first FFS region of the map (on a 128 MB flash, the 52 deg
-one).
-"""
+Other datasets ignore ``start`` and ``size`` (line 633: "Relevant only for EXPLICIT_DATASET").
+The seed does not say what USER_DATASET's predefined set is; the simulated EyeQ uses the low
+range Example A means, from address 0 up to the first EDR region. FFS_DATASET is the first FFS
+region of the map (on a 128 MB flash, the 52 deg one)."""
 
 from __future__ import annotations
 
@@ -58,7 +48,6 @@ HASH_LENGTHS: Final = {HASH_SHA256: 32, HASH_CRC32: 4}
 DATASET_EXPLICIT: Final = 0
 DATASET_USER: Final = 1
 DATASET_FFS: Final = 2
-DATASET_TYPES: Final = (DATASET_EXPLICIT, DATASET_USER, DATASET_FFS)
 
 # decision M2 (specs/mesp.yaml `mesp_ret`)
 RET_SUCCESS: Final = 0
@@ -111,20 +100,10 @@ def flash_sizes_mb() -> tuple[int, ...]:
 @cache
 def flash_regions(size_mb: int) -> tuple[FlashRegion, ...]:
     """APPENDIX F for one flash size, sorted by address and checked to tile inside the flash."""
-    regions = sorted(
-        (
-            FlashRegion(
-                name=str(r["name"]),
-                start=int(r["start"]),
-                size=int(r["size"]),
-                description=str(r.get("description", "")),
-                seed_line=r.get("seed_line"),
-            )
-            for r in _flash_map().get("regions", ())
-            if int(r.get("flash_mb", 0)) == size_mb
-        ),
-        key=lambda r: r.start,
-    )
+    regions = sorted((FlashRegion(str(r["name"]), int(r["start"]), int(r["size"]),
+                                  str(r.get("description", "")), r.get("seed_line"))
+                      for r in _flash_map().get("regions", ())
+                      if int(r.get("flash_mb", 0)) == size_mb), key=lambda r: r.start)
     total = size_mb * MIB
     pos = 0
     for region in regions:
@@ -165,10 +144,10 @@ class FlashImage:
         self.regions: list[FlashRegion] = list(flash_regions(size_mb))
         # sorted, non-overlapping, non-adjacent (start, content) extents
         self._starts: list[int] = []
-        self._data: list[bytearray] = []
+        self._data: list[bytes] = []
         for region in self.regions:
             self._starts.append(region.start)
-            self._data.append(bytearray(_content(seed, region)))
+            self._data.append(_content(seed, region))
 
     # -- lookup ------------------------------------------------------------------------------
     def region(self, name: str) -> FlashRegion:
@@ -235,35 +214,11 @@ class FlashImage:
             return digest.digest()
         raise LocalProtocolError(f"unknown hash type {hash_type} (0 SHA-256, 1 CRC32)")
 
-    def set_bytes(self, offset: int, data: bytes) -> None:
-        """Overwrite ``data`` at ``offset`` (fault injection, tests); merges touched extents."""
-        self._check_range(offset, len(data), "write")
-        if not data:
-            return
-        end = offset + len(data)
-        # extents overlapping or adjacent to [offset, end)
-        lo = bisect.bisect_right(self._starts, offset) - 1
-        if lo < 0 or self._starts[lo] + len(self._data[lo]) < offset:
-            lo += 1
-        hi = bisect.bisect_right(self._starts, end)  # first extent starting after end
-        starts, datas = self._starts[lo:hi], self._data[lo:hi]
-        new_start = min([offset, *starts])
-        new_end = max([end, *(s + len(d) for s, d in zip(starts, datas, strict=True))])
-        merged = bytearray([_ERASED]) * (new_end - new_start)
-        for ext_start, ext_data in zip(starts, datas, strict=True):
-            merged[ext_start - new_start : ext_start - new_start + len(ext_data)] = ext_data
-        merged[offset - new_start : end - new_start] = data
-        self._starts[lo:hi] = [new_start]
-        self._data[lo:hi] = [merged]
-
 
 # -- MESP Compute Hash ----------------------------------------------------------------------
 def explicit_range(flash_size: int, start: int, size: int) -> tuple[int, int] | None:
-    """``(start, byte count)`` an EXPLICIT request covers, or None for bad parameters.
-
-    See the module docstring: ``size`` is a byte count unless ``start + size`` runs past the flash
-    and ``size`` is an address at or after ``start`` inside it, which is then the inclusive end.
-    """
+    """``(start, byte count)`` an EXPLICIT request covers, or None for bad parameters (the
+    module docstring's rules)."""
     if not (0 <= start <= U32_MAX and 0 <= size <= U32_MAX) or size == 0 or start >= flash_size:
         return None
     if start + size <= flash_size:

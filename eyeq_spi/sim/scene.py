@@ -1,12 +1,9 @@
 """A seeded, reproducible driving scene that fills the simulated EyeQ's DASP payloads (§7.1.4).
 
-The world and its dynamics (road, objects, signs, the step) are :class:`SceneWorld` in
-:mod:`eyeq_spi.sim.scene_world`; this module adds what the EyeQ reports of it: the object columns
-and :meth:`Scene.fill`, which writes one DASP message's values. ``fill`` only reads state, so the
-same seed and the same step times give the same payloads. It knows nothing of the SW version: it
-recognises the layout from the shape of the value dict and clamps each value into the member's
-declared range and wire type (the intersection over every release with that shape).
-"""
+:class:`Scene` adds to the world of :mod:`eyeq_spi.sim.scene_world` what the EyeQ reports of it.
+:meth:`Scene.fill` only reads state, so the same seed and step times give the same payloads, and
+knows nothing of the SW version: it recognises the layout from the shape of the value dict and
+clamps each value into the member's declared range and wire type."""
 
 from __future__ import annotations
 
@@ -22,12 +19,12 @@ from eyeq_spi.sim.scene_layout import (
     BIT_WEIGHTS,
     BORDER_OFFSET,
     CAM_HEIGHT,
+    CLASS_DEFAULT,
     CLASSES,
     CYCLIST,
     FILLERS,
     FOCAL_PX,
     HALF_LANE,
-    HEADER_KEYS,
     IMAGE_H,
     IMAGE_W,
     ONCOMING,
@@ -44,7 +41,6 @@ from eyeq_spi.sim.scene_layout import (
     IArr,
     LayoutNode,
     child_struct,
-    clip,
     enum_code,
     frame_index,
     lane_codes,
@@ -56,7 +52,6 @@ from eyeq_spi.sim.scene_layout import (
 )
 from eyeq_spi.sim.scene_world import SceneConfig, SceneWorld
 from eyeq_spi.sim.scene_write import (
-    bound_puts,
     put_values,
     puts_once,
     write_objects_packed,
@@ -66,32 +61,47 @@ from eyeq_spi.sim.scene_write import (
 __all__ = ["CLASSES", "Scene", "SceneConfig", "SceneWorld"]
 
 
-class Scene(SceneWorld):
-    """The world (objects, road, signs) and the writer of its DASP payloads."""
+class Scene:
+    """What the EyeQ reports of a :class:`SceneWorld`: the writer of its DASP payloads."""
 
-    _signs_seen: tuple[object, tuple[IArr, FArr]] | None = None
-    _header: tuple[float, int, dict[str, float]] | None = None  # the last header's values
+    def __init__(self, config: SceneConfig | None = None) -> None:
+        self.world = SceneWorld(config)
+        self.config = self.world.config
+        self._cls_code = np.array(
+            [enum_code("object_classification", c[0], CLASS_DEFAULT[c[0]]) for c in CLASSES])
+        self._cols: tuple[FArr, IArr, IArr] | None = None
+        # per message: the value dict or view last filled, its range tree and its filler's name
+        self._nodes: dict[str, tuple[dict[str, Any], LayoutNode | None, str]] = {}
 
-    def _after_step(self) -> None:
-        self._columns()  # the vectorised part of filling EYEQ_VIS_OBSTACLES_MSG
+    def step(self, t: float, ego_speed: float | None = None, yaw_rate: float | None = None) -> None:
+        """:meth:`SceneWorld.step`, then the vectorised part of filling the obstacles (once per
+        step)."""
+        if self.world.step(t, ego_speed, yaw_rate):
+            self._cols = None
+            self._columns()
+
+    def unanchor(self) -> None:
+        """The next step anchors the scene in time again (after a warm-up)."""
+        self.world.unanchor()
 
     def _columns(self) -> tuple[FArr, IArr, IArr]:
         """Rows of :data:`_OBJ_F` / :data:`_OBJ_I` for the live objects in id order, and their
         birth frames; computed once per step."""
+        world = self.world
         if self._cols is not None:
             return self._cols
-        idx = self._alive.nonzero()[0]
-        idx = idx[self._oid[idx].argsort(kind="stable")]
+        idx = world.alive.nonzero()[0]
+        idx = idx[world.oid[idx].argsort(kind="stable")]
         # the state of the live objects as rows of two matrices: one gather for all columns.
         # Below, what several rows share is computed once and the same operation on several
         # rows is one numpy call on a matrix: elementwise, the same numbers as row by row
         s, d, vx, vy, ax, ay, w, length, hgt, dtgt, cbias = np.array((
-            self._s, self._d, self._vx, self._vy, self._ax, self._ay, self._w, self._l,
-            self._h, self._dtgt, self._cbias))[:, idx]
-        kind, oid, cls, birth = np.array((self._kind, self._oid, self._cls, self._birth))[:, idx]
-        c1, c2, c3 = self._poly[1:]
-        y = self._lateral(s, d)
-        vrel, a_s, ss = vx - self._v, np.abs(s), np.maximum(s, 0.5)
+            world.s, world.d, world.vx, world.vy, world.ax, world.ay, world.width, world.length,
+            world.height, world.dtgt, world.cbias))[:, idx]
+        kind, oid, cls, birth = np.array((world.kind, world.oid, world.cls, world.birth))[:, idx]
+        c1, c2, c3 = world.poly[1:]
+        y = world.lateral(s, d)
+        vrel, a_s, ss = vx - world.v, np.abs(s), np.maximum(s, 0.5)
         speed = np.hypot(vx, vy)
         moving = speed >= 0.3
         road_heading = np.arctan(c1 + s * (2 * c2 + 3 * c3 * s))
@@ -111,8 +121,8 @@ class Scene(SceneWorld):
         closing = -vrel
         ttc = np.where((s > 0.0) & (closing > 0.1),
                        np.minimum(s / np.maximum(closing, 0.1), TTC_NONE), TTC_NONE)
-        age = self._frame_now - birth + 1
-        conf = clip(0.97 - 0.0015 * a_s + cbias
+        age = world.frame_now - birth + 1
+        conf = np.clip(0.97 - 0.0015 * a_s + cbias
                     - 0.2 * np.exp(-np.maximum(age, 1) / 6.0), 0.5, 1.0)
         # the standard deviations a + b·|s| (STD) in two numpy steps for all of them: the same
         # multiplication and addition per element as one row at a time
@@ -124,10 +134,10 @@ class Scene(SceneWorld):
             mid, ang_std, -(ss * vy - y * vrel) / (ss * ss + y * y), sd[7],
             conf, ttc], dtype=np.float64)
         zero = np.zeros(len(idx))
-        lane = self._lane_index(d)
+        lane = world.lane_index(d)
         lanes = lane_codes()
         lane_code = np.where(np.abs(lane) > 2, enum_code("object_lane_assignment", "UNKNOWN", 3),
-                             lanes[clip(lane, -2, 2) + 2])
+                             lanes[np.clip(lane, -2, 2) + 2])
         vehicle = kind <= ONCOMING
         cipv = np.where(vehicle | (kind == CYCLIST), enum_code("object_is_cipv", "no_CIPV", 1),
                         enum_code("object_is_cipv", "not_relevant", 0))
@@ -194,51 +204,31 @@ class Scene(SceneWorld):
         writes, packed in place); members the layout lacks are skipped, unknown messages are
         left unchanged."""
         last = self._nodes.get(name)
-        if last is not None and last[0] is values:  # the caller reuses its dict: same layout
-            node, heads, method = last[1], last[2], last[3]
-        else:
-            filler = FILLERS.get(name)
-            if filler is None:
+        if last is None or last[0] is not values:  # a new dict or view: find its layout
+            method = FILLERS.get(name)
+            if method is None:
                 return
-            method = filler
             # a packer's view has the shape of its template dict (the same ranges)
             shape = values.template if isinstance(values, StructView) else values
-            node = None if shape is None else layout_node_for(name, shape)
-            # a packer's views never change: their headers' writers are bound once
-            heads = None if node is None or not isinstance(values, StructView) else [
-                bound_puts(values, node, HEADER_KEYS), *(
-                    bound_puts(values[key], sub, HEADER_KEYS)
-                    for key, sub in struct_members(node)
-                    if isinstance(values.get(key), StructView))]
-            self._nodes[name] = (values, node, heads, method)
+            last = self._nodes[name] = (
+                values, None if shape is None else layout_node_for(name, shape), method)
+        node = last[1]
         if node is None:
             return
         now = float(now)
-        if heads is not None:
-            vals = self._header_values(now)
-            for put in heads:
-                put(vals)
-        else:
-            self._fill_header(values, node, now)
-            for key, sub in struct_members(node):
-                if isinstance(values.get(key), dict | StructView):
-                    self._fill_header(values[key], sub, now)
-        getattr(self, method)(values, node, now)
+        header = self._header_values(now)  # the same for every header of one instant
+        put_values(values, node, header)
+        for key, sub in struct_members(node):
+            if isinstance(values.get(key), dict | StructView):
+                put_values(values[key], sub, header)
+        getattr(self, last[2])(values, node, now)
 
     def _header_values(self, now: float) -> dict[str, float]:
-        """The values of every header of instant ``now`` (kept for the next message)."""
-        last = self._header
-        if last is None or last[0] != now or last[1] != self._veh_index:
-            frame = frame_index(now)
-            last = self._header = (now, self._veh_index, {
-                "timestamp_ms": int(now * 1000) & 0xFFFFFFFF,
+        """The values of every header of instant ``now``."""
+        frame = frame_index(now)
+        return {"timestamp_ms": int(now * 1000) & 0xFFFFFFFF,
                 "timestamp_us": max(0, round(now * 1e6)), "frameIndex": frame & 0xFFFFFFFF,
-                "imageIndex": frame & 0xFFFF, "vehIndexUsed": self._veh_index & 0xFFFFFFFF})
-        return last[2]
-
-    def _fill_header(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
-        # the same values for every header of one instant
-        put_values(values, node, self._header_values(now))
+                "imageIndex": frame & 0xFFFF, "vehIndexUsed": self.world.veh_index & 0xFFFFFFFF}
 
     def _fill_nothing(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         """Headers only (EYEQ_SAFETY_MSG: no safety fault, no challenge)."""
@@ -250,15 +240,13 @@ class Scene(SceneWorld):
         objs, elem = struct_elements(*vis, "visObs")
         if not objs:
             return
-        plan = self._plans.get(id(elem))
-        if plan is None:
-            plan = self._plans[id(elem)] = obj_plan(elem)
+        plan = obj_plan(elem)
         floats, ints, birth = self._columns()
         count = min(floats.shape[1], len(objs))
         ints = ints[:, :count].copy()
         ints[AGE_ROW] = np.maximum(frame_index(now) - birth[:count] + 1, 1)
-        fa = clip(floats[:, :count], plan.flo[:, None], plan.fhi[:, None])
-        ia = clip(ints, plan.ilo[:, None], plan.ihi[:, None])
+        fa = np.clip(floats[:, :count], plan.flo[:, None], plan.fhi[:, None])
+        ia = np.clip(ints, plan.ilo[:, None], plan.ihi[:, None])
         if isinstance(objs[0], StructView) and write_objects_packed(objs, plan, fa, ia, count):
             return
         fl, il = fa.tolist(), ia.tolist()
@@ -283,7 +271,7 @@ class Scene(SceneWorld):
                     target.update(zeros)
 
     def _poly_values(self, offset: float, end: float) -> dict[str, float]:
-        c0, c1, c2, c3 = self._poly
+        c0, c1, c2, c3 = self.world.poly
         return {"a0": c0 + offset, "a1": c1, "a2": c2, "a3": c3, "startRange": 5.0,
                 "endRange": end}
 
@@ -306,7 +294,7 @@ class Scene(SceneWorld):
         if poly:
             put_values(*poly, self._poly_values(offset, view))
         if conf:
-            put_values(*conf, {"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase)})
+            put_values(*conf, {"sfConf": 0.9 + 0.06 * math.sin(0.5 * self.world.tau + phase)})
             puts_once(*conf, "seen", lambda: {
                 "confidence": enum_code("road_confidence_level", "Detected lanemark", 3)})
         put_values(md, mn, {"measuredViewRange": view * (0.85 if kind == "DASHED" else 0.95)})
@@ -318,25 +306,21 @@ class Scene(SceneWorld):
             "laneMarkerColor": enum_code("lane_marker_color", "White", 1)})
 
     def _fill_road(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
+        world = self.world
         info = child_struct(values, node, "roadInfo")
         if info is None:
             return
         rd, rn = info
-        phase = self._phase
+        phase = world.phase
         # min(max()) is np.clip on one float (NaN kept), without numpy's call overhead
-        view = float(min(max(min(105.0 + 12.0 * math.sin(0.2 * self._tau + phase[2]),
-                                 self._cipv_distance() + 25.0), 20.0), 128.0))
+        view = float(min(max(min(105.0 + 12.0 * math.sin(0.2 * world.tau + phase[2]),
+                                 world.cipv_distance() + 25.0), 20.0), 128.0))
         markers: dict[str, tuple[float, str, float, float] | None] = {
             "hostLeftMarker": (HALF_LANE, "DASHED", view, phase[3]),
             "hostRightMarker": (-HALF_LANE, "DASHED", view, phase[4]),
             "nextLeftLeftMarker": (3 * HALF_LANE, "SOLID", 0.75 * view, phase[5]),
             "nextRightRightMarker": (-3 * HALF_LANE, "SOLID", 0.75 * view, phase[6]),
             "nextLeftRightMarker": None, "nextRightLeftMarker": None}
-        if isinstance(rd, StructView):
-            plan = rd.writers.get(("road", id(rn)))
-            if plan is not None and plan[0] is rn and ("road", id(rn)) in rd.done:
-                self._fill_road_moving(plan[1], markers, view)
-                return
         mi = child_struct(rd, rn, "roadMarkerInfo")
         if mi:
             for key, spec in markers.items():
@@ -374,72 +358,16 @@ class Scene(SceneWorld):
         puts_once(rd, rn, "road", lambda: {
             "drivingSide": enum_code("road_driving_side", "Right Side", 0),
             "laneChange": enum_code("road_lane_change", "No lane change", 0)})
-        if isinstance(rd, StructView):  # the constants are in place until the packer's reset
-            rd.writers[("road", id(rn))] = (rn, self._road_plan(rd, rn, markers))
-            rd.done.add(("road", id(rn)))
-
-    @staticmethod
-    def _road_plan(rd: dict[str, Any], rn: LayoutNode,
-                   markers: dict[str, tuple[float, str, float, float] | None]
-                   ) -> list[tuple[str, Any, Any]]:
-        """What :meth:`_fill_road` writes that changes from frame to frame, as bound writers:
-        (marker key or border offset, the polynomial's writer, the marker's two writers)."""
-        out: list[tuple[str, Any, Any]] = []
-        poly_keys = ("a0", "a1", "a2", "a3", "startRange", "endRange")
-        mi = child_struct(rd, rn, "roadMarkerInfo")
-        for key, spec in markers.items() if mi else ():
-            marker = child_struct(*mi, key) if mi else None
-            if marker is None or spec is None:
-                continue
-            poly = child_struct(*marker, "laneMarker")
-            conf = child_struct(*marker, "laneMarkerConf")
-            out.append((key, poly and bound_puts(*poly, poly_keys), (
-                conf and bound_puts(*conf, ("sfConf",)),
-                bound_puts(*marker, ("measuredViewRange",)))))
-        bi = child_struct(rd, rn, "roadBorderInfo")
-        for key in ("leftRoadBorder", "rightRoadBorder") if bi else ():
-            border = child_struct(*bi, key) if bi else None
-            poly = child_struct(*border, "roadBorder") if border else None
-            if poly:
-                out.append((key, bound_puts(*poly, poly_keys), None))
-        hpp = child_struct(rd, rn, "roadHppFusionInfo")
-        centre = child_struct(*hpp, "laneCenter") if hpp else None
-        if centre:
-            out.append(("laneCenter", bound_puts(*centre, poly_keys), None))
-        return out
-
-    def _fill_road_moving(self, plan: list[tuple[str, Any, Any]],
-                          markers: dict[str, tuple[float, str, float, float] | None],
-                          view: float) -> None:
-        """The writes of :meth:`_fill_road` that change, in its order, through its plan."""
-        for key, poly, extra in plan:
-            if extra is not None:  # a marker: see _fill_marker
-                spec = markers[key]
-                assert spec is not None
-                offset, kind, mview, phase = spec
-                if poly:
-                    poly(self._poly_values(offset, mview))
-                if extra[0]:
-                    extra[0]({"sfConf": 0.9 + 0.06 * math.sin(0.5 * self._tau + phase)})
-                extra[1]({"measuredViewRange": mview * (0.85 if kind == "DASHED" else 0.95)})
-            elif key == "laneCenter":
-                poly(self._poly_values(0.0, view))
-            else:
-                poly(self._poly_values(BORDER_OFFSET[key], 0.6 * view))
 
     def _visible_signs(self) -> tuple[IArr, FArr]:
-        """Signs ahead, nearest first, and their lateral distances; once per step (both sign
-        messages read it; ``_lateral`` is elementwise arithmetic, the same per sign or at once)."""
-        cached = self._signs_seen
-        if cached is not None and cached[0] is self._cols and cached[0] is not None:
-            return cached[1]
-        idx = (self._sg_alive & (self._sg_s > 0.0)).nonzero()[0]
-        idx = idx[self._sg_s[idx].argsort(kind="stable")]
-        out = (idx, self._lateral(self._sg_s[idx], self._sg_lat[idx]))
-        self._signs_seen = (self._cols, out)
-        return out
+        """Signs ahead, nearest first, and their lateral distances."""
+        world = self.world
+        idx = (world.sg_alive & (world.sg_s > 0.0)).nonzero()[0]
+        idx = idx[world.sg_s[idx].argsort(kind="stable")]
+        return idx, world.lateral(world.sg_s[idx], world.sg_lat[idx])
 
     def _fill_signs(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
+        world = self.world
         tsr = child_struct(values, node, "tsrInfo")
         if tsr is None:
             return
@@ -448,7 +376,7 @@ class Scene(SceneWorld):
         count = min(len(elems), len(idx))
         rows: list[tuple[float, ...]] = []
         s_l, z_l, bias, lat, typ, sid = (a[idx[:count]].tolist() for a in (
-            self._sg_s, self._sg_z, self._sg_bias, self._sg_lat, self._sg_type, self._sg_id))
+            world.sg_s, world.sg_z, world.sg_bias, world.sg_lat, world.sg_type, world.sg_id))
         decision = enum_code("tsr_sign_relevant_decision", "RELEVANT_SIGN", 0)
         filt = enum_code("tsr_sign_filter_type", "NO_SLI_FILTER", 0)
         for index, y in enumerate(y_all[:count].tolist()):
@@ -476,14 +404,15 @@ class Scene(SceneWorld):
     def _spot_rows(self, count: int) -> tuple[list[tuple[float, ...]], bool]:
         """The light spots' rows (tuples in the order of :data:`SPOT_KEYS`), nearest first,
         and whether an oncoming vehicle is among them."""
-        lit = (self._alive & (self._kind <= CYCLIST) & (self._s > 3.0)).nonzero()[0]
-        lit = lit[self._s[lit].argsort(kind="stable")][:min(self._n_spots, count)]
+        world = self.world
+        lit = (world.alive & (world.kind <= CYCLIST) & (world.s > 3.0)).nonzero()[0]
+        lit = lit[world.s[lit].argsort(kind="stable")][:min(world.n_spots, count)]
         vsign = -1.0 if self.config.spot_angles_up else 1.0  # top, bottom: below-positive
         # the arrays as Python numbers first (the same values float() of an element gives)
         rows: list[tuple[float, ...]] = []
         s_l, w_l, cls_l, kind_l, oid_l = (a[lit].tolist() for a in (
-            self._s, self._w, self._cls, self._kind, self._oid))
-        y_l = self._lateral(self._s[lit], self._d[lit]).tolist()
+            world.s, world.width, world.cls, world.kind, world.oid))
+        y_l = world.lateral(world.s[lit], world.d[lit]).tolist()
         atan2, tan = math.atan2, math.tan
         spot_enum = "light_spot_classification"
         codes = (enum_code(spot_enum, "Pair of Headlamps", 3),
@@ -506,12 +435,13 @@ class Scene(SceneWorld):
 
     def _reflect_rows(self, count: int) -> list[tuple[float, ...]]:
         """The reflective signs' rows (tuples in the order of :data:`REFLECT_KEYS`)."""
+        world = self.world
         idx, y_all = self._visible_signs()
         idx = idx[:count]
         out: list[tuple[float, ...]] = []
         atan2 = math.atan2
-        for s, z, sid, y in zip(self._sg_s[idx].tolist(), self._sg_z[idx].tolist(),
-                                self._sg_id[idx].tolist(), y_all[:count].tolist(), strict=True):
+        for s, z, sid, y in zip(world.sg_s[idx].tolist(), world.sg_z[idx].tolist(),
+                                world.sg_id[idx].tolist(), y_all[:count].tolist(), strict=True):
             z -= CAM_HEIGHT
             glare = 100.0 * math.exp(-s / 50.0)
             out.append((  # §15: "Negative: left"
@@ -561,19 +491,20 @@ class Scene(SceneWorld):
                 "freeSight": enum_code("free_sight", "TRUE", 1), "outOfCalibTSR": 0})
 
     def _fill_srp(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
+        world = self.world
         srp = child_struct(values, node, "visSRP")
         if srp is None:
             return
-        two_pi, sin, s_e = 2 * math.pi, math.sin, self._s_e
-        for key, phase in (("leftWheelDataPoints", float(self._phase[0])),
-                           ("rightWheelDataPoints", float(self._phase[1]))):
+        two_pi, sin, s_e = 2 * math.pi, math.sin, world.s_e
+        for key, phase in (("leftWheelDataPoints", float(world.phase[0])),
+                           ("rightWheelDataPoints", float(world.phase[1]))):
             elems, en = struct_elements(*srp, key)
             # road profile under each wheel, 5..32 m ahead
             pos = [s_e + 5.0 + 3.0 * k for k in range(len(elems))]
             write_table(elems, en, ("height", "conf"), [
                 (0.8 * sin(two_pi * p / 37.0 + phase) + 0.4 * sin(two_pi * p / 11.3 + 2 * phase),
                  15 - k) for k, p in enumerate(pos)], ("height", "conf"))
-        put_values(*srp, {"vehicleVelocity": self._v, "frameValid": 1})
+        put_values(*srp, {"vehicleVelocity": world.v, "frameValid": 1})
 
     def _fill_timesync(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
         ts = child_struct(values, node, "timeSyncData")
@@ -583,12 +514,13 @@ class Scene(SceneWorld):
                         "Last_Clock_Sync_Skew": 0})
 
     def _fill_dynamic_cal(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:
+        world = self.world
         cal = child_struct(values, node, "dynamicCalParams")
         if cal is None:
             return
-        progress = min(100.0, 10.0 * self._tau)
-        yaw = 0.25 + 0.02 * math.sin(0.05 * self._tau)
-        pitch = -0.4 + 0.02 * math.sin(0.07 * self._tau + 1.0)
+        progress = min(100.0, 10.0 * world.tau)
+        yaw = 0.25 + 0.02 * math.sin(0.05 * world.tau)
+        pitch = -0.4 + 0.02 * math.sin(0.07 * world.tau + 1.0)
         put_values(*cal, {
             "phYaw": yaw, "phPitch": pitch, "roll": 0.1, "camHeight": CAM_HEIGHT,
             "reserved": CAM_HEIGHT, "distYaw": FOCAL_PX * math.tan(math.radians(yaw)),

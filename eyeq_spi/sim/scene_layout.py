@@ -4,7 +4,6 @@ declared range and wire type (split out of :mod:`eyeq_spi.sim.scene`)."""
 
 from __future__ import annotations
 
-import importlib
 import math
 from dataclasses import dataclass
 from functools import cache
@@ -14,6 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from eyeq_spi.catalog.messages import Catalog, Member, SwKey, catalog
+from eyeq_spi.codec.layout import INT_RANGE
 from eyeq_spi.errors import SpecError
 from eyeq_spi.sim.dasp_fast import StructView
 
@@ -58,12 +58,8 @@ SIGNS: tuple[tuple[str, float], ...] = (
 
 
 _F32_MAX = 3.4028234663852886e38
-_INT64 = (-(1 << 63), (1 << 63) - 1)
-_WIRE = {
-    "uint8": (0, 0xFF), "uint16": (0, 0xFFFF), "uint32": (0, 0xFFFFFFFF),
-    "uint64": (0, 0xFFFFFFFFFFFFFFFF), "int8": (-0x80, 0x7F), "int16": (-0x8000, 0x7FFF),
-    "int32": (-0x80000000, 0x7FFFFFFF), "int64": _INT64, "bool": (0, 1),
-}
+_INT64 = INT_RANGE["int64"]
+_WIRE = {**INT_RANGE, "bool": (0, 1)}  # a bool member holds 0 or 1
 _REAL = ("real32", "real64")
 
 
@@ -83,7 +79,7 @@ class LayoutLeaf:
         return 0.0 if self.real else 0
 
 
-@dataclass
+@dataclass(eq=False)  # a node is itself (hashable by identity): range trees live for the process
 class LayoutNode:
     members: dict[str, LayoutNode | LayoutLeaf]
     count: int | None = None  # element count when the member is an array of structs
@@ -190,17 +186,6 @@ def layout_node_for(name: str, values: dict[str, Any]) -> LayoutNode | None:
 
 def child_struct(target: dict[str, Any], node: LayoutNode, key: str
                  ) -> tuple[dict[str, Any], LayoutNode] | None:
-    if isinstance(target, StructView):  # a packer's views never change: the answer is kept
-        got = target.writers.get(("child", id(node), key))
-        if got is None or got[0] is not node:
-            got = target.writers[("child", id(node), key)] = (node, _child_of(target, node, key))
-        out: tuple[dict[str, Any], LayoutNode] | None = got[1]
-        return out
-    return _child_of(target, node, key)
-
-
-def _child_of(target: dict[str, Any], node: LayoutNode, key: str
-              ) -> tuple[dict[str, Any], LayoutNode] | None:
     sub, value = node.members.get(key), target.get(key)
     if isinstance(sub, LayoutNode) and isinstance(value, dict | StructView):
         return cast("dict[str, Any]", value), sub  # a packer's view serves as the dict
@@ -209,18 +194,6 @@ def _child_of(target: dict[str, Any], node: LayoutNode, key: str
 
 def struct_elements(target: dict[str, Any], node: LayoutNode, key: str
                     ) -> tuple[list[dict[str, Any]], LayoutNode]:
-    if isinstance(target, StructView):  # a packer's views never change: the list is kept
-        got = target.writers.get(("elements", id(node), key))
-        if got is not None and got[0] is node:
-            return cast("tuple[list[dict[str, Any]], LayoutNode]", got[1])
-        out = _element_list(target, node, key)
-        target.writers[("elements", id(node), key)] = (node, out)
-        return out
-    return _element_list(target, node, key)
-
-
-def _element_list(target: dict[str, Any], node: LayoutNode, key: str
-                  ) -> tuple[list[dict[str, Any]], LayoutNode]:
     sub, value = node.members.get(key), target.get(key)
     if isinstance(sub, LayoutNode) and isinstance(value, list):
         return [cast("dict[str, Any]", x) for x in value if isinstance(x, dict | StructView)], sub
@@ -265,7 +238,7 @@ AGE_ROW = _OBJ_I.index(((), "age"))
 Group = tuple[tuple[str | int, ...], list[tuple[str, bool, int]]]
 
 
-@dataclass
+@dataclass(eq=False)
 class ObjectPlan:
     flo: FArr
     fhi: FArr
@@ -288,6 +261,7 @@ def _resolve(node: LayoutNode, path: tuple[str | int, ...], key: str) -> LayoutL
     return leaf if isinstance(leaf, LayoutLeaf) else None
 
 
+@cache
 def obj_plan(elem: LayoutNode) -> ObjectPlan:
     flo, fhi = np.full(len(_OBJ_F), -np.inf), np.full(len(_OBJ_F), np.inf)
     ilo, ihi = np.full(len(_OBJ_I), _INT64[0]), np.full(len(_OBJ_I), _INT64[1])
@@ -347,19 +321,6 @@ def motion_tables() -> IArr:
 BIT_WEIGHTS = np.array([1 << k for k in range(MOTION_BITS)], dtype=np.int64)
 
 
-def _clip_ufunc() -> Any:
-    """numpy's ``clip`` ufunc, which ``np.clip`` of a float array (or with bounds inside an
-    integer array's type) ends in, without its Python wrapper (a few microseconds a call)."""
-    for mod in ("numpy._core.umath", "numpy.core.umath"):
-        try:
-            return importlib.import_module(mod).clip
-        except (ImportError, AttributeError):
-            continue
-    return np.clip  # pragma: no cover
-
-
-clip = _clip_ufunc()
-
 
 def frame_index(time_s: float) -> int:
     return max(0, math.floor(time_s * FRAME_RATE + 1e-6))
@@ -417,16 +378,12 @@ STD = np.array([(0.05, 0.002), (0.2, 0.01), (0.1, 0.01), (0.1, 0.005), (0.2, 0.0
 PAIR_LAMPS = tuple(c[0] not in ("bike", "bicycle") for c in CLASSES)
 TRUCK = next(k for k, c in enumerate(CLASSES) if c[0] == "truck")
 BORDER_OFFSET = {"leftRoadBorder": 3 * HALF_LANE + 0.8, "rightRoadBorder": -3 * HALF_LANE - 0.6}
-HEADER_KEYS = ("timestamp_ms", "timestamp_us", "frameIndex", "imageIndex", "vehIndexUsed")
 PX = np.array([[-FOCAL_PX], [-FOCAL_PX], [FOCAL_PX]])  # the image rows' factors
-_STRUCTS: dict[int, tuple[LayoutNode, list[tuple[str, LayoutNode]]]] = {}
 
 
+@cache
 def struct_members(node: LayoutNode) -> list[tuple[str, LayoutNode]]:
     """The members of ``node`` that are one struct (not an array of them): where
-    :meth:`Scene.fill` writes a header too. Kept per node (range trees live for the process)."""
-    got = _STRUCTS.get(id(node))
-    if got is None or got[0] is not node:
-        got = _STRUCTS[id(node)] = (node, [(k, sub) for k, sub in node.members.items()
-                                        if isinstance(sub, LayoutNode) and sub.count is None])
-    return got[1]
+    :meth:`Scene.fill` writes a header too."""
+    return [(k, sub) for k, sub in node.members.items()
+            if isinstance(sub, LayoutNode) and sub.count is None]

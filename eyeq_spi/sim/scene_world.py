@@ -13,13 +13,8 @@ when far behind or ahead and new ones spawn at once, so the number of objects st
 The road is a clothoid (seed 002 §7.2): curvature is piecewise linear in arc length, drifting
 between straights and gentle curves. Each step fits ``c2 x^2 + c3 x^3`` to the road centre over
 the next 100 m; ``c0``/``c1`` come from the ego's wander inside its lane. Lane markers, borders,
-objects and signs all use that one polynomial, so they agree with each other.
-
-All randomness is drawn in :meth:`Scene.step` from one ``np.random.Generator``; :meth:`Scene.fill`
-only reads state, so the same seed and the same step times give the same payloads. ``fill`` knows
-nothing of the SW version: it recognises the layout from the shape of the value dict and clamps
-each value into the member's declared range and wire type (the intersection over every release
-with that shape).
+objects and signs all use that one polynomial, so they agree with each other. All randomness
+is drawn in :meth:`SceneWorld.step` from one ``np.random.Generator``.
 """
 
 from __future__ import annotations
@@ -27,12 +22,10 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from eyeq_spi.sim.scene_layout import (
-    CLASS_DEFAULT,
     CLASS_P,
     CLASSES,
     CYCLIST,
@@ -54,11 +47,7 @@ from eyeq_spi.sim.scene_layout import (
     XS,
     FArr,
     IArr,
-    LayoutNode,
-    ObjectPlan,
-    clip,
     cumtrapz,
-    enum_code,
     frame_index,
     sign_table,
 )
@@ -82,56 +71,48 @@ class SceneConfig:
     spot_angles_up: bool = True
 
 
-# -- member ranges, recognised from the shape of a value dict ------------------------------------
 class SceneWorld:
-    """The world (objects, road, signs) and its dynamics; :class:`eyeq_spi.sim.scene.Scene` adds
-    the writer of its DASP payloads."""
+    """The world (objects, road, signs) and its dynamics, which :class:`eyeq_spi.sim.scene.Scene`
+    reports; road coordinates ``s``, ``d`` and the ego's speed ``v`` as in the module docstring."""
 
     def __init__(self, config: SceneConfig | None = None) -> None:
         self.config = cfg = config or SceneConfig()
         self._rng = rng = np.random.default_rng(cfg.seed)
         self._n_obj = int(min(max(cfg.objects, 0), MAX_OBJECTS))
         self._n_signs = int(min(max(cfg.signs, 0), MAX_SIGNS))
-        self._n_spots = int(min(max(cfg.light_spots, 0), MAX_SPOTS))
+        self.n_spots = int(min(max(cfg.light_spots, 0), MAX_SPOTS))
         self._t: float | None = None
-        self._tau = 0.0  # s since the first step
-        self._v = float(cfg.ego_speed)
+        self.tau = 0.0  # s since the first step
+        self.v = float(cfg.ego_speed)
         self._v_host: float | None = None
         self._k_host: float | None = None
-        self._s_e = 0.0  # distance the ego has driven
+        self.s_e = 0.0  # distance the ego has driven
         self._e = 0.0  # ego offset from its lane centre, left positive
-        self._veh_index = 0
-        self._frame_now = 0
-        self._phase = rng.uniform(0.0, 2 * math.pi, 8)
-        self._poly = (0.0, 0.0, 0.0, 0.0)
+        self.veh_index = 0
+        self.frame_now = 0
+        self.phase = rng.uniform(0.0, 2 * math.pi, 8)
+        self.poly = (0.0, 0.0, 0.0, 0.0)
         self._knot_s, self._knot_k = [-200.0, 0.0], [0.0, 0.0]
         self._extend_road()
         slots = MAX_OBJECTS
-        self._alive = np.zeros(slots, dtype=bool)
-        self._oid, self._cls, self._kind, self._birth = (
+        self.alive = np.zeros(slots, dtype=bool)
+        self.oid, self.cls, self.kind, self.birth = (
             np.zeros(slots, np.int64) for _ in range(4))
-        self._s, self._d, self._vx, self._vy, self._ax, self._ay = (
+        self.s, self.d, self.vx, self.vy, self.ax, self.ay = (
             np.zeros(slots) for _ in range(6))
-        self._w, self._l, self._h, self._vdes, self._dtgt, self._cbias = (
+        self.width, self.length, self.height, self._vdes, self.dtgt, self.cbias = (
             np.zeros(slots) for _ in range(6))
         self._free_ids: deque[int] = deque(range(1, MAX_OBJECTS + 1))
-        self._cls_code = np.array(
-            [enum_code("object_classification", c[0], CLASS_DEFAULT[c[0]]) for c in CLASSES])
         sign_slots = MAX_SIGNS
-        self._sg_alive = np.zeros(sign_slots, dtype=bool)
-        self._sg_id, self._sg_type = (np.zeros(sign_slots, np.int64) for _ in range(2))
-        self._sg_s, self._sg_lat, self._sg_z, self._sg_bias = (
+        self.sg_alive = np.zeros(sign_slots, dtype=bool)
+        self.sg_id, self.sg_type = (np.zeros(sign_slots, np.int64) for _ in range(2))
+        self.sg_s, self.sg_lat, self.sg_z, self.sg_bias = (
             np.zeros(sign_slots) for _ in range(4))
         self._free_sign_ids: deque[int] = deque(range(MAX_SIGNS))
         self._next_sign = float(rng.exponential(60.0)) + 20.0
         for index in range(self._n_obj):
             self._spawn(initial=True, first=index == 0)
         self._update_road(None, 0.0)
-        self._cols: tuple[FArr, IArr, IArr] | None = None
-        self._plans: dict[int, ObjectPlan] = {}
-        # per message: the value dict or view last filled, its range tree, its headers' writers
-        # (views only) and the filler's name
-        self._nodes: dict[str, tuple[dict[str, Any], LayoutNode | None, list[Any] | None, str]] = {}
 
     def unanchor(self) -> None:
         """Forget the time of the last step (after a warm-up): the next step anchors the scene
@@ -139,62 +120,56 @@ class SceneWorld:
         self._t = None
 
     # -- time --------------------------------------------------------------------------------
-    def step(self, t: float, ego_speed: float | None = None, yaw_rate: float | None = None) -> None:
+    def step(self, t: float, ego_speed: float | None = None, yaw_rate: float | None = None) -> bool:
         """Advance the world to virtual time ``t`` (s, monotonic); ego state from the host's
-        HOST_VEH_STATE_MSG when known, else the last known speed (or ``config.ego_speed``)."""
+        HOST_VEH_STATE_MSG when known, else the last known speed (or ``config.ego_speed``).
+        Returns whether the world moved (or was anchored in time)."""
         t = float(t)
         if not math.isfinite(t):
-            return
+            return False
         if ego_speed is not None and math.isfinite(ego_speed):
-            self._veh_index += 1
+            self.veh_index += 1
             # §7.1.2.2 vehicleVelocity range: no input may make a step unbounded
             self._v_host = min(max(float(ego_speed), EGO_SPEED_MIN), EGO_SPEED_MAX)
         v_target = self._v_host if self._v_host is not None else float(self.config.ego_speed)
         yaw = None if yaw_rate is None or not math.isfinite(yaw_rate) else float(yaw_rate)
         if self._t is None:  # the first step anchors the scene in time
-            self._t, self._frame_now, self._v = t, frame_index(t), v_target
-            self._birth[self._alive] += self._frame_now
+            self._t, self.frame_now, self.v = t, frame_index(t), v_target
+            self.birth[self.alive] += self.frame_now
             self._update_road(yaw, 0.0)
-            self._cols = None
-            self._after_step()
-            return
+            return True
         dt = t - self._t
         if dt <= 0.0:
-            return
+            return False
         skip = max(0.0, dt - MAX_GAP)
         substeps = max(1, math.ceil((dt - skip) / MAX_SUBSTEP - 1e-9))
-        h, v0 = (dt - skip) / substeps, self._v
-        self._tau += skip
+        h, v0 = (dt - skip) / substeps, self.v
+        self.tau += skip
         for substep in range(substeps):
             va = v0 + (v_target - v0) * substep / substeps
             vb = v0 + (v_target - v0) * (substep + 1) / substeps
             self._integrate(h, va, vb)
-            self._tau += h
-            self._v = vb
-            self._frame_now = frame_index(self._t + skip + (substep + 1) * h)
+            self.tau += h
+            self.v = vb
+            self.frame_now = frame_index(self._t + skip + (substep + 1) * h)
             self._update_road(yaw, h)
             self._decide(h)
         self._t = t
-        self._cols = None
-        self._after_step()
-
-    def _after_step(self) -> None:
-        """Called once the world has moved; the EyeQ's view (:class:`~eyeq_spi.sim.scene.Scene`)
-        computes what it reports of it here, once per step."""
+        return True
 
     def _integrate(self, h: float, va: float, vb: float) -> None:
         """§7.1 constant-acceleration process model over ``h`` seconds, relative to the ego."""
         disp = 0.5 * (va + vb) * h
-        self._s += self._vx * h + 0.5 * self._ax * h * h - disp
-        self._vx += self._ax * h
-        self._d += self._vy * h + 0.5 * self._ay * h * h
-        self._vy += self._ay * h
-        self._sg_s -= disp
-        self._s_e += disp
+        self.s += self.vx * h + 0.5 * self.ax * h * h - disp
+        self.vx += self.ax * h
+        self.d += self.vy * h + 0.5 * self.ay * h * h
+        self.vy += self.ay * h
+        self.sg_s -= disp
+        self.s_e += disp
 
     def _decide(self, h: float) -> None:
         self._despawn()
-        while int(self._alive.sum()) < self._n_obj and self._spawn():
+        while int(self.alive.sum()) < self._n_obj and self._spawn():
             pass
         self._lane_changes(h)
         self._accelerations(h)
@@ -204,26 +179,26 @@ class SceneWorld:
     def _extend_road(self) -> None:
         """§7.2 clothoids: curvature linear in arc length between straights and gentle arcs."""
         rng = self._rng
-        if self._knot_s[-1] < self._s_e - 1000.0:
+        if self._knot_s[-1] < self.s_e - 1000.0:
             # far behind (a jump in time or distance): restart the road at the ego instead of
             # generating every kilometre in between; keeps each step bounded
-            self._knot_s = [self._s_e - 300.0, self._s_e - 100.0]
+            self._knot_s = [self.s_e - 300.0, self.s_e - 100.0]
             self._knot_k = [self._knot_k[-1], self._knot_k[-1]]
-        while self._knot_s[-1] < self._s_e + 400.0:
+        while self._knot_s[-1] < self.s_e + 400.0:
             straight = rng.random() < 0.4
             target = 0.0 if straight else float(np.clip(rng.normal(0.0, 0.001), -0.003, 0.003))
             s0, l1, l2 = self._knot_s[-1], rng.uniform(80.0, 200.0), rng.uniform(100.0, 400.0)
             self._knot_s += [s0 + l1, s0 + l1 + l2]
             self._knot_k += [target, target]
-        while len(self._knot_s) > 3 and self._knot_s[1] < self._s_e - 200.0:
+        while len(self._knot_s) > 3 and self._knot_s[1] < self.s_e - 200.0:
             del self._knot_s[0], self._knot_k[0]
 
     def _update_road(self, yaw_rate: float | None, h: float) -> None:
         self._extend_road()
-        k = np.interp(self._s_e + XS, self._knot_s, self._knot_k)
-        if yaw_rate is not None and abs(self._v) > 1.0:
+        k = np.interp(self.s_e + XS, self._knot_s, self._knot_k)
+        if yaw_rate is not None and abs(self.v) > 1.0:
             # the host's yaw rate says how the road bends where the ego is
-            target = min(max(yaw_rate / self._v, -0.008), 0.008)  # np.clip of one float
+            target = min(max(yaw_rate / self.v, -0.008), 0.008)  # np.clip of one float
             kh = self._k_host
             kh = target if kh is None else kh + (target - kh) * min(1.0, h / 0.5)
             self._k_host = kh
@@ -232,18 +207,18 @@ class SceneWorld:
             self._k_host = None
         y = cumtrapz(cumtrapz(k, DXS), DXS)
         c2, c3 = (float(c) for c in PINV @ y)
-        p, tau = self._phase, self._tau
+        p, tau = self.phase, self.tau
         w1, w2 = 2 * math.pi / 14.0, 2 * math.pi / 4.3
         self._e = 0.15 * math.sin(w1 * tau + p[0]) + 0.05 * math.sin(w2 * tau + p[1])
         e_dot = 0.15 * w1 * math.cos(w1 * tau + p[0]) + 0.05 * w2 * math.cos(w2 * tau + p[1])
         # min(max()) is np.clip on one float (NaN kept), without numpy's call overhead
-        c1 = min(max(-e_dot / max(abs(self._v), 1.0), -0.05), 0.05)
-        self._poly = (-self._e, c1, min(max(c2, -0.0099), 0.0099),
+        c1 = min(max(-e_dot / max(abs(self.v), 1.0), -0.05), 0.05)
+        self.poly = (-self._e, c1, min(max(c2, -0.0099), 0.0099),
                       min(max(c3, -1.69e-4), 1.69e-4))
 
-    def _lateral(self, s: FArr, d: FArr) -> FArr:
+    def lateral(self, s: FArr, d: FArr) -> FArr:
         """Road (s, d) -> lateral distance in the ego frame through the road polynomial."""
-        c0, c1, c2, c3 = self._poly
+        c0, c1, c2, c3 = self.poly
         out: FArr = d + c0 + s * (c1 + s * (c2 + s * c3))
         return out
 
@@ -251,14 +226,14 @@ class SceneWorld:
     def _clear(self, s: float, d: float, length: float) -> bool:
         if abs(d - self._e) < 2.5 and -EGO_LENGTH - 15.0 < s < 15.0:
             return False
-        there = (np.abs(self._d - d) < 2.5) | (np.abs(self._dtgt - d) < 2.5)
-        near = self._alive & there & (np.abs(self._s - s) < 15.0 + np.maximum(length, self._l))
+        there = (np.abs(self.d - d) < 2.5) | (np.abs(self.dtgt - d) < 2.5)
+        near = self.alive & there & (np.abs(self.s - s) < 15.0 + np.maximum(length, self.length))
         return not bool(near.any())
 
     def _place(self, name: str, kind: int, initial: bool, first: bool
                ) -> tuple[float, float, float]:
         """One candidate (s, d, target speed) for a new object of class ``name``."""
-        rng, v_e = self._rng, max(self._v, 0.0)
+        rng, v_e = self._rng, max(self.v, 0.0)
         if kind == VEHICLE:
             vdes = float(np.clip(v_e * rng.uniform(0.8, 1.15) + rng.normal(0.0, 1.0), 0.0, 45.0))
             vdes = min(vdes, 25.0) if name == "truck" else vdes
@@ -291,7 +266,7 @@ class SceneWorld:
         return s, d, vdes
 
     def _spawn(self, initial: bool = False, first: bool = False) -> bool:
-        free = (~self._alive).nonzero()[0]
+        free = (~self.alive).nonzero()[0]
         if len(free) == 0 or not self._free_ids:
             return False
         slot, rng = int(free[0]), self._rng
@@ -307,49 +282,49 @@ class SceneWorld:
             if self._clear(s, d, CLASSES[ci][3]):
                 break
         name, _, w, length, hgt, _ = CLASSES[ci]
-        self._alive[slot] = True
-        self._oid[slot] = self._free_ids.popleft()
-        self._cls[slot], self._kind[slot] = ci, kind
-        self._s[slot], self._d[slot], self._dtgt[slot] = s, d, d
-        self._vx[slot], self._vdes[slot] = vdes, vdes
-        self._vy[slot] = self._ax[slot] = self._ay[slot] = 0.0
-        self._w[slot] = float(np.clip(w * rng.normal(1.0, 0.04), 0.45, 2.9))
-        self._l[slot] = float(np.clip(length * rng.normal(1.0, 0.2 if name == "truck" else 0.06),
-                                      0.45, 18.5))
-        self._h[slot] = float(np.clip(hgt * rng.normal(1.0, 0.04), 0.5, 4.0))
-        self._cbias[slot] = rng.normal(0.0, 0.015)
-        self._birth[slot] = self._frame_now - (int(rng.integers(0, 300)) if initial else 0)
+        self.alive[slot] = True
+        self.oid[slot] = self._free_ids.popleft()
+        self.cls[slot], self.kind[slot] = ci, kind
+        self.s[slot], self.d[slot], self.dtgt[slot] = s, d, d
+        self.vx[slot], self._vdes[slot] = vdes, vdes
+        self.vy[slot] = self.ax[slot] = self.ay[slot] = 0.0
+        self.width[slot] = float(np.clip(w * rng.normal(1.0, 0.04), 0.45, 2.9))
+        spread = 0.2 if name == "truck" else 0.06
+        self.length[slot] = float(np.clip(length * rng.normal(1.0, spread), 0.45, 18.5))
+        self.height[slot] = float(np.clip(hgt * rng.normal(1.0, 0.04), 0.5, 4.0))
+        self.cbias[slot] = rng.normal(0.0, 0.015)
+        self.birth[slot] = self.frame_now - (int(rng.integers(0, 300)) if initial else 0)
         return True
 
     def _despawn(self) -> None:
-        s, kind = self._s, self._kind
+        s, kind = self.s, self.kind
         far = (s < _BEHIND[kind]) | (s > _AHEAD[kind])  # leaves the range of its kind
         # an object the ego drives into is lost rather than driven through
-        hit = (np.abs(self._d - self._e) < 1.6) & (s > -EGO_LENGTH - 1.0) & (s < 1.0)
-        for slot in np.flatnonzero(self._alive & (far | (hit & (kind != ONCOMING)))):
-            self._alive[slot] = False
-            self._free_ids.append(int(self._oid[slot]))
-            self._oid[slot] = 0
+        hit = (np.abs(self.d - self._e) < 1.6) & (s > -EGO_LENGTH - 1.0) & (s < 1.0)
+        for slot in np.flatnonzero(self.alive & (far | (hit & (kind != ONCOMING)))):
+            self.alive[slot] = False
+            self._free_ids.append(int(self.oid[slot]))
+            self.oid[slot] = 0
 
     def _change_lane(self, slot: int, lane: int, escape: bool = False) -> bool:
-        s, target = float(self._s[slot]), lane * LANE_WIDTH
+        s, target = float(self.s[slot]), lane * LANE_WIDTH
         if not -1 <= lane <= 1 or (lane == 0 and not escape and -40.0 < s < 30.0):
             return False
-        others = self._alive.copy()
+        others = self.alive.copy()
         others[slot] = False
-        there = (np.abs(self._d - target) < 2.5) | (np.abs(self._dtgt - target) < 0.5)
-        gap = (6.0 if escape else 15.0) + np.maximum(self._l[slot], self._l)
-        busy = others & there & (np.abs(self._s - s) < gap)
+        there = (np.abs(self.d - target) < 2.5) | (np.abs(self.dtgt - target) < 0.5)
+        gap = (6.0 if escape else 15.0) + np.maximum(self.length[slot], self.length)
+        busy = others & there & (np.abs(self.s - s) < gap)
         if busy.any():
             return False
-        self._dtgt[slot] = target
+        self.dtgt[slot] = target
         return True
 
     def _lane_changes(self, h: float) -> None:
-        rng, v_e, s = self._rng, self._v, self._s
-        steady = self._alive & (self._kind == VEHICLE) & (np.abs(self._dtgt - self._d) <= 0.3)
-        lane = self._lane_index(self._dtgt)
-        closing = v_e - self._vx
+        rng, v_e, s = self._rng, self.v, self.s
+        steady = self.alive & (self.kind == VEHICLE) & (np.abs(self.dtgt - self.d) <= 0.3)
+        lane = self.lane_index(self.dtgt)
+        closing = v_e - self.vx
         # the ego closes in on it: it gets out of the way or speeds up
         escape = steady & (lane == 0) & (s > -1.0) & (closing > 0.5) & (
             (s < 10.0 * closing) | (s < 0.8 * v_e + 5.0))
@@ -357,8 +332,8 @@ class SceneWorld:
         for slot in (int(k) for k in escape.nonzero()[0]):
             if not (self._change_lane(slot, -1, True) or self._change_lane(slot, 1, True)):
                 # boxed in: the whole ego lane ahead speeds up
-                platoon = self._alive & (self._kind == VEHICLE) & (s > -1.0) & (
-                    (lane == 0) | (self._lane_index(self._d) == 0))
+                platoon = self.alive & (self.kind == VEHICLE) & (s > -1.0) & (
+                    (lane == 0) | (self.lane_index(self.d) == 0))
                 self._vdes[platoon] = np.maximum(self._vdes[platoon], v_e + 3.0)
         for slot in (int(k) for k in (steady & ~escape & (draws[0] < 0.03 * h)).nonzero()[0]):
             self._change_lane(slot, int(lane[slot]) + (1 if draws[1, slot] < 0.5 else -1))
@@ -369,43 +344,43 @@ class SceneWorld:
     def _accelerations(self, h: float) -> None:
         """Accelerations held over the next step: IDM car following for vehicles (the ego is a
         leader too), P control of the speed otherwise, a lateral PD towards the target lane."""
-        alive, kind, s, d, vx, vy = self._alive, self._kind, self._s, self._d, self._vx, self._vy
+        alive, kind, s, d, vx, vy = self.alive, self.kind, self.s, self.d, self.vx, self.vy
         veh = alive & (kind == VEHICLE)
         same = (np.abs(d[:, None] - d[None, :]) < 2.0) | (
-            np.abs(self._dtgt[:, None] - d[None, :]) < 2.0)
+            np.abs(self.dtgt[:, None] - d[None, :]) < 2.0)
         same &= (veh[:, None] & veh[None, :]) & _OTHERS  # not itself
         gaps = np.where(same & (s[None, :] > s[:, None]),
-                        s[None, :] - s[:, None] - self._l[:, None], np.inf)
+                        s[None, :] - s[:, None] - self.length[:, None], np.inf)
         lead = gaps.argmin(axis=1)
         gap, v_lead = gaps[_ROWS, lead], vx[lead]
-        ego_gap = -EGO_LENGTH - s - self._l
+        ego_gap = -EGO_LENGTH - s - self.length
         use = veh & (np.abs(d - self._e) < 2.0) & (s < -1.0) & (ego_gap < gap)
-        gap, v_lead = np.where(use, ego_gap, gap), np.where(use, self._v, v_lead)
+        gap, v_lead = np.where(use, ego_gap, gap), np.where(use, self.v, v_lead)
         v, v0 = np.maximum(vx, 0.0), np.maximum(self._vdes, 1.0)
         # the ego lane ahead hurries when the ego (driven by the host, never braking) comes close
-        hurry = (self._lane_index(d) == 0) & (s > 0.0) & (vx < self._v + 1.0)
+        hurry = (self.lane_index(d) == 0) & (s > 0.0) & (vx < self.v + 1.0)
         a_max, headway = np.where(hurry, 2.5, 1.2), np.where(hurry, 0.9, 1.3)
         s_star = 3.0 + np.maximum(0.0, headway * v + v * (v - v_lead) / (2 * np.sqrt(a_max * 2.0)))
-        a_idm = clip(a_max * (1 - (v / v0) ** 4 - (s_star / np.maximum(gap, 0.5)) ** 2), -6, 2.5)
+        a_idm = np.clip(a_max * (1 - (v / v0) ** 4 - (s_star / np.maximum(gap, 0.5)) ** 2), -6, 2.5)
         a_idm = np.maximum(a_idm, -v / max(h, 1e-3))  # stop, never reverse
-        ax = np.where(kind == VEHICLE, a_idm, clip(
+        ax = np.where(kind == VEHICLE, a_idm, np.clip(
             np.where(kind == ONCOMING, 0.3, 0.5) * (self._vdes - vx), -1.0, 1.0))
-        err = self._dtgt - d
-        ay = np.where(kind <= ONCOMING, clip(0.8 * err - 1.6 * vy, -1.5, 1.5),
-                      clip(0.5 * err - 1.0 * vy, -0.5, 0.5))
-        self._ax = np.where(alive, ax, 0.0)
-        self._ay = np.where(alive, ay, 0.0)
+        err = self.dtgt - d
+        ay = np.where(kind <= ONCOMING, np.clip(0.8 * err - 1.6 * vy, -1.5, 1.5),
+                      np.clip(0.5 * err - 1.0 * vy, -0.5, 0.5))
+        self.ax = np.where(alive, ax, 0.0)
+        self.ay = np.where(alive, ay, 0.0)
 
     # -- signs -------------------------------------------------------------------------------
     def _signs(self) -> None:
-        s = self._sg_s
-        gone = self._sg_alive & ((s < 8.0) | (s < np.abs(self._sg_lat) / math.tan(0.7)))
+        s = self.sg_s
+        gone = self.sg_alive & ((s < 8.0) | (s < np.abs(self.sg_lat) / math.tan(0.7)))
         for slot in gone.nonzero()[0]:
-            self._sg_alive[slot] = False
-            self._free_sign_ids.append(int(self._sg_id[slot]))
-        if self._s_e - self._next_sign > 1000.0:
-            self._next_sign = self._s_e  # bounded: one sign, not one per 100 m skipped
-        while self._s_e >= self._next_sign:  # a new sign every ~100 m: every 4 s at 25 m/s
+            self.sg_alive[slot] = False
+            self._free_sign_ids.append(int(self.sg_id[slot]))
+        if self.s_e - self._next_sign > 1000.0:
+            self._next_sign = self.s_e  # bounded: one sign, not one per 100 m skipped
+        while self.s_e >= self._next_sign:  # a new sign every ~100 m: every 4 s at 25 m/s
             self._next_sign += float(self._rng.exponential(60.0)) + 40.0
             self._spawn_signs()
 
@@ -421,20 +396,20 @@ class SceneWorld:
             if names[choice][6:].isdigit() and rng.random() < 0.4:  # speed limits often in pairs
                 places.append((3 * HALF_LANE + rng.uniform(0.8, 1.5), places[0][1]))
         for lat, z in places:
-            free = (~self._sg_alive).nonzero()[0]
-            if int(self._sg_alive.sum()) >= self._n_signs or len(free) == 0:
+            free = (~self.sg_alive).nonzero()[0]
+            if int(self.sg_alive.sum()) >= self._n_signs or len(free) == 0:
                 return
             slot = int(free[0])
-            self._sg_alive[slot] = True
-            self._sg_id[slot], self._sg_type[slot] = self._free_sign_ids.popleft(), codes[choice]
-            self._sg_s[slot], self._sg_lat[slot], self._sg_z[slot] = s, lat, z
-            self._sg_bias[slot] = rng.normal(0.0, 0.03)
+            self.sg_alive[slot] = True
+            self.sg_id[slot], self.sg_type[slot] = self._free_sign_ids.popleft(), codes[choice]
+            self.sg_s[slot], self.sg_lat[slot], self.sg_z[slot] = s, lat, z
+            self.sg_bias[slot] = rng.normal(0.0, 0.03)
 
     # -- derived obstacle state --------------------------------------------------------------
-    def _lane_index(self, d: FArr) -> IArr:
+    def lane_index(self, d: FArr) -> IArr:
         out: IArr = np.rint(d / LANE_WIDTH).astype(np.int64)
         return out
 
-    def _cipv_distance(self) -> float:
-        ego = self._alive & (self._lane_index(self._d) == 0) & (self._s > 0.0)
-        return float(self._s[ego].min()) if ego.any() else math.inf
+    def cipv_distance(self) -> float:
+        ego = self.alive & (self.lane_index(self.d) == 0) & (self.s > 0.0)
+        return float(self.s[ego].min()) if ego.any() else math.inf

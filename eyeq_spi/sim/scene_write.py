@@ -1,12 +1,10 @@
-"""How the scene's values reach a payload: :func:`put_values` of one struct's members (clamped as
-:meth:`~eyeq_spi.sim.scene_layout.LayoutLeaf.clamp` says, generated writers into a packer's views),
-writers bound once to a view (:func:`bound_puts`), constants written once per packer
-(:func:`puts_once`), and the arrays of structs as rows (:func:`write_table`: generated row
-writers) or, for the obstacles, numpy columns (split out of :mod:`eyeq_spi.sim.scene_layout`)."""
+"""How the scene's values reach a payload: :func:`put_values` of one struct's members (clamped
+as :meth:`~eyeq_spi.sim.scene_layout.LayoutLeaf.clamp` says), constants written once per packer
+(:func:`puts_once`), and arrays of structs as rows (:func:`write_table`) or, for the obstacles,
+numpy columns."""
 
 from __future__ import annotations
 
-import functools
 import struct
 from collections.abc import Callable
 from typing import Any
@@ -25,34 +23,14 @@ def _put(target: dict[str, Any], node: LayoutNode, key: str, value: float) -> No
 
 
 def put_values(target: dict[str, Any], node: LayoutNode, vals: dict[str, float]) -> None:
-    if isinstance(target, StructView):
-        keys = tuple(vals)
-        got = target.writers.get((id(node), keys))
-        if got is None or got[0] is not node:
-            got = target.writers[(id(node), keys)] = (node, _compile_puts(target, node, keys))
-        if got[1] is not None:
-            got[1](target.buf, target.shadow, vals)
-            return
     for key, value in vals.items():
         _put(target, node, key, value)
 
 
-def bound_puts(target: dict[str, Any], node: LayoutNode, keys: tuple[str, ...]
-                ) -> Callable[[dict[str, float]], None]:
-    """:func:`put_values` of values with ``keys`` into ``target`` as one callable: for a
-    packer's view its generated writer bound to the view's buffer (views never change)."""
-    if isinstance(target, StructView):
-        fn = _compile_puts(target, node, keys)
-        if fn is not None:
-            return functools.partial(fn, target.buf, target.shadow)
-    return functools.partial(put_values, target, node)
-
-
 def puts_once(target: dict[str, Any], node: LayoutNode, key: str,
                make: Callable[[], dict[str, float]]) -> None:
-    """:func:`put_values` of values that never change (``make()``, the same every call): a packer's
-    view keeps its bytes from frame to frame and no other write touches these members, so they
-    are written once after each reset; a dict gets them every time (the reference)."""
+    """:func:`put_values` of values that never change: a packer's view keeps its bytes from
+    frame to frame, so they are written once after each reset; a dict gets them every time."""
     if isinstance(target, StructView):
         done_key = (id(node), key)
         if done_key in target.done:
@@ -61,46 +39,6 @@ def puts_once(target: dict[str, Any], node: LayoutNode, key: str,
         target.done.add(done_key)
         return
     put_values(target, node, make())
-
-
-def _compile_puts(view: StructView, node: LayoutNode, keys: tuple[str, ...]
-                  ) -> Callable[[bytearray, Any, dict[str, float]], None] | None:
-    """:func:`put_values` into ``view`` as generated code: per key the same clamp expression as
-    :meth:`LayoutLeaf.clamp` and a ``pack_into`` at the member's offset from the layout (a bitfield
-    read, masked and written back). None if a key names a struct or an array: the loop runs."""
-    env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
-    body: list[str] = []
-    for index, key in enumerate(keys):
-        leaf = node.members.get(key)
-        if not isinstance(leaf, LayoutLeaf) or key not in view:
-            continue
-        slot = view.slots.get(key)
-        if slot is None or slot.kind not in (SCALAR, BITS):
-            return None
-        env[f"K{index}"], env[f"S{index}"] = key, slot.st
-        env[f"L{index}"], env[f"H{index}"] = leaf.lo, leaf.hi
-        offset = view.base + slot.offset
-        body.append(f"x = float(min(max(v[K{index}], L{index}), H{index}))" if leaf.real
-                    else f"x = int(min(max(round(v[K{index}]), L{index}), H{index}))")
-        if slot.kind == SCALAR:
-            body.append(f"S{index}.pack_into(b, {offset}, x)")
-        else:
-            keep = ((1 << (8 * slot.st.size)) - 1) & ~(slot.mask << slot.lo)
-            body += [f"if not isinstance(x, int) or not 0 <= x <= {slot.mask}:",
-                     f"    raise LocalProtocolError(f'{{K{index}}}: {{x!r}} does not fit "
-                     f"{slot.mask.bit_length()} bit(s)')",
-                     f"S{index}.pack_into(b, {offset}, "
-                     f"S{index}.unpack_from(b, {offset})[0] & {keep} | x << {slot.lo})"]
-        if view.shadow is not None:
-            body.append(f"sh[K{index}] = x")
-    src = ["def _w(b, sh, v):", "    try:"] + [f"        {line}" for line in body or ["pass"]]
-    src += ["    except (StructError, TypeError) as exc:",
-            "        raise LocalProtocolError(",
-            f"            f'{view.layout.name}: cannot encode: {{exc}}') from None"]
-    exec("\n".join(src), env)
-    fn: Callable[[bytearray, Any, dict[str, float]], None] = env["_w"]
-    return fn
-
 
 
 def _write_rows(elems: list[dict[str, Any]], node: LayoutNode, rows: list[dict[str, float]],
@@ -116,60 +54,35 @@ def _write_rows(elems: list[dict[str, Any]], node: LayoutNode, rows: list[dict[s
                 elem[key] = leaf.zero
 
 
-_EXACT = 2.0**53  # ints below this survive float64 exactly
-_MIN_NUMPY = 80  # values per table from which numpy clamps them (measured: numpy's ~17 µs)
-
-
 def write_table(elems: list[dict[str, Any]], node: LayoutNode, rkeys: tuple[str, ...],
                  rows: list[tuple[float, ...]] | FArr, keys: tuple[str, ...]) -> None:
     """:func:`_write_rows` of rows given as tuples in the order of ``rkeys`` (or a float64
-    matrix of such rows): a packer's views take them as one float64 matrix, clamped by numpy and
-    packed by generated code (:func:`_compile_rows`); otherwise the rows become dicts."""
-    if elems and isinstance(elems[0], StructView):
-        ck = ("table", id(node), rkeys, keys, len(elems))
-        got = elems[0].cache.get(ck)
-        if got is None or got[0] is not node:
-            got = elems[0].cache[ck] = (node, _compile_rows(elems, node, rkeys, keys))
-        if got[1] is not None:
-            lo, hi, ints, write, clamp_write = got[1]
-            count = min(len(rows), len(elems))
-            if count * len(rkeys) < _MIN_NUMPY:
-                clamp_write(elems[0].buf, rows[:count])
-                return
-            matrix = np.array(rows[:count], dtype=np.float64).reshape(count, len(rkeys))
-            if count and len(ints):
-                int_columns = matrix[:, ints]
-                if not np.abs(int_columns).max() < _EXACT:  # NaN compares False too
-                    ints = None  # round() would raise, or float64 would not hold the int
-                else:
-                    matrix[:, ints] = np.rint(int_columns)  # round(): half to even
-            if ints is not None:
-                matrix = np.where(lo > matrix, lo, matrix)  # min(max(x, lo), hi), NaN kept
-                write(elems[0].buf, np.where(hi < matrix, hi, matrix).tolist())
-                return
+    matrix of such rows): into a packer's views by a generated writer (:func:`_compile_rows`);
+    otherwise the rows become dicts."""
     if isinstance(rows, np.ndarray):
         rows = rows.tolist()
+    if elems and isinstance(elems[0], StructView):
+        cache, key = elems[0].cache, ("table", node, rkeys, keys, len(elems))
+        if key not in cache:
+            cache[key] = _compile_rows(elems, node, rkeys, keys)
+        if cache[key] is not None:
+            cache[key](elems[0].buf, rows[:len(elems)])
+            return
     _write_rows(elems, node, [dict(zip(rkeys, row, strict=True)) for row in rows], keys)
 
 
 def _compile_rows(elems: list[StructView], node: LayoutNode, rkeys: tuple[str, ...],
-                  keys: tuple[str, ...]) -> tuple[FArr, FArr, Any, Any, Any] | None:
-    """:func:`write_table` into a packer's views: the bounds of the ``rkeys`` columns, the
-    integer ones, and two generated writers that pack rows with one ``pack_into`` per run of
-    adjacent members and zero ``keys`` of the elements past the rows by slices: one for rows
-    numpy has clamped and rounded, one that clamps each value with :meth:`LayoutLeaf.clamp`'s
-    expression. None (the loop runs) for elements not evenly spaced, a bitfield or struct
-    member, a real into an integer or an integer range wider than its wire type."""
+                  keys: tuple[str, ...]) -> Callable[[bytearray, Any], None] | None:
+    """:func:`write_table` into a packer's views: a generated writer that clamps each value as
+    :meth:`LayoutLeaf.clamp` does, packs rows with one ``pack_into`` per run of adjacent members
+    and zeroes ``keys`` past the rows; None (the loop runs) when the layout does not allow it."""
     first = elems[0]
     count = len(elems)
     stride = elems[1].base - first.base if count > 1 else first.layout.size
     if any(e.base != first.base + k * stride for k, e in enumerate(elems)):
         return None
-    put: list[tuple[int, str, str]] = []  # (offset, struct code, expression)
+    put: list[tuple[int, str, str]] = []  # (offset, struct code, clamped expression)
     zero: list[tuple[int, int]] = []  # (offset, size) of the members zeroed past the rows
-    lo, hi = np.full(len(rkeys), -np.inf), np.full(len(rkeys), np.inf)
-    ints: list[int] = []
-    clamped: list[str] = []  # the expressions of :meth:`LayoutLeaf.clamp`
     env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
     for column, key in enumerate(rkeys + keys):
         leaf = node.members.get(key)
@@ -184,18 +97,12 @@ def _compile_rows(elems: list[StructView], node: LayoutNode, rkeys: tuple[str, .
         if column >= len(rkeys):
             zero.append((slot.offset, slot.st.size))
             continue
-        lo[column], hi[column] = leaf.lo, leaf.hi
-        if not leaf.real:
-            ints.append(column)
-        expr = f"r[{column}]" if leaf.real else f"int(r[{column}])"
-        put.append((slot.offset, slot.st.format[1:], expr))
-        clamped.append(f"float(min(max(r[{column}], L{column}), H{column}))" if leaf.real
-                       else f"int(min(max(round(r[{column}]), L{column}), H{column}))")
+        put.append((slot.offset, slot.st.format[1:],
+                    f"float(min(max(r[{column}], L{column}), H{column}))" if leaf.real
+                    else f"int(min(max(round(r[{column}]), L{column}), H{column}))"))
         env[f"L{column}"], env[f"H{column}"] = leaf.lo, leaf.hi
     env["Z"] = _zero_spans(first.base, stride, count, zero)
-    return (lo, hi, np.array(ints, dtype=np.intp), _rows_writer(first, stride, put, env),
-            _rows_writer(first, stride, [(o, c, e) for (o, c, _), e in zip(put, clamped,
-                                                                            strict=True)], env))
+    return _rows_writer(first, stride, put, env)
 
 
 def _zero_spans(base: int, stride: int, count: int, zero: list[tuple[int, int]]
@@ -245,35 +152,35 @@ def _rows_writer(first: StructView, stride: int, put: list[tuple[int, str, str]]
 def write_objects_packed(objs: list[Any], plan: ObjectPlan, fl: FArr, il: IArr,
                          filled: int) -> bool:
     """The object loop of ``Scene._fill_obstacles`` into a packer's views: the same clamped
-    arrays, cast per wire type into one byte array and scattered into the payload bytes at once
-    (slots past ``filled`` get 0). False (nothing written) when the loop must run."""
+    arrays, cast per wire type and scattered into the payload bytes (slots past ``filled`` get
+    0). False (nothing written) when the loop must run."""
     first = objs[0]
-    ck = ("objs", id(plan), len(objs))
-    got = first.cache.get(ck)
-    if got is None or got[0] is not plan:
-        got = first.cache[ck] = (plan, _objects_plan(objs, plan))
-    compiled = got[1]
+    key = ("objs", plan, len(objs))
+    if key not in first.cache:
+        first.cache[key] = _objects_plan(objs, plan)
+    compiled = first.cache[key]
     if compiled is None:
         return False
-    u8, groups, check, bitgroups, raw, everywhere = compiled
+    u8, groups, check, bitgroups = compiled
     rows, lo, hi = check
     if filled and len(rows):  # one range check for every integer column (wire type or bit width)
         int_rows = il[rows]
         if (int_rows < lo).any() or (int_rows > hi).any():
             return False  # the encoder would refuse it: let the loop raise
     count = len(objs)
-    for real, rows, scratch in groups:
+    for real, rows, where, scratch in groups:
         scratch[:, :filled] = fl[rows] if real else il[rows]
         if filled < count:
             scratch[:, filled:] = 0
-    for brows, shift, starts, base, scratch in bitgroups:
+        u8[where] = scratch.view(np.uint8).ravel()
+    for brows, shift, starts, base, where, scratch in bitgroups:
         # a container holds the bits the objects do not write as they are (D2 unused bits set)
         if filled < count:
             scratch[:, filled:] = base[:, filled:]
         if filled:
             bits = np.bitwise_or.reduceat(il[brows] << shift, starts, axis=0)
             scratch[:, :filled] = base[:, :filled] | bits
-    u8[everywhere] = raw  # every group's bytes in one scatter
+        u8[where] = scratch.view(np.uint8).ravel()
     return True
 
 
@@ -290,11 +197,8 @@ def _objects_plan(objs: list[StructView], plan: ObjectPlan) -> tuple[Any, ...] |
         return None
     by_type, bits, check = slots
     u8 = np.frombuffer(first.buf, dtype=np.uint8)
-    # each group's values live in one byte array (widest types first: aligned), scattered into
-    # the payload at once by the concatenation of the groups' indices
-    order = sorted(by_type.items(), key=lambda kv: -np.dtype(NP_FMT[kv[0][0]]).itemsize)
     groups = []
-    for (typ, real), cols in order:
+    for (typ, real), cols in by_type.items():
         dt, idx = _byte_index(first, stride, count, typ, [rel for _, rel in cols])
         groups.append((real, np.array([row for row, _ in cols]), idx,
                        np.zeros((len(cols), count), dtype=dt)))
@@ -302,18 +206,7 @@ def _objects_plan(objs: list[StructView], plan: ObjectPlan) -> tuple[Any, ...] |
     bounds = (np.array([row for row, _, _ in check], dtype=np.intp),
               np.array([lo for _, lo, _ in check], dtype=np.float64)[:, None],
               np.array([hi for _, _, hi in check], dtype=np.float64)[:, None])
-    arrays = [g[3] for g in groups] + [b[5] for b in bitgroups]
-    raw = np.zeros(sum(a.nbytes for a in arrays), dtype=np.uint8)
-    views, at = [], 0
-    for array in arrays:
-        views.append(raw[at:at + array.nbytes].view(array.dtype).reshape(array.shape))
-        at += array.nbytes
-    for number, bitgroup in enumerate(bitgroups):  # the containers as the payload holds them
-        views[len(groups) + number][:] = bitgroup[3]
-    everywhere = np.concatenate([g[2] for g in groups] + [b[4] for b in bitgroups])
-    return (u8, [(g[0], g[1], v) for g, v in zip(groups, views, strict=False)], bounds,
-            [(*b[:4], v) for b, v in zip(bitgroups, views[len(groups):], strict=True)], raw,
-            everywhere)
+    return u8, groups, bounds, bitgroups
 
 
 _Bits = dict[int, tuple[str, list[tuple[int, int, int]]]]
