@@ -82,16 +82,17 @@ def _time(text: str, where: str) -> float:
 
 def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
                  ) -> Iterator[Transfer]:
-    try:
-        yield from _saleae2(src, opts, chunk_size)
-    except csv.Error as exc:
-        raise InputError(f"not a CSV export: {exc}") from None
+    return _csv_errors(_saleae2(src, opts, chunk_size))
 
 
 def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
-                  ) -> Iterator[Transfer]:
+                 ) -> Iterator[Transfer]:
+    return _csv_errors(_saleae1(src, opts, chunk_size))
+
+
+def _csv_errors(transfers: Iterator[Transfer]) -> Iterator[Transfer]:
     try:
-        yield from _saleae1(src, opts, chunk_size)
+        yield from transfers
     except csv.Error as exc:
         raise InputError(f"not a CSV export: {exc}") from None
 
