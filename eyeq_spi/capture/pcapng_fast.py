@@ -9,10 +9,10 @@ fault, L8) keeps its bytes in ``Chunk.odd`` and a zero row in ``data``.
   transfer) is checked and sliced as one ``(k, 160)`` array view with no per-block Python work;
   anything else (other block types, other sizes, options) is walked block by block. A big-endian
   section falls back to python-pcapng (:func:`read_pcapng`), which stays the reference: the tests
-  hold both to the same records. Interface numbering, names and ``if_tsresol`` follow
+  hold both to the same transfers. Interface numbering, names and ``if_tsresol`` follow
   :func:`read_pcapng` exactly.
 - raw: concatenated 128-byte transfers, one ``np.frombuffer`` per chunk.
-- any other stream of :class:`Transfer`: :func:`chunks_from_records`.
+- any other stream of :class:`Transfer`: :func:`chunks_from_transfers`.
 
 Memory stays bounded by ``chunk``. A malformed or truncated file raises :class:`InputError` after
 every complete transfer before the fault has been returned; given a :class:`Tail`, a truncated
@@ -62,7 +62,7 @@ class Chunk:
     def __len__(self) -> int:
         return int(self.length.shape[0])
 
-    def record(self, index: int) -> Transfer:
+    def transfer(self, index: int) -> Transfer:
         """Row ``i`` as the reference dissector's input."""
         time_s = float(self.time[index])
         data = self.odd.get(index)
@@ -79,7 +79,7 @@ def _chunk(rows: list[np.ndarray], lengths: list[int], times: list[float], dirs:
                  np.asarray(dirs, np.int8), odd)
 
 
-def chunks_from_records(records: Iterable[Transfer], chunk: int = CHUNK) -> Iterator[Chunk]:
+def chunks_from_transfers(transfers: Iterable[Transfer], chunk: int = CHUNK) -> Iterator[Chunk]:
     """The general path: any :class:`Transfer` stream (hex text, python-pcapng) as chunks."""
     buf = bytearray()
     lengths: list[int] = []
@@ -87,7 +87,7 @@ def chunks_from_records(records: Iterable[Transfer], chunk: int = CHUNK) -> Iter
     dirs: list[int] = []
     odd: dict[int, bytes] = {}
     zero = bytes(FRAME_SIZE)
-    for transfer in records:
+    for transfer in transfers:
         size = len(transfer.data)
         if size == FRAME_SIZE:
             buf += transfer.data
@@ -170,7 +170,7 @@ def pcapng_chunks(stream: Readable, chunk: int = CHUNK, tail: Tail | None = None
         raise InputError("not a pcapng file")
     if len(head) < 12 or struct.unpack_from("<I", head, 8)[0] != _BOM:
         # big-endian (or too short to tell): the reference reader handles it
-        yield from chunks_from_records(read_pcapng(PeekStream(stream, head=head), tail),  # type: ignore[arg-type]
+        yield from chunks_from_transfers(read_pcapng(PeekStream(stream, head=head), tail),  # type: ignore[arg-type]
                                        chunk)
         return
     yield from _Walker(stream, head, chunk, tail).run()

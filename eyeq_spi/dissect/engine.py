@@ -197,23 +197,23 @@ class Dissector:
             self._dirs[direction] = receiver
         return receiver
 
-    def feed(self, rec: Transfer) -> Iterator[dict[str, Any]]:
+    def feed(self, transfer: Transfer) -> Iterator[dict[str, Any]]:
         idx = self.index
         self.index += 1
-        time_s = rec.time
-        receiver = self._dir(rec.direction)
+        time_s = transfer.time
+        receiver = self._dir(transfer.direction)
         if time_s is not None:
             yield from self._timers(time_s)
             self.last_time = time_s
-        data = rec.data
+        data = transfer.data
         if len(data) == FRAME_SIZE:
             dfield, rfield, rsp, num, crc_ok = self.frames.check(data)
-            frame_rec = frame_record(idx, time_s, rec.direction, FRAME_SIZE,
+            frame_rec = frame_record(idx, time_s, transfer.direction, FRAME_SIZE,
                                      (dfield, rfield, rsp, num), crc_ok, (data[6], data[7]))
             if dfield == FrameKind.DATA:
                 receiver.index_of_num[num] = idx
         else:
-            frame_rec = frame_record(idx, time_s, rec.direction, len(data))
+            frame_rec = frame_record(idx, time_s, transfer.direction, len(data))
         yield frame_rec
         if frame_rec["frame_type"] in ("ACK", "NAK"):
             return  # acknowledgements of the other channel's frames: nothing to reassemble
@@ -223,27 +223,27 @@ class Dissector:
             if frame_rec["num"] == 0 and after != SEQ_MODULO - 1:
                 # L10: the host asked for a reset (Switch EyeQ Application) and numbers its
                 # frames after it from 0: a receiver takes this one as its start
-                receiver = self._reset_direction(rec.direction)
-                yield {"kind": "event", "type": "driver_reset", "direction": rec.direction,
+                receiver = self._reset_direction(transfer.direction)
+                yield {"kind": "event", "type": "driver_reset", "direction": transfer.direction,
                        "index": idx}
         if (frame_rec["frame_type"] == "DATA" and frame_rec["num"] == 0 and frame_rec["rsp"] == 0
                 and frame_rec["crc_ok"] and receiver.conn.link.expected_num != 0):
             # L4: NUM is 0 after a reset. The real receiver was reset with its peer (both SPI
             # drivers restart together), so the passive one must start over too, or it would
             # NAK frames the real one accepted.
-            receiver = self._reset_direction(rec.direction)
-            yield {"kind": "event", "type": "driver_reset", "direction": rec.direction,
+            receiver = self._reset_direction(transfer.direction)
+            yield {"kind": "event", "type": "driver_reset", "direction": transfer.direction,
                    "index": idx}
             # L10/L10a: the side that restarted starts its own receiver over too, so for its
             # first 64 frames it takes a NUM 0 of the other side as that side's (late) restart,
             # whatever its RSP, as the real receiver does
-            other = self._dirs.get(OTHER_DIRECTION.get(rec.direction))
+            other = self._dirs.get(OTHER_DIRECTION.get(transfer.direction))
             if other is not None:
                 other.conn.link.restart()
         conn = receiver.conn
         conn.receive_data(data, time_s if time_s is not None else 0.0)
         conn.data_to_send(float("inf"))  # our passive receiver's ACK/NAKs go nowhere
-        yield from self._events(rec.direction, receiver)
+        yield from self._events(transfer.direction, receiver)
 
     def _reset_direction(self, direction: str | None) -> _Direction:
         old = self._dirs.pop(direction)
@@ -389,10 +389,10 @@ def _check_enums(codec: MessageCodec, lay: Any, values: dict[str, Any], path: st
             errs.append(f"bad enum value {value} for {path}.{name} ({enum.name})")
 
 
-def iter_records(records: Iterable[Transfer], *, sw: str | None = None,
+def iter_records(transfers: Iterable[Transfer], *, sw: str | None = None,
                  codec: MessageCodec | None = None) -> Iterator[dict[str, Any]]:
     """All records of a capture, in order, ending with the end-of-capture aborts."""
     dis = Dissector(sw, codec)
-    for rec in records:
-        yield from dis.feed(rec)
+    for transfer in transfers:
+        yield from dis.feed(transfer)
     yield from dis.finish()

@@ -165,7 +165,7 @@ class ChunkFeeder:
                 pos = nxt
                 continue
             self.dis.index = fa.base + nxt
-            out = list(self.dis.feed(fa.chunk.record(nxt)))
+            out = list(self.dis.feed(fa.chunk.transfer(nxt)))
             yield from out
             idx = fa.base + nxt
             st.canonical = any(r["kind"] == "message" and r["direction"] == st.name

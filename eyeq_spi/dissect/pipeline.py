@@ -149,7 +149,7 @@ class CaptureFile:
     @property
     def transfers(self) -> Iterator[Transfer]:
         """The capture's transfers as read (no dissection)."""
-        return self.open().records
+        return self.open().transfers
 
     @property
     def items(self) -> Iterator[Any]:
@@ -173,7 +173,7 @@ class CaptureFile:
 
                 items = chunk_items(cap.chunks, self.codec, self.config.fields)
             else:
-                items = iter_records(cap.records, codec=self.codec)
+                items = iter_records(cap.transfers, codec=self.codec)
             yield from self._tracked(items, fh)
         except EyeqError as exc:
             raise _naming(exc, self.path) from None

@@ -73,11 +73,11 @@ def open_fast(fh: IO[bytes], fmt: str | None, direction: str | None, *, sw: str 
         release = choose_release(sw, (recorded, RECORDED), name)
     else:
         first, fault = _first_chunks(chunks, release_sniff_transfers())
-        rows = [c.record(i) for c in first for i in range(len(c))]
+        rows = [c.transfer(i) for c in first for i in range(len(c))]
         release = choose_release(sw, infer_release(rows[: release_sniff_transfers()]), name)
         chunks = then(first, fault, chunks)
     release = replace(release, clock=recorded_clock(head))
-    return Capture(kind, _records(chunks), release, tail, chunks)
+    return Capture(kind, _transfers(chunks), release, tail, chunks)
 
 
 def _first_chunks(chunks: Iterator[Chunk], rows: int
@@ -96,11 +96,11 @@ def _first_chunks(chunks: Iterator[Chunk], rows: int
     return first, None
 
 
-def _records(chunks: Iterator[Chunk]) -> Iterator[Transfer]:
+def _transfers(chunks: Iterator[Chunk]) -> Iterator[Transfer]:
     """The transfers of ``chunks`` one by one (a caller that wants the transfers)."""
     for chunk in chunks:
         for index in range(len(chunk)):
-            yield chunk.record(index)
+            yield chunk.transfer(index)
 
 
 def chunk_items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"

@@ -36,7 +36,7 @@ from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, MessageCodec, classify
 from eyeq_spi.dissect.engine import Dissector
 from eyeq_spi.errors import EyeqError
-from eyeq_spi.io.plain import PeekStream, open_records
+from eyeq_spi.io.plain import PeekStream, open_transfers
 from eyeq_spi.logic.options import SpiOptions
 
 RECORDED = "recorded in the capture"
@@ -125,16 +125,16 @@ def _fitting(cat: Catalog, lengths: set[tuple[int, int]]) -> list[SwKey]:
     return [k for k in cat.sw_versions if best and score[k] == best]
 
 
-def infer_release(records: Iterable[Transfer], cat: Catalog | None = None
+def infer_release(transfers: Iterable[Transfer], cat: Catalog | None = None
                   ) -> tuple[SwKey, str] | None:
     """The release the traffic shows (steps 3 and 4 of the module docstring), with where it was
-    seen, or None when nothing in ``records`` tells."""
+    seen, or None when nothing in ``transfers`` tells."""
     cat = cat or catalog()
     sniff = _Sniffer(cat)
     codec = sniff.codec
     lengths: set[tuple[int, int]] = set()
-    for rec in records:
-        for _ in sniff.feed(rec):
+    for transfer in transfers:
+        for _ in sniff.feed(transfer):
             pass
         for data in sniff.messages:
             found = _reported(cat, codec, data)
@@ -171,39 +171,39 @@ def choose_release(sw: str | None, found: tuple[SwKey, str] | None, name: str,
 @dataclass
 class Capture:
     """An opened capture: its format, its transfers, the release to read them with, and what
-    was left unread at its end (filled once ``records`` is exhausted)."""
+    was left unread at its end (filled once ``transfers`` is exhausted)."""
 
     kind: str
-    records: Iterator[Transfer]
+    transfers: Iterator[Transfer]
     release: Release
     tail: Tail = field(default_factory=Tail)
     # the fast path's chunks of transfers (:mod:`eyeq_spi.capture.pcapng_fast`), which
-    # ``records`` are read from: a caller reads one or the other; None for the reference readers
+    # ``transfers`` are read from: a caller reads one or the other; None for the reference readers
     chunks: Iterator[Any] | None = None
 
 
 def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | None = None,
                  spi: SpiOptions | None = None, *, sw: str | None = None, name: str = "-"
                  ) -> Capture:
-    """:func:`~.inputs.open_records` with the release resolved (module docstring) and a file
+    """:func:`~.inputs.open_transfers` with the release resolved (module docstring) and a file
     that ends inside a pcapng block read up to its last whole block (:class:`Tail`). The
-    transfers looked at to infer the release are kept and come first in ``records``."""
+    transfers looked at to infer the release are kept and come first in ``transfers``."""
     tail = Tail()
     peek = stream if isinstance(stream, PeekStream) else PeekStream(stream)
     recorded, clock = recorded_release(peek.head), recorded_clock(peek.head)
-    kind, records = open_records(peek, fmt, direction, spi, tail)  # type: ignore[arg-type]
+    kind, transfers = open_transfers(peek, fmt, direction, spi, tail)  # type: ignore[arg-type]
     if recorded is not None:
         release = choose_release(sw, (recorded, RECORDED), name)
-        return Capture(kind, records, replace(release, clock=clock), tail)
+        return Capture(kind, transfers, replace(release, clock=clock), tail)
     head: list[Transfer] = []
     fault: EyeqError | None = None
     try:
-        head.extend(itertools.islice(records, release_sniff_transfers()))
+        head.extend(itertools.islice(transfers, release_sniff_transfers()))
     except EyeqError as exc:  # raised after the transfers before it, as the reader would
         fault = exc
     found = infer_release(head)
     release = replace(choose_release(sw, found, name), clock=clock)
-    return Capture(kind, then(head, fault, records), release, tail)
+    return Capture(kind, then(head, fault, transfers), release, tail)
 
 
 def then(head: list[Any], fault: EyeqError | None, rest: Iterator[Any]) -> Iterator[Any]:

@@ -9,7 +9,7 @@ names the ``pip install 'eyeq-spi[EXTRA]'`` to run.
 
 Readers are found by name (``--format``), by content (:func:`eyeq_spi.io.plain.detect`: every
 reader's sniffer, in registry order, on the first bytes; suffixes never decide, so stdin and
-renamed files read the same) and all open through :func:`eyeq_spi.io.plain.open_records`.
+renamed files read the same) and all open through :func:`eyeq_spi.io.plain.open_transfers`.
 Writers are found by name or by the suffix of the path they write (:func:`by_suffix`). CAN
 logs are python-can's: its own registry reads them by suffix, so one entry points there
 (:mod:`eyeq_spi.can.logs`).
@@ -56,7 +56,7 @@ class Format(NamedTuple):  # a NamedTuple: dataclasses would cost the CLI's star
     ``module:callable`` reading the format in chunks for the fast path (else only the
     exact reader reads it).
 
-    Capture writers are called ``target(records, path, **options) -> transfers written``.
+    Capture writers are called ``target(transfers, path, **options) -> transfers written``.
     Record writers are the dissector's writer classes; their constructors differ (a directory
     of tables, a text stream, a file path with the codec)."""
 

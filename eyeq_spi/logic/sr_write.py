@@ -144,14 +144,14 @@ class SrWriter:
         self.zf.writestr("version", "2")
         self.sink = _ChunkSink(self.zf)
 
-    def write(self, rec: Transfer) -> None:
-        direction = rec.direction or self.default_direction
-        if rec.time is None:
+    def write(self, transfer: Transfer) -> None:
+        direction = transfer.direction or self.default_direction
+        if transfer.time is None:
             wanted = max(self.free[direction], self.last_start[direction] + self.gap[direction])
         else:
             if self.origin is None:
-                self.origin = rec.time
-            wanted = round((rec.time - self.origin) * self.samplerate) + LEAD - self.shift
+                self.origin = transfer.time
+            wanted = round((transfer.time - self.origin) * self.samplerate) + LEAD - self.shift
             if self.max_idle is not None:
                 busy_until = max(self.cursor + len(self.pending), *self.free.values())
                 if wanted - busy_until > self.max_idle:
@@ -159,10 +159,10 @@ class SrWriter:
                     wanted = busy_until + self.max_idle
         self._flush(wanted)  # no later transfer starts before its capture time
         start = max(wanted, self.free[direction], self.cursor)
-        if start > wanted and rec.time is not None:
+        if start > wanted and transfer.time is not None:
             self.delayed += 1
         self.last_start[direction] = start
-        lines = self._transfer(direction, rec.data)
+        lines = self._transfer(direction, transfer.data)
         end = start + len(lines)
         self._extend(end)
         offset = start - self.cursor
@@ -234,18 +234,18 @@ class SrWriter:
         return "\n".join(lines) + "\n"
 
 
-def write_sr(records: Iterable[Transfer], path: str | Path, opts: SpiOptions | None = None,
+def write_sr(transfers: Iterable[Transfer], path: str | Path, opts: SpiOptions | None = None,
              **kw: Any) -> SrWriter:
     writer = SrWriter(path, opts, **kw)
     try:
-        for rec in records:
-            writer.write(rec)
+        for transfer in transfers:
+            writer.write(transfer)
     finally:
         writer.close()
     return writer
 
 
-def write_sr_file(records: Iterable[Transfer], path: str | Path, **options: Any) -> int:
+def write_sr_file(transfers: Iterable[Transfer], path: str | Path, **options: Any) -> int:
     """The io registry's capture-writer signature: ``options`` are :class:`SrWriter`'s keyword
     arguments, ``opts`` the SPI options; returns the transfers written."""
-    return write_sr(records, path, options.pop("opts", None), **options).count
+    return write_sr(transfers, path, options.pop("opts", None), **options).count

@@ -157,7 +157,7 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
 
 def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
              ) -> Iterator[Transfer]:
-    """Value changes -> one record per transfer and direction."""
+    """Value changes -> one transfer per chip-select frame and direction."""
     chunks = _raw_chunks(src, chunk_size)
     head = b""
     for chunk in chunks:

@@ -107,13 +107,13 @@ class VcdWriter:
     def _code(self, direction: str, signal: str, value: int) -> int:
         return ((DIRECTIONS.index(direction) * 4 + SIGNALS.index(signal)) << 1) | value
 
-    def write(self, rec: Transfer) -> None:
-        direction = rec.direction or self.default_direction
-        if rec.time is None:
+    def write(self, transfer: Transfer) -> None:
+        direction = transfer.direction or self.default_direction
+        if transfer.time is None:
             ticks = max(self.free[direction], self.last_start[direction] + self.gap[direction],
                         self.last_tick + 1)
         else:
-            ticks = round(rec.time / self.scale) - self.shift
+            ticks = round(transfer.time / self.scale) - self.shift
             if self.max_idle is not None:
                 busy_until = max(self.last_tick, *self.free.values())
                 if ticks - busy_until > self.max_idle:
@@ -122,13 +122,13 @@ class VcdWriter:
         self._flush(ticks)
         start = max(ticks, self.free[direction], self.last_tick + 1)
         self.last_start[direction] = start
-        if start > ticks and rec.time is not None:
+        if start > ticks and transfer.time is not None:
             self.delayed += 1
         h = self.half
         t = start + (0 if self.cpha else h)
         order: Literal["big", "little"] = "big" if self.opts.bit_order == "msb_first" \
             else "little"
-        bits = np.unpackbits(np.frombuffer(rec.data, dtype=np.uint8), bitorder=order
+        bits = np.unpackbits(np.frombuffer(transfer.data, dtype=np.uint8), bitorder=order
                              ).astype(np.int64)
         count = len(bits)
         base = t + 2 * h * np.arange(count, dtype=np.int64)
@@ -186,10 +186,10 @@ class VcdWriter:
         self.fh.write(f"#{self.last_tick}\n")
 
 
-def write_vcd(records: Iterable[Transfer], fh: IO[str], opts: SpiOptions | None = None,
+def write_vcd(transfers: Iterable[Transfer], fh: IO[str], opts: SpiOptions | None = None,
               **kw: object) -> VcdWriter:
     writer = VcdWriter(fh, opts, **kw)  # type: ignore[arg-type]
-    for rec in records:
-        writer.write(rec)
+    for transfer in transfers:
+        writer.write(transfer)
     writer.close()
     return writer
