@@ -72,38 +72,27 @@ class Chunk:
                         DIR_NAME[int(self.direction[index])], data)
 
 
-def _chunk(rows: list[np.ndarray], lengths: list[int], times: list[float], dirs: list[int],
-           odd: dict[int, bytes]) -> Chunk:
-    data = np.concatenate(rows) if rows else np.zeros((0, FRAME_SIZE), np.uint8)
-    return Chunk(data, np.asarray(lengths, np.int64), np.asarray(times, np.float64),
-                 np.asarray(dirs, np.int8), odd)
-
-
 def chunks_from_transfers(transfers: Iterable[Transfer], chunk: int = CHUNK) -> Iterator[Chunk]:
-    """The general path: any :class:`Transfer` stream (hex text, python-pcapng) as chunks."""
-    buf = bytearray()
-    lengths: list[int] = []
-    times: list[float] = []
-    dirs: list[int] = []
-    odd: dict[int, bytes] = {}
-    zero = bytes(FRAME_SIZE)
+    """Any :class:`Transfer` stream (hex text, python-pcapng) as chunks."""
+    batch: list[Transfer] = []
     for transfer in transfers:
-        size = len(transfer.data)
-        if size == FRAME_SIZE:
-            buf += transfer.data
-        else:
-            odd[len(lengths)] = transfer.data
-            buf += zero
-        lengths.append(size)
-        times.append(float("nan") if transfer.time is None else transfer.time)
-        dirs.append(DIR_CODE[transfer.direction])
-        if len(lengths) >= chunk:
-            yield _chunk([np.frombuffer(bytes(buf), np.uint8).reshape(-1, FRAME_SIZE)], lengths,
-                         times, dirs, odd)
-            buf, lengths, times, dirs, odd = bytearray(), [], [], [], {}
-    if lengths:
-        yield _chunk([np.frombuffer(bytes(buf), np.uint8).reshape(-1, FRAME_SIZE)], lengths,
-                     times, dirs, odd)
+        batch.append(transfer)
+        if len(batch) >= chunk:
+            yield _chunk(batch)
+            batch = []
+    if batch:
+        yield _chunk(batch)
+
+
+def _chunk(transfers: list[Transfer]) -> Chunk:
+    zero = bytes(FRAME_SIZE)
+    data = b"".join(t.data if len(t.data) == FRAME_SIZE else zero for t in transfers)
+    return Chunk(np.frombuffer(data, np.uint8).reshape(-1, FRAME_SIZE),
+                 np.asarray([len(t.data) for t in transfers], np.int64),
+                 np.asarray([np.nan if t.time is None else t.time for t in transfers],
+                            np.float64),
+                 np.asarray([DIR_CODE[t.direction] for t in transfers], np.int8),
+                 {i: t.data for i, t in enumerate(transfers) if len(t.data) != FRAME_SIZE})
 
 
 def raw_chunks(stream: Readable, direction: str | None, chunk: int = CHUNK) -> Iterator[Chunk]:
@@ -256,8 +245,7 @@ class _Walker:
             if blen % 4 or not 12 <= blen <= MAX_BLOCK:
                 raise InputError(f"malformed pcapng: block at byte {self.offset + self.pos} has "
                                  f"length {blen} (a multiple of 4 in 12..{MAX_BLOCK} expected)")
-            if btype == _EPB and self.count < self.chunk:
-                self._fast_run(blen)
+            if btype == _EPB and self._plain_run(blen):
                 if self.count >= self.chunk:
                     yield self._flush()
                 continue
@@ -308,8 +296,9 @@ class _Walker:
         name = names[iid] if iid < len(names) else None
         self.dirs.append(DIR_CODE[name])
 
-    def _fast_run(self, blen: int) -> None:
-        """A run of EPBs of ``blen`` bytes carrying 128 bytes each, as one array view."""
+    def _plain_run(self, blen: int) -> bool:
+        """A run of EPBs of ``blen`` bytes carrying 128 bytes each, as one array view; False:
+        the block at ``pos`` is not one of them."""
         want = self.chunk - self.count
         self._fill(min(want, 4096) * blen)
         avail = (len(self.buf) - self.pos) // blen
@@ -323,15 +312,8 @@ class _Walker:
                     & (blocks[:, -4:].copy().view("<u4")[:, 0] == blen)
                     & (words[:, 2] < len(self.ifaces.names)))
             plain = int(np.argmin(good)) if not good.all() else plain
-        if plain == 0:  # not a plain block: one at a time
-            if not self._fill(blen):
-                self._truncated()
-            body = self.buf[self.pos + 8 : self.pos + blen - 4]
-            if struct.unpack_from("<I", self.buf, self.pos + blen - 4)[0] != blen:
-                raise InputError("malformed pcapng: block lengths differ")
-            self._one_epb(body)
-            self.pos += blen
-            return
+        if plain == 0:
+            return False
         head = words[:plain]
         iid = head[:, 2].astype(np.int64)
         ticks = (head[:, 3].astype(np.uint64) << np.uint64(32)) | head[:, 4].astype(np.uint64)
@@ -345,3 +327,4 @@ class _Walker:
         self.count += plain
         self.packets += plain
         self.pos += plain * blen
+        return True

@@ -34,7 +34,7 @@ from typing import IO, Any
 from eyeq_spi import garbage
 from eyeq_spi.capture.pcapng_io import Tail, Transfer
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.release import Capture, Release, open_capture
+from eyeq_spi.dissect.release import Capture, Release, codec_for, open_capture
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.io import can_log_hint
 from eyeq_spi.io.plain import InputError
@@ -73,16 +73,6 @@ class DissectConfig:
     fields: str = "dict"
     blocks: bool = False
     pace_gc: bool = True
-
-
-_CODECS: dict[str, MessageCodec] = {}
-
-
-def codec_for(key: str) -> MessageCodec:
-    """One codec per release for the whole process (building one reads ``specs/``)."""
-    if key not in _CODECS:
-        _CODECS[key] = MessageCodec(key)
-    return _CODECS[key]
 
 
 def open_stream(path: str) -> IO[bytes]:
@@ -169,9 +159,9 @@ class CaptureFile:
         assert fh is not None
         try:
             if cap.chunks is not None:  # opened by the fast path (open): numpy is loaded
-                from eyeq_spi.dissect.pipeline_fast import chunk_items
+                from eyeq_spi.dissect.engine_fast import iter_items
 
-                items = chunk_items(cap.chunks, self.codec, self.config.fields)
+                items = iter_items(cap.chunks, codec=self.codec, fields=self.config.fields)
             else:
                 items = iter_records(cap.transfers, codec=self.codec)
             yield from self._tracked(items, fh)

@@ -25,22 +25,19 @@ from eyeq_spi.capture.pcapng_io import (
     recorded_release,
     release_sniff_transfers,
 )
-from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.engine_fast import ChunkFeeder
+from eyeq_spi.dissect.engine_fast import Item, iter_items
 from eyeq_spi.dissect.engine_fast_frames import FrameArrays, FrameBlock
 from eyeq_spi.dissect.release import (
     RECORDED,
     Capture,
     Release,
     choose_release,
+    codec_for,
     infer_release,
     then,
 )
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.io.plain import InputError, detect, sniff_raw
-
-Item = dict[str, Any] | FrameBlock
-__all__ = ["FrameBlock", "chunk_items", "consume", "default_jobs", "open_fast", "parallel_items"]
 
 
 def open_fast(fh: IO[bytes], fmt: str | None, direction: str | None, *, sw: str | None,
@@ -101,22 +98,6 @@ def _transfers(chunks: Iterator[Chunk]) -> Iterator[Transfer]:
     for chunk in chunks:
         for index in range(len(chunk)):
             yield chunk.transfer(index)
-
-
-def chunk_items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
-                ) -> Iterator[Item]:
-    """The records of a capture's chunks (frame blocks, and dicts where the reference reads):
-    ``fields`` is what the clean spans' messages carry (:class:`.engine_fast_messages.SpanDecoder`:
-    "dict", "none" for ``--stats`` alone, "columns" for a table writer alone)."""
-    return _items(chunks, codec, fields)
-
-
-def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
-           ) -> Iterator[Item]:
-    bd = ChunkFeeder(codec=codec, fields=fields)
-    for chunk in chunks:
-        yield from bd.feed(chunk)
-    yield from bd.finish()
 
 
 def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: bool,
@@ -181,22 +162,13 @@ def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,
             cap = open_fast(fh, fmt, direction, sw=sw, name=path)
             if cap is None or cap.chunks is None:
                 return ("reference", "")
-            items = chunk_items(cap.chunks, _codec(cap.release.key), fields)
+            items = iter_items(cap.chunks, codec=codec_for(cap.release.key), fields=fields)
             return ([_compact(i) if isinstance(i, FrameBlock) else i for i in items],
                     cap.release, cap.tail)
     except InputError as exc:
         return ("error", str(exc))
     except OSError as exc:
         return ("error", f"{path}: {exc.strerror or exc}")
-
-
-_CODECS: dict[str | None, MessageCodec] = {}
-
-
-def _codec(sw: str | None) -> MessageCodec:
-    if sw not in _CODECS:
-        _CODECS[sw] = MessageCodec(sw)
-    return _CODECS[sw]
 
 
 def parallel_items(paths: list[str], jobs: int, fmt: str | None, direction: str | None,

@@ -168,6 +168,16 @@ def choose_release(sw: str | None, found: tuple[SwKey, str] | None, name: str,
     return Release(key, "--sw", fkey, fsrc, warning)
 
 
+_CODECS: dict[str, MessageCodec] = {}
+
+
+def codec_for(key: str) -> MessageCodec:
+    """One codec per release for the whole process (building one reads ``specs/``)."""
+    if key not in _CODECS:
+        _CODECS[key] = MessageCodec(key)
+    return _CODECS[key]
+
+
 @dataclass
 class Capture:
     """An opened capture: its format, its transfers, the release to read them with, and what
