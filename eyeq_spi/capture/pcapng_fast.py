@@ -71,6 +71,9 @@ class Chunk:
         return Transfer(None if time_s != time_s else time_s,
                         DIR_NAME[int(self.direction[index])], data)
 
+    def transfers(self) -> list[Transfer]:
+        return [self.transfer(index) for index in range(len(self))]
+
 
 def chunks_from_transfers(transfers: Iterable[Transfer], chunk: int = CHUNK) -> Iterator[Chunk]:
     """Any :class:`Transfer` stream (hex text, python-pcapng) as chunks."""

@@ -11,32 +11,15 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import replace
 from typing import IO, Any
 
 import numpy as np
 
 from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
-from eyeq_spi.capture.pcapng_io import (
-    PCAPNG_MAGIC,
-    Tail,
-    Transfer,
-    recorded_clock,
-    recorded_release,
-    release_sniff_transfers,
-)
+from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, Tail
 from eyeq_spi.dissect.engine_fast import Item, iter_items
 from eyeq_spi.dissect.engine_fast_frames import FrameArrays, FrameBlock
-from eyeq_spi.dissect.release import (
-    RECORDED,
-    Capture,
-    Release,
-    choose_release,
-    codec_for,
-    infer_release,
-    then,
-)
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.dissect.release import Capture, Release, codec_for, with_release
 from eyeq_spi.io.plain import InputError, detect, sniff_raw
 
 
@@ -65,39 +48,9 @@ def open_fast(fh: IO[bytes], fmt: str | None, direction: str | None, *, sw: str 
         chunks = raw_chunks(fh, direction)
     else:
         return None
-    recorded = recorded_release(head)
-    if recorded is not None:
-        release = choose_release(sw, (recorded, RECORDED), name)
-    else:
-        first, fault = _first_chunks(chunks, release_sniff_transfers())
-        rows = [c.transfer(i) for c in first for i in range(len(c))]
-        release = choose_release(sw, infer_release(rows[: release_sniff_transfers()]), name)
-        chunks = then(first, fault, chunks)
-    release = replace(release, clock=recorded_clock(head))
-    return Capture(kind, _transfers(chunks), release, tail, chunks)
-
-
-def _first_chunks(chunks: Iterator[Chunk], rows: int
-                  ) -> tuple[list[Chunk], EyeqError | None]:
-    """The chunks that hold the first ``rows`` transfers, and the error that ended the file
-    before them (raised after them, as the reader would)."""
-    first: list[Chunk] = []
-    try:
-        while sum(len(c) for c in first) < rows:
-            nxt = next(chunks, None)
-            if nxt is None:
-                break
-            first.append(nxt)
-    except InputError as exc:
-        return first, exc
-    return first, None
-
-
-def _transfers(chunks: Iterator[Chunk]) -> Iterator[Transfer]:
-    """The transfers of ``chunks`` one by one (a caller that wants the transfers)."""
-    for chunk in chunks:
-        for index in range(len(chunk)):
-            yield chunk.transfer(index)
+    release, chunks = with_release(chunks, head, sw, name, Chunk.transfers)
+    return Capture(kind, (t for chunk in chunks for t in chunk.transfers()), release, tail,
+                   chunks)
 
 
 def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: bool,

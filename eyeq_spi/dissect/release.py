@@ -19,8 +19,7 @@ is the one line that names both.
 
 from __future__ import annotations
 
-import itertools
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import IO, Any
 
@@ -196,24 +195,40 @@ def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | Non
                  spi: SpiOptions | None = None, *, sw: str | None = None, name: str = "-"
                  ) -> Capture:
     """:func:`~.inputs.open_transfers` with the release resolved (module docstring) and a file
-    that ends inside a pcapng block read up to its last whole block (:class:`Tail`). The
-    transfers looked at to infer the release are kept and come first in ``transfers``."""
+    that ends inside a pcapng block read up to its last whole block (:class:`Tail`)."""
     tail = Tail()
     peek = stream if isinstance(stream, PeekStream) else PeekStream(stream)
-    recorded, clock = recorded_release(peek.head), recorded_clock(peek.head)
+    head = peek.head  # before the reader takes it
     kind, transfers = open_transfers(peek, fmt, direction, spi, tail)  # type: ignore[arg-type]
+    release, transfers = with_release(transfers, head, sw, name)
+    return Capture(kind, transfers, release, tail)
+
+
+def with_release(items: Iterator[Any], head: bytes, sw: str | None, name: str,
+                 transfers: Callable[[Any], list[Transfer]] = lambda item: [item]
+                 ) -> tuple[Release, Iterator[Any]]:
+    """The release of the capture that starts with ``head`` (module docstring), and its
+    ``items`` (transfers, or what ``transfers`` turns into them) with the ones looked at to
+    infer the release first."""
+    recorded = recorded_release(head)
     if recorded is not None:
         release = choose_release(sw, (recorded, RECORDED), name)
-        return Capture(kind, transfers, replace(release, clock=clock), tail)
-    head: list[Transfer] = []
-    fault: EyeqError | None = None
-    try:
-        head.extend(itertools.islice(transfers, release_sniff_transfers()))
-    except EyeqError as exc:  # raised after the transfers before it, as the reader would
-        fault = exc
-    found = infer_release(head)
-    release = replace(choose_release(sw, found, name), clock=clock)
-    return Capture(kind, then(head, fault, transfers), release, tail)
+    else:
+        looked: list[Any] = []
+        seen: list[Transfer] = []
+        fault: EyeqError | None = None
+        try:
+            while len(seen) < release_sniff_transfers():
+                item = next(items, None)
+                if item is None:
+                    break
+                looked.append(item)
+                seen += transfers(item)
+        except EyeqError as exc:  # raised after the items before it, as the reader would
+            fault = exc
+        release = choose_release(sw, infer_release(seen[: release_sniff_transfers()]), name)
+        items = then(looked, fault, items)
+    return replace(release, clock=recorded_clock(head)), items
 
 
 def then(head: list[Any], fault: EyeqError | None, rest: Iterator[Any]) -> Iterator[Any]:
