@@ -98,36 +98,6 @@ def _chunk(transfers: list[Transfer]) -> Chunk:
                  {i: t.data for i, t in enumerate(transfers) if len(t.data) != FRAME_SIZE})
 
 
-def raw_chunks(stream: Readable, direction: str | None, chunk: int = CHUNK) -> Iterator[Chunk]:
-    """Concatenated 128-byte transfers of one channel."""
-    code = DIR_CODE[direction]
-    while True:
-        blob = _read_exact(stream, FRAME_SIZE * chunk)
-        count = len(blob) // FRAME_SIZE
-        if count:
-            yield Chunk(np.frombuffer(blob[: count * FRAME_SIZE], np.uint8)
-                        .reshape(count, FRAME_SIZE),
-                        np.full(count, FRAME_SIZE, np.int64), np.full(count, np.nan),
-                        np.full(count, code, np.int8))
-        if len(blob) % FRAME_SIZE:
-            raise InputError(f"truncated raw capture: {len(blob) % FRAME_SIZE} bytes left over "
-                             "after the last whole 128-byte transfer")
-        if len(blob) < FRAME_SIZE * chunk:
-            return
-
-
-def _read_exact(stream: Readable, size: int) -> bytes:
-    parts: list[bytes] = []
-    got = 0
-    while got < size:
-        part = stream.read(size - got)
-        if not part:
-            break
-        parts.append(part)
-        got += len(part)
-    return b"".join(parts)
-
-
 class _Interfaces:
     """Interface names and tick lengths, numbered over the whole file as read_pcapng does."""
 
@@ -157,7 +127,7 @@ class _Interfaces:
 def pcapng_chunks(stream: Readable, chunk: int = CHUNK, tail: Tail | None = None
                   ) -> Iterator[Chunk]:
     """Stream a pcapng capture as chunks; see the module docstring."""
-    head = _read_exact(stream, 12)
+    head = stream.read(12)
     if head[:4] != PCAPNG_MAGIC:
         raise InputError("not a pcapng file")
     if len(head) < 12 or struct.unpack_from("<I", head, 8)[0] != _BOM:

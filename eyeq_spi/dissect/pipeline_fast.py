@@ -15,12 +15,12 @@ from typing import IO, Any
 
 import numpy as np
 
-from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
+from eyeq_spi.capture.pcapng_fast import Chunk, chunks_from_transfers, pcapng_chunks
 from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, Tail
 from eyeq_spi.dissect.engine_fast import Item, iter_items
 from eyeq_spi.dissect.engine_fast_frames import FrameArrays, FrameBlock
 from eyeq_spi.dissect.release import Capture, Release, codec_for, with_release
-from eyeq_spi.io.plain import InputError, detect, sniff_raw
+from eyeq_spi.io.plain import InputError, PeekStream, detect, read_raw, sniff_raw
 
 
 def open_fast(fh: IO[bytes], fmt: str | None, direction: str | None, *, sw: str | None,
@@ -45,7 +45,7 @@ def open_fast(fh: IO[bytes], fmt: str | None, direction: str | None, *, sw: str 
     if kind == "pcapng" and head[:4] == PCAPNG_MAGIC:
         chunks = pcapng_chunks(fh, tail=tail)
     elif kind == "raw" and sniff_raw(head) is not None:
-        chunks = raw_chunks(fh, direction)
+        chunks = chunks_from_transfers(read_raw(PeekStream(fh), direction))
     else:
         return None
     release, chunks = with_release(chunks, head, sw, name, Chunk.transfers)
