@@ -1,22 +1,12 @@
-"""Captures read into arrays, many transfers at a time (the fast path's input).
+"""pcapng captures read into arrays, many transfers at a time (the fast path's input).
 
 A :class:`Chunk` holds up to ``chunk`` transfers: an ``(n, 128)`` byte array, their lengths, times
-(NaN when a transfer has none) and direction codes. A transfer that is not 128 bytes (a chip-select
-fault, L8) keeps its bytes in ``Chunk.odd`` and a zero row in ``data``.
-
-- pcapng (``specs/capture.yaml``): a block walker of our own for little-endian sections. A run of
-  Enhanced Packet Blocks of one size (what our writer produces: 160 bytes each for a 128-byte
-  transfer) is checked and sliced as one ``(k, 160)`` array view with no per-block Python work;
-  anything else (other block types, other sizes, options) is walked block by block. A big-endian
-  section falls back to python-pcapng (:func:`read_pcapng`), which stays the reference: the tests
-  hold both to the same transfers. Interface numbering, names and ``if_tsresol`` follow
-  :func:`read_pcapng` exactly.
-- raw: concatenated 128-byte transfers, one ``np.frombuffer`` per chunk.
-- any other stream of :class:`Transfer`: :func:`chunks_from_transfers`.
-
-Memory stays bounded by ``chunk``. A malformed or truncated file raises :class:`InputError` after
-every complete transfer before the fault has been returned; given a :class:`Tail`, a truncated
-one ends after its last whole block instead, and the tail says how many bytes were left.
+(NaN when a transfer has none) and direction codes; a transfer that is not 128 bytes (L8) keeps
+its bytes in ``Chunk.odd`` and a zero row in ``data``. A run of Enhanced Packet Blocks of 160
+bytes (what our writer produces) is checked and sliced as one array view; any other block is
+walked one at a time; a big-endian section is read by python-pcapng (:func:`read_pcapng`, the
+reference). Errors and a :class:`Tail` behave as :func:`read_pcapng`'s, after every complete
+transfer before the fault.
 """
 
 from __future__ import annotations
@@ -29,6 +19,7 @@ import numpy as np
 
 from eyeq_spi.capture.pcapng_io import (
     DIRECTIONS,
+    MAX_BLOCK,
     PCAPNG_MAGIC,
     PeekStream,
     Readable,
@@ -42,7 +33,6 @@ from eyeq_spi.link.frame import FRAME_SIZE
 DIR_CODE: dict[str | None, int] = {"h2e": 0, "e2h": 1, None: -1}
 DIR_NAME: dict[int, str | None] = {v: k for k, v in DIR_CODE.items()}
 CHUNK = 1 << 15
-MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
 READ_SIZE = 8 << 20  # bytes read at a time
 _EPB, _IDB = 6, 1
 _SHB = int.from_bytes(PCAPNG_MAGIC, "little")

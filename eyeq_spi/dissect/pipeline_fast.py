@@ -1,9 +1,6 @@
-"""``eyeq-spi dissect`` on the fast path: which inputs take it, how its items reach the writers,
-and ``--jobs N`` (files dissected in worker processes, output identical to a serial run).
-
-pcapng and raw files take the fast path (:mod:`.engine_fast`); hex text, logic-analyzer captures and
-stdin keep the reference's record stream. Either way the records are the reference's (the
-agreement tests hold the fast path to that), so writers, filters and ``--stats`` see the same.
+"""``eyeq-spi dissect`` on the fast path (:mod:`.engine_fast`): pcapng and raw files opened
+for it, its frame blocks to the writers, and ``--jobs N`` (files dissected in worker processes,
+output identical to a serial run).
 """
 
 from __future__ import annotations
