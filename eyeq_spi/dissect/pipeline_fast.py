@@ -106,46 +106,42 @@ def _compact(block: FrameBlock) -> FrameBlock:
 
 
 def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,
-            fields: str = "dict") -> tuple[list[Item], Release, Tail] | tuple[str, str]:
+            fields: str = "dict") -> tuple[list[Item], Release, Tail] | None:
+    """One file's items, release and tail; None: not a fast-path input. Errors as a plain
+    :class:`InputError` (what the parent prints)."""
     try:
         with open(path, "rb") as fh:
             cap = open_fast(fh, fmt, direction, sw=sw, name=path)
             if cap is None or cap.chunks is None:
-                return ("reference", "")
+                return None
             items = iter_items(cap.chunks, codec=codec_for(cap.release.key), fields=fields)
             return ([_compact(i) if isinstance(i, FrameBlock) else i for i in items],
                     cap.release, cap.tail)
     except InputError as exc:
-        return ("error", str(exc))
+        raise InputError(str(exc)) from None
     except OSError as exc:
-        return ("error", f"{path}: {exc.strerror or exc}")
+        raise InputError(f"{path}: {exc.strerror or exc}") from None
 
 
 def parallel_items(paths: list[str], jobs: int, fmt: str | None, direction: str | None,
                    sw: str | None, fields: str = "dict"
                    ) -> Iterator[tuple[str, tuple[list[Item], Release, Tail] | None]]:
     """(path, (items, release, tail)) in the order of ``paths``, dissected ``jobs`` files at a
-    time in worker processes; None: the file is not a fast-path input (the caller runs the reference
-    path).
-    At most ``jobs`` finished files wait in memory ahead of the one being written."""
+    time in worker processes; None: the file is not a fast-path input (the caller runs the
+    reference path). At most ``jobs`` finished files wait in memory ahead of the one being
+    written."""
     from concurrent.futures import ProcessPoolExecutor  # 6 ms of start-up a serial run saves
 
     with ProcessPoolExecutor(max_workers=jobs) as pool:
         pending: list[Any] = [pool.submit(_worker, p, fmt, direction, sw, fields)
                               for p in paths[:jobs]]
-        nxt = len(pending)
         for index, path in enumerate(paths):
-            res = pending[index].result()
-            if nxt < len(paths):
-                pending.append(pool.submit(_worker, paths[nxt], fmt, direction, sw, fields))
-                nxt += 1
+            done = pending[index].result()
+            if len(pending) < len(paths):
+                pending.append(pool.submit(_worker, paths[len(pending)], fmt, direction, sw,
+                                           fields))
             pending[index] = None
-            if isinstance(res[0], str):
-                if res[0] == "error":
-                    raise InputError(str(res[1]))
-                yield path, None
-            else:
-                yield path, res
+            yield path, done
 
 
 def default_jobs() -> int:
