@@ -88,30 +88,24 @@ def _chunk(transfers: list[Transfer]) -> Chunk:
                  {i: t.data for i, t in enumerate(transfers) if len(t.data) != FRAME_SIZE})
 
 
-class _Interfaces:
-    """Interface names and tick lengths, numbered over the whole file as read_pcapng does."""
-
-    def __init__(self) -> None:
-        self.names: list[str | None] = []
-        self.scales: list[float] = []
-
-    def add(self, body: bytes | bytearray) -> None:
-        name: str | None = None
-        scale = 1e-6
-        pos = 8  # link type, reserved, snaplen
-        while pos + 4 <= len(body):
-            code, size = struct.unpack_from("<HH", body, pos)
-            value = body[pos + 4 : pos + 4 + size]
-            pos += 4 + ((size + 3) & ~3)
-            if code == 0:
-                break
-            if code == 2:
-                name = value.decode("utf-8", "replace")
-            elif code == 9 and size == 1:
-                base = 2 if value[0] & 0x80 else 10
-                scale = float(base ** -(value[0] & 0x7F))
-        self.names.append(name if name in DIRECTIONS else None)
-        self.scales.append(scale)
+def _interface(body: bytes | bytearray) -> tuple[str | None, float]:
+    """An Interface Description Block's direction (its name) and tick length, as read_pcapng
+    reads them."""
+    name: str | None = None
+    scale = 1e-6
+    pos = 8  # link type, reserved, snaplen
+    while pos + 4 <= len(body):
+        code, size = struct.unpack_from("<HH", body, pos)
+        value = body[pos + 4 : pos + 4 + size]
+        pos += 4 + ((size + 3) & ~3)
+        if code == 0:
+            break
+        if code == 2:
+            name = value.decode("utf-8", "replace")
+        elif code == 9 and size == 1:
+            base = 2 if value[0] & 0x80 else 10
+            scale = float(base ** -(value[0] & 0x7F))
+    return (name if name in DIRECTIONS else None), scale
 
 
 def pcapng_chunks(stream: Readable, chunk: int = CHUNK, tail: Tail | None = None
@@ -136,7 +130,8 @@ class _Walker:
         self.buf: bytes | bytearray = head
         self.pos = 0
         self.chunk = chunk
-        self.ifaces = _Interfaces()
+        self.names: list[str | None] = []  # interfaces, numbered over the whole file
+        self.scales: list[float] = []
         self.eof = False
         self.offset = 0  # file position of buf[0]
         self.packets = 0
@@ -222,7 +217,9 @@ class _Walker:
                     raise InputError("malformed pcapng: a big-endian section after a "
                                      "little-endian one")
             elif btype == _IDB:
-                self.ifaces.add(body)
+                name, scale = _interface(body)
+                self.names.append(name)
+                self.scales.append(scale)
             elif btype == _EPB:
                 self._one_epb(body)
             self.pos += blen
@@ -243,7 +240,9 @@ class _Walker:
         data = bytes(body[20 : 20 + cap])
         if len(data) != cap:
             raise InputError("malformed pcapng: packet longer than its block")
-        self._add_meta(iid, (hi << 32) | lo)
+        known = iid < len(self.names)
+        self.times.append(((hi << 32) | lo) * (self.scales[iid] if known else 1e-6))
+        self.dirs.append(DIR_CODE[self.names[iid] if known else None])
         if cap == FRAME_SIZE:
             self.rows.append(np.frombuffer(data, np.uint8).reshape(1, FRAME_SIZE))
         else:
@@ -252,12 +251,6 @@ class _Walker:
         self.lengths.append(cap)
         self.count += 1
         self.packets += 1
-
-    def _add_meta(self, iid: int, ticks: int) -> None:
-        names, scales = self.ifaces.names, self.ifaces.scales
-        self.times.append(ticks * (scales[iid] if iid < len(scales) else 1e-6))
-        name = names[iid] if iid < len(names) else None
-        self.dirs.append(DIR_CODE[name])
 
     def _plain_run(self, blen: int) -> bool:
         """A run of EPBs of ``blen`` bytes carrying 128 bytes each, as one array view; False:
@@ -273,17 +266,17 @@ class _Walker:
             words = blocks[:, :28].copy().view("<u4")  # type, len, iid, ts hi, ts lo, cap, orig
             good = ((words[:, 0] == _EPB) & (words[:, 1] == blen) & (words[:, 5] == FRAME_SIZE)
                     & (blocks[:, -4:].copy().view("<u4")[:, 0] == blen)
-                    & (words[:, 2] < len(self.ifaces.names)))
+                    & (words[:, 2] < len(self.names)))
             plain = int(np.argmin(good)) if not good.all() else plain
         if plain == 0:
             return False
         head = words[:plain]
         iid = head[:, 2].astype(np.int64)
         ticks = (head[:, 3].astype(np.uint64) << np.uint64(32)) | head[:, 4].astype(np.uint64)
-        scales = np.asarray(self.ifaces.scales, np.float64)[iid]
+        scales = np.asarray(self.scales, np.float64)[iid]
         # int * float in Python rounds the int to a double first: do the same
         times = ticks.astype(np.float64) * scales
-        codes = np.asarray([DIR_CODE[nm] for nm in self.ifaces.names], np.int8)[iid]
+        codes = np.asarray([DIR_CODE[nm] for nm in self.names], np.int8)[iid]
         self.rows.append(blocks[:plain, 28 : 28 + FRAME_SIZE])
         self._seal()
         self.runs.append((np.full(plain, FRAME_SIZE, np.int64), times, codes))

@@ -16,6 +16,7 @@ from eyeq_spi.capture.pcapng_fast import Chunk, chunks_from_transfers, pcapng_ch
 from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, Tail
 from eyeq_spi.dissect.engine_fast import Item, iter_items
 from eyeq_spi.dissect.engine_fast_frames import FrameArrays, FrameBlock
+from eyeq_spi.dissect.output import TableWriter
 from eyeq_spi.dissect.release import Capture, Release, codec_for, with_release
 from eyeq_spi.io.plain import InputError, PeekStream, detect, read_raw, sniff_raw
 
@@ -69,9 +70,7 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
         return
     item.add_to(stats)
     for writer in writers:
-        if hasattr(writer, "write_block"):
-            writer.write_block(item)
-        elif getattr(writer, "messages_only", False) or type(writer).__name__ == "TableWriter":
+        if isinstance(writer, TableWriter):
             tables = iter(item.tables)
             nxt = next(tables, None)
             covered = {id(record) for g in item.tables for record in g.covered}
