@@ -166,8 +166,8 @@ class SpanDecoder:
         if columns:
             header = ({"header.data_id": [key] * len(rows), "header.counter": counters} if dasp
                       else {"header.id": ids})
-            group = ColumnGroup(rows[0], name, self._columns(
-                *_last_and_times(msgs, rows), direction, header, vl.columns(payloads)))
+            group = ColumnGroup(rows[0], name, self._columns(msgs, rows, direction, header,
+                                                             vl.columns(payloads)))
             self.tables.append(group)
         for position, index in enumerate(rows):
             span_msg = msgs[index]
@@ -193,15 +193,14 @@ class SpanDecoder:
         return True
 
     @staticmethod
-    def _columns(last: list[int | None], times: list[float | None], direction: str | None,
+    def _columns(msgs: list[SpanMessage], rows: list[int], direction: str | None,
                  header: dict[str, Any], fields: dict[str, np.ndarray]) -> dict[str, Any]:
         """The TableWriter row of each message as columns: numpy arrays where pyarrow infers
         from them what it infers from the Python values (int64, double), lists elsewhere."""
-        count = len(last)
         out: dict[str, Any] = {
-            "frame_index": last,
-            "time": times,
-            "direction": [direction] * count,
+            "frame_index": [msgs[i].frames[-1] if msgs[i].frames else None for i in rows],
+            "time": [msgs[i].time for i in rows],
+            "direction": [direction] * len(rows),
             **header,
         }
         for name, col in fields.items():
@@ -214,8 +213,3 @@ class SpanDecoder:
                 out[name] = col.tolist()
         return out
 
-
-def _last_and_times(msgs: list[SpanMessage], rows: list[int]
-                    ) -> tuple[list[int | None], list[float | None]]:
-    return ([msgs[i].frames[-1] if msgs[i].frames else None for i in rows],
-            [msgs[i].time for i in rows])
