@@ -139,19 +139,9 @@ class _Walker:
 
     def _reset(self) -> None:
         self.rows: list[np.ndarray] = []
-        self.lengths: list[int] = []  # of the blocks read one at a time since the last run
-        self.times: list[float] = []
-        self.dirs: list[int] = []
-        self.runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # whole columns
+        self.runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # lengths, times, dirs
         self.odd: dict[int, bytes] = {}
         self.count = 0
-
-    def _seal(self) -> None:
-        """The blocks read one at a time so far as one segment of columns."""
-        if self.lengths:
-            self.runs.append((np.asarray(self.lengths, np.int64),
-                              np.asarray(self.times, np.float64), np.asarray(self.dirs, np.int8)))
-            self.lengths, self.times, self.dirs = [], [], []
 
     def _fill(self, need: int) -> bool:
         """At least ``need`` bytes after ``pos`` in ``buf``; False at end of file. What is left
@@ -167,12 +157,9 @@ class _Walker:
         return len(self.buf) - self.pos >= need
 
     def _flush(self) -> Chunk:
-        self._seal()
-        runs = self.runs or [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int8))]
-        data = np.concatenate(self.rows) if self.rows else np.zeros((0, FRAME_SIZE), np.uint8)
-        length, time, direction = (runs[0][i] if len(runs) == 1
-                                   else np.concatenate([r[i] for r in runs]) for i in range(3))
-        chunk = Chunk(data, length, time, direction, self.odd)
+        length, time, direction = (np.concatenate([run[i] for run in self.runs])
+                                   for i in range(3))
+        chunk = Chunk(np.concatenate(self.rows), length, time, direction, self.odd)
         self._reset()
         return chunk
 
@@ -241,14 +228,14 @@ class _Walker:
         if len(data) != cap:
             raise InputError("malformed pcapng: packet longer than its block")
         known = iid < len(self.names)
-        self.times.append(((hi << 32) | lo) * (self.scales[iid] if known else 1e-6))
-        self.dirs.append(DIR_CODE[self.names[iid] if known else None])
+        self.runs.append((np.array([cap], np.int64),
+                          np.array([((hi << 32) | lo) * (self.scales[iid] if known else 1e-6)]),
+                          np.array([DIR_CODE[self.names[iid] if known else None]], np.int8)))
         if cap == FRAME_SIZE:
             self.rows.append(np.frombuffer(data, np.uint8).reshape(1, FRAME_SIZE))
         else:
             self.odd[self.count] = data
             self.rows.append(np.zeros((1, FRAME_SIZE), np.uint8))
-        self.lengths.append(cap)
         self.count += 1
         self.packets += 1
 
@@ -278,7 +265,6 @@ class _Walker:
         times = ticks.astype(np.float64) * scales
         codes = np.asarray([DIR_CODE[nm] for nm in self.names], np.int8)[iid]
         self.rows.append(blocks[:plain, 28 : 28 + FRAME_SIZE])
-        self._seal()
         self.runs.append((np.full(plain, FRAME_SIZE, np.int64), times, codes))
         self.count += plain
         self.packets += plain
