@@ -63,6 +63,20 @@ Item = dict[str, Any] | FrameBlock
 
 
 @dataclass
+class _Plan:
+    """One direction's fed rows in the current chunk and their per-row checks (as lists)."""
+
+    rows: list[int] = field(default_factory=list)
+    okf: list[bool] = field(default_factory=list)
+    ttype: list[int] = field(default_factory=list)
+    need: list[int] = field(default_factory=list)  # consecutive frames a first frame needs
+    cont: list[bool] = field(default_factory=list)
+    # breaks[i] = rows among [0, i) that cannot continue a transfer
+    breaks: list[int] = field(default_factory=lambda: [0])
+    ip: int = 0  # next row (index into rows) for the reference
+
+
+@dataclass
 class Unit:
     """One transfer of a span: its first and one past its last index into the plan's rows."""
 
@@ -84,20 +98,7 @@ class Dir:
     stop_k: int = 0  # index into the plan's rows of the first frame not in the span
     open_ks: int = -1  # index into the plan's rows of the open transfer's first frame, -1: none
     switch_row: int = 0
-
-
-@dataclass
-class _Plan:
-    """One direction's fed rows in the current chunk and their per-row checks (as lists)."""
-
-    rows: list[int] = field(default_factory=list)
-    okf: list[bool] = field(default_factory=list)
-    ttype: list[int] = field(default_factory=list)
-    need: list[int] = field(default_factory=list)  # consecutive frames a first frame needs
-    cont: list[bool] = field(default_factory=list)
-    # breaks[i] = rows among [0, i) that cannot continue a transfer
-    breaks: list[int] = field(default_factory=lambda: [0])
-    ip: int = 0  # next row (index into rows) for the reference
+    plan: _Plan = field(default_factory=_Plan)  # of the current chunk
 
 
 class ChunkFeeder:
@@ -110,7 +111,6 @@ class ChunkFeeder:
         self.base = 0
         self.dirs: dict[int, Dir] = {}
         self.deadline: float | None = None
-        self._rows: dict[int, list[int]] = {}
         self._restarts: tuple[np.ndarray, np.ndarray] = (np.zeros(0, np.int64),) * 2
 
     # -- driving -----------------------------------------------------------------------------
@@ -130,15 +130,12 @@ class ChunkFeeder:
     def _chunk(self, fa: FrameArrays) -> Iterator[Item]:
         row_count = len(fa)
         codes, first = np.unique(fa.chunk.direction, return_index=True)
-        plans: dict[int, _Plan] = {}
-        self._rows = {}
         for code in [int(c) for c in codes[np.argsort(first)]]:
             name = DIR_NAME[code]
             self.dis.open_direction(name)  # receivers made in the order feed() would
-            st = self.dirs.setdefault(code, Dir(name, code))
-            plans[code] = self._plan(fa, st)
-        for code in self.dirs:
-            self._rows[code] = plans.setdefault(code, _Plan()).rows
+            self.dirs.setdefault(code, Dir(name, code))
+        for st in self.dirs.values():
+            st.plan = self._plan(fa, st)
         # L4 frames (DATA, NUM 0, RSP 0, CRC good): the rows and their directions
         l4 = np.flatnonzero(fa.fed & fa.crc_ok & (fa.ftype == DATA) & (fa.num == 0)
                             & (fa.rsp == 0))
@@ -148,7 +145,7 @@ class ChunkFeeder:
         while pos < row_count:
             nxt, why, which = row_count, 0, -1
             for code, st in self.dirs.items():
-                pl = plans[code]
+                pl = st.plan
                 if st.fast:  # at a tie, the span ends before the other direction's record
                     if st.switch_row <= nxt:
                         nxt, why, which = st.switch_row, 1, code
@@ -169,13 +166,14 @@ class ChunkFeeder:
                 yield self._emit(fa, nxt, nxt + 1)
                 pos = nxt + 1
                 continue
-            st, pl = self.dirs[which], plans[which]
+            st = self.dirs[which]
+            pl = st.plan
             if why == 1:
                 self._to_reference(st, fa)
                 pl.ip = st.stop_k
                 pos = nxt
                 continue
-            if st.canonical and self._try_span(fa, st, pl, pl.ip):
+            if st.canonical and self._try_span(fa, st):
                 pos = nxt
                 continue
             self.dis.index = fa.base + nxt
@@ -256,10 +254,11 @@ class ChunkFeeder:
         pad = np.arange(rows.shape[1])[None, :] >= (8 + takes)[:, None]
         link[lasts[((rows != 0) & pad).any(axis=1)]] = False
 
-    def _walk(self, fa: FrameArrays, st: Dir, pl: _Plan, k0: int, limit: int) -> int:
+    def _walk(self, fa: FrameArrays, st: Dir, k0: int, limit: int) -> int:
         """The span from rows[k0] (its first NUM was checked against E) up to row ``limit``:
         complete units, open transfer, stop index and switch row. Returns the number of frames
         it covers."""
+        pl = st.plan
         rows, okf, tt, need, cont, breaks = (pl.rows, pl.okf, pl.ttype, pl.need, pl.cont,
                                              pl.breaks)
         end = bisect.bisect_left(rows, limit)
@@ -299,12 +298,13 @@ class ChunkFeeder:
         st.switch_row = row
         return index - k0
 
-    def _try_span(self, fa: FrameArrays, st: Dir, pl: _Plan, index: int) -> bool:
-        if int(fa.num[pl.rows[index]]) != self.dis.expected_num(st.name):
+    def _try_span(self, fa: FrameArrays, st: Dir) -> bool:
+        index = st.plan.ip
+        if int(fa.num[st.plan.rows[index]]) != self.dis.expected_num(st.name):
             return False
         rows, codes = self._restarts
-        later = rows[(rows > pl.rows[index]) & (codes != st.code)]
-        if self._walk(fa, st, pl, index, int(later[0]) if later.size else len(fa)) < MIN_SPAN:
+        later = rows[(rows > st.plan.rows[index]) & (codes != st.code)]
+        if self._walk(fa, st, index, int(later[0]) if later.size else len(fa)) < MIN_SPAN:
             return False
         st.fast = True
         return True
@@ -316,7 +316,7 @@ class ChunkFeeder:
         for st in self.dirs.values():
             if not st.fast:
                 continue
-            rows = self._rows[st.code]
+            rows = st.plan.rows
             while st.ui < len(st.units):
                 unit = st.units[st.ui]
                 row = rows[unit.ke - 1]
@@ -335,7 +335,7 @@ class ChunkFeeder:
 
     def _frames(self, fa: FrameArrays, st: Dir, ks: int, ke: int) -> TransferFrames:
         """Frames rows[ks:ke] of this chunk."""
-        rows = self._rows[st.code]
+        rows = st.plan.rows
         times, nums = fa.lst("time"), fa.lst("num")
         data = fa.chunk.data
         out: TransferFrames = []
@@ -354,14 +354,14 @@ class ChunkFeeder:
         out: list[SpanMessage] = []
         rows: list[int] = []
         for _, st, unit in done:
-            rows += self._rows[st.code][unit.ks : unit.ke]
+            rows += st.plan.rows[unit.ks : unit.ke]
         width = fa.chunk.data.shape[1] - 8
         blob = fa.chunk.data[rows, 8:].tobytes() if rows else b""
         tid_col, nums, tfill = fa.lst("tid"), fa.lst("num"), fa.lst("tfill")
         pos = 0  # next row of ``rows``
         noted: dict[str | None, tuple[list[int], list[int]]] = {}  # NUMs, indices in order
         for row, st, unit in done:
-            mine = self._rows[st.code][unit.ks : unit.ke]
+            mine = st.plan.rows[unit.ks : unit.ke]
             offset = pos * width
             pos += len(mine)
             if unit.first:  # bytes 8..11 of the first frame: the total (T1)
