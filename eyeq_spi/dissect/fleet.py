@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -101,9 +101,6 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
     if summary["error"] is not None and not summary.get("partial"):  # whole captures only
         shutil.rmtree(base, ignore_errors=True)
     return summary
-
-
-Runner = Callable[[list[tuple[str, str]]], Iterator[dict[str, Any]]]
 
 
 def run_fleet(root: str, out: str, *, sw: str | None = None, jobs: int = 1,

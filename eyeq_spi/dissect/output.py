@@ -9,8 +9,7 @@ from eyeq_spi import io as formats
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.errors import EyeqError, MissingExtra, OutputError, UnknownFormatError
 
-RESET, DIM, RED, GREEN, CYAN, YELLOW = "\x1b[0m", "\x1b[2m", "\x1b[31m", "\x1b[32m", "\x1b[36m", \
-    "\x1b[33m"
+RESET, RED, GREEN, CYAN, YELLOW = "\x1b[0m", "\x1b[31m", "\x1b[32m", "\x1b[36m", "\x1b[33m"
 
 
 def flatten(values: Any, prefix: str = "") -> dict[str, Any]:
@@ -156,11 +155,6 @@ def _as_list(column: Any) -> list[Any]:
     return column.tolist() if hasattr(column, "tolist") else list(column)
 
 
-def _item(column: Any, index: int) -> Any:
-    item = column[index]
-    return item.item() if hasattr(item, "item") else item
-
-
 def _arrow(pa: Any, column: Any) -> Any:
     """``pa.array(v)``; a numpy int64/float64 column (no nulls) wraps its buffer instead: same
     type, same values, and pyarrow's masked-array check does not import numpy.ma (13 ms)."""
@@ -226,11 +220,9 @@ class TableWriter:
         self.batch = batch
         self.errors, self.hive = errors, hive
         self.file: str | None = None  # the capture being written: every row's first column
-        self._csv: dict[str, tuple[IO[str], Any, list[str]]] = {}  # each table's first part
         self._parts: dict[str, list[tuple[IO[str], Any, list[str]]]] = {}  # and every part
         self._last: dict[str, tuple[list[str], tuple[IO[str], Any, list[str]]]] = {}
         self._rows: dict[str, list[dict[str, Any]]] = {}
-        self._pq: dict[str, Any] = {}  # each table's first Parquet part
         self._pq_parts: dict[str, list[Any]] = {}
         self._tables: dict[str, list[Any]] = {}  # column batches not yet written
         if fmt == "parquet":
@@ -317,7 +309,6 @@ class TableWriter:
         schema = self._schema(name, table.schema)  # all-NULL columns typed where known
         writer = _parquet_writer(pq, self._path(name, len(parts), "parquet"), schema)
         parts.append(writer)
-        self._pq.setdefault(name, writer)
         writer.write_table(table if table.schema.equals(schema) else table.cast(schema))
 
     def _schema(self, name: str, schema: Any) -> Any:
@@ -360,7 +351,6 @@ class TableWriter:
         entry = (fh, writer, keys)
         parts.append(entry)
         self._last[name] = (keys, entry)
-        self._csv.setdefault(name, entry)
         return entry
 
     def _path(self, name: str, part: int, suffix: str) -> Path:

@@ -49,8 +49,6 @@ class Release:
 
     key: SwKey
     source: str  # "--sw", RECORDED, "GetEyeQVersions reply", ..., "default"
-    found: SwKey | None = None  # what the capture says (recorded or inferred), None: nothing
-    found_source: str | None = None
     warning: str | None = None
     clock: str | None = None  # what the capture's timestamps were read from, None: not said
 
@@ -158,13 +156,13 @@ def choose_release(sw: str | None, found: tuple[SwKey, str] | None, name: str,
     if sw is None:
         if fkey is None:
             return Release(cat.default_sw, "default")
-        return Release(fkey, fsrc or RECORDED, fkey, fsrc)
+        return Release(fkey, fsrc or RECORDED)
     key = cat.sw(sw)
     warning = None
     if fkey is not None and fkey != key:
         warning = (f"{name}: read as SW {sw_release_text(key)} (--sw) but the capture says "
                    f"SW {sw_release_text(fkey)} ({fsrc})")
-    return Release(key, "--sw", fkey, fsrc, warning)
+    return Release(key, "--sw", warning)
 
 
 _CODECS: dict[str, MessageCodec] = {}
@@ -236,17 +234,3 @@ def then(head: list[Any], fault: EyeqError | None, rest: Iterator[Any]) -> Itera
     if fault is not None:
         raise fault
     yield from rest
-
-
-def release_of(path: str, sw: str | None = None, fmt: str | None = None,
-               direction: str | None = None, spi: SpiOptions | None = None) -> Release:
-    """The release to read the capture file ``path`` with (for a reader that needs it before
-    it reads the file: its codec builds the plot's or the monitor's labels)."""
-    from eyeq_spi.errors import InputError
-
-    try:
-        fh = open(path, "rb")  # noqa: SIM115 - closed below
-    except OSError as exc:
-        raise InputError(f"{path}: {exc.strerror or exc}") from None
-    with fh:
-        return open_capture(fh, fmt, direction, spi, sw=sw, name=path).release
