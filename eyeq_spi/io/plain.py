@@ -1,17 +1,11 @@
-"""The dissector's capture inputs, streamed with bounded memory, and the plain formats:
+"""Capture inputs, streamed with bounded memory, and the plain formats: ``pcapng``
+(``specs/capture.yaml``), ``hex`` (one transfer per line: ``[TIME] [h2e|e2h] HEX``, ``#``
+comments) and ``raw`` (128-byte transfers of one channel).
 
-- ``pcapng``: our captures (``specs/capture.yaml``);
-- ``hex``: one transfer per line, optionally ``TIME`` and ``h2e``/``e2h`` before the hex bytes
-  (``#`` starts a comment);
-- ``raw``: concatenated 128-byte transfers of one channel;
-- and the logic-analyzer exports of :mod:`eyeq_spi.logic` (Saleae, VCD).
-
-:func:`open_transfers` opens any capture reader of the registry (:mod:`eyeq_spi.io`): detection
-looks at the first bytes with every reader's sniffer; ``--format`` forces one. A file that is
-none of them or is empty raises :class:`InputError` (exit code 2); one that ends in the middle
-of a transfer raises :class:`TruncatedInputError`, except a pcapng file that ends inside a block
-when the caller passes a :class:`Tail` (a capture whose writer was killed): it is read up to its
-last whole block.
+:func:`open_transfers` opens any capture reader of the registry (:mod:`eyeq_spi.io`), detected
+by its first bytes unless named. Unknown or empty input raises :class:`InputError`, a cut
+transfer :class:`TruncatedInputError` (a pcapng file cut inside a block is read up to its last
+whole block when the caller passes a :class:`Tail`).
 """
 
 from __future__ import annotations
