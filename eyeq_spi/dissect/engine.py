@@ -1,20 +1,15 @@
 """The dissector engine: transfers in, JSON-ready records out (the ``--json`` contract).
 
-Each direction has a passive receiver: a :class:`TransportConnection` in the role of the side that
-received that channel, fed with the channel's DATA frames, so duplicates, window errors, NUM gaps
-and aborted transfers are judged exactly as the real receiver judges them. Its own ACK/NAK output
-is discarded. The receivers are passive (decision L9): each direction's first DATA frame sets the
-expected NUM, consecutive frames before any first frame are ``incomplete_at_start`` and a
-transfer still open at the end of the input is ``incomplete_at_end``; neither is an error.
-Frame records come out in capture order; a message record follows the frame that
-completed it. Memory stays bounded: only the current transfer of each direction and the last
-index of each NUM are kept.
+Each direction has a passive receiver (L9): a :class:`TransportConnection` in the role of the
+side that received that channel, fed with its DATA frames, so duplicates, window errors, NUM
+gaps and aborted transfers are judged as the real receiver judges them; its ACK/NAKs are
+dropped. Frame records come out in capture order, a message record after the frame that
+completed it; memory stays bounded.
 
-:meth:`Dissector.feed` takes one transfer. A caller that has checked a run of frames itself
-(the vectorised frame check, :mod:`.engine_fast`) hands the run's whole messages over with
-:meth:`Dissector.accept_clean` and, before it feeds a transfer again, gives the receiver the
-run's last transfers with :meth:`Dissector.resume`: the receiver then stands where ``feed`` of
-every frame of the run would have left it.
+:meth:`Dissector.feed` takes one transfer. A caller that has checked a clean run of frames
+itself (:mod:`.engine_fast`) hands its whole messages over with :meth:`Dissector.accept_clean`
+and its last transfers with :meth:`Dissector.resume`, which leaves the receiver where ``feed``
+of the run would have.
 """
 
 from __future__ import annotations
@@ -144,11 +139,9 @@ class Dissector:
     def accept_clean(self, direction: str | None, data: bytes, nums: tuple[int, ...],
                      transfer_id: int | None, frames: list[int | None],
                      time: float | None) -> dict[str, Any]:
-        """The record of a whole message that a clean run of frames delivered on
-        ``direction`` (every frame 128 bytes, CRC good, DATA, its NUM the one expected, its
-        transfer whole and in time), completed at ``time`` by the frames at capture indices
-        ``frames``: what :meth:`feed` of those frames would give. The caller notes the run's
-        frames with :meth:`note_frames`."""
+        """The record of a whole message a clean run of frames delivered on ``direction``
+        (128 bytes, CRC good, DATA, NUMs in order, transfer whole and in time), completed at
+        ``time`` by the frames at capture indices ``frames``: what :meth:`feed` would give."""
         self.last_time = time
         rec = self._message(direction, self._dir(direction),
                             MessageReceived(data, nums, transfer_id))
@@ -166,13 +159,11 @@ class Dissector:
 
     def resume(self, direction: str | None, last_first: TransferFrames | None,
                tail: list[TransferFrames], open_transfer: TransferFrames | None) -> None:
-        """After a clean run on ``direction``: its receiver starts over at the NUM of the
-        oldest frame given and takes these frames again, output dropped, so that it stands as
-        :meth:`feed` of the whole run would leave it. ``tail``: the run's last whole
-        transfers (at least a window of frames, L6a); ``last_first``: the run's last
-        multi-frame transfer when ``tail`` has none (the transport judges a straggler of it by
-        its transfer ID);
-        ``open_transfer``: the transfer still open at the run's end (with its deadline)."""
+        """After a clean run on ``direction``: its receiver takes these frames again, output
+        dropped, and stands as :meth:`feed` of the whole run would leave it. ``tail``: the
+        run's last whole transfers (at least a window, L6a); ``last_first``: its last
+        multi-frame transfer when ``tail`` has none (a straggler is judged by its transfer ID);
+        ``open_transfer``: the transfer still open at its end."""
         receiver = self._dir(direction)
         units = tail + ([open_transfer] if open_transfer else [])
         replays = [units] if units else []
