@@ -1,20 +1,16 @@
 """Which SW release a capture speaks, and captures opened with it (every capture reader's entry).
 
-The release decides the DASP layouts (seed 004 §7.1.4: they differ between releases), so a
-capture read with the wrong one shows length errors that were never on the wire. In order:
+The release decides the DASP layouts (seed 004 §7.1.4), so it is chosen in this order:
 
 1. ``--sw`` (the caller's ``sw``) when given;
-2. the release the capture records: the ``eyeq-spi sw=<release>`` comment of its pcapng Section
-   Header Block (``specs/capture.yaml``);
-3. the release the EyeQ reports in the traffic: the GetEyeQVersions reply (§7.1.1.1.5), the
-   boot status' application version (§7.1.5.3) or EYEQ_BASE_DIAG_STATUS_MSG (§7.1.4.1), the
-   first of them in the first ``release_sniff_transfers`` transfers (``specs/capture.yaml``);
-   a release ``specs/`` does not list maps to the newest listed one before it (decision D4);
+2. the release the capture records (``eyeq-spi sw=<release>`` on its Section Header Block);
+3. the release the EyeQ reports in its first ``release_sniff_transfers`` transfers: the
+   GetEyeQVersions reply (§7.1.1.1.5), the boot status (§7.1.5.3) or
+   EYEQ_BASE_DIAG_STATUS_MSG (§7.1.4.1); an unlisted release maps to the newest before it (D4);
 4. the release whose DASP layouts fit the payload lengths seen there (the newest such);
 5. else the newest release.
 
-When ``--sw`` disagrees with 2 to 4, the capture is read with ``--sw`` and :attr:`Release.warning`
-is the one line that names both.
+When ``--sw`` disagrees with 2 to 4, :attr:`Release.warning` is the one line naming both.
 """
 
 from __future__ import annotations

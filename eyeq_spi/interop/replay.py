@@ -1,18 +1,11 @@
 """Replay the EyeQ channel of a capture to a host: a recorded drive as a stand-in EyeQ.
 
-:class:`ReplayEyeQ` is a sans-IO node (``receive_data``/``data_to_send``/``get_timer``/
-``handle_timer``, docs/STYLE.md §2). It plays every transfer of the capture's ``e2h`` channel at its
-capture time, byte for byte, except the EyeQ's ACK/NAK frames: those answered the recorded host,
-so the node answers the host in front of it instead, through a real :class:`TransportConnection`
-in the EyeQ role (ACK every accepted frame, NAK per L5, reassemble the host's messages to count
-them). The host's ACK/NAK frames for the played frames are counted, not checked: the recorded
-frames are never resent (L7).
-
-Time: the replay clock is the capture's time minus its first transfer's time, plus the moment
-the replay starts. ``replay_into_host`` runs it against the built-in host emulator on the
-:class:`VirtualRunner` (virtual time, no reset line: the host's own logic checks states, E2E,
-DASP counters and stale streams); ``replay_to_port`` runs it on the :class:`RealTimeRunner`
-against a host under test at a pyserial URL. The capture is read lazily: memory stays bounded.
+:class:`ReplayEyeQ` is a sans-IO node (docs/STYLE.md §2) that plays every transfer of the
+capture's ``e2h`` channel at its capture time (relative to the first), byte for byte, except the
+EyeQ's ACK/NAK frames: it answers the host in front of it itself, through a
+:class:`TransportConnection` in the EyeQ role (L5); the host's ACK/NAKs are counted, not
+checked (recorded frames are never resent, L7). ``replay_into_host`` runs it against the host
+emulator in virtual time, ``replay_to_port`` in real time against a host at a pyserial URL.
 """
 
 from __future__ import annotations

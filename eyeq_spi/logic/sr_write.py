@@ -1,29 +1,14 @@
 """Transfers -> a sigrok session file (``.sr``, what PulseView saves and opens;
 ``eyeq-spi export --sr``).
 
-A session file is a zip archive (libsigrok's ``srzip`` format, version 2): a ``version``
-entry holding ``2``; a ``metadata`` entry, an ini file naming the sample rate, the probes and
-the bytes per sample (``unitsize``); and the samples in entries ``logic-1-1``, ``logic-1-2``
-..., each deflate-compressed. Here one sample is one byte: bit k is probe k + 1, the four
-signals of each SPI channel (§5) in the order of ``specs/bench.yaml`` (``h2e_cs``, ``h2e_clk``,
-``h2e_mosi``, ``h2e_miso``, then ``e2h_...``).
-
-The waveforms are those of :mod:`eyeq_spi.logic.vcd_write`: each direction's master drives
-its frame on MOSI at the seed's 10 MHz in the SPI mode and bit order of the options (§6,
-``specs/bench.yaml``), a transfer starts at its capture time (or, without one, its channel's
-frameFlowControl after the previous one), a transfer that would overlap the previous one of
-its channel starts ``min_idle`` after it, and the slave's MISO is left idle. The samples
-begin ``LEAD`` samples before the first transfer: a sample's time is seconds since the
-capture's first transfer (as ``eyeq-spi dissect`` shows them) plus ``LEAD`` samples. The sample rate
-is two samples per clock period (an edge per sample), 20 MHz for 10 MHz. MOSI returns low when
-CS rises.
-
-Memory stays bounded: samples are rendered with numpy per transfer into a buffer that starts
-at the first sample a later transfer could still change; everything before it is written out
-in chunks of ``CHUNK`` bytes, idle stretches from one constant block. A long idle stretch
-costs time to compress (about 0.1 s per second of idle) but deflate shrinks it about a
-thousandfold; ``max_idle`` shortens every stretch with both channels idle to at most that many
-seconds (sample times are then not capture times; the metadata says so).
+A session file is a zip archive (libsigrok's ``srzip``, version 2): ``version``, an ini
+``metadata`` (sample rate, probes, ``unitsize``) and deflated sample entries ``logic-1-1``...
+One sample is one byte: bit k is probe k + 1, the four signals of each SPI channel (§5) in the
+order of ``specs/bench.yaml``. The waveforms are those of :mod:`eyeq_spi.logic.vcd_write`, at
+two samples per clock period (20 MHz for 10 MHz), starting ``LEAD`` samples before the first
+transfer; MOSI returns low when CS rises. Samples are rendered per transfer into a buffer
+written out in ``CHUNK``-byte pieces (bounded memory); ``max_idle`` shortens every stretch with
+both channels idle (sample times are then not capture times; the metadata says so).
 """
 
 from __future__ import annotations

@@ -2,19 +2,12 @@
 and sigrok, readable again by :mod:`eyeq_spi.logic.vcd`.
 
 Each direction is one SPI channel with CS, CLK, MOSI and MISO (§5); its master drives the frame
-on MOSI at the seed's 10 MHz in mode 1 (§6 driver settings), most significant bit first
-(``specs/bench.yaml``). A transfer starts at its capture time; one without a time (raw or hex
-input) starts the channel's frameFlowControl (§6: 500 µs host, 200 µs EyeQ) after the previous
-one, as the link paces them (L7); one that would overlap the previous transfer of its channel
-starts ``min_idle`` after its CS rising edge (``specs/bench.yaml``). The slave's MISO is left
-idle. Memory stays bounded: only the transfers that still overlap the next capture time are
-held.
-
-Size: every bit is two clock edges, each a timestamp line and a value line, so the file grows
-with the bits sent (about 30 bytes per bit, :func:`estimate_size`), not with the capture's
-length. ``max_idle`` shortens every stretch with both channels idle (CS high) to at most that
-many seconds, which keeps the timestamps short and spares a sampling reader (sigrok converts a
-VCD to samples at its sample rate) the idle time; the file says so in a ``$comment``.
+on MOSI at the seed's 10 MHz in mode 1 (§6), most significant bit first (``specs/bench.yaml``).
+A transfer starts at its capture time; one without a time starts the channel's frameFlowControl
+(§6, L7) after the previous one; one that would overlap the previous transfer of its channel
+starts ``min_idle`` after its CS rising edge. The slave's MISO is left idle. The file grows
+with the bits sent (:func:`estimate_size`); ``max_idle`` shortens every stretch with both
+channels idle, which the file says in a ``$comment``.
 """
 
 from __future__ import annotations
