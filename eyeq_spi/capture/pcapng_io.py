@@ -162,16 +162,11 @@ MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer i
 class CaptureWriter:
     """Streams transfers to a pcapng file: ``write(direction, time, transfer)``.
 
-    Crash-safe: blocks are encoded here (``specs/capture.yaml``) into a buffer that goes to the
-    file in whole blocks only, with one unbuffered write each time it holds ``FLUSH_BYTES`` or
-    ``flush_interval_s`` (``specs/capture.yaml``) has passed since the last write, by ``clock``;
-    with ``idle_flush`` a daemon thread also writes what waits when no transfer comes for that
-    long. A process that dies loses at most the last ``flush_interval_s`` of traffic, and its
-    file ends on a block boundary unless the kernel was cut in the middle of copying a write
-    (readers read up to the last whole block, :class:`Tail`). The release of the traffic
-    (``sw``, a ``specs/`` key or release text; default the newest) is recorded as an
-    ``opt_comment`` ``eyeq-spi sw=<release>`` on the Section Header Block and on the first
-    Enhanced Packet Block."""
+    Crash-safe: whole blocks only go to the file, in one unbuffered write whenever the buffer
+    holds ``FLUSH_BYTES`` or ``flush_interval_s`` (``specs/capture.yaml``) has passed by
+    ``clock`` (with ``idle_flush``, also from a daemon thread when no transfer comes), so a
+    process that dies loses at most that much traffic. The release (``sw``; default the newest)
+    is recorded as ``eyeq-spi sw=<release>`` on the Section Header Block and first packet."""
 
     FLUSH_BYTES = 1 << 16
     FLUSH_S = 1.0
@@ -324,7 +319,6 @@ def _idb(link_type: int, name: str, description: str, tsresol: int) -> bytes:
     return _block(1, struct.pack("<HHI", link_type, 0, 0)
                   + _options([(2, name.encode()), (3, description.encode()),
                               (9, bytes([tsresol]))]))
-
 
 
 def read_pcapng(fh: IO[bytes], tail: Tail | None = None) -> Iterator[Transfer]:

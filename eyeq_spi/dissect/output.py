@@ -187,25 +187,17 @@ def table_name(record: dict[str, Any]) -> str:
 
 
 class TableWriter:
-    """One table per message type, flattened field names: CSV files or Parquet files.
-
-    A table's columns are those of its first row. A later row with a column the table lacks
-    (another release's variant of a struct, in a run over several captures) starts a new part,
-    ``NAME.2.csv`` (``NAME.2.parquet``), rather than losing that column; readers of the
-    directory (pyarrow and DuckDB with ``union_by_name``) join the parts.
-
-    Every message is a row, one without fields too (a MESP request without parameters, a
-    payload of the wrong length): a table's row count is ``--stats``'s count of its messages."""
+    """One table per message type, flattened field names: CSV files or Parquet files. Every
+    message is a row (a table's row count is ``--stats``'s count). A table's columns are those
+    of its first row; a later row with a column it lacks (another release's struct) starts a new
+    part, ``NAME.2.csv``, which pyarrow and DuckDB (``union_by_name``) join."""
 
     def __init__(self, directory: str, fmt: str, batch: int = 2000,
                  column_type: Any = None, *, errors: bool = False, hive: bool = False) -> None:
-        """``column_type(table, column)`` may name the Arrow type ("float64", "int64",
-        "string") of a column whose first rows are all empty (NULL): a Parquet file's schema is
-        fixed by its first row group, which must not say ``null`` for a column that has values
-        later (a CAN signal at its invalid value until the first measurement). ``errors``: an
-        ``errors`` column (the record's errors joined by "; ") after ``direction``. ``hive``:
-        a Hive-partitioned layout, ``DIR/message=NAME/part-N.parquet`` with no ``file`` column
-        (the directory above names the capture), else ``DIR/NAME.parquet``."""
+        """``column_type(table, column)``: the Arrow type ("float64", "int64", "string") of a
+        column whose first rows are all NULL (a Parquet schema is fixed by its first row group).
+        ``errors``: an ``errors`` column after ``direction``. ``hive``:
+        ``DIR/message=NAME/part-N.parquet`` with no ``file`` column, else ``DIR/NAME.parquet``."""
         tables = [f.name for f in formats.formats(formats.RECORD_WRITER)
                   if f.target == f"{__name__}:TableWriter"]
         if fmt not in tables:

@@ -333,15 +333,11 @@ class BlockPosition:
 
 
 def paced_gc(items: Iterable[Any]) -> Iterator[Any]:
-    """``items``, with the young generations of the cyclic garbage collector collected (when
-    they have grown by ``YOUNG`` containers) after each frame block and every ``PACE`` other
-    items, while the automatic collector is off (:mod:`eyeq_spi.garbage`).
-
-    Records are trees of dicts and lists freed by reference counting; the default automatic
-    collection (every 700 new containers) re-scanned records under construction (1,500
-    containers in one obstacles message) and spent 0.6 of 2.1 CPU-s of ``dissect --json`` on a
-    90 s capture. Here a collection sees only what is alive between two blocks, and any cycle is
-    still freed within a block, so memory stays bounded."""
+    """``items``, with the young generations of the cyclic garbage collector collected (once
+    grown by ``YOUNG`` containers) after each frame block and every ``PACE`` other items, while
+    the automatic collector is off (:mod:`eyeq_spi.garbage`): records are freed by reference
+    counting, and the automatic collection re-scanned records under construction (0.6 of 2.1
+    CPU-s of ``dissect --json``); any cycle is still freed within a block."""
     since_pace = 0
     for item in items:
         block = not isinstance(item, dict)
