@@ -101,18 +101,12 @@ class HumanWriter:
         return f"{'':8s} {when:>14s}" if self._wide else f"{when:>12s}"
 
     def _tree(self, record: dict[str, Any]) -> None:
-        lay = None
-        if record["protocol"] in ("DASP", "DIAG", "BOOT") and record["name"]:
-            try:
-                lay = self.codec.layout(self.codec.cat.message(record["name"]))
-            except EyeqError:
-                lay = None
-        self._walk(record["fields"], lay, 2)
+        self._walk(record["fields"], record_layout(self.codec, record), 2)
 
     def _walk(self, values: Any, lay: Any, depth: int) -> None:
         pad = "  " * depth
         for key, value in values.items():
-            field = _field(lay, key)
+            field = layout_field(lay, key)
             child = lay.children.get(key) if lay is not None else None
             if isinstance(value, dict):
                 self.fh.write(f"{pad}{key}\n")
@@ -141,7 +135,17 @@ class HumanWriter:
                 self.fh.write(f"{pad}{key} = {value}{extra}\n")
 
 
-def _field(lay: Any, name: str) -> Any:
+def record_layout(codec: MessageCodec, record: dict[str, Any]) -> Any:
+    """The layout of a DASP, DIAG or BOOT message record, or None."""
+    if record["protocol"] not in ("DASP", "DIAG", "BOOT") or not record["name"]:
+        return None
+    try:
+        return codec.layout(codec.cat.message(record["name"]))
+    except EyeqError:
+        return None
+
+
+def layout_field(lay: Any, name: str) -> Any:
     """The layout's member ``name``, or None (no layout, or a name it does not have)."""
     if lay is None:
         return None
