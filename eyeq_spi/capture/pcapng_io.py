@@ -46,14 +46,17 @@ class Tail:
 def release_from_comment(text: str) -> SwKey | None:
     """The ``specs/`` key of an ``eyeq-spi sw=<release>`` comment (None: no such comment, or a
     release ``specs/`` does not know)."""
-    prefix = str(_spec().get("release_comment", SW_COMMENT)).split("{release}")[0]
-    match = re.search(re.escape(prefix) + r"(\S+)", text)
-    if match is None:
-        return None
+    value = _comment_value(str(_spec().get("release_comment", SW_COMMENT)), "{release}", text)
     try:
-        return catalog().sw(match.group(1))
+        return None if value is None else catalog().sw(value)
     except EyeqError:
         return None
+
+
+def _comment_value(template: str, field: str, text: str) -> str | None:
+    """The word after ``template``'s text before ``field`` in the comment ``text``, or None."""
+    match = re.search(re.escape(template.split(field)[0]) + r"(\S+)", text)
+    return None if match is None else match.group(1)
 
 
 def _shb_comments(head: bytes) -> list[str]:
@@ -92,11 +95,10 @@ def recorded_clock(head: bytes) -> str | None:
     """The clock a capture's timestamps were read from, as its Section Header Block records it
     (``specs/capture.yaml`` ``clock_comment``): ``"virtual"`` or ``"monotonic"``; None when it
     does not say (a capture written before the comment existed, or by another tool)."""
-    prefix = str(_spec()["clock_comment"]).split("{clock}")[0]
     for text in _shb_comments(head):
-        match = re.search(re.escape(prefix) + r"(\S+)", text)
-        if match is not None and match.group(1) in _spec()["clocks"]:
-            return match.group(1)
+        value = _comment_value(str(_spec()["clock_comment"]), "{clock}", text)
+        if value in _spec()["clocks"]:
+            return value
     return None
 
 
