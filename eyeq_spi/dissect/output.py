@@ -216,7 +216,7 @@ class TableWriter:
         self.batch = batch
         self.errors, self.hive = errors, hive
         self.file: str | None = None  # the capture being written: every row's first column
-        self._parts: dict[str, list[tuple[IO[str], Any, list[str]]]] = {}  # and every part
+        self._parts: dict[str, list[tuple[IO[str], Any, list[str]]]] = {}  # CSV parts
         self._last: dict[str, tuple[list[str], tuple[IO[str], Any, list[str]]]] = {}
         self._rows: dict[str, list[dict[str, Any]]] = {}
         self._pq_parts: dict[str, list[Any]] = {}
@@ -260,10 +260,9 @@ class TableWriter:
         if self.fmt == "csv":
             entry = self._csv_part(name, list(columns))
             cols = [_as_list(columns[c]) if c in columns else [""] * count for c in entry[2]]
-            start = 0
             import csv  # here: --stats and Parquet never need it
 
-            csv.writer(entry[0]).writerows(zip(*(c[start:] for c in cols), strict=True))
+            csv.writer(entry[0]).writerows(zip(*cols, strict=True))
             return
         import pyarrow as pa
 
