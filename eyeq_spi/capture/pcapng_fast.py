@@ -166,19 +166,15 @@ class _Walker:
     def run(self) -> Iterator[Chunk]:
         try:
             yield from self._run()
-        except TruncatedInputError as exc:
+        except InputError as exc:
             if self.count:  # every complete transfer before the fault
                 yield self._flush()
-            if self.tail is None:
+            if not isinstance(exc, TruncatedInputError) or self.tail is None:
                 raise
             if not self.packets:
                 raise InputError("pcapng capture without any transfer (no whole Enhanced "
                                  "Packet Block)") from None
             self.tail.take(exc)
-        except InputError:
-            if self.count:  # every complete transfer before the fault, then the error
-                yield self._flush()
-            raise
 
     def _run(self) -> Iterator[Chunk]:
         while True:
@@ -242,19 +238,19 @@ class _Walker:
     def _plain_run(self, blen: int) -> bool:
         """A run of EPBs of ``blen`` bytes carrying 128 bytes each, as one array view; False:
         the block at ``pos`` is not one of them."""
+        if blen != FRAME_SIZE + 32:
+            return False
         want = self.chunk - self.count
         self._fill(min(want, 4096) * blen)
-        avail = (len(self.buf) - self.pos) // blen
-        plain = min(avail, want)
-        if blen != FRAME_SIZE + 32 or plain == 0:
-            plain = 0
-        if plain:
-            blocks = np.frombuffer(self.buf, np.uint8, plain * blen, self.pos).reshape(plain, blen)
-            words = blocks[:, :28].copy().view("<u4")  # type, len, iid, ts hi, ts lo, cap, orig
-            good = ((words[:, 0] == _EPB) & (words[:, 1] == blen) & (words[:, 5] == FRAME_SIZE)
-                    & (blocks[:, -4:].copy().view("<u4")[:, 0] == blen)
-                    & (words[:, 2] < len(self.names)))
-            plain = int(np.argmin(good)) if not good.all() else plain
+        plain = min((len(self.buf) - self.pos) // blen, want)
+        if plain == 0:
+            return False
+        blocks = np.frombuffer(self.buf, np.uint8, plain * blen, self.pos).reshape(plain, blen)
+        words = blocks[:, :28].copy().view("<u4")  # type, len, iid, ts hi, ts lo, cap, orig
+        good = ((words[:, 0] == _EPB) & (words[:, 1] == blen) & (words[:, 5] == FRAME_SIZE)
+                & (blocks[:, -4:].copy().view("<u4")[:, 0] == blen)
+                & (words[:, 2] < len(self.names)))
+        plain = plain if good.all() else int(np.argmin(good))
         if plain == 0:
             return False
         head = words[:plain]

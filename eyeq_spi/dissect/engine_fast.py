@@ -335,16 +335,9 @@ class ChunkFeeder:
 
     def _frames(self, fa: FrameArrays, st: Dir, ks: int, ke: int) -> TransferFrames:
         """Frames rows[ks:ke] of this chunk."""
-        rows = st.plan.rows
-        times, nums = fa.lst("time"), fa.lst("num")
-        data = fa.chunk.data
-        out: TransferFrames = []
-        for index in range(ks, ke):
-            row = rows[index]
-            time_s = times[row]
-            out.append((data[row].tobytes(), None if time_s != time_s else time_s, nums[row],
-                        fa.base + row))
-        return out
+        times, nums, data = fa.lst("time"), fa.lst("num"), fa.chunk.data
+        return [(data[row].tobytes(), None if times[row] != times[row] else times[row],
+                 nums[row], fa.base + row) for row in st.plan.rows[ks:ke]]
 
     def _messages(self, fa: FrameArrays, done: list[tuple[int, Dir, Unit]]
                   ) -> list[SpanMessage]:
