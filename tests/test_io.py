@@ -226,10 +226,7 @@ def test_an_empty_file_is_a_clear_error(fmt: Format) -> None:
     assert str(exc.value) and "\n" not in str(exc.value)
 
 
-def test_unknown_names_and_suffixes_list_the_known_ones(tmp_path: Path) -> None:
-    with pytest.raises(UnknownFormatError) as exc:
-        registry.by_suffix("run.xyz", CAPTURE_WRITER)
-    assert all(n in str(exc.value) for n in registry.names(CAPTURE_WRITER))
+def test_unknown_names_list_the_known_ones(tmp_path: Path) -> None:
     with pytest.raises(UnknownFormatError) as exc:
         open_transfers(io.BytesIO(b"x" * 200), "pcap")
     assert all(n in str(exc.value) for n in registry.readers())
@@ -239,7 +236,6 @@ def test_unknown_names_and_suffixes_list_the_known_ones(tmp_path: Path) -> None:
 
     with pytest.raises(UnknownFormatError, match="one of csv, parquet"):
         TableWriter(str(tmp_path), "xlsx")
-    assert registry.by_suffix("Run.MF4", RECORD_WRITER).name == "mdf4"
     assert registry.get("jsonl", RECORD_WRITER).suffixes == (".jsonl", ".ndjson")
 
 

@@ -5,9 +5,8 @@ Each :class:`Format` names its kind, suffixes, the ``module:callable`` that impl
 known) and the optional extra it needs (:class:`~eyeq_spi.errors.MissingExtra` names the
 ``pip install 'eyeq-spi[EXTRA]'``). Readers are found by name (``--format``) or by content
 (:func:`eyeq_spi.io.plain.detect`, every sniffer in registry order: suffixes never decide) and
-open through :func:`eyeq_spi.io.plain.open_transfers`; writers by name or suffix
-(:func:`by_suffix`). CAN logs are read by python-can's own registry. The table in
-``docs/captures.md`` is :func:`markdown_table`.
+open through :func:`eyeq_spi.io.plain.open_transfers`; writers by name. CAN logs are read by
+python-can's own registry. The table in ``docs/captures.md`` is :func:`markdown_table`.
 """
 
 from __future__ import annotations
@@ -146,18 +145,6 @@ def get(name: str, kind: Kind = CAPTURE_READER) -> Format:
             return entry
     raise UnknownFormatError(f"unknown {kind} format {name!r} (one of "
                              f"{', '.join(names(kind))})")
-
-
-def by_suffix(path: str | PurePath, kind: Kind) -> Format:
-    """The first format of ``kind`` whose suffixes hold ``path``'s (case-insensitive); an
-    unknown suffix lists the known names and suffixes."""
-    suffix = PurePath(path).suffix.lower()
-    for entry in REGISTRY:
-        if entry.kind == kind and suffix in entry.suffixes:
-            return entry
-    known = ", ".join(f"{f.name} ({' '.join(f.suffixes)})" for f in formats(kind) if f.suffixes)
-    raise UnknownFormatError(f"{path}: unknown {kind} suffix {suffix or '(none)'!r}; known: "
-                             f"{known}")
 
 
 def can_log_hint(path: str | PurePath) -> str | None:
