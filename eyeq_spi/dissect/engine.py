@@ -15,7 +15,7 @@ of the run would have.
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from eyeq_spi.capture.pcapng_io import Transfer
@@ -40,6 +40,9 @@ RECEIVER = {"h2e": "eyeq", "e2h": "host", None: "host"}
 
 
 KIND_NAMES = {int(k): k.name for k in FrameKind}
+LINK_EVENT_TYPES: dict[type, str] = {DuplicateReceived: "duplicate",
+                                     Resynchronised: "resynchronised",
+                                     FramesSkipped: "frames_skipped"}
 
 
 def frame_record(index: int, time: float | None, direction: str | None, length: int,
@@ -277,16 +280,8 @@ class Dissector:
                        "nak_reason": None if ev.nak_reason is None else int(ev.nak_reason),
                        "num": ev.num, "detail": ev.detail, "index": self.index - 1}
             elif isinstance(ev, DuplicateReceived | Resynchronised | FramesSkipped):
-                body: dict[str, Any] = {"kind": "event", "direction": direction,
-                                        "index": self.index - 1}
-                if isinstance(ev, DuplicateReceived):
-                    body.update(type="duplicate", num=ev.num)
-                elif isinstance(ev, Resynchronised):
-                    body.update(type="resynchronised", num=ev.num, cause=ev.cause)
-                else:
-                    body.update(type="frames_skipped", expected=ev.expected, num=ev.num,
-                                count=ev.count)
-                yield body
+                yield {"kind": "event", "direction": direction, "index": self.index - 1,
+                       "type": LINK_EVENT_TYPES[type(ev)], **asdict(ev)}
 
     def _message(self, direction: str | None, receiver: _Direction,
                  ev: MessageReceived) -> dict[str, Any]:
