@@ -41,19 +41,17 @@ _EVENT_SCHEMA: dict[str, Any] = {"type": "object", "title": "eyeq_spi.Event",
                                                 "index": {"type": "integer"}}}
 
 
+_JSON_TYPES = ((bool, "boolean"), (int, "integer"), (float, "number"), (str, "string"))
+
+
 def json_schema(value: Any) -> dict[str, Any]:
     if isinstance(value, dict):
         return {"type": "object", "properties": {k: json_schema(v) for k, v in value.items()}}
     if isinstance(value, list):
         return {"type": "array", "items": json_schema(value[0]) if value else {}}
-    if isinstance(value, bool):
-        return {"type": "boolean"}
-    if isinstance(value, int):
-        return {"type": "integer"}
-    if isinstance(value, float):
-        return {"type": "number"}
-    if isinstance(value, str):
-        return {"type": "string"}
+    for kind, name in _JSON_TYPES:  # bool before int: a bool is an int
+        if isinstance(value, kind):
+            return {"type": name}
     return {}
 
 
