@@ -20,7 +20,7 @@ from eyeq_spi.capture.pcapng_io import CaptureWriter, Tail, read_pcapng
 from eyeq_spi.cli import main
 from eyeq_spi.dissect.pipeline import SMALL_INPUT
 from eyeq_spi.errors import InputError
-from eyeq_spi.io.plain import open_records
+from eyeq_spi.io.plain import open_transfers
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
@@ -41,7 +41,7 @@ def _both(data: bytes) -> tuple[list[tuple[float | None, str | None, bytes]], Ta
     batch = []
     for c in pcapng_chunks(io.BytesIO(data), tail=t2):
         for i in range(len(c)):
-            r = c.record(i)
+            r = c.transfer(i)
             batch.append((r.time, r.direction, r.data))
     assert exact == batch and t1 == t2
     return exact, t1, t2
@@ -76,7 +76,7 @@ def test_every_cut_reads_up_to_the_last_whole_block(good: bytes) -> None:
                 continue
             if cut < bounds[3]:  # not one whole transfer: still a bad input (exit 2)
                 with pytest.raises(InputError, match="without any transfer"):
-                    list(open_records(io.BytesIO(good[:cut]), tail=Tail())[1])
+                    list(open_transfers(io.BytesIO(good[:cut]), tail=Tail())[1])
                 with pytest.raises(InputError, match="without any transfer"):
                     list(pcapng_chunks(io.BytesIO(good[:cut]), tail=Tail()))
                 continue

@@ -14,7 +14,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from eyeq_spi.capture.pcapng_fast import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_transfers
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Transfer
 from eyeq_spi.catalog.messages import catalog
 from eyeq_spi.cli import main
@@ -279,9 +279,9 @@ def test_span_messages_agree_with_the_engine_under_application_faults(
         faults: list[tuple[int, int]], chunk: int) -> None:
     recs = _capture(faults)
     want = list(engine.iter_records(recs))
-    got = list(batch.iter_records(chunks_from_records(recs, chunk)))
+    got = list(batch.iter_records(chunks_from_transfers(recs, chunk)))
     assert got == want
-    lean = list(batch.iter_records(chunks_from_records(recs, chunk), fields="none"))
+    lean = list(batch.iter_records(chunks_from_transfers(recs, chunk), fields="none"))
     assert len(lean) == len(want)
     for a, b in zip(want, lean, strict=True):
         if b["kind"] == "message" and b["protocol"] != "MESP" and not b["fields"]:
@@ -293,7 +293,7 @@ def test_application_faults_reach_the_vectorised_groups() -> None:
     """The faults above are judged by engine_fast_messages' groups, not only by the exact
     fallback."""
     recs = _capture([(1, 1), (6, 6), (11, 4), (13, 4), (16, 3), (22, 2)])
-    items = list(batch.iter_items(chunks_from_records(recs, 1 << 15)))
+    items = list(batch.iter_items(chunks_from_transfers(recs, 1 << 15)))
     msgs = [m for b in items if isinstance(b, FrameBlock) for _, m in b.messages]
     errors = [e for m in msgs for e in m["errors"]]
     for needle in ("E2E CRC mismatch", "E2E counter jump", "bad enum value", "reserved byte",
@@ -304,7 +304,7 @@ def test_application_faults_reach_the_vectorised_groups() -> None:
 
 def want_equal(recs: list[Transfer]) -> bool:
     return list(engine.iter_records(recs)) == list(batch.iter_records(
-        chunks_from_records(recs, 1 << 15)))
+        chunks_from_transfers(recs, 1 << 15)))
 
 
 def test_no_two_dasp_messages_share_a_layout() -> None:
@@ -323,7 +323,7 @@ def _tables(tmp: Path, fmt: str, recs: list[Transfer], chunk: int | None) -> Pat
         for r in engine.iter_records(recs):
             w.write(r)
     else:
-        for item in batch.iter_items(chunks_from_records(recs, chunk), fields="columns"):
+        for item in batch.iter_items(chunks_from_transfers(recs, chunk), fields="columns"):
             if isinstance(item, FrameBlock):
                 pipeline_fast.consume(item, lambda r: True, True, Stats(CAT), [w])
             else:
@@ -354,7 +354,7 @@ def test_table_columns_agree_with_the_exact_rows(faults: list[tuple[int, int]],
 
 def test_columns_mode_really_writes_columns() -> None:
     recs = _capture([])
-    items = list(batch.iter_items(chunks_from_records(recs, 1 << 15), fields="columns"))
+    items = list(batch.iter_items(chunks_from_transfers(recs, 1 << 15), fields="columns"))
     groups = [g for b in items if isinstance(b, FrameBlock) for g in b.tables]
     assert {g.name for g in groups} >= {"EYEQ_VIS_OBSTACLES_MSG", "EYEQ_VIS_FAILSAFE_MSG"}
     assert pipeline.fields_mode([], True) == "none"

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from eyeq_spi.capture.pcapng_fast import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_transfers
 from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
@@ -66,5 +66,5 @@ def test_batch_path_agrees(chunk: int) -> None:
     for switch in (False, True):
         recs = _capture(switch)
         want = list(engine.iter_records(recs))
-        got = list(batch.iter_records(chunks_from_records(recs, chunk)))
+        got = list(batch.iter_records(chunks_from_transfers(recs, chunk)))
         assert got == want

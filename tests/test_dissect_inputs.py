@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from eyeq_spi.capture.pcapng_io import MAX_BLOCK, CaptureWriter
 from eyeq_spi.errors import InputError
-from eyeq_spi.io.plain import MAX_HEX_LINE, open_records
+from eyeq_spi.io.plain import MAX_HEX_LINE, open_transfers
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +37,7 @@ def _blocks(data: bytes) -> list[int]:
 
 
 def _read_all(data: bytes, fmt: str | None = None) -> list[object]:
-    _, records = open_records(io.BytesIO(data), fmt)
+    _, records = open_transfers(io.BytesIO(data), fmt)
     return list(records)
 
 
@@ -96,7 +96,7 @@ def test_an_endless_hex_line_is_refused_with_its_line_number_after_bounded_readi
     good = b"0.0 h2e " + b"00" * 128 + b"\n"
     stream = _Endless(good * 3, b"ab")
     with pytest.raises(InputError, match=rf"^line 4: longer than {MAX_HEX_LINE} characters"):
-        for _ in open_records(stream, "hex")[1]:  # type: ignore[arg-type]
+        for _ in open_transfers(stream, "hex")[1]:  # type: ignore[arg-type]
             pass
     assert stream.served < MAX_HEX_LINE + (1 << 17)
 
@@ -105,7 +105,7 @@ def test_a_huge_pcapng_block_length_is_refused_before_it_is_read(pcapng_bytes: b
     head = pcapng_bytes[:_blocks(pcapng_bytes)[3]] + struct.pack("<II", 6, 0xFFFFFFF0)
     stream = _Endless(head, b"\x00")
     with pytest.raises(InputError, match="limit"):
-        for _ in open_records(stream, "pcapng")[1]:  # type: ignore[arg-type]
+        for _ in open_transfers(stream, "pcapng")[1]:  # type: ignore[arg-type]
             pass
     assert stream.served < MAX_BLOCK
 

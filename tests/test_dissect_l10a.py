@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from eyeq_spi.capture.pcapng_fast import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_transfers
 from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect import engine
@@ -75,5 +75,5 @@ def test_a_late_restart_is_the_hosts_restart(rsp: int) -> None:
 @pytest.mark.parametrize("chunk", [5, 1 << 15])
 def test_the_fast_path_agrees(chunk: int) -> None:
     records = _capture(5)
-    assert list(fast.iter_records(chunks_from_records(records, chunk))) == \
+    assert list(fast.iter_records(chunks_from_transfers(records, chunk))) == \
         list(engine.iter_records(records))

@@ -14,8 +14,10 @@ import pytest
 from eyeq_spi.capture.pcapng_io import CaptureWriter, read_pcapng, recorded_release
 from eyeq_spi.catalog.messages import catalog, sw_release_text
 from eyeq_spi.cli import main
+from eyeq_spi.codec.message import DASP_PROTOCOL
 from eyeq_spi.dissect import release as rel
 from eyeq_spi.dissect.pipeline import SMALL_INPUT
+from eyeq_spi.transport.segment import CONSECUTIVE, FIRST
 from eyeq_spi.twins import EXACT_ENV
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
@@ -114,11 +116,27 @@ def test_without_the_comment_the_release_comes_from_the_traffic(
     assert (st["sw"], st["sw_source"]) == ("8.1", "EYEQ_BASE_DIAG_STATUS_MSG")
 
 
-def test_else_the_release_whose_dasp_layouts_fit(captures: dict[str, Path],
-                                                 monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(rel, "BASE_DIAG_ID", -1)  # nothing in the traffic names the release
-    with captures["5.0"].open("rb") as fh:
-        late = [r for r in read_pcapng(fh) if r.time > 1.0]
+def _without_base_diag(transfers: list[Any]) -> list[Any]:
+    """The transfers without EYEQ_BASE_DIAG_STATUS_MSG (DASP 0xA0, whose bytes name the
+    release): its first frames (T1: bytes 8..11 the total, then the message) and the
+    consecutive frames of their transfer IDs, per direction."""
+    dropped: dict[str | None, int | None] = {}
+    kept = []
+    for transfer in transfers:
+        kind, transfer_id = transfer.data[6], transfer.data[7]
+        if kind == FIRST:
+            message = transfer.data[12:14]
+            dropped[transfer.direction] = (transfer_id if message == bytes([DASP_PROTOCOL, 0xA0])
+                                           else None)
+        if kind in (FIRST, CONSECUTIVE) and transfer_id == dropped.get(transfer.direction):
+            continue
+        kept.append(transfer)
+    return kept
+
+
+def test_else_the_release_whose_dasp_layouts_fit(captures: dict[str, Path]) -> None:
+    with captures["5.0"].open("rb") as fh:  # nothing left in the traffic names the release
+        late = _without_base_diag([r for r in read_pcapng(fh) if r.time > 1.0])
     found = rel.infer_release(late)
     assert found is not None and found[1].startswith("DASP payload lengths")
     assert "5.0" in found[1]
@@ -214,6 +232,6 @@ def test_a_fault_still_comes_after_the_transfers_before_it(captures: dict[str, P
     cap = rel.open_capture(io.BytesIO(bad), name="bad")
     got = []
     with pytest.raises(InputError, match="malformed pcapng"):
-        for r in cap.records:
+        for r in cap.transfers:
             got.append(r)
     assert len(got) > 10

@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from eyeq_spi import garbage
-from eyeq_spi.capture.pcapng_fast import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_transfers
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Transfer
 from eyeq_spi.cli import main
 from eyeq_spi.codec.e2e import E2EState
@@ -54,7 +54,7 @@ def lean_stats(recs: list[Transfer], chunk: int) -> tuple[str, str]:
     """--stats from the fast path's blocks, in the mode ``dissect --stats`` takes (no fields)."""
     st = Stats(CAT)
     fields = pipeline.fields_mode([], True)
-    for item in batch.iter_items(chunks_from_records(recs, chunk), fields=fields):
+    for item in batch.iter_items(chunks_from_transfers(recs, chunk), fields=fields):
         if isinstance(item, FrameBlock):
             pipeline_fast.consume(item, lambda r: True, True, st, [])
         else:
@@ -269,7 +269,7 @@ def test_no_group_is_judged_across_a_switch_application_request() -> None:
         put(mc.encode_dasp("HOST_VEH_STATE_MSG", zero, i, e2e["b"]))
     want = list(engine.iter_records(recs))
     for chunk in (7, 1 << 15):
-        assert list(batch.iter_records(chunks_from_records(recs, chunk))) == want
+        assert list(batch.iter_records(chunks_from_transfers(recs, chunk))) == want
         assert lean_stats(recs, chunk) == exact_stats(recs)
     dec = batch.ChunkFeeder().decode
     assert dec.is_barrier(mc.mesp.encode_request("SwitchEyeQApplication", 1,

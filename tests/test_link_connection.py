@@ -4,7 +4,7 @@ last one byte for byte, and the dissector (engine and batch path agree). Virtual
 
 from __future__ import annotations
 
-from eyeq_spi.capture.pcapng_fast import chunks_from_records
+from eyeq_spi.capture.pcapng_fast import chunks_from_transfers
 from eyeq_spi.capture.pcapng_io import Transfer
 from eyeq_spi.codec.e2e import E2EState
 from eyeq_spi.codec.message import MessageCodec
@@ -143,7 +143,7 @@ def test_the_dissector_follows_a_reset_request_in_both_paths() -> None:
     resets = [r for r in out if r.get("type") == "driver_reset"]
     assert [r["direction"] for r in resets] == ["h2e"]  # the host's NUM 0 after its request
     for chunk in (5, 64, 1 << 15):
-        assert list(batch.iter_records(chunks_from_records(recs, chunk))) == out
+        assert list(batch.iter_records(chunks_from_transfers(recs, chunk))) == out
 
 
 def test_after_an_eyeq_reset_the_restarted_host_link_is_taken_at_once() -> None:

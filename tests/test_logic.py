@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from eyeq_spi.capture.pcapng_io import CaptureWriter, Transfer, read_pcapng
 from eyeq_spi.cli import main
 from eyeq_spi.errors import InputError
-from eyeq_spi.io.plain import detect, open_records
+from eyeq_spi.io.plain import detect, open_transfers
 from eyeq_spi.link.frame import FrameCodec
 from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.logic.vcd import read_vcd
@@ -279,7 +279,7 @@ _VCD_HEAD = ("$timescale 1ns $end\n$var wire 1 a h2e_cs $end\n$var wire 1 b h2e_
 def test_logic_readers_raise_only_input_errors(fmt: str, data: bytes) -> None:
     """Any bytes in any logic format: records or one InputError, never another exception."""
     try:
-        for rec in open_records(io.BytesIO(data), fmt)[1]:
+        for rec in open_transfers(io.BytesIO(data), fmt)[1]:
             assert isinstance(rec.data, bytes) and len(rec.data) <= 4096
     except InputError:
         pass
@@ -291,7 +291,7 @@ def test_vcd_reading_memory_is_bounded() -> None:
            b"$var wire 1 c mosi $end\n$enddefinitions $end\n#0\n0a\n"
     body = b"".join(b"#%d\n1b\n#%d\n0b\n" % (2 * i + 1, 2 * i + 2) for i in range(8 * 4200))
     with pytest.raises(InputError, match="longer than"):
-        list(open_records(io.BytesIO(head + body))[1])
+        list(open_transfers(io.BytesIO(head + body))[1])
 
 
 # -- MDF4 and MCAP ----------------------------------------------------------------------------

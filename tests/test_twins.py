@@ -70,7 +70,7 @@ def _layout() -> Pair:
 def _dissect() -> Pair:
     """The exact dissector against the batch one (frames, spans, the vectorised message decode
     of ``codec.message_fast``), clean and under application faults, chunked finely and not."""
-    from eyeq_spi.capture.pcapng_fast import chunks_from_records
+    from eyeq_spi.capture.pcapng_fast import chunks_from_transfers
     from eyeq_spi.dissect import engine
     from eyeq_spi.dissect import engine_fast as batch
     from tests.test_codec_message_fast import _capture
@@ -82,7 +82,7 @@ def _dissect() -> Pair:
         want = list(engine.iter_records(recs))
         for chunk in (7, 1 << 15):
             ref.append(want)
-            fast.append(list(batch.iter_records(chunks_from_records(recs, chunk))))
+            fast.append(list(batch.iter_records(chunks_from_transfers(recs, chunk))))
     assert len(ref[0]) > 40
     return ref, fast
 
@@ -100,7 +100,7 @@ def _pcapng(tmp_path: Path) -> Pair:
         t_ref, t_fast = Tail(), Tail()
         ref.append((_outcome(lambda: list(read_pcapng(io.BytesIO(short), t_ref))),  # noqa: B023
                     t_ref))
-        fast.append((_outcome(lambda: [c.record(i) for c in pcapng_chunks(
+        fast.append((_outcome(lambda: [c.transfer(i) for c in pcapng_chunks(
             io.BytesIO(short), 1000, t_fast) for i in range(len(c))]), t_fast))  # noqa: B023
     return ref, fast
 

@@ -4,7 +4,7 @@ an in-run baseline: reading the same transfers from our own pcapng captures.
 
 A demo capture (virtual time) is converted in memory to raw, hex, pcapng, Saleae Logic 2,
 Saleae Logic 1.x and VCD (our layout, one change per line, and sigrok's/PulseView's, a time and
-its changes on one line); each is read ``--repeat`` times through ``open_records`` (reading
+its changes on one line); each is read ``--repeat`` times through ``open_transfers`` (reading
 only), and once more through the dissector engine (reading + decoding). Export speeds (VCD,
 MDF4, MCAP writers) close the table.
 Figures: median and spread (min-max) of the repeats, and the ratio to the baseline's median.
@@ -27,7 +27,7 @@ from pathlib import Path
 
 from eyeq_spi.capture.pcapng_io import Transfer, read_pcapng
 from eyeq_spi.dissect.engine import Dissector
-from eyeq_spi.io.plain import open_records
+from eyeq_spi.io.plain import open_transfers
 from eyeq_spi.logic.vcd_write import write_vcd
 
 
@@ -92,12 +92,12 @@ def _time(fn: Callable[[], int], repeat: int) -> tuple[list[float], int]:
 
 
 def _read(data: bytes, fmt: str, kw: dict[str, str]) -> int:
-    _, it = open_records(io.BytesIO(data), kw.get("format", fmt), kw.get("direction"))
+    _, it = open_transfers(io.BytesIO(data), kw.get("format", fmt), kw.get("direction"))
     return sum(1 for _ in it)
 
 
 def _dissect(data: bytes, fmt: str, kw: dict[str, str]) -> int:
-    _, it = open_records(io.BytesIO(data), kw.get("format", fmt), kw.get("direction"))
+    _, it = open_transfers(io.BytesIO(data), kw.get("format", fmt), kw.get("direction"))
     dis = Dissector()
     n = 0
     for rec in it:

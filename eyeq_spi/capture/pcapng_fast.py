@@ -1,22 +1,12 @@
-"""Captures read into arrays, many transfers at a time (the fast path's input).
+"""pcapng captures read into arrays, many transfers at a time (the fast path's input).
 
 A :class:`Chunk` holds up to ``chunk`` transfers: an ``(n, 128)`` byte array, their lengths, times
-(NaN when a transfer has none) and direction codes. A transfer that is not 128 bytes (a chip-select
-fault, L8) keeps its bytes in ``Chunk.odd`` and a zero row in ``data``.
-
-- pcapng (``specs/capture.yaml``): a block walker of our own for little-endian sections. A run of
-  Enhanced Packet Blocks of one size (what our writer produces: 160 bytes each for a 128-byte
-  transfer) is checked and sliced as one ``(k, 160)`` array view with no per-block Python work;
-  anything else (other block types, other sizes, options) is walked block by block. A big-endian
-  section falls back to python-pcapng (:func:`read_pcapng`), which stays the reference: the tests
-  hold both to the same records. Interface numbering, names and ``if_tsresol`` follow
-  :func:`read_pcapng` exactly.
-- raw: concatenated 128-byte transfers, one ``np.frombuffer`` per chunk.
-- any other stream of :class:`Transfer`: :func:`chunks_from_records`.
-
-Memory stays bounded by ``chunk``. A malformed or truncated file raises :class:`InputError` after
-every complete transfer before the fault has been returned; given a :class:`Tail`, a truncated
-one ends after its last whole block instead, and the tail says how many bytes were left.
+(NaN when a transfer has none) and direction codes; a transfer that is not 128 bytes (L8) keeps
+its bytes in ``Chunk.odd`` and a zero row in ``data``. A run of Enhanced Packet Blocks of 160
+bytes (what our writer produces) is checked and sliced as one array view; any other block is
+walked one at a time; a big-endian section is read by python-pcapng (:func:`read_pcapng`, the
+reference). Errors and a :class:`Tail` behave as :func:`read_pcapng`'s, after every complete
+transfer before the fault.
 """
 
 from __future__ import annotations
@@ -29,6 +19,7 @@ import numpy as np
 
 from eyeq_spi.capture.pcapng_io import (
     DIRECTIONS,
+    MAX_BLOCK,
     PCAPNG_MAGIC,
     PeekStream,
     Readable,
@@ -42,7 +33,6 @@ from eyeq_spi.link.frame import FRAME_SIZE
 DIR_CODE: dict[str | None, int] = {"h2e": 0, "e2h": 1, None: -1}
 DIR_NAME: dict[int, str | None] = {v: k for k, v in DIR_CODE.items()}
 CHUNK = 1 << 15
-MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer is 128 bytes)
 READ_SIZE = 8 << 20  # bytes read at a time
 _EPB, _IDB = 6, 1
 _SHB = int.from_bytes(PCAPNG_MAGIC, "little")
@@ -62,7 +52,7 @@ class Chunk:
     def __len__(self) -> int:
         return int(self.length.shape[0])
 
-    def record(self, index: int) -> Transfer:
+    def transfer(self, index: int) -> Transfer:
         """Row ``i`` as the reference dissector's input."""
         time_s = float(self.time[index])
         data = self.odd.get(index)
@@ -71,106 +61,62 @@ class Chunk:
         return Transfer(None if time_s != time_s else time_s,
                         DIR_NAME[int(self.direction[index])], data)
 
-
-def _chunk(rows: list[np.ndarray], lengths: list[int], times: list[float], dirs: list[int],
-           odd: dict[int, bytes]) -> Chunk:
-    data = np.concatenate(rows) if rows else np.zeros((0, FRAME_SIZE), np.uint8)
-    return Chunk(data, np.asarray(lengths, np.int64), np.asarray(times, np.float64),
-                 np.asarray(dirs, np.int8), odd)
+    def transfers(self) -> list[Transfer]:
+        return [self.transfer(index) for index in range(len(self))]
 
 
-def chunks_from_records(records: Iterable[Transfer], chunk: int = CHUNK) -> Iterator[Chunk]:
-    """The general path: any :class:`Transfer` stream (hex text, python-pcapng) as chunks."""
-    buf = bytearray()
-    lengths: list[int] = []
-    times: list[float] = []
-    dirs: list[int] = []
-    odd: dict[int, bytes] = {}
+def chunks_from_transfers(transfers: Iterable[Transfer], chunk: int = CHUNK) -> Iterator[Chunk]:
+    """Any :class:`Transfer` stream (hex text, python-pcapng) as chunks."""
+    batch: list[Transfer] = []
+    for transfer in transfers:
+        batch.append(transfer)
+        if len(batch) >= chunk:
+            yield _chunk(batch)
+            batch = []
+    if batch:
+        yield _chunk(batch)
+
+
+def _chunk(transfers: list[Transfer]) -> Chunk:
     zero = bytes(FRAME_SIZE)
-    for transfer in records:
-        size = len(transfer.data)
-        if size == FRAME_SIZE:
-            buf += transfer.data
-        else:
-            odd[len(lengths)] = transfer.data
-            buf += zero
-        lengths.append(size)
-        times.append(float("nan") if transfer.time is None else transfer.time)
-        dirs.append(DIR_CODE[transfer.direction])
-        if len(lengths) >= chunk:
-            yield _chunk([np.frombuffer(bytes(buf), np.uint8).reshape(-1, FRAME_SIZE)], lengths,
-                         times, dirs, odd)
-            buf, lengths, times, dirs, odd = bytearray(), [], [], [], {}
-    if lengths:
-        yield _chunk([np.frombuffer(bytes(buf), np.uint8).reshape(-1, FRAME_SIZE)], lengths,
-                     times, dirs, odd)
+    data = b"".join(t.data if len(t.data) == FRAME_SIZE else zero for t in transfers)
+    return Chunk(np.frombuffer(data, np.uint8).reshape(-1, FRAME_SIZE),
+                 np.asarray([len(t.data) for t in transfers], np.int64),
+                 np.asarray([np.nan if t.time is None else t.time for t in transfers],
+                            np.float64),
+                 np.asarray([DIR_CODE[t.direction] for t in transfers], np.int8),
+                 {i: t.data for i, t in enumerate(transfers) if len(t.data) != FRAME_SIZE})
 
 
-def raw_chunks(stream: Readable, direction: str | None, chunk: int = CHUNK) -> Iterator[Chunk]:
-    """Concatenated 128-byte transfers of one channel."""
-    code = DIR_CODE[direction]
-    while True:
-        blob = _read_exact(stream, FRAME_SIZE * chunk)
-        count = len(blob) // FRAME_SIZE
-        if count:
-            yield Chunk(np.frombuffer(blob[: count * FRAME_SIZE], np.uint8)
-                        .reshape(count, FRAME_SIZE),
-                        np.full(count, FRAME_SIZE, np.int64), np.full(count, np.nan),
-                        np.full(count, code, np.int8))
-        if len(blob) % FRAME_SIZE:
-            raise InputError(f"truncated raw capture: {len(blob) % FRAME_SIZE} bytes left over "
-                             "after the last whole 128-byte transfer")
-        if len(blob) < FRAME_SIZE * chunk:
-            return
-
-
-def _read_exact(stream: Readable, size: int) -> bytes:
-    parts: list[bytes] = []
-    got = 0
-    while got < size:
-        part = stream.read(size - got)
-        if not part:
+def _interface(body: bytes | bytearray) -> tuple[str | None, float]:
+    """An Interface Description Block's direction (its name) and tick length, as read_pcapng
+    reads them."""
+    name: str | None = None
+    scale = 1e-6
+    pos = 8  # link type, reserved, snaplen
+    while pos + 4 <= len(body):
+        code, size = struct.unpack_from("<HH", body, pos)
+        value = body[pos + 4 : pos + 4 + size]
+        pos += 4 + ((size + 3) & ~3)
+        if code == 0:
             break
-        parts.append(part)
-        got += len(part)
-    return b"".join(parts)
-
-
-class _Interfaces:
-    """Interface names and tick lengths, numbered over the whole file as read_pcapng does."""
-
-    def __init__(self) -> None:
-        self.names: list[str | None] = []
-        self.scales: list[float] = []
-
-    def add(self, body: bytes | bytearray) -> None:
-        name: str | None = None
-        scale = 1e-6
-        pos = 8  # link type, reserved, snaplen
-        while pos + 4 <= len(body):
-            code, size = struct.unpack_from("<HH", body, pos)
-            value = body[pos + 4 : pos + 4 + size]
-            pos += 4 + ((size + 3) & ~3)
-            if code == 0:
-                break
-            if code == 2:
-                name = value.decode("utf-8", "replace")
-            elif code == 9 and size == 1:
-                base = 2 if value[0] & 0x80 else 10
-                scale = float(base ** -(value[0] & 0x7F))
-        self.names.append(name if name in DIRECTIONS else None)
-        self.scales.append(scale)
+        if code == 2:
+            name = value.decode("utf-8", "replace")
+        elif code == 9 and size == 1:
+            base = 2 if value[0] & 0x80 else 10
+            scale = float(base ** -(value[0] & 0x7F))
+    return (name if name in DIRECTIONS else None), scale
 
 
 def pcapng_chunks(stream: Readable, chunk: int = CHUNK, tail: Tail | None = None
                   ) -> Iterator[Chunk]:
     """Stream a pcapng capture as chunks; see the module docstring."""
-    head = _read_exact(stream, 12)
+    head = stream.read(12)
     if head[:4] != PCAPNG_MAGIC:
         raise InputError("not a pcapng file")
     if len(head) < 12 or struct.unpack_from("<I", head, 8)[0] != _BOM:
         # big-endian (or too short to tell): the reference reader handles it
-        yield from chunks_from_records(read_pcapng(PeekStream(stream, head=head), tail),  # type: ignore[arg-type]
+        yield from chunks_from_transfers(read_pcapng(PeekStream(stream, head=head), tail),  # type: ignore[arg-type]
                                        chunk)
         return
     yield from _Walker(stream, head, chunk, tail).run()
@@ -184,7 +130,8 @@ class _Walker:
         self.buf: bytes | bytearray = head
         self.pos = 0
         self.chunk = chunk
-        self.ifaces = _Interfaces()
+        self.names: list[str | None] = []  # interfaces, numbered over the whole file
+        self.scales: list[float] = []
         self.eof = False
         self.offset = 0  # file position of buf[0]
         self.packets = 0
@@ -192,19 +139,9 @@ class _Walker:
 
     def _reset(self) -> None:
         self.rows: list[np.ndarray] = []
-        self.lengths: list[int] = []  # of the blocks read one at a time since the last run
-        self.times: list[float] = []
-        self.dirs: list[int] = []
-        self.runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # whole columns
+        self.runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # lengths, times, dirs
         self.odd: dict[int, bytes] = {}
         self.count = 0
-
-    def _seal(self) -> None:
-        """The blocks read one at a time so far as one segment of columns."""
-        if self.lengths:
-            self.runs.append((np.asarray(self.lengths, np.int64),
-                              np.asarray(self.times, np.float64), np.asarray(self.dirs, np.int8)))
-            self.lengths, self.times, self.dirs = [], [], []
 
     def _fill(self, need: int) -> bool:
         """At least ``need`` bytes after ``pos`` in ``buf``; False at end of file. What is left
@@ -220,31 +157,24 @@ class _Walker:
         return len(self.buf) - self.pos >= need
 
     def _flush(self) -> Chunk:
-        self._seal()
-        runs = self.runs or [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int8))]
-        data = np.concatenate(self.rows) if self.rows else np.zeros((0, FRAME_SIZE), np.uint8)
-        length, time, direction = (runs[0][i] if len(runs) == 1
-                                   else np.concatenate([r[i] for r in runs]) for i in range(3))
-        chunk = Chunk(data, length, time, direction, self.odd)
+        length, time, direction = (np.concatenate([run[i] for run in self.runs])
+                                   for i in range(3))
+        chunk = Chunk(np.concatenate(self.rows), length, time, direction, self.odd)
         self._reset()
         return chunk
 
     def run(self) -> Iterator[Chunk]:
         try:
             yield from self._run()
-        except TruncatedInputError as exc:
+        except InputError as exc:
             if self.count:  # every complete transfer before the fault
                 yield self._flush()
-            if self.tail is None:
+            if not isinstance(exc, TruncatedInputError) or self.tail is None:
                 raise
             if not self.packets:
                 raise InputError("pcapng capture without any transfer (no whole Enhanced "
                                  "Packet Block)") from None
             self.tail.take(exc)
-        except InputError:
-            if self.count:  # every complete transfer before the fault, then the error
-                yield self._flush()
-            raise
 
     def _run(self) -> Iterator[Chunk]:
         while True:
@@ -256,8 +186,7 @@ class _Walker:
             if blen % 4 or not 12 <= blen <= MAX_BLOCK:
                 raise InputError(f"malformed pcapng: block at byte {self.offset + self.pos} has "
                                  f"length {blen} (a multiple of 4 in 12..{MAX_BLOCK} expected)")
-            if btype == _EPB and self.count < self.chunk:
-                self._fast_run(blen)
+            if btype == _EPB and self._plain_run(blen):
                 if self.count >= self.chunk:
                     yield self._flush()
                 continue
@@ -271,7 +200,9 @@ class _Walker:
                     raise InputError("malformed pcapng: a big-endian section after a "
                                      "little-endian one")
             elif btype == _IDB:
-                self.ifaces.add(body)
+                name, scale = _interface(body)
+                self.names.append(name)
+                self.scales.append(scale)
             elif btype == _EPB:
                 self._one_epb(body)
             self.pos += blen
@@ -292,56 +223,46 @@ class _Walker:
         data = bytes(body[20 : 20 + cap])
         if len(data) != cap:
             raise InputError("malformed pcapng: packet longer than its block")
-        self._add_meta(iid, (hi << 32) | lo)
+        known = iid < len(self.names)
+        self.runs.append((np.array([cap], np.int64),
+                          np.array([((hi << 32) | lo) * (self.scales[iid] if known else 1e-6)]),
+                          np.array([DIR_CODE[self.names[iid] if known else None]], np.int8)))
         if cap == FRAME_SIZE:
             self.rows.append(np.frombuffer(data, np.uint8).reshape(1, FRAME_SIZE))
         else:
             self.odd[self.count] = data
             self.rows.append(np.zeros((1, FRAME_SIZE), np.uint8))
-        self.lengths.append(cap)
         self.count += 1
         self.packets += 1
 
-    def _add_meta(self, iid: int, ticks: int) -> None:
-        names, scales = self.ifaces.names, self.ifaces.scales
-        self.times.append(ticks * (scales[iid] if iid < len(scales) else 1e-6))
-        name = names[iid] if iid < len(names) else None
-        self.dirs.append(DIR_CODE[name])
-
-    def _fast_run(self, blen: int) -> None:
-        """A run of EPBs of ``blen`` bytes carrying 128 bytes each, as one array view."""
+    def _plain_run(self, blen: int) -> bool:
+        """A run of EPBs of ``blen`` bytes carrying 128 bytes each, as one array view; False:
+        the block at ``pos`` is not one of them."""
+        if blen != FRAME_SIZE + 32:
+            return False
         want = self.chunk - self.count
         self._fill(min(want, 4096) * blen)
-        avail = (len(self.buf) - self.pos) // blen
-        plain = min(avail, want)
-        if blen != FRAME_SIZE + 32 or plain == 0:
-            plain = 0
-        if plain:
-            blocks = np.frombuffer(self.buf, np.uint8, plain * blen, self.pos).reshape(plain, blen)
-            words = blocks[:, :28].copy().view("<u4")  # type, len, iid, ts hi, ts lo, cap, orig
-            good = ((words[:, 0] == _EPB) & (words[:, 1] == blen) & (words[:, 5] == FRAME_SIZE)
-                    & (blocks[:, -4:].copy().view("<u4")[:, 0] == blen)
-                    & (words[:, 2] < len(self.ifaces.names)))
-            plain = int(np.argmin(good)) if not good.all() else plain
-        if plain == 0:  # not a plain block: one at a time
-            if not self._fill(blen):
-                self._truncated()
-            body = self.buf[self.pos + 8 : self.pos + blen - 4]
-            if struct.unpack_from("<I", self.buf, self.pos + blen - 4)[0] != blen:
-                raise InputError("malformed pcapng: block lengths differ")
-            self._one_epb(body)
-            self.pos += blen
-            return
+        plain = min((len(self.buf) - self.pos) // blen, want)
+        if plain == 0:
+            return False
+        blocks = np.frombuffer(self.buf, np.uint8, plain * blen, self.pos).reshape(plain, blen)
+        words = blocks[:, :28].copy().view("<u4")  # type, len, iid, ts hi, ts lo, cap, orig
+        good = ((words[:, 0] == _EPB) & (words[:, 1] == blen) & (words[:, 5] == FRAME_SIZE)
+                & (blocks[:, -4:].copy().view("<u4")[:, 0] == blen)
+                & (words[:, 2] < len(self.names)))
+        plain = plain if good.all() else int(np.argmin(good))
+        if plain == 0:
+            return False
         head = words[:plain]
         iid = head[:, 2].astype(np.int64)
         ticks = (head[:, 3].astype(np.uint64) << np.uint64(32)) | head[:, 4].astype(np.uint64)
-        scales = np.asarray(self.ifaces.scales, np.float64)[iid]
+        scales = np.asarray(self.scales, np.float64)[iid]
         # int * float in Python rounds the int to a double first: do the same
         times = ticks.astype(np.float64) * scales
-        codes = np.asarray([DIR_CODE[nm] for nm in self.ifaces.names], np.int8)[iid]
+        codes = np.asarray([DIR_CODE[nm] for nm in self.names], np.int8)[iid]
         self.rows.append(blocks[:plain, 28 : 28 + FRAME_SIZE])
-        self._seal()
         self.runs.append((np.full(plain, FRAME_SIZE, np.int64), times, codes))
         self.count += plain
         self.packets += plain
         self.pos += plain * blen
+        return True

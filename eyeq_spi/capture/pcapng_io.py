@@ -46,14 +46,17 @@ class Tail:
 def release_from_comment(text: str) -> SwKey | None:
     """The ``specs/`` key of an ``eyeq-spi sw=<release>`` comment (None: no such comment, or a
     release ``specs/`` does not know)."""
-    prefix = str(_spec().get("release_comment", SW_COMMENT)).split("{release}")[0]
-    match = re.search(re.escape(prefix) + r"(\S+)", text)
-    if match is None:
-        return None
+    value = _comment_value(str(_spec().get("release_comment", SW_COMMENT)), "{release}", text)
     try:
-        return catalog().sw(match.group(1))
+        return None if value is None else catalog().sw(value)
     except EyeqError:
         return None
+
+
+def _comment_value(template: str, field: str, text: str) -> str | None:
+    """The word after ``template``'s text before ``field`` in the comment ``text``, or None."""
+    match = re.search(re.escape(template.split(field)[0]) + r"(\S+)", text)
+    return None if match is None else match.group(1)
 
 
 def _shb_comments(head: bytes) -> list[str]:
@@ -92,11 +95,10 @@ def recorded_clock(head: bytes) -> str | None:
     """The clock a capture's timestamps were read from, as its Section Header Block records it
     (``specs/capture.yaml`` ``clock_comment``): ``"virtual"`` or ``"monotonic"``; None when it
     does not say (a capture written before the comment existed, or by another tool)."""
-    prefix = str(_spec()["clock_comment"]).split("{clock}")[0]
     for text in _shb_comments(head):
-        match = re.search(re.escape(prefix) + r"(\S+)", text)
-        if match is not None and match.group(1) in _spec()["clocks"]:
-            return match.group(1)
+        value = _comment_value(str(_spec()["clock_comment"]), "{clock}", text)
+        if value in _spec()["clocks"]:
+            return value
     return None
 
 
@@ -162,16 +164,11 @@ MAX_BLOCK = 1 << 20  # a pcapng block over 1 MiB is corrupt for us (a transfer i
 class CaptureWriter:
     """Streams transfers to a pcapng file: ``write(direction, time, transfer)``.
 
-    Crash-safe: blocks are encoded here (``specs/capture.yaml``) into a buffer that goes to the
-    file in whole blocks only, with one unbuffered write each time it holds ``FLUSH_BYTES`` or
-    ``flush_interval_s`` (``specs/capture.yaml``) has passed since the last write, by ``clock``;
-    with ``idle_flush`` a daemon thread also writes what waits when no transfer comes for that
-    long. A process that dies loses at most the last ``flush_interval_s`` of traffic, and its
-    file ends on a block boundary unless the kernel was cut in the middle of copying a write
-    (readers read up to the last whole block, :class:`Tail`). The release of the traffic
-    (``sw``, a ``specs/`` key or release text; default the newest) is recorded as an
-    ``opt_comment`` ``eyeq-spi sw=<release>`` on the Section Header Block and on the first
-    Enhanced Packet Block."""
+    Crash-safe: whole blocks only go to the file, in one unbuffered write whenever the buffer
+    holds ``FLUSH_BYTES`` or ``flush_interval_s`` (``specs/capture.yaml``) has passed by
+    ``clock`` (with ``idle_flush``, also from a daemon thread when no transfer comes), so a
+    process that dies loses at most that much traffic. The release (``sw``; default the newest)
+    is recorded as ``eyeq-spi sw=<release>`` on the Section Header Block and first packet."""
 
     FLUSH_BYTES = 1 << 16
     FLUSH_S = 1.0
@@ -324,7 +321,6 @@ def _idb(link_type: int, name: str, description: str, tsresol: int) -> bytes:
     return _block(1, struct.pack("<HHI", link_type, 0, 0)
                   + _options([(2, name.encode()), (3, description.encode()),
                               (9, bytes([tsresol]))]))
-
 
 
 def read_pcapng(fh: IO[bytes], tail: Tail | None = None) -> Iterator[Transfer]:

@@ -81,13 +81,8 @@ def run(args: argparse.Namespace) -> int:
     from eyeq_spi.catalog.messages import catalog
     from eyeq_spi.cli.options import spi_options
     from eyeq_spi.dissect.output import HumanWriter, TableWriter
-    from eyeq_spi.dissect.pipeline import (
-        DissectConfig,
-        codec_for,
-        deliver,
-        dissect_captures,
-        fields_mode,
-    )
+    from eyeq_spi.dissect.pipeline import DissectConfig, deliver, dissect_captures, fields_mode
+    from eyeq_spi.dissect.release import codec_for
     from eyeq_spi.dissect.stats import Stats
     from eyeq_spi.io.jsonl import JsonLinesWriter
 

@@ -1,26 +1,21 @@
 """The dissector engine: transfers in, JSON-ready records out (the ``--json`` contract).
 
-Each direction has a passive receiver: a :class:`TransportConnection` in the role of the side that
-received that channel, fed with the channel's DATA frames, so duplicates, window errors, NUM gaps
-and aborted transfers are judged exactly as the real receiver judges them. Its own ACK/NAK output
-is discarded. The receivers are passive (decision L9): each direction's first DATA frame sets the
-expected NUM, consecutive frames before any first frame are ``incomplete_at_start`` and a
-transfer still open at the end of the input is ``incomplete_at_end``; neither is an error.
-Frame records come out in capture order; a message record follows the frame that
-completed it. Memory stays bounded: only the current transfer of each direction and the last
-index of each NUM are kept.
+Each direction has a passive receiver (L9): a :class:`TransportConnection` in the role of the
+side that received that channel, fed with its DATA frames, so duplicates, window errors, NUM
+gaps and aborted transfers are judged as the real receiver judges them; its ACK/NAKs are
+dropped. Frame records come out in capture order, a message record after the frame that
+completed it; memory stays bounded.
 
-:meth:`Dissector.feed` takes one transfer. A caller that has checked a run of frames itself
-(the vectorised frame check, :mod:`.engine_fast`) hands the run's whole messages over with
-:meth:`Dissector.accept_clean` and, before it feeds a transfer again, gives the receiver the
-run's last transfers with :meth:`Dissector.resume`: the receiver then stands where ``feed`` of
-every frame of the run would have left it.
+:meth:`Dissector.feed` takes one transfer. A caller that has checked a clean run of frames
+itself (:mod:`.engine_fast`) hands its whole messages over with :meth:`Dissector.accept_clean`
+and its last transfers with :meth:`Dissector.resume`, which leaves the receiver where ``feed``
+of the run would have.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from eyeq_spi.capture.pcapng_io import Transfer
@@ -45,6 +40,9 @@ RECEIVER = {"h2e": "eyeq", "e2h": "host", None: "host"}
 
 
 KIND_NAMES = {int(k): k.name for k in FrameKind}
+LINK_EVENT_TYPES: dict[type, str] = {DuplicateReceived: "duplicate",
+                                     Resynchronised: "resynchronised",
+                                     FramesSkipped: "frames_skipped"}
 
 
 def frame_record(index: int, time: float | None, direction: str | None, length: int,
@@ -144,11 +142,9 @@ class Dissector:
     def accept_clean(self, direction: str | None, data: bytes, nums: tuple[int, ...],
                      transfer_id: int | None, frames: list[int | None],
                      time: float | None) -> dict[str, Any]:
-        """The record of a whole message that a clean run of frames delivered on
-        ``direction`` (every frame 128 bytes, CRC good, DATA, its NUM the one expected, its
-        transfer whole and in time), completed at ``time`` by the frames at capture indices
-        ``frames``: what :meth:`feed` of those frames would give. The caller notes the run's
-        frames with :meth:`note_frames`."""
+        """The record of a whole message a clean run of frames delivered on ``direction``
+        (128 bytes, CRC good, DATA, NUMs in order, transfer whole and in time), completed at
+        ``time`` by the frames at capture indices ``frames``: what :meth:`feed` would give."""
         self.last_time = time
         rec = self._message(direction, self._dir(direction),
                             MessageReceived(data, nums, transfer_id))
@@ -166,13 +162,11 @@ class Dissector:
 
     def resume(self, direction: str | None, last_first: TransferFrames | None,
                tail: list[TransferFrames], open_transfer: TransferFrames | None) -> None:
-        """After a clean run on ``direction``: its receiver starts over at the NUM of the
-        oldest frame given and takes these frames again, output dropped, so that it stands as
-        :meth:`feed` of the whole run would leave it. ``tail``: the run's last whole
-        transfers (at least a window of frames, L6a); ``last_first``: the run's last
-        multi-frame transfer when ``tail`` has none (the transport judges a straggler of it by
-        its transfer ID);
-        ``open_transfer``: the transfer still open at the run's end (with its deadline)."""
+        """After a clean run on ``direction``: its receiver takes these frames again, output
+        dropped, and stands as :meth:`feed` of the whole run would leave it. ``tail``: the
+        run's last whole transfers (at least a window, L6a); ``last_first``: its last
+        multi-frame transfer when ``tail`` has none (a straggler is judged by its transfer ID);
+        ``open_transfer``: the transfer still open at its end."""
         receiver = self._dir(direction)
         units = tail + ([open_transfer] if open_transfer else [])
         replays = [units] if units else []
@@ -197,23 +191,23 @@ class Dissector:
             self._dirs[direction] = receiver
         return receiver
 
-    def feed(self, rec: Transfer) -> Iterator[dict[str, Any]]:
+    def feed(self, transfer: Transfer) -> Iterator[dict[str, Any]]:
         idx = self.index
         self.index += 1
-        time_s = rec.time
-        receiver = self._dir(rec.direction)
+        time_s = transfer.time
+        receiver = self._dir(transfer.direction)
         if time_s is not None:
             yield from self._timers(time_s)
             self.last_time = time_s
-        data = rec.data
+        data = transfer.data
         if len(data) == FRAME_SIZE:
             dfield, rfield, rsp, num, crc_ok = self.frames.check(data)
-            frame_rec = frame_record(idx, time_s, rec.direction, FRAME_SIZE,
+            frame_rec = frame_record(idx, time_s, transfer.direction, FRAME_SIZE,
                                      (dfield, rfield, rsp, num), crc_ok, (data[6], data[7]))
             if dfield == FrameKind.DATA:
                 receiver.index_of_num[num] = idx
         else:
-            frame_rec = frame_record(idx, time_s, rec.direction, len(data))
+            frame_rec = frame_record(idx, time_s, transfer.direction, len(data))
         yield frame_rec
         if frame_rec["frame_type"] in ("ACK", "NAK"):
             return  # acknowledgements of the other channel's frames: nothing to reassemble
@@ -223,27 +217,27 @@ class Dissector:
             if frame_rec["num"] == 0 and after != SEQ_MODULO - 1:
                 # L10: the host asked for a reset (Switch EyeQ Application) and numbers its
                 # frames after it from 0: a receiver takes this one as its start
-                receiver = self._reset_direction(rec.direction)
-                yield {"kind": "event", "type": "driver_reset", "direction": rec.direction,
+                receiver = self._reset_direction(transfer.direction)
+                yield {"kind": "event", "type": "driver_reset", "direction": transfer.direction,
                        "index": idx}
         if (frame_rec["frame_type"] == "DATA" and frame_rec["num"] == 0 and frame_rec["rsp"] == 0
                 and frame_rec["crc_ok"] and receiver.conn.link.expected_num != 0):
             # L4: NUM is 0 after a reset. The real receiver was reset with its peer (both SPI
             # drivers restart together), so the passive one must start over too, or it would
             # NAK frames the real one accepted.
-            receiver = self._reset_direction(rec.direction)
-            yield {"kind": "event", "type": "driver_reset", "direction": rec.direction,
+            receiver = self._reset_direction(transfer.direction)
+            yield {"kind": "event", "type": "driver_reset", "direction": transfer.direction,
                    "index": idx}
             # L10/L10a: the side that restarted starts its own receiver over too, so for its
             # first 64 frames it takes a NUM 0 of the other side as that side's (late) restart,
             # whatever its RSP, as the real receiver does
-            other = self._dirs.get(OTHER_DIRECTION.get(rec.direction))
+            other = self._dirs.get(OTHER_DIRECTION.get(transfer.direction))
             if other is not None:
                 other.conn.link.restart()
         conn = receiver.conn
         conn.receive_data(data, time_s if time_s is not None else 0.0)
         conn.data_to_send(float("inf"))  # our passive receiver's ACK/NAKs go nowhere
-        yield from self._events(rec.direction, receiver)
+        yield from self._events(transfer.direction, receiver)
 
     def _reset_direction(self, direction: str | None) -> _Direction:
         old = self._dirs.pop(direction)
@@ -286,16 +280,8 @@ class Dissector:
                        "nak_reason": None if ev.nak_reason is None else int(ev.nak_reason),
                        "num": ev.num, "detail": ev.detail, "index": self.index - 1}
             elif isinstance(ev, DuplicateReceived | Resynchronised | FramesSkipped):
-                body: dict[str, Any] = {"kind": "event", "direction": direction,
-                                        "index": self.index - 1}
-                if isinstance(ev, DuplicateReceived):
-                    body.update(type="duplicate", num=ev.num)
-                elif isinstance(ev, Resynchronised):
-                    body.update(type="resynchronised", num=ev.num, cause=ev.cause)
-                else:
-                    body.update(type="frames_skipped", expected=ev.expected, num=ev.num,
-                                count=ev.count)
-                yield body
+                yield {"kind": "event", "direction": direction, "index": self.index - 1,
+                       "type": LINK_EVENT_TYPES[type(ev)], **asdict(ev)}
 
     def _message(self, direction: str | None, receiver: _Direction,
                  ev: MessageReceived) -> dict[str, Any]:
@@ -389,10 +375,10 @@ def _check_enums(codec: MessageCodec, lay: Any, values: dict[str, Any], path: st
             errs.append(f"bad enum value {value} for {path}.{name} ({enum.name})")
 
 
-def iter_records(records: Iterable[Transfer], *, sw: str | None = None,
+def iter_records(transfers: Iterable[Transfer], *, sw: str | None = None,
                  codec: MessageCodec | None = None) -> Iterator[dict[str, Any]]:
     """All records of a capture, in order, ending with the end-of-capture aborts."""
     dis = Dissector(sw, codec)
-    for rec in records:
-        yield from dis.feed(rec)
+    for transfer in transfers:
+        yield from dis.feed(transfer)
     yield from dis.finish()

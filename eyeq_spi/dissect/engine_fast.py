@@ -3,44 +3,33 @@ dissector's own per-transfer path wherever anything is unusual.
 
 Theory of operation
 -------------------
-:func:`~.engine_fast_frames.frame_arrays` judges a chunk of transfers at once (header fields, CRC,
-frame type). Frame records depend on nothing but the transfer, so every frame record comes from
-these arrays (:func:`.engine.frame_record`). What the passive receivers do with the DATA frames
-is the dissector's state; per direction the pass is in one of two modes:
+:func:`~.engine_fast_frames.frame_arrays` judges a chunk of transfers at once; every frame record
+comes from these arrays. Per direction the pass is in one of two modes:
 
 - **reference**: each transfer goes through :meth:`.engine.Dissector.feed`;
-- **fast**: a *span* of clean frames inside one chunk: every frame is 128 bytes, has a good CRC,
-  D = DATA, R = 0, a valid transport header, and NUM = the previous NUM + 1; the frames form
-  whole transfers (single frames, or a first frame and all its consecutive frames with its
-  transfer ID, each within the reassembly timeout of the one before, counting every record of
-  the capture in between), except that the last transfer may still be open.
+- **fast**: a *span* of clean frames inside one chunk (128 bytes, good CRC, DATA, R = 0, a valid
+  transport header, NUM = the previous NUM + 1) forming whole transfers, each frame within the
+  reassembly timeout of the one before; only the last transfer may still be open.
 
 A direction enters fast mode only where the dissector's state is known through its public API:
-it has just delivered a message with the previous DATA frame of that direction (so no transfer
-is open and no NAKs are counted), its receiver expects the span's first NUM
-(:meth:`~.engine.Dissector.expected_num`), and the span has at least ``MIN_SPAN`` frames.
-Messages of a span are cut from the arrays and handed to the dissector
-(:meth:`~.engine.Dissector.accept_clean`, or judged a group at a time against its
-:meth:`~.engine.Dissector.message_state`), so message records are the dissector's by
-construction.
+the previous DATA frame of that direction completed a message, the receiver expects the span's
+first NUM (:meth:`~.engine.Dissector.expected_num`), and the span has at least ``MIN_SPAN``
+frames. A span's messages are handed to :meth:`~.engine.Dissector.accept_clean` (DASP and 0x41
+groups judged at once against :meth:`~.engine.Dissector.message_state`).
 
-A span ends at the first frame that is not clean, at the first transfer at or past the open
-transfer's reassembly deadline, before the other direction's first DATA frame with NUM 0 and
-RSP 0 (L4: the reference starts this direction's receiver over there too, so it must have seen
-the span's frames before it), or at the end of its chunk. There the dissector takes the
-direction up again (:meth:`~.engine.Dissector.resume`: its receiver is given the span's last
-transfers, at least WINDOW frames, the span's last multi-frame transfer and the open transfer) and
-judges what follows itself. Nothing of a span is carried from one chunk to the next.
-
-Timers of reference directions (an open transfer's reassembly deadline) are honoured: the first
-record at or past the earliest deadline runs the dissector's timers before it, as ``feed`` would.
+A span ends at the first frame that is not clean, at the open transfer's reassembly deadline,
+before the other direction's DATA frame with NUM 0 and RSP 0 (L4: the reference restarts this
+direction's receiver there too), or at the end of its chunk. There the dissector takes the
+direction up again (:meth:`~.engine.Dissector.resume`) and judges what follows itself. Timers of
+reference directions run before the first record at or past the earliest deadline, as ``feed``
+would run them.
 """
 
 from __future__ import annotations
 
 import bisect
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -48,10 +37,9 @@ import numpy as np
 from eyeq_spi.capture.pcapng_fast import DIR_NAME, Chunk
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.engine import Dissector
+from eyeq_spi.dissect.engine import Dissector, TransferFrames
 from eyeq_spi.dissect.engine_fast_frames import DATA, FrameArrays, FrameBlock, frame_arrays
 from eyeq_spi.dissect.engine_fast_messages import SpanDecoder, SpanMessage
-from eyeq_spi.dissect.engine_fast_types import Dir, Frame, Item, Unit
 from eyeq_spi.link.connection import LinkConfig
 from eyeq_spi.link.frame import SEQ_MODULO
 from eyeq_spi.transport.segment import (
@@ -71,19 +59,46 @@ REASSEMBLY_TIMEOUT: float = _T["reassembly_timeout"]
 RECEIVE_LIMIT = {"h2e": int(_T["receive_limit"]["eyeq"]), "e2h": int(_T["receive_limit"]["host"]),
                  None: int(_T["receive_limit"]["host"])}
 
+Item = dict[str, Any] | FrameBlock
+
+
 @dataclass
 class _Plan:
     """One direction's fed rows in the current chunk and their per-row checks (as lists)."""
 
-    rows: list[int]
-    okf: list[bool]
-    ttype: list[int]
-    tid: list[int]
-    need: list[int]  # consecutive frames a first frame needs
-    cont: list[bool]
-    gap: list[bool]
-    breaks: list[int]  # breaks[i] = rows among [0, i) that cannot continue a transfer
+    rows: list[int] = field(default_factory=list)
+    okf: list[bool] = field(default_factory=list)
+    ttype: list[int] = field(default_factory=list)
+    need: list[int] = field(default_factory=list)  # consecutive frames a first frame needs
+    cont: list[bool] = field(default_factory=list)
+    # breaks[i] = rows among [0, i) that cannot continue a transfer
+    breaks: list[int] = field(default_factory=lambda: [0])
     ip: int = 0  # next row (index into rows) for the reference
+
+
+@dataclass
+class Unit:
+    """One transfer of a span: its first and one past its last index into the plan's rows."""
+
+    ks: int
+    ke: int
+    first: bool
+
+
+@dataclass
+class Dir:
+    """One direction's mode (reference or fast) and its span in the current chunk."""
+
+    name: str | None
+    code: int
+    fast: bool = False
+    canonical: bool = False  # reference mode: the last fed frame completed a message
+    units: list[Unit] = field(default_factory=list)
+    ui: int = 0  # next unit to emit
+    stop_k: int = 0  # index into the plan's rows of the first frame not in the span
+    open_ks: int = -1  # index into the plan's rows of the open transfer's first frame, -1: none
+    switch_row: int = 0
+    plan: _Plan = field(default_factory=_Plan)  # of the current chunk
 
 
 class ChunkFeeder:
@@ -96,7 +111,6 @@ class ChunkFeeder:
         self.base = 0
         self.dirs: dict[int, Dir] = {}
         self.deadline: float | None = None
-        self._rows: dict[int, list[int]] = {}
         self._restarts: tuple[np.ndarray, np.ndarray] = (np.zeros(0, np.int64),) * 2
 
     # -- driving -----------------------------------------------------------------------------
@@ -116,15 +130,12 @@ class ChunkFeeder:
     def _chunk(self, fa: FrameArrays) -> Iterator[Item]:
         row_count = len(fa)
         codes, first = np.unique(fa.chunk.direction, return_index=True)
-        plans: dict[int, _Plan] = {}
-        self._rows = {}
         for code in [int(c) for c in codes[np.argsort(first)]]:
             name = DIR_NAME[code]
             self.dis.open_direction(name)  # receivers made in the order feed() would
-            st = self.dirs.setdefault(code, Dir(name, code))
-            plans[code] = self._plan(fa, st)
-        for code in self.dirs:
-            self._rows[code] = plans.setdefault(code, _empty_plan()).rows
+            self.dirs.setdefault(code, Dir(name, code))
+        for st in self.dirs.values():
+            st.plan = self._plan(fa, st)
         # L4 frames (DATA, NUM 0, RSP 0, CRC good): the rows and their directions
         l4 = np.flatnonzero(fa.fed & fa.crc_ok & (fa.ftype == DATA) & (fa.num == 0)
                             & (fa.rsp == 0))
@@ -134,7 +145,7 @@ class ChunkFeeder:
         while pos < row_count:
             nxt, why, which = row_count, 0, -1
             for code, st in self.dirs.items():
-                pl = plans[code]
+                pl = st.plan
                 if st.fast:  # at a tie, the span ends before the other direction's record
                     if st.switch_row <= nxt:
                         nxt, why, which = st.switch_row, 1, code
@@ -155,17 +166,18 @@ class ChunkFeeder:
                 yield self._emit(fa, nxt, nxt + 1)
                 pos = nxt + 1
                 continue
-            st, pl = self.dirs[which], plans[which]
+            st = self.dirs[which]
+            pl = st.plan
             if why == 1:
                 self._to_reference(st, fa)
                 pl.ip = st.stop_k
                 pos = nxt
                 continue
-            if st.canonical and self._try_span(fa, st, pl, pl.ip):
+            if st.canonical and self._try_span(fa, st):
                 pos = nxt
                 continue
             self.dis.index = fa.base + nxt
-            out = list(self.dis.feed(fa.chunk.record(nxt)))
+            out = list(self.dis.feed(fa.chunk.transfer(nxt)))
             yield from out
             idx = fa.base + nxt
             st.canonical = any(r["kind"] == "message" and r["direction"] == st.name
@@ -187,7 +199,7 @@ class ChunkFeeder:
     def _plan(self, fa: FrameArrays, st: Dir) -> _Plan:
         sel = np.flatnonzero(fa.fed & (fa.chunk.direction == st.code))
         if not sel.size:
-            return _empty_plan()
+            return _Plan()
         data = fa.chunk.data
         tt = data[sel, 6].astype(np.int64)
         size = data[sel, 7].astype(np.int64)
@@ -222,8 +234,8 @@ class ChunkFeeder:
                           // CONSECUTIVE_CHUNK), 0)
         self._padding(data, sel, tt, total, need, link)
         bad = np.concatenate([[0], np.cumsum(~link)])
-        return _Plan(sel.tolist(), okf.tolist(), tt.tolist(), tid.tolist(), need.tolist(),
-                     cont.tolist(), gap.tolist(), bad.tolist())
+        return _Plan(sel.tolist(), okf.tolist(), tt.tolist(), need.tolist(), cont.tolist(),
+                     bad.tolist())
 
     @staticmethod
     def _padding(data: Any, sel: Any, tt: Any, total: Any, need: Any, link: Any) -> None:
@@ -242,10 +254,11 @@ class ChunkFeeder:
         pad = np.arange(rows.shape[1])[None, :] >= (8 + takes)[:, None]
         link[lasts[((rows != 0) & pad).any(axis=1)]] = False
 
-    def _walk(self, fa: FrameArrays, st: Dir, pl: _Plan, k0: int, limit: int) -> int:
+    def _walk(self, fa: FrameArrays, st: Dir, k0: int, limit: int) -> int:
         """The span from rows[k0] (its first NUM was checked against E) up to row ``limit``:
         complete units, open transfer, stop index and switch row. Returns the number of frames
         it covers."""
+        pl = st.plan
         rows, okf, tt, need, cont, breaks = (pl.rows, pl.okf, pl.ttype, pl.need, pl.cont,
                                              pl.breaks)
         end = bisect.bisect_left(rows, limit)
@@ -285,12 +298,13 @@ class ChunkFeeder:
         st.switch_row = row
         return index - k0
 
-    def _try_span(self, fa: FrameArrays, st: Dir, pl: _Plan, index: int) -> bool:
-        if int(fa.num[pl.rows[index]]) != self.dis.expected_num(st.name):
+    def _try_span(self, fa: FrameArrays, st: Dir) -> bool:
+        index = st.plan.ip
+        if int(fa.num[st.plan.rows[index]]) != self.dis.expected_num(st.name):
             return False
         rows, codes = self._restarts
-        later = rows[(rows > pl.rows[index]) & (codes != st.code)]
-        if self._walk(fa, st, pl, index, int(later[0]) if later.size else len(fa)) < MIN_SPAN:
+        later = rows[(rows > st.plan.rows[index]) & (codes != st.code)]
+        if self._walk(fa, st, index, int(later[0]) if later.size else len(fa)) < MIN_SPAN:
             return False
         st.fast = True
         return True
@@ -302,7 +316,7 @@ class ChunkFeeder:
         for st in self.dirs.values():
             if not st.fast:
                 continue
-            rows = self._rows[st.code]
+            rows = st.plan.rows
             while st.ui < len(st.units):
                 unit = st.units[st.ui]
                 row = rows[unit.ke - 1]
@@ -312,81 +326,63 @@ class ChunkFeeder:
                 st.ui += 1
         if len(done) > 1:
             done.sort(key=lambda x: x[0])
-        msgs = self._messages(fa, done)
-        for (row, _, _), rec in zip(done, self.decode.records(msgs), strict=True):
-            block.messages.append((row, rec))
+        records = self.decode.records(self._messages(fa, done))
+        block.messages = [(row, rec) for (row, _, _), rec in zip(done, records, strict=True)]
         block.tables = self.decode.tables
         time_s = fa.tfill[hi - 1]
         self.dis.last_time = None if time_s != time_s else float(time_s)
         return block
 
-    def _frames(self, fa: FrameArrays, st: Dir, ks: int, ke: int) -> list[Frame]:
+    def _frames(self, fa: FrameArrays, st: Dir, ks: int, ke: int) -> TransferFrames:
         """Frames rows[ks:ke] of this chunk."""
-        rows = self._rows[st.code]
-        times, nums = fa.lst("time"), fa.lst("num")
-        data = fa.chunk.data
-        out: list[Frame] = []
-        for index in range(ks, ke):
-            row = rows[index]
-            time_s = times[row]
-            out.append((data[row].tobytes(), None if time_s != time_s else time_s, nums[row],
-                        fa.base + row))
-        return out
+        times, nums, data = fa.lst("time"), fa.lst("num"), fa.chunk.data
+        return [(data[row].tobytes(), None if times[row] != times[row] else times[row],
+                 nums[row], fa.base + row) for row in st.plan.rows[ks:ke]]
 
     def _messages(self, fa: FrameArrays, done: list[tuple[int, Dir, Unit]]
                   ) -> list[SpanMessage]:
         """The messages of ``done`` (in order), cut from one copy of all their rows' transport
-        payloads (a transfer's frames are consecutive there, so a multi-frame message is one
-        slice); the receivers' NUM -> index maps end as the reference's sequential updates
-        leave them."""
+        payloads (a transfer's frames are consecutive there); the receivers' NUM -> index maps
+        end as the reference's sequential updates leave them."""
         out: list[SpanMessage] = []
-        P_of = {st.code: self._rows[st.code] for _, st, _ in done}
         rows: list[int] = []
         for _, st, unit in done:
-            rows += P_of[st.code][unit.ks : unit.ke]
-        data = fa.chunk.data
-        width = data.shape[1] - 8
-        blob = data[rows, 8:].tobytes() if rows else b""
+            rows += st.plan.rows[unit.ks : unit.ke]
+        width = fa.chunk.data.shape[1] - 8
+        blob = fa.chunk.data[rows, 8:].tobytes() if rows else b""
         tid_col, nums, tfill = fa.lst("tid"), fa.lst("num"), fa.lst("tfill")
-        base = fa.base
         pos = 0  # next row of ``rows``
         noted: dict[str | None, tuple[list[int], list[int]]] = {}  # NUMs, indices in order
         for row, st, unit in done:
-            time_s = tfill[row]
+            mine = st.plan.rows[unit.ks : unit.ke]
             offset = pos * width
-            seen = noted.setdefault(st.name, ([], []))
-            if not unit.first:  # byte 7 of a single frame: its size
-                fed_row = P_of[st.code][unit.ks]
-                pos += 1
-                num, idx = nums[fed_row], base + fed_row
-                seen[0].append(num)
-                seen[1].append(idx)
-                out.append(SpanMessage(st.name, blob[offset : offset + tid_col[fed_row]], (num,),
-                                       None, None if time_s != time_s else time_s, [idx]))
-                continue
-            mine = P_of[st.code][unit.ks : unit.ke]
             pos += len(mine)
-            # bytes 8..11 of the first frame: the total (transport header)
-            total = int.from_bytes(blob[offset : offset + 4], "little")
-            msg = blob[offset + 4 : min(offset + 4 + total, pos * width)]
-            fnums = tuple([nums[fed_row] for fed_row in mine])
-            idxs = [base + fed_row for fed_row in mine]
-            seen[0].extend(fnums)
-            seen[1].extend(idxs)
-            out.append(SpanMessage(st.name, msg, fnums, tid_col[mine[0]],
-                                   None if time_s != time_s else time_s, list(idxs)))
-        for name, (fnums_all, idxs_all) in noted.items():
-            self.dis.note_frames(name, fnums_all, idxs_all)
+            if unit.first:  # bytes 8..11 of the first frame: the total (T1)
+                total = int.from_bytes(blob[offset : offset + 4], "little")
+                data = blob[offset + 4 : min(offset + 4 + total, pos * width)]
+                tid: int | None = tid_col[mine[0]]
+            else:  # byte 7 of a single frame: its size
+                data, tid = blob[offset : offset + tid_col[mine[0]]], None
+            frame_nums = tuple([nums[fed_row] for fed_row in mine])
+            indices = [fa.base + fed_row for fed_row in mine]
+            seen = noted.setdefault(st.name, ([], []))
+            seen[0].extend(frame_nums)
+            seen[1].extend(indices)
+            time_s = tfill[row]
+            out.append(SpanMessage(st.name, data, frame_nums, tid,
+                                   None if time_s != time_s else time_s, list(indices)))
+        for name, (frame_nums_all, indices_all) in noted.items():
+            self.dis.note_frames(name, frame_nums_all, indices_all)
         return out
 
     # -- span state: what the receiver would hold --------------------------------------------
     def _state(self, st: Dir, fa: FrameArrays
-               ) -> tuple[list[list[Frame]], list[Frame] | None, list[Frame] | None]:
+               ) -> tuple[list[TransferFrames], TransferFrames | None, TransferFrames | None]:
         """(last complete units with at least WINDOW frames, oldest first; the last complete
         multi-frame transfer; the open transfer) of the span so far."""
         opened = self._frames(fa, st, st.open_ks, st.stop_k) if st.open_ks >= 0 else None
-        units: list[list[Frame]] = []
-        last_first: list[Frame] | None = None
+        units: list[TransferFrames] = []
+        last_first: TransferFrames | None = None
         count = 0
         for unit in reversed(st.units):
             if count >= WINDOW and last_first is not None:
@@ -410,16 +406,14 @@ class ChunkFeeder:
         self._update_deadline()
 
 
-def _empty_plan() -> _Plan:
-    return _Plan([], [], [], [], [], [], [], [0])
-
-
 def iter_items(chunks: Iterable[Chunk], *, sw: str | None = None,
                codec: MessageCodec | None = None, fields: str = "dict") -> Iterator[Item]:
-    bd = ChunkFeeder(sw, codec, fields=fields)
+    """Frame blocks and records (dicts where the reference reads), in capture order;
+    ``fields``: what clean spans' messages carry (:class:`.engine_fast_messages.SpanDecoder`)."""
+    feeder = ChunkFeeder(sw, codec, fields=fields)
     for chunk in chunks:
-        yield from bd.feed(chunk)
-    yield from bd.finish()
+        yield from feeder.feed(chunk)
+    yield from feeder.finish()
 
 
 def iter_records(chunks: Iterable[Chunk], *, sw: str | None = None,

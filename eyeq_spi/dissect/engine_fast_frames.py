@@ -1,10 +1,7 @@
-"""Frames judged many at a time: header fields, CRC and frame records from ``(N, 128)`` arrays.
-
-The header word is split with the :class:`FrameCodec`'s own shifts (L1, bit order configurable)
-and the CRC (L3) runs two bytes per step through a 65536-entry table built from the codec's CRC
-function, so both follow the codec's configuration. Everything a frame record of the reference
-holds (``engine.Dissector.feed``) comes out as arrays; :class:`FrameBlock` turns a range of them
-into records, JSON Lines or ``--stats`` counts.
+"""Frames judged many at a time: header fields (L1, with the :class:`FrameCodec`'s own shifts),
+CRC (L3, two bytes per step through a table built from the codec's CRC function) and frame
+records from ``(N, 128)`` arrays; :class:`FrameBlock` turns a range of them into records or
+``--stats`` counts.
 """
 
 from __future__ import annotations
@@ -35,13 +32,8 @@ def crc_table(codec: FrameCodec) -> np.ndarray | None:
     if key in _TABLES:
         return _TABLES[key]
     init = codec.crc(b"")
-    # 256 calls, not 65536 (codec/message_fast.crc_word_tables, shared with the E2E CRCs when
-    # the codec's function is crc16); the checks below hold whatever comes out to the codec's
-    # function
     table: np.ndarray = crc_word_tables(codec.crc)[1]
-    for size in (2, 4, 126):
-        # a fixed byte pattern that reaches every bit of the table's index (numpy.random would
-        # cost 20 ms of start-up to import)
+    for size in (2, 4, 126):  # a byte pattern that reaches every bit of the table's index
         msg = bytes((i * 167 + 13 * size) & 0xFF for i in range(size))
         words = np.frombuffer(msg, ">u2").reshape(-1, 1)
         if int(crc_of_words(words, init, table, size // 2)[0]) != codec.crc(msg):
@@ -79,16 +71,15 @@ class FrameArrays:
         return len(self.chunk)
 
     def lst(self, name: str) -> list[Any]:
-        """A column as a Python list (cached): per-row Python work reads lists, not arrays."""
+        """A column as a Python list (cached): per-row Python work reads lists, not arrays.
+        ``ttype`` and ``tid`` are the transport bytes 6 and 7."""
         out = self._lists.get(name)
         if out is None:
-            arr = self.chunk.length if name == "length" else (
-                self.chunk.data[:, 6] if name == "ttype" else
-                self.chunk.data[:, 7] if name == "tid" else
-                self.chunk.time if name == "time" else
-                self.chunk.direction if name == "direction" else getattr(self, name))
-            out = arr.tolist()
-            self._lists[name] = out
+            if name in ("ttype", "tid"):
+                arr = self.chunk.data[:, 6 if name == "ttype" else 7]
+            else:
+                arr = getattr(self.chunk if name in ("length", "time", "direction") else self, name)
+            out = self._lists[name] = arr.tolist()
         return out
 
 

@@ -1,27 +1,16 @@
 """The messages of a clean span, decoded a group at a time (:mod:`eyeq_spi.codec.message_fast`).
 
-The fast path (:mod:`.engine_fast`) reassembles a block's messages from its arrays; here they
-become message records. DASP messages are grouped by (direction, data ID): a group whose every
-message has the layout's length is judged at once — E2E CRCs and rolling counters
-(:meth:`VecLayout.verify`, D5), undefined enum values (:meth:`VecLayout.enum_errors`) — and its
-DASP counters (D1) and fields row by row. 0x41 and 0x10 messages (rule A: an ID byte and one
-layout each, no E2E state, no counters) are grouped by (direction, protocol) the same way. Any
-other message (MESP, unknown IDs, a group with a wrong length in it) goes to the reference
-(:meth:`.engine.Dissector.accept_clean`). The receivers'
-state is per (direction, data ID) for DASP (decision D1; E2E counters are keyed by the message's
-own layout, and no two DASP messages of a release share one, which the tests check), so groups
-are independent and each is judged in capture order: every record is the one the reference
-makes (``tests/test_dissect_engine_fast.py`` holds them to it record for record).
+DASP messages are grouped by (direction, data ID), 0x41 and 0x10 ones by (direction,
+protocol) (rule A: an ID byte and one layout each, no E2E state, no counters). A group whose
+every message has the layout's length is judged at once (E2E, D5; enum values) and its DASP
+counters (D1) and fields row by row; any other message goes to
+:meth:`.engine.Dissector.accept_clean`. The state is per (direction, data ID) (D1; no two DASP
+messages of a release share a layout), so each group is judged in capture order and every
+record is the reference's.
 
-``fields`` says what the records of the vectorised groups carry:
-
-- ``"dict"``: the fields as the reference decodes them (the generated ``struct`` path);
-- ``"none"`` (``dissect --stats`` and no other output): ``"fields": {}``; everything ``--stats``
-  and the filters read is there;
-- ``"columns"`` (``--csv``/``--parquet`` with no filter and no other output): ``"fields": {}``,
-  and each group's table rows as columns straight from the arrays in :attr:`SpanDecoder.tables`
-  (``frame_index``, ``time``, ``direction``, ``header.*``, then the flattened fields, the row a
-  :class:`~.output.TableWriter` makes of the reference's record, value for value).
+``fields`` says what the records of the vectorised groups carry: ``"dict"`` the fields,
+``"none"`` (``--stats`` alone) none, ``"columns"`` (one table writer, no filter) none, with
+each group's table rows as columns in :attr:`SpanDecoder.tables`.
 """
 
 from __future__ import annotations
@@ -39,16 +28,16 @@ from eyeq_spi.dissect.engine import Dissector
 from eyeq_spi.errors import SpecError
 
 
+@dataclass(slots=True)
 class SpanMessage:
-    """A reassembled message of a span: its direction, bytes, NUMs, transfer ID, time and
-    capture indices of its frames (taken when it completed, as the reference takes them)."""
+    """A reassembled message of a span, with the capture indices of its frames."""
 
-    __slots__ = ("data", "direction", "frames", "nums", "tid", "time")
-
-    def __init__(self, direction: str | None, data: bytes, nums: tuple[int, ...],
-                 tid: int | None, time: float | None, frames: list[int | None]) -> None:
-        self.direction, self.data, self.nums, self.tid = direction, data, nums, tid
-        self.time, self.frames = time, frames
+    direction: str | None
+    data: bytes
+    nums: tuple[int, ...]
+    tid: int | None
+    time: float | None
+    frames: list[int | None]
 
 
 FIELD_MODES = ("dict", "none", "columns")
@@ -105,10 +94,7 @@ class SpanDecoder:
         for (direction, data_id), rows in groups.items():
             # a data ID in both directions: two groups of one table, rows as dicts
             columns = self.fields == "columns" and ids.count(data_id) == 1
-            ok = (self._group(msgs, rows, direction, data_id, out, columns)
-                  if isinstance(data_id, int) else
-                  self._other(msgs, rows, direction, data_id, out, columns))
-            if not ok:
+            if not self._group(msgs, rows, direction, data_id, out, columns):
                 reference += rows
         if len(self.tables) > 1:
             self.tables.sort(key=lambda g: g.first)
@@ -120,11 +106,8 @@ class SpanDecoder:
 
     def records_reference(self, msgs: list[SpanMessage]) -> list[dict[str, Any]]:
         """The reference's records of ``msgs``, one by one."""
-        out = []
-        for msg in msgs:
-            out.append(self.dis.accept_clean(msg.direction, msg.data, msg.nums, msg.tid, msg.frames,
-                                             msg.time))
-        return out
+        return [self.dis.accept_clean(msg.direction, msg.data, msg.nums, msg.tid, msg.frames,
+                                      msg.time) for msg in msgs]
 
     def is_barrier(self, data: bytes) -> bool:
         """A MESP SwitchEyeQApplication request (§7.1.1.1.4): the reference may reset the
@@ -152,98 +135,72 @@ class SpanDecoder:
         return lay, vec_layout(lay, self.codec.cat), datas, arr
 
     def _group(self, msgs: list[SpanMessage], rows: list[int], direction: str | None,
-               data_id: int, out: list[dict[str, Any] | None], columns: bool) -> bool:
-        """Judge one (direction, data ID) group at once; False: it needs the reference."""
-        msg = self.codec.dasp_message(data_id)
-        got = None if msg is None else self._rows(msgs, rows, msg, 4)
+               key: int | str, out: list[dict[str, Any] | None], columns: bool) -> bool:
+        """Judge one group at once: a (direction, DASP data ID) group, or a (direction,
+        "DIAG"/"BOOT") one (the ID byte, then the seed's table; no E2E state, no counters).
+        False: it needs the reference."""
+        if isinstance(key, int):
+            data_id: int | None = key
+            msg, header_size = self.codec.dasp_message(key), 4
+        else:
+            data_id = None
+            msg, header_size = self.codec.other_message(key), 1
+        dasp = data_id is not None
+        got = None if msg is None else self._rows(msgs, rows, msg, header_size)
         if msg is None or got is None:
             return False
         lay, vl, datas, arr = got
         length = arr.shape[1]
-        e2e_state, dasp_counters = self.dis.message_state(direction)
-        payloads = arr[:, 4:]
-        reserved = arr[:, 3].tolist()
-        counters = arr[:, 2].tolist()
+        payloads = arr[:, header_size:]
+        e2e_state, dasp_counters = self.dis.message_state(direction) if dasp else (None, None)
+        counters = arr[:, 2].tolist() if dasp else []
+        reserved = arr[:, 3].tolist() if dasp else [0] * len(rows)
+        ids = [] if dasp else arr[:, 0].tolist()
         e2e = vl.verify(payloads, e2e_state)
         clean = np.array([not e and not r for e, r in zip(e2e, reserved, strict=True)], bool)
         enums = vl.enum_errors(payloads, msg.name, clean)
         parse = lay.fast.decode if self.fields == "dict" or (
             self.fields == "columns" and not columns) else None
-        name = msg.name
+        name, protocol = msg.name, "DASP" if dasp else key
         group = None
         if columns:
-            group = ColumnGroup(rows[0], name, self._columns(
-                *_last_and_times(msgs, rows), direction,
-                {"header.data_id": [data_id] * len(rows), "header.counter": counters},
-                vl.columns(payloads)))
+            header = ({"header.data_id": [key] * len(rows), "header.counter": counters} if dasp
+                      else {"header.id": ids})
+            group = ColumnGroup(rows[0], name, self._columns(msgs, rows, direction, header,
+                                                             vl.columns(payloads)))
             self.tables.append(group)
-        check = dasp_counters.check
         for position, index in enumerate(rows):
             span_msg = msgs[index]
-            counter = counters[position]
             errors = ([f"DASP reserved byte is 0x{reserved[position]:02X}, not 0"]
                       if reserved[position] else [])
             errors += e2e[position]
-            expected = check(data_id, counter)
-            if expected is not None:
-                errors.append(f"DASP counter gap: expected {expected}, got {counter}")
+            if data_id is not None and dasp_counters is not None:
+                counter = counters[position]
+                expected = dasp_counters.check(data_id, counter)
+                if expected is not None:
+                    errors.append(f"DASP counter gap: expected {expected}, got {counter}")
             errors += enums.get(position, ())
             out[index] = {
-                "kind": "message", "protocol": "DASP", "name": name, "length": length,
+                "kind": "message", "protocol": protocol, "name": name, "length": length,
                 "direction": direction, "time": span_msg.time, "frames": span_msg.frames,
-                "header": {"data_id": data_id, "counter": counter},
-                "fields": parse(datas[position][4:]) if parse is not None else {},
+                "header": ({"data_id": key, "counter": counters[position]} if dasp
+                           else {"id": ids[position]}),
+                "fields": parse(datas[position][header_size:]) if parse is not None else {},
                 "errors": errors,
             }
         if group is not None:
             group.covered = [out[i] for i in rows]  # type: ignore[misc]
         return True
 
-    def _other(self, msgs: list[SpanMessage], rows: list[int], direction: str | None,
-               proto: str, out: list[dict[str, Any] | None], columns: bool) -> bool:
-        """A 0x41 (DIAG) or 0x10 (BOOT) group: the ID byte, then the seed's table; no E2E
-        state (the engine decodes them without one) and no counters."""
-        msg = self.codec.other_message(proto)
-        got = None if msg is None else self._rows(msgs, rows, msg, 1)
-        if msg is None or got is None:
-            return False
-        lay, vl, datas, arr = got
-        length = arr.shape[1]
-        payloads = arr[:, 1:]
-        ids = arr[:, 0].tolist()
-        e2e = vl.verify(payloads, None)
-        enums = vl.enum_errors(payloads, msg.name, np.array([not e for e in e2e], bool))
-        parse = lay.fast.decode if self.fields == "dict" or (
-            self.fields == "columns" and not columns) else None
-        group = None
-        if columns:
-            group = ColumnGroup(rows[0], msg.name, self._columns(
-                *_last_and_times(msgs, rows), direction, {"header.id": ids},
-                vl.columns(payloads)))
-            self.tables.append(group)
-        for position, index in enumerate(rows):
-            span_msg = msgs[index]
-            out[index] = {
-                "kind": "message", "protocol": proto, "name": msg.name, "length": length,
-                "direction": direction, "time": span_msg.time, "frames": span_msg.frames,
-                "header": {"id": ids[position]},
-                "fields": parse(datas[position][1:]) if parse is not None else {},
-                "errors": e2e[position] + enums.get(position, []),
-            }
-        if group is not None:
-            group.covered = [out[i] for i in rows]  # type: ignore[misc]
-        return True
-
     @staticmethod
-    def _columns(last: list[int | None], times: list[float | None], direction: str | None,
-                 header: dict[str, list[int]], fields: dict[str, np.ndarray]) -> dict[str, Any]:
+    def _columns(msgs: list[SpanMessage], rows: list[int], direction: str | None,
+                 header: dict[str, Any], fields: dict[str, np.ndarray]) -> dict[str, Any]:
         """The TableWriter row of each message as columns: numpy arrays where pyarrow infers
         from them what it infers from the Python values (int64, double), lists elsewhere."""
-        count = len(last)
         out: dict[str, Any] = {
-            "frame_index": last,
-            "time": times,
-            "direction": [direction] * count,
+            "frame_index": [msgs[i].frames[-1] if msgs[i].frames else None for i in rows],
+            "time": [msgs[i].time for i in rows],
+            "direction": [direction] * len(rows),
             **header,
         }
         for name, col in fields.items():
@@ -256,8 +213,3 @@ class SpanDecoder:
                 out[name] = col.tolist()
         return out
 
-
-def _last_and_times(msgs: list[SpanMessage], rows: list[int]
-                    ) -> tuple[list[int | None], list[float | None]]:
-    return ([msgs[i].frames[-1] if msgs[i].frames else None for i in rows],
-            [msgs[i].time for i in rows])

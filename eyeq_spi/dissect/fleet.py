@@ -1,18 +1,10 @@
 """Many captures into one partitioned Parquet dataset (``eyeq-spi batch``).
 
-Each capture is one task: the pipeline (:mod:`.pipeline`, as ``dissect`` reads it) dissects it
-and the table writer of ``dissect --parquet`` (:class:`~.output.TableWriter`) makes every message
-a row of the table of its type (its name, or its protocol when it has none), under
-``OUT/capture=<capture>/message=<name>/``. Columns are those of ``dissect --parquet``
-(``frame_index``, ``time``, ``direction``, ``header.*`` and the flattened fields) with
-``errors`` (the record's errors joined by "; ") and without ``file``; the row counts are
-``dissect --stats``'s message counts. The partition directories add ``capture`` and
-``message``: the whole fleet is one Hive-partitioned dataset for pyarrow, DuckDB or pandas.
-
-Tasks run in this process, in a local process pool, or on Dask (``distributed``: a scheduler
-address or a ``LocalCluster``); on Dask, the workers must see the captures and ``OUT`` at the same
-paths (a shared file system). A capture that cannot be read becomes an ``error`` in its summary
-and has no partition (the dataset holds whole captures only); the others are written anyway.
+Each capture goes through the pipeline into the tables of ``dissect --parquet`` (with an
+``errors`` column, without ``file``) under ``OUT/capture=<capture>/message=<name>/``: one
+Hive-partitioned dataset for pyarrow, DuckDB or pandas. Tasks run in this process, a process
+pool, or on Dask (``distributed``; its workers must see the same paths). A capture that cannot
+be read becomes an ``error`` in its summary and has no partition.
 """
 
 from __future__ import annotations
@@ -20,7 +12,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -101,9 +93,6 @@ def dissect_capture(path: str, out: str, capture: str, sw: str | None = None
     if summary["error"] is not None and not summary.get("partial"):  # whole captures only
         shutil.rmtree(base, ignore_errors=True)
     return summary
-
-
-Runner = Callable[[list[tuple[str, str]]], Iterator[dict[str, Any]]]
 
 
 def run_fleet(root: str, out: str, *, sw: str | None = None, jobs: int = 1,

@@ -9,8 +9,7 @@ from eyeq_spi import io as formats
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.errors import EyeqError, MissingExtra, OutputError, UnknownFormatError
 
-RESET, DIM, RED, GREEN, CYAN, YELLOW = "\x1b[0m", "\x1b[2m", "\x1b[31m", "\x1b[32m", "\x1b[36m", \
-    "\x1b[33m"
+RESET, RED, GREEN, CYAN, YELLOW = "\x1b[0m", "\x1b[31m", "\x1b[32m", "\x1b[36m", "\x1b[33m"
 
 
 def flatten(values: Any, prefix: str = "") -> dict[str, Any]:
@@ -102,18 +101,12 @@ class HumanWriter:
         return f"{'':8s} {when:>14s}" if self._wide else f"{when:>12s}"
 
     def _tree(self, record: dict[str, Any]) -> None:
-        lay = None
-        if record["protocol"] in ("DASP", "DIAG", "BOOT") and record["name"]:
-            try:
-                lay = self.codec.layout(self.codec.cat.message(record["name"]))
-            except EyeqError:
-                lay = None
-        self._walk(record["fields"], lay, 2)
+        self._walk(record["fields"], record_layout(self.codec, record), 2)
 
     def _walk(self, values: Any, lay: Any, depth: int) -> None:
         pad = "  " * depth
         for key, value in values.items():
-            field = _field(lay, key)
+            field = layout_field(lay, key)
             child = lay.children.get(key) if lay is not None else None
             if isinstance(value, dict):
                 self.fh.write(f"{pad}{key}\n")
@@ -142,7 +135,17 @@ class HumanWriter:
                 self.fh.write(f"{pad}{key} = {value}{extra}\n")
 
 
-def _field(lay: Any, name: str) -> Any:
+def record_layout(codec: MessageCodec, record: dict[str, Any]) -> Any:
+    """The layout of a DASP, DIAG or BOOT message record, or None."""
+    if record["protocol"] not in ("DASP", "DIAG", "BOOT") or not record["name"]:
+        return None
+    try:
+        return codec.layout(codec.cat.message(record["name"]))
+    except EyeqError:
+        return None
+
+
+def layout_field(lay: Any, name: str) -> Any:
     """The layout's member ``name``, or None (no layout, or a name it does not have)."""
     if lay is None:
         return None
@@ -154,11 +157,6 @@ def _field(lay: Any, name: str) -> Any:
 
 def _as_list(column: Any) -> list[Any]:
     return column.tolist() if hasattr(column, "tolist") else list(column)
-
-
-def _item(column: Any, index: int) -> Any:
-    item = column[index]
-    return item.item() if hasattr(item, "item") else item
 
 
 def _arrow(pa: Any, column: Any) -> Any:
@@ -193,25 +191,17 @@ def table_name(record: dict[str, Any]) -> str:
 
 
 class TableWriter:
-    """One table per message type, flattened field names: CSV files or Parquet files.
-
-    A table's columns are those of its first row. A later row with a column the table lacks
-    (another release's variant of a struct, in a run over several captures) starts a new part,
-    ``NAME.2.csv`` (``NAME.2.parquet``), rather than losing that column; readers of the
-    directory (pyarrow and DuckDB with ``union_by_name``) join the parts.
-
-    Every message is a row, one without fields too (a MESP request without parameters, a
-    payload of the wrong length): a table's row count is ``--stats``'s count of its messages."""
+    """One table per message type, flattened field names: CSV files or Parquet files. Every
+    message is a row (a table's row count is ``--stats``'s count). A table's columns are those
+    of its first row; a later row with a column it lacks (another release's struct) starts a new
+    part, ``NAME.2.csv``, which pyarrow and DuckDB (``union_by_name``) join."""
 
     def __init__(self, directory: str, fmt: str, batch: int = 2000,
                  column_type: Any = None, *, errors: bool = False, hive: bool = False) -> None:
-        """``column_type(table, column)`` may name the Arrow type ("float64", "int64",
-        "string") of a column whose first rows are all empty (NULL): a Parquet file's schema is
-        fixed by its first row group, which must not say ``null`` for a column that has values
-        later (a CAN signal at its invalid value until the first measurement). ``errors``: an
-        ``errors`` column (the record's errors joined by "; ") after ``direction``. ``hive``:
-        a Hive-partitioned layout, ``DIR/message=NAME/part-N.parquet`` with no ``file`` column
-        (the directory above names the capture), else ``DIR/NAME.parquet``."""
+        """``column_type(table, column)``: the Arrow type ("float64", "int64", "string") of a
+        column whose first rows are all NULL (a Parquet schema is fixed by its first row group).
+        ``errors``: an ``errors`` column after ``direction``. ``hive``:
+        ``DIR/message=NAME/part-N.parquet`` with no ``file`` column, else ``DIR/NAME.parquet``."""
         tables = [f.name for f in formats.formats(formats.RECORD_WRITER)
                   if f.target == f"{__name__}:TableWriter"]
         if fmt not in tables:
@@ -226,11 +216,9 @@ class TableWriter:
         self.batch = batch
         self.errors, self.hive = errors, hive
         self.file: str | None = None  # the capture being written: every row's first column
-        self._csv: dict[str, tuple[IO[str], Any, list[str]]] = {}  # each table's first part
-        self._parts: dict[str, list[tuple[IO[str], Any, list[str]]]] = {}  # and every part
+        self._parts: dict[str, list[tuple[IO[str], Any, list[str]]]] = {}  # CSV parts
         self._last: dict[str, tuple[list[str], tuple[IO[str], Any, list[str]]]] = {}
         self._rows: dict[str, list[dict[str, Any]]] = {}
-        self._pq: dict[str, Any] = {}  # each table's first Parquet part
         self._pq_parts: dict[str, list[Any]] = {}
         self._tables: dict[str, list[Any]] = {}  # column batches not yet written
         if fmt == "parquet":
@@ -272,10 +260,9 @@ class TableWriter:
         if self.fmt == "csv":
             entry = self._csv_part(name, list(columns))
             cols = [_as_list(columns[c]) if c in columns else [""] * count for c in entry[2]]
-            start = 0
             import csv  # here: --stats and Parquet never need it
 
-            csv.writer(entry[0]).writerows(zip(*(c[start:] for c in cols), strict=True))
+            csv.writer(entry[0]).writerows(zip(*cols, strict=True))
             return
         import pyarrow as pa
 
@@ -317,7 +304,6 @@ class TableWriter:
         schema = self._schema(name, table.schema)  # all-NULL columns typed where known
         writer = _parquet_writer(pq, self._path(name, len(parts), "parquet"), schema)
         parts.append(writer)
-        self._pq.setdefault(name, writer)
         writer.write_table(table if table.schema.equals(schema) else table.cast(schema))
 
     def _schema(self, name: str, schema: Any) -> Any:
@@ -360,7 +346,6 @@ class TableWriter:
         entry = (fh, writer, keys)
         parts.append(entry)
         self._last[name] = (keys, entry)
-        self._csv.setdefault(name, entry)
         return entry
 
     def _path(self, name: str, part: int, suffix: str) -> Path:

@@ -1,25 +1,16 @@
 """Captures in, dissector records out: the one pipeline behind ``dissect``, ``plot``, ``monitor``,
 ``export`` and ``replay``.
 
-Every reader of captures opens them here, so each reads every input format
-(:mod:`.inputs`: pcapng, raw, hex, Saleae, VCD), reads each capture with its own SW release
-(:mod:`.release`: its ``sw=`` tag, the release the EyeQ reports, the layouts that fit, or the
-caller's ``sw`` with the one warning line of :attr:`.Release.warning`), reads a pcapng file cut
-inside a block up to its last whole block (:attr:`CaptureFile.tail` says what was ignored), and
-gets the fast path where it applies:
-
-- a seekable pcapng or raw file of at least :data:`SMALL_INPUT` bytes takes the fast path
-  (:mod:`.pipeline_fast`; numpy costs more than it saves below that), anything else (hex, logic
-  captures, stdin, small files) the reference (:class:`.engine.Dissector`); the records are
-  the same either way (the agreement tests hold the fast path to the engine);
-- ``jobs`` > 1 and several files: files are dissected in worker processes, in the order given;
-- the cyclic garbage collector is paced (:func:`paced_gc`) instead of running every 700 new
-  containers.
+Every reader of captures opens them here, so each reads every input format, each capture with
+its own SW release (:mod:`.release`), a pcapng file cut inside a block up to its last whole
+block (:attr:`CaptureFile.tail`), and gets the fast path where it applies: a seekable pcapng or
+raw file of at least :data:`SMALL_INPUT` bytes (:mod:`.pipeline_fast`), else the reference
+(:class:`.engine.Dissector`), with the same records; with ``jobs`` > 1 files are dissected in
+worker processes, in the order given.
 
 :func:`dissect_files` hands out plain records (each with its ``file``); :func:`dissect_captures`
-hands out one :class:`CaptureFile` per file, for callers that need the release before the
-records or consume the fast path's frame blocks whole (``dissect``'s writers);
-:func:`open_capture_file` opens one capture for its transfers (``replay``, ``export --vcd``).
+one :class:`CaptureFile` per file (the release before the records, or the fast path's frame
+blocks whole); :func:`open_capture_file` one capture for its transfers.
 """
 
 from __future__ import annotations
@@ -34,7 +25,7 @@ from typing import IO, Any
 from eyeq_spi import garbage
 from eyeq_spi.capture.pcapng_io import Tail, Transfer
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.release import Capture, Release, open_capture
+from eyeq_spi.dissect.release import Capture, Release, codec_for, open_capture
 from eyeq_spi.errors import EyeqError
 from eyeq_spi.io import can_log_hint
 from eyeq_spi.io.plain import InputError
@@ -55,15 +46,11 @@ file read in this process, when its size is known), or with ``path`` None, ``don
 
 @dataclass(frozen=True)
 class DissectConfig:
-    """How captures are read. ``fmt``, ``direction``, ``spi``: the input format (None: detect
-    it), the channel of a raw or hex file without directions, the logic-analyzer options.
-    ``sw``: read every capture as this release (None: each capture's own). ``jobs``: files
-    dissected at a time in worker processes (0: one per CPU). ``fields``: what the fast path's
-    messages carry (:func:`fields_mode`). ``blocks``: hand out the fast path's
-    frame blocks whole (a consumer that writes them straight from their arrays,
-    :func:`.pipeline_fast.consume`) instead of their records. ``pace_gc``: the automatic collector
-    is off while records are handed out, collections paced by :func:`paced_gc` (off for a
-    consumer that holds the iterator for long between records, such as a live view)."""
+    """How captures are read: the input format (None: detect it), the channel of a raw or hex
+    file, the logic-analyzer options, the release (None: each capture's own), files at a time
+    (0: one per CPU), what the fast path's messages carry (:func:`fields_mode`), frame blocks
+    handed out whole (:func:`.pipeline_fast.consume`), and whether collections are paced
+    (:func:`paced_gc`; off for a consumer that holds the iterator long, a live view)."""
 
     fmt: str | None = None
     direction: str | None = None
@@ -73,16 +60,6 @@ class DissectConfig:
     fields: str = "dict"
     blocks: bool = False
     pace_gc: bool = True
-
-
-_CODECS: dict[str, MessageCodec] = {}
-
-
-def codec_for(key: str) -> MessageCodec:
-    """One codec per release for the whole process (building one reads ``specs/``)."""
-    if key not in _CODECS:
-        _CODECS[key] = MessageCodec(key)
-    return _CODECS[key]
 
 
 def open_stream(path: str) -> IO[bytes]:
@@ -149,7 +126,7 @@ class CaptureFile:
     @property
     def transfers(self) -> Iterator[Transfer]:
         """The capture's transfers as read (no dissection)."""
-        return self.open().records
+        return self.open().transfers
 
     @property
     def items(self) -> Iterator[Any]:
@@ -169,11 +146,11 @@ class CaptureFile:
         assert fh is not None
         try:
             if cap.chunks is not None:  # opened by the fast path (open): numpy is loaded
-                from eyeq_spi.dissect.pipeline_fast import chunk_items
+                from eyeq_spi.dissect.engine_fast import iter_items
 
-                items = chunk_items(cap.chunks, self.codec, self.config.fields)
+                items = iter_items(cap.chunks, codec=self.codec, fields=self.config.fields)
             else:
-                items = iter_records(cap.records, codec=self.codec)
+                items = iter_records(cap.transfers, codec=self.codec)
             yield from self._tracked(items, fh)
         except EyeqError as exc:
             raise _naming(exc, self.path) from None
@@ -356,15 +333,11 @@ class BlockPosition:
 
 
 def paced_gc(items: Iterable[Any]) -> Iterator[Any]:
-    """``items``, with the young generations of the cyclic garbage collector collected (when
-    they have grown by ``YOUNG`` containers) after each frame block and every ``PACE`` other
-    items, while the automatic collector is off (:mod:`eyeq_spi.garbage`).
-
-    Records are trees of dicts and lists freed by reference counting; the default automatic
-    collection (every 700 new containers) re-scanned records under construction (1,500
-    containers in one obstacles message) and spent 0.6 of 2.1 CPU-s of ``dissect --json`` on a
-    90 s capture. Here a collection sees only what is alive between two blocks, and any cycle is
-    still freed within a block, so memory stays bounded."""
+    """``items``, with the young generations of the cyclic garbage collector collected (once
+    grown by ``YOUNG`` containers) after each frame block and every ``PACE`` other items, while
+    the automatic collector is off (:mod:`eyeq_spi.garbage`): records are freed by reference
+    counting, and the automatic collection re-scanned records under construction (0.6 of 2.1
+    CPU-s of ``dissect --json``); any cycle is still freed within a block."""
     since_pace = 0
     for item in items:
         block = not isinstance(item, dict)

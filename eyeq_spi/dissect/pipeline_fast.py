@@ -1,9 +1,6 @@
-"""``eyeq-spi dissect`` on the fast path: which inputs take it, how its items reach the writers,
-and ``--jobs N`` (files dissected in worker processes, output identical to a serial run).
-
-pcapng and raw files take the fast path (:mod:`.engine_fast`); hex text, logic-analyzer captures and
-stdin keep the reference's record stream. Either way the records are the reference's (the
-agreement tests hold the fast path to that), so writers, filters and ``--stats`` see the same.
+"""``eyeq-spi dissect`` on the fast path (:mod:`.engine_fast`): pcapng and raw files opened
+for it, its frame blocks to the writers, and ``--jobs N`` (files dissected in worker processes,
+output identical to a serial run).
 """
 
 from __future__ import annotations
@@ -11,36 +8,17 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import replace
 from typing import IO, Any
 
 import numpy as np
 
-from eyeq_spi.capture.pcapng_fast import Chunk, pcapng_chunks, raw_chunks
-from eyeq_spi.capture.pcapng_io import (
-    PCAPNG_MAGIC,
-    Tail,
-    Transfer,
-    recorded_clock,
-    recorded_release,
-    release_sniff_transfers,
-)
-from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.engine_fast import ChunkFeeder
+from eyeq_spi.capture.pcapng_fast import Chunk, chunks_from_transfers, pcapng_chunks
+from eyeq_spi.capture.pcapng_io import PCAPNG_MAGIC, Tail
+from eyeq_spi.dissect.engine_fast import Item, iter_items
 from eyeq_spi.dissect.engine_fast_frames import FrameArrays, FrameBlock
-from eyeq_spi.dissect.release import (
-    RECORDED,
-    Capture,
-    Release,
-    choose_release,
-    infer_release,
-    then,
-)
-from eyeq_spi.errors import EyeqError
-from eyeq_spi.io.plain import InputError, detect, sniff_raw
-
-Item = dict[str, Any] | FrameBlock
-__all__ = ["FrameBlock", "chunk_items", "consume", "default_jobs", "open_fast", "parallel_items"]
+from eyeq_spi.dissect.output import TableWriter
+from eyeq_spi.dissect.release import Capture, Release, codec_for, with_release
+from eyeq_spi.io.plain import InputError, PeekStream, detect, read_raw, sniff_raw
 
 
 def open_fast(fh: IO[bytes], fmt: str | None, direction: str | None, *, sw: str | None,
@@ -65,58 +43,12 @@ def open_fast(fh: IO[bytes], fmt: str | None, direction: str | None, *, sw: str 
     if kind == "pcapng" and head[:4] == PCAPNG_MAGIC:
         chunks = pcapng_chunks(fh, tail=tail)
     elif kind == "raw" and sniff_raw(head) is not None:
-        chunks = raw_chunks(fh, direction)
+        chunks = chunks_from_transfers(read_raw(PeekStream(fh), direction))
     else:
         return None
-    recorded = recorded_release(head)
-    if recorded is not None:
-        release = choose_release(sw, (recorded, RECORDED), name)
-    else:
-        first, fault = _first_chunks(chunks, release_sniff_transfers())
-        rows = [c.record(i) for c in first for i in range(len(c))]
-        release = choose_release(sw, infer_release(rows[: release_sniff_transfers()]), name)
-        chunks = then(first, fault, chunks)
-    release = replace(release, clock=recorded_clock(head))
-    return Capture(kind, _records(chunks), release, tail, chunks)
-
-
-def _first_chunks(chunks: Iterator[Chunk], rows: int
-                  ) -> tuple[list[Chunk], EyeqError | None]:
-    """The chunks that hold the first ``rows`` transfers, and the error that ended the file
-    before them (raised after them, as the reader would)."""
-    first: list[Chunk] = []
-    try:
-        while sum(len(c) for c in first) < rows:
-            nxt = next(chunks, None)
-            if nxt is None:
-                break
-            first.append(nxt)
-    except InputError as exc:
-        return first, exc
-    return first, None
-
-
-def _records(chunks: Iterator[Chunk]) -> Iterator[Transfer]:
-    """The transfers of ``chunks`` one by one (a caller that wants the transfers)."""
-    for chunk in chunks:
-        for index in range(len(chunk)):
-            yield chunk.record(index)
-
-
-def chunk_items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
-                ) -> Iterator[Item]:
-    """The records of a capture's chunks (frame blocks, and dicts where the reference reads):
-    ``fields`` is what the clean spans' messages carry (:class:`.engine_fast_messages.SpanDecoder`:
-    "dict", "none" for ``--stats`` alone, "columns" for a table writer alone)."""
-    return _items(chunks, codec, fields)
-
-
-def _items(chunks: Iterator[Chunk], codec: MessageCodec, fields: str = "dict"
-           ) -> Iterator[Item]:
-    bd = ChunkFeeder(codec=codec, fields=fields)
-    for chunk in chunks:
-        yield from bd.feed(chunk)
-    yield from bd.finish()
+    release, chunks = with_release(chunks, head, sw, name, Chunk.transfers)
+    return Capture(kind, (t for chunk in chunks for t in chunk.transfers()), release, tail,
+                   chunks)
 
 
 def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: bool,
@@ -138,9 +70,7 @@ def consume(item: FrameBlock, keep: Callable[[dict[str, Any]], bool], plain: boo
         return
     item.add_to(stats)
     for writer in writers:
-        if hasattr(writer, "write_block"):
-            writer.write_block(item)
-        elif getattr(writer, "messages_only", False) or type(writer).__name__ == "TableWriter":
+        if isinstance(writer, TableWriter):
             tables = iter(item.tables)
             nxt = next(tables, None)
             covered = {id(record) for g in item.tables for record in g.covered}
@@ -175,55 +105,42 @@ def _compact(block: FrameBlock) -> FrameBlock:
 
 
 def _worker(path: str, fmt: str | None, direction: str | None, sw: str | None,
-            fields: str = "dict") -> tuple[list[Item], Release, Tail] | tuple[str, str]:
+            fields: str = "dict") -> tuple[list[Item], Release, Tail] | None:
+    """One file's items, release and tail; None: not a fast-path input. Errors as a plain
+    :class:`InputError` (what the parent prints)."""
     try:
         with open(path, "rb") as fh:
             cap = open_fast(fh, fmt, direction, sw=sw, name=path)
             if cap is None or cap.chunks is None:
-                return ("reference", "")
-            items = chunk_items(cap.chunks, _codec(cap.release.key), fields)
+                return None
+            items = iter_items(cap.chunks, codec=codec_for(cap.release.key), fields=fields)
             return ([_compact(i) if isinstance(i, FrameBlock) else i for i in items],
                     cap.release, cap.tail)
     except InputError as exc:
-        return ("error", str(exc))
+        raise InputError(str(exc)) from None
     except OSError as exc:
-        return ("error", f"{path}: {exc.strerror or exc}")
-
-
-_CODECS: dict[str | None, MessageCodec] = {}
-
-
-def _codec(sw: str | None) -> MessageCodec:
-    if sw not in _CODECS:
-        _CODECS[sw] = MessageCodec(sw)
-    return _CODECS[sw]
+        raise InputError(f"{path}: {exc.strerror or exc}") from None
 
 
 def parallel_items(paths: list[str], jobs: int, fmt: str | None, direction: str | None,
                    sw: str | None, fields: str = "dict"
                    ) -> Iterator[tuple[str, tuple[list[Item], Release, Tail] | None]]:
     """(path, (items, release, tail)) in the order of ``paths``, dissected ``jobs`` files at a
-    time in worker processes; None: the file is not a fast-path input (the caller runs the reference
-    path).
-    At most ``jobs`` finished files wait in memory ahead of the one being written."""
+    time in worker processes; None: the file is not a fast-path input (the caller runs the
+    reference path). At most ``jobs`` finished files wait in memory ahead of the one being
+    written."""
     from concurrent.futures import ProcessPoolExecutor  # 6 ms of start-up a serial run saves
 
     with ProcessPoolExecutor(max_workers=jobs) as pool:
         pending: list[Any] = [pool.submit(_worker, p, fmt, direction, sw, fields)
                               for p in paths[:jobs]]
-        nxt = len(pending)
         for index, path in enumerate(paths):
-            res = pending[index].result()
-            if nxt < len(paths):
-                pending.append(pool.submit(_worker, paths[nxt], fmt, direction, sw, fields))
-                nxt += 1
+            done = pending[index].result()
+            if len(pending) < len(paths):
+                pending.append(pool.submit(_worker, paths[len(pending)], fmt, direction, sw,
+                                           fields))
             pending[index] = None
-            if isinstance(res[0], str):
-                if res[0] == "error":
-                    raise InputError(str(res[1]))
-                yield path, None
-            else:
-                yield path, res
+            yield path, done
 
 
 def default_jobs() -> int:

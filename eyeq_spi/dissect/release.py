@@ -1,26 +1,21 @@
 """Which SW release a capture speaks, and captures opened with it (every capture reader's entry).
 
-The release decides the DASP layouts (seed 004 §7.1.4: they differ between releases), so a
-capture read with the wrong one shows length errors that were never on the wire. In order:
+The release decides the DASP layouts (seed 004 §7.1.4), so it is chosen in this order:
 
 1. ``--sw`` (the caller's ``sw``) when given;
-2. the release the capture records: the ``eyeq-spi sw=<release>`` comment of its pcapng Section
-   Header Block (``specs/capture.yaml``);
-3. the release the EyeQ reports in the traffic: the GetEyeQVersions reply (§7.1.1.1.5), the
-   boot status' application version (§7.1.5.3) or EYEQ_BASE_DIAG_STATUS_MSG (§7.1.4.1), the
-   first of them in the first ``release_sniff_transfers`` transfers (``specs/capture.yaml``);
-   a release ``specs/`` does not list maps to the newest listed one before it (decision D4);
+2. the release the capture records (``eyeq-spi sw=<release>`` on its Section Header Block);
+3. the release the EyeQ reports in its first ``release_sniff_transfers`` transfers: the
+   GetEyeQVersions reply (§7.1.1.1.5), the boot status (§7.1.5.3) or
+   EYEQ_BASE_DIAG_STATUS_MSG (§7.1.4.1); an unlisted release maps to the newest before it (D4);
 4. the release whose DASP layouts fit the payload lengths seen there (the newest such);
 5. else the newest release.
 
-When ``--sw`` disagrees with 2 to 4, the capture is read with ``--sw`` and :attr:`Release.warning`
-is the one line that names both.
+When ``--sw`` disagrees with 2 to 4, :attr:`Release.warning` is the one line naming both.
 """
 
 from __future__ import annotations
 
-import itertools
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import IO, Any
 
@@ -36,7 +31,7 @@ from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.message import BOOT_ID, DASP_PROTOCOL, MessageCodec, classify
 from eyeq_spi.dissect.engine import Dissector
 from eyeq_spi.errors import EyeqError
-from eyeq_spi.io.plain import PeekStream, open_records
+from eyeq_spi.io.plain import PeekStream, open_transfers
 from eyeq_spi.logic.options import SpiOptions
 
 RECORDED = "recorded in the capture"
@@ -50,8 +45,6 @@ class Release:
 
     key: SwKey
     source: str  # "--sw", RECORDED, "GetEyeQVersions reply", ..., "default"
-    found: SwKey | None = None  # what the capture says (recorded or inferred), None: nothing
-    found_source: str | None = None
     warning: str | None = None
     clock: str | None = None  # what the capture's timestamps were read from, None: not said
 
@@ -125,16 +118,16 @@ def _fitting(cat: Catalog, lengths: set[tuple[int, int]]) -> list[SwKey]:
     return [k for k in cat.sw_versions if best and score[k] == best]
 
 
-def infer_release(records: Iterable[Transfer], cat: Catalog | None = None
+def infer_release(transfers: Iterable[Transfer], cat: Catalog | None = None
                   ) -> tuple[SwKey, str] | None:
     """The release the traffic shows (steps 3 and 4 of the module docstring), with where it was
-    seen, or None when nothing in ``records`` tells."""
+    seen, or None when nothing in ``transfers`` tells."""
     cat = cat or catalog()
     sniff = _Sniffer(cat)
     codec = sniff.codec
     lengths: set[tuple[int, int]] = set()
-    for rec in records:
-        for _ in sniff.feed(rec):
+    for transfer in transfers:
+        for _ in sniff.feed(transfer):
             pass
         for data in sniff.messages:
             found = _reported(cat, codec, data)
@@ -159,51 +152,77 @@ def choose_release(sw: str | None, found: tuple[SwKey, str] | None, name: str,
     if sw is None:
         if fkey is None:
             return Release(cat.default_sw, "default")
-        return Release(fkey, fsrc or RECORDED, fkey, fsrc)
+        return Release(fkey, fsrc or RECORDED)
     key = cat.sw(sw)
     warning = None
     if fkey is not None and fkey != key:
         warning = (f"{name}: read as SW {sw_release_text(key)} (--sw) but the capture says "
                    f"SW {sw_release_text(fkey)} ({fsrc})")
-    return Release(key, "--sw", fkey, fsrc, warning)
+    return Release(key, "--sw", warning)
+
+
+_CODECS: dict[str, MessageCodec] = {}
+
+
+def codec_for(key: str) -> MessageCodec:
+    """One codec per release for the whole process (building one reads ``specs/``)."""
+    if key not in _CODECS:
+        _CODECS[key] = MessageCodec(key)
+    return _CODECS[key]
 
 
 @dataclass
 class Capture:
     """An opened capture: its format, its transfers, the release to read them with, and what
-    was left unread at its end (filled once ``records`` is exhausted)."""
+    was left unread at its end (filled once ``transfers`` is exhausted)."""
 
     kind: str
-    records: Iterator[Transfer]
+    transfers: Iterator[Transfer]
     release: Release
     tail: Tail = field(default_factory=Tail)
     # the fast path's chunks of transfers (:mod:`eyeq_spi.capture.pcapng_fast`), which
-    # ``records`` are read from: a caller reads one or the other; None for the reference readers
+    # ``transfers`` are read from: a caller reads one or the other; None for the reference readers
     chunks: Iterator[Any] | None = None
 
 
 def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | None = None,
                  spi: SpiOptions | None = None, *, sw: str | None = None, name: str = "-"
                  ) -> Capture:
-    """:func:`~.inputs.open_records` with the release resolved (module docstring) and a file
-    that ends inside a pcapng block read up to its last whole block (:class:`Tail`). The
-    transfers looked at to infer the release are kept and come first in ``records``."""
+    """:func:`~.inputs.open_transfers` with the release resolved (module docstring) and a file
+    that ends inside a pcapng block read up to its last whole block (:class:`Tail`)."""
     tail = Tail()
     peek = stream if isinstance(stream, PeekStream) else PeekStream(stream)
-    recorded, clock = recorded_release(peek.head), recorded_clock(peek.head)
-    kind, records = open_records(peek, fmt, direction, spi, tail)  # type: ignore[arg-type]
+    head = peek.head  # before the reader takes it
+    kind, transfers = open_transfers(peek, fmt, direction, spi, tail)  # type: ignore[arg-type]
+    release, transfers = with_release(transfers, head, sw, name)
+    return Capture(kind, transfers, release, tail)
+
+
+def with_release(items: Iterator[Any], head: bytes, sw: str | None, name: str,
+                 transfers: Callable[[Any], list[Transfer]] = lambda item: [item]
+                 ) -> tuple[Release, Iterator[Any]]:
+    """The release of the capture that starts with ``head`` (module docstring), and its
+    ``items`` (transfers, or what ``transfers`` turns into them) with the ones looked at to
+    infer the release first."""
+    recorded = recorded_release(head)
     if recorded is not None:
         release = choose_release(sw, (recorded, RECORDED), name)
-        return Capture(kind, records, replace(release, clock=clock), tail)
-    head: list[Transfer] = []
-    fault: EyeqError | None = None
-    try:
-        head.extend(itertools.islice(records, release_sniff_transfers()))
-    except EyeqError as exc:  # raised after the transfers before it, as the reader would
-        fault = exc
-    found = infer_release(head)
-    release = replace(choose_release(sw, found, name), clock=clock)
-    return Capture(kind, then(head, fault, records), release, tail)
+    else:
+        looked: list[Any] = []
+        seen: list[Transfer] = []
+        fault: EyeqError | None = None
+        try:
+            while len(seen) < release_sniff_transfers():
+                item = next(items, None)
+                if item is None:
+                    break
+                looked.append(item)
+                seen += transfers(item)
+        except EyeqError as exc:  # raised after the items before it, as the reader would
+            fault = exc
+        release = choose_release(sw, infer_release(seen[: release_sniff_transfers()]), name)
+        items = then(looked, fault, items)
+    return replace(release, clock=recorded_clock(head)), items
 
 
 def then(head: list[Any], fault: EyeqError | None, rest: Iterator[Any]) -> Iterator[Any]:
@@ -211,17 +230,3 @@ def then(head: list[Any], fault: EyeqError | None, rest: Iterator[Any]) -> Itera
     if fault is not None:
         raise fault
     yield from rest
-
-
-def release_of(path: str, sw: str | None = None, fmt: str | None = None,
-               direction: str | None = None, spi: SpiOptions | None = None) -> Release:
-    """The release to read the capture file ``path`` with (for a reader that needs it before
-    it reads the file: its codec builds the plot's or the monitor's labels)."""
-    from eyeq_spi.errors import InputError
-
-    try:
-        fh = open(path, "rb")  # noqa: SIM115 - closed below
-    except OSError as exc:
-        raise InputError(f"{path}: {exc.strerror or exc}") from None
-    with fh:
-        return open_capture(fh, fmt, direction, spi, sw=sw, name=path).release

@@ -30,8 +30,6 @@ class Stats:
     aborts: Counter[str] = field(default_factory=Counter)
     events: Counter[str] = field(default_factory=Counter)
     messages: Counter[str] = field(default_factory=Counter)
-    first: dict[str, float] = field(default_factory=dict)
-    last: dict[str, float] = field(default_factory=dict)
     times: dict[str, list[float]] = field(default_factory=dict)  # of each stream's messages
     counter_gaps: Counter[str] = field(default_factory=Counter)
     e2e_errors: Counter[str] = field(default_factory=Counter)
@@ -70,8 +68,6 @@ class Stats:
         self.messages[name] += 1
         time_s = record.get("time")
         if time_s is not None:
-            self.first.setdefault(name, time_s)
-            self.last[name] = time_s
             self.times.setdefault(name, []).append(time_s)
         for error in record["errors"]:
             if error.startswith("DASP counter gap"):
@@ -120,17 +116,18 @@ class Stats:
             else:  # over the stream's active spans (eyeq_spi/stream_rate.py)
                 rate = stream_rate(sorted(self.times.get(name, [])))
                 span, steps, gaps = rate.active_s, rate.steps, len(rate.gaps)
-            nominal = None
             try:
                 nominal = self.cat.message(name).rate_hz
-            except Exception:
+            except Exception:  # MESP, a protocol name: no nominal rate
                 nominal = None
             periodic = nominal is not None and span > 0 and steps > 0
             rates[name] = {"count": count, "mean_hz": round(steps / span, 3) if periodic else None,
                            "nominal_hz": nominal, "gaps": gaps if periodic else 0}
+        from statistics import median  # here: start-up of runs without MESP replies
+
         lat = {
             name: {"count": len(v), "min_ms": round(min(v) * 1e3, 3),
-                   "median_ms": round(_median(v) * 1e3, 3),
+                   "median_ms": round(median(v) * 1e3, 3),
                    "max_ms": round(max(v) * 1e3, 3), "timeouts": self.mesp_timeouts.get(name, 0)}
             for name, v in sorted(self.mesp_latency.items())
         }
@@ -211,13 +208,3 @@ def combine(parts: list[Stats]) -> Stats:
             total.mesp_latency.setdefault(name, []).extend(latencies)
     return total
 
-
-def _median(values: list[float]) -> float:
-    """``statistics.median`` (the mean of the two middle values of an even count) without
-    importing statistics, which brings decimal and fractions (7-9 ms of start-up)."""
-    ordered = sorted(values)
-    count = len(ordered)
-    if not count:
-        raise ValueError("no median of no values")
-    mid = count // 2
-    return float(ordered[mid]) if count % 2 else (ordered[mid - 1] + ordered[mid]) / 2

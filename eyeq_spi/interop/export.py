@@ -31,13 +31,13 @@ def _checked(path: str) -> str:
     return path
 
 
-def export(records: Iterable[Transfer], *, source: str, sw: str | None = None,
+def export(transfers: Iterable[Transfer], *, source: str, sw: str | None = None,
            vcd: str | None = None, mdf: str | None = None, mcap: str | None = None,
            sr: str | None = None, sr_max_idle: float | None = None,
            spi: SpiOptions | None = None, vcd_max_idle: float | None = None,
            progress: Callable[[int], None] | None = None,
            mcap_extra: Callable[[Any, Any], Any] | None = None) -> dict[str, Any]:
-    """Write the outputs asked for in one pass over ``records``; ``progress(transfers)`` is
+    """Write the outputs asked for in one pass over ``transfers``; ``progress(count)`` is
     called after each transfer (a progress bar's update). ``mcap_extra(writer, codec)``: more
     topics for the MCAP file (the Foxglove scene), an object whose ``add(record)`` takes every
     dissector record and whose ``summary()`` joins the MCAP's."""
@@ -64,21 +64,21 @@ def export(records: Iterable[Transfer], *, source: str, sw: str | None = None,
                 stack.enter_context(_open(mcap, "wb")), sw=codec.sw, source=source)
         extra = mcap_extra(mcap_w, codec) if mcap_w is not None and mcap_extra else None
         dis = Dissector(codec=codec) if (mdf_w or mcap_w) else None
-        transfers = 0
-        for rec in records:
-            transfers += 1
+        count = 0
+        for transfer in transfers:
+            count += 1
             if progress is not None:
-                progress(transfers)
+                progress(count)
             if vcd_w is not None:
-                vcd_w.write(rec)
+                vcd_w.write(transfer)
             if sr_w is not None:
-                sr_w.write(rec)
+                sr_w.write(transfer)
             if dis is not None:
-                _deliver(dis.feed(rec), rec, transfers - 1, mcap_w, extra, mdf_w)
+                _deliver(dis.feed(transfer), transfer, count - 1, mcap_w, extra, mdf_w)
         if dis is not None:  # what the dissector held at the end: MCAP only, as before
             _deliver(dis.finish(), None, -1, mcap_w, extra, None)
         written = []
-        summary: dict[str, Any] = {"transfers": transfers, "sw": codec.sw}
+        summary: dict[str, Any] = {"transfers": count, "sw": codec.sw}
         if vcd_w is not None:
             vcd_w.close()
             written.append(f"{vcd} ({vcd_w.count} transfers, {vcd_w.delayed} moved to keep "
@@ -110,14 +110,14 @@ def export(records: Iterable[Transfer], *, source: str, sw: str | None = None,
         return summary
 
 
-def _deliver(records: Iterable[dict[str, Any]], rec: Transfer | None, index: int, mcap_w: Any,
-             extra: Any, mdf_w: Any) -> None:
-    """The dissector's records to every writer that takes them; the frame record of ``rec``
+def _deliver(records: Iterable[dict[str, Any]], transfer: Transfer | None, index: int,
+             mcap_w: Any, extra: Any, mdf_w: Any) -> None:
+    """The dissector's records to every writer that takes them; the frame record of ``transfer``
     (the transfer at ``index``) goes to the MCAP with its raw bytes."""
     for record in records:
         if mcap_w is not None:
-            if rec is not None and record["kind"] == "frame" and record["index"] == index:
-                mcap_w.transfer(rec, record)
+            if transfer is not None and record["kind"] == "frame" and record["index"] == index:
+                mcap_w.transfer(transfer, record)
             else:
                 mcap_w.write(record)
         if extra is not None:

@@ -41,19 +41,17 @@ _EVENT_SCHEMA: dict[str, Any] = {"type": "object", "title": "eyeq_spi.Event",
                                                 "index": {"type": "integer"}}}
 
 
+_JSON_TYPES = ((bool, "boolean"), (int, "integer"), (float, "number"), (str, "string"))
+
+
 def json_schema(value: Any) -> dict[str, Any]:
     if isinstance(value, dict):
         return {"type": "object", "properties": {k: json_schema(v) for k, v in value.items()}}
     if isinstance(value, list):
         return {"type": "array", "items": json_schema(value[0]) if value else {}}
-    if isinstance(value, bool):
-        return {"type": "boolean"}
-    if isinstance(value, int):
-        return {"type": "integer"}
-    if isinstance(value, float):
-        return {"type": "number"}
-    if isinstance(value, str):
-        return {"type": "string"}
+    for kind, name in _JSON_TYPES:  # bool before int: a bool is an int
+        if isinstance(value, kind):
+            return {"type": name}
     return {}
 
 
@@ -100,15 +98,15 @@ class McapWriter:
         ns = round(time * 1e9) if time is not None else index * 1000
         self.add(cid, ns, json.dumps(body, separators=(",", ":")).encode())
 
-    def transfer(self, rec: Transfer, frame: dict[str, Any]) -> None:
-        topic = f"/spi/{rec.direction or 'unknown'}/transfers"
+    def transfer(self, transfer: Transfer, frame: dict[str, Any]) -> None:
+        topic = f"/spi/{transfer.direction or 'unknown'}/transfers"
         cid = self._channel(topic, _TRANSFER_SCHEMA, "eyeq_spi.Transfer")
         body = {k: frame[k] for k in ("index", "time", "direction", "frame_type", "num", "rsp",
                                       "crc_ok", "transport", "transfer_id", "nak_reason")}
-        body["length"] = len(rec.data)
-        body["data"] = base64.b64encode(rec.data).decode("ascii")
-        self._put(cid, rec.time, frame["index"], body)
-        self.last_time = rec.time if rec.time is not None else self.last_time
+        body["length"] = len(transfer.data)
+        body["data"] = base64.b64encode(transfer.data).decode("ascii")
+        self._put(cid, transfer.time, frame["index"], body)
+        self.last_time = transfer.time if transfer.time is not None else self.last_time
 
     def write(self, record: dict[str, Any]) -> None:
         """One of the dissector's message or event records."""

@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.dissect.output import flatten
-from eyeq_spi.errors import EyeqError, MissingExtra, OutputError
+from eyeq_spi.dissect.output import flatten, layout_field, record_layout
+from eyeq_spi.errors import MissingExtra, OutputError
 
 FRAME_KINDS = {0: "INVALID", 1: "DATA", 2: "ACK", 3: "NAK"}
 _KIND_CODE = {v: k for k, v in FRAME_KINDS.items()}
@@ -60,13 +60,7 @@ class MdfWriter:
     # -- layout metadata ------------------------------------------------------------------
     def _columns(self, record: dict[str, Any]) -> list[tuple[str, Any, str, Any]]:
         info: dict[str, tuple[str, Any]] = {}
-        lay = None
-        if record["protocol"] in ("DASP", "DIAG", "BOOT") and record["name"]:
-            try:
-                lay = self.codec.layout(self.codec.cat.message(record["name"]))
-            except EyeqError:
-                lay = None
-        self._walk(record["fields"], lay, "", info)
+        self._walk(record["fields"], record_layout(self.codec, record), "", info)
         cols: list[tuple[str, Any, str, Any]] = []
         for name, value in flatten(record["fields"]).items():
             if isinstance(value, bool):
@@ -87,10 +81,8 @@ class MdfWriter:
         for key, value in values.items():
             name = f"{prefix}.{key}" if prefix else key
             child = lay.children.get(key) if lay is not None else None
-            try:
-                member = lay.field(key).member if lay is not None else None
-            except KeyError:
-                member = None
+            field = layout_field(lay, key)
+            member = field.member if field is not None else None
             if isinstance(value, dict):
                 self._walk(value, child, name, out)
             elif isinstance(value, list):

@@ -1,18 +1,11 @@
 """Replay the EyeQ channel of a capture to a host: a recorded drive as a stand-in EyeQ.
 
-:class:`ReplayEyeQ` is a sans-IO node (``receive_data``/``data_to_send``/``get_timer``/
-``handle_timer``, docs/STYLE.md §2). It plays every transfer of the capture's ``e2h`` channel at its
-capture time, byte for byte, except the EyeQ's ACK/NAK frames: those answered the recorded host,
-so the node answers the host in front of it instead, through a real :class:`TransportConnection`
-in the EyeQ role (ACK every accepted frame, NAK per L5, reassemble the host's messages to count
-them). The host's ACK/NAK frames for the played frames are counted, not checked: the recorded
-frames are never resent (L7).
-
-Time: the replay clock is the capture's time minus its first transfer's time, plus the moment
-the replay starts. ``replay_into_host`` runs it against the built-in host emulator on the
-:class:`VirtualRunner` (virtual time, no reset line: the host's own logic checks states, E2E,
-DASP counters and stale streams); ``replay_to_port`` runs it on the :class:`RealTimeRunner`
-against a host under test at a pyserial URL. The capture is read lazily: memory stays bounded.
+:class:`ReplayEyeQ` is a sans-IO node (docs/STYLE.md §2) that plays every transfer of the
+capture's ``e2h`` channel at its capture time (relative to the first), byte for byte, except the
+EyeQ's ACK/NAK frames: it answers the host in front of it itself, through a
+:class:`TransportConnection` in the EyeQ role (L5); the host's ACK/NAKs are counted, not
+checked (recorded frames are never resent, L7). ``replay_into_host`` runs it against the host
+emulator in virtual time, ``replay_to_port`` in real time against a host at a pyserial URL.
 """
 
 from __future__ import annotations
@@ -32,10 +25,10 @@ from eyeq_spi.transport.events import MessageReceived
 
 
 class ReplayEyeQ:
-    def __init__(self, records: Iterable[Transfer], *, start: float = 0.0,
+    def __init__(self, transfers: Iterable[Transfer], *, start: float = 0.0,
                  duration: float | None = None, sw: str | None = None,
                  count_sent: bool = False) -> None:
-        self._src: Iterator[Transfer] = (r for r in records if r.direction == "e2h")
+        self._src: Iterator[Transfer] = (r for r in transfers if r.direction == "e2h")
         self.start = start
         self.duration = duration
         self.frames = FrameCodec()
@@ -77,17 +70,17 @@ class ReplayEyeQ:
 
     # -- the capture --------------------------------------------------------------------
     def _advance(self) -> None:
-        for rec in self._src:
-            if self._is_control(rec.data):
+        for transfer in self._src:
+            if self._is_control(transfer.data):
                 self.skipped_acks += 1  # they answered the recorded host, not this one
                 continue
-            time = self._last_at if rec.time is None else rec.time
+            time = self._last_at if transfer.time is None else transfer.time
             if self.offset is None:
                 self.offset = self.start - time
             at = max(time + self.offset, self._last_at)
             if self.duration is not None and at > self.start + self.duration:
                 break
-            self._next, self._next_at = rec, at
+            self._next, self._next_at = transfer, at
             return
         self._next = self._next_at = None
         self.done = True
@@ -170,7 +163,7 @@ class ReplayEyeQ:
                 "decode_errors": self.decode_errors}
 
 
-def host_bench(records: Iterable[Transfer], *, sw: str | None = None,
+def host_bench(transfers: Iterable[Transfer], *, sw: str | None = None,
                duration: float | None = None) -> tuple[ReplayEyeQ, Any, Any]:
     """The capture's EyeQ channel wired to a started built-in host emulator on a
     :class:`VirtualRunner` (virtual time = capture time from its first transfer): (node, host,
@@ -179,7 +172,7 @@ def host_bench(records: Iterable[Transfer], *, sw: str | None = None,
     from eyeq_spi.phy.memory import memory_pair
     from eyeq_spi.runner.virtual import VirtualRunner
 
-    node = ReplayEyeQ(records, duration=duration, sw=sw)
+    node = ReplayEyeQ(transfers, duration=duration, sw=sw)
     host = HostEmulator(HostConfig(sw=sw), keep_rx_times=False, reset_line=node.reset_line)
     host_end, node_end = memory_pair()
     runner = VirtualRunner([(host, host_end), (node, node_end)])
@@ -187,7 +180,7 @@ def host_bench(records: Iterable[Transfer], *, sw: str | None = None,
     return node, host, runner
 
 
-def replay_into_host(records: Iterable[Transfer], *, sw: str | None = None,
+def replay_into_host(transfers: Iterable[Transfer], *, sw: str | None = None,
                      duration: float | None = None, realtime: bool = False,
                      on_host: Callable[[Any], None] | None = None) -> dict[str, Any]:
     """Feed the capture's EyeQ channel to the built-in host emulator in virtual time; the run
@@ -203,7 +196,7 @@ def replay_into_host(records: Iterable[Transfer], *, sw: str | None = None,
 
     cpu0 = time.process_time()
     wall0 = time.monotonic()
-    node, host, runner = host_bench(records, sw=sw, duration=duration)
+    node, host, runner = host_bench(transfers, sw=sw, duration=duration)
     if on_host is not None:
         on_host(host)
     pace = (time.perf_counter(), runner.now) if realtime else None
@@ -225,7 +218,7 @@ def replay_into_host(records: Iterable[Transfer], *, sw: str | None = None,
     return out
 
 
-def replay_to_port(records: Iterable[Transfer], url: str, *, listen: bool = False,
+def replay_to_port(transfers: Iterable[Transfer], url: str, *, listen: bool = False,
                    duration: float | None = None, connect_timeout: float = 30.0,
                    lead: float = 0.5, sw: str | None = None,
                    on_message: Callable[[DecodedMessage, float], None] | None = None,
@@ -243,7 +236,7 @@ def replay_to_port(records: Iterable[Transfer], url: str, *, listen: bool = Fals
     from eyeq_spi.runner.realtime import RealTimeRunner
     from eyeq_spi.summary import link_view, replay_port_summary
 
-    node = ReplayEyeQ(records, duration=duration, sw=sw, count_sent=True)
+    node = ReplayEyeQ(transfers, duration=duration, sw=sw, count_sent=True)
     node.on_message = on_message
     adapter = open_listener(url, timeout=connect_timeout) if listen else open_url(url)
     address = getattr(adapter, "url", url)

@@ -1,20 +1,12 @@
 """One registry of the file formats eyeq-spi reads and writes (python-can's ``can.io`` pattern).
 
-Each :class:`Format` says its name, file suffixes, kind (:data:`CAPTURE_READER`,
-:data:`CAPTURE_WRITER`, :data:`RECORD_WRITER`, :data:`CAN_LOG`), the ``module:callable`` that
-implements it and the optional extra it needs. Registering imports nothing: the callable is
-imported on first use (:func:`load`), so the command line starts as fast with every format
-known, and a missing optional dependency is a :class:`~eyeq_spi.errors.MissingExtra` that
-names the ``pip install 'eyeq-spi[EXTRA]'`` to run.
-
-Readers are found by name (``--format``), by content (:func:`eyeq_spi.io.plain.detect`: every
-reader's sniffer, in registry order, on the first bytes; suffixes never decide, so stdin and
-renamed files read the same) and all open through :func:`eyeq_spi.io.plain.open_records`.
-Writers are found by name or by the suffix of the path they write (:func:`by_suffix`). CAN
-logs are python-can's: its own registry reads them by suffix, so one entry points there
-(:mod:`eyeq_spi.can.logs`).
-
-The table in ``docs/captures.md`` is :func:`markdown_table` (a test keeps them equal).
+Each :class:`Format` names its kind, suffixes, the ``module:callable`` that implements it
+(imported on first use by :func:`load`, so the command line starts fast with every format
+known) and the optional extra it needs (:class:`~eyeq_spi.errors.MissingExtra` names the
+``pip install 'eyeq-spi[EXTRA]'``). Readers are found by name (``--format``) or by content
+(:func:`eyeq_spi.io.plain.detect`, every sniffer in registry order: suffixes never decide) and
+open through :func:`eyeq_spi.io.plain.open_transfers`; writers by name. CAN logs are read by
+python-can's own registry. The table in ``docs/captures.md`` is :func:`markdown_table`.
 """
 
 from __future__ import annotations
@@ -39,26 +31,15 @@ Truncation = Literal["error", "drop", "short", ""]
 
 
 class Format(NamedTuple):  # a NamedTuple: dataclasses would cost the CLI's start-up 10 ms
-    """A registered format. ``target``: ``module:callable``, imported by :func:`load`.
-
-    Capture readers are called ``target(stream, arg)`` where ``takes`` names ``arg``: the
-    ``direction`` of a one-channel input, the ``spi`` options of a logic-analyzer export, or
-    the ``tail`` that lets a pcapng cut inside a block read up to its last whole block.
-    ``sniff``: ``module:function(head) -> name | None`` on the first bytes (several formats may
-    share one sniffer); ``text``: a text format, whose sniffer is skipped for a head starting
-    with a byte no text begins with. ``resolution``: seconds to which times survive a write and
-    read back (0: exactly; None: the format carries no times); ``channels``: 2 when one file
-    holds both directions, 1 when it holds one (the caller says which); ``truncation``: what a
-    file cut short gives: ``error`` (:class:`~eyeq_spi.errors.TruncatedInputError`), ``drop``
-    (the transfer the cut ends is dropped, as a logic analyzer stopped mid-transfer) or
-    ``short`` (the format marks no transfer's end: the last transfer is read as far as it
-    goes). A text format cut inside a row or line says so, naming the line. ``fast``: the
-    ``module:callable`` reading the format in chunks for the fast path (else only the
-    exact reader reads it).
-
-    Capture writers are called ``target(records, path, **options) -> transfers written``.
-    Record writers are the dissector's writer classes; their constructors differ (a directory
-    of tables, a text stream, a file path with the codec)."""
+    """A registered format. Capture readers are called ``target(stream, arg)``, ``arg`` the
+    one ``takes`` names (the ``direction`` of a one-channel input, the ``spi`` options of a
+    logic-analyzer export, the ``tail`` of a pcapng cut inside a block); capture writers
+    ``target(transfers, path, **options) -> transfers written``; record writers are the
+    dissector's writer classes. ``sniff``: ``module:function(head) -> name | None``; ``text``:
+    skipped for a head no text begins with; ``resolution``: seconds to which times survive a
+    round trip (0: exactly, None: no times); ``channels``: directions in one file;
+    ``truncation``: what a cut file gives (``error``, ``drop`` the cut transfer, ``short``: the
+    last transfer as far as it goes); ``fast``: the fast path's chunk reader, if any."""
 
     name: str
     kind: Kind
@@ -112,8 +93,7 @@ REGISTRY: tuple[Format, ...] = (
            truncation="short"),
     Format("raw", CAPTURE_READER, (".raw", ".bin"), f"{_PLAIN}:read_raw",
            "concatenated 128-byte transfers of one channel, no times",
-           sniff=f"{_PLAIN}:sniff_raw", takes="direction", channels=1, truncation="error",
-           fast="eyeq_spi.capture.pcapng_fast:raw_chunks"),
+           sniff=f"{_PLAIN}:sniff_raw", takes="direction", channels=1, truncation="error"),
     Format("pcapng", CAPTURE_WRITER, (".pcapng",), f"{_WRITERS}:write_pcapng",
            "what demo, host and sim --capture write (crash-safe, streamed)"),
     Format("vcd", CAPTURE_WRITER, (".vcd",), f"{_WRITERS}:write_vcd_file",
@@ -154,11 +134,6 @@ def readers() -> tuple[str, ...]:
     return names(CAPTURE_READER)
 
 
-def fast_readers() -> tuple[str, ...]:
-    """The capture readers the fast path reads (the others take the reference)."""
-    return tuple(f.name for f in formats(CAPTURE_READER) if f.fast)
-
-
 def formats(kind: Kind) -> tuple[Format, ...]:
     return tuple(f for f in REGISTRY if f.kind == kind)
 
@@ -170,18 +145,6 @@ def get(name: str, kind: Kind = CAPTURE_READER) -> Format:
             return entry
     raise UnknownFormatError(f"unknown {kind} format {name!r} (one of "
                              f"{', '.join(names(kind))})")
-
-
-def by_suffix(path: str | PurePath, kind: Kind) -> Format:
-    """The first format of ``kind`` whose suffixes hold ``path``'s (case-insensitive); an
-    unknown suffix lists the known names and suffixes."""
-    suffix = PurePath(path).suffix.lower()
-    for entry in REGISTRY:
-        if entry.kind == kind and suffix in entry.suffixes:
-            return entry
-    known = ", ".join(f"{f.name} ({' '.join(f.suffixes)})" for f in formats(kind) if f.suffixes)
-    raise UnknownFormatError(f"{path}: unknown {kind} suffix {suffix or '(none)'!r}; known: "
-                             f"{known}")
 
 
 def can_log_hint(path: str | PurePath) -> str | None:
@@ -270,25 +233,3 @@ def markdown_table() -> str:
                     f"{times} | {cut} | {entry.summary} |")
     return "\n".join(rows) + "\n"
 
-
-__all__ = [
-    "CAN_LOG",
-    "CAPTURE_READER",
-    "CAPTURE_WRITER",
-    "KINDS",
-    "RECORD_WRITER",
-    "REGISTRY",
-    "Format",
-    "by_suffix",
-    "can_log_hint",
-    "fast_readers",
-    "formats",
-    "get",
-    "load",
-    "markdown_table",
-    "missing",
-    "names",
-    "readers",
-    "require",
-    "sniffers",
-]

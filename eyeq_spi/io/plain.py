@@ -1,17 +1,11 @@
-"""The dissector's capture inputs, streamed with bounded memory, and the plain formats:
+"""Capture inputs, streamed with bounded memory, and the plain formats: ``pcapng``
+(``specs/capture.yaml``), ``hex`` (one transfer per line: ``[TIME] [h2e|e2h] HEX``, ``#``
+comments) and ``raw`` (128-byte transfers of one channel).
 
-- ``pcapng``: our captures (``specs/capture.yaml``);
-- ``hex``: one transfer per line, optionally ``TIME`` and ``h2e``/``e2h`` before the hex bytes
-  (``#`` starts a comment);
-- ``raw``: concatenated 128-byte transfers of one channel;
-- and the logic-analyzer exports of :mod:`eyeq_spi.logic` (Saleae, VCD).
-
-:func:`open_records` opens any capture reader of the registry (:mod:`eyeq_spi.io`): detection
-looks at the first bytes with every reader's sniffer; ``--format`` forces one. A file that is
-none of them or is empty raises :class:`InputError` (exit code 2); one that ends in the middle
-of a transfer raises :class:`TruncatedInputError`, except a pcapng file that ends inside a block
-when the caller passes a :class:`Tail` (a capture whose writer was killed): it is read up to its
-last whole block.
+:func:`open_transfers` opens any capture reader of the registry (:mod:`eyeq_spi.io`), detected
+by its first bytes unless named. Unknown or empty input raises :class:`InputError`, a cut
+transfer :class:`TruncatedInputError` (a pcapng file cut inside a block is read up to its last
+whole block when the caller passes a :class:`Tail`).
 """
 
 from __future__ import annotations
@@ -35,7 +29,7 @@ _HEX_LINE = re.compile(
     rb"^\s*(?:[+-]?\d+(?:\.\d*)?(?:[eE][+-]?\d+)?\s+)?(?:(?:h2e|e2h)\s+)?[0-9A-Fa-f:\s]*$"
 )
 __all__ = ["FORMATS", "LOGIC_FORMATS", "InputError", "PeekStream", "TruncatedInputError",
-           "detect", "open_records"]
+           "detect", "open_transfers"]
 
 
 # Bytes no text format can begin with: not ASCII whitespace for bytes.lstrip or the hex regex,
@@ -93,7 +87,7 @@ def sniff_raw(head: bytes) -> str | None:
     return None
 
 
-def open_records(stream: IO[bytes], fmt: str | None = None,
+def open_transfers(stream: IO[bytes], fmt: str | None = None,
                  direction: str | None = None, spi: SpiOptions | None = None,
                  tail: Tail | None = None) -> tuple[str, Iterator[Transfer]]:
     """The format and the transfers of a capture, by any capture reader of the registry.
@@ -133,9 +127,9 @@ def read_pcapng_input(peek: PeekStream, tail: Tail | None = None) -> Iterator[Tr
 
 def _pcapng(peek: PeekStream, tail: Tail | None = None) -> Iterator[Transfer]:
     count = 0
-    for rec in read_pcapng(peek, tail):  # type: ignore[arg-type]
+    for transfer in read_pcapng(peek, tail):  # type: ignore[arg-type]
         count += 1
-        yield rec
+        yield transfer
     if count == 0:
         raise InputError("pcapng capture without any transfer (no Enhanced Packet Block)")
 
@@ -193,10 +187,10 @@ def _hex(peek: PeekStream, direction: str | None) -> Iterator[Transfer]:
             if len(raw_line) > MAX_HEX_LINE:
                 raise InputError(f"line {lineno}: longer than {MAX_HEX_LINE} characters; one "
                                  "line holds one transfer")
-            rec = _hex_line(raw_line, lineno, direction)
-            if rec is not None:
+            transfer = _hex_line(raw_line, lineno, direction)
+            if transfer is not None:
                 seen = True
-                yield rec
+                yield transfer
         if len(buf) > MAX_HEX_LINE:  # bounded memory: never hold a pathological line
             raise InputError(f"line {lineno + 1}: longer than {MAX_HEX_LINE} characters; one "
                              "line holds one transfer")
@@ -229,25 +223,25 @@ def _hex_line(raw_line: bytes, lineno: int, direction: str | None) -> Transfer |
     return Transfer(time_s, dirn, data)
 
 
-def write_raw(records: Iterable[Transfer], path: str | Path, *, direction: str = "e2h") -> int:
+def write_raw(transfers: Iterable[Transfer], path: str | Path, *, direction: str = "e2h") -> int:
     """The transfers of ``direction`` (the raw format holds one channel and no times)."""
     count = 0
     with open(path, "wb") as fh:
-        for rec in records:
-            if rec.direction in (direction, None):
-                fh.write(rec.data)
+        for transfer in transfers:
+            if transfer.direction in (direction, None):
+                fh.write(transfer.data)
                 count += 1
     return count
 
 
-def write_hex(records: Iterable[Transfer], path: str | Path) -> int:
+def write_hex(transfers: Iterable[Transfer], path: str | Path) -> int:
     """One line per transfer: its time (as Python prints the float: it reads back the same),
-    direction and bytes in hex; a field the record lacks is left out."""
+    direction and bytes in hex; a field the transfer lacks is left out."""
     count = 0
     with open(path, "w", encoding="ascii", newline="\n") as fh:
-        for rec in records:
-            head = ([] if rec.time is None else [repr(rec.time)]) + \
-                ([] if rec.direction is None else [rec.direction])
-            fh.write(" ".join([*head, binascii.hexlify(rec.data).decode()]) + "\n")
+        for transfer in transfers:
+            head = ([] if transfer.time is None else [repr(transfer.time)]) + \
+                ([] if transfer.direction is None else [transfer.direction])
+            fh.write(" ".join([*head, binascii.hexlify(transfer.data).decode()]) + "\n")
             count += 1
     return count

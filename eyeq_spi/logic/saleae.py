@@ -18,18 +18,55 @@ from __future__ import annotations
 import csv
 import itertools
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from datetime import UTC, datetime
 
-from eyeq_spi.capture.pcapng_io import Transfer
+from eyeq_spi.capture.pcapng_io import Readable, Transfer
 from eyeq_spi.errors import InputError
 from eyeq_spi.logic.options import MAX_TRANSFER, Route, SpiOptions, bench_spec
-from eyeq_spi.logic.saleae_types import (
-    MAX_LINE,
-    ByteSource,
-    OpenTransfer,
-    Saleae1State,
-    Saleae2State,
-    seconds,
-)
+
+MAX_LINE = 1 << 16
+
+
+class OpenTransfer:
+    """A transfer between chip select falling and rising: its time and bytes per line."""
+
+    __slots__ = ("lines", "time")
+
+    def __init__(self, time: float | None) -> None:
+        self.time = time
+        self.lines: dict[str, bytearray] = {"mosi": bytearray(), "miso": bytearray()}
+
+
+def seconds(text: str) -> float:
+    """A capture time: seconds (Logic 1.x, Logic 2's default), or an ISO 8601 date and time
+    (Logic 2's "Use ISO8601 timestamps" export option) as seconds since the epoch, UTC when
+    no zone is given; ValueError for anything else."""
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    stamp_text = text.strip().strip('"')
+    if len(stamp_text) < 10 or stamp_text[4:5] != "-":
+        raise ValueError(text)
+    stamp = datetime.fromisoformat(stamp_text)
+    if stamp.tzinfo is None:
+        stamp = stamp.replace(tzinfo=UTC)
+    return stamp.timestamp()
+
+
+@dataclass
+class Saleae2State:
+    open_: dict[str, OpenTransfer | None]
+    routes: dict[str, list[Route]]
+    results: int = 0
+    enables: int = 0
+
+
+@dataclass
+class Saleae1State:
+    tr: OpenTransfer | None = None
+    packet: str | None = None
 
 
 def _norm(cells: list[str]) -> list[str]:
@@ -80,23 +117,24 @@ def _time(text: str, where: str) -> float:
         raise InputError(f"{where}: bad time {text[:30]!r}") from None
 
 
-def read_saleae2(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
+def read_saleae2(src: Readable, opts: SpiOptions, *, chunk_size: int = 1 << 20
                  ) -> Iterator[Transfer]:
+    return _csv_errors(_saleae2(src, opts, chunk_size))
+
+
+def read_saleae1(src: Readable, opts: SpiOptions, *, chunk_size: int = 1 << 20
+                 ) -> Iterator[Transfer]:
+    return _csv_errors(_saleae1(src, opts, chunk_size))
+
+
+def _csv_errors(transfers: Iterator[Transfer]) -> Iterator[Transfer]:
     try:
-        yield from _saleae2(src, opts, chunk_size)
+        yield from transfers
     except csv.Error as exc:
         raise InputError(f"not a CSV export: {exc}") from None
 
 
-def read_saleae1(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
-                  ) -> Iterator[Transfer]:
-    try:
-        yield from _saleae1(src, opts, chunk_size)
-    except csv.Error as exc:
-        raise InputError(f"not a CSV export: {exc}") from None
-
-
-def byte_chunks(src: ByteSource, size: int = 1 << 20) -> Iterator[bytes]:
+def byte_chunks(src: Readable, size: int = 1 << 20) -> Iterator[bytes]:
     """The stream in chunks of whole lines (the last may lack its newline), the UTF-8 BOM
     dropped, bounded memory: a line longer than 64 KiB is an error."""
     rest = b""
@@ -150,7 +188,7 @@ def _by_chunk(body: bytes, chunks: Iterator[bytes],
             line += _line_count(chunk)
 
 
-def _saleae2(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
+def _saleae2(src: Readable, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
     chunks = byte_chunks(src, chunk_size)
     header, body = _head(chunks)
     try:
@@ -213,7 +251,7 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
             raise InputError(f"line {line_no}: row type {kind!r} is not enable/result/disable")
 
 
-def _saleae1(src: ByteSource, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
+def _saleae1(src: Readable, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
     chunks = byte_chunks(src, chunk_size)
     header, body = _head(chunks)
     want = [h.lower() for h in bench_spec()["saleae1"]["header"]]

@@ -1,29 +1,14 @@
 """Transfers -> a sigrok session file (``.sr``, what PulseView saves and opens;
 ``eyeq-spi export --sr``).
 
-A session file is a zip archive (libsigrok's ``srzip`` format, version 2): a ``version``
-entry holding ``2``; a ``metadata`` entry, an ini file naming the sample rate, the probes and
-the bytes per sample (``unitsize``); and the samples in entries ``logic-1-1``, ``logic-1-2``
-..., each deflate-compressed. Here one sample is one byte: bit k is probe k + 1, the four
-signals of each SPI channel (§5) in the order of ``specs/bench.yaml`` (``h2e_cs``, ``h2e_clk``,
-``h2e_mosi``, ``h2e_miso``, then ``e2h_...``).
-
-The waveforms are those of :mod:`eyeq_spi.logic.vcd_write`: each direction's master drives
-its frame on MOSI at the seed's 10 MHz in the SPI mode and bit order of the options (§6,
-``specs/bench.yaml``), a transfer starts at its capture time (or, without one, its channel's
-frameFlowControl after the previous one), a transfer that would overlap the previous one of
-its channel starts ``min_idle`` after it, and the slave's MISO is left idle. The samples
-begin ``LEAD`` samples before the first transfer: a sample's time is seconds since the
-capture's first transfer (as ``eyeq-spi dissect`` shows them) plus ``LEAD`` samples. The sample rate
-is two samples per clock period (an edge per sample), 20 MHz for 10 MHz. MOSI returns low when
-CS rises.
-
-Memory stays bounded: samples are rendered with numpy per transfer into a buffer that starts
-at the first sample a later transfer could still change; everything before it is written out
-in chunks of ``CHUNK`` bytes, idle stretches from one constant block. A long idle stretch
-costs time to compress (about 0.1 s per second of idle) but deflate shrinks it about a
-thousandfold; ``max_idle`` shortens every stretch with both channels idle to at most that many
-seconds (sample times are then not capture times; the metadata says so).
+A session file is a zip archive (libsigrok's ``srzip``, version 2): ``version``, an ini
+``metadata`` (sample rate, probes, ``unitsize``) and deflated sample entries ``logic-1-1``...
+One sample is one byte: bit k is probe k + 1, the four signals of each SPI channel (§5) in the
+order of ``specs/bench.yaml``. The waveforms are those of :mod:`eyeq_spi.logic.vcd_write`, at
+two samples per clock period (20 MHz for 10 MHz), starting ``LEAD`` samples before the first
+transfer; MOSI returns low when CS rises. Samples are rendered per transfer into a buffer
+written out in ``CHUNK``-byte pieces (bounded memory); ``max_idle`` shortens every stretch with
+both channels idle (sample times are then not capture times; the metadata says so).
 """
 
 from __future__ import annotations
@@ -144,14 +129,14 @@ class SrWriter:
         self.zf.writestr("version", "2")
         self.sink = _ChunkSink(self.zf)
 
-    def write(self, rec: Transfer) -> None:
-        direction = rec.direction or self.default_direction
-        if rec.time is None:
+    def write(self, transfer: Transfer) -> None:
+        direction = transfer.direction or self.default_direction
+        if transfer.time is None:
             wanted = max(self.free[direction], self.last_start[direction] + self.gap[direction])
         else:
             if self.origin is None:
-                self.origin = rec.time
-            wanted = round((rec.time - self.origin) * self.samplerate) + LEAD - self.shift
+                self.origin = transfer.time
+            wanted = round((transfer.time - self.origin) * self.samplerate) + LEAD - self.shift
             if self.max_idle is not None:
                 busy_until = max(self.cursor + len(self.pending), *self.free.values())
                 if wanted - busy_until > self.max_idle:
@@ -159,10 +144,10 @@ class SrWriter:
                     wanted = busy_until + self.max_idle
         self._flush(wanted)  # no later transfer starts before its capture time
         start = max(wanted, self.free[direction], self.cursor)
-        if start > wanted and rec.time is not None:
+        if start > wanted and transfer.time is not None:
             self.delayed += 1
         self.last_start[direction] = start
-        lines = self._transfer(direction, rec.data)
+        lines = self._transfer(direction, transfer.data)
         end = start + len(lines)
         self._extend(end)
         offset = start - self.cursor
@@ -234,18 +219,18 @@ class SrWriter:
         return "\n".join(lines) + "\n"
 
 
-def write_sr(records: Iterable[Transfer], path: str | Path, opts: SpiOptions | None = None,
+def write_sr(transfers: Iterable[Transfer], path: str | Path, opts: SpiOptions | None = None,
              **kw: Any) -> SrWriter:
     writer = SrWriter(path, opts, **kw)
     try:
-        for rec in records:
-            writer.write(rec)
+        for transfer in transfers:
+            writer.write(transfer)
     finally:
         writer.close()
     return writer
 
 
-def write_sr_file(records: Iterable[Transfer], path: str | Path, **options: Any) -> int:
+def write_sr_file(transfers: Iterable[Transfer], path: str | Path, **options: Any) -> int:
     """The io registry's capture-writer signature: ``options`` are :class:`SrWriter`'s keyword
     arguments, ``opts`` the SPI options; returns the transfers written."""
-    return write_sr(records, path, options.pop("opts", None), **options).count
+    return write_sr(transfers, path, options.pop("opts", None), **options).count

@@ -15,17 +15,42 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 
-from eyeq_spi.capture.pcapng_io import Transfer
+from eyeq_spi.capture.pcapng_io import Readable, Transfer
 from eyeq_spi.errors import InputError
-from eyeq_spi.logic.options import MAX_TRANSFER, SIGNALS, SpiOptions, sample_on_rising
-from eyeq_spi.logic.saleae_types import ByteSource
-from eyeq_spi.logic.vcd_types import CLK, MISO, MOSI, Chan
+from eyeq_spi.logic.options import MAX_TRANSFER, SIGNALS, Route, SpiOptions, sample_on_rising
 
 MAX_HEADER = 16 << 20
 _UNITS = {b"s": 1.0, b"ms": 1e-3, b"us": 1e-6, b"ns": 1e-9, b"ps": 1e-12, b"fs": 1e-15}
 _ALIASES = {"cs": "cs", "ncs": "cs", "csn": "cs", "cs_n": "cs", "ss": "cs", "nss": "cs",
             "clk": "clk", "sck": "clk", "sclk": "clk", "mosi": "mosi", "miso": "miso"}
 _NAME = re.compile(r"^(?P<channel>.*?)[_.](?P<signal>" + "|".join(_ALIASES) + r")$", re.I)
+
+
+CLK, MOSI, MISO = range(1, 4)  # a signal's SPI role (0: CS)
+
+
+class Chan:
+    """One SPI channel: its line levels, the transfer being shifted in, its routes."""
+
+    __slots__ = ("active", "clk", "cs", "mi", "miso", "miso_bytes", "mo", "mosi", "mosi_bytes",
+                 "name", "nbits", "routes", "t0")
+
+    def __init__(self, name: str, routes: list[Route]) -> None:
+        self.name = name
+        self.routes = routes
+        self.cs = 1
+        self.clk = -1
+        self.mosi = self.miso = 0
+        self.active = False
+        self.nbits = self.mo = self.mi = 0
+        self.mosi_bytes = bytearray()
+        self.miso_bytes = bytearray()
+        self.t0 = 0
+
+    def emit(self, time: float) -> Iterator[Transfer]:
+        for route in self.routes:
+            data = self.mosi_bytes if route.line == "mosi" else self.miso_bytes
+            yield Transfer(time, route.direction, bytes(data))
 
 
 def _skip_meta(head: bytes) -> bytes:
@@ -43,7 +68,7 @@ def sniff(head: bytes) -> str | None:
     return None
 
 
-def _raw_chunks(src: ByteSource, size: int = 1 << 20) -> Iterator[bytes]:
+def _raw_chunks(src: Readable, size: int = 1 << 20) -> Iterator[bytes]:
     """The stream in chunks that end on whitespace (a token is never split)."""
     rest = b""
     while True:
@@ -155,9 +180,9 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
     return table
 
 
-def read_vcd(src: ByteSource, opts: SpiOptions, *, chunk_size: int = 1 << 20
+def read_vcd(src: Readable, opts: SpiOptions, *, chunk_size: int = 1 << 20
              ) -> Iterator[Transfer]:
-    """Value changes -> one record per transfer and direction."""
+    """Value changes -> one transfer per chip-select frame and direction."""
     chunks = _raw_chunks(src, chunk_size)
     head = b""
     for chunk in chunks:

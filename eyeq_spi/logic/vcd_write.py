@@ -2,19 +2,12 @@
 and sigrok, readable again by :mod:`eyeq_spi.logic.vcd`.
 
 Each direction is one SPI channel with CS, CLK, MOSI and MISO (§5); its master drives the frame
-on MOSI at the seed's 10 MHz in mode 1 (§6 driver settings), most significant bit first
-(``specs/bench.yaml``). A transfer starts at its capture time; one without a time (raw or hex
-input) starts the channel's frameFlowControl (§6: 500 µs host, 200 µs EyeQ) after the previous
-one, as the link paces them (L7); one that would overlap the previous transfer of its channel
-starts ``min_idle`` after its CS rising edge (``specs/bench.yaml``). The slave's MISO is left
-idle. Memory stays bounded: only the transfers that still overlap the next capture time are
-held.
-
-Size: every bit is two clock edges, each a timestamp line and a value line, so the file grows
-with the bits sent (about 30 bytes per bit, :func:`estimate_size`), not with the capture's
-length. ``max_idle`` shortens every stretch with both channels idle (CS high) to at most that
-many seconds, which keeps the timestamps short and spares a sampling reader (sigrok converts a
-VCD to samples at its sample rate) the idle time; the file says so in a ``$comment``.
+on MOSI at the seed's 10 MHz in mode 1 (§6), most significant bit first (``specs/bench.yaml``).
+A transfer starts at its capture time; one without a time starts the channel's frameFlowControl
+(§6, L7) after the previous one; one that would overlap the previous transfer of its channel
+starts ``min_idle`` after its CS rising edge. The slave's MISO is left idle. The file grows
+with the bits sent (:func:`estimate_size`); ``max_idle`` shortens every stretch with both
+channels idle, which the file says in a ``$comment``.
 """
 
 from __future__ import annotations
@@ -107,13 +100,13 @@ class VcdWriter:
     def _code(self, direction: str, signal: str, value: int) -> int:
         return ((DIRECTIONS.index(direction) * 4 + SIGNALS.index(signal)) << 1) | value
 
-    def write(self, rec: Transfer) -> None:
-        direction = rec.direction or self.default_direction
-        if rec.time is None:
+    def write(self, transfer: Transfer) -> None:
+        direction = transfer.direction or self.default_direction
+        if transfer.time is None:
             ticks = max(self.free[direction], self.last_start[direction] + self.gap[direction],
                         self.last_tick + 1)
         else:
-            ticks = round(rec.time / self.scale) - self.shift
+            ticks = round(transfer.time / self.scale) - self.shift
             if self.max_idle is not None:
                 busy_until = max(self.last_tick, *self.free.values())
                 if ticks - busy_until > self.max_idle:
@@ -122,13 +115,13 @@ class VcdWriter:
         self._flush(ticks)
         start = max(ticks, self.free[direction], self.last_tick + 1)
         self.last_start[direction] = start
-        if start > ticks and rec.time is not None:
+        if start > ticks and transfer.time is not None:
             self.delayed += 1
         h = self.half
         t = start + (0 if self.cpha else h)
         order: Literal["big", "little"] = "big" if self.opts.bit_order == "msb_first" \
             else "little"
-        bits = np.unpackbits(np.frombuffer(rec.data, dtype=np.uint8), bitorder=order
+        bits = np.unpackbits(np.frombuffer(transfer.data, dtype=np.uint8), bitorder=order
                              ).astype(np.int64)
         count = len(bits)
         base = t + 2 * h * np.arange(count, dtype=np.int64)
@@ -186,10 +179,10 @@ class VcdWriter:
         self.fh.write(f"#{self.last_tick}\n")
 
 
-def write_vcd(records: Iterable[Transfer], fh: IO[str], opts: SpiOptions | None = None,
+def write_vcd(transfers: Iterable[Transfer], fh: IO[str], opts: SpiOptions | None = None,
               **kw: object) -> VcdWriter:
     writer = VcdWriter(fh, opts, **kw)  # type: ignore[arg-type]
-    for rec in records:
-        writer.write(rec)
+    for transfer in transfers:
+        writer.write(transfer)
     writer.close()
     return writer
