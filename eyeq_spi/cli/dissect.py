@@ -21,6 +21,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                        "their fields, link events. Exit 0 clean, 1 protocol errors found, "
                        "2 bad input or usage.",
                        parents=[opt.capture_input(
+                           direction_help="channel of a raw or hex file without directions",
                            sw_help="SW release of the traffic (default: the one each capture "
                            "records or shows, else the newest)", spi=False),
                            opt.json_out("JSON Lines, one object per line")])

@@ -9,13 +9,6 @@ import sys
 from typing import Any
 
 
-def capture_parents() -> list[Any]:
-    """The capture-input options of export and replay."""
-    from eyeq_spi.cli import options as opt
-
-    return [opt.capture_input(direction_help="channel of an input without directions")]
-
-
 def add_capture_argument(parser: Any) -> None:
     parser.add_argument("capture", metavar="CAPTURE",
                    help="a capture in any format dissect reads (pcapng, raw, hex, Saleae, VCD)")

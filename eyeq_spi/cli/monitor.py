@@ -48,7 +48,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                    help="--screenshot: the screen as a terminal of that size shows it, e.g. "
                    "80x24 (default: the whole screen)")
     parser.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
-    opt.include(parser, opt.capture_input(opt.FORMATS, format_help="--replay: skip detection",
+    opt.include(parser, opt.capture_input(format_help="--replay: skip detection",
                                      direction_help="--replay: channel of an input without "
                                      "directions", sw_help=None))
     opt.include(parser, opt.scenario("monitor"), opt.foxglove())

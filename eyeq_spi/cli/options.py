@@ -1,17 +1,7 @@
-"""The option groups several commands share, as argparse parent parsers (``parents=``), and the
-one conversion of parsed options into the library's config objects.
-
-- ``--sw`` (checked against the releases ``specs/`` describes), ``--json``, ``--rt-priority``;
-- capture input (``--format``, ``--direction``, ``--sw``) and the logic-analyzer SPI options;
-- the scenario, link and fault options of ``demo``, ``sim``, ``host`` and ``monitor``.
-
-Every numeric limit lives in :data:`LIMITS` (and the two spans below it): the argparse type
-checks it at parse time, and :func:`sim_config` / :func:`host_parts` check it again for a
-Namespace built by hand, with the same numbers.
-
-An option that belongs to one side only (the simulated EyeQ or the host emulator) is refused,
-never ignored, where that side is not run: :func:`refuse_inapplicable` is the one mechanism
-(``sim --speed``, ``host --objects``, ``monitor --port --seed``, ``monitor --replay --capture``).
+"""The option groups several commands share, as argparse parent parsers, and the one conversion
+of parsed options into the library's config objects. Every numeric limit lives in
+:data:`LIMITS`; an option of one side only is refused where that side does not run
+(:func:`refuse_inapplicable`).
 """
 
 from __future__ import annotations
@@ -19,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection
 from typing import Any
 
 from eyeq_spi import io as formats
@@ -28,8 +18,6 @@ from eyeq_spi.errors import EyeqError, UsageError
 
 # -- capture formats (the one list: dissect, export, replay, plot, monitor) ---------------------
 FORMATS = formats.readers()  # the io registry's capture readers, in detection order
-LOGIC_FORMATS = tuple(n for n in FORMATS if formats.get(n).takes == "spi")  # the SPI options apply
-TRANSFER_FORMATS = tuple(n for n in FORMATS if n not in LOGIC_FORMATS)  # SPI transfers as recorded
 DIRECTIONS = ("h2e", "e2h")
 
 # -- limits: (lo, hi) of every bounded option, checked at parse time and in the conversion -----
@@ -78,12 +66,6 @@ SW_HELP = ("SW release of the traffic (default: the one the capture records or s
 def add_sw(group: Any, help: str = SW_HELP) -> None:
     """``--sw``: a release that ``specs/`` describes, any spelling (``9.0``, ``8.1``, ``sw5``)."""
     group.add_argument("--sw", type=ca.sw_release, help=help)
-
-
-def sw(help: str = SW_HELP) -> argparse.ArgumentParser:
-    parser = _parent()
-    add_sw(parser, help)
-    return parser
 
 
 def json_out(help: str = "end with one JSON object") -> argparse.ArgumentParser:
@@ -159,13 +141,13 @@ def rt_priority(what: str = "ACKs") -> argparse.ArgumentParser:
 
 # -- capture input ------------------------------------------------------------------------------
 
-def capture_input(formats: Sequence[str] = FORMATS, *, spi: bool = True,
-                  direction_help: str = "channel of a raw or hex file without directions",
+def capture_input(*, spi: bool = True,
+                  direction_help: str = "channel of an input without directions",
                   format_help: str = "skip detection",
                   sw_help: str | None = SW_HELP) -> argparse.ArgumentParser:
     """``--format``, ``--direction``, ``--sw`` and (``spi``) the logic-analyzer options."""
     parser = _parent()
-    parser.add_argument("--format", choices=tuple(formats), help=format_help)
+    parser.add_argument("--format", choices=FORMATS, help=format_help)
     parser.add_argument("--direction", choices=DIRECTIONS, help=direction_help)
     if sw_help is not None:
         add_sw(parser, sw_help)
@@ -264,13 +246,10 @@ def refuse_inapplicable(args: argparse.Namespace, sides: Collection[str], where:
 def scenario(side: str = "demo") -> argparse.ArgumentParser:
     """Scenario, link and fault options of ``demo`` (both sides), ``sim`` (the simulated EyeQ),
     ``host`` (the host emulator) and ``monitor`` (both, refused per source at run time)."""
-    if side not in ("demo", "sim", "host", "monitor"):
-        raise ValueError(f"side must be demo, sim, host or monitor, not {side!r}")
     eyeq, host = side != "host", side != "sim"
     both = (EYEQ, HOST)
     parser = _parent()
     group = parser.add_argument_group("scenario")
-    lim = LIMITS
     _side_option(group, [EYEQ], eyeq, "--seed", type=limited("seed"), default=1,
                  help="random seed of the scene, 0..2^32-1 (default 1)")
     add_sw(group, "SW release both sides speak, e.g. 9.0 or 8.1 (default: newest in specs/)")
@@ -281,7 +260,7 @@ def scenario(side: str = "demo") -> argparse.ArgumentParser:
     for dest, default, what in (("objects", 8, "tracked objects"), ("signs", 4, "traffic signs"),
                                 ("light_spots", 4, "light spots")):
         _side_option(group, [EYEQ], eyeq, "--" + dest.replace("_", "-"), type=limited(dest),
-                     default=default, help=f"{what}, {lim[dest][0]}..{lim[dest][1]} "
+                     default=default, help=f"{what}, {LIMITS[dest][0]}..{LIMITS[dest][1]} "
                      f"(default {default})")
     _side_option(group, [HOST], host, "--camera-only-aeb", action="store_true",
                  help="send IPB/PCW (0x78/0x79)")
@@ -299,7 +278,7 @@ def scenario(side: str = "demo") -> argparse.ArgumentParser:
     _side_option(group, [HOST], host, "--can-protocol", choices=("extlog2", "me8"),
                  default="extlog2", help="CAN protocol of --can-out (default extlog2)")
     faults = parser.add_argument_group("faults (simulated EyeQ)") if eyeq else group
-    lo, hi = lim["boot_fail"]
+    lo, hi = LIMITS["boot_fail"]
     _side_option(faults, [EYEQ], eyeq, "--boot-fail", type=limited("boot_fail"), default=0,
                  metavar="N", help=f"the first N boots ({lo}..{hi}) report failing test bits")
     _side_option(faults, [EYEQ], eyeq, "--boot-test-bits", type=ca.boot_test_bits, default=0x0002,

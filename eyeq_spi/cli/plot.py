@@ -48,8 +48,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                    help="--link: time bin (default 100 ms)")
     parser.add_argument("--start", type=float, default=0.0, metavar="S", help="window start, s")
     parser.add_argument("--end", type=float, default=math.inf, metavar="S", help="window end, s")
-    opt.include(parser, opt.capture_input(opt.FORMATS,
-                                     direction_help="channel of an input without directions"))
+    opt.include(parser, opt.capture_input())
 
 
 def _default_output(args: argparse.Namespace, kind: str) -> str:

@@ -4,7 +4,6 @@ host emulator."""
 from __future__ import annotations
 
 import argparse
-import json
 from typing import Any
 
 from eyeq_spi.cli import inputs
@@ -15,7 +14,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
-    parser = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
+    parser = sub.add_parser(name, help=help, parents=[opt.capture_input()],
                        description="Play the EyeQ channel (e2h) of a capture to a host under "
                        "test in real time, keeping the capture's timing and ACKing the host's "
                        "frames (--listen: the host connects to us; --port: we connect to the "
@@ -45,20 +44,12 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    return run_replay(args)
-
-
-def run_replay(args: argparse.Namespace) -> int:
     from eyeq_spi.cli import options as opt
+    from eyeq_spi.cli.run import print_summary
     from eyeq_spi.interop.replay import replay_into_host, replay_to_port
-    from eyeq_spi.summary import format_summary
 
-    if args.duration is not None and args.duration <= 0:
-        raise UsageError("--duration must be positive")
     if args.pty:
         raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
-    if not args.into_host and args.lead < 0:
-        raise UsageError("--lead must not be negative")
     cap = inputs.open_input(args, "replay")
     sink = opt.serve_foxglove(args)
     live: Any = None
@@ -89,9 +80,6 @@ def run_replay(args: argparse.Namespace) -> int:
             opt.foxglove_close(live)
         elif sink is not None:
             sink.close()
-    if args.json:
-        print(json.dumps(summary, sort_keys=True), flush=True)
-    else:
-        print(format_summary(summary), flush=True)
+    print_summary(summary, args.json)
     rc = inputs.tail_note("replay", args.capture, cap.tail)
     return 0 if summary["ok"] and not rc else 1
