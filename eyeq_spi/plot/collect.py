@@ -25,6 +25,19 @@ from eyeq_spi.plot.perceived import Labels, Scene, SceneTracker
 GAP_PERIODS = 3.0  # a stream is stopped after 3 nominal periods of silence, the host's stale rule
 
 
+def frame_counters(record: dict[str, Any]) -> list[str]:
+    """The link counters a frame record counts in (plot --link, monitor): its direction and
+    type, and its fault."""
+    keys = [f"{record['direction'] or '?'} {record['frame_type']}"]
+    if "length" in record:
+        keys.append("wrong length")
+    elif not record["crc_ok"]:
+        keys.append("CRC errors")
+    elif record["frame_type"] == "NAK":
+        keys.append(f"NAK 0x{record['nak_reason']:03X}")
+    return keys
+
+
 @dataclass
 class Window:
     """The part of the capture to draw, in seconds from its start (``--start``/``--end``)."""
@@ -171,14 +184,8 @@ class Collector:
 
     def _link(self, record: dict[str, Any], time_s: float) -> None:
         if record["kind"] == "frame":
-            direction = record["direction"] or "?"
-            self._count(time_s, f"{direction} {record['frame_type']}")
-            if "length" in record:
-                self._count(time_s, "wrong length")
-            elif not record["crc_ok"]:
-                self._count(time_s, "CRC errors")
-            elif record["frame_type"] == "NAK":
-                self._count(time_s, f"NAK 0x{record['nak_reason']:03X}")
+            for key in frame_counters(record):
+                self._count(time_s, key)
         elif record["type"] == "transfer_aborted":
             self._count(time_s, f"abort: {record['reason']}")
 
