@@ -131,9 +131,9 @@ def _foxglove(args: argparse.Namespace, source: Any) -> Any:
     view = getattr(source, "view", None)
     if view is not None:
         return opt.foxglove_feed(args, view.host)
-    from eyeq_spi.foxglove.live import RecordsFeed
+    from eyeq_spi.foxglove.feed import Feed, RecordFeed
 
-    live = RecordsFeed(source.codec, opt.serve_foxglove(args))
+    live = RecordFeed(Feed(source.codec, opt.serve_foxglove(args)))
     source.on_record = live.add
     return live
 

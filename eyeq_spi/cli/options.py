@@ -109,8 +109,8 @@ def foxglove_close(live: Any) -> None:
     """Stop ``--foxglove``'s server; say on stderr what it published."""
     if live is None:
         return
-    live.sink.close()
-    print(f"FOXGLOVE {live.sink.url}: {live.describe()}", file=sys.stderr, flush=True)
+    live.feed.sink.close()
+    print(f"FOXGLOVE {live.feed.sink.url}: {live.describe()}", file=sys.stderr, flush=True)
 
 
 def serve_foxglove(args: argparse.Namespace) -> Any:

@@ -21,35 +21,24 @@ from typing import Any
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.foxglove import topics
 from eyeq_spi.foxglove.scene import KINDS, SceneMessages, fg, frame_transforms, timestamp
-from eyeq_spi.plot.perceived import OBSTACLES, Labels, SceneTracker
+from eyeq_spi.plot.perceived import OBSTACLES, Labels, SceneTracker, walk
 from eyeq_spi.plot.vehicle_frame import CAMERA_HEIGHT_M
 from eyeq_spi.summary import ack_latency_ms
 
 VEH_STATE = "HOST_VEH_STATE_MSG"
 STATS_PERIOD_S = 1.0
-LEVELS = ("debug", "info", "warning", "error")
 
 
 def ns(time_s: float) -> int:
     return max(0, round(time_s * 1e9))
 
 
-def _find(fields: Any, key: str) -> float | None:
+def _find(fields: dict[str, Any], key: str) -> float | None:
     """The first number named ``key`` anywhere in decoded fields (every release's layout)."""
-    if isinstance(fields, dict):
-        value = fields.get(key)
+    for _, struct in walk(fields):
+        value = struct.get(key)
         if isinstance(value, int | float) and not isinstance(value, bool):
             return float(value)
-        for inner in fields.values():
-            if isinstance(inner, dict | list):
-                found = _find(inner, key)
-                if found is not None:
-                    return found
-    elif isinstance(fields, list):
-        for inner in fields:
-            found = _find(inner, key)
-            if found is not None:
-                return found
     return None
 
 
@@ -102,6 +91,16 @@ class Feed:
         self.acks: Counter[int] = Counter()  # 10 µs bin -> DATA frames ACKed, this second
         self.next_stats: float | None = None
         self.published: Counter[str] = Counter()  # topic -> messages written
+        advertise = getattr(sink, "advertise", None)
+        if advertise is not None:  # a live client sees every topic as soon as it connects
+            advertise(schemas())
+
+    def scene_updates(self) -> int:
+        return sum(n for topic, n in self.published.items() if topic.startswith("/scene/"))
+
+    def describe(self) -> str:
+        """What was published, one line."""
+        return f"{self.scene_updates()} scene updates and {self.published[topics.LOG]} log lines"
 
     def message(self, name: str | None, fields: dict[str, Any] | None, time_s: float | None,
                 errors: list[str] | tuple[str, ...] = ()) -> None:
@@ -151,10 +150,8 @@ class Feed:
     def log(self, text: str, time_s: float, level: str = "info", name: str = "eyeq-spi") -> None:
         sdk = fg()
         stamp = ns(time_s)
-        lvl = {"debug": sdk.LogLevel.Debug, "info": sdk.LogLevel.Info,
-               "warning": sdk.LogLevel.Warning, "error": sdk.LogLevel.Error}[level]
-        self._put(topics.LOG, sdk.Log(timestamp=timestamp(stamp), level=lvl, message=text,
-                                      name=name), stamp)
+        self._put(topics.LOG, sdk.Log(timestamp=timestamp(stamp), message=text, name=name,
+                                      level=getattr(sdk.LogLevel, level.capitalize())), stamp)
 
     def tick(self, time_s: float) -> None:
         """Publish the once-a-second topics when their second is over."""
@@ -212,6 +209,9 @@ class RecordFeed:
                           f"{record.get('direction') or '?'} link")
         elif kind == "frame" and time_s is not None and record.get("crc_ok"):
             self._frame(record, time_s)
+
+    def describe(self) -> str:
+        return self.feed.describe()
 
     def _frame(self, record: dict[str, Any], time_s: float) -> None:
         direction = record["direction"]

@@ -70,6 +70,5 @@ class McapScene:
         return {"foxglove": dict(sorted(self.feed.published.items())), "layout": self.layout}
 
     def written(self) -> list[str]:
-        scenes = sum(n for topic, n in self.feed.published.items() if topic.startswith("/scene/"))
-        return [f"{self.layout} (Foxglove layout: 3D scene, plots, log; {scenes} scene updates "
-                "in the MCAP)"]
+        return [f"{self.layout} (Foxglove layout: 3D scene, plots, log; "
+                f"{self.feed.scene_updates()} scene updates in the MCAP)"]
