@@ -11,6 +11,7 @@ import re
 import sys
 from collections import Counter
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -145,13 +146,6 @@ def _sources(args: argparse.Namespace) -> Iterator[tuple[str, Any]]:
         bus.shutdown()
 
 
-def _json_lines() -> tuple[Callable[[dict[str, Any]], None], Callable[[], None]]:
-    """JSON Lines on stdout through the one JSON Lines writer: (write one record, flush)."""
-    from eyeq_spi.io.jsonl import JsonLinesWriter
-
-    return JsonLinesWriter(sys.stdout, fast=True).write, sys.stdout.flush
-
-
 def _decode_args(args: argparse.Namespace) -> re.Pattern[str] | None:
     """Usage checks of ``can decode``; the compiled ``--name``."""
     if args.csv and args.parquet:
@@ -221,16 +215,16 @@ def _decode_stats(args: argparse.Namespace, decoder: Any,
     return 1 if any(r["error_frames"] for r in results) or truncated else 0
 
 
+@dataclass
 class _Run:
     """What a records run has seen, over every file."""
 
-    def __init__(self) -> None:
-        self.frames = 0
-        self.kept = 0
-        self.bad = 0
-        self.other: Counter[int] = Counter()
-        self.skipped_channels: set[str] = set()
-        self.truncated: list[str] = []
+    frames: int = 0
+    kept: int = 0
+    bad: int = 0
+    other: Counter[int] = field(default_factory=Counter)
+    skipped_channels: set[str] = field(default_factory=set)
+    truncated: list[str] = field(default_factory=list)
 
 
 def _record_sink(args: argparse.Namespace, decoder: Any) -> tuple[Any, Callable[[], None]]:
@@ -242,14 +236,14 @@ def _record_sink(args: argparse.Namespace, decoder: Any) -> tuple[Any, Callable[
 
         table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet",
                             column_type=decoder.column_type)
-        raw_invalid = args.raw_invalid
-        tw = table.write
 
         def emit(rec: dict[str, Any]) -> None:
-            tw(table_record(rec, raw_invalid))
+            table.write(table_record(rec, args.raw_invalid))
         return emit, table.close
     if args.json:
-        return _json_lines()
+        from eyeq_spi.io.jsonl import JsonLinesWriter
+
+        return JsonLinesWriter(sys.stdout, fast=True).write, sys.stdout.flush
 
     def show(rec: dict[str, Any]) -> None:
         print(human_record(rec))
@@ -367,6 +361,4 @@ def _decode(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.can_command == "compare":
-        return _compare(args)
-    return _dbc(args) if args.can_command == "dbc" else _decode(args)
+    return int({"compare": _compare, "dbc": _dbc, "decode": _decode}[args.can_command](args))
