@@ -21,6 +21,7 @@ PROTOCOLS = ("extlog2", "me8")
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
     parser = sub.add_parser(name, help=help,
@@ -79,7 +80,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                    "first frame)")
     decode.add_argument("--id", metavar="ID", type=can_id,
                    help="only frames with this arbitration ID (0x739)")
-    decode.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
+    decode.add_argument("--name", metavar="REGEX", type=ca.regex,
+                        help="only messages whose name matches")
     decode.add_argument("--errors-only", action="store_true",
                    help="only frames with errors (not with --stats, which counts them)")
 
@@ -150,10 +152,7 @@ def _decode_args(args: argparse.Namespace) -> re.Pattern[str] | None:
     """Usage checks of ``can decode``; the compiled ``--name``."""
     if args.csv and args.parquet:
         raise UsageError("give --csv or --parquet, not both")
-    try:
-        name_re = re.compile(args.name) if args.name else None
-    except re.error as exc:
-        raise UsageError(f"--name: bad regular expression: {exc}") from None
+    name_re = re.compile(args.name) if args.name else None
     if bool(args.bus) == bool(args.logs):
         raise UsageError("give CAN log files or --bus INTERFACE:CHANNEL (one of them)")
     if not args.bus and (args.count is not None or args.duration is not None):

@@ -50,12 +50,12 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     opt.add_spi_arguments(parser)
 
 
-def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
-    try:
-        name_re = re.compile(args.name) if args.name else None
-    except re.error as exc:
-        raise UsageError(f"--name: bad regular expression: {exc}") from None
+def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool] | None:
+    """What the filters keep; None when they keep every record."""
+    name_re = re.compile(args.name) if args.name else None
     message_filter = bool(args.protocol or args.id is not None or name_re)
+    if not (message_filter or args.errors_only):
+        return None
 
     def keep(record: dict[str, Any]) -> bool:
         kind = record["kind"]
@@ -98,7 +98,6 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("stdin (-) can be given once")
     cat = catalog()
     keep = _filter(args)
-    plain = _plain(args)
     writers: list[Any] = []
     table = None
     if args.csv or args.parquet:
@@ -114,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
         human = HumanWriter(out, codec_for(cat.default_sw), color=out.isatty(),
                             tree=not args.no_tree)
         writers.append(human)
-        if not plain:  # the filters drop records: the human view still dates from
+        if keep is not None:  # the filters drop records: the human view still dates from
             kept = keep  # the file's first transfer, as plot does
 
             def keep(record: dict[str, Any]) -> bool:
@@ -122,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
                 return kept(record)
     config = DissectConfig(fmt=args.format, direction=args.direction,
                            spi=spi_options(args), sw=args.sw, jobs=args.jobs,
-                           fields=fields_mode(writers, plain), blocks=True)
+                           fields=fields_mode(writers, keep is None), blocks=True)
     per_file: list[Stats] = []
     bars = _Bars(len(args.files), records_on_stdout=bool(writers) and table is None)
     try:
@@ -141,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
             if release.warning:
                 print(f"eyeq-spi dissect: warning: {release.warning}", file=sys.stderr,
                       flush=True)
-            deliver(cf.items, stats, writers, keep=None if plain else keep, path=path)
+            deliver(cf.items, stats, writers, keep=keep, path=path)
             if cf.tail.ignored:
                 stats.ignored_bytes = cf.tail.ignored
                 print(f"eyeq-spi dissect: {cf.tail.note(path)}", file=sys.stderr, flush=True)
@@ -213,8 +212,3 @@ class _Bars:
         if self.files_bar is not None:
             self.files_bar.__exit__(None, None, None)
             self.files_bar = None
-
-
-def _plain(args: argparse.Namespace) -> bool:
-    """No filter: every record is kept."""
-    return not (args.protocol or args.id is not None or args.name or args.errors_only)

@@ -13,6 +13,7 @@ from eyeq_spi.errors import UsageError
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
     parser = sub.add_parser(
@@ -42,7 +43,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                    help="--birdseye: metres ahead (default: fitted)")
     parser.add_argument("--lateral", dest="lateral_m", type=float, metavar="M",
                    help="--birdseye: metres to each side (default: fitted)")
-    parser.add_argument("--name", metavar="REGEX",
+    parser.add_argument("--name", metavar="REGEX", type=ca.regex,
                    help="--timing: only messages whose name matches (default: all periodic)")
     parser.add_argument("--bin", dest="bin_ms", type=float, default=100.0, metavar="MS",
                    help="--link: time bin (default 100 ms)")
@@ -73,10 +74,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--{name.split('_')[0]} must be positive")
     if args.max_frames < 1 or args.start < 0 or not args.end > args.start:
         raise UsageError("need --max-frames >= 1 and 0 <= --start < --end")
-    try:
-        name_re = re.compile(args.name) if args.name else None
-    except re.error as exc:
-        raise UsageError(f"--name: bad regular expression: {exc}") from None
+    name_re = re.compile(args.name) if args.name else None
     out = args.output or _default_output(args, kind)
     check_output(out, animated=args.animate)
     mpl()  # fail before reading a large capture when matplotlib is missing
