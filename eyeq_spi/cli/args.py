@@ -1,12 +1,7 @@
-"""Argument types and checks shared by every subcommand.
-
-Each function here is an ``argparse`` ``type=`` (or builds one): it turns the text of one option
-into a checked value or raises :class:`argparse.ArgumentTypeError` with the accepted range or
-values, so argparse reports ``argument --fatal: ...`` and the CLI exits 2 before any work starts.
-Names (messages, MESP functions, fault codes, SW releases) are matched case-insensitively and by
-hex ID, with "did you mean" from :mod:`difflib`. Everything named comes from ``specs/`` through
-the catalogue; nothing here loads it until an option that needs it is given, so ``--help`` and
-most usage errors never pay for it.
+"""Argument types shared by every subcommand: each turns one option's text into a checked
+value or raises :class:`argparse.ArgumentTypeError` with the accepted range or values, so the CLI
+exits 2 before any work starts. Names from ``specs/`` match in any case, by hex ID too, with
+"did you mean"; the catalogue is loaded only when an option needs it.
 """
 
 from __future__ import annotations
@@ -18,7 +13,7 @@ import re
 from collections.abc import Callable, Iterable
 from typing import Any, NamedTuple, NoReturn
 
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import AdapterError, EyeqError
 
 Type = Callable[[str], Any]
 
@@ -312,16 +307,11 @@ def output_dir(text: str) -> str:
     return text
 
 
-def _address_error(exc: Exception) -> NoReturn:
-    _bad(str(exc))
-
-
 def connect_address(text: str) -> str:
     """``--port URL`` of a command that connects (``host``, ``monitor``, ``conformance --dut
     eyeq``): ``tcp://HOST:PORT`` (``socket://`` too), ``rfc2217://HOST:PORT`` or a tty/pty path
     (grammar: :mod:`eyeq_spi.phy.address`) -> the URL to open. ``loop://`` echoes our own
     transfers back and has no peer on it: refused."""
-    from eyeq_spi.errors import AdapterError
     from eyeq_spi.phy.address import CONNECT_FORMS, is_spi, parse_connect
 
     if is_spi(text):
@@ -331,7 +321,7 @@ def connect_address(text: str) -> str:
     try:
         addr = parse_connect(text)
     except AdapterError as exc:
-        _address_error(exc)
+        _bad(str(exc))
     if "://" in addr.url and not addr.url.startswith(("socket://", "rfc2217://")):
         _bad(f"unsupported scheme {text.split('://', 1)[0]}://; give {CONNECT_FORMS}")
     return addr.url
@@ -340,7 +330,6 @@ def connect_address(text: str) -> str:
 def spi_side(text: str) -> str:
     """One side on SPI lines (``MASTER_URL,SLAVE_URL`` or a bench file), checked now (the
     devices are opened by the command)."""
-    from eyeq_spi.errors import EyeqError
     from eyeq_spi.phy.bench import parse_side
 
     try:
@@ -358,7 +347,6 @@ class Endpoint(argparse.Action):
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: Any, option_string: str | None = None) -> None:
-        from eyeq_spi.errors import AdapterError
         from eyeq_spi.phy.address import is_spi, parse_listen
 
         if option_string == "--pty":

@@ -6,7 +6,7 @@ wrapped here to the terminal instead). Every example is a command that parses
 from __future__ import annotations
 
 import argparse
-import os
+import shutil
 import textwrap
 from typing import Any
 
@@ -178,11 +178,7 @@ def _usage_units(text: str) -> list[str]:
 
 
 def _width() -> int:
-    try:
-        cols = int(os.environ.get("COLUMNS", "")) or os.get_terminal_size().columns
-    except (OSError, ValueError):
-        cols = 80
-    return max(40, min(cols, 100) - 2)
+    return max(40, min(shutil.get_terminal_size((80, 24)).columns, 100) - 2)
 
 
 def _examples(lines: list[str]) -> str:

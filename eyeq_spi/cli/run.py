@@ -137,7 +137,7 @@ class LiveView:
                                  break_long_words=False, break_on_hyphens=False)
         print(line, file=self.out or sys.stderr)
 
-    def _periodic(self, host: Any) -> set[str]:
+    def _periodic(self) -> set[str]:
         """The messages the spec gives a nominal rate (seed 004's message table)."""
         if self._periodic_names is None:
             from eyeq_spi.catalog.messages import catalog
@@ -164,7 +164,7 @@ class LiveView:
             counts = Counter(host.counters.received)
             dt = now - self.last_t
             rates = {k: (v - self.last_counts.get(k, 0)) / dt for k, v in counts.items()}
-            periodic = self._periodic(host)  # a boot status or a MESP reply is no stream
+            periodic = self._periodic()  # a boot status or a MESP reply is no stream
             live = {k: r for k, r in rates.items() if r > 0 and k in periodic}
             line = f"[{now:8.3f}] {host.state.value:14s} rx {sum(live.values()):6.1f} msg/s"
             if live:
@@ -178,12 +178,6 @@ class LiveView:
             self._print(line)
             self.last_counts, self.last_t = counts, now
             self.last_live = {k for k, r in live.items() if r >= 2.0}  # periodic streams
-
-
-def _connect_hint(endpoint: str) -> None:
-    """``sim``: the exact command that connects a host (after the LISTEN or PTY line)."""
-    print(f"eyeq-spi sim: waiting for a host: eyeq-spi host --port {endpoint}", file=sys.stderr,
-          flush=True)
 
 
 def _on_sigterm() -> None:
@@ -299,8 +293,9 @@ def run_sim(args: argparse.Namespace) -> int:
     if is_spi(address):  # the host is on the wires already: nothing to hand over
         print("eyeq-spi sim: on the SPI lines; the host runs on the other side's channels",
               file=sys.stderr, flush=True)
-    else:
-        _connect_hint(address)
+    else:  # the exact command that connects a host
+        print(f"eyeq-spi sim: waiting for a host: eyeq-spi host --port {address}",
+              file=sys.stderr, flush=True)
     _on_sigterm()
     out = serve(eyeq, adapter, duration=args.duration, accept_timeout=args.accept_timeout,
                 address=address, rt_priority=args.rt_priority,
@@ -336,26 +331,24 @@ def run_host(args: argparse.Namespace) -> int:
     host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
     host.warm_up()
 
+    used: list[Any] = []  # every adapter of the run, the reconnected ones too
+
     def again(until: float) -> Any:
-        return reopen(lambda: open_url(args.port), until)
+        used.append(reopen(lambda: open_url(args.port), until))
+        return used[-1]
 
     # --reconnect: the EyeQ may not be there yet (a sim still starting, a camera powering up)
     adapter: Any = ((again(time.monotonic() + args.duration) if args.reconnect else None)
                     or _open_or_say(args))
+    used.append(adapter)
     _on_sigterm()
     view = LiveView(sys.stderr.isatty() and not args.json)
-    used = [adapter]  # every adapter of the run, the reconnected ones too
-
-    def again_kept(until: float) -> Any:
-        fresh = again(until)
-        used.append(fresh)
-        return fresh
 
     live = opt.foxglove_feed(args, host)
     try:
         out = drive(host, adapter, duration=args.duration,
                     address=parse_connect(args.port, check_path=False).display,
-                    reopen_adapter=again_kept if args.reconnect else None,
+                    reopen_adapter=again if args.reconnect else None,
                     exit_when_running=args.exit_when_running, rt_priority=args.rt_priority,
                     capture=opt.capture_writer(args),
                     attach=lambda runner: opt.can_output(args, host, runner),
