@@ -1,13 +1,7 @@
-"""The one progress bar of every long job (dissect, export, batch, long demos, conformance).
-
-A rich bar on stderr with the fraction done, the rate and the time left, drawn only when stderr
-is a terminal and never where it could land between records: when the command writes its
-records on stdout, the bar is drawn only if stdout is a file (or /dev/null). A pipe may end on
-the same terminal (``| head``, ``| less``), and a bar redrawn between those lines garbles them.
-
-Library functions take a plain ``progress(done, total)`` callback and know nothing of rich;
-the CLI hands them :meth:`JobProgress.update`. rich is imported only when a bar is drawn, so
-start-up time does not change.
+"""The one progress bar of every long job (dissect, export, batch, long demos, conformance): rich,
+on stderr, drawn only when stderr is a terminal and never where it could land between records
+(records on stdout: only if stdout is a file). Library functions take a plain
+``progress(done, total)`` callback; rich is imported only when a bar is drawn.
 """
 
 from __future__ import annotations

@@ -1,15 +1,9 @@
 """Decoded messages and events in, Foxglove topics out (:mod:`eyeq_spi.foxglove.topics`).
 
-:class:`Feed` is the one translation, fed by a capture's dissector records (:class:`RecordFeed`,
-``export --mcap``) or by a running host (:mod:`eyeq_spi.foxglove.live`). Times are seconds on
-the caller's base (a capture's timestamps, or the run's clock); a sink gets them in ns.
-
-- a scene message (obstacles, road, signs, light spots) without decode errors becomes one
-  SceneUpdate on its topic (E2E and counter errors alone do not hide it, as in every view);
-- HOST_VEH_STATE_MSG's ``vehicleVelocity`` and ``vehicleYawRate`` become ``/ego`` and the
-  dead-reckoned ``odom`` -> ``vehicle`` transform, sent on ``/tf`` with every obstacles update;
-- every second: ``/streams`` (the rates of the last second) and ``/link/ack_latency``;
-- :meth:`Feed.log`: a line on ``/log``.
+:class:`Feed` is the one translation, fed by a capture's dissector records (:class:`RecordFeed`)
+or by a running host (:mod:`eyeq_spi.foxglove.live`). Times are seconds on the caller's base; a
+sink gets them in ns. A scene message with decode errors is skipped (E2E and counter errors alone
+do not hide it, as in every view).
 """
 
 from __future__ import annotations

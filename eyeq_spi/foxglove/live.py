@@ -1,16 +1,9 @@
-"""A live run on a Foxglove sink (``demo``, ``host``, ``replay``, ``monitor`` with
-``--foxglove``).
-
-- :class:`HostFeed`: a running host through its public face only: ``subscribe`` (decoded DASP
-  messages), ``subscribe_traffic`` (every message received or sent, with its time),
-  ``transitions``, its counters and its link's ACK latency histogram;
-- :class:`MessageFeed`: decoded messages handed over one by one (a replay's played messages).
+"""A live run on a Foxglove sink (``--foxglove`` of ``demo``, ``host``, ``replay``, ``monitor``).
 
 The link path pays one dict store per scene message and one counter per message: the latest
-message of each scene kind is kept, and what is new is published at most once per DASP period
-(1/18 s) and kind, one kind per call, so the scene goes out at the DASP rate whatever the link
-does and no single call pays for the whole scene (``tools/bench_foxglove.py`` measures it). A
-sink that says nobody is subscribed (:meth:`ServerSink.subscribed`) gets no scene built.
+message of each scene kind is published at most once per DASP period (1/18 s), one kind per
+call, so no single call pays for the whole scene (``tools/bench_foxglove.py``); a sink nobody is
+subscribed to gets no scene built.
 """
 
 from __future__ import annotations

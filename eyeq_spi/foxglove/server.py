@@ -1,12 +1,7 @@
-"""A live Foxglove WebSocket server (the SDK's, protocol ``foxglove.websocket.v1``) as a
-:class:`~eyeq_spi.foxglove.topics.Sink`: ``--foxglove [HOST:PORT]`` of ``demo``, ``host``,
-``replay`` and ``monitor``.
-
-The server runs on the SDK's own threads; :meth:`ServerSink.message` hands it an encoded
-message and returns (the SDK queues it per client and drops the oldest for a slow client), so
-the run's loop never waits on a client. Each server has its own SDK context, so its channels
-are its own. Log times are the wall clock's (the run's clock reading plus the offset taken at
-the first message), as Foxglove shows a live source.
+"""A live Foxglove WebSocket server (the SDK's) as a :class:`~eyeq_spi.foxglove.topics.Sink`
+(``--foxglove [HOST:PORT]``). The server runs on the SDK's threads and queues per client, so the
+run's loop never waits on a client; log times are the wall clock's, as Foxglove shows a live
+source.
 """
 
 from __future__ import annotations

@@ -1,10 +1,6 @@
-"""The monitor's loop: advance the source until the next redraw, draw, repeat.
-
-Drawing happens between protocol slices, never inside them. With ``refresh`` Hz the source gets
-the wall time up to each redraw; the demo source keeps its virtual clock on the wall clock and
-catches up whatever the drawing took, the host source's runner never waits past a redraw.
-On a terminal the screen is redrawn in place (rich ``Live``, plain ANSI: it works over SSH);
-without one (a pipe) only the final screen is printed.
+"""The monitor's loop: advance the source until the next redraw, draw, repeat. On a terminal the
+screen is redrawn in place (rich ``Live``); without one (a pipe) only the final screen is
+printed.
 """
 
 from __future__ import annotations

@@ -1,10 +1,6 @@
-"""``eyeq-spi monitor --can-bus INTERFACE:CHANNEL``: a live view of a Mobileye CAN bus, in the
-manner of ``cantools monitor``: one line per frame ID with its message name, frame count, cycle
-time against the spec, and the newest decoded signals (invalid values marked, errors in red).
-
-:class:`CanBusView` is sans-IO: ``add(msg, now)`` for each received frame, ``lines(width,
-height)`` for the screen. :func:`run_can_monitor` reads the bus (``eyeq_spi.can.logs``) between
-redraws and draws with rich ``Live``, as the protocol monitor does.
+"""``eyeq-spi monitor --can-bus INTERFACE:CHANNEL``: one line per frame ID with its message,
+count, cycle time against the spec and newest signals, as ``cantools monitor``.
+:class:`CanBusView` is sans-IO (``add(msg, now)``, ``lines(width, height)``).
 """
 
 from __future__ import annotations
