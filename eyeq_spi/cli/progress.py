@@ -12,7 +12,7 @@ import stat
 import sys
 import time
 from types import TracebackType
-from typing import IO, Any
+from typing import Any
 
 LABEL = 28  # characters of the label: the bar fits an 80-column terminal
 REFRESH = 0.1  # s between two updates of the bar (rich redraws at most this often anyway)
@@ -97,20 +97,12 @@ class JobProgress:
         self._last = now
         self._progress.update(self._task, completed=done, total=self.total)
 
-    def __call__(self, done: float, total: float | None = None) -> None:
-        self.update(done, total)
-
     def print(self, line: str) -> None:
         """A line on stderr above the bar (or plainly when there is no bar)."""
         if self._progress is not None:
             self._progress.console.print(line, markup=False, highlight=False, soft_wrap=True)
         else:
             print(line, file=sys.stderr)
-
-    def lines(self) -> Lines:
-        """A file-like object whose lines :meth:`print` writes (for code that prints)."""
-        return Lines(self)
-
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
@@ -119,29 +111,3 @@ class JobProgress:
                 self._progress.stop()
             self._progress = None
 
-
-def file_size(fh: IO[bytes]) -> int | None:
-    """Size of a regular file behind ``fh``; None for a pipe or stdin."""
-    try:
-        st = os.fstat(fh.fileno())
-    except (OSError, ValueError, AttributeError):
-        return None
-    return st.st_size if stat.S_ISREG(st.st_mode) else None
-
-
-class Lines:
-    """Text written here goes to :meth:`JobProgress.print`, line by line."""
-
-    def __init__(self, bar: JobProgress) -> None:
-        self.bar = bar
-        self.buf = ""
-
-    def write(self, text: str) -> int:
-        self.buf += text
-        while "\n" in self.buf:
-            line, self.buf = self.buf.split("\n", 1)
-            self.bar.print(line)
-        return len(text)
-
-    def flush(self) -> None:
-        pass

@@ -9,6 +9,7 @@ import contextlib
 import json
 import sys
 from collections import Counter
+from collections.abc import Callable
 from typing import Any
 
 from eyeq_spi import garbage
@@ -113,9 +114,10 @@ class LiveView:
     columns), folded between words, never cut; the first FATAL_22 gets an explanation (an empty
     NVM on a first run)."""
 
-    def __init__(self, enabled: bool, out: Any = None, width: int | None = None) -> None:
+    def __init__(self, enabled: bool, say: Callable[[str], None] | None = None,
+                 width: int | None = None) -> None:
         self.enabled = enabled
-        self.out = out
+        self.say = say or (lambda line: print(line, file=sys.stderr))
         self.width = width or _stderr_width()
         self.shown = 0
         self.last_counts: Counter[str] = Counter()
@@ -135,7 +137,7 @@ class LiveView:
             line = textwrap.fill(line.strip(), self.width, initial_indent=lead,
                                  subsequent_indent=" " * max(indent, len(lead)),
                                  break_long_words=False, break_on_hyphens=False)
-        print(line, file=self.out or sys.stderr)
+        self.say(line)
 
     def _periodic(self) -> set[str]:
         """The messages the spec gives a nominal rate (seed 004's message table)."""
@@ -236,7 +238,7 @@ def run_demo(args: argparse.Namespace) -> int:
     try:
         with JobProgress("demo", args.duration, unit="s of run time",
                          enabled=None if long_run else False) as bar:
-            view = LiveView(sys.stderr.isatty() and not args.json, out=bar.lines())
+            view = LiveView(sys.stderr.isatty() and not args.json, say=bar.print)
             while done_s < args.duration:
                 step = min(0.25, args.duration - done_s)
                 emu.run_for(step, realtime=not args.virtual_time)

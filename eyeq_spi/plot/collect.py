@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi import garbage
-from eyeq_spi.capture.pcapng_io import Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file
 from eyeq_spi.errors import InputError, UsageError
@@ -198,20 +197,14 @@ class Collector:
         return self.out
 
 
-def collect(path: str, collector: Collector, *, fmt: str | None = None,
-            direction: str | None = None, tail: Tail | None = None,
-            spi: SpiOptions | None = None) -> Collected:
+def collect(path: str, collector: Collector, *, spi: SpiOptions | None = None) -> Collected:
     """The capture file ``path`` (any format :mod:`eyeq_spi.dissect.pipeline` reads) through
-    ``collector``, dissected with the collector's release. ``tail``: filled with what the
-    reader ignored at the end of a pcapng file cut inside a block."""
-    cf = open_capture_file(path, DissectConfig(fmt=fmt, direction=direction, spi=spi,
-                                               sw=collector.codec.sw))
+    ``collector``, dissected with the collector's release."""
+    cf = open_capture_file(path, DissectConfig(spi=spi, sw=collector.codec.sw))
     try:
         return collect_capture(cf, collector)
     finally:
         cf.close()
-        if tail is not None:
-            tail.ignored, tail.at = cf.tail.ignored, cf.tail.at
 
 
 def collect_capture(cf: CaptureFile, collector: Collector) -> Collected:
