@@ -34,12 +34,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     dbc.add_argument("--output", "-o", metavar="DIR", default=".",
                    help="directory for PROTOCOL.dbc (default .); - prints one protocol")
     compare = cs.add_parser("compare", help="compare a vendor's DBC with ours, signal by signal",
-                      description="A DBC you hold (vendor, public) against the DBC built from "
-                      "specs/can/: ID, DLC, cycle and each signal's start, length, byte order, "
-                      "sign, scale, offset, unit, range, invalid value and choices. Each "
-                      "difference says what differs, ours -> theirs, and where ours comes from; "
-                      "the same difference in every slot is one line. Exit 0 the same, 1 "
-                      "differences, 2 bad input.")
+                      description="A DBC you hold against the DBC built from specs/can/, "
+                      "message by message and signal by signal; each difference says ours -> "
+                      "theirs and where ours comes from. Exit 0 the same, 1 differences, 2 bad "
+                      "input.")
     compare.add_argument("dbc", metavar="OTHER.dbc", help="the DBC file to compare")
     compare.add_argument("--protocol", choices=PROTOCOLS,
                    help="our protocol to compare with (default: the one whose IDs the DBC "
@@ -47,12 +45,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     opt.include(compare, opt.json_out("the differences as a JSON list"))
     decode = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
                       "or a live bus",
-                      description="Decode CAN logs with the protocols of specs/can/, each log "
-                      "on its own. Exit 0 clean, 1 frames with errors (wrong DLC, value out of "
-                      "range) or a truncated log, 2 bad input or usage. Other nodes' frames "
-                      "(IDs the protocol does not define, or the protocol's IDs on channels "
-                      "other than the camera's), cycle-time deviations, short DLCs that hold "
-                      "every signal and invalid values are shown, not errors.")
+                      description="Decode CAN logs (each on its own) with the protocols of "
+                      "specs/can/. Exit 0 clean, 1 frames with errors (wrong DLC, value out of "
+                      "range) or a truncated log, 2 bad input or usage; other nodes' frames, "
+                      "cycle-time deviations and invalid values are shown, not errors.")
     decode.add_argument("logs", nargs="*", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
                    ".mf4 .csv)")
     decode.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",

@@ -21,12 +21,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
     parser = sub.add_parser(
         name, help=help,
-        description="Play the host against an EyeQ under test (--dut eyeq --port URL) or the "
-        "EyeQ against a host under test (--dut host --listen tcp://HOST:PORT or --pty), judge "
-        "one case per requirement of seed 004 and the protocol decisions, and report verdicts "
-        "with evidence. --builtin runs the suite against our own simulated EyeQ or host in "
-        "virtual time. Exit 0 when no case fails, 1 when one fails, 2 for usage or connection "
-        "errors.")
+        description="Play the host against an EyeQ under test (--dut eyeq) or the EyeQ against "
+        "a host under test (--dut host): one case per requirement of seed 004 and the protocol "
+        "decisions, each with a verdict and its evidence. Exit 0 when no case fails, 1 when one "
+        "fails, 2 for usage or connection errors.")
     parser.add_argument("--dut", choices=("eyeq", "host"), help="the implementation under test")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--port", dest="endpoint", action=ca.Endpoint, metavar="URL",

@@ -15,13 +15,11 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import options as opt
 
     parser = sub.add_parser(name, help=help, parents=[opt.capture_input()],
-                       description="Play the EyeQ channel (e2h) of a capture to a host under "
-                       "test in real time, keeping the capture's timing and ACKing the host's "
-                       "frames (--listen: the host connects to us; --port: we connect to the "
-                       "host), or (--into-host) to the built-in host emulator in virtual time. "
-                       "Ends with the run summary demo, host and sim print. Exit 0 when the run "
-                       "is ok: played to the end with nothing lost (--into-host: checked as "
-                       "host checks, Running Vision reached and held), else 1.")
+                       description="Play a capture's EyeQ channel (e2h) to a host under test "
+                       "in real time, in the capture's timing, ACKing the host's frames, or "
+                       "(--into-host) to the built-in host emulator in virtual time; end with the "
+                       "run summary. Exit 0 when played to the end with nothing lost "
+                       "(--into-host: Running Vision reached and held), else 1.")
     inputs.add_capture_argument(parser)
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
