@@ -137,9 +137,5 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
         console.width = max(console.width, *(t.cell_len for t in lines))
         console.print(rich.Group(*lines))
     if screenshot is not None:
-        _save(view, screenshot)
+        save_lines(view.lines(width=400), screenshot, f"eyeq-spi monitor: {view.source}")
     return view
-
-
-def _save(view: CanBusView, path: str) -> None:
-    save_lines(view.lines(width=400), path, f"eyeq-spi monitor: {view.source}")
