@@ -8,6 +8,7 @@ import argparse
 import contextlib
 import json
 import sys
+import time
 from collections import Counter
 from collections.abc import Callable
 from typing import Any
@@ -207,29 +208,24 @@ LONG_DEMO_S = 20.0  # demos this long or longer show a progress bar on a termina
 
 
 def run_demo(args: argparse.Namespace) -> int:
+    from eyeq_spi.cli.progress import JobProgress
     from eyeq_spi.emulator import summary
+    from eyeq_spi.summary import ClockedAcks, ack_latency_ms
 
     emu, writer = opt.build_demo(args)
+    collector = contextlib.ExitStack()
+    acks = None
     if not args.virtual_time:
         # in real time the link's deadlines are read on the clock: no first-time codec build
         # and no full collection may delay an ACK past ackTimeout (the live sim and host warm
         # up, and collect only between bursts, the same way)
         emu.host.warm_up()
         emu.sim.warm_up()
-    collector = contextlib.ExitStack()
-    acks = None
-    if not args.virtual_time:
         collector.enter_context(garbage.paused(freeze=True))
-        import time
-
-        from eyeq_spi.summary import ClockedAcks
-
-        # in real time, the summary's ACK latencies are readings of the clock too
+        # the summary's ACK latencies are readings of the clock too
         acks = emu.runner.tap = ClockedAcks(time.monotonic, then=emu.runner.tap)
     can_out = opt.can_output(args, emu.host, emu.runner)  # --can-out: the CAN gateway
     live = opt.foxglove_feed(args, emu.host)
-    from eyeq_spi.cli.progress import JobProgress
-
     _on_sigterm()
     done_s = 0.0
     interrupted = False
@@ -259,8 +255,6 @@ def run_demo(args: argparse.Namespace) -> int:
         opt.foxglove_close(live)
     out = summary(emu, interrupted=interrupted)
     if acks is not None:
-        from eyeq_spi.summary import ack_latency_ms
-
         out["ack_latency_ms"] = ack_latency_ms(acks.hist)
     if can_out is not None:
         out["can"] = can_out.summary()
@@ -322,8 +316,6 @@ def _open_or_say(args: argparse.Namespace) -> Any:
 
 
 def run_host(args: argparse.Namespace) -> int:
-    import time
-
     from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.live import drive, reopen
     from eyeq_spi.phy.address import parse_connect
