@@ -12,6 +12,7 @@ cropped mid-line: each line is at most ``width`` cells.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.monitor.model import Snapshot
@@ -61,14 +62,13 @@ def _flow(text_cls: Any, title: str, items: list[tuple[str, str]], width: int) -
     return lines
 
 
+@dataclass
 class Panel:
     """A panel's full lines and its one-line folded form."""
 
-    def __init__(self, lines: Lines, folded: Any,
-                 partial: Callable[[int], Lines] | None = None) -> None:
-        self.lines = lines
-        self.folded = folded
-        self.partial = partial  # the panel in n lines (n < len(lines)), where it can shrink
+    lines: Lines
+    folded: Any
+    partial: Callable[[int], Lines] | None = None  # the panel in n < len(lines) lines
 
 
 def _rates(text_cls: Any, snap: Snapshot, width: int) -> Panel:
