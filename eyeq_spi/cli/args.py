@@ -11,7 +11,7 @@ import math
 import os
 import re
 from collections.abc import Callable, Iterable
-from typing import Any, NamedTuple, NoReturn
+from typing import Any, NoReturn
 
 from eyeq_spi.errors import AdapterError, EyeqError
 
@@ -29,19 +29,6 @@ def catalogue() -> Any:
         return catalog()
     except EyeqError as exc:  # a broken specs/ is not the user's argument: say so plainly
         _bad(f"cannot check it: {exc}")
-
-
-class _Msg(NamedTuple):
-    name: str
-    data_id: int
-    protocol: str
-    direction: str
-
-
-class _Fn(NamedTuple):
-    name: str
-    service: int
-    function: int
 
 
 _INDEX_TAG = "argument-names-1"  # bump when _build_index changes shape
@@ -161,26 +148,28 @@ def _named(text: str, entries: dict[str, Any], ids: dict[int, str], what: str,
     _bad(f"unknown {what} {stripped!r}{did_you_mean(stripped, entries)}; {listing}")
 
 
-def _messages(pred: Callable[[Any], bool]) -> tuple[dict[str, Any], dict[int, str]]:
-    msgs = [m for m in (_Msg(*r) for r in _index()["messages"]) if pred(m)]
-    return {m.name: m for m in msgs}, {m.data_id: m.name for m in msgs}
+def _messages(protocol: str | None = None, direction: str | None = None
+              ) -> tuple[dict[str, int], dict[int, str]]:
+    """Name -> data ID and data ID -> name of the messages of ``protocol`` and ``direction``."""
+    rows = [(name, data_id) for name, data_id, proto, way in _index()["messages"]
+            if protocol in (None, proto) and direction in (None, way)]
+    return dict(rows), {data_id: name for name, data_id in rows}
 
 
 def eyeq_dasp_message(text: str) -> str:
     """A DASP message the EyeQ sends: name (any case) or data ID (``0xE4``) -> name."""
-    names, ids = _messages(lambda m: m.protocol == "DASP" and m.direction == "e2h")
+    names, ids = _messages("DASP", "e2h")
     return _named(text, names, ids, "DASP message of the EyeQ",
                   "eyeq-spi spec list shows them")
 
 
 def message_id(text: str) -> int:
     """A data ID (0..255, ``0xE4``) or a message name (any case) -> its data ID."""
-    names, ids = _messages(lambda m: True)
+    names, ids = _messages()
     try:
         value = _int(text)
     except ValueError:
-        return int(names[_named(text, names, ids, "message", "eyeq-spi spec list shows them")]
-                   .data_id)
+        return names[_named(text, names, ids, "message", "eyeq-spi spec list shows them")]
     if not 0 <= value <= 0xFF:
         _bad(f"must be a data ID in 0..255 (0x00..0xFF) or a message name, got {text!r}")
     return value
@@ -189,7 +178,7 @@ def message_id(text: str) -> int:
 def mesp_function(text: str) -> str:
     """A MESP function: name (any case), ``SERVICE/FUNCTION`` (``0x05/0x04``) or a function
     number that only one service uses -> its name."""
-    fns = {f.name: f for f in (_Fn(*r) for r in _index()["mesp"])}
+    fns = {name: (service, function) for name, service, function in _index()["mesp"]}
     listing = "functions: " + ", ".join(fns)
     pair = re.fullmatch(r"\s*(\w+)\s*/\s*(\w+)\s*", text)
     if pair:
@@ -197,13 +186,13 @@ def mesp_function(text: str) -> str:
             key = (_int(pair.group(1)), _int(pair.group(2)))
         except ValueError:
             key = None
-        for entry in fns.values():
-            if (entry.service, entry.function) == key:
-                return str(entry.name)
+        for name, numbers in fns.items():
+            if numbers == key:
+                return str(name)
         _bad(f"no MESP function {text.strip()}; {listing}")
     by_fn: dict[int, list[str]] = {}
-    for entry in fns.values():
-        by_fn.setdefault(entry.function, []).append(entry.name)
+    for name, (_, function) in fns.items():
+        by_fn.setdefault(function, []).append(name)
     unique = {k: v[0] for k, v in by_fn.items() if len(v) == 1}
     return _named(text, fns, unique, "MESP function", listing)
 
