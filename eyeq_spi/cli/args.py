@@ -297,10 +297,8 @@ def output_dir(text: str) -> str:
 
 
 def connect_address(text: str) -> str:
-    """``--port URL`` of a command that connects (``host``, ``monitor``, ``conformance --dut
-    eyeq``): ``tcp://HOST:PORT`` (``socket://`` too), ``rfc2217://HOST:PORT`` or a tty/pty path
-    (grammar: :mod:`eyeq_spi.phy.address`) -> the URL to open. ``loop://`` echoes our own
-    transfers back and has no peer on it: refused."""
+    """``--port URL`` of a command that connects, in the grammar of :mod:`eyeq_spi.phy.address`
+    -> the URL to open; ``loop://`` has no peer on it: refused."""
     from eyeq_spi.phy.address import CONNECT_FORMS, is_spi, parse_connect
 
     if is_spi(text):
@@ -329,10 +327,8 @@ def spi_side(text: str) -> str:
 
 
 class Endpoint(argparse.Action):
-    """``--listen tcp://HOST:PORT``, ``--port URL`` and ``--pty`` of a command that may listen
-    (``sim``, ``replay``, ``conformance``), in the one address grammar of
-    :mod:`eyeq_spi.phy.address`. Each sets ``listen`` (``tcp://HOST:PORT``), ``port`` (the URL
-    to connect to) or ``pty`` in the namespace."""
+    """``--listen``, ``--port`` and ``--pty`` of a command that may listen: each sets its own
+    attribute (``listen``, ``port`` or ``pty``) in the namespace."""
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: Any, option_string: str | None = None) -> None:

@@ -61,10 +61,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def _progress(args: argparse.Namespace) -> Any:
-    """The session lines on stderr (above the bar on a terminal). A live run prints them
-    wherever stderr goes, a pipe or a log too (with --json as well: the records are on
-    stdout): whoever runs the implementation under test must see when each session waits for
-    it. A --builtin run prints them on a terminal only, as the scheduling line of a live run."""
+    """The session lines on stderr: always in a live run (whoever runs the implementation under
+    test must see when each session waits for it), on a terminal only with --builtin."""
     if args.builtin and (args.json or not sys.stderr.isatty()):
         return None
     return lambda text: print(text, file=sys.stderr, flush=True)

@@ -398,11 +398,9 @@ def can_output(args: argparse.Namespace, host: Any, runner: Any) -> Any:
 
 
 class CaptureTap:
-    """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``.
-
-    ``clock`` (a real-time run): every transfer is stamped with the clock's reading when the
-    emulator handed it over, since the first one (which keeps its time on the schedule), not
-    with the schedule's instant; None: the schedule (virtual time)."""
+    """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``. With
+    ``clock`` (real time) a transfer is stamped with the clock's reading when it was handed
+    over, else with the schedule's instant (virtual time)."""
 
     DIRECTIONS = ("h2e", "e2h")
 

@@ -39,11 +39,8 @@ def bar_allowed(records_on_stdout: bool) -> bool:
 
 
 class JobProgress:
-    """``with JobProgress("reading x.pcapng", total) as p: ... p.update(done)``.
-
-    A no-op when :func:`bar_allowed` says no. ``unit`` ``"bytes"`` shows sizes and a transfer
-    rate; anything else shows counts of that unit. The bar is transient: gone when the job ends,
-    whatever way it ends (an exception, a closed pipe)."""
+    """``with JobProgress("reading x.pcapng", total) as p: ... p.update(done)``: a no-op when
+    :func:`bar_allowed` says no, gone when the job ends whatever way it ends."""
 
     def __init__(self, label: str, total: float | None = None, *, unit: str = "bytes",
                  records_on_stdout: bool = False, enabled: bool | None = None) -> None:

@@ -107,13 +107,9 @@ def _stderr_width() -> int:
 
 
 class LiveView:
-    """On a TTY: state transitions as they happen and message rates once a second.
-
-    One time base: every time printed is seconds since the run started, the same clock the
-    transitions carry (a host on the wall clock has its start subtracted, inferred from the
-    host's own ``now`` on the first update). Every line fits the terminal (at most 100
-    columns), folded between words, never cut; the first FATAL_22 gets an explanation (an empty
-    NVM on a first run)."""
+    """On a TTY: state transitions as they happen and message rates once a second, in seconds
+    since the run started (a host on the wall clock has its start subtracted), each line folded
+    to the terminal's width; the first FATAL_22 gets an explanation."""
 
     def __init__(self, enabled: bool, say: Callable[[str], None] | None = None,
                  width: int | None = None) -> None:

@@ -62,9 +62,7 @@ def band(rate_hz: float | None, tolerance_ms: tuple[float, float] | None
 
 class RateMeter:
     """Message rates over the last ``window`` seconds, by the one definition of a stream's rate
-    (:func:`eyeq_spi.stream_rate.stream_rate`: over its active spans, a gap left out and
-    counted). Each message's arrival is given to :meth:`arrived`; the meter keeps, per message,
-    the arrival times inside its window (a deque each: memory bounded by rate x window)."""
+    (:func:`eyeq_spi.stream_rate.stream_rate`), from the arrival times inside the window."""
 
     def __init__(self, cat: Catalog, window: float = RATE_WINDOW) -> None:
         self.cat = cat
