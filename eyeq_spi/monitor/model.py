@@ -24,7 +24,6 @@ class RateRow:
     count: int
     hz: float | None  # None until the window holds two messages
     nominal_hz: float | None
-    band_hz: tuple[float, float] | None  # the rates the period tolerance allows
     status: str  # "ok" | "low" | "high" | "stopped" | "-"
     gaps: int = 0  # gaps inside the window, left out of the rate (stream_rate)
 
@@ -122,6 +121,6 @@ class RateMeter:
                     status = "high"
                 else:
                     status = "ok"
-            out.append(RateRow(name, self._counts.get(name, 0), hz, nominal, limits, status,
+            out.append(RateRow(name, self._counts.get(name, 0), hz, nominal, status,
                                len(rate.gaps)))
         return out
