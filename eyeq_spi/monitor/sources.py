@@ -37,7 +37,6 @@ class _HostView:
         self.rates = RateMeter(host.codec.cat)
         self.tracker = SceneTracker(Labels(host.codec))
         self._latest: dict[str, DecodedMessage] = {}
-        self._now = 0.0
         host.subscribe(self._on_message)
         host.subscribe_traffic(self._on_traffic)
 
@@ -230,7 +229,6 @@ class DissectSource:
         self.state = "-"
         self.transitions: list[tuple[float, str, str, str]] = []
         self.transitions_seen = 0
-        self._main = Labels(codec)
         self.on_record: Callable[[dict[str, Any]], None] | None = None  # every record, as read
 
     def _next(self) -> dict[str, Any] | None:
@@ -282,7 +280,7 @@ class DissectSource:
 
     def _main_state(self, fields: dict[str, Any]) -> None:
         state = fields.get("Main_State")
-        label = self._main.label(MAIN_STATE_MSG, ("Main_State",), state)
+        label = self.tracker.labels.label(MAIN_STATE_MSG, ("Main_State",), state)
         if label != self.state:
             self.transitions.append((self.now, self.state, "0x41", label))
             self.transitions = self.transitions[-8:]
