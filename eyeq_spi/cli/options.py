@@ -7,6 +7,7 @@ of parsed options into the library's config objects. Every numeric limit lives i
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from collections.abc import Callable, Collection
@@ -123,6 +124,16 @@ def serve_foxglove(args: argparse.Namespace) -> Any:
           "the layout: the .layout.json that export --mcap writes, or "
           "docs/foxglove.layout.json)", file=sys.stderr, flush=True)
     return sink
+
+
+def print_summary(out: dict[str, Any], as_json: bool) -> None:
+    """The JSON object (``--json``) or a readable text block: same content."""
+    if as_json:
+        print(json.dumps(out, sort_keys=True), flush=True)
+        return
+    from eyeq_spi.summary import format_summary
+
+    print(format_summary(out), flush=True)
 
 
 def rt_priority(what: str = "ACKs") -> argparse.ArgumentParser:

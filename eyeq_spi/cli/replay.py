@@ -43,7 +43,6 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from eyeq_spi.cli import options as opt
-    from eyeq_spi.cli.run import print_summary
     from eyeq_spi.interop.replay import replay_into_host, replay_to_port
 
     if args.pty:
@@ -78,6 +77,6 @@ def run(args: argparse.Namespace) -> int:
             opt.foxglove_close(live)
         elif sink is not None:
             sink.close()
-    print_summary(summary, args.json)
+    opt.print_summary(summary, args.json)
     rc = inputs.tail_note("replay", args.capture, cap.tail)
     return 0 if summary["ok"] and not rc else 1

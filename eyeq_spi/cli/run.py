@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import sys
 import time
 from collections import Counter
@@ -190,16 +189,6 @@ def _on_sigterm() -> None:
         signal.signal(signal.SIGTERM, raise_interrupt)
 
 
-def print_summary(out: dict[str, Any], as_json: bool) -> None:
-    """The JSON object (``--json``) or a readable text block: same content."""
-    if as_json:
-        print(json.dumps(out, sort_keys=True), flush=True)
-        return
-    from eyeq_spi.summary import format_summary
-
-    print(format_summary(out), flush=True)
-
-
 LONG_DEMO_S = 20.0  # demos this long or longer show a progress bar on a terminal
 
 
@@ -254,7 +243,7 @@ def run_demo(args: argparse.Namespace) -> int:
         out["ack_latency_ms"] = ack_latency_ms(acks.hist)
     if can_out is not None:
         out["can"] = can_out.summary()
-    print_summary(out, args.json)
+    opt.print_summary(out, args.json)
     return 0 if out["ok"] else 1
 
 
@@ -293,7 +282,7 @@ def run_sim(args: argparse.Namespace) -> int:
                 address=address, rt_priority=args.rt_priority,
                 capture=opt.capture_writer(args))
     out["spi"] = adapter.line_report()  # on SPI lines: the reply latency measured
-    print_summary(out, args.json)
+    opt.print_summary(out, args.json)
     return 0 if out["ok"] else 1
 
 
@@ -346,5 +335,5 @@ def run_host(args: argparse.Namespace) -> int:
     finally:
         opt.foxglove_close(live)
     out["spi"] = used[-1].line_report() if used[-1] is not None else None
-    print_summary(out, args.json)
+    opt.print_summary(out, args.json)
     return 0 if out["ok"] else 1

@@ -11,18 +11,33 @@ cropped mid-line: each line is at most ``width`` cells.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.monitor.model import Snapshot
-from eyeq_spi.monitor.view import STATUS_STYLE, fit, is_error, number
 from eyeq_spi.plot.charts import short
 from eyeq_spi.plot.perceived import NO_TTC, SceneObject
 
+STATUS_STYLE = {"ok": "green", "low": "yellow", "high": "yellow", "stopped": "bold red",
+                "-": "dim"}
 MIN_WIDTH = 80  # two columns of 39 cells and a gap
 
 Lines = list[Any]  # rich Text
+
+
+def fit(text: str, width: int) -> str:
+    """``text`` cut to ``width`` cells, an ellipsis marking the cut."""
+    return text if len(text) <= width else text[:width - 1] + "\u2026"
+
+
+def number(value: float | None, spec: str = "6.1f") -> str:
+    return "-" if value is None or not math.isfinite(value) else format(value, spec)
+
+
+def is_error(key: str) -> bool:
+    return not key.endswith((" DATA", " ACK")) and key not in ("duplicate", "driver_reset")
 
 
 def _ttc(obj: SceneObject) -> str:

@@ -4,18 +4,16 @@ Pure: the same snapshot always gives the same screen."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.errors import OutputError
+from eyeq_spi.monitor.compact import STATUS_STYLE, compact_lines, fit, is_error, number
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.plot.charts import short
 from eyeq_spi.plot.figures import plural
 from eyeq_spi.plot.perceived import NO_TTC
 
-STATUS_STYLE = {"ok": "green", "low": "yellow", "high": "yellow", "stopped": "bold red",
-                "-": "dim"}
 GOOD_STATES = ("RUNNING_VISION", "RUNNING_TAC", "RUNNING_SPC", "DV", "Running Vision")
 
 
@@ -49,11 +47,6 @@ Col = tuple[str, int, str]  # header, width, justify
 Cell = tuple[str, str]  # text, style
 GAP = "  "  # between columns
 SIDE_GAP = "   "  # between two blocks side by side
-
-
-def fit(text: str, width: int) -> str:
-    """``text`` cut to ``width`` cells, an ellipsis marking the cut."""
-    return text if len(text) <= width else text[:width - 1] + "\u2026"
 
 
 def _cell(text: str, width: int, just: str) -> str:
@@ -118,14 +111,6 @@ def _link(snap: Snapshot) -> list[Any]:
     stale = ", ".join(short(s) for s in snap.stale) or "none"
     rows.append(([("stale streams", ""), (stale, "bold red" if snap.stale else "green")], ""))
     return _block("link", LINK_COLS, rows)
-
-
-def is_error(key: str) -> bool:
-    return not key.endswith((" DATA", " ACK")) and key not in ("duplicate", "driver_reset")
-
-
-def number(value: float | None, spec: str = "6.1f") -> str:
-    return "-" if value is None or not math.isfinite(value) else format(value, spec)
 
 
 def _objects(snap: Snapshot) -> list[Any]:
@@ -210,8 +195,6 @@ def screen_lines(snap: Snapshot, width: int | None = None,
     too_wide = width is not None and max(t.cell_len for t in lines) > width
     # the last row is the cursor's: a screen of ``height`` lines scrolls its title away
     if height is not None and width is not None and (len(lines) > height - 1 or too_wide):
-        from eyeq_spi.monitor.compact import compact_lines
-
         lines = compact_lines(snap, head, width, height - 1, Text)  # the cursor's line
     for line in lines:
         line.no_wrap, line.overflow, line.end = True, "crop", "\n"
