@@ -134,11 +134,9 @@ def _demo_source(args: argparse.Namespace) -> Any:
     from eyeq_spi.monitor.sources import DemoSource
 
     emu, writer = opt.build_demo(args)
-    source = DemoSource(emu, 10.0 if args.duration is None else args.duration,
-                        realtime=not args.virtual_time)
-    if writer is not None:
-        source.close = writer.close  # type: ignore[method-assign]
-    return source
+    return DemoSource(emu, 10.0 if args.duration is None else args.duration,
+                      realtime=not args.virtual_time,
+                      on_close=None if writer is None else writer.close)
 
 
 def _host_source(args: argparse.Namespace) -> Any:

@@ -81,8 +81,10 @@ class DemoSource:
 
     def __init__(self, emu: Any, duration: float, *, realtime: bool = True,
                  clock: Clock = time.perf_counter, sleep: Callable[[float], None] = time.sleep,
-                 speed: float = 1.0, label: str = "demo") -> None:
+                 speed: float = 1.0, label: str = "demo",
+                 on_close: Callable[[], None] | None = None) -> None:
         self.emu = emu
+        self.on_close = on_close
         self.duration = duration
         self.realtime = realtime
         self.speed = speed
@@ -112,7 +114,8 @@ class DemoSource:
         return self.view.snapshot(self.emu.runner.now, self.done)
 
     def close(self) -> None:
-        pass
+        if self.on_close is not None:
+            self.on_close()
 
 
 class HostSource:
