@@ -72,12 +72,7 @@ class Feed:
                  camera_height: float = CAMERA_HEIGHT_M) -> None:
         self.sink = sink
         self.tracker = SceneTracker(Labels(codec))
-        rates = {}
-        for kind in KINDS:
-            try:
-                rates[kind] = codec.cat.message(kind).rate_hz or 0.0
-            except Exception:
-                rates[kind] = 0.0
+        rates = {msg.name: msg.rate_hz or 0.0 for msg in codec.cat.messages if msg.name in KINDS}
         self.camera_height = camera_height
         self.scenes = SceneMessages(rates, camera_height)
         self.odom = DeadReckoning()

@@ -64,21 +64,11 @@ class RateMeter:
     (:func:`eyeq_spi.stream_rate.stream_rate`), from the arrival times inside the window."""
 
     def __init__(self, cat: Catalog, window: float = RATE_WINDOW) -> None:
-        self.cat = cat
         self.window = window
         self._times: dict[str, deque[float]] = {}
         self._counts: dict[str, int] = {}
         self._now = 0.0
-        self._nominal: dict[str, tuple[float | None, tuple[float, float] | None]] = {}
-
-    def _nominal_of(self, name: str) -> tuple[float | None, tuple[float, float] | None]:
-        if name not in self._nominal:
-            try:
-                msg = self.cat.message(name)
-                self._nominal[name] = (msg.rate_hz, msg.tolerance_ms)
-            except Exception:
-                self._nominal[name] = (None, None)
-        return self._nominal[name]
+        self._nominal = {msg.name: (msg.rate_hz, msg.tolerance_ms) for msg in cat.messages}
 
     def arrived(self, name: str, time: float) -> None:
         """A message ``name`` arrived (or was sent) at ``time`` (source seconds, rising)."""
@@ -101,7 +91,7 @@ class RateMeter:
             times = self._times.get(name, deque())
             while times and times[0] < now - self.window:
                 times.popleft()  # the last arrival stays while the window holds it
-            nominal, tol = self._nominal_of(name)
+            nominal, tol = self._nominal.get(name, (None, None))
             rate = stream_rate(times)
             hz = rate.rate_hz
             limits = band(nominal, tol)
