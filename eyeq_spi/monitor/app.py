@@ -12,7 +12,14 @@ from typing import Any, Protocol
 
 from eyeq_spi.errors import UsageError
 from eyeq_spi.monitor.model import Snapshot
-from eyeq_spi.monitor.view import render, rich_modules, save_lines, screen_lines
+from eyeq_spi.monitor.view import (
+    new_live,
+    print_whole,
+    render,
+    rich_modules,
+    save_lines,
+    screen_lines,
+)
 
 MIN_REFRESH, MAX_REFRESH = 5.0, 30.0
 DEFAULT_REFRESH = 6.0  # a margin over the 5 Hz the monitor promises
@@ -67,14 +74,12 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
     if screenshot is not None:
         check_screenshot(screenshot)
-    rich = rich_modules()
-    console = console or rich.Console()
+    console = console or rich_modules().Console()
     period = 1.0 / refresh
     stats = RunStats()
     start = clock()
     live_screen = console.is_terminal
-    live = rich.Live(console=console, auto_refresh=False, transient=False,
-                     vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
+    live = new_live(console)
     snap: Snapshot | None = None
     try:
         if live_screen:
@@ -111,8 +116,5 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
     if screenshot is not None and snap is not None:
         save_screen(snap, screenshot, screenshot_size)
     if not live_screen and snap is not None:
-        # a pipe: the whole final screen, as wide as it is (the console's default is 80)
-        lines = screen_lines(snap)
-        console.width = max(console.width, *(t.cell_len for t in lines))
-        console.print(rich.Group(*lines))
+        print_whole(console, screen_lines(snap))  # a pipe: the final screen
     return stats

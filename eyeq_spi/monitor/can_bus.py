@@ -10,7 +10,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.monitor.view import rich_modules, save_lines
+from eyeq_spi.monitor.view import new_live, print_whole, rich_modules, save_lines
 
 
 @dataclass
@@ -107,8 +107,7 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
     console = console or rich.Console()
     view = CanBusView(proto, target)
     bus = open_bus(target)
-    live = rich.Live(console=console, auto_refresh=False, transient=False,
-                     vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
+    live = new_live(console)
     start = clock()
     period = 1.0 / refresh
     on_terminal = console.is_terminal
@@ -132,10 +131,8 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
         if on_terminal:
             live.update(rich.Group(*view.lines(console.width, console.height)), refresh=True)
             live.stop()
-    if not on_terminal:  # a pipe: the final screen once, as wide as it is
-        lines = view.lines(width=400)
-        console.width = max(console.width, *(t.cell_len for t in lines))
-        console.print(rich.Group(*lines))
+    if not on_terminal:  # a pipe: the final screen once
+        print_whole(console, view.lines(width=400))
     if screenshot is not None:
         save_lines(view.lines(width=400), screenshot, f"eyeq-spi monitor: {view.source}")
     return view

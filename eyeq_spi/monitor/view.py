@@ -205,6 +205,19 @@ def render(snap: Snapshot, width: int | None = None, height: int | None = None) 
     return rich_modules().Group(*screen_lines(snap, width, height))
 
 
+def new_live(console: Any) -> Any:
+    """A rich ``Live`` redrawn only when asked, cropped to the terminal."""
+    return rich_modules().Live(console=console, auto_refresh=False, transient=False,
+                               vertical_overflow="crop", redirect_stdout=False,
+                               redirect_stderr=False)
+
+
+def print_whole(console: Any, lines: list[Any]) -> None:
+    """``lines`` printed once, as wide as they are (a pipe: the console's default is 80)."""
+    console.width = max(console.width, *(t.cell_len for t in lines))
+    console.print(rich_modules().Group(*lines))
+
+
 def save_lines(lines: list[Any], path: str, title: str) -> None:
     """Rich lines as an SVG picture, an HTML page or plain text (by ``path``'s suffix), as
     wide as the widest line; ``OutputError`` when the file cannot be written."""
