@@ -170,45 +170,34 @@ def _print_stats(per_file: list[Any], out: Any, *, as_json: bool) -> None:
 class _Bars:
     """The pipeline's progress on the shared bars (:mod:`eyeq_spi.cli.progress`), on stderr and
     only where they cannot land between records: one over the bytes of each file read here,
-    one over the files when they are decoded in worker processes (``--jobs``)."""
+    or one over the files when they are decoded in worker processes (``--jobs``)."""
 
     def __init__(self, files: int, records_on_stdout: bool) -> None:
         self.files = files
         self.records_on_stdout = records_on_stdout
         self.bar: Any = None
-        self.path: str | None = None
-        self.files_bar: Any = None
+        self.path: str | None = None  # what the bar is about: a file, or None (the files)
+        self.finished: set[str] = set()  # files whose bar ran to its end
 
     def __call__(self, path: str | None, done: float, total: float | None) -> None:
         from eyeq_spi.cli.progress import JobProgress
 
-        if path is None:
-            if self.files_bar is None:
-                self.files_bar = JobProgress(f"dissect {self.files} files", self.files,
-                                             unit="files",
-                                             records_on_stdout=self.records_on_stdout)
-                self.files_bar.__enter__()
-            self.files_bar.update(done)
-            return
-        if path == self.path and self.bar is None:
-            return  # that file's bar ran to its end: later calls about it redraw nothing
-        if path != self.path or self.bar is None:
-            self._close_file_bar()
+        if path in self.finished:
+            return  # later calls about a finished file redraw nothing
+        if self.bar is None or path != self.path:
+            self.close()
             self.path = path
-            self.bar = JobProgress(f"dissect {os.path.basename(path)}", total,
+            label, unit = ((f"dissect {self.files} files", "files") if path is None
+                           else (f"dissect {os.path.basename(path)}", "bytes"))
+            self.bar = JobProgress(label, self.files if path is None else total, unit=unit,
                                    records_on_stdout=self.records_on_stdout)
             self.bar.__enter__()
         self.bar.update(done)
-        if total is not None and done >= total:
-            self._close_file_bar()
+        if path is not None and total is not None and done >= total:
+            self.finished.add(path)
+            self.close()
 
-    def _close_file_bar(self) -> None:
+    def close(self) -> None:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
         self.bar = None
-
-    def close(self) -> None:
-        self._close_file_bar()
-        if self.files_bar is not None:
-            self.files_bar.__exit__(None, None, None)
-            self.files_bar = None
