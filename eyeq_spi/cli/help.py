@@ -181,10 +181,6 @@ def _width() -> int:
     return max(40, min(shutil.get_terminal_size((80, 24)).columns, 100) - 2)
 
 
-def _examples(lines: list[str]) -> str:
-    return "examples:\n" + "\n".join(f"  {line}" for line in lines)
-
-
 def finish(parser: argparse.ArgumentParser, name: str = "", help_line: str = "",
            width: int | None = None) -> None:
     """Give ``parser`` and every subcommand parser under it a description wrapped at ``width``
@@ -199,7 +195,7 @@ def finish(parser: argparse.ArgumentParser, name: str = "", help_line: str = "",
                                       for p in desc.split("\n\n")) if desc else None
     examples = TOP_EXAMPLES if not name else EXAMPLES.get(name)
     if examples:
-        parser.epilog = _examples(examples)
+        parser.epilog = "examples:\n" + "\n".join(f"  {line}" for line in examples)
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             helps = {a.dest: a.help or "" for a in action._choices_actions}

@@ -1,12 +1,8 @@
-"""The monitor's screen for a small terminal (80x24 and up): the same panels as the wide screen
-(:mod:`eyeq_spi.monitor.view`), each folded to fit.
-
-Every panel has a full form and a folded one. Tables fold into two columns side by side (rates,
-objects), counters flow as ``name value`` items across the width (link, lanes and signs); a
-panel that still does not fit the rows left is folded to its title line, which keeps its
-counts (``objects 10: 4 shown, 6 more``). Rows go first to what the monitor is for, in this
-order: rates, link and errors, transitions, objects, lanes and signs. Nothing is wrapped or
-cropped mid-line: each line is at most ``width`` cells.
+"""The monitor's screen for a small terminal (80x24 and up): the panels of the wide screen
+(:mod:`eyeq_spi.monitor.view`), each folded to fit: tables in two columns, counters flowing
+across the width, a panel that still does not fit folded to its title line (which keeps its
+counts). Rows go first to rates, link and errors, transitions, objects, then lanes and signs;
+no line is longer than the width.
 """
 
 from __future__ import annotations
