@@ -1,7 +1,7 @@
-"""The option groups several commands share, as argparse parent parsers, and the one conversion
-of parsed options into the library's config objects. Every numeric limit lives in
-:data:`LIMITS`; an option of one side only is refused where that side does not run
-(:func:`refuse_inapplicable`).
+"""The option groups several commands share, as argparse parent parsers, the one conversion of
+parsed options into the library's config objects, and the run summary's printing. Every numeric
+limit lives in :data:`LIMITS`; an option of one side only is refused where that side does not
+run (:func:`refuse_inapplicable`).
 """
 
 from __future__ import annotations
