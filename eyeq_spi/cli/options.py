@@ -201,27 +201,20 @@ def spi_options(args: argparse.Namespace) -> Any:
 EYEQ, HOST = "eyeq", "host"
 _SIDE_NAMES = {EYEQ: "the simulated EyeQ (demo, sim)", HOST: "the host emulator (demo, host)"}
 SIDE_OF: dict[str, frozenset[str]] = {}  # dest -> the sides it applies to (filled below)
-_FLAGS: dict[str, str] = {}  # dest -> its option string, for the message
 
 
 class _Given(argparse.Action):
-    """Stores like ``store``, ``store_true`` or ``append`` (``kind``) and notes in
+    """Stores like ``store``, ``store_true`` or ``append`` (its ``const``) and notes in
     ``namespace._given`` that the option was given."""
-
-    kind = "store"
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: Any, option_string: str | None = None) -> None:
-        if self.kind == "store_true":
+        if self.const == "store_true":
             values = True
-        elif self.kind == "append":
+        elif self.const == "append":
             values = [*(getattr(namespace, self.dest, None) or []), values]
         setattr(namespace, self.dest, values)
         namespace._given = {*(getattr(namespace, "_given", None) or ()), self.dest}
-
-
-_KINDS = {kind: type(f"_Given_{kind}", (_Given,), {"kind": kind})
-          for kind in ("store", "store_true", "append")}
 
 
 def _side_option(group: Any, sides: Collection[str], shown: bool, *flags: str,
@@ -233,9 +226,8 @@ def _side_option(group: Any, sides: Collection[str], shown: bool, *flags: str,
         kw.update(nargs=0, default=kw.get("default", False))
     if not shown:  # refused whatever its value: the refusal, not a value check, is the error
         kw.update(help=argparse.SUPPRESS, type=None, choices=None)
-    dest = group.add_argument(*flags, action=_KINDS[kind], **kw).dest
+    dest = group.add_argument(*flags, action=_Given, const=kind, **kw).dest
     SIDE_OF[dest] = frozenset(sides)
-    _FLAGS[dest] = flags[0]
 
 
 def refuse_inapplicable(args: argparse.Namespace, sides: Collection[str], where: str) -> None:
@@ -246,7 +238,7 @@ def refuse_inapplicable(args: argparse.Namespace, sides: Collection[str], where:
         if own and not own & set(sides):
             whose = (f"applies to {_SIDE_NAMES[next(iter(own))]}" if len(own) == 1
                      else "applies to a live emulator (demo, sim, host)")
-            raise UsageError(f"argument {_FLAGS[dest]}: {whose}, not to {where}")
+            raise UsageError(f"argument --{dest.replace('_', '-')}: {whose}, not to {where}")
 
 
 # -- scenario, link and faults (demo, sim, host, monitor) ---------------------------------------
