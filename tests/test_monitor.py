@@ -328,6 +328,7 @@ def test_refresh_limits_and_bad_replay(tmp_path: Path, capsys: pytest.CaptureFix
     assert main(["monitor", "--replay", "x.pcapng", "--objects", "3"]) == 2  # a sim option
     assert main(["monitor", "--port", "loop://", "--reset-at", "1"]) == 2
     assert main(["monitor", "--demo", "--passive"]) == 2
+    assert main(["monitor", "--demo", "--spi-mode", "0"]) == 2  # 0 is given too: refused
     (tmp_path / "h2e.hex").write_text("")
     assert main(["monitor", "--replay", str(tmp_path / "h2e.hex")]) == 2  # no EyeQ channel
     err = capsys.readouterr().err

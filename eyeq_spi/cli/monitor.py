@@ -71,12 +71,11 @@ def run(args: argparse.Namespace) -> int:
 
         check_screenshot(args.screenshot)  # before a long run
     if not args.replay:  # the capture-input options read a capture: --replay only
-        for dest, flag in (("format", "--format"), ("direction", "--direction"),
-                           ("spi_mode", "--spi-mode"), ("bit_order", "--bit-order"),
-                           ("channel_map", "--channel-map"), ("signals", "--signals")):
-            if getattr(args, dest, None):
+        for dest in ("format", "direction", "spi_mode", "bit_order", "channel_map", "signals"):
+            if getattr(args, dest) not in (None, []):  # --spi-mode 0 is given too
                 given = "--can-bus" if args.can_bus else "--port" if args.port else "--demo"
-                raise UsageError(f"argument {flag}: applies to --replay, not to monitor {given}")
+                raise UsageError(f"argument --{dest.replace('_', '-')}: applies to --replay, "
+                                 f"not to monitor {given}")
     if args.can_bus:
         from eyeq_spi.monitor.can_bus import run_can_monitor
 
