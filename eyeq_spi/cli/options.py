@@ -384,25 +384,20 @@ def can_output(args: argparse.Namespace, host: Any, runner: Any) -> Any:
                   protocol=getattr(args, "can_protocol", None) or "extlog2")
 
 
-class CaptureTap:
+def capture_tap(writer: Any, clock: Callable[[], float] | None) -> Callable[..., None]:
     """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``. With
     ``clock`` (real time) a transfer is stamped with the clock's reading when it was handed
     over, else with the schedule's instant (virtual time)."""
+    origin: float | None = None  # the clock's reading at the schedule's 0
 
-    DIRECTIONS = ("h2e", "e2h")
-
-    def __init__(self, writer: Any, clock: Callable[[], float] | None = None) -> None:
-        self.writer = writer
-        self.clock = clock
-        self.origin: float | None = None  # the clock's reading at the schedule's 0
-
-    def __call__(self, node: int, time_s: float, transfer: bytes) -> None:
-        if self.clock is not None:
-            now = self.clock()
-            if self.origin is None:
-                self.origin = now - time_s
-            time_s = now - self.origin
-        self.writer.write(self.DIRECTIONS[node], time_s, transfer)
+    def tap(node: int, time_s: float, transfer: bytes) -> None:
+        nonlocal origin
+        if clock is not None:
+            now = clock()
+            origin = now - time_s if origin is None else origin
+            time_s = now - origin
+        writer.write(DIRECTIONS[node], time_s, transfer)
+    return tap
 
 
 def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
@@ -414,7 +409,7 @@ def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
     writer = capture_writer(args)
     # real time: the capture says when each transfer happened (its clock is in the file)
     realtime = not getattr(args, "virtual_time", False)
-    tap = None if writer is None else CaptureTap(writer, time.monotonic if realtime else None)
+    tap = None if writer is None else capture_tap(writer, time.monotonic if realtime else None)
     emu = build(sim_config=sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario_,
                 keep_rx_times=False, tap=tap)
     return emu, writer

@@ -55,12 +55,6 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     opt.include(parser, opt.capture_input())
 
 
-def _default_output(args: argparse.Namespace, kind: str) -> str:
-    cap = Path(args.capture)
-    suffix = ".gif" if args.animate else ".png"
-    return str(cap.with_name(f"{cap.stem}_{kind}{suffix}"))
-
-
 def run(args: argparse.Namespace) -> int:
     from eyeq_spi.codec.message import MessageCodec
     from eyeq_spi.plot.collect import Collector, Window, collect_capture
@@ -74,7 +68,9 @@ def run(args: argparse.Namespace) -> int:
     if not args.end > args.start:
         raise UsageError("need --start < --end")
     name_re = re.compile(args.name) if args.name else None
-    out = args.output or _default_output(args, kind)
+    capture = Path(args.capture)  # the default output: CAPTURE_<kind>.png (.gif) beside it
+    out = args.output or str(capture.with_name(
+        f"{capture.stem}_{kind}{'.gif' if args.animate else '.png'}"))
     check_output(out, animated=args.animate)
     mpl()  # fail before reading a large capture when matplotlib is missing
     cf = inputs.open_input(args, "plot")

@@ -128,8 +128,7 @@ class Feed:
 
     def ack(self, latency: float, time_s: float) -> None:
         """One DATA frame's send -> ACK time, seconds."""
-        self.acks[int(latency * 1e5)] += 1
-        self.tick(time_s)
+        self.ack_bins(Counter({int(latency * 1e5): 1}), time_s)
 
     def ack_bins(self, bins: Counter[int], time_s: float) -> None:
         """ACK latencies as a link counts them (10 µs bins)."""
