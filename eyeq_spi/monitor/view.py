@@ -140,22 +140,18 @@ def _transitions(snap: Snapshot) -> list[Any]:
     return _block(title, TRANSITION_COLS, rows)
 
 
-def _side_by_side(left: list[Any], lw: int, right: list[Any]) -> list[Any]:
+def _pair(left: list[Any], lw: int, right: list[Any], rw: int, width: int | None
+          ) -> list[Any]:
+    """Two blocks side by side, or one above the other when the terminal is too narrow."""
     Text = rich_modules().Text
+    if width is not None and lw + len(SIDE_GAP) + rw > width:
+        return [*left, Text(), *right]
     out = []
     for row in range(max(len(left), len(right))):
         line = left[row].copy() if row < len(left) else Text()
         line.set_length(lw)
         out.append(Text.assemble(line, SIDE_GAP, right[row]) if row < len(right) else line)
     return out
-
-
-def _pair(left: list[Any], lw: int, right: list[Any], rw: int, width: int | None
-          ) -> list[Any]:
-    """Two blocks side by side, or one above the other when the terminal is too narrow."""
-    if width is None or lw + len(SIDE_GAP) + rw <= width:
-        return _side_by_side(left, lw, right)
-    return [*left, rich_modules().Text(), *right]
 
 
 def _head(snap: Snapshot, width: int | None) -> list[Any]:
