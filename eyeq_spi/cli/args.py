@@ -349,6 +349,16 @@ class Endpoint(argparse.Action):
             raise argparse.ArgumentError(self, str(exc)) from None
 
 
+def add_endpoints(parser: Any, group: Any, **helps: str) -> None:
+    """``--listen``, ``--port`` and ``--pty`` (those given a help, in that order) in ``group``,
+    through :class:`Endpoint`; each is None (``pty`` False) when not given."""
+    for name, text in helps.items():
+        shape: dict[str, Any] = ({"nargs": 0} if name == "pty" else
+                                 {"metavar": "tcp://HOST:PORT" if name == "listen" else "URL"})
+        group.add_argument(f"--{name}", dest="endpoint", action=Endpoint, help=text, **shape)
+    parser.set_defaults(listen=None, port=None, pty=False)
+
+
 def spec_entry(query: str) -> str:
     """``spec show``'s NAME: an exact name in any case, a data ID (``0xE4``: DASP, 0x41, 0x10;
     init messages by ID too), ``SERVICE/FUNCTION`` of a MESP function, or a unique part of a

@@ -27,19 +27,15 @@ def add_parser(sub: Any, name: str, help: str) -> None:
         "fails, 2 for usage or connection errors.")
     parser.add_argument("--dut", choices=("eyeq", "host"), help="the implementation under test")
     where = parser.add_mutually_exclusive_group()
-    where.add_argument("--port", dest="endpoint", action=ca.Endpoint, metavar="URL",
-                       help="--dut eyeq: connect to the EyeQ at tcp://HOST:PORT (socket:// too), "
-                       "rfc2217://HOST:PORT, a tty/pty path, or our SPI channels "
-                       "MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)")
-    where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
-                       metavar="tcp://HOST:PORT",
-                       help="--dut host: listen here (port 0: any free port); the host connects "
-                       "(once per session); or our SPI channels, MASTER_URL,SLAVE_URL or a "
-                       "bench.toml")
-    where.add_argument("--pty", dest="endpoint", nargs=0, action=ca.Endpoint,
-                       help="--dut host: open a pty per ignition cycle, print each path; the "
-                       "host opens each in turn")
-    parser.set_defaults(port=None, listen=None, pty=False)
+    ca.add_endpoints(parser, where,
+                     port="--dut eyeq: connect to the EyeQ at tcp://HOST:PORT (socket:// too), "
+                     "rfc2217://HOST:PORT, a tty/pty path, or our SPI channels "
+                     "MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)",
+                     listen="--dut host: listen here (port 0: any free port); the host connects "
+                     "(once per session); or our SPI channels, MASTER_URL,SLAVE_URL or a "
+                     "bench.toml",
+                     pty="--dut host: open a pty per ignition cycle, print each path; the host "
+                     "opens each in turn")
     where.add_argument("--builtin", action="store_true",
                        help="test our own simulated EyeQ / host emulator, in virtual time")
     parser.add_argument("--list", action="store_true",

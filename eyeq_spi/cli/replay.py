@@ -7,7 +7,6 @@ import argparse
 from typing import Any
 
 from eyeq_spi.cli import inputs
-from eyeq_spi.errors import UsageError
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
@@ -22,17 +21,14 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                        "(--into-host: Running Vision reached and held), else 1.")
     inputs.add_capture_argument(parser)
     where = parser.add_mutually_exclusive_group(required=True)
-    where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
-                       metavar="tcp://HOST:PORT",
-                       help="listen here for the host under test (port 0: any free port); "
-                       "prints LISTEN URL on stderr")
-    where.add_argument("--port", dest="endpoint", action=ca.Endpoint, metavar="URL",
-                       help="connect to the host under test at tcp://HOST:PORT (socket:// too), "
-                       "rfc2217://HOST:PORT or a tty/pty path")
+    ca.add_endpoints(parser, where,
+                     listen="listen here for the host under test (port 0: any free port); "
+                     "prints LISTEN URL on stderr",
+                     port="connect to the host under test at tcp://HOST:PORT (socket:// too), "
+                     "rfc2217://HOST:PORT or a tty/pty path")
     where.add_argument("--into-host", action="store_true",
                        help="feed the built-in host emulator in virtual time (with "
                        "--foxglove: at the capture's pace)")
-    parser.set_defaults(port=None, listen=None, pty=False)
     parser.add_argument("--duration", type=opt.seconds,
                    help="stop after S seconds of capture time, (0, 86400]")
     parser.add_argument("--lead", type=ca.number(0, 3600, unit="s"), default=0.5, metavar="S",
@@ -45,8 +41,6 @@ def run(args: argparse.Namespace) -> int:
     from eyeq_spi.cli import options as opt
     from eyeq_spi.interop.replay import replay_into_host, replay_to_port
 
-    if args.pty:
-        raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
     cap = inputs.open_input(args, "replay")
     sink = opt.serve_foxglove(args)
     live: Any = None

@@ -42,14 +42,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                        "atomically: the next run starts with the calibration it learned "
                        "(default: in memory, empty)")
     elif name == "sim":
-        ep = parser.add_mutually_exclusive_group(required=True)
-        ep.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
-                        metavar="tcp://HOST:PORT",
-                        help="listen here for the host (port 0: any free port); or our SPI "
-                        "channels, MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)")
-        ep.add_argument("--pty", dest="endpoint", nargs=0, action=ca.Endpoint,
-                        help="open a pty and print its path; the host opens it as a serial port")
-        parser.set_defaults(listen=None, pty=False, port=None)
+        ca.add_endpoints(parser, parser.add_mutually_exclusive_group(required=True),
+                         listen="listen here for the host (port 0: any free port); or our SPI "
+                         "channels, MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)",
+                         pty="open a pty and print its path; the host opens it as a serial port")
         parser.add_argument("--duration", type=opt.seconds,
                        help="stop after S seconds (default: never)")
         parser.add_argument("--accept-timeout", type=opt.seconds, default=60.0,
