@@ -188,7 +188,7 @@ def test_live_view_one_time_base_100_columns_and_fatal_22_explained() -> None:
     t0 = 84_000.0  # a host on the monotonic clock: transitions carry t0 + elapsed
     host = _Host(t0 + 0.2)
     buf = io.StringIO()
-    view = LiveView(True, out=buf)
+    view = LiveView(True, say=lambda line: print(line, file=buf))
     host.transitions.append(_T(t0 + 0.15, _State("POWER_UP"), _State("BOOT_OK"),
                                _State("WAIT_PENDING")))
     view.update(host, 0.2)

@@ -93,11 +93,11 @@ def test_a_reset_gap_inside_the_window_is_not_averaged_in() -> None:
 
 
 def test_the_screen_says_when_a_gap_was_left_out() -> None:
-    rows = [RateRow("HOST_VEH_STATE_MSG", 90, 66.67, 66.67, (50.0, 100.0), "ok", 1),
-            RateRow(OBSTACLES, 20, 18.0, 18.0, (15.0, 21.0), "ok", 0)]
+    rows = [RateRow("HOST_VEH_STATE_MSG", 90, 66.67, 66.67, "ok", 1),
+            RateRow(OBSTACLES, 20, 18.0, 18.0, "ok", 0)]
     text = _text(render(Snapshot("demo", 2.6, "host state", "RUNNING_VISION", rates=rows)))
     assert "messages (Hz over 2 s; 1 gap left out)" in text
-    rows[0] = RateRow("HOST_VEH_STATE_MSG", 90, 66.67, 66.67, (50.0, 100.0), "ok", 0)
+    rows[0] = RateRow("HOST_VEH_STATE_MSG", 90, 66.67, 66.67, "ok", 0)
     text = _text(render(Snapshot("demo", 2.6, "host state", "RUNNING_VISION", rates=rows)))
     assert "messages (Hz over 2 s)" in text
 
@@ -328,6 +328,7 @@ def test_refresh_limits_and_bad_replay(tmp_path: Path, capsys: pytest.CaptureFix
     assert main(["monitor", "--replay", "x.pcapng", "--objects", "3"]) == 2  # a sim option
     assert main(["monitor", "--port", "loop://", "--reset-at", "1"]) == 2
     assert main(["monitor", "--demo", "--passive"]) == 2
+    assert main(["monitor", "--demo", "--spi-mode", "0"]) == 2  # 0 is given too: refused
     (tmp_path / "h2e.hex").write_text("")
     assert main(["monitor", "--replay", str(tmp_path / "h2e.hex")]) == 2  # no EyeQ channel
     err = capsys.readouterr().err

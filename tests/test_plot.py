@@ -333,7 +333,7 @@ def test_link_counts_naks_crc_errors(tmp_path: Path) -> None:
     (["--timing", "--at", "1"], "--at and --animate go with --birdseye"),
     (["--birdseye", "--at", "999"], "--at 999: after the last record read, at 0.9"),
     (["--birdseye", "--animate", "-o", "x.png"], "output must end in"),
-    (["--birdseye", "--fps", "-1"], "must be positive"),
+    (["--birdseye", "--fps", "-1"], "argument --fps: must be a number in (0, "),
 ])
 def test_bad_arguments_exit_2(capture: Path, argv: list[str], words: str,
                               capsys: pytest.CaptureFixture[str]) -> None:

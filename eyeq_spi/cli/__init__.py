@@ -153,8 +153,6 @@ def _fail(message: str, code: int = 2) -> int:
 def _quiet_pipe() -> int:
     """The reader of stdout went away: point stdout at /dev/null so the interpreter's final
     flush does not print a second error, and exit 0 as head(1)'s writers do."""
-    import os
-
     with contextlib.suppress(OSError, ValueError):
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0

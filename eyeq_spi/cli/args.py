@@ -1,12 +1,7 @@
-"""Argument types and checks shared by every subcommand.
-
-Each function here is an ``argparse`` ``type=`` (or builds one): it turns the text of one option
-into a checked value or raises :class:`argparse.ArgumentTypeError` with the accepted range or
-values, so argparse reports ``argument --fatal: ...`` and the CLI exits 2 before any work starts.
-Names (messages, MESP functions, fault codes, SW releases) are matched case-insensitively and by
-hex ID, with "did you mean" from :mod:`difflib`. Everything named comes from ``specs/`` through
-the catalogue; nothing here loads it until an option that needs it is given, so ``--help`` and
-most usage errors never pay for it.
+"""Argument types shared by every subcommand: each turns one option's text into a checked
+value or raises :class:`argparse.ArgumentTypeError` with the accepted range or values, so the CLI
+exits 2 before any work starts. Names from ``specs/`` match in any case, by hex ID too, with
+"did you mean"; the catalogue is loaded only when an option needs it.
 """
 
 from __future__ import annotations
@@ -16,9 +11,9 @@ import math
 import os
 import re
 from collections.abc import Callable, Iterable
-from typing import Any, NamedTuple, NoReturn
+from typing import Any, NoReturn
 
-from eyeq_spi.errors import EyeqError
+from eyeq_spi.errors import AdapterError, EyeqError
 
 Type = Callable[[str], Any]
 
@@ -34,19 +29,6 @@ def catalogue() -> Any:
         return catalog()
     except EyeqError as exc:  # a broken specs/ is not the user's argument: say so plainly
         _bad(f"cannot check it: {exc}")
-
-
-class _Msg(NamedTuple):
-    name: str
-    data_id: int
-    protocol: str
-    direction: str
-
-
-class _Fn(NamedTuple):
-    name: str
-    service: int
-    function: int
 
 
 _INDEX_TAG = "argument-names-1"  # bump when _build_index changes shape
@@ -166,26 +148,28 @@ def _named(text: str, entries: dict[str, Any], ids: dict[int, str], what: str,
     _bad(f"unknown {what} {stripped!r}{did_you_mean(stripped, entries)}; {listing}")
 
 
-def _messages(pred: Callable[[Any], bool]) -> tuple[dict[str, Any], dict[int, str]]:
-    msgs = [m for m in (_Msg(*r) for r in _index()["messages"]) if pred(m)]
-    return {m.name: m for m in msgs}, {m.data_id: m.name for m in msgs}
+def _messages(protocol: str | None = None, direction: str | None = None
+              ) -> tuple[dict[str, int], dict[int, str]]:
+    """Name -> data ID and data ID -> name of the messages of ``protocol`` and ``direction``."""
+    rows = [(name, data_id) for name, data_id, proto, way in _index()["messages"]
+            if protocol in (None, proto) and direction in (None, way)]
+    return dict(rows), {data_id: name for name, data_id in rows}
 
 
 def eyeq_dasp_message(text: str) -> str:
     """A DASP message the EyeQ sends: name (any case) or data ID (``0xE4``) -> name."""
-    names, ids = _messages(lambda m: m.protocol == "DASP" and m.direction == "e2h")
+    names, ids = _messages("DASP", "e2h")
     return _named(text, names, ids, "DASP message of the EyeQ",
                   "eyeq-spi spec list shows them")
 
 
 def message_id(text: str) -> int:
     """A data ID (0..255, ``0xE4``) or a message name (any case) -> its data ID."""
-    names, ids = _messages(lambda m: True)
+    names, ids = _messages()
     try:
         value = _int(text)
     except ValueError:
-        return int(names[_named(text, names, ids, "message", "eyeq-spi spec list shows them")]
-                   .data_id)
+        return names[_named(text, names, ids, "message", "eyeq-spi spec list shows them")]
     if not 0 <= value <= 0xFF:
         _bad(f"must be a data ID in 0..255 (0x00..0xFF) or a message name, got {text!r}")
     return value
@@ -194,7 +178,7 @@ def message_id(text: str) -> int:
 def mesp_function(text: str) -> str:
     """A MESP function: name (any case), ``SERVICE/FUNCTION`` (``0x05/0x04``) or a function
     number that only one service uses -> its name."""
-    fns = {f.name: f for f in (_Fn(*r) for r in _index()["mesp"])}
+    fns = {name: (service, function) for name, service, function in _index()["mesp"]}
     listing = "functions: " + ", ".join(fns)
     pair = re.fullmatch(r"\s*(\w+)\s*/\s*(\w+)\s*", text)
     if pair:
@@ -202,13 +186,13 @@ def mesp_function(text: str) -> str:
             key = (_int(pair.group(1)), _int(pair.group(2)))
         except ValueError:
             key = None
-        for entry in fns.values():
-            if (entry.service, entry.function) == key:
-                return str(entry.name)
+        for name, numbers in fns.items():
+            if numbers == key:
+                return str(name)
         _bad(f"no MESP function {text.strip()}; {listing}")
     by_fn: dict[int, list[str]] = {}
-    for entry in fns.values():
-        by_fn.setdefault(entry.function, []).append(entry.name)
+    for name, (_, function) in fns.items():
+        by_fn.setdefault(function, []).append(name)
     unique = {k: v[0] for k, v in by_fn.items() if len(v) == 1}
     return _named(text, fns, unique, "MESP function", listing)
 
@@ -312,16 +296,9 @@ def output_dir(text: str) -> str:
     return text
 
 
-def _address_error(exc: Exception) -> NoReturn:
-    _bad(str(exc))
-
-
 def connect_address(text: str) -> str:
-    """``--port URL`` of a command that connects (``host``, ``monitor``, ``conformance --dut
-    eyeq``): ``tcp://HOST:PORT`` (``socket://`` too), ``rfc2217://HOST:PORT`` or a tty/pty path
-    (grammar: :mod:`eyeq_spi.phy.address`) -> the URL to open. ``loop://`` echoes our own
-    transfers back and has no peer on it: refused."""
-    from eyeq_spi.errors import AdapterError
+    """``--port URL`` of a command that connects, in the grammar of :mod:`eyeq_spi.phy.address`
+    -> the URL to open; ``loop://`` has no peer on it: refused."""
     from eyeq_spi.phy.address import CONNECT_FORMS, is_spi, parse_connect
 
     if is_spi(text):
@@ -331,7 +308,7 @@ def connect_address(text: str) -> str:
     try:
         addr = parse_connect(text)
     except AdapterError as exc:
-        _address_error(exc)
+        _bad(str(exc))
     if "://" in addr.url and not addr.url.startswith(("socket://", "rfc2217://")):
         _bad(f"unsupported scheme {text.split('://', 1)[0]}://; give {CONNECT_FORMS}")
     return addr.url
@@ -340,7 +317,6 @@ def connect_address(text: str) -> str:
 def spi_side(text: str) -> str:
     """One side on SPI lines (``MASTER_URL,SLAVE_URL`` or a bench file), checked now (the
     devices are opened by the command)."""
-    from eyeq_spi.errors import EyeqError
     from eyeq_spi.phy.bench import parse_side
 
     try:
@@ -351,14 +327,11 @@ def spi_side(text: str) -> str:
 
 
 class Endpoint(argparse.Action):
-    """``--listen tcp://HOST:PORT``, ``--port URL`` and ``--pty`` of a command that may listen
-    (``sim``, ``replay``, ``conformance``), in the one address grammar of
-    :mod:`eyeq_spi.phy.address`. Each sets ``listen`` (``tcp://HOST:PORT``), ``port`` (the URL
-    to connect to) or ``pty`` in the namespace."""
+    """``--listen``, ``--port`` and ``--pty`` of a command that may listen: each sets its own
+    attribute (``listen``, ``port`` or ``pty``) in the namespace."""
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: Any, option_string: str | None = None) -> None:
-        from eyeq_spi.errors import AdapterError
         from eyeq_spi.phy.address import is_spi, parse_listen
 
         if option_string == "--pty":
@@ -374,6 +347,16 @@ class Endpoint(argparse.Action):
                 namespace.port = connect_address(text)
         except (AdapterError, argparse.ArgumentTypeError) as exc:
             raise argparse.ArgumentError(self, str(exc)) from None
+
+
+def add_endpoints(parser: Any, group: Any, **helps: str) -> None:
+    """``--listen``, ``--port`` and ``--pty`` (those given a help, in that order) in ``group``,
+    through :class:`Endpoint`; each is None (``pty`` False) when not given."""
+    for name, text in helps.items():
+        shape: dict[str, Any] = ({"nargs": 0} if name == "pty" else
+                                 {"metavar": "tcp://HOST:PORT" if name == "listen" else "URL"})
+        group.add_argument(f"--{name}", dest="endpoint", action=Endpoint, help=text, **shape)
+    parser.set_defaults(listen=None, port=None, pty=False)
 
 
 def spec_entry(query: str) -> str:

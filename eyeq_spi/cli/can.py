@@ -11,6 +11,7 @@ import re
 import sys
 from collections import Counter
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +21,7 @@ PROTOCOLS = ("extlog2", "me8")
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
     parser = sub.add_parser(name, help=help,
@@ -32,12 +34,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     dbc.add_argument("--output", "-o", metavar="DIR", default=".",
                    help="directory for PROTOCOL.dbc (default .); - prints one protocol")
     compare = cs.add_parser("compare", help="compare a vendor's DBC with ours, signal by signal",
-                      description="A DBC you hold (vendor, public) against the DBC built from "
-                      "specs/can/: ID, DLC, cycle and each signal's start, length, byte order, "
-                      "sign, scale, offset, unit, range, invalid value and choices. Each "
-                      "difference says what differs, ours -> theirs, and where ours comes from; "
-                      "the same difference in every slot is one line. Exit 0 the same, 1 "
-                      "differences, 2 bad input.")
+                      description="A DBC you hold against the DBC built from specs/can/, "
+                      "message by message and signal by signal; each difference says ours -> "
+                      "theirs and where ours comes from. Exit 0 the same, 1 differences, 2 bad "
+                      "input.")
     compare.add_argument("dbc", metavar="OTHER.dbc", help="the DBC file to compare")
     compare.add_argument("--protocol", choices=PROTOCOLS,
                    help="our protocol to compare with (default: the one whose IDs the DBC "
@@ -45,12 +45,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     opt.include(compare, opt.json_out("the differences as a JSON list"))
     decode = cs.add_parser("decode", help="decode BLF, ASC, candump .log, TRC or MF4 CAN logs, "
                       "or a live bus",
-                      description="Decode CAN logs with the protocols of specs/can/, each log "
-                      "on its own. Exit 0 clean, 1 frames with errors (wrong DLC, value out of "
-                      "range) or a truncated log, 2 bad input or usage. Other nodes' frames "
-                      "(IDs the protocol does not define, or the protocol's IDs on channels "
-                      "other than the camera's), cycle-time deviations, short DLCs that hold "
-                      "every signal and invalid values are shown, not errors.")
+                      description="Decode CAN logs (each on its own) with the protocols of "
+                      "specs/can/. Exit 0 clean, 1 frames with errors (wrong DLC, value out of "
+                      "range) or a truncated log, 2 bad input or usage; other nodes' frames, "
+                      "cycle-time deviations and invalid values are shown, not errors.")
     decode.add_argument("logs", nargs="*", metavar="LOG", help="CAN log files (.blf .asc .log .trc "
                    ".mf4 .csv)")
     decode.add_argument("--protocol", choices=PROTOCOLS, default="extlog2",
@@ -78,7 +76,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                    "first frame)")
     decode.add_argument("--id", metavar="ID", type=can_id,
                    help="only frames with this arbitration ID (0x739)")
-    decode.add_argument("--name", metavar="REGEX", help="only messages whose name matches")
+    decode.add_argument("--name", metavar="REGEX", type=ca.regex,
+                        help="only messages whose name matches")
     decode.add_argument("--errors-only", action="store_true",
                    help="only frames with errors (not with --stats, which counts them)")
 
@@ -145,21 +144,11 @@ def _sources(args: argparse.Namespace) -> Iterator[tuple[str, Any]]:
         bus.shutdown()
 
 
-def _json_lines() -> tuple[Callable[[dict[str, Any]], None], Callable[[], None]]:
-    """JSON Lines on stdout through the one JSON Lines writer: (write one record, flush)."""
-    from eyeq_spi.io.jsonl import JsonLinesWriter
-
-    return JsonLinesWriter(sys.stdout, fast=True).write, sys.stdout.flush
-
-
 def _decode_args(args: argparse.Namespace) -> re.Pattern[str] | None:
     """Usage checks of ``can decode``; the compiled ``--name``."""
     if args.csv and args.parquet:
         raise UsageError("give --csv or --parquet, not both")
-    try:
-        name_re = re.compile(args.name) if args.name else None
-    except re.error as exc:
-        raise UsageError(f"--name: bad regular expression: {exc}") from None
+    name_re = re.compile(args.name) if args.name else None
     if bool(args.bus) == bool(args.logs):
         raise UsageError("give CAN log files or --bus INTERFACE:CHANNEL (one of them)")
     if not args.bus and (args.count is not None or args.duration is not None):
@@ -221,16 +210,16 @@ def _decode_stats(args: argparse.Namespace, decoder: Any,
     return 1 if any(r["error_frames"] for r in results) or truncated else 0
 
 
+@dataclass
 class _Run:
     """What a records run has seen, over every file."""
 
-    def __init__(self) -> None:
-        self.frames = 0
-        self.kept = 0
-        self.bad = 0
-        self.other: Counter[int] = Counter()
-        self.skipped_channels: set[str] = set()
-        self.truncated: list[str] = []
+    frames: int = 0
+    kept: int = 0
+    bad: int = 0
+    other: Counter[int] = field(default_factory=Counter)
+    skipped_channels: set[str] = field(default_factory=set)
+    truncated: list[str] = field(default_factory=list)
 
 
 def _record_sink(args: argparse.Namespace, decoder: Any) -> tuple[Any, Callable[[], None]]:
@@ -242,14 +231,14 @@ def _record_sink(args: argparse.Namespace, decoder: Any) -> tuple[Any, Callable[
 
         table = TableWriter(args.csv or args.parquet, "csv" if args.csv else "parquet",
                             column_type=decoder.column_type)
-        raw_invalid = args.raw_invalid
-        tw = table.write
 
         def emit(rec: dict[str, Any]) -> None:
-            tw(table_record(rec, raw_invalid))
+            table.write(table_record(rec, args.raw_invalid))
         return emit, table.close
     if args.json:
-        return _json_lines()
+        from eyeq_spi.io.jsonl import JsonLinesWriter
+
+        return JsonLinesWriter(sys.stdout, fast=True).write, sys.stdout.flush
 
     def show(rec: dict[str, Any]) -> None:
         print(human_record(rec))
@@ -367,6 +356,4 @@ def _decode(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.can_command == "compare":
-        return _compare(args)
-    return _dbc(args) if args.can_command == "dbc" else _decode(args)
+    return int({"compare": _compare, "dbc": _dbc, "decode": _decode}[args.can_command](args))

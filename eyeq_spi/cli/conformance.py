@@ -21,27 +21,21 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
     parser = sub.add_parser(
         name, help=help,
-        description="Play the host against an EyeQ under test (--dut eyeq --port URL) or the "
-        "EyeQ against a host under test (--dut host --listen tcp://HOST:PORT or --pty), judge "
-        "one case per requirement of seed 004 and the protocol decisions, and report verdicts "
-        "with evidence. --builtin runs the suite against our own simulated EyeQ or host in "
-        "virtual time. Exit 0 when no case fails, 1 when one fails, 2 for usage or connection "
-        "errors.")
+        description="Play the host against an EyeQ under test (--dut eyeq) or the EyeQ against "
+        "a host under test (--dut host): one case per requirement of seed 004 and the protocol "
+        "decisions, each with a verdict and its evidence. Exit 0 when no case fails, 1 when one "
+        "fails, 2 for usage or connection errors.")
     parser.add_argument("--dut", choices=("eyeq", "host"), help="the implementation under test")
     where = parser.add_mutually_exclusive_group()
-    where.add_argument("--port", dest="endpoint", action=ca.Endpoint, metavar="URL",
-                       help="--dut eyeq: connect to the EyeQ at tcp://HOST:PORT (socket:// too), "
-                       "rfc2217://HOST:PORT, a tty/pty path, or our SPI channels "
-                       "MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)")
-    where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
-                       metavar="tcp://HOST:PORT",
-                       help="--dut host: listen here (port 0: any free port); the host connects "
-                       "(once per session); or our SPI channels, MASTER_URL,SLAVE_URL or a "
-                       "bench.toml")
-    where.add_argument("--pty", dest="endpoint", nargs=0, action=ca.Endpoint,
-                       help="--dut host: open a pty per ignition cycle, print each path; the "
-                       "host opens each in turn")
-    parser.set_defaults(port=None, listen=None, pty=False)
+    ca.add_endpoints(parser, where,
+                     port="--dut eyeq: connect to the EyeQ at tcp://HOST:PORT (socket:// too), "
+                     "rfc2217://HOST:PORT, a tty/pty path, or our SPI channels "
+                     "MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)",
+                     listen="--dut host: listen here (port 0: any free port); the host connects "
+                     "(once per session); or our SPI channels, MASTER_URL,SLAVE_URL or a "
+                     "bench.toml",
+                     pty="--dut host: open a pty per ignition cycle, print each path; the host "
+                     "opens each in turn")
     where.add_argument("--builtin", action="store_true",
                        help="test our own simulated EyeQ / host emulator, in virtual time")
     parser.add_argument("--list", action="store_true",
@@ -63,10 +57,8 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def _progress(args: argparse.Namespace) -> Any:
-    """The session lines on stderr (above the bar on a terminal). A live run prints them
-    wherever stderr goes, a pipe or a log too (with --json as well: the records are on
-    stdout): whoever runs the implementation under test must see when each session waits for
-    it. A --builtin run prints them on a terminal only, as the scheduling line of a live run."""
+    """The session lines on stderr: always in a live run (whoever runs the implementation under
+    test must see when each session waits for it), on a terminal only with --builtin."""
     if args.builtin and (args.json or not sys.stderr.isatty()):
         return None
     return lambda text: print(text, file=sys.stderr, flush=True)

@@ -21,6 +21,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                        "their fields, link events. Exit 0 clean, 1 protocol errors found, "
                        "2 bad input or usage.",
                        parents=[opt.capture_input(
+                           direction_help="channel of a raw or hex file without directions",
                            sw_help="SW release of the traffic (default: the one each capture "
                            "records or shows, else the newest)", spi=False),
                            opt.json_out("JSON Lines, one object per line")])
@@ -49,12 +50,12 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     opt.add_spi_arguments(parser)
 
 
-def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool]:
-    try:
-        name_re = re.compile(args.name) if args.name else None
-    except re.error as exc:
-        raise UsageError(f"--name: bad regular expression: {exc}") from None
+def _filter(args: argparse.Namespace) -> Callable[[dict[str, Any]], bool] | None:
+    """What the filters keep; None when they keep every record."""
+    name_re = re.compile(args.name) if args.name else None
     message_filter = bool(args.protocol or args.id is not None or name_re)
+    if not (message_filter or args.errors_only):
+        return None
 
     def keep(record: dict[str, Any]) -> bool:
         kind = record["kind"]
@@ -92,7 +93,6 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("stdin (-) can be given once")
     cat = catalog()
     keep = _filter(args)
-    plain = _plain(args)
     writers: list[Any] = []
     table = None
     if args.csv or args.parquet:
@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
         human = HumanWriter(out, codec_for(cat.default_sw), color=out.isatty(),
                             tree=not args.no_tree)
         writers.append(human)
-        if not plain:  # the filters drop records: the human view still dates from
+        if keep is not None:  # the filters drop records: the human view still dates from
             kept = keep  # the file's first transfer, as plot does
 
             def keep(record: dict[str, Any]) -> bool:
@@ -116,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
                 return kept(record)
     config = DissectConfig(fmt=args.format, direction=args.direction,
                            spi=spi_options(args), sw=args.sw, jobs=args.jobs,
-                           fields=fields_mode(writers, plain), blocks=True)
+                           fields=fields_mode(writers, keep is None), blocks=True)
     per_file: list[Stats] = []
     bars = _Bars(len(args.files), records_on_stdout=bool(writers) and table is None)
     try:
@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
             if release.warning:
                 print(f"eyeq-spi dissect: warning: {release.warning}", file=sys.stderr,
                       flush=True)
-            deliver(cf.items, stats, writers, keep=None if plain else keep, path=path)
+            deliver(cf.items, stats, writers, keep=keep, path=path)
             if cf.tail.ignored:
                 stats.ignored_bytes = cf.tail.ignored
                 print(f"eyeq-spi dissect: {cf.tail.note(path)}", file=sys.stderr, flush=True)
@@ -165,50 +165,34 @@ def _print_stats(per_file: list[Any], out: Any, *, as_json: bool) -> None:
 class _Bars:
     """The pipeline's progress on the shared bars (:mod:`eyeq_spi.cli.progress`), on stderr and
     only where they cannot land between records: one over the bytes of each file read here,
-    one over the files when they are decoded in worker processes (``--jobs``)."""
+    or one over the files when they are decoded in worker processes (``--jobs``)."""
 
     def __init__(self, files: int, records_on_stdout: bool) -> None:
         self.files = files
         self.records_on_stdout = records_on_stdout
         self.bar: Any = None
-        self.path: str | None = None
-        self.files_bar: Any = None
+        self.path: str | None = None  # what the bar is about: a file, or None (the files)
+        self.finished: set[str] = set()  # files whose bar ran to its end
 
     def __call__(self, path: str | None, done: float, total: float | None) -> None:
         from eyeq_spi.cli.progress import JobProgress
 
-        if path is None:
-            if self.files_bar is None:
-                self.files_bar = JobProgress(f"dissect {self.files} files", self.files,
-                                             unit="files",
-                                             records_on_stdout=self.records_on_stdout)
-                self.files_bar.__enter__()
-            self.files_bar.update(done)
-            return
-        if path == self.path and self.bar is None:
-            return  # that file's bar ran to its end: later calls about it redraw nothing
-        if path != self.path or self.bar is None:
-            self._close_file_bar()
+        if path in self.finished:
+            return  # later calls about a finished file redraw nothing
+        if self.bar is None or path != self.path:
+            self.close()
             self.path = path
-            self.bar = JobProgress(f"dissect {os.path.basename(path)}", total,
+            label, unit = ((f"dissect {self.files} files", "files") if path is None
+                           else (f"dissect {os.path.basename(path)}", "bytes"))
+            self.bar = JobProgress(label, self.files if path is None else total, unit=unit,
                                    records_on_stdout=self.records_on_stdout)
             self.bar.__enter__()
         self.bar.update(done)
-        if total is not None and done >= total:
-            self._close_file_bar()
+        if path is not None and total is not None and done >= total:
+            self.finished.add(path)
+            self.close()
 
-    def _close_file_bar(self) -> None:
+    def close(self) -> None:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
         self.bar = None
-
-    def close(self) -> None:
-        self._close_file_bar()
-        if self.files_bar is not None:
-            self.files_bar.__exit__(None, None, None)
-            self.files_bar = None
-
-
-def _plain(args: argparse.Namespace) -> bool:
-    """No filter: every record is kept."""
-    return not (args.protocol or args.id is not None or args.name or args.errors_only)

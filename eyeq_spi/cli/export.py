@@ -16,7 +16,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
-    parser = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
+    parser = sub.add_parser(name, help=help, parents=[opt.capture_input()],
                        description="Turn a capture into SPI waveforms for PulseView (--sr, "
                        "a compressed sigrok session file; --vcd for other waveform tools), "
                        "decoded signals for asammdf/CANape (--mdf) or raw transfers and decoded "
@@ -49,10 +49,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    return run_export(args)
-
-
-def run_export(args: argparse.Namespace) -> int:
+    from eyeq_spi.cli.options import spi_options
     from eyeq_spi.cli.progress import JobProgress
     from eyeq_spi.interop.export import export, export_mdf
 
@@ -69,7 +66,7 @@ def run_export(args: argparse.Namespace) -> int:
                 summary = export(cap.transfers, source=args.capture, sw=cap.release.key,
                                  vcd=args.vcd, mdf=args.mdf, mcap=args.mcap, sr=args.sr,
                                  sr_max_idle=args.sr_max_idle,
-                                 spi=_spi(args),
+                                 spi=spi_options(args),
                                  vcd_max_idle=args.vcd_max_idle, progress=bar.update,
                                  mcap_extra=_foxglove_scene(args.mcap))
         else:
@@ -138,9 +135,3 @@ def _vcd_plan(args: argparse.Namespace) -> int:
         print(f"eyeq-spi: {os.path.basename(args.vcd)} will be about {mb:,.0f} MB "
               f"({capture:,.1f} MB capture; a VCD holds every clock edge)", file=sys.stderr)
     return count
-
-
-def _spi(args: argparse.Namespace) -> Any:
-    from eyeq_spi.cli.options import spi_options
-
-    return spi_options(args)

@@ -6,7 +6,7 @@ wrapped here to the terminal instead). Every example is a command that parses
 from __future__ import annotations
 
 import argparse
-import os
+import shutil
 import textwrap
 from typing import Any
 
@@ -178,15 +178,7 @@ def _usage_units(text: str) -> list[str]:
 
 
 def _width() -> int:
-    try:
-        cols = int(os.environ.get("COLUMNS", "")) or os.get_terminal_size().columns
-    except (OSError, ValueError):
-        cols = 80
-    return max(40, min(cols, 100) - 2)
-
-
-def _examples(lines: list[str]) -> str:
-    return "examples:\n" + "\n".join(f"  {line}" for line in lines)
+    return max(40, min(shutil.get_terminal_size((80, 24)).columns, 100) - 2)
 
 
 def finish(parser: argparse.ArgumentParser, name: str = "", help_line: str = "",
@@ -203,7 +195,7 @@ def finish(parser: argparse.ArgumentParser, name: str = "", help_line: str = "",
                                       for p in desc.split("\n\n")) if desc else None
     examples = TOP_EXAMPLES if not name else EXAMPLES.get(name)
     if examples:
-        parser.epilog = _examples(examples)
+        parser.epilog = "examples:\n" + "\n".join(f"  {line}" for line in examples)
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             helps = {a.dest: a.help or "" for a in action._choices_actions}

@@ -9,13 +9,6 @@ import sys
 from typing import Any
 
 
-def capture_parents() -> list[Any]:
-    """The capture-input options of export and replay."""
-    from eyeq_spi.cli import options as opt
-
-    return [opt.capture_input(direction_help="channel of an input without directions")]
-
-
 def add_capture_argument(parser: Any) -> None:
     parser.add_argument("capture", metavar="CAPTURE",
                    help="a capture in any format dissect reads (pcapng, raw, hex, Saleae, VCD)")
@@ -23,11 +16,9 @@ def add_capture_argument(parser: Any) -> None:
 
 def open_input(args: argparse.Namespace, command: str, path: str | None = None, *,
                quiet: bool = False, pace_gc: bool = True) -> Any:
-    """The capture (``path``, default ``args.capture``) opened by the dissect pipeline
-    (:func:`eyeq_spi.dissect.pipeline.open_capture_file`) with its release (``--sw`` overrides,
-    one warning line when they disagree, unless ``quiet``: a first pass that only counts) and
-    its tail (a pcapng cut inside a block is read up to its last whole block). The caller
-    closes it."""
+    """The capture (``path``, default ``args.capture``) opened by the dissect pipeline with its
+    release (one warning line when ``--sw`` disagrees, unless ``quiet``); the caller closes
+    it."""
     from eyeq_spi.cli.options import spi_options
     from eyeq_spi.dissect.pipeline import DissectConfig, open_capture_file
 

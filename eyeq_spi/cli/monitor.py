@@ -20,7 +20,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     src = parser.add_mutually_exclusive_group(required=True)
     src.add_argument("--demo", action="store_true",
                      help="host emulator against the embedded simulated EyeQ (as demo)")
-    from eyeq_spi.cli.args import connect_address
+    from eyeq_spi.cli.args import connect_address, number
 
     src.add_argument("--port", metavar="URL", type=connect_address,
                      help="host emulator against an EyeQ (as host)")
@@ -31,16 +31,17 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                      help="a live Mobileye CAN bus (virtual:NAME, socketcan:can0): one line per "
                      "ID with its cycle and newest signals, as cantools monitor (protocol: "
                      "--can-protocol)")
-    parser.add_argument("--duration", type=float, help="seconds (default: 10 for --demo, no limit "
-                   "for --port and --can-bus, the whole capture for --replay)")
+    parser.add_argument("--duration", type=opt.seconds,
+                        help="seconds (default: 10 for --demo, no limit for --port and --can-bus, "
+                        "the whole capture for --replay)")
     parser.add_argument("--virtual-time", action="store_true", help="--demo as fast as the CPU "
                                                                     "allows")
-    parser.add_argument("--pace", type=float, default=1.0, metavar="X",
+    parser.add_argument("--pace", type=number(0, 1e6), default=1.0, metavar="X",
                    help="--replay: X times real time (default 1; 0 = as fast as possible)")
     parser.add_argument("--passive", action="store_true",
                    help="--replay: show both channels as recorded, through the dissector, "
                    "instead of replaying into the host (a capture without the bring-up)")
-    parser.add_argument("--refresh", type=float, default=6.0, metavar="HZ",
+    parser.add_argument("--refresh", type=number(5, 30, unit="Hz"), default=6.0, metavar="HZ",
                    help="screen redraws per second, 5..30 (default 6)")
     parser.add_argument("--screenshot", metavar="FILE",
                    help="also write the last screen to FILE.svg (a picture), .html or .txt")
@@ -48,12 +49,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                    help="--screenshot: the screen as a terminal of that size shows it, e.g. "
                    "80x24 (default: the whole screen)")
     parser.add_argument("--nvm", metavar="FILE", help="--port: NVM file (default: in memory)")
-    opt.include(parser, opt.capture_input(opt.FORMATS, format_help="--replay: skip detection",
+    opt.include(parser, opt.capture_input(format_help="--replay: skip detection",
                                      direction_help="--replay: channel of an input without "
                                      "directions", sw_help=None))
     opt.include(parser, opt.scenario("monitor"), opt.foxglove())
-
-
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -67,27 +66,19 @@ def _size(text: str) -> tuple[int, int]:
 def run(args: argparse.Namespace) -> int:
     from eyeq_spi.monitor.app import run as run_app
 
-    if args.duration is not None and args.duration <= 0:
-        raise UsageError("--duration must be positive")
-    if not 0 <= args.pace <= 1e6:
-        raise UsageError("--pace must be >= 0")
     if args.screenshot is not None:
         from eyeq_spi.monitor.app import check_screenshot
 
         check_screenshot(args.screenshot)  # before a long run
     if not args.replay:  # the capture-input options read a capture: --replay only
-        for dest, flag in (("format", "--format"), ("direction", "--direction"),
-                           ("spi_mode", "--spi-mode"), ("bit_order", "--bit-order"),
-                           ("channel_map", "--channel-map"), ("signals", "--signals")):
-            if getattr(args, dest, None):
+        for dest in ("format", "direction", "spi_mode", "bit_order", "channel_map", "signals"):
+            if getattr(args, dest) not in (None, []):  # --spi-mode 0 is given too
                 given = "--can-bus" if args.can_bus else "--port" if args.port else "--demo"
-                raise UsageError(f"argument {flag}: applies to --replay, not to monitor {given}")
+                raise UsageError(f"argument --{dest.replace('_', '-')}: applies to --replay, "
+                                 f"not to monitor {given}")
     if args.can_bus:
-        from eyeq_spi.monitor.app import MAX_REFRESH, MIN_REFRESH
         from eyeq_spi.monitor.can_bus import run_can_monitor
 
-        if not MIN_REFRESH <= args.refresh <= MAX_REFRESH:
-            raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
         if args.foxglove:
             raise UsageError("--foxglove serves the EyeQ's scene: not with --can-bus")
         run_can_monitor(args.can_bus, args.can_protocol, duration=args.duration,
@@ -131,9 +122,9 @@ def _foxglove(args: argparse.Namespace, source: Any) -> Any:
     view = getattr(source, "view", None)
     if view is not None:
         return opt.foxglove_feed(args, view.host)
-    from eyeq_spi.foxglove.live import RecordsFeed
+    from eyeq_spi.foxglove.feed import Feed, RecordFeed
 
-    live = RecordsFeed(source.codec, opt.serve_foxglove(args))
+    live = RecordFeed(Feed(source.codec, opt.serve_foxglove(args)))
     source.on_record = live.add
     return live
 
@@ -142,11 +133,9 @@ def _demo_source(args: argparse.Namespace) -> Any:
     from eyeq_spi.monitor.sources import DemoSource
 
     emu, writer = opt.build_demo(args)
-    source = DemoSource(emu, 10.0 if args.duration is None else args.duration,
-                        realtime=not args.virtual_time)
-    if writer is not None:
-        source.close = writer.close  # type: ignore[method-assign]
-    return source
+    return DemoSource(emu, 10.0 if args.duration is None else args.duration,
+                      realtime=not args.virtual_time,
+                      on_close=None if writer is None else writer.close)
 
 
 def _host_source(args: argparse.Namespace) -> Any:

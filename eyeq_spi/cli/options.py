@@ -1,25 +1,16 @@
-"""The option groups several commands share, as argparse parent parsers (``parents=``), and the
-one conversion of parsed options into the library's config objects.
-
-- ``--sw`` (checked against the releases ``specs/`` describes), ``--json``, ``--rt-priority``;
-- capture input (``--format``, ``--direction``, ``--sw``) and the logic-analyzer SPI options;
-- the scenario, link and fault options of ``demo``, ``sim``, ``host`` and ``monitor``.
-
-Every numeric limit lives in :data:`LIMITS` (and the two spans below it): the argparse type
-checks it at parse time, and :func:`sim_config` / :func:`host_parts` check it again for a
-Namespace built by hand, with the same numbers.
-
-An option that belongs to one side only (the simulated EyeQ or the host emulator) is refused,
-never ignored, where that side is not run: :func:`refuse_inapplicable` is the one mechanism
-(``sim --speed``, ``host --objects``, ``monitor --port --seed``, ``monitor --replay --capture``).
+"""The option groups several commands share, as argparse parent parsers, the one conversion of
+parsed options into the library's config objects, and the run summary's printing. Every numeric
+limit lives in :data:`LIMITS`; an option of one side only is refused where that side does not
+run (:func:`refuse_inapplicable`).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection
 from typing import Any
 
 from eyeq_spi import io as formats
@@ -28,17 +19,12 @@ from eyeq_spi.errors import EyeqError, UsageError
 
 # -- capture formats (the one list: dissect, export, replay, plot, monitor) ---------------------
 FORMATS = formats.readers()  # the io registry's capture readers, in detection order
-LOGIC_FORMATS = tuple(n for n in FORMATS if formats.get(n).takes == "spi")  # the SPI options apply
-TRANSFER_FORMATS = tuple(n for n in FORMATS if n not in LOGIC_FORMATS)  # SPI transfers as recorded
 DIRECTIONS = ("h2e", "e2h")
 
-# -- limits: (lo, hi) of every bounded option, checked at parse time and in the conversion -----
-SCENARIO_LIMITS: dict[str, tuple[int, int]] = {
-    "seed": (0, 2**32 - 1), "objects": (0, 15), "signs": (0, 20), "light_spots": (0, 15),
-    "boot_fail": (0, 1000),
-}
+# -- limits: (lo, hi) of every bounded option, checked by its argparse type ---------------------
 LIMITS: dict[str, tuple[int, int]] = {
-    **SCENARIO_LIMITS, "rt_priority": (0, 99),
+    "seed": (0, 2**32 - 1), "objects": (0, 15), "signs": (0, 20), "light_spots": (0, 15),
+    "boot_fail": (0, 1000), "rt_priority": (0, 99),
     "dissect_jobs": (0, 1024),  # dissect --jobs (0: one per CPU)
     "batch_jobs": (1, 1024), "local_cluster": (1, 256),  # batch --jobs, --local-cluster
 }
@@ -78,12 +64,6 @@ SW_HELP = ("SW release of the traffic (default: the one the capture records or s
 def add_sw(group: Any, help: str = SW_HELP) -> None:
     """``--sw``: a release that ``specs/`` describes, any spelling (``9.0``, ``8.1``, ``sw5``)."""
     group.add_argument("--sw", type=ca.sw_release, help=help)
-
-
-def sw(help: str = SW_HELP) -> argparse.ArgumentParser:
-    parser = _parent()
-    add_sw(parser, help)
-    return parser
 
 
 def json_out(help: str = "end with one JSON object") -> argparse.ArgumentParser:
@@ -127,8 +107,8 @@ def foxglove_close(live: Any) -> None:
     """Stop ``--foxglove``'s server; say on stderr what it published."""
     if live is None:
         return
-    live.sink.close()
-    print(f"FOXGLOVE {live.sink.url}: {live.describe()}", file=sys.stderr, flush=True)
+    live.feed.sink.close()
+    print(f"FOXGLOVE {live.feed.sink.url}: {live.describe()}", file=sys.stderr, flush=True)
 
 
 def serve_foxglove(args: argparse.Namespace) -> Any:
@@ -146,6 +126,16 @@ def serve_foxglove(args: argparse.Namespace) -> Any:
     return sink
 
 
+def print_summary(out: dict[str, Any], as_json: bool) -> None:
+    """The JSON object (``--json``) or a readable text block: same content."""
+    if as_json:
+        print(json.dumps(out, sort_keys=True), flush=True)
+        return
+    from eyeq_spi.summary import format_summary
+
+    print(format_summary(out), flush=True)
+
+
 def rt_priority(what: str = "ACKs") -> argparse.ArgumentParser:
     """``--rt-priority N``: SCHED_FIFO for the live run (``eyeq_spi.runner.sched``)."""
     lo, hi = LIMITS["rt_priority"]
@@ -159,13 +149,13 @@ def rt_priority(what: str = "ACKs") -> argparse.ArgumentParser:
 
 # -- capture input ------------------------------------------------------------------------------
 
-def capture_input(formats: Sequence[str] = FORMATS, *, spi: bool = True,
-                  direction_help: str = "channel of a raw or hex file without directions",
+def capture_input(*, spi: bool = True,
+                  direction_help: str = "channel of an input without directions",
                   format_help: str = "skip detection",
                   sw_help: str | None = SW_HELP) -> argparse.ArgumentParser:
     """``--format``, ``--direction``, ``--sw`` and (``spi``) the logic-analyzer options."""
     parser = _parent()
-    parser.add_argument("--format", choices=tuple(formats), help=format_help)
+    parser.add_argument("--format", choices=FORMATS, help=format_help)
     parser.add_argument("--direction", choices=DIRECTIONS, help=direction_help)
     if sw_help is not None:
         add_sw(parser, sw_help)
@@ -211,27 +201,20 @@ def spi_options(args: argparse.Namespace) -> Any:
 EYEQ, HOST = "eyeq", "host"
 _SIDE_NAMES = {EYEQ: "the simulated EyeQ (demo, sim)", HOST: "the host emulator (demo, host)"}
 SIDE_OF: dict[str, frozenset[str]] = {}  # dest -> the sides it applies to (filled below)
-_FLAGS: dict[str, str] = {}  # dest -> its option string, for the message
 
 
 class _Given(argparse.Action):
-    """Stores like ``store``, ``store_true`` or ``append`` (``kind``) and notes in
+    """Stores like ``store``, ``store_true`` or ``append`` (its ``const``) and notes in
     ``namespace._given`` that the option was given."""
-
-    kind = "store"
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: Any, option_string: str | None = None) -> None:
-        if self.kind == "store_true":
+        if self.const == "store_true":
             values = True
-        elif self.kind == "append":
+        elif self.const == "append":
             values = [*(getattr(namespace, self.dest, None) or []), values]
         setattr(namespace, self.dest, values)
         namespace._given = {*(getattr(namespace, "_given", None) or ()), self.dest}
-
-
-_KINDS = {kind: type(f"_Given_{kind}", (_Given,), {"kind": kind})
-          for kind in ("store", "store_true", "append")}
 
 
 def _side_option(group: Any, sides: Collection[str], shown: bool, *flags: str,
@@ -243,9 +226,8 @@ def _side_option(group: Any, sides: Collection[str], shown: bool, *flags: str,
         kw.update(nargs=0, default=kw.get("default", False))
     if not shown:  # refused whatever its value: the refusal, not a value check, is the error
         kw.update(help=argparse.SUPPRESS, type=None, choices=None)
-    dest = group.add_argument(*flags, action=_KINDS[kind], **kw).dest
+    dest = group.add_argument(*flags, action=_Given, const=kind, **kw).dest
     SIDE_OF[dest] = frozenset(sides)
-    _FLAGS[dest] = flags[0]
 
 
 def refuse_inapplicable(args: argparse.Namespace, sides: Collection[str], where: str) -> None:
@@ -256,7 +238,7 @@ def refuse_inapplicable(args: argparse.Namespace, sides: Collection[str], where:
         if own and not own & set(sides):
             whose = (f"applies to {_SIDE_NAMES[next(iter(own))]}" if len(own) == 1
                      else "applies to a live emulator (demo, sim, host)")
-            raise UsageError(f"argument {_FLAGS[dest]}: {whose}, not to {where}")
+            raise UsageError(f"argument --{dest.replace('_', '-')}: {whose}, not to {where}")
 
 
 # -- scenario, link and faults (demo, sim, host, monitor) ---------------------------------------
@@ -264,13 +246,10 @@ def refuse_inapplicable(args: argparse.Namespace, sides: Collection[str], where:
 def scenario(side: str = "demo") -> argparse.ArgumentParser:
     """Scenario, link and fault options of ``demo`` (both sides), ``sim`` (the simulated EyeQ),
     ``host`` (the host emulator) and ``monitor`` (both, refused per source at run time)."""
-    if side not in ("demo", "sim", "host", "monitor"):
-        raise ValueError(f"side must be demo, sim, host or monitor, not {side!r}")
     eyeq, host = side != "host", side != "sim"
     both = (EYEQ, HOST)
     parser = _parent()
     group = parser.add_argument_group("scenario")
-    lim = LIMITS
     _side_option(group, [EYEQ], eyeq, "--seed", type=limited("seed"), default=1,
                  help="random seed of the scene, 0..2^32-1 (default 1)")
     add_sw(group, "SW release both sides speak, e.g. 9.0 or 8.1 (default: newest in specs/)")
@@ -281,7 +260,7 @@ def scenario(side: str = "demo") -> argparse.ArgumentParser:
     for dest, default, what in (("objects", 8, "tracked objects"), ("signs", 4, "traffic signs"),
                                 ("light_spots", 4, "light spots")):
         _side_option(group, [EYEQ], eyeq, "--" + dest.replace("_", "-"), type=limited(dest),
-                     default=default, help=f"{what}, {lim[dest][0]}..{lim[dest][1]} "
+                     default=default, help=f"{what}, {LIMITS[dest][0]}..{LIMITS[dest][1]} "
                      f"(default {default})")
     _side_option(group, [HOST], host, "--camera-only-aeb", action="store_true",
                  help="send IPB/PCW (0x78/0x79)")
@@ -299,7 +278,7 @@ def scenario(side: str = "demo") -> argparse.ArgumentParser:
     _side_option(group, [HOST], host, "--can-protocol", choices=("extlog2", "me8"),
                  default="extlog2", help="CAN protocol of --can-out (default extlog2)")
     faults = parser.add_argument_group("faults (simulated EyeQ)") if eyeq else group
-    lo, hi = lim["boot_fail"]
+    lo, hi = LIMITS["boot_fail"]
     _side_option(faults, [EYEQ], eyeq, "--boot-fail", type=limited("boot_fail"), default=0,
                  metavar="N", help=f"the first N boots ({lo}..{hi}) report failing test bits")
     _side_option(faults, [EYEQ], eyeq, "--boot-test-bits", type=ca.boot_test_bits, default=0x0002,
@@ -339,26 +318,14 @@ def _speed(text: str) -> float:
 
 # -- Namespace -> library config ----------------------------------------------------------------
 
-def _ms(value: float | None, name: str) -> float | None:
-    if value is None:
-        return None
-    if not 0 < value <= LINK_TIMEOUT_MS:
-        raise UsageError(f"--{name} must be in (0, {LINK_TIMEOUT_MS:g}] ms")
-    return value / 1000.0
-
-
-def _check_limits(args: argparse.Namespace) -> None:
-    for dest, (lo, hi) in SCENARIO_LIMITS.items():
-        value = getattr(args, dest, None)
-        if value is not None and not lo <= value <= hi:
-            raise UsageError(f"--{dest.replace('_', '-')} must be {lo}..{hi}, got {value}")
+def _seconds(ms: float | None) -> float | None:
+    return None if ms is None else ms / 1000.0
 
 
 def sim_config(args: argparse.Namespace) -> Any:
     """The simulated EyeQ's :class:`~eyeq_spi.sim.config.SimConfig` from the options."""
     from eyeq_spi.sim.config import SimConfig
 
-    _check_limits(args)
     drops: dict[str, int] = {}
     for fn, count in args.drop_reply:  # (name, N) from args.drop_reply
         drops[fn] = drops.get(fn, 0) + count
@@ -369,8 +336,7 @@ def sim_config(args: argparse.Namespace) -> Any:
         boot_test_failures=args.boot_test_bits, corrupt_eeprom_crc=args.corrupt_eeprom,
         fatal_error=args.fatal, reply_delay=args.reply_delay, drop_replies=drops,
         reset_at=args.reset_at, stop_dasp=stops,
-        ack_timeout=_ms(args.ack_timeout, "ack-timeout"),
-        transmit_timeout=_ms(args.transmit_timeout, "transmit-timeout"),
+        ack_timeout=_seconds(args.ack_timeout), transmit_timeout=_seconds(args.transmit_timeout),
     )
 
 
@@ -391,8 +357,8 @@ def host_parts(args: argparse.Namespace) -> tuple[Any, Any, Any]:
         scenario_ = ConstantDrive(args.speed)
     nvm = Nvm(getattr(args, "nvm", None))
     cfg = HostConfig(sw=args.sw, camera_only_aeb=args.camera_only_aeb,
-                     ack_timeout=_ms(args.ack_timeout, "ack-timeout"),
-                     transmit_timeout=_ms(args.transmit_timeout, "transmit-timeout"))
+                     ack_timeout=_seconds(args.ack_timeout),
+                     transmit_timeout=_seconds(args.transmit_timeout))
     return cfg, nvm, scenario_
 
 
@@ -418,27 +384,20 @@ def can_output(args: argparse.Namespace, host: Any, runner: Any) -> Any:
                   protocol=getattr(args, "can_protocol", None) or "extlog2")
 
 
-class CaptureTap:
-    """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``.
+def capture_tap(writer: Any, clock: Callable[[], float] | None) -> Callable[..., None]:
+    """The emulator's tap onto the ``--capture`` writer: node 0 (the host) sends ``h2e``. With
+    ``clock`` (real time) a transfer is stamped with the clock's reading when it was handed
+    over, else with the schedule's instant (virtual time)."""
+    origin: float | None = None  # the clock's reading at the schedule's 0
 
-    ``clock`` (a real-time run): every transfer is stamped with the clock's reading when the
-    emulator handed it over, since the first one (which keeps its time on the schedule), not
-    with the schedule's instant; None: the schedule (virtual time)."""
-
-    DIRECTIONS = ("h2e", "e2h")
-
-    def __init__(self, writer: Any, clock: Callable[[], float] | None = None) -> None:
-        self.writer = writer
-        self.clock = clock
-        self.origin: float | None = None  # the clock's reading at the schedule's 0
-
-    def __call__(self, node: int, time_s: float, transfer: bytes) -> None:
-        if self.clock is not None:
-            now = self.clock()
-            if self.origin is None:
-                self.origin = now - time_s
-            time_s = now - self.origin
-        self.writer.write(self.DIRECTIONS[node], time_s, transfer)
+    def tap(node: int, time_s: float, transfer: bytes) -> None:
+        nonlocal origin
+        if clock is not None:
+            now = clock()
+            origin = now - time_s if origin is None else origin
+            time_s = now - origin
+        writer.write(DIRECTIONS[node], time_s, transfer)
+    return tap
 
 
 def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
@@ -450,7 +409,7 @@ def build_demo(args: argparse.Namespace) -> tuple[Any, Any]:
     writer = capture_writer(args)
     # real time: the capture says when each transfer happened (its clock is in the file)
     realtime = not getattr(args, "virtual_time", False)
-    tap = None if writer is None else CaptureTap(writer, time.monotonic if realtime else None)
+    tap = None if writer is None else capture_tap(writer, time.monotonic if realtime else None)
     emu = build(sim_config=sim_config(args), host_config=host_cfg, nvm=nvm, scenario=scenario_,
                 keep_rx_times=False, tap=tap)
     return emu, writer

@@ -13,6 +13,7 @@ from eyeq_spi.errors import UsageError
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
+    from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
     parser = sub.add_parser(
@@ -35,27 +36,23 @@ def add_parser(sub: Any, name: str, help: str) -> None:
     parser.add_argument("--at", type=float, metavar="T",
                    help="--birdseye: the scene at T s from the capture start (default: the end)")
     parser.add_argument("--animate", action="store_true", help="--birdseye over the whole window")
-    parser.add_argument("--fps", type=float, default=5.0, help="--animate: frames per capture "
-                                                               "second")
-    parser.add_argument("--max-frames", type=int, default=600, help="--animate: at most N frames")
-    parser.add_argument("--range", dest="range_m", type=float, metavar="M",
+    positive = ca.number(0, 1e6, lo_open=True)
+    parser.add_argument("--fps", type=positive, default=5.0,
+                        help="--animate: frames per capture second")
+    parser.add_argument("--max-frames", type=ca.integer(1, 10**6), default=600,
+                        help="--animate: at most N frames")
+    parser.add_argument("--range", dest="range_m", type=positive, metavar="M",
                    help="--birdseye: metres ahead (default: fitted)")
-    parser.add_argument("--lateral", dest="lateral_m", type=float, metavar="M",
+    parser.add_argument("--lateral", dest="lateral_m", type=positive, metavar="M",
                    help="--birdseye: metres to each side (default: fitted)")
-    parser.add_argument("--name", metavar="REGEX",
+    parser.add_argument("--name", metavar="REGEX", type=ca.regex,
                    help="--timing: only messages whose name matches (default: all periodic)")
-    parser.add_argument("--bin", dest="bin_ms", type=float, default=100.0, metavar="MS",
+    parser.add_argument("--bin", dest="bin_ms", type=positive, default=100.0, metavar="MS",
                    help="--link: time bin (default 100 ms)")
-    parser.add_argument("--start", type=float, default=0.0, metavar="S", help="window start, s")
+    parser.add_argument("--start", type=ca.number(0, 1e9), default=0.0, metavar="S",
+                        help="window start, s")
     parser.add_argument("--end", type=float, default=math.inf, metavar="S", help="window end, s")
-    opt.include(parser, opt.capture_input(opt.FORMATS,
-                                     direction_help="channel of an input without directions"))
-
-
-def _default_output(args: argparse.Namespace, kind: str) -> str:
-    cap = Path(args.capture)
-    suffix = ".gif" if args.animate else ".png"
-    return str(cap.with_name(f"{cap.stem}_{kind}{suffix}"))
+    opt.include(parser, opt.capture_input())
 
 
 def run(args: argparse.Namespace) -> int:
@@ -68,17 +65,12 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--at and --animate go with --birdseye")
     if args.at is not None and args.animate:
         raise UsageError("give --at or --animate, not both")
-    for name in ("fps", "bin_ms", "range_m", "lateral_m"):
-        value = getattr(args, name)
-        if value is not None and not (0 < value < 1e6):
-            raise UsageError(f"--{name.split('_')[0]} must be positive")
-    if args.max_frames < 1 or args.start < 0 or not args.end > args.start:
-        raise UsageError("need --max-frames >= 1 and 0 <= --start < --end")
-    try:
-        name_re = re.compile(args.name) if args.name else None
-    except re.error as exc:
-        raise UsageError(f"--name: bad regular expression: {exc}") from None
-    out = args.output or _default_output(args, kind)
+    if not args.end > args.start:
+        raise UsageError("need --start < --end")
+    name_re = re.compile(args.name) if args.name else None
+    capture = Path(args.capture)  # the default output: CAPTURE_<kind>.png (.gif) beside it
+    out = args.output or str(capture.with_name(
+        f"{capture.stem}_{kind}{'.gif' if args.animate else '.png'}"))
     check_output(out, animated=args.animate)
     mpl()  # fail before reading a large capture when matplotlib is missing
     cf = inputs.open_input(args, "plot")

@@ -1,13 +1,7 @@
-"""The one progress bar of every long job (dissect, export, batch, long demos, conformance).
-
-A rich bar on stderr with the fraction done, the rate and the time left, drawn only when stderr
-is a terminal and never where it could land between records: when the command writes its
-records on stdout, the bar is drawn only if stdout is a file (or /dev/null). A pipe may end on
-the same terminal (``| head``, ``| less``), and a bar redrawn between those lines garbles them.
-
-Library functions take a plain ``progress(done, total)`` callback and know nothing of rich;
-the CLI hands them :meth:`JobProgress.update`. rich is imported only when a bar is drawn, so
-start-up time does not change.
+"""The one progress bar of every long job (dissect, export, batch, long demos, conformance): rich,
+on stderr, drawn only when stderr is a terminal and never where it could land between records
+(records on stdout: only if stdout is a file). Library functions take a plain
+``progress(done, total)`` callback; rich is imported only when a bar is drawn.
 """
 
 from __future__ import annotations
@@ -18,7 +12,7 @@ import stat
 import sys
 import time
 from types import TracebackType
-from typing import IO, Any
+from typing import Any
 
 LABEL = 28  # characters of the label: the bar fits an 80-column terminal
 REFRESH = 0.1  # s between two updates of the bar (rich redraws at most this often anyway)
@@ -45,11 +39,8 @@ def bar_allowed(records_on_stdout: bool) -> bool:
 
 
 class JobProgress:
-    """``with JobProgress("reading x.pcapng", total) as p: ... p.update(done)``.
-
-    A no-op when :func:`bar_allowed` says no. ``unit`` ``"bytes"`` shows sizes and a transfer
-    rate; anything else shows counts of that unit. The bar is transient: gone when the job ends,
-    whatever way it ends (an exception, a closed pipe)."""
+    """``with JobProgress("reading x.pcapng", total) as p: ... p.update(done)``: a no-op when
+    :func:`bar_allowed` says no, gone when the job ends whatever way it ends."""
 
     def __init__(self, label: str, total: float | None = None, *, unit: str = "bytes",
                  records_on_stdout: bool = False, enabled: bool | None = None) -> None:
@@ -103,20 +94,12 @@ class JobProgress:
         self._last = now
         self._progress.update(self._task, completed=done, total=self.total)
 
-    def __call__(self, done: float, total: float | None = None) -> None:
-        self.update(done, total)
-
     def print(self, line: str) -> None:
         """A line on stderr above the bar (or plainly when there is no bar)."""
         if self._progress is not None:
             self._progress.console.print(line, markup=False, highlight=False, soft_wrap=True)
         else:
             print(line, file=sys.stderr)
-
-    def lines(self) -> Lines:
-        """A file-like object whose lines :meth:`print` writes (for code that prints)."""
-        return Lines(self)
-
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
@@ -125,29 +108,3 @@ class JobProgress:
                 self._progress.stop()
             self._progress = None
 
-
-def file_size(fh: IO[bytes]) -> int | None:
-    """Size of a regular file behind ``fh``; None for a pipe or stdin."""
-    try:
-        st = os.fstat(fh.fileno())
-    except (OSError, ValueError, AttributeError):
-        return None
-    return st.st_size if stat.S_ISREG(st.st_mode) else None
-
-
-class Lines:
-    """Text written here goes to :meth:`JobProgress.print`, line by line."""
-
-    def __init__(self, bar: JobProgress) -> None:
-        self.bar = bar
-        self.buf = ""
-
-    def write(self, text: str) -> int:
-        self.buf += text
-        while "\n" in self.buf:
-            line, self.buf = self.buf.split("\n", 1)
-            self.bar.print(line)
-        return len(text)
-
-    def flush(self) -> None:
-        pass

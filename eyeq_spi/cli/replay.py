@@ -4,38 +4,31 @@ host emulator."""
 from __future__ import annotations
 
 import argparse
-import json
 from typing import Any
 
 from eyeq_spi.cli import inputs
-from eyeq_spi.errors import UsageError
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
     from eyeq_spi.cli import options as opt
 
-    parser = sub.add_parser(name, help=help, parents=inputs.capture_parents(),
-                       description="Play the EyeQ channel (e2h) of a capture to a host under "
-                       "test in real time, keeping the capture's timing and ACKing the host's "
-                       "frames (--listen: the host connects to us; --port: we connect to the "
-                       "host), or (--into-host) to the built-in host emulator in virtual time. "
-                       "Ends with the run summary demo, host and sim print. Exit 0 when the run "
-                       "is ok: played to the end with nothing lost (--into-host: checked as "
-                       "host checks, Running Vision reached and held), else 1.")
+    parser = sub.add_parser(name, help=help, parents=[opt.capture_input()],
+                       description="Play a capture's EyeQ channel (e2h) to a host under test "
+                       "in real time, in the capture's timing, ACKing the host's frames, or "
+                       "(--into-host) to the built-in host emulator in virtual time; end with the "
+                       "run summary. Exit 0 when played to the end with nothing lost "
+                       "(--into-host: Running Vision reached and held), else 1.")
     inputs.add_capture_argument(parser)
     where = parser.add_mutually_exclusive_group(required=True)
-    where.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
-                       metavar="tcp://HOST:PORT",
-                       help="listen here for the host under test (port 0: any free port); "
-                       "prints LISTEN URL on stderr")
-    where.add_argument("--port", dest="endpoint", action=ca.Endpoint, metavar="URL",
-                       help="connect to the host under test at tcp://HOST:PORT (socket:// too), "
-                       "rfc2217://HOST:PORT or a tty/pty path")
+    ca.add_endpoints(parser, where,
+                     listen="listen here for the host under test (port 0: any free port); "
+                     "prints LISTEN URL on stderr",
+                     port="connect to the host under test at tcp://HOST:PORT (socket:// too), "
+                     "rfc2217://HOST:PORT or a tty/pty path")
     where.add_argument("--into-host", action="store_true",
                        help="feed the built-in host emulator in virtual time (with "
                        "--foxglove: at the capture's pace)")
-    parser.set_defaults(port=None, listen=None, pty=False)
     parser.add_argument("--duration", type=opt.seconds,
                    help="stop after S seconds of capture time, (0, 86400]")
     parser.add_argument("--lead", type=ca.number(0, 3600, unit="s"), default=0.5, metavar="S",
@@ -45,20 +38,9 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    return run_replay(args)
-
-
-def run_replay(args: argparse.Namespace) -> int:
     from eyeq_spi.cli import options as opt
     from eyeq_spi.interop.replay import replay_into_host, replay_to_port
-    from eyeq_spi.summary import format_summary
 
-    if args.duration is not None and args.duration <= 0:
-        raise UsageError("--duration must be positive")
-    if args.pty:
-        raise UsageError("replay takes --listen tcp://HOST:PORT or --port URL, not a pty")
-    if not args.into_host and args.lead < 0:
-        raise UsageError("--lead must not be negative")
     cap = inputs.open_input(args, "replay")
     sink = opt.serve_foxglove(args)
     live: Any = None
@@ -89,9 +71,6 @@ def run_replay(args: argparse.Namespace) -> int:
             opt.foxglove_close(live)
         elif sink is not None:
             sink.close()
-    if args.json:
-        print(json.dumps(summary, sort_keys=True), flush=True)
-    else:
-        print(format_summary(summary), flush=True)
+    opt.print_summary(summary, args.json)
     rc = inputs.tail_note("replay", args.capture, cap.tail)
     return 0 if summary["ok"] and not rc else 1

@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import sys
+import time
 from collections import Counter
+from collections.abc import Callable
 from typing import Any
 
 from eyeq_spi import garbage
@@ -41,14 +42,10 @@ def add_parser(sub: Any, name: str, help: str) -> None:
                        "atomically: the next run starts with the calibration it learned "
                        "(default: in memory, empty)")
     elif name == "sim":
-        ep = parser.add_mutually_exclusive_group(required=True)
-        ep.add_argument("--listen", dest="endpoint", action=ca.Endpoint,
-                        metavar="tcp://HOST:PORT",
-                        help="listen here for the host (port 0: any free port); or our SPI "
-                        "channels, MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)")
-        ep.add_argument("--pty", dest="endpoint", nargs=0, action=ca.Endpoint,
-                        help="open a pty and print its path; the host opens it as a serial port")
-        parser.set_defaults(listen=None, pty=False, port=None)
+        ca.add_endpoints(parser, parser.add_mutually_exclusive_group(required=True),
+                         listen="listen here for the host (port 0: any free port); or our SPI "
+                         "channels, MASTER_URL,SLAVE_URL or a bench.toml (docs/bench.md)",
+                         pty="open a pty and print its path; the host opens it as a serial port")
         parser.add_argument("--duration", type=opt.seconds,
                        help="stop after S seconds (default: never)")
         parser.add_argument("--accept-timeout", type=opt.seconds, default=60.0,
@@ -105,17 +102,14 @@ def _stderr_width() -> int:
 
 
 class LiveView:
-    """On a TTY: state transitions as they happen and message rates once a second.
+    """On a TTY: state transitions as they happen and message rates once a second, in seconds
+    since the run started (a host on the wall clock has its start subtracted), each line folded
+    to the terminal's width; the first FATAL_22 gets an explanation."""
 
-    One time base: every time printed is seconds since the run started, the same clock the
-    transitions carry (a host on the wall clock has its start subtracted, inferred from the
-    host's own ``now`` on the first update). Every line fits the terminal (at most 100
-    columns), folded between words, never cut; the first FATAL_22 gets an explanation (an empty
-    NVM on a first run)."""
-
-    def __init__(self, enabled: bool, out: Any = None, width: int | None = None) -> None:
+    def __init__(self, enabled: bool, say: Callable[[str], None] | None = None,
+                 width: int | None = None) -> None:
         self.enabled = enabled
-        self.out = out
+        self.say = say or (lambda line: print(line, file=sys.stderr))
         self.width = width or _stderr_width()
         self.shown = 0
         self.last_counts: Counter[str] = Counter()
@@ -135,9 +129,9 @@ class LiveView:
             line = textwrap.fill(line.strip(), self.width, initial_indent=lead,
                                  subsequent_indent=" " * max(indent, len(lead)),
                                  break_long_words=False, break_on_hyphens=False)
-        print(line, file=self.out or sys.stderr)
+        self.say(line)
 
-    def _periodic(self, host: Any) -> set[str]:
+    def _periodic(self) -> set[str]:
         """The messages the spec gives a nominal rate (seed 004's message table)."""
         if self._periodic_names is None:
             from eyeq_spi.catalog.messages import catalog
@@ -164,7 +158,7 @@ class LiveView:
             counts = Counter(host.counters.received)
             dt = now - self.last_t
             rates = {k: (v - self.last_counts.get(k, 0)) / dt for k, v in counts.items()}
-            periodic = self._periodic(host)  # a boot status or a MESP reply is no stream
+            periodic = self._periodic()  # a boot status or a MESP reply is no stream
             live = {k: r for k, r in rates.items() if r > 0 and k in periodic}
             line = f"[{now:8.3f}] {host.state.value:14s} rx {sum(live.values()):6.1f} msg/s"
             if live:
@@ -180,12 +174,6 @@ class LiveView:
             self.last_live = {k for k, r in live.items() if r >= 2.0}  # periodic streams
 
 
-def _connect_hint(endpoint: str) -> None:
-    """``sim``: the exact command that connects a host (after the LISTEN or PTY line)."""
-    print(f"eyeq-spi sim: waiting for a host: eyeq-spi host --port {endpoint}", file=sys.stderr,
-          flush=True)
-
-
 def _on_sigterm() -> None:
     """SIGTERM ends ``demo``, ``host`` and ``sim`` like Ctrl-C: cleanly, with the summary."""
     import signal
@@ -197,45 +185,28 @@ def _on_sigterm() -> None:
         signal.signal(signal.SIGTERM, raise_interrupt)
 
 
-def print_summary(out: dict[str, Any], as_json: bool) -> None:
-    """The JSON object (``--json``) or a readable text block: same content."""
-    if as_json:
-        print(json.dumps(out, sort_keys=True), flush=True)
-        return
-    from eyeq_spi.summary import format_summary
-
-    print(format_summary(out), flush=True)
-
-
 LONG_DEMO_S = 20.0  # demos this long or longer show a progress bar on a terminal
 
 
 def run_demo(args: argparse.Namespace) -> int:
+    from eyeq_spi.cli.progress import JobProgress
     from eyeq_spi.emulator import summary
+    from eyeq_spi.summary import ClockedAcks, ack_latency_ms
 
-    if args.duration <= 0:
-        raise UsageError("--duration must be positive")
     emu, writer = opt.build_demo(args)
+    collector = contextlib.ExitStack()
+    acks = None
     if not args.virtual_time:
         # in real time the link's deadlines are read on the clock: no first-time codec build
         # and no full collection may delay an ACK past ackTimeout (the live sim and host warm
         # up, and collect only between bursts, the same way)
         emu.host.warm_up()
         emu.sim.warm_up()
-    collector = contextlib.ExitStack()
-    acks = None
-    if not args.virtual_time:
         collector.enter_context(garbage.paused(freeze=True))
-        import time
-
-        from eyeq_spi.summary import ClockedAcks
-
-        # in real time, the summary's ACK latencies are readings of the clock too
+        # the summary's ACK latencies are readings of the clock too
         acks = emu.runner.tap = ClockedAcks(time.monotonic, then=emu.runner.tap)
     can_out = opt.can_output(args, emu.host, emu.runner)  # --can-out: the CAN gateway
     live = opt.foxglove_feed(args, emu.host)
-    from eyeq_spi.cli.progress import JobProgress
-
     _on_sigterm()
     done_s = 0.0
     interrupted = False
@@ -244,7 +215,7 @@ def run_demo(args: argparse.Namespace) -> int:
     try:
         with JobProgress("demo", args.duration, unit="s of run time",
                          enabled=None if long_run else False) as bar:
-            view = LiveView(sys.stderr.isatty() and not args.json, out=bar.lines())
+            view = LiveView(sys.stderr.isatty() and not args.json, say=bar.print)
             while done_s < args.duration:
                 step = min(0.25, args.duration - done_s)
                 emu.run_for(step, realtime=not args.virtual_time)
@@ -265,12 +236,10 @@ def run_demo(args: argparse.Namespace) -> int:
         opt.foxglove_close(live)
     out = summary(emu, interrupted=interrupted)
     if acks is not None:
-        from eyeq_spi.summary import ack_latency_ms
-
         out["ack_latency_ms"] = ack_latency_ms(acks.hist)
     if can_out is not None:
         out["can"] = can_out.summary()
-    print_summary(out, args.json)
+    opt.print_summary(out, args.json)
     return 0 if out["ok"] else 1
 
 
@@ -301,14 +270,15 @@ def run_sim(args: argparse.Namespace) -> int:
     if is_spi(address):  # the host is on the wires already: nothing to hand over
         print("eyeq-spi sim: on the SPI lines; the host runs on the other side's channels",
               file=sys.stderr, flush=True)
-    else:
-        _connect_hint(address)
+    else:  # the exact command that connects a host
+        print(f"eyeq-spi sim: waiting for a host: eyeq-spi host --port {address}",
+              file=sys.stderr, flush=True)
     _on_sigterm()
     out = serve(eyeq, adapter, duration=args.duration, accept_timeout=args.accept_timeout,
                 address=address, rt_priority=args.rt_priority,
                 capture=opt.capture_writer(args))
     out["spi"] = adapter.line_report()  # on SPI lines: the reply latency measured
-    print_summary(out, args.json)
+    opt.print_summary(out, args.json)
     return 0 if out["ok"] else 1
 
 
@@ -327,8 +297,6 @@ def _open_or_say(args: argparse.Namespace) -> Any:
 
 
 def run_host(args: argparse.Namespace) -> int:
-    import time
-
     from eyeq_spi.host.host import HostEmulator
     from eyeq_spi.live import drive, reopen
     from eyeq_spi.phy.address import parse_connect
@@ -338,26 +306,24 @@ def run_host(args: argparse.Namespace) -> int:
     host = HostEmulator(host_cfg, nvm=nvm, scenario=scenario, keep_rx_times=False)
     host.warm_up()
 
+    used: list[Any] = []  # every adapter of the run, the reconnected ones too
+
     def again(until: float) -> Any:
-        return reopen(lambda: open_url(args.port), until)
+        used.append(reopen(lambda: open_url(args.port), until))
+        return used[-1]
 
     # --reconnect: the EyeQ may not be there yet (a sim still starting, a camera powering up)
     adapter: Any = ((again(time.monotonic() + args.duration) if args.reconnect else None)
                     or _open_or_say(args))
+    used.append(adapter)
     _on_sigterm()
     view = LiveView(sys.stderr.isatty() and not args.json)
-    used = [adapter]  # every adapter of the run, the reconnected ones too
-
-    def again_kept(until: float) -> Any:
-        fresh = again(until)
-        used.append(fresh)
-        return fresh
 
     live = opt.foxglove_feed(args, host)
     try:
         out = drive(host, adapter, duration=args.duration,
                     address=parse_connect(args.port, check_path=False).display,
-                    reopen_adapter=again_kept if args.reconnect else None,
+                    reopen_adapter=again if args.reconnect else None,
                     exit_when_running=args.exit_when_running, rt_priority=args.rt_priority,
                     capture=opt.capture_writer(args),
                     attach=lambda runner: opt.can_output(args, host, runner),
@@ -365,5 +331,5 @@ def run_host(args: argparse.Namespace) -> int:
     finally:
         opt.foxglove_close(live)
     out["spi"] = used[-1].line_report() if used[-1] is not None else None
-    print_summary(out, args.json)
+    opt.print_summary(out, args.json)
     return 0 if out["ok"] else 1

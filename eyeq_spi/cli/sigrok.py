@@ -18,10 +18,6 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    return run_sigrok_decoder(args)
-
-
-def run_sigrok_decoder(args: argparse.Namespace) -> int:
     from eyeq_spi.interop.sigrok_install import default_dir, install
 
     if args.install is None:

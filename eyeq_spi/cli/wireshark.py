@@ -21,10 +21,6 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    return run_wireshark(args)
-
-
-def run_wireshark(args: argparse.Namespace) -> int:
     from eyeq_spi.wireshark.lua_gen import generate_lua
 
     text = generate_lua(args.sw)

@@ -1,15 +1,9 @@
 """Decoded messages and events in, Foxglove topics out (:mod:`eyeq_spi.foxglove.topics`).
 
-:class:`Feed` is the one translation, fed by a capture's dissector records (:class:`RecordFeed`,
-``export --mcap``) or by a running host (:mod:`eyeq_spi.foxglove.live`). Times are seconds on
-the caller's base (a capture's timestamps, or the run's clock); a sink gets them in ns.
-
-- a scene message (obstacles, road, signs, light spots) without decode errors becomes one
-  SceneUpdate on its topic (E2E and counter errors alone do not hide it, as in every view);
-- HOST_VEH_STATE_MSG's ``vehicleVelocity`` and ``vehicleYawRate`` become ``/ego`` and the
-  dead-reckoned ``odom`` -> ``vehicle`` transform, sent on ``/tf`` with every obstacles update;
-- every second: ``/streams`` (the rates of the last second) and ``/link/ack_latency``;
-- :meth:`Feed.log`: a line on ``/log``.
+:class:`Feed` is the one translation, fed by a capture's dissector records (:class:`RecordFeed`)
+or by a running host (:mod:`eyeq_spi.foxglove.live`). Times are seconds on the caller's base; a
+sink gets them in ns. A scene message with decode errors is skipped (E2E and counter errors alone
+do not hide it, as in every view).
 """
 
 from __future__ import annotations
@@ -21,35 +15,24 @@ from typing import Any
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.foxglove import topics
 from eyeq_spi.foxglove.scene import KINDS, SceneMessages, fg, frame_transforms, timestamp
-from eyeq_spi.plot.perceived import OBSTACLES, Labels, SceneTracker
+from eyeq_spi.plot.perceived import OBSTACLES, Labels, SceneTracker, walk
 from eyeq_spi.plot.vehicle_frame import CAMERA_HEIGHT_M
 from eyeq_spi.summary import ack_latency_ms
 
 VEH_STATE = "HOST_VEH_STATE_MSG"
 STATS_PERIOD_S = 1.0
-LEVELS = ("debug", "info", "warning", "error")
 
 
 def ns(time_s: float) -> int:
     return max(0, round(time_s * 1e9))
 
 
-def _find(fields: Any, key: str) -> float | None:
+def _find(fields: dict[str, Any], key: str) -> float | None:
     """The first number named ``key`` anywhere in decoded fields (every release's layout)."""
-    if isinstance(fields, dict):
-        value = fields.get(key)
+    for _, struct in walk(fields):
+        value = struct.get(key)
         if isinstance(value, int | float) and not isinstance(value, bool):
             return float(value)
-        for inner in fields.values():
-            if isinstance(inner, dict | list):
-                found = _find(inner, key)
-                if found is not None:
-                    return found
-    elif isinstance(fields, list):
-        for inner in fields:
-            found = _find(inner, key)
-            if found is not None:
-                return found
     return None
 
 
@@ -89,12 +72,7 @@ class Feed:
                  camera_height: float = CAMERA_HEIGHT_M) -> None:
         self.sink = sink
         self.tracker = SceneTracker(Labels(codec))
-        rates = {}
-        for kind in KINDS:
-            try:
-                rates[kind] = codec.cat.message(kind).rate_hz or 0.0
-            except Exception:
-                rates[kind] = 0.0
+        rates = {msg.name: msg.rate_hz or 0.0 for msg in codec.cat.messages if msg.name in KINDS}
         self.camera_height = camera_height
         self.scenes = SceneMessages(rates, camera_height)
         self.odom = DeadReckoning()
@@ -102,6 +80,16 @@ class Feed:
         self.acks: Counter[int] = Counter()  # 10 µs bin -> DATA frames ACKed, this second
         self.next_stats: float | None = None
         self.published: Counter[str] = Counter()  # topic -> messages written
+        advertise = getattr(sink, "advertise", None)
+        if advertise is not None:  # a live client sees every topic as soon as it connects
+            advertise(schemas())
+
+    def scene_updates(self) -> int:
+        return sum(n for topic, n in self.published.items() if topic.startswith("/scene/"))
+
+    def describe(self) -> str:
+        """What was published, one line."""
+        return f"{self.scene_updates()} scene updates and {self.published[topics.LOG]} log lines"
 
     def message(self, name: str | None, fields: dict[str, Any] | None, time_s: float | None,
                 errors: list[str] | tuple[str, ...] = ()) -> None:
@@ -140,8 +128,7 @@ class Feed:
 
     def ack(self, latency: float, time_s: float) -> None:
         """One DATA frame's send -> ACK time, seconds."""
-        self.acks[int(latency * 1e5)] += 1
-        self.tick(time_s)
+        self.ack_bins(Counter({int(latency * 1e5): 1}), time_s)
 
     def ack_bins(self, bins: Counter[int], time_s: float) -> None:
         """ACK latencies as a link counts them (10 µs bins)."""
@@ -151,10 +138,8 @@ class Feed:
     def log(self, text: str, time_s: float, level: str = "info", name: str = "eyeq-spi") -> None:
         sdk = fg()
         stamp = ns(time_s)
-        lvl = {"debug": sdk.LogLevel.Debug, "info": sdk.LogLevel.Info,
-               "warning": sdk.LogLevel.Warning, "error": sdk.LogLevel.Error}[level]
-        self._put(topics.LOG, sdk.Log(timestamp=timestamp(stamp), level=lvl, message=text,
-                                      name=name), stamp)
+        self._put(topics.LOG, sdk.Log(timestamp=timestamp(stamp), message=text, name=name,
+                                      level=getattr(sdk.LogLevel, level.capitalize())), stamp)
 
     def tick(self, time_s: float) -> None:
         """Publish the once-a-second topics when their second is over."""
@@ -212,6 +197,9 @@ class RecordFeed:
                           f"{record.get('direction') or '?'} link")
         elif kind == "frame" and time_s is not None and record.get("crc_ok"):
             self._frame(record, time_s)
+
+    def describe(self) -> str:
+        return self.feed.describe()
 
     def _frame(self, record: dict[str, Any], time_s: float) -> None:
         direction = record["direction"]

@@ -11,9 +11,6 @@ from eyeq_spi.errors import MissingExtra
 from eyeq_spi.foxglove import topics
 from eyeq_spi.plot.vehicle_frame import FRAME
 
-SCENE_STREAMS = ("EYEQ_VIS_OBSTACLES_MSG", "EYEQ_VIS_ROAD_DATA_MSG",
-                 "EYEQ_VIS_TRAFFIC_SIGNS_MSG", "EYEQ_VIS_LIGHT_SENSOR_DATA_MSG")
-
 
 def _plot(fl: Any, title: str, series: list[tuple[str, str]]) -> Any:
     return fl.PlotPanel(title=title, config=fl.PlotConfig(
@@ -38,7 +35,7 @@ def layout_json() -> str:
                           (f"{topics.EGO}.yaw_rate", "yaw rate (rad/s)")]),
         _plot(fl, "Scene streams (Hz)", [(f"{topics.STREAMS}.{name}",
                                           name.removeprefix("EYEQ_VIS_").removesuffix("_MSG"))
-                                         for name in SCENE_STREAMS]),
+                                         for name in topics.SCENE_TOPICS]),
         _plot(fl, "ACK latency (ms)", [(f"{topics.ACK_LATENCY}.p50_ms", "p50"),
                                        (f"{topics.ACK_LATENCY}.max_ms", "max")]),
         fl.LogPanel(title="Link and host", config=fl.LogConfig(topic_to_render=topics.LOG)),

@@ -1,17 +1,9 @@
-"""A live run on a Foxglove sink (``demo``, ``host``, ``replay``, ``monitor`` with
-``--foxglove``).
-
-- :class:`HostFeed`: a running host through its public face only: ``subscribe`` (decoded DASP
-  messages), ``subscribe_traffic`` (every message received or sent, with its time),
-  ``transitions``, its counters and its link's ACK latency histogram;
-- :class:`MessageFeed`: decoded messages handed over one by one (a replay's played messages);
-- :class:`RecordsFeed`: a capture's dissector records (``monitor --passive``).
+"""A live run on a Foxglove sink (``--foxglove`` of ``demo``, ``host``, ``replay``, ``monitor``).
 
 The link path pays one dict store per scene message and one counter per message: the latest
-message of each scene kind is kept, and what is new is published at most once per DASP period
-(1/18 s) and kind, one kind per call, so the scene goes out at the DASP rate whatever the link
-does and no single call pays for the whole scene (``tools/bench_foxglove.py`` measures it). A
-sink that says nobody is subscribed (:meth:`ServerSink.subscribed`) gets no scene built.
+message of each scene kind is published at most once per DASP period (1/18 s), one kind per
+call, so no single call pays for the whole scene (``tools/bench_foxglove.py``); a sink nobody is
+subscribed to gets no scene built.
 """
 
 from __future__ import annotations
@@ -20,7 +12,7 @@ from collections import Counter
 from typing import Any
 
 from eyeq_spi.codec.message import DecodedMessage
-from eyeq_spi.foxglove.feed import Feed, RecordFeed, schemas
+from eyeq_spi.foxglove.feed import Feed
 from eyeq_spi.foxglove.topics import SCENE_TOPICS, Sink
 
 DASP_PERIOD_S = 1.0 / 18.0  # the scene streams' nominal rate (seed 004's message table)
@@ -40,9 +32,6 @@ class MessageFeed:
         self.due: float | None = None
         self.scene_due: dict[str, float] = {}  # scene kind -> when it may go out again
         self.publishes = 0
-        advertise = getattr(sink, "advertise", None)
-        if advertise is not None:  # a client sees every topic as soon as it connects
-            advertise(schemas())
 
     def message(self, out: DecodedMessage, now: float) -> None:
         """One message received (or played) at ``now``."""
@@ -80,9 +69,7 @@ class MessageFeed:
 
     def describe(self) -> str:
         """What was published, one line."""
-        scenes = sum(n for topic, n in self.feed.published.items() if topic.startswith("/scene/"))
-        return (f"{scenes} scene updates and {self.feed.published['/log']} log lines in "
-                f"{self.publishes} publishes")
+        return f"{self.feed.describe()} in {self.publishes} publishes"
 
 
 class HostFeed(MessageFeed):
@@ -139,22 +126,3 @@ class HostFeed(MessageFeed):
                               "link")
         self.link_seen = counts
 
-
-class RecordsFeed:
-    """A capture's dissector records published as they are read (``monitor --replay FILE
-    --passive``): every record through a :class:`~eyeq_spi.foxglove.feed.RecordFeed`."""
-
-    def __init__(self, codec: Any, sink: Sink) -> None:
-        self.sink = sink
-        self.feed = Feed(codec, sink)
-        self.records = RecordFeed(self.feed)
-        advertise = getattr(sink, "advertise", None)
-        if advertise is not None:
-            advertise(schemas())
-
-    def add(self, record: dict[str, Any]) -> None:
-        self.records.add(record)
-
-    def describe(self) -> str:
-        scenes = sum(n for topic, n in self.feed.published.items() if topic.startswith("/scene/"))
-        return f"{scenes} scene updates and {self.feed.published['/log']} log lines"

@@ -47,10 +47,10 @@ def layout_path(mcap_path: str) -> str:
     return f"{base}.layout.json"
 
 
-class McapScene:
-    """``export --mcap``'s Foxglove topics: every dissector record through a
-    :class:`~eyeq_spi.foxglove.feed.RecordFeed` into the export's MCAP writer, and the layout
-    written beside the file (at once: it does not depend on the capture)."""
+class McapScene(RecordFeed):
+    """``export --mcap``'s Foxglove topics: every dissector record into the export's MCAP
+    writer, and the layout written beside the file (at once: it does not depend on the
+    capture)."""
 
     def __init__(self, writer: McapWriter, codec: MessageCodec, layout: str) -> None:
         text = layout_json()
@@ -60,16 +60,11 @@ class McapScene:
         except OSError as exc:
             raise OutputError(f"cannot write {layout}: {exc.strerror or exc}") from None
         self.layout = layout
-        self.feed = Feed(codec, McapSink(writer))
-        self.records = RecordFeed(self.feed)
-
-    def add(self, record: dict[str, Any]) -> None:
-        self.records.add(record)
+        super().__init__(Feed(codec, McapSink(writer)))
 
     def summary(self) -> dict[str, Any]:
         return {"foxglove": dict(sorted(self.feed.published.items())), "layout": self.layout}
 
     def written(self) -> list[str]:
-        scenes = sum(n for topic, n in self.feed.published.items() if topic.startswith("/scene/"))
-        return [f"{self.layout} (Foxglove layout: 3D scene, plots, log; {scenes} scene updates "
-                "in the MCAP)"]
+        return [f"{self.layout} (Foxglove layout: 3D scene, plots, log; "
+                f"{self.feed.scene_updates()} scene updates in the MCAP)"]

@@ -1,12 +1,8 @@
 """A :class:`~eyeq_spi.plot.perceived.Scene` as ``foxglove.SceneUpdate`` messages, one per DASP
-message kind (obstacles, lanes, signs, light spots), in the vehicle frame of
-:mod:`eyeq_spi.plot.vehicle_frame` (positions and signs come from there, nowhere else).
-
-Every object, line, sign and spot is an entity of its own (``obstacle/7``, ``line/hostLeftMarker``,
-``sign/0``, ``light/12``), so Foxglove shows its fields when it is clicked; an entity that a
-message no longer carries is deleted by the next update of its kind, and every entity has a
-lifetime of three periods of its stream, so a stream that stops leaves nothing behind. The
-colours are the bird's-eye picture's (``eyeq-spi plot --birdseye``).
+message kind, in the vehicle frame of :mod:`eyeq_spi.plot.vehicle_frame`. Every object, line,
+sign and spot is an entity of its own; an entity a message no longer carries is deleted by the
+next update of its kind, and each lives three periods of its stream. The colours are the
+bird's-eye picture's.
 """
 
 from __future__ import annotations

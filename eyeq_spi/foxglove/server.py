@@ -1,12 +1,7 @@
-"""A live Foxglove WebSocket server (the SDK's, protocol ``foxglove.websocket.v1``) as a
-:class:`~eyeq_spi.foxglove.topics.Sink`: ``--foxglove [HOST:PORT]`` of ``demo``, ``host``,
-``replay`` and ``monitor``.
-
-The server runs on the SDK's own threads; :meth:`ServerSink.message` hands it an encoded
-message and returns (the SDK queues it per client and drops the oldest for a slow client), so
-the run's loop never waits on a client. Each server has its own SDK context, so its channels
-are its own. Log times are the wall clock's (the run's clock reading plus the offset taken at
-the first message), as Foxglove shows a live source.
+"""A live Foxglove WebSocket server (the SDK's) as a :class:`~eyeq_spi.foxglove.topics.Sink`
+(``--foxglove [HOST:PORT]``). The server runs on the SDK's threads and queues per client, so the
+run's loop never waits on a client; log times are the wall clock's, as Foxglove shows a live
+source.
 """
 
 from __future__ import annotations
@@ -22,7 +17,6 @@ from eyeq_spi.foxglove.topics import FoxgloveMessage
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765  # Foxglove's default for a WebSocket connection
-DEFAULT_ADDRESS = f"{DEFAULT_HOST}:{DEFAULT_PORT}"
 BACKLOG = 256  # messages queued per client before the oldest is dropped
 
 
@@ -96,35 +90,32 @@ class ServerSink:
             self.offset_ns = round(self.wall() * 1e9) - log_time_ns
         return log_time_ns + self.offset_ns
 
+    def _channel(self, topic: str, schema: FoxgloveMessage | dict[str, Any]) -> Any:
+        """The channel of ``topic``, opened on first use for a message class or a JSON Schema."""
+        if topic in self.channels:
+            return self.channels[topic]
+        if isinstance(schema, dict):
+            channel = self.fg.Channel(topic, schema=schema, context=self.context)
+        else:
+            sdk_schema = schema.get_schema()
+            channel = self.fg.Channel(topic, schema=sdk_schema,
+                                      message_encoding=sdk_schema.encoding, context=self.context)
+        self.channels[topic] = channel
+        return channel
+
     def message(self, topic: str, msg: FoxgloveMessage, log_time_ns: int) -> None:
-        channel = self.channels.get(topic)
-        if channel is None:
-            schema = msg.get_schema()
-            channel = self.channels[topic] = self.fg.Channel(
-                topic, schema=schema, message_encoding=schema.encoding, context=self.context)
-        channel.log(msg.encode(), log_time=self._time(log_time_ns))
+        self._channel(topic, msg).log(msg.encode(), log_time=self._time(log_time_ns))
 
     def values(self, topic: str, schema: dict[str, Any], body: dict[str, Any],
                log_time_ns: int) -> None:
-        channel = self.channels.get(topic)
-        if channel is None:
-            channel = self.channels[topic] = self.fg.Channel(topic, schema=schema,
-                                                             context=self.context)
-        channel.log(json.dumps(body).encode(), log_time=self._time(log_time_ns))
+        self._channel(topic, schema).log(json.dumps(body).encode(),
+                                         log_time=self._time(log_time_ns))
 
     def advertise(self, topics: dict[str, FoxgloveMessage | dict[str, Any]]) -> None:
         """Open the channels of ``topics`` (topic -> a message class or a JSON Schema) before
         the first message, so a client sees every topic as soon as it connects."""
         for topic, schema in topics.items():
-            if topic in self.channels:
-                continue
-            if isinstance(schema, dict):
-                self.channels[topic] = self.fg.Channel(topic, schema=schema, context=self.context)
-            else:
-                sdk_schema = schema.get_schema()
-                self.channels[topic] = self.fg.Channel(
-                    topic, schema=sdk_schema, message_encoding=sdk_schema.encoding,
-                    context=self.context)
+            self._channel(topic, schema)
 
     def close(self) -> None:
         self.server.stop()

@@ -1,17 +1,5 @@
-"""The Foxglove topics, and the one interface their outputs implement.
-
-- ``/scene/obstacles`` (``foxglove.SceneUpdate``): the ego car and the objects (boxes,
-  labels, the CIPV's ring);
-- ``/scene/lanes`` (SceneUpdate): lane markers, road borders, lane centres (line strips);
-- ``/scene/signs`` (SceneUpdate): traffic signs at their reported position;
-- ``/scene/lights`` (SceneUpdate): active light spots (head and tail lamps);
-- ``/tf`` (``foxglove.FrameTransform``): ``vehicle`` -> ``camera`` and ``odom`` -> ``vehicle``
-  (dead reckoning from the ego speed and yaw rate);
-- ``/log`` (``foxglove.Log``): link and transport events, host state transitions;
-- ``/ego`` (JSON): ``speed`` (m/s) and ``yaw_rate`` (rad/s) as HOST_VEH_STATE_MSG carries them;
-- ``/streams`` (JSON): every received stream's rate (Hz) over the last second;
-- ``/link/ack_latency`` (JSON): ``p50_ms``, ``max_ms``, ``n``: DATA -> ACK, last second.
-"""
+"""The Foxglove topics (listed with their schemas in docs/foxglove.md), and the one interface
+their outputs implement."""
 
 from __future__ import annotations
 

@@ -1,10 +1,6 @@
-"""The monitor's loop: advance the source until the next redraw, draw, repeat.
-
-Drawing happens between protocol slices, never inside them. With ``refresh`` Hz the source gets
-the wall time up to each redraw; the demo source keeps its virtual clock on the wall clock and
-catches up whatever the drawing took, the host source's runner never waits past a redraw.
-On a terminal the screen is redrawn in place (rich ``Live``, plain ANSI: it works over SSH);
-without one (a pipe) only the final screen is printed.
+"""The monitor's loop: advance the source until the next redraw, draw, repeat. On a terminal the
+screen is redrawn in place (rich ``Live``); without one (a pipe) only the final screen is
+printed.
 """
 
 from __future__ import annotations
@@ -16,7 +12,14 @@ from typing import Any, Protocol
 
 from eyeq_spi.errors import UsageError
 from eyeq_spi.monitor.model import Snapshot
-from eyeq_spi.monitor.view import render, rich_modules, save_lines, screen_lines
+from eyeq_spi.monitor.view import (
+    new_live,
+    print_whole,
+    render,
+    rich_modules,
+    save_lines,
+    screen_lines,
+)
 
 MIN_REFRESH, MAX_REFRESH = 5.0, 30.0
 DEFAULT_REFRESH = 6.0  # a margin over the 5 Hz the monitor promises
@@ -36,8 +39,7 @@ class Source(Protocol):
 @dataclass
 class RunStats:
     redraws: int = 0
-    draw_s: float = 0.0  # wall time spent building and writing screens
-    draw_cpu_s: float = 0.0  # CPU time of the same
+    draw_cpu_s: float = 0.0  # CPU time spent building and writing screens
     wall_s: float = 0.0
     interrupted: bool = False  # stopped by Ctrl-C
 
@@ -66,20 +68,18 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         on_draw: Callable[[Snapshot], None] | None = None,
         screenshot: str | None = None,
         screenshot_size: tuple[int, int] | None = None) -> RunStats:
-    """Run until the source is done (or Ctrl-C); returns how long drawing took. With
+    """Run until the source is done (or Ctrl-C); returns how much CPU drawing took. With
     ``screenshot``, the last screen is also written there (:func:`save_screen`)."""
     if not MIN_REFRESH <= refresh <= MAX_REFRESH:
         raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
     if screenshot is not None:
         check_screenshot(screenshot)
-    rich = rich_modules()
-    console = console or rich.Console()
+    console = console or rich_modules().Console()
     period = 1.0 / refresh
     stats = RunStats()
     start = clock()
     live_screen = console.is_terminal
-    live = rich.Live(console=console, auto_refresh=False, transient=False,
-                     vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
+    live = new_live(console)
     snap: Snapshot | None = None
     try:
         if live_screen:
@@ -88,15 +88,14 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         try:
             while True:
                 source.advance(next_draw)
-                t0, c0 = clock(), time.process_time()
+                cpu_start = time.process_time()
                 snap = source.snapshot()
                 if on_draw is not None:
                     on_draw(snap)
                 if live_screen:
                     live.update(render(snap, console.width, console.height), refresh=True)
                 stats.redraws += 1
-                stats.draw_s += clock() - t0
-                stats.draw_cpu_s += time.process_time() - c0
+                stats.draw_cpu_s += time.process_time() - cpu_start
                 if source.done:
                     break
                 # keep the redraw grid: a slightly late draw is caught up, a whole missed
@@ -117,8 +116,5 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
     if screenshot is not None and snap is not None:
         save_screen(snap, screenshot, screenshot_size)
     if not live_screen and snap is not None:
-        # a pipe: the whole final screen, as wide as it is (the console's default is 80)
-        lines = screen_lines(snap)
-        console.width = max(console.width, *(t.cell_len for t in lines))
-        console.print(rich.Group(*lines))
+        print_whole(console, screen_lines(snap))  # a pipe: the final screen
     return stats

@@ -1,10 +1,6 @@
-"""``eyeq-spi monitor --can-bus INTERFACE:CHANNEL``: a live view of a Mobileye CAN bus, in the
-manner of ``cantools monitor``: one line per frame ID with its message name, frame count, cycle
-time against the spec, and the newest decoded signals (invalid values marked, errors in red).
-
-:class:`CanBusView` is sans-IO: ``add(msg, now)`` for each received frame, ``lines(width,
-height)`` for the screen. :func:`run_can_monitor` reads the bus (``eyeq_spi.can.logs``) between
-redraws and draws with rich ``Live``, as the protocol monitor does.
+"""``eyeq-spi monitor --can-bus INTERFACE:CHANNEL``: one line per frame ID with its message,
+count, cycle time against the spec and newest signals, as ``cantools monitor``.
+:class:`CanBusView` is sans-IO (``add(msg, now)``, ``lines(width, height)``).
 """
 
 from __future__ import annotations
@@ -14,7 +10,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.monitor.view import rich_modules, save_lines
+from eyeq_spi.monitor.view import new_live, print_whole, rich_modules, save_lines
 
 
 @dataclass
@@ -111,8 +107,7 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
     console = console or rich.Console()
     view = CanBusView(proto, target)
     bus = open_bus(target)
-    live = rich.Live(console=console, auto_refresh=False, transient=False,
-                     vertical_overflow="crop", redirect_stdout=False, redirect_stderr=False)
+    live = new_live(console)
     start = clock()
     period = 1.0 / refresh
     on_terminal = console.is_terminal
@@ -136,14 +131,8 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
         if on_terminal:
             live.update(rich.Group(*view.lines(console.width, console.height)), refresh=True)
             live.stop()
-    if not on_terminal:  # a pipe: the final screen once, as wide as it is
-        lines = view.lines(width=400)
-        console.width = max(console.width, *(t.cell_len for t in lines))
-        console.print(rich.Group(*lines))
+    if not on_terminal:  # a pipe: the final screen once
+        print_whole(console, view.lines(width=400))
     if screenshot is not None:
-        _save(view, screenshot)
+        save_lines(view.lines(width=400), screenshot, f"eyeq-spi monitor: {view.source}")
     return view
-
-
-def _save(view: CanBusView, path: str) -> None:
-    save_lines(view.lines(width=400), path, f"eyeq-spi monitor: {view.source}")

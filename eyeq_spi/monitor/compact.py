@@ -1,18 +1,15 @@
-"""The monitor's screen for a small terminal (80x24 and up): the same panels as the wide screen
-(:mod:`eyeq_spi.monitor.view`), each folded to fit.
-
-Every panel has a full form and a folded one. Tables fold into two columns side by side (rates,
-objects), counters flow as ``name value`` items across the width (link, lanes and signs); a
-panel that still does not fit the rows left is folded to its title line, which keeps its
-counts (``objects 10: 4 shown, 6 more``). Rows go first to what the monitor is for, in this
-order: rates, link and errors, transitions, objects, lanes and signs. Nothing is wrapped or
-cropped mid-line: each line is at most ``width`` cells.
+"""The monitor's screen for a small terminal (80x24 and up): the panels of the wide screen
+(:mod:`eyeq_spi.monitor.view`), each folded to fit: tables in two columns, counters flowing
+across the width, a panel that still does not fit folded to its title line (which keeps its
+counts). Rows go first to rates, link and errors, transitions, objects, then lanes and signs;
+no line is longer than the width.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.monitor.model import Snapshot
@@ -26,12 +23,17 @@ MIN_WIDTH = 80  # two columns of 39 cells and a gap
 Lines = list[Any]  # rich Text
 
 
-def _fit(text: str, width: int) -> str:
+def fit(text: str, width: int) -> str:
+    """``text`` cut to ``width`` cells, an ellipsis marking the cut."""
     return text if len(text) <= width else text[:width - 1] + "\u2026"
 
 
-def _num(value: float | None, spec: str) -> str:
+def number(value: float | None, spec: str = "6.1f") -> str:
     return "-" if value is None or not math.isfinite(value) else format(value, spec)
+
+
+def is_error(key: str) -> bool:
+    return not key.endswith((" DATA", " ACK")) and key not in ("duplicate", "driver_reset")
 
 
 def _ttc(obj: SceneObject) -> str:
@@ -59,7 +61,7 @@ def _flow(text_cls: Any, title: str, items: list[tuple[str, str]], width: int) -
     cur = text_cls(title, style="italic")
     fresh = True  # nothing after the title or the indent yet
     for text, style in items:
-        text = _fit(text, width - 2)
+        text = fit(text, width - 2)
         if cur.cell_len + 2 + len(text) > width:
             lines.append(cur)
             cur = text_cls("  ")
@@ -71,14 +73,13 @@ def _flow(text_cls: Any, title: str, items: list[tuple[str, str]], width: int) -
     return lines
 
 
+@dataclass
 class Panel:
     """A panel's full lines and its one-line folded form."""
 
-    def __init__(self, lines: Lines, folded: Any,
-                 partial: Callable[[int], Lines] | None = None) -> None:
-        self.lines = lines
-        self.folded = folded
-        self.partial = partial  # the panel in n lines (n < len(lines)), where it can shrink
+    lines: Lines
+    folded: Any
+    partial: Callable[[int], Lines] | None = None  # the panel in n < len(lines) lines
 
 
 def _rates(text_cls: Any, snap: Snapshot, width: int) -> Panel:
@@ -89,11 +90,11 @@ def _rates(text_cls: Any, snap: Snapshot, width: int) -> Panel:
     for row in snap.rates:
         hz = "-" if row.hz is None else f"{row.hz:5.1f}"
         nom = "" if row.nominal_hz is None else f"{row.nominal_hz:g}"
-        cell = text_cls(f" {_fit(short(row.name), name_w):<{name_w}} {hz:>5} {nom:>5} ")
+        cell = text_cls(f" {fit(short(row.name), name_w):<{name_w}} {hz:>5} {nom:>5} ")
         cell.append(f"{row.status:<7}", style=STATUS_STYLE.get(row.status, "") or None)
         cells.append(cell)
     bad = [r for r in snap.rates if r.status in ("stopped", "low", "high")]
-    header = text_cls(_fit(head + (" " + head if len(cells) > 1 else ""), width), style="bold")
+    header = text_cls(fit(head + (" " + head if len(cells) > 1 else ""), width), style="bold")
     lines = [header, *_two_columns(text_cls, cells, col)]
     folded = text_cls(f"messages {len(snap.rates)}: ", style="italic")
     folded.append(", ".join(f"{short(r.name)} {r.status}" for r in bad) or "all at nominal",
@@ -101,18 +102,14 @@ def _rates(text_cls: Any, snap: Snapshot, width: int) -> Panel:
     return Panel(lines, folded)
 
 
-def _is_error(key: str) -> bool:
-    return not key.endswith((" DATA", " ACK")) and key not in ("duplicate", "driver_reset")
-
-
 def _link(text_cls: Any, snap: Snapshot, width: int) -> Panel:
-    items = [(f"{k} {v}", "red" if v and _is_error(k) else "") for k, v in
+    items = [(f"{k} {v}", "red" if v and is_error(k) else "") for k, v in
              sorted(snap.link.items())]
     items += [(f"{k} {v}", "bold red" if v else "green") for k, v in snap.errors.items()]
     stale = ", ".join(short(s) for s in snap.stale) or "none"
     items.append((f"stale streams: {stale}", "bold red" if snap.stale else "green"))
     lines = _flow(text_cls, "link: ", items, width)
-    errors = sum(v for k, v in snap.link.items() if _is_error(k)) + sum(snap.errors.values())
+    errors = sum(v for k, v in snap.link.items() if is_error(k)) + sum(snap.errors.values())
     folded = text_cls("link: ", style="italic")
     folded.append(f"{errors} errors, stale {stale}",
                   style="bold red" if errors or snap.stale else "green")
@@ -120,7 +117,7 @@ def _link(text_cls: Any, snap: Snapshot, width: int) -> Panel:
 
 
 def _transitions(text_cls: Any, snap: Snapshot, width: int) -> Panel:
-    rows = [text_cls(_fit(f" {tt:8.3f}  {a} --{ev}--> {b}", width))
+    rows = [text_cls(fit(f" {tt:8.3f}  {a} --{ev}--> {b}", width))
             for tt, a, ev, b in snap.transitions[-6:]]
     total = snap.transitions_total
     title = text_cls(f"transitions (s since the start, last {len(rows)} of {total})",
@@ -144,14 +141,14 @@ def _objects(text_cls: Any, snap: Snapshot, width: int) -> Panel:
     cells = []
     for obj in objs:
         ident = ("*" if obj.cipv else "") + str(obj.id)
-        cell = text_cls(f" {ident:>3} {_fit(obj.cls_name, cls_w):<{cls_w}} "
-                        f"{_num(obj.long, '6.1f'):>6} {_num(obj.lat, '5.1f'):>5} "
-                        f"{_num(obj.v_long, '5.1f'):>5} {_ttc(obj):>4}",
+        cell = text_cls(f" {ident:>3} {fit(obj.cls_name, cls_w):<{cls_w}} "
+                        f"{number(obj.long, '6.1f'):>6} {number(obj.lat, '5.1f'):>5} "
+                        f"{number(obj.v_long, '5.1f'):>5} {_ttc(obj):>4}",
                         style="bold reverse" if obj.cipv else "")
         cells.append(cell)
     count = len(objs)
     title = text_cls(f"objects {count} (nearest first; * CIPV; m, m/s, s)", style="italic")
-    header = text_cls(_fit(head + (" " + head if count > 1 else ""), width), style="bold")
+    header = text_cls(fit(head + (" " + head if count > 1 else ""), width), style="bold")
 
     def partial(rows: int) -> Lines:
         shown = max(0, (rows - 2) * 2)
@@ -169,9 +166,9 @@ def _objects(text_cls: Any, snap: Snapshot, width: int) -> Panel:
 
 def _road(text_cls: Any, snap: Snapshot, width: int) -> Panel:
     sc = snap.scene
-    items = [(f"{ln.name} {ln.type_name or ln.kind} {_num(ln.coeffs[0], '.2f')} m "
+    items = [(f"{ln.name} {ln.type_name or ln.kind} {number(ln.coeffs[0], '.2f')} m "
               f"{ln.start:.0f}-{ln.end:.0f} m", "") for ln in sc.lines]
-    items += [(f"sign {s.name} at {s.long:.0f} m, {_num(s.lat, '.1f')} m", "red")
+    items += [(f"sign {s.name} at {s.long:.0f} m, {number(s.lat, '.1f')} m", "red")
               for s in sorted(sc.signs, key=lambda s: s.long)]
     lines = _flow(text_cls, f"lanes {len(sc.lines)}, signs {len(sc.signs)}: ", items, width)
     folded = text_cls(f"lanes {len(sc.lines)}, signs {len(sc.signs)}", style="italic")

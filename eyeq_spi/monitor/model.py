@@ -24,7 +24,6 @@ class RateRow:
     count: int
     hz: float | None  # None until the window holds two messages
     nominal_hz: float | None
-    band_hz: tuple[float, float] | None  # the rates the period tolerance allows
     status: str  # "ok" | "low" | "high" | "stopped" | "-"
     gaps: int = 0  # gaps inside the window, left out of the rate (stream_rate)
 
@@ -62,26 +61,14 @@ def band(rate_hz: float | None, tolerance_ms: tuple[float, float] | None
 
 class RateMeter:
     """Message rates over the last ``window`` seconds, by the one definition of a stream's rate
-    (:func:`eyeq_spi.stream_rate.stream_rate`: over its active spans, a gap left out and
-    counted). Each message's arrival is given to :meth:`arrived`; the meter keeps, per message,
-    the arrival times inside its window (a deque each: memory bounded by rate x window)."""
+    (:func:`eyeq_spi.stream_rate.stream_rate`), from the arrival times inside the window."""
 
     def __init__(self, cat: Catalog, window: float = RATE_WINDOW) -> None:
-        self.cat = cat
         self.window = window
         self._times: dict[str, deque[float]] = {}
         self._counts: dict[str, int] = {}
         self._now = 0.0
-        self._nominal: dict[str, tuple[float | None, tuple[float, float] | None]] = {}
-
-    def _nominal_of(self, name: str) -> tuple[float | None, tuple[float, float] | None]:
-        if name not in self._nominal:
-            try:
-                msg = self.cat.message(name)
-                self._nominal[name] = (msg.rate_hz, msg.tolerance_ms)
-            except Exception:
-                self._nominal[name] = (None, None)
-        return self._nominal[name]
+        self._nominal = {msg.name: (msg.rate_hz, msg.tolerance_ms) for msg in cat.messages}
 
     def arrived(self, name: str, time: float) -> None:
         """A message ``name`` arrived (or was sent) at ``time`` (source seconds, rising)."""
@@ -104,7 +91,7 @@ class RateMeter:
             times = self._times.get(name, deque())
             while times and times[0] < now - self.window:
                 times.popleft()  # the last arrival stays while the window holds it
-            nominal, tol = self._nominal_of(name)
+            nominal, tol = self._nominal.get(name, (None, None))
             rate = stream_rate(times)
             hz = rate.rate_hz
             limits = band(nominal, tol)
@@ -124,6 +111,6 @@ class RateMeter:
                     status = "high"
                 else:
                     status = "ok"
-            out.append(RateRow(name, self._counts.get(name, 0), hz, nominal, limits, status,
+            out.append(RateRow(name, self._counts.get(name, 0), hz, nominal, status,
                                len(rate.gaps)))
         return out

@@ -1,22 +1,8 @@
-"""Where the monitor's data comes from. Each source advances its protocol until a wall-clock
-deadline (the next redraw) and then describes itself as a :class:`Snapshot`.
-
-- :class:`DemoSource`: the in-process emulation (host + simulated EyeQ), in real time or
-  virtual time. Real time is kept against the wall clock from the start, so the time spent
-  drawing is caught up and never slows the emulated link.
-- :class:`HostSource`: the host emulator against an EyeQ at a pyserial URL, on the real-time
-  runner; the runner never waits longer than ``max_wait`` so a redraw is never late.
-- :class:`ReplaySource`: the project's replay (:func:`eyeq_spi.interop.replay.host_bench`, as
-  ``eyeq-spi replay --into-host``): the capture's EyeQ channel played into the built-in host
-  emulator, its virtual time (= capture time) kept on the wall clock times ``speed`` (0 = as
-  fast as possible) exactly as the demo's is.
-- :class:`DissectSource` (``--passive``): a capture file fed through the dissector engine at the
-  capture's pace, both channels as recorded; for captures without the EyeQ's bring-up, which
-  the replayed host would never get past.
-
-Demo, host and replay read the host only through its public face: ``subscribe`` (decoded DASP
-messages, delivered as the host delivers them), ``subscribe_traffic`` (when each message was
-received or sent: the rates' times), ``state``/``transitions`` and its counters.
+"""Where the monitor's data comes from: each source advances until a wall-clock deadline (the
+next redraw), then describes itself as a :class:`Snapshot`. The demo, host and replay sources
+read the host only through its public face (``subscribe``, ``subscribe_traffic``, ``state``,
+``transitions``, its counters); :class:`DissectSource` (``--passive``) reads both channels of a
+capture through the dissector, for captures without the EyeQ's bring-up.
 """
 
 from __future__ import annotations
@@ -32,6 +18,7 @@ from eyeq_spi.codec.message import DecodedMessage, MessageCodec
 from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file
 from eyeq_spi.interop.replay import host_bench
 from eyeq_spi.monitor.model import RateMeter, Snapshot
+from eyeq_spi.plot.collect import frame_counters
 from eyeq_spi.plot.perceived import SCENE_MESSAGES, Labels, SceneTracker
 
 Clock = Callable[[], float]
@@ -50,7 +37,6 @@ class _HostView:
         self.rates = RateMeter(host.codec.cat)
         self.tracker = SceneTracker(Labels(host.codec))
         self._latest: dict[str, DecodedMessage] = {}
-        self._now = 0.0
         host.subscribe(self._on_message)
         host.subscribe_traffic(self._on_traffic)
 
@@ -95,8 +81,10 @@ class DemoSource:
 
     def __init__(self, emu: Any, duration: float, *, realtime: bool = True,
                  clock: Clock = time.perf_counter, sleep: Callable[[float], None] = time.sleep,
-                 speed: float = 1.0, label: str = "demo") -> None:
+                 speed: float = 1.0, label: str = "demo",
+                 on_close: Callable[[], None] | None = None) -> None:
         self.emu = emu
+        self.on_close = on_close
         self.duration = duration
         self.realtime = realtime
         self.speed = speed
@@ -126,7 +114,8 @@ class DemoSource:
         return self.view.snapshot(self.emu.runner.now, self.done)
 
     def close(self) -> None:
-        pass
+        if self.on_close is not None:
+            self.on_close()
 
 
 class HostSource:
@@ -243,7 +232,6 @@ class DissectSource:
         self.state = "-"
         self.transitions: list[tuple[float, str, str, str]] = []
         self.transitions_seen = 0
-        self._main = Labels(codec)
         self.on_record: Callable[[dict[str, Any]], None] | None = None  # every record, as read
 
     def _next(self) -> dict[str, Any] | None:
@@ -276,13 +264,7 @@ class DissectSource:
             self.on_record(record)
         kind = record["kind"]
         if kind == "frame":
-            self.link[f"{record['direction'] or '?'} {record['frame_type']}"] += 1
-            if "length" in record:
-                self.link["wrong length"] += 1
-            elif not record["crc_ok"]:
-                self.link["CRC errors"] += 1
-            elif record["frame_type"] == "NAK":
-                self.link[f"NAK 0x{record['nak_reason']:03X}"] += 1
+            self.link.update(frame_counters(record))
         elif kind == "event":
             key = (f"abort: {record['reason']}" if record["type"] == "transfer_aborted"
                    else record["type"])
@@ -301,7 +283,7 @@ class DissectSource:
 
     def _main_state(self, fields: dict[str, Any]) -> None:
         state = fields.get("Main_State")
-        label = self._main.label(MAIN_STATE_MSG, ("Main_State",), state)
+        label = self.tracker.labels.label(MAIN_STATE_MSG, ("Main_State",), state)
         if label != self.state:
             self.transitions.append((self.now, self.state, "0x41", label))
             self.transitions = self.transitions[-8:]

@@ -4,18 +4,16 @@ Pure: the same snapshot always gives the same screen."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.errors import OutputError
+from eyeq_spi.monitor.compact import STATUS_STYLE, compact_lines, fit, is_error, number
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.plot.charts import short
 from eyeq_spi.plot.figures import plural
 from eyeq_spi.plot.perceived import NO_TTC
 
-STATUS_STYLE = {"ok": "green", "low": "yellow", "high": "yellow", "stopped": "bold red",
-                "-": "dim"}
 GOOD_STATES = ("RUNNING_VISION", "RUNNING_TAC", "RUNNING_SPC", "DV", "Running Vision")
 
 
@@ -45,10 +43,6 @@ def rich_modules() -> RichModules:
     return _RICH
 
 
-def _rich() -> RichModules:
-    return rich_modules()
-
-
 Col = tuple[str, int, str]  # header, width, justify
 Cell = tuple[str, str]  # text, style
 GAP = "  "  # between columns
@@ -56,8 +50,7 @@ SIDE_GAP = "   "  # between two blocks side by side
 
 
 def _cell(text: str, width: int, just: str) -> str:
-    if len(text) > width:
-        text = text[:width - 1] + "\u2026"
+    text = fit(text, width)
     return text.rjust(width) if just == "right" else text.ljust(width)
 
 
@@ -71,7 +64,7 @@ def _block(title: str, cols: list[Col], rows: list[tuple[list[Cell], str]]) -> l
     Columns have fixed widths and each row is one Text with a span per styled cell. A rich
     ``Table`` measures, pads and wraps every cell on every redraw (about 15 ms of CPU for this
     screen); lines of Text cost rich about a tenth of that (tools/bench_monitor.py)."""
-    Text = _rich().Text
+    Text = rich_modules().Text
     head = " " + GAP.join(_cell(h, w, j) for h, w, j in cols)
     lines = [Text(title, style="italic"), Text(head, style="bold"),
              Text(" " + "\u2500" * (_width(cols) - 1), style="dim")]
@@ -111,7 +104,7 @@ def _rates(snap: Snapshot) -> list[Any]:
 
 
 def _link(snap: Snapshot) -> list[Any]:
-    rows = [([(k, ""), (str(v), "red" if v and _is_error(k) else "")], "")
+    rows = [([(k, ""), (str(v), "red" if v and is_error(k) else "")], "")
             for k, v in sorted(snap.link.items())]
     rows += [([(k, ""), (str(v), "bold red" if v else "green")], "")
              for k, v in snap.errors.items()]
@@ -120,28 +113,20 @@ def _link(snap: Snapshot) -> list[Any]:
     return _block("link", LINK_COLS, rows)
 
 
-def _is_error(key: str) -> bool:
-    return not key.endswith((" DATA", " ACK")) and key not in ("duplicate", "driver_reset")
-
-
-def _fmt(value: float | None, spec: str = "6.1f") -> str:
-    return "-" if value is None or not math.isfinite(value) else format(value, spec)
-
-
 def _objects(snap: Snapshot) -> list[Any]:
     rows = []
     for obj in sorted(snap.scene.objects, key=lambda o: o.long):
-        cells = [str(obj.id), obj.cls_name + (" CIPV" if obj.cipv else ""), _fmt(obj.long),
-                 _fmt(obj.lat, "5.1f"), _fmt(obj.v_long, "5.1f"), _fmt(obj.v_lat, "4.1f"),
-                 NO_TTC if obj.closing_ttc is None else _fmt(obj.closing_ttc, "4.1f")]
+        cells = [str(obj.id), obj.cls_name + (" CIPV" if obj.cipv else ""), number(obj.long),
+                 number(obj.lat, "5.1f"), number(obj.v_long, "5.1f"), number(obj.v_lat, "4.1f"),
+                 NO_TTC if obj.closing_ttc is None else number(obj.closing_ttc, "4.1f")]
         rows.append(([(c, "") for c in cells], "bold reverse" if obj.cipv else ""))
     return _block(f"objects ({len(snap.scene.objects)})", OBJECT_COLS, rows)
 
 
 def _road(snap: Snapshot) -> list[Any]:
-    rows = [([(ln.name, ""), (ln.type_name or ln.kind, ""), (_fmt(ln.coeffs[0], "5.2f"), ""),
+    rows = [([(ln.name, ""), (ln.type_name or ln.kind, ""), (number(ln.coeffs[0], "5.2f"), ""),
               (f"{ln.start:.0f}-{ln.end:.0f}", "")], "") for ln in snap.scene.lines]
-    rows += [([("sign", "red"), (s.name, ""), (_fmt(s.lat, "5.1f"), ""), (f"{s.long:.0f}", "")],
+    rows += [([("sign", "red"), (s.name, ""), (number(s.lat, "5.1f"), ""), (f"{s.long:.0f}", "")],
               "") for s in sorted(snap.scene.signs, key=lambda s: s.long)]
     return _block(f"lanes ({len(snap.scene.lines)}) and signs ({len(snap.scene.signs)})",
                   ROAD_COLS, rows)
@@ -155,8 +140,12 @@ def _transitions(snap: Snapshot) -> list[Any]:
     return _block(title, TRANSITION_COLS, rows)
 
 
-def _side_by_side(left: list[Any], lw: int, right: list[Any]) -> list[Any]:
-    Text = _rich().Text
+def _pair(left: list[Any], lw: int, right: list[Any], rw: int, width: int | None
+          ) -> list[Any]:
+    """Two blocks side by side, or one above the other when the terminal is too narrow."""
+    Text = rich_modules().Text
+    if width is not None and lw + len(SIDE_GAP) + rw > width:
+        return [*left, Text(), *right]
     out = []
     for row in range(max(len(left), len(right))):
         line = left[row].copy() if row < len(left) else Text()
@@ -165,17 +154,9 @@ def _side_by_side(left: list[Any], lw: int, right: list[Any]) -> list[Any]:
     return out
 
 
-def _pair(left: list[Any], lw: int, right: list[Any], rw: int, width: int | None
-          ) -> list[Any]:
-    """Two blocks side by side, or one above the other when the terminal is too narrow."""
-    if width is None or lw + len(SIDE_GAP) + rw <= width:
-        return _side_by_side(left, lw, right)
-    return [*left, _rich().Text(), *right]
-
-
 def _head(snap: Snapshot, width: int | None) -> list[Any]:
     """The header (source, time since the start, state) and the problem, if any."""
-    Text = _rich().Text
+    Text = rich_modules().Text
     state_style = "bold green" if snap.state in GOOD_STATES else "bold yellow"
     state = Text.assemble((f"{snap.state_label}: ", ""), (snap.state, state_style),
                           ("   finished" if snap.done else "", "dim"))
@@ -199,7 +180,7 @@ def screen_lines(snap: Snapshot, width: int | None = None,
     terminal (``width`` columns) is too narrow for two; where that does not fit ``height``
     rows either, the compact screen (:mod:`eyeq_spi.monitor.compact`) folds the panels.
     Lines never wrap."""
-    Text = _rich().Text
+    Text = rich_modules().Text
     lines = _head(snap, width)
     head = list(lines)
     lines += [Text(), *_pair(_rates(snap), _width(RATE_COLS), _link(snap), _width(LINK_COLS),
@@ -210,8 +191,6 @@ def screen_lines(snap: Snapshot, width: int | None = None,
     too_wide = width is not None and max(t.cell_len for t in lines) > width
     # the last row is the cursor's: a screen of ``height`` lines scrolls its title away
     if height is not None and width is not None and (len(lines) > height - 1 or too_wide):
-        from eyeq_spi.monitor.compact import compact_lines
-
         lines = compact_lines(snap, head, width, height - 1, Text)  # the cursor's line
     for line in lines:
         line.no_wrap, line.overflow, line.end = True, "crop", "\n"
@@ -219,7 +198,20 @@ def screen_lines(snap: Snapshot, width: int | None = None,
 
 
 def render(snap: Snapshot, width: int | None = None, height: int | None = None) -> Any:
-    return _rich().Group(*screen_lines(snap, width, height))
+    return rich_modules().Group(*screen_lines(snap, width, height))
+
+
+def new_live(console: Any) -> Any:
+    """A rich ``Live`` redrawn only when asked, cropped to the terminal."""
+    return rich_modules().Live(console=console, auto_refresh=False, transient=False,
+                               vertical_overflow="crop", redirect_stdout=False,
+                               redirect_stderr=False)
+
+
+def print_whole(console: Any, lines: list[Any]) -> None:
+    """``lines`` printed once, as wide as they are (a pipe: the console's default is 80)."""
+    console.width = max(console.width, *(t.cell_len for t in lines))
+    console.print(rich_modules().Group(*lines))
 
 
 def save_lines(lines: list[Any], path: str, title: str) -> None:

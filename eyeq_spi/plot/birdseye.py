@@ -1,23 +1,15 @@
 """The ego vehicle's view from above (``eyeq-spi plot --birdseye``).
 
-Lateral goes left-to-right as the driver sees it (``lat`` positive = left, so the x axis is
-inverted), longitudinal goes up. Both axes have the same scale (a metre is as long across as
-along), so boxes and lanes keep their true shape: the whole view is a tall strip, and where
-that strip is narrow a second panel zooms on the near range at a larger, still equal, scale.
-The layout is computed (figure size, dpi, and the rectangles :func:`layout` computes from the
-view limits and the zoom's range) so a pixel of the written PNG maps back to metres; the tests
-rely on that. The figure is as wide as its panels and the legend, no wider. The zoom's range
-starts at what fills its panel (:func:`near_base`) and is pushed past every object (box and
-velocity arrow) and sign it would cut (:func:`near_range`).
+Lateral goes left-to-right as the driver sees it (``lat`` left positive: the x axis is
+inverted), longitudinal goes up, both at the same scale; where the whole view is narrow a second
+panel zooms on the near range. The layout is computed (:func:`layout`) so that a pixel of the PNG
+maps back to metres; the tests rely on that.
 
-- an object is a box ``width`` wide and ``length`` long whose rear middle is at
-  (``longDistance``, ``latDistance``) (§13.2.5.3: distances are "to the middle of the Rear Left
-  and Rear Right corners"), turned by ``heading``, filled with its class's colour, labelled with
-  its ID (:mod:`eyeq_spi.plot.labels` places labels clear of every other mark); the CIPV gets
-  a black ring a few pixels outside its box, and "CIPV" in its label;
+- an object is a box ``width`` by ``length`` whose rear middle is at (``longDistance``,
+  ``latDistance``) (§13.2.5.3), turned by ``heading``, in its class's colour, labelled with its
+  ID clear of every other mark; the CIPV gets a black ring a few pixels outside its box;
 - the velocity arrow shows where the absolute velocity carries the object in ARROW_S seconds;
-- lines are drawn from their polynomials over ``[startRange, endRange]``;
-- a sign is a ring at its reported position, with its type's name.
+- lines are drawn from their polynomials over ``[startRange, endRange]``; a sign is a ring.
 """
 
 from __future__ import annotations

@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eyeq_spi import garbage
-from eyeq_spi.capture.pcapng_io import Tail
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file
 from eyeq_spi.errors import InputError, UsageError
@@ -23,6 +22,19 @@ from eyeq_spi.logic.options import SpiOptions
 from eyeq_spi.plot.perceived import Labels, Scene, SceneTracker
 
 GAP_PERIODS = 3.0  # a stream is stopped after 3 nominal periods of silence, the host's stale rule
+
+
+def frame_counters(record: dict[str, Any]) -> list[str]:
+    """The link counters a frame record counts in (plot --link, monitor): its direction and
+    type, and its fault."""
+    keys = [f"{record['direction'] or '?'} {record['frame_type']}"]
+    if "length" in record:
+        keys.append("wrong length")
+    elif not record["crc_ok"]:
+        keys.append("CRC errors")
+    elif record["frame_type"] == "NAK":
+        keys.append(f"NAK 0x{record['nak_reason']:03X}")
+    return keys
 
 
 @dataclass
@@ -171,14 +183,8 @@ class Collector:
 
     def _link(self, record: dict[str, Any], time_s: float) -> None:
         if record["kind"] == "frame":
-            direction = record["direction"] or "?"
-            self._count(time_s, f"{direction} {record['frame_type']}")
-            if "length" in record:
-                self._count(time_s, "wrong length")
-            elif not record["crc_ok"]:
-                self._count(time_s, "CRC errors")
-            elif record["frame_type"] == "NAK":
-                self._count(time_s, f"NAK 0x{record['nak_reason']:03X}")
+            for key in frame_counters(record):
+                self._count(time_s, key)
         elif record["type"] == "transfer_aborted":
             self._count(time_s, f"abort: {record['reason']}")
 
@@ -191,20 +197,14 @@ class Collector:
         return self.out
 
 
-def collect(path: str, collector: Collector, *, fmt: str | None = None,
-            direction: str | None = None, tail: Tail | None = None,
-            spi: SpiOptions | None = None) -> Collected:
+def collect(path: str, collector: Collector, *, spi: SpiOptions | None = None) -> Collected:
     """The capture file ``path`` (any format :mod:`eyeq_spi.dissect.pipeline` reads) through
-    ``collector``, dissected with the collector's release. ``tail``: filled with what the
-    reader ignored at the end of a pcapng file cut inside a block."""
-    cf = open_capture_file(path, DissectConfig(fmt=fmt, direction=direction, spi=spi,
-                                               sw=collector.codec.sw))
+    ``collector``, dissected with the collector's release."""
+    cf = open_capture_file(path, DissectConfig(spi=spi, sw=collector.codec.sw))
     try:
         return collect_capture(cf, collector)
     finally:
         cf.close()
-        if tail is not None:
-            tail.ignored, tail.at = cf.tail.ignored, cf.tail.at
 
 
 def collect_capture(cf: CaptureFile, collector: Collector) -> Collected:

@@ -12,7 +12,6 @@ from eyeq_spi.errors import MissingExtra, OutputError, UsageError
 
 STILL = (".png", ".svg", ".html")
 MOVING = (".gif", ".html")
-HINT = "pip install 'eyeq-spi[plot]'"
 
 
 def mpl() -> Any:

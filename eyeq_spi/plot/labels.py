@@ -1,14 +1,7 @@
 """Labels beside what they name, clear of every other mark (the bird's-eye plot's IDs and sign
-names).
-
-A label is tried at positions around its thing, nearest first (right, left, above, below, the
-corners, half-way between, then the same ring farther out); the first position whose box stays
-inside the axes and overlaps no mark (boxes, arrows, rings, the ego vehicle), no lane point and
-no label placed before it wins. A label placed away from its thing gets a thin leader line to
-it. When no position is free, the one with the fewest collisions is taken.
-
-Everything is measured in display pixels of the figure's fixed layout, so the placement is the
-same in a PNG, an SVG and every frame of an animation.
+names): positions around the thing are tried nearest first, the first that overlaps no mark,
+lane point or earlier label wins (else the one with the fewest collisions); a label placed away
+gets a leader line. All in display pixels of the fixed layout.
 """
 
 from __future__ import annotations

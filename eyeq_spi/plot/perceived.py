@@ -159,18 +159,18 @@ def _constant(codec: MessageCodec, name: str, default: int) -> int:
         return default
 
 
-def _walk(value: Any, path: tuple[str, ...] = ()
+def walk(value: Any, path: tuple[str, ...] = ()
           ) -> Iterator[tuple[tuple[str, ...], dict[str, Any]]]:
     """Every dict in a decoded value with its path of member names (array indices dropped)."""
     if isinstance(value, dict):
         yield path, value
         for key, member in value.items():
             if isinstance(member, dict | list):
-                yield from _walk(member, (*path, key))
+                yield from walk(member, (*path, key))
     elif isinstance(value, list):
         for member in value:
             if isinstance(member, dict):
-                yield from _walk(member, path)
+                yield from walk(member, path)
 
 
 def _f(fields: dict[str, Any], key: str, default: float = 0.0) -> float:
@@ -180,7 +180,7 @@ def _f(fields: dict[str, Any], key: str, default: float = 0.0) -> float:
 
 def objects(fields: dict[str, Any], labels: Labels) -> list[SceneObject]:
     out: list[SceneObject] = []
-    for path, struct in _walk(fields):
+    for path, struct in walk(fields):
         ps = struct.get("physicalState")
         if not isinstance(ps, dict) or "id" not in struct:
             continue
@@ -210,7 +210,7 @@ def _line_kind(name: str) -> str:
 def lines(fields: dict[str, Any], labels: Labels) -> list[SceneLine]:
     out: list[SceneLine] = []
     parents: dict[tuple[str, ...], dict[str, Any]] = {}
-    for path, struct in _walk(fields):
+    for path, struct in walk(fields):
         parents[path] = struct
         if not struct.keys() >= POLY_KEYS:
             continue
@@ -235,46 +235,43 @@ def lines(fields: dict[str, Any], labels: Labels) -> list[SceneLine]:
     return out
 
 
-def signs(fields: dict[str, Any], labels: Labels) -> list[SceneSign]:
-    out: list[SceneSign] = []
-    for path, struct in _walk(fields):
-        elems = struct.get("trafficSigns")
+def _active(fields: dict[str, Any], array: str, count: str
+            ) -> Iterator[tuple[tuple[str, ...], dict[str, Any]]]:
+    """(path, element) of the first ``count`` elements of every ``array`` (the whole array when
+    the count is missing): signs and light spots."""
+    for path, struct in walk(fields):
+        elems = struct.get(array)
         if not isinstance(elems, list):
             continue
-        declared = struct.get("numberTrafficSigns")
-        count = int(declared) if isinstance(declared, int) else len(elems)
-        for sign in elems[:max(0, count)]:
-            if not isinstance(sign, dict):
-                continue
-            st = int(sign.get("signType", 0))
-            long, lat = _f(sign, "signLongPosition"), _f(sign, "signLatPosition")
-            out.append(SceneSign(
-                long=long, lat=vehicle_frame.left_positive(lat),
-                known=vehicle_frame.sign_known(long, lat),
-                height=_f(sign, "signHeight"), type=st,
-                name=labels.label(SIGNS, (*path, "trafficSigns", "signType"), st)))
+        declared = struct.get(count)
+        for elem in elems[:max(0, int(declared) if isinstance(declared, int) else len(elems))]:
+            if isinstance(elem, dict):
+                yield path, elem
+
+
+def signs(fields: dict[str, Any], labels: Labels) -> list[SceneSign]:
+    out: list[SceneSign] = []
+    for path, sign in _active(fields, "trafficSigns", "numberTrafficSigns"):
+        st = int(sign.get("signType", 0))
+        long, lat = _f(sign, "signLongPosition"), _f(sign, "signLatPosition")
+        out.append(SceneSign(
+            long=long, lat=vehicle_frame.left_positive(lat),
+            known=vehicle_frame.sign_known(long, lat),
+            height=_f(sign, "signHeight"), type=st,
+            name=labels.label(SIGNS, (*path, "trafficSigns", "signType"), st)))
     return out
 
 
 def spots(fields: dict[str, Any], labels: Labels) -> list[SceneSpot]:
     out: list[SceneSpot] = []
-    for path, d in _walk(fields):
-        elems = d.get("activeLightSpots")
-        if not isinstance(elems, list):
-            continue
-        n = d.get("numOfActiveLightSpots")
-        count = int(n) if isinstance(n, int) else len(elems)
-        for spot in elems[:max(0, count)]:
-            if not isinstance(spot, dict):
-                continue
-            x, y = vehicle_frame.light_spot_position(
-                _f(spot, "longPos"), _f(spot, "leftAngle"), _f(spot, "rightAngle"))
-            cls = int(spot.get("classification", 0))
-            oid = spot.get("id", 0)
-            out.append(SceneSpot(
-                id=int(oid) if isinstance(oid, int) else 0, long=x, lat=y, cls=cls,
-                cls_name=labels.label(LIGHTS, (*path, "activeLightSpots", "classification"),
-                                      cls)))
+    for path, spot in _active(fields, "activeLightSpots", "numOfActiveLightSpots"):
+        x, y = vehicle_frame.light_spot_position(
+            _f(spot, "longPos"), _f(spot, "leftAngle"), _f(spot, "rightAngle"))
+        cls = int(spot.get("classification", 0))
+        oid = spot.get("id", 0)
+        out.append(SceneSpot(
+            id=int(oid) if isinstance(oid, int) else 0, long=x, lat=y, cls=cls,
+            cls_name=labels.label(LIGHTS, (*path, "activeLightSpots", "classification"), cls)))
     return out
 
 

@@ -13,8 +13,7 @@ lane polynomials' ``a0`` are left positive already (ISO 8855) and pass through u
 004 prints the opposite sign for two members, and only those are turned here:
 ``signLatPosition`` ("a negative value indicates the sign is on the left", §12.2) and the light
 spots' angles ("angles to the right of the sensor coordinate system are positive", §11.2).
-The DASP scene members are in radians already (``heading``, the light spots' angles); the one
-conversion from degrees (the camera's mounting angles, §9) is :func:`radians`.
+The DASP scene members are in radians already (``heading``, the light spots' angles).
 """
 
 from __future__ import annotations
@@ -27,11 +26,6 @@ CAMERA_HEIGHT_M = 1.3  # above the road, when the run does not say (the simulate
 RIGHT_POSITIVE = -1.0  # a right-positive lateral or angle times this is left positive (C5)
 SIGN_LONG_UNKNOWN = 127.0  # §12.2 signLongPosition: "Set to 127 when the distance is unknown"
 SIGN_LAT_UNKNOWN = -128.0  # §12.2 signLatPosition: "Set to -128 when the distance is unknown"
-
-
-def radians(degrees: float) -> float:
-    """Degrees (the seed's mounting angles) to the frame's radians."""
-    return math.radians(degrees)
 
 
 def left_positive(right_positive: float) -> float:
