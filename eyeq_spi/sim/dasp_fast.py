@@ -19,7 +19,7 @@ generated code (the obstacles as numpy columns), bind writers to views once and 
 once.
 
 :meth:`DaspPacker.encode` then fills the rolling counters and CRCs (D5, generated from
-``Layout.crc_plan`` like :func:`eyeq_spi.codec.e2e.compile_verifier`; same order and values as
+``Layout.crc_plan`` by :func:`eyeq_spi.codec.e2e.compile_protector`; same order and values as
 :func:`eyeq_spi.codec.e2e.protect`) and prepends the §7.1.2 DASP header, as
 ``MessageCodec.encode_dasp`` does. The reference stays what the tests hold this to.
 """
