@@ -246,10 +246,7 @@ class LuaGenerator:
                            for name in sorted(RECEIVER))
         lines.append(f"local RX_LIMIT = {{{limits}}}")
         lines.append(f"local DASP_PROTOCOL = {lua_int(DASP_PROTOCOL)}")
-        mesp_protocol = int(self.cat.raw["mesp.yaml"]["mesp"]["protocol"])
-        if mesp_protocol != MESP_PROTOCOL:
-            raise SpecError("specs/mesp.yaml mesp.protocol: disagrees with eyeq_spi.codec.mesp")
-        lines.append(f"local MESP_PROTOCOL = {lua_int(mesp_protocol)}")
+        lines.append(f"local MESP_PROTOCOL = {lua_int(MESP_PROTOCOL)}")
         widths = ", ".join(f"{k} = {w}" for k, (_, w) in MESP_PARAM_FIELD.items())
         lines.append(f"local MESP_WIDTH = {{{widths}}}")
         return lines
