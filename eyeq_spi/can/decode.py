@@ -80,12 +80,6 @@ class SignalDecoder:
                        _exact(sig.scale) and _exact(sig.offset))
                    else max(_decimals(sig.scale), _decimals(sig.offset)))
 
-    def raw(self, le: int, be: int) -> int:
-        raw = ((be if self.big_endian else le) >> self.shift) & self.mask
-        if self.sign_bit and raw & self.sign_bit:
-            raw -= self.mask + 1
-        return raw
-
     def physical(self, raw: int) -> float | int | None:
         if self.spec.is_float:
             value: float = _F32.unpack((raw & 0xFFFFFFFF).to_bytes(4, "big"))[0]
@@ -141,7 +135,7 @@ class MessageDecoder:
 
     def _compile(self) -> Any:
         """Straight-line Python for a complete frame, constants inlined: the per-message
-        decoder built once from the spec (the loop of :meth:`decode_into` is its reference)."""
+        decoder built once from the spec (:meth:`decode_slow` is its reference)."""
         env: dict[str, Any] = {"_F32": _F32.unpack, "_finite": math.isfinite,
                                "_fmt": _out_of_range}
         big = any(sig.big_endian for sig in self.signals)
@@ -193,18 +187,6 @@ class MessageDecoder:
                             f"{sig.spec.max!r}))")
         exec(compile("\n".join(body), f"<decoder {self.name}>", "exec"), env)
         return env["_decode"]
-
-    def decode_into(self, data: bytes, rec: dict[str, Any]) -> None:
-        count = len(data)
-        if count == self.dlc:
-            self._fast(data, rec["fields"], rec["labels"], rec["invalid"], rec["errors"])
-            return
-        if self.needed <= count < self.dlc:  # C8: short, every signal inside
-            rec["short_dlc"] = True
-            self._fast(data + bytes(self.dlc - count), rec["fields"], rec["labels"],
-                       rec["invalid"], rec["errors"])
-            return
-        self.decode_slow(data, rec)
 
     def decode_slow(self, data: bytes, rec: dict[str, Any]) -> None:
         """The reference loop (any DLC): a wrong DLC is an error, the signals it holds decoded."""
@@ -332,12 +314,10 @@ class CanDecoder:
         }
         if dec is None:  # another node's frame (C10): no message of ours, not an error
             return rec
-        if reference:
+        if reference or len(data) != dec.dlc:
             dec.decode_slow(bytes(data), rec)
-        elif len(data) == dec.dlc:
-            dec._fast(data, fields, labels, invalid, errors)
         else:
-            dec.decode_into(bytes(data), rec)
+            dec._fast(data, fields, labels, invalid, errors)
         rule = dec.quality
         if rule is not None:
             rec["units"] = dec.units
