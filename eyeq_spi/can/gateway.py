@@ -56,7 +56,6 @@ class GatewayCounters:
     stepped: Counter[str] = field(default_factory=Counter)  # valid value moved off the invalid raw
     # slot items with no slot left, per message (C7: 13 obstacle slots for up to 15 objects)
     slot_overflow: Counter[str] = field(default_factory=Counter)
-    dasp_messages: int = 0
 
 
 @dataclass
@@ -165,7 +164,6 @@ class CanGateway:
         if name is None or getattr(msg, "errors", None):
             return
         self._latest[name] = msg.fields
-        self.counters.dasp_messages += 1
 
     def start(self, now: float) -> None:
         """Start the cycles (done by the first ``handle_timer`` after a DASP message)."""
@@ -255,8 +253,7 @@ class GatewayNode:
         self.gateway.poll(now)
 
     def data_to_send(self, now: float) -> list[bytes]:
-        out: list[bytes] = self.inner.data_to_send(now)
-        return out
+        return list(self.inner.data_to_send(now))
 
     def get_timer(self) -> float | None:
         times = [t for t in (self.inner.get_timer(), self.gateway.get_timer()) if t is not None]

@@ -10,6 +10,7 @@ CAN package). ``--can-out`` targets:
 from __future__ import annotations
 
 import atexit
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,7 +38,6 @@ class CanSink:
     handle: Any
     sent: int = 0
     errors: int = 0
-    last_error: str | None = None
     closed: bool = field(default=False)
 
     def __call__(self, frame: CanFrame) -> None:
@@ -50,21 +50,18 @@ class CanSink:
             else:
                 self.handle.on_message_received(msg)
             self.sent += 1
-        except (can.CanError, OSError, ValueError) as exc:  # a full queue, a gone interface
+        except (can.CanError, OSError, ValueError):  # a full queue, a gone interface
             self.errors += 1
-            self.last_error = str(exc)
 
     def close(self) -> None:
         if self.closed:
             return
         self.closed = True
-        try:
+        with contextlib.suppress(Exception):  # closing must never raise at exit
             if self.kind == "bus":
                 self.handle.shutdown()
             else:
                 self.handle.stop()
-        except Exception as exc:  # closing must never raise at exit
-            self.last_error = str(exc)
 
 
 def open_target(target: str) -> CanSink:

@@ -34,14 +34,6 @@ class _AbsentError(Exception):
     pass
 
 
-def _deg(x: float) -> float:
-    return math.degrees(x)
-
-
-def _count(items: list[Any]) -> int:
-    return len(items)
-
-
 def _first(items: list[Any]) -> Any:
     if not items:
         raise _AbsentError
@@ -58,16 +50,12 @@ def _take(items: list[Any], count: int) -> list[Any]:
     return list(items[: max(int(count), 0)])
 
 
-def _atan(x: float) -> float:
-    return math.atan(x)
-
-
 FUNCTIONS: dict[str, Callable[..., Any]] = {
-    "deg": _deg,            # radians -> degrees
+    "deg": math.degrees,    # radians -> degrees
     "rad": math.radians,    # degrees -> radians
-    "atan": _atan,
+    "atan": math.atan,
     "kmh": lambda v: v * 3.6,  # m/s -> km/h
-    "count": _count,        # length of a list
+    "count": len,           # length of a list
     "first": _first,        # first item of a list (MISSING when empty)
     "take": _take,          # the first n items of a list
     "div": _div,            # a / b, MISSING when b == 0
@@ -265,10 +253,7 @@ def compile_expr(text: str, names: set[str], tables: set[str]) -> Callable[[Env]
 
     def run(env: Env) -> Any:
         try:
-            value = fn(env)
-        except _AbsentError:
+            return fn(env)
+        except (_AbsentError, TypeError, ValueError, OverflowError):
             return MISSING
-        except (TypeError, ValueError, OverflowError):
-            return MISSING
-        return value
     return run

@@ -79,7 +79,7 @@ def inline_constants(text: str, inline: dict[str, str]) -> str:
     def value(match: re.Match[str]) -> str:
         key = match.group(0)
         if key not in inline:
-            raise ValueError(f"the Lua runtime uses {key}, which the generator does not define")
+            raise SpecError(f"the Lua runtime uses {key}, which the generator does not define")
         return inline[key]
     return re.sub(r"\bC\.[A-Z_]+\b|@HDR\.[A-Z]+@", value, text)
 
