@@ -1,28 +1,15 @@
-"""Decoding CAN logs (BLF, ASC, candump, TRC, MF4 through python-can's readers) with the
-protocols of ``specs/can/``, into the record shape of ``eyeq-spi dissect --json``.
-
-A record is ``{"kind": "message", "protocol": "CAN", "name", "length", "direction": null,
-"time", "frames": [index], "header": {"id", "channel"}, "fields": {signal: physical},
-"units": {signal: unit}, "labels": {signal: enum label}, "invalid": [signals at their invalid
-value], "short_dlc": bool, "errors": [...]}``; ``errors`` lists a DLC that is not the spec's
-and values outside a signal's range. Values are rounded to the decimals their scale and offset
-have (-1.88, not -1.8800000000000001).
+"""Decoding CAN logs (through python-can's readers) with the protocols of ``specs/can/``, into the
+record shape of ``eyeq-spi dissect --json`` (docs/can.md); values rounded to the decimals their
+scale and offset have (-1.88, not -1.8800000000000001).
 
 Decision C10: a frame whose ID the protocol does not define is another node's (name None, no
-error). Decision C11: while a lane's quality is low, the signals its rule (``quality`` in the
-spec) governs are invalid, not errors; a "B" frame takes the quality of the latest "A" frame of
-its lane on its channel.
+error). C11: while a lane's quality is low, the signals its rule governs are invalid, not errors;
+a "B" frame takes the quality of the latest "A" frame of its lane on its channel. C8: a frame
+shorter than its DLC that holds every signal is decoded and flagged ``short_dlc``; a printed
+invalid value that is also a normal state (``invalid_means``) is not reported invalid.
 
-Decision C8: a frame shorter than its spec's DLC that still holds every defined signal (the LKA
-"B" frames a production camera sends with DLC 4) is decoded and flagged ``short_dlc``, not an
-error; a printed invalid value that is also a normal state (``invalid_means``: Failsafe 0 = no
-failsafe) is not reported invalid.
-
-Each message is decoded by a :class:`MessageDecoder` compiled once from the spec (shift, mask,
-sign, scale per signal): the same arithmetic cantools applies to the DBC built from the same
-spec (tested frame by frame), without its per-frame dispatch. ``CanStats`` (``stats.py``) runs
-the same decoders on numpy columns, one ID at a time.
-"""
+Each :class:`MessageDecoder` is compiled once from the spec: the arithmetic cantools applies to
+the DBC built from the same spec (tested frame by frame), without its per-frame dispatch."""
 
 from __future__ import annotations
 

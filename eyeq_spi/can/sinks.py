@@ -1,11 +1,6 @@
-"""Where gateway frames go: a python-can bus or a python-can log writer (the only I/O of the
-CAN package). ``--can-out`` targets:
-
-- ``virtual`` or ``virtual:CHANNEL``: python-can's in-process virtual bus;
-- ``INTERFACE:CHANNEL`` for any python-can interface, e.g. ``socketcan:vcan0``;
-- a file whose suffix names the log format: ``.blf``, ``.asc``, ``.mf4`` (needs asammdf),
-  ``.log`` (candump -L), ``.trc``, ``.csv``.
-"""
+"""Where gateway frames go (``--can-out``, docs/can.md): a python-can bus (``virtual[:CHANNEL]``,
+``INTERFACE:CHANNEL``) or a python-can log writer chosen by suffix; the only I/O of the CAN
+package."""
 
 from __future__ import annotations
 

@@ -1,21 +1,11 @@
-"""Start-up cache of the validated catalogue.
+"""Start-up cache of the validated catalogue (a cache of data, never of code).
 
-Parsing and validating ``specs/`` costs ~0.2 s even with libyaml; every CLI start needs the
-catalogue (argument checks name messages, MESP functions and faults). The validated
-:class:`~eyeq_spi.catalog.messages.Catalog` is pickled into the user's cache directory under a key
-over the path, size and modification time of every file of ``specs/`` and of the loader modules'
-sources, and the Python version (:func:`specs_digest`), so an edited YAML file, an edited loader
-or another interpreter never sees a stale one.
-
-Single files of ``specs/`` that code reads directly (``spec_file``: ``link.yaml``,
-``bench.yaml``, ``dasp_header.yaml``...) are cached the same way, each as a ``marshal`` file under
-the same key (:func:`cached_doc`), so a start from the cache never imports yaml.
-
-The cache is an optimisation only: an unwritable, missing, corrupt or foreign cache file falls back
-to parsing ``specs/`` (and silently tries to write a fresh one). ``EYEQ_SPI_CACHE_DIR`` moves it;
-``EYEQ_SPI_NO_CACHE=1`` turns it off. The pickle is read only from a directory of the current user,
-written atomically (temporary file + rename) and mode 0600.
-"""
+The :class:`~eyeq_spi.catalog.messages.Catalog` is pickled, and single files of ``specs/``
+(``spec_file``) marshalled so a start from the cache never imports yaml, in the user's cache
+directory under a key over the path, size and mtime of every file of ``specs/`` and of the
+loaders, and the Python version (:func:`specs_digest`). An unusable cache falls back to parsing
+``specs/``. ``EYEQ_SPI_CACHE_DIR`` moves it, ``EYEQ_SPI_NO_CACHE=1`` turns it off; files are
+read only from the current user's, written atomically."""
 
 from __future__ import annotations
 

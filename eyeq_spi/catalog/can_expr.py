@@ -1,16 +1,10 @@
 """The small expression language of ``specs/can/mapping.yaml`` (decision C4).
 
-A mapping says how one CAN signal is computed from decoded EyeQ4 DASP fields, for example
-``-o.physicalState.latDistance`` or ``table('obstacle_type', o.classification)``. Expressions
-are parsed with :mod:`ast` and only a whitelist of nodes is accepted: names of the mapping's
-sources, attribute access into decoded dicts, numbers, strings, tuples/lists, arithmetic,
-comparisons, ``and``/``or``/``not``, ``x if c else y``, one-generator list comprehensions and
-the functions of :data:`FUNCTIONS`. Nothing else (no imports, no dunder attributes, no calls of
-arbitrary objects) can be written, so the data stays data.
-
-A name whose DASP message has not arrived yet, a missing field or a division by zero makes the
-whole expression :data:`MISSING`: the gateway then sends the signal's invalid value.
-"""
+An expression (``-o.physicalState.latDistance``, ``table('obstacle_type', o.classification)``)
+is parsed with :mod:`ast` and only whitelisted nodes are accepted: source names, attribute
+access, literals, arithmetic, comparisons, boolean logic, ``x if c else y``, one-generator list
+comprehensions and :data:`FUNCTIONS`, so the data stays data. A missing message or field or a
+division by zero makes the whole expression :data:`MISSING` (the signal's invalid value is sent)."""
 
 from __future__ import annotations
 

@@ -1,19 +1,11 @@
 """FTDI FT4222H channels (``ft4222://SERIAL_OR_INDEX``), with the ``ft4222`` package.
 
-One chip is one channel: an FT4222H is an SPI master or an SPI slave, never both, so one side of
-a link takes two chips. The master clocks each transfer with ``spiMaster_SingleWrite(...,
-isEndTransaction=True)``: chip select low for exactly that transfer. The clock is the 80 MHz
-system clock divided by the smallest power of two that does not exceed the asked rate (10 MHz:
-divide by 8).
-
-The slave runs in raw mode (``SPI_SLAVE_NO_PROTOCOL``: no FTDI framing on the wire). The chip
-then hands over a stream of bytes without chip-select edges, so the channel cuts it into
-transfers: 128 bytes make one (§6), and bytes followed by ``idle`` seconds of silence make a
-short one (chip select rose early), which reaches the link as short. The chip has no
-interrupt the package exposes: the channel polls its receive count every ``POLL`` seconds,
-far inside the 10 ms ackTimeout. The FT4222H bit order is fixed most significant bit first:
-an LSB-first wire is served by the adapter's table.
-"""
+One chip is one channel (master or slave, never both). The master clocks each transfer with chip
+select low for exactly that transfer, at the 80 MHz system clock divided by a power of two. The
+slave runs in raw mode (``SPI_SLAVE_NO_PROTOCOL``), which has no chip-select edges: 128 bytes make
+a transfer (§6), and bytes followed by ``idle`` seconds of silence a short one. The chip is polled
+every ``POLL`` seconds, far inside the 10 ms ackTimeout. It sends most
+significant bit first only."""
 
 from __future__ import annotations
 

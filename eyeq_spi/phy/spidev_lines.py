@@ -1,12 +1,8 @@
 """Linux spidev channels (``spidev:///dev/spidevB.C``), with the ``spidev`` package.
 
-The same device node is a master channel on an SPI controller in master mode and a slave
-channel on a controller the device tree puts in slave mode (the Linux SPI slave framework,
-``spi-slave``); which one it is, the bench file says. The master clocks each transfer with
-``writebytes2`` (chip select low for the whole transfer). The slave reads with ``read(2)`` on the
-device's descriptor rather than ``readbytes``: ``readbytes`` refuses a short read, and a short
-transfer (chip select rose early) must reach the link as short (decision L8).
-"""
+A master channel writes each transfer with ``writebytes2`` (chip select low for all of it); a
+slave channel (the Linux SPI slave framework) reads with ``read(2)``, since ``readbytes`` refuses a
+short read and a short transfer must reach the link as short (decision L8)."""
 
 from __future__ import annotations
 

@@ -1,30 +1,18 @@
 """Application-layer tables of the Lua dissector (decisions A, M, D), for every SW release.
 
-Nothing here knows an offset by heart: every struct layout comes from
-:class:`eyeq_spi.codec.message.MessageCodec` (which compiles ``specs/structs``) for each release
-of ``specs/sw_versions.yaml``, every enum from ``specs/enums``, every MESP function from
-``specs/mesp.yaml``. The dissector picks the release at run time (see
-:mod:`eyeq_spi.wireshark.lua_runtime`), so one file reads captures of every release.
+Every layout comes from :class:`eyeq_spi.codec.message.MessageCodec`, every enum from
+``specs/enums``, every MESP function from ``specs/mesp.yaml``. Generated Lua:
 
-Generated Lua:
-
-- ``S["<struct>#<n>"]`` — one table per distinct layout (the releases that share a layout share
-  it), one row per member, in layout order:
+- ``S["<struct>#<n>"]``: one table per distinct layout, one row per member
   ``{offset, element size, count (0 = scalar), field, child layout or false, label, flags,
-  bits, value names}``. A bitfield's row has its container's offset and size; its field carries
-  the mask (D2). ``bits`` (``{shift, mask}``) is set where the field has no mask because
-  another release lays the member out differently: the value is then computed. ``value names``
-  likewise labels a value whose enum differs between releases.
-- ``MSG[i]`` — ``{name=, protocol=, struct=, size=, field=}``; ``DASP_R[release][data_id]`` and
-  ``OTHER_R[release][first byte]`` point at them; ``SIZES[release][data_id]`` is a DASP
-  payload's size, for the release fit (decision D4).
-- ``MESP[service * 256 + function]`` — ``{name=, req={{type, field, label}...}, rep={...}}``.
+  bits, value names}``; a bitfield row has its container's offset and size and its field the
+  mask (D2), or ``bits = {shift, mask}`` and ``value names`` where releases differ;
+- ``MSG[i]``, ``DASP_R[release][data_id]``, ``OTHER_R[release][first byte]`` and
+  ``SIZES[release][data_id]`` (the release fit, D4);
+- ``MESP[service * 256 + function]``: ``{name=, req={{type, field, label}...}, rep={...}}``.
 
-Filter names: every member is ``eyeq_spi.<struct type>.<member>``, one field per
-(struct, member) for every release and every array element; where releases differ the field
-takes the widest integer type and drops what they do not share (mask, enum); a flag of a flags
-enum is ``eyeq_spi.<struct>.<member>.<flag>``; a payload is ``eyeq_spi.<payload struct>``.
-"""
+Filter names are ``eyeq_spi.<struct type>.<member>`` (docs/wireshark.md); where releases differ
+the field takes the widest integer type and drops what they do not share (mask, enum)."""
 
 from __future__ import annotations
 

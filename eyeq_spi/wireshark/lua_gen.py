@@ -1,23 +1,9 @@
-"""Generate the Wireshark Lua dissector of eyeq-spi captures from ``specs/``.
+"""Generate the Wireshark Lua dissector of eyeq-spi captures from ``specs/`` (docs/wireshark.md).
 
-``generate_lua()`` returns one self-contained Lua file for Wireshark/tshark 4.0 and later (Lua 5.2,
-bit operations through Wireshark's ``bit`` library). It registers ``eyeq_spi`` on the
-``wtap_encap`` table for the capture's link type (``specs/capture.yaml``: LINKTYPE_USER0), so a
-capture opens with no set-up::
-
-    tshark -X lua_script:eyeq_spi.lua -r capture.pcapng
-
-Sources: the link and transport constants from ``specs/link.yaml`` (L1-L8, T1-T6), interfaces
-from ``specs/capture.yaml``, MESP from ``specs/mesp.yaml`` (M1-M3) and every DASP/0x41/0x10 layout
-from :class:`eyeq_spi.codec.message.MessageCodec` for every SW release of
-``specs/sw_versions.yaml``: the dissector reads each capture with its own release (the
-preference ``eyeq_spi.sw``, else the capture's ``eyeq-spi sw=<release>`` comment, else the
-release the EyeQ reports, else the one whose DASP layouts fit, decision D4). Fixed filter
-names: ``eyeq_spi.dir``, ``.frame_type``, ``.num``, ``.rsp``, ``.crc``,
-``.crc_ok``, ``.nak_reason``, ``.transport``, ``.transfer_id``, ``.total``, ``.size``,
-``.bad_length``, ``.sw``, ``.sw_source``; ``eyeq_spi.mesp.*``, ``eyeq_spi.dasp.*``; payload members
-``eyeq_spi.<struct>.<member>`` (see :mod:`eyeq_spi.wireshark.lua_app`).
-"""
+``generate_lua()`` returns one self-contained Lua file for Wireshark 4.0+ (Lua 5.2) registered for
+the capture's link type (``specs/capture.yaml``), from ``specs/link.yaml`` (L1-L8, T1-T6),
+``specs/mesp.yaml`` (M1-M3) and every layout of every SW release; the dissector picks each
+capture's release at run time (decision D4)."""
 
 from __future__ import annotations
 
