@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.can.dbc import INVALID_ATTRIBUTE, database, require_cantools
-from eyeq_spi.catalog.can import CanMessage, CanSignal, can_documents, protocol
+from eyeq_spi.catalog.can import CanMessage, CanSignal, can_documents, protocol, signal_bits
 from eyeq_spi.errors import InputError
 
 
@@ -84,13 +84,7 @@ def _attr(sig: Any, name: str) -> Any:
 
 
 def _bits(sig: Any) -> set[int]:
-    if sig.byte_order == "little_endian":
-        return set(range(sig.start, sig.start + sig.length))
-    out, pos = set(), sig.start
-    for _ in range(sig.length):
-        out.add(pos)
-        pos = pos - 1 if pos % 8 else pos + 15
-    return out
+    return signal_bits(sig.start, sig.length, sig.byte_order)
 
 
 def _close(left: float | None, right: float | None) -> bool:
