@@ -39,7 +39,7 @@ def load_file(path: Path) -> dict[str, Any]:
     try:
         with path.open(encoding="utf-8") as fh:
             doc = yaml.load(fh, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-    except (OSError, yaml.YAMLError) as exc:
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise SpecError(f"{path}: {exc}") from exc
     if not isinstance(doc, dict):
         raise SpecError(f"{path}: not a mapping")

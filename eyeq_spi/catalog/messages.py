@@ -330,12 +330,7 @@ def _signal(raw: dict[str, Any]) -> InitSignal:
 
 
 def load_catalog(root: Path) -> Catalog:
-    import yaml  # only when the start-up cache misses
-
-    try:
-        docs = load_yaml_tree(root)
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise SpecError(f"{root}: {exc}") from exc
+    docs = load_yaml_tree(root)
     problems = validate_tree(root, docs)
     if problems:
         raise SpecError(f"{root}: {len(problems)} schema problem(s), first: {problems[0]}")
