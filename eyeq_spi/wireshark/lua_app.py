@@ -110,7 +110,6 @@ class AppGenerator:
         self.vs = vs
         self.out = AppTables()
         self.data_id_names: dict[int, str] = {}
-        self.mesp_masks = (TAG_MASK, REPLY_BIT)
         self._specs: dict[str, list[MemberField]] = {}
         self._merged: dict[str, Merged] = {}
         self._struct_keys: dict[str, str] = {}  # emitted rows text -> S key
@@ -312,12 +311,6 @@ class AppGenerator:
 
     def mesp_fields(self) -> None:
         """MESP header fields (M1) and parameter fields (M2, M3)."""
-        raw = self.cat.raw["mesp.yaml"]["mesp"]
-        counter_mask = (1 << int(raw["tag_counter_bits"])) - 1
-        reply_mask = 1 << int(raw["tag_reply_bit"])
-        if counter_mask != TAG_MASK or reply_mask != REPLY_BIT:  # the codec must agree
-            raise SpecError("specs/mesp.yaml mesp.tag_counter_bits, tag_reply_bit: disagree with "
-                            "eyeq_spi.codec.mesp")
         add = self.fields.add
         add("mesp.service", "uint8", lua_str("Service"), "base.HEX")
         add("mesp.protocol", "uint8", lua_str("Protocol"), "base.HEX")
@@ -325,8 +318,8 @@ class AppGenerator:
         add("mesp.function", "uint8", lua_str("Function"), "base.HEX")
         add("mesp.tag", "uint8", lua_str("Tag"), "base.HEX")
         add("mesp.counter", "uint8", lua_str("Counter"), "base.DEC", "nil",
-            lua_int(counter_mask))
-        add("mesp.reply", "bool", lua_str("Reply"), "8", "nil", lua_int(reply_mask))
+            lua_int(TAG_MASK))
+        add("mesp.reply", "bool", lua_str("Reply"), "8", "nil", lua_int(REPLY_BIT))
         add("mesp.name", "string", lua_str("Function name"))
         ret = self.vs.add("mesp_ret", {int(k): str(v) for k, v in self.cat.mesp_ret.items()})
         add("mesp.ret", "uint32", lua_str("ret"), "base.DEC", ret)
@@ -335,7 +328,6 @@ class AppGenerator:
         for fn in self.cat.mesp:
             for prm in (*fn.request, *fn.reply):
                 types.setdefault(prm.name, set()).add(prm.type)
-        self.mesp_masks = (counter_mask, reply_mask)
         lines: list[str] = []
         for fn in self.cat.mesp:
             def rows(params: tuple[MespParam, ...], fn_name: str = fn.name) -> str:
