@@ -6,7 +6,7 @@ init bit tables) reads it from here, never from a layout written by hand (docs/S
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
@@ -33,6 +33,11 @@ def sw_release(key: SwKey) -> tuple[int, int]:
 def sw_release_text(key: SwKey) -> str:
     major, minor = sw_release(key)
     return f"{major}.{minor}"
+
+
+def newest_at(keys: Iterable[SwKey], sw: SwKey) -> SwKey | None:
+    """The newest variant key that is not newer than ``sw`` (decision D4), None if none."""
+    return max((key for key in keys if sw_key(key) <= sw_key(sw)), key=sw_key, default=None)
 
 
 @dataclass(frozen=True)
@@ -81,12 +86,8 @@ class StructDef:
     variants: dict[SwKey, StructVariant]
 
     def variant_for(self, sw: SwKey) -> StructVariant | None:
-        """The newest variant whose key is <= ``sw`` (decision D4)."""
-        best: StructVariant | None = None
-        for key, var in self.variants.items():
-            if sw_key(key) <= sw_key(sw) and (best is None or sw_key(key) > sw_key(best.key)):
-                best = var
-        return best
+        key = newest_at(self.variants, sw)
+        return None if key is None else self.variants[key]
 
 
 @dataclass(frozen=True)
@@ -186,8 +187,8 @@ class InitMessageDef:
     variants: dict[SwKey, InitVariant]
 
     def variant_for(self, sw: SwKey) -> InitVariant | None:
-        keys = sorted((k for k in self.variants if sw_key(k) <= sw_key(sw)), key=sw_key)
-        return self.variants[keys[-1]] if keys else None
+        key = newest_at(self.variants, sw)
+        return None if key is None else self.variants[key]
 
 
 @dataclass(frozen=True)
@@ -229,10 +230,10 @@ class Catalog:
         table = self.constants.get(name)
         if table is None:
             raise SpecError(f"unknown constant {name}")
-        keys = sorted((k for k in table if sw_key(k) <= sw_key(sw)), key=sw_key)
-        if not keys:
+        key = newest_at(table, sw)
+        if key is None:
             raise SpecError(f"constant {name} is not defined for {sw}")
-        return table[keys[-1]]
+        return table[key]
 
     def message(self, name: str) -> MessageDef:
         for msg in self.messages:
