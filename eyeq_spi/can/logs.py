@@ -155,7 +155,7 @@ def read_log(path: str) -> Iterator[Any]:
     except ImportError as exc:
         raise MissingExtra("export", f"{path}: this format needs {exc.name or exc}") from exc
     except Exception as exc:  # python-can raises many kinds on a foreign file
-        if suffix == ".mf4" and _starts_like_mf4(file_path):
+        if suffix == ".mf4" and file_path.stat().st_size:  # it begins as one (_check_format)
             raise TruncatedInputError(
                 f"{path}: truncated or damaged MF4 ({file_path.stat().st_size} bytes, which "
                 f"asammdf cannot open: {exc}); 0 frames read") from exc
@@ -204,14 +204,6 @@ def _open(can: Any, path: Path) -> Any:
     finally:
         gc.collect()
         sys.unraisablehook = hook
-
-
-def _starts_like_mf4(path: Path) -> bool:
-    try:
-        with path.open("rb") as fh:
-            return fh.read(8) in (b"MDF     ", b"UnFinMF ")
-    except OSError:
-        return False
 
 
 def open_bus(target: str) -> Any:

@@ -106,13 +106,9 @@ class CanOutput:
 
 
 def attach(host: Any, runner: Any, *, target: str, protocol: str) -> CanOutput:
-    """Subscribe a gateway to ``host``'s decoded DASP messages and put it on ``runner``'s clock.
-
-    ``runner`` is a :class:`~eyeq_spi.runner.VirtualRunner` (whose node list holds the host) or
-    a :class:`~eyeq_spi.runner.RealTimeRunner` (whose ``node`` is the host): the host's entry is
-    replaced by a :class:`GatewayNode` wrapping it. The sink is closed at exit (log files are
-    finalised) or by ``close()``.
-    """
+    """Subscribe a gateway to ``host``'s decoded DASP messages and put it on ``runner``'s clock:
+    the host's node in the runner becomes a :class:`GatewayNode` wrapping it. The sink is closed
+    at exit (log files are finalised) or by ``close()``."""
     clock = getattr(runner, "clock", None)
     epoch = float(clock()) if callable(clock) else float(getattr(runner, "now", 0.0))
     scenario = getattr(host, "scenario", None)

@@ -133,11 +133,8 @@ KEEP_KEYS = 16  # other keys' files kept: several installs, checkouts or Pythons
 
 def _write(path: Path, value: object, writer: Callable[[Any, Any], object] | None = None,
            current: str = "") -> None:
-    """Write atomically; then prune the files of other keys (``catalog-*.pickle``, or with a
-    ``writer`` ``doc-*.marshal``, not starting with ``current``) to the
-    ``KEEP_KEYS`` newest keys, so that several installs of one user (checkouts, virtual
-    environments, Python versions) keep their own caches instead of evicting each other's on
-    every start."""
+    """Write atomically; then keep the files of the ``KEEP_KEYS`` newest other keys only, so that
+    several installs of one user keep their own caches instead of evicting each other's."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         import tempfile  # only to write: a start from the cache does not import it (nor random)

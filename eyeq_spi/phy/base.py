@@ -103,11 +103,8 @@ def adapter_class(name: str) -> type[Adapter]:
 
 
 def open_url(url: str) -> Adapter:
-    """Connect an adapter to an address in the grammar of :mod:`eyeq_spi.phy.address`:
-    ``tcp://HOST:PORT``, ``socket://HOST:PORT``, ``rfc2217://HOST:PORT``, a tty or pty path, or
-    any other pyserial URL (``loop://``), or one side on SPI lines
-    (``MASTER_URL,SLAVE_URL`` of ``spidev://`` / ``ft4222://`` channels, or a ``bench.toml``:
-    :mod:`eyeq_spi.phy.bench`). :func:`open_listener` listens."""
+    """Connect an adapter to an address in the grammar of :mod:`eyeq_spi.phy.address` (any
+    pyserial URL, a tty or pty path, or one side on SPI lines); :func:`open_listener` listens."""
     from eyeq_spi.phy.address import is_spi, parse_connect
 
     if is_spi(url):

@@ -172,11 +172,9 @@ class SpiAdapter(Adapter):
         return self._lost is None
 
     def drop(self) -> None:
-        """End the peer's session the only way SPI lines can (they have no hang-up): say
-        nothing for longer than ``silence`` (after which a peer takes the link as lost, as we
-        do), and drop what it sends meanwhile (it belongs to the session that ended). Then the
-        lines are fresh again: :meth:`accept` takes them at once, since a host that started
-        over waits for the EyeQ's boot status and sends nothing first."""
+        """End the peer's session the only way SPI lines can (they have no hang-up): say nothing
+        for longer than ``silence`` and drop what it sends meanwhile; then :meth:`accept` takes
+        the lines at once (a host that starts over waits for the EyeQ's boot status)."""
         self._start()
         with contextlib.suppress(LinkLostError):
             self.wait_sent()
@@ -187,10 +185,9 @@ class SpiAdapter(Adapter):
         self._heard, self._quiet, self._pending_reply = None, False, None
 
     def _start(self) -> None:
-        """Start the reader and writer threads on first use, not when opened, and at the
-        scheduling policy the run's loop took by then (``--rt-priority``): the ACK path goes
-        through them. (A real-time policy taken with SCHED_RESET_ON_FORK is not inherited by
-        a new thread, so each thread takes it itself.)"""
+        """Start the reader and writer threads on first use, at the scheduling policy the run's
+        loop took by then (``--rt-priority``; each thread takes it itself, as a policy taken
+        with SCHED_RESET_ON_FORK is not inherited)."""
         if not self._started:
             self._started = True
             self._policy = _policy_of_caller()

@@ -1,8 +1,5 @@
-"""Helpers shared by the Lua generators: literals, the ProtoField and value_string registries.
-
-Everything emitted here is Lua 5.2 as Wireshark 4.0 embeds it: no integer division, no bitwise
-operators (the generated code uses Wireshark's ``bit`` library instead).
-"""
+"""Helpers shared by the Lua generators (Lua 5.2, as Wireshark 4.0 embeds it): literals, the
+ProtoField and value_string registries."""
 
 from __future__ import annotations
 
@@ -65,20 +62,15 @@ def value_table(values: dict[int, str]) -> str:
 
 @dataclass
 class FieldRegistry:
-    """Every ProtoField of the dissector, in registration order, keyed by filter name.
-
-    A field is referenced from generated Lua as ``F["<abbrev without eyeq_spi.>"]``.
-    """
+    """Every ProtoField of the dissector, in registration order, keyed by filter name and
+    referenced from generated Lua as ``F["<abbrev without eyeq_spi.>"]``."""
 
     lines: list[str] = field(default_factory=list)
     abbrevs: dict[str, str] = field(default_factory=dict)  # key -> constructor call
 
     def add(self, key: str, ctor: str, *args: str) -> str:
-        """Define ``eyeq_spi.<key>`` with ``ProtoField.<ctor>(abbrev, args...)``.
-
-        Defining the same key twice with the same arguments returns the existing reference; with
-        different arguments it is an error in the generator.
-        """
+        """Define ``eyeq_spi.<key>`` with ``ProtoField.<ctor>(abbrev, args...)`` (again with the
+        same arguments: the existing reference; with others: a SpecError)."""
         abbrev = f"{PROTO}.{key}"
         if not _ABBREV_OK.match(abbrev):
             raise SpecError(f"specs/: {abbrev!r} is not a valid Wireshark filter name")
