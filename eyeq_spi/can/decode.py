@@ -67,19 +67,6 @@ class SignalDecoder:
                        _exact(sig.scale) and _exact(sig.offset))
                    else max(_decimals(sig.scale), _decimals(sig.offset)))
 
-    def physical(self, raw: int) -> float | int | None:
-        if self.spec.is_float:
-            value: float = _F32.unpack((raw & 0xFFFFFFFF).to_bytes(4, "big"))[0]
-            return value if math.isfinite(value) else None
-        if self.integer:
-            return raw * int(self.scale) + int(self.offset)
-        if self.digits is None:
-            return raw * self.scale + self.offset
-        if self.digits > SHORT_DECIMALS:
-            return round(raw * self.scale + self.offset, self.digits)
-        num, off, den = self.decimal()
-        return (raw * num + off) / den
-
     def decimal(self) -> tuple[int, int, int]:
         """(scale, offset, divisor) as integers: ``(raw * scale + offset) / divisor`` is the
         value at the signal's resolution, one correctly rounded division (for a scale and an
@@ -118,11 +105,11 @@ class MessageDecoder:
         self.quality = spec.quality
         self.quality_source = quality_source
         self.governed = frozenset(spec.quality.governs) if spec.quality else frozenset()
-        self._fast = self._compile()
+        self.compiled = self._compile()
 
     def _compile(self) -> Any:
-        """Straight-line Python for a complete frame, constants inlined: the per-message
-        decoder built once from the spec (:meth:`decode_slow` is its reference)."""
+        """Straight-line Python decoding a frame of the spec's DLC, constants inlined, built
+        once from the spec (held to cantools on the DBC built from the same spec)."""
         env: dict[str, Any] = {"_F32": _F32.unpack, "_finite": math.isfinite,
                                "_fmt": _out_of_range}
         big = any(sig.big_endian for sig in self.signals)
@@ -175,37 +162,24 @@ class MessageDecoder:
         exec(compile("\n".join(body), f"<decoder {self.name}>", "exec"), env)
         return env["_decode"]
 
-    def decode_slow(self, data: bytes, rec: dict[str, Any]) -> None:
-        """The reference loop (any DLC): a wrong DLC is an error, the signals it holds decoded."""
+    def decode_other_length(self, data: bytes, rec: dict[str, Any]) -> None:
+        """A frame of another length than the spec's DLC: short but holding every signal (C8)
+        is flagged ``short_dlc``, any other is an error; the signals it holds are decoded."""
         count = len(data)
-        fields, labels, invalid, errors = rec["fields"], rec["labels"], rec["invalid"], \
-            rec["errors"]
-        have = self.dlc
-        if count != self.dlc:
-            if self.needed <= count < self.dlc:
-                rec["short_dlc"] = True
-            else:
-                errors.append(f"DLC {count}, spec {self.dlc}")
-                have = min(count, self.dlc)
-            data = (data + bytes(self.dlc))[:self.dlc]
-        le = int.from_bytes(data, "little")
-        be = int.from_bytes(data, "big")
-        for sig in self.signals:
-            if sig.nbytes > have:
-                continue  # not in this (too short) frame
-            raw = ((be if sig.big_endian else le) >> sig.shift) & sig.mask
-            if sig.sign_bit and raw & sig.sign_bit:
-                raw -= sig.mask + 1
-            value = sig.physical(raw)
-            name = sig.spec.name
-            fields[name] = value
-            if sig.labels is not None:
-                labels[name] = sig.labels.get(raw)
-            if raw == sig.invalid:
-                invalid.append(name)
-            elif value is not None and ((sig.low is not None and value < sig.low)
-                                        or (sig.high is not None and value > sig.high)):
-                errors.append(_out_of_range(name, value, sig.spec.min, sig.spec.max))
+        errors = rec["errors"]
+        if self.needed <= count < self.dlc:
+            rec["short_dlc"] = True
+        else:
+            errors.append(f"DLC {count}, spec {self.dlc}")
+        self.compiled((data + bytes(self.dlc))[:self.dlc], rec["fields"], rec["labels"],
+                      rec["invalid"], errors)
+        absent = {sig.spec.name for sig in self.signals if sig.nbytes > count}
+        if absent:  # not in this (too short) frame
+            for name in absent:
+                rec["fields"].pop(name, None)
+                rec["labels"].pop(name, None)
+            rec["invalid"][:] = [name for name in rec["invalid"] if name not in absent]
+            errors[:] = [text for text in errors if text.split(" ", 1)[0] not in absent]
 
 
 def _out_of_range(name: str, value: float, lo: float | None, hi: float | None) -> str:
@@ -275,9 +249,8 @@ class CanDecoder:
         hit = self.by_id.get(frame_id)
         return hit.spec if hit else None
 
-    def decode(self, msg: Any, index: int, reference: bool = False) -> dict[str, Any]:
-        """The record of one python-can message; ``reference`` decodes with the generic loop
-        instead of the compiled decoder (the same result, for tests)."""
+    def decode(self, msg: Any, index: int) -> dict[str, Any]:
+        """The record of one python-can message."""
         fid = msg.arbitration_id
         data = msg.data
         ch = msg.channel
@@ -301,10 +274,10 @@ class CanDecoder:
         }
         if dec is None:  # another node's frame (C10): no message of ours, not an error
             return rec
-        if reference or len(data) != dec.dlc:
-            dec.decode_slow(bytes(data), rec)
+        if len(data) == dec.dlc:
+            dec.compiled(data, fields, labels, invalid, errors)
         else:
-            dec._fast(data, fields, labels, invalid, errors)
+            dec.decode_other_length(bytes(data), rec)
         rule = dec.quality
         if rule is not None:
             rec["units"] = dec.units
