@@ -110,8 +110,7 @@ def _open_channel(url: str, role: str, settings: SpiSettings) -> Any:
     if scheme.lower() == "spidev":
         from eyeq_spi.phy import spidev_lines
 
-        return (spidev_lines.SpidevMaster if role == "master"
-                else spidev_lines.SpidevSlave)(target, settings)
+        return spidev_lines.SpidevChannel(target, settings)
     from eyeq_spi.phy import ft4222_lines
 
     return (ft4222_lines.Ft4222Master if role == "master"

@@ -71,14 +71,23 @@ def clock_divider(clock_hz: int) -> SPIMaster.Clock:
     return SPIMaster.Clock(exponent)
 
 
-class Ft4222Master:
-    """Our master channel on one FT4222H (chip select SS0)."""
+class _Ft4222Channel:
+    lsb_first = False  # the FT4222H sends most significant bit first only
 
-    lsb_first = False
-
-    def __init__(self, target: str, settings: SpiSettings) -> None:
+    def __init__(self, target: str) -> None:
         self.name = f"ft4222://{target}"
         self.chip = open_chip(target)
+
+    def close(self) -> None:
+        with contextlib.suppress(ft4222.FT2XXDeviceError):
+            self.chip.close()
+
+
+class Ft4222Master(_Ft4222Channel):
+    """Our master channel on one FT4222H (chip select SS0)."""
+
+    def __init__(self, target: str, settings: SpiSettings) -> None:
+        super().__init__(target)
         try:
             self.chip.setClock(ft4222.SysClock["CLK_80"])
             self.chip.spiMaster_Init(SPIMaster.Mode.SINGLE, clock_divider(settings.clock_hz),
@@ -94,23 +103,16 @@ class Ft4222Master:
         except ft4222.FT2XXDeviceError as exc:
             raise AdapterError(f"{self.name}: write failed: {exc}") from exc
 
-    def close(self) -> None:
-        with contextlib.suppress(ft4222.FT2XXDeviceError):
-            self.chip.close()
 
-
-class Ft4222Slave:
+class Ft4222Slave(_Ft4222Channel):
     """Our slave channel on one FT4222H in raw slave mode (see the module doc). The chip does
     not report lost bytes: a transfer cut by an overrun reaches the link short (counted, L8)."""
 
-    lsb_first = False
-
     def __init__(self, target: str, settings: SpiSettings, *, idle: float = IDLE) -> None:
-        self.name = f"ft4222://{target}"
         self.idle = idle
         self.overruns = 0
         self._bytes = bytearray()
-        self.chip = open_chip(target)
+        super().__init__(target)
         try:
             self.chip.spiSlave_InitEx(SPISlave.Protocol.SPI_SLAVE_NO_PROTOCOL)
             self.chip.spiSlave_SetMode(SPI.Cpol(settings.mode >> 1), SPI.Cpha(settings.mode & 1))
@@ -143,7 +145,3 @@ class Ft4222Slave:
         out = bytes(self._bytes[:count])
         del self._bytes[:count]
         return out
-
-    def close(self) -> None:
-        with contextlib.suppress(ft4222.FT2XXDeviceError):
-            self.chip.close()
