@@ -8,7 +8,6 @@ capture's release at run time (decision D4)."""
 from __future__ import annotations
 
 import re
-from typing import Any
 
 from eyeq_spi.capture.pcapng_io import release_sniff_transfers
 from eyeq_spi.catalog.link import link_spec
@@ -17,6 +16,7 @@ from eyeq_spi.catalog.schema import sw_key
 from eyeq_spi.codec.mesp import MESP_PROTOCOL, REPLY_BIT, TAG_MASK
 from eyeq_spi.codec.message import DASP_PROTOCOL, MessageCodec
 from eyeq_spi.errors import SpecError
+from eyeq_spi.link.frame import FrameCodec
 from eyeq_spi.wireshark.lua_app import MESP_PARAM_FIELD, AppGenerator
 from eyeq_spi.wireshark.lua_common import (
     FieldRegistry,
@@ -70,26 +70,15 @@ def inline_constants(text: str, inline: dict[str, str]) -> str:
     return re.sub(r"\bC\.[A-Z_]+\b|@HDR\.[A-Z]+@", value, text)
 
 
-def _header_fields(frame: dict[str, Any]) -> dict[str, tuple[int, int]]:
-    """name -> (shift, mask) of the header word (L1), as eyeq_spi.link.frame computes them."""
-    header = frame["header"]
-    if header["word"] != "uint32le":
-        raise SpecError(f"specs/link.yaml frame.header.word: {header['word']!r}: the Lua "
-                        "generator reads uint32le only")
-    fields = [(str(n), int(w)) for n, w in header["fields"]]
-    if header["bit_order"] == "msb_first":
-        fields = fields[::-1]
-    elif header["bit_order"] != "lsb_first":
-        raise SpecError(f"specs/link.yaml frame.header.bit_order: unknown order "
-                        f"{header['bit_order']!r}")
-    out: dict[str, tuple[int, int]] = {}
-    pos = 0
-    for name, width in fields:
-        out[name] = (pos, (1 << width) - 1)
-        pos += width
-    if pos != 32 or set(out) != {"D", "R", "RSP", "NUM"}:
-        raise SpecError("specs/link.yaml frame.header.fields: the header word must hold "
-                        "exactly D, R, RSP and NUM in 32 bits")
+def _header_fields() -> dict[str, tuple[int, int]]:
+    """name -> (shift, mask) of the header word (L1), read off the link's frame codec."""
+    codec = FrameCodec()
+    masks = codec.unpack_header(0xFFFFFFFF)
+    out = {}
+    for index, name in enumerate(("D", "R", "RSP", "NUM")):
+        one = [0, 0, 0, 0]
+        one[index] = 1
+        out[name] = (codec.pack_header(*one).bit_length() - 1, masks[index])
     return out
 
 
@@ -212,7 +201,7 @@ class LuaGenerator:
         timeout = repr(float(tr["reassembly_timeout"]))
         lines.append(f"  REASSEMBLY_TIMEOUT = {timeout},")
         lines.append("}")
-        hdr = _header_fields(frame)
+        hdr = _header_fields()
         self.inline = {f"C.{k}": str(v) for k, v in consts.items()}
         self.inline["C.REASSEMBLY_TIMEOUT"] = timeout
         self.inline.update({f"@HDR.{k}@": header_expr("h", sh, m) for k, (sh, m) in hdr.items()})
@@ -248,7 +237,7 @@ class LuaGenerator:
     def link_fields(self) -> None:
         add = self.fields.add
         spec = self.spec
-        hdr = _header_fields(spec["frame"])
+        hdr = _header_fields()
         kinds = {int(v): str(k) for k, v in spec["kinds"].items()}
         naks = {int(k): str(v["name"]) for k, v in spec["nak_reasons"].items()}
         types = {int(v): str(k) for k, v in spec["transport"]["types"].items()}
