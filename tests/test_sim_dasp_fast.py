@@ -13,7 +13,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from eyeq_spi.catalog.messages import MessageDef, catalog
-from eyeq_spi.codec.e2e import E2EState, protect
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import build
 from eyeq_spi.errors import LocalProtocolError
@@ -21,7 +20,7 @@ from eyeq_spi.host.host import HostConfig
 from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import CsvScenario
 from eyeq_spi.sim.config import SimConfig
-from eyeq_spi.sim.dasp_fast import DaspPacker, compile_protector
+from eyeq_spi.sim.dasp_fast import DaspPacker
 from eyeq_spi.sim.eyeq import Phase, SimulatedEyeQ
 
 pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1
@@ -106,20 +105,6 @@ def test_slots_emptied_between_frames_are_cleared_as_the_dict_path_clears_them(s
         msgs = _dasp(ref)
         for m in msgs:
             assert ref._dasp_bytes(m, 0, 1.0) == new._dasp_bytes(m, 0, 1.0), m.name
-
-
-def test_the_protector_is_protect() -> None:
-    codec = MessageCodec("sw9")
-    for m in _dasp(SimulatedEyeQ(SimConfig(sw="sw9"))):
-        lay = codec.layout(m)
-        data = bytearray(lay.build(lay.zero_values()))
-        data[::7] = bytes(len(data[::7]))
-        ref, new = bytearray(data), bytearray(data)
-        s1, s2 = E2EState(), E2EState()
-        for _ in range(3):
-            protect(ref, lay, s1)
-            compile_protector(lay)(new, s2)
-            assert ref == new and s1.sent == s2.sent
 
 
 def test_views_refuse_what_the_encoder_refuses() -> None:

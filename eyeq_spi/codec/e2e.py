@@ -4,13 +4,9 @@ a rolling frame counter stepping +1 mod 256 per structure instance."""
 from __future__ import annotations
 
 import binascii
-from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 from eyeq_spi.codec.layout import CrcPlan, Layout
-
-Protector = Callable[[bytearray, "E2EState | None"], None]
 
 
 @dataclass
@@ -58,76 +54,6 @@ def protect(buf: bytearray, layout: Layout, state: E2EState | None, base: int = 
             buf[counter_at : counter_at + size] = value.to_bytes(size, "little")
         crc_at = base + plan.crc_offset
         buf[crc_at : crc_at + 2] = plan_crc(buf, plan, base).to_bytes(2, "little")
-
-
-def _batches(plans: list[CrcPlan]) -> list[list[int]]:
-    """Runs of consecutive CRCs of one shape (range sizes, counter size: the elements of an
-    array) none of which covers another's CRC or counter: their counters can all be stepped
-    first, in order, and their covered bytes gathered at once (same values as one by one)."""
-    out: list[list[int]] = []
-    for index, plan in enumerate(plans):
-        shape = (tuple(s for _, s in plan.ranges), plan.counter_size, plan.counter_offset is None)
-        prev = out[-1] if out else None
-        if prev is not None and shape == _shape_of(plans[prev[0]]) and all(
-                _apart(plans[j], plan) and _apart(plan, plans[j]) for j in prev):
-            prev.append(index)
-        else:
-            out.append([index])
-    return out
-
-
-def _shape_of(plan: CrcPlan) -> tuple[Any, ...]:
-    return (tuple(s for _, s in plan.ranges), plan.counter_size, plan.counter_offset is None)
-
-
-def _apart(plan: CrcPlan, other: CrcPlan) -> bool:
-    """``a`` covers neither ``b``'s CRC nor its counter."""
-    fields = [(other.crc_offset, 2)]
-    if other.counter_offset is not None:
-        fields.append((other.counter_offset, other.counter_size))
-    return not any(o < fo + fs and fo < o + s for o, s in plan.ranges for fo, fs in fields)
-
-
-def compile_protector(layout: Layout) -> Protector:
-    """``e2e.protect(buf, layout, state)`` as generated code (D5): per CRC of
-    ``layout.crc_plan``, inner first, the rolling counter then ``crc_hqx`` seeded 0xFFFF chained
-    over the covered ranges, every offset a literal. A run of same-shaped CRCs (one per element
-    of an array, :func:`_batches`) gathers its covered bytes with one numpy index instead."""
-    env: dict[str, Any] = {"h": binascii.crc_hqx}
-    lines = ["def _protect(b, state):"]
-    plans = layout.crc_plan
-    for batch in _batches(plans):
-        for index in batch:
-            plan = plans[index]
-            if plan.counter_offset is not None:
-                env[f"K{index}"] = counter_key(layout, plan)
-                counter_at, counter_size = plan.counter_offset, plan.counter_size
-                lines += ["    if state is not None:",
-                          f"        b[{counter_at}:{counter_at + counter_size}] = "
-                          f"state.next_counter(K{index}, {counter_size})"
-                          f".to_bytes({counter_size}, 'little')"]
-            if len(batch) > 1:
-                continue
-            expr = "65535"
-            for offset, size in plan.ranges:
-                expr = f"h(b[{offset}:{offset + size}], {expr})"
-            crc_at = plan.crc_offset
-            lines.append(f"    b[{crc_at}:{crc_at + 2}] = ({expr}).to_bytes(2, 'little')")
-        if len(batch) > 1:
-            import numpy as np  # only for arrays of protected structs (DASP generation)
-
-            env["np"] = np
-            index = batch[0]
-            env[f"G{index}"] = np.array([[o + k for o, s in plans[j].ranges for k in range(s)]
-                                         for j in batch], dtype=np.intp)
-            env[f"O{index}"] = [plans[j].crc_offset for j in batch]
-            lines += [f"    g = np.frombuffer(b, dtype=np.uint8)[G{index}]",
-                      f"    for r, o in zip(g, O{index}):",
-                      "        b[o:o + 2] = h(r, 65535).to_bytes(2, 'little')"]
-    lines.append("    return None")
-    exec("\n".join(lines), env)
-    fn: Protector = env["_protect"]
-    return fn
 
 
 def verify(data: bytes, layout: Layout, state: E2EState | None) -> list[str]:
