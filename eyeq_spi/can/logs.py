@@ -215,6 +215,11 @@ def open_bus(target: str) -> Any:
     if not interface or not sep or not channel:
         raise UsageError(f"--bus {target!r}: give INTERFACE:CHANNEL, e.g. virtual:camera or "
                          "socketcan:can0")
+    return bus_of(can, target, interface, channel)
+
+
+def bus_of(can: Any, target: str, interface: str, channel: str) -> Any:
+    """python-can's bus on ``interface`` and ``channel``; :class:`AdapterError` if it fails."""
     try:
         return can.Bus(interface=interface, channel=channel, receive_own_messages=False)
     except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:

@@ -11,7 +11,8 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.can.gateway import CanFrame, CanGateway, GatewayNode
-from eyeq_spi.errors import AdapterError, MissingExtra, OutputError, UsageError
+from eyeq_spi.can.logs import bus_of
+from eyeq_spi.errors import MissingExtra, OutputError, UsageError
 
 LOG_SUFFIXES = (".blf", ".asc", ".mf4", ".log", ".trc", ".csv")
 
@@ -78,12 +79,7 @@ def open_target(target: str) -> CanSink:
     if "." in interface or "/" in interface:
         raise UsageError(f"--can-out {target!r}: a log file needs one of the suffixes "
                          f"{', '.join(LOG_SUFFIXES)}; a bus is INTERFACE[:CHANNEL]")
-    try:
-        bus = can.Bus(interface=interface, channel=channel or "eyeq-spi",
-                      receive_own_messages=False)
-    except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:
-        raise AdapterError(f"cannot open CAN bus {target!r}: {exc}") from exc
-    return CanSink(target, "bus", bus)
+    return CanSink(target, "bus", bus_of(can, target, interface, channel or "eyeq-spi"))
 
 
 @dataclass
