@@ -24,14 +24,12 @@ from eyeq_spi.errors import SpecError
 SwKey = str
 """A variant key such as ``sw8_1``."""
 
-def sw_release(key: SwKey) -> tuple[int, int]:
-    """``"sw8_1"`` -> ``(8, 1)``, ``"sw9"`` -> ``(9, 0)``: the numbers the EyeQ reports."""
-    body = key[2:].split("_")
-    return int(body[0]), int(body[1]) if len(body) > 1 else 0
+sw_release = sw_key
+"""``"sw8_1"`` -> ``(8, 1)``, ``"sw9"`` -> ``(9, 0)``: the numbers the EyeQ reports."""
 
 
 def sw_release_text(key: SwKey) -> str:
-    major, minor = sw_release(key)
+    major, minor = sw_key(key)
     return f"{major}.{minor}"
 
 
