@@ -14,6 +14,7 @@ from typing import Any
 
 from eyeq_spi.catalog.can_expr import compile_expr
 from eyeq_spi.catalog.link import load_file, specs_dir
+from eyeq_spi.catalog.schema import is_number
 from eyeq_spi.errors import SpecError
 
 PROTOCOL_KEYS = frozenset({"name", "title", "seeds", "bitrate", "seed", "seed_line", "enums",
@@ -196,10 +197,6 @@ def _table(raw: Any) -> dict[Any, int]:
     return out
 
 
-def _num(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def _check_signal(where: str, signal: Any, dlc: int, enums: dict[str, Any]) -> list[str]:
     if not isinstance(signal, dict):
         return [f"{where}: signal must be a mapping"]
@@ -212,7 +209,7 @@ def _check_signal(where: str, signal: Any, dlc: int, enums: dict[str, Any]) -> l
     if not isinstance(signal.get("seed_line"), int):
         out.append(f"{where}: needs an int seed_line")
     for key in ("scale", "offset", "min", "max"):
-        if key in signal and not _num(signal[key]):
+        if key in signal and not is_number(signal[key]):
             out.append(f"{where}: {key} must be a number")
     if signal.get("scale") == 0:
         out.append(f"{where}: scale 0")
@@ -269,7 +266,7 @@ def validate_protocol(rel: str, doc: Any) -> list[str]:
         if not isinstance(msg.get("dlc"), int) or not 1 <= msg["dlc"] <= 8:
             out.append(f"{where}: dlc must be 1..8")
             continue
-        if not _num(msg.get("cycle_ms")) or msg["cycle_ms"] <= 0:
+        if not is_number(msg.get("cycle_ms")) or msg["cycle_ms"] <= 0:
             out.append(f"{where}: cycle_ms must be positive")
         if not isinstance(msg.get("seed_line"), int):
             out.append(f"{where}: needs an int seed_line")

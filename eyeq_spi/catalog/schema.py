@@ -44,7 +44,8 @@ def sw_key(variant: str) -> tuple[int, int]:
     return int(major), int(minor or 0)
 
 
-def _is_num(value: Any) -> bool:
+def is_number(value: Any) -> bool:
+    """An int or a float, not a bool (YAML's ``true`` is an int to Python)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
@@ -217,7 +218,7 @@ def _member_problems(vwhere: str, member: Any, names: set[str], structs: _Struct
     if "enum" in member and member["enum"] not in enums:
         problems.append(f"{mwhere}: unknown enum {member['enum']!r}")
     for key in ("min", "max"):
-        if key in member and member[key] is not None and not _is_num(member[key]):
+        if key in member and member[key] is not None and not is_number(member[key]):
             problems.append(f"{mwhere}: {key} must be a number")
     bits = member.get("bits")
     if bits is None:
@@ -265,7 +266,7 @@ def _dasp_problems(rel: str, msg: Any, structs: _Structs) -> list[str]:
         problems.append(f"{where}: payload {msg.get('payload')!r} is not a struct")
     if not set(msg.get("modes") or []) <= MODES:
         problems.append(f"{where}: modes must be among {sorted(MODES)}")
-    if not _is_num(msg.get("rate_hz")):
+    if not is_number(msg.get("rate_hz")):
         problems.append(f"{where}: rate_hz must be a number")
     return problems
 
@@ -302,9 +303,9 @@ def _signal_problems(swhere: str, sig: dict[str, Any], used: dict[int, str],
     ) or sig["length"] < 1:
         return [*problems, f"{swhere}: needs int start and length"]
     for key in ("factor", "offset", "min", "max"):
-        if not _is_num(sig.get(key)):
+        if not is_number(sig.get(key)):
             problems.append(f"{swhere}: {key} must be a number")
-    if _is_num(sig.get("factor")) and sig["factor"] == 0:
+    if is_number(sig.get("factor")) and sig["factor"] == 0:
         problems.append(f"{swhere}: factor 0")
     for bit in range(sig["start"], sig["start"] + sig["length"]):
         if bit in used:
