@@ -13,8 +13,7 @@ from functools import cache
 from typing import Any
 
 from eyeq_spi.catalog.can_expr import compile_expr
-from eyeq_spi.catalog.link import load_file, specs_dir
-from eyeq_spi.catalog.schema import is_number
+from eyeq_spi.catalog.link import is_number, load_file, specs_dir
 from eyeq_spi.errors import SpecError
 
 PROTOCOL_KEYS = frozenset({"name", "title", "seeds", "bitrate", "seed", "seed_line", "enums",

@@ -44,3 +44,8 @@ def load_file(path: Path) -> dict[str, Any]:
     if not isinstance(doc, dict):
         raise SpecError(f"{path}: not a mapping")
     return doc
+
+
+def is_number(value: Any) -> bool:
+    """An int or a float, not a bool (YAML's ``true`` is an int to Python)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)

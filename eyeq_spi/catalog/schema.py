@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from eyeq_spi.catalog.link import load_file
+from eyeq_spi.catalog.link import is_number, load_file
 from eyeq_spi.errors import SpecError
 
 PRIMITIVES = frozenset(
@@ -42,11 +42,6 @@ def sw_key(variant: str) -> tuple[int, int]:
     """``sw8_1`` -> (8, 1); used to order variants."""
     major, _, minor = variant[2:].partition("_")
     return int(major), int(minor or 0)
-
-
-def is_number(value: Any) -> bool:
-    """An int or a float, not a bool (YAML's ``true`` is an int to Python)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 _SW_INPUT = re.compile(r"^(?:sw)?(\d+)(?:[._](\d+))?$", re.IGNORECASE)
