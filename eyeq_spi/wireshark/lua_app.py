@@ -143,7 +143,7 @@ class AppGenerator:
             if info.bits is not None:
                 raise SpecError(f"specs/structs {lay.name}.{info.name}: a float cannot be a "
                                 "bitfield")
-            return MemberField(FLOAT_FIELD[info.type][0], info.name, self._desc(info))
+            return MemberField(FLOAT_FIELD[info.type], info.name, self._desc(info))
         if info.type not in INT_FIELD:
             raise SpecError(f"specs/structs {lay.name}.{info.name}: no Wireshark field type for "
                             f"{info.type}")

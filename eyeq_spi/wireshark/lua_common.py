@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
+from eyeq_spi.codec.layout import PRIMITIVE
 from eyeq_spi.errors import SpecError
 
 PROTO = "eyeq_spi"
@@ -14,16 +15,10 @@ PROTO = "eyeq_spi"
 _ABBREV_OK = re.compile(r"^[A-Za-z0-9_.-]+$")
 _NAME_BAD = re.compile(r"[^A-Za-z0-9_-]")
 
-INT_FIELD = {
-    "uint8": "uint8", "uint16": "uint16", "uint32": "uint32", "uint64": "uint64",
-    "int8": "int8", "int16": "int16", "int32": "int32", "int64": "int64",
-    "bool": "uint8",  # D2: bool is one byte; shown as its value so 2..255 stay visible
-}
-FLOAT_FIELD = {"real32": ("float", 4), "real64": ("double", 8)}
-INT_SIZE = {
-    "uint8": 1, "uint16": 2, "uint32": 4, "uint64": 8,
-    "int8": 1, "int16": 2, "int32": 4, "int64": 8, "bool": 1,
-}
+FLOAT_FIELD = {"real32": "float", "real64": "double"}
+INT_SIZE = {name: size for name, (_, size) in PRIMITIVE.items() if name not in FLOAT_FIELD}
+# D2: bool is one byte; shown as its value so 2..255 stay visible
+INT_FIELD = {name: "uint8" if name == "bool" else name for name in INT_SIZE}
 
 
 def lua_str(text: str) -> str:
