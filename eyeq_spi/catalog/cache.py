@@ -78,12 +78,6 @@ def cached_catalog(root: Path, load: Callable[[Path], T]) -> T:
     return value
 
 
-def cached_doc(root: Path, name: str, load: Callable[[Path], dict[str, Any]]) -> dict[str, Any]:
-    """``load(root / name)`` (one parsed YAML file), or its marshalled copy from an earlier call
-    with the same ``specs/``. The key is computed once per process and root."""
-    return cached_data(root, name, lambda: load(root / name))
-
-
 def cached_data(root: Path, tag: str, build: Callable[[], dict[str, Any]]) -> dict[str, Any]:
     """``build()`` (plain data derived from ``specs/`` only), or its marshalled copy from an
     earlier call with the same ``specs/`` and ``tag``. A caller whose data also depends on its own

@@ -26,10 +26,11 @@ def link_spec() -> dict[str, Any]:
 @cache
 def spec_file(name: str) -> dict[str, Any]:
     """One YAML file of ``specs/`` as a mapping (cached in the process, and across starts by
-    :func:`eyeq_spi.catalog.cache.cached_doc`)."""
-    from eyeq_spi.catalog.cache import cached_doc
+    :func:`eyeq_spi.catalog.cache.cached_data`)."""
+    from eyeq_spi.catalog.cache import cached_data
 
-    return cached_doc(specs_dir(), name, load_file)
+    root = specs_dir()
+    return cached_data(root, name, lambda: load_file(root / name))
 
 
 def load_file(path: Path) -> dict[str, Any]:

@@ -267,10 +267,11 @@ class RawDocs(Mapping[str, Any]):
         if doc is None:
             if name not in self._names():
                 raise KeyError(name)
-            from eyeq_spi.catalog.cache import cached_doc
+            from eyeq_spi.catalog.cache import cached_data
             from eyeq_spi.catalog.link import load_file
 
-            doc = self._docs[name] = cached_doc(self._root, name, load_file)
+            path = self._root / name
+            doc = self._docs[name] = cached_data(self._root, name, lambda: load_file(path))
         return doc
 
     def _names(self) -> list[str]:
