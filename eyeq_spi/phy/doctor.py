@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import statistics
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -65,12 +66,9 @@ def quantiles_ms(values: list[float]) -> dict[str, float | int]:
 class Tally:
     """What came through, by diagnosis, and the latencies read."""
 
-    outcomes: dict[str, int] = field(default_factory=dict)
+    outcomes: Counter[str] = field(default_factory=Counter)
     reply: list[float] = field(default_factory=list)
     round_trip: list[float] = field(default_factory=list)
-
-    def add(self, outcome: str) -> None:
-        self.outcomes[outcome] = self.outcomes.get(outcome, 0) + 1
 
 
 def _exchange(sender: SpiAdapter, receiver: SpiAdapter, index: int, tally: Tally) -> None:
@@ -81,7 +79,7 @@ def _exchange(sender: SpiAdapter, receiver: SpiAdapter, index: int, tally: Tally
     sender.send(frame)
     got = receiver.recv(ANSWER_WAIT)
     outcome = diagnose(frame, got)
-    tally.add(outcome)
+    tally.outcomes[outcome] += 1
     if got is None:
         return
     receiver.send(reply)  # at once, as the link's ACK
@@ -89,7 +87,7 @@ def _exchange(sender: SpiAdapter, receiver: SpiAdapter, index: int, tally: Tally
     back = sender.recv(ANSWER_WAIT)
     if back is not None:
         tally.round_trip.append(sender.last_arrival - start)
-    tally.add(diagnose(reply, back))
+    tally.outcomes[diagnose(reply, back)] += 1
 
 
 def _drain(adapter: SpiAdapter) -> None:
