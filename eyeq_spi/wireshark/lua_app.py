@@ -350,10 +350,8 @@ class AppGenerator:
         if prm.type in MESP_PARAM_FIELD:
             return self.fields.add(key, MESP_PARAM_FIELD[prm.type][0], lua_str(prm.name),
                                    "base.DEC")
-        if prm.type == "string":
-            return self.fields.add(key, "string", lua_str(prm.name))
-        if prm.type == "bytes":
-            return self.fields.add(key, "bytes", lua_str(prm.name))
+        if prm.type in ("string", "bytes"):  # ProtoField.string, ProtoField.bytes
+            return self.fields.add(key, prm.type, lua_str(prm.name))
         raise SpecError(f"specs/mesp.yaml parameter {prm.name}: unknown type {prm.type}")
 
 
