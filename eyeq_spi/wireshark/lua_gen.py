@@ -114,7 +114,7 @@ class LuaGenerator:
         choices = ['{1, "auto", 0}'] + [
             f"{{{i + 1}, {lua_str(r)}, {i}}}" for i, r in enumerate(rel, 1)]
         lines.append("local PREF_CHOICES = {" + ", ".join(choices) + "}")
-        fn = next(offsets for offsets in self.cat.mesp if offsets.name == VERSIONS_FUNCTION)
+        fn = next(function for function in self.cat.mesp if function.name == VERSIONS_FUNCTION)
         off, where = 0, {}
         for prm in fn.reply:
             if prm.type not in MESP_PARAM_FIELD:
