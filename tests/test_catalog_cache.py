@@ -155,7 +155,7 @@ def test_libyaml_and_the_pure_python_loader_read_specs_alike() -> None:
         assert yaml.load(text, Loader=yaml.CSafeLoader) == yaml.safe_load(text), path
 
 
-# -- single spec files through the cache (spec_file -> cache.cached_doc) -----------------------
+# -- single spec files through the cache (spec_file -> cache.cached_data)-----------------------
 
 def _doc_loader() -> tuple[list[Path], object]:
     calls: list[Path] = []
@@ -177,7 +177,8 @@ def _doc_start(root: Path, cache_dir: Path) -> tuple[bool, dict[str, object]]:
             "def load(path):\n"
             "    parsed.append(path)\n"
             "    return yaml.safe_load(path.read_text())\n"
-            "doc = cache.cached_doc(Path(sys.argv[1]), 'link.yaml', load)\n"
+            "root = Path(sys.argv[1])\n"
+            "doc = cache.cached_data(root, 'link.yaml', lambda: load(root / 'link.yaml'))\n"
             "print(json.dumps([bool(parsed), doc]))\n")
     env = {k: v for k, v in os.environ.items() if k != "EYEQ_SPI_NO_CACHE"}
     out = subprocess.run([sys.executable, "-c", code, str(root)], capture_output=True,
@@ -222,7 +223,8 @@ def test_a_doc_marshal_cannot_hold_is_returned_uncached(
         return {"when": datetime.date(2026, 1, 1)}  # YAML timestamps: marshal cannot hold them
 
     for _ in range(2):
-        assert cache.cached_doc(specs_copy, "link.yaml", load)["when"].year == 2026
+        doc = cache.cached_data(specs_copy, "link.yaml", lambda: load(specs_copy / "link.yaml"))
+        assert doc["when"].year == 2026
     assert len(calls) == 2 and not list((tmp_path / "cache").glob("doc-*"))
 
 

@@ -18,7 +18,7 @@ cantools = pytest.importorskip("cantools", reason="needs the [can] extra (cantoo
 from eyeq_spi.can.dbc import database, dbc_text  # noqa: E402
 from eyeq_spi.can.decode import CanDecoder  # noqa: E402
 from eyeq_spi.can.gateway import physical_to_raw  # noqa: E402
-from eyeq_spi.catalog.can import _load_docs, can_specs, protocol, validate_can_docs  # noqa: E402
+from eyeq_spi.catalog.can import can_documents, can_specs, protocol, validate_can_docs  # noqa: E402
 from eyeq_spi.catalog.can_expr import MISSING, compile_expr  # noqa: E402
 from eyeq_spi.errors import SpecError  # noqa: E402
 
@@ -27,7 +27,7 @@ SEEDS = ROOT.parent / "shared" / "seeds"
 
 
 def test_can_specs_validate() -> None:
-    assert validate_can_docs(_load_docs()) == []
+    assert validate_can_docs(can_documents()) == []
     protocols, mapping = can_specs()
     assert set(protocols) == {"extlog2", "me8"}
     assert mapping.protocols["extlog2"] and mapping.protocols["me8"]
@@ -183,7 +183,7 @@ def test_seed_lines_point_at_the_signal_text() -> None:
     def squash(t: str) -> str:
         return "".join(c for c in t.lower() if c.isalnum())
 
-    for rel, doc in _load_docs().items():
+    for rel, doc in can_documents().items():
         p = doc.get("can_protocol") if isinstance(doc, dict) else None
         if not p:
             continue

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import queue
 import time
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 
@@ -242,12 +243,12 @@ def test_the_doctor_tells_what_went_wrong_with_a_frame() -> None:
 
 
 def test_the_doctor_says_fit_only_within_the_ack_timeout() -> None:
-    fast = Tally({"intact": 400}, [0.0008] * 200, [0.002] * 200)
+    fast = Tally(Counter({"intact": 400}), [0.0008] * 200, [0.002] * 200)
     report = judge(fast, wiring="loop", adapters=["x"])
     assert report["fit"] and verdict_line(report).startswith("FIT for a live EyeQ")
-    slow = Tally({"intact": 400}, [0.0008] * 200, [0.002] * 199 + [0.012])
+    slow = Tally(Counter({"intact": 400}), [0.0008] * 200, [0.002] * 199 + [0.012])
     report = judge(slow, wiring="loop", adapters=["x"])
     assert not report["fit"]
     assert "not under the 10 ms ackTimeout" in verdict_line(report)
-    swapped = Tally({"bit_order": 10}, [], [])
+    swapped = Tally(Counter({"bit_order": 10}), [], [])
     assert "bit order" in verdict_line(judge(swapped, wiring="pair", adapters=["x", "y"]))

@@ -19,7 +19,14 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.can.dbc import INVALID_ATTRIBUTE, database, require_cantools
-from eyeq_spi.catalog.can import CanMessage, CanSignal, can_documents, protocol
+from eyeq_spi.catalog.can import (
+    CanMessage,
+    CanSignal,
+    can_documents,
+    can_specs,
+    protocol,
+    signal_bits,
+)
 from eyeq_spi.errors import InputError
 
 
@@ -84,13 +91,7 @@ def _attr(sig: Any, name: str) -> Any:
 
 
 def _bits(sig: Any) -> set[int]:
-    if sig.byte_order == "little_endian":
-        return set(range(sig.start, sig.start + sig.length))
-    out, pos = set(), sig.start
-    for _ in range(sig.length):
-        out.add(pos)
-        pos = pos - 1 if pos % 8 else pos + 15
-    return out
+    return signal_bits(sig.start, sig.length, sig.byte_order)
 
 
 def _close(left: float | None, right: float | None) -> bool:
@@ -253,8 +254,8 @@ def detect(path: str) -> tuple[str | None, str]:
     none)."""
     theirs = {m.frame_id for m in _load(path).messages if not m.is_extended_frame}
     best, text, score = None, "", 0.0
-    for name in ("extlog2", "me8"):
-        ids = {fid for m in protocol(name).messages for _, fid, _ in m.instances()}
+    for name, spec in sorted(can_specs()[0].items()):
+        ids = {fid for m in spec.messages for _, fid, _ in m.instances()}
         share = len(ids & theirs) / len(ids)
         if share > score:
             best, score = name, share

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from eyeq_spi.catalog.can import CanMessage, CanProtocol, CanSignal, protocol
-from eyeq_spi.errors import EyeqError, MissingExtra, SpecError
+from eyeq_spi.errors import MissingExtra, OutputError, SpecError
 
 INVALID_ATTRIBUTE = "GenSigInvalidValue"
 
@@ -143,5 +143,5 @@ def write_dbc(name: str, directory: Path) -> Path:
         path = directory / f"{name}.dbc"
         path.write_text(dbc_text(name), encoding="utf-8")
     except OSError as exc:
-        raise EyeqError(f"cannot write {directory}: {exc}") from exc
+        raise OutputError(f"cannot write {directory}: {exc}") from exc
     return path

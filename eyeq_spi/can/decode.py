@@ -1,28 +1,15 @@
-"""Decoding CAN logs (BLF, ASC, candump, TRC, MF4 through python-can's readers) with the
-protocols of ``specs/can/``, into the record shape of ``eyeq-spi dissect --json``.
-
-A record is ``{"kind": "message", "protocol": "CAN", "name", "length", "direction": null,
-"time", "frames": [index], "header": {"id", "channel"}, "fields": {signal: physical},
-"units": {signal: unit}, "labels": {signal: enum label}, "invalid": [signals at their invalid
-value], "short_dlc": bool, "errors": [...]}``; ``errors`` lists a DLC that is not the spec's
-and values outside a signal's range. Values are rounded to the decimals their scale and offset
-have (-1.88, not -1.8800000000000001).
+"""Decoding CAN logs (through python-can's readers) with the protocols of ``specs/can/``, into the
+record shape of ``eyeq-spi dissect --json`` (docs/can.md); values rounded to the decimals their
+scale and offset have (-1.88, not -1.8800000000000001).
 
 Decision C10: a frame whose ID the protocol does not define is another node's (name None, no
-error). Decision C11: while a lane's quality is low, the signals its rule (``quality`` in the
-spec) governs are invalid, not errors; a "B" frame takes the quality of the latest "A" frame of
-its lane on its channel.
+error). C11: while a lane's quality is low, the signals its rule governs are invalid, not errors;
+a "B" frame takes the quality of the latest "A" frame of its lane on its channel. C8: a frame
+shorter than its DLC that holds every signal is decoded and flagged ``short_dlc``; a printed
+invalid value that is also a normal state (``invalid_means``) is not reported invalid.
 
-Decision C8: a frame shorter than its spec's DLC that still holds every defined signal (the LKA
-"B" frames a production camera sends with DLC 4) is decoded and flagged ``short_dlc``, not an
-error; a printed invalid value that is also a normal state (``invalid_means``: Failsafe 0 = no
-failsafe) is not reported invalid.
-
-Each message is decoded by a :class:`MessageDecoder` compiled once from the spec (shift, mask,
-sign, scale per signal): the same arithmetic cantools applies to the DBC built from the same
-spec (tested frame by frame), without its per-frame dispatch. ``CanStats`` (``stats.py``) runs
-the same decoders on numpy columns, one ID at a time.
-"""
+Each :class:`MessageDecoder` is compiled once from the spec: the arithmetic cantools applies to
+the DBC built from the same spec (tested frame by frame), without its per-frame dispatch."""
 
 from __future__ import annotations
 
@@ -80,25 +67,6 @@ class SignalDecoder:
                        _exact(sig.scale) and _exact(sig.offset))
                    else max(_decimals(sig.scale), _decimals(sig.offset)))
 
-    def raw(self, le: int, be: int) -> int:
-        raw = ((be if self.big_endian else le) >> self.shift) & self.mask
-        if self.sign_bit and raw & self.sign_bit:
-            raw -= self.mask + 1
-        return raw
-
-    def physical(self, raw: int) -> float | int | None:
-        if self.spec.is_float:
-            value: float = _F32.unpack((raw & 0xFFFFFFFF).to_bytes(4, "big"))[0]
-            return value if math.isfinite(value) else None
-        if self.integer:
-            return raw * int(self.scale) + int(self.offset)
-        if self.digits is None:
-            return raw * self.scale + self.offset
-        if self.digits > SHORT_DECIMALS:
-            return round(raw * self.scale + self.offset, self.digits)
-        num, off, den = self.decimal()
-        return (raw * num + off) / den
-
     def decimal(self) -> tuple[int, int, int]:
         """(scale, offset, divisor) as integers: ``(raw * scale + offset) / divisor`` is the
         value at the signal's resolution, one correctly rounded division (for a scale and an
@@ -137,11 +105,11 @@ class MessageDecoder:
         self.quality = spec.quality
         self.quality_source = quality_source
         self.governed = frozenset(spec.quality.governs) if spec.quality else frozenset()
-        self._fast = self._compile()
+        self.compiled = self._compile()
 
     def _compile(self) -> Any:
-        """Straight-line Python for a complete frame, constants inlined: the per-message
-        decoder built once from the spec (the loop of :meth:`decode_into` is its reference)."""
+        """Straight-line Python decoding a frame of the spec's DLC, constants inlined, built
+        once from the spec (held to cantools on the DBC built from the same spec)."""
         env: dict[str, Any] = {"_F32": _F32.unpack, "_finite": math.isfinite,
                                "_fmt": _out_of_range}
         big = any(sig.big_endian for sig in self.signals)
@@ -194,49 +162,24 @@ class MessageDecoder:
         exec(compile("\n".join(body), f"<decoder {self.name}>", "exec"), env)
         return env["_decode"]
 
-    def decode_into(self, data: bytes, rec: dict[str, Any]) -> None:
+    def decode_other_length(self, data: bytes, rec: dict[str, Any]) -> None:
+        """A frame of another length than the spec's DLC: short but holding every signal (C8)
+        is flagged ``short_dlc``, any other is an error; the signals it holds are decoded."""
         count = len(data)
-        if count == self.dlc:
-            self._fast(data, rec["fields"], rec["labels"], rec["invalid"], rec["errors"])
-            return
-        if self.needed <= count < self.dlc:  # C8: short, every signal inside
+        errors = rec["errors"]
+        if self.needed <= count < self.dlc:
             rec["short_dlc"] = True
-            self._fast(data + bytes(self.dlc - count), rec["fields"], rec["labels"],
-                       rec["invalid"], rec["errors"])
-            return
-        self.decode_slow(data, rec)
-
-    def decode_slow(self, data: bytes, rec: dict[str, Any]) -> None:
-        """The reference loop (any DLC): a wrong DLC is an error, the signals it holds decoded."""
-        count = len(data)
-        fields, labels, invalid, errors = rec["fields"], rec["labels"], rec["invalid"], \
-            rec["errors"]
-        have = self.dlc
-        if count != self.dlc:
-            if self.needed <= count < self.dlc:
-                rec["short_dlc"] = True
-            else:
-                errors.append(f"DLC {count}, spec {self.dlc}")
-                have = min(count, self.dlc)
-            data = (data + bytes(self.dlc))[:self.dlc]
-        le = int.from_bytes(data, "little")
-        be = int.from_bytes(data, "big")
-        for sig in self.signals:
-            if sig.nbytes > have:
-                continue  # not in this (too short) frame
-            raw = ((be if sig.big_endian else le) >> sig.shift) & sig.mask
-            if sig.sign_bit and raw & sig.sign_bit:
-                raw -= sig.mask + 1
-            value = sig.physical(raw)
-            name = sig.spec.name
-            fields[name] = value
-            if sig.labels is not None:
-                labels[name] = sig.labels.get(raw)
-            if raw == sig.invalid:
-                invalid.append(name)
-            elif value is not None and ((sig.low is not None and value < sig.low)
-                                        or (sig.high is not None and value > sig.high)):
-                errors.append(_out_of_range(name, value, sig.spec.min, sig.spec.max))
+        else:
+            errors.append(f"DLC {count}, spec {self.dlc}")
+        self.compiled((data + bytes(self.dlc))[:self.dlc], rec["fields"], rec["labels"],
+                      rec["invalid"], errors)
+        absent = {sig.spec.name for sig in self.signals if sig.nbytes > count}
+        if absent:  # not in this (too short) frame
+            for name in absent:
+                rec["fields"].pop(name, None)
+                rec["labels"].pop(name, None)
+            rec["invalid"][:] = [name for name in rec["invalid"] if name not in absent]
+            errors[:] = [text for text in errors if text.split(" ", 1)[0] not in absent]
 
 
 def _out_of_range(name: str, value: float, lo: float | None, hi: float | None) -> str:
@@ -306,9 +249,8 @@ class CanDecoder:
         hit = self.by_id.get(frame_id)
         return hit.spec if hit else None
 
-    def decode(self, msg: Any, index: int, reference: bool = False) -> dict[str, Any]:
-        """The record of one python-can message; ``reference`` decodes with the generic loop
-        instead of the compiled decoder (the same result, for tests)."""
+    def decode(self, msg: Any, index: int) -> dict[str, Any]:
+        """The record of one python-can message."""
         fid = msg.arbitration_id
         data = msg.data
         ch = msg.channel
@@ -332,12 +274,10 @@ class CanDecoder:
         }
         if dec is None:  # another node's frame (C10): no message of ours, not an error
             return rec
-        if reference:
-            dec.decode_slow(bytes(data), rec)
-        elif len(data) == dec.dlc:
-            dec._fast(data, fields, labels, invalid, errors)
+        if len(data) == dec.dlc:
+            dec.compiled(data, fields, labels, invalid, errors)
         else:
-            dec.decode_into(bytes(data), rec)
+            dec.decode_other_length(bytes(data), rec)
         rule = dec.quality
         if rule is not None:
             rec["units"] = dec.units

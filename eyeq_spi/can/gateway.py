@@ -1,21 +1,12 @@
 """The live CAN gateway: decoded EyeQ4 DASP messages in, Mobileye CAN frames out (C3, C4).
 
-Theory of operation
--------------------
-:class:`CanGateway` is sans-IO. ``on_message`` is a host subscriber: it keeps the newest decoded
-fields of every DASP message. The gateway has a timer like every other node: each CAN message of
-the protocol is due every ``cycle_ms`` (decision C3) from the first DASP message on, on the
-injected clock, so it runs in virtual time as in real time. ``handle_timer(now)`` evaluates the
-mapping of ``specs/can/mapping.yaml`` (C4) for every message due, turns physical values into raw
-values as the signal's spec says (range -> clamp or invalid value; uncomputable -> invalid value),
-packs them with the cantools database built from ``specs/can/`` and queues :class:`CanFrame`.
-``frames()`` hands them out. A repeated message (0x739 + 3*i) sends one frame per slot item; items
-beyond its slots (ExtLogData2 has 13 obstacle slots, decision C7, for up to 15 EyeQ4 objects) are
-not sent and counted in ``counters.slot_overflow``.
-
-:class:`GatewayNode` wraps the host node for a runner: the runner sees one node whose timer is
-the earlier of the host's and the gateway's, and every frame goes to a sink (``sinks.py``).
-"""
+:class:`CanGateway` is sans-IO: ``on_message`` keeps the newest fields of every DASP message;
+each CAN message is due every ``cycle_ms`` (C3) from the first DASP message on, on the injected
+clock; ``handle_timer(now)`` evaluates ``specs/can/mapping.yaml`` (C4), turns physical values into
+raw ones (out of range: clamp or invalid; uncomputable: invalid), packs them with the cantools
+database and queues :class:`CanFrame` for ``frames()``. Slot items beyond a repeated message's
+slots (13 obstacle slots for up to 15 objects, C7) are counted in ``counters.slot_overflow``.
+:class:`GatewayNode` puts the host and the gateway on one runner timer."""
 
 from __future__ import annotations
 
@@ -56,7 +47,6 @@ class GatewayCounters:
     stepped: Counter[str] = field(default_factory=Counter)  # valid value moved off the invalid raw
     # slot items with no slot left, per message (C7: 13 obstacle slots for up to 15 objects)
     slot_overflow: Counter[str] = field(default_factory=Counter)
-    dasp_messages: int = 0
 
 
 @dataclass
@@ -165,7 +155,6 @@ class CanGateway:
         if name is None or getattr(msg, "errors", None):
             return
         self._latest[name] = msg.fields
-        self.counters.dasp_messages += 1
 
     def start(self, now: float) -> None:
         """Start the cycles (done by the first ``handle_timer`` after a DASP message)."""
@@ -255,8 +244,7 @@ class GatewayNode:
         self.gateway.poll(now)
 
     def data_to_send(self, now: float) -> list[bytes]:
-        out: list[bytes] = self.inner.data_to_send(now)
-        return out
+        return list(self.inner.data_to_send(now))
 
     def get_timer(self) -> float | None:
         times = [t for t in (self.inner.get_timer(), self.gateway.get_timer()) if t is not None]

@@ -155,7 +155,7 @@ def read_log(path: str) -> Iterator[Any]:
     except ImportError as exc:
         raise MissingExtra("export", f"{path}: this format needs {exc.name or exc}") from exc
     except Exception as exc:  # python-can raises many kinds on a foreign file
-        if suffix == ".mf4" and _starts_like_mf4(file_path):
+        if suffix == ".mf4" and file_path.stat().st_size:  # it begins as one (_check_format)
             raise TruncatedInputError(
                 f"{path}: truncated or damaged MF4 ({file_path.stat().st_size} bytes, which "
                 f"asammdf cannot open: {exc}); 0 frames read") from exc
@@ -206,14 +206,6 @@ def _open(can: Any, path: Path) -> Any:
         sys.unraisablehook = hook
 
 
-def _starts_like_mf4(path: Path) -> bool:
-    try:
-        with path.open("rb") as fh:
-            return fh.read(8) in (b"MDF     ", b"UnFinMF ")
-    except OSError:
-        return False
-
-
 def open_bus(target: str) -> Any:
     """A python-can bus for ``INTERFACE:CHANNEL`` (``virtual:NAME``, ``socketcan:vcan0``...)."""
     require_cantools()
@@ -223,6 +215,11 @@ def open_bus(target: str) -> Any:
     if not interface or not sep or not channel:
         raise UsageError(f"--bus {target!r}: give INTERFACE:CHANNEL, e.g. virtual:camera or "
                          "socketcan:can0")
+    return bus_of(can, target, interface, channel)
+
+
+def bus_of(can: Any, target: str, interface: str, channel: str) -> Any:
+    """python-can's bus on ``interface`` and ``channel``; :class:`AdapterError` if it fails."""
     try:
         return can.Bus(interface=interface, channel=channel, receive_own_messages=False)
     except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:

@@ -1,21 +1,18 @@
-"""Where gateway frames go: a python-can bus or a python-can log writer (the only I/O of the
-CAN package). ``--can-out`` targets:
-
-- ``virtual`` or ``virtual:CHANNEL``: python-can's in-process virtual bus;
-- ``INTERFACE:CHANNEL`` for any python-can interface, e.g. ``socketcan:vcan0``;
-- a file whose suffix names the log format: ``.blf``, ``.asc``, ``.mf4`` (needs asammdf),
-  ``.log`` (candump -L), ``.trc``, ``.csv``.
-"""
+"""Where gateway frames go (``--can-out``, docs/can.md): a python-can bus (``virtual[:CHANNEL]``,
+``INTERFACE:CHANNEL``) or a python-can log writer chosen by suffix; the only I/O of the CAN
+package."""
 
 from __future__ import annotations
 
 import atexit
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from eyeq_spi.can.gateway import CanFrame, CanGateway, GatewayNode
-from eyeq_spi.errors import AdapterError, MissingExtra, OutputError, UsageError
+from eyeq_spi.can.logs import bus_of
+from eyeq_spi.errors import MissingExtra, OutputError, UsageError
 
 LOG_SUFFIXES = (".blf", ".asc", ".mf4", ".log", ".trc", ".csv")
 
@@ -37,7 +34,6 @@ class CanSink:
     handle: Any
     sent: int = 0
     errors: int = 0
-    last_error: str | None = None
     closed: bool = field(default=False)
 
     def __call__(self, frame: CanFrame) -> None:
@@ -50,21 +46,18 @@ class CanSink:
             else:
                 self.handle.on_message_received(msg)
             self.sent += 1
-        except (can.CanError, OSError, ValueError) as exc:  # a full queue, a gone interface
+        except (can.CanError, OSError, ValueError):  # a full queue, a gone interface
             self.errors += 1
-            self.last_error = str(exc)
 
     def close(self) -> None:
         if self.closed:
             return
         self.closed = True
-        try:
+        with contextlib.suppress(Exception):  # closing must never raise at exit
             if self.kind == "bus":
                 self.handle.shutdown()
             else:
                 self.handle.stop()
-        except Exception as exc:  # closing must never raise at exit
-            self.last_error = str(exc)
 
 
 def open_target(target: str) -> CanSink:
@@ -86,12 +79,7 @@ def open_target(target: str) -> CanSink:
     if "." in interface or "/" in interface:
         raise UsageError(f"--can-out {target!r}: a log file needs one of the suffixes "
                          f"{', '.join(LOG_SUFFIXES)}; a bus is INTERFACE[:CHANNEL]")
-    try:
-        bus = can.Bus(interface=interface, channel=channel or "eyeq-spi",
-                      receive_own_messages=False)
-    except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:
-        raise AdapterError(f"cannot open CAN bus {target!r}: {exc}") from exc
-    return CanSink(target, "bus", bus)
+    return CanSink(target, "bus", bus_of(can, target, interface, channel or "eyeq-spi"))
 
 
 @dataclass
@@ -114,13 +102,9 @@ class CanOutput:
 
 
 def attach(host: Any, runner: Any, *, target: str, protocol: str) -> CanOutput:
-    """Subscribe a gateway to ``host``'s decoded DASP messages and put it on ``runner``'s clock.
-
-    ``runner`` is a :class:`~eyeq_spi.runner.VirtualRunner` (whose node list holds the host) or
-    a :class:`~eyeq_spi.runner.RealTimeRunner` (whose ``node`` is the host): the host's entry is
-    replaced by a :class:`GatewayNode` wrapping it. The sink is closed at exit (log files are
-    finalised) or by ``close()``.
-    """
+    """Subscribe a gateway to ``host``'s decoded DASP messages and put it on ``runner``'s clock:
+    the host's node in the runner becomes a :class:`GatewayNode` wrapping it. The sink is closed
+    at exit (log files are finalised) or by ``close()``."""
     clock = getattr(runner, "clock", None)
     epoch = float(clock()) if callable(clock) else float(getattr(runner, "now", 0.0))
     scenario = getattr(host, "scenario", None)

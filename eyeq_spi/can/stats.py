@@ -53,10 +53,6 @@ class CanStats:
         self.first: float | None = None
         self.last: float | None = None
 
-    def add(self, msg: Any) -> None:
-        """One python-can message."""
-        self.add_all((msg,))
-
     def add_all(self, messages: Any) -> None:
         """python-can messages (the hot path: one append per frame)."""
         buffers = self._buf
@@ -316,11 +312,15 @@ def human_total(stats: dict[str, Any]) -> str:
         f"=== total of {stats['files']} files",
         f"{stats['frames']} frames, protocol {stats['protocol']}; other nodes' traffic "
         f"{stats['other_frames']} frames",
-        pack(f"errors: {stats['error_frames']} frames", [
-            f"(DLC errors {stats['dlc_errors']},",
-            f"values out of range {stats['out_of_range_values']});",
-            f"short DLCs {stats['short_dlc']} (accepted);",
-            f"invalid values {stats['invalid_values']} (as sent: not errors)"], indent=4)])
+        _errors_line(stats)])
+
+
+def _errors_line(stats: dict[str, Any]) -> str:
+    return pack(f"errors: {stats['error_frames']} frames", [
+        f"(DLC errors {stats['dlc_errors']},",
+        f"values out of range {stats['out_of_range_values']});",
+        f"short DLCs {stats['short_dlc']} (accepted);",
+        f"invalid values {stats['invalid_values']} (as sent: not errors)"], indent=4)
 
 
 def human_stats(stats: dict[str, Any], heading: bool = False) -> str:
@@ -346,11 +346,7 @@ def human_stats(stats: dict[str, Any], heading: bool = False) -> str:
         other[-1] = other[-1].rstrip(",") + ")"
         lines.append(pack(f"other nodes' traffic: {stats['other_frames']} frames (IDs",
                           other, indent=4))
-    lines.append(pack(f"errors: {stats['error_frames']} frames", [
-        f"(DLC errors {stats['dlc_errors']},",
-        f"values out of range {stats['out_of_range_values']});",
-        f"short DLCs {stats['short_dlc']} (accepted);",
-        f"invalid values {stats['invalid_values']} (as sent: not errors)"], indent=4))
+    lines.append(_errors_line(stats))
     rows = stats["ids"]
     several = any(entry["channel"] != rows[0]["channel"] for entry in rows) if rows else False
     lines.append(f"{'ID':>6s} {'ch':>3s} {'message':26s} {'frames':>7s} {'cycle ms':>9s} "

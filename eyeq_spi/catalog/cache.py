@@ -1,21 +1,11 @@
-"""Start-up cache of the validated catalogue.
+"""Start-up cache of the validated catalogue (a cache of data, never of code).
 
-Parsing and validating ``specs/`` costs ~0.2 s even with libyaml; every CLI start needs the
-catalogue (argument checks name messages, MESP functions and faults). The validated
-:class:`~eyeq_spi.catalog.messages.Catalog` is pickled into the user's cache directory under a key
-over the path, size and modification time of every file of ``specs/`` and of the loader modules'
-sources, and the Python version (:func:`specs_digest`), so an edited YAML file, an edited loader
-or another interpreter never sees a stale one.
-
-Single files of ``specs/`` that code reads directly (``spec_file``: ``link.yaml``,
-``bench.yaml``, ``dasp_header.yaml``...) are cached the same way, each as a ``marshal`` file under
-the same key (:func:`cached_doc`), so a start from the cache never imports yaml.
-
-The cache is an optimisation only: an unwritable, missing, corrupt or foreign cache file falls back
-to parsing ``specs/`` (and silently tries to write a fresh one). ``EYEQ_SPI_CACHE_DIR`` moves it;
-``EYEQ_SPI_NO_CACHE=1`` turns it off. The pickle is read only from a directory of the current user,
-written atomically (temporary file + rename) and mode 0600.
-"""
+The :class:`~eyeq_spi.catalog.messages.Catalog` is pickled, and single files of ``specs/``
+(``spec_file``) marshalled so a start from the cache never imports yaml, in the user's cache
+directory under a key over the path, size and mtime of every file of ``specs/`` and of the
+loaders, and the Python version (:func:`specs_digest`). An unusable cache falls back to parsing
+``specs/``. ``EYEQ_SPI_CACHE_DIR`` moves it, ``EYEQ_SPI_NO_CACHE=1`` turns it off; files are
+read only from the current user's, written atomically."""
 
 from __future__ import annotations
 
@@ -88,12 +78,6 @@ def cached_catalog(root: Path, load: Callable[[Path], T]) -> T:
     return value
 
 
-def cached_doc(root: Path, name: str, load: Callable[[Path], dict[str, Any]]) -> dict[str, Any]:
-    """``load(root / name)`` (one parsed YAML file), or its marshalled copy from an earlier call
-    with the same ``specs/``. The key is computed once per process and root."""
-    return cached_data(root, name, lambda: load(root / name))
-
-
 def cached_data(root: Path, tag: str, build: Callable[[], dict[str, Any]]) -> dict[str, Any]:
     """``build()`` (plain data derived from ``specs/`` only), or its marshalled copy from an
     earlier call with the same ``specs/`` and ``tag``. A caller whose data also depends on its own
@@ -143,11 +127,8 @@ KEEP_KEYS = 16  # other keys' files kept: several installs, checkouts or Pythons
 
 def _write(path: Path, value: object, writer: Callable[[Any, Any], object] | None = None,
            current: str = "") -> None:
-    """Write atomically; then prune the files of other keys (``catalog-*.pickle``, or with a
-    ``writer`` ``doc-*.marshal``, not starting with ``current``) to the
-    ``KEEP_KEYS`` newest keys, so that several installs of one user (checkouts, virtual
-    environments, Python versions) keep their own caches instead of evicting each other's on
-    every start."""
+    """Write atomically; then keep the files of the ``KEEP_KEYS`` newest other keys only, so that
+    several installs of one user keep their own caches instead of evicting each other's."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         import tempfile  # only to write: a start from the cache does not import it (nor random)

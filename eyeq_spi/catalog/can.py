@@ -13,7 +13,7 @@ from functools import cache
 from typing import Any
 
 from eyeq_spi.catalog.can_expr import compile_expr
-from eyeq_spi.catalog.link import specs_dir
+from eyeq_spi.catalog.link import is_number, load_file, specs_dir
 from eyeq_spi.errors import SpecError
 
 PROTOCOL_KEYS = frozenset({"name", "title", "seeds", "bitrate", "seed", "seed_line", "enums",
@@ -72,21 +72,26 @@ class CanSignal:
         """How many leading bytes of the payload hold this signal (decision C8 short DLC)."""
         return max(self.bits()) // 8 + 1
 
+    def bits(self) -> set[int]:
+        return signal_bits(self.start, self.length, self.byte_order)
+
     @property
     def raw_limits(self) -> tuple[int, int]:
         if self.signed:
             return -(1 << (self.length - 1)), (1 << (self.length - 1)) - 1
         return 0, (1 << self.length) - 1
 
-    def bits(self) -> set[int]:
-        """Bit positions (bit 0 = LSB of byte 0) the signal occupies."""
-        if self.byte_order == "little_endian":
-            return set(range(self.start, self.start + self.length))
-        out, pos = set(), self.start  # Motorola: start is the MSB, walk towards the LSB
-        for _ in range(self.length):
-            out.add(pos)
-            pos = pos - 1 if pos % 8 else pos + 15
-        return out
+
+
+def signal_bits(start: int, length: int, byte_order: str) -> set[int]:
+    """Bit positions (bit 0 = LSB of byte 0, DBC numbering) a signal occupies."""
+    if byte_order == "little_endian":
+        return set(range(start, start + length))
+    out, pos = set(), start  # Motorola: start is the MSB, walk towards the LSB
+    for _ in range(length):
+        out.add(pos)
+        pos = pos - 1 if pos % 8 else pos + 15
+    return out
 
 
 @dataclass(frozen=True)
@@ -173,7 +178,6 @@ class CanMapping:
     tables: dict[str, dict[Any, int]]  # int -> int, plus an optional "default"
     protocols: dict[str, dict[str, MessageMapping]]
     derived: tuple[tuple[str, SignalMapping], ...] = ()
-    vehicle_reason: str = ""
 
 
 BASE_NAMES = frozenset({"t", "veh", "n", "i", "o"})
@@ -192,10 +196,6 @@ def _table(raw: Any) -> dict[Any, int]:
     return out
 
 
-def _num(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def _check_signal(where: str, signal: Any, dlc: int, enums: dict[str, Any]) -> list[str]:
     if not isinstance(signal, dict):
         return [f"{where}: signal must be a mapping"]
@@ -208,7 +208,7 @@ def _check_signal(where: str, signal: Any, dlc: int, enums: dict[str, Any]) -> l
     if not isinstance(signal.get("seed_line"), int):
         out.append(f"{where}: needs an int seed_line")
     for key in ("scale", "offset", "min", "max"):
-        if key in signal and not _num(signal[key]):
+        if key in signal and not is_number(signal[key]):
             out.append(f"{where}: {key} must be a number")
     if signal.get("scale") == 0:
         out.append(f"{where}: scale 0")
@@ -265,7 +265,7 @@ def validate_protocol(rel: str, doc: Any) -> list[str]:
         if not isinstance(msg.get("dlc"), int) or not 1 <= msg["dlc"] <= 8:
             out.append(f"{where}: dlc must be 1..8")
             continue
-        if not _num(msg.get("cycle_ms")) or msg["cycle_ms"] <= 0:
+        if not is_number(msg.get("cycle_ms")) or msg["cycle_ms"] <= 0:
             out.append(f"{where}: cycle_ms must be positive")
         if not isinstance(msg.get("seed_line"), int):
             out.append(f"{where}: needs an int seed_line")
@@ -455,30 +455,18 @@ def _protocol(doc: dict[str, Any]) -> CanProtocol:
                        dict(doc.get("seeds") or {}), str(doc.get("seed", "")))
 
 
-def _load_docs() -> dict[str, Any]:
-    import yaml
-
-    out: dict[str, Any] = {}
-    root = specs_dir() / "can"
-    for path in sorted(root.glob("*.yaml")):
-        try:
-            out[f"can/{path.name}"] = yaml.safe_load(path.read_text(encoding="utf-8"))
-        except (OSError, yaml.YAMLError) as exc:
-            raise SpecError(f"{path}: {exc}") from exc
-    return out
-
-
 @cache
 def can_documents() -> dict[str, Any]:
     """The YAML documents of ``specs/can/`` as loaded (with their notes: ``reconstruction``,
     ``differences``, ``description``), for tools that explain a reading."""
-    return _load_docs()
+    return {f"can/{path.name}": load_file(path)
+            for path in sorted((specs_dir() / "can").glob("*.yaml"))}
 
 
 @cache
 def can_specs() -> tuple[dict[str, CanProtocol], CanMapping]:
     """Every protocol of ``specs/can/`` and the DASP -> CAN mapping, validated."""
-    docs = _load_docs()
+    docs = can_documents()
     problems = validate_can_docs(docs)
     if problems:
         raise SpecError(f"specs/can: {len(problems)} schema problem(s), first: {problems[0]}")
@@ -503,8 +491,7 @@ def can_specs() -> tuple[dict[str, CanProtocol], CanMapping]:
                 {k: _table(v) for k, v in (mp.get("tables") or {}).items()},
                 prot,
                 tuple((str(k), SignalMapping(str(v["expr"]), str(v["reason"])))
-                      for k, v in (mp.get("derived") or {}).items()),
-                str(mp.get("vehicle", "")))
+                      for k, v in (mp.get("derived") or {}).items()))
     return protocols, mapping
 
 

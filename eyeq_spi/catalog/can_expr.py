@@ -1,16 +1,10 @@
 """The small expression language of ``specs/can/mapping.yaml`` (decision C4).
 
-A mapping says how one CAN signal is computed from decoded EyeQ4 DASP fields, for example
-``-o.physicalState.latDistance`` or ``table('obstacle_type', o.classification)``. Expressions
-are parsed with :mod:`ast` and only a whitelist of nodes is accepted: names of the mapping's
-sources, attribute access into decoded dicts, numbers, strings, tuples/lists, arithmetic,
-comparisons, ``and``/``or``/``not``, ``x if c else y``, one-generator list comprehensions and
-the functions of :data:`FUNCTIONS`. Nothing else (no imports, no dunder attributes, no calls of
-arbitrary objects) can be written, so the data stays data.
-
-A name whose DASP message has not arrived yet, a missing field or a division by zero makes the
-whole expression :data:`MISSING`: the gateway then sends the signal's invalid value.
-"""
+An expression (``-o.physicalState.latDistance``, ``table('obstacle_type', o.classification)``)
+is parsed with :mod:`ast` and only whitelisted nodes are accepted: source names, attribute
+access, literals, arithmetic, comparisons, boolean logic, ``x if c else y``, one-generator list
+comprehensions and :data:`FUNCTIONS`, so the data stays data. A missing message or field or a
+division by zero makes the whole expression :data:`MISSING` (the signal's invalid value is sent)."""
 
 from __future__ import annotations
 
@@ -34,14 +28,6 @@ class _AbsentError(Exception):
     pass
 
 
-def _deg(x: float) -> float:
-    return math.degrees(x)
-
-
-def _count(items: list[Any]) -> int:
-    return len(items)
-
-
 def _first(items: list[Any]) -> Any:
     if not items:
         raise _AbsentError
@@ -58,16 +44,12 @@ def _take(items: list[Any], count: int) -> list[Any]:
     return list(items[: max(int(count), 0)])
 
 
-def _atan(x: float) -> float:
-    return math.atan(x)
-
-
 FUNCTIONS: dict[str, Callable[..., Any]] = {
-    "deg": _deg,            # radians -> degrees
+    "deg": math.degrees,    # radians -> degrees
     "rad": math.radians,    # degrees -> radians
-    "atan": _atan,
+    "atan": math.atan,
     "kmh": lambda v: v * 3.6,  # m/s -> km/h
-    "count": _count,        # length of a list
+    "count": len,           # length of a list
     "first": _first,        # first item of a list (MISSING when empty)
     "take": _take,          # the first n items of a list
     "div": _div,            # a / b, MISSING when b == 0
@@ -265,10 +247,7 @@ def compile_expr(text: str, names: set[str], tables: set[str]) -> Callable[[Env]
 
     def run(env: Env) -> Any:
         try:
-            value = fn(env)
-        except _AbsentError:
+            return fn(env)
+        except (_AbsentError, TypeError, ValueError, OverflowError):
             return MISSING
-        except (TypeError, ValueError, OverflowError):
-            return MISSING
-        return value
     return run

@@ -26,10 +26,11 @@ def link_spec() -> dict[str, Any]:
 @cache
 def spec_file(name: str) -> dict[str, Any]:
     """One YAML file of ``specs/`` as a mapping (cached in the process, and across starts by
-    :func:`eyeq_spi.catalog.cache.cached_doc`)."""
-    from eyeq_spi.catalog.cache import cached_doc
+    :func:`eyeq_spi.catalog.cache.cached_data`)."""
+    from eyeq_spi.catalog.cache import cached_data
 
-    return cached_doc(specs_dir(), name, load_file)
+    root = specs_dir()
+    return cached_data(root, name, lambda: load_file(root / name))
 
 
 def load_file(path: Path) -> dict[str, Any]:
@@ -39,8 +40,13 @@ def load_file(path: Path) -> dict[str, Any]:
     try:
         with path.open(encoding="utf-8") as fh:
             doc = yaml.load(fh, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-    except (OSError, yaml.YAMLError) as exc:
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise SpecError(f"{path}: {exc}") from exc
     if not isinstance(doc, dict):
         raise SpecError(f"{path}: not a mapping")
     return doc
+
+
+def is_number(value: Any) -> bool:
+    """An int or a float, not a bool (YAML's ``true`` is an int to Python)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)

@@ -6,7 +6,7 @@ init bit tables) reads it from here, never from a layout written by hand (docs/S
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
@@ -24,15 +24,18 @@ from eyeq_spi.errors import SpecError
 SwKey = str
 """A variant key such as ``sw8_1``."""
 
-def sw_release(key: SwKey) -> tuple[int, int]:
-    """``"sw8_1"`` -> ``(8, 1)``, ``"sw9"`` -> ``(9, 0)``: the numbers the EyeQ reports."""
-    body = key[2:].split("_")
-    return int(body[0]), int(body[1]) if len(body) > 1 else 0
+sw_release = sw_key
+"""``"sw8_1"`` -> ``(8, 1)``, ``"sw9"`` -> ``(9, 0)``: the numbers the EyeQ reports."""
 
 
 def sw_release_text(key: SwKey) -> str:
-    major, minor = sw_release(key)
+    major, minor = sw_key(key)
     return f"{major}.{minor}"
+
+
+def newest_at(keys: Iterable[SwKey], sw: SwKey) -> SwKey | None:
+    """The newest variant key that is not newer than ``sw`` (decision D4), None if none."""
+    return max((key for key in keys if sw_key(key) <= sw_key(sw)), key=sw_key, default=None)
 
 
 @dataclass(frozen=True)
@@ -81,12 +84,8 @@ class StructDef:
     variants: dict[SwKey, StructVariant]
 
     def variant_for(self, sw: SwKey) -> StructVariant | None:
-        """The newest variant whose key is <= ``sw`` (decision D4)."""
-        best: StructVariant | None = None
-        for key, var in self.variants.items():
-            if sw_key(key) <= sw_key(sw) and (best is None or sw_key(key) > sw_key(best.key)):
-                best = var
-        return best
+        key = newest_at(self.variants, sw)
+        return None if key is None else self.variants[key]
 
 
 @dataclass(frozen=True)
@@ -186,8 +185,8 @@ class InitMessageDef:
     variants: dict[SwKey, InitVariant]
 
     def variant_for(self, sw: SwKey) -> InitVariant | None:
-        keys = sorted((k for k in self.variants if sw_key(k) <= sw_key(sw)), key=sw_key)
-        return self.variants[keys[-1]] if keys else None
+        key = newest_at(self.variants, sw)
+        return None if key is None else self.variants[key]
 
 
 @dataclass(frozen=True)
@@ -229,10 +228,10 @@ class Catalog:
         table = self.constants.get(name)
         if table is None:
             raise SpecError(f"unknown constant {name}")
-        keys = sorted((k for k in table if sw_key(k) <= sw_key(sw)), key=sw_key)
-        if not keys:
+        key = newest_at(table, sw)
+        if key is None:
             raise SpecError(f"constant {name} is not defined for {sw}")
-        return table[keys[-1]]
+        return table[key]
 
     def message(self, name: str) -> MessageDef:
         for msg in self.messages:
@@ -268,10 +267,11 @@ class RawDocs(Mapping[str, Any]):
         if doc is None:
             if name not in self._names():
                 raise KeyError(name)
-            from eyeq_spi.catalog.cache import cached_doc
+            from eyeq_spi.catalog.cache import cached_data
             from eyeq_spi.catalog.link import load_file
 
-            doc = self._docs[name] = cached_doc(self._root, name, load_file)
+            path = self._root / name
+            doc = self._docs[name] = cached_data(self._root, name, lambda: load_file(path))
         return doc
 
     def _names(self) -> list[str]:
@@ -330,12 +330,7 @@ def _signal(raw: dict[str, Any]) -> InitSignal:
 
 
 def load_catalog(root: Path) -> Catalog:
-    import yaml  # only when the start-up cache misses
-
-    try:
-        docs = load_yaml_tree(root)
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise SpecError(f"{root}: {exc}") from exc
+    docs = load_yaml_tree(root)
     problems = validate_tree(root, docs)
     if problems:
         raise SpecError(f"{root}: {len(problems)} schema problem(s), first: {problems[0]}")

@@ -1,10 +1,8 @@
-"""Tables of ``specs/`` that are not messages: the DASP header (§7.1.2, ``dasp_header.yaml``), the
-GPIO definitions (Appendix D, ``gpio.yaml``), the Alignment NVM table (§21, ``nvm.yaml``) and the
-decisions restated in ``decisions.yaml``; plus the schema checks of these files, of the MESP
-annotations in ``mesp.yaml`` and of ``decision:`` references anywhere in ``specs/``.
-
-Loaders return frozen, typed objects and raise :class:`~eyeq_spi.errors.SpecError` for a file
-that does not follow ``specs/SCHEMA.md``; :func:`validate_tables` lists the problems instead.
+"""Tables of ``specs/`` that are not messages: the DASP header (§7.1.2), the GPIO definitions
+(Appendix D), the Alignment NVM table (§21) and ``decisions.yaml``, as frozen typed objects
+(:class:`~eyeq_spi.errors.SpecError` for a file that does not follow ``specs/SCHEMA.md``); and
+:func:`validate_tables`, the schema checks of these files, of ``mesp.yaml`` and of every
+``decision:`` reference in ``specs/``.
 """
 
 from __future__ import annotations
@@ -62,15 +60,9 @@ class DaspHeader:
     bad_sequence_counter: str
     bad_length_counter: str
 
-    def field(self, name: str) -> DaspHeaderField:
-        for entry in self.fields:
-            if entry.name == name:
-                return entry
-        raise SpecError(f"dasp_header.yaml has no field {name}")
-
     @property
     def protocol(self) -> int:
-        value = self.field("Protocol").value
+        value = next((entry.value for entry in self.fields if entry.name == "Protocol"), None)
         if value is None:
             raise SpecError("dasp_header.yaml: Protocol has no value")
         return value

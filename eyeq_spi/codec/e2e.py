@@ -4,14 +4,9 @@ a rolling frame counter stepping +1 mod 256 per structure instance."""
 from __future__ import annotations
 
 import binascii
-from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
-from eyeq_spi.codec.layout import CrcPlan, Layout, compute_crc
-
-Verifier = Callable[[bytes, "E2EState | None"], list[str]]
-Protector = Callable[[bytearray, "E2EState | None"], None]
+from eyeq_spi.codec.layout import CrcPlan, Layout
 
 
 @dataclass
@@ -40,6 +35,15 @@ def crc_label(layout: Layout, plan: CrcPlan) -> str:
     return f"{layout.name}.{plan.path}" if plan.path else layout.name
 
 
+def plan_crc(buf: bytes | bytearray, plan: CrcPlan, base: int = 0) -> int:
+    """The CRC of ``plan`` over ``buf`` (the struct at ``base``): ``crc16`` is ``crc_hqx``
+    seeded 0xFFFF (D5), chained over the covered ranges, so no bytes are joined."""
+    crc = 0xFFFF
+    for offset, size in plan.ranges:
+        crc = binascii.crc_hqx(buf[base + offset : base + offset + size], crc)
+    return crc
+
+
 def protect(buf: bytearray, layout: Layout, state: E2EState | None, base: int = 0) -> None:
     """Fill every rolling counter (when ``state`` is given) and every CRC, inner first."""
     for plan in layout.crc_plan:
@@ -48,150 +52,18 @@ def protect(buf: bytearray, layout: Layout, state: E2EState | None, base: int = 
             counter_at = base + plan.counter_offset
             size = plan.counter_size
             buf[counter_at : counter_at + size] = value.to_bytes(size, "little")
-        shifted = plan if base == 0 else CrcPlan(
-            plan.path, plan.field, plan.crc_offset + base,
-            plan.counter_offset, plan.counter_size,
-            tuple((o + base, s) for o, s in plan.ranges),
-        )
-        crc = compute_crc(buf, shifted)
-        buf[base + plan.crc_offset : base + plan.crc_offset + 2] = crc.to_bytes(2, "little")
-
-
-def _batches(plans: list[CrcPlan]) -> list[list[int]]:
-    """Runs of consecutive CRCs of one shape (range sizes, counter size: the elements of an
-    array) none of which covers another's CRC or counter: their counters can all be stepped
-    first, in order, and their covered bytes gathered at once (same values as one by one)."""
-    out: list[list[int]] = []
-    for index, plan in enumerate(plans):
-        shape = (tuple(s for _, s in plan.ranges), plan.counter_size, plan.counter_offset is None)
-        prev = out[-1] if out else None
-        if prev is not None and shape == _shape_of(plans[prev[0]]) and all(
-                _apart(plans[j], plan) and _apart(plan, plans[j]) for j in prev):
-            prev.append(index)
-        else:
-            out.append([index])
-    return out
-
-
-def _shape_of(plan: CrcPlan) -> tuple[Any, ...]:
-    return (tuple(s for _, s in plan.ranges), plan.counter_size, plan.counter_offset is None)
-
-
-def _apart(plan: CrcPlan, other: CrcPlan) -> bool:
-    """``a`` covers neither ``b``'s CRC nor its counter."""
-    fields = [(other.crc_offset, 2)]
-    if other.counter_offset is not None:
-        fields.append((other.counter_offset, other.counter_size))
-    return not any(o < fo + fs and fo < o + s for o, s in plan.ranges for fo, fs in fields)
-
-
-def compile_protector(layout: Layout) -> Protector:
-    """``e2e.protect(buf, layout, state)`` as generated code (D5): per CRC of
-    ``layout.crc_plan``, inner first, the rolling counter then ``crc_hqx`` seeded 0xFFFF chained
-    over the covered ranges, every offset a literal. A run of same-shaped CRCs (one per element
-    of an array, :func:`_batches`) gathers its covered bytes with one numpy index instead."""
-    env: dict[str, Any] = {"h": binascii.crc_hqx}
-    lines = ["def _protect(b, state):"]
-    plans = layout.crc_plan
-    for batch in _batches(plans):
-        for index in batch:
-            plan = plans[index]
-            if plan.counter_offset is not None:
-                env[f"K{index}"] = counter_key(layout, plan)
-                counter_at, counter_size = plan.counter_offset, plan.counter_size
-                lines += ["    if state is not None:",
-                          f"        b[{counter_at}:{counter_at + counter_size}] = "
-                          f"state.next_counter(K{index}, {counter_size})"
-                          f".to_bytes({counter_size}, 'little')"]
-            if len(batch) > 1:
-                continue
-            expr = "65535"
-            for offset, size in plan.ranges:
-                expr = f"h(b[{offset}:{offset + size}], {expr})"
-            crc_at = plan.crc_offset
-            lines.append(f"    b[{crc_at}:{crc_at + 2}] = ({expr}).to_bytes(2, 'little')")
-        if len(batch) > 1:
-            import numpy as np  # only for arrays of protected structs (DASP generation)
-
-            env["np"] = np
-            index = batch[0]
-            env[f"G{index}"] = np.array([[o + k for o, s in plans[j].ranges for k in range(s)]
-                                         for j in batch], dtype=np.intp)
-            env[f"O{index}"] = [plans[j].crc_offset for j in batch]
-            lines += [f"    g = np.frombuffer(b, dtype=np.uint8)[G{index}]",
-                      f"    for r, o in zip(g, O{index}):",
-                      "        b[o:o + 2] = h(r, 65535).to_bytes(2, 'little')"]
-    lines.append("    return None")
-    exec("\n".join(lines), env)
-    fn: Protector = env["_protect"]
-    return fn
+        crc_at = base + plan.crc_offset
+        buf[crc_at : crc_at + 2] = plan_crc(buf, plan, base).to_bytes(2, "little")
 
 
 def verify(data: bytes, layout: Layout, state: E2EState | None) -> list[str]:
     """Check every CRC and, with ``state``, every counter step. Returns the problems found (a
-    mismatch rejects that structure; it is counted, never raised). Runs the layout's verifier
-    generated by :func:`compile_verifier` (built on first use); :func:`verify_reference` is the
-    plain loop the tests hold it to."""
-    fn = layout._verify
-    if fn is None:
-        fn = layout._verify = compile_verifier(layout)
-    out: list[str] = fn(data, state)
-    return out
-
-
-def compile_verifier(layout: Layout) -> Verifier:
-    """Python source generated from ``layout.crc_plan`` (D5): one line per CRC chaining
-    ``binascii.crc_hqx`` over the covered byte ranges in order (CRC-16/CCITT-FALSE continues
-    over a concatenation, so no bytes are joined), then the CRC field and the counter step, with
-    every offset a literal. Same checks, same order, same words as :func:`verify_reference`
-    (``crc16`` is ``crc_hqx`` seeded 0xFFFF, decision D5)."""
-    env: dict[str, Any] = {"h": binascii.crc_hqx}
-    lines = ["def _verify(d, state):", "    errors = []"]
-    for index, plan in enumerate(layout.crc_plan):
-        label = crc_label(layout, plan)
-        env[f"K{index}"] = counter_key(layout, plan)
-        env[f"C{index}"] = f"E2E CRC mismatch in {label}: {plan.field}=0x"
-        env[f"J{index}"] = f"E2E counter jump in {label}: expected "
-        expr = "65535"
-        for offset, size in plan.ranges:
-            expr = f"h(d[{offset}:{offset + size}], {expr})"
-        crc_at = plan.crc_offset
-        lines += [
-            f"    c = {expr}",
-            f"    g = d[{crc_at}] | d[{crc_at + 1}] << 8",
-            "    if g != c:",
-            f"        errors.append(f'{{C{index}}}{{g:04X}}, computed 0x{{c:04X}}')",
-            "        if state is not None:",
-            "            state.crc_errors += 1",
-        ]
-        if plan.counter_offset is None:
-            continue
-        counter_at, counter_size = plan.counter_offset, plan.counter_size
-        modulo = 1 << (8 * counter_size)
-        terms = (f"d[{counter_at + k}] << {8 * k}" for k in range(counter_size))
-        value = " | ".join(terms) if counter_size else "0"
-        lines += [
-            "    if state is not None:",
-            f"        v = {value}",
-            f"        last = state.seen.get(K{index})",
-            f"        if last is not None and v != (last + 1) % {modulo}:",
-            f"            errors.append(f'{{J{index}}}{{(last + 1) % {modulo}}}, got {{v}}')",
-            "            state.counter_errors += 1",
-            f"        state.seen[K{index}] = v",
-        ]
-    lines.append("    return errors")
-    exec("\n".join(lines), env)
-    fn: Verifier = env["_verify"]
-    return fn
-
-
-def verify_reference(data: bytes, layout: Layout, state: E2EState | None) -> list[str]:
-    """The plain loop over ``layout.crc_plan``: the reference for the generated verifier."""
+    mismatch rejects that structure; it is counted, never raised)."""
     errors: list[str] = []
     for plan in layout.crc_plan:
         crc_at = plan.crc_offset
         got = int.from_bytes(data[crc_at : crc_at + 2], "little")
-        want = compute_crc(data, plan)
+        want = plan_crc(data, plan)
         if got != want:
             errors.append(f"E2E CRC mismatch in {crc_label(layout, plan)}: "
                           f"{plan.field}=0x{got:04X}, computed 0x{want:04X}")

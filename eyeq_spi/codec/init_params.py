@@ -16,10 +16,6 @@ class InitMessage:
     codec: BitSignalCodec | None  # None where the seed prints no bit table (0x78 IPB)
 
     @property
-    def ct_stage(self) -> int:
-        return self.definition.id
-
-    @property
     def ct_type(self) -> int:
         return int(self.definition.ct_type or 3)
 

@@ -3,33 +3,44 @@ and the 0x84 parameters the host derives from it."""
 
 from __future__ import annotations
 
+from functools import cache
 from typing import Any
 
 from eyeq_spi.codec.bits import BitSignalCodec
 from eyeq_spi.crc import crc16
 from eyeq_spi.errors import LocalProtocolError
 
-CAL_BLOCK_END = 0x4C  # bytes 0x00..0x4B are the calibration block (I2)
-CRC_SLICE = slice(0x4C, 0x4E)  # its CRC-16, little-endian
+CRC_SIGNAL = "CameraCalibrationCRC"  # the CRC-16 of the calibration block before it (I2)
+
+
+@cache
+def crc_slice() -> slice:
+    """Where the EEPROM image holds its CRC-16 (0x4C..0x4D, little-endian; specs/init, I2):
+    the calibration block is every byte before it."""
+    signal = eeprom_codec().signals[CRC_SIGNAL]
+    return slice(signal.start // 8, (signal.start + signal.length) // 8)
 
 
 def eeprom_crc(image: bytes) -> int:
-    if len(image) < CRC_SLICE.stop:
-        raise LocalProtocolError(f"EEPROM image of {len(image)} bytes has no CRC at 0x4C")
-    return crc16(image[:CAL_BLOCK_END])
+    crc_at = crc_slice()
+    if len(image) < crc_at.stop:
+        raise LocalProtocolError(f"EEPROM image of {len(image)} bytes has no CRC at "
+                                 f"0x{crc_at.start:02X}")
+    return crc16(image[:crc_at.start])
 
 
 def eeprom_crc_ok(image: bytes) -> bool:
     """True when the CRC-16 at 0x4C matches the calibration block (§7.1.3 step 5)."""
-    if len(image) < CRC_SLICE.stop:
+    crc_at = crc_slice()
+    if len(image) < crc_at.stop:
         return False
-    return int.from_bytes(image[CRC_SLICE], "little") == crc16(image[:CAL_BLOCK_END])
+    return int.from_bytes(image[crc_at], "little") == crc16(image[:crc_at.start])
 
 
 def seal_eeprom(image: bytes) -> bytes:
     """Write the correct CRC-16 at 0x4C."""
     sealed = bytearray(image)
-    sealed[CRC_SLICE] = eeprom_crc(image).to_bytes(2, "little")
+    sealed[crc_slice()] = eeprom_crc(image).to_bytes(2, "little")
     return bytes(sealed)
 
 
@@ -70,7 +81,7 @@ def intrinsic_params_from_eeprom(image: bytes, sw: str | None = None) -> dict[st
         except LocalProtocolError as exc:
             raise LocalProtocolError(f"EEPROM field {name}: {exc}") from None
     if "CRC_from_EEPROM" in target.signals:
-        out["CRC_from_EEPROM"] = int.from_bytes(image[CRC_SLICE], "little")
+        out["CRC_from_EEPROM"] = int.from_bytes(image[crc_slice()], "little")
     return out
 
 

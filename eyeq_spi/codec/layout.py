@@ -1,21 +1,12 @@
 """Construct layouts compiled from ``specs/`` struct variants (decisions D2, D5).
 
-A :class:`Layout` is one struct at one SW version:
+A :class:`Layout` is one struct at one SW version: a construct ``Struct`` built on first use (the
+reference codec; bitfields sharing a container, D2, are one integer field split and joined by
+precomputed shifts), the ``struct``-based fast twin (:mod:`.layout_fast`) used by
+``parse``/``build``, the offset and size of every member, and the E2E plan (every ``crc_16`` in
+the struct and its children, inner first, with the byte ranges it covers and its counter).
 
-- a compiled construct ``Struct`` for the byte layout, built on first use of ``struct`` (the
-  fast path, ``spec list`` and ``spec show`` never need it, and construct costs start-up
-  time). Bitfield members that share a container
-  (D2) appear in it as one integer field; splitting and joining them is plain shifting done by
-  precomputed operation lists, so no ``BitStruct`` (uncompilable, slow) is on the hot path;
-- a ``struct``-based fast path generated from the same fields (:mod:`.layout_fast`), used by
-  ``parse``/``build``; the construct codec (``parse_construct``/``build_construct``) is the
-  reference the tests hold it to;
-- the offset and size of every member, used for CRC coverage and for ``spec show``;
-- an E2E plan: every ``crc_16`` in the struct and its children, inner first, with the absolute
-  byte ranges it covers and where its rolling counter lives.
-
-Decoded values are plain dicts (nested structs) and lists (arrays), keyed by the seed's member
-names; bitfield members appear as ints under their own names.
+Decoded values are plain dicts and lists keyed by the seed's member names.
 """
 
 from __future__ import annotations
@@ -30,7 +21,6 @@ from eyeq_spi.codec.layout_fast import FastCodec
 from eyeq_spi.codec.layout_types import (
     FieldInfo as FieldInfo,  # re-exported: its users import it here
 )
-from eyeq_spi.crc import crc16
 from eyeq_spi.errors import LocalProtocolError, SpecError
 from eyeq_spi.twins import references_only
 
@@ -78,7 +68,6 @@ class Layout:
     _encode_ops: list[tuple[Any, ...]] = field(default_factory=list)
     _by_name: dict[str, FieldInfo] = field(default_factory=dict)
     _fast: FastCodec | None = None
-    _verify: Any = None  # the generated E2E verifier (codec.e2e.compile_verifier)
 
     # -- values ----------------------------------------------------------------------------
     def post(self, parsed: Any) -> dict[str, Any]:
@@ -167,11 +156,11 @@ class Layout:
             raise LocalProtocolError(f"{self.name}: {exc}") from None
 
     def parse(self, data: bytes) -> dict[str, Any]:
+        if references_only():
+            return self.parse_construct(data)
         if len(data) != self.size:
             raise LocalProtocolError(f"{self.name} ({self.sw}) is {self.size} bytes, "
                                      f"got {len(data)}")
-        if references_only():
-            return self.post(self.struct.parse(data))
         return self.fast.decode(data)
 
     # The construct codec: the reference the fast path is tested against.
@@ -192,10 +181,6 @@ class Layout:
 
     def field(self, name: str) -> FieldInfo:
         return self._by_name[name]
-
-    def find_field(self, name: str) -> FieldInfo | None:
-        """The member ``name``, or None where this release's layout has none."""
-        return self._by_name.get(name)
 
     # -- E2E ---------------------------------------------------------------------------------
     def resolve(self, path: str, base: int = 0) -> list[tuple[int, int]]:
@@ -403,7 +388,3 @@ def _own_crc_plan(lay: Layout, crc: Crc) -> CrcPlan:
     counter = lay.field(crc.counter) if crc.counter else None
     return CrcPlan("", crc.field, crc_field.offset, counter.offset if counter else None,
                    counter.size if counter else 0, _merge(ranges))
-
-
-def compute_crc(buf: bytes | bytearray, plan: CrcPlan) -> int:
-    return crc16(b"".join(bytes(buf[off : off + size]) for off, size in plan.ranges))

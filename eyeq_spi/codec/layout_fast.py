@@ -1,12 +1,8 @@
 """A fast path generated from the same layouts as the construct codec.
 
-For one :class:`~eyeq_spi.codec.layout.Layout` it builds a single ``struct.Struct`` over every
-primitive leaf (bitfield containers as one integer each) and generates, with ``exec``, a Python
-function per struct that turns the flat tuple into the nested dict (and one that flattens a dict
-back). Nothing here is written by hand per message: the format string and the functions come from
-``Layout.fields``, which come from ``specs/``. The construct codec stays the reference; the tests
-require both to give the same values and bytes for every struct variant.
-"""
+For one :class:`~eyeq_spi.codec.layout.Layout`: one ``struct.Struct`` over every primitive leaf
+and, generated with ``exec`` from ``Layout.fields``, a function that nests the flat tuple into
+dicts and one that flattens back. The construct codec stays the reference the tests hold it to."""
 
 from __future__ import annotations
 

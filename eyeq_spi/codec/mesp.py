@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
+from eyeq_spi.catalog.link import spec_file
 from eyeq_spi.catalog.messages import Catalog, MespFunction
 from eyeq_spi.codec.types import DecodedMessage
 from eyeq_spi.errors import LocalProtocolError
 
-MESP_PROTOCOL = 0x5E
-REPLY_BIT = 0x80
-TAG_MASK = 0x3F
+_HEADER = spec_file("mesp.yaml")["mesp"]  # M1: service, protocol, service, function, tag
+MESP_PROTOCOL = int(_HEADER["protocol"])
+REPLY_BIT = 1 << int(_HEADER["tag_reply_bit"])
+TAG_MASK = (1 << int(_HEADER["tag_counter_bits"])) - 1
 
 
 def param_types() -> dict[str, Any]:
@@ -22,23 +23,6 @@ def param_types() -> dict[str, Any]:
 
     return {"u8": Int8ul, "u16": Int16ul, "u32": Int32ul,
             "string": PascalString(Int32ul, "ascii"), "bytes": Prefixed(Int32ul, GreedyBytes)}
-
-
-@dataclass(frozen=True)
-class MespHeader:
-    """The 5-byte MESP header (M1): service, function and tag."""
-
-    service: int
-    function: int
-    tag: int
-
-    @property
-    def counter(self) -> int:
-        return self.tag & TAG_MASK
-
-    @property
-    def reply(self) -> bool:
-        return bool(self.tag & REPLY_BIT)
 
 
 class MespCodec:
@@ -114,20 +98,19 @@ class MespCodec:
         if data[1] != MESP_PROTOCOL:  # rule A has checked it for a classified message
             out.errors.append(f"MESP protocol byte is 0x{data[1]:02X}, not 0x{MESP_PROTOCOL:02X}")
             return out
-        hdr = MespHeader(data[0], data[3], data[4])  # M1: service, 0x5E, service, function, tag
-        out.header = {"service": hdr.service, "function": hdr.function, "tag": hdr.tag,
-                      "counter": hdr.counter, "reply": hdr.reply}
-        if hdr.tag & 0x40:
+        service, function_id, tag = data[0], data[3], data[4]
+        reply = bool(tag & REPLY_BIT)
+        out.header = {"service": service, "function": function_id, "tag": tag,
+                      "counter": tag & TAG_MASK, "reply": reply}
+        if tag & ~(REPLY_BIT | TAG_MASK):
             out.errors.append("MESP tag bit 6 is set (M1 says 0)")
-        function = self.functions.get((hdr.service, hdr.function))
+        function = self.functions.get((service, function_id))
         if function is None:
-            out.errors.append(
-                f"unknown MESP service/function 0x{hdr.service:02X}/0x{hdr.function:02X}"
-            )
+            out.errors.append(f"unknown MESP service/function 0x{service:02X}/0x{function_id:02X}")
             return out
         out.name = function.name
         body = data[5:]
-        if hdr.reply:
+        if reply:
             if len(body) < 4:
                 out.errors.append("MESP reply without its 4-byte ret")
                 return out
@@ -139,7 +122,7 @@ class MespCodec:
         from construct.core import ConstructError
 
         try:
-            parsed = self.params(function, hdr.reply).parse(body)
+            parsed = self.params(function, reply).parse(body)
         except ConstructError as exc:  # the first line: construct adds the path below it
             out.errors.append(f"{function.name}: malformed parameters: {str(exc).splitlines()[0]}")
             return out

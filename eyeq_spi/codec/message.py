@@ -23,24 +23,6 @@ BOOT_ID = 0x10
 _FIRST_BYTE = {BOOT_ID: "BOOT", DIAG_ID: "DIAG", DASP_PROTOCOL: "DASP"}
 
 
-
-def __getattr__(name: str) -> Any:
-    """``DASP_HEADER``, the §7.1.2 header as a construct Struct (the reference layout), built on
-    first use: decoding reads the four bytes directly and never imports construct."""
-    if name == "DASP_HEADER":
-        from construct import Const, Int8ul, Struct
-
-        hdr = Struct(
-            "protocol" / Const(DASP_PROTOCOL, Int8ul),
-            "data_id" / Int8ul,
-            "counter" / Int8ul,
-            "reserved" / Int8ul,
-        ).compile()
-        globals()["DASP_HEADER"] = hdr
-        return hdr
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 class DaspCounters:
     """Decision D1 on the receive side: the counter of each data ID should step +1 mod 256; an
     unexpected one is reported (BadSeq) and the expected value is relearned from it."""
@@ -55,16 +37,6 @@ class DaspCounters:
         if last is not None and counter != (last + 1) & 0xFF:
             return (last + 1) & 0xFF
         return None
-
-    def last(self, data_id: int) -> int | None:
-        """The last counter seen for ``data_id`` (None: none yet)."""
-        return self._last.get(data_id)
-
-    def learn(self, data_id: int, counter: int) -> None:
-        """Take ``counter`` as the last one seen: the end of a run that the vectorised dissector
-        checked at once (``dissect.engine_fast_messages``), as :meth:`check` row by row would
-        leave it."""
-        self._last[data_id] = counter
 
     def clear(self) -> None:
         self._last.clear()
@@ -134,8 +106,8 @@ class MessageCodec:
             raise LocalProtocolError(f"{name} is not a DASP message")
         if not 0 <= counter <= 255:
             raise LocalProtocolError(f"DASP counter {counter} outside 0..255")
-        header = bytes((DASP_PROTOCOL, msg.data_id, counter, 0))  # DASP_HEADER (§7.1.2)
-        return bytes(header) + self.encode_payload(msg, fields, e2e)
+        header = bytes((DASP_PROTOCOL, msg.data_id, counter, 0))  # §7.1.2
+        return header + self.encode_payload(msg, fields, e2e)
 
     def encode_other(self, protocol: str, fields: dict[str, Any]) -> bytes:
         """0x41 (``DIAG``) or 0x10 (``BOOT``): the ID byte, then the seed's table (rule A)."""
@@ -171,7 +143,7 @@ class MessageCodec:
         if len(data) < 4:
             out.errors.append(f"BadHdr: DASP message of {len(data)} bytes has no full header")
             return out
-        # §7.1.2 header (DASP_HEADER's fields; classify() has checked the protocol byte)
+        # §7.1.2 header (classify() has checked the protocol byte)
         data_id, counter, reserved = data[1], data[2], data[3]
         out.header = {"data_id": data_id, "counter": counter}
         if reserved != 0:

@@ -1,24 +1,12 @@
 """Many messages of one layout at once: numpy columns, E2E and enum checks over a whole group.
 
-A :class:`VecLayout` is built once per :class:`~eyeq_spi.codec.layout.Layout` from the same
-``FieldInfo`` lists (so from ``specs/``) as the construct codec and the ``struct`` fast path:
-
-- a numpy structured dtype with one field per primitive leaf (array elements and struct-array
-  elements expanded, named as ``dissect --csv`` flattens them: ``visObs[3].physicalState.width``),
-  bitfield containers as one field each and their members cut out with the codec's shifts/masks
-  (D2). ``columns`` turns an ``(n, size)`` uint8 array of payloads into those columns;
-- E2E (D5): every ``CrcPlan``'s covered bytes gathered for all rows and run through a
-  table-driven CRC-16 (two bytes per numpy step, a 65536-entry table built from
-  :func:`eyeq_spi.crc.crc16`); plans of equal length (the 15 ``visObs[i]`` CRCs) share the steps.
-  Long plans with few rows go through ``binascii.crc_hqx`` row by row, which is cheaper there.
-  Rolling counters are checked against the previous row of the group and the ``E2EState``;
-- the enum checks of the dissector (complete ``values`` enums on scalar members, in the order the
-  reference dissector visits them, at most ten per message).
-
-``verify`` and ``enum_errors`` give, row by row, the same strings as
-:func:`eyeq_spi.codec.e2e.verify` and the reference dissector's enum check, and update the
-``E2EState`` the same way; the tests hold them to that for every struct variant.
-"""
+A :class:`VecLayout` is built once per :class:`~eyeq_spi.codec.layout.Layout` from its
+``FieldInfo`` lists: a structured dtype with one field per primitive leaf (named as
+``dissect --csv`` flattens them, bitfields cut out with the codec's shifts, D2); E2E (D5) over
+all rows with a table-driven CRC-16 (two bytes per numpy step; ``binascii.crc_hqx`` row by row
+for long plans with few rows), counters against the previous row and the ``E2EState``; and the
+dissector's enum checks. ``verify`` and ``enum_errors`` give, row by row, the same strings as
+:func:`eyeq_spi.codec.e2e.verify` and the reference dissector, and update the state the same way."""
 
 from __future__ import annotations
 

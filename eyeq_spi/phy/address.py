@@ -1,21 +1,9 @@
 """One address grammar for every command: where a peer is, and whether we listen or connect.
 
-Transfers between processes travel over a byte stream (decision S). Every command names that
-stream the same way:
-
-- ``--listen tcp://HOST:PORT``: we listen; the peer connects. Port 0 takes any free port; the
-  command prints the URL the peer should use (``LISTEN tcp://127.0.0.1:40719``).
-- ``--port URL``: we connect to a peer that is already there: ``tcp://HOST:PORT`` or its
-  pyserial spelling ``socket://HOST:PORT`` (a peer listening on TCP), ``rfc2217://HOST:PORT`` (a
-  serial port behind an RFC 2217 server), or the path of a tty or pty.
-- On SPI lines (``--port`` or ``--listen``): our master and slave channel,
-  ``MASTER_URL,SLAVE_URL`` of ``spidev:///dev/spidevB.C`` or ``ft4222://SERIAL_OR_INDEX``, or a
-  ``bench.toml`` naming them (:mod:`eyeq_spi.phy.bench`). The lines need no listening: the peer
-  is on the wires.
-
-:func:`parse_connect` and :func:`parse_listen` are the only parsers; the CLI
-(``eyeq_spi.cli.args``) and :func:`eyeq_spi.phy.base.open_url` both use them.
-"""
+Transfers between processes travel over a byte stream (decision S): ``--listen tcp://HOST:PORT``
+(port 0: any free port, printed), ``--port URL`` (``tcp://``, ``socket://``, ``rfc2217://``, a tty
+or pty path) and, on SPI lines, ``MASTER_URL,SLAVE_URL`` or a ``bench.toml``
+(:mod:`eyeq_spi.phy.bench`). :func:`parse_connect` and :func:`parse_listen` are the only parsers."""
 
 from __future__ import annotations
 

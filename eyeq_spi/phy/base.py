@@ -1,9 +1,8 @@
 """Physical adapters: something that carries whole SPI transfers to and from the peer.
 
 python-can's pattern: a registry of name -> (module, class), imported only when asked for and
-extensible through the ``eyeq_spi.adapters`` entry-point group. The base class does the shared
-work (statistics, closed-state checks, argument checks) in :meth:`send` / :meth:`recv`; an
-implementation provides ``_send_internal`` and ``_recv_internal``.
+extensible through the ``eyeq_spi.adapters`` entry-point group; the base class checks in
+:meth:`send` / :meth:`recv`, an implementation provides ``_send_internal`` and ``_recv_internal``.
 """
 
 from __future__ import annotations
@@ -21,9 +20,6 @@ from eyeq_spi.errors import AdapterError
 @dataclass
 class AdapterStats:
     transfers_sent: int = 0
-    transfers_received: int = 0
-    bytes_sent: int = 0
-    bytes_received: int = 0
     decode_errors: int = 0  # stream framing that could not be decoded (dropped, counted)
     left_at_link_loss: int = 0  # transfers received from a peer that left, never taken
 
@@ -43,17 +39,12 @@ class Adapter(ABC):
             raise AdapterError("cannot send an empty transfer")
         self._send_internal(bytes(transfer))
         self.stats.transfers_sent += 1
-        self.stats.bytes_sent += len(transfer)
 
     def recv(self, timeout: float | None = 0.0) -> bytes | None:
         """The next transfer, or None if none arrives within ``timeout`` seconds (0 = poll)."""
         if self.closed:
             raise AdapterError("adapter is closed")
-        transfer = self._recv_internal(timeout)
-        if transfer is not None:
-            self.stats.transfers_received += 1
-            self.stats.bytes_received += len(transfer)
-        return transfer
+        return self._recv_internal(timeout)
 
     def close(self) -> None:
         if not self.closed:
@@ -112,11 +103,8 @@ def adapter_class(name: str) -> type[Adapter]:
 
 
 def open_url(url: str) -> Adapter:
-    """Connect an adapter to an address in the grammar of :mod:`eyeq_spi.phy.address`:
-    ``tcp://HOST:PORT``, ``socket://HOST:PORT``, ``rfc2217://HOST:PORT``, a tty or pty path, or
-    any other pyserial URL (``loop://``), or one side on SPI lines
-    (``MASTER_URL,SLAVE_URL`` of ``spidev://`` / ``ft4222://`` channels, or a ``bench.toml``:
-    :mod:`eyeq_spi.phy.bench`). :func:`open_listener` listens."""
+    """Connect an adapter to an address in the grammar of :mod:`eyeq_spi.phy.address` (any
+    pyserial URL, a tty or pty path, or one side on SPI lines); :func:`open_listener` listens."""
     from eyeq_spi.phy.address import is_spi, parse_connect
 
     if is_spi(url):

@@ -1,27 +1,9 @@
-"""Naming one side of a link on SPI lines: a URL pair or a bench file.
+"""Naming one side of a link on SPI lines (seed 004 §5): ``MASTER_URL,SLAVE_URL`` or a bench file.
 
-A side is two channels (seed 004 §5): our **master** channel (we clock our frames out) and our
-**slave** channel (the peer clocks its frames in). Give them as ``MASTER_URL,SLAVE_URL``::
-
-    spidev:///dev/spidev0.0,spidev:///dev/spidev1.0
-    ft4222://0,ft4222://1              (index among the FTDI devices, or a serial number)
-
-or as a bench file, ``bench.toml`` (read with :mod:`tomllib`)::
-
-    [master]
-    url = "ft4222://FT4222A1"
-    [slave]
-    url = "ft4222://FT4222A2"
-    [spi]                 # optional; defaults: specs/bench.yaml and specs/link.yaml
-    clock_hz = 10000000   # §6 baudRate
-    mode = 1              # §6 E_CADS4_SPI_POLARITY_0_PHASE_1: CPOL 0, CPHA 1
-    bit_order = "msb_first"
-    gap_us = 0            # chip select high between two of our transfers, at least
-    queue = 1024          # received transfers held for the link before one is an overrun
-    silence_ms = 1000     # a peer heard and then silent this long is gone (link lost)
-
-Every key is checked; a wrong one is an :class:`~eyeq_spi.errors.UsageError` naming the file.
-"""
+A ``bench.toml`` (read with :mod:`tomllib`, format in docs/bench.md) names the ``[master]`` and
+``[slave]`` URLs and optionally the ``[spi]`` settings (defaults: ``specs/bench.yaml`` and
+``specs/link.yaml``: §6 baudRate, §6 E_CADS4_SPI_POLARITY_0_PHASE_1). Every key is checked; a
+wrong one is an :class:`~eyeq_spi.errors.UsageError` naming the file."""
 
 from __future__ import annotations
 
@@ -128,8 +110,7 @@ def _open_channel(url: str, role: str, settings: SpiSettings) -> Any:
     if scheme.lower() == "spidev":
         from eyeq_spi.phy import spidev_lines
 
-        return (spidev_lines.SpidevMaster if role == "master"
-                else spidev_lines.SpidevSlave)(target, settings)
+        return spidev_lines.SpidevChannel(target, settings)
     from eyeq_spi.phy import ft4222_lines
 
     return (ft4222_lines.Ft4222Master if role == "master"

@@ -1,23 +1,16 @@
 """``eyeq-spi bench doctor``: is a rig fit for a live EyeQ?
 
-Two wirings. **Loop**: one side's master channel wired to its own slave channel (its MOSI,
-CLK and CS to the slave's MOSI, CLK and CS). **Pair**: two sides wired to each other, each
-master to the other's slave, as the PC and the device will be. Frames go through every
-channel: each one is a distinct 128-byte pattern that is answered at once by a 128-byte reply
-on the receiving side's master channel, the way the link answers a DATA frame with an ACK.
-
-What is checked: every byte of every frame and reply; a frame that arrives bit-reversed (the
-two ends disagree on the bit order), one bit late (they disagree on the SPI mode), short (chip
-select rose early) or not at all. What is measured: the reply latency, from a frame read on a
-slave channel to its reply written on the master channel (median, p99, p99.9), and the round
-trip, from a frame's write to its reply's read: what the peer's ackTimeout (seed 004 §6,
-10 ms) judges, with the rig's adapters on both ends of it.
-"""
+Frames go through every channel of a **loop** (one side's master wired to its own slave) or a
+**pair** (two sides, each master to the other's slave); each is answered at once on the receiving
+side's master channel, as the link answers DATA with an ACK. Every byte is checked and the reply
+latency and round trip measured against the peer's
+ackTimeout (seed 004 §6, 10 ms); docs/bench.md."""
 
 from __future__ import annotations
 
 import statistics
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -73,12 +66,9 @@ def quantiles_ms(values: list[float]) -> dict[str, float | int]:
 class Tally:
     """What came through, by diagnosis, and the latencies read."""
 
-    outcomes: dict[str, int] = field(default_factory=dict)
+    outcomes: Counter[str] = field(default_factory=Counter)
     reply: list[float] = field(default_factory=list)
     round_trip: list[float] = field(default_factory=list)
-
-    def add(self, outcome: str) -> None:
-        self.outcomes[outcome] = self.outcomes.get(outcome, 0) + 1
 
 
 def _exchange(sender: SpiAdapter, receiver: SpiAdapter, index: int, tally: Tally) -> None:
@@ -89,7 +79,7 @@ def _exchange(sender: SpiAdapter, receiver: SpiAdapter, index: int, tally: Tally
     sender.send(frame)
     got = receiver.recv(ANSWER_WAIT)
     outcome = diagnose(frame, got)
-    tally.add(outcome)
+    tally.outcomes[outcome] += 1
     if got is None:
         return
     receiver.send(reply)  # at once, as the link's ACK
@@ -97,7 +87,7 @@ def _exchange(sender: SpiAdapter, receiver: SpiAdapter, index: int, tally: Tally
     back = sender.recv(ANSWER_WAIT)
     if back is not None:
         tally.round_trip.append(sender.last_arrival - start)
-    tally.add(diagnose(reply, back))
+    tally.outcomes[diagnose(reply, back)] += 1
 
 
 def _drain(adapter: SpiAdapter) -> None:

@@ -1,19 +1,11 @@
 """FTDI FT4222H channels (``ft4222://SERIAL_OR_INDEX``), with the ``ft4222`` package.
 
-One chip is one channel: an FT4222H is an SPI master or an SPI slave, never both, so one side of
-a link takes two chips. The master clocks each transfer with ``spiMaster_SingleWrite(...,
-isEndTransaction=True)``: chip select low for exactly that transfer. The clock is the 80 MHz
-system clock divided by the smallest power of two that does not exceed the asked rate (10 MHz:
-divide by 8).
-
-The slave runs in raw mode (``SPI_SLAVE_NO_PROTOCOL``: no FTDI framing on the wire). The chip
-then hands over a stream of bytes without chip-select edges, so the channel cuts it into
-transfers: 128 bytes make one (§6), and bytes followed by ``idle`` seconds of silence make a
-short one (chip select rose early), which reaches the link as short. The chip has no
-interrupt the package exposes: the channel polls its receive count every ``POLL`` seconds,
-far inside the 10 ms ackTimeout. The FT4222H bit order is fixed most significant bit first:
-an LSB-first wire is served by the adapter's table.
-"""
+One chip is one channel (master or slave, never both). The master clocks each transfer with chip
+select low for exactly that transfer, at the 80 MHz system clock divided by a power of two. The
+slave runs in raw mode (``SPI_SLAVE_NO_PROTOCOL``), which has no chip-select edges: 128 bytes make
+a transfer (§6), and bytes followed by ``idle`` seconds of silence a short one. The chip is polled
+every ``POLL`` seconds, far inside the 10 ms ackTimeout. It sends most
+significant bit first only."""
 
 from __future__ import annotations
 
@@ -79,14 +71,23 @@ def clock_divider(clock_hz: int) -> SPIMaster.Clock:
     return SPIMaster.Clock(exponent)
 
 
-class Ft4222Master:
-    """Our master channel on one FT4222H (chip select SS0)."""
+class _Ft4222Channel:
+    lsb_first = False  # the FT4222H sends most significant bit first only
 
-    lsb_first = False
-
-    def __init__(self, target: str, settings: SpiSettings) -> None:
+    def __init__(self, target: str) -> None:
         self.name = f"ft4222://{target}"
         self.chip = open_chip(target)
+
+    def close(self) -> None:
+        with contextlib.suppress(ft4222.FT2XXDeviceError):
+            self.chip.close()
+
+
+class Ft4222Master(_Ft4222Channel):
+    """Our master channel on one FT4222H (chip select SS0)."""
+
+    def __init__(self, target: str, settings: SpiSettings) -> None:
+        super().__init__(target)
         try:
             self.chip.setClock(ft4222.SysClock["CLK_80"])
             self.chip.spiMaster_Init(SPIMaster.Mode.SINGLE, clock_divider(settings.clock_hz),
@@ -102,23 +103,16 @@ class Ft4222Master:
         except ft4222.FT2XXDeviceError as exc:
             raise AdapterError(f"{self.name}: write failed: {exc}") from exc
 
-    def close(self) -> None:
-        with contextlib.suppress(ft4222.FT2XXDeviceError):
-            self.chip.close()
 
-
-class Ft4222Slave:
+class Ft4222Slave(_Ft4222Channel):
     """Our slave channel on one FT4222H in raw slave mode (see the module doc). The chip does
     not report lost bytes: a transfer cut by an overrun reaches the link short (counted, L8)."""
 
-    lsb_first = False
-
     def __init__(self, target: str, settings: SpiSettings, *, idle: float = IDLE) -> None:
-        self.name = f"ft4222://{target}"
         self.idle = idle
         self.overruns = 0
         self._bytes = bytearray()
-        self.chip = open_chip(target)
+        super().__init__(target)
         try:
             self.chip.spiSlave_InitEx(SPISlave.Protocol.SPI_SLAVE_NO_PROTOCOL)
             self.chip.spiSlave_SetMode(SPI.Cpol(settings.mode >> 1), SPI.Cpha(settings.mode & 1))
@@ -151,7 +145,3 @@ class Ft4222Slave:
         out = bytes(self._bytes[:count])
         del self._bytes[:count]
         return out
-
-    def close(self) -> None:
-        with contextlib.suppress(ft4222.FT2XXDeviceError):
-            self.chip.close()

@@ -29,11 +29,8 @@ class PtyAdapter(StreamAdapter):
         os.set_blocking(self.master, False)  # no write may block past --duration
 
     def accept(self, timeout: float | None = None) -> bool:
-        """Wait until a peer opens the slave side (True), or ``timeout`` seconds (False).
-
-        We close our own slave descriptor; from then on the master reports POLLHUP until
-        somebody else holds the slave open.
-        """
+        """Wait until a peer opens the slave side (True), or ``timeout`` seconds (False). Our
+        own slave descriptor is closed: the master reports POLLHUP until another holds it."""
         if self._slave_open:
             os.close(self.slave)
             self._slave_open = False

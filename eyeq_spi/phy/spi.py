@@ -1,30 +1,10 @@
 """One side of a link on real SPI lines: two channels (seed 004 §5), a byte mover under the link.
 
-Our **master channel** clocks our frames out (chip select low for one transfer, high after
-it); our **slave channel** takes the transfers the peer clocks in. :class:`SpiAdapter` makes the
-pair look like every other adapter: ``send`` is one chip-select-framed transfer on the master
-channel, ``recv`` the next transfer the slave channel received, as long as chip select was low
-(a short one stays short, so the link counts it, decision L8).
-
-What the adapter adds, and nothing else (the link's timers stay the link's):
-
-- the bit order of each byte on the wire (``specs/bench.yaml`` ``spi.bit_order``): in the
-  controller where it can (the channel says so), by a 256-entry table otherwise;
-- a minimum chip-select-high time between two transfers of the master channel (``gap``);
-- a reader thread blocked in the slave channel's read, so that a frame is in the adapter as soon
-  as the driver has it, and a writer thread for the master channel, so that the link's loop
-  hands an ACK over and goes on (it never waits for a USB round trip);
-- the end of a peer: SPI lines have no disconnect, so a peer that has been heard and then
-  sends nothing for ``silence`` seconds is gone (:class:`LinkLostError`, once); its next
-  transfer is a new peer (:meth:`SpiAdapter.accept`). A channel whose driver fails (a USB
-  adapter unplugged) loses the link for good;
-- counted events: transfers lost because nobody took them in time (``overruns``), and the
-  reply latency: from a transfer read on the slave channel to the first master transfer written
-  after the link took it (the ACK of a DATA frame), the figure the peer's ackTimeout judges.
-
-The drivers (``spidev``, ``ft4222``) sit behind the small :class:`MasterChannel` and
-:class:`SlaveChannel` protocols, in their own modules.
-"""
+:class:`SpiAdapter` sends each transfer chip-select-framed on our master channel and returns what
+the peer clocked into our slave channel (a short one stays short: decision L8). It adds the bit
+order on the wire, the chip-select gap, a reader and a writer thread (the link's loop never waits
+for a USB round trip), the end of a silent peer and the counted overruns and reply latency
+(docs/bench.md). The drivers sit behind :class:`MasterChannel` and :class:`SlaveChannel`."""
 
 from __future__ import annotations
 
@@ -192,11 +172,9 @@ class SpiAdapter(Adapter):
         return self._lost is None
 
     def drop(self) -> None:
-        """End the peer's session the only way SPI lines can (they have no hang-up): say
-        nothing for longer than ``silence`` (after which a peer takes the link as lost, as we
-        do), and drop what it sends meanwhile (it belongs to the session that ended). Then the
-        lines are fresh again: :meth:`accept` takes them at once, since a host that started
-        over waits for the EyeQ's boot status and sends nothing first."""
+        """End the peer's session the only way SPI lines can (they have no hang-up): say nothing
+        for longer than ``silence`` and drop what it sends meanwhile; then :meth:`accept` takes
+        the lines at once (a host that starts over waits for the EyeQ's boot status)."""
         self._start()
         with contextlib.suppress(LinkLostError):
             self.wait_sent()
@@ -207,10 +185,9 @@ class SpiAdapter(Adapter):
         self._heard, self._quiet, self._pending_reply = None, False, None
 
     def _start(self) -> None:
-        """Start the reader and writer threads on first use, not when opened, and at the
-        scheduling policy the run's loop took by then (``--rt-priority``): the ACK path goes
-        through them. (A real-time policy taken with SCHED_RESET_ON_FORK is not inherited by
-        a new thread, so each thread takes it itself.)"""
+        """Start the reader and writer threads on first use, at the scheduling policy the run's
+        loop took by then (``--rt-priority``; each thread takes it itself, as a policy taken
+        with SCHED_RESET_ON_FORK is not inherited)."""
         if not self._started:
             self._started = True
             self._policy = _policy_of_caller()

@@ -1,12 +1,8 @@
 """Linux spidev channels (``spidev:///dev/spidevB.C``), with the ``spidev`` package.
 
-The same device node is a master channel on an SPI controller in master mode and a slave
-channel on a controller the device tree puts in slave mode (the Linux SPI slave framework,
-``spi-slave``); which one it is, the bench file says. The master clocks each transfer with
-``writebytes2`` (chip select low for the whole transfer). The slave reads with ``read(2)`` on the
-device's descriptor rather than ``readbytes``: ``readbytes`` refuses a short read, and a short
-transfer (chip select rose early) must reach the link as short (decision L8).
-"""
+A master channel writes each transfer with ``writebytes2`` (chip select low for all of it); a
+slave channel (the Linux SPI slave framework) reads with ``read(2)``, since ``readbytes`` refuses a
+short read and a short transfer must reach the link as short (decision L8)."""
 
 from __future__ import annotations
 
@@ -51,33 +47,21 @@ def _open(path: str, settings: SpiSettings) -> tuple[spidev.SpiDev, bool]:
     return dev, lsb_first
 
 
-class SpidevMaster:
-    """Our master channel on ``path``."""
+class SpidevChannel:
+    """Our master channel (``write``) or slave channel (``read``, on a controller in SPI slave
+    mode) on ``path``. The slave framework does not report a transfer lost while no read was
+    pending, so ``overruns`` stays 0 here; the adapter counts its own."""
 
     def __init__(self, path: str, settings: SpiSettings) -> None:
         self.name = f"spidev://{path}"
         self.dev, self.lsb_first = _open(path, settings)
+        self.overruns = 0
 
     def write(self, transfer: bytes) -> None:
         try:
             self.dev.writebytes2(transfer)
         except (OSError, SystemError) as exc:  # SystemError: spidev's short write
             raise AdapterError(f"{self.name}: write failed: {exc}") from exc
-
-    def close(self) -> None:
-        with contextlib.suppress(OSError):
-            self.dev.close()
-
-
-class SpidevSlave:
-    """Our slave channel on ``path`` (a controller in SPI slave mode). The framework does not
-    report a transfer lost while no read was pending, so ``overruns`` stays 0 here; the
-    adapter counts its own."""
-
-    def __init__(self, path: str, settings: SpiSettings) -> None:
-        self.name = f"spidev://{path}"
-        self.dev, self.lsb_first = _open(path, settings)
-        self.overruns = 0
 
     def read(self, timeout: float) -> bytes | None:
         try:

@@ -1,12 +1,6 @@
-"""TCP listener adapter (``--listen tcp://HOST:PORT``): serves a peer that connects with
-``--port tcp://HOST:PORT`` (pyserial's ``socket://HOST:PORT``).
-
-It accepts one connection (waiting up to ``timeout`` seconds for it on the first send/recv, or in
-:meth:`accept`), then carries COBS-framed transfers like the serial adapter. A new connection
-replaces a closed one, so a peer may reconnect. A peer that leaves raises
-:class:`LinkLostError` once;
-the next call waits for a new peer. No write blocks longer than ``write_timeout``.
-"""
+"""TCP listener adapter (``--listen tcp://HOST:PORT``) for a peer that connects with
+``--port tcp://HOST:PORT``: one connection at a time, COBS-framed transfers as the serial adapter.
+A peer that leaves raises :class:`LinkLostError` once; the next call waits for a new peer."""
 
 from __future__ import annotations
 

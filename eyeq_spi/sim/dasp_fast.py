@@ -21,8 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from eyeq_spi.codec.e2e import E2EState
-from eyeq_spi.codec.e2e import compile_protector as compile_protector
+from eyeq_spi.codec.e2e import E2EState, protect
 from eyeq_spi.codec.layout import INT_RANGE, Layout
 from eyeq_spi.codec.layout_fast import FMT
 from eyeq_spi.codec.message import DASP_PROTOCOL
@@ -190,7 +189,6 @@ class DaspPacker:
         self.cache: dict[Any, Any] = {}
         self.root = StructView(self.buf, layout, 0, True, self.cache)
         self.root.template = self.template
-        self._protect = compile_protector(layout)
         self._head = bytes((DASP_PROTOCOL, data_id))
 
     @classmethod
@@ -211,5 +209,5 @@ class DaspPacker:
         """§7.1.2 header (protocol, data ID, counter, reserved 0) and the protected payload."""
         if not 0 <= counter <= 255:
             raise LocalProtocolError(f"DASP counter {counter} outside 0..255")
-        self._protect(self.buf, e2e)
+        protect(self.buf, self.layout, e2e)
         return self._head + bytes((counter, 0)) + self.buf

@@ -1,30 +1,18 @@
 """Application-layer tables of the Lua dissector (decisions A, M, D), for every SW release.
 
-Nothing here knows an offset by heart: every struct layout comes from
-:class:`eyeq_spi.codec.message.MessageCodec` (which compiles ``specs/structs``) for each release
-of ``specs/sw_versions.yaml``, every enum from ``specs/enums``, every MESP function from
-``specs/mesp.yaml``. The dissector picks the release at run time (see
-:mod:`eyeq_spi.wireshark.lua_runtime`), so one file reads captures of every release.
+Every layout comes from :class:`eyeq_spi.codec.message.MessageCodec`, every enum from
+``specs/enums``, every MESP function from ``specs/mesp.yaml``. Generated Lua:
 
-Generated Lua:
-
-- ``S["<struct>#<n>"]`` — one table per distinct layout (the releases that share a layout share
-  it), one row per member, in layout order:
+- ``S["<struct>#<n>"]``: one table per distinct layout, one row per member
   ``{offset, element size, count (0 = scalar), field, child layout or false, label, flags,
-  bits, value names}``. A bitfield's row has its container's offset and size; its field carries
-  the mask (D2). ``bits`` (``{shift, mask}``) is set where the field has no mask because
-  another release lays the member out differently: the value is then computed. ``value names``
-  likewise labels a value whose enum differs between releases.
-- ``MSG[i]`` — ``{name=, protocol=, struct=, size=, field=}``; ``DASP_R[release][data_id]`` and
-  ``OTHER_R[release][first byte]`` point at them; ``SIZES[release][data_id]`` is a DASP
-  payload's size, for the release fit (decision D4).
-- ``MESP[service * 256 + function]`` — ``{name=, req={{type, field, label}...}, rep={...}}``.
+  bits, value names}``; a bitfield row has its container's offset and size and its field the
+  mask (D2), or ``bits = {shift, mask}`` and ``value names`` where releases differ;
+- ``MSG[i]``, ``DASP_R[release][data_id]``, ``OTHER_R[release][first byte]`` and
+  ``SIZES[release][data_id]`` (the release fit, D4);
+- ``MESP[service * 256 + function]``: ``{name=, req={{type, field, label}...}, rep={...}}``.
 
-Filter names: every member is ``eyeq_spi.<struct type>.<member>``, one field per
-(struct, member) for every release and every array element; where releases differ the field
-takes the widest integer type and drops what they do not share (mask, enum); a flag of a flags
-enum is ``eyeq_spi.<struct>.<member>.<flag>``; a payload is ``eyeq_spi.<payload struct>``.
-"""
+Filter names are ``eyeq_spi.<struct type>.<member>`` (docs/wireshark.md); where releases differ
+the field takes the widest integer type and drops what they do not share (mask, enum)."""
 
 from __future__ import annotations
 
@@ -122,7 +110,6 @@ class AppGenerator:
         self.vs = vs
         self.out = AppTables()
         self.data_id_names: dict[int, str] = {}
-        self.mesp_masks = (TAG_MASK, REPLY_BIT)
         self._specs: dict[str, list[MemberField]] = {}
         self._merged: dict[str, Merged] = {}
         self._struct_keys: dict[str, str] = {}  # emitted rows text -> S key
@@ -156,7 +143,7 @@ class AppGenerator:
             if info.bits is not None:
                 raise SpecError(f"specs/structs {lay.name}.{info.name}: a float cannot be a "
                                 "bitfield")
-            return MemberField(FLOAT_FIELD[info.type][0], info.name, self._desc(info))
+            return MemberField(FLOAT_FIELD[info.type], info.name, self._desc(info))
         if info.type not in INT_FIELD:
             raise SpecError(f"specs/structs {lay.name}.{info.name}: no Wireshark field type for "
                             f"{info.type}")
@@ -324,12 +311,6 @@ class AppGenerator:
 
     def mesp_fields(self) -> None:
         """MESP header fields (M1) and parameter fields (M2, M3)."""
-        raw = self.cat.raw["mesp.yaml"]["mesp"]
-        counter_mask = (1 << int(raw["tag_counter_bits"])) - 1
-        reply_mask = 1 << int(raw["tag_reply_bit"])
-        if counter_mask != TAG_MASK or reply_mask != REPLY_BIT:  # the codec must agree
-            raise SpecError("specs/mesp.yaml mesp.tag_counter_bits, tag_reply_bit: disagree with "
-                            "eyeq_spi.codec.mesp")
         add = self.fields.add
         add("mesp.service", "uint8", lua_str("Service"), "base.HEX")
         add("mesp.protocol", "uint8", lua_str("Protocol"), "base.HEX")
@@ -337,8 +318,8 @@ class AppGenerator:
         add("mesp.function", "uint8", lua_str("Function"), "base.HEX")
         add("mesp.tag", "uint8", lua_str("Tag"), "base.HEX")
         add("mesp.counter", "uint8", lua_str("Counter"), "base.DEC", "nil",
-            lua_int(counter_mask))
-        add("mesp.reply", "bool", lua_str("Reply"), "8", "nil", lua_int(reply_mask))
+            lua_int(TAG_MASK))
+        add("mesp.reply", "bool", lua_str("Reply"), "8", "nil", lua_int(REPLY_BIT))
         add("mesp.name", "string", lua_str("Function name"))
         ret = self.vs.add("mesp_ret", {int(k): str(v) for k, v in self.cat.mesp_ret.items()})
         add("mesp.ret", "uint32", lua_str("ret"), "base.DEC", ret)
@@ -347,7 +328,6 @@ class AppGenerator:
         for fn in self.cat.mesp:
             for prm in (*fn.request, *fn.reply):
                 types.setdefault(prm.name, set()).add(prm.type)
-        self.mesp_masks = (counter_mask, reply_mask)
         lines: list[str] = []
         for fn in self.cat.mesp:
             def rows(params: tuple[MespParam, ...], fn_name: str = fn.name) -> str:
@@ -370,10 +350,8 @@ class AppGenerator:
         if prm.type in MESP_PARAM_FIELD:
             return self.fields.add(key, MESP_PARAM_FIELD[prm.type][0], lua_str(prm.name),
                                    "base.DEC")
-        if prm.type == "string":
-            return self.fields.add(key, "string", lua_str(prm.name))
-        if prm.type == "bytes":
-            return self.fields.add(key, "bytes", lua_str(prm.name))
+        if prm.type in ("string", "bytes"):  # ProtoField.string, ProtoField.bytes
+            return self.fields.add(key, prm.type, lua_str(prm.name))
         raise SpecError(f"specs/mesp.yaml parameter {prm.name}: unknown type {prm.type}")
 
 

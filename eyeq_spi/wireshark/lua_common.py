@@ -1,14 +1,12 @@
-"""Helpers shared by the Lua generators: literals, the ProtoField and value_string registries.
-
-Everything emitted here is Lua 5.2 as Wireshark 4.0 embeds it: no integer division, no bitwise
-operators (the generated code uses Wireshark's ``bit`` library instead).
-"""
+"""Helpers shared by the Lua generators (Lua 5.2, as Wireshark 4.0 embeds it): literals, the
+ProtoField and value_string registries."""
 
 from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
 
+from eyeq_spi.codec.layout import PRIMITIVE
 from eyeq_spi.errors import SpecError
 
 PROTO = "eyeq_spi"
@@ -17,16 +15,10 @@ PROTO = "eyeq_spi"
 _ABBREV_OK = re.compile(r"^[A-Za-z0-9_.-]+$")
 _NAME_BAD = re.compile(r"[^A-Za-z0-9_-]")
 
-INT_FIELD = {
-    "uint8": "uint8", "uint16": "uint16", "uint32": "uint32", "uint64": "uint64",
-    "int8": "int8", "int16": "int16", "int32": "int32", "int64": "int64",
-    "bool": "uint8",  # D2: bool is one byte; shown as its value so 2..255 stay visible
-}
-FLOAT_FIELD = {"real32": ("float", 4), "real64": ("double", 8)}
-INT_SIZE = {
-    "uint8": 1, "uint16": 2, "uint32": 4, "uint64": 8,
-    "int8": 1, "int16": 2, "int32": 4, "int64": 8, "bool": 1,
-}
+FLOAT_FIELD = {"real32": "float", "real64": "double"}
+INT_SIZE = {name: size for name, (_, size) in PRIMITIVE.items() if name not in FLOAT_FIELD}
+# D2: bool is one byte; shown as its value so 2..255 stay visible
+INT_FIELD = {name: "uint8" if name == "bool" else name for name in INT_SIZE}
 
 
 def lua_str(text: str) -> str:
@@ -65,20 +57,15 @@ def value_table(values: dict[int, str]) -> str:
 
 @dataclass
 class FieldRegistry:
-    """Every ProtoField of the dissector, in registration order, keyed by filter name.
-
-    A field is referenced from generated Lua as ``F["<abbrev without eyeq_spi.>"]``.
-    """
+    """Every ProtoField of the dissector, in registration order, keyed by filter name and
+    referenced from generated Lua as ``F["<abbrev without eyeq_spi.>"]``."""
 
     lines: list[str] = field(default_factory=list)
     abbrevs: dict[str, str] = field(default_factory=dict)  # key -> constructor call
 
     def add(self, key: str, ctor: str, *args: str) -> str:
-        """Define ``eyeq_spi.<key>`` with ``ProtoField.<ctor>(abbrev, args...)``.
-
-        Defining the same key twice with the same arguments returns the existing reference; with
-        different arguments it is an error in the generator.
-        """
+        """Define ``eyeq_spi.<key>`` with ``ProtoField.<ctor>(abbrev, args...)`` (again with the
+        same arguments: the existing reference; with others: a SpecError)."""
         abbrev = f"{PROTO}.{key}"
         if not _ABBREV_OK.match(abbrev):
             raise SpecError(f"specs/: {abbrev!r} is not a valid Wireshark filter name")

@@ -1,36 +1,22 @@
-"""Generate the Wireshark Lua dissector of eyeq-spi captures from ``specs/``.
+"""Generate the Wireshark Lua dissector of eyeq-spi captures from ``specs/`` (docs/wireshark.md).
 
-``generate_lua()`` returns one self-contained Lua file for Wireshark/tshark 4.0 and later (Lua 5.2,
-bit operations through Wireshark's ``bit`` library). It registers ``eyeq_spi`` on the
-``wtap_encap`` table for the capture's link type (``specs/capture.yaml``: LINKTYPE_USER0), so a
-capture opens with no set-up::
-
-    tshark -X lua_script:eyeq_spi.lua -r capture.pcapng
-
-Sources: the link and transport constants from ``specs/link.yaml`` (L1-L8, T1-T6), interfaces
-from ``specs/capture.yaml``, MESP from ``specs/mesp.yaml`` (M1-M3) and every DASP/0x41/0x10 layout
-from :class:`eyeq_spi.codec.message.MessageCodec` for every SW release of
-``specs/sw_versions.yaml``: the dissector reads each capture with its own release (the
-preference ``eyeq_spi.sw``, else the capture's ``eyeq-spi sw=<release>`` comment, else the
-release the EyeQ reports, else the one whose DASP layouts fit, decision D4). Fixed filter
-names: ``eyeq_spi.dir``, ``.frame_type``, ``.num``, ``.rsp``, ``.crc``,
-``.crc_ok``, ``.nak_reason``, ``.transport``, ``.transfer_id``, ``.total``, ``.size``,
-``.bad_length``, ``.sw``, ``.sw_source``; ``eyeq_spi.mesp.*``, ``eyeq_spi.dasp.*``; payload members
-``eyeq_spi.<struct>.<member>`` (see :mod:`eyeq_spi.wireshark.lua_app`).
-"""
+``generate_lua()`` returns one self-contained Lua file for Wireshark 4.0+ (Lua 5.2) registered for
+the capture's link type (``specs/capture.yaml``), from ``specs/link.yaml`` (L1-L8, T1-T6),
+``specs/mesp.yaml`` (M1-M3) and every layout of every SW release; the dissector picks each
+capture's release at run time (decision D4)."""
 
 from __future__ import annotations
 
 import re
-from typing import Any
 
 from eyeq_spi.capture.pcapng_io import release_sniff_transfers
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.catalog.messages import SwKey, sw_release_text
 from eyeq_spi.catalog.schema import sw_key
-from eyeq_spi.codec.mesp import MESP_PROTOCOL
+from eyeq_spi.codec.mesp import MESP_PROTOCOL, REPLY_BIT, TAG_MASK
 from eyeq_spi.codec.message import DASP_PROTOCOL, MessageCodec
 from eyeq_spi.errors import SpecError
+from eyeq_spi.link.frame import FrameCodec
 from eyeq_spi.wireshark.lua_app import MESP_PARAM_FIELD, AppGenerator
 from eyeq_spi.wireshark.lua_common import (
     FieldRegistry,
@@ -79,31 +65,20 @@ def inline_constants(text: str, inline: dict[str, str]) -> str:
     def value(match: re.Match[str]) -> str:
         key = match.group(0)
         if key not in inline:
-            raise ValueError(f"the Lua runtime uses {key}, which the generator does not define")
+            raise SpecError(f"the Lua runtime uses {key}, which the generator does not define")
         return inline[key]
     return re.sub(r"\bC\.[A-Z_]+\b|@HDR\.[A-Z]+@", value, text)
 
 
-def _header_fields(frame: dict[str, Any]) -> dict[str, tuple[int, int]]:
-    """name -> (shift, mask) of the header word (L1), as eyeq_spi.link.frame computes them."""
-    header = frame["header"]
-    if header["word"] != "uint32le":
-        raise SpecError(f"specs/link.yaml frame.header.word: {header['word']!r}: the Lua "
-                        "generator reads uint32le only")
-    fields = [(str(n), int(w)) for n, w in header["fields"]]
-    if header["bit_order"] == "msb_first":
-        fields = fields[::-1]
-    elif header["bit_order"] != "lsb_first":
-        raise SpecError(f"specs/link.yaml frame.header.bit_order: unknown order "
-                        f"{header['bit_order']!r}")
-    out: dict[str, tuple[int, int]] = {}
-    pos = 0
-    for name, width in fields:
-        out[name] = (pos, (1 << width) - 1)
-        pos += width
-    if pos != 32 or set(out) != {"D", "R", "RSP", "NUM"}:
-        raise SpecError("specs/link.yaml frame.header.fields: the header word must hold "
-                        "exactly D, R, RSP and NUM in 32 bits")
+def _header_fields() -> dict[str, tuple[int, int]]:
+    """name -> (shift, mask) of the header word (L1), read off the link's frame codec."""
+    codec = FrameCodec()
+    masks = codec.unpack_header(0xFFFFFFFF)
+    out = {}
+    for index, name in enumerate(("D", "R", "RSP", "NUM")):
+        one = [0, 0, 0, 0]
+        one[index] = 1
+        out[name] = (codec.pack_header(*one).bit_length() - 1, masks[index])
     return out
 
 
@@ -139,7 +114,7 @@ class LuaGenerator:
         choices = ['{1, "auto", 0}'] + [
             f"{{{i + 1}, {lua_str(r)}, {i}}}" for i, r in enumerate(rel, 1)]
         lines.append("local PREF_CHOICES = {" + ", ".join(choices) + "}")
-        fn = next(offsets for offsets in self.cat.mesp if offsets.name == VERSIONS_FUNCTION)
+        fn = next(function for function in self.cat.mesp if function.name == VERSIONS_FUNCTION)
         off, where = 0, {}
         for prm in fn.reply:
             if prm.type not in MESP_PARAM_FIELD:
@@ -226,7 +201,7 @@ class LuaGenerator:
         timeout = repr(float(tr["reassembly_timeout"]))
         lines.append(f"  REASSEMBLY_TIMEOUT = {timeout},")
         lines.append("}")
-        hdr = _header_fields(frame)
+        hdr = _header_fields()
         self.inline = {f"C.{k}": str(v) for k, v in consts.items()}
         self.inline["C.REASSEMBLY_TIMEOUT"] = timeout
         self.inline.update({f"@HDR.{k}@": header_expr("h", sh, m) for k, (sh, m) in hdr.items()})
@@ -246,10 +221,7 @@ class LuaGenerator:
                            for name in sorted(RECEIVER))
         lines.append(f"local RX_LIMIT = {{{limits}}}")
         lines.append(f"local DASP_PROTOCOL = {lua_int(DASP_PROTOCOL)}")
-        mesp_protocol = int(self.cat.raw["mesp.yaml"]["mesp"]["protocol"])
-        if mesp_protocol != MESP_PROTOCOL:
-            raise SpecError("specs/mesp.yaml mesp.protocol: disagrees with eyeq_spi.codec.mesp")
-        lines.append(f"local MESP_PROTOCOL = {lua_int(mesp_protocol)}")
+        lines.append(f"local MESP_PROTOCOL = {lua_int(MESP_PROTOCOL)}")
         widths = ", ".join(f"{k} = {w}" for k, (_, w) in MESP_PARAM_FIELD.items())
         lines.append(f"local MESP_WIDTH = {{{widths}}}")
         return lines
@@ -265,7 +237,7 @@ class LuaGenerator:
     def link_fields(self) -> None:
         add = self.fields.add
         spec = self.spec
-        hdr = _header_fields(spec["frame"])
+        hdr = _header_fields()
         kinds = {int(v): str(k) for k, v in spec["kinds"].items()}
         naks = {int(k): str(v["name"]) for k, v in spec["nak_reasons"].items()}
         types = {int(v): str(k) for k, v in spec["transport"]["types"].items()}
@@ -332,8 +304,7 @@ class LuaGenerator:
                            f"{lua_str(summary)}, expert.group.{group}, "
                            f"expert.severity.{severity}),")
         experts.append("}")
-        counter_mask, reply_mask = self.app.mesp_masks
-        spare_mask = 0xFF & ~(counter_mask | reply_mask)
+        spare_mask = 0xFF & ~(TAG_MASK | REPLY_BIT)
         parts = [
             f"-- EyeQ4 SPI dissector for Wireshark 4.0+ (Lua 5.2), generated by\n"
             f"-- eyeq_spi.wireshark.lua_gen from specs/ for SW "
@@ -369,7 +340,7 @@ class LuaGenerator:
             "",
             "-- messages (decision A; specs/messages.yaml, specs/mesp.yaml)",
             "local MSG, DASP_R, OTHER_R, SIZES, MESP = {}, {}, {}, {}, {}",
-            f"local MESP_REPLY_MASK = {lua_int(reply_mask)}",
+            f"local MESP_REPLY_MASK = {lua_int(REPLY_BIT)}",
             f"local MESP_TAG_SPARE = {lua_int(spare_mask)}",
             *self.app.out.messages,
             inline_constants(RUNTIME_ITEMS, self.inline),

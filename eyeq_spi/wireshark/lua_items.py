@@ -1,21 +1,10 @@
 """The first part of the generated Lua's fixed code: items, the struct walker, the SW release.
 
-Constants come from :mod:`eyeq_spi.wireshark.lua_gen`; the rest of the dissector follows in
-:mod:`eyeq_spi.wireshark.lua_runtime`.
-
-A tree that will not be shown (``tree.visible`` false: summary lines, ``-q``, statistics, the
-first pass) only needs the items a filter, a column or a tap references. Wireshark returns the
-parent instead of a new item for an unreferenced field; the first add of each field in a pass
-learns that (``REF``), later packets skip the field without calling Wireshark, a group of fields
-added together is skipped with one look-up (``SKIP``), and a payload is walked only while one of
-its members is referenced (``ANY``).
-
-The release (decision D4): the preference ``eyeq_spi.sw``, else the capture's
-``eyeq-spi sw=<release>`` packet comment, else what the EyeQ reports (GetEyeQVersions reply,
-boot status, EYEQ_BASE_DIAG_STATUS_MSG), else the release whose DASP layouts fit the payload
-lengths, else the newest; evidence from the first ``SNIFF_RECORDS`` transfers, as
-``eyeq-spi dissect`` takes it.
-"""
+A tree that will not be shown only needs the items a filter, column or tap references: the first
+add of each field in a pass learns whether Wireshark wants it (``REF``), a group is skipped with
+one look-up (``SKIP``) and a payload walked only while one of its members is referenced (``ANY``).
+The release (decision D4) is chosen as ``eyeq-spi dissect`` does, from the first
+``SNIFF_RECORDS`` transfers."""
 
 from __future__ import annotations
 

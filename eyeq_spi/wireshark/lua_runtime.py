@@ -1,20 +1,10 @@
 """The second part of the generated Lua's fixed code: messages, transport and link layer.
 
-It holds no protocol numbers: every constant it uses (``C``, ``KIND``, ``CRC_BY_KIND``,
-``TTYPE``, ``DIRS``, ``RX_LIMIT``, ``S``, ``MSG``, ``DASP_R``, ``OTHER_R``, ``MESP``,
-``RELEASES`` ...) is emitted from ``specs/`` by :mod:`eyeq_spi.wireshark.lua_gen`, and the item
-helpers, the walker and the release choice by :mod:`eyeq_spi.wireshark.lua_items`, before this
-text. The generator writes each ``C.NAME`` as its value and each ``@HDR.<field>@`` as the
-arithmetic that takes the field out of the header word ``h``. Lua 5.2 only: bit operations go
-through Wireshark's ``bit`` library, one C call each, so the per-frame path avoids them.
-
-Speed (the dissector runs once per transfer, 2,300 times per second of a full-load capture):
-the CRC is unrolled from ``specs/link.yaml`` (:mod:`eyeq_spi.wireshark.lua_crc`); the Info
-column is built only when this dissection fills columns; state is kept by frame number in flat
-tables, set once on the first pass (the message a frame completed, the previous fragment of each
-fragment, the completing frame of each fragment, the frames whose CRC was bad); later passes only
-read them.
-"""
+It holds no protocol numbers: every constant (``C``, ``KIND``, ``S``, ``MSG``, ``MESP`` ...) is
+emitted from ``specs/`` by :mod:`eyeq_spi.wireshark.lua_gen` before this text, which writes each
+``C.NAME`` as its value and each ``@HDR.<field>@`` as arithmetic on the header word ``h`` (Lua
+5.2's ``bit`` library costs a C call per operation). State is kept by frame number in flat
+tables, set on the first pass and only read on later passes."""
 
 from __future__ import annotations
 
