@@ -63,9 +63,8 @@ class _Open:
     transfer_id: int
     total: int
     buf: bytearray
-    last_num: int
     deadline: float
-    nums: list[int] = field(default_factory=list)
+    nums: list[int]  # the NUMs of its frames so far
 
 
 @dataclass
@@ -168,7 +167,7 @@ class TransportConnection:
             if transfer is not None and data[1] != transfer.transfer_id:
                 self._abort("wrong_id")
                 return NakReason.FORMAT_ERROR
-            if transfer is not None and num == (transfer.last_num + 1) % SEQ_MODULO:
+            if transfer is not None and num == (transfer.nums[-1] + 1) % SEQ_MODULO:
                 remaining = transfer.total - len(transfer.buf)
                 if remaining < seg.CONSECUTIVE_CHUNK and any(data[2 + remaining :]):
                     self._abort("bad_padding")  # T4: the rest is zero; this is another transfer
@@ -207,7 +206,7 @@ class TransportConnection:
             self._seen_first = True
             total = int.from_bytes(data[2:6], "little")
             self._open = _Open(
-                data[1], total, bytearray(data[6 : 6 + seg.FIRST_CHUNK]), num,
+                data[1], total, bytearray(data[6 : 6 + seg.FIRST_CHUNK]),
                 now + self.config.reassembly_timeout, [num],
             )
             return
@@ -225,12 +224,11 @@ class TransportConnection:
             self.counters.transferAborts["no_open_transfer"] += 1
             self._events.append(TransferAborted("no_open_transfer", data[1], 0, None))
             return
-        if num != (transfer.last_num + 1) % SEQ_MODULO:
+        if num != (transfer.nums[-1] + 1) % SEQ_MODULO:
             self._abort("num_gap")
             return
         take = min(seg.CONSECUTIVE_CHUNK, transfer.total - len(transfer.buf))
         transfer.buf += data[2 : 2 + take]
-        transfer.last_num = num
         transfer.nums.append(num)
         transfer.deadline = now + self.config.reassembly_timeout
         if len(transfer.buf) >= transfer.total:
