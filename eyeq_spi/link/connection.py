@@ -42,8 +42,10 @@ from eyeq_spi.link.events import (
     FrameRejected,
     FramesSkipped,
     LinkEvent,
+    ResyncCause,
     Resynchronised,
     SendFailed,
+    SendFailReason,
     Sent,
     UnexpectedAck,
 )
@@ -310,7 +312,7 @@ class LinkConnection:
             self._expected = num
         ahead = (num - self._expected) % modulo
         behind = (self._expected - num) % modulo
-        resync: str | None = None
+        resync: ResyncCause | None = None
         peer_restart = restart_rsp is not None and (
             restart_rsp == 0 or (ahead >= window and self._accepted.get(num) != transfer))
         if peer_restart:
@@ -396,7 +398,8 @@ class LinkConnection:
         self._events.append(FrameRejected(reason, num, detail))
 
     # -- tag bookkeeping --------------------------------------------------------------------
-    def _fail(self, tag: int, num: int | None, why: str, nak: NakReason | None = None) -> None:
+    def _fail(self, tag: int, num: int | None, why: SendFailReason,
+              nak: NakReason | None = None) -> None:
         if tag == self._restart_tag:
             self._restart_tag = None  # the reset request never left whole: no restart
         entry = self._tags.get(tag)

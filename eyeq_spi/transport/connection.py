@@ -39,6 +39,7 @@ from eyeq_spi.link.events import DataReceived, LinkEvent, Resynchronised, SendFa
 from eyeq_spi.link.frame import SEQ_MODULO, NakReason
 from eyeq_spi.transport import segment as seg
 from eyeq_spi.transport.events import (
+    AbortReason,
     MessageReceived,
     MessageSendFailed,
     MessageSent,
@@ -249,7 +250,7 @@ class TransportConnection:
         self.counters.messagesReceived += 1
         self._events.append(MessageReceived(message, nums, tid))
 
-    def _abort(self, reason: str) -> None:
+    def _abort(self, reason: AbortReason) -> None:
         transfer = self._open
         if transfer is None:
             return
