@@ -16,14 +16,9 @@ Theory of operation
    Out of window -> NAK 0x001 (resynchronise after 3 in a row), else the transport's payload
    check (NAK 0x011), then accept: ACK, ``DataReceived``.
 
-A passive receiver (L9) and every receiver after a reset (L10: ``reset(learn=True)``,
-:meth:`LinkConnection.restart`) take the NUM of the next DATA frame as E.
-
-``send(data, tag, now)`` queues one DATA frame. ``data_to_send(now)`` releases ACK/NAK frames
-(``control_gap`` apart), then DATA frames while fewer than W are in flight (L7), ``frame_gap``
-(frameFlowControl) apart: pacing ACKs too would cap the peer's throughput. ``handle_timer(now)``
-fails frames not ACKed within ``ack_timeout`` and frames not sent within ``transmit_timeout``; a
-lost frame is never resent, its tag fails once and its queued frames are dropped.
+``handle_timer(now)`` fails frames not ACKed within ``ack_timeout`` and frames not sent within
+``transmit_timeout``: a lost frame is never resent, its tag fails once and its queued frames are
+dropped. The rest is in docs/architecture.md ("Link layer") and docs/PROTOCOL_DECISIONS.md.
 """
 
 from __future__ import annotations

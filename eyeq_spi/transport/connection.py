@@ -1,31 +1,11 @@
 """Sans-IO transport connection: segmentation and reassembly over one link connection.
 
-Theory of operation
--------------------
-``send(message, now)`` splits a message (T1-T4) and queues all its frames on the link under one
-tag, back to back, so that one sender's transfers never interleave (T5). The link's ``Sent`` or
-``SendFailed`` for the tag become ``MessageSent`` / ``MessageSendFailed``.
-
-The link asks :meth:`_check_header` about every in-window DATA frame before it ACKs it. Static
-header faults (unknown transport type, single size 0 or > 120, first-frame total outside
-117..limit, a consecutive frame whose ID differs from the open transfer's) are NAKed 0x011; a
-total above the receive limit also counts ``rcvOverflowErrors``. A NUM gap, a consecutive frame
-with no open transfer, 25 ms of silence or a new first frame abort the open transfer (T6):
-``TransferAborted``, counted, never raised; the aborted transfer's later frames are dropped
-quietly (``framesDiscarded``). A single frame inside an open transfer breaks T5: it is delivered
-and the open transfer aborted as ``interleaved``.
-
+``send`` queues all frames of a message on the link under one tag, back to back (T5); the link
+asks :meth:`_check_header` about every in-window DATA frame before it ACKs it (NAK 0x011, T6).
 A ``Resynchronised`` link event aborts the open transfer before the frame that caused it is
-reassembled, so no message joins frames from both sides of a reset. Decision T6a adds two rules
-for a channel that keeps frames in order (SPI, byte streams): silence is judged on arrival too
-(a frame after the 25 ms deadline finds the transfer aborted, timer or not), and a last
-consecutive frame with non-zero padding (T4) belongs to another transfer (NAK 0x011, abort
-``bad_padding``).
-
-A passive receiver (L9) reports consecutive frames before any first frame as
-``TransferIncomplete("start")``, and :meth:`finish` a transfer still open at the end of the input
-as ``TransferIncomplete("end")``. Other link events pass through, so one ``next_event()`` loop
-sees everything.
+reassembled (T6a). The rules and counters are in docs/architecture.md ("Transport"),
+docs/specs.md and docs/PROTOCOL_DECISIONS.md (T1-T6a); other link events pass through, so one
+``next_event()`` loop sees everything.
 """
 
 from __future__ import annotations
