@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from eyeq_spi.cli import main
-from eyeq_spi.conformance import all_cases, cases_for
+from eyeq_spi.conformance.cases import all_cases, cases_for
 from eyeq_spi.conformance.judges.app import unused_masks
 from eyeq_spi.conformance.judges.link import link_noresend, link_size
 from eyeq_spi.conformance.judges.verdict import Context

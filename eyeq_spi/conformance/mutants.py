@@ -1,10 +1,6 @@
-"""Deliberately broken variants of our own simulated EyeQ and host: the proof that the suite
-can fail. Test-only (``--builtin --mutant NAME``). Each is a subclass, a rewrite of the link's
-output or of one message, or a configuration value. ``expected`` names the cases its bug
-violates; tests/test_conformance_mutants.py checks that exactly those fail. ``ADVISED`` variants
-depart only from our recommendations (the cases pass with advice); ``CORRECT`` ones break no
-rule (every case gets the verdict ours gets).
-"""
+"""Deliberately broken variants of our own simulated EyeQ and host, test-only (``--builtin
+--mutant NAME``): the proof that the suite can fail (docs/conformance.md, "Proof that it can
+fail"). ``expected`` names the cases a variant's bug violates."""
 
 from __future__ import annotations
 

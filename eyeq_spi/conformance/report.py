@@ -202,11 +202,7 @@ def html_report(report: Report, title: str) -> str:
 
 def write(path: str, data: str | bytes) -> None:
     try:
-        target = Path(path)
-        if isinstance(data, bytes):
-            target.write_bytes(data)
-        else:
-            target.write_text(data, encoding="utf-8")
+        Path(path).write_bytes(data.encode() if isinstance(data, str) else data)
     except OSError as exc:
         raise EyeqError(f"cannot write {path}: {exc}") from None
 

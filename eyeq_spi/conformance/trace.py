@@ -4,10 +4,7 @@ script leaves (probes sent, faults injected, resets). Judges read only this (and
 ``--builtin``, the public state of our own implementations).
 
 Each channel's passive receiver is a :class:`TransportConnection` in the role of the side that
-receives it, so a message counts as sent exactly when a conformant receiver would reassemble it
-(decisions L6-L10a). It restarts where the side we play restarts its own (our resets, L10) and
-on a DATA frame with NUM 0 and RSP 0 (L4); each such restart, and each resynchronisation, is a
-restart of that direction for the judges (:meth:`Trace.restarts`).
+receives it, restarted where the side we play restarts its own (docs/conformance.md, L6-L10a).
 """
 
 from __future__ import annotations

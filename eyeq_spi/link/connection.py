@@ -16,14 +16,9 @@ Theory of operation
    Out of window -> NAK 0x001 (resynchronise after 3 in a row), else the transport's payload
    check (NAK 0x011), then accept: ACK, ``DataReceived``.
 
-A passive receiver (L9) and every receiver after a reset (L10: ``reset(learn=True)``,
-:meth:`LinkConnection.restart`) take the NUM of the next DATA frame as E.
-
-``send(data, tag, now)`` queues one DATA frame. ``data_to_send(now)`` releases ACK/NAK frames
-(``control_gap`` apart), then DATA frames while fewer than W are in flight (L7), ``frame_gap``
-(frameFlowControl) apart: pacing ACKs too would cap the peer's throughput. ``handle_timer(now)``
-fails frames not ACKed within ``ack_timeout`` and frames not sent within ``transmit_timeout``; a
-lost frame is never resent, its tag fails once and its queued frames are dropped.
+``handle_timer(now)`` fails frames not ACKed within ``ack_timeout`` and frames not sent within
+``transmit_timeout``: a lost frame is never resent, its tag fails once and its queued frames are
+dropped. The rest is in docs/architecture.md ("Link layer") and docs/PROTOCOL_DECISIONS.md.
 """
 
 from __future__ import annotations
@@ -42,8 +37,10 @@ from eyeq_spi.link.events import (
     FrameRejected,
     FramesSkipped,
     LinkEvent,
+    ResyncCause,
     Resynchronised,
     SendFailed,
+    SendFailReason,
     Sent,
     UnexpectedAck,
 )
@@ -310,7 +307,7 @@ class LinkConnection:
             self._expected = num
         ahead = (num - self._expected) % modulo
         behind = (self._expected - num) % modulo
-        resync: str | None = None
+        resync: ResyncCause | None = None
         peer_restart = restart_rsp is not None and (
             restart_rsp == 0 or (ahead >= window and self._accepted.get(num) != transfer))
         if peer_restart:
@@ -396,7 +393,8 @@ class LinkConnection:
         self._events.append(FrameRejected(reason, num, detail))
 
     # -- tag bookkeeping --------------------------------------------------------------------
-    def _fail(self, tag: int, num: int | None, why: str, nak: NakReason | None = None) -> None:
+    def _fail(self, tag: int, num: int | None, why: SendFailReason,
+              nak: NakReason | None = None) -> None:
         if tag == self._restart_tag:
             self._restart_tag = None  # the reset request never left whole: no restart
         entry = self._tags.get(tag)

@@ -3,8 +3,7 @@ finer counts that the seed does not name (kept apart so that the §9.2 view stay
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
-from typing import Any
+from dataclasses import dataclass, field, fields
 
 
 @dataclass
@@ -33,9 +32,6 @@ class SpiDiagnosticInfo:
         """The §9.2 structure (the first seven fields), as EYEQ_BASE_DIAG_STATUS_MSG (0xA0) would
         send it."""
         return {name: int(getattr(self, name)) & 0xFFFFFFFF for name in SEED_COUNTERS}
-
-    def snapshot(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 SEED_COUNTERS = tuple(member.name for member in fields(SpiDiagnosticInfo))[:7]  # §9.2

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
-from eyeq_spi.link.frame import DATA_SIZE, SEQ_MODULO, NakReason
+from eyeq_spi.link.frame import NakReason
 
-
-def _check_num(num: int) -> None:
-    if not 0 <= num < SEQ_MODULO:
-        raise ValueError(f"NUM {num} outside 0..{SEQ_MODULO - 1}")
+SendFailReason = Literal["ack_timeout", "nak", "transmit_timeout", "reset"]
+ResyncCause = Literal["nak_limit", "peer_reset", "peer_restart"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -18,11 +17,6 @@ class DataReceived:
 
     num: int
     data: bytes
-
-    def __post_init__(self) -> None:
-        _check_num(self.num)
-        if len(self.data) != DATA_SIZE:
-            raise ValueError("data field must be 122 bytes")
 
 
 @dataclass(frozen=True, slots=True)
@@ -38,12 +32,8 @@ class SendFailed:
 
     tag: int
     num: int | None
-    reason: str  # "ack_timeout" | "nak" | "transmit_timeout" | "reset"
+    reason: SendFailReason
     nak_reason: NakReason | None = None
-
-    def __post_init__(self) -> None:
-        if self.reason not in ("ack_timeout", "nak", "transmit_timeout", "reset"):
-            raise ValueError(f"bad SendFailed reason {self.reason!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,12 +60,7 @@ class Resynchronised:
     ``peer_restart``). Nothing received before it may join what follows."""
 
     num: int
-    cause: str = "nak_limit"
-
-    def __post_init__(self) -> None:
-        _check_num(self.num)
-        if self.cause not in ("nak_limit", "peer_reset", "peer_restart"):
-            raise ValueError(f"bad Resynchronised cause {self.cause!r}")
+    cause: ResyncCause = "nak_limit"
 
 
 @dataclass(frozen=True, slots=True)

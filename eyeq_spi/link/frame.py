@@ -7,7 +7,7 @@ from __future__ import annotations
 import binascii
 import enum
 from dataclasses import dataclass
-from typing import Any, NewType
+from typing import Any
 
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.crc import CCITT_FALSE, CrcFunction, CrcVariant, make_crc
@@ -17,9 +17,6 @@ _SPEC = link_spec()
 FRAME_SIZE: int = _SPEC["frame"]["size"]
 DATA_SIZE: int = _SPEC["frame"]["data_size"]
 SEQ_MODULO: int = _SPEC["sequence"]["modulo"]
-
-Num = NewType("Num", int)
-"""A 12-bit frame sequence number (L4)."""
 
 
 class FrameKind(enum.IntEnum):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from eyeq_spi.catalog.messages import Catalog, catalog
@@ -68,7 +68,6 @@ class MespClientCounters:
     failures: int = 0
     stale_replies: int = 0
     abandoned: int = 0  # outstanding when the EyeQ reset: no reply will come
-    latencies: dict[str, list[float]] = field(default_factory=dict)
 
 
 class MespClient:
@@ -166,7 +165,6 @@ class MespClient:
         else:
             values = {k: v for k, v in decoded.fields.items() if k != "ret"}
             latency = now - pending.first_sent
-            self.counters.latencies.setdefault(pending.function, []).append(latency)
             self._finish(pending, MespReply(pending.function, data[4],
                                             typed(self.codec.function(pending.function), values),
                                             pending.attempts, latency))

@@ -27,7 +27,7 @@ class MespReply:
 class MespFailure:
     """A failed request, as a value: a reply with non-zero ``ret`` (decision M2; ``ret_name``
     from ``specs/mesp.yaml``), a malformed reply (``ret_name`` says what is wrong), or no reply
-    after every attempt (``ret`` None). ``str()`` reads as the error :meth:`exception` gives."""
+    after every attempt (``ret`` None). ``str()`` reads as the error :func:`unwrap` raises."""
 
     function: str
     ret: int | None
@@ -38,10 +38,6 @@ class MespFailure:
         what = f"ret {self.ret} ({self.ret_name})" if self.ret is not None else self.ret_name
         return f"{self.function}: {what} after {self.attempts} attempt(s)"
 
-    def exception(self) -> RemoteProtocolError:
-        """The exception to raise for this failure."""
-        return RemoteProtocolError(str(self))
-
 
 MespResult: TypeAlias = MespReply | MespFailure
 
@@ -49,7 +45,7 @@ MespResult: TypeAlias = MespReply | MespFailure
 def unwrap(result: MespResult) -> MespReply:
     """The reply, or raise :class:`~eyeq_spi.errors.RemoteProtocolError` for a failure."""
     if isinstance(result, MespFailure):
-        raise result.exception()
+        raise RemoteProtocolError(str(result))
     return result
 
 

@@ -1,31 +1,11 @@
 """Sans-IO transport connection: segmentation and reassembly over one link connection.
 
-Theory of operation
--------------------
-``send(message, now)`` splits a message (T1-T4) and queues all its frames on the link under one
-tag, back to back, so that one sender's transfers never interleave (T5). The link's ``Sent`` or
-``SendFailed`` for the tag become ``MessageSent`` / ``MessageSendFailed``.
-
-The link asks :meth:`_check_header` about every in-window DATA frame before it ACKs it. Static
-header faults (unknown transport type, single size 0 or > 120, first-frame total outside
-117..limit, a consecutive frame whose ID differs from the open transfer's) are NAKed 0x011; a
-total above the receive limit also counts ``rcvOverflowErrors``. A NUM gap, a consecutive frame
-with no open transfer, 25 ms of silence or a new first frame abort the open transfer (T6):
-``TransferAborted``, counted, never raised; the aborted transfer's later frames are dropped
-quietly (``framesDiscarded``). A single frame inside an open transfer breaks T5: it is delivered
-and the open transfer aborted as ``interleaved``.
-
+``send`` queues all frames of a message on the link under one tag, back to back (T5); the link
+asks :meth:`_check_header` about every in-window DATA frame before it ACKs it (NAK 0x011, T6).
 A ``Resynchronised`` link event aborts the open transfer before the frame that caused it is
-reassembled, so no message joins frames from both sides of a reset. Decision T6a adds two rules
-for a channel that keeps frames in order (SPI, byte streams): silence is judged on arrival too
-(a frame after the 25 ms deadline finds the transfer aborted, timer or not), and a last
-consecutive frame with non-zero padding (T4) belongs to another transfer (NAK 0x011, abort
-``bad_padding``).
-
-A passive receiver (L9) reports consecutive frames before any first frame as
-``TransferIncomplete("start")``, and :meth:`finish` a transfer still open at the end of the input
-as ``TransferIncomplete("end")``. Other link events pass through, so one ``next_event()`` loop
-sees everything.
+reassembled (T6a). The rules and counters are in docs/architecture.md ("Transport"),
+docs/specs.md and docs/PROTOCOL_DECISIONS.md (T1-T6a); other link events pass through, so one
+``next_event()`` loop sees everything.
 """
 
 from __future__ import annotations
@@ -39,6 +19,7 @@ from eyeq_spi.link.events import DataReceived, LinkEvent, Resynchronised, SendFa
 from eyeq_spi.link.frame import SEQ_MODULO, NakReason
 from eyeq_spi.transport import segment as seg
 from eyeq_spi.transport.events import (
+    AbortReason,
     MessageReceived,
     MessageSendFailed,
     MessageSent,
@@ -63,9 +44,8 @@ class _Open:
     transfer_id: int
     total: int
     buf: bytearray
-    last_num: int
     deadline: float
-    nums: list[int] = field(default_factory=list)
+    nums: list[int]  # the NUMs of its frames so far
 
 
 @dataclass
@@ -168,7 +148,7 @@ class TransportConnection:
             if transfer is not None and data[1] != transfer.transfer_id:
                 self._abort("wrong_id")
                 return NakReason.FORMAT_ERROR
-            if transfer is not None and num == (transfer.last_num + 1) % SEQ_MODULO:
+            if transfer is not None and num == (transfer.nums[-1] + 1) % SEQ_MODULO:
                 remaining = transfer.total - len(transfer.buf)
                 if remaining < seg.CONSECUTIVE_CHUNK and any(data[2 + remaining :]):
                     self._abort("bad_padding")  # T4: the rest is zero; this is another transfer
@@ -207,7 +187,7 @@ class TransportConnection:
             self._seen_first = True
             total = int.from_bytes(data[2:6], "little")
             self._open = _Open(
-                data[1], total, bytearray(data[6 : 6 + seg.FIRST_CHUNK]), num,
+                data[1], total, bytearray(data[6 : 6 + seg.FIRST_CHUNK]),
                 now + self.config.reassembly_timeout, [num],
             )
             return
@@ -225,12 +205,11 @@ class TransportConnection:
             self.counters.transferAborts["no_open_transfer"] += 1
             self._events.append(TransferAborted("no_open_transfer", data[1], 0, None))
             return
-        if num != (transfer.last_num + 1) % SEQ_MODULO:
+        if num != (transfer.nums[-1] + 1) % SEQ_MODULO:
             self._abort("num_gap")
             return
         take = min(seg.CONSECUTIVE_CHUNK, transfer.total - len(transfer.buf))
         transfer.buf += data[2 : 2 + take]
-        transfer.last_num = num
         transfer.nums.append(num)
         transfer.deadline = now + self.config.reassembly_timeout
         if len(transfer.buf) >= transfer.total:
@@ -251,7 +230,7 @@ class TransportConnection:
         self.counters.messagesReceived += 1
         self._events.append(MessageReceived(message, nums, tid))
 
-    def _abort(self, reason: str) -> None:
+    def _abort(self, reason: AbortReason) -> None:
         transfer = self._open
         if transfer is None:
             return

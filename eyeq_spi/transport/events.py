@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
-ABORT_REASONS = frozenset(
-    {"num_gap", "wrong_id", "no_open_transfer", "timeout", "new_first_frame", "interleaved",
-     "reset", "resynchronised", "bad_padding"}
-)
+AbortReason = Literal["num_gap", "wrong_id", "no_open_transfer", "timeout", "new_first_frame",
+                      "interleaved", "reset", "resynchronised", "bad_padding"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -15,10 +14,6 @@ class MessageReceived:
     data: bytes
     frames: tuple[int, ...]  # the NUMs of the frames that carried it
     transfer_id: int | None  # None for a single frame
-
-    def __post_init__(self) -> None:
-        if not self.data:
-            raise ValueError("a message has at least one byte")
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,14 +31,10 @@ class MessageSendFailed:
 class TransferAborted:
     """A multi-frame reception was abandoned (T6). Counted, never raised."""
 
-    reason: str
+    reason: AbortReason
     transfer_id: int | None
     received: int  # message bytes received before the abort
     total: int | None
-
-    def __post_init__(self) -> None:
-        if self.reason not in ABORT_REASONS:
-            raise ValueError(f"unknown abort reason {self.reason!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,14 +43,10 @@ class TransferIncomplete:
     inside it: ``where`` is ``"start"`` (consecutive frames before any first frame) or
     ``"end"`` (still open when the input ended). Not a protocol error."""
 
-    where: str
+    where: Literal["start", "end"]
     transfer_id: int | None
     received: int  # message bytes seen
     total: int | None
-
-    def __post_init__(self) -> None:
-        if self.where not in ("start", "end"):
-            raise ValueError(f"bad TransferIncomplete where {self.where!r}")
 
 
 TransportEvent = (

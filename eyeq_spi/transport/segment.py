@@ -5,8 +5,6 @@ Each returned payload is the data field of one link frame (at most 122 bytes; th
 
 from __future__ import annotations
 
-from typing import NewType
-
 from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.errors import LocalProtocolError
 
@@ -20,8 +18,6 @@ CONSECUTIVE_CHUNK: int = _T["consecutive_chunk"]
 FIRST_TOTAL_MIN: int = _T["first_total_min"]
 MAX_TOTAL: int = _T["max_total"]
 ID_MODULO: int = _T["transfer_id_modulo"]
-
-TransferId = NewType("TransferId", int)
 
 
 def segment(message: bytes, transfer_id: int) -> list[bytes]:

@@ -98,15 +98,16 @@ def _since_restart(tr: Trace) -> Iterator[tuple[Xfer, int]]:
             yield xfer, count
 
 
-def _repeats(tr: Trace) -> set[int]:
-    """Indices of DUT DATA frames that repeat an earlier one byte for byte since the last
-    restart (resends: judged by LINK-NORESEND alone)."""
-    seen: dict[tuple[bytes, int], float] = {}
-    out: set[int] = set()
+def _repeats(tr: Trace) -> dict[int, Xfer]:
+    """The DUT DATA frames (by index) that repeat an earlier one byte for byte within 1 s since
+    the last restart, each with the frame it repeats (resends: judged by LINK-NORESEND alone)."""
+    seen: dict[tuple[bytes, int], Xfer] = {}
+    out: dict[int, Xfer] = {}
     for xfer, era in _since_restart(tr):
-        if xfer.time - seen.get((xfer.data, era), -10.0) < 1.0:
-            out.add(xfer.index)
-        seen[(xfer.data, era)] = xfer.time
+        prev = seen.get((xfer.data, era))
+        if prev is not None and xfer.time - prev.time < 1.0:
+            out[xfer.index] = prev
+        seen[(xfer.data, era)] = xfer
     return out
 
 
@@ -291,16 +292,13 @@ def link_resync(ctx: Context, tr: Trace) -> Outcome:
 
 
 def link_noresend(ctx: Context, tr: Trace) -> Outcome:
-    seen: dict[int, tuple[float, bytes, int, int]] = {}
-    frames = list(_since_restart(tr))  # L10: never a repeat of a frame before a reset
-    for xfer, era in frames:
-        prev = seen.get(xfer.num)
-        if prev is not None and prev[1] == xfer.data and xfer.time - prev[0] < 1.0 \
-                and prev[3] == era:
-            return bad(f"{_frame(xfer)} repeats frame #{prev[2]} byte for byte "
-                       f"{1e3 * (xfer.time - prev[0]):.1f} ms later: a resend (§6, L7)")
-        seen[xfer.num] = (xfer.time, xfer.data, xfer.index, era)
-    count = len(frames)
+    repeats = _repeats(tr)  # L10: never a repeat of a frame before a reset
+    if repeats:
+        index, prev = next(iter(repeats.items()))
+        xfer = tr.xfers[index]
+        return bad(f"{_frame(xfer)} repeats frame #{prev.index} byte for byte "
+                   f"{1e3 * (xfer.time - prev.time):.1f} ms later: a resend (§6, L7)")
+    count = sum(1 for _ in _since_restart(tr))
     if not count:
         return unsure("no DATA frames")
     unacked = _unacked(tr)

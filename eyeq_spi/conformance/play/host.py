@@ -1,8 +1,6 @@
 """We play the host against an EyeQ under test: our :class:`HostEmulator` brings it up, and the
-script adds the probes the cases judge, each step only when a selected case needs it: bring-up
-with an empty NVM (the §7.1.3 flow runs; a 0x92 sent while it boots must be refused), steady
-Running Vision, MESP probes, link and transport probes, then the TAC, SPC and DV round trips.
-Every probe leaves a mark in the trace."""
+script adds the probes the cases judge, each step only when a selected case needs it
+(docs/conformance.md, "Sessions"). Every probe leaves a mark in the trace."""
 
 from __future__ import annotations
 
