@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import Any
 
-from eyeq_spi.errors import UsageError
+from eyeq_spi.errors import OutputError
 
 
 def add_parser(sub: Any, name: str, help: str) -> None:
@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
         with open(args.output, "w", encoding="utf-8") as fh:
             fh.write(text)
     except OSError as exc:
-        raise UsageError(f"cannot write {args.output}: {exc.strerror or exc}") from None
+        raise OutputError(f"cannot write {args.output}: {exc.strerror or exc}") from None
     print(f"wrote {args.output} ({len(text.splitlines())} lines)\n"
           f"use it with: wireshark -X lua_script:{args.output}\n"
           "or copy it to your personal Lua plugins folder (Help > About Wireshark > Folders)")

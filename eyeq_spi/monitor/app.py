@@ -10,13 +10,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from rich.console import Console
+
 from eyeq_spi.errors import UsageError
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.monitor.view import (
     new_live,
     print_whole,
     render,
-    rich_modules,
     save_lines,
     screen_lines,
 )
@@ -74,7 +75,7 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
     if screenshot is not None:
         check_screenshot(screenshot)
-    console = console or rich_modules().Console()
+    console = console or Console()
     period = 1.0 / refresh
     stats = RunStats()
     start = clock()
