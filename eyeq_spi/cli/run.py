@@ -15,7 +15,6 @@ from typing import Any
 from eyeq_spi import garbage
 from eyeq_spi.cli import args as ca
 from eyeq_spi.cli import options as opt
-from eyeq_spi.errors import UsageError
 
 DESCRIPTIONS = {
     "demo": "Bring a simulated EyeQ4 up to Running Vision with the host emulator, in one "
@@ -106,11 +105,10 @@ class LiveView:
     since the run started (a host on the wall clock has its start subtracted), each line folded
     to the terminal's width; the first FATAL_22 gets an explanation."""
 
-    def __init__(self, enabled: bool, say: Callable[[str], None] | None = None,
-                 width: int | None = None) -> None:
+    def __init__(self, enabled: bool, say: Callable[[str], None] | None = None) -> None:
         self.enabled = enabled
         self.say = say or (lambda line: print(line, file=sys.stderr))
-        self.width = width or _stderr_width()
+        self.width = _stderr_width()
         self.shown = 0
         self.last_counts: Counter[str] = Counter()
         self.last_t = 0.0
@@ -252,8 +250,6 @@ def run_sim(args: argparse.Namespace) -> int:
     from eyeq_spi.phy.base import open_listener
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
 
-    if bool(args.listen) == bool(args.pty):
-        raise UsageError("give exactly one of --listen tcp://HOST:PORT or --pty")
     # bad options fail here, before anybody connects
     eyeq = SimulatedEyeQ(opt.sim_config(args))
     eyeq.warm_up()
