@@ -40,6 +40,7 @@ class Source(Protocol):
 @dataclass
 class RunStats:
     redraws: int = 0
+    draw_cpu_s: float = 0.0  # CPU time spent building and writing screens (tools/bench_monitor)
     interrupted: bool = False  # stopped by Ctrl-C
 
 
@@ -67,7 +68,7 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         on_draw: Callable[[Snapshot], None] | None = None,
         screenshot: str | None = None,
         screenshot_size: tuple[int, int] | None = None) -> RunStats:
-    """Run until the source is done (or Ctrl-C); returns how many screens were drawn. With
+    """Run until the source is done (or Ctrl-C); returns how much CPU drawing took. With
     ``screenshot``, the last screen is also written there (:func:`save_screen`)."""
     if not MIN_REFRESH <= refresh <= MAX_REFRESH:
         raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
@@ -86,12 +87,14 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         try:
             while True:
                 source.advance(next_draw)
+                cpu_start = time.process_time()
                 snap = source.snapshot()
                 if on_draw is not None:
                     on_draw(snap)
                 if live_screen:
                     live.update(render(snap, console.width, console.height), refresh=True)
                 stats.redraws += 1
+                stats.draw_cpu_s += time.process_time() - cpu_start
                 if source.done:
                     break
                 # keep the redraw grid: a slightly late draw is caught up, a whole missed
