@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import sys
 import time
 from collections import Counter
@@ -115,7 +116,6 @@ class LiveView:
         self.origin: float | None = None
         self.explained = False
         self.last_live: set[str] = set()
-        self._periodic_names: set[str] | None = None
 
     def _print(self, line: str, indent: int = 11) -> None:
         """A line of the live view, folded between words to the terminal's width (continuation
@@ -129,13 +129,12 @@ class LiveView:
                                  break_long_words=False, break_on_hyphens=False)
         self.say(line)
 
-    def _periodic(self) -> set[str]:
+    @functools.cached_property
+    def periodic(self) -> set[str]:
         """The messages the spec gives a nominal rate (seed 004's message table)."""
-        if self._periodic_names is None:
-            from eyeq_spi.catalog.messages import catalog
+        from eyeq_spi.catalog.messages import catalog
 
-            self._periodic_names = {m.name for m in catalog().messages if m.rate_hz}
-        return self._periodic_names
+        return {m.name for m in catalog().messages if m.rate_hz}
 
     def update(self, host: Any, now: float) -> None:
         if not self.enabled:
@@ -156,8 +155,8 @@ class LiveView:
             counts = Counter(host.counters.received)
             dt = now - self.last_t
             rates = {k: (v - self.last_counts.get(k, 0)) / dt for k, v in counts.items()}
-            periodic = self._periodic()  # a boot status or a MESP reply is no stream
-            live = {k: r for k, r in rates.items() if r > 0 and k in periodic}
+            # a boot status or a MESP reply is no stream
+            live = {k: r for k, r in rates.items() if r > 0 and k in self.periodic}
             line = f"[{now:8.3f}] {host.state.value:14s} rx {sum(live.values()):6.1f} msg/s"
             if live:
                 slow = min(live, key=lambda k: live[k])
