@@ -122,8 +122,7 @@ def _transitions(snap: Snapshot, width: int) -> Panel:
     rows = [Text(fit(f" {tt:8.3f}  {a} --{ev}--> {b}", width))
             for tt, a, ev, b in snap.transitions[-6:]]
     total = snap.transitions_total
-    title = Text(f"transitions (s since the start, last {len(rows)} of {total})",
-                     style="italic")
+    title = Text(f"transitions (s since the start, last {len(rows)} of {total})", style="italic")
 
     def partial(room: int) -> Lines:
         return [Text(f"transitions (last {room - 1} of {total})", style="italic"),
@@ -144,9 +143,9 @@ def _objects(snap: Snapshot, width: int) -> Panel:
     for obj in objs:
         ident = ("*" if obj.cipv else "") + str(obj.id)
         cell = Text(f" {ident:>3} {fit(obj.cls_name, cls_w):<{cls_w}} "
-                        f"{number(obj.long, '6.1f'):>6} {number(obj.lat, '5.1f'):>5} "
-                        f"{number(obj.v_long, '5.1f'):>5} {_ttc(obj):>4}",
-                        style="bold reverse" if obj.cipv else "")
+                    f"{number(obj.long, '6.1f'):>6} {number(obj.lat, '5.1f'):>5} "
+                    f"{number(obj.v_long, '5.1f'):>5} {_ttc(obj):>4}",
+                    style="bold reverse" if obj.cipv else "")
         cells.append(cell)
     count = len(objs)
     title = Text(f"objects {count} (nearest first; * CIPV; m, m/s, s)", style="italic")
@@ -157,8 +156,7 @@ def _objects(snap: Snapshot, width: int) -> Panel:
         if shown <= 0:
             return [folded]
         said = f"objects {count}: nearest {shown} shown, {count - shown} more (* CIPV)"
-        return [Text(said, style="italic"), header,
-                *_two_columns(cells[:shown], col)]
+        return [Text(said, style="italic"), header, *_two_columns(cells[:shown], col)]
 
     cipv = next((o for o in objs if o.cipv), None)
     nearest = f": CIPV {cipv.id} at {cipv.long:.1f} m" if cipv else ""

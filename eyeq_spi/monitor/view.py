@@ -10,11 +10,10 @@ from rich.console import Console, Group
 from rich.live import Live
 from rich.text import Text
 
-from eyeq_spi.errors import OutputError
 from eyeq_spi.monitor.compact import STATUS_STYLE, compact_lines, fit, is_error, number
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.plot.charts import short
-from eyeq_spi.plot.figures import plural
+from eyeq_spi.plot.figures import plural, write_file
 from eyeq_spi.plot.perceived import NO_TTC
 
 GOOD_STATES = ("RUNNING_VISION", "RUNNING_TAC", "RUNNING_SPC", "DV", "Running Vision")
@@ -176,9 +175,8 @@ def render(snap: Snapshot, width: int | None = None, height: int | None = None) 
 
 def new_live(console: Any) -> Any:
     """A rich ``Live`` redrawn only when asked, cropped to the terminal."""
-    return Live(console=console, auto_refresh=False, transient=False,
-                               vertical_overflow="crop", redirect_stdout=False,
-                               redirect_stderr=False)
+    return Live(console=console, auto_refresh=False, transient=False, vertical_overflow="crop",
+                redirect_stdout=False, redirect_stderr=False)
 
 
 def print_whole(console: Any, lines: list[Any]) -> None:
@@ -193,15 +191,8 @@ def save_lines(lines: list[Any], path: str, title: str) -> None:
     import io
 
     con = Console(file=io.StringIO(), record=True, force_terminal=True,
-                       color_system="truecolor", width=max(t.cell_len for t in lines))
+                  color_system="truecolor", width=max(t.cell_len for t in lines))
     con.print(Group(*lines))
     suffix = path.lower().rsplit(".", 1)[-1]
-    try:
-        if suffix == "svg":
-            con.save_svg(path, title=title)
-        elif suffix == "html":
-            con.save_html(path)
-        else:
-            con.save_text(path)
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    write_file(path, con.export_svg(title=title) if suffix == "svg" else
+               con.export_html() if suffix == "html" else con.export_text())
