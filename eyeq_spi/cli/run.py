@@ -175,11 +175,8 @@ def _on_sigterm() -> None:
     """SIGTERM ends ``demo``, ``host`` and ``sim`` like Ctrl-C: cleanly, with the summary."""
     import signal
 
-    def raise_interrupt(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
-
     with contextlib.suppress(ValueError):  # not the main thread (tests)
-        signal.signal(signal.SIGTERM, raise_interrupt)
+        signal.signal(signal.SIGTERM, signal.default_int_handler)
 
 
 LONG_DEMO_S = 20.0  # demos this long or longer show a progress bar on a terminal
