@@ -317,11 +317,11 @@ def test_sim_prints_the_exact_url_to_hand_to_host_on_stderr() -> None:
 
 
 def test_the_parser_of_one_command_is_the_full_parser_for_that_command() -> None:
-    """main() builds only the command it runs; COMMANDS must list every command with its help, in
+    """main() builds only the command it runs; TABLE must list every command with its help, in
     the order of the full parser, and each command's parser must not depend on the others."""
     import argparse
 
-    from eyeq_spi.cli import COMMANDS
+    from eyeq_spi.cli import TABLE
 
     def subs(p: argparse.ArgumentParser) -> tuple[dict[str, str], dict[str, str]]:
         act = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
@@ -329,9 +329,9 @@ def test_the_parser_of_one_command_is_the_full_parser_for_that_command() -> None
         return helps, {n: sp.format_help() for n, sp in act.choices.items()}
 
     full_help, full = subs(build_parser())
-    assert list(full_help.items()) == list(COMMANDS.items())
+    assert list(full_help.items()) == [(name, line) for name, (_, line) in TABLE.items()]
     assert build_parser("").format_help() == build_parser().format_help()
-    for name in COMMANDS:
+    for name in TABLE:
         helps, one = subs(build_parser(name))
         assert helps == full_help and one[name] == full[name], name
 

@@ -155,6 +155,15 @@ def test_wireshark_writes_to_stdout_without_output(capsys: pytest.CaptureFixture
     assert "Proto(" in out and "eyeq" in out.lower()
 
 
+@pytest.mark.skipif(not os.path.exists("/dev/full") or not os.access("/dev/full", os.W_OK),
+                    reason="needs a writable /dev/full (a full disk on every write)")
+def test_wireshark_says_an_output_it_cannot_write_is_an_output_error(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["wireshark", "--output", "/dev/full"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("eyeq-spi: error: cannot write /dev/full"), err
+
+
 @dataclass
 class _State:
     value: str

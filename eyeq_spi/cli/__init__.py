@@ -43,8 +43,6 @@ TABLE: dict[str, tuple[str, str]] = {
     "spec": ("spec", "browse the message catalogue built from specs/"),
     "bench": ("bench", "check a rig of SPI adapters before a run (bench doctor)"),
 }
-COMMANDS: dict[str, str] = {name: line for name, (_, line) in TABLE.items()}
-"""Command -> its one-line help (a view of :data:`TABLE`)."""
 
 
 def command_module(name: str) -> Any:

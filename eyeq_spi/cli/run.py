@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import sys
 import time
 from collections import Counter
@@ -15,7 +16,6 @@ from typing import Any
 from eyeq_spi import garbage
 from eyeq_spi.cli import args as ca
 from eyeq_spi.cli import options as opt
-from eyeq_spi.errors import UsageError
 
 DESCRIPTIONS = {
     "demo": "Bring a simulated EyeQ4 up to Running Vision with the host emulator, in one "
@@ -106,18 +106,16 @@ class LiveView:
     since the run started (a host on the wall clock has its start subtracted), each line folded
     to the terminal's width; the first FATAL_22 gets an explanation."""
 
-    def __init__(self, enabled: bool, say: Callable[[str], None] | None = None,
-                 width: int | None = None) -> None:
+    def __init__(self, enabled: bool, say: Callable[[str], None] | None = None) -> None:
         self.enabled = enabled
         self.say = say or (lambda line: print(line, file=sys.stderr))
-        self.width = width or _stderr_width()
+        self.width = _stderr_width()
         self.shown = 0
         self.last_counts: Counter[str] = Counter()
         self.last_t = 0.0
         self.origin: float | None = None
         self.explained = False
         self.last_live: set[str] = set()
-        self._periodic_names: set[str] | None = None
 
     def _print(self, line: str, indent: int = 11) -> None:
         """A line of the live view, folded between words to the terminal's width (continuation
@@ -131,13 +129,12 @@ class LiveView:
                                  break_long_words=False, break_on_hyphens=False)
         self.say(line)
 
-    def _periodic(self) -> set[str]:
+    @functools.cached_property
+    def periodic(self) -> set[str]:
         """The messages the spec gives a nominal rate (seed 004's message table)."""
-        if self._periodic_names is None:
-            from eyeq_spi.catalog.messages import catalog
+        from eyeq_spi.catalog.messages import catalog
 
-            self._periodic_names = {m.name for m in catalog().messages if m.rate_hz}
-        return self._periodic_names
+        return {m.name for m in catalog().messages if m.rate_hz}
 
     def update(self, host: Any, now: float) -> None:
         if not self.enabled:
@@ -158,8 +155,8 @@ class LiveView:
             counts = Counter(host.counters.received)
             dt = now - self.last_t
             rates = {k: (v - self.last_counts.get(k, 0)) / dt for k, v in counts.items()}
-            periodic = self._periodic()  # a boot status or a MESP reply is no stream
-            live = {k: r for k, r in rates.items() if r > 0 and k in periodic}
+            # a boot status or a MESP reply is no stream
+            live = {k: r for k, r in rates.items() if r > 0 and k in self.periodic}
             line = f"[{now:8.3f}] {host.state.value:14s} rx {sum(live.values()):6.1f} msg/s"
             if live:
                 slow = min(live, key=lambda k: live[k])
@@ -178,11 +175,8 @@ def _on_sigterm() -> None:
     """SIGTERM ends ``demo``, ``host`` and ``sim`` like Ctrl-C: cleanly, with the summary."""
     import signal
 
-    def raise_interrupt(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
-
     with contextlib.suppress(ValueError):  # not the main thread (tests)
-        signal.signal(signal.SIGTERM, raise_interrupt)
+        signal.signal(signal.SIGTERM, signal.default_int_handler)
 
 
 LONG_DEMO_S = 20.0  # demos this long or longer show a progress bar on a terminal
@@ -252,8 +246,6 @@ def run_sim(args: argparse.Namespace) -> int:
     from eyeq_spi.phy.base import open_listener
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
 
-    if bool(args.listen) == bool(args.pty):
-        raise UsageError("give exactly one of --listen tcp://HOST:PORT or --pty")
     # bad options fail here, before anybody connects
     eyeq = SimulatedEyeQ(opt.sim_config(args))
     eyeq.warm_up()

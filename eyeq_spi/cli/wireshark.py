@@ -6,8 +6,6 @@ import argparse
 import sys
 from typing import Any
 
-from eyeq_spi.errors import UsageError
-
 
 def add_parser(sub: Any, name: str, help: str) -> None:
     from eyeq_spi.cli import args as ca
@@ -21,6 +19,7 @@ def add_parser(sub: Any, name: str, help: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from eyeq_spi.plot.figures import write_file
     from eyeq_spi.wireshark.lua_gen import generate_lua
 
     text = generate_lua(args.sw)
@@ -28,11 +27,7 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write(text)
         sys.stdout.flush()
         return 0
-    try:
-        with open(args.output, "w", encoding="utf-8") as fh:
-            fh.write(text)
-    except OSError as exc:
-        raise UsageError(f"cannot write {args.output}: {exc.strerror or exc}") from None
+    write_file(args.output, text)
     print(f"wrote {args.output} ({len(text.splitlines())} lines)\n"
           f"use it with: wireshark -X lua_script:{args.output}\n"
           "or copy it to your personal Lua plugins folder (Help > About Wireshark > Folders)")

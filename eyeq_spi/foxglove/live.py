@@ -72,6 +72,14 @@ class MessageFeed:
         return f"{self.feed.describe()} in {self.publishes} publishes"
 
 
+def link_counts(host: Any, aborted: str) -> dict[str, int]:
+    """``host``'s link counters by seed name, and its transfer aborts as ``aborted: reason``."""
+    link: dict[str, int] = dict(host.conn.link.counters.seed_view())
+    for reason, count in dict(host.conn.counters.transferAborts).items():
+        link[f"{aborted}: {reason}"] = int(count)
+    return link
+
+
 class HostFeed(MessageFeed):
     """Publishes ``host``'s scene, transitions, link events and figures to ``sink``."""
 
@@ -79,7 +87,7 @@ class HostFeed(MessageFeed):
         super().__init__(host.codec, sink, period=period)
         self.host = host
         self.shown = len(host.transitions)
-        self.link_seen = self._link_counts()
+        self.link_seen = link_counts(host, "transfer aborted")
         self.acks_seen: Counter[int] = Counter(host.conn.link.ack_latency)
         host.subscribe(self._on_message)
         host.subscribe_traffic(self.traffic)
@@ -111,14 +119,8 @@ class HostFeed(MessageFeed):
                           tr.time, level, "host")
         self.shown = len(self.host.transitions)
 
-    def _link_counts(self) -> dict[str, int]:
-        link: dict[str, int] = dict(self.host.conn.link.counters.seed_view())
-        for reason, count in dict(self.host.conn.counters.transferAborts).items():
-            link[f"transfer aborted: {reason}"] = int(count)
-        return link
-
     def _link(self, now: float) -> None:
-        counts = self._link_counts()
+        counts = link_counts(self.host, "transfer aborted")
         for name, count in counts.items():
             before = self.link_seen.get(name, 0)
             if count > before:

@@ -8,11 +8,11 @@ import json
 from typing import Any
 
 from eyeq_spi.codec.message import MessageCodec
-from eyeq_spi.errors import OutputError
 from eyeq_spi.foxglove.feed import Feed, RecordFeed
 from eyeq_spi.foxglove.layout import layout_json
 from eyeq_spi.foxglove.topics import FoxgloveMessage
 from eyeq_spi.interop.mcap_out import McapWriter
+from eyeq_spi.plot.figures import write_file
 
 
 class McapSink:
@@ -53,12 +53,7 @@ class McapScene(RecordFeed):
     capture)."""
 
     def __init__(self, writer: McapWriter, codec: MessageCodec, layout: str) -> None:
-        text = layout_json()
-        try:
-            with open(layout, "w", encoding="utf-8") as fh:
-                fh.write(text + "\n")
-        except OSError as exc:
-            raise OutputError(f"cannot write {layout}: {exc.strerror or exc}") from None
+        write_file(layout, layout_json() + "\n")
         self.layout = layout
         super().__init__(Feed(codec, McapSink(writer)))
 

@@ -10,13 +10,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from rich.console import Console
+
 from eyeq_spi.errors import UsageError
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.monitor.view import (
     new_live,
     print_whole,
     render,
-    rich_modules,
     save_lines,
     screen_lines,
 )
@@ -39,8 +40,7 @@ class Source(Protocol):
 @dataclass
 class RunStats:
     redraws: int = 0
-    draw_cpu_s: float = 0.0  # CPU time spent building and writing screens
-    wall_s: float = 0.0
+    draw_cpu_s: float = 0.0  # CPU time spent building and writing screens (tools/bench_monitor)
     interrupted: bool = False  # stopped by Ctrl-C
 
 
@@ -74,10 +74,9 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         raise UsageError(f"--refresh must be {MIN_REFRESH:g}..{MAX_REFRESH:g} Hz")
     if screenshot is not None:
         check_screenshot(screenshot)
-    console = console or rich_modules().Console()
+    console = console or Console()
     period = 1.0 / refresh
     stats = RunStats()
-    start = clock()
     live_screen = console.is_terminal
     live = new_live(console)
     snap: Snapshot | None = None
@@ -112,7 +111,6 @@ def run(source: Source, *, refresh: float = DEFAULT_REFRESH, console: Any = None
         if live_screen:
             live.stop()
         source.close()
-        stats.wall_s = clock() - start
     if screenshot is not None and snap is not None:
         save_screen(snap, screenshot, screenshot_size)
     if not live_screen and snap is not None:

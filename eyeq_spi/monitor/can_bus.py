@@ -10,7 +10,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from eyeq_spi.monitor.view import new_live, print_whole, rich_modules, save_lines
+from rich.console import Console, Group
+from rich.text import Text
+
+from eyeq_spi.monitor.view import new_live, print_whole, save_lines
 
 
 @dataclass
@@ -59,7 +62,6 @@ class CanBusView:
             self.error_frames += 1
 
     def lines(self, width: int = 120, height: int | None = None) -> list[Any]:
-        Text = rich_modules().Text
         head = Text.assemble(("eyeq-spi monitor ", "bold"), (self.source, "cyan"),
                              f"   {self.decoder.protocol.name}   frames {self.frames}   ",
                              (f"errors {self.error_frames}",
@@ -103,8 +105,7 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
 
     if screenshot is not None:
         check_screenshot(screenshot)
-    rich = rich_modules()
-    console = console or rich.Console()
+    console = console or Console()
     view = CanBusView(proto, target)
     bus = open_bus(target)
     live = new_live(console)
@@ -122,14 +123,14 @@ def run_can_monitor(target: str, proto: str, *, duration: float | None = None,
             for msg in read_bus(bus, duration=slot, now=clock, poll=min(0.05, slot)):
                 view.add(msg, clock() - start)
             if on_terminal:
-                live.update(rich.Group(*view.lines(console.width, console.height)), refresh=True)
+                live.update(Group(*view.lines(console.width, console.height)), refresh=True)
     except KeyboardInterrupt:  # Ctrl-C ends a live view normally
         pass
     finally:
         bus.shutdown()
         view.done = True
         if on_terminal:
-            live.update(rich.Group(*view.lines(console.width, console.height)), refresh=True)
+            live.update(Group(*view.lines(console.width, console.height)), refresh=True)
             live.stop()
     if not on_terminal:  # a pipe: the final screen once
         print_whole(console, view.lines(width=400))

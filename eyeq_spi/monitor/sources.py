@@ -16,6 +16,7 @@ from typing import Any
 
 from eyeq_spi.codec.message import DecodedMessage, MessageCodec
 from eyeq_spi.dissect.pipeline import CaptureFile, DissectConfig, open_capture_file
+from eyeq_spi.foxglove.live import link_counts
 from eyeq_spi.interop.replay import host_bench
 from eyeq_spi.monitor.model import RateMeter, Snapshot
 from eyeq_spi.plot.collect import frame_counters
@@ -57,9 +58,7 @@ class _HostView:
         for name, out in self._latest.items():
             self.tracker.update(name, out.fields, now, out.errors)
         self._latest.clear()
-        link = dict(host.conn.link.counters.seed_view())
-        for reason, count in dict(host.conn.counters.transferAborts).items():
-            link[f"abort: {reason}"] = int(count)
+        link = link_counts(host, "abort")
         counters = host.counters
         errors = {"E2E errors": counters.e2e_errors,
                   "DASP counter gaps": counters.dasp_counter_gaps,

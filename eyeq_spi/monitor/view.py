@@ -4,43 +4,19 @@ Pure: the same snapshot always gives the same screen."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
-from eyeq_spi.errors import OutputError
+from rich.console import Console, Group
+from rich.live import Live
+from rich.text import Text
+
 from eyeq_spi.monitor.compact import STATUS_STYLE, compact_lines, fit, is_error, number
 from eyeq_spi.monitor.model import Snapshot
 from eyeq_spi.plot.charts import short
-from eyeq_spi.plot.figures import plural
+from eyeq_spi.plot.figures import plural, write_file
 from eyeq_spi.plot.perceived import NO_TTC
 
 GOOD_STATES = ("RUNNING_VISION", "RUNNING_TAC", "RUNNING_SPC", "DV", "Running Vision")
-
-
-@dataclass
-class RichModules:
-    Console: Any
-    Live: Any
-    Table: Any
-    Text: Any
-    Group: Any
-    box: Any
-
-
-_RICH: RichModules | None = None
-
-
-def rich_modules() -> RichModules:
-    global _RICH
-    if _RICH is None:
-        from rich import box
-        from rich.console import Console, Group
-        from rich.live import Live
-        from rich.table import Table
-        from rich.text import Text
-
-        _RICH = RichModules(Console, Live, Table, Text, Group, box)
-    return _RICH
 
 
 Col = tuple[str, int, str]  # header, width, justify
@@ -64,7 +40,6 @@ def _block(title: str, cols: list[Col], rows: list[tuple[list[Cell], str]]) -> l
     Columns have fixed widths and each row is one Text with a span per styled cell. A rich
     ``Table`` measures, pads and wraps every cell on every redraw (about 15 ms of CPU for this
     screen); lines of Text cost rich about a tenth of that (tools/bench_monitor.py)."""
-    Text = rich_modules().Text
     head = " " + GAP.join(_cell(h, w, j) for h, w, j in cols)
     lines = [Text(title, style="italic"), Text(head, style="bold"),
              Text(" " + "\u2500" * (_width(cols) - 1), style="dim")]
@@ -143,7 +118,6 @@ def _transitions(snap: Snapshot) -> list[Any]:
 def _pair(left: list[Any], lw: int, right: list[Any], rw: int, width: int | None
           ) -> list[Any]:
     """Two blocks side by side, or one above the other when the terminal is too narrow."""
-    Text = rich_modules().Text
     if width is not None and lw + len(SIDE_GAP) + rw > width:
         return [*left, Text(), *right]
     out = []
@@ -156,7 +130,6 @@ def _pair(left: list[Any], lw: int, right: list[Any], rw: int, width: int | None
 
 def _head(snap: Snapshot, width: int | None) -> list[Any]:
     """The header (source, time since the start, state) and the problem, if any."""
-    Text = rich_modules().Text
     state_style = "bold green" if snap.state in GOOD_STATES else "bold yellow"
     state = Text.assemble((f"{snap.state_label}: ", ""), (snap.state, state_style),
                           ("   finished" if snap.done else "", "dim"))
@@ -180,7 +153,6 @@ def screen_lines(snap: Snapshot, width: int | None = None,
     terminal (``width`` columns) is too narrow for two; where that does not fit ``height``
     rows either, the compact screen (:mod:`eyeq_spi.monitor.compact`) folds the panels.
     Lines never wrap."""
-    Text = rich_modules().Text
     lines = _head(snap, width)
     head = list(lines)
     lines += [Text(), *_pair(_rates(snap), _width(RATE_COLS), _link(snap), _width(LINK_COLS),
@@ -191,27 +163,26 @@ def screen_lines(snap: Snapshot, width: int | None = None,
     too_wide = width is not None and max(t.cell_len for t in lines) > width
     # the last row is the cursor's: a screen of ``height`` lines scrolls its title away
     if height is not None and width is not None and (len(lines) > height - 1 or too_wide):
-        lines = compact_lines(snap, head, width, height - 1, Text)  # the cursor's line
+        lines = compact_lines(snap, head, width, height - 1)  # the cursor's line
     for line in lines:
         line.no_wrap, line.overflow, line.end = True, "crop", "\n"
     return lines
 
 
 def render(snap: Snapshot, width: int | None = None, height: int | None = None) -> Any:
-    return rich_modules().Group(*screen_lines(snap, width, height))
+    return Group(*screen_lines(snap, width, height))
 
 
 def new_live(console: Any) -> Any:
     """A rich ``Live`` redrawn only when asked, cropped to the terminal."""
-    return rich_modules().Live(console=console, auto_refresh=False, transient=False,
-                               vertical_overflow="crop", redirect_stdout=False,
-                               redirect_stderr=False)
+    return Live(console=console, auto_refresh=False, transient=False, vertical_overflow="crop",
+                redirect_stdout=False, redirect_stderr=False)
 
 
 def print_whole(console: Any, lines: list[Any]) -> None:
     """``lines`` printed once, as wide as they are (a pipe: the console's default is 80)."""
     console.width = max(console.width, *(t.cell_len for t in lines))
-    console.print(rich_modules().Group(*lines))
+    console.print(Group(*lines))
 
 
 def save_lines(lines: list[Any], path: str, title: str) -> None:
@@ -219,17 +190,9 @@ def save_lines(lines: list[Any], path: str, title: str) -> None:
     wide as the widest line; ``OutputError`` when the file cannot be written."""
     import io
 
-    rich = rich_modules()
-    con = rich.Console(file=io.StringIO(), record=True, force_terminal=True,
-                       color_system="truecolor", width=max(t.cell_len for t in lines))
-    con.print(rich.Group(*lines))
+    con = Console(file=io.StringIO(), record=True, force_terminal=True,
+                  color_system="truecolor", width=max(t.cell_len for t in lines))
+    con.print(Group(*lines))
     suffix = path.lower().rsplit(".", 1)[-1]
-    try:
-        if suffix == "svg":
-            con.save_svg(path, title=title)
-        elif suffix == "html":
-            con.save_html(path)
-        else:
-            con.save_text(path)
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    write_file(path, con.export_svg(title=title) if suffix == "svg" else
+               con.export_html() if suffix == "html" else con.export_text())

@@ -53,7 +53,8 @@ def _page(title: str, body: str) -> str:
             "</body></html>\n")
 
 
-def _write(path: str, data: bytes | str) -> None:
+def write_file(path: str, data: bytes | str) -> None:
+    """``data`` into the file ``path`` (text as UTF-8), or an ``OutputError`` saying why not."""
     try:
         if isinstance(data, str):
             Path(path).write_text(data, encoding="utf-8")
@@ -74,9 +75,9 @@ def save_figure(fig: Any, path: str, title: str) -> None:
     if suffix == ".html":
         svg = buf.getvalue().decode("utf-8")
         svg = svg[svg.find("<svg"):]  # inline: drop the XML prolog and doctype
-        _write(path, _page(title, svg))
+        write_file(path, _page(title, svg))
     else:
-        _write(path, buf.getvalue())
+        write_file(path, buf.getvalue())
 
 
 def save_animation(anim: Any, path: str, fps: float, title: str) -> None:
@@ -89,7 +90,7 @@ def save_animation(anim: Any, path: str, fps: float, title: str) -> None:
         except OSError as exc:
             raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
     else:
-        _write(path, _page(title, offline(anim.to_jshtml(fps=fps, default_mode="once"))))
+        write_file(path, _page(title, offline(anim.to_jshtml(fps=fps, default_mode="once"))))
 
 
 # matplotlib's HTML player draws its buttons with Font Awesome from a CDN; these are the same
