@@ -14,7 +14,7 @@ of the run would have.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -104,8 +104,12 @@ class _Direction:
 
 
 class Dissector:
-    def __init__(self, sw: str | None = None, codec: MessageCodec | None = None) -> None:
+    """``on_message(data)`` sees each reassembled message's bytes before it is decoded."""
+
+    def __init__(self, sw: str | None = None, codec: MessageCodec | None = None, *,
+                 on_message: Callable[[bytes], None] | None = None) -> None:
         self.codec = codec or MessageCodec(sw)
+        self.on_message = on_message
         self.frames = FrameCodec()
         self._dirs: dict[str | None, _Direction] = {}
         self.index = 0
@@ -266,6 +270,8 @@ class Dissector:
     def _events(self, direction: str | None, receiver: _Direction) -> Iterator[dict[str, Any]]:
         while (ev := receiver.conn.next_event()) is not None:
             if isinstance(ev, MessageReceived):
+                if self.on_message is not None:
+                    self.on_message(ev.data)
                 yield self._message(direction, receiver, ev)
             elif isinstance(ev, TransferAborted):
                 yield {"kind": "event", "type": "transfer_aborted", "direction": direction,

@@ -56,18 +56,6 @@ class Release:
         return {"sw": self.text, "sw_source": self.source, "clock": self.clock}
 
 
-class _Sniffer(Dissector):
-    """The engine's reassembly, keeping each message's bytes instead of decoding them."""
-
-    def __init__(self, cat: Catalog) -> None:
-        super().__init__(codec=MessageCodec(cat=cat))
-        self.messages: list[bytes] = []
-
-    def _message(self, direction: str | None, receiver: Any, ev: Any) -> dict[str, Any]:
-        self.messages.append(bytes(ev.data))
-        return {"kind": "message"}
-
-
 def _known(cat: Catalog, major: int, minor: int) -> SwKey | None:
     """The ``specs/`` release for a reported one: the same, else the newest before it (D4)."""
     best = None
@@ -123,19 +111,20 @@ def infer_release(transfers: Iterable[Transfer], cat: Catalog | None = None
     """The release the traffic shows (steps 3 and 4 of the module docstring), with where it was
     seen, or None when nothing in ``transfers`` tells."""
     cat = cat or catalog()
-    sniff = _Sniffer(cat)
-    codec = sniff.codec
+    codec = MessageCodec(cat=cat)
+    messages: list[bytes] = []
+    sniff = Dissector(codec=codec, on_message=messages.append)
     lengths: set[tuple[int, int]] = set()
     for transfer in transfers:
         for _ in sniff.feed(transfer):
             pass
-        for data in sniff.messages:
+        for data in messages:
             found = _reported(cat, codec, data)
             if found is not None:
                 return found
             if len(data) >= 4 and data[0] == DASP_PROTOCOL:
                 lengths.add((data[1], len(data)))
-        sniff.messages.clear()
+        messages.clear()
     fit = _fitting(cat, lengths)
     if not fit:
         return None
