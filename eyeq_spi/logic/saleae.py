@@ -23,7 +23,7 @@ from datetime import UTC, datetime
 
 from eyeq_spi.capture.pcapng_io import Readable, Transfer
 from eyeq_spi.errors import InputError
-from eyeq_spi.logic.options import MAX_TRANSFER, Route, SpiOptions, bench_spec
+from eyeq_spi.logic.options import MAX_TRANSFER, Route, SpiOptions, bench_spec, whole_chunks
 
 MAX_LINE = 1 << 16
 
@@ -134,29 +134,8 @@ def _csv_errors(transfers: Iterator[Transfer]) -> Iterator[Transfer]:
         raise InputError(f"not a CSV export: {exc}") from None
 
 
-def byte_chunks(src: Readable, size: int = 1 << 20) -> Iterator[bytes]:
-    """The stream in chunks of whole lines (the last may lack its newline), the UTF-8 BOM
-    dropped, bounded memory: a line longer than 64 KiB is an error."""
-    rest = b""
-    bom = True
-    while True:
-        data = src.read(size)
-        buf = rest + data
-        if bom:
-            if len(buf) < 3 and data:
-                rest = buf
-                continue
-            buf, bom = buf.removeprefix(b"\xef\xbb\xbf"), False
-        if not data:
-            if buf:
-                yield buf
-            return
-        cut = buf.rfind(b"\n") + 1
-        rest = buf[cut:]
-        if len(rest) > MAX_LINE:
-            raise InputError("line longer than 64 KiB: not a Saleae export")
-        if cut:
-            yield buf[:cut]
+def _line_chunks(src: Readable, size: int) -> Iterator[bytes]:
+    return whole_chunks(src, size, b"\n", MAX_LINE, "line longer than 64 KiB: not a Saleae export")
 
 
 def _lines(chunk: bytes) -> list[str]:
@@ -167,8 +146,8 @@ def _lines(chunk: bytes) -> list[str]:
 
 
 def _head(chunks: Iterator[bytes]) -> tuple[list[str], bytes]:
-    """The normalised header cells and the rest of the first chunk."""
-    line0, _, body = next(chunks, b"").partition(b"\n")
+    """The normalised header cells and the rest of the first chunk (the UTF-8 BOM dropped)."""
+    line0, _, body = next(chunks, b"").removeprefix(b"\xef\xbb\xbf").partition(b"\n")
     text = line0.rstrip(b"\r").decode("utf-8", "replace")
     return _norm(next(csv.reader([text]), [])), body
 
@@ -189,7 +168,7 @@ def _by_chunk(body: bytes, chunks: Iterator[bytes],
 
 
 def _saleae2(src: Readable, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
-    chunks = byte_chunks(src, chunk_size)
+    chunks = _line_chunks(src, chunk_size)
     header, body = _head(chunks)
     try:
         i_name, i_type, i_time = (header.index(c) for c in ("name", "type", "start_time"))
@@ -252,7 +231,7 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
 
 
 def _saleae1(src: Readable, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
-    chunks = byte_chunks(src, chunk_size)
+    chunks = _line_chunks(src, chunk_size)
     header, body = _head(chunks)
     want = [h.lower() for h in bench_spec()["saleae1"]["header"]]
     try:
