@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
+from functools import cache
 from typing import IO, Any
 
 from eyeq_spi.capture.pcapng_io import (
@@ -88,9 +89,9 @@ def _reported(cat: Catalog, codec: MessageCodec, data: bytes) -> tuple[SwKey, st
 
 def _fitting(cat: Catalog, lengths: set[tuple[int, int]]) -> list[SwKey]:
     """The releases whose DASP layouts fit the most of the (data ID, length) pairs seen."""
-    codecs = {k: MessageCodec(k, cat) for k in cat.sw_versions}
     score: dict[SwKey, int] = {}
-    for key, codec in codecs.items():
+    for key in cat.sw_versions:
+        codec = MessageCodec(key, cat)
         fitting = 0
         for data_id, length in lengths:
             msg = codec.dasp_message(data_id)
@@ -150,14 +151,10 @@ def choose_release(sw: str | None, found: tuple[SwKey, str] | None, name: str,
     return Release(key, "--sw", warning)
 
 
-_CODECS: dict[str, MessageCodec] = {}
-
-
+@cache
 def codec_for(key: str) -> MessageCodec:
     """One codec per release for the whole process (building one reads ``specs/``)."""
-    if key not in _CODECS:
-        _CODECS[key] = MessageCodec(key)
-    return _CODECS[key]
+    return MessageCodec(key)
 
 
 @dataclass
