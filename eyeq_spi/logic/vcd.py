@@ -80,19 +80,12 @@ def _header(tokens: Iterator[bytes]) -> tuple[float, list[tuple[str, bytes, str]
     scale = 1e-9
     scopes: list[str] = []
     vars_: list[tuple[str, bytes, str]] = []
-    count = 0
-    for tok in tokens:
-        count += len(tok) + 1
-        if count > MAX_HEADER:
-            raise InputError("VCD header longer than 16 MiB")
+    for tok in tokens:  # read_vcd bounds the header's size
         body: list[bytes] = []
         for token in tokens:
             if token == b"$end":
                 break
             body.append(token)
-            count += len(token) + 1
-            if count > MAX_HEADER:
-                raise InputError("VCD header longer than 16 MiB")
         else:
             break
         if tok == b"$enddefinitions":
