@@ -94,8 +94,6 @@ class HumanWriter:
                             if k not in ("kind", "type", "time", "direction", "file"))
             self.fh.write(f"{self._lead(when)} {record.get('direction') or '-':3s} "
                           + self._c(YELLOW, f"event {record['type']}") + f" {rest}\n")
-        elif kind == "stats":
-            pass
 
     def _lead(self, when: str) -> str:
         return f"{'':8s} {when:>14s}" if self._wide else f"{when:>12s}"
