@@ -178,11 +178,9 @@ def read_vcd(src: Readable, opts: SpiOptions, *, chunk_size: int = 1 << 20
         if not head.lstrip()[:1] == b"$":  # a VCD starts with a $ keyword ($date, $timescale..)
             raise InputError("not a VCD file: it does not start with a $ keyword")
         raise InputError("truncated VCD: no $enddefinitions")
-    meta = _skip_meta(head[:match.start()])  # only before the definitions end
-    head = meta + head[match.start():]
-    match = re.search(rb"\$enddefinitions\s+\$end\s?", head)
-    assert match is not None
-    scale, vars_ = _header(iter(head[:match.end()].split()))
+    # a META line only before the definitions end
+    definitions = _skip_meta(head[:match.start()]) + head[match.start():match.end()]
+    scale, vars_ = _header(iter(definitions.split()))
     table = _channels(vars_, opts)
     reader = _Reader(table, scale, opts)
     yield from reader.feed(head[match.end():])
