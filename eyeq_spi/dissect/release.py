@@ -174,8 +174,8 @@ class Capture:
 def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | None = None,
                  spi: SpiOptions | None = None, *, sw: str | None = None, name: str = "-"
                  ) -> Capture:
-    """:func:`~.inputs.open_transfers` with the release resolved (module docstring) and a file
-    that ends inside a pcapng block read up to its last whole block (:class:`Tail`)."""
+    """:func:`~eyeq_spi.io.plain.open_transfers` with the release resolved (module docstring)
+    and a file that ends inside a pcapng block read up to its last whole block (:class:`Tail`)."""
     tail = Tail()
     peek = stream if isinstance(stream, PeekStream) else PeekStream(stream)
     head = peek.head  # before the reader takes it
