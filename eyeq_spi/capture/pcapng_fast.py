@@ -25,6 +25,7 @@ from eyeq_spi.capture.pcapng_io import (
     Readable,
     Tail,
     Transfer,
+    pcapng_options,
     read_pcapng,
 )
 from eyeq_spi.errors import InputError, TruncatedInputError
@@ -93,16 +94,10 @@ def _interface(body: bytes | bytearray) -> tuple[str | None, float]:
     reads them."""
     name: str | None = None
     scale = 1e-6
-    pos = 8  # link type, reserved, snaplen
-    while pos + 4 <= len(body):
-        code, size = struct.unpack_from("<HH", body, pos)
-        value = body[pos + 4 : pos + 4 + size]
-        pos += 4 + ((size + 3) & ~3)
-        if code == 0:
-            break
+    for code, value in pcapng_options(body, 8, len(body)):  # after link type, snaplen
         if code == 2:
             name = value.decode("utf-8", "replace")
-        elif code == 9 and size == 1:
+        elif code == 9 and len(value) == 1:
             base = 2 if value[0] & 0x80 else 10
             scale = float(base ** -(value[0] & 0x7F))
     return (name if name in DIRECTIONS else None), scale

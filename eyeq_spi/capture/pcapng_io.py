@@ -67,18 +67,22 @@ def _shb_comments(head: bytes) -> list[str]:
     endian = {b"\x4d\x3c\x2b\x1a": "<", b"\x1a\x2b\x3c\x4d": ">"}.get(head[8:12])
     if endian is None:
         return []
-    length = struct.unpack_from(f"{endian}I", head, 4)[0]
-    end = min(length - 4, len(head))
-    pos = 24  # type, length, byte-order magic, version, section length
-    out: list[str] = []
+    end = min(struct.unpack_from(f"{endian}I", head, 4)[0] - 4, len(head))
+    # after type, length, byte-order magic, version, section length
+    return [value.decode("utf-8", "replace")
+            for code, value in pcapng_options(head, 24, end, endian) if code == 1]
+
+
+def pcapng_options(block: bytes | bytearray, pos: int, end: int, endian: str = "<"
+                   ) -> Iterator[tuple[int, bytes]]:
+    """The (code, value) options of a pcapng block from byte ``pos`` up to ``end`` or
+    opt_endofopt."""
     while pos + 4 <= end:
-        code, size = struct.unpack_from(f"{endian}HH", head, pos)
+        code, size = struct.unpack_from(f"{endian}HH", block, pos)
         if code == 0:
-            break
-        if code == 1:
-            out.append(head[pos + 4 : pos + 4 + size].decode("utf-8", "replace"))
+            return
+        yield code, bytes(block[pos + 4 : pos + 4 + size])
         pos += 4 + size + (-size % 4)
-    return out
 
 
 def recorded_release(head: bytes) -> SwKey | None:

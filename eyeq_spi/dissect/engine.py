@@ -14,7 +14,7 @@ of the run would have.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -104,8 +104,12 @@ class _Direction:
 
 
 class Dissector:
-    def __init__(self, sw: str | None = None, codec: MessageCodec | None = None) -> None:
+    """``on_message(data)`` sees each reassembled message's bytes before it is decoded."""
+
+    def __init__(self, sw: str | None = None, codec: MessageCodec | None = None, *,
+                 on_message: Callable[[bytes], None] | None = None) -> None:
         self.codec = codec or MessageCodec(sw)
+        self.on_message = on_message
         self.frames = FrameCodec()
         self._dirs: dict[str | None, _Direction] = {}
         self.index = 0
@@ -126,11 +130,6 @@ class Dissector:
         timers = (receiver.conn.get_timer() for receiver in self._dirs.values())
         times = [at for at in timers if at is not None]
         return min(times) if times else None
-
-    def run_timers(self, now: float) -> Iterator[dict[str, Any]]:
-        """The records of every receiver timer due at ``now``, as :meth:`feed` runs them
-        before a transfer of that time."""
-        return self._timers(now)
 
     def message_state(self, direction: str | None) -> tuple[E2EState, DaspCounters]:
         """The E2E rolling counters (D5) and DASP counters (D1) the messages received on
@@ -197,7 +196,7 @@ class Dissector:
         time_s = transfer.time
         receiver = self._dir(transfer.direction)
         if time_s is not None:
-            yield from self._timers(time_s)
+            yield from self.run_timers(time_s)
             self.last_time = time_s
         data = transfer.data
         if len(data) == FRAME_SIZE:
@@ -245,7 +244,9 @@ class Dissector:
         receiver.index_of_num = old.index_of_num
         return receiver
 
-    def _timers(self, now: float) -> Iterator[dict[str, Any]]:
+    def run_timers(self, now: float) -> Iterator[dict[str, Any]]:
+        """The records of every receiver timer due at ``now`` (:meth:`feed` runs them before a
+        transfer of that time)."""
         for direction, receiver in self._dirs.items():
             timer = receiver.conn.get_timer()
             while timer is not None and timer <= now:
@@ -266,11 +267,12 @@ class Dissector:
     def _events(self, direction: str | None, receiver: _Direction) -> Iterator[dict[str, Any]]:
         while (ev := receiver.conn.next_event()) is not None:
             if isinstance(ev, MessageReceived):
+                if self.on_message is not None:
+                    self.on_message(ev.data)
                 yield self._message(direction, receiver, ev)
             elif isinstance(ev, TransferAborted):
                 yield {"kind": "event", "type": "transfer_aborted", "direction": direction,
-                       "reason": ev.reason, "transfer_id": ev.transfer_id,
-                       "received": ev.received, "total": ev.total, "index": self.index - 1}
+                       **asdict(ev), "index": self.index - 1}
             elif isinstance(ev, TransferIncomplete):
                 yield {"kind": "event", "type": f"incomplete_at_{ev.where}",
                        "direction": direction, "transfer_id": ev.transfer_id,

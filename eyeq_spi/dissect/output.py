@@ -94,8 +94,6 @@ class HumanWriter:
                             if k not in ("kind", "type", "time", "direction", "file"))
             self.fh.write(f"{self._lead(when)} {record.get('direction') or '-':3s} "
                           + self._c(YELLOW, f"event {record['type']}") + f" {rest}\n")
-        elif kind == "stats":
-            pass
 
     def _lead(self, when: str) -> str:
         return f"{'':8s} {when:>14s}" if self._wide else f"{when:>12s}"
@@ -240,7 +238,7 @@ class TableWriter:
         row.update({f"header.{k}": v for k, v in record["header"].items()})
         row.update(flatten(record["fields"]))
         if self.fmt == "csv":
-            self._write_csv(name, row)
+            self._csv_part(name, list(row))[1].writerow(row)
         else:
             if self._tables.get(name):
                 self._flush_tables(name)  # column batches of this table come first
@@ -318,9 +316,6 @@ class TableWriter:
                 if alias is not None:
                     schema = schema.set(index, pa.field(field.name, pa.type_for_alias(alias)))
         return schema
-
-    def _write_csv(self, name: str, row: dict[str, Any]) -> None:
-        self._csv_part(name, list(row))[1].writerow(row)
 
     def _csv_part(self, name: str, keys: list[str]) -> tuple[IO[str], Any, list[str]]:
         """The first CSV part of ``name`` whose header holds every column of ``keys``; a new

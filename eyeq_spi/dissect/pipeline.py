@@ -213,7 +213,7 @@ def _naming(exc: EyeqError, path: str) -> EyeqError:
 def dissect_captures(paths: Sequence[str], config: DissectConfig | None = None, *,
                      progress: Progress | None = None) -> Iterator[CaptureFile]:
     """One :class:`CaptureFile` per path, in order; consume one's items before asking for
-    the next. Raises :class:`.inputs.InputError` for a file that cannot be read (when its
+    the next. Raises :class:`~eyeq_spi.errors.InputError` for a file that cannot be read (when its
     turn comes; a worker's error when its file's turn comes)."""
     cfg = config or DissectConfig()
     if cfg.jobs < 0:
@@ -274,7 +274,7 @@ def dissect_files(paths: Sequence[str], config: DissectConfig | None = None, *,
 
 def open_capture_file(path: str, config: DissectConfig | None = None) -> CaptureFile:
     """One capture opened with its release (:attr:`CaptureFile.release` raises a bad input's
-    :class:`.inputs.InputError` now); read its :attr:`~CaptureFile.transfers` or
+    :class:`~eyeq_spi.errors.InputError` now); read its :attr:`~CaptureFile.transfers` or
     :attr:`~CaptureFile.items`, then :meth:`~CaptureFile.close` it."""
     cf = CaptureFile(path, config or DissectConfig(), AUTO)
     cf.open()

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
+from functools import cache
 from typing import IO, Any
 
 from eyeq_spi.capture.pcapng_io import (
@@ -56,18 +57,6 @@ class Release:
         return {"sw": self.text, "sw_source": self.source, "clock": self.clock}
 
 
-class _Sniffer(Dissector):
-    """The engine's reassembly, keeping each message's bytes instead of decoding them."""
-
-    def __init__(self, cat: Catalog) -> None:
-        super().__init__(codec=MessageCodec(cat=cat))
-        self.messages: list[bytes] = []
-
-    def _message(self, direction: str | None, receiver: Any, ev: Any) -> dict[str, Any]:
-        self.messages.append(bytes(ev.data))
-        return {"kind": "message"}
-
-
 def _known(cat: Catalog, major: int, minor: int) -> SwKey | None:
     """The ``specs/`` release for a reported one: the same, else the newest before it (D4)."""
     best = None
@@ -100,9 +89,9 @@ def _reported(cat: Catalog, codec: MessageCodec, data: bytes) -> tuple[SwKey, st
 
 def _fitting(cat: Catalog, lengths: set[tuple[int, int]]) -> list[SwKey]:
     """The releases whose DASP layouts fit the most of the (data ID, length) pairs seen."""
-    codecs = {k: MessageCodec(k, cat) for k in cat.sw_versions}
     score: dict[SwKey, int] = {}
-    for key, codec in codecs.items():
+    for key in cat.sw_versions:
+        codec = MessageCodec(key, cat)
         fitting = 0
         for data_id, length in lengths:
             msg = codec.dasp_message(data_id)
@@ -123,19 +112,20 @@ def infer_release(transfers: Iterable[Transfer], cat: Catalog | None = None
     """The release the traffic shows (steps 3 and 4 of the module docstring), with where it was
     seen, or None when nothing in ``transfers`` tells."""
     cat = cat or catalog()
-    sniff = _Sniffer(cat)
-    codec = sniff.codec
+    codec = MessageCodec(cat=cat)
+    messages: list[bytes] = []
+    sniff = Dissector(codec=codec, on_message=messages.append)
     lengths: set[tuple[int, int]] = set()
     for transfer in transfers:
         for _ in sniff.feed(transfer):
             pass
-        for data in sniff.messages:
+        for data in messages:
             found = _reported(cat, codec, data)
             if found is not None:
                 return found
             if len(data) >= 4 and data[0] == DASP_PROTOCOL:
                 lengths.add((data[1], len(data)))
-        sniff.messages.clear()
+        messages.clear()
     fit = _fitting(cat, lengths)
     if not fit:
         return None
@@ -161,14 +151,10 @@ def choose_release(sw: str | None, found: tuple[SwKey, str] | None, name: str,
     return Release(key, "--sw", warning)
 
 
-_CODECS: dict[str, MessageCodec] = {}
-
-
+@cache
 def codec_for(key: str) -> MessageCodec:
     """One codec per release for the whole process (building one reads ``specs/``)."""
-    if key not in _CODECS:
-        _CODECS[key] = MessageCodec(key)
-    return _CODECS[key]
+    return MessageCodec(key)
 
 
 @dataclass
@@ -188,8 +174,8 @@ class Capture:
 def open_capture(stream: IO[bytes], fmt: str | None = None, direction: str | None = None,
                  spi: SpiOptions | None = None, *, sw: str | None = None, name: str = "-"
                  ) -> Capture:
-    """:func:`~.inputs.open_transfers` with the release resolved (module docstring) and a file
-    that ends inside a pcapng block read up to its last whole block (:class:`Tail`)."""
+    """:func:`~eyeq_spi.io.plain.open_transfers` with the release resolved (module docstring)
+    and a file that ends inside a pcapng block read up to its last whole block (:class:`Tail`)."""
     tail = Tail()
     peek = stream if isinstance(stream, PeekStream) else PeekStream(stream)
     head = peek.head  # before the reader takes it

@@ -11,6 +11,7 @@ times (raw, hex) gets the index of the frame as its time.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -59,10 +60,8 @@ class MdfWriter:
 
     # -- layout metadata ------------------------------------------------------------------
     def _columns(self, record: dict[str, Any]) -> list[tuple[str, Any, str, Any]]:
-        info: dict[str, tuple[str, Any]] = {}
-        self._walk(record["fields"], record_layout(self.codec, record), "", info)
         cols: list[tuple[str, Any, str, Any]] = []
-        for name, value in flatten(record["fields"]).items():
+        for name, value, member in _leaves(record["fields"], record_layout(self.codec, record)):
             if isinstance(value, bool):
                 dtype: Any = np.uint8
             elif isinstance(value, int):
@@ -71,28 +70,8 @@ class MdfWriter:
                 dtype = np.float64
             else:
                 continue  # text and bytes parameters have no place in a numeric channel
-            unit, conv = info.get(name, ("", None))
-            cols.append((name, dtype, unit, conv))
+            cols.append((name, dtype, *self._meta(member)))
         return cols
-
-    def _walk(self, values: Any, lay: Any, prefix: str, out: dict[str, tuple[str, Any]]) -> None:
-        if not isinstance(values, dict):
-            return
-        for key, value in values.items():
-            name = f"{prefix}.{key}" if prefix else key
-            child = lay.children.get(key) if lay is not None else None
-            field = layout_field(lay, key)
-            member = field.member if field is not None else None
-            if isinstance(value, dict):
-                self._walk(value, child, name, out)
-            elif isinstance(value, list):
-                for index, item in enumerate(value):
-                    if isinstance(item, dict):
-                        self._walk(item, child, f"{name}[{index}]", out)
-                    else:
-                        out[f"{name}[{index}]"] = self._meta(member)
-            else:
-                out[name] = self._meta(member)
 
     def _meta(self, member: Any) -> tuple[str, Any]:
         if member is None:
@@ -177,6 +156,23 @@ class MdfWriter:
             raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}") from None
         finally:
             self.mdf.close()
+
+
+def _leaves(values: Any, lay: Any, prefix: str = "", member: Any = None
+            ) -> Iterator[tuple[str, Any, Any]]:
+    """(flattened name, value, layout member or None) of every scalar in ``values``, in the
+    order and with the names of :func:`~eyeq_spi.dissect.output.flatten`."""
+    if isinstance(values, dict):
+        for key, value in values.items():
+            field = layout_field(lay, key)
+            yield from _leaves(value, lay.children.get(key) if lay is not None else None,
+                               f"{prefix}.{key}" if prefix else key,
+                               field.member if field is not None else None)
+    elif isinstance(values, list):
+        for index, item in enumerate(values):
+            yield from _leaves(item, lay, f"{prefix}[{index}]", member)
+    else:
+        yield prefix, values, member
 
 
 def _conversion(labels: dict[int, str]) -> dict[str, Any]:

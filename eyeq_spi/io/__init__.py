@@ -170,20 +170,14 @@ def missing(fmt: Format) -> str | None:
     return None
 
 
-def require(fmt: Format, what: str | None = None) -> None:
-    """Raise :class:`MissingExtra` naming the pip extra when ``fmt`` cannot work here.
-    ``what``: how the user asked for it (``--parquet``), else the format's name."""
-    mod = missing(fmt)
-    if mod is not None and fmt.extra is not None:
-        raise MissingExtra(fmt.extra, f"{what or fmt.name} needs {mod}")
-
-
 def load(fmt: Format | str, kind: Kind = CAPTURE_READER, *,
          what: str | None = None) -> Callable[..., Any]:
     """``fmt``'s callable, imported now (:class:`MissingExtra` when its extra is not
     installed; ``what``: how the user asked for it, for the message)."""
     entry = get(fmt, kind) if isinstance(fmt, str) else fmt
-    require(entry, what)
+    mod = missing(entry)
+    if mod is not None and entry.extra is not None:
+        raise MissingExtra(entry.extra, f"{what or entry.name} needs {mod}")
     try:
         module = importlib.import_module(entry.module)
     except ImportError as exc:

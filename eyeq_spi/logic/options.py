@@ -4,10 +4,12 @@ names and which channel (and data line) carries ``h2e`` and ``e2h``. Defaults co
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
+from eyeq_spi.capture.pcapng_io import Readable
 from eyeq_spi.catalog.link import spec_file
 from eyeq_spi.errors import InputError, UsageError
 
@@ -20,6 +22,26 @@ MAX_TRANSFER = 4096  # bytes kept per transfer (32 frames); a CS that never rise
 @cache
 def bench_spec() -> dict[str, Any]:
     return spec_file("bench.yaml")
+
+
+def whole_chunks(src: Readable, size: int, separators: bytes, limit: int, too_long: str
+                 ) -> Iterator[bytes]:
+    """The stream in chunks that each end just after one of the ``separators`` (the last one
+    may not), in bounded memory: more than ``limit`` bytes without one is an error."""
+    rest = b""
+    while True:
+        data = src.read(size)
+        buf = rest + data
+        if not data:
+            if buf:
+                yield buf
+            return
+        cut = max(buf.rfind(separator) for separator in separators) + 1
+        rest = buf[cut:]
+        if len(rest) > limit:
+            raise InputError(too_long)
+        if cut:
+            yield buf[:cut]
 
 
 def sample_on_rising(mode: int) -> bool:

@@ -16,14 +16,13 @@ The csv module reads any shape of export; errors name their line.
 from __future__ import annotations
 
 import csv
-import itertools
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Iterator
 from datetime import UTC, datetime
+from typing import Any
 
 from eyeq_spi.capture.pcapng_io import Readable, Transfer
 from eyeq_spi.errors import InputError
-from eyeq_spi.logic.options import MAX_TRANSFER, Route, SpiOptions, bench_spec
+from eyeq_spi.logic.options import MAX_TRANSFER, Route, SpiOptions, bench_spec, whole_chunks
 
 MAX_LINE = 1 << 16
 
@@ -53,20 +52,6 @@ def seconds(text: str) -> float:
     if stamp.tzinfo is None:
         stamp = stamp.replace(tzinfo=UTC)
     return stamp.timestamp()
-
-
-@dataclass
-class Saleae2State:
-    open_: dict[str, OpenTransfer | None]
-    routes: dict[str, list[Route]]
-    results: int = 0
-    enables: int = 0
-
-
-@dataclass
-class Saleae1State:
-    tr: OpenTransfer | None = None
-    packet: str | None = None
 
 
 def _norm(cells: list[str]) -> list[str]:
@@ -134,29 +119,15 @@ def _csv_errors(transfers: Iterator[Transfer]) -> Iterator[Transfer]:
         raise InputError(f"not a CSV export: {exc}") from None
 
 
-def byte_chunks(src: Readable, size: int = 1 << 20) -> Iterator[bytes]:
-    """The stream in chunks of whole lines (the last may lack its newline), the UTF-8 BOM
-    dropped, bounded memory: a line longer than 64 KiB is an error."""
-    rest = b""
-    bom = True
-    while True:
-        data = src.read(size)
-        buf = rest + data
-        if bom:
-            if len(buf) < 3 and data:
-                rest = buf
-                continue
-            buf, bom = buf.removeprefix(b"\xef\xbb\xbf"), False
-        if not data:
-            if buf:
-                yield buf
-            return
-        cut = buf.rfind(b"\n") + 1
-        rest = buf[cut:]
-        if len(rest) > MAX_LINE:
-            raise InputError("line longer than 64 KiB: not a Saleae export")
-        if cut:
-            yield buf[:cut]
+def _csv_rows(src: Readable, chunk_size: int) -> tuple[list[str], Any]:
+    """The normalised header cells (the UTF-8 BOM dropped) and a csv reader of the lines after
+    it, read in chunks of whole lines (bounded memory: a line longer than 64 KiB is an error);
+    the reader's ``line_num`` + 1 is the number of the line it read last."""
+    chunks = whole_chunks(src, chunk_size, b"\n", MAX_LINE,
+                          "line longer than 64 KiB: not a Saleae export")
+    lines = (line for chunk in chunks for line in _lines(chunk))
+    first = next(lines, "").removeprefix("\ufeff")
+    return _norm(next(csv.reader([first]), [])), csv.reader(lines)
 
 
 def _lines(chunk: bytes) -> list[str]:
@@ -166,73 +137,37 @@ def _lines(chunk: bytes) -> list[str]:
     return [p.rstrip(b"\r").decode("utf-8", "replace") for p in parts]
 
 
-def _head(chunks: Iterator[bytes]) -> tuple[list[str], bytes]:
-    """The normalised header cells and the rest of the first chunk."""
-    line0, _, body = next(chunks, b"").partition(b"\n")
-    text = line0.rstrip(b"\r").decode("utf-8", "replace")
-    return _norm(next(csv.reader([text]), [])), body
-
-
-def _line_count(chunk: bytes) -> int:
-    return chunk.count(b"\n") + (not chunk.endswith(b"\n"))
-
-
-def _by_chunk(body: bytes, chunks: Iterator[bytes],
-              rows: Callable[[bytes, int], Iterator[Transfer]]) -> Iterator[Transfer]:
-    """Each chunk through the csv row loop, which is told the chunk's first line number (the
-    header is 1)."""
-    line = 2
-    for chunk in itertools.chain([body], chunks):
-        if chunk:
-            yield from rows(chunk, line)
-            line += _line_count(chunk)
-
-
 def _saleae2(src: Readable, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
-    chunks = byte_chunks(src, chunk_size)
-    header, body = _head(chunks)
+    header, rows = _csv_rows(src, chunk_size)
     try:
         i_name, i_type, i_time = (header.index(c) for c in ("name", "type", "start_time"))
-        cols = {line: header.index(line) for line in bench_spec()["saleae2"]["data_columns"]}
+        cols = [(line, header.index(line)) for line in bench_spec()["saleae2"]["data_columns"]]
     except ValueError:
         raise InputError("not a Saleae Logic 2 SPI export: the header needs name, type, "
                          "start_time, mosi and miso") from None
     kinds = bench_spec()["saleae2"]["row_types"]
-    state = Saleae2State({}, {})
-    need = max(i_name, i_type, i_time, *cols.values())
-    yield from _by_chunk(
-        body, chunks,
-        lambda chunk, n: _saleae2_rows(csv.reader(_lines(chunk)), n, len(header), need, cols,
-                                       (i_name, i_type, i_time), kinds, state, opts))
-    if state.results and not state.enables:
-        raise InputError("the SPI analyzer had no Enable (chip select) channel: transfers "
-                         "cannot be framed")
-
-
-def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
-                  cols: dict[str, int], where: tuple[int, int, int], kinds: dict[str, str],
-                  state: Saleae2State, opts: SpiOptions) -> Iterator[Transfer]:
-    """The csv loop: reads any shape, reports errors with their line."""
-    i_name, i_type, i_time = where
-    k_start, k_byte = kinds["start"], kinds["byte"]
-    open_, routes = state.open_, state.routes
-    col_list = list(cols.items())
-    for line_no, row in enumerate(rows, start=start):
+    k_start, k_byte, k_end = kinds["start"], kinds["byte"], kinds["end"]
+    need = max(i_name, i_type, i_time, *(col for _, col in cols))
+    open_: dict[str, OpenTransfer | None] = {}
+    routes: dict[str, list[Route]] = {}
+    results = enables = 0
+    for row in rows:
         if not row:
             continue
+        line_no = rows.line_num + 1
         if len(row) <= need:
-            raise InputError(f"line {line_no}: {len(row)} columns, expected {ncols}")
+            raise InputError(f"line {line_no}: {len(row)} columns, expected {len(header)}")
         name, kind = row[i_name], row[i_type]
         if name not in routes:
             routes[name] = opts.routes(name, len(routes) + 1)
         if kind != k_byte and kind != k_start:
             kind = kind.strip().lower()
         if kind == k_byte:
-            state.results += 1
+            results += 1
             tr = open_.get(name)
             if tr is None:
                 continue  # a transfer cut by the start of the capture
-            for line, col in col_list:
+            for line, col in cols:
                 value = _byte(row[col], line_no)
                 if value is not None:
                     buf = tr.lines[line]
@@ -241,19 +176,21 @@ def _saleae2_rows(rows: Iterator[list[str]], start: int, ncols: int, need: int,
                         raise InputError(f"line {line_no}: transfer longer than {MAX_TRANSFER} "
                                          "bytes")
         elif kind == k_start:
-            state.enables += 1
+            enables += 1
             open_[name] = OpenTransfer(_time(row[i_time], f"line {line_no}"))
-        elif kind == kinds["end"]:
+        elif kind == k_end:
             tr = open_.pop(name, None)
             if tr is not None:
                 yield from _emit(tr, routes[name])
         else:
             raise InputError(f"line {line_no}: row type {kind!r} is not enable/result/disable")
+    if results and not enables:
+        raise InputError("the SPI analyzer had no Enable (chip select) channel: transfers "
+                         "cannot be framed")
 
 
 def _saleae1(src: Readable, opts: SpiOptions, chunk_size: int) -> Iterator[Transfer]:
-    chunks = byte_chunks(src, chunk_size)
-    header, body = _head(chunks)
+    header, rows = _csv_rows(src, chunk_size)
     want = [h.lower() for h in bench_spec()["saleae1"]["header"]]
     try:
         i_time, i_id, i_mosi, i_miso = (header.index(c) for c in want)
@@ -261,39 +198,30 @@ def _saleae1(src: Readable, opts: SpiOptions, chunk_size: int) -> Iterator[Trans
         raise InputError("not a Saleae Logic 1.x SPI export: the header needs "
                          + ", ".join(want)) from None
     routes = opts.routes("", 1)
-    state = Saleae1State()
-    where = (i_time, i_id, i_mosi, i_miso)
-    yield from _by_chunk(
-        body, chunks,
-        lambda chunk, n: _saleae1_rows(csv.reader(_lines(chunk)), n, len(header), where, state,
-                                       routes))
-    if state.tr is not None:
-        # Logic 1.x marks no CS rising edge: the last packet ends with the file
-        yield from _emit(state.tr, routes)
-
-
-def _saleae1_rows(rows: Iterator[list[str]], start: int, ncols: int,
-                  where: tuple[int, int, int, int], state: Saleae1State, routes: list[Route]
-                  ) -> Iterator[Transfer]:
-    i_time, i_id, i_mosi, i_miso = where
-    for line_no, row in enumerate(rows, start=start):
+    need = max(i_time, i_id, i_mosi, i_miso)
+    tr: OpenTransfer | None = None
+    packet: str | None = None
+    for row in rows:
         if not row:
             continue
-        if len(row) <= max(where):
-            raise InputError(f"line {line_no}: {len(row)} columns, expected {ncols}")
+        line_no = rows.line_num + 1
+        if len(row) <= need:
+            raise InputError(f"line {line_no}: {len(row)} columns, expected {len(header)}")
         pid = row[i_id].strip()
         if not pid:
             raise InputError(f"line {line_no}: no Packet ID: the SPI analyzer had no Enable "
                              "(chip select) channel, transfers cannot be framed")
-        if pid != state.packet:
-            if state.tr is not None:
-                yield from _emit(state.tr, routes)
-            state.tr, state.packet = OpenTransfer(_time(row[i_time], f"line {line_no}")), pid
-        tr = state.tr
-        assert tr is not None
+        if pid != packet:
+            if tr is not None:
+                yield from _emit(tr, routes)
+            tr, packet = OpenTransfer(_time(row[i_time], f"line {line_no}")), pid
+        assert tr is not None  # opened at this packet's first row
         for line, col in (("mosi", i_mosi), ("miso", i_miso)):
             value = _byte(row[col], line_no)
             if value is not None:
                 tr.lines[line].append(value)
         if len(tr.lines["mosi"]) > MAX_TRANSFER or len(tr.lines["miso"]) > MAX_TRANSFER:
             raise InputError(f"line {line_no}: transfer longer than {MAX_TRANSFER} bytes")
+    if tr is not None:
+        # Logic 1.x marks no CS rising edge: the last packet ends with the file
+        yield from _emit(tr, routes)

@@ -16,19 +16,18 @@ from __future__ import annotations
 import zipfile
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
 from eyeq_spi import __version__
 from eyeq_spi.capture.pcapng_io import Transfer
-from eyeq_spi.catalog.link import link_spec
 from eyeq_spi.logic.options import DIRECTIONS, SIGNALS, SpiOptions, bench_spec, signal_name
+from eyeq_spi.logic.vcd_write import Timeline, frame_bits
 
 CHUNK = 4 << 20  # samples (bytes) per logic-1-N entry
 SAMPLES_PER_HALF_CLOCK = 1
 LEAD = 20  # idle samples before the first transfer (1 µs at 20 MHz): its CS edge shows
-_SENDER = {"h2e": "host", "e2h": "eyeq"}
 _Array = np.ndarray[Any, Any]
 
 
@@ -91,7 +90,7 @@ class _ChunkSink:
                          compresslevel=6)
 
 
-class SrWriter:
+class SrWriter(Timeline):
     """Write transfers (:meth:`write`) into the session file at ``path``; :meth:`close` ends it."""
 
     def __init__(self, path: str | Path, opts: SpiOptions | None = None, *,
@@ -102,10 +101,7 @@ class SrWriter:
         baud = baud_rate or int(spec["spi"]["baud_rate"])
         self.half = SAMPLES_PER_HALF_CLOCK
         self.samplerate = 2 * baud * self.half
-        gaps = link_spec()["timing"]["frameFlowControl"]
-        self.gap = {direction: round(float(gaps[_SENDER[direction]]) * self.samplerate)
-                    for direction in DIRECTIONS}
-        self.min_idle = max(1, round(float(spec["vcd"]["min_idle"]) * self.samplerate))
+        super().__init__(lambda seconds: round(seconds * self.samplerate), max_idle, LEAD)
         self.cpol, self.cpha = divmod(self.opts.mode, 2)
         self.default_direction = default_direction
         idle_miso = int(spec["vcd"]["idle_miso"])
@@ -114,16 +110,8 @@ class SrWriter:
             self.idle |= (1 << _bit(direction, "cs")) | (self.cpol << _bit(direction, "clk"))
             self.idle |= idle_miso << _bit(direction, "miso")
         self.origin: float | None = None  # the first capture time: sample LEAD
-        # the first sample each channel's next transfer may use
-        self.free = dict.fromkeys(DIRECTIONS, LEAD)
-        self.last_start = dict.fromkeys(DIRECTIONS, -(10**18))
-        # idle stretches longer than this many samples are cut to it; shift: samples cut so far
-        self.max_idle = None if max_idle is None else max(1, round(max_idle * self.samplerate))
-        self.shift = 0
         self.cursor = 0  # samples before this one are written
         self.pending = np.empty(0, dtype=np.uint8)  # samples from the cursor on, still open
-        self.count = 0
-        self.delayed = 0
         self.closed = False
         self.zf = zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED)
         self.zf.writestr("version", "2")
@@ -131,22 +119,14 @@ class SrWriter:
 
     def write(self, transfer: Transfer) -> None:
         direction = transfer.direction or self.default_direction
-        if transfer.time is None:
-            wanted = max(self.free[direction], self.last_start[direction] + self.gap[direction])
-        else:
+        at = None
+        if transfer.time is not None:
             if self.origin is None:
                 self.origin = transfer.time
-            wanted = round((transfer.time - self.origin) * self.samplerate) + LEAD - self.shift
-            if self.max_idle is not None:
-                busy_until = max(self.cursor + len(self.pending), *self.free.values())
-                if wanted - busy_until > self.max_idle:
-                    self.shift += wanted - busy_until - self.max_idle
-                    wanted = busy_until + self.max_idle
+            at = round((transfer.time - self.origin) * self.samplerate) + LEAD
+        wanted = self.wanted(direction, at, self.cursor + len(self.pending))
         self._flush(wanted)  # no later transfer starts before its capture time
-        start = max(wanted, self.free[direction], self.cursor)
-        if start > wanted and transfer.time is not None:
-            self.delayed += 1
-        self.last_start[direction] = start
+        start = self.start(direction, wanted, self.cursor, at is not None)
         lines = self._transfer(direction, transfer.data)
         end = start + len(lines)
         self._extend(end)
@@ -155,16 +135,13 @@ class SrWriter:
         window = self.pending[offset:offset + len(lines)]
         window &= ~mask
         window |= lines
-        self.free[direction] = end + self.min_idle
-        self.count += 1
+        self.end(direction, end)
 
     def _transfer(self, direction: str, data: bytes) -> _Array:
         """The channel's CS, CLK and MOSI bits of one transfer, from CS falling to the sample
         before CS rises (the frame of :class:`eyeq_spi.logic.vcd_write.VcdWriter`)."""
         h = self.half
-        order: Literal["big", "little"] = "big" if self.opts.bit_order == "msb_first" \
-            else "little"
-        bits = np.unpackbits(np.frombuffer(data, dtype=np.uint8), bitorder=order)
+        bits = frame_bits(data, self.opts.bit_order)
         count = len(bits)
         t = 0 if self.cpha else h  # the first bit's period begins here
         length = t + 2 * h * count + h

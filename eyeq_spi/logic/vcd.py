@@ -17,7 +17,14 @@ from collections.abc import Iterator
 
 from eyeq_spi.capture.pcapng_io import Readable, Transfer
 from eyeq_spi.errors import InputError
-from eyeq_spi.logic.options import MAX_TRANSFER, SIGNALS, Route, SpiOptions, sample_on_rising
+from eyeq_spi.logic.options import (
+    MAX_TRANSFER,
+    SIGNALS,
+    Route,
+    SpiOptions,
+    sample_on_rising,
+    whole_chunks,
+)
 
 MAX_HEADER = 16 << 20
 _UNITS = {b"s": 1.0, b"ms": 1e-3, b"us": 1e-6, b"ns": 1e-9, b"ps": 1e-12, b"fs": 1e-15}
@@ -68,44 +75,17 @@ def sniff(head: bytes) -> str | None:
     return None
 
 
-def _raw_chunks(src: Readable, size: int = 1 << 20) -> Iterator[bytes]:
-    """The stream in chunks that end on whitespace (a token is never split)."""
-    rest = b""
-    while True:
-        data = src.read(size)
-        buf = rest + data
-        if not data:
-            if buf.strip():
-                yield buf
-            return
-        cut = max(buf.rfind(b"\n"), buf.rfind(b" "), buf.rfind(b"\t"), buf.rfind(b"\r"))
-        if cut < 0:
-            rest = buf
-            if len(buf) > MAX_HEADER:
-                raise InputError("VCD token longer than 16 MiB")
-            continue
-        rest = buf[cut + 1:]
-        yield buf[:cut + 1]
-
-
 def _header(tokens: Iterator[bytes]) -> tuple[float, list[tuple[str, bytes, str]]]:
     """(seconds per tick, [(scope path, id, reference)]) up to ``$enddefinitions $end``."""
     scale = 1e-9
     scopes: list[str] = []
     vars_: list[tuple[str, bytes, str]] = []
-    count = 0
-    for tok in tokens:
-        count += len(tok) + 1
-        if count > MAX_HEADER:
-            raise InputError("VCD header longer than 16 MiB")
+    for tok in tokens:  # read_vcd bounds the header's size
         body: list[bytes] = []
         for token in tokens:
             if token == b"$end":
                 break
             body.append(token)
-            count += len(token) + 1
-            if count > MAX_HEADER:
-                raise InputError("VCD header longer than 16 MiB")
         else:
             break
         if tok == b"$enddefinitions":
@@ -183,7 +163,7 @@ def _channels(vars_: list[tuple[str, bytes, str]], opts: SpiOptions
 def read_vcd(src: Readable, opts: SpiOptions, *, chunk_size: int = 1 << 20
              ) -> Iterator[Transfer]:
     """Value changes -> one transfer per chip-select frame and direction."""
-    chunks = _raw_chunks(src, chunk_size)
+    chunks = whole_chunks(src, chunk_size, b"\n \t\r", MAX_HEADER, "VCD token longer than 16 MiB")
     head = b""
     for chunk in chunks:
         head += chunk
@@ -198,11 +178,9 @@ def read_vcd(src: Readable, opts: SpiOptions, *, chunk_size: int = 1 << 20
         if not head.lstrip()[:1] == b"$":  # a VCD starts with a $ keyword ($date, $timescale..)
             raise InputError("not a VCD file: it does not start with a $ keyword")
         raise InputError("truncated VCD: no $enddefinitions")
-    meta = _skip_meta(head[:match.start()])  # only before the definitions end
-    head = meta + head[match.start():]
-    match = re.search(rb"\$enddefinitions\s+\$end\s?", head)
-    assert match is not None
-    scale, vars_ = _header(iter(head[:match.end()].split()))
+    # a META line only before the definitions end
+    definitions = _skip_meta(head[:match.start()]) + head[match.start():match.end()]
+    scale, vars_ = _header(iter(definitions.split()))
     table = _channels(vars_, opts)
     reader = _Reader(table, scale, opts)
     yield from reader.feed(head[match.end():])

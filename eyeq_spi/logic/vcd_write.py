@@ -13,7 +13,7 @@ channels idle, which the file says in a ``$comment``.
 from __future__ import annotations
 
 import datetime as _dt
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import IO, Any, Literal
 
 import numpy as np
@@ -43,7 +43,60 @@ def estimate_size(transfers: int, data_bytes: int, span_s: float,
     return int(512 + data_bytes * 8 * per_bit + transfers * 2 * (digits + 5))
 
 
-class VcdWriter:
+class Timeline:
+    """Where each transfer of a waveform starts, in ticks (VCD) or samples (sigrok): at its
+    capture time; without one, its channel's frameFlowControl (§6, L7) after the channel's
+    previous start; never before the channel's previous transfer ended plus ``min_idle``. A
+    stretch with both channels idle longer than ``max_idle`` is cut to it (``shift``: ticks cut
+    so far); ``delayed`` counts the transfers moved off their capture time."""
+
+    def __init__(self, to_ticks: Callable[[float], int], max_idle: float | None,
+                 first: int = 0) -> None:
+        gaps = link_spec()["timing"]["frameFlowControl"]
+        self.gap = {d: to_ticks(float(gaps[_SENDER[d]])) for d in DIRECTIONS}
+        self.min_idle = max(1, to_ticks(float(bench_spec()["vcd"]["min_idle"])))
+        self.max_idle = None if max_idle is None else max(1, to_ticks(max_idle))
+        self.free = dict.fromkeys(DIRECTIONS, first)  # the first tick a channel may use next
+        self.last_start = dict.fromkeys(DIRECTIONS, -(10**18))
+        self.shift = 0
+        self.count = 0
+        self.delayed = 0
+
+    def wanted(self, direction: str, at: int | None, busy: int) -> int:
+        """Where a transfer wants to start: ``at`` (its capture time in ticks; None: it has
+        none) with idle time cut; ``busy``: the writer's last tick in use."""
+        if at is None:
+            return max(self.free[direction], self.last_start[direction] + self.gap[direction])
+        wanted = at - self.shift
+        if self.max_idle is not None:
+            busy_until = max(busy, *self.free.values())
+            if wanted - busy_until > self.max_idle:
+                self.shift += wanted - busy_until - self.max_idle
+                wanted = busy_until + self.max_idle
+        return wanted
+
+    def start(self, direction: str, wanted: int, floor: int, timed: bool) -> int:
+        """Where it starts: ``wanted``, or later when its channel or the writer (at ``floor``)
+        is not free yet."""
+        start = max(wanted, self.free[direction], floor)
+        self.last_start[direction] = start
+        if start > wanted and timed:
+            self.delayed += 1
+        return start
+
+    def end(self, direction: str, end: int) -> None:
+        """The transfer on ``direction`` ends at ``end``."""
+        self.free[direction] = end + self.min_idle
+        self.count += 1
+
+
+def frame_bits(data: bytes, bit_order: str) -> np.ndarray[Any, Any]:
+    """The bits of ``data`` in the order they are sent."""
+    order: Literal["big", "little"] = "big" if bit_order == "msb_first" else "little"
+    return np.unpackbits(np.frombuffer(data, dtype=np.uint8), bitorder=order)
+
+
+class VcdWriter(Timeline):
     def __init__(self, fh: IO[str], opts: SpiOptions | None = None, *,
                  baud_rate: int | None = None, timescale: str | None = None,
                  default_direction: str = "h2e", max_idle: float | None = None) -> None:
@@ -52,25 +105,16 @@ class VcdWriter:
         self.opts = opts or SpiOptions()
         self.timescale = timescale or str(spec["vcd"]["timescale"])
         self.scale = _timescale(self.timescale)
+        super().__init__(lambda seconds: round(seconds / self.scale), max_idle)
         baud = baud_rate or int(spec["spi"]["baud_rate"])
         self.half = max(1, round(1 / (2 * baud) / self.scale))
-        gaps = link_spec()["timing"]["frameFlowControl"]
-        self.gap = {d: round(float(gaps[_SENDER[d]]) / self.scale) for d in DIRECTIONS}
-        self.min_idle = max(1, round(float(spec["vcd"]["min_idle"]) / self.scale))
-        self.last_start = dict.fromkeys(DIRECTIONS, -(10**18))
         self.default_direction = default_direction
-        self.free = dict.fromkeys(DIRECTIONS, 0)
         self.ids = {d: {s: chr(ord("a") + 4 * i + j) for j, s in enumerate(SIGNALS)}
                     for i, d in enumerate(DIRECTIONS)}
         self.cpol, self.cpha = divmod(self.opts.mode, 2)
         self.level = {d: 0 for d in DIRECTIONS}  # MOSI level
         self.pending: list[tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
         self.last_tick = -1
-        # idle stretches longer than this many ticks are cut to it; shift: ticks cut so far
-        self.max_idle = None if max_idle is None else max(1, round(max_idle / self.scale))
-        self.shift = 0
-        self.count = 0
-        self.delayed = 0
         self._lines = np.array([f"{v}{self.ids[d][sig]}" for d in DIRECTIONS for sig in SIGNALS
                                 for v in (0, 1)], dtype=object)  # indexed by _code()
         self._header()
@@ -102,27 +146,13 @@ class VcdWriter:
 
     def write(self, transfer: Transfer) -> None:
         direction = transfer.direction or self.default_direction
-        if transfer.time is None:
-            ticks = max(self.free[direction], self.last_start[direction] + self.gap[direction],
-                        self.last_tick + 1)
-        else:
-            ticks = round(transfer.time / self.scale) - self.shift
-            if self.max_idle is not None:
-                busy_until = max(self.last_tick, *self.free.values())
-                if ticks - busy_until > self.max_idle:
-                    self.shift += ticks - busy_until - self.max_idle
-                    ticks = busy_until + self.max_idle
+        at = None if transfer.time is None else round(transfer.time / self.scale)
+        ticks = self.wanted(direction, at, self.last_tick)
         self._flush(ticks)
-        start = max(ticks, self.free[direction], self.last_tick + 1)
-        self.last_start[direction] = start
-        if start > ticks and transfer.time is not None:
-            self.delayed += 1
+        start = self.start(direction, ticks, self.last_tick + 1, at is not None)
         h = self.half
         t = start + (0 if self.cpha else h)
-        order: Literal["big", "little"] = "big" if self.opts.bit_order == "msb_first" \
-            else "little"
-        bits = np.unpackbits(np.frombuffer(transfer.data, dtype=np.uint8), bitorder=order
-                             ).astype(np.int64)
+        bits = frame_bits(transfer.data, self.opts.bit_order).astype(np.int64)
         count = len(bits)
         base = t + 2 * h * np.arange(count, dtype=np.int64)
         prev = np.concatenate(([self.level[direction]], bits[:-1]))
@@ -130,18 +160,17 @@ class VcdWriter:
         set_at = (base + h if self.cpha else base)[change]  # CPHA 1: on the leading edge
         end = t + 2 * h * count + h
         lead, trail = 1 - self.cpol, self.cpol
-        at = np.concatenate(([start], set_at, base + h, base + 2 * h, [end]))
+        times = np.concatenate(([start], set_at, base + h, base + 2 * h, [end]))
         codes = np.concatenate((
             [self._code(direction, "cs", 0)], self._code(direction, "mosi", 0) + bits[change],
             np.full(count, self._code(direction, "clk", lead)),
             np.full(count, self._code(direction, "clk", trail)),
             [self._code(direction, "cs", 1)]))
-        by_time = np.argsort(at, kind="stable")
-        self.pending.append((at[by_time], codes[by_time]))
+        by_time = np.argsort(times, kind="stable")
+        self.pending.append((times[by_time], codes[by_time]))
         if count:
             self.level[direction] = int(bits[-1])
-        self.free[direction] = end + self.min_idle
-        self.count += 1
+        self.end(direction, end)
 
     def _flush(self, limit: int | None) -> None:
         """Write every pending event before ``limit`` (all of them when None)."""
