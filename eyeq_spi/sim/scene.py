@@ -45,6 +45,7 @@ from eyeq_spi.sim.scene_layout import (
     frame_index,
     lane_codes,
     layout_node_for,
+    member_at,
     motion_tables,
     obj_plan,
     struct_elements,
@@ -251,11 +252,7 @@ class Scene:
             return
         fl, il = fa.tolist(), ia.tolist()
         for path, items in plan.groups:
-            probe: Any = objs[0]
-            for step in path:
-                ok = (isinstance(probe, dict) and step in probe) or (
-                    isinstance(probe, list) and isinstance(step, int) and step < len(probe))
-                probe = probe[step] if ok else None
+            probe = member_at(objs[0], path)
             if not isinstance(probe, dict):
                 continue
             cols = [(key, (fl if real else il)[row]) for key, real, row in items if key in probe]
@@ -391,7 +388,7 @@ class Scene:
                 min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[index]), 0.0, 0.0,
                 0.95 if lat[index] < 0.0 else 0.85, v + half, u - half, u + half, v - half,
                 typ[index], 0, 0, sid[index], decision, filt))
-        write_table(elems, en, SIGN_KEYS, rows, SIGN_KEYS)
+        write_table(elems, en, SIGN_KEYS, rows)
         put_values(*tsr, {"numberTrafficSigns": len(rows)})
         puts_once(*tsr, "tsr",
                   lambda: {"currentMarket": enum_code("tsr_current_market", "EUROPE", 1)})
@@ -456,10 +453,10 @@ class Scene:
         ld, ln = info
         spots, sn = struct_elements(ld, ln, "activeLightSpots")
         rows, oncoming_seen = self._spot_rows(len(spots))
-        write_table(spots, sn, SPOT_KEYS, rows, SPOT_KEYS)
+        write_table(spots, sn, SPOT_KEYS, rows)
         signs, gn = struct_elements(ld, ln, "reflectiveSigns")
         refl = self._reflect_rows(len(signs))
-        write_table(signs, gn, REFLECT_KEYS, refl, REFLECT_KEYS)
+        write_table(signs, gn, REFLECT_KEYS, refl)
         lit = len(rows) > 0
         put_values(ld, ln, {
             "numOfActiveLightSpots": len(rows), "numOfReflectiveSigns": len(refl),
@@ -503,7 +500,7 @@ class Scene:
             pos = [s_e + 5.0 + 3.0 * k for k in range(len(elems))]
             write_table(elems, en, ("height", "conf"), [
                 (0.8 * sin(two_pi * p / 37.0 + phase) + 0.4 * sin(two_pi * p / 11.3 + 2 * phase),
-                 15 - k) for k, p in enumerate(pos)], ("height", "conf"))
+                 15 - k) for k, p in enumerate(pos)])
         put_values(*srp, {"vehicleVelocity": world.v, "frameValid": 1})
 
     def _fill_timesync(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:

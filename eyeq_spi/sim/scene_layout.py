@@ -200,6 +200,16 @@ def struct_elements(target: dict[str, Any], node: LayoutNode, key: str
     return [], LayoutNode({})
 
 
+def member_at(target: Any, path: tuple[str | int, ...]) -> Any:
+    """The member at ``path`` (struct member names, array indices) inside a value dict or a
+    packer's view, or None where the layout has no such member."""
+    for step in path:
+        ok = (isinstance(target, dict | StructView) and step in target) or (
+            isinstance(target, list) and isinstance(step, int) and step < len(target))
+        target = target[step] if ok else None
+    return target
+
+
 @cache
 def enum_code(enum: str, name: str, default: int) -> int:
     """Value of ``name`` in enum ``enum`` of specs/, ``default`` if the catalogue lacks it."""
