@@ -106,6 +106,17 @@ def _aborts(conn: TransportConnection) -> dict[str, int]:
     return {k: int(v) for k, v in conn.counters.transferAborts.items() if v}
 
 
+def _mesp(requests: int | None, timeouts: int | None) -> dict[str, int | None]:
+    """``mesp`` of a side that counts only requests and timeouts (retries, abandoned and stale
+    replies are the host's count)."""
+    return {"requests": requests, "retries": None, "timeouts": timeouts, "abandoned": None,
+            "stale_replies": None}
+
+
+def _versions(sim: SimulatedEyeQ) -> dict[str, int]:
+    return {"eyeqSwVersionMajor": sim.sw_version[0], "eyeqSwVersionMinor": sim.sw_version[1]}
+
+
 def host_mesp(host: HostEmulator, eyeq: SimulatedEyeQ | None = None) -> dict[str, int]:
     counters = host.mesp.counters
     dropped = 0 if eyeq is None else eyeq.counters.mesp_replies_dropped
@@ -333,19 +344,14 @@ class SimSessions:
             "e2e_errors": counts["e2e_errors"], "dasp_counter_gaps": counts["dasp_counter_gaps"],
             "decode_errors": counts["decode_errors"],
             "stale_streams": ["HOST_VEH_STATE_MSG"] if counts["stale"] else [],
-            # what the host waited for in vain; retries and stale replies are the host's count
-            "mesp": {"requests": counts["mesp"]["requests"], "retries": None,
-                     "timeouts": counts["mesp"]["timeouts"], "abandoned": None,
-                     "stale_replies": None},
+            "mesp": _mesp(counts["mesp"]["requests"], counts["mesp"]["timeouts"]),
             # the connection's own power-up is no reset; its own resets (reset_at) no host
             # asked for; every other boot, and every accepted Switch to Vision (L10), it did
             "eyeq_resets": max(0, counts["boots"] - 1) + counts["vision_switches"],
             "eyeq_reset_causes": reset_causes(
                 max(0, counts["boots"] - 1 - counts["self_resets"]) + counts["vision_switches"],
                 counts["self_resets"]),
-            "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
-                         "eyeqSwVersionMinor": sim.sw_version[1]},
-            "boot": {"boots": counts["boots"]},
+            "versions": _versions(sim), "boot": {"boots": counts["boots"]},
             "running_vision_since": (None if sim.running_since is None
                                      else round(sim.running_since - self.t0, 4)),
             "link_lost": link_lost,
@@ -388,11 +394,7 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
         "transport_aborts": {}, "e2e_errors": 0, "dasp_counter_gaps": 0, "decode_errors": 0,
         "stale_streams": [], "eyeq_resets": 0, "eyeq_reset_causes": reset_causes(0, 0),
         "transitions": [],
-        "mesp": {"requests": 0, "retries": None, "timeouts": 0, "abandoned": None,
-                 "stale_replies": None},
-        "state": f"0x{sim.main_state:02X}",
-        "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
-                     "eyeqSwVersionMinor": sim.sw_version[1]},
+        "mesp": _mesp(0, 0), "state": f"0x{sim.main_state:02X}", "versions": _versions(sim),
         "boot": {"boots": 0}, "scheduling": scheduling,
     }
     for sess in sessions:
@@ -431,8 +433,7 @@ def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cp
         "ack_latency_ms": {"n": 0}, "transport_aborts": {}, "e2e_errors": 0,
         "dasp_counter_gaps": 0, "decode_errors": replay.get("decode_errors", 0),
         "stale_streams": [],
-        "mesp": {"requests": None, "retries": None, "timeouts": None, "abandoned": None,
-                 "stale_replies": None},
+        "mesp": _mesp(None, None),
         "eyeq_resets": replay["reset_line_pulls"],
         "eyeq_reset_causes": reset_causes(replay["reset_line_pulls"], 0), "transitions": [],
         "link_lost": link_lost, "scheduling": scheduling, "replay": replay,
