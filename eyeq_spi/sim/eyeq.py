@@ -491,10 +491,7 @@ class SimulatedEyeQ:
             values["timestamp_ms"] = int(now * 1000) & 0xFFFFFFFF
         if name == "EYEQ_BASE_DIAG_STATUS_MSG":
             counters = self.counters
-            values.update({"apiVersionMajor": self.api_version[0],
-                           "apiVersionMinor": self.api_version[1],
-                           "eyeqSwVersionMajor": self.sw_version[0],
-                           "eyeqSwVersionMinor": self.sw_version[1],
+            values.update({**self._versions(),
                            "SPI_Rolling_Count_Echo": counters.rolling_count_echo & 0xFFFF,
                            "eyeqSPIMsgTxCtr": counters.msg_tx & 0xFFFF,
                            "eyeqSPIMsgRxBadHdrCtr": counters.bad_hdr & 0xFF,
@@ -515,11 +512,14 @@ class SimulatedEyeQ:
     def _get_state(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         return 0, {"mainState": self.main_state, "subState": self.sub_state}
 
+    def _versions(self) -> dict[str, int]:
+        """The release as Get EyeQ Versions and EYEQ_BASE_DIAG_STATUS_MSG report it."""
+        return {"apiVersionMajor": self.api_version[0], "apiVersionMinor": self.api_version[1],
+                "eyeqSwVersionMajor": self.sw_version[0],
+                "eyeqSwVersionMinor": self.sw_version[1]}
+
     def _get_versions(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-        return 0, {"apiVersionMajor": self.api_version[0],
-                   "apiVersionMinor": self.api_version[1],
-                   "eyeqSwVersionMajor": self.sw_version[0],
-                   "eyeqSwVersionMinor": self.sw_version[1]}
+        return 0, self._versions()
 
     def _switch_app(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         app = params["applicationId"]
