@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from eyeq_spi.catalog.messages import sw_release_text
@@ -191,13 +191,13 @@ class ClockedAcks:
             self.hist[int((self.clock() - sent) * 1e5)] += 1
 
 
+@dataclass
 class RunningVision:
     """Whether the host reached Running Vision and held it: when it entered (``since``, None
     while outside) and every time it left (``left``), for every kind of run."""
 
-    def __init__(self) -> None:
-        self.since: float | None = None
-        self.left: list[float] = []
+    since: float | None = None
+    left: list[float] = field(default_factory=list)
 
     def update(self, host: HostEmulator, time_s: float) -> None:
         running = host.state is HostState.RUNNING_VISION
