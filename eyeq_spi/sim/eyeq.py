@@ -183,7 +183,7 @@ class SimulatedEyeQ:
         self.codec.mesp.warm_up()
         self._templates.clear()
         self.counters.sent.clear()
-        self.scene.unanchor()  # the first real step anchors the scene in time again
+        self.scene.world.unanchor()  # the first real step anchors the scene in time again
 
     # -- power ------------------------------------------------------------------------------
     def power_up(self, now: float) -> None:
@@ -443,7 +443,7 @@ class SimulatedEyeQ:
             # the streams (re)start: the scene resumes where it stood (catching up the whole
             # pause in one step held the loop past the host's 10 ms ackTimeout), and the
             # messages are staggered over one period (none waits past transmitTimeout)
-            self.scene.unanchor()
+            self.scene.world.unanchor()
             for index, msg in enumerate(msgs):
                 self._next_dasp[msg.name] = now + index * period / max(1, len(msgs))
         # the messages due now, in catalogue order (a message not yet scheduled is due now)

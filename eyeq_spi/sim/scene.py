@@ -67,7 +67,6 @@ class Scene:
 
     def __init__(self, config: SceneConfig | None = None) -> None:
         self.world = SceneWorld(config)
-        self.config = self.world.config
         self._cls_code = np.array(
             [enum_code("object_classification", c[0], CLASS_DEFAULT[c[0]]) for c in CLASSES])
         self._cols: tuple[FArr, IArr, IArr] | None = None
@@ -80,10 +79,6 @@ class Scene:
         if self.world.step(t, ego_speed, yaw_rate):
             self._cols = None
             self._columns()
-
-    def unanchor(self) -> None:
-        """The next step anchors the scene in time again (after a warm-up)."""
-        self.world.unanchor()
 
     def _columns(self) -> tuple[FArr, IArr, IArr]:
         """Rows of :data:`_OBJ_F` / :data:`_OBJ_I` for the live objects in id order, and their
@@ -404,7 +399,7 @@ class Scene:
         world = self.world
         lit = (world.alive & (world.kind <= CYCLIST) & (world.s > 3.0)).nonzero()[0]
         lit = lit[world.s[lit].argsort(kind="stable")][:min(world.n_spots, count)]
-        vsign = -1.0 if self.config.spot_angles_up else 1.0  # top, bottom: below-positive
+        vsign = -1.0 if world.config.spot_angles_up else 1.0  # top, bottom: below-positive
         # the arrays as Python numbers first (the same values float() of an element gives)
         rows: list[tuple[float, ...]] = []
         s_l, w_l, cls_l, kind_l, oid_l = (a[lit].tolist() for a in (
