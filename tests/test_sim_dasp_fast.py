@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from eyeq_spi.catalog.messages import MessageDef, catalog
 from eyeq_spi.catalog.schema import sw_key
-from eyeq_spi.codec.e2e import E2EState, protect
+from eyeq_spi.codec.e2e import E2EState, compile_protector, protect
 from eyeq_spi.codec.message import MessageCodec
 from eyeq_spi.emulator import build
 from eyeq_spi.errors import LocalProtocolError
@@ -23,7 +23,7 @@ from eyeq_spi.host.nvm import Nvm
 from eyeq_spi.host.scenario import CsvScenario
 from eyeq_spi.sim.calibration import fill_calibration
 from eyeq_spi.sim.config import SimConfig
-from eyeq_spi.sim.dasp_fast import DaspPacker, compile_protector
+from eyeq_spi.sim.dasp_fast import DaspPacker
 from eyeq_spi.sim.scene import Scene, SceneConfig
 
 pytestmark = pytest.mark.twin  # runs a reference/fast twin: also run with EYEQ_SPI_EXACT=1

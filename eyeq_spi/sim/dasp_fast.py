@@ -21,8 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from eyeq_spi.codec.e2e import E2EState
-from eyeq_spi.codec.e2e import compile_protector as compile_protector
+from eyeq_spi.codec.e2e import E2EState, compile_protector
 from eyeq_spi.codec.layout import INT_RANGE, Layout
 from eyeq_spi.codec.layout_fast import FMT
 from eyeq_spi.codec.message import DASP_PROTOCOL
