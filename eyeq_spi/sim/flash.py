@@ -71,8 +71,6 @@ class FlashRegion:
     name: str
     start: int
     size: int
-    description: str = ""
-    seed_line: int | None = None
 
     @property
     def end(self) -> int:
@@ -99,8 +97,7 @@ def flash_sizes_mb() -> tuple[int, ...]:
 @cache
 def flash_regions(size_mb: int) -> tuple[FlashRegion, ...]:
     """APPENDIX F for one flash size, sorted by address and checked to tile inside the flash."""
-    regions = sorted((FlashRegion(str(r["name"]), int(r["start"]), int(r["size"]),
-                                  str(r.get("description", "")), r.get("seed_line"))
+    regions = sorted((FlashRegion(str(r["name"]), int(r["start"]), int(r["size"]))
                       for r in _flash_map().get("regions", ())
                       if int(r.get("flash_mb", 0)) == size_mb), key=lambda r: r.start)
     total = size_mb * MIB
