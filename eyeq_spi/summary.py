@@ -18,7 +18,6 @@ from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.counters import SpiDiagnosticInfo
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
-from eyeq_spi.transport.connection import TransportConnection
 
 LINK_EXTRA = ("lateFrames", "duplicateFrames", "skippedFrames", "resynchronisations")
 
@@ -100,10 +99,6 @@ def finish(summary: dict[str, Any], first_problem: str | None) -> dict[str, Any]
     return {k: summary.get(k) for k in KEYS} | {
         "sessions": summary.get("sessions") or [], "received": summary.get("received") or {},
         "sent": summary.get("sent") or {}}
-
-
-def _aborts(conn: TransportConnection) -> dict[str, int]:
-    return {k: int(v) for k, v in conn.counters.transferAborts.items() if v}
 
 
 def _mesp(requests: int | None, timeouts: int | None) -> dict[str, int | None]:
@@ -236,7 +231,8 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "sent": {k: int(v) for k, v in sorted(host.counters.sent.items())},
         "link": link_view(host.conn.link.counters, host.counters.restarts_answered),
         "ack_latency_ms": ack_latency_ms(host.conn.link.ack_latency),
-        "transport_aborts": _aborts(host.conn),
+        "transport_aborts": {k: int(v) for k, v in host.conn.counters.transferAborts.items()
+                             if v},
         "e2e_errors": host.counters.e2e_errors,
         "dasp_counter_gaps": host.counters.dasp_counter_gaps,
         "decode_errors": host.counters.decode_errors,
