@@ -74,10 +74,6 @@ class LayoutLeaf:
             return float(min(max(value, self.lo), self.hi))
         return int(min(max(round(value), self.lo), self.hi))
 
-    @property
-    def zero(self) -> float | int:
-        return 0.0 if self.real else 0
-
 
 @dataclass(eq=False)  # a node is itself (hashable by identity): range trees live for the process
 class LayoutNode:

@@ -58,7 +58,7 @@ def write_table(elems: list[dict[str, Any]], node: LayoutNode, keys: tuple[str, 
         for key in keys:
             leaf = node.members.get(key)
             if isinstance(leaf, LayoutLeaf) and key in elem:
-                elem[key] = leaf.zero
+                elem[key] = 0.0 if leaf.real else 0
 
 
 def _compile_rows(elems: list[StructView], node: LayoutNode, keys: tuple[str, ...]
