@@ -246,21 +246,18 @@ class Scene:
         if isinstance(objs[0], StructView) and write_objects_packed(objs, plan, fa, ia, count):
             return
         fl, il = fa.tolist(), ia.tolist()
-        for path, items in plan.groups:
-            probe = member_at(objs[0], path)
-            if not isinstance(probe, dict):
-                continue
-            cols = [(key, (fl if real else il)[row]) for key, real, row in items if key in probe]
-            zeros = {key: 0.0 if real else 0 for key, real, _ in items if key in probe}
-            for index, obj in enumerate(objs):
-                target: Any = obj
-                for step in path:
-                    target = target[step]
-                if index < count:
-                    for key, col in cols:
-                        target[key] = col[index]
-                else:  # no object: id 0 marks the slot invalid (§13.2.2)
-                    target.update(zeros)
+        for index, obj in enumerate(objs):
+            for path, items in plan.groups:
+                target = member_at(obj, path)
+                if not isinstance(target, dict):
+                    continue
+                for key, real, row in items:
+                    if key not in target:
+                        continue
+                    if index < count:
+                        target[key] = (fl if real else il)[row][index]
+                    else:  # no object: id 0 marks the slot invalid (§13.2.2)
+                        target[key] = 0.0 if real else 0
 
     def _poly_values(self, offset: float, end: float) -> dict[str, float]:
         c0, c1, c2, c3 = self.world.poly
