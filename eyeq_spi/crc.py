@@ -14,6 +14,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from eyeq_spi.errors import UsageError
+
 CrcFunction = Callable[[bytes], int]
 
 
@@ -59,12 +61,12 @@ def make_crc(variant: CrcVariant = CCITT_FALSE, *, engine: str = "auto") -> CrcF
     (CCITT-FALSE only), ``"crcmod"`` or ``"auto"`` (binascii where it applies, else crcmod).
     Asking for crcmod without its C extension warns."""
     if engine not in ("auto", "binascii", "crcmod"):
-        raise ValueError(f"unknown CRC engine {engine!r}")
+        raise UsageError(f"unknown CRC engine {engine!r}")
     hqx_ok = (variant.poly, variant.init, variant.reflect, variant.xorout) == (
         0x1021, 0xFFFF, False, 0,
     )
     if engine == "binascii" and not hqx_ok:
-        raise ValueError(f"binascii.crc_hqx cannot compute {variant.name}")
+        raise UsageError(f"binascii.crc_hqx cannot compute {variant.name}")
     if engine in ("auto", "binascii") and hqx_ok:
         return _crc_hqx_ccitt_false
     if not crcmod_uses_c_extension():
@@ -83,7 +85,7 @@ def make_crc(variant: CrcVariant = CCITT_FALSE, *, engine: str = "auto") -> CrcF
         xorOut=variant.xorout,
     )
     if fn(b"123456789") != variant.check:
-        raise ValueError(f"crcmod set-up for {variant.name} fails its check value")
+        raise UsageError(f"crcmod set-up for {variant.name} fails its check value")
     return fn  # type: ignore[no-any-return]
 
 

@@ -54,23 +54,21 @@ def build(
     keep_rx_times: bool = True,
 ) -> Emulation:
     sim = SimulatedEyeQ(sim_config)
-    made: list[Emulation] = []
 
     def reset_line(now: float) -> None:
         # the host acts on the EyeQ: whatever runner drives them must ask both afresh
         sim.power_up(now)
-        for emu in made:
-            emu.runner.touch_all()
+        emu.runner.touch_all()
 
     host = HostEmulator(host_config, nvm=nvm, scenario=scenario, reset_line=reset_line,
                         keep_rx_times=keep_rx_times)
     host_end, sim_end = memory_pair()
     # the host's only effect on another node is the reset line, which tells the runner
-    runner = VirtualRunner([(host, host_end), (sim, sim_end)], tap=tap, self_contained=HOST_ALONE)
+    emu = Emulation(host, sim, VirtualRunner([(host, host_end), (sim, sim_end)], tap=tap,
+                                             self_contained=HOST_ALONE))
     sim.power_up(0.0)
     host.start(0.0)
-    made.append(Emulation(host, sim, runner))
-    return made[0]
+    return emu
 
 
 def summary(emu: Emulation, *, interrupted: bool = False) -> dict[str, Any]:

@@ -39,6 +39,13 @@ def capture_tap(writer: Any, start: float, tx: str, rx: str) -> Tap | None:
     return tap
 
 
+def _close(*things: Any) -> None:
+    """Close each of ``things`` that is there, in order."""
+    for thing in things:
+        if thing is not None:
+            thing.close()
+
+
 def _heard(sim: SimulatedEyeQ, tap: Tap | None) -> tuple[Tap, list[int | None]]:
     """A tap that notes the link's send failures whenever the host is heard (then calls
     ``tap``), and the cell it notes them in (:meth:`SimSessions.add`)."""
@@ -92,10 +99,7 @@ def serve(eyeq: SimulatedEyeQ, adapter: Any, *, duration: float | None, accept_t
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        rt.close()
-        adapter.close()
-        if capture is not None:
-            capture.close()
+        _close(rt, adapter, capture)
     problem = None
     if not served.sessions:
         waited = accept_timeout if duration is None else min(accept_timeout, duration)
@@ -166,15 +170,9 @@ def drive(host: HostEmulator, adapter: Any, *, duration: float, address: str,
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        runner.close()
-        rt.close()
-        if adapter is not None:
-            adapter.close()
+        _close(runner, rt, adapter)
         host.nvm.save()
-        if capture is not None:
-            capture.close()
-        if can_out is not None:
-            can_out.close()
+        _close(capture, can_out)
     now = runner.clock()
     out = host_summary(host, side="host", elapsed=now - start, wall=now - start,
                        cpu=time.process_time() - cpu0, running_since=vision.since,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from eyeq_spi.catalog.messages import sw_release_text
@@ -18,7 +18,6 @@ from eyeq_spi.host.machine import HostState
 from eyeq_spi.link.counters import SpiDiagnosticInfo
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 from eyeq_spi.sim.eyeq import SimulatedEyeQ
-from eyeq_spi.transport.connection import TransportConnection
 
 LINK_EXTRA = ("lateFrames", "duplicateFrames", "skippedFrames", "resynchronisations")
 
@@ -102,8 +101,15 @@ def finish(summary: dict[str, Any], first_problem: str | None) -> dict[str, Any]
         "sent": summary.get("sent") or {}}
 
 
-def _aborts(conn: TransportConnection) -> dict[str, int]:
-    return {k: int(v) for k, v in conn.counters.transferAborts.items() if v}
+def _mesp(requests: int | None, timeouts: int | None) -> dict[str, int | None]:
+    """``mesp`` of a side that counts only requests and timeouts (retries, abandoned and stale
+    replies are the host's count)."""
+    return {"requests": requests, "retries": None, "timeouts": timeouts, "abandoned": None,
+            "stale_replies": None}
+
+
+def _versions(sim: SimulatedEyeQ) -> dict[str, int]:
+    return {"eyeqSwVersionMajor": sim.sw_version[0], "eyeqSwVersionMinor": sim.sw_version[1]}
 
 
 def host_mesp(host: HostEmulator, eyeq: SimulatedEyeQ | None = None) -> dict[str, int]:
@@ -180,13 +186,13 @@ class ClockedAcks:
             self.hist[int((self.clock() - sent) * 1e5)] += 1
 
 
+@dataclass
 class RunningVision:
     """Whether the host reached Running Vision and held it: when it entered (``since``, None
     while outside) and every time it left (``left``), for every kind of run."""
 
-    def __init__(self) -> None:
-        self.since: float | None = None
-        self.left: list[float] = []
+    since: float | None = None
+    left: list[float] = field(default_factory=list)
 
     def update(self, host: HostEmulator, time_s: float) -> None:
         running = host.state is HostState.RUNNING_VISION
@@ -225,7 +231,8 @@ def host_summary(host: HostEmulator, *, side: str, elapsed: float, wall: float, 
         "sent": {k: int(v) for k, v in sorted(host.counters.sent.items())},
         "link": link_view(host.conn.link.counters, host.counters.restarts_answered),
         "ack_latency_ms": ack_latency_ms(host.conn.link.ack_latency),
-        "transport_aborts": _aborts(host.conn),
+        "transport_aborts": {k: int(v) for k, v in host.conn.counters.transferAborts.items()
+                             if v},
         "e2e_errors": host.counters.e2e_errors,
         "dasp_counter_gaps": host.counters.dasp_counter_gaps,
         "decode_errors": host.counters.decode_errors,
@@ -333,19 +340,14 @@ class SimSessions:
             "e2e_errors": counts["e2e_errors"], "dasp_counter_gaps": counts["dasp_counter_gaps"],
             "decode_errors": counts["decode_errors"],
             "stale_streams": ["HOST_VEH_STATE_MSG"] if counts["stale"] else [],
-            # what the host waited for in vain; retries and stale replies are the host's count
-            "mesp": {"requests": counts["mesp"]["requests"], "retries": None,
-                     "timeouts": counts["mesp"]["timeouts"], "abandoned": None,
-                     "stale_replies": None},
+            "mesp": _mesp(counts["mesp"]["requests"], counts["mesp"]["timeouts"]),
             # the connection's own power-up is no reset; its own resets (reset_at) no host
             # asked for; every other boot, and every accepted Switch to Vision (L10), it did
             "eyeq_resets": max(0, counts["boots"] - 1) + counts["vision_switches"],
             "eyeq_reset_causes": reset_causes(
                 max(0, counts["boots"] - 1 - counts["self_resets"]) + counts["vision_switches"],
                 counts["self_resets"]),
-            "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
-                         "eyeqSwVersionMinor": sim.sw_version[1]},
-            "boot": {"boots": counts["boots"]},
+            "versions": _versions(sim), "boot": {"boots": counts["boots"]},
             "running_vision_since": (None if sim.running_since is None
                                      else round(sim.running_since - self.t0, 4)),
             "link_lost": link_lost,
@@ -388,11 +390,7 @@ def sim_summary(sim: SimulatedEyeQ, sessions: list[dict[str, Any]], *, elapsed: 
         "transport_aborts": {}, "e2e_errors": 0, "dasp_counter_gaps": 0, "decode_errors": 0,
         "stale_streams": [], "eyeq_resets": 0, "eyeq_reset_causes": reset_causes(0, 0),
         "transitions": [],
-        "mesp": {"requests": 0, "retries": None, "timeouts": 0, "abandoned": None,
-                 "stale_replies": None},
-        "state": f"0x{sim.main_state:02X}",
-        "versions": {"eyeqSwVersionMajor": sim.sw_version[0],
-                     "eyeqSwVersionMinor": sim.sw_version[1]},
+        "mesp": _mesp(0, 0), "state": f"0x{sim.main_state:02X}", "versions": _versions(sim),
         "boot": {"boots": 0}, "scheduling": scheduling,
     }
     for sess in sessions:
@@ -431,8 +429,7 @@ def replay_port_summary(replay: dict[str, Any], *, address: str, wall: float, cp
         "ack_latency_ms": {"n": 0}, "transport_aborts": {}, "e2e_errors": 0,
         "dasp_counter_gaps": 0, "decode_errors": replay.get("decode_errors", 0),
         "stale_streams": [],
-        "mesp": {"requests": None, "retries": None, "timeouts": None, "abandoned": None,
-                 "stale_replies": None},
+        "mesp": _mesp(None, None),
         "eyeq_resets": replay["reset_line_pulls"],
         "eyeq_reset_causes": reset_causes(replay["reset_line_pulls"], 0), "transitions": [],
         "link_lost": link_lost, "scheduling": scheduling, "replay": replay,

@@ -7,6 +7,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from eyeq_spi.crc import CCITT_FALSE, VARIANTS, crc16, crcmod_uses_c_extension, make_crc
+from eyeq_spi.errors import UsageError
 
 
 def test_check_value_is_0x29b1() -> None:
@@ -31,5 +32,7 @@ def test_every_configurable_variant_meets_its_check_value(name: str) -> None:
 
 
 def test_binascii_engine_refuses_other_variants() -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(UsageError, match="cannot compute CRC-16/KERMIT"):
         make_crc(VARIANTS["CRC-16/KERMIT"], engine="binascii")
+    with pytest.raises(UsageError, match="unknown CRC engine"):
+        make_crc(CCITT_FALSE, engine="zlib")

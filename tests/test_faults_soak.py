@@ -9,6 +9,7 @@ import math
 
 import pytest
 
+from eyeq_spi.errors import UsageError
 from eyeq_spi.faults.channel import KINDS, FaultProfile, FaultyChannel
 from eyeq_spi.faults.soak import EXACT, SoakConfig, SoakReport, run_soak
 from eyeq_spi.link.frame import FrameCodec
@@ -89,7 +90,9 @@ def test_channel_is_seeded_and_its_rates_match_the_profile() -> None:
 
 def test_loss_profile_and_bad_profiles() -> None:
     assert abs(FaultProfile.with_loss(0.05).expected_frame_loss - 0.05) < 0.002
-    with pytest.raises(ValueError):
+    with pytest.raises(UsageError, match="sum to less than 1"):
         FaultProfile(drop=0.5, duplicate=0.5)
-    with pytest.raises(ValueError):
+    with pytest.raises(UsageError, match="below the profile's own"):
         FaultProfile.with_loss(0.01)
+    with pytest.raises(UsageError, match="ber must be in"):
+        FaultProfile(ber=1.0)

@@ -37,5 +37,5 @@ def test_init_request_drops_non_finite_values_and_clamps_into_range() -> None:
 
 def test_an_init_stage_without_a_table() -> None:
     codec = MessageCodec()
-    assert init_seq.has_init_table(0x92, codec.sw, codec.cat)
-    assert not init_seq.has_init_table(0x84, "4.0", codec.cat)
+    assert init_seq.init_table_missing(0x92, codec.sw, codec.cat) is None
+    assert init_seq.init_table_missing(0x84, "4.0", codec.cat)

@@ -519,7 +519,7 @@ def test_light_spot_vertical_angles_follow_the_release(sw: str, up: bool) -> Non
     from eyeq_spi.sim.config import SimConfig
     from eyeq_spi.sim.eyeq import SimulatedEyeQ
 
-    assert SimulatedEyeQ(SimConfig(sw=sw)).scene.config.spot_angles_up is up
+    assert SimulatedEyeQ(SimConfig(sw=sw)).scene.world.config.spot_angles_up is up
     scene = Scene(SceneConfig(seed=3, objects=10, light_spots=8, spot_angles_up=up))
     for _ in run(scene, 1.0):
         pass

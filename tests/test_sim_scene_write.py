@@ -50,7 +50,7 @@ def _write(values: dict[str, Any], name: str, member: str, array: str, keys: tup
     info = child_struct(values, node, member)
     assert info is not None
     elems, en = struct_elements(*info, array)
-    write_table(elems, en, keys, rows, keys)
+    write_table(elems, en, keys, rows)
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])

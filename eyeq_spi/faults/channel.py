@@ -14,6 +14,7 @@ import random
 from collections import Counter
 from dataclasses import dataclass, field
 
+from eyeq_spi.errors import UsageError
 from eyeq_spi.link.frame import FRAME_SIZE, FrameCodec, FrameKind
 
 CRC_COVERED_CONTROL = 6  # L3: an ACK/NAK's CRC covers bytes 0..3; bytes 4..5 are the CRC itself
@@ -34,9 +35,9 @@ class FaultProfile:
     def __post_init__(self) -> None:
         for name in ("ber", "drop", "duplicate", "reorder", "truncate"):
             if not 0.0 <= getattr(self, name) < 1.0:
-                raise ValueError(f"{name} must be in [0, 1)")
+                raise UsageError(f"{name} must be in [0, 1)")
         if self.drop + self.duplicate + self.reorder + self.truncate >= 1.0:
-            raise ValueError("the exclusive fault classes must sum to less than 1")
+            raise UsageError("the exclusive fault classes must sum to less than 1")
 
     @classmethod
     def with_loss(cls, loss: float) -> FaultProfile:
@@ -45,7 +46,7 @@ class FaultProfile:
         ber_frames = 1.0 - (1.0 - 1e-5) ** (FRAME_SIZE * 8)
         drop = loss - 0.01 - ber_frames
         if drop < 0:
-            raise ValueError(f"loss {loss} is below the profile's own {0.01 + ber_frames:.3f}")
+            raise UsageError(f"loss {loss} is below the profile's own {0.01 + ber_frames:.3f}")
         return cls(drop=drop)
 
     @property

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from eyeq_spi.emulator import Emulation, build
+from eyeq_spi.faults.channel import FaultProfile, FaultyChannel
 from eyeq_spi.host.host import HostConfig
 from eyeq_spi.host.machine import HostState
 from eyeq_spi.host.nvm import Nvm, NvmData
@@ -57,19 +58,15 @@ def rig(*, seed: int = 1, sw: str | None = None, scene: Scene | None = None,
 
 def adapters(emu: Emulation) -> tuple[MemoryAdapter, MemoryAdapter]:
     """The host's and the EyeQ's end of the memory pair (their ``mangle`` is the fault hook)."""
-    ends = [a for _, a in emu.runner.nodes]
-    if len(ends) != 2 or not all(isinstance(a, MemoryAdapter) for a in ends):
+    ends = [a for _, a in emu.runner.nodes if isinstance(a, MemoryAdapter)]
+    if len(ends) != 2 or len(emu.runner.nodes) != 2:
         raise TypeError("the emulation does not run over a memory pair")
-    host_end, sim_end = ends
-    assert isinstance(host_end, MemoryAdapter) and isinstance(sim_end, MemoryAdapter)
-    return host_end, sim_end
+    return ends[0], ends[1]
 
 
 def noisy_link(emu: Emulation, ber: float, seed: int = 1) -> None:
     """Flip the bits of every transfer in both directions with probability ``ber`` each (no
     other fault): a bad cable or connector under an otherwise healthy host and EyeQ."""
-    from eyeq_spi.faults.channel import FaultProfile, FaultyChannel
-
     profile = FaultProfile(ber=ber, drop=0.0, duplicate=0.0, reorder=0.0, truncate=0.0)
     host_end, sim_end = adapters(emu)
     host_end.mangle = FaultyChannel(profile, seed * 2)

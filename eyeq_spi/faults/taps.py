@@ -34,10 +34,8 @@ class MessageLedger:
         self.messages_delivered += 1
         self.delivered[message] += 1
         if message not in self.sent:
-            if len(self.corrupted) < 100:
-                self.corrupted.append((self.now, message))
-            else:
-                self.corrupted.append((self.now, b""))
+            # every one counted, the first 100 kept
+            self.corrupted.append((self.now, message if len(self.corrupted) < 100 else b""))
         elif self.delivered[message] > self.sent[message]:
             self.over_delivered += 1
 

@@ -30,21 +30,9 @@ def init_values(stage: int, nvm: NvmData) -> dict[str, float]:
     return {}
 
 
-def has_init_table(stage: int, sw: str, cat: Catalog) -> bool:
-    """Whether release ``sw`` has init message ``stage`` (0x84 exists from SW6, §7.1.3)."""
-    try:
-        init_message(stage, sw, cat)
-    except (SpecError, LocalProtocolError):
-        return False
-    return True
-
-
-def mode_unavailable(mode: str, sw: str, cat: Catalog) -> str | None:
-    """Why ``mode`` (TAC, SPC) cannot be run in release ``sw``: it needs its init message
-    and the release has no table for it (§7.1.1.7). None where it can (or needs none)."""
-    stage = STAGE_OF.get(mode)
-    if stage is None:
-        return None
+def init_table_missing(stage: int, sw: str, cat: Catalog) -> str | None:
+    """Why release ``sw`` has no table for init message ``stage`` (0x84 exists from SW6,
+    §7.1.3; TAC and SPC need theirs, §7.1.1.7); None where it has one."""
     try:
         init_message(stage, sw, cat)
     except (SpecError, LocalProtocolError) as exc:
@@ -52,10 +40,17 @@ def mode_unavailable(mode: str, sw: str, cat: Catalog) -> str | None:
     return None
 
 
+def mode_unavailable(mode: str, sw: str, cat: Catalog) -> str | None:
+    """Why ``mode`` (TAC, SPC) cannot be run in release ``sw``; None where it can (or needs no
+    init message)."""
+    stage = STAGE_OF.get(mode)
+    return None if stage is None else init_table_missing(stage, sw, cat)
+
+
 def stages(sw: str, cat: Catalog, camera_only_aeb: bool) -> list[int]:
     """The init messages of the bring-up in order (§6 flow): 0x84 from NVM where the release
     has its table, 0x78 and 0x79 for a camera-only AEB configuration, then 0x92."""
-    out = [0x84] if has_init_table(0x84, sw, cat) else []
+    out = [] if init_table_missing(0x84, sw, cat) else [0x84]
     if camera_only_aeb:
         out += [0x78, 0x79]
     out.append(0x92)

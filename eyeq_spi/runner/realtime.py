@@ -33,7 +33,6 @@ class RealTimeRunner:
         self.clock = clock
         self.max_wait = max_wait
         self.tap = tap
-        self.start = clock()
         # a GC pass can take as long as the peer's ackTimeout (eyeq_spi/garbage.py): collect
         # only when idle, and never walk what was built before the run
         self.idle_gc = idle_gc

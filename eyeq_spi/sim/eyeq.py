@@ -183,7 +183,7 @@ class SimulatedEyeQ:
         self.codec.mesp.warm_up()
         self._templates.clear()
         self.counters.sent.clear()
-        self.scene.unanchor()  # the first real step anchors the scene in time again
+        self.scene.world.unanchor()  # the first real step anchors the scene in time again
 
     # -- power ------------------------------------------------------------------------------
     def power_up(self, now: float) -> None:
@@ -443,7 +443,7 @@ class SimulatedEyeQ:
             # the streams (re)start: the scene resumes where it stood (catching up the whole
             # pause in one step held the loop past the host's 10 ms ackTimeout), and the
             # messages are staggered over one period (none waits past transmitTimeout)
-            self.scene.unanchor()
+            self.scene.world.unanchor()
             for index, msg in enumerate(msgs):
                 self._next_dasp[msg.name] = now + index * period / max(1, len(msgs))
         # the messages due now, in catalogue order (a message not yet scheduled is due now)
@@ -491,10 +491,7 @@ class SimulatedEyeQ:
             values["timestamp_ms"] = int(now * 1000) & 0xFFFFFFFF
         if name == "EYEQ_BASE_DIAG_STATUS_MSG":
             counters = self.counters
-            values.update({"apiVersionMajor": self.api_version[0],
-                           "apiVersionMinor": self.api_version[1],
-                           "eyeqSwVersionMajor": self.sw_version[0],
-                           "eyeqSwVersionMinor": self.sw_version[1],
+            values.update({**self._versions(),
                            "SPI_Rolling_Count_Echo": counters.rolling_count_echo & 0xFFFF,
                            "eyeqSPIMsgTxCtr": counters.msg_tx & 0xFFFF,
                            "eyeqSPIMsgRxBadHdrCtr": counters.bad_hdr & 0xFF,
@@ -515,11 +512,14 @@ class SimulatedEyeQ:
     def _get_state(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         return 0, {"mainState": self.main_state, "subState": self.sub_state}
 
+    def _versions(self) -> dict[str, int]:
+        """The release as Get EyeQ Versions and EYEQ_BASE_DIAG_STATUS_MSG report it."""
+        return {"apiVersionMajor": self.api_version[0], "apiVersionMinor": self.api_version[1],
+                "eyeqSwVersionMajor": self.sw_version[0],
+                "eyeqSwVersionMinor": self.sw_version[1]}
+
     def _get_versions(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-        return 0, {"apiVersionMajor": self.api_version[0],
-                   "apiVersionMinor": self.api_version[1],
-                   "eyeqSwVersionMajor": self.sw_version[0],
-                   "eyeqSwVersionMinor": self.sw_version[1]}
+        return 0, self._versions()
 
     def _switch_app(self, params: dict[str, Any]) -> tuple[int, dict[str, Any]]:
         app = params["applicationId"]

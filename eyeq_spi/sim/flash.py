@@ -28,7 +28,6 @@ region of the map (on a 128 MB flash, the 52 deg one)."""
 
 from __future__ import annotations
 
-import bisect
 import hashlib
 import zlib
 from collections.abc import Iterator
@@ -72,8 +71,6 @@ class FlashRegion:
     name: str
     start: int
     size: int
-    description: str = ""
-    seed_line: int | None = None
 
     @property
     def end(self) -> int:
@@ -100,8 +97,7 @@ def flash_sizes_mb() -> tuple[int, ...]:
 @cache
 def flash_regions(size_mb: int) -> tuple[FlashRegion, ...]:
     """APPENDIX F for one flash size, sorted by address and checked to tile inside the flash."""
-    regions = sorted((FlashRegion(str(r["name"]), int(r["start"]), int(r["size"]),
-                                  str(r.get("description", "")), r.get("seed_line"))
+    regions = sorted((FlashRegion(str(r["name"]), int(r["start"]), int(r["size"]))
                       for r in _flash_map().get("regions", ())
                       if int(r.get("flash_mb", 0)) == size_mb), key=lambda r: r.start)
     total = size_mb * MIB
@@ -142,12 +138,8 @@ class FlashImage:
         self.size = size_mb * MIB
         self.seed = seed
         self.regions: list[FlashRegion] = list(flash_regions(size_mb))
-        # sorted, non-overlapping, non-adjacent (start, content) extents
-        self._starts: list[int] = []
-        self._data: list[bytes] = []
-        for region in self.regions:
-            self._starts.append(region.start)
-            self._data.append(_content(seed, region))
+        # one (start, content) extent per region, in address order
+        self._extents = [(region.start, _content(seed, region)) for region in self.regions]
 
     # -- lookup ------------------------------------------------------------------------------
     def region(self, name: str) -> FlashRegion:
@@ -160,7 +152,7 @@ class FlashImage:
     @property
     def extents(self) -> list[tuple[int, int]]:
         """``(start, length)`` of every populated extent, in address order."""
-        return [(s, len(d)) for s, d in zip(self._starts, self._data, strict=True)]
+        return [(start, len(data)) for start, data in self._extents]
 
     def _check_range(self, start: int, size: int, what: str) -> None:
         if start < 0 or size < 0 or start + size > self.size:
@@ -171,24 +163,20 @@ class FlashImage:
 
     def _segments(self, start: int, end: int) -> Iterator[bytes | memoryview]:
         """The bytes of ``[start, end)`` as a stream of extent slices and erased blocks."""
-        extent = max(0, bisect.bisect_right(self._starts, start) - 1)
         pos = start
-        while pos < end:
-            if extent < len(self._starts) and self._starts[extent] + len(self._data[extent]) <= pos:
-                extent += 1  # extent wholly before pos
+        for ext_start, data in [*self._extents, (end, b"")]:
+            ext_end = min(end, ext_start + len(data))
+            if ext_end <= pos:
                 continue
-            if extent < len(self._starts) and self._starts[extent] <= pos:
-                ext_start, data = self._starts[extent], self._data[extent]
-                stop = min(end, ext_start + len(data))
-                yield memoryview(data)[pos - ext_start : stop - ext_start]
-                pos = stop
-                extent += 1
-                continue
-            gap_end = min(end, self._starts[extent]) if extent < len(self._starts) else end
-            while pos < gap_end:
-                size = min(MIB, gap_end - pos)
+            while pos < min(ext_start, end):  # the erased gap before the extent
+                size = min(MIB, ext_start - pos, end - pos)
                 yield _ERASED_BLOCK if size == MIB else memoryview(_ERASED_BLOCK)[:size]
                 pos += size
+            if pos < ext_end:
+                yield memoryview(data)[pos - ext_start:ext_end - ext_start]
+                pos = ext_end
+            if pos >= end:
+                return
 
     # -- access ------------------------------------------------------------------------------
     def read(self, start: int, size: int) -> bytes:

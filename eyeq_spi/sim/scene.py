@@ -45,6 +45,7 @@ from eyeq_spi.sim.scene_layout import (
     frame_index,
     lane_codes,
     layout_node_for,
+    member_at,
     motion_tables,
     obj_plan,
     struct_elements,
@@ -66,7 +67,6 @@ class Scene:
 
     def __init__(self, config: SceneConfig | None = None) -> None:
         self.world = SceneWorld(config)
-        self.config = self.world.config
         self._cls_code = np.array(
             [enum_code("object_classification", c[0], CLASS_DEFAULT[c[0]]) for c in CLASSES])
         self._cols: tuple[FArr, IArr, IArr] | None = None
@@ -79,10 +79,6 @@ class Scene:
         if self.world.step(t, ego_speed, yaw_rate):
             self._cols = None
             self._columns()
-
-    def unanchor(self) -> None:
-        """The next step anchors the scene in time again (after a warm-up)."""
-        self.world.unanchor()
 
     def _columns(self) -> tuple[FArr, IArr, IArr]:
         """Rows of :data:`_OBJ_F` / :data:`_OBJ_I` for the live objects in id order, and their
@@ -250,25 +246,18 @@ class Scene:
         if isinstance(objs[0], StructView) and write_objects_packed(objs, plan, fa, ia, count):
             return
         fl, il = fa.tolist(), ia.tolist()
-        for path, items in plan.groups:
-            probe: Any = objs[0]
-            for step in path:
-                ok = (isinstance(probe, dict) and step in probe) or (
-                    isinstance(probe, list) and isinstance(step, int) and step < len(probe))
-                probe = probe[step] if ok else None
-            if not isinstance(probe, dict):
-                continue
-            cols = [(key, (fl if real else il)[row]) for key, real, row in items if key in probe]
-            zeros = {key: 0.0 if real else 0 for key, real, _ in items if key in probe}
-            for index, obj in enumerate(objs):
-                target: Any = obj
-                for step in path:
-                    target = target[step]
-                if index < count:
-                    for key, col in cols:
-                        target[key] = col[index]
-                else:  # no object: id 0 marks the slot invalid (§13.2.2)
-                    target.update(zeros)
+        for index, obj in enumerate(objs):
+            for path, items in plan.groups:
+                target = member_at(obj, path)
+                if not isinstance(target, dict):
+                    continue
+                for key, real, row in items:
+                    if key not in target:
+                        continue
+                    if index < count:
+                        target[key] = (fl if real else il)[row][index]
+                    else:  # no object: id 0 marks the slot invalid (§13.2.2)
+                        target[key] = 0.0 if real else 0
 
     def _poly_values(self, offset: float, end: float) -> dict[str, float]:
         c0, c1, c2, c3 = self.world.poly
@@ -391,7 +380,7 @@ class Scene:
                 min(1.0, 0.6 + 0.4 * (1.0 - s / 100.0) + bias[index]), 0.0, 0.0,
                 0.95 if lat[index] < 0.0 else 0.85, v + half, u - half, u + half, v - half,
                 typ[index], 0, 0, sid[index], decision, filt))
-        write_table(elems, en, SIGN_KEYS, rows, SIGN_KEYS)
+        write_table(elems, en, SIGN_KEYS, rows)
         put_values(*tsr, {"numberTrafficSigns": len(rows)})
         puts_once(*tsr, "tsr",
                   lambda: {"currentMarket": enum_code("tsr_current_market", "EUROPE", 1)})
@@ -407,7 +396,7 @@ class Scene:
         world = self.world
         lit = (world.alive & (world.kind <= CYCLIST) & (world.s > 3.0)).nonzero()[0]
         lit = lit[world.s[lit].argsort(kind="stable")][:min(world.n_spots, count)]
-        vsign = -1.0 if self.config.spot_angles_up else 1.0  # top, bottom: below-positive
+        vsign = -1.0 if world.config.spot_angles_up else 1.0  # top, bottom: below-positive
         # the arrays as Python numbers first (the same values float() of an element gives)
         rows: list[tuple[float, ...]] = []
         s_l, w_l, cls_l, kind_l, oid_l = (a[lit].tolist() for a in (
@@ -456,10 +445,10 @@ class Scene:
         ld, ln = info
         spots, sn = struct_elements(ld, ln, "activeLightSpots")
         rows, oncoming_seen = self._spot_rows(len(spots))
-        write_table(spots, sn, SPOT_KEYS, rows, SPOT_KEYS)
+        write_table(spots, sn, SPOT_KEYS, rows)
         signs, gn = struct_elements(ld, ln, "reflectiveSigns")
         refl = self._reflect_rows(len(signs))
-        write_table(signs, gn, REFLECT_KEYS, refl, REFLECT_KEYS)
+        write_table(signs, gn, REFLECT_KEYS, refl)
         lit = len(rows) > 0
         put_values(ld, ln, {
             "numOfActiveLightSpots": len(rows), "numOfReflectiveSigns": len(refl),
@@ -503,7 +492,7 @@ class Scene:
             pos = [s_e + 5.0 + 3.0 * k for k in range(len(elems))]
             write_table(elems, en, ("height", "conf"), [
                 (0.8 * sin(two_pi * p / 37.0 + phase) + 0.4 * sin(two_pi * p / 11.3 + 2 * phase),
-                 15 - k) for k, p in enumerate(pos)], ("height", "conf"))
+                 15 - k) for k, p in enumerate(pos)])
         put_values(*srp, {"vehicleVelocity": world.v, "frameValid": 1})
 
     def _fill_timesync(self, values: dict[str, Any], node: LayoutNode, now: float) -> None:

@@ -74,10 +74,6 @@ class LayoutLeaf:
             return float(min(max(value, self.lo), self.hi))
         return int(min(max(round(value), self.lo), self.hi))
 
-    @property
-    def zero(self) -> float | int:
-        return 0.0 if self.real else 0
-
 
 @dataclass(eq=False)  # a node is itself (hashable by identity): range trees live for the process
 class LayoutNode:
@@ -198,6 +194,16 @@ def struct_elements(target: dict[str, Any], node: LayoutNode, key: str
     if isinstance(sub, LayoutNode) and isinstance(value, list):
         return [cast("dict[str, Any]", x) for x in value if isinstance(x, dict | StructView)], sub
     return [], LayoutNode({})
+
+
+def member_at(target: Any, path: tuple[str | int, ...]) -> Any:
+    """The member at ``path`` (struct member names, array indices) inside a value dict or a
+    packer's view, or None where the layout has no such member."""
+    for step in path:
+        ok = (isinstance(target, dict | StructView) and step in target) or (
+            isinstance(target, list) and isinstance(step, int) and step < len(target))
+        target = target[step] if ok else None
+    return target
 
 
 @cache

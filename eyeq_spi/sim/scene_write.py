@@ -13,7 +13,7 @@ import numpy as np
 
 from eyeq_spi.errors import LocalProtocolError
 from eyeq_spi.sim.dasp_fast import BITS, NP_FMT, SCALAR, StructView
-from eyeq_spi.sim.scene_layout import FArr, IArr, LayoutLeaf, LayoutNode, ObjectPlan
+from eyeq_spi.sim.scene_layout import FArr, IArr, LayoutLeaf, LayoutNode, ObjectPlan, member_at
 
 
 def _put(target: dict[str, Any], node: LayoutNode, key: str, value: float) -> None:
@@ -28,54 +28,45 @@ def put_values(target: dict[str, Any], node: LayoutNode, vals: dict[str, float])
 
 
 def puts_once(target: dict[str, Any], node: LayoutNode, key: str,
-               make: Callable[[], dict[str, float]]) -> None:
+              make: Callable[[], dict[str, float]]) -> None:
     """:func:`put_values` of values that never change: a packer's view keeps its bytes from
     frame to frame, so they are written once after each reset; a dict gets them every time."""
-    if isinstance(target, StructView):
-        done_key = (id(node), key)
-        if done_key in target.done:
-            return
-        put_values(target, node, make())
-        target.done.add(done_key)
+    done = target.done if isinstance(target, StructView) else None
+    if done is not None and (id(node), key) in done:
         return
     put_values(target, node, make())
+    if done is not None:
+        done.add((id(node), key))
 
 
-def _write_rows(elems: list[dict[str, Any]], node: LayoutNode, rows: list[dict[str, float]],
-                keys: tuple[str, ...]) -> None:
-    """Rows into the first elements of an array of structs; ``keys`` of the rest zeroed."""
+def write_table(elems: list[dict[str, Any]], node: LayoutNode, keys: tuple[str, ...],
+                rows: list[tuple[float, ...]]) -> None:
+    """Rows, tuples in the order of ``keys``, into the first elements of an array of structs;
+    ``keys`` of the rest zeroed. Into a packer's views by a generated writer
+    (:func:`_compile_rows`)."""
+    if elems and isinstance(elems[0], StructView):
+        cache, cache_key = elems[0].cache, ("table", node, keys, len(elems))
+        if cache_key not in cache:
+            cache[cache_key] = _compile_rows(elems, node, keys)
+        if cache[cache_key] is not None:
+            cache[cache_key](elems[0].buf, rows[:len(elems)])
+            return
     for index, elem in enumerate(elems):
         if index < len(rows):
-            put_values(elem, node, rows[index])
+            put_values(elem, node, dict(zip(keys, rows[index], strict=True)))
             continue
         for key in keys:
             leaf = node.members.get(key)
             if isinstance(leaf, LayoutLeaf) and key in elem:
-                elem[key] = leaf.zero
+                elem[key] = 0.0 if leaf.real else 0
 
 
-def write_table(elems: list[dict[str, Any]], node: LayoutNode, rkeys: tuple[str, ...],
-                 rows: list[tuple[float, ...]] | FArr, keys: tuple[str, ...]) -> None:
-    """:func:`_write_rows` of rows given as tuples in the order of ``rkeys`` (or a float64
-    matrix of such rows): into a packer's views by a generated writer (:func:`_compile_rows`);
-    otherwise the rows become dicts."""
-    if isinstance(rows, np.ndarray):
-        rows = rows.tolist()
-    if elems and isinstance(elems[0], StructView):
-        cache, key = elems[0].cache, ("table", node, rkeys, keys, len(elems))
-        if key not in cache:
-            cache[key] = _compile_rows(elems, node, rkeys, keys)
-        if cache[key] is not None:
-            cache[key](elems[0].buf, rows[:len(elems)])
-            return
-    _write_rows(elems, node, [dict(zip(rkeys, row, strict=True)) for row in rows], keys)
-
-
-def _compile_rows(elems: list[StructView], node: LayoutNode, rkeys: tuple[str, ...],
-                  keys: tuple[str, ...]) -> Callable[[bytearray, Any], None] | None:
+def _compile_rows(elems: list[StructView], node: LayoutNode, keys: tuple[str, ...]
+                  ) -> Callable[[bytearray, Any], None] | None:
     """:func:`write_table` into a packer's views: a generated writer that clamps each value as
     :meth:`LayoutLeaf.clamp` does, packs rows with one ``pack_into`` per run of adjacent members
-    and zeroes ``keys`` past the rows; None (the loop runs) when the layout does not allow it."""
+    and zeroes the members past the rows; None (the loop runs) when the layout does not allow
+    it."""
     first = elems[0]
     count = len(elems)
     stride = elems[1].base - first.base if count > 1 else first.layout.size
@@ -84,7 +75,7 @@ def _compile_rows(elems: list[StructView], node: LayoutNode, rkeys: tuple[str, .
     put: list[tuple[int, str, str]] = []  # (offset, struct code, clamped expression)
     zero: list[tuple[int, int]] = []  # (offset, size) of the members zeroed past the rows
     env: dict[str, Any] = {"LocalProtocolError": LocalProtocolError, "StructError": struct.error}
-    for column, key in enumerate(rkeys + keys):
+    for column, key in enumerate(keys):
         leaf = node.members.get(key)
         if not isinstance(leaf, LayoutLeaf) or key not in first:
             continue
@@ -94,9 +85,7 @@ def _compile_rows(elems: list[StructView], node: LayoutNode, rkeys: tuple[str, .
         if (not leaf.real and not slot.real
                 and not slot.wire[0] <= leaf.lo <= leaf.hi <= slot.wire[1]):
             return None
-        if column >= len(rkeys):
-            zero.append((slot.offset, slot.st.size))
-            continue
+        zero.append((slot.offset, slot.st.size))
         put.append((slot.offset, slot.st.format[1:],
                     f"float(min(max(r[{column}], L{column}), H{column}))" if leaf.real
                     else f"int(min(max(round(r[{column}]), L{column}), H{column}))"))
@@ -222,11 +211,7 @@ def _object_slots(first: StructView, plan: ObjectPlan
     bits: _Bits = {}
     check: list[tuple[int, float, float]] = []
     for path, items in plan.groups:
-        probe: Any = first
-        for step in path:
-            ok = (isinstance(probe, StructView) and isinstance(step, str) and step in probe) or (
-                isinstance(probe, list) and isinstance(step, int) and step < len(probe))
-            probe = probe[step] if ok else None
+        probe = member_at(first, path)
         if not isinstance(probe, StructView):
             continue
         for key, real, row in items:
