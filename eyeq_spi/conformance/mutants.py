@@ -15,6 +15,8 @@ from eyeq_spi.host.events import diag_event
 from eyeq_spi.host.host import HostConfig, HostEmulator
 from eyeq_spi.host.machine import HostEvent, HostState
 from eyeq_spi.host.nvm import Nvm
+from eyeq_spi.host.scenario import Scenario
+from eyeq_spi.host.vehicle_state import NAME, VehicleStateSender
 from eyeq_spi.link.events import Resynchronised
 from eyeq_spi.link.frame import DATA_SIZE, FrameCodec, FrameKind, NakReason
 from eyeq_spi.mesp.replies import MespReply, MespResult
@@ -337,18 +339,20 @@ class VersionsEveryBringUp(HostEmulator):
         super().entry_start_vehicle_state(now)
 
 
+class _WrongCrcSender(VehicleStateSender):
+    """HOST_VEH_STATE_MSG with one bit of its first E2E CRC flipped."""
+
+    def encode(self, scenario: Scenario, now: float) -> bytes:
+        wire = bytearray(super().encode(scenario, now))
+        lay = self.codec.layout(self.codec.message(NAME))
+        wire[4 + lay.crc_plan[0].crc_offset] ^= 0x01  # after the 4-byte DASP header
+        return bytes(wire)
+
+
 class HostE2eWrong(HostEmulator):
     def __init__(self, *args: Any, **kw: Any) -> None:
         super().__init__(*args, **kw)
-        send = self.conn.send
-        lay = self.codec.layout(self.codec.message("HOST_VEH_STATE_MSG"))
-        offset = 4 + lay.crc_plan[0].crc_offset
-
-        def wrapped(message: bytes, now: float) -> int:
-            if message[:2] == b"\x65\x20":
-                message = message[:offset] + bytes((message[offset] ^ 0x01,)) + message[offset + 1:]
-            return send(message, now)
-        self.conn.send = wrapped  # type: ignore[method-assign]
+        self.veh_state = _WrongCrcSender(self.codec, self.config)
 
 
 @dataclass(frozen=True)
