@@ -34,3 +34,25 @@ def test_no_function_is_over_80_lines() -> None:
                 if lines > FUNCTION_LIMIT:
                     long[f"{rel}:{node.lineno} {node.name}"] = lines
     assert long == {}, f"split these functions by job (limit {FUNCTION_LIMIT} lines): {long}"
+
+
+SPEED_ONLY_LIMIT = 2_000
+
+
+def test_speed_only_code_stays_in_its_leaves_and_within_its_budget() -> None:
+    """Fast code lives only in the leaves ``eyeq_spi/twins.py`` lists (``*_fast*.py``), and all
+    of it together is at most 2,000 lines: a leaf stays only while a floor of
+    docs/performance.md needs it, so speed never grows into a second core."""
+    from eyeq_spi.twins import FAMILIES
+
+    leaves = {p.relative_to(PACKAGE.parent).as_posix(): len(p.read_text("utf-8").splitlines())
+              for p in sorted(PACKAGE.rglob("*_fast*.py"))}
+    listed = {fast.replace(".", "/") + ".py" for _, fast in FAMILIES.values() if "/" not in fast
+              and fast.startswith("eyeq_spi.")}
+    assert listed <= set(leaves), f"a family's fast twin is missing: {listed - set(leaves)}"
+    packages = {name.rsplit("/", 1)[0] for name in listed}  # a family's leaves share its package
+    strays = [name for name in leaves if name.rsplit("/", 1)[0] not in packages]
+    assert strays == [], f"fast modules outside the families of eyeq_spi/twins.py: {strays}"
+    total = sum(leaves.values())
+    assert total <= SPEED_ONLY_LIMIT, f"speed-only code {total} lines (budget "\
+        f"{SPEED_ONLY_LIMIT}): {leaves}"

@@ -35,7 +35,7 @@ def crc_label(layout: Layout, plan: CrcPlan) -> str:
     return f"{layout.name}.{plan.path}" if plan.path else layout.name
 
 
-def plan_crc(buf: bytes | bytearray, plan: CrcPlan, base: int = 0) -> int:
+def plan_crc(buf: bytes | bytearray | memoryview, plan: CrcPlan, base: int = 0) -> int:
     """The CRC of ``plan`` over ``buf`` (the struct at ``base``): ``crc16`` is ``crc_hqx``
     seeded 0xFFFF (D5), chained over the covered ranges, so no bytes are joined."""
     crc = 0xFFFF

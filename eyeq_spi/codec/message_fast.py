@@ -10,19 +10,19 @@ dissector's enum checks. ``verify`` and ``enum_errors`` give, row by row, the sa
 
 from __future__ import annotations
 
-import binascii
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from eyeq_spi.codec.e2e import E2EState, counter_key, crc_label
+from eyeq_spi.codec.e2e import E2EState, counter_key, crc_label, plan_crc
 from eyeq_spi.crc import crc16
 
 if TYPE_CHECKING:
     from eyeq_spi.catalog.messages import Catalog
-    from eyeq_spi.codec.layout import Layout
+    from eyeq_spi.codec.layout import CrcPlan, Layout
 
 NP_TYPE = {"uint8": "u1", "uint16": "<u2", "uint32": "<u4", "uint64": "<u8", "int8": "i1",
            "int16": "<i2", "int32": "<i4", "int64": "<i8", "real32": "<f4", "real64": "<f8",
@@ -81,9 +81,8 @@ class _Plan:
     """An E2E check of the layout as byte offsets (gathered for all rows at once)."""
 
     index: int
-    crc_offset: int
+    source: CrcPlan
     idx: np.ndarray  # covered byte offsets, in order
-    counter: tuple[int, int] | None  # (offset, size)
     key: tuple[str, str]
     crc_text: str
     jump_text: str
@@ -163,14 +162,10 @@ class VecLayout:
         self.leaves: list[_Leaf] = []
         self.enums: list[_EnumLeaf] = []
         self._walk(lay, cat, "", 0, names, formats, offsets, True)
-        self._enum_groups: list[tuple[np.ndarray, int, int, int, np.ndarray, list[int]]] | None \
-            = None
         self.dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
                                "itemsize": lay.size})
         self.plans = [
-            _Plan(i, p.crc_offset, np.array([o + k for o, s in p.ranges for k in range(s)],
-                                            np.intp),
-                  None if p.counter_offset is None else (p.counter_offset, p.counter_size),
+            _Plan(i, p, np.array([o + k for o, s in p.ranges for k in range(s)], np.intp),
                   counter_key(lay, p), f"E2E CRC mismatch in {crc_label(lay, p)}: {p.field}=0x",
                   f"E2E counter jump in {crc_label(lay, p)}: expected ")
             for i, p in enumerate(lay.crc_plan)
@@ -244,15 +239,16 @@ class VecLayout:
         want = np.zeros((row_count, plan_count), np.uint16)
         by_len: dict[int, list[_Plan]] = {}
         for plan in self.plans:
-            got[:, plan.index] = payloads[:, plan.crc_offset].astype(np.uint16) | (
-                payloads[:, plan.crc_offset + 1].astype(np.uint16) << 8)
+            crc_at = plan.source.crc_offset
+            got[:, plan.index] = payloads[:, crc_at].astype(np.uint16) | (
+                payloads[:, crc_at + 1].astype(np.uint16) << 8)
             by_len.setdefault(len(plan.idx), []).append(plan)
         for length, plans in by_len.items():
             rows = row_count * len(plans)
             # numpy: ~length/2 steps of fixed cost; crc_hqx: a call per row and range in C
             if length // 2 * 1.5 > rows * (0.3 + length / 1500):
                 for plan in plans:
-                    want[:, plan.index] = _crc_loop(payloads, plan.idx)
+                    want[:, plan.index] = _crc_loop(payloads, plan.source)
                 continue
             idx = np.stack([plan.idx for plan in plans])  # (P, L)
             gathered = payloads[:, idx].reshape(rows, length)
@@ -274,9 +270,9 @@ class VecLayout:
         if state is not None:
             state.crc_errors += int((~ok).sum())
             for plan in self.plans:
-                if plan.counter is None:
+                offset, size = plan.source.counter_offset, plan.source.counter_size
+                if offset is None:
                     continue
-                offset, size = plan.counter
                 counters = np.zeros(row_count, np.int64)
                 for byte in range(size):
                     counters |= payloads[:, offset + byte].astype(np.int64) << (8 * byte)
@@ -305,30 +301,25 @@ class VecLayout:
         return errs
 
     # -- enums -----------------------------------------------------------------------------
-    def _groups(self, payload_size: int
-                ) -> list[tuple[np.ndarray, int, int, int, np.ndarray, list[int]]]:
+    @functools.cached_property
+    def enum_groups(self) -> list[tuple[np.ndarray, int, int, int, np.ndarray, list[int]]]:
         """The table-checked enum leaves grouped by (table, field width, shift, mask): per group
         the byte offsets of its fields, so that one gather reads all of them (the 15
         ``visObs[i]`` members of one enum are one group); the other leaves one by one."""
-        if self._enum_groups is None:
-            groups: dict[tuple[str, int, int, int], list[int]] = {}  # the table is the enum's
-            fields = self.dtype.fields  # read once: a mapping proxy per access
-            assert fields is not None
-            for index, check in enumerate(self.enums):
-                if check.table is None:
-                    continue
-                dt = fields[check.leaf.field][0]
-                mask = (check.leaf.mask if check.leaf.mask is not None
-                        else (1 << 8 * dt.itemsize) - 1)
-                groups.setdefault((check.enum, dt.itemsize, check.leaf.shift, mask),
-                                  []).append(index)
-            out = []
-            for (_, width, shift, mask), members in groups.items():
-                offs = np.array([fields[self.enums[i].leaf.field][1] for i in members],
-                                np.intp)
-                out.append((offs, width, shift, mask, self.enums[members[0]].table, members))
-            self._enum_groups = out  # type: ignore[assignment]
-        return self._enum_groups  # type: ignore[return-value]
+        groups: dict[tuple[str, int, int, int], list[int]] = {}  # the table is the enum's
+        fields = self.dtype.fields  # read once: a mapping proxy per access
+        assert fields is not None
+        for index, check in enumerate(self.enums):
+            if check.table is None:
+                continue
+            dt = fields[check.leaf.field][0]
+            mask = check.leaf.mask if check.leaf.mask is not None else (1 << 8 * dt.itemsize) - 1
+            groups.setdefault((check.enum, dt.itemsize, check.leaf.shift, mask), []).append(index)
+        out = []
+        for (_, width, shift, mask), members in groups.items():
+            offs = np.array([fields[self.enums[i].leaf.field][1] for i in members], np.intp)
+            out.append((offs, width, shift, mask, self.enums[members[0]].table, members))
+        return out  # type: ignore[return-value]
 
     def enum_errors(self, payloads: np.ndarray, name: str, rows: np.ndarray | None = None
                     ) -> dict[int, list[str]]:
@@ -339,7 +330,7 @@ class VecLayout:
             return out
         found: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # enum index -> (bad, values)
         grouped: set[int] = set()
-        for offs, width, shift, mask, table, members in self._groups(payloads.shape[1]):
+        for offs, width, shift, mask, table, members in self.enum_groups:
             grouped.update(members)
             col = payloads[:, offs]
             if width > 1:  # little-endian fields of ``width`` bytes
@@ -378,27 +369,12 @@ class VecLayout:
         return out
 
 
-def _crc_loop(payloads: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """``crc16`` of the bytes ``idx`` of every row through ``binascii.crc_hqx`` (in C), chaining
-    over the contiguous runs of ``idx``."""
-    runs: list[tuple[int, int]] = []
-    for offset in idx.tolist():
-        if runs and runs[-1][1] == offset:
-            runs[-1] = (runs[-1][0], offset + 1)
-        else:
-            runs.append((offset, offset + 1))
-    init = crc16(b"")
-    crc_hqx = binascii.crc_hqx
+def _crc_loop(payloads: np.ndarray, plan: CrcPlan) -> np.ndarray:
+    """``crc16`` of ``plan`` in every row, by :func:`~eyeq_spi.codec.e2e.plan_crc` (in C)."""
     width = payloads.shape[1]
     buf = memoryview(np.ascontiguousarray(payloads).tobytes())
-    out = np.empty(len(payloads), np.uint16)
-    for row in range(len(payloads)):
-        base = row * width
-        crc = init
-        for start, end in runs:
-            crc = crc_hqx(buf[base + start : base + end], crc)
-        out[row] = crc
-    return out
+    return np.array([plan_crc(buf, plan, row * width) for row in range(len(payloads))],
+                    np.uint16)
 
 
 _CACHE: dict[int, tuple[Layout, VecLayout]] = {}
