@@ -256,17 +256,12 @@ class HostAckPad(_HostLinkOutput):
 
 
 class HostNoRenumber(HostEmulator):
-    def __init__(self, *args: Any, **kw: Any) -> None:
-        super().__init__(*args, **kw)
-        link = self.conn.link
-        restart = link.restart
-
-        def keep_numbering() -> None:
+    def _restart_link(self, now: float, after: int | None = None) -> None:
+        if after is None:  # L10 not followed: the transmitter keeps its numbering
+            link = self.conn.link
             num = link.next_num
-            restart()
+            self.conn.restart()
             link.reset(tx_num=num, expected=link.expected_num)
-        link.restart = keep_numbering  # type: ignore[method-assign]
-        link.restart_after = lambda tag, now, expect_for=1.0: None  # type: ignore[method-assign]
 
     def _restart_driver(self) -> None:
         num = self.conn.link.next_num

@@ -304,8 +304,16 @@ class HostEmulator:
                 # L10: the EyeQ that takes it starts over, and so does our link to it: our
                 # frames after it are numbered from 0, its first frame after (NUM 0, RSP 0)
                 # restarts our receiver
-                self.conn.link.restart_after(sid, now, self.mesp.deadline)
+                self._restart_link(now, after=sid)
                 self._switch_at = now
+
+    def _restart_link(self, now: float, after: int | None = None) -> None:
+        """L10: our link to the EyeQ starts over in both directions, now or, for a Switch EyeQ
+        Application, after the frames of the link tag ``after``."""
+        if after is None:
+            self.conn.restart()
+        else:
+            self.conn.link.restart_after(after, now, self.mesp.deadline)
 
     def _on_state_reply(self, reply: MespReply) -> None:
         now = self.now
@@ -458,7 +466,7 @@ class HostEmulator:
             # a boot status we did not ask for: the EyeQ reset (by itself, or on our soft
             # reset); our link to it starts over in both directions (L10), and no request
             # from before the reset will be answered
-            self.conn.restart()
+            self._restart_link(now)
             self._cancel_requests()
             self.counters.eyeq_resets += 1
             self._fire(HostEvent.EYEQ_RESET, now, "unexpected boot status")
@@ -518,7 +526,7 @@ class HostEmulator:
             self._reset_eyeq(now, bringup=False)
         else:
             self._cancel_requests()
-            self.conn.restart()  # L10: our transmitter numbers from 0 again as well
+            self._restart_link(now)  # L10: our transmitter numbers from 0 again as well
             self._enter_after_app_restart(now)
 
     def _enter_after_app_restart(self, now: float) -> None:
