@@ -7,6 +7,8 @@ import csv
 import json
 import math
 import struct
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -189,6 +191,31 @@ def test_a_truncated_mf4_is_reported(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert main(["can", "decode", str(cut), "--stats"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "truncated" in err[0] and "MF4" in err[0], err
+
+
+
+def test_a_cut_or_damaged_mf4_gets_one_line_and_no_library_noise(tmp_path: Path) -> None:
+    """asammdf prints tracebacks (its logger, a half-built object's __del__) on such files: the
+    user sees only the one error line (a process of its own: asammdf's logger writes to the
+    stderr it found at import)."""
+    pytest.importorskip("asammdf", reason="MF4 logs need asammdf")
+    path = tmp_path / "camera.mf4"
+    camera_can.write(path, seconds=2.0)
+    data = path.read_bytes()
+    cases = [data[:len(data) * tenth // 10] for tenth in range(1, 10)]
+    # a damaged block identifier, a damaged link, a damaged byte of compressed frames
+    for offset in (data.index(b"##CN") + 2, data.index(b"##CG") + 24, data.index(b"##DZ") + 60):
+        cases.append(data[:offset] + bytes([data[offset] ^ 0xFF]) + data[offset + 1:])
+    for number, case in enumerate(cases):
+        (tmp_path / f"bad{number}.mf4").write_bytes(case)
+    script = ("import gc, sys\nfrom eyeq_spi.cli import main\nfor name in sys.argv[1:]:\n"
+              "    print(main(['can', 'decode', name, '--stats']), file=sys.stderr)\n"
+              "    gc.collect()\n")
+    names = [str(tmp_path / f"bad{number}.mf4") for number in range(len(cases))]
+    run = subprocess.run([sys.executable, "-c", script, *names], capture_output=True,
+                         text=True, timeout=120, check=False)
+    err = run.stderr.splitlines()
+    assert len(err) == 2 * len(cases) and set(err[1::2]) <= {"1", "2"}, run.stderr
 
 
 # -- invalid values in the tables and the human statistics --------------------------------

@@ -45,6 +45,22 @@ def test_schema_validator_catches_broken_entries(tmp_path: Path) -> None:
     assert any("duplicate name" in p for p in problems)
 
 
+
+def test_a_message_outside_dasp_names_its_rule_a_protocol(tmp_path: Path) -> None:
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump({"other": [
+        {"name": "EYEQ_DIAGNOSTIC_MSG", "data_id": 0x41}]}))
+    assert any("protocol must be DIAG or BOOT" in p for p in validate_tree(tmp_path))
+
+
+def test_rule_a_reads_the_first_byte_ids_from_the_spec() -> None:
+    from eyeq_spi.codec.message import classify
+
+    ids = {msg.protocol: msg.data_id for msg in catalog().messages if msg.protocol != "DASP"}
+    assert ids == {"DIAG": 0x41, "BOOT": 0x10}
+    assert [classify(bytes([ids["DIAG"], 0])), classify(bytes([ids["BOOT"], 0]))] == [
+        "DIAG", "BOOT"]
+
+
 @pytest.mark.skipif(not SEED.exists(), reason="the OCR'd seed texts are not beside the clone")
 def test_every_member_name_occurs_in_the_seed() -> None:
     seed = squash(SEED.read_text(encoding="utf-8"))

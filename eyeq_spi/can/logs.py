@@ -5,17 +5,16 @@ python-can's readers stop quietly at the end of what a file holds: a BLF cut ins
 an ASC, candump or TRC file cut inside a line gives the frames before the cut and no error. So
 after the reader ends, :func:`read_log` checks the file itself: a BLF whose header announces more
 bytes than the file has, a text log whose last line has no line end (or an ASC without its
-``End TriggerBlock``), an MF4 that cannot be opened although it starts like one. It then raises
+``End TriggerBlock``), an MF4 whose blocks or links reach beyond its end. It then raises
 :class:`TruncatedInputError`, which says how much was read; the frames before it have been
 yielded (and decoded) already.
 """
 
 from __future__ import annotations
 
-import gc
+import logging
 import re
 import struct
-import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -42,6 +41,7 @@ _ASC_HEAD = re.compile(rb"(date|base|internal events|begin triggerblock|//|\s*\d
 _CANDUMP_HEAD = re.compile(rb"\(\d")
 _TRC_HEAD = re.compile(rb"(;|\s*\d+\)?\s+\d)")
 _CSV_HEAD = b"timestamp,arbitration_id"
+_MF4_BLOCK = re.compile(rb"##[A-Z]{2}")
 
 
 def _looks_like(head: bytes, suffix: str) -> bool:
@@ -150,15 +150,18 @@ def read_log(path: str) -> Iterator[Any]:
         raise InputError(f"{path}: unknown CAN log format ({what}; one of "
                           f"{', '.join(READ_SUFFIXES)})")
     _check_format(file_path, suffix)
+    if suffix == ".mf4" and file_path.stat().st_size:  # it begins as one (_check_format)
+        # checked before asammdf opens it: asammdf prints a traceback when it fails to
+        why = _mf4_cut(file_path)
+        if why is not None:
+            raise TruncatedInputError(f"{path}: truncated or damaged MF4 "
+                                      f"({file_path.stat().st_size} bytes: {why}); 0 frames read")
+        logging.getLogger("asammdf").setLevel(logging.CRITICAL)  # its errors raise here
     try:
-        reader = _open(can, file_path)
+        reader = can.LogReader(str(file_path))
     except ImportError as exc:
         raise MissingExtra("export", f"{path}: this format needs {exc.name or exc}") from exc
     except Exception as exc:  # python-can raises many kinds on a foreign file
-        if suffix == ".mf4" and file_path.stat().st_size:  # it begins as one (_check_format)
-            raise TruncatedInputError(
-                f"{path}: truncated or damaged MF4 ({file_path.stat().st_size} bytes, which "
-                f"asammdf cannot open: {exc}); 0 frames read") from exc
         raise InputError(f"{path}: not a readable {file_path.suffix} CAN log: {exc}") from exc
     frames = 0
     try:
@@ -182,28 +185,27 @@ def read_log(path: str) -> Iterator[Any]:
         raise TruncatedInputError(why, frames=frames)
 
 
-class _OpenError(Exception):
-    pass
-
-
-def _open(can: Any, path: Path) -> Any:
-    """python-can's reader for ``p``. asammdf leaves a half-built object whose ``__del__``
-    raises when an MF4 cannot be opened: it is collected here, its noise swallowed."""
-    if path.suffix.lower() != ".mf4":
-        return can.LogReader(str(path))
-    hook = sys.unraisablehook
-    sys.unraisablehook = lambda _u: None
-    try:
-        try:
-            return can.LogReader(str(path))
-        except ImportError:
-            raise
-        except Exception as exc:
-            text = f"{type(exc).__name__}: {exc}"
-        raise _OpenError(text)
-    finally:
-        gc.collect()
-        sys.unraisablehook = hook
+def _mf4_cut(path: Path) -> str | None:
+    """Why an MF4 cannot be whole, or None: every block reachable from the header block (at 64)
+    must begin with a ``##XX`` identifier and lie inside the file, as must its links (MDF 4
+    block layout: identifier, 4 reserved bytes, u64 length, u64 link count, the links)."""
+    size = path.stat().st_size
+    todo, seen = [64], set()
+    with path.open("rb") as fh:
+        while todo:
+            at = todo.pop()
+            if at in seen:
+                continue
+            seen.add(at)
+            if at + 24 > size:
+                return f"a block at byte {at} is beyond its end"
+            fh.seek(at)
+            head = fh.read(24)
+            length, links = struct.unpack_from("<QQ", head, 8)
+            if _MF4_BLOCK.match(head) is None or at + length > size or 24 + 8 * links > length:
+                return f"the block at byte {at} is cut or damaged"
+            todo.extend(link for link in struct.unpack(f"<{links}Q", fh.read(8 * links)) if link)
+    return None
 
 
 def open_bus(target: str) -> Any:

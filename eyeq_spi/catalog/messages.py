@@ -372,7 +372,7 @@ def load_catalog(root: Path) -> Catalog:
                                   bool(enum.get("complete", True)))
         for group, protocol in (("dasp", "DASP"), ("other", None)):
             for msg in doc.get(group) or []:
-                proto = protocol or ("DIAG" if msg["data_id"] == 0x41 else "BOOT")
+                proto = protocol or str(msg["protocol"])
                 tol = msg.get("tolerance_ms")
                 messages.append(MessageDef(
                     msg["name"], int(msg["data_id"]), msg.get("direction", "e2h"),

@@ -78,6 +78,9 @@ def validate_tree(root: Path, docs: dict[str, Any] | None = None) -> list[str]:
             continue
         for msg in doc.get("dasp") or []:
             problems += _dasp_problems(rel, msg, structs)
+        for msg in doc.get("other") or []:
+            if not isinstance(msg, dict) or msg.get("protocol") not in ("DIAG", "BOOT"):
+                problems.append(f"{rel}: message {msg!r}: protocol must be DIAG or BOOT")
         for iname, init in (doc.get("init_messages") or {}).items():
             problems += _init_message_problems(f"{rel}: init message {iname}", init)
     from eyeq_spi.catalog.tables import validate_tables  # GPIO, NVM, DASP header, decisions, MESP

@@ -17,10 +17,11 @@ from eyeq_spi.codec.types import DecodedMessage as DecodedMessage  # re-exported
 from eyeq_spi.errors import LocalProtocolError, SpecError
 
 DASP_PROTOCOL = dasp_header().protocol  # §7.1.2: 0x65, specs/dasp_header.yaml
-DIAG_ID = 0x41
-BOOT_ID = 0x10
-# rule A after MESP, by the first byte: DASP before 0x41 before 0x10 (a later key wins)
-_FIRST_BYTE = {BOOT_ID: "BOOT", DIAG_ID: "DIAG", DASP_PROTOCOL: "DASP"}
+# rule A after MESP, by the first byte: DASP, or the data ID of a §7.1.5 message
+# (0x41 DIAG, 0x10 BOOT in specs/messages.yaml)
+_FIRST_BYTE = {msg.data_id: msg.protocol for msg in catalog().messages if msg.protocol != "DASP"}
+_FIRST_BYTE[DASP_PROTOCOL] = "DASP"
+BOOT_ID = next(data_id for data_id, name in _FIRST_BYTE.items() if name == "BOOT")
 
 
 class DaspCounters:
