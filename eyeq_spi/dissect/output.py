@@ -191,8 +191,9 @@ def table_name(record: dict[str, Any]) -> str:
 class TableWriter:
     """One table per message type, flattened field names: CSV files or Parquet files. Every
     message is a row (a table's row count is ``--stats``'s count). A table's columns are those
-    of its first row; a later row with a column it lacks (another release's struct) starts a new
-    part, ``NAME.2.csv``, which pyarrow and DuckDB (``union_by_name``) join."""
+    of its first row (Parquet: of its first row group); a later row with a column it lacks
+    (another release's struct) starts a new part, ``NAME.2.csv``, which pyarrow and DuckDB
+    (``union_by_name``) join."""
 
     def __init__(self, directory: str, fmt: str, batch: int = 2000,
                  column_type: Any = None, *, errors: bool = False, hive: bool = False) -> None:
@@ -240,12 +241,8 @@ class TableWriter:
         if self.fmt == "csv":
             self._csv_part(name, list(row))[1].writerow(row)
         else:
-            if self._tables.get(name):
-                self._flush_tables(name)  # column batches of this table come first
-            rows = self._rows.setdefault(name, [])
-            rows.append(row)
-            if len(rows) >= self.batch:
-                self._flush(name)
+            self._rows.setdefault(name, []).append(row)
+            self._flush(name, self.batch)
 
     def write_columns(self, name: str, columns: dict[str, Any]) -> None:
         """Rows given as columns (numpy arrays or lists, equal lengths, in the order of the
@@ -264,24 +261,37 @@ class TableWriter:
             return
         import pyarrow as pa
 
-        self._flush(name)  # rows of this table written as dicts come first
-        table = pa.table({k: _arrow(pa, v) for k, v in columns.items()})
-        pending = self._tables.setdefault(name, [])
-        pending.append(table)
-        if sum(t.num_rows for t in pending) >= self.batch:
-            self._flush_tables(name)
+        self._table_rows(name)  # rows of this table written as dicts come first
+        self._tables.setdefault(name, []).append(
+            pa.table({k: _arrow(pa, v) for k, v in columns.items()}))
+        self._flush(name, self.batch)
 
-    def _flush_tables(self, name: str) -> None:
-        """Column batches of a table written as one row group (few row groups: each costs
-        per column)."""
+    def _table_rows(self, name: str) -> None:
+        """The rows of ``name`` written as dicts, as one table at the end of its pending ones."""
+        import pyarrow as pa
+
+        rows = self._rows.get(name)
+        if rows:
+            keys = list(dict.fromkeys(k for r in rows for k in r))  # every row's columns, in order
+            self._tables.setdefault(name, []).append(
+                pa.table({k: [r.get(k) for r in rows] for k in keys}))
+            rows.clear()
+
+    def _flush(self, name: str, at_least: int = 1) -> None:
+        """The pending rows of ``name``, dicts and column batches in their order, written as one
+        row group (few row groups: each costs per column) once there are ``at_least``; the
+        columns of the group are those of all its rows, however they came, so the reference and
+        the fast path put the same rows in the same part."""
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        pending = self._tables.get(name)
-        if not pending:
+        pending = self._tables.get(name, [])
+        if len(self._rows.get(name, ())) + sum(t.num_rows for t in pending) < at_least:
             return
+        self._table_rows(name)
+        pending = self._tables[name]
         table = pending[0] if len(pending) == 1 else pa.concat_tables(pending,
-                                                                     promote_options="default")
+                                                                     promote_options="permissive")
         pending.clear()
         self._write_parquet(pq, name, table)
 
@@ -354,26 +364,12 @@ class TableWriter:
             raise OutputError(f"cannot create {where}: {exc}") from exc
         return where / f"part-{part}.{suffix}"
 
-    def _flush(self, name: str) -> None:
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-
-        rows = self._rows.get(name)
-        if not rows:
-            return
-        keys = list(dict.fromkeys(k for r in rows for k in r))  # every row's columns, in order
-        table = pa.table({k: [r.get(k) for r in rows] for k in keys})
-        self._write_parquet(pq, name, table)
-        rows.clear()
-
     def close(self) -> None:
         for parts in self._parts.values():
             for fh, _, _ in parts:
                 fh.close()
-        for name in list(self._rows):
+        for name in dict.fromkeys([*self._tables, *self._rows]):
             self._flush(name)
-        for name in list(self._tables):
-            self._flush_tables(name)
         for writers in self._pq_parts.values():
             for writer in writers:
                 writer.close()
