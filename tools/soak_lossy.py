@@ -18,6 +18,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from eyeq_spi.errors import UsageError
 from eyeq_spi.faults.channel import FaultProfile
 from eyeq_spi.faults.soak import BOUNDED, EXACT, SoakConfig, run_soak
 
@@ -31,7 +32,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--from-start", action="store_true", help="faults from power-up")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    profile = FaultProfile() if args.loss is None else FaultProfile.with_loss(args.loss)
+    try:
+        profile = FaultProfile() if args.loss is None else FaultProfile.with_loss(args.loss)
+    except UsageError as exc:
+        ap.error(str(exc))  # one line, exit 2
     t0 = time.perf_counter()
     r = run_soak(SoakConfig(profile=profile, seed=args.seed, duration=args.duration,
                             faults_from_start=args.from_start))
