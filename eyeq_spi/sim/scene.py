@@ -249,7 +249,7 @@ class Scene:
         for index, obj in enumerate(objs):
             for path, items in plan.groups:
                 target = member_at(obj, path)
-                if not isinstance(target, dict):
+                if not isinstance(target, dict | StructView):  # absent in this release
                     continue
                 for key, real, row in items:
                     if key not in target:
