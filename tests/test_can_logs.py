@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import random
 import threading
-import time
 from typing import Any
 
 import pytest
@@ -19,6 +18,7 @@ from eyeq_spi.can.logs import open_bus, read_bus  # noqa: E402
 from eyeq_spi.cli import main  # noqa: E402
 from tests import camera_can  # noqa: E402
 from tests.test_can_gateway import _vcan  # noqa: E402
+from tests.waiting import wait_until  # noqa: E402
 
 
 def cycle_messages(cycles: int = 3) -> list[Any]:
@@ -56,9 +56,8 @@ def _send_when_listened(channel: str, msgs: list[Any]) -> threading.Thread:
 
     def run() -> None:
         try:
-            deadline = time.monotonic() + 20.0
-            while len(virtual.channels.get(channel, [])) < 2 and time.monotonic() < deadline:
-                time.sleep(0.005)
+            wait_until(lambda: len(virtual.channels.get(channel, [])) >= 2, 20.0,
+                       "the CLI's bus joined the channel")
             for m in msgs:
                 tx.send(m)
         finally:

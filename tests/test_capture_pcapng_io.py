@@ -21,6 +21,7 @@ from eyeq_spi.cli import main
 from eyeq_spi.dissect.pipeline import SMALL_INPUT
 from eyeq_spi.errors import InputError
 from eyeq_spi.io.plain import open_transfers
+from tests.waiting import wait_until
 
 pytestmark = pytest.mark.twin  # runs an exact/fast twin: also run with EYEQ_SPI_EXACT=1
 
@@ -149,9 +150,7 @@ def test_an_idle_writer_flushes_too(tmp_path: Path) -> None:
     try:
         head = path.stat().st_size
         w.write("h2e", 0.0, bytes(128))
-        deadline = time.monotonic() + 20
-        while path.stat().st_size == head and time.monotonic() < deadline:
-            time.sleep(0.01)
+        wait_until(lambda: path.stat().st_size != head, 20, "the idle writer flushed")
         assert path.stat().st_size == head + 160 + 24  # the first packet, with its comment
     finally:
         w.close()
@@ -203,10 +202,8 @@ def test_a_killed_demo_dissects_clean(tmp_path: Path, capsys: pytest.CaptureFixt
                              "--capture", str(path)], env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and (not path.exists() or
-                                               path.stat().st_size < 100_000):
-            time.sleep(0.05)
+        wait_until(lambda: path.exists() and path.stat().st_size >= 100_000, 60,
+                   "100 kB of capture written")
     finally:
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=30)

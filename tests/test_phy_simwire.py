@@ -20,13 +20,13 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from eyeq_spi.catalog.messages import catalog
+from tests.waiting import wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
 SIMWIRE = ROOT / "tests" / "simwire"
@@ -69,19 +69,14 @@ class Wire:
 
     def wait_open(self, device: str, timeout: float = 60) -> None:
         """Until ``device`` is open (a slow machine takes a while to import and warm up)."""
-        deadline = time.monotonic() + timeout
-        while not (self.path / f"{device}.conf").exists():
-            assert time.monotonic() < deadline, f"{device} not opened within {timeout} s"
-            time.sleep(0.05)
+        wait_until((self.path / f"{device}.conf").exists, timeout, f"{device} opened")
 
     def wait_sent(self, device: str, transfers: int, timeout: float = 60) -> None:
         """Until the master ``device`` has sent ``transfers`` transfers (its count is published
         every 100): progress on the wire, which a loaded machine slows as much as the run."""
-        deadline = time.monotonic() + timeout
         sent = self.path / f"{device}.sent"
-        while not (sent.exists() and int(sent.read_text() or 0) >= transfers):
-            assert time.monotonic() < deadline, f"{device} sent < {transfers} in {timeout} s"
-            time.sleep(0.05)
+        wait_until(lambda: sent.exists() and int(sent.read_text() or 0) >= transfers, timeout,
+                   f"{device} sent {transfers} transfers")
 
     def unplug(self, device: str) -> None:
         (self.path / f"{device}.unplugged").touch()

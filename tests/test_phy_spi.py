@@ -20,6 +20,7 @@ from eyeq_spi.phy.address import is_spi
 from eyeq_spi.phy.bench import parse_side
 from eyeq_spi.phy.doctor import Tally, diagnose, frame_pattern, judge, verdict_line
 from eyeq_spi.phy.spi import REVERSED, SpiAdapter, SpiSettings
+from tests.waiting import wait_until
 
 WAIT = 1.0
 
@@ -110,11 +111,8 @@ def test_transfers_the_link_does_not_take_in_time_are_counted_overruns() -> None
         assert side.accept(0)  # the adapter's threads run from its first use
         for n in range(10):
             slave.lines.put(frame(n))
-        deadline = time.monotonic() + WAIT
-        while not slave.lines.empty() and time.monotonic() < deadline:
-            time.sleep(0.005)
-        time.sleep(0.05)
-        assert side.overruns == 6
+        # the reader takes every transfer; the link takes none: 4 queued, 6 overruns
+        wait_until(lambda: side.overruns == 6, WAIT, "6 overruns counted")
         assert side.line_report()["overruns"] == 6
         assert [side.recv(WAIT) for _ in range(4)] == [frame(n) for n in range(4)]
 
@@ -150,9 +148,7 @@ def test_a_peer_heard_and_then_silent_is_gone_once_and_its_next_transfer_is_a_ne
         assert not side.accept(0)
         slave.lines.put(frame(2))
         now[0] = 7.0
-        deadline = time.monotonic() + WAIT
-        while not side.accept(0) and time.monotonic() < deadline:
-            time.sleep(0.005)
+        wait_until(lambda: side.accept(0), WAIT, "the new peer's transfer read")
         assert side.recv(WAIT) == frame(2)
 
 
