@@ -134,6 +134,10 @@ def truncation(path: Path, frames: int) -> str | None:
         why = _text_cut(path, suffix)
         if why is not None:
             return f"{path}: truncated {suffix} log ({why}); {frames} frames read, {size} bytes"
+    elif suffix == ".mf4" and size:
+        why = _mf4_cut(path, size)
+        if why is not None:
+            return f"{path}: truncated or damaged MF4 ({size} bytes: {why}); {frames} frames read"
     return None
 
 
@@ -150,12 +154,11 @@ def read_log(path: str) -> Iterator[Any]:
         raise InputError(f"{path}: unknown CAN log format ({what}; one of "
                           f"{', '.join(READ_SUFFIXES)})")
     _check_format(file_path, suffix)
-    if suffix == ".mf4" and file_path.stat().st_size:  # it begins as one (_check_format)
+    if suffix == ".mf4":  # it begins as one (_check_format)
         # checked before asammdf opens it: asammdf prints a traceback when it fails to
-        why = _mf4_cut(file_path)
+        why = truncation(file_path, 0)
         if why is not None:
-            raise TruncatedInputError(f"{path}: truncated or damaged MF4 "
-                                      f"({file_path.stat().st_size} bytes: {why}); 0 frames read")
+            raise TruncatedInputError(why, frames=0)
         logging.getLogger("asammdf").setLevel(logging.CRITICAL)  # its errors raise here
     try:
         reader = can.LogReader(str(file_path))
@@ -185,11 +188,10 @@ def read_log(path: str) -> Iterator[Any]:
         raise TruncatedInputError(why, frames=frames)
 
 
-def _mf4_cut(path: Path) -> str | None:
+def _mf4_cut(path: Path, size: int) -> str | None:
     """Why an MF4 cannot be whole, or None: every block reachable from the header block (at 64)
     must begin with a ``##XX`` identifier and lie inside the file, as must its links (MDF 4
     block layout: identifier, 4 reserved bytes, u64 length, u64 link count, the links)."""
-    size = path.stat().st_size
     todo, seen = [64], set()
     with path.open("rb") as fh:
         while todo:
